@@ -1,0 +1,36 @@
+# Debian 12 packages and their CMake traps (../shared/NOTES-deps.md). Every dependency is
+# imported as a target here, once, so that the rest of the build only links names.
+find_package(PkgConfig REQUIRED)
+find_package(Threads REQUIRED)
+
+find_package(embree 3 REQUIRED)
+
+find_package(fmt REQUIRED)
+find_package(TBB REQUIRED)
+find_package(tomlplusplus REQUIRED)
+find_package(CLI11 REQUIRED)
+find_package(assimp REQUIRED)
+
+# OpenImageIO's imported target names /usr/include/opencv4, which Debian does not ship;
+# CMake refuses to generate with a missing include directory, so drop that entry.
+find_package(OpenImageIO REQUIRED)
+get_target_property(_oiio_inc OpenImageIO::OpenImageIO INTERFACE_INCLUDE_DIRECTORIES)
+if(_oiio_inc)
+    list(FILTER _oiio_inc EXCLUDE REGEX "opencv4")
+    set_target_properties(OpenImageIO::OpenImageIO PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_oiio_inc}")
+endif()
+
+# OpenColorIO's CMake config computes a wrong prefix on Debian: use pkg-config.
+pkg_check_modules(OCIO REQUIRED IMPORTED_TARGET OpenColorIO)
+
+# OpenSubdiv's config references static libraries Debian does not ship: find it by hand.
+find_library(OSD_CPU_LIBRARY osdCPU REQUIRED)
+find_path(OSD_INCLUDE_DIR opensubdiv/far/topologyRefiner.h REQUIRED)
+add_library(spangle_opensubdiv INTERFACE)
+target_link_libraries(spangle_opensubdiv INTERFACE ${OSD_CPU_LIBRARY})
+target_include_directories(spangle_opensubdiv SYSTEM INTERFACE ${OSD_INCLUDE_DIR})
+
+if(SPANGLE_BUILD_TESTS)
+    find_package(GTest REQUIRED)
+    find_package(benchmark QUIET)
+endif()

@@ -1,0 +1,139 @@
+#include "accel/embree_scene.h"
+
+#include <cstring>
+#include <limits>
+
+#include "core/error.h"
+
+namespace spangle {
+
+namespace {
+
+void on_embree_error(void* user, RTCError code, const char* message) {
+    auto* error = static_cast<std::string*>(user);
+    *error = fmt::format("Embree error {}: {}", static_cast<int>(code), message ? message : "");
+}
+
+/** Adds a triangle geometry with copies of the given vertices and indices to scene. */
+RTCGeometry add_triangles(RTCDevice device, RTCScene scene, const float* xyz, std::size_t vertices,
+                          const uint32_t* indices, std::size_t triangles) {
+    RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    // Embree may read 16 bytes at the last vertex; the buffer it allocates is padded for that.
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0,
+                                                          RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertices));
+    auto* i = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0,
+                                                             RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), triangles));
+    if (v && i) {
+        std::memcpy(v, xyz, vertices * 3 * sizeof(float));
+        std::memcpy(i, indices, triangles * 3 * sizeof(uint32_t));
+    }
+    rtcCommitGeometry(g);
+    rtcAttachGeometry(scene, g);
+    return g;
+}
+
+}  // namespace
+
+EmbreeScene::EmbreeScene() {
+    device_ = rtcNewDevice(nullptr);
+    if (!device_) throw_error("cannot create an Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
+    rtcSetDeviceErrorFunction(device_, on_embree_error, &error_);
+}
+
+EmbreeScene::~EmbreeScene() {
+    if (top_) rtcReleaseScene(top_);
+    for (RTCScene s : blas_) rtcReleaseScene(s);
+    if (device_) rtcReleaseDevice(device_);
+}
+
+void EmbreeScene::check(const char* what) const {
+    if (!error_.empty()) throw_error("{} failed: {}", what, error_);
+}
+
+void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instance>& instances,
+                        const std::vector<Vec3>& quad_vertices) {
+    for (const TriangleMesh& mesh : geometry.meshes) {
+        RTCScene s = rtcNewScene(device_);
+        blas_.push_back(s);
+        RTCGeometry g = add_triangles(device_, s, mesh.positions.data(), mesh.vertex_count(),
+                                      mesh.indices.data(), mesh.triangle_count());
+        rtcReleaseGeometry(g);
+        rtcCommitScene(s);
+        check("building a mesh's acceleration structure");
+    }
+    top_ = rtcNewScene(device_);
+    for (const Instance& inst : instances) {
+        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, blas_[inst.mesh]);
+        float xfm[12];
+        for (int r = 0; r < 3; ++r) {
+            for (int c = 0; c < 3; ++c) xfm[4 * r + c] = inst.to_world.m[r][c];
+            xfm[4 * r + 3] = inst.to_world.t[r];
+        }
+        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(top_, g);  // ids are attachment order: instance i has id i
+        rtcReleaseGeometry(g);
+    }
+    if (!quad_vertices.empty()) {
+        std::vector<float> xyz;
+        std::vector<uint32_t> idx;
+        for (std::size_t q = 0; q < quad_vertices.size() / 4; ++q) {
+            for (int k = 0; k < 4; ++k) {
+                const Vec3 p = quad_vertices[4 * q + static_cast<std::size_t>(k)];
+                xyz.insert(xyz.end(), {p.x, p.y, p.z});
+            }
+            const auto b = static_cast<uint32_t>(4 * q);
+            idx.insert(idx.end(), {b, b + 1, b + 2, b, b + 2, b + 3});
+        }
+        quad_geom_ = static_cast<uint32_t>(instances.size());
+        RTCGeometry g = add_triangles(device_, top_, xyz.data(), xyz.size() / 3, idx.data(), idx.size() / 3);
+        rtcReleaseGeometry(g);
+    }
+    rtcCommitScene(top_);
+    check("building the scene's acceleration structure");
+}
+
+bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh{};
+    rh.ray.org_x = o.x;
+    rh.ray.org_y = o.y;
+    rh.ray.org_z = o.z;
+    rh.ray.dir_x = d.x;
+    rh.ray.dir_y = d.y;
+    rh.ray.dir_z = d.z;
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = tmax;
+    rh.ray.mask = 0xffffffffu;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(top_, &ctx, &rh);
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    hit.t = rh.ray.tfar;
+    hit.b1 = rh.hit.u;
+    hit.b2 = rh.hit.v;
+    hit.prim = rh.hit.primID;
+    hit.instance = rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int32_t>(rh.hit.instID[0]);
+    return true;
+}
+
+bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRay r{};
+    r.org_x = o.x;
+    r.org_y = o.y;
+    r.org_z = o.z;
+    r.dir_x = d.x;
+    r.dir_y = d.y;
+    r.dir_z = d.z;
+    r.tnear = 0.0f;
+    r.tfar = tmax;
+    r.mask = 0xffffffffu;
+    rtcOccluded1(top_, &ctx, &r);
+    return r.tfar == -std::numeric_limits<float>::infinity();
+}
+
+}  // namespace spangle

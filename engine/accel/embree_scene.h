@@ -1,0 +1,67 @@
+#pragma once
+// Ownership of Embree objects and the scene's ray queries. Each distinct mesh is one bottom-level
+// scene (BLAS); each object is an instance of it with its transform; quad lights are one extra
+// triangle geometry in the top-level scene. Errors from Embree reach us through the device's
+// error callback and become SpangleErrors.
+
+#include <embree3/rtcore.h>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+#include "geometry/triangle_mesh.h"
+
+namespace spangle {
+
+/** One placed mesh: which mesh, its material, its transform. */
+struct Instance {
+    uint32_t mesh = 0;            ///< index into GeometryStore::meshes
+    uint32_t material = 0;        ///< index into the scene's materials
+    Affine to_world;              ///< object to world
+    Affine normal_to_world;       ///< inverse transpose of to_world's linear part (no translation)
+    int32_t emitter = -1;         ///< first light-table entry of its triangles, or -1
+    Vec3 emission;                ///< radiance of its front faces (zero when not emissive)
+};
+
+/** A ray hit, resolved to what shading needs to look up. */
+struct Hit {
+    float t = 0.0f;               ///< distance along the (unit) ray direction
+    float b1 = 0.0f, b2 = 0.0f;   ///< barycentrics of vertices 1 and 2
+    uint32_t prim = 0;            ///< triangle index within its mesh or the quad geometry
+    int32_t instance = -1;        ///< instance index, or -1 for a quad light triangle
+};
+
+/** An Embree device and committed scene. Not copyable; rtc handles released on destruction. */
+class EmbreeScene {
+public:
+    EmbreeScene();
+    ~EmbreeScene();
+    EmbreeScene(const EmbreeScene&) = delete;
+    EmbreeScene& operator=(const EmbreeScene&) = delete;
+
+    /** Builds one BLAS per mesh, one instance per object, and the quad light triangles
+     *  (quad_vertices: 4 world-space corners per quad). Throws SpangleError. */
+    void build(const GeometryStore& geometry, const std::vector<Instance>& instances,
+               const std::vector<Vec3>& quad_vertices);
+
+    /** Closest hit along o + t d for t in (0, tmax); false when nothing is hit. */
+    bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const;
+    /** True when something blocks o + t d for t in (0, tmax). */
+    bool occluded(Vec3 o, Vec3 d, float tmax) const;
+
+    /** Geometry id of the quad lights in the top-level scene, for tests. */
+    uint32_t quad_geometry() const { return quad_geom_; }
+
+private:
+    void check(const char* what) const;
+
+    RTCDevice device_ = nullptr;
+    RTCScene top_ = nullptr;
+    std::vector<RTCScene> blas_;
+    uint32_t quad_geom_ = RTC_INVALID_GEOMETRY_ID;
+    mutable std::string error_;  ///< last message from the error callback
+};
+
+}  // namespace spangle

@@ -1,0 +1,190 @@
+// The spangle command. The only place in Spangle that prints errors as exit codes:
+//   0  success
+//   1  a problem with the input (scene, mesh, plugin, output path): one message, file:line:col
+//   2  bad command line
+//   3  internal error (a bug in Spangle)
+
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "cli/progress.h"
+#include "color/image_output.h"
+#include "core/error.h"
+#include "render/frame.h"
+#include "shading/material.h"
+#include "shading/plugin_loader.h"
+
+#ifndef SPANGLE_VERSION
+#define SPANGLE_VERSION "0.0.0"
+#endif
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+/** Options of `spangle render`. */
+struct RenderArgs {
+    std::string scene;
+    std::string output;
+    std::string preview;
+    bool no_preview = false;
+    uint32_t spp = 0;
+    int threads = 0;
+    std::vector<std::string> plugin_dirs;
+    bool stats = false;
+    bool full_float = false;
+    bool quiet = false;
+    std::string compression = "zip";
+    std::string ocio;
+};
+
+void print_stats(const FrameResult& r, const std::string& exr) {
+    fmt::print("systems:\n");
+    for (const auto& s : r.systems) {
+        if (s.ran) fmt::print("  {:<12} ran      {:9.3f} s\n", s.name, s.seconds);
+        else fmt::print("  {:<12} skipped  ({})\n", s.name, s.reason);
+    }
+    fmt::print("plugins opened: {}\n",
+               r.plugins_opened.empty() ? std::string("none") : fmt::format("{}", fmt::join(r.plugins_opened, ", ")));
+    const RenderStats& st = r.stats;
+    if (st.samples > 0) {
+        const double rays = static_cast<double>(st.camera_rays + st.bounce_rays + st.shadow_rays);
+        fmt::print("render: {}x{}, {} samples in {:.3f} s: {:.3f} Msamples/s, {:.3f} Mrays/s\n", r.width,
+                   r.height, st.samples, st.seconds, static_cast<double>(st.samples) / st.seconds * 1e-6,
+                   rays / st.seconds * 1e-6);
+        fmt::print("rays: {} camera, {} bounce, {} shadow\n", st.camera_rays, st.bounce_rays, st.shadow_rays);
+        fmt::print("non-finite samples replaced by black: {}\n", st.nonfinite);
+    }
+    fmt::print("working space: {}\noutput: {}\n", r.color.working_space(), exr);
+}
+
+int run_render(const RenderArgs& a) {
+    Logger log;
+    if (a.quiet) log.threshold = LogLevel::Warning;
+    const std::string output = a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
+    if (fs::path(output).extension() != ".exr")
+        throw_error("output '{}' must end in .exr", output);
+    const auto& comps = exr_compressions();
+    if (std::find(comps.begin(), comps.end(), a.compression) == comps.end())
+        throw_error("unknown EXR compression '{}' (valid: {})", a.compression, fmt::join(comps, ", "));
+    const std::string preview =
+        a.no_preview ? std::string() : (a.preview.empty() ? fs::path(output).replace_extension(".png").string() : a.preview);
+
+    FrameRequest req;
+    req.scene = a.scene;
+    req.plugin_dirs = a.plugin_dirs;
+    req.ocio_config = a.ocio;
+    req.options.threads = a.threads;
+    req.options.spp_override = a.spp;
+    req.log = &log;
+    Progress progress(::isatty(STDERR_FILENO) != 0);
+    if (!a.quiet) req.options.progress = [&](uint64_t done, uint64_t total) { progress.update(done, total); };
+
+    FrameResult frame = render_frame(req);
+    progress.finish();
+    if (frame.image.empty()) throw_error("the scene has no camera to render from");
+    if (frame.stats.nonfinite > 0)
+        log.warn("{} non-finite sample values were replaced by black; the first at pixel ({}, {}), sample {}",
+                 frame.stats.nonfinite, frame.stats.first_bad_pixel_x, frame.stats.first_bad_pixel_y,
+                 frame.stats.first_bad_sample);
+
+    ExrOptions exr;
+    exr.half = !a.full_float;
+    exr.compression = a.compression;
+    exr.metadata = {{"spangle:scene", a.scene}, {"spangle:version", SPANGLE_VERSION},
+                    {"spangle:spp", std::to_string(frame.stats.samples / (static_cast<uint64_t>(frame.width) * frame.height))}};
+    write_exr(output, frame.image, static_cast<int>(frame.width), static_cast<int>(frame.height), frame.color, exr);
+    if (!preview.empty())
+        write_png_preview(preview, frame.image, static_cast<int>(frame.width), static_cast<int>(frame.height), frame.color);
+    if (a.stats) print_stats(frame, output);
+    else if (!a.quiet) log.info("wrote {}{}", output, preview.empty() ? "" : " and " + preview);
+    return 0;
+}
+
+int run_plugins(const std::vector<std::string>& dirs) {
+    PluginLoader loader(plugin_search_path(dirs));
+    fmt::print("plugin search path:\n");
+    for (const auto& d : loader.search_path()) fmt::print("  {}\n", d);
+    const auto files = loader.discover();
+    if (files.empty()) fmt::print("no plugins found\n");
+    int bad = 0;
+    for (const auto& f : files) {
+        try {
+            auto p = PluginLoader::open_file(f, "");
+            const SpangleMaterialPlugin_v1& t = p->table();
+            fmt::print("\n{} ({}): {}\n", t.name, f, t.doc ? t.doc : "");
+            for (uint32_t m = 0; m < t.model_count; ++m) {
+                const SpangleMaterialModel_v1& model = t.models[m];
+                fmt::print("  model {}: {}\n", model.name, model.doc ? model.doc : "");
+                for (uint32_t k = 0; k < model.param_count; ++k)
+                    fmt::print("    {}\n", describe_param(model.params[k]));
+            }
+        } catch (const SpangleError& e) {
+            fmt::print("\n{}: not usable: {}\n", f, e.what());
+            ++bad;
+        }
+    }
+    return bad > 0 ? 1 : 0;
+}
+
+void print_error(const std::string& msg) {
+    // Located messages already read "file:line:col: error: ..."; others get the prefix here.
+    if (msg.find(": error: ") != std::string::npos) fmt::print(stderr, "{}\n", msg);
+    else fmt::print(stderr, "spangle: error: {}\n", msg);
+}
+
+}  // namespace
+}  // namespace spangle
+
+int main(int argc, char** argv) {
+    using namespace spangle;
+    CLI::App app{"Spangle: a physically based renderer for glittering surfaces"};
+    app.set_version_flag("--version", std::string("spangle ") + SPANGLE_VERSION);
+    app.require_subcommand(1);
+
+    RenderArgs ra;
+    CLI::App* render = app.add_subcommand("render", "render a scene file to a colour-managed EXR");
+    render->add_option("scene", ra.scene, "scene file (TOML)")->required();
+    render->add_option("-o,--output", ra.output, "output EXR (default: <scene name>.exr)");
+    render->add_option("--preview", ra.preview, "PNG preview path (default: the output with .png)");
+    render->add_flag("--no-preview", ra.no_preview, "write no PNG preview");
+    render->add_option("--spp", ra.spp, "samples per pixel (overrides the scene)")->check(CLI::Range(1u, 1u << 20));
+    render->add_option("--threads", ra.threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
+    render->add_option("--plugin-path", ra.plugin_dirs, "directory searched for plugins first (repeatable)");
+    render->add_flag("--stats", ra.stats, "print which systems ran and render statistics");
+    render->add_flag("--float", ra.full_float, "write 32-bit float EXR instead of half");
+    render->add_option("--compression", ra.compression, "EXR compression (default zip)");
+    render->add_option("--ocio", ra.ocio, "OpenColorIO config (default: $OCIO, then the shipped one)");
+    render->add_flag("-q,--quiet", ra.quiet, "no progress or info output");
+
+    std::vector<std::string> plugin_dirs;
+    CLI::App* plugins = app.add_subcommand("plugins", "list the plugins found and their parameters");
+    plugins->add_option("--plugin-path", plugin_dirs, "directory searched for plugins first (repeatable)");
+
+    try {
+        app.parse(argc, argv);
+    } catch (const CLI::ParseError& e) {
+        return app.exit(e) == 0 ? 0 : 2;
+    }
+    try {
+        if (*render) return run_render(ra);
+        if (*plugins) return run_plugins(plugin_dirs);
+    } catch (const SpangleError& e) {
+        print_error(e.what());
+        return 1;
+    } catch (const std::logic_error& e) {
+        fmt::print(stderr, "spangle: {}\n", e.what());
+        return 3;
+    } catch (const std::exception& e) {
+        print_error(e.what());
+        return 1;
+    }
+    return 0;
+}

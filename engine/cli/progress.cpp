@@ -1,0 +1,55 @@
+#include "cli/progress.h"
+
+#include <fmt/format.h>
+
+#include <string>
+
+namespace spangle {
+
+namespace {
+
+std::string format_duration(double s) {
+    if (!(s >= 0.0) || s > 1e7) return "?";
+    const auto t = static_cast<long>(s + 0.5);
+    if (t >= 3600) return fmt::format("{}h{:02}m", t / 3600, (t / 60) % 60);
+    if (t >= 60) return fmt::format("{}m{:02}s", t / 60, t % 60);
+    return fmt::format("{}s", t);
+}
+
+}  // namespace
+
+Progress::Progress(bool interactive, std::FILE* out)
+    : interactive_(interactive), out_(out), start_(std::chrono::steady_clock::now()), last_draw_(start_) {}
+
+void Progress::update(uint64_t done, uint64_t total) {
+    const auto now = std::chrono::steady_clock::now();
+    const double elapsed = std::chrono::duration<double>(now - start_).count();
+    const double frac = total ? static_cast<double>(done) / static_cast<double>(total) : 1.0;
+    const double rate = elapsed > 0.0 ? static_cast<double>(done) / elapsed : 0.0;
+    const double left = rate > 0.0 ? static_cast<double>(total - done) / rate : -1.0;
+    if (interactive_) {
+        if (done < total && std::chrono::duration<double>(now - last_draw_).count() < 0.2) return;
+        last_draw_ = now;
+        constexpr int kWidth = 30;
+        const int filled = static_cast<int>(frac * kWidth);
+        fmt::print(out_, "\r[{}{}] {:5.1f}%  {:.2f} Msamples/s  {} left   ",
+                   std::string(static_cast<std::size_t>(filled), '#'),
+                   std::string(static_cast<std::size_t>(kWidth - filled), '.'), 100.0 * frac,
+                   rate * 1e-6, format_duration(left));
+        std::fflush(out_);
+        drawn_ = true;
+        return;
+    }
+    const int decile = static_cast<int>(frac * 10.0);
+    if (decile == last_decile_) return;
+    last_decile_ = decile;
+    fmt::print(out_, "render: {:3d}%  {:.2f} Msamples/s  {} left\n", decile * 10, rate * 1e-6,
+               format_duration(left));
+    std::fflush(out_);
+}
+
+void Progress::finish() {
+    if (interactive_ && drawn_) fmt::print(out_, "\n");
+}
+
+}  // namespace spangle

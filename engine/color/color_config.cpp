@@ -1,0 +1,148 @@
+#include "color/color_config.h"
+
+#include <OpenColorIO/OpenColorIO.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+#include "core/error.h"
+
+namespace OCIO = OCIO_NAMESPACE;
+
+namespace spangle {
+
+struct ColorConfig::Impl {
+    OCIO::ConstConfigRcPtr config;
+    std::string path;
+    std::string working;
+};
+
+ColorConfig::ColorConfig(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
+ColorConfig::ColorConfig(ColorConfig&&) noexcept = default;
+ColorConfig& ColorConfig::operator=(ColorConfig&&) noexcept = default;
+ColorConfig::~ColorConfig() = default;
+
+ColorConfig ColorConfig::load(const std::string& path, const std::vector<std::string>& fallbacks) {
+    std::vector<std::string> tried;
+    std::string chosen = path;
+    if (chosen.empty()) {
+        if (const char* env = std::getenv("OCIO"); env && *env) {
+            chosen = env;
+        } else {
+            for (const auto& f : fallbacks) {
+                tried.push_back(f);
+                if (std::filesystem::exists(f)) {
+                    chosen = f;
+                    break;
+                }
+            }
+        }
+    }
+    if (chosen.empty())
+        throw_error("no OpenColorIO config found: set $OCIO or install config.ocio (tried: {})",
+                    fmt::join(tried, ", "));
+    auto impl = std::make_unique<Impl>();
+    try {
+        impl->config = OCIO::Config::CreateFromFile(chosen.c_str());
+        impl->config->validate();
+    } catch (const OCIO::Exception& e) {
+        throw_error("cannot load OpenColorIO config '{}': {}", chosen, e.what());
+    }
+    impl->path = chosen;
+    ColorConfig cfg(std::move(impl));
+    const char* scene_linear = cfg.impl_->config->getCanonicalName(OCIO::ROLE_SCENE_LINEAR);
+    cfg.impl_->working = (scene_linear && *scene_linear) ? scene_linear : "";
+    return cfg;
+}
+
+const std::string& ColorConfig::path() const { return impl_->path; }
+const std::string& ColorConfig::working_space() const { return impl_->working; }
+
+std::optional<std::string> ColorConfig::canonical_name(const std::string& space) const {
+    const char* name = impl_->config->getCanonicalName(space.c_str());
+    if (!name || !*name) return std::nullopt;
+    return std::string(name);
+}
+
+std::vector<std::string> ColorConfig::space_names() const {
+    std::vector<std::string> names;
+    const int n = impl_->config->getNumColorSpaces();
+    for (int i = 0; i < n; ++i) names.emplace_back(impl_->config->getColorSpaceNameByIndex(i));
+    return names;
+}
+
+void ColorConfig::set_working_space(const std::string& space) {
+    auto name = canonical_name(space);
+    if (!name)
+        throw_error("unknown colour space '{}' in {} (known: {})", space, impl_->path,
+                    fmt::join(space_names(), ", "));
+    impl_->working = *name;
+}
+
+void ColorConfig::convert(const std::string& from, const std::string& to, float* rgb,
+                          std::size_t count) const {
+    if (count == 0) return;
+    try {
+        auto processor = impl_->config->getProcessor(from.c_str(), to.c_str());
+        auto cpu = processor->getDefaultCPUProcessor();
+        OCIO::PackedImageDesc desc(rgb, static_cast<long>(count), 1, 3);
+        cpu->apply(desc);
+    } catch (const OCIO::Exception& e) {
+        throw_error("colour conversion from '{}' to '{}' failed: {}", from, to, e.what());
+    }
+}
+
+void ColorConfig::to_display(const std::string& display, const std::string& view, float* rgb,
+                             std::size_t count) const {
+    if (count == 0) return;
+    try {
+        auto processor = impl_->config->getProcessor(impl_->working.c_str(), display.c_str(),
+                                                     view.c_str(), OCIO::TRANSFORM_DIR_FORWARD);
+        auto cpu = processor->getDefaultCPUProcessor();
+        OCIO::PackedImageDesc desc(rgb, static_cast<long>(count), 1, 3);
+        cpu->apply(desc);
+    } catch (const OCIO::Exception& e) {
+        throw_error("display transform from '{}' to display '{}', view '{}' failed: {}",
+                    impl_->working, display, view, e.what());
+    }
+}
+
+std::string ColorConfig::default_display() const { return impl_->config->getDefaultDisplay(); }
+std::string ColorConfig::default_view(const std::string& display) const {
+    return impl_->config->getDefaultView(display.c_str());
+}
+
+std::optional<Chromaticities> ColorConfig::working_chromaticities() const {
+    // OCIO 2.1 does not expose primaries. The spaces Spangle ships have exact, published
+    // chromaticities, so those come from this table; any other space is measured through the
+    // config's CIE XYZ (D65) interchange role, which gives D65-adapted primaries.
+    static const struct {
+        const char* name;
+        Chromaticities c;
+    } known[] = {
+        {"ACEScg", {{0.713f, 0.293f, 0.165f, 0.830f, 0.128f, 0.044f, 0.32168f, 0.33767f}}},
+        {"ACES2065-1", {{0.7347f, 0.2653f, 0.0f, 1.0f, 0.0001f, -0.077f, 0.32168f, 0.33767f}}},
+        {"lin_rec709", {{0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f}}},
+    };
+    for (const auto& k : known)
+        if (impl_->working == k.name) return k.c;
+    const char* xyz = impl_->config->getCanonicalName("cie_xyz_d65_interchange");
+    if (!xyz || !*xyz) return std::nullopt;
+    float rgb[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1};
+    try {
+        convert(impl_->working, xyz, rgb, 4);
+    } catch (const SpangleError&) {
+        return std::nullopt;
+    }
+    Chromaticities c{};
+    for (int i = 0; i < 4; ++i) {
+        const float sum = rgb[3 * i] + rgb[3 * i + 1] + rgb[3 * i + 2];
+        if (!(std::fabs(sum) > 1e-12f)) return std::nullopt;
+        c.xy[static_cast<std::size_t>(2 * i)] = rgb[3 * i] / sum;
+        c.xy[static_cast<std::size_t>(2 * i + 1)] = rgb[3 * i + 1] / sum;
+    }
+    return c;
+}
+
+}  // namespace spangle

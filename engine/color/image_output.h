@@ -1,0 +1,31 @@
+#pragma once
+// Writing the film: a scene-linear EXR in the working space and an optional display-referred PNG
+// preview. Both are written to a temporary file in the destination directory and renamed into
+// place, so a reader never sees a half-written image and a failed write leaves nothing behind.
+
+#include <string>
+#include <vector>
+
+#include "color/color_config.h"
+
+namespace spangle {
+
+/** EXR options. */
+struct ExrOptions {
+    bool half = true;                 ///< half floats (default) or 32-bit floats
+    std::string compression = "zip";  ///< OpenEXR compression name, validated
+    std::vector<std::pair<std::string, std::string>> metadata;  ///< extra string attributes
+};
+
+/** Valid EXR compression names, for validation and messages. */
+const std::vector<std::string>& exr_compressions();
+
+/** Writes width x height RGB (working space) to `path` as EXR. Throws SpangleError. */
+void write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
+               const ColorConfig& color, const ExrOptions& options);
+
+/** Writes an 8-bit PNG through the config's default display and view. Throws SpangleError. */
+void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,
+                       int height, const ColorConfig& color);
+
+}  // namespace spangle

@@ -1,0 +1,32 @@
+#pragma once
+// Triangle meshes as loaded from files, in object space, structure of arrays.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+
+namespace spangle {
+
+/** An indexed triangle mesh in object space. normals and uvs are empty or one per vertex. */
+struct TriangleMesh {
+    std::vector<float> positions;  ///< xyz per vertex, object space
+    std::vector<float> normals;    ///< xyz per vertex (unit), or empty: use face normals
+    std::vector<float> uvs;        ///< uv per vertex, or empty: uv from barycentrics
+    std::vector<uint32_t> indices; ///< three per triangle, each < vertex_count()
+    std::string source;            ///< file it came from, for messages
+
+    std::size_t vertex_count() const { return positions.size() / 3; }
+    std::size_t triangle_count() const { return indices.size() / 3; }
+    Vec3 position(uint32_t i) const {
+        return {positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]};
+    }
+};
+
+/** All meshes of a scene; objects refer to them by index, so one file loaded twice is shared. */
+struct GeometryStore {
+    std::vector<TriangleMesh> meshes;  ///< loaded meshes
+};
+
+}  // namespace spangle

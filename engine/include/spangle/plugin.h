@@ -1,0 +1,242 @@
+/*
+ * Spangle material plugin ABI, version 1.
+ *
+ * The only header a plugin includes. Plain C: no exceptions, no C++ types, memory freed by
+ * whoever allocated it. A plugin is a shared library exporting one symbol:
+ *
+ *     const SpangleMaterialPlugin_v1* spangle_material_plugin(uint32_t host_abi_version);
+ *
+ * It returns a static table that lives as long as the library is loaded. The host reads
+ * abi_version and struct_size first and refuses the table when abi_version differs from its own
+ * SPANGLE_MATERIAL_ABI_VERSION. A plugin may offer several models (the smooth plugin offers
+ * "diffuse" now and the microfacet models later); a scene names a plugin and one of its models.
+ *
+ * Frames and units. Every direction handed to a kernel is in the local shading frame
+ * (x = normalised dpdu made orthogonal to n, z = shading normal n), unit length. The host orients
+ * the frame towards the incoming ray (flag SPANGLE_SHADING_BACKFACE says it flipped it); with
+ * interpolated normals wo.z can still be slightly negative, which reflection models treat as
+ * no reflection. wo points away
+ * from the surface towards the previous vertex. f is the BSDF value in 1/sr (cosine not
+ * included), pdf is per unit solid angle. Colours are RGB in the scene's working space.
+ *
+ * Threads. create() and destroy() run on one thread. prepare(), eval() and sample() may run
+ * concurrently on different batches with the same instance, so an instance is read-only after
+ * create() (statistics go through atomics or per-batch counters the plugin owns).
+ */
+#ifndef SPANGLE_PLUGIN_H
+#define SPANGLE_PLUGIN_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define SPANGLE_MATERIAL_ABI_VERSION 1u
+#define SPANGLE_MATERIAL_ENTRY_POINT "spangle_material_plugin"
+
+#if defined(_WIN32)
+#define SPANGLE_PLUGIN_EXPORT __declspec(dllexport)
+#else
+#define SPANGLE_PLUGIN_EXPORT __attribute__((visibility("default")))
+#endif
+
+/* ---------------------------------------------------------------- parameters */
+
+/** Type of one material parameter. */
+typedef enum SpangleParamType {
+    SPANGLE_PARAM_FLOAT = 0, /* one float, range-checked */
+    SPANGLE_PARAM_INT = 1,   /* one 64-bit integer, range-checked */
+    SPANGLE_PARAM_BOOL = 2,  /* true or false */
+    SPANGLE_PARAM_COLOR = 3, /* RGB; the host converts it to the working space at load */
+    SPANGLE_PARAM_STRING = 4 /* one of the choices in SpangleParamDesc_v1.choices */
+} SpangleParamType;
+
+/** One entry of a model's parameter schema. The host validates scene values against it. */
+typedef struct SpangleParamDesc_v1 {
+    const char* name;           /* snake_case key in the scene file */
+    SpangleParamType type;      /* value type */
+    double default_value[3];    /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space */
+    const char* default_string; /* STRING: default choice; NULL otherwise */
+    double min_value;           /* FLOAT/INT/COLOR (each channel): inclusive lower bound */
+    double max_value;           /* FLOAT/INT/COLOR (each channel): inclusive upper bound */
+    const char* choices;        /* STRING: allowed values separated by '|'; NULL otherwise */
+    const char* doc;            /* one line for `spangle plugins` */
+} SpangleParamDesc_v1;
+
+/** One validated parameter value handed to create(). */
+typedef struct SpangleParamValue_v1 {
+    const char* name;   /* same pointer text as the schema entry's name */
+    SpangleParamType type;
+    double number[3];   /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space */
+    const char* string; /* STRING: the chosen value; NULL otherwise */
+} SpangleParamValue_v1;
+
+/** The full parameter set: one value per schema entry, in schema order, defaults filled in. */
+typedef struct SpangleParams_v1 {
+    const SpangleParamValue_v1* values; /* count entries, in schema order */
+    uint32_t count;                      /* equals the model's param_count */
+} SpangleParams_v1;
+
+/* ---------------------------------------------------------------- host services */
+
+/** Log levels for SpangleHost_v1.log. */
+typedef enum SpangleLogLevel {
+    SPANGLE_LOG_DEBUG = 0,
+    SPANGLE_LOG_INFO = 1,
+    SPANGLE_LOG_WARNING = 2,
+    SPANGLE_LOG_ERROR = 3
+} SpangleLogLevel;
+
+/** Services the host offers to a plugin. Valid from create() until destroy() of the instance. */
+typedef struct SpangleHost_v1 {
+    uint32_t abi_version; /* SPANGLE_MATERIAL_ABI_VERSION of the host */
+    void* context;        /* opaque, passed back to every call below */
+    const char* working_space; /* name of the scene-linear working space (an OCIO colour space) */
+
+    /** Writes one message to the host's log. */
+    void (*log)(void* context, SpangleLogLevel level, const char* message);
+
+    /** Converts count RGB triples in place from colour space `from_space` to the working space,
+     *  through the scene's OCIO config. Returns 0 on success; otherwise writes a message of at
+     *  most error_capacity bytes (NUL included) and returns non-zero, leaving rgb unspecified. */
+    int (*convert_to_working)(void* context, const char* from_space, float* rgb, uint32_t count,
+                              char* error, uint32_t error_capacity);
+
+    /** Counter-based hash of (a, b): a pure function, the same on every thread and run. Plugins
+     *  build their random numbers from it so that images do not depend on thread count. */
+    uint64_t (*hash2)(uint64_t a, uint64_t b);
+} SpangleHost_v1;
+
+/** Bump allocator for per-batch scratch data (closures' variable-size parts). Memory handed out
+ *  stays valid until the host has finished eval()/sample() on the closures of that batch. */
+typedef struct SpangleArena_v1 {
+    void* context;
+    /** Returns `bytes` of memory aligned to `align` (a power of two <= 64), or NULL. */
+    void* (*allocate)(void* context, size_t bytes, size_t align);
+} SpangleArena_v1;
+
+/* ---------------------------------------------------------------- batches */
+
+/** Bits of SpangleShadingBatch_v1.flags. */
+#define SPANGLE_SHADING_HAS_DIFFERENTIALS 1u /* du/dx..dv/dy come from real ray differentials */
+#define SPANGLE_SHADING_BACKFACE 2u /* the ray hit the back of the surface; the host flipped the
+                                       frame so that the geometric normal faces wo */
+
+/** Shading points, structure of arrays, `count` entries each. Positions in world space (metres),
+ *  wo in the local shading frame. When SPANGLE_SHADING_HAS_DIFFERENTIALS is clear for a point,
+ *  its uv derivatives carry no pixel footprint (they are zero in ABI version 1 hosts without
+ *  ray differentials) and a footprint-based model must fall back to its smooth expectation. */
+typedef struct SpangleShadingBatch_v1 {
+    uint32_t count;
+    const float* p_x;
+    const float* p_y;
+    const float* p_z;
+    const float* wo_x; /* local frame */
+    const float* wo_y;
+    const float* wo_z;
+    const float* u; /* surface parameterisation */
+    const float* v;
+    const float* du_dx; /* screen-space uv derivatives, per pixel */
+    const float* du_dy;
+    const float* dv_dx;
+    const float* dv_dy;
+    const float* uv_area; /* |dp/du x dp/dv|: world area per unit uv area (m^2) */
+    const uint32_t* flags;    /* SPANGLE_SHADING_* bits */
+    const uint32_t* path_id;  /* index of the path in the host's wavefront, for the plugin's hashing */
+} SpangleShadingBatch_v1;
+
+/** Directions to evaluate: for query i, closure closure_index[i] and direction wi[i] (local
+ *  frame). closure_index may be NULL, meaning query i uses closure i. */
+typedef struct SpangleEvalBatch_v1 {
+    uint32_t count;
+    const uint32_t* closure_index;
+    const float* wi_x;
+    const float* wi_y;
+    const float* wi_z;
+    float* f_r; /* out: BSDF value, 1/sr */
+    float* f_g;
+    float* f_b;
+    float* pdf; /* out: solid-angle pdf of sample() producing wi */
+} SpangleEvalBatch_v1;
+
+/** Bits of SpangleSampleBatch_v1.flags. An invalid sample has flags 0, f 0 and pdf 0. */
+#define SPANGLE_SAMPLE_REFLECTION 1u
+#define SPANGLE_SAMPLE_TRANSMISSION 2u
+#define SPANGLE_SAMPLE_DIFFUSE 4u
+#define SPANGLE_SAMPLE_GLOSSY 8u
+#define SPANGLE_SAMPLE_SPECULAR 16u /* delta lobe: pdf and f are both delta-scaled */
+
+/** Samples to draw: for query i, closure closure_index[i] (or i when NULL) with uniform numbers
+ *  u0[i], u1[i], u2[i] in [0, 1). */
+typedef struct SpangleSampleBatch_v1 {
+    uint32_t count;
+    const uint32_t* closure_index;
+    const float* u0;
+    const float* u1;
+    const float* u2; /* lobe selection */
+    float* wi_x;     /* out: local frame */
+    float* wi_y;
+    float* wi_z;
+    float* f_r; /* out: BSDF value, 1/sr */
+    float* f_g;
+    float* f_b;
+    float* pdf;      /* out: solid-angle pdf */
+    uint32_t* flags; /* out: SPANGLE_SAMPLE_* bits, 0 for an invalid sample */
+} SpangleSampleBatch_v1;
+
+/** One named statistic reported by a model instance for `spangle render --stats`. */
+typedef struct SpangleStat_v1 {
+    const char* name; /* static string */
+    double value;
+} SpangleStat_v1;
+
+/* ---------------------------------------------------------------- the table */
+
+/** One material model: its schema and its batch kernels. */
+typedef struct SpangleMaterialModel_v1 {
+    const char* name; /* e.g. "diffuse"; unique within the plugin */
+    const char* doc;  /* one line */
+    const SpangleParamDesc_v1* params;
+    uint32_t param_count;
+    uint32_t closure_size; /* bytes of per-shading-point closure prepare() writes, <= 4096 */
+
+    /** Creates an instance from a full, validated parameter set. Returns NULL and writes a message
+     *  (at most error_capacity bytes, NUL included) when the values are unusable together. */
+    void* (*create)(const SpangleParams_v1* params, const SpangleHost_v1* host, char* error,
+                    uint32_t error_capacity);
+    /** Frees an instance made by create(). */
+    void (*destroy)(void* instance);
+
+    /** Writes batch->count closures of closure_size bytes each (16-byte aligned) to `closures`.
+     *  Variable-size data goes to `arena`. */
+    void (*prepare)(const void* instance, const SpangleShadingBatch_v1* batch, void* closures,
+                    SpangleArena_v1* arena);
+    /** Evaluates f and pdf for each query. */
+    void (*eval)(const void* instance, const void* closures, SpangleEvalBatch_v1* queries);
+    /** Samples wi with pdf for each query. */
+    void (*sample)(const void* instance, const void* closures, SpangleSampleBatch_v1* queries);
+
+    /** Optional (may be NULL): writes at most capacity statistics, returns how many exist. */
+    uint32_t (*stats)(const void* instance, SpangleStat_v1* out, uint32_t capacity);
+} SpangleMaterialModel_v1;
+
+/** The table a plugin returns. */
+typedef struct SpangleMaterialPlugin_v1 {
+    uint32_t abi_version; /* SPANGLE_MATERIAL_ABI_VERSION the plugin was built with */
+    uint32_t struct_size; /* sizeof(SpangleMaterialPlugin_v1) in the plugin's build */
+    const char* name;     /* e.g. "smooth"; the file is libspangle_<name>.so */
+    const char* doc;      /* one line */
+    const SpangleMaterialModel_v1* models;
+    uint32_t model_count;
+} SpangleMaterialPlugin_v1;
+
+/** Signature of the entry point. */
+typedef const SpangleMaterialPlugin_v1* (*SpangleMaterialEntry_v1)(uint32_t host_abi_version);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* SPANGLE_PLUGIN_H */

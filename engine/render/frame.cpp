@@ -1,0 +1,54 @@
+#include "render/frame.h"
+
+#include <filesystem>
+
+#include "render/systems.h"
+#include "scene/scene_loader.h"
+#include "shading/plugin_loader.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+
+std::vector<std::string> default_ocio_locations() {
+    std::vector<std::string> out;
+    const std::string exe = executable_dir();
+    if (!exe.empty()) {
+        out.push_back((fs::path(exe) / "ocio" / "config.ocio").string());
+        out.push_back((fs::path(exe) / ".." / "share" / "spangle" / "ocio" / "config.ocio")
+                          .lexically_normal()
+                          .string());
+    }
+#ifdef SPANGLE_SOURCE_DIR
+    out.push_back(SPANGLE_SOURCE_DIR "/assets/ocio/config.ocio");
+#endif
+    return out;
+}
+
+FrameResult render_frame(const FrameRequest& req) {
+    ColorConfig color = ColorConfig::load(req.ocio_config, default_ocio_locations());
+    ecs::Registry registry;
+    SceneInfo info = load_scene(req.scene, color, registry);
+
+    PluginLoader plugins(plugin_search_path(req.plugin_dirs));
+    HostServices host(color, *req.log);
+    World world;
+    world.color = &color;
+    world.log = req.log;
+    world.plugins = &plugins;
+    world.host = &host;
+    world.info = &info;
+    world.options = req.options;
+
+    const ecs::Schedule<World> schedule = make_frame_schedule();
+    std::vector<ecs::SystemReport> reports = schedule.run(registry, world);
+
+    FrameResult result{std::move(color), world.width, world.height, std::move(world.image),
+                       std::move(reports), plugins.opened(), world.stats, std::move(info)};
+    // Materials go before the loader that holds their libraries (shared ownership keeps the
+    // library open until the last instance is destroyed anyway).
+    world.materials.clear();
+    return result;
+}
+
+}  // namespace spangle

@@ -1,0 +1,40 @@
+#pragma once
+// One frame from a scene file: load, run the schedule, return the image and what happened.
+// The CLI and the end-to-end tests both go through here.
+
+#include <string>
+#include <vector>
+
+#include "color/color_config.h"
+#include "ecs/schedule.h"
+#include "render/world.h"
+
+namespace spangle {
+
+/** What to render and with what. */
+struct FrameRequest {
+    std::string scene;                     ///< scene file
+    std::vector<std::string> plugin_dirs;  ///< --plugin-path entries, in order
+    std::string ocio_config;               ///< explicit config; empty = $OCIO or the shipped one
+    RenderOptions options;                 ///< threads, spp override, progress
+    const Logger* log = nullptr;           ///< required
+};
+
+/** The rendered frame and its report. */
+struct FrameResult {
+    ColorConfig color;                       ///< config and working space used
+    uint32_t width = 0, height = 0;          ///< image size
+    std::vector<float> image;                ///< RGB in the working space
+    std::vector<ecs::SystemReport> systems;  ///< which systems ran, which were skipped
+    std::vector<std::string> plugins_opened; ///< plugin names opened for this scene
+    RenderStats stats;                       ///< counters of the render system
+    SceneInfo info;                          ///< facts about the scene
+};
+
+/** Places where the shipped OCIO config is looked for when neither a path nor $OCIO is given. */
+std::vector<std::string> default_ocio_locations();
+
+/** Loads and renders req.scene. Throws SpangleError for any problem with the inputs. */
+FrameResult render_frame(const FrameRequest& req);
+
+}  // namespace spangle

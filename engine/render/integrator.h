@@ -1,0 +1,15 @@
+#pragma once
+// The path tracer: tiles in parallel (oneTBB), each tile traced as a wavefront so that plugins
+// are called once per material batch. Next-event estimation with multiple importance sampling
+// (power heuristic) for area lights; the constant environment is reached by BSDF sampling.
+// Randomness is counter-based, so the image is identical for any thread count.
+
+#include "render/world.h"
+#include "scene/components.h"
+
+namespace spangle {
+
+/** Renders the camera's view into world.image (width x height RGB). */
+void render_image(World& world, const Camera& camera, const Film& film);
+
+}  // namespace spangle

@@ -1,0 +1,150 @@
+#include "render/systems.h"
+
+#include <map>
+
+#include "geometry/mesh_load.h"
+#include "render/integrator.h"
+
+namespace spangle {
+
+ecs::Schedule<World> make_frame_schedule() {
+    ecs::Schedule<World> s;
+    s.add<MeshFile>("mesh_load", ecs::RunWhen::AllPresent, system_mesh_load);
+    s.add<MaterialRef>("materials", ecs::RunWhen::AllPresent, system_materials);
+    s.add<QuadLight, Emission>("area_lights", ecs::RunWhen::AnyPresent, system_area_lights);
+    s.add<Environment>("environment", ecs::RunWhen::AllPresent, system_environment);
+    s.add<TriangleMeshRef, QuadLight>("accelerate", ecs::RunWhen::AnyPresent, system_accelerate);
+    s.add<Camera, Film>("render", ecs::RunWhen::AllPresent, system_render);
+    return s;
+}
+
+void system_mesh_load(ecs::Registry& r, World& w) {
+    auto& pool = r.pool<MeshFile>();
+    std::map<std::string, uint32_t> loaded;  // one load per distinct file
+    std::vector<std::pair<ecs::Entity, uint32_t>> refs;
+    for (std::size_t i = 0; i < pool.size(); ++i) {
+        const std::string& path = pool.columns().path[i];
+        auto it = loaded.find(path);
+        if (it == loaded.end()) {
+            w.geometry.meshes.push_back(load_mesh(path, pool.columns().loc[i]));
+            it = loaded.emplace(path, static_cast<uint32_t>(w.geometry.meshes.size() - 1)).first;
+        }
+        refs.emplace_back(pool.entities()[i], it->second);
+    }
+    for (const auto& [e, mesh] : refs) r.put(e, TriangleMeshRef{mesh});
+}
+
+void system_materials(ecs::Registry& r, World& w) {
+    const auto& names = w.info->material_names;
+    std::vector<bool> used(names.size(), false);
+    for (uint32_t m : r.pool<MaterialRef>().columns().material) used[m] = true;
+    w.materials.clear();
+    w.materials.resize(names.size());
+    const auto& pool = r.pool<Material>();
+    for (std::size_t i = 0; i < pool.size(); ++i) {
+        const Material m = pool.columns().get(i);
+        std::size_t index = 0;
+        while (names[index] != m.name) ++index;
+        if (!used[index]) {
+            // Nothing uses it: its plugin is not opened (only what the scene needs runs).
+            w.log->warn("{}: material '{}' is not used by any object", m.loc.str(), m.name);
+            continue;
+        }
+        w.materials[index] = create_material(*w.plugins, m, *w.host);
+    }
+}
+
+void system_area_lights(ecs::Registry& r, World& w) {
+    // Emissive meshes: one emitter per world-space triangle.
+    if (auto* emission = r.find_pool<Emission>()) {
+        std::vector<std::pair<ecs::Entity, int32_t>> refs;
+        for (std::size_t i = 0; i < emission->size(); ++i) {
+            const ecs::Entity e = emission->entities()[i];
+            if (!r.has<TriangleMeshRef>(e)) continue;
+            const TriangleMesh& mesh = w.geometry.meshes[r.get<TriangleMeshRef>(e).mesh];
+            const Affine xf = r.get<Transform>(e).to_world;
+            const Affine nxf = xf.inverse();
+            refs.emplace_back(e, static_cast<int32_t>(w.lights.size()));
+            for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+                const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1], i2 = mesh.indices[3 * t + 2];
+                AreaEmitter a;
+                a.p0 = xf.apply_point(mesh.position(i0));
+                a.e1 = xf.apply_point(mesh.position(i1)) - a.p0;
+                a.e2 = xf.apply_point(mesh.position(i2)) - a.p0;
+                const Vec3 c = cross(a.e1, a.e2);
+                a.area = 0.5f * length(c);
+                a.n = a.area > 0.0f ? normalize(c) : Vec3(0, 0, 1);
+                if (!mesh.normals.empty()) {
+                    // The emitting side follows the authored normals, as shading does.
+                    Vec3 sum(0.0f);
+                    for (uint32_t v : {i0, i1, i2})
+                        sum += Vec3(mesh.normals[3 * v], mesh.normals[3 * v + 1], mesh.normals[3 * v + 2]);
+                    const Vec3 nw(nxf.m[0][0] * sum.x + nxf.m[1][0] * sum.y + nxf.m[2][0] * sum.z,
+                                  nxf.m[0][1] * sum.x + nxf.m[1][1] * sum.y + nxf.m[2][1] * sum.z,
+                                  nxf.m[0][2] * sum.x + nxf.m[1][2] * sum.y + nxf.m[2][2] * sum.z);
+                    if (dot(nw, a.n) < 0.0f) a.n = -a.n;
+                }
+                a.radiance = emission->columns().radiance[i];
+                w.lights.add(a);
+            }
+        }
+        for (const auto& [e, first] : refs) r.put(e, EmitterRef{first});
+    }
+    w.quad_light_first = static_cast<uint32_t>(w.lights.size());
+    if (auto* quads = r.find_pool<QuadLight>()) {
+        for (std::size_t i = 0; i < quads->size(); ++i) {
+            const QuadLight q = quads->columns().get(i);
+            AreaEmitter a;
+            a.p0 = q.corner;
+            a.e1 = q.edge1;
+            a.e2 = q.edge2;
+            const Vec3 c = cross(q.edge1, q.edge2);
+            a.area = length(c);
+            a.n = normalize(c);
+            a.radiance = q.radiance;
+            a.parallelogram = true;
+            a.two_sided = q.two_sided;
+            w.lights.add(a);
+            w.quad_vertices.insert(w.quad_vertices.end(),
+                                   {q.corner, q.corner + q.edge1, q.corner + q.edge1 + q.edge2, q.corner + q.edge2});
+        }
+    }
+    w.lights.finalize();
+}
+
+void system_environment(ecs::Registry& r, World& w) {
+    const auto& pool = r.pool<Environment>();
+    w.environment = Vec3(0.0f);
+    for (const Vec3& c : pool.columns().radiance) w.environment += c;
+}
+
+void system_accelerate(ecs::Registry& r, World& w) {
+    w.instances.clear();
+    if (auto* meshes = r.find_pool<TriangleMeshRef>()) {
+        for (std::size_t i = 0; i < meshes->size(); ++i) {
+            const ecs::Entity e = meshes->entities()[i];
+            Instance inst;
+            inst.mesh = meshes->columns().mesh[i];
+            inst.material = r.get<MaterialRef>(e).material;
+            inst.to_world = r.get<Transform>(e).to_world;
+            const Affine inv = inst.to_world.inverse();
+            for (int a = 0; a < 3; ++a)
+                for (int b = 0; b < 3; ++b) inst.normal_to_world.m[a][b] = inv.m[b][a];
+            if (r.has<EmitterRef>(e)) {
+                inst.emitter = r.get<EmitterRef>(e).first;
+                inst.emission = r.get<Emission>(e).radiance;
+            }
+            w.instances.push_back(inst);
+        }
+    }
+    w.accel = std::make_unique<EmbreeScene>();
+    w.accel->build(w.geometry, w.instances, w.quad_vertices);
+}
+
+void system_render(ecs::Registry& r, World& w) {
+    const auto& cams = r.pool<Camera>();
+    const auto& films = r.pool<Film>();
+    render_image(w, cams.columns().get(0), films.columns().get(0));
+}
+
+}  // namespace spangle

@@ -1,0 +1,299 @@
+#include "scene/scene_loader.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "scene/components.h"
+#include "scene/toml_reader.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+
+namespace {
+
+constexpr Range kNonNegative{0.0, 1e30, false, false};
+constexpr Range kPositive{0.0, 1e30, true, false};
+
+/** Everything a section parser needs besides its table. */
+struct ParseContext {
+    std::string file;        ///< scene path as given
+    fs::path dir;            ///< directory for relative paths
+    ColorConfig* color;      ///< for conversion to the working space
+    std::string bare_space;  ///< colour space of bare [r, g, b] arrays
+};
+
+/** Resolves a colour space name or throws at `at` listing the known ones. */
+std::string resolve_space(const ParseContext& ctx, const std::string& name, const FileLoc& at) {
+    auto canonical = ctx.color->canonical_name(name);
+    if (!canonical)
+        throw_error(at, "unknown colour space '{}' (known: {})", name,
+                    fmt::join(ctx.color->space_names(), ", "));
+    return *canonical;
+}
+
+/** A colour as written: raw numbers and the canonical space they are in. */
+struct RawColor {
+    Vec3 rgb;
+    std::string space;
+};
+
+/** Reads `[r, g, b]` (in the bare space) or `{ rgb = [r, g, b], space = "name" }`. */
+RawColor parse_raw_color(const ParseContext& ctx, const toml::node& n, std::string_view name) {
+    if (auto t = n.as_table()) {
+        TableReader r(*t, ctx.file, fmt::format("colour '{}'", name));
+        RawColor c;
+        c.rgb = r.vec3("rgb");
+        c.space = r.has("space") ? resolve_space(ctx, r.string("space"), r.loc("space"))
+                                 : ctx.bare_space;
+        r.finish();
+        return c;
+    }
+    if (!n.is_array())
+        throw_error(loc_of(n, ctx.file),
+                    "'{}' must be a colour: [r, g, b] or {{ rgb = [r, g, b], space = \"...\" }}, got {}",
+                    name, toml_type_name(n));
+    return {parse_vec3(n, ctx.file, name), ctx.bare_space};
+}
+
+/** A non-negative colour converted to the working space. */
+Vec3 read_color(const ParseContext& ctx, TableReader& r, std::string_view key, Vec3 fallback) {
+    const toml::node* n = r.node(key);
+    if (!n) return fallback;
+    RawColor c = parse_raw_color(ctx, *n, key);
+    if (c.rgb.x < 0 || c.rgb.y < 0 || c.rgb.z < 0)
+        throw_error(loc_of(*n, ctx.file), "'{}' must be non-negative, got [{}, {}, {}]", key,
+                    c.rgb.x, c.rgb.y, c.rgb.z);
+    float rgb[3] = {c.rgb.x, c.rgb.y, c.rgb.z};
+    ctx.color->to_working(c.space, rgb, 1);
+    // Gamut mapping can push a channel a hair below zero; radiance and albedo cannot be negative.
+    return {std::max(rgb[0], 0.0f), std::max(rgb[1], 0.0f), std::max(rgb[2], 0.0f)};
+}
+
+Film parse_render(const ParseContext& ctx, TableReader& r) {
+    Film f;
+    f.width = static_cast<uint32_t>(r.integer("width", 640, {1, 16384}));
+    f.height = static_cast<uint32_t>(r.integer("height", 360, {1, 16384}));
+    f.spp = static_cast<uint32_t>(r.integer("spp", 16, {1, 1 << 20}));
+    f.max_depth = static_cast<uint32_t>(r.integer("max_depth", 5, {1, 1024}));
+    f.seed = static_cast<uint64_t>(r.integer("seed", 0, {0, 9.0e18}));
+    (void)ctx;
+    return f;
+}
+
+Camera parse_camera(TableReader& r) {
+    Camera c;
+    c.position = r.vec3("position");
+    c.look_at = r.vec3("look_at");
+    c.up = r.vec3("up", {0, 1, 0});
+    c.fov_deg = static_cast<float>(r.number("fov", 40.0, {0.0, 180.0, true, true}));
+    const Vec3 dir = c.look_at - c.position;
+    if (!(length(dir) > 0.0f))
+        throw_error(r.loc("look_at"), "'look_at' must differ from 'position'");
+    if (!(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)))
+        throw_error(r.loc("up"), "'up' must not be parallel to the viewing direction");
+    return c;
+}
+
+Affine parse_transform(TableReader& r) {
+    Affine m;
+    if (const toml::node* s = r.node("scale")) {
+        Vec3 v;
+        if (s->is_number()) {
+            const double k = s->value<double>().value_or(0.0);
+            v = Vec3(static_cast<float>(k));
+        } else {
+            v = parse_vec3(*s, r.file(), "scale");
+        }
+        if (v.x == 0.0f || v.y == 0.0f || v.z == 0.0f || !is_finite(v))
+            throw_error(loc_of(*s, r.file()), "'scale' must be non-zero in every axis");
+        m = Affine::scale(v);
+    }
+    const Vec3 rot = r.vec3("rotate", {0, 0, 0});
+    // Euler angles in degrees, applied about X, then Y, then Z.
+    m = Affine::rotate(rot.x, {1, 0, 0}).compose(m);
+    m = Affine::rotate(rot.y, {0, 1, 0}).compose(m);
+    m = Affine::rotate(rot.z, {0, 0, 1}).compose(m);
+    m = Affine::translate(r.vec3("translate", {0, 0, 0})).compose(m);
+    return m;
+}
+
+ParamEntry parse_param(const ParseContext& ctx, const std::string& key, const toml::node& n) {
+    ParamEntry p;
+    p.name = key;
+    p.loc = loc_of(n, ctx.file);
+    if (auto i = n.as_integer()) {
+        p.kind = ParamEntry::Kind::Number;
+        p.number[0] = static_cast<double>(i->get());
+        p.is_integer = true;
+    } else if (auto f = n.as_floating_point()) {
+        if (!std::isfinite(f->get()))
+            throw_error(p.loc, "parameter '{}' must be finite, got {}", key, f->get());
+        p.kind = ParamEntry::Kind::Number;
+        p.number[0] = f->get();
+    } else if (auto b = n.as_boolean()) {
+        p.kind = ParamEntry::Kind::Bool;
+        p.number[0] = b->get() ? 1.0 : 0.0;
+    } else if (auto s = n.as_string()) {
+        p.kind = ParamEntry::Kind::String;
+        p.text = s->get();
+    } else if (n.is_array() || n.is_table()) {
+        RawColor c = parse_raw_color(ctx, n, key);
+        p.kind = ParamEntry::Kind::Color;
+        p.number[0] = c.rgb.x;
+        p.number[1] = c.rgb.y;
+        p.number[2] = c.rgb.z;
+        p.text = c.space;
+    } else {
+        throw_error(p.loc, "parameter '{}' has unsupported type {}", key, toml_type_name(n));
+    }
+    return p;
+}
+
+Material parse_material(const ParseContext& ctx, TableReader& r) {
+    Material m;
+    m.loc = r.loc();
+    m.name = r.string("name");
+    m.plugin = r.string("plugin");
+    m.plugin_loc = r.loc("plugin");
+    m.model = r.string("model", "");
+    m.model_loc = r.loc("model");
+    if (const toml::table* params = r.table("params"))
+        for (auto&& [key, value] : *params) m.params.push_back(parse_param(ctx, std::string(key.str()), value));
+    return m;
+}
+
+/** Parses and validates a path relative to the scene file. */
+std::string resolve_file(const ParseContext& ctx, TableReader& r, std::string_view key) {
+    const std::string given = r.string(key);
+    if (given.empty()) throw_error(r.loc(key), "'{}' must not be empty", key);
+    fs::path p(given);
+    if (p.is_relative()) p = ctx.dir / p;
+    std::error_code ec;
+    if (!fs::is_regular_file(p, ec))
+        throw_error(r.loc(key), "{} file '{}' not found (looked for {})", key, given, p.string());
+    return p.lexically_normal().string();
+}
+
+std::string read_text(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+}  // namespace
+
+SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry) {
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec)) throw_error("scene file '{}' not found", path);
+
+    toml::table root;
+    try {
+        root = toml::parse(read_text(path), path);
+    } catch (const toml::parse_error& e) {
+        const auto& s = e.source().begin;
+        throw_error(FileLoc{path, static_cast<int>(s.line), static_cast<int>(s.column)},
+                    "invalid TOML: {}", e.description());
+    }
+
+    ParseContext ctx{path, fs::path(path).parent_path(), &color, {}};
+    TableReader top(root, path, "the scene");
+    SceneInfo info;
+    info.path = path;
+
+    const ecs::Entity settings = registry.create();
+    {
+        const toml::table* t = top.table("render");
+        toml::table empty;
+        TableReader r(t ? *t : empty, path, "[render]");
+        if (r.has("working_space"))
+            color.set_working_space(
+                resolve_space(ctx, r.string("working_space"), r.loc("working_space")));
+        if (color.working_space().empty()) color.set_working_space("ACEScg");
+        ctx.bare_space = r.has("color_space")
+                             ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
+                             : resolve_space(ctx, "lin_rec709", r.loc());
+        registry.put(settings, parse_render(ctx, r));
+        r.finish();
+        info.working_space = color.working_space();
+        info.color_space = ctx.bare_space;
+    }
+    {
+        const toml::table* t = top.table("camera");
+        if (!t) top.missing("camera");
+        TableReader r(*t, path, "[camera]");
+        registry.put(settings, parse_camera(r));
+        r.finish();
+    }
+    if (const toml::table* t = top.table("environment")) {
+        TableReader r(*t, path, "[environment]");
+        const Vec3 c = read_color(ctx, r, "color", {0, 0, 0});
+        const auto k = static_cast<float>(r.number("intensity", 1.0, kNonNegative));
+        r.finish();
+        registry.put(registry.create(), Environment{c * k});
+    }
+
+    if (const toml::array* mats = top.table_array("material")) {
+        for (std::size_t i = 0; i < mats->size(); ++i) {
+            TableReader r(*(*mats)[i].as_table(), path, fmt::format("[[material]] #{}", i + 1));
+            Material m = parse_material(ctx, r);
+            r.finish();
+            for (const auto& existing : info.material_names)
+                if (existing == m.name)
+                    throw_error(r.loc("name"), "material '{}' is defined twice", m.name);
+            info.material_names.push_back(m.name);
+            registry.put(registry.create(), m);
+        }
+    }
+
+    if (const toml::array* objs = top.table_array("object")) {
+        for (std::size_t i = 0; i < objs->size(); ++i) {
+            TableReader r(*(*objs)[i].as_table(), path, fmt::format("[[object]] #{}", i + 1));
+            const ecs::Entity e = registry.create();
+            r.string("name", "");
+            registry.put(e, MeshFile{resolve_file(ctx, r, "mesh"), r.loc("mesh")});
+            const std::string mat = r.string("material");
+            uint32_t index = 0;
+            while (index < info.material_names.size() && info.material_names[index] != mat) ++index;
+            if (index == info.material_names.size())
+                throw_error(r.loc("material"), "unknown material '{}' (defined: {})", mat,
+                            info.material_names.empty() ? std::string("none")
+                                                        : fmt::format("{}", fmt::join(info.material_names, ", ")));
+            registry.put(e, MaterialRef{index});
+            registry.put(e, Transform{parse_transform(r)});
+            if (r.has("emission")) {
+                const Vec3 le = read_color(ctx, r, "emission", {0, 0, 0}) *
+                                static_cast<float>(r.number("emission_intensity", 1.0, kNonNegative));
+                if (max_component(le) > 0.0f) registry.put(e, Emission{le});
+            }
+            r.finish();
+        }
+    }
+
+    if (const toml::array* lights = top.table_array("light")) {
+        for (std::size_t i = 0; i < lights->size(); ++i) {
+            TableReader r(*(*lights)[i].as_table(), path, fmt::format("[[light]] #{}", i + 1));
+            const std::string type = r.string("type");
+            if (type != "quad")
+                throw_error(r.loc("type"), "unknown light type '{}' (valid: quad)", type);
+            QuadLight q;
+            q.corner = r.vec3("corner");
+            q.edge1 = r.vec3("edge1");
+            q.edge2 = r.vec3("edge2");
+            if (!(length(cross(q.edge1, q.edge2)) > 0.0f))
+                throw_error(r.loc("edge2"), "quad light edges must span a non-zero area");
+            q.radiance = read_color(ctx, r, "color", {1, 1, 1}) *
+                         static_cast<float>(r.number("intensity", 1.0, kPositive));
+            q.two_sided = r.boolean("two_sided", false);
+            r.finish();
+            registry.put(registry.create(), q);
+        }
+    }
+    top.finish();
+    return info;
+}
+
+}  // namespace spangle

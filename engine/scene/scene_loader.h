@@ -1,0 +1,26 @@
+#pragma once
+// Parsing a TOML scene file into a registry. Colours are converted to the working space here,
+// once; mesh files are only located (the mesh_load system reads them); plugin parameters are kept
+// as written, with their locations, for the materials system to validate against the schema.
+
+#include <string>
+#include <vector>
+
+#include "color/color_config.h"
+#include "ecs/registry.h"
+
+namespace spangle {
+
+/** Facts about the loaded scene that are not components. */
+struct SceneInfo {
+    std::string path;                 ///< the scene file
+    std::string working_space;        ///< canonical OCIO name
+    std::string color_space;          ///< space of bare colour arrays in the file
+    std::vector<std::string> material_names;  ///< in [[material]] order
+};
+
+/** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.
+ *  Throws SpangleError with file:line:col for every problem; never crashes on bad input. */
+SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry);
+
+}  // namespace spangle

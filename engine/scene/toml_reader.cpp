@@ -1,0 +1,175 @@
+#include "scene/toml_reader.h"
+
+#include <cmath>
+
+namespace spangle {
+
+std::string Range::str() const {
+    return fmt::format("{}{}, {}{}", min_open ? "(" : "[", min, max, max_open ? ")" : "]");
+}
+
+FileLoc loc_of(const toml::node& node, const std::string& file) {
+    const auto& s = node.source();
+    return {file, static_cast<int>(s.begin.line), static_cast<int>(s.begin.column)};
+}
+
+std::string toml_type_name(const toml::node& node) {
+    switch (node.type()) {
+        case toml::node_type::table: return "a table";
+        case toml::node_type::array: return "an array";
+        case toml::node_type::string: return "a string";
+        case toml::node_type::integer: return "an integer";
+        case toml::node_type::floating_point: return "a float";
+        case toml::node_type::boolean: return "a boolean";
+        case toml::node_type::date: return "a date";
+        case toml::node_type::time: return "a time";
+        case toml::node_type::date_time: return "a date-time";
+        default: return "nothing";
+    }
+}
+
+TableReader::TableReader(const toml::table& table, std::string file, std::string what)
+    : table_(table), file_(std::move(file)), what_(std::move(what)) {}
+
+FileLoc TableReader::loc(std::string_view key) const {
+    const toml::node* n = table_.get(key);
+    return n ? loc_of(*n, file_) : loc();
+}
+
+const toml::node* TableReader::node(std::string_view key) {
+    known_.insert(std::string(key));
+    return table_.get(key);
+}
+
+void TableReader::missing(std::string_view key) const {
+    throw_error(loc(), "{} is missing required key '{}'", what_, key);
+}
+
+const toml::node& TableReader::required(std::string_view key) {
+    const toml::node* n = node(key);
+    if (!n) missing(key);
+    return *n;
+}
+
+double TableReader::to_number(const toml::node& n, std::string_view key) const {
+    if (auto i = n.as_integer()) return static_cast<double>(i->get());
+    if (auto f = n.as_floating_point()) {
+        const double x = f->get();
+        if (!std::isfinite(x))
+            throw_error(loc_of(n, file_), "'{}' must be a finite number, got {}", key, x);
+        return x;
+    }
+    throw_error(loc_of(n, file_), "'{}' must be a number, got {}", key, toml_type_name(n));
+}
+
+void TableReader::check_range(double x, const toml::node& n, std::string_view key,
+                              Range range) const {
+    if (!range.contains(x))
+        throw_error(loc_of(n, file_), "'{}' must be in {}, got {}", key, range.str(), x);
+}
+
+double TableReader::number(std::string_view key, double fallback, Range range) {
+    const toml::node* n = node(key);
+    if (!n) return fallback;
+    const double x = to_number(*n, key);
+    check_range(x, *n, key, range);
+    return x;
+}
+
+double TableReader::number(std::string_view key, Range range) {
+    const toml::node& n = required(key);
+    const double x = to_number(n, key);
+    check_range(x, n, key, range);
+    return x;
+}
+
+int64_t TableReader::integer(std::string_view key, int64_t fallback, Range range) {
+    const toml::node* n = node(key);
+    if (!n) return fallback;
+    auto i = n->as_integer();
+    if (!i) throw_error(loc_of(*n, file_), "'{}' must be an integer, got {}", key, toml_type_name(*n));
+    check_range(static_cast<double>(i->get()), *n, key, range);
+    return i->get();
+}
+
+bool TableReader::boolean(std::string_view key, bool fallback) {
+    const toml::node* n = node(key);
+    if (!n) return fallback;
+    auto b = n->as_boolean();
+    if (!b) throw_error(loc_of(*n, file_), "'{}' must be true or false, got {}", key, toml_type_name(*n));
+    return b->get();
+}
+
+std::string TableReader::string(std::string_view key, std::string fallback) {
+    const toml::node* n = node(key);
+    if (!n) return fallback;
+    auto s = n->as_string();
+    if (!s) throw_error(loc_of(*n, file_), "'{}' must be a string, got {}", key, toml_type_name(*n));
+    return s->get();
+}
+
+std::string TableReader::string(std::string_view key) {
+    const toml::node& n = required(key);
+    auto s = n.as_string();
+    if (!s) throw_error(loc_of(n, file_), "'{}' must be a string, got {}", key, toml_type_name(n));
+    return s->get();
+}
+
+Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view name) {
+    auto arr = n.as_array();
+    if (!arr || arr->size() != 3)
+        throw_error(loc_of(n, file), "'{}' must be an array of 3 numbers, got {}", name,
+                    arr ? fmt::format("an array of {}", arr->size()) : toml_type_name(n));
+    float v[3];
+    for (std::size_t i = 0; i < 3; ++i) {
+        const toml::node& e = (*arr)[i];
+        double x;
+        if (auto k = e.as_integer()) x = static_cast<double>(k->get());
+        else if (auto f = e.as_floating_point()) x = f->get();
+        else
+            throw_error(loc_of(e, file), "'{}' element {} must be a number, got {}", name, i,
+                        toml_type_name(e));
+        if (!std::isfinite(x) || std::fabs(x) > 1e30)
+            throw_error(loc_of(e, file), "'{}' element {} must be finite, got {}", name, i, x);
+        v[i] = static_cast<float>(x);
+    }
+    return {v[0], v[1], v[2]};
+}
+
+Vec3 TableReader::vec3(std::string_view key) { return parse_vec3(required(key), file_, key); }
+
+Vec3 TableReader::vec3(std::string_view key, Vec3 fallback) {
+    const toml::node* n = node(key);
+    return n ? parse_vec3(*n, file_, key) : fallback;
+}
+
+const toml::table* TableReader::table(std::string_view key) {
+    const toml::node* n = node(key);
+    if (!n) return nullptr;
+    auto t = n->as_table();
+    if (!t) throw_error(loc_of(*n, file_), "'{}' must be a table, got {}", key, toml_type_name(*n));
+    return t;
+}
+
+const toml::array* TableReader::table_array(std::string_view key) {
+    const toml::node* n = node(key);
+    if (!n) return nullptr;
+    auto a = n->as_array();
+    if (!a || !a->is_array_of_tables())
+        throw_error(loc_of(*n, file_), "'{}' must be written as [[{}]] tables, got {}", key, key,
+                    toml_type_name(*n));
+    return a;
+}
+
+void TableReader::finish() const {
+    for (auto&& [key, value] : table_) {
+        if (known_.count(key.str())) continue;
+        const auto& s = key.source();
+        FileLoc at{file_, static_cast<int>(s.begin.line), static_cast<int>(s.begin.column)};
+        if (at.line == 0) at = loc_of(value, file_);
+        throw_error(at, "unknown key '{}' in {} (valid keys: {})", key.str(), what_,
+                    fmt::join(known_, ", "));
+    }
+}
+
+}  // namespace spangle

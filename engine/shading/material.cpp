@@ -1,0 +1,212 @@
+#include "shading/material.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+
+#include "core/hash.h"
+
+namespace spangle {
+
+namespace {
+
+void host_log(void* context, SpangleLogLevel level, const char* message) {
+    const auto* host = static_cast<const HostServices*>(context);
+    const LogLevel l = level == SPANGLE_LOG_ERROR     ? LogLevel::Error
+                       : level == SPANGLE_LOG_WARNING ? LogLevel::Warning
+                       : level == SPANGLE_LOG_INFO    ? LogLevel::Info
+                                                      : LogLevel::Debug;
+    host->log().write(l, message ? message : "");
+}
+
+int host_convert(void* context, const char* from, float* rgb, uint32_t count, char* error,
+                 uint32_t capacity) {
+    const auto* host = static_cast<const HostServices*>(context);
+    try {
+        if (!from) throw SpangleError("no source colour space given");
+        auto canonical = host->color().canonical_name(from);
+        if (!canonical) throw SpangleError(fmt::format("unknown colour space '{}'", from));
+        host->color().to_working(*canonical, rgb, count);
+        return 0;
+    } catch (const std::exception& e) {
+        if (error && capacity > 0) {
+            const std::size_t n = std::min<std::size_t>(std::strlen(e.what()), capacity - 1);
+            std::memcpy(error, e.what(), n);
+            error[n] = '\0';
+        }
+        return 1;
+    }
+}
+
+uint64_t host_hash2(uint64_t a, uint64_t b) { return hash2(a, b); }
+
+const char* type_name(SpangleParamType t) {
+    switch (t) {
+        case SPANGLE_PARAM_FLOAT: return "float";
+        case SPANGLE_PARAM_INT: return "int";
+        case SPANGLE_PARAM_BOOL: return "bool";
+        case SPANGLE_PARAM_COLOR: return "color";
+        case SPANGLE_PARAM_STRING: return "string";
+    }
+    return "?";
+}
+
+std::vector<std::string> split_choices(const char* choices) {
+    std::vector<std::string> out;
+    if (!choices) return out;
+    std::string s(choices);
+    std::size_t start = 0;
+    while (start <= s.size()) {
+        const std::size_t end = std::min(s.find('|', start), s.size());
+        out.push_back(s.substr(start, end - start));
+        start = end + 1;
+    }
+    return out;
+}
+
+std::string range_text(const SpangleParamDesc_v1& d) {
+    return fmt::format("[{}, {}]", d.min_value, d.max_value);
+}
+
+}  // namespace
+
+HostServices::HostServices(const ColorConfig& color, const Logger& log)
+    : color_(color), log_(log), working_(color.working_space()) {
+    api_.abi_version = SPANGLE_MATERIAL_ABI_VERSION;
+    api_.context = this;
+    api_.working_space = working_.c_str();
+    api_.log = host_log;
+    api_.convert_to_working = host_convert;
+    api_.hash2 = host_hash2;
+}
+
+std::string describe_param(const SpangleParamDesc_v1& p) {
+    std::string def;
+    switch (p.type) {
+        case SPANGLE_PARAM_FLOAT: def = fmt::format("{}", p.default_value[0]); break;
+        case SPANGLE_PARAM_INT: def = fmt::format("{}", static_cast<int64_t>(p.default_value[0])); break;
+        case SPANGLE_PARAM_BOOL: def = p.default_value[0] != 0.0 ? "true" : "false"; break;
+        case SPANGLE_PARAM_COLOR:
+            def = fmt::format("[{}, {}, {}]", p.default_value[0], p.default_value[1], p.default_value[2]);
+            break;
+        case SPANGLE_PARAM_STRING: def = fmt::format("\"{}\"", p.default_string ? p.default_string : ""); break;
+    }
+    std::string range;
+    if (p.type == SPANGLE_PARAM_STRING) range = fmt::format(" one of {}", p.choices ? p.choices : "");
+    else if (p.type != SPANGLE_PARAM_BOOL) range = " in " + range_text(p);
+    return fmt::format("{:<18} {:<6} = {:<16}{}  {}", p.name, type_name(p.type), def, range,
+                       p.doc ? p.doc : "");
+}
+
+ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Material& m,
+                                const ColorConfig& color) {
+    ValidatedParams out;
+    out.strings.reserve(model.param_count);
+    std::vector<const ParamEntry*> given(model.param_count, nullptr);
+    for (const ParamEntry& p : m.params) {
+        uint32_t k = 0;
+        while (k < model.param_count && p.name != model.params[k].name) ++k;
+        if (k == model.param_count) {
+            std::vector<std::string> names;
+            for (uint32_t i = 0; i < model.param_count; ++i) names.emplace_back(model.params[i].name);
+            throw_error(p.loc, "material '{}': model '{}' of plugin '{}' has no parameter '{}' (parameters: {})",
+                        m.name, model.name, m.plugin, p.name,
+                        names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
+        }
+        given[k] = &p;
+    }
+    for (uint32_t k = 0; k < model.param_count; ++k) {
+        const SpangleParamDesc_v1& d = model.params[k];
+        SpangleParamValue_v1 v{};
+        v.name = d.name;
+        v.type = d.type;
+        std::copy(d.default_value, d.default_value + 3, v.number);
+        out.strings.emplace_back(d.default_string ? d.default_string : "");
+        const ParamEntry* p = given[k];
+        if (p) {
+            const auto bad_type = [&](const char* expected) {
+                throw_error(p->loc, "material '{}': parameter '{}' must be {}", m.name, d.name, expected);
+            };
+            const auto check_range = [&](double x) {
+                if (!(x >= d.min_value && x <= d.max_value))
+                    throw_error(p->loc, "material '{}': '{}' must be in {}, got {}", m.name, d.name,
+                                range_text(d), x);
+            };
+            switch (d.type) {
+                case SPANGLE_PARAM_FLOAT:
+                    if (p->kind != ParamEntry::Kind::Number) bad_type("a number");
+                    check_range(p->number[0]);
+                    v.number[0] = p->number[0];
+                    break;
+                case SPANGLE_PARAM_INT:
+                    if (p->kind != ParamEntry::Kind::Number || !p->is_integer) bad_type("an integer");
+                    check_range(p->number[0]);
+                    v.number[0] = p->number[0];
+                    break;
+                case SPANGLE_PARAM_BOOL:
+                    if (p->kind != ParamEntry::Kind::Bool) bad_type("true or false");
+                    v.number[0] = p->number[0];
+                    break;
+                case SPANGLE_PARAM_COLOR: {
+                    if (p->kind == ParamEntry::Kind::Number) {
+                        // A single number is a grey, the same in every linear space of the config.
+                        check_range(p->number[0]);
+                        v.number[0] = v.number[1] = v.number[2] = p->number[0];
+                        break;
+                    }
+                    if (p->kind != ParamEntry::Kind::Color) bad_type("a colour [r, g, b]");
+                    for (int c = 0; c < 3; ++c) check_range(p->number[c]);
+                    float rgb[3] = {static_cast<float>(p->number[0]), static_cast<float>(p->number[1]),
+                                    static_cast<float>(p->number[2])};
+                    color.to_working(p->text, rgb, 1);
+                    // Gamut conversion may move a channel a hair outside the range that was
+                    // checked on the written values; clamp it back.
+                    for (int c = 0; c < 3; ++c)
+                        v.number[c] = std::clamp(static_cast<double>(rgb[c]), d.min_value, d.max_value);
+                    break;
+                }
+                case SPANGLE_PARAM_STRING: {
+                    if (p->kind != ParamEntry::Kind::String) bad_type("a string");
+                    const auto choices = split_choices(d.choices);
+                    if (!choices.empty() &&
+                        std::find(choices.begin(), choices.end(), p->text) == choices.end())
+                        throw_error(p->loc, "material '{}': '{}' must be one of {}, got \"{}\"",
+                                    m.name, d.name, fmt::join(choices, ", "), p->text);
+                    out.strings.back() = p->text;
+                    break;
+                }
+            }
+        }
+        out.values.push_back(v);
+    }
+    for (uint32_t k = 0; k < model.param_count; ++k)
+        if (model.params[k].type == SPANGLE_PARAM_STRING) out.values[k].string = out.strings[k].c_str();
+    return out;
+}
+
+std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Material& m,
+                                                  const HostServices& host) {
+    auto plugin = loader.open(m.plugin, m.plugin_loc);
+    const SpangleMaterialModel_v1* model = nullptr;
+    if (m.model.empty()) {
+        if (plugin->table().model_count != 1)
+            throw_error(m.loc, "material '{}': plugin '{}' offers several models, so 'model' is "
+                        "required (one of: {})", m.name, m.plugin, fmt::join(plugin->model_names(), ", "));
+        model = &plugin->table().models[0];
+    } else {
+        model = plugin->model(m.model);
+        if (!model)
+            throw_error(m.model_loc, "material '{}': plugin '{}' has no model '{}' (models: {})",
+                        m.name, m.plugin, m.model, fmt::join(plugin->model_names(), ", "));
+    }
+    const ValidatedParams params = validate_params(*model, m, host.color());
+    const SpangleParams_v1 view = params.view();
+    char error[512] = {0};
+    void* instance = model->create(&view, host.api(), error, sizeof(error));
+    if (!instance)
+        throw_error(m.loc, "material '{}': plugin '{}' could not create model '{}': {}", m.name,
+                    m.plugin, model->name, error[0] ? error : "no reason given");
+    return std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
+}
+
+}  // namespace spangle

@@ -1,0 +1,167 @@
+#include "shading/plugin_loader.h"
+
+#include <dlfcn.h>
+
+#include <algorithm>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <set>
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+
+LoadedPlugin::~LoadedPlugin() {
+    if (handle_) dlclose(handle_);
+}
+
+const SpangleMaterialModel_v1* LoadedPlugin::model(const std::string& name) const {
+    for (uint32_t i = 0; i < table_->model_count; ++i)
+        if (name == table_->models[i].name) return &table_->models[i];
+    return nullptr;
+}
+
+std::vector<std::string> LoadedPlugin::model_names() const {
+    std::vector<std::string> names;
+    for (uint32_t i = 0; i < table_->model_count; ++i) names.emplace_back(table_->models[i].name);
+    return names;
+}
+
+std::string executable_dir() {
+    std::error_code ec;
+    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
+    return ec ? std::string() : exe.parent_path().string();
+}
+
+std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_dirs) {
+    std::vector<std::string> dirs(cli_dirs);
+    if (const char* env = std::getenv("SPANGLE_PLUGIN_PATH"); env && *env) {
+        std::string s(env);
+        std::size_t start = 0;
+        while (start <= s.size()) {
+            const std::size_t end = std::min(s.find(':', start), s.size());
+            if (end > start) dirs.push_back(s.substr(start, end - start));
+            start = end + 1;
+        }
+    }
+    const std::string exe = executable_dir();
+    if (!exe.empty()) {
+        dirs.push_back((fs::path(exe) / "plugins").string());
+        dirs.push_back((fs::path(exe) / ".." / "lib" / "spangle" / "plugins").lexically_normal().string());
+    }
+    return dirs;
+}
+
+namespace {
+
+std::string file_name_for(const std::string& name) { return "libspangle_" + name + ".so"; }
+
+/** Sanity checks of a table the host is about to trust; returns an empty string when fine. */
+std::string table_problem(const SpangleMaterialPlugin_v1& t) {
+    if (!t.name || !*t.name) return "it has no name";
+    if (t.model_count == 0 || !t.models) return "it offers no material model";
+    for (uint32_t i = 0; i < t.model_count; ++i) {
+        const SpangleMaterialModel_v1& m = t.models[i];
+        if (!m.name || !*m.name) return fmt::format("model #{} has no name", i);
+        if (!m.create || !m.destroy || !m.prepare || !m.eval || !m.sample)
+            return fmt::format("model '{}' lacks a kernel (create, destroy, prepare, eval, sample)", m.name);
+        if (m.closure_size == 0 || m.closure_size > 4096)
+            return fmt::format("model '{}' declares closure_size {}, expected 1..4096", m.name, m.closure_size);
+        if (m.param_count > 0 && !m.params) return fmt::format("model '{}' has no parameter table", m.name);
+        for (uint32_t k = 0; k < m.param_count; ++k)
+            if (!m.params[k].name || !*m.params[k].name)
+                return fmt::format("model '{}' parameter #{} has no name", m.name, k);
+    }
+    return {};
+}
+
+}  // namespace
+
+std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
+                                                      const std::string& expected_name) {
+    dlerror();
+    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    if (!handle) {
+        const char* why = dlerror();
+        throw_error("cannot open plugin '{}': {}", path, why ? why : "unknown dlopen error");
+    }
+    // From here on the handle is owned by a guard so that every error path closes it.
+    std::unique_ptr<void, int (*)(void*)> guard(handle, dlclose);
+    dlerror();
+    void* sym = dlsym(handle, SPANGLE_MATERIAL_ENTRY_POINT);
+    if (!sym) {
+        const char* why = dlerror();
+        throw_error("'{}' is not a Spangle plugin: it has no entry point '{}' ({})", path,
+                    SPANGLE_MATERIAL_ENTRY_POINT, why ? why : "symbol is null");
+    }
+    SpangleMaterialEntry_v1 entry;
+    static_assert(sizeof(entry) == sizeof(sym));
+    std::memcpy(&entry, &sym, sizeof(entry));
+    const SpangleMaterialPlugin_v1* table = entry(SPANGLE_MATERIAL_ABI_VERSION);
+    if (!table)
+        throw_error("plugin '{}' refused this host's material ABI version {}", path,
+                    SPANGLE_MATERIAL_ABI_VERSION);
+    if (table->abi_version != SPANGLE_MATERIAL_ABI_VERSION)
+        throw_error("plugin '{}' was built for material ABI version {}, but this spangle uses "
+                    "version {}: rebuild the plugin against this spangle's plugin.h",
+                    path, table->abi_version, SPANGLE_MATERIAL_ABI_VERSION);
+    if (table->struct_size != sizeof(SpangleMaterialPlugin_v1))
+        throw_error("plugin '{}' has a plugin table of {} bytes, expected {}: ABI mismatch", path,
+                    table->struct_size, sizeof(SpangleMaterialPlugin_v1));
+    if (const std::string p = table_problem(*table); !p.empty())
+        throw_error("plugin '{}' is malformed: {}", path, p);
+    if (!expected_name.empty() && expected_name != table->name)
+        throw_error("plugin file '{}' calls itself '{}', expected '{}'", path, table->name,
+                    expected_name);
+    guard.release();
+    return std::make_shared<LoadedPlugin>(path, handle, table);
+}
+
+std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const FileLoc& where) {
+    if (auto it = cache_.find(name); it != cache_.end()) return it->second;
+    const bool valid_name = !name.empty() && name.find_first_of("/\\. ") == std::string::npos;
+    if (!valid_name)
+        throw_error(where, "plugin name '{}' is not valid: use the plugin's short name, e.g. 'smooth'", name);
+    const std::string file = file_name_for(name);
+    for (const auto& dir : dirs_) {
+        const fs::path candidate = fs::path(dir) / file;
+        std::error_code ec;
+        if (!fs::exists(candidate, ec)) continue;
+        try {
+            auto plugin = open_file(candidate.string(), name);
+            cache_[name] = plugin;
+            return plugin;
+        } catch (const SpangleError& e) {
+            throw SpangleError(where, e.what());
+        }
+    }
+    throw_error(where, "plugin '{}' not found: no {} in {}", name, file,
+                dirs_.empty() ? std::string("an empty plugin path")
+                              : fmt::format("{}", fmt::join(dirs_, ", ")));
+}
+
+std::vector<std::string> PluginLoader::discover() const {
+    std::vector<std::string> found;
+    std::set<std::string> names;
+    for (const auto& dir : dirs_) {
+        std::error_code ec;
+        std::vector<fs::path> files;
+        for (const auto& e : fs::directory_iterator(dir, ec)) files.push_back(e.path());
+        std::sort(files.begin(), files.end());
+        for (const auto& p : files) {
+            const std::string f = p.filename().string();
+            if (f.rfind("libspangle_", 0) != 0 || p.extension() != ".so") continue;
+            if (names.insert(f).second) found.push_back(p.string());
+        }
+    }
+    return found;
+}
+
+std::vector<std::string> PluginLoader::opened() const {
+    std::vector<std::string> names;
+    for (const auto& [name, plugin] : cache_) names.push_back(name);
+    return names;
+}
+
+}  // namespace spangle

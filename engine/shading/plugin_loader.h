@@ -1,0 +1,71 @@
+#pragma once
+// Finding and opening material plugins. A plugin named N is the file libspangle_N.so in the first
+// directory of the search path that has it: every --plugin-path given, then each entry of
+// $SPANGLE_PLUGIN_PATH (colon-separated), then the plugins/ directory beside the spangle binary
+// (and ../lib/spangle/plugins for an installed tree). A plugin is opened when a scene first
+// names it and closed when the last material using it is gone.
+
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/error.h"
+#include "spangle/plugin.h"
+
+namespace spangle {
+
+/** An opened plugin library; dlclose()s on destruction. */
+class LoadedPlugin {
+public:
+    LoadedPlugin(std::string path, void* handle, const SpangleMaterialPlugin_v1* table)
+        : path_(std::move(path)), handle_(handle), table_(table) {}
+    ~LoadedPlugin();
+    LoadedPlugin(const LoadedPlugin&) = delete;
+    LoadedPlugin& operator=(const LoadedPlugin&) = delete;
+
+    const std::string& path() const { return path_; }
+    const SpangleMaterialPlugin_v1& table() const { return *table_; }
+    /** The model called `name`, or nullptr. */
+    const SpangleMaterialModel_v1* model(const std::string& name) const;
+    /** Model names, for messages. */
+    std::vector<std::string> model_names() const;
+
+private:
+    std::string path_;
+    void* handle_;
+    const SpangleMaterialPlugin_v1* table_;
+};
+
+/** The search path in order: CLI dirs, $SPANGLE_PLUGIN_PATH, then the directories beside the
+ *  running binary. */
+std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_dirs);
+
+/** Directory of the running executable (via /proc/self/exe), or empty. */
+std::string executable_dir();
+
+/** Opens plugins by name from a search path and caches them. */
+class PluginLoader {
+public:
+    explicit PluginLoader(std::vector<std::string> search_path) : dirs_(std::move(search_path)) {}
+
+    /** Opens (or returns the cached) plugin `name`. Errors are reported at `where`. */
+    std::shared_ptr<LoadedPlugin> open(const std::string& name, const FileLoc& where);
+
+    /** Opens one file as a plugin; throws SpangleError naming the file and what is wrong. */
+    static std::shared_ptr<LoadedPlugin> open_file(const std::string& path,
+                                                   const std::string& expected_name);
+
+    /** Every libspangle_*.so on the search path, first occurrence of each name, in order. */
+    std::vector<std::string> discover() const;
+
+    const std::vector<std::string>& search_path() const { return dirs_; }
+    /** Names of plugins opened so far, for --stats. */
+    std::vector<std::string> opened() const;
+
+private:
+    std::vector<std::string> dirs_;
+    std::map<std::string, std::shared_ptr<LoadedPlugin>> cache_;
+};
+
+}  // namespace spangle
