@@ -21,6 +21,7 @@ struct ParamEntry {
     bool is_integer = false;  ///< Number written as a TOML integer
     std::string text;         ///< String value
     FileLoc loc;              ///< where the value is written
+    FileLoc key_loc;          ///< where the key is written
 };
 using ParamList = std::vector<ParamEntry>;
 

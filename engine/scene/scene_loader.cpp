@@ -120,10 +120,12 @@ Affine parse_transform(TableReader& r) {
     return m;
 }
 
-ParamEntry parse_param(const ParseContext& ctx, const std::string& key, const toml::node& n) {
+ParamEntry parse_param(const ParseContext& ctx, const toml::key& k, const toml::node& n) {
+    const std::string key(k.str());
     ParamEntry p;
     p.name = key;
     p.loc = loc_of(n, ctx.file);
+    p.key_loc = key_location(k, n, ctx.file);
     if (auto i = n.as_integer()) {
         p.kind = ParamEntry::Kind::Number;
         p.number[0] = static_cast<double>(i->get());
@@ -161,7 +163,7 @@ Material parse_material(const ParseContext& ctx, TableReader& r) {
     m.model = r.string("model", "");
     m.model_loc = r.loc("model");
     if (const toml::table* params = r.table("params"))
-        for (auto&& [key, value] : *params) m.params.push_back(parse_param(ctx, std::string(key.str()), value));
+        for (auto&& [key, value] : *params) m.params.push_back(parse_param(ctx, key, value));
     return m;
 }
 
@@ -201,6 +203,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
 
     ParseContext ctx{path, fs::path(path).parent_path(), &color, {}};
     TableReader top(root, path, "the scene");
+    top.set_whole_file();
     SceneInfo info;
     info.path = path;
 

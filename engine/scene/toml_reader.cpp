@@ -1,5 +1,6 @@
 #include "scene/toml_reader.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace spangle {
@@ -41,8 +42,55 @@ const toml::node* TableReader::node(std::string_view key) {
     return table_.get(key);
 }
 
+std::size_t edit_distance(std::string_view a, std::string_view b) {
+    std::vector<std::size_t> row(b.size() + 1);
+    for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
+    for (std::size_t i = 1; i <= a.size(); ++i) {
+        std::size_t diag = row[0];
+        row[0] = i;
+        for (std::size_t j = 1; j <= b.size(); ++j) {
+            const std::size_t up = row[j];
+            row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0u : 1u)});
+            diag = up;
+        }
+    }
+    return row[b.size()];
+}
+
+namespace {
+
+/** A key's own location (the key text, not its value). */
+FileLoc key_loc(const toml::key& key, const toml::node& value, const std::string& file) {
+    const auto& s = key.source();
+    FileLoc at{file, static_cast<int>(s.begin.line), static_cast<int>(s.begin.column)};
+    return at.line == 0 ? loc_of(value, file) : at;
+}
+
+/** The closest of `candidates` to `word`, when it is within 2 edits; empty otherwise. */
+template <class Range_>
+std::string nearest(std::string_view word, const Range_& candidates) {
+    std::string best;
+    std::size_t best_d = 3;
+    for (const auto& c : candidates) {
+        const std::size_t d = edit_distance(word, c);
+        if (d < best_d) {
+            best_d = d;
+            best = std::string(c);
+        }
+    }
+    return best;
+}
+
+}  // namespace
+
 void TableReader::missing(std::string_view key) const {
-    throw_error(loc(), "{} is missing required key '{}'", what_, key);
+    // A required key that is absent is most often a misspelling: point at the typo instead.
+    for (auto&& [k, value] : table_) {
+        if (known_.count(k.str()) || edit_distance(k.str(), key) > 2) continue;
+        throw_error(key_loc(k, value, file_), "unknown key '{}' in {}; did you mean '{}'?", k.str(),
+                    what_, key);
+    }
+    throw_error(whole_file_ ? FileLoc{file_, 0, 0} : loc(), "{} is missing required key '{}'", what_, key);
 }
 
 const toml::node& TableReader::required(std::string_view key) {
@@ -164,12 +212,15 @@ const toml::array* TableReader::table_array(std::string_view key) {
 void TableReader::finish() const {
     for (auto&& [key, value] : table_) {
         if (known_.count(key.str())) continue;
-        const auto& s = key.source();
-        FileLoc at{file_, static_cast<int>(s.begin.line), static_cast<int>(s.begin.column)};
-        if (at.line == 0) at = loc_of(value, file_);
-        throw_error(at, "unknown key '{}' in {} (valid keys: {})", key.str(), what_,
+        const std::string guess = nearest(key.str(), known_);
+        throw_error(key_loc(key, value, file_), "unknown key '{}' in {}{} (valid keys: {})", key.str(),
+                    what_, guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess),
                     fmt::join(known_, ", "));
     }
+}
+
+FileLoc key_location(const toml::key& key, const toml::node& value, const std::string& file) {
+    return key_loc(key, value, file);
 }
 
 }  // namespace spangle

@@ -65,6 +65,9 @@ public:
     /** Throws for the first key in the table that no getter asked about. */
     void finish() const;
 
+    /** Marks this reader as the file's root table: its errors name the file, not line 1. */
+    void set_whole_file() { whole_file_ = true; }
+
     /** Throws "`what` is missing required key 'key'" at the table. */
     [[noreturn]] void missing(std::string_view key) const;
 
@@ -77,7 +80,14 @@ private:
     std::string file_;
     std::string what_;
     std::set<std::string, std::less<>> known_;
+    bool whole_file_ = false;
 };
+
+/** Levenshtein distance, for "did you mean" suggestions. */
+std::size_t edit_distance(std::string_view a, std::string_view b);
+
+/** Location of a key's text (falls back to its value's). */
+FileLoc key_location(const toml::key& key, const toml::node& value, const std::string& file);
 
 /** Parses a 3-vector from a node; `name` is used in messages. */
 Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view name);

@@ -109,7 +109,7 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
         if (k == model.param_count) {
             std::vector<std::string> names;
             for (uint32_t i = 0; i < model.param_count; ++i) names.emplace_back(model.params[i].name);
-            throw_error(p.loc, "material '{}': model '{}' of plugin '{}' has no parameter '{}' (parameters: {})",
+            throw_error(p.key_loc, "material '{}': model '{}' of plugin '{}' has no parameter '{}' (parameters: {})",
                         m.name, model.name, m.plugin, p.name,
                         names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
         }

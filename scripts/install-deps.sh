@@ -1,0 +1,19 @@
+#!/usr/bin/env bash
+# Installs Spangle's build and test dependencies from Debian 12's packages (run as root).
+# The list and the CMake traps behind it are in ../shared/NOTES-deps.md and cmake/SpangleDeps.cmake.
+set -euo pipefail
+packages=(
+    cmake ninja-build g++ pkg-config
+    libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev
+    libtbb-dev libtomlplusplus-dev libcli11-dev libassimp-dev libgtest-dev libbenchmark-dev
+    openimageio-tools opencolorio-tools
+)
+missing=()
+for p in "${packages[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+    export DEBIAN_FRONTEND=noninteractive
+    apt-get update -qq
+    apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
