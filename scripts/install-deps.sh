@@ -6,7 +6,7 @@ packages=(
     cmake ninja-build g++ pkg-config
     libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev
     libtbb-dev libtomlplusplus-dev libcli11-dev libassimp-dev libgtest-dev libbenchmark-dev
-    openimageio-tools opencolorio-tools
+    openimageio-tools opencolorio-tools clang-format
 )
 missing=()
 for p in "${packages[@]}"; do

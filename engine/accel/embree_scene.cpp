@@ -19,10 +19,10 @@ RTCGeometry add_triangles(RTCDevice device, RTCScene scene, const float* xyz, st
                           const uint32_t* indices, std::size_t triangles) {
     RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
     // Embree may read 16 bytes at the last vertex; the buffer it allocates is padded for that.
-    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_VERTEX, 0,
-                                                          RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertices));
-    auto* i = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(g, RTC_BUFFER_TYPE_INDEX, 0,
-                                                             RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), triangles));
+    auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+        g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertices));
+    auto* i = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
+        g, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(uint32_t), triangles));
     if (v && i) {
         std::memcpy(v, xyz, vertices * 3 * sizeof(float));
         std::memcpy(i, indices, triangles * 3 * sizeof(uint32_t));
@@ -36,7 +36,9 @@ RTCGeometry add_triangles(RTCDevice device, RTCScene scene, const float* xyz, st
 
 EmbreeScene::EmbreeScene() {
     device_ = rtcNewDevice(nullptr);
-    if (!device_) throw_error("cannot create an Embree device (error {})", static_cast<int>(rtcGetDeviceError(nullptr)));
+    if (!device_)
+        throw_error("cannot create an Embree device (error {})",
+                    static_cast<int>(rtcGetDeviceError(nullptr)));
     rtcSetDeviceErrorFunction(device_, on_embree_error, &error_);
 }
 
@@ -87,7 +89,8 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
             idx.insert(idx.end(), {b, b + 1, b + 2, b, b + 2, b + 3});
         }
         quad_geom_ = static_cast<uint32_t>(instances.size());
-        RTCGeometry g = add_triangles(device_, top_, xyz.data(), xyz.size() / 3, idx.data(), idx.size() / 3);
+        RTCGeometry g =
+            add_triangles(device_, top_, xyz.data(), xyz.size() / 3, idx.data(), idx.size() / 3);
         rtcReleaseGeometry(g);
     }
     rtcCommitScene(top_);
@@ -115,7 +118,8 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
     hit.b1 = rh.hit.u;
     hit.b2 = rh.hit.v;
     hit.prim = rh.hit.primID;
-    hit.instance = rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int32_t>(rh.hit.instID[0]);
+    hit.instance =
+        rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int32_t>(rh.hit.instID[0]);
     return true;
 }
 

@@ -17,20 +17,20 @@ namespace spangle {
 
 /** One placed mesh: which mesh, its material, its transform. */
 struct Instance {
-    uint32_t mesh = 0;            ///< index into GeometryStore::meshes
-    uint32_t material = 0;        ///< index into the scene's materials
-    Affine to_world;              ///< object to world
-    Affine normal_to_world;       ///< inverse transpose of to_world's linear part (no translation)
-    int32_t emitter = -1;         ///< first light-table entry of its triangles, or -1
-    Vec3 emission;                ///< radiance of its front faces (zero when not emissive)
+    uint32_t mesh = 0;       ///< index into GeometryStore::meshes
+    uint32_t material = 0;   ///< index into the scene's materials
+    Affine to_world;         ///< object to world
+    Affine normal_to_world;  ///< inverse transpose of to_world's linear part (no translation)
+    int32_t emitter = -1;    ///< first light-table entry of its triangles, or -1
+    Vec3 emission;           ///< radiance of its front faces (zero when not emissive)
 };
 
 /** A ray hit, resolved to what shading needs to look up. */
 struct Hit {
-    float t = 0.0f;               ///< distance along the (unit) ray direction
-    float b1 = 0.0f, b2 = 0.0f;   ///< barycentrics of vertices 1 and 2
-    uint32_t prim = 0;            ///< triangle index within its mesh or the quad geometry
-    int32_t instance = -1;        ///< instance index, or -1 for a quad light triangle
+    float t = 0.0f;              ///< distance along the (unit) ray direction
+    float b1 = 0.0f, b2 = 0.0f;  ///< barycentrics of vertices 1 and 2
+    uint32_t prim = 0;           ///< triangle index within its mesh or the quad geometry
+    int32_t instance = -1;       ///< instance index, or -1 for a quad light triangle
 };
 
 /** An Embree device and committed scene. Not copyable; rtc handles released on destruction. */

@@ -4,9 +4,9 @@
 //   2  bad command line
 //   3  internal error (a bug in Spangle)
 
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <filesystem>
@@ -48,18 +48,22 @@ struct RenderArgs {
 void print_stats(const FrameResult& r, const std::string& exr) {
     fmt::print("systems:\n");
     for (const auto& s : r.systems) {
-        if (s.ran) fmt::print("  {:<12} ran      {:9.3f} s\n", s.name, s.seconds);
-        else fmt::print("  {:<12} skipped  ({})\n", s.name, s.reason);
+        if (s.ran)
+            fmt::print("  {:<12} ran      {:9.3f} s\n", s.name, s.seconds);
+        else
+            fmt::print("  {:<12} skipped  ({})\n", s.name, s.reason);
     }
-    fmt::print("plugins opened: {}\n",
-               r.plugins_opened.empty() ? std::string("none") : fmt::format("{}", fmt::join(r.plugins_opened, ", ")));
+    fmt::print("plugins opened: {}\n", r.plugins_opened.empty()
+                                           ? std::string("none")
+                                           : fmt::format("{}", fmt::join(r.plugins_opened, ", ")));
     const RenderStats& st = r.stats;
     if (st.samples > 0) {
         const double rays = static_cast<double>(st.camera_rays + st.bounce_rays + st.shadow_rays);
-        fmt::print("render: {}x{}, {} samples in {:.3f} s: {:.3f} Msamples/s, {:.3f} Mrays/s\n", r.width,
-                   r.height, st.samples, st.seconds, static_cast<double>(st.samples) / st.seconds * 1e-6,
-                   rays / st.seconds * 1e-6);
-        fmt::print("rays: {} camera, {} bounce, {} shadow\n", st.camera_rays, st.bounce_rays, st.shadow_rays);
+        fmt::print("render: {}x{}, {} samples in {:.3f} s: {:.3f} Msamples/s, {:.3f} Mrays/s\n",
+                   r.width, r.height, st.samples, st.seconds,
+                   static_cast<double>(st.samples) / st.seconds * 1e-6, rays / st.seconds * 1e-6);
+        fmt::print("rays: {} camera, {} bounce, {} shadow\n", st.camera_rays, st.bounce_rays,
+                   st.shadow_rays);
         fmt::print("non-finite samples replaced by black: {}\n", st.nonfinite);
     }
     fmt::print("working space: {}\noutput: {}\n", r.color.working_space(), exr);
@@ -68,14 +72,17 @@ void print_stats(const FrameResult& r, const std::string& exr) {
 int run_render(const RenderArgs& a) {
     Logger log;
     if (a.quiet) log.threshold = LogLevel::Warning;
-    const std::string output = a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
-    if (fs::path(output).extension() != ".exr")
-        throw_error("output '{}' must end in .exr", output);
+    const std::string output =
+        a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
+    if (fs::path(output).extension() != ".exr") throw_error("output '{}' must end in .exr", output);
     const auto& comps = exr_compressions();
     if (std::find(comps.begin(), comps.end(), a.compression) == comps.end())
-        throw_error("unknown EXR compression '{}' (valid: {})", a.compression, fmt::join(comps, ", "));
+        throw_error("unknown EXR compression '{}' (valid: {})", a.compression,
+                    fmt::join(comps, ", "));
     const std::string preview =
-        a.no_preview ? std::string() : (a.preview.empty() ? fs::path(output).replace_extension(".png").string() : a.preview);
+        a.no_preview
+            ? std::string()
+            : (a.preview.empty() ? fs::path(output).replace_extension(".png").string() : a.preview);
 
     FrameRequest req;
     req.scene = a.scene;
@@ -85,26 +92,36 @@ int run_render(const RenderArgs& a) {
     req.options.spp_override = a.spp;
     req.log = &log;
     Progress progress(::isatty(STDERR_FILENO) != 0);
-    if (!a.quiet) req.options.progress = [&](uint64_t done, uint64_t total) { progress.update(done, total); };
+    if (!a.quiet)
+        req.options.progress = [&](uint64_t done, uint64_t total) { progress.update(done, total); };
 
     FrameResult frame = render_frame(req);
     progress.finish();
     if (frame.image.empty()) throw_error("the scene has no camera to render from");
     if (frame.stats.nonfinite > 0)
-        log.warn("{} non-finite sample values were replaced by black; the first at pixel ({}, {}), sample {}",
-                 frame.stats.nonfinite, frame.stats.first_bad_pixel_x, frame.stats.first_bad_pixel_y,
-                 frame.stats.first_bad_sample);
+        log.warn(
+            "{} non-finite sample values were replaced by black; the first at pixel ({}, {}), "
+            "sample {}",
+            frame.stats.nonfinite, frame.stats.first_bad_pixel_x, frame.stats.first_bad_pixel_y,
+            frame.stats.first_bad_sample);
 
     ExrOptions exr;
     exr.half = !a.full_float;
     exr.compression = a.compression;
-    exr.metadata = {{"spangle:scene", a.scene}, {"spangle:version", SPANGLE_VERSION},
-                    {"spangle:spp", std::to_string(frame.stats.samples / (static_cast<uint64_t>(frame.width) * frame.height))}};
-    write_exr(output, frame.image, static_cast<int>(frame.width), static_cast<int>(frame.height), frame.color, exr);
+    exr.metadata = {
+        {"spangle:scene", a.scene},
+        {"spangle:version", SPANGLE_VERSION},
+        {"spangle:spp", std::to_string(frame.stats.samples /
+                                       (static_cast<uint64_t>(frame.width) * frame.height))}};
+    write_exr(output, frame.image, static_cast<int>(frame.width), static_cast<int>(frame.height),
+              frame.color, exr);
     if (!preview.empty())
-        write_png_preview(preview, frame.image, static_cast<int>(frame.width), static_cast<int>(frame.height), frame.color);
-    if (a.stats) print_stats(frame, output);
-    else if (!a.quiet) log.info("wrote {}{}", output, preview.empty() ? "" : " and " + preview);
+        write_png_preview(preview, frame.image, static_cast<int>(frame.width),
+                          static_cast<int>(frame.height), frame.color);
+    if (a.stats)
+        print_stats(frame, output);
+    else if (!a.quiet)
+        log.info("wrote {}{}", output, preview.empty() ? "" : " and " + preview);
     return 0;
 }
 
@@ -136,8 +153,10 @@ int run_plugins(const std::vector<std::string>& dirs) {
 
 void print_error(const std::string& msg) {
     // Located messages already read "file:line:col: error: ..."; others get the prefix here.
-    if (msg.find(": error: ") != std::string::npos) fmt::print(stderr, "{}\n", msg);
-    else fmt::print(stderr, "spangle: error: {}\n", msg);
+    if (msg.find(": error: ") != std::string::npos)
+        fmt::print(stderr, "{}\n", msg);
+    else
+        fmt::print(stderr, "spangle: error: {}\n", msg);
 }
 
 }  // namespace
@@ -155,18 +174,24 @@ int main(int argc, char** argv) {
     render->add_option("-o,--output", ra.output, "output EXR (default: <scene name>.exr)");
     render->add_option("--preview", ra.preview, "PNG preview path (default: the output with .png)");
     render->add_flag("--no-preview", ra.no_preview, "write no PNG preview");
-    render->add_option("--spp", ra.spp, "samples per pixel (overrides the scene)")->check(CLI::Range(1u, 1u << 20));
-    render->add_option("--threads", ra.threads, "worker threads (default: all cores)")->check(CLI::Range(1, 1024));
-    render->add_option("--plugin-path", ra.plugin_dirs, "directory searched for plugins first (repeatable)");
+    render->add_option("--spp", ra.spp, "samples per pixel (overrides the scene)")
+        ->check(CLI::Range(1u, 1u << 20));
+    render->add_option("--threads", ra.threads, "worker threads (default: all cores)")
+        ->check(CLI::Range(1, 1024));
+    render->add_option("--plugin-path", ra.plugin_dirs,
+                       "directory searched for plugins first (repeatable)");
     render->add_flag("--stats", ra.stats, "print which systems ran and render statistics");
     render->add_flag("--float", ra.full_float, "write 32-bit float EXR instead of half");
     render->add_option("--compression", ra.compression, "EXR compression (default zip)");
-    render->add_option("--ocio", ra.ocio, "OpenColorIO config (default: $OCIO, then the shipped one)");
+    render->add_option("--ocio", ra.ocio,
+                       "OpenColorIO config (default: $OCIO, then the shipped one)");
     render->add_flag("-q,--quiet", ra.quiet, "no progress or info output");
 
     std::vector<std::string> plugin_dirs;
-    CLI::App* plugins = app.add_subcommand("plugins", "list the plugins found and their parameters");
-    plugins->add_option("--plugin-path", plugin_dirs, "directory searched for plugins first (repeatable)");
+    CLI::App* plugins =
+        app.add_subcommand("plugins", "list the plugins found and their parameters");
+    plugins->add_option("--plugin-path", plugin_dirs,
+                        "directory searched for plugins first (repeatable)");
 
     try {
         app.parse(argc, argv);

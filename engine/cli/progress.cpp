@@ -19,7 +19,10 @@ std::string format_duration(double s) {
 }  // namespace
 
 Progress::Progress(bool interactive, std::FILE* out)
-    : interactive_(interactive), out_(out), start_(std::chrono::steady_clock::now()), last_draw_(start_) {}
+    : interactive_(interactive),
+      out_(out),
+      start_(std::chrono::steady_clock::now()),
+      last_draw_(start_) {}
 
 void Progress::update(uint64_t done, uint64_t total) {
     const auto now = std::chrono::steady_clock::now();
@@ -41,7 +44,8 @@ void Progress::update(uint64_t done, uint64_t total) {
         return;
     }
     const int decile = static_cast<int>(frac * 10.0);
-    if (decile == last_decile_) return;
+    // No line at 0%: the rate (and so the time left) means nothing before a tenth is done.
+    if (decile == last_decile_ || decile == 0) return;
     last_decile_ = decile;
     fmt::print(out_, "render: {:3d}%  {:.2f} Msamples/s  {} left\n", decile * 10, rate * 1e-6,
                format_duration(left));

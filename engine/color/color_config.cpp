@@ -56,8 +56,12 @@ ColorConfig ColorConfig::load(const std::string& path, const std::vector<std::st
     return cfg;
 }
 
-const std::string& ColorConfig::path() const { return impl_->path; }
-const std::string& ColorConfig::working_space() const { return impl_->working; }
+const std::string& ColorConfig::path() const {
+    return impl_->path;
+}
+const std::string& ColorConfig::working_space() const {
+    return impl_->working;
+}
 
 std::optional<std::string> ColorConfig::canonical_name(const std::string& space) const {
     const char* name = impl_->config->getCanonicalName(space.c_str());
@@ -108,7 +112,9 @@ void ColorConfig::to_display(const std::string& display, const std::string& view
     }
 }
 
-std::string ColorConfig::default_display() const { return impl_->config->getDefaultDisplay(); }
+std::string ColorConfig::default_display() const {
+    return impl_->config->getDefaultDisplay();
+}
 std::string ColorConfig::default_view(const std::string& display) const {
     return impl_->config->getDefaultView(display.c_str());
 }

@@ -15,8 +15,8 @@ namespace fs = std::filesystem;
 namespace spangle {
 
 const std::vector<std::string>& exr_compressions() {
-    static const std::vector<std::string> names = {"none", "rle",   "zips",  "zip",   "piz",
-                                                    "pxr24", "b44", "b44a", "dwaa", "dwab"};
+    static const std::vector<std::string> names = {"none",  "rle", "zips", "zip",  "piz",
+                                                   "pxr24", "b44", "b44a", "dwaa", "dwab"};
     return names;
 }
 
@@ -63,7 +63,8 @@ void write_exr(const std::string& path, const std::vector<float>& rgb, int width
     if (std::find(names.begin(), names.end(), options.compression) == names.end())
         throw_error("unknown EXR compression '{}' (valid: {})", options.compression,
                     fmt::join(names, ", "));
-    OIIO::ImageSpec spec(width, height, 3, options.half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
+    OIIO::ImageSpec spec(width, height, 3,
+                         options.half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
     spec.channelnames = {"R", "G", "B"};
     spec.attribute("compression", options.compression);
     spec.attribute("oiio:ColorSpace", color.working_space());

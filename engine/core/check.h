@@ -11,18 +11,18 @@ namespace spangle::detail {
 [[noreturn]] void check_failed(const char* file, int line, const std::string& what);
 }
 
-#define SPANGLE_CHECK(cond, why)                                                             \
-    do {                                                                                     \
-        if (!(cond)) ::spangle::detail::check_failed(__FILE__, __LINE__, #cond ": " why);    \
+#define SPANGLE_CHECK(cond, why)                                                          \
+    do {                                                                                  \
+        if (!(cond)) ::spangle::detail::check_failed(__FILE__, __LINE__, #cond ": " why); \
     } while (0)
 
-#define SPANGLE_CHECK_OP(a, op, b)                                                           \
-    do {                                                                                     \
-        const auto& spangle_a_ = (a);                                                        \
-        const auto& spangle_b_ = (b);                                                        \
-        if (!(spangle_a_ op spangle_b_))                                                     \
-            ::spangle::detail::check_failed(                                                 \
-                __FILE__, __LINE__,                                                          \
+#define SPANGLE_CHECK_OP(a, op, b)                                                              \
+    do {                                                                                        \
+        const auto& spangle_a_ = (a);                                                           \
+        const auto& spangle_b_ = (b);                                                           \
+        if (!(spangle_a_ op spangle_b_))                                                        \
+            ::spangle::detail::check_failed(                                                    \
+                __FILE__, __LINE__,                                                             \
                 fmt::format("{} " #op " {} failed: {} vs {}", #a, #b, spangle_a_, spangle_b_)); \
     } while (0)
 

@@ -26,8 +26,7 @@ class SpangleError : public std::runtime_error {
 public:
     explicit SpangleError(const std::string& message) : std::runtime_error(message) {}
     SpangleError(const FileLoc& loc, const std::string& message)
-        : std::runtime_error(loc.file.empty() ? message
-                                              : loc.str() + ": error: " + message) {}
+        : std::runtime_error(loc.file.empty() ? message : loc.str() + ": error: " + message) {}
 };
 
 /** Throws SpangleError at loc with a fmt-formatted message. */

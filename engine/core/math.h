@@ -23,25 +23,52 @@ struct Vec3 {
     constexpr Vec3 operator*(float s) const { return {x * s, y * s, z * s}; }
     constexpr Vec3 operator/(float s) const { return {x / s, y / s, z / s}; }
     constexpr Vec3 operator-() const { return {-x, -y, -z}; }
-    constexpr Vec3& operator+=(Vec3 o) { x += o.x; y += o.y; z += o.z; return *this; }
-    constexpr Vec3& operator*=(Vec3 o) { x *= o.x; y *= o.y; z *= o.z; return *this; }
-    constexpr Vec3& operator*=(float s) { x *= s; y *= s; z *= s; return *this; }
+    constexpr Vec3& operator+=(Vec3 o) {
+        x += o.x;
+        y += o.y;
+        z += o.z;
+        return *this;
+    }
+    constexpr Vec3& operator*=(Vec3 o) {
+        x *= o.x;
+        y *= o.y;
+        z *= o.z;
+        return *this;
+    }
+    constexpr Vec3& operator*=(float s) {
+        x *= s;
+        y *= s;
+        z *= s;
+        return *this;
+    }
     constexpr bool operator==(const Vec3&) const = default;
 };
 
-constexpr Vec3 operator*(float s, Vec3 v) { return v * s; }
-constexpr float dot(Vec3 a, Vec3 b) { return a.x * b.x + a.y * b.y + a.z * b.z; }
+constexpr Vec3 operator*(float s, Vec3 v) {
+    return v * s;
+}
+constexpr float dot(Vec3 a, Vec3 b) {
+    return a.x * b.x + a.y * b.y + a.z * b.z;
+}
 constexpr Vec3 cross(Vec3 a, Vec3 b) {
     return {a.y * b.z - a.z * b.y, a.z * b.x - a.x * b.z, a.x * b.y - a.y * b.x};
 }
-inline float length(Vec3 v) { return std::sqrt(dot(v, v)); }
-inline Vec3 normalize(Vec3 v) { return v / length(v); }
+inline float length(Vec3 v) {
+    return std::sqrt(dot(v, v));
+}
+inline Vec3 normalize(Vec3 v) {
+    return v / length(v);
+}
 inline bool is_finite(Vec3 v) {
     return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
 }
-constexpr float max_component(Vec3 v) { return std::max(v.x, std::max(v.y, v.z)); }
+constexpr float max_component(Vec3 v) {
+    return std::max(v.x, std::max(v.y, v.z));
+}
 /** Rec.709 luminance weights; used only for heuristics (roulette, light power). */
-constexpr float luminance(Vec3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+constexpr float luminance(Vec3 c) {
+    return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
+}
 
 /** Orthonormal basis around unit n (Duff et al. 2017, "Building an Orthonormal Basis,
  *  Revisited"), used when a surface has no usable dpdu. */

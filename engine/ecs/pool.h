@@ -27,23 +27,22 @@
 #define SPANGLE_DETAIL_COLUMN_CLEAR(type, name, doc) name.clear();
 
 /** Declares component Name with SoA columns from FIELDS(X) = X(type, name, doc) .... */
-#define SPANGLE_COMPONENT(Name, FIELDS)                                                    \
-    struct Name {                                                                          \
-        FIELDS(SPANGLE_DETAIL_FIELD_DECL)                                                  \
-        static constexpr const char* kName = #Name;                                        \
-        struct Columns {                                                                   \
-            FIELDS(SPANGLE_DETAIL_COLUMN_DECL)                                             \
-            void push(const Name& v) { FIELDS(SPANGLE_DETAIL_COLUMN_PUSH) }                \
+#define SPANGLE_COMPONENT(Name, FIELDS)                                                        \
+    struct Name {                                                                              \
+        FIELDS(SPANGLE_DETAIL_FIELD_DECL)                                                      \
+        static constexpr const char* kName = #Name;                                            \
+        struct Columns {                                                                       \
+            FIELDS(SPANGLE_DETAIL_COLUMN_DECL)                                                 \
+            void push(const Name& v) { FIELDS(SPANGLE_DETAIL_COLUMN_PUSH) }                    \
             void move(std::size_t from, std::size_t to) { FIELDS(SPANGLE_DETAIL_COLUMN_MOVE) } \
-            void pop() { FIELDS(SPANGLE_DETAIL_COLUMN_POP) }                               \
-            void clear() { FIELDS(SPANGLE_DETAIL_COLUMN_CLEAR) }                           \
-            Name get(std::size_t i) const {                                                \
-                Name r;                                                                    \
-                FIELDS(SPANGLE_DETAIL_COLUMN_GET)                                          \
-                return r;                                                                  \
-            }                                                                              \
-            void set(std::size_t i, const Name& v) { FIELDS(SPANGLE_DETAIL_COLUMN_SET) }   \
-        };                                                                                 \
+            void pop() { FIELDS(SPANGLE_DETAIL_COLUMN_POP) }                                   \
+            void clear(){FIELDS(SPANGLE_DETAIL_COLUMN_CLEAR)} Name get(std::size_t i) const {  \
+                Name r;                                                                        \
+                FIELDS(SPANGLE_DETAIL_COLUMN_GET)                                              \
+                return r;                                                                      \
+            }                                                                                  \
+            void set(std::size_t i, const Name& v) { FIELDS(SPANGLE_DETAIL_COLUMN_SET) }       \
+        };                                                                                     \
     }
 
 namespace spangle::ecs {

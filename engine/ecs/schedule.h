@@ -22,19 +22,19 @@ enum class RunWhen {
 /** A system: name, reads, and the function. Context is whatever the caller passes along. */
 template <class Context>
 struct System {
-    std::string name;                          ///< shown by --stats
-    std::vector<std::type_index> reads;        ///< component types it reads
-    std::vector<std::string> read_names;       ///< their names, for --stats
-    RunWhen when = RunWhen::AllPresent;        ///< how reads gate the run
+    std::string name;                            ///< shown by --stats
+    std::vector<std::type_index> reads;          ///< component types it reads
+    std::vector<std::string> read_names;         ///< their names, for --stats
+    RunWhen when = RunWhen::AllPresent;          ///< how reads gate the run
     void (*run)(Registry&, Context&) = nullptr;  ///< the system itself
 };
 
 /** What happened to one system in one run of the schedule. */
 struct SystemReport {
-    std::string name;         ///< system name
-    bool ran = false;         ///< false: skipped because its inputs were empty
-    std::string reason;       ///< why it was skipped ("no AreaLight"), empty when it ran
-    double seconds = 0.0;     ///< wall time of the run
+    std::string name;      ///< system name
+    bool ran = false;      ///< false: skipped because its inputs were empty
+    std::string reason;    ///< why it was skipped ("no AreaLight"), empty when it ran
+    double seconds = 0.0;  ///< wall time of the run
 };
 
 /** Helper to list component types: reads<Camera, Film>(). */

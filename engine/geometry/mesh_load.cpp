@@ -1,8 +1,8 @@
 #include "geometry/mesh_load.h"
 
-#include <assimp/Importer.hpp>
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
+#include <assimp/Importer.hpp>
 
 #include <cmath>
 #include <filesystem>
@@ -35,8 +35,7 @@ void append_mesh(const aiMesh& m, TriangleMesh& out, bool want_normals, bool wan
 TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
     namespace fs = std::filesystem;
     std::error_code ec;
-    if (!fs::is_regular_file(path, ec))
-        throw_error(ref, "mesh file '{}' not found", path);
+    if (!fs::is_regular_file(path, ec)) throw_error(ref, "mesh file '{}' not found", path);
     const std::string ext = fs::path(path).extension().string();
     if (ext != ".obj" && ext != ".OBJ" && ext != ".ply" && ext != ".PLY")
         throw_error(ref, "mesh file '{}' has extension '{}'; expected .obj or .ply", path, ext);
@@ -71,17 +70,17 @@ TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
 }
 
 void validate_mesh(const TriangleMesh& mesh, const FileLoc& ref) {
-    if (mesh.triangle_count() == 0)
-        throw_error(ref, "mesh '{}' has no triangles", mesh.source);
+    if (mesh.triangle_count() == 0) throw_error(ref, "mesh '{}' has no triangles", mesh.source);
     for (std::size_t i = 0; i < mesh.positions.size(); ++i)
         if (!std::isfinite(mesh.positions[i]))
             throw_error(ref, "mesh '{}': vertex {} has a non-finite position ({}, {}, {})",
-                        mesh.source, i / 3, mesh.positions[i / 3 * 3], mesh.positions[i / 3 * 3 + 1],
-                        mesh.positions[i / 3 * 3 + 2]);
+                        mesh.source, i / 3, mesh.positions[i / 3 * 3],
+                        mesh.positions[i / 3 * 3 + 1], mesh.positions[i / 3 * 3 + 2]);
     const std::size_t n = mesh.vertex_count();
     for (std::size_t i = 0; i < mesh.indices.size(); ++i)
         if (mesh.indices[i] >= n)
-            throw_error(ref, "mesh '{}': triangle {} refers to vertex {}, but there are {} vertices",
+            throw_error(ref,
+                        "mesh '{}': triangle {} refers to vertex {}, but there are {} vertices",
                         mesh.source, i / 3, mesh.indices[i], n);
     for (float x : mesh.normals)
         if (!std::isfinite(x)) throw_error(ref, "mesh '{}' has a non-finite normal", mesh.source);

@@ -11,11 +11,11 @@ namespace spangle {
 
 /** An indexed triangle mesh in object space. normals and uvs are empty or one per vertex. */
 struct TriangleMesh {
-    std::vector<float> positions;  ///< xyz per vertex, object space
-    std::vector<float> normals;    ///< xyz per vertex (unit), or empty: use face normals
-    std::vector<float> uvs;        ///< uv per vertex, or empty: uv from barycentrics
-    std::vector<uint32_t> indices; ///< three per triangle, each < vertex_count()
-    std::string source;            ///< file it came from, for messages
+    std::vector<float> positions;   ///< xyz per vertex, object space
+    std::vector<float> normals;     ///< xyz per vertex (unit), or empty: use face normals
+    std::vector<float> uvs;         ///< uv per vertex, or empty: uv from barycentrics
+    std::vector<uint32_t> indices;  ///< three per triangle, each < vertex_count()
+    std::string source;             ///< file it came from, for messages
 
     std::size_t vertex_count() const { return positions.size() / 3; }
     std::size_t triangle_count() const { return indices.size() / 3; }

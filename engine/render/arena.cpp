@@ -13,7 +13,8 @@ void* ScratchArena::allocate(std::size_t bytes, std::size_t align) {
         if (block_ < blocks_.size()) {
             Block& b = blocks_[block_];
             auto base = reinterpret_cast<std::uintptr_t>(b.data.get()) + offset_;
-            const std::uintptr_t aligned = (base + align - 1) & ~(static_cast<std::uintptr_t>(align) - 1);
+            const std::uintptr_t aligned =
+                (base + align - 1) & ~(static_cast<std::uintptr_t>(align) - 1);
             const std::size_t used = offset_ + (aligned - base) + bytes;
             if (used <= b.size) {
                 offset_ = used;

@@ -43,8 +43,8 @@ FrameResult render_frame(const FrameRequest& req) {
     const ecs::Schedule<World> schedule = make_frame_schedule();
     std::vector<ecs::SystemReport> reports = schedule.run(registry, world);
 
-    FrameResult result{std::move(color), world.width, world.height, std::move(world.image),
-                       std::move(reports), plugins.opened(), world.stats, std::move(info)};
+    FrameResult result{std::move(color),   world.width,      world.height, std::move(world.image),
+                       std::move(reports), plugins.opened(), world.stats,  std::move(info)};
     // Materials go before the loader that holds their libraries (shared ownership keeps the
     // library open until the last instance is destroyed anyway).
     world.materials.clear();

@@ -22,13 +22,13 @@ struct FrameRequest {
 
 /** The rendered frame and its report. */
 struct FrameResult {
-    ColorConfig color;                       ///< config and working space used
-    uint32_t width = 0, height = 0;          ///< image size
-    std::vector<float> image;                ///< RGB in the working space
-    std::vector<ecs::SystemReport> systems;  ///< which systems ran, which were skipped
-    std::vector<std::string> plugins_opened; ///< plugin names opened for this scene
-    RenderStats stats;                       ///< counters of the render system
-    SceneInfo info;                          ///< facts about the scene
+    ColorConfig color;                        ///< config and working space used
+    uint32_t width = 0, height = 0;           ///< image size
+    std::vector<float> image;                 ///< RGB in the working space
+    std::vector<ecs::SystemReport> systems;   ///< which systems ran, which were skipped
+    std::vector<std::string> plugins_opened;  ///< plugin names opened for this scene
+    RenderStats stats;                        ///< counters of the render system
+    SceneInfo info;                           ///< facts about the scene
 };
 
 /** Places where the shipped OCIO config is looked for when neither a path nor $OCIO is given. */

@@ -107,7 +107,8 @@ SurfacePoint surface_at(const World& w, const Instance& inst, const Hit& h, Vec3
         const auto nrm = [&](uint32_t i) {
             return Vec3(mesh.normals[3 * i], mesh.normals[3 * i + 1], mesh.normals[3 * i + 2]);
         };
-        const Vec3 ni = inst.normal_to_world.apply_vector(nrm(i0) * b0 + nrm(i1) * h.b1 + nrm(i2) * h.b2);
+        const Vec3 ni =
+            inst.normal_to_world.apply_vector(nrm(i0) * b0 + nrm(i1) * h.b1 + nrm(i2) * h.b2);
         const float len = length(ni);
         if (len > 0.0f && std::isfinite(len)) n = ni / len;
         if (dot(n, ng) < 0.0f) ng = -ng;  // the geometric normal follows the authored normals
@@ -158,11 +159,11 @@ struct Workspace {
     // Paths of the wave.
     std::vector<uint32_t> pixel, sample;
     std::vector<Vec3> org, dir, throughput, radiance;
-    std::vector<float> prev_pdf;     ///< solid-angle pdf of the last BSDF sample
-    std::vector<uint8_t> prev_delta; ///< last bounce was a delta lobe
+    std::vector<float> prev_pdf;      ///< solid-angle pdf of the last BSDF sample
+    std::vector<uint8_t> prev_delta;  ///< last bounce was a delta lobe
     std::vector<uint8_t> active;
     // Hits of the current bounce.
-    std::vector<uint32_t> order;     ///< active hit paths sorted by material
+    std::vector<uint32_t> order;  ///< active hit paths sorted by material
     std::vector<uint32_t> material_of;
     std::vector<SurfacePoint> surf;
     // Plugin batches (SoA) for one material group.
@@ -185,10 +186,12 @@ struct Workspace {
         surf.resize(n);
     }
     void resize_group(std::size_t n) {
-        for (auto* a : {&px, &py, &pz, &wox, &woy, &woz, &u, &v, &dudx, &dudy, &dvdx, &dvdy, &uv_area,
-                        &f_r, &f_g, &f_b, &pdf, &wix, &wiy, &wiz, &u0, &u1, &u2})
+        for (auto* a :
+             {&px,      &py,  &pz,  &wox, &woy, &woz, &u,   &v,   &dudx, &dudy, &dvdx, &dvdy,
+              &uv_area, &f_r, &f_g, &f_b, &pdf, &wix, &wiy, &wiz, &u0,   &u1,   &u2})
             a->resize(n);
-        for (auto* a : {&flags, &path_id, &closure_index, &sample_flags, &light_query}) a->resize(n);
+        for (auto* a : {&flags, &path_id, &closure_index, &sample_flags, &light_query})
+            a->resize(n);
         light.resize(n);
     }
 };
@@ -232,10 +235,22 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         ws.flags[k] = sp.backface ? SPANGLE_SHADING_BACKFACE : 0u;
         ws.path_id[k] = i;
     }
-    const SpangleShadingBatch_v1 batch{n, ws.px.data(), ws.py.data(), ws.pz.data(), ws.wox.data(),
-                                       ws.woy.data(), ws.woz.data(), ws.u.data(), ws.v.data(),
-                                       ws.dudx.data(), ws.dudy.data(), ws.dvdx.data(), ws.dvdy.data(),
-                                       ws.uv_area.data(), ws.flags.data(), ws.path_id.data()};
+    const SpangleShadingBatch_v1 batch{n,
+                                       ws.px.data(),
+                                       ws.py.data(),
+                                       ws.pz.data(),
+                                       ws.wox.data(),
+                                       ws.woy.data(),
+                                       ws.woz.data(),
+                                       ws.u.data(),
+                                       ws.v.data(),
+                                       ws.dudx.data(),
+                                       ws.dudy.data(),
+                                       ws.dvdx.data(),
+                                       ws.dvdy.data(),
+                                       ws.uv_area.data(),
+                                       ws.flags.data(),
+                                       ws.path_id.data()};
     const SpangleMaterialModel_v1& model = mat.model();
     ws.closures.resize(static_cast<std::size_t>(n) * model.closure_size + 16);
     void* closures = ws.closures.data();
@@ -251,9 +266,10 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         for (uint32_t k = 0; k < n; ++k) {
             const uint32_t i = paths[k];
             const SurfacePoint& sp = ws.surf[i];
-            const LightSample ls = w.lights.sample(sp.p, rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightSelect),
-                                                   rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightU),
-                                                   rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightV));
+            const LightSample ls =
+                w.lights.sample(sp.p, rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightSelect),
+                                rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightU),
+                                rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightV));
             if (!(ls.pdf > 0.0f)) continue;
             ws.light[q] = ls;
             ws.light_query[q] = k;
@@ -263,8 +279,15 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             ws.wiz[q] = dot(ls.wi, sp.n);
             ++q;
         }
-        SpangleEvalBatch_v1 eval{q, ws.closure_index.data(), ws.wix.data(), ws.wiy.data(), ws.wiz.data(),
-                                 ws.f_r.data(), ws.f_g.data(), ws.f_b.data(), ws.pdf.data()};
+        SpangleEvalBatch_v1 eval{q,
+                                 ws.closure_index.data(),
+                                 ws.wix.data(),
+                                 ws.wiy.data(),
+                                 ws.wiz.data(),
+                                 ws.f_r.data(),
+                                 ws.f_g.data(),
+                                 ws.f_b.data(),
+                                 ws.pdf.data()};
         if (q > 0) model.eval(mat.instance(), closures, &eval);
         for (uint32_t j = 0; j < q; ++j) {
             const Vec3 f(ws.f_r[j], ws.f_g[j], ws.f_b[j]);
@@ -290,9 +313,19 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         ws.u1[k] = rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimBsdf1);
         ws.u2[k] = rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimBsdf2);
     }
-    SpangleSampleBatch_v1 sb{n, nullptr, ws.u0.data(), ws.u1.data(), ws.u2.data(), ws.wix.data(),
-                             ws.wiy.data(), ws.wiz.data(), ws.f_r.data(), ws.f_g.data(), ws.f_b.data(),
-                             ws.pdf.data(), ws.sample_flags.data()};
+    SpangleSampleBatch_v1 sb{n,
+                             nullptr,
+                             ws.u0.data(),
+                             ws.u1.data(),
+                             ws.u2.data(),
+                             ws.wix.data(),
+                             ws.wiy.data(),
+                             ws.wiz.data(),
+                             ws.f_r.data(),
+                             ws.f_g.data(),
+                             ws.f_b.data(),
+                             ws.pdf.data(),
+                             ws.sample_flags.data()};
     model.sample(mat.instance(), closures, &sb);
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
@@ -336,10 +369,12 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                 const uint32_t pix = y * job.width + x;
                 const uint32_t smp = first_sample + s;
                 // Box pixel filter: a uniform position inside the pixel.
-                const float fx = (static_cast<float>(x) + sample_1d(job.seed, pix, smp, kDimPixelX)) /
-                                 static_cast<float>(job.width);
-                const float fy = (static_cast<float>(y) + sample_1d(job.seed, pix, smp, kDimPixelY)) /
-                                 static_cast<float>(job.height);
+                const float fx =
+                    (static_cast<float>(x) + sample_1d(job.seed, pix, smp, kDimPixelX)) /
+                    static_cast<float>(job.width);
+                const float fy =
+                    (static_cast<float>(y) + sample_1d(job.seed, pix, smp, kDimPixelY)) /
+                    static_cast<float>(job.height);
                 ws.pixel[i] = pix;
                 ws.sample[i] = smp;
                 ws.org[i] = job.cam.origin;
@@ -368,16 +403,20 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             }
             // Emission seen by this ray, MIS-weighted against next-event estimation.
             int32_t emitter = -1;
-            if (hit.instance < 0) emitter = static_cast<int32_t>(w.quad_light_first + hit.prim / 2);
+            if (hit.instance < 0)
+                emitter = static_cast<int32_t>(w.quad_light_first + hit.prim / 2);
             else if (w.instances[static_cast<std::size_t>(hit.instance)].emitter >= 0)
-                emitter = w.instances[static_cast<std::size_t>(hit.instance)].emitter + static_cast<int32_t>(hit.prim);
+                emitter = w.instances[static_cast<std::size_t>(hit.instance)].emitter +
+                          static_cast<int32_t>(hit.prim);
             if (emitter >= 0) {
                 const auto e = static_cast<uint32_t>(emitter);
                 const Vec3 le = w.lights.emitted(e, -ws.dir[k]);
                 if (max_component(le) > 0.0f) {
                     const Vec3 q = ws.org[k] + ws.dir[k] * hit.t;
-                    const float weight = ws.prev_delta[k] ? 1.0f
-                                         : power_heuristic(ws.prev_pdf[k], w.lights.pdf(e, ws.org[k], q));
+                    const float weight =
+                        ws.prev_delta[k]
+                            ? 1.0f
+                            : power_heuristic(ws.prev_pdf[k], w.lights.pdf(e, ws.org[k], q));
                     ws.radiance[k] += ws.throughput[k] * le * weight;
                 }
             }
@@ -399,7 +438,8 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
         for (std::size_t m = 0; m < material_count; ++m) {
             const uint32_t count_m = group_start[m + 1] - group_start[m];
             if (count_m == 0) continue;
-            shade_group(job, ws, *w.materials[m], ws.order.data() + group_start[m], count_m, bounce, shadow);
+            shade_group(job, ws, *w.materials[m], ws.order.data() + group_start[m], count_m, bounce,
+                        shadow);
         }
     }
     job.camera_rays += n;
@@ -446,28 +486,30 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     const uint32_t tiles_y = (film.height + kTileSize - 1) / kTileSize;
     const uint64_t total = static_cast<uint64_t>(film.width) * film.height * job.spp;
     tbb::enumerable_thread_specific<Workspace> workspaces;
-    const int threads = world.options.threads > 0 ? world.options.threads
-                                                  : tbb::this_task_arena::max_concurrency();
+    const int threads =
+        world.options.threads > 0 ? world.options.threads : tbb::this_task_arena::max_concurrency();
     tbb::task_arena arena(threads);
     arena.execute([&] {
         tbb::parallel_for(tbb::blocked_range<uint32_t>(0, tiles_x * tiles_y, 1),
                           [&](const tbb::blocked_range<uint32_t>& r) {
-            Workspace& ws = workspaces.local();
-            for (uint32_t tile = r.begin(); tile != r.end(); ++tile) {
-                const uint32_t x0 = (tile % tiles_x) * kTileSize, y0 = (tile / tiles_x) * kTileSize;
-                const uint32_t x1 = std::min(x0 + kTileSize, film.width);
-                const uint32_t y1 = std::min(y0 + kTileSize, film.height);
-                for (uint32_t s = 0; s < job.spp; s += kSamplesPerWave) {
-                    const uint32_t count = std::min(kSamplesPerWave, job.spp - s);
-                    trace_wave(job, ws, x0, y0, x1, y1, s, count);
-                    const uint64_t done = job.samples_done += static_cast<uint64_t>(x1 - x0) * (y1 - y0) * count;
-                    if (world.options.progress) {
-                        std::lock_guard<std::mutex> lock(job.progress_mutex);
-                        world.options.progress(done, total);
-                    }
-                }
-            }
-        });
+                              Workspace& ws = workspaces.local();
+                              for (uint32_t tile = r.begin(); tile != r.end(); ++tile) {
+                                  const uint32_t x0 = (tile % tiles_x) * kTileSize,
+                                                 y0 = (tile / tiles_x) * kTileSize;
+                                  const uint32_t x1 = std::min(x0 + kTileSize, film.width);
+                                  const uint32_t y1 = std::min(y0 + kTileSize, film.height);
+                                  for (uint32_t s = 0; s < job.spp; s += kSamplesPerWave) {
+                                      const uint32_t count = std::min(kSamplesPerWave, job.spp - s);
+                                      trace_wave(job, ws, x0, y0, x1, y1, s, count);
+                                      const uint64_t done = job.samples_done +=
+                                          static_cast<uint64_t>(x1 - x0) * (y1 - y0) * count;
+                                      if (world.options.progress) {
+                                          std::lock_guard<std::mutex> lock(job.progress_mutex);
+                                          world.options.progress(done, total);
+                                      }
+                                  }
+                              }
+                          });
     });
 
     const float inv_spp = 1.0f / static_cast<float>(job.spp);

@@ -8,7 +8,8 @@ void LightTable::finalize() {
     std::vector<double> power(emitters_.size());
     for (std::size_t i = 0; i < emitters_.size(); ++i) {
         const AreaEmitter& e = emitters_[i];
-        power[i] = static_cast<double>(luminance(e.radiance)) * static_cast<double>(e.area) * (e.two_sided ? 2.0 : 1.0);
+        power[i] = static_cast<double>(luminance(e.radiance)) * static_cast<double>(e.area) *
+                   (e.two_sided ? 2.0 : 1.0);
     }
     selection_ = Distribution1D(power);
 }

@@ -12,20 +12,20 @@ namespace spangle {
 
 /** One planar emitter: a triangle (p0, p0+e1, p0+e2) or a parallelogram (p0 + s e1 + t e2). */
 struct AreaEmitter {
-    Vec3 p0, e1, e2;      ///< world space
-    Vec3 n;               ///< unit normal, emitting side (e1 x e2 direction)
-    float area = 0.0f;    ///< m^2
-    Vec3 radiance;        ///< working-space RGB, W/(m^2 sr)
+    Vec3 p0, e1, e2;    ///< world space
+    Vec3 n;             ///< unit normal, emitting side (e1 x e2 direction)
+    float area = 0.0f;  ///< m^2
+    Vec3 radiance;      ///< working-space RGB, W/(m^2 sr)
     bool parallelogram = false;
     bool two_sided = false;
 };
 
 /** A light sample seen from a reference point. */
 struct LightSample {
-    Vec3 wi;              ///< unit direction from the reference point to the light
-    float dist = 0.0f;    ///< distance to the sampled point
-    Vec3 radiance;        ///< emitted radiance towards the reference point
-    float pdf = 0.0f;     ///< solid-angle pdf, selection included; 0 = invalid
+    Vec3 wi;            ///< unit direction from the reference point to the light
+    float dist = 0.0f;  ///< distance to the sampled point
+    Vec3 radiance;      ///< emitted radiance towards the reference point
+    float pdf = 0.0f;   ///< solid-angle pdf, selection included; 0 = invalid
 };
 
 /** All area emitters and their selection distribution. */

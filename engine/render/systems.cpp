@@ -66,7 +66,8 @@ void system_area_lights(ecs::Registry& r, World& w) {
             const Affine nxf = xf.inverse();
             refs.emplace_back(e, static_cast<int32_t>(w.lights.size()));
             for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
-                const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1], i2 = mesh.indices[3 * t + 2];
+                const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
+                               i2 = mesh.indices[3 * t + 2];
                 AreaEmitter a;
                 a.p0 = xf.apply_point(mesh.position(i0));
                 a.e1 = xf.apply_point(mesh.position(i1)) - a.p0;
@@ -78,7 +79,8 @@ void system_area_lights(ecs::Registry& r, World& w) {
                     // The emitting side follows the authored normals, as shading does.
                     Vec3 sum(0.0f);
                     for (uint32_t v : {i0, i1, i2})
-                        sum += Vec3(mesh.normals[3 * v], mesh.normals[3 * v + 1], mesh.normals[3 * v + 2]);
+                        sum += Vec3(mesh.normals[3 * v], mesh.normals[3 * v + 1],
+                                    mesh.normals[3 * v + 2]);
                     const Vec3 nw(nxf.m[0][0] * sum.x + nxf.m[1][0] * sum.y + nxf.m[2][0] * sum.z,
                                   nxf.m[0][1] * sum.x + nxf.m[1][1] * sum.y + nxf.m[2][1] * sum.z,
                                   nxf.m[0][2] * sum.x + nxf.m[1][2] * sum.y + nxf.m[2][2] * sum.z);
@@ -105,8 +107,9 @@ void system_area_lights(ecs::Registry& r, World& w) {
             a.parallelogram = true;
             a.two_sided = q.two_sided;
             w.lights.add(a);
-            w.quad_vertices.insert(w.quad_vertices.end(),
-                                   {q.corner, q.corner + q.edge1, q.corner + q.edge1 + q.edge2, q.corner + q.edge2});
+            w.quad_vertices.insert(
+                w.quad_vertices.end(),
+                {q.corner, q.corner + q.edge1, q.corner + q.edge1 + q.edge2, q.corner + q.edge2});
         }
     }
     w.lights.finalize();

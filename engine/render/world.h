@@ -28,13 +28,13 @@ struct RenderOptions {
 
 /** Counters of one render. */
 struct RenderStats {
-    uint64_t camera_rays = 0;   ///< primary rays
-    uint64_t bounce_rays = 0;   ///< continuation rays after scattering
-    uint64_t shadow_rays = 0;   ///< next-event visibility rays
-    uint64_t samples = 0;       ///< camera samples (pixels x spp)
-    uint64_t nonfinite = 0;     ///< contributions replaced by black
+    uint64_t camera_rays = 0;  ///< primary rays
+    uint64_t bounce_rays = 0;  ///< continuation rays after scattering
+    uint64_t shadow_rays = 0;  ///< next-event visibility rays
+    uint64_t samples = 0;      ///< camera samples (pixels x spp)
+    uint64_t nonfinite = 0;    ///< contributions replaced by black
     uint32_t first_bad_pixel_x = 0, first_bad_pixel_y = 0, first_bad_sample = 0;
-    double seconds = 0.0;       ///< wall time of the render system
+    double seconds = 0.0;  ///< wall time of the render system
 };
 
 #define SPANGLE_EMITTER_REF_FIELDS(X) X(int32_t, first, "first light-table entry of its triangles")
@@ -43,25 +43,25 @@ SPANGLE_COMPONENT(EmitterRef, SPANGLE_EMITTER_REF_FIELDS);
 
 /** Shared state of one frame. */
 struct World {
-    ColorConfig* color = nullptr;          ///< borrowed
-    const Logger* log = nullptr;           ///< borrowed
-    PluginLoader* plugins = nullptr;       ///< borrowed
-    const HostServices* host = nullptr;    ///< borrowed
-    const SceneInfo* info = nullptr;       ///< borrowed
+    ColorConfig* color = nullptr;        ///< borrowed
+    const Logger* log = nullptr;         ///< borrowed
+    PluginLoader* plugins = nullptr;     ///< borrowed
+    const HostServices* host = nullptr;  ///< borrowed
+    const SceneInfo* info = nullptr;     ///< borrowed
     RenderOptions options;
 
-    GeometryStore geometry;                          ///< mesh_load
+    GeometryStore geometry;                                    ///< mesh_load
     std::vector<std::unique_ptr<MaterialInstance>> materials;  ///< materials; null = unused
-    LightTable lights;                               ///< area_lights
-    std::vector<Vec3> quad_vertices;                 ///< area_lights: 4 corners per quad
-    uint32_t quad_light_first = 0;                   ///< light-table index of the first quad
-    Vec3 environment;                                ///< environment
-    std::vector<Instance> instances;                 ///< accelerate
-    std::unique_ptr<EmbreeScene> accel;             ///< accelerate
+    LightTable lights;                                         ///< area_lights
+    std::vector<Vec3> quad_vertices;                           ///< area_lights: 4 corners per quad
+    uint32_t quad_light_first = 0;       ///< light-table index of the first quad
+    Vec3 environment;                    ///< environment
+    std::vector<Instance> instances;     ///< accelerate
+    std::unique_ptr<EmbreeScene> accel;  ///< accelerate
 
-    uint32_t width = 0, height = 0;                  ///< render
-    std::vector<float> image;                        ///< render: RGB, working space, row-major
-    RenderStats stats;                               ///< render
+    uint32_t width = 0, height = 0;  ///< render
+    std::vector<float> image;        ///< render: RGB, working space, row-major
+    RenderStats stats;               ///< render
 };
 
 }  // namespace spangle

@@ -15,21 +15,21 @@ namespace spangle {
 /** One material parameter as written in the scene, before validation against a plugin schema. */
 struct ParamEntry {
     enum class Kind { Number, Bool, String, Color };
-    std::string name;         ///< key in the scene file
-    Kind kind = Kind::Number; ///< what the TOML value was
+    std::string name;              ///< key in the scene file
+    Kind kind = Kind::Number;      ///< what the TOML value was
     double number[3] = {0, 0, 0};  ///< Number: [0]; Bool: [0] = 0 or 1; Color: working-space RGB
-    bool is_integer = false;  ///< Number written as a TOML integer
-    std::string text;         ///< String value
-    FileLoc loc;              ///< where the value is written
-    FileLoc key_loc;          ///< where the key is written
+    bool is_integer = false;       ///< Number written as a TOML integer
+    std::string text;              ///< String value
+    FileLoc loc;                   ///< where the value is written
+    FileLoc key_loc;               ///< where the key is written
 };
 using ParamList = std::vector<ParamEntry>;
 
 #define SPANGLE_TRANSFORM_FIELDS(X) X(Affine, to_world, "object to world")
 SPANGLE_COMPONENT(Transform, SPANGLE_TRANSFORM_FIELDS);
 
-#define SPANGLE_MESH_FILE_FIELDS(X)                  \
-    X(std::string, path, "resolved mesh file path")  \
+#define SPANGLE_MESH_FILE_FIELDS(X)                 \
+    X(std::string, path, "resolved mesh file path") \
     X(FileLoc, loc, "where the scene names the file")
 /** A mesh to load from an OBJ or PLY file (input of the mesh_load system). */
 SPANGLE_COMPONENT(MeshFile, SPANGLE_MESH_FILE_FIELDS);
@@ -38,13 +38,13 @@ SPANGLE_COMPONENT(MeshFile, SPANGLE_MESH_FILE_FIELDS);
 /** A loaded triangle mesh (output of mesh_load, input of accelerate). */
 SPANGLE_COMPONENT(TriangleMeshRef, SPANGLE_MESH_REF_FIELDS);
 
-#define SPANGLE_MATERIAL_FIELDS(X)                       \
-    X(std::string, name, "scene-unique material name")   \
-    X(std::string, plugin, "plugin name, e.g. smooth")   \
+#define SPANGLE_MATERIAL_FIELDS(X)                                              \
+    X(std::string, name, "scene-unique material name")                          \
+    X(std::string, plugin, "plugin name, e.g. smooth")                          \
     X(std::string, model, "model name within the plugin, empty = the only one") \
-    X(ParamList, params, "parameters as written")        \
-    X(FileLoc, loc, "the [[material]] table")            \
-    X(FileLoc, plugin_loc, "the plugin key")             \
+    X(ParamList, params, "parameters as written")                               \
+    X(FileLoc, loc, "the [[material]] table")                                   \
+    X(FileLoc, plugin_loc, "the plugin key")                                    \
     X(FileLoc, model_loc, "the model key, or the table when absent")
 /** A material definition (input of the materials system). */
 SPANGLE_COMPONENT(Material, SPANGLE_MATERIAL_FIELDS);
@@ -53,15 +53,16 @@ SPANGLE_COMPONENT(Material, SPANGLE_MATERIAL_FIELDS);
 /** The material an object uses. */
 SPANGLE_COMPONENT(MaterialRef, SPANGLE_MATERIAL_REF_FIELDS);
 
-#define SPANGLE_EMISSION_FIELDS(X) X(Vec3, radiance, "emitted radiance, working-space RGB, W/(m^2 sr)")
+#define SPANGLE_EMISSION_FIELDS(X) \
+    X(Vec3, radiance, "emitted radiance, working-space RGB, W/(m^2 sr)")
 /** Makes an object's mesh an area light emitting from its front faces. */
 SPANGLE_COMPONENT(Emission, SPANGLE_EMISSION_FIELDS);
 
-#define SPANGLE_QUAD_LIGHT_FIELDS(X)                       \
-    X(Vec3, corner, "one corner, world space")             \
-    X(Vec3, edge1, "first edge from the corner")           \
+#define SPANGLE_QUAD_LIGHT_FIELDS(X)                           \
+    X(Vec3, corner, "one corner, world space")                 \
+    X(Vec3, edge1, "first edge from the corner")               \
     X(Vec3, edge2, "second edge; emits towards edge1 x edge2") \
-    X(Vec3, radiance, "working-space RGB radiance")        \
+    X(Vec3, radiance, "working-space RGB radiance")            \
     X(bool, two_sided, "emit from both faces")
 /** A parallelogram area light. */
 SPANGLE_COMPONENT(QuadLight, SPANGLE_QUAD_LIGHT_FIELDS);
@@ -70,19 +71,19 @@ SPANGLE_COMPONENT(QuadLight, SPANGLE_QUAD_LIGHT_FIELDS);
 /** A constant-colour environment. */
 SPANGLE_COMPONENT(Environment, SPANGLE_ENVIRONMENT_FIELDS);
 
-#define SPANGLE_CAMERA_FIELDS(X)                    \
-    X(Vec3, position, "eye, world space")           \
-    X(Vec3, look_at, "point looked at")             \
-    X(Vec3, up, "up hint")                          \
+#define SPANGLE_CAMERA_FIELDS(X)          \
+    X(Vec3, position, "eye, world space") \
+    X(Vec3, look_at, "point looked at")   \
+    X(Vec3, up, "up hint")                \
     X(float, fov_deg, "vertical field of view, degrees")
 /** A perspective pinhole camera. */
 SPANGLE_COMPONENT(Camera, SPANGLE_CAMERA_FIELDS);
 
-#define SPANGLE_FILM_FIELDS(X)                          \
-    X(uint32_t, width, "pixels")                        \
-    X(uint32_t, height, "pixels")                       \
-    X(uint32_t, spp, "samples per pixel")               \
-    X(uint32_t, max_depth, "maximum bounces")           \
+#define SPANGLE_FILM_FIELDS(X)                \
+    X(uint32_t, width, "pixels")              \
+    X(uint32_t, height, "pixels")             \
+    X(uint32_t, spp, "samples per pixel")     \
+    X(uint32_t, max_depth, "maximum bounces") \
     X(uint64_t, seed, "random seed")
 /** Image size and render settings. */
 SPANGLE_COMPONENT(Film, SPANGLE_FILM_FIELDS);

@@ -46,15 +46,16 @@ RawColor parse_raw_color(const ParseContext& ctx, const toml::node& n, std::stri
         TableReader r(*t, ctx.file, fmt::format("colour '{}'", name));
         RawColor c;
         c.rgb = r.vec3("rgb");
-        c.space = r.has("space") ? resolve_space(ctx, r.string("space"), r.loc("space"))
-                                 : ctx.bare_space;
+        c.space =
+            r.has("space") ? resolve_space(ctx, r.string("space"), r.loc("space")) : ctx.bare_space;
         r.finish();
         return c;
     }
     if (!n.is_array())
-        throw_error(loc_of(n, ctx.file),
-                    "'{}' must be a colour: [r, g, b] or {{ rgb = [r, g, b], space = \"...\" }}, got {}",
-                    name, toml_type_name(n));
+        throw_error(
+            loc_of(n, ctx.file),
+            "'{}' must be a colour: [r, g, b] or {{ rgb = [r, g, b], space = \"...\" }}, got {}",
+            name, toml_type_name(n));
     return {parse_vec3(n, ctx.file, name), ctx.bare_space};
 }
 
@@ -263,13 +264,15 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
             while (index < info.material_names.size() && info.material_names[index] != mat) ++index;
             if (index == info.material_names.size())
                 throw_error(r.loc("material"), "unknown material '{}' (defined: {})", mat,
-                            info.material_names.empty() ? std::string("none")
-                                                        : fmt::format("{}", fmt::join(info.material_names, ", ")));
+                            info.material_names.empty()
+                                ? std::string("none")
+                                : fmt::format("{}", fmt::join(info.material_names, ", ")));
             registry.put(e, MaterialRef{index});
             registry.put(e, Transform{parse_transform(r)});
             if (r.has("emission")) {
-                const Vec3 le = read_color(ctx, r, "emission", {0, 0, 0}) *
-                                static_cast<float>(r.number("emission_intensity", 1.0, kNonNegative));
+                const Vec3 le =
+                    read_color(ctx, r, "emission", {0, 0, 0}) *
+                    static_cast<float>(r.number("emission_intensity", 1.0, kNonNegative));
                 if (max_component(le) > 0.0f) registry.put(e, Emission{le});
             }
             r.finish();

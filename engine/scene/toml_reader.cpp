@@ -16,16 +16,26 @@ FileLoc loc_of(const toml::node& node, const std::string& file) {
 
 std::string toml_type_name(const toml::node& node) {
     switch (node.type()) {
-        case toml::node_type::table: return "a table";
-        case toml::node_type::array: return "an array";
-        case toml::node_type::string: return "a string";
-        case toml::node_type::integer: return "an integer";
-        case toml::node_type::floating_point: return "a float";
-        case toml::node_type::boolean: return "a boolean";
-        case toml::node_type::date: return "a date";
-        case toml::node_type::time: return "a time";
-        case toml::node_type::date_time: return "a date-time";
-        default: return "nothing";
+        case toml::node_type::table:
+            return "a table";
+        case toml::node_type::array:
+            return "an array";
+        case toml::node_type::string:
+            return "a string";
+        case toml::node_type::integer:
+            return "an integer";
+        case toml::node_type::floating_point:
+            return "a float";
+        case toml::node_type::boolean:
+            return "a boolean";
+        case toml::node_type::date:
+            return "a date";
+        case toml::node_type::time:
+            return "a time";
+        case toml::node_type::date_time:
+            return "a date-time";
+        default:
+            return "nothing";
     }
 }
 
@@ -50,7 +60,8 @@ std::size_t edit_distance(std::string_view a, std::string_view b) {
         row[0] = i;
         for (std::size_t j = 1; j <= b.size(); ++j) {
             const std::size_t up = row[j];
-            row[j] = std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0u : 1u)});
+            row[j] =
+                std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0u : 1u)});
             diag = up;
         }
     }
@@ -90,7 +101,8 @@ void TableReader::missing(std::string_view key) const {
         throw_error(key_loc(k, value, file_), "unknown key '{}' in {}; did you mean '{}'?", k.str(),
                     what_, key);
     }
-    throw_error(whole_file_ ? FileLoc{file_, 0, 0} : loc(), "{} is missing required key '{}'", what_, key);
+    throw_error(whole_file_ ? FileLoc{file_, 0, 0} : loc(), "{} is missing required key '{}'",
+                what_, key);
 }
 
 const toml::node& TableReader::required(std::string_view key) {
@@ -135,7 +147,8 @@ int64_t TableReader::integer(std::string_view key, int64_t fallback, Range range
     const toml::node* n = node(key);
     if (!n) return fallback;
     auto i = n->as_integer();
-    if (!i) throw_error(loc_of(*n, file_), "'{}' must be an integer, got {}", key, toml_type_name(*n));
+    if (!i)
+        throw_error(loc_of(*n, file_), "'{}' must be an integer, got {}", key, toml_type_name(*n));
     check_range(static_cast<double>(i->get()), *n, key, range);
     return i->get();
 }
@@ -144,7 +157,9 @@ bool TableReader::boolean(std::string_view key, bool fallback) {
     const toml::node* n = node(key);
     if (!n) return fallback;
     auto b = n->as_boolean();
-    if (!b) throw_error(loc_of(*n, file_), "'{}' must be true or false, got {}", key, toml_type_name(*n));
+    if (!b)
+        throw_error(loc_of(*n, file_), "'{}' must be true or false, got {}", key,
+                    toml_type_name(*n));
     return b->get();
 }
 
@@ -152,7 +167,8 @@ std::string TableReader::string(std::string_view key, std::string fallback) {
     const toml::node* n = node(key);
     if (!n) return fallback;
     auto s = n->as_string();
-    if (!s) throw_error(loc_of(*n, file_), "'{}' must be a string, got {}", key, toml_type_name(*n));
+    if (!s)
+        throw_error(loc_of(*n, file_), "'{}' must be a string, got {}", key, toml_type_name(*n));
     return s->get();
 }
 
@@ -172,8 +188,10 @@ Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view n
     for (std::size_t i = 0; i < 3; ++i) {
         const toml::node& e = (*arr)[i];
         double x;
-        if (auto k = e.as_integer()) x = static_cast<double>(k->get());
-        else if (auto f = e.as_floating_point()) x = f->get();
+        if (auto k = e.as_integer())
+            x = static_cast<double>(k->get());
+        else if (auto f = e.as_floating_point())
+            x = f->get();
         else
             throw_error(loc_of(e, file), "'{}' element {} must be a number, got {}", name, i,
                         toml_type_name(e));
@@ -184,7 +202,9 @@ Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view n
     return {v[0], v[1], v[2]};
 }
 
-Vec3 TableReader::vec3(std::string_view key) { return parse_vec3(required(key), file_, key); }
+Vec3 TableReader::vec3(std::string_view key) {
+    return parse_vec3(required(key), file_, key);
+}
 
 Vec3 TableReader::vec3(std::string_view key, Vec3 fallback) {
     const toml::node* n = node(key);
@@ -213,8 +233,9 @@ void TableReader::finish() const {
     for (auto&& [key, value] : table_) {
         if (known_.count(key.str())) continue;
         const std::string guess = nearest(key.str(), known_);
-        throw_error(key_loc(key, value, file_), "unknown key '{}' in {}{} (valid keys: {})", key.str(),
-                    what_, guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess),
+        throw_error(key_loc(key, value, file_), "unknown key '{}' in {}{} (valid keys: {})",
+                    key.str(), what_,
+                    guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess),
                     fmt::join(known_, ", "));
     }
 }

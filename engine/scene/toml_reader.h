@@ -44,7 +44,10 @@ public:
     FileLoc loc() const { return loc_of(table_, file_); }
     /** Location of key's value, or the table's when absent. */
     FileLoc loc(std::string_view key) const;
-    bool has(std::string_view key) { known_.insert(std::string(key)); return table_.contains(key); }
+    bool has(std::string_view key) {
+        known_.insert(std::string(key));
+        return table_.contains(key);
+    }
     /** The raw node, marking the key known; nullptr when absent. */
     const toml::node* node(std::string_view key);
 

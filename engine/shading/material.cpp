@@ -38,15 +38,22 @@ int host_convert(void* context, const char* from, float* rgb, uint32_t count, ch
     }
 }
 
-uint64_t host_hash2(uint64_t a, uint64_t b) { return hash2(a, b); }
+uint64_t host_hash2(uint64_t a, uint64_t b) {
+    return hash2(a, b);
+}
 
 const char* type_name(SpangleParamType t) {
     switch (t) {
-        case SPANGLE_PARAM_FLOAT: return "float";
-        case SPANGLE_PARAM_INT: return "int";
-        case SPANGLE_PARAM_BOOL: return "bool";
-        case SPANGLE_PARAM_COLOR: return "color";
-        case SPANGLE_PARAM_STRING: return "string";
+        case SPANGLE_PARAM_FLOAT:
+            return "float";
+        case SPANGLE_PARAM_INT:
+            return "int";
+        case SPANGLE_PARAM_BOOL:
+            return "bool";
+        case SPANGLE_PARAM_COLOR:
+            return "color";
+        case SPANGLE_PARAM_STRING:
+            return "string";
     }
     return "?";
 }
@@ -83,17 +90,28 @@ HostServices::HostServices(const ColorConfig& color, const Logger& log)
 std::string describe_param(const SpangleParamDesc_v1& p) {
     std::string def;
     switch (p.type) {
-        case SPANGLE_PARAM_FLOAT: def = fmt::format("{}", p.default_value[0]); break;
-        case SPANGLE_PARAM_INT: def = fmt::format("{}", static_cast<int64_t>(p.default_value[0])); break;
-        case SPANGLE_PARAM_BOOL: def = p.default_value[0] != 0.0 ? "true" : "false"; break;
-        case SPANGLE_PARAM_COLOR:
-            def = fmt::format("[{}, {}, {}]", p.default_value[0], p.default_value[1], p.default_value[2]);
+        case SPANGLE_PARAM_FLOAT:
+            def = fmt::format("{}", p.default_value[0]);
             break;
-        case SPANGLE_PARAM_STRING: def = fmt::format("\"{}\"", p.default_string ? p.default_string : ""); break;
+        case SPANGLE_PARAM_INT:
+            def = fmt::format("{}", static_cast<int64_t>(p.default_value[0]));
+            break;
+        case SPANGLE_PARAM_BOOL:
+            def = p.default_value[0] != 0.0 ? "true" : "false";
+            break;
+        case SPANGLE_PARAM_COLOR:
+            def = fmt::format("[{}, {}, {}]", p.default_value[0], p.default_value[1],
+                              p.default_value[2]);
+            break;
+        case SPANGLE_PARAM_STRING:
+            def = fmt::format("\"{}\"", p.default_string ? p.default_string : "");
+            break;
     }
     std::string range;
-    if (p.type == SPANGLE_PARAM_STRING) range = fmt::format(" one of {}", p.choices ? p.choices : "");
-    else if (p.type != SPANGLE_PARAM_BOOL) range = " in " + range_text(p);
+    if (p.type == SPANGLE_PARAM_STRING)
+        range = fmt::format(" one of {}", p.choices ? p.choices : "");
+    else if (p.type != SPANGLE_PARAM_BOOL)
+        range = " in " + range_text(p);
     return fmt::format("{:<18} {:<6} = {:<16}{}  {}", p.name, type_name(p.type), def, range,
                        p.doc ? p.doc : "");
 }
@@ -108,10 +126,13 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
         while (k < model.param_count && p.name != model.params[k].name) ++k;
         if (k == model.param_count) {
             std::vector<std::string> names;
-            for (uint32_t i = 0; i < model.param_count; ++i) names.emplace_back(model.params[i].name);
-            throw_error(p.key_loc, "material '{}': model '{}' of plugin '{}' has no parameter '{}' (parameters: {})",
-                        m.name, model.name, m.plugin, p.name,
-                        names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
+            for (uint32_t i = 0; i < model.param_count; ++i)
+                names.emplace_back(model.params[i].name);
+            throw_error(
+                p.key_loc,
+                "material '{}': model '{}' of plugin '{}' has no parameter '{}' (parameters: {})",
+                m.name, model.name, m.plugin, p.name,
+                names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
         }
         given[k] = &p;
     }
@@ -125,7 +146,8 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
         const ParamEntry* p = given[k];
         if (p) {
             const auto bad_type = [&](const char* expected) {
-                throw_error(p->loc, "material '{}': parameter '{}' must be {}", m.name, d.name, expected);
+                throw_error(p->loc, "material '{}': parameter '{}' must be {}", m.name, d.name,
+                            expected);
             };
             const auto check_range = [&](double x) {
                 if (!(x >= d.min_value && x <= d.max_value))
@@ -139,7 +161,8 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
                     v.number[0] = p->number[0];
                     break;
                 case SPANGLE_PARAM_INT:
-                    if (p->kind != ParamEntry::Kind::Number || !p->is_integer) bad_type("an integer");
+                    if (p->kind != ParamEntry::Kind::Number || !p->is_integer)
+                        bad_type("an integer");
                     check_range(p->number[0]);
                     v.number[0] = p->number[0];
                     break;
@@ -156,13 +179,15 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
                     }
                     if (p->kind != ParamEntry::Kind::Color) bad_type("a colour [r, g, b]");
                     for (int c = 0; c < 3; ++c) check_range(p->number[c]);
-                    float rgb[3] = {static_cast<float>(p->number[0]), static_cast<float>(p->number[1]),
+                    float rgb[3] = {static_cast<float>(p->number[0]),
+                                    static_cast<float>(p->number[1]),
                                     static_cast<float>(p->number[2])};
                     color.to_working(p->text, rgb, 1);
                     // Gamut conversion may move a channel a hair outside the range that was
                     // checked on the written values; clamp it back.
                     for (int c = 0; c < 3; ++c)
-                        v.number[c] = std::clamp(static_cast<double>(rgb[c]), d.min_value, d.max_value);
+                        v.number[c] =
+                            std::clamp(static_cast<double>(rgb[c]), d.min_value, d.max_value);
                     break;
                 }
                 case SPANGLE_PARAM_STRING: {
@@ -180,7 +205,8 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
         out.values.push_back(v);
     }
     for (uint32_t k = 0; k < model.param_count; ++k)
-        if (model.params[k].type == SPANGLE_PARAM_STRING) out.values[k].string = out.strings[k].c_str();
+        if (model.params[k].type == SPANGLE_PARAM_STRING)
+            out.values[k].string = out.strings[k].c_str();
     return out;
 }
 
@@ -190,8 +216,10 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
     const SpangleMaterialModel_v1* model = nullptr;
     if (m.model.empty()) {
         if (plugin->table().model_count != 1)
-            throw_error(m.loc, "material '{}': plugin '{}' offers several models, so 'model' is "
-                        "required (one of: {})", m.name, m.plugin, fmt::join(plugin->model_names(), ", "));
+            throw_error(m.loc,
+                        "material '{}': plugin '{}' offers several models, so 'model' is "
+                        "required (one of: {})",
+                        m.name, m.plugin, fmt::join(plugin->model_names(), ", "));
         model = &plugin->table().models[0];
     } else {
         model = plugin->model(m.model);

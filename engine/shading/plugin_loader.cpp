@@ -48,14 +48,17 @@ std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_
     const std::string exe = executable_dir();
     if (!exe.empty()) {
         dirs.push_back((fs::path(exe) / "plugins").string());
-        dirs.push_back((fs::path(exe) / ".." / "lib" / "spangle" / "plugins").lexically_normal().string());
+        dirs.push_back(
+            (fs::path(exe) / ".." / "lib" / "spangle" / "plugins").lexically_normal().string());
     }
     return dirs;
 }
 
 namespace {
 
-std::string file_name_for(const std::string& name) { return "libspangle_" + name + ".so"; }
+std::string file_name_for(const std::string& name) {
+    return "libspangle_" + name + ".so";
+}
 
 /** Sanity checks of a table the host is about to trust; returns an empty string when fine. */
 std::string table_problem(const SpangleMaterialPlugin_v1& t) {
@@ -65,10 +68,13 @@ std::string table_problem(const SpangleMaterialPlugin_v1& t) {
         const SpangleMaterialModel_v1& m = t.models[i];
         if (!m.name || !*m.name) return fmt::format("model #{} has no name", i);
         if (!m.create || !m.destroy || !m.prepare || !m.eval || !m.sample)
-            return fmt::format("model '{}' lacks a kernel (create, destroy, prepare, eval, sample)", m.name);
+            return fmt::format("model '{}' lacks a kernel (create, destroy, prepare, eval, sample)",
+                               m.name);
         if (m.closure_size == 0 || m.closure_size > 4096)
-            return fmt::format("model '{}' declares closure_size {}, expected 1..4096", m.name, m.closure_size);
-        if (m.param_count > 0 && !m.params) return fmt::format("model '{}' has no parameter table", m.name);
+            return fmt::format("model '{}' declares closure_size {}, expected 1..4096", m.name,
+                               m.closure_size);
+        if (m.param_count > 0 && !m.params)
+            return fmt::format("model '{}' has no parameter table", m.name);
         for (uint32_t k = 0; k < m.param_count; ++k)
             if (!m.params[k].name || !*m.params[k].name)
                 return fmt::format("model '{}' parameter #{} has no name", m.name, k);
@@ -103,9 +109,10 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
         throw_error("plugin '{}' refused this host's material ABI version {}", path,
                     SPANGLE_MATERIAL_ABI_VERSION);
     if (table->abi_version != SPANGLE_MATERIAL_ABI_VERSION)
-        throw_error("plugin '{}' was built for material ABI version {}, but this spangle uses "
-                    "version {}: rebuild the plugin against this spangle's plugin.h",
-                    path, table->abi_version, SPANGLE_MATERIAL_ABI_VERSION);
+        throw_error(
+            "plugin '{}' was built for material ABI version {}, but this spangle uses "
+            "version {}: rebuild the plugin against this spangle's plugin.h",
+            path, table->abi_version, SPANGLE_MATERIAL_ABI_VERSION);
     if (table->struct_size != sizeof(SpangleMaterialPlugin_v1))
         throw_error("plugin '{}' has a plugin table of {} bytes, expected {}: ABI mismatch", path,
                     table->struct_size, sizeof(SpangleMaterialPlugin_v1));
@@ -122,7 +129,9 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const 
     if (auto it = cache_.find(name); it != cache_.end()) return it->second;
     const bool valid_name = !name.empty() && name.find_first_of("/\\. ") == std::string::npos;
     if (!valid_name)
-        throw_error(where, "plugin name '{}' is not valid: use the plugin's short name, e.g. 'smooth'", name);
+        throw_error(where,
+                    "plugin name '{}' is not valid: use the plugin's short name, e.g. 'smooth'",
+                    name);
     const std::string file = file_name_for(name);
     for (const auto& dir : dirs_) {
         const fs::path candidate = fs::path(dir) / file;

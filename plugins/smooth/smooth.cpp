@@ -29,7 +29,13 @@ void set_error(char* error, uint32_t capacity, const char* msg) {
 // ------------------------------------------------------------------------------------ diffuse
 
 const SpangleParamDesc_v1 kDiffuseParams[] = {
-    {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr,
+    {"albedo",
+     SPANGLE_PARAM_COLOR,
+     {0.8, 0.8, 0.8},
+     nullptr,
+     0.0,
+     1.0,
+     nullptr,
      "fraction of light reflected diffusely (RGB)"},
 };
 
@@ -59,7 +65,9 @@ void* diffuse_create(const SpangleParams_v1* params, const SpangleHost_v1*, char
     return d;
 }
 
-void diffuse_destroy(void* instance) { delete static_cast<Diffuse*>(instance); }
+void diffuse_destroy(void* instance) {
+    delete static_cast<Diffuse*>(instance);
+}
 
 void diffuse_prepare(const void* instance, const SpangleShadingBatch_v1* batch, void* closures,
                      SpangleArena_v1*) {

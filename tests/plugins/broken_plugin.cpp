@@ -28,8 +28,8 @@ constexpr uint32_t kClosureSize = 16;
 #endif
 
 const SpangleMaterialModel_v1 kModels[] = {
-    {"broken", "a model whose create() always fails", kParams, 1, kClosureSize, create_fails, destroy,
-     prepare, eval, sample, nullptr},
+    {"broken", "a model whose create() always fails", kParams, 1, kClosureSize, create_fails,
+     destroy, prepare, eval, sample, nullptr},
 };
 
 #if defined(BROKEN_ABI)
@@ -44,8 +44,8 @@ constexpr const char* kName = "someone_else";
 constexpr const char* kName = PLUGIN_NAME;
 #endif
 
-const SpangleMaterialPlugin_v1 kPlugin = {kAbi, sizeof(SpangleMaterialPlugin_v1), kName,
-                                          "a broken test plugin", kModels, 1};
+const SpangleMaterialPlugin_v1 kPlugin = {
+    kAbi, sizeof(SpangleMaterialPlugin_v1), kName, "a broken test plugin", kModels, 1};
 
 }  // namespace
 
@@ -58,5 +58,7 @@ extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v1* spangle_materia
 #endif
 }
 #else
-extern "C" SPANGLE_PLUGIN_EXPORT int spangle_something_else() { return kPlugin.model_count; }
+extern "C" SPANGLE_PLUGIN_EXPORT int spangle_something_else() {
+    return kPlugin.model_count;
+}
 #endif

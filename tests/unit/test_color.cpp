@@ -52,7 +52,8 @@ TEST(ColorConfig, AliasesAndUnknownNames) {
         c.set_working_space("sRGB2");
         FAIL() << "an unknown working space must be refused";
     } catch (const SpangleError& e) {
-        EXPECT_NE(std::string(e.what()).find("unknown colour space 'sRGB2'"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("unknown colour space 'sRGB2'"), std::string::npos)
+            << e.what();
     }
     EXPECT_EQ(c.working_space(), "ACEScg") << "scene_linear role is the default working space";
 }

@@ -70,7 +70,8 @@ TEST(Pool, RemoveKeepsOthersDenseAndFindable) {
     EXPECT_EQ(p.size(), 4u);
     std::set<float> seen(p.columns().x.begin(), p.columns().x.end());
     EXPECT_EQ(seen, (std::set<float>{0, 2, 3, 5}));
-    for (int i : {0, 2, 3, 5}) EXPECT_EQ(r.get<Position>(es[static_cast<std::size_t>(i)]).x, static_cast<float>(i));
+    for (int i : {0, 2, 3, 5})
+        EXPECT_EQ(r.get<Position>(es[static_cast<std::size_t>(i)]).x, static_cast<float>(i));
     EXPECT_FALSE(r.has<Position>(es[1]));
 }
 
@@ -124,9 +125,11 @@ struct Counter {
 
 TEST(Schedule, SkipsSystemsWhoseInputsAreEmpty) {
     Schedule<Counter> s;
-    s.add<Position>("positions", RunWhen::AllPresent, [](Registry&, Counter& c) { ++c.position_runs; });
+    s.add<Position>("positions", RunWhen::AllPresent,
+                    [](Registry&, Counter& c) { ++c.position_runs; });
     s.add<Tag, Position>("both", RunWhen::AllPresent, [](Registry&, Counter& c) { ++c.tag_runs; });
-    s.add<Tag, Position>("either", RunWhen::AnyPresent, [](Registry&, Counter& c) { ++c.either_runs; });
+    s.add<Tag, Position>("either", RunWhen::AnyPresent,
+                         [](Registry&, Counter& c) { ++c.either_runs; });
     Registry r;
     Counter c;
     auto rep = s.run(r, c);

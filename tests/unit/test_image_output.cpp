@@ -50,7 +50,8 @@ TEST(ExrOutput, HeaderCarriesChromaticitiesAndColourSpace) {
     std::vector<float> back(rgb.size());
     ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::FLOAT, back.data()));
     // Half precision: relative error below 2^-11 for these magnitudes.
-    for (std::size_t i = 0; i < rgb.size(); ++i) EXPECT_NEAR(back[i], rgb[i], rgb[i] * 0.0005f + 1e-6f);
+    for (std::size_t i = 0; i < rgb.size(); ++i)
+        EXPECT_NEAR(back[i], rgb[i], rgb[i] * 0.0005f + 1e-6f);
     EXPECT_TRUE(other_files(dir.path(), "a.exr").empty());
 }
 

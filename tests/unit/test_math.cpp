@@ -16,7 +16,8 @@ TEST(Hash, IsAPureFunctionAndSpreadsBits) {
     // Neighbouring counters must give unrelated numbers: the mean of many should be near 1/2.
     double sum = 0.0;
     constexpr int kN = 100000;
-    for (int i = 0; i < kN; ++i) sum += static_cast<double>(sample_1d(9, static_cast<uint64_t>(i), 0, 0));
+    for (int i = 0; i < kN; ++i)
+        sum += static_cast<double>(sample_1d(9, static_cast<uint64_t>(i), 0, 0));
     // Standard error of the mean of U(0,1) is sqrt(1/12/N) ~ 0.0009; allow 5 sigma.
     EXPECT_NEAR(sum / kN, 0.5, 5 * 0.0009);
 }
@@ -27,7 +28,9 @@ TEST(Hash, UnitFloatNeverReachesOne) {
 }
 
 TEST(Affine, InverseAndNormalTransform) {
-    const Affine m = Affine::translate({1, 2, 3}).compose(Affine::rotate(30, {0, 1, 0})).compose(Affine::scale({2, 1, 0.5f}));
+    const Affine m = Affine::translate({1, 2, 3})
+                         .compose(Affine::rotate(30, {0, 1, 0}))
+                         .compose(Affine::scale({2, 1, 0.5f}));
     const Affine inv = m.inverse();
     const Vec3 p(0.3f, -1.0f, 2.0f);
     const Vec3 q = inv.apply_point(m.apply_point(p));

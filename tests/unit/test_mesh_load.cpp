@@ -35,15 +35,17 @@ TEST(MeshLoad, BinaryLittleEndianPly) {
 
 TEST(MeshLoad, AsciiPlyAndQuadsAreTriangulated) {
     test::TempDir dir("mesh_ascii");
-    std::ofstream(dir.file("quad.ply")) << "ply\nformat ascii 1.0\nelement vertex 4\n"
-                                           "property float x\nproperty float y\nproperty float z\n"
-                                           "element face 1\nproperty list uchar int vertex_indices\n"
-                                           "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
+    std::ofstream(dir.file("quad.ply"))
+        << "ply\nformat ascii 1.0\nelement vertex 4\n"
+           "property float x\nproperty float y\nproperty float z\n"
+           "element face 1\nproperty list uchar int vertex_indices\n"
+           "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
     const TriangleMesh m = load_mesh(dir.file("quad.ply"), {});
     EXPECT_EQ(m.triangle_count(), 2u);
     EXPECT_TRUE(m.normals.empty()) << "no normals in the file, none invented";
     EXPECT_TRUE(m.uvs.empty());
-    std::ofstream(dir.file("quad.obj")) << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
+    std::ofstream(dir.file("quad.obj")) << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt "
+                                           "1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
     const TriangleMesh o = load_mesh(dir.file("quad.obj"), {});
     EXPECT_EQ(o.triangle_count(), 2u);
     EXPECT_EQ(o.uvs.size() / 2, o.vertex_count());
@@ -57,7 +59,9 @@ TEST(MeshLoad, ErrorsNameTheSceneLineAndTheFile) {
     } catch (const SpangleError& e) {
         const std::string msg = e.what();
         EXPECT_EQ(msg.rfind("scene.toml:12:8: error: mesh '", 0), 0u) << msg;
-        EXPECT_NE(msg.find("nan_vertex.obj': vertex 1 has a non-finite position"), std::string::npos) << msg;
+        EXPECT_NE(msg.find("nan_vertex.obj': vertex 1 has a non-finite position"),
+                  std::string::npos)
+            << msg;
     }
     try {
         load_mesh(test::test_dir() + "/scenes_bad/meshes/ok.stl", ref);
@@ -76,8 +80,10 @@ TEST(MeshLoad, ValidateCatchesIndicesPastTheEnd) {
         validate_mesh(m, {});
         FAIL();
     } catch (const SpangleError& e) {
-        EXPECT_NE(std::string(e.what()).find("triangle 0 refers to vertex 3, but there are 3 vertices"),
-                  std::string::npos) << e.what();
+        EXPECT_NE(
+            std::string(e.what()).find("triangle 0 refers to vertex 3, but there are 3 vertices"),
+            std::string::npos)
+            << e.what();
     }
 }
 

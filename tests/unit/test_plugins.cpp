@@ -120,7 +120,14 @@ const SpangleParamDesc_v1 kSchema[] = {
     {"count", SPANGLE_PARAM_INT, {4, 0, 0}, nullptr, 1.0, 64.0, nullptr, "n"},
     {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "c"},
     {"tint", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 1.0, nullptr, "t"},
-    {"fresnel", SPANGLE_PARAM_STRING, {0, 0, 0}, "schlick", 0.0, 0.0, "schlick|conductor|dielectric", "f"},
+    {"fresnel",
+     SPANGLE_PARAM_STRING,
+     {0, 0, 0},
+     "schlick",
+     0.0,
+     0.0,
+     "schlick|conductor|dielectric",
+     "f"},
 };
 SpangleMaterialModel_v1 schema_model() {
     SpangleMaterialModel_v1 m{};
@@ -166,12 +173,15 @@ TEST(ValidateParams, TypesRangesAndChoices) {
     EXPECT_HAS(fails(entry("count", K::Number, 2.5)), "'count' must be an integer");
     EXPECT_HAS(fails(entry("count", K::Number, 65, true)), "'count' must be in [1, 64], got 65");
     EXPECT_HAS(fails(entry("coat", K::Number, 1)), "'coat' must be true or false");
-    EXPECT_HAS(fails(entry("roughness", K::String, 0, false, "high")), "'roughness' must be a number");
+    EXPECT_HAS(fails(entry("roughness", K::String, 0, false, "high")),
+               "'roughness' must be a number");
     EXPECT_HAS(fails(entry("fresnel", K::String, 0, false, "fancy")),
                "'fresnel' must be one of schlick, conductor, dielectric, got \"fancy\"");
     const std::string unknown = fails(entry("roughnes", K::Number, 0.1));
-    EXPECT_EQ(unknown.rfind("m.toml:7:1: error:", 0), 0u) << "unknown names point at the key: " << unknown;
-    EXPECT_HAS(unknown, "has no parameter 'roughnes' (parameters: roughness, count, coat, tint, fresnel)");
+    EXPECT_EQ(unknown.rfind("m.toml:7:1: error:", 0), 0u)
+        << "unknown names point at the key: " << unknown;
+    EXPECT_HAS(unknown,
+               "has no parameter 'roughnes' (parameters: roughness, count, coat, tint, fresnel)");
 }
 
 TEST(ValidateParams, ColoursAreConvertedToTheWorkingSpace) {
@@ -215,8 +225,8 @@ protected:
         const float zero = 0.0f, one = 1.0f;
         const float wox = 0.3f, woy = 0.0f, woz = std::sqrt(1.0f - 0.09f);
         const uint32_t flags = 0, id = 0;
-        SpangleShadingBatch_v1 b{1, &zero, &zero, &zero, &wox, &woy, &woz, &zero, &zero,
-                                 &zero, &zero, &zero, &zero, &one, &flags, &id};
+        SpangleShadingBatch_v1 b{1,     &zero, &zero, &zero, &wox,  &woy, &woz,   &zero,
+                                 &zero, &zero, &zero, &zero, &zero, &one, &flags, &id};
         closure_.resize(model_->closure_size);
         model_->prepare(instance_, &b, closure_.data(), nullptr);
     }
@@ -241,11 +251,13 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
         u1[i] = sample_1d(1, i, 0, 1);
         u2[i] = sample_1d(1, i, 0, 2);
     }
-    SpangleSampleBatch_v1 q{kN, idx.data(), u0.data(), u1.data(), u2.data(), x.data(), y.data(), z.data(),
-                            r.data(), g.data(), b.data(), pdf.data(), flags.data()};
+    SpangleSampleBatch_v1 q{kN,       idx.data(), u0.data(),   u1.data(), u2.data(),
+                            x.data(), y.data(),   z.data(),    r.data(),  g.data(),
+                            b.data(), pdf.data(), flags.data()};
     model_->sample(instance_, closure_.data(), &q);
     std::vector<float> er(kN), eg(kN), eb(kN), epdf(kN);
-    SpangleEvalBatch_v1 e{kN, idx.data(), x.data(), y.data(), z.data(), er.data(), eg.data(), eb.data(), epdf.data()};
+    SpangleEvalBatch_v1 e{kN,        idx.data(), x.data(),  y.data(),   z.data(),
+                          er.data(), eg.data(),  eb.data(), epdf.data()};
     model_->eval(instance_, closure_.data(), &e);
     for (uint32_t i = 0; i < kN; ++i) {
         if (flags[i] == 0) continue;  // the cosine sampler only fails exactly on the horizon
@@ -260,21 +272,24 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
 TEST_F(DiffuseThroughAbi, ChiSquareOfSamplesAgainstPdf) {
     // Bins uniform in cos^2(theta) x phi: under the cosine pdf each holds N / (kZ * kPhi) samples.
     constexpr uint32_t kN = 200000, kZ = 10, kPhi = 20;
-    std::vector<float> u0(kN), u1(kN), u2(kN, 0.5f), x(kN), y(kN), z(kN), r(kN), g(kN), b(kN), pdf(kN);
+    std::vector<float> u0(kN), u1(kN), u2(kN, 0.5f), x(kN), y(kN), z(kN), r(kN), g(kN), b(kN),
+        pdf(kN);
     std::vector<uint32_t> flags(kN), idx(kN, 0);
     for (uint32_t i = 0; i < kN; ++i) {
         u0[i] = sample_1d(2, i, 0, 0);
         u1[i] = sample_1d(2, i, 0, 1);
     }
-    SpangleSampleBatch_v1 q{kN, idx.data(), u0.data(), u1.data(), u2.data(), x.data(), y.data(), z.data(),
-                            r.data(), g.data(), b.data(), pdf.data(), flags.data()};
+    SpangleSampleBatch_v1 q{kN,       idx.data(), u0.data(),   u1.data(), u2.data(),
+                            x.data(), y.data(),   z.data(),    r.data(),  g.data(),
+                            b.data(), pdf.data(), flags.data()};
     model_->sample(instance_, closure_.data(), &q);
     std::vector<double> hist(kZ * kPhi, 0.0);
     for (uint32_t i = 0; i < kN; ++i) {
         const auto zi = std::min<uint32_t>(kZ - 1, static_cast<uint32_t>(z[i] * z[i] * kZ));
         double phi = std::atan2(static_cast<double>(y[i]), static_cast<double>(x[i]));
         if (phi < 0) phi += 2 * M_PI;
-        const auto pi = std::min<uint32_t>(kPhi - 1, static_cast<uint32_t>(phi / (2 * M_PI) * kPhi));
+        const auto pi =
+            std::min<uint32_t>(kPhi - 1, static_cast<uint32_t>(phi / (2 * M_PI) * kPhi));
         hist[zi * kPhi + pi] += 1.0;
     }
     const double expected = static_cast<double>(kN) / (kZ * kPhi);
@@ -283,7 +298,8 @@ TEST_F(DiffuseThroughAbi, ChiSquareOfSamplesAgainstPdf) {
     // Reject at significance 0.01 with k = 199 degrees of freedom; critical value from the
     // Wilson-Hilferty approximation k (1 - 2/(9k) + z sqrt(2/(9k)))^3 with z_0.99 = 2.326.
     const double k = kZ * kPhi - 1.0;
-    const double crit = k * std::pow(1.0 - 2.0 / (9.0 * k) + 2.326 * std::sqrt(2.0 / (9.0 * k)), 3.0);
+    const double crit =
+        k * std::pow(1.0 - 2.0 / (9.0 * k) + 2.326 * std::sqrt(2.0 / (9.0 * k)), 3.0);
     EXPECT_LT(chi2, crit);
 }
 

@@ -46,7 +46,8 @@ TEST(Render, FurnaceSphereIsAlbedoTimesEnvironmentExactly) {
     const FrameResult r = render("furnace_sphere.toml", 2);
     ASSERT_EQ(r.width, 48u);
     const auto px = [&](uint32_t x, uint32_t y, int c) {
-        return r.image[3 * (static_cast<std::size_t>(y) * r.width + x) + static_cast<std::size_t>(c)];
+        return r
+            .image[3 * (static_cast<std::size_t>(y) * r.width + x) + static_cast<std::size_t>(c)];
     };
     // Every path scatters once off a convex sphere and escapes: L = albedo x Le = 0.5 x 0.8,
     // with no variance, so only float rounding is tolerated.
@@ -73,7 +74,8 @@ TEST(Render, RectangleLightMatchesClosedFormIrradiance) {
         sum2 += g * g;
     }
     const double mean = sum / static_cast<double>(n);
-    const double var = (sum2 / static_cast<double>(n) - mean * mean) * static_cast<double>(n) / static_cast<double>(n - 1);
+    const double var = (sum2 / static_cast<double>(n) - mean * mean) * static_cast<double>(n) /
+                       static_cast<double>(n - 1);
     const double stderr_mean = std::sqrt(var / static_cast<double>(n));
     // The 9 x 9 pixels see a 4 mm patch, where the exact value changes by under 1e-5: the pixel
     // means are independent estimates of the same number, so 4 standard errors (+1e-4 for that

@@ -51,14 +51,17 @@ TEST_P(BadScene, FailsWithLocationAndMessage) {
     } catch (const SpangleError& e) {
         const std::string msg = e.what();
         EXPECT_EQ(msg.rfind(prefix, 0), 0u) << "expected location " << prefix << "\n got: " << msg;
-        EXPECT_NE(msg.find(substring), std::string::npos) << "expected: " << substring << "\n got: " << msg;
+        EXPECT_NE(msg.find(substring), std::string::npos)
+            << "expected: " << substring << "\n got: " << msg;
     }
 }
 
 INSTANTIATE_TEST_SUITE_P(ScenesBad, BadScene, ::testing::ValuesIn(bad_scenes()),
                          [](const ::testing::TestParamInfo<std::string>& p) { return p.param; });
 
-TEST(ScenesBad, AtLeastTenDistinctCases) { EXPECT_GE(bad_scenes().size(), 10u); }
+TEST(ScenesBad, AtLeastTenDistinctCases) {
+    EXPECT_GE(bad_scenes().size(), 10u);
+}
 
 TEST(ScenesBad, MissingSceneFile) {
     FrameRequest req;

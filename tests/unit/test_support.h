@@ -9,12 +9,20 @@
 
 namespace spangle::test {
 
-inline std::string test_dir() { return SPANGLE_TEST_DIR; }
-inline std::string asset_dir() { return SPANGLE_ASSET_DIR; }
-inline std::string shipped_ocio() { return asset_dir() + "/ocio/config.ocio"; }
+inline std::string test_dir() {
+    return SPANGLE_TEST_DIR;
+}
+inline std::string asset_dir() {
+    return SPANGLE_ASSET_DIR;
+}
+inline std::string shipped_ocio() {
+    return asset_dir() + "/ocio/config.ocio";
+}
 
 /** The shipped config, loaded by explicit path so $OCIO in the environment cannot change it. */
-inline ColorConfig shipped_config() { return ColorConfig::load(shipped_ocio(), {}); }
+inline ColorConfig shipped_config() {
+    return ColorConfig::load(shipped_ocio(), {});
+}
 
 /** A logger that drops info and warnings, so test output stays readable. */
 inline const Logger& quiet_log() {

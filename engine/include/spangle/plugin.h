@@ -67,7 +67,7 @@ typedef struct SpangleParamDesc_v1 {
 
 /** One validated parameter value handed to create(). */
 typedef struct SpangleParamValue_v1 {
-    const char* name;   /* same pointer text as the schema entry's name */
+    const char* name; /* same pointer text as the schema entry's name */
     SpangleParamType type;
     double number[3];   /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space */
     const char* string; /* STRING: the chosen value; NULL otherwise */
@@ -76,7 +76,7 @@ typedef struct SpangleParamValue_v1 {
 /** The full parameter set: one value per schema entry, in schema order, defaults filled in. */
 typedef struct SpangleParams_v1 {
     const SpangleParamValue_v1* values; /* count entries, in schema order */
-    uint32_t count;                      /* equals the model's param_count */
+    uint32_t count;                     /* equals the model's param_count */
 } SpangleParams_v1;
 
 /* ---------------------------------------------------------------- host services */
@@ -91,8 +91,8 @@ typedef enum SpangleLogLevel {
 
 /** Services the host offers to a plugin. Valid from create() until destroy() of the instance. */
 typedef struct SpangleHost_v1 {
-    uint32_t abi_version; /* SPANGLE_MATERIAL_ABI_VERSION of the host */
-    void* context;        /* opaque, passed back to every call below */
+    uint32_t abi_version;      /* SPANGLE_MATERIAL_ABI_VERSION of the host */
+    void* context;             /* opaque, passed back to every call below */
     const char* working_space; /* name of the scene-linear working space (an OCIO colour space) */
 
     /** Writes one message to the host's log. */
@@ -121,8 +121,9 @@ typedef struct SpangleArena_v1 {
 
 /** Bits of SpangleShadingBatch_v1.flags. */
 #define SPANGLE_SHADING_HAS_DIFFERENTIALS 1u /* du/dx..dv/dy come from real ray differentials */
-#define SPANGLE_SHADING_BACKFACE 2u /* the ray hit the back of the surface; the host flipped the
-                                       frame so that the geometric normal faces wo */
+#define SPANGLE_SHADING_BACKFACE                                    \
+    2u /* the ray hit the back of the surface; the host flipped the \
+          frame so that the geometric normal faces wo */
 
 /** Shading points, structure of arrays, `count` entries each. Positions in world space (metres),
  *  wo in the local shading frame. When SPANGLE_SHADING_HAS_DIFFERENTIALS is clear for a point,
@@ -142,9 +143,10 @@ typedef struct SpangleShadingBatch_v1 {
     const float* du_dy;
     const float* dv_dx;
     const float* dv_dy;
-    const float* uv_area; /* |dp/du x dp/dv|: world area per unit uv area (m^2) */
-    const uint32_t* flags;    /* SPANGLE_SHADING_* bits */
-    const uint32_t* path_id;  /* index of the path in the host's wavefront, for the plugin's hashing */
+    const float* uv_area;  /* |dp/du x dp/dv|: world area per unit uv area (m^2) */
+    const uint32_t* flags; /* SPANGLE_SHADING_* bits */
+    const uint32_t*
+        path_id; /* index of the path in the host's wavefront, for the plugin's hashing */
 } SpangleShadingBatch_v1;
 
 /** Directions to evaluate: for query i, closure closure_index[i] and direction wi[i] (local
