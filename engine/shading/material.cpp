@@ -54,6 +54,8 @@ const char* type_name(SpangleParamType t) {
             return "color";
         case SPANGLE_PARAM_STRING:
             return "string";
+        case SPANGLE_PARAM_VEC3:
+            return "vec3";
     }
     return "?";
 }
@@ -100,6 +102,7 @@ std::string describe_param(const SpangleParamDesc_v1& p) {
             def = p.default_value[0] != 0.0 ? "true" : "false";
             break;
         case SPANGLE_PARAM_COLOR:
+        case SPANGLE_PARAM_VEC3:
             def = fmt::format("[{}, {}, {}]", p.default_value[0], p.default_value[1],
                               p.default_value[2]);
             break;
@@ -190,6 +193,18 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
                             std::clamp(static_cast<double>(rgb[c]), d.min_value, d.max_value);
                     break;
                 }
+                case SPANGLE_PARAM_VEC3:
+                    if (p->kind == ParamEntry::Kind::Number) {
+                        check_range(p->number[0]);
+                        v.number[0] = v.number[1] = v.number[2] = p->number[0];
+                        break;
+                    }
+                    if (p->kind != ParamEntry::Kind::Color) bad_type("three numbers [x, y, z]");
+                    for (int c = 0; c < 3; ++c) {
+                        check_range(p->number[c]);
+                        v.number[c] = p->number[c];
+                    }
+                    break;
                 case SPANGLE_PARAM_STRING: {
                     if (p->kind != ParamEntry::Kind::String) bad_type("a string");
                     const auto choices = split_choices(d.choices);

@@ -1,29 +1,118 @@
-// The smooth material plugin: microfacet and diffuse models behind the Spangle material ABI.
+// The smooth material plugin: diffuse and GGX microfacet models behind the Spangle material ABI.
 //
-// Models and parameters (the schema below is the authority; `spangle plugins` prints it):
+// Models (the schemas below are the authority; `spangle plugins` prints them):
 //
-//   diffuse   Lambertian reflection.
-//     albedo   color  [0.8, 0.8, 0.8] in [0, 1]   fraction of light reflected diffusely
+//   diffuse     Lambertian reflection.
+//     albedo        color  [0.8]        fraction of light reflected
+//   conductor   GGX metal with the exact unpolarised Fresnel of a complex index eta + i k.
+//     preset        string "gold"       gold|silver|copper|aluminium|perfect|custom
+//     eta, k        vec3   [-1]         per-channel complex index (linear Rec.709 bands); only
+//                                       with preset = "custom", where both are required
+//     roughness     float  0.2          GGX alpha along the tangent; below 1e-4 a mirror
+//     roughness_v   float  -1           alpha along the bitangent; -1 = same as roughness
+//   dielectric  Rough glass: GGX reflection and transmission (Walter et al. 2007).
+//     ior, roughness, roughness_v
+//   plastic     Diffuse base under a GGX dielectric coat; the base sees the light the coat's
+//               reflection leaves (Kulla and Conty 2017 energy-preserving layering), so that
+//               the white furnace returns exactly 1 for albedo 1 at every angle and roughness.
+//     albedo, ior, roughness, roughness_v
 //
-// Conventions: directions in the local shading frame (z = normal); f excludes the cosine.
-// Invalid samples return f = 0, pdf = 0 and flags = 0, never NaN.
+// Conventions: local shading frame (z = normal), f excludes the cosine, the host orients the
+// frame so that wo.z >= 0 on the side the ray came from (SPANGLE_SHADING_BACKFACE tells a
+// dielectric it is inside). Invalid samples return f = 0, pdf = 0, flags = 0, never NaN.
+// Transmission uses radiance transport (the 1/eta^2 factor), for a path tracer from the camera.
 
 #include <spangle/plugin.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <new>
+#include <string>
+
+#include "../common/microfacet.h"
 
 namespace {
 
-constexpr float kPi = 3.14159265358979323846f;
-constexpr float kInvPi = 0.31830988618379067154f;
+using namespace spangle::mf;
 
-/** Copies msg into a caller's error buffer. */
-void set_error(char* error, uint32_t capacity, const char* msg) {
+void set_error(char* error, uint32_t capacity, const std::string& msg) {
     if (!error || capacity == 0) return;
-    std::strncpy(error, msg, capacity - 1);
-    error[capacity - 1] = '\0';
+    const std::size_t n = std::min<std::size_t>(msg.size(), capacity - 1);
+    std::memcpy(error, msg.data(), n);
+    error[n] = '\0';
+}
+
+/** Value of the parameter called `name` (the host passes the full schema, in order). */
+const SpangleParamValue_v1* find_param(const SpangleParams_v1* p, const char* name) {
+    for (uint32_t i = 0; i < p->count; ++i)
+        if (std::strcmp(p->values[i].name, name) == 0) return &p->values[i];
+    return nullptr;
+}
+float param_f(const SpangleParams_v1* p, const char* name, int c = 0) {
+    const SpangleParamValue_v1* v = find_param(p, name);
+    return v ? static_cast<float>(v->number[c]) : 0.0f;
+}
+
+/** GGX alphas from roughness / roughness_v (-1 = isotropic). */
+void read_alpha(const SpangleParams_v1* p, float& ax, float& ay) {
+    ax = param_f(p, "roughness");
+    const float v = param_f(p, "roughness_v");
+    ay = v < 0.0f ? ax : v;
+}
+
+bool is_delta(float ax, float ay) {
+    return std::max(ax, ay) < kDeltaAlpha;
+}
+
+/** Clamps alphas away from zero for the rough formulas (the delta case never reaches them). */
+void clamp_alpha(float& ax, float& ay) {
+    ax = std::max(ax, kDeltaAlpha);
+    ay = std::max(ay, kDeltaAlpha);
+}
+
+/** Per-shading-point data shared by all models: wo and a few quantities derived from it. */
+struct Closure {
+    V3 wo;         ///< outgoing direction, local frame
+    float eta;     ///< dielectric: relative index across the interface seen from wo
+    float rgb[3];  ///< diffuse/plastic albedo
+    float p_spec;  ///< plastic: probability of sampling the coat
+    float e_o;     ///< plastic: coat albedo at wo
+    float pad[3];
+};
+static_assert(sizeof(Closure) == 48, "closure layout");
+
+V3 wo_of(const SpangleShadingBatch_v1* b, uint32_t i) {
+    return {b->wo_x[i], b->wo_y[i], b->wo_z[i]};
+}
+uint32_t closure_of(const uint32_t* index, uint32_t i) {
+    return index ? index[i] : i;
+}
+
+void write_eval(SpangleEvalBatch_v1* q, uint32_t i, float r, float g, float b, float pdf) {
+    const bool ok = std::isfinite(r) && std::isfinite(g) && std::isfinite(b) && std::isfinite(pdf);
+    q->f_r[i] = ok ? r : 0.0f;
+    q->f_g[i] = ok ? g : 0.0f;
+    q->f_b[i] = ok ? b : 0.0f;
+    q->pdf[i] = ok ? pdf : 0.0f;
+}
+
+void write_sample(SpangleSampleBatch_v1* q, uint32_t i, V3 wi, float r, float g, float b, float pdf,
+                  uint32_t flags) {
+    const bool ok = flags != 0 && pdf > 0.0f && std::isfinite(pdf) && std::isfinite(r) &&
+                    std::isfinite(g) && std::isfinite(b) && std::isfinite(wi.x + wi.y + wi.z);
+    q->wi_x[i] = ok ? wi.x : 0.0f;
+    q->wi_y[i] = ok ? wi.y : 0.0f;
+    q->wi_z[i] = ok ? wi.z : 1.0f;
+    q->f_r[i] = ok ? r : 0.0f;
+    q->f_g[i] = ok ? g : 0.0f;
+    q->f_b[i] = ok ? b : 0.0f;
+    q->pdf[i] = ok ? pdf : 0.0f;
+    q->flags[i] = ok ? flags : 0u;
+}
+
+void invalid_sample(SpangleSampleBatch_v1* q, uint32_t i) {
+    write_sample(q, i, {0, 0, 1}, 0, 0, 0, 0, 0);
 }
 
 // ------------------------------------------------------------------------------------ diffuse
@@ -39,107 +128,600 @@ const SpangleParamDesc_v1 kDiffuseParams[] = {
      "fraction of light reflected diffusely (RGB)"},
 };
 
-/** A diffuse instance: its albedo in the working space. */
 struct Diffuse {
     float albedo[3];
 };
 
-/** Per-shading-point closure. */
-struct DiffuseClosure {
-    float albedo[3];
-    float pad;
-};
-
-void* diffuse_create(const SpangleParams_v1* params, const SpangleHost_v1*, char* error,
-                     uint32_t capacity) {
-    if (!params || params->count != 1) {
-        set_error(error, capacity, "expected exactly the schema's parameters");
-        return nullptr;
-    }
+void* diffuse_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* error, uint32_t cap) {
     auto* d = new (std::nothrow) Diffuse;
     if (!d) {
-        set_error(error, capacity, "out of memory");
+        set_error(error, cap, "out of memory");
         return nullptr;
     }
-    for (int c = 0; c < 3; ++c) d->albedo[c] = static_cast<float>(params->values[0].number[c]);
+    for (int c = 0; c < 3; ++c) d->albedo[c] = param_f(p, "albedo", c);
     return d;
 }
 
-void diffuse_destroy(void* instance) {
-    delete static_cast<Diffuse*>(instance);
-}
-
-void diffuse_prepare(const void* instance, const SpangleShadingBatch_v1* batch, void* closures,
+void diffuse_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* closures,
                      SpangleArena_v1*) {
-    const auto* d = static_cast<const Diffuse*>(instance);
-    auto* out = static_cast<DiffuseClosure*>(closures);
-    for (uint32_t i = 0; i < batch->count; ++i)
-        out[i] = {{d->albedo[0], d->albedo[1], d->albedo[2]}, 0.0f};
+    const auto* d = static_cast<const Diffuse*>(inst);
+    auto* out = static_cast<Closure*>(closures);
+    for (uint32_t i = 0; i < b->count; ++i) {
+        out[i] = Closure{};
+        out[i].wo = wo_of(b, i);
+        std::copy(d->albedo, d->albedo + 3, out[i].rgb);
+    }
 }
 
 void diffuse_eval(const void*, const void* closures, SpangleEvalBatch_v1* q) {
-    const auto* cl = static_cast<const DiffuseClosure*>(closures);
+    const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
-        const DiffuseClosure& c = cl[q->closure_index ? q->closure_index[i] : i];
+        const Closure& c = cl[closure_of(q->closure_index, i)];
         const float cos_i = q->wi_z[i];
-        if (cos_i <= 0.0f) {
-            q->f_r[i] = q->f_g[i] = q->f_b[i] = q->pdf[i] = 0.0f;
+        if (cos_i <= 0.0f || c.wo.z <= 0.0f) {
+            write_eval(q, i, 0, 0, 0, 0);
             continue;
         }
-        q->f_r[i] = c.albedo[0] * kInvPi;
-        q->f_g[i] = c.albedo[1] * kInvPi;
-        q->f_b[i] = c.albedo[2] * kInvPi;
-        q->pdf[i] = cos_i * kInvPi;
+        write_eval(q, i, c.rgb[0] * kInvPi, c.rgb[1] * kInvPi, c.rgb[2] * kInvPi, cos_i * kInvPi);
     }
-}
-
-/** Cosine-weighted direction from the concentric disk mapping (Shirley and Chiu 1997). */
-void cosine_hemisphere(float u0, float u1, float& x, float& y, float& z) {
-    const float a = 2.0f * u0 - 1.0f, b = 2.0f * u1 - 1.0f;
-    float r, phi;
-    if (a == 0.0f && b == 0.0f) {
-        r = 0.0f;
-        phi = 0.0f;
-    } else if (std::fabs(a) > std::fabs(b)) {
-        r = a;
-        phi = (kPi / 4.0f) * (b / a);
-    } else {
-        r = b;
-        phi = kPi / 2.0f - (kPi / 4.0f) * (a / b);
-    }
-    x = r * std::cos(phi);
-    y = r * std::sin(phi);
-    z = std::sqrt(std::fmax(0.0f, 1.0f - x * x - y * y));
 }
 
 void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v1* q) {
-    const auto* cl = static_cast<const DiffuseClosure*>(closures);
+    const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
-        const DiffuseClosure& c = cl[q->closure_index ? q->closure_index[i] : i];
-        float x, y, z;
-        cosine_hemisphere(q->u0[i], q->u1[i], x, y, z);
-        q->wi_x[i] = x;
-        q->wi_y[i] = y;
-        q->wi_z[i] = z;
-        if (z <= 0.0f) {
-            q->f_r[i] = q->f_g[i] = q->f_b[i] = q->pdf[i] = 0.0f;
-            q->flags[i] = 0;
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const V3 wi = cosine_hemisphere(q->u0[i], q->u1[i]);
+        if (wi.z <= 0.0f || c.wo.z <= 0.0f) {
+            invalid_sample(q, i);
             continue;
         }
-        q->f_r[i] = c.albedo[0] * kInvPi;
-        q->f_g[i] = c.albedo[1] * kInvPi;
-        q->f_b[i] = c.albedo[2] * kInvPi;
-        q->pdf[i] = z * kInvPi;
-        q->flags[i] = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_DIFFUSE;
+        write_sample(q, i, wi, c.rgb[0] * kInvPi, c.rgb[1] * kInvPi, c.rgb[2] * kInvPi,
+                     wi.z * kInvPi, SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_DIFFUSE);
+    }
+}
+
+// ------------------------------------------------------------------------------------ conductor
+
+const SpangleParamDesc_v1 kConductorParams[] = {
+    {"preset",
+     SPANGLE_PARAM_STRING,
+     {0, 0, 0},
+     "gold",
+     0.0,
+     0.0,
+     "gold|silver|copper|aluminium|perfect|custom",
+     "metal whose complex index to use; 'custom' takes eta and k; 'perfect' reflects everything"},
+    {"eta",
+     SPANGLE_PARAM_VEC3,
+     {-1, -1, -1},
+     nullptr,
+     -1.0,
+     100.0,
+     nullptr,
+     "real part of the index per channel (Rec.709 bands); only with preset = custom"},
+    {"k",
+     SPANGLE_PARAM_VEC3,
+     {-1, -1, -1},
+     nullptr,
+     -1.0,
+     100.0,
+     nullptr,
+     "imaginary part (extinction) per channel; only with preset = custom"},
+    {"roughness",
+     SPANGLE_PARAM_FLOAT,
+     {0.2, 0, 0},
+     nullptr,
+     0.0,
+     1.0,
+     nullptr,
+     "GGX alpha along the tangent; below 1e-4 a perfect mirror"},
+    {"roughness_v",
+     SPANGLE_PARAM_FLOAT,
+     {-1, 0, 0},
+     nullptr,
+     -1.0,
+     1.0,
+     nullptr,
+     "GGX alpha along the bitangent (anisotropy); -1 = same as roughness"},
+};
+
+/** Complex indices at the Rec.709 primaries' dominant wavelengths (about 630, 532, 465 nm),
+ *  from published optical constants (Johnson and Christy 1972 for Au, Ag, Cu; Rakic 1995 for Al).
+ */
+struct MetalPreset {
+    const char* name;
+    float eta[3], k[3];
+};
+const MetalPreset kMetals[] = {
+    {"gold", {0.183f, 0.421f, 1.373f}, {3.424f, 2.346f, 1.770f}},
+    {"silver", {0.155f, 0.117f, 0.138f}, {4.828f, 3.122f, 2.147f}},
+    {"copper", {0.200f, 0.924f, 1.102f}, {3.912f, 2.452f, 2.142f}},
+    {"aluminium", {1.657f, 0.880f, 0.521f}, {9.224f, 6.270f, 4.837f}},
+};
+
+struct Conductor {
+    float ax, ay;
+    bool delta;
+    bool perfect;  ///< F = 1 (white furnace reference)
+    float eta[3], k[3];
+    float to_working[9];  ///< linear Rec.709 -> working space, row-major
+};
+
+/** Reads the Rec.709 -> working-space matrix from the host's colour conversion. */
+bool rec709_matrix(const SpangleHost_v1* host, float m[9], char* error, uint32_t cap) {
+    float basis[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    char why[256] = {0};
+    if (!host || !host->convert_to_working ||
+        host->convert_to_working(host->context, "lin_rec709", basis, 3, why, sizeof(why)) != 0) {
+        set_error(error, cap,
+                  std::string("cannot convert Fresnel colours to the working space: ") + why);
+        return false;
+    }
+    // Converted basis vector j is column j of the matrix.
+    for (int j = 0; j < 3; ++j)
+        for (int r = 0; r < 3; ++r) m[3 * r + j] = basis[3 * j + r];
+    return true;
+}
+
+void* conductor_create(const SpangleParams_v1* p, const SpangleHost_v1* host, char* error,
+                       uint32_t cap) {
+    Conductor c{};
+    read_alpha(p, c.ax, c.ay);
+    c.delta = is_delta(c.ax, c.ay);
+    clamp_alpha(c.ax, c.ay);
+    const std::string preset = find_param(p, "preset")->string;
+    const bool given = param_f(p, "eta") >= 0.0f || param_f(p, "k") >= 0.0f;
+    if (preset == "custom") {
+        for (int ch = 0; ch < 3; ++ch) {
+            c.eta[ch] = param_f(p, "eta", ch);
+            c.k[ch] = param_f(p, "k", ch);
+            if (c.eta[ch] <= 0.0f || c.k[ch] < 0.0f) {
+                set_error(error, cap, "preset 'custom' needs eta > 0 and k >= 0 in every channel");
+                return nullptr;
+            }
+        }
+    } else if (given) {
+        set_error(error, cap,
+                  "eta and k are only used with preset = \"custom\"; preset '" + preset +
+                      "' already defines them");
+        return nullptr;
+    } else if (preset == "perfect") {
+        c.perfect = true;
+    } else {
+        for (const MetalPreset& m : kMetals)
+            if (preset == m.name) {
+                std::copy(m.eta, m.eta + 3, c.eta);
+                std::copy(m.k, m.k + 3, c.k);
+            }
+    }
+    if (!rec709_matrix(host, c.to_working, error, cap)) return nullptr;
+    auto* out = new (std::nothrow) Conductor(c);
+    if (!out) set_error(error, cap, "out of memory");
+    return out;
+}
+
+/** Fresnel reflectance in the working space for cosine c. */
+void conductor_fresnel(const Conductor& m, float c, float out[3]) {
+    if (m.perfect) {
+        out[0] = out[1] = out[2] = 1.0f;
+        return;
+    }
+    float f[3];
+    for (int ch = 0; ch < 3; ++ch) f[ch] = fresnel_conductor(c, m.eta[ch], m.k[ch]);
+    for (int r = 0; r < 3; ++r)
+        out[r] = std::clamp(m.to_working[3 * r] * f[0] + m.to_working[3 * r + 1] * f[1] +
+                                m.to_working[3 * r + 2] * f[2],
+                            0.0f, 1.0f);
+}
+
+void ggx_prepare(const void*, const SpangleShadingBatch_v1* b, void* closures, SpangleArena_v1*) {
+    auto* out = static_cast<Closure*>(closures);
+    for (uint32_t i = 0; i < b->count; ++i) {
+        out[i] = Closure{};
+        out[i].wo = wo_of(b, i);
+    }
+}
+
+void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) {
+    const auto& m = *static_cast<const Conductor*>(inst);
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const V3 wo = cl[closure_of(q->closure_index, i)].wo;
+        const V3 wi{q->wi_x[i], q->wi_y[i], q->wi_z[i]};
+        if (m.delta || wo.z <= 0.0f || wi.z <= 0.0f) {
+            write_eval(q, i, 0, 0, 0, 0);
+            continue;
+        }
+        const V3 h = normalize(wo + wi);
+        const float d = ggx_d(h, m.ax, m.ay);
+        float f[3];
+        conductor_fresnel(m, dot(wo, h), f);
+        const float s = d * ggx_g2(wo, wi, m.ax, m.ay) / (4.0f * wo.z * wi.z);
+        const float pdf = ggx_g1(wo, m.ax, m.ay) * d / (4.0f * wo.z);
+        write_eval(q, i, f[0] * s, f[1] * s, f[2] * s, pdf);
+    }
+}
+
+void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch_v1* q) {
+    const auto& m = *static_cast<const Conductor*>(inst);
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const V3 wo = cl[closure_of(q->closure_index, i)].wo;
+        if (wo.z <= 0.0f) {
+            invalid_sample(q, i);
+            continue;
+        }
+        float f[3];
+        if (m.delta) {
+            conductor_fresnel(m, wo.z, f);
+            const float inv = 1.0f / wo.z;  // delta lobe: f and pdf carry the same Dirac factor
+            write_sample(q, i, {-wo.x, -wo.y, wo.z}, f[0] * inv, f[1] * inv, f[2] * inv, 1.0f,
+                         SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
+            continue;
+        }
+        const V3 h = ggx_sample_visible(wo, m.ax, m.ay, q->u0[i], q->u1[i]);
+        const V3 wi = reflect(wo, h);
+        if (wi.z <= 0.0f) {
+            invalid_sample(q, i);
+            continue;
+        }
+        const float d = ggx_d(h, m.ax, m.ay);
+        conductor_fresnel(m, dot(wo, h), f);
+        const float s = d * ggx_g2(wo, wi, m.ax, m.ay) / (4.0f * wo.z * wi.z);
+        const float pdf = ggx_g1(wo, m.ax, m.ay) * d / (4.0f * wo.z);
+        write_sample(q, i, wi, f[0] * s, f[1] * s, f[2] * s, pdf,
+                     SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_GLOSSY);
+    }
+}
+
+// ------------------------------------------------------------------------------------ dielectric
+
+const SpangleParamDesc_v1 kDielectricParams[] = {
+    {"ior",
+     SPANGLE_PARAM_FLOAT,
+     {1.5, 0, 0},
+     nullptr,
+     1.01,
+     4.0,
+     nullptr,
+     "index of refraction inside (the outside is 1)"},
+    {"roughness",
+     SPANGLE_PARAM_FLOAT,
+     {0.0, 0, 0},
+     nullptr,
+     0.0,
+     1.0,
+     nullptr,
+     "GGX alpha along the tangent; below 1e-4 a smooth interface"},
+    {"roughness_v",
+     SPANGLE_PARAM_FLOAT,
+     {-1, 0, 0},
+     nullptr,
+     -1.0,
+     1.0,
+     nullptr,
+     "GGX alpha along the bitangent; -1 = same as roughness"},
+};
+
+struct Dielectric {
+    float ax, ay, ior;
+    bool delta;
+};
+
+void* dielectric_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* error,
+                        uint32_t cap) {
+    Dielectric d{};
+    read_alpha(p, d.ax, d.ay);
+    d.delta = is_delta(d.ax, d.ay);
+    clamp_alpha(d.ax, d.ay);
+    d.ior = param_f(p, "ior");
+    auto* out = new (std::nothrow) Dielectric(d);
+    if (!out) set_error(error, cap, "out of memory");
+    return out;
+}
+
+void dielectric_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* closures,
+                        SpangleArena_v1*) {
+    const auto& m = *static_cast<const Dielectric*>(inst);
+    auto* out = static_cast<Closure*>(closures);
+    for (uint32_t i = 0; i < b->count; ++i) {
+        out[i] = Closure{};
+        out[i].wo = wo_of(b, i);
+        // The host turned the frame towards wo: from the back side, wo is inside the glass.
+        out[i].eta = (b->flags[i] & SPANGLE_SHADING_BACKFACE) ? 1.0f / m.ior : m.ior;
+    }
+}
+
+/** f and pdf of the rough dielectric for wo.z > 0 (pbrt-v4's formulation of Walter et al.). */
+void dielectric_rough(const Dielectric& m, V3 wo, V3 wi, float eta, float& f, float& pdf) {
+    f = pdf = 0.0f;
+    const bool reflect_ = wi.z > 0.0f;
+    const float etap = reflect_ ? 1.0f : eta;
+    V3 h = normalize(wi * etap + wo);
+    if (h.z < 0.0f) h = h * -1.0f;
+    if (wi.z == 0.0f || dot(h, wi) * wi.z < 0.0f || dot(h, wo) * wo.z < 0.0f) return;
+    const float R = fresnel_dielectric(dot(wo, h), eta), T = 1.0f - R;
+    const float d = ggx_d(h, m.ax, m.ay);
+    const float g = ggx_g2(wo, wi, m.ax, m.ay);
+    const float vis = ggx_visible_d(wo, h, m.ax, m.ay);
+    if (reflect_) {
+        f = d * g * R / (4.0f * wo.z * wi.z);
+        pdf = vis / (4.0f * std::fabs(dot(wo, h))) * R;
+    } else {
+        const float denom = (dot(wi, h) + dot(wo, h) / eta) * (dot(wi, h) + dot(wo, h) / eta);
+        if (!(denom > 0.0f)) return;
+        const float dwh_dwi = std::fabs(dot(wi, h)) / denom;
+        f = T * d * g * std::fabs(dot(wi, h) * dot(wo, h) / (wi.z * wo.z * denom)) / (eta * eta);
+        pdf = vis * dwh_dwi * T;
+    }
+}
+
+void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) {
+    const auto& m = *static_cast<const Dielectric*>(inst);
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        if (m.delta || c.wo.z <= 0.0f) {
+            write_eval(q, i, 0, 0, 0, 0);
+            continue;
+        }
+        float f, pdf;
+        dielectric_rough(m, c.wo, {q->wi_x[i], q->wi_y[i], q->wi_z[i]}, c.eta, f, pdf);
+        write_eval(q, i, f, f, f, pdf);
+    }
+}
+
+void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatch_v1* q) {
+    const auto& m = *static_cast<const Dielectric*>(inst);
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const V3 wo = c.wo;
+        if (wo.z <= 0.0f) {
+            invalid_sample(q, i);
+            continue;
+        }
+        const V3 h = m.delta ? V3{0, 0, 1} : ggx_sample_visible(wo, m.ax, m.ay, q->u0[i], q->u1[i]);
+        const float R = fresnel_dielectric(dot(wo, h), c.eta), T = 1.0f - R;
+        V3 wi;
+        const bool reflect_ = q->u2[i] < R;
+        if (reflect_) {
+            wi = reflect(wo, h);
+        } else if (!refract(wo, h, c.eta, wi)) {
+            invalid_sample(q, i);  // unreachable in exact arithmetic: TIR means R = 1
+            continue;
+        }
+        const uint32_t lobe = reflect_ ? SPANGLE_SAMPLE_REFLECTION : SPANGLE_SAMPLE_TRANSMISSION;
+        if (m.delta) {
+            const float cos_i = std::fabs(wi.z);
+            const float f = reflect_ ? R / cos_i : T / (cos_i * c.eta * c.eta);
+            write_sample(q, i, wi, f, f, f, reflect_ ? R : T, lobe | SPANGLE_SAMPLE_SPECULAR);
+            continue;
+        }
+        if (reflect_ ? wi.z <= 0.0f : wi.z >= 0.0f) {
+            invalid_sample(q, i);
+            continue;
+        }
+        float f, pdf;
+        dielectric_rough(m, wo, wi, c.eta, f, pdf);
+        write_sample(q, i, wi, f, f, f, pdf, lobe | SPANGLE_SAMPLE_GLOSSY);
+    }
+}
+
+// ------------------------------------------------------------------------------------ plastic
+
+const SpangleParamDesc_v1 kPlasticParams[] = {
+    {"albedo",
+     SPANGLE_PARAM_COLOR,
+     {0.8, 0.8, 0.8},
+     nullptr,
+     0.0,
+     1.0,
+     nullptr,
+     "diffuse colour of the base under the coat"},
+    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of the coat"},
+    {"roughness",
+     SPANGLE_PARAM_FLOAT,
+     {0.1, 0, 0},
+     nullptr,
+     0.0,
+     1.0,
+     nullptr,
+     "GGX alpha of the coat along the tangent; below 1e-4 a smooth coat"},
+    {"roughness_v",
+     SPANGLE_PARAM_FLOAT,
+     {-1, 0, 0},
+     nullptr,
+     -1.0,
+     1.0,
+     nullptr,
+     "GGX alpha of the coat along the bitangent; -1 = same as roughness"},
+};
+
+constexpr int kAlbedoTable = 64;  ///< coat albedo E(mu) tabulated at mu = (i + 0.5) / 64
+
+struct Plastic {
+    float ax, ay, ior;
+    bool delta;
+    float albedo[3];
+    float e[kAlbedoTable];  ///< directional albedo of the coat's reflection
+    float e_avg;            ///< cosine-weighted average of e: 2 int e(mu) mu dmu
+};
+
+/** Radical inverse in base 2 (for the deterministic quadrature below). */
+float radical_inverse2(uint32_t i) {
+    i = (i << 16) | (i >> 16);
+    i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
+    i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
+    i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
+    i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
+    return static_cast<float>(i) * 0x1p-32f;
+}
+
+/** Coat reflection albedo at cosine mu: int F D G2 / (4 mu) dwi, by VNDF importance sampling over
+ *  a Hammersley set, where each sample weighs F G2 / G1. Deterministic and smooth in mu. */
+float coat_albedo(const Plastic& m, float mu) {
+    if (m.delta) return fresnel_dielectric(mu, m.ior);
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
+    constexpr uint32_t kN = 1024;
+    double sum = 0.0;
+    for (uint32_t i = 0; i < kN; ++i) {
+        const V3 h = ggx_sample_visible(wo, m.ax, m.ay, (static_cast<float>(i) + 0.5f) / kN,
+                                        radical_inverse2(i));
+        const V3 wi = reflect(wo, h);
+        if (wi.z <= 0.0f) continue;
+        sum += static_cast<double>(fresnel_dielectric(dot(wo, h), m.ior) *
+                                   ggx_g2(wo, wi, m.ax, m.ay) / ggx_g1(wo, m.ax, m.ay));
+    }
+    return static_cast<float>(sum / kN);
+}
+
+float plastic_e(const Plastic& m, float mu) {
+    const float x =
+        std::clamp(mu * kAlbedoTable - 0.5f, 0.0f, static_cast<float>(kAlbedoTable - 1));
+    const int i = std::min(static_cast<int>(x), kAlbedoTable - 2);
+    const float t = x - static_cast<float>(i);
+    return m.e[i] * (1.0f - t) + m.e[i + 1] * t;
+}
+
+void* plastic_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* error, uint32_t cap) {
+    auto* m = new (std::nothrow) Plastic{};
+    if (!m) {
+        set_error(error, cap, "out of memory");
+        return nullptr;
+    }
+    read_alpha(p, m->ax, m->ay);
+    m->delta = is_delta(m->ax, m->ay);
+    clamp_alpha(m->ax, m->ay);
+    m->ior = param_f(p, "ior");
+    for (int c = 0; c < 3; ++c) m->albedo[c] = param_f(p, "albedo", c);
+    double avg = 0.0;
+    for (int i = 0; i < kAlbedoTable; ++i) {
+        const float mu = (static_cast<float>(i) + 0.5f) / kAlbedoTable;
+        m->e[i] = std::min(1.0f, coat_albedo(*m, mu));
+        avg += 2.0 * static_cast<double>(m->e[i] * mu) / kAlbedoTable;
+    }
+    m->e_avg = static_cast<float>(avg);
+    return m;
+}
+
+void plastic_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* closures,
+                     SpangleArena_v1*) {
+    const auto& m = *static_cast<const Plastic*>(inst);
+    auto* out = static_cast<Closure*>(closures);
+    const float lum = 0.2126f * m.albedo[0] + 0.7152f * m.albedo[1] + 0.0722f * m.albedo[2];
+    for (uint32_t i = 0; i < b->count; ++i) {
+        Closure& c = out[i];
+        c = Closure{};
+        c.wo = wo_of(b, i);
+        std::copy(m.albedo, m.albedo + 3, c.rgb);
+        c.e_o = plastic_e(m, std::max(c.wo.z, 0.0f));
+        const float diffuse = lum * (1.0f - c.e_o);
+        // Sample the coat in proportion to the energy it reflects; never less than 10% of the
+        // time so that a dark base does not starve the diffuse lobe of samples.
+        c.p_spec =
+            c.e_o + diffuse > 0.0f ? std::clamp(c.e_o / (c.e_o + diffuse), 0.1f, 0.9f) : 0.5f;
+    }
+}
+
+/** The base's reflectance factor (1 - E(o)) (1 - E(i)) / (pi (1 - E_avg)), without albedo. */
+float plastic_base(const Plastic& m, const Closure& c, float cos_i) {
+    return (1.0f - c.e_o) * (1.0f - plastic_e(m, cos_i)) / (kPi * std::max(1e-6f, 1.0f - m.e_avg));
+}
+
+void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) {
+    const auto& m = *static_cast<const Plastic*>(inst);
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const V3 wo = c.wo, wi{q->wi_x[i], q->wi_y[i], q->wi_z[i]};
+        if (wo.z <= 0.0f || wi.z <= 0.0f) {
+            write_eval(q, i, 0, 0, 0, 0);
+            continue;
+        }
+        const float base = plastic_base(m, c, wi.z);
+        float spec = 0.0f, spec_pdf = 0.0f;
+        if (!m.delta) {
+            const V3 h = normalize(wo + wi);
+            const float d = ggx_d(h, m.ax, m.ay);
+            spec = fresnel_dielectric(dot(wo, h), m.ior) * d * ggx_g2(wo, wi, m.ax, m.ay) /
+                   (4.0f * wo.z * wi.z);
+            spec_pdf = ggx_g1(wo, m.ax, m.ay) * d / (4.0f * wo.z);
+        }
+        const float pdf = c.p_spec * spec_pdf + (1.0f - c.p_spec) * wi.z * kInvPi;
+        write_eval(q, i, spec + c.rgb[0] * base, spec + c.rgb[1] * base, spec + c.rgb[2] * base,
+                   pdf);
+    }
+}
+
+void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v1* q) {
+    const auto& m = *static_cast<const Plastic*>(inst);
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const V3 wo = c.wo;
+        if (wo.z <= 0.0f) {
+            invalid_sample(q, i);
+            continue;
+        }
+        const bool coat = q->u2[i] < c.p_spec;
+        if (coat && m.delta) {
+            const float fr = fresnel_dielectric(wo.z, m.ior);
+            const float f = fr / wo.z;
+            write_sample(q, i, {-wo.x, -wo.y, wo.z}, f, f, f, c.p_spec,
+                         SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
+            continue;
+        }
+        const V3 wi = coat ? reflect(wo, ggx_sample_visible(wo, m.ax, m.ay, q->u0[i], q->u1[i]))
+                           : cosine_hemisphere(q->u0[i], q->u1[i]);
+        if (wi.z <= 0.0f) {
+            invalid_sample(q, i);
+            continue;
+        }
+        // f and pdf of the whole mixture, so that MIS sees one consistent density.
+        SpangleEvalBatch_v1 e{};
+        float fr, fg, fb, pdf;
+        const uint32_t index = closure_of(q->closure_index, i);
+        e.count = 1;
+        e.closure_index = &index;
+        e.wi_x = &wi.x;
+        e.wi_y = &wi.y;
+        e.wi_z = &wi.z;
+        e.f_r = &fr;
+        e.f_g = &fg;
+        e.f_b = &fb;
+        e.pdf = &pdf;
+        plastic_eval(inst, closures, &e);
+        write_sample(
+            q, i, wi, fr, fg, fb, pdf,
+            SPANGLE_SAMPLE_REFLECTION | (coat ? SPANGLE_SAMPLE_GLOSSY : SPANGLE_SAMPLE_DIFFUSE));
     }
 }
 
 // ------------------------------------------------------------------------------------ the table
 
+template <class T>
+void destroy(void* instance) {
+    delete static_cast<T*>(instance);
+}
+
+constexpr uint32_t count_of(const SpangleParamDesc_v1* begin, const SpangleParamDesc_v1* end) {
+    return static_cast<uint32_t>(end - begin);
+}
+#define SPANGLE_PARAMS(a) a, count_of(a, a + sizeof(a) / sizeof(a[0]))
+
 const SpangleMaterialModel_v1 kModels[] = {
-    {"diffuse", "Lambertian diffuse reflection", kDiffuseParams,
-     sizeof(kDiffuseParams) / sizeof(kDiffuseParams[0]), sizeof(DiffuseClosure), diffuse_create,
-     diffuse_destroy, diffuse_prepare, diffuse_eval, diffuse_sample, nullptr},
+    {"diffuse", "Lambertian diffuse reflection", SPANGLE_PARAMS(kDiffuseParams), sizeof(Closure),
+     diffuse_create, destroy<Diffuse>, diffuse_prepare, diffuse_eval, diffuse_sample, nullptr},
+    {"conductor", "GGX metal with complex Fresnel (presets or custom eta, k)",
+     SPANGLE_PARAMS(kConductorParams), sizeof(Closure), conductor_create, destroy<Conductor>,
+     ggx_prepare, conductor_eval, conductor_sample, nullptr},
+    {"dielectric", "rough glass: GGX reflection and transmission",
+     SPANGLE_PARAMS(kDielectricParams), sizeof(Closure), dielectric_create, destroy<Dielectric>,
+     dielectric_prepare, dielectric_eval, dielectric_sample, nullptr},
+    {"plastic", "diffuse base under a GGX dielectric coat", SPANGLE_PARAMS(kPlasticParams),
+     sizeof(Closure), plastic_create, destroy<Plastic>, plastic_prepare, plastic_eval,
+     plastic_sample, nullptr},
 };
 
 const SpangleMaterialPlugin_v1 kPlugin = {

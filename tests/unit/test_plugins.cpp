@@ -269,39 +269,5 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
     }
 }
 
-TEST_F(DiffuseThroughAbi, ChiSquareOfSamplesAgainstPdf) {
-    // Bins uniform in cos^2(theta) x phi: under the cosine pdf each holds N / (kZ * kPhi) samples.
-    constexpr uint32_t kN = 200000, kZ = 10, kPhi = 20;
-    std::vector<float> u0(kN), u1(kN), u2(kN, 0.5f), x(kN), y(kN), z(kN), r(kN), g(kN), b(kN),
-        pdf(kN);
-    std::vector<uint32_t> flags(kN), idx(kN, 0);
-    for (uint32_t i = 0; i < kN; ++i) {
-        u0[i] = sample_1d(2, i, 0, 0);
-        u1[i] = sample_1d(2, i, 0, 1);
-    }
-    SpangleSampleBatch_v1 q{kN,       idx.data(), u0.data(),   u1.data(), u2.data(),
-                            x.data(), y.data(),   z.data(),    r.data(),  g.data(),
-                            b.data(), pdf.data(), flags.data()};
-    model_->sample(instance_, closure_.data(), &q);
-    std::vector<double> hist(kZ * kPhi, 0.0);
-    for (uint32_t i = 0; i < kN; ++i) {
-        const auto zi = std::min<uint32_t>(kZ - 1, static_cast<uint32_t>(z[i] * z[i] * kZ));
-        double phi = std::atan2(static_cast<double>(y[i]), static_cast<double>(x[i]));
-        if (phi < 0) phi += 2 * M_PI;
-        const auto pi =
-            std::min<uint32_t>(kPhi - 1, static_cast<uint32_t>(phi / (2 * M_PI) * kPhi));
-        hist[zi * kPhi + pi] += 1.0;
-    }
-    const double expected = static_cast<double>(kN) / (kZ * kPhi);
-    double chi2 = 0.0;
-    for (double o : hist) chi2 += (o - expected) * (o - expected) / expected;
-    // Reject at significance 0.01 with k = 199 degrees of freedom; critical value from the
-    // Wilson-Hilferty approximation k (1 - 2/(9k) + z sqrt(2/(9k)))^3 with z_0.99 = 2.326.
-    const double k = kZ * kPhi - 1.0;
-    const double crit =
-        k * std::pow(1.0 - 2.0 / (9.0 * k) + 2.326 * std::sqrt(2.0 / (9.0 * k)), 3.0);
-    EXPECT_LT(chi2, crit);
-}
-
 }  // namespace
 }  // namespace spangle

@@ -46,18 +46,20 @@ extern "C" {
 
 /** Type of one material parameter. */
 typedef enum SpangleParamType {
-    SPANGLE_PARAM_FLOAT = 0, /* one float, range-checked */
-    SPANGLE_PARAM_INT = 1,   /* one 64-bit integer, range-checked */
-    SPANGLE_PARAM_BOOL = 2,  /* true or false */
-    SPANGLE_PARAM_COLOR = 3, /* RGB; the host converts it to the working space at load */
-    SPANGLE_PARAM_STRING = 4 /* one of the choices in SpangleParamDesc_v1.choices */
+    SPANGLE_PARAM_FLOAT = 0,  /* one float, range-checked */
+    SPANGLE_PARAM_INT = 1,    /* one 64-bit integer, range-checked */
+    SPANGLE_PARAM_BOOL = 2,   /* true or false */
+    SPANGLE_PARAM_COLOR = 3,  /* RGB; the host converts it to the working space at load */
+    SPANGLE_PARAM_STRING = 4, /* one of the choices in SpangleParamDesc_v1.choices */
+    SPANGLE_PARAM_VEC3 = 5    /* three numbers passed as written (no colour management), each
+                                 range-checked; e.g. a conductor's per-channel complex IOR */
 } SpangleParamType;
 
 /** One entry of a model's parameter schema. The host validates scene values against it. */
 typedef struct SpangleParamDesc_v1 {
     const char* name;           /* snake_case key in the scene file */
     SpangleParamType type;      /* value type */
-    double default_value[3];    /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space */
+    double default_value[3];    /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space; VEC3 */
     const char* default_string; /* STRING: default choice; NULL otherwise */
     double min_value;           /* FLOAT/INT/COLOR (each channel): inclusive lower bound */
     double max_value;           /* FLOAT/INT/COLOR (each channel): inclusive upper bound */
@@ -69,7 +71,7 @@ typedef struct SpangleParamDesc_v1 {
 typedef struct SpangleParamValue_v1 {
     const char* name; /* same pointer text as the schema entry's name */
     SpangleParamType type;
-    double number[3];   /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space */
+    double number[3];   /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space; VEC3: as written */
     const char* string; /* STRING: the chosen value; NULL otherwise */
 } SpangleParamValue_v1;
 

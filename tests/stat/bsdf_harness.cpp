@@ -1,0 +1,92 @@
+#include "bsdf_harness.h"
+
+#include <cstring>
+
+namespace spangle::test {
+
+BsdfHarness::BsdfHarness(const std::string& plugin, const std::string& model,
+                         const std::vector<std::pair<std::string, std::vector<double>>>& numbers,
+                         const std::vector<std::pair<std::string, std::string>>& strings)
+    : color_(shipped_config()) {
+    color_.set_working_space("lin_rec709");
+    host_ = std::make_unique<HostServices>(color_, quiet_log());
+    plugin_ = PluginLoader(plugin_search_path({})).open(plugin, {});
+    model_ = plugin_->model(model);
+    if (!model_) throw std::runtime_error("no model " + model);
+    // Build a Material as a scene would, so that validation (ranges, defaults) applies too.
+    Material m;
+    m.name = "under_test";
+    m.plugin = plugin;
+    m.model = model;
+    for (const auto& [name, v] : numbers) {
+        ParamEntry p;
+        p.name = name;
+        p.kind = v.size() == 3 ? ParamEntry::Kind::Color : ParamEntry::Kind::Number;
+        for (std::size_t i = 0; i < v.size(); ++i) p.number[i] = v[i];
+        p.text = "lin_rec709";
+        m.params.push_back(p);
+    }
+    for (const auto& [name, s] : strings) {
+        ParamEntry p;
+        p.name = name;
+        p.kind = ParamEntry::Kind::String;
+        p.text = s;
+        m.params.push_back(p);
+    }
+    const ValidatedParams params = validate_params(*model_, m, color_);
+    const SpangleParams_v1 view = params.view();
+    char error[512] = {0};
+    instance_ = model_->create(&view, host_->api(), error, sizeof(error));
+    if (!instance_) throw std::runtime_error(std::string("create failed: ") + error);
+    closure_.resize(model_->closure_size + 64);
+}
+
+BsdfHarness::~BsdfHarness() {
+    if (instance_) model_->destroy(instance_);
+}
+
+void BsdfHarness::prepare(Vec3 wo, bool backface) {
+    const float zero = 0.0f, one = 1.0f;
+    const uint32_t flags = backface ? SPANGLE_SHADING_BACKFACE : 0u, id = 0;
+    const SpangleShadingBatch_v1 b{1,     &zero, &zero, &zero, &wo.x, &wo.y, &wo.z,  &zero,
+                                   &zero, &zero, &zero, &zero, &zero, &one,  &flags, &id};
+    model_->prepare(instance_, &b, closure_.data(), nullptr);
+}
+
+std::vector<BsdfHarness::Sample> BsdfHarness::sample(uint32_t n, uint64_t seed) const {
+    std::vector<float> u0(n), u1(n), u2(n), x(n), y(n), z(n), r(n), g(n), b(n), pdf(n);
+    std::vector<uint32_t> flags(n), idx(n, 0);
+    for (uint32_t i = 0; i < n; ++i) {
+        u0[i] = sample_1d(seed, i, 0, 0);
+        u1[i] = sample_1d(seed, i, 0, 1);
+        u2[i] = sample_1d(seed, i, 0, 2);
+    }
+    SpangleSampleBatch_v1 q{n,        idx.data(), u0.data(),   u1.data(), u2.data(),
+                            x.data(), y.data(),   z.data(),    r.data(),  g.data(),
+                            b.data(), pdf.data(), flags.data()};
+    model_->sample(instance_, closure_.data(), &q);
+    std::vector<Sample> out(n);
+    for (uint32_t i = 0; i < n; ++i)
+        out[i] = {{x[i], y[i], z[i]}, {r[i], g[i], b[i]}, pdf[i], flags[i]};
+    return out;
+}
+
+void BsdfHarness::eval(const std::vector<Vec3>& wi, std::vector<Vec3>& f,
+                       std::vector<float>& pdf) const {
+    const auto n = static_cast<uint32_t>(wi.size());
+    std::vector<float> x(n), y(n), z(n), r(n), g(n), b(n);
+    std::vector<uint32_t> idx(n, 0);
+    pdf.assign(n, 0.0f);
+    for (uint32_t i = 0; i < n; ++i) {
+        x[i] = wi[i].x;
+        y[i] = wi[i].y;
+        z[i] = wi[i].z;
+    }
+    SpangleEvalBatch_v1 q{n,        idx.data(), x.data(), y.data(),  z.data(),
+                          r.data(), g.data(),   b.data(), pdf.data()};
+    if (n > 0) model_->eval(instance_, closure_.data(), &q);
+    f.resize(n);
+    for (uint32_t i = 0; i < n; ++i) f[i] = {r[i], g[i], b[i]};
+}
+
+}  // namespace spangle::test

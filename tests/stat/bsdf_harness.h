@@ -1,0 +1,53 @@
+#pragma once
+// Drives one material model of a plugin through the real ABI, one wo at a time, for the
+// statistical tests: sample(), eval() and their agreement.
+
+#include <gtest/gtest.h>
+
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "core/hash.h"
+#include "core/math.h"
+#include "shading/material.h"
+#include "shading/plugin_loader.h"
+#include "test_support.h"
+
+namespace spangle::test {
+
+/** One created model instance and a prepared closure for a chosen wo. */
+class BsdfHarness {
+public:
+    /** Opens `plugin`, creates `model` with the given parameters (name -> numbers), defaults for
+     *  the rest. String parameters go in `strings`. */
+    BsdfHarness(const std::string& plugin, const std::string& model,
+                const std::vector<std::pair<std::string, std::vector<double>>>& numbers,
+                const std::vector<std::pair<std::string, std::string>>& strings = {});
+    ~BsdfHarness();
+
+    /** Prepares the closure for wo (local frame); backface sets SPANGLE_SHADING_BACKFACE. */
+    void prepare(Vec3 wo, bool backface = false);
+
+    struct Sample {
+        Vec3 wi, f;
+        float pdf;
+        uint32_t flags;
+    };
+    /** n samples with counter-based uniforms from `seed`. */
+    std::vector<Sample> sample(uint32_t n, uint64_t seed) const;
+    /** f and pdf for each wi. */
+    void eval(const std::vector<Vec3>& wi, std::vector<Vec3>& f, std::vector<float>& pdf) const;
+
+    const SpangleMaterialModel_v1& model() const { return *model_; }
+
+private:
+    ColorConfig color_;
+    std::unique_ptr<HostServices> host_;
+    std::shared_ptr<LoadedPlugin> plugin_;
+    const SpangleMaterialModel_v1* model_ = nullptr;
+    void* instance_ = nullptr;
+    std::vector<std::byte> closure_;
+};
+
+}  // namespace spangle::test
