@@ -53,7 +53,7 @@ void EmbreeScene::check(const char* what) const {
 }
 
 void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instance>& instances,
-                        const std::vector<Vec3>& quad_vertices) {
+                        const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres) {
     for (const TriangleMesh& mesh : geometry.meshes) {
         RTCScene s = rtcNewScene(device_);
         blas_.push_back(s);
@@ -93,8 +93,30 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
             add_triangles(device_, top_, xyz.data(), xyz.size() / 3, idx.data(), idx.size() / 3);
         rtcReleaseGeometry(g);
     }
+    if (!spheres.empty()) {
+        const std::size_t n = spheres.size() / 4;
+        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), n));
+        if (v) std::memcpy(v, spheres.data(), spheres.size() * sizeof(float));
+        rtcCommitGeometry(g);
+        sphere_geom_ = rtcAttachGeometry(top_, g);
+        rtcReleaseGeometry(g);
+    }
     rtcCommitScene(top_);
     check("building the scene's acceleration structure");
+}
+
+void EmbreeScene::bounding_sphere(Vec3& center, float& radius) const {
+    center = Vec3(0.0f);
+    radius = 0.0f;
+    if (!top_) return;
+    RTCBounds b;
+    rtcGetSceneBounds(top_, &b);
+    if (!(b.upper_x >= b.lower_x)) return;  // empty scene
+    const Vec3 lo(b.lower_x, b.lower_y, b.lower_z), hi(b.upper_x, b.upper_y, b.upper_z);
+    center = (lo + hi) * 0.5f;
+    radius = 0.5f * length(hi - lo);
 }
 
 bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
@@ -118,8 +140,13 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
     hit.b1 = rh.hit.u;
     hit.b2 = rh.hit.v;
     hit.prim = rh.hit.primID;
-    hit.instance =
-        rh.hit.instID[0] == RTC_INVALID_GEOMETRY_ID ? -1 : static_cast<int32_t>(rh.hit.instID[0]);
+    if (rh.hit.instID[0] != RTC_INVALID_GEOMETRY_ID) {
+        hit.instance = static_cast<int32_t>(rh.hit.instID[0]);
+        hit.kind = HitKind::Instance;
+    } else {
+        hit.instance = -1;
+        hit.kind = rh.hit.geomID == sphere_geom_ ? HitKind::Sphere : HitKind::Quad;
+    }
     return true;
 }
 

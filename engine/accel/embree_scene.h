@@ -25,12 +25,20 @@ struct Instance {
     Vec3 emission;           ///< radiance of its front faces (zero when not emissive)
 };
 
+/** What a ray hit. */
+enum class HitKind : uint8_t {
+    Instance,  ///< a triangle of an object's mesh
+    Quad,      ///< a triangle of a quad light (prim / 2 = quad index)
+    Sphere     ///< a sphere light (prim = sphere index)
+};
+
 /** A ray hit, resolved to what shading needs to look up. */
 struct Hit {
-    float t = 0.0f;              ///< distance along the (unit) ray direction
-    float b1 = 0.0f, b2 = 0.0f;  ///< barycentrics of vertices 1 and 2
-    uint32_t prim = 0;           ///< triangle index within its mesh or the quad geometry
-    int32_t instance = -1;       ///< instance index, or -1 for a quad light triangle
+    float t = 0.0f;                    ///< distance along the (unit) ray direction
+    float b1 = 0.0f, b2 = 0.0f;        ///< barycentrics of vertices 1 and 2
+    uint32_t prim = 0;                 ///< primitive index within its geometry
+    int32_t instance = -1;             ///< instance index for HitKind::Instance, else -1
+    HitKind kind = HitKind::Instance;  ///< what was hit
 };
 
 /** An Embree device and committed scene. Not copyable; rtc handles released on destruction. */
@@ -41,10 +49,14 @@ public:
     EmbreeScene(const EmbreeScene&) = delete;
     EmbreeScene& operator=(const EmbreeScene&) = delete;
 
-    /** Builds one BLAS per mesh, one instance per object, and the quad light triangles
-     *  (quad_vertices: 4 world-space corners per quad). Throws SpangleError. */
+    /** Builds one BLAS per mesh, one instance per object, the quad light triangles
+     *  (quad_vertices: 4 world-space corners per quad) and the sphere lights (x, y, z, radius).
+     *  Throws SpangleError. */
     void build(const GeometryStore& geometry, const std::vector<Instance>& instances,
-               const std::vector<Vec3>& quad_vertices);
+               const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres);
+
+    /** Centre and radius of a sphere bounding everything in the scene (0 radius when empty). */
+    void bounding_sphere(Vec3& center, float& radius) const;
 
     /** Closest hit along o + t d for t in (0, tmax); false when nothing is hit. */
     bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const;
@@ -61,6 +73,7 @@ private:
     RTCScene top_ = nullptr;
     std::vector<RTCScene> blas_;
     uint32_t quad_geom_ = RTC_INVALID_GEOMETRY_ID;
+    uint32_t sphere_geom_ = RTC_INVALID_GEOMETRY_ID;
     mutable std::string error_;  ///< last message from the error callback
 };
 

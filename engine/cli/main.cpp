@@ -17,6 +17,9 @@
 #include "color/image_output.h"
 #include "core/error.h"
 #include "render/frame.h"
+#include "render/image_metrics.h"
+
+#include <OpenImageIO/imageio.h>
 #include "shading/material.h"
 #include "shading/plugin_loader.h"
 
@@ -43,6 +46,7 @@ struct RenderArgs {
     bool quiet = false;
     std::string compression = "zip";
     std::string ocio;
+    std::string strategy = "mis";
 };
 
 void print_stats(const FrameResult& r, const std::string& exr) {
@@ -90,6 +94,9 @@ int run_render(const RenderArgs& a) {
     req.ocio_config = a.ocio;
     req.options.threads = a.threads;
     req.options.spp_override = a.spp;
+    req.options.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
+                           : a.strategy == "bsdf" ? Strategy::BsdfOnly
+                                                  : Strategy::Mis;
     req.log = &log;
     Progress progress(::isatty(STDERR_FILENO) != 0);
     if (!a.quiet)
@@ -151,6 +158,28 @@ int run_plugins(const std::vector<std::string>& dirs) {
     return bad > 0 ? 1 : 0;
 }
 
+int run_inspect(const std::string& path) {
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) throw_error("cannot read '{}': {}", path, OIIO::geterror());
+    const OIIO::ImageSpec spec = in->spec();
+    if (spec.nchannels < 3) throw_error("'{}' has {} channels; expected RGB", path, spec.nchannels);
+    std::vector<float> all(static_cast<std::size_t>(spec.width) * spec.height * spec.nchannels);
+    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, all.data()))
+        throw_error("cannot read '{}': {}", path, in->geterror());
+    std::vector<float> rgb(static_cast<std::size_t>(spec.width) * spec.height * 3);
+    for (std::size_t i = 0; i < rgb.size() / 3; ++i)
+        for (std::size_t c = 0; c < 3; ++c)
+            rgb[3 * i + c] = all[i * static_cast<std::size_t>(spec.nchannels) + c];
+    const ImageMetrics m = measure_image(rgb, spec.width, spec.height);
+    fmt::print("{}: {}x{}, colour space '{}'\n", path, spec.width, spec.height,
+               spec.get_string_attribute("colorSpace", "unknown"));
+    fmt::print("mean luminance: {:.6g}\nnon-finite pixels: {}\nnegative pixels: {}\n",
+               m.mean_luminance, m.nonfinite, m.negative);
+    fmt::print("fireflies (> 10x the 3x3 median): {} ({:.4f}% of pixels)\n", m.fireflies,
+               100.0 * m.firefly_fraction);
+    return 0;
+}
+
 void print_error(const std::string& msg) {
     // Located messages already read "file:line:col: error: ..."; others get the prefix here.
     if (msg.find(": error: ") != std::string::npos)
@@ -186,12 +215,21 @@ int main(int argc, char** argv) {
     render->add_option("--ocio", ra.ocio,
                        "OpenColorIO config (default: $OCIO, then the shipped one)");
     render->add_flag("-q,--quiet", ra.quiet, "no progress or info output");
+    render
+        ->add_option("--strategy", ra.strategy,
+                     "light transport estimator: mis (default), nee or bsdf (for debugging)")
+        ->check(CLI::IsMember({"mis", "nee", "bsdf"}));
 
     std::vector<std::string> plugin_dirs;
     CLI::App* plugins =
         app.add_subcommand("plugins", "list the plugins found and their parameters");
     plugins->add_option("--plugin-path", plugin_dirs,
                         "directory searched for plugins first (repeatable)");
+
+    std::string inspect_path;
+    CLI::App* inspect =
+        app.add_subcommand("inspect", "measure an image: mean, non-finite pixels, fireflies");
+    inspect->add_option("image", inspect_path, "EXR (or any image OpenImageIO reads)")->required();
 
     try {
         app.parse(argc, argv);
@@ -201,6 +239,7 @@ int main(int argc, char** argv) {
     try {
         if (*render) return run_render(ra);
         if (*plugins) return run_plugins(plugin_dirs);
+        if (*inspect) return run_inspect(inspect_path);
     } catch (const SpangleError& e) {
         print_error(e.what());
         return 1;

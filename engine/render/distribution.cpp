@@ -21,12 +21,17 @@ Distribution1D::Distribution1D(const std::vector<double>& weights) {
     cdf_.back() = 1.0;
 }
 
-uint32_t Distribution1D::sample(float u) const {
+uint32_t Distribution1D::sample(float u, float* remapped) const {
     // First index whose cdf exceeds u; zero-weight entries have equal cdf to their predecessor
     // and are never chosen because upper_bound skips them.
     const auto it = std::upper_bound(cdf_.begin(), cdf_.end(), static_cast<double>(u));
-    const auto i = static_cast<std::size_t>(it - cdf_.begin());
-    return static_cast<uint32_t>(std::min(i, cdf_.size() - 1));
+    const std::size_t i = std::min(static_cast<std::size_t>(it - cdf_.begin()), cdf_.size() - 1);
+    if (remapped) {
+        const double lo = i == 0 ? 0.0 : cdf_[i - 1], hi = cdf_[i];
+        const double t = hi > lo ? (static_cast<double>(u) - lo) / (hi - lo) : 0.5;
+        *remapped = std::min(static_cast<float>(std::clamp(t, 0.0, 1.0)), 0x1.fffffep-1f);
+    }
+    return static_cast<uint32_t>(i);
 }
 
 }  // namespace spangle

@@ -15,8 +15,9 @@ public:
 
     bool empty() const { return total_ <= 0.0; }
     std::size_t size() const { return pmf_.size(); }
-    /** Index for u in [0, 1); binary search bounded by the table size. */
-    uint32_t sample(float u) const;
+    /** Index for u in [0, 1); binary search bounded by the table size. When `remapped` is
+     *  given it receives u's position within the chosen bin, uniform in [0, 1). */
+    uint32_t sample(float u, float* remapped = nullptr) const;
     /** Probability of index i. */
     float pmf(uint32_t i) const { return i < pmf_.size() ? pmf_[i] : 0.0f; }
 

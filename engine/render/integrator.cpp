@@ -11,8 +11,10 @@
 #include <cstring>
 #include <mutex>
 
-#include "core/hash.h"
 #include "render/arena.h"
+#include "render/camera.h"
+#include "render/sampler.h"
+#include "render/surface.h"
 
 namespace spangle {
 
@@ -20,21 +22,17 @@ namespace {
 
 constexpr uint32_t kTileSize = 16;
 constexpr uint32_t kSamplesPerWave = 16;  ///< samples of each tile pixel traced together
-constexpr uint32_t kRouletteDepth = 3;    ///< bounces before Russian roulette starts
 
-/** Random-number dimensions: 2 for the pixel, then kDimsPerBounce per bounce. */
-enum Dim : uint32_t {
-    kDimPixelX = 0,
-    kDimPixelY = 1,
-    kDimBounceBase = 2,
-    kDimLightSelect = 0,
-    kDimLightU = 1,
-    kDimLightV = 2,
-    kDimBsdf0 = 3,
-    kDimBsdf1 = 4,
-    kDimBsdf2 = 5,
-    kDimRoulette = 6,
-    kDimsPerBounce = 8
+/** Sobol dimension pairs: two for the camera, then kPairsPerBounce per bounce. */
+enum Pair : uint32_t {
+    kPairFilter = 0,
+    kPairLens = 1,
+    kPairBounceBase = 2,
+    kPairLight = 0,     ///< light position (u1, u2)
+    kPairBsdf = 1,      ///< BSDF direction (u0, u1)
+    kPairSelect = 2,    ///< light selection, BSDF lobe choice
+    kPairRoulette = 3,  ///< Russian roulette, spare
+    kPairsPerBounce = 4
 };
 
 /** Offsets a ray origin off a surface along the geometric normal by a few float ulps, scaled to
@@ -61,106 +59,17 @@ float power_heuristic(float a, float b) {
     return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
 }
 
-/** The pinhole camera's frame. */
-struct CameraFrame {
-    Vec3 origin, forward, right, up;  ///< right and up scaled by the half-extent of the image plane
-};
-
-CameraFrame make_camera(const Camera& c, uint32_t width, uint32_t height) {
-    CameraFrame f;
-    f.origin = c.position;
-    f.forward = normalize(c.look_at - c.position);
-    const Vec3 right = normalize(cross(f.forward, c.up));
-    const Vec3 up = cross(right, f.forward);
-    const float tan_half = std::tan(0.5f * c.fov_deg * kPi / 180.0f);
-    const float aspect = static_cast<float>(width) / static_cast<float>(height);
-    f.right = right * (tan_half * aspect);
-    f.up = up * tan_half;
-    return f;
-}
-
-/** Everything known about a surface hit that shading needs. */
-struct SurfacePoint {
-    Vec3 p, ng, n, s, t;  ///< position; geometric normal, shading frame (n, s, t) facing wo
-    float u = 0, v = 0;   ///< surface parameterisation
-    float uv_area = 0;    ///< |dp/du x dp/dv|
-    bool backface = false;
-};
-
-/** Resolves a hit on instance inst to a surface point oriented towards -d. */
-SurfacePoint surface_at(const World& w, const Instance& inst, const Hit& h, Vec3 d) {
-    const TriangleMesh& mesh = w.geometry.meshes[inst.mesh];
-    const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
-                   i2 = mesh.indices[3 * h.prim + 2];
-    const float b0 = 1.0f - h.b1 - h.b2;
-    const Vec3 p0 = inst.to_world.apply_point(mesh.position(i0));
-    const Vec3 p1 = inst.to_world.apply_point(mesh.position(i1));
-    const Vec3 p2 = inst.to_world.apply_point(mesh.position(i2));
-    SurfacePoint sp;
-    sp.p = p0 * b0 + p1 * h.b1 + p2 * h.b2;
-    const Vec3 e1 = p1 - p0, e2 = p2 - p0;
-    Vec3 ng = cross(e1, e2);
-    const float ng_len = length(ng);
-    ng = ng_len > 0.0f ? ng / ng_len : Vec3(0, 0, 1);
-    Vec3 n = ng;
-    if (!mesh.normals.empty()) {
-        const auto nrm = [&](uint32_t i) {
-            return Vec3(mesh.normals[3 * i], mesh.normals[3 * i + 1], mesh.normals[3 * i + 2]);
-        };
-        const Vec3 ni =
-            inst.normal_to_world.apply_vector(nrm(i0) * b0 + nrm(i1) * h.b1 + nrm(i2) * h.b2);
-        const float len = length(ni);
-        if (len > 0.0f && std::isfinite(len)) n = ni / len;
-        if (dot(n, ng) < 0.0f) ng = -ng;  // the geometric normal follows the authored normals
-    }
-    float uv0[2] = {0, 0}, uv1[2] = {1, 0}, uv2[2] = {0, 1};
-    if (!mesh.uvs.empty()) {
-        for (int k = 0; k < 2; ++k) {
-            uv0[k] = mesh.uvs[2 * i0 + static_cast<uint32_t>(k)];
-            uv1[k] = mesh.uvs[2 * i1 + static_cast<uint32_t>(k)];
-            uv2[k] = mesh.uvs[2 * i2 + static_cast<uint32_t>(k)];
-        }
-    }
-    sp.u = uv0[0] * b0 + uv1[0] * h.b1 + uv2[0] * h.b2;
-    sp.v = uv0[1] * b0 + uv1[1] * h.b1 + uv2[1] * h.b2;
-    // dp/du from the triangle's uv mapping; degenerate uvs fall back to an arbitrary tangent.
-    const float du1 = uv1[0] - uv0[0], dv1 = uv1[1] - uv0[1];
-    const float du2 = uv2[0] - uv0[0], dv2 = uv2[1] - uv0[1];
-    const float det = du1 * dv2 - dv1 * du2;
-    Vec3 dpdu(0.0f);
-    if (std::fabs(det) > 1e-20f) {
-        const float inv = 1.0f / det;
-        dpdu = (e1 * dv2 - e2 * dv1) * inv;
-        const Vec3 dpdv = (e2 * du1 - e1 * du2) * inv;
-        sp.uv_area = length(cross(dpdu, dpdv));
-    }
-    const bool back = dot(ng, d) > 0.0f;
-    if (back) {
-        ng = -ng;
-        n = -n;
-    }
-    Vec3 s = dpdu - n * dot(n, dpdu);
-    const float s_len = length(s);
-    if (s_len > 1e-12f && std::isfinite(s_len)) {
-        s = s / s_len;
-        sp.t = cross(n, s);
-    } else {
-        make_basis(n, s, sp.t);
-    }
-    sp.ng = ng;
-    sp.n = n;
-    sp.s = s;
-    sp.backface = back;
-    return sp;
-}
-
 /** Per-thread buffers for one wave of paths; reused across tiles. */
 struct Workspace {
     // Paths of the wave.
     std::vector<uint32_t> pixel, sample;
-    std::vector<Vec3> org, dir, throughput, radiance;
+    std::vector<RayDifferential> ray;
+    std::vector<uint8_t> has_diff;  ///< the ray's differentials are real (camera or specular)
+    std::vector<float> fp_width;    ///< footprint width at the ray origin (no differentials)
+    std::vector<float> fp_spread;   ///< footprint growth per unit distance (no differentials)
+    std::vector<Vec3> throughput, radiance;
     std::vector<float> prev_pdf;      ///< solid-angle pdf of the last BSDF sample
-    std::vector<uint8_t> prev_delta;  ///< last bounce was a delta lobe
+    std::vector<uint8_t> prev_delta;  ///< last bounce was a delta lobe (or the camera)
     std::vector<uint8_t> active;
     // Hits of the current bounce.
     std::vector<uint32_t> order;  ///< active hit paths sorted by material
@@ -169,7 +78,7 @@ struct Workspace {
     // Plugin batches (SoA) for one material group.
     std::vector<float> px, py, pz, wox, woy, woz, u, v, dudx, dudy, dvdx, dvdy, uv_area;
     std::vector<uint32_t> flags, path_id;
-    std::vector<float> f_r, f_g, f_b, pdf, wix, wiy, wiz, u0, u1, u2;
+    std::vector<float> f_r, f_g, f_b, pdf, wix, wiy, wiz, u0, u1, u2, eta;
     std::vector<uint32_t> closure_index, sample_flags;
     std::vector<LightSample> light;
     std::vector<uint32_t> light_query;  ///< group slot of each eval query
@@ -177,18 +86,18 @@ struct Workspace {
     ScratchArena arena;
 
     void resize_paths(std::size_t n) {
-        for (auto* a : {&pixel, &sample}) a->resize(n);
-        for (auto* a : {&org, &dir, &throughput, &radiance}) a->resize(n);
-        prev_pdf.resize(n);
-        prev_delta.resize(n);
-        active.resize(n);
-        material_of.resize(n);
+        for (auto* a : {&pixel, &sample, &material_of}) a->resize(n);
+        ray.resize(n);
+        for (auto* a : {&has_diff, &prev_delta, &active}) a->resize(n);
+        for (auto* a : {&fp_width, &fp_spread, &prev_pdf}) a->resize(n);
+        throughput.resize(n);
+        radiance.resize(n);
         surf.resize(n);
     }
     void resize_group(std::size_t n) {
         for (auto* a :
              {&px,      &py,  &pz,  &wox, &woy, &woz, &u,   &v,   &dudx, &dudy, &dvdx, &dvdy,
-              &uv_area, &f_r, &f_g, &f_b, &pdf, &wix, &wiy, &wiz, &u0,   &u1,   &u2})
+              &uv_area, &f_r, &f_g, &f_b, &pdf, &wix, &wiy, &wiz, &u0,   &u1,   &u2,   &eta})
             a->resize(n);
         for (auto* a : {&flags, &path_id, &closure_index, &sample_flags, &light_query})
             a->resize(n);
@@ -199,8 +108,11 @@ struct Workspace {
 /** State shared by all tiles of one render. */
 struct RenderJob {
     const World* world;
-    CameraFrame cam;
-    uint32_t width, height, spp, max_depth;
+    Strategy strategy;
+    float clamp_indirect;  ///< 0 = off
+    const CameraModel* camera;
+    const FilterSampler* filter;
+    uint32_t width, height, spp, max_depth, rr_depth;
     uint64_t seed;
     std::vector<float>* image;
     std::atomic<uint64_t> camera_rays{0}, bounce_rays{0}, shadow_rays{0}, samples_done{0};
@@ -209,8 +121,44 @@ struct RenderJob {
     std::mutex progress_mutex;
 };
 
-float rnd(const RenderJob& job, uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t dim) {
-    return sample_1d(job.seed, pixel, sample, kDimBounceBase + bounce * kDimsPerBounce + dim);
+void rnd2(const RenderJob& job, uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t pair,
+          float& a, float& b) {
+    sobol_2d(job.seed, pixel, sample, kPairBounceBase + bounce * kPairsPerBounce + pair, a, b);
+}
+
+/** Caps the luminance of one indirect contribution (a biased, optional firefly guard: light
+ *  that reached the camera through `scatterings` >= 2 surface events). */
+Vec3 clamp_contribution(const RenderJob& job, Vec3 c, uint32_t scatterings) {
+    if (job.clamp_indirect <= 0.0f || scatterings < 2) return c;
+    const float lum = luminance(c);
+    return lum > job.clamp_indirect ? c * (job.clamp_indirect / lum) : c;
+}
+
+/** Bends the ray differentials of path i through a specular bounce (pbrt, section 10.1.3). */
+void propagate_specular(Workspace& ws, uint32_t i, Vec3 wi, bool transmission, float eta_rel) {
+    const SurfacePoint& sp = ws.surf[i];
+    RayDifferential& r = ws.ray[i];
+    const Vec3 wo = -r.d, n = sp.n;
+    const Vec3 dndx = sp.dndu * sp.dudx + sp.dndv * sp.dvdx;
+    const Vec3 dndy = sp.dndu * sp.dudy + sp.dndv * sp.dvdy;
+    const Vec3 dwodx = -r.dx_d - wo, dwody = -r.dy_d - wo;
+    const float ddndx = dot(dwodx, n) + dot(wo, dndx);
+    const float ddndy = dot(dwody, n) + dot(wo, dndy);
+    r.dx_o = sp.p + sp.dpdx;
+    r.dy_o = sp.p + sp.dpdy;
+    if (!transmission) {
+        r.dx_d = wi - dwodx + (dndx * dot(wo, n) + n * ddndx) * 2.0f;
+        r.dy_d = wi - dwody + (dndy * dot(wo, n) + n * ddndy) * 2.0f;
+    } else {
+        const float e = 1.0f / eta_rel;  // eta_incident / eta_transmitted
+        const float cos_i = std::fabs(dot(wi, n));
+        const float mu = e * dot(wo, n) - cos_i;
+        const float k = cos_i > 0.0f ? e - e * e * dot(wo, n) / cos_i : 0.0f;
+        r.dx_d = wi - dwodx * e + dndx * mu + n * (k * ddndx);
+        r.dy_d = wi - dwody * e + dndy * mu + n * (k * ddndy);
+    }
+    if (!is_finite(r.dx_d) || !is_finite(r.dy_d) || !is_finite(r.dx_o) || !is_finite(r.dy_o))
+        ws.has_diff[i] = 0;
 }
 
 /** Shades one material group: prepare, next-event estimation, then BSDF sampling. */
@@ -221,7 +169,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
         const SurfacePoint& sp = ws.surf[i];
-        const Vec3 wo = -ws.dir[i];
+        const Vec3 wo = -ws.ray[i].d;
         ws.px[k] = sp.p.x;
         ws.py[k] = sp.p.y;
         ws.pz[k] = sp.p.z;
@@ -230,9 +178,13 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         ws.woz[k] = dot(wo, sp.n);
         ws.u[k] = sp.u;
         ws.v[k] = sp.v;
-        ws.dudx[k] = ws.dudy[k] = ws.dvdx[k] = ws.dvdy[k] = 0.0f;  // no ray differentials yet
+        ws.dudx[k] = sp.dudx;
+        ws.dudy[k] = sp.dudy;
+        ws.dvdx[k] = sp.dvdx;
+        ws.dvdy[k] = sp.dvdy;
         ws.uv_area[k] = sp.uv_area;
-        ws.flags[k] = sp.backface ? SPANGLE_SHADING_BACKFACE : 0u;
+        ws.flags[k] = (sp.backface ? SPANGLE_SHADING_BACKFACE : 0u) |
+                      (ws.has_diff[i] ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u);
         ws.path_id[k] = i;
     }
     const SpangleShadingBatch_v1 batch{n,
@@ -260,16 +212,24 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
     SpangleArena_v1 arena = ws.arena.api();
     model.prepare(mat.instance(), &batch, closures, &arena);
 
-    // Next-event estimation towards the area lights.
+    // Random numbers of this bounce, shared by light and BSDF sampling.
+    for (uint32_t k = 0; k < n; ++k) {
+        const uint32_t i = paths[k];
+        float sel, lobe;
+        rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairSelect, sel, lobe);
+        ws.u2[k] = lobe;
+        ws.eta[k] = sel;  // light selection, consumed below before eta is written by sample()
+    }
+
+    // Next-event estimation towards the lights.
     if (!w.lights.empty()) {
         uint32_t q = 0;
         for (uint32_t k = 0; k < n; ++k) {
             const uint32_t i = paths[k];
             const SurfacePoint& sp = ws.surf[i];
-            const LightSample ls =
-                w.lights.sample(sp.p, rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightSelect),
-                                rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightU),
-                                rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimLightV));
+            float lu, lv;
+            rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairLight, lu, lv);
+            const LightSample ls = w.lights.sample(sp.p, ws.eta[k], lu, lv);
             if (!(ls.pdf > 0.0f)) continue;
             ws.light[q] = ls;
             ws.light_query[q] = k;
@@ -295,23 +255,27 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             const uint32_t i = paths[ws.light_query[j]];
             const SurfacePoint& sp = ws.surf[i];
             const LightSample& ls = ws.light[j];
-            const float cos_i = std::fabs(ws.wiz[j]);
             // Leave on the side of the geometric normal that wi points to.
             const Vec3 side = dot(ls.wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
             const Vec3 o = offset_origin(sp.p, side);
+            const float tmax = std::isfinite(ls.dist) ? ls.dist * (1.0f - 1e-4f) : 1e30f;
             ++shadow_rays;
-            if (w.accel && w.accel->occluded(o, ls.wi, ls.dist * (1.0f - 1e-4f))) continue;
-            const float mis = power_heuristic(ls.pdf, ws.pdf[j]);
-            ws.radiance[i] += ws.throughput[i] * f * ls.radiance * (cos_i * mis / ls.pdf);
+            if (w.accel && w.accel->occluded(o, ls.wi, tmax)) continue;
+            float mis = ls.delta ? 1.0f : power_heuristic(ls.pdf, ws.pdf[j]);
+            if (job.strategy == Strategy::NeeOnly) mis = 1.0f;
+            if (job.strategy == Strategy::BsdfOnly && !ls.delta) mis = 0.0f;
+            if (mis <= 0.0f) continue;
+            ws.radiance[i] += clamp_contribution(
+                job, ws.throughput[i] * f * ls.radiance * (std::fabs(ws.wiz[j]) * mis / ls.pdf),
+                bounce + 1);
         }
     }
 
     // Continue each path by sampling the BSDF.
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
-        ws.u0[k] = rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimBsdf0);
-        ws.u1[k] = rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimBsdf1);
-        ws.u2[k] = rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimBsdf2);
+        rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairBsdf, ws.u0[k], ws.u1[k]);
+        ws.eta[k] = 1.0f;
     }
     SpangleSampleBatch_v1 sb{n,
                              nullptr,
@@ -325,34 +289,77 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                              ws.f_g.data(),
                              ws.f_b.data(),
                              ws.pdf.data(),
-                             ws.sample_flags.data()};
+                             ws.sample_flags.data(),
+                             ws.eta.data()};
     model.sample(mat.instance(), closures, &sb);
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
         const SurfacePoint& sp = ws.surf[i];
         const Vec3 f(ws.f_r[k], ws.f_g[k], ws.f_b[k]);
         const float pdf = ws.pdf[k];
-        if (ws.sample_flags[k] == 0 || !(pdf > 0.0f) || max_component(f) <= 0.0f) {
+        const uint32_t sflags = ws.sample_flags[k];
+        if (sflags == 0 || !(pdf > 0.0f) || max_component(f) <= 0.0f) {
             ws.active[i] = 0;
             continue;
         }
         const Vec3 wi = normalize(sp.s * ws.wix[k] + sp.t * ws.wiy[k] + sp.n * ws.wiz[k]);
         Vec3 t = ws.throughput[i] * f * (std::fabs(ws.wiz[k]) / pdf);
-        if (bounce + 1 >= kRouletteDepth) {
+        if (bounce + 1 >= job.rr_depth) {
             const float survive = std::min(0.95f, max_component(t));
-            if (rnd(job, ws.pixel[i], ws.sample[i], bounce, kDimRoulette) >= survive) {
+            float u_rr, spare;
+            rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairRoulette, u_rr, spare);
+            if (u_rr >= survive) {
                 ws.active[i] = 0;
                 continue;
             }
             t *= 1.0f / survive;
         }
         ws.throughput[i] = t;
+        const bool delta = (sflags & SPANGLE_SAMPLE_SPECULAR) != 0;
+        if (delta && ws.has_diff[i]) {
+            propagate_specular(ws, i, wi, (sflags & SPANGLE_SAMPLE_TRANSMISSION) != 0, ws.eta[k]);
+        } else if (!delta) {
+            // A rough bounce spreads the footprint beyond what differentials describe: from here
+            // on it is a cone whose spread follows the lobe's width (about 1 / sqrt(pdf)).
+            ws.has_diff[i] = 0;
+            ws.fp_width[i] = sp.footprint;
+            ws.fp_spread[i] = std::max(ws.fp_spread[i], 1.0f / std::sqrt(std::max(pdf, 1e-6f)));
+        } else {
+            ws.fp_width[i] = sp.footprint;
+        }
         const Vec3 side = dot(wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
-        ws.org[i] = offset_origin(sp.p, side);
-        ws.dir[i] = wi;
+        ws.ray[i].o = offset_origin(sp.p, side);
+        ws.ray[i].d = wi;
         ws.prev_pdf[i] = pdf;
-        ws.prev_delta[i] = (ws.sample_flags[k] & SPANGLE_SAMPLE_SPECULAR) ? 1 : 0;
+        ws.prev_delta[i] = delta ? 1 : 0;
     }
+}
+
+/** Emission a ray picks up at a light it hits, MIS-weighted against next-event estimation. */
+Vec3 emission_at_hit(const World& w, Strategy strategy, const Workspace& ws, std::size_t k,
+                     const Hit& hit) {
+    const RayDifferential& r = ws.ray[k];
+    const Vec3 q = r.o + r.d * hit.t;
+    if (hit.kind == HitKind::Sphere) {
+        const SphereEmitter& s = w.lights.sphere(hit.prim);
+        if (dot(q - s.center, r.d) >= 0.0f) return Vec3(0.0f);  // seen from inside
+        const float weight = bsdf_hit_weight(strategy, ws.prev_delta[k] != 0, ws.prev_pdf[k],
+                                             w.lights.sphere_pdf(hit.prim, r.o));
+        return s.radiance * weight;
+    }
+    int32_t emitter = -1;
+    if (hit.kind == HitKind::Quad)
+        emitter = static_cast<int32_t>(w.quad_light_first + hit.prim / 2);
+    else if (w.instances[static_cast<std::size_t>(hit.instance)].emitter >= 0)
+        emitter = w.instances[static_cast<std::size_t>(hit.instance)].emitter +
+                  static_cast<int32_t>(hit.prim);
+    if (emitter < 0) return Vec3(0.0f);
+    const auto e = static_cast<uint32_t>(emitter);
+    const Vec3 le = w.lights.area_emitted(e, -r.d);
+    if (max_component(le) <= 0.0f) return Vec3(0.0f);
+    const float weight = bsdf_hit_weight(strategy, ws.prev_delta[k] != 0, ws.prev_pdf[k],
+                                         w.lights.area_pdf(e, r.o, q));
+    return le * weight;
 }
 
 /** Traces one wave: `count` samples starting at `first_sample` for every pixel of the tile. */
@@ -368,18 +375,18 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             for (uint32_t s = 0; s < count; ++s, ++i) {
                 const uint32_t pix = y * job.width + x;
                 const uint32_t smp = first_sample + s;
-                // Box pixel filter: a uniform position inside the pixel.
-                const float fx =
-                    (static_cast<float>(x) + sample_1d(job.seed, pix, smp, kDimPixelX)) /
-                    static_cast<float>(job.width);
-                const float fy =
-                    (static_cast<float>(y) + sample_1d(job.seed, pix, smp, kDimPixelY)) /
-                    static_cast<float>(job.height);
+                float fu, fv, lu, lv;
+                sobol_2d(job.seed, pix, smp, kPairFilter, fu, fv);
+                sobol_2d(job.seed, pix, smp, kPairLens, lu, lv);
+                // Filter importance sampling: the sample lands where the filter puts it.
+                const float fx = static_cast<float>(x) + 0.5f + job.filter->sample(fu);
+                const float fy = static_cast<float>(y) + 0.5f + job.filter->sample(fv);
                 ws.pixel[i] = pix;
                 ws.sample[i] = smp;
-                ws.org[i] = job.cam.origin;
-                ws.dir[i] = normalize(job.cam.forward + job.cam.right * (2.0f * fx - 1.0f) +
-                                      job.cam.up * (1.0f - 2.0f * fy));
+                ws.ray[i] = job.camera->generate(fx, fy, lu, lv);
+                ws.has_diff[i] = 1;
+                ws.fp_width[i] = 0.0f;
+                ws.fp_spread[i] = job.camera->pixel_angle();
                 ws.throughput[i] = Vec3(1.0f);
                 ws.radiance[i] = Vec3(0.0f);
                 ws.prev_pdf[i] = 0.0f;
@@ -390,42 +397,33 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
     const std::size_t material_count = w.materials.size();
     std::vector<uint32_t> group_start(material_count + 1);
     for (uint32_t bounce = 0; bounce <= job.max_depth; ++bounce) {
-        ws.order.clear();
         std::fill(group_start.begin(), group_start.end(), 0u);
         for (std::size_t k = 0; k < n; ++k) {
             if (!ws.active[k]) continue;
             ++rays;
             Hit hit;
-            if (!w.accel || !w.accel->intersect(ws.org[k], ws.dir[k], 1e30f, hit)) {
-                ws.radiance[k] += ws.throughput[k] * w.environment;
+            if (!w.accel || !w.accel->intersect(ws.ray[k].o, ws.ray[k].d, 1e30f, hit)) {
+                ws.radiance[k] += clamp_contribution(
+                    job,
+                    ws.throughput[k] *
+                        (w.environment + w.lights.escaped(ws.ray[k].d, ws.prev_pdf[k],
+                                                          ws.prev_delta[k] != 0, job.strategy)),
+                    bounce);
                 ws.active[k] = 0;
                 continue;
             }
-            // Emission seen by this ray, MIS-weighted against next-event estimation.
-            int32_t emitter = -1;
-            if (hit.instance < 0)
-                emitter = static_cast<int32_t>(w.quad_light_first + hit.prim / 2);
-            else if (w.instances[static_cast<std::size_t>(hit.instance)].emitter >= 0)
-                emitter = w.instances[static_cast<std::size_t>(hit.instance)].emitter +
-                          static_cast<int32_t>(hit.prim);
-            if (emitter >= 0) {
-                const auto e = static_cast<uint32_t>(emitter);
-                const Vec3 le = w.lights.emitted(e, -ws.dir[k]);
-                if (max_component(le) > 0.0f) {
-                    const Vec3 q = ws.org[k] + ws.dir[k] * hit.t;
-                    const float weight =
-                        ws.prev_delta[k]
-                            ? 1.0f
-                            : power_heuristic(ws.prev_pdf[k], w.lights.pdf(e, ws.org[k], q));
-                    ws.radiance[k] += ws.throughput[k] * le * weight;
-                }
-            }
-            if (hit.instance < 0 || bounce == job.max_depth) {  // quad lights do not scatter
+            ws.radiance[k] += clamp_contribution(
+                job, ws.throughput[k] * emission_at_hit(w, job.strategy, ws, k, hit), bounce);
+            if (hit.kind != HitKind::Instance ||
+                bounce == job.max_depth) {  // lights do not scatter
                 ws.active[k] = 0;
                 continue;
             }
             const Instance& inst = w.instances[static_cast<std::size_t>(hit.instance)];
-            ws.surf[k] = surface_at(w, inst, hit, ws.dir[k]);
+            ws.surf[k] = surface_at(w.geometry.meshes[inst.mesh], inst, hit, ws.ray[k].d);
+            bool has_diff = ws.has_diff[k] != 0;
+            footprint_at(ws.surf[k], ws.ray[k], has_diff, ws.fp_width[k] + ws.fp_spread[k] * hit.t);
+            ws.has_diff[k] = has_diff ? 1 : 0;
             ws.material_of[k] = inst.material;
             ++group_start[inst.material + 1];
         }
@@ -469,14 +467,23 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
 
 void render_image(World& world, const Camera& camera, const Film& film) {
     const auto t0 = std::chrono::steady_clock::now();
+    const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
+                          camera.aperture, camera.focus_distance, film.width, film.height);
+    FilterKind kind = FilterKind::Box;
+    parse_filter(film.filter, kind);  // validated at load
+    const FilterSampler filter(kind);
     RenderJob job;
     job.world = &world;
+    job.strategy = world.options.strategy;
+    job.clamp_indirect = film.clamp_indirect;
+    job.camera = &cam;
+    job.filter = &filter;
     job.width = film.width;
     job.height = film.height;
     job.spp = world.options.spp_override ? world.options.spp_override : film.spp;
     job.max_depth = film.max_depth;
+    job.rr_depth = film.rr_depth;
     job.seed = film.seed;
-    job.cam = make_camera(camera, film.width, film.height);
     world.width = film.width;
     world.height = film.height;
     world.image.assign(static_cast<std::size_t>(film.width) * film.height * 3, 0.0f);

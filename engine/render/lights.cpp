@@ -1,60 +1,396 @@
 #include "render/lights.h"
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace spangle {
 
-void LightTable::finalize() {
-    std::vector<double> power(emitters_.size());
-    for (std::size_t i = 0; i < emitters_.size(); ++i) {
-        const AreaEmitter& e = emitters_[i];
-        power[i] = static_cast<double>(luminance(e.radiance)) * static_cast<double>(e.area) *
-                   (e.two_sided ? 2.0 : 1.0);
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+float power_heuristic(float a, float b) {
+    const float a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+}
+
+/** 2 pi (1 - cos r) without cancellation: 4 pi sin^2(r / 2). */
+float cone_solid_angle(float cos_r) {
+    const float s = std::sqrt(std::max(0.0f, 0.5f * (1.0f - cos_r)));  // sin(r/2)
+    return 4.0f * kPi * s * s;
+}
+
+/** Uniform direction in the cone of half-angle acos(cos_max) about axis. */
+Vec3 sample_cone(Vec3 axis, float cos_max, float u0, float u1) {
+    const float cos_t = 1.0f - u0 * (1.0f - cos_max);
+    const float sin_t = std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t));
+    const float phi = 2.0f * kPi * u1;
+    Vec3 s, t;
+    make_basis(axis, s, t);
+    return normalize(s * (sin_t * std::cos(phi)) + t * (sin_t * std::sin(phi)) + axis * cos_t);
+}
+
+Vec3 gram_schmidt(Vec3 v, Vec3 w) {
+    return v - w * dot(v, w);
+}
+
+/** Arvo's uniform sampling of the spherical triangle (a, b, c) (unit vectors). */
+bool sample_spherical_triangle(Vec3 a, Vec3 b, Vec3 c, float u0, float u1, Vec3& w) {
+    const Vec3 n_ab = cross(a, b), n_bc = cross(b, c), n_ca = cross(c, a);
+    if (!(length(n_ab) > 0.0f && length(n_bc) > 0.0f && length(n_ca) > 0.0f)) return false;
+    const Vec3 nab = normalize(n_ab), nbc = normalize(n_bc), nca = normalize(n_ca);
+    const auto angle = [](Vec3 x, Vec3 y) {
+        return static_cast<double>(std::acos(std::clamp(dot(x, y), -1.0f, 1.0f)));
+    };
+    const double alpha = angle(nab, -nca), beta = angle(nbc, -nab), gamma = angle(nca, -nbc);
+    // Sample a sub-triangle area uniformly, then the point along the arc.
+    const double area_pi = alpha + beta + gamma;
+    const double ap_pi = M_PI + static_cast<double>(u0) * (area_pi - M_PI);
+    const double cos_a = std::cos(alpha), sin_a = std::sin(alpha);
+    const double sin_phi = std::sin(ap_pi) * cos_a - std::cos(ap_pi) * sin_a;
+    const double cos_phi = std::cos(ap_pi) * cos_a + std::sin(ap_pi) * sin_a;
+    const double k1 = cos_phi + cos_a;
+    const double k2 = sin_phi - sin_a * static_cast<double>(dot(a, b));
+    const double denom = (k2 * sin_phi + k1 * cos_phi) * sin_a;
+    if (!(std::fabs(denom) > 0.0)) return false;
+    double cos_bp = (k2 + (k2 * cos_phi - k1 * sin_phi) * cos_a) / denom;
+    cos_bp = std::clamp(cos_bp, -1.0, 1.0);
+    const double sin_bp = std::sqrt(std::max(0.0, 1.0 - cos_bp * cos_bp));
+    const Vec3 ca = gram_schmidt(c, a);
+    if (!(length(ca) > 0.0f)) return false;
+    const Vec3 cp = a * static_cast<float>(cos_bp) + normalize(ca) * static_cast<float>(sin_bp);
+    const float cos_t = 1.0f - u1 * (1.0f - dot(cp, b));
+    const float sin_t = std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t));
+    const Vec3 cpb = gram_schmidt(cp, b);
+    if (!(length(cpb) > 0.0f)) return false;
+    w = normalize(b * cos_t + normalize(cpb) * sin_t);
+    return is_finite(w);
+}
+
+}  // namespace
+
+double triangle_solid_angle(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
+    const Vec3 x = normalize(a - p), y = normalize(b - p), z = normalize(c - p);
+    const double num = std::fabs(static_cast<double>(dot(x, cross(y, z))));
+    const double den = 1.0 + static_cast<double>(dot(x, y)) + static_cast<double>(dot(y, z)) +
+                       static_cast<double>(dot(z, x));
+    return 2.0 * std::atan2(num, den);
+}
+
+bool use_solid_angle_sampling(double solid_angle) {
+    // Arvo's formulas lose precision for tiny triangles, where area sampling is as good, and
+    // for triangles that fill most of the view.
+    return solid_angle > 1e-4 && solid_angle < 6.0;
+}
+
+// ------------------------------------------------------------------------------ environment map
+
+EnvironmentMap::EnvironmentMap(std::vector<float> rgb, int width, int height, float rotation_deg)
+    : width_(width), height_(height), rgb_(std::move(rgb)) {
+    cos_rot_ = std::cos(rotation_deg * kPi / 180.0f);
+    sin_rot_ = std::sin(rotation_deg * kPi / 180.0f);
+    std::vector<double> row_weight(static_cast<std::size_t>(height));
+    cols_.reserve(static_cast<std::size_t>(height));
+    const double pixel_solid = (2.0 * M_PI / width) * (M_PI / height);
+    for (int y = 0; y < height; ++y) {
+        const double sin_t = std::sin(M_PI * (y + 0.5) / height);
+        std::vector<double> w(static_cast<std::size_t>(width));
+        double sum = 0.0;
+        for (int x = 0; x < width; ++x) {
+            const float* px = &rgb_[3 * (static_cast<std::size_t>(y) * width + x)];
+            const double lum = luminance({px[0], px[1], px[2]});
+            w[static_cast<std::size_t>(x)] = lum * sin_t;
+            sum += lum * sin_t;
+        }
+        lum_integral_ += sum * pixel_solid;
+        row_weight[static_cast<std::size_t>(y)] = sum;
+        cols_.emplace_back(w);
     }
+    rows_ = Distribution1D(row_weight);
+}
+
+void EnvironmentMap::to_uv(Vec3 d, float& u, float& v) const {
+    // Undo the rotation about +y, then phi = atan2(x, -z): u = 0.5 looks down -z. theta comes
+    // from atan2 of the horizontal length and y, which stays accurate at the poles (acos(y)
+    // does not).
+    const float x = cos_rot_ * d.x + sin_rot_ * d.z;
+    const float z = -sin_rot_ * d.x + cos_rot_ * d.z;
+    u = 0.5f + std::atan2(x, -z) / (2.0f * kPi);
+    v = std::atan2(std::sqrt(x * x + z * z), d.y) / kPi;
+}
+
+Vec3 EnvironmentMap::from_uv(float u, float v) const {
+    const float phi = (u - 0.5f) * 2.0f * kPi, theta = v * kPi;
+    const float s = std::sin(theta);
+    const float x = s * std::sin(phi), z = -s * std::cos(phi), y = std::cos(theta);
+    return {cos_rot_ * x - sin_rot_ * z, y, sin_rot_ * x + cos_rot_ * z};
+}
+
+Vec3 EnvironmentMap::eval(Vec3 d) const {
+    if (empty()) return Vec3(0.0f);
+    float u, v;
+    to_uv(d, u, v);
+    const int x = std::clamp(static_cast<int>(u * static_cast<float>(width_)), 0, width_ - 1);
+    const int y = std::clamp(static_cast<int>(v * static_cast<float>(height_)), 0, height_ - 1);
+    const float* px = &rgb_[3 * (static_cast<std::size_t>(y) * width_ + x)];
+    return {px[0], px[1], px[2]};
+}
+
+Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
+    pdf = 0.0f;
+    if (empty() || rows_.empty()) return {0, 1, 0};
+    float ry, rx;
+    const uint32_t y = rows_.sample(u0, &ry);
+    const uint32_t x = cols_[y].sample(u1, &rx);
+    const float u = (static_cast<float>(x) + rx) / static_cast<float>(width_);
+    const float v = (static_cast<float>(y) + ry) / static_cast<float>(height_);
+    const float sin_t = std::sin(v * kPi);
+    if (!(sin_t > 0.0f)) return {0, 1, 0};
+    const float pdf_uv =
+        rows_.pmf(y) * cols_[y].pmf(x) * static_cast<float>(width_) * static_cast<float>(height_);
+    pdf = pdf_uv / (2.0f * kPi * kPi * sin_t);
+    return from_uv(u, v);
+}
+
+float EnvironmentMap::pdf(Vec3 d) const {
+    if (empty() || rows_.empty()) return 0.0f;
+    float u, v;
+    to_uv(d, u, v);
+    const int x = std::clamp(static_cast<int>(u * static_cast<float>(width_)), 0, width_ - 1);
+    const int y = std::clamp(static_cast<int>(v * static_cast<float>(height_)), 0, height_ - 1);
+    const float sin_t = std::sqrt(d.x * d.x + d.z * d.z);  // rotation about y keeps it
+    if (!(sin_t > 0.0f)) return 0.0f;
+    const auto uy = static_cast<uint32_t>(y), ux = static_cast<uint32_t>(x);
+    const float pdf_uv = rows_.pmf(uy) * cols_[uy].pmf(ux) * static_cast<float>(width_) *
+                         static_cast<float>(height_);
+    return pdf_uv / (2.0f * kPi * kPi * sin_t);
+}
+
+// ------------------------------------------------------------------------------ the table
+
+uint32_t LightTable::add_area(const AreaEmitter& e) {
+    area_.push_back(e);
+    return static_cast<uint32_t>(area_.size() - 1);
+}
+uint32_t LightTable::add_sphere(const SphereEmitter& e) {
+    spheres_.push_back(e);
+    return static_cast<uint32_t>(spheres_.size() - 1);
+}
+void LightTable::add_point(const PointEmitter& e) {
+    points_.push_back(e);
+}
+void LightTable::add_distant(const DistantEmitter& e) {
+    distant_.push_back(e);
+}
+void LightTable::set_environment(EnvironmentMap env) {
+    env_ = std::move(env);
+}
+
+void LightTable::finalize(float scene_radius) {
+    const double r2 = static_cast<double>(scene_radius) * static_cast<double>(scene_radius);
+    std::vector<double> power;
+    for (const AreaEmitter& e : area_)
+        power.push_back(static_cast<double>(luminance(e.radiance)) * static_cast<double>(e.area) *
+                        M_PI * (e.two_sided ? 2.0 : 1.0));
+    for (const SphereEmitter& s : spheres_)
+        power.push_back(static_cast<double>(luminance(s.radiance)) * 4.0 * M_PI *
+                        static_cast<double>(s.radius * s.radius) * M_PI);
+    for (const PointEmitter& p : points_) {
+        const double lum = luminance(p.intensity);
+        power.push_back(p.cos_outer <= -1.0f
+                            ? 4.0 * M_PI * lum
+                            : 2.0 * M_PI * lum *
+                                  (1.0 - 0.5 * (static_cast<double>(p.cos_inner) +
+                                                static_cast<double>(p.cos_outer))));
+    }
+    for (const DistantEmitter& d : distant_) {
+        const double e = d.solid_angle > 0.0f
+                             ? static_cast<double>(luminance(d.radiance)) *
+                                   static_cast<double>(d.solid_angle)  // ~ L pi sin^2 r
+                             : static_cast<double>(luminance(d.radiance));
+        power.push_back(M_PI * r2 * e);
+    }
+    if (!env_.empty()) power.push_back(M_PI * r2 * env_.luminance_integral());
+    for (double& p : power)
+        if (!std::isfinite(p) || p < 0.0) p = 0.0;
     selection_ = Distribution1D(power);
 }
 
-Vec3 LightTable::emitted(uint32_t i, Vec3 w) const {
-    const AreaEmitter& e = emitters_[i];
+Vec3 LightTable::area_emitted(uint32_t i, Vec3 w) const {
+    const AreaEmitter& e = area_[i];
     const float c = dot(e.n, w);
     return (c > 0.0f || (e.two_sided && c < 0.0f)) ? e.radiance : Vec3(0.0f);
+}
+
+float LightTable::area_pdf(uint32_t i, Vec3 p, Vec3 q) const {
+    const AreaEmitter& e = area_[i];
+    const float sel = selection_.pmf(i);
+    if (!e.parallelogram) {
+        const double omega = triangle_solid_angle(p, e.p0, e.p0 + e.e1, e.p0 + e.e2);
+        if (use_solid_angle_sampling(omega))
+            return static_cast<float>(static_cast<double>(sel) / omega);
+    }
+    const Vec3 d = q - p;
+    const float dist2 = dot(d, d);
+    if (!(dist2 > 0.0f)) return 0.0f;
+    const float cos_l = std::fabs(dot(e.n, d)) / std::sqrt(dist2);
+    if (!(cos_l > 0.0f)) return 0.0f;
+    return sel * dist2 / (cos_l * e.area);
+}
+
+float LightTable::sphere_pdf(uint32_t i, Vec3 p) const {
+    const SphereEmitter& s = spheres_[i];
+    const float sel = selection_.pmf(static_cast<uint32_t>(area_.size()) + i);
+    const Vec3 d = s.center - p;
+    const float dist2 = dot(d, d);
+    const float r2 = s.radius * s.radius;
+    if (dist2 <= r2) return 0.0f;  // inside: sampled by area, not reachable by BSDF rays anyway
+    const float sin2 = r2 / dist2;
+    const float cos_max = std::sqrt(std::max(0.0f, 1.0f - sin2));
+    return sel / cone_solid_angle(cos_max);
+}
+
+float bsdf_hit_weight(Strategy strategy, bool after_delta, float bsdf_pdf, float light_pdf) {
+    if (after_delta) return 1.0f;
+    switch (strategy) {
+        case Strategy::Mis:
+            return power_heuristic(bsdf_pdf, light_pdf);
+        case Strategy::NeeOnly:
+            return light_pdf > 0.0f ? 0.0f : 1.0f;
+        case Strategy::BsdfOnly:
+            return 1.0f;
+    }
+    return 1.0f;
+}
+
+Vec3 LightTable::escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy strategy) const {
+    Vec3 l(0.0f);
+    const auto first_distant =
+        static_cast<uint32_t>(area_.size() + spheres_.size() + points_.size());
+    for (std::size_t k = 0; k < distant_.size(); ++k) {
+        const DistantEmitter& e = distant_[k];
+        if (e.solid_angle <= 0.0f || dot(d, e.direction) < e.cos_radius) continue;
+        const float light_pdf =
+            selection_.pmf(first_distant + static_cast<uint32_t>(k)) / e.solid_angle;
+        l += e.radiance * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
+    }
+    if (!env_.empty()) {
+        const float light_pdf =
+            selection_.pmf(first_distant + static_cast<uint32_t>(distant_.size())) * env_.pdf(d);
+        l += env_.eval(d) * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
+    }
+    return l;
 }
 
 LightSample LightTable::sample(Vec3 p, float u0, float u1, float u2) const {
     LightSample s;
     if (selection_.empty()) return s;
-    const uint32_t i = selection_.sample(u0);
-    const AreaEmitter& e = emitters_[i];
-    Vec3 q;
-    if (e.parallelogram) {
-        q = e.p0 + e.e1 * u1 + e.e2 * u2;
-    } else {
-        // Uniform point on a triangle: b0 = 1 - sqrt(u1), b1 = u2 sqrt(u1).
-        const float r = std::sqrt(u1);
-        q = e.p0 + e.e1 * (r * (1.0f - u2)) + e.e2 * (r * u2);
-    }
-    const Vec3 d = q - p;
-    const float dist2 = dot(d, d);
-    if (!(dist2 > 0.0f)) return s;
-    const float dist = std::sqrt(dist2);
-    const Vec3 wi = d / dist;
-    const float cos_l = std::fabs(dot(e.n, wi));
-    const Vec3 le = emitted(i, -wi);
-    if (!(cos_l > 0.0f) || max_component(le) <= 0.0f) return s;
-    s.wi = wi;
-    s.dist = dist;
-    s.radiance = le;
-    s.pdf = selection_.pmf(i) * dist2 / (cos_l * e.area);
-    return s;
-}
+    const uint32_t id = selection_.sample(u0, nullptr);
+    const float sel = selection_.pmf(id);
+    const auto n_area = static_cast<uint32_t>(area_.size());
+    const auto n_sphere = static_cast<uint32_t>(spheres_.size());
+    const auto n_point = static_cast<uint32_t>(points_.size());
+    const auto n_distant = static_cast<uint32_t>(distant_.size());
 
-float LightTable::pdf(uint32_t i, Vec3 p, Vec3 q) const {
-    const AreaEmitter& e = emitters_[i];
-    const Vec3 d = q - p;
-    const float dist2 = dot(d, d);
-    const float cos_l = std::fabs(dot(e.n, d)) / std::sqrt(dist2);
-    if (!(cos_l > 0.0f) || !(dist2 > 0.0f)) return 0.0f;
-    return selection_.pmf(i) * dist2 / (cos_l * e.area);
+    const auto towards = [&](Vec3 q) {
+        const Vec3 d = q - p;
+        s.dist = length(d);
+        s.wi = d / s.dist;
+        return s.dist > 0.0f && std::isfinite(s.dist);
+    };
+    if (id < n_area) {
+        const AreaEmitter& e = area_[id];
+        Vec3 q;
+        bool solid = false;
+        if (!e.parallelogram) {
+            const Vec3 a = e.p0, b = e.p0 + e.e1, c = e.p0 + e.e2;
+            const double omega = triangle_solid_angle(p, a, b, c);
+            if (use_solid_angle_sampling(omega)) {
+                Vec3 w;
+                if (!sample_spherical_triangle(normalize(a - p), normalize(b - p), normalize(c - p),
+                                               u1, u2, w))
+                    return s;
+                const float denom = dot(e.n, w);
+                const float t = dot(e.n, a - p) / denom;
+                if (!(t > 0.0f) || !std::isfinite(t)) return s;
+                q = p + w * t;
+                s.pdf = static_cast<float>(static_cast<double>(sel) / omega);
+                solid = true;
+            } else {
+                const float r = std::sqrt(u1);
+                q = e.p0 + e.e1 * (r * (1.0f - u2)) + e.e2 * (r * u2);
+            }
+        } else {
+            q = e.p0 + e.e1 * u1 + e.e2 * u2;
+        }
+        if (!towards(q)) return LightSample{};
+        s.radiance = area_emitted(id, -s.wi);
+        if (!solid) {
+            const float cos_l = std::fabs(dot(e.n, s.wi));
+            s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * e.area) : 0.0f;
+        }
+    } else if (id < n_area + n_sphere) {
+        const SphereEmitter& e = spheres_[id - n_area];
+        const Vec3 dc = e.center - p;
+        const float dist2 = dot(dc, dc), r2 = e.radius * e.radius;
+        if (dist2 <= r2) {
+            // Inside the sphere: uniform by area over the sphere.
+            const float z = 1.0f - 2.0f * u1, rr = std::sqrt(std::max(0.0f, 1.0f - z * z));
+            const Vec3 n(rr * std::cos(2.0f * kPi * u2), rr * std::sin(2.0f * kPi * u2), z);
+            if (!towards(e.center + n * e.radius)) return LightSample{};
+            const float cos_l = std::fabs(dot(n, s.wi));
+            s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * 4.0f * kPi * r2) : 0.0f;
+        } else {
+            const float dist = std::sqrt(dist2);
+            const Vec3 axis = dc / dist;
+            const float cos_max = std::sqrt(std::max(0.0f, 1.0f - r2 / dist2));
+            s.wi = sample_cone(axis, cos_max, u1, u2);
+            // Nearest intersection with the sphere along wi, in double for grazing rays.
+            const double b = static_cast<double>(dot(s.wi, dc));
+            const double c = static_cast<double>(dist2) - static_cast<double>(r2);
+            const double disc = std::max(0.0, b * b - c);
+            s.dist = static_cast<float>(b - std::sqrt(disc));
+            s.pdf = sel / cone_solid_angle(cos_max);
+        }
+        s.radiance = e.radiance;
+    } else if (id < n_area + n_sphere + n_point) {
+        const PointEmitter& e = points_[id - n_area - n_sphere];
+        if (!towards(e.position)) return LightSample{};
+        float falloff = 1.0f;
+        if (e.cos_outer > -1.0f) {
+            const float c = dot(-s.wi, e.axis);
+            const float t = std::clamp(
+                (c - e.cos_outer) / std::max(1e-6f, e.cos_inner - e.cos_outer), 0.0f, 1.0f);
+            falloff = t * t * (3.0f - 2.0f * t);  // smoothstep from the outer to the inner cone
+        }
+        s.radiance = e.intensity * (falloff / (s.dist * s.dist));
+        s.pdf = sel;
+        s.delta = true;
+    } else if (id < n_area + n_sphere + n_point + n_distant) {
+        const DistantEmitter& e = distant_[id - n_area - n_sphere - n_point];
+        s.dist = kInf;
+        if (e.solid_angle <= 0.0f) {
+            s.wi = e.direction;
+            s.radiance = e.radiance;
+            s.pdf = sel;
+            s.delta = true;
+        } else {
+            s.wi = sample_cone(e.direction, e.cos_radius, u1, u2);
+            s.radiance = e.radiance;
+            s.pdf = sel / e.solid_angle;
+        }
+    } else {
+        float pdf;
+        s.wi = env_.sample(u1, u2, pdf);
+        s.dist = kInf;
+        s.radiance = env_.eval(s.wi);
+        s.pdf = sel * pdf;
+    }
+    if (!(s.pdf > 0.0f) || !std::isfinite(s.pdf) || max_component(s.radiance) <= 0.0f ||
+        !is_finite(s.wi))
+        return LightSample{};
+    return s;
 }
 
 }  // namespace spangle

@@ -1,8 +1,20 @@
 #pragma once
-// Area lights: emissive mesh triangles and quads, in world space, chosen by power and sampled
-// uniformly by area (solid-angle sampling of triangles is a later improvement).
+// All lights of a frame and their sampling. One selection distribution over every light, by
+// estimated power; each light type has its own sampling routine with an exact pdf so that
+// next-event estimation and BSDF sampling combine by multiple importance sampling.
+//
+//   area     triangles of emissive meshes (solid-angle sampling, Arvo 1995, where stable; area
+//            sampling otherwise) and quads (area sampling); emit from their front face
+//   sphere   cone of directions subtended by the sphere (area sampling from inside)
+//   point    and spot: delta positions, intensity in W/sr
+//   distant  a delta direction (irradiance), or a disk of angular radius r (uniform radiance
+//            E / (pi sin^2 r), sampled uniformly in its cone): a sun
+//   env      a lat-long environment map, importance-sampled by luminance x sin(theta)
+// A constant-colour environment is not in the table: BSDF sampling alone reaches it, which is
+// the better strategy for a uniform background.
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/math.h"
@@ -10,46 +22,134 @@
 
 namespace spangle {
 
+/** Which estimators the path tracer combines (NEE = next-event estimation). */
+enum class Strategy {
+    Mis,      ///< NEE and BSDF sampling, power heuristic (the default)
+    NeeOnly,  ///< emitters count only through NEE (and through delta bounces)
+    BsdfOnly  ///< emitters count only when BSDF-sampled rays hit them (delta lights still NEE)
+};
+
+/** Weight of emission that a BSDF-sampled ray found, given the light-sampling pdf of the same
+ *  point: the power heuristic, or the pure strategies' 0 / 1; always 1 after a delta bounce. */
+float bsdf_hit_weight(Strategy strategy, bool after_delta, float bsdf_pdf, float light_pdf);
+
 /** One planar emitter: a triangle (p0, p0+e1, p0+e2) or a parallelogram (p0 + s e1 + t e2). */
 struct AreaEmitter {
     Vec3 p0, e1, e2;    ///< world space
-    Vec3 n;             ///< unit normal, emitting side (e1 x e2 direction)
+    Vec3 n;             ///< unit normal of the emitting side
     float area = 0.0f;  ///< m^2
     Vec3 radiance;      ///< working-space RGB, W/(m^2 sr)
     bool parallelogram = false;
     bool two_sided = false;
 };
 
+/** A spherical emitter. */
+struct SphereEmitter {
+    Vec3 center;
+    float radius = 0.0f;
+    Vec3 radiance;
+};
+
+/** A point or spot light. */
+struct PointEmitter {
+    Vec3 position;
+    Vec3 intensity;           ///< W/sr, working-space RGB
+    Vec3 axis{0, -1, 0};      ///< spot: unit direction of the cone
+    float cos_outer = -1.0f;  ///< spot: no light beyond this angle (-1: a point light)
+    float cos_inner = -1.0f;  ///< spot: full intensity within this angle
+};
+
+/** A light at infinity. */
+struct DistantEmitter {
+    Vec3 direction;            ///< unit, from the scene towards the light
+    Vec3 radiance;             ///< disk: radiance; delta: irradiance (W/m^2)
+    float cos_radius = 1.0f;   ///< cosine of the angular radius; 1 = delta
+    float solid_angle = 0.0f;  ///< 2 pi (1 - cos r), computed stably; 0 = delta
+};
+
+/** A lat-long environment map in the working space. */
+class EnvironmentMap {
+public:
+    /** rgb: width x height RGB, row 0 = up (+y). rotation_deg turns the map about +y. */
+    EnvironmentMap(std::vector<float> rgb, int width, int height, float rotation_deg);
+    EnvironmentMap() = default;
+
+    bool empty() const { return width_ == 0; }
+    /** Radiance arriving from direction d (unit, world space). */
+    Vec3 eval(Vec3 d) const;
+    /** Direction with solid-angle pdf; pdf 0 when the map is black. */
+    Vec3 sample(float u0, float u1, float& pdf) const;
+    /** Solid-angle pdf of sample() for direction d. */
+    float pdf(Vec3 d) const;
+    /** Integral of luminance over the sphere, for light selection by power. */
+    double luminance_integral() const { return lum_integral_; }
+
+private:
+    void to_uv(Vec3 d, float& u, float& v) const;
+    Vec3 from_uv(float u, float v) const;
+
+    int width_ = 0, height_ = 0;
+    std::vector<float> rgb_;
+    float cos_rot_ = 1.0f, sin_rot_ = 0.0f;
+    Distribution1D rows_;               ///< marginal over rows
+    std::vector<Distribution1D> cols_;  ///< conditional over columns, per row
+    double lum_integral_ = 0.0;
+};
+
 /** A light sample seen from a reference point. */
 struct LightSample {
     Vec3 wi;            ///< unit direction from the reference point to the light
-    float dist = 0.0f;  ///< distance to the sampled point
-    Vec3 radiance;      ///< emitted radiance towards the reference point
-    float pdf = 0.0f;   ///< solid-angle pdf, selection included; 0 = invalid
+    float dist = 0.0f;  ///< distance to the sampled point; infinity for lights at infinity
+    Vec3 radiance;      ///< radiance (or, for delta lights, irradiance-like value) arriving
+    float pdf = 0.0f;  ///< solid-angle pdf with selection; delta lights: selection pmf; 0 = invalid
+    bool delta = false;  ///< a delta light: no MIS with BSDF sampling
 };
 
-/** All area emitters and their selection distribution. */
+/** The frame's lights. Build with add_*, then finalize(). */
 class LightTable {
 public:
-    /** Adds an emitter; call finalize() once after the last one. */
-    void add(const AreaEmitter& e) { emitters_.push_back(e); }
-    /** Builds the power distribution. */
-    void finalize();
+    uint32_t add_area(const AreaEmitter& e);
+    uint32_t add_sphere(const SphereEmitter& e);
+    void add_point(const PointEmitter& e);
+    void add_distant(const DistantEmitter& e);
+    void set_environment(EnvironmentMap env);
+    /** Builds the selection distribution; scene_radius sizes the power of lights at infinity. */
+    void finalize(float scene_radius);
 
+    /** True when next-event estimation has nothing to sample. */
     bool empty() const { return selection_.empty(); }
-    std::size_t size() const { return emitters_.size(); }
-    const AreaEmitter& emitter(uint32_t i) const { return emitters_[i]; }
+    std::size_t area_count() const { return area_.size(); }
+    std::size_t sphere_count() const { return spheres_.size(); }
+    const AreaEmitter& area(uint32_t i) const { return area_[i]; }
+    const SphereEmitter& sphere(uint32_t i) const { return spheres_[i]; }
+    const EnvironmentMap& environment() const { return env_; }
 
-    /** Samples a light point for reference point p with uniform numbers u0 (selection), u1, u2. */
+    /** Samples one light for reference point p with uniforms u0 (selection), u1, u2. */
     LightSample sample(Vec3 p, float u0, float u1, float u2) const;
-    /** Solid-angle pdf that sample() picks point q on emitter i, seen from p. */
-    float pdf(uint32_t i, Vec3 p, Vec3 q) const;
-    /** Radiance leaving emitter i towards direction w (unit, pointing away from the light). */
-    Vec3 emitted(uint32_t i, Vec3 w) const;
+
+    /** Radiance of area emitter i towards w (unit, pointing away from the light). */
+    Vec3 area_emitted(uint32_t i, Vec3 w) const;
+    /** Solid-angle pdf that sample() picks point q on area emitter i from p. */
+    float area_pdf(uint32_t i, Vec3 p, Vec3 q) const;
+    /** Solid-angle pdf that sample() picks sphere i from p. */
+    float sphere_pdf(uint32_t i, Vec3 p) const;
+    /** Radiance arriving along an escaped ray from env map and sun disks, each weighted by the
+     *  power heuristic against light sampling (weight 1 after a delta bounce). */
+    Vec3 escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy strategy = Strategy::Mis) const;
 
 private:
-    std::vector<AreaEmitter> emitters_;
-    Distribution1D selection_;
+    std::vector<AreaEmitter> area_;
+    std::vector<SphereEmitter> spheres_;
+    std::vector<PointEmitter> points_;
+    std::vector<DistantEmitter> distant_;
+    EnvironmentMap env_;
+    Distribution1D selection_;  ///< over [area..., spheres..., points..., distant..., env]
 };
+
+/** Solid angle of triangle (a, b, c) seen from p (Van Oosterom and Strackee 1983). */
+double triangle_solid_angle(Vec3 p, Vec3 a, Vec3 b, Vec3 c);
+
+/** Whether area emitters are sampled by solid angle from p (the same test in sample and pdf). */
+bool use_solid_angle_sampling(double solid_angle);
 
 }  // namespace spangle

@@ -3,6 +3,7 @@
 #include <map>
 
 #include "geometry/mesh_load.h"
+#include "render/environment_load.h"
 #include "render/integrator.h"
 
 namespace spangle {
@@ -11,9 +12,15 @@ ecs::Schedule<World> make_frame_schedule() {
     ecs::Schedule<World> s;
     s.add<MeshFile>("mesh_load", ecs::RunWhen::AllPresent, system_mesh_load);
     s.add<MaterialRef>("materials", ecs::RunWhen::AllPresent, system_materials);
-    s.add<QuadLight, Emission>("area_lights", ecs::RunWhen::AnyPresent, system_area_lights);
-    s.add<Environment>("environment", ecs::RunWhen::AllPresent, system_environment);
-    s.add<TriangleMeshRef, QuadLight>("accelerate", ecs::RunWhen::AnyPresent, system_accelerate);
+    s.add<QuadLight, SphereLight, Emission>("area_lights", ecs::RunWhen::AnyPresent,
+                                            system_area_lights);
+    s.add<PointLight, DistantLight>("point_lights", ecs::RunWhen::AnyPresent, system_point_lights);
+    s.add<Environment, EnvironmentMapFile>("environment", ecs::RunWhen::AnyPresent,
+                                           system_environment);
+    s.add<TriangleMeshRef, QuadLight, SphereLight>("accelerate", ecs::RunWhen::AnyPresent,
+                                                   system_accelerate);
+    s.add<QuadLight, SphereLight, Emission, PointLight, DistantLight, EnvironmentMapFile>(
+        "light_selection", ecs::RunWhen::AnyPresent, system_light_selection);
     s.add<Camera, Film>("render", ecs::RunWhen::AllPresent, system_render);
     return s;
 }
@@ -64,7 +71,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
             const TriangleMesh& mesh = w.geometry.meshes[r.get<TriangleMeshRef>(e).mesh];
             const Affine xf = r.get<Transform>(e).to_world;
             const Affine nxf = xf.inverse();
-            refs.emplace_back(e, static_cast<int32_t>(w.lights.size()));
+            refs.emplace_back(e, static_cast<int32_t>(w.lights.area_count()));
             for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
                 const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
                                i2 = mesh.indices[3 * t + 2];
@@ -87,12 +94,12 @@ void system_area_lights(ecs::Registry& r, World& w) {
                     if (dot(nw, a.n) < 0.0f) a.n = -a.n;
                 }
                 a.radiance = emission->columns().radiance[i];
-                w.lights.add(a);
+                w.lights.add_area(a);
             }
         }
         for (const auto& [e, first] : refs) r.put(e, EmitterRef{first});
     }
-    w.quad_light_first = static_cast<uint32_t>(w.lights.size());
+    w.quad_light_first = static_cast<uint32_t>(w.lights.area_count());
     if (auto* quads = r.find_pool<QuadLight>()) {
         for (std::size_t i = 0; i < quads->size(); ++i) {
             const QuadLight q = quads->columns().get(i);
@@ -106,19 +113,55 @@ void system_area_lights(ecs::Registry& r, World& w) {
             a.radiance = q.radiance;
             a.parallelogram = true;
             a.two_sided = q.two_sided;
-            w.lights.add(a);
+            w.lights.add_area(a);
             w.quad_vertices.insert(
                 w.quad_vertices.end(),
                 {q.corner, q.corner + q.edge1, q.corner + q.edge1 + q.edge2, q.corner + q.edge2});
         }
     }
-    w.lights.finalize();
+    if (auto* spheres = r.find_pool<SphereLight>()) {
+        for (std::size_t i = 0; i < spheres->size(); ++i) {
+            const SphereLight l = spheres->columns().get(i);
+            w.lights.add_sphere({l.center, l.radius, l.radiance});
+            w.sphere_lights.insert(w.sphere_lights.end(),
+                                   {l.center.x, l.center.y, l.center.z, l.radius});
+        }
+    }
+}
+
+void system_point_lights(ecs::Registry& r, World& w) {
+    if (auto* points = r.find_pool<PointLight>())
+        for (std::size_t i = 0; i < points->size(); ++i) {
+            const PointLight p = points->columns().get(i);
+            w.lights.add_point({p.position, p.intensity, p.axis, p.cos_outer, p.cos_inner});
+        }
+    if (auto* distant = r.find_pool<DistantLight>())
+        for (std::size_t i = 0; i < distant->size(); ++i) {
+            const DistantLight d = distant->columns().get(i);
+            DistantEmitter e;
+            e.direction = d.direction;
+            if (d.angular_radius_deg > 0.0f) {
+                const float rad = d.angular_radius_deg * kPi / 180.0f;
+                const float half = std::sin(0.5f * rad);
+                e.cos_radius = std::cos(rad);
+                e.solid_angle = 4.0f * kPi * half * half;  // 2 pi (1 - cos r) without cancellation
+                // A disk of uniform radiance L gives irradiance L pi sin^2 r at normal incidence.
+                const float s = std::sin(rad);
+                e.radiance = d.irradiance * (1.0f / (kPi * s * s));
+            } else {
+                e.radiance = d.irradiance;
+            }
+            w.lights.add_distant(e);
+        }
 }
 
 void system_environment(ecs::Registry& r, World& w) {
-    const auto& pool = r.pool<Environment>();
     w.environment = Vec3(0.0f);
-    for (const Vec3& c : pool.columns().radiance) w.environment += c;
+    if (auto* pool = r.find_pool<Environment>())
+        for (const Vec3& c : pool->columns().radiance) w.environment += c;
+    if (auto* maps = r.find_pool<EnvironmentMapFile>())
+        for (std::size_t i = 0; i < maps->size(); ++i)
+            w.lights.set_environment(load_environment_map(maps->columns().get(i), *w.color));
 }
 
 void system_accelerate(ecs::Registry& r, World& w) {
@@ -141,7 +184,14 @@ void system_accelerate(ecs::Registry& r, World& w) {
         }
     }
     w.accel = std::make_unique<EmbreeScene>();
-    w.accel->build(w.geometry, w.instances, w.quad_vertices);
+    w.accel->build(w.geometry, w.instances, w.quad_vertices, w.sphere_lights);
+}
+
+void system_light_selection(ecs::Registry&, World& w) {
+    Vec3 center;
+    float radius = 1.0f;
+    if (w.accel) w.accel->bounding_sphere(center, radius);
+    w.lights.finalize(std::max(radius, 1e-3f));
 }
 
 void system_render(ecs::Registry& r, World& w) {

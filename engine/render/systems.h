@@ -7,14 +7,17 @@
 
 namespace spangle {
 
-/** mesh_load, materials, area_lights, environment, accelerate, render. */
+/** mesh_load, materials, area_lights, point_lights, environment, accelerate, light_selection,
+ *  render. */
 ecs::Schedule<World> make_frame_schedule();
 
-void system_mesh_load(ecs::Registry& r, World& w);    ///< MeshFile -> TriangleMeshRef
-void system_materials(ecs::Registry& r, World& w);    ///< MaterialRef -> plugin instances
-void system_area_lights(ecs::Registry& r, World& w);  ///< QuadLight, Emission -> light table
-void system_environment(ecs::Registry& r, World& w);  ///< Environment -> world.environment
-void system_accelerate(ecs::Registry& r, World& w);   ///< meshes, quads -> Embree scene
-void system_render(ecs::Registry& r, World& w);       ///< Camera, Film -> image
+void system_mesh_load(ecs::Registry& r, World& w);        ///< MeshFile -> TriangleMeshRef
+void system_materials(ecs::Registry& r, World& w);        ///< MaterialRef -> plugin instances
+void system_area_lights(ecs::Registry& r, World& w);      ///< QuadLight, SphereLight, Emission
+void system_point_lights(ecs::Registry& r, World& w);     ///< PointLight, DistantLight
+void system_environment(ecs::Registry& r, World& w);      ///< Environment, EnvironmentMapFile
+void system_light_selection(ecs::Registry& r, World& w);  ///< power distribution over lights
+void system_accelerate(ecs::Registry& r, World& w);       ///< meshes, quads -> Embree scene
+void system_render(ecs::Registry& r, World& w);           ///< Camera, Film -> image
 
 }  // namespace spangle

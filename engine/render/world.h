@@ -19,8 +19,9 @@ namespace spangle {
 
 /** How to render, from the command line; not part of the scene. */
 struct RenderOptions {
-    int threads = 0;            ///< worker threads; 0 = all cores
-    uint32_t spp_override = 0;  ///< replaces the scene's spp when non-zero
+    Strategy strategy = Strategy::Mis;  ///< for tests and debugging; MIS is always at least as good
+    int threads = 0;                    ///< worker threads; 0 = all cores
+    uint32_t spp_override = 0;          ///< replaces the scene's spp when non-zero
     /** Called with (samples done, samples total) from worker threads, serialised by the
      *  integrator; may be empty. */
     std::function<void(uint64_t, uint64_t)> progress;
@@ -54,6 +55,7 @@ struct World {
     std::vector<std::unique_ptr<MaterialInstance>> materials;  ///< materials; null = unused
     LightTable lights;                                         ///< area_lights
     std::vector<Vec3> quad_vertices;                           ///< area_lights: 4 corners per quad
+    std::vector<float> sphere_lights;    ///< area_lights: x, y, z, radius per sphere
     uint32_t quad_light_first = 0;       ///< light-table index of the first quad
     Vec3 environment;                    ///< environment
     std::vector<Instance> instances;     ///< accelerate

@@ -67,24 +67,61 @@ SPANGLE_COMPONENT(Emission, SPANGLE_EMISSION_FIELDS);
 /** A parallelogram area light. */
 SPANGLE_COMPONENT(QuadLight, SPANGLE_QUAD_LIGHT_FIELDS);
 
+#define SPANGLE_SPHERE_LIGHT_FIELDS(X) \
+    X(Vec3, center, "world space")     \
+    X(float, radius, "metres")         \
+    X(Vec3, radiance, "working-space RGB radiance")
+/** A spherical area light. */
+SPANGLE_COMPONENT(SphereLight, SPANGLE_SPHERE_LIGHT_FIELDS);
+
+#define SPANGLE_POINT_LIGHT_FIELDS(X)                                              \
+    X(Vec3, position, "world space")                                               \
+    X(Vec3, intensity, "working-space RGB, W/sr")                                  \
+    X(Vec3, axis, "spot: unit direction of the cone")                              \
+    X(float, cos_outer, "spot: cosine of the cone's half-angle; -1 = point light") \
+    X(float, cos_inner, "spot: cosine where the falloff ends")
+/** A point light, or a spot light when cos_outer > -1. */
+SPANGLE_COMPONENT(PointLight, SPANGLE_POINT_LIGHT_FIELDS);
+
+#define SPANGLE_DISTANT_LIGHT_FIELDS(X)                                 \
+    X(Vec3, direction, "unit, from the scene towards the light")        \
+    X(Vec3, irradiance, "working-space RGB, W/m^2 at normal incidence") \
+    X(float, angular_radius_deg, "0 = a delta direction")
+/** A light at infinity: a delta direction or a sun disk. */
+SPANGLE_COMPONENT(DistantLight, SPANGLE_DISTANT_LIGHT_FIELDS);
+
 #define SPANGLE_ENVIRONMENT_FIELDS(X) X(Vec3, radiance, "constant radiance seen by escaping rays")
 /** A constant-colour environment. */
 SPANGLE_COMPONENT(Environment, SPANGLE_ENVIRONMENT_FIELDS);
 
-#define SPANGLE_CAMERA_FIELDS(X)          \
-    X(Vec3, position, "eye, world space") \
-    X(Vec3, look_at, "point looked at")   \
-    X(Vec3, up, "up hint")                \
-    X(float, fov_deg, "vertical field of view, degrees")
-/** A perspective pinhole camera. */
+#define SPANGLE_ENVIRONMENT_MAP_FIELDS(X)                             \
+    X(std::string, path, "lat-long image (EXR, HDR, ...)")            \
+    X(std::string, color_space, "canonical colour space of the file") \
+    X(float, rotation_deg, "turn about +y")                           \
+    X(float, intensity, "scale")                                      \
+    X(FileLoc, loc, "where the scene names the map")
+/** An importance-sampled lat-long environment map. */
+SPANGLE_COMPONENT(EnvironmentMapFile, SPANGLE_ENVIRONMENT_MAP_FIELDS);
+
+#define SPANGLE_CAMERA_FIELDS(X)                           \
+    X(Vec3, position, "eye, world space")                  \
+    X(Vec3, look_at, "point looked at")                    \
+    X(Vec3, up, "up hint")                                 \
+    X(float, fov_deg, "vertical field of view, degrees")   \
+    X(float, aperture, "lens radius, metres; 0 = pinhole") \
+    X(float, focus_distance, "distance of the plane in focus, metres")
+/** A perspective camera: pinhole or thin lens. */
 SPANGLE_COMPONENT(Camera, SPANGLE_CAMERA_FIELDS);
 
-#define SPANGLE_FILM_FIELDS(X)                \
-    X(uint32_t, width, "pixels")              \
-    X(uint32_t, height, "pixels")             \
-    X(uint32_t, spp, "samples per pixel")     \
-    X(uint32_t, max_depth, "maximum bounces") \
-    X(uint64_t, seed, "random seed")
+#define SPANGLE_FILM_FIELDS(X)                               \
+    X(uint32_t, width, "pixels")                             \
+    X(uint32_t, height, "pixels")                            \
+    X(uint32_t, spp, "samples per pixel")                    \
+    X(uint32_t, max_depth, "maximum bounces")                \
+    X(uint32_t, rr_depth, "bounces before Russian roulette") \
+    X(uint64_t, seed, "random seed")                         \
+    X(std::string, filter, "pixel filter name")              \
+    X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")
 /** Image size and render settings. */
 SPANGLE_COMPONENT(Film, SPANGLE_FILM_FIELDS);
 

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "render/camera.h"
 #include "scene/components.h"
 #include "scene/toml_reader.h"
 
@@ -73,14 +74,20 @@ Vec3 read_color(const ParseContext& ctx, TableReader& r, std::string_view key, V
     return {std::max(rgb[0], 0.0f), std::max(rgb[1], 0.0f), std::max(rgb[2], 0.0f)};
 }
 
-Film parse_render(const ParseContext& ctx, TableReader& r) {
+Film parse_render(TableReader& r) {
     Film f;
     f.width = static_cast<uint32_t>(r.integer("width", 640, {1, 16384}));
     f.height = static_cast<uint32_t>(r.integer("height", 360, {1, 16384}));
     f.spp = static_cast<uint32_t>(r.integer("spp", 16, {1, 1 << 20}));
     f.max_depth = static_cast<uint32_t>(r.integer("max_depth", 5, {1, 1024}));
+    f.rr_depth = static_cast<uint32_t>(r.integer("rr_depth", 3, {1, 1024}));
     f.seed = static_cast<uint64_t>(r.integer("seed", 0, {0, 9.0e18}));
-    (void)ctx;
+    f.filter = r.string("filter", "gaussian");
+    f.clamp_indirect = static_cast<float>(r.number("clamp_indirect", 0.0, {0.0, 1e30}));
+    FilterKind kind;
+    if (!parse_filter(f.filter, kind))
+        throw_error(r.loc("filter"), "unknown filter '{}' (valid: box, gaussian, blackman-harris)",
+                    f.filter);
     return f;
 }
 
@@ -95,6 +102,9 @@ Camera parse_camera(TableReader& r) {
         throw_error(r.loc("look_at"), "'look_at' must differ from 'position'");
     if (!(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)))
         throw_error(r.loc("up"), "'up' must not be parallel to the viewing direction");
+    c.aperture = static_cast<float>(r.number("aperture", 0.0, {0.0, 1e3}));
+    c.focus_distance =
+        static_cast<float>(r.number("focus_distance", length(dir), {0.0, 1e30, true}));
     return c;
 }
 
@@ -180,6 +190,63 @@ std::string resolve_file(const ParseContext& ctx, TableReader& r, std::string_vi
     return p.lexically_normal().string();
 }
 
+/** One [[light]] table of any type. */
+void parse_light(const ParseContext& ctx, TableReader& r, ecs::Registry& registry) {
+    const std::string type = r.string("type");
+    const Vec3 color = read_color(ctx, r, "color", {1, 1, 1});
+    const auto intensity = static_cast<float>(r.number("intensity", 1.0, kNonNegative));
+    const Vec3 value = color * intensity;
+    const ecs::Entity e = registry.create();
+    if (type == "quad") {
+        QuadLight q;
+        q.corner = r.vec3("corner");
+        q.edge1 = r.vec3("edge1");
+        q.edge2 = r.vec3("edge2");
+        if (!(length(cross(q.edge1, q.edge2)) > 0.0f))
+            throw_error(r.loc("edge2"), "quad light edges must span a non-zero area");
+        q.radiance = value;
+        q.two_sided = r.boolean("two_sided", false);
+        registry.put(e, q);
+    } else if (type == "sphere") {
+        SphereLight s;
+        s.center = r.vec3("center");
+        s.radius = static_cast<float>(r.number("radius", {0.0, 1e30, true}));
+        s.radiance = value;
+        registry.put(e, s);
+    } else if (type == "point" || type == "spot") {
+        PointLight p;
+        p.position = r.vec3("position");
+        p.intensity = value;
+        p.cos_outer = p.cos_inner = -1.0f;
+        if (type == "spot") {
+            const Vec3 target = r.vec3("look_at");
+            if (!(length(target - p.position) > 0.0f))
+                throw_error(r.loc("look_at"), "'look_at' must differ from 'position'");
+            p.axis = normalize(target - p.position);
+            const double angle = r.number("cone_angle", 30.0, {0.0, 90.0, true, false});
+            const double falloff = r.number("cone_falloff", 5.0, {0.0, 90.0});
+            if (falloff > angle)
+                throw_error(r.loc("cone_falloff"),
+                            "'cone_falloff' ({}) must not exceed 'cone_angle' ({})", falloff,
+                            angle);
+            p.cos_outer = static_cast<float>(std::cos(angle * M_PI / 180.0));
+            p.cos_inner = static_cast<float>(std::cos((angle - falloff) * M_PI / 180.0));
+        }
+        registry.put(e, p);
+    } else if (type == "distant") {
+        DistantLight d;
+        const Vec3 dir = r.vec3("direction");
+        if (!(length(dir) > 0.0f)) throw_error(r.loc("direction"), "'direction' must not be zero");
+        d.direction = normalize(dir);
+        d.irradiance = value;
+        d.angular_radius_deg = static_cast<float>(r.number("angular_radius", 0.0, {0.0, 45.0}));
+        registry.put(e, d);
+    } else {
+        throw_error(r.loc("type"),
+                    "unknown light type '{}' (valid: quad, sphere, point, spot, distant)", type);
+    }
+}
+
 std::string read_text(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     std::ostringstream ss;
@@ -220,7 +287,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
         ctx.bare_space = r.has("color_space")
                              ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
                              : resolve_space(ctx, "lin_rec709", r.loc());
-        registry.put(settings, parse_render(ctx, r));
+        registry.put(settings, parse_render(r));
         r.finish();
         info.working_space = color.working_space();
         info.color_space = ctx.bare_space;
@@ -234,10 +301,26 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
     }
     if (const toml::table* t = top.table("environment")) {
         TableReader r(*t, path, "[environment]");
-        const Vec3 c = read_color(ctx, r, "color", {0, 0, 0});
         const auto k = static_cast<float>(r.number("intensity", 1.0, kNonNegative));
-        r.finish();
-        registry.put(registry.create(), Environment{c * k});
+        if (r.has("map")) {
+            if (r.has("color"))
+                throw_error(r.loc("color"),
+                            "give either 'color' or 'map' in [environment], not both");
+            EnvironmentMapFile m;
+            m.path = resolve_file(ctx, r, "map");
+            m.loc = r.loc("map");
+            m.color_space = r.has("color_space")
+                                ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
+                                : resolve_space(ctx, "lin_rec709", r.loc());
+            m.rotation_deg = static_cast<float>(r.number("rotation", 0.0, {-360.0, 360.0}));
+            m.intensity = k;
+            r.finish();
+            registry.put(registry.create(), m);
+        } else {
+            const Vec3 c = read_color(ctx, r, "color", {0, 0, 0});
+            r.finish();
+            registry.put(registry.create(), Environment{c * k});
+        }
     }
 
     if (const toml::array* mats = top.table_array("material")) {
@@ -282,20 +365,8 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
     if (const toml::array* lights = top.table_array("light")) {
         for (std::size_t i = 0; i < lights->size(); ++i) {
             TableReader r(*(*lights)[i].as_table(), path, fmt::format("[[light]] #{}", i + 1));
-            const std::string type = r.string("type");
-            if (type != "quad")
-                throw_error(r.loc("type"), "unknown light type '{}' (valid: quad)", type);
-            QuadLight q;
-            q.corner = r.vec3("corner");
-            q.edge1 = r.vec3("edge1");
-            q.edge2 = r.vec3("edge2");
-            if (!(length(cross(q.edge1, q.edge2)) > 0.0f))
-                throw_error(r.loc("edge2"), "quad light edges must span a non-zero area");
-            q.radiance = read_color(ctx, r, "color", {1, 1, 1}) *
-                         static_cast<float>(r.number("intensity", 1.0, kPositive));
-            q.two_sided = r.boolean("two_sided", false);
+            parse_light(ctx, r, registry);
             r.finish();
-            registry.put(registry.create(), q);
         }
     }
     top.finish();

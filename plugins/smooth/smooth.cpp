@@ -109,6 +109,7 @@ void write_sample(SpangleSampleBatch_v1* q, uint32_t i, V3 wi, float r, float g,
     q->f_b[i] = ok ? b : 0.0f;
     q->pdf[i] = ok ? pdf : 0.0f;
     q->flags[i] = ok ? flags : 0u;
+    if (q->eta) q->eta[i] = 1.0f;
 }
 
 void invalid_sample(SpangleSampleBatch_v1* q, uint32_t i) {
@@ -496,6 +497,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
             const float cos_i = std::fabs(wi.z);
             const float f = reflect_ ? R / cos_i : T / (cos_i * c.eta * c.eta);
             write_sample(q, i, wi, f, f, f, reflect_ ? R : T, lobe | SPANGLE_SAMPLE_SPECULAR);
+            if (q->eta && !reflect_) q->eta[i] = c.eta;
             continue;
         }
         if (reflect_ ? wi.z <= 0.0f : wi.z >= 0.0f) {
@@ -505,6 +507,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
         float f, pdf;
         dielectric_rough(m, wo, wi, c.eta, f, pdf);
         write_sample(q, i, wi, f, f, f, pdf, lobe | SPANGLE_SAMPLE_GLOSSY);
+        if (q->eta && !reflect_) q->eta[i] = c.eta;
     }
 }
 

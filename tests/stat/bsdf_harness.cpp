@@ -61,9 +61,9 @@ std::vector<BsdfHarness::Sample> BsdfHarness::sample(uint32_t n, uint64_t seed) 
         u1[i] = sample_1d(seed, i, 0, 1);
         u2[i] = sample_1d(seed, i, 0, 2);
     }
-    SpangleSampleBatch_v1 q{n,        idx.data(), u0.data(),   u1.data(), u2.data(),
-                            x.data(), y.data(),   z.data(),    r.data(),  g.data(),
-                            b.data(), pdf.data(), flags.data()};
+    SpangleSampleBatch_v1 q{n,        idx.data(), u0.data(),    u1.data(), u2.data(),
+                            x.data(), y.data(),   z.data(),     r.data(),  g.data(),
+                            b.data(), pdf.data(), flags.data(), nullptr};
     model_->sample(instance_, closure_.data(), &q);
     std::vector<Sample> out(n);
     for (uint32_t i = 0; i < n; ++i)

@@ -251,9 +251,9 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
         u1[i] = sample_1d(1, i, 0, 1);
         u2[i] = sample_1d(1, i, 0, 2);
     }
-    SpangleSampleBatch_v1 q{kN,       idx.data(), u0.data(),   u1.data(), u2.data(),
-                            x.data(), y.data(),   z.data(),    r.data(),  g.data(),
-                            b.data(), pdf.data(), flags.data()};
+    SpangleSampleBatch_v1 q{kN,       idx.data(), u0.data(),    u1.data(), u2.data(),
+                            x.data(), y.data(),   z.data(),     r.data(),  g.data(),
+                            b.data(), pdf.data(), flags.data(), nullptr};
     model_->sample(instance_, closure_.data(), &q);
     std::vector<float> er(kN), eg(kN), eb(kN), epdf(kN);
     SpangleEvalBatch_v1 e{kN,        idx.data(), x.data(),  y.data(),   z.data(),

@@ -13,13 +13,15 @@
 namespace spangle {
 namespace {
 
-FrameResult render(const std::string& scene, int threads, uint32_t spp = 0) {
+FrameResult render(const std::string& scene, int threads, uint32_t spp = 0,
+                   Strategy strategy = Strategy::Mis) {
     FrameRequest req;
     req.scene = test::test_dir() + "/scenes/" + scene;
     req.ocio_config = test::shipped_ocio();
     req.log = &test::quiet_log();
     req.options.threads = threads;
     req.options.spp_override = spp;
+    req.options.strategy = strategy;
     return render_frame(req);
 }
 
@@ -84,11 +86,60 @@ TEST(Render, RectangleLightMatchesClosedFormIrradiance) {
     EXPECT_LT(stderr_mean, 0.003) << "the estimate must be tight enough to mean something";
 }
 
+TEST(Render, PointLightOnLambertPlaneMatchesClosedForm) {
+    const FrameResult r = render("point_plane.toml", 1);
+    // L = albedo / pi x I / h^2: no randomness reaches the result but the pixel position, and
+    // the 0.2 degree view covers a 2 mm patch where I / d^2 cos varies by under 1e-5.
+    const double expected = 2.0 / (1.5 * 1.5) / M_PI;
+    for (std::size_t i = 0; i < r.image.size(); ++i)
+        EXPECT_NEAR(r.image[i], expected, 1e-5 * expected + 1e-6);
+}
+
+/** Per-pixel difference of two renders in units of their combined standard error, estimated
+ *  from the spread of the difference over all pixels' green channel. */
+double max_z_of_mean_difference(const FrameResult& a, const FrameResult& b) {
+    const std::size_t n = a.image.size() / 3;
+    double sum = 0.0, sum2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double d = static_cast<double>(a.image[3 * i + 1]) - b.image[3 * i + 1];
+        sum += d;
+        sum2 += d * d;
+    }
+    const double mean = sum / static_cast<double>(n);
+    const double sd = std::sqrt(std::max(1e-30, sum2 / static_cast<double>(n) - mean * mean));
+    return std::fabs(mean) / (sd / std::sqrt(static_cast<double>(n)));
+}
+
+TEST(Render, MisNeeOnlyAndBsdfOnlyAgree) {
+    for (const char* scene : {"quad_irradiance.toml", "glossy_sphere_light.toml"}) {
+        const FrameResult mis = render(scene, 2, 0, Strategy::Mis);
+        const FrameResult nee = render(scene, 2, 0, Strategy::NeeOnly);
+        const FrameResult bsdf = render(scene, 2, 0, Strategy::BsdfOnly);
+        // The image means of unbiased estimators of the same image differ by noise only:
+        // their difference is within 4 standard errors.
+        EXPECT_LT(max_z_of_mean_difference(mis, nee), 4.0) << scene;
+        EXPECT_LT(max_z_of_mean_difference(mis, bsdf), 4.0) << scene;
+        EXPECT_LT(max_z_of_mean_difference(nee, bsdf), 4.0) << scene;
+        double lum = 0.0;
+        for (float v : mis.image) lum += v;
+        EXPECT_GT(lum, 0.0) << scene << " is lit";
+    }
+}
+
+TEST(Render, DeltaLobesAndDeltaLightsStayFinite) {
+    const FrameResult r = render("delta_hard_cases.toml", 2);
+    EXPECT_EQ(r.stats.nonfinite, 0u);
+    for (float v : r.image) {
+        ASSERT_TRUE(std::isfinite(v));
+        ASSERT_GE(v, 0.0f);
+    }
+}
+
 TEST(Render, SceneWithoutLightsSkipsTheLightSystem) {
     const FrameResult r = render("furnace_sphere.toml", 1, 1);
     const auto& lights = report(r, "area_lights");
     EXPECT_FALSE(lights.ran);
-    EXPECT_EQ(lights.reason, "no QuadLight, Emission");
+    EXPECT_EQ(lights.reason, "no QuadLight, SphereLight, Emission");
     EXPECT_TRUE(report(r, "environment").ran);
     EXPECT_TRUE(report(r, "render").ran);
 }

@@ -188,6 +188,8 @@ typedef struct SpangleSampleBatch_v1 {
     float* f_b;
     float* pdf;      /* out: solid-angle pdf */
     uint32_t* flags; /* out: SPANGLE_SAMPLE_* bits, 0 for an invalid sample */
+    float* eta;      /* out, may be NULL: for a transmission, eta_transmitted / eta_incident (the
+                        host bends ray differentials with it); 1 otherwise */
 } SpangleSampleBatch_v1;
 
 /** One named statistic reported by a model instance for `spangle render --stats`. */

@@ -1,0 +1,138 @@
+#include "render/camera.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace spangle {
+
+bool parse_filter(const std::string& name, FilterKind& out) {
+    if (name == "box")
+        out = FilterKind::Box;
+    else if (name == "gaussian")
+        out = FilterKind::Gaussian;
+    else if (name == "blackman-harris")
+        out = FilterKind::BlackmanHarris;
+    else
+        return false;
+    return true;
+}
+
+namespace {
+
+/** The 1D filter g(x) on [-radius, radius]. */
+double filter_value(FilterKind kind, double x, double radius) {
+    switch (kind) {
+        case FilterKind::Box:
+            return 1.0;
+        case FilterKind::Gaussian: {
+            // sigma 0.5 px, shifted so that it reaches 0 at the radius.
+            const double s2 = 2.0 * 0.25;
+            return std::max(0.0, std::exp(-x * x / s2) - std::exp(-radius * radius / s2));
+        }
+        case FilterKind::BlackmanHarris: {
+            // Four-term Blackman-Harris window over [-radius, radius].
+            const double t = 2.0 * M_PI * (x / (2.0 * radius) + 0.5);
+            return 0.35875 - 0.48829 * std::cos(t) + 0.14128 * std::cos(2 * t) -
+                   0.01168 * std::cos(3 * t);
+        }
+    }
+    return 0.0;
+}
+
+float filter_radius(FilterKind kind) {
+    switch (kind) {
+        case FilterKind::Box:
+            return 0.5f;
+        case FilterKind::Gaussian:
+            return 1.5f;
+        case FilterKind::BlackmanHarris:
+            return 2.0f;
+    }
+    return 0.5f;
+}
+
+}  // namespace
+
+FilterSampler::FilterSampler(FilterKind kind) : radius_(filter_radius(kind)) {
+    // Piecewise-constant filter over kBins bins, then its inverse CDF tabulated finely enough that
+    // linear interpolation in u reproduces it (sampling is the hot path; this runs once).
+    std::array<double, kBins + 1> cdf{};
+    const double r = static_cast<double>(radius_);
+    for (int i = 0; i < kBins; ++i) {
+        const double x = -r + (i + 0.5) * 2.0 * r / kBins;
+        cdf[static_cast<std::size_t>(i + 1)] =
+            cdf[static_cast<std::size_t>(i)] + filter_value(kind, x, r);
+    }
+    for (double& c : cdf) c /= cdf[kBins];
+    std::size_t bin = 0;
+    for (int j = 0; j <= kInverse; ++j) {
+        const double u = static_cast<double>(j) / kInverse;
+        while (bin + 1 < kBins && cdf[bin + 1] < u) ++bin;
+        const double lo = cdf[bin], hi = cdf[bin + 1];
+        const double t = hi > lo ? std::clamp((u - lo) / (hi - lo), 0.0, 1.0) : 0.5;
+        inverse_[static_cast<std::size_t>(j)] =
+            static_cast<float>(-r + (static_cast<double>(bin) + t) * 2.0 * r / kBins);
+    }
+}
+
+float FilterSampler::sample(float u) const {
+    const float x = std::clamp(u, 0.0f, 1.0f) * kInverse;
+    const int i = std::min(static_cast<int>(x), kInverse - 1);
+    const float t = x - static_cast<float>(i);
+    return inverse_[static_cast<std::size_t>(i)] * (1.0f - t) +
+           inverse_[static_cast<std::size_t>(i + 1)] * t;
+}
+
+CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, float aperture,
+                         float focus_distance, uint32_t width, uint32_t height)
+    : origin_(position),
+      forward_(normalize(look_at - position)),
+      tan_half_(std::tan(0.5f * fov_deg * kPi / 180.0f)),
+      aspect_(static_cast<float>(width) / static_cast<float>(height)),
+      aperture_(aperture),
+      focus_(focus_distance),
+      width_(static_cast<float>(width)),
+      height_(static_cast<float>(height)) {
+    right_ = normalize(cross(forward_, up));
+    up_ = cross(right_, forward_);
+    pixel_angle_ = 2.0f * tan_half_ / height_;
+}
+
+Vec3 CameraModel::point_on_film(float fx, float fy) const {
+    const float sx = (2.0f * fx / width_ - 1.0f) * tan_half_ * aspect_;
+    const float sy = (1.0f - 2.0f * fy / height_) * tan_half_;
+    return forward_ + right_ * sx + up_ * sy;
+}
+
+RayDifferential CameraModel::generate(float fx, float fy, float lu, float lv) const {
+    RayDifferential r;
+    const auto make = [&](float x, float y, Vec3& o, Vec3& d) {
+        const Vec3 dir = point_on_film(x, y);  // direction with unit forward component
+        if (aperture_ <= 0.0f) {
+            o = origin_;
+            d = normalize(dir);
+            return;
+        }
+        // Thin lens: every ray through the lens point reaches the same point on the focal plane.
+        const Vec3 focus_point = origin_ + dir * focus_;
+        const float a = 2.0f * lu - 1.0f, b = 2.0f * lv - 1.0f;
+        float rr = 0.0f, phi = 0.0f;  // concentric disk mapping
+        if (a != 0.0f || b != 0.0f) {
+            if (std::fabs(a) > std::fabs(b)) {
+                rr = a;
+                phi = (kPi / 4.0f) * (b / a);
+            } else {
+                rr = b;
+                phi = kPi / 2.0f - (kPi / 4.0f) * (a / b);
+            }
+        }
+        o = origin_ + (right_ * std::cos(phi) + up_ * std::sin(phi)) * (rr * aperture_);
+        d = normalize(focus_point - o);
+    };
+    make(fx, fy, r.o, r.d);
+    make(fx + 1.0f, fy, r.dx_o, r.dx_d);
+    make(fx, fy + 1.0f, r.dy_o, r.dy_d);
+    return r;
+}
+
+}  // namespace spangle

@@ -1,0 +1,67 @@
+#pragma once
+// The camera: perspective pinhole or thin lens, a pixel filter sampled by importance (each sample
+// lands where the filter puts it and weighs 1; Ernst et al. 2006), and ray differentials towards
+// the neighbouring pixels for texture and flake footprints.
+
+#include <array>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+
+namespace spangle {
+
+/** Pixel filters; each is separable, f(x, y) = g(x) g(y), and non-negative. */
+enum class FilterKind { Box, Gaussian, BlackmanHarris };
+
+/** Parses "box", "gaussian" or "blackman-harris"; false for anything else. */
+bool parse_filter(const std::string& name, FilterKind& out);
+
+/** A 1D filter tabulated for sampling: piecewise constant over kBins bins on [-radius, radius]. */
+class FilterSampler {
+public:
+    explicit FilterSampler(FilterKind kind);
+    /** Offset from the pixel centre, in pixels, distributed as the filter. */
+    float sample(float u) const;
+    float radius() const { return radius_; }
+
+    static constexpr int kBins = 256;      ///< bins of the tabulated filter
+    static constexpr int kInverse = 4096;  ///< entries of the inverse-CDF table used by sample()
+
+private:
+    float radius_;
+    std::array<float, kInverse + 1> inverse_{};  ///< offset at u = i / kInverse
+};
+
+/** A ray with its two differential rays (towards +x and +y pixel neighbours). */
+struct RayDifferential {
+    Vec3 o, d;        ///< the ray; d unit length
+    Vec3 dx_o, dx_d;  ///< origin and direction of the ray one pixel to the right
+    Vec3 dy_o, dy_d;  ///< and one pixel down
+};
+
+/** The camera of a frame. */
+class CameraModel {
+public:
+    /** fov_deg vertical; aperture = lens radius in metres (0 = pinhole); focus_distance > 0. */
+    CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, float aperture,
+                float focus_distance, uint32_t width, uint32_t height);
+
+    /** The ray through film position (fx, fy) in pixels (0..width, 0..height, y down), with lens
+     *  sample (lu, lv) in [0, 1)^2. */
+    RayDifferential generate(float fx, float fy, float lu, float lv) const;
+
+    /** World-space width of one pixel at distance 1 along the view direction (for footprints). */
+    float pixel_angle() const { return pixel_angle_; }
+
+private:
+    Vec3 point_on_film(float fx, float fy) const;  ///< on the plane at distance 1
+
+    Vec3 origin_, forward_, right_, up_;
+    float tan_half_, aspect_;
+    float aperture_, focus_;
+    float width_, height_;
+    float pixel_angle_;
+};
+
+}  // namespace spangle

@@ -1,0 +1,91 @@
+#pragma once
+// Low-discrepancy samples that are pure functions of (seed, pixel, sample index, dimension):
+// Owen-scrambled Sobol points, two dimensions at a time, with the sample index shuffled per
+// dimension pair so that pairs are decorrelated (Burley 2020, "Practical Hash-based Owen
+// Scrambling"; the hash-based nested uniform scramble of Laine and Karras 2011). The same pixel
+// gets the same points on any thread, so images do not depend on the thread count.
+
+#include <cstdint>
+
+#include "core/hash.h"
+
+namespace spangle {
+
+constexpr uint32_t reverse_bits(uint32_t x) {
+    x = (x << 16) | (x >> 16);
+    x = ((x & 0x00ff00ffu) << 8) | ((x & 0xff00ff00u) >> 8);
+    x = ((x & 0x0f0f0f0fu) << 4) | ((x & 0xf0f0f0f0u) >> 4);
+    x = ((x & 0x33333333u) << 2) | ((x & 0xccccccccu) >> 2);
+    return ((x & 0x55555555u) << 1) | ((x & 0xaaaaaaaau) >> 1);
+}
+
+/** A hash-based permutation that is an Owen scramble when applied to bit-reversed values. */
+constexpr uint32_t laine_karras_permutation(uint32_t x, uint32_t seed) {
+    x += seed;
+    x ^= x * 0x6c50b47cu;
+    x ^= x * 0xb82f1e52u;
+    x ^= x * 0xc7afe638u;
+    x ^= x * 0x8d22f6e6u;
+    return x;
+}
+
+/** Owen scramble of a 32-bit fixed-point value in [0, 1). */
+constexpr uint32_t nested_uniform_scramble(uint32_t x, uint32_t seed) {
+    return reverse_bits(laine_karras_permutation(reverse_bits(x), seed));
+}
+
+/** First Sobol dimension: the van der Corput sequence. */
+constexpr uint32_t sobol_0(uint32_t i) {
+    return reverse_bits(i);
+}
+
+/** Second Sobol dimension (primitive polynomial x + 1): direction numbers v_1 = 2^31,
+ *  v_k = v_{k-1} ^ (v_{k-1} >> 1). Bit-serial reference version. */
+constexpr uint32_t sobol_1_reference(uint32_t i) {
+    uint32_t v = 0x80000000u, r = 0;
+    for (; i; i >>= 1, v ^= v >> 1)
+        if (i & 1u) r ^= v;
+    return r;
+}
+
+namespace detail {
+/** XOR of the direction numbers for every value of each of the four bytes of the index. */
+struct Sobol1Tables {
+    uint32_t t[4][256];
+    constexpr Sobol1Tables() : t() {
+        uint32_t v[32] = {};
+        v[0] = 0x80000000u;
+        for (int k = 1; k < 32; ++k) v[k] = v[k - 1] ^ (v[k - 1] >> 1);
+        for (int b = 0; b < 4; ++b)
+            for (uint32_t x = 0; x < 256; ++x) {
+                uint32_t r = 0;
+                for (int k = 0; k < 8; ++k)
+                    if (x & (1u << k)) r ^= v[8 * b + k];
+                t[b][x] = r;
+            }
+    }
+};
+inline constexpr Sobol1Tables kSobol1Tables{};
+}  // namespace detail
+
+/** Second Sobol dimension, four table lookups. */
+inline uint32_t sobol_1(uint32_t i) {
+    const auto& t = detail::kSobol1Tables.t;
+    return t[0][i & 0xffu] ^ t[1][(i >> 8) & 0xffu] ^ t[2][(i >> 16) & 0xffu] ^ t[3][i >> 24];
+}
+
+/** 24-bit fixed point to float in [0, 1). */
+constexpr float fixed_to_unit(uint32_t x) {
+    return static_cast<float>(x >> 8) * 0x1p-24f;
+}
+
+/** The 2D point for sample `index` of `pixel` in dimension pair `pair`. */
+inline void sobol_2d(uint64_t seed, uint64_t pixel, uint32_t index, uint32_t pair, float& u0,
+                     float& u1) {
+    const uint64_t h = hash4(seed, pixel, pair, 0x50b01ull);
+    const auto shuffled = nested_uniform_scramble(index, static_cast<uint32_t>(h));
+    u0 = fixed_to_unit(nested_uniform_scramble(sobol_0(shuffled), static_cast<uint32_t>(h >> 32)));
+    u1 = fixed_to_unit(nested_uniform_scramble(sobol_1(shuffled), static_cast<uint32_t>(mix64(h))));
+}
+
+}  // namespace spangle

@@ -1,0 +1,126 @@
+#include "render/surface.h"
+
+#include <cmath>
+
+namespace spangle {
+
+SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hit& h, Vec3 d) {
+    const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
+                   i2 = mesh.indices[3 * h.prim + 2];
+    const float b0 = 1.0f - h.b1 - h.b2;
+    const Vec3 p0 = inst.to_world.apply_point(mesh.position(i0));
+    const Vec3 p1 = inst.to_world.apply_point(mesh.position(i1));
+    const Vec3 p2 = inst.to_world.apply_point(mesh.position(i2));
+    SurfacePoint sp;
+    sp.p = p0 * b0 + p1 * h.b1 + p2 * h.b2;
+    const Vec3 e1 = p1 - p0, e2 = p2 - p0;
+    Vec3 ng = cross(e1, e2);
+    const float ng_len = length(ng);
+    ng = ng_len > 0.0f ? ng / ng_len : Vec3(0, 0, 1);
+    Vec3 n = ng;
+    Vec3 n0, n1, n2;
+    const bool smooth = !mesh.normals.empty();
+    if (smooth) {
+        const auto nrm = [&](uint32_t i) {
+            return inst.normal_to_world.apply_vector(
+                Vec3(mesh.normals[3 * i], mesh.normals[3 * i + 1], mesh.normals[3 * i + 2]));
+        };
+        n0 = nrm(i0);
+        n1 = nrm(i1);
+        n2 = nrm(i2);
+        const Vec3 ni = n0 * b0 + n1 * h.b1 + n2 * h.b2;
+        const float len = length(ni);
+        if (len > 0.0f && std::isfinite(len)) n = ni / len;
+        if (dot(n, ng) < 0.0f) ng = -ng;  // the geometric normal follows the authored normals
+    }
+    float uv0[2] = {0, 0}, uv1[2] = {1, 0}, uv2[2] = {0, 1};
+    if (!mesh.uvs.empty()) {
+        for (uint32_t k = 0; k < 2; ++k) {
+            uv0[k] = mesh.uvs[2 * i0 + k];
+            uv1[k] = mesh.uvs[2 * i1 + k];
+            uv2[k] = mesh.uvs[2 * i2 + k];
+        }
+    }
+    sp.u = uv0[0] * b0 + uv1[0] * h.b1 + uv2[0] * h.b2;
+    sp.v = uv0[1] * b0 + uv1[1] * h.b1 + uv2[1] * h.b2;
+    // dp/du, dp/dv (and dn/du, dn/dv) from the triangle's uv mapping (pbrt, section 3.6.2).
+    const float du1 = uv1[0] - uv0[0], dv1 = uv1[1] - uv0[1];
+    const float du2 = uv2[0] - uv0[0], dv2 = uv2[1] - uv0[1];
+    const float det = du1 * dv2 - dv1 * du2;
+    if (std::fabs(det) > 1e-20f) {
+        const float inv = 1.0f / det;
+        sp.dpdu = (e1 * dv2 - e2 * dv1) * inv;
+        sp.dpdv = (e2 * du1 - e1 * du2) * inv;
+        sp.uv_area = length(cross(sp.dpdu, sp.dpdv));
+        if (smooth) {
+            const Vec3 dn1 = n1 - n0, dn2 = n2 - n0;
+            sp.dndu = (dn1 * dv2 - dn2 * dv1) * inv;
+            sp.dndv = (dn2 * du1 - dn1 * du2) * inv;
+        }
+    }
+    const bool back = dot(ng, d) > 0.0f;
+    if (back) {
+        ng = -ng;
+        n = -n;
+        sp.dndu = -sp.dndu;
+        sp.dndv = -sp.dndv;
+    }
+    Vec3 s = sp.dpdu - n * dot(n, sp.dpdu);
+    const float s_len = length(s);
+    if (s_len > 1e-12f && std::isfinite(s_len)) {
+        s = s / s_len;
+        sp.t = cross(n, s);
+    } else {
+        make_basis(n, s, sp.t);
+    }
+    sp.ng = ng;
+    sp.n = n;
+    sp.s = s;
+    sp.backface = back;
+    return sp;
+}
+
+namespace {
+
+/** Least-squares solution of dp = dpdu du + dpdv dv (pbrt-v4's approach: the normal equations
+ *  of the 3x2 system, stable for any orientation). */
+bool solve_uv(const SurfacePoint& sp, Vec3 dp, float& du, float& dv) {
+    const double a = dot(sp.dpdu, sp.dpdu), b = dot(sp.dpdu, sp.dpdv), c = dot(sp.dpdv, sp.dpdv);
+    const double det = a * c - b * b;
+    if (!(std::fabs(det) > 1e-30)) return false;
+    const double ru = dot(sp.dpdu, dp), rv = dot(sp.dpdv, dp);
+    du = static_cast<float>((c * ru - b * rv) / det);
+    dv = static_cast<float>((a * rv - b * ru) / det);
+    return std::isfinite(du) && std::isfinite(dv);
+}
+
+}  // namespace
+
+void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, float widened) {
+    if (has_diff) {
+        // Where do the neighbours' rays meet the tangent plane at p?
+        const float plane = dot(sp.ng, sp.p);
+        const float tx = (plane - dot(sp.ng, ray.dx_o)) / dot(sp.ng, ray.dx_d);
+        const float ty = (plane - dot(sp.ng, ray.dy_o)) / dot(sp.ng, ray.dy_d);
+        if (std::isfinite(tx) && std::isfinite(ty)) {
+            sp.dpdx = ray.dx_o + ray.dx_d * tx - sp.p;
+            sp.dpdy = ray.dy_o + ray.dy_d * ty - sp.p;
+            if (solve_uv(sp, sp.dpdx, sp.dudx, sp.dvdx) &&
+                solve_uv(sp, sp.dpdy, sp.dudy, sp.dvdy)) {
+                sp.footprint = std::max(length(sp.dpdx), length(sp.dpdy));
+                return;
+            }
+        }
+        has_diff = false;
+    }
+    // A square footprint of the widened width, along the surface's parameter directions.
+    sp.footprint = widened;
+    sp.dpdx = sp.s * widened;
+    sp.dpdy = sp.t * widened;
+    const float lu = length(sp.dpdu), lv = length(sp.dpdv);
+    sp.dudx = lu > 0.0f ? widened / lu : 0.0f;
+    sp.dvdy = lv > 0.0f ? widened / lv : 0.0f;
+    sp.dudy = sp.dvdx = 0.0f;
+}
+
+}  // namespace spangle

@@ -1,0 +1,34 @@
+#pragma once
+// A ray's hit turned into what shading needs: position, frames, uv and its derivatives, and the
+// uv footprint of the pixel (from ray differentials, or a widened cone when the path has lost
+// them at a rough bounce).
+
+#include "accel/embree_scene.h"
+#include "geometry/triangle_mesh.h"
+#include "render/camera.h"
+
+namespace spangle {
+
+/** Everything known about a surface hit that shading needs. World space unless noted. */
+struct SurfacePoint {
+    Vec3 p, ng;          ///< position; geometric normal facing wo
+    Vec3 n, s, t;        ///< shading frame (n facing wo's side of ng)
+    float u = 0, v = 0;  ///< surface parameterisation
+    Vec3 dpdu, dpdv;     ///< position derivatives (zero when the uv mapping is degenerate)
+    Vec3 dndu, dndv;     ///< shading-normal derivatives
+    float uv_area = 0;   ///< |dp/du x dp/dv|
+    bool backface = false;
+    Vec3 dpdx, dpdy;                               ///< footprint axes on the surface (world)
+    float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;  ///< footprint axes in uv
+    float footprint = 0;                           ///< world width of the footprint
+};
+
+/** Resolves a hit on `inst` (whose mesh is `mesh`) to a surface point oriented towards -d. */
+SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hit& h, Vec3 d);
+
+/** Fills sp's footprint. With has_diff, from the differential rays hitting sp's tangent plane
+ *  (has_diff is cleared if they miss it); otherwise a square of world width `widened` along
+ *  dp/du and dp/dv. */
+void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, float widened);
+
+}  // namespace spangle
