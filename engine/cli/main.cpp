@@ -53,9 +53,9 @@ void print_stats(const FrameResult& r, const std::string& exr) {
     fmt::print("systems:\n");
     for (const auto& s : r.systems) {
         if (s.ran)
-            fmt::print("  {:<12} ran      {:9.3f} s\n", s.name, s.seconds);
+            fmt::print("  {:<16} ran      {:9.3f} s\n", s.name, s.seconds);
         else
-            fmt::print("  {:<12} skipped  ({})\n", s.name, s.reason);
+            fmt::print("  {:<16} skipped  ({})\n", s.name, s.reason);
     }
     fmt::print("plugins opened: {}\n", r.plugins_opened.empty()
                                            ? std::string("none")
