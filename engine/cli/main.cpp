@@ -70,6 +70,10 @@ void print_stats(const FrameResult& r, const std::string& exr) {
                    st.shadow_rays);
         fmt::print("non-finite samples replaced by black: {}\n", st.nonfinite);
     }
+    for (const auto& [name, values] : r.material_stats) {
+        fmt::print("material '{}':\n", name);
+        for (const auto& [key, value] : values) fmt::print("  {:<44} {:.4g}\n", key, value);
+    }
     fmt::print("working space: {}\noutput: {}\n", r.color.working_space(), exr);
 }
 

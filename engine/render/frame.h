@@ -29,6 +29,8 @@ struct FrameResult {
     std::vector<std::string> plugins_opened;  ///< plugin names opened for this scene
     RenderStats stats;                        ///< counters of the render system
     SceneInfo info;                           ///< facts about the scene
+    /** Statistics each material's plugin reported: (material name, [(name, value)]). */
+    std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> material_stats;
 };
 
 /** Places where the shipped OCIO config is looked for when neither a path nor $OCIO is given. */

@@ -22,6 +22,7 @@ namespace {
 
 constexpr uint32_t kTileSize = 16;
 constexpr uint32_t kSamplesPerWave = 16;  ///< samples of each tile pixel traced together
+constexpr uint32_t kMaxBatch = 256;  ///< shading points per plugin call: bounds per-batch scratch
 
 /** Sobol dimension pairs: two for the camera, then kPairsPerBounce per bounce. */
 enum Pair : uint32_t {
@@ -436,8 +437,9 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
         for (std::size_t m = 0; m < material_count; ++m) {
             const uint32_t count_m = group_start[m + 1] - group_start[m];
             if (count_m == 0) continue;
-            shade_group(job, ws, *w.materials[m], ws.order.data() + group_start[m], count_m, bounce,
-                        shadow);
+            for (uint32_t off = 0; off < count_m; off += kMaxBatch)
+                shade_group(job, ws, *w.materials[m], ws.order.data() + group_start[m] + off,
+                            std::min(kMaxBatch, count_m - off), bounce, shadow);
         }
     }
     job.camera_rays += n;

@@ -112,7 +112,7 @@ std::string describe_param(const SpangleParamDesc_v1& p) {
     }
     std::string range;
     if (p.type == SPANGLE_PARAM_STRING)
-        range = fmt::format(" one of {}", p.choices ? p.choices : "");
+        range = p.choices ? fmt::format(" one of {}", p.choices) : std::string(" any name");
     else if (p.type != SPANGLE_PARAM_BOOL)
         range = " in " + range_text(p);
     return fmt::format("{:<18} {:<6} = {:<16}{}  {}", p.name, type_name(p.type), def, range,

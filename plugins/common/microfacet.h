@@ -137,6 +137,20 @@ inline float fresnel_conductor(float cos_i, float eta, float k) {
     return static_cast<float>(0.5 * (std::norm(r_par) + std::norm(r_perp)));
 }
 
+/** Complex indices at the Rec.709 primaries' dominant wavelengths (about 630, 532, 465 nm),
+ *  from published optical constants (Johnson and Christy 1972 for Au, Ag, Cu; Rakic 1995 for Al).
+ */
+struct MetalPreset {
+    const char* name;
+    float eta[3], k[3];
+};
+inline constexpr MetalPreset kMetalPresets[] = {
+    {"gold", {0.183f, 0.421f, 1.373f}, {3.424f, 2.346f, 1.770f}},
+    {"silver", {0.155f, 0.117f, 0.138f}, {4.828f, 3.122f, 2.147f}},
+    {"copper", {0.200f, 0.924f, 1.102f}, {3.912f, 2.452f, 2.142f}},
+    {"aluminium", {1.657f, 0.880f, 0.521f}, {9.224f, 6.270f, 4.837f}},
+};
+
 /** Cosine-weighted hemisphere direction (concentric disk map, Shirley and Chiu 1997). */
 inline V3 cosine_hemisphere(float u0, float u1) {
     const float a = 2.0f * u0 - 1.0f, b = 2.0f * u1 - 1.0f;

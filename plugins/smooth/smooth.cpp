@@ -226,20 +226,6 @@ const SpangleParamDesc_v1 kConductorParams[] = {
      "GGX alpha along the bitangent (anisotropy); -1 = same as roughness"},
 };
 
-/** Complex indices at the Rec.709 primaries' dominant wavelengths (about 630, 532, 465 nm),
- *  from published optical constants (Johnson and Christy 1972 for Au, Ag, Cu; Rakic 1995 for Al).
- */
-struct MetalPreset {
-    const char* name;
-    float eta[3], k[3];
-};
-const MetalPreset kMetals[] = {
-    {"gold", {0.183f, 0.421f, 1.373f}, {3.424f, 2.346f, 1.770f}},
-    {"silver", {0.155f, 0.117f, 0.138f}, {4.828f, 3.122f, 2.147f}},
-    {"copper", {0.200f, 0.924f, 1.102f}, {3.912f, 2.452f, 2.142f}},
-    {"aluminium", {1.657f, 0.880f, 0.521f}, {9.224f, 6.270f, 4.837f}},
-};
-
 struct Conductor {
     float ax, ay;
     bool delta;
@@ -289,7 +275,7 @@ void* conductor_create(const SpangleParams_v1* p, const SpangleHost_v1* host, ch
     } else if (preset == "perfect") {
         c.perfect = true;
     } else {
-        for (const MetalPreset& m : kMetals)
+        for (const MetalPreset& m : kMetalPresets)
             if (preset == m.name) {
                 std::copy(m.eta, m.eta + 3, c.eta);
                 std::copy(m.k, m.k + 3, c.k);
