@@ -47,6 +47,7 @@ struct RenderArgs {
     std::string compression = "zip";
     std::string ocio;
     std::string strategy = "mis";
+    std::string size;
 };
 
 void print_stats(const FrameResult& r, const std::string& exr) {
@@ -98,6 +99,15 @@ int run_render(const RenderArgs& a) {
     req.ocio_config = a.ocio;
     req.options.threads = a.threads;
     req.options.spp_override = a.spp;
+    if (!a.size.empty()) {
+        unsigned w = 0, h = 0;
+        char tail = 0;
+        if (std::sscanf(a.size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 1 || h < 1 ||
+            w > 16384 || h > 16384)
+            throw_error("--size must be WIDTHxHEIGHT with each in 1..16384, got '{}'", a.size);
+        req.options.width_override = w;
+        req.options.height_override = h;
+    }
     req.options.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
                            : a.strategy == "bsdf" ? Strategy::BsdfOnly
                                                   : Strategy::Mis;
@@ -207,6 +217,7 @@ int main(int argc, char** argv) {
     render->add_option("-o,--output", ra.output, "output EXR (default: <scene name>.exr)");
     render->add_option("--preview", ra.preview, "PNG preview path (default: the output with .png)");
     render->add_flag("--no-preview", ra.no_preview, "write no PNG preview");
+    render->add_option("--size", ra.size, "image size WIDTHxHEIGHT (overrides the scene)");
     render->add_option("--spp", ra.spp, "samples per pixel (overrides the scene)")
         ->check(CLI::Range(1u, 1u << 20));
     render->add_option("--threads", ra.threads, "worker threads (default: all cores)")

@@ -43,14 +43,22 @@ FrameResult render_frame(const FrameRequest& req) {
     const ecs::Schedule<World> schedule = make_frame_schedule();
     std::vector<ecs::SystemReport> reports = schedule.run(registry, world);
 
-    FrameResult result{std::move(color), world.width, world.height, std::move(world.image), std::move(reports),
-                       plugins.opened(),  world.stats, std::move(info),  {}};
+    FrameResult result{std::move(color),
+                       world.width,
+                       world.height,
+                       std::move(world.image),
+                       std::move(reports),
+                       plugins.opened(),
+                       world.stats,
+                       std::move(info),
+                       {}};
     for (const auto& mat : world.materials) {
         if (!mat || !mat->model().stats) continue;
         SpangleStat_v1 buf[64];
         const uint32_t n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);
         std::vector<std::pair<std::string, double>> values;
-        for (uint32_t i = 0; i < n; ++i) values.emplace_back(buf[i].name ? buf[i].name : "?", buf[i].value);
+        for (uint32_t i = 0; i < n; ++i)
+            values.emplace_back(buf[i].name ? buf[i].name : "?", buf[i].value);
         result.material_stats.emplace_back(mat->name(), std::move(values));
     }
     // Materials go before the loader that holds their libraries (shared ownership keeps the

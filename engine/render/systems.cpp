@@ -197,7 +197,10 @@ void system_light_selection(ecs::Registry&, World& w) {
 void system_render(ecs::Registry& r, World& w) {
     const auto& cams = r.pool<Camera>();
     const auto& films = r.pool<Film>();
-    render_image(w, cams.columns().get(0), films.columns().get(0));
+    Film film = films.columns().get(0);
+    if (w.options.width_override) film.width = w.options.width_override;
+    if (w.options.height_override) film.height = w.options.height_override;
+    render_image(w, cams.columns().get(0), film);
 }
 
 }  // namespace spangle

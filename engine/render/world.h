@@ -22,6 +22,8 @@ struct RenderOptions {
     Strategy strategy = Strategy::Mis;  ///< for tests and debugging; MIS is always at least as good
     int threads = 0;                    ///< worker threads; 0 = all cores
     uint32_t spp_override = 0;          ///< replaces the scene's spp when non-zero
+    uint32_t width_override = 0;        ///< replaces the scene's width when non-zero
+    uint32_t height_override = 0;       ///< replaces the scene's height when non-zero
     /** Called with (samples done, samples total) from worker threads, serialised by the
      *  integrator; may be empty. */
     std::function<void(uint64_t, uint64_t)> progress;

@@ -5,8 +5,8 @@
 
 namespace spangle::flake {
 
-Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy, double scale,
-                         double max_ratio) {
+Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy,
+                         double scale, double max_ratio) {
     Footprint p;
     p.cu = u;
     p.cv = v;
@@ -64,7 +64,8 @@ void split_counts(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]) {
 }
 
 uint64_t node_key(uint64_t tile, int depth, uint32_t ix, uint32_t iy) {
-    return mf_hash(mf_hash(tile, static_cast<uint64_t>(depth)), (static_cast<uint64_t>(ix) << 32) | iy);
+    return mf_hash(mf_hash(tile, static_cast<uint64_t>(depth)),
+                   (static_cast<uint64_t>(ix) << 32) | iy);
 }
 
 uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty) {
@@ -86,12 +87,14 @@ bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1) {
     const double hx = 0.5 * (std::fabs(p.ax) + std::fabs(p.bx));
     const double hy = 0.5 * (std::fabs(p.ay) + std::fabs(p.by));
     if (p.cu + hx < x0 || p.cu - hx > x1 || p.cv + hy < y0 || p.cv - hy > y1) return false;
-    const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), ex = 0.5 * (x1 - x0), ey = 0.5 * (y1 - y0);
+    const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), ex = 0.5 * (x1 - x0),
+                 ey = 0.5 * (y1 - y0);
     for (int k = 0; k < 2; ++k) {
         // Axis perpendicular to edge a (k = 0) or b (k = 1).
         const double nx = k == 0 ? -p.ay : -p.by, ny = k == 0 ? p.ax : p.bx;
-        const double other = k == 0 ? std::fabs(nx * p.bx + ny * p.by) : std::fabs(nx * p.ax + ny * p.ay);
-        const double rp = 0.5 * other;                          // P's half extent on the axis
+        const double other =
+            k == 0 ? std::fabs(nx * p.bx + ny * p.by) : std::fabs(nx * p.ax + ny * p.ay);
+        const double rp = 0.5 * other;                              // P's half extent on the axis
         const double rc = ex * std::fabs(nx) + ey * std::fabs(ny);  // the cell's
         const double d = std::fabs(nx * (cx - p.cu) + ny * (cy - p.cv));
         if (d > rp + rc) return false;
@@ -136,14 +139,16 @@ void eval_discrete(const DiscreteLobe& lobe, const Cone& cone, V3 wi, float f[3]
     pdf = lobe.lum_sum > 0.0f ? lum / (lobe.lum_sum * cone.solid_angle) : 0.0f;
 }
 
-bool sample_discrete(const DiscreteLobe& lobe, const Cone& cone, float u0, float u1, float u2, V3& wi) {
+bool sample_discrete(const DiscreteLobe& lobe, const Cone& cone, float u0, float u1, float u2,
+                     V3& wi) {
     if (lobe.count == 0 || !(lobe.lum_sum > 0.0f)) return false;
     // Binary search, bounded by the table; u0 = 0 and u0 -> 1 both land on valid entries.
     const float target = u0 * lobe.lum_sum;
     const float* it = std::upper_bound(lobe.cdf, lobe.cdf + lobe.count, target);
     const auto j = static_cast<uint32_t>(std::min<std::ptrdiff_t>(it - lobe.cdf, lobe.count - 1));
     const V3 r = lobe.entries[j].r;
-    // Uniform in the cone: cos(theta) = 1 - u1 (1 - cos gamma), with 1 - cos gamma = 2 sin^2(gamma/2).
+    // Uniform in the cone: cos(theta) = 1 - u1 (1 - cos gamma), with 1 - cos gamma = 2
+    // sin^2(gamma/2).
     const float one_minus_cos = u1 * 2.0f * cone.sin2_half;
     const float cos_t = 1.0f - one_minus_cos;
     const float sin_t = std::sqrt(std::max(0.0f, one_minus_cos * (2.0f - one_minus_cos)));

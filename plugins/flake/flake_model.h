@@ -29,7 +29,9 @@ inline uint64_t mf_hash(uint64_t a, uint64_t b) {
 }
 
 /** Uniform double in [0, 1) from the top 53 bits. */
-inline double mf_unit(uint64_t h) { return static_cast<double>(h >> 11) * 0x1p-53; }
+inline double mf_unit(uint64_t h) {
+    return static_cast<double>(h >> 11) * 0x1p-53;
+}
 
 /** The footprint parallelogram P = c + s a + t b, s, t in [-1/2, 1/2], in uv. */
 struct Footprint {
@@ -41,8 +43,8 @@ struct Footprint {
 
 /** Footprint from uv derivatives, scaled and with the ratio of its principal axes clamped to
  *  max_ratio (widening the minor axis, keeping the centre): this bounds skew and needles alike. */
-Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy, double scale,
-                         double max_ratio = 4.0);
+Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy,
+                         double scale, double max_ratio = 4.0);
 
 /** One flake: where it is and which way it faces. */
 struct Flake {
@@ -53,12 +55,12 @@ struct Flake {
 
 /** Settings of the flake field (everything that decides which flakes exist). */
 struct FieldParams {
-    uint64_t seed = 0;         ///< material seed
-    double flakes_per_tile = 0;///< N: expected count in one uv unit square
-    float alpha = 0.1f;        ///< GGX roughness of the flake normal distribution
-    int leaf_size = 16;        ///< nodes with at most this many flakes are leaves
-    int max_depth = 12;        ///< deepest level of the quad-tree
-    int exact_below = 128;     ///< binomials with n below this are sampled exactly
+    uint64_t seed = 0;           ///< material seed
+    double flakes_per_tile = 0;  ///< N: expected count in one uv unit square
+    float alpha = 0.1f;          ///< GGX roughness of the flake normal distribution
+    int leaf_size = 16;          ///< nodes with at most this many flakes are leaves
+    int max_depth = 12;          ///< deepest level of the quad-tree
+    int exact_below = 128;       ///< binomials with n below this are sampled exactly
 };
 
 /** Deterministic binomial sample B(n, p) from two uniforms: exact inversion when n < exact_below,
@@ -79,8 +81,8 @@ uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty);
  *  max_flakes of them. Returns the number visited (at most max_flakes) and sets `truncated`
  *  when more existed. Visits at most 64 uv tiles; a footprint spanning more sets `truncated`. */
 template <class Visit>
-uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_flakes, bool& truncated,
-                        Visit&& visit);
+uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_flakes,
+                        bool& truncated, Visit&& visit);
 
 /** Whether (u, v) lies inside P (in P's own coordinates, in double). */
 bool inside(const Footprint& p, double u, double v);
@@ -105,15 +107,15 @@ struct DiscreteLobe {
     const CacheEntry* entries = nullptr;
     const float* cdf = nullptr;  ///< cdf[i] = luminance of entries 0..i, unnormalised
     uint32_t count = 0;
-    float w_sum = 0;             ///< W = sum of w_j
-    float lum_sum = 0;           ///< sum of luminance(w_j c_j F_j) = cdf[count - 1]
+    float w_sum = 0;    ///< W = sum of w_j
+    float lum_sum = 0;  ///< sum of luminance(w_j c_j F_j) = cdf[count - 1]
 };
 
 /** Cone geometry shared by eval, sample and pdf. */
 struct Cone {
-    float sin2_half = 0;  ///< sin^2(gamma / 2)
-    float threshold = 0;  ///< |wi - r|^2 <= 4 sin^2(gamma / 2) means wi is in the cone
-    float solid_angle = 0;///< sigma = 4 pi sin^2(gamma / 2)
+    float sin2_half = 0;    ///< sin^2(gamma / 2)
+    float threshold = 0;    ///< |wi - r|^2 <= 4 sin^2(gamma / 2) means wi is in the cone
+    float solid_angle = 0;  ///< sigma = 4 pi sin^2(gamma / 2)
     explicit Cone(float gamma_rad);
     Cone() = default;
 };
@@ -123,19 +125,22 @@ void eval_discrete(const DiscreteLobe& lobe, const Cone& cone, V3 wi, float f[3]
 
 /** Samples wi from the discrete lobe: a flake by luminance (u0), then a direction uniform in its
  *  cone (u1, u2). Returns false when the lobe is empty or wi falls below the horizon. */
-bool sample_discrete(const DiscreteLobe& lobe, const Cone& cone, float u0, float u1, float u2, V3& wi);
+bool sample_discrete(const DiscreteLobe& lobe, const Cone& cone, float u0, float u1, float u2,
+                     V3& wi);
 
 // ------------------------------------------------------------------------------------ template
 
 template <class Visit>
-uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_flakes, bool& truncated,
-                        Visit&& visit) {
+uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_flakes,
+                        bool& truncated, Visit&& visit) {
     truncated = false;
     const double hx = 0.5 * ((p.ax < 0 ? -p.ax : p.ax) + (p.bx < 0 ? -p.bx : p.bx));
     const double hy = 0.5 * ((p.ay < 0 ? -p.ay : p.ay) + (p.by < 0 ? -p.by : p.by));
     const double u0 = p.cu - hx, u1 = p.cu + hx, v0 = p.cv - hy, v1 = p.cv + hy;
-    const auto tx0 = static_cast<int64_t>(std::floor(u0)), tx1 = static_cast<int64_t>(std::floor(u1));
-    const auto ty0 = static_cast<int64_t>(std::floor(v0)), ty1 = static_cast<int64_t>(std::floor(v1));
+    const auto tx0 = static_cast<int64_t>(std::floor(u0)),
+               tx1 = static_cast<int64_t>(std::floor(u1));
+    const auto ty0 = static_cast<int64_t>(std::floor(v0)),
+               ty1 = static_cast<int64_t>(std::floor(v1));
     if ((tx1 - tx0 + 1) * (ty1 - ty0 + 1) > 64) {
         truncated = true;
         return 0;
@@ -176,7 +181,8 @@ uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_
                         Flake f;
                         f.u = fu + static_cast<double>(tx);
                         f.v = fv + static_cast<double>(ty);
-                        f.m = sample_flake_normal(fp.alpha, static_cast<float>(mf_unit(mf_hash(h, 2))),
+                        f.m = sample_flake_normal(fp.alpha,
+                                                  static_cast<float>(mf_unit(mf_hash(h, 2))),
                                                   static_cast<float>(mf_unit(mf_hash(h, 3))));
                         f.color_u = static_cast<float>(mf_unit(mf_hash(h, 4)));
                         visit(f);
@@ -187,7 +193,8 @@ uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_
                 uint32_t child[4];
                 split_counts(key, node.n, fp.exact_below, child);
                 for (uint32_t c = 0; c < 4; ++c)
-                    stack[top++] = {node.depth + 1, 2 * node.ix + (c & 1u), 2 * node.iy + (c >> 1), child[c]};
+                    stack[top++] = {node.depth + 1, 2 * node.ix + (c & 1u), 2 * node.iy + (c >> 1),
+                                    child[c]};
             }
         }
     return visited;

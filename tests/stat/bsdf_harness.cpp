@@ -22,6 +22,12 @@ BsdfHarness::BsdfHarness(const std::string& plugin, const std::string& model,
         ParamEntry p;
         p.name = name;
         p.kind = v.size() == 3 ? ParamEntry::Kind::Color : ParamEntry::Kind::Number;
+        // Typed as the schema declares it, as the scene parser would have typed the TOML value.
+        for (uint32_t k = 0; k < model_->param_count; ++k) {
+            if (name != model_->params[k].name) continue;
+            if (model_->params[k].type == SPANGLE_PARAM_BOOL) p.kind = ParamEntry::Kind::Bool;
+            if (model_->params[k].type == SPANGLE_PARAM_INT) p.is_integer = true;
+        }
         for (std::size_t i = 0; i < v.size(); ++i) p.number[i] = v[i];
         p.text = "lin_rec709";
         m.params.push_back(p);
@@ -46,11 +52,22 @@ BsdfHarness::~BsdfHarness() {
 }
 
 void BsdfHarness::prepare(Vec3 wo, bool backface) {
-    const float zero = 0.0f, one = 1.0f;
-    const uint32_t flags = backface ? SPANGLE_SHADING_BACKFACE : 0u, id = 0;
-    const SpangleShadingBatch_v1 b{1,     &zero, &zero, &zero, &wo.x, &wo.y, &wo.z,  &zero,
-                                   &zero, &zero, &zero, &zero, &zero, &one,  &flags, &id};
-    model_->prepare(instance_, &b, closure_.data(), nullptr);
+    Point p;
+    p.has_differentials = false;
+    prepare(wo, p, backface);
+}
+
+void BsdfHarness::prepare(Vec3 wo, const Point& pt, bool backface) {
+    const float zero = 0.0f;
+    const uint32_t flags = (backface ? SPANGLE_SHADING_BACKFACE : 0u) |
+                           (pt.has_differentials ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u);
+    const uint32_t id = 0;
+    const SpangleShadingBatch_v1 b{1,        &zero,       &zero,  &zero,    &wo.x,    &wo.y,
+                                   &wo.z,    &pt.u,       &pt.v,  &pt.dudx, &pt.dudy, &pt.dvdx,
+                                   &pt.dvdy, &pt.uv_area, &flags, &id};
+    arena_.reset();
+    SpangleArena_v1 arena = arena_.api();
+    model_->prepare(instance_, &b, closure_.data(), &arena);
 }
 
 std::vector<BsdfHarness::Sample> BsdfHarness::sample(uint32_t n, uint64_t seed) const {

@@ -10,6 +10,7 @@
 
 #include "core/hash.h"
 #include "core/math.h"
+#include "render/arena.h"
 #include "shading/material.h"
 #include "shading/plugin_loader.h"
 #include "test_support.h"
@@ -28,6 +29,16 @@ public:
 
     /** Prepares the closure for wo (local frame); backface sets SPANGLE_SHADING_BACKFACE. */
     void prepare(Vec3 wo, bool backface = false);
+
+    /** The shading point's surface data beyond wo, for footprint-based models. */
+    struct Point {
+        float u = 0.5f, v = 0.5f;                      ///< uv
+        float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;  ///< footprint axes in uv
+        bool has_differentials = true;
+        float uv_area = 1.0f;
+    };
+    /** Prepares the closure for wo at a given point (the scratch arena is reset first). */
+    void prepare(Vec3 wo, const Point& point, bool backface = false);
 
     struct Sample {
         Vec3 wi, f;
@@ -48,6 +59,7 @@ private:
     const SpangleMaterialModel_v1* model_ = nullptr;
     void* instance_ = nullptr;
     std::vector<std::byte> closure_;
+    ScratchArena arena_;
 };
 
 }  // namespace spangle::test
