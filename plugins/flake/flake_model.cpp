@@ -32,14 +32,55 @@ Footprint make_footprint(double u, double v, double dudx, double dvdx, double du
     return p;
 }
 
+namespace {
+
+constexpr int kMaxExact = 1000;  ///< the largest exact_below the schema allows
+constexpr int kNormalTable = 4096;
+
+/** Tables that make binomial sampling cheap: q^n for the three split probabilities, and the
+ *  standard normal quantile at (i + 0.5) / 4096. Built once, read-only afterwards. */
+struct BinomialTables {
+    double q_pow[3][kMaxExact + 1];  ///< (1 - p)^n for p = 1/4, 1/3, 1/2
+    double quantile[kNormalTable];
+    BinomialTables() {
+        const double ps[3] = {0.25, 1.0 / 3.0, 0.5};
+        for (int k = 0; k < 3; ++k)
+            for (int n = 0; n <= kMaxExact; ++n) q_pow[k][n] = std::pow(1.0 - ps[k], n);
+        // Quantiles by bisection on the normal CDF 0.5 erfc(-z / sqrt 2): exact to 1e-12.
+        for (int i = 0; i < kNormalTable; ++i) {
+            const double u = (i + 0.5) / kNormalTable;
+            double lo = -10.0, hi = 10.0;
+            for (int it = 0; it < 80; ++it) {
+                const double mid = 0.5 * (lo + hi);
+                (0.5 * std::erfc(-mid / std::sqrt(2.0)) < u ? lo : hi) = mid;
+            }
+            quantile[i] = 0.5 * (lo + hi);
+        }
+    }
+};
+
+const BinomialTables& tables() {
+    static const BinomialTables t;
+    return t;
+}
+
+int split_index(double p) {
+    return p < 0.3 ? 0 : p < 0.4 ? 1 : 2;
+}
+
+}  // namespace
+
 uint32_t binomial(uint32_t n, double p, double u0, double u1, int exact_below) {
     if (n == 0 || p <= 0.0) return 0;
     if (p >= 1.0) return n;
-    if (static_cast<int64_t>(n) < exact_below) {
-        // Inversion of the CDF with the pmf recurrence; bounded by n steps. q^n stays a normal
-        // double for n < 1000 and p <= 1/2, the largest settings allowed.
+    const BinomialTables& t = tables();
+    if (static_cast<int64_t>(n) < std::min(exact_below, kMaxExact)) {
+        // Inversion of the CDF with the pmf recurrence, bounded by n steps. The split
+        // probabilities' q^n come from the table (q^n stays a normal double for n < 1000).
         const double q = 1.0 - p, ratio = p / q;
-        double pmf = std::pow(q, static_cast<double>(n)), cdf = pmf;
+        const bool tabulated = p == 0.25 || p == 1.0 / 3.0 || p == 0.5;
+        double pmf = tabulated ? t.q_pow[split_index(p)][n] : std::pow(q, static_cast<double>(n));
+        double cdf = pmf;
         uint32_t k = 0;
         while (u0 > cdf && k < n) {
             pmf *= ratio * static_cast<double>(n - k) / static_cast<double>(k + 1);
@@ -48,8 +89,14 @@ uint32_t binomial(uint32_t n, double p, double u0, double u1, int exact_below) {
         }
         return k;
     }
-    // Normal approximation: Box-Muller from (u0, u1), rounded and clamped.
-    const double z = std::sqrt(-2.0 * std::log(std::max(u0, 1e-300))) * std::cos(2.0 * M_PI * u1);
+    // Normal approximation: the standard normal quantile at u0 (tabulated, linearly
+    // interpolated), rounded and clamped. u1 is unused here; the exact branch does not need it
+    // either, and it is kept in the signature so either sampler may use two numbers.
+    (void)u1;
+    const double x = std::clamp(u0 * kNormalTable - 0.5, 0.0, kNormalTable - 1.000001);
+    const auto i = static_cast<int>(x);
+    const double z =
+        t.quantile[i] + (x - i) * (t.quantile[std::min(i + 1, kNormalTable - 1)] - t.quantile[i]);
     const double mean = n * p, sd = std::sqrt(n * p * (1.0 - p));
     const double k = std::round(mean + sd * z);
     return static_cast<uint32_t>(std::clamp(k, 0.0, static_cast<double>(n)));

@@ -1,0 +1,158 @@
+// Cost of a material per shading point, through the real plugin ABI: prepare + one eval + one
+// sample per point, in batches of 256 points as the integrator makes them. Run:
+//     ./build/spangle_bench                      (all)
+//     ./build/spangle_bench --benchmark_filter=Flake
+// Figures are reported per shading point (items_per_second is points per second).
+
+#include <benchmark/benchmark.h>
+
+#include <cmath>
+#include <memory>
+#include <vector>
+
+#include "core/hash.h"
+#include "render/arena.h"
+#include "shading/material.h"
+#include "shading/plugin_loader.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+constexpr uint32_t kBatch = 256;
+
+/** A material instance and a batch of shading points with a given footprint size. */
+struct Fixture {
+    ColorConfig color = test::shipped_config();
+    std::unique_ptr<HostServices> host;
+    PluginLoader loader{plugin_search_path({})};
+    std::unique_ptr<MaterialInstance> mat;
+    std::vector<float> px, py, pz, wox, woy, woz, u, v, dudx, dudy, dvdx, dvdy, area;
+    std::vector<uint32_t> flags, ids;
+    std::vector<float> wix, wiy, wiz, f_r, f_g, f_b, pdf, u0, u1, u2;
+    std::vector<uint32_t> sflags;
+    std::vector<std::byte> closures;
+    ScratchArena arena;
+
+    Fixture(const std::string& plugin, const std::string& model, const ParamList& params,
+            double footprint, bool differentials) {
+        host = std::make_unique<HostServices>(color, test::quiet_log());
+        Material m;
+        m.name = "bench";
+        m.plugin = plugin;
+        m.model = model;
+        m.params = params;
+        mat = create_material(loader, m, *host);
+        for (auto* a : {&px,   &py,  &pz,  &wox, &woy, &woz, &u,   &v,   &dudx, &dudy, &dvdx, &dvdy,
+                        &area, &wix, &wiy, &wiz, &f_r, &f_g, &f_b, &pdf, &u0,   &u1,   &u2})
+            a->resize(kBatch);
+        flags.resize(kBatch);
+        ids.resize(kBatch);
+        sflags.resize(kBatch);
+        for (uint32_t i = 0; i < kBatch; ++i) {
+            const float c = 0.3f + 0.65f * sample_1d(1, i, 0, 0),
+                        phi = 6.28318f * sample_1d(1, i, 0, 1);
+            const float s = std::sqrt(1.0f - c * c);
+            wox[i] = s * std::cos(phi);
+            woy[i] = s * std::sin(phi);
+            woz[i] = c;
+            // Incident directions near the mirror direction, where glossy lobes have their mass.
+            const float ci = 0.3f + 0.65f * sample_1d(2, i, 0, 0),
+                        pi = phi + 3.14159f + 0.3f * (sample_1d(2, i, 0, 1) - 0.5f);
+            const float si = std::sqrt(1.0f - ci * ci);
+            wix[i] = si * std::cos(pi);
+            wiy[i] = si * std::sin(pi);
+            wiz[i] = ci;
+            u[i] = 1000.0f * sample_1d(3, i, 0, 0);
+            v[i] = 1000.0f * sample_1d(3, i, 0, 1);
+            dudx[i] = dvdy[i] = static_cast<float>(footprint);
+            dudy[i] = dvdx[i] = 0.0f;
+            area[i] = 1.0f;
+            flags[i] = differentials ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u;
+            ids[i] = i;
+            u0[i] = sample_1d(4, i, 0, 0);
+            u1[i] = sample_1d(4, i, 0, 1);
+            u2[i] = sample_1d(4, i, 0, 2);
+        }
+        closures.resize(kBatch * mat->model().closure_size + 16);
+    }
+
+    void shade() {
+        const SpangleShadingBatch_v1 b{kBatch,      px.data(),   py.data(),    pz.data(),
+                                       wox.data(),  woy.data(),  woz.data(),   u.data(),
+                                       v.data(),    dudx.data(), dudy.data(),  dvdx.data(),
+                                       dvdy.data(), area.data(), flags.data(), ids.data()};
+        void* cl = closures.data();
+        std::size_t space = closures.size();
+        cl = std::align(16, kBatch * mat->model().closure_size, cl, space);
+        arena.reset();
+        SpangleArena_v1 a = arena.api();
+        mat->model().prepare(mat->instance(), &b, cl, &a);
+        SpangleEvalBatch_v1 e{kBatch,     nullptr,    wix.data(), wiy.data(), wiz.data(),
+                              f_r.data(), f_g.data(), f_b.data(), pdf.data()};
+        mat->model().eval(mat->instance(), cl, &e);
+        std::vector<float>& sx = wix;  // sample() overwrites the query directions: same cost
+        SpangleSampleBatch_v1 s{kBatch,     nullptr,    u0.data(),     u1.data(),  u2.data(),
+                                sx.data(),  wiy.data(), wiz.data(),    f_r.data(), f_g.data(),
+                                f_b.data(), pdf.data(), sflags.data(), nullptr};
+        mat->model().sample(mat->instance(), cl, &s);
+        benchmark::DoNotOptimize(f_r.data());
+    }
+};
+
+ParamEntry number(const std::string& name, double x) {
+    ParamEntry p;
+    p.name = name;
+    p.kind = ParamEntry::Kind::Number;
+    p.number[0] = x;
+    return p;
+}
+ParamEntry text(const std::string& name, const std::string& s) {
+    ParamEntry p;
+    p.name = name;
+    p.kind = ParamEntry::Kind::String;
+    p.text = s;
+    return p;
+}
+
+void run(benchmark::State& state, Fixture& f) {
+    for (auto _ : state) f.shade();
+    state.SetItemsProcessed(static_cast<int64_t>(state.iterations()) * kBatch);
+    state.counters["us_per_point"] =
+        benchmark::Counter(static_cast<double>(state.iterations()) * kBatch * 1e-6,
+                           benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+}
+
+void BM_SmoothGgxConductor(benchmark::State& state) {
+    Fixture f("smooth", "conductor", {number("roughness", 0.15), text("preset", "aluminium")}, 0.0,
+              false);
+    run(state, f);
+}
+BENCHMARK(BM_SmoothGgxConductor);
+
+/** Flakes with density 1e5 per uv square: a square footprint of side sqrt(lambda / 1e5). */
+void BM_Flake(benchmark::State& state) {
+    const double lambda = static_cast<double>(state.range(0));
+    const bool smooth_regime = state.range(0) == 0;
+    ParamList p = {number("density", 1e5), number("flake_roughness", 0.15),
+                   number("flake_weight", 1.0), number("base_color", 0.0)};
+    if (state.range(1) > 0) {
+        ParamEntry leaf = number("leaf_size", static_cast<double>(state.range(1)));
+        leaf.is_integer = true;
+        p.push_back(leaf);
+    }
+    Fixture f("flake", "flake", p, smooth_regime ? 0.0 : std::sqrt(lambda / 1e5), !smooth_regime);
+    state.SetLabel(
+        smooth_regime ? "smooth regime (no differentials)"
+                      : "lambda " + std::to_string(state.range(0)) +
+                            (state.range(1) > 0 ? ", leaf " + std::to_string(state.range(1)) : ""));
+    run(state, f);
+}
+BENCHMARK(BM_Flake)->Args({10, 0})->Args({100, 0})->Args({1000, 0})->Args({0, 0});
+/** The leaf size trades traversal depth against flakes generated outside the footprint. */
+BENCHMARK(BM_Flake)->Args({100, 2})->Args({100, 4})->Args({100, 8})->Args({100, 32});
+
+}  // namespace
+}  // namespace spangle
+
+BENCHMARK_MAIN();
