@@ -17,7 +17,9 @@ namespace spangle::flake {
 using mf::V3;
 
 /** Counter-based hash of two words (a 64-bit finaliser with full avalanche). Flakes are pure
- *  functions of these hashes; the plugin does not call the host per flake. */
+ *  functions of these hashes. The engine has its own (core/hash.h): a plugin includes nothing of
+ *  the engine but plugin.h, and calling the host's hash2 through a function pointer per flake
+ *  would cost more than the hash. */
 inline uint64_t mf_hash(uint64_t a, uint64_t b) {
     uint64_t x = (a + 0x9e3779b97f4a7c15ull) * 0xbf58476d1ce4e5b9ull ^ (b + 0x632be59bd9b4e019ull);
     x ^= x >> 30;

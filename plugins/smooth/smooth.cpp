@@ -118,16 +118,11 @@ void invalid_sample(SpangleSampleBatch_v1* q, uint32_t i) {
 
 // ------------------------------------------------------------------------------------ diffuse
 
+// clang-format off
 const SpangleParamDesc_v1 kDiffuseParams[] = {
-    {"albedo",
-     SPANGLE_PARAM_COLOR,
-     {0.8, 0.8, 0.8},
-     nullptr,
-     0.0,
-     1.0,
-     nullptr,
-     "fraction of light reflected diffusely (RGB)"},
+    {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "fraction of light reflected diffusely (RGB)"},
 };
+// clang-format on
 
 struct Diffuse {
     float albedo[3];
@@ -183,48 +178,15 @@ void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v1* q)
 
 // ------------------------------------------------------------------------------------ conductor
 
+// clang-format off
 const SpangleParamDesc_v1 kConductorParams[] = {
-    {"preset",
-     SPANGLE_PARAM_STRING,
-     {0, 0, 0},
-     "gold",
-     0.0,
-     0.0,
-     "gold|silver|copper|aluminium|perfect|custom",
-     "metal whose complex index to use; 'custom' takes eta and k; 'perfect' reflects everything"},
-    {"eta",
-     SPANGLE_PARAM_VEC3,
-     {-1, -1, -1},
-     nullptr,
-     -1.0,
-     100.0,
-     nullptr,
-     "real part of the index per channel (Rec.709 bands); only with preset = custom"},
-    {"k",
-     SPANGLE_PARAM_VEC3,
-     {-1, -1, -1},
-     nullptr,
-     -1.0,
-     100.0,
-     nullptr,
-     "imaginary part (extinction) per channel; only with preset = custom"},
-    {"roughness",
-     SPANGLE_PARAM_FLOAT,
-     {0.2, 0, 0},
-     nullptr,
-     0.0,
-     1.0,
-     nullptr,
-     "GGX alpha along the tangent; below 1e-4 a perfect mirror"},
-    {"roughness_v",
-     SPANGLE_PARAM_FLOAT,
-     {-1, 0, 0},
-     nullptr,
-     -1.0,
-     1.0,
-     nullptr,
-     "GGX alpha along the bitangent (anisotropy); -1 = same as roughness"},
+    {"preset", SPANGLE_PARAM_STRING, {0, 0, 0}, "gold", 0.0, 0.0, "gold|silver|copper|aluminium|perfect|custom", "metal whose complex index to use; 'custom' takes eta and k; 'perfect' reflects everything"},
+    {"eta", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "real part of the index per channel (Rec.709 bands); only with preset = custom"},
+    {"k", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "imaginary part (extinction) per channel; only with preset = custom"},
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.2, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a perfect mirror"},
+    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent (anisotropy); -1 = same as roughness"},
 };
+// clang-format on
 
 struct Conductor {
     float ax, ay;
@@ -363,32 +325,13 @@ void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch
 
 // ------------------------------------------------------------------------------------ dielectric
 
+// clang-format off
 const SpangleParamDesc_v1 kDielectricParams[] = {
-    {"ior",
-     SPANGLE_PARAM_FLOAT,
-     {1.5, 0, 0},
-     nullptr,
-     1.01,
-     4.0,
-     nullptr,
-     "index of refraction inside (the outside is 1)"},
-    {"roughness",
-     SPANGLE_PARAM_FLOAT,
-     {0.0, 0, 0},
-     nullptr,
-     0.0,
-     1.0,
-     nullptr,
-     "GGX alpha along the tangent; below 1e-4 a smooth interface"},
-    {"roughness_v",
-     SPANGLE_PARAM_FLOAT,
-     {-1, 0, 0},
-     nullptr,
-     -1.0,
-     1.0,
-     nullptr,
-     "GGX alpha along the bitangent; -1 = same as roughness"},
+    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of refraction inside (the outside is 1)"},
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface"},
+    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness"},
 };
+// clang-format on
 
 struct Dielectric {
     float ax, ay, ior;
@@ -499,33 +442,14 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
 
 // ------------------------------------------------------------------------------------ plastic
 
+// clang-format off
 const SpangleParamDesc_v1 kPlasticParams[] = {
-    {"albedo",
-     SPANGLE_PARAM_COLOR,
-     {0.8, 0.8, 0.8},
-     nullptr,
-     0.0,
-     1.0,
-     nullptr,
-     "diffuse colour of the base under the coat"},
+    {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the base under the coat"},
     {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of the coat"},
-    {"roughness",
-     SPANGLE_PARAM_FLOAT,
-     {0.1, 0, 0},
-     nullptr,
-     0.0,
-     1.0,
-     nullptr,
-     "GGX alpha of the coat along the tangent; below 1e-4 a smooth coat"},
-    {"roughness_v",
-     SPANGLE_PARAM_FLOAT,
-     {-1, 0, 0},
-     nullptr,
-     -1.0,
-     1.0,
-     nullptr,
-     "GGX alpha of the coat along the bitangent; -1 = same as roughness"},
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the coat along the tangent; below 1e-4 a smooth coat"},
+    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha of the coat along the bitangent; -1 = same as roughness"},
 };
+// clang-format on
 
 constexpr int kAlbedoTable = 64;  ///< coat albedo E(mu) tabulated at mu = (i + 0.5) / 64
 
