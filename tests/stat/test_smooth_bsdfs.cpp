@@ -100,6 +100,9 @@ struct Case {
     bool backface;
 };
 
+/** gtest prints a case by its name rather than its bytes. */
+void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+
 std::vector<Case> all_cases() {
     std::vector<Case> out;
     const std::pair<float, float> alphas[] = {
