@@ -71,6 +71,10 @@ void print_stats(const FrameResult& r, const std::string& exr) {
                    st.shadow_rays);
         fmt::print("non-finite samples replaced by black: {}\n", st.nonfinite);
     }
+    for (const auto& sd : r.subdiv)
+        fmt::print("subdivision: {} level {}{}: {} cage faces -> {} triangles in {:.3f} s\n",
+                   sd.cage, sd.level, sd.from_camera ? " (from the camera)" : "", sd.cage_faces,
+                   sd.triangles, sd.seconds);
     for (const auto& [name, values] : r.material_stats) {
         fmt::print("material '{}':\n", name);
         for (const auto& [key, value] : values) fmt::print("  {:<44} {:.4g}\n", key, value);

@@ -43,15 +43,9 @@ FrameResult render_frame(const FrameRequest& req) {
     const ecs::Schedule<World> schedule = make_frame_schedule();
     std::vector<ecs::SystemReport> reports = schedule.run(registry, world);
 
-    FrameResult result{std::move(color),
-                       world.width,
-                       world.height,
-                       std::move(world.image),
-                       std::move(reports),
-                       plugins.opened(),
-                       world.stats,
-                       std::move(info),
-                       {}};
+    FrameResult result{
+        std::move(color), world.width, world.height,    std::move(world.image), std::move(reports),
+        plugins.opened(), world.stats, std::move(info), world.subdiv,           {}};
     for (const auto& mat : world.materials) {
         if (!mat || !mat->model().stats) continue;
         SpangleStat_v1 buf[64];

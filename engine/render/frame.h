@@ -29,6 +29,7 @@ struct FrameResult {
     std::vector<std::string> plugins_opened;  ///< plugin names opened for this scene
     RenderStats stats;                        ///< counters of the render system
     SceneInfo info;                           ///< facts about the scene
+    std::vector<SubdivReport> subdiv;         ///< what the subdivide system did
     /** Statistics each material's plugin reported: (material name, [(name, value)]). */
     std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> material_stats;
 };

@@ -1,5 +1,7 @@
 #include "render/systems.h"
 
+#include <chrono>
+#include <cmath>
 #include <map>
 
 #include "geometry/mesh_load.h"
@@ -11,6 +13,7 @@ namespace spangle {
 ecs::Schedule<World> make_frame_schedule() {
     ecs::Schedule<World> s;
     s.add<MeshFile>("mesh_load", ecs::RunWhen::AllPresent, system_mesh_load);
+    s.add<SubdivSurface>("subdivide", ecs::RunWhen::AllPresent, system_subdivide);
     s.add<MaterialRef>("materials", ecs::RunWhen::AllPresent, system_materials);
     s.add<QuadLight, SphereLight, Emission>("area_lights", ecs::RunWhen::AnyPresent,
                                             system_area_lights);
@@ -37,6 +40,60 @@ void system_mesh_load(ecs::Registry& r, World& w) {
             it = loaded.emplace(path, static_cast<uint32_t>(w.geometry.meshes.size() - 1)).first;
         }
         refs.emplace_back(pool.entities()[i], it->second);
+    }
+    for (const auto& [e, mesh] : refs) r.put(e, TriangleMeshRef{mesh});
+}
+
+void system_subdivide(ecs::Registry& r, World& w) {
+    auto& pool = r.pool<SubdivSurface>();
+    // The camera decides "auto" levels: a far object is not tessellated as finely as a near one.
+    const Camera* camera = nullptr;
+    Camera cam;
+    float pixel_angle = 0.0f;
+    if (r.count<Camera>() > 0 && r.count<Film>() > 0) {
+        cam = r.pool<Camera>().columns().get(0);
+        const Film film = r.pool<Film>().columns().get(0);
+        const uint32_t height = w.options.height_override ? w.options.height_override : film.height;
+        pixel_angle =
+            2.0f * std::tan(0.5f * cam.fov_deg * kPi / 180.0f) / static_cast<float>(height);
+        camera = &cam;
+    }
+    std::vector<std::pair<ecs::Entity, uint32_t>> refs;
+    for (std::size_t i = 0; i < pool.size(); ++i) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const SubdivSurface s = pool.columns().get(i);
+        const ecs::Entity e = pool.entities()[i];
+        const Cage cage = load_cage(s.path, s.loc);
+        SubdivOptions options = s.options;
+        SubdivReport rep;
+        rep.cage = s.path;
+        rep.cage_faces = cage.face_count();
+        if (options.level < 0) {
+            rep.from_camera = true;
+            options.level = s.max_level;
+            if (camera) {
+                const Affine xf = r.get<Transform>(e).to_world;
+                // Distance from the eye to the nearest point of the cage's bounding sphere.
+                Vec3 lo(1e30f), hi(-1e30f);
+                for (std::size_t v = 0; v < cage.vertex_count(); ++v) {
+                    const Vec3 p = xf.apply_point({cage.positions[3 * v], cage.positions[3 * v + 1],
+                                                   cage.positions[3 * v + 2]});
+                    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+                    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+                }
+                const Vec3 c = (lo + hi) * 0.5f;
+                const double dist = std::max(
+                    1e-3, static_cast<double>(length(c - cam.position) - 0.5f * length(hi - lo)));
+                options.level = level_for_camera(longest_edge(cage, xf), dist, pixel_angle,
+                                                 s.pixel_budget, s.max_level);
+            }
+        }
+        rep.level = options.level;
+        w.geometry.meshes.push_back(subdivide(cage, options, s.loc));
+        rep.triangles = w.geometry.meshes.back().triangle_count();
+        rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        w.subdiv.push_back(rep);
+        refs.emplace_back(e, static_cast<uint32_t>(w.geometry.meshes.size() - 1));
     }
     for (const auto& [e, mesh] : refs) r.put(e, TriangleMeshRef{mesh});
 }

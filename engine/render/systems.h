@@ -11,6 +11,7 @@ namespace spangle {
  *  render. */
 ecs::Schedule<World> make_frame_schedule();
 
+void system_subdivide(ecs::Registry& r, World& w);        ///< SubdivSurface -> TriangleMeshRef
 void system_mesh_load(ecs::Registry& r, World& w);        ///< MeshFile -> TriangleMeshRef
 void system_materials(ecs::Registry& r, World& w);        ///< MaterialRef -> plugin instances
 void system_area_lights(ecs::Registry& r, World& w);      ///< QuadLight, SphereLight, Emission

@@ -44,6 +44,15 @@ struct RenderStats {
 /** Written by the area_lights system on emissive objects. */
 SPANGLE_COMPONENT(EmitterRef, SPANGLE_EMITTER_REF_FIELDS);
 
+/** What the subdivide system did to one surface, for --stats. */
+struct SubdivReport {
+    std::string cage;          ///< cage file
+    int level = 0;             ///< refinement level used
+    bool from_camera = false;  ///< level chosen from the camera
+    std::size_t cage_faces = 0, triangles = 0;
+    double seconds = 0.0;  ///< load + refine + limit
+};
+
 /** Shared state of one frame. */
 struct World {
     ColorConfig* color = nullptr;        ///< borrowed
@@ -53,6 +62,7 @@ struct World {
     const SceneInfo* info = nullptr;     ///< borrowed
     RenderOptions options;
 
+    std::vector<SubdivReport> subdiv;                          ///< subdivide
     GeometryStore geometry;                                    ///< mesh_load
     std::vector<std::unique_ptr<MaterialInstance>> materials;  ///< materials; null = unused
     LightTable lights;                                         ///< area_lights

@@ -9,6 +9,7 @@
 #include "core/error.h"
 #include "core/math.h"
 #include "ecs/pool.h"
+#include "geometry/subdivision.h"
 
 namespace spangle {
 
@@ -33,6 +34,15 @@ SPANGLE_COMPONENT(Transform, SPANGLE_TRANSFORM_FIELDS);
     X(FileLoc, loc, "where the scene names the file")
 /** A mesh to load from an OBJ or PLY file (input of the mesh_load system). */
 SPANGLE_COMPONENT(MeshFile, SPANGLE_MESH_FILE_FIELDS);
+
+#define SPANGLE_SUBDIV_FIELDS(X)                                                         \
+    X(std::string, path, "resolved cage file path (OBJ)")                                \
+    X(FileLoc, loc, "where the scene names the cage")                                    \
+    X(SubdivOptions, options, "scheme, boundaries, creases; level -1 = from the camera") \
+    X(int, max_level, "upper bound of the camera-chosen level")                          \
+    X(float, pixel_budget, "camera-chosen level: longest refined edge, in pixels")
+/** A subdivision surface to refine (input of the subdivide system). */
+SPANGLE_COMPONENT(SubdivSurface, SPANGLE_SUBDIV_FIELDS);
 
 #define SPANGLE_MESH_REF_FIELDS(X) X(uint32_t, mesh, "index into GeometryStore::meshes")
 /** A loaded triangle mesh (output of mesh_load, input of accelerate). */

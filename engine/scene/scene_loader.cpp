@@ -190,6 +190,95 @@ std::string resolve_file(const ParseContext& ctx, TableReader& r, std::string_vi
     return p.lexically_normal().string();
 }
 
+/** The `subdiv = { ... }` table of an object. */
+SubdivSurface parse_subdiv(const ParseContext& ctx, const toml::table& t, std::string path,
+                           FileLoc loc) {
+    TableReader r(t, ctx.file, "subdiv");
+    SubdivSurface s;
+    s.path = std::move(path);
+    s.loc = loc;
+    const std::string scheme = r.string("scheme", "catmull-clark");
+    if (scheme == "catmull-clark")
+        s.options.scheme = SubdivOptions::Scheme::CatmullClark;
+    else if (scheme == "loop")
+        s.options.scheme = SubdivOptions::Scheme::Loop;
+    else
+        throw_error(r.loc("scheme"), "unknown scheme '{}' (valid: catmull-clark, loop)", scheme);
+    const std::string boundary = r.string("boundary", "edge_and_corner");
+    if (boundary == "none")
+        s.options.boundary = SubdivOptions::Boundary::None;
+    else if (boundary == "edge_only")
+        s.options.boundary = SubdivOptions::Boundary::EdgeOnly;
+    else if (boundary == "edge_and_corner")
+        s.options.boundary = SubdivOptions::Boundary::EdgeAndCorner;
+    else
+        throw_error(r.loc("boundary"),
+                    "unknown boundary '{}' (valid: none, edge_only, edge_and_corner)", boundary);
+    const std::string uv = r.string("uv_interpolation", "corners_only");
+    if (uv == "smooth")
+        s.options.uv_interpolation = SubdivOptions::UvInterpolation::Smooth;
+    else if (uv == "corners_only")
+        s.options.uv_interpolation = SubdivOptions::UvInterpolation::CornersOnly;
+    else if (uv == "boundaries")
+        s.options.uv_interpolation = SubdivOptions::UvInterpolation::Boundaries;
+    else if (uv == "all")
+        s.options.uv_interpolation = SubdivOptions::UvInterpolation::All;
+    else
+        throw_error(r.loc("uv_interpolation"),
+                    "unknown uv_interpolation '{}' (valid: smooth, corners_only, boundaries, all)",
+                    uv);
+    s.options.level = -1;
+    if (const toml::node* level = r.node("level")) {
+        if (level->is_string()) {
+            if (level->value<std::string>().value_or("") != "auto")
+                throw_error(loc_of(*level, ctx.file),
+                            "'level' must be an integer 0..8 or \"auto\"");
+        } else {
+            s.options.level = static_cast<int>(r.integer("level", 0, {0, 8}));
+        }
+    }
+    s.max_level = static_cast<int>(r.integer("max_level", 5, {0, 8}));
+    s.pixel_budget = static_cast<float>(r.number("pixel_budget", 2.0, {0.0, 1e6, true}));
+    // creases = [[v0, v1, sharpness], ...], corners = [[v, sharpness], ...]
+    const auto read_list = [&](const char* key, std::size_t width, auto&& take) {
+        const toml::node* n = r.node(key);
+        if (!n) return;
+        const toml::array* arr = n->as_array();
+        if (!arr) throw_error(loc_of(*n, ctx.file), "'{}' must be an array of arrays", key);
+        for (const toml::node& e : *arr) {
+            const toml::array* item = e.as_array();
+            if (!item || item->size() != width)
+                throw_error(loc_of(e, ctx.file),
+                            "each entry of '{}' must be an array of {} numbers", key, width);
+            std::vector<double> v;
+            for (const toml::node& x : *item) {
+                if (!x.is_number())
+                    throw_error(loc_of(x, ctx.file), "'{}' entries must be numbers", key);
+                v.push_back(x.value<double>().value_or(0.0));
+            }
+            for (std::size_t k = 0; k + 1 < width; ++k)
+                if (v[k] < 0 || v[k] != std::floor(v[k]))
+                    throw_error(loc_of(e, ctx.file),
+                                "'{}' vertex indices must be non-negative integers", key);
+            if (!(v[width - 1] >= 0.0 && v[width - 1] <= 10.0))
+                throw_error(loc_of(e, ctx.file), "'{}' sharpness must be in [0, 10], got {}", key,
+                            v[width - 1]);
+            take(v);
+        }
+    };
+    read_list("creases", 3, [&](const std::vector<double>& v) {
+        s.options.crease_vertices.push_back(static_cast<int>(v[0]));
+        s.options.crease_vertices.push_back(static_cast<int>(v[1]));
+        s.options.crease_sharpness.push_back(static_cast<float>(v[2]));
+    });
+    read_list("corners", 2, [&](const std::vector<double>& v) {
+        s.options.corner_vertices.push_back(static_cast<int>(v[0]));
+        s.options.corner_sharpness.push_back(static_cast<float>(v[1]));
+    });
+    r.finish();
+    return s;
+}
+
 /** One [[light]] table of any type. */
 void parse_light(const ParseContext& ctx, TableReader& r, ecs::Registry& registry) {
     const std::string type = r.string("type");
@@ -341,7 +430,11 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
             TableReader r(*(*objs)[i].as_table(), path, fmt::format("[[object]] #{}", i + 1));
             const ecs::Entity e = registry.create();
             r.string("name", "");
-            registry.put(e, MeshFile{resolve_file(ctx, r, "mesh"), r.loc("mesh")});
+            const std::string mesh_path = resolve_file(ctx, r, "mesh");
+            if (const toml::table* sub = r.table("subdiv"))
+                registry.put(e, parse_subdiv(ctx, *sub, mesh_path, r.loc("mesh")));
+            else
+                registry.put(e, MeshFile{mesh_path, r.loc("mesh")});
             const std::string mat = r.string("material");
             uint32_t index = 0;
             while (index < info.material_names.size() && info.material_names[index] != mat) ++index;

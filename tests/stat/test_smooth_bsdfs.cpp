@@ -101,7 +101,9 @@ struct Case {
 };
 
 /** gtest prints a case by its name rather than its bytes. */
-void PrintTo(const Case& c, std::ostream* os) { *os << c.name; }
+void PrintTo(const Case& c, std::ostream* os) {
+    *os << c.name;
+}
 
 std::vector<Case> all_cases() {
     std::vector<Case> out;

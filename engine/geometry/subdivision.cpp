@@ -1,0 +1,242 @@
+#include "geometry/subdivision.h"
+
+#include <opensubdiv/far/primvarRefiner.h>
+#include <opensubdiv/far/topologyDescriptor.h>
+#include <opensubdiv/far/topologyRefinerFactory.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <mutex>
+#include <unordered_map>
+
+namespace spangle {
+
+namespace {
+
+namespace Far = OpenSubdiv::Far;
+namespace Sdc = OpenSubdiv::Sdc;
+
+/** A primvar OpenSubdiv can interpolate: N floats. */
+template <int N>
+struct Primvar {
+    float v[N];
+    void Clear() {
+        for (float& x : v) x = 0.0f;
+    }
+    void AddWithWeight(const Primvar& s, float w) {
+        for (int i = 0; i < N; ++i) v[i] += w * s.v[i];
+    }
+};
+using P3 = Primvar<3>;
+using P2 = Primvar<2>;
+
+/** OpenSubdiv reports errors through a global callback; the messages are collected here while
+ *  one refinement runs (the mutex serialises refinements, which only the subdivide system does). */
+std::mutex g_osd_mutex;
+std::string g_osd_error;
+void on_osd_error(Far::ErrorType, const char* message) {
+    if (g_osd_error.empty()) g_osd_error = message ? message : "unknown OpenSubdiv error";
+}
+void on_osd_warning(const char*) {}
+
+}  // namespace
+
+int level_for_camera(double longest, double distance, double pixel_angle, double budget,
+                     int max_level) {
+    const double pixels = longest / (std::max(distance, 1e-6) * pixel_angle);
+    if (!(pixels > budget)) return 0;
+    const int level = static_cast<int>(std::ceil(std::log2(pixels / budget)));
+    return std::clamp(level, 0, max_level);
+}
+
+double longest_edge(const Cage& cage, const Affine& xf) {
+    double longest = 0.0;
+    std::size_t at = 0;
+    const auto p = [&](int i) {
+        const auto k = static_cast<std::size_t>(i) * 3;
+        return xf.apply_point({cage.positions[k], cage.positions[k + 1], cage.positions[k + 2]});
+    };
+    for (int n : cage.face_sizes) {
+        for (int k = 0; k < n; ++k) {
+            const Vec3 a = p(cage.face_vertices[at + static_cast<std::size_t>(k)]);
+            const Vec3 b = p(cage.face_vertices[at + static_cast<std::size_t>((k + 1) % n)]);
+            longest = std::max(longest, static_cast<double>(length(b - a)));
+        }
+        at += static_cast<std::size_t>(n);
+    }
+    return longest;
+}
+
+TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& ref) {
+    const auto nv = static_cast<int>(cage.vertex_count());
+    for (int v : o.crease_vertices)
+        if (v < 0 || v >= nv)
+            throw_error(ref, "crease names cage vertex {}, but '{}' has {} vertices", v,
+                        cage.source, nv);
+    for (int v : o.corner_vertices)
+        if (v < 0 || v >= nv)
+            throw_error(ref, "corner names cage vertex {}, but '{}' has {} vertices", v,
+                        cage.source, nv);
+    const bool loop = o.scheme == SubdivOptions::Scheme::Loop;
+    if (loop)
+        for (std::size_t f = 0; f < cage.face_count(); ++f)
+            if (cage.face_sizes[f] != 3)
+                throw_error(
+                    ref,
+                    "the Loop scheme needs a triangle cage, but face {} of '{}' has {} corners", f,
+                    cage.source, cage.face_sizes[f]);
+
+    Sdc::Options sdc;
+    sdc.SetVtxBoundaryInterpolation(o.boundary == SubdivOptions::Boundary::None
+                                        ? Sdc::Options::VTX_BOUNDARY_NONE
+                                    : o.boundary == SubdivOptions::Boundary::EdgeOnly
+                                        ? Sdc::Options::VTX_BOUNDARY_EDGE_ONLY
+                                        : Sdc::Options::VTX_BOUNDARY_EDGE_AND_CORNER);
+    switch (o.uv_interpolation) {
+        case SubdivOptions::UvInterpolation::Smooth:
+            sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_NONE);
+            break;
+        case SubdivOptions::UvInterpolation::CornersOnly:
+            sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_CORNERS_ONLY);
+            break;
+        case SubdivOptions::UvInterpolation::Boundaries:
+            sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_BOUNDARIES);
+            break;
+        case SubdivOptions::UvInterpolation::All:
+            sdc.SetFVarLinearInterpolation(Sdc::Options::FVAR_LINEAR_ALL);
+            break;
+    }
+
+    Far::TopologyDescriptor desc;
+    desc.numVertices = nv;
+    desc.numFaces = static_cast<int>(cage.face_count());
+    desc.numVertsPerFace = cage.face_sizes.data();
+    desc.vertIndicesPerFace = cage.face_vertices.data();
+    desc.numCreases = static_cast<int>(o.crease_sharpness.size());
+    desc.creaseVertexIndexPairs = o.crease_vertices.data();
+    desc.creaseWeights = o.crease_sharpness.data();
+    desc.numCorners = static_cast<int>(o.corner_sharpness.size());
+    desc.cornerVertexIndices = o.corner_vertices.data();
+    desc.cornerWeights = o.corner_sharpness.data();
+    const bool has_uv = !cage.face_uvs.empty();
+    Far::TopologyDescriptor::FVarChannel channel;
+    if (has_uv) {
+        channel.numValues = static_cast<int>(cage.uvs.size() / 2);
+        channel.valueIndices = cage.face_uvs.data();
+        desc.numFVarChannels = 1;
+        desc.fvarChannels = &channel;
+    }
+
+    std::lock_guard<std::mutex> lock(g_osd_mutex);
+    g_osd_error.clear();
+    Far::SetErrorCallback(on_osd_error);
+    Far::SetWarningCallback(on_osd_warning);
+    using Factory = Far::TopologyRefinerFactory<Far::TopologyDescriptor>;
+    std::unique_ptr<Far::TopologyRefiner> refiner(Factory::Create(
+        desc, Factory::Options(loop ? Sdc::SCHEME_LOOP : Sdc::SCHEME_CATMARK, sdc)));
+    if (!refiner || !g_osd_error.empty())
+        throw_error(ref, "OpenSubdiv rejects the cage '{}': {}", cage.source,
+                    g_osd_error.empty() ? "no reason given" : g_osd_error);
+    Far::TopologyRefiner::UniformOptions uniform(o.level);
+    uniform.fullTopologyInLastLevel = true;  // Limit() needs the last level's full topology
+    refiner->RefineUniform(uniform);
+    if (!g_osd_error.empty())
+        throw_error(ref, "OpenSubdiv cannot refine '{}': {}", cage.source, g_osd_error);
+
+    // Positions through every level, then to the limit with tangents.
+    std::vector<P3> verts(static_cast<std::size_t>(refiner->GetNumVerticesTotal()));
+    for (int i = 0; i < nv; ++i)
+        for (int c = 0; c < 3; ++c)
+            verts[static_cast<std::size_t>(i)].v[c] =
+                cage.positions[static_cast<std::size_t>(3 * i + c)];
+    Far::PrimvarRefiner primvar(*refiner);
+    P3* src = verts.data();
+    for (int level = 1; level <= o.level; ++level) {
+        P3* dst = src + refiner->GetLevel(level - 1).GetNumVertices();
+        primvar.Interpolate(level, src, dst);
+        src = dst;
+    }
+    const Far::TopologyLevel& last = refiner->GetLevel(o.level);
+    const auto n_last = static_cast<std::size_t>(last.GetNumVertices());
+    std::vector<P3> limit(n_last), du(n_last), dv(n_last);
+    primvar.Limit(src, limit, du, dv);
+
+    std::vector<P2> uv_limit;
+    if (has_uv) {
+        std::vector<P2> uvs(static_cast<std::size_t>(refiner->GetNumFVarValuesTotal(0)));
+        for (std::size_t i = 0; i < cage.uvs.size() / 2; ++i)
+            uvs[i] = {{cage.uvs[2 * i], cage.uvs[2 * i + 1]}};
+        P2* s = uvs.data();
+        for (int level = 1; level <= o.level; ++level) {
+            P2* d = s + refiner->GetLevel(level - 1).GetNumFVarValues(0);
+            primvar.InterpolateFaceVarying(level, s, d, 0);
+            s = d;
+        }
+        uv_limit.resize(static_cast<std::size_t>(last.GetNumFVarValues(0)));
+        primvar.LimitFaceVarying(s, uv_limit, 0);
+    }
+    if (!g_osd_error.empty())
+        throw_error(ref, "OpenSubdiv failed on '{}': {}", cage.source, g_osd_error);
+
+    // Triangles over (vertex, uv value) pairs: a vertex on a uv seam is split, its position and
+    // normal shared, so the surface stays closed and its shading continuous across the seam.
+    TriangleMesh mesh;
+    mesh.source = cage.source;
+    std::unordered_map<uint64_t, uint32_t> index_of;
+    std::vector<Vec3> face_normal_sum(n_last);
+    const auto corner = [&](int v, int t) -> uint32_t {
+        const uint64_t key =
+            (static_cast<uint64_t>(static_cast<uint32_t>(v)) << 32) | static_cast<uint32_t>(t);
+        auto [it, fresh] = index_of.emplace(key, static_cast<uint32_t>(mesh.vertex_count()));
+        if (fresh) {
+            const P3& p = limit[static_cast<std::size_t>(v)];
+            mesh.positions.insert(mesh.positions.end(), {p.v[0], p.v[1], p.v[2]});
+            const Vec3 n = cross(
+                Vec3(du[static_cast<std::size_t>(v)].v[0], du[static_cast<std::size_t>(v)].v[1],
+                     du[static_cast<std::size_t>(v)].v[2]),
+                Vec3(dv[static_cast<std::size_t>(v)].v[0], dv[static_cast<std::size_t>(v)].v[1],
+                     dv[static_cast<std::size_t>(v)].v[2]));
+            mesh.normals.insert(mesh.normals.end(), {n.x, n.y, n.z});
+            if (has_uv)
+                mesh.uvs.insert(mesh.uvs.end(), {uv_limit[static_cast<std::size_t>(t)].v[0],
+                                                 uv_limit[static_cast<std::size_t>(t)].v[1]});
+        }
+        return it->second;
+    };
+    for (int f = 0; f < last.GetNumFaces(); ++f) {
+        const Far::ConstIndexArray fv = last.GetFaceVertices(f);
+        const Far::ConstIndexArray ft = has_uv ? last.GetFaceFVarValues(f, 0) : fv;
+        const auto tri = [&](int a, int b, int c) {
+            mesh.indices.insert(mesh.indices.end(), {corner(fv[a], has_uv ? ft[a] : 0),
+                                                     corner(fv[b], has_uv ? ft[b] : 0),
+                                                     corner(fv[c], has_uv ? ft[c] : 0)});
+            const auto pos = [&](int k) {
+                const P3& p = limit[static_cast<std::size_t>(fv[k])];
+                return Vec3(p.v[0], p.v[1], p.v[2]);
+            };
+            const Vec3 n = cross(pos(b) - pos(a), pos(c) - pos(a));
+            for (int k : {a, b, c}) face_normal_sum[static_cast<std::size_t>(fv[k])] += n;
+        };
+        for (int k = 1; k + 1 < fv.size(); ++k)
+            tri(0, k, k + 1);  // quads, triangles, and n-gons at level 0
+    }
+    // Limit normals from the tangents; where the tangents are degenerate (zero-area faces), the
+    // area-weighted normal of the refined faces, and the winding of the faces decides the side.
+    for (const auto& [key, index] : index_of) {
+        const auto v = static_cast<std::size_t>(key >> 32);
+        float* n = &mesh.normals[3 * static_cast<std::size_t>(index)];
+        Vec3 limit_n(n[0], n[1], n[2]);
+        const Vec3 faces = face_normal_sum[v];
+        if (!(length(limit_n) > 1e-20f) || !is_finite(limit_n)) limit_n = faces;
+        if (dot(limit_n, faces) < 0.0f) limit_n = -limit_n;
+        const float len = length(limit_n);
+        limit_n = len > 0.0f && std::isfinite(len) ? limit_n / len : Vec3(0, 0, 1);
+        n[0] = limit_n.x;
+        n[1] = limit_n.y;
+        n[2] = limit_n.z;
+    }
+    return mesh;
+}
+
+}  // namespace spangle

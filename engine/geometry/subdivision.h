@@ -1,0 +1,43 @@
+#pragma once
+// Subdivision surfaces through OpenSubdiv (Far): a cage is refined uniformly to a level, and the
+// refined vertices are moved to the limit surface with limit normals (from the limit tangents)
+// and face-varying uvs refined and taken to the limit per channel, so seams stay seams. The
+// result is an ordinary triangle mesh whose normals are those of the smooth surface.
+
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+#include "geometry/cage.h"
+#include "geometry/triangle_mesh.h"
+
+namespace spangle {
+
+/** How to subdivide one cage. */
+struct SubdivOptions {
+    enum class Scheme { CatmullClark, Loop };
+    enum class Boundary { None, EdgeOnly, EdgeAndCorner };
+    enum class UvInterpolation { Smooth, CornersOnly, Boundaries, All };
+    Scheme scheme = Scheme::CatmullClark;
+    Boundary boundary = Boundary::EdgeAndCorner;
+    UvInterpolation uv_interpolation = UvInterpolation::CornersOnly;
+    int level = 3;                        ///< uniform refinement level, 0..8
+    std::vector<int> crease_vertices;     ///< pairs of cage vertex indices
+    std::vector<float> crease_sharpness;  ///< one per pair
+    std::vector<int> corner_vertices;     ///< cage vertex indices
+    std::vector<float> corner_sharpness;  ///< one per corner
+};
+
+/** Refines `cage` to a triangle mesh at the limit surface. Throws SpangleError (at `ref`) for
+ *  topology OpenSubdiv rejects or a crease/corner naming a vertex the cage lacks. */
+TriangleMesh subdivide(const Cage& cage, const SubdivOptions& options, const FileLoc& ref);
+
+/** The refinement level that brings the cage's longest edge under `pixel_budget` pixels when
+ *  seen at distance `distance` with `pixel_angle` radians per pixel: each level halves edges. */
+int level_for_camera(double longest_edge, double distance, double pixel_angle, double pixel_budget,
+                     int max_level);
+
+/** Longest edge of a cage after `to_world` (metres). */
+double longest_edge(const Cage& cage, const Affine& to_world);
+
+}  // namespace spangle
