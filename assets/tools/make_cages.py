@@ -168,6 +168,20 @@ def cone(radius, length, base, direction, n=8):
     return c
 
 
+def patch(fn, nu, nv, flip=False):
+    """A rectangular grid of nu x nv quads at points fn(u, v), u, v in [0, 1]; uv = (u, v)."""
+    c = Cage()
+    vid = {(i, j): c.vert(fn(i / nu, j / nv)) for i in range(nu + 1) for j in range(nv + 1)}
+    tid = {(i, j): c.uv((i / nu, j / nv)) for i in range(nu + 1) for j in range(nv + 1)}
+    for i in range(nu):
+        for j in range(nv):
+            q = [(i, j), (i + 1, j), (i + 1, j + 1), (i, j + 1)]
+            if flip:
+                q = q[::-1]
+            c.face([vid[k] for k in q], [tid[k] for k in q])
+    return c
+
+
 # ------------------------------------------------------------------------------------ snowman
 
 def snowman():
@@ -208,12 +222,17 @@ def beetle():
     body = cube_sphere(6, beetle_shape)
     body.write("beetle_body.obj", "beetle: body shell (car paint)")
     # Windows: the cabin part of a slightly larger shell, an open surface with a boundary.
-    # A band around the cabin: side windows, windscreen and rear window; the roof stays painted.
-    window = lambda d: (((d[0] + 0.13) / 0.36) ** 2 + ((d[1] - 0.74) / 0.26) ** 2 < 1.0 and d[1] < 0.86
-                        and abs(d[2]) < 0.97)
-    c = (0.0, 0.75, 0.0)  # the shell is the body scaled by 1.2% about this point
-    glass = cube_sphere(24, lambda d: add(c, scale(add(beetle_shape(d), scale(c, -1)), 1.012)), keep=window)
-    glass.write("beetle_windows.obj", "beetle: window band (open shell)")
+    # Windows: four curved rectangles on the cabin (two sides, windscreen, rear window). Each is
+    # a quad grid in its own parameters, mapped onto the body and lifted 1.2% off it, so its
+    # border is a smooth curve rather than the staircase of whole cage faces.
+    c = (0.0, 0.75, 0.0)
+    lift = lambda d: add(c, scale(add(beetle_shape(norm(d)), scale(c, -1)), 1.012))
+    glass = Cage()
+    for side in (-1, 1):  # side windows: x along the cabin, y up the side
+        glass.add(patch(lambda u, v, s=side: lift((-0.52 + 0.7 * u, 0.36 + 0.44 * v, s * 0.9)), 8, 3, flip=side < 0))
+    glass.add(patch(lambda u, v: lift((0.3 + 0.24 * v, 0.52 + 0.3 * v, -0.7 + 1.4 * u)), 8, 3))   # windscreen
+    glass.add(patch(lambda u, v: lift((-0.62 - 0.2 * v, 0.42 + 0.3 * v, 0.6 - 1.2 * u)), 8, 3))    # rear window
+    glass.write("beetle_windows.obj", "beetle: side windows, windscreen and rear window (open patches)")
     fenders = Cage()
     for x in (-1.25, 1.25):
         for z in (-0.7, 0.7):

@@ -25,21 +25,16 @@
 #include <string>
 #include <vector>
 
+#include "../common/plugin_support.h"
 #include "flake_model.h"
 
 namespace {
 
 using namespace spangle;
 using namespace spangle::flake;
+using namespace spangle::plugin_support;
 using mf::kInvPi;
 using mf::kPi;
-
-void set_error(char* error, uint32_t capacity, const std::string& msg) {
-    if (!error || capacity == 0) return;
-    const std::size_t n = std::min<std::size_t>(msg.size(), capacity - 1);
-    std::memcpy(error, msg.data(), n);
-    error[n] = '\0';
-}
 
 // clang-format off
 const SpangleParamDesc_v1 kParams[] = {
@@ -74,20 +69,6 @@ const SpangleParamDesc_v1 kParams[] = {
 };
 // clang-format on
 constexpr uint32_t kParamCount = sizeof(kParams) / sizeof(kParams[0]);
-
-const SpangleParamValue_v1* find(const SpangleParams_v1* p, const char* name) {
-    for (uint32_t i = 0; i < p->count; ++i)
-        if (std::strcmp(p->values[i].name, name) == 0) return &p->values[i];
-    return nullptr;
-}
-double num(const SpangleParams_v1* p, const char* name, int c = 0) {
-    const SpangleParamValue_v1* v = find(p, name);
-    return v ? v->number[c] : 0.0;
-}
-std::string str(const SpangleParams_v1* p, const char* name) {
-    const SpangleParamValue_v1* v = find(p, name);
-    return v && v->string ? v->string : "";
-}
 
 constexpr int kTable = 64;     ///< entries of the tables in cos(theta)
 constexpr int kFresnel = 256;  ///< entries of the Fresnel table in cos(theta)
@@ -147,16 +128,6 @@ struct Closure {
     uint32_t valid = 0;                         ///< wo above the surface
 };
 
-/** Radical inverse base 2, for deterministic quadrature in create(). */
-float radical_inverse2(uint32_t i) {
-    i = (i << 16) | (i >> 16);
-    i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
-    i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
-    i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
-    i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
-    return static_cast<float>(i) * 0x1p-32f;
-}
-
 /** HSL (h in degrees) to RGB in the same space. */
 void hsl_to_rgb(float h, float s, float l, float rgb[3]) {
     const float c = (1.0f - std::fabs(2.0f * l - 1.0f)) * s;
@@ -197,31 +168,17 @@ float hue_of(const float rgb[3]) {
     return h < 0 ? h + 360.0f : h;
 }
 
-/** Linear Rec.709 -> working space, from the host's conversion of the basis. */
-bool rec709_matrix(const SpangleHost_v1* host, float m[9], std::string& why) {
-    float basis[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    char err[256] = {0};
-    if (!host || !host->convert_to_working ||
-        host->convert_to_working(host->context, "lin_rec709", basis, 3, err, sizeof(err)) != 0) {
-        why = std::string("cannot convert colours to the working space: ") + err;
-        return false;
-    }
-    for (int j = 0; j < 3; ++j)
-        for (int r = 0; r < 3; ++r) m[3 * r + j] = basis[3 * j + r];
-    return true;
-}
-
 bool build_fresnel(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* host,
                    std::string& why) {
-    const std::string kind = str(p, "fresnel");
+    const std::string kind = param_string(p, "fresnel");
     float to_working[9];
-    if (!rec709_matrix(host, to_working, why)) return false;
-    const std::string preset = str(p, "preset");
+    if (!rec709_to_working(host, to_working, why)) return false;
+    const std::string preset = param_string(p, "preset");
     const mf::MetalPreset* metal = nullptr;
     for (const auto& mp : mf::kMetalPresets)
         if (preset == mp.name) metal = &mp;
-    const auto ior = static_cast<float>(num(p, "flake_ior")),
-               f0 = static_cast<float>(num(p, "flake_f0"));
+    const auto ior = static_cast<float>(param_number(p, "flake_ior")),
+               f0 = static_cast<float>(param_number(p, "flake_f0"));
     for (int i = 0; i < kFresnel; ++i) {
         const float c = (static_cast<float>(i) + 0.5f) / kFresnel;
         float f[3];
@@ -249,16 +206,18 @@ bool build_fresnel(Material& m, const SpangleParams_v1* p, const SpangleHost_v1*
 
 bool build_colors(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* host,
                   std::string& why) {
-    for (int c = 0; c < 3; ++c) m.flake_rgb[c] = static_cast<float>(num(p, "flake_color", c));
+    for (int c = 0; c < 3; ++c)
+        m.flake_rgb[c] = static_cast<float>(param_number(p, "flake_color", c));
     std::copy(m.flake_rgb, m.flake_rgb + 3, m.mean_rgb);
-    if (num(p, "color_table") == 0.0) return true;
-    const auto n = static_cast<int>(num(p, "table_size"));
-    const auto s = static_cast<float>(num(p, "table_s")), l = static_cast<float>(num(p, "table_l"));
+    if (param_number(p, "color_table") == 0.0) return true;
+    const auto n = static_cast<int>(param_number(p, "table_size"));
+    const auto s = static_cast<float>(param_number(p, "table_s")),
+               l = static_cast<float>(param_number(p, "table_l"));
     m.table_rgb.resize(static_cast<std::size_t>(3 * n));
     for (int k = 0; k < n; ++k)
         hsl_to_rgb(360.0f * static_cast<float>(k) / static_cast<float>(n), s, l,
                    &m.table_rgb[static_cast<std::size_t>(3 * k)]);
-    const std::string space = str(p, "table_space");
+    const std::string space = param_string(p, "table_space");
     char err[256] = {0};
     if (host->convert_to_working(host->context, space.c_str(), m.table_rgb.data(),
                                  static_cast<uint32_t>(n), err, sizeof(err)) != 0) {
@@ -269,7 +228,7 @@ bool build_colors(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* 
     // Hue bias towards base_color: its hue measured in linear Rec.709 (working -> Rec.709 through
     // the inverse of the host's matrix).
     float to_working[9];
-    if (!rec709_matrix(host, to_working, why)) return false;
+    if (!rec709_to_working(host, to_working, why)) return false;
     const float* a = to_working;
     const float det = a[0] * (a[4] * a[8] - a[5] * a[7]) - a[1] * (a[3] * a[8] - a[5] * a[6]) +
                       a[2] * (a[3] * a[7] - a[4] * a[6]);
@@ -285,7 +244,7 @@ bool build_colors(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* 
                 inv[3 * r] * m.base[0] + inv[3 * r + 1] * m.base[1] + inv[3 * r + 2] * m.base[2];
     }
     const float base_hue = hue_of(base709);
-    const auto spread = static_cast<float>(num(p, "hue_spread"));
+    const auto spread = static_cast<float>(param_number(p, "hue_spread"));
     std::vector<double> w(static_cast<std::size_t>(n), 1.0);
     if (spread > 0.0f && base_hue >= 0.0f) {
         for (int k = 0; k < n; ++k) {
@@ -361,27 +320,28 @@ void* flake_create(const SpangleParams_v1* p, const SpangleHost_v1* host, char* 
         return nullptr;
     }
     std::string why;
-    m->min_flakes = num(p, "min_flakes");
-    m->max_flakes = num(p, "max_flakes");
+    m->min_flakes = param_number(p, "min_flakes");
+    m->max_flakes = param_number(p, "max_flakes");
     if (!(m->min_flakes < m->max_flakes)) why = "min_flakes must be below max_flakes";
-    for (int c = 0; c < 3; ++c) m->base[c] = static_cast<float>(num(p, "base_color", c));
-    m->flake_weight = static_cast<float>(num(p, "flake_weight"));
-    m->density = static_cast<float>(num(p, "density"));
-    m->world_density = str(p, "density_space") == "world";
-    m->alpha = static_cast<float>(num(p, "flake_roughness"));
-    m->cone = Cone(static_cast<float>(num(p, "gamma")) * kPi / 180.0f);
-    m->footprint_scale = static_cast<float>(num(p, "footprint_scale"));
-    m->shadowing = num(p, "shadowing") != 0.0;
-    m->field.seed = static_cast<uint64_t>(num(p, "seed"));
+    for (int c = 0; c < 3; ++c) m->base[c] = static_cast<float>(param_number(p, "base_color", c));
+    m->flake_weight = static_cast<float>(param_number(p, "flake_weight"));
+    m->density = static_cast<float>(param_number(p, "density"));
+    m->world_density = param_string(p, "density_space") == "world";
+    m->alpha = static_cast<float>(param_number(p, "flake_roughness"));
+    m->cone = Cone(static_cast<float>(param_number(p, "gamma")) * kPi / 180.0f);
+    m->footprint_scale = static_cast<float>(param_number(p, "footprint_scale"));
+    m->shadowing = param_number(p, "shadowing") != 0.0;
+    m->field.seed = static_cast<uint64_t>(param_number(p, "seed"));
     m->field.alpha = m->alpha;
-    m->field.leaf_size = static_cast<int>(num(p, "leaf_size"));
-    m->field.max_depth = static_cast<int>(num(p, "max_depth"));
-    m->field.exact_below = static_cast<int>(num(p, "binomial_exact_below"));
+    m->field.leaf_size = static_cast<int>(param_number(p, "leaf_size"));
+    m->field.max_depth = static_cast<int>(param_number(p, "max_depth"));
+    m->field.exact_below = static_cast<int>(param_number(p, "binomial_exact_below"));
     m->enumerate_cap = static_cast<uint32_t>(std::min(4.0 * m->max_flakes + 64.0, 1e7));
-    m->coat = num(p, "coat") != 0.0;
-    m->coat_ior = static_cast<float>(num(p, "coat_ior"));
-    m->coat_alpha = std::max(mf::kDeltaAlpha, static_cast<float>(num(p, "coat_roughness")));
-    m->coat_delta = num(p, "coat_roughness") < static_cast<double>(mf::kDeltaAlpha);
+    m->coat = param_number(p, "coat") != 0.0;
+    m->coat_ior = static_cast<float>(param_number(p, "coat_ior"));
+    m->coat_alpha =
+        std::max(mf::kDeltaAlpha, static_cast<float>(param_number(p, "coat_roughness")));
+    m->coat_delta = param_number(p, "coat_roughness") < static_cast<double>(mf::kDeltaAlpha);
     if (why.empty() && build_fresnel(*m, p, host, why) && build_colors(*m, p, host, why))
         build_angle_tables(*m);
     if (!why.empty()) {

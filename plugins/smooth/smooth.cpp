@@ -31,27 +31,15 @@
 #include <string>
 
 #include "../common/microfacet.h"
+#include "../common/plugin_support.h"
 
 namespace {
 
 using namespace spangle::mf;
+using namespace spangle::plugin_support;
 
-void set_error(char* error, uint32_t capacity, const std::string& msg) {
-    if (!error || capacity == 0) return;
-    const std::size_t n = std::min<std::size_t>(msg.size(), capacity - 1);
-    std::memcpy(error, msg.data(), n);
-    error[n] = '\0';
-}
-
-/** Value of the parameter called `name` (the host passes the full schema, in order). */
-const SpangleParamValue_v1* find_param(const SpangleParams_v1* p, const char* name) {
-    for (uint32_t i = 0; i < p->count; ++i)
-        if (std::strcmp(p->values[i].name, name) == 0) return &p->values[i];
-    return nullptr;
-}
 float param_f(const SpangleParams_v1* p, const char* name, int c = 0) {
-    const SpangleParamValue_v1* v = find_param(p, name);
-    return v ? static_cast<float>(v->number[c]) : 0.0f;
+    return static_cast<float>(param_number(p, name, c));
 }
 
 /** GGX alphas from roughness / roughness_v (-1 = isotropic). */
@@ -196,20 +184,12 @@ struct Conductor {
     float to_working[9];  ///< linear Rec.709 -> working space, row-major
 };
 
-/** Reads the Rec.709 -> working-space matrix from the host's colour conversion. */
+/** Reads the Rec.709 -> working-space matrix; reports a failure through the ABI buffer. */
 bool rec709_matrix(const SpangleHost_v1* host, float m[9], char* error, uint32_t cap) {
-    float basis[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
-    char why[256] = {0};
-    if (!host || !host->convert_to_working ||
-        host->convert_to_working(host->context, "lin_rec709", basis, 3, why, sizeof(why)) != 0) {
-        set_error(error, cap,
-                  std::string("cannot convert Fresnel colours to the working space: ") + why);
-        return false;
-    }
-    // Converted basis vector j is column j of the matrix.
-    for (int j = 0; j < 3; ++j)
-        for (int r = 0; r < 3; ++r) m[3 * r + j] = basis[3 * j + r];
-    return true;
+    std::string why;
+    if (rec709_to_working(host, m, why)) return true;
+    set_error(error, cap, "cannot convert Fresnel colours: " + why);
+    return false;
 }
 
 void* conductor_create(const SpangleParams_v1* p, const SpangleHost_v1* host, char* error,
@@ -218,7 +198,7 @@ void* conductor_create(const SpangleParams_v1* p, const SpangleHost_v1* host, ch
     read_alpha(p, c.ax, c.ay);
     c.delta = is_delta(c.ax, c.ay);
     clamp_alpha(c.ax, c.ay);
-    const std::string preset = find_param(p, "preset")->string;
+    const std::string preset = param_string(p, "preset").c_str();
     const bool given = param_f(p, "eta") >= 0.0f || param_f(p, "k") >= 0.0f;
     if (preset == "custom") {
         for (int ch = 0; ch < 3; ++ch) {
@@ -460,16 +440,6 @@ struct Plastic {
     float e[kAlbedoTable];  ///< directional albedo of the coat's reflection
     float e_avg;            ///< cosine-weighted average of e: 2 int e(mu) mu dmu
 };
-
-/** Radical inverse in base 2 (for the deterministic quadrature below). */
-float radical_inverse2(uint32_t i) {
-    i = (i << 16) | (i >> 16);
-    i = ((i & 0x00ff00ffu) << 8) | ((i & 0xff00ff00u) >> 8);
-    i = ((i & 0x0f0f0f0fu) << 4) | ((i & 0xf0f0f0f0u) >> 4);
-    i = ((i & 0x33333333u) << 2) | ((i & 0xccccccccu) >> 2);
-    i = ((i & 0x55555555u) << 1) | ((i & 0xaaaaaaaau) >> 1);
-    return static_cast<float>(i) * 0x1p-32f;
-}
 
 /** Coat reflection albedo at cosine mu: int F D G2 / (4 mu) dwi, by VNDF importance sampling over
  *  a Hammersley set, where each sample weighs F G2 / G1. Deterministic and smooth in mu. */
