@@ -29,6 +29,14 @@ Footprint make_footprint(double u, double v, double dudx, double dvdx, double du
     p.ay = sp * s1 * ct + cp * s2 * st;
     p.by = -sp * s1 * st + cp * s2 * ct;
     if (!std::isfinite(p.ax + p.ay + p.bx + p.by)) p.ax = p.ay = p.bx = p.by = 0.0;
+    // The inverse once here, so that testing each candidate flake is four multiplications.
+    const double det = p.ax * p.by - p.ay * p.bx;
+    if (std::fabs(det) > 0.0 && std::isfinite(1.0 / det)) {
+        p.i00 = p.by / det;
+        p.i01 = -p.bx / det;
+        p.i10 = -p.ay / det;
+        p.i11 = p.ax / det;
+    }
     return p;
 }
 
@@ -41,8 +49,11 @@ constexpr int kNormalTable = 4096;
  *  standard normal quantile at (i + 0.5) / 4096. Built once, read-only afterwards. */
 struct BinomialTables {
     double q_pow[3][kMaxExact + 1];  ///< (1 - p)^n for p = 1/4, 1/3, 1/2
+    double inv[kMaxExact + 2];       ///< 1 / k, so that the inversion loop does not divide
     double quantile[kNormalTable];
     BinomialTables() {
+        inv[0] = 0.0;
+        for (int k = 1; k <= kMaxExact + 1; ++k) inv[k] = 1.0 / k;
         const double ps[3] = {0.25, 1.0 / 3.0, 0.5};
         for (int k = 0; k < 3; ++k)
             for (int n = 0; n <= kMaxExact; ++n) q_pow[k][n] = std::pow(1.0 - ps[k], n);
@@ -83,7 +94,7 @@ uint32_t binomial(uint32_t n, double p, double u0, double u1, int exact_below) {
         double cdf = pmf;
         uint32_t k = 0;
         while (u0 > cdf && k < n) {
-            pmf *= ratio * static_cast<double>(n - k) / static_cast<double>(k + 1);
+            pmf *= ratio * static_cast<double>(n - k) * t.inv[k + 1];
             cdf += pmf;
             ++k;
         }
@@ -110,6 +121,26 @@ void split_counts(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]) {
     out[3] = n - out[0] - out[1] - out[2];
 }
 
+void split_counts_cached(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]) {
+    // A pure function memoised per thread in a direct-mapped table: neighbouring shading points
+    // walk the same upper levels of the tree, and a hit returns exactly what the split would.
+    struct Entry {
+        uint64_t key;
+        uint32_t n;
+        int32_t exact;
+        uint32_t c[4];
+    };
+    constexpr std::size_t kEntries = 1u << 15;
+    thread_local std::vector<Entry> cache(kEntries, Entry{0, 0, -1, {0, 0, 0, 0}});
+    Entry& e = cache[(key ^ (key >> 31)) & (kEntries - 1)];
+    if (e.key == key && e.n == n && e.exact == exact_below) {
+        std::copy(e.c, e.c + 4, out);
+        return;
+    }
+    split_counts(key, n, exact_below, out);
+    e = Entry{key, n, exact_below, {out[0], out[1], out[2], out[3]}};
+}
+
 uint64_t node_key(uint64_t tile, int depth, uint32_t ix, uint32_t iy) {
     return mf_hash(mf_hash(tile, static_cast<uint64_t>(depth)),
                    (static_cast<uint64_t>(ix) << 32) | iy);
@@ -120,12 +151,11 @@ uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty) {
 }
 
 bool inside(const Footprint& p, double u, double v) {
-    // Solve c + s a + t b = (u, v) for (s, t).
-    const double det = p.ax * p.by - p.ay * p.bx;
-    if (!(std::fabs(det) > 0.0)) return false;
+    // (s, t) = [a b]^-1 ((u, v) - c); a singular footprint (zero area) holds no flake.
+    if (p.i00 == 0.0 && p.i01 == 0.0 && p.i10 == 0.0 && p.i11 == 0.0) return false;
     const double du = u - p.cu, dv = v - p.cv;
-    const double s = (du * p.by - dv * p.bx) / det;
-    const double t = (p.ax * dv - p.ay * du) / det;
+    const double s = p.i00 * du + p.i01 * dv;
+    const double t = p.i10 * du + p.i11 * dv;
     return s >= -0.5 && s <= 0.5 && t >= -0.5 && t <= 0.5;
 }
 

@@ -40,6 +40,8 @@ struct Footprint {
     double cu = 0, cv = 0;  ///< centre
     double ax = 0, ay = 0;  ///< axis a = (du/dx, dv/dx) x footprint_scale
     double bx = 0, by = 0;  ///< axis b = (du/dy, dv/dy) x footprint_scale
+    double i00 = 0, i01 = 0, i10 = 0,
+           i11 = 0;  ///< inverse of [a b]: uv offset -> (s, t); 0 if singular
     double area() const { return ax * by - ay * bx < 0 ? -(ax * by - ay * bx) : ax * by - ay * bx; }
 };
 
@@ -72,6 +74,9 @@ uint32_t binomial(uint32_t n, double p, double u0, double u1, int exact_below);
 /** Splits n flakes among a node's four children: n0 ~ B(n, 1/4), n1 ~ B(n - n0, 1/3),
  *  n2 ~ B(n - n0 - n1, 1/2), n3 = the rest; random numbers from the node's key. */
 void split_counts(uint64_t node_key, uint32_t n, int exact_below, uint32_t out[4]);
+
+/** split_counts memoised per thread (same results, less time). */
+void split_counts_cached(uint64_t node_key, uint32_t n, int exact_below, uint32_t out[4]);
 
 /** Key of a quad-tree node: a pure function of seed, tile, depth and cell. */
 uint64_t node_key(uint64_t tile_key, int depth, uint32_t ix, uint32_t iy);
@@ -193,7 +198,7 @@ uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_
                     continue;
                 }
                 uint32_t child[4];
-                split_counts(key, node.n, fp.exact_below, child);
+                split_counts_cached(key, node.n, fp.exact_below, child);
                 for (uint32_t c = 0; c < 4; ++c)
                     stack[top++] = {node.depth + 1, 2 * node.ix + (c & 1u), 2 * node.iy + (c >> 1),
                                     child[c]};

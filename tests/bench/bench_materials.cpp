@@ -35,7 +35,7 @@ struct Fixture {
     ScratchArena arena;
 
     Fixture(const std::string& plugin, const std::string& model, const ParamList& params,
-            double footprint, bool differentials) {
+            double footprint, bool differentials, bool coherent = false) {
         host = std::make_unique<HostServices>(color, test::quiet_log());
         Material m;
         m.name = "bench";
@@ -63,8 +63,11 @@ struct Fixture {
             wix[i] = si * std::cos(pi);
             wiy[i] = si * std::sin(pi);
             wiz[i] = ci;
-            u[i] = 1000.0f * sample_1d(3, i, 0, 0);
-            v[i] = 1000.0f * sample_1d(3, i, 0, 1);
+            // Scattered over a million uv tiles (worst case), or coherent: a 16 x 16 block of
+            // neighbouring pixels as the integrator's tiles produce them.
+            const float spread = coherent ? 16.0f * static_cast<float>(footprint) : 1000.0f;
+            u[i] = 0.37f + spread * sample_1d(3, i, 0, 0);
+            v[i] = 0.61f + spread * sample_1d(3, i, 0, 1);
             dudx[i] = dvdy[i] = static_cast<float>(footprint);
             dudy[i] = dvdx[i] = 0.0f;
             area[i] = 1.0f;
@@ -141,16 +144,20 @@ void BM_Flake(benchmark::State& state) {
         leaf.is_integer = true;
         p.push_back(leaf);
     }
-    Fixture f("flake", "flake", p, smooth_regime ? 0.0 : std::sqrt(lambda / 1e5), !smooth_regime);
+    const bool coherent = state.range(2) != 0;
+    Fixture f("flake", "flake", p, smooth_regime ? 0.0 : std::sqrt(lambda / 1e5), !smooth_regime,
+              coherent);
     state.SetLabel(
         smooth_regime ? "smooth regime (no differentials)"
                       : "lambda " + std::to_string(state.range(0)) +
                             (state.range(1) > 0 ? ", leaf " + std::to_string(state.range(1)) : ""));
     run(state, f);
 }
-BENCHMARK(BM_Flake)->Args({10, 0})->Args({100, 0})->Args({1000, 0})->Args({0, 0});
+BENCHMARK(BM_Flake)->Args({10, 0, 0})->Args({100, 0, 0})->Args({1000, 0, 0})->Args({0, 0, 0});
+/** Neighbouring shading points, as a render makes them. */
+BENCHMARK(BM_Flake)->Args({10, 0, 1})->Args({100, 0, 1})->Args({1000, 0, 1});
 /** The leaf size trades traversal depth against flakes generated outside the footprint. */
-BENCHMARK(BM_Flake)->Args({100, 2})->Args({100, 4})->Args({100, 8})->Args({100, 32});
+BENCHMARK(BM_Flake)->Args({100, 8, 0})->Args({100, 32, 0});
 
 }  // namespace
 }  // namespace spangle
