@@ -129,12 +129,25 @@ Vec3 EnvironmentMap::from_uv(float u, float v) const {
 
 Vec3 EnvironmentMap::eval(Vec3 d) const {
     if (empty()) return Vec3(0.0f);
+    // Bilinear between pixel centres (wrapping in u, clamped in v), so that a map seen directly
+    // is not blocky. Sampling stays piecewise constant: where the pdf is 0 but the interpolated
+    // radiance is not, BSDF sampling finds it with weight 1, so the estimate stays unbiased.
     float u, v;
     to_uv(d, u, v);
-    const int x = std::clamp(static_cast<int>(u * static_cast<float>(width_)), 0, width_ - 1);
-    const int y = std::clamp(static_cast<int>(v * static_cast<float>(height_)), 0, height_ - 1);
-    const float* px = &rgb_[3 * (static_cast<std::size_t>(y) * width_ + x)];
-    return {px[0], px[1], px[2]};
+    const float x = u * static_cast<float>(width_) - 0.5f,
+                y = v * static_cast<float>(height_) - 0.5f;
+    const float fx = std::floor(x), fy = std::floor(y);
+    const float tx = x - fx, ty = y - fy;
+    const auto px = [&](int xi, int yi) {
+        xi = ((xi % width_) + width_) % width_;
+        yi = std::clamp(yi, 0, height_ - 1);
+        const float* p =
+            &rgb_[3 * (static_cast<std::size_t>(yi) * width_ + static_cast<std::size_t>(xi))];
+        return Vec3(p[0], p[1], p[2]);
+    };
+    const int x0 = static_cast<int>(fx), y0 = static_cast<int>(fy);
+    return (px(x0, y0) * (1.0f - tx) + px(x0 + 1, y0) * tx) * (1.0f - ty) +
+           (px(x0, y0 + 1) * (1.0f - tx) + px(x0 + 1, y0 + 1) * tx) * ty;
 }
 
 Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
