@@ -258,7 +258,7 @@ TEST(FlakeLobe, ChiSquareManyFlakes) {
 }
 
 /** Mean over random footprints of the discrete lobe vs the smooth lobe, at (wo, wi). */
-void expectation_matches(bool table) {
+void expectation_matches(bool table, float cos_o = 0.7f) {
     Params common = {{"density", {1e5}}, {"gamma", {1.0}}, {"flake_roughness", {0.35}}};
     Strings strings;
     if (table) {
@@ -268,8 +268,8 @@ void expectation_matches(bool table) {
     }
     auto disc = flake_material(true, common, strings);
     auto smooth = flake_material(false, common, strings);
-    const Vec3 wo = dir(0.7f, 0.0f);
-    const std::vector<Vec3> wis = {dir(0.7f, kPi), dir(0.9f, 2.5f), dir(0.5f, 3.5f)};
+    const Vec3 wo = dir(cos_o, 0.0f);
+    const std::vector<Vec3> wis = {dir(cos_o, kPi), dir(0.9f, 2.5f), dir(0.5f, 3.5f)};
     std::vector<Vec3> fs;
     std::vector<float> ps;
     BsdfHarness::Point sp;
@@ -310,6 +310,10 @@ TEST(FlakeLobe, DiscreteMeanConvergesToTheSmoothLobe) {
 }
 TEST(FlakeLobe, DiscreteMeanConvergesWithTheColourTable) {
     expectation_matches(true);
+}
+TEST(FlakeLobe, DiscreteMeanConvergesAtGrazingAngles) {
+    expectation_matches(false, 0.3f);
+    expectation_matches(false, 0.1f);
 }
 
 /** Albedo estimate: mean of f cos / pdf over sample(), averaged over footprints. */
