@@ -22,7 +22,6 @@ struct Instance {
     Affine to_world;         ///< object to world
     Affine normal_to_world;  ///< inverse transpose of to_world's linear part (no translation)
     int32_t emitter = -1;    ///< first light-table entry of its triangles, or -1
-    Vec3 emission;           ///< radiance of its front faces (zero when not emissive)
 };
 
 /** What a ray hit. */

@@ -233,10 +233,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
             const Affine inv = inst.to_world.inverse();
             for (int a = 0; a < 3; ++a)
                 for (int b = 0; b < 3; ++b) inst.normal_to_world.m[a][b] = inv.m[b][a];
-            if (r.has<EmitterRef>(e)) {
-                inst.emitter = r.get<EmitterRef>(e).first;
-                inst.emission = r.get<Emission>(e).radiance;
-            }
+            if (r.has<EmitterRef>(e)) inst.emitter = r.get<EmitterRef>(e).first;
             w.instances.push_back(inst);
         }
     }

@@ -124,7 +124,6 @@ struct Closure {
     float e_coat_o = 0;                         ///< coat albedo at wo
     float g1_wo = 1;                            ///< G1 of the flake distribution at wo
     float pvalid_o = 1;                         ///< p_valid at wo
-    float lambda = 0;                           ///< expected flake count
     uint32_t valid = 0;                         ///< wo above the surface
 };
 
@@ -446,7 +445,6 @@ void flake_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* clos
             lambda_milli += static_cast<uint64_t>(std::min(lambda, 1e12) * 1000.0);
             ++n_lambda;
         }
-        c.lambda = static_cast<float>(std::min(lambda, 1e30));
         if (c.t <= 0.0f)
             ++n_discrete;
         else if (c.t >= 1.0f)
