@@ -40,11 +40,12 @@ Affine Affine::inverse() const {
     return r;
 }
 
-Vec3 Affine::apply_normal(Vec3 n) const {
+Affine Affine::normal_matrix() const {
     const Affine inv = inverse();
-    return {inv.m[0][0] * n.x + inv.m[1][0] * n.y + inv.m[2][0] * n.z,
-            inv.m[0][1] * n.x + inv.m[1][1] * n.y + inv.m[2][1] * n.z,
-            inv.m[0][2] * n.x + inv.m[1][2] * n.y + inv.m[2][2] * n.z};
+    Affine r;
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) r.m[i][j] = inv.m[j][i];
+    return r;
 }
 
 Affine Affine::translate(Vec3 d) {

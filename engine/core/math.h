@@ -97,8 +97,11 @@ struct Affine {
     Affine inverse() const;
     /** Determinant of the linear part. */
     float determinant() const;
-    /** Applies the inverse transpose of the linear part (for normals). */
-    Vec3 apply_normal(Vec3 n) const;
+    /** The inverse transpose of the linear part, no translation: transforms normals with
+     *  apply_vector. Compute it once per transform, not per normal. */
+    Affine normal_matrix() const;
+    /** Applies the inverse transpose of the linear part (for normals); one-off use. */
+    Vec3 apply_normal(Vec3 n) const { return normal_matrix().apply_vector(n); }
 
     static Affine translate(Vec3 d);
     static Affine scale(Vec3 s);

@@ -55,11 +55,6 @@ Vec3 offset_origin(Vec3 p, Vec3 n) {
     return {out[0], out[1], out[2]};
 }
 
-float power_heuristic(float a, float b) {
-    const float a2 = a * a, b2 = b * b;
-    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
-}
-
 /** Per-thread buffers for one wave of paths; reused across tiles. */
 struct Workspace {
     // Paths of the wave.
@@ -80,6 +75,7 @@ struct Workspace {
     std::vector<float> px, py, pz, wox, woy, woz, u, v, dudx, dudy, dvdx, dvdy, uv_area;
     std::vector<uint32_t> flags, path_id;
     std::vector<float> f_r, f_g, f_b, pdf, wix, wiy, wiz, u0, u1, u2, eta;
+    std::vector<float> u_select;  ///< light selection number of each shading point
     std::vector<uint32_t> closure_index, sample_flags;
     std::vector<LightSample> light;
     std::vector<uint32_t> light_query;  ///< group slot of each eval query
@@ -96,9 +92,9 @@ struct Workspace {
         surf.resize(n);
     }
     void resize_group(std::size_t n) {
-        for (auto* a :
-             {&px,      &py,  &pz,  &wox, &woy, &woz, &u,   &v,   &dudx, &dudy, &dvdx, &dvdy,
-              &uv_area, &f_r, &f_g, &f_b, &pdf, &wix, &wiy, &wiz, &u0,   &u1,   &u2,   &eta})
+        for (auto* a : {&px,   &py,   &pz,   &wox,     &woy, &woz, &u,       &v,   &dudx,
+                        &dudy, &dvdx, &dvdy, &uv_area, &f_r, &f_g, &f_b,     &pdf, &wix,
+                        &wiy,  &wiz,  &u0,   &u1,      &u2,  &eta, &u_select})
             a->resize(n);
         for (auto* a : {&flags, &path_id, &closure_index, &sample_flags, &light_query})
             a->resize(n);
@@ -219,7 +215,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         float sel, lobe;
         rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairSelect, sel, lobe);
         ws.u2[k] = lobe;
-        ws.eta[k] = sel;  // light selection, consumed below before eta is written by sample()
+        ws.u_select[k] = sel;
     }
 
     // Next-event estimation towards the lights.
@@ -230,7 +226,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             const SurfacePoint& sp = ws.surf[i];
             float lu, lv;
             rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairLight, lu, lv);
-            const LightSample ls = w.lights.sample(sp.p, ws.eta[k], lu, lv);
+            const LightSample ls = w.lights.sample(sp.p, ws.u_select[k], lu, lv);
             if (!(ls.pdf > 0.0f)) continue;
             ws.light[q] = ls;
             ws.light_query[q] = k;

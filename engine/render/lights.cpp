@@ -10,11 +10,6 @@ namespace {
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 
-float power_heuristic(float a, float b) {
-    const float a2 = a * a, b2 = b * b;
-    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
-}
-
 /** 2 pi (1 - cos r) without cancellation: 4 pi sin^2(r / 2). */
 float cone_solid_angle(float cos_r) {
     const float s = std::sqrt(std::max(0.0f, 0.5f * (1.0f - cos_r)));  // sin(r/2)
@@ -69,6 +64,11 @@ bool sample_spherical_triangle(Vec3 a, Vec3 b, Vec3 c, float u0, float u1, Vec3&
 }
 
 }  // namespace
+
+float power_heuristic(float a, float b) {
+    const float a2 = a * a, b2 = b * b;
+    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+}
 
 double triangle_solid_angle(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {
     const Vec3 x = normalize(a - p), y = normalize(b - p), z = normalize(c - p);

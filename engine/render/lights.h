@@ -29,6 +29,9 @@ enum class Strategy {
     BsdfOnly  ///< emitters count only when BSDF-sampled rays hit them (delta lights still NEE)
 };
 
+/** The power heuristic (beta = 2) weight of a sample from the strategy with pdf a against b. */
+float power_heuristic(float a, float b);
+
 /** Weight of emission that a BSDF-sampled ray found, given the light-sampling pdf of the same
  *  point: the power heuristic, or the pure strategies' 0 / 1; always 1 after a delta bounce. */
 float bsdf_hit_weight(Strategy strategy, bool after_delta, float bsdf_pdf, float light_pdf);

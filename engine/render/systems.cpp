@@ -127,7 +127,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
             if (!r.has<TriangleMeshRef>(e)) continue;
             const TriangleMesh& mesh = w.geometry.meshes[r.get<TriangleMeshRef>(e).mesh];
             const Affine xf = r.get<Transform>(e).to_world;
-            const Affine nxf = xf.inverse();
+            const Affine nxf = xf.normal_matrix();
             refs.emplace_back(e, static_cast<int32_t>(w.lights.area_count()));
             for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
                 const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
@@ -145,9 +145,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
                     for (uint32_t v : {i0, i1, i2})
                         sum += Vec3(mesh.normals[3 * v], mesh.normals[3 * v + 1],
                                     mesh.normals[3 * v + 2]);
-                    const Vec3 nw(nxf.m[0][0] * sum.x + nxf.m[1][0] * sum.y + nxf.m[2][0] * sum.z,
-                                  nxf.m[0][1] * sum.x + nxf.m[1][1] * sum.y + nxf.m[2][1] * sum.z,
-                                  nxf.m[0][2] * sum.x + nxf.m[1][2] * sum.y + nxf.m[2][2] * sum.z);
+                    const Vec3 nw = nxf.apply_vector(sum);
                     if (dot(nw, a.n) < 0.0f) a.n = -a.n;
                 }
                 a.radiance = emission->columns().radiance[i];
@@ -230,9 +228,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
             inst.mesh = meshes->columns().mesh[i];
             inst.material = r.get<MaterialRef>(e).material;
             inst.to_world = r.get<Transform>(e).to_world;
-            const Affine inv = inst.to_world.inverse();
-            for (int a = 0; a < 3; ++a)
-                for (int b = 0; b < 3; ++b) inst.normal_to_world.m[a][b] = inv.m[b][a];
+            inst.normal_to_world = inst.to_world.normal_matrix();
             if (r.has<EmitterRef>(e)) inst.emitter = r.get<EmitterRef>(e).first;
             w.instances.push_back(inst);
         }

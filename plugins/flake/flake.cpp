@@ -47,7 +47,7 @@ const SpangleParamDesc_v1 kParams[] = {
     {"footprint_scale", SPANGLE_PARAM_FLOAT, {1.0, 0, 0}, nullptr, 0.01, 100.0, nullptr, "size of the flake footprint in pixels"},
     {"leaf_size", SPANGLE_PARAM_INT, {16, 0, 0}, nullptr, 1.0, 1024.0, nullptr, "quad-tree nodes with at most this many flakes are leaves"},
     {"max_depth", SPANGLE_PARAM_INT, {12, 0, 0}, nullptr, 10.0, 24.0, nullptr, "deepest quad-tree level (V-Ray's tex_subdivs)"},
-    {"binomial_exact_below", SPANGLE_PARAM_INT, {128, 0, 0}, nullptr, 0.0, 1000.0, nullptr, "splits of fewer flakes than this are sampled exactly, larger ones by the normal " "approximation"},
+    {"binomial_exact_below", SPANGLE_PARAM_INT, {128, 0, 0}, nullptr, 0.0, 1000.0, nullptr, "splits of fewer flakes than this are sampled exactly, larger ones by the normal approximation"},
     {"min_flakes", SPANGLE_PARAM_FLOAT, {500, 0, 0}, nullptr, 0.0, 1e7, nullptr, "expected flake count below which only the discrete lobe is used"},
     {"max_flakes", SPANGLE_PARAM_FLOAT, {2000, 0, 0}, nullptr, 1.0, 1e7, nullptr, "expected flake count above which only the smooth lobe is used (bounds enumeration)"},
     {"fresnel", SPANGLE_PARAM_STRING, {0, 0, 0}, "conductor", 0, 0, "conductor|dielectric|schlick", "Fresnel of a flake: a metal (preset), a dielectric (flake_ior) or Schlick (flake_f0)"},
