@@ -11,7 +11,7 @@
 #include "bsdf_harness.h"
 #include "chi2.h"
 #include "core/hash.h"
-#include "flake_model.h"
+#include "field.h"
 
 namespace spangle::test {
 namespace {
@@ -53,9 +53,8 @@ TEST(FlakeField, BinomialMomentsExactAndNormal) {
         double sum = 0, sum2 = 0;
         constexpr int kN = 40000;
         for (int i = 0; i < kN; ++i) {
-            const double k =
-                flake::binomial(n, 0.25, to_unit_double(hash2(3, static_cast<uint64_t>(i))),
-                                to_unit_double(hash2(4, static_cast<uint64_t>(i))), exact_below);
+            const double k = flake::binomial(
+                n, 0.25, to_unit_double(hash2(3, static_cast<uint64_t>(i))), exact_below);
             sum += k;
             sum2 += k * k;
         }
@@ -173,7 +172,8 @@ BsdfHarness::Point point_with_lambda(double lambda, float u, float v) {
  *  only there), divided by how many cones cover a point so overlaps count once. */
 void chi2_discrete(double lambda, float gamma_deg) {
     auto m = flake_material(
-        true, {{"density", {1e5}}, {"gamma", {gamma_deg}}, {"flake_roughness", {0.2}}});
+        true, {{"density", {1e5}}, {"gamma", {gamma_deg}}, {"flake_roughness", {0.2}}},
+        {{"algorithm", "enumerate"}});
     const Vec3 wo = dir(0.8f, 0.3f);
     const BsdfHarness::Point pt = point_with_lambda(lambda, 0.43f, 0.57f);
     m->prepare(wo, pt);
@@ -201,16 +201,19 @@ void chi2_discrete(double lambda, float gamma_deg) {
         const int bp = std::min(kPhi - 1, static_cast<int>(phi / (2 * M_PI) * kPhi));
         return static_cast<std::size_t>(bz * kPhi + bp);
     };
-    // Quadrature: rings equal in solid angle, sectors equal in angle, 48 x 96 per cone.
-    constexpr int kRings = 48, kSectors = 96;
+    // Quadrature per cone: rings in u = (1 - cos psi) / (1 - cos gamma) at u = 1 - (1 - t)^2 for
+    // t uniform (weight 2 (1 - t) dt: dense at the rim, where a bin boundary may cut off a thin
+    // sliver that a coarse rule would leave without points), sectors equal in angle.
+    constexpr int kRings = 64, kSectors = 128;
     std::vector<Vec3> q;
     std::vector<double> weight;
-    const double cell = 2.0 * M_PI * (1.0 - std::cos(gamma)) / (kRings * kSectors);
+    const double cap = 2.0 * M_PI * (1.0 - std::cos(gamma));
     for (const Vec3& r : cones) {
         Vec3 s, t;
         make_basis(r, s, t);
         for (int i = 0; i < kRings; ++i) {
-            const double c = 1.0 - (i + 0.5) / kRings * (1.0 - std::cos(gamma));
+            const double tt = (i + 0.5) / kRings, u = 1.0 - (1.0 - tt) * (1.0 - tt);
+            const double c = 1.0 - u * (1.0 - std::cos(gamma));
             const double sn = std::sqrt(std::max(0.0, 1.0 - c * c));
             for (int j = 0; j < kSectors; ++j) {
                 const double ph = (j + 0.5) * 2.0 * M_PI / kSectors;
@@ -221,7 +224,7 @@ void chi2_discrete(double lambda, float gamma_deg) {
                 int mult = 0;
                 for (const Vec3& o : cones) mult += dot(w - o, w - o) <= thr;
                 q.push_back(w);
-                weight.push_back(cell / std::max(1, mult));
+                weight.push_back(cap * 2.0 * (1.0 - tt) / (kRings * kSectors) / std::max(1, mult));
             }
         }
     }
@@ -241,9 +244,13 @@ void chi2_discrete(double lambda, float gamma_deg) {
     for (const auto& s : m->sample(kN, 31)) {
         if (s.flags == 0) {
             observed.back() += 1.0;
-        } else {
-            observed[bin_of(s.wi)] += 1.0;
+            continue;
         }
+        // Every sampled direction lies in some flake's cone (where the pdf is not zero).
+        float nearest = 4.0f;
+        for (const Vec3& o : cones) nearest = std::min(nearest, dot(s.wi - o, s.wi - o));
+        ASSERT_LE(nearest, thr * 1.0001f) << "a sample outside every cone";
+        observed[bin_of(s.wi)] += 1.0;
     }
     const Chi2Result r = chi2_test(observed, expected);
     EXPECT_GT(r.p_value, 0.01) << "lambda " << lambda << " flakes " << cones.size() << ": chi2 "

@@ -1,0 +1,72 @@
+#include "coat.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace spangle::flake {
+
+namespace {
+
+constexpr int kGrid = 96;                  ///< visible-normal quadrature per side
+constexpr float kQuadratureBound = 2e-3f;  ///< measured error bound of that quadrature
+
+float node_cos(int i) {
+    const float x = static_cast<float>(i) / static_cast<float>(Coat::kNodes - 1);
+    return std::max(1e-6f, x * x);
+}
+
+/** The rough coat's albedo at cos_theta: E over visible normals of F G2 / G1, midpoint rule. */
+double rough_albedo(float cos_theta, float ior, float alpha) {
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_theta * cos_theta)), 0.0f, cos_theta};
+    const float g1 = mf::ggx_g1(wo, alpha, alpha);
+    double sum = 0.0;
+    for (int a = 0; a < kGrid; ++a)
+        for (int b = 0; b < kGrid; ++b) {
+            const float u0 = (static_cast<float>(a) + 0.5f) / kGrid,
+                        u1 = (static_cast<float>(b) + 0.5f) / kGrid;
+            const V3 h = mf::ggx_sample_visible(wo, alpha, alpha, u0, u1);
+            const V3 wi = mf::reflect(wo, h);
+            if (!(wi.z > 0.0f)) continue;
+            sum += static_cast<double>(mf::fresnel_dielectric(mf::dot(wo, h), ior) *
+                                       mf::ggx_g2(wo, wi, alpha, alpha) / g1);
+        }
+    return sum / (kGrid * kGrid);
+}
+
+}  // namespace
+
+void Coat::init(bool on_, float ior_, float roughness) {
+    on = on_;
+    ior = ior_;
+    smooth = roughness < mf::kDeltaAlpha;
+    alpha = std::max(mf::kDeltaAlpha, roughness);
+    if (!on || smooth) return;
+    for (int i = 0; i < kNodes; ++i)
+        albedo[i] = std::min(
+            1.0f, static_cast<float>(rough_albedo(node_cos(i), ior, alpha)) + kQuadratureBound);
+}
+
+float Coat::albedo_at(float cos_theta) const {
+    if (!on) return 0.0f;
+    if (smooth) return mf::fresnel_dielectric(cos_theta, ior);
+    const float x = std::sqrt(std::clamp(cos_theta, 0.0f, 1.0f)) * (kNodes - 1);
+    const int i = std::min(static_cast<int>(x), kNodes - 2);
+    return std::max(albedo[i], albedo[i + 1]);
+}
+
+void Coat::eval_rough(V3 wo, V3 wi, float& f, float& pdf) const {
+    f = pdf = 0.0f;
+    if (!(wo.z > 0.0f) || !(wi.z > 0.0f)) return;
+    const V3 h = mf::normalize(wo + wi);
+    const float d = mf::ggx_d(h, alpha, alpha);
+    f = mf::fresnel_dielectric(mf::dot(wo, h), ior) * d * mf::ggx_g2(wo, wi, alpha, alpha) /
+        (4.0f * wo.z * wi.z);
+    pdf = mf::ggx_g1(wo, alpha, alpha) * d / (4.0f * wo.z);
+}
+
+bool Coat::sample_rough(V3 wo, float u0, float u1, V3& wi) const {
+    wi = mf::reflect(wo, mf::ggx_sample_visible(wo, alpha, alpha, u0, u1));
+    return wi.z > 0.0f;
+}
+
+}  // namespace spangle::flake

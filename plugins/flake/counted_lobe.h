@@ -1,0 +1,163 @@
+#pragma once
+// The counting algorithm ("tree"): the discrete lobe at a cost that does not grow with the number
+// of flakes in the footprint.
+//
+// The footprint is covered by the quad-tree cells of the finest level whose cells are at least as
+// large as the footprint, so it overlaps at most 2 x 2 of them (per uv tile). A cell holding at
+// most `exact_flakes` flakes is enumerated: its true flakes enter the reflection cache exactly as
+// the enumerating algorithm does, so small footprints see the very same glints. A larger cell is
+// an aggregate:
+//
+// - its count inside the footprint is k = B(n, rho), rho the share of the cell's area the
+//   footprint covers, drawn by inverting a uniform fixed per cell (so k only grows as the
+//   footprint covers more of the cell);
+// - its k flakes' normals are spread over the square of flake normals (see flake_normal) by a
+//   quad-tree keyed by the cell, down to leaves about half the cone's preimage: stratified splits
+//   (each child n / 4, the remainder to hashed children) above the last level, so that the
+//   aggregate's energy footprint by footprint is its expected one, and a multinomial in the last
+//   level for the local grain; adding a flake to k adds it to exactly one leaf;
+// - its lobe is the exact smooth lobe times a modulation M(wi) = (tent-weighted count of the
+//   leaves whose centre reflects wo near wi) / (that count's expectation). E[M] = 1 exactly, for
+//   any leaf size and weighting, so the aggregate's mean is the smooth lobe's; the counts give
+//   it the grain of real flakes (Poisson-like in each direction, glints of about the cone's size)
+//   and each leaf's flakes their own colours from the colour table.
+//
+// Aggregated flakes are statistical stand-ins: a pure function of (seed, cell, leaf), the same
+// from every view and frame, but not the same flakes as the enumeration would find (a cell
+// switches between the two when the footprint's size crosses the cell's). Normalisation follows
+// the reflection cache: W = sum of the cached flakes' w + k E[w] per aggregate, so a footprint
+// reflects the mean F c of its flakes, up to the spread of the aggregated flakes' w (about
+// CV(w) / sqrt(k)).
+
+#include <cstdint>
+#include <vector>
+
+#include "field.h"
+#include "palette.h"
+
+namespace spangle::flake {
+
+/** Virtual flakes of one aggregated cell inside the footprint. */
+struct Aggregate {
+    uint64_t key = 0;    ///< the cell's node key (its direction tree is keyed from it)
+    uint32_t count = 0;  ///< k: flakes of the cell inside the footprint
+};
+
+/** At most this many aggregates per shading point (2 x 2 cells in each of up to four tiles). */
+constexpr uint32_t kMaxAggregates = 16;
+
+/** The direction side of the counting algorithm, per material: the leaf level of the aggregates'
+ *  direction trees and the normals at the leaf centres. */
+struct DirectionGrid {
+    int depth = 4;            ///< leaves are 4^-depth of the square of flake normals
+    float alpha = 0.15f;      ///< flake roughness
+    float sin2_half = 0.0f;   ///< sin^2(gamma / 2) of the cone
+    std::vector<V3> centres;  ///< normal at each leaf centre, row-major (2^depth per row)
+    /** Chooses the leaf level from the cone's size relative to the flake roughness. */
+    void init(float alpha_, float gamma_rad);
+};
+
+/** What the footprint holds, as the counting algorithm sees it. */
+struct CountedFootprint {
+    Aggregate agg[kMaxAggregates];
+    uint32_t n_agg = 0;
+    uint32_t aggregated = 0;  ///< sum of the aggregates' counts
+    bool truncated = false;   ///< the footprint spans more tiles than the algorithm handles
+};
+
+/** Walks the cells of P: calls exact(const Flake&) for every flake of the enumerated cells that
+ *  lies inside P and fills `out` with the aggregates. `exact_flakes` is the largest cell count
+ *  that is enumerated. Work is bounded: at most 16 tiles, 4 cells each. */
+template <class Exact>
+void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flakes,
+                  CountedFootprint& out, Exact&& exact);
+
+/** The aggregates' colour-weighted modulation at wi, sum_a count_a M_a(wi) per channel: their
+ *  flakes' contribution at wi relative to the smooth lobe's per flake of unit colour. Each leaf's
+ *  flakes carry colours from the table (the first 8 drawn by hash, the rest at the table's mean:
+ *  an unbiased sum). Zero when no virtual flake lights wi. */
+void aggregate_modulation(const CountedFootprint& cf, const DirectionGrid& grid,
+                          const ColorTable& colors, V3 wo, V3 wi, int exact_below, float out[3]);
+
+/** The quad-tree level (0 = the tile) whose cells are the smallest at least as large as P's
+ *  bounding box, so that P overlaps at most 2 x 2 of them; at most the field's max_depth. */
+int footprint_level(const FieldParams& fp, const Footprint& p);
+
+/** A node of a tile's quad-tree: where it is and how many flakes it holds. */
+struct NodeRef {
+    int depth = 0;
+    uint32_t ix = 0, iy = 0, n = 0;
+};
+
+/** The node that holds the flakes of cell (depth, ix, iy) of tile (tx, ty): the cell itself, or
+ *  the leaf above it when the tree stops splitting before `depth`. */
+NodeRef resolve_cell(const FieldParams& fp, int64_t tx, int64_t ty, int depth, uint32_t ix,
+                     uint32_t iy);
+
+// ------------------------------------------------------------------------------------ template
+
+template <class Exact>
+void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flakes,
+                  CountedFootprint& out, Exact&& exact) {
+    out = CountedFootprint{};
+    const TileRange tr = tiles_of(p);
+    if (tr.count() > 4) {
+        out.truncated = true;
+        return;
+    }
+    const int depth = footprint_level(fp, p);
+    const double size = std::ldexp(1.0, -depth);
+    for (int64_t ty = tr.ty0; ty <= tr.ty1; ++ty)
+        for (int64_t tx = tr.tx0; tx <= tr.tx1; ++tx) {
+            // P relative to this tile; the cells of `depth` under its bounding box.
+            const double cu = p.cu - static_cast<double>(tx), cv = p.cv - static_cast<double>(ty);
+            const double hx = p.half_width(), hy = p.half_height();
+            const double cells = std::ldexp(1.0, depth);
+            const auto lo = [&](double x) {
+                return static_cast<int64_t>(std::clamp(std::floor(x / size), 0.0, cells - 1));
+            };
+            const int64_t ix0 = lo(cu - hx), ix1 = lo(cu + hx), iy0 = lo(cv - hy),
+                          iy1 = lo(cv + hy);
+            Footprint local = p;
+            local.cu = cu;
+            local.cv = cv;
+            NodeRef seen[4];
+            int n_seen = 0;
+            for (int64_t iy = iy0; iy <= iy1; ++iy)
+                for (int64_t ix = ix0; ix <= ix1; ++ix) {
+                    const double x0 = static_cast<double>(ix) * size,
+                                 y0 = static_cast<double>(iy) * size;
+                    if (!overlaps(local, x0, y0, x0 + size, y0 + size)) continue;
+                    const NodeRef node = resolve_cell(fp, tx, ty, depth, static_cast<uint32_t>(ix),
+                                                      static_cast<uint32_t>(iy));
+                    if (node.n == 0) continue;
+                    // Cells inside one leaf share it: visit each node once.
+                    bool dup = false;
+                    for (int k = 0; k < n_seen; ++k)
+                        dup = dup || (seen[k].depth == node.depth && seen[k].ix == node.ix &&
+                                      seen[k].iy == node.iy);
+                    if (dup) continue;
+                    seen[n_seen++] = node;
+                    if (node.n <= exact_flakes) {
+                        bool trunc = false;
+                        flakes_in_node(fp, p, tx, ty, node.depth, node.ix, node.iy, node.n, node.n,
+                                       trunc, exact);
+                        continue;
+                    }
+                    // The share of the cell inside P, and as many of its flakes (monotone in it).
+                    const double nsize = std::ldexp(1.0, -node.depth);
+                    const double nx0 = node.ix * nsize, ny0 = node.iy * nsize;
+                    const double rho =
+                        overlap_area(local, nx0, ny0, nx0 + nsize, ny0 + nsize) / (nsize * nsize);
+                    const uint64_t key =
+                        node_key(tile_key(fp.seed, tx, ty), node.depth, node.ix, node.iy);
+                    const uint32_t k = binomial(node.n, std::clamp(rho, 0.0, 1.0),
+                                                unit(mix(key, 0x51)), fp.exact_below);
+                    if (k == 0 || out.n_agg >= kMaxAggregates) continue;
+                    out.agg[out.n_agg++] = {key, k};
+                    out.aggregated += k;
+                }
+        }
+}
+
+}  // namespace spangle::flake

@@ -1,0 +1,341 @@
+#include "field.h"
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace spangle::flake {
+
+Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy,
+                         double scale, double max_ratio) {
+    Footprint p;
+    p.cu = u;
+    p.cv = v;
+    // M = [a b] with a = (dudx, dvdx), b = (dudy, dvdy). Its closed-form 2x2 SVD (Blinn 1996):
+    // M = R(phi) diag(s1, s2) R(theta); the minor singular value is raised to s1 / max_ratio.
+    const double m00 = dudx * scale, m10 = dvdx * scale, m01 = dudy * scale, m11 = dvdy * scale;
+    const double e = 0.5 * (m00 + m11), f = 0.5 * (m00 - m11);
+    const double g = 0.5 * (m10 + m01), h = 0.5 * (m10 - m01);
+    const double q = std::hypot(e, h), r = std::hypot(f, g);
+    const double s1 = q + r;
+    double s2 = q - r;  // signed: a negative value is a reflection
+    const double a1 = std::atan2(g, f), a2 = std::atan2(h, e);
+    const double theta = 0.5 * (a2 - a1), phi = 0.5 * (a2 + a1);
+    const double min_s = s1 / max_ratio;
+    if (std::fabs(s2) < min_s) s2 = s2 < 0 ? -min_s : min_s;
+    const double cp = std::cos(phi), sp = std::sin(phi), ct = std::cos(theta), st = std::sin(theta);
+    // R(phi) diag(s1, s2) R(theta), R(x) = [[cos, -sin], [sin, cos]].
+    p.ax = cp * s1 * ct - sp * s2 * st;
+    p.bx = -cp * s1 * st - sp * s2 * ct;
+    p.ay = sp * s1 * ct + cp * s2 * st;
+    p.by = -sp * s1 * st + cp * s2 * ct;
+    if (!std::isfinite(p.ax + p.ay + p.bx + p.by)) p.ax = p.ay = p.bx = p.by = 0.0;
+    // The inverse once here, so that testing each candidate flake is four multiplications.
+    const double det = p.ax * p.by - p.ay * p.bx;
+    if (std::fabs(det) > 0.0 && std::isfinite(1.0 / det)) {
+        p.i00 = p.by / det;
+        p.i01 = -p.bx / det;
+        p.i10 = -p.ay / det;
+        p.i11 = p.ax / det;
+    }
+    return p;
+}
+
+bool inside(const Footprint& p, double u, double v) {
+    // (s, t) = [a b]^-1 ((u, v) - c); a singular footprint (zero area) holds no flake.
+    if (p.i00 == 0.0 && p.i01 == 0.0 && p.i10 == 0.0 && p.i11 == 0.0) return false;
+    const double du = u - p.cu, dv = v - p.cv;
+    const double s = p.i00 * du + p.i01 * dv;
+    const double t = p.i10 * du + p.i11 * dv;
+    return s >= -0.5 && s <= 0.5 && t >= -0.5 && t <= 0.5;
+}
+
+bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1) {
+    // Bounding box of P against the cell first (cheap), then P's two edge normals.
+    const double hx = p.half_width(), hy = p.half_height();
+    if (p.cu + hx < x0 || p.cu - hx > x1 || p.cv + hy < y0 || p.cv - hy > y1) return false;
+    const double cx = 0.5 * (x0 + x1), cy = 0.5 * (y0 + y1), ex = 0.5 * (x1 - x0),
+                 ey = 0.5 * (y1 - y0);
+    for (int k = 0; k < 2; ++k) {
+        // Axis perpendicular to edge a (k = 0) or b (k = 1).
+        const double nx = k == 0 ? -p.ay : -p.by, ny = k == 0 ? p.ax : p.bx;
+        const double other =
+            k == 0 ? std::fabs(nx * p.bx + ny * p.by) : std::fabs(nx * p.ax + ny * p.ay);
+        const double rp = 0.5 * other;                              // P's half extent on the axis
+        const double rc = ex * std::fabs(nx) + ey * std::fabs(ny);  // the cell's
+        const double d = std::fabs(nx * (cx - p.cu) + ny * (cy - p.cv));
+        if (d > rp + rc) return false;
+    }
+    return true;
+}
+
+bool contains(const Footprint& p, double x0, double y0, double x1, double y1) {
+    return inside(p, x0, y0) && inside(p, x1, y0) && inside(p, x0, y1) && inside(p, x1, y1);
+}
+
+double overlap_area(const Footprint& p, double x0, double y0, double x1, double y1) {
+    // Sutherland-Hodgman: clip P's four corners by the cell's four half-planes.
+    double poly[2][16][2];
+    int n = 4;
+    const double sa[4] = {-0.5, 0.5, 0.5, -0.5}, tb[4] = {-0.5, -0.5, 0.5, 0.5};
+    for (int i = 0; i < 4; ++i) {
+        poly[0][i][0] = p.cu + sa[i] * p.ax + tb[i] * p.bx;
+        poly[0][i][1] = p.cv + sa[i] * p.ay + tb[i] * p.by;
+    }
+    int cur = 0;
+    for (int edge = 0; edge < 4 && n > 0; ++edge) {
+        const int axis = edge & 1;  // 0: x, 1: y
+        const double bound = edge < 2 ? (axis ? y0 : x0) : (axis ? y1 : x1);
+        const double sign = edge < 2 ? 1.0 : -1.0;  // keep coord >= bound, or coord <= bound
+        int m = 0;
+        for (int i = 0; i < n; ++i) {
+            const double* a = poly[cur][i];
+            const double* b = poly[cur][(i + 1) % n];
+            const double da = sign * (a[axis] - bound), db = sign * (b[axis] - bound);
+            if (da >= 0.0) {
+                poly[1 - cur][m][0] = a[0];
+                poly[1 - cur][m][1] = a[1];
+                ++m;
+            }
+            if ((da >= 0.0) != (db >= 0.0) && m < 16) {
+                const double t = da / (da - db);
+                poly[1 - cur][m][0] = a[0] + t * (b[0] - a[0]);
+                poly[1 - cur][m][1] = a[1] + t * (b[1] - a[1]);
+                ++m;
+            }
+        }
+        n = m;
+        cur = 1 - cur;
+    }
+    double twice = 0.0;
+    for (int i = 0; i < n; ++i) {
+        const double* a = poly[cur][i];
+        const double* b = poly[cur][(i + 1) % n];
+        twice += a[0] * b[1] - a[1] * b[0];
+    }
+    return 0.5 * std::fabs(twice);
+}
+
+namespace {
+
+constexpr int kMaxExact = 1000;  ///< the largest exact_below the schema allows
+constexpr int kNormalTable = 4096;
+
+/** Tables that make binomial sampling cheap: the standard normal quantile at (i + 0.5) / 4096,
+ *  and reciprocals for the inversion loop. Built once, read-only afterwards. */
+struct BinomialTables {
+    double inv[kMaxExact + 2];
+    double quantile[kNormalTable];
+    BinomialTables() {
+        inv[0] = 0.0;
+        for (int k = 1; k <= kMaxExact + 1; ++k) inv[k] = 1.0 / k;
+        // Quantiles by bisection on the normal CDF 0.5 erfc(-z / sqrt 2): exact to 1e-12.
+        for (int i = 0; i < kNormalTable; ++i) {
+            const double u = (i + 0.5) / kNormalTable;
+            double lo = -10.0, hi = 10.0;
+            for (int it = 0; it < 80; ++it) {
+                const double mid = 0.5 * (lo + hi);
+                (0.5 * std::erfc(-mid / std::sqrt(2.0)) < u ? lo : hi) = mid;
+            }
+            quantile[i] = 0.5 * (lo + hi);
+        }
+    }
+};
+
+/** Built when the library loads, so that reading it needs no initialisation guard. */
+const BinomialTables kTables;
+const BinomialTables& tables() {
+    return kTables;
+}
+
+/** Standard normal quantile at u (tabulated, linearly interpolated). */
+double normal_quantile(double u) {
+    const BinomialTables& t = tables();
+    const double x = std::clamp(u * kNormalTable - 0.5, 0.0, kNormalTable - 1.000001);
+    const auto i = static_cast<int>(x);
+    return t.quantile[i] +
+           (x - i) * (t.quantile[std::min(i + 1, kNormalTable - 1)] - t.quantile[i]);
+}
+
+uint32_t normal_binomial(uint32_t n, double p, double u) {
+    const double mean = n * p, sd = std::sqrt(n * p * (1.0 - p));
+    const double k = std::clamp(mean + sd * normal_quantile(u) + 0.5, 0.0, n + 0.5);
+    return std::min(n, static_cast<uint32_t>(k));  // floor of k, rounding the normal variate
+}
+
+/** Population count without relying on the CPU's instruction (no -mpopcnt in a portable build). */
+inline uint32_t popcount64(uint64_t x) {
+    x = x - ((x >> 1) & 0x5555555555555555ull);
+    x = (x & 0x3333333333333333ull) + ((x >> 2) & 0x3333333333333333ull);
+    x = (x + (x >> 4)) & 0x0f0f0f0f0f0f0f0full;
+    return static_cast<uint32_t>((x * 0x0101010101010101ull) >> 56);
+}
+
+/** Counts of the labels 0, 1, 2 among the first `lanes` 2-bit lanes of w. */
+void count_lanes(uint64_t w, uint32_t lanes, uint32_t c[3]) {
+    constexpr uint64_t kLow = 0x5555555555555555ull;
+    const uint64_t mask = lanes >= 32 ? kLow : (kLow & ((1ull << (2 * lanes)) - 1));
+    const uint64_t pattern[3] = {0, kLow, kLow << 1};
+    for (int v = 0; v < 3; ++v) {
+        const uint64_t x = w ^ pattern[v];  // lanes equal to v become 00
+        c[v] += popcount64(~(x | (x >> 1)) & mask);
+    }
+}
+
+}  // namespace
+
+uint32_t binomial(uint32_t n, double p, double u, int exact_below) {
+    if (n == 0 || p <= 0.0) return 0;
+    if (p >= 1.0) return n;
+    if (static_cast<int64_t>(n) >= std::min(exact_below, kMaxExact))
+        return normal_binomial(n, p, u);
+    // Inversion of the CDF with the pmf recurrence, bounded by n steps; q^n is a normal double
+    // for the n < 1000 handled here unless p is within 1e-300 of 1.
+    const BinomialTables& t = tables();
+    const double q = 1.0 - p, ratio = p / q;
+    double pmf = std::pow(q, static_cast<double>(n));
+    double cdf = pmf;
+    uint32_t k = 0;
+    while (u > cdf && k < n) {
+        pmf *= ratio * static_cast<double>(n - k) * t.inv[k + 1];
+        cdf += pmf;
+        ++k;
+    }
+    return k;
+}
+
+void split_counts(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]) {
+    if (static_cast<int64_t>(n) < std::min(exact_below, kMaxExact)) {
+        // Flake i draws its child from bits 2i, 2i + 1 of word i / 32: an exact multinomial.
+        uint32_t c[3] = {0, 0, 0};
+        for (uint32_t first = 0, word = 0; first < n; first += 32, ++word)
+            count_lanes(mix(key, 1000 + word), std::min(32u, n - first), c);
+        out[0] = c[0];
+        out[1] = c[1];
+        out[2] = c[2];
+        out[3] = n - c[0] - c[1] - c[2];
+        return;
+    }
+    // Three 21-bit uniforms from one hash: the normal quantiles need no more.
+    const uint64_t h = mix(key, 100);
+    const auto u = [&](int i) {
+        return (static_cast<double>((h >> (21 * i)) & 0x1fffffu) + 0.5) * 0x1p-21;
+    };
+    out[0] = normal_binomial(n, 0.25, u(0));
+    out[1] = normal_binomial(n - out[0], 1.0 / 3.0, u(1));
+    out[2] = normal_binomial(n - out[0] - out[1], 0.5, u(2));
+    out[3] = n - out[0] - out[1] - out[2];
+}
+
+void split_counts_cached(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]) {
+    // Small splits are a handful of popcounts: cheaper than a cache probe.
+    if (n < 256) {
+        split_counts(key, n, exact_below, out);
+        return;
+    }
+    // A pure function memoised per thread in a direct-mapped table: neighbouring shading points
+    // walk the same upper levels of the tree, and a hit returns exactly what the split would.
+    struct Entry {
+        uint64_t key;
+        uint32_t n;
+        int32_t exact;
+        uint32_t c[4];
+    };
+    constexpr std::size_t kEntries = 1u << 14;
+    thread_local std::vector<Entry> cache(kEntries, Entry{0, 0, -1, {0, 0, 0, 0}});
+    Entry& e = cache[(key ^ (key >> 31)) & (kEntries - 1)];
+    if (e.key == key && e.n == n && e.exact == exact_below) {
+        std::copy(e.c, e.c + 4, out);
+        return;
+    }
+    split_counts(key, n, exact_below, out);
+    e = Entry{key, n, exact_below, {out[0], out[1], out[2], out[3]}};
+}
+
+uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty) {
+    return mix(mix(seed, static_cast<uint64_t>(tx)), static_cast<uint64_t>(ty));
+}
+
+uint64_t node_key(uint64_t tile, int depth, uint32_t ix, uint32_t iy) {
+    return mix(mix(tile, static_cast<uint64_t>(depth)), (static_cast<uint64_t>(ix) << 32) | iy);
+}
+
+namespace {
+
+/** sin and cos of x in [-pi/4, pi/4] (Taylor to x^9 and x^10: error below 4e-8). */
+inline void sincos_quarter(float x, float& s, float& c) {
+    const float x2 = x * x;
+    s = x * (1.0f - x2 / 6.0f * (1.0f - x2 / 20.0f * (1.0f - x2 / 42.0f * (1.0f - x2 / 72.0f))));
+    c = 1.0f - x2 / 2.0f * (1.0f - x2 / 12.0f * (1.0f - x2 / 30.0f * (1.0f - x2 / 56.0f)));
+}
+
+}  // namespace
+
+V3 flake_normal(float alpha, float s, float t) {
+    // Concentric map of [0,1)^2 onto the unit disk (Shirley and Chiu 1997): within each of the
+    // four sectors the angle is pi/4 times a ratio in [-1, 1], around the sector's axis.
+    const float a = 2.0f * s - 1.0f, b = 2.0f * t - 1.0f;
+    float x = 0.0f, y = 0.0f;
+    if (a != 0.0f || b != 0.0f) {
+        constexpr float kQuarter = 0.25f * mf::kPi;
+        float sn, cs;
+        if (std::fabs(a) > std::fabs(b)) {
+            sincos_quarter(kQuarter * (b / a), sn, cs);  // angle phi, around +x
+            x = a * cs;
+            y = a * sn;
+        } else {
+            // phi = pi/2 - delta: cos(phi) = sin(delta), sin(phi) = cos(delta).
+            sincos_quarter(kQuarter * (a / b), sn, cs);
+            x = b * sn;
+            y = b * cs;
+        }
+    }
+    // Lift to the hemisphere (x, y, sqrt(1 - x^2 - y^2)) and stretch.
+    const float z = std::sqrt(std::max(1e-12f, 1.0f - x * x - y * y));
+    return mf::normalize({alpha * x, alpha * y, z});
+}
+
+void flake_square(float alpha, V3 m, float& s, float& t) {
+    // Unstretch to the hemisphere; its (x, y) is the disk point.
+    const V3 h = mf::normalize({m.x / alpha, m.y / alpha, std::max(m.z, 1e-20f)});
+    const float x = h.x, y = h.y;
+    const float r = std::sqrt(x * x + y * y);
+    float a = 0.0f, b = 0.0f;
+    if (r > 0.0f) {
+        constexpr float kQuarter = 0.25f * mf::kPi;
+        float phi = std::atan2(y, x);  // (-pi, pi]
+        // Sector |phi| <= pi/4 or >= 3pi/4: a = +-r; otherwise b = +-r.
+        if (phi >= -kQuarter && phi <= kQuarter) {
+            a = r;
+            b = r * phi / kQuarter;
+        } else if (phi > kQuarter && phi < 3.0f * kQuarter) {
+            b = r;
+            a = -r * (phi - 2.0f * kQuarter) / kQuarter;
+        } else if (phi < -kQuarter && phi > -3.0f * kQuarter) {
+            b = -r;
+            a = r * (phi + 2.0f * kQuarter) / kQuarter;
+        } else {
+            a = -r;
+            const float p = phi > 0.0f ? phi - 4.0f * kQuarter : phi + 4.0f * kQuarter;
+            b = -r * p / kQuarter;
+        }
+    }
+    s = std::clamp(0.5f * (a + 1.0f), 0.0f, 0x1.fffffep-1f);
+    t = std::clamp(0.5f * (b + 1.0f), 0.0f, 0x1.fffffep-1f);
+}
+
+TileRange tiles_of(const Footprint& p) {
+    TileRange r;
+    const double hx = p.half_width(), hy = p.half_height();
+    // Clamp far-away uv before converting: a tile index must fit an int64.
+    const auto fl = [](double x) {
+        return static_cast<int64_t>(std::floor(std::clamp(x, -4.0e18, 4.0e18)));
+    };
+    r.tx0 = fl(p.cu - hx);
+    r.tx1 = fl(p.cu + hx);
+    r.ty0 = fl(p.cv - hy);
+    r.ty1 = fl(p.cv + hy);
+    return r;
+}
+
+}  // namespace spangle::flake

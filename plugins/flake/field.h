@@ -1,0 +1,239 @@
+#pragma once
+// The flake field: which flakes exist, where, and which way they face. Every flake is a pure
+// function of (material seed, uv tile, quad-tree node, index in the leaf), so the same flakes are
+// seen from every view, in every frame, on every thread count. Both evaluation algorithms (the
+// enumerating reflection cache and the counting tree) read this one field.
+//
+// A tile (integer uv square) holds N flakes. Its quad-tree splits a node's count among the four
+// children with an exact multinomial of p = 1/4 (two random bits per flake, counted with
+// popcounts) below `exact_below` flakes and a normal approximation above. A node with at most
+// `leaf_size` flakes, or at `max_depth`, is a leaf: its flakes get positions uniform in the cell
+// and normals from the GGX distribution of flake normals (D(m) (m.n)), through the map of the unit
+// square onto GGX normals in flake_normal().
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+
+#include "../common/microfacet.h"
+
+namespace spangle::flake {
+
+using mf::V3;
+
+/** Counter-based hash of two words (a 64-bit finaliser with full avalanche). The engine has its
+ *  own (core/hash.h), but a plugin includes nothing of the engine except plugin.h, and calling the
+ *  host's hash through a function pointer per flake would cost more than the hash. */
+inline uint64_t mix(uint64_t a, uint64_t b) {
+    uint64_t x = (a + 0x9e3779b97f4a7c15ull) * 0xbf58476d1ce4e5b9ull ^ (b + 0x632be59bd9b4e019ull);
+    x ^= x >> 30;
+    x *= 0xbf58476d1ce4e5b9ull;
+    x ^= x >> 27;
+    x *= 0x94d049bb133111ebull;
+    x ^= x >> 31;
+    return x;
+}
+
+/** Uniform double in [0, 1) from the top 53 bits. */
+inline double unit(uint64_t h) {
+    return static_cast<double>(h >> 11) * 0x1p-53;
+}
+
+/** Two uniform floats in [0, 1) from one hash (24 bits each). */
+inline void unit2(uint64_t h, float& a, float& b) {
+    a = static_cast<float>(h >> 40) * 0x1p-24f;
+    b = static_cast<float>((h >> 16) & 0xffffffu) * 0x1p-24f;
+}
+
+/** The footprint parallelogram P = c + s a + t b, s, t in [-1/2, 1/2], in uv. */
+struct Footprint {
+    double cu = 0, cv = 0;  ///< centre
+    double ax = 0, ay = 0;  ///< axis a = (du/dx, dv/dx) x footprint_scale
+    double bx = 0, by = 0;  ///< axis b = (du/dy, dv/dy) x footprint_scale
+    double i00 = 0, i01 = 0, i10 = 0,
+           i11 = 0;  ///< inverse of [a b]: uv offset -> (s, t); all 0 when singular
+    double area() const { return std::fabs(ax * by - ay * bx); }
+    double half_width() const { return 0.5 * (std::fabs(ax) + std::fabs(bx)); }
+    double half_height() const { return 0.5 * (std::fabs(ay) + std::fabs(by)); }
+};
+
+/** Footprint from uv derivatives, scaled, with the ratio of its principal axes clamped to
+ *  max_ratio (the minor axis widened, the centre kept): this bounds skew and needles alike. */
+Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy,
+                         double scale, double max_ratio = 4.0);
+
+/** Whether (u, v) lies inside P (in P's own coordinates, in double). */
+bool inside(const Footprint& p, double u, double v);
+
+/** Whether the cell [x0, x1] x [y0, y1] may intersect P (separating axes; exact for a
+ *  parallelogram and a box). */
+bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1);
+
+/** Whether the cell lies entirely inside P. */
+bool contains(const Footprint& p, double x0, double y0, double x1, double y1);
+
+/** Area of P intersected with the cell [x0, x1] x [y0, y1] (polygon clipping, in double). */
+double overlap_area(const Footprint& p, double x0, double y0, double x1, double y1);
+
+/** Settings of the flake field (everything that decides which flakes exist). */
+struct FieldParams {
+    uint64_t seed = 0;           ///< material seed
+    double flakes_per_tile = 0;  ///< N: count in one uv unit square, rounded, at most 2^31 - 1
+    float alpha = 0.1f;          ///< GGX roughness of the flake normal distribution
+    int leaf_size = 16;          ///< nodes with at most this many flakes are leaves
+    int max_depth = 12;          ///< deepest level of the quad-tree
+    int exact_below = 128;       ///< splits of fewer flakes than this are exact multinomials
+};
+
+/** Deterministic binomial B(n, p) from a uniform u: exact inversion of the CDF when n is below
+ *  exact_below (at most 1000), otherwise the normal approximation rounded and clamped to [0, n].
+ *  For a fixed u the result never decreases when n or p grows (inversion is monotone). */
+uint32_t binomial(uint32_t n, double p, double u, int exact_below);
+
+/** Splits n flakes among a node's four children, a multinomial with p = 1/4: exactly, from two
+ *  hashed bits per flake, when n < exact_below; by three sequential normal-approximated
+ *  binomials otherwise. Random numbers come from `key`. Adding one flake to n (below
+ *  exact_below) adds it to exactly one child, which keeps nested counts coherent. */
+void split_counts(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]);
+
+/** split_counts memoised per thread (same results): nodes near the root are split once. */
+void split_counts_cached(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]);
+
+/** Key of a uv tile. */
+uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty);
+
+/** Key of a quad-tree node: a pure function of the tile key, depth and cell. */
+uint64_t node_key(uint64_t tile_key, int depth, uint32_t ix, uint32_t iy);
+
+/** Flake normal (local frame, n = z) of the unit-square point (s, t): a uniform point of the disk
+ *  (Shirley and Chiu's concentric map, area preserving) lifted to the hemisphere and stretched by
+ *  (alpha, alpha, 1). Uniform (s, t) gives normals with density D(m) (m.n) for GGX (Heitz 2018:
+ *  GGX is the distribution of normals of a stretched hemisphere). Neighbouring squares map to
+ *  neighbouring normals. */
+V3 flake_normal(float alpha, float s, float t);
+
+/** Inverse of flake_normal for m.z > 0: the (s, t) whose normal is m. */
+void flake_square(float alpha, V3 m, float& s, float& t);
+
+/** One flake: where it is and which way it faces. */
+struct Flake {
+    double u = 0, v = 0;  ///< position in uv (absolute, tile included)
+    V3 m;                 ///< normal, local shading frame
+    float color_u = 0;    ///< uniform number that picks its colour-table entry
+};
+
+/** The position of flake i of the leaf with key `key` whose cell is [x0, x0 + size]^2
+ *  (tile-relative); returns the flake's hash for leaf_flake_finish(). */
+inline uint64_t leaf_flake_position(uint64_t key, uint32_t i, double x0, double y0, double size,
+                                    Flake& f) {
+    const uint64_t h = mix(key, i);
+    f.u = x0 + size * unit(mix(h, 1));
+    f.v = y0 + size * unit(mix(h, 2));
+    return h;
+}
+
+/** The rest of a flake from its hash: its normal and its colour number. */
+inline void leaf_flake_finish(const FieldParams& fp, uint64_t h, Flake& f) {
+    float s, t;
+    unit2(mix(h, 3), s, t);
+    f.m = flake_normal(fp.alpha, s, t);
+    f.color_u = static_cast<float>(mix(h, 4) >> 40) * 0x1p-24f;
+}
+
+/** The flake count of one tile, as the root of its quad-tree. */
+inline uint32_t root_count(const FieldParams& fp) {
+    return static_cast<uint32_t>(std::min(fp.flakes_per_tile + 0.5, 2147483647.0));
+}
+
+/** Tiles a footprint spans: [tx0, tx1] x [ty0, ty1]. */
+struct TileRange {
+    int64_t tx0 = 0, tx1 = -1, ty0 = 0, ty1 = -1;
+    int64_t count() const { return (tx1 - tx0 + 1) * (ty1 - ty0 + 1); }
+};
+TileRange tiles_of(const Footprint& p);
+
+/** Enumerates the flakes of node (depth, ix, iy, n) of tile (tx, ty) that lie inside P, calling
+ *  visit(const Flake&) for each, stopping after `budget` of them. Returns the number visited and
+ *  sets `truncated` when more existed. */
+template <class Visit>
+uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, int64_t ty,
+                        int depth, uint32_t ix, uint32_t iy, uint32_t n, uint32_t budget,
+                        bool& truncated, Visit&& visit);
+
+/** Enumerates every flake inside P (all tiles it touches, at most 64), as flakes_in_node. */
+template <class Visit>
+uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_flakes,
+                        bool& truncated, Visit&& visit);
+
+// ------------------------------------------------------------------------------------ templates
+
+template <class Visit>
+uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, int64_t ty,
+                        int depth, uint32_t ix, uint32_t iy, uint32_t n, uint32_t budget,
+                        bool& truncated, Visit&& visit) {
+    const uint64_t tk = tile_key(fp.seed, tx, ty);
+    // The footprint relative to this tile's origin.
+    Footprint local = p;
+    local.cu -= static_cast<double>(tx);
+    local.cv -= static_cast<double>(ty);
+    struct Node {
+        int depth;
+        uint32_t ix, iy, n;
+    };
+    Node stack[4 * 26];
+    int top = 0;
+    stack[top++] = {depth, ix, iy, n};
+    uint32_t visited = 0;
+    while (top > 0) {
+        const Node node = stack[--top];
+        if (node.n == 0) continue;
+        const double size = std::ldexp(1.0, -node.depth);
+        const double x0 = node.ix * size, y0 = node.iy * size;
+        if (!overlaps(local, x0, y0, x0 + size, y0 + size)) continue;
+        const uint64_t key = node_key(tk, node.depth, node.ix, node.iy);
+        if (static_cast<int>(node.n) <= fp.leaf_size || node.depth >= fp.max_depth) {
+            for (uint32_t i = 0; i < node.n; ++i) {
+                Flake f;
+                const uint64_t h = leaf_flake_position(key, i, x0, y0, size, f);
+                if (!inside(local, f.u, f.v)) continue;
+                if (visited >= budget) {
+                    truncated = true;
+                    return visited;
+                }
+                leaf_flake_finish(fp, h, f);
+                f.u += static_cast<double>(tx);
+                f.v += static_cast<double>(ty);
+                visit(static_cast<const Flake&>(f));
+                ++visited;
+            }
+            continue;
+        }
+        uint32_t child[4];
+        split_counts_cached(key, node.n, fp.exact_below, child);
+        for (uint32_t c = 0; c < 4; ++c)
+            stack[top++] = {node.depth + 1, 2 * node.ix + (c & 1u), 2 * node.iy + (c >> 1),
+                            child[c]};
+    }
+    return visited;
+}
+
+template <class Visit>
+uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_flakes,
+                        bool& truncated, Visit&& visit) {
+    truncated = false;
+    const TileRange tr = tiles_of(p);
+    if (tr.count() > 64) {
+        truncated = true;
+        return 0;
+    }
+    uint32_t visited = 0;
+    for (int64_t ty = tr.ty0; ty <= tr.ty1; ++ty)
+        for (int64_t tx = tr.tx0; tx <= tr.tx1; ++tx) {
+            visited += flakes_in_node(fp, p, tx, ty, 0, 0, 0, root_count(fp), max_flakes - visited,
+                                      truncated, visit);
+            if (truncated) return visited;
+        }
+    return visited;
+}
+
+}  // namespace spangle::flake

@@ -1,0 +1,287 @@
+#include "material.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <vector>
+
+#include "../common/plugin_support.h"
+
+namespace spangle::flake {
+
+using namespace spangle::plugin_support;
+
+namespace {
+
+/** Enumerated flakes per shading point, at most (about 3 ms and 2 MB of arena). */
+constexpr uint32_t kEnumerateBound = 65536;
+
+Material::Space parse_space(const std::string& s) {
+    if (s == "uv") return Material::Space::Uv;
+    if (s == "world") return Material::Space::World;
+    if (s == "object") return Material::Space::Object;
+    return Material::Space::Auto;
+}
+
+}  // namespace
+
+bool init_material(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* host,
+                   std::string& why) {
+    m.min_flakes = param_number(p, "min_flakes");
+    m.max_flakes = param_number(p, "max_flakes");
+    if (!(m.min_flakes < m.max_flakes)) {
+        why = "min_flakes must be below max_flakes";
+        return false;
+    }
+    for (int c = 0; c < 3; ++c) m.base[c] = static_cast<float>(param_number(p, "base_color", c));
+    m.flake_weight = static_cast<float>(param_number(p, "flake_weight"));
+    m.density = static_cast<float>(param_number(p, "density"));
+    m.space = parse_space(param_string(p, "density_space"));
+    m.tree = param_string(p, "algorithm") != "enumerate";
+    m.alpha = static_cast<float>(param_number(p, "flake_roughness"));
+    const float gamma = static_cast<float>(param_number(p, "gamma")) * mf::kPi / 180.0f;
+    m.cone = Cone(gamma);
+    m.footprint_scale = static_cast<float>(param_number(p, "footprint_scale"));
+    m.shadowing = param_number(p, "shadowing") != 0.0;
+    m.field.seed = static_cast<uint64_t>(param_number(p, "seed"));
+    m.field.alpha = m.alpha;
+    m.field.leaf_size = static_cast<int>(param_number(p, "leaf_size"));
+    m.field.max_depth = static_cast<int>(param_number(p, "max_depth"));
+    m.field.exact_below = static_cast<int>(param_number(p, "binomial_exact_below"));
+    // A cell must be enumerated whenever it is a leaf: its flakes are not split further.
+    m.exact_flakes = static_cast<uint32_t>(
+        std::max(param_number(p, "exact_flakes"), static_cast<double>(m.field.leaf_size)));
+    m.enumerate_cap =
+        static_cast<uint32_t>(std::min(4.0 * m.max_flakes + 64.0, double{kEnumerateBound}));
+    m.coat.init(param_number(p, "coat") != 0.0, static_cast<float>(param_number(p, "coat_ior")),
+                static_cast<float>(param_number(p, "coat_roughness")));
+    if (!build_fresnel(m.fresnel, p, host, why) || !build_colors(m.colors, m.base, p, host, why))
+        return false;
+    m.smooth.init(m.alpha, gamma, &m.fresnel);
+    m.grid.init(m.alpha, gamma);
+    return true;
+}
+
+namespace {
+
+/** Copies the scratch cache to the arena and fills the closure's lobe; false without memory. */
+bool store_cache(const std::vector<CacheEntry>& scratch, SpangleArena_v1* arena, Closure& c) {
+    const auto count = static_cast<uint32_t>(scratch.size());
+    if (count == 0) return true;
+    if (!arena) return false;
+    auto* entries =
+        static_cast<CacheEntry*>(arena->allocate(arena->context, count * sizeof(CacheEntry), 16));
+    auto* cdf = static_cast<float*>(arena->allocate(arena->context, count * sizeof(float), 16));
+    if (!entries || !cdf) return false;
+    std::memcpy(entries, scratch.data(), count * sizeof(CacheEntry));
+    float run = 0.0f, wsum = 0.0f;
+    for (uint32_t j = 0; j < count; ++j) {
+        run += entries[j].lum;
+        cdf[j] = run;
+        wsum += entries[j].w;
+    }
+    c.lobe = DiscreteLobe{entries, cdf, count, wsum, run};
+    return true;
+}
+
+/** The discrete part of a closure: the flakes of footprint p, by the material's algorithm.
+ *  Returns false when the footprint is beyond the algorithm's bound (the smooth lobe takes over).
+ */
+bool prepare_discrete(const Material& m, const Footprint& p, double per_tile, Closure& c,
+                      SpangleArena_v1* arena, PointStats& st) {
+    thread_local std::vector<CacheEntry> scratch;
+    scratch.clear();
+    FieldParams field = m.field;
+    field.flakes_per_tile = std::min(per_tile, 2147483647.0);
+    const auto add = [&](const Flake& f) {
+        CacheEntry e;
+        if (make_entry(c.wo, f.m, m.colors.pick(f.color_u), m.fresnel, e)) scratch.push_back(e);
+    };
+    if (m.tree) {
+        gather_cells(field, p, m.exact_flakes, c.counted, add);
+        if (c.counted.truncated) return false;
+    } else {
+        bool truncated = false;
+        for_each_flake(field, p, m.enumerate_cap, truncated, add);
+        if (truncated) return false;
+    }
+    if (!store_cache(scratch, arena, c)) return false;
+    st.cached += scratch.size();
+    st.aggregated += c.counted.aggregated;
+    st.aggregates += c.counted.n_agg;
+    c.w_norm = c.lobe.w_sum + static_cast<float>(c.counted.aggregated) * c.w_expected;
+    // Sampling within the discrete part: the cache by its luminance, the aggregates through the
+    // smooth lobe's proposal by theirs.
+    float fr[3];
+    m.fresnel.eval(1.0f, fr);
+    float mean[3] = {m.colors.mean[0] * fr[0], m.colors.mean[1] * fr[1], m.colors.mean[2] * fr[2]};
+    const float agg_lum =
+        static_cast<float>(c.counted.aggregated) * c.w_expected * std::max(1e-3f, luminance(mean));
+    const float total = c.lobe.lum_sum + agg_lum;
+    c.p_cache = total > 0.0f ? c.lobe.lum_sum / total : 1.0f;
+    return true;
+}
+
+/** Smoothstep in log lambda between min_flakes and max_flakes: 0 discrete, 1 smooth. */
+float blend_weight(const Material& m, double lambda) {
+    if (lambda <= m.min_flakes) return 0.0f;
+    if (lambda >= m.max_flakes) return 1.0f;
+    const double lo = std::log(std::max(m.min_flakes, 1e-9)), hi = std::log(m.max_flakes);
+    const double x = std::clamp((std::log(lambda) - lo) / (hi - lo), 0.0, 1.0);
+    return static_cast<float>(x * x * (3.0 - 2.0 * x));
+}
+
+}  // namespace
+
+void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v1* arena,
+                   PointStats& st) {
+    c = Closure{};
+    c.wo = in.wo;
+    c.valid = c.wo.z > 0.0f ? 1u : 0u;
+    if (!c.valid) return;
+    c.v_o = m.smooth.valid_fraction(c.wo.z);
+    c.e_coat_o = m.coat.albedo_at(c.wo.z);
+    // E[w] over D(m)(m.n): (cos_o / G1(wo)) times the share of visible normals that count.
+    c.w_expected = c.wo.z * c.v_o / mf::ggx_g1(c.wo, m.alpha, m.alpha);
+    double lambda = INFINITY;
+    if (in.flags & SPANGLE_SHADING_HAS_DIFFERENTIALS) {
+        const Footprint fp =
+            make_footprint(in.u, in.v, in.du_dx, in.dv_dx, in.du_dy, in.dv_dy, m.footprint_scale);
+        const double per_tile =
+            m.space == Material::Space::World
+                ? static_cast<double>(m.density) * static_cast<double>(in.uv_area)
+                : static_cast<double>(m.density);
+        lambda = per_tile * fp.area();
+        c.t = blend_weight(m, lambda);
+        if (c.t < 1.0f && !prepare_discrete(m, fp, per_tile, c, arena, st)) {
+            ++st.truncated;
+            c.t = 1.0f;
+        }
+    }
+    if (std::isfinite(lambda)) {
+        st.lambda_milli += static_cast<uint64_t>(std::min(lambda, 1e12) * 1000.0);
+        ++st.lambda_count;
+    }
+    ++(c.t <= 0.0f ? st.discrete : c.t >= 1.0f ? st.smooth : st.blended);
+    // Lobe selection in proportion to the energy each returns (a floor keeps every lobe sampled).
+    const float under = 1.0f - c.e_coat_o;
+    const float w_coat = m.coat.on ? c.e_coat_o : 0.0f;
+    const float w_base = under * (1.0f - m.flake_weight) * luminance(m.base);
+    const float w_flake = under * m.flake_weight *
+                          std::max(0.05f, luminance(m.colors.mean) * m.fresnel.normal_luminance());
+    const float total = w_coat + w_base + w_flake;
+    if (total > 0.0f) {
+        c.p_coat = w_coat / total;
+        c.p_base = w_base / total;
+        c.p_flake = w_flake / total;
+    }
+}
+
+namespace {
+
+/** The flake lobe at wi (RGB, before flake_weight) and its pdf. */
+void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf) {
+    f[0] = f[1] = f[2] = pdf = 0.0f;
+    const float g1_wi = m.shadowing ? mf::ggx_g1(wi, m.alpha, m.alpha) : 1.0f;
+    const bool has_agg = c.t < 1.0f && c.counted.n_agg > 0;
+    const bool need_smooth = c.t > 0.0f || has_agg;
+    float fs[3] = {0, 0, 0}, pdf_s = 0.0f;
+    if (need_smooth) eval_smooth(m.smooth, c.wo, c.v_o, wi, fs, pdf_s);
+    const float* mean = m.colors.mean;
+    if (c.t > 0.0f) {
+        for (int ch = 0; ch < 3; ++ch) f[ch] += c.t * g1_wi * mean[ch] * fs[ch];
+        pdf += c.t * pdf_s;
+    }
+    if (c.t >= 1.0f || !(c.w_norm > 0.0f)) return;
+    float sum[3] = {0, 0, 0}, lum = 0.0f;
+    if (c.lobe.count > 0) {
+        cone_sums(c.lobe, m.cone, wi, sum, lum);
+        const float k = 1.0f / (m.cone.solid_angle * wi.z);
+        for (float& x : sum) x *= k;
+    }
+    if (has_agg) {
+        // The aggregates' flakes: the smooth lobe per unit weight, times their weight and the
+        // modulation of their counts near wi.
+        float mod[3];
+        aggregate_modulation(c.counted, m.grid, m.colors, c.wo, wi, m.field.exact_below, mod);
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += mod[ch] * c.w_expected * fs[ch];
+    }
+    const float k = (1.0f - c.t) * g1_wi / c.w_norm;
+    for (int ch = 0; ch < 3; ++ch) f[ch] += k * sum[ch];
+    float pdf_d = c.p_cache < 1.0f ? (1.0f - c.p_cache) * pdf_s : 0.0f;
+    if (c.p_cache > 0.0f && c.lobe.lum_sum > 0.0f)
+        pdf_d += c.p_cache * lum / (c.lobe.lum_sum * m.cone.solid_angle);
+    pdf += (1.0f - c.t) * pdf_d;
+}
+
+}  // namespace
+
+void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf) {
+    f[0] = f[1] = f[2] = 0.0f;
+    pdf = 0.0f;
+    if (!c.valid || wi.z <= 0.0f) return;
+    float f_coat = 0.0f, pdf_coat = 0.0f, under = 1.0f;
+    if (m.coat.on) {
+        under = (1.0f - c.e_coat_o) * (1.0f - m.coat.albedo_at(wi.z));
+        if (!m.coat.smooth) m.coat.eval_rough(c.wo, wi, f_coat, pdf_coat);
+    }
+    float fl[3], pdf_fl;
+    eval_flakes(m, c, wi, fl, pdf_fl);
+    for (int ch = 0; ch < 3; ++ch)
+        f[ch] = f_coat + under * ((1.0f - m.flake_weight) * m.base[ch] * mf::kInvPi +
+                                  m.flake_weight * fl[ch]);
+    pdf = c.p_coat * pdf_coat + c.p_base * wi.z * mf::kInvPi + c.p_flake * pdf_fl;
+    if (!std::isfinite(f[0] + f[1] + f[2]) || !std::isfinite(pdf)) f[0] = f[1] = f[2] = pdf = 0.0f;
+}
+
+namespace {
+
+/** Picks `choice` < p and rescales u to a fresh uniform in [0, 1). */
+bool pick(float& u, float p) {
+    if (u < p) {
+        u = std::min(u / p, 0x1.fffffep-1f);
+        return true;
+    }
+    u = std::min((u - p) / std::max(1e-12f, 1.0f - p), 0x1.fffffep-1f);
+    return false;
+}
+
+}  // namespace
+
+void sample_material(const Material& m, const Closure& c, float u0, float u1, float u2, V3& wi,
+                     float f[3], float& pdf, uint32_t& flags) {
+    f[0] = f[1] = f[2] = pdf = 0.0f;
+    flags = 0;
+    wi = {0, 0, 1};
+    if (!c.valid) return;
+    float u = u2;
+    uint32_t kind = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_GLOSSY;
+    bool ok = true;
+    if (pick(u, c.p_coat)) {
+        if (m.coat.smooth) {
+            const float fr = mf::fresnel_dielectric(c.wo.z, m.coat.ior);
+            wi = {-c.wo.x, -c.wo.y, c.wo.z};
+            f[0] = f[1] = f[2] = fr / c.wo.z;
+            pdf = c.p_coat;
+            flags = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR;
+            return;
+        }
+        ok = m.coat.sample_rough(c.wo, u0, u1, wi);
+    } else if (pick(u, c.p_base / std::max(1e-12f, 1.0f - c.p_coat))) {
+        wi = mf::cosine_hemisphere(u0, u1);
+        kind = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_DIFFUSE;
+    } else if (pick(u, c.t) || !pick(u, c.p_cache)) {
+        ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
+    } else {
+        ok = sample_discrete(c.lobe, m.cone, u, u0, u1, wi);
+    }
+    if (!ok || !(wi.z > 0.0f)) return;
+    eval_material(m, c, wi, f, pdf);  // the whole mixture, so that MIS sees one density
+    if (!(pdf > 0.0f)) {
+        f[0] = f[1] = f[2] = pdf = 0.0f;
+        return;
+    }
+    flags = kind;
+}
+
+}  // namespace spangle::flake

@@ -1,0 +1,103 @@
+#pragma once
+// The whole flake material: a diffuse base, the flakes (discrete, smooth, or a blend of the two by
+// the expected flake count in the footprint), optionally under a clear coat:
+//
+//     f = f_coat + (1 - E(wo)) (1 - E(wi)) [(1 - flake_weight) base / pi + flake_weight f_flakes]
+//
+// Per shading point, prepare_point() decides from the expected count lambda (density x footprint
+// area) between the discrete lobe (lambda <= min_flakes), the smooth lobe (lambda >= max_flakes,
+// or no ray differentials) or a blend with weight smoothstep(log lambda). The discrete lobe comes
+// from one of two algorithms over the same flake field: `enumerate` (a reflection cache of every
+// flake in the footprint, cost linear in lambda) or `tree` (cache for small cells, counted
+// aggregates for the rest, cost independent of lambda). Directions are in the local shading
+// frame; the thin coat does not bend them. The discrete lobe is not reciprocal (it is built around
+// wo); a path tracer from the camera does not need reciprocity.
+
+#include <spangle/plugin.h>
+
+#include <atomic>
+#include <string>
+
+#include "coat.h"
+#include "counted_lobe.h"
+#include "discrete_lobe.h"
+#include "field.h"
+#include "palette.h"
+#include "smooth_lobe.h"
+
+namespace spangle::flake {
+
+/** A created material: parameters and every table derived from them. Read-only after create(),
+ *  except the statistics counters and the smooth lobe's lazily built view slices. */
+struct Material {
+    enum class Space { Auto, Uv, World, Object };
+    FieldParams field;
+    Space space = Space::Auto;
+    float density = 0;
+    float alpha = 0.15f;
+    Cone cone;
+    float footprint_scale = 1;
+    double min_flakes = 500, max_flakes = 2000;
+    bool tree = true;             ///< algorithm = "tree"
+    uint32_t exact_flakes = 256;  ///< tree: cells up to this count are enumerated
+    uint32_t enumerate_cap = 0;   ///< enumerate: hard bound on flakes per shading point
+    float base[3] = {0, 0, 0};
+    float flake_weight = 0.6f;
+    bool shadowing = true;
+    FresnelTable fresnel;
+    ColorTable colors;
+    SmoothLobe smooth;
+    DirectionGrid grid;
+    Coat coat;
+
+    // Statistics for --stats (relaxed atomics, summed per batch).
+    mutable std::atomic<uint64_t> points{0}, discrete{0}, blended{0}, smooth_only{0};
+    mutable std::atomic<uint64_t> truncated{0}, flakes_cached{0}, flakes_aggregated{0};
+    mutable std::atomic<uint64_t> aggregates{0}, lambda_milli_sum{0}, lambda_count{0};
+    mutable std::atomic<uint64_t> ns_prepare{0}, ns_eval{0}, ns_sample{0};
+};
+
+/** Builds m from validated parameters; false with `why` set when they cannot be used together. */
+bool init_material(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* host,
+                   std::string& why);
+
+/** Per-shading-point closure (lives in the host's closure array). */
+struct Closure {
+    V3 wo;
+    float t = 1.0f;            ///< weight of the smooth lobe in the flake blend
+    DiscreteLobe lobe;         ///< the reflection cache (count 0 when unused)
+    CountedFootprint counted;  ///< tree: the aggregates
+    float w_norm = 0;          ///< W: cached flakes' weights plus the aggregates' expected ones
+    float w_expected = 0;      ///< E[w] of one flake at wo
+    float p_cache = 1;         ///< discrete part: probability of sampling the cache
+    float p_coat = 0, p_base = 0, p_flake = 0;  ///< lobe selection probabilities
+    float e_coat_o = 0;                         ///< coat albedo at wo
+    float v_o = 1;       ///< share of visible flake normals reflecting above the horizon
+    uint32_t valid = 0;  ///< wo above the surface
+};
+
+/** What prepare_point() reports for the statistics. */
+struct PointStats {
+    uint64_t discrete = 0, blended = 0, smooth = 0, truncated = 0;
+    uint64_t cached = 0, aggregated = 0, aggregates = 0, lambda_milli = 0, lambda_count = 0;
+};
+
+/** The shading data of one point, as the batch gives it. */
+struct PointInput {
+    V3 wo;
+    float u = 0, v = 0, du_dx = 0, du_dy = 0, dv_dx = 0, dv_dy = 0, uv_area = 0;
+    uint32_t flags = 0;
+};
+
+/** Builds the closure of one point; the cache goes to `arena`. */
+void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v1* arena,
+                   PointStats& st);
+
+/** The whole material at wi: f (RGB) and the pdf of sample_material(). */
+void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf);
+
+/** Samples the whole material. Fills wi, f, pdf and SPANGLE_SAMPLE_* flags (0 when it fails). */
+void sample_material(const Material& m, const Closure& c, float u0, float u1, float u2, V3& wi,
+                     float f[3], float& pdf, uint32_t& flags);
+
+}  // namespace spangle::flake

@@ -1,0 +1,69 @@
+#pragma once
+// What a flake reflects: its Fresnel reflectance against the cosine at the flake (conductor
+// preset, dielectric or Schlick), and the colour table flakes draw their tint from (hues of an
+// HSL wheel converted to the working space through the scene's OCIO config, biased towards the
+// base colour's hue). The discrete and the smooth lobe read the same tables, so the smooth lobe's
+// colour and Fresnel are exactly the discrete lobe's expectation.
+
+#include <spangle/plugin.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace spangle::flake {
+
+/** RGB Fresnel reflectance of a flake against cos(theta) at the flake, working space, linearly
+ *  interpolated between kNodes nodes at cos = i / (kNodes - 1). */
+struct FresnelTable {
+    static constexpr int kNodes = 257;
+    float rgb[kNodes][3] = {};
+    /** Reflectance at cos_theta (clamped to [0, 1]). */
+    void eval(float cos_theta, float out[3]) const {
+        const float x = std::clamp(cos_theta, 0.0f, 1.0f) * static_cast<float>(kNodes - 1);
+        const int i = std::min(static_cast<int>(x), kNodes - 2);
+        const float f = x - static_cast<float>(i);
+        for (int c = 0; c < 3; ++c) out[c] = rgb[i][c] + f * (rgb[i + 1][c] - rgb[i][c]);
+    }
+    /** Luminance of the reflectance at normal incidence. */
+    float normal_luminance() const;
+};
+
+/** Builds the table from the parameters `fresnel`, `preset`, `flake_ior`, `flake_f0`. Returns
+ *  false and sets `why` when the working space cannot be reached. */
+bool build_fresnel(FresnelTable& t, const SpangleParams_v1* p, const SpangleHost_v1* host,
+                   std::string& why);
+
+/** The tint of flakes: one colour (table off), or a table of hues with a probability each. */
+struct ColorTable {
+    static constexpr int kGuide = 256;
+    std::vector<float> rgb;       ///< entries, working space, 3 floats each (empty: table off)
+    std::vector<float> cdf;       ///< cumulative probabilities of the entries
+    std::vector<uint16_t> guide;  ///< first entry whose cdf exceeds b / kGuide, per bucket b
+    float single[3] = {1, 1, 1};  ///< the colour when the table is off
+    float mean[3] = {1, 1, 1};    ///< expected flake colour
+    /** The colour picked by a uniform number in [0, 1): the first entry whose cdf exceeds it
+     *  (the guide table starts the search in u's bucket, so it is O(1) on average). */
+    const float* pick(float u) const {
+        if (cdf.empty()) return single;
+        const int b = std::min(static_cast<int>(u * kGuide), kGuide - 1);
+        std::size_t k = guide[static_cast<std::size_t>(b)];
+        while (k + 1 < cdf.size() && cdf[k] <= u) ++k;
+        return &rgb[3 * k];
+    }
+};
+
+/** Builds the table from `flake_color`, `color_table`, `table_size`, `table_s`, `table_l`,
+ *  `table_space` and `hue_spread` (the bias towards base_rgb's hue, base_rgb in the working
+ *  space). Returns false and sets `why` on a colour-management failure. */
+bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v1* p,
+                  const SpangleHost_v1* host, std::string& why);
+
+/** Rec.709 luminance weights (the tables are in the working space; the weights only steer
+ *  sampling, so any fixed positive weights are correct). */
+inline float luminance(const float c[3]) {
+    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+}
+
+}  // namespace spangle::flake

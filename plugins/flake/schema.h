@@ -1,0 +1,46 @@
+#pragma once
+// The flake model's parameters: name, type, default, range, one-line doc. The host validates
+// scene values against this table and `spangle plugins` prints it (the plugin README's table is
+// generated from that output).
+
+#include <spangle/plugin.h>
+
+namespace spangle::flake {
+
+// clang-format off
+inline const SpangleParamDesc_v1 kParams[] = {
+    {"base_color", SPANGLE_PARAM_COLOR, {0.05, 0.05, 0.05}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the paint between the flakes"},
+    {"flake_weight", SPANGLE_PARAM_FLOAT, {0.6, 0, 0}, nullptr, 0.0, 1.0, nullptr, "fraction of the surface covered by flakes"},
+    {"density", SPANGLE_PARAM_FLOAT, {200000, 0, 0}, nullptr, 1.0, 2147483647.0, nullptr, "flakes per unit square of uv (per square metre with density_space = world or object)"},
+    {"density_space", SPANGLE_PARAM_STRING, {0, 0, 0}, "auto", 0, 0, "auto|uv|world|object", "where flakes are laid out: uv, uv scaled to square metres, object-space position (triplanar), or auto: uv where the mesh has usable uvs, object elsewhere"},
+    {"algorithm", SPANGLE_PARAM_STRING, {0, 0, 0}, "tree", 0, 0, "tree|enumerate", "tree: counts flakes without enumerating them (cost independent of flake count); enumerate: the reference reflection cache of every flake"},
+    {"exact_flakes", SPANGLE_PARAM_INT, {256, 0, 0}, nullptr, 1.0, 4096.0, nullptr, "tree: footprint cells holding at most this many flakes are enumerated exactly, larger ones counted"},
+    {"flake_roughness", SPANGLE_PARAM_FLOAT, {0.15, 0, 0}, nullptr, 0.001, 1.0, nullptr, "GGX alpha of the distribution of flake normals around the shading normal"},
+    {"gamma", SPANGLE_PARAM_FLOAT, {3.0, 0, 0}, nullptr, 0.01, 45.0, nullptr, "half-angle in degrees of the cone each flake reflects into (larger: more, dimmer glints)"},
+    {"footprint_scale", SPANGLE_PARAM_FLOAT, {1.0, 0, 0}, nullptr, 0.01, 100.0, nullptr, "size of the flake footprint in pixels"},
+    {"leaf_size", SPANGLE_PARAM_INT, {16, 0, 0}, nullptr, 1.0, 1024.0, nullptr, "quad-tree nodes with at most this many flakes are leaves"},
+    {"max_depth", SPANGLE_PARAM_INT, {12, 0, 0}, nullptr, 10.0, 24.0, nullptr, "deepest quad-tree level (V-Ray's tex_subdivs)"},
+    {"binomial_exact_below", SPANGLE_PARAM_INT, {128, 0, 0}, nullptr, 0.0, 1000.0, nullptr, "splits of fewer flakes than this are sampled exactly, larger ones by the normal approximation"},
+    {"min_flakes", SPANGLE_PARAM_FLOAT, {500, 0, 0}, nullptr, 0.0, 1e9, nullptr, "expected flake count below which only the discrete lobe is used"},
+    {"max_flakes", SPANGLE_PARAM_FLOAT, {2000, 0, 0}, nullptr, 1.0, 1e9, nullptr, "expected flake count above which only the smooth lobe is used"},
+    {"fresnel", SPANGLE_PARAM_STRING, {0, 0, 0}, "conductor", 0, 0, "conductor|dielectric|schlick", "Fresnel of a flake: a metal (preset), a dielectric (flake_ior) or Schlick (flake_f0)"},
+    {"preset", SPANGLE_PARAM_STRING, {0, 0, 0}, "aluminium", 0, 0, "gold|silver|copper|aluminium|perfect", "metal of conductor flakes"},
+    {"flake_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of dielectric flakes"},
+    {"flake_f0", SPANGLE_PARAM_FLOAT, {0.9, 0, 0}, nullptr, 0.0, 1.0, nullptr, "normal-incidence reflectance of Schlick flakes"},
+    {"flake_color", SPANGLE_PARAM_COLOR, {1.0, 1.0, 1.0}, nullptr, 0.0, 1.0, nullptr, "tint of every flake when the colour table is off"},
+    {"shadowing", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0, 1, nullptr, "apply Smith shadowing G1(wi) of the flake distribution"},
+    {"color_table", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0, 1, nullptr, "give flakes colours from an HSL hue table instead of flake_color"},
+    {"table_size", SPANGLE_PARAM_INT, {60, 0, 0}, nullptr, 1.0, 360.0, nullptr, "number of hues in the colour table"},
+    {"table_s", SPANGLE_PARAM_FLOAT, {1.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "HSL saturation of the table"},
+    {"table_l", SPANGLE_PARAM_FLOAT, {0.5, 0, 0}, nullptr, 0.0, 1.0, nullptr, "HSL lightness of the table"},
+    {"table_space", SPANGLE_PARAM_STRING, {0, 0, 0}, "srgb_texture", 0, 0, nullptr, "colour space the HSL table is defined in (any name of the OCIO config)"},
+    {"hue_spread", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 360.0, nullptr, "degrees: flake hues are biased towards base_color's hue with this spread; 0 = uniform"},
+    {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0, 1, nullptr, "add a clear coat on top"},
+    {"coat_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of the clear coat"},
+    {"coat_roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the clear coat; below 1e-4 a smooth coat"},
+    {"seed", SPANGLE_PARAM_INT, {0, 0, 0}, nullptr, 0.0, 2147483647.0, nullptr, "which realisation of flakes: change it for a different but equivalent pattern"},
+};
+// clang-format on
+inline constexpr uint32_t kParamCount = sizeof(kParams) / sizeof(kParams[0]);
+
+}  // namespace spangle::flake
