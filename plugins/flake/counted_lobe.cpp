@@ -13,6 +13,17 @@ void DirectionGrid::init(float alpha_, float gamma_rad) {
     // (kappa = tan(gamma/2) / alpha); leaves of half of that: 4^-depth = kappa^2 / 2.
     const float kappa = std::tan(0.5f * gamma_rad) / alpha;
     depth = std::clamp(static_cast<int>(std::lround(0.5f + std::log2(1.0f / kappa))), 1, 7);
+    weight_level = std::min(kWeightLevel, depth);
+    const int nodes = 1 << weight_level;
+    weight_normals.clear();
+    for (int j = 0; j < nodes; ++j)
+        for (int i = 0; i < nodes; ++i)
+            for (int b = 0; b < 4; ++b)
+                for (int a = 0; a < 4; ++a)
+                    weight_normals.push_back(flake_normal(
+                        alpha,
+                        (static_cast<float>(4 * i + a) + 0.5f) / static_cast<float>(4 * nodes),
+                        (static_cast<float>(4 * j + b) + 0.5f) / static_cast<float>(4 * nodes)));
     const int side = 1 << depth;
     centres.resize(static_cast<std::size_t>(side) * side);
     for (int j = 0; j < side; ++j)
@@ -84,37 +95,44 @@ void split_stratified(uint64_t key, uint32_t n, uint32_t out[4]) {
     for (uint32_t r = 0; r < n % 4; ++r) ++out[perm[r]];
 }
 
+/** The split of a node of the direction tree at `level`: upper levels stratified, so that the
+ *  aggregate's flakes spread evenly over the broad directions; the rest a multinomial, the local
+ *  grain of real flakes. Sparse nodes (under 16 flakes) are stratified too: a hard-core spread of
+ *  few flakes is as grainy as a Poisson one, and keeps the energy exact where it would otherwise
+ *  fluctuate most. Virtual flakes are statistical stand-ins: exact splits only where they are one
+ *  hash. */
+void split_direction_node(int level, uint64_t key, uint32_t n, int exact_below, uint32_t c[4]) {
+    if (level == 0 || n < 16)
+        split_stratified(key, n, c);
+    else
+        split_counts_cached(key, n, std::min(exact_below, kExactVirtual), c);
+}
+
+/** The key of the direction tree's root of aggregate a; a child's key is its parent's hashed with
+ *  the child index, a pure function of the path. */
+uint64_t direction_root(const Aggregate& a) {
+    return mix(a.key, 0xd1ec);
+}
+
 /** Tent-weighted colour sum of aggregate a's flakes in the leaves around wi (weights `tau`, a
  *  kBox-wide grid whose first entry is leaf (i0, j0)), descending its direction tree level by
  *  level through the nodes over [i0, i1] x [j0, j1] only. */
 void weighted_colours(const Aggregate& a, const DirectionGrid& grid, const ColorTable& colors,
                       int exact_below, const float* tau, int i0, int i1, int j0, int j1,
                       float sum[3]) {
-    // A node's key is its parent's hashed with the child index: a pure function of the path.
     constexpr int kMax = 4 * kBox * kBox;
     uint32_t ni[2][kMax], nj[2][kMax], nn[2][kMax];
     uint64_t nk[2][kMax];
     int count = 1, cur = 0;
     ni[0][0] = nj[0][0] = 0;
     nn[0][0] = a.count;
-    nk[0][0] = mix(a.key, 0xd1ec);
-    // Virtual flakes are statistical stand-ins: exact splits only where they are one hash.
-    const int exact = std::min(exact_below, kExactVirtual);
+    nk[0][0] = direction_root(a);
     for (int level = 0; level < grid.depth; ++level) {
         const int shift = grid.depth - level - 1;
         int next = 0;
         for (int k = 0; k < count; ++k) {
-            // Upper levels stratified: the aggregate's flakes spread evenly over the broad
-            // directions, so its reflected energy matches its expected weight footprint by
-            // footprint. The last level is a multinomial: the local grain of real flakes.
-            // Sparse leaves (under 4 flakes each) are stratified too: a hard-core spread of few
-            // flakes is as grainy as a Poisson one, and keeps the energy exact where it would
-            // otherwise fluctuate most.
             uint32_t c[4];
-            if (level == 0 || nn[cur][k] < 16)
-                split_stratified(nk[cur][k], nn[cur][k], c);
-            else
-                split_counts_cached(nk[cur][k], nn[cur][k], exact, c);
+            split_direction_node(level, nk[cur][k], nn[cur][k], exact_below, c);
             for (uint32_t q = 0; q < 4; ++q) {
                 if (c[q] == 0) continue;
                 const uint32_t ci = 2 * ni[cur][k] + (q & 1u), cj = 2 * nj[cur][k] + (q >> 1);
@@ -144,6 +162,54 @@ void weighted_colours(const Aggregate& a, const DirectionGrid& grid, const Color
 }
 
 }  // namespace
+
+void node_weights(const DirectionGrid& grid, V3 wo, float out[DirectionGrid::kWeightNodes]) {
+    const int nodes = 1 << (2 * grid.weight_level);
+    for (int n = 0; n < nodes; ++n) {
+        float sum = 0.0f;
+        for (int s = 0; s < 16; ++s) {
+            const V3 m = grid.weight_normals[static_cast<std::size_t>(16 * n + s)];
+            const float c = mf::dot(wo, m);
+            if (c > 0.0f && 2.0f * c * m.z - wo.z > 0.0f) sum += c / m.z;
+        }
+        out[n] = sum * (1.0f / 16.0f);
+    }
+}
+
+float realised_weight(const Aggregate& a, const DirectionGrid& grid,
+                      const float node_w[DirectionGrid::kWeightNodes], int exact_below) {
+    // Breadth-first to weight_level (at most 1 + 4 + 16 nodes), in the row-major order of the
+    // level's nodes.
+    const int levels = grid.weight_level, side = 1 << levels;
+    uint32_t n[DirectionGrid::kWeightNodes] = {a.count};
+    uint64_t key[DirectionGrid::kWeightNodes] = {direction_root(a)};
+    for (int level = 0; level < levels; ++level) {
+        const int w = 1 << level;
+        uint32_t n2[DirectionGrid::kWeightNodes];
+        uint64_t key2[DirectionGrid::kWeightNodes];
+        for (int j = 0; j < w; ++j)
+            for (int i = 0; i < w; ++i) {
+                uint32_t c[4];
+                const uint64_t k = key[j * w + i];
+                split_direction_node(level, k, n[j * w + i], exact_below, c);
+                for (uint32_t q = 0; q < 4; ++q) {
+                    const int ci = 2 * i + static_cast<int>(q & 1u),
+                              cj = 2 * j + static_cast<int>(q >> 1);
+                    n2[cj * 2 * w + ci] = c[q];
+                    key2[cj * 2 * w + ci] = mix(k, 1 + q);
+                }
+            }
+        std::copy(n2, n2 + 4 * w * w, n);
+        std::copy(key2, key2 + 4 * w * w, key);
+    }
+    float realised = 0.0f, expected = 0.0f;
+    for (int i = 0; i < side * side; ++i) {
+        realised += static_cast<float>(n[i]) * node_w[i];
+        expected += node_w[i];
+    }
+    expected *= static_cast<float>(a.count) / static_cast<float>(side * side);
+    return expected > 0.0f ? realised / expected : 1.0f;
+}
 
 void aggregate_modulation(const CountedFootprint& cf, const DirectionGrid& grid,
                           const ColorTable& colors, V3 wo, V3 wi, int exact_below, float out[3]) {

@@ -49,10 +49,17 @@ constexpr uint32_t kMaxAggregates = 16;
 /** The direction side of the counting algorithm, per material: the leaf level of the aggregates'
  *  direction trees and the normals at the leaf centres. */
 struct DirectionGrid {
+    /** Level of the direction tree whose realised counts set an aggregate's weight (see
+     *  realised_weight). */
+    static constexpr int kWeightLevel = 2;
+    static constexpr int kWeightNodes = 1 << (2 * kWeightLevel);
     int depth = 4;            ///< leaves are 4^-depth of the square of flake normals
+    int weight_level = 2;     ///< min(kWeightLevel, depth)
     float alpha = 0.15f;      ///< flake roughness
     float sin2_half = 0.0f;   ///< sin^2(gamma / 2) of the cone
     std::vector<V3> centres;  ///< normal at each leaf centre, row-major (2^depth per row)
+    /** 4 x 4 stratified normals in each node of weight_level (node-major), for node_weights. */
+    std::vector<V3> weight_normals;
     /** Chooses the leaf level from the cone's size relative to the flake roughness. */
     void init(float alpha_, float gamma_rad);
 };
@@ -78,6 +85,21 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
  *  an unbiased sum). Zero when no virtual flake lights wi. */
 void aggregate_modulation(const CountedFootprint& cf, const DirectionGrid& grid,
                           const ColorTable& colors, V3 wo, V3 wi, int exact_below, float out[3]);
+
+/** The mean projected-area weight w = (wo.m) / m.z of the valid flakes (facing wo, reflecting
+ *  above the horizon) in each node of the direction tree's weight_level, as a share of the
+ *  square (4 x 4 normals per node). */
+void node_weights(const DirectionGrid& grid, V3 wo, float out[DirectionGrid::kWeightNodes]);
+
+/** An aggregate's realised weight relative to its expected one, k E[w]: its flakes' counts in the
+ *  nodes of weight_level (the same splits the modulation descends through) weighted by the nodes'
+ *  mean weights. The reflection cache normalises by its flakes' actual weights, so that a
+ *  footprint whose flakes happen to face the viewer more reflects no more than it receives; this
+ *  does the same for the aggregates at the scale where their counts vary most in energy (the
+ *  square's quadrants differ most at grazing views, where half of them reflect under the
+ *  horizon). Returns 1 when no node holds a valid flake. */
+float realised_weight(const Aggregate& a, const DirectionGrid& grid,
+                      const float node_w[DirectionGrid::kWeightNodes], int exact_below);
 
 /** The quad-tree level (0 = the tile) whose cells are the smallest at least as large as P's
  *  bounding box, so that P overlaps at most 2 x 2 of them; at most the field's max_depth. */

@@ -109,7 +109,17 @@ bool prepare_discrete(const Material& m, const Footprint& p, double per_tile, Cl
     st.cached += scratch.size();
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;
-    c.w_norm = c.lobe.w_sum + static_cast<float>(c.counted.aggregated) * c.w_expected;
+    // The aggregates' weight: k E[w] each, scaled by how their flakes' realised spread over the
+    // square of normals weighs against the expected one (realised_weight).
+    float agg_w = 0.0f;
+    if (c.counted.n_agg > 0) {
+        float node_w[DirectionGrid::kWeightNodes];
+        node_weights(m.grid, c.wo, node_w);
+        for (uint32_t a = 0; a < c.counted.n_agg; ++a)
+            agg_w += static_cast<float>(c.counted.agg[a].count) *
+                     realised_weight(c.counted.agg[a], m.grid, node_w, m.field.exact_below);
+    }
+    c.w_norm = c.lobe.w_sum + agg_w * c.w_expected;
     // Sampling within the discrete part: the cache by its luminance, the aggregates through the
     // smooth lobe's proposal by theirs.
     float fr[3];

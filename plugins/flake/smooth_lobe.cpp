@@ -38,8 +38,8 @@ constexpr int kViewNodes = kThetaNodes + kGrazingNodes;
 constexpr float kThetaStep = 4.0f * 3.14159265f / 180.0f;
 const float kLogRatio = std::log(1.2f);
 /** Mass corrections per view-node interval (see BlurTable::correction). */
-constexpr int kPerNode = 4;
-constexpr int kVndfGrid = 128;  ///< stratified VNDF samples per side for the normalisation
+constexpr int kPerNode = 2;
+constexpr int kVndfGrid = 256;  ///< stratified VNDF samples per side for the normalisation
 
 /** wo's azimuth as (cos, sin); (1, 0) at normal incidence. */
 void azimuth(V3 wo, float& c, float& s) {
@@ -67,14 +67,20 @@ V3 from_frame(V3 v, float c, float s) {
 float scale_x(float kappa) {
     return 1.0f + kappa;
 }
+/** 1 / cos(theta_o), smoothly limited to 20 at grazing views: the cone's reach across wo's plane
+ *  grows as 1 / cos, and a kink (a hard clamp) would be a kink in every table entry between two
+ *  view nodes, which linear interpolation cannot follow. */
+float grazing_stretch(float cos_o) {
+    return 1.0f / std::hypot(cos_o, 0.05f);
+}
 float scale_y(float kappa, float cos_o) {
-    return 1.0f + kappa / std::max(cos_o, 0.05f);
+    return 1.0f + kappa * grazing_stretch(cos_o);
 }
 
 /** The widened roughness of the proposal (along and across wo's plane). */
 void proposal_alpha_of(float alpha, float kappa, float cos_o, float& ax, float& ay) {
     ax = alpha * (1.0f + 0.5f * kappa);
-    ay = alpha * (1.0f + 0.5f * kappa / std::max(cos_o, 0.05f));
+    ay = alpha * (1.0f + 0.5f * kappa * grazing_stretch(cos_o));
 }
 
 /** Compactified coordinate of a slope: x / (s + |x|) in (-1, 1). */
@@ -193,35 +199,45 @@ void build_node(BlurTable& t, int k) {
     }
 }
 
-/** Scales node k's R so that the table's mass over wi equals the exact one: with r the mirror
- *  direction of a visible normal (density p), E[q A R / p 1_valid] = E[A 1_valid], on the same
- *  stratified samples (q the proposal's density, A the cone's share above the horizon). */
+/** The exact mass of the blurred lobe over wi against the table's, at view cosine cos_e (wo in the
+ *  xz-plane), for `lookup(h, v)` giving R and the Fresnel ratios at half vector h. Exact:
+ *  E[A 1_valid] over the visible normals (r their mirror direction, A the share of its cone above
+ *  the horizon). Table: the eval'd lobe is q A R, so its mass is E[A R] over the proposal's own
+ *  directions; R is bounded there (the proposal is wider than the blurred lobe), where an estimate
+ *  over the unblurred normals would weight the blur's tails by rho / p and need far more samples
+ *  once the cone is wider than the flake lobe. Both on stratified grids. */
+template <class Lookup>
+double mass_ratio(const BlurTable& t, float cos_e, int grid, Lookup&& lookup) {
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_e * cos_e)), 0.0f, cos_e};
+    float ax, ay;
+    proposal_alpha_of(t.alpha, t.kappa, cos_e, ax, ay);
+    double exact = 0.0, tabled = 0.0;
+    const auto g = static_cast<float>(grid);
+    for (int a = 0; a < grid; ++a)
+        for (int b = 0; b < grid; ++b) {
+            const float u0 = (static_cast<float>(a) + 0.5f) / g,
+                        u1 = (static_cast<float>(b) + 0.5f) / g;
+            const V3 r = mf::reflect(wo, mf::ggx_sample_visible(wo, t.alpha, t.alpha, u0, u1));
+            if (r.z > 0.0f) exact += cone_fraction_above(r.z, t.sin2_half);
+            const V3 h = mf::ggx_sample_visible(wo, ax, ay, u0, u1);
+            const V3 wi = mf::reflect(wo, h);
+            if (!(wi.z > 0.0f)) continue;
+            float v[4];
+            lookup(h, v);
+            tabled += static_cast<double>(v[0]) * cone_fraction_above(wi.z, t.sin2_half);
+        }
+    return tabled > 0.0 ? exact / tabled : 1.0;
+}
+
+/** Scales node k's R so that the table's mass over wi equals the exact one (mass_ratio). */
 void normalise_node(BlurTable& t, int k) {
     const float cos_k = node_cos(k);
-    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_k * cos_k)), 0.0f, cos_k};
-    double exact = 0.0, tabled = 0.0;
-    float ax, ay;
-    proposal_alpha_of(t.alpha, t.kappa, cos_k, ax, ay);
-    const float g1 = mf::ggx_g1(wo, t.alpha, t.alpha), g1w = mf::ggx_g1(wo, ax, ay);
     const float* slice = &t.data[static_cast<std::size_t>(k) * t.n_x * t.n_y * 4];
-    for (int a = 0; a < kVndfGrid; ++a)
-        for (int b = 0; b < kVndfGrid; ++b) {
-            const float u0 = (static_cast<float>(a) + 0.5f) / kVndfGrid,
-                        u1 = (static_cast<float>(b) + 0.5f) / kVndfGrid;
-            const V3 h = mf::ggx_sample_visible(wo, t.alpha, t.alpha, u0, u1);
-            const V3 r = mf::reflect(wo, h);
-            if (!(r.z > 0.0f)) continue;
-            const double above = cone_fraction_above(r.z, t.sin2_half);
-            exact += above;
-            float wx, wy, v[4];
-            node_coords(t, cos_k, h, wx, wy);
-            lookup_node(t, slice, wx, wy, v);
-            const float q_over_p =
-                (g1w * mf::ggx_d(h, ax, ay)) / (g1 * mf::ggx_d(h, t.alpha, t.alpha));
-            tabled += static_cast<double>(v[0] * q_over_p) * above;
-        }
-    if (!(tabled > 0.0)) return;
-    const auto scale = static_cast<float>(exact / tabled);
+    const auto scale = static_cast<float>(mass_ratio(t, cos_k, kVndfGrid, [&](V3 h, float v[4]) {
+        float wx, wy;
+        node_coords(t, cos_k, h, wx, wy);
+        lookup_node(t, slice, wx, wy, v);
+    }));
     for (std::size_t n = 0; n < static_cast<std::size_t>(t.n_x * t.n_y); ++n)
         t.data[(static_cast<std::size_t>(k) * t.n_x * t.n_y + n) * 4] *= scale;
 }
@@ -260,33 +276,13 @@ float BlurTable::mass_correction(float fk) const {
     const int e0 = std::min(static_cast<int>(e), static_cast<int>(correction.size()) - 2);
     for (int i = e0; i <= e0 + 1; ++i) {
         std::call_once(corrected[static_cast<std::size_t>(i)], [&] {
-            // The exact mass E_VNDF[A 1_valid] against the interpolated table's, as in
-            // normalise_node but between nodes.
-            const float cos_e = fractional_node_cos(static_cast<float>(i) / kPerNode);
-            const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_e * cos_e)), 0.0f, cos_e};
-            float ax, ay;
-            proposal_alpha_of(alpha, kappa, cos_e, ax, ay);
-            const float g1 = mf::ggx_g1(wo, alpha, alpha), g1w = mf::ggx_g1(wo, ax, ay);
-            double exact = 0.0, tabled = 0.0;
-            constexpr int kGrid = kVndfGrid;
-            for (int a = 0; a < kGrid; ++a)
-                for (int b = 0; b < kGrid; ++b) {
-                    const V3 hh = mf::ggx_sample_visible(wo, alpha, alpha,
-                                                         (static_cast<float>(a) + 0.5f) / kGrid,
-                                                         (static_cast<float>(b) + 0.5f) / kGrid);
-                    const V3 r = mf::reflect(wo, hh);
-                    if (!(r.z > 0.0f)) continue;
-                    const double above = cone_fraction_above(r.z, sin2_half);
-                    exact += above;
-                    float v[4];
-                    interpolate_nodes(*this, static_cast<float>(i) / kPerNode, hh, v);
-                    const float q_over_p =
-                        (g1w * mf::ggx_d(hh, ax, ay)) / (g1 * mf::ggx_d(hh, alpha, alpha));
-                    tabled += static_cast<double>(v[0] * q_over_p) * above;
-                }
+            // The table between nodes, as interpolated, against the exact mass (as in
+            // normalise_node).
+            const float fi = static_cast<float>(i) / kPerNode;
             auto& self = const_cast<BlurTable&>(*this);
-            self.correction[static_cast<std::size_t>(i)] =
-                tabled > 0.0 ? static_cast<float>(exact / tabled) : 1.0f;
+            self.correction[static_cast<std::size_t>(i)] = static_cast<float>(
+                mass_ratio(*this, fractional_node_cos(fi), kVndfGrid,
+                           [&](V3 h, float v[4]) { interpolate_nodes(*this, fi, h, v); }));
         });
     }
     const float t = e - static_cast<float>(e0);
@@ -316,7 +312,7 @@ std::shared_ptr<BlurTable> shared_table(float alpha, double sin2_half, float kap
     t->fresnel = fresnel;
     // The rim of a wide cone over near-mirror flakes is about one slope unit wide at a distance
     // kappa: resolve it with a few nodes.
-    const int refine = std::clamp(static_cast<int>(std::ceil(kappa / 3.0f)), 1, 4);
+    const int refine = std::clamp(static_cast<int>(std::ceil(kappa / 1.5f)), 1, 4);
     t->n_o = kViewNodes;
     t->n_x = 48 * refine + 1;
     t->n_y = 24 * refine + 1;
