@@ -20,6 +20,7 @@ struct Instance {
     uint32_t mesh = 0;       ///< index into GeometryStore::meshes
     uint32_t material = 0;   ///< index into the scene's materials
     Affine to_world;         ///< object to world
+    Affine to_object;        ///< world to object (the inverse of to_world)
     Affine normal_to_world;  ///< inverse transpose of to_world's linear part (no translation)
     int32_t emitter = -1;    ///< first light-table entry of its triangles, or -1
 };

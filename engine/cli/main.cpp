@@ -160,10 +160,10 @@ int run_plugins(const std::vector<std::string>& dirs) {
     for (const auto& f : files) {
         try {
             auto p = PluginLoader::open_file(f, "");
-            const SpangleMaterialPlugin_v1& t = p->table();
+            const SpangleMaterialPlugin_v2& t = p->table();
             fmt::print("\n{} ({}): {}\n", t.name, f, t.doc ? t.doc : "");
             for (uint32_t m = 0; m < t.model_count; ++m) {
-                const SpangleMaterialModel_v1& model = t.models[m];
+                const SpangleMaterialModel_v2& model = t.models[m];
                 fmt::print("  model {}: {}\n", model.name, model.doc ? model.doc : "");
                 for (uint32_t k = 0; k < model.param_count; ++k)
                     fmt::print("    {}\n", describe_param(model.params[k]));

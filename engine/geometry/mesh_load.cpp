@@ -89,3 +89,22 @@ void validate_mesh(const TriangleMesh& mesh, const FileLoc& ref) {
 }
 
 }  // namespace spangle
+
+namespace spangle {
+
+double TriangleMesh::uv_mapped_fraction() const {
+    if (uvs.empty()) return 0.0;
+    double mapped = 0.0, total = 0.0;
+    for (std::size_t t = 0; t < triangle_count(); ++t) {
+        const uint32_t i0 = indices[3 * t], i1 = indices[3 * t + 1], i2 = indices[3 * t + 2];
+        const double area = length(cross(position(i1) - position(i0), position(i2) - position(i0)));
+        const double du1 = uvs[2 * i1] - uvs[2 * i0], dv1 = uvs[2 * i1 + 1] - uvs[2 * i0 + 1];
+        const double du2 = uvs[2 * i2] - uvs[2 * i0], dv2 = uvs[2 * i2 + 1] - uvs[2 * i0 + 1];
+        total += area;
+        // The same test as shading's (render/surface.cpp): a uv determinant above 1e-20.
+        if (std::fabs(du1 * dv2 - dv1 * du2) > 1e-20) mapped += area;
+    }
+    return total > 0.0 ? mapped / total : 0.0;
+}
+
+}  // namespace spangle

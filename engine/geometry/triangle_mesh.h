@@ -22,6 +22,9 @@ struct TriangleMesh {
     Vec3 position(uint32_t i) const {
         return {positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]};
     }
+    /** The share of the surface (by area) whose uvs map its triangles to a non-zero uv area: 0
+     *  without uvs, or with uvs that are all zero (as exported by some tools). */
+    double uv_mapped_fraction() const;
 };
 
 /** All meshes of a scene; objects refer to them by index, so one file loaded twice is shared. */

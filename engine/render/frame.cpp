@@ -48,7 +48,7 @@ FrameResult render_frame(const FrameRequest& req) {
         plugins.opened(), world.stats, std::move(info), world.subdiv,           {}};
     for (const auto& mat : world.materials) {
         if (!mat || !mat->model().stats) continue;
-        SpangleStat_v1 buf[64];
+        SpangleStat_v2 buf[64];
         const uint32_t n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);
         std::vector<std::pair<std::string, double>> values;
         for (uint32_t i = 0; i < n; ++i)

@@ -73,6 +73,7 @@ struct Workspace {
     std::vector<SurfacePoint> surf;
     // Plugin batches (SoA) for one material group.
     std::vector<float> px, py, pz, wox, woy, woz, u, v, dudx, dudy, dvdx, dvdy, uv_area;
+    std::vector<float> opx, opy, opz, onx, ony, onz, odxx, odxy, odxz, odyx, odyy, odyz;
     std::vector<uint32_t> flags, path_id;
     std::vector<float> f_r, f_g, f_b, pdf, wix, wiy, wiz, u0, u1, u2, eta;
     std::vector<float> u_select;  ///< light selection number of each shading point
@@ -95,6 +96,9 @@ struct Workspace {
         for (auto* a : {&px,   &py,   &pz,   &wox,     &woy, &woz, &u,       &v,   &dudx,
                         &dudy, &dvdx, &dvdy, &uv_area, &f_r, &f_g, &f_b,     &pdf, &wix,
                         &wiy,  &wiz,  &u0,   &u1,      &u2,  &eta, &u_select})
+            a->resize(n);
+        for (auto* a :
+             {&opx, &opy, &opz, &onx, &ony, &onz, &odxx, &odxy, &odxz, &odyx, &odyy, &odyz})
             a->resize(n);
         for (auto* a : {&flags, &path_id, &closure_index, &sample_flags, &light_query})
             a->resize(n);
@@ -180,11 +184,24 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         ws.dvdx[k] = sp.dvdx;
         ws.dvdy[k] = sp.dvdy;
         ws.uv_area[k] = sp.uv_area;
+        ws.opx[k] = sp.p_obj.x;
+        ws.opy[k] = sp.p_obj.y;
+        ws.opz[k] = sp.p_obj.z;
+        ws.onx[k] = sp.ng_obj.x;
+        ws.ony[k] = sp.ng_obj.y;
+        ws.onz[k] = sp.ng_obj.z;
+        ws.odxx[k] = sp.dpdx_obj.x;
+        ws.odxy[k] = sp.dpdx_obj.y;
+        ws.odxz[k] = sp.dpdx_obj.z;
+        ws.odyx[k] = sp.dpdy_obj.x;
+        ws.odyy[k] = sp.dpdy_obj.y;
+        ws.odyz[k] = sp.dpdy_obj.z;
         ws.flags[k] = (sp.backface ? SPANGLE_SHADING_BACKFACE : 0u) |
-                      (ws.has_diff[i] ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u);
+                      (ws.has_diff[i] ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u) |
+                      (sp.has_uv ? 0u : SPANGLE_SHADING_NO_UV);
         ws.path_id[k] = i;
     }
-    const SpangleShadingBatch_v1 batch{n,
+    const SpangleShadingBatch_v2 batch{n,
                                        ws.px.data(),
                                        ws.py.data(),
                                        ws.pz.data(),
@@ -198,15 +215,27 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                                        ws.dvdx.data(),
                                        ws.dvdy.data(),
                                        ws.uv_area.data(),
+                                       ws.opx.data(),
+                                       ws.opy.data(),
+                                       ws.opz.data(),
+                                       ws.onx.data(),
+                                       ws.ony.data(),
+                                       ws.onz.data(),
+                                       ws.odxx.data(),
+                                       ws.odxy.data(),
+                                       ws.odxz.data(),
+                                       ws.odyx.data(),
+                                       ws.odyy.data(),
+                                       ws.odyz.data(),
                                        ws.flags.data(),
                                        ws.path_id.data()};
-    const SpangleMaterialModel_v1& model = mat.model();
+    const SpangleMaterialModel_v2& model = mat.model();
     ws.closures.resize(static_cast<std::size_t>(n) * model.closure_size + 16);
     void* closures = ws.closures.data();
     std::size_t space = ws.closures.size();
     closures = std::align(16, static_cast<std::size_t>(n) * model.closure_size, closures, space);
     ws.arena.reset();
-    SpangleArena_v1 arena = ws.arena.api();
+    SpangleArena_v2 arena = ws.arena.api();
     model.prepare(mat.instance(), &batch, closures, &arena);
 
     // Random numbers of this bounce, shared by light and BSDF sampling.
@@ -236,7 +265,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             ws.wiz[q] = dot(ls.wi, sp.n);
             ++q;
         }
-        SpangleEvalBatch_v1 eval{q,
+        SpangleEvalBatch_v2 eval{q,
                                  ws.closure_index.data(),
                                  ws.wix.data(),
                                  ws.wiy.data(),
@@ -274,7 +303,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairBsdf, ws.u0[k], ws.u1[k]);
         ws.eta[k] = 1.0f;
     }
-    SpangleSampleBatch_v1 sb{n,
+    SpangleSampleBatch_v2 sb{n,
                              nullptr,
                              ws.u0.data(),
                              ws.u1.data(),
@@ -420,6 +449,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             ws.surf[k] = surface_at(w.geometry.meshes[inst.mesh], inst, hit, ws.ray[k].d);
             bool has_diff = ws.has_diff[k] != 0;
             footprint_at(ws.surf[k], ws.ray[k], has_diff, ws.fp_width[k] + ws.fp_spread[k] * hit.t);
+            object_footprint(ws.surf[k], inst);
             ws.has_diff[k] = has_diff ? 1 : 0;
             ws.material_of[k] = inst.material;
             ++group_start[inst.material + 1];

@@ -13,6 +13,14 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     const Vec3 p2 = inst.to_world.apply_point(mesh.position(i2));
     SurfacePoint sp;
     sp.p = p0 * b0 + p1 * h.b1 + p2 * h.b2;
+    // The same point in object space, for patterns fixed to the object.
+    {
+        const Vec3 q0 = mesh.position(i0), q1 = mesh.position(i1), q2 = mesh.position(i2);
+        sp.p_obj = q0 * b0 + q1 * h.b1 + q2 * h.b2;
+        const Vec3 nq = cross(q1 - q0, q2 - q0);
+        const float len = length(nq);
+        sp.ng_obj = len > 0.0f && std::isfinite(len) ? nq / len : Vec3(0, 0, 1);
+    }
     const Vec3 e1 = p1 - p0, e2 = p2 - p0;
     Vec3 ng = cross(e1, e2);
     const float ng_len = length(ng);
@@ -48,6 +56,7 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     const float du2 = uv2[0] - uv0[0], dv2 = uv2[1] - uv0[1];
     const float det = du1 * dv2 - dv1 * du2;
     if (std::fabs(det) > 1e-20f) {
+        sp.has_uv = !mesh.uvs.empty();
         const float inv = 1.0f / det;
         sp.dpdu = (e1 * dv2 - e2 * dv1) * inv;
         sp.dpdv = (e2 * du1 - e1 * du2) * inv;
@@ -121,6 +130,11 @@ void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, 
     sp.dudx = lu > 0.0f ? widened / lu : 0.0f;
     sp.dvdy = lv > 0.0f ? widened / lv : 0.0f;
     sp.dudy = sp.dvdx = 0.0f;
+}
+
+void object_footprint(SurfacePoint& sp, const Instance& inst) {
+    sp.dpdx_obj = inst.to_object.apply_vector(sp.dpdx);
+    sp.dpdy_obj = inst.to_object.apply_vector(sp.dpdy);
 }
 
 }  // namespace spangle

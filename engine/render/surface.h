@@ -21,6 +21,9 @@ struct SurfacePoint {
     Vec3 dpdx, dpdy;                               ///< footprint axes on the surface (world)
     float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;  ///< footprint axes in uv
     float footprint = 0;                           ///< world width of the footprint
+    bool has_uv = false;      ///< the mesh has uvs here and they map the triangle to an area
+    Vec3 p_obj, ng_obj;       ///< position and (unit) geometric normal in object space
+    Vec3 dpdx_obj, dpdy_obj;  ///< footprint axes in object space (set by object_footprint)
 };
 
 /** Resolves a hit on `inst` (whose mesh is `mesh`) to a surface point oriented towards -d. */
@@ -30,5 +33,8 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
  *  (has_diff is cleared if they miss it); otherwise a square of world width `widened` along
  *  dp/du and dp/dv. */
 void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, float widened);
+
+/** Fills sp's object-space footprint axes from its world ones (after footprint_at). */
+void object_footprint(SurfacePoint& sp, const Instance& inst);
 
 }  // namespace spangle

@@ -116,6 +116,34 @@ void system_materials(ecs::Registry& r, World& w) {
         }
         w.materials[index] = create_material(*w.plugins, m, *w.host);
     }
+    warn_about_missing_uvs(r, w);
+}
+
+void warn_about_missing_uvs(ecs::Registry& r, World& w) {
+    // A material that lays a pattern out in uv (SPANGLE_REQUIRES_UV) loses it on a mesh without
+    // usable uvs: say so, naming the object, rather than render it silently without.
+    auto& refs = r.pool<MaterialRef>();
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+        const ecs::Entity e = refs.entities()[i];
+        const MaterialInstance* mat = w.materials[refs.columns().material[i]].get();
+        if (!mat || !mat->model().requirements || !r.has<TriangleMeshRef>(e)) continue;
+        if (!(mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV)) continue;
+        const TriangleMesh& mesh = w.geometry.meshes[r.get<TriangleMeshRef>(e).mesh];
+        const double mapped = mesh.uv_mapped_fraction();
+        if (mapped >= 0.5) continue;
+        const ObjectInfo info = r.has<ObjectInfo>(e) ? r.get<ObjectInfo>(e) : ObjectInfo{};
+        w.log->warn(
+            "{}: object {}(mesh {}) has {}; material '{}' lays its pattern out in uv and will "
+            "render without it there (for flakes, density_space = \"object\" or \"auto\" "
+            "places them by object-space position instead)",
+            info.loc.str(), info.name.empty() ? std::string() : fmt::format("'{}' ", info.name),
+            mesh.source,
+            mesh.uvs.empty() ? std::string("no uvs")
+                             : fmt::format("degenerate uvs ({:.0f}% of its area maps to no uv "
+                                           "area)",
+                                           100.0 * (1.0 - mapped)),
+            mat->name());
+    }
 }
 
 void system_area_lights(ecs::Registry& r, World& w) {
@@ -229,6 +257,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
             inst.material = r.get<MaterialRef>(e).material;
             inst.to_world = r.get<Transform>(e).to_world;
             inst.normal_to_world = inst.to_world.normal_matrix();
+            inst.to_object = inst.to_world.inverse();
             if (r.has<EmitterRef>(e)) inst.emitter = r.get<EmitterRef>(e).first;
             w.instances.push_back(inst);
         }

@@ -11,9 +11,11 @@ namespace spangle {
  *  render. */
 ecs::Schedule<World> make_frame_schedule();
 
-void system_subdivide(ecs::Registry& r, World& w);        ///< SubdivSurface -> TriangleMeshRef
-void system_mesh_load(ecs::Registry& r, World& w);        ///< MeshFile -> TriangleMeshRef
-void system_materials(ecs::Registry& r, World& w);        ///< MaterialRef -> plugin instances
+void system_subdivide(ecs::Registry& r, World& w);  ///< SubdivSurface -> TriangleMeshRef
+void system_mesh_load(ecs::Registry& r, World& w);  ///< MeshFile -> TriangleMeshRef
+void system_materials(ecs::Registry& r, World& w);  ///< MaterialRef -> plugin instances
+/** Part of system_materials: warns about objects whose material needs uvs their mesh lacks. */
+void warn_about_missing_uvs(ecs::Registry& r, World& w);
 void system_area_lights(ecs::Registry& r, World& w);      ///< QuadLight, SphereLight, Emission
 void system_point_lights(ecs::Registry& r, World& w);     ///< PointLight, DistantLight
 void system_environment(ecs::Registry& r, World& w);      ///< Environment, EnvironmentMapFile

@@ -26,6 +26,12 @@ struct ParamEntry {
 };
 using ParamList = std::vector<ParamEntry>;
 
+#define SPANGLE_OBJECT_INFO_FIELDS(X)                           \
+    X(std::string, name, "the object's name, empty if unnamed") \
+    X(FileLoc, loc, "the [[object]] table")
+/** What messages about an object call it. */
+SPANGLE_COMPONENT(ObjectInfo, SPANGLE_OBJECT_INFO_FIELDS);
+
 #define SPANGLE_TRANSFORM_FIELDS(X) X(Affine, to_world, "object to world")
 SPANGLE_COMPONENT(Transform, SPANGLE_TRANSFORM_FIELDS);
 

@@ -429,7 +429,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
         for (std::size_t i = 0; i < objs->size(); ++i) {
             TableReader r(*(*objs)[i].as_table(), path, fmt::format("[[object]] #{}", i + 1));
             const ecs::Entity e = registry.create();
-            r.string("name", "");
+            registry.put(e, ObjectInfo{r.string("name", ""), r.loc()});
             const std::string mesh_path = resolve_file(ctx, r, "mesh");
             if (const toml::table* sub = r.table("subdiv"))
                 registry.put(e, parse_subdiv(ctx, *sub, mesh_path, r.loc("mesh")));

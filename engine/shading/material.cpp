@@ -73,7 +73,7 @@ std::vector<std::string> split_choices(const char* choices) {
     return out;
 }
 
-std::string range_text(const SpangleParamDesc_v1& d) {
+std::string range_text(const SpangleParamDesc_v2& d) {
     return fmt::format("[{}, {}]", d.min_value, d.max_value);
 }
 
@@ -89,7 +89,7 @@ HostServices::HostServices(const ColorConfig& color, const Logger& log)
     api_.hash2 = host_hash2;
 }
 
-std::string describe_param(const SpangleParamDesc_v1& p) {
+std::string describe_param(const SpangleParamDesc_v2& p) {
     std::string def;
     switch (p.type) {
         case SPANGLE_PARAM_FLOAT:
@@ -119,7 +119,7 @@ std::string describe_param(const SpangleParamDesc_v1& p) {
                        p.doc ? p.doc : "");
 }
 
-ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Material& m,
+ValidatedParams validate_params(const SpangleMaterialModel_v2& model, const Material& m,
                                 const ColorConfig& color) {
     ValidatedParams out;
     out.strings.reserve(model.param_count);
@@ -140,8 +140,8 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
         given[k] = &p;
     }
     for (uint32_t k = 0; k < model.param_count; ++k) {
-        const SpangleParamDesc_v1& d = model.params[k];
-        SpangleParamValue_v1 v{};
+        const SpangleParamDesc_v2& d = model.params[k];
+        SpangleParamValue_v2 v{};
         v.name = d.name;
         v.type = d.type;
         std::copy(d.default_value, d.default_value + 3, v.number);
@@ -228,7 +228,7 @@ ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Mate
 std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Material& m,
                                                   const HostServices& host) {
     auto plugin = loader.open(m.plugin, m.plugin_loc);
-    const SpangleMaterialModel_v1* model = nullptr;
+    const SpangleMaterialModel_v2* model = nullptr;
     if (m.model.empty()) {
         if (plugin->table().model_count != 1)
             throw_error(m.loc,
@@ -243,7 +243,7 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
                         m.name, m.plugin, m.model, fmt::join(plugin->model_names(), ", "));
     }
     const ValidatedParams params = validate_params(*model, m, host.color());
-    const SpangleParams_v1 view = params.view();
+    const SpangleParams_v2 view = params.view();
     char error[512] = {0};
     void* instance = model->create(&view, host.api(), error, sizeof(error));
     if (!instance)

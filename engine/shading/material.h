@@ -13,7 +13,7 @@
 
 namespace spangle {
 
-/** What the host offers plugins (SpangleHost_v1) and the state behind it. Not copyable: the C
+/** What the host offers plugins (SpangleHost_v2) and the state behind it. Not copyable: the C
  *  table points at this object. */
 class HostServices {
 public:
@@ -21,7 +21,7 @@ public:
     HostServices(const HostServices&) = delete;
     HostServices& operator=(const HostServices&) = delete;
 
-    const SpangleHost_v1* api() const { return &api_; }
+    const SpangleHost_v2* api() const { return &api_; }
     const ColorConfig& color() const { return color_; }
     const Logger& log() const { return log_; }
 
@@ -29,13 +29,13 @@ private:
     const ColorConfig& color_;
     const Logger& log_;
     std::string working_;  ///< keeps api_.working_space alive
-    SpangleHost_v1 api_{};
+    SpangleHost_v2 api_{};
 };
 
 /** One created material: owns the plugin instance and keeps its library open. */
 class MaterialInstance {
 public:
-    MaterialInstance(std::shared_ptr<LoadedPlugin> plugin, const SpangleMaterialModel_v1* model,
+    MaterialInstance(std::shared_ptr<LoadedPlugin> plugin, const SpangleMaterialModel_v2* model,
                      void* instance, std::string name)
         : plugin_(std::move(plugin)), model_(model), instance_(instance), name_(std::move(name)) {}
     ~MaterialInstance() {
@@ -44,28 +44,28 @@ public:
     MaterialInstance(const MaterialInstance&) = delete;
     MaterialInstance& operator=(const MaterialInstance&) = delete;
 
-    const SpangleMaterialModel_v1& model() const { return *model_; }
+    const SpangleMaterialModel_v2& model() const { return *model_; }
     const void* instance() const { return instance_; }
     const std::string& name() const { return name_; }
     const LoadedPlugin& plugin() const { return *plugin_; }
 
 private:
     std::shared_ptr<LoadedPlugin> plugin_;  ///< declared first: destroyed after the instance
-    const SpangleMaterialModel_v1* model_;
+    const SpangleMaterialModel_v2* model_;
     void* instance_;
     std::string name_;
 };
 
 /** A complete parameter set in schema order, with storage for its strings. */
 struct ValidatedParams {
-    std::vector<SpangleParamValue_v1> values;  ///< one per schema entry
+    std::vector<SpangleParamValue_v2> values;  ///< one per schema entry
     std::vector<std::string> strings;          ///< backing text for STRING values
-    SpangleParams_v1 view() const { return {values.data(), static_cast<uint32_t>(values.size())}; }
+    SpangleParams_v2 view() const { return {values.data(), static_cast<uint32_t>(values.size())}; }
 };
 
 /** Checks `m.params` against `model`'s schema: unknown names, types, ranges, choices. Colours are
  *  converted to the working space. Throws SpangleError at the offending value's location. */
-ValidatedParams validate_params(const SpangleMaterialModel_v1& model, const Material& m,
+ValidatedParams validate_params(const SpangleMaterialModel_v2& model, const Material& m,
                                 const ColorConfig& color);
 
 /** Opens m's plugin (once), picks the model, validates, and creates the instance. */
@@ -73,6 +73,6 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
                                                   const HostServices& host);
 
 /** One line describing a parameter for `spangle plugins`. */
-std::string describe_param(const SpangleParamDesc_v1& p);
+std::string describe_param(const SpangleParamDesc_v2& p);
 
 }  // namespace spangle

@@ -114,25 +114,30 @@ uint64_t direction_root(const Aggregate& a) {
     return mix(a.key, 0xd1ec);
 }
 
-/** Tent-weighted colour sum of aggregate a's flakes in the leaves around wi (weights `tau`, a
- *  kBox-wide grid whose first entry is leaf (i0, j0)), descending its direction tree level by
- *  level through the nodes over [i0, i1] x [j0, j1] only. */
-void weighted_colours(const Aggregate& a, const DirectionGrid& grid, const ColorTable& colors,
-                      int exact_below, const float* tau, int i0, int i1, int j0, int j1,
-                      float sum[3]) {
-    constexpr int kMax = 4 * kBox * kBox;
-    uint32_t ni[2][kMax], nj[2][kMax], nn[2][kMax];
-    uint64_t nk[2][kMax];
+/** Descends aggregate a's direction tree level by level down to `depth` (at least the grid's),
+ *  through the nodes over the cells [i0, i1] x [j0, j1] of that level only, calling
+ *  leaf(i, j, n, key) for each non-empty cell there. Levels below the grid's split by exact
+ *  multinomials: the grain of real flakes at the scale of their cones. */
+template <class Leaf>
+void visit_leaves(const Aggregate& a, const DirectionGrid& grid, int exact_below, int depth, int i0,
+                  int i1, int j0, int j1, Leaf&& leaf) {
+    constexpr int kMax = 4096;
+    thread_local uint32_t ni[2][kMax], nj[2][kMax], nn[2][kMax];
+    thread_local uint64_t nk[2][kMax];
     int count = 1, cur = 0;
     ni[0][0] = nj[0][0] = 0;
     nn[0][0] = a.count;
     nk[0][0] = direction_root(a);
-    for (int level = 0; level < grid.depth; ++level) {
-        const int shift = grid.depth - level - 1;
+    for (int level = 0; level < depth; ++level) {
+        const int shift = depth - level - 1;
         int next = 0;
         for (int k = 0; k < count; ++k) {
             uint32_t c[4];
-            split_direction_node(level, nk[cur][k], nn[cur][k], exact_below, c);
+            if (level < grid.depth)
+                split_direction_node(level, nk[cur][k], nn[cur][k], exact_below, c);
+            else
+                split_counts_cached(nk[cur][k], nn[cur][k], std::min(exact_below, kExactVirtual),
+                                    c);
             for (uint32_t q = 0; q < 4; ++q) {
                 if (c[q] == 0) continue;
                 const uint32_t ci = 2 * ni[cur][k] + (q & 1u), cj = 2 * nj[cur][k] + (q >> 1);
@@ -151,14 +156,57 @@ void weighted_colours(const Aggregate& a, const DirectionGrid& grid, const Color
         cur = 1 - cur;
         count = next;
     }
-    for (int k = 0; k < count; ++k) {
-        const float w =
-            tau[(static_cast<int>(nj[cur][k]) - j0) * kBox + (static_cast<int>(ni[cur][k]) - i0)];
-        if (w <= 0.0f) continue;
-        float col[3];
-        leaf_colours(nk[cur][k], nn[cur][k], colors, col);
-        for (int c = 0; c < 3; ++c) sum[c] += w * col[c];
+    for (int k = 0; k < count; ++k)
+        leaf(static_cast<int>(ni[cur][k]), static_cast<int>(nj[cur][k]), nn[cur][k], nk[cur][k]);
+}
+
+/** Levels below the grid's at which sparse aggregates make their virtual flakes: cells of 4^-3
+ *  of a leaf, so that a cone's preimage spans some hundred cells and the flakes visited are about
+ *  those that can light wi. */
+constexpr int kVirtualLevels = 3;
+
+/** A cell's flakes as individual virtual flakes: positions uniform in the cell (hashed from its
+ *  key), so their normals follow the flake distribution exactly within it. At most kMaxVirtual
+ *  are made; beyond that each stands for n / kMaxVirtual flakes. Adds w c F of those whose cone
+ *  holds wi to `sum`. */
+constexpr uint32_t kMaxVirtual = 32;
+V3 virtual_normal(const DirectionGrid& grid, int depth, int i, int j, uint64_t key, uint32_t q,
+                  uint64_t& h);
+float virtual_flakes(const DirectionGrid& grid, const ColorTable& colors,
+                     const FresnelTable& fresnel, V3 wo, V3 wi, int depth, int i, int j, uint32_t n,
+                     uint64_t key, float sum[3]) {
+    float lit = 0.0f;
+    const uint32_t made = std::min(n, kMaxVirtual);
+    const float weight = static_cast<float>(n) / static_cast<float>(made);
+    const float thr = 4.0f * grid.sin2_half;
+    for (uint32_t q = 0; q < made; ++q) {
+        uint64_t h;
+        const V3 m = virtual_normal(grid, depth, i, j, key, q, h);
+        const float cos_om = mf::dot(wo, m);
+        if (cos_om <= 0.0f) continue;
+        const V3 r = mf::reflect(wo, m);
+        if (r.z <= 0.0f) continue;
+        const V3 d = wi - r;
+        if (mf::dot(d, d) > thr) continue;
+        CacheEntry e;
+        const float* col = colors.pick(static_cast<float>(mix(h, 0xc0) >> 40) * 0x1p-24f);
+        if (!make_entry(wo, m, col, fresnel, e)) continue;
+        for (int c = 0; c < 3; ++c) sum[c] += weight * e.rgb[c];
+        lit += weight;
     }
+    return lit;
+}
+
+/** The normal of virtual flake q of cell (i, j) at `depth` with key `key` (as virtual_flakes
+ *  makes it), and the hash its colour comes from. */
+V3 virtual_normal(const DirectionGrid& grid, int depth, int i, int j, uint64_t key, uint32_t q,
+                  uint64_t& h) {
+    h = mix(key, 0x5eed0000u + q);
+    float a, b;
+    unit2(h, a, b);
+    const float inv_side = std::ldexp(1.0f, -depth);
+    return flake_normal(grid.alpha, (static_cast<float>(i) + a) * inv_side,
+                        (static_cast<float>(j) + b) * inv_side);
 }
 
 }  // namespace
@@ -211,13 +259,28 @@ float realised_weight(const Aggregate& a, const DirectionGrid& grid,
     return expected > 0.0f ? realised / expected : 1.0f;
 }
 
-void aggregate_modulation(const CountedFootprint& cf, const DirectionGrid& grid,
-                          const ColorTable& colors, V3 wo, V3 wi, int exact_below, float out[3]) {
-    out[0] = out[1] = out[2] = 0.0f;
+void aggregate_lobe(const CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
+                    const FresnelTable& fresnel, V3 wo, V3 wi, int exact_below, float virt[3],
+                    float mod[3], float& lit) {
+    virt[0] = virt[1] = virt[2] = mod[0] = mod[1] = mod[2] = lit = 0.0f;
     if (cf.n_agg == 0 || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return;
     V3 h = wo + wi;
     if (!(h.z > 0.0f)) return;
     h = mf::normalize(h);
+    const float cos_oh = mf::dot(wo, h);
+    if (!(cos_oh > 0.0f)) return;
+    // Which aggregates light wi densely: the expected count of one aggregate's flakes whose cone
+    // holds wi is k times the chance p1 that one flake's does (the unblurred density of mirror
+    // directions times the cone's solid angle). It depends on the expectation only, never on the
+    // realisation, so either treatment stays unbiased.
+    const float thr = 4.0f * grid.sin2_half;
+    const float p1 = mf::kPi * thr * mf::ggx_d(h, grid.alpha, grid.alpha) * h.z / (4.0f * cos_oh);
+    bool dense[kMaxAggregates], any_dense = false, any_sparse = false;
+    for (uint32_t a = 0; a < cf.n_agg; ++a) {
+        dense[a] = !cf.agg[a].sparse && static_cast<float>(cf.agg[a].count) * p1 >= kDenseLit;
+        any_dense = any_dense || dense[a];
+        any_sparse = any_sparse || !dense[a];
+    }
     float s, t;
     flake_square(grid.alpha, h, s, t);
     const int side = 1 << grid.depth;
@@ -231,50 +294,153 @@ void aggregate_modulation(const CountedFootprint& cf, const DirectionGrid& grid,
     const V3 rx = centre(ci + (ci + 1 < side ? 1 : -1), cj);
     const V3 ry = centre(ci, cj + (cj + 1 < side ? 1 : -1));
     const float leaf2 = std::max(mf::dot(rx - r0, rx - r0), mf::dot(ry - r0, ry - r0));
-    // Tent radius: the cone widened by a leaf, and at least past the centre of the leaf holding
-    // wi's half vector (leaves are large where the square maps to the distribution's tail), so
-    // that some leaf always lights wi. Any radius that depends only on wi keeps E[M] = 1.
-    const V3 d_own = wi - r0;
-    const float radius2 = 4.0f * grid.sin2_half + std::max(leaf2, 2.0f * mf::dot(d_own, d_own));
+    // Leaf centres move almost linearly with the leaf index near wi: skip those the linear map
+    // puts well beyond the reach (by 1.5x, to absorb the map's curvature), test the rest exactly.
+    const V3 ex = rx - r0, ey = ry - r0, d0 = wi - r0;
+    const float sx = ci + 1 < side ? 1.0f : -1.0f, sy = cj + 1 < side ? 1.0f : -1.0f;
+    const auto guess2 = [&](int i, int j) {
+        const V3 g =
+            d0 - ex * (sx * static_cast<float>(i - ci)) - ey * (sy * static_cast<float>(j - cj));
+        return mf::dot(g, g);
+    };
+
+    if (any_sparse) {
+        // Sparse: the flakes themselves, from the cells of the square of normals that the cone's
+        // preimage can reach. A normal m = h + dm lights wi when reflect(wo, m) is within the
+        // cone's chord c of wi; to first order |d reflect|^2 = 4 ((wo.dm)^2 + (wo.h)^2 |dm|^2),
+        // so the preimage is an ellipse around h with semi-axes c / 2 towards wo's azimuth and
+        // c / (2 wo.h) across it (a fifth more each, for the second order). The square's cells
+        // under its image are bounded by the image of its rim.
+        const float c = std::sqrt(thr);
+        V3 e1 = wo - h * cos_oh;  // in the plane of wo and h, orthogonal to h
+        const float e1_len = std::sqrt(std::max(0.0f, mf::dot(e1, e1)));
+        if (e1_len > 1e-6f) {
+            e1 = e1 * (1.0f / e1_len);
+        } else {
+            const V3 any = std::fabs(h.x) < 0.9f ? V3{1, 0, 0} : V3{0, 1, 0};
+            e1 = mf::normalize(any - h * mf::dot(any, h));
+        }
+        const V3 e2 = mf::cross(h, e1);
+        const float a1 = std::min(1.5f, 0.6f * c), a2 = std::min(1.5f, 0.6f * c / cos_oh);
+        float s0 = s, s1 = s, t0 = t, t1 = t;
+        constexpr int kRim = 8;
+        for (int k = 0; k < kRim; ++k) {
+            const float phi = 2.0f * mf::kPi * static_cast<float>(k) / kRim;
+            V3 m = h + e1 * (a1 * std::cos(phi)) + e2 * (a2 * std::sin(phi));
+            m.z = std::max(m.z, 1e-3f);  // normals past the horizon: the square's edge
+            m = mf::normalize(m);
+            float ms, mt;
+            flake_square(grid.alpha, m, ms, mt);
+            s0 = std::min(s0, ms);
+            s1 = std::max(s1, ms);
+            t0 = std::min(t0, mt);
+            t1 = std::max(t1, mt);
+        }
+        // A margin for the rim between its samples (45 degrees apart): 10% of the box and a cell.
+        const int depth = std::min(grid.depth + kVirtualLevels, 15);
+        const auto cells = static_cast<float>(1 << depth);
+        const float ms = 0.1f * (s1 - s0) + 1.0f / cells, mt = 0.1f * (t1 - t0) + 1.0f / cells;
+        const auto index = [&](float x) {
+            return std::clamp(static_cast<int>(std::floor(x * cells)), 0, (1 << depth) - 1);
+        };
+        const int i0 = index(s0 - ms), i1 = index(s1 + ms), j0 = index(t0 - mt),
+                  j1 = index(t1 + mt);
+        for (uint32_t a = 0; a < cf.n_agg; ++a) {
+            if (dense[a]) continue;
+            visit_leaves(cf.agg[a], grid, exact_below, depth, i0, i1, j0, j1,
+                         [&](int i, int j, uint32_t n, uint64_t key) {
+                             const float w = virtual_flakes(grid, colors, fresnel, wo, wi, depth, i,
+                                                            j, n, key, virt);
+                             if (cf.agg[a].sparse) lit += w;
+                         });
+        }
+    }
+    if (!any_dense) return;
+
+    // Dense: the smooth lobe times the modulation M. Tent radius: the cone widened by a leaf, and
+    // at least past the centre of the leaf holding wi's half vector, so that some leaf always
+    // lights wi. Any radius that depends only on wi keeps E[M] = 1.
+    const float radius2 = thr + std::max(leaf2, 2.0f * mf::dot(d0, d0));
     const int b = std::clamp(
         static_cast<int>(std::ceil(std::sqrt(radius2 / std::max(leaf2, 1e-30f)))) + 1, 1, 4);
-    float tau_grid[kBox * kBox];
-    int n_near = 0;
+    float tau_grid[kBox * kBox] = {};
     float expected = 0.0f;  // sum of tau over the leaves: the count's expectation / (k 4^-depth)
     int i0 = side, i1 = -1, j0 = side, j1 = -1;
-    // Leaf centres move almost linearly with the leaf index near wi: skip those the linear map
-    // puts well beyond the tent (by 1.5x, to absorb the map's curvature), test the rest exactly.
-    const V3 ex = rx - r0, ey = ry - r0;
-    const float sx = ci + 1 < side ? 1.0f : -1.0f, sy = cj + 1 < side ? 1.0f : -1.0f;
-    const V3 d0 = wi - r0;
     const int bi0 = std::max(0, ci - b), bj0 = std::max(0, cj - b);
-    std::fill(tau_grid, tau_grid + kBox * kBox, 0.0f);
     for (int j = bj0; j <= std::min(side - 1, cj + b); ++j)
         for (int i = bi0; i <= std::min(side - 1, ci + b); ++i) {
-            const V3 guess = d0 - ex * (sx * static_cast<float>(i - ci)) -
-                             ey * (sy * static_cast<float>(j - cj));
-            if (mf::dot(guess, guess) > 2.25f * radius2) continue;
+            if (guess2(i, j) > 2.25f * radius2) continue;
             const V3 d = wi - centre(i, j);
             const float tau = 1.0f - mf::dot(d, d) / radius2;
             if (tau <= 0.0f) continue;
             tau_grid[(j - bj0) * kBox + (i - bi0)] = tau;
-            ++n_near;
             expected += tau;
             i0 = std::min(i0, i);
             i1 = std::max(i1, i);
             j0 = std::min(j0, j);
             j1 = std::max(j1, j);
         }
-    if (n_near == 0 || !(expected > 0.0f)) return;
+    if (!(expected > 0.0f)) return;
     float sum[3] = {0, 0, 0};
-    // The tau grid is indexed from (bi0, bj0); the descent only visits leaves in [i0, i1] x [j0,
-    // j1].
-    const float* tau0 = tau_grid + (j0 - bj0) * kBox + (i0 - bi0);
-    for (uint32_t a = 0; a < cf.n_agg; ++a)
-        weighted_colours(cf.agg[a], grid, colors, exact_below, tau0, i0, i1, j0, j1, sum);
+    for (uint32_t a = 0; a < cf.n_agg; ++a) {
+        if (!dense[a]) continue;
+        visit_leaves(cf.agg[a], grid, exact_below, grid.depth, i0, i1, j0, j1,
+                     [&](int i, int j, uint32_t n, uint64_t key) {
+                         const float w = tau_grid[(j - bj0) * kBox + (i - bi0)];
+                         if (w <= 0.0f) return;
+                         float col[3];
+                         leaf_colours(key, n, colors, col);
+                         for (int c = 0; c < 3; ++c) sum[c] += w * col[c];
+                     });
+    }
     // sum_a k_a M_a = sum_a (tau-weighted colour sum of a) / (sum tau 4^-depth).
     const float k = 1.0f / (expected * std::ldexp(1.0f, -2 * grid.depth));
-    for (int c = 0; c < 3; ++c) out[c] = sum[c] * k;
+    for (int c = 0; c < 3; ++c) mod[c] = sum[c] * k;
+}
+
+void mark_sparse(CountedFootprint& cf, const DirectionGrid& grid, float cos_o) {
+    const float p1_max =
+        4.0f * grid.sin2_half / (4.0f * grid.alpha * grid.alpha * std::max(cos_o, 1e-6f));
+    cf.dense = 0;
+    for (uint32_t a = 0; a < cf.n_agg; ++a) {
+        cf.agg[a].sparse = static_cast<float>(cf.agg[a].count) * p1_max < kDenseLit;
+        if (!cf.agg[a].sparse) cf.dense += cf.agg[a].count;
+    }
+}
+
+bool sample_aggregate(const Aggregate& a, const DirectionGrid& grid, int exact_below, V3 wo,
+                      float u, float u0, float u1, V3& wi) {
+    // Down the direction tree by the counts: each flake as likely as any other.
+    const int depth = std::min(grid.depth + kVirtualLevels, 15);
+    uint32_t n = a.count, i = 0, j = 0;
+    uint64_t key = direction_root(a);
+    if (n == 0) return false;
+    for (int level = 0; level < depth; ++level) {
+        uint32_t c[4];
+        if (level < grid.depth)
+            split_direction_node(level, key, n, exact_below, c);
+        else
+            split_counts_cached(key, n, std::min(exact_below, kExactVirtual), c);
+        const float x = u * static_cast<float>(n);
+        uint32_t q = 0;
+        float below = 0.0f;
+        while (q < 3 && x >= below + static_cast<float>(c[q])) below += static_cast<float>(c[q++]);
+        while (c[q] == 0) --q;  // rounding at the top end: the last non-empty child
+        u = std::clamp((x - below) / static_cast<float>(c[q]), 0.0f, 0x1.fffffep-1f);
+        i = 2 * i + (q & 1u);
+        j = 2 * j + (q >> 1);
+        key = mix(key, 1 + q);
+        n = c[q];
+    }
+    const uint32_t made = std::min(n, kMaxVirtual);
+    const uint32_t q = std::min(static_cast<uint32_t>(u * static_cast<float>(made)), made - 1);
+    uint64_t h;
+    const V3 m = virtual_normal(grid, depth, static_cast<int>(i), static_cast<int>(j), key, q, h);
+    if (!(mf::dot(wo, m) > 0.0f)) return false;
+    const V3 r = mf::reflect(wo, m);
+    if (!(r.z > 0.0f)) return false;
+    wi = sample_cone(r, grid.sin2_half, u0, u1);
+    return wi.z > 0.0f;
 }
 
 }  // namespace spangle::flake

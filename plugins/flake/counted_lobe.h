@@ -32,6 +32,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "discrete_lobe.h"
 #include "field.h"
 #include "palette.h"
 
@@ -41,6 +42,9 @@ namespace spangle::flake {
 struct Aggregate {
     uint64_t key = 0;    ///< the cell's node key (its direction tree is keyed from it)
     uint32_t count = 0;  ///< k: flakes of the cell inside the footprint
+    /** Sparse in every direction (see mark_sparse): its lobe is always its virtual flakes, and
+     *  it is sampled by picking one of them. */
+    bool sparse = false;
 };
 
 /** At most this many aggregates per shading point (2 x 2 cells in each of up to four tiles). */
@@ -69,8 +73,22 @@ struct CountedFootprint {
     Aggregate agg[kMaxAggregates];
     uint32_t n_agg = 0;
     uint32_t aggregated = 0;  ///< sum of the aggregates' counts
+    uint32_t dense = 0;       ///< sum of the counts of the aggregates that are not sparse
     bool truncated = false;   ///< the footprint spans more tiles than the algorithm handles
 };
+
+/** Marks the aggregates that light every direction sparsely: k times the largest chance that
+ *  one flake lights a direction (thr / (4 alpha^2 cos_o), at the distribution's peak) is below
+ *  kDenseLit. Sets cf.dense. */
+void mark_sparse(CountedFootprint& cf, const DirectionGrid& grid, float cos_o);
+
+/** Samples a direction from sparse aggregate a: one of its virtual flakes, each as likely as
+ *  its weight (a descent of its direction tree by the counts, u choosing the way), then a
+ *  direction uniform in that flake's cone (u0, u1). False when the flake faces away from wo or
+ *  the direction falls under the horizon. The density is lit / (k sigma), lit from
+ *  aggregate_lobe. */
+bool sample_aggregate(const Aggregate& a, const DirectionGrid& grid, int exact_below, V3 wo,
+                      float u, float u0, float u1, V3& wi);
 
 /** Walks the cells of P: calls exact(const Flake&) for every flake of the enumerated cells that
  *  lies inside P and fills `out` with the aggregates. `exact_flakes` is the largest cell count
@@ -79,12 +97,25 @@ template <class Exact>
 void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flakes,
                   CountedFootprint& out, Exact&& exact);
 
-/** The aggregates' colour-weighted modulation at wi, sum_a count_a M_a(wi) per channel: their
- *  flakes' contribution at wi relative to the smooth lobe's per flake of unit colour. Each leaf's
- *  flakes carry colours from the table (the first 8 drawn by hash, the rest at the table's mean:
- *  an unbiased sum). Zero when no virtual flake lights wi. */
-void aggregate_modulation(const CountedFootprint& cf, const DirectionGrid& grid,
-                          const ColorTable& colors, V3 wo, V3 wi, int exact_below, float out[3]);
+/** Aggregates whose expected count of flakes lighting a direction is at least this are "dense"
+ *  there (see aggregate_lobe). */
+constexpr float kDenseLit = 16.0f;
+
+/** The aggregates' part of the discrete lobe at wi, in two forms, per aggregate by how densely
+ *  its flakes light wi on average:
+ *  - sparse (fewer than kDenseLit expected): its flakes near wi as individual virtual flakes, in
+ *    the leaves of its direction tree that can reach wi, at positions hashed uniformly within
+ *    each leaf; `virt` gets sum w c F over those whose cone holds wi, in the units of the
+ *    reflection cache's cone sums (each glint as sharp and as bright as a real flake's);
+ *  - dense: `mod` gets sum_a k_a M_a(wi) per channel, the colour-weighted modulation of the
+ *    smooth lobe (per flake of unit colour) by the counts of the leaves near wi, E[M] = 1. With
+ *    many flakes per cone the lobe is nearly continuous, and this costs the same for any count.
+ *  Both are unbiased: the expected lobe is the smooth lobe either way. Sparse aggregates (see
+ *  mark_sparse) are always treated the first way; `lit` gets the summed weight of their virtual
+ *  flakes whose cone holds wi (for the density of sample_aggregate). */
+void aggregate_lobe(const CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
+                    const FresnelTable& fresnel, V3 wo, V3 wi, int exact_below, float virt[3],
+                    float mod[3], float& lit);
 
 /** The mean projected-area weight w = (wo.m) / m.z of the valid flakes (facing wo, reflecting
  *  above the horizon) in each node of the direction tree's weight_level, as a share of the

@@ -25,7 +25,7 @@ uint64_t ns_since(Clock::time_point t0) {
         std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count());
 }
 
-void* flake_create(const SpangleParams_v1* p, const SpangleHost_v1* host, char* error,
+void* flake_create(const SpangleParams_v2* p, const SpangleHost_v2* host, char* error,
                    uint32_t cap) {
     auto* m = new (std::nothrow) Material;
     if (!m) {
@@ -45,8 +45,8 @@ void flake_destroy(void* instance) {
     delete static_cast<Material*>(instance);
 }
 
-void flake_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* closures,
-                   SpangleArena_v1* arena) {
+void flake_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
+                   SpangleArena_v2* arena) {
     const auto t0 = Clock::now();
     const Material& m = *static_cast<const Material*>(inst);
     auto* out = static_cast<Closure*>(closures);
@@ -61,6 +61,10 @@ void flake_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* clos
         in.dv_dx = b->dv_dx[i];
         in.dv_dy = b->dv_dy[i];
         in.uv_area = b->uv_area[i];
+        in.p_obj = {b->obj_p_x[i], b->obj_p_y[i], b->obj_p_z[i]};
+        in.n_obj = {b->obj_n_x[i], b->obj_n_y[i], b->obj_n_z[i]};
+        in.dpdx_obj = {b->obj_dpdx_x[i], b->obj_dpdx_y[i], b->obj_dpdx_z[i]};
+        in.dpdy_obj = {b->obj_dpdy_x[i], b->obj_dpdy_y[i], b->obj_dpdy_z[i]};
         in.flags = b->flags[i];
         prepare_point(m, in, out[i], arena, st);
     }
@@ -77,7 +81,7 @@ void flake_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* clos
     m.ns_prepare += ns_since(t0);
 }
 
-void flake_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) {
+void flake_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
     const auto t0 = Clock::now();
     const Material& m = *static_cast<const Material*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
@@ -93,7 +97,7 @@ void flake_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) 
     m.ns_eval += ns_since(t0);
 }
 
-void flake_sample(const void* inst, const void* closures, SpangleSampleBatch_v1* q) {
+void flake_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
     const auto t0 = Clock::now();
     const Material& m = *static_cast<const Material*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
@@ -116,14 +120,14 @@ void flake_sample(const void* inst, const void* closures, SpangleSampleBatch_v1*
     m.ns_sample += ns_since(t0);
 }
 
-uint32_t flake_stats(const void* inst, SpangleStat_v1* out, uint32_t capacity) {
+uint32_t flake_stats(const void* inst, SpangleStat_v2* out, uint32_t capacity) {
     const Material& m = *static_cast<const Material*>(inst);
     const double points = static_cast<double>(m.points.load());
     const double per = points > 0 ? 1.0 / points : 0.0;
     const auto per_point = [&](const std::atomic<uint64_t>& x) {
         return static_cast<double>(x.load()) * per;
     };
-    const SpangleStat_v1 s[] = {
+    const SpangleStat_v2 s[] = {
         {"shading points", points},
         {"mean expected flakes per footprint (lambda)",
          m.lambda_count ? static_cast<double>(m.lambda_milli_sum.load()) * 1e-3 /
@@ -145,17 +149,23 @@ uint32_t flake_stats(const void* inst, SpangleStat_v1* out, uint32_t capacity) {
     return n;
 }
 
-const SpangleMaterialModel_v1 kModels[] = {
+uint32_t flake_requirements(const void* inst) {
+    const Material& m = *static_cast<const Material*>(inst);
+    return m.space == Material::Space::Uv || m.space == Material::Space::World ? SPANGLE_REQUIRES_UV
+                                                                               : 0u;
+}
+
+const SpangleMaterialModel_v2 kModels[] = {
     {"flake",
      "stochastic mirror flakes over a diffuse base, optional clear coat (Atanasov and Koylazov "
      "2016)",
      kParams, kParamCount, sizeof(Closure), flake_create, flake_destroy, flake_prepare, flake_eval,
-     flake_sample, flake_stats},
+     flake_sample, flake_stats, flake_requirements},
 };
 
-const SpangleMaterialPlugin_v1 kPlugin = {
+const SpangleMaterialPlugin_v2 kPlugin = {
     SPANGLE_MATERIAL_ABI_VERSION,
-    sizeof(SpangleMaterialPlugin_v1),
+    sizeof(SpangleMaterialPlugin_v2),
     "flake",
     "stochastic mirror flakes: glitter, metallic car paint, sparkling snow",
     kModels,
@@ -164,7 +174,7 @@ const SpangleMaterialPlugin_v1 kPlugin = {
 
 }  // namespace
 
-extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v1* spangle_material_plugin(
+extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v2* spangle_material_plugin(
     uint32_t host_abi_version) {
     return host_abi_version == SPANGLE_MATERIAL_ABI_VERSION ? &kPlugin : nullptr;
 }

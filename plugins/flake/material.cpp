@@ -25,7 +25,7 @@ Material::Space parse_space(const std::string& s) {
 
 }  // namespace
 
-bool init_material(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* host,
+bool init_material(Material& m, const SpangleParams_v2* p, const SpangleHost_v2* host,
                    std::string& why) {
     m.min_flakes = param_number(p, "min_flakes");
     m.max_flakes = param_number(p, "max_flakes");
@@ -65,7 +65,7 @@ bool init_material(Material& m, const SpangleParams_v1* p, const SpangleHost_v1*
 namespace {
 
 /** Copies the scratch cache to the arena and fills the closure's lobe; false without memory. */
-bool store_cache(const std::vector<CacheEntry>& scratch, SpangleArena_v1* arena, Closure& c) {
+bool store_cache(const std::vector<CacheEntry>& scratch, SpangleArena_v2* arena, Closure& c) {
     const auto count = static_cast<uint32_t>(scratch.size());
     if (count == 0) return true;
     if (!arena) return false;
@@ -87,19 +87,46 @@ bool store_cache(const std::vector<CacheEntry>& scratch, SpangleArena_v1* arena,
 /** The discrete part of a closure: the flakes of footprint p, by the material's algorithm.
  *  Returns false when the footprint is beyond the algorithm's bound (the smooth lobe takes over).
  */
-bool prepare_discrete(const Material& m, const Footprint& p, double per_tile, Closure& c,
-                      SpangleArena_v1* arena, PointStats& st) {
+/** Whether flake f survives the view's thinning (a hash of its position: a pure function of the
+ *  flake, so the same flakes survive from every view). */
+bool kept(const Flake& f, float keep) {
+    if (keep >= 1.0f) return true;
+    uint64_t bu, bv;
+    std::memcpy(&bu, &f.u, sizeof(bu));
+    std::memcpy(&bv, &f.v, sizeof(bv));
+    return unit(mix(mix(bu, bv), 0x7417)) < static_cast<double>(keep);
+}
+
+bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v2* arena,
+                      PointStats& st) {
     thread_local std::vector<CacheEntry> scratch;
     scratch.clear();
     FieldParams field = m.field;
-    field.flakes_per_tile = std::min(per_tile, 2147483647.0);
+    field.seed = view.seed;
+    field.flakes_per_tile = std::min(view.per_tile, 2147483647.0);
+    const Footprint& p = view.footprint;
     const auto add = [&](const Flake& f) {
         CacheEntry e;
-        if (make_entry(c.wo, f.m, m.colors.pick(f.color_u), m.fresnel, e)) scratch.push_back(e);
+        if (kept(f, view.keep) && make_entry(c.wo, f.m, m.colors.pick(f.color_u), m.fresnel, e))
+            scratch.push_back(e);
     };
     if (m.tree) {
         gather_cells(field, p, m.exact_flakes, c.counted, add);
         if (c.counted.truncated) return false;
+        if (view.keep < 1.0f) {
+            // The aggregates' counts thinned alike (binomially, monotone in keep).
+            CountedFootprint& cf = c.counted;
+            uint32_t kept_agg = 0;
+            cf.aggregated = 0;
+            for (uint32_t a = 0; a < cf.n_agg; ++a) {
+                const uint32_t k = binomial(cf.agg[a].count, view.keep,
+                                            unit(mix(cf.agg[a].key, 0x7417)), field.exact_below);
+                if (k == 0) continue;
+                cf.agg[kept_agg++] = {cf.agg[a].key, k};
+                cf.aggregated += k;
+            }
+            cf.n_agg = kept_agg;
+        }
     } else {
         bool truncated = false;
         for_each_flake(field, p, m.enumerate_cap, truncated, add);
@@ -113,6 +140,7 @@ bool prepare_discrete(const Material& m, const Footprint& p, double per_tile, Cl
     // square of normals weighs against the expected one (realised_weight).
     float agg_w = 0.0f;
     if (c.counted.n_agg > 0) {
+        mark_sparse(c.counted, m.grid, c.wo.z);
         float node_w[DirectionGrid::kWeightNodes];
         node_weights(m.grid, c.wo, node_w);
         for (uint32_t a = 0; a < c.counted.n_agg; ++a)
@@ -120,8 +148,9 @@ bool prepare_discrete(const Material& m, const Footprint& p, double per_tile, Cl
                      realised_weight(c.counted.agg[a], m.grid, node_w, m.field.exact_below);
     }
     c.w_norm = c.lobe.w_sum + agg_w * c.w_expected;
-    // Sampling within the discrete part: the cache by its luminance, the aggregates through the
-    // smooth lobe's proposal by theirs.
+    // Sampling within the discrete part: the cache by its luminance, the aggregates by theirs
+    // (each flake as likely: sparse aggregates by one of their virtual flakes, dense ones
+    // through the smooth lobe's proposal).
     float fr[3];
     m.fresnel.eval(1.0f, fr);
     float mean[3] = {m.colors.mean[0] * fr[0], m.colors.mean[1] * fr[1], m.colors.mean[2] * fr[2]};
@@ -143,7 +172,37 @@ float blend_weight(const Material& m, double lambda) {
 
 }  // namespace
 
-void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v1* arena,
+FieldView field_view(const Material& m, const PointInput& in) {
+    FieldView view;
+    view.seed = m.field.seed;
+    const bool object = m.space == Material::Space::Object ||
+                        (m.space == Material::Space::Auto && (in.flags & SPANGLE_SHADING_NO_UV));
+    if (!object) {
+        view.footprint =
+            make_footprint(in.u, in.v, in.du_dx, in.dv_dx, in.du_dy, in.dv_dy, m.footprint_scale);
+        view.per_tile = m.space == Material::Space::World
+                            ? static_cast<double>(m.density) * static_cast<double>(in.uv_area)
+                            : static_cast<double>(m.density);
+        return view;
+    }
+    const float n[3] = {std::fabs(in.n_obj.x), std::fabs(in.n_obj.y), std::fabs(in.n_obj.z)};
+    const int k = n[0] >= n[1] && n[0] >= n[2] ? 0 : n[1] >= n[2] ? 1 : 2;
+    const float len = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    const int a = (k + 1) % 3, b = (k + 2) % 3;
+    const float p[3] = {in.p_obj.x, in.p_obj.y, in.p_obj.z};
+    const float dx[3] = {in.dpdx_obj.x, in.dpdx_obj.y, in.dpdx_obj.z};
+    const float dy[3] = {in.dpdy_obj.x, in.dpdy_obj.y, in.dpdy_obj.z};
+    view.footprint = make_footprint(p[a], p[b], dx[a], dx[b], dy[a], dy[b], m.footprint_scale);
+    constexpr double kSqrt3 = 1.7320508075688772;
+    view.per_tile = static_cast<double>(m.density) * kSqrt3;
+    view.seed = mix(m.field.seed, 0x0b1ec7 + static_cast<uint64_t>(k));
+    view.keep = len > 0.0f && std::isfinite(len)
+                    ? std::min(1.0f, len / (static_cast<float>(kSqrt3) * n[k]))
+                    : 0.0f;
+    return view;
+}
+
+void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v2* arena,
                    PointStats& st) {
     c = Closure{};
     c.wo = in.wo;
@@ -155,15 +214,10 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     c.w_expected = c.wo.z * c.v_o / mf::ggx_g1(c.wo, m.alpha, m.alpha);
     double lambda = INFINITY;
     if (in.flags & SPANGLE_SHADING_HAS_DIFFERENTIALS) {
-        const Footprint fp =
-            make_footprint(in.u, in.v, in.du_dx, in.dv_dx, in.du_dy, in.dv_dy, m.footprint_scale);
-        const double per_tile =
-            m.space == Material::Space::World
-                ? static_cast<double>(m.density) * static_cast<double>(in.uv_area)
-                : static_cast<double>(m.density);
-        lambda = per_tile * fp.area();
+        const FieldView view = field_view(m, in);
+        lambda = view.lambda();
         c.t = blend_weight(m, lambda);
-        if (c.t < 1.0f && !prepare_discrete(m, fp, per_tile, c, arena, st)) {
+        if (c.t < 1.0f && !prepare_discrete(m, view, c, arena, st)) {
             ++st.truncated;
             c.t = 1.0f;
         }
@@ -204,21 +258,28 @@ void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& 
     }
     if (c.t >= 1.0f || !(c.w_norm > 0.0f)) return;
     float sum[3] = {0, 0, 0}, lum = 0.0f;
-    if (c.lobe.count > 0) {
-        cone_sums(c.lobe, m.cone, wi, sum, lum);
-        const float k = 1.0f / (m.cone.solid_angle * wi.z);
-        for (float& x : sum) x *= k;
-    }
+    if (c.lobe.count > 0) cone_sums(c.lobe, m.cone, wi, sum, lum);
+    float mod[3] = {0, 0, 0}, lit = 0.0f;
     if (has_agg) {
-        // The aggregates' flakes: the smooth lobe per unit weight, times their weight and the
-        // modulation of their counts near wi.
-        float mod[3];
-        aggregate_modulation(c.counted, m.grid, m.colors, c.wo, wi, m.field.exact_below, mod);
-        for (int ch = 0; ch < 3; ++ch) sum[ch] += mod[ch] * c.w_expected * fs[ch];
+        // The aggregates' flakes: sparse ones as virtual flakes (cone sums like the cache's),
+        // dense ones as the smooth lobe per unit weight times the modulation of their counts.
+        float virt[3];
+        aggregate_lobe(c.counted, m.grid, m.colors, m.fresnel, c.wo, wi, m.field.exact_below, virt,
+                       mod, lit);
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += virt[ch];
     }
+    const float per_cone = 1.0f / (m.cone.solid_angle * wi.z);
+    for (int ch = 0; ch < 3; ++ch) sum[ch] = sum[ch] * per_cone + mod[ch] * c.w_expected * fs[ch];
     const float k = (1.0f - c.t) * g1_wi / c.w_norm;
     for (int ch = 0; ch < 3; ++ch) f[ch] += k * sum[ch];
-    float pdf_d = c.p_cache < 1.0f ? (1.0f - c.p_cache) * pdf_s : 0.0f;
+    // The aggregates' part: a flake of all K aggregated ones, uniformly; the sparse aggregates'
+    // flakes lighting wi each add 1 / (K sigma), the dense ones sample the smooth proposal.
+    float pdf_d = 0.0f;
+    if (c.p_cache < 1.0f && c.counted.aggregated > 0) {
+        const auto k_all = static_cast<float>(c.counted.aggregated);
+        pdf_d = (1.0f - c.p_cache) * (lit / (k_all * m.cone.solid_angle) +
+                                      static_cast<float>(c.counted.dense) / k_all * pdf_s);
+    }
     if (c.p_cache > 0.0f && c.lobe.lum_sum > 0.0f)
         pdf_d += c.p_cache * lum / (c.lobe.lum_sum * m.cone.solid_angle);
     pdf += (1.0f - c.t) * pdf_d;
@@ -280,10 +341,26 @@ void sample_material(const Material& m, const Closure& c, float u0, float u1, fl
     } else if (pick(u, c.p_base / std::max(1e-12f, 1.0f - c.p_coat))) {
         wi = mf::cosine_hemisphere(u0, u1);
         kind = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_DIFFUSE;
-    } else if (pick(u, c.t) || !pick(u, c.p_cache)) {
+    } else if (pick(u, c.t)) {
         ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
-    } else {
+    } else if (pick(u, c.p_cache)) {
         ok = sample_discrete(c.lobe, m.cone, u, u0, u1, wi);
+    } else {
+        // One of the aggregated flakes: its aggregate by count, then within it.
+        const CountedFootprint& cf = c.counted;
+        float x = u * static_cast<float>(cf.aggregated);
+        uint32_t a = 0;
+        while (a + 1 < cf.n_agg && x >= static_cast<float>(cf.agg[a].count))
+            x -= static_cast<float>(cf.agg[a++].count);
+        if (cf.n_agg == 0) {
+            ok = false;
+        } else if (cf.agg[a].sparse) {
+            const float ua =
+                std::clamp(x / static_cast<float>(cf.agg[a].count), 0.0f, 0x1.fffffep-1f);
+            ok = sample_aggregate(cf.agg[a], m.grid, m.field.exact_below, c.wo, ua, u0, u1, wi);
+        } else {
+            ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
+        }
     }
     if (!ok || !(wi.z > 0.0f)) return;
     eval_material(m, c, wi, f, pdf);  // the whole mixture, so that MIS sees one density

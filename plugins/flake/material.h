@@ -58,7 +58,7 @@ struct Material {
 };
 
 /** Builds m from validated parameters; false with `why` set when they cannot be used together. */
-bool init_material(Material& m, const SpangleParams_v1* p, const SpangleHost_v1* host,
+bool init_material(Material& m, const SpangleParams_v2* p, const SpangleHost_v2* host,
                    std::string& why);
 
 /** Per-shading-point closure (lives in the host's closure array). */
@@ -86,11 +86,31 @@ struct PointStats {
 struct PointInput {
     V3 wo;
     float u = 0, v = 0, du_dx = 0, du_dy = 0, dv_dx = 0, dv_dy = 0, uv_area = 0;
+    V3 p_obj, n_obj, dpdx_obj, dpdy_obj;  ///< object space: position, normal, footprint axes
     uint32_t flags = 0;
 };
 
+/** Where a shading point's flakes come from: a footprint in some plane of flake tiles, the field's
+ *  density there and seed, and the share of the field's flakes that belong to the surface. */
+struct FieldView {
+    Footprint footprint;
+    double per_tile = 0;  ///< flakes per unit square of the plane
+    uint64_t seed = 0;    ///< the field's seed (the material's, salted per object-space plane)
+    float keep = 1.0f;    ///< each flake is kept with this probability (hashed per flake)
+    double lambda() const { return per_tile * footprint.area() * static_cast<double>(keep); }
+};
+
+/** The field view of a point: uv (density per uv square, or per square metre with `world`), or
+ *  object space for `object` (and for `auto` where the mesh has no usable uvs). In object space
+ *  the flakes lie in the coordinate plane most facing the surface (the one of the normal's largest
+ *  component k), at density sqrt(3) times the material's, thinned by 1 / (sqrt(3) |n_k|) (at most
+ *  1: |n_k| >= 1 / sqrt(3)): the surface gets exactly the material's density per unit area, and
+ *  the flakes are fixed to the object. Where the dominant plane changes, the realisation changes
+ *  (a seam in which flakes, never in how many or how bright). */
+FieldView field_view(const Material& m, const PointInput& in);
+
 /** Builds the closure of one point; the cache goes to `arena`. */
-void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v1* arena,
+void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v2* arena,
                    PointStats& st);
 
 /** The whole material at wi: f (RGB) and the pdf of sample_material(). */

@@ -8,7 +8,7 @@
 namespace spangle::flake {
 
 // clang-format off
-inline const SpangleParamDesc_v1 kParams[] = {
+inline const SpangleParamDesc_v2 kParams[] = {
     {"base_color", SPANGLE_PARAM_COLOR, {0.05, 0.05, 0.05}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the paint between the flakes"},
     {"flake_weight", SPANGLE_PARAM_FLOAT, {0.6, 0, 0}, nullptr, 0.0, 1.0, nullptr, "fraction of the surface covered by flakes"},
     {"density", SPANGLE_PARAM_FLOAT, {200000, 0, 0}, nullptr, 1.0, 2147483647.0, nullptr, "flakes per unit square of uv (per square metre with density_space = world or object)"},

@@ -38,12 +38,12 @@ namespace {
 using namespace spangle::mf;
 using namespace spangle::plugin_support;
 
-float param_f(const SpangleParams_v1* p, const char* name, int c = 0) {
+float param_f(const SpangleParams_v2* p, const char* name, int c = 0) {
     return static_cast<float>(param_number(p, name, c));
 }
 
 /** GGX alphas from roughness / roughness_v (-1 = isotropic). */
-void read_alpha(const SpangleParams_v1* p, float& ax, float& ay) {
+void read_alpha(const SpangleParams_v2* p, float& ax, float& ay) {
     ax = param_f(p, "roughness");
     const float v = param_f(p, "roughness_v");
     ay = v < 0.0f ? ax : v;
@@ -70,14 +70,14 @@ struct Closure {
 };
 static_assert(sizeof(Closure) == 48, "closure layout");
 
-V3 wo_of(const SpangleShadingBatch_v1* b, uint32_t i) {
+V3 wo_of(const SpangleShadingBatch_v2* b, uint32_t i) {
     return {b->wo_x[i], b->wo_y[i], b->wo_z[i]};
 }
 uint32_t closure_of(const uint32_t* index, uint32_t i) {
     return index ? index[i] : i;
 }
 
-void write_eval(SpangleEvalBatch_v1* q, uint32_t i, float r, float g, float b, float pdf) {
+void write_eval(SpangleEvalBatch_v2* q, uint32_t i, float r, float g, float b, float pdf) {
     const bool ok = std::isfinite(r) && std::isfinite(g) && std::isfinite(b) && std::isfinite(pdf);
     q->f_r[i] = ok ? r : 0.0f;
     q->f_g[i] = ok ? g : 0.0f;
@@ -85,7 +85,7 @@ void write_eval(SpangleEvalBatch_v1* q, uint32_t i, float r, float g, float b, f
     q->pdf[i] = ok ? pdf : 0.0f;
 }
 
-void write_sample(SpangleSampleBatch_v1* q, uint32_t i, V3 wi, float r, float g, float b, float pdf,
+void write_sample(SpangleSampleBatch_v2* q, uint32_t i, V3 wi, float r, float g, float b, float pdf,
                   uint32_t flags) {
     const bool ok = flags != 0 && pdf > 0.0f && std::isfinite(pdf) && std::isfinite(r) &&
                     std::isfinite(g) && std::isfinite(b) && std::isfinite(wi.x + wi.y + wi.z);
@@ -100,14 +100,14 @@ void write_sample(SpangleSampleBatch_v1* q, uint32_t i, V3 wi, float r, float g,
     if (q->eta) q->eta[i] = 1.0f;
 }
 
-void invalid_sample(SpangleSampleBatch_v1* q, uint32_t i) {
+void invalid_sample(SpangleSampleBatch_v2* q, uint32_t i) {
     write_sample(q, i, {0, 0, 1}, 0, 0, 0, 0, 0);
 }
 
 // ------------------------------------------------------------------------------------ diffuse
 
 // clang-format off
-const SpangleParamDesc_v1 kDiffuseParams[] = {
+const SpangleParamDesc_v2 kDiffuseParams[] = {
     {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "fraction of light reflected diffusely (RGB)"},
 };
 // clang-format on
@@ -116,7 +116,7 @@ struct Diffuse {
     float albedo[3];
 };
 
-void* diffuse_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* error, uint32_t cap) {
+void* diffuse_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* error, uint32_t cap) {
     auto* d = new (std::nothrow) Diffuse;
     if (!d) {
         set_error(error, cap, "out of memory");
@@ -126,8 +126,8 @@ void* diffuse_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* err
     return d;
 }
 
-void diffuse_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* closures,
-                     SpangleArena_v1*) {
+void diffuse_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
+                     SpangleArena_v2*) {
     const auto* d = static_cast<const Diffuse*>(inst);
     auto* out = static_cast<Closure*>(closures);
     for (uint32_t i = 0; i < b->count; ++i) {
@@ -137,7 +137,7 @@ void diffuse_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* cl
     }
 }
 
-void diffuse_eval(const void*, const void* closures, SpangleEvalBatch_v1* q) {
+void diffuse_eval(const void*, const void* closures, SpangleEvalBatch_v2* q) {
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
         const Closure& c = cl[closure_of(q->closure_index, i)];
@@ -150,7 +150,7 @@ void diffuse_eval(const void*, const void* closures, SpangleEvalBatch_v1* q) {
     }
 }
 
-void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v1* q) {
+void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v2* q) {
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
         const Closure& c = cl[closure_of(q->closure_index, i)];
@@ -167,7 +167,7 @@ void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v1* q)
 // ------------------------------------------------------------------------------------ conductor
 
 // clang-format off
-const SpangleParamDesc_v1 kConductorParams[] = {
+const SpangleParamDesc_v2 kConductorParams[] = {
     {"preset", SPANGLE_PARAM_STRING, {0, 0, 0}, "gold", 0.0, 0.0, "gold|silver|copper|aluminium|perfect|custom", "metal whose complex index to use; 'custom' takes eta and k; 'perfect' reflects everything"},
     {"eta", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "real part of the index per channel (Rec.709 bands); only with preset = custom"},
     {"k", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "imaginary part (extinction) per channel; only with preset = custom"},
@@ -185,14 +185,14 @@ struct Conductor {
 };
 
 /** Reads the Rec.709 -> working-space matrix; reports a failure through the ABI buffer. */
-bool rec709_matrix(const SpangleHost_v1* host, float m[9], char* error, uint32_t cap) {
+bool rec709_matrix(const SpangleHost_v2* host, float m[9], char* error, uint32_t cap) {
     std::string why;
     if (rec709_to_working(host, m, why)) return true;
     set_error(error, cap, "cannot convert Fresnel colours: " + why);
     return false;
 }
 
-void* conductor_create(const SpangleParams_v1* p, const SpangleHost_v1* host, char* error,
+void* conductor_create(const SpangleParams_v2* p, const SpangleHost_v2* host, char* error,
                        uint32_t cap) {
     Conductor c{};
     read_alpha(p, c.ax, c.ay);
@@ -243,7 +243,7 @@ void conductor_fresnel(const Conductor& m, float c, float out[3]) {
                             0.0f, 1.0f);
 }
 
-void ggx_prepare(const void*, const SpangleShadingBatch_v1* b, void* closures, SpangleArena_v1*) {
+void ggx_prepare(const void*, const SpangleShadingBatch_v2* b, void* closures, SpangleArena_v2*) {
     auto* out = static_cast<Closure*>(closures);
     for (uint32_t i = 0; i < b->count; ++i) {
         out[i] = Closure{};
@@ -251,7 +251,7 @@ void ggx_prepare(const void*, const SpangleShadingBatch_v1* b, void* closures, S
     }
 }
 
-void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) {
+void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
     const auto& m = *static_cast<const Conductor*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -271,7 +271,7 @@ void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v1*
     }
 }
 
-void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch_v1* q) {
+void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
     const auto& m = *static_cast<const Conductor*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -306,7 +306,7 @@ void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch
 // ------------------------------------------------------------------------------------ dielectric
 
 // clang-format off
-const SpangleParamDesc_v1 kDielectricParams[] = {
+const SpangleParamDesc_v2 kDielectricParams[] = {
     {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of refraction inside (the outside is 1)"},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface"},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness"},
@@ -318,7 +318,7 @@ struct Dielectric {
     bool delta;
 };
 
-void* dielectric_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* error,
+void* dielectric_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* error,
                         uint32_t cap) {
     Dielectric d{};
     read_alpha(p, d.ax, d.ay);
@@ -330,8 +330,8 @@ void* dielectric_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* 
     return out;
 }
 
-void dielectric_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* closures,
-                        SpangleArena_v1*) {
+void dielectric_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
+                        SpangleArena_v2*) {
     const auto& m = *static_cast<const Dielectric*>(inst);
     auto* out = static_cast<Closure*>(closures);
     for (uint32_t i = 0; i < b->count; ++i) {
@@ -366,7 +366,7 @@ void dielectric_rough(const Dielectric& m, V3 wo, V3 wi, float eta, float& f, fl
     }
 }
 
-void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) {
+void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
     const auto& m = *static_cast<const Dielectric*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -381,7 +381,7 @@ void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v1
     }
 }
 
-void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatch_v1* q) {
+void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
     const auto& m = *static_cast<const Dielectric*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -423,7 +423,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
 // ------------------------------------------------------------------------------------ plastic
 
 // clang-format off
-const SpangleParamDesc_v1 kPlasticParams[] = {
+const SpangleParamDesc_v2 kPlasticParams[] = {
     {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the base under the coat"},
     {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of the coat"},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the coat along the tangent; below 1e-4 a smooth coat"},
@@ -467,7 +467,7 @@ float plastic_e(const Plastic& m, float mu) {
     return m.e[i] * (1.0f - t) + m.e[i + 1] * t;
 }
 
-void* plastic_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* error, uint32_t cap) {
+void* plastic_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* error, uint32_t cap) {
     auto* m = new (std::nothrow) Plastic{};
     if (!m) {
         set_error(error, cap, "out of memory");
@@ -488,8 +488,8 @@ void* plastic_create(const SpangleParams_v1* p, const SpangleHost_v1*, char* err
     return m;
 }
 
-void plastic_prepare(const void* inst, const SpangleShadingBatch_v1* b, void* closures,
-                     SpangleArena_v1*) {
+void plastic_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
+                     SpangleArena_v2*) {
     const auto& m = *static_cast<const Plastic*>(inst);
     auto* out = static_cast<Closure*>(closures);
     const float lum = 0.2126f * m.albedo[0] + 0.7152f * m.albedo[1] + 0.0722f * m.albedo[2];
@@ -512,7 +512,7 @@ float plastic_base(const Plastic& m, const Closure& c, float cos_i) {
     return (1.0f - c.e_o) * (1.0f - plastic_e(m, cos_i)) / (kPi * std::max(1e-6f, 1.0f - m.e_avg));
 }
 
-void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q) {
+void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
     const auto& m = *static_cast<const Plastic*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -537,7 +537,7 @@ void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v1* q
     }
 }
 
-void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v1* q) {
+void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
     const auto& m = *static_cast<const Plastic*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -562,7 +562,7 @@ void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v
             continue;
         }
         // f and pdf of the whole mixture, so that MIS sees one consistent density.
-        SpangleEvalBatch_v1 e{};
+        SpangleEvalBatch_v2 e{};
         float fr, fg, fb, pdf;
         const uint32_t index = closure_of(q->closure_index, i);
         e.count = 1;
@@ -588,28 +588,29 @@ void destroy(void* instance) {
     delete static_cast<T*>(instance);
 }
 
-constexpr uint32_t count_of(const SpangleParamDesc_v1* begin, const SpangleParamDesc_v1* end) {
+constexpr uint32_t count_of(const SpangleParamDesc_v2* begin, const SpangleParamDesc_v2* end) {
     return static_cast<uint32_t>(end - begin);
 }
 #define SPANGLE_PARAMS(a) a, count_of(a, a + sizeof(a) / sizeof(a[0]))
 
-const SpangleMaterialModel_v1 kModels[] = {
+const SpangleMaterialModel_v2 kModels[] = {
     {"diffuse", "Lambertian diffuse reflection", SPANGLE_PARAMS(kDiffuseParams), sizeof(Closure),
-     diffuse_create, destroy<Diffuse>, diffuse_prepare, diffuse_eval, diffuse_sample, nullptr},
+     diffuse_create, destroy<Diffuse>, diffuse_prepare, diffuse_eval, diffuse_sample, nullptr,
+     nullptr},
     {"conductor", "GGX metal with complex Fresnel (presets or custom eta, k)",
      SPANGLE_PARAMS(kConductorParams), sizeof(Closure), conductor_create, destroy<Conductor>,
-     ggx_prepare, conductor_eval, conductor_sample, nullptr},
+     ggx_prepare, conductor_eval, conductor_sample, nullptr, nullptr},
     {"dielectric", "rough glass: GGX reflection and transmission",
      SPANGLE_PARAMS(kDielectricParams), sizeof(Closure), dielectric_create, destroy<Dielectric>,
-     dielectric_prepare, dielectric_eval, dielectric_sample, nullptr},
+     dielectric_prepare, dielectric_eval, dielectric_sample, nullptr, nullptr},
     {"plastic", "diffuse base under a GGX dielectric coat", SPANGLE_PARAMS(kPlasticParams),
      sizeof(Closure), plastic_create, destroy<Plastic>, plastic_prepare, plastic_eval,
-     plastic_sample, nullptr},
+     plastic_sample, nullptr, nullptr},
 };
 
-const SpangleMaterialPlugin_v1 kPlugin = {
+const SpangleMaterialPlugin_v2 kPlugin = {
     SPANGLE_MATERIAL_ABI_VERSION,
-    sizeof(SpangleMaterialPlugin_v1),
+    sizeof(SpangleMaterialPlugin_v2),
     "smooth",
     "smooth microfacet and diffuse materials",
     kModels,
@@ -618,7 +619,7 @@ const SpangleMaterialPlugin_v1 kPlugin = {
 
 }  // namespace
 
-extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v1* spangle_material_plugin(
+extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v2* spangle_material_plugin(
     uint32_t host_abi_version) {
     return host_abi_version == SPANGLE_MATERIAL_ABI_VERSION ? &kPlugin : nullptr;
 }

@@ -29,6 +29,7 @@ struct Fixture {
     PluginLoader loader{plugin_search_path({})};
     std::unique_ptr<MaterialInstance> mat;
     std::vector<float> px, py, pz, wox, woy, woz, u, v, dudx, dudy, dvdx, dvdy, area;
+    std::vector<float> zero, one;
     std::vector<uint32_t> flags, ids;
     std::vector<float> wix, wiy, wiz, f_r, f_g, f_b, pdf, u0, u1, u2;
     std::vector<uint32_t> sflags;
@@ -47,6 +48,8 @@ struct Fixture {
         for (auto* a : {&px,   &py,  &pz,  &wox, &woy, &woz, &u,   &v,   &dudx, &dudy, &dvdx, &dvdy,
                         &area, &wix, &wiy, &wiz, &f_r, &f_g, &f_b, &pdf, &u0,   &u1,   &u2})
             a->resize(kBatch);
+        zero.assign(kBatch, 0.0f);
+        one.assign(kBatch, 1.0f);
         flags.resize(kBatch);
         ids.resize(kBatch);
         sflags.resize(kBatch);
@@ -82,21 +85,24 @@ struct Fixture {
     }
 
     void shade() {
-        const SpangleShadingBatch_v1 b{kBatch,      px.data(),   py.data(),    pz.data(),
-                                       wox.data(),  woy.data(),  woz.data(),   u.data(),
-                                       v.data(),    dudx.data(), dudy.data(),  dvdx.data(),
-                                       dvdy.data(), area.data(), flags.data(), ids.data()};
+        // Object space mirrors uv (the plane z = 0 of the object): the uv path does not read it.
+        const SpangleShadingBatch_v2 b{
+            kBatch,      px.data(),   py.data(),    pz.data(),   wox.data(),  woy.data(),
+            woz.data(),  u.data(),    v.data(),     dudx.data(), dudy.data(), dvdx.data(),
+            dvdy.data(), area.data(), u.data(),     v.data(),    zero.data(), zero.data(),
+            zero.data(), one.data(),  dudx.data(),  dvdx.data(), zero.data(), dudy.data(),
+            dvdy.data(), zero.data(), flags.data(), ids.data()};
         void* cl = closures.data();
         std::size_t space = closures.size();
         cl = std::align(16, kBatch * mat->model().closure_size, cl, space);
         arena.reset();
-        SpangleArena_v1 a = arena.api();
+        SpangleArena_v2 a = arena.api();
         mat->model().prepare(mat->instance(), &b, cl, &a);
-        SpangleEvalBatch_v1 e{kBatch,     nullptr,    wix.data(), wiy.data(), wiz.data(),
+        SpangleEvalBatch_v2 e{kBatch,     nullptr,    wix.data(), wiy.data(), wiz.data(),
                               f_r.data(), f_g.data(), f_b.data(), pdf.data()};
         mat->model().eval(mat->instance(), cl, &e);
         std::vector<float>& sx = wix;  // sample() overwrites the query directions: same cost
-        SpangleSampleBatch_v1 s{kBatch,     nullptr,    u0.data(),     u1.data(),  u2.data(),
+        SpangleSampleBatch_v2 s{kBatch,     nullptr,    u0.data(),     u1.data(),  u2.data(),
                                 sx.data(),  wiy.data(), wiz.data(),    f_r.data(), f_g.data(),
                                 f_b.data(), pdf.data(), sflags.data(), nullptr};
         mat->model().sample(mat->instance(), cl, &s);

@@ -7,19 +7,19 @@
 
 namespace {
 
-const SpangleParamDesc_v1 kParams[] = {
+const SpangleParamDesc_v2 kParams[] = {
     {"x", SPANGLE_PARAM_FLOAT, {0.5, 0, 0}, nullptr, 0.0, 1.0, nullptr, "a number"},
 };
 
-void* create_fails(const SpangleParams_v1*, const SpangleHost_v1*, char* error, uint32_t capacity) {
+void* create_fails(const SpangleParams_v2*, const SpangleHost_v2*, char* error, uint32_t capacity) {
     std::strncpy(error, "x and y cannot both be set", capacity - 1);
     error[capacity - 1] = '\0';
     return nullptr;
 }
 void destroy(void*) {}
-void prepare(const void*, const SpangleShadingBatch_v1*, void*, SpangleArena_v1*) {}
-void eval(const void*, const void*, SpangleEvalBatch_v1*) {}
-void sample(const void*, const void*, SpangleSampleBatch_v1*) {}
+void prepare(const void*, const SpangleShadingBatch_v2*, void*, SpangleArena_v2*) {}
+void eval(const void*, const void*, SpangleEvalBatch_v2*) {}
+void sample(const void*, const void*, SpangleSampleBatch_v2*) {}
 
 #if defined(BROKEN_MALFORMED)
 constexpr uint32_t kClosureSize = 0;  // invalid: the host must reject it
@@ -27,9 +27,9 @@ constexpr uint32_t kClosureSize = 0;  // invalid: the host must reject it
 constexpr uint32_t kClosureSize = 16;
 #endif
 
-const SpangleMaterialModel_v1 kModels[] = {
+const SpangleMaterialModel_v2 kModels[] = {
     {"broken", "a model whose create() always fails", kParams, 1, kClosureSize, create_fails,
-     destroy, prepare, eval, sample, nullptr},
+     destroy, prepare, eval, sample, nullptr, nullptr},
 };
 
 #if defined(BROKEN_ABI)
@@ -44,13 +44,13 @@ constexpr const char* kName = "someone_else";
 constexpr const char* kName = PLUGIN_NAME;
 #endif
 
-const SpangleMaterialPlugin_v1 kPlugin = {
-    kAbi, sizeof(SpangleMaterialPlugin_v1), kName, "a broken test plugin", kModels, 1};
+const SpangleMaterialPlugin_v2 kPlugin = {
+    kAbi, sizeof(SpangleMaterialPlugin_v2), kName, "a broken test plugin", kModels, 1};
 
 }  // namespace
 
 #if !defined(BROKEN_NOENTRY)
-extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v1* spangle_material_plugin(uint32_t) {
+extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v2* spangle_material_plugin(uint32_t) {
 #if defined(BROKEN_REFUSES)
     return nullptr;
 #else

@@ -40,7 +40,7 @@ BsdfHarness::BsdfHarness(const std::string& plugin, const std::string& model,
         m.params.push_back(p);
     }
     const ValidatedParams params = validate_params(*model_, m, color_);
-    const SpangleParams_v1 view = params.view();
+    const SpangleParams_v2 view = params.view();
     char error[512] = {0};
     instance_ = model_->create(&view, host_->api(), error, sizeof(error));
     if (!instance_) throw std::runtime_error(std::string("create failed: ") + error);
@@ -60,13 +60,39 @@ void BsdfHarness::prepare(Vec3 wo, bool backface) {
 void BsdfHarness::prepare(Vec3 wo, const Point& pt, bool backface) {
     const float zero = 0.0f;
     const uint32_t flags = (backface ? SPANGLE_SHADING_BACKFACE : 0u) |
-                           (pt.has_differentials ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u);
+                           (pt.has_differentials ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u) |
+                           (pt.no_uv ? SPANGLE_SHADING_NO_UV : 0u);
     const uint32_t id = 0;
-    const SpangleShadingBatch_v1 b{1,        &zero,       &zero,  &zero,    &wo.x,    &wo.y,
-                                   &wo.z,    &pt.u,       &pt.v,  &pt.dudx, &pt.dudy, &pt.dvdx,
-                                   &pt.dvdy, &pt.uv_area, &flags, &id};
+    const SpangleShadingBatch_v2 b{1,
+                                   &zero,
+                                   &zero,
+                                   &zero,
+                                   &wo.x,
+                                   &wo.y,
+                                   &wo.z,
+                                   &pt.u,
+                                   &pt.v,
+                                   &pt.dudx,
+                                   &pt.dudy,
+                                   &pt.dvdx,
+                                   &pt.dvdy,
+                                   &pt.uv_area,
+                                   &pt.p_obj.x,
+                                   &pt.p_obj.y,
+                                   &pt.p_obj.z,
+                                   &pt.n_obj.x,
+                                   &pt.n_obj.y,
+                                   &pt.n_obj.z,
+                                   &pt.dpdx_obj.x,
+                                   &pt.dpdx_obj.y,
+                                   &pt.dpdx_obj.z,
+                                   &pt.dpdy_obj.x,
+                                   &pt.dpdy_obj.y,
+                                   &pt.dpdy_obj.z,
+                                   &flags,
+                                   &id};
     arena_.reset();
-    SpangleArena_v1 arena = arena_.api();
+    SpangleArena_v2 arena = arena_.api();
     model_->prepare(instance_, &b, closure_.data(), &arena);
 }
 
@@ -78,7 +104,7 @@ std::vector<BsdfHarness::Sample> BsdfHarness::sample(uint32_t n, uint64_t seed) 
         u1[i] = sample_1d(seed, i, 0, 1);
         u2[i] = sample_1d(seed, i, 0, 2);
     }
-    SpangleSampleBatch_v1 q{n,        idx.data(), u0.data(),    u1.data(), u2.data(),
+    SpangleSampleBatch_v2 q{n,        idx.data(), u0.data(),    u1.data(), u2.data(),
                             x.data(), y.data(),   z.data(),     r.data(),  g.data(),
                             b.data(), pdf.data(), flags.data(), nullptr};
     model_->sample(instance_, closure_.data(), &q);
@@ -99,7 +125,7 @@ void BsdfHarness::eval(const std::vector<Vec3>& wi, std::vector<Vec3>& f,
         y[i] = wi[i].y;
         z[i] = wi[i].z;
     }
-    SpangleEvalBatch_v1 q{n,        idx.data(), x.data(), y.data(),  z.data(),
+    SpangleEvalBatch_v2 q{n,        idx.data(), x.data(), y.data(),  z.data(),
                           r.data(), g.data(),   b.data(), pdf.data()};
     if (n > 0) model_->eval(instance_, closure_.data(), &q);
     f.resize(n);

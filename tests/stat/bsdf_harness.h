@@ -36,6 +36,9 @@ public:
         float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;  ///< footprint axes in uv
         bool has_differentials = true;
         float uv_area = 1.0f;
+        bool no_uv = false;          ///< SPANGLE_SHADING_NO_UV
+        Vec3 p_obj, n_obj{0, 0, 1};  ///< object-space position and normal
+        Vec3 dpdx_obj, dpdy_obj;     ///< object-space footprint axes
     };
     /** Prepares the closure for wo at a given point (the scratch arena is reset first). */
     void prepare(Vec3 wo, const Point& point, bool backface = false);
@@ -50,13 +53,13 @@ public:
     /** f and pdf for each wi. */
     void eval(const std::vector<Vec3>& wi, std::vector<Vec3>& f, std::vector<float>& pdf) const;
 
-    const SpangleMaterialModel_v1& model() const { return *model_; }
+    const SpangleMaterialModel_v2& model() const { return *model_; }
 
 private:
     ColorConfig color_;
     std::unique_ptr<HostServices> host_;
     std::shared_ptr<LoadedPlugin> plugin_;
-    const SpangleMaterialModel_v1* model_ = nullptr;
+    const SpangleMaterialModel_v2* model_ = nullptr;
     void* instance_ = nullptr;
     std::vector<std::byte> closure_;
     ScratchArena arena_;

@@ -62,7 +62,7 @@ TEST(PluginLoader, RejectsPathLikeNames) {
 
 TEST(PluginLoader, AbiMismatch) {
     EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("abi"), "abi"); }),
-               "was built for material ABI version 999, but this spangle uses version 1");
+               "was built for material ABI version 999, but this spangle uses version 2");
 }
 
 TEST(PluginLoader, NotAPluginWithoutEntryPoint) {
@@ -72,7 +72,7 @@ TEST(PluginLoader, NotAPluginWithoutEntryPoint) {
 
 TEST(PluginLoader, PluginRefusingTheHost) {
     EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("refuses"), "refuses"); }),
-               "refused this host's material ABI version 1");
+               "refused this host's material ABI version 2");
 }
 
 TEST(PluginLoader, FileNameAndPluginNameMustAgree) {
@@ -115,7 +115,7 @@ TEST(PluginLoader, SearchOrderCliThenEnvironmentThenBinary) {
 }
 
 /** A schema exercising every parameter type, validated without any plugin. */
-const SpangleParamDesc_v1 kSchema[] = {
+const SpangleParamDesc_v2 kSchema[] = {
     {"roughness", SPANGLE_PARAM_FLOAT, {0.5, 0, 0}, nullptr, 0.0, 1.0, nullptr, "r"},
     {"count", SPANGLE_PARAM_INT, {4, 0, 0}, nullptr, 1.0, 64.0, nullptr, "n"},
     {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "c"},
@@ -129,8 +129,8 @@ const SpangleParamDesc_v1 kSchema[] = {
      "schlick|conductor|dielectric",
      "f"},
 };
-SpangleMaterialModel_v1 schema_model() {
-    SpangleMaterialModel_v1 m{};
+SpangleMaterialModel_v2 schema_model() {
+    SpangleMaterialModel_v2 m{};
     m.name = "test";
     m.params = kSchema;
     m.param_count = 5;
@@ -217,16 +217,18 @@ protected:
         plugin_ = PluginLoader(plugin_search_path({})).open("smooth", {});
         model_ = plugin_->model("diffuse");
         ASSERT_NE(model_, nullptr);
-        SpangleParamValue_v1 albedo{"albedo", SPANGLE_PARAM_COLOR, {1.0, 1.0, 1.0}, nullptr};
-        SpangleParams_v1 params{&albedo, 1};
+        SpangleParamValue_v2 albedo{"albedo", SPANGLE_PARAM_COLOR, {1.0, 1.0, 1.0}, nullptr};
+        SpangleParams_v2 params{&albedo, 1};
         char err[256];
         instance_ = model_->create(&params, host_.api(), err, sizeof(err));
         ASSERT_NE(instance_, nullptr) << err;
         const float zero = 0.0f, one = 1.0f;
         const float wox = 0.3f, woy = 0.0f, woz = std::sqrt(1.0f - 0.09f);
         const uint32_t flags = 0, id = 0;
-        SpangleShadingBatch_v1 b{1,     &zero, &zero, &zero, &wox,  &woy, &woz,   &zero,
-                                 &zero, &zero, &zero, &zero, &zero, &one, &flags, &id};
+        SpangleShadingBatch_v2 b{1,     &zero, &zero, &zero, &wox,  &woy,   &woz,
+                                 &zero, &zero, &zero, &zero, &zero, &zero,  &one,
+                                 &zero, &zero, &zero, &zero, &zero, &one,   &zero,
+                                 &zero, &zero, &zero, &zero, &zero, &flags, &id};
         closure_.resize(model_->closure_size);
         model_->prepare(instance_, &b, closure_.data(), nullptr);
     }
@@ -237,7 +239,7 @@ protected:
     ColorConfig color_ = test::shipped_config();
     HostServices host_{color_, test::quiet_log()};
     std::shared_ptr<LoadedPlugin> plugin_;
-    const SpangleMaterialModel_v1* model_ = nullptr;
+    const SpangleMaterialModel_v2* model_ = nullptr;
     void* instance_ = nullptr;
     std::vector<std::byte> closure_;
 };
@@ -251,12 +253,12 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
         u1[i] = sample_1d(1, i, 0, 1);
         u2[i] = sample_1d(1, i, 0, 2);
     }
-    SpangleSampleBatch_v1 q{kN,       idx.data(), u0.data(),    u1.data(), u2.data(),
+    SpangleSampleBatch_v2 q{kN,       idx.data(), u0.data(),    u1.data(), u2.data(),
                             x.data(), y.data(),   z.data(),     r.data(),  g.data(),
                             b.data(), pdf.data(), flags.data(), nullptr};
     model_->sample(instance_, closure_.data(), &q);
     std::vector<float> er(kN), eg(kN), eb(kN), epdf(kN);
-    SpangleEvalBatch_v1 e{kN,        idx.data(), x.data(),  y.data(),   z.data(),
+    SpangleEvalBatch_v2 e{kN,        idx.data(), x.data(),  y.data(),   z.data(),
                           er.data(), eg.data(),  eb.data(), epdf.data()};
     model_->eval(instance_, closure_.data(), &e);
     for (uint32_t i = 0; i < kN; ++i) {

@@ -1,10 +1,14 @@
 /*
- * Spangle material plugin ABI, version 1.
+ * Spangle material plugin ABI, version 2.
+ *
+ * Version 2 adds object-space shading data (position, normal, footprint) and the NO_UV flag, so
+ * that a model can lay out a texture-like field on meshes without usable uvs, and the optional
+ * requirements() query.
  *
  * The only header a plugin includes. Plain C: no exceptions, no C++ types, memory freed by
  * whoever allocated it. A plugin is a shared library exporting one symbol:
  *
- *     const SpangleMaterialPlugin_v1* spangle_material_plugin(uint32_t host_abi_version);
+ *     const SpangleMaterialPlugin_v2* spangle_material_plugin(uint32_t host_abi_version);
  *
  * It returns a static table that lives as long as the library is loaded. The host reads
  * abi_version and struct_size first and refuses the table when abi_version differs from its own
@@ -33,7 +37,7 @@
 extern "C" {
 #endif
 
-#define SPANGLE_MATERIAL_ABI_VERSION 1u
+#define SPANGLE_MATERIAL_ABI_VERSION 2u
 #define SPANGLE_MATERIAL_ENTRY_POINT "spangle_material_plugin"
 
 #if defined(_WIN32)
@@ -50,13 +54,13 @@ typedef enum SpangleParamType {
     SPANGLE_PARAM_INT = 1,    /* one 64-bit integer, range-checked */
     SPANGLE_PARAM_BOOL = 2,   /* true or false */
     SPANGLE_PARAM_COLOR = 3,  /* RGB; the host converts it to the working space at load */
-    SPANGLE_PARAM_STRING = 4, /* one of the choices in SpangleParamDesc_v1.choices */
+    SPANGLE_PARAM_STRING = 4, /* one of the choices in SpangleParamDesc_v2.choices */
     SPANGLE_PARAM_VEC3 = 5    /* three numbers passed as written (no colour management), each
                                  range-checked; e.g. a conductor's per-channel complex IOR */
 } SpangleParamType;
 
 /** One entry of a model's parameter schema. The host validates scene values against it. */
-typedef struct SpangleParamDesc_v1 {
+typedef struct SpangleParamDesc_v2 {
     const char* name;           /* snake_case key in the scene file */
     SpangleParamType type;      /* value type */
     double default_value[3];    /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space; VEC3 */
@@ -65,25 +69,25 @@ typedef struct SpangleParamDesc_v1 {
     double max_value;           /* FLOAT/INT/COLOR (each channel): inclusive upper bound */
     const char* choices;        /* STRING: allowed values separated by '|'; NULL otherwise */
     const char* doc;            /* one line for `spangle plugins` */
-} SpangleParamDesc_v1;
+} SpangleParamDesc_v2;
 
 /** One validated parameter value handed to create(). */
-typedef struct SpangleParamValue_v1 {
+typedef struct SpangleParamValue_v2 {
     const char* name; /* same pointer text as the schema entry's name */
     SpangleParamType type;
     double number[3];   /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space; VEC3: as written */
     const char* string; /* STRING: the chosen value; NULL otherwise */
-} SpangleParamValue_v1;
+} SpangleParamValue_v2;
 
 /** The full parameter set: one value per schema entry, in schema order, defaults filled in. */
-typedef struct SpangleParams_v1 {
-    const SpangleParamValue_v1* values; /* count entries, in schema order */
+typedef struct SpangleParams_v2 {
+    const SpangleParamValue_v2* values; /* count entries, in schema order */
     uint32_t count;                     /* equals the model's param_count */
-} SpangleParams_v1;
+} SpangleParams_v2;
 
 /* ---------------------------------------------------------------- host services */
 
-/** Log levels for SpangleHost_v1.log. */
+/** Log levels for SpangleHost_v2.log. */
 typedef enum SpangleLogLevel {
     SPANGLE_LOG_DEBUG = 0,
     SPANGLE_LOG_INFO = 1,
@@ -92,7 +96,7 @@ typedef enum SpangleLogLevel {
 } SpangleLogLevel;
 
 /** Services the host offers to a plugin. Valid from create() until destroy() of the instance. */
-typedef struct SpangleHost_v1 {
+typedef struct SpangleHost_v2 {
     uint32_t abi_version;      /* SPANGLE_MATERIAL_ABI_VERSION of the host */
     void* context;             /* opaque, passed back to every call below */
     const char* working_space; /* name of the scene-linear working space (an OCIO colour space) */
@@ -109,29 +113,34 @@ typedef struct SpangleHost_v1 {
     /** Counter-based hash of (a, b): a pure function, the same on every thread and run. Plugins
      *  build their random numbers from it so that images do not depend on thread count. */
     uint64_t (*hash2)(uint64_t a, uint64_t b);
-} SpangleHost_v1;
+} SpangleHost_v2;
 
 /** Bump allocator for per-batch scratch data (closures' variable-size parts). Memory handed out
  *  stays valid until the host has finished eval()/sample() on the closures of that batch. */
-typedef struct SpangleArena_v1 {
+typedef struct SpangleArena_v2 {
     void* context;
     /** Returns `bytes` of memory aligned to `align` (a power of two <= 64), or NULL. */
     void* (*allocate)(void* context, size_t bytes, size_t align);
-} SpangleArena_v1;
+} SpangleArena_v2;
 
 /* ---------------------------------------------------------------- batches */
 
-/** Bits of SpangleShadingBatch_v1.flags. */
+/** Bits of SpangleShadingBatch_v2.flags. */
 #define SPANGLE_SHADING_HAS_DIFFERENTIALS 1u /* du/dx..dv/dy come from real ray differentials */
 #define SPANGLE_SHADING_BACKFACE                                    \
     2u /* the ray hit the back of the surface; the host flipped the \
           frame so that the geometric normal faces wo */
+#define SPANGLE_SHADING_NO_UV                                              \
+    4u /* the mesh has no uvs here (none at all, or a degenerate mapping): \
+          u, v and their derivatives carry no layout */
 
 /** Shading points, structure of arrays, `count` entries each. Positions in world space (metres),
  *  wo in the local shading frame. When SPANGLE_SHADING_HAS_DIFFERENTIALS is clear for a point,
- *  its uv derivatives carry no pixel footprint (they are zero in ABI version 1 hosts without
- *  ray differentials) and a footprint-based model must fall back to its smooth expectation. */
-typedef struct SpangleShadingBatch_v1 {
+ *  its uv and position derivatives carry no pixel footprint and a footprint-based model must fall
+ *  back to its smooth expectation. The object-space fields describe the same point in its
+ *  object's own coordinates (before the object's transform), so that a pattern laid out there
+ *  stays fixed to the object as it moves. */
+typedef struct SpangleShadingBatch_v2 {
     uint32_t count;
     const float* p_x;
     const float* p_y;
@@ -145,15 +154,27 @@ typedef struct SpangleShadingBatch_v1 {
     const float* du_dy;
     const float* dv_dx;
     const float* dv_dy;
-    const float* uv_area;  /* |dp/du x dp/dv|: world area per unit uv area (m^2) */
+    const float* uv_area; /* |dp/du x dp/dv|: world area per unit uv area (m^2) */
+    const float* obj_p_x; /* object-space position */
+    const float* obj_p_y;
+    const float* obj_p_z;
+    const float* obj_n_x; /* object-space shading normal, unit length */
+    const float* obj_n_y;
+    const float* obj_n_z;
+    const float* obj_dpdx_x; /* object-space footprint axes, per pixel */
+    const float* obj_dpdx_y;
+    const float* obj_dpdx_z;
+    const float* obj_dpdy_x;
+    const float* obj_dpdy_y;
+    const float* obj_dpdy_z;
     const uint32_t* flags; /* SPANGLE_SHADING_* bits */
     const uint32_t*
         path_id; /* index of the path in the host's wavefront, for the plugin's hashing */
-} SpangleShadingBatch_v1;
+} SpangleShadingBatch_v2;
 
 /** Directions to evaluate: for query i, closure closure_index[i] and direction wi[i] (local
  *  frame). closure_index may be NULL, meaning query i uses closure i. */
-typedef struct SpangleEvalBatch_v1 {
+typedef struct SpangleEvalBatch_v2 {
     uint32_t count;
     const uint32_t* closure_index;
     const float* wi_x;
@@ -163,9 +184,9 @@ typedef struct SpangleEvalBatch_v1 {
     float* f_g;
     float* f_b;
     float* pdf; /* out: solid-angle pdf of sample() producing wi */
-} SpangleEvalBatch_v1;
+} SpangleEvalBatch_v2;
 
-/** Bits of SpangleSampleBatch_v1.flags. An invalid sample has flags 0, f 0 and pdf 0. */
+/** Bits of SpangleSampleBatch_v2.flags. An invalid sample has flags 0, f 0 and pdf 0. */
 #define SPANGLE_SAMPLE_REFLECTION 1u
 #define SPANGLE_SAMPLE_TRANSMISSION 2u
 #define SPANGLE_SAMPLE_DIFFUSE 4u
@@ -174,7 +195,7 @@ typedef struct SpangleEvalBatch_v1 {
 
 /** Samples to draw: for query i, closure closure_index[i] (or i when NULL) with uniform numbers
  *  u0[i], u1[i], u2[i] in [0, 1). */
-typedef struct SpangleSampleBatch_v1 {
+typedef struct SpangleSampleBatch_v2 {
     uint32_t count;
     const uint32_t* closure_index;
     const float* u0;
@@ -190,56 +211,62 @@ typedef struct SpangleSampleBatch_v1 {
     uint32_t* flags; /* out: SPANGLE_SAMPLE_* bits, 0 for an invalid sample */
     float* eta;      /* out, may be NULL: for a transmission, eta_transmitted / eta_incident (the
                         host bends ray differentials with it); 1 otherwise */
-} SpangleSampleBatch_v1;
+} SpangleSampleBatch_v2;
 
 /** One named statistic reported by a model instance for `spangle render --stats`. */
-typedef struct SpangleStat_v1 {
+typedef struct SpangleStat_v2 {
     const char* name; /* static string */
     double value;
-} SpangleStat_v1;
+} SpangleStat_v2;
 
 /* ---------------------------------------------------------------- the table */
 
 /** One material model: its schema and its batch kernels. */
-typedef struct SpangleMaterialModel_v1 {
+typedef struct SpangleMaterialModel_v2 {
     const char* name; /* e.g. "diffuse"; unique within the plugin */
     const char* doc;  /* one line */
-    const SpangleParamDesc_v1* params;
+    const SpangleParamDesc_v2* params;
     uint32_t param_count;
     uint32_t closure_size; /* bytes of per-shading-point closure prepare() writes, <= 4096 */
 
     /** Creates an instance from a full, validated parameter set. Returns NULL and writes a message
      *  (at most error_capacity bytes, NUL included) when the values are unusable together. */
-    void* (*create)(const SpangleParams_v1* params, const SpangleHost_v1* host, char* error,
+    void* (*create)(const SpangleParams_v2* params, const SpangleHost_v2* host, char* error,
                     uint32_t error_capacity);
     /** Frees an instance made by create(). */
     void (*destroy)(void* instance);
 
     /** Writes batch->count closures of closure_size bytes each (16-byte aligned) to `closures`.
      *  Variable-size data goes to `arena`. */
-    void (*prepare)(const void* instance, const SpangleShadingBatch_v1* batch, void* closures,
-                    SpangleArena_v1* arena);
+    void (*prepare)(const void* instance, const SpangleShadingBatch_v2* batch, void* closures,
+                    SpangleArena_v2* arena);
     /** Evaluates f and pdf for each query. */
-    void (*eval)(const void* instance, const void* closures, SpangleEvalBatch_v1* queries);
+    void (*eval)(const void* instance, const void* closures, SpangleEvalBatch_v2* queries);
     /** Samples wi with pdf for each query. */
-    void (*sample)(const void* instance, const void* closures, SpangleSampleBatch_v1* queries);
+    void (*sample)(const void* instance, const void* closures, SpangleSampleBatch_v2* queries);
 
     /** Optional (may be NULL): writes at most capacity statistics, returns how many exist. */
-    uint32_t (*stats)(const void* instance, SpangleStat_v1* out, uint32_t capacity);
-} SpangleMaterialModel_v1;
+    uint32_t (*stats)(const void* instance, SpangleStat_v2* out, uint32_t capacity);
+    /** Optional (may be NULL): SPANGLE_REQUIRES_* bits of what an instance needs from the
+     *  meshes it shades; the host warns about an object that cannot provide it. */
+    uint32_t (*requirements)(const void* instance);
+} SpangleMaterialModel_v2;
+
+/** Bits of SpangleMaterialModel_v2.requirements(). */
+#define SPANGLE_REQUIRES_UV 1u /* a layout in uv: a mesh without usable uvs loses it */
 
 /** The table a plugin returns. */
-typedef struct SpangleMaterialPlugin_v1 {
+typedef struct SpangleMaterialPlugin_v2 {
     uint32_t abi_version; /* SPANGLE_MATERIAL_ABI_VERSION the plugin was built with */
-    uint32_t struct_size; /* sizeof(SpangleMaterialPlugin_v1) in the plugin's build */
+    uint32_t struct_size; /* sizeof(SpangleMaterialPlugin_v2) in the plugin's build */
     const char* name;     /* e.g. "smooth"; the file is libspangle_<name>.so */
     const char* doc;      /* one line */
-    const SpangleMaterialModel_v1* models;
+    const SpangleMaterialModel_v2* models;
     uint32_t model_count;
-} SpangleMaterialPlugin_v1;
+} SpangleMaterialPlugin_v2;
 
 /** Signature of the entry point. */
-typedef const SpangleMaterialPlugin_v1* (*SpangleMaterialEntry_v1)(uint32_t host_abi_version);
+typedef const SpangleMaterialPlugin_v2* (*SpangleMaterialEntry_v2)(uint32_t host_abi_version);
 
 #ifdef __cplusplus
 }
