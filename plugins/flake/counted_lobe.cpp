@@ -95,14 +95,14 @@ void split_stratified(uint64_t key, uint32_t n, uint32_t out[4]) {
     for (uint32_t r = 0; r < n % 4; ++r) ++out[perm[r]];
 }
 
-/** The split of a node of the direction tree at `level`: upper levels stratified, so that the
- *  aggregate's flakes spread evenly over the broad directions; the rest a multinomial, the local
- *  grain of real flakes. Sparse nodes (under 16 flakes) are stratified too: a hard-core spread of
- *  few flakes is as grainy as a Poisson one, and keeps the energy exact where it would otherwise
+/** The split of a node of the direction tree down to the grid's leaves: a multinomial, the grain
+ *  of real flakes (the aggregate's weight follows its realised spread, see realised_weight, so
+ *  that its energy does not). Sparse nodes (under 16 flakes) are stratified: a hard-core spread of
+ *  few flakes over the broad directions keeps the energy close where it would otherwise
  *  fluctuate most. Virtual flakes are statistical stand-ins: exact splits only where they are one
  *  hash. */
-void split_direction_node(int level, uint64_t key, uint32_t n, int exact_below, uint32_t c[4]) {
-    if (level == 0 || n < 16)
+void split_direction_node(uint64_t key, uint32_t n, int exact_below, uint32_t c[4]) {
+    if (n < 16)
         split_stratified(key, n, c);
     else
         split_counts_cached(key, n, std::min(exact_below, kExactVirtual), c);
@@ -134,7 +134,7 @@ void visit_leaves(const Aggregate& a, const DirectionGrid& grid, int exact_below
         for (int k = 0; k < count; ++k) {
             uint32_t c[4];
             if (level < grid.depth)
-                split_direction_node(level, nk[cur][k], nn[cur][k], exact_below, c);
+                split_direction_node(nk[cur][k], nn[cur][k], exact_below, c);
             else
                 split_counts_cached(nk[cur][k], nn[cur][k], std::min(exact_below, kExactVirtual),
                                     c);
@@ -239,7 +239,7 @@ float realised_weight(const Aggregate& a, const DirectionGrid& grid,
             for (int i = 0; i < w; ++i) {
                 uint32_t c[4];
                 const uint64_t k = key[j * w + i];
-                split_direction_node(level, k, n[j * w + i], exact_below, c);
+                split_direction_node(k, n[j * w + i], exact_below, c);
                 for (uint32_t q = 0; q < 4; ++q) {
                     const int ci = 2 * i + static_cast<int>(q & 1u),
                               cj = 2 * j + static_cast<int>(q >> 1);
@@ -418,7 +418,7 @@ bool sample_aggregate(const Aggregate& a, const DirectionGrid& grid, int exact_b
     for (int level = 0; level < depth; ++level) {
         uint32_t c[4];
         if (level < grid.depth)
-            split_direction_node(level, key, n, exact_below, c);
+            split_direction_node(key, n, exact_below, c);
         else
             split_counts_cached(key, n, std::min(exact_below, kExactVirtual), c);
         const float x = u * static_cast<float>(n);
