@@ -44,7 +44,7 @@ EmbreeScene::EmbreeScene() {
 
 EmbreeScene::~EmbreeScene() {
     if (top_) rtcReleaseScene(top_);
-    for (RTCScene s : blas_) rtcReleaseScene(s);
+    for (auto& [mesh, entry] : by_mesh_) rtcReleaseScene(entry.second);
     if (device_) rtcReleaseDevice(device_);
 }
 
@@ -54,15 +54,36 @@ void EmbreeScene::check(const char* what) const {
 
 void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instance>& instances,
                         const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres) {
-    for (const TriangleMesh& mesh : geometry.meshes) {
+    built_ = reused_ = 0;
+    decltype(by_mesh_) next;
+    blas_.clear();
+    for (const auto& ptr : geometry.meshes) {
+        if (auto it = next.find(ptr.get()); it != next.end()) {
+            blas_.push_back(it->second.second);
+            continue;
+        }
+        if (auto it = by_mesh_.find(ptr.get()); it != by_mesh_.end()) {
+            next.emplace(ptr.get(), it->second);
+            blas_.push_back(it->second.second);
+            by_mesh_.erase(it);
+            ++reused_;
+            continue;
+        }
+        const TriangleMesh& mesh = *ptr;
         RTCScene s = rtcNewScene(device_);
+        next.emplace(ptr.get(), std::make_pair(ptr, s));
         blas_.push_back(s);
+        ++built_;
         RTCGeometry g = add_triangles(device_, s, mesh.positions.data(), mesh.vertex_count(),
                                       mesh.indices.data(), mesh.triangle_count());
         rtcReleaseGeometry(g);
         rtcCommitScene(s);
         check("building a mesh's acceleration structure");
     }
+    for (auto& [mesh, entry] : by_mesh_) rtcReleaseScene(entry.second);
+    by_mesh_ = std::move(next);
+    if (top_) rtcReleaseScene(top_);
+    quad_geom_ = sphere_geom_ = RTC_INVALID_GEOMETRY_ID;
     top_ = rtcNewScene(device_);
     for (const Instance& inst : instances) {
         RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);

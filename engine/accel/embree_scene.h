@@ -7,6 +7,8 @@
 #include <embree3/rtcore.h>
 
 #include <cstdint>
+#include <map>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -51,7 +53,9 @@ public:
 
     /** Builds one BLAS per mesh, one instance per object, the quad light triangles
      *  (quad_vertices: 4 world-space corners per quad) and the sphere lights (x, y, z, radius).
-     *  Throws SpangleError. */
+     *  Called again (a reload), it keeps the BLAS of every mesh it already has (the same
+     *  shared mesh object), releases the others and rebuilds the top level. Throws
+     *  SpangleError. */
     void build(const GeometryStore& geometry, const std::vector<Instance>& instances,
                const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres);
 
@@ -63,6 +67,10 @@ public:
     /** True when something blocks o + t d for t in (0, tmax). */
     bool occluded(Vec3 o, Vec3 d, float tmax) const;
 
+    /** BLAS the last build() made and reused. */
+    int blas_built() const { return built_; }
+    int blas_reused() const { return reused_; }
+
     /** Geometry id of the quad lights in the top-level scene, for tests. */
     uint32_t quad_geometry() const { return quad_geom_; }
 
@@ -71,7 +79,11 @@ private:
 
     RTCDevice device_ = nullptr;
     RTCScene top_ = nullptr;
-    std::vector<RTCScene> blas_;
+    std::vector<RTCScene> blas_;  ///< per mesh index of the last build
+    /** BLAS by mesh, holding the mesh alive (Embree reads its vertex buffers). */
+    std::map<const TriangleMesh*, std::pair<std::shared_ptr<const TriangleMesh>, RTCScene>>
+        by_mesh_;
+    int built_ = 0, reused_ = 0;
     uint32_t quad_geom_ = RTC_INVALID_GEOMETRY_ID;
     uint32_t sphere_geom_ = RTC_INVALID_GEOMETRY_ID;
     mutable std::string error_;  ///< last message from the error callback

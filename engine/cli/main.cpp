@@ -8,16 +8,23 @@
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 
+#include <atomic>
+#include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "cli/progress.h"
+#include "cli/watch.h"
 #include "color/image_output.h"
 #include "core/error.h"
 #include "render/frame.h"
 #include "render/image_metrics.h"
+#include "render/session.h"
 
 #include <OpenImageIO/imageio.h>
 #include "shading/material.h"
@@ -48,6 +55,68 @@ struct RenderArgs {
     std::string ocio;
     std::string strategy = "mis";
     std::string size;
+    bool watch = false;
+    bool pass_output = false;
+    bool no_pass_output = false;
+};
+
+void print_error(const std::string& msg) {
+    // Located messages already read "file:line:col: error: ..."; others get the prefix here.
+    if (msg.find(": error: ") != std::string::npos)
+        fmt::print(stderr, "{}\n", msg);
+    else
+        fmt::print(stderr, "spangle: error: {}\n", msg);
+}
+
+// ------------------------------------------------------------------------------------ signals
+
+/** The first SIGINT or SIGTERM: renders stop at the next wave of tiles and write what they
+ *  have. A second SIGINT exits at once, removing the temporary file of an image being written
+ *  (outputs are renamed into place whole, so none is ever half-written). */
+volatile std::sig_atomic_t stop_signal = 0;
+
+extern "C" void on_stop_signal(int sig) {
+    if (sig == SIGINT && stop_signal == SIGINT) {
+        remove_image_in_progress();
+        ::_exit(130);
+    }
+    if (stop_signal == 0) stop_signal = sig;
+}
+
+void install_signal_handlers() {
+    struct sigaction sa {};
+    sa.sa_handler = on_stop_signal;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = 0;  // no SA_RESTART: a blocking wait returns early
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+}
+
+/** Exit status after a stop signal: 0 for SIGINT (the user asked), 128 + 15 for SIGTERM. */
+int exit_status_for_signal() {
+    return stop_signal == SIGTERM ? 143 : 0;
+}
+
+/** Where and how a render's images are written. */
+struct Outputs {
+    std::string exr, preview;
+    ExrOptions exr_options;
+    std::string scene;
+
+    /** Writes image (working space) and its preview, each atomically. `partial`: the render
+     *  stopped before its spp; the EXR header says so and how far it got. */
+    void write(const std::vector<float>& image, uint32_t width, uint32_t height,
+               const ColorConfig& color, uint32_t spp, bool partial) const {
+        ExrOptions o = exr_options;
+        o.metadata = {{"spangle:scene", scene},
+                      {"spangle:version", SPANGLE_VERSION},
+                      {"spangle:spp", std::to_string(spp)},
+                      {"spangle:partial", partial ? "1" : "0"}};
+        write_exr(exr, image, static_cast<int>(width), static_cast<int>(height), color, o);
+        if (!preview.empty())
+            write_png_preview(preview, image, static_cast<int>(width), static_cast<int>(height),
+                              color);
+    }
 };
 
 void print_stats(const FrameResult& r, const std::string& exr) {
@@ -82,72 +151,221 @@ void print_stats(const FrameResult& r, const std::string& exr) {
     fmt::print("working space: {}\noutput: {}\n", r.color.working_space(), exr);
 }
 
-int run_render(const RenderArgs& a) {
-    Logger log;
-    if (a.quiet) log.threshold = LogLevel::Warning;
-    const std::string output =
-        a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
-    if (fs::path(output).extension() != ".exr") throw_error("output '{}' must end in .exr", output);
-    const auto& comps = exr_compressions();
-    if (std::find(comps.begin(), comps.end(), a.compression) == comps.end())
-        throw_error("unknown EXR compression '{}' (valid: {})", a.compression,
-                    fmt::join(comps, ", "));
-    const std::string preview =
-        a.no_preview
-            ? std::string()
-            : (a.preview.empty() ? fs::path(output).replace_extension(".png").string() : a.preview);
-
-    FrameRequest req;
-    req.scene = a.scene;
-    req.plugin_dirs = a.plugin_dirs;
-    req.ocio_config = a.ocio;
-    req.options.threads = a.threads;
-    req.options.spp_override = a.spp;
+/** Options of a render from the command line (threads, size, spp, strategy). */
+RenderOptions render_options(const RenderArgs& a) {
+    RenderOptions o;
+    o.threads = a.threads;
+    o.spp_override = a.spp;
     if (!a.size.empty()) {
         unsigned w = 0, h = 0;
         char tail = 0;
         if (std::sscanf(a.size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 1 || h < 1 ||
             w > 16384 || h > 16384)
             throw_error("--size must be WIDTHxHEIGHT with each in 1..16384, got '{}'", a.size);
-        req.options.width_override = w;
-        req.options.height_override = h;
+        o.width_override = w;
+        o.height_override = h;
     }
-    req.options.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
-                           : a.strategy == "bsdf" ? Strategy::BsdfOnly
-                                                  : Strategy::Mis;
+    o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
+                 : a.strategy == "bsdf" ? Strategy::BsdfOnly
+                                        : Strategy::Mis;
+    return o;
+}
+
+Outputs outputs_for(const RenderArgs& a) {
+    Outputs out;
+    out.exr = a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
+    if (fs::path(out.exr).extension() != ".exr")
+        throw_error("output '{}' must end in .exr", out.exr);
+    const auto& comps = exr_compressions();
+    if (std::find(comps.begin(), comps.end(), a.compression) == comps.end())
+        throw_error("unknown EXR compression '{}' (valid: {})", a.compression,
+                    fmt::join(comps, ", "));
+    out.preview = a.no_preview
+                      ? std::string()
+                      : (a.preview.empty() ? fs::path(out.exr).replace_extension(".png").string()
+                                           : a.preview);
+    out.exr_options.half = !a.full_float;
+    out.exr_options.compression = a.compression;
+    out.scene = a.scene;
+    return out;
+}
+
+void warn_nonfinite(const Logger& log, const RenderStats& st) {
+    if (st.nonfinite > 0)
+        log.warn(
+            "{} non-finite sample values were replaced by black; the first at pixel ({}, {}), "
+            "sample {}",
+            st.nonfinite, st.first_bad_pixel_x, st.first_bad_pixel_y, st.first_bad_sample);
+}
+
+int run_render(const RenderArgs& a) {
+    Logger log;
+    if (a.quiet) log.threshold = LogLevel::Warning;
+    const Outputs out = outputs_for(a);
+    install_signal_handlers();
+
+    FrameRequest req;
+    req.scene = a.scene;
+    req.plugin_dirs = a.plugin_dirs;
+    req.ocio_config = a.ocio;
+    req.options = render_options(a);
     req.log = &log;
     Progress progress(::isatty(STDERR_FILENO) != 0);
     if (!a.quiet)
         req.options.progress = [&](uint64_t done, uint64_t total) { progress.update(done, total); };
+    req.options.stop = [] { return stop_signal != 0; };
+    // The colour config is only known once the frame has loaded it: the pass callback gets it
+    // through this pointer, set by render_frame's caller below before any pass ends.
+    const ColorConfig* color = nullptr;
+    if (a.pass_output)
+        req.options.on_pass = [&](const std::vector<float>& image, uint32_t w, uint32_t h,
+                                  uint32_t spp) {
+            if (color) out.write(image, w, h, *color, spp, true);
+        };
+    req.on_loaded = [&](const ColorConfig& c) { color = &c; };
 
     FrameResult frame = render_frame(req);
     progress.finish();
-    if (frame.image.empty()) throw_error("the scene has no camera to render from");
-    if (frame.stats.nonfinite > 0)
-        log.warn(
-            "{} non-finite sample values were replaced by black; the first at pixel ({}, {}), "
-            "sample {}",
-            frame.stats.nonfinite, frame.stats.first_bad_pixel_x, frame.stats.first_bad_pixel_y,
-            frame.stats.first_bad_sample);
-
-    ExrOptions exr;
-    exr.half = !a.full_float;
-    exr.compression = a.compression;
-    exr.metadata = {
-        {"spangle:scene", a.scene},
-        {"spangle:version", SPANGLE_VERSION},
-        {"spangle:spp", std::to_string(frame.stats.samples /
-                                       (static_cast<uint64_t>(frame.width) * frame.height))}};
-    write_exr(output, frame.image, static_cast<int>(frame.width), static_cast<int>(frame.height),
-              frame.color, exr);
-    if (!preview.empty())
-        write_png_preview(preview, frame.image, static_cast<int>(frame.width),
-                          static_cast<int>(frame.height), frame.color);
+    if (frame.image.empty() && stop_signal == 0)
+        throw_error("the scene has no camera to render from");
+    warn_nonfinite(log, frame.stats);
+    const bool partial = frame.stats.spp_reached < frame.stats.spp_target;
+    if (frame.stats.spp_reached == 0) {
+        log.warn("stopped by a signal before the first pass ended: no image written");
+        return exit_status_for_signal();
+    }
+    out.write(frame.image, frame.width, frame.height, frame.color, frame.stats.spp_reached,
+              partial);
+    if (partial)
+        log.warn("stopped by a signal: wrote {} with {} of {} samples per pixel", out.exr,
+                 frame.stats.spp_reached, frame.stats.spp_target);
     if (a.stats)
-        print_stats(frame, output);
+        print_stats(frame, out.exr);
     else if (!a.quiet)
-        log.info("wrote {}{}", output, preview.empty() ? "" : " and " + preview);
-    return 0;
+        log.info("wrote {}{}", out.exr, out.preview.empty() ? "" : " and " + out.preview);
+    return partial ? exit_status_for_signal() : 0;
+}
+
+/** `spangle render --watch`: render, then watch every input and re-render incrementally on each
+ *  save until a signal. */
+int run_watch(const RenderArgs& a) {
+    Logger log;
+    if (a.quiet) log.threshold = LogLevel::Warning;
+    const Outputs out = outputs_for(a);
+    const bool pass_output = !a.no_pass_output;
+    install_signal_handlers();
+
+    Session session(a.plugin_dirs, a.ocio, render_options(a), log);
+    std::atomic<bool> reload{false};
+    session.options().stop = [&] { return stop_signal != 0 || reload.load(); };
+
+    // What the render thread reports back.
+    std::mutex mutex;
+    std::string pending_line;  // the reload line, printed when the first pass is written
+    std::chrono::steady_clock::time_point changed_at;
+    bool finished = false;
+
+    auto announce = [&](uint32_t spp) {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (pending_line.empty()) return;
+        const double s =
+            std::chrono::duration<double>(std::chrono::steady_clock::now() - changed_at).count();
+        fmt::print("{}; first pass ({} spp) written {:.3f} s after the change\n", pending_line, spp,
+                   s);
+        std::fflush(stdout);
+        pending_line.clear();
+    };
+    session.options().on_pass = [&](const std::vector<float>& image, uint32_t width,
+                                    uint32_t height, uint32_t spp) {
+        if (!pass_output) return;
+        try {
+            out.write(image, width, height, session.color(), spp, true);
+        } catch (const SpangleError& e) {
+            print_error(e.what());
+        }
+        announce(spp);
+    };
+
+    auto render_thread = [&] {
+        return std::thread([&] {
+            session.render();
+            const World& w = session.world();
+            if (w.image.empty()) return;
+            const RenderStats& st = w.stats;
+            const bool complete = st.spp_reached == st.spp_target;
+            if (complete || (stop_signal != 0 && st.spp_reached > 0)) {
+                try {
+                    out.write(w.image, w.width, w.height, session.color(), st.spp_reached,
+                              !complete);
+                } catch (const SpangleError& e) {
+                    print_error(e.what());
+                }
+                announce(st.spp_reached);
+            }
+            if (complete) {
+                warn_nonfinite(log, st);
+                log.info("wrote {} ({} spp); watching for changes", out.exr, st.spp_reached);
+                std::lock_guard<std::mutex> lock(mutex);
+                finished = true;
+            }
+        });
+    };
+
+    auto load = [&](const std::string& what) {
+        try {
+            const ReloadReport rep = session.load(a.scene);
+            std::lock_guard<std::mutex> lock(mutex);
+            pending_line = rep.first ? fmt::format("loaded {} in {:.3f} s", a.scene, rep.seconds)
+                                     : fmt::format("reload ({}): {}; applied in {:.3f} s", what,
+                                                   rep.summary(), rep.seconds);
+            return true;
+        } catch (const SpangleError& e) {
+            print_error(e.what());
+            fmt::print("reload failed; {}\n", session.has_scene()
+                                                  ? "still showing the last good scene"
+                                                  : "waiting for a good save");
+            std::fflush(stdout);
+            return false;
+        }
+    };
+
+    FileWatcher watcher;
+    changed_at = std::chrono::steady_clock::now();
+    load("first load");
+    std::thread worker;
+    if (session.has_scene()) worker = render_thread();
+    for (;;) {
+        std::vector<std::string> files = session.watched_files();
+        files.push_back(a.scene);
+        watcher.watch(files);
+        std::vector<std::string> touched;
+        while (touched.empty() && stop_signal == 0) touched = watcher.wait(250);
+        if (stop_signal != 0) break;
+        changed_at = std::chrono::steady_clock::now();
+        reload = true;
+        if (worker.joinable()) worker.join();
+        reload = false;
+        std::string what;
+        for (const auto& f : touched)
+            what += (what.empty() ? "" : ", ") + fs::path(f).filename().string();
+        bool interrupted = false;
+        {
+            std::lock_guard<std::mutex> lock(mutex);
+            interrupted = !finished;
+            finished = false;
+        }
+        const bool ok = load(what);
+        // A failed reload keeps the last good scene: its image stays on disk, and a render of it
+        // that the change interrupted goes on.
+        if (session.has_scene() && (ok || interrupted))
+            worker = render_thread();
+        else {
+            std::lock_guard<std::mutex> lock(mutex);
+            finished = true;
+        }
+    }
+    if (worker.joinable()) worker.join();
+    return exit_status_for_signal();
 }
 
 int run_plugins(const std::vector<std::string>& dirs) {
@@ -198,14 +416,6 @@ int run_inspect(const std::string& path) {
     return 0;
 }
 
-void print_error(const std::string& msg) {
-    // Located messages already read "file:line:col: error: ..."; others get the prefix here.
-    if (msg.find(": error: ") != std::string::npos)
-        fmt::print(stderr, "{}\n", msg);
-    else
-        fmt::print(stderr, "spangle: error: {}\n", msg);
-}
-
 }  // namespace
 }  // namespace spangle
 
@@ -238,6 +448,13 @@ int main(int argc, char** argv) {
         ->add_option("--strategy", ra.strategy,
                      "light transport estimator: mis (default), nee or bsdf (for debugging)")
         ->check(CLI::IsMember({"mis", "nee", "bsdf"}));
+    render->add_flag("--watch", ra.watch,
+                     "keep running: re-render incrementally whenever the scene or a file it "
+                     "uses is saved (stop with Ctrl-C)");
+    render->add_flag("--pass-output", ra.pass_output,
+                     "write the EXR and preview after every pass (on by default with --watch)");
+    render->add_flag("--no-pass-output", ra.no_pass_output,
+                     "with --watch: write only finished images");
 
     std::vector<std::string> plugin_dirs;
     CLI::App* plugins =
@@ -256,7 +473,7 @@ int main(int argc, char** argv) {
         return app.exit(e) == 0 ? 0 : 2;
     }
     try {
-        if (*render) return run_render(ra);
+        if (*render) return ra.watch ? run_watch(ra) : run_render(ra);
         if (*plugins) return run_plugins(plugin_dirs);
         if (*inspect) return run_inspect(inspect_path);
     } catch (const SpangleError& e) {

@@ -23,6 +23,10 @@ ColorConfig::ColorConfig(ColorConfig&&) noexcept = default;
 ColorConfig& ColorConfig::operator=(ColorConfig&&) noexcept = default;
 ColorConfig::~ColorConfig() = default;
 
+ColorConfig ColorConfig::clone() const {
+    return ColorConfig(std::make_unique<Impl>(*impl_));
+}
+
 ColorConfig ColorConfig::load(const std::string& path, const std::vector<std::string>& fallbacks) {
     std::vector<std::string> tried;
     std::string chosen = path;

@@ -28,6 +28,9 @@ public:
 
     /** Path of the loaded config file. */
     const std::string& path() const;
+    /** A second handle on the same loaded config with its own working space (a watch session
+     *  parses an edited scene into one, so that a failed parse changes nothing). */
+    ColorConfig clone() const;
     /** Canonical name of a colour space (aliases resolved), or nullopt when unknown. */
     std::optional<std::string> canonical_name(const std::string& space) const;
     /** All colour space names, for error messages. */

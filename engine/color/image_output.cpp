@@ -4,8 +4,11 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <mutex>
 #include <system_error>
 
 #include "core/error.h"
@@ -22,6 +25,12 @@ const std::vector<std::string>& exr_compressions() {
 
 namespace {
 
+// The temporary file being written, for remove_image_in_progress() (a signal handler): a fixed
+// buffer and a flag, both safe to read there. One write at a time (write_mutex).
+std::mutex write_mutex;
+char in_progress[4096];
+std::atomic<bool> in_progress_set{false};
+
 /** Temporary name beside `path`, unique to this process. */
 std::string temp_path_for(const std::string& path) {
     const fs::path p(path);
@@ -35,6 +44,14 @@ void write_atomically(const std::string& path, const char* format, const OIIO::I
     if (!dir.empty() && !fs::is_directory(dir))
         throw_error("cannot write '{}': directory '{}' does not exist", path, dir.string());
     const std::string tmp = temp_path_for(path);
+    std::lock_guard<std::mutex> lock(write_mutex);
+    if (tmp.size() < sizeof(in_progress)) {
+        std::memcpy(in_progress, tmp.c_str(), tmp.size() + 1);
+        in_progress_set = true;
+    }
+    struct Clear {
+        ~Clear() { in_progress_set = false; }
+    } clear;
     auto out = OIIO::ImageOutput::create(format);
     if (!out) throw_error("cannot write '{}': {}", path, OIIO::geterror());
     bool ok = out->open(tmp, spec) && out->write_image(pixel_type, pixels) && out->close();
@@ -55,6 +72,10 @@ void write_atomically(const std::string& path, const char* format, const OIIO::I
 }
 
 }  // namespace
+
+void remove_image_in_progress() noexcept {
+    if (in_progress_set.load()) ::unlink(in_progress);
+}
 
 void write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
                const ColorConfig& color, const ExrOptions& options) {

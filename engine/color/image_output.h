@@ -17,6 +17,11 @@ struct ExrOptions {
     std::vector<std::pair<std::string, std::string>> metadata;  ///< extra string attributes
 };
 
+/** Removes the temporary file of an image being written, if any. Async-signal-safe: for a
+ *  signal handler that exits at once (outputs are written to a temporary file and renamed, so
+ *  the output itself is never half-written). */
+void remove_image_in_progress() noexcept;
+
 /** Valid EXR compression names, for validation and messages. */
 const std::vector<std::string>& exr_compressions();
 

@@ -84,6 +84,7 @@ inline void make_basis(Vec3 n, Vec3& s, Vec3& t) {
 struct Affine {
     float m[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
     Vec3 t;
+    constexpr bool operator==(const Affine&) const = default;
 
     constexpr Vec3 apply_point(Vec3 p) const { return apply_vector(p) + t; }
     constexpr Vec3 apply_vector(Vec3 v) const {

@@ -25,6 +25,16 @@
 #define SPANGLE_DETAIL_COLUMN_GET(type, name, doc) r.name = name[i];
 #define SPANGLE_DETAIL_COLUMN_SET(type, name, doc) name[i] = v.name;
 #define SPANGLE_DETAIL_COLUMN_CLEAR(type, name, doc) name.clear();
+#define SPANGLE_DETAIL_FIELD_SAME(type, name, doc) &&::spangle::ecs::same_value(a.name, b.name)
+
+namespace spangle::ecs {
+/** Whether two field values count as the same scene content (hot reload's diff). Where a value
+ *  is written in the file (FileLoc) does not count: moving a table down a line changes nothing. */
+template <class T>
+bool same_value(const T& a, const T& b) {
+    return a == b;
+}
+}  // namespace spangle::ecs
 
 /** Declares component Name with SoA columns from FIELDS(X) = X(type, name, doc) .... */
 #define SPANGLE_COMPONENT(Name, FIELDS)                                                        \
@@ -43,6 +53,9 @@
             }                                                                                  \
             void set(std::size_t i, const Name& v) { FIELDS(SPANGLE_DETAIL_COLUMN_SET) }       \
         };                                                                                     \
+        static bool same(const Name& a, const Name& b) {                                       \
+            return true FIELDS(SPANGLE_DETAIL_FIELD_SAME);                                     \
+        }                                                                                      \
     }
 
 namespace spangle::ecs {
@@ -57,6 +70,9 @@ public:
     virtual std::size_t size() const = 0;
     /** The component's name, for --stats and errors. */
     virtual const char* name() const = 0;
+    /** Same entities, in the same order, with the same values (see same_value). `other` must
+     *  be a pool of the same component type. */
+    virtual bool same_as(const PoolBase& other) const = 0;
 };
 
 /** One component type's storage: sparse index, dense entities, SoA columns. */
@@ -110,6 +126,13 @@ public:
 
     std::size_t size() const override { return dense_.size(); }
     const char* name() const override { return C::kName; }
+    bool same_as(const PoolBase& other) const override {
+        const auto& o = static_cast<const Pool<C>&>(other);
+        if (dense_ != o.dense_) return false;
+        for (std::size_t i = 0; i < dense_.size(); ++i)
+            if (!C::same(columns_.get(i), o.columns_.get(i))) return false;
+        return true;
+    }
     /** Dense entity array, parallel to every column. */
     const std::vector<Entity>& entities() const { return dense_; }
     /** The SoA columns: columns().field[slot]. Mutating values is fine; resizing is not. */

@@ -2,9 +2,12 @@
 // The registry: a container of entities and one pool per component type. It owns no behaviour;
 // systems are free functions that read and write its pools.
 
+#include <algorithm>
 #include <memory>
+#include <string>
 #include <typeindex>
 #include <unordered_map>
+#include <vector>
 
 #include "ecs/entity.h"
 #include "ecs/pool.h"
@@ -76,6 +79,30 @@ public:
     std::size_t count(std::type_index type) const {
         auto it = pools_.find(type);
         return it == pools_.end() ? 0 : it->second->size();
+    }
+
+    /** Names of the component types whose pools differ between a and b (an absent pool and an
+     *  empty one are the same), skipping the types in `ignore`. */
+    static std::vector<std::string> changed_types(const Registry& a, const Registry& b,
+                                                  const std::vector<std::type_index>& ignore) {
+        std::vector<std::string> out;
+        auto differs = [&](std::type_index t, const PoolBase* pa, const PoolBase* pb) {
+            for (const auto& i : ignore)
+                if (i == t) return false;
+            const std::size_t na = pa ? pa->size() : 0, nb = pb ? pb->size() : 0;
+            if (na == 0 && nb == 0) return false;
+            return !pa || !pb || !pa->same_as(*pb);
+        };
+        for (const auto& [t, pa] : a.pools_) {
+            auto it = b.pools_.find(t);
+            const PoolBase* pb = it == b.pools_.end() ? nullptr : it->second.get();
+            if (differs(t, pa.get(), pb)) out.push_back(pa->name());
+        }
+        for (const auto& [t, pb] : b.pools_)
+            if (a.pools_.find(t) == a.pools_.end() && differs(t, nullptr, pb.get()))
+                out.push_back(pb->name());
+        std::sort(out.begin(), out.end());
+        return out;
     }
 
 private:

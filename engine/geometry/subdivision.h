@@ -26,6 +26,7 @@ struct SubdivOptions {
     std::vector<float> crease_sharpness;  ///< one per pair
     std::vector<int> corner_vertices;     ///< cage vertex indices
     std::vector<float> corner_sharpness;  ///< one per corner
+    bool operator==(const SubdivOptions&) const = default;
 };
 
 /** Refines `cage` to a triangle mesh at the limit surface. Throws SpangleError (at `ref`) for

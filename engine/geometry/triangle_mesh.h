@@ -2,6 +2,7 @@
 // Triangle meshes as loaded from files, in object space, structure of arrays.
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -29,7 +30,10 @@ struct TriangleMesh {
 
 /** All meshes of a scene; objects refer to them by index, so one file loaded twice is shared. */
 struct GeometryStore {
-    std::vector<TriangleMesh> meshes;  ///< loaded meshes
+    /** Loaded meshes, shared with the build cache of a watch session (a reload that does not
+     *  touch a mesh keeps the very same one). */
+    std::vector<std::shared_ptr<const TriangleMesh>> meshes;
+    const TriangleMesh& mesh(std::size_t i) const { return *meshes[i]; }
 };
 
 }  // namespace spangle

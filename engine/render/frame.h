@@ -2,6 +2,7 @@
 // One frame from a scene file: load, run the schedule, return the image and what happened.
 // The CLI and the end-to-end tests both go through here.
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -18,6 +19,9 @@ struct FrameRequest {
     std::string ocio_config;               ///< explicit config; empty = $OCIO or the shipped one
     RenderOptions options;                 ///< threads, spp override, progress
     const Logger* log = nullptr;           ///< required
+    /** Called once the scene is loaded, with the colour config images are written in (for
+     *  options.on_pass); may be empty. */
+    std::function<void(const ColorConfig&)> on_loaded;
 };
 
 /** The rendered frame and its report. */

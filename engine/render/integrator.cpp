@@ -446,7 +446,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                 continue;
             }
             const Instance& inst = w.instances[static_cast<std::size_t>(hit.instance)];
-            ws.surf[k] = surface_at(w.geometry.meshes[inst.mesh], inst, hit, ws.ray[k].d);
+            ws.surf[k] = surface_at(w.geometry.mesh(inst.mesh), inst, hit, ws.ray[k].d);
             bool has_diff = ws.has_diff[k] != 0;
             footprint_at(ws.surf[k], ws.ray[k], has_diff, ws.fp_width[k] + ws.fp_spread[k] * hit.t);
             object_footprint(ws.surf[k], inst);
@@ -493,6 +493,13 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
 
 }  // namespace
 
+std::vector<uint32_t> pass_ends(uint32_t spp) {
+    std::vector<uint32_t> out;
+    for (uint64_t end = 1; end < spp; end *= 2) out.push_back(static_cast<uint32_t>(end));
+    out.push_back(spp);
+    return out;
+}
+
 void render_image(World& world, const Camera& camera, const Film& film) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
@@ -524,36 +531,69 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     const int threads =
         world.options.threads > 0 ? world.options.threads : tbb::this_task_arena::max_concurrency();
     tbb::task_arena arena(threads);
-    arena.execute([&] {
-        tbb::parallel_for(tbb::blocked_range<uint32_t>(0, tiles_x * tiles_y, 1),
-                          [&](const tbb::blocked_range<uint32_t>& r) {
-                              Workspace& ws = workspaces.local();
-                              for (uint32_t tile = r.begin(); tile != r.end(); ++tile) {
-                                  const uint32_t x0 = (tile % tiles_x) * kTileSize,
-                                                 y0 = (tile / tiles_x) * kTileSize;
-                                  const uint32_t x1 = std::min(x0 + kTileSize, film.width);
-                                  const uint32_t y1 = std::min(y0 + kTileSize, film.height);
-                                  for (uint32_t s = 0; s < job.spp; s += kSamplesPerWave) {
-                                      const uint32_t count = std::min(kSamplesPerWave, job.spp - s);
-                                      trace_wave(job, ws, x0, y0, x1, y1, s, count);
-                                      const uint64_t done = job.samples_done +=
-                                          static_cast<uint64_t>(x1 - x0) * (y1 - y0) * count;
-                                      if (world.options.progress) {
-                                          std::lock_guard<std::mutex> lock(job.progress_mutex);
-                                          world.options.progress(done, total);
+    const auto& stop = world.options.stop;
+    std::atomic<bool> stopped{false};
+    // Passes of doubling sample counts. Every pixel adds its samples in sample order whatever
+    // the passes, so the sums after the last pass are those of a one-pass render, bit for bit.
+    // A pass interrupted by a stop request is rolled back to the sums before it.
+    std::vector<float> before;
+    uint32_t reached = 0, passes = 0;
+    const std::vector<uint32_t> ends =
+        world.options.progressive ? pass_ends(job.spp) : std::vector<uint32_t>{job.spp};
+    for (const uint32_t end : ends) {
+        const uint32_t first = reached;
+        if (stop) before = world.image;
+        arena.execute([&] {
+            tbb::parallel_for(tbb::blocked_range<uint32_t>(0, tiles_x * tiles_y, 1),
+                              [&](const tbb::blocked_range<uint32_t>& r) {
+                                  Workspace& ws = workspaces.local();
+                                  for (uint32_t tile = r.begin(); tile != r.end(); ++tile) {
+                                      const uint32_t x0 = (tile % tiles_x) * kTileSize,
+                                                     y0 = (tile / tiles_x) * kTileSize;
+                                      const uint32_t x1 = std::min(x0 + kTileSize, film.width);
+                                      const uint32_t y1 = std::min(y0 + kTileSize, film.height);
+                                      for (uint32_t s = first; s < end; s += kSamplesPerWave) {
+                                          if (stopped.load(std::memory_order_relaxed)) return;
+                                          if (stop && stop()) {
+                                              stopped = true;
+                                              return;
+                                          }
+                                          const uint32_t count = std::min(kSamplesPerWave, end - s);
+                                          trace_wave(job, ws, x0, y0, x1, y1, s, count);
+                                          const uint64_t done = job.samples_done +=
+                                              static_cast<uint64_t>(x1 - x0) * (y1 - y0) * count;
+                                          if (world.options.progress) {
+                                              std::lock_guard<std::mutex> lock(job.progress_mutex);
+                                              world.options.progress(done, total);
+                                          }
                                       }
                                   }
-                              }
-                          });
-    });
+                              });
+        });
+        if (stopped) {
+            world.image.swap(before);
+            break;
+        }
+        reached = end;
+        ++passes;
+        if (world.options.on_pass && end < job.spp) {
+            std::vector<float> shown(world.image);
+            const float inv = 1.0f / static_cast<float>(end);
+            for (float& x : shown) x *= inv;
+            world.options.on_pass(shown, film.width, film.height, end);
+        }
+    }
 
-    const float inv_spp = 1.0f / static_cast<float>(job.spp);
+    const float inv_spp = reached > 0 ? 1.0f / static_cast<float>(reached) : 0.0f;
     for (float& x : world.image) x *= inv_spp;
     RenderStats& st = world.stats;
     st.camera_rays = job.camera_rays;
     st.bounce_rays = job.bounce_rays;
     st.shadow_rays = job.shadow_rays;
-    st.samples = total;
+    st.samples = static_cast<uint64_t>(film.width) * film.height * reached;
+    st.spp_reached = reached;
+    st.spp_target = job.spp;
+    st.passes = passes;
     st.nonfinite = job.nonfinite;
     if (st.nonfinite > 0) {
         const uint64_t key = job.first_bad;

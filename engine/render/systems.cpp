@@ -4,6 +4,7 @@
 #include <cmath>
 #include <map>
 
+#include "core/files.h"
 #include "geometry/mesh_load.h"
 #include "render/environment_load.h"
 #include "render/integrator.h"
@@ -36,12 +37,23 @@ void system_mesh_load(ecs::Registry& r, World& w) {
         const std::string& path = pool.columns().path[i];
         auto it = loaded.find(path);
         if (it == loaded.end()) {
-            w.geometry.meshes.push_back(load_mesh(path, pool.columns().loc[i]));
+            std::shared_ptr<const TriangleMesh> mesh;
+            const std::string key = w.cache ? "mesh|" + file_identity(path) : std::string();
+            if (w.cache) mesh = w.cache->find(w.cache->meshes, key, "meshes");
+            if (!mesh) {
+                mesh = std::make_shared<const TriangleMesh>(load_mesh(path, pool.columns().loc[i]));
+                if (w.cache) {
+                    w.cache->meshes[key] = mesh;
+                    w.cache->built.push_back("mesh " + path);
+                }
+            }
+            w.geometry.meshes.push_back(std::move(mesh));
             it = loaded.emplace(path, static_cast<uint32_t>(w.geometry.meshes.size() - 1)).first;
         }
         refs.emplace_back(pool.entities()[i], it->second);
     }
     for (const auto& [e, mesh] : refs) r.put(e, TriangleMeshRef{mesh});
+    w.mesh_file_count = static_cast<uint32_t>(w.geometry.meshes.size());
 }
 
 void system_subdivide(ecs::Registry& r, World& w) {
@@ -63,7 +75,14 @@ void system_subdivide(ecs::Registry& r, World& w) {
         const auto t0 = std::chrono::steady_clock::now();
         const SubdivSurface s = pool.columns().get(i);
         const ecs::Entity e = pool.entities()[i];
-        const Cage cage = load_cage(s.path, s.loc);
+        const std::string file = w.cache ? file_identity(s.path) : std::string();
+        std::shared_ptr<const Cage> cage_ptr;
+        if (w.cache) cage_ptr = w.cache->find(w.cache->cages, "cage|" + file, "cages");
+        if (!cage_ptr) {
+            cage_ptr = std::make_shared<const Cage>(load_cage(s.path, s.loc));
+            if (w.cache) w.cache->cages["cage|" + file] = cage_ptr;
+        }
+        const Cage& cage = *cage_ptr;
         SubdivOptions options = s.options;
         SubdivReport rep;
         rep.cage = s.path;
@@ -89,8 +108,27 @@ void system_subdivide(ecs::Registry& r, World& w) {
             }
         }
         rep.level = options.level;
-        w.geometry.meshes.push_back(subdivide(cage, options, s.loc));
-        rep.triangles = w.geometry.meshes.back().triangle_count();
+        std::shared_ptr<const TriangleMesh> mesh;
+        std::string key;
+        if (w.cache) {
+            key = fmt::format(
+                "subdiv|{}|{}|{}|{}|{}|{}|{}|{}|{}", file, static_cast<int>(options.scheme),
+                static_cast<int>(options.boundary), static_cast<int>(options.uv_interpolation),
+                options.level, fmt::join(options.crease_vertices, ","),
+                fmt::join(options.crease_sharpness, ","), fmt::join(options.corner_vertices, ","),
+                fmt::join(options.corner_sharpness, ","));
+            mesh = w.cache->find(w.cache->meshes, key, "subdivided meshes");
+        }
+        if (!mesh) {
+            mesh = std::make_shared<const TriangleMesh>(subdivide(cage, options, s.loc));
+            if (w.cache) {
+                w.cache->meshes[key] = mesh;
+                w.cache->built.push_back(
+                    fmt::format("subdivision of {} at level {}", s.path, options.level));
+            }
+        }
+        rep.triangles = mesh->triangle_count();
+        w.geometry.meshes.push_back(std::move(mesh));
         rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         w.subdiv.push_back(rep);
         refs.emplace_back(e, static_cast<uint32_t>(w.geometry.meshes.size() - 1));
@@ -114,7 +152,24 @@ void system_materials(ecs::Registry& r, World& w) {
             w.log->warn("{}: material '{}' is not used by any object", m.loc.str(), m.name);
             continue;
         }
-        w.materials[index] = create_material(*w.plugins, m, *w.host);
+        if (!w.cache) {
+            w.materials[index] = create_material(*w.plugins, m, *w.host);
+            continue;
+        }
+        // Keyed by the plugin library's identity too: a rebuilt plugin makes new instances.
+        const std::shared_ptr<LoadedPlugin> plugin = w.plugins->open(m.plugin, m.plugin_loc);
+        std::string key = fmt::format("material|{}|{}|{}|{}", m.name, m.plugin, m.model,
+                                      file_identity(plugin->path()));
+        for (const ParamEntry& p : m.params)
+            key += fmt::format("|{}:{}:{}:{}:{}:{}:{}", p.name, static_cast<int>(p.kind),
+                               p.number[0], p.number[1], p.number[2], p.is_integer, p.text);
+        auto inst = w.cache->find(w.cache->materials, key, "materials");
+        if (!inst) {
+            inst = create_material(*w.plugins, m, *w.host);
+            w.cache->materials[key] = inst;
+            w.cache->built.push_back(fmt::format("material '{}'", m.name));
+        }
+        w.materials[index] = std::move(inst);
     }
     warn_about_missing_uvs(r, w);
 }
@@ -128,7 +183,7 @@ void warn_about_missing_uvs(ecs::Registry& r, World& w) {
         const MaterialInstance* mat = w.materials[refs.columns().material[i]].get();
         if (!mat || !mat->model().requirements || !r.has<TriangleMeshRef>(e)) continue;
         if (!(mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV)) continue;
-        const TriangleMesh& mesh = w.geometry.meshes[r.get<TriangleMeshRef>(e).mesh];
+        const TriangleMesh& mesh = w.geometry.mesh(r.get<TriangleMeshRef>(e).mesh);
         const double mapped = mesh.uv_mapped_fraction();
         if (mapped >= 0.5) continue;
         const ObjectInfo info = r.has<ObjectInfo>(e) ? r.get<ObjectInfo>(e) : ObjectInfo{};
@@ -153,7 +208,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
         for (std::size_t i = 0; i < emission->size(); ++i) {
             const ecs::Entity e = emission->entities()[i];
             if (!r.has<TriangleMeshRef>(e)) continue;
-            const TriangleMesh& mesh = w.geometry.meshes[r.get<TriangleMeshRef>(e).mesh];
+            const TriangleMesh& mesh = w.geometry.mesh(r.get<TriangleMeshRef>(e).mesh);
             const Affine xf = r.get<Transform>(e).to_world;
             const Affine nxf = xf.normal_matrix();
             refs.emplace_back(e, static_cast<int32_t>(w.lights.area_count()));
@@ -243,8 +298,22 @@ void system_environment(ecs::Registry& r, World& w) {
     if (auto* pool = r.find_pool<Environment>())
         for (const Vec3& c : pool->columns().radiance) w.environment += c;
     if (auto* maps = r.find_pool<EnvironmentMapFile>())
-        for (std::size_t i = 0; i < maps->size(); ++i)
-            w.lights.set_environment(load_environment_map(maps->columns().get(i), *w.color));
+        for (std::size_t i = 0; i < maps->size(); ++i) {
+            const EnvironmentMapFile f = maps->columns().get(i);
+            if (!w.cache) {
+                w.lights.set_environment(load_environment_map(f, *w.color));
+                continue;
+            }
+            const std::string key = fmt::format("env|{}|{}|{}|{}", file_identity(f.path),
+                                                f.color_space, f.rotation_deg, f.intensity);
+            auto env = w.cache->find(w.cache->environments, key, "environment maps");
+            if (!env) {
+                env = std::make_shared<const EnvironmentMap>(load_environment_map(f, *w.color));
+                w.cache->environments[key] = env;
+                w.cache->built.push_back("environment map " + f.path);
+            }
+            w.lights.set_environment(*env);
+        }
 }
 
 void system_accelerate(ecs::Registry& r, World& w) {
@@ -262,8 +331,17 @@ void system_accelerate(ecs::Registry& r, World& w) {
             w.instances.push_back(inst);
         }
     }
-    w.accel = std::make_unique<EmbreeScene>();
+    // A watch session hands the live scene's EmbreeScene over: build() reuses the bottom-level
+    // structure of every mesh it already has and rebuilds only the top level.
+    if (!w.accel) w.accel = std::make_shared<EmbreeScene>();
     w.accel->build(w.geometry, w.instances, w.quad_vertices, w.sphere_lights);
+    if (w.cache) {
+        if (w.accel->blas_reused() > 0) w.cache->reused["mesh BVHs"] += w.accel->blas_reused();
+        if (w.accel->blas_built() > 0)
+            w.cache->built.push_back(fmt::format("{} mesh BVH{}", w.accel->blas_built(),
+                                                 w.accel->blas_built() == 1 ? "" : "s"));
+        w.cache->built.push_back("top-level BVH");
+    }
 }
 
 void system_light_selection(ecs::Registry&, World& w) {

@@ -4,12 +4,16 @@
 
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
+#include <set>
+#include <string>
 #include <vector>
 
 #include "accel/embree_scene.h"
 #include "color/color_config.h"
 #include "core/log.h"
+#include "geometry/cage.h"
 #include "geometry/triangle_mesh.h"
 #include "render/lights.h"
 #include "scene/scene_loader.h"
@@ -27,7 +31,20 @@ struct RenderOptions {
     /** Called with (samples done, samples total) from worker threads, serialised by the
      *  integrator; may be empty. */
     std::function<void(uint64_t, uint64_t)> progress;
+    /** Called after each completed pass but the last with the image so far (RGB, working
+     *  space, already divided by the samples reached), its width and height and the samples
+     *  per pixel reached; may be empty. */
+    std::function<void(const std::vector<float>&, uint32_t, uint32_t, uint32_t)> on_pass;
+    /** Polled between waves of tiles: when it returns true the render stops, keeping the
+     *  passes completed so far. May be empty. */
+    std::function<bool()> stop;
+    /** Passes of 1, 1, 2, 4, ... samples (false: one pass of all samples; same image). */
+    bool progressive = true;
 };
+
+/** The samples per pixel reached after each pass of a progressive render of `spp` samples:
+ *  1, 2, 4, 8, ... doubling, the last pass ending exactly at spp. */
+std::vector<uint32_t> pass_ends(uint32_t spp);
 
 /** Counters of one render. */
 struct RenderStats {
@@ -37,7 +54,10 @@ struct RenderStats {
     uint64_t samples = 0;      ///< camera samples (pixels x spp)
     uint64_t nonfinite = 0;    ///< contributions replaced by black
     uint32_t first_bad_pixel_x = 0, first_bad_pixel_y = 0, first_bad_sample = 0;
-    double seconds = 0.0;  ///< wall time of the render system
+    double seconds = 0.0;      ///< wall time of the render system
+    uint32_t spp_reached = 0;  ///< samples per pixel of the passes completed
+    uint32_t spp_target = 0;   ///< samples per pixel asked for
+    uint32_t passes = 0;       ///< passes completed
 };
 
 #define SPANGLE_EMITTER_REF_FIELDS(X) X(int32_t, first, "first light-table entry of its triangles")
@@ -53,6 +73,47 @@ struct SubdivReport {
     double seconds = 0.0;  ///< load + refine + limit
 };
 
+/** What a watch session keeps between reloads, each entry keyed by everything that produced it
+ *  (file identities, parameters). Systems look here before building and record what they built
+ *  and reused; a one-shot render has no cache. Entries no load used are evicted after each
+ *  successful load, so memory follows the scene, not the number of reloads. */
+struct BuildCache {
+    std::map<std::string, std::shared_ptr<const TriangleMesh>> meshes;
+    std::map<std::string, std::shared_ptr<const Cage>> cages;
+    std::map<std::string, std::shared_ptr<MaterialInstance>> materials;
+    std::map<std::string, std::shared_ptr<const EnvironmentMap>> environments;
+    std::set<std::string> used;         ///< keys the load in progress used
+    std::vector<std::string> built;     ///< what the load in progress built
+    std::map<std::string, int> reused;  ///< kind -> count reused by the load in progress
+
+    /** Looks `key` up in `map`; on a hit counts it as reused under `kind`. */
+    template <class T>
+    std::shared_ptr<T> find(std::map<std::string, std::shared_ptr<T>>& map, const std::string& key,
+                            const char* kind) {
+        used.insert(key);
+        auto it = map.find(key);
+        if (it == map.end()) return nullptr;
+        ++reused[kind];
+        return it->second;
+    }
+    void begin() {
+        used.clear();
+        built.clear();
+        reused.clear();
+    }
+    /** Drops every entry the last load did not use. */
+    void evict() {
+        auto prune = [&](auto& map) {
+            for (auto it = map.begin(); it != map.end();)
+                it = used.count(it->first) ? std::next(it) : map.erase(it);
+        };
+        prune(meshes);
+        prune(cages);
+        prune(materials);
+        prune(environments);
+    }
+};
+
 /** Shared state of one frame. */
 struct World {
     ColorConfig* color = nullptr;        ///< borrowed
@@ -61,17 +122,19 @@ struct World {
     const HostServices* host = nullptr;  ///< borrowed
     const SceneInfo* info = nullptr;     ///< borrowed
     RenderOptions options;
+    BuildCache* cache = nullptr;  ///< borrowed from a watch session; null for one frame
 
-    std::vector<SubdivReport> subdiv;                          ///< subdivide
-    GeometryStore geometry;                                    ///< mesh_load
-    std::vector<std::unique_ptr<MaterialInstance>> materials;  ///< materials; null = unused
+    std::vector<SubdivReport> subdiv;  ///< subdivide
+    GeometryStore geometry;            ///< mesh_load, subdivide
+    uint32_t mesh_file_count = 0;      ///< meshes of mesh_load (subdivide's follow them)
+    std::vector<std::shared_ptr<MaterialInstance>> materials;  ///< materials; null = unused
     LightTable lights;                                         ///< area_lights
     std::vector<Vec3> quad_vertices;                           ///< area_lights: 4 corners per quad
     std::vector<float> sphere_lights;    ///< area_lights: x, y, z, radius per sphere
     uint32_t quad_light_first = 0;       ///< light-table index of the first quad
     Vec3 environment;                    ///< environment
     std::vector<Instance> instances;     ///< accelerate
-    std::unique_ptr<EmbreeScene> accel;  ///< accelerate
+    std::shared_ptr<EmbreeScene> accel;  ///< accelerate (kept across reloads: BLAS are reused)
 
     uint32_t width = 0, height = 0;  ///< render
     std::vector<float> image;        ///< render: RGB, working space, row-major

@@ -13,6 +13,13 @@
 
 namespace spangle {
 
+namespace ecs {
+/** Where a value is written is not scene content. */
+inline bool same_value(const FileLoc&, const FileLoc&) {
+    return true;
+}
+}  // namespace ecs
+
 /** One material parameter as written in the scene, before validation against a plugin schema. */
 struct ParamEntry {
     enum class Kind { Number, Bool, String, Color };
@@ -23,6 +30,12 @@ struct ParamEntry {
     std::string text;              ///< String value
     FileLoc loc;                   ///< where the value is written
     FileLoc key_loc;               ///< where the key is written
+    /** Same name, kind and value (not where it is written). */
+    bool operator==(const ParamEntry& o) const {
+        return name == o.name && kind == o.kind && number[0] == o.number[0] &&
+               number[1] == o.number[1] && number[2] == o.number[2] && is_integer == o.is_integer &&
+               text == o.text;
+    }
 };
 using ParamList = std::vector<ParamEntry>;
 

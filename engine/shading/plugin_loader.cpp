@@ -1,5 +1,9 @@
 #include "shading/plugin_loader.h"
 
+#include <unistd.h>
+
+#include "core/files.h"
+
 #include <dlfcn.h>
 
 #include <algorithm>
@@ -85,7 +89,8 @@ std::string table_problem(const SpangleMaterialPlugin_v2& t) {
 }  // namespace
 
 std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
-                                                      const std::string& expected_name) {
+                                                      const std::string& expected_name,
+                                                      const std::string& shown_path) {
     dlerror();
     void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!handle) {
@@ -122,11 +127,35 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
         throw_error("plugin file '{}' calls itself '{}', expected '{}'", path, table->name,
                     expected_name);
     guard.release();
-    return std::make_shared<LoadedPlugin>(path, handle, table);
+    return std::make_shared<LoadedPlugin>(shown_path.empty() ? path : shown_path, handle, table);
 }
 
 std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const FileLoc& where) {
-    if (auto it = cache_.find(name); it != cache_.end()) return it->second;
+    if (auto it = cache_.find(name); it != cache_.end()) {
+        if (!reopen_changed) return it->second;
+        const std::string& path = it->second->path();
+        const std::string id = file_identity(path);
+        if (id == identity_[name]) return it->second;
+        // Rebuilt since it was opened: open the new file through a private copy.
+        const fs::path copy =
+            fs::temp_directory_path() / fmt::format("spangle-{}-{}-{}", ::getpid(), ++copies_,
+                                                    fs::path(path).filename().string());
+        std::error_code ec;
+        fs::copy_file(path, copy, fs::copy_options::overwrite_existing, ec);
+        if (ec)
+            throw_error(where, "cannot reload plugin '{}' from {}: {}", name, path, ec.message());
+        std::shared_ptr<LoadedPlugin> plugin;
+        try {
+            plugin = open_file(copy.string(), name, path);
+        } catch (const SpangleError& e) {
+            fs::remove(copy, ec);
+            throw SpangleError(where, e.what());
+        }
+        fs::remove(copy, ec);
+        it->second = plugin;
+        identity_[name] = id;
+        return plugin;
+    }
     const bool valid_name = !name.empty() && name.find_first_of("/\\. ") == std::string::npos;
     if (!valid_name)
         throw_error(where,
@@ -138,8 +167,10 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const 
         std::error_code ec;
         if (!fs::exists(candidate, ec)) continue;
         try {
+            const std::string id = file_identity(candidate.string());
             auto plugin = open_file(candidate.string(), name);
             cache_[name] = plugin;
+            identity_[name] = id;
             return plugin;
         } catch (const SpangleError& e) {
             throw SpangleError(where, e.what());

@@ -52,9 +52,18 @@ public:
     /** Opens (or returns the cached) plugin `name`. Errors are reported at `where`. */
     std::shared_ptr<LoadedPlugin> open(const std::string& name, const FileLoc& where);
 
-    /** Opens one file as a plugin; throws SpangleError naming the file and what is wrong. */
+    /** Opens one file as a plugin; throws SpangleError naming the file and what is wrong.
+     *  `shown_path`, when given, is the path the plugin reports (the file opened may be a
+     *  private copy of it). */
     static std::shared_ptr<LoadedPlugin> open_file(const std::string& path,
-                                                   const std::string& expected_name);
+                                                   const std::string& expected_name,
+                                                   const std::string& shown_path = {});
+
+    /** Watch sessions: open() reopens a cached plugin whose file changed since it was opened.
+     *  dlopen() returns the handle it already has for a path, so the new file is opened through
+     *  a private copy (removed at once; the mapping stays); instances of the old library keep it
+     *  loaded until they are destroyed. */
+    bool reopen_changed = false;
 
     /** Every libspangle_*.so on the search path, first occurrence of each name, in order. */
     std::vector<std::string> discover() const;
@@ -66,6 +75,8 @@ public:
 private:
     std::vector<std::string> dirs_;
     std::map<std::string, std::shared_ptr<LoadedPlugin>> cache_;
+    std::map<std::string, std::string> identity_;  ///< file identity when each was opened
+    int copies_ = 0;                               ///< private copies made so far
 };
 
 }  // namespace spangle

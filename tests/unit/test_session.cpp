@@ -1,0 +1,202 @@
+// Progressive passes and the incremental session behind watch mode: the last pass equals a
+// one-pass render bit for bit; a stop request keeps the completed passes; the component diff
+// sees what changed; a reload runs only what the change needs and a bad scene changes nothing.
+
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+
+#include "render/frame.h"
+#include "render/session.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+FrameResult render(const std::string& scene, bool progressive, uint32_t spp,
+                   std::function<bool()> stop = {}) {
+    FrameRequest req;
+    req.scene = scene;
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.threads = 2;
+    req.options.spp_override = spp;
+    req.options.progressive = progressive;
+    req.options.stop = std::move(stop);
+    return render_frame(req);
+}
+
+TEST(Passes, DoubleUpToTheSampleCount) {
+    EXPECT_EQ(pass_ends(1), (std::vector<uint32_t>{1}));
+    EXPECT_EQ(pass_ends(2), (std::vector<uint32_t>{1, 2}));
+    EXPECT_EQ(pass_ends(16), (std::vector<uint32_t>{1, 2, 4, 8, 16}));
+    EXPECT_EQ(pass_ends(24), (std::vector<uint32_t>{1, 2, 4, 8, 16, 24}));
+}
+
+TEST(Passes, LastPassEqualsOnePassRenderBitForBit) {
+    // Glitter (a plugin batch per wave) and glossy light: the passes split the samples
+    // differently into waves, yet every pixel adds the same samples in the same order.
+    for (const char* scene : {"flake_uvless.toml", "glossy_sphere_light.toml"}) {
+        const std::string path = test::test_dir() + "/scenes/" + scene;
+        const FrameResult passes = render(path, true, 24);
+        const FrameResult one = render(path, false, 24);
+        ASSERT_EQ(passes.image.size(), one.image.size());
+        EXPECT_EQ(passes.stats.passes, 6u) << scene;
+        EXPECT_EQ(passes.stats.spp_reached, 24u);
+        EXPECT_EQ(
+            std::memcmp(passes.image.data(), one.image.data(), one.image.size() * sizeof(float)), 0)
+            << scene;
+        double sum = 0.0;
+        for (float x : one.image) sum += x;
+        EXPECT_GT(sum, 0.0) << scene;
+    }
+}
+
+TEST(Passes, StopKeepsTheCompletedPasses) {
+    // Stop during the fourth pass: the image is that of the first three (4 spp), exactly.
+    const std::string path = test::test_dir() + "/scenes/flake_uvless.toml";
+    std::atomic<int> polls{0};
+    int passes_seen = 0;
+    FrameRequest req;
+    req.scene = path;
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.threads = 1;
+    req.options.spp_override = 64;
+    req.options.on_pass = [&](const std::vector<float>&, uint32_t, uint32_t, uint32_t) {
+        ++passes_seen;
+    };
+    req.options.stop = [&] { return passes_seen >= 3 && ++polls > 3; };
+    const FrameResult stopped = render_frame(req);
+    EXPECT_EQ(stopped.stats.spp_reached, 4u);
+    EXPECT_EQ(stopped.stats.spp_target, 64u);
+    const FrameResult four = render(path, false, 4);
+    ASSERT_EQ(stopped.image.size(), four.image.size());
+    EXPECT_EQ(
+        std::memcmp(stopped.image.data(), four.image.data(), four.image.size() * sizeof(float)), 0);
+}
+
+/** A scene in a temporary directory, edited by text replacement. */
+struct TempScene {
+    fs::path dir, file;
+    TempScene() {
+        dir = fs::temp_directory_path() / ("spangle_session_" + std::to_string(::getpid()));
+        fs::create_directories(dir);
+        fs::copy_file(test::test_dir() + "/scenes/uvless_ball.obj", dir / "uvless_ball.obj",
+                      fs::copy_options::overwrite_existing);
+        std::ifstream in(test::test_dir() + "/scenes/flake_uvless.toml");
+        std::stringstream ss;
+        ss << in.rdbuf();
+        text = ss.str();
+        file = dir / "scene.toml";
+        save();
+    }
+    ~TempScene() {
+        std::error_code ec;
+        fs::remove_all(dir, ec);
+    }
+    void replace(const std::string& from, const std::string& to) {
+        const auto at = text.find(from);
+        ASSERT_NE(at, std::string::npos) << from;
+        text.replace(at, from.size(), to);
+        save();
+    }
+    void save() const { std::ofstream(file) << text; }
+    std::string text;
+};
+
+bool contains(const std::vector<std::string>& v, const std::string& s) {
+    return std::find(v.begin(), v.end(), s) != v.end();
+}
+
+TEST(Session, ReloadRunsOnlyWhatTheChangeNeeds) {
+    TempScene scene;
+    RenderOptions options;
+    options.threads = 2;
+    options.spp_override = 2;
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+
+    const ReloadReport first = session.load(scene.file.string());
+    EXPECT_TRUE(first.first);
+    EXPECT_TRUE(contains(first.ran, "mesh_load"));
+    EXPECT_TRUE(contains(first.ran, "materials"));
+    EXPECT_TRUE(contains(first.ran, "accelerate"));
+    session.render();
+    const std::vector<float> before = session.world().image;
+    const MaterialInstance* material = session.world().materials[0].get();
+
+    // Nothing changed: nothing runs, the same material instance stays.
+    const ReloadReport same = session.load(scene.file.string());
+    EXPECT_TRUE(same.changed.empty());
+    EXPECT_TRUE(same.ran.empty());
+    EXPECT_EQ(session.world().materials[0].get(), material);
+
+    // A material parameter: that one material is recreated, nothing else runs.
+    scene.replace("gamma = 3", "gamma = 4");
+    const ReloadReport mat = session.load(scene.file.string());
+    EXPECT_EQ(mat.changed, (std::vector<std::string>{"Material"}));
+    EXPECT_EQ(mat.ran, (std::vector<std::string>{"materials"}));
+    EXPECT_NE(session.world().materials[0].get(), material);
+    session.render();
+    EXPECT_NE(session.world().image, before);
+
+    // A transform: instances and the top level, the mesh's BVH reused; lights (bounds) rerun.
+    scene.replace("rotate = [30, 20, 0]", "rotate = [30, 60, 0]");
+    const ReloadReport xf = session.load(scene.file.string());
+    EXPECT_EQ(xf.changed, (std::vector<std::string>{"Transform"}));
+    EXPECT_FALSE(contains(xf.ran, "mesh_load"));
+    EXPECT_FALSE(contains(xf.ran, "materials"));
+    EXPECT_TRUE(contains(xf.ran, "accelerate"));
+    EXPECT_EQ(xf.reused.at("mesh BVHs"), 1);
+
+    // The camera: nothing is rebuilt.
+    scene.replace("fov = 32", "fov = 30");
+    const ReloadReport cam = session.load(scene.file.string());
+    EXPECT_EQ(cam.changed, (std::vector<std::string>{"Camera"}));
+    EXPECT_TRUE(cam.ran.empty());
+    EXPECT_TRUE(cam.built.empty());
+
+    // A bad save: an error with file:line, and the live scene is untouched.
+    const std::vector<float> good = (session.render(), session.world().image);
+    scene.replace("fov = 30", "fov = 300");
+    try {
+        session.load(scene.file.string());
+        ADD_FAILURE() << "a field of view of 300 degrees loaded";
+    } catch (const SpangleError& e) {
+        EXPECT_TRUE(std::regex_search(e.what(), std::regex("scene\\.toml:[0-9]+:[0-9]+: error")))
+            << e.what();
+    }
+    session.render();
+    EXPECT_EQ(session.world().image, good);
+
+    // The result of a reload equals a cold render of the edited scene.
+    scene.replace("fov = 300", "fov = 30");
+    session.load(scene.file.string());
+    session.render();
+    const FrameResult cold = render(scene.file.string(), true, 2);
+    EXPECT_EQ(session.world().image, cold.image);
+}
+
+TEST(Session, RegistryDiffIgnoresWhereValuesAreWritten) {
+    TempScene scene;
+    ColorConfig color = ColorConfig::load(test::shipped_ocio(), {});
+    ecs::Registry a, b;
+    load_scene(scene.file.string(), color, a);
+    scene.replace("[camera]", "# a comment line moves everything below\n[camera]");
+    load_scene(scene.file.string(), color, b);
+    EXPECT_TRUE(ecs::Registry::changed_types(a, b, {}).empty());
+    scene.replace("intensity = 21", "intensity = 22");
+    ecs::Registry c;
+    load_scene(scene.file.string(), color, c);
+    EXPECT_EQ(ecs::Registry::changed_types(a, c, {}), (std::vector<std::string>{"SphereLight"}));
+}
+
+}  // namespace
+}  // namespace spangle
