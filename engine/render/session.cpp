@@ -133,6 +133,15 @@ ReloadReport Session::load(const std::string& scene) {
     World* live = world_.get();
     bool lights_carried = false;
     auto carry = [&](const std::string& name) {
+        if (name == "mesh_load") cache_.keep("mesh|");
+        if (name == "subdivide") {
+            cache_.keep("cage|");
+            cache_.keep("subdiv|");
+        }
+        if (name == "materials") cache_.keep("material|");
+        if (name != "mesh_load" && name != "subdivide" && name != "materials" &&
+            name != "accelerate")
+            cache_.keep("env|");
         if (name == "mesh_load") {
             for (uint32_t i = 0; i < live->mesh_file_count; ++i)
                 next->geometry.meshes.push_back(live->geometry.meshes[i]);

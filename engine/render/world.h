@@ -83,6 +83,7 @@ struct BuildCache {
     std::map<std::string, std::shared_ptr<MaterialInstance>> materials;
     std::map<std::string, std::shared_ptr<const EnvironmentMap>> environments;
     std::set<std::string> used;         ///< keys the load in progress used
+    std::set<std::string> last_used;    ///< keys the live scene uses (the last successful load)
     std::vector<std::string> built;     ///< what the load in progress built
     std::map<std::string, int> reused;  ///< kind -> count reused by the load in progress
 
@@ -101,8 +102,14 @@ struct BuildCache {
         built.clear();
         reused.clear();
     }
-    /** Drops every entry the last load did not use. */
+    /** A skipped system keeps what it built last time: its keys (by prefix) stay in use. */
+    void keep(const std::string& prefix) {
+        for (const auto& k : last_used)
+            if (k.compare(0, prefix.size(), prefix) == 0) used.insert(k);
+    }
+    /** Drops every entry the load just committed does not use. */
     void evict() {
+        last_used = used;
         auto prune = [&](auto& map) {
             for (auto it = map.begin(); it != map.end();)
                 it = used.count(it->first) ? std::next(it) : map.erase(it);
