@@ -341,7 +341,10 @@ int run_watch(const RenderArgs& a) {
         std::vector<std::string> touched;
         while (touched.empty() && stop_signal == 0) touched = watcher.wait(250);
         if (stop_signal != 0) break;
-        changed_at = std::chrono::steady_clock::now();
+        {
+            std::lock_guard<std::mutex> lock(mutex);  // the render thread reads it in announce
+            changed_at = std::chrono::steady_clock::now();
+        }
         reload = true;
         if (worker.joinable()) worker.join();
         reload = false;

@@ -39,17 +39,6 @@ Session::~Session() {
     cache_ = BuildCache{};
 }
 
-std::vector<std::string> Session::input_files(const ecs::Registry& r) const {
-    std::vector<std::string> out;
-    if (auto* p = r.find_pool<MeshFile>())
-        out.insert(out.end(), p->columns().path.begin(), p->columns().path.end());
-    if (auto* p = r.find_pool<SubdivSurface>())
-        out.insert(out.end(), p->columns().path.begin(), p->columns().path.end());
-    if (auto* p = r.find_pool<EnvironmentMapFile>())
-        out.insert(out.end(), p->columns().path.begin(), p->columns().path.end());
-    return out;
-}
-
 std::vector<std::string> Session::watched_files() const {
     std::set<std::string> all;
     if (info_) all.insert(info_->path);
@@ -132,23 +121,18 @@ ReloadReport Session::load(const std::string& scene) {
 
     World* live = world_.get();
     bool lights_carried = false;
+    // A skipped system hands over what it made for the live scene, and keeps its cache entries.
     auto carry = [&](const std::string& name) {
-        if (name == "mesh_load") cache_.keep("mesh|");
-        if (name == "subdivide") {
-            cache_.keep("cage|");
-            cache_.keep("subdiv|");
-        }
-        if (name == "materials") cache_.keep("material|");
-        if (name != "mesh_load" && name != "subdivide" && name != "materials" &&
-            name != "accelerate")
-            cache_.keep("env|");
         if (name == "mesh_load") {
+            cache_.keep("mesh|");
             for (uint32_t i = 0; i < live->mesh_file_count; ++i)
                 next->geometry.meshes.push_back(live->geometry.meshes[i]);
             next->mesh_file_count = live->mesh_file_count;
             for (ecs::Entity e : cand->pool<MeshFile>().entities())
                 cand->put(e, live_->get<TriangleMeshRef>(e));
         } else if (name == "subdivide") {
+            cache_.keep("cage|");
+            cache_.keep("subdiv|");
             const auto base = static_cast<uint32_t>(next->geometry.meshes.size());
             for (std::size_t i = live->mesh_file_count; i < live->geometry.meshes.size(); ++i)
                 next->geometry.meshes.push_back(live->geometry.meshes[i]);
@@ -157,12 +141,14 @@ ReloadReport Session::load(const std::string& scene) {
                                              live->mesh_file_count + base});
             next->subdiv = live->subdiv;
         } else if (name == "materials") {
+            cache_.keep("material|");
             next->materials = live->materials;
         } else if (name == "accelerate") {
             next->instances = live->instances;
             next->accel = live->accel;
         } else if (!lights_carried) {  // the light table: area, point, environment, selection
             lights_carried = true;
+            cache_.keep("env|");
             next->lights = live->lights;
             next->quad_vertices = live->quad_vertices;
             next->sphere_lights = live->sphere_lights;
@@ -208,17 +194,12 @@ ReloadReport Session::load(const std::string& scene) {
     world_ = std::move(next);
     cache_.evict();
     files_.clear();
-    for (const std::string& f : input_files(*live_)) {
-        const bool mesh = live_->find_pool<MeshFile>() != nullptr &&
-                          std::find(live_->pool<MeshFile>().columns().path.begin(),
-                                    live_->pool<MeshFile>().columns().path.end(),
-                                    f) != live_->pool<MeshFile>().columns().path.end();
-        const bool cage = !mesh && live_->find_pool<SubdivSurface>() != nullptr &&
-                          std::find(live_->pool<SubdivSurface>().columns().path.begin(),
-                                    live_->pool<SubdivSurface>().columns().path.end(),
-                                    f) != live_->pool<SubdivSurface>().columns().path.end();
-        files_[mesh ? "mesh" : cage ? "cage" : "env"][f] = file_identity(f);
-    }
+    auto record = [&](const char* kind, const std::vector<std::string>& paths) {
+        for (const std::string& f : paths) files_[kind][f] = file_identity(f);
+    };
+    if (auto* p = live_->find_pool<MeshFile>()) record("mesh", p->columns().path);
+    if (auto* p = live_->find_pool<SubdivSurface>()) record("cage", p->columns().path);
+    if (auto* p = live_->find_pool<EnvironmentMapFile>()) record("env", p->columns().path);
     for (const auto& m : world_->materials)
         if (m) files_["plugin"][m->plugin().path()] = file_identity(m->plugin().path());
     files_["ocio"][color_->path()] = file_identity(color_->path());

@@ -59,8 +59,6 @@ public:
     std::vector<std::string> watched_files() const;
 
 private:
-    std::vector<std::string> input_files(const ecs::Registry& r) const;
-
     const Logger& log_;
     RenderOptions options_;
     std::string ocio_request_;

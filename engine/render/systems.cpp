@@ -37,17 +37,14 @@ void system_mesh_load(ecs::Registry& r, World& w) {
         const std::string& path = pool.columns().path[i];
         auto it = loaded.find(path);
         if (it == loaded.end()) {
-            std::shared_ptr<const TriangleMesh> mesh;
-            const std::string key = w.cache ? "mesh|" + file_identity(path) : std::string();
-            if (w.cache) mesh = w.cache->find(w.cache->meshes, key, "meshes");
-            if (!mesh) {
-                mesh = std::make_shared<const TriangleMesh>(load_mesh(path, pool.columns().loc[i]));
-                if (w.cache) {
-                    w.cache->meshes[key] = mesh;
-                    w.cache->built.push_back("mesh " + path);
-                }
-            }
-            w.geometry.meshes.push_back(std::move(mesh));
+            w.geometry.meshes.push_back(build_cached(
+                w.cache, &BuildCache::meshes, "meshes",
+                [&] { return "mesh|" + file_identity(path); },
+                [&] {
+                    return std::make_shared<const TriangleMesh>(
+                        load_mesh(path, pool.columns().loc[i]));
+                },
+                "mesh " + path));
             it = loaded.emplace(path, static_cast<uint32_t>(w.geometry.meshes.size() - 1)).first;
         }
         refs.emplace_back(pool.entities()[i], it->second);
@@ -76,12 +73,9 @@ void system_subdivide(ecs::Registry& r, World& w) {
         const SubdivSurface s = pool.columns().get(i);
         const ecs::Entity e = pool.entities()[i];
         const std::string file = w.cache ? file_identity(s.path) : std::string();
-        std::shared_ptr<const Cage> cage_ptr;
-        if (w.cache) cage_ptr = w.cache->find(w.cache->cages, "cage|" + file, "cages");
-        if (!cage_ptr) {
-            cage_ptr = std::make_shared<const Cage>(load_cage(s.path, s.loc));
-            if (w.cache) w.cache->cages["cage|" + file] = cage_ptr;
-        }
+        const std::shared_ptr<const Cage> cage_ptr = build_cached(
+            w.cache, &BuildCache::cages, "cages", [&] { return "cage|" + file; },
+            [&] { return std::make_shared<const Cage>(load_cage(s.path, s.loc)); }, "");
         const Cage& cage = *cage_ptr;
         SubdivOptions options = s.options;
         SubdivReport rep;
@@ -108,27 +102,21 @@ void system_subdivide(ecs::Registry& r, World& w) {
             }
         }
         rep.level = options.level;
-        std::shared_ptr<const TriangleMesh> mesh;
-        std::string key;
-        if (w.cache) {
-            key = fmt::format(
-                "subdiv|{}|{}|{}|{}|{}|{}|{}|{}|{}", file, static_cast<int>(options.scheme),
-                static_cast<int>(options.boundary), static_cast<int>(options.uv_interpolation),
-                options.level, fmt::join(options.crease_vertices, ","),
-                fmt::join(options.crease_sharpness, ","), fmt::join(options.corner_vertices, ","),
-                fmt::join(options.corner_sharpness, ","));
-            mesh = w.cache->find(w.cache->meshes, key, "subdivided meshes");
-        }
-        if (!mesh) {
-            mesh = std::make_shared<const TriangleMesh>(subdivide(cage, options, s.loc));
-            if (w.cache) {
-                w.cache->meshes[key] = mesh;
-                w.cache->built.push_back(
-                    fmt::format("subdivision of {} at level {}", s.path, options.level));
-            }
-        }
+        const std::shared_ptr<const TriangleMesh> mesh = build_cached(
+            w.cache, &BuildCache::meshes, "subdivided meshes",
+            [&] {
+                return fmt::format(
+                    "subdiv|{}|{}|{}|{}|{}|{}|{}|{}|{}", file, static_cast<int>(options.scheme),
+                    static_cast<int>(options.boundary), static_cast<int>(options.uv_interpolation),
+                    options.level, fmt::join(options.crease_vertices, ","),
+                    fmt::join(options.crease_sharpness, ","),
+                    fmt::join(options.corner_vertices, ","),
+                    fmt::join(options.corner_sharpness, ","));
+            },
+            [&] { return std::make_shared<const TriangleMesh>(subdivide(cage, options, s.loc)); },
+            fmt::format("subdivision of {} at level {}", s.path, options.level));
         rep.triangles = mesh->triangle_count();
-        w.geometry.meshes.push_back(std::move(mesh));
+        w.geometry.meshes.push_back(mesh);
         rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
         w.subdiv.push_back(rep);
         refs.emplace_back(e, static_cast<uint32_t>(w.geometry.meshes.size() - 1));
@@ -152,24 +140,21 @@ void system_materials(ecs::Registry& r, World& w) {
             w.log->warn("{}: material '{}' is not used by any object", m.loc.str(), m.name);
             continue;
         }
-        if (!w.cache) {
-            w.materials[index] = create_material(*w.plugins, m, *w.host);
-            continue;
-        }
         // Keyed by the plugin library's identity too: a rebuilt plugin makes new instances.
-        const std::shared_ptr<LoadedPlugin> plugin = w.plugins->open(m.plugin, m.plugin_loc);
-        std::string key = fmt::format("material|{}|{}|{}|{}", m.name, m.plugin, m.model,
-                                      file_identity(plugin->path()));
-        for (const ParamEntry& p : m.params)
-            key += fmt::format("|{}:{}:{}:{}:{}:{}:{}", p.name, static_cast<int>(p.kind),
-                               p.number[0], p.number[1], p.number[2], p.is_integer, p.text);
-        auto inst = w.cache->find(w.cache->materials, key, "materials");
-        if (!inst) {
-            inst = create_material(*w.plugins, m, *w.host);
-            w.cache->materials[key] = inst;
-            w.cache->built.push_back(fmt::format("material '{}'", m.name));
-        }
-        w.materials[index] = std::move(inst);
+        w.materials[index] = build_cached(
+            w.cache, &BuildCache::materials, "materials",
+            [&] {
+                const std::shared_ptr<LoadedPlugin> plugin =
+                    w.plugins->open(m.plugin, m.plugin_loc);
+                std::string key = fmt::format("material|{}|{}|{}|{}", m.name, m.plugin, m.model,
+                                              file_identity(plugin->path()));
+                for (const ParamEntry& p : m.params)
+                    key += fmt::format("|{}:{}:{}:{}:{}:{}:{}", p.name, static_cast<int>(p.kind),
+                                       p.number[0], p.number[1], p.number[2], p.is_integer, p.text);
+                return key;
+            },
+            [&] { return create_material(*w.plugins, m, *w.host); },
+            fmt::format("material '{}'", m.name));
     }
     warn_about_missing_uvs(r, w);
 }
@@ -300,18 +285,21 @@ void system_environment(ecs::Registry& r, World& w) {
     if (auto* maps = r.find_pool<EnvironmentMapFile>())
         for (std::size_t i = 0; i < maps->size(); ++i) {
             const EnvironmentMapFile f = maps->columns().get(i);
-            if (!w.cache) {
+            if (!w.cache) {  // one frame: no copy of the map
                 w.lights.set_environment(load_environment_map(f, *w.color));
                 continue;
             }
-            const std::string key = fmt::format("env|{}|{}|{}|{}", file_identity(f.path),
-                                                f.color_space, f.rotation_deg, f.intensity);
-            auto env = w.cache->find(w.cache->environments, key, "environment maps");
-            if (!env) {
-                env = std::make_shared<const EnvironmentMap>(load_environment_map(f, *w.color));
-                w.cache->environments[key] = env;
-                w.cache->built.push_back("environment map " + f.path);
-            }
+            const auto env = build_cached(
+                w.cache, &BuildCache::environments, "environment maps",
+                [&] {
+                    return fmt::format("env|{}|{}|{}|{}", file_identity(f.path), f.color_space,
+                                       f.rotation_deg, f.intensity);
+                },
+                [&] {
+                    return std::make_shared<const EnvironmentMap>(
+                        load_environment_map(f, *w.color));
+                },
+                "environment map " + f.path);
             w.lights.set_environment(*env);
         }
 }

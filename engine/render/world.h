@@ -121,6 +121,22 @@ struct BuildCache {
     }
 };
 
+/** The entry of `map` for key(), or make()'s result, stored there and recorded as `what` built
+ *  (when not empty). Without a cache it only calls make(), and key() is never computed. Reuses
+ *  are counted under `kind`. */
+template <class T, class Key, class Make>
+std::shared_ptr<T> build_cached(BuildCache* cache,
+                                std::map<std::string, std::shared_ptr<T>> BuildCache::*map,
+                                const char* kind, Key&& key, Make&& make, const std::string& what) {
+    if (!cache) return std::shared_ptr<T>(make());
+    const std::string k = key();
+    if (auto hit = cache->find(cache->*map, k, kind)) return hit;
+    std::shared_ptr<T> built(make());
+    (cache->*map)[k] = built;
+    if (!what.empty()) cache->built.push_back(what);
+    return built;
+}
+
 /** Shared state of one frame. */
 struct World {
     ColorConfig* color = nullptr;        ///< borrowed

@@ -170,6 +170,17 @@ struct Region {
     int nq = 0, np = 0;
 };
 
+/** An empty region centred on c0 (with its own tangent basis) for view wo. */
+Region region_at(D3 c0, D3 v, double alpha, D3 wo) {
+    Region r;
+    r.c0 = c0;
+    basis(c0, r.e1, r.e2);
+    r.v = v;
+    r.alpha = alpha;
+    r.wo = wo;
+    return r;
+}
+
 /** cos and sin of 2 pi k / 4096. */
 struct AngleTable {
     static constexpr int kSize = 4096;
@@ -305,18 +316,10 @@ double valid_fraction_exact(float alpha, V3 wo_f, double tolerance) {
     const D3 wo = to_d(wo_f), v = unstretched_view(alpha, wo_f, area);
     // Around the normal itself: m = z reflects wo to its mirror image, above the horizon.
     const D3 c0{0, 0, 1};
-    D3 e1, e2;
-    basis(c0, e1, e2);
+    Region r = region_at(c0, v, alpha, wo);
     const Sym q2 = validity_quadric(wo, alpha);
-    const RayQuadric valid(q2, c0, e1, e2, q2.form(c0, c0));
-    const RayPlane up({0, 0, 1}, c0, e1, e2), visible(v, c0, e1, e2);
-    Region r;
-    r.c0 = c0;
-    r.e1 = e1;
-    r.e2 = e2;
-    r.v = v;
-    r.alpha = alpha;
-    r.wo = wo;
+    const RayQuadric valid(q2, c0, r.e1, r.e2, q2.form(c0, c0));
+    const RayPlane up({0, 0, 1}, c0, r.e1, r.e2), visible(v, c0, r.e1, r.e2);
     r.quadrics[r.nq++] = &valid;
     r.planes[r.np++] = &up;
     r.planes[r.np++] = &visible;
@@ -335,8 +338,8 @@ void cap_integral(const CapParams& p, V3 wo_f, V3 wi_f, float i_f[3], float& i_1
     // Centre: the unstretched image of the half vector, whose mirror direction is wi itself.
     const D3 h = normalized(wo + wi);
     const D3 c0 = normalized({h.x / alpha, h.y / alpha, h.z});
-    D3 e1, e2;
-    basis(c0, e1, e2);
+    Region r = region_at(c0, v, alpha, wo);
+    const D3 e1 = r.e1, e2 = r.e2;
     const D3 sc0{alpha * c0.x, alpha * c0.y, c0.z};
     // r.wi >= cos(gamma) <=> 2 (wo.m)(wi.m) - (1 + wo.wi)|m|^2 + 2 sin^2(gamma/2)|m|^2 >= 0. The
     // first part vanishes at c0, so its value there is the second part alone, without cancellation.
@@ -349,13 +352,6 @@ void cap_integral(const CapParams& p, V3 wo_f, V3 wi_f, float i_f[3], float& i_1
     const Sym q2 = validity_quadric(wo, alpha);
     const RayQuadric valid(q2, c0, e1, e2, q2.form(c0, c0));
     const RayPlane up({0, 0, 1}, c0, e1, e2), visible(v, c0, e1, e2);
-    Region r;
-    r.c0 = c0;
-    r.e1 = e1;
-    r.e2 = e2;
-    r.v = v;
-    r.alpha = alpha;
-    r.wo = wo;
     r.quadrics[r.nq++] = &cap;
     // The cap's extent bounds where the other constraints can matter.
     double reach = 0.0;
