@@ -1,13 +1,17 @@
 #!/usr/bin/env bash
-# Installs Spangle's build and test dependencies from Debian 12's packages (run as root).
+# Installs Spangle's build dependencies from Debian 12's packages (run as root); with --tests,
+# also what only the tests need (headless Chromium and its WebDriver for the live preview page).
 # The list and the CMake traps behind it are in ../shared/NOTES-deps.md and cmake/SpangleDeps.cmake.
 set -euo pipefail
 packages=(
     cmake ninja-build g++ pkg-config
     libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev
-    libtbb-dev libtomlplusplus-dev libcli11-dev libassimp-dev libtinyobjloader-dev libgtest-dev libbenchmark-dev
+    libtbb-dev libtomlplusplus-dev libcli11-dev libassimp-dev libtinyobjloader-dev libcpp-httplib-dev libgtest-dev libbenchmark-dev
     openimageio-tools opencolorio-tools clang-format
 )
+if [ "${1:-}" = "--tests" ]; then
+    packages+=(chromium chromium-driver curl)
+fi
 missing=()
 for p in "${packages[@]}"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")

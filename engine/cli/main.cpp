@@ -13,12 +13,14 @@
 #include <csignal>
 #include <cstdio>
 #include <filesystem>
+#include <future>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
 #include "cli/progress.h"
+#include "cli/serve.h"
 #include "cli/watch.h"
 #include "color/image_output.h"
 #include "core/error.h"
@@ -58,6 +60,7 @@ struct RenderArgs {
     bool watch = false;
     bool pass_output = false;
     bool no_pass_output = false;
+    std::string serve;  ///< [ADDR:]PORT of the live preview page; empty = none
 };
 
 void print_error(const std::string& msg) {
@@ -112,10 +115,28 @@ struct Outputs {
                       {"spangle:version", SPANGLE_VERSION},
                       {"spangle:spp", std::to_string(spp)},
                       {"spangle:partial", partial ? "1" : "0"}};
-        write_exr(exr, image, static_cast<int>(width), static_cast<int>(height), color, o);
-        if (!preview.empty())
-            write_png_preview(preview, image, static_cast<int>(width), static_cast<int>(height),
-                              color);
+        // 0 samples per pixel: a reduced-resolution preview pass (RenderOptions::preview_pass).
+        if (spp == 0)
+            o.metadata.emplace_back("spangle:preview_stride",
+                                    std::to_string(preview_stride(width, height)));
+        // The PNG is written beside the EXR, on another thread.
+        std::future<void> png_done;
+        if (!preview.empty()) {
+            PngOptions png;
+            if (partial) png.compression_level = 1;  // passes come often: speed over size
+            if (spp == 0) png.block = preview_stride(width, height);
+            png_done = std::async(std::launch::async, [&, png] {
+                write_png_preview(preview, image, static_cast<int>(width), static_cast<int>(height),
+                                  color, png);
+            });
+        }
+        try {
+            write_exr(exr, image, static_cast<int>(width), static_cast<int>(height), color, o);
+        } catch (...) {
+            if (png_done.valid()) png_done.wait();
+            throw;
+        }
+        if (png_done.valid()) png_done.get();  // rethrows its error
     }
 };
 
@@ -198,6 +219,15 @@ void warn_nonfinite(const Logger& log, const RenderStats& st) {
             st.nonfinite, st.first_bad_pixel_x, st.first_bad_pixel_y, st.first_bad_sample);
 }
 
+/** The live preview page when --serve asks for one. */
+std::unique_ptr<PreviewServer> start_server(const RenderArgs& a) {
+    if (a.serve.empty()) return nullptr;
+    auto server = std::make_unique<PreviewServer>(a.serve);
+    fmt::print("live preview at {}\n", server->url());  // even with --quiet: it was asked for
+    std::fflush(stdout);
+    return server;
+}
+
 int run_render(const RenderArgs& a) {
     Logger log;
     if (a.quiet) log.threshold = LogLevel::Warning;
@@ -217,15 +247,29 @@ int run_render(const RenderArgs& a) {
     // The colour config is only known once the frame has loaded it: the pass callback gets it
     // through this pointer, set by render_frame's caller below before any pass ends.
     const ColorConfig* color = nullptr;
-    if (a.pass_output)
-        req.options.on_pass = [&](const std::vector<float>& image, uint32_t w, uint32_t h,
-                                  uint32_t spp) {
-            if (color) out.write(image, w, h, *color, spp, true);
+    std::unique_ptr<PreviewServer> server = start_server(a);
+    req.options.preview_pass = a.pass_output || server;
+    if (a.pass_output || server)
+        req.options.on_pass = [&](const PassImage& p) {
+            if (!color) return;
+            if (server)
+                server->publish_pass(p.image, p.width, p.height, p.spp, p.target, p.block, *color);
+            if (a.pass_output) out.write(p.image, p.width, p.height, *color, p.spp, true);
         };
+    if (server) {
+        auto print = req.options.progress;
+        req.options.progress = [&, print](uint64_t done, uint64_t total) {
+            if (print) print(done, total);
+            server->progress(done, total);
+        };
+    }
     req.on_loaded = [&](const ColorConfig& c) { color = &c; };
 
     FrameResult frame = render_frame(req);
     progress.finish();
+    if (server && !frame.image.empty())
+        server->publish_pass(frame.image, frame.width, frame.height, frame.stats.spp_reached,
+                             frame.stats.spp_target, 1, frame.color);
     if (frame.image.empty() && stop_signal == 0)
         throw_error("the scene has no camera to render from");
     warn_nonfinite(log, frame.stats);
@@ -255,9 +299,27 @@ int run_watch(const RenderArgs& a) {
     const bool pass_output = !a.no_pass_output;
     install_signal_handlers();
 
-    Session session(a.plugin_dirs, a.ocio, render_options(a), log);
+    RenderOptions options = render_options(a);
+    options.preview_pass = pass_output || !a.serve.empty();
+    Session session(a.plugin_dirs, a.ocio, options, log);
     std::atomic<bool> reload{false};
     session.options().stop = [&] { return stop_signal != 0 || reload.load(); };
+    // Declared after the session: it shows images in the session's colour config.
+    const std::unique_ptr<PreviewServer> server = start_server(a);
+    if (server)
+        session.options().progress = [&](uint64_t done, uint64_t total) {
+            server->progress(done, total);
+        };
+    // Reload lines and errors go to the terminal and the page.
+    auto say = [&](const std::string& line) {
+        fmt::print("{}\n", line);
+        std::fflush(stdout);
+        if (server) server->log("info", line);
+    };
+    auto report_error = [&](const std::string& message) {
+        print_error(message);
+        if (server) server->log("error", message);
+    };
 
     // What the render thread reports back.
     std::mutex mutex;
@@ -265,25 +327,43 @@ int run_watch(const RenderArgs& a) {
     std::chrono::steady_clock::time_point changed_at;
     bool finished = false;
 
+    std::string preview_note;  // when the preview pass of the pending change was written
+    // The reload line goes out once the first full pass is written (with the preview's time
+    // when there was one); a change that interrupts the render first prints it as it stands.
     auto announce = [&](uint32_t spp) {
         std::lock_guard<std::mutex> lock(mutex);
         if (pending_line.empty()) return;
         const double s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - changed_at).count();
-        fmt::print("{}; first pass ({} spp) written {:.3f} s after the change\n", pending_line, spp,
-                   s);
-        std::fflush(stdout);
+        if (spp == 0) {
+            preview_note =
+                fmt::format("preview (1/{} resolution) written {:.3f} s, ",
+                            preview_stride(session.world().width, session.world().height), s);
+            return;
+        }
+        say(fmt::format("{}; {}first pass ({} spp) written {:.3f} s after the change", pending_line,
+                        preview_note, spp, s));
         pending_line.clear();
+        preview_note.clear();
     };
-    session.options().on_pass = [&](const std::vector<float>& image, uint32_t width,
-                                    uint32_t height, uint32_t spp) {
+    auto flush_unannounced = [&] {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (pending_line.empty()) return;
+        say(fmt::format("{}; {}interrupted by the next change", pending_line, preview_note));
+        pending_line.clear();
+        preview_note.clear();
+    };
+    session.options().on_pass = [&](const PassImage& p) {
+        if (server)
+            server->publish_pass(p.image, p.width, p.height, p.spp, p.target, p.block,
+                                 session.color());
         if (!pass_output) return;
         try {
-            out.write(image, width, height, session.color(), spp, true);
+            out.write(p.image, p.width, p.height, session.color(), p.spp, true);
         } catch (const SpangleError& e) {
-            print_error(e.what());
+            report_error(e.what());
         }
-        announce(spp);
+        announce(p.spp);
     };
 
     auto render_thread = [&] {
@@ -294,17 +374,23 @@ int run_watch(const RenderArgs& a) {
             const RenderStats& st = w.stats;
             const bool complete = st.spp_reached == st.spp_target;
             if (complete || (stop_signal != 0 && st.spp_reached > 0)) {
+                if (server)
+                    server->publish_pass(w.image, w.width, w.height, st.spp_reached, st.spp_target,
+                                         1, session.color());
                 try {
                     out.write(w.image, w.width, w.height, session.color(), st.spp_reached,
                               !complete);
                 } catch (const SpangleError& e) {
-                    print_error(e.what());
+                    report_error(e.what());
                 }
                 announce(st.spp_reached);
             }
             if (complete) {
                 warn_nonfinite(log, st);
                 log.info("wrote {} ({} spp); watching for changes", out.exr, st.spp_reached);
+                if (server)
+                    server->log("info", fmt::format("wrote {} ({} spp); watching for changes",
+                                                    out.exr, st.spp_reached));
                 std::lock_guard<std::mutex> lock(mutex);
                 finished = true;
             }
@@ -320,11 +406,10 @@ int run_watch(const RenderArgs& a) {
                                                    rep.summary(), rep.seconds);
             return true;
         } catch (const SpangleError& e) {
-            print_error(e.what());
-            fmt::print("reload failed; {}\n", session.has_scene()
-                                                  ? "still showing the last good scene"
-                                                  : "waiting for a good save");
-            std::fflush(stdout);
+            report_error(e.what());
+            say(fmt::format("reload failed; {}", session.has_scene()
+                                                     ? "still showing the last good scene"
+                                                     : "waiting for a good save"));
             return false;
         }
     };
@@ -348,6 +433,7 @@ int run_watch(const RenderArgs& a) {
         reload = true;
         if (worker.joinable()) worker.join();
         reload = false;
+        flush_unannounced();
         std::string what;
         for (const auto& f : touched)
             what += (what.empty() ? "" : ", ") + fs::path(f).filename().string();
@@ -458,6 +544,20 @@ int main(int argc, char** argv) {
                      "write the EXR and preview after every pass (on by default with --watch)");
     render->add_flag("--no-pass-output", ra.no_pass_output,
                      "with --watch: write only finished images");
+    render
+        ->add_option("--serve", ra.serve,
+                     "serve a live preview page on [ADDR:]PORT (127.0.0.1 unless ADDR is "
+                     "given; port 0 picks a free one)")
+        ->check(CLI::Validator(
+            [](std::string& spec) {
+                try {
+                    parse_serve_address(spec);
+                } catch (const SpangleError& e) {
+                    return std::string(e.what());
+                }
+                return std::string();
+            },
+            "[ADDR:]PORT"));
 
     std::vector<std::string> plugin_dirs;
     CLI::App* plugins =

@@ -4,7 +4,9 @@
 #include <sys/inotify.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 
@@ -50,7 +52,7 @@ void FileWatcher::watch(const std::vector<std::string>& files) {
     }
 }
 
-void FileWatcher::drain(std::set<std::string>& hit) {
+void FileWatcher::drain(std::map<std::string, bool>& hit) {
     alignas(inotify_event) char buf[16384];
     for (;;) {
         const ssize_t n = ::read(fd_, buf, sizeof(buf));
@@ -63,26 +65,50 @@ void FileWatcher::drain(std::set<std::string>& hit) {
             auto it = dirs_.find(ev.wd);
             if (it == dirs_.end() || ev.len == 0) continue;
             const std::string path = (fs::path(it->second) / name).string();
-            if (files_.count(path)) hit.insert(path);
+            if (!files_.count(path)) continue;
+            // Settled: the last event ends a save (closed after writing, renamed into place, or
+            // only its times or mode changed). Anything else means a save still under way.
+            auto [entry, fresh] = hit.emplace(path, false);
+            if ((ev.mask & (IN_CLOSE_WRITE | IN_MOVED_TO)) != 0)
+                entry->second = true;
+            else if ((ev.mask & IN_ATTRIB) != 0)
+                entry->second = fresh || entry->second;
+            else
+                entry->second = false;
         }
     }
 }
 
-std::vector<std::string> FileWatcher::wait(int timeout_ms, int debounce_ms) {
-    std::set<std::string> hit;
+std::vector<std::string> FileWatcher::wait(int timeout_ms, const WatchDebounce& debounce) {
+    std::map<std::string, bool> hit;
     pollfd p{fd_, POLLIN, 0};
     if (::poll(&p, 1, timeout_ms) <= 0) return {};
     drain(hit);
     if (hit.empty()) return {};
-    // Debounce: keep going until the files have been quiet for debounce_ms.
+    // Debounce: keep reading until the files have been quiet for a while: briefly when every
+    // save looks finished, longer while one is under way or a file is missing (deleted, to be
+    // created again), but never past debounce.limit_ms in all.
+    const auto start = std::chrono::steady_clock::now();
     for (;;) {
+        bool settled = true;
+        for (const auto& [path, done] : hit) {
+            std::error_code ec;
+            settled = settled && done && fs::exists(path, ec);
+        }
+        const int elapsed = static_cast<int>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                                 std::chrono::steady_clock::now() - start)
+                                                 .count());
+        const int left = debounce.limit_ms - elapsed;
+        if (left <= 0) break;
         pollfd q{fd_, POLLIN, 0};
-        const int r = ::poll(&q, 1, debounce_ms);
-        if (r < 0 && errno == EINTR) break;
-        if (r <= 0) break;
+        const int r =
+            ::poll(&q, 1, std::min(left, settled ? debounce.settled_ms : debounce.unsettled_ms));
+        if (r <= 0) break;  // quiet long enough, or a signal
         drain(hit);
     }
-    return {hit.begin(), hit.end()};
+    std::vector<std::string> out;
+    for (const auto& [path, done] : hit) out.push_back(path);
+    return out;
 }
 
 }  // namespace spangle

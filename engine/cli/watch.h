@@ -10,6 +10,13 @@
 
 namespace spangle {
 
+/** How long the files must be quiet before a change is reported. */
+struct WatchDebounce {
+    int settled_ms = 15;     ///< after every touched file's save has ended
+    int unsettled_ms = 250;  ///< while a save is under way or a touched file is missing
+    int limit_ms = 2000;     ///< the longest a change waits
+};
+
 class FileWatcher {
 public:
     FileWatcher();
@@ -21,13 +28,14 @@ public:
     void watch(const std::vector<std::string>& files);
 
     /** Waits up to timeout_ms for an event on a watched file; after the first, keeps reading
-     *  until debounce_ms pass without one (an editor's save is several events). Returns the
-     *  files touched, empty on timeout or when a signal interrupts the wait. */
-    std::vector<std::string> wait(int timeout_ms, int debounce_ms = 200);
+     *  until the files have been quiet (an editor's save is several events; see WatchDebounce).
+     *  Returns the files touched, empty on timeout or when a signal interrupts the wait. */
+    std::vector<std::string> wait(int timeout_ms, const WatchDebounce& debounce = WatchDebounce());
 
 private:
-    /** Reads pending events; adds watched files they touch to `hit`. */
-    void drain(std::set<std::string>& hit);
+    /** Reads pending events; records watched files they touch in `hit`, with whether their
+     *  last event ended a save. */
+    void drain(std::map<std::string, bool>& hit);
 
     int fd_ = -1;
     std::map<int, std::string> dirs_;  ///< watch descriptor -> directory

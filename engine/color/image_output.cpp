@@ -1,11 +1,16 @@
 #include "color/image_output.h"
 
+#include <Imath/half.h>
+#include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
+#include <oneapi/tbb/blocked_range.h>
+#include <oneapi/tbb/parallel_for.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <condition_variable>
 #include <cstring>
 #include <filesystem>
 #include <mutex>
@@ -27,14 +32,59 @@ namespace {
 
 // The temporary file being written, for remove_image_in_progress() (a signal handler): a fixed
 // buffer and a flag, both safe to read there. One write at a time (write_mutex).
-std::mutex write_mutex;
-char in_progress[4096];
-std::atomic<bool> in_progress_set{false};
+/** The temporary files being written, for remove_image_in_progress() to unlink from a signal
+ *  handler: a few fixed slots (images may be written concurrently), each claimed by one write. */
+struct InProgress {
+    std::atomic<bool> claimed{false};
+    std::atomic<bool> set{false};
+    char path[4096];
+};
+InProgress in_progress[4];
+std::mutex slot_mutex;
+std::condition_variable slot_freed;
+
+/** Claims a slot for `tmp` (waiting while all are busy); released when it goes out of scope. */
+class InProgressSlot {
+public:
+    explicit InProgressSlot(const std::string& tmp) {
+        std::unique_lock<std::mutex> lock(slot_mutex);
+        for (;;) {
+            for (InProgress& s : in_progress)
+                if (!s.claimed.load()) {
+                    slot_ = &s;
+                    break;
+                }
+            if (slot_) break;
+            slot_freed.wait(lock);
+        }
+        slot_->claimed = true;
+        if (tmp.size() < sizeof(slot_->path)) {
+            std::memcpy(slot_->path, tmp.c_str(), tmp.size() + 1);
+            slot_->set = true;
+        }
+    }
+    ~InProgressSlot() {
+        slot_->set = false;
+        {
+            std::lock_guard<std::mutex> lock(slot_mutex);
+            slot_->claimed = false;
+        }
+        slot_freed.notify_one();
+    }
+    InProgressSlot(const InProgressSlot&) = delete;
+    InProgressSlot& operator=(const InProgressSlot&) = delete;
+
+private:
+    InProgress* slot_ = nullptr;
+};
 
 /** Temporary name beside `path`, unique to this process. */
 std::string temp_path_for(const std::string& path) {
+    static std::atomic<unsigned> counter{0};
     const fs::path p(path);
-    return (p.parent_path() / fmt::format(".{}.tmp{}", p.filename().string(), ::getpid())).string();
+    return (p.parent_path() /
+            fmt::format(".{}.tmp{}.{}", p.filename().string(), ::getpid(), counter++))
+        .string();
 }
 
 /** Writes pixels with `format` to a temporary file, then renames it onto `path`. */
@@ -44,14 +94,7 @@ void write_atomically(const std::string& path, const char* format, const OIIO::I
     if (!dir.empty() && !fs::is_directory(dir))
         throw_error("cannot write '{}': directory '{}' does not exist", path, dir.string());
     const std::string tmp = temp_path_for(path);
-    std::lock_guard<std::mutex> lock(write_mutex);
-    if (tmp.size() < sizeof(in_progress)) {
-        std::memcpy(in_progress, tmp.c_str(), tmp.size() + 1);
-        in_progress_set = true;
-    }
-    struct Clear {
-        ~Clear() { in_progress_set = false; }
-    } clear;
+    const InProgressSlot slot(tmp);
     auto out = OIIO::ImageOutput::create(format);
     if (!out) throw_error("cannot write '{}': {}", path, OIIO::geterror());
     bool ok = out->open(tmp, spec) && out->write_image(pixel_type, pixels) && out->close();
@@ -74,7 +117,8 @@ void write_atomically(const std::string& path, const char* format, const OIIO::I
 }  // namespace
 
 void remove_image_in_progress() noexcept {
-    if (in_progress_set.load()) ::unlink(in_progress);
+    for (const InProgress& s : in_progress)
+        if (s.set.load()) ::unlink(s.path);
 }
 
 void write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
@@ -94,22 +138,95 @@ void write_exr(const std::string& path, const std::vector<float>& rgb, int width
         spec.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), c->xy.data());
     spec.attribute("Software", "Spangle");
     for (const auto& [key, value] : options.metadata) spec.attribute(key, value);
-    write_atomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, rgb.data());
+    if (!options.half) {
+        write_atomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, rgb.data());
+        return;
+    }
+    // Converted here, in parallel, rather than by OpenImageIO's one-value-at-a-time path (it was
+    // most of the time of writing a pass).
+    std::vector<Imath::half> halves(rgb.size());
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rgb.size(), 1 << 16),
+                      [&](const tbb::blocked_range<std::size_t>& r) {
+                          for (std::size_t i = r.begin(); i != r.end(); ++i)
+                              halves[i] = Imath::half(rgb[i]);
+                      });
+    write_atomically(path, "openexr", spec, OIIO::TypeDesc::HALF, halves.data());
 }
 
-void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,
-                       int height, const ColorConfig& color) {
-    std::vector<float> display(rgb);
+namespace {
+
+/** 8-bit display values of the image through the config's default display and view. */
+std::vector<unsigned char> display_bytes(const std::vector<float>& rgb, int width, int height,
+                                         const ColorConfig& color, uint32_t block_size) {
     const std::string disp = color.default_display();
-    color.to_display(disp, color.default_view(disp), display.data(), display.size() / 3);
-    std::vector<unsigned char> bytes(display.size());
-    for (std::size_t i = 0; i < display.size(); ++i) {
-        const float v = std::isfinite(display[i]) ? std::clamp(display[i], 0.0f, 1.0f) : 0.0f;
-        bytes[i] = static_cast<unsigned char>(std::lround(v * 255.0f));
-    }
+    const std::string view = color.default_view(disp);
+    const auto w = static_cast<std::size_t>(width);
+    const auto block = static_cast<std::size_t>(std::max(1u, block_size));
+    // Converted in bands of rows, a few at a time per thread: the preview needs its 3 bytes per
+    // pixel and a band's floats, not a float copy of the whole image. Block-constant images
+    // (preview passes) convert one pixel per block.
+    const std::size_t band = std::max<std::size_t>(block, (32 / block) * block);
+    const auto bands = (static_cast<std::size_t>(height) + band - 1) / band;
+    std::vector<unsigned char> bytes(rgb.size());
+    tbb::parallel_for(std::size_t{0}, bands, [&](std::size_t b) {
+        const std::size_t y0 = b * band, y1 = std::min(y0 + band, static_cast<std::size_t>(height));
+        std::vector<float> buf;
+        std::vector<std::size_t> from;  // source pixel of each converted value
+        for (std::size_t y = y0; y < y1; y += block) {
+            const std::size_t sy = std::min(y + block / 2, static_cast<std::size_t>(height) - 1);
+            for (std::size_t x = 0; x < w; x += block) {
+                from.push_back(sy * w + std::min(x + block / 2, w - 1));
+            }
+        }
+        buf.resize(3 * from.size());
+        for (std::size_t i = 0; i < from.size(); ++i)
+            for (std::size_t c = 0; c < 3; ++c) buf[3 * i + c] = rgb[3 * from[i] + c];
+        color.to_display(disp, view, buf.data(), from.size());
+        for (float& v : buf) v = std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f;
+        const std::size_t blocks_x = (w + block - 1) / block;
+        for (std::size_t y = y0; y < y1; ++y) {
+            const std::size_t row = (y - y0) / block;
+            for (std::size_t x = 0; x < w; ++x) {
+                const float* v = &buf[3 * (row * blocks_x + x / block)];
+                for (std::size_t c = 0; c < 3; ++c)
+                    bytes[3 * (y * w + x) + c] =
+                        static_cast<unsigned char>(std::lround(v[c] * 255.0f));
+            }
+        }
+    });
+    return bytes;
+}
+
+OIIO::ImageSpec png_spec(int width, int height, const PngOptions& options) {
     OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
     spec.attribute("oiio:ColorSpace", "sRGB");
-    write_atomically(path, "png", spec, OIIO::TypeDesc::UINT8, bytes.data());
+    spec.attribute("png:compressionLevel", std::clamp(options.compression_level, 0, 9));
+    return spec;
+}
+
+}  // namespace
+
+void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,
+                       int height, const ColorConfig& color, const PngOptions& options) {
+    const std::vector<unsigned char> bytes =
+        display_bytes(rgb, width, height, color, options.block);
+    write_atomically(path, "png", png_spec(width, height, options), OIIO::TypeDesc::UINT8,
+                     bytes.data());
+}
+
+std::string encode_png_preview(const std::vector<float>& rgb, int width, int height,
+                               const ColorConfig& color, const PngOptions& options) {
+    const std::vector<unsigned char> bytes =
+        display_bytes(rgb, width, height, color, options.block);
+    std::vector<unsigned char> file;
+    OIIO::Filesystem::IOVecOutput proxy(file);
+    auto out = OIIO::ImageOutput::create("png");
+    if (!out) throw_error("cannot encode a PNG: {}", OIIO::geterror());
+    const bool ok = out->set_ioproxy(&proxy) &&
+                    out->open("preview.png", png_spec(width, height, options)) &&
+                    out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) && out->close();
+    if (!ok) throw_error("cannot encode a PNG: {}", out->geterror());
+    return std::string(file.begin(), file.end());
 }
 
 }  // namespace spangle

@@ -3,6 +3,7 @@
 // preview. Both are written to a temporary file in the destination directory and renamed into
 // place, so a reader never sees a half-written image and a failed write leaves nothing behind.
 
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -29,8 +30,22 @@ const std::vector<std::string>& exr_compressions();
 void write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
                const ColorConfig& color, const ExrOptions& options);
 
-/** Writes an 8-bit PNG through the config's default display and view. Throws SpangleError. */
+/** PNG preview options. */
+struct PngOptions {
+    /** The image is constant over aligned block x block squares, each holding the value of its
+     *  pixel (min(x0 + block/2, w-1), min(y0 + block/2, h-1)) (a preview pass): one display
+     *  transform per block. */
+    uint32_t block = 1;
+    int compression_level = 6;  ///< zlib level 0..9 (1 for pass outputs: speed over size)
+};
+
+/** Writes an 8-bit PNG through the config's default display and view. Throws SpangleError.
+ *  Memory: the 3 bytes per pixel of the PNG plus a few rows of floats per thread. */
 void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,
-                       int height, const ColorConfig& color);
+                       int height, const ColorConfig& color, const PngOptions& options = {});
+
+/** The same PNG, encoded in memory (for the live preview page). Throws SpangleError. */
+std::string encode_png_preview(const std::vector<float>& rgb, int width, int height,
+                               const ColorConfig& color, const PngOptions& options = {});
 
 }  // namespace spangle

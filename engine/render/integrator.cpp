@@ -115,6 +115,9 @@ struct RenderJob {
     const FilterSampler* filter;
     uint32_t width, height, spp, max_depth, rr_depth;
     uint64_t seed;
+    /** Pixels traced per stride x stride block (1: every pixel; >1: a preview pass, one path per
+     *  block with its footprint widened to the block). */
+    uint32_t stride = 1;
     std::vector<float>* image;
     std::atomic<uint64_t> camera_rays{0}, bounce_rays{0}, shadow_rays{0}, samples_done{0};
     std::atomic<uint64_t> nonfinite{0};
@@ -392,27 +395,38 @@ Vec3 emission_at_hit(const World& w, Strategy strategy, const Workspace& ws, std
 void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1,
                 uint32_t first_sample, uint32_t count) {
     const World& w = *job.world;
-    const uint32_t tw = x1 - x0, th = y1 - y0;
+    const uint32_t st = job.stride;
+    const uint32_t tw = (x1 - x0 + st - 1) / st, th = (y1 - y0 + st - 1) / st;
     const std::size_t n = static_cast<std::size_t>(tw) * th * count;
     ws.resize_paths(n);
+    const float scale = static_cast<float>(st);
     std::size_t i = 0;
-    for (uint32_t y = y0; y < y1; ++y)
-        for (uint32_t x = x0; x < x1; ++x)
+    for (uint32_t y = y0; y < y1; y += st)
+        for (uint32_t x = x0; x < x1; x += st)
             for (uint32_t s = 0; s < count; ++s, ++i) {
-                const uint32_t pix = y * job.width + x;
+                // The pixel that holds the block's value (the pixel itself when st == 1).
+                const uint32_t pix =
+                    std::min(y + st / 2, y1 - 1) * job.width + std::min(x + st / 2, x1 - 1);
                 const uint32_t smp = first_sample + s;
                 float fu, fv, lu, lv;
                 sobol_2d(job.seed, pix, smp, kPairFilter, fu, fv);
                 sobol_2d(job.seed, pix, smp, kPairLens, lu, lv);
                 // Filter importance sampling: the sample lands where the filter puts it.
-                const float fx = static_cast<float>(x) + 0.5f + job.filter->sample(fu);
-                const float fy = static_cast<float>(y) + 0.5f + job.filter->sample(fv);
+                const float fx = static_cast<float>(x) + scale * (0.5f + job.filter->sample(fu));
+                const float fy = static_cast<float>(y) + scale * (0.5f + job.filter->sample(fv));
                 ws.pixel[i] = pix;
                 ws.sample[i] = smp;
                 ws.ray[i] = job.camera->generate(fx, fy, lu, lv);
+                if (st > 1) {  // a preview path stands for the whole block: so does its footprint
+                    RayDifferential& r = ws.ray[i];
+                    r.dx_o = r.o + (r.dx_o - r.o) * scale;
+                    r.dx_d = r.d + (r.dx_d - r.d) * scale;
+                    r.dy_o = r.o + (r.dy_o - r.o) * scale;
+                    r.dy_d = r.d + (r.dy_d - r.d) * scale;
+                }
                 ws.has_diff[i] = 1;
                 ws.fp_width[i] = 0.0f;
-                ws.fp_spread[i] = job.camera->pixel_angle();
+                ws.fp_spread[i] = job.camera->pixel_angle() * scale;
                 ws.throughput[i] = Vec3(1.0f);
                 ws.radiance[i] = Vec3(0.0f);
                 ws.prev_pdf[i] = 0.0f;
@@ -500,6 +514,12 @@ std::vector<uint32_t> pass_ends(uint32_t spp) {
     return out;
 }
 
+uint32_t preview_stride(uint32_t width, uint32_t height) {
+    uint32_t stride = 1;
+    while (stride < kTileSize && std::max(width, height) / (2 * stride) >= 160) stride *= 2;
+    return stride;
+}
+
 void render_image(World& world, const Camera& camera, const Film& film) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
@@ -538,11 +558,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     // A pass interrupted by a stop request is rolled back to the sums before it.
     std::vector<float> before;
     uint32_t reached = 0, passes = 0;
-    const std::vector<uint32_t> ends =
-        world.options.progressive ? pass_ends(job.spp) : std::vector<uint32_t>{job.spp};
-    for (const uint32_t end : ends) {
-        const uint32_t first = reached;
-        if (stop) before = world.image;
+    const auto run_tiles = [&](uint32_t first, uint32_t end, bool count_progress) {
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<uint32_t>(0, tiles_x * tiles_y, 1),
                               [&](const tbb::blocked_range<uint32_t>& r) {
@@ -560,6 +576,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
                                           }
                                           const uint32_t count = std::min(kSamplesPerWave, end - s);
                                           trace_wave(job, ws, x0, y0, x1, y1, s, count);
+                                          if (!count_progress) continue;
                                           const uint64_t done = job.samples_done +=
                                               static_cast<uint64_t>(x1 - x0) * (y1 - y0) * count;
                                           if (world.options.progress) {
@@ -570,6 +587,41 @@ void render_image(World& world, const Camera& camera, const Film& film) {
                                   }
                               });
         });
+    };
+    // A preview pass: one path per block of pixels, shown before the first full pass. It is
+    // not part of the image: its values are thrown away once shown.
+    const uint32_t stride = world.options.preview_pass && world.options.on_pass && job.spp > 1
+                                ? preview_stride(film.width, film.height)
+                                : 1;
+    if (stride > 1) {
+        std::vector<float> preview(world.image.size(), 0.0f);
+        job.image = &preview;
+        job.stride = stride;
+        run_tiles(0, 1, false);
+        job.image = &world.image;
+        job.stride = 1;
+        if (!stopped) {
+            // Every pixel takes the value of its block's traced pixel.
+            for (uint32_t y = 0; y < film.height; ++y) {
+                const uint32_t sy = std::min((y / stride) * stride + stride / 2, film.height - 1);
+                for (uint32_t x = 0; x < film.width; ++x) {
+                    const uint32_t sx =
+                        std::min((x / stride) * stride + stride / 2, film.width - 1);
+                    const std::size_t to = 3 * (static_cast<std::size_t>(y) * film.width + x);
+                    const std::size_t from = 3 * (static_cast<std::size_t>(sy) * film.width + sx);
+                    if (to != from)
+                        for (std::size_t c = 0; c < 3; ++c) preview[to + c] = preview[from + c];
+                }
+            }
+            world.options.on_pass(PassImage{preview, film.width, film.height, 0, job.spp, stride});
+        }
+    }
+    const std::vector<uint32_t> ends =
+        world.options.progressive ? pass_ends(job.spp) : std::vector<uint32_t>{job.spp};
+    for (const uint32_t end : ends) {
+        const uint32_t first = reached;
+        if (stop) before = world.image;
+        if (!stopped) run_tiles(first, end, true);
         if (stopped) {
             world.image.swap(before);
             break;
@@ -580,7 +632,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
             std::vector<float> shown(world.image);
             const float inv = 1.0f / static_cast<float>(end);
             for (float& x : shown) x *= inv;
-            world.options.on_pass(shown, film.width, film.height, end);
+            world.options.on_pass(PassImage{shown, film.width, film.height, end, job.spp, 1});
         }
     }
 

@@ -21,6 +21,15 @@
 
 namespace spangle {
 
+/** The image after one pass of a progressive render. */
+struct PassImage {
+    const std::vector<float>& image;  ///< RGB, working space, divided by the samples reached
+    uint32_t width, height;
+    uint32_t spp;     ///< samples per pixel reached; 0 for a preview pass
+    uint32_t target;  ///< samples per pixel the render is going to
+    uint32_t block;   ///< 1, or the block side of a preview pass (each block one value)
+};
+
 /** How to render, from the command line; not part of the scene. */
 struct RenderOptions {
     Strategy strategy = Strategy::Mis;  ///< for tests and debugging; MIS is always at least as good
@@ -31,20 +40,26 @@ struct RenderOptions {
     /** Called with (samples done, samples total) from worker threads, serialised by the
      *  integrator; may be empty. */
     std::function<void(uint64_t, uint64_t)> progress;
-    /** Called after each completed pass but the last with the image so far (RGB, working
-     *  space, already divided by the samples reached), its width and height and the samples
-     *  per pixel reached; may be empty. */
-    std::function<void(const std::vector<float>&, uint32_t, uint32_t, uint32_t)> on_pass;
+    /** Called after each completed pass but the last with the image so far; may be empty. */
+    std::function<void(const PassImage&)> on_pass;
     /** Polled between waves of tiles: when it returns true the render stops, keeping the
      *  passes completed so far. May be empty. */
     std::function<bool()> stop;
     /** Passes of 1, 1, 2, 4, ... samples (false: one pass of all samples; same image). */
     bool progressive = true;
+    /** Before the first pass, a preview pass at reduced resolution (one path per block of
+     *  preview_stride() pixels, shown through on_pass and then dropped): the first picture after
+     *  an edit in a fraction of a full pass. The final image does not depend on it. */
+    bool preview_pass = false;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:
  *  1, 2, 4, 8, ... doubling, the last pass ending exactly at spp. */
 std::vector<uint32_t> pass_ends(uint32_t spp);
+
+/** Side of the pixel blocks of a preview pass for a width x height film: a power of two up to
+ *  16 that leaves at least 160 blocks along the longer side (1: no preview pass). */
+uint32_t preview_stride(uint32_t width, uint32_t height);
 
 /** Counters of one render. */
 struct RenderStats {

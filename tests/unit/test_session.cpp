@@ -59,6 +59,66 @@ TEST(Passes, LastPassEqualsOnePassRenderBitForBit) {
     }
 }
 
+TEST(Passes, PreviewPassIsBlockwiseAndLeavesTheImageAlone) {
+    EXPECT_EQ(preview_stride(1280, 720), 8u);
+    EXPECT_EQ(preview_stride(640, 360), 4u);
+    EXPECT_EQ(preview_stride(320, 180), 2u);
+    EXPECT_EQ(preview_stride(200, 100), 1u);
+    EXPECT_EQ(preview_stride(16384, 16384), 16u);
+    // A preview pass before the passes: reported with 0 spp, one value per block (each the
+    // value of the block's own traced pixel), and the final image is bit for bit the same.
+    const std::string path = test::test_dir() + "/scenes/glossy_sphere_light.toml";
+    FrameRequest req;
+    req.scene = path;
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.threads = 2;
+    req.options.spp_override = 8;
+    req.options.width_override = 330;  // not a multiple of the block: edge blocks are partial
+    req.options.height_override = 170;
+    req.options.preview_pass = true;
+    std::vector<uint32_t> spps;
+    std::vector<float> preview;
+    uint32_t block = 0;
+    req.options.on_pass = [&](const PassImage& p) {
+        spps.push_back(p.spp);
+        if (p.spp == 0) {
+            preview = p.image;
+            block = p.block;
+            EXPECT_EQ(p.target, 8u);
+        }
+    };
+    const FrameResult with = render_frame(req);
+    EXPECT_EQ(spps, (std::vector<uint32_t>{0, 1, 2, 4}));
+    ASSERT_EQ(block, 2u);
+    const uint32_t w = with.width, h = with.height;
+    ASSERT_EQ(preview.size(), 3u * w * h);
+    double sum = 0.0;
+    std::size_t off_block = 0;
+    for (uint32_t y = 0; y < h; ++y)
+        for (uint32_t x = 0; x < w; ++x) {
+            const uint32_t sx = std::min((x / block) * block + block / 2, w - 1);
+            const uint32_t sy = std::min((y / block) * block + block / 2, h - 1);
+            for (uint32_t c = 0; c < 3; ++c) {
+                const float v = preview[3 * (y * w + x) + c];
+                off_block += v != preview[3 * (sy * w + sx) + c];
+                sum += v;
+            }
+        }
+    EXPECT_EQ(off_block, 0u);
+    EXPECT_GT(sum, 0.0);
+    req.options.preview_pass = false;
+    req.options.on_pass = {};
+    const FrameResult without = render_frame(req);
+    ASSERT_EQ(with.image.size(), without.image.size());
+    EXPECT_EQ(
+        std::memcmp(with.image.data(), without.image.data(), with.image.size() * sizeof(float)), 0);
+    // The preview resembles the image: its mean is within 10% of the final one.
+    double final_sum = 0.0;
+    for (float x : with.image) final_sum += x;
+    EXPECT_NEAR(sum / final_sum, 1.0, 0.1);
+}
+
 TEST(Passes, StopKeepsTheCompletedPasses) {
     // Stop during the fourth pass: the image is that of the first three (4 spp), exactly.
     const std::string path = test::test_dir() + "/scenes/flake_uvless.toml";
@@ -70,9 +130,7 @@ TEST(Passes, StopKeepsTheCompletedPasses) {
     req.log = &test::quiet_log();
     req.options.threads = 1;
     req.options.spp_override = 64;
-    req.options.on_pass = [&](const std::vector<float>&, uint32_t, uint32_t, uint32_t) {
-        ++passes_seen;
-    };
+    req.options.on_pass = [&](const PassImage&) { ++passes_seen; };
     req.options.stop = [&] { return passes_seen >= 3 && ++polls > 3; };
     const FrameResult stopped = render_frame(req);
     EXPECT_EQ(stopped.stats.spp_reached, 4u);
