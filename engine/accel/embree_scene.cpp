@@ -1,5 +1,6 @@
 #include "accel/embree_scene.h"
 
+#include <cmath>
 #include <cstring>
 #include <limits>
 
@@ -141,6 +142,9 @@ void EmbreeScene::bounding_sphere(Vec3& center, float& radius) const {
 }
 
 bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
+    // Embree asserts on a non-finite ray and takes the process down: such a ray (a numerical
+    // failure upstream) misses instead.
+    if (!is_finite(o) || !is_finite(d) || std::isnan(tmax)) return false;
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRayHit rh{};
@@ -172,6 +176,7 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
 }
 
 bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax) const {
+    if (!is_finite(o) || !is_finite(d) || std::isnan(tmax)) return true;  // no light through it
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     RTCRay r{};

@@ -4,14 +4,18 @@
 //   2  bad command line
 //   3  internal error (a bug in Spangle)
 
+#include <fcntl.h>
 #include <fmt/format.h>
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 
 #include <atomic>
+#include <cerrno>
 #include <chrono>
+#include <climits>
 #include <csignal>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <future>
 #include <mutex>
@@ -27,6 +31,7 @@
 #include "render/frame.h"
 #include "render/image_metrics.h"
 #include "render/session.h"
+#include "scene/toml_reader.h"
 
 #include <OpenImageIO/imageio.h>
 #include "shading/material.h"
@@ -62,6 +67,17 @@ struct RenderArgs {
     bool no_pass_output = false;
     std::string serve;  ///< [ADDR:]PORT of the live preview page; empty = none
 };
+
+/** A bad command line (exit status 2), found after parsing (sizes, names, paths that clash). */
+class UsageError : public SpangleError {
+public:
+    using SpangleError::SpangleError;
+};
+
+template <class... Args>
+[[noreturn]] void usage_error(fmt::format_string<Args...> f, Args&&... args) {
+    throw UsageError(fmt::format(f, std::forward<Args>(args)...));
+}
 
 void print_error(const std::string& msg) {
     // Located messages already read "file:line:col: error: ..."; others get the prefix here.
@@ -107,9 +123,10 @@ struct Outputs {
     std::string scene;
 
     /** Writes image (working space) and its preview, each atomically. `partial`: the render
-     *  stopped before its spp; the EXR header says so and how far it got. */
-    void write(const std::vector<float>& image, uint32_t width, uint32_t height,
-               const ColorConfig& color, uint32_t spp, bool partial) const {
+     *  stopped before its spp; the EXR header says so and how far it got. Returns how many
+     *  values the half-float EXR could not hold (see warn_half_overflow). */
+    std::size_t write(const std::vector<float>& image, uint32_t width, uint32_t height,
+                      const ColorConfig& color, uint32_t spp, bool partial) const {
         ExrOptions o = exr_options;
         o.metadata = {{"spangle:scene", scene},
                       {"spangle:version", SPANGLE_VERSION},
@@ -130,15 +147,28 @@ struct Outputs {
                                   color, png);
             });
         }
+        std::size_t overflow = 0;
         try {
-            write_exr(exr, image, static_cast<int>(width), static_cast<int>(height), color, o);
+            overflow =
+                write_exr(exr, image, static_cast<int>(width), static_cast<int>(height), color, o);
         } catch (...) {
             if (png_done.valid()) png_done.wait();
             throw;
         }
         if (png_done.valid()) png_done.get();  // rethrows its error
+        return overflow;
     }
 };
+
+/** Half floats end at 65504: brighter values (a bright light seen directly, a strong glint)
+ *  become +Inf in a half EXR. Says so, and what to do. */
+void warn_half_overflow(const Logger& log, std::size_t values, const std::string& exr) {
+    if (values > 0)
+        log.warn(
+            "{} values in {} are brighter than a half float holds (65504) and were stored as "
+            "infinity; write 32-bit floats with --float",
+            values, exr);
+}
 
 void print_stats(const FrameResult& r, const std::string& exr) {
     fmt::print("systems:\n");
@@ -178,11 +208,17 @@ RenderOptions render_options(const RenderArgs& a) {
     o.threads = a.threads;
     o.spp_override = a.spp;
     if (!a.size.empty()) {
-        unsigned w = 0, h = 0;
-        char tail = 0;
-        if (std::sscanf(a.size.c_str(), "%ux%u%c", &w, &h, &tail) != 2 || w < 1 || h < 1 ||
-            w > 16384 || h > 16384)
-            throw_error("--size must be WIDTHxHEIGHT with each in 1..16384, got '{}'", a.size);
+        // Digits only, each side at most 5 of them: sscanf("%u") would wrap 4294967312 to 16.
+        const auto x = a.size.find('x');
+        const auto side = [&](const std::string& t) -> uint32_t {
+            if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos)
+                return 0;
+            return static_cast<uint32_t>(std::stoul(t));
+        };
+        const uint32_t w = x == std::string::npos ? 0 : side(a.size.substr(0, x));
+        const uint32_t h = x == std::string::npos ? 0 : side(a.size.substr(x + 1));
+        if (w < 1 || h < 1 || w > 16384 || h > 16384)
+            usage_error("--size must be WIDTHxHEIGHT with each in 1..16384, got '{}'", a.size);
         o.width_override = w;
         o.height_override = h;
     }
@@ -192,19 +228,67 @@ RenderOptions render_options(const RenderArgs& a) {
     return o;
 }
 
+/** Checks, before any work, that an image can be written at `path`: its folder exists and is
+ *  writable, the path is not a folder, its names are not too long. Throws SpangleError. */
+void check_writable(const std::string& path, const char* what) {
+    const fs::path p(path);
+    const fs::path dir = p.parent_path().empty() ? fs::path(".") : p.parent_path();
+    if (path.size() >= PATH_MAX)
+        throw_error("cannot write the {} '{}': the path is longer than {} bytes", what, path,
+                    PATH_MAX - 1);
+    // The image goes to a temporary name beside it first (".NAME.tmpPID.N"), also a name.
+    if (p.filename().string().size() + 24 > NAME_MAX)
+        throw_error("cannot write the {} '{}': the file name is longer than {} bytes", what, path,
+                    NAME_MAX - 24);
+    std::error_code ec;
+    if (!fs::exists(dir, ec))
+        throw_error("cannot write the {} '{}': folder '{}' does not exist", what, path,
+                    dir.string());
+    if (!fs::is_directory(dir, ec))
+        throw_error("cannot write the {} '{}': '{}' is not a folder", what, path, dir.string());
+    if (fs::is_directory(p, ec))
+        throw_error("cannot write the {} '{}': it is a folder", what, path);
+    // Creating a file there is the only test that holds for every case (permissions, root,
+    // read-only or special file systems): the image's own temporary file is made the same way.
+    const fs::path probe = dir / fmt::format(".spangle-probe-{}", ::getpid());
+    const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
+    if (fd < 0)
+        throw_error("cannot write the {} '{}': cannot create files in folder '{}' ({})", what, path,
+                    dir.string(), std::strerror(errno));
+    ::close(fd);
+    ::unlink(probe.c_str());
+}
+
+/** Whether two output paths name the same file (existing or not). */
+bool same_file(const std::string& a, const std::string& b) {
+    std::error_code ec1, ec2;
+    const fs::path pa = fs::weakly_canonical(fs::absolute(a), ec1),
+                   pb = fs::weakly_canonical(fs::absolute(b), ec2);
+    if (ec1 || ec2) return fs::absolute(a).lexically_normal() == fs::absolute(b).lexically_normal();
+    return pa == pb;
+}
+
 Outputs outputs_for(const RenderArgs& a) {
     Outputs out;
     out.exr = a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
     if (fs::path(out.exr).extension() != ".exr")
-        throw_error("output '{}' must end in .exr", out.exr);
+        usage_error("output '{}' must end in .exr", out.exr);
     const auto& comps = exr_compressions();
     if (std::find(comps.begin(), comps.end(), a.compression) == comps.end())
-        throw_error("unknown EXR compression '{}' (valid: {})", a.compression,
+        usage_error("unknown EXR compression '{}' (valid: {})", a.compression,
                     fmt::join(comps, ", "));
     out.preview = a.no_preview
                       ? std::string()
                       : (a.preview.empty() ? fs::path(out.exr).replace_extension(".png").string()
                                            : a.preview);
+    if (!out.preview.empty() && same_file(out.exr, out.preview))
+        usage_error(
+            "the EXR and the PNG preview are the same file '{}': give --preview another "
+            "path or --no-preview",
+            out.exr);
+    if (same_file(out.exr, a.scene)) usage_error("the output '{}' is the scene file", out.exr);
+    check_writable(out.exr, "EXR");
+    if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
     out.exr_options.half = !a.full_float;
     out.exr_options.compression = a.compression;
     out.scene = a.scene;
@@ -278,8 +362,10 @@ int run_render(const RenderArgs& a) {
         log.warn("stopped by a signal before the first pass ended: no image written");
         return exit_status_for_signal();
     }
-    out.write(frame.image, frame.width, frame.height, frame.color, frame.stats.spp_reached,
-              partial);
+    warn_half_overflow(log,
+                       out.write(frame.image, frame.width, frame.height, frame.color,
+                                 frame.stats.spp_reached, partial),
+                       out.exr);
     if (partial)
         log.warn("stopped by a signal: wrote {} with {} of {} samples per pixel", out.exr,
                  frame.stats.spp_reached, frame.stats.spp_target);
@@ -378,8 +464,10 @@ int run_watch(const RenderArgs& a) {
                     server->publish_pass(w.image, w.width, w.height, st.spp_reached, st.spp_target,
                                          1, session.color());
                 try {
-                    out.write(w.image, w.width, w.height, session.color(), st.spp_reached,
-                              !complete);
+                    warn_half_overflow(log,
+                                       out.write(w.image, w.width, w.height, session.color(),
+                                                 st.spp_reached, !complete),
+                                       out.exr);
                 } catch (const SpangleError& e) {
                     report_error(e.what());
                 }
@@ -570,6 +658,28 @@ int main(int argc, char** argv) {
         app.add_subcommand("inspect", "measure an image: mean, non-finite pixels, fireflies");
     inspect->add_option("image", inspect_path, "EXR (or any image OpenImageIO reads)")->required();
 
+    // An unknown first word is a misspelt command, not a missing one.
+    if (argc > 1 && argv[1][0] != '-') {
+        const std::string word = argv[1];
+        std::string best;
+        std::size_t best_distance = 3;  // suggest only close names
+        bool known = false;
+        for (const CLI::App* sub : app.get_subcommands({})) {
+            known = known || sub->get_name() == word;
+            const std::size_t d = edit_distance(word, sub->get_name());
+            if (d < best_distance) {
+                best_distance = d;
+                best = sub->get_name();
+            }
+        }
+        if (!known) {
+            fmt::print(stderr,
+                       "spangle: error: unknown command '{}'{}; the commands are render, "
+                       "plugins, inspect (spangle --help)\n",
+                       word, best.empty() ? "" : fmt::format(" (did you mean '{}'?)", best));
+            return 2;
+        }
+    }
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
@@ -579,6 +689,9 @@ int main(int argc, char** argv) {
         if (*render) return ra.watch ? run_watch(ra) : run_render(ra);
         if (*plugins) return run_plugins(plugin_dirs);
         if (*inspect) return run_inspect(inspect_path);
+    } catch (const UsageError& e) {
+        print_error(e.what());
+        return 2;
     } catch (const SpangleError& e) {
         print_error(e.what());
         return 1;

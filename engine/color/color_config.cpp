@@ -16,6 +16,7 @@ struct ColorConfig::Impl {
     OCIO::ConstConfigRcPtr config;
     std::string path;
     std::string working;
+    bool from_env = false;  ///< chosen through $OCIO
 };
 
 ColorConfig::ColorConfig(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -30,9 +31,11 @@ ColorConfig ColorConfig::clone() const {
 ColorConfig ColorConfig::load(const std::string& path, const std::vector<std::string>& fallbacks) {
     std::vector<std::string> tried;
     std::string chosen = path;
+    bool from_env = false;
     if (chosen.empty()) {
         if (const char* env = std::getenv("OCIO"); env && *env) {
             chosen = env;
+            from_env = true;
         } else {
             for (const auto& f : fallbacks) {
                 tried.push_back(f);
@@ -54,6 +57,7 @@ ColorConfig ColorConfig::load(const std::string& path, const std::vector<std::st
         throw_error("cannot load OpenColorIO config '{}': {}", chosen, e.what());
     }
     impl->path = chosen;
+    impl->from_env = from_env;
     ColorConfig cfg(std::move(impl));
     const char* scene_linear = cfg.impl_->config->getCanonicalName(OCIO::ROLE_SCENE_LINEAR);
     cfg.impl_->working = (scene_linear && *scene_linear) ? scene_linear : "";
@@ -73,6 +77,47 @@ std::optional<std::string> ColorConfig::canonical_name(const std::string& space)
     return std::string(name);
 }
 
+std::optional<ResolvedSpace> ColorConfig::resolve(const std::string& space) const {
+    if (auto name = canonical_name(space)) return ResolvedSpace{*name, ""};
+    // Spangle's own names, in a config that does not have them: common names for the same
+    // space, then the role that stands for that kind of space.
+    struct Fallback {
+        const char* name;
+        std::vector<const char*> aliases, roles;
+    };
+    static const std::vector<Fallback> fallbacks = {
+        {"ACEScg", {"ACES - ACEScg", "acescg", "ACES AP1"}, {"scene_linear", "rendering"}},
+        {"lin_rec709",
+         {"Linear Rec.709 (sRGB)", "Linear Rec.709", "Utility - Linear - sRGB", "lin_srgb",
+          "Linear"},
+         {"scene_linear", "rendering"}},
+        {"srgb_texture",
+         {"sRGB - Texture", "Utility - sRGB - Texture", "srgb_tx", "sRGB"},
+         {"color_picking", "texture_paint", "matte_paint"}},
+        {"raw", {"Raw", "Utility - Raw", "Non-Color"}, {"data"}},
+    };
+    for (const Fallback& f : fallbacks) {
+        if (space != f.name) continue;
+        for (const char* alias : f.aliases)
+            if (auto name = canonical_name(alias))
+                return ResolvedSpace{*name, fmt::format("its colour space '{}'", *name)};
+        for (const char* role : f.roles)
+            if (impl_->config->hasRole(role))
+                if (auto name = canonical_name(role))
+                    return ResolvedSpace{*name, fmt::format("its {} role, '{}'", role, *name)};
+    }
+    return std::nullopt;
+}
+
+std::string ColorConfig::how_to_fix() const {
+    if (impl_->from_env)
+        return fmt::format(
+            "the OpenColorIO config comes from $OCIO ('{}'): use a colour space "
+            "it has, or unset OCIO (or pass --ocio) to use Spangle's own config",
+            impl_->path);
+    return fmt::format("the OpenColorIO config is '{}': use a colour space it has", impl_->path);
+}
+
 std::vector<std::string> ColorConfig::space_names() const {
     std::vector<std::string> names;
     const int n = impl_->config->getNumColorSpaces();
@@ -81,11 +126,11 @@ std::vector<std::string> ColorConfig::space_names() const {
 }
 
 void ColorConfig::set_working_space(const std::string& space) {
-    auto name = canonical_name(space);
+    auto name = resolve(space);
     if (!name)
-        throw_error("unknown colour space '{}' in {} (known: {})", space, impl_->path,
-                    fmt::join(space_names(), ", "));
-    impl_->working = *name;
+        throw_error("unknown colour space '{}' (known: {}); {}", space,
+                    fmt::join(space_names(), ", "), how_to_fix());
+    impl_->working = name->name;
 }
 
 void ColorConfig::convert(const std::string& from, const std::string& to, float* rgb,

@@ -16,6 +16,12 @@ struct Chromaticities {
 };
 
 /** An OCIO config plus the chosen working space. Cheap to pass by reference; not copyable. */
+/** A colour space found in the config. */
+struct ResolvedSpace {
+    std::string name;  ///< canonical name in the config
+    std::string via;  ///< empty, or what stood in for a missing name ("its scene_linear role, ...")
+};
+
 class ColorConfig {
 public:
     /** Loads the config: `path` when non-empty, else $OCIO, else the first existing of
@@ -33,6 +39,13 @@ public:
     ColorConfig clone() const;
     /** Canonical name of a colour space (aliases resolved), or nullopt when unknown. */
     std::optional<std::string> canonical_name(const std::string& space) const;
+    /** Like canonical_name, but a name of Spangle's own config (ACEScg, lin_rec709,
+     *  srgb_texture, raw) missing from a foreign config falls back to a common name for the same
+     *  space, then to the role for that kind of space (scene_linear, color_picking, data...). */
+    std::optional<ResolvedSpace> resolve(const std::string& space) const;
+    /** What to do about an unknown colour space in this config (mentions $OCIO when the config
+     *  came from it). */
+    std::string how_to_fix() const;
     /** All colour space names, for error messages. */
     std::vector<std::string> space_names() const;
 

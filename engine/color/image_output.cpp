@@ -121,8 +121,8 @@ void remove_image_in_progress() noexcept {
         if (s.set.load()) ::unlink(s.path);
 }
 
-void write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
-               const ColorConfig& color, const ExrOptions& options) {
+std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
+                      const ColorConfig& color, const ExrOptions& options) {
     const auto& names = exr_compressions();
     // OIIO silently falls back to zip for an unknown name, so it is checked here.
     if (std::find(names.begin(), names.end(), options.compression) == names.end())
@@ -140,17 +140,23 @@ void write_exr(const std::string& path, const std::vector<float>& rgb, int width
     for (const auto& [key, value] : options.metadata) spec.attribute(key, value);
     if (!options.half) {
         write_atomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, rgb.data());
-        return;
+        return 0;
     }
     // Converted here, in parallel, rather than by OpenImageIO's one-value-at-a-time path (it was
     // most of the time of writing a pass).
     std::vector<Imath::half> halves(rgb.size());
+    std::atomic<std::size_t> overflow{0};
     tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rgb.size(), 1 << 16),
                       [&](const tbb::blocked_range<std::size_t>& r) {
-                          for (std::size_t i = r.begin(); i != r.end(); ++i)
+                          std::size_t over = 0;
+                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
                               halves[i] = Imath::half(rgb[i]);
+                              over += std::isfinite(rgb[i]) && halves[i].isInfinity() ? 1 : 0;
+                          }
+                          overflow += over;
                       });
     write_atomically(path, "openexr", spec, OIIO::TypeDesc::HALF, halves.data());
+    return overflow;
 }
 
 namespace {

@@ -3,6 +3,7 @@
 // preview. Both are written to a temporary file in the destination directory and renamed into
 // place, so a reader never sees a half-written image and a failed write leaves nothing behind.
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -26,9 +27,11 @@ void remove_image_in_progress() noexcept;
 /** Valid EXR compression names, for validation and messages. */
 const std::vector<std::string>& exr_compressions();
 
-/** Writes width x height RGB (working space) to `path` as EXR. Throws SpangleError. */
-void write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
-               const ColorConfig& color, const ExrOptions& options);
+/** Writes width x height RGB (working space) to `path` as EXR. Returns how many finite values
+ *  were beyond the half-float range (stored as +-Inf; 0 with options.half false). Throws
+ *  SpangleError. */
+std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
+                      const ColorConfig& color, const ExrOptions& options);
 
 /** PNG preview options. */
 struct PngOptions {

@@ -24,6 +24,23 @@ Cage load_cage(const std::string& path, const FileLoc& ref) {
         std::ifstream in(path);
         std::string line;
         for (int number = 1; std::getline(in, line); ++number) {
+            // tinyobjloader skips leading blanks: so does this check.
+            const std::size_t start = line.find_first_not_of(" \t");
+            if (start == std::string::npos) continue;
+            line.erase(0, start);
+            if (line.size() >= 2 && line[0] == 'f' && (line[1] == ' ' || line[1] == '\t')) {
+                // Its face sizes are bytes: a face of 256 or more corners would wrap silently.
+                std::istringstream corners(line.substr(2));
+                std::string corner;
+                std::size_t count = 0;
+                while (corners >> corner) ++count;
+                if (count > 255)
+                    throw_error(ref,
+                                "cage '{}': line {}: a face of {} corners; at most 255 are "
+                                "supported (split the face)",
+                                path, number, count);
+                continue;
+            }
             if (line.size() < 2 || line[0] != 'v' || (line[1] != ' ' && line[1] != '\t')) continue;
             std::istringstream fields(line.substr(2));
             std::string token;

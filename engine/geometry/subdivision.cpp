@@ -46,8 +46,9 @@ int level_for_camera(double longest, double distance, double pixel_angle, double
                      int max_level) {
     const double pixels = longest / (std::max(distance, 1e-6) * pixel_angle);
     if (!(pixels > budget)) return 0;
-    const int level = static_cast<int>(std::ceil(std::log2(pixels / budget)));
-    return std::clamp(level, 0, max_level);
+    const double level = std::ceil(std::log2(pixels / budget));
+    // Compared as a double: an infinite or huge ratio must not reach a cast to int.
+    return level >= max_level ? max_level : std::max(0, static_cast<int>(level));
 }
 
 double longest_edge(const Cage& cage, const Affine& xf) {

@@ -29,6 +29,7 @@ FrameResult render_frame(const FrameRequest& req) {
     ColorConfig color = ColorConfig::load(req.ocio_config, default_ocio_locations());
     ecs::Registry registry;
     SceneInfo info = load_scene(req.scene, color, registry);
+    for (const std::string& note : info.color_notes) req.log->warn("{}", note);
     if (req.on_loaded) req.on_loaded(color);
 
     PluginLoader plugins(plugin_search_path(req.plugin_dirs));

@@ -66,6 +66,7 @@ ReloadReport Session::load(const std::string& scene) {
     }
     auto cand = std::make_unique<ecs::Registry>();
     auto info = std::make_unique<SceneInfo>(load_scene(scene, *color, *cand));
+    for (const std::string& note : info->color_notes) log_.warn("{}", note);
     if (world_ && color->working_space() != color_->working_space()) {
         rep.changed.push_back("working space");
         full = true;

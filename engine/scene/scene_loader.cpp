@@ -1,5 +1,6 @@
 #include "scene/scene_loader.h"
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -20,19 +21,28 @@ constexpr Range kPositive{0.0, 1e30, true, false};
 
 /** Everything a section parser needs besides its table. */
 struct ParseContext {
-    std::string file;        ///< scene path as given
-    fs::path dir;            ///< directory for relative paths
-    ColorConfig* color;      ///< for conversion to the working space
-    std::string bare_space;  ///< colour space of bare [r, g, b] arrays
+    std::string file;                                 ///< scene path as given
+    fs::path dir;                                     ///< directory for relative paths
+    ColorConfig* color;                               ///< for conversion to the working space
+    std::string bare_space;                           ///< colour space of bare [r, g, b] arrays
+    std::vector<std::string>* color_notes = nullptr;  ///< stand-ins used (SceneInfo)
 };
 
 /** Resolves a colour space name or throws at `at` listing the known ones. */
-std::string resolve_space(const ParseContext& ctx, const std::string& name, const FileLoc& at) {
-    auto canonical = ctx.color->canonical_name(name);
-    if (!canonical)
-        throw_error(at, "unknown colour space '{}' (known: {})", name,
-                    fmt::join(ctx.color->space_names(), ", "));
-    return *canonical;
+std::string resolve_space(const ParseContext& ctx, const std::string& name, const FileLoc& at,
+                          const char* implicit = nullptr) {
+    auto resolved = ctx.color->resolve(name);
+    if (!resolved)
+        throw_error(at, "unknown {}colour space '{}' (known: {}); {}", implicit ? implicit : "",
+                    name, fmt::join(ctx.color->space_names(), ", "), ctx.color->how_to_fix());
+    if (!resolved->via.empty() && ctx.color_notes) {
+        const std::string note =
+            fmt::format("{}: {}colour space '{}' is not in the OCIO config '{}'; using {}",
+                        at.str(), implicit ? implicit : "", name, ctx.color->path(), resolved->via);
+        auto& notes = *ctx.color_notes;
+        if (std::find(notes.begin(), notes.end(), note) == notes.end()) notes.push_back(note);
+    }
+    return resolved->name;
 }
 
 /** A colour as written: raw numbers and the canonical space they are in. */
@@ -118,8 +128,16 @@ Affine parse_transform(TableReader& r) {
         } else {
             v = parse_vec3(*s, r.file(), "scale");
         }
-        if (v.x == 0.0f || v.y == 0.0f || v.z == 0.0f || !is_finite(v))
-            throw_error(loc_of(*s, r.file()), "'scale' must be non-zero in every axis");
+        // Rays are carried into object space by the inverse scale, in floats: beyond 1e8 either
+        // way they overflow or lose every bit of precision (1e-20 sent non-finite rays).
+        const auto in_range = [](float k) {
+            return std::isfinite(k) && std::fabs(k) >= 1e-8f && std::fabs(k) <= 1e8f;
+        };
+        if (!in_range(v.x) || !in_range(v.y) || !in_range(v.z))
+            throw_error(loc_of(*s, r.file()),
+                        "'scale' must be between 1e-8 and 1e8 in size in every axis, got [{}, {}, "
+                        "{}] (model in other units instead)",
+                        v.x, v.y, v.z);
         m = Affine::scale(v);
     }
     const Vec3 rot = r.vec3("rotate", {0, 0, 0});
@@ -238,7 +256,8 @@ SubdivSurface parse_subdiv(const ParseContext& ctx, const toml::table& t, std::s
         }
     }
     s.max_level = static_cast<int>(r.integer("max_level", 5, {0, 8}));
-    s.pixel_budget = static_cast<float>(r.number("pixel_budget", 2.0, {0.0, 1e6, true}));
+    // Below a thousandth of a pixel every edge would ask for the deepest level anyway.
+    s.pixel_budget = static_cast<float>(r.number("pixel_budget", 2.0, {1e-3, 1e6}));
     // creases = [[v0, v1, sharpness], ...], corners = [[v, sharpness], ...]
     const auto read_list = [&](const char* key, std::size_t width, auto&& take) {
         const toml::node* n = r.node(key);
@@ -257,9 +276,10 @@ SubdivSurface parse_subdiv(const ParseContext& ctx, const toml::table& t, std::s
                 v.push_back(x.value<double>().value_or(0.0));
             }
             for (std::size_t k = 0; k + 1 < width; ++k)
-                if (v[k] < 0 || v[k] != std::floor(v[k]))
+                if (!(v[k] >= 0 && v[k] <= 2147483647.0) || v[k] != std::floor(v[k]))
                     throw_error(loc_of(e, ctx.file),
-                                "'{}' vertex indices must be non-negative integers", key);
+                                "'{}' vertex indices must be integers in 0..2147483647, got {}",
+                                key, v[k]);
             if (!(v[width - 1] >= 0.0 && v[width - 1] <= 10.0))
                 throw_error(loc_of(e, ctx.file), "'{}' sharpness must be in [0, 10], got {}", key,
                             v[width - 1]);
@@ -358,11 +378,11 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                     "invalid TOML: {}", e.description());
     }
 
-    ParseContext ctx{path, fs::path(path).parent_path(), &color, {}};
-    TableReader top(root, path, "the scene");
-    top.set_whole_file();
     SceneInfo info;
     info.path = path;
+    ParseContext ctx{path, fs::path(path).parent_path(), &color, {}, &info.color_notes};
+    TableReader top(root, path, "the scene");
+    top.set_whole_file();
 
     const ecs::Entity settings = registry.create();
     {
@@ -372,10 +392,13 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
         if (r.has("working_space"))
             color.set_working_space(
                 resolve_space(ctx, r.string("working_space"), r.loc("working_space")));
-        if (color.working_space().empty()) color.set_working_space("ACEScg");
-        ctx.bare_space = r.has("color_space")
-                             ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
-                             : resolve_space(ctx, "lin_rec709", r.loc());
+        if (color.working_space().empty())
+            color.set_working_space(
+                resolve_space(ctx, "ACEScg", r.loc(), "default (no key written) working "));
+        ctx.bare_space =
+            r.has("color_space")
+                ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
+                : resolve_space(ctx, "lin_rec709", r.loc(), "default (no key written) ");
         registry.put(settings, parse_render(r));
         r.finish();
         info.working_space = color.working_space();
@@ -398,9 +421,10 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
             EnvironmentMapFile m;
             m.path = resolve_file(ctx, r, "map");
             m.loc = r.loc("map");
-            m.color_space = r.has("color_space")
-                                ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
-                                : resolve_space(ctx, "lin_rec709", r.loc());
+            m.color_space =
+                r.has("color_space")
+                    ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
+                    : resolve_space(ctx, "lin_rec709", r.loc(), "default (no key written) ");
             m.rotation_deg = static_cast<float>(r.number("rotation", 0.0, {-360.0, 360.0}));
             m.intensity = k;
             r.finish();

@@ -17,6 +17,9 @@ struct SceneInfo {
     std::string working_space;                ///< canonical OCIO name
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order
+    /** Colour spaces that stood in for names the config lacks ("file:line: 'ACEScg' is not in
+     *  the OCIO config; using its scene_linear role, ..."), for the caller to warn about. */
+    std::vector<std::string> color_notes;
 };
 
 /** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.

@@ -24,9 +24,11 @@ int host_convert(void* context, const char* from, float* rgb, uint32_t count, ch
     const auto* host = static_cast<const HostServices*>(context);
     try {
         if (!from) throw SpangleError("no source colour space given");
-        auto canonical = host->color().canonical_name(from);
-        if (!canonical) throw SpangleError(fmt::format("unknown colour space '{}'", from));
-        host->color().to_working(*canonical, rgb, count);
+        auto resolved = host->color().resolve(from);
+        if (!resolved)
+            throw SpangleError(
+                fmt::format("unknown colour space '{}'; {}", from, host->color().how_to_fix()));
+        host->color().to_working(resolved->name, rgb, count);
         return 0;
     } catch (const std::exception& e) {
         if (error && capacity > 0) {

@@ -1,0 +1,51 @@
+#!/usr/bin/env bash
+# Bad command lines and output paths are refused before any rendering, with the documented exit
+# status (2: the command line, 1: an input or output problem), one clear message, and no file
+# left behind. Before: --size 4294967312x16 rendered 16x16; a bad --size or --compression exited
+# 1; `-o same.exr --preview same.exr` replaced the EXR with a PNG and exited 0; a missing folder,
+# a folder as output or an unwritable place was found after the whole render; `spangle rendr`
+# said "A subcommand is required".
+#   bad_outputs.sh SPANGLE SCENE
+set -u
+S=$1 SCENE=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+# expect STATUS PATTERN ARGS...: runs spangle, checks the status and that stderr matches.
+expect() {
+    local want=$1 pattern=$2
+    shift 2
+    local start=$SECONDS
+    "$S" "$@" > "$T/out.txt" 2> "$T/err.txt"
+    local got=$?
+    [ "$got" = "$want" ] || fail "spangle $*: exit $got, expected $want; stderr: $(cat "$T/err.txt")"
+    grep -q -- "$pattern" "$T/err.txt" || fail "spangle $*: stderr lacks '$pattern': $(cat "$T/err.txt")"
+    grep -q "render:" "$T/err.txt" && fail "spangle $*: rendered before refusing"
+    [ $((SECONDS - start)) -le 5 ] || fail "spangle $*: took $((SECONDS - start)) s to refuse"
+    return 0
+}
+cd "$T"
+expect 2 "did you mean 'render'" rendr "$SCENE"
+expect 2 "unknown command 'frobnicate'" frobnicate
+expect 2 "WIDTHxHEIGHT" render "$SCENE" --size 4294967312x16
+expect 2 "WIDTHxHEIGHT" render "$SCENE" --size 16x
+expect 2 "WIDTHxHEIGHT" render "$SCENE" --size -16x16
+expect 2 "unknown EXR compression 'foo'" render "$SCENE" --compression foo
+expect 2 "must end in .exr" render "$SCENE" -o out.png
+expect 2 "same file" render "$SCENE" -o same.exr --preview same.exr
+mkdir sub
+expect 2 "same file" render "$SCENE" -o same.exr --preview ./sub/../same.exr
+expect 2 "PORT or ADDR:PORT" render "$SCENE" --serve 70000
+expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/out.exr"
+mkdir folder.exr
+expect 1 "it is a folder" render "$SCENE" -o folder.exr
+expect 1 "it is a folder" render "$SCENE" -o out.exr --preview folder.exr
+LONG=$(printf 'a%.0s' $(seq 1 300))
+expect 1 "file name is longer" render "$SCENE" -o "$LONG.exr"
+expect 1 "cannot create files in folder '/proc'" render "$SCENE" -o /proc/out.exr
+[ -z "$(ls -A "$T" | grep -v -e out.txt -e err.txt -e folder.exr -e "^sub$")" ] ||
+    fail "files left behind: $(ls -A "$T")"
+# And a good command line still renders.
+"$S" render "$SCENE" -o good.exr -q || fail "a good render failed"
+[ -s good.exr ] && [ -s good.png ] || fail "the good render wrote no images"
+echo "PASS"
