@@ -12,8 +12,10 @@ namespace spangle {
 
 Cage load_cage(const std::string& path, const FileLoc& ref) {
     std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) throw_error(ref, "cage file '{}' not found", path);
     if (!std::filesystem::is_regular_file(path, ec))
-        throw_error(ref, "cage file '{}' not found", path);
+        throw_error(ref, "cage file '{}' is not a regular file (a folder, a device or a pipe)",
+                    path);
     const std::string ext = std::filesystem::path(path).extension().string();
     if (ext != ".obj" && ext != ".OBJ")
         throw_error(ref, "cage file '{}' has extension '{}'; subdivision cages are read from .obj",

@@ -1,5 +1,7 @@
 #include "geometry/mesh_load.h"
 
+#include "geometry/ply_reader.h"
+
 #include <assimp/postprocess.h>
 #include <assimp/scene.h>
 #include <assimp/Importer.hpp>
@@ -35,10 +37,18 @@ void append_mesh(const aiMesh& m, TriangleMesh& out, bool want_normals, bool wan
 TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
     namespace fs = std::filesystem;
     std::error_code ec;
-    if (!fs::is_regular_file(path, ec)) throw_error(ref, "mesh file '{}' not found", path);
+    if (!fs::exists(path, ec)) throw_error(ref, "mesh file '{}' not found", path);
+    if (!fs::is_regular_file(path, ec))
+        throw_error(ref, "mesh file '{}' is not a regular file (a folder, a device or a pipe)",
+                    path);
     const std::string ext = fs::path(path).extension().string();
     if (ext != ".obj" && ext != ".OBJ" && ext != ".ply" && ext != ".PLY")
         throw_error(ref, "mesh file '{}' has extension '{}'; expected .obj or .ply", path, ext);
+    if (ext == ".ply" || ext == ".PLY") {
+        TriangleMesh mesh = read_ply(path, ref);
+        validate_mesh(mesh, ref);
+        return mesh;
+    }
 
     Assimp::Importer importer;
     // Drop what Spangle does not use, so assimp neither computes nor checks it.

@@ -51,6 +51,51 @@ TEST(MeshLoad, AsciiPlyAndQuadsAreTriangulated) {
     EXPECT_EQ(o.uvs.size() / 2, o.vertex_count());
 }
 
+TEST(MeshLoad, BigEndianPlyWithOtherElementsAndTypes) {
+    // Spangle's own PLY reader: big-endian doubles, s/t uvs, an element it does not use (read
+    // through, not misread as data of the next), a non-list face property, a ushort count.
+    test::TempDir dir("mesh_big_endian");
+    std::string data =
+        "ply\r\nformat binary_big_endian 1.0\r\ncomment made by hand\r\n"
+        "element material 2\r\nproperty uchar red\r\nproperty list uchar float weights\r\n"
+        "element vertex 3\r\nproperty double x\r\nproperty double y\r\nproperty double z\r\n"
+        "property float s\r\nproperty float t\r\n"
+        "element face 1\r\nproperty int flags\r\nproperty list ushort uint vertex_indices\r\n"
+        "end_header\r\n";
+    const auto put = [&](const void* p, std::size_t n) {
+        const auto* b = static_cast<const unsigned char*>(p);
+        for (std::size_t i = 0; i < n; ++i) data.push_back(static_cast<char>(b[n - 1 - i]));
+    };
+    for (int m = 0; m < 2; ++m) {  // material: red, 2 weights
+        data.push_back(static_cast<char>(200));
+        data.push_back(2);
+        const float w = 0.5f;
+        put(&w, 4);
+        put(&w, 4);
+    }
+    const double xyz[3][3] = {{0, 0, 0}, {2, 0, 0}, {0, 3, 0}};
+    for (int v = 0; v < 3; ++v) {
+        for (double c : xyz[v]) put(&c, 8);
+        const float st[2] = {0.25f * static_cast<float>(v), 0.5f};
+        put(&st[0], 4);
+        put(&st[1], 4);
+    }
+    const int32_t flags = 7;
+    put(&flags, 4);
+    const uint16_t n = 3;
+    put(&n, 2);
+    for (uint32_t i : {0u, 1u, 2u}) put(&i, 4);
+    std::ofstream(dir.file("be.ply"), std::ios::binary) << data;
+    const TriangleMesh m = load_mesh(dir.file("be.ply"), {});
+    ASSERT_EQ(m.vertex_count(), 3u);
+    ASSERT_EQ(m.triangle_count(), 1u);
+    EXPECT_FLOAT_EQ(m.positions[3], 2.0f);
+    EXPECT_FLOAT_EQ(m.positions[7], 3.0f);
+    ASSERT_EQ(m.uvs.size(), 6u);
+    EXPECT_FLOAT_EQ(m.uvs[4], 0.5f);
+    EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2}));
+}
+
 TEST(MeshLoad, ErrorsNameTheSceneLineAndTheFile) {
     const FileLoc ref{"scene.toml", 12, 8};
     try {

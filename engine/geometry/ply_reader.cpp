@@ -1,0 +1,353 @@
+#include "geometry/ply_reader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
+#include <fstream>
+#include <optional>
+#include <sstream>
+#include <vector>
+
+namespace spangle {
+namespace {
+
+enum class Type { Int8, UInt8, Int16, UInt16, Int32, UInt32, Float32, Float64 };
+enum class Format { Ascii, BinaryLittle, BinaryBig };
+
+std::optional<Type> parse_type(const std::string& t) {
+    if (t == "char" || t == "int8") return Type::Int8;
+    if (t == "uchar" || t == "uint8") return Type::UInt8;
+    if (t == "short" || t == "int16") return Type::Int16;
+    if (t == "ushort" || t == "uint16") return Type::UInt16;
+    if (t == "int" || t == "int32") return Type::Int32;
+    if (t == "uint" || t == "uint32") return Type::UInt32;
+    if (t == "float" || t == "float32") return Type::Float32;
+    if (t == "double" || t == "float64") return Type::Float64;
+    return std::nullopt;
+}
+
+std::size_t size_of(Type t) {
+    switch (t) {
+        case Type::Int8:
+        case Type::UInt8:
+            return 1;
+        case Type::Int16:
+        case Type::UInt16:
+            return 2;
+        case Type::Int32:
+        case Type::UInt32:
+        case Type::Float32:
+            return 4;
+        case Type::Float64:
+            return 8;
+    }
+    return 8;
+}
+
+struct Property {
+    std::string name;
+    Type type = Type::Float32;
+    bool list = false;
+    Type count_type = Type::UInt8;
+};
+
+struct Element {
+    std::string name;
+    uint64_t count = 0;
+    std::vector<Property> props;
+};
+
+/** The data after the header: binary values or ASCII tokens, every read bounded. */
+class Reader {
+public:
+    Reader(const std::string& data, std::size_t pos, Format format, const std::string& path,
+           const FileLoc& ref)
+        : data_(data), pos_(pos), format_(format), path_(path), ref_(ref) {}
+
+    std::size_t remaining() const { return data_.size() - pos_; }
+
+    double read(Type t, const char* what) {
+        if (format_ == Format::Ascii) return read_ascii(t, what);
+        const std::size_t n = size_of(t);
+        if (remaining() < n)
+            throw_error(ref_, "mesh '{}' ends early, in {} (the header promised more data)", path_,
+                        what);
+        unsigned char b[8];
+        std::memcpy(b, data_.data() + pos_, n);
+        pos_ += n;
+        if (format_ == Format::BinaryBig) std::reverse(b, b + n);
+        switch (t) {
+            case Type::Int8:
+                return static_cast<double>(static_cast<int8_t>(b[0]));
+            case Type::UInt8:
+                return static_cast<double>(b[0]);
+            case Type::Int16:
+                return static_cast<double>(load<int16_t>(b));
+            case Type::UInt16:
+                return static_cast<double>(load<uint16_t>(b));
+            case Type::Int32:
+                return static_cast<double>(load<int32_t>(b));
+            case Type::UInt32:
+                return static_cast<double>(load<uint32_t>(b));
+            case Type::Float32:
+                return static_cast<double>(load<float>(b));
+            case Type::Float64:
+                return load<double>(b);
+        }
+        return 0.0;
+    }
+
+private:
+    template <class T>
+    static T load(const unsigned char* b) {
+        T v;
+        std::memcpy(&v, b, sizeof(T));
+        return v;
+    }
+
+    double read_ascii(Type t, const char* what) {
+        while (pos_ < data_.size() && std::isspace(static_cast<unsigned char>(data_[pos_]))) ++pos_;
+        const std::size_t start = pos_;
+        while (pos_ < data_.size() && !std::isspace(static_cast<unsigned char>(data_[pos_])))
+            ++pos_;
+        if (pos_ == start)
+            throw_error(ref_, "mesh '{}' ends early, in {} (the header promised more data)", path_,
+                        what);
+        const std::string token = data_.substr(start, std::min<std::size_t>(pos_ - start, 64));
+        char* end = nullptr;
+        const double v = std::strtod(token.c_str(), &end);
+        if (end != token.c_str() + token.size() || pos_ - start > 64)
+            throw_error(ref_, "mesh '{}': '{}' in {} is not a number", path_, token, what);
+        const bool integer = t != Type::Float32 && t != Type::Float64;
+        if (integer && v != std::floor(v))
+            throw_error(ref_, "mesh '{}': '{}' in {} is not an integer", path_, token, what);
+        return v;
+    }
+
+    const std::string& data_;
+    std::size_t pos_;
+    Format format_;
+    const std::string& path_;
+    const FileLoc& ref_;
+};
+
+}  // namespace
+
+TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw_error(ref, "cannot read mesh '{}'", path);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    const std::string data = ss.str();
+
+    // The header: text lines up to "end_header".
+    if (data.compare(0, 4, "ply\n") != 0 && data.compare(0, 5, "ply\r\n") != 0)
+        throw_error(ref, "mesh '{}' is not a PLY file (it does not start with 'ply')", path);
+    std::optional<Format> format;
+    std::vector<Element> elements;
+    std::size_t pos = data.find('\n') + 1;
+    bool ended = false;
+    for (int line_no = 2; pos < data.size(); ++line_no) {
+        const std::size_t eol = data.find('\n', pos);
+        if (eol == std::string::npos) break;
+        std::string line = data.substr(pos, eol - pos);
+        pos = eol + 1;
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        std::istringstream words(line);
+        std::string key;
+        words >> key;
+        const auto bad = [&](const std::string& why) {
+            throw_error(ref, "mesh '{}': header line {}: {}", path, line_no, why);
+        };
+        if (key == "end_header") {
+            ended = true;
+            break;
+        }
+        if (key.empty() || key == "comment" || key == "obj_info") continue;
+        if (key == "format") {
+            std::string f, version;
+            words >> f >> version;
+            if (f == "ascii")
+                format = Format::Ascii;
+            else if (f == "binary_little_endian")
+                format = Format::BinaryLittle;
+            else if (f == "binary_big_endian")
+                format = Format::BinaryBig;
+            else
+                bad(fmt::format("unknown format '{}'", f));
+        } else if (key == "element") {
+            Element e;
+            std::string count;
+            words >> e.name >> count;
+            if (e.name.empty() || count.empty() ||
+                count.find_first_not_of("0123456789") != std::string::npos || count.size() > 18)
+                bad(fmt::format("'element' needs a name and a count, got '{}'", line));
+            e.count = std::stoull(count);
+            elements.push_back(e);
+        } else if (key == "property") {
+            if (elements.empty()) bad("a property before any element");
+            Property p;
+            std::string type;
+            words >> type;
+            if (type == "list") {
+                std::string count_type, item_type;
+                words >> count_type >> item_type >> p.name;
+                const auto ct = parse_type(count_type), it = parse_type(item_type);
+                if (!ct || !it || p.name.empty())
+                    bad(fmt::format("malformed list property '{}'", line));
+                if (*ct == Type::Float32 || *ct == Type::Float64)
+                    bad("a list count must be an integer type");
+                p.list = true;
+                p.count_type = *ct;
+                p.type = *it;
+            } else {
+                words >> p.name;
+                const auto t = parse_type(type);
+                if (!t || p.name.empty()) bad(fmt::format("malformed property '{}'", line));
+                p.type = *t;
+            }
+            elements.back().props.push_back(p);
+        } else {
+            bad(fmt::format("unknown keyword '{}'", key));
+        }
+    }
+    if (!ended)
+        throw_error(ref, "mesh '{}' has no 'end_header' line (a truncated or damaged file)", path);
+    if (!format) throw_error(ref, "mesh '{}' has no 'format' line in its header", path);
+
+    // Every element takes at least this many bytes: what the header claims must fit the file.
+    Reader reader(data, pos, *format, path, ref);
+    {
+        long double need = 0.0L;
+        for (const Element& e : elements) {
+            std::size_t each = 0;
+            for (const Property& p : e.props)
+                each += *format == Format::Ascii ? 2 : size_of(p.list ? p.count_type : p.type);
+            need += static_cast<long double>(e.count) * static_cast<long double>(each);
+        }
+        if (need > static_cast<long double>(reader.remaining()) + 1.0L)
+            throw_error(
+                ref,
+                "mesh '{}': its header claims {} but only {} bytes of data follow (a "
+                "truncated or damaged file)",
+                path,
+                [&] {
+                    std::string s;
+                    for (const Element& e : elements)
+                        s += (s.empty() ? "" : ", ") + fmt::format("{} {}", e.count, e.name);
+                    return s;
+                }(),
+                reader.remaining());
+    }
+
+    TriangleMesh mesh;
+    mesh.source = path;
+    bool have_vertices = false, have_faces = false;
+    for (const Element& e : elements) {
+        const auto find = [&](std::initializer_list<const char*> names) -> int {
+            for (const char* n : names)
+                for (std::size_t k = 0; k < e.props.size(); ++k)
+                    if (e.props[k].name == n && !e.props[k].list) return static_cast<int>(k);
+            return -1;
+        };
+        if (e.name == "vertex" && !have_vertices) {
+            have_vertices = true;
+            const int x = find({"x"}), y = find({"y"}), z = find({"z"});
+            if (x < 0 || y < 0 || z < 0)
+                throw_error(ref, "mesh '{}': its vertices have no x, y, z properties", path);
+            const int nx = find({"nx"}), ny = find({"ny"}), nz = find({"nz"});
+            const int u = find({"u", "s", "texture_u", "texture_s"});
+            const int v = find({"v", "t", "texture_v", "texture_t"});
+            const bool normals = nx >= 0 && ny >= 0 && nz >= 0, uvs = u >= 0 && v >= 0;
+            mesh.positions.reserve(3 * e.count);
+            if (normals) mesh.normals.reserve(3 * e.count);
+            if (uvs) mesh.uvs.reserve(2 * e.count);
+            std::vector<double> values(e.props.size());
+            for (uint64_t i = 0; i < e.count; ++i) {
+                for (std::size_t k = 0; k < e.props.size(); ++k) {
+                    const Property& p = e.props[k];
+                    if (!p.list) {
+                        values[k] = reader.read(p.type, "the vertices");
+                        continue;
+                    }
+                    const double n = reader.read(p.count_type, "the vertices");
+                    if (n < 0 || n > static_cast<double>(reader.remaining()))
+                        throw_error(ref,
+                                    "mesh '{}': a vertex list of {} items does not fit the "
+                                    "file",
+                                    path, n);
+                    for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j)
+                        reader.read(p.type, "the vertices");
+                }
+                const auto f = [&](int k) { return static_cast<float>(values[k]); };
+                mesh.positions.insert(mesh.positions.end(), {f(x), f(y), f(z)});
+                if (normals) mesh.normals.insert(mesh.normals.end(), {f(nx), f(ny), f(nz)});
+                if (uvs) mesh.uvs.insert(mesh.uvs.end(), {f(u), f(v)});
+            }
+        } else if (e.name == "face" && !have_faces) {
+            have_faces = true;
+            int list = -1;
+            for (std::size_t k = 0; k < e.props.size(); ++k)
+                if (e.props[k].list &&
+                    (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index"))
+                    list = static_cast<int>(k);
+            if (list < 0)
+                throw_error(ref, "mesh '{}': its faces have no vertex_indices list", path);
+            mesh.indices.reserve(3 * e.count);
+            std::vector<uint32_t> corners;
+            for (uint64_t i = 0; i < e.count; ++i) {
+                for (std::size_t k = 0; k < e.props.size(); ++k) {
+                    const Property& p = e.props[k];
+                    if (!p.list) {
+                        reader.read(p.type, "the faces");
+                        continue;
+                    }
+                    const double n = reader.read(p.count_type, "the faces");
+                    const double fit = static_cast<double>(reader.remaining()) /
+                                       (*format == Format::Ascii ? 2.0 : 1.0);
+                    if (n < 0 || n > fit)
+                        throw_error(ref,
+                                    "mesh '{}': face {} claims {} corners, more than the "
+                                    "file holds",
+                                    path, i, n);
+                    if (static_cast<int>(k) != list) {
+                        for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j)
+                            reader.read(p.type, "the faces");
+                        continue;
+                    }
+                    if (n < 3)
+                        throw_error(ref,
+                                    "mesh '{}': face {} has {} corners; a face needs 3 or more",
+                                    path, i, n);
+                    corners.clear();
+                    for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j) {
+                        const double c = reader.read(p.type, "the faces");
+                        if (!(c >= 0 && c < 4294967295.0) || c != std::floor(c))
+                            throw_error(ref, "mesh '{}': face {} has corner index {}", path, i, c);
+                        corners.push_back(static_cast<uint32_t>(c));
+                    }
+                    for (std::size_t j = 1; j + 1 < corners.size(); ++j)
+                        mesh.indices.insert(mesh.indices.end(),
+                                            {corners[0], corners[j], corners[j + 1]});
+                }
+            }
+        } else {
+            // Skipped, but read through: its data lies before later elements'.
+            for (uint64_t i = 0; i < e.count; ++i)
+                for (const Property& p : e.props) {
+                    const double n = p.list ? reader.read(p.count_type, "an element") : 1.0;
+                    if (n < 0 || n > static_cast<double>(reader.remaining()))
+                        throw_error(ref, "mesh '{}': a list of {} items does not fit the file",
+                                    path, n);
+                    for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j)
+                        reader.read(p.type, "an element");
+                }
+        }
+    }
+    if (!have_vertices) throw_error(ref, "mesh '{}' has no vertex element", path);
+    if (!have_faces) throw_error(ref, "mesh '{}' has no face element", path);
+    return mesh;
+}
+
+}  // namespace spangle

@@ -1,0 +1,19 @@
+#pragma once
+// Spangle's own PLY reader (ASCII and binary, either byte order). Every count the header claims
+// is checked against the bytes the file has before anything is allocated, and every read is
+// bounded, so a malformed or truncated file is an error with a reason, never a crash, a hang or a
+// huge allocation (the general-purpose importer used before had all three).
+
+#include <string>
+
+#include "core/error.h"
+#include "geometry/triangle_mesh.h"
+
+namespace spangle {
+
+/** Reads the vertex positions (x, y, z), normals (nx, ny, nz) and uvs (u, v or s, t) and the
+ *  faces (vertex_indices, fan-triangulated) of a PLY file. Other elements and properties are
+ *  skipped. Throws SpangleError at `ref` naming the file and what is wrong. */
+TriangleMesh read_ply(const std::string& path, const FileLoc& ref);
+
+}  // namespace spangle
