@@ -5,11 +5,14 @@
 #include "core/files.h"
 
 #include <dlfcn.h>
+#include <elf.h>
 
 #include <algorithm>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <set>
 
 namespace fs = std::filesystem;
@@ -86,11 +89,65 @@ std::string table_problem(const SpangleMaterialPlugin_v2& t) {
     return {};
 }
 
+/** Checks a library before dlopen maps it: a regular file (a pipe hangs dlopen), an ELF file
+ *  for this machine, with every segment the loader maps lying inside the file (a truncated
+ *  library is mapped past its end and dies with SIGBUS on first touch). Throws SpangleError. */
+void check_library_file(const std::string& path) {
+    std::error_code ec;
+    if (!fs::is_regular_file(path, ec))
+        throw_error("plugin '{}' is not a regular file (a folder, a device or a pipe)", path);
+    const auto size = static_cast<uint64_t>(fs::file_size(path, ec));
+    std::ifstream in(path, std::ios::binary);
+    Elf64_Ehdr eh{};
+    if (ec || !in.read(reinterpret_cast<char*>(&eh), sizeof(eh)) ||
+        std::memcmp(eh.e_ident, ELFMAG, SELFMAG) != 0)
+        throw_error("plugin '{}' is not a shared library (no ELF header)", path);
+    if (eh.e_ident[EI_CLASS] != ELFCLASS64 || eh.e_machine != EM_X86_64 || eh.e_type != ET_DYN)
+        throw_error("plugin '{}' is not a 64-bit x86-64 shared library", path);
+    if (eh.e_phentsize != sizeof(Elf64_Phdr) || eh.e_phoff > size ||
+        static_cast<uint64_t>(eh.e_phnum) * sizeof(Elf64_Phdr) > size - eh.e_phoff)
+        throw_error("plugin '{}' is damaged: its program headers lie outside the file", path);
+    // The section headers come last: a file cut short anywhere (a copy still being written)
+    // loses them, even when the mapped segments happen to be whole.
+    if (eh.e_shoff > size || static_cast<uint64_t>(eh.e_shnum) * eh.e_shentsize > size - eh.e_shoff)
+        throw_error(
+            "plugin '{}' is truncated: its section headers end at byte {}, the file "
+            "has {} (rebuild or copy it again)",
+            path, eh.e_shoff + static_cast<uint64_t>(eh.e_shnum) * eh.e_shentsize, size);
+    in.seekg(static_cast<std::streamoff>(eh.e_phoff));
+    for (int i = 0; i < eh.e_phnum; ++i) {
+        Elf64_Phdr ph{};
+        if (!in.read(reinterpret_cast<char*>(&ph), sizeof(ph)))
+            throw_error("plugin '{}' is damaged: cannot read its program headers", path);
+        if (ph.p_type == PT_LOAD && (ph.p_offset > size || ph.p_filesz > size - ph.p_offset))
+            throw_error(
+                "plugin '{}' is truncated: a segment needs {} bytes, the file has {} "
+                "(rebuild or copy it again)",
+                path, ph.p_offset + ph.p_filesz, size);
+    }
+}
+
+/** Whether `address` lies in an executable mapping of this process (a symbol exported as data
+ *  and called as a function would crash). */
+bool in_executable_mapping(const void* address) {
+    const auto a = reinterpret_cast<uintptr_t>(address);
+    std::ifstream maps("/proc/self/maps");
+    std::string line;
+    while (std::getline(maps, line)) {
+        unsigned long lo = 0, hi = 0;
+        char perms[5] = {};
+        if (std::sscanf(line.c_str(), "%lx-%lx %4s", &lo, &hi, perms) != 3) continue;
+        if (a >= lo && a < hi) return perms[2] == 'x';
+    }
+    return false;
+}
+
 }  // namespace
 
 std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
                                                       const std::string& expected_name,
                                                       const std::string& shown_path) {
+    check_library_file(path);
     dlerror();
     void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
     if (!handle) {
@@ -106,6 +163,9 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
         throw_error("'{}' is not a Spangle plugin: it has no entry point '{}' ({})", path,
                     SPANGLE_MATERIAL_ENTRY_POINT, why ? why : "symbol is null");
     }
+    if (!in_executable_mapping(sym))
+        throw_error("'{}' is not a Spangle plugin: its '{}' is data, not a function", path,
+                    SPANGLE_MATERIAL_ENTRY_POINT);
     SpangleMaterialEntry_v2 entry;
     static_assert(sizeof(entry) == sizeof(sym));
     std::memcpy(&entry, &sym, sizeof(entry));
@@ -192,6 +252,7 @@ std::vector<std::string> PluginLoader::discover() const {
         for (const auto& p : files) {
             const std::string f = p.filename().string();
             if (f.rfind("libspangle_", 0) != 0 || p.extension() != ".so") continue;
+
             if (names.insert(f).second) found.push_back(p.string());
         }
     }

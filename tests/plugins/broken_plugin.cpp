@@ -49,7 +49,10 @@ const SpangleMaterialPlugin_v2 kPlugin = {
 
 }  // namespace
 
-#if !defined(BROKEN_NOENTRY)
+#if defined(BROKEN_DATAENTRY)
+// The entry point's name exported as data: calling it would jump into the plugin table.
+extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v2 spangle_material_plugin = kPlugin;
+#elif !defined(BROKEN_NOENTRY)
 extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v2* spangle_material_plugin(uint32_t) {
 #if defined(BROKEN_REFUSES)
     return nullptr;

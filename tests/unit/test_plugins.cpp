@@ -1,4 +1,5 @@
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -90,8 +91,32 @@ TEST(PluginLoader, GarbageFileIsNotALibrary) {
     std::ofstream(dir.file("libspangle_garbage.so")) << "not an ELF file\n";
     PluginLoader loader({dir.path().string()});
     const std::string msg = error_of([&] { loader.open("garbage", {}); });
-    EXPECT_HAS(msg, "cannot open plugin");
+    EXPECT_HAS(msg, "is not a shared library (no ELF header)");
     EXPECT_HAS(msg, "libspangle_garbage.so");
+}
+
+TEST(PluginLoader, PipeTruncatedLibraryAndDataEntryAreRefusedSafely) {
+    // Before: a named pipe hung dlopen, a truncated library died with SIGBUS, an entry point
+    // exported as data was called and crashed.
+    test::TempDir dir("unsafe_plugins");
+    const std::string pipe = dir.file("libspangle_pipe.so");
+    ASSERT_EQ(::mkfifo(pipe.c_str(), 0600), 0);
+    EXPECT_HAS(error_of([&] { PluginLoader::open_file(pipe, "pipe"); }),
+               "is not a regular file (a folder, a device or a pipe)");
+    PluginLoader loader({dir.path().string()});
+    EXPECT_HAS(error_of([&] { loader.open("pipe", {}); }), "is not a regular file");
+
+    const std::string whole = broken("misnamed");
+    const auto size = fs::file_size(whole);
+    for (const double keep : {0.3, 0.6, 0.9}) {
+        const std::string cut = dir.file("libspangle_cut.so");
+        fs::copy_file(whole, cut, fs::copy_options::overwrite_existing);
+        fs::resize_file(cut, static_cast<std::uintmax_t>(keep * static_cast<double>(size)));
+        SCOPED_TRACE(keep);
+        EXPECT_HAS(error_of([&] { PluginLoader::open_file(cut, "cut"); }), "is truncated");
+    }
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("dataentry"), "dataentry"); }),
+               "its 'spangle_material_plugin' is data, not a function");
 }
 
 TEST(PluginLoader, SearchOrderCliThenEnvironmentThenBinary) {
