@@ -13,6 +13,7 @@
 #include <condition_variable>
 #include <cstring>
 #include <filesystem>
+#include <functional>
 #include <mutex>
 #include <system_error>
 
@@ -87,9 +88,15 @@ std::string temp_path_for(const std::string& path) {
         .string();
 }
 
-/** Writes pixels with `format` to a temporary file, then renames it onto `path`. */
+/** Rows written per strip: images are converted and written a strip at a time, so writing
+ *  needs a strip's worth of memory beside the film, not a converted copy of the whole image. */
+constexpr int kStripRows = 256;
+
+/** Opens a temporary file beside `path` with `format`, lets write_pixels fill it (it returns
+ *  false on an OpenImageIO error), closes it, checks it is not empty, and renames it onto
+ *  `path`. Anything that fails removes the temporary file and throws SpangleError. */
 void write_atomically(const std::string& path, const char* format, const OIIO::ImageSpec& spec,
-                      OIIO::TypeDesc pixel_type, const void* pixels) {
+                      const std::function<bool(OIIO::ImageOutput&)>& write_pixels) {
     const fs::path dir = fs::path(path).parent_path();
     if (!dir.empty() && !fs::is_directory(dir))
         throw_error("cannot write '{}': directory '{}' does not exist", path, dir.string());
@@ -97,16 +104,20 @@ void write_atomically(const std::string& path, const char* format, const OIIO::I
     const InProgressSlot slot(tmp);
     auto out = OIIO::ImageOutput::create(format);
     if (!out) throw_error("cannot write '{}': {}", path, OIIO::geterror());
-    bool ok = out->open(tmp, spec) && out->write_image(pixel_type, pixels) && out->close();
+    bool ok = out->open(tmp, spec) && write_pixels(*out) && out->close();
+    std::error_code ec;
     if (!ok) {
         const std::string why = out->geterror();
         out.reset();
-        std::error_code ec;
         fs::remove(tmp, ec);
         throw_error("cannot write '{}': {}", path, why.empty() ? "unknown OpenImageIO error" : why);
     }
     out.reset();
-    std::error_code ec;
+    // A full disk can let every call succeed and still leave nothing: never rename that in.
+    if (fs::file_size(tmp, ec) == 0 || ec) {
+        fs::remove(tmp, ec);
+        throw_error("cannot write '{}': the file came out empty (is the disk full?)", path);
+    }
     fs::rename(tmp, path, ec);
     if (ec) {
         fs::remove(tmp, ec);
@@ -138,32 +149,42 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
         spec.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), c->xy.data());
     spec.attribute("Software", "Spangle");
     for (const auto& [key, value] : options.metadata) spec.attribute(key, value);
-    if (!options.half) {
-        write_atomically(path, "openexr", spec, OIIO::TypeDesc::FLOAT, rgb.data());
-        return 0;
-    }
-    // Converted here, in parallel, rather than by OpenImageIO's one-value-at-a-time path (it was
-    // most of the time of writing a pass).
-    std::vector<Imath::half> halves(rgb.size());
     std::atomic<std::size_t> overflow{0};
-    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, rgb.size(), 1 << 16),
-                      [&](const tbb::blocked_range<std::size_t>& r) {
-                          std::size_t over = 0;
-                          for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                              halves[i] = Imath::half(rgb[i]);
-                              over += std::isfinite(rgb[i]) && halves[i].isInfinity() ? 1 : 0;
-                          }
-                          overflow += over;
-                      });
-    write_atomically(path, "openexr", spec, OIIO::TypeDesc::HALF, halves.data());
+    const auto w = static_cast<std::size_t>(width);
+    write_atomically(path, "openexr", spec, [&](OIIO::ImageOutput& out) {
+        std::vector<Imath::half> halves;
+        for (int y0 = 0; y0 < height; y0 += kStripRows) {
+            const int y1 = std::min(height, y0 + kStripRows);
+            const float* rows = rgb.data() + static_cast<std::size_t>(y0) * w * 3;
+            if (!options.half) {
+                if (!out.write_scanlines(y0, y1, 0, OIIO::TypeDesc::FLOAT, rows)) return false;
+                continue;
+            }
+            // Converted here, in parallel, rather than by OpenImageIO one value at a time.
+            halves.resize(static_cast<std::size_t>(y1 - y0) * w * 3);
+            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, halves.size(), 1 << 16),
+                              [&](const tbb::blocked_range<std::size_t>& r) {
+                                  std::size_t over = 0;
+                                  for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                                      halves[i] = Imath::half(rows[i]);
+                                      over += std::isfinite(rows[i]) && halves[i].isInfinity();
+                                  }
+                                  overflow += over;
+                              });
+            if (!out.write_scanlines(y0, y1, 0, OIIO::TypeDesc::HALF, halves.data())) return false;
+        }
+        return true;
+    });
     return overflow;
 }
 
 namespace {
 
-/** 8-bit display values of the image through the config's default display and view. */
+/** 8-bit display values of rows [row0, row1) of the image (row0 a multiple of the block)
+ *  through the config's default display and view. */
 std::vector<unsigned char> display_bytes(const std::vector<float>& rgb, int width, int height,
-                                         const ColorConfig& color, uint32_t block_size) {
+                                         int row0, int row1, const ColorConfig& color,
+                                         uint32_t block_size) {
     const std::string disp = color.default_display();
     const std::string view = color.default_view(disp);
     const auto w = static_cast<std::size_t>(width);
@@ -172,10 +193,11 @@ std::vector<unsigned char> display_bytes(const std::vector<float>& rgb, int widt
     // pixel and a band's floats, not a float copy of the whole image. Block-constant images
     // (preview passes) convert one pixel per block.
     const std::size_t band = std::max<std::size_t>(block, (32 / block) * block);
-    const auto bands = (static_cast<std::size_t>(height) + band - 1) / band;
-    std::vector<unsigned char> bytes(rgb.size());
+    const auto first = static_cast<std::size_t>(row0), last = static_cast<std::size_t>(row1);
+    const auto bands = (last - first + band - 1) / band;
+    std::vector<unsigned char> bytes((last - first) * w * 3);
     tbb::parallel_for(std::size_t{0}, bands, [&](std::size_t b) {
-        const std::size_t y0 = b * band, y1 = std::min(y0 + band, static_cast<std::size_t>(height));
+        const std::size_t y0 = first + b * band, y1 = std::min(y0 + band, last);
         std::vector<float> buf;
         std::vector<std::size_t> from;  // source pixel of each converted value
         for (std::size_t y = y0; y < y1; y += block) {
@@ -195,7 +217,7 @@ std::vector<unsigned char> display_bytes(const std::vector<float>& rgb, int widt
             for (std::size_t x = 0; x < w; ++x) {
                 const float* v = &buf[3 * (row * blocks_x + x / block)];
                 for (std::size_t c = 0; c < 3; ++c)
-                    bytes[3 * (y * w + x) + c] =
+                    bytes[3 * ((y - first) * w + x) + c] =
                         static_cast<unsigned char>(std::lround(v[c] * 255.0f));
             }
         }
@@ -214,16 +236,21 @@ OIIO::ImageSpec png_spec(int width, int height, const PngOptions& options) {
 
 void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,
                        int height, const ColorConfig& color, const PngOptions& options) {
-    const std::vector<unsigned char> bytes =
-        display_bytes(rgb, width, height, color, options.block);
-    write_atomically(path, "png", png_spec(width, height, options), OIIO::TypeDesc::UINT8,
-                     bytes.data());
+    write_atomically(path, "png", png_spec(width, height, options), [&](OIIO::ImageOutput& out) {
+        for (int y0 = 0; y0 < height; y0 += kStripRows) {
+            const int y1 = std::min(height, y0 + kStripRows);
+            const std::vector<unsigned char> bytes =
+                display_bytes(rgb, width, height, y0, y1, color, options.block);
+            if (!out.write_scanlines(y0, y1, 0, OIIO::TypeDesc::UINT8, bytes.data())) return false;
+        }
+        return true;
+    });
 }
 
 std::string encode_png_preview(const std::vector<float>& rgb, int width, int height,
                                const ColorConfig& color, const PngOptions& options) {
     const std::vector<unsigned char> bytes =
-        display_bytes(rgb, width, height, color, options.block);
+        display_bytes(rgb, width, height, 0, height, color, options.block);
     std::vector<unsigned char> file;
     OIIO::Filesystem::IOVecOutput proxy(file);
     auto out = OIIO::ImageOutput::create("png");

@@ -5,10 +5,10 @@
 #include <oneapi/tbb/task_arena.h>
 
 #include <algorithm>
-#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <mutex>
 
 #include "render/arena.h"
@@ -520,6 +520,37 @@ uint32_t preview_stride(uint32_t width, uint32_t height) {
     return stride;
 }
 
+/** Bytes of memory this process may still take: MemAvailable, or 0 when it cannot be read. */
+uint64_t available_memory() {
+    std::ifstream in("/proc/meminfo");
+    std::string key;
+    uint64_t kb = 0;
+    while (in >> key >> kb) {
+        if (key == "MemAvailable:") return kb * 1024;
+        in.ignore(256, '\n');
+    }
+    return 0;
+}
+
+void check_film_memory(uint32_t width, uint32_t height, uint32_t spp,
+                       const RenderOptions& options) {
+    // Per pixel: the film (RGB floats); a copy to roll a stopped pass back to (from the second
+    // pass on); the copy each pass shows; the preview pass's image. Writing adds only strips.
+    const bool passes = options.progressive && spp > 1;
+    const double per_pixel = 12.0 + (passes && options.stop ? 12.0 : 0.0) +
+                             (passes && options.on_pass ? 12.0 : 0.0) +
+                             (options.preview_pass && options.on_pass && spp > 1 ? 12.0 : 0.0);
+    const double need = per_pixel * width * height;
+    const uint64_t have = available_memory();
+    if (have > 0 && need > 0.9 * static_cast<double>(have))
+        throw_error(
+            "a {}x{} image needs about {:.1f} GiB to render ({} bytes per pixel), but "
+            "only {:.1f} GiB of memory is available: lower the resolution ([render] "
+            "width and height, or --size){}",
+            width, height, need / 1073741824.0, per_pixel, static_cast<double>(have) / 1073741824.0,
+            passes && options.on_pass ? ", or turn off --pass-output" : "");
+}
+
 void render_image(World& world, const Camera& camera, const Film& film) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
@@ -541,6 +572,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     job.seed = film.seed;
     world.width = film.width;
     world.height = film.height;
+    check_film_memory(film.width, film.height, job.spp, world.options);
     world.image.assign(static_cast<std::size_t>(film.width) * film.height * 3, 0.0f);
     job.image = &world.image;
 
@@ -620,10 +652,14 @@ void render_image(World& world, const Camera& camera, const Film& film) {
         world.options.progressive ? pass_ends(job.spp) : std::vector<uint32_t>{job.spp};
     for (const uint32_t end : ends) {
         const uint32_t first = reached;
-        if (stop) before = world.image;
+        // The first pass starts from black: rolling it back needs no copy.
+        if (stop && reached > 0) before = world.image;
         if (!stopped) run_tiles(first, end, true);
         if (stopped) {
-            world.image.swap(before);
+            if (reached > 0)
+                world.image.swap(before);
+            else
+                std::fill(world.image.begin(), world.image.end(), 0.0f);
             break;
         }
         reached = end;

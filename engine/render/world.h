@@ -61,6 +61,10 @@ std::vector<uint32_t> pass_ends(uint32_t spp);
  *  16 that leaves at least 160 blocks along the longer side (1: no preview pass). */
 uint32_t preview_stride(uint32_t width, uint32_t height);
 
+/** Refuses (SpangleError naming the settings to lower) a film whose memory while rendering --
+ *  the image and the copies passes need -- would not fit the memory available now. */
+void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const RenderOptions& options);
+
 /** Counters of one render. */
 struct RenderStats {
     uint64_t camera_rays = 0;  ///< primary rays
