@@ -2,7 +2,9 @@
 
 #include <OpenImageIO/imageio.h>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 
 #include "core/error.h"
 
@@ -18,15 +20,29 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
                     file.path, spec.width, spec.height);
     if (spec.nchannels < 1)
         throw_error(file.loc, "environment map '{}' has no channels", file.path);
-    std::vector<float> pixels(static_cast<std::size_t>(spec.width) * spec.height * spec.nchannels);
-    if (!in->read_image(0, 0, 0, spec.nchannels, OIIO::TypeDesc::FLOAT, pixels.data()))
+    // What the header claims must be plausible for the file's size before anything is
+    // allocated: no image format packs more than a few thousand pixels into a byte (a 157-byte
+    // HDR claiming 32768x16384 took 6 GB before failing).
+    std::error_code ec;
+    const auto bytes = static_cast<double>(std::filesystem::file_size(file.path, ec));
+    const double pixels_claimed = static_cast<double>(spec.width) * spec.height;
+    if (!ec && pixels_claimed > 4096.0 * std::max(bytes, 1.0))
+        throw_error(file.loc,
+                    "environment map '{}' claims {}x{} pixels in a file of {} bytes: it is "
+                    "damaged or truncated",
+                    file.path, spec.width, spec.height, bytes);
+    // Only the first three channels are used (and read).
+    const int channels = std::min(spec.nchannels, 3);
+    std::vector<float> pixels(static_cast<std::size_t>(spec.width) * spec.height *
+                              static_cast<std::size_t>(channels));
+    if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data()))
         throw_error(file.loc, "cannot read environment map '{}': {}", file.path, in->geterror());
     const std::size_t n = static_cast<std::size_t>(spec.width) * spec.height;
     std::vector<float> rgb(3 * n);
     for (std::size_t i = 0; i < n; ++i)
         for (int c = 0; c < 3; ++c) {
-            const float v = pixels[i * static_cast<std::size_t>(spec.nchannels) +
-                                   static_cast<std::size_t>(std::min(c, spec.nchannels - 1))];
+            const float v = pixels[i * static_cast<std::size_t>(channels) +
+                                   static_cast<std::size_t>(std::min(c, channels - 1))];
             if (!std::isfinite(v))
                 throw_error(file.loc,
                             "environment map '{}' has a non-finite value at pixel ({}, {})",
