@@ -94,10 +94,19 @@ std::string nearest(std::string_view word, const Range_& candidates) {
 
 }  // namespace
 
+std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates) {
+    std::string guess = nearest(word, candidates);
+    for (const auto& c : candidates)
+        if (guess.empty() && word.size() >= 3 && c.size() >= 3 &&
+            (c.rfind(word, 0) == 0 || word.rfind(c, 0) == 0))
+            guess = c;
+    return guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess);
+}
+
 void TableReader::missing(std::string_view key) const {
     // A required key that is absent is most often a misspelling: point at the typo instead.
     for (auto&& [k, value] : table_) {
-        if (known_.count(k.str()) || edit_distance(k.str(), key) > 2) continue;
+        if (known_.count(k.str()) || did_you_mean(k.str(), {std::string(key)}).empty()) continue;
         throw_error(key_loc(k, value, file_), "unknown key '{}' in {}; did you mean '{}'?", k.str(),
                     what_, key);
     }

@@ -5,6 +5,7 @@
 #include <cstring>
 
 #include "core/hash.h"
+#include "scene/toml_reader.h"
 
 namespace spangle {
 
@@ -135,8 +136,8 @@ ValidatedParams validate_params(const SpangleMaterialModel_v2& model, const Mate
                 names.emplace_back(model.params[i].name);
             throw_error(
                 p.key_loc,
-                "material '{}': model '{}' of plugin '{}' has no parameter '{}' (parameters: {})",
-                m.name, model.name, m.plugin, p.name,
+                "material '{}': model '{}' of plugin '{}' has no parameter '{}'{} (parameters: {})",
+                m.name, model.name, m.plugin, p.name, did_you_mean(p.name, names),
                 names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
         }
         given[k] = &p;
@@ -241,8 +242,9 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
     } else {
         model = plugin->model(m.model);
         if (!model)
-            throw_error(m.model_loc, "material '{}': plugin '{}' has no model '{}' (models: {})",
-                        m.name, m.plugin, m.model, fmt::join(plugin->model_names(), ", "));
+            throw_error(m.model_loc, "material '{}': plugin '{}' has no model '{}'{} (models: {})",
+                        m.name, m.plugin, m.model, did_you_mean(m.model, plugin->model_names()),
+                        fmt::join(plugin->model_names(), ", "));
     }
     const ValidatedParams params = validate_params(*model, m, host.color());
     const SpangleParams_v2 view = params.view();

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include "core/files.h"
+#include "scene/toml_reader.h"
 
 #include <dlfcn.h>
 #include <elf.h>
@@ -236,9 +237,15 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const 
             throw SpangleError(where, e.what());
         }
     }
-    throw_error(where, "plugin '{}' not found: no {} in {}", name, file,
+    std::vector<std::string> known;  // the plugin names on the path, for a suggestion
+    for (const auto& f : discover()) {
+        const std::string stem = fs::path(f).stem().string();
+        known.push_back(stem.substr(std::string("libspangle_").size()));
+    }
+    throw_error(where, "plugin '{}' not found (no {} in {}){}", name, file,
                 dirs_.empty() ? std::string("an empty plugin path")
-                              : fmt::format("{}", fmt::join(dirs_, ", ")));
+                              : fmt::format("{}", fmt::join(dirs_, ", ")),
+                did_you_mean(name, known));
 }
 
 std::vector<std::string> PluginLoader::discover() const {

@@ -206,7 +206,8 @@ TEST(ValidateParams, TypesRangesAndChoices) {
     EXPECT_EQ(unknown.rfind("m.toml:7:1: error:", 0), 0u)
         << "unknown names point at the key: " << unknown;
     EXPECT_HAS(unknown,
-               "has no parameter 'roughnes' (parameters: roughness, count, coat, tint, fresnel)");
+               "has no parameter 'roughnes'; did you mean 'roughness'? (parameters: roughness, "
+               "count, coat, tint, fresnel)");
 }
 
 TEST(ValidateParams, ColoursAreConvertedToTheWorkingSpace) {
