@@ -263,8 +263,11 @@ void system_point_lights(ecs::Registry& r, World& w) {
             const DistantLight d = distant->columns().get(i);
             DistantEmitter e;
             e.direction = d.direction;
-            if (d.angular_radius_deg > 0.0f) {
-                const float rad = d.angular_radius_deg * kPi / 180.0f;
+            // Below 1e-3 radians (0.057 degrees; the sun is 0.27) a cone's cosine is 1 to float
+            // precision and its sampling breaks down (a radius of 1e-20 rendered black): such a
+            // light is its limit, a delta direction with the same irradiance.
+            const float rad = d.angular_radius_deg * kPi / 180.0f;
+            if (rad >= 1e-3f) {
                 const float half = std::sin(0.5f * rad);
                 e.cos_radius = std::cos(rad);
                 e.solid_angle = 4.0f * kPi * half * half;  // 2 pi (1 - cos r) without cancellation
