@@ -9,6 +9,7 @@
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <chrono>
@@ -126,22 +127,21 @@ struct Outputs {
      *  stopped before its spp; the EXR header says so and how far it got. Returns how many
      *  values the half-float EXR could not hold (see warn_half_overflow). */
     std::size_t write(const std::vector<float>& image, uint32_t width, uint32_t height,
-                      const ColorConfig& color, uint32_t spp, bool partial) const {
+                      const ColorConfig& color, uint32_t spp, bool partial,
+                      uint32_t block = 1) const {
         ExrOptions o = exr_options;
         o.metadata = {{"spangle:scene", scene},
                       {"spangle:version", SPANGLE_VERSION},
                       {"spangle:spp", std::to_string(spp)},
                       {"spangle:partial", partial ? "1" : "0"}};
-        // 0 samples per pixel: a reduced-resolution preview pass (RenderOptions::preview_pass).
-        if (spp == 0)
-            o.metadata.emplace_back("spangle:preview_stride",
-                                    std::to_string(preview_stride(width, height)));
+        // A reduced-resolution preview pass (0 spp, blocks of `block` pixels).
+        if (block > 1) o.metadata.emplace_back("spangle:preview_stride", std::to_string(block));
         // The PNG is written beside the EXR, on another thread.
         std::future<void> png_done;
         if (!preview.empty()) {
             PngOptions png;
             if (partial) png.compression_level = 1;  // passes come often: speed over size
-            if (spp == 0) png.block = preview_stride(width, height);
+            png.block = block;
             png_done = std::async(std::launch::async, [&, png] {
                 write_png_preview(preview, image, static_cast<int>(width), static_cast<int>(height),
                                   color, png);
@@ -157,6 +157,10 @@ struct Outputs {
         }
         if (png_done.valid()) png_done.get();  // rethrows its error
         return overflow;
+    }
+    /** The image of a pass that is not the last (partial, maybe a preview pass). */
+    void write_pass(const PassImage& p, const ColorConfig& color) const {
+        write(p.image, p.width, p.height, color, p.spp, true, p.block);
     }
 };
 
@@ -338,7 +342,7 @@ int run_render(const RenderArgs& a) {
             if (!color) return;
             if (server)
                 server->publish_pass(p.image, p.width, p.height, p.spp, p.target, p.block, *color);
-            if (a.pass_output) out.write(p.image, p.width, p.height, *color, p.spp, true);
+            if (a.pass_output) out.write_pass(p, *color);
         };
     if (server) {
         auto print = req.options.progress;
@@ -416,15 +420,13 @@ int run_watch(const RenderArgs& a) {
     std::string preview_note;  // when the preview pass of the pending change was written
     // The reload line goes out once the first full pass is written (with the preview's time
     // when there was one); a change that interrupts the render first prints it as it stands.
-    auto announce = [&](uint32_t spp) {
+    auto announce = [&](uint32_t spp, uint32_t block) {
         std::lock_guard<std::mutex> lock(mutex);
         if (pending_line.empty()) return;
         const double s =
             std::chrono::duration<double>(std::chrono::steady_clock::now() - changed_at).count();
         if (spp == 0) {
-            preview_note =
-                fmt::format("preview (1/{} resolution) written {:.3f} s, ",
-                            preview_stride(session.world().width, session.world().height), s);
+            preview_note = fmt::format("preview (1/{} resolution) written {:.3f} s, ", block, s);
             return;
         }
         say(fmt::format("{}; {}first pass ({} spp) written {:.3f} s after the change", pending_line,
@@ -445,11 +447,11 @@ int run_watch(const RenderArgs& a) {
                                  session.color());
         if (!pass_output) return;
         try {
-            out.write(p.image, p.width, p.height, session.color(), p.spp, true);
+            out.write_pass(p, session.color());
         } catch (const SpangleError& e) {
             report_error(e.what());
         }
-        announce(p.spp);
+        announce(p.spp, p.block);
     };
 
     auto render_thread = [&] {
@@ -471,7 +473,7 @@ int run_watch(const RenderArgs& a) {
                 } catch (const SpangleError& e) {
                     report_error(e.what());
                 }
-                announce(st.spp_reached);
+                announce(st.spp_reached, 1);
             }
             if (complete) {
                 warn_nonfinite(log, st);
@@ -661,22 +663,13 @@ int main(int argc, char** argv) {
     // An unknown first word is a misspelt command, not a missing one.
     if (argc > 1 && argv[1][0] != '-') {
         const std::string word = argv[1];
-        std::string best;
-        std::size_t best_distance = 3;  // suggest only close names
-        bool known = false;
-        for (const CLI::App* sub : app.get_subcommands({})) {
-            known = known || sub->get_name() == word;
-            const std::size_t d = edit_distance(word, sub->get_name());
-            if (d < best_distance) {
-                best_distance = d;
-                best = sub->get_name();
-            }
-        }
-        if (!known) {
+        std::vector<std::string> commands;
+        for (const CLI::App* sub : app.get_subcommands({})) commands.push_back(sub->get_name());
+        if (std::find(commands.begin(), commands.end(), word) == commands.end()) {
             fmt::print(stderr,
-                       "spangle: error: unknown command '{}'{}; the commands are render, "
-                       "plugins, inspect (spangle --help)\n",
-                       word, best.empty() ? "" : fmt::format(" (did you mean '{}'?)", best));
+                       "spangle: error: unknown command '{}'{} (the commands are {}; "
+                       "spangle --help)\n",
+                       word, did_you_mean(word, commands), fmt::join(commands, ", "));
             return 2;
         }
     }

@@ -241,10 +241,9 @@ const toml::array* TableReader::table_array(std::string_view key) {
 void TableReader::finish() const {
     for (auto&& [key, value] : table_) {
         if (known_.count(key.str())) continue;
-        const std::string guess = nearest(key.str(), known_);
         throw_error(key_loc(key, value, file_), "unknown key '{}' in {}{} (valid keys: {})",
                     key.str(), what_,
-                    guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess),
+                    did_you_mean(key.str(), std::vector<std::string>(known_.begin(), known_.end())),
                     fmt::join(known_, ", "));
     }
 }

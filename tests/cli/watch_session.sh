@@ -39,6 +39,14 @@ finished() {  # waits for the render of the current scene to finish
 # Keeps a copy of the current output as $1; same A B: their pixels are identical.
 keep() { cp out.exr "$1.exr"; }
 same() { oiiotool "$1.exr" "$2.exr" --diff --fail 0 --failpercent 0 --warn 0 > /dev/null 2>&1; }
+# reloaded WHAT LINE N BEFORE AFTER: the next reload line contains LINE (a regex), render N
+# finishes, its image is kept as AFTER and differs from BEFORE.
+reloaded() {
+    await "^reload"
+    echo "$NEW" | grep -q "$2" || fail "$1: $NEW"
+    finished "$3"
+    keep "$5"; ! same "$4" "$5" || fail "$1 edit did not change the image"
+}
 
 "$S" render scene.toml -o out.exr --watch --plugin-path "$T/plugins" > log.txt 2>&1 &
 PID=$!
@@ -47,30 +55,18 @@ finished 1
 keep A
 
 sed -i 's/gamma = 3/gamma = 4/' scene.toml
-await "^reload"
-echo "$NEW" | grep -q "changed: Material; ran: materials; rebuilt: material 'glitter'" || fail "material: $NEW"
-finished 2
-keep B; ! same A B || fail "material edit did not change the image"
+reloaded material "changed: Material; ran: materials; rebuilt: material 'glitter'" 2 A B
 
 sed -i 's/rotate = \[30, 20, 0\]/rotate = [30, 50, 0]/' scene.toml
-await "^reload"
-echo "$NEW" | grep -q "changed: Transform; ran: area_lights, accelerate, light_selection; rebuilt: top-level BVH; reused: 1 mesh BVHs" || fail "transform: $NEW"
-finished 3
-keep C; ! same B C || fail "transform edit did not change the image"
+reloaded transform "changed: Transform; ran: area_lights, accelerate, light_selection; rebuilt: top-level BVH; reused: 1 mesh BVHs" 3 B C
 
 # The mesh, rewritten by "write a temporary file and rename it over": a smaller ball.
 awk '/^v /{printf "v %g %g %g\n", $2*0.8, $3*0.8, $4*0.8; next} {print}' uvless_ball.obj > ball.tmp
 mv ball.tmp uvless_ball.obj
-await "^reload"
-echo "$NEW" | grep -q "changed: mesh file .*uvless_ball.obj; ran: mesh_load, area_lights, accelerate, light_selection; rebuilt: mesh .*uvless_ball.obj, 1 mesh BVH, top-level BVH" || fail "mesh: $NEW"
-finished 4
-keep D; ! same C D || fail "mesh edit did not change the image"
+reloaded mesh "changed: mesh file .*uvless_ball.obj; ran: mesh_load, area_lights, accelerate, light_selection; rebuilt: mesh .*uvless_ball.obj, 1 mesh BVH, top-level BVH" 4 C D
 
 sed -i 's/fov = 32/fov = 28/' scene.toml
-await "^reload"
-echo "$NEW" | grep -q "changed: Camera; ran: nothing; rebuilt: nothing" || fail "camera: $NEW"
-finished 5
-keep E; ! same D E || fail "camera edit did not change the image"
+reloaded camera "changed: Camera; ran: nothing; rebuilt: nothing" 5 D E
 
 echo "broken = = 1" >> scene.toml
 await "reload failed"

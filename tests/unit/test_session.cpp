@@ -20,14 +20,20 @@ namespace fs = std::filesystem;
 namespace spangle {
 namespace {
 
-FrameResult render(const std::string& scene, bool progressive, uint32_t spp,
-                   std::function<bool()> stop = {}) {
+/** A quiet request for `scene` with the shipped OCIO config. */
+FrameRequest request(const std::string& scene, int threads, uint32_t spp) {
     FrameRequest req;
     req.scene = scene;
     req.ocio_config = test::shipped_ocio();
     req.log = &test::quiet_log();
-    req.options.threads = 2;
+    req.options.threads = threads;
     req.options.spp_override = spp;
+    return req;
+}
+
+FrameResult render(const std::string& scene, bool progressive, uint32_t spp,
+                   std::function<bool()> stop = {}) {
+    FrameRequest req = request(scene, 2, spp);
     req.options.progressive = progressive;
     req.options.stop = std::move(stop);
     return render_frame(req);
@@ -68,12 +74,7 @@ TEST(Passes, PreviewPassIsBlockwiseAndLeavesTheImageAlone) {
     // A preview pass before the passes: reported with 0 spp, one value per block (each the
     // value of the block's own traced pixel), and the final image is bit for bit the same.
     const std::string path = test::test_dir() + "/scenes/glossy_sphere_light.toml";
-    FrameRequest req;
-    req.scene = path;
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.threads = 2;
-    req.options.spp_override = 8;
+    FrameRequest req = request(path, 2, 8);
     req.options.width_override = 330;  // not a multiple of the block: edge blocks are partial
     req.options.height_override = 170;
     req.options.preview_pass = true;
@@ -124,12 +125,7 @@ TEST(Passes, StopKeepsTheCompletedPasses) {
     const std::string path = test::test_dir() + "/scenes/flake_uvless.toml";
     std::atomic<int> polls{0};
     int passes_seen = 0;
-    FrameRequest req;
-    req.scene = path;
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.threads = 1;
-    req.options.spp_override = 64;
+    FrameRequest req = request(path, 1, 64);
     req.options.on_pass = [&](const PassImage&) { ++passes_seen; };
     req.options.stop = [&] { return passes_seen >= 3 && ++polls > 3; };
     const FrameResult stopped = render_frame(req);
