@@ -4,4 +4,4 @@ add_library(spangle_warnings INTERFACE)
 target_compile_options(spangle_warnings INTERFACE
     -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wno-sign-conversion
     -Wnon-virtual-dtor -Wold-style-cast -Wcast-align -Wdouble-promotion
-    $<$<BOOL:${SPANGLE_WERROR}>:-Werror>)
+    $<$<CXX_COMPILER_ID:Clang>:-Wno-double-promotion> $<$<BOOL:${SPANGLE_WERROR}>:-Werror>)

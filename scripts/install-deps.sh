@@ -6,7 +6,7 @@ set -euo pipefail
 packages=(
     cmake ninja-build g++ pkg-config
     libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev
-    libtbb-dev libtomlplusplus-dev libcli11-dev libassimp-dev libtinyobjloader-dev libcpp-httplib-dev libgtest-dev libbenchmark-dev
+    libtbb-dev libtomlplusplus-dev libcli11-dev libtinyobjloader-dev libcpp-httplib-dev libgtest-dev libbenchmark-dev
     openimageio-tools opencolorio-tools clang-format
 )
 if [ "${1:-}" = "--tests" ]; then

@@ -1,38 +1,12 @@
 #include "geometry/mesh_load.h"
 
+#include "geometry/obj_reader.h"
 #include "geometry/ply_reader.h"
-
-#include <assimp/postprocess.h>
-#include <assimp/scene.h>
-#include <assimp/Importer.hpp>
 
 #include <cmath>
 #include <filesystem>
 
 namespace spangle {
-
-namespace {
-
-/** Appends one assimp mesh to `out`; vertices keep their order, faces become triangles. */
-void append_mesh(const aiMesh& m, TriangleMesh& out, bool want_normals, bool want_uvs) {
-    const auto base = static_cast<uint32_t>(out.vertex_count());
-    for (unsigned i = 0; i < m.mNumVertices; ++i) {
-        out.positions.insert(out.positions.end(),
-                             {m.mVertices[i].x, m.mVertices[i].y, m.mVertices[i].z});
-        if (want_normals)
-            out.normals.insert(out.normals.end(),
-                               {m.mNormals[i].x, m.mNormals[i].y, m.mNormals[i].z});
-        if (want_uvs)
-            out.uvs.insert(out.uvs.end(), {m.mTextureCoords[0][i].x, m.mTextureCoords[0][i].y});
-    }
-    for (unsigned f = 0; f < m.mNumFaces; ++f) {
-        const aiFace& face = m.mFaces[f];
-        if (face.mNumIndices != 3) continue;  // points and lines after triangulation
-        for (unsigned k = 0; k < 3; ++k) out.indices.push_back(base + face.mIndices[k]);
-    }
-}
-
-}  // namespace
 
 TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
     namespace fs = std::filesystem;
@@ -50,31 +24,7 @@ TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
         return mesh;
     }
 
-    Assimp::Importer importer;
-    // Drop what Spangle does not use, so assimp neither computes nor checks it.
-    importer.SetPropertyInteger(AI_CONFIG_PP_RVC_FLAGS,
-                                aiComponent_COLORS | aiComponent_TANGENTS_AND_BITANGENTS |
-                                    aiComponent_BONEWEIGHTS | aiComponent_ANIMATIONS |
-                                    aiComponent_LIGHTS | aiComponent_CAMERAS |
-                                    aiComponent_MATERIALS | aiComponent_TEXTURES);
-    // ValidateDataStructure rejects out-of-range indices before anything reads them.
-    const unsigned flags = aiProcess_Triangulate | aiProcess_ValidateDataStructure |
-                           aiProcess_RemoveComponent | aiProcess_SortByPType;
-    const aiScene* scene = importer.ReadFile(path, flags);
-    if (!scene || (scene->mFlags & AI_SCENE_FLAGS_INCOMPLETE) || !scene->mRootNode)
-        throw_error(ref, "cannot read mesh '{}': {}", path, importer.GetErrorString());
-
-    TriangleMesh mesh;
-    mesh.source = path;
-    bool all_normals = scene->mNumMeshes > 0, all_uvs = scene->mNumMeshes > 0;
-    for (unsigned i = 0; i < scene->mNumMeshes; ++i) {
-        all_normals = all_normals && scene->mMeshes[i]->HasNormals();
-        all_uvs = all_uvs && scene->mMeshes[i]->HasTextureCoords(0);
-    }
-    // Meshes are concatenated in object space; node transforms are ignored because OBJ and PLY
-    // have none (assimp gives them the identity).
-    for (unsigned i = 0; i < scene->mNumMeshes; ++i)
-        append_mesh(*scene->mMeshes[i], mesh, all_normals, all_uvs);
+    TriangleMesh mesh = read_obj(path, ref);
     validate_mesh(mesh, ref);
     return mesh;
 }

@@ -1,6 +1,7 @@
 #pragma once
-// Loading OBJ and PLY (ASCII and binary) meshes through assimp, then validating them: every
-// position finite, every index in range, at least one triangle.
+// Loading OBJ and PLY (ASCII and binary) meshes with Spangle's own readers (obj_reader.h,
+// ply_reader.h), then validating them: every position finite, every index in range, at least one
+// triangle.
 
 #include <string>
 

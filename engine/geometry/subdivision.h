@@ -33,6 +33,15 @@ struct SubdivOptions {
  *  topology OpenSubdiv rejects or a crease/corner naming a vertex the cage lacks. */
 TriangleMesh subdivide(const Cage& cage, const SubdivOptions& options, const FileLoc& ref);
 
+/** Triangles subdivide() makes of `cage` with `options` (exact for uniform refinement). */
+double subdivided_triangles(const Cage& cage, const SubdivOptions& options);
+
+/** Refuses (SpangleError at `ref`, naming the setting to lower) a refinement whose triangles
+ *  would not fit the memory available now (about 300 bytes each at the peak, BVH included) or
+ *  32-bit indices. `from_camera`: the level was chosen by level = "auto". */
+void check_subdivision_memory(const Cage& cage, const SubdivOptions& options, bool from_camera,
+                              const FileLoc& ref);
+
 /** The refinement level that brings the cage's longest edge under `pixel_budget` pixels when
  *  seen at distance `distance` with `pixel_angle` radians per pixel: each level halves edges. */
 int level_for_camera(double longest_edge, double distance, double pixel_angle, double pixel_budget,

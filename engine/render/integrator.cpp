@@ -11,6 +11,7 @@
 #include <fstream>
 #include <mutex>
 
+#include "core/memory.h"
 #include "render/arena.h"
 #include "render/camera.h"
 #include "render/sampler.h"
@@ -520,18 +521,6 @@ uint32_t preview_stride(uint32_t width, uint32_t height) {
     return stride;
 }
 
-/** Bytes of memory this process may still take: MemAvailable, or 0 when it cannot be read. */
-uint64_t available_memory() {
-    std::ifstream in("/proc/meminfo");
-    std::string key;
-    uint64_t kb = 0;
-    while (in >> key >> kb) {
-        if (key == "MemAvailable:") return kb * 1024;
-        in.ignore(256, '\n');
-    }
-    return 0;
-}
-
 void check_film_memory(uint32_t width, uint32_t height, uint32_t spp,
                        const RenderOptions& options) {
     // Per pixel: the film (RGB floats); a copy to roll a stopped pass back to (from the second
@@ -544,10 +533,10 @@ void check_film_memory(uint32_t width, uint32_t height, uint32_t spp,
     const uint64_t have = available_memory();
     if (have > 0 && need > 0.9 * static_cast<double>(have))
         throw_error(
-            "a {}x{} image needs about {:.1f} GiB to render ({} bytes per pixel), but "
-            "only {:.1f} GiB of memory is available: lower the resolution ([render] "
+            "a {}x{} image needs about {} to render ({} bytes per pixel), but "
+            "only {} of memory is available: lower the resolution ([render] "
             "width and height, or --size){}",
-            width, height, need / 1073741824.0, per_pixel, static_cast<double>(have) / 1073741824.0,
+            width, height, format_bytes(need), per_pixel, format_bytes(static_cast<double>(have)),
             passes && options.on_pass ? ", or turn off --pass-output" : "");
 }
 

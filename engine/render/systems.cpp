@@ -113,7 +113,10 @@ void system_subdivide(ecs::Registry& r, World& w) {
                     fmt::join(options.corner_vertices, ","),
                     fmt::join(options.corner_sharpness, ","));
             },
-            [&] { return std::make_shared<const TriangleMesh>(subdivide(cage, options, s.loc)); },
+            [&] {
+                check_subdivision_memory(cage, options, rep.from_camera, s.loc);
+                return std::make_shared<const TriangleMesh>(subdivide(cage, options, s.loc));
+            },
             fmt::format("subdivision of {} at level {}", s.path, options.level));
         rep.triangles = mesh->triangle_count();
         w.geometry.meshes.push_back(mesh);

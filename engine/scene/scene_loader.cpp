@@ -17,7 +17,6 @@ namespace spangle {
 namespace {
 
 constexpr Range kNonNegative{0.0, 1e30, false, false};
-constexpr Range kPositive{0.0, 1e30, true, false};
 
 /** Everything a section parser needs besides its table. */
 struct ParseContext {

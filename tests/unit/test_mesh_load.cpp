@@ -104,7 +104,7 @@ TEST(MeshLoad, ErrorsNameTheSceneLineAndTheFile) {
     } catch (const SpangleError& e) {
         const std::string msg = e.what();
         EXPECT_EQ(msg.rfind("scene.toml:12:8: error: mesh '", 0), 0u) << msg;
-        EXPECT_NE(msg.find("nan_vertex.obj': vertex 1 has a non-finite position"),
+        EXPECT_NE(msg.find("nan_vertex.obj', line 2: vertex has the non-finite value 'nan'"),
                   std::string::npos)
             << msg;
     }
@@ -114,6 +114,84 @@ TEST(MeshLoad, ErrorsNameTheSceneLineAndTheFile) {
     } catch (const SpangleError& e) {
         EXPECT_NE(std::string(e.what()).find("not found"), std::string::npos) << e.what();
     }
+}
+
+/** Writes `text` to a temporary .obj and loads it. */
+TriangleMesh load_obj_text(const std::string& text) {
+    const test::TempDir dir("obj_reader");
+    const std::string path = dir.file("m.obj");
+    std::ofstream(path) << text;
+    return load_mesh(path, FileLoc{"scene.toml", 3, 8});
+}
+
+/** The message loading `text` as an OBJ throws (empty when it loads). */
+std::string obj_error(const std::string& text) {
+    try {
+        load_obj_text(text);
+        return "";
+    } catch (const SpangleError& e) {
+        return e.what();
+    }
+}
+
+TEST(ObjReader, CornersSharingIndicesShareAVertexAndPolygonsAreFanned) {
+    // A quad and a pentagon over shared corners; uvs on every corner, no normals.
+    const TriangleMesh m = load_obj_text(
+        "# comment\no quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv -1 0.5 0\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5\nusemtl paint\ns off\n"
+        "f 1/1 2/2 3/3 4/4\nf 1/1 4/4 5/5 -1/-1 -2/-2\n");
+    EXPECT_EQ(m.vertex_count(), 5u) << "(v, vt) pairs repeat: shared";
+    EXPECT_EQ(m.triangle_count(), 2u + 3u);
+    EXPECT_TRUE(m.normals.empty());
+    ASSERT_EQ(m.uvs.size(), 10u);
+    EXPECT_FLOAT_EQ(m.uvs[9], 0.0f) << "vt with one number has v = 0";
+    // Fan around the first corner: (0,1,2), (0,2,3); then (0,3,4), (0,4,4), (0,4,3).
+    EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 4, 0, 4, 3}));
+}
+
+TEST(ObjReader, NormalsOnlyWhenEveryCornerHasOneAndForwardIndices) {
+    // Faces before the vertices they name (allowed), a continued line, CRLF endings.
+    const TriangleMesh m = load_obj_text(
+        "f 1//1 2//1 \\\r\n 3//1\r\nv 0 0 0\r\nv 1 0 0\r\nv +0 1 0 1\r\nvn 0 0 1\r\n");
+    EXPECT_EQ(m.triangle_count(), 1u);
+    ASSERT_EQ(m.normals.size(), 9u);
+    EXPECT_FLOAT_EQ(m.normals[8], 1.0f);
+    EXPECT_FLOAT_EQ(m.positions[7], 1.0f);
+    const TriangleMesh mixed =
+        load_obj_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\nf 1 3 2\n");
+    EXPECT_TRUE(mixed.normals.empty()) << "a corner without a normal: face normals for all";
+}
+
+TEST(ObjReader, ErrorsNameTheLine) {
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    const auto has = [](const std::string& msg, const std::string& part) {
+        return msg.rfind("scene.toml:3:8: error: mesh '", 0) == 0 &&
+               msg.find(part) != std::string::npos;
+    };
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 0\n"),
+                 "line 4: face refers to vertex 0; OBJ indices start at 1");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 -4\n"),
+                 "line 4: face refers to vertex -4, but only 3 have been read so far");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 3\nf 1 2 9\n"),
+                 "line 5: face refers to vertex 9, but the file has 3");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2\n"),
+                 "line 4: face has 2 corners; a face needs at least 3");
+    EXPECT_PRED2(has, obj_error(tri + "f 1/1 2 3\n"),
+                 "line 4: face refers to uv 1, but the file has 0");
+    EXPECT_PRED2(has, obj_error(tri + "f 1/x 2 3\n"),
+                 "line 4: face corner has 'x' where a uv index belongs");
+    EXPECT_PRED2(has, obj_error(tri + "f 1/1/ 2 3\n"),
+                 "line 4: face corner '1/1/' is not v, v/vt, v//vn or v/vt/vn");
+    EXPECT_PRED2(has, obj_error("v 0 0\n"), "line 1: vertex is missing a number");
+    EXPECT_PRED2(has, obj_error("v 0 0 1e39\n"),
+                 "line 1: vertex has '1e39', out of the range of a float");
+    EXPECT_PRED2(has, obj_error("v 0 inf 0\n"), "line 1: vertex has the non-finite value 'inf'");
+    EXPECT_PRED2(has, obj_error("v 0 0x1 0\n"), "line 1: vertex has '0x1' where a number belongs");
+    EXPECT_PRED2(has, obj_error(tri + "vn 0 0 nan\n"),
+                 "line 4: normal has the non-finite value 'nan'");
+    EXPECT_PRED2(has, obj_error(tri), "has no triangles");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 99999999999999999999\n"),
+                 "where a vertex index belongs");
 }
 
 TEST(MeshLoad, ValidateCatchesIndicesPastTheEnd) {

@@ -5,9 +5,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstdlib>
 #include <fstream>
 #include <map>
 
+#include "core/error.h"
 #include "geometry/cage.h"
 #include "geometry/subdivision.h"
 #include "render/frame.h"
@@ -180,6 +182,90 @@ TEST(Subdivision, SceneWithoutSubdivisionNeverRunsIt) {
             EXPECT_EQ(s.reason, "no SubdivSurface");
         }
     EXPECT_TRUE(r.subdiv.empty());
+}
+
+TEST(Subdivision, TriangleEstimateIsExact) {
+    // The estimate the memory check uses, against what subdivide() makes: quads (the cube), an
+    // n-gon and triangles under both schemes.
+    Cage mixed = cube_cage();
+    mixed.uvs.clear();
+    mixed.face_uvs.clear();
+    mixed.positions.insert(mixed.positions.end(), {3, 0, 0, 4, 0, 0, 4, 1, 0, 3.5f, 2, 0, 3, 1, 0});
+    mixed.face_sizes.push_back(5);
+    for (int v = 8; v < 13; ++v) mixed.face_vertices.push_back(v);
+    Cage tris;
+    tris.source = "tetra";
+    tris.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1};
+    tris.face_sizes = {3, 3, 3, 3};
+    tris.face_vertices = {0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3};
+    for (int l = 0; l <= 3; ++l) {
+        EXPECT_EQ(subdivided_triangles(mixed, level(l)),
+                  static_cast<double>(subdivide(mixed, level(l), {}).triangle_count()))
+            << "level " << l;
+        SubdivOptions loop = level(l);
+        loop.scheme = SubdivOptions::Scheme::Loop;
+        EXPECT_EQ(subdivided_triangles(tris, loop),
+                  static_cast<double>(subdivide(tris, loop, {}).triangle_count()))
+            << "loop level " << l;
+    }
+}
+
+/** Sets $SPANGLE_MEMORY_LIMIT for one scope. */
+class MemoryLimit {
+public:
+    explicit MemoryLimit(const char* value) { setenv("SPANGLE_MEMORY_LIMIT", value, 1); }
+    ~MemoryLimit() { unsetenv("SPANGLE_MEMORY_LIMIT"); }
+    MemoryLimit(const MemoryLimit&) = delete;
+    MemoryLimit& operator=(const MemoryLimit&) = delete;
+};
+
+std::string render_error(const std::string& scene, uint32_t width = 0) {
+    FrameRequest req;
+    req.scene = scene;
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.spp_override = 1;
+    req.options.width_override = width;
+    req.options.height_override = width;
+    try {
+        render_frame(req);
+        return "";
+    } catch (const SpangleError& e) {
+        return e.what();
+    }
+}
+
+TEST(Subdivision, LevelsThatWouldNotFitMemoryAreRefusedUpFront) {
+    // Two snowman bodies at "auto" levels up to 6; at 2048 pixels the near one is refined to
+    // level 6 (1.3 million triangles): about 380 MiB.
+    const std::string scene = test::test_dir() + "/scenes/subdiv_near_far.toml";
+    {
+        const MemoryLimit limit("64M");
+        const std::string msg = render_error(scene, 2048);
+        EXPECT_NE(msg.find("subdiv_near_far.toml:19:8: error: subdividing"), std::string::npos)
+            << msg;
+        EXPECT_NE(msg.find("at level 6 would make 1327104 triangles and need about 380 MiB, but "
+                           "only 64 MiB of memory is available: lower subdiv.max_level or raise "
+                           "subdiv.pixel_budget"),
+                  std::string::npos)
+            << msg;
+    }
+    {
+        // The film: 8192^2 pixels need 768 MiB.
+        const MemoryLimit limit("600M");
+        const std::string msg = render_error(test::test_dir() + "/scenes/small_lit.toml", 8192);
+        EXPECT_NE(msg.find("a 8192x8192 image needs about 768 MiB to render (12 bytes per pixel), "
+                           "but only 600 MiB of memory is available: lower the resolution"),
+                  std::string::npos)
+            << msg;
+    }
+    {
+        const MemoryLimit limit("plenty");
+        EXPECT_NE(
+            render_error(scene).find("SPANGLE_MEMORY_LIMIT='plenty' is not a size such as 8G"),
+            std::string::npos);
+    }
+    EXPECT_EQ(render_error(scene), "") << "renders without a limit";
 }
 
 }  // namespace

@@ -1,0 +1,20 @@
+#pragma once
+// How much memory Spangle may still take, for the estimates made before big allocations (the
+// film, subdivision levels): refusing up front with the setting to lower beats being killed by
+// the kernel half way through.
+
+#include <cstdint>
+#include <string>
+
+namespace spangle {
+
+/** Bytes this process may still take: /proc/meminfo's MemAvailable, lowered to the limit in
+ *  $SPANGLE_MEMORY_LIMIT when that is set (a size such as 8G, 512M or 1000000 bytes; for shared
+ *  machines and for tests). 0 when neither can be read. Throws SpangleError for a malformed
+ *  $SPANGLE_MEMORY_LIMIT. */
+uint64_t available_memory();
+
+/** Bytes for messages: "412 MiB", "1.6 GiB". */
+std::string format_bytes(double bytes);
+
+}  // namespace spangle

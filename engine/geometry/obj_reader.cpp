@@ -1,0 +1,221 @@
+#include "geometry/obj_reader.h"
+
+#include <charconv>
+#include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <string_view>
+#include <unordered_map>
+
+namespace spangle {
+
+namespace {
+
+/** A corner's indices into the v, vt and vn lists (0-based; -1 = not given). */
+struct Corner {
+    int64_t v = -1, vt = -1, vn = -1;
+    bool operator==(const Corner&) const = default;
+};
+
+struct CornerHash {
+    std::size_t operator()(const Corner& c) const {
+        uint64_t h = static_cast<uint64_t>(c.v) * 0x9E3779B97F4A7C15ull;
+        h ^= static_cast<uint64_t>(c.vt) + 0x632BE59BD9B4E019ull + (h << 6) + (h >> 2);
+        h ^= static_cast<uint64_t>(c.vn) + 0x8CB92BA72F3D8DD7ull + (h << 6) + (h >> 2);
+        return static_cast<std::size_t>(h);
+    }
+};
+
+class Reader {
+public:
+    Reader(const std::string& path, const FileLoc& ref) : path_(path), ref_(ref) {}
+
+    TriangleMesh read() {
+        std::ifstream in(path_, std::ios::binary);
+        if (!in) throw_error(ref_, "cannot open mesh '{}'", path_);
+        std::string line, joined;
+        int first_line = 0;
+        for (int number = 1; std::getline(in, line); ++number) {
+            if (!line.empty() && line.back() == '\r') line.pop_back();
+            if (joined.empty()) first_line = number;
+            // A backslash at the end of a line continues the statement on the next one.
+            if (!line.empty() && line.back() == '\\') {
+                line.back() = ' ';
+                joined += line;
+                continue;
+            }
+            joined += line;
+            line_ = first_line;
+            statement(joined);
+            joined.clear();
+        }
+        if (!joined.empty()) {
+            line_ = first_line;
+            statement(joined);
+        }
+        return finish();
+    }
+
+private:
+    [[noreturn]] void fail(const std::string& what) const {
+        throw_error(ref_, "mesh '{}', line {}: {}", path_, line_, what);
+    }
+
+    static std::string_view next_token(std::string_view& s) {
+        std::size_t b = 0;
+        while (b < s.size() && (s[b] == ' ' || s[b] == '\t')) ++b;
+        std::size_t e = b;
+        while (e < s.size() && s[e] != ' ' && s[e] != '\t') ++e;
+        const std::string_view token = s.substr(b, e - b);
+        s.remove_prefix(e);
+        return token;
+    }
+
+    float number(std::string_view token, const char* what) const {
+        if (token.empty()) fail(fmt::format("{} is missing a number", what));
+        const char* begin = token.data();
+        if (*begin == '+') ++begin;  // from_chars does not take a leading '+'
+        float value = 0.0f;
+        const auto [end, ec] = std::from_chars(begin, token.data() + token.size(), value);
+        if (ec == std::errc::result_out_of_range)
+            fail(fmt::format("{} has '{}', out of the range of a float", what, token));
+        if (ec != std::errc() || end != token.data() + token.size())
+            fail(fmt::format("{} has '{}' where a number belongs", what, token));
+        if (!std::isfinite(value))
+            fail(fmt::format("{} has the non-finite value '{}'", what, token));
+        return value;
+    }
+
+    /** Reads `count` numbers (more are allowed and ignored, fewer are an error). */
+    void numbers(std::string_view rest, int count, std::vector<float>& out, const char* what) {
+        for (int i = 0; i < count; ++i) out.push_back(number(next_token(rest), what));
+    }
+
+    /** One index of a corner: 1-based, or negative counting back from the last one read.
+     *  Positive indices may point forward (checked at the end, in `worst`). */
+    int64_t index(std::string_view token, std::size_t have, const char* kind,
+                  std::pair<int64_t, int>& worst) const {
+        int64_t i = 0;
+        const auto [end, ec] = std::from_chars(token.data(), token.data() + token.size(), i);
+        if (ec != std::errc() || end != token.data() + token.size())
+            fail(fmt::format("face corner has '{}' where a {} index belongs", token, kind));
+        const auto n = static_cast<int64_t>(have);
+        if (i == 0) fail(fmt::format("face refers to {} 0; OBJ indices start at 1", kind));
+        if (i < 0 && n + i < 0)
+            fail(fmt::format("face refers to {} {}, but only {} {} been read so far", kind, i, n,
+                             n == 1 ? "has" : "have"));
+        const int64_t resolved = i > 0 ? i - 1 : n + i;
+        if (resolved > worst.first) worst = {resolved, line_};
+        return resolved;
+    }
+
+    Corner corner(std::string_view token) {
+        Corner c;
+        const std::size_t s1 = token.find('/');
+        c.v = index(token.substr(0, s1), positions_.size() / 3, "vertex", worst_v_);
+        if (s1 == std::string_view::npos) return c;
+        const std::string_view rest = token.substr(s1 + 1);
+        const std::size_t s2 = rest.find('/');
+        const std::string_view vt = rest.substr(0, s2);
+        if (!vt.empty()) c.vt = index(vt, uvs_.size() / 2, "uv", worst_vt_);
+        if (s2 != std::string_view::npos) {
+            const std::string_view vn = rest.substr(s2 + 1);
+            if (vn.empty() || vn.find('/') != std::string_view::npos)
+                fail(fmt::format("face corner '{}' is not v, v/vt, v//vn or v/vt/vn", token));
+            c.vn = index(vn, normals_.size() / 3, "normal", worst_vn_);
+        }
+        return c;
+    }
+
+    uint32_t vertex_of(const Corner& c) {
+        const auto [it, inserted] =
+            vertices_.try_emplace(c, static_cast<uint32_t>(corners_.size()));
+        if (inserted) {
+            if (corners_.size() >= 0xFFFFFFFFull) fail("more than 2^32 - 1 distinct vertices");
+            corners_.push_back(c);
+        }
+        return it->second;
+    }
+
+    void statement(std::string_view s) {
+        const std::string_view keyword = next_token(s);
+        if (keyword == "v") {
+            numbers(s, 3, positions_, "vertex");
+        } else if (keyword == "vt") {
+            // u, and v when given (OBJ allows vt with one number).
+            std::string_view rest = s;
+            uvs_.push_back(number(next_token(rest), "uv"));
+            const std::string_view v = next_token(rest);
+            uvs_.push_back(v.empty() ? 0.0f : number(v, "uv"));
+        } else if (keyword == "vn") {
+            numbers(s, 3, normals_, "normal");
+        } else if (keyword == "f") {
+            face_.clear();
+            for (std::string_view t = next_token(s); !t.empty(); t = next_token(s))
+                face_.push_back(vertex_of(corner(t)));
+            if (face_.size() < 3)
+                fail(fmt::format("face has {} corner{}; a face needs at least 3", face_.size(),
+                                 face_.size() == 1 ? "" : "s"));
+            // Fan triangulation around the first corner.
+            for (std::size_t k = 1; k + 1 < face_.size(); ++k)
+                indices_.insert(indices_.end(), {face_[0], face_[k], face_[k + 1]});
+        }
+        // Everything else (comments, o, g, s, usemtl, mtllib, l, p, curves) is not geometry
+        // Spangle renders.
+    }
+
+    /** Checks the largest index of a kind against the number read. */
+    void check(const std::pair<int64_t, int>& worst, std::size_t have, const char* kind) {
+        if (worst.first < static_cast<int64_t>(have)) return;
+        line_ = worst.second;
+        fail(fmt::format("face refers to {} {}, but the file has {}", kind, worst.first + 1, have));
+    }
+
+    TriangleMesh finish() {
+        check(worst_v_, positions_.size() / 3, "vertex");
+        check(worst_vt_, uvs_.size() / 2, "uv");
+        check(worst_vn_, normals_.size() / 3, "normal");
+        TriangleMesh mesh;
+        mesh.source = path_;
+        bool all_normals = !corners_.empty(), any_uv = false;
+        for (const Corner& c : corners_) {
+            all_normals = all_normals && c.vn >= 0;
+            any_uv = any_uv || c.vt >= 0;
+        }
+        mesh.positions.reserve(3 * corners_.size());
+        for (const Corner& c : corners_) {
+            const auto v = static_cast<std::size_t>(c.v);
+            mesh.positions.insert(mesh.positions.end(), {positions_[3 * v], positions_[3 * v + 1],
+                                                         positions_[3 * v + 2]});
+            if (all_normals) {
+                const auto n = static_cast<std::size_t>(c.vn);
+                mesh.normals.insert(mesh.normals.end(),
+                                    {normals_[3 * n], normals_[3 * n + 1], normals_[3 * n + 2]});
+            }
+            if (any_uv) {
+                const auto t = static_cast<std::size_t>(c.vt);
+                mesh.uvs.insert(mesh.uvs.end(), {c.vt >= 0 ? uvs_[2 * t] : 0.0f,
+                                                 c.vt >= 0 ? uvs_[2 * t + 1] : 0.0f});
+            }
+        }
+        mesh.indices = std::move(indices_);
+        return mesh;
+    }
+
+    std::string path_;
+    FileLoc ref_;
+    int line_ = 0;
+    std::vector<float> positions_, uvs_, normals_;
+    std::vector<uint32_t> indices_, face_;
+    std::vector<Corner> corners_;
+    std::pair<int64_t, int> worst_v_{-1, 0}, worst_vt_{-1, 0}, worst_vn_{-1, 0};
+    std::unordered_map<Corner, uint32_t, CornerHash> vertices_;
+};
+
+}  // namespace
+
+TriangleMesh read_obj(const std::string& path, const FileLoc& ref) {
+    return Reader(path, ref).read();
+}
+
+}  // namespace spangle

@@ -1,0 +1,22 @@
+#pragma once
+// Spangle's own reader for Wavefront OBJ meshes: v, vt, vn and f statements (positive or
+// negative 1-based indices, v, v/vt, v//vn and v/vt/vn corners, polygons fan-triangulated);
+// every other statement (o, g, s, usemtl, mtllib, l, p, ...) is skipped. Errors name the line.
+// It replaced a general-purpose importer that spent milliseconds on every file, leaked memory on
+// some malformed ones and reported problems without a line.
+
+#include <string>
+
+#include "core/error.h"
+#include "geometry/triangle_mesh.h"
+
+namespace spangle {
+
+/** Reads an OBJ mesh. Corners sharing the same (v, vt, vn) share a vertex. Normals are kept when
+ *  every corner has one, uvs when any corner has one (corners without get (0, 0), which the
+ *  renderer treats as unmapped). Throws SpangleError "path:line: ..." (with `ref`, the scene
+ *  line naming the file) for a bad number, a non-finite value, an index out of range or a face
+ *  of fewer than 3 corners. */
+TriangleMesh read_obj(const std::string& path, const FileLoc& ref);
+
+}  // namespace spangle
