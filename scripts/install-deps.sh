@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Installs Spangle's build dependencies from Debian 12's packages (run as root); with --tests,
-# also what only the tests need (headless Chromium and its WebDriver for the live preview page).
+# also what only the tests need (headless Chromium and its WebDriver for the live preview page;
+# clang and its libFuzzer runtime for the fuzz targets).
 # The list and the CMake traps behind it are in ../shared/NOTES-deps.md and cmake/SpangleDeps.cmake.
 set -euo pipefail
 packages=(
@@ -10,7 +11,7 @@ packages=(
     openimageio-tools opencolorio-tools clang-format
 )
 if [ "${1:-}" = "--tests" ]; then
-    packages+=(chromium chromium-driver curl)
+    packages+=(chromium chromium-driver curl clang libclang-rt-14-dev)
 fi
 missing=()
 for p in "${packages[@]}"; do

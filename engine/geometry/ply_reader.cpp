@@ -332,8 +332,9 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                                             {corners[0], corners[j], corners[j + 1]});
                 }
             }
-        } else {
-            // Skipped, but read through: its data lies before later elements'.
+        } else if (!e.props.empty()) {
+            // Skipped, but read through: its data lies before later elements'. (An element
+            // without properties has no data, however many entries it claims.)
             for (uint64_t i = 0; i < e.count; ++i)
                 for (const Property& p : e.props) {
                     const double n = p.list ? reader.read(p.count_type, "an element") : 1.0;

@@ -25,7 +25,7 @@ inline const SpangleParamDesc_v2 kParams[] = {
     {"max_flakes", SPANGLE_PARAM_FLOAT, {2000, 0, 0}, nullptr, 1.0, 1e9, nullptr, "expected flake count above which only the smooth lobe is used"},
     {"fresnel", SPANGLE_PARAM_STRING, {0, 0, 0}, "conductor", 0, 0, "conductor|dielectric|schlick", "Fresnel of a flake: a metal (preset), a dielectric (flake_ior) or Schlick (flake_f0)"},
     {"preset", SPANGLE_PARAM_STRING, {0, 0, 0}, "aluminium", 0, 0, "gold|silver|copper|aluminium|perfect", "metal of conductor flakes"},
-    {"flake_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of dielectric flakes"},
+    {"flake_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of dielectric flakes"},
     {"flake_f0", SPANGLE_PARAM_FLOAT, {0.9, 0, 0}, nullptr, 0.0, 1.0, nullptr, "normal-incidence reflectance of Schlick flakes"},
     {"flake_color", SPANGLE_PARAM_COLOR, {1.0, 1.0, 1.0}, nullptr, 0.0, 1.0, nullptr, "tint of every flake when the colour table is off"},
     {"shadowing", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0, 1, nullptr, "apply Smith shadowing G1(wi) of the flake distribution"},
@@ -36,7 +36,7 @@ inline const SpangleParamDesc_v2 kParams[] = {
     {"table_space", SPANGLE_PARAM_STRING, {0, 0, 0}, "srgb_texture", 0, 0, nullptr, "colour space the HSL table is defined in (any name of the OCIO config)"},
     {"hue_spread", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 360.0, nullptr, "degrees: flake hues are biased towards base_color's hue with this spread; 0 = uniform"},
     {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0, 1, nullptr, "add a clear coat on top"},
-    {"coat_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of the clear coat"},
+    {"coat_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of the clear coat"},
     {"coat_roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the clear coat; below 1e-4 a smooth coat"},
     {"seed", SPANGLE_PARAM_INT, {0, 0, 0}, nullptr, 0.0, 2147483647.0, nullptr, "which realisation of flakes: change it for a different but equivalent pattern"},
 };

@@ -307,7 +307,7 @@ void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch
 
 // clang-format off
 const SpangleParamDesc_v2 kDielectricParams[] = {
-    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of refraction inside (the outside is 1)"},
+    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of refraction inside (the outside is 1); within 1e-3 of 1 an index-matched interface light passes straight through"},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface"},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness"},
 };
@@ -316,6 +316,9 @@ const SpangleParamDesc_v2 kDielectricParams[] = {
 struct Dielectric {
     float ax, ay, ior;
     bool delta;
+    /** ior within 1e-3 of 1: an index-matched interface. Light passes straight through (a delta
+     *  transmission, rough or not: the half vector of refraction, wi eta + wo, vanishes). */
+    bool matched;
 };
 
 void* dielectric_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* error,
@@ -325,6 +328,7 @@ void* dielectric_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* 
     d.delta = is_delta(d.ax, d.ay);
     clamp_alpha(d.ax, d.ay);
     d.ior = param_f(p, "ior");
+    d.matched = d.ior < 1.001f;
     auto* out = new (std::nothrow) Dielectric(d);
     if (!out) set_error(error, cap, "out of memory");
     return out;
@@ -371,7 +375,7 @@ void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v2
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
         const Closure& c = cl[closure_of(q->closure_index, i)];
-        if (m.delta || c.wo.z <= 0.0f) {
+        if (m.delta || m.matched || c.wo.z <= 0.0f) {
             write_eval(q, i, 0, 0, 0, 0);
             continue;
         }
@@ -389,6 +393,14 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
         const V3 wo = c.wo;
         if (wo.z <= 0.0f) {
             invalid_sample(q, i);
+            continue;
+        }
+        if (m.matched) {
+            const V3 wi = wo * -1.0f;
+            const float f = 1.0f / wo.z;
+            write_sample(q, i, wi, f, f, f, 1.0f,
+                         SPANGLE_SAMPLE_TRANSMISSION | SPANGLE_SAMPLE_SPECULAR);
+            if (q->eta) q->eta[i] = c.eta;
             continue;
         }
         const V3 h = m.delta ? V3{0, 0, 1} : ggx_sample_visible(wo, m.ax, m.ay, q->u0[i], q->u1[i]);
@@ -425,7 +437,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
 // clang-format off
 const SpangleParamDesc_v2 kPlasticParams[] = {
     {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the base under the coat"},
-    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.01, 4.0, nullptr, "index of the coat"},
+    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of the coat"},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the coat along the tangent; below 1e-4 a smooth coat"},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha of the coat along the bitangent; -1 = same as roughness"},
 };
