@@ -57,7 +57,8 @@ uint64_t available_memory() {
 
 std::string format_bytes(double bytes) {
     if (bytes >= 1073741824.0) return fmt::format("{:.1f} GiB", bytes / 1073741824.0);
-    if (bytes >= 1048576.0) return fmt::format("{:.0f} MiB", bytes / 1048576.0);
+    if (bytes >= 10485760.0) return fmt::format("{:.0f} MiB", bytes / 1048576.0);
+    if (bytes >= 1048576.0) return fmt::format("{:.1f} MiB", bytes / 1048576.0);
     return fmt::format("{:.0f} KiB", bytes / 1024.0);
 }
 

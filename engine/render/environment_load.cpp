@@ -7,6 +7,7 @@
 #include <filesystem>
 
 #include "core/error.h"
+#include "core/memory.h"
 
 namespace spangle {
 
@@ -31,6 +32,16 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
                     "environment map '{}' claims {}x{} pixels in a file of {} bytes: it is "
                     "damaged or truncated",
                     file.path, spec.width, spec.height, bytes);
+    // At the peak: the pixels as read, the working-space copy and the sampling distribution.
+    constexpr double kBytesPerPixel = 32.0;
+    const uint64_t have = available_memory();
+    if (have > 0 && pixels_claimed * kBytesPerPixel > 0.9 * static_cast<double>(have))
+        throw_error(file.loc,
+                    "environment map '{}' ({}x{}) needs about {} to load, but only {} of memory "
+                    "is available: use a smaller map (oiiotool --resize)",
+                    file.path, spec.width, spec.height,
+                    format_bytes(pixels_claimed * kBytesPerPixel),
+                    format_bytes(static_cast<double>(have)));
     // Only the first three channels are used (and read).
     const int channels = std::min(spec.nchannels, 3);
     std::vector<float> pixels(static_cast<std::size_t>(spec.width) * spec.height *

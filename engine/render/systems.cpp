@@ -5,6 +5,7 @@
 #include <map>
 
 #include "core/files.h"
+#include "core/memory.h"
 #include "geometry/mesh_load.h"
 #include "render/environment_load.h"
 #include "render/integrator.h"
@@ -327,7 +328,23 @@ void system_accelerate(ecs::Registry& r, World& w) {
     }
     // A watch session hands the live scene's EmbreeScene over: build() reuses the bottom-level
     // structure of every mesh it already has and rebuilds only the top level.
-    if (!w.accel) w.accel = std::make_shared<EmbreeScene>();
+    if (!w.accel) {
+        // A first build: the BVH (Embree's, with its build-time peak) takes about 150 bytes per
+        // triangle on top of the meshes already loaded. (A watch session's rebuilds reuse most.)
+        double triangles = 0.0;
+        for (const auto& m : w.geometry.meshes)
+            triangles += static_cast<double>(m->triangle_count());
+        constexpr double kBvhBytesPerTriangle = 150.0;
+        const uint64_t have = available_memory();
+        if (have > 0 && triangles * kBvhBytesPerTriangle > 0.9 * static_cast<double>(have))
+            throw_error(
+                "the scene's {:.0f} triangles need about {} more for the ray-tracing "
+                "structure, but only {} of memory is available: lower subdivision levels "
+                "or use meshes with fewer triangles",
+                triangles, format_bytes(triangles * kBvhBytesPerTriangle),
+                format_bytes(static_cast<double>(have)));
+        w.accel = std::make_shared<EmbreeScene>();
+    }
     w.accel->build(w.geometry, w.instances, w.quad_vertices, w.sphere_lights);
     if (w.cache) {
         if (w.accel->blas_reused() > 0) w.cache->reused["mesh BVHs"] += w.accel->blas_reused();

@@ -268,5 +268,28 @@ TEST(Subdivision, LevelsThatWouldNotFitMemoryAreRefusedUpFront) {
     EXPECT_EQ(render_error(scene), "") << "renders without a limit";
 }
 
+TEST(MemoryLimits, BvhAndEnvironmentMapsAreRefusedUpFront) {
+    {
+        // Two spheres sharing one mesh of 9024 triangles and a plane: 1.3 MiB of BVH.
+        const MemoryLimit limit("1M");
+        const std::string msg = render_error(test::test_dir() + "/scenes/delta_hard_cases.toml");
+        EXPECT_NE(msg.find("the scene's 9026 triangles need about 1.3 MiB more for the ray-tracing "
+                           "structure, but only 1.0 MiB of memory is available"),
+                  std::string::npos)
+            << msg;
+    }
+    {
+        // A 512x256 environment map: 4 MiB while loading.
+        const MemoryLimit limit("3M");
+        const std::string msg = render_error(test::asset_dir() + "/scenes/materials.toml");
+        EXPECT_NE(msg.find("materials.toml:27:7: error: environment map"), std::string::npos)
+            << msg;
+        EXPECT_NE(msg.find("(512x256) needs about 4.0 MiB to load, but only 3.0 MiB of memory is "
+                           "available: use a smaller map"),
+                  std::string::npos)
+            << msg;
+    }
+}
+
 }  // namespace
 }  // namespace spangle
