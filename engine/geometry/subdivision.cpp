@@ -184,6 +184,33 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
     if (!g_osd_error.empty())
         throw_error(ref, "OpenSubdiv cannot refine '{}': {}", cage.source, g_osd_error);
 
+    // OpenSubdiv sizes its per-vertex weight buffers by a level's largest valence (edges at a
+    // vertex), with a fixed minimum, and writes one weight per incident face. Faces stacked on
+    // the same edges (repeated faces, fans over one edge) give a vertex more faces than that:
+    // refining from such a level overflows the buffers (found by the fuzzer), so it is refused;
+    // at the last level it would only corrupt the limit masks, so those vertices are left at
+    // their refined positions, with normals from the refined faces.
+    bool stacked_last = false;
+    for (int level = 0; level <= o.level; ++level) {
+        const Far::TopologyLevel& t = refiner->GetLevel(level);
+        int max_valence = 0;
+        for (int v = 0; v < t.GetNumVertices(); ++v)
+            max_valence = std::max(max_valence, t.GetVertexEdges(v).size());
+        for (int v = 0; v < t.GetNumVertices(); ++v) {
+            const int faces = t.GetVertexFaces(v).size(), edges = t.GetVertexEdges(v).size();
+            if (level == o.level) {
+                stacked_last = stacked_last || faces > max_valence;
+            } else if (faces > std::max(16, max_valence) ||
+                       faces + edges > std::max(32, 2 * max_valence)) {
+                throw_error(ref,
+                            "cage '{}' has too many faces stacked on the same edges (after {} "
+                            "level{} of refinement a vertex lies on {} faces but has {} edges): "
+                            "remove repeated or overlapping faces",
+                            cage.source, level, level == 1 ? "" : "s", faces, edges);
+            }
+        }
+    }
+
     // Positions through every level, then to the limit with tangents.
     std::vector<P3> verts(static_cast<std::size_t>(refiner->GetNumVerticesTotal()));
     for (int i = 0; i < nv; ++i)
@@ -200,7 +227,10 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
     const Far::TopologyLevel& last = refiner->GetLevel(o.level);
     const auto n_last = static_cast<std::size_t>(last.GetNumVertices());
     std::vector<P3> limit(n_last), du(n_last), dv(n_last);
-    primvar.Limit(src, limit, du, dv);
+    if (stacked_last)
+        std::copy(src, src + n_last, limit.begin());  // zero tangents: face normals below
+    else
+        primvar.Limit(src, limit, du, dv);
 
     std::vector<P2> uv_limit;
     if (has_uv) {
@@ -214,7 +244,10 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
             s = d;
         }
         uv_limit.resize(static_cast<std::size_t>(last.GetNumFVarValues(0)));
-        primvar.LimitFaceVarying(s, uv_limit, 0);
+        if (stacked_last)
+            std::copy(s, s + uv_limit.size(), uv_limit.begin());
+        else
+            primvar.LimitFaceVarying(s, uv_limit, 0);
     }
     if (!g_osd_error.empty())
         throw_error(ref, "OpenSubdiv failed on '{}': {}", cage.source, g_osd_error);
