@@ -55,6 +55,11 @@ uint64_t available_memory() {
     return have;
 }
 
+uint64_t memory_short_for(double need) {
+    const uint64_t have = available_memory();
+    return have > 0 && need > 0.9 * static_cast<double>(have) ? have : 0;
+}
+
 std::string format_bytes(double bytes) {
     if (bytes >= 1073741824.0) return fmt::format("{:.1f} GiB", bytes / 1073741824.0);
     if (bytes >= 10485760.0) return fmt::format("{:.0f} MiB", bytes / 1048576.0);

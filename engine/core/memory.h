@@ -14,6 +14,11 @@ namespace spangle {
  *  $SPANGLE_MEMORY_LIMIT. */
 uint64_t available_memory();
 
+/** The one rule every estimate follows: when `need` bytes would take more than 90% of
+ *  available_memory(), the bytes available (for the caller's message, which names the setting
+ *  to lower); 0 when it fits or nothing is known. */
+uint64_t memory_short_for(double need);
+
 /** Bytes for messages: "412 MiB", "1.6 GiB". */
 std::string format_bytes(double bytes);
 

@@ -65,7 +65,6 @@ void check_subdivision_memory(const Cage& cage, const SubdivOptions& o, bool fro
     constexpr double kBytesPerTriangle = 300.0;
     const double triangles = subdivided_triangles(cage, o);
     const double need = triangles * kBytesPerTriangle;
-    const uint64_t have = available_memory();
     const char* lower =
         from_camera ? "lower subdiv.max_level or raise subdiv.pixel_budget" : "lower subdiv.level";
     if (3.0 * triangles > 4294967295.0)
@@ -73,7 +72,7 @@ void check_subdivision_memory(const Cage& cage, const SubdivOptions& o, bool fro
                     "subdividing '{}' ({} cage faces) at level {} would make {:.0f} triangles, "
                     "more than 32-bit indices can number: {}",
                     cage.source, cage.face_count(), o.level, triangles, lower);
-    if (have > 0 && need > 0.9 * static_cast<double>(have))
+    if (const uint64_t have = memory_short_for(need))
         throw_error(ref,
                     "subdividing '{}' ({} cage faces) at level {} would make {:.0f} triangles and "
                     "need about {}, but only {} of memory is available: {}",

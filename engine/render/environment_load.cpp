@@ -34,8 +34,7 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
                     file.path, spec.width, spec.height, bytes);
     // At the peak: the pixels as read, the working-space copy and the sampling distribution.
     constexpr double kBytesPerPixel = 32.0;
-    const uint64_t have = available_memory();
-    if (have > 0 && pixels_claimed * kBytesPerPixel > 0.9 * static_cast<double>(have))
+    if (const uint64_t have = memory_short_for(pixels_claimed * kBytesPerPixel))
         throw_error(file.loc,
                     "environment map '{}' ({}x{}) needs about {} to load, but only {} of memory "
                     "is available: use a smaller map (oiiotool --resize)",

@@ -530,8 +530,7 @@ void check_film_memory(uint32_t width, uint32_t height, uint32_t spp,
                              (passes && options.on_pass ? 12.0 : 0.0) +
                              (options.preview_pass && options.on_pass && spp > 1 ? 12.0 : 0.0);
     const double need = per_pixel * width * height;
-    const uint64_t have = available_memory();
-    if (have > 0 && need > 0.9 * static_cast<double>(have))
+    if (const uint64_t have = memory_short_for(need))
         throw_error(
             "a {}x{} image needs about {} to render ({} bytes per pixel), but "
             "only {} of memory is available: lower the resolution ([render] "

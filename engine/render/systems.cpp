@@ -335,8 +335,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
         for (const auto& m : w.geometry.meshes)
             triangles += static_cast<double>(m->triangle_count());
         constexpr double kBvhBytesPerTriangle = 150.0;
-        const uint64_t have = available_memory();
-        if (have > 0 && triangles * kBvhBytesPerTriangle > 0.9 * static_cast<double>(have))
+        if (const uint64_t have = memory_short_for(triangles * kBvhBytesPerTriangle))
             throw_error(
                 "the scene's {:.0f} triangles need about {} more for the ray-tracing "
                 "structure, but only {} of memory is available: lower subdivision levels "

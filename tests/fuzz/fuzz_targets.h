@@ -7,16 +7,12 @@
 #include <cstddef>
 #include <cstdint>
 #include <string>
-#include <vector>
 
 namespace spangle::fuzz {
 
-/** The targets by name: "scene", "ply", "obj", "cage". */
-const std::vector<std::string>& target_names();
-
-/** Runs `target` on one input. Returns true when the loader accepted it, false when it threw a
- *  SpangleError; any other outcome propagates. Throws std::invalid_argument for an unknown
- *  target. */
+/** Runs `target` ("scene", "ply", "obj" or "cage") on one input. Returns true when the loader
+ * accepted it, false when it threw a SpangleError; any other outcome propagates. Throws
+ * std::invalid_argument for an unknown target. */
 bool run_one(const std::string& target, const std::uint8_t* data, std::size_t size);
 
 }  // namespace spangle::fuzz
