@@ -41,6 +41,17 @@ EmbreeScene::EmbreeScene() {
         throw_error("cannot create an Embree device (error {})",
                     static_cast<int>(rtcGetDeviceError(nullptr)));
     rtcSetDeviceErrorFunction(device_, on_embree_error, &error_);
+    rtcSetDeviceMemoryMonitorFunction(
+        device_,
+        [](void* user, ssize_t bytes, bool) {
+            auto* self = static_cast<EmbreeScene*>(user);
+            const std::ptrdiff_t now = self->bytes_ += bytes;
+            std::ptrdiff_t peak = self->peak_bytes_.load();
+            while (now > peak && !self->peak_bytes_.compare_exchange_weak(peak, now)) {
+            }
+            return true;
+        },
+        this);
 }
 
 EmbreeScene::~EmbreeScene() {
@@ -161,6 +172,43 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(top_, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
+    resolve(rh, hit);
+    return true;
+}
+
+void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, bool coherent,
+                                   Hit* hits, uint8_t* found) const {
+    thread_local std::vector<RTCRayHit> rays;
+    rays.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        RTCRayHit& rh = rays[i];
+        rh.ray.org_x = o[i].x;
+        rh.ray.org_y = o[i].y;
+        rh.ray.org_z = o[i].z;
+        rh.ray.dir_x = d[i].x;
+        rh.ray.dir_y = d[i].y;
+        rh.ray.dir_z = d[i].z;
+        rh.ray.tnear = 0.0f;
+        // A non-finite ray (a numerical failure upstream) misses: Embree would assert on it.
+        rh.ray.tfar = is_finite(o[i]) && is_finite(d[i]) ? 1e30f : -1.0f;
+        rh.ray.mask = 0xffffffffu;
+        rh.ray.time = 0.0f;
+        rh.ray.flags = 0;
+        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    }
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags =
+        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    if (n > 0) rtcIntersect1M(top_, &ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRayHit));
+    for (std::size_t i = 0; i < n; ++i) {
+        found[i] = rays[i].hit.geomID != RTC_INVALID_GEOMETRY_ID ? 1 : 0;
+        if (found[i]) resolve(rays[i], hits[i]);
+    }
+}
+
+void EmbreeScene::resolve(const RTCRayHit& rh, Hit& hit) const {
     hit.t = rh.ray.tfar;
     hit.b1 = rh.hit.u;
     hit.b2 = rh.hit.v;
@@ -172,7 +220,6 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
         hit.instance = -1;
         hit.kind = rh.hit.geomID == sphere_geom_ ? HitKind::Sphere : HitKind::Quad;
     }
-    return true;
 }
 
 bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax) const {

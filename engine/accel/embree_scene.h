@@ -6,6 +6,9 @@
 
 #include <embree3/rtcore.h>
 
+#include <algorithm>
+#include <atomic>
+#include <cstddef>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -64,6 +67,10 @@ public:
 
     /** Closest hit along o + t d for t in (0, tmax); false when nothing is hit. */
     bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const;
+    /** Closest hits of n rays o[i] + t d[i], t in (0, 1e30), traced as one stream (Embree
+     *  gathers coherent rays into packets): found[i] says whether hits[i] is one. */
+    void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, bool coherent, Hit* hits,
+                          uint8_t* found) const;
     /** True when something blocks o + t d for t in (0, tmax). */
     bool occluded(Vec3 o, Vec3 d, float tmax) const;
 
@@ -73,9 +80,17 @@ public:
 
     /** Geometry id of the quad lights in the top-level scene, for tests. */
     uint32_t quad_geometry() const { return quad_geom_; }
+    /** Bytes Embree holds now and at most so far (its memory monitor). */
+    std::size_t bytes() const {
+        return static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, bytes_));
+    }
+    std::size_t peak_bytes() const {
+        return static_cast<std::size_t>(std::max<std::ptrdiff_t>(0, peak_bytes_));
+    }
 
 private:
     void check(const char* what) const;
+    void resolve(const RTCRayHit& rh, Hit& hit) const;
 
     RTCDevice device_ = nullptr;
     RTCScene top_ = nullptr;
@@ -86,6 +101,7 @@ private:
     int built_ = 0, reused_ = 0;
     uint32_t quad_geom_ = RTC_INVALID_GEOMETRY_ID;
     uint32_t sphere_geom_ = RTC_INVALID_GEOMETRY_ID;
+    std::atomic<std::ptrdiff_t> bytes_{0}, peak_bytes_{0};
     mutable std::string error_;  ///< last message from the error callback
 };
 

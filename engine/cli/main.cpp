@@ -24,6 +24,7 @@
 #include <thread>
 #include <vector>
 
+#include "cli/bench.h"
 #include "cli/progress.h"
 #include "cli/serve.h"
 #include "cli/watch.h"
@@ -660,6 +661,32 @@ int main(int argc, char** argv) {
         app.add_subcommand("inspect", "measure an image: mean, non-finite pixels, fireflies");
     inspect->add_option("image", inspect_path, "EXR (or any image OpenImageIO reads)")->required();
 
+    BenchArgs ba;
+    std::string write_scene;
+    CLI::App* bench = app.add_subcommand(
+        "bench", "render fixed scenes and print samples and rays per second, phase times, memory");
+    bench->add_option("scenes", ba.scenes,
+                      "scene files, shipped scene names, or 'interior' (default: demo materials "
+                      "beetle interior)");
+    bench->add_option("--size", ba.size,
+                      "image size of every scene (default 640x360; '' = the scene's)");
+    bench->add_option("--spp", ba.spp, "samples per pixel (default 16)")
+        ->check(CLI::Range(1u, 1u << 20));
+    bench->add_option("--threads", ba.threads, "worker threads (default: all cores)")
+        ->check(CLI::Range(1, 1024));
+    bench->add_option("--repeat", ba.repeat, "renders per scene, the fastest counts (default 1)")
+        ->check(CLI::Range(1, 100));
+    bench->add_option("--plugin-path", ba.plugin_dirs, "directory searched for plugins first");
+    bench->add_option("--work-dir", ba.work_dir,
+                      "where the interior scene is written (default: a folder in the temp dir)");
+    bench->add_option("--csv", ba.csv, "also write the results as CSV");
+    bench->add_option("--export-obj", ba.export_obj,
+                      "with one scene: also write the triangles it traces (world space) as an OBJ, "
+                      "for Embree's viewer");
+    bench->add_flag("--measure-one", ba.measure_one)->group("");  // internal: one child's render
+    bench->add_option("--write-scene", write_scene,
+                      "only write the procedural interior scene into this folder");
+
     // An unknown first word is a misspelt command, not a missing one.
     if (argc > 1 && argv[1][0] != '-') {
         const std::string word = argv[1];
@@ -682,6 +709,13 @@ int main(int argc, char** argv) {
         if (*render) return ra.watch ? run_watch(ra) : run_render(ra);
         if (*plugins) return run_plugins(plugin_dirs);
         if (*inspect) return run_inspect(inspect_path);
+        if (*bench) {
+            if (!write_scene.empty()) {
+                fmt::print("wrote {}\n", write_interior_scene(write_scene));
+                return 0;
+            }
+            return run_bench(ba);
+        }
     } catch (const UsageError& e) {
         print_error(e.what());
         return 2;

@@ -1,5 +1,6 @@
 #include "render/frame.h"
 
+#include <cstdio>
 #include <filesystem>
 
 #include "render/systems.h"
@@ -25,6 +26,29 @@ std::vector<std::string> default_ocio_locations() {
     return out;
 }
 
+namespace {
+
+/** Writes every instance's triangles in world space as one OBJ. */
+void export_world_obj(const World& world, const std::string& path) {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (!f) throw_error("cannot write '{}'", path);
+    std::size_t base = 1;
+    for (const Instance& inst : world.instances) {
+        const TriangleMesh& m = world.geometry.mesh(inst.mesh);
+        for (std::size_t v = 0; v < m.vertex_count(); ++v) {
+            const Vec3 p = inst.to_world.apply_point(m.position(static_cast<uint32_t>(v)));
+            fmt::print(f, "v {} {} {}\n", p.x, p.y, p.z);
+        }
+        for (std::size_t t = 0; t < m.triangle_count(); ++t)
+            fmt::print(f, "f {} {} {}\n", base + m.indices[3 * t], base + m.indices[3 * t + 1],
+                       base + m.indices[3 * t + 2]);
+        base += m.vertex_count();
+    }
+    if (std::fclose(f) != 0) throw_error("cannot write '{}'", path);
+}
+
+}  // namespace
+
 FrameResult render_frame(const FrameRequest& req) {
     ColorConfig color = ColorConfig::load(req.ocio_config, default_ocio_locations());
     ecs::Registry registry;
@@ -44,10 +68,32 @@ FrameResult render_frame(const FrameRequest& req) {
 
     const ecs::Schedule<World> schedule = make_frame_schedule();
     std::vector<ecs::SystemReport> reports = schedule.run(registry, world);
+    if (!req.export_obj.empty()) export_world_obj(world, req.export_obj);
 
-    FrameResult result{
-        std::move(color), world.width, world.height,    std::move(world.image), std::move(reports),
-        plugins.opened(), world.stats, std::move(info), world.subdiv,           {}};
+    FrameResult result{std::move(color),
+                       world.width,
+                       world.height,
+                       std::move(world.image),
+                       std::move(reports),
+                       plugins.opened(),
+                       world.stats,
+                       std::move(info),
+                       world.subdiv,
+                       0,
+                       0,
+                       0,
+                       0,
+                       {}};
+    for (const Instance& inst : world.instances)
+        result.triangles += world.geometry.mesh(inst.mesh).triangle_count();
+    for (const auto& mesh : world.geometry.meshes)
+        result.mesh_bytes += sizeof(float) * (mesh->positions.capacity() +
+                                              mesh->normals.capacity() + mesh->uvs.capacity()) +
+                             sizeof(uint32_t) * mesh->indices.capacity();
+    if (world.accel) {
+        result.accel_bytes = world.accel->bytes();
+        result.accel_peak_bytes = world.accel->peak_bytes();
+    }
     for (const auto& mat : world.materials) {
         if (!mat || !mat->model().stats) continue;
         SpangleStat_v2 buf[64];

@@ -22,6 +22,9 @@ struct FrameRequest {
     /** Called once the scene is loaded, with the colour config images are written in (for
      *  options.on_pass); may be empty. */
     std::function<void(const ColorConfig&)> on_loaded;
+    /** When set, the scene's triangles as traced (subdivided, in world space) are written here
+     *  as an OBJ, for other tools (Embree's viewer) to measure the same geometry. */
+    std::string export_obj;
 };
 
 /** The rendered frame and its report. */
@@ -34,6 +37,10 @@ struct FrameResult {
     RenderStats stats;                        ///< counters of the render system
     SceneInfo info;                           ///< facts about the scene
     std::vector<SubdivReport> subdiv;         ///< what the subdivide system did
+    uint64_t triangles = 0;   ///< triangles of all instances (an instanced mesh counts each time)
+    uint64_t mesh_bytes = 0;  ///< memory of the loaded and subdivided meshes
+    uint64_t accel_peak_bytes = 0;  ///< most memory Embree held (BVHs and their build)
+    uint64_t accel_bytes = 0;       ///< memory Embree held after the build
     /** Statistics each material's plugin reported: (material name, [(name, value)]). */
     std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> material_stats;
 };

@@ -22,7 +22,7 @@ namespace spangle {
 namespace {
 
 constexpr uint32_t kTileSize = 16;
-constexpr uint32_t kSamplesPerWave = 16;  ///< samples of each tile pixel traced together
+constexpr uint32_t kSamplesPerWave = 8;  ///< samples of each tile pixel traced together
 constexpr uint32_t kMaxBatch = 256;  ///< shading points per plugin call: bounds per-batch scratch
 
 /** Sobol dimension pairs: two for the camera, then kPairsPerBounce per bounce. */
@@ -60,6 +60,7 @@ Vec3 offset_origin(Vec3 p, Vec3 n) {
 struct Workspace {
     // Paths of the wave.
     std::vector<uint32_t> pixel, sample;
+    std::vector<uint64_t> key;  ///< sobol_pixel_key of the path's pixel
     std::vector<RayDifferential> ray;
     std::vector<uint8_t> has_diff;  ///< the ray's differentials are real (camera or specular)
     std::vector<float> fp_width;    ///< footprint width at the ray origin (no differentials)
@@ -69,6 +70,15 @@ struct Workspace {
     std::vector<uint8_t> prev_delta;  ///< last bounce was a delta lobe (or the camera)
     std::vector<uint8_t> active;
     // Hits of the current bounce.
+    struct PathHit {
+        uint32_t path;
+        Hit hit;
+    };
+    std::vector<PathHit> hits;          ///< the paths that hit a scattering surface, in path order
+    std::vector<uint32_t> stream_path;  ///< the active paths, traced as one stream
+    std::vector<Vec3> stream_o, stream_d;
+    std::vector<Hit> stream_hit;
+    std::vector<uint8_t> stream_found;
     std::vector<uint32_t> order;  ///< active hit paths sorted by material
     std::vector<uint32_t> material_of;
     std::vector<SurfacePoint> surf;
@@ -86,6 +96,7 @@ struct Workspace {
 
     void resize_paths(std::size_t n) {
         for (auto* a : {&pixel, &sample, &material_of}) a->resize(n);
+        key.resize(n);
         ray.resize(n);
         for (auto* a : {&has_diff, &prev_delta, &active}) a->resize(n);
         for (auto* a : {&fp_width, &fp_spread, &prev_pdf}) a->resize(n);
@@ -126,9 +137,9 @@ struct RenderJob {
     std::mutex progress_mutex;
 };
 
-void rnd2(const RenderJob& job, uint32_t pixel, uint32_t sample, uint32_t bounce, uint32_t pair,
-          float& a, float& b) {
-    sobol_2d(job.seed, pixel, sample, kPairBounceBase + bounce * kPairsPerBounce + pair, a, b);
+void rnd2(const Workspace& ws, uint32_t path, uint32_t bounce, uint32_t pair, float& a, float& b) {
+    sobol_2d_keyed(ws.key[path], ws.sample[path], kPairBounceBase + bounce * kPairsPerBounce + pair,
+                   a, b);
 }
 
 /** Caps the luminance of one indirect contribution (a biased, optional firefly guard: light
@@ -246,7 +257,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
         float sel, lobe;
-        rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairSelect, sel, lobe);
+        rnd2(ws, i, bounce, kPairSelect, sel, lobe);
         ws.u2[k] = lobe;
         ws.u_select[k] = sel;
     }
@@ -258,7 +269,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             const uint32_t i = paths[k];
             const SurfacePoint& sp = ws.surf[i];
             float lu, lv;
-            rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairLight, lu, lv);
+            rnd2(ws, i, bounce, kPairLight, lu, lv);
             const LightSample ls = w.lights.sample(sp.p, ws.u_select[k], lu, lv);
             if (!(ls.pdf > 0.0f)) continue;
             ws.light[q] = ls;
@@ -304,7 +315,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
     // Continue each path by sampling the BSDF.
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
-        rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairBsdf, ws.u0[k], ws.u1[k]);
+        rnd2(ws, i, bounce, kPairBsdf, ws.u0[k], ws.u1[k]);
         ws.eta[k] = 1.0f;
     }
     SpangleSampleBatch_v2 sb{n,
@@ -337,7 +348,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         if (bounce + 1 >= job.rr_depth) {
             const float survive = std::min(0.95f, max_component(t));
             float u_rr, spare;
-            rnd2(job, ws.pixel[i], ws.sample[i], bounce, kPairRoulette, u_rr, spare);
+            rnd2(ws, i, bounce, kPairRoulette, u_rr, spare);
             if (u_rr >= survive) {
                 ws.active[i] = 0;
                 continue;
@@ -410,12 +421,14 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                     std::min(y + st / 2, y1 - 1) * job.width + std::min(x + st / 2, x1 - 1);
                 const uint32_t smp = first_sample + s;
                 float fu, fv, lu, lv;
-                sobol_2d(job.seed, pix, smp, kPairFilter, fu, fv);
-                sobol_2d(job.seed, pix, smp, kPairLens, lu, lv);
+                const uint64_t key = sobol_pixel_key(job.seed, pix);
+                sobol_2d_keyed(key, smp, kPairFilter, fu, fv);
+                sobol_2d_keyed(key, smp, kPairLens, lu, lv);
                 // Filter importance sampling: the sample lands where the filter puts it.
                 const float fx = static_cast<float>(x) + scale * (0.5f + job.filter->sample(fu));
                 const float fy = static_cast<float>(y) + scale * (0.5f + job.filter->sample(fv));
                 ws.pixel[i] = pix;
+                ws.key[i] = key;
                 ws.sample[i] = smp;
                 ws.ray[i] = job.camera->generate(fx, fy, lu, lv);
                 if (st > 1) {  // a preview path stands for the whole block: so does its footprint
@@ -439,11 +452,31 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
     std::vector<uint32_t> group_start(material_count + 1);
     for (uint32_t bounce = 0; bounce <= job.max_depth; ++bounce) {
         std::fill(group_start.begin(), group_start.end(), 0u);
+        // Trace every active path first, then resolve the hits: the second loop can fetch the
+        // mesh data of hits a few paths ahead while it works on the current one (it is memory
+        // latency, not arithmetic, that dominates turning a hit into a surface point).
+        ws.hits.clear();
+        ws.stream_path.clear();
+        ws.stream_o.clear();
+        ws.stream_d.clear();
         for (std::size_t k = 0; k < n; ++k) {
             if (!ws.active[k]) continue;
+            ws.stream_path.push_back(static_cast<uint32_t>(k));
+            ws.stream_o.push_back(ws.ray[k].o);
+            ws.stream_d.push_back(ws.ray[k].d);
+        }
+        const std::size_t traced = ws.stream_path.size();
+        ws.stream_hit.resize(traced);
+        ws.stream_found.assign(traced, 0);
+        // Camera rays of a tile are coherent: Embree traces them in packets.
+        if (w.accel)
+            w.accel->intersect_stream(ws.stream_o.data(), ws.stream_d.data(), traced, bounce == 0,
+                                      ws.stream_hit.data(), ws.stream_found.data());
+        for (std::size_t j = 0; j < traced; ++j) {
+            const std::size_t k = ws.stream_path[j];
             ++rays;
-            Hit hit;
-            if (!w.accel || !w.accel->intersect(ws.ray[k].o, ws.ray[k].d, 1e30f, hit)) {
+            const Hit& hit = ws.stream_hit[j];
+            if (!ws.stream_found[j]) {
                 ws.radiance[k] += clamp_contribution(
                     job,
                     ws.throughput[k] *
@@ -460,6 +493,33 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                 ws.active[k] = 0;
                 continue;
             }
+            ws.hits.push_back({static_cast<uint32_t>(k), hit});
+        }
+        const std::size_t hit_count = ws.hits.size();
+        const auto prefetch_vertices = [&](std::size_t h) {
+            const Hit& hit = ws.hits[h].hit;
+            const TriangleMesh& m =
+                w.geometry.mesh(w.instances[static_cast<std::size_t>(hit.instance)].mesh);
+            const uint32_t* tri = &m.indices[3 * static_cast<std::size_t>(hit.prim)];
+            for (int c = 0; c < 3; ++c) {
+                const std::size_t v = tri[c];
+                __builtin_prefetch(&m.positions[3 * v]);
+                if (!m.normals.empty()) __builtin_prefetch(&m.normals[3 * v]);
+                if (!m.uvs.empty()) __builtin_prefetch(&m.uvs[2 * v]);
+            }
+        };
+        constexpr std::size_t kAhead = 4;
+        for (std::size_t h = 0; h < std::min(kAhead, hit_count); ++h) prefetch_vertices(h);
+        for (std::size_t h = 0; h < hit_count; ++h) {
+            if (h + 2 * kAhead < hit_count) {
+                const Hit& far = ws.hits[h + 2 * kAhead].hit;
+                const TriangleMesh& m =
+                    w.geometry.mesh(w.instances[static_cast<std::size_t>(far.instance)].mesh);
+                __builtin_prefetch(&m.indices[3 * static_cast<std::size_t>(far.prim)]);
+            }
+            if (h + kAhead < hit_count) prefetch_vertices(h + kAhead);
+            const uint32_t k = ws.hits[h].path;
+            const Hit& hit = ws.hits[h].hit;
             const Instance& inst = w.instances[static_cast<std::size_t>(hit.instance)];
             ws.surf[k] = surface_at(w.geometry.mesh(inst.mesh), inst, hit, ws.ray[k].d);
             bool has_diff = ws.has_diff[k] != 0;

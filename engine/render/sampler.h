@@ -12,8 +12,7 @@
 namespace spangle {
 
 constexpr uint32_t reverse_bits(uint32_t x) {
-    x = (x << 16) | (x >> 16);
-    x = ((x & 0x00ff00ffu) << 8) | ((x & 0xff00ff00u) >> 8);
+    x = __builtin_bswap32(x);  // one instruction for the byte order; then the bits of each byte
     x = ((x & 0x0f0f0f0fu) << 4) | ((x & 0xf0f0f0f0u) >> 4);
     x = ((x & 0x33333333u) << 2) | ((x & 0xccccccccu) >> 2);
     return ((x & 0x55555555u) << 1) | ((x & 0xaaaaaaaau) >> 1);
@@ -79,13 +78,26 @@ constexpr float fixed_to_unit(uint32_t x) {
     return static_cast<float>(x >> 8) * 0x1p-24f;
 }
 
+/** The key of one pixel's sequences, hashed once per path: (seed, pixel). */
+constexpr uint64_t sobol_pixel_key(uint64_t seed, uint64_t pixel) {
+    return hash2(seed, pixel);
+}
+
+/** The 2D point for sample `index` of the pixel whose key is `key`, in dimension pair `pair`.
+ *  One 64-bit hash per pair gives the three scramble seeds (index shuffle, both dimensions). */
+inline void sobol_2d_keyed(uint64_t key, uint32_t index, uint32_t pair, float& u0, float& u1) {
+    const uint64_t h = mix64(key ^ (static_cast<uint64_t>(pair) + 1) * 0x9e3779b97f4a7c15ull);
+    const auto shuffled = nested_uniform_scramble(index, static_cast<uint32_t>(h));
+    const auto seed0 = static_cast<uint32_t>(h >> 32);
+    const auto seed1 = static_cast<uint32_t>((h * 0xd1342543de82ef95ull) >> 32);
+    u0 = fixed_to_unit(nested_uniform_scramble(sobol_0(shuffled), seed0));
+    u1 = fixed_to_unit(nested_uniform_scramble(sobol_1(shuffled), seed1));
+}
+
 /** The 2D point for sample `index` of `pixel` in dimension pair `pair`. */
 inline void sobol_2d(uint64_t seed, uint64_t pixel, uint32_t index, uint32_t pair, float& u0,
                      float& u1) {
-    const uint64_t h = hash4(seed, pixel, pair, 0x50b01ull);
-    const auto shuffled = nested_uniform_scramble(index, static_cast<uint32_t>(h));
-    u0 = fixed_to_unit(nested_uniform_scramble(sobol_0(shuffled), static_cast<uint32_t>(h >> 32)));
-    u1 = fixed_to_unit(nested_uniform_scramble(sobol_1(shuffled), static_cast<uint32_t>(mix64(h))));
+    sobol_2d_keyed(sobol_pixel_key(seed, pixel), index, pair, u0, u1);
 }
 
 }  // namespace spangle
