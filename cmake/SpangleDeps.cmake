@@ -20,6 +20,11 @@ if(_oiio_inc)
     set_target_properties(OpenImageIO::OpenImageIO PROPERTIES INTERFACE_INCLUDE_DIRECTORIES "${_oiio_inc}")
 endif()
 
+# EXR files are read and written with OpenEXR itself, PNG previews with libpng: OpenImageIO is
+# linked only by the module that reads other formats (engine/oiio/).
+find_package(OpenEXR CONFIG REQUIRED)
+find_package(PNG REQUIRED)
+
 # OpenColorIO's CMake config computes a wrong prefix on Debian: use pkg-config.
 pkg_check_modules(OCIO REQUIRED IMPORTED_TARGET OpenColorIO)
 

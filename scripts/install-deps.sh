@@ -6,7 +6,7 @@
 set -euo pipefail
 packages=(
     cmake ninja-build g++ pkg-config
-    libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev
+    libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev libpng-dev
     libtbb-dev libtomlplusplus-dev libcli11-dev libtinyobjloader-dev libcpp-httplib-dev libgtest-dev libbenchmark-dev
     openimageio-tools opencolorio-tools clang-format
 )

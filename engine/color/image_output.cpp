@@ -1,16 +1,23 @@
 #include "color/image_output.h"
 
 #include <Imath/half.h>
-#include <OpenImageIO/filesystem.h>
-#include <OpenImageIO/imageio.h>
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStandardAttributes.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <oneapi/tbb/blocked_range.h>
 #include <oneapi/tbb/parallel_for.h>
+#include <png.h>
 #include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
+#include <cerrno>
 #include <cmath>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <functional>
@@ -92,27 +99,26 @@ std::string temp_path_for(const std::string& path) {
  *  needs a strip's worth of memory beside the film, not a converted copy of the whole image. */
 constexpr int kStripRows = 256;
 
-/** Opens a temporary file beside `path` with `format`, lets write_pixels fill it (it returns
- *  false on an OpenImageIO error), closes it, checks it is not empty, and renames it onto
- *  `path`. Anything that fails removes the temporary file and throws SpangleError. */
-void write_atomically(const std::string& path, const char* format, const OIIO::ImageSpec& spec,
-                      const std::function<bool(OIIO::ImageOutput&)>& write_pixels) {
+/** Lets write_file write a temporary file beside `path` (it throws SpangleError or any
+ *  std::exception on failure), checks the file is not empty, and renames it onto `path`.
+ *  Anything that fails removes the temporary file and throws SpangleError. */
+void write_atomically(const std::string& path,
+                      const std::function<void(const std::string&)>& write_file) {
     const fs::path dir = fs::path(path).parent_path();
     if (!dir.empty() && !fs::is_directory(dir))
         throw_error("cannot write '{}': directory '{}' does not exist", path, dir.string());
     const std::string tmp = temp_path_for(path);
     const InProgressSlot slot(tmp);
-    auto out = OIIO::ImageOutput::create(format);
-    if (!out) throw_error("cannot write '{}': {}", path, OIIO::geterror());
-    bool ok = out->open(tmp, spec) && write_pixels(*out) && out->close();
     std::error_code ec;
-    if (!ok) {
-        const std::string why = out->geterror();
-        out.reset();
+    try {
+        write_file(tmp);
+    } catch (const std::exception& e) {
         fs::remove(tmp, ec);
-        throw_error("cannot write '{}': {}", path, why.empty() ? "unknown OpenImageIO error" : why);
+        const std::string why = e.what();
+        // Messages of our own already name the file.
+        if (dynamic_cast<const SpangleError*>(&e)) throw;
+        throw_error("cannot write '{}': {}", path, why.empty() ? "unknown error" : why);
     }
-    out.reset();
     // A full disk can let every call succeed and still leave nothing: never rename that in.
     if (fs::file_size(tmp, ec) == 0 || ec) {
         fs::remove(tmp, ec);
@@ -123,6 +129,18 @@ void write_atomically(const std::string& path, const char* format, const OIIO::I
         fs::remove(tmp, ec);
         throw_error("cannot move the finished image onto '{}': {}", path, ec.message());
     }
+}
+
+Imf::Compression exr_compression(const std::string& name) {
+    static const std::pair<const char*, Imf::Compression> table[] = {
+        {"none", Imf::NO_COMPRESSION},   {"rle", Imf::RLE_COMPRESSION},
+        {"zips", Imf::ZIPS_COMPRESSION}, {"zip", Imf::ZIP_COMPRESSION},
+        {"piz", Imf::PIZ_COMPRESSION},   {"pxr24", Imf::PXR24_COMPRESSION},
+        {"b44", Imf::B44_COMPRESSION},   {"b44a", Imf::B44A_COMPRESSION},
+        {"dwaa", Imf::DWAA_COMPRESSION}, {"dwab", Imf::DWAB_COMPRESSION}};
+    for (const auto& [n, c] : table)
+        if (name == n) return c;
+    return Imf::ZIP_COMPRESSION;  // validated before
 }
 
 }  // namespace
@@ -139,41 +157,60 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
     if (std::find(names.begin(), names.end(), options.compression) == names.end())
         throw_error("unknown EXR compression '{}' (valid: {})", options.compression,
                     fmt::join(names, ", "));
-    OIIO::ImageSpec spec(width, height, 3,
-                         options.half ? OIIO::TypeDesc::HALF : OIIO::TypeDesc::FLOAT);
-    spec.channelnames = {"R", "G", "B"};
-    spec.attribute("compression", options.compression);
-    spec.attribute("oiio:ColorSpace", color.working_space());
-    spec.attribute("colorSpace", color.working_space());
-    if (auto c = color.working_chromaticities())
-        spec.attribute("chromaticities", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 8), c->xy.data());
-    spec.attribute("Software", "Spangle");
-    for (const auto& [key, value] : options.metadata) spec.attribute(key, value);
+    Imf::Header header(width, height);
+    header.compression() = exr_compression(options.compression);
+    const Imf::PixelType type = options.half ? Imf::HALF : Imf::FLOAT;
+    for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(type));
+    // The colour space by name (OpenImageIO's and the OpenEXR convention's attribute), and as
+    // chromaticities when the config lets us derive them.
+    header.insert("oiio:ColorSpace", Imf::StringAttribute(color.working_space()));
+    header.insert("colorSpace", Imf::StringAttribute(color.working_space()));
+    if (auto c = color.working_chromaticities()) {
+        const auto& xy = c->xy;
+        Imf::addChromaticities(
+            header, Imf::Chromaticities(Imath::V2f(xy[0], xy[1]), Imath::V2f(xy[2], xy[3]),
+                                        Imath::V2f(xy[4], xy[5]), Imath::V2f(xy[6], xy[7])));
+    }
+    header.insert("Software", Imf::StringAttribute("Spangle"));
+    for (const auto& [key, value] : options.metadata)
+        header.insert(key, Imf::StringAttribute(value));
     std::atomic<std::size_t> overflow{0};
     const auto w = static_cast<std::size_t>(width);
-    write_atomically(path, "openexr", spec, [&](OIIO::ImageOutput& out) {
+    write_atomically(path, [&](const std::string& tmp) {
+        Imf::OutputFile out(tmp.c_str(), header);
         std::vector<Imath::half> halves;
         for (int y0 = 0; y0 < height; y0 += kStripRows) {
             const int y1 = std::min(height, y0 + kStripRows);
             const float* rows = rgb.data() + static_cast<std::size_t>(y0) * w * 3;
+            // The strip as a frame buffer whose first row is y0.
+            const Imath::Box2i strip(Imath::V2i(0, y0), Imath::V2i(width - 1, y1 - 1));
+            Imf::FrameBuffer fb;
             if (!options.half) {
-                if (!out.write_scanlines(y0, y1, 0, OIIO::TypeDesc::FLOAT, rows)) return false;
-                continue;
+                for (std::size_t c = 0; c < 3; ++c)
+                    fb.insert(std::string(1, "RGB"[c]),
+                              Imf::Slice::Make(Imf::FLOAT, rows + c, strip, 3 * sizeof(float),
+                                               3 * sizeof(float) * w));
+            } else {
+                // Converted here, in parallel, rather than by OpenEXR one value at a time.
+                halves.resize(static_cast<std::size_t>(y1 - y0) * w * 3);
+                tbb::parallel_for(tbb::blocked_range<std::size_t>(0, halves.size(), 1 << 16),
+                                  [&](const tbb::blocked_range<std::size_t>& r) {
+                                      std::size_t over = 0;
+                                      for (std::size_t i = r.begin(); i != r.end(); ++i) {
+                                          halves[i] = Imath::half(rows[i]);
+                                          over += std::isfinite(rows[i]) && halves[i].isInfinity();
+                                      }
+                                      overflow += over;
+                                  });
+                for (std::size_t c = 0; c < 3; ++c)
+                    fb.insert(
+                        std::string(1, "RGB"[c]),
+                        Imf::Slice::Make(Imf::HALF, halves.data() + c, strip,
+                                         3 * sizeof(Imath::half), 3 * sizeof(Imath::half) * w));
             }
-            // Converted here, in parallel, rather than by OpenImageIO one value at a time.
-            halves.resize(static_cast<std::size_t>(y1 - y0) * w * 3);
-            tbb::parallel_for(tbb::blocked_range<std::size_t>(0, halves.size(), 1 << 16),
-                              [&](const tbb::blocked_range<std::size_t>& r) {
-                                  std::size_t over = 0;
-                                  for (std::size_t i = r.begin(); i != r.end(); ++i) {
-                                      halves[i] = Imath::half(rows[i]);
-                                      over += std::isfinite(rows[i]) && halves[i].isInfinity();
-                                  }
-                                  overflow += over;
-                              });
-            if (!out.write_scanlines(y0, y1, 0, OIIO::TypeDesc::HALF, halves.data())) return false;
+            out.setFrameBuffer(fb);
+            out.writePixels(y1 - y0);
         }
-        return true;
     });
     return overflow;
 }
@@ -225,25 +262,38 @@ std::vector<unsigned char> display_bytes(const std::vector<float>& rgb, int widt
     return bytes;
 }
 
-OIIO::ImageSpec png_spec(int width, int height, const PngOptions& options) {
-    OIIO::ImageSpec spec(width, height, 3, OIIO::TypeDesc::UINT8);
-    spec.attribute("oiio:ColorSpace", "sRGB");
-    spec.attribute("png:compressionLevel", std::clamp(options.compression_level, 0, 9));
-    return spec;
+/** Encodes 8-bit RGB rows as a PNG in memory (libpng's simplified API: errors come back as
+ *  a message, not a longjmp). */
+std::string encode_png(const std::vector<unsigned char>& bytes, int width, int height,
+                       const PngOptions& options) {
+    png_image image{};
+    image.version = PNG_IMAGE_VERSION;
+    image.width = static_cast<png_uint_32>(width);
+    image.height = static_cast<png_uint_32>(height);
+    image.format = PNG_FORMAT_RGB;
+    // libpng's simplified API knows two levels: its default, or fast (for pass outputs).
+    if (options.compression_level <= 3) image.flags |= PNG_IMAGE_FLAG_FAST;
+    png_alloc_size_t size = 0;
+    if (!png_image_write_to_memory(&image, nullptr, &size, 0, bytes.data(), 0, nullptr))
+        throw_error("cannot encode a PNG: {}", image.message);
+    std::string file(size, '\0');
+    if (!png_image_write_to_memory(&image, file.data(), &size, 0, bytes.data(), 0, nullptr))
+        throw_error("cannot encode a PNG: {}", image.message);
+    file.resize(size);
+    return file;
 }
 
 }  // namespace
 
 void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,
                        int height, const ColorConfig& color, const PngOptions& options) {
-    write_atomically(path, "png", png_spec(width, height, options), [&](OIIO::ImageOutput& out) {
-        for (int y0 = 0; y0 < height; y0 += kStripRows) {
-            const int y1 = std::min(height, y0 + kStripRows);
-            const std::vector<unsigned char> bytes =
-                display_bytes(rgb, width, height, y0, y1, color, options.block);
-            if (!out.write_scanlines(y0, y1, 0, OIIO::TypeDesc::UINT8, bytes.data())) return false;
-        }
-        return true;
+    const std::string file = encode_png_preview(rgb, width, height, color, options);
+    write_atomically(path, [&](const std::string& tmp) {
+        std::FILE* f = std::fopen(tmp.c_str(), "wb");
+        if (!f) throw_error("cannot write '{}': {}", path, std::strerror(errno));
+        const bool ok = std::fwrite(file.data(), 1, file.size(), f) == file.size();
+        if (std::fclose(f) != 0 || !ok)
+            throw_error("cannot write '{}': {}", path, std::strerror(errno));
     });
 }
 
@@ -251,15 +301,7 @@ std::string encode_png_preview(const std::vector<float>& rgb, int width, int hei
                                const ColorConfig& color, const PngOptions& options) {
     const std::vector<unsigned char> bytes =
         display_bytes(rgb, width, height, 0, height, color, options.block);
-    std::vector<unsigned char> file;
-    OIIO::Filesystem::IOVecOutput proxy(file);
-    auto out = OIIO::ImageOutput::create("png");
-    if (!out) throw_error("cannot encode a PNG: {}", OIIO::geterror());
-    const bool ok = out->set_ioproxy(&proxy) &&
-                    out->open("preview.png", png_spec(width, height, options)) &&
-                    out->write_image(OIIO::TypeDesc::UINT8, bytes.data()) && out->close();
-    if (!ok) throw_error("cannot encode a PNG: {}", out->geterror());
-    return std::string(file.begin(), file.end());
+    return encode_png(bytes, width, height, options);
 }
 
 }  // namespace spangle

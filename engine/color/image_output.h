@@ -43,7 +43,8 @@ struct PngOptions {
 };
 
 /** Writes an 8-bit PNG through the config's default display and view. Throws SpangleError.
- *  Memory: the 3 bytes per pixel of the PNG plus a few rows of floats per thread. */
+ *  Memory: 3 bytes per pixel for the display values and the encoded file, plus a few rows of
+ *  floats per thread. */
 void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,
                        int height, const ColorConfig& color, const PngOptions& options = {});
 

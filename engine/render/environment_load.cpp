@@ -1,26 +1,26 @@
 #include "render/environment_load.h"
 
-#include <OpenImageIO/imageio.h>
-
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
 
+#include "color/image_io.h"
 #include "core/error.h"
 #include "core/memory.h"
 
 namespace spangle {
 
 EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorConfig& color) {
-    auto in = OIIO::ImageInput::open(file.path);
-    if (!in)
-        throw_error(file.loc, "cannot read environment map '{}': {}", file.path, OIIO::geterror());
-    const OIIO::ImageSpec spec = in->spec();
+    ImageHeader spec;
+    try {
+        spec = read_image_header(file.path, "environment map");
+    } catch (const SpangleError& e) {
+        throw_error(file.loc, "{}", e.what());
+    }
     if (spec.width < 2 || spec.height < 1 || spec.width > 32768 || spec.height > 16384)
         throw_error(file.loc, "environment map '{}' is {}x{}; expected between 2x1 and 32768x16384",
                     file.path, spec.width, spec.height);
-    if (spec.nchannels < 1)
-        throw_error(file.loc, "environment map '{}' has no channels", file.path);
+    if (spec.channels < 1) throw_error(file.loc, "environment map '{}' has no channels", file.path);
     // What the header claims must be plausible for the file's size before anything is
     // allocated: no image format packs more than a few thousand pixels into a byte (a 157-byte
     // HDR claiming 32768x16384 took 6 GB before failing).
@@ -42,11 +42,16 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
                     format_bytes(pixels_claimed * kBytesPerPixel),
                     format_bytes(static_cast<double>(have)));
     // Only the first three channels are used (and read).
-    const int channels = std::min(spec.nchannels, 3);
-    std::vector<float> pixels(static_cast<std::size_t>(spec.width) * spec.height *
-                              static_cast<std::size_t>(channels));
-    if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, pixels.data()))
-        throw_error(file.loc, "cannot read environment map '{}': {}", file.path, in->geterror());
+    std::vector<float> pixels;
+    ImageHeader read;
+    try {
+        pixels = read_image(file.path, 3, read, "environment map");
+    } catch (const SpangleError& e) {
+        throw_error(file.loc, "{}", e.what());
+    }
+    if (read.width != spec.width || read.height != spec.height)
+        throw_error(file.loc, "environment map '{}' changed while it was read", file.path);
+    const int channels = std::min(read.channels, 3);
     const std::size_t n = static_cast<std::size_t>(spec.width) * spec.height;
     std::vector<float> rgb(3 * n);
     for (std::size_t i = 0; i < n; ++i)

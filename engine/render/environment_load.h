@@ -1,5 +1,5 @@
 #pragma once
-// Reading a lat-long environment map through OpenImageIO and converting it to the working space.
+// Reading a lat-long environment map (color/image_io.h) and converting it to the working space.
 
 #include "color/color_config.h"
 #include "render/lights.h"

@@ -5,6 +5,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "color/image_io.h"
 #include "color/image_output.h"
 #include "core/error.h"
 #include "test_support.h"
@@ -122,6 +123,69 @@ TEST(PngPreview, GoesThroughTheDisplayView) {
     EXPECT_EQ(px[0], 188) << "sRGB encoding of 0.5 is 0.7354, 187.5 in 8 bits";
     EXPECT_EQ(px[1], 0);
     EXPECT_EQ(px[2], 255) << "clipped";
+}
+
+}  // namespace
+}  // namespace spangle
+
+namespace spangle {
+namespace {
+
+/** Writes rgba (w x h x channels floats) with OpenImageIO in whatever format `path` names. */
+void write_with_oiio(const std::string& path, const std::vector<float>& pixels, int w, int h,
+                     int channels) {
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out) << OIIO::geterror();
+    ASSERT_TRUE(out->open(path, OIIO::ImageSpec(w, h, channels, OIIO::TypeDesc::FLOAT)));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, pixels.data()));
+    ASSERT_TRUE(out->close());
+}
+
+TEST(ImageInput, ExrIsReadDirectlyAndOtherFormatsThroughTheOiioModule) {
+    // The same pixels as an EXR (read with OpenEXR) and as a Radiance HDR (read by the
+    // OpenImageIO module, opened on demand): both come back, in order, row 0 at the top.
+    test::TempDir dir("image_input");
+    const int w = 6, h = 4;
+    std::vector<float> rgba(static_cast<std::size_t>(w * h * 4));
+    for (std::size_t i = 0; i < rgba.size(); ++i)
+        rgba[i] = 0.25f + static_cast<float>(i % 13) * 0.5f;
+    write_with_oiio(dir.file("a.exr"), rgba, w, h, 4);
+    ImageHeader exr;
+    const std::vector<float> from_exr = read_image(dir.file("a.exr"), 3, exr);
+    EXPECT_EQ(exr.width, w);
+    EXPECT_EQ(exr.height, h);
+    EXPECT_EQ(exr.channels, 4) << "the header reports every channel";
+    ASSERT_EQ(from_exr.size(), static_cast<std::size_t>(w * h * 3)) << "but three are read";
+    for (std::size_t p = 0; p < static_cast<std::size_t>(w * h); ++p)
+        for (std::size_t c = 0; c < 3; ++c) EXPECT_EQ(from_exr[3 * p + c], rgba[4 * p + c]);
+
+    std::vector<float> rgb(static_cast<std::size_t>(w * h * 3));
+    for (std::size_t p = 0; p < static_cast<std::size_t>(w * h); ++p)
+        for (std::size_t c = 0; c < 3; ++c) rgb[3 * p + c] = rgba[4 * p + c];
+    write_with_oiio(dir.file("a.hdr"), rgb, w, h, 3);
+    const ImageHeader hdr_header = read_image_header(dir.file("a.hdr"));
+    EXPECT_EQ(hdr_header.width, w);
+    ImageHeader hdr;
+    const std::vector<float> from_hdr = read_image(dir.file("a.hdr"), 3, hdr);
+    ASSERT_EQ(from_hdr.size(), rgb.size());
+    for (std::size_t i = 0; i < rgb.size(); ++i)
+        EXPECT_NEAR(from_hdr[i], rgb[i], 0.01f * rgb[i]) << "RGBE keeps 8 bits of mantissa";
+}
+
+TEST(ImageInput, UnreadableFilesNameWhatAndWhere) {
+    test::TempDir dir("image_input_bad");
+    std::ofstream(dir.file("junk.exr")) << "not an image at all";
+    ImageHeader h;
+    try {
+        read_image(dir.file("junk.exr"), 3, h, "environment map");
+        FAIL() << "junk was read";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("cannot read environment map '" +
+                                             dir.file("junk.exr") + "'"),
+                  std::string::npos)
+            << e.what();
+    }
+    EXPECT_THROW(read_image_header(dir.file("missing.exr")), SpangleError);
 }
 
 }  // namespace
