@@ -182,15 +182,17 @@ void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, 
     rays.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
         RTCRayHit& rh = rays[i];
-        rh.ray.org_x = o[i].x;
-        rh.ray.org_y = o[i].y;
-        rh.ray.org_z = o[i].z;
-        rh.ray.dir_x = d[i].x;
-        rh.ray.dir_y = d[i].y;
-        rh.ray.dir_z = d[i].z;
+        // A non-finite ray (a numerical failure upstream) misses: left inactive (tfar < tnear),
+        // with finite values in place of its own.
+        const bool finite = is_finite(o[i]) && is_finite(d[i]);
+        rh.ray.org_x = finite ? o[i].x : 0.0f;
+        rh.ray.org_y = finite ? o[i].y : 0.0f;
+        rh.ray.org_z = finite ? o[i].z : 0.0f;
+        rh.ray.dir_x = finite ? d[i].x : 0.0f;
+        rh.ray.dir_y = finite ? d[i].y : 0.0f;
+        rh.ray.dir_z = finite ? d[i].z : 1.0f;
         rh.ray.tnear = 0.0f;
-        // A non-finite ray (a numerical failure upstream) misses: Embree would assert on it.
-        rh.ray.tfar = is_finite(o[i]) && is_finite(d[i]) ? 1e30f : -1.0f;
+        rh.ray.tfar = finite ? 1e30f : -1.0f;
         rh.ray.mask = 0xffffffffu;
         rh.ray.time = 0.0f;
         rh.ray.flags = 0;
@@ -206,6 +208,34 @@ void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, 
         found[i] = rays[i].hit.geomID != RTC_INVALID_GEOMETRY_ID ? 1 : 0;
         if (found[i]) resolve(rays[i], hits[i]);
     }
+}
+
+void EmbreeScene::occluded_stream(const Vec3* o, const Vec3* d, const float* tmax, std::size_t n,
+                                  uint8_t* blocked) const {
+    thread_local std::vector<RTCRay> rays;
+    rays.resize(n);
+    for (std::size_t i = 0; i < n; ++i) {
+        RTCRay& r = rays[i];
+        const bool finite = is_finite(o[i]) && is_finite(d[i]) && !std::isnan(tmax[i]);
+        r.org_x = finite ? o[i].x : 0.0f;
+        r.org_y = finite ? o[i].y : 0.0f;
+        r.org_z = finite ? o[i].z : 0.0f;
+        r.dir_x = finite ? d[i].x : 0.0f;
+        r.dir_y = finite ? d[i].y : 0.0f;
+        r.dir_z = finite ? d[i].z : 1.0f;
+        r.tnear = 0.0f;
+        // A non-finite ray lets no light through: marked blocked and left inactive.
+        r.tfar = finite ? tmax[i] : -std::numeric_limits<float>::infinity();
+        r.mask = 0xffffffffu;
+        r.time = 0.0f;
+        r.flags = 0;
+    }
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    if (n > 0) rtcOccluded1M(top_, &ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRay));
+    for (std::size_t i = 0; i < n; ++i)
+        blocked[i] = rays[i].tfar == -std::numeric_limits<float>::infinity() ? 1 : 0;
 }
 
 void EmbreeScene::resolve(const RTCRayHit& rh, Hit& hit) const {

@@ -71,6 +71,10 @@ public:
      *  gathers coherent rays into packets): found[i] says whether hits[i] is one. */
     void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, bool coherent, Hit* hits,
                           uint8_t* found) const;
+    /** blocked[i] = whether something blocks o[i] + t d[i] for t in (0, tmax[i]), for n rays
+     *  traced as one (incoherent) stream. A non-finite ray counts as blocked. */
+    void occluded_stream(const Vec3* o, const Vec3* d, const float* tmax, std::size_t n,
+                         uint8_t* blocked) const;
     /** True when something blocks o + t d for t in (0, tmax). */
     bool occluded(Vec3 o, Vec3 d, float tmax) const;
 

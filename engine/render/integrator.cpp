@@ -79,6 +79,9 @@ struct Workspace {
     std::vector<Vec3> stream_o, stream_d;
     std::vector<Hit> stream_hit;
     std::vector<uint8_t> stream_found;
+    std::vector<uint32_t> shadow_path;  ///< next-event queries of a group that need a ray
+    std::vector<Vec3> shadow_contrib;   ///< their contributions if unoccluded
+    std::vector<float> shadow_tmax;
     std::vector<uint32_t> order;  ///< active hit paths sorted by material
     std::vector<uint32_t> material_of;
     std::vector<SurfacePoint> surf;
@@ -290,26 +293,42 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                                  ws.f_b.data(),
                                  ws.pdf.data()};
         if (q > 0) model.eval(mat.instance(), closures, &eval);
+        // The unoccluded contribution of each query, then its shadow ray; the rays of the
+        // whole group are traced as one stream.
+        ws.shadow_path.clear();
+        ws.shadow_contrib.clear();
+        ws.stream_o.clear();
+        ws.stream_d.clear();
+        ws.shadow_tmax.clear();
         for (uint32_t j = 0; j < q; ++j) {
             const Vec3 f(ws.f_r[j], ws.f_g[j], ws.f_b[j]);
             if (max_component(f) <= 0.0f) continue;
             const uint32_t i = paths[ws.light_query[j]];
             const SurfacePoint& sp = ws.surf[i];
             const LightSample& ls = ws.light[j];
-            // Leave on the side of the geometric normal that wi points to.
-            const Vec3 side = dot(ls.wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
-            const Vec3 o = offset_origin(sp.p, side);
-            const float tmax = std::isfinite(ls.dist) ? ls.dist * (1.0f - 1e-4f) : 1e30f;
-            ++shadow_rays;
-            if (w.accel && w.accel->occluded(o, ls.wi, tmax)) continue;
             float mis = ls.delta ? 1.0f : power_heuristic(ls.pdf, ws.pdf[j]);
             if (job.strategy == Strategy::NeeOnly) mis = 1.0f;
             if (job.strategy == Strategy::BsdfOnly && !ls.delta) mis = 0.0f;
             if (mis <= 0.0f) continue;
-            ws.radiance[i] += clamp_contribution(
-                job, ws.throughput[i] * f * ls.radiance * (std::fabs(ws.wiz[j]) * mis / ls.pdf),
-                bounce + 1);
+            // Leave on the side of the geometric normal that wi points to.
+            const Vec3 side = dot(ls.wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
+            ws.shadow_path.push_back(i);
+            ws.shadow_contrib.push_back(ws.throughput[i] * f * ls.radiance *
+                                        (std::fabs(ws.wiz[j]) * mis / ls.pdf));
+            ws.stream_o.push_back(offset_origin(sp.p, side));
+            ws.stream_d.push_back(ls.wi);
+            ws.shadow_tmax.push_back(std::isfinite(ls.dist) ? ls.dist * (1.0f - 1e-4f) : 1e30f);
         }
+        const std::size_t rays = ws.shadow_path.size();
+        shadow_rays += rays;
+        ws.stream_found.assign(rays, 0);
+        if (w.accel)
+            w.accel->occluded_stream(ws.stream_o.data(), ws.stream_d.data(), ws.shadow_tmax.data(),
+                                     rays, ws.stream_found.data());
+        for (std::size_t r = 0; r < rays; ++r)
+            if (!ws.stream_found[r])
+                ws.radiance[ws.shadow_path[r]] +=
+                    clamp_contribution(job, ws.shadow_contrib[r], bounce + 1);
     }
 
     // Continue each path by sampling the BSDF.
