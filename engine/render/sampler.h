@@ -73,6 +73,24 @@ inline uint32_t sobol_1(uint32_t i) {
     return t[0][i & 0xffu] ^ t[1][(i >> 8) & 0xffu] ^ t[2][(i >> 16) & 0xffu] ^ t[3][i >> 24];
 }
 
+namespace detail {
+/** The same tables bit-reversed (reversal is linear over XOR, so entry by entry). */
+struct Sobol1ReversedTables {
+    uint32_t t[4][256];
+    constexpr Sobol1ReversedTables() : t() {
+        for (int b = 0; b < 4; ++b)
+            for (int x = 0; x < 256; ++x) t[b][x] = reverse_bits(kSobol1Tables.t[b][x]);
+    }
+};
+inline constexpr Sobol1ReversedTables kSobol1ReversedTables{};
+}  // namespace detail
+
+/** reverse_bits(sobol_1(i)), four table lookups. */
+inline uint32_t sobol_1_reversed(uint32_t i) {
+    const auto& t = detail::kSobol1ReversedTables.t;
+    return t[0][i & 0xffu] ^ t[1][(i >> 8) & 0xffu] ^ t[2][(i >> 16) & 0xffu] ^ t[3][i >> 24];
+}
+
 /** 24-bit fixed point to float in [0, 1). */
 constexpr float fixed_to_unit(uint32_t x) {
     return static_cast<float>(x >> 8) * 0x1p-24f;
@@ -90,8 +108,10 @@ inline void sobol_2d_keyed(uint64_t key, uint32_t index, uint32_t pair, float& u
     const auto shuffled = nested_uniform_scramble(index, static_cast<uint32_t>(h));
     const auto seed0 = static_cast<uint32_t>(h >> 32);
     const auto seed1 = static_cast<uint32_t>((h * 0xd1342543de82ef95ull) >> 32);
-    u0 = fixed_to_unit(nested_uniform_scramble(sobol_0(shuffled), seed0));
-    u1 = fixed_to_unit(nested_uniform_scramble(sobol_1(shuffled), seed1));
+    // nested_uniform_scramble(x) = reverse(permutation(reverse(x))): with sobol_0(i) =
+    // reverse(i) and a table of reversed sobol_1 values, two reversals per pair cancel.
+    u0 = fixed_to_unit(reverse_bits(laine_karras_permutation(shuffled, seed0)));
+    u1 = fixed_to_unit(reverse_bits(laine_karras_permutation(sobol_1_reversed(shuffled), seed1)));
 }
 
 /** The 2D point for sample `index` of `pixel` in dimension pair `pair`. */
