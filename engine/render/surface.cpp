@@ -91,16 +91,21 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
 
 namespace {
 
-/** Least-squares solution of dp = dpdu du + dpdv dv (pbrt-v4's approach: the normal equations
- *  of the 3x2 system, stable for any orientation). */
-bool solve_uv(const SurfacePoint& sp, Vec3 dp, float& du, float& dv) {
+/** Least-squares solutions of dp = dpdu du + dpdv dv (pbrt-v4's approach: the normal equations
+ *  of the 3x2 system, stable for any orientation), for the two footprint axes at once: they
+ *  share the system's matrix. */
+bool solve_uv(const SurfacePoint& sp, Vec3 dpx, Vec3 dpy, float& dux, float& dvx, float& duy,
+              float& dvy) {
     const double a = dot(sp.dpdu, sp.dpdu), b = dot(sp.dpdu, sp.dpdv), c = dot(sp.dpdv, sp.dpdv);
     const double det = a * c - b * b;
     if (!(std::fabs(det) > 1e-30)) return false;
-    const double ru = dot(sp.dpdu, dp), rv = dot(sp.dpdv, dp);
-    du = static_cast<float>((c * ru - b * rv) / det);
-    dv = static_cast<float>((a * rv - b * ru) / det);
-    return std::isfinite(du) && std::isfinite(dv);
+    const double rux = dot(sp.dpdu, dpx), rvx = dot(sp.dpdv, dpx);
+    const double ruy = dot(sp.dpdu, dpy), rvy = dot(sp.dpdv, dpy);
+    dux = static_cast<float>((c * rux - b * rvx) / det);
+    dvx = static_cast<float>((a * rvx - b * rux) / det);
+    duy = static_cast<float>((c * ruy - b * rvy) / det);
+    dvy = static_cast<float>((a * rvy - b * ruy) / det);
+    return std::isfinite(dux) && std::isfinite(dvx) && std::isfinite(duy) && std::isfinite(dvy);
 }
 
 }  // namespace
@@ -114,8 +119,7 @@ void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, 
         if (std::isfinite(tx) && std::isfinite(ty)) {
             sp.dpdx = ray.dx_o + ray.dx_d * tx - sp.p;
             sp.dpdy = ray.dy_o + ray.dy_d * ty - sp.p;
-            if (solve_uv(sp, sp.dpdx, sp.dudx, sp.dvdx) &&
-                solve_uv(sp, sp.dpdy, sp.dudy, sp.dvdy)) {
+            if (solve_uv(sp, sp.dpdx, sp.dpdy, sp.dudx, sp.dvdx, sp.dudy, sp.dvdy)) {
                 sp.footprint = std::max(length(sp.dpdx), length(sp.dpdy));
                 return;
             }
