@@ -1,6 +1,8 @@
 #pragma once
 // Helpers shared by the unit tests: paths of the test data and a quiet logger.
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <string>
 
@@ -30,11 +32,14 @@ inline const Logger& quiet_log() {
     return log;
 }
 
-/** A fresh empty directory under the system temp dir, removed on destruction. */
+/** A fresh empty directory under the system temp dir, removed on destruction. Its name carries
+ *  the process id: ctest runs tests in parallel processes, and two tests using the same name
+ *  (the helpers of one test file) must not share a folder. */
 class TempDir {
 public:
     explicit TempDir(const std::string& name)
-        : path_(std::filesystem::temp_directory_path() / ("spangle_test_" + name)) {
+        : path_(std::filesystem::temp_directory_path() /
+                ("spangle_test_" + name + "_" + std::to_string(::getpid()))) {
         std::filesystem::remove_all(path_);
         std::filesystem::create_directories(path_);
     }
