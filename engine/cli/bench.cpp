@@ -544,6 +544,21 @@ std::string shipped_scene(const std::string& name) {
     return {};
 }
 
+/** "CPU model, N hardware threads" from /proc/cpuinfo, for the header of the table. */
+std::string machine_description() {
+    std::ifstream in("/proc/cpuinfo");
+    std::string line, model = "unknown CPU";
+    int threads = 0;
+    while (std::getline(in, line)) {
+        if (line.rfind("processor", 0) == 0) ++threads;
+        if (line.rfind("model name", 0) == 0 && model == "unknown CPU") {
+            const auto colon = line.find(':');
+            if (colon != std::string::npos) model = line.substr(colon + 2);
+        }
+    }
+    return fmt::format("{}, {} hardware thread{}", model, threads, threads == 1 ? "" : "s");
+}
+
 double mib(double bytes) {
     return bytes / (1024.0 * 1024.0);
 }
@@ -603,6 +618,7 @@ int run_bench(const BenchArgs& a) {
         scenes.emplace_back(n, f);
     }
 
+    fmt::print("machine: {}\n", machine_description());
     fmt::print("spangle bench: {} spp, {}, {} thread(s), best of {}\n", a.spp,
                a.size.empty() ? std::string("scene sizes") : a.size,
                a.threads > 0 ? fmt::to_string(a.threads) : std::string("all"), a.repeat);
