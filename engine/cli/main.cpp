@@ -31,6 +31,7 @@
 #include "color/image_io.h"
 #include "color/image_output.h"
 #include "core/error.h"
+#include "render/camera.h"
 #include "render/frame.h"
 #include "render/image_metrics.h"
 #include "render/session.h"
@@ -127,14 +128,24 @@ struct Outputs {
     /** Writes image (working space) and its preview, each atomically. `partial`: the render
      *  stopped before its spp; the EXR header says so and how far it got. Returns how many
      *  values the half-float EXR could not hold (see warn_half_overflow). */
+    /** `info` (the scene's camera) and `seconds` (the render time) go into the EXR header when
+     *  given (pass outputs during a one-shot render have neither yet). */
     std::size_t write(const std::vector<float>& image, uint32_t width, uint32_t height,
-                      const ColorConfig& color, uint32_t spp, bool partial,
-                      uint32_t block = 1) const {
+                      const ColorConfig& color, uint32_t spp, bool partial, uint32_t block = 1,
+                      const SceneInfo* info = nullptr, double seconds = -1.0) const {
         ExrOptions o = exr_options;
         o.metadata = {{"spangle:scene", scene},
                       {"spangle:version", SPANGLE_VERSION},
                       {"spangle:spp", std::to_string(spp)},
                       {"spangle:partial", partial ? "1" : "0"}};
+        if (seconds >= 0.0) o.floats.emplace_back("renderTimeSeconds", static_cast<float>(seconds));
+        if (info) {
+            // The names pbrt-v4 writes and Nuke reads (OpenEXR's standard attributes).
+            const Camera& c = info->camera;
+            const CameraMatrices m =
+                camera_matrices(c.position, c.look_at, c.up, c.fov_deg, width, height);
+            o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
+        }
         // A reduced-resolution preview pass (0 spp, blocks of `block` pixels).
         if (block > 1) o.metadata.emplace_back("spangle:preview_stride", std::to_string(block));
         // The PNG is written beside the EXR, on another thread.
@@ -367,10 +378,11 @@ int run_render(const RenderArgs& a) {
         log.warn("stopped by a signal before the first pass ended: no image written");
         return exit_status_for_signal();
     }
-    warn_half_overflow(log,
-                       out.write(frame.image, frame.width, frame.height, frame.color,
-                                 frame.stats.spp_reached, partial),
-                       out.exr);
+    warn_half_overflow(
+        log,
+        out.write(frame.image, frame.width, frame.height, frame.color, frame.stats.spp_reached,
+                  partial, 1, &frame.info, frame.stats.seconds),
+        out.exr);
     if (partial)
         log.warn("stopped by a signal: wrote {} with {} of {} samples per pixel", out.exr,
                  frame.stats.spp_reached, frame.stats.spp_target);
@@ -467,10 +479,11 @@ int run_watch(const RenderArgs& a) {
                     server->publish_pass(w.image, w.width, w.height, st.spp_reached, st.spp_target,
                                          1, session.color());
                 try {
-                    warn_half_overflow(log,
-                                       out.write(w.image, w.width, w.height, session.color(),
-                                                 st.spp_reached, !complete),
-                                       out.exr);
+                    warn_half_overflow(
+                        log,
+                        out.write(w.image, w.width, w.height, session.color(), st.spp_reached,
+                                  !complete, 1, &session.info(), st.seconds),
+                        out.exr);
                 } catch (const SpangleError& e) {
                     report_error(e.what());
                 }

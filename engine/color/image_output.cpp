@@ -2,8 +2,10 @@
 
 #include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFloatAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStandardAttributes.h>
 #include <OpenEXR/ImfStringAttribute.h>
@@ -174,6 +176,11 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
     header.insert("Software", Imf::StringAttribute("Spangle"));
     for (const auto& [key, value] : options.metadata)
         header.insert(key, Imf::StringAttribute(value));
+    for (const auto& [key, value] : options.floats) header.insert(key, Imf::FloatAttribute(value));
+    for (const auto& [key, m] : options.matrices)
+        header.insert(key, Imf::M44fAttribute(Imath::M44f(m[0], m[1], m[2], m[3], m[4], m[5], m[6],
+                                                          m[7], m[8], m[9], m[10], m[11], m[12],
+                                                          m[13], m[14], m[15])));
     std::atomic<std::size_t> overflow{0};
     const auto w = static_cast<std::size_t>(width);
     write_atomically(path, [&](const std::string& tmp) {

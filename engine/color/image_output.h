@@ -3,6 +3,7 @@
 // preview. Both are written to a temporary file in the destination directory and renamed into
 // place, so a reader never sees a half-written image and a failed write leaves nothing behind.
 
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <string>
@@ -17,6 +18,9 @@ struct ExrOptions {
     bool half = true;                 ///< half floats (default) or 32-bit floats
     std::string compression = "zip";  ///< OpenEXR compression name, validated
     std::vector<std::pair<std::string, std::string>> metadata;  ///< extra string attributes
+    std::vector<std::pair<std::string, float>> floats;          ///< extra float attributes
+    /** Extra 4x4 matrix attributes (M44f, row-major: worldToCamera, worldToNDC). */
+    std::vector<std::pair<std::string, std::array<float, 16>>> matrices;
 };
 
 /** Removes the temporary file of an image being written, if any. Async-signal-safe: for a

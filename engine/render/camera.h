@@ -41,6 +41,16 @@ struct RayDifferential {
 };
 
 /** The camera of a frame. */
+/** The camera as the EXR header's standard matrices describe it (row vectors, p' = p M, as in
+ *  Imath and OpenEXR's ImfStandardAttributes.h), row-major. worldToCamera: to a left-handed
+ *  camera space, x right, y up, z along the view. worldToNDC: to homogeneous image coordinates,
+ *  (0, 0) the top-left and (1, 1) the bottom-right corner of the image after dividing by w. */
+struct CameraMatrices {
+    std::array<float, 16> world_to_camera{}, world_to_ndc{};
+};
+CameraMatrices camera_matrices(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, uint32_t width,
+                               uint32_t height);
+
 class CameraModel {
 public:
     /** fov_deg vertical; aperture = lens radius in metres (0 = pinhole); focus_distance > 0. */

@@ -469,7 +469,8 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
         const toml::table* t = top.table("camera");
         if (!t) top.missing("camera");
         TableReader r(*t, path, "[camera]");
-        registry.put(settings, parse_camera(r));
+        info.camera = parse_camera(r);
+        registry.put(settings, info.camera);
         r.finish();
     }
     if (const toml::table* t = top.table("environment")) {

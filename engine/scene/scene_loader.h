@@ -8,6 +8,7 @@
 
 #include "color/color_config.h"
 #include "ecs/registry.h"
+#include "scene/components.h"
 
 namespace spangle {
 
@@ -17,6 +18,7 @@ struct SceneInfo {
     std::string working_space;                ///< canonical OCIO name
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order
+    Camera camera;                            ///< the [camera] table (also a component)
     /** Colour spaces that stood in for names the config lacks ("file:line: 'ACEScg' is not in
      *  the OCIO config; using its scene_linear role, ..."), for the caller to warn about. */
     std::vector<std::string> color_notes;

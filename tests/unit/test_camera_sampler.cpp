@@ -127,3 +127,50 @@ TEST(RayDifferentials, WidenedFootprintWhenDifferentialsAreGone) {
 
 }  // namespace
 }  // namespace spangle
+
+namespace spangle {
+namespace {
+
+/** p (row vector, w = 1) times the row-major 4x4 m. */
+std::array<float, 4> times(Vec3 p, const std::array<float, 16>& m) {
+    std::array<float, 4> out{};
+    const float v[4] = {p.x, p.y, p.z, 1.0f};
+    for (std::size_t j = 0; j < 4; ++j)
+        for (std::size_t k = 0; k < 4; ++k) out[j] += v[k] * m[k * 4 + j];
+    return out;
+}
+
+TEST(CameraMatrices, ProjectPointsToThePixelsTheirRaysCameFrom) {
+    // A point on the ray CameraModel makes through film position (fx, fy) lands, through
+    // worldToNDC, at (fx / width, fy / height); worldToCamera puts the camera at the origin,
+    // looking along +z, x to the image's right and y up.
+    const Vec3 pos(1.0f, 2.0f, 5.0f), at(-0.5f, 0.3f, 0.2f), up(0.1f, 1.0f, 0.0f);
+    const uint32_t w = 320, h = 180;
+    const CameraModel cam(pos, at, up, 35.0f, 0.0f, 1.0f, w, h);
+    const CameraMatrices m = camera_matrices(pos, at, up, 35.0f, w, h);
+    const auto origin = times(pos, m.world_to_camera);
+    for (int k = 0; k < 3; ++k) EXPECT_NEAR(origin[static_cast<std::size_t>(k)], 0.0f, 1e-5f);
+    for (const auto& [fx, fy] : {std::pair{0.0f, 0.0f},
+                                 {320.0f, 180.0f},
+                                 {17.5f, 150.25f},
+                                 {160.0f, 90.0f},
+                                 {300.0f, 3.0f}}) {
+        const RayDifferential r = cam.generate(fx, fy, 0.5f, 0.5f);
+        const Vec3 p = r.o + r.d * 3.7f;
+        const auto ndc = times(p, m.world_to_ndc);
+        ASSERT_GT(ndc[3], 0.0f);
+        EXPECT_NEAR(ndc[0] / ndc[3], fx / static_cast<float>(w), 1e-4f) << fx << ", " << fy;
+        EXPECT_NEAR(ndc[1] / ndc[3], fy / static_cast<float>(h), 1e-4f) << fx << ", " << fy;
+        const auto c = times(p, m.world_to_camera);
+        EXPECT_NEAR(c[2], 3.7f * dot(r.d, normalize(at - pos)), 1e-4f) << "z is the depth";
+        if (std::fabs(fx - 160.0f) > 1.0f) {
+            EXPECT_EQ(c[0] > 0.0f, fx > 160.0f) << "x to the right";
+        }
+        if (std::fabs(fy - 90.0f) > 1.0f) {
+            EXPECT_EQ(c[1] > 0.0f, fy < 90.0f) << "y up";
+        }
+    }
+}
+
+}  // namespace
+}  // namespace spangle

@@ -172,6 +172,25 @@ TEST(ImageInput, ExrIsReadDirectlyAndOtherFormatsThroughTheOiioModule) {
         EXPECT_NEAR(from_hdr[i], rgb[i], 0.01f * rgb[i]) << "RGBE keeps 8 bits of mantissa";
 }
 
+TEST(ExrOutput, CarriesRenderTimeAndCameraMatrices) {
+    test::TempDir dir("exr_matrices");
+    ExrOptions o;
+    o.floats = {{"renderTimeSeconds", 12.5f}};
+    std::array<float, 16> m{};
+    for (std::size_t i = 0; i < 16; ++i) m[i] = static_cast<float>(i) + 0.5f;
+    o.matrices = {{"worldToCamera", m}};
+    write_exr(dir.file("m.exr"), ramp(4, 3), 4, 3, test::shipped_config(), o);
+    auto in = OIIO::ImageInput::open(dir.file("m.exr"));
+    ASSERT_TRUE(in) << OIIO::geterror();
+    const OIIO::ImageSpec& spec = in->spec();
+    EXPECT_EQ(spec.get_float_attribute("renderTimeSeconds", -1.0f), 12.5f);
+    const OIIO::ParamValue* p = spec.find_attribute("worldToCamera");
+    ASSERT_TRUE(p);
+    ASSERT_EQ(p->type(), OIIO::TypeDesc(OIIO::TypeMatrix44));
+    const auto* v = static_cast<const float*>(p->data());
+    for (std::size_t i = 0; i < 16; ++i) EXPECT_EQ(v[i], m[i]) << "row-major, element " << i;
+}
+
 TEST(ImageInput, UnreadableFilesNameWhatAndWhere) {
     test::TempDir dir("image_input_bad");
     std::ofstream(dir.file("junk.exr")) << "not an image at all";
