@@ -33,6 +33,33 @@ RTCGeometry add_triangles(RTCDevice device, RTCScene scene, const float* xyz, st
     return g;
 }
 
+/** The ray o + t d, t in (0, tmax), for Embree. Returns false for a non-finite ray (a
+ *  numerical failure upstream), which is then left inactive (tfar < tnear) with finite values
+ *  in place of its own: Embree must never see NaN or infinity. */
+bool make_ray(Vec3 o, Vec3 d, float tmax, RTCRay& r) {
+    const bool finite = is_finite(o) && is_finite(d) && !std::isnan(tmax);
+    r.org_x = finite ? o.x : 0.0f;
+    r.org_y = finite ? o.y : 0.0f;
+    r.org_z = finite ? o.z : 0.0f;
+    r.dir_x = finite ? d.x : 0.0f;
+    r.dir_y = finite ? d.y : 0.0f;
+    r.dir_z = finite ? d.z : 1.0f;
+    r.tnear = 0.0f;
+    r.tfar = finite ? tmax : -1.0f;
+    r.mask = 0xffffffffu;
+    r.time = 0.0f;
+    r.flags = 0;
+    r.id = 0;
+    return finite;
+}
+
+/** make_ray with an empty hit record. */
+bool make_ray_hit(Vec3 o, Vec3 d, float tmax, RTCRayHit& rh) {
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    return make_ray(o, d, tmax, rh.ray);
+}
+
 }  // namespace
 
 EmbreeScene::EmbreeScene() {
@@ -153,23 +180,10 @@ void EmbreeScene::bounding_sphere(Vec3& center, float& radius) const {
 }
 
 bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
-    // Embree asserts on a non-finite ray and takes the process down: such a ray (a numerical
-    // failure upstream) misses instead.
-    if (!is_finite(o) || !is_finite(d) || std::isnan(tmax)) return false;
+    RTCRayHit rh{};
+    if (!make_ray_hit(o, d, tmax, rh)) return false;  // a non-finite ray misses
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    RTCRayHit rh{};
-    rh.ray.org_x = o.x;
-    rh.ray.org_y = o.y;
-    rh.ray.org_z = o.z;
-    rh.ray.dir_x = d.x;
-    rh.ray.dir_y = d.y;
-    rh.ray.dir_z = d.z;
-    rh.ray.tnear = 0.0f;
-    rh.ray.tfar = tmax;
-    rh.ray.mask = 0xffffffffu;
-    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     rtcIntersect1(top_, &ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     resolve(rh, hit);
@@ -180,25 +194,8 @@ void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, 
                                    Hit* hits, uint8_t* found) const {
     thread_local std::vector<RTCRayHit> rays;
     rays.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-        RTCRayHit& rh = rays[i];
-        // A non-finite ray (a numerical failure upstream) misses: left inactive (tfar < tnear),
-        // with finite values in place of its own.
-        const bool finite = is_finite(o[i]) && is_finite(d[i]);
-        rh.ray.org_x = finite ? o[i].x : 0.0f;
-        rh.ray.org_y = finite ? o[i].y : 0.0f;
-        rh.ray.org_z = finite ? o[i].z : 0.0f;
-        rh.ray.dir_x = finite ? d[i].x : 0.0f;
-        rh.ray.dir_y = finite ? d[i].y : 0.0f;
-        rh.ray.dir_z = finite ? d[i].z : 1.0f;
-        rh.ray.tnear = 0.0f;
-        rh.ray.tfar = finite ? 1e30f : -1.0f;
-        rh.ray.mask = 0xffffffffu;
-        rh.ray.time = 0.0f;
-        rh.ray.flags = 0;
-        rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
-        rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    }
+    for (std::size_t i = 0; i < n; ++i)
+        make_ray_hit(o[i], d[i], 1e30f, rays[i]);  // a non-finite ray misses
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags =
@@ -215,20 +212,9 @@ void EmbreeScene::occluded_stream(const Vec3* o, const Vec3* d, const float* tma
     thread_local std::vector<RTCRay> rays;
     rays.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
-        RTCRay& r = rays[i];
-        const bool finite = is_finite(o[i]) && is_finite(d[i]) && !std::isnan(tmax[i]);
-        r.org_x = finite ? o[i].x : 0.0f;
-        r.org_y = finite ? o[i].y : 0.0f;
-        r.org_z = finite ? o[i].z : 0.0f;
-        r.dir_x = finite ? d[i].x : 0.0f;
-        r.dir_y = finite ? d[i].y : 0.0f;
-        r.dir_z = finite ? d[i].z : 1.0f;
-        r.tnear = 0.0f;
-        // A non-finite ray lets no light through: marked blocked and left inactive.
-        r.tfar = finite ? tmax[i] : -std::numeric_limits<float>::infinity();
-        r.mask = 0xffffffffu;
-        r.time = 0.0f;
-        r.flags = 0;
+        // A non-finite ray lets no light through: marked blocked here, inactive in Embree.
+        if (!make_ray(o[i], d[i], tmax[i], rays[i]))
+            rays[i].tfar = -std::numeric_limits<float>::infinity();
     }
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
@@ -253,19 +239,10 @@ void EmbreeScene::resolve(const RTCRayHit& rh, Hit& hit) const {
 }
 
 bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax) const {
-    if (!is_finite(o) || !is_finite(d) || std::isnan(tmax)) return true;  // no light through it
+    RTCRay r{};
+    if (!make_ray(o, d, tmax, r)) return true;  // a non-finite ray lets no light through
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    RTCRay r{};
-    r.org_x = o.x;
-    r.org_y = o.y;
-    r.org_z = o.z;
-    r.dir_x = d.x;
-    r.dir_y = d.y;
-    r.dir_z = d.z;
-    r.tnear = 0.0f;
-    r.tfar = tmax;
-    r.mask = 0xffffffffu;
     rtcOccluded1(top_, &ctx, &r);
     return r.tfar == -std::numeric_limits<float>::infinity();
 }
