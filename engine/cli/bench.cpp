@@ -566,18 +566,7 @@ double mib(double bytes) {
 }  // namespace
 
 int run_bench(const BenchArgs& a) {
-    uint32_t width = 0, height = 0;
-    if (!a.size.empty()) {
-        const auto x = a.size.find('x');
-        if (x == std::string::npos || std::sscanf(a.size.c_str(), "%ux%u", &width, &height) != 2 ||
-            width < 1 || height < 1 || width > 16384 || height > 16384) {
-            fmt::print(stderr,
-                       "spangle: error: --size must be WIDTHxHEIGHT with each in 1..16384, got "
-                       "'{}'\n",
-                       a.size);
-            return 2;
-        }
-    }
+    const uint32_t width = a.width, height = a.height;
     if (a.measure_one) {
         if (a.scenes.size() != 1) return 2;
         fmt::print("{}", measure(a.scenes[0], a, width, height).serialise());

@@ -12,7 +12,8 @@ namespace spangle {
 /** Options of `spangle bench`. */
 struct BenchArgs {
     std::vector<std::string> scenes;  ///< scene files or shipped names; empty = the default set
-    std::string size = "640x360";     ///< image size of every scene
+    std::string size = "640x360";     ///< image size of every scene, as given ('' = the scene's)
+    uint32_t width = 0, height = 0;   ///< size, parsed by the caller (0 = the scene's)
     uint32_t spp = 16;                ///< samples per pixel of every scene
     int threads = 0;                  ///< worker threads (0 = all cores)
     int repeat = 1;                   ///< renders per scene; the fastest is reported

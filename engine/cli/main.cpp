@@ -218,26 +218,27 @@ void print_stats(const FrameResult& r, const std::string& exr) {
     fmt::print("working space: {}\noutput: {}\n", r.color.working_space(), exr);
 }
 
+/** --size WIDTHxHEIGHT (render and bench): each side 1..16384, else a usage error. */
+void parse_size(const std::string& size, uint32_t& width, uint32_t& height) {
+    // Digits only, each side at most 5 of them: sscanf("%u") would wrap 4294967312 to 16.
+    const auto x = size.find('x');
+    const auto side = [&](const std::string& t) -> uint32_t {
+        if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos)
+            return 0;
+        return static_cast<uint32_t>(std::stoul(t));
+    };
+    width = x == std::string::npos ? 0 : side(size.substr(0, x));
+    height = x == std::string::npos ? 0 : side(size.substr(x + 1));
+    if (width < 1 || height < 1 || width > 16384 || height > 16384)
+        usage_error("--size must be WIDTHxHEIGHT with each in 1..16384, got '{}'", size);
+}
+
 /** Options of a render from the command line (threads, size, spp, strategy). */
 RenderOptions render_options(const RenderArgs& a) {
     RenderOptions o;
     o.threads = a.threads;
     o.spp_override = a.spp;
-    if (!a.size.empty()) {
-        // Digits only, each side at most 5 of them: sscanf("%u") would wrap 4294967312 to 16.
-        const auto x = a.size.find('x');
-        const auto side = [&](const std::string& t) -> uint32_t {
-            if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos)
-                return 0;
-            return static_cast<uint32_t>(std::stoul(t));
-        };
-        const uint32_t w = x == std::string::npos ? 0 : side(a.size.substr(0, x));
-        const uint32_t h = x == std::string::npos ? 0 : side(a.size.substr(x + 1));
-        if (w < 1 || h < 1 || w > 16384 || h > 16384)
-            usage_error("--size must be WIDTHxHEIGHT with each in 1..16384, got '{}'", a.size);
-        o.width_override = w;
-        o.height_override = h;
-    }
+    if (!a.size.empty()) parse_size(a.size, o.width_override, o.height_override);
     o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
                  : a.strategy == "bsdf" ? Strategy::BsdfOnly
                                         : Strategy::Mis;
@@ -722,6 +723,7 @@ int main(int argc, char** argv) {
                 fmt::print("wrote {}\n", write_interior_scene(write_scene));
                 return 0;
             }
+            if (!ba.size.empty()) parse_size(ba.size, ba.width, ba.height);
             return run_bench(ba);
         }
     } catch (const UsageError& e) {
