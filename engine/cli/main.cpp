@@ -142,8 +142,9 @@ struct Outputs {
         if (info) {
             // The names pbrt-v4 writes and Nuke reads (OpenEXR's standard attributes).
             const Camera& c = info->camera;
-            const CameraMatrices m =
-                camera_matrices(c.position, c.look_at, c.up, c.fov_deg, width, height);
+            const CameraMatrices m = CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture,
+                                                 c.focus_distance, width, height)
+                                         .matrices();
             o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
         }
         // A reduced-resolution preview pass (0 spp, blocks of `block` pixels).

@@ -98,13 +98,8 @@ CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, fl
     pixel_angle_ = 2.0f * tan_half_ / height_;
 }
 
-CameraMatrices camera_matrices(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, uint32_t width,
-                               uint32_t height) {
-    // The same frame as CameraModel: forward, right = forward x up, up' = right x forward.
-    const Vec3 f = normalize(look_at - position);
-    const Vec3 r = normalize(cross(f, up));
-    const Vec3 u = cross(r, f);
-    const Vec3 axes[3] = {r, u, f};
+CameraMatrices CameraModel::matrices() const {
+    const Vec3 axes[3] = {right_, up_, forward_};
     CameraMatrices m;
     auto& c = m.world_to_camera;
     for (int j = 0; j < 3; ++j) {
@@ -112,13 +107,12 @@ CameraMatrices camera_matrices(Vec3 position, Vec3 look_at, Vec3 up, float fov_d
         c[static_cast<std::size_t>(0 * 4 + j)] = a.x;
         c[static_cast<std::size_t>(1 * 4 + j)] = a.y;
         c[static_cast<std::size_t>(2 * 4 + j)] = a.z;
-        c[static_cast<std::size_t>(3 * 4 + j)] = -dot(position, a);
+        c[static_cast<std::size_t>(3 * 4 + j)] = -dot(origin_, a);
     }
     c[15] = 1.0f;
     // Camera space to NDC: x = 0.5 + 0.5 (cx / cz) / (tan_half aspect), y = 0.5 - 0.5 (cy / cz) /
     // tan_half, as (X, Y, Z, W) with W = cz.
-    const float t = std::tan(0.5f * fov_deg * kPi / 180.0f);
-    const float aspect = static_cast<float>(width) / static_cast<float>(height);
+    const float t = tan_half_, aspect = aspect_;
     float p[16] = {};
     p[0 * 4 + 0] = 0.5f / (t * aspect);
     p[1 * 4 + 1] = -0.5f / t;

@@ -48,8 +48,6 @@ struct RayDifferential {
 struct CameraMatrices {
     std::array<float, 16> world_to_camera{}, world_to_ndc{};
 };
-CameraMatrices camera_matrices(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, uint32_t width,
-                               uint32_t height);
 
 class CameraModel {
 public:
@@ -63,6 +61,8 @@ public:
 
     /** World-space width of one pixel at distance 1 along the view direction (for footprints). */
     float pixel_angle() const { return pixel_angle_; }
+    /** The camera's frame and projection as the EXR header's matrices. */
+    CameraMatrices matrices() const;
 
 private:
     Vec3 point_on_film(float fx, float fy) const;  ///< on the plane at distance 1

@@ -147,7 +147,7 @@ TEST(CameraMatrices, ProjectPointsToThePixelsTheirRaysCameFrom) {
     const Vec3 pos(1.0f, 2.0f, 5.0f), at(-0.5f, 0.3f, 0.2f), up(0.1f, 1.0f, 0.0f);
     const uint32_t w = 320, h = 180;
     const CameraModel cam(pos, at, up, 35.0f, 0.0f, 1.0f, w, h);
-    const CameraMatrices m = camera_matrices(pos, at, up, 35.0f, w, h);
+    const CameraMatrices m = cam.matrices();
     const auto origin = times(pos, m.world_to_camera);
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(origin[static_cast<std::size_t>(k)], 0.0f, 1e-5f);
     for (const auto& [fx, fy] : {std::pair{0.0f, 0.0f},
