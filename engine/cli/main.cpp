@@ -69,6 +69,8 @@ struct RenderArgs {
     bool pass_output = false;
     bool no_pass_output = false;
     std::string serve;  ///< [ADDR:]PORT of the live preview page; empty = none
+    std::string texture_cache;
+    uint32_t texture_memory_mb = 1024;
 };
 
 /** A bad command line (exit status 2), found after parsing (sizes, names, paths that clash). */
@@ -239,6 +241,8 @@ RenderOptions render_options(const RenderArgs& a) {
     RenderOptions o;
     o.threads = a.threads;
     o.spp_override = a.spp;
+    o.texture_cache = a.texture_cache;
+    o.texture_memory_mb = a.texture_memory_mb;
     if (!a.size.empty()) parse_size(a.size, o.width_override, o.height_override);
     o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
                  : a.strategy == "bsdf" ? Strategy::BsdfOnly
@@ -573,10 +577,10 @@ int run_plugins(const std::vector<std::string>& dirs) {
     for (const auto& f : files) {
         try {
             auto p = PluginLoader::open_file(f, "");
-            const SpangleMaterialPlugin_v2& t = p->table();
+            const SpangleMaterialPlugin_v3& t = p->table();
             fmt::print("\n{} ({}): {}\n", t.name, f, t.doc ? t.doc : "");
             for (uint32_t m = 0; m < t.model_count; ++m) {
-                const SpangleMaterialModel_v2& model = t.models[m];
+                const SpangleMaterialModel_v3& model = t.models[m];
                 fmt::print("  model {}: {}\n", model.name, model.doc ? model.doc : "");
                 for (uint32_t k = 0; k < model.param_count; ++k)
                     fmt::print("    {}\n", describe_param(model.params[k]));
@@ -626,6 +630,13 @@ int main(int argc, char** argv) {
     render->add_option("--plugin-path", ra.plugin_dirs,
                        "directory searched for plugins first (repeatable)");
     render->add_flag("--stats", ra.stats, "print which systems ran and render statistics");
+    render->add_option("--texture-cache", ra.texture_cache,
+                       "folder for textures converted to the working space (default: "
+                       "$SPANGLE_TEXTURE_CACHE, else ~/.cache/spangle/textures)");
+    render
+        ->add_option("--texture-memory", ra.texture_memory_mb,
+                     "MiB the texture tile cache may hold (default 1024)")
+        ->check(CLI::Range(16u, 1u << 20));
     render->add_flag("--float", ra.full_float, "write 32-bit float EXR instead of half");
     render->add_option("--compression", ra.compression, "EXR compression (default zip)");
     render->add_option("--ocio", ra.ocio,

@@ -56,8 +56,16 @@ using ReadFn = int (*)(const char*, int, float*, char*, std::size_t);
 struct OiioModule {
     HeaderFn header = nullptr;
     ReadFn read = nullptr;
+    OiioTextureApi texture;
     std::string error;  ///< why it could not be opened
 };
+
+/** dlsym into a typed function pointer; false when the symbol is missing. */
+template <class Fn>
+bool bind(void* handle, const char* name, Fn& fn) {
+    fn = reinterpret_cast<Fn>(dlsym(handle, name));
+    return fn != nullptr;
+}
 
 const OiioModule& oiio_module() {
     static OiioModule module;
@@ -75,12 +83,19 @@ const OiioModule& oiio_module() {
                 module.error = fmt::format("cannot open '{}': {}", path, dlerror());
                 return;
             }
-            const auto abi = reinterpret_cast<AbiFn>(dlsym(handle, "spangle_oiio_abi"));
-            module.header = reinterpret_cast<HeaderFn>(dlsym(handle, "spangle_oiio_header"));
-            module.read = reinterpret_cast<ReadFn>(dlsym(handle, "spangle_oiio_read"));
-            if (!abi || abi() != 1 || !module.header || !module.read) {
-                module.header = nullptr;
-                module.read = nullptr;
+            AbiFn abi = nullptr;
+            OiioTextureApi& t = module.texture;
+            const bool complete = bind(handle, "spangle_oiio_abi", abi) &&
+                                  abi() == kOiioModuleAbi &&
+                                  bind(handle, "spangle_oiio_header", module.header) &&
+                                  bind(handle, "spangle_oiio_read", module.read) &&
+                                  bind(handle, "spangle_oiio_make_texture", t.make_texture) &&
+                                  bind(handle, "spangle_oiio_texture_system", t.create) &&
+                                  bind(handle, "spangle_oiio_texture_system_free", t.destroy) &&
+                                  bind(handle, "spangle_oiio_texture_handle", t.handle) &&
+                                  bind(handle, "spangle_oiio_texture_lookup", t.lookup);
+            if (!complete) {
+                module = OiioModule{};
                 module.error = fmt::format("'{}' is not this version's OpenImageIO module", path);
             }
             return;  // kept open for the life of the process
@@ -102,6 +117,15 @@ const OiioModule& usable_oiio(const std::string& path, const char* what) {
 }
 
 }  // namespace
+
+const OiioTextureApi& oiio_texture_api(const std::string& path) {
+    const OiioModule& m = oiio_module();
+    if (!m.texture.lookup)
+        throw_error(
+            "cannot use texture '{}': textures are filtered by OpenImageIO's TextureSystem, but {}",
+            path, m.error);
+    return m.texture;
+}
 
 std::vector<std::string> oiio_module_locations() {
     std::vector<std::string> out;

@@ -5,6 +5,7 @@
 // memory (Debian's build pulls in every format library it knows), which a render whose inputs
 // and outputs are EXR never needs.
 
+#include <cstddef>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -24,6 +25,27 @@ ImageHeader read_image_header(const std::string& path, const char* what = "image
  *  top; `header` receives the file's size and its full channel count. Throws SpangleError. */
 std::vector<float> read_image(const std::string& path, int max_channels, ImageHeader& header,
                               const char* what = "image");
+
+/** Version of the OpenImageIO module's C interface this build expects. */
+inline constexpr int kOiioModuleAbi = 2;
+
+/** The OpenImageIO module's texture functions (see engine/oiio/oiio_module.cpp for each). */
+struct OiioTextureApi {
+    int (*make_texture)(const float* pixels, int width, int height, int channels, const char* path,
+                        char* error, std::size_t size) = nullptr;
+    void* (*create)(int max_memory_mb) = nullptr;
+    void (*destroy)(void* system) = nullptr;
+    void* (*handle)(void* system, const char* path, int* channels, char* error,
+                    std::size_t size) = nullptr;
+    int (*lookup)(void* system, void* handle, int wrap, int count, const float* s, const float* t,
+                  const float* dsdx, const float* dtdx, const float* dsdy, const float* dtdy,
+                  int channels, float* out, float* ds_out, float* dt_out, char* error,
+                  std::size_t size) = nullptr;
+};
+
+/** The module's texture functions, opening the module on first use. Throws SpangleError
+ *  ("cannot use texture '<path>': ...") when it cannot be opened. */
+const OiioTextureApi& oiio_texture_api(const std::string& path);
 
 /** Where the OpenImageIO module is looked for (beside the binary, then ../lib/spangle). */
 std::vector<std::string> oiio_module_locations();

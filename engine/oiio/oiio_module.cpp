@@ -1,8 +1,16 @@
 // libspangle_oiio.so: the part of Spangle that links OpenImageIO, opened with dlopen only when
-// an image in a format other than OpenEXR is read (engine/color/image_io.cpp). A C interface,
-// so that nothing of OpenImageIO's C++ ABI crosses the boundary.
+// an image in a format other than OpenEXR is read or a scene uses a texture
+// (engine/color/image_io.cpp, engine/shading/texture.cpp). A C interface, so that nothing of
+// OpenImageIO's C++ ABI crosses the boundary.
+//
+// Interface version 2: version 1 (image headers and pixels) plus textures: writing a tiled,
+// mip-mapped texture file from pixels (what maketx does) and filtered lookups through
+// OpenImageIO's TextureSystem, whose tile cache is bounded in memory.
 
+#include <OpenImageIO/imagebuf.h>
+#include <OpenImageIO/imagebufalgo.h>
 #include <OpenImageIO/imageio.h>
+#include <OpenImageIO/texture.h>
 
 #include <cstddef>
 #include <cstdio>
@@ -21,7 +29,7 @@ extern "C" {
 
 /** Version of this interface; the host refuses a module with another one. */
 __attribute__((visibility("default"))) int spangle_oiio_abi() {
-    return 1;
+    return 2;
 }
 
 /** Size and channel count of the image at path; 0 on success, else an error message. */
@@ -53,6 +61,96 @@ __attribute__((visibility("default"))) int spangle_oiio_read(const char* path, i
     if (!in->read_image(0, 0, 0, channels, OIIO::TypeDesc::FLOAT, out)) {
         set_error(error, size, in->geterror());
         return 1;
+    }
+    return 0;
+}
+
+/** Writes width x height x channels float pixels (row 0 at the top) to `path` as a tiled (64 x 64),
+ *  mip-mapped half-float OpenEXR texture. 0 on success. */
+__attribute__((visibility("default"))) int spangle_oiio_make_texture(const float* pixels, int width,
+                                                                     int height, int channels,
+                                                                     const char* path, char* error,
+                                                                     std::size_t size) {
+    OIIO::ImageSpec spec(width, height, channels, OIIO::TypeDesc::FLOAT);
+    OIIO::ImageBuf src(spec, const_cast<float*>(pixels));
+    OIIO::ImageSpec config;
+    config.tile_width = 64;
+    config.tile_height = 64;
+    config.tile_depth = 1;
+    config.format = OIIO::TypeDesc::HALF;
+    config.attribute("compression", "zip");
+    // Each level the box-filtered average of the one above: the mean of the image is kept at
+    // every level (a sharper filter rings below zero and above one at hard edges, and
+    // highlight compression darkens the coarse levels of high-contrast maps).
+    config.attribute("maketx:filtername", "box");
+    config.attribute("maketx:fixnan", "box3");
+    if (!OIIO::ImageBufAlgo::make_texture(OIIO::ImageBufAlgo::MakeTxTexture, src, path, config)) {
+        set_error(error, size, OIIO::geterror());
+        return 1;
+    }
+    return 0;
+}
+
+/** A TextureSystem of its own (not the process-wide shared one) whose tile cache holds at most
+ *  max_memory_mb; NULL on failure. */
+__attribute__((visibility("default"))) void* spangle_oiio_texture_system(int max_memory_mb) {
+    OIIO::TextureSystem* ts = OIIO::TextureSystem::create(false);
+    if (!ts) return nullptr;
+    ts->attribute("max_memory_MB", static_cast<float>(max_memory_mb));
+    ts->attribute("autotile", 64);
+    ts->attribute("automip", 1);
+    ts->attribute("accept_untiled", 1);
+    ts->attribute("accept_unmipped", 1);
+    return ts;
+}
+
+__attribute__((visibility("default"))) void spangle_oiio_texture_system_free(void* system) {
+    if (system) OIIO::TextureSystem::destroy(static_cast<OIIO::TextureSystem*>(system));
+}
+
+/** A handle for the texture file at path and its channel count; NULL with a message on
+ *  failure. */
+__attribute__((visibility("default"))) void* spangle_oiio_texture_handle(void* system,
+                                                                         const char* path,
+                                                                         int* channels, char* error,
+                                                                         std::size_t size) {
+    auto* ts = static_cast<OIIO::TextureSystem*>(system);
+    const OIIO::ustring name(path);
+    OIIO::TextureSystem::TextureHandle* h = ts->get_texture_handle(name);
+    int n = 0;
+    if (!h || !ts->get_texture_info(name, 0, OIIO::ustring("channels"), OIIO::TypeDesc::INT, &n) ||
+        n < 1) {
+        set_error(error, size, ts->geterror());
+        return nullptr;
+    }
+    *channels = n;
+    return h;
+}
+
+/** Filtered lookups of `count` points: texture coordinates s, t (0 at the left and top edges,
+ *  1 at the right and bottom) and their screen-space derivatives; writes `channels` values per
+ *  point to out and, when not NULL, their derivatives along s and t. wrap: 0 periodic,
+ *  1 clamp, 2 black, 3 mirror. 0 on success. */
+__attribute__((visibility("default"))) int spangle_oiio_texture_lookup(
+    void* system, void* handle, int wrap, int count, const float* s, const float* t,
+    const float* dsdx, const float* dtdx, const float* dsdy, const float* dtdy, int channels,
+    float* out, float* ds_out, float* dt_out, char* error, std::size_t size) {
+    auto* ts = static_cast<OIIO::TextureSystem*>(system);
+    auto* h = static_cast<OIIO::TextureSystem::TextureHandle*>(handle);
+    OIIO::TextureSystem::Perthread* thread = ts->get_perthread_info();
+    OIIO::TextureOpt opt;
+    const OIIO::TextureOpt::Wrap modes[] = {
+        OIIO::TextureOpt::WrapPeriodic, OIIO::TextureOpt::WrapClamp, OIIO::TextureOpt::WrapBlack,
+        OIIO::TextureOpt::WrapMirror};
+    opt.swrap = opt.twrap = modes[wrap >= 0 && wrap < 4 ? wrap : 0];
+    opt.interpmode = OIIO::TextureOpt::InterpBilinear;
+    for (int i = 0; i < count; ++i) {
+        const std::size_t o = static_cast<std::size_t>(i) * static_cast<std::size_t>(channels);
+        if (!ts->texture(h, thread, opt, s[i], t[i], dsdx[i], dtdx[i], dsdy[i], dtdy[i], channels,
+                         out + o, ds_out ? ds_out + o : nullptr, dt_out ? dt_out + o : nullptr)) {
+            set_error(error, size, ts->geterror());
+            return 1;
+        }
     }
     return 0;
 }

@@ -1,5 +1,5 @@
 #pragma once
-// A bump allocator handed to plugins as SpangleArena_v2: blocks are kept between batches and
+// A bump allocator handed to plugins as SpangleArena_v3: blocks are kept between batches and
 // reset, so steady-state shading allocates nothing.
 
 #include <cstddef>
@@ -21,7 +21,7 @@ public:
         offset_ = 0;
     }
     /** The C view for plugins; valid while this arena lives. */
-    SpangleArena_v2 api() { return {this, &ScratchArena::allocate_c}; }
+    SpangleArena_v3 api() { return {this, &ScratchArena::allocate_c}; }
 
 private:
     static void* allocate_c(void* self, std::size_t bytes, std::size_t align) {

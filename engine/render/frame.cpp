@@ -57,7 +57,7 @@ FrameResult render_frame(const FrameRequest& req) {
     if (req.on_loaded) req.on_loaded(color);
 
     PluginLoader plugins(plugin_search_path(req.plugin_dirs));
-    HostServices host(color, *req.log);
+    HostServices host(color, *req.log, {req.options.texture_cache, req.options.texture_memory_mb});
     World world;
     world.color = &color;
     world.log = req.log;
@@ -96,7 +96,7 @@ FrameResult render_frame(const FrameRequest& req) {
     }
     for (const auto& mat : world.materials) {
         if (!mat || !mat->model().stats) continue;
-        SpangleStat_v2 buf[64];
+        SpangleStat_v3 buf[64];
         const uint32_t n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);
         std::vector<std::pair<std::string, double>> values;
         for (uint32_t i = 0; i < n; ++i)

@@ -96,6 +96,12 @@ struct Workspace {
     std::vector<uint32_t> light_query;  ///< group slot of each eval query
     std::vector<std::byte> closures;
     ScratchArena arena;
+    // Textures of one material group: lookups, values per bound parameter, the map's values.
+    TextureQuery tex_query;
+    std::vector<std::vector<float>> tex_values;
+    std::vector<const float*> param_values;  ///< one per schema entry (null: constant)
+    std::vector<float> map_value, map_ds, map_dt;
+    std::vector<float> gu, gv, gdudx, gdudy, gdvdx, gdvdy;  ///< the group's uvs, for the map
 
     void resize_paths(std::size_t n) {
         for (auto* a : {&pixel, &sample, &material_of}) a->resize(n);
@@ -180,11 +186,84 @@ void propagate_specular(Workspace& ws, uint32_t i, Vec3 wi, bool transmission, f
         ws.has_diff[i] = 0;
 }
 
+/** Rebuilds sp's shading frame around a new normal (front side of the surface: `nf`). */
+void reframe(SurfacePoint& sp, Vec3 nf) {
+    const float len = length(nf);
+    if (!(len > 0.0f) || !std::isfinite(len)) return;
+    Vec3 n = nf / len;
+    if (sp.backface) n = -n;
+    if (!(dot(n, sp.n) > 1e-3f)) return;  // a map cannot turn the normal past the surface
+    Vec3 s = sp.s - n * dot(n, sp.s);
+    const float s_len = length(s);
+    if (s_len > 1e-12f && std::isfinite(s_len)) {
+        s = s / s_len;
+        sp.t = cross(n, s);
+    } else {
+        make_basis(n, s, sp.t);
+    }
+    sp.n = n;
+    sp.s = s;
+}
+
+/** Applies the material's normal or bump map to the group's shading frames: tangent space from
+ *  dp/du and dp/dv (normal map: OpenGL convention, green towards +v; bump map: a height field
+ *  in metres along the normal, its slope from the filtered texture's derivatives). */
+void apply_map(const World& w, Workspace& ws, const MaterialInstance& mat, const uint32_t* paths,
+               uint32_t n) {
+    const TextureBinding& b = mat.map();
+    for (auto* a : {&ws.gu, &ws.gv, &ws.gdudx, &ws.gdudy, &ws.gdvdx, &ws.gdvdy}) a->resize(n);
+    for (uint32_t k = 0; k < n; ++k) {
+        const SurfacePoint& sp = ws.surf[paths[k]];
+        ws.gu[k] = sp.u;
+        ws.gv[k] = sp.v;
+        ws.gdudx[k] = sp.dudx;
+        ws.gdudy[k] = sp.dudy;
+        ws.gdvdx[k] = sp.dvdx;
+        ws.gdvdy[k] = sp.dvdy;
+    }
+    texture_coordinates(b.ref, ws.gu.data(), ws.gv.data(), ws.gdudx.data(), ws.gdudy.data(),
+                        ws.gdvdx.data(), ws.gdvdy.data(), n, ws.tex_query);
+    const auto c = static_cast<std::size_t>(b.channels);
+    ws.map_value.resize(n * c);
+    const bool bump = mat.map_kind() == MapKind::Bump;
+    ws.map_ds.resize(bump ? n : 0);
+    ws.map_dt.resize(bump ? n : 0);
+    w.host->textures().lookup(*b.texture, b.ref.wrap, ws.tex_query, n, b.channels,
+                              ws.map_value.data(), bump ? ws.map_ds.data() : nullptr,
+                              bump ? ws.map_dt.data() : nullptr);
+    const float* m = b.ref.uv;
+    for (uint32_t k = 0; k < n; ++k) {
+        SurfacePoint& sp = ws.surf[paths[k]];
+        if (!sp.has_uv) continue;  // no tangent space to read the map in
+        const Vec3 nf = sp.backface ? -sp.n : sp.n;
+        if (bump) {
+            // Height h = height * value; dh/du and dh/dv through the uv transform (t = 1 - v').
+            const float hs = ws.map_ds[k] * b.ref.amount, ht = ws.map_dt[k] * b.ref.amount;
+            const float dhdu = hs * m[0] - ht * m[3];
+            const float dhdv = hs * m[1] - ht * m[4];
+            Vec3 nb = cross(sp.dpdu + nf * dhdu, sp.dpdv + nf * dhdv);
+            // cross(dpdu, dpdv) points to either side, by the uvs' handedness.
+            if (dot(cross(sp.dpdu, sp.dpdv), nf) < 0.0f) nb = -nb;
+            reframe(sp, nb);
+        } else {
+            const float* v = &ws.map_value[3 * k];
+            const float x = (2.0f * v[0] - 1.0f) * b.ref.amount;
+            const float y = (2.0f * v[1] - 1.0f) * b.ref.amount;
+            const float z = 2.0f * v[2] - 1.0f;
+            const Vec3 tu = sp.s;  // dp/du made orthogonal to n (the same on either side)
+            Vec3 tv = cross(nf, tu);
+            if (dot(tv, sp.dpdv) < 0.0f) tv = -tv;
+            reframe(sp, tu * x + tv * y + nf * z);
+        }
+    }
+}
+
 /** Shades one material group: prepare, next-event estimation, then BSDF sampling. */
 void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, const uint32_t* paths,
                  uint32_t n, uint32_t bounce, uint64_t& shadow_rays) {
     const World& w = *job.world;
     ws.resize_group(n);
+    if (mat.map_kind() != MapKind::None) apply_map(w, ws, mat, paths, n);
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
         const SurfacePoint& sp = ws.surf[i];
@@ -219,41 +298,63 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                       (sp.has_uv ? 0u : SPANGLE_SHADING_NO_UV);
         ws.path_id[k] = i;
     }
-    const SpangleShadingBatch_v2 batch{n,
-                                       ws.px.data(),
-                                       ws.py.data(),
-                                       ws.pz.data(),
-                                       ws.wox.data(),
-                                       ws.woy.data(),
-                                       ws.woz.data(),
-                                       ws.u.data(),
-                                       ws.v.data(),
-                                       ws.dudx.data(),
-                                       ws.dudy.data(),
-                                       ws.dvdx.data(),
-                                       ws.dvdy.data(),
-                                       ws.uv_area.data(),
-                                       ws.opx.data(),
-                                       ws.opy.data(),
-                                       ws.opz.data(),
-                                       ws.onx.data(),
-                                       ws.ony.data(),
-                                       ws.onz.data(),
-                                       ws.odxx.data(),
-                                       ws.odxy.data(),
-                                       ws.odxz.data(),
-                                       ws.odyx.data(),
-                                       ws.odyy.data(),
-                                       ws.odyz.data(),
-                                       ws.flags.data(),
-                                       ws.path_id.data()};
-    const SpangleMaterialModel_v2& model = mat.model();
+    SpangleShadingBatch_v3 batch{n,
+                                 ws.px.data(),
+                                 ws.py.data(),
+                                 ws.pz.data(),
+                                 ws.wox.data(),
+                                 ws.woy.data(),
+                                 ws.woz.data(),
+                                 ws.u.data(),
+                                 ws.v.data(),
+                                 ws.dudx.data(),
+                                 ws.dudy.data(),
+                                 ws.dvdx.data(),
+                                 ws.dvdy.data(),
+                                 ws.uv_area.data(),
+                                 ws.opx.data(),
+                                 ws.opy.data(),
+                                 ws.opz.data(),
+                                 ws.onx.data(),
+                                 ws.ony.data(),
+                                 ws.onz.data(),
+                                 ws.odxx.data(),
+                                 ws.odxy.data(),
+                                 ws.odxz.data(),
+                                 ws.odyx.data(),
+                                 ws.odyy.data(),
+                                 ws.odyz.data(),
+                                 ws.flags.data(),
+                                 ws.path_id.data(),
+                                 nullptr};
+    const SpangleMaterialModel_v3& model = mat.model();
+    if (!mat.textures().empty()) {
+        // Textured parameters: looked up per point, scaled, clamped into the parameter's range.
+        ws.param_values.assign(model.param_count, nullptr);
+        ws.tex_values.resize(std::max(ws.tex_values.size(), mat.textures().size()));
+        for (std::size_t j = 0; j < mat.textures().size(); ++j) {
+            const TextureBinding& b = mat.textures()[j];
+            texture_coordinates(b.ref, ws.u.data(), ws.v.data(), ws.dudx.data(), ws.dudy.data(),
+                                ws.dvdx.data(), ws.dvdy.data(), n, ws.tex_query);
+            std::vector<float>& out = ws.tex_values[j];
+            const auto c = static_cast<std::size_t>(b.channels);
+            out.resize(n * c);
+            w.host->textures().lookup(*b.texture, b.ref.wrap, ws.tex_query, n, b.channels,
+                                      out.data());
+            for (std::size_t i = 0; i < n * c; ++i) {
+                const float x = out[i] * b.ref.scale[i % c];
+                out[i] = std::isfinite(x) ? std::clamp(x, b.lo, b.hi) : b.lo;
+            }
+            ws.param_values[b.param] = out.data();
+        }
+        batch.param_values = ws.param_values.data();
+    }
     ws.closures.resize(static_cast<std::size_t>(n) * model.closure_size + 16);
     void* closures = ws.closures.data();
     std::size_t space = ws.closures.size();
     closures = std::align(16, static_cast<std::size_t>(n) * model.closure_size, closures, space);
     ws.arena.reset();
-    SpangleArena_v2 arena = ws.arena.api();
+    SpangleArena_v3 arena = ws.arena.api();
     model.prepare(mat.instance(), &batch, closures, &arena);
 
     // Random numbers of this bounce, shared by light and BSDF sampling.
@@ -283,7 +384,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             ws.wiz[q] = dot(ls.wi, sp.n);
             ++q;
         }
-        SpangleEvalBatch_v2 eval{q,
+        SpangleEvalBatch_v3 eval{q,
                                  ws.closure_index.data(),
                                  ws.wix.data(),
                                  ws.wiy.data(),
@@ -291,7 +392,10 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                                  ws.f_r.data(),
                                  ws.f_g.data(),
                                  ws.f_b.data(),
-                                 ws.pdf.data()};
+                                 ws.pdf.data(),
+                                 nullptr,
+                                 nullptr,
+                                 nullptr};
         if (q > 0) model.eval(mat.instance(), closures, &eval);
         // The unoccluded contribution of each query, then its shadow ray; the rays of the
         // whole group are traced as one stream.
@@ -337,7 +441,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         rnd2(ws, i, bounce, kPairBsdf, ws.u0[k], ws.u1[k]);
         ws.eta[k] = 1.0f;
     }
-    SpangleSampleBatch_v2 sb{n,
+    SpangleSampleBatch_v3 sb{n,
                              nullptr,
                              ws.u0.data(),
                              ws.u1.data(),
@@ -350,7 +454,10 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                              ws.f_b.data(),
                              ws.pdf.data(),
                              ws.sample_flags.data(),
-                             ws.eta.data()};
+                             ws.eta.data(),
+                             nullptr,
+                             nullptr,
+                             nullptr};
     model.sample(mat.instance(), closures, &sb);
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];

@@ -28,7 +28,8 @@ Session::Session(std::vector<std::string> plugin_dirs, const std::string& ocio,
                  RenderOptions options, const Logger& log)
     : log_(log), options_(std::move(options)), ocio_request_(ocio) {
     color_ = std::make_unique<ColorConfig>(ColorConfig::load(ocio, default_ocio_locations()));
-    host_ = std::make_unique<HostServices>(*color_, log_);
+    host_ = std::make_unique<HostServices>(
+        *color_, log_, TextureSettings{options_.texture_cache, options_.texture_memory_mb});
     plugins_ = std::make_unique<PluginLoader>(plugin_search_path(plugin_dirs));
     plugins_->reopen_changed = true;
 }
@@ -108,7 +109,9 @@ ReloadReport Session::load(const std::string& scene) {
 
     std::unique_ptr<HostServices> host;
     ColorConfig* live_color = full ? color.get() : color_.get();
-    if (full) host = std::make_unique<HostServices>(*live_color, log_);
+    if (full)
+        host = std::make_unique<HostServices>(
+            *live_color, log_, TextureSettings{options_.texture_cache, options_.texture_memory_mb});
     auto next = std::make_unique<World>();
     next->color = live_color;
     next->log = &log_;

@@ -152,9 +152,19 @@ void system_materials(ecs::Registry& r, World& w) {
                     w.plugins->open(m.plugin, m.plugin_loc);
                 std::string key = fmt::format("material|{}|{}|{}|{}", m.name, m.plugin, m.model,
                                               file_identity(plugin->path()));
-                for (const ParamEntry& p : m.params)
-                    key += fmt::format("|{}:{}:{}:{}:{}:{}:{}", p.name, static_cast<int>(p.kind),
-                                       p.number[0], p.number[1], p.number[2], p.is_integer, p.text);
+                for (const ParamList* list : {&m.params, &m.maps})
+                    for (const ParamEntry& p : *list) {
+                        key += fmt::format("|{}:{}:{}:{}:{}:{}:{}", p.name,
+                                           static_cast<int>(p.kind), p.number[0], p.number[1],
+                                           p.number[2], p.is_integer, p.text);
+                        // A texture: how it is looked up, and the file's identity (an edited
+                        // image makes a new material).
+                        if (p.kind != ParamEntry::Kind::Texture) continue;
+                        const TextureRef& t = p.texture;
+                        key += fmt::format(":{}:{}:{}:{}:{}", file_identity(t.path), t.space,
+                                           fmt::join(t.scale, ","), fmt::join(t.uv, ","), t.wrap);
+                        key += fmt::format(":{}", t.amount);
+                    }
                 return key;
             },
             [&] { return create_material(*w.plugins, m, *w.host); },
@@ -170,23 +180,30 @@ void warn_about_missing_uvs(ecs::Registry& r, World& w) {
     for (std::size_t i = 0; i < refs.size(); ++i) {
         const ecs::Entity e = refs.entities()[i];
         const MaterialInstance* mat = w.materials[refs.columns().material[i]].get();
-        if (!mat || !mat->model().requirements || !r.has<TriangleMeshRef>(e)) continue;
-        if (!(mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV)) continue;
+        if (!mat || !r.has<TriangleMeshRef>(e)) continue;
+        // Textures and normal or bump maps are laid out in uv too.
+        const bool textured = !mat->textures().empty() || mat->map_kind() != MapKind::None;
+        const bool plugin_needs =
+            mat->model().requirements &&
+            (mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV);
+        if (!textured && !plugin_needs) continue;
         const TriangleMesh& mesh = w.geometry.mesh(r.get<TriangleMeshRef>(e).mesh);
         const double mapped = mesh.uv_mapped_fraction();
         if (mapped >= 0.5) continue;
         const ObjectInfo info = r.has<ObjectInfo>(e) ? r.get<ObjectInfo>(e) : ObjectInfo{};
         w.log->warn(
-            "{}: object {}(mesh {}) has {}; material '{}' lays its pattern out in uv and will "
-            "render without it there (for flakes, density_space = \"object\" or \"auto\" "
-            "places them by object-space position instead)",
+            "{}: object {}(mesh {}) has {}; material '{}' lays {} out in uv and will render "
+            "without {} there{}",
             info.loc.str(), info.name.empty() ? std::string() : fmt::format("'{}' ", info.name),
             mesh.source,
             mesh.uvs.empty() ? std::string("no uvs")
                              : fmt::format("degenerate uvs ({:.0f}% of its area maps to no uv "
                                            "area)",
                                            100.0 * (1.0 - mapped)),
-            mat->name());
+            mat->name(), textured ? "its textures" : "its pattern", textured ? "them" : "it",
+            plugin_needs ? " (for flakes, density_space = \"object\" or \"auto\" places them "
+                           "by object-space position instead)"
+                         : "");
     }
 }
 

@@ -51,6 +51,10 @@ struct RenderOptions {
      *  preview_stride() pixels, shown through on_pass and then dropped): the first picture after
      *  an edit in a fraction of a full pass. The final image does not depend on it. */
     bool preview_pass = false;
+    /** Where converted textures are cached (empty: $SPANGLE_TEXTURE_CACHE or the user's cache
+     *  directory) and how much memory the texture tile cache may hold. */
+    std::string texture_cache;
+    uint32_t texture_memory_mb = 1024;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:

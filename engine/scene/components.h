@@ -20,21 +20,33 @@ inline bool same_value(const FileLoc&, const FileLoc&) {
 }
 }  // namespace ecs
 
+/** An image bound to a material input, as written in the scene. */
+struct TextureRef {
+    std::string path;            ///< resolved file path
+    std::string space;           ///< colour space as written (resolved); "raw" = data; "" = default
+    float scale[3] = {1, 1, 1};  ///< multiplies the looked-up value (per channel)
+    float uv[6] = {1, 0, 0, 0, 1, 0};  ///< (u, v) -> (uv0 u + uv1 v + uv2, uv3 u + uv4 v + uv5)
+    int wrap = 0;                      ///< 0 periodic, 1 clamp, 2 black, 3 mirror
+    float amount = 1;                  ///< normal_map: strength; bump_map: height in metres
+    bool operator==(const TextureRef&) const = default;
+};
+
 /** One material parameter as written in the scene, before validation against a plugin schema. */
 struct ParamEntry {
-    enum class Kind { Number, Bool, String, Color };
+    enum class Kind { Number, Bool, String, Color, Texture };
     std::string name;              ///< key in the scene file
     Kind kind = Kind::Number;      ///< what the TOML value was
     double number[3] = {0, 0, 0};  ///< Number: [0]; Bool: [0] = 0 or 1; Color: working-space RGB
     bool is_integer = false;       ///< Number written as a TOML integer
     std::string text;              ///< String value
+    TextureRef texture;            ///< Texture: the image and how to look it up
     FileLoc loc;                   ///< where the value is written
     FileLoc key_loc;               ///< where the key is written
     /** Same name, kind and value (not where it is written). */
     bool operator==(const ParamEntry& o) const {
         return name == o.name && kind == o.kind && number[0] == o.number[0] &&
                number[1] == o.number[1] && number[2] == o.number[2] && is_integer == o.is_integer &&
-               text == o.text;
+               text == o.text && texture == o.texture;
     }
 };
 using ParamList = std::vector<ParamEntry>;
@@ -67,13 +79,14 @@ SPANGLE_COMPONENT(SubdivSurface, SPANGLE_SUBDIV_FIELDS);
 /** A loaded triangle mesh (output of mesh_load, input of accelerate). */
 SPANGLE_COMPONENT(TriangleMeshRef, SPANGLE_MESH_REF_FIELDS);
 
-#define SPANGLE_MATERIAL_FIELDS(X)                                              \
-    X(std::string, name, "scene-unique material name")                          \
-    X(std::string, plugin, "plugin name, e.g. smooth")                          \
-    X(std::string, model, "model name within the plugin, empty = the only one") \
-    X(ParamList, params, "parameters as written")                               \
-    X(FileLoc, loc, "the [[material]] table")                                   \
-    X(FileLoc, plugin_loc, "the plugin key")                                    \
+#define SPANGLE_MATERIAL_FIELDS(X)                                               \
+    X(std::string, name, "scene-unique material name")                           \
+    X(std::string, plugin, "plugin name, e.g. smooth")                           \
+    X(std::string, model, "model name within the plugin, empty = the only one")  \
+    X(ParamList, params, "parameters as written")                                \
+    X(ParamList, maps, "normal_map / bump_map textures (the host applies them)") \
+    X(FileLoc, loc, "the [[material]] table")                                    \
+    X(FileLoc, plugin_loc, "the plugin key")                                     \
     X(FileLoc, model_loc, "the model key, or the table when absent")
 /** A material definition (input of the materials system). */
 SPANGLE_COMPONENT(Material, SPANGLE_MATERIAL_FIELDS);

@@ -148,6 +148,104 @@ Affine parse_transform(TableReader& r) {
     return m;
 }
 
+/** Which table a texture is read for: a material parameter, or one of the host's maps. */
+enum class TextureUse { Param, NormalMap, BumpMap };
+
+/** `{ texture = "file", space = ..., scale = ..., uv_transform = {...}, wrap = ... }` (plus
+ *  `strength` for a normal map, `height` for a bump map). */
+TextureRef parse_texture(const ParseContext& ctx, const toml::table& t, std::string_view name,
+                         TextureUse use) {
+    TableReader r(t, ctx.file, fmt::format("texture '{}'", name));
+    TextureRef tex;
+    {
+        const std::string given = r.string("texture");
+        if (given.empty()) throw_error(r.loc("texture"), "'texture' must not be empty");
+        fs::path p(given);
+        if (p.is_relative()) p = ctx.dir / p;
+        std::error_code ec;
+        if (!fs::is_regular_file(p, ec))
+            throw_error(r.loc("texture"), "texture file '{}' not found (looked for {})", given,
+                        p.string());
+        tex.path = p.lexically_normal().string();
+    }
+    if (r.has("space")) {
+        const std::string s = r.string("space");
+        tex.space = s == "raw" || s == "data" ? "raw" : resolve_space(ctx, s, r.loc("space"));
+    }
+    if (use == TextureUse::Param && r.has("scale")) {
+        const toml::node& n = *r.node("scale");
+        if (n.is_array()) {
+            const Vec3 v = parse_vec3(n, ctx.file, "scale");
+            tex.scale[0] = v.x;
+            tex.scale[1] = v.y;
+            tex.scale[2] = v.z;
+        } else {
+            const auto k = static_cast<float>(r.number("scale", 1.0, {0.0, 1e6}));
+            tex.scale[0] = tex.scale[1] = tex.scale[2] = k;
+        }
+        for (float k : tex.scale)
+            if (!(k >= 0.0f))
+                throw_error(r.loc("scale"), "'scale' must be non-negative, got {}", k);
+    }
+    if (use == TextureUse::NormalMap)
+        tex.amount = static_cast<float>(r.number("strength", 1.0, {0.0, 10.0}));
+    if (use == TextureUse::BumpMap)
+        tex.amount = static_cast<float>(r.number("height", 0.001, {-1.0, 1.0}));
+    if (const toml::table* uv = r.table("uv_transform")) {
+        TableReader u(*uv, ctx.file, "uv_transform");
+        float su = 1, sv = 1;
+        if (u.has("scale")) {
+            const toml::node& n = *u.node("scale");
+            if (n.is_array()) {
+                const auto* a = n.as_array();
+                if (a->size() != 2 || !(*a)[0].is_number() || !(*a)[1].is_number())
+                    throw_error(loc_of(n, ctx.file),
+                                "'scale' must be a number or two numbers [su, sv]");
+                su = static_cast<float>((*a)[0].value<double>().value_or(1.0));
+                sv = static_cast<float>((*a)[1].value<double>().value_or(1.0));
+            } else {
+                su = sv = static_cast<float>(u.number("scale", 1.0, {-1e6, 1e6}));
+            }
+            if (su == 0.0f || sv == 0.0f || !std::isfinite(su) || !std::isfinite(sv))
+                throw_error(loc_of(n, ctx.file), "uv 'scale' must be finite and non-zero");
+        }
+        float ou = 0, ov = 0;
+        if (u.has("offset")) {
+            const toml::node& n = *u.node("offset");
+            const auto* a = n.as_array();
+            if (!a || a->size() != 2 || !(*a)[0].is_number() || !(*a)[1].is_number())
+                throw_error(loc_of(n, ctx.file), "'offset' must be two numbers [ou, ov]");
+            ou = static_cast<float>((*a)[0].value<double>().value_or(0.0));
+            ov = static_cast<float>((*a)[1].value<double>().value_or(0.0));
+            if (!std::isfinite(ou) || !std::isfinite(ov))
+                throw_error(loc_of(n, ctx.file), "'offset' must be finite");
+        }
+        const double rot =
+            u.number("rotate", 0.0, {-360.0, 360.0}) * 3.14159265358979323846 / 180.0;
+        u.finish();
+        // uv' = R(rotate) (scale * uv) + offset
+        const auto c = static_cast<float>(std::cos(rot)), s = static_cast<float>(std::sin(rot));
+        tex.uv[0] = c * su;
+        tex.uv[1] = -s * sv;
+        tex.uv[2] = ou;
+        tex.uv[3] = s * su;
+        tex.uv[4] = c * sv;
+        tex.uv[5] = ov;
+    }
+    if (r.has("wrap")) {
+        const std::string w = r.string("wrap");
+        const char* modes[] = {"periodic", "clamp", "black", "mirror"};
+        tex.wrap = -1;
+        for (int i = 0; i < 4; ++i)
+            if (w == modes[i]) tex.wrap = i;
+        if (tex.wrap < 0)
+            throw_error(r.loc("wrap"),
+                        "'wrap' must be one of periodic, clamp, black, mirror, got \"{}\"", w);
+    }
+    r.finish();
+    return tex;
+}
+
 ParamEntry parse_param(const ParseContext& ctx, const toml::key& k, const toml::node& n) {
     const std::string key(k.str());
     ParamEntry p;
@@ -169,6 +267,10 @@ ParamEntry parse_param(const ParseContext& ctx, const toml::key& k, const toml::
     } else if (auto s = n.as_string()) {
         p.kind = ParamEntry::Kind::String;
         p.text = s->get();
+    } else if (n.is_table() && n.as_table()->contains("texture")) {
+        p.kind = ParamEntry::Kind::Texture;
+        p.texture = parse_texture(ctx, *n.as_table(), key, TextureUse::Param);
+        p.text = p.texture.path;
     } else if (n.is_array() || n.is_table()) {
         RawColor c = parse_raw_color(ctx, n, key);
         p.kind = ParamEntry::Kind::Color;
@@ -192,6 +294,23 @@ Material parse_material(const ParseContext& ctx, TableReader& r) {
     m.model_loc = r.loc("model");
     if (const toml::table* params = r.table("params"))
         for (auto&& [key, value] : *params) m.params.push_back(parse_param(ctx, key, value));
+    // Maps the host applies to the shading frame before the plugin sees the point.
+    for (const auto& [key, use] : {std::pair{"normal_map", TextureUse::NormalMap},
+                                   std::pair{"bump_map", TextureUse::BumpMap}}) {
+        const toml::table* t = r.table(key);
+        if (!t) continue;
+        ParamEntry p;
+        p.name = key;
+        p.kind = ParamEntry::Kind::Texture;
+        p.loc = r.loc(key);
+        p.key_loc = p.loc;
+        p.texture = parse_texture(ctx, *t, key, use);
+        p.text = p.texture.path;
+        m.maps.push_back(std::move(p));
+    }
+    if (m.maps.size() == 2)
+        throw_error(r.loc("bump_map"), "material '{}': give a normal_map or a bump_map, not both",
+                    m.name);
     return m;
 }
 

@@ -76,14 +76,17 @@ std::vector<std::string> split_choices(const char* choices) {
     return out;
 }
 
-std::string range_text(const SpangleParamDesc_v2& d) {
+std::string range_text(const SpangleParamDesc_v3& d) {
     return fmt::format("[{}, {}]", d.min_value, d.max_value);
 }
 
 }  // namespace
 
-HostServices::HostServices(const ColorConfig& color, const Logger& log)
-    : color_(color), log_(log), working_(color.working_space()) {
+HostServices::HostServices(const ColorConfig& color, const Logger& log, TextureSettings textures)
+    : color_(color),
+      log_(log),
+      textures_(color, log, std::move(textures)),
+      working_(color.working_space()) {
     api_.abi_version = SPANGLE_MATERIAL_ABI_VERSION;
     api_.context = this;
     api_.working_space = working_.c_str();
@@ -92,7 +95,7 @@ HostServices::HostServices(const ColorConfig& color, const Logger& log)
     api_.hash2 = host_hash2;
 }
 
-std::string describe_param(const SpangleParamDesc_v2& p) {
+std::string describe_param(const SpangleParamDesc_v3& p) {
     std::string def;
     switch (p.type) {
         case SPANGLE_PARAM_FLOAT:
@@ -118,11 +121,12 @@ std::string describe_param(const SpangleParamDesc_v2& p) {
         range = p.choices ? fmt::format(" one of {}", p.choices) : std::string(" any name");
     else if (p.type != SPANGLE_PARAM_BOOL)
         range = " in " + range_text(p);
-    return fmt::format("{:<18} {:<6} = {:<16}{}  {}", p.name, type_name(p.type), def, range,
-                       p.doc ? p.doc : "");
+    return fmt::format("{:<18} {:<6} = {:<16}{}  {}{}", p.name, type_name(p.type), def, range,
+                       p.doc ? p.doc : "",
+                       (p.flags & SPANGLE_PARAM_TEXTURABLE) ? " (texture ok)" : "");
 }
 
-ValidatedParams validate_params(const SpangleMaterialModel_v2& model, const Material& m,
+ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Material& m,
                                 const ColorConfig& color) {
     ValidatedParams out;
     out.strings.reserve(model.param_count);
@@ -143,14 +147,31 @@ ValidatedParams validate_params(const SpangleMaterialModel_v2& model, const Mate
         given[k] = &p;
     }
     for (uint32_t k = 0; k < model.param_count; ++k) {
-        const SpangleParamDesc_v2& d = model.params[k];
-        SpangleParamValue_v2 v{};
+        const SpangleParamDesc_v3& d = model.params[k];
+        SpangleParamValue_v3 v{};
         v.name = d.name;
         v.type = d.type;
         std::copy(d.default_value, d.default_value + 3, v.number);
         out.strings.emplace_back(d.default_string ? d.default_string : "");
         const ParamEntry* p = given[k];
-        if (p) {
+        if (p && p->kind == ParamEntry::Kind::Texture) {
+            // The plugin reads the texture's values per point; create() sees the default.
+            if (!(d.flags & SPANGLE_PARAM_TEXTURABLE) ||
+                (d.type != SPANGLE_PARAM_FLOAT && d.type != SPANGLE_PARAM_COLOR)) {
+                std::vector<std::string> can;
+                for (uint32_t i = 0; i < model.param_count; ++i)
+                    if (model.params[i].flags & SPANGLE_PARAM_TEXTURABLE)
+                        can.emplace_back(model.params[i].name);
+                throw_error(
+                    p->loc,
+                    "material '{}': parameter '{}' of model '{}' cannot take a texture: "
+                    "the model needs it constant over the surface (parameters that "
+                    "take textures: {})",
+                    m.name, d.name, model.name,
+                    can.empty() ? std::string("none") : fmt::format("{}", fmt::join(can, ", ")));
+            }
+            out.textured.emplace_back(k, p);
+        } else if (p) {
             const auto bad_type = [&](const char* expected) {
                 throw_error(p->loc, "material '{}': parameter '{}' must be {}", m.name, d.name,
                             expected);
@@ -231,7 +252,7 @@ ValidatedParams validate_params(const SpangleMaterialModel_v2& model, const Mate
 std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Material& m,
                                                   const HostServices& host) {
     auto plugin = loader.open(m.plugin, m.plugin_loc);
-    const SpangleMaterialModel_v2* model = nullptr;
+    const SpangleMaterialModel_v3* model = nullptr;
     if (m.model.empty()) {
         if (plugin->table().model_count != 1)
             throw_error(m.loc,
@@ -247,13 +268,35 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
                         fmt::join(plugin->model_names(), ", "));
     }
     const ValidatedParams params = validate_params(*model, m, host.color());
-    const SpangleParams_v2 view = params.view();
+    const SpangleParams_v3 view = params.view();
     char error[512] = {0};
     void* instance = model->create(&view, host.api(), error, sizeof(error));
     if (!instance)
         throw_error(m.loc, "material '{}': plugin '{}' could not create model '{}': {}", m.name,
                     m.plugin, model->name, error[0] ? error : "no reason given");
-    return std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
+    auto mat = std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
+    std::vector<TextureBinding> textures;
+    for (const auto& [k, p] : params.textured) {
+        const SpangleParamDesc_v3& d = model->params[k];
+        TextureBinding b;
+        b.param = k;
+        b.channels = d.type == SPANGLE_PARAM_COLOR ? 3 : 1;
+        b.lo = static_cast<float>(d.min_value);
+        b.hi = static_cast<float>(d.max_value);
+        b.ref = p->texture;
+        b.texture = host.textures().open(p->texture, d.type == SPANGLE_PARAM_COLOR, p->loc);
+        textures.push_back(std::move(b));
+    }
+    MapKind kind = MapKind::None;
+    TextureBinding map;
+    for (const ParamEntry& p : m.maps) {
+        kind = p.name == "normal_map" ? MapKind::Normal : MapKind::Bump;
+        map.channels = kind == MapKind::Normal ? 3 : 1;
+        map.ref = p.texture;
+        map.texture = host.textures().open(p.texture, false, p.loc);
+    }
+    mat->bind(std::move(textures), kind, std::move(map));
+    return mat;
 }
 
 }  // namespace spangle

@@ -10,32 +10,48 @@
 #include "core/log.h"
 #include "scene/components.h"
 #include "shading/plugin_loader.h"
+#include "shading/texture.h"
 
 namespace spangle {
 
-/** What the host offers plugins (SpangleHost_v2) and the state behind it. Not copyable: the C
+/** What the host offers plugins (SpangleHost_v3) and the state behind it. Not copyable: the C
  *  table points at this object. */
 class HostServices {
 public:
-    HostServices(const ColorConfig& color, const Logger& log);
+    HostServices(const ColorConfig& color, const Logger& log, TextureSettings textures = {});
     HostServices(const HostServices&) = delete;
     HostServices& operator=(const HostServices&) = delete;
 
-    const SpangleHost_v2* api() const { return &api_; }
+    const SpangleHost_v3* api() const { return &api_; }
     const ColorConfig& color() const { return color_; }
     const Logger& log() const { return log_; }
+    /** Image textures of material inputs (opened while materials are made). */
+    TextureService& textures() const { return textures_; }
 
 private:
     const ColorConfig& color_;
     const Logger& log_;
+    mutable TextureService textures_;
     std::string working_;  ///< keeps api_.working_space alive
-    SpangleHost_v2 api_{};
+    SpangleHost_v3 api_{};
 };
+
+/** A texture bound to a plugin parameter, or to one of the host's normal and bump maps. */
+struct TextureBinding {
+    uint32_t param = 0;    ///< schema index of the parameter (parameters only)
+    int channels = 1;      ///< values per point: 1 (FLOAT), 3 (COLOR or a normal map)
+    float lo = 0, hi = 1;  ///< the parameter's range: looked-up values are clamped into it
+    TextureRef ref;        ///< as written: file, uv transform, scale, wrap, strength/height
+    std::shared_ptr<const Texture> texture;
+};
+
+/** What a material's maps do to the shading frame. */
+enum class MapKind { None, Normal, Bump };
 
 /** One created material: owns the plugin instance and keeps its library open. */
 class MaterialInstance {
 public:
-    MaterialInstance(std::shared_ptr<LoadedPlugin> plugin, const SpangleMaterialModel_v2* model,
+    MaterialInstance(std::shared_ptr<LoadedPlugin> plugin, const SpangleMaterialModel_v3* model,
                      void* instance, std::string name)
         : plugin_(std::move(plugin)), model_(model), instance_(instance), name_(std::move(name)) {}
     ~MaterialInstance() {
@@ -44,35 +60,52 @@ public:
     MaterialInstance(const MaterialInstance&) = delete;
     MaterialInstance& operator=(const MaterialInstance&) = delete;
 
-    const SpangleMaterialModel_v2& model() const { return *model_; }
+    const SpangleMaterialModel_v3& model() const { return *model_; }
     const void* instance() const { return instance_; }
     const std::string& name() const { return name_; }
     const LoadedPlugin& plugin() const { return *plugin_; }
 
+    /** Textures of plugin parameters, in schema order. */
+    const std::vector<TextureBinding>& textures() const { return textures_; }
+    /** The normal or bump map (map_kind() None: neither). */
+    MapKind map_kind() const { return map_kind_; }
+    const TextureBinding& map() const { return map_; }
+    void bind(std::vector<TextureBinding> textures, MapKind kind, TextureBinding map) {
+        textures_ = std::move(textures);
+        map_kind_ = kind;
+        map_ = std::move(map);
+    }
+
 private:
+    std::vector<TextureBinding> textures_;
+    MapKind map_kind_ = MapKind::None;
+    TextureBinding map_;
     std::shared_ptr<LoadedPlugin> plugin_;  ///< declared first: destroyed after the instance
-    const SpangleMaterialModel_v2* model_;
+    const SpangleMaterialModel_v3* model_;
     void* instance_;
     std::string name_;
 };
 
 /** A complete parameter set in schema order, with storage for its strings. */
 struct ValidatedParams {
-    std::vector<SpangleParamValue_v2> values;  ///< one per schema entry
+    std::vector<SpangleParamValue_v3> values;  ///< one per schema entry
     std::vector<std::string> strings;          ///< backing text for STRING values
-    SpangleParams_v2 view() const { return {values.data(), static_cast<uint32_t>(values.size())}; }
+    /** Parameters given as textures: (schema index, the entry). create() sees their defaults. */
+    std::vector<std::pair<uint32_t, const ParamEntry*>> textured;
+    SpangleParams_v3 view() const { return {values.data(), static_cast<uint32_t>(values.size())}; }
 };
 
 /** Checks `m.params` against `model`'s schema: unknown names, types, ranges, choices. Colours are
  *  converted to the working space. Throws SpangleError at the offending value's location. */
-ValidatedParams validate_params(const SpangleMaterialModel_v2& model, const Material& m,
+ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Material& m,
                                 const ColorConfig& color);
 
-/** Opens m's plugin (once), picks the model, validates, and creates the instance. */
+/** Opens m's plugin (once), picks the model, validates, creates the instance and opens the
+ *  textures of its parameters and maps. */
 std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Material& m,
                                                   const HostServices& host);
 
 /** One line describing a parameter for `spangle plugins`. */
-std::string describe_param(const SpangleParamDesc_v2& p);
+std::string describe_param(const SpangleParamDesc_v3& p);
 
 }  // namespace spangle

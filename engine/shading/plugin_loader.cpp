@@ -24,7 +24,7 @@ LoadedPlugin::~LoadedPlugin() {
     if (handle_) dlclose(handle_);
 }
 
-const SpangleMaterialModel_v2* LoadedPlugin::model(const std::string& name) const {
+const SpangleMaterialModel_v3* LoadedPlugin::model(const std::string& name) const {
     for (uint32_t i = 0; i < table_->model_count; ++i)
         if (name == table_->models[i].name) return &table_->models[i];
     return nullptr;
@@ -69,11 +69,11 @@ std::string file_name_for(const std::string& name) {
 }
 
 /** Sanity checks of a table the host is about to trust; returns an empty string when fine. */
-std::string table_problem(const SpangleMaterialPlugin_v2& t) {
+std::string table_problem(const SpangleMaterialPlugin_v3& t) {
     if (!t.name || !*t.name) return "it has no name";
     if (t.model_count == 0 || !t.models) return "it offers no material model";
     for (uint32_t i = 0; i < t.model_count; ++i) {
-        const SpangleMaterialModel_v2& m = t.models[i];
+        const SpangleMaterialModel_v3& m = t.models[i];
         if (!m.name || !*m.name) return fmt::format("model #{} has no name", i);
         if (!m.create || !m.destroy || !m.prepare || !m.eval || !m.sample)
             return fmt::format("model '{}' lacks a kernel (create, destroy, prepare, eval, sample)",
@@ -167,10 +167,10 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
     if (!in_executable_mapping(sym))
         throw_error("'{}' is not a Spangle plugin: its '{}' is data, not a function", path,
                     SPANGLE_MATERIAL_ENTRY_POINT);
-    SpangleMaterialEntry_v2 entry;
+    SpangleMaterialEntry_v3 entry;
     static_assert(sizeof(entry) == sizeof(sym));
     std::memcpy(&entry, &sym, sizeof(entry));
-    const SpangleMaterialPlugin_v2* table = entry(SPANGLE_MATERIAL_ABI_VERSION);
+    const SpangleMaterialPlugin_v3* table = entry(SPANGLE_MATERIAL_ABI_VERSION);
     if (!table)
         throw_error("plugin '{}' refused this host's material ABI version {}", path,
                     SPANGLE_MATERIAL_ABI_VERSION);
@@ -179,9 +179,9 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
             "plugin '{}' was built for material ABI version {}, but this spangle uses "
             "version {}: rebuild the plugin against this spangle's plugin.h",
             path, table->abi_version, SPANGLE_MATERIAL_ABI_VERSION);
-    if (table->struct_size != sizeof(SpangleMaterialPlugin_v2))
+    if (table->struct_size != sizeof(SpangleMaterialPlugin_v3))
         throw_error("plugin '{}' has a plugin table of {} bytes, expected {}: ABI mismatch", path,
-                    table->struct_size, sizeof(SpangleMaterialPlugin_v2));
+                    table->struct_size, sizeof(SpangleMaterialPlugin_v3));
     if (const std::string p = table_problem(*table); !p.empty())
         throw_error("plugin '{}' is malformed: {}", path, p);
     if (!expected_name.empty() && expected_name != table->name)

@@ -18,23 +18,23 @@ namespace spangle {
 /** An opened plugin library; dlclose()s on destruction. */
 class LoadedPlugin {
 public:
-    LoadedPlugin(std::string path, void* handle, const SpangleMaterialPlugin_v2* table)
+    LoadedPlugin(std::string path, void* handle, const SpangleMaterialPlugin_v3* table)
         : path_(std::move(path)), handle_(handle), table_(table) {}
     ~LoadedPlugin();
     LoadedPlugin(const LoadedPlugin&) = delete;
     LoadedPlugin& operator=(const LoadedPlugin&) = delete;
 
     const std::string& path() const { return path_; }
-    const SpangleMaterialPlugin_v2& table() const { return *table_; }
+    const SpangleMaterialPlugin_v3& table() const { return *table_; }
     /** The model called `name`, or nullptr. */
-    const SpangleMaterialModel_v2* model(const std::string& name) const;
+    const SpangleMaterialModel_v3* model(const std::string& name) const;
     /** Model names, for messages. */
     std::vector<std::string> model_names() const;
 
 private:
     std::string path_;
     void* handle_;
-    const SpangleMaterialPlugin_v2* table_;
+    const SpangleMaterialPlugin_v3* table_;
 };
 
 /** The search path in order: CLI dirs, $SPANGLE_PLUGIN_PATH, then the directories beside the

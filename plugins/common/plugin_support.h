@@ -20,23 +20,23 @@ inline void set_error(char* error, uint32_t capacity, const std::string& msg) {
 }
 
 /** The value of parameter `name`; the host passes the full schema, so it exists. */
-inline const SpangleParamValue_v2* find_param(const SpangleParams_v2* p, const char* name) {
+inline const SpangleParamValue_v3* find_param(const SpangleParams_v3* p, const char* name) {
     for (uint32_t i = 0; i < p->count; ++i)
         if (std::strcmp(p->values[i].name, name) == 0) return &p->values[i];
     return nullptr;
 }
-inline double param_number(const SpangleParams_v2* p, const char* name, int c = 0) {
-    const SpangleParamValue_v2* v = find_param(p, name);
+inline double param_number(const SpangleParams_v3* p, const char* name, int c = 0) {
+    const SpangleParamValue_v3* v = find_param(p, name);
     return v ? v->number[c] : 0.0;
 }
-inline std::string param_string(const SpangleParams_v2* p, const char* name) {
-    const SpangleParamValue_v2* v = find_param(p, name);
+inline std::string param_string(const SpangleParams_v3* p, const char* name) {
+    const SpangleParamValue_v3* v = find_param(p, name);
     return v && v->string ? v->string : "";
 }
 
 /** Linear Rec.709 -> working space (row-major), from the host's conversion of the basis: for
  *  quantities given per Rec.709 band (a metal's Fresnel) carried into the working space. */
-inline bool rec709_to_working(const SpangleHost_v2* host, float m[9], std::string& why) {
+inline bool rec709_to_working(const SpangleHost_v3* host, float m[9], std::string& why) {
     float basis[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
     char err[256] = {0};
     if (!host || !host->convert_to_working ||

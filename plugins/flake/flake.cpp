@@ -25,7 +25,7 @@ uint64_t ns_since(Clock::time_point t0) {
         std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count());
 }
 
-void* flake_create(const SpangleParams_v2* p, const SpangleHost_v2* host, char* error,
+void* flake_create(const SpangleParams_v3* p, const SpangleHost_v3* host, char* error,
                    uint32_t cap) {
     auto* m = new (std::nothrow) Material;
     if (!m) {
@@ -45,14 +45,19 @@ void flake_destroy(void* instance) {
     delete static_cast<Material*>(instance);
 }
 
-void flake_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
-                   SpangleArena_v2* arena) {
+void flake_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures,
+                   SpangleArena_v3* arena) {
     const auto t0 = Clock::now();
     const Material& m = *static_cast<const Material*>(inst);
     auto* out = static_cast<Closure*>(closures);
     PointStats st;
+    // Schema entries 0 and 1: base_color and flake_weight, the two a texture may vary.
+    const float* base = b->param_values ? b->param_values[0] : nullptr;
+    const float* weight = b->param_values ? b->param_values[1] : nullptr;
     for (uint32_t i = 0; i < b->count; ++i) {
         PointInput in;
+        for (int c = 0; c < 3; ++c) in.base[c] = base ? base[3 * i + c] : m.base[c];
+        in.weight = weight ? weight[i] : m.flake_weight;
         in.wo = {b->wo_x[i], b->wo_y[i], b->wo_z[i]};
         in.u = b->u[i];
         in.v = b->v[i];
@@ -81,14 +86,19 @@ void flake_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* clos
     m.ns_prepare += ns_since(t0);
 }
 
-void flake_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
+void flake_eval(const void* inst, const void* closures, SpangleEvalBatch_v3* q) {
     const auto t0 = Clock::now();
     const Material& m = *static_cast<const Material*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
-        float f[3], pdf;
+        float f[3], pdf, glint[3];
         eval_material(m, cl[q->closure_index ? q->closure_index[i] : i],
-                      {q->wi_x[i], q->wi_y[i], q->wi_z[i]}, f, pdf);
+                      {q->wi_x[i], q->wi_y[i], q->wi_z[i]}, f, pdf, q->glint_r ? glint : nullptr);
+        if (q->glint_r) {
+            q->glint_r[i] = glint[0];
+            q->glint_g[i] = glint[1];
+            q->glint_b[i] = glint[2];
+        }
         q->f_r[i] = f[0];
         q->f_g[i] = f[1];
         q->f_b[i] = f[2];
@@ -97,7 +107,7 @@ void flake_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) 
     m.ns_eval += ns_since(t0);
 }
 
-void flake_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
+void flake_sample(const void* inst, const void* closures, SpangleSampleBatch_v3* q) {
     const auto t0 = Clock::now();
     const Material& m = *static_cast<const Material*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
@@ -105,8 +115,14 @@ void flake_sample(const void* inst, const void* closures, SpangleSampleBatch_v2*
         V3 wi;
         float f[3], pdf;
         uint32_t flags;
+        float glint[3];
         sample_material(m, cl[q->closure_index ? q->closure_index[i] : i], q->u0[i], q->u1[i],
-                        q->u2[i], wi, f, pdf, flags);
+                        q->u2[i], wi, f, pdf, flags, q->glint_r ? glint : nullptr);
+        if (q->glint_r) {
+            q->glint_r[i] = glint[0];
+            q->glint_g[i] = glint[1];
+            q->glint_b[i] = glint[2];
+        }
         q->wi_x[i] = wi.x;
         q->wi_y[i] = wi.y;
         q->wi_z[i] = wi.z;
@@ -120,14 +136,14 @@ void flake_sample(const void* inst, const void* closures, SpangleSampleBatch_v2*
     m.ns_sample += ns_since(t0);
 }
 
-uint32_t flake_stats(const void* inst, SpangleStat_v2* out, uint32_t capacity) {
+uint32_t flake_stats(const void* inst, SpangleStat_v3* out, uint32_t capacity) {
     const Material& m = *static_cast<const Material*>(inst);
     const double points = static_cast<double>(m.points.load());
     const double per = points > 0 ? 1.0 / points : 0.0;
     const auto per_point = [&](const std::atomic<uint64_t>& x) {
         return static_cast<double>(x.load()) * per;
     };
-    const SpangleStat_v2 s[] = {
+    const SpangleStat_v3 s[] = {
         {"shading points", points},
         {"mean expected flakes per footprint (lambda)",
          m.lambda_count ? static_cast<double>(m.lambda_milli_sum.load()) * 1e-3 /
@@ -155,7 +171,7 @@ uint32_t flake_requirements(const void* inst) {
                                                                                : 0u;
 }
 
-const SpangleMaterialModel_v2 kModels[] = {
+const SpangleMaterialModel_v3 kModels[] = {
     {"flake",
      "stochastic mirror flakes over a diffuse base, optional clear coat (Atanasov and Koylazov "
      "2016)",
@@ -163,9 +179,9 @@ const SpangleMaterialModel_v2 kModels[] = {
      flake_sample, flake_stats, flake_requirements},
 };
 
-const SpangleMaterialPlugin_v2 kPlugin = {
+const SpangleMaterialPlugin_v3 kPlugin = {
     SPANGLE_MATERIAL_ABI_VERSION,
-    sizeof(SpangleMaterialPlugin_v2),
+    sizeof(SpangleMaterialPlugin_v3),
     "flake",
     "stochastic mirror flakes: glitter, metallic car paint, sparkling snow",
     kModels,
@@ -174,7 +190,7 @@ const SpangleMaterialPlugin_v2 kPlugin = {
 
 }  // namespace
 
-extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v2* spangle_material_plugin(
+extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v3* spangle_material_plugin(
     uint32_t host_abi_version) {
     return host_abi_version == SPANGLE_MATERIAL_ABI_VERSION ? &kPlugin : nullptr;
 }

@@ -25,7 +25,7 @@ Material::Space parse_space(const std::string& s) {
 
 }  // namespace
 
-bool init_material(Material& m, const SpangleParams_v2* p, const SpangleHost_v2* host,
+bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3* host,
                    std::string& why) {
     m.min_flakes = param_number(p, "min_flakes");
     m.max_flakes = param_number(p, "max_flakes");
@@ -65,7 +65,7 @@ bool init_material(Material& m, const SpangleParams_v2* p, const SpangleHost_v2*
 namespace {
 
 /** Copies the scratch cache to the arena and fills the closure's lobe; false without memory. */
-bool store_cache(const std::vector<CacheEntry>& scratch, SpangleArena_v2* arena, Closure& c) {
+bool store_cache(const std::vector<CacheEntry>& scratch, SpangleArena_v3* arena, Closure& c) {
     const auto count = static_cast<uint32_t>(scratch.size());
     if (count == 0) return true;
     if (!arena) return false;
@@ -97,7 +97,7 @@ bool kept(const Flake& f, float keep) {
     return unit(mix(mix(bu, bv), 0x7417)) < static_cast<double>(keep);
 }
 
-bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v2* arena,
+bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v3* arena,
                       PointStats& st) {
     thread_local std::vector<CacheEntry> scratch;
     scratch.clear();
@@ -202,10 +202,12 @@ FieldView field_view(const Material& m, const PointInput& in) {
     return view;
 }
 
-void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v2* arena,
+void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
                    PointStats& st) {
     c = Closure{};
     c.wo = in.wo;
+    std::copy(in.base, in.base + 3, c.base);
+    c.weight = in.weight;
     c.valid = c.wo.z > 0.0f ? 1u : 0u;
     if (!c.valid) return;
     c.v_o = m.smooth.valid_fraction(c.wo.z);
@@ -213,7 +215,8 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     // E[w] over D(m)(m.n): (cos_o / G1(wo)) times the share of visible normals that count.
     c.w_expected = c.wo.z * c.v_o / mf::ggx_g1(c.wo, m.alpha, m.alpha);
     double lambda = INFINITY;
-    if (in.flags & SPANGLE_SHADING_HAS_DIFFERENTIALS) {
+    // Where flake_weight is 0 (a mask's empty region) there are no flakes to find.
+    if ((in.flags & SPANGLE_SHADING_HAS_DIFFERENTIALS) && c.weight > 0.0f) {
         const FieldView view = field_view(m, in);
         lambda = view.lambda();
         c.t = blend_weight(m, lambda);
@@ -230,9 +233,9 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     // Lobe selection in proportion to the energy each returns (a floor keeps every lobe sampled).
     const float under = 1.0f - c.e_coat_o;
     const float w_coat = m.coat.on ? c.e_coat_o : 0.0f;
-    const float w_base = under * (1.0f - m.flake_weight) * luminance(m.base);
-    const float w_flake = under * m.flake_weight *
-                          std::max(0.05f, luminance(m.colors.mean) * m.fresnel.normal_luminance());
+    const float w_base = under * (1.0f - c.weight) * luminance(c.base);
+    const float w_flake =
+        under * c.weight * std::max(0.05f, luminance(m.colors.mean) * m.fresnel.normal_luminance());
     const float total = w_coat + w_base + w_flake;
     if (total > 0.0f) {
         c.p_coat = w_coat / total;
@@ -243,9 +246,12 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
 
 namespace {
 
-/** The flake lobe at wi (RGB, before flake_weight) and its pdf. */
-void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf) {
+/** The flake lobe at wi (RGB, before flake_weight) and its pdf; `disc` gets the discrete
+ *  flakes' part of f. */
+void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf,
+                 float disc[3]) {
     f[0] = f[1] = f[2] = pdf = 0.0f;
+    disc[0] = disc[1] = disc[2] = 0.0f;
     const float g1_wi = m.shadowing ? mf::ggx_g1(wi, m.alpha, m.alpha) : 1.0f;
     const bool has_agg = c.t < 1.0f && c.counted.n_agg > 0;
     const bool need_smooth = c.t > 0.0f || has_agg;
@@ -271,7 +277,10 @@ void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& 
     const float per_cone = 1.0f / (m.cone.solid_angle * wi.z);
     for (int ch = 0; ch < 3; ++ch) sum[ch] = sum[ch] * per_cone + mod[ch] * c.w_expected * fs[ch];
     const float k = (1.0f - c.t) * g1_wi / c.w_norm;
-    for (int ch = 0; ch < 3; ++ch) f[ch] += k * sum[ch];
+    for (int ch = 0; ch < 3; ++ch) {
+        disc[ch] = k * sum[ch];
+        f[ch] += disc[ch];
+    }
     // The aggregates' part: a flake of all K aggregated ones, uniformly; the sparse aggregates'
     // flakes lighting wi each add 1 / (K sigma), the dense ones sample the smooth proposal.
     float pdf_d = 0.0f;
@@ -287,22 +296,28 @@ void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& 
 
 }  // namespace
 
-void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf) {
+void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf,
+                   float* glint) {
     f[0] = f[1] = f[2] = 0.0f;
     pdf = 0.0f;
+    if (glint) glint[0] = glint[1] = glint[2] = 0.0f;
     if (!c.valid || wi.z <= 0.0f) return;
     float f_coat = 0.0f, pdf_coat = 0.0f, under = 1.0f;
     if (m.coat.on) {
         under = (1.0f - c.e_coat_o) * (1.0f - m.coat.albedo_at(wi.z));
         if (!m.coat.smooth) m.coat.eval_rough(c.wo, wi, f_coat, pdf_coat);
     }
-    float fl[3], pdf_fl;
-    eval_flakes(m, c, wi, fl, pdf_fl);
+    float fl[3], pdf_fl, disc[3];
+    eval_flakes(m, c, wi, fl, pdf_fl, disc);
     for (int ch = 0; ch < 3; ++ch)
-        f[ch] = f_coat + under * ((1.0f - m.flake_weight) * m.base[ch] * mf::kInvPi +
-                                  m.flake_weight * fl[ch]);
+        f[ch] = f_coat + under * ((1.0f - c.weight) * c.base[ch] * mf::kInvPi + c.weight * fl[ch]);
     pdf = c.p_coat * pdf_coat + c.p_base * wi.z * mf::kInvPi + c.p_flake * pdf_fl;
-    if (!std::isfinite(f[0] + f[1] + f[2]) || !std::isfinite(pdf)) f[0] = f[1] = f[2] = pdf = 0.0f;
+    if (!std::isfinite(f[0] + f[1] + f[2]) || !std::isfinite(pdf)) {
+        f[0] = f[1] = f[2] = pdf = 0.0f;
+        return;
+    }
+    if (glint)
+        for (int ch = 0; ch < 3; ++ch) glint[ch] = std::min(f[ch], under * c.weight * disc[ch]);
 }
 
 namespace {
@@ -320,8 +335,9 @@ bool pick(float& u, float p) {
 }  // namespace
 
 void sample_material(const Material& m, const Closure& c, float u0, float u1, float u2, V3& wi,
-                     float f[3], float& pdf, uint32_t& flags) {
+                     float f[3], float& pdf, uint32_t& flags, float* glint) {
     f[0] = f[1] = f[2] = pdf = 0.0f;
+    if (glint) glint[0] = glint[1] = glint[2] = 0.0f;
     flags = 0;
     wi = {0, 0, 1};
     if (!c.valid) return;
@@ -363,9 +379,10 @@ void sample_material(const Material& m, const Closure& c, float u0, float u1, fl
         }
     }
     if (!ok || !(wi.z > 0.0f)) return;
-    eval_material(m, c, wi, f, pdf);  // the whole mixture, so that MIS sees one density
+    eval_material(m, c, wi, f, pdf, glint);  // the whole mixture, so MIS sees one density
     if (!(pdf > 0.0f)) {
         f[0] = f[1] = f[2] = pdf = 0.0f;
+        if (glint) glint[0] = glint[1] = glint[2] = 0.0f;
         return;
     }
     flags = kind;

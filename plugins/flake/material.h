@@ -58,7 +58,7 @@ struct Material {
 };
 
 /** Builds m from validated parameters; false with `why` set when they cannot be used together. */
-bool init_material(Material& m, const SpangleParams_v2* p, const SpangleHost_v2* host,
+bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3* host,
                    std::string& why);
 
 /** Per-shading-point closure (lives in the host's closure array). */
@@ -72,8 +72,10 @@ struct Closure {
     float p_cache = 1;         ///< discrete part: probability of sampling the cache
     float p_coat = 0, p_base = 0, p_flake = 0;  ///< lobe selection probabilities
     float e_coat_o = 0;                         ///< coat albedo at wo
-    float v_o = 1;       ///< share of visible flake normals reflecting above the horizon
-    uint32_t valid = 0;  ///< wo above the surface
+    float v_o = 1;              ///< share of visible flake normals reflecting above the horizon
+    uint32_t valid = 0;         ///< wo above the surface
+    float base[3] = {0, 0, 0};  ///< base_color here (textured or the material's)
+    float weight = 0;           ///< flake_weight here (textured or the material's)
 };
 
 /** What prepare_point() reports for the statistics. */
@@ -88,6 +90,8 @@ struct PointInput {
     float u = 0, v = 0, du_dx = 0, du_dy = 0, dv_dx = 0, dv_dy = 0, uv_area = 0;
     V3 p_obj, n_obj, dpdx_obj, dpdy_obj;  ///< object space: position, normal, footprint axes
     uint32_t flags = 0;
+    float base[3] = {0, 0, 0};  ///< base_color at the point
+    float weight = 0;           ///< flake_weight at the point (0: no flakes, nothing to find)
 };
 
 /** Where a shading point's flakes come from: a footprint in some plane of flake tiles, the field's
@@ -110,14 +114,16 @@ struct FieldView {
 FieldView field_view(const Material& m, const PointInput& in);
 
 /** Builds the closure of one point; the cache goes to `arena`. */
-void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v2* arena,
+void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
                    PointStats& st);
 
-/** The whole material at wi: f (RGB) and the pdf of sample_material(). */
-void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf);
+/** The whole material at wi: f (RGB) and the pdf of sample_material(). `glint`, when not null,
+ *  receives the part of f the discrete flakes make (the glints, without the smooth lobe). */
+void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float& pdf,
+                   float* glint = nullptr);
 
 /** Samples the whole material. Fills wi, f, pdf and SPANGLE_SAMPLE_* flags (0 when it fails). */
 void sample_material(const Material& m, const Closure& c, float u0, float u1, float u2, V3& wi,
-                     float f[3], float& pdf, uint32_t& flags);
+                     float f[3], float& pdf, uint32_t& flags, float* glint = nullptr);
 
 }  // namespace spangle::flake

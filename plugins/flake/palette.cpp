@@ -14,7 +14,7 @@ float FresnelTable::normal_luminance() const {
     return luminance(rgb[kNodes - 1]);
 }
 
-bool build_fresnel(FresnelTable& t, const SpangleParams_v2* p, const SpangleHost_v2* host,
+bool build_fresnel(FresnelTable& t, const SpangleParams_v3* p, const SpangleHost_v3* host,
                    std::string& why) {
     const std::string kind = param_string(p, "fresnel");
     float to_working[9];
@@ -93,7 +93,7 @@ float hue_of(const float rgb[3]) {
 }
 
 /** base (working space) expressed in linear Rec.709, through the inverse of the host's matrix. */
-bool base_in_rec709(const float base[3], const SpangleHost_v2* host, float out[3],
+bool base_in_rec709(const float base[3], const SpangleHost_v3* host, float out[3],
                     std::string& why) {
     float a[9];
     if (!rec709_to_working(host, a, why)) return false;
@@ -113,8 +113,8 @@ bool base_in_rec709(const float base[3], const SpangleHost_v2* host, float out[3
 
 }  // namespace
 
-bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v2* p,
-                  const SpangleHost_v2* host, std::string& why) {
+bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3* p,
+                  const SpangleHost_v3* host, std::string& why) {
     for (int c = 0; c < 3; ++c) t.single[c] = static_cast<float>(param_number(p, "flake_color", c));
     std::copy(t.single, t.single + 3, t.mean);
     if (param_number(p, "color_table") == 0.0) return true;

@@ -32,7 +32,7 @@ struct FresnelTable {
 
 /** Builds the table from the parameters `fresnel`, `preset`, `flake_ior`, `flake_f0`. Returns
  *  false and sets `why` when the working space cannot be reached. */
-bool build_fresnel(FresnelTable& t, const SpangleParams_v2* p, const SpangleHost_v2* host,
+bool build_fresnel(FresnelTable& t, const SpangleParams_v3* p, const SpangleHost_v3* host,
                    std::string& why);
 
 /** The tint of flakes: one colour (table off), or a table of hues with a probability each. */
@@ -57,8 +57,8 @@ struct ColorTable {
 /** Builds the table from `flake_color`, `color_table`, `table_size`, `table_s`, `table_l`,
  *  `table_space` and `hue_spread` (the bias towards base_rgb's hue, base_rgb in the working
  *  space). Returns false and sets `why` on a colour-management failure. */
-bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v2* p,
-                  const SpangleHost_v2* host, std::string& why);
+bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3* p,
+                  const SpangleHost_v3* host, std::string& why);
 
 /** Rec.709 luminance weights (the tables are in the working space; the weights only steer
  *  sampling, so any fixed positive weights are correct). */

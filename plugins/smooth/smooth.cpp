@@ -38,12 +38,12 @@ namespace {
 using namespace spangle::mf;
 using namespace spangle::plugin_support;
 
-float param_f(const SpangleParams_v2* p, const char* name, int c = 0) {
+float param_f(const SpangleParams_v3* p, const char* name, int c = 0) {
     return static_cast<float>(param_number(p, name, c));
 }
 
 /** GGX alphas from roughness / roughness_v (-1 = isotropic). */
-void read_alpha(const SpangleParams_v2* p, float& ax, float& ay) {
+void read_alpha(const SpangleParams_v3* p, float& ax, float& ay) {
     ax = param_f(p, "roughness");
     const float v = param_f(p, "roughness_v");
     ay = v < 0.0f ? ax : v;
@@ -59,25 +59,27 @@ void clamp_alpha(float& ax, float& ay) {
     ay = std::max(ay, kDeltaAlpha);
 }
 
-/** Per-shading-point data shared by all models: wo and a few quantities derived from it. */
+/** Per-shading-point data shared by all models: wo and a few quantities derived from it, and
+ *  the point's values of the parameters a texture may vary. */
 struct Closure {
     V3 wo;         ///< outgoing direction, local frame
     float eta;     ///< dielectric: relative index across the interface seen from wo
     float rgb[3];  ///< diffuse/plastic albedo
     float p_spec;  ///< plastic: probability of sampling the coat
     float e_o;     ///< plastic: coat albedo at wo
-    float pad[3];
+    float ax, ay;  ///< conductor/dielectric: GGX alphas here (clamped away from zero)
+    float delta;   ///< conductor/dielectric: 1 where the roughness makes a mirror lobe
 };
 static_assert(sizeof(Closure) == 48, "closure layout");
 
-V3 wo_of(const SpangleShadingBatch_v2* b, uint32_t i) {
+V3 wo_of(const SpangleShadingBatch_v3* b, uint32_t i) {
     return {b->wo_x[i], b->wo_y[i], b->wo_z[i]};
 }
 uint32_t closure_of(const uint32_t* index, uint32_t i) {
     return index ? index[i] : i;
 }
 
-void write_eval(SpangleEvalBatch_v2* q, uint32_t i, float r, float g, float b, float pdf) {
+void write_eval(SpangleEvalBatch_v3* q, uint32_t i, float r, float g, float b, float pdf) {
     const bool ok = std::isfinite(r) && std::isfinite(g) && std::isfinite(b) && std::isfinite(pdf);
     q->f_r[i] = ok ? r : 0.0f;
     q->f_g[i] = ok ? g : 0.0f;
@@ -85,7 +87,7 @@ void write_eval(SpangleEvalBatch_v2* q, uint32_t i, float r, float g, float b, f
     q->pdf[i] = ok ? pdf : 0.0f;
 }
 
-void write_sample(SpangleSampleBatch_v2* q, uint32_t i, V3 wi, float r, float g, float b, float pdf,
+void write_sample(SpangleSampleBatch_v3* q, uint32_t i, V3 wi, float r, float g, float b, float pdf,
                   uint32_t flags) {
     const bool ok = flags != 0 && pdf > 0.0f && std::isfinite(pdf) && std::isfinite(r) &&
                     std::isfinite(g) && std::isfinite(b) && std::isfinite(wi.x + wi.y + wi.z);
@@ -100,15 +102,46 @@ void write_sample(SpangleSampleBatch_v2* q, uint32_t i, V3 wi, float r, float g,
     if (q->eta) q->eta[i] = 1.0f;
 }
 
-void invalid_sample(SpangleSampleBatch_v2* q, uint32_t i) {
+void invalid_sample(SpangleSampleBatch_v3* q, uint32_t i) {
     write_sample(q, i, {0, 0, 1}, 0, 0, 0, 0, 0);
+}
+
+/** The per-point values of schema parameter k in batch b, or NULL when it is constant. */
+const float* varying(const SpangleShadingBatch_v3* b, uint32_t k) {
+    return b->param_values ? b->param_values[k] : nullptr;
+}
+
+/** The RGB of point i: from a texture when `tex` is given, else the constant. */
+void color_at(const float* tex, uint32_t i, const float constant[3], float out[3]) {
+    for (int c = 0; c < 3; ++c) out[c] = tex ? tex[3 * i + c] : constant[c];
+}
+
+/** Schema indices of roughness and roughness_v in the conductor and dielectric models. */
+struct AlphaParams {
+    uint32_t roughness, roughness_v;
+};
+
+/** The closure's GGX alphas: the model's constants, or point i's textured roughness. */
+void alpha_at(const SpangleShadingBatch_v3* b, uint32_t i, AlphaParams k, float ax, float ay,
+              bool delta, Closure& c) {
+    const float* r = varying(b, k.roughness);
+    const float* rv = varying(b, k.roughness_v);
+    if (r || rv) {
+        ax = r ? r[i] : ax;
+        ay = rv ? (rv[i] < 0.0f ? ax : rv[i]) : (r ? ax : ay);
+        delta = is_delta(ax, ay);
+        clamp_alpha(ax, ay);
+    }
+    c.ax = ax;
+    c.ay = ay;
+    c.delta = delta ? 1.0f : 0.0f;
 }
 
 // ------------------------------------------------------------------------------------ diffuse
 
 // clang-format off
-const SpangleParamDesc_v2 kDiffuseParams[] = {
-    {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "fraction of light reflected diffusely (RGB)"},
+const SpangleParamDesc_v3 kDiffuseParams[] = {
+    {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "fraction of light reflected diffusely (RGB)", SPANGLE_PARAM_TEXTURABLE},
 };
 // clang-format on
 
@@ -116,7 +149,7 @@ struct Diffuse {
     float albedo[3];
 };
 
-void* diffuse_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* error, uint32_t cap) {
+void* diffuse_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint32_t cap) {
     auto* d = new (std::nothrow) Diffuse;
     if (!d) {
         set_error(error, cap, "out of memory");
@@ -126,18 +159,19 @@ void* diffuse_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* err
     return d;
 }
 
-void diffuse_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
-                     SpangleArena_v2*) {
+void diffuse_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures,
+                     SpangleArena_v3*) {
     const auto* d = static_cast<const Diffuse*>(inst);
     auto* out = static_cast<Closure*>(closures);
+    const float* albedo = varying(b, 0);
     for (uint32_t i = 0; i < b->count; ++i) {
         out[i] = Closure{};
         out[i].wo = wo_of(b, i);
-        std::copy(d->albedo, d->albedo + 3, out[i].rgb);
+        color_at(albedo, i, d->albedo, out[i].rgb);
     }
 }
 
-void diffuse_eval(const void*, const void* closures, SpangleEvalBatch_v2* q) {
+void diffuse_eval(const void*, const void* closures, SpangleEvalBatch_v3* q) {
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
         const Closure& c = cl[closure_of(q->closure_index, i)];
@@ -150,7 +184,7 @@ void diffuse_eval(const void*, const void* closures, SpangleEvalBatch_v2* q) {
     }
 }
 
-void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v2* q) {
+void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v3* q) {
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
         const Closure& c = cl[closure_of(q->closure_index, i)];
@@ -167,12 +201,12 @@ void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v2* q)
 // ------------------------------------------------------------------------------------ conductor
 
 // clang-format off
-const SpangleParamDesc_v2 kConductorParams[] = {
-    {"preset", SPANGLE_PARAM_STRING, {0, 0, 0}, "gold", 0.0, 0.0, "gold|silver|copper|aluminium|perfect|custom", "metal whose complex index to use; 'custom' takes eta and k; 'perfect' reflects everything"},
-    {"eta", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "real part of the index per channel (Rec.709 bands); only with preset = custom"},
-    {"k", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "imaginary part (extinction) per channel; only with preset = custom"},
-    {"roughness", SPANGLE_PARAM_FLOAT, {0.2, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a perfect mirror"},
-    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent (anisotropy); -1 = same as roughness"},
+const SpangleParamDesc_v3 kConductorParams[] = {
+    {"preset", SPANGLE_PARAM_STRING, {0, 0, 0}, "gold", 0.0, 0.0, "gold|silver|copper|aluminium|perfect|custom", "metal whose complex index to use; 'custom' takes eta and k; 'perfect' reflects everything", 0},
+    {"eta", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "real part of the index per channel (Rec.709 bands); only with preset = custom", 0},
+    {"k", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "imaginary part (extinction) per channel; only with preset = custom", 0},
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.2, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a perfect mirror", SPANGLE_PARAM_TEXTURABLE},
+    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent (anisotropy); -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
 };
 // clang-format on
 
@@ -185,14 +219,14 @@ struct Conductor {
 };
 
 /** Reads the Rec.709 -> working-space matrix; reports a failure through the ABI buffer. */
-bool rec709_matrix(const SpangleHost_v2* host, float m[9], char* error, uint32_t cap) {
+bool rec709_matrix(const SpangleHost_v3* host, float m[9], char* error, uint32_t cap) {
     std::string why;
     if (rec709_to_working(host, m, why)) return true;
     set_error(error, cap, "cannot convert Fresnel colours: " + why);
     return false;
 }
 
-void* conductor_create(const SpangleParams_v2* p, const SpangleHost_v2* host, char* error,
+void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, char* error,
                        uint32_t cap) {
     Conductor c{};
     read_alpha(p, c.ax, c.ay);
@@ -243,61 +277,66 @@ void conductor_fresnel(const Conductor& m, float c, float out[3]) {
                             0.0f, 1.0f);
 }
 
-void ggx_prepare(const void*, const SpangleShadingBatch_v2* b, void* closures, SpangleArena_v2*) {
+void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures,
+                       SpangleArena_v3*) {
+    const auto& m = *static_cast<const Conductor*>(inst);
     auto* out = static_cast<Closure*>(closures);
     for (uint32_t i = 0; i < b->count; ++i) {
         out[i] = Closure{};
         out[i].wo = wo_of(b, i);
+        alpha_at(b, i, {3, 4}, m.ax, m.ay, m.delta, out[i]);
     }
 }
 
-void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
+void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v3* q) {
     const auto& m = *static_cast<const Conductor*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
-        const V3 wo = cl[closure_of(q->closure_index, i)].wo;
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const V3 wo = c.wo;
         const V3 wi{q->wi_x[i], q->wi_y[i], q->wi_z[i]};
-        if (m.delta || wo.z <= 0.0f || wi.z <= 0.0f) {
+        if (c.delta > 0.0f || wo.z <= 0.0f || wi.z <= 0.0f) {
             write_eval(q, i, 0, 0, 0, 0);
             continue;
         }
         const V3 h = normalize(wo + wi);
-        const float d = ggx_d(h, m.ax, m.ay);
+        const float d = ggx_d(h, c.ax, c.ay);
         float f[3];
         conductor_fresnel(m, dot(wo, h), f);
-        const float s = d * ggx_g2(wo, wi, m.ax, m.ay) / (4.0f * wo.z * wi.z);
-        const float pdf = ggx_g1(wo, m.ax, m.ay) * d / (4.0f * wo.z);
+        const float s = d * ggx_g2(wo, wi, c.ax, c.ay) / (4.0f * wo.z * wi.z);
+        const float pdf = ggx_g1(wo, c.ax, c.ay) * d / (4.0f * wo.z);
         write_eval(q, i, f[0] * s, f[1] * s, f[2] * s, pdf);
     }
 }
 
-void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
+void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch_v3* q) {
     const auto& m = *static_cast<const Conductor*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
-        const V3 wo = cl[closure_of(q->closure_index, i)].wo;
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const V3 wo = c.wo;
         if (wo.z <= 0.0f) {
             invalid_sample(q, i);
             continue;
         }
         float f[3];
-        if (m.delta) {
+        if (c.delta > 0.0f) {
             conductor_fresnel(m, wo.z, f);
             const float inv = 1.0f / wo.z;  // delta lobe: f and pdf carry the same Dirac factor
             write_sample(q, i, {-wo.x, -wo.y, wo.z}, f[0] * inv, f[1] * inv, f[2] * inv, 1.0f,
                          SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
             continue;
         }
-        const V3 h = ggx_sample_visible(wo, m.ax, m.ay, q->u0[i], q->u1[i]);
+        const V3 h = ggx_sample_visible(wo, c.ax, c.ay, q->u0[i], q->u1[i]);
         const V3 wi = reflect(wo, h);
         if (wi.z <= 0.0f) {
             invalid_sample(q, i);
             continue;
         }
-        const float d = ggx_d(h, m.ax, m.ay);
+        const float d = ggx_d(h, c.ax, c.ay);
         conductor_fresnel(m, dot(wo, h), f);
-        const float s = d * ggx_g2(wo, wi, m.ax, m.ay) / (4.0f * wo.z * wi.z);
-        const float pdf = ggx_g1(wo, m.ax, m.ay) * d / (4.0f * wo.z);
+        const float s = d * ggx_g2(wo, wi, c.ax, c.ay) / (4.0f * wo.z * wi.z);
+        const float pdf = ggx_g1(wo, c.ax, c.ay) * d / (4.0f * wo.z);
         write_sample(q, i, wi, f[0] * s, f[1] * s, f[2] * s, pdf,
                      SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_GLOSSY);
     }
@@ -306,10 +345,10 @@ void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch
 // ------------------------------------------------------------------------------------ dielectric
 
 // clang-format off
-const SpangleParamDesc_v2 kDielectricParams[] = {
-    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of refraction inside (the outside is 1); within 1e-3 of 1 an index-matched interface light passes straight through"},
-    {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface"},
-    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness"},
+const SpangleParamDesc_v3 kDielectricParams[] = {
+    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of refraction inside (the outside is 1); within 1e-3 of 1 an index-matched interface light passes straight through", 0},
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface", SPANGLE_PARAM_TEXTURABLE},
+    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
 };
 // clang-format on
 
@@ -321,7 +360,7 @@ struct Dielectric {
     bool matched;
 };
 
-void* dielectric_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* error,
+void* dielectric_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error,
                         uint32_t cap) {
     Dielectric d{};
     read_alpha(p, d.ax, d.ay);
@@ -334,8 +373,8 @@ void* dielectric_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* 
     return out;
 }
 
-void dielectric_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
-                        SpangleArena_v2*) {
+void dielectric_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures,
+                        SpangleArena_v3*) {
     const auto& m = *static_cast<const Dielectric*>(inst);
     auto* out = static_cast<Closure*>(closures);
     for (uint32_t i = 0; i < b->count; ++i) {
@@ -343,11 +382,12 @@ void dielectric_prepare(const void* inst, const SpangleShadingBatch_v2* b, void*
         out[i].wo = wo_of(b, i);
         // The host turned the frame towards wo: from the back side, wo is inside the glass.
         out[i].eta = (b->flags[i] & SPANGLE_SHADING_BACKFACE) ? 1.0f / m.ior : m.ior;
+        alpha_at(b, i, {1, 2}, m.ax, m.ay, m.delta, out[i]);
     }
 }
 
 /** f and pdf of the rough dielectric for wo.z > 0 (pbrt-v4's formulation of Walter et al.). */
-void dielectric_rough(const Dielectric& m, V3 wo, V3 wi, float eta, float& f, float& pdf) {
+void dielectric_rough(const Closure& c, V3 wo, V3 wi, float eta, float& f, float& pdf) {
     f = pdf = 0.0f;
     const bool reflect_ = wi.z > 0.0f;
     const float etap = reflect_ ? 1.0f : eta;
@@ -355,9 +395,9 @@ void dielectric_rough(const Dielectric& m, V3 wo, V3 wi, float eta, float& f, fl
     if (h.z < 0.0f) h = h * -1.0f;
     if (wi.z == 0.0f || dot(h, wi) * wi.z < 0.0f || dot(h, wo) * wo.z < 0.0f) return;
     const float R = fresnel_dielectric(dot(wo, h), eta), T = 1.0f - R;
-    const float d = ggx_d(h, m.ax, m.ay);
-    const float g = ggx_g2(wo, wi, m.ax, m.ay);
-    const float vis = ggx_visible_d(wo, h, m.ax, m.ay);
+    const float d = ggx_d(h, c.ax, c.ay);
+    const float g = ggx_g2(wo, wi, c.ax, c.ay);
+    const float vis = ggx_visible_d(wo, h, c.ax, c.ay);
     if (reflect_) {
         f = d * g * R / (4.0f * wo.z * wi.z);
         pdf = vis / (4.0f * std::fabs(dot(wo, h))) * R;
@@ -370,22 +410,22 @@ void dielectric_rough(const Dielectric& m, V3 wo, V3 wi, float eta, float& f, fl
     }
 }
 
-void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
+void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v3* q) {
     const auto& m = *static_cast<const Dielectric*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
         const Closure& c = cl[closure_of(q->closure_index, i)];
-        if (m.delta || m.matched || c.wo.z <= 0.0f) {
+        if (c.delta > 0.0f || m.matched || c.wo.z <= 0.0f) {
             write_eval(q, i, 0, 0, 0, 0);
             continue;
         }
         float f, pdf;
-        dielectric_rough(m, c.wo, {q->wi_x[i], q->wi_y[i], q->wi_z[i]}, c.eta, f, pdf);
+        dielectric_rough(c, c.wo, {q->wi_x[i], q->wi_y[i], q->wi_z[i]}, c.eta, f, pdf);
         write_eval(q, i, f, f, f, pdf);
     }
 }
 
-void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
+void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatch_v3* q) {
     const auto& m = *static_cast<const Dielectric*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -403,7 +443,8 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
             if (q->eta) q->eta[i] = c.eta;
             continue;
         }
-        const V3 h = m.delta ? V3{0, 0, 1} : ggx_sample_visible(wo, m.ax, m.ay, q->u0[i], q->u1[i]);
+        const V3 h =
+            c.delta > 0.0f ? V3{0, 0, 1} : ggx_sample_visible(wo, c.ax, c.ay, q->u0[i], q->u1[i]);
         const float R = fresnel_dielectric(dot(wo, h), c.eta), T = 1.0f - R;
         V3 wi;
         const bool reflect_ = q->u2[i] < R;
@@ -414,7 +455,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
             continue;
         }
         const uint32_t lobe = reflect_ ? SPANGLE_SAMPLE_REFLECTION : SPANGLE_SAMPLE_TRANSMISSION;
-        if (m.delta) {
+        if (c.delta > 0.0f) {
             const float cos_i = std::fabs(wi.z);
             const float f = reflect_ ? R / cos_i : T / (cos_i * c.eta * c.eta);
             write_sample(q, i, wi, f, f, f, reflect_ ? R : T, lobe | SPANGLE_SAMPLE_SPECULAR);
@@ -426,7 +467,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
             continue;
         }
         float f, pdf;
-        dielectric_rough(m, wo, wi, c.eta, f, pdf);
+        dielectric_rough(c, wo, wi, c.eta, f, pdf);
         write_sample(q, i, wi, f, f, f, pdf, lobe | SPANGLE_SAMPLE_GLOSSY);
         if (q->eta && !reflect_) q->eta[i] = c.eta;
     }
@@ -435,11 +476,11 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
 // ------------------------------------------------------------------------------------ plastic
 
 // clang-format off
-const SpangleParamDesc_v2 kPlasticParams[] = {
-    {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the base under the coat"},
-    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of the coat"},
-    {"roughness", SPANGLE_PARAM_FLOAT, {0.1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the coat along the tangent; below 1e-4 a smooth coat"},
-    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha of the coat along the bitangent; -1 = same as roughness"},
+const SpangleParamDesc_v3 kPlasticParams[] = {
+    {"albedo", SPANGLE_PARAM_COLOR, {0.8, 0.8, 0.8}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the base under the coat", SPANGLE_PARAM_TEXTURABLE},
+    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of the coat", 0},
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the coat along the tangent; below 1e-4 a smooth coat", 0},
+    {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha of the coat along the bitangent; -1 = same as roughness", 0},
 };
 // clang-format on
 
@@ -479,7 +520,7 @@ float plastic_e(const Plastic& m, float mu) {
     return m.e[i] * (1.0f - t) + m.e[i + 1] * t;
 }
 
-void* plastic_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* error, uint32_t cap) {
+void* plastic_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint32_t cap) {
     auto* m = new (std::nothrow) Plastic{};
     if (!m) {
         set_error(error, cap, "out of memory");
@@ -500,16 +541,17 @@ void* plastic_create(const SpangleParams_v2* p, const SpangleHost_v2*, char* err
     return m;
 }
 
-void plastic_prepare(const void* inst, const SpangleShadingBatch_v2* b, void* closures,
-                     SpangleArena_v2*) {
+void plastic_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures,
+                     SpangleArena_v3*) {
     const auto& m = *static_cast<const Plastic*>(inst);
     auto* out = static_cast<Closure*>(closures);
-    const float lum = 0.2126f * m.albedo[0] + 0.7152f * m.albedo[1] + 0.0722f * m.albedo[2];
+    const float* albedo = varying(b, 0);
     for (uint32_t i = 0; i < b->count; ++i) {
         Closure& c = out[i];
         c = Closure{};
         c.wo = wo_of(b, i);
-        std::copy(m.albedo, m.albedo + 3, c.rgb);
+        color_at(albedo, i, m.albedo, c.rgb);
+        const float lum = 0.2126f * c.rgb[0] + 0.7152f * c.rgb[1] + 0.0722f * c.rgb[2];
         c.e_o = plastic_e(m, std::max(c.wo.z, 0.0f));
         const float diffuse = lum * (1.0f - c.e_o);
         // Sample the coat in proportion to the energy it reflects; never less than 10% of the
@@ -524,7 +566,7 @@ float plastic_base(const Plastic& m, const Closure& c, float cos_i) {
     return (1.0f - c.e_o) * (1.0f - plastic_e(m, cos_i)) / (kPi * std::max(1e-6f, 1.0f - m.e_avg));
 }
 
-void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q) {
+void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v3* q) {
     const auto& m = *static_cast<const Plastic*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -549,7 +591,7 @@ void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v2* q
     }
 }
 
-void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v2* q) {
+void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v3* q) {
     const auto& m = *static_cast<const Plastic*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -574,7 +616,7 @@ void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v
             continue;
         }
         // f and pdf of the whole mixture, so that MIS sees one consistent density.
-        SpangleEvalBatch_v2 e{};
+        SpangleEvalBatch_v3 e{};
         float fr, fg, fb, pdf;
         const uint32_t index = closure_of(q->closure_index, i);
         e.count = 1;
@@ -600,18 +642,18 @@ void destroy(void* instance) {
     delete static_cast<T*>(instance);
 }
 
-constexpr uint32_t count_of(const SpangleParamDesc_v2* begin, const SpangleParamDesc_v2* end) {
+constexpr uint32_t count_of(const SpangleParamDesc_v3* begin, const SpangleParamDesc_v3* end) {
     return static_cast<uint32_t>(end - begin);
 }
 #define SPANGLE_PARAMS(a) a, count_of(a, a + sizeof(a) / sizeof(a[0]))
 
-const SpangleMaterialModel_v2 kModels[] = {
+const SpangleMaterialModel_v3 kModels[] = {
     {"diffuse", "Lambertian diffuse reflection", SPANGLE_PARAMS(kDiffuseParams), sizeof(Closure),
      diffuse_create, destroy<Diffuse>, diffuse_prepare, diffuse_eval, diffuse_sample, nullptr,
      nullptr},
     {"conductor", "GGX metal with complex Fresnel (presets or custom eta, k)",
      SPANGLE_PARAMS(kConductorParams), sizeof(Closure), conductor_create, destroy<Conductor>,
-     ggx_prepare, conductor_eval, conductor_sample, nullptr, nullptr},
+     conductor_prepare, conductor_eval, conductor_sample, nullptr, nullptr},
     {"dielectric", "rough glass: GGX reflection and transmission",
      SPANGLE_PARAMS(kDielectricParams), sizeof(Closure), dielectric_create, destroy<Dielectric>,
      dielectric_prepare, dielectric_eval, dielectric_sample, nullptr, nullptr},
@@ -620,9 +662,9 @@ const SpangleMaterialModel_v2 kModels[] = {
      plastic_sample, nullptr, nullptr},
 };
 
-const SpangleMaterialPlugin_v2 kPlugin = {
+const SpangleMaterialPlugin_v3 kPlugin = {
     SPANGLE_MATERIAL_ABI_VERSION,
-    sizeof(SpangleMaterialPlugin_v2),
+    sizeof(SpangleMaterialPlugin_v3),
     "smooth",
     "smooth microfacet and diffuse materials",
     kModels,
@@ -631,7 +673,7 @@ const SpangleMaterialPlugin_v2 kPlugin = {
 
 }  // namespace
 
-extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v2* spangle_material_plugin(
+extern "C" SPANGLE_PLUGIN_EXPORT const SpangleMaterialPlugin_v3* spangle_material_plugin(
     uint32_t host_abi_version) {
     return host_abi_version == SPANGLE_MATERIAL_ABI_VERSION ? &kPlugin : nullptr;
 }

@@ -176,7 +176,7 @@ std::map<std::string, double> Renderer::material_stats() {
     std::map<std::string, double> out;
     for (const auto& mat : session_.world().materials) {
         if (!mat || !mat->model().stats) continue;
-        SpangleStat_v2 buf[64];
+        SpangleStat_v3 buf[64];
         const uint32_t n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);
         for (uint32_t i = 0; i < n; ++i)
             if (buf[i].name) out[buf[i].name] = buf[i].value;

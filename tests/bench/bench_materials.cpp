@@ -86,25 +86,27 @@ struct Fixture {
 
     void shade() {
         // Object space mirrors uv (the plane z = 0 of the object): the uv path does not read it.
-        const SpangleShadingBatch_v2 b{
+        const SpangleShadingBatch_v3 b{
             kBatch,      px.data(),   py.data(),    pz.data(),   wox.data(),  woy.data(),
             woz.data(),  u.data(),    v.data(),     dudx.data(), dudy.data(), dvdx.data(),
             dvdy.data(), area.data(), u.data(),     v.data(),    zero.data(), zero.data(),
             zero.data(), one.data(),  dudx.data(),  dvdx.data(), zero.data(), dudy.data(),
-            dvdy.data(), zero.data(), flags.data(), ids.data()};
+            dvdy.data(), zero.data(), flags.data(), ids.data(),  nullptr};
         void* cl = closures.data();
         std::size_t space = closures.size();
         cl = std::align(16, kBatch * mat->model().closure_size, cl, space);
         arena.reset();
-        SpangleArena_v2 a = arena.api();
+        SpangleArena_v3 a = arena.api();
         mat->model().prepare(mat->instance(), &b, cl, &a);
-        SpangleEvalBatch_v2 e{kBatch,     nullptr,    wix.data(), wiy.data(), wiz.data(),
-                              f_r.data(), f_g.data(), f_b.data(), pdf.data()};
+        SpangleEvalBatch_v3 e{kBatch,     nullptr,    wix.data(), wiy.data(),
+                              wiz.data(), f_r.data(), f_g.data(), f_b.data(),
+                              pdf.data(), nullptr,    nullptr,    nullptr};
         mat->model().eval(mat->instance(), cl, &e);
         std::vector<float>& sx = wix;  // sample() overwrites the query directions: same cost
-        SpangleSampleBatch_v2 s{kBatch,     nullptr,    u0.data(),     u1.data(),  u2.data(),
+        SpangleSampleBatch_v3 s{kBatch,     nullptr,    u0.data(),     u1.data(),  u2.data(),
                                 sx.data(),  wiy.data(), wiz.data(),    f_r.data(), f_g.data(),
-                                f_b.data(), pdf.data(), sflags.data(), nullptr};
+                                f_b.data(), pdf.data(), sflags.data(), nullptr,    nullptr,
+                                nullptr,    nullptr};
         mat->model().sample(mat->instance(), cl, &s);
         benchmark::DoNotOptimize(f_r.data());
     }

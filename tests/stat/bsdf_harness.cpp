@@ -40,7 +40,7 @@ BsdfHarness::BsdfHarness(const std::string& plugin, const std::string& model,
         m.params.push_back(p);
     }
     const ValidatedParams params = validate_params(*model_, m, color_);
-    const SpangleParams_v2 view = params.view();
+    const SpangleParams_v3 view = params.view();
     char error[512] = {0};
     instance_ = model_->create(&view, host_->api(), error, sizeof(error));
     if (!instance_) throw std::runtime_error(std::string("create failed: ") + error);
@@ -63,7 +63,7 @@ void BsdfHarness::prepare(Vec3 wo, const Point& pt, bool backface) {
                            (pt.has_differentials ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u) |
                            (pt.no_uv ? SPANGLE_SHADING_NO_UV : 0u);
     const uint32_t id = 0;
-    const SpangleShadingBatch_v2 b{1,
+    const SpangleShadingBatch_v3 b{1,
                                    &zero,
                                    &zero,
                                    &zero,
@@ -90,9 +90,10 @@ void BsdfHarness::prepare(Vec3 wo, const Point& pt, bool backface) {
                                    &pt.dpdy_obj.y,
                                    &pt.dpdy_obj.z,
                                    &flags,
-                                   &id};
+                                   &id,
+                                   nullptr};
     arena_.reset();
-    SpangleArena_v2 arena = arena_.api();
+    SpangleArena_v3 arena = arena_.api();
     model_->prepare(instance_, &b, closure_.data(), &arena);
 }
 
@@ -104,9 +105,10 @@ std::vector<BsdfHarness::Sample> BsdfHarness::sample(uint32_t n, uint64_t seed) 
         u1[i] = sample_1d(seed, i, 0, 1);
         u2[i] = sample_1d(seed, i, 0, 2);
     }
-    SpangleSampleBatch_v2 q{n,        idx.data(), u0.data(),    u1.data(), u2.data(),
+    SpangleSampleBatch_v3 q{n,        idx.data(), u0.data(),    u1.data(), u2.data(),
                             x.data(), y.data(),   z.data(),     r.data(),  g.data(),
-                            b.data(), pdf.data(), flags.data(), nullptr};
+                            b.data(), pdf.data(), flags.data(), nullptr,   nullptr,
+                            nullptr,  nullptr};
     model_->sample(instance_, closure_.data(), &q);
     std::vector<Sample> out(n);
     for (uint32_t i = 0; i < n; ++i)
@@ -125,8 +127,8 @@ void BsdfHarness::eval(const std::vector<Vec3>& wi, std::vector<Vec3>& f,
         y[i] = wi[i].y;
         z[i] = wi[i].z;
     }
-    SpangleEvalBatch_v2 q{n,        idx.data(), x.data(), y.data(),  z.data(),
-                          r.data(), g.data(),   b.data(), pdf.data()};
+    SpangleEvalBatch_v3 q{n,        idx.data(), x.data(),   y.data(), z.data(), r.data(),
+                          g.data(), b.data(),   pdf.data(), nullptr,  nullptr,  nullptr};
     if (n > 0) model_->eval(instance_, closure_.data(), &q);
     f.resize(n);
     for (uint32_t i = 0; i < n; ++i) f[i] = {r[i], g[i], b[i]};

@@ -53,13 +53,13 @@ public:
     /** f and pdf for each wi. */
     void eval(const std::vector<Vec3>& wi, std::vector<Vec3>& f, std::vector<float>& pdf) const;
 
-    const SpangleMaterialModel_v2& model() const { return *model_; }
+    const SpangleMaterialModel_v3& model() const { return *model_; }
 
 private:
     ColorConfig color_;
     std::unique_ptr<HostServices> host_;
     std::shared_ptr<LoadedPlugin> plugin_;
-    const SpangleMaterialModel_v2* model_ = nullptr;
+    const SpangleMaterialModel_v3* model_ = nullptr;
     void* instance_ = nullptr;
     std::vector<std::byte> closure_;
     ScratchArena arena_;

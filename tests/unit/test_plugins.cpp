@@ -63,7 +63,7 @@ TEST(PluginLoader, RejectsPathLikeNames) {
 
 TEST(PluginLoader, AbiMismatch) {
     EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("abi"), "abi"); }),
-               "was built for material ABI version 999, but this spangle uses version 2");
+               "was built for material ABI version 999, but this spangle uses version 3");
 }
 
 TEST(PluginLoader, NotAPluginWithoutEntryPoint) {
@@ -73,7 +73,7 @@ TEST(PluginLoader, NotAPluginWithoutEntryPoint) {
 
 TEST(PluginLoader, PluginRefusingTheHost) {
     EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("refuses"), "refuses"); }),
-               "refused this host's material ABI version 2");
+               "refused this host's material ABI version 3");
 }
 
 TEST(PluginLoader, FileNameAndPluginNameMustAgree) {
@@ -140,11 +140,11 @@ TEST(PluginLoader, SearchOrderCliThenEnvironmentThenBinary) {
 }
 
 /** A schema exercising every parameter type, validated without any plugin. */
-const SpangleParamDesc_v2 kSchema[] = {
-    {"roughness", SPANGLE_PARAM_FLOAT, {0.5, 0, 0}, nullptr, 0.0, 1.0, nullptr, "r"},
-    {"count", SPANGLE_PARAM_INT, {4, 0, 0}, nullptr, 1.0, 64.0, nullptr, "n"},
-    {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "c"},
-    {"tint", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 1.0, nullptr, "t"},
+const SpangleParamDesc_v3 kSchema[] = {
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.5, 0, 0}, nullptr, 0.0, 1.0, nullptr, "r", 0},
+    {"count", SPANGLE_PARAM_INT, {4, 0, 0}, nullptr, 1.0, 64.0, nullptr, "n", 0},
+    {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "c", 0},
+    {"tint", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 1.0, nullptr, "t", 0},
     {"fresnel",
      SPANGLE_PARAM_STRING,
      {0, 0, 0},
@@ -152,10 +152,11 @@ const SpangleParamDesc_v2 kSchema[] = {
      0.0,
      0.0,
      "schlick|conductor|dielectric",
-     "f"},
+     "f",
+     0},
 };
-SpangleMaterialModel_v2 schema_model() {
-    SpangleMaterialModel_v2 m{};
+SpangleMaterialModel_v3 schema_model() {
+    SpangleMaterialModel_v3 m{};
     m.name = "test";
     m.params = kSchema;
     m.param_count = 5;
@@ -243,18 +244,18 @@ protected:
         plugin_ = PluginLoader(plugin_search_path({})).open("smooth", {});
         model_ = plugin_->model("diffuse");
         ASSERT_NE(model_, nullptr);
-        SpangleParamValue_v2 albedo{"albedo", SPANGLE_PARAM_COLOR, {1.0, 1.0, 1.0}, nullptr};
-        SpangleParams_v2 params{&albedo, 1};
+        SpangleParamValue_v3 albedo{"albedo", SPANGLE_PARAM_COLOR, {1.0, 1.0, 1.0}, nullptr};
+        SpangleParams_v3 params{&albedo, 1};
         char err[256];
         instance_ = model_->create(&params, host_.api(), err, sizeof(err));
         ASSERT_NE(instance_, nullptr) << err;
         const float zero = 0.0f, one = 1.0f;
         const float wox = 0.3f, woy = 0.0f, woz = std::sqrt(1.0f - 0.09f);
         const uint32_t flags = 0, id = 0;
-        SpangleShadingBatch_v2 b{1,     &zero, &zero, &zero, &wox,  &woy,   &woz,
-                                 &zero, &zero, &zero, &zero, &zero, &zero,  &one,
-                                 &zero, &zero, &zero, &zero, &zero, &one,   &zero,
-                                 &zero, &zero, &zero, &zero, &zero, &flags, &id};
+        SpangleShadingBatch_v3 b{1,     &zero, &zero,  &zero, &wox,   &woy,  &woz,  &zero,
+                                 &zero, &zero, &zero,  &zero, &zero,  &one,  &zero, &zero,
+                                 &zero, &zero, &zero,  &one,  &zero,  &zero, &zero, &zero,
+                                 &zero, &zero, &flags, &id,   nullptr};
         closure_.resize(model_->closure_size);
         model_->prepare(instance_, &b, closure_.data(), nullptr);
     }
@@ -265,7 +266,7 @@ protected:
     ColorConfig color_ = test::shipped_config();
     HostServices host_{color_, test::quiet_log()};
     std::shared_ptr<LoadedPlugin> plugin_;
-    const SpangleMaterialModel_v2* model_ = nullptr;
+    const SpangleMaterialModel_v3* model_ = nullptr;
     void* instance_ = nullptr;
     std::vector<std::byte> closure_;
 };
@@ -279,13 +280,13 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
         u1[i] = sample_1d(1, i, 0, 1);
         u2[i] = sample_1d(1, i, 0, 2);
     }
-    SpangleSampleBatch_v2 q{kN,       idx.data(), u0.data(),    u1.data(), u2.data(),
-                            x.data(), y.data(),   z.data(),     r.data(),  g.data(),
-                            b.data(), pdf.data(), flags.data(), nullptr};
+    SpangleSampleBatch_v3 q{kN,           idx.data(), u0.data(), u1.data(), u2.data(), x.data(),
+                            y.data(),     z.data(),   r.data(),  g.data(),  b.data(),  pdf.data(),
+                            flags.data(), nullptr,    nullptr,   nullptr,   nullptr};
     model_->sample(instance_, closure_.data(), &q);
     std::vector<float> er(kN), eg(kN), eb(kN), epdf(kN);
-    SpangleEvalBatch_v2 e{kN,        idx.data(), x.data(),  y.data(),   z.data(),
-                          er.data(), eg.data(),  eb.data(), epdf.data()};
+    SpangleEvalBatch_v3 e{kN,        idx.data(), x.data(),    y.data(), z.data(), er.data(),
+                          eg.data(), eb.data(),  epdf.data(), nullptr,  nullptr,  nullptr};
     model_->eval(instance_, closure_.data(), &e);
     for (uint32_t i = 0; i < kN; ++i) {
         if (flags[i] == 0) continue;  // the cosine sampler only fails exactly on the horizon

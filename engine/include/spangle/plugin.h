@@ -1,14 +1,17 @@
 /*
- * Spangle material plugin ABI, version 2.
+ * Spangle material plugin ABI, version 3.
  *
- * Version 2 adds object-space shading data (position, normal, footprint) and the NO_UV flag, so
+ * Version 2 added object-space shading data (position, normal, footprint) and the NO_UV flag, so
  * that a model can lay out a texture-like field on meshes without usable uvs, and the optional
- * requirements() query.
+ * requirements() query. Version 3 adds textured parameters: a model marks the FLOAT and COLOR
+ * parameters it can vary over the surface (SPANGLE_PARAM_TEXTURABLE), and the host hands it
+ * their per-point values in the shading batch (param_values); and the optional glint outputs of
+ * eval and sample (the part of f that comes from discrete glints, for the render layers).
  *
  * The only header a plugin includes. Plain C: no exceptions, no C++ types, memory freed by
  * whoever allocated it. A plugin is a shared library exporting one symbol:
  *
- *     const SpangleMaterialPlugin_v2* spangle_material_plugin(uint32_t host_abi_version);
+ *     const SpangleMaterialPlugin_v3* spangle_material_plugin(uint32_t host_abi_version);
  *
  * It returns a static table that lives as long as the library is loaded. The host reads
  * abi_version and struct_size first and refuses the table when abi_version differs from its own
@@ -37,7 +40,7 @@
 extern "C" {
 #endif
 
-#define SPANGLE_MATERIAL_ABI_VERSION 2u
+#define SPANGLE_MATERIAL_ABI_VERSION 3u
 #define SPANGLE_MATERIAL_ENTRY_POINT "spangle_material_plugin"
 
 #if defined(_WIN32)
@@ -54,13 +57,13 @@ typedef enum SpangleParamType {
     SPANGLE_PARAM_INT = 1,    /* one 64-bit integer, range-checked */
     SPANGLE_PARAM_BOOL = 2,   /* true or false */
     SPANGLE_PARAM_COLOR = 3,  /* RGB; the host converts it to the working space at load */
-    SPANGLE_PARAM_STRING = 4, /* one of the choices in SpangleParamDesc_v2.choices */
+    SPANGLE_PARAM_STRING = 4, /* one of the choices in SpangleParamDesc_v3.choices */
     SPANGLE_PARAM_VEC3 = 5    /* three numbers passed as written (no colour management), each
                                  range-checked; e.g. a conductor's per-channel complex IOR */
 } SpangleParamType;
 
 /** One entry of a model's parameter schema. The host validates scene values against it. */
-typedef struct SpangleParamDesc_v2 {
+typedef struct SpangleParamDesc_v3 {
     const char* name;           /* snake_case key in the scene file */
     SpangleParamType type;      /* value type */
     double default_value[3];    /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space; VEC3 */
@@ -69,25 +72,31 @@ typedef struct SpangleParamDesc_v2 {
     double max_value;           /* FLOAT/INT/COLOR (each channel): inclusive upper bound */
     const char* choices;        /* STRING: allowed values separated by '|'; NULL otherwise */
     const char* doc;            /* one line for `spangle plugins` */
-} SpangleParamDesc_v2;
+    uint32_t flags;             /* SPANGLE_PARAM_* bits below */
+} SpangleParamDesc_v3;
+
+/** Bits of SpangleParamDesc_v3.flags. */
+#define SPANGLE_PARAM_TEXTURABLE                                     \
+    1u /* FLOAT or COLOR only: the model reads per-point values from \
+          SpangleShadingBatch_v3.param_values when given, so a scene may bind a texture to it */
 
 /** One validated parameter value handed to create(). */
-typedef struct SpangleParamValue_v2 {
+typedef struct SpangleParamValue_v3 {
     const char* name; /* same pointer text as the schema entry's name */
     SpangleParamType type;
     double number[3];   /* FLOAT/INT/BOOL: [0]; COLOR: RGB in the working space; VEC3: as written */
     const char* string; /* STRING: the chosen value; NULL otherwise */
-} SpangleParamValue_v2;
+} SpangleParamValue_v3;
 
 /** The full parameter set: one value per schema entry, in schema order, defaults filled in. */
-typedef struct SpangleParams_v2 {
-    const SpangleParamValue_v2* values; /* count entries, in schema order */
+typedef struct SpangleParams_v3 {
+    const SpangleParamValue_v3* values; /* count entries, in schema order */
     uint32_t count;                     /* equals the model's param_count */
-} SpangleParams_v2;
+} SpangleParams_v3;
 
 /* ---------------------------------------------------------------- host services */
 
-/** Log levels for SpangleHost_v2.log. */
+/** Log levels for SpangleHost_v3.log. */
 typedef enum SpangleLogLevel {
     SPANGLE_LOG_DEBUG = 0,
     SPANGLE_LOG_INFO = 1,
@@ -96,7 +105,7 @@ typedef enum SpangleLogLevel {
 } SpangleLogLevel;
 
 /** Services the host offers to a plugin. Valid from create() until destroy() of the instance. */
-typedef struct SpangleHost_v2 {
+typedef struct SpangleHost_v3 {
     uint32_t abi_version;      /* SPANGLE_MATERIAL_ABI_VERSION of the host */
     void* context;             /* opaque, passed back to every call below */
     const char* working_space; /* name of the scene-linear working space (an OCIO colour space) */
@@ -113,19 +122,19 @@ typedef struct SpangleHost_v2 {
     /** Counter-based hash of (a, b): a pure function, the same on every thread and run. Plugins
      *  build their random numbers from it so that images do not depend on thread count. */
     uint64_t (*hash2)(uint64_t a, uint64_t b);
-} SpangleHost_v2;
+} SpangleHost_v3;
 
 /** Bump allocator for per-batch scratch data (closures' variable-size parts). Memory handed out
  *  stays valid until the host has finished eval()/sample() on the closures of that batch. */
-typedef struct SpangleArena_v2 {
+typedef struct SpangleArena_v3 {
     void* context;
     /** Returns `bytes` of memory aligned to `align` (a power of two <= 64), or NULL. */
     void* (*allocate)(void* context, size_t bytes, size_t align);
-} SpangleArena_v2;
+} SpangleArena_v3;
 
 /* ---------------------------------------------------------------- batches */
 
-/** Bits of SpangleShadingBatch_v2.flags. */
+/** Bits of SpangleShadingBatch_v3.flags. */
 #define SPANGLE_SHADING_HAS_DIFFERENTIALS 1u /* du/dx..dv/dy come from real ray differentials */
 #define SPANGLE_SHADING_BACKFACE                                    \
     2u /* the ray hit the back of the surface; the host flipped the \
@@ -140,7 +149,7 @@ typedef struct SpangleArena_v2 {
  *  back to its smooth expectation. The object-space fields describe the same point in its
  *  object's own coordinates (before the object's transform), so that a pattern laid out there
  *  stays fixed to the object as it moves. */
-typedef struct SpangleShadingBatch_v2 {
+typedef struct SpangleShadingBatch_v3 {
     uint32_t count;
     const float* p_x;
     const float* p_y;
@@ -170,11 +179,17 @@ typedef struct SpangleShadingBatch_v2 {
     const uint32_t* flags; /* SPANGLE_SHADING_* bits */
     const uint32_t*
         path_id; /* index of the path in the host's wavefront, for the plugin's hashing */
-} SpangleShadingBatch_v2;
+    /** One entry per schema parameter, in schema order (param_count of them), or NULL when no
+     *  parameter varies. Entry k is NULL when parameter k is constant (its value is the one
+     *  create() received); otherwise it holds count values (FLOAT) or count RGB triples (COLOR,
+     *  interleaved, working space), already within the parameter's range. Only parameters marked
+     *  SPANGLE_PARAM_TEXTURABLE are ever given here. */
+    const float* const* param_values;
+} SpangleShadingBatch_v3;
 
 /** Directions to evaluate: for query i, closure closure_index[i] and direction wi[i] (local
  *  frame). closure_index may be NULL, meaning query i uses closure i. */
-typedef struct SpangleEvalBatch_v2 {
+typedef struct SpangleEvalBatch_v3 {
     uint32_t count;
     const uint32_t* closure_index;
     const float* wi_x;
@@ -184,9 +199,15 @@ typedef struct SpangleEvalBatch_v2 {
     float* f_g;
     float* f_b;
     float* pdf; /* out: solid-angle pdf of sample() producing wi */
-} SpangleEvalBatch_v2;
+    /** out, may be NULL (then not asked for): the part of f that comes from discrete glints
+     *  (a flake model's individual flakes), <= f per channel; the host sets them to 0 before
+     *  the call, so a model without glints leaves them alone. */
+    float* glint_r;
+    float* glint_g;
+    float* glint_b;
+} SpangleEvalBatch_v3;
 
-/** Bits of SpangleSampleBatch_v2.flags. An invalid sample has flags 0, f 0 and pdf 0. */
+/** Bits of SpangleSampleBatch_v3.flags. An invalid sample has flags 0, f 0 and pdf 0. */
 #define SPANGLE_SAMPLE_REFLECTION 1u
 #define SPANGLE_SAMPLE_TRANSMISSION 2u
 #define SPANGLE_SAMPLE_DIFFUSE 4u
@@ -195,7 +216,7 @@ typedef struct SpangleEvalBatch_v2 {
 
 /** Samples to draw: for query i, closure closure_index[i] (or i when NULL) with uniform numbers
  *  u0[i], u1[i], u2[i] in [0, 1). */
-typedef struct SpangleSampleBatch_v2 {
+typedef struct SpangleSampleBatch_v3 {
     uint32_t count;
     const uint32_t* closure_index;
     const float* u0;
@@ -211,62 +232,65 @@ typedef struct SpangleSampleBatch_v2 {
     uint32_t* flags; /* out: SPANGLE_SAMPLE_* bits, 0 for an invalid sample */
     float* eta;      /* out, may be NULL: for a transmission, eta_transmitted / eta_incident (the
                         host bends ray differentials with it); 1 otherwise */
-} SpangleSampleBatch_v2;
+    float* glint_r;  /* out, may be NULL: as in SpangleEvalBatch_v3, for the sampled wi */
+    float* glint_g;
+    float* glint_b;
+} SpangleSampleBatch_v3;
 
 /** One named statistic reported by a model instance for `spangle render --stats`. */
-typedef struct SpangleStat_v2 {
+typedef struct SpangleStat_v3 {
     const char* name; /* static string */
     double value;
-} SpangleStat_v2;
+} SpangleStat_v3;
 
 /* ---------------------------------------------------------------- the table */
 
 /** One material model: its schema and its batch kernels. */
-typedef struct SpangleMaterialModel_v2 {
+typedef struct SpangleMaterialModel_v3 {
     const char* name; /* e.g. "diffuse"; unique within the plugin */
     const char* doc;  /* one line */
-    const SpangleParamDesc_v2* params;
+    const SpangleParamDesc_v3* params;
     uint32_t param_count;
     uint32_t closure_size; /* bytes of per-shading-point closure prepare() writes, <= 4096 */
 
     /** Creates an instance from a full, validated parameter set. Returns NULL and writes a message
      *  (at most error_capacity bytes, NUL included) when the values are unusable together. */
-    void* (*create)(const SpangleParams_v2* params, const SpangleHost_v2* host, char* error,
+    void* (*create)(const SpangleParams_v3* params, const SpangleHost_v3* host, char* error,
                     uint32_t error_capacity);
     /** Frees an instance made by create(). */
     void (*destroy)(void* instance);
 
     /** Writes batch->count closures of closure_size bytes each (16-byte aligned) to `closures`.
      *  Variable-size data goes to `arena`. */
-    void (*prepare)(const void* instance, const SpangleShadingBatch_v2* batch, void* closures,
-                    SpangleArena_v2* arena);
+    void (*prepare)(const void* instance, const SpangleShadingBatch_v3* batch, void* closures,
+                    SpangleArena_v3* arena);
     /** Evaluates f and pdf for each query. */
-    void (*eval)(const void* instance, const void* closures, SpangleEvalBatch_v2* queries);
+    void (*eval)(const void* instance, const void* closures, SpangleEvalBatch_v3* queries);
     /** Samples wi with pdf for each query. */
-    void (*sample)(const void* instance, const void* closures, SpangleSampleBatch_v2* queries);
+    void (*sample)(const void* instance, const void* closures, SpangleSampleBatch_v3* queries);
 
     /** Optional (may be NULL): writes at most capacity statistics, returns how many exist. */
-    uint32_t (*stats)(const void* instance, SpangleStat_v2* out, uint32_t capacity);
+    uint32_t (*stats)(const void* instance, SpangleStat_v3* out, uint32_t capacity);
     /** Optional (may be NULL): SPANGLE_REQUIRES_* bits of what an instance needs from the
      *  meshes it shades; the host warns about an object that cannot provide it. */
     uint32_t (*requirements)(const void* instance);
-} SpangleMaterialModel_v2;
+} SpangleMaterialModel_v3;
 
-/** Bits of SpangleMaterialModel_v2.requirements(). */
+/** Bits of SpangleMaterialModel_v3.requirements(). */
 #define SPANGLE_REQUIRES_UV 1u /* a layout in uv: a mesh without usable uvs loses it */
 
 /** The table a plugin returns. */
-typedef struct SpangleMaterialPlugin_v2 {
+typedef struct SpangleMaterialPlugin_v3 {
     uint32_t abi_version; /* SPANGLE_MATERIAL_ABI_VERSION the plugin was built with */
-    uint32_t struct_size; /* sizeof(SpangleMaterialPlugin_v2) in the plugin's build */
+    uint32_t struct_size; /* sizeof(SpangleMaterialPlugin_v3) in the plugin's build */
     const char* name;     /* e.g. "smooth"; the file is libspangle_<name>.so */
     const char* doc;      /* one line */
-    const SpangleMaterialModel_v2* models;
+    const SpangleMaterialModel_v3* models;
     uint32_t model_count;
-} SpangleMaterialPlugin_v2;
+} SpangleMaterialPlugin_v3;
 
 /** Signature of the entry point. */
-typedef const SpangleMaterialPlugin_v2* (*SpangleMaterialEntry_v2)(uint32_t host_abi_version);
+typedef const SpangleMaterialPlugin_v3* (*SpangleMaterialEntry_v3)(uint32_t host_abi_version);
 
 #ifdef __cplusplus
 }

@@ -1,0 +1,222 @@
+#include "shading/texture.h"
+
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdlib>
+#include <filesystem>
+
+#include "core/files.h"
+#include "core/hash.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+
+namespace {
+
+/** Version of the converted files' recipe: a change makes new cache entries. */
+constexpr const char* kRecipe = "spangle-texture-1|half|tile64|box";
+
+uint64_t hash_text(const std::string& s) {
+    uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a, then a final mix
+    for (const unsigned char c : s) h = (h ^ c) * 0x100000001b3ull;
+    return mix64(h);
+}
+
+/** The colour space a file's values are usually in when the scene names none. */
+std::string usual_space(const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext == ".exr" || ext == ".hdr" || ext == ".tx" ? "lin_rec709" : "srgb_texture";
+}
+
+}  // namespace
+
+std::string texture_cache_dir(const TextureSettings& settings) {
+    if (!settings.cache_dir.empty()) return settings.cache_dir;
+    if (const char* env = std::getenv("SPANGLE_TEXTURE_CACHE"); env && *env) return env;
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+        return (fs::path(xdg) / "spangle" / "textures").string();
+    if (const char* home = std::getenv("HOME"); home && *home)
+        return (fs::path(home) / ".cache" / "spangle" / "textures").string();
+    return (fs::temp_directory_path() / fmt::format("spangle-textures-{}", ::getuid())).string();
+}
+
+void texture_coordinates(const TextureRef& ref, const float* u, const float* v, const float* dudx,
+                         const float* dudy, const float* dvdx, const float* dvdy, std::size_t n,
+                         TextureQuery& q) {
+    q.resize(n);
+    const float* m = ref.uv;
+    for (std::size_t i = 0; i < n; ++i) {
+        // uv' = M uv + offset; the image's t runs down while v runs up.
+        q.s[i] = m[0] * u[i] + m[1] * v[i] + m[2];
+        q.t[i] = 1.0f - (m[3] * u[i] + m[4] * v[i] + m[5]);
+        q.dsdx[i] = m[0] * dudx[i] + m[1] * dvdx[i];
+        q.dsdy[i] = m[0] * dudy[i] + m[1] * dvdy[i];
+        q.dtdx[i] = -(m[3] * dudx[i] + m[4] * dvdx[i]);
+        q.dtdy[i] = -(m[3] * dudy[i] + m[4] * dvdy[i]);
+    }
+}
+
+TextureService::TextureService(const ColorConfig& color, const Logger& log,
+                               TextureSettings settings)
+    : color_(color), log_(log), settings_(std::move(settings)) {}
+
+TextureService::~TextureService() {
+    if (system_ && api_) api_->destroy(system_);
+}
+
+void* TextureService::system() {
+    if (!system_) {
+        system_ = api_->create(static_cast<int>(settings_.memory_mb));
+        if (!system_) throw_error("cannot create OpenImageIO's texture system");
+    }
+    return system_;
+}
+
+std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool color,
+                                                    const FileLoc& loc) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    // What the converted file depends on: the source's content, the conversion, the config.
+    std::string space = ref.space;
+    if (space.empty()) space = color ? usual_space(ref.path) : "raw";
+    if (space != "raw") {
+        const auto resolved = color_.resolve(space);
+        if (!resolved)
+            throw_error(loc, "texture '{}': unknown colour space '{}'; {}", ref.path, space,
+                        color_.how_to_fix());
+        space = resolved->name;
+    }
+    const std::string working = space == "raw" ? std::string() : color_.working_space();
+    const std::string key = fmt::format("{}|{}|{}|{}|{}", kRecipe, file_identity(ref.path), space,
+                                        working, space == "raw" ? "" : color_.path());
+    for (const auto& [k, tex] : opened_)
+        if (k == key) return tex;
+    try {
+        api_ = &oiio_texture_api(ref.path);
+    } catch (const SpangleError& e) {
+        throw_error(loc, "{}", e.what());
+    }
+
+    const fs::path dir = texture_cache_dir(settings_);
+    const fs::path converted =
+        dir / fmt::format("{}-{:016x}.exr", fs::path(ref.path).stem().string(), hash_text(key));
+    std::error_code ec;
+    if (!fs::is_regular_file(converted, ec)) {
+        const auto t0 = std::chrono::steady_clock::now();
+        fs::create_directories(dir, ec);
+        if (ec)
+            throw_error(loc,
+                        "texture '{}': cannot create the texture cache directory '{}': {} (choose "
+                        "another with --texture-cache DIR or $SPANGLE_TEXTURE_CACHE)",
+                        ref.path, dir.string(), ec.message());
+        ImageHeader h;
+        std::vector<float> pixels;
+        try {
+            pixels = read_image(ref.path, 4, h, "texture");
+        } catch (const SpangleError& e) {
+            throw_error(loc, "{}", e.what());
+        }
+        int channels = std::min(h.channels, 4);
+        if (space != "raw") {
+            // Colour: grey (and grey + alpha) images become RGB, then the RGB goes through OCIO;
+            // alpha stays as it is.
+            const int out_channels = channels == 2 || channels == 4 ? 4 : 3;
+            const std::size_t count = static_cast<std::size_t>(h.width) * h.height;
+            std::vector<float> rgb(3 * count);
+            for (std::size_t i = 0; i < count; ++i)
+                for (int c = 0; c < 3; ++c)
+                    rgb[3 * i + c] =
+                        pixels[i * channels + static_cast<std::size_t>(channels >= 3 ? c : 0)];
+            try {
+                color_.convert(space, color_.working_space(), rgb.data(), count);
+            } catch (const SpangleError& e) {
+                throw_error(loc, "texture '{}': {}", ref.path, e.what());
+            }
+            std::vector<float> out(static_cast<std::size_t>(out_channels) * count);
+            for (std::size_t i = 0; i < count; ++i) {
+                for (int c = 0; c < 3; ++c) out[i * out_channels + c] = rgb[3 * i + c];
+                if (out_channels == 4) out[i * 4 + 3] = pixels[i * channels + channels - 1];
+            }
+            pixels.swap(out);
+            channels = out_channels;
+        }
+        // Written under a temporary name and renamed: a render beside this one never sees half
+        // a file, and an interrupted conversion leaves nothing behind that looks complete.
+        const fs::path tmp = dir / fmt::format(".{}.{}.tmp.exr", converted.filename().string(),
+                                               static_cast<long>(::getpid()));
+        char error[1024] = "";
+        if (api_->make_texture(pixels.data(), h.width, h.height, channels, tmp.c_str(), error,
+                               sizeof(error)) != 0) {
+            fs::remove(tmp, ec);
+            throw_error(loc, "texture '{}': cannot write its converted copy '{}': {}", ref.path,
+                        converted.string(), error);
+        }
+        fs::rename(tmp, converted, ec);
+        if (ec) {
+            fs::remove(tmp, ec);
+            throw_error(loc, "texture '{}': cannot write '{}': {}", ref.path, converted.string(),
+                        ec.message());
+        }
+        log_.info("texture {} ({}x{}, {}) converted in {:.2f} s to {}", ref.path, h.width, h.height,
+                  space == "raw" ? std::string("data") : space + " -> " + working,
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+                  converted.string());
+    }
+    auto tex = std::make_shared<Texture>();
+    tex->source = ref.path;
+    tex->converted = converted.string();
+    char error[1024] = "";
+    tex->handle =
+        api_->handle(system(), tex->converted.c_str(), &tex->channels, error, sizeof(error));
+    if (!tex->handle)
+        throw_error(loc, "texture '{}': cannot open its converted copy '{}': {}", ref.path,
+                    tex->converted, error);
+    opened_.emplace_back(key, tex);
+    return tex;
+}
+
+void TextureService::lookup(const Texture& tex, int wrap, const TextureQuery& q, std::size_t n,
+                            int channels, float* out, float* ds, float* dt) const {
+    if (n == 0) return;
+    const int have = std::min(channels, tex.channels);
+    thread_local std::vector<float> buf, buf_ds, buf_dt;
+    const bool direct = have == channels;
+    float* o = out;
+    float* ods = ds;
+    float* odt = dt;
+    if (!direct) {
+        buf.resize(n * static_cast<std::size_t>(have));
+        o = buf.data();
+        if (ds) {
+            buf_ds.resize(buf.size());
+            buf_dt.resize(buf.size());
+            ods = buf_ds.data();
+            odt = buf_dt.data();
+        }
+    }
+    char error[1024] = "";
+    if (api_->lookup(system_, tex.handle, wrap, static_cast<int>(n), q.s.data(), q.t.data(),
+                     q.dsdx.data(), q.dtdx.data(), q.dsdy.data(), q.dtdy.data(), have, o, ods, odt,
+                     error, sizeof(error)) != 0)
+        throw_error("texture '{}': lookup failed: {}", tex.source, error);
+    if (direct) return;
+    // Fewer channels than asked for: the last one repeats (a grey map for a colour input).
+    for (std::size_t i = n; i-- > 0;)
+        for (int c = 0; c < channels; ++c) {
+            const std::size_t from = i * static_cast<std::size_t>(have) +
+                                     static_cast<std::size_t>(std::min(c, have - 1));
+            const std::size_t to =
+                i * static_cast<std::size_t>(channels) + static_cast<std::size_t>(c);
+            out[to] = buf[from];
+            if (ds) {
+                ds[to] = buf_ds[from];
+                dt[to] = buf_dt[from];
+            }
+        }
+}
+
+}  // namespace spangle
