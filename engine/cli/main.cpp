@@ -71,6 +71,8 @@ struct RenderArgs {
     std::string serve;  ///< [ADDR:]PORT of the live preview page; empty = none
     std::string texture_cache;
     uint32_t texture_memory_mb = 1024;
+    std::string display, view;  ///< of the PNG preview; empty = the config's defaults
+    bool layers = false;
 };
 
 /** A bad command line (exit status 2), found after parsing (sizes, names, paths that clash). */
@@ -124,6 +126,7 @@ int exit_status_for_signal() {
 /** Where and how a render's images are written. */
 struct Outputs {
     std::string exr, preview;
+    std::string display, view;  ///< of the preview (empty: the config's defaults)
     ExrOptions exr_options;
     std::string scene;
 
@@ -132,10 +135,17 @@ struct Outputs {
      *  values the half-float EXR could not hold (see warn_half_overflow). */
     /** `info` (the scene's camera) and `seconds` (the render time) go into the EXR header when
      *  given (pass outputs during a one-shot render have neither yet). */
+    /** `layers` / `layer_names`: the render layers (--layers), written into the same EXR. */
     std::size_t write(const std::vector<float>& image, uint32_t width, uint32_t height,
                       const ColorConfig& color, uint32_t spp, bool partial, uint32_t block = 1,
-                      const SceneInfo* info = nullptr, double seconds = -1.0) const {
+                      const SceneInfo* info = nullptr, double seconds = -1.0,
+                      const std::vector<float>* layers = nullptr,
+                      const std::vector<std::string>* layer_names = nullptr) const {
         ExrOptions o = exr_options;
+        if (layers && layer_names && !layers->empty()) {
+            o.layers = layers;
+            o.layer_names = *layer_names;
+        }
         o.metadata = {{"spangle:scene", scene},
                       {"spangle:version", SPANGLE_VERSION},
                       {"spangle:spp", std::to_string(spp)},
@@ -157,6 +167,8 @@ struct Outputs {
             PngOptions png;
             if (partial) png.compression_level = 1;  // passes come often: speed over size
             png.block = block;
+            png.display = display;
+            png.view = view;
             png_done = std::async(std::launch::async, [&, png] {
                 write_png_preview(preview, image, static_cast<int>(width), static_cast<int>(height),
                                   color, png);
@@ -174,10 +186,24 @@ struct Outputs {
         return overflow;
     }
     /** The image of a pass that is not the last (partial, maybe a preview pass). */
-    void write_pass(const PassImage& p, const ColorConfig& color) const {
-        write(p.image, p.width, p.height, color, p.spp, true, p.block);
+    void write_pass(const PassImage& p, const ColorConfig& color,
+                    const SceneInfo* info = nullptr) const {
+        write(p.image, p.width, p.height, color, p.spp, true, p.block, info, p.seconds);
     }
 };
+
+/** Says, once per process, that the EXRs carry no chromaticities (a foreign OCIO config whose
+ *  working space Spangle can neither recognise nor measure), and what would fix it. */
+void warn_if_no_chromaticities(const Logger& log, const ColorConfig& color) {
+    static std::atomic<bool> said{false};
+    if (color.working_chromaticities() || said.exchange(true)) return;
+    log.warn(
+        "the EXR carries no chromaticities attribute: the working space '{}' of the OCIO config "
+        "'{}' is not one Spangle knows the primaries of, and the config has no "
+        "cie_xyz_d65_interchange role to measure them through (add that role, or use a working "
+        "space such as ACEScg or lin_rec709); its colorSpace attribute still names the space",
+        color.working_space(), color.path());
+}
 
 /** Half floats end at 65504: brighter values (a bright light seen directly, a strong glint)
  *  become +Inf in a half EXR. Says so, and what to do. */
@@ -242,6 +268,7 @@ RenderOptions render_options(const RenderArgs& a) {
     o.threads = a.threads;
     o.spp_override = a.spp;
     o.texture_cache = a.texture_cache;
+    o.layers = a.layers;
     o.texture_memory_mb = a.texture_memory_mb;
     if (!a.size.empty()) parse_size(a.size, o.width_override, o.height_override);
     o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
@@ -314,6 +341,8 @@ Outputs outputs_for(const RenderArgs& a) {
     out.exr_options.half = !a.full_float;
     out.exr_options.compression = a.compression;
     out.scene = a.scene;
+    out.display = a.display;
+    out.view = a.view;
     return out;
 }
 
@@ -353,6 +382,7 @@ int run_render(const RenderArgs& a) {
     // The colour config is only known once the frame has loaded it: the pass callback gets it
     // through this pointer, set by render_frame's caller below before any pass ends.
     const ColorConfig* color = nullptr;
+    const SceneInfo* info = nullptr;
     std::unique_ptr<PreviewServer> server = start_server(a);
     req.options.preview_pass = a.pass_output || server;
     if (a.pass_output || server)
@@ -360,7 +390,7 @@ int run_render(const RenderArgs& a) {
             if (!color) return;
             if (server)
                 server->publish_pass(p.image, p.width, p.height, p.spp, p.target, p.block, *color);
-            if (a.pass_output) out.write_pass(p, *color);
+            if (a.pass_output) out.write_pass(p, *color, info);
         };
     if (server) {
         auto print = req.options.progress;
@@ -369,7 +399,14 @@ int run_render(const RenderArgs& a) {
             server->progress(done, total);
         };
     }
-    req.on_loaded = [&](const ColorConfig& c) { color = &c; };
+    req.on_loaded = [&](const ColorConfig& c, const SceneInfo& i) {
+        // A display or view the config lacks is an error before any rendering.
+        std::string display = out.display, view = out.view;
+        c.resolve_view(display, view);
+        warn_if_no_chromaticities(log, c);
+        color = &c;
+        info = &i;
+    };
 
     FrameResult frame = render_frame(req);
     progress.finish();
@@ -387,7 +424,7 @@ int run_render(const RenderArgs& a) {
     warn_half_overflow(
         log,
         out.write(frame.image, frame.width, frame.height, frame.color, frame.stats.spp_reached,
-                  partial, 1, &frame.info, frame.stats.seconds),
+                  partial, 1, &frame.info, frame.stats.seconds, &frame.layers, &frame.layer_names),
         out.exr);
     if (partial)
         log.warn("stopped by a signal: wrote {} with {} of {} samples per pixel", out.exr,
@@ -411,6 +448,11 @@ int run_watch(const RenderArgs& a) {
     RenderOptions options = render_options(a);
     options.preview_pass = pass_output || !a.serve.empty();
     Session session(a.plugin_dirs, a.ocio, options, log);
+    {
+        // A display or view the config lacks is an error before any rendering.
+        std::string display = out.display, view = out.view;
+        session.color().resolve_view(display, view);
+    }
     std::atomic<bool> reload{false};
     session.options().stop = [&] { return stop_signal != 0 || reload.load(); };
     // Declared after the session: it shows images in the session's colour config.
@@ -466,7 +508,7 @@ int run_watch(const RenderArgs& a) {
                                  session.color());
         if (!pass_output) return;
         try {
-            out.write_pass(p, session.color());
+            out.write_pass(p, session.color(), &session.info());
         } catch (const SpangleError& e) {
             report_error(e.what());
         }
@@ -478,6 +520,7 @@ int run_watch(const RenderArgs& a) {
             session.render();
             const World& w = session.world();
             if (w.image.empty()) return;
+            warn_if_no_chromaticities(log, session.color());
             const RenderStats& st = w.stats;
             const bool complete = st.spp_reached == st.spp_target;
             if (complete || (stop_signal != 0 && st.spp_reached > 0)) {
@@ -485,11 +528,11 @@ int run_watch(const RenderArgs& a) {
                     server->publish_pass(w.image, w.width, w.height, st.spp_reached, st.spp_target,
                                          1, session.color());
                 try {
-                    warn_half_overflow(
-                        log,
-                        out.write(w.image, w.width, w.height, session.color(), st.spp_reached,
-                                  !complete, 1, &session.info(), st.seconds),
-                        out.exr);
+                    warn_half_overflow(log,
+                                       out.write(w.image, w.width, w.height, session.color(),
+                                                 st.spp_reached, !complete, 1, &session.info(),
+                                                 st.seconds, &w.layers, &w.layer_names),
+                                       out.exr);
                 } catch (const SpangleError& e) {
                     report_error(e.what());
                 }
@@ -630,6 +673,15 @@ int main(int argc, char** argv) {
     render->add_option("--plugin-path", ra.plugin_dirs,
                        "directory searched for plugins first (repeatable)");
     render->add_flag("--stats", ra.stats, "print which systems ran and render statistics");
+    render->add_flag("--layers", ra.layers,
+                     "write render layers into the EXR beside the beauty: A (coverage), albedo, "
+                     "N, Z, P, glints, and lightgroup_<name> per light group (docs/layers.md)");
+    render->add_option("--view", ra.view,
+                       "OCIO view of the PNG preview (default: the display's default view; the "
+                       "shipped config's is \"ACES 1.0 - SDR Video\", tone-mapped; \"Standard\" "
+                       "clips at 1)");
+    render->add_option("--display", ra.display,
+                       "OCIO display of the PNG preview (default: the config's default display)");
     render->add_option("--texture-cache", ra.texture_cache,
                        "folder for textures converted to the working space (default: "
                        "$SPANGLE_TEXTURE_CACHE, else ~/.cache/spangle/textures)");

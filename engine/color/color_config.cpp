@@ -161,6 +161,23 @@ void ColorConfig::to_display(const std::string& display, const std::string& view
     }
 }
 
+void ColorConfig::resolve_view(std::string& display, std::string& view) const {
+    const auto& config = impl_->config;
+    std::vector<std::string> displays;
+    for (int i = 0; i < config->getNumDisplays(); ++i) displays.emplace_back(config->getDisplay(i));
+    if (display.empty()) display = config->getDefaultDisplay();
+    if (std::find(displays.begin(), displays.end(), display) == displays.end())
+        throw_error("the OCIO config '{}' has no display '{}' (displays: {})", path(), display,
+                    fmt::join(displays, ", "));
+    std::vector<std::string> views;
+    for (int i = 0; i < config->getNumViews(display.c_str()); ++i)
+        views.emplace_back(config->getView(display.c_str(), i));
+    if (view.empty()) view = config->getDefaultView(display.c_str());
+    if (std::find(views.begin(), views.end(), view) == views.end())
+        throw_error("display '{}' of the OCIO config '{}' has no view '{}' (views: {})", display,
+                    path(), view, fmt::join(views, ", "));
+}
+
 std::string ColorConfig::default_display() const {
     return impl_->config->getDefaultDisplay();
 }
@@ -171,7 +188,8 @@ std::string ColorConfig::default_view(const std::string& display) const {
 std::optional<Chromaticities> ColorConfig::working_chromaticities() const {
     // OCIO 2.1 does not expose primaries. The spaces Spangle ships have exact, published
     // chromaticities, so those come from this table; any other space is measured through the
-    // config's CIE XYZ (D65) interchange role, which gives D65-adapted primaries.
+    // config's CIE XYZ (D65) interchange role, which gives D65-adapted primaries; without that
+    // role, a space found under a common name of one in the table has its chromaticities.
     static const struct {
         const char* name;
         Chromaticities c;
@@ -183,7 +201,17 @@ std::optional<Chromaticities> ColorConfig::working_chromaticities() const {
     for (const auto& k : known)
         if (impl_->working == k.name) return k.c;
     const char* xyz = impl_->config->getCanonicalName("cie_xyz_d65_interchange");
-    if (!xyz || !*xyz) return std::nullopt;
+    if (!xyz || !*xyz) {
+        // No way to measure: a foreign config's working space that is one of these spaces
+        // under another common name ("Linear Rec.709", "ACES - ACEScg": what resolve() finds
+        // by name, not a role standing in for it) has its chromaticities.
+        for (const auto& k : known) {
+            const auto r = resolve(k.name);
+            if (r && r->name == impl_->working && r->via.find(" role") == std::string::npos)
+                return k.c;
+        }
+        return std::nullopt;
+    }
     float rgb[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1};
     try {
         convert(impl_->working, xyz, rgb, 4);

@@ -63,6 +63,9 @@ public:
     /** Applies display/view to count RGB triples in the working space, in place. */
     void to_display(const std::string& display, const std::string& view, float* rgb,
                     std::size_t count) const;
+    /** Fills an empty display or view with the config's default (the display's default view)
+     *  and checks both exist; throws SpangleError listing the displays or the display's views. */
+    void resolve_view(std::string& display, std::string& view) const;
     /** Default display and its default view. */
     std::string default_display() const;
     std::string default_view(const std::string& display) const;

@@ -91,7 +91,6 @@ const OiioModule& oiio_module() {
                                   bind(handle, "spangle_oiio_read", module.read) &&
                                   bind(handle, "spangle_oiio_make_texture", t.make_texture) &&
                                   bind(handle, "spangle_oiio_texture_system", t.create) &&
-                                  bind(handle, "spangle_oiio_texture_system_free", t.destroy) &&
                                   bind(handle, "spangle_oiio_texture_handle", t.handle) &&
                                   bind(handle, "spangle_oiio_texture_lookup", t.lookup);
             if (!complete) {

@@ -33,8 +33,7 @@ inline constexpr int kOiioModuleAbi = 2;
 struct OiioTextureApi {
     int (*make_texture)(const float* pixels, int width, int height, int channels, const char* path,
                         char* error, std::size_t size) = nullptr;
-    void* (*create)(int max_memory_mb) = nullptr;
-    void (*destroy)(void* system) = nullptr;
+    void* (*create)(int max_memory_mb) = nullptr;  ///< the process's texture system
     void* (*handle)(void* system, const char* path, int* channels, char* error,
                     std::size_t size) = nullptr;
     int (*lookup)(void* system, void* handle, int wrap, int count, const float* s, const float* t,

@@ -163,6 +163,13 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
     header.compression() = exr_compression(options.compression);
     const Imf::PixelType type = options.half ? Imf::HALF : Imf::FLOAT;
     for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(type));
+    const std::size_t lc = options.layers ? options.layer_names.size() : 0;
+    if (options.layers && options.layers->size() != lc * static_cast<std::size_t>(width) *
+                                                        static_cast<std::size_t>(height))
+        throw_error("cannot write '{}': {} layer values for {} channels of {}x{} pixels", path,
+                    options.layers->size(), lc, width, height);
+    for (std::size_t c = 0; c < lc; ++c)
+        header.channels().insert(options.layer_names[c], Imf::Channel(type));
     // The colour space by name (OpenImageIO's and the OpenEXR convention's attribute), and as
     // chromaticities when the config lets us derive them.
     header.insert("oiio:ColorSpace", Imf::StringAttribute(color.working_space()));
@@ -185,7 +192,7 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
     const auto w = static_cast<std::size_t>(width);
     write_atomically(path, [&](const std::string& tmp) {
         Imf::OutputFile out(tmp.c_str(), header);
-        std::vector<Imath::half> halves;
+        std::vector<Imath::half> halves, layer_halves;
         for (int y0 = 0; y0 < height; y0 += kStripRows) {
             const int y1 = std::min(height, y0 + kStripRows);
             const float* rows = rgb.data() + static_cast<std::size_t>(y0) * w * 3;
@@ -215,6 +222,25 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
                         Imf::Slice::Make(Imf::HALF, halves.data() + c, strip,
                                          3 * sizeof(Imath::half), 3 * sizeof(Imath::half) * w));
             }
+            // The layers, a strip at a time (converted to half here when the image is half).
+            if (lc > 0) {
+                const float* lrows = options.layers->data() + static_cast<std::size_t>(y0) * w * lc;
+                if (!options.half) {
+                    for (std::size_t c = 0; c < lc; ++c)
+                        fb.insert(options.layer_names[c],
+                                  Imf::Slice::Make(Imf::FLOAT, lrows + c, strip, lc * sizeof(float),
+                                                   lc * sizeof(float) * w));
+                } else {
+                    layer_halves.resize(static_cast<std::size_t>(y1 - y0) * w * lc);
+                    for (std::size_t i = 0; i < layer_halves.size(); ++i)
+                        layer_halves[i] = Imath::half(lrows[i]);
+                    for (std::size_t c = 0; c < lc; ++c)
+                        fb.insert(options.layer_names[c],
+                                  Imf::Slice::Make(Imf::HALF, layer_halves.data() + c, strip,
+                                                   lc * sizeof(Imath::half),
+                                                   lc * sizeof(Imath::half) * w));
+                }
+            }
             out.setFrameBuffer(fb);
             out.writePixels(y1 - y0);
         }
@@ -228,9 +254,8 @@ namespace {
  *  through the config's default display and view. */
 std::vector<unsigned char> display_bytes(const std::vector<float>& rgb, int width, int height,
                                          int row0, int row1, const ColorConfig& color,
-                                         uint32_t block_size) {
-    const std::string disp = color.default_display();
-    const std::string view = color.default_view(disp);
+                                         uint32_t block_size, std::string disp, std::string view) {
+    color.resolve_view(disp, view);
     const auto w = static_cast<std::size_t>(width);
     const auto block = static_cast<std::size_t>(std::max(1u, block_size));
     // Converted in bands of rows, a few at a time per thread: the preview needs its 3 bytes per
@@ -306,8 +331,8 @@ void write_png_preview(const std::string& path, const std::vector<float>& rgb, i
 
 std::string encode_png_preview(const std::vector<float>& rgb, int width, int height,
                                const ColorConfig& color, const PngOptions& options) {
-    const std::vector<unsigned char> bytes =
-        display_bytes(rgb, width, height, 0, height, color, options.block);
+    const std::vector<unsigned char> bytes = display_bytes(
+        rgb, width, height, 0, height, color, options.block, options.display, options.view);
     return encode_png(bytes, width, height, options);
 }
 

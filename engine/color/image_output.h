@@ -21,6 +21,10 @@ struct ExrOptions {
     std::vector<std::pair<std::string, float>> floats;          ///< extra float attributes
     /** Extra 4x4 matrix attributes (M44f, row-major: worldToCamera, worldToNDC). */
     std::vector<std::pair<std::string, std::array<float, 16>>> matrices;
+    /** Render layers written beside R, G, B in the same part: `layer_names.size()` values per
+     *  pixel, interleaved, row-major; null for none. */
+    const std::vector<float>* layers = nullptr;
+    std::vector<std::string> layer_names;
 };
 
 /** Removes the temporary file of an image being written, if any. Async-signal-safe: for a
@@ -44,9 +48,12 @@ struct PngOptions {
      *  transform per block. */
     uint32_t block = 1;
     int compression_level = 6;  ///< zlib level 0..9 (1 for pass outputs: speed over size)
+    /** OCIO display and view of the preview; empty: the config's default display and its
+     *  default view (the shipped config's is the tone-mapped "ACES 1.0 - SDR Video"). */
+    std::string display, view;
 };
 
-/** Writes an 8-bit PNG through the config's default display and view. Throws SpangleError.
+/** Writes an 8-bit PNG through options.display and options.view. Throws SpangleError.
  *  Memory: 3 bytes per pixel for the display values and the encoded file, plus a few rows of
  *  floats per thread. */
 void write_png_preview(const std::string& path, const std::vector<float>& rgb, int width,

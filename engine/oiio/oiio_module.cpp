@@ -91,21 +91,23 @@ __attribute__((visibility("default"))) int spangle_oiio_make_texture(const float
     return 0;
 }
 
-/** A TextureSystem of its own (not the process-wide shared one) whose tile cache holds at most
- *  max_memory_mb; NULL on failure. */
+/** The process's TextureSystem, made on the first call and kept until the process ends (one
+ *  tile cache for every scene a watch session loads; and OpenImageIO 2.4's
+ *  TextureSystem::destroy frees it with a mismatched delete, which AddressSanitizer reports).
+ *  Its tile cache holds at most max_memory_mb (the latest call's value). NULL on failure. */
 __attribute__((visibility("default"))) void* spangle_oiio_texture_system(int max_memory_mb) {
-    OIIO::TextureSystem* ts = OIIO::TextureSystem::create(false);
-    if (!ts) return nullptr;
-    ts->attribute("max_memory_MB", static_cast<float>(max_memory_mb));
-    ts->attribute("autotile", 64);
-    ts->attribute("automip", 1);
-    ts->attribute("accept_untiled", 1);
-    ts->attribute("accept_unmipped", 1);
+    static OIIO::TextureSystem* const ts = [] {
+        OIIO::TextureSystem* t = OIIO::TextureSystem::create(false);
+        if (t) {
+            t->attribute("autotile", 64);
+            t->attribute("automip", 1);
+            t->attribute("accept_untiled", 1);
+            t->attribute("accept_unmipped", 1);
+        }
+        return t;
+    }();
+    if (ts) ts->attribute("max_memory_MB", static_cast<float>(max_memory_mb));
     return ts;
-}
-
-__attribute__((visibility("default"))) void spangle_oiio_texture_system_free(void* system) {
-    if (system) OIIO::TextureSystem::destroy(static_cast<OIIO::TextureSystem*>(system));
 }
 
 /** A handle for the texture file at path and its channel count; NULL with a message on

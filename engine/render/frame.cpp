@@ -54,7 +54,7 @@ FrameResult render_frame(const FrameRequest& req) {
     ecs::Registry registry;
     SceneInfo info = load_scene(req.scene, color, registry);
     for (const std::string& note : info.color_notes) req.log->warn("{}", note);
-    if (req.on_loaded) req.on_loaded(color);
+    if (req.on_loaded) req.on_loaded(color, info);
 
     PluginLoader plugins(plugin_search_path(req.plugin_dirs));
     HostServices host(color, *req.log, {req.options.texture_cache, req.options.texture_memory_mb});
@@ -74,6 +74,8 @@ FrameResult render_frame(const FrameRequest& req) {
                        world.width,
                        world.height,
                        std::move(world.image),
+                       std::move(world.layers),
+                       std::move(world.layer_names),
                        std::move(reports),
                        plugins.opened(),
                        world.stats,

@@ -21,7 +21,7 @@ struct FrameRequest {
     const Logger* log = nullptr;           ///< required
     /** Called once the scene is loaded, with the colour config images are written in (for
      *  options.on_pass); may be empty. */
-    std::function<void(const ColorConfig&)> on_loaded;
+    std::function<void(const ColorConfig&, const SceneInfo&)> on_loaded;
     /** When set, the scene's triangles as traced (subdivided, in world space) are written here
      *  as an OBJ, for other tools (Embree's viewer) to measure the same geometry. */
     std::string export_obj;
@@ -32,6 +32,8 @@ struct FrameResult {
     ColorConfig color;                        ///< config and working space used
     uint32_t width = 0, height = 0;           ///< image size
     std::vector<float> image;                 ///< RGB in the working space
+    std::vector<float> layers;                ///< with options.layers: layer_names per pixel
+    std::vector<std::string> layer_names;     ///< EXR channel names of the layers
     std::vector<ecs::SystemReport> systems;   ///< which systems ran, which were skipped
     std::vector<std::string> plugins_opened;  ///< plugin names opened for this scene
     RenderStats stats;                        ///< counters of the render system

@@ -25,6 +25,9 @@ constexpr uint32_t kTileSize = 16;
 constexpr uint32_t kSamplesPerWave = 8;  ///< samples of each tile pixel traced together
 constexpr uint32_t kMaxBatch = 256;  ///< shading points per plugin call: bounds per-batch scratch
 
+/** Per-path geometry layers of the first hit: coverage, albedo, normal, depth, position. */
+enum Aov : uint32_t { kAovA = 0, kAovAlbedo = 1, kAovN = 4, kAovZ = 7, kAovP = 8, kAovCount = 11 };
+
 /** Sobol dimension pairs: two for the camera, then kPairsPerBounce per bounce. */
 enum Pair : uint32_t {
     kPairFilter = 0,
@@ -66,8 +69,17 @@ struct Workspace {
     std::vector<float> fp_width;    ///< footprint width at the ray origin (no differentials)
     std::vector<float> fp_spread;   ///< footprint growth per unit distance (no differentials)
     std::vector<Vec3> throughput, radiance;
-    std::vector<float> prev_pdf;      ///< solid-angle pdf of the last BSDF sample
-    std::vector<uint8_t> prev_delta;  ///< last bounce was a delta lobe (or the camera)
+    // Render layers (only with RenderOptions::layers): per path, the part of its throughput that
+    // went through a glint at the first surface, its glint radiance, its radiance per light
+    // group (groups values per path) and its first-hit geometry (kAovCount values per path).
+    std::vector<Vec3> glint_throughput, glint, group_radiance;
+    std::vector<float> aov;
+    std::vector<Vec3> escaped_by_group;  ///< scratch: one escaped ray's light per group
+    std::vector<float> g_r, g_g, g_b;    ///< scratch: the glint part of f per query
+    std::vector<uint32_t> shadow_group;  ///< light group of each shadow ray's light
+    std::vector<Vec3> shadow_glint;      ///< glint part of each shadow ray's contribution
+    std::vector<float> prev_pdf;         ///< solid-angle pdf of the last BSDF sample
+    std::vector<uint8_t> prev_delta;     ///< last bounce was a delta lobe (or the camera)
     std::vector<uint8_t> active;
     // Hits of the current bounce.
     struct PathHit {
@@ -113,6 +125,13 @@ struct Workspace {
         radiance.resize(n);
         surf.resize(n);
     }
+    void resize_layers(std::size_t n, uint32_t groups) {
+        glint_throughput.assign(n, Vec3(0.0f));
+        glint.assign(n, Vec3(0.0f));
+        group_radiance.assign(n * groups, Vec3(0.0f));
+        aov.assign(n * kAovCount, 0.0f);
+        escaped_by_group.assign(groups, Vec3(0.0f));
+    }
     void resize_group(std::size_t n) {
         for (auto* a : {&px,   &py,   &pz,   &wox,     &woy, &woz, &u,       &v,   &dudx,
                         &dudy, &dvdx, &dvdy, &uv_area, &f_r, &f_g, &f_b,     &pdf, &wix,
@@ -124,6 +143,7 @@ struct Workspace {
         for (auto* a : {&flags, &path_id, &closure_index, &sample_flags, &light_query})
             a->resize(n);
         light.resize(n);
+        for (auto* a : {&g_r, &g_g, &g_b}) a->resize(n);
     }
 };
 
@@ -140,6 +160,12 @@ struct RenderJob {
      *  block with its footprint widened to the block). */
     uint32_t stride = 1;
     std::vector<float>* image;
+    /** Render layers: on/off, light groups, values per pixel of the layer film, the film, and
+     *  the camera's position and viewing direction (depth is measured along it). */
+    bool layers = false;
+    uint32_t groups = 0, layer_channels = 0;
+    std::vector<float>* layer_image = nullptr;
+    Vec3 camera_position, camera_forward;
     std::atomic<uint64_t> camera_rays{0}, bounce_rays{0}, shadow_rays{0}, samples_done{0};
     std::atomic<uint64_t> nonfinite{0};
     std::atomic<uint64_t> first_bad{~0ull};  ///< (pixel << 24 | sample) of the first bad value
@@ -151,12 +177,22 @@ void rnd2(const Workspace& ws, uint32_t path, uint32_t bounce, uint32_t pair, fl
                    a, b);
 }
 
-/** Caps the luminance of one indirect contribution (a biased, optional firefly guard: light
- *  that reached the camera through `scatterings` >= 2 surface events). */
-Vec3 clamp_contribution(const RenderJob& job, Vec3 c, uint32_t scatterings) {
-    if (job.clamp_indirect <= 0.0f || scatterings < 2) return c;
+/** The factor that caps the luminance of one indirect contribution c (a biased, optional
+ *  firefly guard: light that reached the camera through `scatterings` >= 2 surface events);
+ *  1 when it is under the cap. The render layers' parts of c are scaled by the same factor, so
+ *  that they still add up to it. */
+float clamp_factor(const RenderJob& job, Vec3 c, uint32_t scatterings) {
+    if (job.clamp_indirect <= 0.0f || scatterings < 2) return 1.0f;
     const float lum = luminance(c);
-    return lum > job.clamp_indirect ? c * (job.clamp_indirect / lum) : c;
+    return lum > job.clamp_indirect ? job.clamp_indirect / lum : 1.0f;
+}
+
+/** Adds one contribution c of path k (after clamping) to its light group's layer, and its part
+ *  that came through a glint at the first surface (clamped alike) to the glint layer. */
+void add_to_layers(const RenderJob& job, Workspace& ws, std::size_t k, Vec3 c, uint32_t group,
+                   Vec3 glint) {
+    ws.group_radiance[k * job.groups + group] += c;
+    ws.glint[k] += glint;
 }
 
 /** Bends the ray differentials of path i through a specular bounce (pbrt, section 10.1.3). */
@@ -396,6 +432,17 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                                  nullptr,
                                  nullptr,
                                  nullptr};
+        // The glint part of f matters for the glint layer at the first surface only (later on,
+        // the glint throughput of the path carries it).
+        const bool want_glint = job.layers && bounce == 0;
+        if (want_glint) {
+            std::fill_n(ws.g_r.begin(), q, 0.0f);
+            std::fill_n(ws.g_g.begin(), q, 0.0f);
+            std::fill_n(ws.g_b.begin(), q, 0.0f);
+            eval.glint_r = ws.g_r.data();
+            eval.glint_g = ws.g_g.data();
+            eval.glint_b = ws.g_b.data();
+        }
         if (q > 0) model.eval(mat.instance(), closures, &eval);
         // The unoccluded contribution of each query, then its shadow ray; the rays of the
         // whole group are traced as one stream.
@@ -404,6 +451,8 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         ws.stream_o.clear();
         ws.stream_d.clear();
         ws.shadow_tmax.clear();
+        ws.shadow_group.clear();
+        ws.shadow_glint.clear();
         for (uint32_t j = 0; j < q; ++j) {
             const Vec3 f(ws.f_r[j], ws.f_g[j], ws.f_b[j]);
             if (max_component(f) <= 0.0f) continue;
@@ -417,8 +466,15 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             // Leave on the side of the geometric normal that wi points to.
             const Vec3 side = dot(ls.wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
             ws.shadow_path.push_back(i);
-            ws.shadow_contrib.push_back(ws.throughput[i] * f * ls.radiance *
-                                        (std::fabs(ws.wiz[j]) * mis / ls.pdf));
+            const float weight = std::fabs(ws.wiz[j]) * mis / ls.pdf;
+            ws.shadow_contrib.push_back(ws.throughput[i] * f * ls.radiance * weight);
+            if (job.layers) {
+                ws.shadow_group.push_back(ls.group);
+                ws.shadow_glint.push_back(
+                    (want_glint ? ws.throughput[i] * Vec3(ws.g_r[j], ws.g_g[j], ws.g_b[j])
+                                : ws.glint_throughput[i] * f) *
+                    ls.radiance * weight);
+            }
             ws.stream_o.push_back(offset_origin(sp.p, side));
             ws.stream_d.push_back(ls.wi);
             ws.shadow_tmax.push_back(std::isfinite(ls.dist) ? ls.dist * (1.0f - 1e-4f) : 1e30f);
@@ -429,10 +485,15 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         if (w.accel)
             w.accel->occluded_stream(ws.stream_o.data(), ws.stream_d.data(), ws.shadow_tmax.data(),
                                      rays, ws.stream_found.data());
-        for (std::size_t r = 0; r < rays; ++r)
-            if (!ws.stream_found[r])
-                ws.radiance[ws.shadow_path[r]] +=
-                    clamp_contribution(job, ws.shadow_contrib[r], bounce + 1);
+        for (std::size_t r = 0; r < rays; ++r) {
+            if (ws.stream_found[r]) continue;
+            const float kc = clamp_factor(job, ws.shadow_contrib[r], bounce + 1);
+            const Vec3 c = ws.shadow_contrib[r] * kc;
+            ws.radiance[ws.shadow_path[r]] += c;
+            if (job.layers)
+                add_to_layers(job, ws, ws.shadow_path[r], c, ws.shadow_group[r],
+                              ws.shadow_glint[r] * kc);
+        }
     }
 
     // Continue each path by sampling the BSDF.
@@ -458,6 +519,15 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                              nullptr,
                              nullptr,
                              nullptr};
+    const bool first_surface = job.layers && bounce == 0;
+    if (first_surface) {
+        std::fill_n(ws.g_r.begin(), n, 0.0f);
+        std::fill_n(ws.g_g.begin(), n, 0.0f);
+        std::fill_n(ws.g_b.begin(), n, 0.0f);
+        sb.glint_r = ws.g_r.data();
+        sb.glint_g = ws.g_g.data();
+        sb.glint_b = ws.g_b.data();
+    }
     model.sample(mat.instance(), closures, &sb);
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
@@ -465,12 +535,32 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         const Vec3 f(ws.f_r[k], ws.f_g[k], ws.f_b[k]);
         const float pdf = ws.pdf[k];
         const uint32_t sflags = ws.sample_flags[k];
+        float* aov = job.layers ? &ws.aov[static_cast<std::size_t>(i) * kAovCount] : nullptr;
+        if (first_surface) {
+            aov[kAovN] = sp.n.x;
+            aov[kAovN + 1] = sp.n.y;
+            aov[kAovN + 2] = sp.n.z;
+        }
         if (sflags == 0 || !(pdf > 0.0f) || max_component(f) <= 0.0f) {
             ws.active[i] = 0;
             continue;
         }
         const Vec3 wi = normalize(sp.s * ws.wix[k] + sp.t * ws.wiy[k] + sp.n * ws.wiz[k]);
-        Vec3 t = ws.throughput[i] * f * (std::fabs(ws.wiz[k]) / pdf);
+        const float cos_pdf = std::fabs(ws.wiz[k]) / pdf;
+        Vec3 t = ws.throughput[i] * f * cos_pdf;
+        // The glint throughput: at the first surface the glint part of this sample's weight,
+        // later the path's glint part carried on like the throughput.
+        Vec3 gt(0.0f);
+        if (first_surface) {
+            gt = ws.throughput[i] * Vec3(ws.g_r[k], ws.g_g[k], ws.g_b[k]) * cos_pdf;
+            // The sample weight f cos / pdf estimates the directional albedo.
+            const Vec3 albedo = f * cos_pdf;
+            aov[kAovAlbedo] = albedo.x;
+            aov[kAovAlbedo + 1] = albedo.y;
+            aov[kAovAlbedo + 2] = albedo.z;
+        } else if (job.layers) {
+            gt = ws.glint_throughput[i] * f * cos_pdf;
+        }
         if (bounce + 1 >= job.rr_depth) {
             const float survive = std::min(0.95f, max_component(t));
             float u_rr, spare;
@@ -480,8 +570,10 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                 continue;
             }
             t *= 1.0f / survive;
+            gt *= 1.0f / survive;
         }
         ws.throughput[i] = t;
+        if (job.layers) ws.glint_throughput[i] = gt;
         const bool delta = (sflags & SPANGLE_SAMPLE_SPECULAR) != 0;
         if (delta && ws.has_diff[i]) {
             propagate_specular(ws, i, wi, (sflags & SPANGLE_SAMPLE_TRANSMISSION) != 0, ws.eta[k]);
@@ -504,11 +596,13 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
 
 /** Emission a ray picks up at a light it hits, MIS-weighted against next-event estimation. */
 Vec3 emission_at_hit(const World& w, Strategy strategy, const Workspace& ws, std::size_t k,
-                     const Hit& hit) {
+                     const Hit& hit, uint32_t& group) {
     const RayDifferential& r = ws.ray[k];
     const Vec3 q = r.o + r.d * hit.t;
+    group = 0;
     if (hit.kind == HitKind::Sphere) {
         const SphereEmitter& s = w.lights.sphere(hit.prim);
+        group = s.group;
         if (dot(q - s.center, r.d) >= 0.0f) return Vec3(0.0f);  // seen from inside
         const float weight = bsdf_hit_weight(strategy, ws.prev_delta[k] != 0, ws.prev_pdf[k],
                                              w.lights.sphere_pdf(hit.prim, r.o));
@@ -522,11 +616,16 @@ Vec3 emission_at_hit(const World& w, Strategy strategy, const Workspace& ws, std
                   static_cast<int32_t>(hit.prim);
     if (emitter < 0) return Vec3(0.0f);
     const auto e = static_cast<uint32_t>(emitter);
+    group = w.lights.area(e).group;
     const Vec3 le = w.lights.area_emitted(e, -r.d);
     if (max_component(le) <= 0.0f) return Vec3(0.0f);
     const float weight = bsdf_hit_weight(strategy, ws.prev_delta[k] != 0, ws.prev_pdf[k],
                                          w.lights.area_pdf(e, r.o, q));
     return le * weight;
+}
+
+double seconds_since(std::chrono::steady_clock::time_point t0) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
 /** Traces one wave: `count` samples starting at `first_sample` for every pixel of the tile. */
@@ -573,6 +672,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                 ws.prev_delta[i] = 1;  // camera rays see emitters with full weight
                 ws.active[i] = 1;
             }
+    if (job.layers) ws.resize_layers(n, job.groups);
     uint64_t rays = 0, shadow = 0;
     const std::size_t material_count = w.materials.size();
     std::vector<uint32_t> group_start(material_count + 1);
@@ -603,17 +703,51 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             ++rays;
             const Hit& hit = ws.stream_hit[j];
             if (!ws.stream_found[j]) {
-                ws.radiance[k] += clamp_contribution(
-                    job,
-                    ws.throughput[k] *
-                        (w.environment + w.lights.escaped(ws.ray[k].d, ws.prev_pdf[k],
-                                                          ws.prev_delta[k] != 0, job.strategy)),
-                    bounce);
+                Vec3* by_group = nullptr;
+                if (job.layers) {
+                    std::fill(ws.escaped_by_group.begin(), ws.escaped_by_group.end(), Vec3(0.0f));
+                    by_group = ws.escaped_by_group.data();
+                }
+                const Vec3 esc = w.lights.escaped(ws.ray[k].d, ws.prev_pdf[k],
+                                                  ws.prev_delta[k] != 0, job.strategy, by_group);
+                const Vec3 c = ws.throughput[k] * (w.environment + esc);
+                const float kc = clamp_factor(job, c, bounce);
+                ws.radiance[k] += c * kc;
+                if (job.layers) {
+                    // The constant environment and each light at infinity, to their groups;
+                    // after the first surface, the part that came through a glint too.
+                    const Vec3 gt = bounce > 0 ? ws.glint_throughput[k] * kc : Vec3(0.0f);
+                    add_to_layers(job, ws, k, ws.throughput[k] * w.environment * kc,
+                                  w.environment_group, gt * w.environment);
+                    for (uint32_t g = 0; g < job.groups; ++g)
+                        if (max_component(ws.escaped_by_group[g]) > 0.0f)
+                            add_to_layers(job, ws, k,
+                                          ws.throughput[k] * ws.escaped_by_group[g] * kc, g,
+                                          gt * ws.escaped_by_group[g]);
+                }
                 ws.active[k] = 0;
                 continue;
             }
-            ws.radiance[k] += clamp_contribution(
-                job, ws.throughput[k] * emission_at_hit(w, job.strategy, ws, k, hit), bounce);
+            uint32_t group = 0;
+            const Vec3 e = emission_at_hit(w, job.strategy, ws, k, hit, group);
+            const Vec3 c = ws.throughput[k] * e;
+            const float kc = clamp_factor(job, c, bounce);
+            ws.radiance[k] += c * kc;
+            if (job.layers) {
+                if (max_component(e) > 0.0f)
+                    add_to_layers(job, ws, k, c * kc, group,
+                                  bounce > 0 ? ws.glint_throughput[k] * e * kc : Vec3(0.0f));
+                if (bounce == 0) {
+                    // The camera ray hit something: coverage, depth along the view, position.
+                    float* aov = &ws.aov[k * kAovCount];
+                    const Vec3 p = ws.ray[k].o + ws.ray[k].d * hit.t;
+                    aov[kAovA] = 1.0f;
+                    aov[kAovZ] = dot(p - job.camera_position, job.camera_forward);
+                    aov[kAovP] = p.x;
+                    aov[kAovP + 1] = p.y;
+                    aov[kAovP + 2] = p.z;
+                }
+            }
             if (hit.kind != HitKind::Instance ||
                 bounce == job.max_depth) {  // lights do not scatter
                 ws.active[k] = 0;
@@ -677,7 +811,8 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
     std::vector<float>& img = *job.image;
     for (std::size_t k = 0; k < n; ++k) {
         Vec3 l = ws.radiance[k];
-        if (!is_finite(l)) {
+        const bool finite = is_finite(l);
+        if (!finite) {
             ++job.nonfinite;
             const uint64_t key = (static_cast<uint64_t>(ws.pixel[k]) << 24) | ws.sample[k];
             uint64_t prev = job.first_bad.load();
@@ -689,6 +824,23 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
         px[0] += l.x;
         px[1] += l.y;
         px[2] += l.z;
+        if (!job.layers) continue;
+        // The layers: [A, albedo, N, Z, P] of the first hit, the glints, each light group. A
+        // path whose radiance was dropped drops its light layers too (they add up to it).
+        float* lp = &(*job.layer_image)[static_cast<std::size_t>(ws.pixel[k]) * job.layer_channels];
+        const float* aov = &ws.aov[k * kAovCount];
+        for (uint32_t c = 0; c < kAovCount; ++c)
+            if (std::isfinite(aov[c])) lp[c] += aov[c];
+        if (!finite) continue;
+        const auto add3 = [](float* to, Vec3 v) {
+            if (!is_finite(v)) return;
+            to[0] += v.x;
+            to[1] += v.y;
+            to[2] += v.z;
+        };
+        add3(lp + kAovCount, ws.glint[k]);
+        for (uint32_t g = 0; g < job.groups; ++g)
+            add3(lp + kAovCount + 3 + 3 * g, ws.group_radiance[k * job.groups + g]);
     }
 }
 
@@ -707,14 +859,25 @@ uint32_t preview_stride(uint32_t width, uint32_t height) {
     return stride;
 }
 
-void check_film_memory(uint32_t width, uint32_t height, uint32_t spp,
-                       const RenderOptions& options) {
+std::vector<std::string> layer_channel_names(const std::vector<std::string>& light_groups) {
+    std::vector<std::string> out = {"A",   "albedo.R", "albedo.G", "albedo.B", "N.X",
+                                    "N.Y", "N.Z",      "Z",        "P.X",      "P.Y",
+                                    "P.Z", "glints.R", "glints.G", "glints.B"};
+    for (const std::string& g : light_groups)
+        for (const char* c : {"R", "G", "B"}) out.push_back(fmt::format("lightgroup_{}.{}", g, c));
+    return out;
+}
+
+void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const RenderOptions& options,
+                       uint32_t layer_channels) {
     // Per pixel: the film (RGB floats); a copy to roll a stopped pass back to (from the second
     // pass on); the copy each pass shows; the preview pass's image. Writing adds only strips.
+    // The render layers have a film and a roll-back copy of their own.
     const bool passes = options.progressive && spp > 1;
-    const double per_pixel = 12.0 + (passes && options.stop ? 12.0 : 0.0) +
-                             (passes && options.on_pass ? 12.0 : 0.0) +
-                             (options.preview_pass && options.on_pass && spp > 1 ? 12.0 : 0.0);
+    const double layers = 4.0 * layer_channels * (passes && options.stop ? 2.0 : 1.0);
+    const double per_pixel =
+        12.0 + (passes && options.stop ? 12.0 : 0.0) + (passes && options.on_pass ? 12.0 : 0.0) +
+        (options.preview_pass && options.on_pass && spp > 1 ? 12.0 : 0.0) + layers;
     const double need = per_pixel * width * height;
     if (const uint64_t have = memory_short_for(need))
         throw_error(
@@ -746,9 +909,25 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     job.seed = film.seed;
     world.width = film.width;
     world.height = film.height;
-    check_film_memory(film.width, film.height, job.spp, world.options);
+    world.layers.clear();
+    world.layer_names.clear();
+    if (world.options.layers) {
+        std::vector<std::string> groups =
+            world.info ? world.info->light_groups : std::vector<std::string>{};
+        if (groups.empty()) groups.push_back("default");
+        world.layer_names = layer_channel_names(groups);
+        job.layers = true;
+        job.groups = static_cast<uint32_t>(groups.size());
+        job.layer_channels = static_cast<uint32_t>(world.layer_names.size());
+        job.camera_position = camera.position;
+        job.camera_forward = normalize(camera.look_at - camera.position);
+    }
+    check_film_memory(film.width, film.height, job.spp, world.options, job.layer_channels);
     world.image.assign(static_cast<std::size_t>(film.width) * film.height * 3, 0.0f);
     job.image = &world.image;
+    world.layers.assign(static_cast<std::size_t>(film.width) * film.height * job.layer_channels,
+                        0.0f);
+    job.layer_image = &world.layers;
 
     const uint32_t tiles_x = (film.width + kTileSize - 1) / kTileSize;
     const uint32_t tiles_y = (film.height + kTileSize - 1) / kTileSize;
@@ -762,7 +941,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     // Passes of doubling sample counts. Every pixel adds its samples in sample order whatever
     // the passes, so the sums after the last pass are those of a one-pass render, bit for bit.
     // A pass interrupted by a stop request is rolled back to the sums before it.
-    std::vector<float> before;
+    std::vector<float> before, layers_before;
     uint32_t reached = 0, passes = 0;
     const auto run_tiles = [&](uint32_t first, uint32_t end, bool count_progress) {
         arena.execute([&] {
@@ -803,7 +982,10 @@ void render_image(World& world, const Camera& camera, const Film& film) {
         std::vector<float> preview(world.image.size(), 0.0f);
         job.image = &preview;
         job.stride = stride;
+        const bool layers = job.layers;
+        job.layers = false;  // the preview pass shows the beauty only
         run_tiles(0, 1, false);
+        job.layers = layers;
         job.image = &world.image;
         job.stride = 1;
         if (!stopped) {
@@ -819,7 +1001,8 @@ void render_image(World& world, const Camera& camera, const Film& film) {
                         for (std::size_t c = 0; c < 3; ++c) preview[to + c] = preview[from + c];
                 }
             }
-            world.options.on_pass(PassImage{preview, film.width, film.height, 0, job.spp, stride});
+            world.options.on_pass(
+                PassImage{preview, film.width, film.height, 0, job.spp, stride, seconds_since(t0)});
         }
     }
     const std::vector<uint32_t> ends =
@@ -827,13 +1010,19 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     for (const uint32_t end : ends) {
         const uint32_t first = reached;
         // The first pass starts from black: rolling it back needs no copy.
-        if (stop && reached > 0) before = world.image;
+        if (stop && reached > 0) {
+            before = world.image;
+            layers_before = world.layers;
+        }
         if (!stopped) run_tiles(first, end, true);
         if (stopped) {
-            if (reached > 0)
+            if (reached > 0) {
                 world.image.swap(before);
-            else
+                world.layers.swap(layers_before);
+            } else {
                 std::fill(world.image.begin(), world.image.end(), 0.0f);
+                std::fill(world.layers.begin(), world.layers.end(), 0.0f);
+            }
             break;
         }
         reached = end;
@@ -842,12 +1031,29 @@ void render_image(World& world, const Camera& camera, const Film& film) {
             std::vector<float> shown(world.image);
             const float inv = 1.0f / static_cast<float>(end);
             for (float& x : shown) x *= inv;
-            world.options.on_pass(PassImage{shown, film.width, film.height, end, job.spp, 1});
+            world.options.on_pass(
+                PassImage{shown, film.width, film.height, end, job.spp, 1, seconds_since(t0)});
         }
     }
 
     const float inv_spp = reached > 0 ? 1.0f / static_cast<float>(reached) : 0.0f;
     for (float& x : world.image) x *= inv_spp;
+    if (job.layers) {
+        // Coverage, albedo, glints and light groups: averages over all samples. Normal, depth
+        // and position: averages over the samples whose camera ray hit something (0 where none
+        // did: alpha 0), so that edges are not darkened towards the origin.
+        const std::size_t lc = job.layer_channels;
+        for (std::size_t p = 0; p < world.layers.size(); p += lc) {
+            float* v = &world.layers[p];
+            const float hits = v[kAovA];
+            const float inv_hits = hits > 0.0f ? 1.0f / hits : 0.0f;
+            for (std::size_t c = 0; c < lc; ++c) {
+                const bool per_hit =
+                    (c >= kAovN && c < kAovN + 3) || c == kAovZ || (c >= kAovP && c < kAovP + 3);
+                v[c] *= per_hit ? inv_hits : inv_spp;
+            }
+        }
+    }
     RenderStats& st = world.stats;
     st.camera_rays = job.camera_rays;
     st.bounce_rays = job.bounce_rays;

@@ -196,8 +196,9 @@ void LightTable::add_point(const PointEmitter& e) {
 void LightTable::add_distant(const DistantEmitter& e) {
     distant_.push_back(e);
 }
-void LightTable::set_environment(EnvironmentMap env) {
+void LightTable::set_environment(EnvironmentMap env, uint32_t group) {
     env_ = std::move(env);
+    env_group_ = group;
 }
 
 void LightTable::finalize(float scene_radius) {
@@ -277,7 +278,8 @@ float bsdf_hit_weight(Strategy strategy, bool after_delta, float bsdf_pdf, float
     return 1.0f;
 }
 
-Vec3 LightTable::escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy strategy) const {
+Vec3 LightTable::escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy strategy,
+                         Vec3* by_group) const {
     Vec3 l(0.0f);
     const auto first_distant =
         static_cast<uint32_t>(area_.size() + spheres_.size() + points_.size());
@@ -286,12 +288,17 @@ Vec3 LightTable::escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy stra
         if (e.solid_angle <= 0.0f || dot(d, e.direction) < e.cos_radius) continue;
         const float light_pdf =
             selection_.pmf(first_distant + static_cast<uint32_t>(k)) / e.solid_angle;
-        l += e.radiance * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
+        const Vec3 part = e.radiance * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
+        l += part;
+        if (by_group) by_group[e.group] += part;
     }
     if (!env_.empty()) {
         const float light_pdf =
             selection_.pmf(first_distant + static_cast<uint32_t>(distant_.size())) * env_.pdf(d);
-        l += env_.eval(d) * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
+        const Vec3 part =
+            env_.eval(d) * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
+        l += part;
+        if (by_group) by_group[env_group_] += part;
     }
     return l;
 }
@@ -305,6 +312,12 @@ LightSample LightTable::sample(Vec3 p, float u0, float u1, float u2) const {
     const auto n_sphere = static_cast<uint32_t>(spheres_.size());
     const auto n_point = static_cast<uint32_t>(points_.size());
     const auto n_distant = static_cast<uint32_t>(distant_.size());
+    s.group = id < n_area                        ? area_[id].group
+              : id < n_area + n_sphere           ? spheres_[id - n_area].group
+              : id < n_area + n_sphere + n_point ? points_[id - n_area - n_sphere].group
+              : id < n_area + n_sphere + n_point + n_distant
+                  ? distant_[id - n_area - n_sphere - n_point].group
+                  : env_group_;
 
     const auto towards = [&](Vec3 q) {
         const Vec3 d = q - p;

@@ -44,6 +44,7 @@ struct AreaEmitter {
     Vec3 radiance;      ///< working-space RGB, W/(m^2 sr)
     bool parallelogram = false;
     bool two_sided = false;
+    uint32_t group = 0;  ///< light group (render layers)
 };
 
 /** A spherical emitter. */
@@ -51,6 +52,7 @@ struct SphereEmitter {
     Vec3 center;
     float radius = 0.0f;
     Vec3 radiance;
+    uint32_t group = 0;
 };
 
 /** A point or spot light. */
@@ -60,6 +62,7 @@ struct PointEmitter {
     Vec3 axis{0, -1, 0};      ///< spot: unit direction of the cone
     float cos_outer = -1.0f;  ///< spot: no light beyond this angle (-1: a point light)
     float cos_inner = -1.0f;  ///< spot: full intensity within this angle
+    uint32_t group = 0;
 };
 
 /** A light at infinity. */
@@ -68,6 +71,7 @@ struct DistantEmitter {
     Vec3 radiance;             ///< disk: radiance; delta: irradiance (W/m^2)
     float cos_radius = 1.0f;   ///< cosine of the angular radius; 1 = delta
     float solid_angle = 0.0f;  ///< 2 pi (1 - cos r), computed stably; 0 = delta
+    uint32_t group = 0;
 };
 
 /** A lat-long environment map in the working space. */
@@ -106,6 +110,7 @@ struct LightSample {
     Vec3 radiance;      ///< radiance (or, for delta lights, irradiance-like value) arriving
     float pdf = 0.0f;  ///< solid-angle pdf with selection; delta lights: selection pmf; 0 = invalid
     bool delta = false;  ///< a delta light: no MIS with BSDF sampling
+    uint32_t group = 0;  ///< the sampled light's light group
 };
 
 /** The frame's lights. Build with add_*, then finalize(). */
@@ -115,7 +120,7 @@ public:
     uint32_t add_sphere(const SphereEmitter& e);
     void add_point(const PointEmitter& e);
     void add_distant(const DistantEmitter& e);
-    void set_environment(EnvironmentMap env);
+    void set_environment(EnvironmentMap env, uint32_t group = 0);
     /** Builds the selection distribution; scene_radius sizes the power of lights at infinity. */
     void finalize(float scene_radius);
 
@@ -137,8 +142,10 @@ public:
     /** Solid-angle pdf that sample() picks sphere i from p. */
     float sphere_pdf(uint32_t i, Vec3 p) const;
     /** Radiance arriving along an escaped ray from env map and sun disks, each weighted by the
-     *  power heuristic against light sampling (weight 1 after a delta bounce). */
-    Vec3 escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy strategy = Strategy::Mis) const;
+     *  power heuristic against light sampling (weight 1 after a delta bounce). by_group, when
+     *  not null, receives each light's part added at its light group's index. */
+    Vec3 escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy strategy = Strategy::Mis,
+                 Vec3* by_group = nullptr) const;
 
 private:
     std::vector<AreaEmitter> area_;
@@ -146,6 +153,7 @@ private:
     std::vector<PointEmitter> points_;
     std::vector<DistantEmitter> distant_;
     EnvironmentMap env_;
+    uint32_t env_group_ = 0;
     Distribution1D selection_;  ///< over [area..., spheres..., points..., distant..., env]
 };
 

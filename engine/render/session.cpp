@@ -99,10 +99,11 @@ ReloadReport Session::load(const std::string& scene) {
     const bool run_subdiv = has("SubdivSurface") || has("file:cage") ||
                             (auto_levels && (has("Transform") || has("Camera") || has("Film")));
     const bool geometry = run_mesh || run_subdiv;
-    const bool run_materials = has("Material") || has("MaterialRef") || has("file:plugin");
+    const bool run_materials =
+        has("Material") || has("MaterialRef") || has("file:plugin") || has("file:texture");
     const bool run_lights = geometry || has("Transform") || has("QuadLight") ||
-                            has("SphereLight") || has("Emission") || has("PointLight") ||
-                            has("DistantLight") || has("Environment") ||
+                            has("SphereLight") || has("Emission") || has("LightGroup") ||
+                            has("PointLight") || has("DistantLight") || has("Environment") ||
                             has("EnvironmentMapFile") || has("file:env");
     const bool run_accel = geometry || has("Transform") || has("MaterialRef") || has("QuadLight") ||
                            has("SphereLight") || has("Emission") || (emitters && run_lights);
@@ -204,8 +205,16 @@ ReloadReport Session::load(const std::string& scene) {
     if (auto* p = live_->find_pool<MeshFile>()) record("mesh", p->columns().path);
     if (auto* p = live_->find_pool<SubdivSurface>()) record("cage", p->columns().path);
     if (auto* p = live_->find_pool<EnvironmentMapFile>()) record("env", p->columns().path);
-    for (const auto& m : world_->materials)
-        if (m) files_["plugin"][m->plugin().path()] = file_identity(m->plugin().path());
+    for (const auto& m : world_->materials) {
+        if (!m) continue;
+        files_["plugin"][m->plugin().path()] = file_identity(m->plugin().path());
+        // Textures: an edited image makes its material anew (the material cache's key holds
+        // the file's identity) and converts the image again.
+        for (const TextureBinding& t : m->textures())
+            files_["texture"][t.ref.path] = file_identity(t.ref.path);
+        if (m->map_kind() != MapKind::None)
+            files_["texture"][m->map().ref.path] = file_identity(m->map().ref.path);
+    }
     files_["ocio"][color_->path()] = file_identity(color_->path());
     rep.built = cache_.built;
     rep.reused = cache_.reused;

@@ -207,6 +207,15 @@ void warn_about_missing_uvs(ecs::Registry& r, World& w) {
     }
 }
 
+namespace {
+
+/** The light group of entity e (every light entity has one from the loader). */
+uint32_t light_group(ecs::Registry& r, ecs::Entity e) {
+    return r.has<LightGroup>(e) ? r.get<LightGroup>(e).group : 0;
+}
+
+}  // namespace
+
 void system_area_lights(ecs::Registry& r, World& w) {
     // Emissive meshes: one emitter per world-space triangle.
     if (auto* emission = r.find_pool<Emission>()) {
@@ -217,6 +226,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
             const TriangleMesh& mesh = w.geometry.mesh(r.get<TriangleMeshRef>(e).mesh);
             const Affine xf = r.get<Transform>(e).to_world;
             const Affine nxf = xf.normal_matrix();
+            const uint32_t group = light_group(r, e);
             refs.emplace_back(e, static_cast<int32_t>(w.lights.area_count()));
             for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
                 const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
@@ -238,6 +248,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
                     if (dot(nw, a.n) < 0.0f) a.n = -a.n;
                 }
                 a.radiance = emission->columns().radiance[i];
+                a.group = group;
                 w.lights.add_area(a);
             }
         }
@@ -257,6 +268,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
             a.radiance = q.radiance;
             a.parallelogram = true;
             a.two_sided = q.two_sided;
+            a.group = light_group(r, quads->entities()[i]);
             w.lights.add_area(a);
             w.quad_vertices.insert(
                 w.quad_vertices.end(),
@@ -266,7 +278,8 @@ void system_area_lights(ecs::Registry& r, World& w) {
     if (auto* spheres = r.find_pool<SphereLight>()) {
         for (std::size_t i = 0; i < spheres->size(); ++i) {
             const SphereLight l = spheres->columns().get(i);
-            w.lights.add_sphere({l.center, l.radius, l.radiance});
+            w.lights.add_sphere(
+                {l.center, l.radius, l.radiance, light_group(r, spheres->entities()[i])});
             w.sphere_lights.insert(w.sphere_lights.end(),
                                    {l.center.x, l.center.y, l.center.z, l.radius});
         }
@@ -277,13 +290,15 @@ void system_point_lights(ecs::Registry& r, World& w) {
     if (auto* points = r.find_pool<PointLight>())
         for (std::size_t i = 0; i < points->size(); ++i) {
             const PointLight p = points->columns().get(i);
-            w.lights.add_point({p.position, p.intensity, p.axis, p.cos_outer, p.cos_inner});
+            w.lights.add_point({p.position, p.intensity, p.axis, p.cos_outer, p.cos_inner,
+                                light_group(r, points->entities()[i])});
         }
     if (auto* distant = r.find_pool<DistantLight>())
         for (std::size_t i = 0; i < distant->size(); ++i) {
             const DistantLight d = distant->columns().get(i);
             DistantEmitter e;
             e.direction = d.direction;
+            e.group = light_group(r, distant->entities()[i]);
             // Below 1e-3 radians (0.057 degrees; the sun is 0.27) a cone's cosine is 1 to float
             // precision and its sampling breaks down (a radius of 1e-20 rendered black): such a
             // light is its limit, a delta direction with the same irradiance.
@@ -305,12 +320,16 @@ void system_point_lights(ecs::Registry& r, World& w) {
 void system_environment(ecs::Registry& r, World& w) {
     w.environment = Vec3(0.0f);
     if (auto* pool = r.find_pool<Environment>())
-        for (const Vec3& c : pool->columns().radiance) w.environment += c;
+        for (std::size_t i = 0; i < pool->size(); ++i) {
+            w.environment += pool->columns().radiance[i];
+            w.environment_group = light_group(r, pool->entities()[i]);
+        }
     if (auto* maps = r.find_pool<EnvironmentMapFile>())
         for (std::size_t i = 0; i < maps->size(); ++i) {
             const EnvironmentMapFile f = maps->columns().get(i);
             if (!w.cache) {  // one frame: no copy of the map
-                w.lights.set_environment(load_environment_map(f, *w.color));
+                w.lights.set_environment(load_environment_map(f, *w.color),
+                                         light_group(r, maps->entities()[i]));
                 continue;
             }
             const auto env = build_cached(
@@ -324,7 +343,7 @@ void system_environment(ecs::Registry& r, World& w) {
                         load_environment_map(f, *w.color));
                 },
                 "environment map " + f.path);
-            w.lights.set_environment(*env);
+            w.lights.set_environment(*env, light_group(r, maps->entities()[i]));
         }
 }
 

@@ -28,6 +28,7 @@ struct PassImage {
     uint32_t spp;     ///< samples per pixel reached; 0 for a preview pass
     uint32_t target;  ///< samples per pixel the render is going to
     uint32_t block;   ///< 1, or the block side of a preview pass (each block one value)
+    double seconds;   ///< render time so far
 };
 
 /** How to render, from the command line; not part of the scene. */
@@ -51,6 +52,9 @@ struct RenderOptions {
      *  preview_stride() pixels, shown through on_pass and then dropped): the first picture after
      *  an edit in a fraction of a full pass. The final image does not depend on it. */
     bool preview_pass = false;
+    /** Render layers beside the beauty (world.layers): coverage, albedo, normal, depth,
+     *  position, glints, one per light group. */
+    bool layers = false;
     /** Where converted textures are cached (empty: $SPANGLE_TEXTURE_CACHE or the user's cache
      *  directory) and how much memory the texture tile cache may hold. */
     std::string texture_cache;
@@ -67,7 +71,12 @@ uint32_t preview_stride(uint32_t width, uint32_t height);
 
 /** Refuses (SpangleError naming the settings to lower) a film whose memory while rendering --
  *  the image and the copies passes need -- would not fit the memory available now. */
-void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const RenderOptions& options);
+void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const RenderOptions& options,
+                       uint32_t layer_channels = 0);
+
+/** The render layers' channel names in film order (A, albedo.R/G/B, N.X/Y/Z, Z, P.X/Y/Z,
+ *  glints.R/G/B, then lightgroup_<name>.R/G/B per light group). */
+std::vector<std::string> layer_channel_names(const std::vector<std::string>& light_groups);
 
 /** Counters of one render. */
 struct RenderStats {
@@ -179,12 +188,16 @@ struct World {
     std::vector<float> sphere_lights;    ///< area_lights: x, y, z, radius per sphere
     uint32_t quad_light_first = 0;       ///< light-table index of the first quad
     Vec3 environment;                    ///< environment
+    uint32_t environment_group = 0;      ///< environment: its light group
     std::vector<Instance> instances;     ///< accelerate
     std::shared_ptr<EmbreeScene> accel;  ///< accelerate (kept across reloads: BLAS are reused)
 
     uint32_t width = 0, height = 0;  ///< render
     std::vector<float> image;        ///< render: RGB, working space, row-major
-    RenderStats stats;               ///< render
+    /** render, with options.layers: layer_names.size() values per pixel, row-major. */
+    std::vector<float> layers;
+    std::vector<std::string> layer_names;
+    RenderStats stats;  ///< render
 };
 
 }  // namespace spangle

@@ -132,6 +132,10 @@ SPANGLE_COMPONENT(PointLight, SPANGLE_POINT_LIGHT_FIELDS);
 /** A light at infinity: a delta direction or a sun disk. */
 SPANGLE_COMPONENT(DistantLight, SPANGLE_DISTANT_LIGHT_FIELDS);
 
+#define SPANGLE_LIGHT_GROUP_FIELDS(X) X(uint32_t, group, "index into SceneInfo::light_groups")
+/** The light group of a light, an emissive object or the environment (render layers). */
+SPANGLE_COMPONENT(LightGroup, SPANGLE_LIGHT_GROUP_FIELDS);
+
 #define SPANGLE_ENVIRONMENT_FIELDS(X) X(Vec3, radiance, "constant radiance seen by escaping rays")
 /** A constant-colour environment. */
 SPANGLE_COMPONENT(Environment, SPANGLE_ENVIRONMENT_FIELDS);

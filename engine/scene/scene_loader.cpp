@@ -417,13 +417,31 @@ SubdivSurface parse_subdiv(const ParseContext& ctx, const toml::table& t, std::s
     return s;
 }
 
+/** The `light_group` of a light, an emissive object or the environment, as an index into
+ *  `groups` (added on first use); "default" when the table names none. */
+LightGroup parse_light_group(TableReader& r, std::vector<std::string>& groups) {
+    const std::string name = r.string("light_group", "default");
+    if (name.empty() || name.size() > 64 ||
+        name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_") !=
+            std::string::npos)
+        throw_error(r.loc("light_group"),
+                    "'light_group' must be 1 to 64 letters, digits or underscores (it names a "
+                    "layer of the EXR), got \"{}\"",
+                    name);
+    auto it = std::find(groups.begin(), groups.end(), name);
+    if (it == groups.end()) it = groups.insert(groups.end(), name);
+    return LightGroup{static_cast<uint32_t>(it - groups.begin())};
+}
+
 /** One [[light]] table of any type. */
-void parse_light(const ParseContext& ctx, TableReader& r, ecs::Registry& registry) {
+void parse_light(const ParseContext& ctx, TableReader& r, ecs::Registry& registry,
+                 std::vector<std::string>& groups) {
     const std::string type = r.string("type");
     const Vec3 color = read_color(ctx, r, "color", {1, 1, 1});
     const auto intensity = static_cast<float>(r.number("intensity", 1.0, kNonNegative));
     const Vec3 value = color * intensity;
     const ecs::Entity e = registry.create();
+    registry.put(e, parse_light_group(r, groups));
     if (type == "quad") {
         QuadLight q;
         q.corner = r.vec3("corner");
@@ -595,6 +613,8 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
     if (const toml::table* t = top.table("environment")) {
         TableReader r(*t, path, "[environment]");
         const auto k = static_cast<float>(r.number("intensity", 1.0, kNonNegative));
+        const ecs::Entity env = registry.create();
+        registry.put(env, parse_light_group(r, info.light_groups));
         if (r.has("map")) {
             if (r.has("color"))
                 throw_error(r.loc("color"),
@@ -609,11 +629,11 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
             m.rotation_deg = static_cast<float>(r.number("rotation", 0.0, {-360.0, 360.0}));
             m.intensity = k;
             r.finish();
-            registry.put(registry.create(), m);
+            registry.put(env, m);
         } else {
             const Vec3 c = read_color(ctx, r, "color", {0, 0, 0});
             r.finish();
-            registry.put(registry.create(), Environment{c * k});
+            registry.put(env, Environment{c * k});
         }
     }
 
@@ -655,6 +675,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                     read_color(ctx, r, "emission", {0, 0, 0}) *
                     static_cast<float>(r.number("emission_intensity", 1.0, kNonNegative));
                 if (max_component(le) > 0.0f) registry.put(e, Emission{le});
+                registry.put(e, parse_light_group(r, info.light_groups));
             }
             r.finish();
         }
@@ -663,7 +684,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
     if (const toml::array* lights = top.table_array("light")) {
         for (std::size_t i = 0; i < lights->size(); ++i) {
             TableReader r(*(*lights)[i].as_table(), path, fmt::format("[[light]] #{}", i + 1));
-            parse_light(ctx, r, registry);
+            parse_light(ctx, r, registry, info.light_groups);
             r.finish();
         }
     }

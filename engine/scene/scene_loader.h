@@ -22,6 +22,10 @@ struct SceneInfo {
     /** Colour spaces that stood in for names the config lacks ("file:line: 'ACEScg' is not in
      *  the OCIO config; using its scene_linear role, ..."), for the caller to warn about. */
     std::vector<std::string> color_notes;
+    /** Light groups, in order of first use: each light, emissive object and environment names
+     *  one with `light_group` ("default" when it does not). The render layers have one per group.
+     */
+    std::vector<std::string> light_groups;
 };
 
 /** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.

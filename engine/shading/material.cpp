@@ -155,7 +155,7 @@ ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Mate
         out.strings.emplace_back(d.default_string ? d.default_string : "");
         const ParamEntry* p = given[k];
         if (p && p->kind == ParamEntry::Kind::Texture) {
-            // The plugin reads the texture's values per point; create() sees the default.
+            // The plugin reads the texture's values per point; create() sees its average.
             if (!(d.flags & SPANGLE_PARAM_TEXTURABLE) ||
                 (d.type != SPANGLE_PARAM_FLOAT && d.type != SPANGLE_PARAM_COLOR)) {
                 std::vector<std::string> can;
@@ -267,14 +267,10 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
                         m.name, m.plugin, m.model, did_you_mean(m.model, plugin->model_names()),
                         fmt::join(plugin->model_names(), ", "));
     }
-    const ValidatedParams params = validate_params(*model, m, host.color());
-    const SpangleParams_v3 view = params.view();
-    char error[512] = {0};
-    void* instance = model->create(&view, host.api(), error, sizeof(error));
-    if (!instance)
-        throw_error(m.loc, "material '{}': plugin '{}' could not create model '{}': {}", m.name,
-                    m.plugin, model->name, error[0] ? error : "no reason given");
-    auto mat = std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
+    ValidatedParams params = validate_params(*model, m, host.color());
+    // Textures first: create() sees a textured parameter's average over the image (the
+    // coarsest level of its box-filtered mips), scaled and clamped like the per-point values
+    // (the flake model biases its colour table towards base_color's hue, for instance).
     std::vector<TextureBinding> textures;
     for (const auto& [k, p] : params.textured) {
         const SpangleParamDesc_v3& d = model->params[k];
@@ -285,8 +281,27 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
         b.hi = static_cast<float>(d.max_value);
         b.ref = p->texture;
         b.texture = host.textures().open(p->texture, d.type == SPANGLE_PARAM_COLOR, p->loc);
+        TextureQuery whole;
+        whole.resize(1);
+        whole.s[0] = whole.t[0] = 0.5f;
+        whole.dsdx[0] = whole.dtdy[0] = 1.0f;
+        whole.dtdx[0] = whole.dsdy[0] = 0.0f;
+        float mean[3] = {0, 0, 0};
+        host.textures().lookup(*b.texture, 0, whole, 1, b.channels, mean);
+        for (int c = 0; c < b.channels; ++c)
+            params.values[k].number[c] =
+                std::clamp(static_cast<double>(mean[c] * b.ref.scale[c]), d.min_value, d.max_value);
+        if (b.channels == 1)
+            params.values[k].number[1] = params.values[k].number[2] = params.values[k].number[0];
         textures.push_back(std::move(b));
     }
+    const SpangleParams_v3 view = params.view();
+    char error[512] = {0};
+    void* instance = model->create(&view, host.api(), error, sizeof(error));
+    if (!instance)
+        throw_error(m.loc, "material '{}': plugin '{}' could not create model '{}': {}", m.name,
+                    m.plugin, model->name, error[0] ? error : "no reason given");
+    auto mat = std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
     MapKind kind = MapKind::None;
     TextureBinding map;
     for (const ParamEntry& p : m.maps) {

@@ -90,7 +90,8 @@ private:
 struct ValidatedParams {
     std::vector<SpangleParamValue_v3> values;  ///< one per schema entry
     std::vector<std::string> strings;          ///< backing text for STRING values
-    /** Parameters given as textures: (schema index, the entry). create() sees their defaults. */
+    /** Parameters given as textures: (schema index, the entry); create_material() gives
+     *  create() their images' averages. */
     std::vector<std::pair<uint32_t, const ParamEntry*>> textured;
     SpangleParams_v3 view() const { return {values.data(), static_cast<uint32_t>(values.size())}; }
 };

@@ -65,9 +65,8 @@ TextureService::TextureService(const ColorConfig& color, const Logger& log,
                                TextureSettings settings)
     : color_(color), log_(log), settings_(std::move(settings)) {}
 
-TextureService::~TextureService() {
-    if (system_ && api_) api_->destroy(system_);
-}
+// The texture system is the process's (see the module): nothing to free.
+TextureService::~TextureService() = default;
 
 void* TextureService::system() {
     if (!system_) {

@@ -16,6 +16,17 @@ export OCIO="$REPO/tests/ocio/foreign.ocio"
 grep -q "small_lit.toml:3:1: default (no key written) colour space 'lin_rec709' is not in the OCIO config" "$T/err.txt" ||
     fail "no warning for the stand-in of the default colour space"
 oiiotool --info -v "$T/a.exr" | grep -q 'colorSpace: "Linear Rec.709"' || fail "EXR not in the config's scene_linear space"
+# No XYZ role to measure the working space through, but "Linear Rec.709" is lin_rec709 by name:
+# the EXR still carries its chromaticities.
+oiiotool --info -v "$T/a.exr" | grep -q 'chromaticities: 0.64, 0.33, 0.3, 0.6, 0.15, 0.06, 0.3127, 0.329' ||
+    fail "no chromaticities derived for the foreign working space"
+# A working space known by no name and no way to measure it: a clear warning, no attribute.
+sed 's/Linear Rec.709/Studio Linear/g' "$OCIO" > "$T/odd.ocio"
+OCIO="$T/odd.ocio" "$S" render "$REPO/tests/scenes/small_lit.toml" -o "$T/odd.exr" -q 2> "$T/err.txt" ||
+    fail "small_lit did not render with an unknown working space"
+grep -q "warning: the EXR carries no chromaticities attribute: the working space 'Studio Linear'" "$T/err.txt" ||
+    fail "no warning about the missing chromaticities"
+oiiotool --info -v "$T/odd.exr" | grep -q chromaticities && fail "chromaticities made up for an unknown space"
 
 "$S" render "$REPO/assets/scenes/demo.toml" -o "$T/b.exr" --size 32x18 --spp 1 -q 2> "$T/err.txt" || fail "demo did not render"
 grep -q "demo.toml:12:17: colour space 'ACEScg' is not in the OCIO config .*; using its scene_linear role, 'Linear Rec.709'" "$T/err.txt" ||

@@ -38,10 +38,63 @@ TEST(ColorConfig, DisplayViewEncodesSrgb) {
     ColorConfig c = shipped_config();
     c.set_working_space("lin_rec709");
     float rgb[3] = {0.214041f, 2.0f, -1.0f};
-    c.to_display(c.default_display(), c.default_view(c.default_display()), rgb, 1);
+    c.to_display("sRGB", "Standard", rgb, 1);
     EXPECT_NEAR(rgb[0], 0.5f, 1e-4f);
     EXPECT_NEAR(rgb[1], 1.0f, 1e-6f) << "the Standard view clips above 1";
     EXPECT_NEAR(rgb[2], 0.0f, 1e-6f) << "and below 0";
+}
+
+/** sRGB decoding (the IEC 61966-2-1 curve). */
+float srgb_decode(float v) {
+    return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+TEST(ColorConfig, TheDefaultViewIsToneMappedAndKeepsABrightGlintsColour) {
+    ColorConfig c = shipped_config();
+    c.set_working_space("lin_rec709");
+    std::string display, view;
+    c.resolve_view(display, view);
+    EXPECT_EQ(display, "sRGB");
+    EXPECT_EQ(view, "Glint");
+    // The view's formula (assets/tools/make_glint_lut.py): every channel times d / m, m the
+    // largest, d = m / (m + 0.8). The LUT between log encodings must reproduce it.
+    const float colours[][3] = {{8.0f, 2.5f, 1.2f},  {0.18f, 0.18f, 0.18f}, {1.0f, 1.0f, 1.0f},
+                                {0.05f, 0.3f, 0.9f}, {30.0f, 0.5f, 12.0f},  {0.6f, 0.01f, 0.2f},
+                                {120.f, 90.f, 100.f}};
+    for (const auto& in : colours) {
+        float out[3] = {in[0], in[1], in[2]};
+        c.to_display("sRGB", "Glint", out, 1);
+        const float m = std::max({in[0], in[1], in[2]});
+        const float d = m / (m + 0.8f);
+        // Tolerance: linear interpolation of log2 d between nodes h = 0.625 stops apart errs by
+        // at most h^2 / 8 times the curvature of log2(m + 0.8) in stops (<= ln 2 / 4): 0.0085
+        // in log2, 0.6% relative.
+        for (int ch = 0; ch < 3; ++ch)
+            EXPECT_NEAR(srgb_decode(out[ch]), in[ch] * d / m, 0.006f * (in[ch] * d / m) + 2e-4f)
+                << "input (" << in[0] << ", " << in[1] << ", " << in[2] << ") channel " << ch;
+    }
+    // An orange glint eight times brighter than white: Standard clips it to white, the Glint
+    // view keeps it orange (channel ratios 8 : 2.5 : 1.2), ACES 1.0 takes it near white.
+    float glint[3] = {8.0f, 2.5f, 1.2f};
+    float standard[3] = {glint[0], glint[1], glint[2]}, kept[3] = {glint[0], glint[1], glint[2]},
+          aces[3] = {glint[0], glint[1], glint[2]};
+    c.to_display("sRGB", "Standard", standard, 1);
+    c.to_display("sRGB", "Glint", kept, 1);
+    c.to_display("sRGB", "ACES 1.0 - SDR Video", aces, 1);
+    for (float v : standard) EXPECT_NEAR(v, 1.0f, 1e-6f) << "Standard clips it to white";
+    EXPECT_NEAR(srgb_decode(kept[1]) / srgb_decode(kept[0]), 2.5f / 8.0f, 0.01f);
+    EXPECT_NEAR(srgb_decode(kept[2]) / srgb_decode(kept[0]), 1.2f / 8.0f, 0.01f);
+    EXPECT_GT(aces[2], 0.8f) << "ACES 1.0 desaturates it (why Glint is the default)";
+    // Unknown names say what exists.
+    std::string bad_view = "Filmic";
+    try {
+        c.resolve_view(display, bad_view);
+        FAIL() << "an unknown view was accepted";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("views: Glint, ACES 1.0 - SDR Video, Standard, Raw"),
+                  std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(ColorConfig, AliasesAndUnknownNames) {

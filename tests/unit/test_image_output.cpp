@@ -115,7 +115,9 @@ TEST(PngPreview, GoesThroughTheDisplayView) {
     ColorConfig color = test::shipped_config();
     color.set_working_space("lin_rec709");
     const std::vector<float> rgb = {0.5f, 0.0f, 4.0f};
-    write_png_preview(dir.file("p.png"), rgb, 1, 1, color);
+    PngOptions standard;
+    standard.view = "Standard";
+    write_png_preview(dir.file("p.png"), rgb, 1, 1, color, standard);
     auto in = OIIO::ImageInput::open(dir.file("p.png"));
     ASSERT_TRUE(in);
     unsigned char px[3];
@@ -123,6 +125,14 @@ TEST(PngPreview, GoesThroughTheDisplayView) {
     EXPECT_EQ(px[0], 188) << "sRGB encoding of 0.5 is 0.7354, 187.5 in 8 bits";
     EXPECT_EQ(px[1], 0);
     EXPECT_EQ(px[2], 255) << "clipped";
+    // The default view (Glint): both channels times d / m = (4 / 4.8) / 4, ratio kept.
+    write_png_preview(dir.file("g.png"), rgb, 1, 1, color);
+    in = OIIO::ImageInput::open(dir.file("g.png"));
+    ASSERT_TRUE(in);
+    ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px));
+    EXPECT_EQ(px[0], 91) << "sRGB encoding of 0.5 * 0.8333 / 4 = 0.104 is 0.3585, 91.4 in 8 bits";
+    EXPECT_LE(px[1], 1);
+    EXPECT_EQ(px[2], 235) << "sRGB encoding of 0.8333 is 0.9216, 235.0 in 8 bits";
 }
 
 }  // namespace

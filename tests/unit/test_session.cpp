@@ -11,6 +11,7 @@
 #include <regex>
 #include <sstream>
 
+#include "color/image_output.h"
 #include "render/frame.h"
 #include "render/session.h"
 #include "test_support.h"
@@ -236,6 +237,60 @@ TEST(Session, ReloadRunsOnlyWhatTheChangeNeeds) {
     session.render();
     const FrameResult cold = render(scene.file.string(), true, 2);
     EXPECT_EQ(session.world().image, cold.image);
+}
+
+TEST(Session, AnEditedTextureRemakesItsMaterial) {
+    test::TempDir dir("session_texture");
+    const ColorConfig color = test::shipped_config();
+    const auto write_flat = [&](float value) {
+        ExrOptions o;
+        o.half = false;
+        write_exr(dir.file("albedo.exr"), std::vector<float>(3 * 4 * 4, value), 4, 4, color, o);
+    };
+    write_flat(0.2f);
+    std::ofstream(dir.file("scene.toml")) << fmt::format(R"(
+[render]
+width = 16
+height = 16
+working_space = "lin_rec709"
+[camera]
+position = [0, 3, 0.01]
+look_at = [0, 0, 0]
+[environment]
+color = [1, 1, 1]
+[[material]]
+name = "m"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = {{ texture = "albedo.exr" }} }}
+[[object]]
+mesh = "{}/meshes/plane.ply"
+material = "m"
+scale = 4
+)",
+                                                         test::asset_dir());
+    RenderOptions options;
+    options.threads = 2;
+    options.spp_override = 2;
+    options.texture_cache = dir.file("cache");
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(dir.file("scene.toml"));
+    session.render();
+    const std::vector<float> before = session.world().image;
+    EXPECT_TRUE(std::find(session.watched_files().begin(), session.watched_files().end(),
+                          dir.file("albedo.exr")) != session.watched_files().end());
+
+    write_flat(0.6f);
+    const ReloadReport rep = session.load(dir.file("scene.toml"));
+    EXPECT_EQ(rep.changed, (std::vector<std::string>{"texture file " + dir.file("albedo.exr")}));
+    EXPECT_EQ(rep.ran, (std::vector<std::string>{"materials"}));
+    session.render();
+    // A diffuse plane filling the view under a white sky of radiance 1 reflects its albedo:
+    // 0.2, then the edited image's 0.6, in every pixel.
+    for (std::size_t i = 0; i < before.size(); ++i) {
+        ASSERT_NEAR(before[i], 0.2f, 1e-3f) << "value " << i;
+        ASSERT_NEAR(session.world().image[i], 0.6f, 1e-3f) << "value " << i;
+    }
 }
 
 TEST(Session, RegistryDiffIgnoresWhereValuesAreWritten) {

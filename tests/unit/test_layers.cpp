@@ -1,0 +1,136 @@
+// Render layers (--layers) on an analytic scene: a square seen head-on that covers exactly the
+// middle quarter of the image, lit by three light groups. The light-group layers add up to the
+// beauty, alpha is the square's coverage, depth, normal and position are the square's, the
+// glints are part of the beauty, and turning layers on leaves the beauty bit for bit alone.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "render/frame.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+/** A 1.2 m square at z = 0 facing a camera 3 m away whose view is 2.4 m wide: with a box filter
+ *  the square covers pixels [16, 48) of a 64 x 64 image exactly. */
+std::string square_scene() {
+    return fmt::format(R"(
+[render]
+width = 64
+height = 64
+spp = 16
+max_depth = 3
+filter = "box"
+working_space = "lin_rec709"
+[camera]
+position = [0, 0, 3]
+look_at = [0, 0, 0]
+fov = {}
+[environment]
+color = [0.2, 0.3, 0.5]
+light_group = "sky"
+[[material]]
+name = "glitter"
+plugin = "flake"
+params = {{ base_color = 0.3, flake_weight = 0.5, density = 200000, flake_roughness = 0.3, gamma = 2, min_flakes = 5000, max_flakes = 10000 }}
+[[object]]
+mesh = "{}/meshes/plane.ply"
+material = "glitter"
+rotate = [90, 0, 0]
+scale = 0.6
+[[light]]
+type = "sphere"
+center = [0.4, 0.3, 3.2]
+radius = 0.03
+intensity = 3000
+light_group = "key"
+[[light]]
+type = "point"
+position = [-1, 1, 2]
+intensity = 2
+)",
+                       2.0 * std::atan(0.4) * 180.0 / 3.14159265358979323846, test::asset_dir());
+}
+
+FrameResult render_square(const test::TempDir& dir, bool layers) {
+    { std::ofstream(dir.file("square.toml")) << square_scene(); }
+    FrameRequest req;
+    req.scene = dir.file("square.toml");
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.layers = layers;
+    return render_frame(req);
+}
+
+TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
+    test::TempDir dir("layers");
+    const FrameResult r = render_square(dir, true);
+    const std::vector<std::string> want = {
+        "A", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "Z", "P.X", "P.Y", "P.Z",
+        "glints.R", "glints.G", "glints.B",
+        // Groups in order of first use: the environment's, the sphere's, the point light's
+        // (which names none).
+        "lightgroup_sky.R", "lightgroup_sky.G", "lightgroup_sky.B", "lightgroup_key.R",
+        "lightgroup_key.G", "lightgroup_key.B", "lightgroup_default.R", "lightgroup_default.G",
+        "lightgroup_default.B"};
+    ASSERT_EQ(r.layer_names, want);
+    const std::size_t lc = want.size(), w = r.width, h = r.height;
+    ASSERT_EQ(r.layers.size(), lc * w * h);
+    const auto at = [&](std::size_t x, std::size_t y, std::size_t c) {
+        return r.layers[(y * w + x) * lc + c];
+    };
+    double glint_sum = 0.0, sum_groups[3] = {0, 0, 0};
+    double alpha_sum = 0.0;
+    for (std::size_t y = 0; y < h; ++y)
+        for (std::size_t x = 0; x < w; ++x) {
+            const float* beauty = &r.image[3 * (y * w + x)];
+            for (std::size_t c = 0; c < 3; ++c) {
+                double groups = 0.0;
+                for (std::size_t g = 0; g < 3; ++g) {
+                    groups += at(x, y, 14 + 3 * g + c);
+                    sum_groups[g] += at(x, y, 14 + 3 * g + c);
+                }
+                ASSERT_NEAR(groups, beauty[c], 1e-5 * std::max(1.0f, beauty[c]))
+                    << "pixel (" << x << ", " << y << ") channel " << c;
+                const float glint = at(x, y, 11 + c);
+                ASSERT_GE(glint, 0.0f);
+                ASSERT_LE(glint, beauty[c] * (1.0f + 1e-5f) + 1e-6f) << "glints are part of it";
+                glint_sum += glint;
+            }
+            // Coverage: 1 on the square (pixels 16..47), 0 around it; the box filter keeps every
+            // sample inside its pixel.
+            const bool inside = x >= 16 && x < 48 && y >= 16 && y < 48;
+            const float a = at(x, y, 0);
+            alpha_sum += a;
+            ASSERT_NEAR(a, inside ? 1.0f : 0.0f, 1e-6f) << "alpha at (" << x << ", " << y << ")";
+            if (inside) {
+                // The square faces the camera at depth 3; its normal is +z, its points z = 0.
+                ASSERT_NEAR(at(x, y, 7), 3.0f, 1e-4f);
+                ASSERT_NEAR(at(x, y, 6), 1.0f, 1e-4f);
+                ASSERT_NEAR(at(x, y, 10), 0.0f, 1e-4f);
+                ASSERT_LE(std::fabs(at(x, y, 8)), 0.6f + 1e-4f);
+                ASSERT_GT(at(x, y, 1), 0.0f) << "albedo";
+            } else {
+                for (std::size_t c = 1; c < 11; ++c) ASSERT_EQ(at(x, y, c), 0.0f);
+            }
+        }
+    EXPECT_NEAR(alpha_sum / static_cast<double>(w * h), 0.25, 1e-6);
+    EXPECT_GT(glint_sum, 1.0) << "the flakes glint in the sphere light";
+    for (double s : sum_groups) EXPECT_GT(s, 1.0) << "every group lights something";
+}
+
+TEST(Layers, TurningThemOnLeavesTheBeautyAlone) {
+    test::TempDir dir("layers_beauty");
+    const FrameResult with = render_square(dir, true);
+    const FrameResult without = render_square(dir, false);
+    EXPECT_TRUE(without.layers.empty());
+    ASSERT_EQ(with.image.size(), without.image.size());
+    for (std::size_t i = 0; i < with.image.size(); ++i)
+        ASSERT_EQ(with.image[i], without.image[i]) << "value " << i;
+}
+
+}  // namespace
+}  // namespace spangle
