@@ -36,10 +36,10 @@ struct OiioTextureApi {
     void* (*create)(int max_memory_mb) = nullptr;  ///< the process's texture system
     void* (*handle)(void* system, const char* path, int* channels, char* error,
                     std::size_t size) = nullptr;
-    int (*lookup)(void* system, void* handle, int wrap, int count, const float* s, const float* t,
-                  const float* dsdx, const float* dtdx, const float* dsdy, const float* dtdy,
-                  int channels, float* out, float* ds_out, float* dt_out, char* error,
-                  std::size_t size) = nullptr;
+    int (*lookup)(void* system, void* handle, int wrap, int filter, int count, const float* s,
+                  const float* t, const float* dsdx, const float* dtdx, const float* dsdy,
+                  const float* dtdy, int channels, float* out, float* ds_out, float* dt_out,
+                  char* error, std::size_t size) = nullptr;
 };
 
 /** The module's texture functions, opening the module on first use. Throws SpangleError

@@ -264,9 +264,8 @@ void apply_map(const World& w, Workspace& ws, const MaterialInstance& mat, const
     const bool bump = mat.map_kind() == MapKind::Bump;
     ws.map_ds.resize(bump ? n : 0);
     ws.map_dt.resize(bump ? n : 0);
-    w.host->textures().lookup(*b.texture, b.ref.wrap, ws.tex_query, n, b.channels,
-                              ws.map_value.data(), bump ? ws.map_ds.data() : nullptr,
-                              bump ? ws.map_dt.data() : nullptr);
+    w.host->textures().lookup(*b.texture, b.ref, ws.tex_query, n, b.channels, ws.map_value.data(),
+                              bump ? ws.map_ds.data() : nullptr, bump ? ws.map_dt.data() : nullptr);
     const float* m = b.ref.uv;
     for (uint32_t k = 0; k < n; ++k) {
         SurfacePoint& sp = ws.surf[paths[k]];
@@ -375,8 +374,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             std::vector<float>& out = ws.tex_values[j];
             const auto c = static_cast<std::size_t>(b.channels);
             out.resize(n * c);
-            w.host->textures().lookup(*b.texture, b.ref.wrap, ws.tex_query, n, b.channels,
-                                      out.data());
+            w.host->textures().lookup(*b.texture, b.ref, ws.tex_query, n, b.channels, out.data());
             for (std::size_t i = 0; i < n * c; ++i) {
                 const float x = out[i] * b.ref.scale[i % c];
                 out[i] = std::isfinite(x) ? std::clamp(x, b.lo, b.hi) : b.lo;

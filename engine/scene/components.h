@@ -27,6 +27,7 @@ struct TextureRef {
     float scale[3] = {1, 1, 1};  ///< multiplies the looked-up value (per channel)
     float uv[6] = {1, 0, 0, 0, 1, 0};  ///< (u, v) -> (uv0 u + uv1 v + uv2, uv3 u + uv4 v + uv5)
     int wrap = 0;                      ///< 0 periodic, 1 clamp, 2 black, 3 mirror
+    int filter = 0;                    ///< 0 trilinear, 1 anisotropic
     float amount = 1;                  ///< normal_map: strength; bump_map: height in metres
     bool operator==(const TextureRef&) const = default;
 };

@@ -242,6 +242,13 @@ TextureRef parse_texture(const ParseContext& ctx, const toml::table& t, std::str
             throw_error(r.loc("wrap"),
                         "'wrap' must be one of periodic, clamp, black, mirror, got \"{}\"", w);
     }
+    if (r.has("filter")) {
+        const std::string f = r.string("filter");
+        if (f != "trilinear" && f != "anisotropic")
+            throw_error(r.loc("filter"),
+                        "'filter' must be \"trilinear\" or \"anisotropic\", got \"{}\"", f);
+        tex.filter = f == "anisotropic" ? 1 : 0;
+    }
     r.finish();
     return tex;
 }

@@ -287,7 +287,7 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
         whole.dsdx[0] = whole.dtdy[0] = 1.0f;
         whole.dtdx[0] = whole.dsdy[0] = 0.0f;
         float mean[3] = {0, 0, 0};
-        host.textures().lookup(*b.texture, 0, whole, 1, b.channels, mean);
+        host.textures().lookup(*b.texture, TextureRef{}, whole, 1, b.channels, mean);
         for (int c = 0; c < b.channels; ++c)
             params.values[k].number[c] =
                 std::clamp(static_cast<double>(mean[c] * b.ref.scale[c]), d.min_value, d.max_value);

@@ -9,6 +9,7 @@
 
 #include "core/files.h"
 #include "core/hash.h"
+#include "core/memory.h"
 
 namespace fs = std::filesystem;
 
@@ -115,6 +116,25 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
         ImageHeader h;
         std::vector<float> pixels;
         try {
+            // The header first: a damaged file's claimed size must not allocate anything. No
+            // image format packs more than a few thousand pixels into a byte.
+            const ImageHeader claimed = read_image_header(ref.path, "texture");
+            const double px = static_cast<double>(claimed.width) * claimed.height;
+            const auto bytes = static_cast<double>(fs::file_size(ref.path, ec));
+            if (!ec && px > 4096.0 * std::max(bytes, 1.0))
+                throw_error(
+                    "texture '{}' claims {}x{} pixels in a file of {} bytes: it is "
+                    "damaged or truncated",
+                    ref.path, claimed.width, claimed.height, bytes);
+            // At the peak: 4 channels as read, the RGB copy, the converted copy, and what
+            // OpenImageIO holds while it writes the levels (about as much again).
+            constexpr double kBytesPerPixel = 64.0;
+            if (const uint64_t have = memory_short_for(px * kBytesPerPixel))
+                throw_error(
+                    "texture '{}' ({}x{}) needs about {} to convert, but only {} of "
+                    "memory is available: use a smaller image (oiiotool --resize)",
+                    ref.path, claimed.width, claimed.height, format_bytes(px * kBytesPerPixel),
+                    format_bytes(static_cast<double>(have)));
             pixels = read_image(ref.path, 4, h, "texture");
         } catch (const SpangleError& e) {
             throw_error(loc, "{}", e.what());
@@ -178,8 +198,8 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
     return tex;
 }
 
-void TextureService::lookup(const Texture& tex, int wrap, const TextureQuery& q, std::size_t n,
-                            int channels, float* out, float* ds, float* dt) const {
+void TextureService::lookup(const Texture& tex, const TextureRef& ref, const TextureQuery& q,
+                            std::size_t n, int channels, float* out, float* ds, float* dt) const {
     if (n == 0) return;
     const int have = std::min(channels, tex.channels);
     thread_local std::vector<float> buf, buf_ds, buf_dt;
@@ -198,9 +218,9 @@ void TextureService::lookup(const Texture& tex, int wrap, const TextureQuery& q,
         }
     }
     char error[1024] = "";
-    if (api_->lookup(system_, tex.handle, wrap, static_cast<int>(n), q.s.data(), q.t.data(),
-                     q.dsdx.data(), q.dtdx.data(), q.dsdy.data(), q.dtdy.data(), have, o, ods, odt,
-                     error, sizeof(error)) != 0)
+    if (api_->lookup(system_, tex.handle, ref.wrap, ref.filter, static_cast<int>(n), q.s.data(),
+                     q.t.data(), q.dsdx.data(), q.dtdx.data(), q.dsdy.data(), q.dtdy.data(), have,
+                     o, ods, odt, error, sizeof(error)) != 0)
         throw_error("texture '{}': lookup failed: {}", tex.source, error);
     if (direct) return;
     // Fewer channels than asked for: the last one repeats (a grey map for a colour input).

@@ -68,9 +68,10 @@ public:
     std::shared_ptr<const Texture> open(const TextureRef& ref, bool color, const FileLoc& loc);
 
     /** `channels` values per query into out (and their s and t derivatives when ds/dt are not
-     *  null). A texture with fewer channels repeats its last one; more are dropped. */
-    void lookup(const Texture& tex, int wrap, const TextureQuery& q, std::size_t n, int channels,
-                float* out, float* ds = nullptr, float* dt = nullptr) const;
+     *  null), wrapped and filtered as `ref` says. A texture with fewer channels repeats its last
+     *  one; more are dropped. */
+    void lookup(const Texture& tex, const TextureRef& ref, const TextureQuery& q, std::size_t n,
+                int channels, float* out, float* ds = nullptr, float* dt = nullptr) const;
 
     const TextureSettings& settings() const { return settings_; }
 

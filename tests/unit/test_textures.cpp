@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
 #include "color/image_output.h"
 #include "render/frame.h"
@@ -35,7 +36,7 @@ struct Textures {
 
 /** One lookup at (s, t) with footprint derivatives d along both axes. */
 std::vector<float> lookup(const TextureService& ts, const Texture& tex, float s, float t, float d,
-                          int channels) {
+                          int channels, int filter = 0) {
     TextureQuery q;
     q.resize(1);
     q.s[0] = s;
@@ -44,7 +45,10 @@ std::vector<float> lookup(const TextureService& ts, const Texture& tex, float s,
     q.dtdy[0] = d;
     q.dtdx[0] = q.dsdy[0] = 0.0f;
     std::vector<float> out(static_cast<std::size_t>(channels));
-    ts.lookup(tex, 1 /* clamp */, q, 1, channels, out.data());
+    TextureRef clamp;
+    clamp.wrap = 1;
+    clamp.filter = filter;
+    ts.lookup(tex, clamp, q, 1, channels, out.data());
     return out;
 }
 
@@ -109,11 +113,13 @@ TEST(Texture, ALargeFootprintReadsABlurredLevel) {
     const float centre = (10.0f + 0.5f) / kN;
     EXPECT_NEAR(lookup(t.service, *tex, centre, centre, 1e-4f, 1)[0], 0.0f, 1e-3f);
     EXPECT_NEAR(lookup(t.service, *tex, centre + 1.0f / kN, centre, 1e-4f, 1)[0], 1.0f, 1e-3f);
-    // A footprint of 16 texels: a coarse level, where the checker has averaged to grey.
-    for (float s : {0.2f, 0.37f, 0.61f})
-        for (float tt : {0.3f, 0.55f})
-            EXPECT_NEAR(lookup(t.service, *tex, s, tt, 16.0f / kN, 1)[0], 0.5f, 0.03f)
-                << "at (" << s << ", " << tt << ")";
+    // A footprint of 16 texels: a coarse level, where the checker has averaged to grey (with
+    // either filter: the footprint is round, anisotropic filtering takes the same level).
+    for (int filter : {0, 1})
+        for (float s : {0.2f, 0.37f, 0.61f})
+            for (float tt : {0.3f, 0.55f})
+                EXPECT_NEAR(lookup(t.service, *tex, s, tt, 16.0f / kN, 1, filter)[0], 0.5f, 0.03f)
+                    << "at (" << s << ", " << tt << ") filter " << filter;
 }
 
 TEST(Texture, ColourTexturesAreConvertedToTheWorkingSpaceOnce) {
@@ -269,6 +275,71 @@ TEST(Texture, AFlakeMaskHoldsNoGlintWhereItIsZero) {
     // Where it is 1, the all-flake render's glints.
     EXPECT_LE(to_full[one], 1e-4 * pixels[one]) << "the one half differs from weight 1";
     EXPECT_GT(brightest[one], 4.0 * brightest[zero]) << "the glitter half glints";
+}
+
+/** tests/scenes/textured.toml with `from` replaced by `to`, its relative paths made absolute,
+ *  rendered at 64 x 32, 4 spp. */
+FrameResult render_textured(const test::TempDir& dir, const std::string& name,
+                            const std::string& from = "", const std::string& to = "") {
+    std::ifstream in(test::test_dir() + "/scenes/textured.toml");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string text = ss.str();
+    const auto replace_all = [&](const std::string& a, const std::string& b) {
+        for (std::size_t at = text.find(a); at != std::string::npos;
+             at = text.find(a, at + b.size()))
+            text.replace(at, a.size(), b);
+    };
+    if (!from.empty()) {
+        if (text.find(from) == std::string::npos)
+            throw std::runtime_error("textured.toml has no '" + from + "'");
+        replace_all(from, to);
+    }
+    replace_all("\"../../assets/", "\"" + test::asset_dir() + "/");
+    replace_all("\"textures/", "\"" + test::test_dir() + "/scenes/textures/");
+    std::ofstream(dir.file(name)) << text;
+    FrameRequest req;
+    req.scene = dir.file(name);
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.width_override = 64;
+    req.options.height_override = 32;
+    req.options.spp_override = 4;
+    req.options.texture_cache = dir.file("cache");
+    return render_frame(req);
+}
+
+TEST(Texture, EveryKindOfInputInOneSceneRendersAndMatters) {
+    test::TempDir dir("texture_scene");
+    const FrameResult all = render_textured(dir, "all.toml");
+    double sum = 0.0;
+    for (float v : all.image) {
+        ASSERT_TRUE(std::isfinite(v));
+        sum += v;
+    }
+    EXPECT_GT(sum, 0.0);
+    EXPECT_EQ(all.stats.nonfinite, 0u);
+    // Each input, replaced by a constant, changes the image: it was used.
+    const std::pair<std::string, std::string> constant[] = {
+        {"roughness = { texture = \"textures/roughness_ramp.png\" }", "roughness = 0.3"},
+        {"normal_map = { texture = \"textures/ripple_normal.png\", strength = 1.0, uv_transform = "
+         "{ "
+         "scale = [4, 2] } }",
+         ""},
+        {"flake_weight = { texture = \"../../assets/textures/beetle_flakes.png\" }",
+         "flake_weight = 0.45"},
+        {"albedo = { texture = \"../../assets/textures/beetle_livery.png\", uv_transform = { scale "
+         "= "
+         "[2, 1] } }",
+         "albedo = 0.5"},
+    };
+    for (const auto& [from, to] : constant) {
+        const FrameResult r = render_textured(dir, "variant.toml", from, to);
+        double diff = 0.0;
+        for (std::size_t i = 0; i < r.image.size(); ++i)
+            diff += std::fabs(r.image[i] - all.image[i]);
+        EXPECT_GT(diff, 1e-3 * sum) << "replacing " << from;
+    }
 }
 
 TEST(Texture, ParametersThatMustBeConstantRefuseATexture) {
