@@ -517,7 +517,14 @@ int run_watch(const RenderArgs& a) {
 
     auto render_thread = [&] {
         return std::thread([&] {
-            session.render();
+            try {
+                session.render();
+            } catch (const std::exception& e) {
+                // A render that fails (a texture whose cached tiles vanished, memory) is
+                // reported; the session waits for the next save.
+                report_error(e.what());
+                return;
+            }
             const World& w = session.world();
             if (w.image.empty()) return;
             warn_if_no_chromaticities(log, session.color());
@@ -678,13 +685,14 @@ int main(int argc, char** argv) {
                      "N, Z, P, glints, and lightgroup_<name> per light group (docs/layers.md)");
     render->add_option("--view", ra.view,
                        "OCIO view of the PNG preview (default: the display's default view; the "
-                       "shipped config's is \"ACES 1.0 - SDR Video\", tone-mapped; \"Standard\" "
+                       "shipped config's is \"Glint\", a hue-preserving tone map; \"Standard\" "
                        "clips at 1)");
     render->add_option("--display", ra.display,
                        "OCIO display of the PNG preview (default: the config's default display)");
     render->add_option("--texture-cache", ra.texture_cache,
                        "folder for textures converted to the working space (default: "
-                       "$SPANGLE_TEXTURE_CACHE, else ~/.cache/spangle/textures)");
+                       "$SPANGLE_TEXTURE_CACHE, else $XDG_CACHE_HOME/spangle/textures, else "
+                       "~/.cache/spangle/textures)");
     render
         ->add_option("--texture-memory", ra.texture_memory_mb,
                      "MiB the texture tile cache may hold (default 1024)")

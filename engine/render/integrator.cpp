@@ -285,9 +285,17 @@ void apply_map(const World& w, Workspace& ws, const MaterialInstance& mat, const
             const float x = (2.0f * v[0] - 1.0f) * b.ref.amount;
             const float y = (2.0f * v[1] - 1.0f) * b.ref.amount;
             const float z = 2.0f * v[2] - 1.0f;
-            const Vec3 tu = sp.s;  // dp/du made orthogonal to n (the same on either side)
+            // The image's axes on the surface: dp/du' and dp/dv' of the transformed uv' = M uv,
+            // made orthogonal to n (a rotated or mirrored map tilts the way the image shows).
+            const float det = m[0] * m[4] - m[1] * m[3];
+            const Vec3 dpdu2 = (sp.dpdu * m[4] - sp.dpdv * m[3]) * (1.0f / det);
+            const Vec3 dpdv2 = (sp.dpdv * m[0] - sp.dpdu * m[1]) * (1.0f / det);
+            Vec3 tu = dpdu2 - nf * dot(nf, dpdu2);
+            const float len = length(tu);
+            if (!(len > 0.0f) || !std::isfinite(len)) continue;
+            tu = tu / len;
             Vec3 tv = cross(nf, tu);
-            if (dot(tv, sp.dpdv) < 0.0f) tv = -tv;
+            if (dot(tv, dpdv2) < 0.0f) tv = -tv;
             reframe(sp, tu * x + tv * y + nf * z);
         }
     }
@@ -377,7 +385,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             w.host->textures().lookup(*b.texture, b.ref, ws.tex_query, n, b.channels, out.data());
             for (std::size_t i = 0; i < n * c; ++i) {
                 const float x = out[i] * b.ref.scale[i % c];
-                out[i] = std::isfinite(x) ? std::clamp(x, b.lo, b.hi) : b.lo;
+                out[i] = std::isnan(x) ? b.lo : std::clamp(x, b.lo, b.hi);
             }
             ws.param_values[b.param] = out.data();
         }
@@ -718,10 +726,8 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                     add_to_layers(job, ws, k, ws.throughput[k] * w.environment * kc,
                                   w.environment_group, gt * w.environment);
                     for (uint32_t g = 0; g < job.groups; ++g)
-                        if (max_component(ws.escaped_by_group[g]) > 0.0f)
-                            add_to_layers(job, ws, k,
-                                          ws.throughput[k] * ws.escaped_by_group[g] * kc, g,
-                                          gt * ws.escaped_by_group[g]);
+                        add_to_layers(job, ws, k, ws.throughput[k] * ws.escaped_by_group[g] * kc, g,
+                                      gt * ws.escaped_by_group[g]);
                 }
                 ws.active[k] = 0;
                 continue;
@@ -732,9 +738,8 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             const float kc = clamp_factor(job, c, bounce);
             ws.radiance[k] += c * kc;
             if (job.layers) {
-                if (max_component(e) > 0.0f)
-                    add_to_layers(job, ws, k, c * kc, group,
-                                  bounce > 0 ? ws.glint_throughput[k] * e * kc : Vec3(0.0f));
+                add_to_layers(job, ws, k, c * kc, group,
+                              bounce > 0 ? ws.glint_throughput[k] * e * kc : Vec3(0.0f));
                 if (bounce == 0) {
                     // The camera ray hit something: coverage, depth along the view, position.
                     float* aov = &ws.aov[k * kAovCount];
@@ -1037,19 +1042,25 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     const float inv_spp = reached > 0 ? 1.0f / static_cast<float>(reached) : 0.0f;
     for (float& x : world.image) x *= inv_spp;
     if (job.layers) {
-        // Coverage, albedo, glints and light groups: averages over all samples. Normal, depth
-        // and position: averages over the samples whose camera ray hit something (0 where none
-        // did: alpha 0), so that edges are not darkened towards the origin.
+        // Coverage, albedo, glints and light groups: averages over all samples. Depth and
+        // position: averages over the samples whose camera ray hit something (0 where none did:
+        // alpha 0), so that edges are not pulled towards the origin. The normal: normalised.
         const std::size_t lc = job.layer_channels;
         for (std::size_t p = 0; p < world.layers.size(); p += lc) {
             float* v = &world.layers[p];
             const float hits = v[kAovA];
             const float inv_hits = hits > 0.0f ? 1.0f / hits : 0.0f;
             for (std::size_t c = 0; c < lc; ++c) {
-                const bool per_hit =
-                    (c >= kAovN && c < kAovN + 3) || c == kAovZ || (c >= kAovP && c < kAovP + 3);
-                v[c] *= per_hit ? inv_hits : inv_spp;
+                const bool per_hit = c == kAovZ || (c >= kAovP && c < kAovP + 3);
+                const bool normal = c >= kAovN && c < kAovN + 3;
+                if (!normal) v[c] *= per_hit ? inv_hits : inv_spp;
             }
+            // The normal: the direction of the summed normals of the shaded hits (a camera
+            // ray that hit a light adds none), unit length, 0 where none was shaded.
+            const float len = std::sqrt(v[kAovN] * v[kAovN] + v[kAovN + 1] * v[kAovN + 1] +
+                                        v[kAovN + 2] * v[kAovN + 2]);
+            const float inv_len = len > 0.0f && std::isfinite(len) ? 1.0f / len : 0.0f;
+            for (std::size_t c = kAovN; c < kAovN + 3; ++c) v[c] *= inv_len;
         }
     }
     RenderStats& st = world.stats;

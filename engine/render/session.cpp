@@ -159,6 +159,7 @@ ReloadReport Session::load(const std::string& scene) {
             next->sphere_lights = live->sphere_lights;
             next->quad_light_first = live->quad_light_first;
             next->environment = live->environment;
+            next->environment_group = live->environment_group;
             if (auto* p = cand->find_pool<Emission>())
                 for (ecs::Entity e : p->entities())
                     if (live_->has<EmitterRef>(e)) cand->put(e, live_->get<EmitterRef>(e));

@@ -163,7 +163,7 @@ void system_materials(ecs::Registry& r, World& w) {
                         const TextureRef& t = p.texture;
                         key += fmt::format(":{}:{}:{}:{}:{}", file_identity(t.path), t.space,
                                            fmt::join(t.scale, ","), fmt::join(t.uv, ","), t.wrap);
-                        key += fmt::format(":{}", t.amount);
+                        key += fmt::format(":{}:{}", t.amount, t.filter);
                     }
                 return key;
             },

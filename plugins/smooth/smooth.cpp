@@ -121,14 +121,17 @@ struct AlphaParams {
     uint32_t roughness, roughness_v;
 };
 
-/** The closure's GGX alphas: the model's constants, or point i's textured roughness. */
-void alpha_at(const SpangleShadingBatch_v3* b, uint32_t i, AlphaParams k, float ax, float ay,
-              bool delta, Closure& c) {
+/** The closure's GGX alphas: the model's (clamped) constants ax, ay, delta, or where a
+ *  roughness is textured, alphas from point i's values and the other parameter's constant as
+ *  written (raw_r, raw_rv: unclamped; raw_rv -1 = the same as roughness). */
+void alpha_at(const SpangleShadingBatch_v3* b, uint32_t i, AlphaParams k, float raw_r, float raw_rv,
+              float ax, float ay, bool delta, Closure& c) {
     const float* r = varying(b, k.roughness);
     const float* rv = varying(b, k.roughness_v);
     if (r || rv) {
-        ax = r ? r[i] : ax;
-        ay = rv ? (rv[i] < 0.0f ? ax : rv[i]) : (r ? ax : ay);
+        ax = r ? r[i] : raw_r;
+        const float v = rv ? rv[i] : raw_rv;
+        ay = v < 0.0f ? ax : v;
         delta = is_delta(ax, ay);
         clamp_alpha(ax, ay);
     }
@@ -212,6 +215,7 @@ const SpangleParamDesc_v3 kConductorParams[] = {
 
 struct Conductor {
     float ax, ay;
+    float raw_r, raw_rv;  ///< roughness, roughness_v as written
     bool delta;
     bool perfect;  ///< F = 1 (white furnace reference)
     float eta[3], k[3];
@@ -230,6 +234,8 @@ void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, ch
                        uint32_t cap) {
     Conductor c{};
     read_alpha(p, c.ax, c.ay);
+    c.raw_r = param_f(p, "roughness");
+    c.raw_rv = param_f(p, "roughness_v");
     c.delta = is_delta(c.ax, c.ay);
     clamp_alpha(c.ax, c.ay);
     const std::string preset = param_string(p, "preset").c_str();
@@ -284,7 +290,7 @@ void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* 
     for (uint32_t i = 0; i < b->count; ++i) {
         out[i] = Closure{};
         out[i].wo = wo_of(b, i);
-        alpha_at(b, i, {3, 4}, m.ax, m.ay, m.delta, out[i]);
+        alpha_at(b, i, {3, 4}, m.raw_r, m.raw_rv, m.ax, m.ay, m.delta, out[i]);
     }
 }
 
@@ -354,6 +360,7 @@ const SpangleParamDesc_v3 kDielectricParams[] = {
 
 struct Dielectric {
     float ax, ay, ior;
+    float raw_r, raw_rv;  ///< roughness, roughness_v as written
     bool delta;
     /** ior within 1e-3 of 1: an index-matched interface. Light passes straight through (a delta
      *  transmission, rough or not: the half vector of refraction, wi eta + wo, vanishes). */
@@ -364,6 +371,8 @@ void* dielectric_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* 
                         uint32_t cap) {
     Dielectric d{};
     read_alpha(p, d.ax, d.ay);
+    d.raw_r = param_f(p, "roughness");
+    d.raw_rv = param_f(p, "roughness_v");
     d.delta = is_delta(d.ax, d.ay);
     clamp_alpha(d.ax, d.ay);
     d.ior = param_f(p, "ior");
@@ -382,7 +391,7 @@ void dielectric_prepare(const void* inst, const SpangleShadingBatch_v3* b, void*
         out[i].wo = wo_of(b, i);
         // The host turned the frame towards wo: from the back side, wo is inside the glass.
         out[i].eta = (b->flags[i] & SPANGLE_SHADING_BACKFACE) ? 1.0f / m.ior : m.ior;
-        alpha_at(b, i, {1, 2}, m.ax, m.ay, m.delta, out[i]);
+        alpha_at(b, i, {1, 2}, m.raw_r, m.raw_rv, m.ax, m.ay, m.delta, out[i]);
     }
 }
 

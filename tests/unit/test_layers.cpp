@@ -16,7 +16,7 @@ namespace {
 
 /** A 1.2 m square at z = 0 facing a camera 3 m away whose view is 2.4 m wide: with a box filter
  *  the square covers pixels [16, 48) of a 64 x 64 image exactly. */
-std::string square_scene() {
+std::string square_scene(double clamp = 0.0, double flake_weight = 0.5) {
     return fmt::format(R"(
 [render]
 width = 64
@@ -24,6 +24,7 @@ height = 64
 spp = 16
 max_depth = 3
 filter = "box"
+clamp_indirect = {}
 working_space = "lin_rec709"
 [camera]
 position = [0, 0, 3]
@@ -35,12 +36,25 @@ light_group = "sky"
 [[material]]
 name = "glitter"
 plugin = "flake"
-params = {{ base_color = 0.3, flake_weight = 0.5, density = 200000, flake_roughness = 0.3, gamma = 2, min_flakes = 5000, max_flakes = 10000 }}
+params = {{ base_color = 0.3, flake_weight = {}, density = 200000, flake_roughness = 0.3, gamma = 2, min_flakes = 5000, max_flakes = 10000 }}
 [[object]]
 mesh = "{}/meshes/plane.ply"
 material = "glitter"
 rotate = [90, 0, 0]
 scale = 0.6
+[[material]]
+name = "wall"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = 0.8 }}
+[[object]]
+# Behind the camera, facing the square: light bounces between them (scattered twice or more,
+# what clamp_indirect caps); camera rays never see it.
+mesh = "{}/meshes/plane.ply"
+material = "wall"
+rotate = [-90, 0, 0]
+translate = [0, 0, 6]
+scale = 3
 [[light]]
 type = "sphere"
 center = [0.4, 0.3, 3.2]
@@ -52,11 +66,13 @@ type = "point"
 position = [-1, 1, 2]
 intensity = 2
 )",
-                       2.0 * std::atan(0.4) * 180.0 / 3.14159265358979323846, test::asset_dir());
+                       clamp, 2.0 * std::atan(0.4) * 180.0 / 3.14159265358979323846, flake_weight,
+                       test::asset_dir(), test::asset_dir());
 }
 
-FrameResult render_square(const test::TempDir& dir, bool layers) {
-    { std::ofstream(dir.file("square.toml")) << square_scene(); }
+FrameResult render_square(const test::TempDir& dir, bool layers, double clamp = 0.0,
+                          double flake_weight = 0.5) {
+    { std::ofstream(dir.file("square.toml")) << square_scene(clamp, flake_weight); }
     FrameRequest req;
     req.scene = dir.file("square.toml");
     req.ocio_config = test::shipped_ocio();
@@ -120,6 +136,28 @@ TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
     EXPECT_NEAR(alpha_sum / static_cast<double>(w * h), 0.25, 1e-6);
     EXPECT_GT(glint_sum, 1.0) << "the flakes glint in the sphere light";
     for (double s : sum_groups) EXPECT_GT(s, 1.0) << "every group lights something";
+}
+
+TEST(Layers, ClampedContributionsStillAddUpAndNoFlakesMeanNoGlints) {
+    test::TempDir dir("layers_clamp");
+    // A firefly clamp low enough to scale most indirect light, and no flakes at all.
+    const FrameResult r = render_square(dir, true, 0.05, 0.0);
+    const std::size_t lc = r.layer_names.size();
+    ASSERT_EQ(lc, 23u);
+    const std::size_t pixels = r.width * r.height;
+    const FrameResult unclamped = render_square(dir, true, 0.0, 0.0);
+    double clamped_sum = 0.0, unclamped_sum = 0.0;
+    for (std::size_t p = 0; p < pixels; ++p)
+        for (std::size_t c = 0; c < 3; ++c) {
+            const float beauty = r.image[3 * p + c];
+            double groups = 0.0;
+            for (std::size_t g = 0; g < 3; ++g) groups += r.layers[p * lc + 14 + 3 * g + c];
+            ASSERT_NEAR(groups, beauty, 1e-5 * std::max(1.0f, beauty)) << "pixel " << p;
+            ASSERT_EQ(r.layers[p * lc + 11 + c], 0.0f) << "a glint without flakes, pixel " << p;
+            clamped_sum += beauty;
+            unclamped_sum += unclamped.image[3 * p + c];
+        }
+    EXPECT_LT(clamped_sum, 0.999 * unclamped_sum) << "the clamp took effect";
 }
 
 TEST(Layers, TurningThemOnLeavesTheBeautyAlone) {

@@ -122,6 +122,47 @@ TEST(Texture, ALargeFootprintReadsABlurredLevel) {
                     << "at (" << s << ", " << tt << ") filter " << filter;
 }
 
+TEST(Texture, VRunsUpTheImageAndTheUvTransformMovesIt) {
+    test::TempDir dir("texture_orient");
+    // Row 0 is the top of an image: the top half white, the bottom half black, and a grey
+    // left column strip to tell left from right.
+    constexpr int kN = 16;
+    std::vector<float> img(3 * kN * kN);
+    for (int y = 0; y < kN; ++y)
+        for (int x = 0; x < kN; ++x)
+            for (int c = 0; c < 3; ++c)
+                img[3 * static_cast<std::size_t>(y * kN + x) + static_cast<std::size_t>(c)] =
+                    x < 4 ? 0.5f : (y < kN / 2 ? 1.0f : 0.0f);
+    write_float_exr(dir.file("half.exr"), img, kN, kN);
+    Textures t(dir);
+    TextureRef ref;
+    ref.path = dir.file("half.exr");
+    ref.space = "raw";
+    ref.wrap = 1;
+    const auto tex = t.service.open(ref, false, {});
+    const auto at = [&](const TextureRef& r, float u, float v) {
+        const float d = 1e-4f, zero = 0.0f;
+        TextureQuery q;
+        texture_coordinates(r, &u, &v, &d, &zero, &zero, &d, 1, q);
+        float out = -1.0f;
+        t.service.lookup(*tex, r, q, 1, 1, &out);
+        return out;
+    };
+    EXPECT_NEAR(at(ref, 0.8f, 0.9f), 1.0f, 1e-3f) << "v = 0.9 is near the image's top";
+    EXPECT_NEAR(at(ref, 0.8f, 0.1f), 0.0f, 1e-3f);
+    EXPECT_NEAR(at(ref, 0.1f, 0.5f), 0.5f, 1e-3f) << "u = 0.1 is at the left";
+    // Rotated by 180 degrees about the origin and moved back into [0, 1]^2: top and bottom,
+    // left and right swap.
+    TextureRef turned = ref;
+    turned.uv[0] = -1.0f;
+    turned.uv[2] = 1.0f;
+    turned.uv[4] = -1.0f;
+    turned.uv[5] = 1.0f;
+    EXPECT_NEAR(at(turned, 0.2f, 0.9f), 0.0f, 1e-3f);
+    EXPECT_NEAR(at(turned, 0.2f, 0.1f), 1.0f, 1e-3f);
+    EXPECT_NEAR(at(turned, 0.9f, 0.5f), 0.5f, 1e-3f);
+}
+
 TEST(Texture, ColourTexturesAreConvertedToTheWorkingSpaceOnce) {
     test::TempDir dir("texture_colour");
     std::vector<float> img = {0.5f, 0.25f, 1.0f, 0.5f, 0.25f, 1.0f,
@@ -218,6 +259,17 @@ params = { preset = "gold", roughness = 0.2 })";
     double diff = 0.0;
     for (std::size_t i = 0; i < t.image.size(); ++i) diff += std::fabs(t.image[i] - plain.image[i]);
     EXPECT_GT(diff, 0.1 * sum);
+    // The opposite tilt in an image turned by 180 degrees in uv is the same tilt on the surface:
+    // the map's axes follow the uv transform.
+    std::vector<float> opposite = flat;
+    for (std::size_t i = 0; i < opposite.size(); i += 3) opposite[i] = 0.2f;
+    write_float_exr(dir.file("opposite.exr"), opposite, 4, 4);
+    const FrameResult turned = render_text(
+        dir, "turned.toml",
+        plane_scene(body + "\nnormal_map = { texture = \"opposite.exr\", uv_transform = { rotate = "
+                           "180 } }"));
+    for (std::size_t i = 0; i < t.image.size(); ++i)
+        ASSERT_NEAR(turned.image[i], t.image[i], 1e-3f * std::max(1.0f, t.image[i])) << i;
 }
 
 TEST(Texture, AFlakeMaskHoldsNoGlintWhereItIsZero) {
