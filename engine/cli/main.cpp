@@ -29,6 +29,7 @@
 #include "cli/serve.h"
 #include "cli/watch.h"
 #include "color/image_io.h"
+#include "color/image_merge.h"
 #include "color/image_output.h"
 #include "core/error.h"
 #include "render/camera.h"
@@ -73,6 +74,7 @@ struct RenderArgs {
     uint32_t texture_memory_mb = 1024;
     std::string display, view;  ///< of the PNG preview; empty = the config's defaults
     bool layers = false;
+    std::string crop;  ///< x0,y0,x1,y1; empty = the whole image
 };
 
 /** A bad command line (exit status 2), found after parsing (sizes, names, paths that clash). */
@@ -140,8 +142,19 @@ struct Outputs {
                       const ColorConfig& color, uint32_t spp, bool partial, uint32_t block = 1,
                       const SceneInfo* info = nullptr, double seconds = -1.0,
                       const std::vector<float>* layers = nullptr,
-                      const std::vector<std::string>* layer_names = nullptr) const {
+                      const std::vector<std::string>* layer_names = nullptr,
+                      const ImageWindow* window = nullptr) const {
         ExrOptions o = exr_options;
+        // A crop: the image is a data window of the full frame; the camera is the frame's.
+        uint32_t frame_w = width, frame_h = height;
+        if (window && window->full_width > 0) {
+            frame_w = window->full_width;
+            frame_h = window->full_height;
+            o.origin_x = static_cast<int>(window->x0);
+            o.origin_y = static_cast<int>(window->y0);
+            o.display_width = static_cast<int>(frame_w);
+            o.display_height = static_cast<int>(frame_h);
+        }
         if (layers && layer_names && !layers->empty()) {
             o.layers = layers;
             o.layer_names = *layer_names;
@@ -155,7 +168,7 @@ struct Outputs {
             // The names pbrt-v4 writes and Nuke reads (OpenEXR's standard attributes).
             const Camera& c = info->camera;
             const CameraMatrices m = CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture,
-                                                 c.focus_distance, width, height)
+                                                 c.focus_distance, frame_w, frame_h)
                                          .matrices();
             o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
         }
@@ -188,7 +201,8 @@ struct Outputs {
     /** The image of a pass that is not the last (partial, maybe a preview pass). */
     void write_pass(const PassImage& p, const ColorConfig& color,
                     const SceneInfo* info = nullptr) const {
-        write(p.image, p.width, p.height, color, p.spp, true, p.block, info, p.seconds);
+        write(p.image, p.width, p.height, color, p.spp, true, p.block, info, p.seconds, nullptr,
+              nullptr, &p.window);
     }
 };
 
@@ -262,6 +276,25 @@ void parse_size(const std::string& size, uint32_t& width, uint32_t& height) {
         usage_error("--size must be WIDTHxHEIGHT with each in 1..16384, got '{}'", size);
 }
 
+/** --crop x0,y0,x1,y1: four pixel bounds, digits only, x0 < x1 and y0 < y1 (whether the window
+ *  lies inside the image is checked once the scene's size is known). */
+CropWindow parse_crop(const std::string& text) {
+    uint32_t v[4] = {0, 0, 0, 0};
+    std::size_t at = 0;
+    for (int i = 0; i < 4; ++i) {
+        const std::size_t end = i < 3 ? text.find(',', at) : text.size();
+        const std::string t = end == std::string::npos ? std::string() : text.substr(at, end - at);
+        if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos)
+            usage_error(
+                "--crop must be x0,y0,x1,y1 (pixels, the window [x0, x1) x [y0, y1)), got '{}'",
+                text);
+        v[i] = static_cast<uint32_t>(std::stoul(t));
+        at = end + 1;
+    }
+    if (!(v[0] < v[2] && v[1] < v[3])) usage_error("--crop {}: it needs x0 < x1 and y0 < y1", text);
+    return CropWindow{v[0], v[1], v[2], v[3]};
+}
+
 /** Options of a render from the command line (threads, size, spp, strategy). */
 RenderOptions render_options(const RenderArgs& a) {
     RenderOptions o;
@@ -269,6 +302,7 @@ RenderOptions render_options(const RenderArgs& a) {
     o.spp_override = a.spp;
     o.texture_cache = a.texture_cache;
     o.layers = a.layers;
+    if (!a.crop.empty()) o.crop = parse_crop(a.crop);
     o.texture_memory_mb = a.texture_memory_mb;
     if (!a.size.empty()) parse_size(a.size, o.width_override, o.height_override);
     o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
@@ -424,7 +458,8 @@ int run_render(const RenderArgs& a) {
     warn_half_overflow(
         log,
         out.write(frame.image, frame.width, frame.height, frame.color, frame.stats.spp_reached,
-                  partial, 1, &frame.info, frame.stats.seconds, &frame.layers, &frame.layer_names),
+                  partial, 1, &frame.info, frame.stats.seconds, &frame.layers, &frame.layer_names,
+                  &frame.window),
         out.exr);
     if (partial)
         log.warn("stopped by a signal: wrote {} with {} of {} samples per pixel", out.exr,
@@ -538,7 +573,7 @@ int run_watch(const RenderArgs& a) {
                     warn_half_overflow(log,
                                        out.write(w.image, w.width, w.height, session.color(),
                                                  st.spp_reached, !complete, 1, &session.info(),
-                                                 st.seconds, &w.layers, &w.layer_names),
+                                                 st.seconds, &w.layers, &w.layer_names, &w.window),
                                        out.exr);
                 } catch (const SpangleError& e) {
                     report_error(e.what());
@@ -680,6 +715,10 @@ int main(int argc, char** argv) {
     render->add_option("--plugin-path", ra.plugin_dirs,
                        "directory searched for plugins first (repeatable)");
     render->add_flag("--stats", ra.stats, "print which systems ran and render statistics");
+    render->add_option("--crop", ra.crop,
+                       "render only the window x0,y0,x1,y1 of the image (pixels [x0, x1) x [y0, "
+                       "y1)); the EXR's data window places it in the full frame; spangle merge "
+                       "assembles the parts bit for bit");
     render->add_flag("--layers", ra.layers,
                      "write render layers into the EXR beside the beauty: A (coverage), albedo, "
                      "N, Z, P, glints, and lightgroup_<name> per light group (docs/layers.md)");
@@ -742,6 +781,13 @@ int main(int argc, char** argv) {
                      "EXR (or any image OpenImageIO reads, through its module)")
         ->required();
 
+    std::vector<std::string> merge_parts;
+    std::string merge_out;
+    CLI::App* merge = app.add_subcommand(
+        "merge", "assemble crop-window renders (render --crop) into the full frame, bit for bit");
+    merge->add_option("parts", merge_parts, "the parts' EXR files")->required();
+    merge->add_option("-o,--output", merge_out, "the full frame's EXR")->required();
+
     BenchArgs ba;
     std::string write_scene;
     CLI::App* bench = app.add_subcommand(
@@ -790,6 +836,21 @@ int main(int argc, char** argv) {
         if (*render) return ra.watch ? run_watch(ra) : run_render(ra);
         if (*plugins) return run_plugins(plugin_dirs);
         if (*inspect) return run_inspect(inspect_path);
+        if (*merge) {
+            for (const std::string& p : merge_parts)
+                if (same_file(p, merge_out))
+                    usage_error("the output '{}' is one of the parts", merge_out);
+            if (fs::path(merge_out).extension() != ".exr")
+                usage_error("output '{}' must end in .exr", merge_out);
+            check_writable(merge_out, "EXR");
+            const MergeReport rep = merge_exr_parts(merge_parts, merge_out);
+            fmt::print(
+                "merged {} parts into {} ({}x{}{})\n", rep.parts, merge_out, rep.width, rep.height,
+                rep.overlap_pixels
+                    ? fmt::format(", {} pixels held by more than one part", rep.overlap_pixels)
+                    : std::string());
+            return 0;
+        }
         if (*bench) {
             if (!write_scene.empty()) {
                 fmt::print("wrote {}\n", write_interior_scene(write_scene));

@@ -147,6 +147,11 @@ Imf::Compression exr_compression(const std::string& name) {
 
 }  // namespace
 
+void write_file_atomically(const std::string& path,
+                           const std::function<void(const std::string&)>& write_file) {
+    write_atomically(path, write_file);
+}
+
 void remove_image_in_progress() noexcept {
     for (const InProgress& s : in_progress)
         if (s.set.load()) ::unlink(s.path);
@@ -159,7 +164,16 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
     if (std::find(names.begin(), names.end(), options.compression) == names.end())
         throw_error("unknown EXR compression '{}' (valid: {})", options.compression,
                     fmt::join(names, ", "));
-    Imf::Header header(width, height);
+    const int dw = options.display_width > 0 ? options.display_width : width;
+    const int dh = options.display_height > 0 ? options.display_height : height;
+    const int ox = options.display_width > 0 ? options.origin_x : 0;
+    const int oy = options.display_height > 0 ? options.origin_y : 0;
+    if (ox < 0 || oy < 0 || ox + width > dw || oy + height > dh)
+        throw_error("cannot write '{}': a {}x{} image at ({}, {}) is not inside a {}x{} frame",
+                    path, width, height, ox, oy, dw, dh);
+    Imf::Header header(
+        Imath::Box2i(Imath::V2i(0, 0), Imath::V2i(dw - 1, dh - 1)),
+        Imath::Box2i(Imath::V2i(ox, oy), Imath::V2i(ox + width - 1, oy + height - 1)));
     header.compression() = exr_compression(options.compression);
     const Imf::PixelType type = options.half ? Imf::HALF : Imf::FLOAT;
     for (const char* c : {"R", "G", "B"}) header.channels().insert(c, Imf::Channel(type));
@@ -197,7 +211,8 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
             const int y1 = std::min(height, y0 + kStripRows);
             const float* rows = rgb.data() + static_cast<std::size_t>(y0) * w * 3;
             // The strip as a frame buffer whose first row is y0.
-            const Imath::Box2i strip(Imath::V2i(0, y0), Imath::V2i(width - 1, y1 - 1));
+            const Imath::Box2i strip(Imath::V2i(ox, oy + y0),
+                                     Imath::V2i(ox + width - 1, oy + y1 - 1));
             Imf::FrameBuffer fb;
             if (!options.half) {
                 for (std::size_t c = 0; c < 3; ++c)

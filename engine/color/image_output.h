@@ -6,6 +6,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -25,12 +26,20 @@ struct ExrOptions {
      *  pixel, interleaved, row-major; null for none. */
     const std::vector<float>* layers = nullptr;
     std::vector<std::string> layer_names;
+    /** A crop: the image is the data window at (origin_x, origin_y) of a display window of
+     *  display_width x display_height (0: the image is the whole frame). */
+    int origin_x = 0, origin_y = 0, display_width = 0, display_height = 0;
 };
 
 /** Removes the temporary file of an image being written, if any. Async-signal-safe: for a
  *  signal handler that exits at once (outputs are written to a temporary file and renamed, so
  *  the output itself is never half-written). */
 void remove_image_in_progress() noexcept;
+
+/** Lets write_file write a temporary file beside `path`, then renames it onto `path`: the
+ *  output is whole or absent (an empty result counts as a failure). Throws SpangleError. */
+void write_file_atomically(const std::string& path,
+                           const std::function<void(const std::string&)>& write_file);
 
 /** Valid EXR compression names, for validation and messages. */
 const std::vector<std::string>& exr_compressions();

@@ -73,6 +73,7 @@ FrameResult render_frame(const FrameRequest& req) {
     FrameResult result{std::move(color),
                        world.width,
                        world.height,
+                       world.window,
                        std::move(world.image),
                        std::move(world.layers),
                        std::move(world.layer_names),

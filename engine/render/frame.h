@@ -30,7 +30,8 @@ struct FrameRequest {
 /** The rendered frame and its report. */
 struct FrameResult {
     ColorConfig color;                        ///< config and working space used
-    uint32_t width = 0, height = 0;           ///< image size
+    uint32_t width = 0, height = 0;           ///< image size (the crop window's)
+    ImageWindow window;                       ///< where the image lies in the full frame
     std::vector<float> image;                 ///< RGB in the working space
     std::vector<float> layers;                ///< with options.layers: layer_names per pixel
     std::vector<std::string> layer_names;     ///< EXR channel names of the layers

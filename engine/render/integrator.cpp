@@ -155,6 +155,9 @@ struct RenderJob {
     const CameraModel* camera;
     const FilterSampler* filter;
     uint32_t width, height, spp, max_depth, rr_depth;
+    /** The crop window: film pixel (x, y) of the full frame is image pixel
+     *  (x - crop_x0, y - crop_y0) of a crop_width-wide image. */
+    uint32_t crop_x0 = 0, crop_y0 = 0, crop_width = 0;
     uint64_t seed;
     /** Pixels traced per stride x stride block (1: every pixel; >1: a preview pass, one path per
      *  block with its footprint widened to the block). */
@@ -634,6 +637,12 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
 }
 
+/** The image index of full-frame pixel `pix` (the same index without a crop window). */
+std::size_t film_index(const RenderJob& job, uint32_t pix) {
+    const uint32_t x = pix % job.width, y = pix / job.width;
+    return static_cast<std::size_t>(y - job.crop_y0) * job.crop_width + (x - job.crop_x0);
+}
+
 /** Traces one wave: `count` samples starting at `first_sample` for every pixel of the tile. */
 void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1,
                 uint32_t first_sample, uint32_t count) {
@@ -823,14 +832,15 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             }
             l = Vec3(0.0f);
         }
-        float* px = &img[3 * static_cast<std::size_t>(ws.pixel[k])];
+        const std::size_t at = film_index(job, ws.pixel[k]);
+        float* px = &img[3 * at];
         px[0] += l.x;
         px[1] += l.y;
         px[2] += l.z;
         if (!job.layers) continue;
         // The layers: [A, albedo, N, Z, P] of the first hit, the glints, each light group. A
         // path whose radiance was dropped drops its light layers too (they add up to it).
-        float* lp = &(*job.layer_image)[static_cast<std::size_t>(ws.pixel[k]) * job.layer_channels];
+        float* lp = &(*job.layer_image)[at * job.layer_channels];
         const float* aov = &ws.aov[k * kAovCount];
         for (uint32_t c = 0; c < kAovCount; ++c)
             if (std::isfinite(aov[c])) lp[c] += aov[c];
@@ -910,8 +920,23 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     job.max_depth = film.max_depth;
     job.rr_depth = film.rr_depth;
     job.seed = film.seed;
-    world.width = film.width;
-    world.height = film.height;
+    // The crop window (the whole image without one).
+    const CropWindow& crop = world.options.crop;
+    const uint32_t cx0 = crop.whole() ? 0 : crop.x0, cy0 = crop.whole() ? 0 : crop.y0;
+    const uint32_t cx1 = crop.whole() ? film.width : crop.x1;
+    const uint32_t cy1 = crop.whole() ? film.height : crop.y1;
+    if (!(cx0 < cx1 && cx1 <= film.width && cy0 < cy1 && cy1 <= film.height))
+        throw_error(
+            "crop window {},{},{},{} is not inside the {}x{} image (it needs x0 < x1 <= width "
+            "and y0 < y1 <= height)",
+            crop.x0, crop.y0, crop.x1, crop.y1, film.width, film.height);
+    const uint32_t cw = cx1 - cx0, ch = cy1 - cy0;
+    job.crop_x0 = cx0;
+    job.crop_y0 = cy0;
+    job.crop_width = cw;
+    world.width = cw;
+    world.height = ch;
+    world.window = ImageWindow{cx0, cy0, film.width, film.height};
     world.layers.clear();
     world.layer_names.clear();
     if (world.options.layers) {
@@ -925,16 +950,17 @@ void render_image(World& world, const Camera& camera, const Film& film) {
         job.camera_position = camera.position;
         job.camera_forward = normalize(camera.look_at - camera.position);
     }
-    check_film_memory(film.width, film.height, job.spp, world.options, job.layer_channels);
-    world.image.assign(static_cast<std::size_t>(film.width) * film.height * 3, 0.0f);
+    check_film_memory(cw, ch, job.spp, world.options, job.layer_channels);
+    world.image.assign(static_cast<std::size_t>(cw) * ch * 3, 0.0f);
     job.image = &world.image;
-    world.layers.assign(static_cast<std::size_t>(film.width) * film.height * job.layer_channels,
-                        0.0f);
+    world.layers.assign(static_cast<std::size_t>(cw) * ch * job.layer_channels, 0.0f);
     job.layer_image = &world.layers;
 
-    const uint32_t tiles_x = (film.width + kTileSize - 1) / kTileSize;
-    const uint32_t tiles_y = (film.height + kTileSize - 1) / kTileSize;
-    const uint64_t total = static_cast<uint64_t>(film.width) * film.height * job.spp;
+    // The full frame's tile grid, the tiles that meet the window, clipped to it.
+    const uint32_t tile_x0 = cx0 / kTileSize, tile_y0 = cy0 / kTileSize;
+    const uint32_t tiles_x = (cx1 + kTileSize - 1) / kTileSize - tile_x0;
+    const uint32_t tiles_y = (cy1 + kTileSize - 1) / kTileSize - tile_y0;
+    const uint64_t total = static_cast<uint64_t>(cw) * ch * job.spp;
     tbb::enumerable_thread_specific<Workspace> workspaces;
     const int threads =
         world.options.threads > 0 ? world.options.threads : tbb::this_task_arena::max_concurrency();
@@ -952,10 +978,11 @@ void render_image(World& world, const Camera& camera, const Film& film) {
                               [&](const tbb::blocked_range<uint32_t>& r) {
                                   Workspace& ws = workspaces.local();
                                   for (uint32_t tile = r.begin(); tile != r.end(); ++tile) {
-                                      const uint32_t x0 = (tile % tiles_x) * kTileSize,
-                                                     y0 = (tile / tiles_x) * kTileSize;
-                                      const uint32_t x1 = std::min(x0 + kTileSize, film.width);
-                                      const uint32_t y1 = std::min(y0 + kTileSize, film.height);
+                                      const uint32_t tx = (tile_x0 + tile % tiles_x) * kTileSize,
+                                                     ty = (tile_y0 + tile / tiles_x) * kTileSize;
+                                      const uint32_t x0 = std::max(tx, cx0), y0 = std::max(ty, cy0);
+                                      const uint32_t x1 = std::min(tx + kTileSize, cx1);
+                                      const uint32_t y1 = std::min(ty + kTileSize, cy1);
                                       for (uint32_t s = first; s < end; s += kSamplesPerWave) {
                                           if (stopped.load(std::memory_order_relaxed)) return;
                                           if (stop && stop()) {
@@ -978,9 +1005,10 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     };
     // A preview pass: one path per block of pixels, shown before the first full pass. It is
     // not part of the image: its values are thrown away once shown.
-    const uint32_t stride = world.options.preview_pass && world.options.on_pass && job.spp > 1
-                                ? preview_stride(film.width, film.height)
-                                : 1;
+    const uint32_t stride =
+        world.options.preview_pass && world.options.on_pass && job.spp > 1 && crop.whole()
+            ? preview_stride(film.width, film.height)
+            : 1;
     if (stride > 1) {
         std::vector<float> preview(world.image.size(), 0.0f);
         job.image = &preview;
@@ -1004,8 +1032,8 @@ void render_image(World& world, const Camera& camera, const Film& film) {
                         for (std::size_t c = 0; c < 3; ++c) preview[to + c] = preview[from + c];
                 }
             }
-            world.options.on_pass(
-                PassImage{preview, film.width, film.height, 0, job.spp, stride, seconds_since(t0)});
+            world.options.on_pass(PassImage{preview, film.width, film.height, 0, job.spp, stride,
+                                            seconds_since(t0), world.window});
         }
     }
     const std::vector<uint32_t> ends =
@@ -1035,7 +1063,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
             const float inv = 1.0f / static_cast<float>(end);
             for (float& x : shown) x *= inv;
             world.options.on_pass(
-                PassImage{shown, film.width, film.height, end, job.spp, 1, seconds_since(t0)});
+                PassImage{shown, cw, ch, end, job.spp, 1, seconds_since(t0), world.window});
         }
     }
 
@@ -1067,7 +1095,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     st.camera_rays = job.camera_rays;
     st.bounce_rays = job.bounce_rays;
     st.shadow_rays = job.shadow_rays;
-    st.samples = static_cast<uint64_t>(film.width) * film.height * reached;
+    st.samples = static_cast<uint64_t>(cw) * ch * reached;
     st.spp_reached = reached;
     st.spp_target = job.spp;
     st.passes = passes;

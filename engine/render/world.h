@@ -21,14 +21,27 @@
 
 namespace spangle {
 
+/** A crop window in pixels of the full image: [x0, x1) x [y0, y1); x1 == 0: the whole image. */
+struct CropWindow {
+    uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    bool whole() const { return x1 == 0; }
+};
+
+/** Where a (cropped) image lies in the full frame: its top-left pixel and the full size. */
+struct ImageWindow {
+    uint32_t x0 = 0, y0 = 0;
+    uint32_t full_width = 0, full_height = 0;
+};
+
 /** The image after one pass of a progressive render. */
 struct PassImage {
     const std::vector<float>& image;  ///< RGB, working space, divided by the samples reached
     uint32_t width, height;
-    uint32_t spp;     ///< samples per pixel reached; 0 for a preview pass
-    uint32_t target;  ///< samples per pixel the render is going to
-    uint32_t block;   ///< 1, or the block side of a preview pass (each block one value)
-    double seconds;   ///< render time so far
+    uint32_t spp;        ///< samples per pixel reached; 0 for a preview pass
+    uint32_t target;     ///< samples per pixel the render is going to
+    uint32_t block;      ///< 1, or the block side of a preview pass (each block one value)
+    double seconds;      ///< render time so far
+    ImageWindow window;  ///< where the image lies in the full frame (a crop)
 };
 
 /** How to render, from the command line; not part of the scene. */
@@ -55,6 +68,9 @@ struct RenderOptions {
     /** Render layers beside the beauty (world.layers): coverage, albedo, normal, depth,
      *  position, glints, one per light group. */
     bool layers = false;
+    /** Renders only this window of the image (its pixels are those of the whole render, bit
+     *  for bit: each pixel's samples depend on the pixel alone). */
+    CropWindow crop;
     /** Where converted textures are cached (empty: $SPANGLE_TEXTURE_CACHE or the user's cache
      *  directory) and how much memory the texture tile cache may hold. */
     std::string texture_cache;
@@ -192,7 +208,8 @@ struct World {
     std::vector<Instance> instances;     ///< accelerate
     std::shared_ptr<EmbreeScene> accel;  ///< accelerate (kept across reloads: BLAS are reused)
 
-    uint32_t width = 0, height = 0;  ///< render
+    uint32_t width = 0, height = 0;  ///< render: the image's size (the crop window's)
+    ImageWindow window;              ///< render: where the image lies in the full frame
     std::vector<float> image;        ///< render: RGB, working space, row-major
     /** render, with options.layers: layer_names.size() values per pixel, row-major. */
     std::vector<float> layers;

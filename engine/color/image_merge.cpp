@@ -1,0 +1,179 @@
+#include "color/image_merge.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <OpenEXR/ImfTestFile.h>
+
+#include <cstring>
+
+#include "color/image_output.h"
+#include "core/error.h"
+#include "core/memory.h"
+
+namespace spangle {
+
+namespace {
+
+struct Channel {
+    std::string name;
+    Imf::PixelType type;
+};
+
+std::vector<Channel> channels_of(const Imf::Header& h) {
+    std::vector<Channel> out;
+    for (auto it = h.channels().begin(); it != h.channels().end(); ++it)
+        out.push_back({it.name(), it.channel().type});
+    return out;
+}
+
+std::string spp_of(const Imf::Header& h) {
+    const auto* a = h.findTypedAttribute<Imf::StringAttribute>("spangle:spp");
+    return a ? a->value() : std::string();
+}
+
+}  // namespace
+
+MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::string& out) {
+    if (parts.empty()) throw_error("nothing to merge: give the crop renders' EXR files");
+    MergeReport rep;
+    rep.parts = parts.size();
+    std::unique_ptr<Imf::Header> first;
+    std::vector<Channel> chans;
+    Imath::Box2i display;
+    std::vector<float> full;         // display window, channels interleaved
+    std::vector<uint8_t> covered;    // per pixel
+    std::vector<std::string> owner;  // which part covered a pixel first (for messages)
+    std::size_t nc = 0, w = 0, h = 0;
+    for (const std::string& path : parts) {
+        try {
+            if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+            Imf::InputFile in(path.c_str());
+            const Imf::Header& hd = in.header();
+            const Imath::Box2i dw = hd.dataWindow();
+            if (!first) {
+                first = std::make_unique<Imf::Header>(hd);
+                chans = channels_of(hd);
+                display = hd.displayWindow();
+                if (display.min.x != 0 || display.min.y != 0)
+                    throw_error("'{}': its display window does not start at (0, 0)", path);
+                w = static_cast<std::size_t>(display.max.x + 1);
+                h = static_cast<std::size_t>(display.max.y + 1);
+                nc = chans.size();
+                const double need =
+                    4.0 * static_cast<double>(w * h * nc) + static_cast<double>(w * h);
+                if (const uint64_t have = memory_short_for(2.0 * need))
+                    throw_error(
+                        "merging a {}x{} frame of {} channels needs about {}, but only {} "
+                        "is available",
+                        w, h, nc, format_bytes(2.0 * need),
+                        format_bytes(static_cast<double>(have)));
+                full.assign(w * h * nc, 0.0f);
+                covered.assign(w * h, 0);
+                rep.width = static_cast<int>(w);
+                rep.height = static_cast<int>(h);
+            } else {
+                if (hd.displayWindow() != display)
+                    throw_error("'{}' is part of a {}x{} frame, '{}' of a {}x{} one", path,
+                                hd.displayWindow().max.x + 1, hd.displayWindow().max.y + 1,
+                                parts.front(), w, h);
+                const auto c = channels_of(hd);
+                bool same = c.size() == chans.size();
+                for (std::size_t i = 0; same && i < c.size(); ++i)
+                    same = c[i].name == chans[i].name && c[i].type == chans[i].type;
+                if (!same)
+                    throw_error(
+                        "'{}' has other channels than '{}' (render every part with the "
+                        "same options: --layers, --float)",
+                        path, parts.front());
+                if (spp_of(hd) != spp_of(*first))
+                    throw_error(
+                        "'{}' has {} samples per pixel, '{}' {}: parts of one frame must "
+                        "reach the same count",
+                        path, spp_of(hd), parts.front(), spp_of(*first));
+            }
+            if (dw.min.x < 0 || dw.min.y < 0 || dw.max.x >= static_cast<int>(w) ||
+                dw.max.y >= static_cast<int>(h) || dw.max.x < dw.min.x || dw.max.y < dw.min.y)
+                throw_error("'{}': its data window ({}, {})-({}, {}) is not inside the {}x{} frame",
+                            path, dw.min.x, dw.min.y, dw.max.x, dw.max.y, w, h);
+            const auto pw = static_cast<std::size_t>(dw.max.x - dw.min.x + 1);
+            const auto ph = static_cast<std::size_t>(dw.max.y - dw.min.y + 1);
+            std::vector<float> part(pw * ph * nc);
+            Imf::FrameBuffer fb;
+            for (std::size_t c = 0; c < nc; ++c)
+                fb.insert(chans[c].name,
+                          Imf::Slice::Make(Imf::FLOAT, part.data() + c, dw, nc * sizeof(float),
+                                           pw * nc * sizeof(float)));
+            in.setFrameBuffer(fb);
+            in.readPixels(dw.min.y, dw.max.y);
+            for (std::size_t y = 0; y < ph; ++y)
+                for (std::size_t x = 0; x < pw; ++x) {
+                    const std::size_t fx = x + static_cast<std::size_t>(dw.min.x);
+                    const std::size_t fy = y + static_cast<std::size_t>(dw.min.y);
+                    const std::size_t p = fy * w + fx;
+                    const float* src = &part[(y * pw + x) * nc];
+                    float* dst = &full[p * nc];
+                    if (covered[p]) {
+                        if (std::memcmp(src, dst, nc * sizeof(float)) != 0)
+                            throw_error(
+                                "'{}' and an earlier part both hold pixel ({}, {}) with "
+                                "different values: they are not crops of one render",
+                                path, fx, fy);
+                        ++rep.overlap_pixels;
+                        continue;
+                    }
+                    std::memcpy(dst, src, nc * sizeof(float));
+                    covered[p] = 1;
+                }
+        } catch (const SpangleError&) {
+            throw;
+        } catch (const std::exception& e) {
+            throw_error("cannot read '{}': {}", path, e.what());
+        }
+    }
+    std::size_t missing = 0, first_missing = 0;
+    for (std::size_t p = covered.size(); p-- > 0;)
+        if (!covered[p]) {
+            ++missing;
+            first_missing = p;
+        }
+    if (missing > 0)
+        throw_error(
+            "the parts leave {} of the {}x{} frame's pixels uncovered (the first at ({}, "
+            "{})): render the missing windows with --crop",
+            missing, w, h, first_missing % w, first_missing / w);
+
+    Imf::Header header(*first);
+    header.dataWindow() = display;
+    write_file_atomically(out, [&](const std::string& tmp) {
+        Imf::OutputFile file(tmp.c_str(), header);
+        // Half channels are written from half copies (their values came from halves: exact).
+        std::vector<std::vector<Imath::half>> halves(nc);
+        Imf::FrameBuffer fb;
+        for (std::size_t c = 0; c < nc; ++c) {
+            if (chans[c].type == Imf::HALF) {
+                halves[c].resize(w * h);
+                for (std::size_t p = 0; p < w * h; ++p)
+                    halves[c][p] = Imath::half(full[p * nc + c]);
+                fb.insert(chans[c].name,
+                          Imf::Slice::Make(Imf::HALF, halves[c].data(), display,
+                                           sizeof(Imath::half), w * sizeof(Imath::half)));
+            } else if (chans[c].type == Imf::FLOAT) {
+                fb.insert(chans[c].name,
+                          Imf::Slice::Make(Imf::FLOAT, full.data() + c, display, nc * sizeof(float),
+                                           w * nc * sizeof(float)));
+            } else {
+                throw_error("'{}': channel '{}' is not a float or half channel", parts.front(),
+                            chans[c].name);
+            }
+        }
+        file.setFrameBuffer(fb);
+        file.writePixels(static_cast<int>(h));
+    });
+    return rep;
+}
+
+}  // namespace spangle

@@ -1,0 +1,25 @@
+#pragma once
+// Assembling a frame from crop-window renders (spangle render --crop): each part is an EXR whose
+// data window is its part of the full frame (the display window). Every pixel of a crop is the
+// whole render's pixel bit for bit (its samples depend on the pixel alone), so the merged image
+// equals the whole render.
+
+#include <string>
+#include <vector>
+
+namespace spangle {
+
+/** What merge_exr_parts did. */
+struct MergeReport {
+    int width = 0, height = 0;  ///< the full frame
+    std::size_t parts = 0;
+    std::size_t overlap_pixels = 0;  ///< pixels more than one part held (with equal values)
+};
+
+/** Reads every part, checks they describe the same frame (display window, channels and their
+ *  types, spangle:spp) and together cover every pixel (where two overlap, their values must be
+ *  equal), and writes the full frame to `out` (header of the first part, data window = display
+ *  window; whole or not at all). Throws SpangleError naming the file at fault. */
+MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::string& out);
+
+}  // namespace spangle

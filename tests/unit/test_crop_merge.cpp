@@ -1,0 +1,153 @@
+// Crop windows and merges: a frame rendered as crop windows (not aligned to the 16-pixel tiles,
+// one pair overlapping) and merged by merge_exr_parts equals the whole render bit for bit,
+// beauty and layers, on a glittering, textured scene; bad part sets are refused.
+
+#include <gtest/gtest.h>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+
+#include <cstring>
+#include <fstream>
+#include <sstream>
+
+#include "color/image_merge.h"
+#include "color/image_output.h"
+#include "render/frame.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+/** tests/scenes/textured.toml with absolute paths, rendered at 72 x 40, 4 spp, with layers. */
+FrameResult render(const test::TempDir& dir, CropWindow crop) {
+    std::ifstream in(test::test_dir() + "/scenes/textured.toml");
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string text = ss.str();
+    const auto replace_all = [&](const std::string& a, const std::string& b) {
+        std::string out;
+        std::size_t from = 0;
+        for (std::size_t at = text.find(a); at != std::string::npos; at = text.find(a, from)) {
+            out += text.substr(from, at - from);
+            out += b;
+            from = at + a.size();
+        }
+        out += text.substr(from);
+        text = out;
+    };
+    replace_all("\"../../assets/", fmt::format("\"{}/", test::asset_dir()));
+    replace_all("\"textures/", fmt::format("\"{}/scenes/textures/", test::test_dir()));
+    std::ofstream(dir.file("scene.toml")) << text;
+    FrameRequest req;
+    req.scene = dir.file("scene.toml");
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.width_override = 72;
+    req.options.height_override = 40;
+    req.options.spp_override = 4;
+    req.options.layers = true;
+    req.options.crop = crop;
+    req.options.texture_cache = dir.file("cache");
+    return render_frame(req);
+}
+
+/** Writes r as a 32-bit EXR with its layers, its data window where its crop lies. */
+void write(const FrameResult& r, const std::string& path) {
+    ExrOptions o;
+    o.half = false;
+    o.layers = &r.layers;
+    o.layer_names = r.layer_names;
+    o.metadata = {{"spangle:spp", "4"}};
+    o.origin_x = static_cast<int>(r.window.x0);
+    o.origin_y = static_cast<int>(r.window.y0);
+    o.display_width = static_cast<int>(r.window.full_width);
+    o.display_height = static_cast<int>(r.window.full_height);
+    write_exr(path, r.image, static_cast<int>(r.width), static_cast<int>(r.height), r.color, o);
+}
+
+/** Every channel of an EXR (display window = data window), interleaved, and the names. */
+std::vector<float> read_all(const std::string& path, std::vector<std::string>& names) {
+    Imf::InputFile in(path.c_str());
+    const Imath::Box2i dw = in.header().dataWindow();
+    const auto w = static_cast<std::size_t>(dw.max.x - dw.min.x + 1);
+    const auto h = static_cast<std::size_t>(dw.max.y - dw.min.y + 1);
+    names.clear();
+    for (auto it = in.header().channels().begin(); it != in.header().channels().end(); ++it)
+        names.emplace_back(it.name());
+    std::vector<float> px(w * h * names.size());
+    Imf::FrameBuffer fb;
+    for (std::size_t c = 0; c < names.size(); ++c)
+        fb.insert(names[c],
+                  Imf::Slice::Make(Imf::FLOAT, px.data() + c, dw, names.size() * sizeof(float),
+                                   w * names.size() * sizeof(float)));
+    in.setFrameBuffer(fb);
+    in.readPixels(dw.min.y, dw.max.y);
+    return px;
+}
+
+TEST(CropMerge, CropsMergeIntoTheWholeRenderBitForBit) {
+    test::TempDir dir("crop_merge");
+    const FrameResult whole = render(dir, {});
+    write(whole, dir.file("whole.exr"));
+    // Three windows across the tile grid: the left 37 columns, the rest of the top, the rest of
+    // the bottom, overlapping the first along x = 30..36.
+    const CropWindow windows[] = {{0, 0, 37, 40}, {30, 0, 72, 23}, {37, 23, 72, 40}};
+    std::vector<std::string> parts;
+    for (std::size_t i = 0; i < 3; ++i) {
+        const FrameResult r = render(dir, windows[i]);
+        EXPECT_EQ(r.width, windows[i].x1 - windows[i].x0);
+        EXPECT_EQ(r.height, windows[i].y1 - windows[i].y0);
+        EXPECT_EQ(r.stats.samples, static_cast<uint64_t>(r.width) * r.height * 4)
+            << "only the window";
+        parts.push_back(dir.file("part" + std::to_string(i) + ".exr"));
+        write(r, parts.back());
+    }
+    const MergeReport rep = merge_exr_parts(parts, dir.file("merged.exr"));
+    EXPECT_EQ(rep.width, 72);
+    EXPECT_EQ(rep.height, 40);
+    EXPECT_EQ(rep.overlap_pixels, 7u * 23u);
+    std::vector<std::string> names_whole, names_merged;
+    const std::vector<float> a = read_all(dir.file("whole.exr"), names_whole);
+    const std::vector<float> b = read_all(dir.file("merged.exr"), names_merged);
+    EXPECT_EQ(names_merged, names_whole);
+    EXPECT_GT(names_whole.size(), 20u) << "beauty and layers";
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0)
+        << "the merged frame differs from the whole render";
+    double sum = 0.0;
+    for (float v : a) sum += std::isfinite(v) ? v : 0.0f;
+    EXPECT_GT(sum, 0.0);
+
+    // A missing window, and parts of different frames, are refused with the file named.
+    try {
+        merge_exr_parts({parts[0], parts[1]}, dir.file("holes.exr"));
+        FAIL() << "a frame with a hole was merged";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("uncovered"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir.file("holes.exr")));
+    try {
+        merge_exr_parts({parts[0], dir.file("whole.exr"), test::asset_dir() + "/env/studio.exr"},
+                        dir.file("mixed.exr"));
+        FAIL() << "parts of different frames were merged";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("studio.exr"), std::string::npos) << e.what();
+    }
+}
+
+TEST(CropMerge, AWindowOutsideTheImageIsRefused) {
+    test::TempDir dir("crop_outside");
+    try {
+        render(dir, {60, 0, 80, 10});
+        FAIL() << "a crop beyond the image rendered";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("is not inside the 72x40 image"), std::string::npos)
+            << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace spangle
