@@ -74,7 +74,8 @@ struct RenderArgs {
     uint32_t texture_memory_mb = 1024;
     std::string display, view;  ///< of the PNG preview; empty = the config's defaults
     bool layers = false;
-    std::string crop;  ///< x0,y0,x1,y1; empty = the whole image
+    std::string crop;    ///< x0,y0,x1,y1; empty = the whole image
+    std::string frames;  ///< A..B or A; empty = one still at the scene's frame_start
 };
 
 /** A bad command line (exit status 2), found after parsing (sizes, names, paths that clash). */
@@ -471,6 +472,100 @@ int run_render(const RenderArgs& a) {
     return partial ? exit_status_for_signal() : 0;
 }
 
+/** The output path of frame f: a run of '#' in `pattern` becomes f zero-padded to the run's
+ *  length; without one, ".####" goes before the extension. */
+std::string frame_path(const std::string& pattern, int64_t f) {
+    const std::string name = fs::path(pattern).filename().string();
+    const std::size_t at = name.find('#');
+    std::string out;
+    if (at != std::string::npos) {
+        std::size_t run = at;
+        while (run < name.size() && name[run] == '#') ++run;
+        const std::string num = fmt::format("{:0{}d}", f, run - at);
+        out = name.substr(0, at) + num + name.substr(run);
+    } else {
+        const fs::path p(name);
+        out = fmt::format("{}.{:04d}{}", p.stem().string(), f, p.extension().string());
+    }
+    return (fs::path(pattern).parent_path() / out).string();
+}
+
+/** --frames A..B or A (frame numbers, A <= B). */
+std::pair<int64_t, int64_t> parse_frames(const std::string& text) {
+    const auto number = [&](const std::string& t) -> int64_t {
+        const std::size_t digits = t.find_first_not_of("-0123456789");
+        if (t.empty() || t.size() > 10 || digits != std::string::npos ||
+            t.find('-', 1) != std::string::npos || t == "-")
+            usage_error("--frames must be A..B or A (frame numbers), got '{}'", text);
+        return std::stoll(t);
+    };
+    const std::size_t dots = text.find("..");
+    const int64_t a = number(dots == std::string::npos ? text : text.substr(0, dots));
+    const int64_t b = dots == std::string::npos ? a : number(text.substr(dots + 2));
+    if (b < a) usage_error("--frames {}: the last frame comes before the first", text);
+    if (b - a >= 1000000) usage_error("--frames {}: more than a million frames", text);
+    return {a, b};
+}
+
+/** `spangle render --frames A..B`: one session renders frame after frame; between frames only
+ *  what the keyframes moved is rebuilt (transforms: the top-level BVH; the camera: nothing). */
+int run_frames(const RenderArgs& a) {
+    Logger log;
+    if (a.quiet) log.threshold = LogLevel::Warning;
+    const auto [first, last] = parse_frames(a.frames);
+    const Outputs pattern = outputs_for(a);
+    install_signal_handlers();
+    RenderOptions options = render_options(a);
+    Session session(a.plugin_dirs, a.ocio, options, log);
+    session.options().stop = [] { return stop_signal != 0; };
+    for (int64_t f = first; f <= last; ++f) {
+        const auto t0 = std::chrono::steady_clock::now();
+        // The frame's time comes from the scene's frame_start and fps (read once loaded).
+        const double time = session.has_scene() ? frame_time(session.info(), f) : 0.0;
+        ReloadReport rep = session.load(a.scene, time);
+        if (rep.first && frame_time(session.info(), f) != time)
+            rep = session.load(a.scene, frame_time(session.info(), f));
+        if (f == first) {
+            std::string display = pattern.display, view = pattern.view;
+            session.color().resolve_view(display, view);
+            if (!session.info().animated)
+                log.warn("{}: nothing in the scene has keyframes: every frame is the same image",
+                         a.scene);
+        }
+        session.render();
+        const World& w = session.world();
+        const RenderStats& st = w.stats;
+        const bool complete = st.spp_reached == st.spp_target;
+        if (st.spp_reached == 0) {
+            log.warn("stopped by a signal before frame {} had a pass: not written", f);
+            return exit_status_for_signal();
+        }
+        Outputs out = pattern;
+        out.exr = frame_path(pattern.exr, f);
+        if (!out.preview.empty()) out.preview = frame_path(pattern.preview, f);
+        warn_half_overflow(
+            log,
+            out.write(w.image, w.width, w.height, session.color(), st.spp_reached, !complete, 1,
+                      &session.info(), st.seconds, &w.layers, &w.layer_names, &w.window),
+            out.exr);
+        warn_nonfinite(log, st);
+        if (!a.quiet)
+            fmt::print("frame {} ({:.3f} s): {:.2f} s, ran: {}; wrote {}\n", f,
+                       frame_time(session.info(), f),
+                       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+                       rep.ran.empty() ? std::string("nothing")
+                                       : fmt::format("{}", fmt::join(rep.ran, ", ")),
+                       out.exr);
+        std::fflush(stdout);
+        if (!complete) {
+            log.warn("stopped by a signal: frame {} has {} of {} samples per pixel", f,
+                     st.spp_reached, st.spp_target);
+            return exit_status_for_signal();
+        }
+    }
+    return 0;
+}
+
 /** `spangle render --watch`: render, then watch every input and re-render incrementally on each
  *  save until a signal. */
 int run_watch(const RenderArgs& a) {
@@ -715,6 +810,9 @@ int main(int argc, char** argv) {
     render->add_option("--plugin-path", ra.plugin_dirs,
                        "directory searched for plugins first (repeatable)");
     render->add_flag("--stats", ra.stats, "print which systems ran and render statistics");
+    render->add_option("--frames", ra.frames,
+                       "render frames A..B (or A) of the scene's keyframed animation, each to the "
+                       "output with its number ('#' runs in -o are the number, else .####)");
     render->add_option("--crop", ra.crop,
                        "render only the window x0,y0,x1,y1 of the image (pixels [x0, x1) x [y0, "
                        "y1)); the EXR's data window places it in the full frame; spangle merge "
@@ -833,7 +931,14 @@ int main(int argc, char** argv) {
         return app.exit(e) == 0 ? 0 : 2;
     }
     try {
-        if (*render) return ra.watch ? run_watch(ra) : run_render(ra);
+        if (*render) {
+            if (!ra.frames.empty() && ra.watch)
+                usage_error(
+                    "--frames renders a sequence and ends; --watch keeps one frame live: "
+                    "choose one");
+            if (!ra.frames.empty()) return run_frames(ra);
+            return ra.watch ? run_watch(ra) : run_render(ra);
+        }
         if (*plugins) return run_plugins(plugin_dirs);
         if (*inspect) return run_inspect(inspect_path);
         if (*merge) {

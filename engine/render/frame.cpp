@@ -52,7 +52,7 @@ void export_world_obj(const World& world, const std::string& path) {
 FrameResult render_frame(const FrameRequest& req) {
     ColorConfig color = ColorConfig::load(req.ocio_config, default_ocio_locations());
     ecs::Registry registry;
-    SceneInfo info = load_scene(req.scene, color, registry);
+    SceneInfo info = load_scene(req.scene, color, registry, req.time);
     for (const std::string& note : info.color_notes) req.log->warn("{}", note);
     if (req.on_loaded) req.on_loaded(color, info);
 

@@ -25,6 +25,8 @@ struct FrameRequest {
     /** When set, the scene's triangles as traced (subdivided, in world space) are written here
      *  as an OBJ, for other tools (Embree's viewer) to measure the same geometry. */
     std::string export_obj;
+    /** Time (seconds after the scene's frame_start) its keyframes are evaluated at. */
+    double time = 0.0;
 };
 
 /** The rendered frame and its report. */

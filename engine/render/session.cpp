@@ -48,7 +48,7 @@ std::vector<std::string> Session::watched_files() const {
     return {all.begin(), all.end()};
 }
 
-ReloadReport Session::load(const std::string& scene) {
+ReloadReport Session::load(const std::string& scene, double time) {
     const auto t0 = std::chrono::steady_clock::now();
     ReloadReport rep;
     rep.first = !world_;
@@ -66,7 +66,7 @@ ReloadReport Session::load(const std::string& scene) {
         color = std::make_unique<ColorConfig>(color_->clone());
     }
     auto cand = std::make_unique<ecs::Registry>();
-    auto info = std::make_unique<SceneInfo>(load_scene(scene, *color, *cand));
+    auto info = std::make_unique<SceneInfo>(load_scene(scene, *color, *cand, time));
     for (const std::string& note : info->color_notes) log_.warn("{}", note);
     if (world_ && color->working_space() != color_->working_space()) {
         rep.changed.push_back("working space");

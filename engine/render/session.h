@@ -41,8 +41,10 @@ public:
     Session& operator=(const Session&) = delete;
 
     /** Parses `scene` and makes it the live scene, rebuilding only what changed. Throws
-     *  SpangleError (file:line) and then leaves the live scene untouched. */
-    ReloadReport load(const std::string& scene);
+     *  SpangleError (file:line) and then leaves the live scene untouched. `time`: seconds after
+     *  the scene's frame_start, where its keyframes are evaluated (an animation renders frame
+     *  after frame through one session: only what moved is rebuilt). */
+    ReloadReport load(const std::string& scene, double time = 0.0);
 
     bool has_scene() const { return world_ != nullptr; }
     /** Renders the live scene into world().image (progressively; see RenderOptions). */

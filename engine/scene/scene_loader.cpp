@@ -7,6 +7,7 @@
 #include <sstream>
 
 #include "render/camera.h"
+#include "scene/animation.h"
 #include "scene/components.h"
 #include "scene/toml_reader.h"
 
@@ -117,8 +118,22 @@ Camera parse_camera(TableReader& r) {
     return c;
 }
 
-Affine parse_transform(TableReader& r) {
-    Affine m;
+/** An object's placement as written: scale, Euler rotation (degrees), translation. */
+struct TransformParts {
+    Vec3 scale{1, 1, 1}, rotate{0, 0, 0}, translate{0, 0, 0};
+    Affine compose() const {
+        // Euler angles in degrees, applied about X, then Y, then Z.
+        Affine m = Affine::scale(scale);
+        m = Affine::rotate(rotate.x, {1, 0, 0}).compose(m);
+        m = Affine::rotate(rotate.y, {0, 1, 0}).compose(m);
+        m = Affine::rotate(rotate.z, {0, 0, 1}).compose(m);
+        return Affine::translate(translate).compose(m);
+    }
+};
+
+/** scale, rotate, translate of a table, each defaulting to `base`'s. */
+TransformParts parse_transform_parts(TableReader& r, const TransformParts& base = {}) {
+    TransformParts t = base;
     if (const toml::node* s = r.node("scale")) {
         Vec3 v;
         if (s->is_number()) {
@@ -137,15 +152,38 @@ Affine parse_transform(TableReader& r) {
                         "'scale' must be between 1e-8 and 1e8 in size in every axis, got [{}, {}, "
                         "{}] (model in other units instead)",
                         v.x, v.y, v.z);
-        m = Affine::scale(v);
+        t.scale = v;
     }
-    const Vec3 rot = r.vec3("rotate", {0, 0, 0});
-    // Euler angles in degrees, applied about X, then Y, then Z.
-    m = Affine::rotate(rot.x, {1, 0, 0}).compose(m);
-    m = Affine::rotate(rot.y, {0, 1, 0}).compose(m);
-    m = Affine::rotate(rot.z, {0, 0, 1}).compose(m);
-    m = Affine::translate(r.vec3("translate", {0, 0, 0})).compose(m);
-    return m;
+    t.rotate = r.vec3("rotate", base.rotate);
+    t.translate = r.vec3("translate", base.translate);
+    return t;
+}
+
+/** The time of one key: `time` in seconds, or `frame` (a frame number of [render]). */
+double key_time(TableReader& r, const SceneInfo& info) {
+    const bool has_time = r.has("time"), has_frame = r.has("frame");
+    if (has_time == has_frame)
+        throw_error(r.loc(), "{} needs exactly one of 'time' (seconds) or 'frame'", r.what());
+    if (has_time) return r.number("time", {-1e9, 1e9});
+    return frame_time(info, r.integer("frame", 0, {-1e9, 1e9}));
+}
+
+/** `interpolation = "smooth" | "linear"` of an animated table. */
+bool smooth_interpolation(TableReader& r) {
+    const std::string how = r.string("interpolation", "smooth");
+    if (how != "smooth" && how != "linear")
+        throw_error(r.loc("interpolation"),
+                    "'interpolation' must be \"smooth\" or \"linear\", got \"{}\"", how);
+    return how == "smooth";
+}
+
+/** Appends one key to a track, checking that keys go forward in time. */
+void add_key(Track& track, double time, std::vector<double> values, const TableReader& r) {
+    if (!track.times.empty() && !(time > track.times.back()))
+        throw_error(r.loc(), "{}: keys must be in increasing time ({} s follows {} s)", r.what(),
+                    time, track.times.back());
+    track.times.push_back(time);
+    track.values.push_back(std::move(values));
 }
 
 /** Which table a texture is read for: a material parameter, or one of the host's maps. */
@@ -566,7 +604,8 @@ void check_nesting(const std::string& text, const std::string& path) {
 
 }  // namespace
 
-SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry) {
+SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,
+                     double time) {
     std::error_code ec;
     if (!fs::exists(path, ec)) throw_error("scene file '{}' not found", path);
     if (!fs::is_regular_file(path, ec))
@@ -585,6 +624,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
 
     SceneInfo info;
     info.path = path;
+    info.time = time;
     ParseContext ctx{path, fs::path(path).parent_path(), &color, {}, &info.color_notes};
     TableReader top(root, path, "the scene");
     top.set_whole_file();
@@ -605,6 +645,10 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                 ? resolve_space(ctx, r.string("color_space"), r.loc("color_space"))
                 : resolve_space(ctx, "lin_rec709", r.loc(), "default (no key written) ");
         registry.put(settings, parse_render(r));
+        info.frame_start = r.integer("frame_start", 1, {-1e9, 1e9});
+        info.frame_end =
+            r.integer("frame_end", info.frame_start, {static_cast<double>(info.frame_start), 1e9});
+        info.fps = r.number("fps", 24.0, {0.0, 1e6, true});
         r.finish();
         info.working_space = color.working_space();
         info.color_space = ctx.bare_space;
@@ -613,7 +657,45 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
         const toml::table* t = top.table("camera");
         if (!t) top.missing("camera");
         TableReader r(*t, path, "[camera]");
+        const bool focus_given = r.has("focus_distance");
         info.camera = parse_camera(r);
+        if (const toml::array* keys = r.table_array("keys")) {
+            // Keyframed camera: position, look_at, up and fov per key, each defaulting to the
+            // [camera] table's own.
+            const Camera base = info.camera;
+            Track track;
+            track.smooth = smooth_interpolation(r);
+            for (std::size_t k = 0; k < keys->size(); ++k) {
+                TableReader kr(*(*keys)[k].as_table(), path,
+                               fmt::format("[[camera.keys]] #{}", k + 1));
+                const double when = key_time(kr, info);
+                const Vec3 p = kr.vec3("position", base.position);
+                const Vec3 l = kr.vec3("look_at", base.look_at);
+                const Vec3 u = kr.vec3("up", base.up);
+                const double fov = kr.number("fov", base.fov_deg, {0.0, 180.0, true, true});
+                kr.finish();
+                add_key(track, when, {p.x, p.y, p.z, l.x, l.y, l.z, u.x, u.y, u.z, fov}, kr);
+            }
+            const std::vector<double> v = evaluate(track, time);
+            const auto f = [&](std::size_t i) { return static_cast<float>(v[i]); };
+            Camera& c = info.camera;
+            c.position = {f(0), f(1), f(2)};
+            c.look_at = {f(3), f(4), f(5)};
+            c.up = {f(6), f(7), f(8)};
+            c.fov_deg = f(9);
+            const Vec3 dir = c.look_at - c.position;
+            if (!(length(dir) > 0.0f) ||
+                !(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)) ||
+                !(c.fov_deg > 0.0f && c.fov_deg < 180.0f))
+                throw_error(r.loc("keys"),
+                            "the keyframed camera at {} s looks nowhere: its look_at meets its "
+                            "position, its up is parallel to the view, or its fov leaves (0, 180)",
+                            time);
+            if (!focus_given) c.focus_distance = length(dir);
+            info.animated = true;
+        } else if (r.has("interpolation")) {
+            smooth_interpolation(r);
+        }
         registry.put(settings, info.camera);
         r.finish();
     }
@@ -676,7 +758,39 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                                 ? std::string("none")
                                 : fmt::format("{}", fmt::join(info.material_names, ", ")));
             registry.put(e, MaterialRef{index});
-            registry.put(e, Transform{parse_transform(r)});
+            const TransformParts base = parse_transform_parts(r);
+            Affine placement = base.compose();
+            if (const toml::array* keys = r.table_array("keys")) {
+                // Keyframed placement: each key's scale, rotate, translate default to the
+                // object's own.
+                Track track;
+                track.smooth = smooth_interpolation(r);
+                for (std::size_t k = 0; k < keys->size(); ++k) {
+                    TableReader kr(*(*keys)[k].as_table(), path,
+                                   fmt::format("[[object.keys]] #{} of {}", k + 1, r.what()));
+                    const double t = key_time(kr, info);
+                    const TransformParts p = parse_transform_parts(kr, base);
+                    kr.finish();
+                    add_key(track, t,
+                            {p.scale.x, p.scale.y, p.scale.z, p.rotate.x, p.rotate.y, p.rotate.z,
+                             p.translate.x, p.translate.y, p.translate.z},
+                            kr);
+                }
+                const std::vector<double> v = evaluate(track, time);
+                const auto f = [&](std::size_t j) { return static_cast<float>(v[j]); };
+                TransformParts now{{f(0), f(1), f(2)}, {f(3), f(4), f(5)}, {f(6), f(7), f(8)}};
+                for (int a = 0; a < 3; ++a)
+                    if (!(std::fabs(f(static_cast<std::size_t>(a))) >= 1e-8f))
+                        throw_error(r.loc("keys"),
+                                    "{}: the keyframed scale passes through 0 at {} s (the "
+                                    "object would vanish into a plane)",
+                                    r.what(), time);
+                placement = now.compose();
+                info.animated = true;
+            } else if (r.has("interpolation")) {
+                smooth_interpolation(r);
+            }
+            registry.put(e, Transform{placement});
             if (r.has("emission")) {
                 const Vec3 le =
                     read_color(ctx, r, "emission", {0, 0, 0}) *

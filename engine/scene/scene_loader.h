@@ -26,10 +26,22 @@ struct SceneInfo {
      *  one with `light_group` ("default" when it does not). The render layers have one per group.
      */
     std::vector<std::string> light_groups;
+    /** Animation: the [render] frame range and rate, and whether anything has keys. Frame f is
+     *  at time (f - frame_start) / fps seconds. */
+    int64_t frame_start = 1, frame_end = 1;
+    double fps = 24.0;
+    bool animated = false;
+    double time = 0.0;  ///< the time the scene was evaluated at
 };
 
 /** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.
  *  Throws SpangleError with file:line:col for every problem; never crashes on bad input. */
-SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry);
+SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,
+                     double time = 0.0);
+
+/** The time of frame f of a scene (in seconds since its frame_start). */
+inline double frame_time(const SceneInfo& info, int64_t frame) {
+    return static_cast<double>(frame - info.frame_start) / info.fps;
+}
 
 }  // namespace spangle
