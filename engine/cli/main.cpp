@@ -28,6 +28,7 @@
 #include "cli/progress.h"
 #include "cli/serve.h"
 #include "cli/watch.h"
+#include "color/flicker.h"
 #include "color/image_io.h"
 #include "color/image_merge.h"
 #include "color/image_output.h"
@@ -886,6 +887,16 @@ int main(int argc, char** argv) {
     merge->add_option("parts", merge_parts, "the parts' EXR files")->required();
     merge->add_option("-o,--output", merge_out, "the full frame's EXR")->required();
 
+    std::vector<std::string> flicker_frames;
+    double flicker_threshold = 0.0;
+    CLI::App* flicker = app.add_subcommand(
+        "flicker", "measure how glints flicker in a sequence rendered with --frames --layers");
+    flicker->add_option("frames", flicker_frames, "the frames' EXRs, in order")->required();
+    flicker
+        ->add_option("--threshold", flicker_threshold,
+                     "glint-mask threshold (glints layer luminance; default 4 x its mean)")
+        ->check(CLI::Range(0.0, 1e30));
+
     BenchArgs ba;
     std::string write_scene;
     CLI::App* bench = app.add_subcommand(
@@ -941,6 +952,18 @@ int main(int argc, char** argv) {
         }
         if (*plugins) return run_plugins(plugin_dirs);
         if (*inspect) return run_inspect(inspect_path);
+        if (*flicker) {
+            const FlickerReport r = measure_flicker(flicker_frames, flicker_threshold);
+            fmt::print(
+                "frames: {} ({} pairs), pixels compared: {:.0f}\n"
+                "glint mask threshold: {:.4g}, mask coverage: {:.4f}\n"
+                "mask flicker (mean |mask_k - mask_k+1| of reprojected pixels): {:.4f}\n"
+                "glint persistence (glint pixels still glints in the next frame): {:.4f}\n"
+                "relative glint difference (mean |g_k - g_k+1| / mean g): {:.4f}\n",
+                flicker_frames.size(), r.pairs, r.pixels, r.threshold, r.mask_fraction,
+                r.mask_flicker, r.mask_persistence, r.relative_difference);
+            return 0;
+        }
         if (*merge) {
             for (const std::string& p : merge_parts)
                 if (same_file(p, merge_out))

@@ -1,0 +1,172 @@
+#include "color/flicker.h"
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
+#include <OpenEXR/ImfTestFile.h>
+
+#include <cmath>
+
+#include "core/error.h"
+
+namespace spangle {
+
+namespace {
+
+/** The layers of one frame that the measurement needs. */
+struct Frame {
+    int width = 0, height = 0;
+    Imath::M44f world_to_ndc;
+    std::vector<float> px, py, pz, z, a, glint;  ///< glint: luminance of the glints layer
+};
+
+Frame read_frame(const std::string& path) {
+    try {
+        if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+        Imf::InputFile in(path.c_str());
+        const Imf::Header& h = in.header();
+        const auto* m = h.findTypedAttribute<Imf::M44fAttribute>("worldToNDC");
+        if (!m) throw_error("'{}' has no worldToNDC matrix (render it with Spangle)", path);
+        const Imath::Box2i dw = h.dataWindow();
+        if (dw != h.displayWindow())
+            throw_error("'{}' is a crop window: merge the parts first (spangle merge)", path);
+        Frame f;
+        f.width = dw.max.x - dw.min.x + 1;
+        f.height = dw.max.y - dw.min.y + 1;
+        f.world_to_ndc = m->value();
+        const std::size_t n =
+            static_cast<std::size_t>(f.width) * static_cast<std::size_t>(f.height);
+        std::vector<float> gr(n), gg(n), gb(n);
+        const std::pair<const char*, std::vector<float>*> chans[] = {
+            {"P.X", &f.px}, {"P.Y", &f.py},    {"P.Z", &f.pz},    {"Z", &f.z},
+            {"A", &f.a},    {"glints.R", &gr}, {"glints.G", &gg}, {"glints.B", &gb}};
+        Imf::FrameBuffer fb;
+        for (const auto& [name, buf] : chans) {
+            if (!h.channels().findChannel(name))
+                throw_error("'{}' has no '{}' channel: render the frames with --layers", path,
+                            name);
+            buf->assign(n, 0.0f);
+            fb.insert(name, Imf::Slice::Make(Imf::FLOAT, buf->data(), dw, sizeof(float),
+                                             sizeof(float) * static_cast<std::size_t>(f.width)));
+        }
+        in.setFrameBuffer(fb);
+        in.readPixels(dw.min.y, dw.max.y);
+        f.glint.resize(n);
+        for (std::size_t i = 0; i < n; ++i)
+            f.glint[i] = 0.2126f * gr[i] + 0.7152f * gg[i] + 0.0722f * gb[i];
+        return f;
+    } catch (const SpangleError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw_error("cannot read '{}': {}", path, e.what());
+    }
+}
+
+}  // namespace
+
+FlickerReport measure_flicker(const std::vector<std::string>& paths, double threshold) {
+    if (paths.size() < 2) throw_error("flicker needs at least two frames");
+    std::vector<Frame> frames;
+    frames.reserve(paths.size());
+    for (const std::string& p : paths) {
+        frames.push_back(read_frame(p));
+        if (frames.back().width != frames.front().width ||
+            frames.back().height != frames.front().height)
+            throw_error("'{}' is {}x{}, '{}' {}x{}: frames of one sequence have one size", p,
+                        frames.back().width, frames.back().height, paths.front(),
+                        frames.front().width, frames.front().height);
+    }
+    FlickerReport rep;
+    if (threshold <= 0.0) {
+        double sum = 0.0, count = 0.0;
+        for (const Frame& f : frames)
+            for (std::size_t i = 0; i < f.glint.size(); ++i)
+                if (f.a[i] > 0.999f && std::isfinite(f.glint[i])) {
+                    sum += static_cast<double>(f.glint[i]);
+                    count += 1.0;
+                }
+        threshold = count > 0.0 ? 4.0 * sum / count : 1.0;
+    }
+    rep.threshold = threshold;
+    // A glint is a sparkle: brighter than the threshold and than 3 times the mean of its 5x5
+    // neighbourhood (a broad highlight, bright whatever the flakes, is not a glint).
+    std::vector<std::vector<uint8_t>> masks;
+    for (const Frame& f : frames) {
+        std::vector<uint8_t> m(f.glint.size(), 0);
+        for (int y = 0; y < f.height; ++y)
+            for (int x = 0; x < f.width; ++x) {
+                const std::size_t i =
+                    static_cast<std::size_t>(y) * static_cast<std::size_t>(f.width) +
+                    static_cast<std::size_t>(x);
+                const double g = f.glint[i];
+                if (!(g > threshold)) continue;
+                double sum = 0.0;
+                int n = 0;
+                for (int dy = -2; dy <= 2; ++dy)
+                    for (int dx = -2; dx <= 2; ++dx) {
+                        const int xx = x + dx, yy = y + dy;
+                        if (xx < 0 || yy < 0 || xx >= f.width || yy >= f.height) continue;
+                        const float v = f.glint[static_cast<std::size_t>(yy) *
+                                                    static_cast<std::size_t>(f.width) +
+                                                static_cast<std::size_t>(xx)];
+                        if (std::isfinite(v)) {
+                            sum += static_cast<double>(v);
+                            ++n;
+                        }
+                    }
+                m[i] = g > 3.0 * sum / n ? 1 : 0;
+            }
+        masks.push_back(std::move(m));
+    }
+    double diff = 0.0, coverage = 0.0, rel_num = 0.0, rel_den = 0.0, kept = 0.0, glints = 0.0;
+    for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
+        const Frame& a = frames[k];
+        const Frame& b = frames[k + 1];
+        ++rep.pairs;
+        for (int y = 0; y < a.height; ++y)
+            for (int x = 0; x < a.width; ++x) {
+                const std::size_t i =
+                    static_cast<std::size_t>(y) * static_cast<std::size_t>(a.width) +
+                    static_cast<std::size_t>(x);
+                if (!(a.a[i] > 0.999f)) continue;  // only pixels wholly on a surface
+                // Where the surface point lies in the next frame (row vectors, divide by w).
+                const Imath::V4f p(a.px[i], a.py[i], a.pz[i], 1.0f);
+                const Imath::V4f q = p * b.world_to_ndc;
+                if (!(q.w > 0.0f)) continue;
+                const float nx = q.x / q.w, ny = q.y / q.w;
+                if (!(nx >= 0.0f && nx < 1.0f && ny >= 0.0f && ny < 1.0f)) continue;
+                const auto bx = static_cast<int>(nx * static_cast<float>(b.width));
+                const auto by = static_cast<int>(ny * static_cast<float>(b.height));
+                const std::size_t j =
+                    static_cast<std::size_t>(by) * static_cast<std::size_t>(b.width) +
+                    static_cast<std::size_t>(bx);
+                if (!(b.a[j] > 0.999f)) continue;
+                // The same point, not something in front of it.
+                const float dx = b.px[j] - a.px[i], dy = b.py[j] - a.py[i], dz = b.pz[j] - a.pz[i];
+                if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) continue;
+                const double ga = a.glint[i], gb = b.glint[j];
+                if (!std::isfinite(ga) || !std::isfinite(gb)) continue;
+                rep.pixels += 1.0;
+                const double ma = masks[k][i], mb = masks[k + 1][j];
+                diff += std::fabs(ma - mb);
+                coverage += 0.5 * (ma + mb);
+                rel_num += std::fabs(ga - gb);
+                rel_den += 0.5 * (ga + gb);
+                if (ma > 0.0) {
+                    glints += 1.0;
+                    kept += mb;
+                }
+            }
+    }
+    if (rep.pixels > 0.0) {
+        rep.mask_flicker = diff / rep.pixels;
+        rep.mask_fraction = coverage / rep.pixels;
+    }
+    rep.relative_difference = rel_den > 0.0 ? rel_num / rel_den : 0.0;
+    rep.mask_persistence = glints > 0.0 ? kept / glints : 0.0;
+    return rep;
+}
+
+}  // namespace spangle
