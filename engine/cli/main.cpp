@@ -263,14 +263,21 @@ void print_stats(const FrameResult& r, const std::string& exr) {
     fmt::print("working space: {}\noutput: {}\n", r.color.working_space(), exr);
 }
 
+/** A pixel count or coordinate on the command line: digits only, at most 5 of them (sscanf's
+ *  "%u" would wrap 4294967312 to 16 and accept trailing junk). False when `t` is not one. */
+bool pixel_count(const std::string& t, uint32_t& value) {
+    if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos)
+        return false;
+    value = static_cast<uint32_t>(std::stoul(t));
+    return true;
+}
+
 /** --size WIDTHxHEIGHT (render and bench): each side 1..16384, else a usage error. */
 void parse_size(const std::string& size, uint32_t& width, uint32_t& height) {
-    // Digits only, each side at most 5 of them: sscanf("%u") would wrap 4294967312 to 16.
     const auto x = size.find('x');
     const auto side = [&](const std::string& t) -> uint32_t {
-        if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos)
-            return 0;
-        return static_cast<uint32_t>(std::stoul(t));
+        uint32_t v = 0;
+        return pixel_count(t, v) ? v : 0;
     };
     width = x == std::string::npos ? 0 : side(size.substr(0, x));
     height = x == std::string::npos ? 0 : side(size.substr(x + 1));
@@ -286,11 +293,10 @@ CropWindow parse_crop(const std::string& text) {
     for (int i = 0; i < 4; ++i) {
         const std::size_t end = i < 3 ? text.find(',', at) : text.size();
         const std::string t = end == std::string::npos ? std::string() : text.substr(at, end - at);
-        if (t.empty() || t.size() > 5 || t.find_first_not_of("0123456789") != std::string::npos)
+        if (!pixel_count(t, v[i]))
             usage_error(
                 "--crop must be x0,y0,x1,y1 (pixels, the window [x0, x1) x [y0, y1)), got '{}'",
                 text);
-        v[i] = static_cast<uint32_t>(std::stoul(t));
         at = end + 1;
     }
     if (!(v[0] < v[2] && v[1] < v[3])) usage_error("--crop {}: it needs x0 < x1 and y0 < y1", text);

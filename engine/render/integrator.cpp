@@ -145,6 +145,15 @@ struct Workspace {
         light.resize(n);
         for (auto* a : {&g_r, &g_g, &g_b}) a->resize(n);
     }
+    /** Points a batch's glint outputs at g_r/g_g/g_b, zeroed for `count` queries (a model
+     *  without glints leaves them so). */
+    void glint_outputs(std::size_t count, float*& r, float*& g, float*& b) {
+        for (auto* a : {&g_r, &g_g, &g_b})
+            std::fill_n(a->begin(), static_cast<std::ptrdiff_t>(count), 0.0f);
+        r = g_r.data();
+        g = g_g.data();
+        b = g_b.data();
+    }
 };
 
 /** State shared by all tiles of one render. */
@@ -232,16 +241,8 @@ void reframe(SurfacePoint& sp, Vec3 nf) {
     Vec3 n = nf / len;
     if (sp.backface) n = -n;
     if (!(dot(n, sp.n) > 1e-3f)) return;  // a map cannot turn the normal past the surface
-    Vec3 s = sp.s - n * dot(n, sp.s);
-    const float s_len = length(s);
-    if (s_len > 1e-12f && std::isfinite(s_len)) {
-        s = s / s_len;
-        sp.t = cross(n, s);
-    } else {
-        make_basis(n, s, sp.t);
-    }
+    shading_frame(n, sp.s, sp.s, sp.t);
     sp.n = n;
-    sp.s = s;
 }
 
 /** Applies the material's normal or bump map to the group's shading frames: tangent space from
@@ -309,6 +310,9 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                  uint32_t n, uint32_t bounce, uint64_t& shadow_rays) {
     const World& w = *job.world;
     ws.resize_group(n);
+    // The glint part of f matters for the glint layer at the first surface only (later on, the
+    // glint throughput of a path carries it).
+    const bool first_surface = job.layers && bounce == 0;
     if (mat.map_kind() != MapKind::None) apply_map(w, ws, mat, paths, n);
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
@@ -441,17 +445,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                                  nullptr,
                                  nullptr,
                                  nullptr};
-        // The glint part of f matters for the glint layer at the first surface only (later on,
-        // the glint throughput of the path carries it).
-        const bool want_glint = job.layers && bounce == 0;
-        if (want_glint) {
-            std::fill_n(ws.g_r.begin(), q, 0.0f);
-            std::fill_n(ws.g_g.begin(), q, 0.0f);
-            std::fill_n(ws.g_b.begin(), q, 0.0f);
-            eval.glint_r = ws.g_r.data();
-            eval.glint_g = ws.g_g.data();
-            eval.glint_b = ws.g_b.data();
-        }
+        if (first_surface) ws.glint_outputs(q, eval.glint_r, eval.glint_g, eval.glint_b);
         if (q > 0) model.eval(mat.instance(), closures, &eval);
         // The unoccluded contribution of each query, then its shadow ray; the rays of the
         // whole group are traced as one stream.
@@ -480,8 +474,8 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             if (job.layers) {
                 ws.shadow_group.push_back(ls.group);
                 ws.shadow_glint.push_back(
-                    (want_glint ? ws.throughput[i] * Vec3(ws.g_r[j], ws.g_g[j], ws.g_b[j])
-                                : ws.glint_throughput[i] * f) *
+                    (first_surface ? ws.throughput[i] * Vec3(ws.g_r[j], ws.g_g[j], ws.g_b[j])
+                                   : ws.glint_throughput[i] * f) *
                     ls.radiance * weight);
             }
             ws.stream_o.push_back(offset_origin(sp.p, side));
@@ -528,15 +522,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
                              nullptr,
                              nullptr,
                              nullptr};
-    const bool first_surface = job.layers && bounce == 0;
-    if (first_surface) {
-        std::fill_n(ws.g_r.begin(), n, 0.0f);
-        std::fill_n(ws.g_g.begin(), n, 0.0f);
-        std::fill_n(ws.g_b.begin(), n, 0.0f);
-        sb.glint_r = ws.g_r.data();
-        sb.glint_g = ws.g_g.data();
-        sb.glint_b = ws.g_b.data();
-    }
+    if (first_surface) ws.glint_outputs(n, sb.glint_r, sb.glint_g, sb.glint_b);
     model.sample(mat.instance(), closures, &sb);
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];

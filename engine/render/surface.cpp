@@ -4,6 +4,17 @@
 
 namespace spangle {
 
+void shading_frame(Vec3 n, Vec3 along, Vec3& s, Vec3& t) {
+    s = along - n * dot(n, along);
+    const float s_len = length(s);
+    if (s_len > 1e-12f && std::isfinite(s_len)) {
+        s = s / s_len;
+        t = cross(n, s);
+    } else {
+        make_basis(n, s, t);
+    }
+}
+
 SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hit& h, Vec3 d) {
     const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
                    i2 = mesh.indices[3 * h.prim + 2];
@@ -74,17 +85,9 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
         sp.dndu = -sp.dndu;
         sp.dndv = -sp.dndv;
     }
-    Vec3 s = sp.dpdu - n * dot(n, sp.dpdu);
-    const float s_len = length(s);
-    if (s_len > 1e-12f && std::isfinite(s_len)) {
-        s = s / s_len;
-        sp.t = cross(n, s);
-    } else {
-        make_basis(n, s, sp.t);
-    }
+    shading_frame(n, sp.dpdu, sp.s, sp.t);
     sp.ng = ng;
     sp.n = n;
-    sp.s = s;
     sp.backface = back;
     return sp;
 }

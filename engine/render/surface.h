@@ -26,6 +26,10 @@ struct SurfacePoint {
     Vec3 dpdx_obj, dpdy_obj;  ///< footprint axes in object space (set by object_footprint)
 };
 
+/** A shading frame around unit normal n: s is `along` made orthogonal to n and normalised
+ *  (any tangent when that is degenerate), t = n x s. */
+void shading_frame(Vec3 n, Vec3 along, Vec3& s, Vec3& t);
+
 /** Resolves a hit on `inst` (whose mesh is `mesh`) to a surface point oriented towards -d. */
 SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hit& h, Vec3 d);
 

@@ -186,6 +186,15 @@ void add_key(Track& track, double time, std::vector<double> values, const TableR
     track.values.push_back(std::move(values));
 }
 
+/** `[a, b]`: an array of exactly two numbers, into a and b; false for anything else. */
+bool two_numbers(const toml::node& n, float& a, float& b) {
+    const auto* arr = n.as_array();
+    if (!arr || arr->size() != 2 || !(*arr)[0].is_number() || !(*arr)[1].is_number()) return false;
+    a = static_cast<float>((*arr)[0].value<double>().value_or(0.0));
+    b = static_cast<float>((*arr)[1].value<double>().value_or(0.0));
+    return true;
+}
+
 /** Which table a texture is read for: a material parameter, or one of the host's maps. */
 enum class TextureUse { Param, NormalMap, BumpMap };
 
@@ -235,12 +244,9 @@ TextureRef parse_texture(const ParseContext& ctx, const toml::table& t, std::str
         if (u.has("scale")) {
             const toml::node& n = *u.node("scale");
             if (n.is_array()) {
-                const auto* a = n.as_array();
-                if (a->size() != 2 || !(*a)[0].is_number() || !(*a)[1].is_number())
+                if (!two_numbers(n, su, sv))
                     throw_error(loc_of(n, ctx.file),
                                 "'scale' must be a number or two numbers [su, sv]");
-                su = static_cast<float>((*a)[0].value<double>().value_or(1.0));
-                sv = static_cast<float>((*a)[1].value<double>().value_or(1.0));
             } else {
                 su = sv = static_cast<float>(u.number("scale", 1.0, {-1e6, 1e6}));
             }
@@ -250,11 +256,8 @@ TextureRef parse_texture(const ParseContext& ctx, const toml::table& t, std::str
         float ou = 0, ov = 0;
         if (u.has("offset")) {
             const toml::node& n = *u.node("offset");
-            const auto* a = n.as_array();
-            if (!a || a->size() != 2 || !(*a)[0].is_number() || !(*a)[1].is_number())
+            if (!two_numbers(n, ou, ov))
                 throw_error(loc_of(n, ctx.file), "'offset' must be two numbers [ou, ov]");
-            ou = static_cast<float>((*a)[0].value<double>().value_or(0.0));
-            ov = static_cast<float>((*a)[1].value<double>().value_or(0.0));
             if (!std::isfinite(ou) || !std::isfinite(ov))
                 throw_error(loc_of(n, ctx.file), "'offset' must be finite");
         }

@@ -7,7 +7,6 @@
 
 #include <cmath>
 #include <fstream>
-#include <sstream>
 
 #include "render/frame.h"
 #include "render/session.h"
@@ -50,13 +49,6 @@ TEST(Animation, TracksInterpolateAndHoldTheirEnds) {
     }
 }
 
-std::string read(const std::string& path) {
-    std::ifstream in(path);
-    std::stringstream ss;
-    ss << in.rdbuf();
-    return ss.str();
-}
-
 TEST(Animation, TheInBetweenFrameIsTheStillOfTheInBetweenPose) {
     const std::string scene = test::test_dir() + "/scenes/moving_camera.toml";
     RenderOptions options;
@@ -81,7 +73,7 @@ TEST(Animation, TheInBetweenFrameIsTheStillOfTheInBetweenPose) {
     EXPECT_NE(frames[1], frames[2]);
 
     // The still: the same scene without keys, camera and sphere halfway (linear keys).
-    std::string text = read(scene);
+    std::string text = test::scene_text("moving_camera.toml");
     const auto cut = [&](const std::string& from, const std::string& to) {
         const std::size_t a = text.find(from), b = text.find(to, a);
         ASSERT_NE(a, std::string::npos) << from;
@@ -99,12 +91,7 @@ TEST(Animation, TheInBetweenFrameIsTheStillOfTheInBetweenPose) {
         "position = [0, 1.25, 4.75]\nlook_at = [0.125, 0.5, 0]");
     set("translate = [0, 0.5, 0]", "translate = [0, 0.75, 0]\nrotate = [0, 45, 0]");
     test::TempDir dir("animation_still");
-    std::string still_text = text;
-    // Its mesh paths are relative to tests/scenes.
-    for (std::size_t at = still_text.find("../../assets"); at != std::string::npos;
-         at = still_text.find("../../assets", at + 1))
-        still_text.replace(at, 12, test::asset_dir());
-    std::ofstream(dir.file("still.toml")) << still_text;
+    std::ofstream(dir.file("still.toml")) << text;
     FrameRequest req;
     req.scene = dir.file("still.toml");
     req.ocio_config = test::shipped_ocio();

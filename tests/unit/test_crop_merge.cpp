@@ -11,7 +11,6 @@
 
 #include <cstring>
 #include <fstream>
-#include <sstream>
 
 #include "color/image_merge.h"
 #include "color/image_output.h"
@@ -23,24 +22,7 @@ namespace {
 
 /** tests/scenes/textured.toml with absolute paths, rendered at 72 x 40, 4 spp, with layers. */
 FrameResult render(const test::TempDir& dir, CropWindow crop) {
-    std::ifstream in(test::test_dir() + "/scenes/textured.toml");
-    std::stringstream ss;
-    ss << in.rdbuf();
-    std::string text = ss.str();
-    const auto replace_all = [&](const std::string& a, const std::string& b) {
-        std::string out;
-        std::size_t from = 0;
-        for (std::size_t at = text.find(a); at != std::string::npos; at = text.find(a, from)) {
-            out += text.substr(from, at - from);
-            out += b;
-            from = at + a.size();
-        }
-        out += text.substr(from);
-        text = out;
-    };
-    replace_all("\"../../assets/", fmt::format("\"{}/", test::asset_dir()));
-    replace_all("\"textures/", fmt::format("\"{}/scenes/textures/", test::test_dir()));
-    std::ofstream(dir.file("scene.toml")) << text;
+    std::ofstream(dir.file("scene.toml")) << test::scene_text("textured.toml");
     FrameRequest req;
     req.scene = dir.file("scene.toml");
     req.ocio_config = test::shipped_ocio();

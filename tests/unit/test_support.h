@@ -3,8 +3,15 @@
 
 #include <unistd.h>
 
+#include <fmt/format.h>
+
 #include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
 #include <string>
+#include <utility>
+#include <vector>
 
 #include "color/color_config.h"
 #include "core/log.h"
@@ -24,6 +31,38 @@ inline std::string shipped_ocio() {
 /** The shipped config, loaded by explicit path so $OCIO in the environment cannot change it. */
 inline ColorConfig shipped_config() {
     return ColorConfig::load(shipped_ocio(), {});
+}
+
+/** Replaces every occurrence of `from` in `text` by `to` (left to right, not rescanning). */
+inline void replace_all(std::string& text, const std::string& from, const std::string& to) {
+    std::string out;
+    std::size_t start = 0;
+    for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, start)) {
+        out.append(text, start, at - start);
+        out += to;
+        start = at + from.size();
+    }
+    out.append(text, start, std::string::npos);
+    text = std::move(out);
+}
+
+/** The text of tests/scenes/`name` after `edits` (each from -> to, every occurrence; a `from`
+ *  the file lacks throws), with its relative paths ("../../assets/..." and "textures/...")
+ *  made absolute, so that the copy can be written anywhere. */
+inline std::string scene_text(const std::string& name,
+                              const std::vector<std::pair<std::string, std::string>>& edits = {}) {
+    std::ifstream in(test_dir() + "/scenes/" + name);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    std::string text = ss.str();
+    for (const auto& [from, to] : edits) {
+        if (text.find(from) == std::string::npos)
+            throw std::runtime_error(name + " has no '" + from + "'");
+        replace_all(text, from, to);
+    }
+    replace_all(text, "\"../../assets/", fmt::format("\"{}/", asset_dir()));
+    replace_all(text, "\"textures/", fmt::format("\"{}/scenes/textures/", test_dir()));
+    return text;
 }
 
 /** A logger that drops info and warnings, so test output stays readable. */

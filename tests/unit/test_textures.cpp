@@ -6,7 +6,6 @@
 
 #include <cmath>
 #include <fstream>
-#include <sstream>
 
 #include "color/image_output.h"
 #include "render/frame.h"
@@ -333,23 +332,10 @@ TEST(Texture, AFlakeMaskHoldsNoGlintWhereItIsZero) {
  *  rendered at 64 x 32, 4 spp. */
 FrameResult render_textured(const test::TempDir& dir, const std::string& name,
                             const std::string& from = "", const std::string& to = "") {
-    std::ifstream in(test::test_dir() + "/scenes/textured.toml");
-    std::stringstream ss;
-    ss << in.rdbuf();
-    std::string text = ss.str();
-    const auto replace_all = [&](const std::string& a, const std::string& b) {
-        for (std::size_t at = text.find(a); at != std::string::npos;
-             at = text.find(a, at + b.size()))
-            text.replace(at, a.size(), b);
-    };
-    if (!from.empty()) {
-        if (text.find(from) == std::string::npos)
-            throw std::runtime_error("textured.toml has no '" + from + "'");
-        replace_all(from, to);
-    }
-    replace_all("\"../../assets/", "\"" + test::asset_dir() + "/");
-    replace_all("\"textures/", "\"" + test::test_dir() + "/scenes/textures/");
-    std::ofstream(dir.file(name)) << text;
+    std::ofstream(dir.file(name)) << test::scene_text(
+        "textured.toml", from.empty()
+                             ? std::vector<std::pair<std::string, std::string>>{}
+                             : std::vector<std::pair<std::string, std::string>>{{from, to}});
     FrameRequest req;
     req.scene = dir.file(name);
     req.ocio_config = test::shipped_ocio();
