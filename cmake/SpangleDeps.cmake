@@ -39,6 +39,18 @@ add_library(spangle_opensubdiv INTERFACE)
 target_link_libraries(spangle_opensubdiv INTERFACE ${OSD_CPU_LIBRARY})
 target_include_directories(spangle_opensubdiv SYSTEM INTERFACE ${OSD_INCLUDE_DIR})
 
+# MPI (optional): the C API and a launcher (mpiexec) for the tests.
+set(SPANGLE_HAVE_MPI OFF)
+if(SPANGLE_MPI)
+    find_package(MPI COMPONENTS C)
+    if(MPI_C_FOUND)
+        set(SPANGLE_HAVE_MPI ON)
+        message(STATUS "MPI: spangle renders over MPI ranks (${MPI_C_LIBRARIES}; ${MPIEXEC_EXECUTABLE})")
+    else()
+        message(STATUS "MPI: not found (install libopenmpi-dev): spangle renders in one process")
+    endif()
+endif()
+
 if(SPANGLE_BUILD_TESTS)
     find_package(GTest REQUIRED)
     find_package(benchmark QUIET)

@@ -9,6 +9,7 @@ packages=(
     libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev libpng-dev
     libtbb-dev libtomlplusplus-dev libcli11-dev libtinyobjloader-dev libcpp-httplib-dev libgtest-dev libbenchmark-dev
     openimageio-tools opencolorio-tools clang-format
+    libopenmpi-dev openmpi-bin
 )
 if [ "${1:-}" = "--tests" ]; then
     packages+=(chromium chromium-driver curl clang libclang-rt-14-dev)

@@ -190,16 +190,15 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
     return true;
 }
 
-void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, bool coherent,
-                                   Hit* hits, uint8_t* found) const {
+void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits,
+                                   uint8_t* found) const {
     thread_local std::vector<RTCRayHit> rays;
     rays.resize(n);
     for (std::size_t i = 0; i < n; ++i)
         make_ray_hit(o[i], d[i], 1e30f, rays[i]);  // a non-finite ray misses
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
-    ctx.flags =
-        coherent ? RTC_INTERSECT_CONTEXT_FLAG_COHERENT : RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
+    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;  // ray by ray: see the header
     if (n > 0) rtcIntersect1M(top_, &ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRayHit));
     for (std::size_t i = 0; i < n; ++i) {
         found[i] = rays[i].hit.geomID != RTC_INVALID_GEOMETRY_ID ? 1 : 0;

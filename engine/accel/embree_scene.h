@@ -67,9 +67,13 @@ public:
 
     /** Closest hit along o + t d for t in (0, tmax); false when nothing is hit. */
     bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const;
-    /** Closest hits of n rays o[i] + t d[i], t in (0, 1e30), traced as one stream (Embree
-     *  gathers coherent rays into packets): found[i] says whether hits[i] is one. */
-    void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, bool coherent, Hit* hits,
+    /** Closest hits of n rays o[i] + t d[i], t in (0, 1e30), traced as one stream:
+     *  found[i] says whether hits[i] is one. A ray's hit is the same bit for bit whatever else
+     *  is in the stream (an incoherent stream: Embree's packets for coherent streams gave hits
+     *  that changed in the last bits with the stream's make-up, so crops, passes and MPI bands
+     *  could differ from the whole render; they saved no time here). It may differ from
+     *  intersect()'s in the last bits (another Embree code path). */
+    void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits,
                           uint8_t* found) const;
     /** blocked[i] = whether something blocks o[i] + t d[i] for t in (0, tmax[i]), for n rays
      *  traced as one (incoherent) stream. A non-finite ray counts as blocked. */

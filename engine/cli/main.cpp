@@ -6,6 +6,7 @@
 
 #include <fcntl.h>
 #include <fmt/format.h>
+#include <sched.h>
 #include <unistd.h>
 #include <CLI/CLI.hpp>
 
@@ -25,6 +26,7 @@
 #include <vector>
 
 #include "cli/bench.h"
+#include "cli/mpi_render.h"
 #include "cli/progress.h"
 #include "cli/serve.h"
 #include "cli/watch.h"
@@ -75,8 +77,9 @@ struct RenderArgs {
     uint32_t texture_memory_mb = 1024;
     std::string display, view;  ///< of the PNG preview; empty = the config's defaults
     bool layers = false;
-    std::string crop;    ///< x0,y0,x1,y1; empty = the whole image
-    std::string frames;  ///< A..B or A; empty = one still at the scene's frame_start
+    std::string crop;        ///< x0,y0,x1,y1; empty = the whole image
+    std::string frames;      ///< A..B or A; empty = one still at the scene's frame_start
+    uint32_t band_rows = 1;  ///< under MPI: tile rows per unit of work
 };
 
 /** A bad command line (exit status 2), found after parsing (sizes, names, paths that clash). */
@@ -573,6 +576,128 @@ int run_frames(const RenderArgs& a) {
     return 0;
 }
 
+#ifdef SPANGLE_HAVE_MPI
+/** Ends a rank quietly with `code` after the rank that should speak has printed why. */
+struct RankExit {
+    int code;
+};
+
+/** `mpirun -np N spangle render ...`: every rank loads the scene; the image (or each frame of
+ *  --frames) is cut into bands handed out on request; rank 0 writes it. */
+int run_render_mpi(const RenderArgs& a, const MpiJob& job) {
+    Logger log;
+    // The other ranks would repeat rank 0's notes and warnings: they report errors only.
+    if (a.quiet || job.rank() != 0)
+        log.threshold = job.rank() != 0 ? LogLevel::Error : LogLevel::Warning;
+    // A step every rank takes: when one fails, the first rank that failed says why (rank 0
+    // with the one-process message, another rank naming itself) and every rank ends.
+    const auto together = [&](const std::function<void()>& step) {
+        std::string error;
+        int code = 1;
+        try {
+            step();
+        } catch (const UsageError& e) {
+            error = e.what();
+            code = 2;
+        } catch (const std::exception& e) {
+            error = e.what();
+        }
+        const std::vector<int> failed = job.failed_ranks(error.empty());
+        if (failed.empty()) return;
+        if (!error.empty() && failed.front() == job.rank())
+            print_error(job.rank() == 0 ? error : job.who() + ": " + error);
+        throw RankExit{code};
+    };
+    Outputs out;
+    RenderOptions options = render_options(a);
+    options.progressive = false;  // one pass per band: the same sums, bit for bit
+    options.preview_pass = false;
+    if (a.threads == 0) {
+        // Ranks sharing a machine share its cores (unless the launcher bound each to its own).
+        const unsigned cores = std::max(1u, std::thread::hardware_concurrency());
+        cpu_set_t set;
+        const bool bound = sched_getaffinity(0, sizeof(set), &set) == 0 &&
+                           static_cast<unsigned>(CPU_COUNT(&set)) < cores;
+        const int local = launcher_info().local_size;
+        options.threads = bound ? CPU_COUNT(&set) : std::max(1, static_cast<int>(cores) / local);
+        if (bound && job.rank() == 0 && options.threads * local < static_cast<int>(cores))
+            log.warn(
+                "the launcher bound each rank to {} of this machine's {} cores ({} ranks here): "
+                "run mpirun with --bind-to none (spangle then shares the cores among the ranks) "
+                "or give each rank its cores (--map-by node:PE=N)",
+                options.threads, cores, local);
+    }
+    std::unique_ptr<Session> session;
+    together([&] {
+        if (job.rank() == 0) out = outputs_for(a);
+        session = std::make_unique<Session>(a.plugin_dirs, a.ocio, options, log);
+    });
+    std::vector<std::pair<int64_t, bool>> frames;  // (frame, is a frame of --frames)
+    if (a.frames.empty()) {
+        frames.emplace_back(0, false);
+    } else {
+        const auto [first, last] = parse_frames(a.frames);
+        for (int64_t f = first; f <= last; ++f) frames.emplace_back(f, true);
+    }
+    Progress progress(::isatty(STDERR_FILENO) != 0);
+    for (const auto& [f, numbered] : frames) {
+        together([&] {
+            const double time =
+                numbered && session->has_scene() ? frame_time(session->info(), f) : 0.0;
+            const ReloadReport rep = session->load(a.scene, time);
+            if (numbered && rep.first && frame_time(session->info(), f) != time)
+                session->load(a.scene, frame_time(session->info(), f));
+            if (job.rank() == 0 && f == frames.front().first) {
+                std::string display = out.display, view = out.view;
+                session->color().resolve_view(display, view);
+                warn_if_no_chromaticities(log, session->color());
+            }
+        });
+        DistributedImage img;
+        together([&] {
+            img = job.render(
+                *session, options.crop, a.band_rows,
+                a.quiet ? std::function<void(uint64_t, uint64_t)>()
+                        : [&](uint64_t d, uint64_t t) { progress.update(d, t); });
+        });
+        if (job.rank() != 0) continue;
+        progress.finish();
+        try {
+            Outputs o = out;
+            if (numbered) {
+                o.exr = frame_path(out.exr, f);
+                if (!o.preview.empty()) o.preview = frame_path(out.preview, f);
+            }
+            warn_nonfinite(log, img.stats);
+            warn_half_overflow(
+                log,
+                o.write(img.image, img.width, img.height, session->color(), img.stats.spp_reached,
+                        false, 1, &session->info(), img.stats.seconds, &img.layers,
+                        &img.layer_names, &img.window),
+                o.exr);
+            if (!a.quiet) {
+                std::string ranks;
+                for (std::size_t r = 0; r < img.loads.size(); ++r)
+                    ranks += fmt::format("{}{}: {} bands {:.2f} s", r ? "; " : "", r,
+                                         img.loads[r].units, img.loads[r].busy);
+                fmt::print(
+                    "{}{:.2f} s over {} ranks ({} bands of {} tile rows; {}); balance "
+                    "(busiest / mean) {:.3f}; wrote {}\n",
+                    numbered ? fmt::format("frame {}: ", f) : std::string(), img.stats.seconds,
+                    img.loads.size(), img.units, std::max(a.band_rows, 1u), ranks, img.balance(),
+                    o.exr);
+                std::fflush(stdout);
+            }
+        } catch (const std::exception& e) {
+            // The other ranks wait for the next step: end them all.
+            print_error(e.what());
+            job.abort(1);
+        }
+    }
+    return 0;
+}
+#endif
+
 /** `spangle render --watch`: render, then watch every input and re-render incrementally on each
  *  save until a signal. */
 int run_watch(const RenderArgs& a) {
@@ -824,6 +949,11 @@ int main(int argc, char** argv) {
                        "render only the window x0,y0,x1,y1 of the image (pixels [x0, x1) x [y0, "
                        "y1)); the EXR's data window places it in the full frame; spangle merge "
                        "assembles the parts bit for bit");
+    render
+        ->add_option("--band-rows", ra.band_rows,
+                     "under mpirun: tile rows (16 pixels each) per unit of work handed to a rank "
+                     "(default 1)")
+        ->check(CLI::Range(1u, 4096u));
     render->add_flag("--layers", ra.layers,
                      "write render layers into the EXR beside the beauty: A (coverage), albedo, "
                      "N, Z, P, glints, and lightgroup_<name> per light group (docs/layers.md)");
@@ -948,6 +1078,27 @@ int main(int argc, char** argv) {
         return app.exit(e) == 0 ? 0 : 2;
     }
     try {
+        if (*render && launcher_info().size > 1) {
+            // Started by mpirun (or srun) as one of several ranks.
+            if (ra.watch || ra.pass_output || !ra.serve.empty())
+                usage_error(
+                    "--watch, --pass-output and --serve are for one process; under mpirun "
+                    "spangle renders a still or --frames and rank 0 writes them");
+#ifdef SPANGLE_HAVE_MPI
+            MpiJob job(argc, argv);
+            try {
+                return run_render_mpi(ra, job);
+            } catch (const RankExit& e) {
+                return e.code;
+            }
+#else
+            usage_error(
+                "this spangle was built without MPI, so each of the {} ranks would render the "
+                "whole image: run it as one process, or rebuild with libopenmpi-dev installed "
+                "(SPANGLE_MPI=ON)",
+                launcher_info().size);
+#endif
+        }
         if (*render) {
             if (!ra.frames.empty() && ra.watch)
                 usage_error(
@@ -994,7 +1145,7 @@ int main(int argc, char** argv) {
             return run_bench(ba);
         }
     } catch (const UsageError& e) {
-        print_error(e.what());
+        if (launcher_info().rank == 0) print_error(e.what());  // ranks > 0: rank 0 says it
         return 2;
     } catch (const SpangleError& e) {
         print_error(e.what());

@@ -695,9 +695,10 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
         const std::size_t traced = ws.stream_path.size();
         ws.stream_hit.resize(traced);
         ws.stream_found.assign(traced, 0);
-        // Camera rays of a tile are coherent: Embree traces them in packets.
+        // One stream per bounce; each hit is the ray's own, whatever the stream holds (so a
+        // pixel's value does not depend on the tile, pass or crop it was traced in).
         if (w.accel)
-            w.accel->intersect_stream(ws.stream_o.data(), ws.stream_d.data(), traced, bounce == 0,
+            w.accel->intersect_stream(ws.stream_o.data(), ws.stream_d.data(), traced,
                                       ws.stream_hit.data(), ws.stream_found.data());
         for (std::size_t j = 0; j < traced; ++j) {
             const std::size_t k = ws.stream_path[j];

@@ -234,4 +234,14 @@ void Session::render() {
     system_render(*live_, *world_);
 }
 
+bool Session::film(Film& out) const {
+    const ecs::Registry* live = live_.get();
+    if (!live || live->count<Camera>() == 0 || live->count<Film>() == 0) return false;
+    out = live->find_pool<Film>()->columns().get(0);
+    if (options_.width_override) out.width = options_.width_override;
+    if (options_.height_override) out.height = options_.height_override;
+    if (options_.spp_override) out.spp = options_.spp_override;
+    return true;
+}
+
 }  // namespace spangle

@@ -49,6 +49,9 @@ public:
     bool has_scene() const { return world_ != nullptr; }
     /** Renders the live scene into world().image (progressively; see RenderOptions). */
     void render();
+    /** The live scene's film with the options' size and spp overrides applied; false when the
+     *  scene has no camera or film. */
+    bool film(Film& out) const;
 
     World& world() { return *world_; }
     const SceneInfo& info() const { return *info_; }
