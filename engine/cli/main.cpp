@@ -80,6 +80,7 @@ struct RenderArgs {
     std::string crop;        ///< x0,y0,x1,y1; empty = the whole image
     std::string frames;      ///< A..B or A; empty = one still at the scene's frame_start
     uint32_t band_rows = 1;  ///< under MPI: tile rows per unit of work
+    std::string spp_range;   ///< A..B: samples [A, B) of the frame's; empty = all
 };
 
 /** A bad command line (exit status 2), found after parsing (sizes, names, paths that clash). */
@@ -133,7 +134,8 @@ int exit_status_for_signal() {
 /** Where and how a render's images are written. */
 struct Outputs {
     std::string exr, preview;
-    std::string display, view;  ///< of the preview (empty: the config's defaults)
+    std::string display, view;            ///< of the preview (empty: the config's defaults)
+    uint32_t spp_first = 0, spp_end = 0;  ///< --spp-range (spp_end 0: none)
     ExrOptions exr_options;
     std::string scene;
 
@@ -148,7 +150,8 @@ struct Outputs {
                       const SceneInfo* info = nullptr, double seconds = -1.0,
                       const std::vector<float>* layers = nullptr,
                       const std::vector<std::string>* layer_names = nullptr,
-                      const ImageWindow* window = nullptr) const {
+                      const ImageWindow* window = nullptr,
+                      const std::vector<SampleSum>* sums = nullptr, uint32_t spp_frame = 0) const {
         ExrOptions o = exr_options;
         // A crop: the image is a data window of the full frame; the camera is the frame's.
         uint32_t frame_w = width, frame_h = height;
@@ -168,6 +171,12 @@ struct Outputs {
                       {"spangle:version", SPANGLE_VERSION},
                       {"spangle:spp", std::to_string(spp)},
                       {"spangle:partial", partial ? "1" : "0"}};
+        // A --spp-range part: its samples' exact sums, for spangle merge.
+        if (spp_end > 0 && sums && !partial) {
+            o.sums = sums;
+            o.metadata.emplace_back("spangle:spp_range", fmt::format("{}..{}", spp_first, spp_end));
+            o.metadata.emplace_back("spangle:spp_frame", std::to_string(spp_frame));
+        }
         if (seconds >= 0.0) o.floats.emplace_back("renderTimeSeconds", static_cast<float>(seconds));
         if (info) {
             // The names pbrt-v4 writes and Nuke reads (OpenEXR's standard attributes).
@@ -306,6 +315,21 @@ CropWindow parse_crop(const std::string& text) {
     return CropWindow{v[0], v[1], v[2], v[3]};
 }
 
+/** --spp-range A..B: samples [A, B) of the frame's (0 <= A < B). */
+void parse_spp_range(const std::string& text, uint32_t& first, uint32_t& end) {
+    const auto number = [](const std::string& t, uint32_t& v) {
+        if (t.empty() || t.size() > 7 || t.find_first_not_of("0123456789") != std::string::npos)
+            return false;
+        v = static_cast<uint32_t>(std::stoul(t));
+        return v <= (1u << 20);
+    };
+    const std::size_t dots = text.find("..");
+    if (dots == std::string::npos || !number(text.substr(0, dots), first) ||
+        !number(text.substr(dots + 2), end))
+        usage_error("--spp-range must be A..B (sample numbers, samples A to B-1), got '{}'", text);
+    if (!(first < end)) usage_error("--spp-range {}: it needs A < B", text);
+}
+
 /** Options of a render from the command line (threads, size, spp, strategy). */
 RenderOptions render_options(const RenderArgs& a) {
     RenderOptions o;
@@ -314,6 +338,7 @@ RenderOptions render_options(const RenderArgs& a) {
     o.texture_cache = a.texture_cache;
     o.layers = a.layers;
     if (!a.crop.empty()) o.crop = parse_crop(a.crop);
+    if (!a.spp_range.empty()) parse_spp_range(a.spp_range, o.spp_first, o.spp_end);
     o.texture_memory_mb = a.texture_memory_mb;
     if (!a.size.empty()) parse_size(a.size, o.width_override, o.height_override);
     o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
@@ -388,6 +413,7 @@ Outputs outputs_for(const RenderArgs& a) {
     out.scene = a.scene;
     out.display = a.display;
     out.view = a.view;
+    if (!a.spp_range.empty()) parse_spp_range(a.spp_range, out.spp_first, out.spp_end);
     return out;
 }
 
@@ -470,7 +496,7 @@ int run_render(const RenderArgs& a) {
         log,
         out.write(frame.image, frame.width, frame.height, frame.color, frame.stats.spp_reached,
                   partial, 1, &frame.info, frame.stats.seconds, &frame.layers, &frame.layer_names,
-                  &frame.window),
+                  &frame.window, &frame.sums, frame.stats.spp_frame),
         out.exr);
     if (partial)
         log.warn("stopped by a signal: wrote {} with {} of {} samples per pixel", out.exr,
@@ -553,11 +579,11 @@ int run_frames(const RenderArgs& a) {
         Outputs out = pattern;
         out.exr = frame_path(pattern.exr, f);
         if (!out.preview.empty()) out.preview = frame_path(pattern.preview, f);
-        warn_half_overflow(
-            log,
-            out.write(w.image, w.width, w.height, session.color(), st.spp_reached, !complete, 1,
-                      &session.info(), st.seconds, &w.layers, &w.layer_names, &w.window),
-            out.exr);
+        warn_half_overflow(log,
+                           out.write(w.image, w.width, w.height, session.color(), st.spp_reached,
+                                     !complete, 1, &session.info(), st.seconds, &w.layers,
+                                     &w.layer_names, &w.window, &w.sums, st.spp_frame),
+                           out.exr);
         warn_nonfinite(log, st);
         if (!a.quiet)
             fmt::print("frame {} ({:.3f} s): {:.2f} s, ran: {}; wrote {}\n", f,
@@ -945,6 +971,9 @@ int main(int argc, char** argv) {
     render->add_option("--frames", ra.frames,
                        "render frames A..B (or A) of the scene's keyframed animation, each to the "
                        "output with its number ('#' runs in -o are the number, else .####)");
+    render->add_option("--spp-range", ra.spp_range,
+                       "render samples A..B-1 of the frame's (A..B); spangle merge adds parts of "
+                       "one frame into exactly the whole render (docs/crop_merge.md)");
     render->add_option("--crop", ra.crop,
                        "render only the window x0,y0,x1,y1 of the image (pixels [x0, x1) x [y0, "
                        "y1)); the EXR's data window places it in the full frame; spangle merge "
@@ -1019,7 +1048,9 @@ int main(int argc, char** argv) {
     std::vector<std::string> merge_parts;
     std::string merge_out;
     CLI::App* merge = app.add_subcommand(
-        "merge", "assemble crop-window renders (render --crop) into the full frame, bit for bit");
+        "merge",
+        "assemble crop windows (render --crop) or add sample ranges (render --spp-range) into "
+        "the whole render, bit for bit");
     merge->add_option("parts", merge_parts, "the parts' EXR files")->required();
     merge->add_option("-o,--output", merge_out, "the full frame's EXR")->required();
 
@@ -1078,6 +1109,15 @@ int main(int argc, char** argv) {
         return app.exit(e) == 0 ? 0 : 2;
     }
     try {
+        if (*render && !ra.spp_range.empty()) {
+            if (ra.layers)
+                usage_error(
+                    "--spp-range parts carry the beauty's exact sums, not the layers': render "
+                    "--layers without --spp-range");
+            if (ra.watch) usage_error("--spp-range renders a part of a frame; --watch a whole one");
+            if (launcher_info().size > 1)
+                usage_error("--spp-range is for one process (under mpirun, ranks share the image)");
+        }
         if (*render && launcher_info().size > 1) {
             // Started by mpirun (or srun) as one of several ranks.
             if (ra.watch || ra.pass_output || !ra.serve.empty())
@@ -1129,6 +1169,11 @@ int main(int argc, char** argv) {
                 usage_error("output '{}' must end in .exr", merge_out);
             check_writable(merge_out, "EXR");
             const MergeReport rep = merge_exr_parts(merge_parts, merge_out);
+            if (rep.sample_ranges > 0) {
+                fmt::print("added {} sample ranges into {} ({}x{} frame)\n", rep.sample_ranges,
+                           merge_out, rep.width, rep.height);
+                return 0;
+            }
             fmt::print(
                 "merged {} parts into {} ({}x{}{})\n", rep.parts, merge_out, rep.width, rep.height,
                 rep.overlap_pixels

@@ -8,7 +8,11 @@
 #include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfTestFile.h>
 
+#include <algorithm>
+#include <cinttypes>
+#include <cstdio>
 #include <cstring>
+#include <tuple>
 
 #include "color/image_output.h"
 #include "core/error.h"
@@ -35,10 +39,158 @@ std::string spp_of(const Imf::Header& h) {
     return a ? a->value() : std::string();
 }
 
+std::string attribute(const Imf::Header& h, const char* name) {
+    const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name);
+    return a ? a->value() : std::string();
+}
+
+/** Sample-range parts (render --spp-range) of one window: their exact sums add up. */
+MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std::string& out) {
+    MergeReport rep;
+    rep.parts = parts.size();
+    std::unique_ptr<Imf::Header> first;
+    std::vector<Channel> chans;
+    std::vector<SampleSum> total;
+    std::size_t pw = 0, ph = 0;
+    uint64_t spp_frame = 0;
+    std::vector<std::tuple<uint64_t, uint64_t, std::string>> ranges;  // [a, b), file
+    const std::vector<std::string>& sum_names = sample_sum_channels();
+    for (const std::string& path : parts) {
+        try {
+            if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+            Imf::InputFile in(path.c_str());
+            const Imf::Header& hd = in.header();
+            const std::string range = attribute(hd, "spangle:spp_range");
+            if (range.empty())
+                throw_error(
+                    "'{}' is not a --spp-range part, '{}' is: merge the sample ranges of each "
+                    "window first, then the windows",
+                    path, parts.front());
+            uint64_t a = 0, b = 0;
+            if (std::sscanf(range.c_str(), "%" SCNu64 "..%" SCNu64, &a, &b) != 2 || !(a < b))
+                throw_error("'{}': its sample range '{}' is not A..B", path, range);
+            const Imath::Box2i dw = hd.dataWindow();
+            if (!first) {
+                first = std::make_unique<Imf::Header>(hd);
+                chans = channels_of(hd);
+                for (const std::string& n : sum_names)
+                    if (!hd.channels().findChannel(n))
+                        throw_error("'{}' lacks the exact sums (channel {})", path, n);
+                spp_frame = std::strtoull(attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10);
+                pw = static_cast<std::size_t>(dw.max.x - dw.min.x + 1);
+                ph = static_cast<std::size_t>(dw.max.y - dw.min.y + 1);
+                rep.width = hd.displayWindow().max.x + 1;
+                rep.height = hd.displayWindow().max.y + 1;
+                if (const uint64_t have =
+                        memory_short_for(2.0 * 96.0 * static_cast<double>(pw * ph)))
+                    throw_error("merging {}x{} pixels of sums needs more than the {} available", pw,
+                                ph, format_bytes(static_cast<double>(have)));
+                total.assign(pw * ph * 3, SampleSum(0));
+            } else {
+                if (hd.displayWindow() != first->displayWindow() || dw != first->dataWindow())
+                    throw_error(
+                        "'{}' covers other pixels than '{}': sample ranges of one window merge "
+                        "(render every part with the same --crop and --size)",
+                        path, parts.front());
+                const auto c = channels_of(hd);
+                bool same = c.size() == chans.size();
+                for (std::size_t i = 0; same && i < c.size(); ++i)
+                    same = c[i].name == chans[i].name && c[i].type == chans[i].type;
+                if (!same)
+                    throw_error(
+                        "'{}' has other channels than '{}' (render every part with the same "
+                        "options: --float)",
+                        path, parts.front());
+                if (std::strtoull(attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10) !=
+                    spp_frame)
+                    throw_error("'{}' is part of a frame of {} samples per pixel, '{}' of {}", path,
+                                attribute(hd, "spangle:spp_frame"), parts.front(), spp_frame);
+            }
+            ranges.emplace_back(a, b, path);
+            std::vector<uint32_t> words(pw * ph * 12);
+            Imf::FrameBuffer fb;
+            for (std::size_t c = 0; c < 12; ++c)
+                fb.insert(sum_names[c],
+                          Imf::Slice::Make(Imf::UINT, words.data() + c, dw, 12 * sizeof(uint32_t),
+                                           pw * 12 * sizeof(uint32_t)));
+            in.setFrameBuffer(fb);
+            in.readPixels(dw.min.y, dw.max.y);
+            for (std::size_t i = 0; i < total.size(); ++i)
+                total[i] += sample_sum_from_words(&words[4 * i]);
+        } catch (const SpangleError&) {
+            throw;
+        } catch (const std::exception& e) {
+            throw_error("cannot read '{}': {}", path, e.what());
+        }
+    }
+    // The ranges must cover the frame's samples 0..spp_frame-1, each once.
+    std::sort(ranges.begin(), ranges.end());
+    uint64_t next = 0;
+    for (const auto& [a, b, path] : ranges) {
+        if (a < next)
+            throw_error("samples {}..{} are in '{}' and in another part", a, std::min(b, next),
+                        path);
+        if (a > next)
+            throw_error(
+                "samples {}..{} of the frame's {} are in no part (render them with "
+                "--spp-range {}..{})",
+                next, a, spp_frame, next, a);
+        next = b;
+    }
+    if (next != spp_frame)
+        throw_error(
+            "samples {}..{} of the frame's {} are in no part (render them with --spp-range "
+            "{}..{})",
+            next, spp_frame, spp_frame, next, spp_frame);
+
+    // The whole frame's image: the mean of all its samples, from the exact total.
+    std::vector<float> rgb(total.size());
+    for (std::size_t i = 0; i < rgb.size(); ++i) rgb[i] = sample_mean(total[i], spp_frame);
+    Imf::Header header(*first);
+    Imf::ChannelList channels;
+    for (const Channel& c : chans)
+        if (std::find(sum_names.begin(), sum_names.end(), c.name) == sum_names.end())
+            channels.insert(c.name, Imf::Channel(c.type));
+    header.channels() = channels;
+    header.erase("spangle:spp_range");
+    header.erase("spangle:spp_frame");
+    header.insert("spangle:spp", Imf::StringAttribute(std::to_string(spp_frame)));
+    const Imath::Box2i dw = header.dataWindow();
+    write_file_atomically(out, [&](const std::string& tmp) {
+        Imf::OutputFile file(tmp.c_str(), header);
+        std::vector<Imath::half> halves;
+        Imf::FrameBuffer fb;
+        for (std::size_t c = 0; c < 3; ++c) {
+            const std::string name(1, "RGB"[c]);
+            const Imf::Channel* ch = header.channels().findChannel(name);
+            if (!ch) throw_error("'{}' has no channel {}", parts.front(), name);
+            if (ch->type == Imf::HALF) {
+                if (halves.empty()) halves.assign(rgb.begin(), rgb.end());
+                fb.insert(name,
+                          Imf::Slice::Make(Imf::HALF, halves.data() + c, dw,
+                                           3 * sizeof(Imath::half), pw * 3 * sizeof(Imath::half)));
+            } else {
+                fb.insert(name, Imf::Slice::Make(Imf::FLOAT, rgb.data() + c, dw, 3 * sizeof(float),
+                                                 pw * 3 * sizeof(float)));
+            }
+        }
+        file.setFrameBuffer(fb);
+        file.writePixels(static_cast<int>(ph));
+    });
+    rep.sample_ranges = ranges.size();
+    return rep;
+}
+
 }  // namespace
 
 MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::string& out) {
     if (parts.empty()) throw_error("nothing to merge: give the crop renders' EXR files");
+    {
+        // Sample-range parts merge by their sums; crop windows by placing pixels.
+        Imf::InputFile in(parts.front().c_str());
+        if (!attribute(in.header(), "spangle:spp_range").empty())
+            return merge_sample_ranges(parts, out);
+    }
     MergeReport rep;
     rep.parts = parts.size();
     std::unique_ptr<Imf::Header> first;

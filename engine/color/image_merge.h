@@ -14,6 +14,7 @@ struct MergeReport {
     int width = 0, height = 0;  ///< the full frame
     std::size_t parts = 0;
     std::size_t overlap_pixels = 0;  ///< pixels more than one part held (with equal values)
+    std::size_t sample_ranges = 0;   ///< --spp-range parts added up (0: crop windows placed)
 };
 
 /** Reads every part, checks they describe the same frame (display window, channels and their
@@ -21,5 +22,9 @@ struct MergeReport {
  *  equal), and writes the full frame to `out` (header of the first part, data window = display
  *  window; whole or not at all). Throws SpangleError naming the file at fault. */
 MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::string& out);
+// Parts rendered with --spp-range (samples [A, B) of the same window) are added instead: each
+// carries its samples' exact fixed-point sums (UINT channels), and the sums of ranges that
+// cover the frame's samples 0..spp-1 once add up to the whole render's sums, whose mean is the
+// whole render's image bit for bit. The output has R, G, B only.
 
 }  // namespace spangle

@@ -157,6 +157,17 @@ void remove_image_in_progress() noexcept {
         if (s.set.load()) ::unlink(s.path);
 }
 
+const std::vector<std::string>& sample_sum_channels() {
+    static const std::vector<std::string> names = [] {
+        std::vector<std::string> n;
+        for (const char* c : {"R", "G", "B"})
+            for (int word = 0; word < 4; ++word)
+                n.push_back(fmt::format("spangle_sum.{}.{}", c, word));
+        return n;
+    }();
+    return names;
+}
+
 std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, int width, int height,
                       const ColorConfig& color, const ExrOptions& options) {
     const auto& names = exr_compressions();
@@ -184,6 +195,13 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
                     options.layers->size(), lc, width, height);
     for (std::size_t c = 0; c < lc; ++c)
         header.channels().insert(options.layer_names[c], Imf::Channel(type));
+    if (options.sums) {
+        if (options.sums->size() != 3 * static_cast<std::size_t>(width) * height)
+            throw_error("cannot write '{}': {} sums for {}x{} pixels", path, options.sums->size(),
+                        width, height);
+        for (const std::string& n : sample_sum_channels())
+            header.channels().insert(n, Imf::Channel(Imf::UINT));
+    }
     // The colour space by name (OpenImageIO's and the OpenEXR convention's attribute), and as
     // chromaticities when the config lets us derive them.
     header.insert("oiio:ColorSpace", Imf::StringAttribute(color.working_space()));
@@ -207,6 +225,7 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
     write_atomically(path, [&](const std::string& tmp) {
         Imf::OutputFile out(tmp.c_str(), header);
         std::vector<Imath::half> halves, layer_halves;
+        std::vector<uint32_t> words;
         for (int y0 = 0; y0 < height; y0 += kStripRows) {
             const int y1 = std::min(height, y0 + kStripRows);
             const float* rows = rgb.data() + static_cast<std::size_t>(y0) * w * 3;
@@ -255,6 +274,19 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
                                                    lc * sizeof(Imath::half),
                                                    lc * sizeof(Imath::half) * w));
                 }
+            }
+            // The exact sums: 12 words per pixel (R0..R3, G0..G3, B0..B3).
+            if (options.sums) {
+                words.resize(static_cast<std::size_t>(y1 - y0) * w * 12);
+                const SampleSum* srows =
+                    options.sums->data() + static_cast<std::size_t>(y0) * w * 3;
+                for (std::size_t i = 0; i < static_cast<std::size_t>(y1 - y0) * w * 3; ++i)
+                    sample_sum_words(srows[i], &words[4 * i]);
+                const auto& sum_names = sample_sum_channels();
+                for (std::size_t c = 0; c < 12; ++c)
+                    fb.insert(sum_names[c],
+                              Imf::Slice::Make(Imf::UINT, words.data() + c, strip,
+                                               12 * sizeof(uint32_t), 12 * sizeof(uint32_t) * w));
             }
             out.setFrameBuffer(fb);
             out.writePixels(y1 - y0);

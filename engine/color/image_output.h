@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "color/color_config.h"
+#include "core/sample_sum.h"
 
 namespace spangle {
 
@@ -26,10 +27,18 @@ struct ExrOptions {
      *  pixel, interleaved, row-major; null for none. */
     const std::vector<float>* layers = nullptr;
     std::vector<std::string> layer_names;
+    /** --spp-range parts: the film's exact sums (RGB per pixel), written as 32-bit UINT
+     *  channels named by sample_sum_channels() (four words per colour, least significant
+     *  first), from which spangle merge adds parts exactly; null for none. */
+    const std::vector<SampleSum>* sums = nullptr;
     /** A crop: the image is the data window at (origin_x, origin_y) of a display window of
      *  display_width x display_height (0: the image is the whole frame). */
     int origin_x = 0, origin_y = 0, display_width = 0, display_height = 0;
 };
+
+/** The EXR channels holding a part's exact sums: spangle_sum.R.0 .. spangle_sum.B.3 (colour,
+ *  then word, least significant first). */
+const std::vector<std::string>& sample_sum_channels();
 
 /** Removes the temporary file of an image being written, if any. Async-signal-safe: for a
  *  signal handler that exits at once (outputs are written to a temporary file and renamed, so

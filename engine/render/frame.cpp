@@ -77,6 +77,7 @@ FrameResult render_frame(const FrameRequest& req) {
                        std::move(world.image),
                        std::move(world.layers),
                        std::move(world.layer_names),
+                       std::move(world.sums),
                        std::move(reports),
                        plugins.opened(),
                        world.stats,

@@ -37,6 +37,7 @@ struct FrameResult {
     std::vector<float> image;                 ///< RGB in the working space
     std::vector<float> layers;                ///< with options.layers: layer_names per pixel
     std::vector<std::string> layer_names;     ///< EXR channel names of the layers
+    std::vector<SampleSum> sums;              ///< the film's exact sums (for --spp-range)
     std::vector<ecs::SystemReport> systems;   ///< which systems ran, which were skipped
     std::vector<std::string> plugins_opened;  ///< plugin names opened for this scene
     RenderStats stats;                        ///< counters of the render system

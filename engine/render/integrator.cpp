@@ -12,6 +12,7 @@
 #include <mutex>
 
 #include "core/memory.h"
+#include "core/sample_sum.h"
 #include "render/arena.h"
 #include "render/camera.h"
 #include "render/sampler.h"
@@ -171,7 +172,10 @@ struct RenderJob {
     /** Pixels traced per stride x stride block (1: every pixel; >1: a preview pass, one path per
      *  block with its footprint widened to the block). */
     uint32_t stride = 1;
-    std::vector<float>* image;
+    /** The film: exact fixed-point sums, RGB per pixel (core/sample_sum.h); a preview pass
+     *  adds floats into `image` instead (sums null). */
+    std::vector<SampleSum>* sums = nullptr;
+    std::vector<float>* image = nullptr;
     /** Render layers: on/off, light groups, values per pixel of the layer film, the film, and
      *  the camera's position and viewing direction (depth is measured along it). */
     bool layers = false;
@@ -806,8 +810,8 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
     job.bounce_rays += rays - n;
     job.shadow_rays += shadow;
 
-    // Accumulate in a fixed order (pixel-major, then sample): the same sums on any thread count.
-    std::vector<float>& img = *job.image;
+    // Accumulate in a fixed order (pixel-major, then sample). The film's sums are exact, so
+    // they are the same however the samples are split (threads, passes, --spp-range parts).
     for (std::size_t k = 0; k < n; ++k) {
         Vec3 l = ws.radiance[k];
         const bool finite = is_finite(l);
@@ -820,10 +824,17 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             l = Vec3(0.0f);
         }
         const std::size_t at = film_index(job, ws.pixel[k]);
-        float* px = &img[3 * at];
-        px[0] += l.x;
-        px[1] += l.y;
-        px[2] += l.z;
+        if (job.sums) {
+            SampleSum* px = &(*job.sums)[3 * at];
+            px[0] += to_sample_sum(l.x);
+            px[1] += to_sample_sum(l.y);
+            px[2] += to_sample_sum(l.z);
+        } else {
+            float* px = &(*job.image)[3 * at];
+            px[0] += l.x;
+            px[1] += l.y;
+            px[2] += l.z;
+        }
         if (!job.layers) continue;
         // The layers: [A, albedo, N, Z, P] of the first hit, the glints, each light group. A
         // path whose radiance was dropped drops its light layers too (they add up to it).
@@ -870,13 +881,14 @@ std::vector<std::string> layer_channel_names(const std::vector<std::string>& lig
 
 void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const RenderOptions& options,
                        uint32_t layer_channels) {
-    // Per pixel: the film (RGB floats); a copy to roll a stopped pass back to (from the second
-    // pass on); the copy each pass shows; the preview pass's image. Writing adds only strips.
-    // The render layers have a film and a roll-back copy of their own.
+    // Per pixel: the film (RGB fixed-point sums, 48 bytes) and the image (RGB floats); a copy
+    // of the sums to roll a stopped pass back to (from the second pass on); the copy each pass
+    // shows; the preview pass's image. Writing adds only strips. The render layers have a film
+    // and a roll-back copy of their own.
     const bool passes = options.progressive && spp > 1;
     const double layers = 4.0 * layer_channels * (passes && options.stop ? 2.0 : 1.0);
     const double per_pixel =
-        12.0 + (passes && options.stop ? 12.0 : 0.0) + (passes && options.on_pass ? 12.0 : 0.0) +
+        60.0 + (passes && options.stop ? 48.0 : 0.0) + (passes && options.on_pass ? 12.0 : 0.0) +
         (options.preview_pass && options.on_pass && spp > 1 ? 12.0 : 0.0) + layers;
     const double need = per_pixel * width * height;
     if (const uint64_t have = memory_short_for(need))
@@ -904,6 +916,17 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     job.width = film.width;
     job.height = film.height;
     job.spp = world.options.spp_override ? world.options.spp_override : film.spp;
+    // --spp-range: samples [first_sample, job.spp) of the frame's.
+    uint32_t first_sample = 0;
+    if (world.options.spp_end > 0) {
+        if (!(world.options.spp_first < world.options.spp_end && world.options.spp_end <= job.spp))
+            throw_error(
+                "sample range {}..{} is not inside the frame's {} samples per pixel (it needs "
+                "A < B <= spp)",
+                world.options.spp_first, world.options.spp_end, job.spp);
+        first_sample = world.options.spp_first;
+        job.spp = world.options.spp_end;
+    }
     job.max_depth = film.max_depth;
     job.rr_depth = film.rr_depth;
     job.seed = film.seed;
@@ -937,9 +960,9 @@ void render_image(World& world, const Camera& camera, const Film& film) {
         job.camera_position = camera.position;
         job.camera_forward = normalize(camera.look_at - camera.position);
     }
-    check_film_memory(cw, ch, job.spp, world.options, job.layer_channels);
-    world.image.assign(static_cast<std::size_t>(cw) * ch * 3, 0.0f);
-    job.image = &world.image;
+    check_film_memory(cw, ch, job.spp - first_sample, world.options, job.layer_channels);
+    world.sums.assign(static_cast<std::size_t>(cw) * ch * 3, SampleSum(0));
+    job.sums = &world.sums;
     world.layers.assign(static_cast<std::size_t>(cw) * ch * job.layer_channels, 0.0f);
     job.layer_image = &world.layers;
 
@@ -947,7 +970,7 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     const uint32_t tile_x0 = cx0 / kTileSize, tile_y0 = cy0 / kTileSize;
     const uint32_t tiles_x = (cx1 + kTileSize - 1) / kTileSize - tile_x0;
     const uint32_t tiles_y = (cy1 + kTileSize - 1) / kTileSize - tile_y0;
-    const uint64_t total = static_cast<uint64_t>(cw) * ch * job.spp;
+    const uint64_t total = static_cast<uint64_t>(cw) * ch * (job.spp - first_sample);
     tbb::enumerable_thread_specific<Workspace> workspaces;
     const int threads =
         world.options.threads > 0 ? world.options.threads : tbb::this_task_arena::max_concurrency();
@@ -957,8 +980,9 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     // Passes of doubling sample counts. Every pixel adds its samples in sample order whatever
     // the passes, so the sums after the last pass are those of a one-pass render, bit for bit.
     // A pass interrupted by a stop request is rolled back to the sums before it.
-    std::vector<float> before, layers_before;
-    uint32_t reached = 0, passes = 0;
+    std::vector<SampleSum> before;
+    std::vector<float> layers_before;
+    uint32_t reached = first_sample, passes = 0;
     const auto run_tiles = [&](uint32_t first, uint32_t end, bool count_progress) {
         arena.execute([&] {
             tbb::parallel_for(tbb::blocked_range<uint32_t>(0, tiles_x * tiles_y, 1),
@@ -997,14 +1021,16 @@ void render_image(World& world, const Camera& camera, const Film& film) {
             ? preview_stride(film.width, film.height)
             : 1;
     if (stride > 1) {
-        std::vector<float> preview(world.image.size(), 0.0f);
+        std::vector<float> preview(world.sums.size(), 0.0f);
+        job.sums = nullptr;
         job.image = &preview;
         job.stride = stride;
         const bool layers = job.layers;
         job.layers = false;  // the preview pass shows the beauty only
-        run_tiles(0, 1, false);
+        run_tiles(first_sample, first_sample + 1, false);
         job.layers = layers;
-        job.image = &world.image;
+        job.sums = &world.sums;
+        job.image = nullptr;
         job.stride = 1;
         if (!stopped) {
             // Every pixel takes the value of its block's traced pixel.
@@ -1023,22 +1049,29 @@ void render_image(World& world, const Camera& camera, const Film& film) {
                                             seconds_since(t0), world.window});
         }
     }
-    const std::vector<uint32_t> ends =
-        world.options.progressive ? pass_ends(job.spp) : std::vector<uint32_t>{job.spp};
+    std::vector<uint32_t> ends = world.options.progressive
+                                     ? pass_ends(job.spp - first_sample)
+                                     : std::vector<uint32_t>{job.spp - first_sample};
+    for (uint32_t& e : ends) e += first_sample;
+    // The image: the mean of the samples summed so far.
+    const auto means = [&](std::vector<float>& to, uint32_t count) {
+        to.resize(world.sums.size());
+        for (std::size_t i = 0; i < to.size(); ++i) to[i] = sample_mean(world.sums[i], count);
+    };
     for (const uint32_t end : ends) {
         const uint32_t first = reached;
         // The first pass starts from black: rolling it back needs no copy.
-        if (stop && reached > 0) {
-            before = world.image;
+        if (stop && reached > first_sample) {
+            before = world.sums;
             layers_before = world.layers;
         }
         if (!stopped) run_tiles(first, end, true);
         if (stopped) {
-            if (reached > 0) {
-                world.image.swap(before);
+            if (reached > first_sample) {
+                world.sums.swap(before);
                 world.layers.swap(layers_before);
             } else {
-                std::fill(world.image.begin(), world.image.end(), 0.0f);
+                std::fill(world.sums.begin(), world.sums.end(), SampleSum(0));
                 std::fill(world.layers.begin(), world.layers.end(), 0.0f);
             }
             break;
@@ -1046,16 +1079,17 @@ void render_image(World& world, const Camera& camera, const Film& film) {
         reached = end;
         ++passes;
         if (world.options.on_pass && end < job.spp) {
-            std::vector<float> shown(world.image);
-            const float inv = 1.0f / static_cast<float>(end);
-            for (float& x : shown) x *= inv;
-            world.options.on_pass(
-                PassImage{shown, cw, ch, end, job.spp, 1, seconds_since(t0), world.window});
+            std::vector<float> shown;
+            means(shown, end - first_sample);
+            world.options.on_pass(PassImage{shown, cw, ch, end - first_sample,
+                                            job.spp - first_sample, 1, seconds_since(t0),
+                                            world.window});
         }
     }
 
-    const float inv_spp = reached > 0 ? 1.0f / static_cast<float>(reached) : 0.0f;
-    for (float& x : world.image) x *= inv_spp;
+    const uint32_t samples = reached - first_sample;
+    means(world.image, samples);
+    const float inv_spp = samples > 0 ? 1.0f / static_cast<float>(samples) : 0.0f;
     if (job.layers) {
         // Coverage, albedo, glints and light groups: averages over all samples. Depth and
         // position: averages over the samples whose camera ray hit something (0 where none did:
@@ -1082,9 +1116,10 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     st.camera_rays = job.camera_rays;
     st.bounce_rays = job.bounce_rays;
     st.shadow_rays = job.shadow_rays;
-    st.samples = static_cast<uint64_t>(cw) * ch * reached;
-    st.spp_reached = reached;
-    st.spp_target = job.spp;
+    st.samples = static_cast<uint64_t>(cw) * ch * samples;
+    st.spp_reached = samples;
+    st.spp_target = job.spp - first_sample;
+    st.spp_frame = world.options.spp_override ? world.options.spp_override : film.spp;
     st.passes = passes;
     st.nonfinite = job.nonfinite;
     if (st.nonfinite > 0) {

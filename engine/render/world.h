@@ -13,6 +13,7 @@
 #include "accel/embree_scene.h"
 #include "color/color_config.h"
 #include "core/log.h"
+#include "core/sample_sum.h"
 #include "geometry/cage.h"
 #include "geometry/triangle_mesh.h"
 #include "render/lights.h"
@@ -71,6 +72,10 @@ struct RenderOptions {
     /** Renders only this window of the image (its pixels are those of the whole render, bit
      *  for bit: each pixel's samples depend on the pixel alone). */
     CropWindow crop;
+    /** --spp-range: render samples [spp_first, spp_end) of the frame's (spp_end 0: all). The
+     *  image is their mean; world.sums holds their exact sums, which add up across parts to
+     *  the whole render's, bit for bit. */
+    uint32_t spp_first = 0, spp_end = 0;
     /** Where converted textures are cached (empty: $SPANGLE_TEXTURE_CACHE or the user's cache
      *  directory) and how much memory the texture tile cache may hold. */
     std::string texture_cache;
@@ -105,6 +110,7 @@ struct RenderStats {
     double seconds = 0.0;      ///< wall time of the render system
     uint32_t spp_reached = 0;  ///< samples per pixel of the passes completed
     uint32_t spp_target = 0;   ///< samples per pixel asked for
+    uint32_t spp_frame = 0;    ///< the frame's samples per pixel (spp_target unless --spp-range)
     uint32_t passes = 0;       ///< passes completed
 };
 
@@ -211,6 +217,8 @@ struct World {
     uint32_t width = 0, height = 0;  ///< render: the image's size (the crop window's)
     ImageWindow window;              ///< render: where the image lies in the full frame
     std::vector<float> image;        ///< render: RGB, working space, row-major
+    /** render: the film's exact sums behind `image` (RGB per pixel; core/sample_sum.h). */
+    std::vector<SampleSum> sums;
     /** render, with options.layers: layer_names.size() values per pixel, row-major. */
     std::vector<float> layers;
     std::vector<std::string> layer_names;

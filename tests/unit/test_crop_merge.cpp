@@ -11,6 +11,7 @@
 
 #include <cstring>
 #include <fstream>
+#include <limits>
 
 #include "color/image_merge.h"
 #include "color/image_output.h"
@@ -118,6 +119,105 @@ TEST(CropMerge, CropsMergeIntoTheWholeRenderBitForBit) {
     } catch (const SpangleError& e) {
         EXPECT_NE(std::string(e.what()).find("studio.exr"), std::string::npos) << e.what();
     }
+}
+
+/** The same scene's beauty, 8 spp, samples [first, end) (end 0: all), as a --spp-range part. */
+FrameResult render_range(const test::TempDir& dir, uint32_t first, uint32_t end,
+                         bool progressive = true) {
+    std::ofstream(dir.file("scene.toml")) << test::scene_text("textured.toml");
+    FrameRequest req;
+    req.scene = dir.file("scene.toml");
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.width_override = 72;
+    req.options.height_override = 40;
+    req.options.spp_override = 8;
+    req.options.spp_first = first;
+    req.options.spp_end = end;
+    req.options.progressive = progressive;
+    req.options.texture_cache = dir.file("cache");
+    return render_frame(req);
+}
+
+TEST(SppRange, SampleRangesMergeIntoTheWholeRenderBitForBit) {
+    test::TempDir dir("spp_merge");
+    const FrameResult whole = render_range(dir, 0, 0);
+    EXPECT_EQ(whole.stats.spp_reached, 8u);
+    ExrOptions o;
+    o.half = false;
+    write_exr(dir.file("whole.exr"), whole.image, 72, 40, whole.color, o);
+    // Three ranges, one rendered in a single pass, written out of order.
+    const uint32_t ranges[][2] = {{5, 8}, {0, 3}, {3, 5}};
+    std::vector<std::string> parts;
+    std::vector<SampleSum> total(whole.sums.size(), SampleSum(0));
+    for (const auto& r : ranges) {
+        const FrameResult part = render_range(dir, r[0], r[1], r[0] != 0);
+        EXPECT_EQ(part.stats.spp_reached, r[1] - r[0]);
+        EXPECT_EQ(part.stats.spp_frame, 8u);
+        EXPECT_EQ(part.stats.samples, 72u * 40u * (r[1] - r[0])) << "only its samples";
+        for (std::size_t i = 0; i < total.size(); ++i) total[i] += part.sums[i];
+        ExrOptions po;
+        po.half = false;
+        po.sums = &part.sums;
+        po.metadata = {{"spangle:spp", std::to_string(r[1] - r[0])},
+                       {"spangle:spp_range", fmt::format("{}..{}", r[0], r[1])},
+                       {"spangle:spp_frame", "8"}};
+        parts.push_back(dir.file(fmt::format("range{}.exr", r[0])));
+        write_exr(parts.back(), part.image, 72, 40, part.color, po);
+    }
+    EXPECT_TRUE(total == whole.sums) << "the parts' sums add up to the whole render's";
+    const MergeReport rep = merge_exr_parts(parts, dir.file("merged.exr"));
+    EXPECT_EQ(rep.sample_ranges, 3u);
+    std::vector<std::string> names_whole, names_merged;
+    const std::vector<float> a = read_all(dir.file("whole.exr"), names_whole);
+    const std::vector<float> b = read_all(dir.file("merged.exr"), names_merged);
+    EXPECT_EQ(names_merged, names_whole) << "R, G, B: the sums are not carried over";
+    ASSERT_EQ(a.size(), b.size());
+    EXPECT_EQ(std::memcmp(a.data(), b.data(), a.size() * sizeof(float)), 0)
+        << "the merged frame differs from the whole render";
+    double mean = 0.0;
+    for (float v : a) mean += v;
+    EXPECT_GT(mean, 0.0);
+
+    // Ranges that leave samples out, or hold some twice, are refused.
+    try {
+        merge_exr_parts({parts[0], parts[1]}, dir.file("gap.exr"));
+        FAIL() << "a merge without samples 3..5 was written";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("samples 3..5 of the frame's 8 are in no part"),
+                  std::string::npos)
+            << e.what();
+    }
+    try {
+        merge_exr_parts({parts[0], parts[1], parts[2], parts[2]}, dir.file("twice.exr"));
+        FAIL() << "a merge with samples 3..5 twice was written";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("samples 3..5 are in"), std::string::npos) << e.what();
+    }
+    EXPECT_FALSE(std::filesystem::exists(dir.file("gap.exr")));
+    EXPECT_FALSE(std::filesystem::exists(dir.file("twice.exr")));
+}
+
+TEST(SppRange, FixedPointSumsAreExactInAnyOrder) {
+    // Values a float sum rounds differently by order: a huge glint beside small values.
+    const float v[] = {1.0e8f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 2.5e-9f};
+    SampleSum forward = 0, backward = 0;
+    for (float x : v) forward += to_sample_sum(x);
+    for (int i = 6; i >= 0; --i) backward += to_sample_sum(v[i]);
+    EXPECT_TRUE(forward == backward);
+    float ff = 0.0f, fb = 0.0f;
+    for (float x : v) ff += x;
+    for (int i = 6; i >= 0; --i) fb += v[i];
+    EXPECT_NE(ff, fb) << "these values do round differently in floats (the test's premise)";
+    EXPECT_EQ(sample_mean(forward, 7), static_cast<float>((1.0e8 + 5.0) / 7.0));
+    // Words round-trip, negative sums included; NaN adds nothing; huge values are clamped.
+    uint32_t w[4];
+    for (const SampleSum s : {forward, -forward, SampleSum(-1), SampleSum(0)}) {
+        sample_sum_words(s, w);
+        EXPECT_TRUE(sample_sum_from_words(w) == s);
+    }
+    EXPECT_TRUE(to_sample_sum(std::numeric_limits<float>::quiet_NaN()) == 0);
+    EXPECT_EQ(sample_mean(to_sample_sum(std::numeric_limits<float>::infinity()), 1), 0x1p60f);
 }
 
 TEST(CropMerge, AWindowOutsideTheImageIsRefused) {

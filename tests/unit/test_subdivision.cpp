@@ -251,10 +251,10 @@ TEST(Subdivision, LevelsThatWouldNotFitMemoryAreRefusedUpFront) {
             << msg;
     }
     {
-        // The film: 8192^2 pixels need 768 MiB.
+        // The film: 8192^2 pixels of exact sums (48 bytes) and the image (12) need 3.8 GiB.
         const MemoryLimit limit("600M");
         const std::string msg = render_error(test::test_dir() + "/scenes/small_lit.toml", 8192);
-        EXPECT_NE(msg.find("a 8192x8192 image needs about 768 MiB to render (12 bytes per pixel), "
+        EXPECT_NE(msg.find("a 8192x8192 image needs about 3.8 GiB to render (60 bytes per pixel), "
                            "but only 600 MiB of memory is available: lower the resolution"),
                   std::string::npos)
             << msg;
