@@ -680,12 +680,12 @@ int run_render_mpi(const RenderArgs& a, const MpiJob& job) {
             }
         });
         DistributedImage img;
-        together([&] {
-            img = job.render(
+        if (!job.render(
                 *session, options.crop, a.band_rows,
                 a.quiet ? std::function<void(uint64_t, uint64_t)>()
-                        : [&](uint64_t d, uint64_t t) { progress.update(d, t); });
-        });
+                        : [&](uint64_t d, uint64_t t) { progress.update(d, t); },
+                img))
+            throw RankExit{1};
         if (job.rank() != 0) continue;
         progress.finish();
         try {

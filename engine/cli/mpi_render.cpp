@@ -20,6 +20,7 @@
 #include <cstdlib>
 #include <mutex>
 #include <thread>
+#include <tuple>
 
 #include "core/error.h"
 #include "render/session.h"
@@ -71,10 +72,10 @@ struct Report {
 LauncherInfo launcher_info() {
     // Open MPI's names, then MPICH/Hydra's and Slurm's.
     LauncherInfo l;
-    l.size = env_int("OMPI_COMM_WORLD_SIZE", env_int("PMI_SIZE", env_int("SLURM_NTASKS", 1)));
-    l.rank = env_int("OMPI_COMM_WORLD_RANK", env_int("PMI_RANK", env_int("SLURM_PROCID", 0)));
-    l.local_size = env_int("OMPI_COMM_WORLD_LOCAL_SIZE",
-                           env_int("MPI_LOCALNRANKS", env_int("SLURM_NTASKS_PER_NODE", 1)));
+    // (Not Slurm's SLURM_NTASKS: a batch script has it without being a rank.)
+    l.size = env_int("OMPI_COMM_WORLD_SIZE", env_int("PMI_SIZE", 1));
+    l.rank = env_int("OMPI_COMM_WORLD_RANK", env_int("PMI_RANK", 0));
+    l.local_size = env_int("OMPI_COMM_WORLD_LOCAL_SIZE", env_int("MPI_LOCALNRANKS", 1));
     l.size = std::max(l.size, 1);
     l.local_size = std::max(l.local_size, 1);
     return l;
@@ -132,23 +133,48 @@ void MpiJob::abort(int code) const {
     std::_Exit(code);  // MPI_Abort does not return; this is for the compiler
 }
 
-DistributedImage MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows,
-                                const std::function<void(uint64_t, uint64_t)>& progress) const {
+bool MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows,
+                    const std::function<void(uint64_t, uint64_t)>& progress,
+                    DistributedImage& out) const {
+    // What every rank checks (and rank 0 allocates) before any band is handed out; a failure on
+    // any rank ends the render on all of them.
     Film film;
-    if (!session.film(film)) throw_error("the scene has no camera to render from");
     CropWindow win = crop;
-    if (win.whole()) win = CropWindow{0, 0, film.width, film.height};
-    if (!(win.x0 < win.x1 && win.x1 <= film.width && win.y0 < win.y1 && win.y1 <= film.height))
-        throw_error(
-            "crop window {},{},{},{} is not inside the {}x{} image (it needs x0 < x1 <= width "
-            "and y0 < y1 <= height)",
-            win.x0, win.y0, win.x1, win.y1, film.width, film.height);
-    const uint32_t band_px = 16 * std::max(band_rows, 1u);
-    const uint32_t units = (win.y1 - 1) / band_px - win.y0 / band_px + 1;
-    const uint32_t cw = win.x1 - win.x0, ch = win.y1 - win.y0;
+    std::size_t lc = 0;
     std::vector<std::string> groups = session.info().light_groups;
     if (groups.empty()) groups.push_back("default");
-    const std::size_t lc = session.options().layers ? layer_channel_names(groups).size() : 0;
+    uint32_t band_px = 0, units = 0, cw = 0, ch = 0;
+    std::string setup_error;
+    try {
+        if (!session.film(film)) throw_error("the scene has no camera to render from");
+        if (win.whole()) win = CropWindow{0, 0, film.width, film.height};
+        if (!(win.x0 < win.x1 && win.x1 <= film.width && win.y0 < win.y1 && win.y1 <= film.height))
+            throw_error(
+                "crop window {},{},{},{} is not inside the {}x{} image (it needs x0 < x1 <= "
+                "width and y0 < y1 <= height)",
+                win.x0, win.y0, win.x1, win.y1, film.width, film.height);
+        band_px = 16 * std::max(band_rows, 1u);
+        units = (win.y1 - 1) / band_px - win.y0 / band_px + 1;
+        cw = win.x1 - win.x0;
+        ch = win.y1 - win.y0;
+        lc = session.options().layers ? layer_channel_names(groups).size() : 0;
+        if (static_cast<double>(band_px) * cw * static_cast<double>(3 + lc) >= 2147483647.0)
+            throw_error("bands of {} rows of {} pixels are too large to send: lower --band-rows",
+                        band_px, cw);
+        if (rank_ == 0) {
+            out = DistributedImage{};
+            out.image.assign(static_cast<std::size_t>(cw) * ch * 3, 0.0f);
+            out.layers.assign(static_cast<std::size_t>(cw) * ch * lc, 0.0f);
+        }
+    } catch (const std::exception& e) {
+        setup_error = e.what();
+    }
+    const std::vector<int> failed = failed_ranks(setup_error.empty());
+    if (!failed.empty()) {
+        if (!setup_error.empty() && failed.front() == rank_)
+            fmt::print(stderr, "spangle: error: {}{}\n", rank_ ? who() + ": " : "", setup_error);
+        return false;
+    }
     const std::size_t per_pixel = 3 + lc;
 
     // Renders band `unit` on this rank; returns its pixels (RGB rows, then layer rows).
@@ -184,16 +210,13 @@ DistributedImage MpiJob::render(Session& session, const CropWindow& crop, uint32
                 abort(1);
             }
         }
-        return {};
+        return true;
     }
 
     // Rank 0: the image, filled by its own bands and the others'.
-    DistributedImage out;
     out.width = cw;
     out.height = ch;
     out.window = ImageWindow{win.x0, win.y0, film.width, film.height};
-    out.image.assign(static_cast<std::size_t>(cw) * ch * 3, 0.0f);
-    out.layers.assign(static_cast<std::size_t>(cw) * ch * lc, 0.0f);
     if (lc) out.layer_names = layer_channel_names(groups);
     out.loads.assign(static_cast<std::size_t>(size_), RankLoad{});
     out.units = units;
@@ -224,7 +247,11 @@ DistributedImage MpiJob::render(Session& session, const CropWindow& crop, uint32
         s.camera_rays += static_cast<uint64_t>(rep.v[3]);
         s.bounce_rays += static_cast<uint64_t>(rep.v[4]);
         s.shadow_rays += static_cast<uint64_t>(rep.v[5]);
-        if (rep.v[6] > 0 && s.nonfinite == 0) {
+        // The first bad pixel in image order, as one process reports it.
+        const auto key = [](int64_t y, int64_t x, int64_t k) { return std::tuple(y, x, k); };
+        if (rep.v[6] > 0 && (s.nonfinite == 0 || key(rep.v[8], rep.v[7], rep.v[9]) <
+                                                     key(s.first_bad_pixel_y, s.first_bad_pixel_x,
+                                                         s.first_bad_sample))) {
             s.first_bad_pixel_x = static_cast<uint32_t>(rep.v[7]);
             s.first_bad_pixel_y = static_cast<uint32_t>(rep.v[8]);
             s.first_bad_sample = static_cast<uint32_t>(rep.v[9]);
@@ -255,9 +282,20 @@ DistributedImage MpiJob::render(Session& session, const CropWindow& crop, uint32
                 const int from = st.MPI_SOURCE;
                 if (rep.v[0] >= 0) {
                     const CropWindow b = band_window(win, band_px, static_cast<uint32_t>(rep.v[0]));
-                    pixels.resize(static_cast<std::size_t>(b.y1 - b.y0) * cw * per_pixel);
-                    MPI_Recv(pixels.data(), static_cast<int>(pixels.size()), MPI_FLOAT, from,
-                             kTagPixels, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+                    // Its size first: a band of another size is an error, not a silent mix.
+                    MPI_Status probe;
+                    MPI_Probe(from, kTagPixels, MPI_COMM_WORLD, &probe);
+                    int count = 0;
+                    MPI_Get_count(&probe, MPI_FLOAT, &count);
+                    const std::size_t want = static_cast<std::size_t>(b.y1 - b.y0) * cw * per_pixel;
+                    pixels.resize(std::max<std::size_t>(static_cast<std::size_t>(count), 0));
+                    MPI_Recv(pixels.data(), count, MPI_FLOAT, from, kTagPixels, MPI_COMM_WORLD,
+                             MPI_STATUS_IGNORE);
+                    if (pixels.size() != want)
+                        throw_error(
+                            "rank {} sent band {} with {} values, not {} (do all ranks read the "
+                            "same scene?)",
+                            from, rep.v[0], pixels.size(), want);
                     place(from, rep, pixels);
                 }
                 const uint32_t u = next_unit.fetch_add(1);
@@ -281,8 +319,11 @@ DistributedImage MpiJob::render(Session& session, const CropWindow& crop, uint32
         own_error = e.what();
     }
     if (!own_error.empty()) {
+        // The answering thread may be inside an MPI call: no MPI call from here (the library
+        // only allows one at a time); exiting makes the launcher end every rank.
         fmt::print(stderr, "spangle: error: {}: {}\n", who(), own_error);
-        abort(1);
+        std::fflush(stderr);
+        std::_Exit(1);
     }
     answerer.join();
     if (!answer_error.empty()) {
@@ -293,7 +334,7 @@ DistributedImage MpiJob::render(Session& session, const CropWindow& crop, uint32
     s.spp_reached = s.spp_target = film.spp;
     s.passes = 1;
     s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-    return out;
+    return true;
 }
 
 }  // namespace spangle

@@ -76,11 +76,12 @@ public:
     /** Collective: renders the session's live scene (loaded on every rank, the same file and
      *  options) over all ranks. `crop`: the window to render (whole() for the image);
      *  `band_rows`: tile rows per unit of work. `progress` (rank 0; may be empty) gets (samples
-     *  done, samples total) as bands arrive. Returns the image on rank 0. Throws SpangleError
-     *  on this rank's errors before any band is handed out; a rank failing later aborts the
-     *  job. */
-    DistributedImage render(Session& session, const CropWindow& crop, uint32_t band_rows,
-                            const std::function<void(uint64_t, uint64_t)>& progress) const;
+     *  done, samples total) as bands arrive. The image lands in `out` on rank 0. Returns false
+     *  on every rank when a check before the first band failed on any (the first failing rank
+     *  printed why); a rank failing later ends the job. */
+    bool render(Session& session, const CropWindow& crop, uint32_t band_rows,
+                const std::function<void(uint64_t, uint64_t)>& progress,
+                DistributedImage& out) const;
 
 private:
     int rank_ = 0, size_ = 1;

@@ -63,9 +63,9 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
             const std::string range = attribute(hd, "spangle:spp_range");
             if (range.empty())
                 throw_error(
-                    "'{}' is not a --spp-range part, '{}' is: merge the sample ranges of each "
-                    "window first, then the windows",
-                    path, parts.front());
+                    "'{}' is not a --spp-range part, but other parts are: merge the sample "
+                    "ranges of each window first, then the windows",
+                    path);
             uint64_t a = 0, b = 0;
             if (std::sscanf(range.c_str(), "%" SCNu64 "..%" SCNu64, &a, &b) != 2 || !(a < b))
                 throw_error("'{}': its sample range '{}' is not A..B", path, range);
@@ -106,6 +106,9 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                     throw_error("'{}' is part of a frame of {} samples per pixel, '{}' of {}", path,
                                 attribute(hd, "spangle:spp_frame"), parts.front(), spp_frame);
             }
+            if (b > spp_frame)
+                throw_error("'{}' holds samples {}..{}, beyond the frame's {}", path, a, b,
+                            spp_frame);
             ranges.emplace_back(a, b, path);
             std::vector<uint32_t> words(pw * ph * 12);
             Imf::FrameBuffer fb;
@@ -185,11 +188,18 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
 
 MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::string& out) {
     if (parts.empty()) throw_error("nothing to merge: give the crop renders' EXR files");
-    {
-        // Sample-range parts merge by their sums; crop windows by placing pixels.
-        Imf::InputFile in(parts.front().c_str());
-        if (!attribute(in.header(), "spangle:spp_range").empty())
-            return merge_sample_ranges(parts, out);
+    // Sample-range parts merge by their sums; crop windows by placing pixels.
+    for (const std::string& path : parts) {
+        try {
+            if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+            Imf::InputFile in(path.c_str());
+            if (!attribute(in.header(), "spangle:spp_range").empty())
+                return merge_sample_ranges(parts, out);
+        } catch (const SpangleError&) {
+            throw;
+        } catch (const std::exception& e) {
+            throw_error("cannot read '{}': {}", path, e.what());
+        }
     }
     MergeReport rep;
     rep.parts = parts.size();

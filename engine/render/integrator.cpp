@@ -1016,10 +1016,10 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     };
     // A preview pass: one path per block of pixels, shown before the first full pass. It is
     // not part of the image: its values are thrown away once shown.
-    const uint32_t stride =
-        world.options.preview_pass && world.options.on_pass && job.spp > 1 && crop.whole()
-            ? preview_stride(film.width, film.height)
-            : 1;
+    const uint32_t stride = world.options.preview_pass && world.options.on_pass &&
+                                    job.spp - first_sample > 1 && crop.whole()
+                                ? preview_stride(film.width, film.height)
+                                : 1;
     if (stride > 1) {
         std::vector<float> preview(world.sums.size(), 0.0f);
         job.sums = nullptr;
@@ -1045,8 +1045,9 @@ void render_image(World& world, const Camera& camera, const Film& film) {
                         for (std::size_t c = 0; c < 3; ++c) preview[to + c] = preview[from + c];
                 }
             }
-            world.options.on_pass(PassImage{preview, film.width, film.height, 0, job.spp, stride,
-                                            seconds_since(t0), world.window});
+            world.options.on_pass(PassImage{preview, film.width, film.height, 0,
+                                            job.spp - first_sample, stride, seconds_since(t0),
+                                            world.window});
         }
     }
     std::vector<uint32_t> ends = world.options.progressive
