@@ -149,14 +149,19 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     // The whole frame's image: the mean of all its samples, from the exact total.
     std::vector<float> rgb(total.size());
     for (std::size_t i = 0; i < rgb.size(); ++i) rgb[i] = sample_mean(total[i], spp_frame);
-    Imf::Header header(*first);
+    // The first part's header without the range's attributes (copied one by one: OpenEXR 3.1's
+    // Header::erase leaks the attribute it removes).
+    Imf::Header header(first->displayWindow(), first->dataWindow());
+    for (auto it = first->begin(); it != first->end(); ++it) {
+        const std::string name = it.name();
+        if (name != "spangle:spp_range" && name != "spangle:spp_frame" && name != "channels")
+            header.insert(name, it.attribute());
+    }
     Imf::ChannelList channels;
     for (const Channel& c : chans)
         if (std::find(sum_names.begin(), sum_names.end(), c.name) == sum_names.end())
             channels.insert(c.name, Imf::Channel(c.type));
     header.channels() = channels;
-    header.erase("spangle:spp_range");
-    header.erase("spangle:spp_frame");
     header.insert("spangle:spp", Imf::StringAttribute(std::to_string(spp_frame)));
     const Imath::Box2i dw = header.dataWindow();
     write_file_atomically(out, [&](const std::string& tmp) {
