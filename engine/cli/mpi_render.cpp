@@ -139,7 +139,7 @@ bool MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows
     // What every rank checks (and rank 0 allocates) before any band is handed out; a failure on
     // any rank ends the render on all of them.
     Film film;
-    CropWindow win = crop;
+    CropWindow win;
     std::size_t lc = 0;
     std::vector<std::string> groups = session.info().light_groups;
     if (groups.empty()) groups.push_back("default");
@@ -147,12 +147,7 @@ bool MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows
     std::string setup_error;
     try {
         if (!session.film(film)) throw_error("the scene has no camera to render from");
-        if (win.whole()) win = CropWindow{0, 0, film.width, film.height};
-        if (!(win.x0 < win.x1 && win.x1 <= film.width && win.y0 < win.y1 && win.y1 <= film.height))
-            throw_error(
-                "crop window {},{},{},{} is not inside the {}x{} image (it needs x0 < x1 <= "
-                "width and y0 < y1 <= height)",
-                win.x0, win.y0, win.x1, win.y1, film.width, film.height);
+        win = crop_within(crop, film.width, film.height);
         band_px = 16 * std::max(band_rows, 1u);
         units = (win.y1 - 1) / band_px - win.y0 / band_px + 1;
         cw = win.x1 - win.x0;

@@ -34,14 +34,33 @@ std::vector<Channel> channels_of(const Imf::Header& h) {
     return out;
 }
 
-std::string spp_of(const Imf::Header& h) {
-    const auto* a = h.findTypedAttribute<Imf::StringAttribute>("spangle:spp");
-    return a ? a->value() : std::string();
+/** Whether h has exactly these channels (names and types, in order). */
+bool same_channels(const Imf::Header& h, const std::vector<Channel>& chans) {
+    const std::vector<Channel> c = channels_of(h);
+    bool same = c.size() == chans.size();
+    for (std::size_t i = 0; same && i < c.size(); ++i)
+        same = c[i].name == chans[i].name && c[i].type == chans[i].type;
+    return same;
 }
 
 std::string attribute(const Imf::Header& h, const char* name) {
     const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name);
     return a ? a->value() : std::string();
+}
+
+/** Opens the part at `path` and hands it to read(); any failure but our own errors becomes
+ *  "cannot read 'path': ...". */
+template <class Read>
+void read_part(const std::string& path, Read&& read) {
+    try {
+        if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+        Imf::InputFile in(path.c_str());
+        read(in);
+    } catch (const SpangleError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw_error("cannot read '{}': {}", path, e.what());
+    }
 }
 
 /** Sample-range parts (render --spp-range) of one window: their exact sums add up. */
@@ -56,9 +75,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     std::vector<std::tuple<uint64_t, uint64_t, std::string>> ranges;  // [a, b), file
     const std::vector<std::string>& sum_names = sample_sum_channels();
     for (const std::string& path : parts) {
-        try {
-            if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
-            Imf::InputFile in(path.c_str());
+        read_part(path, [&](Imf::InputFile& in) {
             const Imf::Header& hd = in.header();
             const std::string range = attribute(hd, "spangle:spp_range");
             if (range.empty())
@@ -92,11 +109,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                         "'{}' covers other pixels than '{}': sample ranges of one window merge "
                         "(render every part with the same --crop and --size)",
                         path, parts.front());
-                const auto c = channels_of(hd);
-                bool same = c.size() == chans.size();
-                for (std::size_t i = 0; same && i < c.size(); ++i)
-                    same = c[i].name == chans[i].name && c[i].type == chans[i].type;
-                if (!same)
+                if (!same_channels(hd, chans))
                     throw_error(
                         "'{}' has other channels than '{}' (render every part with the same "
                         "options: --float)",
@@ -120,11 +133,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
             in.readPixels(dw.min.y, dw.max.y);
             for (std::size_t i = 0; i < total.size(); ++i)
                 total[i] += sample_sum_from_words(&words[4 * i]);
-        } catch (const SpangleError&) {
-            throw;
-        } catch (const std::exception& e) {
-            throw_error("cannot read '{}': {}", path, e.what());
-        }
+        });
     }
     // The ranges must cover the frame's samples 0..spp_frame-1, each once.
     std::sort(ranges.begin(), ranges.end());
@@ -195,16 +204,11 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
     if (parts.empty()) throw_error("nothing to merge: give the crop renders' EXR files");
     // Sample-range parts merge by their sums; crop windows by placing pixels.
     for (const std::string& path : parts) {
-        try {
-            if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
-            Imf::InputFile in(path.c_str());
-            if (!attribute(in.header(), "spangle:spp_range").empty())
-                return merge_sample_ranges(parts, out);
-        } catch (const SpangleError&) {
-            throw;
-        } catch (const std::exception& e) {
-            throw_error("cannot read '{}': {}", path, e.what());
-        }
+        bool range = false;
+        read_part(path, [&](Imf::InputFile& in) {
+            range = !attribute(in.header(), "spangle:spp_range").empty();
+        });
+        if (range) return merge_sample_ranges(parts, out);
     }
     MergeReport rep;
     rep.parts = parts.size();
@@ -216,9 +220,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
     std::vector<std::string> owner;  // which part covered a pixel first (for messages)
     std::size_t nc = 0, w = 0, h = 0;
     for (const std::string& path : parts) {
-        try {
-            if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
-            Imf::InputFile in(path.c_str());
+        read_part(path, [&](Imf::InputFile& in) {
             const Imf::Header& hd = in.header();
             const Imath::Box2i dw = hd.dataWindow();
             if (!first) {
@@ -247,20 +249,17 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
                     throw_error("'{}' is part of a {}x{} frame, '{}' of a {}x{} one", path,
                                 hd.displayWindow().max.x + 1, hd.displayWindow().max.y + 1,
                                 parts.front(), w, h);
-                const auto c = channels_of(hd);
-                bool same = c.size() == chans.size();
-                for (std::size_t i = 0; same && i < c.size(); ++i)
-                    same = c[i].name == chans[i].name && c[i].type == chans[i].type;
-                if (!same)
+                if (!same_channels(hd, chans))
                     throw_error(
                         "'{}' has other channels than '{}' (render every part with the "
                         "same options: --layers, --float)",
                         path, parts.front());
-                if (spp_of(hd) != spp_of(*first))
+                if (attribute(hd, "spangle:spp") != attribute(*first, "spangle:spp"))
                     throw_error(
                         "'{}' has {} samples per pixel, '{}' {}: parts of one frame must "
                         "reach the same count",
-                        path, spp_of(hd), parts.front(), spp_of(*first));
+                        path, attribute(hd, "spangle:spp"), parts.front(),
+                        attribute(*first, "spangle:spp"));
             }
             if (dw.min.x < 0 || dw.min.y < 0 || dw.max.x >= static_cast<int>(w) ||
                 dw.max.y >= static_cast<int>(h) || dw.max.x < dw.min.x || dw.max.y < dw.min.y)
@@ -295,11 +294,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
                     std::memcpy(dst, src, nc * sizeof(float));
                     covered[p] = 1;
                 }
-        } catch (const SpangleError&) {
-            throw;
-        } catch (const std::exception& e) {
-            throw_error("cannot read '{}': {}", path, e.what());
-        }
+        });
     }
     std::size_t missing = 0, first_missing = 0;
     for (std::size_t p = covered.size(); p-- > 0;)

@@ -857,6 +857,16 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
 
 }  // namespace
 
+CropWindow crop_within(const CropWindow& crop, uint32_t width, uint32_t height) {
+    if (crop.whole()) return CropWindow{0, 0, width, height};
+    if (!(crop.x0 < crop.x1 && crop.x1 <= width && crop.y0 < crop.y1 && crop.y1 <= height))
+        throw_error(
+            "crop window {},{},{},{} is not inside the {}x{} image (it needs x0 < x1 <= width "
+            "and y0 < y1 <= height)",
+            crop.x0, crop.y0, crop.x1, crop.y1, width, height);
+    return crop;
+}
+
 std::vector<uint32_t> pass_ends(uint32_t spp) {
     std::vector<uint32_t> out;
     for (uint64_t end = 1; end < spp; end *= 2) out.push_back(static_cast<uint32_t>(end));
@@ -932,14 +942,8 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     job.seed = film.seed;
     // The crop window (the whole image without one).
     const CropWindow& crop = world.options.crop;
-    const uint32_t cx0 = crop.whole() ? 0 : crop.x0, cy0 = crop.whole() ? 0 : crop.y0;
-    const uint32_t cx1 = crop.whole() ? film.width : crop.x1;
-    const uint32_t cy1 = crop.whole() ? film.height : crop.y1;
-    if (!(cx0 < cx1 && cx1 <= film.width && cy0 < cy1 && cy1 <= film.height))
-        throw_error(
-            "crop window {},{},{},{} is not inside the {}x{} image (it needs x0 < x1 <= width "
-            "and y0 < y1 <= height)",
-            crop.x0, crop.y0, crop.x1, crop.y1, film.width, film.height);
+    const CropWindow win = crop_within(crop, film.width, film.height);
+    const uint32_t cx0 = win.x0, cy0 = win.y0, cx1 = win.x1, cy1 = win.y1;
     const uint32_t cw = cx1 - cx0, ch = cy1 - cy0;
     job.crop_x0 = cx0;
     job.crop_y0 = cy0;

@@ -28,6 +28,10 @@ struct CropWindow {
     bool whole() const { return x1 == 0; }
 };
 
+/** The pixels `crop` renders of a width x height image (the whole image for whole()); throws
+ *  SpangleError when the window is empty or not inside the image. */
+CropWindow crop_within(const CropWindow& crop, uint32_t width, uint32_t height);
+
 /** Where a (cropped) image lies in the full frame: its top-left pixel and the full size. */
 struct ImageWindow {
     uint32_t x0 = 0, y0 = 0;

@@ -21,8 +21,8 @@
 namespace spangle {
 namespace {
 
-/** tests/scenes/textured.toml with absolute paths, rendered at 72 x 40, 4 spp, with layers. */
-FrameResult render(const test::TempDir& dir, CropWindow crop) {
+/** A render of tests/scenes/textured.toml (absolute paths) at 72 x 40, `spp` samples. */
+FrameRequest textured_request(const test::TempDir& dir, uint32_t spp) {
     std::ofstream(dir.file("scene.toml")) << test::scene_text("textured.toml");
     FrameRequest req;
     req.scene = dir.file("scene.toml");
@@ -30,10 +30,16 @@ FrameResult render(const test::TempDir& dir, CropWindow crop) {
     req.log = &test::quiet_log();
     req.options.width_override = 72;
     req.options.height_override = 40;
-    req.options.spp_override = 4;
+    req.options.spp_override = spp;
+    req.options.texture_cache = dir.file("cache");
+    return req;
+}
+
+/** The textured scene at 4 spp with layers, in a crop window. */
+FrameResult render(const test::TempDir& dir, CropWindow crop) {
+    FrameRequest req = textured_request(dir, 4);
     req.options.layers = true;
     req.options.crop = crop;
-    req.options.texture_cache = dir.file("cache");
     return render_frame(req);
 }
 
@@ -124,18 +130,10 @@ TEST(CropMerge, CropsMergeIntoTheWholeRenderBitForBit) {
 /** The same scene's beauty, 8 spp, samples [first, end) (end 0: all), as a --spp-range part. */
 FrameResult render_range(const test::TempDir& dir, uint32_t first, uint32_t end,
                          bool progressive = true) {
-    std::ofstream(dir.file("scene.toml")) << test::scene_text("textured.toml");
-    FrameRequest req;
-    req.scene = dir.file("scene.toml");
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.width_override = 72;
-    req.options.height_override = 40;
-    req.options.spp_override = 8;
+    FrameRequest req = textured_request(dir, 8);
     req.options.spp_first = first;
     req.options.spp_end = end;
     req.options.progressive = progressive;
-    req.options.texture_cache = dir.file("cache");
     return render_frame(req);
 }
 
