@@ -1,5 +1,6 @@
 #include "accel/embree_scene.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
@@ -36,7 +37,7 @@ RTCGeometry add_triangles(RTCDevice device, RTCScene scene, const float* xyz, st
 /** The ray o + t d, t in (0, tmax), for Embree. Returns false for a non-finite ray (a
  *  numerical failure upstream), which is then left inactive (tfar < tnear) with finite values
  *  in place of its own: Embree must never see NaN or infinity. */
-bool make_ray(Vec3 o, Vec3 d, float tmax, RTCRay& r) {
+bool make_ray(Vec3 o, Vec3 d, float tmax, float time, RTCRay& r) {
     const bool finite = is_finite(o) && is_finite(d) && !std::isnan(tmax);
     r.org_x = finite ? o.x : 0.0f;
     r.org_y = finite ? o.y : 0.0f;
@@ -47,20 +48,47 @@ bool make_ray(Vec3 o, Vec3 d, float tmax, RTCRay& r) {
     r.tnear = 0.0f;
     r.tfar = finite ? tmax : -1.0f;
     r.mask = 0xffffffffu;
-    r.time = 0.0f;
+    r.time = std::isfinite(time) ? std::clamp(time, 0.0f, 1.0f) : 0.0f;
     r.flags = 0;
     r.id = 0;
     return finite;
 }
 
 /** make_ray with an empty hit record. */
-bool make_ray_hit(Vec3 o, Vec3 d, float tmax, RTCRayHit& rh) {
+bool make_ray_hit(Vec3 o, Vec3 d, float tmax, float time, RTCRayHit& rh) {
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
-    return make_ray(o, d, tmax, rh.ray);
+    return make_ray(o, d, tmax, time, rh.ray);
+}
+
+/** Embree's 3x4 row-major matrix of an affine transform. */
+void to_embree(const Affine& a, float (&xfm)[12]) {
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) xfm[4 * r + c] = a.m[r][c];
+        xfm[4 * r + 3] = a.t[r];
+    }
 }
 
 }  // namespace
+
+Instance instance_at(const Instance& inst, float time) {
+    if (inst.motion.size() < 2) return inst;
+    // Embree's motion blur: time steps evenly over [0, 1], a linear blend of the two around t.
+    const auto segments = static_cast<float>(inst.motion.size() - 1);
+    const float f = std::clamp(std::isfinite(time) ? time : 0.0f, 0.0f, 1.0f) * segments;
+    const float i = std::min(std::floor(f), segments - 1.0f);
+    const float s = f - i;
+    const Affine& a = inst.motion[static_cast<std::size_t>(i)];
+    const Affine& b = inst.motion[static_cast<std::size_t>(i) + 1];
+    Instance out = inst;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) out.to_world.m[r][c] = (1.0f - s) * a.m[r][c] + s * b.m[r][c];
+    }
+    out.to_world.t = a.t * (1.0f - s) + b.t * s;
+    out.normal_to_world = out.to_world.normal_matrix();
+    out.to_object = out.to_world.inverse();
+    return out;
+}
 
 EmbreeScene::EmbreeScene() {
     device_ = rtcNewDevice(nullptr);
@@ -128,11 +156,18 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
         RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
         rtcSetGeometryInstancedScene(g, blas_[inst.mesh]);
         float xfm[12];
-        for (int r = 0; r < 3; ++r) {
-            for (int c = 0; c < 3; ++c) xfm[4 * r + c] = inst.to_world.m[r][c];
-            xfm[4 * r + 3] = inst.to_world.t[r];
+        if (inst.motion.size() >= 2) {
+            // A moving instance: one transform per time step (Embree blends them by ray time).
+            rtcSetGeometryTimeStepCount(g, static_cast<unsigned>(inst.motion.size()));
+            for (std::size_t k = 0; k < inst.motion.size(); ++k) {
+                to_embree(inst.motion[k], xfm);
+                rtcSetGeometryTransform(g, static_cast<unsigned>(k), RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
+                                        xfm);
+            }
+        } else {
+            to_embree(inst.to_world, xfm);
+            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
         }
-        rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
         rtcCommitGeometry(g);
         rtcAttachGeometry(top_, g);  // ids are attachment order: instance i has id i
         rtcReleaseGeometry(g);
@@ -179,9 +214,9 @@ void EmbreeScene::bounding_sphere(Vec3& center, float& radius) const {
     radius = 0.5f * length(hi - lo);
 }
 
-bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
+bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time) const {
     RTCRayHit rh{};
-    if (!make_ray_hit(o, d, tmax, rh)) return false;  // a non-finite ray misses
+    if (!make_ray_hit(o, d, tmax, time, rh)) return false;  // a non-finite ray misses
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     rtcIntersect1(top_, &ctx, &rh);
@@ -191,11 +226,11 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const {
 }
 
 void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits,
-                                   uint8_t* found) const {
+                                   uint8_t* found, const float* time) const {
     thread_local std::vector<RTCRayHit> rays;
     rays.resize(n);
-    for (std::size_t i = 0; i < n; ++i)
-        make_ray_hit(o[i], d[i], 1e30f, rays[i]);  // a non-finite ray misses
+    for (std::size_t i = 0; i < n; ++i)  // a non-finite ray misses
+        make_ray_hit(o[i], d[i], 1e30f, time ? time[i] : 0.0f, rays[i]);
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;  // ray by ray: see the header
@@ -207,12 +242,12 @@ void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, 
 }
 
 void EmbreeScene::occluded_stream(const Vec3* o, const Vec3* d, const float* tmax, std::size_t n,
-                                  uint8_t* blocked) const {
+                                  uint8_t* blocked, const float* time) const {
     thread_local std::vector<RTCRay> rays;
     rays.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
         // A non-finite ray lets no light through: marked blocked here, inactive in Embree.
-        if (!make_ray(o[i], d[i], tmax[i], rays[i]))
+        if (!make_ray(o[i], d[i], tmax[i], time ? time[i] : 0.0f, rays[i]))
             rays[i].tfar = -std::numeric_limits<float>::infinity();
     }
     RTCIntersectContext ctx;
@@ -237,9 +272,9 @@ void EmbreeScene::resolve(const RTCRayHit& rh, Hit& hit) const {
     }
 }
 
-bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax) const {
+bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax, float time) const {
     RTCRay r{};
-    if (!make_ray(o, d, tmax, r)) return true;  // a non-finite ray lets no light through
+    if (!make_ray(o, d, tmax, time, r)) return true;  // a non-finite ray lets no light through
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     rtcOccluded1(top_, &ctx, &r);

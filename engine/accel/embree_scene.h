@@ -28,7 +28,15 @@ struct Instance {
     Affine to_object;        ///< world to object (the inverse of to_world)
     Affine normal_to_world;  ///< inverse transpose of to_world's linear part (no translation)
     int32_t emitter = -1;    ///< first light-table entry of its triangles, or -1
+    /** A moving instance (motion blur): to_world at evenly spaced times over the shutter (ray
+     *  time 0 to 1), interpolated linearly in between; empty for one that stands still (to_world
+     *  is then its placement at every time). */
+    std::vector<Affine> motion;
 };
+
+/** The instance at ray time `time` in [0, 1]: its transforms interpolated as Embree does
+ *  (linearly between the two steps around the time). `inst` itself when it does not move. */
+Instance instance_at(const Instance& inst, float time);
 
 /** What a ray hit. */
 enum class HitKind : uint8_t {
@@ -65,22 +73,25 @@ public:
     /** Centre and radius of a sphere bounding everything in the scene (0 radius when empty). */
     void bounding_sphere(Vec3& center, float& radius) const;
 
-    /** Closest hit along o + t d for t in (0, tmax); false when nothing is hit. */
-    bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit) const;
+    /** Closest hit along o + t d for t in (0, tmax) at ray time `time` (in [0, 1] over the
+     *  shutter: where moving instances are); false when nothing is hit. */
+    bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time = 0.0f) const;
     /** Closest hits of n rays o[i] + t d[i], t in (0, 1e30), traced as one stream:
      *  found[i] says whether hits[i] is one. A ray's hit is the same bit for bit whatever else
-     *  is in the stream (an incoherent stream: Embree's packets for coherent streams gave hits
+     *  is in the stream (time[i]: the ray's time, as for intersect(); null: all at 0) (an
+     *  incoherent stream: Embree's packets for coherent streams gave hits
      *  that changed in the last bits with the stream's make-up, so crops, passes and MPI bands
      *  could differ from the whole render; they saved no time here). It may differ from
      *  intersect()'s in the last bits (another Embree code path). */
-    void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits,
-                          uint8_t* found) const;
+    void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits, uint8_t* found,
+                          const float* time = nullptr) const;
     /** blocked[i] = whether something blocks o[i] + t d[i] for t in (0, tmax[i]), for n rays
-     *  traced as one (incoherent) stream. A non-finite ray counts as blocked. */
+     *  traced as one (incoherent) stream, at times time[i] (null: all at 0). A non-finite ray
+     *  counts as blocked. */
     void occluded_stream(const Vec3* o, const Vec3* d, const float* tmax, std::size_t n,
-                         uint8_t* blocked) const;
-    /** True when something blocks o + t d for t in (0, tmax). */
-    bool occluded(Vec3 o, Vec3 d, float tmax) const;
+                         uint8_t* blocked, const float* time = nullptr) const;
+    /** True when something blocks o + t d for t in (0, tmax) at ray time `time`. */
+    bool occluded(Vec3 o, Vec3 d, float tmax, float time = 0.0f) const;
 
     /** BLAS the last build() made and reused. */
     int blas_built() const { return built_; }

@@ -53,7 +53,7 @@ FrameResult render_frame(const FrameRequest& req) {
     ColorConfig color = ColorConfig::load(req.ocio_config, default_ocio_locations());
     ecs::Registry registry;
     SceneInfo info = load_scene(req.scene, color, registry, req.time);
-    for (const std::string& note : info.color_notes) req.log->warn("{}", note);
+    for (const std::string& note : info.notes) req.log->warn("{}", note);
     if (req.on_loaded) req.on_loaded(color, info);
 
     PluginLoader plugins(plugin_search_path(req.plugin_dirs));

@@ -38,7 +38,10 @@ enum Pair : uint32_t {
     kPairBsdf = 1,      ///< BSDF direction (u0, u1)
     kPairSelect = 2,    ///< light selection, BSDF lobe choice
     kPairRoulette = 3,  ///< Russian roulette, spare
-    kPairsPerBounce = 4
+    kPairsPerBounce = 4,
+    /** The path's time within the shutter (motion blur; first value). Far beyond the bounce
+     *  pairs, so a scene without motion draws exactly the numbers it drew before. */
+    kPairTime = 0x40000000u
 };
 
 /** Offsets a ray origin off a surface along the geometric normal by a few float ulps, scaled to
@@ -65,6 +68,7 @@ struct Workspace {
     // Paths of the wave.
     std::vector<uint32_t> pixel, sample;
     std::vector<uint64_t> key;  ///< sobol_pixel_key of the path's pixel
+    std::vector<float> time;    ///< the path's time in the shutter, 0..1 (0 without motion)
     std::vector<RayDifferential> ray;
     std::vector<uint8_t> has_diff;  ///< the ray's differentials are real (camera or specular)
     std::vector<float> fp_width;    ///< footprint width at the ray origin (no differentials)
@@ -90,6 +94,7 @@ struct Workspace {
     std::vector<PathHit> hits;          ///< the paths that hit a scattering surface, in path order
     std::vector<uint32_t> stream_path;  ///< the active paths, traced as one stream
     std::vector<Vec3> stream_o, stream_d;
+    std::vector<float> stream_time;
     std::vector<Hit> stream_hit;
     std::vector<uint8_t> stream_found;
     std::vector<uint32_t> shadow_path;  ///< next-event queries of a group that need a ray
@@ -121,7 +126,7 @@ struct Workspace {
         key.resize(n);
         ray.resize(n);
         for (auto* a : {&has_diff, &prev_delta, &active}) a->resize(n);
-        for (auto* a : {&fp_width, &fp_spread, &prev_pdf}) a->resize(n);
+        for (auto* a : {&fp_width, &fp_spread, &prev_pdf, &time}) a->resize(n);
         throughput.resize(n);
         radiance.resize(n);
         surf.resize(n);
@@ -163,6 +168,11 @@ struct RenderJob {
     Strategy strategy;
     float clamp_indirect;  ///< 0 = off
     const CameraModel* camera;
+    /** A camera moving while the shutter is open: its fields at evenly spaced times (empty:
+     *  `camera` at every time). */
+    const std::vector<Camera>* camera_steps = nullptr;
+    /** Something moves while the shutter is open: every path draws a time. */
+    bool motion = false;
     const FilterSampler* filter;
     uint32_t width, height, spp, max_depth, rr_depth;
     /** The crop window: film pixel (x, y) of the full frame is image pixel
@@ -191,6 +201,22 @@ struct RenderJob {
 void rnd2(const Workspace& ws, uint32_t path, uint32_t bounce, uint32_t pair, float& a, float& b) {
     sobol_2d_keyed(ws.key[path], ws.sample[path], kPairBounceBase + bounce * kPairsPerBounce + pair,
                    a, b);
+}
+
+/** The camera at shutter time `time` (0..1) of a moving camera: the fields of the two steps
+ *  around it blended linearly. */
+CameraModel camera_at(const RenderJob& job, float time) {
+    const std::vector<Camera>& steps = *job.camera_steps;
+    const auto segments = static_cast<float>(steps.size() - 1);
+    const float f = std::clamp(time, 0.0f, 1.0f) * segments;
+    const float i = std::min(std::floor(f), segments - 1.0f);
+    const float s = f - i;
+    const Camera& a = steps[static_cast<std::size_t>(i)];
+    const Camera& b = steps[static_cast<std::size_t>(i) + 1];
+    const auto mix = [s](auto x, auto y) { return x + (y - x) * s; };
+    return CameraModel(mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
+                       mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
+                       mix(a.focus_distance, b.focus_distance), job.width, job.height);
 }
 
 /** The factor that caps the luminance of one indirect contribution c (a biased, optional
@@ -457,6 +483,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         ws.shadow_contrib.clear();
         ws.stream_o.clear();
         ws.stream_d.clear();
+        ws.stream_time.clear();
         ws.shadow_tmax.clear();
         ws.shadow_group.clear();
         ws.shadow_glint.clear();
@@ -484,6 +511,7 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
             }
             ws.stream_o.push_back(offset_origin(sp.p, side));
             ws.stream_d.push_back(ls.wi);
+            ws.stream_time.push_back(ws.time[i]);
             ws.shadow_tmax.push_back(std::isfinite(ls.dist) ? ls.dist * (1.0f - 1e-4f) : 1e30f);
         }
         const std::size_t rays = ws.shadow_path.size();
@@ -491,7 +519,8 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
         ws.stream_found.assign(rays, 0);
         if (w.accel)
             w.accel->occluded_stream(ws.stream_o.data(), ws.stream_d.data(), ws.shadow_tmax.data(),
-                                     rays, ws.stream_found.data());
+                                     rays, ws.stream_found.data(),
+                                     job.motion ? ws.stream_time.data() : nullptr);
         for (std::size_t r = 0; r < rays; ++r) {
             if (ws.stream_found[r]) continue;
             const float kc = clamp_factor(job, ws.shadow_contrib[r], bounce + 1);
@@ -650,17 +679,26 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                 const uint32_t pix =
                     std::min(y + st / 2, y1 - 1) * job.width + std::min(x + st / 2, x1 - 1);
                 const uint32_t smp = first_sample + s;
-                float fu, fv, lu, lv;
+                float fu, fv, lu, lv, tu = 0.0f, spare;
                 const uint64_t key = sobol_pixel_key(job.seed, pix);
                 sobol_2d_keyed(key, smp, kPairFilter, fu, fv);
                 sobol_2d_keyed(key, smp, kPairLens, lu, lv);
+                if (job.motion) sobol_2d_keyed(key, smp, kPairTime, tu, spare);
                 // Filter importance sampling: the sample lands where the filter puts it.
                 const float fx = static_cast<float>(x) + scale * (0.5f + job.filter->sample(fu));
                 const float fy = static_cast<float>(y) + scale * (0.5f + job.filter->sample(fv));
                 ws.pixel[i] = pix;
                 ws.key[i] = key;
                 ws.sample[i] = smp;
-                ws.ray[i] = job.camera->generate(fx, fy, lu, lv);
+                ws.time[i] = tu;
+                float pixel_angle = job.camera->pixel_angle();
+                if (job.camera_steps && !job.camera_steps->empty()) {
+                    const CameraModel cam = camera_at(job, tu);
+                    ws.ray[i] = cam.generate(fx, fy, lu, lv);
+                    pixel_angle = cam.pixel_angle();
+                } else {
+                    ws.ray[i] = job.camera->generate(fx, fy, lu, lv);
+                }
                 if (st > 1) {  // a preview path stands for the whole block: so does its footprint
                     RayDifferential& r = ws.ray[i];
                     r.dx_o = r.o + (r.dx_o - r.o) * scale;
@@ -670,7 +708,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                 }
                 ws.has_diff[i] = 1;
                 ws.fp_width[i] = 0.0f;
-                ws.fp_spread[i] = job.camera->pixel_angle() * scale;
+                ws.fp_spread[i] = pixel_angle * scale;
                 ws.throughput[i] = Vec3(1.0f);
                 ws.radiance[i] = Vec3(0.0f);
                 ws.prev_pdf[i] = 0.0f;
@@ -690,11 +728,13 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
         ws.stream_path.clear();
         ws.stream_o.clear();
         ws.stream_d.clear();
+        ws.stream_time.clear();
         for (std::size_t k = 0; k < n; ++k) {
             if (!ws.active[k]) continue;
             ws.stream_path.push_back(static_cast<uint32_t>(k));
             ws.stream_o.push_back(ws.ray[k].o);
             ws.stream_d.push_back(ws.ray[k].d);
+            ws.stream_time.push_back(ws.time[k]);
         }
         const std::size_t traced = ws.stream_path.size();
         ws.stream_hit.resize(traced);
@@ -703,7 +743,8 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
         // pixel's value does not depend on the tile, pass or crop it was traced in).
         if (w.accel)
             w.accel->intersect_stream(ws.stream_o.data(), ws.stream_d.data(), traced,
-                                      ws.stream_hit.data(), ws.stream_found.data());
+                                      ws.stream_hit.data(), ws.stream_found.data(),
+                                      job.motion ? ws.stream_time.data() : nullptr);
         for (std::size_t j = 0; j < traced; ++j) {
             const std::size_t k = ws.stream_path[j];
             ++rays;
@@ -783,7 +824,11 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             if (h + kAhead < hit_count) prefetch_vertices(h + kAhead);
             const uint32_t k = ws.hits[h].path;
             const Hit& hit = ws.hits[h].hit;
-            const Instance& inst = w.instances[static_cast<std::size_t>(hit.instance)];
+            const Instance& placed = w.instances[static_cast<std::size_t>(hit.instance)];
+            // A moving instance is where it was at the path's time.
+            Instance moved;
+            if (!placed.motion.empty()) moved = instance_at(placed, ws.time[k]);
+            const Instance& inst = placed.motion.empty() ? placed : moved;
             ws.surf[k] = surface_at(w.geometry.mesh(inst.mesh), inst, hit, ws.ray[k].d);
             bool has_diff = ws.has_diff[k] != 0;
             footprint_at(ws.surf[k], ws.ray[k], has_diff, ws.fp_width[k] + ws.fp_spread[k] * hit.t);
@@ -910,7 +955,8 @@ void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const Rend
             passes && options.on_pass ? ", or turn off --pass-output" : "");
 }
 
-void render_image(World& world, const Camera& camera, const Film& film) {
+void render_image(World& world, const Camera& camera, const Film& film,
+                  const std::vector<Camera>& camera_steps) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
                           camera.aperture, camera.focus_distance, film.width, film.height);
@@ -922,6 +968,10 @@ void render_image(World& world, const Camera& camera, const Film& film) {
     job.strategy = world.options.strategy;
     job.clamp_indirect = film.clamp_indirect;
     job.camera = &cam;
+    if (camera_steps.size() >= 2) job.camera_steps = &camera_steps;
+    job.motion = job.camera_steps != nullptr ||
+                 std::any_of(world.instances.begin(), world.instances.end(),
+                             [](const Instance& i) { return !i.motion.empty(); });
     job.filter = &filter;
     job.width = film.width;
     job.height = film.height;

@@ -4,12 +4,16 @@
 // (power heuristic) for area lights; the constant environment is reached by BSDF sampling.
 // Randomness is counter-based, so the image is identical for any thread count.
 
+#include <vector>
+
 #include "render/world.h"
 #include "scene/components.h"
 
 namespace spangle {
 
-/** Renders the camera's view into world.image (width x height RGB). */
-void render_image(World& world, const Camera& camera, const Film& film);
+/** Renders the camera's view into world.image (width x height RGB). `camera_steps`: a camera
+ *  that moves while the shutter is open (CameraMotion), empty for one that stands still. */
+void render_image(World& world, const Camera& camera, const Film& film,
+                  const std::vector<Camera>& camera_steps = {});
 
 }  // namespace spangle

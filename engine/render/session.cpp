@@ -67,7 +67,7 @@ ReloadReport Session::load(const std::string& scene, double time) {
     }
     auto cand = std::make_unique<ecs::Registry>();
     auto info = std::make_unique<SceneInfo>(load_scene(scene, *color, *cand, time));
-    for (const std::string& note : info->color_notes) log_.warn("{}", note);
+    for (const std::string& note : info->notes) log_.warn("{}", note);
     if (world_ && color->working_space() != color_->working_space()) {
         rep.changed.push_back("working space");
         full = true;
@@ -105,8 +105,9 @@ ReloadReport Session::load(const std::string& scene, double time) {
                             has("SphereLight") || has("Emission") || has("LightGroup") ||
                             has("PointLight") || has("DistantLight") || has("Environment") ||
                             has("EnvironmentMapFile") || has("file:env");
-    const bool run_accel = geometry || has("Transform") || has("MaterialRef") || has("QuadLight") ||
-                           has("SphereLight") || has("Emission") || (emitters && run_lights);
+    const bool run_accel = geometry || has("Transform") || has("Motion") || has("MaterialRef") ||
+                           has("QuadLight") || has("SphereLight") || has("Emission") ||
+                           (emitters && run_lights);
 
     std::unique_ptr<HostServices> host;
     ColorConfig* live_color = full ? color.get() : color_.get();

@@ -359,6 +359,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
             inst.normal_to_world = inst.to_world.normal_matrix();
             inst.to_object = inst.to_world.inverse();
             if (r.has<EmitterRef>(e)) inst.emitter = r.get<EmitterRef>(e).first;
+            if (r.has<Motion>(e)) inst.motion = r.get<Motion>(e).steps;
             w.instances.push_back(inst);
         }
     }
@@ -403,7 +404,10 @@ void system_render(ecs::Registry& r, World& w) {
     Film film = films.columns().get(0);
     if (w.options.width_override) film.width = w.options.width_override;
     if (w.options.height_override) film.height = w.options.height_override;
-    render_image(w, cams.columns().get(0), film);
+    const ecs::Entity settings = cams.entities()[0];
+    const std::vector<Camera> steps =
+        r.has<CameraMotion>(settings) ? r.get<CameraMotion>(settings).steps : std::vector<Camera>{};
+    render_image(w, cams.columns().get(0), film, steps);
 }
 
 }  // namespace spangle

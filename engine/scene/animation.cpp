@@ -53,4 +53,14 @@ std::vector<double> evaluate(const Track& track, double t) {
     return out;
 }
 
+int motion_segments(double t0, double t1, const std::function<bool(double, double)>& straight) {
+    for (int k = 1; k < kMaxMotionSegments; k *= 2) {
+        bool ok = true;
+        for (int i = 0; i < k && ok; ++i)
+            ok = straight(t0 + (t1 - t0) * i / k, t0 + (t1 - t0) * (i + 1) / k);
+        if (ok) return k;
+    }
+    return kMaxMotionSegments;
+}
+
 }  // namespace spangle

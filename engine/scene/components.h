@@ -2,6 +2,7 @@
 // The scene's components. Each is declared once as a field list; SPANGLE_COMPONENT generates the
 // element struct and its SoA columns. Colours are RGB in the working space (converted at load).
 
+#include <algorithm>
 #include <cstdint>
 #include <string>
 #include <vector>
@@ -60,6 +61,14 @@ SPANGLE_COMPONENT(ObjectInfo, SPANGLE_OBJECT_INFO_FIELDS);
 
 #define SPANGLE_TRANSFORM_FIELDS(X) X(Affine, to_world, "object to world")
 SPANGLE_COMPONENT(Transform, SPANGLE_TRANSFORM_FIELDS);
+
+#define SPANGLE_MOTION_FIELDS(X)                                                               \
+    X(std::vector<Affine>, steps,                                                              \
+      "object to world at evenly spaced times from shutter open to close (2 or more); Embree " \
+      "and shading interpolate linearly between them")
+/** An object that moves while the shutter is open (motion blur); its Transform is the placement
+ *  at the shutter's middle. */
+SPANGLE_COMPONENT(Motion, SPANGLE_MOTION_FIELDS);
 
 #define SPANGLE_MESH_FILE_FIELDS(X)                 \
     X(std::string, path, "resolved mesh file path") \
@@ -159,6 +168,20 @@ SPANGLE_COMPONENT(EnvironmentMapFile, SPANGLE_ENVIRONMENT_MAP_FIELDS);
     X(float, focus_distance, "distance of the plane in focus, metres")
 /** A perspective camera: pinhole or thin lens. */
 SPANGLE_COMPONENT(Camera, SPANGLE_CAMERA_FIELDS);
+
+namespace ecs {
+inline bool same_value(const std::vector<Camera>& a, const std::vector<Camera>& b) {
+    return std::equal(a.begin(), a.end(), b.begin(), b.end(), Camera::same);
+}
+}  // namespace ecs
+
+#define SPANGLE_CAMERA_MOTION_FIELDS(X)                                                     \
+    X(std::vector<Camera>, steps,                                                           \
+      "the camera at evenly spaced times from shutter open to close (2 or more); a sample " \
+      "at time s between two steps sees through their fields interpolated linearly")
+/** A camera that moves while the shutter is open (motion blur); the Camera component is the
+ *  camera at the shutter's middle. */
+SPANGLE_COMPONENT(CameraMotion, SPANGLE_CAMERA_MOTION_FIELDS);
 
 #define SPANGLE_FILM_FIELDS(X)                               \
     X(uint32_t, width, "pixels")                             \

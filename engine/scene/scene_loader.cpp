@@ -21,11 +21,11 @@ constexpr Range kNonNegative{0.0, 1e30, false, false};
 
 /** Everything a section parser needs besides its table. */
 struct ParseContext {
-    std::string file;                                 ///< scene path as given
-    fs::path dir;                                     ///< directory for relative paths
-    ColorConfig* color;                               ///< for conversion to the working space
-    std::string bare_space;                           ///< colour space of bare [r, g, b] arrays
-    std::vector<std::string>* color_notes = nullptr;  ///< stand-ins used (SceneInfo)
+    std::string file;                           ///< scene path as given
+    fs::path dir;                               ///< directory for relative paths
+    ColorConfig* color;                         ///< for conversion to the working space
+    std::string bare_space;                     ///< colour space of bare [r, g, b] arrays
+    std::vector<std::string>* notes = nullptr;  ///< stand-ins used (SceneInfo)
 };
 
 /** Resolves a colour space name or throws at `at` listing the known ones. */
@@ -35,11 +35,11 @@ std::string resolve_space(const ParseContext& ctx, const std::string& name, cons
     if (!resolved)
         throw_error(at, "unknown {}colour space '{}' (known: {}); {}", implicit ? implicit : "",
                     name, fmt::join(ctx.color->space_names(), ", "), ctx.color->how_to_fix());
-    if (!resolved->via.empty() && ctx.color_notes) {
+    if (!resolved->via.empty() && ctx.notes) {
         const std::string note =
             fmt::format("{}: {}colour space '{}' is not in the OCIO config '{}'; using {}",
                         at.str(), implicit ? implicit : "", name, ctx.color->path(), resolved->via);
-        auto& notes = *ctx.color_notes;
+        auto& notes = *ctx.notes;
         if (std::find(notes.begin(), notes.end(), note) == notes.end()) notes.push_back(note);
     }
     return resolved->name;
@@ -157,6 +157,17 @@ TransformParts parse_transform_parts(TableReader& r, const TransformParts& base 
     t.rotate = r.vec3("rotate", base.rotate);
     t.translate = r.vec3("translate", base.translate);
     return t;
+}
+
+/** The time `offset` frames after the scene's time (shutter = [open, close] is in frames). */
+double shutter_time(const SceneInfo& info, double offset) {
+    return info.time + offset / info.fps;
+}
+
+/** The middle of the shutter: where what does not blur is placed (the frame's time when the
+ *  scene has no shutter). */
+double shutter_middle(const SceneInfo& info) {
+    return shutter_time(info, 0.5 * (info.shutter_open + info.shutter_close));
 }
 
 /** The time of one key: `time` in seconds, or `frame` (a frame number of [render]). */
@@ -628,7 +639,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
     SceneInfo info;
     info.path = path;
     info.time = time;
-    ParseContext ctx{path, fs::path(path).parent_path(), &color, {}, &info.color_notes};
+    ParseContext ctx{path, fs::path(path).parent_path(), &color, {}, &info.notes};
     TableReader top(root, path, "the scene");
     top.set_whole_file();
 
@@ -652,6 +663,21 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
         info.frame_end =
             r.integer("frame_end", info.frame_start, {static_cast<double>(info.frame_start), 1e9});
         info.fps = r.number("fps", 24.0, {0.0, 1e6, true});
+        if (const toml::node* n = r.node("shutter")) {
+            float open = 0.0f, close = 0.0f;
+            if (!two_numbers(*n, open, close) || !std::isfinite(open) || !std::isfinite(close))
+                throw_error(loc_of(*n, path),
+                            "'shutter' must be [open, close]: two numbers, in frames from the "
+                            "frame's time (e.g. [-0.25, 0.25] for a 180-degree shutter centred "
+                            "on the frame)");
+            if (!(open <= close) || !(std::fabs(open) <= 16.0f && std::fabs(close) <= 16.0f))
+                throw_error(loc_of(*n, path),
+                            "'shutter' = [{}, {}]: open must not come after close, and both "
+                            "must lie within 16 frames of the frame",
+                            open, close);
+            info.shutter_open = open;
+            info.shutter_close = close;
+        }
         r.finish();
         info.working_space = color.working_space();
         info.color_space = ctx.bare_space;
@@ -679,22 +705,64 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                 kr.finish();
                 add_key(track, when, {p.x, p.y, p.z, l.x, l.y, l.z, u.x, u.y, u.z, fov}, kr);
             }
-            const std::vector<double> v = evaluate(track, time);
-            const auto f = [&](std::size_t i) { return static_cast<float>(v[i]); };
-            Camera& c = info.camera;
-            c.position = {f(0), f(1), f(2)};
-            c.look_at = {f(3), f(4), f(5)};
-            c.up = {f(6), f(7), f(8)};
-            c.fov_deg = f(9);
-            const Vec3 dir = c.look_at - c.position;
-            if (!(length(dir) > 0.0f) ||
-                !(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)) ||
-                !(c.fov_deg > 0.0f && c.fov_deg < 180.0f))
-                throw_error(r.loc("keys"),
-                            "the keyframed camera at {} s looks nowhere: its look_at meets its "
-                            "position, its up is parallel to the view, or its fov leaves (0, 180)",
-                            time);
-            if (!focus_given) c.focus_distance = length(dir);
+            // The camera at time t; the component is the camera at the shutter's middle.
+            const auto camera_at = [&](double when) {
+                const std::vector<double> v = evaluate(track, when);
+                const auto f = [&](std::size_t i) { return static_cast<float>(v[i]); };
+                Camera c = base;
+                c.position = {f(0), f(1), f(2)};
+                c.look_at = {f(3), f(4), f(5)};
+                c.up = {f(6), f(7), f(8)};
+                c.fov_deg = f(9);
+                const Vec3 dir = c.look_at - c.position;
+                if (!(length(dir) > 0.0f) ||
+                    !(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)) ||
+                    !(c.fov_deg > 0.0f && c.fov_deg < 180.0f))
+                    throw_error(r.loc("keys"),
+                                "the keyframed camera at {} s looks nowhere: its look_at meets "
+                                "its position, its up is parallel to the view, or its fov leaves "
+                                "(0, 180)",
+                                when);
+                if (!focus_given) c.focus_distance = length(dir);
+                return c;
+            };
+            info.camera = camera_at(shutter_middle(info));
+            if (info.shutter_open < info.shutter_close) {
+                // Straight enough: the eye and the point looked at stray from the straight line
+                // by under 1% of the distance they move; up and fov by under 1e-3.
+                const auto straight = [&](double a, double b) {
+                    const Camera ca = camera_at(a), cb = camera_at(b);
+                    for (const double q : {0.25, 0.5, 0.75}) {
+                        const Camera cm = camera_at(a + (b - a) * q);
+                        const auto off = [&](Vec3 x0, Vec3 x1, Vec3 xm) {
+                            return length(xm - (x0 + (x1 - x0) * static_cast<float>(q)));
+                        };
+                        const float moved =
+                            length(cb.position - ca.position) + length(cb.look_at - ca.look_at);
+                        if (off(ca.position, cb.position, cm.position) > 0.01f * moved + 1e-6f ||
+                            off(ca.look_at, cb.look_at, cm.look_at) > 0.01f * moved + 1e-6f ||
+                            off(ca.up, cb.up, cm.up) > 1e-3f * length(cm.up) ||
+                            std::fabs(cm.fov_deg - (ca.fov_deg + (cb.fov_deg - ca.fov_deg) *
+                                                                     static_cast<float>(q))) >
+                                1e-3f * cm.fov_deg)
+                            return false;
+                    }
+                    return true;
+                };
+                const double t0 = shutter_time(info, info.shutter_open),
+                             t1 = shutter_time(info, info.shutter_close);
+                const int segments = motion_segments(t0, t1, straight);
+                CameraMotion motion;
+                for (int k = 0; k <= segments; ++k)
+                    motion.steps.push_back(camera_at(t0 + (t1 - t0) * k / segments));
+                const bool moves =
+                    std::any_of(motion.steps.begin(), motion.steps.end(),
+                                [&](const Camera& c) { return !Camera::same(c, motion.steps[0]); });
+                if (moves) {
+                    registry.put(settings, motion);
+                    info.motion_blur = true;
+                }
+            }
             info.animated = true;
         } else if (r.has("interpolation")) {
             smooth_interpolation(r);
@@ -779,16 +847,65 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                              p.translate.x, p.translate.y, p.translate.z},
                             kr);
                 }
-                const std::vector<double> v = evaluate(track, time);
-                const auto f = [&](std::size_t j) { return static_cast<float>(v[j]); };
-                TransformParts now{{f(0), f(1), f(2)}, {f(3), f(4), f(5)}, {f(6), f(7), f(8)}};
-                for (int a = 0; a < 3; ++a)
-                    if (!(std::fabs(f(static_cast<std::size_t>(a))) >= 1e-8f))
-                        throw_error(r.loc("keys"),
-                                    "{}: the keyframed scale passes through 0 at {} s (the "
-                                    "object would vanish into a plane)",
-                                    r.what(), time);
-                placement = now.compose();
+                // The placement at time t; Transform is the one at the shutter's middle.
+                const auto placement_at = [&](double t) {
+                    const std::vector<double> v = evaluate(track, t);
+                    const auto f = [&](std::size_t j) { return static_cast<float>(v[j]); };
+                    TransformParts now{{f(0), f(1), f(2)}, {f(3), f(4), f(5)}, {f(6), f(7), f(8)}};
+                    for (int a = 0; a < 3; ++a)
+                        if (!(std::fabs(f(static_cast<std::size_t>(a))) >= 1e-8f))
+                            throw_error(r.loc("keys"),
+                                        "{}: the keyframed scale passes through 0 at {} s (the "
+                                        "object would vanish into a plane)",
+                                        r.what(), t);
+                    return now.compose();
+                };
+                placement = placement_at(shutter_middle(info));
+                if (info.shutter_open < info.shutter_close) {
+                    const double t0 = shutter_time(info, info.shutter_open),
+                                 t1 = shutter_time(info, info.shutter_close);
+                    // Straight enough: the linear part strays from the straight line by under
+                    // 2.5e-4 of its size (a rotation cut into steps of about 2.5 degrees), the
+                    // translation by under 1% of how far it moves.
+                    const auto straight = [&](double a, double b) {
+                        const Affine ma = placement_at(a), mb = placement_at(b);
+                        float size = 0.0f;
+                        for (int row = 0; row < 3; ++row)
+                            for (int j = 0; j < 3; ++j)
+                                size = std::max(
+                                    {size, std::fabs(ma.m[row][j]), std::fabs(mb.m[row][j])});
+                        for (const double q : {0.25, 0.5, 0.75}) {
+                            const Affine mm = placement_at(a + (b - a) * q);
+                            const auto s = static_cast<float>(q);
+                            for (int row = 0; row < 3; ++row)
+                                for (int j = 0; j < 3; ++j)
+                                    if (std::fabs(mm.m[row][j] -
+                                                  (ma.m[row][j] + (mb.m[row][j] - ma.m[row][j]) *
+                                                                      s)) > 2.5e-4f * size)
+                                        return false;
+                            if (length(mm.t - (ma.t + (mb.t - ma.t) * s)) >
+                                0.01f * length(mb.t - ma.t) + 1e-6f * length(mm.t))
+                                return false;
+                        }
+                        return true;
+                    };
+                    const int segments = motion_segments(t0, t1, straight);
+                    Motion motion;
+                    for (int k = 0; k <= segments; ++k)
+                        motion.steps.push_back(placement_at(t0 + (t1 - t0) * k / segments));
+                    const bool moves =
+                        std::any_of(motion.steps.begin(), motion.steps.end(),
+                                    [&](const Affine& m) { return !(m == motion.steps[0]); });
+                    if (moves && r.has("emission")) {
+                        info.notes.push_back(fmt::format(
+                            "{}: {} moves while the shutter is open but emits light: it is not "
+                            "blurred (lights are placed at the shutter's middle)",
+                            r.loc("keys").str(), r.what()));
+                    } else if (moves) {
+                        registry.put(e, motion);
+                        info.motion_blur = true;
+                    }
+                }
                 info.animated = true;
             } else if (r.has("interpolation")) {
                 smooth_interpolation(r);

@@ -19,9 +19,10 @@ struct SceneInfo {
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order
     Camera camera;                            ///< the [camera] table (also a component)
-    /** Colour spaces that stood in for names the config lacks ("file:line: 'ACEScg' is not in
-     *  the OCIO config; using its scene_linear role, ..."), for the caller to warn about. */
-    std::vector<std::string> color_notes;
+    /** Warnings for the caller to print: colour spaces that stood in for names the config lacks
+     *  ("file:line: 'ACEScg' is not in the OCIO config; using its scene_linear role, ..."),
+     *  motion that is not blurred. */
+    std::vector<std::string> notes;
     /** Light groups, in order of first use: each light, emissive object and environment names
      *  one with `light_group` ("default" when it does not). The render layers have one per group.
      */
@@ -32,6 +33,12 @@ struct SceneInfo {
     double fps = 24.0;
     bool animated = false;
     double time = 0.0;  ///< the time the scene was evaluated at
+    /** [render] shutter = [open, close], in frames from the frame's time: the exposure. With
+     *  open < close, moving things are blurred over [time + open / fps, time + close / fps]
+     *  (components CameraMotion and Motion); everything else is placed at the shutter's middle.
+     */
+    double shutter_open = 0.0, shutter_close = 0.0;
+    bool motion_blur = false;  ///< something moves while the shutter is open
 };
 
 /** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.
