@@ -185,6 +185,16 @@ struct Outputs {
                                                  c.focus_distance, frame_w, frame_h)
                                          .matrices();
             o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
+            // With the layers: where each object stands (12 floats each, the rows of its 3x4
+            // object-to-world matrix), so that Pobj carries a point into world space and a
+            // sequence's frames can follow a turning object (spangle flicker).
+            if (layers && !layers->empty()) {
+                std::vector<float> xf;
+                for (const Affine& a : info->object_to_world)
+                    for (int r = 0; r < 3; ++r)
+                        xf.insert(xf.end(), {a.m[r][0], a.m[r][1], a.m[r][2], a.t[r]});
+                o.float_vectors.emplace_back("spangle:objectToWorld", std::move(xf));
+            }
         }
         // A reduced-resolution preview pass (0 spp, blocks of `block` pixels).
         if (block > 1) o.metadata.emplace_back("spangle:preview_stride", std::to_string(block));
@@ -1152,12 +1162,13 @@ int main(int argc, char** argv) {
         if (*flicker) {
             const FlickerReport r = measure_flicker(flicker_frames, flicker_threshold);
             fmt::print(
-                "frames: {} ({} pairs), pixels compared: {:.0f}\n"
+                "frames: {} ({} pairs), pixels compared: {:.0f} (points carried by {})\n"
                 "glint mask threshold: {:.4g}, mask coverage: {:.4f}\n"
                 "mask flicker (mean |mask_k - mask_k+1| of reprojected pixels): {:.4f}\n"
                 "glint persistence (glint pixels still glints in the next frame): {:.4f}\n"
                 "relative glint difference (mean |g_k - g_k+1| / mean g): {:.4f}\n",
-                flicker_frames.size(), r.pairs, r.pixels, r.threshold, r.mask_fraction,
+                flicker_frames.size(), r.pairs, r.pixels,
+                r.by_objects ? "their objects" : "world position", r.threshold, r.mask_fraction,
                 r.mask_flicker, r.mask_persistence, r.relative_difference);
             return 0;
         }

@@ -1,6 +1,7 @@
 #include "color/flicker.h"
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFloatVectorAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -20,6 +21,11 @@ struct Frame {
     int width = 0, height = 0;
     Imath::M44f world_to_ndc;
     std::vector<float> px, py, pz, z, a, glint;  ///< glint: luminance of the glints layer
+    /** The object-space position and object number layers (Pobj, object) and each object's
+     *  placement in this frame (spangle:objectToWorld, 12 floats each); empty when the frame
+     *  lacks them (rendered before Spangle wrote them). */
+    std::vector<float> ox, oy, oz, object, object_to_world;
+    bool has_objects() const { return !object.empty() && !object_to_world.empty(); }
 };
 
 Frame read_frame(const std::string& path) {
@@ -50,6 +56,20 @@ Frame read_frame(const std::string& path) {
             buf->assign(n, 0.0f);
             fb.insert(name, Imf::Slice::Make(Imf::FLOAT, buf->data(), dw, sizeof(float),
                                              sizeof(float) * static_cast<std::size_t>(f.width)));
+        }
+        const auto* xf = h.findTypedAttribute<Imf::FloatVectorAttribute>("spangle:objectToWorld");
+        if (xf && h.channels().findChannel("object")) {
+            f.object_to_world = xf->value();
+            const std::pair<const char*, std::vector<float>*> objs[] = {
+                {"Pobj.X", &f.ox}, {"Pobj.Y", &f.oy}, {"Pobj.Z", &f.oz}, {"object", &f.object}};
+            for (const auto& [name, buf] : objs) {
+                if (!h.channels().findChannel(name))
+                    throw_error("'{}' has an 'object' channel but no '{}'", path, name);
+                buf->assign(n, 0.0f);
+                fb.insert(name,
+                          Imf::Slice::Make(Imf::FLOAT, buf->data(), dw, sizeof(float),
+                                           sizeof(float) * static_cast<std::size_t>(f.width)));
+            }
         }
         in.setFrameBuffer(fb);
         in.readPixels(dw.min.y, dw.max.y);
@@ -124,6 +144,8 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
     for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
         const Frame& a = frames[k];
         const Frame& b = frames[k + 1];
+        const bool objects = a.has_objects() && b.has_objects();
+        rep.by_objects = rep.by_objects || objects;
         ++rep.pairs;
         for (int y = 0; y < a.height; ++y)
             for (int x = 0; x < a.width; ++x) {
@@ -131,8 +153,25 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                     static_cast<std::size_t>(y) * static_cast<std::size_t>(a.width) +
                     static_cast<std::size_t>(x);
                 if (!(a.a[i] > 0.999f)) continue;  // only pixels wholly on a surface
-                // Where the surface point lies in the next frame (row vectors, divide by w).
-                const Imath::V4f p(a.px[i], a.py[i], a.pz[i], 1.0f);
+                // The surface point in the next frame: carried by its object when the frames
+                // say where objects stand (a turning object), else where it was (a still one).
+                Imath::V3f w(a.px[i], a.py[i], a.pz[i]);
+                float id = 0.0f;
+                if (objects) {
+                    id = a.object[i];
+                    const float k_obj = std::round(id) - 1.0f;
+                    // A pixel shared by two objects has no one number: skipped.
+                    if (!(std::fabs(id - std::round(id)) < 1e-3f && k_obj >= 0.0f &&
+                          12.0f * (k_obj + 1.0f) <= static_cast<float>(b.object_to_world.size())))
+                        continue;
+                    const float* m = &b.object_to_world[12 * static_cast<std::size_t>(k_obj)];
+                    const Imath::V3f q(a.ox[i], a.oy[i], a.oz[i]);
+                    for (int r = 0; r < 3; ++r)
+                        w[r] =
+                            m[4 * r] * q.x + m[4 * r + 1] * q.y + m[4 * r + 2] * q.z + m[4 * r + 3];
+                }
+                // Where it lies in the next frame's image (row vectors, divide by w).
+                const Imath::V4f p(w.x, w.y, w.z, 1.0f);
                 const Imath::V4f q = p * b.world_to_ndc;
                 if (!(q.w > 0.0f)) continue;
                 const float nx = q.x / q.w, ny = q.y / q.w;
@@ -143,8 +182,9 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                     static_cast<std::size_t>(by) * static_cast<std::size_t>(b.width) +
                     static_cast<std::size_t>(bx);
                 if (!(b.a[j] > 0.999f)) continue;
-                // The same point, not something in front of it.
-                const float dx = b.px[j] - a.px[i], dy = b.py[j] - a.py[i], dz = b.pz[j] - a.pz[i];
+                // The same point (of the same object), not something in front of it.
+                if (objects && b.object[j] != id) continue;
+                const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
                 if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) continue;
                 const double ga = a.glint[i], gb = b.glint[j];
                 if (!std::isfinite(ga) || !std::isfinite(gb)) continue;

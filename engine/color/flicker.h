@@ -1,8 +1,11 @@
 #pragma once
 // How much glitter flickers in a rendered sequence: each frame's glints are carried into the
-// next frame through the surface points they lie on (the P layer and the next frame's worldToNDC
-// matrix, written by `spangle render --layers`) and compared there. Glints that are fixed to the
-// surface land on glints; a per-frame random realisation does not.
+// next frame through the surface points they lie on and compared there. A point is carried by
+// its object (the Pobj and object layers and the next frame's spangle:objectToWorld placements,
+// so a turning object is followed) and projected with the next frame's worldToNDC matrix, all
+// written by `spangle render --layers`; frames without the object layers use the world P layer
+// (right for a moving camera only). Glints that are fixed to the surface land on glints; a
+// per-frame random realisation does not.
 
 #include <string>
 #include <vector>
@@ -18,14 +21,17 @@ struct FlickerReport {
     double mask_fraction = 0;        ///< mean mask coverage (for scale: flicker <= 2 x this)
     double relative_difference = 0;  ///< mean |g_k - g_k+1| / mean g over compared pixels
     double mask_persistence = 0;     ///< of the glint pixels of frame k, the share still glints
+    bool by_objects = false;         ///< points were carried by their objects (Pobj layers)
 };
 
-/** Reads the frames (EXRs with P.X/Y/Z, Z, A and glints.R/G/B layers and worldToNDC, in order)
+/** Reads the frames (EXRs with P.X/Y/Z, Z, A and glints.R/G/B layers and worldToNDC, and
+ *  Pobj.X/Y/Z, object and spangle:objectToWorld when they have them, in order)
  *  and measures. A pixel is in a frame's glint mask when its glint luminance exceeds `threshold`
  *  (<= 0: 4 x the mean over covered pixels of all frames) and 3 x the mean of its 5x5
  *  neighbourhood (a sparkle, not a broad highlight).
  *  A pixel is compared when its surface point projects inside the next frame and the next frame
- *  sees the same point there (positions within 1% of the depth). Throws SpangleError. */
+ *  sees the same point there (positions within 1% of the depth; the same object). Throws
+ *  SpangleError. */
 FlickerReport measure_flicker(const std::vector<std::string>& frames, double threshold = 0.0);
 
 }  // namespace spangle

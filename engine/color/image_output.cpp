@@ -3,6 +3,7 @@
 #include <Imath/half.h>
 #include <OpenEXR/ImfChannelList.h>
 #include <OpenEXR/ImfFloatAttribute.h>
+#include <OpenEXR/ImfFloatVectorAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfMatrixAttribute.h>
@@ -216,6 +217,8 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
     for (const auto& [key, value] : options.metadata)
         header.insert(key, Imf::StringAttribute(value));
     for (const auto& [key, value] : options.floats) header.insert(key, Imf::FloatAttribute(value));
+    for (const auto& [key, values] : options.float_vectors)
+        header.insert(key, Imf::FloatVectorAttribute(values));
     for (const auto& [key, m] : options.matrices)
         header.insert(key, Imf::M44fAttribute(Imath::M44f(m[0], m[1], m[2], m[3], m[4], m[5], m[6],
                                                           m[7], m[8], m[9], m[10], m[11], m[12],

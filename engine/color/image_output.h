@@ -23,6 +23,8 @@ struct ExrOptions {
     std::vector<std::pair<std::string, float>> floats;          ///< extra float attributes
     /** Extra 4x4 matrix attributes (M44f, row-major: worldToCamera, worldToNDC). */
     std::vector<std::pair<std::string, std::array<float, 16>>> matrices;
+    /** Extra float-vector attributes (OpenEXR's FloatVector). */
+    std::vector<std::pair<std::string, std::vector<float>>> float_vectors;
     /** Render layers written beside R, G, B in the same part: `layer_names.size()` values per
      *  pixel, interleaved, row-major; null for none. */
     const std::vector<float>* layers = nullptr;

@@ -26,8 +26,18 @@ constexpr uint32_t kTileSize = 16;
 constexpr uint32_t kSamplesPerWave = 8;  ///< samples of each tile pixel traced together
 constexpr uint32_t kMaxBatch = 256;  ///< shading points per plugin call: bounds per-batch scratch
 
-/** Per-path geometry layers of the first hit: coverage, albedo, normal, depth, position. */
-enum Aov : uint32_t { kAovA = 0, kAovAlbedo = 1, kAovN = 4, kAovZ = 7, kAovP = 8, kAovCount = 11 };
+/** Per-path geometry layers of the first hit: coverage, albedo, normal, depth, position, the
+ *  position in its object's space and the object's number (from 1; 0 = none). */
+enum Aov : uint32_t {
+    kAovA = 0,
+    kAovAlbedo = 1,
+    kAovN = 4,
+    kAovZ = 7,
+    kAovP = 8,
+    kAovPobj = 11,
+    kAovObject = 14,
+    kAovCount = 15
+};
 
 /** Sobol dimension pairs: two for the camera, then kPairsPerBounce per bounce. */
 enum Pair : uint32_t {
@@ -830,6 +840,13 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             if (!placed.motion.empty()) moved = instance_at(placed, ws.time[k]);
             const Instance& inst = placed.motion.empty() ? placed : moved;
             ws.surf[k] = surface_at(w.geometry.mesh(inst.mesh), inst, hit, ws.ray[k].d);
+            if (job.layers && bounce == 0) {  // where on which object the camera ray landed
+                float* aov = &ws.aov[static_cast<std::size_t>(k) * kAovCount];
+                aov[kAovPobj] = ws.surf[k].p_obj.x;
+                aov[kAovPobj + 1] = ws.surf[k].p_obj.y;
+                aov[kAovPobj + 2] = ws.surf[k].p_obj.z;
+                aov[kAovObject] = static_cast<float>(inst.object + 1);
+            }
             bool has_diff = ws.has_diff[k] != 0;
             footprint_at(ws.surf[k], ws.ray[k], has_diff, ws.fp_width[k] + ws.fp_spread[k] * hit.t);
             object_footprint(ws.surf[k], inst);
@@ -926,9 +943,10 @@ uint32_t preview_stride(uint32_t width, uint32_t height) {
 }
 
 std::vector<std::string> layer_channel_names(const std::vector<std::string>& light_groups) {
-    std::vector<std::string> out = {"A",   "albedo.R", "albedo.G", "albedo.B", "N.X",
-                                    "N.Y", "N.Z",      "Z",        "P.X",      "P.Y",
-                                    "P.Z", "glints.R", "glints.G", "glints.B"};
+    std::vector<std::string> out = {"A",        "albedo.R", "albedo.G", "albedo.B", "N.X",
+                                    "N.Y",      "N.Z",      "Z",        "P.X",      "P.Y",
+                                    "P.Z",      "Pobj.X",   "Pobj.Y",   "Pobj.Z",   "object",
+                                    "glints.R", "glints.G", "glints.B"};
     for (const std::string& g : light_groups)
         for (const char* c : {"R", "G", "B"}) out.push_back(fmt::format("lightgroup_{}.{}", g, c));
     return out;
@@ -1146,16 +1164,18 @@ void render_image(World& world, const Camera& camera, const Film& film,
     means(world.image, samples);
     const float inv_spp = samples > 0 ? 1.0f / static_cast<float>(samples) : 0.0f;
     if (job.layers) {
-        // Coverage, albedo, glints and light groups: averages over all samples. Depth and
-        // position: averages over the samples whose camera ray hit something (0 where none did:
-        // alpha 0), so that edges are not pulled towards the origin. The normal: normalised.
+        // Coverage, albedo, glints and light groups: averages over all samples. Depth, position,
+        // object-space position and object number: averages over the samples whose camera ray
+        // hit something (0 where none did: alpha 0), so that edges are not pulled towards the
+        // origin (an object number between two integers marks a pixel shared by objects). The
+        // normal: normalised.
         const std::size_t lc = job.layer_channels;
         for (std::size_t p = 0; p < world.layers.size(); p += lc) {
             float* v = &world.layers[p];
             const float hits = v[kAovA];
             const float inv_hits = hits > 0.0f ? 1.0f / hits : 0.0f;
             for (std::size_t c = 0; c < lc; ++c) {
-                const bool per_hit = c == kAovZ || (c >= kAovP && c < kAovP + 3);
+                const bool per_hit = c == kAovZ || (c >= kAovP && c <= kAovObject);
                 const bool normal = c >= kAovN && c < kAovN + 3;
                 if (!normal) v[c] *= per_hit ? inv_hits : inv_spp;
             }

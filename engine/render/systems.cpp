@@ -360,6 +360,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
             inst.to_object = inst.to_world.inverse();
             if (r.has<EmitterRef>(e)) inst.emitter = r.get<EmitterRef>(e).first;
             if (r.has<Motion>(e)) inst.motion = r.get<Motion>(e).steps;
+            if (r.has<ObjectInfo>(e)) inst.object = r.get<ObjectInfo>(e).index;
             w.instances.push_back(inst);
         }
     }

@@ -55,7 +55,8 @@ using ParamList = std::vector<ParamEntry>;
 
 #define SPANGLE_OBJECT_INFO_FIELDS(X)                           \
     X(std::string, name, "the object's name, empty if unnamed") \
-    X(FileLoc, loc, "the [[object]] table")
+    X(FileLoc, loc, "the [[object]] table")                     \
+    X(uint32_t, index, "its [[object]] number in the file, from 0")
 /** What messages about an object call it. */
 SPANGLE_COMPONENT(ObjectInfo, SPANGLE_OBJECT_INFO_FIELDS);
 

@@ -814,7 +814,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
         for (std::size_t i = 0; i < objs->size(); ++i) {
             TableReader r(*(*objs)[i].as_table(), path, fmt::format("[[object]] #{}", i + 1));
             const ecs::Entity e = registry.create();
-            registry.put(e, ObjectInfo{r.string("name", ""), r.loc()});
+            registry.put(e, ObjectInfo{r.string("name", ""), r.loc(), static_cast<uint32_t>(i)});
             const std::string mesh_path = resolve_file(ctx, r, "mesh");
             if (const toml::table* sub = r.table("subdiv"))
                 registry.put(e, parse_subdiv(ctx, *sub, mesh_path, r.loc("mesh")));
@@ -911,6 +911,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                 smooth_interpolation(r);
             }
             registry.put(e, Transform{placement});
+            info.object_to_world.push_back(placement);
             if (r.has("emission")) {
                 const Vec3 le =
                     read_color(ctx, r, "emission", {0, 0, 0}) *

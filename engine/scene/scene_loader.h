@@ -39,6 +39,9 @@ struct SceneInfo {
      */
     double shutter_open = 0.0, shutter_close = 0.0;
     bool motion_blur = false;  ///< something moves while the shutter is open
+    /** Each [[object]]'s placement (at the shutter's middle), in file order: the render layers'
+     *  `object` channel numbers them from 1 and the EXR header carries these. */
+    std::vector<Affine> object_to_world;
 };
 
 /** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.

@@ -13,11 +13,14 @@ namespace spangle {
 namespace {
 
 /** A 32 x 32 frame seeing the plane z = 0 straight on (worldToNDC the identity: P = (ndc x,
- *  ndc y, 0)), a dim glint layer with sparkles where hash(seed, pixel) says. */
-void write_frame(const std::string& path, uint64_t seed) {
+ *  ndc y, 0)), a dim glint layer with sparkles where hash(seed, point) says. The plane is an
+ *  object moved `shift` pixels to the right of its own space (shift / 32 in x): a sparkle stays
+ *  on its object-space point. `objects`: write the Pobj and object layers and the placements. */
+void write_frame(const std::string& path, uint64_t seed, int shift = 0, bool objects = false) {
     constexpr int kN = 32;
-    const std::vector<std::string> names = {"A",   "Z",        "P.X",      "P.Y",
-                                            "P.Z", "glints.R", "glints.G", "glints.B"};
+    std::vector<std::string> names = {"A",   "Z",        "P.X",      "P.Y",
+                                      "P.Z", "glints.R", "glints.G", "glints.B"};
+    if (objects) names.insert(names.end(), {"Pobj.X", "Pobj.Y", "Pobj.Z", "object"});
     std::vector<float> layers(kN * kN * names.size(), 0.0f);
     for (int y = 0; y < kN; ++y)
         for (int x = 0; x < kN; ++x) {
@@ -26,15 +29,24 @@ void write_frame(const std::string& path, uint64_t seed) {
             v[1] = 1.0f;
             v[2] = (static_cast<float>(x) + 0.5f) / kN;
             v[3] = (static_cast<float>(y) + 0.5f) / kN;
+            const int ox = x - shift;  // the object-space column
             const bool sparkle =
-                to_unit_float(hash2(seed, static_cast<uint64_t>(y * kN + x))) < 0.05f;
+                to_unit_float(hash2(seed, static_cast<uint64_t>(y * kN + ox + kN))) < 0.05f;
             v[5] = v[6] = v[7] = sparkle ? 5.0f : 0.1f;
+            if (objects) {
+                v[8] = (static_cast<float>(ox) + 0.5f) / kN;
+                v[9] = v[3];
+                v[11] = 1.0f;
+            }
         }
     ExrOptions o;
     o.half = false;
     o.layers = &layers;
     o.layer_names = names;
     o.matrices = {{"worldToNDC", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}}};
+    if (objects)
+        o.float_vectors = {{"spangle:objectToWorld",
+                            {1, 0, 0, static_cast<float>(shift) / kN, 0, 1, 0, 0, 0, 0, 1, 0}}};
     const ColorConfig color = test::shipped_config();
     write_exr(path, std::vector<float>(kN * kN * 3, 0.1f), kN, kN, color, o);
 }
@@ -58,6 +70,28 @@ TEST(Flicker, FixedSparklesPersistAndMovedOnesFlicker) {
         FAIL() << "one frame was measured";
     } catch (const SpangleError&) {
     }
+}
+
+// A turning (here: sliding) object: its sparkles stay on its points, which the frames' object
+// layers and placements follow; the world positions alone (frames without them) lose them.
+TEST(Flicker, SparklesOnAMovingObjectAreFollowedByTheirObject) {
+    test::TempDir dir("flicker_objects");
+    write_frame(dir.file("a.exr"), 1, 0, true);
+    write_frame(dir.file("b.exr"), 1, 8, true);
+    write_frame(dir.file("c.exr"), 2, 8, true);
+    write_frame(dir.file("a_world.exr"), 1, 0, false);
+    write_frame(dir.file("b_world.exr"), 1, 8, false);
+    const FlickerReport followed = measure_flicker({dir.file("a.exr"), dir.file("b.exr")}, 1.0);
+    EXPECT_TRUE(followed.by_objects);
+    EXPECT_EQ(followed.pixels, 24.0 * 32.0) << "the columns that stay in the frame";
+    EXPECT_DOUBLE_EQ(followed.mask_persistence, 1.0);
+    EXPECT_DOUBLE_EQ(followed.mask_flicker, 0.0);
+    const FlickerReport reseeded = measure_flicker({dir.file("a.exr"), dir.file("c.exr")}, 1.0);
+    EXPECT_LT(reseeded.mask_persistence, 0.3);
+    const FlickerReport world =
+        measure_flicker({dir.file("a_world.exr"), dir.file("b_world.exr")}, 1.0);
+    EXPECT_FALSE(world.by_objects);
+    EXPECT_LT(world.mask_persistence, 0.3) << "world positions do not follow the object";
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 // Render layers (--layers) on an analytic scene: a square seen head-on that covers exactly the
 // middle quarter of the image, lit by three light groups. The light-group layers add up to the
 // beauty, alpha is the square's coverage, depth, normal and position are the square's, the
-// glints are part of the beauty, and turning layers on leaves the beauty bit for bit alone.
+// glints are part of the beauty, the object-space position and object number are the square's,
+// and turning layers on leaves the beauty bit for bit alone.
 
 #include <gtest/gtest.h>
 
@@ -86,7 +87,7 @@ TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
     const FrameResult r = render_square(dir, true);
     const std::vector<std::string> want = {
         "A", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z", "Z", "P.X", "P.Y", "P.Z",
-        "glints.R", "glints.G", "glints.B",
+        "Pobj.X", "Pobj.Y", "Pobj.Z", "object", "glints.R", "glints.G", "glints.B",
         // Groups in order of first use: the environment's, the sphere's, the point light's
         // (which names none).
         "lightgroup_sky.R", "lightgroup_sky.G", "lightgroup_sky.B", "lightgroup_key.R",
@@ -106,12 +107,12 @@ TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
             for (std::size_t c = 0; c < 3; ++c) {
                 double groups = 0.0;
                 for (std::size_t g = 0; g < 3; ++g) {
-                    groups += at(x, y, 14 + 3 * g + c);
-                    sum_groups[g] += at(x, y, 14 + 3 * g + c);
+                    groups += at(x, y, 18 + 3 * g + c);
+                    sum_groups[g] += at(x, y, 18 + 3 * g + c);
                 }
                 ASSERT_NEAR(groups, beauty[c], 1e-5 * std::max(1.0f, beauty[c]))
                     << "pixel (" << x << ", " << y << ") channel " << c;
-                const float glint = at(x, y, 11 + c);
+                const float glint = at(x, y, 15 + c);
                 ASSERT_GE(glint, 0.0f);
                 ASSERT_LE(glint, beauty[c] * (1.0f + 1e-5f) + 1e-6f) << "glints are part of it";
                 glint_sum += glint;
@@ -129,8 +130,14 @@ TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
                 ASSERT_NEAR(at(x, y, 10), 0.0f, 1e-4f);
                 ASSERT_LE(std::fabs(at(x, y, 8)), 0.6f + 1e-4f);
                 ASSERT_GT(at(x, y, 1), 0.0f) << "albedo";
+                // The square is the first [[object]], plane.ply (y = 0) scaled by 0.6 and turned
+                // 90 degrees about x: its own point (P.x, 0, -P.y) / 0.6.
+                ASSERT_EQ(at(x, y, 14), 1.0f) << "object number at (" << x << ", " << y << ")";
+                ASSERT_NEAR(at(x, y, 11), at(x, y, 8) / 0.6f, 1e-4f);
+                ASSERT_NEAR(at(x, y, 12), 0.0f, 1e-4f);
+                ASSERT_NEAR(at(x, y, 13), -at(x, y, 9) / 0.6f, 1e-4f);
             } else {
-                for (std::size_t c = 1; c < 11; ++c) ASSERT_EQ(at(x, y, c), 0.0f);
+                for (std::size_t c = 1; c < 15; ++c) ASSERT_EQ(at(x, y, c), 0.0f);
             }
         }
     EXPECT_NEAR(alpha_sum / static_cast<double>(w * h), 0.25, 1e-6);
@@ -143,7 +150,7 @@ TEST(Layers, ClampedContributionsStillAddUpAndNoFlakesMeanNoGlints) {
     // A firefly clamp low enough to scale most indirect light, and no flakes at all.
     const FrameResult r = render_square(dir, true, 0.05, 0.0);
     const std::size_t lc = r.layer_names.size();
-    ASSERT_EQ(lc, 23u);
+    ASSERT_EQ(lc, 27u);
     const std::size_t pixels = r.width * r.height;
     const FrameResult unclamped = render_square(dir, true, 0.0, 0.0);
     double clamped_sum = 0.0, unclamped_sum = 0.0;
@@ -151,9 +158,9 @@ TEST(Layers, ClampedContributionsStillAddUpAndNoFlakesMeanNoGlints) {
         for (std::size_t c = 0; c < 3; ++c) {
             const float beauty = r.image[3 * p + c];
             double groups = 0.0;
-            for (std::size_t g = 0; g < 3; ++g) groups += r.layers[p * lc + 14 + 3 * g + c];
+            for (std::size_t g = 0; g < 3; ++g) groups += r.layers[p * lc + 18 + 3 * g + c];
             ASSERT_NEAR(groups, beauty, 1e-5 * std::max(1.0f, beauty)) << "pixel " << p;
-            ASSERT_EQ(r.layers[p * lc + 11 + c], 0.0f) << "a glint without flakes, pixel " << p;
+            ASSERT_EQ(r.layers[p * lc + 15 + c], 0.0f) << "a glint without flakes, pixel " << p;
             clamped_sum += beauty;
             unclamped_sum += unclamped.image[3 * p + c];
         }
