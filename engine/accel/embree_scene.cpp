@@ -80,7 +80,11 @@ Instance instance_at(const Instance& inst, float time) {
     const float s = f - i;
     const Affine& a = inst.motion[static_cast<std::size_t>(i)];
     const Affine& b = inst.motion[static_cast<std::size_t>(i) + 1];
-    Instance out = inst;
+    Instance out;  // without the steps: this runs at every hit on a moving object
+    out.mesh = inst.mesh;
+    out.material = inst.material;
+    out.emitter = inst.emitter;
+    out.object = inst.object;
     for (int r = 0; r < 3; ++r) {
         for (int c = 0; c < 3; ++c) out.to_world.m[r][c] = (1.0f - s) * a.m[r][c] + s * b.m[r][c];
     }

@@ -36,7 +36,8 @@ struct Instance {
 };
 
 /** The instance at ray time `time` in [0, 1]: its transforms interpolated as Embree does
- *  (linearly between the two steps around the time). `inst` itself when it does not move. */
+ *  (linearly between the two steps around the time), without its steps. `inst` itself when it
+ *  does not move. */
 Instance instance_at(const Instance& inst, float time);
 
 /** What a ray hit. */

@@ -160,7 +160,9 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                 if (objects) {
                     id = a.object[i];
                     const float k_obj = std::round(id) - 1.0f;
-                    // A pixel shared by two objects has no one number: skipped.
+                    // A pixel shared by objects has no one number: skipped when its average is
+                    // not a whole number (halves of objects 1 and 3 average to 2: such a pixel
+                    // fails the same-point test below instead).
                     if (!(std::fabs(id - std::round(id)) < 1e-3f && k_obj >= 0.0f &&
                           12.0f * (k_obj + 1.0f) <= static_cast<float>(b.object_to_world.size())))
                         continue;
@@ -183,7 +185,7 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                     static_cast<std::size_t>(bx);
                 if (!(b.a[j] > 0.999f)) continue;
                 // The same point (of the same object), not something in front of it.
-                if (objects && b.object[j] != id) continue;
+                if (objects && std::round(b.object[j]) != std::round(id)) continue;
                 const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
                 if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) continue;
                 const double ga = a.glint[i], gb = b.glint[j];

@@ -101,7 +101,8 @@ ReloadReport Session::load(const std::string& scene, double time) {
     const bool geometry = run_mesh || run_subdiv;
     const bool run_materials =
         has("Material") || has("MaterialRef") || has("file:plugin") || has("file:texture");
-    const bool run_lights = geometry || has("Transform") || has("QuadLight") ||
+    // Lights are sized by the scene's bounds, which take in a moving object's whole sweep.
+    const bool run_lights = geometry || has("Transform") || has("Motion") || has("QuadLight") ||
                             has("SphereLight") || has("Emission") || has("LightGroup") ||
                             has("PointLight") || has("DistantLight") || has("Environment") ||
                             has("EnvironmentMapFile") || has("file:env");

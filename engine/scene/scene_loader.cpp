@@ -4,6 +4,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <sstream>
 
 #include "render/camera.h"
@@ -830,6 +831,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                                 : fmt::format("{}", fmt::join(info.material_names, ", ")));
             registry.put(e, MaterialRef{index});
             const TransformParts base = parse_transform_parts(r);
+            std::optional<Motion> blur;  // its motion while the shutter is open
             Affine placement = base.compose();
             if (const toml::array* keys = r.table_array("keys")) {
                 // Keyframed placement: each key's scale, rotate, translate default to the
@@ -896,15 +898,7 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                     const bool moves =
                         std::any_of(motion.steps.begin(), motion.steps.end(),
                                     [&](const Affine& m) { return !(m == motion.steps[0]); });
-                    if (moves && r.has("emission")) {
-                        info.notes.push_back(fmt::format(
-                            "{}: {} moves while the shutter is open but emits light: it is not "
-                            "blurred (lights are placed at the shutter's middle)",
-                            r.loc("keys").str(), r.what()));
-                    } else if (moves) {
-                        registry.put(e, motion);
-                        info.motion_blur = true;
-                    }
+                    if (moves) blur = std::move(motion);  // unless it emits (below)
                 }
                 info.animated = true;
             } else if (r.has("interpolation")) {
@@ -918,6 +912,15 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                     static_cast<float>(r.number("emission_intensity", 1.0, kNonNegative));
                 if (max_component(le) > 0.0f) registry.put(e, Emission{le});
                 registry.put(e, parse_light_group(r, info.light_groups));
+            }
+            if (blur && registry.has<Emission>(e)) {
+                info.notes.push_back(fmt::format(
+                    "{}: {} moves while the shutter is open but emits light: it is not blurred "
+                    "(lights are placed at the shutter's middle)",
+                    r.loc("keys").str(), r.what()));
+            } else if (blur) {
+                registry.put(e, std::move(*blur));
+                info.motion_blur = true;
             }
             r.finish();
         }

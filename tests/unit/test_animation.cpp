@@ -203,6 +203,11 @@ TEST(MotionBlur, MovingEmittersAreNotBlurredAndTheLoadSaysSo) {
               std::string::npos)
         << notes[0];
     EXPECT_TRUE(session.info().motion_blur) << "the camera still moves";
+    // An emission of zero is no light: that object blurs, without a warning.
+    std::ofstream(path) << test::scene_text(
+        "motion_blur.toml", {{"material = \"red\"", "material = \"red\"\nemission = [0, 0, 0]"}});
+    session.load(path, 0.0);
+    EXPECT_TRUE(session.info().notes.empty());
 }
 
 }  // namespace
