@@ -71,15 +71,21 @@ void to_embree(const Affine& a, float (&xfm)[12]) {
 
 }  // namespace
 
-Instance instance_at(const Instance& inst, float time) {
-    if (inst.motion.size() < 2) return inst;
-    // Embree's motion blur: time steps evenly over [0, 1], a linear blend of the two around t.
-    const auto segments = static_cast<float>(inst.motion.size() - 1);
+void motion_step(std::size_t steps, float time, std::size_t& first, float& s) {
+    const auto segments = static_cast<float>(steps - 1);
     const float f = std::clamp(std::isfinite(time) ? time : 0.0f, 0.0f, 1.0f) * segments;
     const float i = std::min(std::floor(f), segments - 1.0f);
-    const float s = f - i;
-    const Affine& a = inst.motion[static_cast<std::size_t>(i)];
-    const Affine& b = inst.motion[static_cast<std::size_t>(i) + 1];
+    first = static_cast<std::size_t>(i);
+    s = f - i;
+}
+
+Instance instance_at(const Instance& inst, float time) {
+    if (inst.motion.size() < 2) return inst;
+    std::size_t i = 0;
+    float s = 0.0f;
+    motion_step(inst.motion.size(), time, i, s);
+    const Affine& a = inst.motion[i];
+    const Affine& b = inst.motion[i + 1];
     Instance out;  // without the steps: this runs at every hit on a moving object
     out.mesh = inst.mesh;
     out.material = inst.material;

@@ -35,6 +35,11 @@ struct Instance {
     std::vector<Affine> motion;
 };
 
+/** Where ray time `time` (in [0, 1]; clamped, 0 when not finite) falls among `steps` >= 2 evenly
+ *  spaced time steps, as Embree's motion blur places it: between step `first` and the next, at
+ *  fraction `s` of the way. Moving instances and the moving camera blend their steps by it. */
+void motion_step(std::size_t steps, float time, std::size_t& first, float& s);
+
 /** The instance at ray time `time` in [0, 1]: its transforms interpolated as Embree does
  *  (linearly between the two steps around the time), without its steps. `inst` itself when it
  *  does not move. */

@@ -217,12 +217,11 @@ void rnd2(const Workspace& ws, uint32_t path, uint32_t bounce, uint32_t pair, fl
  *  around it blended linearly. */
 CameraModel camera_at(const RenderJob& job, float time) {
     const std::vector<Camera>& steps = *job.camera_steps;
-    const auto segments = static_cast<float>(steps.size() - 1);
-    const float f = std::clamp(time, 0.0f, 1.0f) * segments;
-    const float i = std::min(std::floor(f), segments - 1.0f);
-    const float s = f - i;
-    const Camera& a = steps[static_cast<std::size_t>(i)];
-    const Camera& b = steps[static_cast<std::size_t>(i) + 1];
+    std::size_t i = 0;
+    float s = 0.0f;
+    motion_step(steps.size(), time, i, s);
+    const Camera& a = steps[i];
+    const Camera& b = steps[i + 1];
     const auto mix = [s](auto x, auto y) { return x + (y - x) * s; };
     return CameraModel(mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
                        mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
@@ -702,7 +701,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                 ws.sample[i] = smp;
                 ws.time[i] = tu;
                 float pixel_angle = job.camera->pixel_angle();
-                if (job.camera_steps && !job.camera_steps->empty()) {
+                if (job.camera_steps) {  // a moving camera (2 or more steps)
                     const CameraModel cam = camera_at(job, tu);
                     ws.ray[i] = cam.generate(fx, fy, lu, lv);
                     pixel_angle = cam.pixel_angle();

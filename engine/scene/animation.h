@@ -4,6 +4,7 @@
 // monotone between keys, so no overshoot). Before the first key and after the last, a track
 // holds its end values.
 
+#include <algorithm>
 #include <cstddef>
 #include <functional>
 #include <vector>
@@ -30,5 +31,28 @@ constexpr int kMaxMotionSegments = 64;
  *  whether the motion stays close enough to the straight line from its value at a to its
  *  value at b. */
 int motion_segments(double t0, double t1, const std::function<bool(double, double)>& straight);
+
+/** The steps motion blur needs of a motion `at(t)` over the shutter [t0, t1]: its values at the
+ *  evenly spaced times of motion_segments, where a segment [a, b] is straight enough when
+ *  `close(va, vb, vm, q)` holds for q = 1/4, 1/2, 3/4 -- whether vm, the value at a + (b - a) q,
+ *  lies near enough to the straight line from va = at(a) to vb = at(b). Empty when every step
+ *  is `same` as the first (nothing moves). */
+template <class At, class Close, class Same>
+auto motion_steps(double t0, double t1, const At& at, const Close& close, const Same& same) {
+    using Value = decltype(at(t0));
+    const auto straight = [&](double a, double b) {
+        const Value va = at(a), vb = at(b);
+        for (const double q : {0.25, 0.5, 0.75})
+            if (!close(va, vb, at(a + (b - a) * q), static_cast<float>(q))) return false;
+        return true;
+    };
+    const int segments = motion_segments(t0, t1, straight);
+    std::vector<Value> steps;
+    for (int k = 0; k <= segments; ++k) steps.push_back(at(t0 + (t1 - t0) * k / segments));
+    if (std::all_of(steps.begin(), steps.end(),
+                    [&](const Value& v) { return same(v, steps.front()); }))
+        steps.clear();
+    return steps;
+}
 
 }  // namespace spangle

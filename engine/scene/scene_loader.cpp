@@ -731,36 +731,24 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
             if (info.shutter_open < info.shutter_close) {
                 // Straight enough: the eye and the point looked at stray from the straight line
                 // by under 1% of the distance they move; up and fov by under 1e-3.
-                const auto straight = [&](double a, double b) {
-                    const Camera ca = camera_at(a), cb = camera_at(b);
-                    for (const double q : {0.25, 0.5, 0.75}) {
-                        const Camera cm = camera_at(a + (b - a) * q);
-                        const auto off = [&](Vec3 x0, Vec3 x1, Vec3 xm) {
-                            return length(xm - (x0 + (x1 - x0) * static_cast<float>(q)));
-                        };
-                        const float moved =
-                            length(cb.position - ca.position) + length(cb.look_at - ca.look_at);
-                        if (off(ca.position, cb.position, cm.position) > 0.01f * moved + 1e-6f ||
-                            off(ca.look_at, cb.look_at, cm.look_at) > 0.01f * moved + 1e-6f ||
-                            off(ca.up, cb.up, cm.up) > 1e-3f * length(cm.up) ||
-                            std::fabs(cm.fov_deg - (ca.fov_deg + (cb.fov_deg - ca.fov_deg) *
-                                                                     static_cast<float>(q))) >
-                                1e-3f * cm.fov_deg)
-                            return false;
-                    }
-                    return true;
+                const auto close = [](const Camera& ca, const Camera& cb, const Camera& cm,
+                                      float q) {
+                    const auto off = [q](Vec3 x0, Vec3 x1, Vec3 xm) {
+                        return length(xm - (x0 + (x1 - x0) * q));
+                    };
+                    const float moved =
+                        length(cb.position - ca.position) + length(cb.look_at - ca.look_at);
+                    return off(ca.position, cb.position, cm.position) <= 0.01f * moved + 1e-6f &&
+                           off(ca.look_at, cb.look_at, cm.look_at) <= 0.01f * moved + 1e-6f &&
+                           off(ca.up, cb.up, cm.up) <= 1e-3f * length(cm.up) &&
+                           std::fabs(cm.fov_deg - (ca.fov_deg + (cb.fov_deg - ca.fov_deg) * q)) <=
+                               1e-3f * cm.fov_deg;
                 };
-                const double t0 = shutter_time(info, info.shutter_open),
-                             t1 = shutter_time(info, info.shutter_close);
-                const int segments = motion_segments(t0, t1, straight);
-                CameraMotion motion;
-                for (int k = 0; k <= segments; ++k)
-                    motion.steps.push_back(camera_at(t0 + (t1 - t0) * k / segments));
-                const bool moves =
-                    std::any_of(motion.steps.begin(), motion.steps.end(),
-                                [&](const Camera& c) { return !Camera::same(c, motion.steps[0]); });
-                if (moves) {
-                    registry.put(settings, motion);
+                std::vector<Camera> steps = motion_steps(shutter_time(info, info.shutter_open),
+                                                         shutter_time(info, info.shutter_close),
+                                                         camera_at, close, Camera::same);
+                if (!steps.empty()) {
+                    registry.put(settings, CameraMotion{std::move(steps)});
                     info.motion_blur = true;
                 }
             }
@@ -864,41 +852,30 @@ SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry&
                 };
                 placement = placement_at(shutter_middle(info));
                 if (info.shutter_open < info.shutter_close) {
-                    const double t0 = shutter_time(info, info.shutter_open),
-                                 t1 = shutter_time(info, info.shutter_close);
                     // Straight enough: the linear part strays from the straight line by under
                     // 2.5e-4 of its size (a rotation cut into steps of about 2.5 degrees), the
                     // translation by under 1% of how far it moves.
-                    const auto straight = [&](double a, double b) {
-                        const Affine ma = placement_at(a), mb = placement_at(b);
+                    const auto close = [](const Affine& ma, const Affine& mb, const Affine& mm,
+                                          float q) {
                         float size = 0.0f;
                         for (int row = 0; row < 3; ++row)
                             for (int j = 0; j < 3; ++j)
                                 size = std::max(
                                     {size, std::fabs(ma.m[row][j]), std::fabs(mb.m[row][j])});
-                        for (const double q : {0.25, 0.5, 0.75}) {
-                            const Affine mm = placement_at(a + (b - a) * q);
-                            const auto s = static_cast<float>(q);
-                            for (int row = 0; row < 3; ++row)
-                                for (int j = 0; j < 3; ++j)
-                                    if (std::fabs(mm.m[row][j] -
-                                                  (ma.m[row][j] + (mb.m[row][j] - ma.m[row][j]) *
-                                                                      s)) > 2.5e-4f * size)
-                                        return false;
-                            if (length(mm.t - (ma.t + (mb.t - ma.t) * s)) >
-                                0.01f * length(mb.t - ma.t) + 1e-6f * length(mm.t))
-                                return false;
-                        }
-                        return true;
+                        for (int row = 0; row < 3; ++row)
+                            for (int j = 0; j < 3; ++j)
+                                if (std::fabs(mm.m[row][j] -
+                                              (ma.m[row][j] + (mb.m[row][j] - ma.m[row][j]) * q)) >
+                                    2.5e-4f * size)
+                                    return false;
+                        return length(mm.t - (ma.t + (mb.t - ma.t) * q)) <=
+                               0.01f * length(mb.t - ma.t) + 1e-6f * length(mm.t);
                     };
-                    const int segments = motion_segments(t0, t1, straight);
-                    Motion motion;
-                    for (int k = 0; k <= segments; ++k)
-                        motion.steps.push_back(placement_at(t0 + (t1 - t0) * k / segments));
-                    const bool moves =
-                        std::any_of(motion.steps.begin(), motion.steps.end(),
-                                    [&](const Affine& m) { return !(m == motion.steps[0]); });
-                    if (moves) blur = std::move(motion);  // unless it emits (below)
+                    std::vector<Affine> steps =
+                        motion_steps(shutter_time(info, info.shutter_open),
+                                     shutter_time(info, info.shutter_close), placement_at, close,
+                                     [](const Affine& x, const Affine& y) { return x == y; });
+                    if (!steps.empty()) blur = Motion{std::move(steps)};  // unless it emits (below)
                 }
                 info.animated = true;
             } else if (r.has("interpolation")) {

@@ -23,6 +23,18 @@ void write_float_exr(const std::string& path, const std::vector<float>& rgb, int
     write_exr(path, rgb, w, h, color, o);
 }
 
+/** An n x n RGB image whose pixel (x, y) is value(x, y) in every channel. */
+template <class Value>
+std::vector<float> grey_image(int n, const Value& value) {
+    std::vector<float> img(3 * static_cast<std::size_t>(n * n));
+    for (int y = 0; y < n; ++y)
+        for (int x = 0; x < n; ++x)
+            for (int c = 0; c < 3; ++c)
+                img[3 * static_cast<std::size_t>(y * n + x) + static_cast<std::size_t>(c)] =
+                    value(x, y);
+    return img;
+}
+
 /** A TextureService over the shipped config whose cache lives in `dir`. */
 struct Textures {
     explicit Textures(const test::TempDir& dir)
@@ -96,12 +108,8 @@ TEST(Texture, ALargeFootprintReadsABlurredLevel) {
     test::TempDir dir("texture_mip");
     // A one-texel checker of 0 and 1: any single texel is 0 or 1, its average is 0.5.
     constexpr int kN = 64;
-    std::vector<float> img(3 * kN * kN);
-    for (int y = 0; y < kN; ++y)
-        for (int x = 0; x < kN; ++x)
-            for (int c = 0; c < 3; ++c)
-                img[3 * static_cast<std::size_t>(y * kN + x) + static_cast<std::size_t>(c)] =
-                    static_cast<float>((x + y) % 2);
+    const std::vector<float> img =
+        grey_image(kN, [](int x, int y) { return static_cast<float>((x + y) % 2); });
     write_float_exr(dir.file("checker.exr"), img, kN, kN);
     Textures t(dir);
     TextureRef ref;
@@ -126,12 +134,8 @@ TEST(Texture, VRunsUpTheImageAndTheUvTransformMovesIt) {
     // Row 0 is the top of an image: the top half white, the bottom half black, and a grey
     // left column strip to tell left from right.
     constexpr int kN = 16;
-    std::vector<float> img(3 * kN * kN);
-    for (int y = 0; y < kN; ++y)
-        for (int x = 0; x < kN; ++x)
-            for (int c = 0; c < 3; ++c)
-                img[3 * static_cast<std::size_t>(y * kN + x) + static_cast<std::size_t>(c)] =
-                    x < 4 ? 0.5f : (y < kN / 2 ? 1.0f : 0.0f);
+    const std::vector<float> img =
+        grey_image(kN, [](int x, int y) { return x < 4 ? 0.5f : (y < kN / 2 ? 1.0f : 0.0f); });
     write_float_exr(dir.file("half.exr"), img, kN, kN);
     Textures t(dir);
     TextureRef ref;
@@ -276,12 +280,8 @@ TEST(Texture, AFlakeMaskHoldsNoGlintWhereItIsZero) {
     // Left half of the image 0, right half 1. The plane's uvs span [0, 4]: a uv scale of 1/4
     // lays the image over the whole plane.
     constexpr int kN = 32;
-    std::vector<float> mask(3 * kN * kN);
-    for (int y = 0; y < kN; ++y)
-        for (int x = 0; x < kN; ++x)
-            for (int c = 0; c < 3; ++c)
-                mask[3 * static_cast<std::size_t>(y * kN + x) + static_cast<std::size_t>(c)] =
-                    x < kN / 2 ? 0.0f : 1.0f;
+    const std::vector<float> mask =
+        grey_image(kN, [](int x, int) { return x < kN / 2 ? 0.0f : 1.0f; });
     write_float_exr(dir.file("mask.exr"), mask, kN, kN);
     const auto flake = [](const std::string& weight) {
         return "plugin = \"flake\"\nparams = { base_color = 0.2, flake_weight = " + weight +
