@@ -13,7 +13,7 @@
 #include <mutex>
 
 #include "core/error.h"
-#include "shading/plugin_loader.h"
+#include "core/files.h"
 
 namespace fs = std::filesystem;
 

@@ -8,14 +8,9 @@
 #include <vector>
 
 #include "core/math.h"
+#include "core/pixel_filter.h"
 
 namespace spangle {
-
-/** Pixel filters; each is separable, f(x, y) = g(x) g(y), and non-negative. */
-enum class FilterKind { Box, Gaussian, BlackmanHarris };
-
-/** Parses "box", "gaussian" or "blackman-harris"; false for anything else. */
-bool parse_filter(const std::string& name, FilterKind& out);
 
 /** A 1D filter tabulated for sampling: piecewise constant over kBins bins on [-radius, radius]. */
 class FilterSampler {

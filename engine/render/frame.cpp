@@ -3,6 +3,7 @@
 #include <cstdio>
 #include <filesystem>
 
+#include "core/files.h"
 #include "render/systems.h"
 #include "scene/scene_loader.h"
 #include "shading/plugin_loader.h"

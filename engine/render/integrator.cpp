@@ -977,9 +977,7 @@ void render_image(World& world, const Camera& camera, const Film& film,
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
                           camera.aperture, camera.focus_distance, film.width, film.height);
-    FilterKind kind = FilterKind::Box;
-    parse_filter(film.filter, kind);  // validated at load
-    const FilterSampler filter(kind);
+    const FilterSampler filter(film.filter);
     RenderJob job;
     job.world = &world;
     job.strategy = world.options.strategy;

@@ -9,6 +9,7 @@
 
 #include "core/error.h"
 #include "core/math.h"
+#include "core/pixel_filter.h"
 #include "ecs/pool.h"
 #include "geometry/subdivision.h"
 
@@ -191,7 +192,7 @@ SPANGLE_COMPONENT(CameraMotion, SPANGLE_CAMERA_MOTION_FIELDS);
     X(uint32_t, max_depth, "maximum bounces")                \
     X(uint32_t, rr_depth, "bounces before Russian roulette") \
     X(uint64_t, seed, "random seed")                         \
-    X(std::string, filter, "pixel filter name")              \
+    X(FilterKind, filter, "pixel filter")                    \
     X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")
 /** Image size and render settings. */
 SPANGLE_COMPONENT(Film, SPANGLE_FILM_FIELDS);

@@ -7,7 +7,7 @@
 #include <optional>
 #include <sstream>
 
-#include "render/camera.h"
+#include "core/pixel_filter.h"
 #include "scene/animation.h"
 #include "scene/components.h"
 #include "scene/toml_reader.h"
@@ -93,12 +93,11 @@ Film parse_render(TableReader& r) {
     f.max_depth = static_cast<uint32_t>(r.integer("max_depth", 5, {1, 1024}));
     f.rr_depth = static_cast<uint32_t>(r.integer("rr_depth", 3, {1, 1024}));
     f.seed = static_cast<uint64_t>(r.integer("seed", 0, {0, 9.0e18}));
-    f.filter = r.string("filter", "gaussian");
+    const std::string filter = r.string("filter", "gaussian");
     f.clamp_indirect = static_cast<float>(r.number("clamp_indirect", 0.0, {0.0, 1e30}));
-    FilterKind kind;
-    if (!parse_filter(f.filter, kind))
+    if (!parse_filter(filter, f.filter))
         throw_error(r.loc("filter"), "unknown filter '{}' (valid: box, gaussian, blackman-harris)",
-                    f.filter);
+                    filter);
     return f;
 }
 

@@ -36,12 +36,6 @@ std::vector<std::string> LoadedPlugin::model_names() const {
     return names;
 }
 
-std::string executable_dir() {
-    std::error_code ec;
-    const fs::path exe = fs::read_symlink("/proc/self/exe", ec);
-    return ec ? std::string() : exe.parent_path().string();
-}
-
 std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_dirs) {
     std::vector<std::string> dirs(cli_dirs);
     if (const char* env = std::getenv("SPANGLE_PLUGIN_PATH"); env && *env) {

@@ -41,9 +41,6 @@ private:
  *  running binary. */
 std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_dirs);
 
-/** Directory of the running executable (via /proc/self/exe), or empty. */
-std::string executable_dir();
-
 /** Opens plugins by name from a search path and caches them. */
 class PluginLoader {
 public:

@@ -33,6 +33,7 @@
 #include "accuracy_render.h"
 #include "core/check.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "shading/plugin_loader.h"
 #include "test_support.h"
 
