@@ -21,7 +21,7 @@
 #include "core/hash.h"
 #include "core/log.h"
 #include "core/math.h"
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "shading/plugin_loader.h"
 
 namespace fs = std::filesystem;

@@ -36,9 +36,9 @@
 #include "color/image_output.h"
 #include "core/error.h"
 #include "render/camera.h"
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "render/image_metrics.h"
-#include "render/session.h"
+#include "pipeline/session.h"
 #include "scene/toml_reader.h"
 
 #include "shading/material.h"
@@ -579,7 +579,7 @@ int run_frames(const RenderArgs& a) {
                          a.scene);
         }
         session.render();
-        const World& w = session.world();
+        const RenderResult& w = session.result();
         const RenderStats& st = w.stats;
         const bool complete = st.spp_reached == st.spp_target;
         if (st.spp_reached == 0) {
@@ -823,7 +823,7 @@ int run_watch(const RenderArgs& a) {
                 report_error(e.what());
                 return;
             }
-            const World& w = session.world();
+            const RenderResult& w = session.result();
             if (w.image.empty()) return;
             warn_if_no_chromaticities(log, session.color());
             const RenderStats& st = w.stats;

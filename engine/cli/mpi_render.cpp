@@ -23,7 +23,7 @@
 #include <tuple>
 
 #include "core/error.h"
-#include "render/session.h"
+#include "pipeline/session.h"
 
 namespace spangle {
 namespace {
@@ -177,7 +177,7 @@ bool MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows
         const auto t0 = std::chrono::steady_clock::now();
         session.options().crop = band_window(win, band_px, unit);
         session.render();
-        const World& w = session.world();
+        const RenderResult& w = session.result();
         pixels.assign(w.image.begin(), w.image.end());
         pixels.insert(pixels.end(), w.layers.begin(), w.layers.end());
         report = Report::of(

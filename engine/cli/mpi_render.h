@@ -15,7 +15,7 @@
 #include <string>
 #include <vector>
 
-#include "render/world.h"
+#include "render/render_options.h"
 
 namespace spangle {
 

@@ -10,7 +10,7 @@
 #include "color/color_config.h"
 #include "color/image_output.h"
 #include "core/error.h"
-#include "render/world.h"
+#include "render/render_options.h"
 
 namespace spangle {
 namespace {

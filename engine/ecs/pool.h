@@ -73,6 +73,13 @@ public:
     /** Same entities, in the same order, with the same values (see same_value). `other` must
      *  be a pool of the same component type. */
     virtual bool same_as(const PoolBase& other) const = 0;
+    /** The entities that have the component, in dense order. */
+    virtual std::vector<Entity> entity_list() const = 0;
+    /** A new empty pool of the same component type. */
+    virtual std::unique_ptr<PoolBase> empty_like() const = 0;
+    /** Puts e's component from `other` (a pool of the same type) into this pool; false when
+     *  `other` has none for e. */
+    virtual bool copy_from(const PoolBase& other, Entity e) = 0;
 };
 
 /** One component type's storage: sparse index, dense entities, SoA columns. */
@@ -131,6 +138,15 @@ public:
         if (dense_ != o.dense_) return false;
         for (std::size_t i = 0; i < dense_.size(); ++i)
             if (!C::same(columns_.get(i), o.columns_.get(i))) return false;
+        return true;
+    }
+    std::vector<Entity> entity_list() const override { return dense_; }
+    std::unique_ptr<PoolBase> empty_like() const override { return std::make_unique<Pool<C>>(); }
+    bool copy_from(const PoolBase& other, Entity e) override {
+        const auto& o = static_cast<const Pool<C>&>(other);
+        const uint32_t slot = o.find(e);
+        if (slot == kEmpty) return false;
+        put(e, o.columns_.get(slot));
         return true;
     }
     /** Dense entity array, parallel to every column. */

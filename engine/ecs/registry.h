@@ -81,31 +81,67 @@ public:
         return it == pools_.end() ? 0 : it->second->size();
     }
 
+    /** Whether this registry's pool of `type` and other's hold the same entities with the same
+     *  values (an absent pool and an empty one are the same). */
+    bool same_pool(std::type_index type, const Registry& other) const {
+        const PoolBase* a = find_base(type);
+        const PoolBase* b = other.find_base(type);
+        const std::size_t na = a ? a->size() : 0, nb = b ? b->size() : 0;
+        if (na == 0 && nb == 0) return true;
+        return a && b && a->same_as(*b);
+    }
+
+    /** Copies e's component of `type` from `from` into this registry (e must be alive here);
+     *  false when `from` has none for e. Hot reload hands a skipped system's components over
+     *  with it. */
+    bool copy_component(std::type_index type, const Registry& from, Entity e) {
+        const PoolBase* source = from.find_base(type);
+        if (!source) return false;
+        SPANGLE_CHECK(alive(e), "copy_component() onto a dead entity");
+        auto it = pools_.find(type);
+        if (it == pools_.end()) it = pools_.emplace(type, source->empty_like()).first;
+        return it->second->copy_from(*source, e);
+    }
+
+    /** The entities that have the component `type` (empty when there is no pool). */
+    std::vector<Entity> entities_of(std::type_index type) const {
+        std::vector<Entity> out;
+        if (const PoolBase* p = find_base(type)) out = p->entity_list();
+        return out;
+    }
+
     /** Names of the component types whose pools differ between a and b (an absent pool and an
      *  empty one are the same), skipping the types in `ignore`. */
     static std::vector<std::string> changed_types(const Registry& a, const Registry& b,
                                                   const std::vector<std::type_index>& ignore) {
         std::vector<std::string> out;
-        auto differs = [&](std::type_index t, const PoolBase* pa, const PoolBase* pb) {
-            for (const auto& i : ignore)
-                if (i == t) return false;
-            const std::size_t na = pa ? pa->size() : 0, nb = pb ? pb->size() : 0;
-            if (na == 0 && nb == 0) return false;
-            return !pa || !pb || !pa->same_as(*pb);
+        for (const auto& [type, name] : changed_pools(a, b, ignore)) out.push_back(name);
+        return out;
+    }
+
+    /** The component types (with their names) whose pools differ between a and b, sorted by
+     *  name, skipping the types in `ignore`. */
+    static std::vector<std::pair<std::type_index, std::string>> changed_pools(
+        const Registry& a, const Registry& b, const std::vector<std::type_index>& ignore) {
+        std::vector<std::pair<std::type_index, std::string>> out;
+        auto check = [&](std::type_index t, const PoolBase& p) {
+            if (std::find(ignore.begin(), ignore.end(), t) != ignore.end()) return;
+            if (!a.same_pool(t, b)) out.emplace_back(t, p.name());
         };
-        for (const auto& [t, pa] : a.pools_) {
-            auto it = b.pools_.find(t);
-            const PoolBase* pb = it == b.pools_.end() ? nullptr : it->second.get();
-            if (differs(t, pa.get(), pb)) out.push_back(pa->name());
-        }
+        for (const auto& [t, pa] : a.pools_) check(t, *pa);
         for (const auto& [t, pb] : b.pools_)
-            if (a.pools_.find(t) == a.pools_.end() && differs(t, nullptr, pb.get()))
-                out.push_back(pb->name());
-        std::sort(out.begin(), out.end());
+            if (a.pools_.find(t) == a.pools_.end()) check(t, *pb);
+        std::sort(out.begin(), out.end(),
+                  [](const auto& x, const auto& y) { return x.second < y.second; });
         return out;
     }
 
 private:
+    const PoolBase* find_base(std::type_index type) const {
+        auto it = pools_.find(type);
+        return it == pools_.end() ? nullptr : it->second.get();
+    }
+
     EntityAllocator entities_;
     std::unordered_map<std::type_index, std::unique_ptr<PoolBase>> pools_;
 };

@@ -174,7 +174,7 @@ struct Workspace {
 
 /** State shared by all tiles of one render. */
 struct RenderJob {
-    const World* world;
+    const RenderScene* scene;
     Strategy strategy;
     float clamp_indirect;  ///< 0 = off
     const CameraModel* camera;
@@ -287,8 +287,8 @@ void reframe(SurfacePoint& sp, Vec3 nf) {
 /** Applies the material's normal or bump map to the group's shading frames: tangent space from
  *  dp/du and dp/dv (normal map: OpenGL convention, green towards +v; bump map: a height field
  *  in metres along the normal, its slope from the filtered texture's derivatives). */
-void apply_map(const World& w, Workspace& ws, const MaterialInstance& mat, const uint32_t* paths,
-               uint32_t n) {
+void apply_map(const RenderScene& w, Workspace& ws, const MaterialInstance& mat,
+               const uint32_t* paths, uint32_t n) {
     const TextureBinding& b = mat.map();
     for (auto* a : {&ws.gu, &ws.gv, &ws.gdudx, &ws.gdudy, &ws.gdvdx, &ws.gdvdy}) a->resize(n);
     for (uint32_t k = 0; k < n; ++k) {
@@ -347,7 +347,7 @@ void apply_map(const World& w, Workspace& ws, const MaterialInstance& mat, const
 /** Shades one material group: prepare, next-event estimation, then BSDF sampling. */
 void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, const uint32_t* paths,
                  uint32_t n, uint32_t bounce, uint64_t& shadow_rays) {
-    const World& w = *job.world;
+    const RenderScene& w = *job.scene;
     ws.resize_group(n);
     // The glint part of f matters for the glint layer at the first surface only (later on, the
     // glint throughput of a path carries it).
@@ -455,14 +455,14 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
     }
 
     // Next-event estimation towards the lights.
-    if (!w.lights.empty()) {
+    if (!w.lights->empty()) {
         uint32_t q = 0;
         for (uint32_t k = 0; k < n; ++k) {
             const uint32_t i = paths[k];
             const SurfacePoint& sp = ws.surf[i];
             float lu, lv;
             rnd2(ws, i, bounce, kPairLight, lu, lv);
-            const LightSample ls = w.lights.sample(sp.p, ws.u_select[k], lu, lv);
+            const LightSample ls = w.lights->sample(sp.p, ws.u_select[k], lu, lv);
             if (!(ls.pdf > 0.0f)) continue;
             ws.light[q] = ls;
             ws.light_query[q] = k;
@@ -632,32 +632,32 @@ void shade_group(RenderJob& job, Workspace& ws, const MaterialInstance& mat, con
 }
 
 /** Emission a ray picks up at a light it hits, MIS-weighted against next-event estimation. */
-Vec3 emission_at_hit(const World& w, Strategy strategy, const Workspace& ws, std::size_t k,
+Vec3 emission_at_hit(const RenderScene& w, Strategy strategy, const Workspace& ws, std::size_t k,
                      const Hit& hit, uint32_t& group) {
     const RayDifferential& r = ws.ray[k];
     const Vec3 q = r.o + r.d * hit.t;
     group = 0;
     if (hit.kind == HitKind::Sphere) {
-        const SphereEmitter& s = w.lights.sphere(hit.prim);
+        const SphereEmitter& s = w.lights->sphere(hit.prim);
         group = s.group;
         if (dot(q - s.center, r.d) >= 0.0f) return Vec3(0.0f);  // seen from inside
         const float weight = bsdf_hit_weight(strategy, ws.prev_delta[k] != 0, ws.prev_pdf[k],
-                                             w.lights.sphere_pdf(hit.prim, r.o));
+                                             w.lights->sphere_pdf(hit.prim, r.o));
         return s.radiance * weight;
     }
     int32_t emitter = -1;
     if (hit.kind == HitKind::Quad)
         emitter = static_cast<int32_t>(w.quad_light_first + hit.prim / 2);
-    else if (w.instances[static_cast<std::size_t>(hit.instance)].emitter >= 0)
-        emitter = w.instances[static_cast<std::size_t>(hit.instance)].emitter +
+    else if ((*w.instances)[static_cast<std::size_t>(hit.instance)].emitter >= 0)
+        emitter = (*w.instances)[static_cast<std::size_t>(hit.instance)].emitter +
                   static_cast<int32_t>(hit.prim);
     if (emitter < 0) return Vec3(0.0f);
     const auto e = static_cast<uint32_t>(emitter);
-    group = w.lights.area(e).group;
-    const Vec3 le = w.lights.area_emitted(e, -r.d);
+    group = w.lights->area(e).group;
+    const Vec3 le = w.lights->area_emitted(e, -r.d);
     if (max_component(le) <= 0.0f) return Vec3(0.0f);
     const float weight = bsdf_hit_weight(strategy, ws.prev_delta[k] != 0, ws.prev_pdf[k],
-                                         w.lights.area_pdf(e, r.o, q));
+                                         w.lights->area_pdf(e, r.o, q));
     return le * weight;
 }
 
@@ -674,7 +674,7 @@ std::size_t film_index(const RenderJob& job, uint32_t pix) {
 /** Traces one wave: `count` samples starting at `first_sample` for every pixel of the tile. */
 void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_t x1, uint32_t y1,
                 uint32_t first_sample, uint32_t count) {
-    const World& w = *job.world;
+    const RenderScene& w = *job.scene;
     const uint32_t st = job.stride;
     const uint32_t tw = (x1 - x0 + st - 1) / st, th = (y1 - y0 + st - 1) / st;
     const std::size_t n = static_cast<std::size_t>(tw) * th * count;
@@ -726,7 +726,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             }
     if (job.layers) ws.resize_layers(n, job.groups);
     uint64_t rays = 0, shadow = 0;
-    const std::size_t material_count = w.materials.size();
+    const std::size_t material_count = w.materials->size();
     std::vector<uint32_t> group_start(material_count + 1);
     for (uint32_t bounce = 0; bounce <= job.max_depth; ++bounce) {
         std::fill(group_start.begin(), group_start.end(), 0u);
@@ -764,8 +764,8 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
                     std::fill(ws.escaped_by_group.begin(), ws.escaped_by_group.end(), Vec3(0.0f));
                     by_group = ws.escaped_by_group.data();
                 }
-                const Vec3 esc = w.lights.escaped(ws.ray[k].d, ws.prev_pdf[k],
-                                                  ws.prev_delta[k] != 0, job.strategy, by_group);
+                const Vec3 esc = w.lights->escaped(ws.ray[k].d, ws.prev_pdf[k],
+                                                   ws.prev_delta[k] != 0, job.strategy, by_group);
                 const Vec3 c = ws.throughput[k] * (w.environment + esc);
                 const float kc = clamp_factor(job, c, bounce);
                 ws.radiance[k] += c * kc;
@@ -812,7 +812,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
         const auto prefetch_vertices = [&](std::size_t h) {
             const Hit& hit = ws.hits[h].hit;
             const TriangleMesh& m =
-                w.geometry.mesh(w.instances[static_cast<std::size_t>(hit.instance)].mesh);
+                w.geometry->mesh((*w.instances)[static_cast<std::size_t>(hit.instance)].mesh);
             const uint32_t* tri = &m.indices[3 * static_cast<std::size_t>(hit.prim)];
             for (int c = 0; c < 3; ++c) {
                 const std::size_t v = tri[c];
@@ -827,18 +827,18 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             if (h + 2 * kAhead < hit_count) {
                 const Hit& far = ws.hits[h + 2 * kAhead].hit;
                 const TriangleMesh& m =
-                    w.geometry.mesh(w.instances[static_cast<std::size_t>(far.instance)].mesh);
+                    w.geometry->mesh((*w.instances)[static_cast<std::size_t>(far.instance)].mesh);
                 __builtin_prefetch(&m.indices[3 * static_cast<std::size_t>(far.prim)]);
             }
             if (h + kAhead < hit_count) prefetch_vertices(h + kAhead);
             const uint32_t k = ws.hits[h].path;
             const Hit& hit = ws.hits[h].hit;
-            const Instance& placed = w.instances[static_cast<std::size_t>(hit.instance)];
+            const Instance& placed = (*w.instances)[static_cast<std::size_t>(hit.instance)];
             // A moving instance is where it was at the path's time.
             Instance moved;
             if (!placed.motion.empty()) moved = instance_at(placed, ws.time[k]);
             const Instance& inst = placed.motion.empty() ? placed : moved;
-            ws.surf[k] = surface_at(w.geometry.mesh(inst.mesh), inst, hit, ws.ray[k].d);
+            ws.surf[k] = surface_at(w.geometry->mesh(inst.mesh), inst, hit, ws.ray[k].d);
             if (job.layers && bounce == 0) {  // where on which object the camera ray landed
                 float* aov = &ws.aov[static_cast<std::size_t>(k) * kAovCount];
                 aov[kAovPobj] = ws.surf[k].p_obj.x;
@@ -863,7 +863,7 @@ void trace_wave(RenderJob& job, Workspace& ws, uint32_t x0, uint32_t y0, uint32_
             const uint32_t count_m = group_start[m + 1] - group_start[m];
             if (count_m == 0) continue;
             for (uint32_t off = 0; off < count_m; off += kMaxBatch)
-                shade_group(job, ws, *w.materials[m], ws.order.data() + group_start[m] + off,
+                shade_group(job, ws, *(*w.materials)[m], ws.order.data() + group_start[m] + off,
                             std::min(kMaxBatch, count_m - off), bounce, shadow);
         }
     }
@@ -972,41 +972,41 @@ void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const Rend
             passes && options.on_pass ? ", or turn off --pass-output" : "");
 }
 
-void render_image(World& world, const Camera& camera, const Film& film,
-                  const std::vector<Camera>& camera_steps) {
+void render_image(const RenderScene& scene, const RenderOptions& options, const Camera& camera,
+                  const Film& film, const std::vector<Camera>& camera_steps, RenderResult& world) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
                           camera.aperture, camera.focus_distance, film.width, film.height);
     const FilterSampler filter(film.filter);
     RenderJob job;
-    job.world = &world;
-    job.strategy = world.options.strategy;
+    job.scene = &scene;
+    job.strategy = options.strategy;
     job.clamp_indirect = film.clamp_indirect;
     job.camera = &cam;
     if (camera_steps.size() >= 2) job.camera_steps = &camera_steps;
     job.motion = job.camera_steps != nullptr ||
-                 std::any_of(world.instances.begin(), world.instances.end(),
+                 std::any_of(scene.instances->begin(), scene.instances->end(),
                              [](const Instance& i) { return !i.motion.empty(); });
     job.filter = &filter;
     job.width = film.width;
     job.height = film.height;
-    job.spp = world.options.spp_override ? world.options.spp_override : film.spp;
+    job.spp = options.spp_override ? options.spp_override : film.spp;
     // --spp-range: samples [first_sample, job.spp) of the frame's.
     uint32_t first_sample = 0;
-    if (world.options.spp_end > 0) {
-        if (!(world.options.spp_first < world.options.spp_end && world.options.spp_end <= job.spp))
+    if (options.spp_end > 0) {
+        if (!(options.spp_first < options.spp_end && options.spp_end <= job.spp))
             throw_error(
                 "sample range {}..{} is not inside the frame's {} samples per pixel (it needs "
                 "A < B <= spp)",
-                world.options.spp_first, world.options.spp_end, job.spp);
-        first_sample = world.options.spp_first;
-        job.spp = world.options.spp_end;
+                options.spp_first, options.spp_end, job.spp);
+        first_sample = options.spp_first;
+        job.spp = options.spp_end;
     }
     job.max_depth = film.max_depth;
     job.rr_depth = film.rr_depth;
     job.seed = film.seed;
     // The crop window (the whole image without one).
-    const CropWindow& crop = world.options.crop;
+    const CropWindow& crop = options.crop;
     const CropWindow win = crop_within(crop, film.width, film.height);
     const uint32_t cx0 = win.x0, cy0 = win.y0, cx1 = win.x1, cy1 = win.y1;
     const uint32_t cw = cx1 - cx0, ch = cy1 - cy0;
@@ -1018,9 +1018,9 @@ void render_image(World& world, const Camera& camera, const Film& film,
     world.window = ImageWindow{cx0, cy0, film.width, film.height};
     world.layers.clear();
     world.layer_names.clear();
-    if (world.options.layers) {
+    if (options.layers) {
         std::vector<std::string> groups =
-            world.info ? world.info->light_groups : std::vector<std::string>{};
+            scene.light_groups ? *scene.light_groups : std::vector<std::string>{};
         if (groups.empty()) groups.push_back("default");
         world.layer_names = layer_channel_names(groups);
         job.layers = true;
@@ -1029,7 +1029,7 @@ void render_image(World& world, const Camera& camera, const Film& film,
         job.camera_position = camera.position;
         job.camera_forward = normalize(camera.look_at - camera.position);
     }
-    check_film_memory(cw, ch, job.spp - first_sample, world.options, job.layer_channels);
+    check_film_memory(cw, ch, job.spp - first_sample, options, job.layer_channels);
     world.sums.assign(static_cast<std::size_t>(cw) * ch * 3, SampleSum(0));
     job.sums = &world.sums;
     world.layers.assign(static_cast<std::size_t>(cw) * ch * job.layer_channels, 0.0f);
@@ -1042,9 +1042,9 @@ void render_image(World& world, const Camera& camera, const Film& film,
     const uint64_t total = static_cast<uint64_t>(cw) * ch * (job.spp - first_sample);
     tbb::enumerable_thread_specific<Workspace> workspaces;
     const int threads =
-        world.options.threads > 0 ? world.options.threads : tbb::this_task_arena::max_concurrency();
+        options.threads > 0 ? options.threads : tbb::this_task_arena::max_concurrency();
     tbb::task_arena arena(threads);
-    const auto& stop = world.options.stop;
+    const auto& stop = options.stop;
     std::atomic<bool> stopped{false};
     // Passes of doubling sample counts. Every pixel adds its samples in sample order whatever
     // the passes, so the sums after the last pass are those of a one-pass render, bit for bit.
@@ -1074,9 +1074,9 @@ void render_image(World& world, const Camera& camera, const Film& film,
                                           if (!count_progress) continue;
                                           const uint64_t done = job.samples_done +=
                                               static_cast<uint64_t>(x1 - x0) * (y1 - y0) * count;
-                                          if (world.options.progress) {
+                                          if (options.progress) {
                                               std::lock_guard<std::mutex> lock(job.progress_mutex);
-                                              world.options.progress(done, total);
+                                              options.progress(done, total);
                                           }
                                       }
                                   }
@@ -1085,10 +1085,10 @@ void render_image(World& world, const Camera& camera, const Film& film,
     };
     // A preview pass: one path per block of pixels, shown before the first full pass. It is
     // not part of the image: its values are thrown away once shown.
-    const uint32_t stride = world.options.preview_pass && world.options.on_pass &&
-                                    job.spp - first_sample > 1 && crop.whole()
-                                ? preview_stride(film.width, film.height)
-                                : 1;
+    const uint32_t stride =
+        options.preview_pass && options.on_pass && job.spp - first_sample > 1 && crop.whole()
+            ? preview_stride(film.width, film.height)
+            : 1;
     if (stride > 1) {
         std::vector<float> preview(world.sums.size(), 0.0f);
         job.sums = nullptr;
@@ -1114,12 +1114,11 @@ void render_image(World& world, const Camera& camera, const Film& film,
                         for (std::size_t c = 0; c < 3; ++c) preview[to + c] = preview[from + c];
                 }
             }
-            world.options.on_pass(PassImage{preview, film.width, film.height, 0,
-                                            job.spp - first_sample, stride, seconds_since(t0),
-                                            world.window});
+            options.on_pass(PassImage{preview, film.width, film.height, 0, job.spp - first_sample,
+                                      stride, seconds_since(t0), world.window});
         }
     }
-    std::vector<uint32_t> ends = world.options.progressive
+    std::vector<uint32_t> ends = options.progressive
                                      ? pass_ends(job.spp - first_sample)
                                      : std::vector<uint32_t>{job.spp - first_sample};
     for (uint32_t& e : ends) e += first_sample;
@@ -1148,12 +1147,11 @@ void render_image(World& world, const Camera& camera, const Film& film,
         }
         reached = end;
         ++passes;
-        if (world.options.on_pass && end < job.spp) {
+        if (options.on_pass && end < job.spp) {
             std::vector<float> shown;
             means(shown, end - first_sample);
-            world.options.on_pass(PassImage{shown, cw, ch, end - first_sample,
-                                            job.spp - first_sample, 1, seconds_since(t0),
-                                            world.window});
+            options.on_pass(PassImage{shown, cw, ch, end - first_sample, job.spp - first_sample, 1,
+                                      seconds_since(t0), world.window});
         }
     }
 
@@ -1191,7 +1189,7 @@ void render_image(World& world, const Camera& camera, const Film& film,
     st.samples = static_cast<uint64_t>(cw) * ch * samples;
     st.spp_reached = samples;
     st.spp_target = job.spp - first_sample;
-    st.spp_frame = world.options.spp_override ? world.options.spp_override : film.spp;
+    st.spp_frame = options.spp_override ? options.spp_override : film.spp;
     st.passes = passes;
     st.nonfinite = job.nonfinite;
     if (st.nonfinite > 0) {

@@ -6,14 +6,16 @@
 
 #include <vector>
 
-#include "render/world.h"
+#include "render/render_options.h"
+#include "render/render_scene.h"
 #include "scene/components.h"
 
 namespace spangle {
 
-/** Renders the camera's view into world.image (width x height RGB). `camera_steps`: a camera
- *  that moves while the shutter is open (CameraMotion), empty for one that stands still. */
-void render_image(World& world, const Camera& camera, const Film& film,
-                  const std::vector<Camera>& camera_steps = {});
+/** Renders the camera's view of `scene` into `out` (width x height RGB, the sums, the layers,
+ *  the counters). `camera_steps`: a camera that moves while the shutter is open (CameraMotion),
+ *  empty for one that stands still. */
+void render_image(const RenderScene& scene, const RenderOptions& options, const Camera& camera,
+                  const Film& film, const std::vector<Camera>& camera_steps, RenderResult& out);
 
 }  // namespace spangle

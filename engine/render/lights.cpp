@@ -196,8 +196,8 @@ void LightTable::add_point(const PointEmitter& e) {
 void LightTable::add_distant(const DistantEmitter& e) {
     distant_.push_back(e);
 }
-void LightTable::set_environment(EnvironmentMap env, uint32_t group) {
-    env_ = std::move(env);
+void LightTable::set_environment(std::shared_ptr<const EnvironmentMap> env, uint32_t group) {
+    if (env && !env->empty()) env_ = std::move(env);
     env_group_ = group;
 }
 
@@ -225,7 +225,7 @@ void LightTable::finalize(float scene_radius) {
                              : static_cast<double>(luminance(d.radiance));
         power.push_back(M_PI * r2 * e);
     }
-    if (!env_.empty()) power.push_back(M_PI * r2 * env_.luminance_integral());
+    if (env_) power.push_back(M_PI * r2 * env_->luminance_integral());
     for (double& p : power)
         if (!std::isfinite(p) || p < 0.0) p = 0.0;
     selection_ = Distribution1D(power);
@@ -292,11 +292,11 @@ Vec3 LightTable::escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy stra
         l += part;
         if (by_group) by_group[e.group] += part;
     }
-    if (!env_.empty()) {
+    if (env_) {
         const float light_pdf =
-            selection_.pmf(first_distant + static_cast<uint32_t>(distant_.size())) * env_.pdf(d);
+            selection_.pmf(first_distant + static_cast<uint32_t>(distant_.size())) * env_->pdf(d);
         const Vec3 part =
-            env_.eval(d) * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
+            env_->eval(d) * bsdf_hit_weight(strategy, after_delta, bsdf_pdf, light_pdf);
         l += part;
         if (by_group) by_group[env_group_] += part;
     }
@@ -408,9 +408,9 @@ LightSample LightTable::sample(Vec3 p, float u0, float u1, float u2) const {
         }
     } else {
         float pdf;
-        s.wi = env_.sample(u1, u2, pdf);
+        s.wi = env_->sample(u1, u2, pdf);
         s.dist = kInf;
-        s.radiance = env_.eval(s.wi);
+        s.radiance = env_->eval(s.wi);
         s.pdf = sel * pdf;
     }
     if (!(s.pdf > 0.0f) || !std::isfinite(s.pdf) || max_component(s.radiance) <= 0.0f ||

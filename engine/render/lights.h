@@ -14,6 +14,7 @@
 // the better strategy for a uniform background.
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -120,7 +121,8 @@ public:
     uint32_t add_sphere(const SphereEmitter& e);
     void add_point(const PointEmitter& e);
     void add_distant(const DistantEmitter& e);
-    void set_environment(EnvironmentMap env, uint32_t group = 0);
+    /** The environment map (shared with whoever built it; null or empty: none). */
+    void set_environment(std::shared_ptr<const EnvironmentMap> env, uint32_t group = 0);
     /** Builds the selection distribution; scene_radius sizes the power of lights at infinity. */
     void finalize(float scene_radius);
 
@@ -130,7 +132,6 @@ public:
     std::size_t sphere_count() const { return spheres_.size(); }
     const AreaEmitter& area(uint32_t i) const { return area_[i]; }
     const SphereEmitter& sphere(uint32_t i) const { return spheres_[i]; }
-    const EnvironmentMap& environment() const { return env_; }
 
     /** Samples one light for reference point p with uniforms u0 (selection), u1, u2. */
     LightSample sample(Vec3 p, float u0, float u1, float u2) const;
@@ -152,7 +153,7 @@ private:
     std::vector<SphereEmitter> spheres_;
     std::vector<PointEmitter> points_;
     std::vector<DistantEmitter> distant_;
-    EnvironmentMap env_;
+    std::shared_ptr<const EnvironmentMap> env_;  ///< null: no map
     uint32_t env_group_ = 0;
     Distribution1D selection_;  ///< over [area..., spheres..., points..., distant..., env]
 };

@@ -87,10 +87,6 @@ SPANGLE_COMPONENT(MeshFile, SPANGLE_MESH_FILE_FIELDS);
 /** A subdivision surface to refine (input of the subdivide system). */
 SPANGLE_COMPONENT(SubdivSurface, SPANGLE_SUBDIV_FIELDS);
 
-#define SPANGLE_MESH_REF_FIELDS(X) X(uint32_t, mesh, "index into GeometryStore::meshes")
-/** A loaded triangle mesh (output of mesh_load, input of accelerate). */
-SPANGLE_COMPONENT(TriangleMeshRef, SPANGLE_MESH_REF_FIELDS);
-
 #define SPANGLE_MATERIAL_FIELDS(X)                                               \
     X(std::string, name, "scene-unique material name")                           \
     X(std::string, plugin, "plugin name, e.g. smooth")                           \

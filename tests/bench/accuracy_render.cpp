@@ -146,7 +146,7 @@ Image Renderer::render(uint32_t spp, Strategy strategy) {
     o.progressive = false;
     o.on_pass = {};
     session_.render();
-    return {session_.world().width, session_.world().height, session_.world().image};
+    return {session_.result().width, session_.result().height, session_.result().image};
 }
 
 std::vector<Pass> Renderer::render_passes(uint32_t spp, Strategy strategy) {
@@ -168,13 +168,13 @@ std::vector<Pass> Renderer::render_passes(uint32_t spp, Strategy strategy) {
     o.on_pass = {};
     passes.push_back(
         {spp, total,
-         Image{session_.world().width, session_.world().height, session_.world().image}});
+         Image{session_.result().width, session_.result().height, session_.result().image}});
     return passes;
 }
 
 std::map<std::string, double> Renderer::material_stats() {
     std::map<std::string, double> out;
-    for (const auto& mat : session_.world().materials) {
+    for (const auto& mat : session_.world().products.get<MaterialSet>().instances) {
         if (!mat || !mat->model().stats) continue;
         SpangleStat_v3 buf[64];
         const uint32_t n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);

@@ -10,7 +10,7 @@
 #include <utility>
 #include <vector>
 
-#include "render/session.h"
+#include "pipeline/session.h"
 
 namespace spangle::accuracy {
 

@@ -11,7 +11,7 @@
 #include <string>
 
 #include "core/error.h"
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "test_support.h"
 
 namespace spangle {

@@ -9,8 +9,8 @@
 #include <cstdio>
 #include <fstream>
 
-#include "render/frame.h"
-#include "render/session.h"
+#include "pipeline/frame.h"
+#include "pipeline/session.h"
 #include "scene/animation.h"
 #include "test_support.h"
 
@@ -61,7 +61,7 @@ TEST(Animation, TheInBetweenFrameIsTheStillOfTheInBetweenPose) {
         reports.push_back(session.load(scene, static_cast<double>(f)));  // fps 1
         EXPECT_TRUE(session.info().animated);
         session.render();
-        frames.push_back(session.world().image);
+        frames.push_back(session.result().image);
     }
     // Frames after the first rebuild no mesh and no material; the mesh BVHs are reused.
     for (int f = 1; f <= 2; ++f) {
@@ -114,7 +114,7 @@ std::vector<float> render_text(const test::TempDir& dir, const std::string& text
     Session session({}, test::shipped_ocio(), options, test::quiet_log());
     session.load(path, time);
     session.render();
-    return session.world().image;
+    return session.result().image;
 }
 
 /** Mean of |a - b| over all values. */

@@ -15,7 +15,7 @@
 
 #include "color/image_merge.h"
 #include "color/image_output.h"
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "test_support.h"
 
 namespace spangle {

@@ -167,5 +167,49 @@ TEST(Schedule, EmptyPoolAfterRemovalSkipsAgain) {
     EXPECT_FALSE(rep[0].ran);
 }
 
+struct Built {
+    static constexpr const char* kName = "Built";
+    static constexpr bool kProduct = true;
+    int value = 0;
+};
+
+bool has_tag(const Registry& r) {
+    return r.count<Tag>() > 0;
+}
+
+TEST(Schedule, ADeclaredSystemIsAffectedByWhatItReads) {
+    const System<Counter> s = system<Counter>("s", [](Registry&, Counter&) {})
+                                  .needs_all<Position>()
+                                  .reading<Built>()
+                                  .reading_if<Tag>(has_tag)
+                                  .writing<Built>();
+    ASSERT_EQ(s.needs.size(), 1u);
+    EXPECT_FALSE(s.needs[0].product);
+    ASSERT_EQ(s.writes.size(), 1u);
+    EXPECT_TRUE(s.writes[0].product);
+    Registry r;
+    const auto changed = [](auto... types) { return std::set<std::type_index>{types...}; };
+    EXPECT_TRUE(s.affected_by(changed(std::type_index(typeid(Position))), r)) << "its needs";
+    EXPECT_TRUE(s.affected_by(changed(std::type_index(typeid(Built))), r)) << "a product";
+    EXPECT_FALSE(s.affected_by(changed(std::type_index(typeid(Tag))), r))
+        << "a conditional read while the condition does not hold";
+    r.put(r.create(), Tag{1});
+    EXPECT_TRUE(s.affected_by(changed(std::type_index(typeid(Tag))), r));
+    EXPECT_FALSE(s.affected_by({}, r));
+}
+
+TEST(Registry, CopyComponentHandsOneEntitysValueOver) {
+    Registry a, b;
+    const Entity e = a.create();
+    ASSERT_EQ(b.create(), e);
+    a.put(e, Tag{7});
+    EXPECT_TRUE(b.copy_component(std::type_index(typeid(Tag)), a, e));
+    EXPECT_EQ(b.get<Tag>(e).value, 7);
+    EXPECT_TRUE(b.same_pool(std::type_index(typeid(Tag)), a));
+    EXPECT_FALSE(b.copy_component(std::type_index(typeid(Position)), a, e)) << "a has none";
+    a.put(e, Tag{8});
+    EXPECT_FALSE(b.same_pool(std::type_index(typeid(Tag)), a));
+}
+
 }  // namespace
 }  // namespace spangle::ecs

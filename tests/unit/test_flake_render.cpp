@@ -10,7 +10,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "test_support.h"
 
 namespace spangle {

@@ -9,7 +9,7 @@
 #include <cmath>
 #include <fstream>
 
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "test_support.h"
 
 namespace spangle {

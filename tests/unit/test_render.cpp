@@ -7,7 +7,7 @@
 #include <cstring>
 #include <numeric>
 
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "test_support.h"
 
 namespace spangle {

@@ -9,7 +9,7 @@
 #include <fstream>
 
 #include "core/error.h"
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "test_support.h"
 
 namespace spangle {

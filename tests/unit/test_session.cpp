@@ -12,8 +12,8 @@
 #include <sstream>
 
 #include "color/image_output.h"
-#include "render/frame.h"
-#include "render/session.h"
+#include "pipeline/frame.h"
+#include "pipeline/session.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -184,23 +184,24 @@ TEST(Session, ReloadRunsOnlyWhatTheChangeNeeds) {
     EXPECT_TRUE(contains(first.ran, "materials"));
     EXPECT_TRUE(contains(first.ran, "accelerate"));
     session.render();
-    const std::vector<float> before = session.world().image;
-    const MaterialInstance* material = session.world().materials[0].get();
+    const std::vector<float> before = session.result().image;
+    const MaterialInstance* material =
+        session.world().products.get<MaterialSet>().instances[0].get();
 
     // Nothing changed: nothing runs, the same material instance stays.
     const ReloadReport same = session.load(scene.file.string());
     EXPECT_TRUE(same.changed.empty());
     EXPECT_TRUE(same.ran.empty());
-    EXPECT_EQ(session.world().materials[0].get(), material);
+    EXPECT_EQ(session.world().products.get<MaterialSet>().instances[0].get(), material);
 
     // A material parameter: that one material is recreated, nothing else runs.
     scene.replace("gamma = 3", "gamma = 4");
     const ReloadReport mat = session.load(scene.file.string());
     EXPECT_EQ(mat.changed, (std::vector<std::string>{"Material"}));
     EXPECT_EQ(mat.ran, (std::vector<std::string>{"materials"}));
-    EXPECT_NE(session.world().materials[0].get(), material);
+    EXPECT_NE(session.world().products.get<MaterialSet>().instances[0].get(), material);
     session.render();
-    EXPECT_NE(session.world().image, before);
+    EXPECT_NE(session.result().image, before);
 
     // A transform: instances and the top level, the mesh's BVH reused; lights (bounds) rerun.
     scene.replace("rotate = [30, 20, 0]", "rotate = [30, 60, 0]");
@@ -219,7 +220,7 @@ TEST(Session, ReloadRunsOnlyWhatTheChangeNeeds) {
     EXPECT_TRUE(cam.built.empty());
 
     // A bad save: an error with file:line, and the live scene is untouched.
-    const std::vector<float> good = (session.render(), session.world().image);
+    const std::vector<float> good = (session.render(), session.result().image);
     scene.replace("fov = 30", "fov = 300");
     try {
         session.load(scene.file.string());
@@ -229,14 +230,56 @@ TEST(Session, ReloadRunsOnlyWhatTheChangeNeeds) {
             << e.what();
     }
     session.render();
-    EXPECT_EQ(session.world().image, good);
+    EXPECT_EQ(session.result().image, good);
 
     // The result of a reload equals a cold render of the edited scene.
     scene.replace("fov = 300", "fov = 30");
     session.load(scene.file.string());
     session.render();
     const FrameResult cold = render(scene.file.string(), true, 2);
-    EXPECT_EQ(session.world().image, cold.image);
+    EXPECT_EQ(session.result().image, cold.image);
+}
+
+TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {
+    // Every light kind, three materials, meshes: each edit reruns exactly the systems whose
+    // declared reads it changed (and those reading what they wrote), and the reloaded scene
+    // renders as a fresh session of the edited file does, bit for bit.
+    test::TempDir dir("session_reruns");
+    const std::string file = dir.file("scene.toml");
+    std::string text = test::scene_text("delta_hard_cases.toml");
+    std::ofstream(file) << text;
+    RenderOptions options;
+    options.threads = 2;
+    options.spp_override = 2;
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(file);
+    const auto edit = [&](const std::string& from, const std::string& to) {
+        const auto at = text.find(from);
+        EXPECT_NE(at, std::string::npos) << from;
+        text.replace(at, from.size(), to);
+        std::ofstream(file) << text;
+        const ReloadReport rep = session.load(file);
+        session.render();
+        const FrameResult cold = render(file, true, 2);
+        EXPECT_EQ(session.result().image, cold.image) << from << " -> " << to;
+        return rep;
+    };
+    using names = std::vector<std::string>;
+    ReloadReport rep = edit("intensity = 3", "intensity = 4");
+    EXPECT_EQ(rep.changed, names{"PointLight"});
+    EXPECT_EQ(rep.ran, (names{"point_lights", "light_selection"}));
+    rep = edit("color = [0.1, 0.1, 0.1]", "color = [0.2, 0.1, 0.1]");
+    EXPECT_EQ(rep.changed, names{"Environment"});
+    EXPECT_EQ(rep.ran, (names{"environment", "light_selection"}));
+    rep = edit("radius = 0.1", "radius = 0.15");
+    EXPECT_EQ(rep.changed, names{"SphereLight"});
+    EXPECT_EQ(rep.ran, (names{"area_lights", "accelerate", "light_selection"}));
+    EXPECT_EQ(rep.reused.at("mesh BVHs"), 2);
+    rep = edit("roughness = 0.0, albedo = 0.5", "roughness = 0.1, albedo = 0.5");
+    EXPECT_EQ(rep.changed, names{"Material"});
+    EXPECT_EQ(rep.ran, names{"materials"});
+    EXPECT_EQ(rep.built, names{"material 'coat'"});
+    EXPECT_EQ(rep.reused.at("materials"), 2);
 }
 
 TEST(Session, AnEditedTextureRemakesItsMaterial) {
@@ -276,7 +319,7 @@ scale = 4
     Session session({}, test::shipped_ocio(), options, test::quiet_log());
     session.load(dir.file("scene.toml"));
     session.render();
-    const std::vector<float> before = session.world().image;
+    const std::vector<float> before = session.result().image;
     EXPECT_TRUE(std::find(session.watched_files().begin(), session.watched_files().end(),
                           dir.file("albedo.exr")) != session.watched_files().end());
 
@@ -289,7 +332,7 @@ scale = 4
     // 0.2, then the edited image's 0.6, in every pixel.
     for (std::size_t i = 0; i < before.size(); ++i) {
         ASSERT_NEAR(before[i], 0.2f, 1e-3f) << "value " << i;
-        ASSERT_NEAR(session.world().image[i], 0.6f, 1e-3f) << "value " << i;
+        ASSERT_NEAR(session.result().image[i], 0.6f, 1e-3f) << "value " << i;
     }
 }
 

@@ -12,7 +12,7 @@
 #include "core/error.h"
 #include "geometry/cage.h"
 #include "geometry/subdivision.h"
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "render/surface.h"
 #include "test_support.h"
 

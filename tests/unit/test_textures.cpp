@@ -8,7 +8,7 @@
 #include <fstream>
 
 #include "color/image_output.h"
-#include "render/frame.h"
+#include "pipeline/frame.h"
 #include "shading/texture.h"
 #include "test_support.h"
 

@@ -1,11 +1,13 @@
 #pragma once
-// A long-lived render session: it owns the live scene (its Registry and everything built from
-// it) and applies edits incrementally. load() parses a scene file into a candidate Registry,
-// diffs it component by component against the live one, and runs only the systems whose inputs
-// changed (components, or files they read); the others hand their results over from the live
-// scene. What the running systems build is cached by what produced it (file identities,
-// parameters), so an unchanged mesh, material or environment map is reused, not rebuilt. A load
-// that fails leaves the live scene as it was. Watch mode is built on this.
+// A render session: the one pipeline every mode renders through (a one-shot render, --frames,
+// --watch, MPI ranks, spangle bench, the accuracy report). It owns the live scene (its Registry
+// and everything the systems built from it) and applies edits incrementally: load() reads a scene
+// file into a candidate Registry, diffs it component by component against the live one, and runs
+// only the systems whose reads changed (components, products of systems that ran, files they
+// read); the others hand what they wrote over from the live scene, as their declarations say
+// (pipeline/systems.h). What the running systems build is cached by what produced it (file
+// identities, parameters), so an unchanged mesh, material or environment map is reused, not
+// rebuilt. A load that fails leaves the live scene as it was.
 
 #include <map>
 #include <memory>
@@ -13,7 +15,9 @@
 #include <vector>
 
 #include "ecs/registry.h"
-#include "render/world.h"
+#include "ecs/schedule.h"
+#include "pipeline/world.h"
+#include "render/render_scene.h"
 
 namespace spangle {
 
@@ -25,7 +29,10 @@ struct ReloadReport {
     std::vector<std::string> skipped;   ///< systems whose inputs did not change
     std::vector<std::string> built;     ///< what the running systems built
     std::map<std::string, int> reused;  ///< what they took from the cache, by kind
-    double seconds = 0.0;               ///< parse + apply
+    /** Every system of the schedule: ran (with its time), or why not ("no QuadLight, ...",
+     *  "nothing it reads changed"). */
+    std::vector<ecs::SystemReport> systems;
+    double seconds = 0.0;  ///< parse + apply
 
     /** One line: "changed ...; ran ...; rebuilt ...; reused ...". */
     std::string summary() const;
@@ -40,30 +47,40 @@ public:
     Session(const Session&) = delete;
     Session& operator=(const Session&) = delete;
 
-    /** Parses `scene` and makes it the live scene, rebuilding only what changed. Throws
+    /** Reads `scene` and makes it the live scene, rebuilding only what changed. Throws
      *  SpangleError (file:line) and then leaves the live scene untouched. `time`: seconds after
      *  the scene's frame_start, where its keyframes are evaluated (an animation renders frame
      *  after frame through one session: only what moved is rebuilt). */
     ReloadReport load(const std::string& scene, double time = 0.0);
 
     bool has_scene() const { return world_ != nullptr; }
-    /** Renders the live scene into world().image (progressively; see RenderOptions). */
-    void render();
+    /** Renders the live scene into result() (progressively; see RenderOptions). The report
+     *  says why not when the scene has no camera or film (result() is then empty). */
+    ecs::SystemReport render();
+    /** The last render's image, sums, layers and counters. */
+    const RenderResult& result() const { return result_; }
+    /** Moves the last render's result out (result() is empty afterwards). */
+    RenderResult take_result() { return std::move(result_); }
     /** The live scene's film with the options' size and spp overrides applied; false when the
      *  scene has no camera or film. */
     bool film(Film& out) const;
 
-    World& world() { return *world_; }
+    /** The live scene as the systems built it (its products). */
+    const World& world() const { return *world_; }
+    const ecs::Registry& registry() const { return *live_; }
     const SceneInfo& info() const { return *info_; }
     const ColorConfig& color() const { return *color_; }
     RenderOptions& options() { return options_; }
     PluginLoader& plugins() { return *plugins_; }
 
     /** Every file the live scene was built from: the scene, meshes, cages, environment maps,
-     *  the OCIO config and the plugin libraries it opened. */
+     *  textures, the OCIO config and the plugin libraries it opened. */
     std::vector<std::string> watched_files() const;
 
 private:
+    /** The live scene as the path tracer reads it. */
+    RenderScene render_scene() const;
+
     const Logger& log_;
     RenderOptions options_;
     std::string ocio_request_;
@@ -74,9 +91,8 @@ private:
     std::unique_ptr<ecs::Registry> live_;
     std::unique_ptr<SceneInfo> info_;
     std::unique_ptr<World> world_;
-    /** File identities of the live scene's inputs, by kind ("mesh", "cage", "env", "plugin",
-     *  "ocio"). */
-    std::map<std::string, std::map<std::string, std::string>> files_;
+    std::string ocio_identity_;  ///< file_identity of the OCIO config when loaded
+    RenderResult result_;
     /** Colour configs and host services replaced by an OCIO edit: material instances made with
      *  them may still point at them. */
     std::vector<std::unique_ptr<ColorConfig>> old_colors_;

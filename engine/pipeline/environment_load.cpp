@@ -1,4 +1,4 @@
-#include "render/environment_load.h"
+#include "pipeline/environment_load.h"
 
 #include <algorithm>
 #include <cmath>

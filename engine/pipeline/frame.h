@@ -1,6 +1,7 @@
 #pragma once
-// One frame from a scene file: load, run the schedule, return the image and what happened.
-// The CLI and the end-to-end tests both go through here.
+// One frame from a scene file through a Session (the one pipeline): load, build, render, and
+// return the image with what happened. spangle bench, the accuracy report and the end-to-end
+// tests go through here; the CLI's commands drive a Session themselves.
 
 #include <functional>
 #include <string>
@@ -8,9 +9,13 @@
 
 #include "color/color_config.h"
 #include "ecs/schedule.h"
-#include "render/world.h"
+#include "pipeline/products.h"
+#include "render/render_scene.h"
+#include "scene/scene_loader.h"
 
 namespace spangle {
+
+class Session;
 
 /** What to render and with what. */
 struct FrameRequest {
@@ -19,8 +24,8 @@ struct FrameRequest {
     std::string ocio_config;               ///< explicit config; empty = $OCIO or the shipped one
     RenderOptions options;                 ///< threads, spp override, progress
     const Logger* log = nullptr;           ///< required
-    /** Called once the scene is loaded, with the colour config images are written in (for
-     *  options.on_pass); may be empty. */
+    /** Called once the scene is loaded and built, before it renders, with the colour config
+     *  images are written in (for options.on_pass); may be empty. */
     std::function<void(const ColorConfig&, const SceneInfo&)> on_loaded;
     /** When set, the scene's triangles as traced (subdivided, in world space) are written here
      *  as an OBJ, for other tools (Embree's viewer) to measure the same geometry. */
@@ -40,7 +45,7 @@ struct FrameResult {
     std::vector<SampleSum> sums;              ///< the film's exact sums (for --spp-range)
     std::vector<ecs::SystemReport> systems;   ///< which systems ran, which were skipped
     std::vector<std::string> plugins_opened;  ///< plugin names opened for this scene
-    RenderStats stats;                        ///< counters of the render system
+    RenderStats stats;                        ///< counters of the render
     SceneInfo info;                           ///< facts about the scene
     std::vector<SubdivReport> subdiv;         ///< what the subdivide system did
     uint64_t triangles = 0;   ///< triangles of all instances (an instanced mesh counts each time)
@@ -51,10 +56,14 @@ struct FrameResult {
     std::vector<std::pair<std::string, std::vector<std::pair<std::string, double>>>> material_stats;
 };
 
+/** Writes every instance of the live scene's triangles in world space as one OBJ. */
+void export_world_obj(const Session& session, const std::string& path);
+
 /** Places where the shipped OCIO config is looked for when neither a path nor $OCIO is given. */
 std::vector<std::string> default_ocio_locations();
 
-/** Loads and renders req.scene. Throws SpangleError for any problem with the inputs. */
+/** Loads and renders req.scene through a Session. Throws SpangleError for any problem with
+ *  the inputs. */
 FrameResult render_frame(const FrameRequest& req);
 
 }  // namespace spangle

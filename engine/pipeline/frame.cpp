@@ -1,0 +1,118 @@
+#include "pipeline/frame.h"
+
+#include <cstdio>
+#include <filesystem>
+
+#include "core/files.h"
+#include "pipeline/session.h"
+#include "shading/plugin_loader.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+
+std::vector<std::string> default_ocio_locations() {
+    std::vector<std::string> out;
+    const std::string exe = executable_dir();
+    if (!exe.empty()) {
+        out.push_back((fs::path(exe) / "ocio" / "config.ocio").string());
+        out.push_back((fs::path(exe) / ".." / "share" / "spangle" / "ocio" / "config.ocio")
+                          .lexically_normal()
+                          .string());
+    }
+#ifdef SPANGLE_SOURCE_DIR
+    out.push_back(SPANGLE_SOURCE_DIR "/assets/ocio/config.ocio");
+#endif
+    return out;
+}
+
+void export_world_obj(const Session& session, const std::string& path) {
+    std::FILE* f = std::fopen(path.c_str(), "w");
+    if (!f) throw_error("cannot write '{}'", path);
+    std::size_t base = 1;
+    if (const auto* g = session.world().products.find<SceneGeometry>())
+        for (const Instance& inst : g->instances) {
+            const TriangleMesh& m = g->geometry.mesh(inst.mesh);
+            for (std::size_t v = 0; v < m.vertex_count(); ++v) {
+                const Vec3 p = inst.to_world.apply_point(m.position(static_cast<uint32_t>(v)));
+                fmt::print(f, "v {} {} {}\n", p.x, p.y, p.z);
+            }
+            for (std::size_t t = 0; t < m.triangle_count(); ++t)
+                fmt::print(f, "f {} {} {}\n", base + m.indices[3 * t], base + m.indices[3 * t + 1],
+                           base + m.indices[3 * t + 2]);
+            base += m.vertex_count();
+        }
+    if (std::fclose(f) != 0) throw_error("cannot write '{}'", path);
+}
+
+namespace {
+
+/** What the live scene's systems built: triangles, memory, subdivision, the plugins' counters
+ *  (after a render). */
+void add_scene_facts(const Session& session, FrameResult& r) {
+    const ecs::Products& p = session.world().products;
+    if (const auto* s = p.find<SubdividedMeshes>()) r.subdiv = s->reports;
+    if (const auto* g = p.find<SceneGeometry>()) {
+        for (const Instance& inst : g->instances)
+            r.triangles += g->geometry.mesh(inst.mesh).triangle_count();
+        for (const auto& mesh : g->geometry.meshes)
+            r.mesh_bytes += sizeof(float) * (mesh->positions.capacity() + mesh->normals.capacity() +
+                                             mesh->uvs.capacity()) +
+                            sizeof(uint32_t) * mesh->indices.capacity();
+        r.accel_bytes = g->accel->bytes();
+        r.accel_peak_bytes = g->accel->peak_bytes();
+    }
+    if (const auto* m = p.find<MaterialSet>())
+        for (const auto& mat : m->instances) {
+            if (!mat || !mat->model().stats) continue;
+            SpangleStat_v3 buf[64];
+            const uint32_t n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);
+            std::vector<std::pair<std::string, double>> values;
+            for (uint32_t i = 0; i < n; ++i)
+                values.emplace_back(buf[i].name ? buf[i].name : "?", buf[i].value);
+            r.material_stats.emplace_back(mat->name(), std::move(values));
+        }
+}
+
+}  // namespace
+
+FrameResult render_frame(const FrameRequest& req) {
+    Session session(req.plugin_dirs, req.ocio_config, req.options, *req.log);
+    const ReloadReport loaded = session.load(req.scene, req.time);
+    if (req.on_loaded) req.on_loaded(session.color(), session.info());
+    if (!req.export_obj.empty()) export_world_obj(session, req.export_obj);
+    FrameResult r{session.color().clone(),
+                  0,
+                  0,
+                  {},
+                  {},
+                  {},
+                  {},
+                  {},
+                  loaded.systems,
+                  {},
+                  {},
+                  {},
+                  {},
+                  0,
+                  0,
+                  0,
+                  0,
+                  {}};
+    r.systems.push_back(session.render());
+    RenderResult out = session.take_result();
+    r.width = out.width;
+    r.height = out.height;
+    r.window = out.window;
+    r.image = std::move(out.image);
+    r.layers = std::move(out.layers);
+    r.layer_names = std::move(out.layer_names);
+    r.sums = std::move(out.sums);
+    r.stats = out.stats;
+    r.info = session.info();
+    r.plugins_opened = session.plugins().opened();
+    add_scene_facts(session, r);
+    return r;
+}
+
+}  // namespace spangle

@@ -1,0 +1,203 @@
+// The light systems: each kind of light into its own set (area_lights, point_lights,
+// environment), and light_selection, which puts every set into one table sized by the scene.
+
+#include <cmath>
+
+#include "core/files.h"
+#include "pipeline/environment_load.h"
+#include "pipeline/systems.h"
+
+namespace spangle {
+namespace {
+
+/** One emitter per world-space triangle of an emissive mesh, facing its authored normals. */
+void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, Vec3 radiance, uint32_t group,
+                       std::vector<AreaEmitter>& out) {
+    const Affine nxf = xf.normal_matrix();
+    for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
+        const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
+                       i2 = mesh.indices[3 * t + 2];
+        AreaEmitter a;
+        a.p0 = xf.apply_point(mesh.position(i0));
+        a.e1 = xf.apply_point(mesh.position(i1)) - a.p0;
+        a.e2 = xf.apply_point(mesh.position(i2)) - a.p0;
+        const Vec3 c = cross(a.e1, a.e2);
+        a.area = 0.5f * length(c);
+        a.n = a.area > 0.0f ? normalize(c) : Vec3(0, 0, 1);
+        if (!mesh.normals.empty()) {
+            // The emitting side follows the authored normals, as shading does.
+            Vec3 sum(0.0f);
+            for (uint32_t v : {i0, i1, i2})
+                sum += Vec3(mesh.normals[3 * v], mesh.normals[3 * v + 1], mesh.normals[3 * v + 2]);
+            const Vec3 nw = nxf.apply_vector(sum);
+            if (dot(nw, a.n) < 0.0f) a.n = -a.n;
+        }
+        a.radiance = radiance;
+        a.group = group;
+        out.push_back(a);
+    }
+}
+
+void system_area_lights(ecs::Registry& r, World& w) {
+    AreaLightSet set;
+    if (auto* emission = r.find_pool<Emission>()) {
+        std::vector<std::pair<ecs::Entity, int32_t>> refs;
+        for (std::size_t i = 0; i < emission->size(); ++i) {
+            const ecs::Entity e = emission->entities()[i];
+            if (!r.has<TriangleMeshRef>(e)) continue;
+            refs.emplace_back(e, static_cast<int32_t>(set.areas.size()));
+            add_mesh_emitters(mesh_of(w, r.get<TriangleMeshRef>(e)), r.get<Transform>(e).to_world,
+                              emission->columns().radiance[i], light_group(r, e), set.areas);
+        }
+        for (const auto& [e, first] : refs) r.put(e, EmitterRef{first});
+    }
+    set.quad_first = static_cast<uint32_t>(set.areas.size());
+    if (auto* quads = r.find_pool<QuadLight>()) {
+        for (std::size_t i = 0; i < quads->size(); ++i) {
+            const QuadLight q = quads->columns().get(i);
+            AreaEmitter a;
+            a.p0 = q.corner;
+            a.e1 = q.edge1;
+            a.e2 = q.edge2;
+            const Vec3 c = cross(q.edge1, q.edge2);
+            a.area = length(c);
+            a.n = normalize(c);
+            a.radiance = q.radiance;
+            a.parallelogram = true;
+            a.two_sided = q.two_sided;
+            a.group = light_group(r, quads->entities()[i]);
+            set.areas.push_back(a);
+        }
+    }
+    if (auto* spheres = r.find_pool<SphereLight>())
+        for (std::size_t i = 0; i < spheres->size(); ++i) {
+            const SphereLight l = spheres->columns().get(i);
+            set.spheres.push_back(
+                {l.center, l.radius, l.radiance, light_group(r, spheres->entities()[i])});
+        }
+    w.products.put(std::move(set));
+}
+
+/** A light at infinity as the light table samples it. */
+DistantEmitter distant_emitter(const DistantLight& d, uint32_t group) {
+    DistantEmitter e;
+    e.direction = d.direction;
+    e.group = group;
+    // Below 1e-3 radians (0.057 degrees; the sun is 0.27) a cone's cosine is 1 to float
+    // precision and its sampling breaks down (a radius of 1e-20 rendered black): such a light
+    // is its limit, a delta direction with the same irradiance.
+    const float rad = d.angular_radius_deg * kPi / 180.0f;
+    if (rad >= 1e-3f) {
+        const float half = std::sin(0.5f * rad);
+        e.cos_radius = std::cos(rad);
+        e.solid_angle = 4.0f * kPi * half * half;  // 2 pi (1 - cos r) without cancellation
+        // A disk of uniform radiance L gives irradiance L pi sin^2 r at normal incidence.
+        const float s = std::sin(rad);
+        e.radiance = d.irradiance * (1.0f / (kPi * s * s));
+    } else {
+        e.radiance = d.irradiance;
+    }
+    return e;
+}
+
+void system_point_lights(ecs::Registry& r, World& w) {
+    PointLightSet set;
+    if (auto* points = r.find_pool<PointLight>())
+        for (std::size_t i = 0; i < points->size(); ++i) {
+            const PointLight p = points->columns().get(i);
+            set.points.push_back({p.position, p.intensity, p.axis, p.cos_outer, p.cos_inner,
+                                  light_group(r, points->entities()[i])});
+        }
+    if (auto* distant = r.find_pool<DistantLight>())
+        for (std::size_t i = 0; i < distant->size(); ++i)
+            set.distant.push_back(
+                distant_emitter(distant->columns().get(i), light_group(r, distant->entities()[i])));
+    w.products.put(std::move(set));
+}
+
+void system_environment(ecs::Registry& r, World& w) {
+    EnvironmentLight env;
+    if (auto* pool = r.find_pool<Environment>())
+        for (std::size_t i = 0; i < pool->size(); ++i) {
+            env.constant += pool->columns().radiance[i];
+            env.constant_group = light_group(r, pool->entities()[i]);
+        }
+    if (auto* maps = r.find_pool<EnvironmentMapFile>())
+        for (std::size_t i = 0; i < maps->size(); ++i) {
+            const EnvironmentMapFile f = maps->columns().get(i);
+            w.read_file("env", f.path);
+            env.map = build_cached(
+                w.cache, &BuildCache::environments, "environment maps",
+                [&] {
+                    return fmt::format("env|{}|{}|{}|{}", file_identity(f.path), f.color_space,
+                                       f.rotation_deg, f.intensity);
+                },
+                [&] {
+                    return std::make_shared<const EnvironmentMap>(
+                        load_environment_map(f, *w.color));
+                },
+                "environment map " + f.path);
+            env.map_group = light_group(r, maps->entities()[i]);
+        }
+    w.products.put(std::move(env));
+}
+
+void system_light_selection(ecs::Registry&, World& w) {
+    SceneLights lights;
+    if (const auto* set = w.products.find<AreaLightSet>()) {
+        for (const AreaEmitter& a : set->areas) lights.table.add_area(a);
+        for (const SphereEmitter& s : set->spheres) lights.table.add_sphere(s);
+    }
+    if (const auto* set = w.products.find<PointLightSet>()) {
+        for (const PointEmitter& p : set->points) lights.table.add_point(p);
+        for (const DistantEmitter& d : set->distant) lights.table.add_distant(d);
+    }
+    if (const auto* env = w.products.find<EnvironmentLight>())
+        lights.table.set_environment(env->map, env->map_group);
+    // Lights at infinity take their power from the scene's size.
+    Vec3 center;
+    float radius = 1.0f;
+    if (const auto* geometry = w.products.find<SceneGeometry>())
+        geometry->accel->bounding_sphere(center, radius);
+    lights.table.finalize(std::max(radius, 1e-3f));
+    w.products.put(std::move(lights));
+}
+
+}  // namespace
+
+uint32_t light_group(const ecs::Registry& r, ecs::Entity e) {
+    return r.has<LightGroup>(e) ? r.get<LightGroup>(e).group : 0;
+}
+
+ecs::System<World> area_lights_system() {
+    // Emissive meshes are placed in world space: their meshes and placements are read too.
+    return ecs::system<World>("area_lights", system_area_lights)
+        .needs_any<QuadLight, SphereLight, Emission>()
+        .reading<LightGroup, Transform, TriangleMeshRef, LoadedMeshes, SubdividedMeshes>()
+        .writing<EmitterRef, AreaLightSet>();
+}
+
+ecs::System<World> point_lights_system() {
+    return ecs::system<World>("point_lights", system_point_lights)
+        .needs_any<PointLight, DistantLight>()
+        .reading<LightGroup>()
+        .writing<PointLightSet>();
+}
+
+ecs::System<World> environment_system() {
+    return ecs::system<World>("environment", system_environment)
+        .needs_any<Environment, EnvironmentMapFile>()
+        .reading<LightGroup>()
+        .writing<EnvironmentLight>();
+}
+
+ecs::System<World> light_selection_system() {
+    // Selection by power: lights at infinity are weighed by the scene's bounds, which take in
+    // a moving object's whole sweep (SceneGeometry).
+    return ecs::system<World>("light_selection", system_light_selection)
+        .needs_any<QuadLight, SphereLight, Emission, PointLight, DistantLight, EnvironmentMapFile>()
+        .reading<AreaLightSet, PointLightSet, EnvironmentLight, SceneGeometry>()
+        .writing<SceneLights>();
+}
+
+}  // namespace spangle

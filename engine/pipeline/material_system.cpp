@@ -1,0 +1,106 @@
+// The materials system: one plugin instance per [[material]] that an object uses, and a warning
+// for objects whose material lays a pattern out in uv on a mesh without usable uvs.
+
+#include "core/files.h"
+#include "pipeline/systems.h"
+
+namespace spangle {
+namespace {
+
+/** The cache key of a material: its name, plugin, model, the plugin library's identity (a
+ *  rebuilt plugin makes new instances) and every parameter as written, textures by file. */
+std::string material_key(const World& w, const Material& m) {
+    const std::shared_ptr<LoadedPlugin> plugin = w.plugins->open(m.plugin, m.plugin_loc);
+    std::string key = fmt::format("material|{}|{}|{}|{}", m.name, m.plugin, m.model,
+                                  file_identity(plugin->path()));
+    for (const ParamList* list : {&m.params, &m.maps})
+        for (const ParamEntry& p : *list) {
+            key += fmt::format("|{}:{}:{}:{}:{}:{}:{}", p.name, static_cast<int>(p.kind),
+                               p.number[0], p.number[1], p.number[2], p.is_integer, p.text);
+            // A texture: how it is looked up, and the file's identity (an edited image makes
+            // a new material).
+            if (p.kind != ParamEntry::Kind::Texture) continue;
+            const TextureRef& t = p.texture;
+            key += fmt::format(":{}:{}:{}:{}:{}", file_identity(t.path), t.space,
+                               fmt::join(t.scale, ","), fmt::join(t.uv, ","), t.wrap);
+            key += fmt::format(":{}:{}", t.amount, t.filter);
+        }
+    return key;
+}
+
+/** Warns about objects whose material needs uvs their mesh lacks. */
+void warn_about_missing_uvs(const ecs::Registry& r, const World& w, const MaterialSet& set) {
+    // A material that lays a pattern out in uv (SPANGLE_REQUIRES_UV) loses it on a mesh without
+    // usable uvs: say so, naming the object, rather than render it silently without.
+    const auto& refs = *r.find_pool<MaterialRef>();
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+        const ecs::Entity e = refs.entities()[i];
+        const MaterialInstance* mat = set.instances[refs.columns().material[i]].get();
+        if (!mat || !r.has<TriangleMeshRef>(e)) continue;
+        // Textures and normal or bump maps are laid out in uv too.
+        const bool textured = !mat->textures().empty() || mat->map_kind() != MapKind::None;
+        const bool plugin_needs =
+            mat->model().requirements &&
+            (mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV);
+        if (!textured && !plugin_needs) continue;
+        const TriangleMesh& mesh = mesh_of(w, r.get<TriangleMeshRef>(e));
+        const double mapped = mesh.uv_mapped_fraction();
+        if (mapped >= 0.5) continue;
+        const ObjectInfo info = r.has<ObjectInfo>(e) ? r.get<ObjectInfo>(e) : ObjectInfo{};
+        w.log->warn(
+            "{}: object {}(mesh {}) has {}; material '{}' lays {} out in uv and will render "
+            "without {} there{}",
+            info.loc.str(), info.name.empty() ? std::string() : fmt::format("'{}' ", info.name),
+            mesh.source,
+            mesh.uvs.empty() ? std::string("no uvs")
+                             : fmt::format("degenerate uvs ({:.0f}% of its area maps to no uv "
+                                           "area)",
+                                           100.0 * (1.0 - mapped)),
+            mat->name(), textured ? "its textures" : "its pattern", textured ? "them" : "it",
+            plugin_needs ? " (for flakes, density_space = \"object\" or \"auto\" places them "
+                           "by object-space position instead)"
+                         : "");
+    }
+}
+
+void system_materials(ecs::Registry& r, World& w) {
+    const auto& names = w.info->material_names;
+    std::vector<bool> used(names.size(), false);
+    for (uint32_t m : r.pool<MaterialRef>().columns().material) used[m] = true;
+    MaterialSet set;
+    set.instances.resize(names.size());
+    const auto& pool = r.pool<Material>();
+    for (std::size_t i = 0; i < pool.size(); ++i) {
+        const Material m = pool.columns().get(i);
+        std::size_t index = 0;
+        while (names[index] != m.name) ++index;
+        if (!used[index]) {
+            // Nothing uses it: its plugin is not opened (only what the scene needs runs).
+            w.log->warn("{}: material '{}' is not used by any object", m.loc.str(), m.name);
+            continue;
+        }
+        set.instances[index] = build_cached(
+            w.cache, &BuildCache::materials, "materials", [&] { return material_key(w, m); },
+            [&] { return create_material(*w.plugins, m, *w.host); },
+            fmt::format("material '{}'", m.name));
+        // An edited plugin library or texture makes the material anew.
+        const MaterialInstance& made = *set.instances[index];
+        w.read_file("plugin", made.plugin().path());
+        for (const TextureBinding& t : made.textures()) w.read_file("texture", t.ref.path);
+        if (made.map_kind() != MapKind::None) w.read_file("texture", made.map().ref.path);
+    }
+    warn_about_missing_uvs(r, w, set);
+    w.products.put(std::move(set));
+}
+
+}  // namespace
+
+ecs::System<World> materials_system() {
+    // The uv check reads the meshes too, but only to warn: a mesh edit does not remake materials.
+    return ecs::system<World>("materials", system_materials)
+        .needs_all<MaterialRef>()
+        .reading<Material>()
+        .writing<MaterialSet>();
+}
+
+}  // namespace spangle

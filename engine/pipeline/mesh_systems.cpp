@@ -1,0 +1,149 @@
+// The systems that make triangle meshes: mesh_load (OBJ and PLY files) and subdivide (cages
+// refined by OpenSubdiv).
+
+#include <chrono>
+#include <cmath>
+#include <map>
+
+#include "core/files.h"
+#include "geometry/mesh_load.h"
+#include "pipeline/systems.h"
+
+namespace spangle {
+namespace {
+
+void system_mesh_load(ecs::Registry& r, World& w) {
+    auto& pool = r.pool<MeshFile>();
+    LoadedMeshes out;
+    std::map<std::string, uint32_t> loaded;  // one load per distinct file
+    std::vector<std::pair<ecs::Entity, uint32_t>> refs;
+    for (std::size_t i = 0; i < pool.size(); ++i) {
+        const std::string& path = pool.columns().path[i];
+        auto it = loaded.find(path);
+        if (it == loaded.end()) {
+            w.read_file("mesh", path);
+            out.meshes.push_back(build_cached(
+                w.cache, &BuildCache::meshes, "meshes",
+                [&] { return "mesh|" + file_identity(path); },
+                [&] {
+                    return std::make_shared<const TriangleMesh>(
+                        load_mesh(path, pool.columns().loc[i]));
+                },
+                "mesh " + path));
+            it = loaded.emplace(path, static_cast<uint32_t>(out.meshes.size() - 1)).first;
+        }
+        refs.emplace_back(pool.entities()[i], it->second);
+    }
+    for (const auto& [e, mesh] : refs) r.put(e, TriangleMeshRef{MeshSource::File, mesh});
+    w.products.put(std::move(out));
+}
+
+/** Whether any surface chooses its level from the camera (then subdivide reads the camera). */
+bool levels_from_camera(const ecs::Registry& r) {
+    if (const auto* p = r.find_pool<SubdivSurface>())
+        for (const SubdivOptions& o : p->columns().options)
+            if (o.level < 0) return true;
+    return false;
+}
+
+/** The level of a surface whose level is chosen from the camera: its longest refined edge about
+ *  `pixel_budget` pixels seen from the nearest point of the cage's bounding sphere. */
+int camera_level(const Cage& cage, const SubdivSurface& s, const Affine& xf, const Camera& cam,
+                 float pixel_angle) {
+    Vec3 lo(1e30f), hi(-1e30f);
+    for (std::size_t v = 0; v < cage.vertex_count(); ++v) {
+        const Vec3 p = xf.apply_point(
+            {cage.positions[3 * v], cage.positions[3 * v + 1], cage.positions[3 * v + 2]});
+        lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+        hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+    }
+    const Vec3 c = (lo + hi) * 0.5f;
+    const double dist =
+        std::max(1e-3, static_cast<double>(length(c - cam.position) - 0.5f * length(hi - lo)));
+    return level_for_camera(longest_edge(cage, xf), dist, pixel_angle, s.pixel_budget, s.max_level);
+}
+
+/** The cache key of a refinement: the cage file's identity and every option. */
+std::string subdiv_key(const std::string& file, const SubdivOptions& o) {
+    return fmt::format("subdiv|{}|{}|{}|{}|{}|{}|{}|{}|{}", file, static_cast<int>(o.scheme),
+                       static_cast<int>(o.boundary), static_cast<int>(o.uv_interpolation), o.level,
+                       fmt::join(o.crease_vertices, ","), fmt::join(o.crease_sharpness, ","),
+                       fmt::join(o.corner_vertices, ","), fmt::join(o.corner_sharpness, ","));
+}
+
+void system_subdivide(ecs::Registry& r, World& w) {
+    auto& pool = r.pool<SubdivSurface>();
+    // The camera decides "auto" levels: a far object is not tessellated as finely as a near one.
+    const Camera* camera = nullptr;
+    Camera cam;
+    float pixel_angle = 0.0f;
+    if (r.count<Camera>() > 0 && r.count<Film>() > 0) {
+        cam = r.pool<Camera>().columns().get(0);
+        const Film film = r.pool<Film>().columns().get(0);
+        const uint32_t height = w.options.height_override ? w.options.height_override : film.height;
+        pixel_angle =
+            2.0f * std::tan(0.5f * cam.fov_deg * kPi / 180.0f) / static_cast<float>(height);
+        camera = &cam;
+    }
+    SubdividedMeshes out;
+    std::vector<std::pair<ecs::Entity, uint32_t>> refs;
+    for (std::size_t i = 0; i < pool.size(); ++i) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const SubdivSurface s = pool.columns().get(i);
+        const ecs::Entity e = pool.entities()[i];
+        w.read_file("cage", s.path);
+        const std::string file = w.cache ? file_identity(s.path) : std::string();
+        const std::shared_ptr<const Cage> cage = build_cached(
+            w.cache, &BuildCache::cages, "cages", [&] { return "cage|" + file; },
+            [&] { return std::make_shared<const Cage>(load_cage(s.path, s.loc)); }, "");
+        SubdivOptions options = s.options;
+        SubdivReport rep;
+        rep.cage = s.path;
+        rep.cage_faces = cage->face_count();
+        if (options.level < 0) {
+            rep.from_camera = true;
+            options.level =
+                camera ? camera_level(*cage, s, r.get<Transform>(e).to_world, cam, pixel_angle)
+                       : s.max_level;
+        }
+        rep.level = options.level;
+        const std::shared_ptr<const TriangleMesh> mesh = build_cached(
+            w.cache, &BuildCache::meshes, "subdivided meshes",
+            [&] { return subdiv_key(file, options); },
+            [&] {
+                check_subdivision_memory(*cage, options, rep.from_camera, s.loc);
+                return std::make_shared<const TriangleMesh>(subdivide(*cage, options, s.loc));
+            },
+            fmt::format("subdivision of {} at level {}", s.path, options.level));
+        rep.triangles = mesh->triangle_count();
+        out.meshes.push_back(mesh);
+        rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+        out.reports.push_back(rep);
+        refs.emplace_back(e, static_cast<uint32_t>(out.meshes.size() - 1));
+    }
+    for (const auto& [e, mesh] : refs) r.put(e, TriangleMeshRef{MeshSource::Subdivision, mesh});
+    w.products.put(std::move(out));
+}
+
+}  // namespace
+
+ecs::System<World> mesh_load_system() {
+    return ecs::system<World>("mesh_load", system_mesh_load)
+        .needs_all<MeshFile>()
+        .writing<TriangleMeshRef, LoadedMeshes>();
+}
+
+ecs::System<World> subdivide_system() {
+    // A level chosen from the camera follows the camera, the film and the object's placement.
+    return ecs::system<World>("subdivide", system_subdivide)
+        .needs_all<SubdivSurface>()
+        .reading_if<Camera, Film, Transform>(levels_from_camera)
+        .writing<TriangleMeshRef, SubdividedMeshes>();
+}
+
+const TriangleMesh& mesh_of(const World& w, const TriangleMeshRef& ref) {
+    if (ref.source == MeshSource::File) return *w.products.get<LoadedMeshes>().meshes[ref.mesh];
+    return *w.products.get<SubdividedMeshes>().meshes[ref.mesh];
+}
+
+}  // namespace spangle

@@ -1,0 +1,268 @@
+#include "pipeline/session.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <set>
+#include <typeindex>
+
+#include "core/files.h"
+#include "pipeline/frame.h"
+#include "pipeline/systems.h"
+#include "render/integrator.h"
+#include "scene/scene_loader.h"
+#include "shading/plugin_loader.h"
+
+namespace spangle {
+namespace {
+
+/** The render, declared like the systems (the session runs the path tracer itself). */
+const ecs::System<World>& render_system() {
+    static const ecs::System<World> s =
+        ecs::system<World>("render", nullptr).needs_all<Camera, Film>();
+    return s;
+}
+
+/** Every component type some system writes: they are derived, not part of the scene's diff. */
+std::vector<std::type_index> derived_components(const ecs::Schedule<World>& schedule) {
+    std::vector<std::type_index> out;
+    for (const auto& s : schedule.systems())
+        for (const ecs::Resource& w : s.writes)
+            if (!w.product) out.push_back(w.type);
+    return out;
+}
+
+/** The files a system read for the live scene that have changed since, as reload report lines
+ *  ("mesh file PATH"), in order of kind then path. */
+std::vector<std::string> edited_files(const std::map<std::string, FileRead>& files) {
+    std::vector<std::pair<std::string, std::string>> edited;
+    for (const auto& [path, read] : files)
+        if (file_identity(path) != read.identity) edited.emplace_back(read.kind, path);
+    std::sort(edited.begin(), edited.end());
+    std::vector<std::string> out;
+    for (const auto& [kind, path] : edited) out.push_back(fmt::format("{} file {}", kind, path));
+    return out;
+}
+
+/** A skipped system's writes, handed over from the live scene: its products, the components it
+ *  put on the entities of its needs, its cache entries and the files it read. */
+void carry(const ecs::System<World>& s, const ecs::Registry& live_registry, const World& live,
+           ecs::Registry& cand, World& next, BuildCache& cache) {
+    for (const ecs::Resource& w : s.writes) {
+        if (w.product) {
+            next.products.take(w.type, live.products);
+            continue;
+        }
+        for (const ecs::Resource& need : s.needs)
+            for (ecs::Entity e : cand.entities_of(need.type))
+                cand.copy_component(w.type, live_registry, e);
+    }
+    cache.keep(s.name);
+    if (auto it = live.files.find(s.name); it != live.files.end()) next.files[s.name] = it->second;
+}
+
+}  // namespace
+
+std::string ReloadReport::summary() const {
+    auto list = [](const std::vector<std::string>& v) {
+        return v.empty() ? std::string("nothing") : fmt::format("{}", fmt::join(v, ", "));
+    };
+    std::vector<std::string> reuse;
+    for (const auto& [kind, n] : reused) reuse.push_back(fmt::format("{} {}", n, kind));
+    return fmt::format("changed: {}; ran: {}; rebuilt: {}; reused: {}", list(changed), list(ran),
+                       list(built), list(reuse));
+}
+
+Session::Session(std::vector<std::string> plugin_dirs, const std::string& ocio,
+                 RenderOptions options, const Logger& log)
+    : log_(log), options_(std::move(options)), ocio_request_(ocio) {
+    color_ = std::make_unique<ColorConfig>(ColorConfig::load(ocio, default_ocio_locations()));
+    ocio_identity_ = file_identity(color_->path());
+    host_ = std::make_unique<HostServices>(
+        *color_, log_, TextureSettings{options_.texture_cache, options_.texture_memory_mb});
+    plugins_ = std::make_unique<PluginLoader>(plugin_search_path(plugin_dirs));
+    plugins_->reopen_changed = true;
+}
+
+Session::~Session() {
+    // Instances before the libraries and services they use.
+    world_.reset();
+    cache_ = BuildCache{};
+}
+
+std::vector<std::string> Session::watched_files() const {
+    std::set<std::string> all;
+    if (info_) all.insert(info_->path);
+    if (world_)
+        for (const auto& [system, files] : world_->files)
+            for (const auto& [path, read] : files) all.insert(path);
+    if (color_) all.insert(color_->path());
+    return {all.begin(), all.end()};
+}
+
+ReloadReport Session::load(const std::string& scene, double time) {
+    const auto t0 = std::chrono::steady_clock::now();
+    ReloadReport rep;
+    rep.first = !world_;
+    bool full = rep.first;
+
+    // Read into a candidate. The colour config is copied so that a failed read cannot change
+    // the live one's working space; an edited OCIO config is loaded afresh.
+    std::unique_ptr<ColorConfig> color;
+    if (world_ && file_identity(color_->path()) != ocio_identity_) {
+        color = std::make_unique<ColorConfig>(
+            ColorConfig::load(ocio_request_, default_ocio_locations()));
+        rep.changed.push_back("file " + color_->path());
+        full = true;
+    } else {
+        color = std::make_unique<ColorConfig>(color_->clone());
+    }
+    auto cand = std::make_unique<ecs::Registry>();
+    auto info = std::make_unique<SceneInfo>(load_scene(scene, *color, *cand, time));
+    for (const std::string& note : info->notes) log_.warn("{}", note);
+    if (world_ && color->working_space() != color_->working_space()) {
+        rep.changed.push_back("working space");
+        full = true;
+    }
+
+    const ecs::Schedule<World> schedule = build_schedule();
+    std::set<std::type_index> changed;
+    std::map<std::string, bool> edited;  // system -> a file it read was edited
+    if (!full) {
+        for (const auto& [type, name] :
+             ecs::Registry::changed_pools(*live_, *cand, derived_components(schedule))) {
+            changed.insert(type);
+            rep.changed.push_back(name);
+        }
+        std::vector<std::string> files;
+        for (const auto& [system, reads] : world_->files) {
+            const std::vector<std::string> lines = edited_files(reads);
+            edited[system] = !lines.empty();
+            files.insert(files.end(), lines.begin(), lines.end());
+        }
+        std::sort(files.begin(), files.end());
+        files.erase(std::unique(files.begin(), files.end()), files.end());
+        rep.changed.insert(rep.changed.end(), files.begin(), files.end());
+    }
+
+    std::unique_ptr<HostServices> host;
+    ColorConfig* live_color = full ? color.get() : color_.get();
+    if (full)
+        host = std::make_unique<HostServices>(
+            *live_color, log_, TextureSettings{options_.texture_cache, options_.texture_memory_mb});
+    auto next = std::make_unique<World>();
+    next->color = live_color;
+    next->log = &log_;
+    next->plugins = plugins_.get();
+    next->host = full ? host.get() : host_.get();
+    next->info = info.get();
+    next->options = options_;
+    next->cache = &cache_;
+    next->previous = world_.get();
+    if (full && !rep.first) cache_ = BuildCache{};  // colours were converted with the old config
+    cache_.begin();
+
+    for (const auto& s : schedule.systems()) {
+        ecs::SystemReport sr{s.name, false, {}, 0.0};
+        if (!ecs::Schedule<World>::should_run(s, *cand, &sr.reason)) {
+            rep.systems.push_back(std::move(sr));
+            continue;
+        }
+        if (full || s.affected_by(changed, *cand) || edited[s.name]) {
+            const auto ts = std::chrono::steady_clock::now();
+            next->system = s.name;
+            cache_.owner = s.name;
+            s.run(*cand, *next);
+            sr.ran = true;
+            sr.seconds =
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - ts).count();
+            rep.ran.push_back(s.name);
+            // What it wrote changed for the systems after it: products always, components
+            // where they differ from the live scene's.
+            for (const ecs::Resource& w : s.writes)
+                if (w.product || !live_ || !cand->same_pool(w.type, *live_)) changed.insert(w.type);
+        } else {
+            carry(s, *live_, *world_, *cand, *next, cache_);
+            sr.reason = "nothing it reads changed";
+            rep.skipped.push_back(s.name);
+        }
+        rep.systems.push_back(std::move(sr));
+    }
+    next->system.clear();
+    next->previous = nullptr;
+
+    // Commit: from here on nothing throws.
+    if (full && !rep.first) {
+        old_colors_.push_back(std::move(color_));
+        old_hosts_.push_back(std::move(host_));
+    }
+    if (full) {
+        color_ = std::move(color);
+        host_ = std::move(host);
+        ocio_identity_ = file_identity(color_->path());
+    }
+    live_ = std::move(cand);
+    info_ = std::move(info);
+    world_ = std::move(next);
+    cache_.evict();
+    rep.built = cache_.built;
+    rep.reused = cache_.reused;
+    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+}
+
+RenderScene Session::render_scene() const {
+    static const GeometryStore no_geometry;
+    static const std::vector<Instance> no_instances;
+    static const std::vector<std::shared_ptr<MaterialInstance>> no_materials;
+    static const LightTable no_lights;
+    const ecs::Products& p = world_->products;
+    RenderScene s;
+    const SceneGeometry* g = p.find<SceneGeometry>();
+    s.geometry = g ? &g->geometry : &no_geometry;
+    s.instances = g ? &g->instances : &no_instances;
+    s.accel = g ? g->accel.get() : nullptr;
+    const MaterialSet* m = p.find<MaterialSet>();
+    s.materials = m ? &m->instances : &no_materials;
+    const SceneLights* l = p.find<SceneLights>();
+    s.lights = l ? &l->table : &no_lights;
+    if (const AreaLightSet* a = p.find<AreaLightSet>()) s.quad_light_first = a->quad_first;
+    if (const EnvironmentLight* e = p.find<EnvironmentLight>()) {
+        s.environment = e->constant;
+        s.environment_group = e->constant_group;
+    }
+    s.host = host_.get();
+    s.light_groups = &info_->light_groups;
+    return s;
+}
+
+ecs::SystemReport Session::render() {
+    ecs::SystemReport rep{"render", false, {}, 0.0};
+    result_.stats = RenderStats{};
+    if (!ecs::Schedule<World>::should_run(render_system(), *live_, &rep.reason)) {
+        result_.image.clear();
+        return rep;
+    }
+    Film film;
+    this->film(film);
+    const ecs::Entity camera = live_->pool<Camera>().entities()[0];
+    const std::vector<Camera> steps = live_->has<CameraMotion>(camera)
+                                          ? live_->get<CameraMotion>(camera).steps
+                                          : std::vector<Camera>{};
+    render_image(render_scene(), options_, live_->get<Camera>(camera), film, steps, result_);
+    rep.ran = true;
+    rep.seconds = result_.stats.seconds;
+    return rep;
+}
+
+bool Session::film(Film& out) const {
+    const ecs::Registry* live = live_.get();
+    if (!live || live->count<Camera>() == 0 || live->count<Film>() == 0) return false;
+    out = live->find_pool<Film>()->columns().get(0);
+    if (options_.width_override) out.width = options_.width_override;
+    if (options_.height_override) out.height = options_.height_override;
+    if (options_.spp_override) out.spp = options_.spp_override;
+    return true;
+}
+
+}  // namespace spangle

@@ -1,0 +1,106 @@
+#pragma once
+// How a render is asked for (RenderOptions: from the command line, not the scene), what it reports
+// as it goes (PassImage) and when it ends (RenderStats), and the film's geometry (crop windows).
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "render/lights.h"
+
+namespace spangle {
+
+/** A crop window in pixels of the full image: [x0, x1) x [y0, y1); x1 == 0: the whole image. */
+struct CropWindow {
+    uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    bool whole() const { return x1 == 0; }
+};
+
+/** The pixels `crop` renders of a width x height image (the whole image for whole()); throws
+ *  SpangleError when the window is empty or not inside the image. */
+CropWindow crop_within(const CropWindow& crop, uint32_t width, uint32_t height);
+
+/** Where a (cropped) image lies in the full frame: its top-left pixel and the full size. */
+struct ImageWindow {
+    uint32_t x0 = 0, y0 = 0;
+    uint32_t full_width = 0, full_height = 0;
+};
+
+/** The image after one pass of a progressive render. */
+struct PassImage {
+    const std::vector<float>& image;  ///< RGB, working space, divided by the samples reached
+    uint32_t width, height;
+    uint32_t spp;        ///< samples per pixel reached; 0 for a preview pass
+    uint32_t target;     ///< samples per pixel the render is going to
+    uint32_t block;      ///< 1, or the block side of a preview pass (each block one value)
+    double seconds;      ///< render time so far
+    ImageWindow window;  ///< where the image lies in the full frame (a crop)
+};
+
+/** How to render, from the command line; not part of the scene. */
+struct RenderOptions {
+    Strategy strategy = Strategy::Mis;  ///< for tests and debugging; MIS is always at least as good
+    int threads = 0;                    ///< worker threads; 0 = all cores
+    uint32_t spp_override = 0;          ///< replaces the scene's spp when non-zero
+    uint32_t width_override = 0;        ///< replaces the scene's width when non-zero
+    uint32_t height_override = 0;       ///< replaces the scene's height when non-zero
+    /** Called with (samples done, samples total) from worker threads, serialised by the
+     *  integrator; may be empty. */
+    std::function<void(uint64_t, uint64_t)> progress;
+    /** Called after each completed pass but the last with the image so far; may be empty. */
+    std::function<void(const PassImage&)> on_pass;
+    /** Polled between waves of tiles: when it returns true the render stops, keeping the
+     *  passes completed so far. May be empty. */
+    std::function<bool()> stop;
+    /** Passes of 1, 1, 2, 4, ... samples (false: one pass of all samples; same image). */
+    bool progressive = true;
+    /** Before the first pass, a preview pass at reduced resolution (one path per block of
+     *  preview_stride() pixels, shown through on_pass and then dropped): the first picture after
+     *  an edit in a fraction of a full pass. The final image does not depend on it. */
+    bool preview_pass = false;
+    /** Render layers beside the beauty (RenderResult::layers): coverage, albedo, normal, depth,
+     *  position, glints, one per light group. */
+    bool layers = false;
+    /** Renders only this window of the image (its pixels are those of the whole render, bit
+     *  for bit: each pixel's samples depend on the pixel alone). */
+    CropWindow crop;
+    /** --spp-range: render samples [spp_first, spp_end) of the frame's (spp_end 0: all). The
+     *  image is their mean; RenderResult::sums holds their exact sums, which add up across
+     *  parts to the whole render's, bit for bit. */
+    uint32_t spp_first = 0, spp_end = 0;
+    /** Where converted textures are cached (empty: $SPANGLE_TEXTURE_CACHE or the user's cache
+     *  directory) and how much memory the texture tile cache may hold. */
+    std::string texture_cache;
+    uint32_t texture_memory_mb = 1024;
+};
+
+/** The samples per pixel reached after each pass of a progressive render of `spp` samples:
+ *  1, 2, 4, 8, ... doubling, the last pass ending exactly at spp. */
+std::vector<uint32_t> pass_ends(uint32_t spp);
+
+/** Side of the pixel blocks of a preview pass for a width x height film: a power of two up to
+ *  16 that leaves at least 160 blocks along the longer side (1: no preview pass). */
+uint32_t preview_stride(uint32_t width, uint32_t height);
+
+/** Refuses (SpangleError naming the settings to lower) a film whose memory while rendering --
+ *  the image and the copies passes need -- would not fit the memory available now. */
+void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const RenderOptions& options,
+                       uint32_t layer_channels = 0);
+
+/** Counters of one render. */
+struct RenderStats {
+    uint64_t camera_rays = 0;  ///< primary rays
+    uint64_t bounce_rays = 0;  ///< continuation rays after scattering
+    uint64_t shadow_rays = 0;  ///< next-event visibility rays
+    uint64_t samples = 0;      ///< camera samples (pixels x spp)
+    uint64_t nonfinite = 0;    ///< contributions replaced by black
+    uint32_t first_bad_pixel_x = 0, first_bad_pixel_y = 0, first_bad_sample = 0;
+    double seconds = 0.0;      ///< wall time of the render system
+    uint32_t spp_reached = 0;  ///< samples per pixel of the passes completed
+    uint32_t spp_target = 0;   ///< samples per pixel asked for
+    uint32_t spp_frame = 0;    ///< the frame's samples per pixel (spp_target unless --spp-range)
+    uint32_t passes = 0;       ///< passes completed
+};
+
+}  // namespace spangle
