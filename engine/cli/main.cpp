@@ -35,10 +35,10 @@
 #include "color/image_merge.h"
 #include "color/image_output.h"
 #include "core/error.h"
-#include "render/camera.h"
 #include "pipeline/frame.h"
-#include "render/image_metrics.h"
 #include "pipeline/session.h"
+#include "render/camera.h"
+#include "render/image_metrics.h"
 #include "scene/toml_reader.h"
 
 #include "shading/material.h"
