@@ -24,6 +24,7 @@
 
 #include "core/error.h"
 #include "pipeline/session.h"
+#include "render/layers/layer_sink.h"
 
 namespace spangle {
 namespace {

@@ -303,115 +303,151 @@ Vec3 LightTable::escaped(Vec3 d, float bsdf_pdf, bool after_delta, Strategy stra
     return l;
 }
 
-LightSample LightTable::sample(Vec3 p, float u0, float u1, float u2) const {
+namespace {
+
+/** Points s from p towards q (wi, dist); false when q is not a usable distance away. */
+bool towards(Vec3 p, Vec3 q, LightSample& s) {
+    const Vec3 d = q - p;
+    s.dist = length(d);
+    s.wi = d / s.dist;
+    return s.dist > 0.0f && std::isfinite(s.dist);
+}
+
+/** A point q on area emitter e seen from p: by solid angle where that is stable (`solid`, and
+ *  `pdf` is the solid-angle pdf with selection pmf sel), else by area; false when the sample
+ *  fails. */
+bool sample_area_point(const AreaEmitter& e, Vec3 p, float sel, float u1, float u2, Vec3& q,
+                       bool& solid, float& pdf) {
+    if (e.parallelogram) {
+        q = e.p0 + e.e1 * u1 + e.e2 * u2;
+        return true;
+    }
+    const Vec3 a = e.p0, b = e.p0 + e.e1, c = e.p0 + e.e2;
+    const double omega = triangle_solid_angle(p, a, b, c);
+    if (!use_solid_angle_sampling(omega)) {
+        const float r = std::sqrt(u1);
+        q = e.p0 + e.e1 * (r * (1.0f - u2)) + e.e2 * (r * u2);
+        return true;
+    }
+    Vec3 w;
+    if (!sample_spherical_triangle(normalize(a - p), normalize(b - p), normalize(c - p), u1, u2, w))
+        return false;
+    const float denom = dot(e.n, w);
+    const float t = dot(e.n, a - p) / denom;
+    if (!(t > 0.0f) || !std::isfinite(t)) return false;
+    q = p + w * t;
+    pdf = static_cast<float>(static_cast<double>(sel) / omega);
+    solid = true;
+    return true;
+}
+
+/** A direction towards sphere light e from p, with selection pmf sel. */
+LightSample sample_sphere(const SphereEmitter& e, Vec3 p, float sel, float u1, float u2) {
     LightSample s;
-    if (selection_.empty()) return s;
+    const Vec3 dc = e.center - p;
+    const float dist2 = dot(dc, dc), r2 = e.radius * e.radius;
+    if (dist2 <= r2) {
+        // Inside the sphere: uniform by area over the sphere.
+        const float z = 1.0f - 2.0f * u1, rr = std::sqrt(std::max(0.0f, 1.0f - z * z));
+        const Vec3 n(rr * std::cos(2.0f * kPi * u2), rr * std::sin(2.0f * kPi * u2), z);
+        if (!towards(p, e.center + n * e.radius, s)) return LightSample{};
+        const float cos_l = std::fabs(dot(n, s.wi));
+        s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * 4.0f * kPi * r2) : 0.0f;
+    } else {
+        const float dist = std::sqrt(dist2);
+        const Vec3 axis = dc / dist;
+        const float cos_max = std::sqrt(std::max(0.0f, 1.0f - r2 / dist2));
+        s.wi = sample_cone(axis, cos_max, u1, u2);
+        // Nearest intersection with the sphere along wi, in double for grazing rays.
+        const double b = static_cast<double>(dot(s.wi, dc));
+        const double c = static_cast<double>(dist2) - static_cast<double>(r2);
+        const double disc = std::max(0.0, b * b - c);
+        s.dist = static_cast<float>(b - std::sqrt(disc));
+        s.pdf = sel / cone_solid_angle(cos_max);
+    }
+    s.radiance = e.radiance;
+    return s;
+}
+
+/** Point or spot light e seen from p, with selection pmf sel. */
+LightSample sample_point(const PointEmitter& e, Vec3 p, float sel) {
+    LightSample s;
+    if (!towards(p, e.position, s)) return LightSample{};
+    float falloff = 1.0f;
+    if (e.cos_outer > -1.0f) {
+        const float c = dot(-s.wi, e.axis);
+        const float t =
+            std::clamp((c - e.cos_outer) / std::max(1e-6f, e.cos_inner - e.cos_outer), 0.0f, 1.0f);
+        falloff = t * t * (3.0f - 2.0f * t);  // smoothstep from the outer to the inner cone
+    }
+    s.radiance = e.intensity * (falloff / (s.dist * s.dist));
+    s.pdf = sel;
+    s.delta = true;
+    return s;
+}
+
+/** A direction of light at infinity e, with selection pmf sel. */
+LightSample sample_distant(const DistantEmitter& e, float sel, float u1, float u2) {
+    LightSample s;
+    s.dist = kInf;
+    if (e.solid_angle <= 0.0f) {
+        s.wi = e.direction;
+        s.radiance = e.radiance;
+        s.pdf = sel;
+        s.delta = true;
+    } else {
+        s.wi = sample_cone(e.direction, e.cos_radius, u1, u2);
+        s.radiance = e.radiance;
+        s.pdf = sel / e.solid_angle;
+    }
+    return s;
+}
+
+}  // namespace
+
+LightSample LightTable::sample_area(uint32_t id, Vec3 p, float sel, float u1, float u2) const {
+    const AreaEmitter& e = area_[id];
+    LightSample s;
+    Vec3 q;
+    bool solid = false;
+    if (!sample_area_point(e, p, sel, u1, u2, q, solid, s.pdf)) return LightSample{};
+    if (!towards(p, q, s)) return LightSample{};
+    s.radiance = area_emitted(id, -s.wi);
+    if (!solid) {
+        const float cos_l = std::fabs(dot(e.n, s.wi));
+        s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * e.area) : 0.0f;
+    }
+    return s;
+}
+
+LightSample LightTable::sample(Vec3 p, float u0, float u1, float u2) const {
+    if (selection_.empty()) return LightSample{};
     const uint32_t id = selection_.sample(u0, nullptr);
     const float sel = selection_.pmf(id);
     const auto n_area = static_cast<uint32_t>(area_.size());
     const auto n_sphere = static_cast<uint32_t>(spheres_.size());
     const auto n_point = static_cast<uint32_t>(points_.size());
     const auto n_distant = static_cast<uint32_t>(distant_.size());
-    s.group = id < n_area                        ? area_[id].group
-              : id < n_area + n_sphere           ? spheres_[id - n_area].group
-              : id < n_area + n_sphere + n_point ? points_[id - n_area - n_sphere].group
-              : id < n_area + n_sphere + n_point + n_distant
-                  ? distant_[id - n_area - n_sphere - n_point].group
-                  : env_group_;
-
-    const auto towards = [&](Vec3 q) {
-        const Vec3 d = q - p;
-        s.dist = length(d);
-        s.wi = d / s.dist;
-        return s.dist > 0.0f && std::isfinite(s.dist);
-    };
+    LightSample s;
     if (id < n_area) {
-        const AreaEmitter& e = area_[id];
-        Vec3 q;
-        bool solid = false;
-        if (!e.parallelogram) {
-            const Vec3 a = e.p0, b = e.p0 + e.e1, c = e.p0 + e.e2;
-            const double omega = triangle_solid_angle(p, a, b, c);
-            if (use_solid_angle_sampling(omega)) {
-                Vec3 w;
-                if (!sample_spherical_triangle(normalize(a - p), normalize(b - p), normalize(c - p),
-                                               u1, u2, w))
-                    return s;
-                const float denom = dot(e.n, w);
-                const float t = dot(e.n, a - p) / denom;
-                if (!(t > 0.0f) || !std::isfinite(t)) return s;
-                q = p + w * t;
-                s.pdf = static_cast<float>(static_cast<double>(sel) / omega);
-                solid = true;
-            } else {
-                const float r = std::sqrt(u1);
-                q = e.p0 + e.e1 * (r * (1.0f - u2)) + e.e2 * (r * u2);
-            }
-        } else {
-            q = e.p0 + e.e1 * u1 + e.e2 * u2;
-        }
-        if (!towards(q)) return LightSample{};
-        s.radiance = area_emitted(id, -s.wi);
-        if (!solid) {
-            const float cos_l = std::fabs(dot(e.n, s.wi));
-            s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * e.area) : 0.0f;
-        }
+        s = sample_area(id, p, sel, u1, u2);
+        s.group = area_[id].group;
     } else if (id < n_area + n_sphere) {
-        const SphereEmitter& e = spheres_[id - n_area];
-        const Vec3 dc = e.center - p;
-        const float dist2 = dot(dc, dc), r2 = e.radius * e.radius;
-        if (dist2 <= r2) {
-            // Inside the sphere: uniform by area over the sphere.
-            const float z = 1.0f - 2.0f * u1, rr = std::sqrt(std::max(0.0f, 1.0f - z * z));
-            const Vec3 n(rr * std::cos(2.0f * kPi * u2), rr * std::sin(2.0f * kPi * u2), z);
-            if (!towards(e.center + n * e.radius)) return LightSample{};
-            const float cos_l = std::fabs(dot(n, s.wi));
-            s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * 4.0f * kPi * r2) : 0.0f;
-        } else {
-            const float dist = std::sqrt(dist2);
-            const Vec3 axis = dc / dist;
-            const float cos_max = std::sqrt(std::max(0.0f, 1.0f - r2 / dist2));
-            s.wi = sample_cone(axis, cos_max, u1, u2);
-            // Nearest intersection with the sphere along wi, in double for grazing rays.
-            const double b = static_cast<double>(dot(s.wi, dc));
-            const double c = static_cast<double>(dist2) - static_cast<double>(r2);
-            const double disc = std::max(0.0, b * b - c);
-            s.dist = static_cast<float>(b - std::sqrt(disc));
-            s.pdf = sel / cone_solid_angle(cos_max);
-        }
-        s.radiance = e.radiance;
+        s = sample_sphere(spheres_[id - n_area], p, sel, u1, u2);
+        s.group = spheres_[id - n_area].group;
     } else if (id < n_area + n_sphere + n_point) {
-        const PointEmitter& e = points_[id - n_area - n_sphere];
-        if (!towards(e.position)) return LightSample{};
-        float falloff = 1.0f;
-        if (e.cos_outer > -1.0f) {
-            const float c = dot(-s.wi, e.axis);
-            const float t = std::clamp(
-                (c - e.cos_outer) / std::max(1e-6f, e.cos_inner - e.cos_outer), 0.0f, 1.0f);
-            falloff = t * t * (3.0f - 2.0f * t);  // smoothstep from the outer to the inner cone
-        }
-        s.radiance = e.intensity * (falloff / (s.dist * s.dist));
-        s.pdf = sel;
-        s.delta = true;
+        s = sample_point(points_[id - n_area - n_sphere], p, sel);
+        s.group = points_[id - n_area - n_sphere].group;
     } else if (id < n_area + n_sphere + n_point + n_distant) {
-        const DistantEmitter& e = distant_[id - n_area - n_sphere - n_point];
-        s.dist = kInf;
-        if (e.solid_angle <= 0.0f) {
-            s.wi = e.direction;
-            s.radiance = e.radiance;
-            s.pdf = sel;
-            s.delta = true;
-        } else {
-            s.wi = sample_cone(e.direction, e.cos_radius, u1, u2);
-            s.radiance = e.radiance;
-            s.pdf = sel / e.solid_angle;
-        }
+        s = sample_distant(distant_[id - n_area - n_sphere - n_point], sel, u1, u2);
+        s.group = distant_[id - n_area - n_sphere - n_point].group;
     } else {
         float pdf;
         s.wi = env_->sample(u1, u2, pdf);
         s.dist = kInf;
         s.radiance = env_->eval(s.wi);
         s.pdf = sel * pdf;
+        s.group = env_group_;
     }
     if (!(s.pdf > 0.0f) || !std::isfinite(s.pdf) || max_component(s.radiance) <= 0.0f ||
         !is_finite(s.wi))

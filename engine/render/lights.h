@@ -149,6 +149,9 @@ public:
                  Vec3* by_group = nullptr) const;
 
 private:
+    /** A point on area emitter id seen from p, with selection pmf sel. */
+    LightSample sample_area(uint32_t id, Vec3 p, float sel, float u1, float u2) const;
+
     std::vector<AreaEmitter> area_;
     std::vector<SphereEmitter> spheres_;
     std::vector<PointEmitter> points_;

@@ -46,8 +46,4 @@ struct RenderResult {
     RenderStats stats;
 };
 
-/** The render layers' channel names in film order (A, albedo.R/G/B, N.X/Y/Z, Z, P.X/Y/Z,
- *  Pobj.X/Y/Z, object, glints.R/G/B, then lightgroup_<name>.R/G/B per light group). */
-std::vector<std::string> layer_channel_names(const std::vector<std::string>& light_groups);
-
 }  // namespace spangle

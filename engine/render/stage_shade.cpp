@@ -1,0 +1,325 @@
+// The shading stage: one material batch's shading points handed to its plugin (positions,
+// frames, uvs and footprints, object-space frames; textured parameters looked up per point; the
+// normal or bump map applied to the frames), prepared, and lit by next-event estimation with
+// multiple importance sampling, the batch's shadow rays traced as one stream.
+
+#include <algorithm>
+
+#include "render/wave.h"
+
+namespace spangle {
+namespace {
+
+/** Rebuilds sp's shading frame around a new normal (front side of the surface: `nf`). */
+void reframe(SurfacePoint& sp, Vec3 nf) {
+    const float len = length(nf);
+    if (!(len > 0.0f) || !std::isfinite(len)) return;
+    Vec3 n = nf / len;
+    if (sp.backface) n = -n;
+    if (!(dot(n, sp.n) > 1e-3f)) return;  // a map cannot turn the normal past the surface
+    shading_frame(n, sp.s, sp.s, sp.t);
+    sp.n = n;
+}
+
+/** Tilts sp's normal by a bump map's height slopes (hs, ht) along the image's axes: a height
+ *  field in metres along the normal, its slope from the filtered texture's derivatives. */
+void bump(SurfacePoint& sp, const float* m, float hs, float ht) {
+    const Vec3 nf = sp.backface ? -sp.n : sp.n;
+    // Height h = height * value; dh/du and dh/dv through the uv transform (t = 1 - v').
+    const float dhdu = hs * m[0] - ht * m[3];
+    const float dhdv = hs * m[1] - ht * m[4];
+    Vec3 nb = cross(sp.dpdu + nf * dhdu, sp.dpdv + nf * dhdv);
+    // cross(dpdu, dpdv) points to either side, by the uvs' handedness.
+    if (dot(cross(sp.dpdu, sp.dpdv), nf) < 0.0f) nb = -nb;
+    reframe(sp, nb);
+}
+
+/** Turns sp's normal to a normal map's texel v (OpenGL convention, green towards +v) scaled by
+ *  `amount`, in the image's axes through uv transform m. */
+void normal_map(SurfacePoint& sp, const float* m, const float* v, float amount) {
+    const Vec3 nf = sp.backface ? -sp.n : sp.n;
+    const float x = (2.0f * v[0] - 1.0f) * amount;
+    const float y = (2.0f * v[1] - 1.0f) * amount;
+    const float z = 2.0f * v[2] - 1.0f;
+    // The image's axes on the surface: dp/du' and dp/dv' of the transformed uv' = M uv, made
+    // orthogonal to n (a rotated or mirrored map tilts the way the image shows).
+    const float det = m[0] * m[4] - m[1] * m[3];
+    const Vec3 dpdu2 = (sp.dpdu * m[4] - sp.dpdv * m[3]) * (1.0f / det);
+    const Vec3 dpdv2 = (sp.dpdv * m[0] - sp.dpdu * m[1]) * (1.0f / det);
+    Vec3 tu = dpdu2 - nf * dot(nf, dpdu2);
+    const float len = length(tu);
+    if (!(len > 0.0f) || !std::isfinite(len)) return;
+    tu = tu / len;
+    Vec3 tv = cross(nf, tu);
+    if (dot(tv, dpdv2) < 0.0f) tv = -tv;
+    reframe(sp, tu * x + tv * y + nf * z);
+}
+
+/** Applies the material's normal or bump map to the batch's shading frames (tangent space from
+ *  dp/du and dp/dv). */
+void apply_map(const RenderScene& w, Workspace& ws, const MaterialInstance& mat,
+               const uint32_t* paths, uint32_t n) {
+    const TextureBinding& b = mat.map();
+    for (auto* a : {&ws.gu, &ws.gv, &ws.gdudx, &ws.gdudy, &ws.gdvdx, &ws.gdvdy}) a->resize(n);
+    for (uint32_t k = 0; k < n; ++k) {
+        const SurfacePoint& sp = ws.paths.surf[paths[k]];
+        ws.gu[k] = sp.u;
+        ws.gv[k] = sp.v;
+        ws.gdudx[k] = sp.dudx;
+        ws.gdudy[k] = sp.dudy;
+        ws.gdvdx[k] = sp.dvdx;
+        ws.gdvdy[k] = sp.dvdy;
+    }
+    texture_coordinates(b.ref, ws.gu.data(), ws.gv.data(), ws.gdudx.data(), ws.gdudy.data(),
+                        ws.gdvdx.data(), ws.gdvdy.data(), n, ws.tex_query);
+    const auto c = static_cast<std::size_t>(b.channels);
+    ws.map_value.resize(n * c);
+    const bool is_bump = mat.map_kind() == MapKind::Bump;
+    ws.map_ds.resize(is_bump ? n : 0);
+    ws.map_dt.resize(is_bump ? n : 0);
+    w.host->textures().lookup(*b.texture, b.ref, ws.tex_query, n, b.channels, ws.map_value.data(),
+                              is_bump ? ws.map_ds.data() : nullptr,
+                              is_bump ? ws.map_dt.data() : nullptr);
+    for (uint32_t k = 0; k < n; ++k) {
+        SurfacePoint& sp = ws.paths.surf[paths[k]];
+        if (!sp.has_uv) continue;  // no tangent space to read the map in
+        if (is_bump)
+            bump(sp, b.ref.uv, ws.map_ds[k] * b.ref.amount, ws.map_dt[k] * b.ref.amount);
+        else
+            normal_map(sp, b.ref.uv, &ws.map_value[3 * k], b.ref.amount);
+    }
+}
+
+/** Fills the batch's shading points from the paths' surfaces (the plugin ABI's arrays). */
+void fill_points(Workspace& ws, const uint32_t* paths, uint32_t n) {
+    const PathBatch& p = ws.paths;
+    ShadingBatch& b = ws.batch;
+    for (uint32_t k = 0; k < n; ++k) {
+        const uint32_t i = paths[k];
+        const SurfacePoint& sp = p.surf[i];
+        const Vec3 wo = -p.ray[i].d;
+        b.px[k] = sp.p.x;
+        b.py[k] = sp.p.y;
+        b.pz[k] = sp.p.z;
+        b.wox[k] = dot(wo, sp.s);
+        b.woy[k] = dot(wo, sp.t);
+        b.woz[k] = dot(wo, sp.n);
+        b.u[k] = sp.u;
+        b.v[k] = sp.v;
+        b.dudx[k] = sp.dudx;
+        b.dudy[k] = sp.dudy;
+        b.dvdx[k] = sp.dvdx;
+        b.dvdy[k] = sp.dvdy;
+        b.uv_area[k] = sp.uv_area;
+        b.opx[k] = sp.p_obj.x;
+        b.opy[k] = sp.p_obj.y;
+        b.opz[k] = sp.p_obj.z;
+        b.onx[k] = sp.ng_obj.x;
+        b.ony[k] = sp.ng_obj.y;
+        b.onz[k] = sp.ng_obj.z;
+        b.odxx[k] = sp.dpdx_obj.x;
+        b.odxy[k] = sp.dpdx_obj.y;
+        b.odxz[k] = sp.dpdx_obj.z;
+        b.odyx[k] = sp.dpdy_obj.x;
+        b.odyy[k] = sp.dpdy_obj.y;
+        b.odyz[k] = sp.dpdy_obj.z;
+        b.flags[k] = (sp.backface ? SPANGLE_SHADING_BACKFACE : 0u) |
+                     (p.has_diff[i] ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u) |
+                     (sp.has_uv ? 0u : SPANGLE_SHADING_NO_UV);
+        b.path_id[k] = i;
+    }
+}
+
+/** The plugin ABI's view of the batch's arrays. */
+SpangleShadingBatch_v3 abi_batch(ShadingBatch& b, uint32_t n) {
+    return SpangleShadingBatch_v3{n,
+                                  b.px.data(),
+                                  b.py.data(),
+                                  b.pz.data(),
+                                  b.wox.data(),
+                                  b.woy.data(),
+                                  b.woz.data(),
+                                  b.u.data(),
+                                  b.v.data(),
+                                  b.dudx.data(),
+                                  b.dudy.data(),
+                                  b.dvdx.data(),
+                                  b.dvdy.data(),
+                                  b.uv_area.data(),
+                                  b.opx.data(),
+                                  b.opy.data(),
+                                  b.opz.data(),
+                                  b.onx.data(),
+                                  b.ony.data(),
+                                  b.onz.data(),
+                                  b.odxx.data(),
+                                  b.odxy.data(),
+                                  b.odxz.data(),
+                                  b.odyx.data(),
+                                  b.odyy.data(),
+                                  b.odyz.data(),
+                                  b.flags.data(),
+                                  b.path_id.data(),
+                                  nullptr};
+}
+
+/** Textured parameters: looked up per point, scaled, clamped into the parameter's range;
+ *  returns the per-parameter value arrays for the plugin (one per schema entry, null for a
+ *  constant). */
+const float* const* lookup_textures(const RenderScene& w, Workspace& ws,
+                                    const MaterialInstance& mat, uint32_t n) {
+    ws.param_values.assign(mat.model().param_count, nullptr);
+    ws.tex_values.resize(std::max(ws.tex_values.size(), mat.textures().size()));
+    const ShadingBatch& b = ws.batch;
+    for (std::size_t j = 0; j < mat.textures().size(); ++j) {
+        const TextureBinding& t = mat.textures()[j];
+        texture_coordinates(t.ref, b.u.data(), b.v.data(), b.dudx.data(), b.dudy.data(),
+                            b.dvdx.data(), b.dvdy.data(), n, ws.tex_query);
+        std::vector<float>& out = ws.tex_values[j];
+        const auto c = static_cast<std::size_t>(t.channels);
+        out.resize(n * c);
+        w.host->textures().lookup(*t.texture, t.ref, ws.tex_query, n, t.channels, out.data());
+        for (std::size_t i = 0; i < n * c; ++i) {
+            const float x = out[i] * t.ref.scale[i % c];
+            out[i] = std::isnan(x) ? t.lo : std::clamp(x, t.lo, t.hi);
+        }
+        ws.param_values[t.param] = out.data();
+    }
+    return ws.param_values.data();
+}
+
+/** The plugin's closures for the batch, in ws.closures (16-byte aligned). */
+void prepare(Workspace& ws, const MaterialInstance& mat, SpangleShadingBatch_v3& batch,
+             uint32_t n) {
+    const SpangleMaterialModel_v3& model = mat.model();
+    ws.closures.resize(static_cast<std::size_t>(n) * model.closure_size + 16);
+    void* closures = ws.closures.data();
+    std::size_t space = ws.closures.size();
+    closures = std::align(16, static_cast<std::size_t>(n) * model.closure_size, closures, space);
+    ws.arena.reset();
+    SpangleArena_v3 arena = ws.arena.api();
+    model.prepare(mat.instance(), &batch, closures, &arena);
+    ws.closure_data = closures;
+}
+
+/** One light sample per shading point, and the BSDF's value and pdf towards it; returns the
+ *  number of queries (points whose light sample is valid). */
+template <class Sink>
+uint32_t sample_lights(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInstance& mat,
+                       const uint32_t* paths, uint32_t n, uint32_t bounce) {
+    ShadingBatch& b = ws.batch;
+    uint32_t q = 0;
+    for (uint32_t k = 0; k < n; ++k) {
+        const uint32_t i = paths[k];
+        const SurfacePoint& sp = ws.paths.surf[i];
+        float lu, lv;
+        rnd2(ws.paths, i, bounce, kPairLight, lu, lv);
+        const LightSample ls = job.scene->lights->sample(sp.p, b.u_select[k], lu, lv);
+        if (!(ls.pdf > 0.0f)) continue;
+        b.light[q] = ls;
+        b.light_query[q] = k;
+        b.closure_index[q] = k;
+        b.wix[q] = dot(ls.wi, sp.s);
+        b.wiy[q] = dot(ls.wi, sp.t);
+        b.wiz[q] = dot(ls.wi, sp.n);
+        ++q;
+    }
+    SpangleEvalBatch_v3 eval{q,
+                             b.closure_index.data(),
+                             b.wix.data(),
+                             b.wiy.data(),
+                             b.wiz.data(),
+                             b.f_r.data(),
+                             b.f_g.data(),
+                             b.f_b.data(),
+                             b.pdf.data(),
+                             nullptr,
+                             nullptr,
+                             nullptr};
+    if (sink.wants_glints(bounce)) sink.glint_outputs(q, eval.glint_r, eval.glint_g, eval.glint_b);
+    if (q > 0) mat.model().eval(mat.instance(), ws.closure_data, &eval);
+    return q;
+}
+
+/** The unoccluded contribution of each of the q light queries that can add light, and its
+ *  shadow ray; the rays of the whole batch are traced as one stream, and the light of those
+ *  that arrive is added. */
+template <class Sink>
+void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32_t* paths,
+                   uint32_t q, uint32_t bounce, uint64_t& shadow_rays) {
+    const ShadingBatch& b = ws.batch;
+    PathBatch& p = ws.paths;
+    ws.stream_path.clear();
+    ws.shadow_contrib.clear();
+    ws.stream_o.clear();
+    ws.stream_d.clear();
+    ws.stream_time.clear();
+    ws.shadow_tmax.clear();
+    sink.begin_shadows();
+    for (uint32_t j = 0; j < q; ++j) {
+        const Vec3 f(b.f_r[j], b.f_g[j], b.f_b[j]);
+        if (max_component(f) <= 0.0f) continue;
+        const uint32_t i = paths[b.light_query[j]];
+        const SurfacePoint& sp = p.surf[i];
+        const LightSample& ls = b.light[j];
+        float mis = ls.delta ? 1.0f : power_heuristic(ls.pdf, b.pdf[j]);
+        if (job.strategy == Strategy::NeeOnly) mis = 1.0f;
+        if (job.strategy == Strategy::BsdfOnly && !ls.delta) mis = 0.0f;
+        if (mis <= 0.0f) continue;
+        // Leave on the side of the geometric normal that wi points to.
+        const Vec3 side = dot(ls.wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
+        ws.stream_path.push_back(i);
+        const float weight = std::fabs(b.wiz[j]) * mis / ls.pdf;
+        ws.shadow_contrib.push_back(p.throughput[i] * f * ls.radiance * weight);
+        sink.shadow_query(bounce, j, i, p.throughput[i], f, ls.radiance, weight, ls.group);
+        ws.stream_o.push_back(offset_origin(sp.p, side));
+        ws.stream_d.push_back(ls.wi);
+        ws.stream_time.push_back(p.time[i]);
+        ws.shadow_tmax.push_back(std::isfinite(ls.dist) ? ls.dist * (1.0f - 1e-4f) : 1e30f);
+    }
+    const std::size_t rays = ws.stream_path.size();
+    shadow_rays += rays;
+    ws.stream_found.assign(rays, 0);
+    if (job.scene->accel)
+        job.scene->accel->occluded_stream(ws.stream_o.data(), ws.stream_d.data(),
+                                          ws.shadow_tmax.data(), rays, ws.stream_found.data(),
+                                          job.motion ? ws.stream_time.data() : nullptr);
+    for (std::size_t r = 0; r < rays; ++r) {
+        if (ws.stream_found[r]) continue;
+        const float kc = clamp_factor(job, ws.shadow_contrib[r], bounce + 1);
+        const Vec3 c = ws.shadow_contrib[r] * kc;
+        p.radiance[ws.stream_path[r]] += c;
+        sink.unoccluded(r, ws.stream_path[r], c, kc);
+    }
+}
+
+}  // namespace
+
+template <class Sink>
+void shade(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInstance& mat,
+           const uint32_t* paths, uint32_t n, uint32_t bounce, uint64_t& shadow_rays) {
+    const RenderScene& w = *job.scene;
+    ws.batch.resize(n);
+    if (mat.map_kind() != MapKind::None) apply_map(w, ws, mat, paths, n);
+    fill_points(ws, paths, n);
+    SpangleShadingBatch_v3 batch = abi_batch(ws.batch, n);
+    if (!mat.textures().empty()) batch.param_values = lookup_textures(w, ws, mat, n);
+    prepare(ws, mat, batch, n);
+    // Random numbers of this bounce, shared by light and BSDF sampling.
+    for (uint32_t k = 0; k < n; ++k) {
+        float sel, lobe;
+        rnd2(ws.paths, paths[k], bounce, kPairSelect, sel, lobe);
+        ws.batch.u2[k] = lobe;
+        ws.batch.u_select[k] = sel;
+    }
+    if (w.lights->empty()) return;
+    const uint32_t q = sample_lights(job, ws, sink, mat, paths, n, bounce);
+    trace_shadows(job, ws, sink, paths, q, bounce, shadow_rays);
+}
+
+template void shade<NullSink>(const RenderJob&, Workspace&, NullSink&, const MaterialInstance&,
+                              const uint32_t*, uint32_t, uint32_t, uint64_t&);
+template void shade<LayerSink>(const RenderJob&, Workspace&, LayerSink&, const MaterialInstance&,
+                               const uint32_t*, uint32_t, uint32_t, uint64_t&);
+
+}  // namespace spangle
