@@ -35,11 +35,11 @@
 #include "color/image_merge.h"
 #include "color/image_output.h"
 #include "core/error.h"
+#include "core/text.h"
 #include "render/camera.h"
 #include "render/frame.h"
 #include "render/image_metrics.h"
 #include "render/session.h"
-#include "scene/toml_reader.h"
 
 #include "shading/material.h"
 #include "shading/plugin_loader.h"

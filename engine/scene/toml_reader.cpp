@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "core/text.h"
+
 namespace spangle {
 
 std::string Range::str() const {
@@ -52,22 +54,6 @@ const toml::node* TableReader::node(std::string_view key) {
     return table_.get(key);
 }
 
-std::size_t edit_distance(std::string_view a, std::string_view b) {
-    std::vector<std::size_t> row(b.size() + 1);
-    for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-    for (std::size_t i = 1; i <= a.size(); ++i) {
-        std::size_t diag = row[0];
-        row[0] = i;
-        for (std::size_t j = 1; j <= b.size(); ++j) {
-            const std::size_t up = row[j];
-            row[j] =
-                std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0u : 1u)});
-            diag = up;
-        }
-    }
-    return row[b.size()];
-}
-
 namespace {
 
 /** A key's own location (the key text, not its value). */
@@ -77,31 +63,7 @@ FileLoc key_loc(const toml::key& key, const toml::node& value, const std::string
     return at.line == 0 ? loc_of(value, file) : at;
 }
 
-/** The closest of `candidates` to `word`, when it is within 2 edits; empty otherwise. */
-template <class Range_>
-std::string nearest(std::string_view word, const Range_& candidates) {
-    std::string best;
-    std::size_t best_d = 3;
-    for (const auto& c : candidates) {
-        const std::size_t d = edit_distance(word, c);
-        if (d < best_d) {
-            best_d = d;
-            best = std::string(c);
-        }
-    }
-    return best;
-}
-
 }  // namespace
-
-std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates) {
-    std::string guess = nearest(word, candidates);
-    for (const auto& c : candidates)
-        if (guess.empty() && word.size() >= 3 && c.size() >= 3 &&
-            (c.rfind(word, 0) == 0 || word.rfind(c, 0) == 0))
-            guess = c;
-    return guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess);
-}
 
 void TableReader::missing(std::string_view key) const {
     // A required key that is absent is most often a misspelling: point at the typo instead.

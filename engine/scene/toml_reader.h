@@ -86,13 +86,6 @@ private:
     bool whole_file_ = false;
 };
 
-/** Levenshtein distance, for "did you mean" suggestions. */
-std::size_t edit_distance(std::string_view a, std::string_view b);
-
-/** "; did you mean 'NAME'?" for the candidate within 2 edits of `word` (or the one `word`
- *  starts or is the start of), or "" when none is close. */
-std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
-
 /** Location of a key's text (falls back to its value's). */
 FileLoc key_location(const toml::key& key, const toml::node& value, const std::string& file);
 
