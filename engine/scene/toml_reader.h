@@ -1,7 +1,7 @@
 #pragma once
 // Typed, located access to one TOML table. Every getter records the key as known; finish()
 // rejects any key nobody asked for, listing the valid ones, so a misspelled parameter is an error
-// rather than a silent default.
+// rather than a silent default. Used by the TOML scene reader (scene/toml_scene_reader.h).
 
 #include <toml++/toml.h>
 
@@ -91,5 +91,10 @@ FileLoc key_location(const toml::key& key, const toml::node& value, const std::s
 
 /** Parses a 3-vector from a node; `name` is used in messages. */
 Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view name);
+
+/** Reads and parses the TOML file at `path` (which exists). Throws SpangleError at the place
+ *  of a syntax error ("invalid TOML: ..."), and refuses a file nested deeper than the parser
+ *  can take (see check_nesting in the .cpp). A file that cannot be read parses as empty. */
+toml::table parse_toml_file(const std::string& path);
 
 }  // namespace spangle
