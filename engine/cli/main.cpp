@@ -35,11 +35,11 @@
 #include "color/image_merge.h"
 #include "color/image_output.h"
 #include "core/error.h"
+#include "core/text.h"
 #include "pipeline/frame.h"
 #include "pipeline/session.h"
 #include "render/camera.h"
 #include "render/image_metrics.h"
-#include "scene/toml_reader.h"
 
 #include "shading/material.h"
 #include "shading/plugin_loader.h"

@@ -1,7 +1,9 @@
 #pragma once
-// Parsing a TOML scene file into a registry. Colours are converted to the working space here,
-// once; mesh files are only located (the mesh_load system reads them); plugin parameters are kept
-// as written, with their locations, for the materials system to validate against the schema.
+// Loading a scene file into a registry: the reader of the file's format turns it into a
+// SceneDescription (scene/scene_description.h), then the builder turns that into components
+// (scene/scene_builder.h). Colours are converted to the working space there, once; mesh files
+// are only located (the mesh_load system reads them); plugin parameters are kept as written,
+// with their locations, for the materials system to validate against the schema.
 
 #include <string>
 #include <vector>
@@ -9,49 +11,33 @@
 #include "color/color_config.h"
 #include "ecs/registry.h"
 #include "scene/components.h"
+#include "scene/scene_description.h"
+#include "scene/scene_info.h"
 
 namespace spangle {
 
-/** Facts about the loaded scene that are not components. */
-struct SceneInfo {
-    std::string path;                         ///< the scene file
-    std::string working_space;                ///< canonical OCIO name
-    std::string color_space;                  ///< space of bare colour arrays in the file
-    std::vector<std::string> material_names;  ///< in [[material]] order
-    Camera camera;                            ///< the [camera] table (also a component)
-    /** Warnings for the caller to print: colour spaces that stood in for names the config lacks
-     *  ("file:line: 'ACEScg' is not in the OCIO config; using its scene_linear role, ..."),
-     *  motion that is not blurred. */
-    std::vector<std::string> notes;
-    /** Light groups, in order of first use: each light, emissive object and environment names
-     *  one with `light_group` ("default" when it does not). The render layers have one per group.
-     */
-    std::vector<std::string> light_groups;
-    /** Animation: the [render] frame range and rate, and whether anything has keys. Frame f is
-     *  at time (f - frame_start) / fps seconds. */
-    int64_t frame_start = 1, frame_end = 1;
-    double fps = 24.0;
-    bool animated = false;
-    double time = 0.0;  ///< the time the scene was evaluated at
-    /** [render] shutter = [open, close], in frames from the frame's time: the exposure. With
-     *  open < close, moving things are blurred over [time + open / fps, time + close / fps]
-     *  (components CameraMotion and Motion); everything else is placed at the shutter's middle.
-     */
-    double shutter_open = 0.0, shutter_close = 0.0;
-    bool motion_blur = false;  ///< something moves while the shutter is open
-    /** Each [[object]]'s placement (at the shutter's middle), in file order: the render layers'
-     *  `object` channel numbers them from 1 and the EXR header carries these. */
-    std::vector<Affine> object_to_world;
+/** A scene reader: a file of one format -> its description. Throws SpangleError at
+ *  file:line:col for what is wrong in the file. */
+using SceneReader = SceneDescription (*)(const std::string& path);
+
+/** A scene file format, known by the file name's extension. */
+struct SceneFormat {
+    const char* extension;  ///< lower case, with the dot: ".toml"
+    const char* name;       ///< for messages: "TOML"
+    SceneReader read;       ///< its reader
 };
+
+/** The formats load_scene reads, by extension. A new format (.pbrt, .gltf/.glb) is a reader and
+ *  one entry here. */
+const std::vector<SceneFormat>& scene_formats();
+
+/** The format of `path` by its extension (any case); TOML for a file whose extension is not
+ *  listed, as scene files have always been read. */
+const SceneFormat& scene_format_for(const std::string& path);
 
 /** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.
  *  Throws SpangleError with file:line:col for every problem; never crashes on bad input. */
 SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,
                      double time = 0.0);
-
-/** The time of frame f of a scene (in seconds since its frame_start). */
-inline double frame_time(const SceneInfo& info, int64_t frame) {
-    return static_cast<double>(frame - info.frame_start) / info.fps;
-}
 
 }  // namespace spangle

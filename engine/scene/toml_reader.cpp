@@ -2,6 +2,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <sstream>
+
+#include "core/text.h"
 
 namespace spangle {
 
@@ -52,22 +56,6 @@ const toml::node* TableReader::node(std::string_view key) {
     return table_.get(key);
 }
 
-std::size_t edit_distance(std::string_view a, std::string_view b) {
-    std::vector<std::size_t> row(b.size() + 1);
-    for (std::size_t j = 0; j <= b.size(); ++j) row[j] = j;
-    for (std::size_t i = 1; i <= a.size(); ++i) {
-        std::size_t diag = row[0];
-        row[0] = i;
-        for (std::size_t j = 1; j <= b.size(); ++j) {
-            const std::size_t up = row[j];
-            row[j] =
-                std::min({row[j] + 1, row[j - 1] + 1, diag + (a[i - 1] == b[j - 1] ? 0u : 1u)});
-            diag = up;
-        }
-    }
-    return row[b.size()];
-}
-
 namespace {
 
 /** A key's own location (the key text, not its value). */
@@ -77,31 +65,72 @@ FileLoc key_loc(const toml::key& key, const toml::node& value, const std::string
     return at.line == 0 ? loc_of(value, file) : at;
 }
 
-/** The closest of `candidates` to `word`, when it is within 2 edits; empty otherwise. */
-template <class Range_>
-std::string nearest(std::string_view word, const Range_& candidates) {
-    std::string best;
-    std::size_t best_d = 3;
-    for (const auto& c : candidates) {
-        const std::size_t d = edit_distance(word, c);
-        if (d < best_d) {
-            best_d = d;
-            best = std::string(c);
+std::string read_text(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::ostringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+/** The TOML parser recurses once per nesting level and per dotted key part: a hostile file
+ *  (50,000 dotted parts, arrays nested 100,000 deep) overflowed the stack. This scan, over the
+ *  raw text with strings and comments skipped, refuses such files first. */
+void check_nesting(const std::string& text, const std::string& path) {
+    constexpr int kMaxDepth = 64, kMaxKeyParts = 128;
+    std::vector<char> open;  // '[' or '{' not yet closed
+    bool key = true;         // in a key: before '=' on a line or after '{' or ',' in a table
+    int parts = 1, line = 1, column = 1;
+    const auto fail = [&](const char* what, int limit) {
+        throw_error(FileLoc{path, line, column}, "{} (at most {}); the scene cannot be this deep",
+                    what, limit);
+    };
+    for (std::size_t i = 0; i < text.size(); ++i, ++column) {
+        const char c = text[i];
+        if (c == '\n') {
+            ++line;
+            column = 0;
+            if (open.empty()) key = true, parts = 1;
+            continue;
+        }
+        if (c == '#') {  // a comment, to the end of the line
+            while (i + 1 < text.size() && text[i + 1] != '\n') ++i;
+            continue;
+        }
+        if (c == '"' || c == '\'') {  // a string: basic, literal, or either multi-line
+            const bool triple = text.compare(i, 3, std::string(3, c)) == 0;
+            i += triple ? 3 : 1;
+            for (; i < text.size(); ++i) {
+                if (text[i] == '\n') ++line, column = 0;
+                if (c == '"' && text[i] == '\\') {
+                    ++i;
+                    continue;
+                }
+                if (text[i] == c && (!triple || text.compare(i, 3, std::string(3, c)) == 0)) {
+                    if (triple) i += 2;
+                    break;
+                }
+            }
+            continue;
+        }
+        if (c == '[' || c == '{') {
+            open.push_back(c);
+            if (static_cast<int>(open.size()) > kMaxDepth)
+                fail("arrays and tables nested too deep", kMaxDepth);
+            if (c == '{') key = true, parts = 1;
+        } else if ((c == ']' || c == '}') && !open.empty()) {
+            open.pop_back();
+        } else if (c == '=') {
+            key = false;
+        } else if (c == ',' && !open.empty() && open.back() == '{') {
+            key = true;
+            parts = 1;
+        } else if (c == '.' && key) {
+            if (++parts > kMaxKeyParts) fail("a key of too many dotted parts", kMaxKeyParts);
         }
     }
-    return best;
 }
 
 }  // namespace
-
-std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates) {
-    std::string guess = nearest(word, candidates);
-    for (const auto& c : candidates)
-        if (guess.empty() && word.size() >= 3 && c.size() >= 3 &&
-            (c.rfind(word, 0) == 0 || word.rfind(c, 0) == 0))
-            guess = c;
-    return guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess);
-}
 
 void TableReader::missing(std::string_view key) const {
     // A required key that is absent is most often a misspelling: point at the typo instead.
@@ -250,6 +279,18 @@ void TableReader::finish() const {
 
 FileLoc key_location(const toml::key& key, const toml::node& value, const std::string& file) {
     return key_loc(key, value, file);
+}
+
+toml::table parse_toml_file(const std::string& path) {
+    try {
+        const std::string text = read_text(path);
+        check_nesting(text, path);
+        return toml::parse(text, path);
+    } catch (const toml::parse_error& e) {
+        const auto& s = e.source().begin;
+        throw_error(FileLoc{path, static_cast<int>(s.line), static_cast<int>(s.column)},
+                    "invalid TOML: {}", e.description());
+    }
 }
 
 }  // namespace spangle

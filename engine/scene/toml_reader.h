@@ -1,7 +1,7 @@
 #pragma once
 // Typed, located access to one TOML table. Every getter records the key as known; finish()
 // rejects any key nobody asked for, listing the valid ones, so a misspelled parameter is an error
-// rather than a silent default.
+// rather than a silent default. Used by the TOML scene reader (scene/toml_scene_reader.h).
 
 #include <toml++/toml.h>
 
@@ -86,17 +86,15 @@ private:
     bool whole_file_ = false;
 };
 
-/** Levenshtein distance, for "did you mean" suggestions. */
-std::size_t edit_distance(std::string_view a, std::string_view b);
-
-/** "; did you mean 'NAME'?" for the candidate within 2 edits of `word` (or the one `word`
- *  starts or is the start of), or "" when none is close. */
-std::string did_you_mean(std::string_view word, const std::vector<std::string>& candidates);
-
 /** Location of a key's text (falls back to its value's). */
 FileLoc key_location(const toml::key& key, const toml::node& value, const std::string& file);
 
 /** Parses a 3-vector from a node; `name` is used in messages. */
 Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view name);
+
+/** Reads and parses the TOML file at `path` (which exists). Throws SpangleError at the place
+ *  of a syntax error ("invalid TOML: ..."), and refuses a file nested deeper than the parser
+ *  can take (see check_nesting in the .cpp). A file that cannot be read parses as empty. */
+toml::table parse_toml_file(const std::string& path);
 
 }  // namespace spangle

@@ -5,7 +5,7 @@
 #include <cstring>
 
 #include "core/hash.h"
-#include "scene/toml_reader.h"
+#include "core/text.h"
 
 namespace spangle {
 

@@ -3,7 +3,7 @@
 #include <unistd.h>
 
 #include "core/files.h"
-#include "scene/toml_reader.h"
+#include "core/text.h"
 
 #include <dlfcn.h>
 #include <elf.h>

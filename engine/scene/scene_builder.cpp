@@ -1,0 +1,428 @@
+#include "scene/scene_builder.h"
+
+#include <algorithm>
+#include <cmath>
+#include <utility>
+
+#include "scene/components.h"
+#include "scene/keyed_motion.h"
+
+namespace spangle {
+
+namespace {
+
+/** What building one scene needs besides the element at hand. */
+struct BuildContext {
+    ColorConfig* color;       ///< for resolving spaces and converting to the working space
+    ecs::Registry* registry;  ///< filled
+    SceneInfo* info;          ///< filled
+    std::string bare_space;   ///< canonical space of bare colours
+    Shutter shutter;          ///< the frame's exposure
+};
+
+/** Resolves a colour space name or throws at `at` listing the known ones; notes a stand-in
+ *  (once per place and name). `implicit` words a default the scene did not write. */
+std::string resolve_space(BuildContext& ctx, const std::string& name, const FileLoc& at,
+                          const char* implicit = nullptr) {
+    auto resolved = ctx.color->resolve(name);
+    if (!resolved)
+        throw_error(at, "unknown {}colour space '{}' (known: {}); {}", implicit ? implicit : "",
+                    name, fmt::join(ctx.color->space_names(), ", "), ctx.color->how_to_fix());
+    if (!resolved->via.empty()) {
+        const std::string note =
+            fmt::format("{}: {}colour space '{}' is not in the OCIO config '{}'; using {}",
+                        at.str(), implicit ? implicit : "", name, ctx.color->path(), resolved->via);
+        auto& notes = ctx.info->notes;
+        if (std::find(notes.begin(), notes.end(), note) == notes.end()) notes.push_back(note);
+    }
+    return resolved->name;
+}
+
+/** The canonical space a colour is written in. */
+std::string space_of(BuildContext& ctx, const ColorDesc& c) {
+    return c.space ? resolve_space(ctx, *c.space, c.space_loc) : ctx.bare_space;
+}
+
+/** A colour in the working space (negative channels clamped), or `fallback` (already in the
+ *  working space) when none is written. */
+Vec3 working_color(BuildContext& ctx, const std::optional<ColorDesc>& c, Vec3 fallback) {
+    if (!c) return fallback;
+    float rgb[3] = {c->rgb.x, c->rgb.y, c->rgb.z};
+    ctx.color->to_working(space_of(ctx, *c), rgb, 1);
+    // Gamut mapping can push a channel a hair below zero; radiance and albedo cannot be negative.
+    return {std::max(rgb[0], 0.0f), std::max(rgb[1], 0.0f), std::max(rgb[2], 0.0f)};
+}
+
+/** The index of a light group (added on first use), its name checked. */
+LightGroup light_group(BuildContext& ctx, const LightGroupDesc& g) {
+    const std::string& name = g.name;
+    if (name.empty() || name.size() > 64 ||
+        name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_") !=
+            std::string::npos)
+        throw_error(g.loc,
+                    "'light_group' must be 1 to 64 letters, digits or underscores (it names a "
+                    "layer of the EXR), got \"{}\"",
+                    name);
+    std::vector<std::string>& groups = ctx.info->light_groups;
+    auto it = std::find(groups.begin(), groups.end(), name);
+    if (it == groups.end()) it = groups.insert(groups.end(), name);
+    return LightGroup{static_cast<uint32_t>(it - groups.begin())};
+}
+
+/** The working space, the bare colours' space, the Film, the frame range and the shutter. */
+void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) {
+    ColorConfig& color = *ctx.color;
+    if (d.working_space)
+        color.set_working_space(resolve_space(ctx, *d.working_space, d.working_space_loc));
+    if (color.working_space().empty())
+        color.set_working_space(
+            resolve_space(ctx, "ACEScg", d.loc, "default (no key written) working "));
+    ctx.bare_space = d.color_space
+                         ? resolve_space(ctx, *d.color_space, d.color_space_loc)
+                         : resolve_space(ctx, "lin_rec709", d.loc, "default (no key written) ");
+    Film f;
+    f.width = d.width;
+    f.height = d.height;
+    f.spp = d.spp;
+    f.max_depth = d.max_depth;
+    f.rr_depth = d.rr_depth;
+    f.seed = d.seed;
+    f.filter = d.filter;
+    f.clamp_indirect = d.clamp_indirect;
+    ctx.registry->put(settings, f);
+    SceneInfo& info = *ctx.info;
+    info.frame_start = d.frame_start;
+    info.frame_end = d.frame_end;
+    info.fps = d.fps;
+    info.shutter_open = d.shutter_open;
+    info.shutter_close = d.shutter_close;
+    info.working_space = color.working_space();
+    info.color_space = ctx.bare_space;
+    ctx.shutter = frame_shutter(info.time, info.fps, info.shutter_open, info.shutter_close);
+}
+
+/** The camera as written, checked: it must look somewhere. */
+Camera still_camera(const CameraDesc& d) {
+    Camera c;
+    c.position = d.position;
+    c.look_at = d.look_at;
+    c.up = d.up;
+    c.fov_deg = static_cast<float>(d.fov_deg);
+    const Vec3 dir = c.look_at - c.position;
+    if (!(length(dir) > 0.0f)) throw_error(d.look_at_loc, "'look_at' must differ from 'position'");
+    if (!(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)))
+        throw_error(d.up_loc, "'up' must not be parallel to the viewing direction");
+    c.aperture = static_cast<float>(d.aperture);
+    c.focus_distance = d.focus_distance ? static_cast<float>(*d.focus_distance) : length(dir);
+    return c;
+}
+
+/** The keyframed camera through the shutter; each key's fields default to `base`'s. */
+KeyedMotion<Camera> camera_motion(const BuildContext& ctx, const CameraDesc& d,
+                                  const Camera& base) {
+    const Track track =
+        key_track(d.keys, ctx.info->frame_start, ctx.info->fps, [&](const CameraKey& k) {
+            const Vec3 p = k.position.value_or(base.position);
+            const Vec3 l = k.look_at.value_or(base.look_at);
+            const Vec3 u = k.up.value_or(base.up);
+            const double fov = k.fov_deg ? *k.fov_deg : static_cast<double>(base.fov_deg);
+            return std::vector<double>{p.x, p.y, p.z, l.x, l.y, l.z, u.x, u.y, u.z, fov};
+        });
+    const auto make = [&](const std::vector<double>& v, double when) {
+        const auto f = [&](std::size_t i) { return static_cast<float>(v[i]); };
+        Camera c = base;
+        c.position = {f(0), f(1), f(2)};
+        c.look_at = {f(3), f(4), f(5)};
+        c.up = {f(6), f(7), f(8)};
+        c.fov_deg = f(9);
+        const Vec3 dir = c.look_at - c.position;
+        if (!(length(dir) > 0.0f) ||
+            !(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)) ||
+            !(c.fov_deg > 0.0f && c.fov_deg < 180.0f))
+            throw_error(d.keys.loc,
+                        "the keyframed camera at {} s looks nowhere: its look_at meets its "
+                        "position, its up is parallel to the view, or its fov leaves (0, 180)",
+                        when);
+        if (!d.focus_distance) c.focus_distance = length(dir);
+        return c;
+    };
+    return keyed_motion<Camera>(track, ctx.shutter, make);
+}
+
+/** The Camera (at the shutter's middle) and, when it blurs, its CameraMotion. */
+void build_camera(BuildContext& ctx, const CameraDesc& d, ecs::Entity settings) {
+    SceneInfo& info = *ctx.info;
+    info.camera = still_camera(d);
+    if (!d.keys.keys.empty()) {
+        const Camera base = info.camera;
+        KeyedMotion<Camera> motion = camera_motion(ctx, d, base);
+        info.camera = motion.middle;
+        if (!motion.steps.empty()) {
+            ctx.registry->put(settings, CameraMotion{std::move(motion.steps)});
+            info.motion_blur = true;
+        }
+        info.animated = true;
+    }
+    ctx.registry->put(settings, info.camera);
+}
+
+/** The environment's entity: its light group and its colour or map. */
+void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
+    const auto k = static_cast<float>(d.intensity);
+    ecs::Registry& registry = *ctx.registry;
+    const ecs::Entity env = registry.create();
+    registry.put(env, light_group(ctx, d.group));
+    if (d.map) {
+        EnvironmentMapFile m;
+        m.path = d.map->path;
+        m.loc = d.map->loc;
+        m.color_space = d.map->color_space
+                            ? resolve_space(ctx, *d.map->color_space, d.map->color_space_loc)
+                            : resolve_space(ctx, "lin_rec709", d.loc, "default (no key written) ");
+        m.rotation_deg = static_cast<float>(d.map->rotation_deg);
+        m.intensity = k;
+        registry.put(env, m);
+    } else {
+        registry.put(env, Environment{working_color(ctx, d.color, {0, 0, 0}) * k});
+    }
+}
+
+/** A texture's lookup, its colour space resolved ("raw" for data, "" for the default). */
+TextureRef texture_ref(BuildContext& ctx, const TextureDesc& t) {
+    TextureRef ref;
+    ref.path = t.path;
+    if (t.space)
+        ref.space = *t.space == "raw" || *t.space == "data"
+                        ? "raw"
+                        : resolve_space(ctx, *t.space, t.space_loc);
+    std::copy(std::begin(t.scale), std::end(t.scale), std::begin(ref.scale));
+    std::copy(std::begin(t.uv), std::end(t.uv), std::begin(ref.uv));
+    ref.wrap = t.wrap;
+    ref.filter = t.filter;
+    ref.amount = t.amount;
+    return ref;
+}
+
+/** A parameter as the materials system takes it: colours stay in the space they are written in
+ *  (canonical name in `text`), textures carry their path in `text`. */
+ParamEntry param_entry(BuildContext& ctx, const ParamDesc& d) {
+    ParamEntry p;
+    p.name = d.name;
+    p.loc = d.loc;
+    p.key_loc = d.key_loc;
+    p.number[0] = d.number;
+    p.is_integer = d.is_integer;
+    p.text = d.text;
+    switch (d.kind) {
+        case ParamDesc::Kind::Number:
+            p.kind = ParamEntry::Kind::Number;
+            break;
+        case ParamDesc::Kind::Bool:
+            p.kind = ParamEntry::Kind::Bool;
+            break;
+        case ParamDesc::Kind::String:
+            p.kind = ParamEntry::Kind::String;
+            break;
+        case ParamDesc::Kind::Color:
+            p.kind = ParamEntry::Kind::Color;
+            p.number[0] = d.color.rgb.x;
+            p.number[1] = d.color.rgb.y;
+            p.number[2] = d.color.rgb.z;
+            p.text = space_of(ctx, d.color);
+            break;
+        case ParamDesc::Kind::Texture:
+            p.kind = ParamEntry::Kind::Texture;
+            p.texture = texture_ref(ctx, d.texture);
+            p.text = p.texture.path;
+            break;
+    }
+    return p;
+}
+
+/** One material's entity; its name must be new. */
+void build_material(BuildContext& ctx, const MaterialDesc& d) {
+    Material m;
+    m.loc = d.loc;
+    m.name = d.name;
+    m.plugin = d.plugin;
+    m.plugin_loc = d.plugin_loc;
+    m.model = d.model;
+    m.model_loc = d.model_loc;
+    for (const ParamDesc& p : d.params) m.params.push_back(param_entry(ctx, p));
+    for (const ParamDesc& p : d.maps) m.maps.push_back(param_entry(ctx, p));
+    std::vector<std::string>& names = ctx.info->material_names;
+    if (std::find(names.begin(), names.end(), m.name) != names.end())
+        throw_error(d.name_loc, "material '{}' is defined twice", m.name);
+    names.push_back(m.name);
+    ctx.registry->put(ctx.registry->create(), m);
+}
+
+/** An object's shape as the geometry systems take it. */
+void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
+    if (const auto* mesh = std::get_if<MeshFileShape>(&d.shape)) {
+        ctx.registry->put(e, MeshFile{mesh->path, mesh->loc});
+    } else if (const auto* sub = std::get_if<SubdivShape>(&d.shape)) {
+        ctx.registry->put(
+            e, SubdivSurface{sub->path, sub->loc, sub->options, sub->max_level, sub->pixel_budget});
+    } else {
+        throw_error(std::get<InlineMeshShape>(d.shape).loc,
+                    "{}: a triangle mesh written in the scene file is not supported yet; give "
+                    "it as a mesh file",
+                    d.what);
+    }
+}
+
+/** The index of the material an object names. */
+uint32_t material_index(const BuildContext& ctx, const ObjectDesc& d) {
+    const std::vector<std::string>& names = ctx.info->material_names;
+    const auto it = std::find(names.begin(), names.end(), d.material);
+    if (it == names.end())
+        throw_error(
+            d.material_loc, "unknown material '{}' (defined: {})", d.material,
+            names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
+    return static_cast<uint32_t>(it - names.begin());
+}
+
+/** Placement parts as one transform: scale, then Euler angles (degrees) about X, then Y, then
+ *  Z, then translation. */
+Affine compose(const TransformParts& p) {
+    Affine m = Affine::scale(p.scale);
+    m = Affine::rotate(p.rotate.x, {1, 0, 0}).compose(m);
+    m = Affine::rotate(p.rotate.y, {0, 1, 0}).compose(m);
+    m = Affine::rotate(p.rotate.z, {0, 0, 1}).compose(m);
+    return Affine::translate(p.translate).compose(m);
+}
+
+/** An object's placement through the shutter; each key's parts default to the object's own. */
+KeyedMotion<Affine> placement_motion(const BuildContext& ctx, const ObjectDesc& d) {
+    if (d.keys.keys.empty())
+        return {d.placement.matrix ? *d.placement.matrix : compose(d.placement.parts), {}};
+    if (d.placement.matrix)
+        throw_error(d.keys.loc,
+                    "{}: keys move scale, rotate and translate, but it is placed by "
+                    "a matrix",
+                    d.what);
+    const TransformParts& base = d.placement.parts;
+    const Track track =
+        key_track(d.keys, ctx.info->frame_start, ctx.info->fps, [&](const ObjectKey& k) {
+            const TransformParts p{k.scale.value_or(base.scale), k.rotate.value_or(base.rotate),
+                                   k.translate.value_or(base.translate)};
+            return std::vector<double>{p.scale.x,     p.scale.y,     p.scale.z,
+                                       p.rotate.x,    p.rotate.y,    p.rotate.z,
+                                       p.translate.x, p.translate.y, p.translate.z};
+        });
+    const auto make = [&](const std::vector<double>& v, double t) {
+        const auto f = [&](std::size_t j) { return static_cast<float>(v[j]); };
+        const TransformParts now{{f(0), f(1), f(2)}, {f(3), f(4), f(5)}, {f(6), f(7), f(8)}};
+        for (std::size_t a = 0; a < 3; ++a)
+            if (!(std::fabs(f(a)) >= 1e-8f))
+                throw_error(d.keys.loc,
+                            "{}: the keyframed scale passes through 0 at {} s (the object would "
+                            "vanish into a plane)",
+                            d.what, t);
+        return compose(now);
+    };
+    return keyed_motion<Affine>(track, ctx.shutter, make);
+}
+
+/** One object's entity: what it is, its shape, material, placement, emission and motion. */
+void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
+    ecs::Registry& registry = *ctx.registry;
+    SceneInfo& info = *ctx.info;
+    const ecs::Entity e = registry.create();
+    registry.put(e, ObjectInfo{d.name, d.loc, index});
+    put_shape(ctx, e, d);
+    registry.put(e, MaterialRef{material_index(ctx, d)});
+    KeyedMotion<Affine> motion = placement_motion(ctx, d);
+    if (!d.keys.keys.empty()) info.animated = true;
+    registry.put(e, Transform{motion.middle});
+    info.object_to_world.push_back(motion.middle);
+    if (d.emission) {
+        const Vec3 le = working_color(ctx, d.emission->color, {0, 0, 0}) *
+                        static_cast<float>(d.emission->intensity);
+        if (max_component(le) > 0.0f) registry.put(e, Emission{le});
+        registry.put(e, light_group(ctx, d.emission->group));
+    }
+    if (motion.steps.empty()) return;
+    if (registry.has<Emission>(e)) {
+        info.notes.push_back(
+            fmt::format("{}: {} moves while the shutter is open but emits light: it is not "
+                        "blurred (lights are placed at the shutter's middle)",
+                        d.keys.loc.str(), d.what));
+    } else {
+        registry.put(e, Motion{std::move(motion.steps)});
+        info.motion_blur = true;
+    }
+}
+
+/** Puts a light's own component on its entity, checking its geometry. */
+struct LightPut {
+    ecs::Registry& registry;  ///< where
+    ecs::Entity e;            ///< the light's entity
+    Vec3 value;               ///< colour x intensity, working space
+
+    /** A quad: its edges must span an area. */
+    void operator()(const QuadLightDesc& d) const {
+        if (!(length(cross(d.edge1, d.edge2)) > 0.0f))
+            throw_error(d.edge2_loc, "quad light edges must span a non-zero area");
+        registry.put(e, QuadLight{d.corner, d.edge1, d.edge2, value, d.two_sided});
+    }
+    /** A sphere. */
+    void operator()(const SphereLightDesc& d) const {
+        registry.put(e, SphereLight{d.center, static_cast<float>(d.radius), value});
+    }
+    /** A point light: a PointLight with no cone. */
+    void operator()(const PointLightDesc& d) const {
+        registry.put(e, PointLight{d.position, value, {}, -1.0f, -1.0f});
+    }
+    /** A spot light: its cone must point somewhere and fade within its angle. */
+    void operator()(const SpotLightDesc& d) const {
+        if (!(length(d.look_at - d.position) > 0.0f))
+            throw_error(d.look_at_loc, "'look_at' must differ from 'position'");
+        const Vec3 axis = normalize(d.look_at - d.position);
+        if (d.cone_falloff > d.cone_angle)
+            throw_error(d.cone_falloff_loc, "'cone_falloff' ({}) must not exceed 'cone_angle' ({})",
+                        d.cone_falloff, d.cone_angle);
+        const auto cos_outer = static_cast<float>(std::cos(d.cone_angle * M_PI / 180.0));
+        const auto cos_inner =
+            static_cast<float>(std::cos((d.cone_angle - d.cone_falloff) * M_PI / 180.0));
+        registry.put(e, PointLight{d.position, value, axis, cos_outer, cos_inner});
+    }
+    /** A distant light: its direction must not be zero. */
+    void operator()(const DistantLightDesc& d) const {
+        if (!(length(d.direction) > 0.0f))
+            throw_error(d.direction_loc, "'direction' must not be zero");
+        registry.put(e, DistantLight{normalize(d.direction), value,
+                                     static_cast<float>(d.angular_radius_deg)});
+    }
+};
+
+/** One light's entity: its light group and its light. */
+void build_light(BuildContext& ctx, const LightDesc& d) {
+    const Vec3 color = working_color(ctx, d.color, {1, 1, 1});
+    const auto intensity = static_cast<float>(d.intensity);
+    const ecs::Entity e = ctx.registry->create();
+    ctx.registry->put(e, light_group(ctx, d.group));
+    std::visit(LightPut{*ctx.registry, e, color * intensity}, d.shape);
+}
+
+}  // namespace
+
+SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Registry& registry,
+                      double time) {
+    SceneInfo info;
+    info.path = scene.path;
+    info.time = time;
+    BuildContext ctx{&color, &registry, &info, {}, {}};
+    const ecs::Entity settings = registry.create();
+    build_render(ctx, scene.render, settings);
+    build_camera(ctx, scene.camera, settings);
+    if (scene.environment) build_environment(ctx, *scene.environment);
+    for (const MaterialDesc& m : scene.materials) build_material(ctx, m);
+    for (std::size_t i = 0; i < scene.objects.size(); ++i)
+        build_object(ctx, scene.objects[i], static_cast<uint32_t>(i));
+    for (const LightDesc& l : scene.lights) build_light(ctx, l);
+    return info;
+}
+
+}  // namespace spangle

@@ -1,0 +1,291 @@
+#pragma once
+// A scene as a reader hands it to the builder, in no file format's terms: what the file says,
+// checked one value at a time (types, ranges, names of options), with the place each thing is
+// written (file:line:col) so that the builder's checks across elements blame the place the user
+// wrote. Nothing here is resolved yet: colours keep their numbers and the colour space as
+// written, materials and light groups are names, keyframes are keys. The builder
+// (scene/scene_builder.h) resolves, checks and fills the Registry.
+//
+// A reader fills in what its file says and leaves the rest at the defaults below (Spangle's
+// defaults; a format with other defaults writes its own). Files a scene names are resolved by
+// the reader against the scene's folder and checked to exist (scene/scene_paths.h).
+
+#include <cstdint>
+#include <memory>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "core/error.h"
+#include "core/math.h"
+#include "core/pixel_filter.h"
+#include "geometry/subdivision.h"
+#include "geometry/triangle_mesh.h"
+
+namespace spangle {
+
+/** A colour as written: three numbers and the colour space they are in. */
+struct ColorDesc {
+    Vec3 rgb;                          ///< the numbers as written (finite)
+    std::optional<std::string> space;  ///< the space as written; none = bare: render.color_space
+    FileLoc loc;                       ///< where the colour is written
+    FileLoc space_loc;                 ///< where its space is named (loc when bare)
+};
+
+/** An image bound to a material input, and how it is looked up. */
+struct TextureDesc {
+    std::string path;                  ///< resolved image path (the reader checked it exists)
+    std::optional<std::string> space;  ///< colour space as written ("raw" or "data": values are
+                                       ///< data); none = the default for the input
+    FileLoc space_loc;                 ///< where the space is named
+    float scale[3] = {1, 1, 1};        ///< multiplies the looked-up value (per channel)
+    float uv[6] = {1, 0, 0, 0, 1, 0};  ///< (u, v) -> (uv0 u + uv1 v + uv2, uv3 u + uv4 v + uv5)
+    int wrap = 0;                      ///< 0 periodic, 1 clamp, 2 black, 3 mirror
+    int filter = 0;                    ///< 0 trilinear, 1 anisotropic
+    float amount = 1;                  ///< normal map: strength; bump map: height in metres
+};
+
+/** One material parameter as written, before the plugin's schema checks it. */
+struct ParamDesc {
+    /** What the value was written as. */
+    enum class Kind { Number, Bool, String, Color, Texture };
+    std::string name;          ///< the parameter's name
+    Kind kind = Kind::Number;  ///< which of the fields below holds the value
+    double number = 0;         ///< Number: the value (finite); Bool: 0 or 1
+    bool is_integer = false;   ///< Number written as an integer
+    std::string text;          ///< String: the value
+    ColorDesc color;           ///< Color: the colour
+    TextureDesc texture;       ///< Texture: the image
+    FileLoc loc;               ///< where the value is written
+    FileLoc key_loc;           ///< where the name is written
+};
+
+/** A material: a model of a plugin and its parameters. */
+struct MaterialDesc {
+    std::string name;               ///< the name objects use (the builder checks it is unique)
+    std::string plugin;             ///< plugin name, e.g. "smooth"
+    std::string model;              ///< model within the plugin; empty = the plugin's only one
+    std::vector<ParamDesc> params;  ///< in the order written
+    /** normal_map or bump_map (at most one), as a Texture parameter of that name: the host
+     *  applies it to the shading frame before the plugin sees the point. */
+    std::vector<ParamDesc> maps;
+    FileLoc loc;         ///< the material as a whole
+    FileLoc name_loc;    ///< its name
+    FileLoc plugin_loc;  ///< its plugin
+    FileLoc model_loc;   ///< its model (loc when not written)
+};
+
+/** When a key is: seconds, or a frame of the render settings' range. */
+struct KeyTime {
+    double seconds = 0.0;          ///< the time, when frame is not set
+    std::optional<int64_t> frame;  ///< a frame number: (frame - frame_start) / fps seconds
+};
+
+/** Keyframes of one thing, in the order written (the builder checks that time increases). */
+template <class Key>
+struct Keys {
+    std::vector<Key> keys;  ///< empty: not animated
+    bool smooth = true;     ///< a smooth spline through the keys, else straight segments
+    FileLoc loc;            ///< where the keys are written (blamed for what they do between keys)
+};
+
+/** One key of the camera; what it does not give is the camera's own. */
+struct CameraKey {
+    KeyTime time;                   ///< when
+    std::optional<Vec3> position;   ///< eye, world space
+    std::optional<Vec3> look_at;    ///< point looked at
+    std::optional<Vec3> up;         ///< up hint
+    std::optional<double> fov_deg;  ///< vertical field of view, degrees, in (0, 180)
+    FileLoc loc;                    ///< the key
+    std::string what;               ///< what messages call the key, e.g. "[[camera.keys]] #2"
+};
+
+/** A perspective camera, pinhole or thin lens. */
+struct CameraDesc {
+    Vec3 position;                         ///< eye, world space
+    Vec3 look_at;                          ///< point looked at
+    Vec3 up{0, 1, 0};                      ///< up hint
+    double fov_deg = 40.0;                 ///< vertical field of view, degrees, in (0, 180)
+    double aperture = 0.0;                 ///< lens radius, metres; 0 = pinhole
+    std::optional<double> focus_distance;  ///< metres; none = the distance to look_at
+    Keys<CameraKey> keys;                  ///< its motion
+    FileLoc loc;                           ///< the camera
+    FileLoc look_at_loc;                   ///< its look_at (blamed when it meets the position)
+    FileLoc up_loc;                        ///< its up (blamed when parallel to the view)
+};
+
+/** The light group a light, an emissive object or the environment belongs to (render layers). */
+struct LightGroupDesc {
+    std::string name = "default";  ///< 1 to 64 letters, digits or underscores (the builder checks)
+    FileLoc loc;                   ///< where it is named (the owner's loc when not written)
+};
+
+/** The environment: a constant colour or a lat-long map. A reader gives at most one of them. */
+struct EnvironmentDesc {
+    /** A lat-long image. */
+    struct Map {
+        std::string path;                        ///< resolved image path
+        FileLoc loc;                             ///< where it is named
+        std::optional<std::string> color_space;  ///< as written; none = lin_rec709
+        FileLoc color_space_loc;                 ///< where the space is named
+        double rotation_deg = 0.0;               ///< turn about +y
+    };
+    std::optional<ColorDesc> color;  ///< constant radiance; none (and no map) = black
+    std::optional<Map> map;          ///< the map, when it is one
+    double intensity = 1.0;          ///< scale (non-negative)
+    LightGroupDesc group;            ///< its light group
+    FileLoc loc;                     ///< the environment
+};
+
+/** An object's placement as parts: scale, Euler rotation (degrees), translation. */
+struct TransformParts {
+    Vec3 scale{1, 1, 1};      ///< per axis, each in [1e-8, 1e8] in size
+    Vec3 rotate{0, 0, 0};     ///< degrees about X, then Y, then Z
+    Vec3 translate{0, 0, 0};  ///< world-space offset
+};
+
+/** Where an object stands: parts (the TOML way, which keys animate), or a matrix. */
+struct PlacementDesc {
+    TransformParts parts;          ///< used when there is no matrix
+    std::optional<Affine> matrix;  ///< object to world as a whole (pbrt, glTF); keys need parts
+};
+
+/** One key of an object's placement; the parts it does not give are the object's own. */
+struct ObjectKey {
+    KeyTime time;                   ///< when
+    std::optional<Vec3> scale;      ///< per axis
+    std::optional<Vec3> rotate;     ///< degrees
+    std::optional<Vec3> translate;  ///< world space
+    FileLoc loc;                    ///< the key
+    std::string what;               ///< what messages call the key
+};
+
+/** A triangle mesh in a file (OBJ, PLY). */
+struct MeshFileShape {
+    std::string path;  ///< resolved path
+    FileLoc loc;       ///< where it is named
+};
+
+/** A subdivision surface: a cage in a file and how to refine it. */
+struct SubdivShape {
+    std::string path;           ///< resolved cage path (OBJ)
+    FileLoc loc;                ///< where the cage is named
+    SubdivOptions options;      ///< scheme, boundaries, creases; level -1 = from the camera
+    int max_level = 5;          ///< upper bound of the camera-chosen level
+    float pixel_budget = 2.0f;  ///< camera-chosen level: longest refined edge, in pixels
+};
+
+/** A triangle mesh written in the scene file itself (pbrt's trianglemesh, glTF's buffers). */
+struct InlineMeshShape {
+    std::shared_ptr<const TriangleMesh> mesh;  ///< object space; `source` names the scene file
+    FileLoc loc;                               ///< where it is written
+};
+
+/** What an object is made of. */
+using ShapeDesc = std::variant<MeshFileShape, SubdivShape, InlineMeshShape>;
+
+/** Light an object's surface emits from its front faces. */
+struct EmissionDesc {
+    ColorDesc color;         ///< radiance (non-negative), W/(m^2 sr)
+    double intensity = 1.0;  ///< scale (non-negative)
+    LightGroupDesc group;    ///< its light group
+};
+
+/** A placed shape with a material. */
+struct ObjectDesc {
+    std::string name;                      ///< empty when unnamed
+    ShapeDesc shape;                       ///< its geometry
+    std::string material;                  ///< a material's name
+    PlacementDesc placement;               ///< object to world
+    Keys<ObjectKey> keys;                  ///< its motion (of the placement's parts)
+    std::optional<EmissionDesc> emission;  ///< when it is a light
+    FileLoc loc;                           ///< the object
+    FileLoc material_loc;                  ///< its material's name
+    std::string what;                      ///< what messages call it, e.g. "[[object]] #3"
+};
+
+/** A parallelogram area light. */
+struct QuadLightDesc {
+    Vec3 corner;             ///< one corner, world space
+    Vec3 edge1;              ///< first edge from the corner
+    Vec3 edge2;              ///< second edge; emits towards edge1 x edge2
+    bool two_sided = false;  ///< emits from both faces
+    FileLoc edge2_loc;       ///< blamed when the edges span no area
+};
+
+/** A spherical area light. */
+struct SphereLightDesc {
+    Vec3 center;          ///< world space
+    double radius = 1.0;  ///< metres, positive
+};
+
+/** A point light. */
+struct PointLightDesc {
+    Vec3 position;  ///< world space
+};
+
+/** A spot light: a point light whose cone falls off towards its edge. */
+struct SpotLightDesc {
+    Vec3 position;              ///< world space
+    Vec3 look_at;               ///< the cone's axis points here
+    double cone_angle = 30.0;   ///< the cone's half-angle, degrees, in (0, 90]
+    double cone_falloff = 5.0;  ///< degrees inside the edge over which it fades, in [0, 90]
+    FileLoc look_at_loc;        ///< blamed when it meets the position
+    FileLoc cone_falloff_loc;   ///< blamed when the falloff exceeds the angle
+};
+
+/** A light at infinity: a delta direction or a sun disk. */
+struct DistantLightDesc {
+    Vec3 direction;                   ///< from the scene towards the light (not normalised)
+    double angular_radius_deg = 0.0;  ///< 0 = a delta direction
+    FileLoc direction_loc;            ///< blamed when it is zero
+};
+
+/** What kind of light, with its own fields. */
+using LightShapeDesc =
+    std::variant<QuadLightDesc, SphereLightDesc, PointLightDesc, SpotLightDesc, DistantLightDesc>;
+
+/** A light. Its emission is color x intensity: radiance, intensity (W/sr) or irradiance. */
+struct LightDesc {
+    LightShapeDesc shape;            ///< kind and placement
+    std::optional<ColorDesc> color;  ///< non-negative; none = white in the working space
+    double intensity = 1.0;          ///< scale (non-negative)
+    LightGroupDesc group;            ///< its light group
+    FileLoc loc;                     ///< the light
+};
+
+/** Image size, sampling, colour spaces, frame range and shutter. */
+struct RenderDesc {
+    uint32_t width = 640;                      ///< pixels
+    uint32_t height = 360;                     ///< pixels
+    uint32_t spp = 16;                         ///< samples per pixel
+    uint32_t max_depth = 5;                    ///< maximum bounces
+    uint32_t rr_depth = 3;                     ///< bounces before Russian roulette
+    uint64_t seed = 0;                         ///< random seed
+    FilterKind filter = FilterKind::Gaussian;  ///< pixel filter
+    float clamp_indirect = 0.0f;               ///< max luminance of one indirect contribution
+    std::optional<std::string> working_space;  ///< as written; none = the config's, else ACEScg
+    std::optional<std::string> color_space;    ///< of bare colours; none = lin_rec709
+    int64_t frame_start = 1;                   ///< first frame of the animation
+    int64_t frame_end = 1;                     ///< last frame (not before frame_start)
+    double fps = 24.0;                         ///< frames per second, positive
+    double shutter_open = 0.0;                 ///< frames from the frame's time, in [-16, 16]
+    double shutter_close = 0.0;                ///< not before shutter_open; equal = no blur
+    FileLoc loc;                               ///< the settings (blamed for defaults)
+    FileLoc working_space_loc;                 ///< where the working space is named
+    FileLoc color_space_loc;                   ///< where the bare colours' space is named
+};
+
+/** Everything a scene file says, in the order written within each kind. */
+struct SceneDescription {
+    std::string path;                            ///< the file it was read from
+    RenderDesc render;                           ///< render settings
+    CameraDesc camera;                           ///< the camera (every scene has one)
+    std::optional<EnvironmentDesc> environment;  ///< none = black, no environment light
+    std::vector<MaterialDesc> materials;         ///< in the order written
+    std::vector<ObjectDesc> objects;             ///< in the order written (numbered from 0)
+    std::vector<LightDesc> lights;               ///< in the order written
+};
+
+}  // namespace spangle

@@ -1,0 +1,51 @@
+#pragma once
+// What a loaded scene is besides its components: paths, colour spaces, names in file order, the
+// frame range and shutter, notes for the user. The builder fills it (scene/scene_builder.h).
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "core/math.h"
+#include "scene/components.h"
+
+namespace spangle {
+
+/** Facts about the loaded scene that are not components. */
+struct SceneInfo {
+    std::string path;                         ///< the scene file
+    std::string working_space;                ///< canonical OCIO name
+    std::string color_space;                  ///< space of bare colour arrays in the file
+    std::vector<std::string> material_names;  ///< in [[material]] order
+    Camera camera;                            ///< the [camera] table (also a component)
+    /** Warnings for the caller to print: colour spaces that stood in for names the config lacks
+     *  ("file:line: 'ACEScg' is not in the OCIO config; using its scene_linear role, ..."),
+     *  motion that is not blurred. */
+    std::vector<std::string> notes;
+    /** Light groups, in order of first use: each light, emissive object and environment names
+     *  one with `light_group` ("default" when it does not). The render layers have one per group.
+     */
+    std::vector<std::string> light_groups;
+    /** Animation: the [render] frame range and rate, and whether anything has keys. Frame f is
+     *  at time (f - frame_start) / fps seconds. */
+    int64_t frame_start = 1, frame_end = 1;
+    double fps = 24.0;
+    bool animated = false;
+    double time = 0.0;  ///< the time the scene was evaluated at
+    /** [render] shutter = [open, close], in frames from the frame's time: the exposure. With
+     *  open < close, moving things are blurred over [time + open / fps, time + close / fps]
+     *  (components CameraMotion and Motion); everything else is placed at the shutter's middle.
+     */
+    double shutter_open = 0.0, shutter_close = 0.0;
+    bool motion_blur = false;  ///< something moves while the shutter is open
+    /** Each [[object]]'s placement (at the shutter's middle), in file order: the render layers'
+     *  `object` channel numbers them from 1 and the EXR header carries these. */
+    std::vector<Affine> object_to_world;
+};
+
+/** The time of frame f of a scene (in seconds since its frame_start). */
+inline double frame_time(const SceneInfo& info, int64_t frame) {
+    return static_cast<double>(frame - info.frame_start) / info.fps;
+}
+
+}  // namespace spangle

@@ -1,0 +1,25 @@
+#include "scene/scene_paths.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+
+std::string find_scene_file(const std::string& given, const fs::path& dir, std::string_view key,
+                            const FileLoc& at) {
+    if (given.empty()) throw_error(at, "'{}' must not be empty", key);
+    fs::path p(given);
+    if (p.is_relative()) p = dir / p;
+    std::error_code ec;
+    if (!fs::is_regular_file(p, ec))
+        throw_error(at, "{} file '{}' not found (looked for {})", key, given, p.string());
+    return p.lexically_normal().string();
+}
+
+void check_scene_file(const std::string& path) {
+    std::error_code ec;
+    if (!fs::exists(path, ec)) throw_error("scene file '{}' not found", path);
+    if (!fs::is_regular_file(path, ec))
+        throw_error("scene file '{}' is not a regular file (a folder, a device or a pipe)", path);
+}
+
+}  // namespace spangle

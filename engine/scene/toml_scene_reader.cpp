@@ -1,0 +1,437 @@
+#include "scene/toml_scene_reader.h"
+
+#include <cmath>
+#include <utility>
+
+#include "scene/scene_paths.h"
+#include "scene/toml_scene_parts.h"
+
+namespace spangle {
+
+namespace {
+
+using toml_scene::kNonNegative;
+using toml_scene::ReadContext;
+
+/** The file named by `key`, relative to the scene's folder, checked to exist. */
+std::string read_file(const ReadContext& ctx, TableReader& r, std::string_view key) {
+    return find_scene_file(r.string(key), ctx.dir, key, r.loc(key));
+}
+
+/** The [render] table (or an empty one). */
+RenderDesc read_render(TableReader& r) {
+    RenderDesc d;
+    d.loc = r.loc();
+    if (r.has("working_space")) {
+        d.working_space = r.string("working_space");
+        d.working_space_loc = r.loc("working_space");
+    }
+    if (r.has("color_space")) {
+        d.color_space = r.string("color_space");
+        d.color_space_loc = r.loc("color_space");
+    }
+    d.width = static_cast<uint32_t>(r.integer("width", d.width, {1, 16384}));
+    d.height = static_cast<uint32_t>(r.integer("height", d.height, {1, 16384}));
+    d.spp = static_cast<uint32_t>(r.integer("spp", d.spp, {1, 1 << 20}));
+    d.max_depth = static_cast<uint32_t>(r.integer("max_depth", d.max_depth, {1, 1024}));
+    d.rr_depth = static_cast<uint32_t>(r.integer("rr_depth", d.rr_depth, {1, 1024}));
+    d.seed = static_cast<uint64_t>(r.integer("seed", 0, {0, 9.0e18}));
+    const std::string filter = r.string("filter", "gaussian");
+    d.clamp_indirect = static_cast<float>(r.number("clamp_indirect", 0.0, {0.0, 1e30}));
+    if (!parse_filter(filter, d.filter))
+        throw_error(r.loc("filter"), "unknown filter '{}' (valid: box, gaussian, blackman-harris)",
+                    filter);
+    d.frame_start = r.integer("frame_start", d.frame_start, {-1e9, 1e9});
+    d.frame_end = r.integer("frame_end", d.frame_start, {static_cast<double>(d.frame_start), 1e9});
+    d.fps = r.number("fps", d.fps, {0.0, 1e6, true});
+    if (const toml::node* n = r.node("shutter")) {
+        float open = 0.0f, close = 0.0f;
+        if (!toml_scene::two_numbers(*n, open, close) || !std::isfinite(open) ||
+            !std::isfinite(close))
+            throw_error(loc_of(*n, r.file()),
+                        "'shutter' must be [open, close]: two numbers, in frames from the "
+                        "frame's time (e.g. [-0.25, 0.25] for a 180-degree shutter centred "
+                        "on the frame)");
+        if (!(open <= close) || !(std::fabs(open) <= 16.0f && std::fabs(close) <= 16.0f))
+            throw_error(loc_of(*n, r.file()),
+                        "'shutter' = [{}, {}]: open must not come after close, and both "
+                        "must lie within 16 frames of the frame",
+                        open, close);
+        d.shutter_open = open;
+        d.shutter_close = close;
+    }
+    r.finish();
+    return d;
+}
+
+/** The time of one key: `time` in seconds, or `frame` (a frame number of [render]). */
+KeyTime read_key_time(TableReader& r) {
+    const bool has_time = r.has("time"), has_frame = r.has("frame");
+    if (has_time == has_frame)
+        throw_error(r.loc(), "{} needs exactly one of 'time' (seconds) or 'frame'", r.what());
+    KeyTime t;
+    if (has_time)
+        t.seconds = r.number("time", {-1e9, 1e9});
+    else
+        t.frame = r.integer("frame", 0, {-1e9, 1e9});
+    return t;
+}
+
+/** `interpolation = "smooth" | "linear"` of an animated table. */
+bool read_interpolation(TableReader& r) {
+    const std::string how = r.string("interpolation", "smooth");
+    if (how != "smooth" && how != "linear")
+        throw_error(r.loc("interpolation"),
+                    "'interpolation' must be \"smooth\" or \"linear\", got \"{}\"", how);
+    return how == "smooth";
+}
+
+/** A 3-vector under `key`, or none when absent. */
+std::optional<Vec3> optional_vec3(TableReader& r, std::string_view key) {
+    if (!r.has(key)) return std::nullopt;
+    return r.vec3(key);
+}
+
+/** The `keys` of an animated table and its interpolation (checked when there are no keys
+ *  too); `read_key(kr)` reads one key's table, `name(k)` is what messages call the k-th (from
+ *  1). */
+template <class Key, class ReadKey, class Name>
+Keys<Key> read_keys(TableReader& r, const Name& name, const ReadKey& read_key) {
+    Keys<Key> out;
+    if (const toml::array* keys = r.table_array("keys")) {
+        out.loc = r.loc("keys");
+        out.smooth = read_interpolation(r);
+        for (std::size_t k = 0; k < keys->size(); ++k) {
+            TableReader kr(*(*keys)[k].as_table(), r.file(), name(k + 1));
+            Key key = read_key(kr);
+            key.loc = kr.loc();
+            key.what = kr.what();
+            kr.finish();
+            out.keys.push_back(std::move(key));
+        }
+    } else if (r.has("interpolation")) {
+        read_interpolation(r);
+    }
+    return out;
+}
+
+/** The [camera] table and its keys. */
+CameraDesc read_camera(TableReader& r) {
+    CameraDesc c;
+    c.loc = r.loc();
+    const bool focus_given = r.has("focus_distance");
+    c.position = r.vec3("position");
+    c.look_at = r.vec3("look_at");
+    c.look_at_loc = r.loc("look_at");
+    c.up = r.vec3("up", c.up);
+    c.up_loc = r.loc("up");
+    c.fov_deg = r.number("fov", c.fov_deg, {0.0, 180.0, true, true});
+    c.aperture = r.number("aperture", c.aperture, {0.0, 1e3});
+    if (focus_given) c.focus_distance = r.number("focus_distance", {0.0, 1e30, true});
+    const auto name = [](std::size_t k) { return fmt::format("[[camera.keys]] #{}", k); };
+    c.keys = read_keys<CameraKey>(r, name, [](TableReader& kr) {
+        CameraKey key;
+        key.time = read_key_time(kr);
+        key.position = optional_vec3(kr, "position");
+        key.look_at = optional_vec3(kr, "look_at");
+        key.up = optional_vec3(kr, "up");
+        if (kr.has("fov")) key.fov_deg = kr.number("fov", {0.0, 180.0, true, true});
+        return key;
+    });
+    r.finish();
+    return c;
+}
+
+/** `light_group = "name"` (checked by the builder). */
+LightGroupDesc read_light_group(TableReader& r) {
+    LightGroupDesc g;
+    g.name = r.string("light_group", g.name);
+    g.loc = r.loc("light_group");
+    return g;
+}
+
+/** The [environment] table: a colour or a map. */
+EnvironmentDesc read_environment(const ReadContext& ctx, TableReader& r) {
+    EnvironmentDesc e;
+    e.loc = r.loc();
+    e.intensity = r.number("intensity", e.intensity, kNonNegative);
+    e.group = read_light_group(r);
+    if (r.has("map")) {
+        if (r.has("color"))
+            throw_error(r.loc("color"), "give either 'color' or 'map' in [environment], not both");
+        EnvironmentDesc::Map m;
+        m.path = read_file(ctx, r, "map");
+        m.loc = r.loc("map");
+        if (r.has("color_space")) {
+            m.color_space = r.string("color_space");
+            m.color_space_loc = r.loc("color_space");
+        }
+        m.rotation_deg = r.number("rotation", m.rotation_deg, {-360.0, 360.0});
+        e.map = std::move(m);
+    } else {
+        e.color = toml_scene::read_color(ctx, r, "color");
+    }
+    r.finish();
+    return e;
+}
+
+/** An object's or a key's `scale`: one number or [x, y, z], each within 1e-8..1e8 in size. */
+std::optional<Vec3> read_scale(TableReader& r) {
+    const toml::node* s = r.node("scale");
+    if (!s) return std::nullopt;
+    Vec3 v;
+    if (s->is_number())
+        v = Vec3(static_cast<float>(s->value<double>().value_or(0.0)));
+    else
+        v = parse_vec3(*s, r.file(), "scale");
+    // Rays are carried into object space by the inverse scale, in floats: beyond 1e8 either way
+    // they overflow or lose every bit of precision (1e-20 sent non-finite rays).
+    const auto in_range = [](float k) {
+        return std::isfinite(k) && std::fabs(k) >= 1e-8f && std::fabs(k) <= 1e8f;
+    };
+    if (!in_range(v.x) || !in_range(v.y) || !in_range(v.z))
+        throw_error(loc_of(*s, r.file()),
+                    "'scale' must be between 1e-8 and 1e8 in size in every axis, got [{}, {}, "
+                    "{}] (model in other units instead)",
+                    v.x, v.y, v.z);
+    return v;
+}
+
+/** The `subdiv = { ... }` table's scheme, boundary and uv interpolation. */
+void read_subdiv_rules(TableReader& r, SubdivOptions& o) {
+    const std::string scheme = r.string("scheme", "catmull-clark");
+    if (scheme == "catmull-clark")
+        o.scheme = SubdivOptions::Scheme::CatmullClark;
+    else if (scheme == "loop")
+        o.scheme = SubdivOptions::Scheme::Loop;
+    else
+        throw_error(r.loc("scheme"), "unknown scheme '{}' (valid: catmull-clark, loop)", scheme);
+    const std::string boundary = r.string("boundary", "edge_and_corner");
+    if (boundary == "none")
+        o.boundary = SubdivOptions::Boundary::None;
+    else if (boundary == "edge_only")
+        o.boundary = SubdivOptions::Boundary::EdgeOnly;
+    else if (boundary == "edge_and_corner")
+        o.boundary = SubdivOptions::Boundary::EdgeAndCorner;
+    else
+        throw_error(r.loc("boundary"),
+                    "unknown boundary '{}' (valid: none, edge_only, edge_and_corner)", boundary);
+    const std::string uv = r.string("uv_interpolation", "corners_only");
+    if (uv == "smooth")
+        o.uv_interpolation = SubdivOptions::UvInterpolation::Smooth;
+    else if (uv == "corners_only")
+        o.uv_interpolation = SubdivOptions::UvInterpolation::CornersOnly;
+    else if (uv == "boundaries")
+        o.uv_interpolation = SubdivOptions::UvInterpolation::Boundaries;
+    else if (uv == "all")
+        o.uv_interpolation = SubdivOptions::UvInterpolation::All;
+    else
+        throw_error(r.loc("uv_interpolation"),
+                    "unknown uv_interpolation '{}' (valid: smooth, corners_only, boundaries, all)",
+                    uv);
+}
+
+/** `key = [[v0, ..., sharpness], ...]` of a subdiv table: each entry `width` numbers, vertex
+ *  indices first; `take` gets each entry. */
+template <class Take>
+void read_sharp_list(const ReadContext& ctx, TableReader& r, const char* key, std::size_t width,
+                     const Take& take) {
+    const toml::node* n = r.node(key);
+    if (!n) return;
+    const toml::array* arr = n->as_array();
+    if (!arr) throw_error(loc_of(*n, ctx.file), "'{}' must be an array of arrays", key);
+    for (const toml::node& e : *arr) {
+        const toml::array* item = e.as_array();
+        if (!item || item->size() != width)
+            throw_error(loc_of(e, ctx.file), "each entry of '{}' must be an array of {} numbers",
+                        key, width);
+        std::vector<double> v;
+        for (const toml::node& x : *item) {
+            if (!x.is_number())
+                throw_error(loc_of(x, ctx.file), "'{}' entries must be numbers", key);
+            v.push_back(x.value<double>().value_or(0.0));
+        }
+        for (std::size_t k = 0; k + 1 < width; ++k)
+            if (!(v[k] >= 0 && v[k] <= 2147483647.0) || v[k] != std::floor(v[k]))
+                throw_error(loc_of(e, ctx.file),
+                            "'{}' vertex indices must be integers in 0..2147483647, got {}", key,
+                            v[k]);
+        if (!(v[width - 1] >= 0.0 && v[width - 1] <= 10.0))
+            throw_error(loc_of(e, ctx.file), "'{}' sharpness must be in [0, 10], got {}", key,
+                        v[width - 1]);
+        take(v);
+    }
+}
+
+/** The `subdiv = { ... }` table of an object whose cage is `path`, named at `loc`. */
+SubdivShape read_subdiv(const ReadContext& ctx, const toml::table& t, std::string path,
+                        FileLoc loc) {
+    TableReader r(t, ctx.file, "subdiv");
+    SubdivShape s;
+    s.path = std::move(path);
+    s.loc = std::move(loc);
+    read_subdiv_rules(r, s.options);
+    s.options.level = -1;
+    if (const toml::node* level = r.node("level")) {
+        if (level->is_string()) {
+            if (level->value<std::string>().value_or("") != "auto")
+                throw_error(loc_of(*level, ctx.file),
+                            "'level' must be an integer 0..8 or \"auto\"");
+        } else {
+            s.options.level = static_cast<int>(r.integer("level", 0, {0, 8}));
+        }
+    }
+    s.max_level = static_cast<int>(r.integer("max_level", s.max_level, {0, 8}));
+    // Below a thousandth of a pixel every edge would ask for the deepest level anyway.
+    s.pixel_budget = static_cast<float>(r.number("pixel_budget", 2.0, {1e-3, 1e6}));
+    SubdivOptions& o = s.options;
+    read_sharp_list(ctx, r, "creases", 3, [&](const std::vector<double>& v) {
+        o.crease_vertices.push_back(static_cast<int>(v[0]));
+        o.crease_vertices.push_back(static_cast<int>(v[1]));
+        o.crease_sharpness.push_back(static_cast<float>(v[2]));
+    });
+    read_sharp_list(ctx, r, "corners", 2, [&](const std::vector<double>& v) {
+        o.corner_vertices.push_back(static_cast<int>(v[0]));
+        o.corner_sharpness.push_back(static_cast<float>(v[1]));
+    });
+    r.finish();
+    return s;
+}
+
+/** One [[object]] table: its mesh or cage, material, placement, keys and emission. */
+ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
+    ObjectDesc o;
+    o.loc = r.loc();
+    o.what = r.what();
+    o.name = r.string("name", "");
+    std::string mesh_path = read_file(ctx, r, "mesh");
+    if (const toml::table* sub = r.table("subdiv"))
+        o.shape = read_subdiv(ctx, *sub, std::move(mesh_path), r.loc("mesh"));
+    else
+        o.shape = MeshFileShape{std::move(mesh_path), r.loc("mesh")};
+    o.material = r.string("material");
+    o.material_loc = r.loc("material");
+    TransformParts& parts = o.placement.parts;
+    parts.scale = read_scale(r).value_or(parts.scale);
+    parts.rotate = r.vec3("rotate", parts.rotate);
+    parts.translate = r.vec3("translate", parts.translate);
+    const auto name = [&](std::size_t k) {
+        return fmt::format("[[object.keys]] #{} of {}", k, r.what());
+    };
+    o.keys = read_keys<ObjectKey>(r, name, [](TableReader& kr) {
+        ObjectKey key;
+        key.time = read_key_time(kr);
+        key.scale = read_scale(kr);
+        key.rotate = optional_vec3(kr, "rotate");
+        key.translate = optional_vec3(kr, "translate");
+        return key;
+    });
+    if (r.has("emission")) {
+        EmissionDesc e;
+        e.color = *toml_scene::read_color(ctx, r, "emission");
+        e.intensity = r.number("emission_intensity", e.intensity, kNonNegative);
+        e.group = read_light_group(r);
+        o.emission = std::move(e);
+    }
+    r.finish();
+    return o;
+}
+
+/** The fields of a [[light]] table of type `type`. */
+LightShapeDesc read_light_shape(TableReader& r, const std::string& type) {
+    if (type == "quad") {
+        QuadLightDesc q;
+        q.corner = r.vec3("corner");
+        q.edge1 = r.vec3("edge1");
+        q.edge2 = r.vec3("edge2");
+        q.edge2_loc = r.loc("edge2");
+        q.two_sided = r.boolean("two_sided", q.two_sided);
+        return q;
+    }
+    if (type == "sphere") {
+        SphereLightDesc s;
+        s.center = r.vec3("center");
+        s.radius = r.number("radius", {0.0, 1e30, true});
+        return s;
+    }
+    if (type == "point") return PointLightDesc{r.vec3("position")};
+    if (type == "spot") {
+        SpotLightDesc s;
+        s.position = r.vec3("position");
+        s.look_at = r.vec3("look_at");
+        s.look_at_loc = r.loc("look_at");
+        s.cone_angle = r.number("cone_angle", s.cone_angle, {0.0, 90.0, true, false});
+        s.cone_falloff = r.number("cone_falloff", s.cone_falloff, {0.0, 90.0});
+        s.cone_falloff_loc = r.loc("cone_falloff");
+        return s;
+    }
+    if (type == "distant") {
+        DistantLightDesc d;
+        d.direction = r.vec3("direction");
+        d.direction_loc = r.loc("direction");
+        d.angular_radius_deg = r.number("angular_radius", 0.0, {0.0, 45.0});
+        return d;
+    }
+    throw_error(r.loc("type"),
+                "unknown light type '{}' (valid: quad, sphere, point, spot, distant)", type);
+}
+
+/** One [[light]] table of any type. */
+LightDesc read_light(const ReadContext& ctx, TableReader& r) {
+    LightDesc l;
+    l.loc = r.loc();
+    const std::string type = r.string("type");
+    l.color = toml_scene::read_color(ctx, r, "color");
+    l.intensity = r.number("intensity", l.intensity, kNonNegative);
+    l.group = read_light_group(r);
+    l.shape = read_light_shape(r, type);
+    r.finish();
+    return l;
+}
+
+/** Each table of the array `key` of the root, read by `read` into `out`; the k-th is called
+ *  "[[key]] #k" in messages. */
+template <class Desc, class Read>
+void read_each(TableReader& top, const char* key, std::vector<Desc>& out, const Read& read) {
+    const toml::array* tables = top.table_array(key);
+    if (!tables) return;
+    for (std::size_t i = 0; i < tables->size(); ++i) {
+        TableReader r(*(*tables)[i].as_table(), top.file(), fmt::format("[[{}]] #{}", key, i + 1));
+        out.push_back(read(r));
+    }
+}
+
+}  // namespace
+
+SceneDescription read_toml_scene(const std::string& path) {
+    const toml::table root = parse_toml_file(path);
+    SceneDescription d;
+    d.path = path;
+    const ReadContext ctx{path, std::filesystem::path(path).parent_path()};
+    TableReader top(root, path, "the scene");
+    top.set_whole_file();
+    {
+        const toml::table* t = top.table("render");
+        const toml::table empty;
+        TableReader r(t ? *t : empty, path, "[render]");
+        d.render = read_render(r);
+    }
+    {
+        const toml::table* t = top.table("camera");
+        if (!t) top.missing("camera");
+        TableReader r(*t, path, "[camera]");
+        d.camera = read_camera(r);
+    }
+    if (const toml::table* t = top.table("environment")) {
+        TableReader r(*t, path, "[environment]");
+        d.environment = read_environment(ctx, r);
+    }
+    read_each(top, "material", d.materials,
+              [&](TableReader& r) { return toml_scene::read_material(ctx, r); });
+    read_each(top, "object", d.objects, [&](TableReader& r) { return read_object(ctx, r); });
+    read_each(top, "light", d.lights, [&](TableReader& r) { return read_light(ctx, r); });
+    top.finish();
+    return d;
+}
+
+}  // namespace spangle
