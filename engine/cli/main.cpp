@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "cli/bench.h"
+#include "cli/launcher.h"
 #include "cli/mpi_render.h"
 #include "cli/progress.h"
 #include "cli/serve.h"
