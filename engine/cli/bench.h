@@ -1,8 +1,7 @@
 #pragma once
 // `spangle bench`: renders fixed scenes, each in its own process, and prints what any change to
 // the engine should be compared by: samples and rays per second, time per phase, peak memory.
-// It also writes the large procedural scene it measures (an interior of 30 unique meshes,
-// 330,000 triangles, 14 materials) so that the engine is measured on more than demo spheres.
+// Among them the large procedural interior (interior_scene.h), written on first use.
 
 #include <string>
 #include <vector>
@@ -23,10 +22,6 @@ struct BenchArgs {
     std::string export_obj;    ///< with one scene: also write its traced triangles as an OBJ
     bool measure_one = false;  ///< internal: measure scenes[0] in this process, print the result
 };
-
-/** Writes the procedural interior scene (scene.toml and its PLY meshes) into dir; returns the
- *  scene file's path. Deterministic: the same files on every run. */
-std::string write_interior_scene(const std::string& dir);
 
 /** Runs the benchmark; returns the process exit code. */
 int run_bench(const BenchArgs& args);

@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "cli/bench.h"
+#include "cli/interior_scene.h"
 #include "cli/launcher.h"
 #include "cli/mpi_render.h"
 #include "cli/preview_server.h"
