@@ -1,6 +1,7 @@
-// `spangle bench`: see bench.h.
-
-#include "cli/bench.h"
+// `spangle bench`: renders fixed scenes, each in its own process, and prints what any change to
+// the engine should be compared by: samples and rays per second, time per phase, peak memory.
+// The scenes: shipped ones by name, scene files, and the procedural interior (interior_scene.h),
+// written on first use.
 
 #include <fcntl.h>
 #include <fmt/format.h>
@@ -18,6 +19,10 @@
 #include <map>
 #include <sstream>
 
+#include <CLI/CLI.hpp>
+
+#include "cli/arguments.h"
+#include "cli/commands.h"
 #include "cli/interior_scene.h"
 #include "core/error.h"
 #include "core/files.h"
@@ -28,6 +33,22 @@ namespace fs = std::filesystem;
 
 namespace spangle {
 namespace {
+
+/** Options of `spangle bench`. */
+struct BenchArgs {
+    std::vector<std::string> scenes;  ///< scene files or shipped names; empty = the default set
+    std::string size = "640x360";     ///< image size of every scene, as given ('' = the scene's)
+    uint32_t width = 0, height = 0;   ///< size, parsed (0 = the scene's)
+    uint32_t spp = 16;                ///< samples per pixel of every scene
+    int threads = 0;                  ///< worker threads (0 = all cores)
+    int repeat = 1;                   ///< renders per scene; the fastest is reported
+    std::vector<std::string> plugin_dirs;  ///< --plugin-path entries, searched first
+    std::string work_dir;      ///< where generated scenes go (default: a folder in the temp dir)
+    std::string csv;           ///< also write the table as CSV here
+    std::string export_obj;    ///< with one scene: also write its traced triangles as an OBJ
+    bool measure_one = false;  ///< internal: measure scenes[0] in this process, print the result
+    std::string write_scene;   ///< only write the interior scene into this folder
+};
 
 /** What one scene's render measured (in the child process). */
 struct Measurement {
@@ -308,8 +329,8 @@ void report_row(const std::string& label, const Measurement& best, const BenchAr
         mib(rest));
 }
 
-}  // namespace
-
+/** Runs the benchmark (or, with --measure-one, one child's measurement); returns the exit
+ *  status: 1 when a scene failed, 2 for a scene that does not exist. */
 int run_bench(const BenchArgs& a) {
     if (a.measure_one) {
         if (a.scenes.size() != 1) return 2;
@@ -343,6 +364,48 @@ int run_bench(const BenchArgs& a) {
         if (!out) throw_error("cannot write '{}'", a.csv);
     }
     return failures > 0 ? 1 : 0;
+}
+
+/** Registers bench's options on `sub`, bound to `a`. */
+void add_bench_options(CLI::App* sub, BenchArgs& a) {
+    sub->add_option("scenes", a.scenes,
+                    "scene files, shipped scene names, or 'interior' (default: demo materials "
+                    "beetle interior)");
+    sub->add_option("--size", a.size,
+                    "image size of every scene (default 640x360; '' = the scene's)");
+    sub->add_option("--spp", a.spp, "samples per pixel (default 16)")
+        ->check(CLI::Range(1u, 1u << 20));
+    sub->add_option("--threads", a.threads, "worker threads (default: all cores)")
+        ->check(CLI::Range(1, 1024));
+    sub->add_option("--repeat", a.repeat, "renders per scene, the fastest counts (default 1)")
+        ->check(CLI::Range(1, 100));
+    sub->add_option("--plugin-path", a.plugin_dirs, "directory searched for plugins first");
+    sub->add_option("--work-dir", a.work_dir,
+                    "where the interior scene is written (default: a folder in the temp dir)");
+    sub->add_option("--csv", a.csv, "also write the results as CSV");
+    sub->add_option("--export-obj", a.export_obj,
+                    "with one scene: also write the triangles it traces (world space) as an OBJ, "
+                    "for Embree's viewer");
+    sub->add_flag("--measure-one", a.measure_one)->group("");  // internal: one child's render
+    sub->add_option("--write-scene", a.write_scene,
+                    "only write the procedural interior scene into this folder");
+}
+
+}  // namespace
+
+Command add_bench_command(CLI::App& app) {
+    auto a = std::make_shared<BenchArgs>();
+    CLI::App* sub = app.add_subcommand(
+        "bench", "render fixed scenes and print samples and rays per second, phase times, memory");
+    add_bench_options(sub, *a);
+    return {sub, [a] {
+                if (!a->write_scene.empty()) {
+                    fmt::print("wrote {}\n", write_interior_scene(a->write_scene));
+                    return 0;
+                }
+                if (!a->size.empty()) parse_size(a->size, a->width, a->height);
+                return run_bench(*a);
+            }};
 }
 
 }  // namespace spangle
