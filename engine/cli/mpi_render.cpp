@@ -32,14 +32,6 @@ namespace {
 constexpr int kTagReport = 1, kTagPixels = 2, kTagUnit = 3;
 constexpr int kReportSize = 10;
 
-int env_int(const char* name, int fallback) {
-    const char* v = std::getenv(name);
-    if (!v || !*v) return fallback;
-    char* end = nullptr;
-    const long n = std::strtol(v, &end, 10);
-    return end && *end == '\0' && n >= 0 && n < (1L << 30) ? static_cast<int>(n) : fallback;
-}
-
 /** A band of the window: whole tile rows of the full frame's grid, clipped to the window. */
 CropWindow band_window(const CropWindow& win, uint32_t band_px, uint32_t unit) {
     const uint32_t first = win.y0 / band_px;
@@ -51,7 +43,9 @@ CropWindow band_window(const CropWindow& win, uint32_t band_px, uint32_t unit) {
 
 /** The counters of one band, as sent to rank 0. */
 struct Report {
-    int64_t v[kReportSize] = {};
+    int64_t v[kReportSize] = {};  ///< unit, busy ns, samples, rays x3, non-finite, first bad x/y/k
+
+    /** The report of band `unit` (-1: a rank's first request), `busy` seconds, counters `s`. */
     static Report of(int64_t unit, double busy, const RenderStats& s) {
         Report r;
         r.v[0] = unit;
@@ -68,19 +62,250 @@ struct Report {
     }
 };
 
-}  // namespace
+/** How the window is cut into bands: what every rank works out before any band is handed out. */
+struct BandPlan {
+    Film film;                             ///< the scene's, with the options' size and spp
+    CropWindow win;                        ///< the window rendered (the image without --crop)
+    std::vector<std::string> layer_names;  ///< the layers' channels; empty without --layers
+    uint32_t band_px = 0;                  ///< pixel rows of a band (16 per tile row)
+    uint32_t units = 0;                    ///< bands the window is cut into
+    uint32_t cw = 0, ch = 0;               ///< the window's size
+    std::size_t lc = 0;                    ///< layer channels per pixel
 
-LauncherInfo launcher_info() {
-    // Open MPI's names, then MPICH/Hydra's and Slurm's.
-    LauncherInfo l;
-    // (Not Slurm's SLURM_NTASKS: a batch script has it without being a rank.)
-    l.size = env_int("OMPI_COMM_WORLD_SIZE", env_int("PMI_SIZE", 1));
-    l.rank = env_int("OMPI_COMM_WORLD_RANK", env_int("PMI_RANK", 0));
-    l.local_size = env_int("OMPI_COMM_WORLD_LOCAL_SIZE", env_int("MPI_LOCALNRANKS", 1));
-    l.size = std::max(l.size, 1);
-    l.local_size = std::max(l.local_size, 1);
-    return l;
+    /** Values of a pixel as sent: RGB, then the layers. */
+    std::size_t per_pixel() const { return 3 + lc; }
+};
+
+/** The plan of `crop` for the session's live scene; throws SpangleError when the scene has no
+ *  camera or a band would be too large for one message. */
+BandPlan plan_bands(Session& session, const CropWindow& crop, uint32_t band_rows) {
+    BandPlan p;
+    if (!session.film(p.film)) throw_error("the scene has no camera to render from");
+    p.win = crop_within(crop, p.film.width, p.film.height);
+    p.band_px = 16 * std::max(band_rows, 1u);
+    p.units = (p.win.y1 - 1) / p.band_px - p.win.y0 / p.band_px + 1;
+    p.cw = p.win.x1 - p.win.x0;
+    p.ch = p.win.y1 - p.win.y0;
+    if (session.options().layers) {
+        std::vector<std::string> groups = session.info().light_groups;
+        if (groups.empty()) groups.push_back("default");
+        p.layer_names = layer_channel_names(groups);
+    }
+    p.lc = p.layer_names.size();
+    if (static_cast<double>(p.band_px) * p.cw * static_cast<double>(p.per_pixel()) >= 2147483647.0)
+        throw_error("bands of {} rows of {} pixels are too large to send: lower --band-rows",
+                    p.band_px, p.cw);
+    return p;
 }
+
+/** Renders band `unit` on this rank: its pixels (RGB rows, then layer rows) and its report. */
+void render_band(Session& session, const BandPlan& plan, uint32_t unit, std::vector<float>& pixels,
+                 Report& report) {
+    const auto t0 = std::chrono::steady_clock::now();
+    session.options().crop = band_window(plan.win, plan.band_px, unit);
+    session.render();
+    const RenderResult& w = session.result();
+    pixels.assign(w.image.begin(), w.image.end());
+    pixels.insert(pixels.end(), w.layers.begin(), w.layers.end());
+    report = Report::of(
+        unit, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
+        w.stats);
+}
+
+/** A rank other than 0: ask, render, send back, ask again -- until rank 0 says there is nothing
+ *  left. A band that fails ends the job. */
+void work_for_rank0(const MpiJob& job, Session& session, const BandPlan& plan) {
+    Report report = Report::of(-1, 0.0, RenderStats{});
+    std::vector<float> pixels;
+    for (;;) {
+        MPI_Send(report.v, kReportSize, MPI_INT64_T, 0, kTagReport, MPI_COMM_WORLD);
+        if (report.v[0] >= 0)
+            MPI_Send(pixels.data(), static_cast<int>(pixels.size()), MPI_FLOAT, 0, kTagPixels,
+                     MPI_COMM_WORLD);
+        int64_t next = -1;
+        MPI_Recv(&next, 1, MPI_INT64_T, 0, kTagUnit, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        if (next < 0) break;
+        try {
+            render_band(session, plan, static_cast<uint32_t>(next), pixels, report);
+        } catch (const std::exception& e) {
+            fmt::print(stderr, "spangle: error: {}: band {} failed: {}\n", job.who(), next,
+                       e.what());
+            job.abort(1);
+        }
+    }
+}
+
+/** Rank 0's image, filled by its own bands and the others' as they arrive (from its main
+ *  thread and its answering thread: placing is serialised). */
+class Assembly {
+public:
+    /** Sizes `out` for `plan`; `progress` (may be empty) gets samples done and the total. */
+    Assembly(const MpiJob& job, const BandPlan& plan,
+             const std::function<void(uint64_t, uint64_t)>& progress, DistributedImage& out)
+        : job_(job),
+          plan_(plan),
+          progress_(progress),
+          out_(out),
+          total_(static_cast<uint64_t>(plan.cw) * plan.ch * plan.film.spp) {
+        out.width = plan.cw;
+        out.height = plan.ch;
+        out.window = ImageWindow{plan.win.x0, plan.win.y0, plan.film.width, plan.film.height};
+        if (plan.lc) out.layer_names = plan.layer_names;
+        out.loads.assign(static_cast<std::size_t>(job.size()), RankLoad{});
+        out.units = plan.units;
+    }
+
+    /** Places the band `rep` names, rendered by rank `from`: its pixels and its counters.
+     *  Throws SpangleError when `pixels` is not the band's size. */
+    void place(int from, const Report& rep, const std::vector<float>& pixels) {
+        const CropWindow b = band_window(plan_.win, plan_.band_px, static_cast<uint32_t>(rep.v[0]));
+        const std::size_t row0 = b.y0 - plan_.win.y0, rows = b.y1 - b.y0;
+        const std::size_t n = rows * plan_.cw, cw = plan_.cw, lc = plan_.lc;
+        if (pixels.size() != n * plan_.per_pixel())
+            throw_error("{}: band {} came back with {} values, not {}", job_.who(), rep.v[0],
+                        pixels.size(), n * plan_.per_pixel());
+        std::lock_guard<std::mutex> lock(mutex_);
+        std::copy(pixels.begin(), pixels.begin() + static_cast<std::ptrdiff_t>(n * 3),
+                  out_.image.begin() + static_cast<std::ptrdiff_t>(row0 * cw * 3));
+        if (lc)
+            std::copy(pixels.begin() + static_cast<std::ptrdiff_t>(n * 3), pixels.end(),
+                      out_.layers.begin() + static_cast<std::ptrdiff_t>(row0 * cw * lc));
+        add_counters(from, rep);
+        done_ += static_cast<uint64_t>(rep.v[2]);
+        if (progress_) progress_(done_, total_);
+    }
+
+private:
+    /** Adds a band's counters to its rank's load and the image's stats; mutex_ held. */
+    void add_counters(int from, const Report& rep) {
+        RankLoad& l = out_.loads[static_cast<std::size_t>(from)];
+        ++l.units;
+        l.busy += static_cast<double>(rep.v[1]) * 1e-9;
+        l.samples += static_cast<uint64_t>(rep.v[2]);
+        RenderStats& s = out_.stats;
+        s.samples += static_cast<uint64_t>(rep.v[2]);
+        s.camera_rays += static_cast<uint64_t>(rep.v[3]);
+        s.bounce_rays += static_cast<uint64_t>(rep.v[4]);
+        s.shadow_rays += static_cast<uint64_t>(rep.v[5]);
+        // The first bad pixel in image order, as one process reports it.
+        const auto key = [](int64_t y, int64_t x, int64_t k) { return std::tuple(y, x, k); };
+        if (rep.v[6] > 0 && (s.nonfinite == 0 || key(rep.v[8], rep.v[7], rep.v[9]) <
+                                                     key(s.first_bad_pixel_y, s.first_bad_pixel_x,
+                                                         s.first_bad_sample))) {
+            s.first_bad_pixel_x = static_cast<uint32_t>(rep.v[7]);
+            s.first_bad_pixel_y = static_cast<uint32_t>(rep.v[8]);
+            s.first_bad_sample = static_cast<uint32_t>(rep.v[9]);
+        }
+        s.nonfinite += static_cast<uint64_t>(rep.v[6]);
+    }
+
+    const MpiJob& job_;                                        ///< for messages
+    const BandPlan& plan_;                                     ///< the bands
+    const std::function<void(uint64_t, uint64_t)>& progress_;  ///< may be empty
+    DistributedImage& out_;                                    ///< the image being filled
+    std::mutex mutex_;                                         ///< the image, counters, progress
+    uint64_t done_ = 0;                                        ///< samples placed so far
+    const uint64_t total_;                                     ///< samples of the whole window
+};
+
+/** Waits for the next report from any rank (polling: a blocking receive would spin a core the
+ *  renderer needs); returns the rank it came from. */
+int wait_for_report(Report& rep) {
+    MPI_Request req;
+    MPI_Irecv(rep.v, kReportSize, MPI_INT64_T, MPI_ANY_SOURCE, kTagReport, MPI_COMM_WORLD, &req);
+    int arrived = 0;
+    MPI_Status st;
+    for (;;) {
+        MPI_Test(&req, &arrived, &st);
+        if (arrived) break;
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
+    return st.MPI_SOURCE;
+}
+
+/** Receives the pixels of the band `rep` names from rank `from`, its size probed first: a band
+ *  of another size is an error (SpangleError), not a silent mix. */
+void receive_band(int from, const Report& rep, const BandPlan& plan, std::vector<float>& pixels) {
+    const CropWindow b = band_window(plan.win, plan.band_px, static_cast<uint32_t>(rep.v[0]));
+    MPI_Status probe;
+    MPI_Probe(from, kTagPixels, MPI_COMM_WORLD, &probe);
+    int count = 0;
+    MPI_Get_count(&probe, MPI_FLOAT, &count);
+    const std::size_t want = static_cast<std::size_t>(b.y1 - b.y0) * plan.cw * plan.per_pixel();
+    pixels.resize(std::max<std::size_t>(static_cast<std::size_t>(count), 0));
+    MPI_Recv(pixels.data(), count, MPI_FLOAT, from, kTagPixels, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+    if (pixels.size() != want)
+        throw_error(
+            "rank {} sent band {} with {} values, not {} (do all ranks read the same scene?)", from,
+            rep.v[0], pixels.size(), want);
+}
+
+/** Rank 0's answering thread: serves every other rank (places what it sends, hands it the next
+ *  band from the counter rank 0 renders from too) until each has been told "none left". */
+void answer_ranks(const MpiJob& job, const BandPlan& plan, Assembly& assembly,
+                  std::atomic<uint32_t>& next_unit) {
+    int active = job.size() - 1;
+    std::vector<float> pixels;
+    while (active > 0) {
+        Report rep;
+        const int from = wait_for_report(rep);
+        if (rep.v[0] >= 0) {
+            receive_band(from, rep, plan, pixels);
+            assembly.place(from, rep, pixels);
+        }
+        const uint32_t u = next_unit.fetch_add(1);
+        const int64_t next = u < plan.units ? static_cast<int64_t>(u) : -1;
+        MPI_Send(&next, 1, MPI_INT64_T, from, kTagUnit, MPI_COMM_WORLD);
+        if (next < 0) --active;
+    }
+}
+
+/** Rank 0: renders bands from the shared counter while a second thread answers the others,
+ *  then completes the image's counters. A failure on either thread ends the job. */
+void render_on_rank0(const MpiJob& job, Session& session, const BandPlan& plan,
+                     const std::function<void(uint64_t, uint64_t)>& progress,
+                     DistributedImage& out) {
+    Assembly assembly(job, plan, progress, out);
+    std::atomic<uint32_t> next_unit{0};
+    const auto t_start = std::chrono::steady_clock::now();
+    std::string answer_error;
+    std::thread answerer([&] {
+        try {
+            answer_ranks(job, plan, assembly, next_unit);
+        } catch (const std::exception& e) {
+            answer_error = e.what();
+        }
+    });
+    std::string own_error;
+    try {
+        std::vector<float> pixels;
+        Report rep;
+        for (uint32_t u; (u = next_unit.fetch_add(1)) < plan.units;) {
+            render_band(session, plan, u, pixels, rep);
+            assembly.place(0, rep, pixels);
+        }
+    } catch (const std::exception& e) {
+        own_error = e.what();
+    }
+    if (!own_error.empty()) {
+        // The answering thread may be inside an MPI call: no MPI call from here (the library
+        // only allows one at a time); exiting makes the launcher end every rank.
+        fmt::print(stderr, "spangle: error: {}: {}\n", job.who(), own_error);
+        std::fflush(stderr);
+        std::_Exit(1);
+    }
+    answerer.join();
+    if (!answer_error.empty()) {
+        fmt::print(stderr, "spangle: error: {}: {}\n", job.who(), answer_error);
+        job.abort(1);
+    }
+    RenderStats& s = out.stats;
+    s.spp_reached = s.spp_target = plan.film.spp;
+    s.passes = 1;
+    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+}
+
+}  // namespace
 
 double DistributedImage::balance() const {
     double most = 0.0, sum = 0.0;
@@ -139,28 +364,14 @@ bool MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows
                     DistributedImage& out) const {
     // What every rank checks (and rank 0 allocates) before any band is handed out; a failure on
     // any rank ends the render on all of them.
-    Film film;
-    CropWindow win;
-    std::size_t lc = 0;
-    std::vector<std::string> groups = session.info().light_groups;
-    if (groups.empty()) groups.push_back("default");
-    uint32_t band_px = 0, units = 0, cw = 0, ch = 0;
+    BandPlan plan;
     std::string setup_error;
     try {
-        if (!session.film(film)) throw_error("the scene has no camera to render from");
-        win = crop_within(crop, film.width, film.height);
-        band_px = 16 * std::max(band_rows, 1u);
-        units = (win.y1 - 1) / band_px - win.y0 / band_px + 1;
-        cw = win.x1 - win.x0;
-        ch = win.y1 - win.y0;
-        lc = session.options().layers ? layer_channel_names(groups).size() : 0;
-        if (static_cast<double>(band_px) * cw * static_cast<double>(3 + lc) >= 2147483647.0)
-            throw_error("bands of {} rows of {} pixels are too large to send: lower --band-rows",
-                        band_px, cw);
+        plan = plan_bands(session, crop, band_rows);
         if (rank_ == 0) {
             out = DistributedImage{};
-            out.image.assign(static_cast<std::size_t>(cw) * ch * 3, 0.0f);
-            out.layers.assign(static_cast<std::size_t>(cw) * ch * lc, 0.0f);
+            out.image.assign(static_cast<std::size_t>(plan.cw) * plan.ch * 3, 0.0f);
+            out.layers.assign(static_cast<std::size_t>(plan.cw) * plan.ch * plan.lc, 0.0f);
         }
     } catch (const std::exception& e) {
         setup_error = e.what();
@@ -171,165 +382,10 @@ bool MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows
             fmt::print(stderr, "spangle: error: {}{}\n", rank_ ? who() + ": " : "", setup_error);
         return false;
     }
-    const std::size_t per_pixel = 3 + lc;
-
-    // Renders band `unit` on this rank; returns its pixels (RGB rows, then layer rows).
-    const auto render_band = [&](uint32_t unit, std::vector<float>& pixels, Report& report) {
-        const auto t0 = std::chrono::steady_clock::now();
-        session.options().crop = band_window(win, band_px, unit);
-        session.render();
-        const RenderResult& w = session.result();
-        pixels.assign(w.image.begin(), w.image.end());
-        pixels.insert(pixels.end(), w.layers.begin(), w.layers.end());
-        report = Report::of(
-            unit, std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),
-            w.stats);
-    };
-
-    if (rank_ != 0) {
-        // Ask, render, send back, ask again -- until rank 0 says there is nothing left.
-        Report report = Report::of(-1, 0.0, RenderStats{});
-        std::vector<float> pixels;
-        for (;;) {
-            MPI_Send(report.v, kReportSize, MPI_INT64_T, 0, kTagReport, MPI_COMM_WORLD);
-            if (report.v[0] >= 0)
-                MPI_Send(pixels.data(), static_cast<int>(pixels.size()), MPI_FLOAT, 0, kTagPixels,
-                         MPI_COMM_WORLD);
-            int64_t next = -1;
-            MPI_Recv(&next, 1, MPI_INT64_T, 0, kTagUnit, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
-            if (next < 0) break;
-            try {
-                render_band(static_cast<uint32_t>(next), pixels, report);
-            } catch (const std::exception& e) {
-                fmt::print(stderr, "spangle: error: {}: band {} failed: {}\n", who(), next,
-                           e.what());
-                abort(1);
-            }
-        }
-        return true;
-    }
-
-    // Rank 0: the image, filled by its own bands and the others'.
-    out.width = cw;
-    out.height = ch;
-    out.window = ImageWindow{win.x0, win.y0, film.width, film.height};
-    if (lc) out.layer_names = layer_channel_names(groups);
-    out.loads.assign(static_cast<std::size_t>(size_), RankLoad{});
-    out.units = units;
-    std::atomic<uint32_t> next_unit{0};
-    std::mutex mutex;  // the image, the counters, progress
-    const uint64_t total = static_cast<uint64_t>(cw) * ch * film.spp;
-    uint64_t done = 0;
-    const auto t_start = std::chrono::steady_clock::now();
-    const auto place = [&](int from, const Report& rep, const std::vector<float>& pixels) {
-        const CropWindow b = band_window(win, band_px, static_cast<uint32_t>(rep.v[0]));
-        const std::size_t row0 = b.y0 - win.y0, rows = b.y1 - b.y0;
-        const std::size_t n = rows * cw;
-        if (pixels.size() != n * per_pixel)
-            throw_error("{}: band {} came back with {} values, not {}", who(), rep.v[0],
-                        pixels.size(), n * per_pixel);
-        std::lock_guard<std::mutex> lock(mutex);
-        std::copy(pixels.begin(), pixels.begin() + static_cast<std::ptrdiff_t>(n * 3),
-                  out.image.begin() + static_cast<std::ptrdiff_t>(row0 * cw * 3));
-        if (lc)
-            std::copy(pixels.begin() + static_cast<std::ptrdiff_t>(n * 3), pixels.end(),
-                      out.layers.begin() + static_cast<std::ptrdiff_t>(row0 * cw * lc));
-        RankLoad& l = out.loads[static_cast<std::size_t>(from)];
-        ++l.units;
-        l.busy += static_cast<double>(rep.v[1]) * 1e-9;
-        l.samples += static_cast<uint64_t>(rep.v[2]);
-        RenderStats& s = out.stats;
-        s.samples += static_cast<uint64_t>(rep.v[2]);
-        s.camera_rays += static_cast<uint64_t>(rep.v[3]);
-        s.bounce_rays += static_cast<uint64_t>(rep.v[4]);
-        s.shadow_rays += static_cast<uint64_t>(rep.v[5]);
-        // The first bad pixel in image order, as one process reports it.
-        const auto key = [](int64_t y, int64_t x, int64_t k) { return std::tuple(y, x, k); };
-        if (rep.v[6] > 0 && (s.nonfinite == 0 || key(rep.v[8], rep.v[7], rep.v[9]) <
-                                                     key(s.first_bad_pixel_y, s.first_bad_pixel_x,
-                                                         s.first_bad_sample))) {
-            s.first_bad_pixel_x = static_cast<uint32_t>(rep.v[7]);
-            s.first_bad_pixel_y = static_cast<uint32_t>(rep.v[8]);
-            s.first_bad_sample = static_cast<uint32_t>(rep.v[9]);
-        }
-        s.nonfinite += static_cast<uint64_t>(rep.v[6]);
-        done += static_cast<uint64_t>(rep.v[2]);
-        if (progress) progress(done, total);
-    };
-
-    // The answering thread: serves every other rank until each has been told "none left".
-    std::string answer_error;
-    std::thread answerer([&] {
-        try {
-            int active = size_ - 1;
-            std::vector<float> pixels;
-            while (active > 0) {
-                Report rep;
-                MPI_Request req;
-                MPI_Irecv(rep.v, kReportSize, MPI_INT64_T, MPI_ANY_SOURCE, kTagReport,
-                          MPI_COMM_WORLD, &req);
-                int arrived = 0;
-                MPI_Status st;
-                for (;;) {
-                    MPI_Test(&req, &arrived, &st);
-                    if (arrived) break;
-                    std::this_thread::sleep_for(std::chrono::microseconds(200));
-                }
-                const int from = st.MPI_SOURCE;
-                if (rep.v[0] >= 0) {
-                    const CropWindow b = band_window(win, band_px, static_cast<uint32_t>(rep.v[0]));
-                    // Its size first: a band of another size is an error, not a silent mix.
-                    MPI_Status probe;
-                    MPI_Probe(from, kTagPixels, MPI_COMM_WORLD, &probe);
-                    int count = 0;
-                    MPI_Get_count(&probe, MPI_FLOAT, &count);
-                    const std::size_t want = static_cast<std::size_t>(b.y1 - b.y0) * cw * per_pixel;
-                    pixels.resize(std::max<std::size_t>(static_cast<std::size_t>(count), 0));
-                    MPI_Recv(pixels.data(), count, MPI_FLOAT, from, kTagPixels, MPI_COMM_WORLD,
-                             MPI_STATUS_IGNORE);
-                    if (pixels.size() != want)
-                        throw_error(
-                            "rank {} sent band {} with {} values, not {} (do all ranks read the "
-                            "same scene?)",
-                            from, rep.v[0], pixels.size(), want);
-                    place(from, rep, pixels);
-                }
-                const uint32_t u = next_unit.fetch_add(1);
-                const int64_t next = u < units ? static_cast<int64_t>(u) : -1;
-                MPI_Send(&next, 1, MPI_INT64_T, from, kTagUnit, MPI_COMM_WORLD);
-                if (next < 0) --active;
-            }
-        } catch (const std::exception& e) {
-            answer_error = e.what();
-        }
-    });
-    std::string own_error;
-    try {
-        std::vector<float> pixels;
-        Report rep;
-        for (uint32_t u; (u = next_unit.fetch_add(1)) < units;) {
-            render_band(u, pixels, rep);
-            place(0, rep, pixels);
-        }
-    } catch (const std::exception& e) {
-        own_error = e.what();
-    }
-    if (!own_error.empty()) {
-        // The answering thread may be inside an MPI call: no MPI call from here (the library
-        // only allows one at a time); exiting makes the launcher end every rank.
-        fmt::print(stderr, "spangle: error: {}: {}\n", who(), own_error);
-        std::fflush(stderr);
-        std::_Exit(1);
-    }
-    answerer.join();
-    if (!answer_error.empty()) {
-        fmt::print(stderr, "spangle: error: {}: {}\n", who(), answer_error);
-        abort(1);
-    }
-    RenderStats& s = out.stats;
-    s.spp_reached = s.spp_target = film.spp;
-    s.passes = 1;
-    s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+    if (rank_ != 0)
+        work_for_rank0(*this, session, plan);
+    else
+        render_on_rank0(*this, session, plan, progress, out);
     return true;
 }
 

@@ -7,8 +7,9 @@
 // others) and places every band in the image, which is the one-process image bit for bit: a
 // pixel's samples depend on the pixel alone, whichever rank traces it.
 //
-// Only this file and mpi_render.cpp see <mpi.h>; the build has them when SPANGLE_MPI is on and
-// MPI was found (SPANGLE_HAVE_MPI).
+// Only mpi_render.cpp sees <mpi.h>; the build has it (and mpi_command.cpp, the render mode that
+// drives it) when SPANGLE_MPI is on and MPI was found (SPANGLE_HAVE_MPI). What the launcher says
+// before MPI starts is read in every build (launcher.h).
 
 #include <cstdint>
 #include <functional>
@@ -21,15 +22,6 @@ namespace spangle {
 
 class Session;
 
-/** What the launcher (mpirun, srun) told this process through its environment, before MPI is
- *  started: the job's size and this process's rank (1 and 0 outside a launcher). */
-struct LauncherInfo {
-    int size = 1;        ///< ranks in the job
-    int rank = 0;        ///< this process's rank
-    int local_size = 1;  ///< ranks on this machine
-};
-LauncherInfo launcher_info();
-
 /** One rank's share of a distributed render. */
 struct RankLoad {
     uint32_t units = 0;    ///< bands it rendered
@@ -39,14 +31,14 @@ struct RankLoad {
 
 /** The whole image of a distributed render, on rank 0 (empty elsewhere). */
 struct DistributedImage {
-    uint32_t width = 0, height = 0;  ///< of the crop window (the whole image without one)
-    ImageWindow window;
-    std::vector<float> image;   ///< RGB, working space
-    std::vector<float> layers;  ///< with --layers
-    std::vector<std::string> layer_names;
-    RenderStats stats;            ///< counters summed over the ranks; seconds: wall time
-    std::vector<RankLoad> loads;  ///< per rank
-    uint32_t units = 0;           ///< bands the image was cut into
+    uint32_t width = 0, height = 0;        ///< of the crop window (the whole image without one)
+    ImageWindow window;                    ///< where the window lies in the full frame
+    std::vector<float> image;              ///< RGB, working space
+    std::vector<float> layers;             ///< with --layers
+    std::vector<std::string> layer_names;  ///< the layers' EXR channel names
+    RenderStats stats;                     ///< counters summed over the ranks; seconds: wall time
+    std::vector<RankLoad> loads;           ///< per rank
+    uint32_t units = 0;                    ///< bands the image was cut into
 
     /** Busiest rank's time over the mean (1 = perfect balance). */
     double balance() const;
@@ -56,13 +48,18 @@ struct DistributedImage {
  *  answers requests on a second thread), finished by the destructor. */
 class MpiJob {
 public:
+    /** Starts MPI (MPI_Init_thread may take its own arguments out of argc and argv); throws
+     *  SpangleError when it cannot, or cannot be called from a second thread. */
     MpiJob(int& argc, char**& argv);
     ~MpiJob();
     MpiJob(const MpiJob&) = delete;
     MpiJob& operator=(const MpiJob&) = delete;
 
+    /** This process's rank in MPI_COMM_WORLD. */
     int rank() const { return rank_; }
+    /** Ranks in the job. */
     int size() const { return size_; }
+    /** The machine this rank runs on, as MPI names it. */
     const std::string& host() const { return host_; }
     /** "rank R of N on HOST", for messages. */
     std::string who() const;
@@ -84,8 +81,8 @@ public:
                 DistributedImage& out) const;
 
 private:
-    int rank_ = 0, size_ = 1;
-    std::string host_;
+    int rank_ = 0, size_ = 1;  ///< this rank and the job's size
+    std::string host_;         ///< MPI_Get_processor_name
 };
 
 }  // namespace spangle

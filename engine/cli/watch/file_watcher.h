@@ -1,7 +1,7 @@
 #pragma once
-// Watching files for edits with inotify. The parent directory of each file is watched, not the
-// file, so that every way editors save is seen: writing in place, truncating then writing,
-// writing a temporary file and renaming it over, deleting then creating.
+// Watching files for edits with inotify (watch mode's trigger). The parent directory of each file
+// is watched, not the file, so that every way editors save is seen: writing in place, truncating
+// then writing, writing a temporary file and renaming it over, deleting then creating.
 
 #include <map>
 #include <set>
@@ -17,8 +17,10 @@ struct WatchDebounce {
     int limit_ms = 2000;     ///< the longest a change waits
 };
 
+/** A set of files watched for saves through one inotify descriptor. */
 class FileWatcher {
 public:
+    /** Opens the inotify descriptor; throws SpangleError when the system has none to give. */
     FileWatcher();
     ~FileWatcher();
     FileWatcher(const FileWatcher&) = delete;

@@ -1,4 +1,6 @@
-#include "cli/watch.h"
+// Watching files with inotify: see file_watcher.h.
+
+#include "cli/watch/file_watcher.h"
 
 #include <poll.h>
 #include <sys/inotify.h>
@@ -17,6 +19,7 @@ namespace fs = std::filesystem;
 namespace spangle {
 namespace {
 
+/** `path` made absolute and lexically normal, as the watched set holds it. */
 std::string normal(const std::string& path) {
     std::error_code ec;
     const fs::path abs = fs::absolute(path, ec);

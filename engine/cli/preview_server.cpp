@@ -1,4 +1,6 @@
-#include "cli/serve.h"
+// The live preview page: see preview_server.h.
+
+#include "cli/preview_server.h"
 
 #include <fmt/format.h>
 #include <httplib.h>
@@ -63,6 +65,7 @@ es.addEventListener('log', (e) => {
 </script></body></html>
 )HTML";
 
+/** `s` as a JSON string literal, quotes included. */
 std::string json_string(const std::string& s) {
     std::string out = "\"";
     for (const char ch : s) {
@@ -109,14 +112,28 @@ struct PreviewServer::Http {
 PreviewServer::PreviewServer(const std::string& spec) : http_(std::make_unique<Http>()) {
     std::tie(host_, port_) = parse_serve_address(spec);
     loopback_ = host_ == "127.0.0.1" || host_ == "localhost" || host_ == "::1";
-
-    httplib::Server& s = http_->server;
     // The library's default also sets SO_REUSEPORT, which lets a second server take a port
     // already in use: only SO_REUSEADDR here (a restart may reuse a port in TIME_WAIT).
-    s.set_socket_options([](int sock) {
+    http_->server.set_socket_options([](int sock) {
         int yes = 1;
         ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
     });
+    add_routes();
+    const int port = port_;
+    httplib::Server& s = http_->server;
+    const bool bound =
+        port_ == 0 ? (port_ = s.bind_to_any_port(host_)) > 0 : s.bind_to_port(host_, port_);
+    if (!bound)
+        throw_error("--serve: cannot listen on {}:{} (in use, or not an address of this machine)",
+                    host_, port);
+    const bool v6 = host_.find(':') != std::string::npos;
+    url_ = fmt::format("http://{}{}{}:{}/", v6 ? "[" : "", host_, v6 ? "]" : "", port_);
+    listener_ = std::thread([this] { http_->server.listen_after_bind(); });
+    encoder_ = std::thread([this] { encode_loop(); });
+}
+
+void PreviewServer::add_routes() {
+    httplib::Server& s = http_->server;
     // Bound to loopback, answer only requests addressed to it: a page elsewhere cannot reach
     // this one through a rebound DNS name.
     s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
@@ -156,42 +173,32 @@ PreviewServer::PreviewServer(const std::string& spec) : http_(std::make_unique<H
         res.set_chunked_content_provider(
             "text/event-stream", [this, last, progress_seen](std::size_t, httplib::DataSink& sink) {
                 std::string out;
-                {
-                    std::unique_lock<std::mutex> lock(mutex_);
-                    const auto fresh = [&] {
-                        return stopping_ || progress_version_ != *progress_seen ||
-                               (!events_.empty() && events_.back().id > *last);
-                    };
-                    if (!changed_.wait_for(lock, std::chrono::seconds(1), fresh))
-                        out = ": still here\n\n";  // finds closed connections
-                    if (stopping_) return false;
-                    for (const Event& e : events_)
-                        if (e.id > *last) {
-                            out += fmt::format("id: {}\nevent: {}\ndata: {}\n\n", e.id, e.type,
-                                               e.data);
-                            *last = e.id;
-                        }
-                    if (progress_version_ != *progress_seen) {
-                        out +=
-                            fmt::format("event: progress\ndata: {{\"done\":{},\"total\":{}}}\n\n",
-                                        done_, total_);
-                        *progress_seen = progress_version_;
-                    }
-                }
+                if (!next_events(*last, *progress_seen, out)) return false;
                 return sink.write(out.data(), out.size());
             });
     });
+}
 
-    const int port = port_;
-    const bool bound =
-        port_ == 0 ? (port_ = s.bind_to_any_port(host_)) > 0 : s.bind_to_port(host_, port_);
-    if (!bound)
-        throw_error("--serve: cannot listen on {}:{} (in use, or not an address of this machine)",
-                    host_, port);
-    const bool v6 = host_.find(':') != std::string::npos;
-    url_ = fmt::format("http://{}{}{}:{}/", v6 ? "[" : "", host_, v6 ? "]" : "", port_);
-    listener_ = std::thread([this] { http_->server.listen_after_bind(); });
-    encoder_ = std::thread([this] { encode_loop(); });
+bool PreviewServer::next_events(uint64_t& last, uint64_t& progress_seen, std::string& out) {
+    std::unique_lock<std::mutex> lock(mutex_);
+    const auto fresh = [&] {
+        return stopping_ || progress_version_ != progress_seen ||
+               (!events_.empty() && events_.back().id > last);
+    };
+    if (!changed_.wait_for(lock, std::chrono::seconds(1), fresh))
+        out = ": still here\n\n";  // finds closed connections
+    if (stopping_) return false;
+    for (const Event& e : events_)
+        if (e.id > last) {
+            out += fmt::format("id: {}\nevent: {}\ndata: {}\n\n", e.id, e.type, e.data);
+            last = e.id;
+        }
+    if (progress_version_ != progress_seen) {
+        out +=
+            fmt::format("event: progress\ndata: {{\"done\":{},\"total\":{}}}\n\n", done_, total_);
+        progress_seen = progress_version_;
+    }
+    return true;
 }
 
 PreviewServer::~PreviewServer() {
@@ -286,6 +293,14 @@ void PreviewServer::encode_loop() {
         }
         changed_.notify_all();
     }
+}
+
+std::unique_ptr<PreviewServer> start_preview_server(const std::string& spec) {
+    if (spec.empty()) return nullptr;
+    auto server = std::make_unique<PreviewServer>(spec);
+    fmt::print("live preview at {}\n", server->url());  // even with --quiet: it was asked for
+    std::fflush(stdout);
+    return server;
 }
 
 }  // namespace spangle

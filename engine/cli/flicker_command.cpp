@@ -1,0 +1,50 @@
+// `spangle flicker FRAMES...`: how glints flicker in a sequence rendered with --frames --layers
+// (color/flicker.h measures; this prints the figures).
+
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli/commands.h"
+#include "color/flicker.h"
+
+namespace spangle {
+namespace {
+
+/** Options of `spangle flicker`. */
+struct FlickerArgs {
+    std::vector<std::string> frames;  ///< the frames' EXRs, in order
+    double threshold = 0.0;           ///< glint-mask threshold; 0 = 4 x the glints' mean
+};
+
+/** Measures the sequence and prints its figures. */
+int run_flicker(const FlickerArgs& a) {
+    const FlickerReport r = measure_flicker(a.frames, a.threshold);
+    fmt::print(
+        "frames: {} ({} pairs), pixels compared: {:.0f} (points carried by {})\n"
+        "glint mask threshold: {:.4g}, mask coverage: {:.4f}\n"
+        "mask flicker (mean |mask_k - mask_k+1| of reprojected pixels): {:.4f}\n"
+        "glint persistence (glint pixels still glints in the next frame): {:.4f}\n"
+        "relative glint difference (mean |g_k - g_k+1| / mean g): {:.4f}\n",
+        a.frames.size(), r.pairs, r.pixels, r.by_objects ? "their objects" : "world position",
+        r.threshold, r.mask_fraction, r.mask_flicker, r.mask_persistence, r.relative_difference);
+    return 0;
+}
+
+}  // namespace
+
+Command add_flicker_command(CLI::App& app) {
+    auto a = std::make_shared<FlickerArgs>();
+    CLI::App* sub = app.add_subcommand(
+        "flicker", "measure how glints flicker in a sequence rendered with --frames --layers");
+    sub->add_option("frames", a->frames, "the frames' EXRs, in order")->required();
+    sub->add_option("--threshold", a->threshold,
+                    "glint-mask threshold (glints layer luminance; default 4 x its mean)")
+        ->check(CLI::Range(0.0, 1e30));
+    return {sub, [a] { return run_flicker(*a); }};
+}
+
+}  // namespace spangle

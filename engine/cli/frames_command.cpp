@@ -1,0 +1,81 @@
+// `spangle render --frames`: see frames_command.h.
+
+#include "cli/frames_command.h"
+
+#include <fmt/format.h>
+
+#include <chrono>
+#include <cstdio>
+#include <string>
+
+#include "cli/arguments.h"
+#include "cli/outputs.h"
+#include "cli/render_setup.h"
+#include "cli/signals.h"
+#include "pipeline/session.h"
+
+namespace spangle {
+namespace {
+
+/** Loads the scene at frame f's time (known once a first load has read frame_start and fps:
+ *  the first frame loads twice when its time is not 0). */
+ReloadReport load_frame(Session& session, const std::string& scene, int64_t f) {
+    const double time = session.has_scene() ? frame_time(session.info(), f) : 0.0;
+    ReloadReport rep = session.load(scene, time);
+    if (rep.first && frame_time(session.info(), f) != time)
+        rep = session.load(scene, frame_time(session.info(), f));
+    return rep;
+}
+
+/** The line of a written frame: its time, how long it took, the systems that ran. */
+void print_frame_line(const Session& session, int64_t f, double seconds, const ReloadReport& rep,
+                      const std::string& exr) {
+    fmt::print(
+        "frame {} ({:.3f} s): {:.2f} s, ran: {}; wrote {}\n", f, frame_time(session.info(), f),
+        seconds,
+        rep.ran.empty() ? std::string("nothing") : fmt::format("{}", fmt::join(rep.ran, ", ")),
+        exr);
+}
+
+}  // namespace
+
+int run_frames(const RenderArgs& a) {
+    const auto [first, last] = parse_frames(a.frames);
+    const RenderSetup s = set_up_render(a);
+    Session session(a.plugin_dirs, a.ocio, render_options(a), s.log);
+    session.options().stop = stop_requested;
+    for (int64_t f = first; f <= last; ++f) {
+        const auto t0 = std::chrono::steady_clock::now();
+        const ReloadReport rep = load_frame(session, a.scene, f);
+        if (f == first) {
+            s.out.check_view(session.color());
+            if (!session.info().animated)
+                s.log.warn("{}: nothing in the scene has keyframes: every frame is the same image",
+                           a.scene);
+        }
+        session.render();
+        const RenderResult& w = session.result();
+        if (w.stats.spp_reached == 0) {
+            s.log.warn("stopped by a signal before frame {} had a pass: not written", f);
+            return exit_status_for_signal();
+        }
+        const Outputs out = s.out.for_frame(f);
+        const ImageDescription image = final_image(w, session.color(), session.info());
+        out.write_image(s.log, image);
+        warn_nonfinite(s.log, w.stats);
+        if (!a.quiet)
+            print_frame_line(
+                session, f,
+                std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), rep,
+                out.exr);
+        std::fflush(stdout);
+        if (image.partial) {
+            s.log.warn("stopped by a signal: frame {} has {} of {} samples per pixel", f,
+                       w.stats.spp_reached, w.stats.spp_target);
+            return exit_status_for_signal();
+        }
+    }
+    return 0;
+}
+
+}  // namespace spangle

@@ -1,0 +1,61 @@
+// `spangle merge PARTS -o FULL.exr`: crop windows (render --crop) assembled, or sample ranges
+// (render --spp-range) added, into the whole render, bit for bit (docs/crop_merge.md).
+
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <filesystem>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli/commands.h"
+#include "cli/output_paths.h"
+#include "cli/usage.h"
+#include "color/image_merge.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+/** Options of `spangle merge`. */
+struct MergeArgs {
+    std::vector<std::string> parts;  ///< the parts' EXR files
+    std::string output;              ///< the full frame's EXR
+};
+
+/** Checks the output (not a part, an .exr, writable), merges and says what it did. */
+int run_merge(const MergeArgs& a) {
+    for (const std::string& p : a.parts)
+        if (same_file(p, a.output)) usage_error("the output '{}' is one of the parts", a.output);
+    if (fs::path(a.output).extension() != ".exr")
+        usage_error("output '{}' must end in .exr", a.output);
+    check_writable(a.output, "EXR");
+    const MergeReport rep = merge_exr_parts(a.parts, a.output);
+    if (rep.sample_ranges > 0) {
+        fmt::print("added {} sample ranges into {} ({}x{} frame)\n", rep.sample_ranges, a.output,
+                   rep.width, rep.height);
+        return 0;
+    }
+    fmt::print("merged {} parts into {} ({}x{}{})\n", rep.parts, a.output, rep.width, rep.height,
+               rep.overlap_pixels
+                   ? fmt::format(", {} pixels held by more than one part", rep.overlap_pixels)
+                   : std::string());
+    return 0;
+}
+
+}  // namespace
+
+Command add_merge_command(CLI::App& app) {
+    auto a = std::make_shared<MergeArgs>();
+    CLI::App* sub = app.add_subcommand(
+        "merge",
+        "assemble crop windows (render --crop) or add sample ranges (render --spp-range) into "
+        "the whole render, bit for bit");
+    sub->add_option("parts", a->parts, "the parts' EXR files")->required();
+    sub->add_option("-o,--output", a->output, "the full frame's EXR")->required();
+    return {sub, [a] { return run_merge(*a); }};
+}
+
+}  // namespace spangle

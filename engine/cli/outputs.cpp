@@ -1,0 +1,200 @@
+// The outputs module: see outputs.h.
+
+#include "cli/outputs.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <atomic>
+#include <filesystem>
+#include <future>
+
+#include "cli/arguments.h"
+#include "cli/output_paths.h"
+#include "cli/usage.h"
+#include "color/color_config.h"
+#include "core/check.h"
+#include "core/error.h"
+#include "render/camera.h"
+#include "scene/scene_loader.h"
+
+#ifndef SPANGLE_VERSION
+#define SPANGLE_VERSION "0.0.0"
+#endif
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+/** The header attributes a scene's camera and objects give: the matrices pbrt-v4 writes and
+ *  Nuke reads (OpenEXR's standard attributes), and with the layers where each object stands. */
+void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t frame_w,
+                          uint32_t frame_h) {
+    const Camera& c = d.info->camera;
+    const CameraMatrices m = CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture,
+                                         c.focus_distance, frame_w, frame_h)
+                                 .matrices();
+    o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
+    // With the layers: where each object stands (12 floats each, the rows of its 3x4
+    // object-to-world matrix), so that Pobj carries a point into world space and a sequence's
+    // frames can follow a turning object (spangle flicker).
+    if (d.layers && !d.layers->empty()) {
+        std::vector<float> xf;
+        for (const Affine& a : d.info->object_to_world)
+            for (int r = 0; r < 3; ++r)
+                xf.insert(xf.end(), {a.m[r][0], a.m[r][1], a.m[r][2], a.t[r]});
+        o.float_vectors.emplace_back("spangle:objectToWorld", std::move(xf));
+    }
+}
+
+/** The EXR options of `d` written as `out` says: its place in the frame, layers, header. */
+ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
+    ExrOptions o = out.exr_options;
+    // A crop: the image is a data window of the full frame; the camera is the frame's.
+    uint32_t frame_w = d.width, frame_h = d.height;
+    if (d.window.full_width > 0) {
+        frame_w = d.window.full_width;
+        frame_h = d.window.full_height;
+        o.origin_x = static_cast<int>(d.window.x0);
+        o.origin_y = static_cast<int>(d.window.y0);
+        o.display_width = static_cast<int>(frame_w);
+        o.display_height = static_cast<int>(frame_h);
+    }
+    if (d.layers && d.layer_names && !d.layers->empty()) {
+        o.layers = d.layers;
+        o.layer_names = *d.layer_names;
+    }
+    o.metadata = {{"spangle:scene", out.scene},
+                  {"spangle:version", SPANGLE_VERSION},
+                  {"spangle:spp", std::to_string(d.spp)},
+                  {"spangle:partial", d.partial ? "1" : "0"}};
+    // A --spp-range part: its samples' exact sums, for spangle merge.
+    if (out.spp_end > 0 && d.sums && !d.partial) {
+        o.sums = d.sums;
+        o.metadata.emplace_back("spangle:spp_range",
+                                fmt::format("{}..{}", out.spp_first, out.spp_end));
+        o.metadata.emplace_back("spangle:spp_frame", std::to_string(d.spp_frame));
+    }
+    if (d.seconds >= 0.0) o.floats.emplace_back("renderTimeSeconds", static_cast<float>(d.seconds));
+    if (d.info) add_scene_attributes(o, d, frame_w, frame_h);
+    // A reduced-resolution preview pass (0 spp, blocks of `block` pixels).
+    if (d.block > 1) o.metadata.emplace_back("spangle:preview_stride", std::to_string(d.block));
+    return o;
+}
+
+}  // namespace
+
+ImageDescription pass_image(const PassImage& p, const ColorConfig& color, const SceneInfo* info) {
+    ImageDescription d;
+    d.image = &p.image;
+    d.width = p.width;
+    d.height = p.height;
+    d.color = &color;
+    d.spp = p.spp;
+    d.partial = true;
+    d.block = p.block;
+    d.info = info;
+    d.seconds = p.seconds;
+    d.window = p.window;
+    return d;
+}
+
+std::size_t Outputs::write(const ImageDescription& d) const {
+    SPANGLE_CHECK(d.image && d.color, "an image to write needs its pixels and colour config");
+    const ExrOptions o = exr_options_for(*this, d);
+    const int width = static_cast<int>(d.width), height = static_cast<int>(d.height);
+    // The PNG is written beside the EXR, on another thread.
+    std::future<void> png_done;
+    if (!preview.empty()) {
+        PngOptions png;
+        if (d.partial) png.compression_level = 1;  // passes come often: speed over size
+        png.block = d.block;
+        png.display = display;
+        png.view = view;
+        png_done = std::async(std::launch::async, [&, png] {
+            write_png_preview(preview, *d.image, width, height, *d.color, png);
+        });
+    }
+    std::size_t overflow = 0;
+    try {
+        overflow = write_exr(exr, *d.image, width, height, *d.color, o);
+    } catch (...) {
+        if (png_done.valid()) png_done.wait();
+        throw;
+    }
+    if (png_done.valid()) png_done.get();  // rethrows its error
+    return overflow;
+}
+
+void Outputs::write_image(const Logger& log, const ImageDescription& d) const {
+    warn_half_overflow(log, write(d), exr);
+}
+
+void Outputs::write_pass(const PassImage& p, const ColorConfig& color,
+                         const SceneInfo* info) const {
+    write(pass_image(p, color, info));
+}
+
+Outputs Outputs::for_frame(int64_t f) const {
+    Outputs o = *this;
+    o.exr = frame_path(exr, f);
+    if (!o.preview.empty()) o.preview = frame_path(preview, f);
+    return o;
+}
+
+void Outputs::check_view(const ColorConfig& color) const {
+    std::string d = display, v = view;
+    color.resolve_view(d, v);
+}
+
+Outputs outputs_for(const RenderArgs& a) {
+    Outputs out;
+    out.exr = a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
+    if (fs::path(out.exr).extension() != ".exr")
+        usage_error("output '{}' must end in .exr", out.exr);
+    const auto& comps = exr_compressions();
+    if (std::find(comps.begin(), comps.end(), a.compression) == comps.end())
+        usage_error("unknown EXR compression '{}' (valid: {})", a.compression,
+                    fmt::join(comps, ", "));
+    out.preview = a.no_preview
+                      ? std::string()
+                      : (a.preview.empty() ? fs::path(out.exr).replace_extension(".png").string()
+                                           : a.preview);
+    if (!out.preview.empty() && same_file(out.exr, out.preview))
+        usage_error(
+            "the EXR and the PNG preview are the same file '{}': give --preview another "
+            "path or --no-preview",
+            out.exr);
+    if (same_file(out.exr, a.scene)) usage_error("the output '{}' is the scene file", out.exr);
+    check_writable(out.exr, "EXR");
+    if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
+    out.exr_options.half = !a.full_float;
+    out.exr_options.compression = a.compression;
+    out.scene = a.scene;
+    out.display = a.display;
+    out.view = a.view;
+    if (!a.spp_range.empty()) parse_spp_range(a.spp_range, out.spp_first, out.spp_end);
+    return out;
+}
+
+void warn_if_no_chromaticities(const Logger& log, const ColorConfig& color) {
+    static std::atomic<bool> said{false};
+    if (color.working_chromaticities() || said.exchange(true)) return;
+    log.warn(
+        "the EXR carries no chromaticities attribute: the working space '{}' of the OCIO config "
+        "'{}' is not one Spangle knows the primaries of, and the config has no "
+        "cie_xyz_d65_interchange role to measure them through (add that role, or use a working "
+        "space such as ACEScg or lin_rec709); its colorSpace attribute still names the space",
+        color.working_space(), color.path());
+}
+
+void warn_half_overflow(const Logger& log, std::size_t values, const std::string& exr) {
+    if (values > 0)
+        log.warn(
+            "{} values in {} are brighter than a half float holds (65504) and were stored as "
+            "infinity; write 32-bit floats with --float",
+            values, exr);
+}
+
+}  // namespace spangle

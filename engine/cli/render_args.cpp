@@ -1,0 +1,31 @@
+// The options of `spangle render` and what follows from them alone: see render_args.h.
+
+#include "cli/render_args.h"
+
+#include "cli/arguments.h"
+
+namespace spangle {
+
+RenderOptions render_options(const RenderArgs& a) {
+    RenderOptions o;
+    o.threads = a.threads;
+    o.spp_override = a.spp;
+    o.texture_cache = a.texture_cache;
+    o.layers = a.layers;
+    if (!a.crop.empty()) o.crop = parse_crop(a.crop);
+    if (!a.spp_range.empty()) parse_spp_range(a.spp_range, o.spp_first, o.spp_end);
+    o.texture_memory_mb = a.texture_memory_mb;
+    if (!a.size.empty()) parse_size(a.size, o.width_override, o.height_override);
+    o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
+                 : a.strategy == "bsdf" ? Strategy::BsdfOnly
+                                        : Strategy::Mis;
+    return o;
+}
+
+Logger render_logger(const RenderArgs& a) {
+    Logger log;
+    if (a.quiet) log.threshold = LogLevel::Warning;
+    return log;
+}
+
+}  // namespace spangle

@@ -1,0 +1,23 @@
+// What the render modes share: see render_setup.h.
+
+#include "cli/render_setup.h"
+
+#include "cli/signals.h"
+
+namespace spangle {
+
+RenderSetup set_up_render(const RenderArgs& a) {
+    RenderSetup s{render_logger(a), outputs_for(a)};
+    install_signal_handlers();
+    return s;
+}
+
+void warn_nonfinite(const Logger& log, const RenderStats& st) {
+    if (st.nonfinite > 0)
+        log.warn(
+            "{} non-finite sample values were replaced by black; the first at pixel ({}, {}), "
+            "sample {}",
+            st.nonfinite, st.first_bad_pixel_x, st.first_bad_pixel_y, st.first_bad_sample);
+}
+
+}  // namespace spangle

@@ -1,0 +1,20 @@
+#pragma once
+// Stop signals of the render modes. The first SIGINT or SIGTERM asks renders to stop at the next
+// wave of tiles and write what they have; a second SIGINT exits at once (status 130), removing
+// the temporary file of an image being written (outputs are renamed into place whole, so none is
+// ever half-written).
+
+namespace spangle {
+
+/** Installs the handlers of SIGINT and SIGTERM (without SA_RESTART: a blocking wait returns
+ *  early when one arrives). */
+void install_signal_handlers();
+
+/** Whether a stop signal has arrived (async-signal-safe to poll from any thread). */
+bool stop_requested();
+
+/** Exit status after a stop signal: 0 for SIGINT (the user asked), 128 + 15 for SIGTERM; 0
+ *  when none arrived. */
+int exit_status_for_signal();
+
+}  // namespace spangle

@@ -1,0 +1,267 @@
+// Watch mode's loop: see watch_command.h.
+
+#include "cli/watch/watch_command.h"
+
+#include <fmt/format.h>
+
+#include <atomic>
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "cli/outputs.h"
+#include "cli/preview_server.h"
+#include "cli/render_setup.h"
+#include "cli/signals.h"
+#include "cli/usage.h"
+#include "cli/watch/file_watcher.h"
+#include "core/error.h"
+#include "pipeline/session.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+/** The render options of watch mode: a preview pass first when passes are shown or written. */
+RenderOptions watch_options(const RenderArgs& a) {
+    RenderOptions options = render_options(a);
+    options.preview_pass = !a.no_pass_output || !a.serve.empty();
+    return options;
+}
+
+/** One watch session: the live scene, the render thread, and the reload line of the change
+ *  being rendered (printed when its first full pass is written). */
+class WatchLoop {
+public:
+    /** Loads the colour config and checks the preview's view; starts the page of --serve. */
+    WatchLoop(const RenderArgs& a, const RenderSetup& s);
+
+    /** Renders and re-renders until a stop signal; returns the exit status. */
+    int run();
+
+private:
+    /** A reload line, to the terminal and the page. */
+    void say(const std::string& line);
+    /** An error, to the terminal and the page. */
+    void report_error(const std::string& message);
+    /** A pass was written: the pending reload line goes out at the first full pass (with the
+     *  preview pass's time when there was one). */
+    void announce(uint32_t spp, uint32_t block);
+    /** A change interrupted the render before its first pass: the line goes out as it stands. */
+    void flush_unannounced();
+    /** Shows and writes the image of a pass that is not the last. */
+    void on_pass(const PassImage& p);
+    /** The render thread's body: renders the live scene, then writes what it reached. */
+    void render();
+    /** Writes the render's image when it is complete or a signal stopped it after a pass. */
+    void finish_render();
+    /** Loads the scene (the first load, or a reload after saves of `what`); false when it
+     *  failed, having said so. */
+    bool load(const std::string& what);
+    /** Watches the live scene's files until a save; empty when a stop signal came first. */
+    std::vector<std::string> wait_for_change(FileWatcher& watcher);
+    /** Stops the render, reloads, and renders again when there is something to show. */
+    void apply_change(const std::vector<std::string>& touched);
+
+    const RenderArgs& a_;                    ///< the command line
+    const Logger& log_;                      ///< the render's logger
+    const Outputs& out_;                     ///< where images go
+    const bool pass_output_;                 ///< write every pass (not --no-pass-output)
+    std::atomic<bool> reload_{false};        ///< stops the render for a reload
+    Session session_;                        ///< the live scene
+    std::unique_ptr<PreviewServer> server_;  ///< after the session: shows its colour config
+    std::mutex mutex_;                       ///< the four below: the render thread's reports
+    std::string pending_line_;               ///< the reload line not yet printed
+    std::chrono::steady_clock::time_point changed_at_;  ///< when the pending change was seen
+    bool finished_ = false;     ///< the last render completed (or has nothing)
+    std::string preview_note_;  ///< when the preview pass of the change was written
+    std::thread worker_;        ///< the render thread
+};
+
+WatchLoop::WatchLoop(const RenderArgs& a, const RenderSetup& s)
+    : a_(a),
+      log_(s.log),
+      out_(s.out),
+      pass_output_(!a.no_pass_output),
+      session_(a.plugin_dirs, a.ocio, watch_options(a), s.log) {
+    out_.check_view(session_.color());  // a display or view the config lacks: an error now
+    session_.options().stop = [this] { return stop_requested() || reload_.load(); };
+    server_ = start_preview_server(a.serve);
+    if (server_)
+        session_.options().progress = [this](uint64_t done, uint64_t total) {
+            server_->progress(done, total);
+        };
+    session_.options().on_pass = [this](const PassImage& p) { on_pass(p); };
+}
+
+void WatchLoop::say(const std::string& line) {
+    fmt::print("{}\n", line);
+    std::fflush(stdout);
+    if (server_) server_->log("info", line);
+}
+
+void WatchLoop::report_error(const std::string& message) {
+    print_error(message);
+    if (server_) server_->log("error", message);
+}
+
+void WatchLoop::announce(uint32_t spp, uint32_t block) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (pending_line_.empty()) return;
+    const double s =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - changed_at_).count();
+    if (spp == 0) {
+        preview_note_ = fmt::format("preview (1/{} resolution) written {:.3f} s, ", block, s);
+        return;
+    }
+    say(fmt::format("{}; {}first pass ({} spp) written {:.3f} s after the change", pending_line_,
+                    preview_note_, spp, s));
+    pending_line_.clear();
+    preview_note_.clear();
+}
+
+void WatchLoop::flush_unannounced() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (pending_line_.empty()) return;
+    say(fmt::format("{}; {}interrupted by the next change", pending_line_, preview_note_));
+    pending_line_.clear();
+    preview_note_.clear();
+}
+
+void WatchLoop::on_pass(const PassImage& p) {
+    if (server_)
+        server_->publish_pass(p.image, p.width, p.height, p.spp, p.target, p.block,
+                              session_.color());
+    if (!pass_output_) return;
+    try {
+        out_.write_pass(p, session_.color(), &session_.info());
+    } catch (const SpangleError& e) {
+        report_error(e.what());
+    }
+    announce(p.spp, p.block);
+}
+
+void WatchLoop::render() {
+    try {
+        session_.render();
+    } catch (const std::exception& e) {
+        // A render that fails (a texture whose cached tiles vanished, memory) is reported; the
+        // session waits for the next save.
+        report_error(e.what());
+        return;
+    }
+    if (session_.result().image.empty()) return;
+    warn_if_no_chromaticities(log_, session_.color());
+    finish_render();
+}
+
+void WatchLoop::finish_render() {
+    const RenderResult& w = session_.result();
+    const RenderStats& st = w.stats;
+    const ImageDescription image = final_image(w, session_.color(), session_.info());
+    if (!image.partial || (stop_requested() && st.spp_reached > 0)) {
+        if (server_)
+            server_->publish_pass(w.image, w.width, w.height, st.spp_reached, st.spp_target, 1,
+                                  session_.color());
+        try {
+            out_.write_image(log_, image);
+        } catch (const SpangleError& e) {
+            report_error(e.what());
+        }
+        announce(st.spp_reached, 1);
+    }
+    if (image.partial) return;
+    warn_nonfinite(log_, st);
+    log_.info("wrote {} ({} spp); watching for changes", out_.exr, st.spp_reached);
+    if (server_)
+        server_->log("info", fmt::format("wrote {} ({} spp); watching for changes", out_.exr,
+                                         st.spp_reached));
+    std::lock_guard<std::mutex> lock(mutex_);
+    finished_ = true;
+}
+
+bool WatchLoop::load(const std::string& what) {
+    try {
+        const ReloadReport rep = session_.load(a_.scene);
+        std::lock_guard<std::mutex> lock(mutex_);
+        pending_line_ = rep.first ? fmt::format("loaded {} in {:.3f} s", a_.scene, rep.seconds)
+                                  : fmt::format("reload ({}): {}; applied in {:.3f} s", what,
+                                                rep.summary(), rep.seconds);
+        return true;
+    } catch (const SpangleError& e) {
+        report_error(e.what());
+        say(fmt::format("reload failed; {}", session_.has_scene()
+                                                 ? "still showing the last good scene"
+                                                 : "waiting for a good save"));
+        return false;
+    }
+}
+
+std::vector<std::string> WatchLoop::wait_for_change(FileWatcher& watcher) {
+    std::vector<std::string> files = session_.watched_files();
+    files.push_back(a_.scene);
+    watcher.watch(files);
+    std::vector<std::string> touched;
+    while (touched.empty() && !stop_requested()) touched = watcher.wait(250);
+    if (stop_requested()) touched.clear();
+    return touched;
+}
+
+void WatchLoop::apply_change(const std::vector<std::string>& touched) {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);  // the render thread reads it in announce
+        changed_at_ = std::chrono::steady_clock::now();
+    }
+    reload_ = true;
+    if (worker_.joinable()) worker_.join();
+    reload_ = false;
+    flush_unannounced();
+    std::string what;
+    for (const auto& f : touched)
+        what += (what.empty() ? "" : ", ") + fs::path(f).filename().string();
+    bool interrupted = false;
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        interrupted = !finished_;
+        finished_ = false;
+    }
+    const bool ok = load(what);
+    // A failed reload keeps the last good scene: its image stays on disk, and a render of it
+    // that the change interrupted goes on.
+    if (session_.has_scene() && (ok || interrupted)) {
+        worker_ = std::thread([this] { render(); });
+    } else {
+        std::lock_guard<std::mutex> lock(mutex_);
+        finished_ = true;
+    }
+}
+
+int WatchLoop::run() {
+    FileWatcher watcher;
+    changed_at_ = std::chrono::steady_clock::now();
+    load("first load");
+    if (session_.has_scene()) worker_ = std::thread([this] { render(); });
+    for (;;) {
+        const std::vector<std::string> touched = wait_for_change(watcher);
+        if (touched.empty()) break;  // a stop signal
+        apply_change(touched);
+    }
+    if (worker_.joinable()) worker_.join();
+    return exit_status_for_signal();
+}
+
+}  // namespace
+
+int run_watch(const RenderArgs& a) {
+    const RenderSetup s = set_up_render(a);
+    WatchLoop loop(a, s);
+    return loop.run();
+}
+
+}  // namespace spangle
