@@ -4,7 +4,10 @@
 #include "geometry/ply_reader.h"
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+
+#include "core/hash.h"
 
 namespace spangle {
 
@@ -51,6 +54,29 @@ void validate_mesh(const TriangleMesh& mesh, const FileLoc& ref) {
 }  // namespace spangle
 
 namespace spangle {
+
+uint64_t mesh_content_hash(const TriangleMesh& mesh) {
+    // Words of every array, each array's length first (so that [a][b] and [ab] differ).
+    uint64_t h = 0x5350414e474c45ull;
+    const auto words = [&h](const void* data, std::size_t bytes) {
+        h = hash2(h, bytes);
+        const auto* p = static_cast<const unsigned char*>(data);
+        std::size_t i = 0;
+        for (; i + 8 <= bytes; i += 8) {
+            uint64_t w;
+            std::memcpy(&w, p + i, 8);
+            h = hash2(h, w);
+        }
+        uint64_t tail = 0;
+        if (bytes > i) std::memcpy(&tail, p + i, bytes - i);
+        h = hash2(h, tail);
+    };
+    words(mesh.positions.data(), mesh.positions.size() * sizeof(float));
+    words(mesh.normals.data(), mesh.normals.size() * sizeof(float));
+    words(mesh.uvs.data(), mesh.uvs.size() * sizeof(float));
+    words(mesh.indices.data(), mesh.indices.size() * sizeof(uint32_t));
+    return h;
+}
 
 double TriangleMesh::uv_mapped_fraction() const {
     if (uvs.empty()) return 0.0;

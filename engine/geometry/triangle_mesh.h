@@ -28,6 +28,10 @@ struct TriangleMesh {
     double uv_mapped_fraction() const;
 };
 
+/** A hash of a mesh's positions, normals, uvs and indices (not its source name): equal for
+ *  equal content. */
+uint64_t mesh_content_hash(const TriangleMesh& mesh);
+
 /** All meshes of a scene; objects refer to them by index, so one file loaded twice is shared. */
 struct GeometryStore {
     /** Loaded meshes, shared with the build cache of a watch session (a reload that does not

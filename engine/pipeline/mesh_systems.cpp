@@ -1,5 +1,5 @@
-// The systems that make triangle meshes: mesh_load (OBJ and PLY files) and subdivide (cages
-// refined by OpenSubdiv).
+// The systems that make triangle meshes: mesh_load (OBJ and PLY files, and the meshes a scene
+// file holds itself) and subdivide (cages refined by OpenSubdiv).
 
 #include <chrono>
 #include <cmath>
@@ -12,13 +12,14 @@
 namespace spangle {
 namespace {
 
-void system_mesh_load(ecs::Registry& r, World& w) {
-    auto& pool = r.pool<MeshFile>();
-    LoadedMeshes out;
+/** The meshes of the mesh files, one per distinct file, referenced from their objects. */
+void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
+                     std::vector<std::pair<ecs::Entity, uint32_t>>& refs) {
+    auto* pool = r.find_pool<MeshFile>();
+    if (!pool) return;
     std::map<std::string, uint32_t> loaded;  // one load per distinct file
-    std::vector<std::pair<ecs::Entity, uint32_t>> refs;
-    for (std::size_t i = 0; i < pool.size(); ++i) {
-        const std::string& path = pool.columns().path[i];
+    for (std::size_t i = 0; i < pool->size(); ++i) {
+        const std::string& path = pool->columns().path[i];
         auto it = loaded.find(path);
         if (it == loaded.end()) {
             w.read_file("mesh", path);
@@ -27,13 +28,56 @@ void system_mesh_load(ecs::Registry& r, World& w) {
                 [&] { return "mesh|" + file_identity(path); },
                 [&] {
                     return std::make_shared<const TriangleMesh>(
-                        load_mesh(path, pool.columns().loc[i]));
+                        load_mesh(path, pool->columns().loc[i]));
                 },
                 "mesh " + path));
             it = loaded.emplace(path, static_cast<uint32_t>(out.meshes.size() - 1)).first;
         }
-        refs.emplace_back(pool.entities()[i], it->second);
+        refs.emplace_back(pool->entities()[i], it->second);
     }
+}
+
+bool same_content(const TriangleMesh& a, const TriangleMesh& b) {
+    return a.positions == b.positions && a.normals == b.normals && a.uvs == b.uvs &&
+           a.indices == b.indices;
+}
+
+/** An inline mesh, or the equal one the last load used (so that its BVH is reused). */
+std::shared_ptr<const TriangleMesh> reuse_inline(World& w, const InlineMesh& m) {
+    if (!w.cache) return m.mesh;
+    const std::string key = fmt::format("inline|{:016x}", m.content);
+    w.cache->used[key] = w.cache->owner;
+    auto it = w.cache->meshes.find(key);
+    if (it != w.cache->meshes.end() && same_content(*it->second, *m.mesh)) {
+        ++w.cache->reused["meshes"];
+        return it->second;
+    }
+    w.cache->meshes[key] = m.mesh;
+    return m.mesh;
+}
+
+/** The meshes a scene file holds itself, one per distinct mesh (instances share one). */
+void take_inline_meshes(ecs::Registry& r, World& w, LoadedMeshes& out,
+                        std::vector<std::pair<ecs::Entity, uint32_t>>& refs) {
+    auto* pool = r.find_pool<InlineMesh>();
+    if (!pool) return;
+    std::map<const TriangleMesh*, uint32_t> taken;
+    for (std::size_t i = 0; i < pool->size(); ++i) {
+        const InlineMesh m = pool->columns().get(i);
+        auto it = taken.find(m.mesh.get());
+        if (it == taken.end()) {
+            out.meshes.push_back(reuse_inline(w, m));
+            it = taken.emplace(m.mesh.get(), static_cast<uint32_t>(out.meshes.size() - 1)).first;
+        }
+        refs.emplace_back(pool->entities()[i], it->second);
+    }
+}
+
+void system_mesh_load(ecs::Registry& r, World& w) {
+    LoadedMeshes out;
+    std::vector<std::pair<ecs::Entity, uint32_t>> refs;
+    load_mesh_files(r, w, out, refs);
+    take_inline_meshes(r, w, out, refs);
     for (const auto& [e, mesh] : refs) r.put(e, TriangleMeshRef{MeshSource::File, mesh});
     w.products.put(std::move(out));
 }
@@ -129,7 +173,7 @@ void system_subdivide(ecs::Registry& r, World& w) {
 
 ecs::System<World> mesh_load_system() {
     return ecs::system<World>("mesh_load", system_mesh_load)
-        .needs_all<MeshFile>()
+        .needs_any<MeshFile, InlineMesh>()
         .writing<TriangleMeshRef, LoadedMeshes>();
 }
 

@@ -33,7 +33,8 @@ SPANGLE_COMPONENT(TriangleMeshRef, SPANGLE_MESH_REF_FIELDS);
 /** Written by the area_lights system on emissive objects. */
 SPANGLE_COMPONENT(EmitterRef, SPANGLE_EMITTER_REF_FIELDS);
 
-/** mesh_load: one mesh per distinct file, in the order the scene first names them. */
+/** mesh_load: one mesh per distinct file, in the order the scene first names them, then one
+ *  per distinct inline mesh. */
 struct LoadedMeshes {
     static constexpr const char* kName = "LoadedMeshes";
     static constexpr bool kProduct = true;

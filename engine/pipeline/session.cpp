@@ -10,6 +10,7 @@
 #include "pipeline/frame.h"
 #include "pipeline/systems.h"
 #include "render/integrator.h"
+#include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
 #include "shading/plugin_loader.h"
 
@@ -92,7 +93,7 @@ Session::~Session() {
 
 std::vector<std::string> Session::watched_files() const {
     std::set<std::string> all;
-    if (info_) all.insert(info_->path);
+    if (info_ && !info_->path.empty()) all.insert(info_->path);
     if (world_)
         for (const auto& [system, files] : world_->files)
             for (const auto& [path, read] : files) all.insert(path);
@@ -101,6 +102,13 @@ std::vector<std::string> Session::watched_files() const {
 }
 
 ReloadReport Session::load(const std::string& scene, double time) {
+    const auto t0 = std::chrono::steady_clock::now();
+    ReloadReport rep = load(read_scene(scene), time);
+    rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return rep;
+}
+
+ReloadReport Session::load(const SceneDescription& scene, double time) {
     const auto t0 = std::chrono::steady_clock::now();
     ReloadReport rep;
     rep.first = !world_;
@@ -118,7 +126,7 @@ ReloadReport Session::load(const std::string& scene, double time) {
         color = std::make_unique<ColorConfig>(color_->clone());
     }
     auto cand = std::make_unique<ecs::Registry>();
-    auto info = std::make_unique<SceneInfo>(load_scene(scene, *color, *cand, time));
+    auto info = std::make_unique<SceneInfo>(build_scene(scene, *color, *cand, time));
     for (const std::string& note : info->notes) log_.warn("{}", note);
     if (world_ && color->working_space() != color_->working_space()) {
         rep.changed.push_back("working space");

@@ -52,6 +52,9 @@ public:
      *  the scene's frame_start, where its keyframes are evaluated (an animation renders frame
      *  after frame through one session: only what moved is rebuilt). */
     ReloadReport load(const std::string& scene, double time = 0.0);
+    /** The same for a scene already read (or made by a program: no file behind it but the
+     *  ones it names). */
+    ReloadReport load(const SceneDescription& scene, double time = 0.0);
 
     bool has_scene() const { return world_ != nullptr; }
     /** Renders the live scene into result() (progressively; see RenderOptions). The report

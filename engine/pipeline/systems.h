@@ -3,7 +3,7 @@
 // needs, reads and writes (ecs/schedule.h), and the schedule that orders them. The session runs
 // them on the first load and, on a reload, only those whose reads changed.
 //
-//   mesh_load        MeshFile                     -> TriangleMeshRef, LoadedMeshes
+//   mesh_load        MeshFile, InlineMesh         -> TriangleMeshRef, LoadedMeshes
 //   subdivide        SubdivSurface (+ the camera)  -> TriangleMeshRef, SubdividedMeshes
 //   materials        Material, MaterialRef         -> MaterialSet
 //   area_lights      QuadLight, SphereLight, Emission (+ meshes) -> EmitterRef, AreaLightSet

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -12,6 +13,7 @@
 #include "core/pixel_filter.h"
 #include "ecs/pool.h"
 #include "geometry/subdivision.h"
+#include "geometry/triangle_mesh.h"
 
 namespace spangle {
 
@@ -77,6 +79,23 @@ SPANGLE_COMPONENT(Motion, SPANGLE_MOTION_FIELDS);
     X(FileLoc, loc, "where the scene names the file")
 /** A mesh to load from an OBJ or PLY file (input of the mesh_load system). */
 SPANGLE_COMPONENT(MeshFile, SPANGLE_MESH_FILE_FIELDS);
+
+namespace ecs {
+/** An inline mesh is compared by its content hash (InlineMesh::content), not its address: a
+ *  reload that reads the same triangles again makes a new mesh with the same content. */
+inline bool same_value(const std::shared_ptr<const TriangleMesh>&,
+                       const std::shared_ptr<const TriangleMesh>&) {
+    return true;
+}
+}  // namespace ecs
+
+#define SPANGLE_INLINE_MESH_FIELDS(X)                                                      \
+    X(std::shared_ptr<const TriangleMesh>, mesh, "object space, made by the scene reader") \
+    X(uint64_t, content, "hash of the mesh's content (mesh_content_hash)")                 \
+    X(FileLoc, loc, "where the scene writes it")
+/** Triangles a scene file holds itself (a pbrt trianglemesh, glTF primitives): input of the
+ *  mesh_load system beside mesh files. Objects that share one mesh (instances) share one. */
+SPANGLE_COMPONENT(InlineMesh, SPANGLE_INLINE_MESH_FIELDS);
 
 #define SPANGLE_SUBDIV_FIELDS(X)                                                         \
     X(std::string, path, "resolved cage file path (OBJ)")                                \

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
 #include <utility>
 
 #include "scene/components.h"
@@ -18,6 +19,8 @@ struct BuildContext {
     SceneInfo* info;          ///< filled
     std::string bare_space;   ///< canonical space of bare colours
     Shutter shutter;          ///< the frame's exposure
+    /** Content hashes of the inline meshes seen so far (instances share one mesh). */
+    std::map<const TriangleMesh*, uint64_t> mesh_hashes;
 };
 
 /** Resolves a colour space name or throws at `at` listing the known ones; notes a stand-in
@@ -265,10 +268,10 @@ void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
         ctx.registry->put(
             e, SubdivSurface{sub->path, sub->loc, sub->options, sub->max_level, sub->pixel_budget});
     } else {
-        throw_error(std::get<InlineMeshShape>(d.shape).loc,
-                    "{}: a triangle mesh written in the scene file is not supported yet; give "
-                    "it as a mesh file",
-                    d.what);
+        const auto& in = std::get<InlineMeshShape>(d.shape);
+        auto [it, added] = ctx.mesh_hashes.emplace(in.mesh.get(), 0);
+        if (added) it->second = mesh_content_hash(*in.mesh);
+        ctx.registry->put(e, InlineMesh{in.mesh, it->second, in.loc});
     }
 }
 
@@ -413,7 +416,7 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
     SceneInfo info;
     info.path = scene.path;
     info.time = time;
-    BuildContext ctx{&color, &registry, &info, {}, {}};
+    BuildContext ctx{&color, &registry, &info, {}, {}, {}};
     const ecs::Entity settings = registry.create();
     build_render(ctx, scene.render, settings);
     build_camera(ctx, scene.camera, settings);

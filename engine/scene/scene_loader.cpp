@@ -27,11 +27,14 @@ const SceneFormat& scene_format_for(const std::string& path) {
     return formats.front();
 }
 
+SceneDescription read_scene(const std::string& path) {
+    check_scene_file(path);
+    return scene_format_for(path).read(path);
+}
+
 SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,
                      double time) {
-    check_scene_file(path);
-    const SceneDescription scene = scene_format_for(path).read(path);
-    return build_scene(scene, color, registry, time);
+    return build_scene(read_scene(path), color, registry, time);
 }
 
 }  // namespace spangle

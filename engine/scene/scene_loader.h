@@ -35,8 +35,11 @@ const std::vector<SceneFormat>& scene_formats();
  *  listed, as scene files have always been read. */
 const SceneFormat& scene_format_for(const std::string& path);
 
-/** Parses `path` into `registry` (which should be empty). Sets `color`'s working space.
- *  Throws SpangleError with file:line:col for every problem; never crashes on bad input. */
+/** Reads `path` with the reader of its format. Throws SpangleError at file:line:col. */
+SceneDescription read_scene(const std::string& path);
+
+/** Reads `path` and builds it into `registry` (which should be empty). Sets `color`'s working
+ * space. Throws SpangleError with file:line:col for every problem; never crashes on bad input. */
 SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,
                      double time = 0.0);
 

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "color/image_output.h"
+#include "geometry/mesh_load.h"
 #include "pipeline/frame.h"
 #include "pipeline/session.h"
 #include "test_support.h"
@@ -280,6 +281,42 @@ TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {
     EXPECT_EQ(rep.ran, names{"materials"});
     EXPECT_EQ(rep.built, names{"material 'coat'"});
     EXPECT_EQ(rep.reused.at("materials"), 2);
+}
+
+TEST(Session, AnInlineMeshRendersAsItsFileDoesAndReloadsAsUnchanged) {
+    // The meshes a scene file holds itself (a pbrt trianglemesh, glTF primitives) go through
+    // mesh_load as inline meshes: the same triangles as a file render the same image, a second
+    // read of the same triangles (a new mesh object) changes nothing, and two objects sharing
+    // one mesh share one BVH.
+    const std::string file = test::test_dir() + "/scenes/small_lit.toml";
+    RenderOptions options;
+    options.threads = 2;
+    options.spp_override = 2;
+    Session from_files({}, test::shipped_ocio(), options, test::quiet_log());
+    from_files.load(file);
+    from_files.render();
+    const auto inline_copy = [&] {
+        SceneDescription d = read_scene(file);
+        for (ObjectDesc& o : d.objects)
+            if (const auto* m = std::get_if<MeshFileShape>(&o.shape))
+                o.shape = InlineMeshShape{
+                    std::make_shared<const TriangleMesh>(load_mesh(m->path, m->loc)), m->loc};
+        return d;
+    };
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(inline_copy());
+    session.render();
+    EXPECT_EQ(session.result().image, from_files.result().image);
+    const ReloadReport again = session.load(inline_copy());
+    EXPECT_TRUE(again.changed.empty());
+    EXPECT_TRUE(again.ran.empty());
+
+    SceneDescription shared = inline_copy();
+    auto& first = std::get<InlineMeshShape>(shared.objects[0].shape);
+    for (ObjectDesc& o : shared.objects) o.shape = first;
+    const ReloadReport one = session.load(shared);
+    EXPECT_EQ(session.world().products.get<LoadedMeshes>().meshes.size(), 1u);
+    EXPECT_TRUE(contains(one.ran, "mesh_load"));
 }
 
 TEST(Session, AnEditedTextureRemakesItsMaterial) {
