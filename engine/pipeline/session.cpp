@@ -94,6 +94,7 @@ Session::~Session() {
 std::vector<std::string> Session::watched_files() const {
     std::set<std::string> all;
     if (info_ && !info_->path.empty()) all.insert(info_->path);
+    if (info_) all.insert(info_->files.begin(), info_->files.end());
     if (world_)
         for (const auto& [system, files] : world_->files)
             for (const auto& [path, read] : files) all.insert(path);
@@ -103,7 +104,7 @@ std::vector<std::string> Session::watched_files() const {
 
 ReloadReport Session::load(const std::string& scene, double time) {
     const auto t0 = std::chrono::steady_clock::now();
-    ReloadReport rep = load(read_scene(scene), time);
+    ReloadReport rep = load(read_scene(scene, SceneReadOptions{options_.camera}), time);
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
 }

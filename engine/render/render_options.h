@@ -73,6 +73,9 @@ struct RenderOptions {
      *  directory) and how much memory the texture tile cache may hold. */
     std::string texture_cache;
     uint32_t texture_memory_mb = 1024;
+    /** The camera to look through in a scene file with several (glTF: by name; empty: the
+     *  file's first). */
+    std::string camera;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:

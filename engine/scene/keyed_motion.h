@@ -69,6 +69,22 @@ struct MotionTest<Affine> {
     static bool same(const Affine& a, const Affine& b) { return a == b; }
 };
 
+/** A placement split as M = T R S (Shoemake and Duff's polar decomposition, as pbrt's animated
+ *  transforms do): translation t, rotation q (a unit quaternion x, y, z, w) and stretch s (a
+ *  symmetric matrix, negative where M mirrors). */
+struct DecomposedAffine {
+    double t[3] = {0, 0, 0};
+    double q[4] = {0, 0, 0, 1};
+    double s[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+};
+
+/** The decomposition of m (invertible). */
+DecomposedAffine decompose(const Affine& m);
+
+/** The placement a fraction f of the way from a to b: t and s along straight lines, the
+ *  rotation along the shorter arc (slerp). */
+Affine interpolate(const DecomposedAffine& a, const DecomposedAffine& b, double f);
+
 /** A keyframed value through one shutter. */
 template <class Value>
 struct KeyedMotion {
@@ -76,18 +92,29 @@ struct KeyedMotion {
     std::vector<Value> steps;  ///< motion steps over the shutter; empty when it does not blur
 };
 
-/** `track` through `shutter`: `make(values, t)` turns the track's numbers at time t into a
- *  Value (and throws for numbers that make no valid one). The steps follow the motion as
- *  motion_steps cuts it, tested by MotionTest<Value>; none when the shutter does not blur or
- *  nothing moves while it is open. */
-template <class Value, class Make>
-KeyedMotion<Value> keyed_motion(const Track& track, const Shutter& shutter, const Make& make) {
-    const auto at = [&](double t) -> Value { return make(evaluate(track, t), t); };
+/** The value `at(t)` gives through `shutter` (see keyed_motion). */
+template <class Value, class At>
+KeyedMotion<Value> motion_through(const Shutter& shutter, const At& at) {
     KeyedMotion<Value> out{at(shutter.middle), {}};
     if (shutter.blurs)
         out.steps = motion_steps(shutter.open, shutter.close, at, MotionTest<Value>::close,
                                  MotionTest<Value>::same);
     return out;
 }
+
+/** `track` through `shutter`: `make(values, t)` turns the track's numbers at time t into a
+ *  Value (and throws for numbers that make no valid one). The steps follow the motion as
+ *  motion_steps cuts it, tested by MotionTest<Value>; none when the shutter does not blur or
+ *  nothing moves while it is open. */
+template <class Value, class Make>
+KeyedMotion<Value> keyed_motion(const Track& track, const Shutter& shutter, const Make& make) {
+    return motion_through<Value>(shutter,
+                                 [&](double t) -> Value { return make(evaluate(track, t), t); });
+}
+
+/** Matrix keys through `shutter` (held before the first key and after the last). Throws
+ *  SpangleError at a key out of time order or a key whose matrix is not invertible. */
+KeyedMotion<Affine> matrix_motion(const Keys<MatrixKey>& keys, int64_t frame_start, double fps,
+                                  const Shutter& shutter);
 
 }  // namespace spangle

@@ -269,6 +269,7 @@ void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
             e, SubdivSurface{sub->path, sub->loc, sub->options, sub->max_level, sub->pixel_budget});
     } else {
         const auto& in = std::get<InlineMeshShape>(d.shape);
+        if (!in.mesh) throw_error(in.loc, "{}: its triangle mesh is missing", d.what);
         auto [it, added] = ctx.mesh_hashes.emplace(in.mesh.get(), 0);
         if (added) it->second = mesh_content_hash(*in.mesh);
         ctx.registry->put(e, InlineMesh{in.mesh, it->second, in.loc});
@@ -298,6 +299,11 @@ Affine compose(const TransformParts& p) {
 
 /** An object's placement through the shutter; each key's parts default to the object's own. */
 KeyedMotion<Affine> placement_motion(const BuildContext& ctx, const ObjectDesc& d) {
+    if (!d.matrix_keys.keys.empty()) {
+        if (!d.keys.keys.empty())
+            throw_error(d.keys.loc, "{}: keys of its parts and keys of its matrix at once", d.what);
+        return matrix_motion(d.matrix_keys, ctx.info->frame_start, ctx.info->fps, ctx.shutter);
+    }
     if (d.keys.keys.empty())
         return {d.placement.matrix ? *d.placement.matrix : compose(d.placement.parts), {}};
     if (d.placement.matrix)
@@ -337,7 +343,7 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     put_shape(ctx, e, d);
     registry.put(e, MaterialRef{material_index(ctx, d)});
     KeyedMotion<Affine> motion = placement_motion(ctx, d);
-    if (!d.keys.keys.empty()) info.animated = true;
+    if (!d.keys.keys.empty() || !d.matrix_keys.keys.empty()) info.animated = true;
     registry.put(e, Transform{motion.middle});
     info.object_to_world.push_back(motion.middle);
     if (d.emission) {
@@ -351,7 +357,7 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
         info.notes.push_back(
             fmt::format("{}: {} moves while the shutter is open but emits light: it is not "
                         "blurred (lights are placed at the shutter's middle)",
-                        d.keys.loc.str(), d.what));
+                        (d.keys.keys.empty() ? d.matrix_keys.loc : d.keys.loc).str(), d.what));
     } else {
         registry.put(e, Motion{std::move(motion.steps)});
         info.motion_blur = true;
@@ -415,6 +421,8 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
                       double time) {
     SceneInfo info;
     info.path = scene.path;
+    info.files = scene.files;
+    info.output = scene.render.output.value_or("");
     info.time = time;
     BuildContext ctx{&color, &registry, &info, {}, {}, {}};
     const ecs::Entity settings = registry.create();

@@ -161,6 +161,16 @@ struct ObjectKey {
     std::string what;               ///< what messages call the key
 };
 
+/** One key of an object's placement as a whole matrix (pbrt's ActiveTransform, glTF's node
+ *  animations). Between keys the placement is interpolated through its decomposition:
+ *  translation and stretch along straight lines, rotation along the shorter arc. */
+struct MatrixKey {
+    KeyTime time;      ///< when
+    Affine matrix;     ///< object to world (invertible)
+    FileLoc loc;       ///< the key
+    std::string what;  ///< what messages call the key
+};
+
 /** A triangle mesh in a file (OBJ, PLY). */
 struct MeshFileShape {
     std::string path;  ///< resolved path
@@ -199,6 +209,7 @@ struct ObjectDesc {
     std::string material;                  ///< a material's name
     PlacementDesc placement;               ///< object to world
     Keys<ObjectKey> keys;                  ///< its motion (of the placement's parts)
+    Keys<MatrixKey> matrix_keys;           ///< or its motion as whole matrices
     std::optional<EmissionDesc> emission;  ///< when it is a light
     FileLoc loc;                           ///< the object
     FileLoc material_loc;                  ///< its material's name
@@ -272,14 +283,24 @@ struct RenderDesc {
     double fps = 24.0;                         ///< frames per second, positive
     double shutter_open = 0.0;                 ///< frames from the frame's time, in [-16, 16]
     double shutter_close = 0.0;                ///< not before shutter_open; equal = no blur
-    FileLoc loc;                               ///< the settings (blamed for defaults)
-    FileLoc working_space_loc;                 ///< where the working space is named
-    FileLoc color_space_loc;                   ///< where the bare colours' space is named
+    /** The image the scene asks to be written (pbrt's Film "filename"); -o wins over it. */
+    std::optional<std::string> output;
+    FileLoc loc;                ///< the settings (blamed for defaults)
+    FileLoc working_space_loc;  ///< where the working space is named
+    FileLoc color_space_loc;    ///< where the bare colours' space is named
+};
+
+/** What a reader may be asked besides the file. */
+struct SceneReadOptions {
+    std::string camera;  ///< the camera to look through in a file with several (by name)
 };
 
 /** Everything a scene file says, in the order written within each kind. */
 struct SceneDescription {
-    std::string path;                            ///< the file it was read from
+    std::string path;  ///< the file it was read from
+    /** Every file the reader read besides `path` (included and imported scene files): an edit
+     *  of one reloads the scene. */
+    std::vector<std::string> files;
     RenderDesc render;                           ///< render settings
     CameraDesc camera;                           ///< the camera (every scene has one)
     std::optional<EnvironmentDesc> environment;  ///< none = black, no environment light

@@ -14,6 +14,8 @@ namespace spangle {
 /** Facts about the loaded scene that are not components. */
 struct SceneInfo {
     std::string path;                         ///< the scene file
+    std::vector<std::string> files;           ///< scene files it includes or imports
+    std::string output;                       ///< the image it asks for; empty: none
     std::string working_space;                ///< canonical OCIO name
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order

@@ -27,14 +27,14 @@ const SceneFormat& scene_format_for(const std::string& path) {
     return formats.front();
 }
 
-SceneDescription read_scene(const std::string& path) {
+SceneDescription read_scene(const std::string& path, const SceneReadOptions& options) {
     check_scene_file(path);
-    return scene_format_for(path).read(path);
+    return scene_format_for(path).read(path, options);
 }
 
 SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,
-                     double time) {
-    return build_scene(read_scene(path), color, registry, time);
+                     double time, const SceneReadOptions& options) {
+    return build_scene(read_scene(path, options), color, registry, time);
 }
 
 }  // namespace spangle

@@ -18,7 +18,7 @@ namespace spangle {
 
 /** A scene reader: a file of one format -> its description. Throws SpangleError at
  *  file:line:col for what is wrong in the file. */
-using SceneReader = SceneDescription (*)(const std::string& path);
+using SceneReader = SceneDescription (*)(const std::string& path, const SceneReadOptions& options);
 
 /** A scene file format, known by the file name's extension. */
 struct SceneFormat {
@@ -36,11 +36,11 @@ const std::vector<SceneFormat>& scene_formats();
 const SceneFormat& scene_format_for(const std::string& path);
 
 /** Reads `path` with the reader of its format. Throws SpangleError at file:line:col. */
-SceneDescription read_scene(const std::string& path);
+SceneDescription read_scene(const std::string& path, const SceneReadOptions& options = {});
 
 /** Reads `path` and builds it into `registry` (which should be empty). Sets `color`'s working
  * space. Throws SpangleError with file:line:col for every problem; never crashes on bad input. */
 SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,
-                     double time = 0.0);
+                     double time = 0.0, const SceneReadOptions& options = {});
 
 }  // namespace spangle

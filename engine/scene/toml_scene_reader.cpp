@@ -403,7 +403,7 @@ void read_each(TableReader& top, const char* key, std::vector<Desc>& out, const 
 
 }  // namespace
 
-SceneDescription read_toml_scene(const std::string& path) {
+SceneDescription read_toml_scene(const std::string& path, const SceneReadOptions&) {
     const toml::table root = parse_toml_file(path);
     SceneDescription d;
     d.path = path;

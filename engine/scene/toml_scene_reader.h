@@ -12,6 +12,6 @@ namespace spangle {
 
 /** Reads the TOML scene file at `path` (which exists; load_scene checks) into a description.
  *  Throws SpangleError at file:line:col for every problem it can see in the file alone. */
-SceneDescription read_toml_scene(const std::string& path);
+SceneDescription read_toml_scene(const std::string& path, const SceneReadOptions& options = {});
 
 }  // namespace spangle

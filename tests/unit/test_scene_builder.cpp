@@ -246,8 +246,24 @@ TEST(SceneBuilder, ErrorsPointWhereTheDescriptionSaysAndAMatrixPlacesAnObject) {
     EXPECT_EQ(info.object_to_world[0], m);
 
     d.objects[0].shape = InlineMeshShape{nullptr, {"hand.scene", 9, 1}};
+    ecs::Registry no_mesh;
+    try {
+        build_scene(d, color, no_mesh);
+        FAIL() << "an inline shape without a mesh built";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("hand.scene:9:1: error: "), std::string::npos)
+            << e.what();
+    }
+    auto mesh = std::make_shared<TriangleMesh>();
+    mesh->positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    mesh->indices = {0, 1, 2};
+    d.objects[0].shape = InlineMeshShape{mesh, {"hand.scene", 9, 1}};
     ecs::Registry inline_mesh;
-    EXPECT_THROW(build_scene(d, color, inline_mesh), SpangleError) << "not built yet: refused";
+    build_scene(d, color, inline_mesh);
+    ASSERT_EQ(inline_mesh.count<InlineMesh>(), 1u);
+    const InlineMesh built = inline_mesh.pool<InlineMesh>().columns().get(0);
+    EXPECT_EQ(built.mesh.get(), mesh.get());
+    EXPECT_EQ(built.content, mesh_content_hash(*mesh));
 }
 
 /** The camera of a track of (x of the eye, fov). */
@@ -309,6 +325,64 @@ TEST(SceneLoader, PicksTheReaderByTheFilesExtension) {
     EXPECT_STREQ(scene_format_for("a/SCENE.TOML").name, "TOML");
     EXPECT_STREQ(scene_format_for("a/scene.txt").name, "TOML") << "as scenes were always read";
     for (const SceneFormat& f : scene_formats()) EXPECT_NE(f.read, nullptr) << f.extension;
+}
+
+}  // namespace
+}  // namespace spangle
+
+namespace spangle {
+namespace {
+
+MatrixKey matrix_key(double seconds, const Affine& m) {
+    MatrixKey k;
+    k.time.seconds = seconds;
+    k.matrix = m;
+    k.what = "a key";
+    return k;
+}
+
+float largest_difference(const Affine& a, const Affine& b) {
+    float d = length(a.t - b.t);
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) d = std::max(d, std::fabs(a.m[i][j] - b.m[i][j]));
+    return d;
+}
+
+TEST(KeyedMotion, MatrixKeysTurnAlongTheShorterArcAndKeepTheirStretch) {
+    // Keys as whole matrices (pbrt's ActiveTransform, glTF's animations): a placement turning
+    // 90 degrees about y while it doubles in x and slides, and a mirrored one. Halfway, the
+    // turn is 45 degrees (slerp), the stretch and the slide halfway; at the keys, the keys.
+    const auto place = [](float deg, float sx, float tx, float mirror) {
+        return Affine::translate({tx, 0, 0})
+            .compose(Affine::rotate(deg, {0, 1, 0}))
+            .compose(Affine::scale({sx * mirror, 1, 1}));
+    };
+    for (const float mirror : {1.0f, -1.0f}) {
+        const Affine a = place(0, 1, 0, mirror), b = place(90, 2, 4, mirror);
+        const DecomposedAffine da = decompose(a), db = decompose(b);
+        EXPECT_LT(largest_difference(interpolate(da, db, 0.0), a), 1e-5f);
+        EXPECT_LT(largest_difference(interpolate(da, db, 1.0), b), 1e-5f);
+        EXPECT_LT(largest_difference(interpolate(da, db, 0.5), place(45, 1.5f, 2, mirror)), 1e-5f)
+            << "mirror " << mirror;
+        Keys<MatrixKey> keys;
+        keys.keys.push_back(matrix_key(0.0, a));
+        keys.keys.push_back(matrix_key(1.0, b));
+        const KeyedMotion<Affine> m =
+            matrix_motion(keys, 1, 24.0, frame_shutter(0.5, 1.0, -0.5, 0.5));
+        EXPECT_LT(largest_difference(m.middle, place(45, 1.5f, 2, mirror)), 1e-5f);
+        ASSERT_GE(m.steps.size(), 2u);
+        EXPECT_EQ(m.steps.front(), a) << "the shutter opens at the first key: that key";
+        EXPECT_EQ(m.steps.back(), b);
+        // The steps follow the turn: every step is the placement at its time.
+        for (std::size_t i = 0; i < m.steps.size(); ++i) {
+            const float f = static_cast<float>(i) / static_cast<float>(m.steps.size() - 1);
+            EXPECT_LT(largest_difference(m.steps[i], place(90 * f, 1 + f, 4 * f, mirror)), 1e-4f)
+                << "step " << i;
+        }
+    }
+    Keys<MatrixKey> flat;
+    flat.keys.push_back(matrix_key(0.0, Affine::scale({1, 0, 1})));
+    EXPECT_THROW(matrix_motion(flat, 1, 24.0, frame_shutter(0.0, 24.0, 0, 0)), SpangleError);
 }
 
 }  // namespace
