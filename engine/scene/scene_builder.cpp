@@ -422,6 +422,7 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
     SceneInfo info;
     info.path = scene.path;
     info.files = scene.files;
+    info.notes = scene.notes;
     info.output = scene.render.output.value_or("");
     info.time = time;
     BuildContext ctx{&color, &registry, &info, {}, {}, {}};

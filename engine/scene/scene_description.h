@@ -301,6 +301,9 @@ struct SceneDescription {
     /** Every file the reader read besides `path` (included and imported scene files): an edit
      *  of one reloads the scene. */
     std::vector<std::string> files;
+    /** The reader's warnings ("file:line: what was dropped and what stands in"), printed by
+     *  whoever loads the scene (SceneInfo::notes). */
+    std::vector<std::string> notes;
     RenderDesc render;                           ///< render settings
     CameraDesc camera;                           ///< the camera (every scene has one)
     std::optional<EnvironmentDesc> environment;  ///< none = black, no environment light
