@@ -7,7 +7,7 @@
 //   render   render_command.cpp (one-shot; --frames, --watch and MPI ranks run their own mode)
 //   plugins  plugins_command.cpp      inspect  inspect_command.cpp
 //   merge    merge_command.cpp        flicker  flicker_command.cpp
-//   bench    bench_command.cpp
+//   bench    bench_command.cpp        convert  convert_command.cpp
 
 #include <functional>
 
@@ -35,5 +35,7 @@ Command add_merge_command(CLI::App& app);
 Command add_flicker_command(CLI::App& app);
 /** `spangle bench`: fixed scenes measured. */
 Command add_bench_command(CLI::App& app);
+/** `spangle convert`: any scene written as a TOML scene. */
+Command add_convert_command(CLI::App& app);
 
 }  // namespace spangle

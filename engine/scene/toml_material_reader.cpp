@@ -59,6 +59,27 @@ enum class TextureUse { Param, NormalMap, BumpMap };
  *  texture's uv matrix: uv' = R(rotate) (scale * uv) + offset. */
 void read_uv_transform(const ReadContext& ctx, const toml::table& t, TextureDesc& tex) {
     TableReader u(t, ctx.file, "uv_transform");
+    // `matrix = [m0, ..., m5]`: the 2x3 matrix itself, (u, v) -> (m0 u + m1 v + m2, m3 u + m4 v
+    // + m5), as `spangle convert` writes it.
+    if (const toml::node* n = u.node("matrix")) {
+        const toml::array* a = n->as_array();
+        bool ok = a && a->size() == 6;
+        for (std::size_t i = 0; ok && i < 6; ++i) {
+            const auto x = (*a)[i].value<double>();
+            ok = (*a)[i].is_number() && x && std::isfinite(*x);
+            if (ok) tex.uv[i] = static_cast<float>(*x);
+        }
+        if (!ok)
+            throw_error(loc_of(*n, ctx.file),
+                        "'matrix' must be 6 finite numbers: (u, v) -> (m0 u + m1 v + m2, m3 u + "
+                        "m4 v + m5)");
+        for (const char* key : {"scale", "offset", "rotate"})
+            if (u.has(key))
+                throw_error(u.loc(key),
+                            "give either 'matrix' or scale, offset and rotate, not both");
+        u.finish();
+        return;
+    }
     float su = 1, sv = 1;
     if (u.has("scale")) {
         const toml::node& n = *u.node("scale");

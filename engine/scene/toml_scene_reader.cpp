@@ -197,17 +197,18 @@ std::optional<Vec3> read_scale(TableReader& r) {
     return v;
 }
 
-/** `matrix = [...]`: 12 numbers, the rows of a 3x4 object-to-world matrix, or 16, a 4x4 one
- *  whose last row is 0 0 0 1 (as `spangle convert` writes placements that are no scale, rotate
- *  and translate); none when absent. */
-std::optional<Affine> read_matrix(TableReader& r) {
-    const toml::node* n = r.node("matrix");
+/** `key = [...]` (by default `matrix`): 12 numbers, the rows of a 3x4 object-to-world matrix,
+ *  or 16, a 4x4 one whose last row is 0 0 0 1 (as `spangle convert` writes placements that are
+ *  no scale, rotate and translate); none when absent. */
+std::optional<Affine> read_matrix(TableReader& r, std::string_view key = "matrix") {
+    const toml::node* n = r.node(key);
     if (!n) return std::nullopt;
     const toml::array* a = n->as_array();
     const auto fail = [&]() {
         throw_error(loc_of(*n, r.file()),
-                    "'matrix' must be 12 numbers (the rows of a 3x4 object-to-world matrix) or "
-                    "16 (a 4x4 one with last row 0, 0, 0, 1)");
+                    "'{}' must be 12 numbers (the rows of a 3x4 object-to-world matrix) or 16 (a "
+                    "4x4 one with last row 0, 0, 0, 1)",
+                    key);
     };
     if (!a || (a->size() != 12 && a->size() != 16)) fail();
     double v[16];
@@ -224,7 +225,7 @@ std::optional<Affine> read_matrix(TableReader& r) {
     m.t = {static_cast<float>(v[3]), static_cast<float>(v[7]), static_cast<float>(v[11])};
     const float det = m.determinant();
     if (!(std::fabs(det) > 1e-30f) || !std::isfinite(det))
-        throw_error(loc_of(*n, r.file()), "'matrix' is not invertible (determinant {})", det);
+        throw_error(loc_of(*n, r.file()), "'{}' is not invertible (determinant {})", key, det);
     return m;
 }
 
@@ -362,6 +363,7 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
     o.material = r.string("material");
     o.material_loc = r.loc("material");
     o.placement = read_placement(r);
+    o.parent = read_matrix(r, "import_matrix");
     const auto name = [&](std::size_t k) {
         return fmt::format("[[object.keys]] #{} of {}", k, r.what());
     };

@@ -1,0 +1,64 @@
+// `spangle convert SCENE -o OUT.toml`: any scene Spangle reads (with its imports) written as a
+// TOML scene to start editing from, the meshes the scene file held itself as PLY files in
+// OUT_meshes/ beside it. The TOML renders the same image as the scene, bit for bit.
+
+#include <fmt/format.h>
+
+#include <CLI/CLI.hpp>
+#include <filesystem>
+#include <memory>
+#include <string>
+
+#include "cli/commands.h"
+#include "cli/output_paths.h"
+#include "cli/usage.h"
+#include "core/log.h"
+#include "scene/scene_loader.h"
+#include "scene/toml_scene_writer.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+/** Options of `spangle convert`. */
+struct ConvertArgs {
+    std::string scene;   ///< the scene file to read
+    std::string output;  ///< the TOML file to write
+    std::string camera;  ///< the camera of a file with several (by name)
+    bool quiet = false;  ///< no line saying what was written
+};
+
+int run_convert(const ConvertArgs& a) {
+    if (fs::path(a.output).extension() != ".toml")
+        usage_error("output '{}' must end in .toml", a.output);
+    if (same_file(a.output, a.scene)) usage_error("the output '{}' is the scene file", a.output);
+    check_writable(a.output, "TOML scene");
+    const SceneDescription scene = read_scene(a.scene, SceneReadOptions{a.camera});
+    Logger log;
+    if (a.quiet) log.threshold = LogLevel::Warning;
+    for (const std::string& note : scene.notes) log.warn("{}", note);
+    const fs::path out(a.output);
+    const fs::path meshes = out.parent_path() / (out.stem().string() + "_meshes");
+    const SceneWriteReport rep = write_toml_scene(scene, a.output, meshes.string());
+    log.info("wrote {}{}", a.output,
+             rep.meshes.empty() ? std::string()
+                                : fmt::format(" and {} mesh{} in {}", rep.meshes.size(),
+                                              rep.meshes.size() == 1 ? "" : "es", meshes.string()));
+    return 0;
+}
+
+}  // namespace
+
+Command add_convert_command(CLI::App& app) {
+    auto a = std::make_shared<ConvertArgs>();
+    CLI::App* sub = app.add_subcommand(
+        "convert", "write any scene Spangle reads as a TOML scene (its meshes as PLY beside it)");
+    sub->add_option("scene", a->scene, "scene file (any format Spangle reads)")->required();
+    sub->add_option("-o,--output", a->output, "the TOML scene to write")->required();
+    sub->add_option("--camera", a->camera, "the camera of a file with several, by name");
+    sub->add_flag("-q,--quiet", a->quiet, "no info output");
+    return {sub, [a] { return run_convert(*a); }};
+}
+
+}  // namespace spangle

@@ -1,0 +1,59 @@
+#include "geometry/ply_writer.h"
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+#include "core/error.h"
+
+namespace spangle {
+
+void write_ply(const TriangleMesh& mesh, const std::string& path, const std::string& comment) {
+    const std::size_t nv = mesh.vertex_count(), nf = mesh.triangle_count();
+    const bool normals = !mesh.normals.empty(), uvs = !mesh.uvs.empty();
+    std::string header = "ply\nformat binary_little_endian 1.0\n";
+    if (!comment.empty()) header += "comment " + comment + "\n";
+    header += fmt::format(
+        "element vertex {}\nproperty float x\nproperty float y\nproperty float z\n", nv);
+    if (normals) header += "property float nx\nproperty float ny\nproperty float nz\n";
+    if (uvs) header += "property float u\nproperty float v\n";
+    header +=
+        fmt::format("element face {}\nproperty list uchar uint vertex_indices\nend_header\n", nf);
+    std::vector<char> body;
+    body.reserve(nv * (12 + (normals ? 12 : 0) + (uvs ? 8 : 0)) + nf * 13);
+    const auto put = [&](const void* data, std::size_t bytes) {
+        const auto* c = static_cast<const char*>(data);
+        body.insert(body.end(), c, c + bytes);
+    };
+    for (std::size_t i = 0; i < nv; ++i) {
+        put(&mesh.positions[3 * i], 12);
+        if (normals) put(&mesh.normals[3 * i], 12);
+        if (uvs) put(&mesh.uvs[2 * i], 8);
+    }
+    for (std::size_t f = 0; f < nf; ++f) {
+        const uint8_t three = 3;
+        put(&three, 1);
+        put(&mesh.indices[3 * f], 12);
+    }
+    const std::string tmp = fmt::format("{}.tmp{}", path, ::getpid());
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        out << header;
+        out.write(body.data(), static_cast<std::streamsize>(body.size()));
+        if (!out) {
+            std::remove(tmp.c_str());
+            throw_error("cannot write '{}'", path);
+        }
+    }
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        std::remove(tmp.c_str());
+        throw_error("cannot write '{}': {}", path, ec.message());
+    }
+}
+
+}  // namespace spangle

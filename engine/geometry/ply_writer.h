@@ -1,0 +1,16 @@
+#pragma once
+// Writing a triangle mesh as a binary little-endian PLY file, the way the PLY reader reads it
+// back exactly: float32 positions (and normals and uvs when the mesh has them), faces as uchar
+// counts of uint32 indices.
+
+#include <string>
+
+#include "geometry/triangle_mesh.h"
+
+namespace spangle {
+
+/** Writes `mesh` to `path` (whole, or not at all: through a temporary file renamed into place).
+ *  `comment` goes into the header. Throws SpangleError when the file cannot be written. */
+void write_ply(const TriangleMesh& mesh, const std::string& path, const std::string& comment);
+
+}  // namespace spangle

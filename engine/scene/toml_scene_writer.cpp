@@ -1,0 +1,361 @@
+#include "scene/toml_scene_writer.h"
+
+#include <fmt/format.h>
+#include <unistd.h>
+
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <map>
+
+#include "core/error.h"
+#include "geometry/ply_writer.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+/** A number as TOML: the shortest decimal that reads back as the same double, always with a
+ *  decimal point or an exponent (so that it is a float, not an integer). */
+template <typename T>
+std::string shortest(T x) {
+    std::string s = fmt::format("{}", x);
+    if (s.find_first_of(".eEn") == std::string::npos) s += ".0";  // n: inf and nan stay words
+    return s;
+}
+std::string num(double x) {
+    return shortest(x);
+}
+/** A float as the shortest decimal that reads back (as a double, then rounded to a float) as the
+ *  same float: 0.8f is written 0.8, not 0.800000011920929. */
+std::string num(float x) {
+    return shortest(x);
+}
+
+/** A TOML basic string. */
+std::string str(const std::string& s) {
+    std::string out = "\"";
+    for (const char c : s) {
+        if (c == '"' || c == '\\')
+            out += fmt::format("\\{}", c);
+        else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+            out += fmt::format("\\u{:04x}", static_cast<unsigned>(static_cast<unsigned char>(c)));
+        else
+            out += c;
+    }
+    return out + "\"";
+}
+
+std::string vec(Vec3 v) {
+    return fmt::format("[{}, {}, {}]", num(v.x), num(v.y), num(v.z));
+}
+
+/** The 12 numbers of `matrix = [...]`: the rows of the 3x4 object-to-world matrix. */
+std::string matrix12(const Affine& m) {
+    std::vector<std::string> v;
+    for (int r = 0; r < 3; ++r) {
+        for (int c = 0; c < 3; ++c) v.push_back(num(m.m[r][c]));
+        v.push_back(num(r == 0 ? m.t.x : r == 1 ? m.t.y : m.t.z));
+    }
+    return fmt::format("[{}]", fmt::join(v, ", "));
+}
+
+std::string color(const ColorDesc& c) {
+    if (!c.space) return vec(c.rgb);
+    return fmt::format("{{ rgb = {}, space = {} }}", vec(c.rgb), str(*c.space));
+}
+
+const char* filter_name(FilterKind k) {
+    switch (k) {
+        case FilterKind::Box:
+            return "box";
+        case FilterKind::BlackmanHarris:
+            return "blackman-harris";
+        case FilterKind::Gaussian:
+            break;
+    }
+    return "gaussian";
+}
+
+std::string key_time(const KeyTime& t) {
+    return t.frame ? fmt::format("frame = {}", *t.frame) : fmt::format("time = {}", num(t.seconds));
+}
+
+/** Builds the file's text section by section. */
+struct Writer {
+    fs::path dir;       ///< the TOML file's folder: paths are written relative to it
+    fs::path mesh_dir;  ///< where inline meshes go
+    std::string out;    ///< the text so far
+    std::map<const TriangleMesh*, std::string> meshes;  ///< inline meshes written, by mesh
+    SceneWriteReport report;
+
+    void line(const std::string& key, const std::string& value) {
+        out += key + " = " + value + "\n";
+    }
+    std::string path(const std::string& p) const {
+        // Files in the TOML's folder (or below) relative to it; others by absolute path, so that
+        // the written scene finds them from wherever it is read.
+        std::error_code ec;
+        const fs::path abs = fs::absolute(p, ec);
+        const fs::path rel = fs::relative(abs, dir, ec);
+        if (ec || rel.empty() || rel.string().rfind("..", 0) == 0)
+            return str(abs.lexically_normal().string());
+        return str(rel.string());
+    }
+
+    void render(const RenderDesc& r) {
+        out += "[render]\n";
+        line("width", fmt::to_string(r.width));
+        line("height", fmt::to_string(r.height));
+        line("spp", fmt::to_string(r.spp));
+        line("max_depth", fmt::to_string(r.max_depth));
+        line("rr_depth", fmt::to_string(r.rr_depth));
+        line("seed", fmt::to_string(r.seed));
+        line("filter", str(filter_name(r.filter)));
+        line("clamp_indirect", num(r.clamp_indirect));
+        if (r.working_space) line("working_space", str(*r.working_space));
+        if (r.color_space) line("color_space", str(*r.color_space));
+        line("frame_start", fmt::to_string(r.frame_start));
+        line("frame_end", fmt::to_string(r.frame_end));
+        line("fps", num(r.fps));
+        line("shutter", fmt::format("[{}, {}]", num(r.shutter_open), num(r.shutter_close)));
+    }
+
+    void camera(const CameraDesc& c) {
+        out += "\n[camera]\n";
+        line("position", vec(c.position));
+        line("look_at", vec(c.look_at));
+        line("up", vec(c.up));
+        line("fov", num(c.fov_deg));
+        line("aperture", num(c.aperture));
+        if (c.focus_distance) line("focus_distance", num(*c.focus_distance));
+        if (c.keys.keys.empty()) return;
+        line("interpolation", str(c.keys.smooth ? "smooth" : "linear"));
+        for (const CameraKey& k : c.keys.keys) {
+            out += "\n[[camera.keys]]\n" + key_time(k.time) + "\n";
+            if (k.position) line("position", vec(*k.position));
+            if (k.look_at) line("look_at", vec(*k.look_at));
+            if (k.up) line("up", vec(*k.up));
+            if (k.fov_deg) line("fov", num(*k.fov_deg));
+        }
+    }
+
+    void group(const LightGroupDesc& g, const char* key = "light_group") {
+        if (g.name != LightGroupDesc{}.name) line(key, str(g.name));
+    }
+
+    void environment(const EnvironmentDesc& e) {
+        out += "\n[environment]\n";
+        if (e.map) {
+            line("map", path(e.map->path));
+            if (e.map->color_space) line("color_space", str(*e.map->color_space));
+            line("rotation", num(e.map->rotation_deg));
+        } else if (e.color) {
+            line("color", color(*e.color));
+        }
+        line("intensity", num(e.intensity));
+        group(e.group);
+    }
+
+    std::string texture(const TextureDesc& t, const char* use) {
+        static const char* wraps[] = {"periodic", "clamp", "black", "mirror"};
+        std::string s = "{ texture = " + path(t.path);
+        if (t.space) s += ", space = " + str(*t.space);
+        if (std::string(use) == "param")
+            s += fmt::format(", scale = [{}, {}, {}]", num(t.scale[0]), num(t.scale[1]),
+                             num(t.scale[2]));
+        if (std::string(use) == "normal_map") s += ", strength = " + num(t.amount);
+        if (std::string(use) == "bump_map") s += ", height = " + num(t.amount);
+        std::vector<std::string> uv;
+        for (float x : t.uv) uv.push_back(num(x));
+        s += fmt::format(", uv_transform = {{ matrix = [{}] }}", fmt::join(uv, ", "));
+        s += fmt::format(", wrap = {}, filter = {} }}", str(wraps[t.wrap & 3]),
+                         str(t.filter == 1 ? "anisotropic" : "trilinear"));
+        return s;
+    }
+
+    std::string param(const ParamDesc& p) {
+        switch (p.kind) {
+            case ParamDesc::Kind::Number:
+                return p.is_integer ? fmt::format("{}", static_cast<int64_t>(p.number))
+                                    : num(p.number);
+            case ParamDesc::Kind::Bool:
+                return p.number != 0 ? "true" : "false";
+            case ParamDesc::Kind::String:
+                return str(p.text);
+            case ParamDesc::Kind::Color:
+                return color(p.color);
+            case ParamDesc::Kind::Texture:
+                break;
+        }
+        return texture(p.texture, "param");
+    }
+
+    void material(const MaterialDesc& m) {
+        out += "\n[[material]]\n";
+        line("name", str(m.name));
+        line("plugin", str(m.plugin));
+        if (!m.model.empty()) line("model", str(m.model));
+        std::vector<std::string> params;
+        for (const ParamDesc& p : m.params) params.push_back(str(p.name) + " = " + param(p));
+        line("params", fmt::format("{{ {} }}", fmt::join(params, ", ")));
+        for (const ParamDesc& p : m.maps) line(p.name, texture(p.texture, p.name.c_str()));
+    }
+
+    std::string inline_mesh(const TriangleMesh& mesh) {
+        auto it = meshes.find(&mesh);
+        if (it != meshes.end()) return it->second;
+        std::error_code ec;
+        fs::create_directories(mesh_dir, ec);
+        const fs::path file = mesh_dir / fmt::format("mesh_{:03}.ply", meshes.size());
+        write_ply(mesh, file.string(), "written by spangle convert from " + mesh.source);
+        report.meshes.push_back(file.string());
+        return meshes.emplace(&mesh, path(file.string())).first->second;
+    }
+
+    void subdiv(const SubdivShape& s) {
+        static const char* schemes[] = {"catmull-clark", "loop"};
+        static const char* boundaries[] = {"none", "edge_only", "edge_and_corner"};
+        static const char* uvs[] = {"smooth", "corners_only", "boundaries", "all"};
+        const SubdivOptions& o = s.options;
+        std::string t = fmt::format(
+            "{{ scheme = {}, level = {}, max_level = {}, pixel_budget = {}, boundary = {}, "
+            "uv_interpolation = {}",
+            str(schemes[static_cast<int>(o.scheme)]),
+            o.level < 0 ? str("auto") : fmt::to_string(o.level), s.max_level, num(s.pixel_budget),
+            str(boundaries[static_cast<int>(o.boundary)]),
+            str(uvs[static_cast<int>(o.uv_interpolation)]));
+        std::vector<std::string> creases, corners;
+        for (std::size_t i = 0; i < o.crease_sharpness.size(); ++i)
+            creases.push_back(fmt::format("[{}, {}, {}]", o.crease_vertices[2 * i],
+                                          o.crease_vertices[2 * i + 1],
+                                          num(o.crease_sharpness[i])));
+        for (std::size_t i = 0; i < o.corner_sharpness.size(); ++i)
+            corners.push_back(
+                fmt::format("[{}, {}]", o.corner_vertices[i], num(o.corner_sharpness[i])));
+        if (!creases.empty()) t += fmt::format(", creases = [{}]", fmt::join(creases, ", "));
+        if (!corners.empty()) t += fmt::format(", corners = [{}]", fmt::join(corners, ", "));
+        line("mesh", path(s.path));
+        line("subdiv", t + " }");
+    }
+
+    void object(const ObjectDesc& o) {
+        out += "\n[[object]]\n";
+        if (!o.name.empty()) line("name", str(o.name));
+        if (const auto* m = std::get_if<MeshFileShape>(&o.shape))
+            line("mesh", path(m->path));
+        else if (const auto* s = std::get_if<SubdivShape>(&o.shape))
+            subdiv(*s);
+        else
+            line("mesh", inline_mesh(*std::get<InlineMeshShape>(o.shape).mesh));
+        line("material", str(o.material));
+        if (o.placement.matrix) {
+            line("matrix", matrix12(*o.placement.matrix));
+        } else {
+            line("translate", vec(o.placement.parts.translate));
+            line("rotate", vec(o.placement.parts.rotate));
+            line("scale", vec(o.placement.parts.scale));
+        }
+        if (o.parent) line("import_matrix", matrix12(*o.parent));
+        if (o.emission) {
+            line("emission", color(o.emission->color));
+            line("emission_intensity", num(o.emission->intensity));
+            group(o.emission->group);
+        }
+        keys(o);
+    }
+
+    void keys(const ObjectDesc& o) {
+        if (!o.matrix_keys.keys.empty()) {
+            line("interpolation", str("linear"));
+            for (const MatrixKey& k : o.matrix_keys.keys)
+                out += "\n[[object.keys]]\n" + key_time(k.time) +
+                       "\nmatrix = " + matrix12(k.matrix) + "\n";
+            return;
+        }
+        if (o.keys.keys.empty()) return;
+        line("interpolation", str(o.keys.smooth ? "smooth" : "linear"));
+        for (const ObjectKey& k : o.keys.keys) {
+            out += "\n[[object.keys]]\n" + key_time(k.time) + "\n";
+            if (k.scale) line("scale", vec(*k.scale));
+            if (k.rotate) line("rotate", vec(*k.rotate));
+            if (k.translate) line("translate", vec(*k.translate));
+        }
+    }
+
+    void light(const LightDesc& l) {
+        out += "\n[[light]]\n";
+        struct Shape {
+            Writer& w;
+            void operator()(const QuadLightDesc& q) const {
+                w.line("type", str("quad"));
+                w.line("corner", vec(q.corner));
+                w.line("edge1", vec(q.edge1));
+                w.line("edge2", vec(q.edge2));
+                w.line("two_sided", q.two_sided ? "true" : "false");
+            }
+            void operator()(const SphereLightDesc& s) const {
+                w.line("type", str("sphere"));
+                w.line("center", vec(s.center));
+                w.line("radius", num(s.radius));
+            }
+            void operator()(const PointLightDesc& p) const {
+                w.line("type", str("point"));
+                w.line("position", vec(p.position));
+            }
+            void operator()(const SpotLightDesc& s) const {
+                w.line("type", str("spot"));
+                w.line("position", vec(s.position));
+                w.line("look_at", vec(s.look_at));
+                w.line("cone_angle", num(s.cone_angle));
+                w.line("cone_falloff", num(s.cone_falloff));
+            }
+            void operator()(const DistantLightDesc& d) const {
+                w.line("type", str("distant"));
+                w.line("direction", vec(d.direction));
+                w.line("angular_radius", num(d.angular_radius_deg));
+            }
+        };
+        std::visit(Shape{*this}, l.shape);
+        if (l.color) line("color", color(*l.color));
+        line("intensity", num(l.intensity));
+        group(l.group);
+    }
+};
+
+}  // namespace
+
+SceneWriteReport write_toml_scene(const SceneDescription& scene, const std::string& path,
+                                  const std::string& mesh_dir) {
+    if (!scene.imports.empty() || !scene.has_camera)
+        throw_error("{}: the scene's imports must be resolved before it is written", scene.path);
+    Writer w;
+    w.dir = fs::absolute(path).parent_path();
+    w.mesh_dir = fs::absolute(mesh_dir);
+    w.out = fmt::format("# Written by spangle convert from {}\n\n", scene.path);
+    w.render(scene.render);
+    w.camera(scene.camera);
+    if (scene.environment) w.environment(*scene.environment);
+    for (const MaterialDesc& m : scene.materials) w.material(m);
+    for (const ObjectDesc& o : scene.objects) w.object(o);
+    for (const LightDesc& l : scene.lights) w.light(l);
+    const std::string tmp = fmt::format("{}.tmp{}", path, ::getpid());
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        out << w.out;
+        if (!out) {
+            std::remove(tmp.c_str());
+            throw_error("cannot write '{}'", path);
+        }
+    }
+    std::error_code ec;
+    fs::rename(tmp, path, ec);
+    if (ec) {
+        std::remove(tmp.c_str());
+        throw_error("cannot write '{}': {}", path, ec.message());
+    }
+    return w.report;
+}
+
+}  // namespace spangle
