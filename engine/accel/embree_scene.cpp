@@ -1,9 +1,13 @@
 #include "accel/embree_scene.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <mutex>
+#include <string>
 
 #include "core/error.h"
 
@@ -129,8 +133,59 @@ void EmbreeScene::check(const char* what) const {
     if (!error_.empty()) throw_error("{} failed: {}", what, error_);
 }
 
+namespace {
+
+/** Progress of one build() over its BLAS (by triangles) and the top level (one more share the
+ *  size of the instances), fed by Embree's progress monitor, which may call from several of its
+ *  threads at once. */
+struct BuildProgress {
+    const WorkProgress* report = nullptr;
+    std::string what;
+    double total = 0.0;  ///< triangles to build, plus one per instance for the top level
+    double done = 0.0;   ///< of total, in structures finished
+    double part = 0.0;   ///< the structure being built now, of total
+    double shown = -1.0;
+    std::mutex mutex;
+
+    /** The structure now being built is `fraction` done. */
+    void at(double fraction) {
+        std::lock_guard<std::mutex> lock(mutex);
+        const double f = total > 0.0 ? std::min(1.0, (done + part * fraction) / total) : 1.0;
+        if (f < shown + 0.001 && f < 1.0) return;  // only forward, not on every call
+        shown = f;
+        (*report)(what, f);
+    }
+    static bool monitor(void* self, double fraction) {
+        static_cast<BuildProgress*>(self)->at(std::clamp(fraction, 0.0, 1.0));
+        return true;  // never cancels
+    }
+    /** Starts a structure of `size` (triangles or instances) in `scene`. */
+    void begin(RTCScene scene, double size) {
+        done += part;
+        part = size;
+        if (report && *report) rtcSetSceneProgressMonitorFunction(scene, monitor, this);
+    }
+};
+
+}  // namespace
+
 void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instance>& instances,
-                        const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres) {
+                        const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres,
+                        const WorkProgress& progress) {
+    BuildProgress meter;
+    meter.report = &progress;
+    {
+        std::size_t new_meshes = 0;
+        for (const auto& ptr : geometry.meshes)
+            if (!by_mesh_.count(ptr.get())) {
+                meter.total += static_cast<double>(ptr->triangle_count());
+                ++new_meshes;
+            }
+        meter.total += static_cast<double>(instances.size() + quad_vertices.size() / 4 + 1);
+        meter.what = fmt::format("building BVHs ({} mesh{}, {} instance{})", new_meshes,
+                                 new_meshes == 1 ? "" : "es", instances.size(),
+                                 instances.size() == 1 ? "" : "s");
+    }
     built_ = reused_ = 0;
     decltype(by_mesh_) next;
     blas_.clear();
@@ -154,6 +209,7 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
         RTCGeometry g = add_triangles(device_, s, mesh.positions.data(), mesh.vertex_count(),
                                       mesh.indices.data(), mesh.triangle_count());
         rtcReleaseGeometry(g);
+        meter.begin(s, static_cast<double>(mesh.triangle_count()));
         rtcCommitScene(s);
         check("building a mesh's acceleration structure");
     }
@@ -208,8 +264,10 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
         sphere_geom_ = rtcAttachGeometry(top_, g);
         rtcReleaseGeometry(g);
     }
+    meter.begin(top_, static_cast<double>(instances.size() + quad_vertices.size() / 4 + 1));
     rtcCommitScene(top_);
     check("building the scene's acceleration structure");
+    if (progress) meter.at(1.0);
 }
 
 void EmbreeScene::bounding_sphere(Vec3& center, float& radius) const {

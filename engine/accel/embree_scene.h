@@ -16,6 +16,7 @@
 #include <vector>
 
 #include "core/math.h"
+#include "core/progress.h"
 #include "geometry/triangle_mesh.h"
 
 namespace spangle {
@@ -72,10 +73,11 @@ public:
     /** Builds one BLAS per mesh, one instance per object, the quad light triangles
      *  (quad_vertices: 4 world-space corners per quad) and the sphere lights (x, y, z, radius).
      *  Called again (a reload), it keeps the BLAS of every mesh it already has (the same
-     *  shared mesh object), releases the others and rebuilds the top level. Throws
-     *  SpangleError. */
+     *  shared mesh object), releases the others and rebuilds the top level. `progress` (may
+     *  be empty) is told how far the builds are, by triangles. Throws SpangleError. */
     void build(const GeometryStore& geometry, const std::vector<Instance>& instances,
-               const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres);
+               const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres,
+               const WorkProgress& progress = {});
 
     /** Centre and radius of a sphere bounding everything in the scene (0 radius when empty). */
     void bounding_sphere(Vec3& center, float& radius) const;

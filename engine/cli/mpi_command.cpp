@@ -120,6 +120,7 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
     options.progressive = false;  // one pass per band: the same sums, bit for bit
     options.preview_pass = false;
     options.threads = rank_threads(a, job, log);
+    if (job.rank() != 0) options.work_progress = nullptr;  // rank 0 speaks for all
     std::unique_ptr<Session> session;
     together(job, [&] {
         if (job.rank() == 0) out = outputs_for(a);

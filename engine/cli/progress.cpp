@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <memory>
 #include <string>
 
 namespace spangle {
@@ -54,6 +55,63 @@ void Progress::update(uint64_t done, uint64_t total) {
 
 void Progress::finish() {
     if (interactive_ && drawn_) fmt::print(out_, "\n");
+}
+
+namespace {
+
+/** What work_meter() keeps between calls. */
+struct WorkMeter {
+    bool interactive = false;
+    std::FILE* out = stderr;
+    std::string what;  ///< the piece now running ("" before the first)
+    std::chrono::steady_clock::time_point start, last_draw;
+    bool shown = false;    ///< a line of this piece was printed
+    int last_decile = -1;  ///< the last 10% step printed (not interactive)
+
+    /** Seconds a piece runs before it is shown. */
+    static constexpr double kQuiet = 1.0;
+
+    void update(const std::string& w, double fraction) {
+        const auto now = std::chrono::steady_clock::now();
+        if (w != what) {
+            what = w;
+            start = last_draw = now;
+            shown = false;
+            last_decile = -1;
+        }
+        const double elapsed = std::chrono::duration<double>(now - start).count();
+        const bool done = fraction >= 1.0;
+        if (!shown && (elapsed < kQuiet)) return;  // quick work stays quiet, its end too
+        if (done) {
+            fmt::print(out, "{}{}: done in {}{}\n", interactive ? "\r" : "", what,
+                       format_duration(elapsed), interactive ? "          " : "");
+            std::fflush(out);
+            what.clear();
+            return;
+        }
+        if (interactive) {
+            if (shown && std::chrono::duration<double>(now - last_draw).count() < 0.2) return;
+            fmt::print(out, "\r{}  {:5.1f}%  {}   ", what, 100.0 * fraction,
+                       format_duration(elapsed));
+        } else {
+            const int decile = static_cast<int>(fraction * 10.0);
+            if (decile == last_decile) return;
+            last_decile = decile;
+            fmt::print(out, "{}: {:3d}%  {}\n", what, decile * 10, format_duration(elapsed));
+        }
+        std::fflush(out);
+        last_draw = now;
+        shown = true;
+    }
+};
+
+}  // namespace
+
+WorkProgress work_meter(bool interactive, std::FILE* out) {
+    auto m = std::make_shared<WorkMeter>();
+    m->interactive = interactive;
+    m->out = out;
+    return [m](const std::string& what, double fraction) { m->update(what, fraction); };
 }
 
 }  // namespace spangle

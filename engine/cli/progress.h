@@ -1,10 +1,13 @@
 #pragma once
 // Progress on long renders: a redrawn bar with samples per second and time left on a terminal,
-// a plain line every 10% otherwise (logs, CI).
+// a plain line every 10% otherwise (logs, CI). The same for the long work before a render
+// (reading, subdivision, BVH builds), shown once a piece of it has run a second.
 
 #include <chrono>
 #include <cstdint>
 #include <cstdio>
+
+#include "core/progress.h"
 
 namespace spangle {
 
@@ -24,5 +27,10 @@ private:
     int last_decile_ = -1;
     bool drawn_ = false;
 };
+
+/** A WorkProgress that shows each piece of work taking over a second: on a terminal a line
+ *  redrawn in place ("subdividing body.obj at level 8  45%  12s"), otherwise a line per 10%;
+ *  each shown piece ends with the seconds it took. Quick pieces print nothing. */
+WorkProgress work_meter(bool interactive, std::FILE* out = stderr);
 
 }  // namespace spangle

@@ -2,7 +2,10 @@
 
 #include "cli/render_args.h"
 
+#include <unistd.h>
+
 #include "cli/arguments.h"
+#include "cli/progress.h"
 
 namespace spangle {
 
@@ -19,6 +22,7 @@ RenderOptions render_options(const RenderArgs& a) {
     o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
                  : a.strategy == "bsdf" ? Strategy::BsdfOnly
                                         : Strategy::Mis;
+    if (!a.quiet) o.work_progress = work_meter(::isatty(STDERR_FILENO) != 0);
     return o;
 }
 

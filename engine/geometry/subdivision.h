@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/math.h"
+#include "core/progress.h"
 #include "geometry/cage.h"
 #include "geometry/triangle_mesh.h"
 
@@ -30,8 +31,10 @@ struct SubdivOptions {
 };
 
 /** Refines `cage` to a triangle mesh at the limit surface. Throws SpangleError (at `ref`) for
- *  topology OpenSubdiv rejects or a crease/corner naming a vertex the cage lacks. */
-TriangleMesh subdivide(const Cage& cage, const SubdivOptions& options, const FileLoc& ref);
+ *  topology OpenSubdiv rejects or a crease/corner naming a vertex the cage lacks. `progress`
+ *  (may be empty) is told how far it is, as `what`. */
+TriangleMesh subdivide(const Cage& cage, const SubdivOptions& options, const FileLoc& ref,
+                       const WorkProgress& progress = {}, const std::string& what = {});
 
 /** Triangles subdivide() makes of `cage` with `options` (exact for uniform refinement). */
 double subdivided_triangles(const Cage& cage, const SubdivOptions& options);

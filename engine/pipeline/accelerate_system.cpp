@@ -77,7 +77,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
         check_bvh_memory(out.geometry);
         out.accel = std::make_shared<EmbreeScene>();
     }
-    out.accel->build(out.geometry, out.instances, quads, spheres);
+    out.accel->build(out.geometry, out.instances, quads, spheres, w.options.work_progress);
     if (w.cache) {
         const EmbreeScene& a = *out.accel;
         if (a.blas_reused() > 0) w.cache->reused["mesh BVHs"] += a.blas_reused();

@@ -3,6 +3,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <map>
 
 #include "core/files.h"
@@ -12,12 +13,30 @@
 namespace spangle {
 namespace {
 
+namespace fs = std::filesystem;
+
 /** The meshes of the mesh files, one per distinct file, referenced from their objects. */
 void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
                      std::vector<std::pair<ecs::Entity, uint32_t>>& refs) {
     auto* pool = r.find_pool<MeshFile>();
     if (!pool) return;
     std::map<std::string, uint32_t> loaded;  // one load per distinct file
+    // Progress by bytes: the files' sizes (0 for one that cannot be read: its load says why).
+    std::map<std::string, double> sizes;
+    double total = 0.0, done = 0.0;
+    for (const std::string& path : pool->columns().path)
+        if (sizes.emplace(path, 0.0).second) {
+            std::error_code ec;
+            const auto bytes = fs::file_size(path, ec);
+            total += sizes[path] = ec ? 0.0 : static_cast<double>(bytes);
+        }
+    const auto report = [&] {
+        if (w.options.work_progress && total > 0.0)
+            w.options.work_progress(
+                fmt::format("reading {} mesh file{}", sizes.size(), sizes.size() == 1 ? "" : "s"),
+                std::min(1.0, done / total));
+    };
+    report();
     for (std::size_t i = 0; i < pool->size(); ++i) {
         const std::string& path = pool->columns().path[i];
         auto it = loaded.find(path);
@@ -32,6 +51,8 @@ void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
                 },
                 "mesh " + path));
             it = loaded.emplace(path, static_cast<uint32_t>(out.meshes.size() - 1)).first;
+            done += sizes[path];
+            report();
         }
         refs.emplace_back(pool->entities()[i], it->second);
     }
@@ -156,7 +177,9 @@ void system_subdivide(ecs::Registry& r, World& w) {
             [&] { return subdiv_key(file, options); },
             [&] {
                 check_subdivision_memory(*cage, options, rep.from_camera, s.loc);
-                return std::make_shared<const TriangleMesh>(subdivide(*cage, options, s.loc));
+                return std::make_shared<const TriangleMesh>(
+                    subdivide(*cage, options, s.loc, w.options.work_progress,
+                              fmt::format("subdividing {} at level {}", s.path, options.level)));
             },
             fmt::format("subdivision of {} at level {}", s.path, options.level));
         rep.triangles = mesh->triangle_count();

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "core/progress.h"
 #include "render/lights.h"
 
 namespace spangle {
@@ -48,6 +49,9 @@ struct RenderOptions {
     /** Called with (samples done, samples total) from worker threads, serialised by the
      *  integrator; may be empty. */
     std::function<void(uint64_t, uint64_t)> progress;
+    /** Told how far the long work before a render is (reading meshes, subdividing, building
+     *  BVHs); may be empty. */
+    WorkProgress work_progress;
     /** Called after each completed pass but the last with the image so far; may be empty. */
     std::function<void(const PassImage&)> on_pass;
     /** Polled between waves of tiles: when it returns true the render stops, keeping the
