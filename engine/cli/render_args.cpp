@@ -12,6 +12,7 @@ namespace spangle {
 RenderOptions render_options(const RenderArgs& a) {
     RenderOptions o;
     o.threads = a.threads;
+    o.camera = a.camera;
     o.spp_override = a.spp;
     o.texture_cache = a.texture_cache;
     o.layers = a.layers;

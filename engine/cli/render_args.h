@@ -14,7 +14,8 @@ namespace spangle {
 
 /** Options of `spangle render`. */
 struct RenderArgs {
-    std::string scene;                     ///< the scene file (TOML)
+    std::string scene;                     ///< the scene file (any format Spangle reads)
+    std::string camera;                    ///< --camera: by name, in a file with several
     std::string output;                    ///< -o: the EXR; empty = <scene name>.exr
     std::string preview;                   ///< the PNG preview; empty = the EXR's path with .png
     bool no_preview = false;               ///< write no PNG preview

@@ -30,7 +30,8 @@ namespace {
 
 /** Registers the scene, the outputs' paths, the size and samples, plugins and --stats. */
 void add_scene_options(CLI::App* r, RenderArgs& a) {
-    r->add_option("scene", a.scene, "scene file (TOML)")->required();
+    r->add_option("scene", a.scene, "scene file (TOML, or any format Spangle reads)")->required();
+    r->add_option("--camera", a.camera, "the camera to look through, by name (glTF, pbrt)");
     r->add_option("-o,--output", a.output, "output EXR (default: <scene name>.exr)");
     r->add_option("--preview", a.preview, "PNG preview path (default: the output with .png)");
     r->add_flag("--no-preview", a.no_preview, "write no PNG preview");
