@@ -167,6 +167,63 @@ struct BuildProgress {
     }
 };
 
+/** The top level, not yet committed: an instance per object (ids in order), then the quad lights'
+ *  triangles and the sphere lights (their geometry ids returned, or RTC_INVALID_GEOMETRY_ID). */
+RTCScene make_top_level(RTCDevice device, const std::vector<RTCScene>& blas,
+                        const std::vector<Instance>& instances,
+                        const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres,
+                        uint32_t& quad_geom, uint32_t& sphere_geom) {
+    quad_geom = sphere_geom = RTC_INVALID_GEOMETRY_ID;
+    RTCScene top = rtcNewScene(device);
+    for (const Instance& inst : instances) {
+        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
+        rtcSetGeometryInstancedScene(g, blas[inst.mesh]);
+        float xfm[12];
+        if (inst.motion.size() >= 2) {
+            // A moving instance: one transform per time step (Embree blends them by ray time).
+            rtcSetGeometryTimeStepCount(g, static_cast<unsigned>(inst.motion.size()));
+            for (std::size_t k = 0; k < inst.motion.size(); ++k) {
+                to_embree(inst.motion[k], xfm);
+                rtcSetGeometryTransform(g, static_cast<unsigned>(k), RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
+                                        xfm);
+            }
+        } else {
+            to_embree(inst.to_world, xfm);
+            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
+        }
+        rtcCommitGeometry(g);
+        rtcAttachGeometry(top, g);  // ids are attachment order: instance i has id i
+        rtcReleaseGeometry(g);
+    }
+    if (!quad_vertices.empty()) {
+        std::vector<float> xyz;
+        std::vector<uint32_t> idx;
+        for (std::size_t q = 0; q < quad_vertices.size() / 4; ++q) {
+            for (int k = 0; k < 4; ++k) {
+                const Vec3 p = quad_vertices[4 * q + static_cast<std::size_t>(k)];
+                xyz.insert(xyz.end(), {p.x, p.y, p.z});
+            }
+            const auto b = static_cast<uint32_t>(4 * q);
+            idx.insert(idx.end(), {b, b + 1, b + 2, b, b + 2, b + 3});
+        }
+        quad_geom = static_cast<uint32_t>(instances.size());
+        RTCGeometry g =
+            add_triangles(device, top, xyz.data(), xyz.size() / 3, idx.data(), idx.size() / 3);
+        rtcReleaseGeometry(g);
+    }
+    if (!spheres.empty()) {
+        const std::size_t n = spheres.size() / 4;
+        RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_SPHERE_POINT);
+        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
+            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), n));
+        if (v) std::memcpy(v, spheres.data(), spheres.size() * sizeof(float));
+        rtcCommitGeometry(g);
+        sphere_geom = rtcAttachGeometry(top, g);
+        rtcReleaseGeometry(g);
+    }
+    return top;
+}
+
 }  // namespace
 
 void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instance>& instances,
@@ -216,54 +273,8 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
     for (auto& [mesh, entry] : by_mesh_) rtcReleaseScene(entry.second);
     by_mesh_ = std::move(next);
     if (top_) rtcReleaseScene(top_);
-    quad_geom_ = sphere_geom_ = RTC_INVALID_GEOMETRY_ID;
-    top_ = rtcNewScene(device_);
-    for (const Instance& inst : instances) {
-        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_INSTANCE);
-        rtcSetGeometryInstancedScene(g, blas_[inst.mesh]);
-        float xfm[12];
-        if (inst.motion.size() >= 2) {
-            // A moving instance: one transform per time step (Embree blends them by ray time).
-            rtcSetGeometryTimeStepCount(g, static_cast<unsigned>(inst.motion.size()));
-            for (std::size_t k = 0; k < inst.motion.size(); ++k) {
-                to_embree(inst.motion[k], xfm);
-                rtcSetGeometryTransform(g, static_cast<unsigned>(k), RTC_FORMAT_FLOAT3X4_ROW_MAJOR,
-                                        xfm);
-            }
-        } else {
-            to_embree(inst.to_world, xfm);
-            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
-        }
-        rtcCommitGeometry(g);
-        rtcAttachGeometry(top_, g);  // ids are attachment order: instance i has id i
-        rtcReleaseGeometry(g);
-    }
-    if (!quad_vertices.empty()) {
-        std::vector<float> xyz;
-        std::vector<uint32_t> idx;
-        for (std::size_t q = 0; q < quad_vertices.size() / 4; ++q) {
-            for (int k = 0; k < 4; ++k) {
-                const Vec3 p = quad_vertices[4 * q + static_cast<std::size_t>(k)];
-                xyz.insert(xyz.end(), {p.x, p.y, p.z});
-            }
-            const auto b = static_cast<uint32_t>(4 * q);
-            idx.insert(idx.end(), {b, b + 1, b + 2, b, b + 2, b + 3});
-        }
-        quad_geom_ = static_cast<uint32_t>(instances.size());
-        RTCGeometry g =
-            add_triangles(device_, top_, xyz.data(), xyz.size() / 3, idx.data(), idx.size() / 3);
-        rtcReleaseGeometry(g);
-    }
-    if (!spheres.empty()) {
-        const std::size_t n = spheres.size() / 4;
-        RTCGeometry g = rtcNewGeometry(device_, RTC_GEOMETRY_TYPE_SPHERE_POINT);
-        auto* v = static_cast<float*>(rtcSetNewGeometryBuffer(
-            g, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT4, 4 * sizeof(float), n));
-        if (v) std::memcpy(v, spheres.data(), spheres.size() * sizeof(float));
-        rtcCommitGeometry(g);
-        sphere_geom_ = rtcAttachGeometry(top_, g);
-        rtcReleaseGeometry(g);
-    }
+    top_ =
+        make_top_level(device_, blas_, instances, quad_vertices, spheres, quad_geom_, sphere_geom_);
     meter.begin(top_, static_cast<double>(instances.size() + quad_vertices.size() / 4 + 1));
     rtcCommitScene(top_);
     check("building the scene's acceleration structure");
