@@ -26,6 +26,7 @@ struct ConvertArgs {
     std::string scene;   ///< the scene file to read
     std::string output;  ///< the TOML file to write
     std::string camera;  ///< the camera of a file with several (by name)
+    std::string env;     ///< a lat-long map instead of the scene's environment
     bool quiet = false;  ///< no line saying what was written
 };
 
@@ -34,7 +35,7 @@ int run_convert(const ConvertArgs& a) {
         usage_error("output '{}' must end in .toml", a.output);
     if (same_file(a.output, a.scene)) usage_error("the output '{}' is the scene file", a.output);
     check_writable(a.output, "TOML scene");
-    const SceneDescription scene = read_scene(a.scene, SceneReadOptions{a.camera});
+    const SceneDescription scene = read_scene(a.scene, SceneReadOptions{a.camera, a.env});
     Logger log;
     if (a.quiet) log.threshold = LogLevel::Warning;
     for (const std::string& note : scene.notes) log.warn("{}", note);
@@ -57,6 +58,8 @@ Command add_convert_command(CLI::App& app) {
     sub->add_option("scene", a->scene, "scene file (any format Spangle reads)")->required();
     sub->add_option("-o,--output", a->output, "the TOML scene to write")->required();
     sub->add_option("--camera", a->camera, "the camera of a file with several, by name");
+    sub->add_option("--env", a->env, "a lat-long image (EXR, HDR) instead of the environment")
+        ->check(CLI::ExistingFile);
     sub->add_flag("-q,--quiet", a->quiet, "no info output");
     return {sub, [a] { return run_convert(*a); }};
 }

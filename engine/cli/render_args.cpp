@@ -13,6 +13,7 @@ RenderOptions render_options(const RenderArgs& a) {
     RenderOptions o;
     o.threads = a.threads;
     o.camera = a.camera;
+    o.environment = a.environment;
     o.spp_override = a.spp;
     o.texture_cache = a.texture_cache;
     o.layers = a.layers;

@@ -16,6 +16,7 @@ namespace spangle {
 struct RenderArgs {
     std::string scene;                     ///< the scene file (any format Spangle reads)
     std::string camera;                    ///< --camera: by name, in a file with several
+    std::string environment;               ///< --env: a lat-long map instead of the scene's
     std::string output;                    ///< -o: the EXR; empty = <scene name>.exr
     std::string preview;                   ///< the PNG preview; empty = the EXR's path with .png
     bool no_preview = false;               ///< write no PNG preview

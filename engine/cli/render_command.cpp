@@ -32,6 +32,9 @@ namespace {
 void add_scene_options(CLI::App* r, RenderArgs& a) {
     r->add_option("scene", a.scene, "scene file (TOML, or any format Spangle reads)")->required();
     r->add_option("--camera", a.camera, "the camera to look through, by name (glTF, pbrt)");
+    r->add_option("--env", a.environment,
+                  "a lat-long image (EXR, HDR) lighting the scene instead of its environment")
+        ->check(CLI::ExistingFile);
     r->add_option("-o,--output", a.output, "output EXR (default: <scene name>.exr)");
     r->add_option("--preview", a.preview, "PNG preview path (default: the output with .png)");
     r->add_flag("--no-preview", a.no_preview, "write no PNG preview");

@@ -80,6 +80,8 @@ struct RenderOptions {
     /** The camera to look through in a scene file with several (glTF: by name; empty: the
      *  file's first). */
     std::string camera;
+    /** `--env`: a lat-long image lighting the scene instead of its environment; empty: none. */
+    std::string environment;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:

@@ -311,6 +311,10 @@ struct ImportDesc {
 /** What a reader may be asked besides the file. */
 struct SceneReadOptions {
     std::string camera;  ///< the camera to look through in a file with several (by name)
+    /** A lat-long image that replaces the scene's environment (`--env`); empty: the scene's.
+     *  A reader that would put a stand-in light into a scene without lights does not when this
+     *  is given. */
+    std::string environment;
 };
 
 /** Everything a scene file says, in the order written within each kind. */

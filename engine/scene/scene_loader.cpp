@@ -58,7 +58,17 @@ SceneDescription read_with_imports(const std::string& path, const SceneReadOptio
 
 SceneDescription read_scene(const std::string& path, const SceneReadOptions& options) {
     std::vector<std::string> chain;
-    return read_with_imports(path, options, chain);
+    SceneDescription scene = read_with_imports(path, options, chain);
+    if (!options.environment.empty()) {
+        // --env: the map lights the scene instead of what the file says (its colour space is
+        // the default's, lin_rec709, as for a map a scene names without one).
+        EnvironmentDesc env;
+        env.loc = FileLoc{"--env", 0, 0};
+        env.map = EnvironmentDesc::Map{options.environment, env.loc, std::nullopt, {}, 0.0};
+        if (scene.environment) env.group = scene.environment->group;
+        scene.environment = env;
+    }
+    return scene;
 }
 
 SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,

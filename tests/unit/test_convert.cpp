@@ -156,6 +156,25 @@ TEST(Convert, NumbersAreWrittenWithTheFewestDigitsThatReadBackExactly) {
     EXPECT_EQ(text.find("0.800000011920929"), std::string::npos);
 }
 
+TEST(Convert, AnEnvironmentFromTheCommandLineReplacesTheScenesAndIsWrittenOut) {
+    // --env (SceneReadOptions::environment) lights the scene with a map instead of its own
+    // environment; the converted scene names that map and renders the same.
+    const std::string scene = test::test_dir() + "/scenes/small_lit.toml";
+    const std::string map = test::asset_dir() + "/env/studio.exr";
+    SceneReadOptions with_env;
+    with_env.environment = map;
+    const SceneDescription d = read_scene(scene, with_env);
+    ASSERT_TRUE(d.environment && d.environment->map);
+    EXPECT_EQ(d.environment->map->path, map);
+    EXPECT_FALSE(d.environment->color);
+    test::TempDir dir("convert_env");
+    write_toml_scene(d, dir.file("lit.toml"), dir.file("lit_meshes"));
+    EXPECT_NE(read_text(dir.file("lit.toml")).find(map), std::string::npos);
+    const std::vector<float> lit = render_path(dir.file("lit.toml"));
+    EXPECT_EQ(lit, render_description(d));
+    EXPECT_NE(lit, render_path(scene));  // the map, not the scene's own sky, lights it
+}
+
 TEST(Convert, AnUnresolvedImportIsRefusedNotDropped) {
     SceneDescription d;
     d.path = "shot.toml";
