@@ -214,8 +214,8 @@ using ShapeDesc = std::variant<MeshFileShape, SubdivShape, InlineMeshShape>;
 struct EmissionDesc {
     ColorDesc color;         ///< radiance (non-negative), W/(m^2 sr)
     double intensity = 1.0;  ///< scale (non-negative)
-    bool two_sided = false;  ///< emits from its back faces too (pbrt's "twosided")
     LightGroupDesc group;    ///< its light group
+    bool two_sided = false;  ///< emits from its back faces too (pbrt's "twosided")
 };
 
 /** A placed shape with a material. */

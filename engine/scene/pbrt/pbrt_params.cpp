@@ -31,9 +31,24 @@ ValueKind kind_of(std::string_view type) {
     return ValueKind::Numbers;
 }
 
-/** A number as pbrt writes one ("+1", "1.", ".5", "1e-3"); false for anything else. */
+/** A number as pbrt writes one ("+1", "1.", ".5", "1e-3"); false for anything else. Plain
+ *  integers (mesh indices, most of a large file) take a short path. */
 bool parse_number(std::string_view s, double& out) {
     if (!s.empty() && s.front() == '+') s.remove_prefix(1);
+    if (!s.empty() && s.size() <= 15) {
+        std::size_t i = s.front() == '-' ? 1 : 0;
+        int64_t v = 0;
+        bool digits = i < s.size();
+        for (std::size_t k = i; k < s.size() && digits; ++k) {
+            const char c = s[k];
+            digits = c >= '0' && c <= '9';
+            v = v * 10 + (c - '0');
+        }
+        if (digits) {
+            out = static_cast<double>(i ? -v : v);
+            return true;
+        }
+    }
     const auto [end, ec] = std::from_chars(s.data(), s.data() + s.size(), out);
     return ec == std::errc() && end == s.data() + s.size();
 }
@@ -91,6 +106,8 @@ void ParamList::parse(Tokenizer& tokens) {
         const ValueKind kind = kind_of(type);
         const Token first = tokens.next();
         if (first.kind == Token::Kind::Open) {
+            // Reserved, not touched: the pages a list does not fill cost nothing.
+            if (kind == ValueKind::Numbers) p.numbers.reserve(tokens.bytes_to_close() / 2 + 1);
             for (;;) {
                 const Token t = tokens.next();
                 if (t.kind == Token::Kind::Close) break;
@@ -100,6 +117,13 @@ void ParamList::parse(Tokenizer& tokens) {
                 if (t.kind == Token::Kind::Open)
                     throw_error(tokens.loc(t), "'{} {}': a list cannot hold a list", p.type,
                                 p.name);
+                // A directive's name inside a list: the list's ']' is missing.
+                if (t.kind == Token::Kind::Word && !t.text.empty() && t.text[0] >= 'A' &&
+                    t.text[0] <= 'Z')
+                    throw_error(tokens.loc(first),
+                                "'[' of '{} {}' is never closed (before {} at "
+                                "line {})",
+                                p.type, p.name, t.text, t.line);
                 take_value(tokens, t, kind, p);
             }
         } else if (first.kind == Token::Kind::Word || first.kind == Token::Kind::String) {

@@ -502,13 +502,22 @@ SceneDescription read_all(Reader& r, Tokenizer& t) {
 }  // namespace
 
 void place_object(Reader& r, ObjectDesc o, const Mat4 xf[2]) {
-    for (int i = 0; i < 2; ++i)
-        if (!(std::fabs(xf[i].determinant3()) > 1e-30)) {
-            r.notes.add(o.loc, fmt::format("{} is placed by a singular transform (a zero "
-                                           "scale): dropped",
+    for (int i = 0; i < 2; ++i) {
+        // Rays are carried into object space in floats: a transform they cannot invert there
+        // (a zero scale, or one beyond 1e8 either way) would send non-finite rays.
+        const Affine a = xf[i].affine();
+        const float det = a.determinant();
+        bool finite = std::isfinite(det);
+        for (const auto& row : a.m)
+            for (float v : row) finite = finite && std::isfinite(v);
+        finite = finite && is_finite(a.t);
+        if (!finite || !(std::fabs(det) > 1e-24f && std::fabs(det) < 1e24f)) {
+            r.notes.add(o.loc, fmt::format("{} is placed by a singular or extreme transform "
+                                           "(a scale of 0, or beyond 1e8): dropped",
                                            o.what));
             return;
         }
+    }
     o.placement.matrix = xf[0].affine();
     if (!(xf[0] == xf[1])) {
         o.matrix_keys.smooth = false;

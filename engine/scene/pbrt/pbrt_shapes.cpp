@@ -51,6 +51,10 @@ void read_vertices(const Reader& r, const ParamList& p, const char* what, const 
         throw_error(loc, "{}: \"point3 P\" must hold x y z per vertex, got {} numbers", what,
                     P.size());
     m.positions.assign(P.begin(), P.end());
+    for (std::size_t i = 0; i < P.size(); ++i)
+        if (!std::isfinite(m.positions[i]))
+            throw_error(loc, "{}: \"point3 P\" value #{} ({}) is beyond a float's range", what, i,
+                        P[i]);
     const std::size_t n = P.size() / 3;
     const std::vector<double>& N = p.numbers("N", {"normal3"});
     if (!N.empty()) {
@@ -185,6 +189,10 @@ Made loopsubdiv(Reader& r, const ParamList& p, const FileLoc& loc) {
         throw_error(loc, "loopsubdiv: \"point3 P\" must hold x y z per vertex, got {} numbers",
                     P.size());
     cage->positions.assign(P.begin(), P.end());
+    for (std::size_t i = 0; i < P.size(); ++i)
+        if (!std::isfinite(cage->positions[i]))
+            throw_error(loc, "loopsubdiv: \"point3 P\" value #{} ({}) is beyond a float's range", i,
+                        P[i]);
     const std::vector<uint32_t> idx =
         checked_indices(p.numbers("indices", {"integer"}), 3, P.size() / 3, "loopsubdiv", loc);
     cage->face_vertices.assign(idx.begin(), idx.end());

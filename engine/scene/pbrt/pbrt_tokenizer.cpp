@@ -87,6 +87,11 @@ Token Tokenizer::next() {
     return scan();
 }
 
+std::size_t Tokenizer::bytes_to_close() const {
+    const std::size_t close = text_.find(']', at_);
+    return (close == std::string::npos ? text_.size() : close) - at_;
+}
+
 Token Tokenizer::scan() {
     const std::size_t n = text_.size();
     while (at_ < n) {

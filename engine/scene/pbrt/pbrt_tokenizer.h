@@ -37,6 +37,9 @@ public:
     Token next();
     /** The token next() would return, without taking it. */
     const Token& peek();
+    /** Bytes from the read position to the next ']' (or the end): a bound on the values of a
+     *  list, for reserving (each value takes at least two bytes). */
+    std::size_t bytes_to_close() const;
     /** The file's path as messages show it. */
     const std::string& path() const { return path_; }
     /** A token's place in this file. */
