@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "geometry/mesh_load.h"
 #include "scene/pbrt/pbrt_reader.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
@@ -295,6 +296,32 @@ TEST(PbrtReader, PlyMeshesStayMeshFilesForMeshLoad) {
     const std::string e = error_of(f, "Shape \"plymesh\" \"string filename\" \"gone.ply\"\n");
     EXPECT_NE(e.find("scene.pbrt:1:1: error:"), std::string::npos) << e;
     EXPECT_NE(e.find("gone.ply"), std::string::npos) << e;
+}
+
+TEST(PbrtReader, APlyMeshOfQuadsLoadsAsTriangles) {
+    // pbrt-v4 writes PLY meshes of quads: mesh_load (the PLY reader) splits each polygon.
+    const Files f;
+    std::ofstream(f.file("quads.ply")) << "ply\nformat ascii 1.0\nelement vertex 6\n"
+                                          "property float x\nproperty float y\nproperty float z\n"
+                                          "element face 2\nproperty list uchar int vertex_indices\n"
+                                          "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n2 0 0\n2 1 0\n"
+                                          "4 0 1 2 3\n4 1 4 5 2\n";
+    const SceneDescription d = read(f, "Shape \"plymesh\" \"string filename\" \"quads.ply\"\n");
+    const auto& m = std::get<MeshFileShape>(d.objects.at(0).shape);
+    EXPECT_EQ(load_mesh(m.path, m.loc).triangle_count(), 4u);
+}
+
+TEST(PbrtReader, TheDefaultMaterialNeverTakesAWrittenMaterialsName) {
+    // A scene may name its own material pbrt_default: the default then gets a name of its own.
+    const Files f;
+    const SceneDescription d = read(f, R"(WorldBegin
+MakeNamedMaterial "pbrt_default" "string type" "matte" "rgb Kd" [1 0 0]
+Shape "sphere"
+)");
+    ASSERT_EQ(d.materials.size(), 2u);
+    EXPECT_EQ(param(material(d, "pbrt_default"), "albedo")->color.rgb, Vec3(1.0f, 0.0f, 0.0f));
+    EXPECT_EQ(d.objects.at(0).material, "pbrt_default#2");
+    EXPECT_EQ(param(material(d, "pbrt_default#2"), "albedo")->color.rgb, Vec3(0.5f));
 }
 
 TEST(PbrtReader, V3MaterialsMapOntoTheNearestModels) {

@@ -105,6 +105,28 @@ void view_of(const Mat4& m, Vec3& eye, Vec3& look, Vec3& up) {
     up = normalize(m.vector({0, 1, 0}));
 }
 
+/** The camera's two keys (TransformTimes) when its transform moves between them. */
+void camera_keys(Reader& r) {
+    const CameraState& cs = r.camera;
+    if (cs.to_world[0] == cs.to_world[1]) return;
+    Keys<CameraKey>& keys = r.d.camera.keys;
+    keys.smooth = false;
+    keys.loc = cs.loc;
+    const double times[2] = {r.time_start, r.time_end};
+    for (int i = 0; i < 2; ++i) {
+        CameraKey k;
+        k.time.seconds = times[i];
+        Vec3 e, l, u;
+        view_of(cs.to_world[i], e, l, u);
+        k.position = e;
+        k.look_at = l;
+        k.up = u;
+        k.loc = cs.loc;
+        k.what = fmt::format("the camera at time {}", times[i]);
+        keys.keys.push_back(std::move(k));
+    }
+}
+
 }  // namespace
 
 void finish_camera_and_render(Reader& r) {
@@ -160,23 +182,7 @@ void finish_camera_and_render(Reader& r) {
     const double focus = p.number("focaldistance", 1e6);
     if (c.aperture > 0.0 && focus > 0.0) c.focus_distance = focus;
     shutter(r);
-    if (!(cs.to_world[0] == cs.to_world[1])) {
-        c.keys.smooth = false;
-        c.keys.loc = cs.loc;
-        const double times[2] = {r.time_start, r.time_end};
-        for (int i = 0; i < 2; ++i) {
-            CameraKey k;
-            k.time.seconds = times[i];
-            Vec3 e, l, u;
-            view_of(cs.to_world[i], e, l, u);
-            k.position = e;
-            k.look_at = l;
-            k.up = u;
-            k.loc = cs.loc;
-            k.what = fmt::format("the camera at time {}", times[i]);
-            c.keys.keys.push_back(std::move(k));
-        }
-    }
+    camera_keys(r);
     r.notes.unused(p, fmt::format("Camera \"{}\"", cs.type));
     if (r.env_map_pending && r.d.environment && r.d.environment->map && r.v4())
         r.d.environment->map->projection = MapProjection::EqualArea;

@@ -334,18 +334,12 @@ private:
     MaterialDesc m_;
 };
 
-/** A name no material has yet: `base`, else base#2, base#3, ... */
-std::string unique_name(const Reader& r, const std::string& base) {
-    const auto taken = [&](const std::string& n) {
-        for (const MaterialDesc& m : r.d.materials)
-            if (m.name == n) return true;
-        return false;
-    };
-    if (!taken(base)) return base;
-    for (int i = 2;; ++i) {
-        const std::string n = fmt::format("{}#{}", base, i);
-        if (!taken(n)) return n;
-    }
+/** A name no material has yet, `base`, else base#2, base#3, ...; taken from now on. */
+std::string unique_name(Reader& r, const std::string& base) {
+    std::string name = base;
+    for (int k = 2; r.material_names.count(name); ++k) name = fmt::format("{}#{}", base, k);
+    r.material_names.insert(name);
+    return name;
 }
 
 /** The v3 materials. Returns false for a type that is not one of them. */
@@ -518,7 +512,7 @@ std::string mix_material(Reader& r, const ParamList& p, const std::string& name,
 }  // namespace
 
 std::string default_material(Reader& r, const FileLoc& loc) {
-    if (!r.default_material) {
+    if (r.default_material.empty()) {
         // pbrt's default in both versions: a diffuse reflector of 0.5.
         MaterialDesc m;
         m.name = unique_name(r, "pbrt_default");
@@ -531,12 +525,10 @@ std::string default_material(Reader& r, const FileLoc& loc) {
         d.color.rgb = Vec3(0.5f);
         d.color.loc = d.color.space_loc = d.loc = d.key_loc = loc;
         m.params.push_back(std::move(d));
+        r.default_material = m.name;
         r.d.materials.push_back(std::move(m));
-        r.default_material = true;
     }
-    for (const MaterialDesc& m : r.d.materials)
-        if (m.name.rfind("pbrt_default", 0) == 0) return m.name;
-    return "pbrt_default";
+    return r.default_material;
 }
 
 std::string read_material(Reader& r, const std::string& type, const std::string& name, ParamList& p,

@@ -10,6 +10,7 @@
 #include <map>
 #include <memory>
 #include <optional>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -104,8 +105,9 @@ struct Reader {
     std::string film_type, sampler_type, integrator_type, filter_type;       ///< their types
     double time_start = 0.0, time_end = 1.0;                                 ///< TransformTimes
     bool world = false;                                                      ///< after WorldBegin
-    int anonymous = 0;              ///< anonymous materials so far
-    bool default_material = false;  ///< the default material was added
+    int anonymous = 0;                     ///< anonymous materials so far
+    std::string default_material;          ///< its name once added; "" = not yet
+    std::set<std::string> material_names;  ///< every material's name (unique in Spangle)
     /** An environment map whose layout depends on the version (known at the end). */
     bool env_map_pending = false;
 
