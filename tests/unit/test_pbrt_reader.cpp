@@ -657,6 +657,37 @@ TEST(PbrtReader, IncludedAndGzippedFilesAreRead) {
     EXPECT_EQ(read_scene(f.file("whole.pbrt.gz")).objects.size(), 1u);
 }
 
+TEST(PbrtReader, ATomlSceneImportsAPbrtSceneAndOverridesItsMaterials) {
+    // [[import]] takes any format the loader reads: a pbrt car with its paint replaced by name.
+    const Files f;
+    std::ofstream(f.file("car.pbrt")) << R"(Film "rgb" "integer xresolution" 40
+  "integer yresolution" 30
+LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective"
+WorldBegin
+MakeNamedMaterial "paint" "string type" "diffuse" "rgb reflectance" [0.8 0.1 0.1]
+NamedMaterial "paint"
+Shape "sphere"
+)";
+    std::ofstream(f.file("look.toml")) << R"([[import]]
+file = "car.pbrt"
+
+[[material]]
+name = "paint"
+plugin = "smooth"
+model = "diffuse"
+params = { albedo = [0.1, 0.1, 0.8] }
+)";
+    const SceneDescription d = read_scene(f.file("look.toml"));
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_EQ(d.objects[0].material, "paint");
+    ASSERT_EQ(d.materials.size(), 1u) << "the override replaces the pbrt material";
+    EXPECT_EQ(param(d.materials[0], "albedo")->color.rgb, Vec3(0.1f, 0.1f, 0.8f));
+    EXPECT_EQ(d.render.width, 40) << "the pbrt film fills in what the TOML does not write";
+    EXPECT_EQ(d.render.height, 30);
+    EXPECT_TRUE(d.has_camera);
+}
+
 TEST(PbrtReader, SpectraAndBlackbodiesBecomeRec709) {
     const Files f;
     const SceneDescription d = read(f, R"(WorldBegin
