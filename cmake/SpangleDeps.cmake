@@ -24,6 +24,8 @@ endif()
 # linked only by the module that reads other formats (engine/oiio/).
 find_package(OpenEXR CONFIG REQUIRED)
 find_package(PNG REQUIRED)
+# gzip'd pbrt scenes (.pbrt.gz) are inflated with zlib.
+find_package(ZLIB REQUIRED)
 
 # OpenColorIO's CMake config computes a wrong prefix on Debian: use pkg-config.
 pkg_check_modules(OCIO REQUIRED IMPORTED_TARGET OpenColorIO)

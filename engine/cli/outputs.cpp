@@ -32,9 +32,10 @@ namespace {
 void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t frame_w,
                           uint32_t frame_h) {
     const Camera& c = d.info->camera;
-    const CameraMatrices m = CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture,
-                                         c.focus_distance, frame_w, frame_h)
-                                 .matrices();
+    const CameraMatrices m =
+        CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, frame_w,
+                    frame_h, FilmLayout{c.mirror, c.screen})
+            .matrices();
     o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
     // With the layers: where each object stands (12 floats each, the rows of its 3x4
     // object-to-world matrix), so that Pobj carries a point into world space and a sequence's

@@ -2,13 +2,42 @@
 
 #include <tiny_obj_loader.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 
+#include "core/hash.h"
+
 namespace spangle {
+
+uint64_t cage_content_hash(const Cage& cage) {
+    // Each array's byte count, then its bytes in 8-byte words (so that [a][b] and [ab] differ).
+    uint64_t h = 0x43414745ull;
+    const auto add = [&h](const void* data, std::size_t bytes) {
+        h = hash2(h, bytes);
+        const auto* p = static_cast<const unsigned char*>(data);
+        for (std::size_t i = 0; i < bytes; i += 8) {
+            uint64_t w = 0;
+            std::memcpy(&w, p + i, std::min<std::size_t>(8, bytes - i));
+            h = hash2(h, w);
+        }
+    };
+    add(cage.positions.data(), cage.positions.size() * sizeof(float));
+    add(cage.face_sizes.data(), cage.face_sizes.size() * sizeof(int));
+    add(cage.face_vertices.data(), cage.face_vertices.size() * sizeof(int));
+    add(cage.uvs.data(), cage.uvs.size() * sizeof(float));
+    add(cage.face_uvs.data(), cage.face_uvs.size() * sizeof(int));
+    return h;
+}
+
+bool same_cage_content(const Cage& a, const Cage& b) {
+    return a.positions == b.positions && a.face_sizes == b.face_sizes &&
+           a.face_vertices == b.face_vertices && a.uvs == b.uvs && a.face_uvs == b.face_uvs;
+}
 
 Cage load_cage(const std::string& path, const FileLoc& ref) {
     std::error_code ec;

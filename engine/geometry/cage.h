@@ -24,6 +24,12 @@ struct Cage {
     std::size_t face_count() const { return face_sizes.size(); }
 };
 
+/** A hash of a cage's positions, faces and uvs (not its source name): equal for equal content. */
+uint64_t cage_content_hash(const Cage& cage);
+
+/** Same positions, faces and uvs. */
+bool same_cage_content(const Cage& a, const Cage& b);
+
 /** Loads an OBJ cage without triangulating it; validates it (see validate_cage). */
 Cage load_cage(const std::string& path, const FileLoc& ref);
 

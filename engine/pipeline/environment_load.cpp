@@ -67,7 +67,8 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
         }
     color.to_working(file.color_space, rgb.data(), n);
     for (float& v : rgb) v = std::max(0.0f, v) * file.intensity;  // gamut clipping of negatives
-    return EnvironmentMap(std::move(rgb), spec.width, spec.height, file.rotation_deg);
+    return EnvironmentMap(std::move(rgb), spec.width, spec.height, file.rotation_deg,
+                          file.projection, file.to_map);
 }
 
 }  // namespace spangle

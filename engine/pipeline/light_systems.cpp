@@ -10,9 +10,10 @@
 namespace spangle {
 namespace {
 
-/** One emitter per world-space triangle of an emissive mesh, facing its authored normals. */
-void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, Vec3 radiance, uint32_t group,
-                       std::vector<AreaEmitter>& out) {
+/** One emitter per world-space triangle of an emissive mesh, facing its authored normals (or
+ *  both ways, when two-sided). */
+void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emission& emission,
+                       uint32_t group, std::vector<AreaEmitter>& out) {
     const Affine nxf = xf.normal_matrix();
     for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
         const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
@@ -32,7 +33,8 @@ void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, Vec3 radiance
             const Vec3 nw = nxf.apply_vector(sum);
             if (dot(nw, a.n) < 0.0f) a.n = -a.n;
         }
-        a.radiance = radiance;
+        a.radiance = emission.radiance;
+        a.two_sided = emission.two_sided;
         a.group = group;
         out.push_back(a);
     }
@@ -47,7 +49,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
             if (!r.has<TriangleMeshRef>(e)) continue;
             refs.emplace_back(e, static_cast<int32_t>(set.areas.size()));
             add_mesh_emitters(mesh_of(w, r.get<TriangleMeshRef>(e)), r.get<Transform>(e).to_world,
-                              emission->columns().radiance[i], light_group(r, e), set.areas);
+                              emission->columns().get(i), light_group(r, e), set.areas);
         }
         for (const auto& [e, first] : refs) r.put(e, EmitterRef{first});
     }
@@ -129,8 +131,12 @@ void system_environment(ecs::Registry& r, World& w) {
             env.map = build_cached(
                 w.cache, &BuildCache::environments, "environment maps",
                 [&] {
-                    return fmt::format("env|{}|{}|{}|{}", file_identity(f.path), f.color_space,
-                                       f.rotation_deg, f.intensity);
+                    const auto& m = f.to_map.m;
+                    return fmt::format("env|{}|{}|{}|{}|{}|{},{},{},{},{},{},{},{},{}",
+                                       file_identity(f.path), f.color_space, f.rotation_deg,
+                                       f.intensity, static_cast<int>(f.projection), m[0][0],
+                                       m[0][1], m[0][2], m[1][0], m[1][1], m[1][2], m[2][0],
+                                       m[2][1], m[2][2]);
                 },
                 [&] {
                     return std::make_shared<const EnvironmentMap>(

@@ -136,6 +136,29 @@ std::string subdiv_key(const std::string& file, const SubdivOptions& o) {
                        fmt::join(o.corner_vertices, ","), fmt::join(o.corner_sharpness, ","));
 }
 
+/** An inline cage, or the equal one the last load used: its key then finds the refinement that
+ *  load made, so an identical cage read again is not subdivided again. Equal hashes of unequal
+ *  cages (a collision) take the new cage under a key of its own. */
+std::shared_ptr<const Cage> reuse_inline_cage(World& w, std::string& key,
+                                              const std::shared_ptr<const Cage>& cage) {
+    if (!w.cache) return cage;
+    const std::string k = "cage|" + key;
+    w.cache->used[k] = w.cache->owner;
+    auto it = w.cache->cages.find(k);
+    if (it == w.cache->cages.end()) {
+        w.cache->cages[k] = cage;
+        return cage;
+    }
+    if (same_cage_content(*it->second, *cage)) {
+        ++w.cache->reused["cages"];
+        return it->second;
+    }
+    key += fmt::format("|{}", static_cast<const void*>(cage.get()));
+    w.cache->cages["cage|" + key] = cage;
+    w.cache->used["cage|" + key] = w.cache->owner;
+    return cage;
+}
+
 void system_subdivide(ecs::Registry& r, World& w) {
     auto& pool = r.pool<SubdivSurface>();
     // The camera decides "auto" levels: a far object is not tessellated as finely as a near one.
@@ -146,8 +169,10 @@ void system_subdivide(ecs::Registry& r, World& w) {
         cam = r.pool<Camera>().columns().get(0);
         const Film film = r.pool<Film>().columns().get(0);
         const uint32_t height = w.options.height_override ? w.options.height_override : film.height;
+        // A screen window spans y0..y1 in units of tan(fov / 2); without one, -1..1.
+        const float span = cam.screen == ScreenWindow{} ? 2.0f : cam.screen[3] - cam.screen[2];
         pixel_angle =
-            2.0f * std::tan(0.5f * cam.fov_deg * kPi / 180.0f) / static_cast<float>(height);
+            span * std::tan(0.5f * cam.fov_deg * kPi / 180.0f) / static_cast<float>(height);
         camera = &cam;
     }
     SubdividedMeshes out;
@@ -156,14 +181,21 @@ void system_subdivide(ecs::Registry& r, World& w) {
         const auto t0 = std::chrono::steady_clock::now();
         const SubdivSurface s = pool.columns().get(i);
         const ecs::Entity e = pool.entities()[i];
-        w.read_file("cage", s.path);
-        const std::string file = w.cache ? file_identity(s.path) : std::string();
-        const std::shared_ptr<const Cage> cage = build_cached(
-            w.cache, &BuildCache::cages, "cages", [&] { return "cage|" + file; },
-            [&] { return std::make_shared<const Cage>(load_cage(s.path, s.loc)); }, "");
+        std::string file;
+        std::shared_ptr<const Cage> cage;
+        if (s.cage) {
+            file = fmt::format("inline|{:016x}", s.cage_content);
+            cage = reuse_inline_cage(w, file, s.cage);
+        } else {
+            w.read_file("cage", s.path);
+            if (w.cache) file = file_identity(s.path);
+            cage = build_cached(
+                w.cache, &BuildCache::cages, "cages", [&] { return "cage|" + file; },
+                [&] { return std::make_shared<const Cage>(load_cage(s.path, s.loc)); }, "");
+        }
         SubdivOptions options = s.options;
         SubdivReport rep;
-        rep.cage = s.path;
+        rep.cage = s.cage ? fmt::format("inline cage at {}", s.loc.str()) : s.path;
         rep.cage_faces = cage->face_count();
         if (options.level < 0) {
             rep.from_camera = true;

@@ -72,7 +72,8 @@ float FilterSampler::sample(float u) const {
 }
 
 CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, float aperture,
-                         float focus_distance, uint32_t width, uint32_t height)
+                         float focus_distance, uint32_t width, uint32_t height,
+                         const FilmLayout& layout)
     : origin_(position),
       forward_(normalize(look_at - position)),
       tan_half_(std::tan(0.5f * fov_deg * kPi / 180.0f)),
@@ -81,9 +82,16 @@ CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, fl
       focus_(focus_distance),
       width_(static_cast<float>(width)),
       height_(static_cast<float>(height)) {
+    screen_ = layout.screen;
     right_ = normalize(cross(forward_, up));
     up_ = cross(right_, forward_);
-    pixel_angle_ = 2.0f * tan_half_ / height_;
+    if (layout.mirror) right_ = -right_;
+    pixel_angle_ =
+        has_screen() ? (screen_[3] - screen_[2]) * tan_half_ / height_ : 2.0f * tan_half_ / height_;
+}
+
+bool CameraModel::has_screen() const {
+    return screen_[0] != 0.0f || screen_[1] != 0.0f || screen_[2] != 0.0f || screen_[3] != 0.0f;
 }
 
 CameraMatrices CameraModel::matrices() const {
@@ -109,6 +117,14 @@ CameraMatrices CameraModel::matrices() const {
     p[2 * 4 + 2] = 1.0f;
     p[2 * 4 + 3] = 1.0f;
     p[3 * 4 + 3] = 0.0f;
+    if (has_screen()) {
+        // x = ((cx / cz) / t - x0) / (x1 - x0), y = (y1 - (cy / cz) / t) / (y1 - y0).
+        const float w = screen_[1] - screen_[0], h = screen_[3] - screen_[2];
+        p[0 * 4 + 0] = 1.0f / (t * w);
+        p[1 * 4 + 1] = -1.0f / (t * h);
+        p[2 * 4 + 0] = -screen_[0] / w;
+        p[2 * 4 + 1] = screen_[3] / h;
+    }
     for (std::size_t i = 0; i < 4; ++i)
         for (std::size_t j = 0; j < 4; ++j) {
             float sum = 0.0f;
@@ -119,6 +135,11 @@ CameraMatrices CameraModel::matrices() const {
 }
 
 Vec3 CameraModel::point_on_film(float fx, float fy) const {
+    if (has_screen()) {
+        const float sx = (screen_[0] + (screen_[1] - screen_[0]) * fx / width_) * tan_half_;
+        const float sy = (screen_[3] - (screen_[3] - screen_[2]) * fy / height_) * tan_half_;
+        return forward_ + right_ * sx + up_ * sy;
+    }
     const float sx = (2.0f * fx / width_ - 1.0f) * tan_half_ * aspect_;
     const float sy = (1.0f - 2.0f * fy / height_) * tan_half_;
     return forward_ + right_ * sx + up_ * sy;

@@ -44,11 +44,23 @@ struct CameraMatrices {
     std::array<float, 16> world_to_camera{}, world_to_ndc{};
 };
 
+/** How the image lies on the film beyond its field of view: pbrt's conventions. The defaults are
+ *  Spangle's own (a right-handed view, the image centred on it) and give the very same rays. */
+struct FilmLayout {
+    /** The image's x axis runs along up x forward instead of forward x up: pbrt's left-handed
+     *  camera space, whose images are the mirror image of a right-handed camera's. */
+    bool mirror = false;
+    /** The image's x0, x1, y0, y1 on the plane at distance 1, in units of tan(fov / 2) (pbrt's
+     *  screen window; y up); all 0 = [-aspect, aspect] x [-1, 1]. */
+    std::array<float, 4> screen{};
+};
+
 class CameraModel {
 public:
     /** fov_deg vertical; aperture = lens radius in metres (0 = pinhole); focus_distance > 0. */
     CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, float aperture,
-                float focus_distance, uint32_t width, uint32_t height);
+                float focus_distance, uint32_t width, uint32_t height,
+                const FilmLayout& layout = {});
 
     /** The ray through film position (fx, fy) in pixels (0..width, 0..height, y down), with lens
      *  sample (lu, lv) in [0, 1)^2. */
@@ -61,9 +73,11 @@ public:
 
 private:
     Vec3 point_on_film(float fx, float fy) const;  ///< on the plane at distance 1
+    bool has_screen() const;                       ///< a screen window was given
 
     Vec3 origin_, forward_, right_, up_;
     float tan_half_, aspect_;
+    std::array<float, 4> screen_;  ///< all 0: the default window
     float aperture_, focus_;
     float width_, height_;
     float pixel_angle_;

@@ -287,7 +287,8 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
                   const Film& film, const std::vector<Camera>& camera_steps, RenderResult& out) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
-                          camera.aperture, camera.focus_distance, film.width, film.height);
+                          camera.aperture, camera.focus_distance, film.width, film.height,
+                          FilmLayout{camera.mirror, camera.screen});
     const FilterSampler filter(film.filter);
     RenderJob job;
     job.filter = &filter;

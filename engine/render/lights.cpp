@@ -86,15 +86,23 @@ bool use_solid_angle_sampling(double solid_angle) {
 
 // ------------------------------------------------------------------------------ environment map
 
-EnvironmentMap::EnvironmentMap(std::vector<float> rgb, int width, int height, float rotation_deg)
-    : width_(width), height_(height), rgb_(std::move(rgb)) {
+EnvironmentMap::EnvironmentMap(std::vector<float> rgb, int width, int height, float rotation_deg,
+                               MapProjection projection, const Affine& to_map)
+    : width_(width),
+      height_(height),
+      rgb_(std::move(rgb)),
+      projection_(projection),
+      to_map_(to_map) {
     cos_rot_ = std::cos(rotation_deg * kPi / 180.0f);
     sin_rot_ = std::sin(rotation_deg * kPi / 180.0f);
     std::vector<double> row_weight(static_cast<std::size_t>(height));
     cols_.reserve(static_cast<std::size_t>(height));
-    const double pixel_solid = (2.0 * M_PI / width) * (M_PI / height);
+    const bool equal_area = projection == MapProjection::EqualArea;
+    // Every pixel of an equal-area map spans the same solid angle; a lat-long row, sin(theta).
+    const double pixel_solid = equal_area ? 4.0 * M_PI / (static_cast<double>(width) * height)
+                                          : (2.0 * M_PI / width) * (M_PI / height);
     for (int y = 0; y < height; ++y) {
-        const double sin_t = std::sin(M_PI * (y + 0.5) / height);
+        const double sin_t = equal_area ? 1.0 : std::sin(M_PI * (y + 0.5) / height);
         std::vector<double> w(static_cast<std::size_t>(width));
         double sum = 0.0;
         for (int x = 0; x < width; ++x) {
@@ -110,7 +118,58 @@ EnvironmentMap::EnvironmentMap(std::vector<float> rgb, int width, int height, fl
     rows_ = Distribution1D(row_weight);
 }
 
+namespace {
+
+/** pbrt-v4's square of an equal-area octahedral map -> unit direction (Clarberg 2008): the
+ *  square's diamond |u| + |v| <= 1 is the upper hemisphere, its corners the lower one. */
+Vec3 equal_area_to_sphere(float su, float sv) {
+    const float u = 2.0f * su - 1.0f, v = 2.0f * sv - 1.0f;
+    const float au = std::fabs(u), av = std::fabs(v);
+    const float signed_dist = 1.0f - (au + av);
+    const float r = 1.0f - std::fabs(signed_dist);
+    const float phi = (r == 0.0f ? 1.0f : (av - au) / r + 1.0f) * kPi / 4.0f;
+    const float z = std::copysign(1.0f - r * r, signed_dist);
+    const float s = r * std::sqrt(std::max(0.0f, 2.0f - r * r));
+    return {std::copysign(std::cos(phi), u) * s, std::copysign(std::sin(phi), v) * s, z};
+}
+
+/** The inverse of equal_area_to_sphere: unit direction -> the square [0, 1]^2. */
+void sphere_to_equal_area(Vec3 d, float& su, float& sv) {
+    const float ax = std::fabs(d.x), ay = std::fabs(d.y), az = std::fabs(d.z);
+    const float r = std::sqrt(std::max(0.0f, 1.0f - az));
+    const float a = std::max(ax, ay), b = std::min(ax, ay);
+    float phi = (a == 0.0f ? 0.0f : std::atan(b / a)) * 2.0f / kPi;
+    if (ax < ay) phi = 1.0f - phi;
+    float v = phi * r, u = r - v;
+    if (d.z < 0.0f) {
+        std::swap(u, v);
+        u = 1.0f - u;
+        v = 1.0f - v;
+    }
+    su = 0.5f * (std::copysign(u, d.x) + 1.0f);
+    sv = 0.5f * (std::copysign(v, d.y) + 1.0f);
+}
+
+}  // namespace
+
+float EnvironmentMap::uv_to_solid(Vec3 d) const {
+    if (projection_ == MapProjection::EqualArea) return 4.0f * kPi;
+    const Vec3 w = projection_ == MapProjection::LatLongZUp ? to_map_.apply_vector(d) : d;
+    const float sin_t = projection_ == MapProjection::LatLongZUp ? std::sqrt(w.x * w.x + w.y * w.y)
+                                                                 : std::sqrt(w.x * w.x + w.z * w.z);
+    return 2.0f * kPi * kPi * sin_t;
+}
+
 void EnvironmentMap::to_uv(Vec3 d, float& u, float& v) const {
+    if (projection_ != MapProjection::LatLongYUp) {
+        const Vec3 w = to_map_.apply_vector(d);
+        if (projection_ == MapProjection::EqualArea) return sphere_to_equal_area(w, u, v);
+        // pbrt: phi = atan2(y, x) in [0, 2 pi), theta from +z.
+        const float phi = std::atan2(w.y, w.x);
+        u = (phi < 0.0f ? phi + 2.0f * kPi : phi) / (2.0f * kPi);
+        v = std::atan2(std::sqrt(w.x * w.x + w.y * w.y), w.z) / kPi;
+        return;
+    }
     // Undo the rotation about +y, then phi = atan2(x, -z): u = 0.5 looks down -z. theta comes
     // from atan2 of the horizontal length and y, which stays accurate at the poles (acos(y)
     // does not).
@@ -121,6 +180,21 @@ void EnvironmentMap::to_uv(Vec3 d, float& u, float& v) const {
 }
 
 Vec3 EnvironmentMap::from_uv(float u, float v) const {
+    if (projection_ != MapProjection::LatLongYUp) {
+        Vec3 w;
+        if (projection_ == MapProjection::EqualArea) {
+            w = equal_area_to_sphere(u, v);
+        } else {
+            const float phi = u * 2.0f * kPi, theta = v * kPi;
+            const float s = std::sin(theta);
+            w = {s * std::cos(phi), s * std::sin(phi), std::cos(theta)};
+        }
+        // to_map_ is a rotation: its transpose takes the map's frame back to the world.
+        const auto& m = to_map_.m;
+        return {m[0][0] * w.x + m[1][0] * w.y + m[2][0] * w.z,
+                m[0][1] * w.x + m[1][1] * w.y + m[2][1] * w.z,
+                m[0][2] * w.x + m[1][2] * w.y + m[2][2] * w.z};
+    }
     const float phi = (u - 0.5f) * 2.0f * kPi, theta = v * kPi;
     const float s = std::sin(theta);
     const float x = s * std::sin(phi), z = -s * std::cos(phi), y = std::cos(theta);
@@ -138,8 +212,9 @@ Vec3 EnvironmentMap::eval(Vec3 d) const {
                 y = v * static_cast<float>(height_) - 0.5f;
     const float fx = std::floor(x), fy = std::floor(y);
     const float tx = x - fx, ty = y - fy;
+    const bool wrap_u = projection_ != MapProjection::EqualArea;
     const auto px = [&](int xi, int yi) {
-        xi = ((xi % width_) + width_) % width_;
+        xi = wrap_u ? ((xi % width_) + width_) % width_ : std::clamp(xi, 0, width_ - 1);
         yi = std::clamp(yi, 0, height_ - 1);
         const float* p =
             &rgb_[3 * (static_cast<std::size_t>(yi) * width_ + static_cast<std::size_t>(xi))];
@@ -158,10 +233,14 @@ Vec3 EnvironmentMap::sample(float u0, float u1, float& pdf) const {
     const uint32_t x = cols_[y].sample(u1, &rx);
     const float u = (static_cast<float>(x) + rx) / static_cast<float>(width_);
     const float v = (static_cast<float>(y) + ry) / static_cast<float>(height_);
-    const float sin_t = std::sin(v * kPi);
-    if (!(sin_t > 0.0f)) return {0, 1, 0};
     const float pdf_uv =
         rows_.pmf(y) * cols_[y].pmf(x) * static_cast<float>(width_) * static_cast<float>(height_);
+    if (projection_ == MapProjection::EqualArea) {
+        pdf = pdf_uv / (4.0f * kPi);
+        return from_uv(u, v);
+    }
+    const float sin_t = std::sin(v * kPi);
+    if (!(sin_t > 0.0f)) return {0, 1, 0};
     pdf = pdf_uv / (2.0f * kPi * kPi * sin_t);
     return from_uv(u, v);
 }
@@ -172,9 +251,15 @@ float EnvironmentMap::pdf(Vec3 d) const {
     to_uv(d, u, v);
     const int x = std::clamp(static_cast<int>(u * static_cast<float>(width_)), 0, width_ - 1);
     const int y = std::clamp(static_cast<int>(v * static_cast<float>(height_)), 0, height_ - 1);
+    const auto uy = static_cast<uint32_t>(y), ux = static_cast<uint32_t>(x);
+    if (projection_ != MapProjection::LatLongYUp) {
+        const float jacobian = uv_to_solid(d);
+        if (!(jacobian > 0.0f)) return 0.0f;
+        return rows_.pmf(uy) * cols_[uy].pmf(ux) * static_cast<float>(width_) *
+               static_cast<float>(height_) / jacobian;
+    }
     const float sin_t = std::sqrt(d.x * d.x + d.z * d.z);  // rotation about y keeps it
     if (!(sin_t > 0.0f)) return 0.0f;
-    const auto uy = static_cast<uint32_t>(y), ux = static_cast<uint32_t>(x);
     const float pdf_uv = rows_.pmf(uy) * cols_[uy].pmf(ux) * static_cast<float>(width_) *
                          static_cast<float>(height_);
     return pdf_uv / (2.0f * kPi * kPi * sin_t);

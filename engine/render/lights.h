@@ -18,6 +18,7 @@
 #include <string>
 #include <vector>
 
+#include "core/map_projection.h"
 #include "core/math.h"
 #include "render/distribution.h"
 
@@ -78,8 +79,11 @@ struct DistantEmitter {
 /** A lat-long environment map in the working space. */
 class EnvironmentMap {
 public:
-    /** rgb: width x height RGB, row 0 = up (+y). rotation_deg turns the map about +y. */
-    EnvironmentMap(std::vector<float> rgb, int width, int height, float rotation_deg);
+    /** rgb: width x height RGB, row 0 = up (+y). rotation_deg turns the map about +y. With
+     *  another projection, `to_map` (a rotation) takes world directions into the map's frame and
+     *  rotation_deg is unused. */
+    EnvironmentMap(std::vector<float> rgb, int width, int height, float rotation_deg,
+                   MapProjection projection = MapProjection::LatLongYUp, const Affine& to_map = {});
     EnvironmentMap() = default;
 
     bool empty() const { return width_ == 0; }
@@ -95,10 +99,15 @@ public:
 private:
     void to_uv(Vec3 d, float& u, float& v) const;
     Vec3 from_uv(float u, float v) const;
+    /** The solid angle of a unit of uv area at direction d over 4 pi^2 sin(theta) (lat-long) or
+     *  4 pi (equal area): the Jacobian that turns a uv pdf into a solid-angle pdf. */
+    float uv_to_solid(Vec3 d) const;
 
     int width_ = 0, height_ = 0;
     std::vector<float> rgb_;
     float cos_rot_ = 1.0f, sin_rot_ = 0.0f;
+    MapProjection projection_ = MapProjection::LatLongYUp;
+    Affine to_map_;                     ///< world to the map's frame (pbrt's projections)
     Distribution1D rows_;               ///< marginal over rows
     std::vector<Distribution1D> cols_;  ///< conditional over columns, per row
     double lum_integral_ = 0.0;

@@ -3,15 +3,18 @@
 // element struct and its SoA columns. Colours are RGB in the working space (converted at load).
 
 #include <algorithm>
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
 
 #include "core/error.h"
+#include "core/map_projection.h"
 #include "core/math.h"
 #include "core/pixel_filter.h"
 #include "ecs/pool.h"
+#include "geometry/cage.h"
 #include "geometry/subdivision.h"
 #include "geometry/triangle_mesh.h"
 
@@ -97,13 +100,23 @@ inline bool same_value(const std::shared_ptr<const TriangleMesh>&,
  *  mesh_load system beside mesh files. Objects that share one mesh (instances) share one. */
 SPANGLE_COMPONENT(InlineMesh, SPANGLE_INLINE_MESH_FIELDS);
 
+namespace ecs {
+/** An inline cage is compared by its content hash (SubdivSurface::cage_content). */
+inline bool same_value(const std::shared_ptr<const Cage>&, const std::shared_ptr<const Cage>&) {
+    return true;
+}
+}  // namespace ecs
+
 #define SPANGLE_SUBDIV_FIELDS(X)                                                         \
-    X(std::string, path, "resolved cage file path (OBJ)")                                \
+    X(std::string, path, "resolved cage file path (OBJ); empty with an inline cage")     \
     X(FileLoc, loc, "where the scene names the cage")                                    \
     X(SubdivOptions, options, "scheme, boundaries, creases; level -1 = from the camera") \
     X(int, max_level, "upper bound of the camera-chosen level")                          \
-    X(float, pixel_budget, "camera-chosen level: longest refined edge, in pixels")
-/** A subdivision surface to refine (input of the subdivide system). */
+    X(float, pixel_budget, "camera-chosen level: longest refined edge, in pixels")       \
+    X(std::shared_ptr<const Cage>, cage, "a cage the scene file holds itself, or null")  \
+    X(uint64_t, cage_content, "its content hash (cage_content_hash); 0 without one")
+/** A subdivision surface to refine (input of the subdivide system): a cage file or a cage the
+ *  scene reader made. */
 SPANGLE_COMPONENT(SubdivSurface, SPANGLE_SUBDIV_FIELDS);
 
 #define SPANGLE_MATERIAL_FIELDS(X)                                               \
@@ -122,9 +135,10 @@ SPANGLE_COMPONENT(Material, SPANGLE_MATERIAL_FIELDS);
 /** The material an object uses. */
 SPANGLE_COMPONENT(MaterialRef, SPANGLE_MATERIAL_REF_FIELDS);
 
-#define SPANGLE_EMISSION_FIELDS(X) \
-    X(Vec3, radiance, "emitted radiance, working-space RGB, W/(m^2 sr)")
-/** Makes an object's mesh an area light emitting from its front faces. */
+#define SPANGLE_EMISSION_FIELDS(X)                                       \
+    X(Vec3, radiance, "emitted radiance, working-space RGB, W/(m^2 sr)") \
+    X(bool, two_sided, "emits from its back faces too")
+/** Makes an object's mesh an area light emitting from its front faces (both, when two_sided). */
 SPANGLE_COMPONENT(Emission, SPANGLE_EMISSION_FIELDS);
 
 #define SPANGLE_QUAD_LIGHT_FIELDS(X)                           \
@@ -172,17 +186,24 @@ SPANGLE_COMPONENT(Environment, SPANGLE_ENVIRONMENT_FIELDS);
     X(std::string, color_space, "canonical colour space of the file") \
     X(float, rotation_deg, "turn about +y")                           \
     X(float, intensity, "scale")                                      \
-    X(FileLoc, loc, "where the scene names the map")
-/** An importance-sampled lat-long environment map. */
+    X(FileLoc, loc, "where the scene names the map")                  \
+    X(MapProjection, projection, "how the image wraps the sphere")    \
+    X(Affine, to_map, "pbrt's projections: world to the map's frame (a rotation)")
+/** An importance-sampled environment map (lat-long, or pbrt's layouts). */
 SPANGLE_COMPONENT(EnvironmentMapFile, SPANGLE_ENVIRONMENT_MAP_FIELDS);
 
-#define SPANGLE_CAMERA_FIELDS(X)                           \
-    X(Vec3, position, "eye, world space")                  \
-    X(Vec3, look_at, "point looked at")                    \
-    X(Vec3, up, "up hint")                                 \
-    X(float, fov_deg, "vertical field of view, degrees")   \
-    X(float, aperture, "lens radius, metres; 0 = pinhole") \
-    X(float, focus_distance, "distance of the plane in focus, metres")
+/** An image's window on the film plane: x0, x1, y0, y1 in units of tan(fov / 2). */
+using ScreenWindow = std::array<float, 4>;
+
+#define SPANGLE_CAMERA_FIELDS(X)                                                              \
+    X(Vec3, position, "eye, world space")                                                     \
+    X(Vec3, look_at, "point looked at")                                                       \
+    X(Vec3, up, "up hint")                                                                    \
+    X(float, fov_deg, "vertical field of view, degrees (with a screen window: its unit)")     \
+    X(float, aperture, "lens radius, metres; 0 = pinhole")                                    \
+    X(float, focus_distance, "distance of the plane in focus, metres")                        \
+    X(bool, mirror, "image x along up x forward: pbrt's left-handed camera (mirrored image)") \
+    X(ScreenWindow, screen, "pbrt's screen window (y up), tan(fov / 2) units; all 0 = none")
 /** A perspective camera: pinhole or thin lens. */
 SPANGLE_COMPONENT(Camera, SPANGLE_CAMERA_FIELDS);
 

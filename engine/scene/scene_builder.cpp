@@ -101,6 +101,15 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     info.shutter_close = d.shutter_close;
     info.working_space = color.working_space();
     info.color_space = ctx.bare_space;
+    if (d.crop) {
+        const std::array<double, 4>& c = *d.crop;
+        if (!(c[0] >= 0.0 && c[0] < c[1] && c[1] <= 1.0 && c[2] >= 0.0 && c[2] < c[3] &&
+              c[3] <= 1.0))
+            throw_error(d.crop_loc,
+                        "the crop window [{}] must be x0 < x1 and y0 < y1, each within [0, 1]",
+                        fmt::join(c, ", "));
+        info.crop = c;
+    }
     ctx.shutter = frame_shutter(info.time, info.fps, info.shutter_open, info.shutter_close);
 }
 
@@ -117,6 +126,19 @@ Camera still_camera(const CameraDesc& d) {
         throw_error(d.up_loc, "'up' must not be parallel to the viewing direction");
     c.aperture = static_cast<float>(d.aperture);
     c.focus_distance = d.focus_distance ? static_cast<float>(*d.focus_distance) : length(dir);
+    c.mirror = d.mirror;
+    if (d.screen) {
+        const std::array<double, 4>& w = *d.screen;
+        for (double v : w)
+            if (!(std::fabs(v) <= 1e6))
+                throw_error(d.screen_loc, "the screen window must be finite, got [{}]",
+                            fmt::join(w, ", "));
+        if (!(w[0] < w[1]) || !(w[2] < w[3]))
+            throw_error(d.screen_loc,
+                        "the screen window [{}] must have x0 < x1 and y0 < y1 (it spans no area)",
+                        fmt::join(w, ", "));
+        for (std::size_t i = 0; i < 4; ++i) c.screen[i] = static_cast<float>(w[i]);
+    }
     return c;
 }
 
@@ -184,6 +206,15 @@ void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
                             : resolve_space(ctx, "lin_rec709", d.loc, "default (no key written) ");
         m.rotation_deg = static_cast<float>(d.map->rotation_deg);
         m.intensity = k;
+        m.projection = d.map->projection;
+        if (m.projection != MapProjection::LatLongYUp) {
+            // Only the frame's rotation: a scale or shear in pbrt's light transform does not
+            // change where directions point once normalised; its inverse transpose would.
+            const Affine& f = d.map->to_world;
+            if (!(std::fabs(f.determinant()) > 1e-12f))
+                throw_error(d.map->loc, "the environment map's transform is singular");
+            m.to_map = f.inverse();
+        }
         registry.put(env, m);
     } else {
         registry.put(env, Environment{working_color(ctx, d.color, {0, 0, 0}) * k});
@@ -265,8 +296,9 @@ void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
     if (const auto* mesh = std::get_if<MeshFileShape>(&d.shape)) {
         ctx.registry->put(e, MeshFile{mesh->path, mesh->loc});
     } else if (const auto* sub = std::get_if<SubdivShape>(&d.shape)) {
-        ctx.registry->put(
-            e, SubdivSurface{sub->path, sub->loc, sub->options, sub->max_level, sub->pixel_budget});
+        const uint64_t content = sub->cage ? cage_content_hash(*sub->cage) : 0;
+        ctx.registry->put(e, SubdivSurface{sub->path, sub->loc, sub->options, sub->max_level,
+                                           sub->pixel_budget, sub->cage, content});
     } else {
         const auto& in = std::get<InlineMeshShape>(d.shape);
         if (!in.mesh) throw_error(in.loc, "{}: its triangle mesh is missing", d.what);
@@ -353,7 +385,7 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     if (d.emission) {
         const Vec3 le = working_color(ctx, d.emission->color, {0, 0, 0}) *
                         static_cast<float>(d.emission->intensity);
-        if (max_component(le) > 0.0f) registry.put(e, Emission{le});
+        if (max_component(le) > 0.0f) registry.put(e, Emission{le, d.emission->two_sided});
         registry.put(e, light_group(ctx, d.emission->group));
     }
     if (motion.steps.empty()) return;

@@ -10,6 +10,7 @@
 // defaults; a format with other defaults writes its own). Files a scene names are resolved by
 // the reader against the scene's folder and checked to exist (scene/scene_paths.h).
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
@@ -18,6 +19,7 @@
 #include <vector>
 
 #include "core/error.h"
+#include "core/map_projection.h"
 #include "core/math.h"
 #include "core/pixel_filter.h"
 #include "geometry/subdivision.h"
@@ -109,10 +111,17 @@ struct CameraDesc {
     double fov_deg = 40.0;                 ///< vertical field of view, degrees, in (0, 180)
     double aperture = 0.0;                 ///< lens radius, metres; 0 = pinhole
     std::optional<double> focus_distance;  ///< metres; none = the distance to look_at
-    Keys<CameraKey> keys;                  ///< its motion
-    FileLoc loc;                           ///< the camera
-    FileLoc look_at_loc;                   ///< its look_at (blamed when it meets the position)
-    FileLoc up_loc;                        ///< its up (blamed when parallel to the view)
+    /** The image is the mirror image of a right-handed camera's: its x runs along up x forward
+     *  (pbrt's left-handed camera space). */
+    bool mirror = false;
+    /** pbrt's screen window: x0, x1, y0, y1 of the image in units of tan(fov / 2), y up (fov is
+     *  then the window's unit, not the vertical field of view); none = centred, fov vertical. */
+    std::optional<std::array<double, 4>> screen;
+    FileLoc screen_loc;    ///< where the window is written
+    Keys<CameraKey> keys;  ///< its motion
+    FileLoc loc;           ///< the camera
+    FileLoc look_at_loc;   ///< its look_at (blamed when it meets the position)
+    FileLoc up_loc;        ///< its up (blamed when parallel to the view)
 };
 
 /** The light group a light, an emissive object or the environment belongs to (render layers). */
@@ -129,7 +138,10 @@ struct EnvironmentDesc {
         FileLoc loc;                             ///< where it is named
         std::optional<std::string> color_space;  ///< as written; none = lin_rec709
         FileLoc color_space_loc;                 ///< where the space is named
-        double rotation_deg = 0.0;               ///< turn about +y
+        double rotation_deg = 0.0;               ///< turn about +y (Spangle's projection)
+        /** How the image wraps the sphere: Spangle's lat-long, or pbrt's (then `to_world`). */
+        MapProjection projection = MapProjection::LatLongYUp;
+        Affine to_world;  ///< pbrt's projections: the map's frame to world (a rotation)
     };
     std::optional<ColorDesc> color;  ///< constant radiance; none (and no map) = black
     std::optional<Map> map;          ///< the map, when it is one
@@ -177,13 +189,16 @@ struct MeshFileShape {
     FileLoc loc;       ///< where it is named
 };
 
-/** A subdivision surface: a cage in a file and how to refine it. */
+/** A subdivision surface: a cage in a file, or one the scene file holds itself, and how to
+ *  refine it. */
 struct SubdivShape {
-    std::string path;           ///< resolved cage path (OBJ)
-    FileLoc loc;                ///< where the cage is named
-    SubdivOptions options;      ///< scheme, boundaries, creases; level -1 = from the camera
-    int max_level = 5;          ///< upper bound of the camera-chosen level
-    float pixel_budget = 2.0f;  ///< camera-chosen level: longest refined edge, in pixels
+    std::string path;                  ///< resolved cage path (OBJ); empty with an inline cage
+    std::shared_ptr<const Cage> cage;  ///< the cage written in the scene (pbrt's loopsubdiv),
+                                       ///< validated by the reader; null: read `path`
+    FileLoc loc;                       ///< where the cage is named or written
+    SubdivOptions options;             ///< scheme, boundaries, creases; level -1 = from the camera
+    int max_level = 5;                 ///< upper bound of the camera-chosen level
+    float pixel_budget = 2.0f;         ///< camera-chosen level: longest refined edge, in pixels
 };
 
 /** A triangle mesh written in the scene file itself (pbrt's trianglemesh, glTF's buffers). */
@@ -195,11 +210,12 @@ struct InlineMeshShape {
 /** What an object is made of. */
 using ShapeDesc = std::variant<MeshFileShape, SubdivShape, InlineMeshShape>;
 
-/** Light an object's surface emits from its front faces. */
+/** Light an object's surface emits from its front faces (both, when two-sided). */
 struct EmissionDesc {
     ColorDesc color;         ///< radiance (non-negative), W/(m^2 sr)
     double intensity = 1.0;  ///< scale (non-negative)
     LightGroupDesc group;    ///< its light group
+    bool two_sided = false;  ///< emits from its back faces too (pbrt's "twosided")
 };
 
 /** A placed shape with a material. */
@@ -288,6 +304,10 @@ struct RenderDesc {
     double shutter_close = 0.0;                ///< not before shutter_open; equal = no blur
     /** The image the scene asks to be written (pbrt's Film "filename"); -o wins over it. */
     std::optional<std::string> output;
+    /** The part of the image the scene asks to render (pbrt's Film "cropwindow"): x0, x1, y0, y1
+     *  as fractions of the width and height, y down; --crop wins over it. */
+    std::optional<std::array<double, 4>> crop;
+    FileLoc crop_loc;  ///< where the crop window is written
     /** The keys the file wrote (TOML: of [render]); an import fills in the others. Empty for a
      *  reader whose format gives every setting. */
     std::vector<std::string> written;

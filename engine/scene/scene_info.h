@@ -2,7 +2,9 @@
 // What a loaded scene is besides its components: paths, colour spaces, names in file order, the
 // frame range and shutter, notes for the user. The builder fills it (scene/scene_builder.h).
 
+#include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -13,9 +15,13 @@ namespace spangle {
 
 /** Facts about the loaded scene that are not components. */
 struct SceneInfo {
-    std::string path;                         ///< the scene file
-    std::vector<std::string> files;           ///< scene files it includes or imports
-    std::string output;                       ///< the image it asks for; empty: none
+    std::string path;                ///< the scene file
+    std::vector<std::string> files;  ///< scene files it includes or imports
+    std::string output;              ///< the image it asks for; empty: none
+    /** The part of the image it asks to render (pbrt's cropwindow): x0, x1, y0, y1 as fractions
+     *  of the width and height, y down, 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1; none: all. The
+     *  pixels are [ceil(x0 W), ceil(x1 W)) x [ceil(y0 H), ceil(y1 H)), as pbrt takes them. */
+    std::optional<std::array<double, 4>> crop;
     std::string working_space;                ///< canonical OCIO name
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order

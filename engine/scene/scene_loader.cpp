@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "scene/pbrt/pbrt_reader.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_import.h"
 #include "scene/scene_paths.h"
@@ -16,17 +17,24 @@ namespace spangle {
 const std::vector<SceneFormat>& scene_formats() {
     static const std::vector<SceneFormat> formats = {
         {".toml", "TOML", &read_toml_scene},
+        {".pbrt", "pbrt", &read_pbrt_scene},
+        {".pbrt.gz", "pbrt", &read_pbrt_scene},
     };
     return formats;
 }
 
 const SceneFormat& scene_format_for(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
+    // The file name's ending, so that a double extension (".pbrt.gz") is one.
+    std::string name = std::filesystem::path(path).filename().string();
+    std::transform(name.begin(), name.end(), name.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     const std::vector<SceneFormat>& formats = scene_formats();
-    for (const SceneFormat& f : formats)
-        if (ext == f.extension) return f;
+    for (const SceneFormat& f : formats) {
+        const std::string_view ext = f.extension;
+        if (name.size() > ext.size() &&
+            name.compare(name.size() - ext.size(), ext.size(), ext) == 0)
+            return f;
+    }
     return formats.front();
 }
 

@@ -12,6 +12,7 @@
 #include "geometry/cage.h"
 #include "geometry/mesh_load.h"
 #include "geometry/subdivision.h"
+#include "scene/components.h"
 #include "scene/scene_loader.h"
 
 namespace spangle::fuzz {
@@ -41,6 +42,9 @@ public:
         for (const char* sub : {"meshes", "cages", "env"})
             fs::create_directory_symlink(tests / "scenes_bad" / sub, inputs_ / sub);
         fs::create_symlink(tests / "scenes" / "uvless_ball.obj", inputs_ / "uvless_ball.obj");
+        // The pbrt seeds name their PLY beside them and images one folder up.
+        fs::create_symlink(tests / "scenes" / "pbrt" / "twin_box.ply", inputs_ / "twin_box.ply");
+        fs::create_directory_symlink(tests / "scenes" / "textures", root_ / "a" / "textures");
     }
     WorkDir(const WorkDir&) = delete;
     WorkDir& operator=(const WorkDir&) = delete;
@@ -82,6 +86,23 @@ void scene(const std::uint8_t* data, std::size_t size) {
     load_scene(path, color, registry);
 }
 
+/** A pbrt scene (read and built); small inline cages are refined once, as the cage target does,
+ *  so that OpenSubdiv's Loop scheme sees what the reader let through. */
+void pbrt(const std::uint8_t* data, std::size_t size) {
+    const std::string path = write_input("scene.pbrt", data, size);
+    ColorConfig& color = shipped_config();
+    ecs::Registry registry;
+    load_scene(path, color, registry);
+    if (auto* pool = registry.find_pool<SubdivSurface>())
+        for (std::size_t i = 0; i < pool->size() && i < 4; ++i) {
+            const SubdivSurface s = pool->columns().get(i);
+            if (!s.cage || s.cage->face_count() > 64 || s.cage->vertex_count() > 256) continue;
+            SubdivOptions options = s.options;
+            options.level = 1;
+            subdivide(*s.cage, options, s.loc);
+        }
+}
+
 void mesh(const char* name, const std::uint8_t* data, std::size_t size) {
     const std::string path = write_input(name, data, size);
     load_mesh(path, FileLoc{"fuzz.toml", 1, 1});  // reads and validates
@@ -111,6 +132,8 @@ bool run_one(const std::string& target, const std::uint8_t* data, std::size_t si
     try {
         if (target == "scene")
             scene(data, size);
+        else if (target == "pbrt")
+            pbrt(data, size);
         else if (target == "ply")
             mesh("mesh.ply", data, size);
         else if (target == "obj")

@@ -17,18 +17,30 @@ namespace {
 
 namespace fs = std::filesystem;
 
+/** The broken scenes, relative to tests/scenes_bad/: TOML scenes there, pbrt scenes in pbrt/. */
 std::vector<std::string> bad_scenes() {
     std::vector<std::string> names;
-    for (const auto& e : fs::directory_iterator(test::test_dir() + "/scenes_bad"))
-        if (e.path().extension() == ".toml") names.push_back(e.path().stem().string());
+    const std::string dir = test::test_dir() + "/scenes_bad";
+    for (const auto& e : fs::directory_iterator(dir))
+        if (e.path().extension() == ".toml") names.push_back(e.path().filename().string());
+    for (const auto& e : fs::directory_iterator(dir + "/pbrt"))
+        if (e.path().extension() == ".pbrt")
+            names.push_back("pbrt/" + e.path().filename().string());
     std::sort(names.begin(), names.end());
     return names;
+}
+
+/** A test name for a bad scene: its stem, "pbrt_" before a pbrt scene's. */
+std::string test_name(const std::string& file) {
+    const fs::path p(file);
+    const std::string stem = p.stem().string();
+    return p.has_parent_path() ? p.parent_path().string() + "_" + stem : stem;
 }
 
 class BadScene : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(BadScene, FailsWithLocationAndMessage) {
-    const std::string path = test::test_dir() + "/scenes_bad/" + GetParam() + ".toml";
+    const std::string path = test::test_dir() + "/scenes_bad/" + GetParam();
     std::ifstream in(path);
     std::string first;
     std::getline(in, first);
@@ -57,7 +69,9 @@ TEST_P(BadScene, FailsWithLocationAndMessage) {
 }
 
 INSTANTIATE_TEST_SUITE_P(ScenesBad, BadScene, ::testing::ValuesIn(bad_scenes()),
-                         [](const ::testing::TestParamInfo<std::string>& p) { return p.param; });
+                         [](const ::testing::TestParamInfo<std::string>& p) {
+                             return test_name(p.param);
+                         });
 
 TEST(ScenesBad, AtLeastTenDistinctCases) {
     EXPECT_GE(bad_scenes().size(), 10u);

@@ -1,0 +1,191 @@
+// The camera and the render settings once the whole file is read: pbrt's left-handed camera
+// (the image is the mirror of a right-handed camera's: CameraDesc::mirror), its fov on the
+// shorter image axis, screen window, lens, shutter and motion; Film, Sampler, Integrator and
+// PixelFilter with each version's defaults.
+
+#include <cmath>
+
+#include "scene/pbrt/pbrt_state.h"
+
+namespace spangle::pbrt {
+
+namespace {
+
+/** The film's resolution, output file and crop window. */
+void film(Reader& r) {
+    const ParamList& p = r.film;
+    RenderDesc& d = r.d.render;
+    d.loc = r.film_loc;
+    const auto pixels = [&](const char* name, double fallback) {
+        const double v = p.number(name, fallback);
+        if (!(v >= 1.0 && v <= 16384.0))
+            throw_error(r.film_loc, "Film '{}' must be in 1..16384, got {}", name, v);
+        return static_cast<uint32_t>(v);
+    };
+    d.width = pixels("xresolution", 640);
+    d.height = pixels("yresolution", 480);
+    const std::string out = p.string("filename", "");
+    if (!out.empty()) d.output = out;
+    if (const Param* c = p.find("cropwindow", {"float"})) {
+        if (c->numbers.size() != 4)
+            throw_error(c->loc, "'cropwindow' needs 4 numbers x0 x1 y0 y1, got {}",
+                        c->numbers.size());
+        d.crop = std::array<double, 4>{c->numbers[0], c->numbers[1], c->numbers[2], c->numbers[3]};
+        d.crop_loc = c->loc;
+    }
+    if (!r.film_type.empty() && r.film_type != "image" && r.film_type != "rgb")
+        r.notes.add(r.film_loc, fmt::format("Film \"{}\": an RGB film stands in", r.film_type));
+    r.notes.unused(p, fmt::format("Film \"{}\"", r.film_type));
+}
+
+/** Samples per pixel, bounces and the pixel filter. */
+void sampling(Reader& r) {
+    RenderDesc& d = r.d.render;
+    if (r.sampler_type == "stratified") {
+        d.spp = static_cast<uint32_t>(std::max(1.0, r.sampler.number("xsamples", 2)) *
+                                      std::max(1.0, r.sampler.number("ysamples", 2)));
+        r.sampler.boolean("jitter", true);
+    } else {
+        d.spp =
+            static_cast<uint32_t>(std::clamp(r.sampler.number("pixelsamples", 16), 1.0, 1048576.0));
+    }
+    if (const Param* s = r.sampler.find("seed", {"integer"}); s && !s->numbers.empty())
+        d.seed = static_cast<uint64_t>(std::fabs(s->numbers[0]));
+    r.notes.unused(r.sampler, fmt::format("Sampler \"{}\"", r.sampler_type));
+    const std::string& it = r.integrator_type;
+    if (!it.empty() && it != "path" && it != "volpath")
+        r.notes.add(r.integrator_loc, fmt::format("Integrator \"{}\": Spangle's path tracer "
+                                                  "stands in",
+                                                  it));
+    d.max_depth =
+        static_cast<uint32_t>(std::clamp(r.integrator.number("maxdepth", 5), 1.0, 1024.0));
+    r.integrator.number("rrthreshold", 1);  // Spangle's roulette has its own threshold
+    r.integrator.string("lightsamplestrategy", "");
+    r.integrator.string("lightsampler", "");
+    r.integrator.boolean("regularize", false);
+    r.notes.unused(r.integrator, fmt::format("Integrator \"{}\"", it));
+    // The default filter: pbrt-v3's is a box of radius 0.5, pbrt-v4's a Gaussian of sigma 0.5
+    // and radius 1.5 (Spangle's Gaussian).
+    std::string f = r.filter_type.empty() ? (r.v4() ? "gaussian" : "box") : r.filter_type;
+    if (f == "box") {
+        d.filter = FilterKind::Box;
+    } else {
+        d.filter = FilterKind::Gaussian;
+        if (f != "gaussian")
+            r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": a Gaussian (sigma 0.5, "
+                                                  "radius 1.5) stands in",
+                                                  f));
+    }
+    r.notes.unused(r.filter, fmt::format("PixelFilter \"{}\"", f));
+}
+
+/** The shutter in seconds as Spangle's frames at one frame per second. */
+void shutter(Reader& r) {
+    RenderDesc& d = r.d.render;
+    const ParamList& p = r.camera.params;
+    double open = p.number("shutteropen", 0.0), close = p.number("shutterclose", 1.0);
+    if (open > close) {
+        r.notes.add(r.camera.loc, "Camera: 'shutteropen' comes after 'shutterclose': swapped");
+        std::swap(open, close);
+    }
+    if (!(std::fabs(open) <= 16.0 && std::fabs(close) <= 16.0)) {
+        r.notes.add(r.camera.loc, "Camera: the shutter is clamped to [-16, 16] s");
+        open = std::clamp(open, -16.0, 16.0);
+        close = std::clamp(close, -16.0, 16.0);
+    }
+    d.fps = 1.0;
+    d.shutter_open = open;
+    d.shutter_close = close;
+}
+
+/** Eye, look-at, up and mirror of a camera-to-world transform. */
+void view_of(const Mat4& m, Vec3& eye, Vec3& look, Vec3& up) {
+    eye = m.point(Vec3(0.0f));
+    look = eye + normalize(m.vector({0, 0, 1}));
+    up = normalize(m.vector({0, 1, 0}));
+}
+
+/** The camera's two keys (TransformTimes) when its transform moves between them. */
+void camera_keys(Reader& r) {
+    const CameraState& cs = r.camera;
+    if (cs.to_world[0] == cs.to_world[1]) return;
+    Keys<CameraKey>& keys = r.d.camera.keys;
+    keys.smooth = false;
+    keys.loc = cs.loc;
+    const double times[2] = {r.time_start, r.time_end};
+    for (int i = 0; i < 2; ++i) {
+        CameraKey k;
+        k.time.seconds = times[i];
+        Vec3 e, l, u;
+        view_of(cs.to_world[i], e, l, u);
+        k.position = e;
+        k.look_at = l;
+        k.up = u;
+        k.loc = cs.loc;
+        k.what = fmt::format("the camera at time {}", times[i]);
+        keys.keys.push_back(std::move(k));
+    }
+}
+
+}  // namespace
+
+void finish_camera_and_render(Reader& r) {
+    film(r);
+    sampling(r);
+    CameraDesc& c = r.d.camera;
+    CameraState& cs = r.camera;
+    c.loc = c.look_at_loc = c.up_loc = c.screen_loc = cs.loc;
+    if (cs.given && cs.type != "perspective") {
+        for (const Param& q : cs.params.all()) q.used = true;
+        r.notes.add(cs.loc, fmt::format("Camera \"{}\" is not supported: a perspective camera "
+                                        "(fov 90) stands in",
+                                        cs.type));
+    }
+    const Mat4& m = cs.to_world[0];
+    view_of(m, c.position, c.look_at, c.up);
+    // pbrt's camera space is left-handed: a camera-to-world transform that keeps handedness
+    // (det > 0, as LookAt makes) shows the mirror image of Spangle's right-handed view.
+    c.mirror = m.determinant3() > 0.0;
+    const Vec3 x = m.vector({1, 0, 0}), y = m.vector({0, 1, 0}), z = m.vector({0, 0, 1});
+    const float lx = length(x), ly = length(y), lz = length(z);
+    if (std::fabs(dot(x, y)) > 1e-3f * lx * ly || std::fabs(dot(y, z)) > 1e-3f * ly * lz ||
+        std::fabs(dot(x, z)) > 1e-3f * lx * lz || std::fabs(lx - ly) > 1e-3f * lx ||
+        std::fabs(lx - lz) > 1e-3f * lx)
+        r.notes.add(cs.loc,
+                    "Camera: the camera transform shears or scales unevenly: only its "
+                    "position and orientation are kept");
+    const ParamList& p = cs.params;
+    double fov = p.number("fov", 90.0);
+    if (!(fov > 0.0 && fov < 180.0))
+        throw_error(cs.loc, "Camera 'fov' must be in (0, 180), got {}", fov);
+    const double aspect = static_cast<double>(r.d.render.width) / r.d.render.height;
+    const double frame = p.number("frameaspectratio", aspect);
+    if (const Param* w = p.find("screenwindow", {"float"})) {
+        if (w->numbers.size() != 4)
+            throw_error(w->loc, "'screenwindow' needs 4 numbers x0 x1 y0 y1, got {}",
+                        w->numbers.size());
+        c.screen =
+            std::array<double, 4>{w->numbers[0], w->numbers[1], w->numbers[2], w->numbers[3]};
+        c.screen_loc = w->loc;
+        c.fov_deg = fov;
+    } else if (frame != aspect) {
+        c.screen = frame >= 1.0 ? std::array<double, 4>{-frame, frame, -1.0, 1.0}
+                                : std::array<double, 4>{-1.0, 1.0, -1.0 / frame, 1.0 / frame};
+        c.fov_deg = fov;
+    } else {
+        // pbrt's fov spans the shorter image axis; Spangle's spans the height.
+        c.fov_deg = aspect >= 1.0
+                        ? fov
+                        : 2.0 * std::atan(std::tan(fov * M_PI / 360.0) / aspect) * 180.0 / M_PI;
+    }
+    c.aperture = std::max(0.0, p.number("lensradius", 0.0));
+    const double focus = p.number("focaldistance", 1e6);
+    if (c.aperture > 0.0 && focus > 0.0) c.focus_distance = focus;
+    shutter(r);
+    camera_keys(r);
+    r.notes.unused(p, fmt::format("Camera \"{}\"", cs.type));
+    if (r.env_map_pending && r.d.environment && r.d.environment->map && r.v4())
+        r.d.environment->map->projection = MapProjection::EqualArea;
+}
+
+}  // namespace spangle::pbrt
