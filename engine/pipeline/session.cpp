@@ -104,7 +104,8 @@ std::vector<std::string> Session::watched_files() const {
 
 ReloadReport Session::load(const std::string& scene, double time) {
     const auto t0 = std::chrono::steady_clock::now();
-    ReloadReport rep = load(read_scene(scene, SceneReadOptions{options_.camera, options_.environment}), time);
+    ReloadReport rep =
+        load(read_scene(scene, SceneReadOptions{options_.camera, options_.environment}), time);
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
 }

@@ -72,7 +72,10 @@ SceneDescription read_scene(const std::string& path, const SceneReadOptions& opt
         // the default's, lin_rec709, as for a map a scene names without one).
         EnvironmentDesc env;
         env.loc = FileLoc{"--env", 0, 0};
-        env.map = EnvironmentDesc::Map{options.environment, env.loc, std::nullopt, {}, 0.0};
+        EnvironmentDesc::Map map;
+        map.path = options.environment;
+        map.loc = env.loc;
+        env.map = map;
         if (scene.environment) env.group = scene.environment->group;
         scene.environment = env;
     }
