@@ -4,6 +4,7 @@
 #include <cctype>
 #include <filesystem>
 
+#include "scene/gltf/gltf_reader.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_paths.h"
 #include "scene/toml_scene_reader.h"
@@ -13,6 +14,8 @@ namespace spangle {
 const std::vector<SceneFormat>& scene_formats() {
     static const std::vector<SceneFormat> formats = {
         {".toml", "TOML", &read_toml_scene},
+        {".gltf", "glTF", &read_gltf_scene},
+        {".glb", "glTF", &read_gltf_scene},
     };
     return formats;
 }
