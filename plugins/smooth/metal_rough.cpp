@@ -129,6 +129,7 @@ float lookup(const float (&tab)[kRough][kMu], float mu, float alpha) {
            (tab[j + 1][i] * (1 - s) + tab[j + 1][i + 1] * s) * t;
 }
 
+/** Linear lookup of an average table at alpha. */
 float lookup_avg(const float (&row)[kRough], float alpha) {
     const float y =
         std::clamp(std::sqrt(alpha) * (kRough - 1), 0.0f, static_cast<float>(kRough - 1));
@@ -159,14 +160,17 @@ struct Closure {
     float p_spec;     ///< the base specular lobe (the coat: the rest)
 };
 
+/** Rec.709 luminance weights (for sampling probabilities only). */
 float lum(const float c[3]) {
     return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
 }
 
+/** Component c of a numeric parameter as a float. */
 float param_f(const SpangleParams_v3* p, const char* name, int c = 0) {
     return static_cast<float>(param_number(p, name, c));
 }
 
+/** The instance of a validated parameter set. */
 void* create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint32_t cap) {
     auto* m = new (std::nothrow) MetalRough{};
     if (!m) {
@@ -188,6 +192,7 @@ void* create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint
     return m;
 }
 
+/** Frees an instance made by create(). */
 void destroy(void* instance) {
     delete static_cast<MetalRough*>(instance);
 }
@@ -199,6 +204,7 @@ float at(const SpangleShadingBatch_v3* b, uint32_t k, uint32_t i, float constant
     return v ? v[static_cast<uint32_t>(channels) * i + static_cast<uint32_t>(c)] : constant;
 }
 
+/** Per point: the parameters' values, Fresnel terms, albedos at wo, lobe probabilities. */
 void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, SpangleArena_v3*) {
     const auto& m = *static_cast<const MetalRough*>(inst);
     const AlbedoTables& t = tables();
@@ -286,10 +292,12 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
           (p_coat > 0.0f ? p_coat * ggx_g1(wo, c.alpha_c, c.alpha_c) * dc / (4.0f * wo.z) : 0.0f);
 }
 
+/** The closure of query i (closure_index, or i). */
 uint32_t closure_of(const uint32_t* index, uint32_t i) {
     return index ? index[i] : i;
 }
 
+/** f and pdf of each query (0 for either direction below the surface). */
 void eval(const void*, const void* closures, SpangleEvalBatch_v3* q) {
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {
@@ -305,6 +313,7 @@ void eval(const void*, const void* closures, SpangleEvalBatch_v3* q) {
     }
 }
 
+/** A lobe by u2, a direction from it (u0, u1), f and pdf of the whole mixture. */
 void sample(const void*, const void* closures, SpangleSampleBatch_v3* q) {
     const auto* cl = static_cast<const Closure*>(closures);
     for (uint32_t i = 0; i < q->count; ++i) {

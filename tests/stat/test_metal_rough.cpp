@@ -27,10 +27,12 @@ struct Case {
     float cos_o;
 };
 
+/** gtest prints a case by its name. */
 void PrintTo(const Case& c, std::ostream* os) {
     *os << c.name;
 }
 
+/** Four kinds of point at three angles. */
 std::vector<Case> all_cases() {
     struct Kind {
         const char* name;
@@ -66,6 +68,7 @@ std::vector<Case> all_cases() {
     return out;
 }
 
+/** wo at cosine cos_o, off-axis. */
 Vec3 wo_for(float cos_o) {
     const float s = std::sqrt(1.0f - cos_o * cos_o);
     return {s * std::cos(0.7f), s * std::sin(0.7f), cos_o};

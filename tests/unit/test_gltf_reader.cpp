@@ -24,6 +24,7 @@ struct QuadAccessors {
     int position, normal, uv, indices;
 };
 
+/** The quad's accessors in w. */
 QuadAccessors quad(GltfWriter& w) {
     QuadAccessors q{};
     q.position = w.floats({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, "VEC3", 3);
@@ -33,6 +34,7 @@ QuadAccessors quad(GltfWriter& w) {
     return q;
 }
 
+/** The quad as a primitive (with `extra` attributes; material -1: none). */
 std::string quad_primitive(const QuadAccessors& q, int material, const std::string& extra = "") {
     return fmt::format(
         R"({{"attributes":{{"POSITION":{},"NORMAL":{},"TEXCOORD_0":{}{}}},"indices":{}{}}})",
@@ -40,12 +42,14 @@ std::string quad_primitive(const QuadAccessors& q, int material, const std::stri
         material >= 0 ? fmt::format(R"(,"material":{})", material) : std::string());
 }
 
+/** Whether a note contains `text`. */
 bool has_note(const SceneDescription& d, const std::string& text) {
     for (const std::string& n : d.notes)
         if (n.find(text) != std::string::npos) return true;
     return false;
 }
 
+/** How many notes contain `text`. */
 int count_notes(const SceneDescription& d, const std::string& text) {
     int n = 0;
     for (const std::string& s : d.notes) n += s.find(text) != std::string::npos ? 1 : 0;
@@ -58,6 +62,7 @@ const ParamDesc* param(const MaterialDesc& m, const std::string& name) {
     return nullptr;
 }
 
+/** Expects every entry of a and b within tol. */
 void expect_affine_near(const Affine& a, const Affine& b, float tol) {
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c) EXPECT_NEAR(a.m[r][c], b.m[r][c], tol) << r << "," << c;
@@ -218,6 +223,7 @@ TEST(GltfReader, CameraLooksDownItsMinusZWithYUpAndYfovVertical) {
     EXPECT_NEAR(ty, 0.0f, 0.05f);  // film positions to 1/20 pixel: Newton on float rays
 }
 
+/** A quad and two cameras: an unnamed one on node "front", "top" on node "high". */
 std::string two_cameras_body(GltfWriter& w) {
     const QuadAccessors q = quad(w);
     return fmt::format(

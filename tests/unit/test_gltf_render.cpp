@@ -48,6 +48,7 @@ std::string camera_matrix(Vec3 eye, Vec3 at) {
                        u.z, z.x, z.y, z.z, eye.x, eye.y, eye.z);
 }
 
+/** The glTF scene; its path. */
 std::string write_gltf_scene(const test::TempDir& dir) {
     GltfWriter w;
     const std::string plane = asset_mesh(w, "plane.ply", 0);
@@ -118,6 +119,7 @@ struct Blocks {
     std::vector<double> mean, var;
 };
 
+/** kRenders renders of the scene at `path` (seeds seed0, seed0 + 1, ...), as block statistics. */
 Blocks render_blocks(const std::string& path, uint64_t seed0) {
     RenderOptions options;
     options.threads = 2;

@@ -30,6 +30,7 @@ std::size_t component_size(int type) {
     }
 }
 
+/** A T from unaligned bytes. */
 template <class T>
 T load(const unsigned char* p) {
     T v;

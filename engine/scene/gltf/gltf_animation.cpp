@@ -35,6 +35,7 @@ struct Trs {
     Vec3 s{1, 1, 1};
 };
 
+/** T R S as one matrix (the quaternion normalised; a zero one is no rotation). */
 Affine to_affine(const Trs& p) {
     float x = p.r[0], y = p.r[1], z = p.r[2], w = p.r[3];
     const float n = std::sqrt(x * x + y * y + z * z + w * w);
@@ -54,6 +55,7 @@ Affine to_affine(const Trs& p) {
     return a;
 }
 
+/** A node's own translation, rotation and scale (non-finite numbers read as 0). */
 Trs node_trs(const tinygltf::Node& node) {
     Trs p;
     const auto f = [](double v) { return std::isfinite(v) ? static_cast<float>(v) : 0.0f; };
@@ -65,6 +67,7 @@ Trs node_trs(const tinygltf::Node& node) {
     return p;
 }
 
+/** 0, 1, 2 for translation, rotation, scale; -1 for any other target path. */
 int path_index(const std::string& p) {
     return p == "translation" ? 0 : p == "rotation" ? 1 : p == "scale" ? 2 : -1;
 }

@@ -36,12 +36,47 @@ bool keep_bytes(tinygltf::Image*, const int index, std::string*, std::string*, i
     return true;
 }
 
+/** tinygltf's file access: regular files only (a URI naming a pipe or a device must not hang
+ *  the reader), read whole, never written, paths taken as they are. */
+bool regular_file(const std::string& path, void*) {
+    std::error_code ec;
+    return std::filesystem::is_regular_file(path, ec);
+}
+
+/** Paths are not expanded (no ~, no variables). */
+std::string same_path(const std::string& path, void*) {
+    return path;
+}
+
+bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                       void*) {
+    if (!regular_file(path, nullptr)) {
+        if (err) *err += "'" + path + "' is not a regular file\n";
+        return false;
+    }
+    std::ifstream in(path, std::ios::binary);
+    out->assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (!in.eof() && in.fail()) {
+        if (err) *err += "cannot read '" + path + "'\n";
+        return false;
+    }
+    return true;
+}
+
+/** The reader never writes through tinygltf. */
+bool write_nothing(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+    if (err) *err += "the glTF reader writes no files\n";
+    return false;
+}
+
+/** The whole file; throws SpangleError when it cannot be opened. */
 std::string read_bytes(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw_error(FileLoc{path, 0, 0}, "cannot open the file");
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
+/** The little-endian 32-bit word at byte `at`. */
 uint32_t u32(const std::string& b, std::size_t at) {
     uint32_t v;
     std::memcpy(&v, b.data() + at, 4);
@@ -68,6 +103,13 @@ std::string_view glb_json(const std::string& bytes, const std::string& path) {
     return std::string_view(bytes).substr(20, length);
 }
 
+/** Extensions noted where they are used (a material, a primitive, a texture), not here. */
+bool noted_in_place(const std::string& e) {
+    return (e.rfind("KHR_materials_", 0) == 0 && e != "KHR_materials_variants") ||
+           e == "KHR_draco_mesh_compression" || e == "KHR_texture_basisu" ||
+           e == "EXT_texture_webp";
+}
+
 /** Fails on required extensions not read; notes used ones not read (once each). */
 void check_extensions(Context& ctx) {
     for (const std::string& e : ctx.model.extensionsRequired)
@@ -75,7 +117,7 @@ void check_extensions(Context& ctx) {
             throw_error(ctx.at("extensionsRequired"),
                         "the file requires extension {}, which Spangle does not read", e);
     for (const std::string& e : ctx.model.extensionsUsed)
-        if (!kRead.count(e))
+        if (!kRead.count(e) && !noted_in_place(e))
             ctx.note("extension " + e, ctx.at("extensionsUsed"),
                      fmt::format("extension {} is not read: what it adds is dropped (the core glTF "
                                  "data it extends stands in)",
@@ -93,6 +135,7 @@ void load_document(Context& ctx) {
         throw_error(FileLoc{ctx.path, 0, 0}, "the file is larger than 4 GiB");
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&keep_bytes, &ctx.images);
+    loader.SetFsCallbacks({&regular_file, &same_path, &read_regular_file, &write_nothing, nullptr});
     std::string err, warn;
     bool ok = false;
     try {

@@ -64,6 +64,7 @@ const tinygltf::Value* extension(const tinygltf::Material& g, const char* name) 
     return it == g.extensions.end() ? nullptr : &it->second;
 }
 
+/** Member `key` of extension value x as a finite number, else `fallback`. */
 double number_of(const tinygltf::Value* x, const char* key, double fallback) {
     if (!x || !x->IsObject() || !x->Has(key) || !x->Get(key).IsNumber()) return fallback;
     const double v = x->Get(key).GetNumberAsDouble();
@@ -82,6 +83,7 @@ std::optional<Vec3> three_numbers(const tinygltf::Value& a) {
     return Vec3{v[0], v[1], v[2]};
 }
 
+/** Member `key` of x as three finite numbers, else `fallback`. */
 Vec3 vec3_of(const tinygltf::Value* x, const char* key, Vec3 fallback) {
     if (!x || !x->IsObject() || !x->Has(key)) return fallback;
     return three_numbers(x->Get(key)).value_or(fallback);
@@ -99,10 +101,12 @@ std::optional<TextureUse> texture_in(const tinygltf::Value* x, const char* key) 
     return u;
 }
 
+/** A core textureInfo as a TextureUse. */
 TextureUse use_of(const tinygltf::TextureInfo& t) {
     return {t.index, t.texCoord, &t.extensions};
 }
 
+/** Each component clamped to [lo, hi]. */
 Vec3 clamp3(Vec3 v, float lo, float hi) {
     return {std::clamp(v.x, lo, hi), std::clamp(v.y, lo, hi), std::clamp(v.z, lo, hi)};
 }

@@ -79,6 +79,7 @@ std::vector<int> scene_nodes(const Context& ctx, const std::vector<int>& parent)
     return order;
 }
 
+/** A node motion as an object's matrix keys (seconds), blamed on `at`. */
 Keys<MatrixKey> matrix_keys(const NodeMotion& m, const FileLoc& at, const std::string& what) {
     Keys<MatrixKey> keys;
     keys.loc = at;
@@ -130,6 +131,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
     }
 }
 
+/** v made unit length; -z for a zero vector (a node scaled to nothing). */
 Vec3 unit(Vec3 v) {
     const float l = length(v);
     return l > 0.0f ? v * (1.0f / l) : Vec3{0, 0, -1};

@@ -16,6 +16,7 @@ int wrap_mode(int gl) {
     return 0;
 }
 
+/** Member `key` of v as a finite number, else `fallback`. */
 double number_or(const tinygltf::Value& v, const char* key, double fallback) {
     if (!v.IsObject() || !v.Has(key) || !v.Get(key).IsNumber()) return fallback;
     const double x = v.Get(key).GetNumberAsDouble();
