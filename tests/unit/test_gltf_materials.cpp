@@ -41,6 +41,7 @@ std::string quad_mesh(GltfWriter& w, int material) {
         p, uv, i, material);
 }
 
+/** m's parameter `name` (throws when m has none). */
 const ParamDesc& param(const MaterialDesc& m, const std::string& name) {
     for (const ParamDesc& p : m.params)
         if (p.name == name) return p;
@@ -371,6 +372,38 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
             R"("nodes":[{{"mesh":0}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":{}}},"indices":{}}}]}}])",
             p2, i2));
     EXPECT_THROW(read_gltf_scene(dir.file("idx.gltf"), {}), SpangleError);
+}
+
+TEST(GltfErrors, NumbersBeyondAFloatAndUnboundedZeroAccessorsAreRefused) {
+    test::TempDir dir("gltf_range");
+    const std::string head = "{\"asset\":{\"version\":\"2.0\"},\n";
+    const std::string quad =
+        "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+        "\"buffers\":[{\"byteLength\":36,\"uri\":\"data:application/octet-stream;base64,"
+        "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAACAPwAAgD8AAAAA\"}],"
+        "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36}],"
+        "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":"
+        "\"VEC3\",\"min\":[0,0,0],\"max\":[1,1,0]}]}";
+    // A matrix entry past FLT_MAX is an error at the matrix, not an infinite placement.
+    const std::string m = error_of(
+        dir, head + "\"nodes\":[{\"mesh\":0,\"matrix\":[1e39,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}],\n" +
+                 quad);
+    EXPECT_NE(m.find("bad.gltf:2:"), std::string::npos) << m;
+    EXPECT_NE(m.find("is not a finite float"), std::string::npos) << m;
+    // Two finite scales whose product overflows.
+    const std::string w = error_of(dir, head +
+                                            "\"nodes\":[{\"scale\":[1e30,1,1],\"children\":[1]},"
+                                            "{\"mesh\":0,\"scale\":[1e30,1,1]}],\n" +
+                                            quad);
+    EXPECT_NE(w.find("world transform overflows a float"), std::string::npos) << w;
+    // An accessor without a buffer view is zeros; 20 million of them are refused before any
+    // memory is taken.
+    const std::string z =
+        error_of(dir, head + "\"nodes\":[{\"mesh\":0}],\n" +
+                          "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                          "\"accessors\":[{\"componentType\":5126,\"count\":20000000,\"type\":"
+                          "\"VEC3\",\"min\":[0,0,0],\"max\":[0,0,0]}]}");
+    EXPECT_NE(z.find("has no buffer view and 20000000 elements"), std::string::npos) << z;
 }
 
 TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {

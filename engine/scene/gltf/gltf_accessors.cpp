@@ -13,6 +13,8 @@ void check_index(const Context& ctx, const std::string& p, int index, std::size_
 
 namespace {
 
+constexpr std::size_t kMaxViewless = std::size_t{1} << 24;  ///< elements of a view-less accessor
+
 /** Bytes of one component of a glTF component type, or 0 for an unknown type. */
 std::size_t component_size(int type) {
     switch (type) {
@@ -129,9 +131,17 @@ std::vector<double> read_numbers(const Context& ctx, int index, const std::strin
     const tinygltf::Accessor& a = accessor(ctx, index, ref, csize, ncomp);
     const std::string ap = fmt::format("accessors/{}", index);
     const auto n = static_cast<std::size_t>(ncomp);
+    // An accessor without a view is zeros (before its sparse values): nothing in the file
+    // bounds its size, so Spangle does.
+    if (a.bufferView < 0 && a.count > kMaxViewless)
+        throw_error(ctx.at(ap + "/count"),
+                    "accessor {} has no buffer view and {} elements: more than {} zeros", index,
+                    a.count, kMaxViewless);
+    const Run r = a.bufferView >= 0 && a.count > 0
+                      ? run_of(ctx, a.bufferView, a.byteOffset, a.count, csize * n, csize, ap)
+                      : Run{};
     std::vector<double> out(a.count * n, 0.0);
-    if (a.bufferView >= 0 && a.count > 0) {
-        const Run r = run_of(ctx, a.bufferView, a.byteOffset, a.count, csize * n, csize, ap);
+    if (r.first) {
         for (std::size_t i = 0; i < a.count; ++i)
             for (std::size_t c = 0; c < n; ++c)
                 out[i * n + c] =

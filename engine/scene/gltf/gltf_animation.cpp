@@ -58,7 +58,7 @@ Affine to_affine(const Trs& p) {
 /** A node's own translation, rotation and scale (non-finite numbers read as 0). */
 Trs node_trs(const tinygltf::Node& node) {
     Trs p;
-    const auto f = [](double v) { return std::isfinite(v) ? static_cast<float>(v) : 0.0f; };
+    const auto f = [](double v) { return std::isfinite(narrow(v)) ? narrow(v) : 0.0f; };
     if (node.translation.size() == 3)
         p.t = {f(node.translation[0]), f(node.translation[1]), f(node.translation[2])};
     if (node.rotation.size() == 4)
@@ -201,12 +201,15 @@ std::vector<double> sample_times(const std::vector<const Channel*>& channels) {
 Affine local_matrix(const Context& ctx, int n) {
     const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
     if (node.matrix.size() != 16) return to_affine(node_trs(node));
+    for (double v : node.matrix)
+        if (!std::isfinite(narrow(v)))
+            throw_error(ctx.at(fmt::format("nodes/{}/matrix", n)),
+                        "node {}'s matrix holds a number that is not a finite float ({})", n, v);
     Affine a;
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c)
-            a.m[r][c] = static_cast<float>(node.matrix[static_cast<std::size_t>(4 * c + r)]);
-    a.t = {static_cast<float>(node.matrix[12]), static_cast<float>(node.matrix[13]),
-           static_cast<float>(node.matrix[14])};
+            a.m[r][c] = narrow(node.matrix[static_cast<std::size_t>(4 * c + r)]);
+    a.t = {narrow(node.matrix[12]), narrow(node.matrix[13]), narrow(node.matrix[14])};
     return a;
 }
 
@@ -262,6 +265,16 @@ std::vector<NodeMotion> node_motions(Context& ctx, const std::vector<int>& paren
             done[*it] = 1;
         }
     }
+    // A product of finite matrices can overflow: a placement must stay finite.
+    const auto finite = [](const Affine& m) {
+        float sum = m.t.x + m.t.y + m.t.z;
+        for (const auto& row : m.m) sum += row[0] + row[1] + row[2];
+        return std::isfinite(sum);
+    };
+    for (std::size_t n = 0; n < count; ++n)
+        if (!finite(out[n].rest))
+            throw_error(ctx.at(fmt::format("nodes/{}", n)),
+                        "node {}'s world transform overflows a float", n);
     std::size_t keys = 0, work = 0;
     for (std::size_t n = 0; n < count; ++n) {
         NodeMotion& m = out[n];
@@ -276,7 +289,12 @@ std::vector<NodeMotion> node_motions(Context& ctx, const std::vector<int>& paren
                         kMaxKeys, kMaxWork);
         for (const Channel* k : moving[n]) m.cubic = m.cubic || k->interp == 2;
         m.matrices.reserve(m.times.size());
-        for (double t : m.times) m.matrices.push_back(world_at(static_cast<int>(n), t));
+        for (double t : m.times) {
+            m.matrices.push_back(world_at(static_cast<int>(n), t));
+            if (!finite(m.matrices.back()))
+                throw_error(ctx.at(fmt::format("nodes/{}", n)),
+                            "node {}'s animated transform overflows a float at {} s", n, t);
+        }
     }
     return out;
 }

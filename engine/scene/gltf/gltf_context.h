@@ -6,6 +6,7 @@
 #include <tiny_gltf.h>
 
 #include <filesystem>
+#include <limits>
 #include <map>
 #include <memory>
 #include <optional>
@@ -43,6 +44,14 @@ struct Context {
         scene->notes.push_back(fmt::format("{}: {}", where.str(), message));
     }
 };
+
+/** A JSON number as a float: out of a float's range it is +-infinity (a plain conversion of
+ *  such a double is undefined behaviour), so that the finiteness checks catch it. */
+inline float narrow(double v) {
+    if (v > 3.4028234663852886e38) return std::numeric_limits<float>::infinity();
+    if (v < -3.4028234663852886e38) return -std::numeric_limits<float>::infinity();
+    return static_cast<float>(v);
+}
 
 /** Throws at `p` unless 0 <= index < size: "<what> N does not exist (the file has M)". */
 void check_index(const Context& ctx, const std::string& p, int index, std::size_t size,

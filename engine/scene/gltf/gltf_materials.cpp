@@ -77,7 +77,7 @@ std::optional<Vec3> three_numbers(const tinygltf::Value& a) {
     float v[3];
     for (int c = 0; c < 3; ++c) {
         if (!a.Get(c).IsNumber()) return std::nullopt;
-        v[c] = static_cast<float>(a.Get(c).GetNumberAsDouble());
+        v[c] = narrow(a.Get(c).GetNumberAsDouble());
         if (!std::isfinite(v[c])) return std::nullopt;
     }
     return Vec3{v[0], v[1], v[2]};
@@ -115,8 +115,7 @@ Vec3 clamp3(Vec3 v, float lo, float hi) {
 void base_color(Builder& b, const tinygltf::Material& g, const std::string& mp) {
     const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
     Vec3 rgb{1, 1, 1};
-    if (f.size() >= 3)
-        rgb = {static_cast<float>(f[0]), static_cast<float>(f[1]), static_cast<float>(f[2])};
+    if (f.size() >= 3) rgb = {narrow(f[0]), narrow(f[1]), narrow(f[2])};
     if (!std::isfinite(rgb.x + rgb.y + rgb.z)) rgb = {1, 1, 1};
     rgb = clamp3(rgb, 0.0f, 1.0f);
     const std::string at = mp + "/pbrMetallicRoughness/baseColorFactor";
@@ -268,10 +267,11 @@ void flake_param(Builder& b, const std::string& key, const tinygltf::Value& v,
         if (!tex) return;
         if (!space.empty()) tex->space = space;
         if (v.Has("scale")) {
-            if (!v.Get("scale").IsNumber() || !(v.Get("scale").GetNumberAsDouble() >= 0.0))
+            if (!v.Get("scale").IsNumber() || !(v.Get("scale").GetNumberAsDouble() >= 0.0) ||
+                !std::isfinite(narrow(v.Get("scale").GetNumberAsDouble())))
                 throw_error(ctx.at(path + "/scale"), "'scale' must be a non-negative number");
             tex->scale[0] = tex->scale[1] = tex->scale[2] =
-                static_cast<float>(v.Get("scale").GetNumberAsDouble());
+                narrow(v.Get("scale").GetNumberAsDouble());
         }
         return b.texture(key, std::move(*tex), path);
     }
@@ -354,8 +354,7 @@ std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
                                      const std::string& mp) {
     Vec3 e{0, 0, 0};
     if (g.emissiveFactor.size() == 3)
-        e = {static_cast<float>(g.emissiveFactor[0]), static_cast<float>(g.emissiveFactor[1]),
-             static_cast<float>(g.emissiveFactor[2])};
+        e = {narrow(g.emissiveFactor[0]), narrow(g.emissiveFactor[1]), narrow(g.emissiveFactor[2])};
     if (!std::isfinite(e.x + e.y + e.z)) e = {0, 0, 0};
     e = clamp3(e, 0.0f, 1.0f);
     if (g.emissiveTexture.index >= 0 && (e.x > 0 || e.y > 0 || e.z > 0)) {

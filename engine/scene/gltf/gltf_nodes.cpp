@@ -154,9 +154,7 @@ void punctual_light(Context& ctx, int n, int index, const NodeMotion& motion) {
     d.loc = ctx.at(lp);
     d.group.loc = d.loc;
     Vec3 rgb{1, 1, 1};
-    if (g.color.size() == 3)
-        rgb = {static_cast<float>(g.color[0]), static_cast<float>(g.color[1]),
-               static_cast<float>(g.color[2])};
+    if (g.color.size() == 3) rgb = {narrow(g.color[0]), narrow(g.color[1]), narrow(g.color[2])};
     if (!std::isfinite(rgb.x + rgb.y + rgb.z) || rgb.x < 0 || rgb.y < 0 || rgb.z < 0)
         throw_error(ctx.at(lp + "/color"), "a light's colour must be three non-negative numbers");
     d.color =

@@ -43,7 +43,11 @@ void texture_transform(Context& ctx, const tinygltf::Value& x, const std::string
     const double a00 = c * scale[0], a01 = s * scale[1], a02 = offset[0];
     const double a10 = -s * scale[0], a11 = c * scale[1], a12 = offset[1];
     const double m[6] = {a00, -a01, a01 + a02, -a10, a11, 1.0 - a11 - a12};
-    for (int k = 0; k < 6; ++k) tex.uv[k] = static_cast<float>(m[k]);
+    for (int k = 0; k < 6; ++k) {
+        tex.uv[k] = narrow(m[k]);
+        if (!std::isfinite(tex.uv[k]))
+            throw_error(ctx.at(ref), "KHR_texture_transform makes a uv transform beyond a float");
+    }
     if (x.Has("texCoord") && number_or(x, "texCoord", 0) != 0)
         ctx.note("TEXCOORD_n", ctx.at(ref + "/texCoord"),
                  "a texture reads a second uv set: TEXCOORD_0 stands in (Spangle meshes hold one)");
