@@ -344,6 +344,10 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     registry.put(e, MaterialRef{material_index(ctx, d)});
     KeyedMotion<Affine> motion = placement_motion(ctx, d);
     if (!d.keys.keys.empty() || !d.matrix_keys.keys.empty()) info.animated = true;
+    if (d.parent) {  // imported: the importing file's placement of the import, after its own
+        motion.middle = d.parent->compose(motion.middle);
+        for (Affine& step : motion.steps) step = d.parent->compose(step);
+    }
     registry.put(e, Transform{motion.middle});
     info.object_to_world.push_back(motion.middle);
     if (d.emission) {

@@ -204,12 +204,15 @@ struct EmissionDesc {
 
 /** A placed shape with a material. */
 struct ObjectDesc {
-    std::string name;                      ///< empty when unnamed
-    ShapeDesc shape;                       ///< its geometry
-    std::string material;                  ///< a material's name
-    PlacementDesc placement;               ///< object to world
-    Keys<ObjectKey> keys;                  ///< its motion (of the placement's parts)
-    Keys<MatrixKey> matrix_keys;           ///< or its motion as whole matrices
+    std::string name;             ///< empty when unnamed
+    ShapeDesc shape;              ///< its geometry
+    std::string material;         ///< a material's name
+    PlacementDesc placement;      ///< object to world
+    Keys<ObjectKey> keys;         ///< its motion (of the placement's parts)
+    Keys<MatrixKey> matrix_keys;  ///< or its motion as whole matrices
+    /** The placement of the file it was imported from ([[import]]), applied after its own
+     *  (and its motion's); none for an object of the scene itself. */
+    std::optional<Affine> parent;
     std::optional<EmissionDesc> emission;  ///< when it is a light
     FileLoc loc;                           ///< the object
     FileLoc material_loc;                  ///< its material's name
@@ -285,9 +288,24 @@ struct RenderDesc {
     double shutter_close = 0.0;                ///< not before shutter_open; equal = no blur
     /** The image the scene asks to be written (pbrt's Film "filename"); -o wins over it. */
     std::optional<std::string> output;
+    /** The keys the file wrote (TOML: of [render]); an import fills in the others. Empty for a
+     *  reader whose format gives every setting. */
+    std::vector<std::string> written;
     FileLoc loc;                ///< the settings (blamed for defaults)
     FileLoc working_space_loc;  ///< where the working space is named
     FileLoc color_space_loc;    ///< where the bare colours' space is named
+};
+
+/** Another scene file brought into this one ([[import]]): its objects, materials and lights are
+ *  added, the importing file's own materials replace imported ones of the same name, its
+ *  camera, environment and render settings win (scene/scene_import.h). */
+struct ImportDesc {
+    std::string path;         ///< resolved scene file path (any format Spangle reads)
+    PlacementDesc placement;  ///< where everything imported is placed
+    bool camera = true;       ///< take its camera when the importing file has none
+    bool lights = true;       ///< keep its lights
+    bool environment = true;  ///< take its environment when the importing file has none
+    FileLoc loc;              ///< the [[import]] table
 };
 
 /** What a reader may be asked besides the file. */
@@ -304,8 +322,11 @@ struct SceneDescription {
     /** The reader's warnings ("file:line: what was dropped and what stands in"), printed by
      *  whoever loads the scene (SceneInfo::notes). */
     std::vector<std::string> notes;
-    RenderDesc render;                           ///< render settings
-    CameraDesc camera;                           ///< the camera (every scene has one)
+    RenderDesc render;  ///< render settings
+    CameraDesc camera;  ///< the camera (every scene has one)
+    /** False when the file has no camera of its own (a TOML scene that imports one). */
+    bool has_camera = true;
+    std::vector<ImportDesc> imports;             ///< other scene files it brings in
     std::optional<EnvironmentDesc> environment;  ///< none = black, no environment light
     std::vector<MaterialDesc> materials;         ///< in the order written
     std::vector<ObjectDesc> objects;             ///< in the order written (numbered from 0)

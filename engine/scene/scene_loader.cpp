@@ -4,8 +4,11 @@
 #include <cctype>
 #include <filesystem>
 
+#include <fmt/format.h>
+
 #include "scene/gltf/gltf_reader.h"
 #include "scene/scene_builder.h"
+#include "scene/scene_import.h"
 #include "scene/scene_paths.h"
 #include "scene/toml_scene_reader.h"
 
@@ -30,9 +33,35 @@ const SceneFormat& scene_format_for(const std::string& path) {
     return formats.front();
 }
 
-SceneDescription read_scene(const std::string& path, const SceneReadOptions& options) {
+namespace {
+
+constexpr std::size_t kMaxImportDepth = 16;
+
+/** Reads `path` and, recursively, what it imports; `chain` holds the files being read, to
+ *  refuse a file that imports itself. */
+SceneDescription read_with_imports(const std::string& path, const SceneReadOptions& options,
+                                   std::vector<std::string>& chain) {
     check_scene_file(path);
-    return scene_format_for(path).read(path, options);
+    SceneDescription scene = scene_format_for(path).read(path, options);
+    std::error_code ec;
+    chain.push_back(std::filesystem::weakly_canonical(path, ec).string());
+    resolve_imports(scene, [&](const std::string& imported, const FileLoc& at) {
+        const std::string canonical = std::filesystem::weakly_canonical(imported, ec).string();
+        if (std::find(chain.begin(), chain.end(), canonical) != chain.end())
+            throw_error(at, "'{}' imports itself (through {})", imported, fmt::join(chain, " -> "));
+        if (chain.size() >= kMaxImportDepth)
+            throw_error(at, "imports nest deeper than {} files", kMaxImportDepth);
+        return read_with_imports(imported, options, chain);
+    });
+    chain.pop_back();
+    return scene;
+}
+
+}  // namespace
+
+SceneDescription read_scene(const std::string& path, const SceneReadOptions& options) {
+    std::vector<std::string> chain;
+    return read_with_imports(path, options, chain);
 }
 
 SceneInfo load_scene(const std::string& path, ColorConfig& color, ecs::Registry& registry,

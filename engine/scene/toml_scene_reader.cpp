@@ -197,6 +197,56 @@ std::optional<Vec3> read_scale(TableReader& r) {
     return v;
 }
 
+/** `matrix = [...]`: 12 numbers, the rows of a 3x4 object-to-world matrix, or 16, a 4x4 one
+ *  whose last row is 0 0 0 1 (as `spangle convert` writes placements that are no scale, rotate
+ *  and translate); none when absent. */
+std::optional<Affine> read_matrix(TableReader& r) {
+    const toml::node* n = r.node("matrix");
+    if (!n) return std::nullopt;
+    const toml::array* a = n->as_array();
+    const auto fail = [&]() {
+        throw_error(loc_of(*n, r.file()),
+                    "'matrix' must be 12 numbers (the rows of a 3x4 object-to-world matrix) or "
+                    "16 (a 4x4 one with last row 0, 0, 0, 1)");
+    };
+    if (!a || (a->size() != 12 && a->size() != 16)) fail();
+    double v[16];
+    for (std::size_t i = 0; i < a->size(); ++i) {
+        const auto x = (*a)[i].value<double>();
+        if (!(*a)[i].is_number() || !x || !std::isfinite(*x)) fail();
+        v[i] = *x;
+    }
+    if (a->size() == 16 && !(v[12] == 0 && v[13] == 0 && v[14] == 0 && v[15] == 1)) fail();
+    Affine m;
+    for (int row = 0; row < 3; ++row) {
+        for (int c = 0; c < 3; ++c) m.m[row][c] = static_cast<float>(v[4 * row + c]);
+    }
+    m.t = {static_cast<float>(v[3]), static_cast<float>(v[7]), static_cast<float>(v[11])};
+    const float det = m.determinant();
+    if (!(std::fabs(det) > 1e-30f) || !std::isfinite(det))
+        throw_error(loc_of(*n, r.file()), "'matrix' is not invertible (determinant {})", det);
+    return m;
+}
+
+/** A placement: `matrix`, or scale, rotate and translate (not both). */
+PlacementDesc read_placement(TableReader& r) {
+    PlacementDesc p;
+    p.matrix = read_matrix(r);
+    if (p.matrix) {
+        for (const char* key : {"scale", "rotate", "translate"})
+            if (r.has(key))
+                throw_error(r.loc(key),
+                            "give either 'matrix' or scale, rotate and translate, "
+                            "not both");
+        return p;
+    }
+    TransformParts& parts = p.parts;
+    parts.scale = read_scale(r).value_or(parts.scale);
+    parts.rotate = r.vec3("rotate", parts.rotate);
+    parts.translate = r.vec3("translate", parts.translate);
+    return p;
+}
+
 /** The `subdiv = { ... }` table's scheme, boundary and uv interpolation. */
 void read_subdiv_rules(TableReader& r, SubdivOptions& o) {
     const std::string scheme = r.string("scheme", "catmull-clark");
@@ -311,21 +361,30 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
         o.shape = MeshFileShape{std::move(mesh_path), r.loc("mesh")};
     o.material = r.string("material");
     o.material_loc = r.loc("material");
-    TransformParts& parts = o.placement.parts;
-    parts.scale = read_scale(r).value_or(parts.scale);
-    parts.rotate = r.vec3("rotate", parts.rotate);
-    parts.translate = r.vec3("translate", parts.translate);
+    o.placement = read_placement(r);
     const auto name = [&](std::size_t k) {
         return fmt::format("[[object.keys]] #{} of {}", k, r.what());
     };
-    o.keys = read_keys<ObjectKey>(r, name, [](TableReader& kr) {
-        ObjectKey key;
-        key.time = read_key_time(kr);
-        key.scale = read_scale(kr);
-        key.rotate = optional_vec3(kr, "rotate");
-        key.translate = optional_vec3(kr, "translate");
-        return key;
-    });
+    // Keys of the parts, or (an object placed by a matrix) keys of whole matrices.
+    if (o.placement.matrix) {
+        o.matrix_keys = read_keys<MatrixKey>(r, name, [](TableReader& kr) {
+            MatrixKey key;
+            key.time = read_key_time(kr);
+            const std::optional<Affine> m = read_matrix(kr);
+            if (!m) kr.missing("matrix");
+            key.matrix = *m;
+            return key;
+        });
+    } else {
+        o.keys = read_keys<ObjectKey>(r, name, [](TableReader& kr) {
+            ObjectKey key;
+            key.time = read_key_time(kr);
+            key.scale = read_scale(kr);
+            key.rotate = optional_vec3(kr, "rotate");
+            key.translate = optional_vec3(kr, "translate");
+            return key;
+        });
+    }
     if (r.has("emission")) {
         EmissionDesc e;
         e.color = *toml_scene::read_color(ctx, r, "emission");
@@ -392,6 +451,22 @@ LightDesc read_light(const ReadContext& ctx, TableReader& r) {
 /** Each table of the array `key` of the root, read by `read` into `out`; the k-th is called
  *  "[[key]] #k" in messages. */
 template <class Desc, class Read>
+void read_each(TableReader& top, const char* key, std::vector<Desc>& out, const Read& read);
+
+/** One [[import]] table: the file, where it is placed, what of it is taken. */
+ImportDesc read_import(const ReadContext& ctx, TableReader& r) {
+    ImportDesc i;
+    i.loc = r.loc();
+    i.path = read_file(ctx, r, "file");
+    i.placement = read_placement(r);
+    i.camera = r.boolean("camera", i.camera);
+    i.lights = r.boolean("lights", i.lights);
+    i.environment = r.boolean("environment", i.environment);
+    r.finish();
+    return i;
+}
+
+template <class Desc, class Read>
 void read_each(TableReader& top, const char* key, std::vector<Desc>& out, const Read& read) {
     const toml::array* tables = top.table_array(key);
     if (!tables) return;
@@ -410,17 +485,22 @@ SceneDescription read_toml_scene(const std::string& path, const SceneReadOptions
     const ReadContext ctx{path, std::filesystem::path(path).parent_path()};
     TableReader top(root, path, "the scene");
     top.set_whole_file();
+    read_each(top, "import", d.imports, [&](TableReader& r) { return read_import(ctx, r); });
     {
         const toml::table* t = top.table("render");
         const toml::table empty;
         TableReader r(t ? *t : empty, path, "[render]");
         d.render = read_render(r);
+        if (t)
+            for (auto&& [key, value] : *t) d.render.written.emplace_back(key.str());
     }
-    {
-        const toml::table* t = top.table("camera");
-        if (!t) top.missing("camera");
+    if (const toml::table* t = top.table("camera")) {
         TableReader r(*t, path, "[camera]");
         d.camera = read_camera(r);
+    } else if (d.imports.empty()) {
+        top.missing("camera");
+    } else {
+        d.has_camera = false;  // an import gives it
     }
     if (const toml::table* t = top.table("environment")) {
         TableReader r(*t, path, "[environment]");

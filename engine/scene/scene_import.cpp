@@ -1,0 +1,209 @@
+#include "scene/scene_import.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+#include "scene/keyed_motion.h"
+
+namespace spangle {
+namespace {
+
+/** The placement parts as one matrix (scale, then X, Y, Z Euler rotations, then the offset). */
+Affine compose_parts(const TransformParts& p) {
+    Affine m = Affine::scale(p.scale);
+    m = Affine::rotate(p.rotate.x, {1, 0, 0}).compose(m);
+    m = Affine::rotate(p.rotate.y, {0, 1, 0}).compose(m);
+    m = Affine::rotate(p.rotate.z, {0, 0, 1}).compose(m);
+    return Affine::translate(p.translate).compose(m);
+}
+
+Affine matrix_of(const PlacementDesc& p) {
+    return p.matrix ? *p.matrix : compose_parts(p.parts);
+}
+
+bool is_identity(const Affine& m) {
+    return m == Affine{};
+}
+
+/** Gives every bare colour of `d` the space it was bare in (its [render] color_space), so that
+ *  it keeps its meaning in another scene. */
+void explicit_colours(SceneDescription& d) {
+    const std::string space = d.render.color_space.value_or("lin_rec709");
+    const FileLoc at = d.render.color_space ? d.render.color_space_loc : d.render.loc;
+    const auto fix = [&](ColorDesc& c) {
+        if (c.space) return;
+        c.space = space;
+        c.space_loc = at;
+    };
+    for (MaterialDesc& m : d.materials)
+        for (ParamDesc& p : m.params)
+            if (p.kind == ParamDesc::Kind::Color) fix(p.color);
+    for (ObjectDesc& o : d.objects)
+        if (o.emission) fix(o.emission->color);
+    for (LightDesc& l : d.lights)
+        if (l.color) fix(*l.color);
+    if (d.environment && d.environment->color) fix(*d.environment->color);
+}
+
+/** Turns keys given as frames of `d`'s own frame range into seconds. */
+void explicit_key_times(SceneDescription& d) {
+    const auto fix = [&](KeyTime& t) {
+        if (!t.frame) return;
+        t.seconds = key_seconds(t, d.render.frame_start, d.render.fps);
+        t.frame.reset();
+    };
+    for (CameraKey& k : d.camera.keys.keys) fix(k.time);
+    for (ObjectDesc& o : d.objects) {
+        for (ObjectKey& k : o.keys.keys) fix(k.time);
+        for (MatrixKey& k : o.matrix_keys.keys) fix(k.time);
+    }
+}
+
+/** The camera placed by m (the eye and the point looked at moved, up turned). */
+void place_camera(CameraDesc& c, const Affine& m) {
+    c.position = m.apply_point(c.position);
+    c.look_at = m.apply_point(c.look_at);
+    c.up = m.apply_vector(c.up);
+    for (CameraKey& k : c.keys.keys) {
+        if (k.position) k.position = m.apply_point(*k.position);
+        if (k.look_at) k.look_at = m.apply_point(*k.look_at);
+        if (k.up) k.up = m.apply_vector(*k.up);
+    }
+}
+
+/** A light placed by m; a sphere's radius follows m's mean scale (cube root of the volume). */
+struct PlaceLight {
+    const Affine& m;
+    void operator()(QuadLightDesc& q) const {
+        q.corner = m.apply_point(q.corner);
+        q.edge1 = m.apply_vector(q.edge1);
+        q.edge2 = m.apply_vector(q.edge2);
+    }
+    void operator()(SphereLightDesc& s) const {
+        s.center = m.apply_point(s.center);
+        s.radius *= std::cbrt(std::fabs(static_cast<double>(m.determinant())));
+    }
+    void operator()(PointLightDesc& p) const { p.position = m.apply_point(p.position); }
+    void operator()(SpotLightDesc& s) const {
+        s.position = m.apply_point(s.position);
+        s.look_at = m.apply_point(s.look_at);
+    }
+    void operator()(DistantLightDesc& d) const { d.direction = m.apply_vector(d.direction); }
+};
+
+/** Takes each [render] setting the importing file did not write from the import. */
+void fill_render(RenderDesc& into, const RenderDesc& from) {
+    const auto written = [&](const char* key) {
+        return std::find(into.written.begin(), into.written.end(), key) != into.written.end();
+    };
+    const RenderDesc mine = into;
+    into = from;
+    into.written = mine.written;
+    into.loc = mine.loc;
+    const auto keep = [&](const char* key, auto member) {
+        if (written(key)) into.*member = mine.*member;
+    };
+    keep("width", &RenderDesc::width);
+    keep("height", &RenderDesc::height);
+    keep("spp", &RenderDesc::spp);
+    keep("max_depth", &RenderDesc::max_depth);
+    keep("rr_depth", &RenderDesc::rr_depth);
+    keep("seed", &RenderDesc::seed);
+    keep("filter", &RenderDesc::filter);
+    keep("clamp_indirect", &RenderDesc::clamp_indirect);
+    keep("frame_start", &RenderDesc::frame_start);
+    keep("frame_end", &RenderDesc::frame_end);
+    keep("fps", &RenderDesc::fps);
+    keep("shutter", &RenderDesc::shutter_open);
+    keep("shutter", &RenderDesc::shutter_close);
+    keep("output", &RenderDesc::output);
+    // The colour spaces: the importing file's, written or not (its bare colours are bare in its
+    // space; the import's were made explicit).
+    into.working_space = mine.working_space;
+    into.working_space_loc = mine.working_space_loc;
+    into.color_space = mine.color_space;
+    into.color_space_loc = mine.color_space_loc;
+    if (!written("working_space") && !mine.working_space) {
+        into.working_space = from.working_space;
+        into.working_space_loc = from.working_space_loc;
+    }
+}
+
+/** What merging the imports has taken so far. */
+struct Merge {
+    std::vector<ObjectDesc> objects;              ///< imported objects, in import order
+    std::vector<std::string> own_materials;       ///< names the importing file defines
+    std::vector<std::string> imported_materials;  ///< names taken from imports
+    bool camera = false, environment = false, render = false;
+};
+
+/** Merges one import's description into `scene` (see the header). */
+void merge(SceneDescription& scene, SceneDescription in, const ImportDesc& how, Merge& m) {
+    explicit_colours(in);
+    explicit_key_times(in);
+    const Affine place = matrix_of(how.placement);
+    const bool placed = !is_identity(place);
+    for (ObjectDesc& o : in.objects) {
+        if (placed) o.parent = o.parent ? place.compose(*o.parent) : place;
+        m.objects.push_back(std::move(o));
+    }
+    for (MaterialDesc& mat : in.materials) {
+        const auto has = [&](const std::vector<std::string>& names) {
+            return std::find(names.begin(), names.end(), mat.name) != names.end();
+        };
+        if (has(m.own_materials)) continue;  // the importing file's own replaces it
+        if (has(m.imported_materials)) {
+            scene.notes.push_back(fmt::format(
+                "{}: material '{}' of {} is also in an earlier import: the earlier one is used",
+                how.loc.str(), mat.name, in.path));
+            continue;
+        }
+        m.imported_materials.push_back(mat.name);
+        scene.materials.push_back(std::move(mat));
+    }
+    if (how.lights)
+        for (LightDesc& l : in.lights) {
+            if (placed) std::visit(PlaceLight{place}, l.shape);
+            scene.lights.push_back(std::move(l));
+        }
+    if (!scene.has_camera && !m.camera && how.camera && in.has_camera) {
+        scene.camera = in.camera;
+        if (placed) place_camera(scene.camera, place);
+        m.camera = true;
+    }
+    if (!scene.environment && !m.environment && how.environment && in.environment) {
+        scene.environment = in.environment;
+        m.environment = true;
+    }
+    if (!m.render) {
+        fill_render(scene.render, in.render);
+        m.render = true;
+    }
+    scene.files.push_back(in.path);
+    scene.files.insert(scene.files.end(), in.files.begin(), in.files.end());
+    scene.notes.insert(scene.notes.end(), in.notes.begin(), in.notes.end());
+}
+
+}  // namespace
+
+void resolve_imports(SceneDescription& scene, const ReadImport& read) {
+    if (scene.imports.empty()) return;
+    Merge m;
+    for (const MaterialDesc& mat : scene.materials) m.own_materials.push_back(mat.name);
+    const std::vector<ImportDesc> imports = std::move(scene.imports);
+    scene.imports.clear();
+    for (const ImportDesc& how : imports) merge(scene, read(how.path, how.loc), how, m);
+    if (!scene.has_camera && !m.camera)
+        throw_error(FileLoc{scene.path, 0, 0},
+                    "the scene is missing required key 'camera' (and none of its imports gives "
+                    "a camera)");
+    scene.has_camera = true;
+    // Imported objects come first: the importing file's own follow them.
+    m.objects.insert(m.objects.end(), std::make_move_iterator(scene.objects.begin()),
+                     std::make_move_iterator(scene.objects.end()));
+    scene.objects = std::move(m.objects);
+}
+
+}  // namespace spangle
