@@ -406,6 +406,44 @@ TEST(GltfErrors, NumbersBeyondAFloatAndUnboundedZeroAccessorsAreRefused) {
     EXPECT_NE(z.find("has no buffer view and 20000000 elements"), std::string::npos) << z;
 }
 
+TEST(GltfContainers, ATomlSceneImportsAGltfAndOverridesItsMaterialByName) {
+    test::TempDir dir("gltf_import");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    w.write_gltf(
+        dir.file("quad.gltf"),
+        R"("nodes":[{"mesh":0,"translation":[0,0,-2]}],"meshes":[)" + mesh +
+            R"(],"materials":[{"name":"Paint","pbrMetallicRoughness":{"metallicFactor":1}}])");
+    std::ofstream(dir.file("scene.toml")) << R"([camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+
+[[import]]
+file = "quad.gltf"
+translate = [1, 0, 0]
+lights = false
+
+[[material]]
+name = "Paint"
+plugin = "smooth"
+model = "diffuse"
+)";
+    const SceneDescription d = read_scene(dir.file("scene.toml"));
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_EQ(d.objects[0].material, "Paint");
+    ASSERT_EQ(d.materials.size(), 1u);  // the importing file's replaces the glTF's
+    EXPECT_EQ(d.materials[0].model, "diffuse");
+    EXPECT_TRUE(d.lights.empty());         // lights = false drops the studio light
+    EXPECT_EQ(d.camera.position.z, 5.0f);  // the importing file's camera wins
+    ColorConfig color = test::shipped_config();
+    ecs::Registry registry;
+    const SceneInfo info = build_scene(d, color, registry, 0.0);
+    // The glTF node's translation, then the import's placement.
+    const Vec3 o = info.object_to_world[0].apply_point({0, 0, 0});
+    EXPECT_NEAR(o.x, 1.0f, 1e-6f);
+    EXPECT_NEAR(o.z, -2.0f, 1e-6f);
+}
+
 TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
     test::TempDir dir("gltf_glb");
     GltfWriter w;
