@@ -7,6 +7,7 @@
 #include <fmt/format.h>
 
 #include "scene/pbrt/pbrt_reader.h"
+#include "scene/gltf/gltf_reader.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_import.h"
 #include "scene/scene_paths.h"
@@ -19,6 +20,8 @@ const std::vector<SceneFormat>& scene_formats() {
         {".toml", "TOML", &read_toml_scene},
         {".pbrt", "pbrt", &read_pbrt_scene},
         {".pbrt.gz", "pbrt", &read_pbrt_scene},
+        {".gltf", "glTF", &read_gltf_scene},
+        {".glb", "glTF", &read_gltf_scene},
     };
     return formats;
 }

@@ -12,6 +12,7 @@
 //     roughness_v   float  -1           alpha along the bitangent; -1 = same as roughness
 //   dielectric  Rough glass: GGX reflection and transmission (Walter et al. 2007).
 //     ior, roughness, roughness_v
+//   metal_rough glTF's metallic-roughness BRDF with ior, specular and clear coat (metal_rough.cpp).
 //   plastic     Diffuse base under a GGX dielectric coat; the base sees the light the coat's
 //               reflection leaves (Kulla and Conty 2017 energy-preserving layering), so that
 //               the white furnace returns exactly 1 for albedo 1 at every angle and roughness.
@@ -32,6 +33,7 @@
 
 #include "../common/microfacet.h"
 #include "../common/plugin_support.h"
+#include "metal_rough.h"
 
 namespace {
 
@@ -669,6 +671,7 @@ const SpangleMaterialModel_v3 kModels[] = {
     {"plastic", "diffuse base under a GGX dielectric coat", SPANGLE_PARAMS(kPlasticParams),
      sizeof(Closure), plastic_create, destroy<Plastic>, plastic_prepare, plastic_eval,
      plastic_sample, nullptr, nullptr},
+    spangle::smooth::metal_rough_model(),
 };
 
 const SpangleMaterialPlugin_v3 kPlugin = {

@@ -3,6 +3,7 @@
 #include <unistd.h>
 
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
 
@@ -103,6 +104,18 @@ void pbrt(const std::uint8_t* data, std::size_t size) {
         }
 }
 
+/** A glTF file (JSON or a .glb: the reader tells them by their first bytes), read and built.
+ *  Embedded images go to the work folder, not the user's cache. */
+void gltf(const std::uint8_t* data, std::size_t size) {
+    static const bool cache_set =
+        ::setenv("SPANGLE_TEXTURE_CACHE", (work_dir() / "cache").c_str(), 1) == 0;
+    (void)cache_set;
+    const std::string path = write_input("scene.gltf", data, size);
+    ColorConfig& color = shipped_config();
+    ecs::Registry registry;
+    load_scene(path, color, registry);
+}
+
 void mesh(const char* name, const std::uint8_t* data, std::size_t size) {
     const std::string path = write_input(name, data, size);
     load_mesh(path, FileLoc{"fuzz.toml", 1, 1});  // reads and validates
@@ -134,6 +147,8 @@ bool run_one(const std::string& target, const std::uint8_t* data, std::size_t si
             scene(data, size);
         else if (target == "pbrt")
             pbrt(data, size);
+        else if (target == "gltf")
+            gltf(data, size);
         else if (target == "ply")
             mesh("mesh.ply", data, size);
         else if (target == "obj")

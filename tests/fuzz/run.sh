@@ -14,7 +14,7 @@ build="$(cd "${1:?usage: run.sh BUILD_DIR [TARGET|all] [RUNS] [libFuzzer options
 which="${2:-all}"
 runs="${3:-100000}"
 shift $(( $# < 3 ? $# : 3 ))
-targets=(scene pbrt ply obj cage)
+targets=(scene pbrt gltf ply obj cage)
 [ "$which" = all ] || targets=("$which")
 
 seeds() {  # seeds TARGET DIR: copies the target's seed files into DIR
@@ -23,6 +23,7 @@ seeds() {  # seeds TARGET DIR: copies the target's seed files into DIR
     case "$t" in
         scene) for f in "$src"/tests/scenes/*.toml "$src"/tests/scenes_bad/*.toml "$src"/assets/scenes/*.toml; do cp "$f" "$dir/"; done ;;
         pbrt) for f in "$src"/tests/scenes/pbrt/*.pbrt "$src"/tests/scenes_bad/pbrt/*.pbrt; do cp "$f" "$dir/"; done ;;
+        gltf) for f in "$src"/tests/scenes/gltf/*.gltf "$src"/tests/scenes/gltf/*.glb "$src"/tests/scenes_bad/gltf/*; do cp "$f" "$dir/"; done ;;
         ply) for f in "$src"/tests/scenes_bad/meshes/*.ply "$src"/assets/meshes/*.ply; do cp "$f" "$dir/"; done ;;
         obj) for f in "$src"/tests/scenes_bad/meshes/*.obj "$src"/assets/meshes/snowman_nose.obj; do cp "$f" "$dir/"; done ;;
         cage) for f in "$src"/tests/scenes_bad/cages/*.obj "$src"/assets/meshes/snowman_*.obj "$src"/assets/meshes/beetle_boards.obj; do cp "$f" "$dir/"; done ;;

@@ -1,0 +1,60 @@
+#pragma once
+// What the parts of the glTF reader share: the document tinygltf read, where its JSON says what,
+// the description being filled, and the warnings given so far (one per kind of thing dropped).
+// Internal to engine/scene/gltf/.
+
+#include <tiny_gltf.h>
+
+#include <filesystem>
+#include <limits>
+#include <map>
+#include <memory>
+#include <optional>
+#include <set>
+#include <string>
+#include <vector>
+
+#include "scene/gltf/json_locations.h"
+#include "scene/scene_description.h"
+
+namespace spangle::gltf {
+
+/** One read glTF file and the scene it becomes. */
+struct Context {
+    std::string path;                                ///< the .gltf or .glb
+    std::filesystem::path dir;                       ///< its folder (relative URIs)
+    tinygltf::Model model;                           ///< what tinygltf read
+    JsonLocations json;                              ///< places of the JSON's values
+    std::vector<std::vector<unsigned char>> images;  ///< each image's encoded bytes, or empty
+    SceneDescription* scene = nullptr;               ///< what the reader fills
+    std::set<std::string> noted;                     ///< kinds of warnings already given
+    std::map<int, std::string> material_names;  ///< glTF material -> Spangle name (-1: default)
+    std::map<int, std::optional<EmissionDesc>> emissions;  ///< glTF material -> its emission
+    std::map<std::pair<int, int>, std::shared_ptr<const TriangleMesh>>
+        meshes;                              ///< (mesh, primitive)
+    std::map<int, std::string> image_files;  ///< glTF image -> file ("" = none)
+
+    /** Where the value at JSON path `p` is written. */
+    FileLoc at(const std::string& p) const { return json.at(p); }
+
+    /** Adds "file:line:col: message" to the scene's notes, once per `kind` (a warning names
+     *  the first place it applies to, and how many more there are is not counted). */
+    void note(const std::string& kind, const FileLoc& where, const std::string& message) {
+        if (!noted.insert(kind).second) return;
+        scene->notes.push_back(fmt::format("{}: {}", where.str(), message));
+    }
+};
+
+/** A JSON number as a float: out of a float's range it is +-infinity (a plain conversion of
+ *  such a double is undefined behaviour), so that the finiteness checks catch it. */
+inline float narrow(double v) {
+    if (v > 3.4028234663852886e38) return std::numeric_limits<float>::infinity();
+    if (v < -3.4028234663852886e38) return -std::numeric_limits<float>::infinity();
+    return static_cast<float>(v);
+}
+
+/** Throws at `p` unless 0 <= index < size: "<what> N does not exist (the file has M)". */
+void check_index(const Context& ctx, const std::string& p, int index, std::size_t size,
+                 const char* what);
+
+}  // namespace spangle::gltf

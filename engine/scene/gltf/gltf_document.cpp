@@ -1,0 +1,169 @@
+// Reading a .gltf or .glb through tinygltf: the JSON's syntax is checked first by our own
+// scanner (which also records where each value is written), images are kept as their encoded
+// bytes (the texture system decodes them), and the extensions the file requires are checked
+// against those this reader understands.
+
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include "scene/gltf/gltf_parts.h"
+
+namespace spangle::gltf {
+namespace {
+
+/** Extensions this reader reads (a file may require them). */
+const std::set<std::string> kRead = {
+    "KHR_lights_punctual",
+    "KHR_materials_clearcoat",
+    "KHR_materials_ior",
+    "KHR_materials_specular",
+    "KHR_materials_transmission",
+    "KHR_texture_transform",
+    "KHR_materials_emissive_strength",
+    "KHR_mesh_quantization",
+    "SPANGLE_materials_flakes",
+};
+
+/** tinygltf's image callback: keeps the encoded bytes, decodes nothing. */
+bool keep_bytes(tinygltf::Image*, const int index, std::string*, std::string*, int, int,
+                const unsigned char* bytes, int size, void* user) {
+    auto& images = *static_cast<std::vector<std::vector<unsigned char>>*>(user);
+    if (index < 0 || size < 0) return true;
+    if (images.size() <= static_cast<std::size_t>(index))
+        images.resize(static_cast<std::size_t>(index) + 1);
+    images[static_cast<std::size_t>(index)].assign(bytes, bytes + size);
+    return true;
+}
+
+/** tinygltf's file access: regular files only (a URI naming a pipe or a device must not hang
+ *  the reader), read whole, never written, paths taken as they are. */
+bool regular_file(const std::string& path, void*) {
+    std::error_code ec;
+    return std::filesystem::is_regular_file(path, ec);
+}
+
+/** Paths are not expanded (no ~, no variables). */
+std::string same_path(const std::string& path, void*) {
+    return path;
+}
+
+bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,
+                       void*) {
+    if (!regular_file(path, nullptr)) {
+        if (err) *err += "'" + path + "' is not a regular file\n";
+        return false;
+    }
+    std::ifstream in(path, std::ios::binary);
+    out->assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    if (!in.eof() && in.fail()) {
+        if (err) *err += "cannot read '" + path + "'\n";
+        return false;
+    }
+    return true;
+}
+
+/** The reader never writes through tinygltf. */
+bool write_nothing(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
+    if (err) *err += "the glTF reader writes no files\n";
+    return false;
+}
+
+/** The whole file; throws SpangleError when it cannot be opened. */
+std::string read_bytes(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw_error(FileLoc{path, 0, 0}, "cannot open the file");
+    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+}
+
+/** The little-endian 32-bit word at byte `at`. */
+uint32_t u32(const std::string& b, std::size_t at) {
+    uint32_t v;
+    std::memcpy(&v, b.data() + at, 4);
+    return v;
+}
+
+/** The JSON chunk of a GLB file (glTF 2.0, 4.4), its header checked. */
+std::string_view glb_json(const std::string& bytes, const std::string& path) {
+    const FileLoc file{path, 0, 0};
+    if (bytes.size() < 20)
+        throw_error(file, "a .glb file needs at least 20 bytes, this has {}", bytes.size());
+    if (bytes.compare(0, 4, "glTF") != 0)
+        throw_error(file, "not a binary glTF file (it does not start with 'glTF')");
+    if (u32(bytes, 4) != 2)
+        throw_error(file, "binary glTF version {}: only 2 is read", u32(bytes, 4));
+    if (u32(bytes, 8) > bytes.size())
+        throw_error(file, "the header gives {} bytes, the file has {}", u32(bytes, 8),
+                    bytes.size());
+    const uint32_t length = u32(bytes, 12);
+    if (u32(bytes, 16) != 0x4E4F534Au)
+        throw_error(file, "the first chunk of a .glb file must be its JSON");
+    if (length > bytes.size() - 20)
+        throw_error(file, "the JSON chunk ({} bytes) runs past the end of the file", length);
+    return std::string_view(bytes).substr(20, length);
+}
+
+/** Extensions noted where they are used (a material, a primitive, a texture), not here. */
+bool noted_in_place(const std::string& e) {
+    return (e.rfind("KHR_materials_", 0) == 0 && e != "KHR_materials_variants") ||
+           e == "KHR_draco_mesh_compression" || e == "KHR_texture_basisu" ||
+           e == "EXT_texture_webp";
+}
+
+/** Fails on required extensions not read; notes used ones not read (once each). */
+void check_extensions(Context& ctx) {
+    for (const std::string& e : ctx.model.extensionsRequired)
+        if (!kRead.count(e))
+            throw_error(ctx.at("extensionsRequired"),
+                        "the file requires extension {}, which Spangle does not read", e);
+    for (const std::string& e : ctx.model.extensionsUsed)
+        if (!kRead.count(e) && !noted_in_place(e))
+            ctx.note("extension " + e, ctx.at("extensionsUsed"),
+                     fmt::format("extension {} is not read: what it adds is dropped (the core glTF "
+                                 "data it extends stands in)",
+                                 e));
+}
+
+}  // namespace
+
+void load_document(Context& ctx) {
+    const std::string bytes = read_bytes(ctx.path);
+    const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
+    const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
+    ctx.json = JsonLocations(json, ctx.path);
+    if (bytes.size() > 0xFFFFFFFFu)
+        throw_error(FileLoc{ctx.path, 0, 0}, "the file is larger than 4 GiB");
+    tinygltf::TinyGLTF loader;
+    loader.SetImageLoader(&keep_bytes, &ctx.images);
+    loader.SetFsCallbacks({&regular_file, &same_path, &read_regular_file, &write_nothing, nullptr});
+    std::string err, warn;
+    bool ok = false;
+    try {
+        const auto size = static_cast<unsigned int>(bytes.size());
+        const std::string base = ctx.dir.string();
+        ok = binary ? loader.LoadBinaryFromMemory(
+                          &ctx.model, &err, &warn,
+                          reinterpret_cast<const unsigned char*>(bytes.data()), size, base)
+                    : loader.LoadASCIIFromString(&ctx.model, &err, &warn, bytes.data(), size, base);
+    } catch (const std::exception& e) {
+        err = e.what();
+    }
+    if (!ok || !err.empty()) {
+        while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
+        throw_error(FileLoc{ctx.path, 1, 1}, "glTF: {}", err.empty() ? "could not be read" : err);
+    }
+    if (!warn.empty()) {
+        while (!warn.empty() && warn.back() == '\n') warn.pop_back();
+        ctx.note("tinygltf", FileLoc{ctx.path, 1, 1}, "glTF: " + warn);
+    }
+    if (ctx.model.asset.version.empty() || ctx.model.asset.version[0] != '2')
+        throw_error(ctx.at("asset/version"), "glTF version '{}': only 2.x is read",
+                    ctx.model.asset.version);
+    ctx.images.resize(ctx.model.images.size());
+    for (const tinygltf::Buffer& b : ctx.model.buffers)
+        if (!b.uri.empty() && b.uri.rfind("data:", 0) != 0)
+            ctx.scene->files.push_back((ctx.dir / b.uri).lexically_normal().string());
+    check_extensions(ctx);
+}
+
+}  // namespace spangle::gltf

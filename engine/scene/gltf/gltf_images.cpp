@@ -1,0 +1,116 @@
+// glTF images as files for the texture system: a URI names a file beside the scene; embedded
+// images (data URIs, buffer views of a .glb) are written once into the user's cache folder,
+// named by a hash of their bytes, so that a second read finds the same file unchanged (and the
+// texture cache, keyed by the file's identity, keeps its converted texture).
+
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <fstream>
+
+#include "core/hash.h"
+#include "scene/gltf/gltf_parts.h"
+
+namespace spangle::gltf {
+namespace {
+
+namespace fs = std::filesystem;
+
+/** A URI's percent escapes decoded (glTF 2.0, 2.8: URIs are RFC 3986). */
+std::string percent_decoded(const std::string& uri) {
+    std::string out;
+    for (std::size_t i = 0; i < uri.size(); ++i) {
+        if (uri[i] == '%' && i + 2 < uri.size() &&
+            std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
+            std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+            out += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
+            i += 2;
+        } else {
+            out += uri[i];
+        }
+    }
+    return out;
+}
+
+/** The file name extension of encoded image bytes, from their signature; empty if unknown. */
+std::string image_extension(const std::vector<unsigned char>& b) {
+    if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G') return ".png";
+    if (b.size() >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF) return ".jpg";
+    return "";
+}
+
+/** 128 bits of hash of the bytes, as 32 hexadecimal digits. */
+std::string bytes_hash(const std::vector<unsigned char>& b) {
+    uint64_t h1 = hash2(0x676c5446ull, b.size()), h2 = 0xcbf29ce484222325ull;
+    for (std::size_t i = 0; i < b.size(); i += 8) {
+        uint64_t w = 0;
+        for (std::size_t k = 0; k < 8 && i + k < b.size(); ++k)
+            w |= static_cast<uint64_t>(b[i + k]) << (8 * k);
+        h1 = hash2(h1, w);
+    }
+    for (unsigned char c : b) h2 = (h2 ^ c) * 0x100000001b3ull;  // FNV-1a
+    return fmt::format("{:016x}{:016x}", h1, mix64(h2));
+}
+
+/** Writes `bytes` to `file` unless a file of that name and size is there (named by the hash
+ *  of its content, it is the same image); through a temporary file renamed into place. */
+void write_once(const fs::path& file, const std::vector<unsigned char>& bytes, const FileLoc& at) {
+    std::error_code ec;
+    if (fs::is_regular_file(file, ec) && fs::file_size(file, ec) == bytes.size()) return;
+    fs::create_directories(file.parent_path(), ec);
+    const fs::path tmp = file.string() + fmt::format(".{}.tmp", ::getpid());
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        out.write(reinterpret_cast<const char*>(bytes.data()),
+                  static_cast<std::streamsize>(bytes.size()));
+        if (!out) throw_error(at, "cannot write the embedded image to {}", tmp.string());
+    }
+    fs::rename(tmp, file, ec);
+    if (ec)
+        throw_error(at, "cannot write the embedded image to {}: {}", file.string(), ec.message());
+}
+
+}  // namespace
+
+std::string embedded_image_dir() {
+    if (const char* env = std::getenv("SPANGLE_TEXTURE_CACHE"); env && *env)
+        return (fs::path(env) / "gltf-images").string();
+    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
+        return (fs::path(xdg) / "spangle" / "gltf-images").string();
+    if (const char* home = std::getenv("HOME"); home && *home)
+        return (fs::path(home) / ".cache" / "spangle" / "gltf-images").string();
+    return (fs::temp_directory_path() / fmt::format("spangle-gltf-images-{}", ::getuid())).string();
+}
+
+std::string image_file(Context& ctx, int image, const std::string& ref) {
+    check_index(ctx, ref, image, ctx.model.images.size(), "image");
+    if (auto it = ctx.image_files.find(image); it != ctx.image_files.end()) return it->second;
+    std::string& out = ctx.image_files[image];
+    const tinygltf::Image& img = ctx.model.images[static_cast<std::size_t>(image)];
+    const std::string ip = fmt::format("images/{}", image);
+    if (!img.uri.empty() && img.uri.rfind("data:", 0) != 0) {
+        const fs::path file = (ctx.dir / percent_decoded(img.uri)).lexically_normal();
+        std::error_code ec;
+        if (fs::is_regular_file(file, ec)) return out = file.string();
+        ctx.note("missing image " + file.string(), ctx.at(ip + "/uri"),
+                 fmt::format("image file '{}' not found (looked for {}): the textures using it "
+                             "are dropped, their factors stand in",
+                             img.uri, file.string()));
+        return out;
+    }
+    const std::vector<unsigned char>& bytes = ctx.images[static_cast<std::size_t>(image)];
+    const std::string ext = image_extension(bytes);
+    if (ext.empty()) {
+        ctx.note(fmt::format("image {}", image), ctx.at(ip),
+                 fmt::format("image {} is not a PNG or JPEG image ({}): the textures using it are "
+                             "dropped, their factors stand in",
+                             image, bytes.empty() ? "no bytes" : img.mimeType));
+        return out;
+    }
+    const fs::path file = fs::path(embedded_image_dir()) / (bytes_hash(bytes) + ext);
+    write_once(file, bytes, ctx.at(ip));
+    return out = file.string();
+}
+
+}  // namespace spangle::gltf

@@ -1,0 +1,426 @@
+// glTF materials as Spangle materials (docs/gltf.md has the whole mapping):
+//   - SPANGLE_materials_flakes: the flake plugin, every member of the extension a parameter;
+//   - KHR_materials_transmission: the smooth plugin's dielectric;
+//   - everything else: the smooth plugin's metal_rough, glTF's metallic-roughness BRDF with
+//     KHR_materials_ior, _specular and _clearcoat;
+// the normal texture as the host's normal map, emission (KHR_materials_emissive_strength) as the
+// objects' emission. Colours are linear Rec.709 factors and sRGB-encoded textures; data
+// textures are raw.
+
+#include <cmath>
+
+#include "scene/gltf/gltf_parts.h"
+#include "scene/gltf/gltf_textures.h"
+
+namespace spangle::gltf {
+namespace {
+
+/** Extensions of a material that are read here (others are noted). */
+const std::set<std::string> kMaterialExtensions = {
+    "KHR_materials_clearcoat",         "KHR_materials_ior",
+    "KHR_materials_specular",          "KHR_materials_transmission",
+    "KHR_materials_emissive_strength", "SPANGLE_materials_flakes"};
+
+/** Builds one MaterialDesc's parameters, each blamed on its place in the JSON. */
+struct Builder {
+    Context& ctx;
+    MaterialDesc& m;
+
+    ParamDesc base(const std::string& name, const std::string& path) const {
+        ParamDesc p;
+        p.name = name;
+        p.loc = ctx.at(path);
+        p.key_loc = p.loc;
+        return p;
+    }
+    void number(const std::string& name, double x, const std::string& path, bool integer = false) {
+        ParamDesc p = base(name, path);
+        p.number = x;
+        p.is_integer = integer;
+        m.params.push_back(std::move(p));
+    }
+    void color(const std::string& name, Vec3 rgb, const std::string& path,
+               const std::string& space = "lin_rec709") {
+        ParamDesc p = base(name, path);
+        p.kind = ParamDesc::Kind::Color;
+        p.color = ColorDesc{rgb, space, p.loc, p.loc};
+        m.params.push_back(std::move(p));
+    }
+    void texture(const std::string& name, TextureDesc tex, const std::string& path) {
+        ParamDesc p = base(name, path);
+        p.kind = ParamDesc::Kind::Texture;
+        p.texture = std::move(tex);
+        m.params.push_back(std::move(p));
+    }
+    bool has(const std::string& name) const {
+        for (const ParamDesc& p : m.params)
+            if (p.name == name) return true;
+        return false;
+    }
+};
+
+const tinygltf::Value* extension(const tinygltf::Material& g, const char* name) {
+    const auto it = g.extensions.find(name);
+    return it == g.extensions.end() ? nullptr : &it->second;
+}
+
+/** Member `key` of extension value x as a finite number, else `fallback`. */
+double number_of(const tinygltf::Value* x, const char* key, double fallback) {
+    if (!x || !x->IsObject() || !x->Has(key) || !x->Get(key).IsNumber()) return fallback;
+    const double v = x->Get(key).GetNumberAsDouble();
+    return std::isfinite(v) ? v : fallback;
+}
+
+/** Three finite numbers, or none. */
+std::optional<Vec3> three_numbers(const tinygltf::Value& a) {
+    if (!a.IsArray() || a.ArrayLen() != 3) return std::nullopt;
+    float v[3];
+    for (int c = 0; c < 3; ++c) {
+        if (!a.Get(c).IsNumber()) return std::nullopt;
+        v[c] = narrow(a.Get(c).GetNumberAsDouble());
+        if (!std::isfinite(v[c])) return std::nullopt;
+    }
+    return Vec3{v[0], v[1], v[2]};
+}
+
+/** Member `key` of x as three finite numbers, else `fallback`. */
+Vec3 vec3_of(const tinygltf::Value* x, const char* key, Vec3 fallback) {
+    if (!x || !x->IsObject() || !x->Has(key)) return fallback;
+    return three_numbers(x->Get(key)).value_or(fallback);
+}
+
+/** A textureInfo inside an extension's JSON value (tinygltf parses only the core ones). */
+std::optional<TextureUse> texture_in(const tinygltf::Value* x, const char* key) {
+    if (!x || !x->IsObject() || !x->Has(key) || !x->Get(key).IsObject()) return std::nullopt;
+    const tinygltf::Value& t = x->Get(key);
+    if (!t.Has("index") || !t.Get("index").IsInt()) return std::nullopt;
+    TextureUse u;
+    u.index = t.Get("index").GetNumberAsInt();
+    u.tex_coord =
+        t.Has("texCoord") && t.Get("texCoord").IsInt() ? t.Get("texCoord").GetNumberAsInt() : 0;
+    return u;
+}
+
+/** A core textureInfo as a TextureUse. */
+TextureUse use_of(const tinygltf::TextureInfo& t) {
+    return {t.index, t.texCoord, &t.extensions};
+}
+
+/** Each component clamped to [lo, hi]. */
+Vec3 clamp3(Vec3 v, float lo, float hi) {
+    return {std::clamp(v.x, lo, hi), std::clamp(v.y, lo, hi), std::clamp(v.z, lo, hi)};
+}
+
+/** base_color: the factor, or the sRGB texture scaled by it. */
+void base_color(Builder& b, const tinygltf::Material& g, const std::string& mp) {
+    const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
+    Vec3 rgb{1, 1, 1};
+    if (f.size() >= 3) rgb = {narrow(f[0]), narrow(f[1]), narrow(f[2])};
+    if (!std::isfinite(rgb.x + rgb.y + rgb.z)) rgb = {1, 1, 1};
+    rgb = clamp3(rgb, 0.0f, 1.0f);
+    const std::string at = mp + "/pbrMetallicRoughness/baseColorFactor";
+    const std::string tp = mp + "/pbrMetallicRoughness/baseColorTexture";
+    if (g.pbrMetallicRoughness.baseColorTexture.index >= 0)
+        if (auto tex =
+                texture_desc(b.ctx, use_of(g.pbrMetallicRoughness.baseColorTexture), tp, true)) {
+            tex->scale[0] = rgb.x;
+            tex->scale[1] = rgb.y;
+            tex->scale[2] = rgb.z;
+            return b.texture("base_color", std::move(*tex), tp);
+        }
+    b.color("base_color", rgb, at);
+}
+
+/** glTF's metallic-roughness BRDF with its ior, specular and clearcoat extensions. */
+void metal_rough(Builder& b, const tinygltf::Material& g, const std::string& mp) {
+    Context& ctx = b.ctx;
+    const tinygltf::PbrMetallicRoughness& pbr = g.pbrMetallicRoughness;
+    b.m.plugin = "smooth";
+    b.m.model = "metal_rough";
+    base_color(b, g, mp);
+    const std::string pp = mp + "/pbrMetallicRoughness";
+    b.number("metallic", std::clamp(pbr.metallicFactor, 0.0, 1.0), pp + "/metallicFactor");
+    b.number("roughness", std::clamp(pbr.roughnessFactor, 0.0, 1.0), pp + "/roughnessFactor");
+    if (pbr.metallicRoughnessTexture.index >= 0)
+        if (auto tex = texture_desc(ctx, use_of(pbr.metallicRoughnessTexture),
+                                    pp + "/metallicRoughnessTexture", false))
+            b.texture("metallic_roughness", std::move(*tex), pp + "/metallicRoughnessTexture");
+    if (const tinygltf::Value* x = extension(g, "KHR_materials_ior")) {
+        const std::string xp = mp + "/extensions/KHR_materials_ior";
+        const double ior = number_of(x, "ior", 1.5);
+        if (ior < 1.0 || ior > 10.0)
+            ctx.note("ior range", ctx.at(xp + "/ior"),
+                     fmt::format("ior {} is outside [1, 10]: {} stands in", ior,
+                                 std::clamp(ior, 1.0, 10.0)));
+        b.number("ior", std::clamp(ior, 1.0, 10.0), xp + "/ior");
+    }
+    if (const tinygltf::Value* x = extension(g, "KHR_materials_specular")) {
+        const std::string xp = mp + "/extensions/KHR_materials_specular";
+        b.number("specular", std::clamp(number_of(x, "specularFactor", 1.0), 0.0, 1.0),
+                 xp + "/specularFactor");
+        const Vec3 sc = clamp3(vec3_of(x, "specularColorFactor", {1, 1, 1}), 0.0f, 10.0f);
+        std::optional<TextureDesc> tex;
+        if (auto u = texture_in(x, "specularColorTexture"))
+            tex = texture_desc(ctx, *u, xp + "/specularColorTexture", true);
+        if (tex) {
+            tex->scale[0] = sc.x;
+            tex->scale[1] = sc.y;
+            tex->scale[2] = sc.z;
+            b.texture("specular_color", std::move(*tex), xp + "/specularColorTexture");
+        } else {
+            b.color("specular_color", sc, xp + "/specularColorFactor");
+        }
+        if (texture_in(x, "specularTexture"))
+            ctx.note("specularTexture", ctx.at(xp + "/specularTexture"),
+                     "specularTexture (its alpha channel) is dropped: specularFactor stands in");
+    }
+    if (const tinygltf::Value* x = extension(g, "KHR_materials_clearcoat")) {
+        const std::string xp = mp + "/extensions/KHR_materials_clearcoat";
+        const double cc = std::clamp(number_of(x, "clearcoatFactor", 0.0), 0.0, 1.0);
+        std::optional<TextureDesc> tex;
+        if (auto u = texture_in(x, "clearcoatTexture"))
+            tex = texture_desc(ctx, *u, xp + "/clearcoatTexture", false);
+        if (tex) {
+            tex->scale[0] = tex->scale[1] = tex->scale[2] = static_cast<float>(cc);
+            b.texture("clearcoat", std::move(*tex), xp + "/clearcoatTexture");
+        } else {
+            b.number("clearcoat", cc, xp + "/clearcoatFactor");
+        }
+        b.number("clearcoat_roughness",
+                 std::clamp(number_of(x, "clearcoatRoughnessFactor", 0.0), 0.0, 1.0),
+                 xp + "/clearcoatRoughnessFactor");
+        for (const char* key : {"clearcoatRoughnessTexture", "clearcoatNormalTexture"})
+            if (texture_in(x, key))
+                ctx.note(key, ctx.at(xp + "/" + key),
+                         fmt::format("{} is dropped: {}", key,
+                                     std::string(key) == "clearcoatNormalTexture"
+                                         ? "the coat follows the base's normal"
+                                         : "clearcoatRoughnessFactor stands in"));
+    }
+}
+
+/** KHR_materials_transmission onto the smooth plugin's (untinted) dielectric. */
+void transmissive(Builder& b, const tinygltf::Material& g, const std::string& mp,
+                  const tinygltf::Value* x) {
+    Context& ctx = b.ctx;
+    const std::string xp = mp + "/extensions/KHR_materials_transmission";
+    b.m.plugin = "smooth";
+    b.m.model = "dielectric";
+    const double t = number_of(x, "transmissionFactor", 0.0);
+    if (t < 1.0 || texture_in(x, "transmissionTexture"))
+        ctx.note("partial transmission", ctx.at(xp),
+                 fmt::format("transmission {}{} is drawn as the dielectric, fully transmissive", t,
+                             texture_in(x, "transmissionTexture") ? " with a texture" : ""));
+    const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
+    if ((f.size() >= 3 && (f[0] != 1.0 || f[1] != 1.0 || f[2] != 1.0)) ||
+        g.pbrMetallicRoughness.baseColorTexture.index >= 0 ||
+        g.pbrMetallicRoughness.metallicFactor > 0.0)
+        ctx.note("transmission tint", ctx.at(mp + "/pbrMetallicRoughness"),
+                 "a transmissive material's base colour and metalness are dropped: Spangle's "
+                 "dielectric is clear");
+    const double r = std::clamp(g.pbrMetallicRoughness.roughnessFactor, 0.0, 1.0);
+    b.number("roughness", r * r, mp + "/pbrMetallicRoughness/roughnessFactor");
+    if (const tinygltf::Value* i = extension(g, "KHR_materials_ior"))
+        b.number("ior", std::clamp(number_of(i, "ior", 1.5), 1.0, 10.0),
+                 mp + "/extensions/KHR_materials_ior/ior");
+}
+
+/** One member of SPANGLE_materials_flakes as a flake parameter (docs/gltf.md): a number,
+ *  true/false, a string, [r, g, b] (linear Rec.709), {"rgb": [r, g, b], "space": NAME} or a
+ *  textureInfo {"index": N, ...} (sRGB for parameters named *color, data otherwise, unless
+ *  "space" says). The flake plugin's schema checks names, types and ranges later. */
+void flake_param(Builder& b, const std::string& key, const tinygltf::Value& v,
+                 const std::string& path) {
+    Context& ctx = b.ctx;
+    if (v.IsBool()) {
+        ParamDesc p = b.base(key, path);
+        p.kind = ParamDesc::Kind::Bool;
+        p.number = v.Get<bool>() ? 1.0 : 0.0;
+        return b.m.params.push_back(std::move(p));
+    }
+    if (v.IsNumber()) return b.number(key, v.GetNumberAsDouble(), path, v.IsInt());
+    if (v.IsString()) {
+        ParamDesc p = b.base(key, path);
+        p.kind = ParamDesc::Kind::String;
+        p.text = v.Get<std::string>();
+        return b.m.params.push_back(std::move(p));
+    }
+    if (auto rgb = three_numbers(v)) return b.color(key, *rgb, path);
+    const bool is_color = key.size() >= 5 && key.compare(key.size() - 5, 5, "color") == 0;
+    if (v.IsObject() && v.Has("space") && !v.Get("space").IsString())
+        throw_error(ctx.at(path + "/space"), "'space' must be a colour space's name");
+    const std::string space =
+        v.IsObject() && v.Has("space") ? v.Get("space").Get<std::string>() : std::string();
+    if (v.IsObject() && v.Has("rgb")) {
+        auto rgb = three_numbers(v.Get("rgb"));
+        if (!rgb) throw_error(ctx.at(path + "/rgb"), "'rgb' must be three finite numbers");
+        return b.color(key, *rgb, path, space.empty() ? "lin_rec709" : space);
+    }
+    if (v.IsObject() && v.Has("index")) {
+        if (!v.Get("index").IsInt())
+            throw_error(ctx.at(path + "/index"), "'index' must be a texture's index");
+        TextureUse u;
+        u.index = v.Get("index").GetNumberAsInt();
+        if (v.Has("texCoord") && v.Get("texCoord").IsInt())
+            u.tex_coord = v.Get("texCoord").GetNumberAsInt();
+        auto tex = texture_desc(ctx, u, path, is_color);
+        if (!tex) return;
+        if (!space.empty()) tex->space = space;
+        if (v.Has("scale")) {
+            if (!v.Get("scale").IsNumber() || !(v.Get("scale").GetNumberAsDouble() >= 0.0) ||
+                !std::isfinite(narrow(v.Get("scale").GetNumberAsDouble())))
+                throw_error(ctx.at(path + "/scale"), "'scale' must be a non-negative number");
+            tex->scale[0] = tex->scale[1] = tex->scale[2] =
+                narrow(v.Get("scale").GetNumberAsDouble());
+        }
+        return b.texture(key, std::move(*tex), path);
+    }
+    throw_error(ctx.at(path),
+                "SPANGLE_materials_flakes: '{}' must be a number, true or false, a string, "
+                "[r, g, b], {{\"rgb\": [r, g, b], \"space\": NAME}} or a texture {{\"index\": N}}",
+                key);
+}
+
+/** SPANGLE_materials_flakes onto the flake plugin; base colour and clear coat from the core
+ *  material and KHR_materials_clearcoat where the extension does not give them. */
+void flakes(Builder& b, const tinygltf::Material& g, const std::string& mp,
+            const tinygltf::Value& x) {
+    const std::string xp = mp + "/extensions/SPANGLE_materials_flakes";
+    if (!x.IsObject())
+        throw_error(b.ctx.at(xp), "SPANGLE_materials_flakes must be an object of flake parameters");
+    b.m.plugin = "flake";
+    b.m.plugin_loc = b.ctx.at(xp);
+    for (const std::string& key : x.Keys()) flake_param(b, key, x.Get(key), xp + "/" + key);
+    if (!b.has("base_color")) base_color(b, g, mp);
+    const tinygltf::Value* cc = extension(g, "KHR_materials_clearcoat");
+    if (!b.has("coat") && cc && number_of(cc, "clearcoatFactor", 0.0) > 0.0) {
+        const std::string cp = mp + "/extensions/KHR_materials_clearcoat";
+        ParamDesc p = b.base("coat", cp + "/clearcoatFactor");
+        p.kind = ParamDesc::Kind::Bool;
+        p.number = 1.0;
+        b.m.params.push_back(std::move(p));
+        const double r = std::clamp(number_of(cc, "clearcoatRoughnessFactor", 0.0), 0.0, 1.0);
+        if (!b.has("coat_roughness"))
+            b.number("coat_roughness", r * r, cp + "/clearcoatRoughnessFactor");
+    }
+}
+
+/** The core material's parts no Spangle material carries, one note each. */
+void note_unread(Context& ctx, const tinygltf::Material& g, const std::string& mp) {
+    if (g.occlusionTexture.index >= 0)
+        ctx.note("occlusion", ctx.at(mp + "/occlusionTexture"),
+                 "occlusionTexture is ignored: the path tracer computes occlusion");
+    if (g.alphaMode == "BLEND" || g.alphaMode == "MASK")
+        ctx.note(
+            "alphaMode", ctx.at(mp + "/alphaMode"),
+            fmt::format("alphaMode {} is not supported: surfaces are drawn opaque", g.alphaMode));
+    for (const auto& [name, value] : g.extensions) {
+        (void)value;
+        if (name == "KHR_materials_iridescence")
+            ctx.note(name, ctx.at(mp + "/extensions/" + name),
+                     "KHR_materials_iridescence is dropped: neither the smooth nor the flake "
+                     "plugin has a thin-film layer; the material without it stands in");
+        else if (!kMaterialExtensions.count(name))
+            ctx.note(name, ctx.at(mp + "/extensions/" + name),
+                     fmt::format("material extension {} is not read: the material without it "
+                                 "stands in",
+                                 name));
+    }
+}
+
+/** The normal texture as the host's normal map (OpenGL convention, like glTF's). */
+void normal_map(Builder& b, const tinygltf::Material& g, const std::string& mp) {
+    if (g.normalTexture.index < 0) return;
+    const std::string np = mp + "/normalTexture";
+    auto tex = texture_desc(
+        b.ctx, {g.normalTexture.index, g.normalTexture.texCoord, &g.normalTexture.extensions}, np,
+        false);
+    if (!tex) return;
+    double scale = std::isfinite(g.normalTexture.scale) ? g.normalTexture.scale : 1.0;
+    if (scale < 0.0 || scale > 10.0)
+        b.ctx.note("normal scale", b.ctx.at(np + "/scale"),
+                   fmt::format("normalTexture scale {} is outside [0, 10]: {} stands in", scale,
+                               std::clamp(scale, 0.0, 10.0)));
+    tex->amount = static_cast<float>(std::clamp(scale, 0.0, 10.0));
+    ParamDesc p = b.base("normal_map", np);
+    p.kind = ParamDesc::Kind::Texture;
+    p.texture = std::move(*tex);
+    b.m.maps.push_back(std::move(p));
+}
+
+/** emissiveFactor x KHR_materials_emissive_strength; an emissive texture's mean colour
+ *  multiplies it (the texture itself cannot vary an object's emission). */
+std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
+                                     const std::string& mp) {
+    Vec3 e{0, 0, 0};
+    if (g.emissiveFactor.size() == 3)
+        e = {narrow(g.emissiveFactor[0]), narrow(g.emissiveFactor[1]), narrow(g.emissiveFactor[2])};
+    if (!std::isfinite(e.x + e.y + e.z)) e = {0, 0, 0};
+    e = clamp3(e, 0.0f, 1.0f);
+    if (g.emissiveTexture.index >= 0 && (e.x > 0 || e.y > 0 || e.z > 0)) {
+        const std::optional<Vec3> mean = texture_mean(ctx, g.emissiveTexture.index);
+        ctx.note("emissiveTexture", ctx.at(mp + "/emissiveTexture"),
+                 mean ? "emissiveTexture is dropped: its mean colour times emissiveFactor stands "
+                        "in (an object emits one colour)"
+                      : "emissiveTexture is dropped and could not be decoded: emissiveFactor "
+                        "stands in");
+        if (mean) e = {e.x * mean->x, e.y * mean->y, e.z * mean->z};
+    }
+    if (!(e.x > 0 || e.y > 0 || e.z > 0)) return std::nullopt;
+    EmissionDesc d;
+    const FileLoc at = ctx.at(mp + "/emissiveFactor");
+    d.color = ColorDesc{e, std::string("lin_rec709"), at, at};
+    d.group.loc = at;
+    if (const tinygltf::Value* x = extension(g, "KHR_materials_emissive_strength"))
+        d.intensity = std::max(0.0, number_of(x, "emissiveStrength", 1.0));
+    return d;
+}
+
+/** A name unique among the scene's materials: the glTF name, else material_N; a name taken
+ *  already gets _2, _3, ... */
+std::string unique_name(Context& ctx, const std::string& wanted, int index) {
+    const std::string base = wanted.empty() ? fmt::format("material_{}", index) : wanted;
+    const auto taken = [&](const std::string& n) {
+        for (const MaterialDesc& m : ctx.scene->materials)
+            if (m.name == n) return true;
+        return false;
+    };
+    std::string name = base;
+    for (int k = 2; taken(name); ++k) name = fmt::format("{}_{}", base, k);
+    return name;
+}
+
+}  // namespace
+
+std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& out) {
+    if (auto it = ctx.material_names.find(index); it != ctx.material_names.end()) {
+        out = ctx.emissions[index];
+        return it->second;
+    }
+    MaterialDesc m;
+    Builder b{ctx, m};
+    const tinygltf::Material fallback;  // glTF 2.0, 3.9.6: the default material
+    const tinygltf::Material& g =
+        index >= 0 ? ctx.model.materials[static_cast<std::size_t>(index)] : fallback;
+    const std::string mp =
+        index >= 0 ? fmt::format("materials/{}", index) : std::string("materials");
+    m.name = unique_name(ctx, index >= 0 ? g.name : std::string("gltf_default"), index);
+    m.loc = ctx.at(mp);
+    m.name_loc = ctx.at(mp + "/name");
+    m.plugin_loc = m.model_loc = m.loc;
+    if (auto x = g.extensions.find("SPANGLE_materials_flakes"); x != g.extensions.end())
+        flakes(b, g, mp, x->second);
+    else if (const tinygltf::Value* t = extension(g, "KHR_materials_transmission");
+             t && number_of(t, "transmissionFactor", 0.0) > 0.0)
+        transmissive(b, g, mp, t);
+    else
+        metal_rough(b, g, mp);
+    normal_map(b, g, mp);
+    note_unread(ctx, g, mp);
+    out = ctx.emissions[index] = index >= 0 ? emission(ctx, g, mp) : std::nullopt;
+    ctx.material_names[index] = m.name;
+    ctx.scene->materials.push_back(std::move(m));
+    return ctx.material_names[index];
+}
+
+}  // namespace spangle::gltf

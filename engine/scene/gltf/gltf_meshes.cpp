@@ -1,0 +1,141 @@
+// glTF mesh primitives as Spangle triangle meshes: positions, normals and the first texture
+// coordinate set (v flipped: glTF's t runs down the image, Spangle's v up), triangles, strips
+// and fans as indexed triangles. What a TriangleMesh cannot hold (tangents -- Spangle derives
+// them from the uvs --, a second uv set, vertex colours, skins, morph targets) is one note each.
+
+#include <cmath>
+
+#include "scene/gltf/gltf_accessors.h"
+#include "scene/gltf/gltf_parts.h"
+
+namespace spangle::gltf {
+namespace {
+
+/** Notes the attributes a TriangleMesh has no room for, once per kind. */
+void note_dropped(Context& ctx, const tinygltf::Primitive& p, const std::string& pp) {
+    for (const auto& [name, index] : p.attributes) {
+        (void)index;
+        const FileLoc at = ctx.at(pp + "/attributes/" + name);
+        if (name == "TANGENT")
+            ctx.note("TANGENT", at,
+                     "TANGENT attributes are dropped: Spangle derives tangents from TEXCOORD_0");
+        else if (name.rfind("COLOR_", 0) == 0)
+            ctx.note("COLOR", at, "vertex colours (" + name + ") are dropped");
+        else if (name.rfind("JOINTS_", 0) == 0 || name.rfind("WEIGHTS_", 0) == 0)
+            ctx.note("skin", at,
+                     "skinning attributes are dropped: meshes are drawn in their "
+                     "bind pose");
+        else if (name.rfind("TEXCOORD_", 0) == 0 && name != "TEXCOORD_0")
+            ctx.note("TEXCOORD_n", at,
+                     name +
+                         " is dropped: Spangle meshes hold one uv set "
+                         "(TEXCOORD_0)");
+    }
+    if (!p.targets.empty())
+        ctx.note("morph", ctx.at(pp + "/targets"),
+                 "morph targets are dropped: meshes are drawn in their base shape");
+}
+
+/** Triangles of a strip or fan (glTF 2.0, 3.7.2.1) as a triangle list. */
+std::vector<uint32_t> to_triangle_list(const std::vector<uint32_t>& v, int mode) {
+    std::vector<uint32_t> out;
+    if (v.size() < 3) return out;
+    out.reserve(3 * (v.size() - 2));
+    for (std::size_t i = 0; i + 2 < v.size(); ++i) {
+        if (mode == TINYGLTF_MODE_TRIANGLE_FAN)
+            out.insert(out.end(), {v[0], v[i + 1], v[i + 2]});
+        else if (i % 2 == 0)
+            out.insert(out.end(), {v[i], v[i + 1], v[i + 2]});
+        else
+            out.insert(out.end(), {v[i + 1], v[i], v[i + 2]});
+    }
+    return out;
+}
+
+/** Normals made unit length; false when one is zero (then the mesh uses face normals). */
+bool normalize_normals(std::vector<float>& n) {
+    for (std::size_t i = 0; i + 2 < n.size(); i += 3) {
+        const float len = std::sqrt(n[i] * n[i] + n[i + 1] * n[i + 1] + n[i + 2] * n[i + 2]);
+        if (!(len > 1e-12f)) return false;
+        for (std::size_t c = 0; c < 3; ++c) n[i + c] /= len;
+    }
+    return true;
+}
+
+}  // namespace
+
+std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int prim) {
+    const auto key = std::pair{mesh, prim};
+    if (auto it = ctx.meshes.find(key); it != ctx.meshes.end()) return it->second;
+    const std::string pp = fmt::format("meshes/{}/primitives/{}", mesh, prim);
+    const tinygltf::Primitive& p =
+        ctx.model.meshes[static_cast<std::size_t>(mesh)].primitives[static_cast<std::size_t>(prim)];
+    const int mode = p.mode < 0 ? TINYGLTF_MODE_TRIANGLES : p.mode;
+    if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
+        mode != TINYGLTF_MODE_TRIANGLE_FAN) {
+        ctx.note("mode", ctx.at(pp + "/mode"),
+                 fmt::format("primitives of points or lines (mode {}) are not drawn", mode));
+        return ctx.meshes[key] = nullptr;
+    }
+    if (p.extensions.count("KHR_draco_mesh_compression"))
+        ctx.note("draco", ctx.at(pp + "/extensions"),
+                 "KHR_draco_mesh_compression is not read: the primitive's uncompressed "
+                 "attributes stand in");
+    const auto pos = p.attributes.find("POSITION");
+    if (pos == p.attributes.end())
+        throw_error(ctx.at(pp + "/attributes"), "mesh {} primitive {} has no POSITION", mesh, prim);
+    auto m = std::make_shared<TriangleMesh>();
+    m->source = ctx.path;
+    m->positions = read_floats(ctx, pos->second, 3, "POSITION", pp + "/attributes/POSITION");
+    const std::size_t nv = m->vertex_count();
+    const auto attribute = [&](const char* name, int comps, std::vector<float>& out) {
+        const auto a = p.attributes.find(name);
+        if (a == p.attributes.end()) return;
+        const std::string ref = pp + "/attributes/" + name;
+        out = read_floats(ctx, a->second, comps, name, ref);
+        if (out.size() != nv * static_cast<std::size_t>(comps))
+            throw_error(ctx.at(ref), "{} has {} elements, POSITION {}", name,
+                        out.size() / static_cast<std::size_t>(comps), nv);
+    };
+    attribute("NORMAL", 3, m->normals);
+    if (!normalize_normals(m->normals)) {
+        ctx.note("zero normal", ctx.at(pp + "/attributes/NORMAL"),
+                 "a NORMAL is zero: that mesh uses its face normals");
+        m->normals.clear();
+    }
+    attribute("TEXCOORD_0", 2, m->uvs);
+    for (std::size_t i = 1; i < m->uvs.size(); i += 2) m->uvs[i] = 1.0f - m->uvs[i];
+    std::vector<uint32_t> idx;
+    if (p.indices >= 0) {
+        idx = read_indices(ctx, p.indices, pp + "/indices");
+    } else {
+        idx.resize(nv);
+        for (std::size_t i = 0; i < nv; ++i) idx[i] = static_cast<uint32_t>(i);
+    }
+    for (uint32_t i : idx)
+        if (i >= nv)
+            throw_error(ctx.at(pp + "/indices"),
+                        "mesh {} primitive {}: index {} is not below the "
+                        "vertex count {}",
+                        mesh, prim, i, nv);
+    if (mode != TINYGLTF_MODE_TRIANGLES) idx = to_triangle_list(idx, mode);
+    if (idx.size() % 3 != 0) {
+        ctx.note("trailing indices", ctx.at(pp),
+                 fmt::format("mesh {} primitive {}: {} indices are not a whole number of "
+                             "triangles; the last {} are dropped",
+                             mesh, prim, idx.size(), idx.size() % 3));
+        idx.resize(idx.size() - idx.size() % 3);
+    }
+    m->indices = std::move(idx);
+    note_dropped(ctx, p, pp);
+    if (m->indices.empty()) {
+        ctx.note("no triangles", ctx.at(pp),
+                 fmt::format("mesh {} primitive {} has no triangles: "
+                             "it is not drawn",
+                             mesh, prim));
+        return ctx.meshes[key] = nullptr;
+    }
+    return ctx.meshes[key] = std::move(m);
+}
+
+}  // namespace spangle::gltf

@@ -1,0 +1,344 @@
+// The node tree of a glTF scene as Spangle objects, a camera and lights (glTF 2.0, 3.5): each
+// primitive of a node's mesh is an object placed by the node's world matrix (or its matrix
+// keys when an animation moves it); the first perspective camera, or the one asked for by
+// name, looks down its node's -Z with +Y up; KHR_lights_punctual lights sit at their nodes.
+// A file without a camera gets a framing of its bounds, one without light a studio light
+// (docs/gltf.md gives both).
+
+#include <cmath>
+
+#include "scene/gltf/gltf_parts.h"
+
+namespace spangle::gltf {
+namespace {
+
+constexpr double kPhotometric = 683.0;  ///< lm/W at 555 nm: glTF's candela and lux to W/sr, W/m^2
+
+/** Parents of every node (-1 for roots), checking that the nodes form a forest. */
+std::vector<int> node_parents(const Context& ctx) {
+    const std::size_t count = ctx.model.nodes.size();
+    std::vector<int> parent(count, -1);
+    for (std::size_t n = 0; n < count; ++n) {
+        const std::vector<int>& children = ctx.model.nodes[n].children;
+        for (std::size_t i = 0; i < children.size(); ++i) {
+            const std::string cp = fmt::format("nodes/{}/children", n);
+            check_index(ctx, cp, children[i], count, "node");
+            const auto c = static_cast<std::size_t>(children[i]);
+            if (parent[c] >= 0 || c == n)
+                throw_error(ctx.at(cp),
+                            "node {} is a child of node {}{}: the nodes must form "
+                            "trees",
+                            c, n, parent[c] >= 0 ? fmt::format(" and of node {}", parent[c]) : "");
+            parent[c] = static_cast<int>(n);
+        }
+    }
+    // Each node has one parent; a cycle is a chain that never reaches a root.
+    std::vector<char> state(count, 0);  // 0 unknown, 1 on the walk, 2 reaches a root
+    for (std::size_t n = 0; n < count; ++n) {
+        std::vector<std::size_t> walk;
+        int a = static_cast<int>(n);
+        while (a >= 0 && state[static_cast<std::size_t>(a)] == 0) {
+            state[static_cast<std::size_t>(a)] = 1;
+            walk.push_back(static_cast<std::size_t>(a));
+            a = parent[static_cast<std::size_t>(a)];
+        }
+        if (a >= 0 && state[static_cast<std::size_t>(a)] == 1)
+            throw_error(ctx.at(fmt::format("nodes/{}", a)), "node {} is its own ancestor", a);
+        for (std::size_t w : walk) state[w] = 2;
+    }
+    return parent;
+}
+
+/** The scene's nodes, parents before children: the default scene's (or the first), else all
+ *  roots. */
+std::vector<int> scene_nodes(const Context& ctx, const std::vector<int>& parent) {
+    std::vector<int> roots;
+    const tinygltf::Model& m = ctx.model;
+    if (!m.scenes.empty()) {
+        const int s = m.defaultScene >= 0 ? m.defaultScene : 0;
+        check_index(ctx, "scene", s, m.scenes.size(), "scene");
+        for (int n : m.scenes[static_cast<std::size_t>(s)].nodes) {
+            check_index(ctx, fmt::format("scenes/{}/nodes", s), n, m.nodes.size(), "node");
+            if (parent[static_cast<std::size_t>(n)] >= 0)
+                throw_error(ctx.at(fmt::format("scenes/{}/nodes", s)),
+                            "node {} is a scene's root but has a parent", n);
+            if (std::find(roots.begin(), roots.end(), n) == roots.end()) roots.push_back(n);
+        }
+    } else {
+        for (std::size_t n = 0; n < m.nodes.size(); ++n)
+            if (parent[n] < 0) roots.push_back(static_cast<int>(n));
+    }
+    std::vector<int> order, stack(roots.rbegin(), roots.rend());
+    while (!stack.empty()) {
+        const int n = stack.back();
+        stack.pop_back();
+        order.push_back(n);
+        const std::vector<int>& c = m.nodes[static_cast<std::size_t>(n)].children;
+        stack.insert(stack.end(), c.rbegin(), c.rend());
+    }
+    return order;
+}
+
+/** A node motion as an object's matrix keys (seconds), blamed on `at`. */
+Keys<MatrixKey> matrix_keys(const NodeMotion& m, const FileLoc& at, const std::string& what) {
+    Keys<MatrixKey> keys;
+    keys.loc = at;
+    keys.smooth = false;
+    for (std::size_t i = 0; i < m.times.size(); ++i)
+        keys.keys.push_back(MatrixKey{KeyTime{m.times[i], {}}, m.matrices[i], at,
+                                      fmt::format("{}, key {}", what, i + 1)});
+    return keys;
+}
+
+/** The objects of node n's mesh, one per primitive. */
+void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
+    const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
+    const std::string np = fmt::format("nodes/{}", n);
+    check_index(ctx, np + "/mesh", node.mesh, ctx.model.meshes.size(), "mesh");
+    if (node.skin >= 0)
+        ctx.note("skin", ctx.at(np + "/skin"),
+                 "skins are not read: meshes are drawn in their "
+                 "bind pose, placed by their node");
+    if (motion.times.empty() && !(std::fabs(motion.rest.determinant()) > 1e-18f)) {
+        ctx.note(fmt::format("hidden {}", n), ctx.at(np),
+                 fmt::format("node {} is scaled to nothing: its mesh is not drawn", n));
+        return;
+    }
+    const tinygltf::Mesh& mesh = ctx.model.meshes[static_cast<std::size_t>(node.mesh)];
+    for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
+        std::shared_ptr<const TriangleMesh> tri =
+            read_primitive(ctx, node.mesh, static_cast<int>(p));
+        if (!tri) continue;
+        const std::string pp = fmt::format("meshes/{}/primitives/{}", node.mesh, p);
+        const int mat = mesh.primitives[p].material;
+        if (mat >= 0)
+            check_index(ctx, pp + "/material", mat, ctx.model.materials.size(), "material");
+        ObjectDesc o;
+        o.name = node.name.empty() ? mesh.name : node.name;
+        if (mesh.primitives.size() > 1) o.name += fmt::format("#{}", p);
+        o.material = use_material(ctx, mat, o.emission);
+        o.shape = InlineMeshShape{tri, ctx.at(pp)};
+        o.loc = ctx.at(np);
+        o.material_loc = ctx.at(mat >= 0 ? pp + "/material" : pp);
+        o.what =
+            fmt::format("node {}{} primitive {}", n,
+                        node.name.empty() ? std::string() : fmt::format(" '{}'", node.name), p);
+        if (motion.times.empty())
+            o.placement.matrix = motion.rest;
+        else
+            o.matrix_keys = matrix_keys(motion, ctx.at(np), o.what);
+        ctx.scene->objects.push_back(std::move(o));
+    }
+}
+
+/** v made unit length; -z for a zero vector (a node scaled to nothing). */
+Vec3 unit(Vec3 v) {
+    const float l = length(v);
+    return l > 0.0f ? v * (1.0f / l) : Vec3{0, 0, -1};
+}
+
+/** A light of KHR_lights_punctual at node n. */
+void punctual_light(Context& ctx, int n, int index, const NodeMotion& motion) {
+    const std::string lp = fmt::format("extensions/KHR_lights_punctual/lights/{}", index);
+    check_index(ctx, fmt::format("nodes/{}/extensions/KHR_lights_punctual/light", n), index,
+                ctx.model.lights.size(), "light");
+    const tinygltf::Light& g = ctx.model.lights[static_cast<std::size_t>(index)];
+    if (!motion.times.empty())
+        ctx.note("animated light", ctx.at(fmt::format("nodes/{}", n)),
+                 "lights do not follow animations: they stay where their node is at time 0");
+    if (g.range > 0.0)
+        ctx.note("light range", ctx.at(lp + "/range"),
+                 "a light's range is dropped: Spangle's lights fall off with distance squared "
+                 "without a cut-off");
+    LightDesc d;
+    d.loc = ctx.at(lp);
+    d.group.loc = d.loc;
+    Vec3 rgb{1, 1, 1};
+    if (g.color.size() == 3) rgb = {narrow(g.color[0]), narrow(g.color[1]), narrow(g.color[2])};
+    if (!std::isfinite(rgb.x + rgb.y + rgb.z) || rgb.x < 0 || rgb.y < 0 || rgb.z < 0)
+        throw_error(ctx.at(lp + "/color"), "a light's colour must be three non-negative numbers");
+    d.color =
+        ColorDesc{rgb, std::string("lin_rec709"), ctx.at(lp + "/color"), ctx.at(lp + "/color")};
+    if (!std::isfinite(g.intensity) || g.intensity < 0)
+        throw_error(ctx.at(lp + "/intensity"), "a light's intensity must be non-negative, got {}",
+                    g.intensity);
+    d.intensity = g.intensity / kPhotometric;
+    const Vec3 at = motion.rest.apply_point({0, 0, 0});
+    const Vec3 forward = unit(motion.rest.apply_vector({0, 0, -1}));
+    if (g.type == "point") {
+        d.shape = PointLightDesc{at};
+    } else if (g.type == "spot") {
+        const double outer = std::clamp(g.spot.outerConeAngle, 1e-4, M_PI / 2) * 180.0 / M_PI;
+        const double inner = std::clamp(g.spot.innerConeAngle * 180.0 / M_PI, 0.0, outer);
+        SpotLightDesc s;
+        s.position = at;
+        s.look_at = at + forward;
+        s.cone_angle = outer;
+        s.cone_falloff = outer - inner;
+        s.look_at_loc = s.cone_falloff_loc = d.loc;
+        d.shape = s;
+    } else if (g.type == "directional") {
+        d.shape = DistantLightDesc{forward * -1.0f, 0.0, d.loc};
+    } else {
+        throw_error(ctx.at(lp + "/type"), "light type '{}' must be point, spot or directional",
+                    g.type);
+    }
+    ctx.scene->lights.push_back(std::move(d));
+}
+
+/** The world-space bounds of every object at its rest placement. */
+bool scene_bounds(const Context& ctx, Vec3& lo, Vec3& hi) {
+    bool any = false;
+    for (const ObjectDesc& o : ctx.scene->objects) {
+        const auto& shape = std::get<InlineMeshShape>(o.shape);
+        const Affine m =
+            o.placement.matrix ? *o.placement.matrix : o.matrix_keys.keys.front().matrix;
+        for (std::size_t v = 0; v < shape.mesh->vertex_count(); ++v) {
+            const Vec3 p = m.apply_point(shape.mesh->position(static_cast<uint32_t>(v)));
+            lo = any ? Vec3{std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)} : p;
+            hi = any ? Vec3{std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)} : p;
+            any = true;
+        }
+    }
+    return any;
+}
+
+/** The default framing: from the front (+Z) and 15 degrees above, the bounding sphere filling
+ *  the 40-degree vertical view. */
+void default_camera(Context& ctx) {
+    CameraDesc& c = ctx.scene->camera;
+    c.loc = c.look_at_loc = c.up_loc = FileLoc{ctx.path, 1, 1};
+    c.fov_deg = 40.0;
+    Vec3 lo{-1, -1, -1}, hi{1, 1, 1};
+    scene_bounds(ctx, lo, hi);
+    const Vec3 centre = (lo + hi) * 0.5f;
+    const float radius = std::max(0.5f * length(hi - lo), 1e-3f);
+    const float distance = radius / std::sin(20.0f * kPi / 180.0f);
+    const float up = std::sin(15.0f * kPi / 180.0f), front = std::cos(15.0f * kPi / 180.0f);
+    c.position = centre + Vec3{0, up, front} * distance;
+    c.look_at = centre;
+    c.up = {0, 1, 0};
+}
+
+/** Camera `index` at node n: glTF's camera looks down -Z with +Y up (glTF 2.0, 3.10.1). */
+void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
+    const tinygltf::Camera& g = ctx.model.cameras[static_cast<std::size_t>(index)];
+    const std::string cp = fmt::format("cameras/{}", index);
+    if (g.type != "perspective") {
+        ctx.note("orthographic", ctx.at(cp + "/type"),
+                 "orthographic cameras are not supported: the default framing stands in");
+        return default_camera(ctx);
+    }
+    CameraDesc& c = ctx.scene->camera;
+    c.loc = c.look_at_loc = c.up_loc = ctx.at(fmt::format("nodes/{}", n));
+    const double yfov = g.perspective.yfov * 180.0 / M_PI;
+    if (!(yfov > 0.0 && yfov < 180.0))
+        throw_error(ctx.at(cp + "/perspective/yfov"), "yfov must be in (0, pi) radians, got {}",
+                    g.perspective.yfov);
+    c.fov_deg = yfov;
+    const double aspect = g.perspective.aspectRatio;
+    if (aspect > 0.0 && std::isfinite(aspect)) {
+        const double h = std::round(ctx.scene->render.width / aspect);
+        ctx.scene->render.height = static_cast<uint32_t>(std::clamp(h, 1.0, 16384.0));
+    }
+    const auto pose = [](const Affine& m, Vec3& eye, Vec3& look, Vec3& up) {
+        eye = m.apply_point({0, 0, 0});
+        look = eye + unit(m.apply_vector({0, 0, -1}));
+        up = unit(m.apply_vector({0, 1, 0}));
+    };
+    pose(motion.rest, c.position, c.look_at, c.up);
+    c.keys.loc = c.loc;
+    c.keys.smooth = false;
+    for (std::size_t i = 0; i < motion.times.size(); ++i) {
+        CameraKey k;
+        k.time.seconds = motion.times[i];
+        Vec3 eye, look, up;
+        pose(motion.matrices[i], eye, look, up);
+        k.position = eye;
+        k.look_at = look;
+        k.up = up;
+        k.loc = c.loc;
+        k.what = fmt::format("camera node {}, key {}", n, i + 1);
+        c.keys.keys.push_back(std::move(k));
+    }
+}
+
+/** Picks the camera: the one `name` names (a camera's or its node's name), else the first. */
+void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras,
+                   const std::string& name, const std::vector<NodeMotion>& motions) {
+    for (const auto& [node, cam] : cameras) {
+        const bool named = ctx.model.cameras[static_cast<std::size_t>(cam)].name == name ||
+                           ctx.model.nodes[static_cast<std::size_t>(node)].name == name;
+        if (name.empty() || named)
+            return use_camera(ctx, node, cam, motions[static_cast<std::size_t>(node)]);
+    }
+    if (!name.empty()) {
+        std::vector<std::string> names;
+        for (const auto& [node, cam] : cameras) {
+            const std::string& cn = ctx.model.cameras[static_cast<std::size_t>(cam)].name;
+            names.push_back(cn.empty() ? ctx.model.nodes[static_cast<std::size_t>(node)].name : cn);
+        }
+        throw_error(
+            ctx.at("cameras"), "no camera named '{}' (cameras: {})", name,
+            names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
+    }
+    ctx.note("default camera", FileLoc{ctx.path, 1, 1},
+             "the file has no camera: a default framing of its bounds stands in");
+    default_camera(ctx);
+}
+
+/** With no light in the file: a grey sky and a key light (docs/gltf.md). */
+void default_light(Context& ctx) {
+    const FileLoc file{ctx.path, 1, 1};
+    ctx.note("default light", file,
+             "the file has no light: the default studio light stands in (a grey sky and a key "
+             "light)");
+    EnvironmentDesc env;
+    env.loc = env.group.loc = file;
+    env.color = ColorDesc{{0.25f, 0.25f, 0.25f}, std::string("lin_rec709"), file, file};
+    ctx.scene->environment = env;
+    LightDesc key;
+    key.loc = key.group.loc = file;
+    key.color = ColorDesc{{1, 1, 1}, std::string("lin_rec709"), file, file};
+    key.intensity = 2.5;
+    key.shape = DistantLightDesc{{-1.0f, 2.0f, 1.5f}, 2.0, file};
+    ctx.scene->lights.push_back(std::move(key));
+}
+
+}  // namespace
+
+void read_nodes(Context& ctx, const SceneReadOptions& options) {
+    const std::vector<int> parent = node_parents(ctx);
+    const std::vector<int> order = scene_nodes(ctx, parent);
+    const std::vector<NodeMotion> motions = node_motions(ctx, parent);
+    std::vector<std::pair<int, int>> cameras;
+    double end = 0.0;
+    for (int n : order) {
+        const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
+        const NodeMotion& motion = motions[static_cast<std::size_t>(n)];
+        if (!motion.times.empty()) end = std::max(end, motion.times.back());
+        if (node.mesh >= 0) mesh_objects(ctx, n, motion);
+        if (node.camera >= 0) {
+            check_index(ctx, fmt::format("nodes/{}/camera", n), node.camera,
+                        ctx.model.cameras.size(), "camera");
+            cameras.emplace_back(n, node.camera);
+        }
+        if (auto x = node.extensions.find("KHR_lights_punctual"); x != node.extensions.end()) {
+            const tinygltf::Value& v = x->second;
+            if (!v.IsObject() || !v.Has("light") || !v.Get("light").IsInt())
+                throw_error(ctx.at(fmt::format("nodes/{}/extensions/KHR_lights_punctual", n)),
+                            "KHR_lights_punctual on a node needs a light index");
+            punctual_light(ctx, n, v.Get("light").GetNumberAsInt(), motion);
+        }
+    }
+    choose_camera(ctx, cameras, options.camera, motions);
+    bool emits = false;
+    for (const ObjectDesc& o : ctx.scene->objects) emits = emits || o.emission.has_value();
+    if (ctx.scene->lights.empty() && !emits) default_light(ctx);
+    RenderDesc& r = ctx.scene->render;
+    r.loc = r.working_space_loc = r.color_space_loc = FileLoc{ctx.path, 1, 1};
+    if (end > 0.0)
+        r.frame_end = r.frame_start + static_cast<int64_t>(std::min(std::ceil(end * r.fps), 1e6));
+}
+
+}  // namespace spangle::gltf

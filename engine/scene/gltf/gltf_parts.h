@@ -1,0 +1,56 @@
+#pragma once
+// The parts of the glTF reader, each in its own file, over the shared Context. Internal to
+// engine/scene/gltf/.
+
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "scene/gltf/gltf_context.h"
+
+namespace spangle::gltf {
+
+/** gltf_document.cpp: reads ctx.path (a .gltf with its buffers, or a .glb) into ctx.model and
+ *  ctx.json, the images' encoded bytes into ctx.images, and refuses a file that requires an
+ *  extension this reader does not read. Throws SpangleError at file:line:col. */
+void load_document(Context& ctx);
+
+/** gltf_meshes.cpp: the triangles of primitive `prim` of mesh `mesh`, shared by every node that
+ *  draws it; null (with a note) for a primitive of points or lines. */
+std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int prim);
+
+/** gltf_images.cpp: a file the texture system can open for image `image` (referred to at JSON
+ *  path `ref`): the file a URI names, or the embedded bytes written once, named by their hash,
+ *  into the user's cache folder. Empty (with a note) for an image that cannot be had. */
+std::string image_file(Context& ctx, int image, const std::string& ref);
+
+/** The folder embedded images are written to: $SPANGLE_TEXTURE_CACHE/gltf-images, else
+ *  $XDG_CACHE_HOME/spangle/gltf-images, else ~/.cache/spangle/gltf-images. */
+std::string embedded_image_dir();
+
+/** gltf_materials.cpp: the name of the Spangle material standing for glTF material `index` (-1:
+ *  glTF's default material), made and added to the scene on first use; its emission, if any. */
+std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& emission);
+
+/** One node's placement through time: its world matrix at rest and, when it or a parent is
+ *  animated, at every key time. */
+struct NodeMotion {
+    Affine rest;                   ///< world matrix with no animation applied (time 0)
+    std::vector<double> times;     ///< seconds; empty: not animated
+    std::vector<Affine> matrices;  ///< world matrix at each time
+    bool cubic = false;            ///< a CUBICSPLINE channel was sampled into segments
+};
+
+/** gltf_animation.cpp: every node's world placement, animations applied (translation,
+ *  rotation and scale channels of every animation), given the node parents (-1 = a root). */
+std::vector<NodeMotion> node_motions(Context& ctx, const std::vector<int>& parent);
+
+/** gltf_animation.cpp: node `n`'s own matrix (its matrix, or T R S), with no animation. */
+Affine local_matrix(const Context& ctx, int n);
+
+/** gltf_nodes.cpp: the objects, cameras and lights of the scene's node tree, and the default
+ *  camera and light when the file has none. */
+void read_nodes(Context& ctx, const SceneReadOptions& options);
+
+}  // namespace spangle::gltf

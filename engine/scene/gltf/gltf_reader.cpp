@@ -1,0 +1,19 @@
+#include "scene/gltf/gltf_reader.h"
+
+#include "scene/gltf/gltf_parts.h"
+
+namespace spangle {
+
+SceneDescription read_gltf_scene(const std::string& path, const SceneReadOptions& options) {
+    SceneDescription scene;
+    scene.path = path;
+    gltf::Context ctx;
+    ctx.path = path;
+    ctx.dir = std::filesystem::path(path).parent_path();
+    ctx.scene = &scene;
+    gltf::load_document(ctx);
+    gltf::read_nodes(ctx, options);
+    return scene;
+}
+
+}  // namespace spangle

@@ -1,0 +1,203 @@
+#include "scene/gltf/json_locations.h"
+
+#include <cctype>
+
+namespace spangle::gltf {
+namespace {
+
+constexpr int kMaxDepth = 256;  ///< deeper nesting is refused (no glTF needs more than ~10)
+
+/** A recursive-descent scanner of RFC 8259 JSON that records the places of values. */
+class Scanner {
+public:
+    Scanner(std::string_view text, const std::string& file,
+            std::unordered_map<std::string, std::pair<int, int>>& places)
+        : text_(text), file_(file), places_(places) {}
+
+    void document() {
+        skip_space();
+        record();
+        value(0);
+        skip_space();
+        if (pos_ < text_.size()) fail("unexpected text after the JSON document");
+    }
+
+private:
+    [[noreturn]] void fail(const std::string& what) const {
+        throw_error(FileLoc{file_, line_, column_}, "invalid JSON: {}", what);
+    }
+
+    char peek() const { return pos_ < text_.size() ? text_[pos_] : '\0'; }
+    bool at_end() const { return pos_ >= text_.size(); }
+
+    void advance() {
+        if (text_[pos_] == '\n') {
+            ++line_;
+            column_ = 1;
+        } else {
+            ++column_;
+        }
+        ++pos_;
+    }
+
+    void skip_space() {
+        while (!at_end() && (peek() == ' ' || peek() == '\t' || peek() == '\n' || peek() == '\r'))
+            advance();
+    }
+
+    void expect(char c, const char* what) {
+        if (at_end() || peek() != c) fail(fmt::format("expected {}", what));
+        advance();
+    }
+
+    void record() { places_.emplace(path_, std::pair{line_, column_}); }
+
+    /** A value at path_, `depth` levels down. */
+    void value(int depth) {
+        if (depth > kMaxDepth) fail(fmt::format("nested deeper than {} levels", kMaxDepth));
+        if (at_end()) fail("unexpected end of the text, expected a value");
+        const char c = peek();
+        if (c == '{') return object(depth);
+        if (c == '[') return array(depth);
+        if (c == '"') return string(nullptr);
+        if (c == '-' || (c >= '0' && c <= '9')) return number();
+        for (const char* word : {"true", "false", "null"}) {
+            const std::string_view w(word);
+            if (text_.substr(pos_, w.size()) == w) {
+                for (std::size_t i = 0; i < w.size(); ++i) advance();
+                return;
+            }
+        }
+        fail(fmt::format("unexpected character '{}', expected a value", c));
+    }
+
+    void object(int depth) {
+        advance();
+        skip_space();
+        if (peek() == '}') return advance();
+        for (;;) {
+            skip_space();
+            if (peek() != '"') fail("expected a member name in double quotes");
+            std::string key;
+            string(&key);
+            skip_space();
+            expect(':', "':' after a member name");
+            skip_space();
+            const std::size_t size = path_.size();
+            if (!path_.empty()) path_ += '/';
+            path_ += key;
+            record();
+            value(depth + 1);
+            path_.resize(size);
+            skip_space();
+            if (peek() == ',') {
+                advance();
+                continue;
+            }
+            expect('}', "',' or '}' in an object");
+            return;
+        }
+    }
+
+    void array(int depth) {
+        advance();
+        skip_space();
+        if (peek() == ']') return advance();
+        for (std::size_t i = 0;; ++i) {
+            skip_space();
+            const std::size_t size = path_.size();
+            if (peek() == '{' || peek() == '[') {
+                if (!path_.empty()) path_ += '/';
+                path_ += std::to_string(i);
+                record();
+            }
+            value(depth + 1);
+            path_.resize(size);
+            skip_space();
+            if (peek() == ',') {
+                advance();
+                continue;
+            }
+            expect(']', "',' or ']' in an array");
+            return;
+        }
+    }
+
+    /** A string; its text (escapes kept as written: member names never need them) into out. */
+    void string(std::string* out) {
+        advance();
+        for (;;) {
+            if (at_end()) fail("unterminated string");
+            const char c = peek();
+            if (c == '"') return advance();
+            if (static_cast<unsigned char>(c) < 0x20) fail("control character in a string");
+            if (c == '\\') {
+                if (out) *out += c;
+                advance();
+                if (at_end()) fail("unterminated string");
+                const char e = peek();
+                if (e == 'u') {
+                    for (int k = 0; k < 4; ++k) {
+                        if (out) *out += peek();
+                        advance();
+                        if (at_end() || !std::isxdigit(static_cast<unsigned char>(peek())))
+                            fail("'\\u' must be followed by four hexadecimal digits");
+                    }
+                } else if (std::string_view("\"\\/bfnrt").find(e) == std::string_view::npos) {
+                    fail(fmt::format("unknown escape '\\{}' in a string", e));
+                }
+            }
+            if (out) *out += peek();
+            advance();
+        }
+    }
+
+    void digits() {
+        if (!std::isdigit(static_cast<unsigned char>(peek()))) fail("expected a digit");
+        while (std::isdigit(static_cast<unsigned char>(peek()))) advance();
+    }
+
+    void number() {
+        if (peek() == '-') advance();
+        if (peek() == '0')
+            advance();
+        else
+            digits();
+        if (peek() == '.') {
+            advance();
+            digits();
+        }
+        if (peek() == 'e' || peek() == 'E') {
+            advance();
+            if (peek() == '+' || peek() == '-') advance();
+            digits();
+        }
+    }
+
+    std::string_view text_;
+    const std::string& file_;
+    std::unordered_map<std::string, std::pair<int, int>>& places_;
+    std::size_t pos_ = 0;
+    int line_ = 1;
+    int column_ = 1;
+    std::string path_;
+};
+
+}  // namespace
+
+JsonLocations::JsonLocations(std::string_view text, std::string file) : file_(std::move(file)) {
+    Scanner(text, file_, places_).document();
+}
+
+FileLoc JsonLocations::at(std::string_view path) const {
+    std::string p(path);
+    for (;;) {
+        if (auto it = places_.find(p); it != places_.end())
+            return FileLoc{file_, it->second.first, it->second.second};
+        const std::size_t slash = p.rfind('/');
+        if (p.empty()) return FileLoc{file_, 1, 1};
+        p.resize(slash == std::string::npos ? 0 : slash);
+    }
+}
+
+}  // namespace spangle::gltf

@@ -1,0 +1,38 @@
+#pragma once
+// Where things are written in a glTF file's JSON: one pass over the text checks its syntax (an
+// error at line:col, which the JSON library behind tinygltf would report without a place) and
+// records the line and column of every object member and of every array element that is an
+// object or an array, by its JSON path ("materials/2/pbrMetallicRoughness"), so that the reader
+// can blame the place a user wrote for what is wrong or dropped.
+
+#include <string>
+#include <string_view>
+#include <unordered_map>
+
+#include "core/error.h"
+
+namespace spangle::gltf {
+
+/** Line and column of the values of one JSON text, by path. */
+class JsonLocations {
+public:
+    JsonLocations() = default;
+
+    /** Scans `text`, the JSON of `file` (a .glb's JSON chunk counts lines from its start). Throws
+     *  SpangleError at file:line:col for a syntax error or nesting deeper than 256 levels. */
+    JsonLocations(std::string_view text, std::string file);
+
+    /** Where the value at `path` is written: "" is the whole document, "nodes/3/mesh" a member
+     *  of an element. A path not recorded (a scalar array element, or a value tinygltf made up)
+     *  falls back to its closest recorded ancestor. */
+    FileLoc at(std::string_view path) const;
+
+    /** The file's name as messages give it. */
+    const std::string& file() const { return file_; }
+
+private:
+    std::string file_;
+    std::unordered_map<std::string, std::pair<int, int>> places_;  ///< path -> (line, column)
+};
+
+}  // namespace spangle::gltf

@@ -1,0 +1,367 @@
+// metal_rough: glTF 2.0's metallic-roughness material (glTF 2.0, Appendix B) as one BSDF.
+//
+//   f = cc Fc(v.h) Dc G2c / (4 |n.v| |n.l|)  +  (1 - Ec(v)) (1 - Ec(l)) f_base
+//   f_base = (1 - metallic) f_dielectric + metallic f_metal
+//   f_metal = F_schlick(base_color, v.h) D G2 / (4 |n.v| |n.l|)
+//   f_dielectric = F_schlick(f0, f90, v.h) D G2 / (4 |n.v| |n.l|)
+//                  + base_color / pi (1 - E(v)) (1 - E(l)) / (1 - E_avg)
+//   f0 = min(((ior - 1) / (ior + 1))^2 specular_color, 1) specular, f90 = specular
+//
+// D and G2 are GGX with alpha = roughness^2 (height-correlated Smith), the clear coat's with
+// alpha = clearcoat_roughness^2, f0 = 0.04 and f90 = 1 (ior 1.5), weighted by `clearcoat`.
+// glTF mixes the diffuse base by (1 - F(v.h)), which is not energy-conserving at grazing
+// angles; here the base sees the light the specular lobe leaves (Kulla and Conty 2017, the
+// plastic model's layering): E(mu) = f0 A(mu, alpha) + f90 B(mu, alpha) is the specular
+// lobe's exact directional albedo, with A and B tabulated once for GGX (Schlick's Fresnel is
+// affine in f0 and f90). The white furnace of a white dielectric returns 1; the coat only
+// takes light away. Alphas below 1e-3 are clamped there (a near-mirror, sampled as glossy).
+//
+// Parameters (textures: base_color and specular_color sRGB, the rest data):
+//   base_color          color [1]    base colour (dielectric albedo, metal F0)
+//   metallic, roughness float 1, 1   glTF's factors; roughness is perceptual (alpha = r^2)
+//   metallic_roughness  color [1]    glTF's packed texture: G multiplies roughness, B metallic
+//   ior                 float 1.5    KHR_materials_ior
+//   specular            float 1      KHR_materials_specular specularFactor
+//   specular_color      color [1]    KHR_materials_specular specularColorFactor
+//   clearcoat           float 0      KHR_materials_clearcoat clearcoatFactor
+//   clearcoat_roughness float 0      KHR_materials_clearcoat clearcoatRoughnessFactor
+
+#include "metal_rough.h"
+
+#include <algorithm>
+#include <cmath>
+#include <new>
+
+#include "../common/microfacet.h"
+#include "../common/plugin_support.h"
+
+namespace spangle::smooth {
+namespace {
+
+using namespace spangle::mf;
+using namespace spangle::plugin_support;
+
+constexpr float kMinAlpha = 1e-3f;  ///< alphas below are clamped (a near-mirror)
+constexpr int kMu = 32;             ///< albedo table: cosines (i + 0.5) / 32
+constexpr int kRough = 32;          ///< albedo table: sqrt(alpha) = j / 31
+
+// clang-format off
+const SpangleParamDesc_v3 kParams[] = {
+    {"base_color", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 1.0, nullptr, "glTF baseColor: albedo of the dielectric, F0 of the metal", SPANGLE_PARAM_TEXTURABLE},
+    {"metallic", SPANGLE_PARAM_FLOAT, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "glTF metallicFactor: 0 dielectric, 1 metal", SPANGLE_PARAM_TEXTURABLE},
+    {"roughness", SPANGLE_PARAM_FLOAT, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "glTF roughnessFactor, perceptual: GGX alpha = roughness^2 (at least 1e-3)", SPANGLE_PARAM_TEXTURABLE},
+    {"metallic_roughness", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 1.0, nullptr, "glTF metallicRoughnessTexture (read as data): G multiplies roughness, B metallic", SPANGLE_PARAM_TEXTURABLE},
+    {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of refraction of the dielectric (KHR_materials_ior)", 0},
+    {"specular", SPANGLE_PARAM_FLOAT, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "strength of the dielectric's specular reflection (KHR_materials_specular)", SPANGLE_PARAM_TEXTURABLE},
+    {"specular_color", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 10.0, nullptr, "tint of the dielectric's F0 (KHR_materials_specular)", SPANGLE_PARAM_TEXTURABLE},
+    {"clearcoat", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "strength of a clear coat of index 1.5 (KHR_materials_clearcoat)", SPANGLE_PARAM_TEXTURABLE},
+    {"clearcoat_roughness", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "perceptual roughness of the clear coat: alpha = roughness^2 (at least 1e-3)", SPANGLE_PARAM_TEXTURABLE},
+};
+// clang-format on
+
+enum Param : uint32_t {
+    kBase,
+    kMetallic,
+    kRoughness,
+    kPacked,
+    kIor,
+    kSpecular,
+    kSpecColor,
+    kCoat,
+    kCoatRough
+};
+
+/** The GGX lobe's albedo split by Schlick's Fresnel: E = f0 A + f90 B (tables in mu, sqrt alpha).
+ */
+struct AlbedoTables {
+    float a[kRough][kMu], b[kRough][kMu];  ///< at (sqrt alpha = j / 31, mu = (i + 0.5) / 32)
+    float a_avg[kRough], b_avg[kRough];    ///< cosine-weighted averages 2 int E(mu) mu dmu
+};
+
+/** A(mu, alpha), B(mu, alpha) by VNDF sampling over a Hammersley set: each sample of the
+ *  visible normals weighs G2 / G1 times (1 - w) or w, w = (1 - v.h)^5. */
+AlbedoTables make_tables() {
+    AlbedoTables t{};
+    constexpr uint32_t kN = 512;
+    for (int j = 0; j < kRough; ++j) {
+        const float r = static_cast<float>(j) / (kRough - 1);
+        const float alpha = std::max(r * r, kMinAlpha);
+        double avg_a = 0.0, avg_b = 0.0;
+        for (int i = 0; i < kMu; ++i) {
+            const float mu = (static_cast<float>(i) + 0.5f) / kMu;
+            const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
+            double sa = 0.0, sb = 0.0;
+            for (uint32_t k = 0; k < kN; ++k) {
+                const V3 h = ggx_sample_visible(
+                    wo, alpha, alpha, (static_cast<float>(k) + 0.5f) / kN, radical_inverse2(k));
+                const V3 wi = reflect(wo, h);
+                if (wi.z <= 0.0f) continue;
+                const float g = ggx_g2(wo, wi, alpha, alpha) / ggx_g1(wo, alpha, alpha);
+                const float w = std::pow(1.0f - std::clamp(dot(wo, h), 0.0f, 1.0f), 5.0f);
+                sa += static_cast<double>((1.0f - w) * g);
+                sb += static_cast<double>(w * g);
+            }
+            t.a[j][i] = static_cast<float>(sa / kN);
+            t.b[j][i] = static_cast<float>(sb / kN);
+            avg_a += 2.0 * static_cast<double>(t.a[j][i] * mu) / kMu;
+            avg_b += 2.0 * static_cast<double>(t.b[j][i] * mu) / kMu;
+        }
+        t.a_avg[j] = static_cast<float>(avg_a);
+        t.b_avg[j] = static_cast<float>(avg_b);
+    }
+    return t;
+}
+
+const AlbedoTables& tables() {
+    static const AlbedoTables t = make_tables();
+    return t;
+}
+
+/** Bilinear lookup of a table at (mu, alpha); avg: the j-row's average (mu ignored). */
+float lookup(const float (&tab)[kRough][kMu], float mu, float alpha) {
+    const float x = std::clamp(mu * kMu - 0.5f, 0.0f, static_cast<float>(kMu - 1));
+    const float y =
+        std::clamp(std::sqrt(alpha) * (kRough - 1), 0.0f, static_cast<float>(kRough - 1));
+    const int i = std::min(static_cast<int>(x), kMu - 2),
+              j = std::min(static_cast<int>(y), kRough - 2);
+    const float s = x - static_cast<float>(i), t = y - static_cast<float>(j);
+    return (tab[j][i] * (1 - s) + tab[j][i + 1] * s) * (1 - t) +
+           (tab[j + 1][i] * (1 - s) + tab[j + 1][i + 1] * s) * t;
+}
+
+/** Linear lookup of an average table at alpha. */
+float lookup_avg(const float (&row)[kRough], float alpha) {
+    const float y =
+        std::clamp(std::sqrt(alpha) * (kRough - 1), 0.0f, static_cast<float>(kRough - 1));
+    const int j = std::min(static_cast<int>(y), kRough - 2);
+    const float t = y - static_cast<float>(j);
+    return row[j] * (1 - t) + row[j + 1] * t;
+}
+
+/** The instance: the parameters' constants. */
+struct MetalRough {
+    float base[3], metallic, roughness, packed[3], ior, specular, spec_color[3], coat, coat_rough;
+};
+
+/** One shading point. */
+struct Closure {
+    V3 wo;            ///< local frame
+    float base[3];    ///< base colour
+    float f0[3];      ///< dielectric F0 per channel
+    float f90;        ///< dielectric F90 (= specular)
+    float metallic;   ///< in [0, 1]
+    float alpha;      ///< base GGX alpha
+    float coat;       ///< clear coat weight
+    float alpha_c;    ///< coat GGX alpha
+    float e_o[3];     ///< dielectric specular albedo at wo
+    float e_avg[3];   ///< its cosine-weighted average
+    float ec_o;       ///< coat albedo at wo, times `coat`
+    float p_diffuse;  ///< probability of sampling the diffuse lobe
+    float p_spec;     ///< the base specular lobe (the coat: the rest)
+};
+
+/** Rec.709 luminance weights (for sampling probabilities only). */
+float lum(const float c[3]) {
+    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+}
+
+/** Component c of a numeric parameter as a float. */
+float param_f(const SpangleParams_v3* p, const char* name, int c = 0) {
+    return static_cast<float>(param_number(p, name, c));
+}
+
+/** The instance of a validated parameter set. */
+void* create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint32_t cap) {
+    auto* m = new (std::nothrow) MetalRough{};
+    if (!m) {
+        set_error(error, cap, "out of memory");
+        return nullptr;
+    }
+    for (int c = 0; c < 3; ++c) {
+        m->base[c] = param_f(p, "base_color", c);
+        m->packed[c] = param_f(p, "metallic_roughness", c);
+        m->spec_color[c] = param_f(p, "specular_color", c);
+    }
+    m->metallic = param_f(p, "metallic");
+    m->roughness = param_f(p, "roughness");
+    m->ior = param_f(p, "ior");
+    m->specular = param_f(p, "specular");
+    m->coat = param_f(p, "clearcoat");
+    m->coat_rough = param_f(p, "clearcoat_roughness");
+    (void)tables();  // made once, before the first batch
+    return m;
+}
+
+/** Frees an instance made by create(). */
+void destroy(void* instance) {
+    delete static_cast<MetalRough*>(instance);
+}
+
+/** Parameter k at point i: the texture's value when it is textured, else the constant. */
+float at(const SpangleShadingBatch_v3* b, uint32_t k, uint32_t i, float constant, int c = 0,
+         int channels = 1) {
+    const float* v = b->param_values ? b->param_values[k] : nullptr;
+    return v ? v[static_cast<uint32_t>(channels) * i + static_cast<uint32_t>(c)] : constant;
+}
+
+/** Per point: the parameters' values, Fresnel terms, albedos at wo, lobe probabilities. */
+void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, SpangleArena_v3*) {
+    const auto& m = *static_cast<const MetalRough*>(inst);
+    const AlbedoTables& t = tables();
+    auto* out = static_cast<Closure*>(closures);
+    const float r0 = (m.ior - 1.0f) / (m.ior + 1.0f);
+    for (uint32_t i = 0; i < b->count; ++i) {
+        Closure& c = out[i];
+        c = Closure{};
+        c.wo = {b->wo_x[i], b->wo_y[i], b->wo_z[i]};
+        const float specular = at(b, kSpecular, i, m.specular);
+        for (int ch = 0; ch < 3; ++ch) {
+            c.base[ch] = at(b, kBase, i, m.base[ch], ch, 3);
+            const float tint = at(b, kSpecColor, i, m.spec_color[ch], ch, 3);
+            c.f0[ch] = std::min(r0 * r0 * tint, 1.0f) * specular;
+        }
+        c.f90 = specular;
+        const float rough =
+            at(b, kRoughness, i, m.roughness) * at(b, kPacked, i, m.packed[1], 1, 3);
+        c.metallic = std::clamp(
+            at(b, kMetallic, i, m.metallic) * at(b, kPacked, i, m.packed[2], 2, 3), 0.0f, 1.0f);
+        c.alpha = std::max(rough * rough, kMinAlpha);
+        c.coat = at(b, kCoat, i, m.coat);
+        const float rc = at(b, kCoatRough, i, m.coat_rough);
+        c.alpha_c = std::max(rc * rc, kMinAlpha);
+        const float mu = std::max(c.wo.z, 0.0f);
+        const float a = lookup(t.a, mu, c.alpha), bb = lookup(t.b, mu, c.alpha);
+        const float aa = lookup_avg(t.a_avg, c.alpha), ba = lookup_avg(t.b_avg, c.alpha);
+        float e_metal[3];
+        for (int ch = 0; ch < 3; ++ch) {
+            c.e_o[ch] = c.f0[ch] * a + c.f90 * bb;
+            c.e_avg[ch] = c.f0[ch] * aa + c.f90 * ba;
+            e_metal[ch] = c.base[ch] * a + bb;
+        }
+        c.ec_o = c.coat * (0.04f * lookup(t.a, mu, c.alpha_c) + lookup(t.b, mu, c.alpha_c));
+        // Lobes in proportion to the energy each returns at wo, every present lobe at least a
+        // tenth of the time so that none is starved of samples.
+        const float under = 1.0f - c.ec_o;
+        float w[3] = {under * (1.0f - c.metallic) * lum(c.base) * (1.0f - lum(c.e_o)),
+                      under * ((1.0f - c.metallic) * lum(c.e_o) + c.metallic * lum(e_metal)),
+                      c.ec_o};
+        const bool present[3] = {c.metallic < 1.0f && lum(c.base) > 0.0f, true, c.coat > 0.0f};
+        float sum = 0.0f;
+        int n = 0;
+        for (int k = 0; k < 3; ++k) {
+            if (!present[k]) w[k] = 0.0f;
+            sum += w[k];
+            n += present[k] ? 1 : 0;
+        }
+        for (int k = 0; k < 3; ++k)
+            w[k] = present[k] ? 0.9f * (sum > 0.0f ? w[k] / sum : 1.0f / static_cast<float>(n)) +
+                                    0.1f / static_cast<float>(n)
+                              : 0.0f;
+        c.p_diffuse = w[0];
+        c.p_spec = w[1];
+    }
+}
+
+/** f (per channel) and pdf of the whole mixture for wo, wi in the upper hemisphere. */
+void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
+    const AlbedoTables& t = tables();
+    const V3 wo = c.wo;
+    const V3 h = normalize(wo + wi);
+    const float w = std::pow(1.0f - std::clamp(dot(wo, h), 0.0f, 1.0f), 5.0f);
+    const float d = ggx_d(h, c.alpha, c.alpha);
+    const float s = d * ggx_g2(wo, wi, c.alpha, c.alpha) / (4.0f * wo.z * wi.z);
+    const float a_i = lookup(t.a, wi.z, c.alpha), b_i = lookup(t.b, wi.z, c.alpha);
+    const float ec_i =
+        c.coat * (0.04f * lookup(t.a, wi.z, c.alpha_c) + lookup(t.b, wi.z, c.alpha_c));
+    const float dc = ggx_d(h, c.alpha_c, c.alpha_c);
+    const float sc = dc * ggx_g2(wo, wi, c.alpha_c, c.alpha_c) / (4.0f * wo.z * wi.z);
+    const float coat = c.coat * (0.04f + 0.96f * w) * sc;
+    const float under = (1.0f - c.ec_o) * (1.0f - ec_i);
+    for (int ch = 0; ch < 3; ++ch) {
+        const float fd = c.f0[ch] + (c.f90 - c.f0[ch]) * w;
+        const float e_i = c.f0[ch] * a_i + c.f90 * b_i;
+        const float diffuse = c.base[ch] * kInvPi * (1.0f - c.e_o[ch]) * (1.0f - e_i) /
+                              std::max(1e-6f, 1.0f - c.e_avg[ch]);
+        const float fm = c.base[ch] + (1.0f - c.base[ch]) * w;
+        const float base = (1.0f - c.metallic) * (fd * s + diffuse) + c.metallic * fm * s;
+        f[ch] = coat + under * base;
+    }
+    const float p_coat = 1.0f - c.p_diffuse - c.p_spec;
+    pdf = c.p_diffuse * wi.z * kInvPi +
+          c.p_spec * ggx_g1(wo, c.alpha, c.alpha) * d / (4.0f * wo.z) +
+          (p_coat > 0.0f ? p_coat * ggx_g1(wo, c.alpha_c, c.alpha_c) * dc / (4.0f * wo.z) : 0.0f);
+}
+
+/** The closure of query i (closure_index, or i). */
+uint32_t closure_of(const uint32_t* index, uint32_t i) {
+    return index ? index[i] : i;
+}
+
+/** f and pdf of each query (0 for either direction below the surface). */
+void eval(const void*, const void* closures, SpangleEvalBatch_v3* q) {
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const V3 wi{q->wi_x[i], q->wi_y[i], q->wi_z[i]};
+        float f[3] = {0, 0, 0}, pdf = 0.0f;
+        if (c.wo.z > 0.0f && wi.z > 0.0f) evaluate(c, wi, f, pdf);
+        const bool ok = std::isfinite(f[0] + f[1] + f[2] + pdf);
+        q->f_r[i] = ok ? f[0] : 0.0f;
+        q->f_g[i] = ok ? f[1] : 0.0f;
+        q->f_b[i] = ok ? f[2] : 0.0f;
+        q->pdf[i] = ok ? pdf : 0.0f;
+    }
+}
+
+/** A lobe by u2, a direction from it (u0, u1), f and pdf of the whole mixture. */
+void sample(const void*, const void* closures, SpangleSampleBatch_v3* q) {
+    const auto* cl = static_cast<const Closure*>(closures);
+    for (uint32_t i = 0; i < q->count; ++i) {
+        const Closure& c = cl[closure_of(q->closure_index, i)];
+        const float u = q->u2[i];
+        const bool diffuse = u < c.p_diffuse;
+        V3 wi{0, 0, 1};
+        if (diffuse) {
+            wi = cosine_hemisphere(q->u0[i], q->u1[i]);
+        } else {
+            const float alpha = u < c.p_diffuse + c.p_spec ? c.alpha : c.alpha_c;
+            wi = reflect(c.wo, ggx_sample_visible(c.wo, alpha, alpha, q->u0[i], q->u1[i]));
+        }
+        float f[3] = {0, 0, 0}, pdf = 0.0f;
+        if (c.wo.z > 0.0f && wi.z > 0.0f) evaluate(c, wi, f, pdf);
+        const bool ok = pdf > 0.0f && std::isfinite(f[0] + f[1] + f[2] + pdf + wi.x + wi.y + wi.z);
+        q->wi_x[i] = ok ? wi.x : 0.0f;
+        q->wi_y[i] = ok ? wi.y : 0.0f;
+        q->wi_z[i] = ok ? wi.z : 1.0f;
+        q->f_r[i] = ok ? f[0] : 0.0f;
+        q->f_g[i] = ok ? f[1] : 0.0f;
+        q->f_b[i] = ok ? f[2] : 0.0f;
+        q->pdf[i] = ok ? pdf : 0.0f;
+        q->flags[i] = ok ? SPANGLE_SAMPLE_REFLECTION |
+                               (diffuse ? SPANGLE_SAMPLE_DIFFUSE : SPANGLE_SAMPLE_GLOSSY)
+                         : 0u;
+        if (q->eta) q->eta[i] = 1.0f;
+    }
+}
+
+}  // namespace
+
+const SpangleMaterialModel_v3& metal_rough_model() {
+    static const SpangleMaterialModel_v3 model = {
+        "metal_rough",
+        "glTF's metallic-roughness BRDF with ior, specular and clear coat",
+        kParams,
+        sizeof(kParams) / sizeof(kParams[0]),
+        sizeof(Closure),
+        create,
+        destroy,
+        prepare,
+        eval,
+        sample,
+        nullptr,
+        nullptr,
+    };
+    return model;
+}
+
+}  // namespace spangle::smooth
