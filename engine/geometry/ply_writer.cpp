@@ -56,4 +56,40 @@ void write_ply(const TriangleMesh& mesh, const std::string& path, const std::str
     }
 }
 
+void write_obj_cage(const Cage& cage, const std::string& path, const std::string& comment) {
+    std::string text = fmt::format("# {}\n", comment);
+    const auto exact = [](float x) { return fmt::format("{}", static_cast<double>(x)); };
+    for (std::size_t v = 0; v < cage.vertex_count(); ++v)
+        text += fmt::format("v {} {} {}\n", exact(cage.positions[3 * v]),
+                            exact(cage.positions[3 * v + 1]), exact(cage.positions[3 * v + 2]));
+    for (std::size_t t = 0; t < cage.uvs.size() / 2; ++t)
+        text += fmt::format("vt {} {}\n", exact(cage.uvs[2 * t]), exact(cage.uvs[2 * t + 1]));
+    const bool uvs = !cage.face_uvs.empty();
+    std::size_t at = 0;
+    for (const int n : cage.face_sizes) {
+        text += "f";
+        for (int k = 0; k < n; ++k, ++at) {
+            text += fmt::format(" {}", cage.face_vertices[at] + 1);
+            if (uvs) text += fmt::format("/{}", cage.face_uvs[at] + 1);
+        }
+        text += "\n";
+    }
+    const std::string tmp = fmt::format("{}.tmp{}", path, ::getpid());
+    {
+        std::ofstream out(tmp, std::ios::binary);
+        out << text;
+        out.flush();
+        if (!out) {
+            std::remove(tmp.c_str());
+            throw_error("cannot write '{}'", path);
+        }
+    }
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) {
+        std::remove(tmp.c_str());
+        throw_error("cannot write '{}': {}", path, ec.message());
+    }
+}
+
 }  // namespace spangle

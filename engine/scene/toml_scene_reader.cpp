@@ -18,6 +18,24 @@ std::string read_file(const ReadContext& ctx, TableReader& r, std::string_view k
     return find_scene_file(r.string(key), ctx.dir, key, r.loc(key));
 }
 
+/** `key = [x0, x1, y0, y1]`: four finite numbers (a window; the builder checks its order and
+ *  range); none when absent. */
+std::optional<std::array<double, 4>> read_window(TableReader& r, std::string_view key) {
+    const toml::node* n = r.node(key);
+    if (!n) return std::nullopt;
+    const toml::array* a = n->as_array();
+    std::array<double, 4> w{};
+    bool ok = a && a->size() == 4;
+    for (std::size_t i = 0; ok && i < 4; ++i) {
+        const auto x = (*a)[i].value<double>();
+        ok = (*a)[i].is_number() && x && std::isfinite(*x);
+        if (ok) w[i] = *x;
+    }
+    if (!ok)
+        throw_error(loc_of(*n, r.file()), "'{}' must be 4 finite numbers: x0, x1, y0, y1", key);
+    return w;
+}
+
 /** The [render] table (or an empty one). */
 RenderDesc read_render(TableReader& r) {
     RenderDesc d;
@@ -60,6 +78,8 @@ RenderDesc read_render(TableReader& r) {
         d.shutter_open = open;
         d.shutter_close = close;
     }
+    d.crop = read_window(r, "crop_window");
+    d.crop_loc = r.loc("crop_window");
     r.finish();
     return d;
 }
@@ -128,6 +148,9 @@ CameraDesc read_camera(TableReader& r) {
     c.fov_deg = r.number("fov", c.fov_deg, {0.0, 180.0, true, true});
     c.aperture = r.number("aperture", c.aperture, {0.0, 1e3});
     if (focus_given) c.focus_distance = r.number("focus_distance", {0.0, 1e30, true});
+    c.mirror = r.boolean("mirror", c.mirror);
+    c.screen = read_window(r, "screen_window");
+    c.screen_loc = r.loc("screen_window");
     const auto name = [](std::size_t k) { return fmt::format("[[camera.keys]] #{}", k); };
     c.keys = read_keys<CameraKey>(r, name, [](TableReader& kr) {
         CameraKey key;
@@ -150,6 +173,8 @@ LightGroupDesc read_light_group(TableReader& r) {
     return g;
 }
 
+std::optional<Affine> read_matrix(TableReader& r, std::string_view key);
+
 /** The [environment] table: a colour or a map. */
 EnvironmentDesc read_environment(const ReadContext& ctx, TableReader& r) {
     EnvironmentDesc e;
@@ -167,6 +192,18 @@ EnvironmentDesc read_environment(const ReadContext& ctx, TableReader& r) {
             m.color_space_loc = r.loc("color_space");
         }
         m.rotation_deg = r.number("rotation", m.rotation_deg, {-360.0, 360.0});
+        // pbrt's layouts, as `spangle convert` writes a pbrt scene's map: the projection and the
+        // map's frame (a matrix, map to world).
+        const std::string projection = r.string("projection", "latlong");
+        if (projection == "latlong_z_up")
+            m.projection = MapProjection::LatLongZUp;
+        else if (projection == "equal_area")
+            m.projection = MapProjection::EqualArea;
+        else if (projection != "latlong")
+            throw_error(r.loc("projection"),
+                        "unknown projection '{}' (valid: latlong, latlong_z_up, equal_area)",
+                        projection);
+        if (const std::optional<Affine> frame = read_matrix(r, "frame")) m.to_world = *frame;
         e.map = std::move(m);
     } else {
         e.color = toml_scene::read_color(ctx, r, "color");
@@ -200,7 +237,7 @@ std::optional<Vec3> read_scale(TableReader& r) {
 /** `key = [...]` (by default `matrix`): 12 numbers, the rows of a 3x4 object-to-world matrix,
  *  or 16, a 4x4 one whose last row is 0 0 0 1 (as `spangle convert` writes placements that are
  *  no scale, rotate and translate); none when absent. */
-std::optional<Affine> read_matrix(TableReader& r, std::string_view key = "matrix") {
+std::optional<Affine> read_matrix(TableReader& r, std::string_view key) {
     const toml::node* n = r.node(key);
     if (!n) return std::nullopt;
     const toml::array* a = n->as_array();
@@ -232,7 +269,7 @@ std::optional<Affine> read_matrix(TableReader& r, std::string_view key = "matrix
 /** A placement: `matrix`, or scale, rotate and translate (not both). */
 PlacementDesc read_placement(TableReader& r) {
     PlacementDesc p;
-    p.matrix = read_matrix(r);
+    p.matrix = read_matrix(r, "matrix");
     if (p.matrix) {
         for (const char* key : {"scale", "rotate", "translate"})
             if (r.has(key))
@@ -372,7 +409,7 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
         o.matrix_keys = read_keys<MatrixKey>(r, name, [](TableReader& kr) {
             MatrixKey key;
             key.time = read_key_time(kr);
-            const std::optional<Affine> m = read_matrix(kr);
+            const std::optional<Affine> m = read_matrix(kr, "matrix");
             if (!m) kr.missing("matrix");
             key.matrix = *m;
             return key;
@@ -391,6 +428,7 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
         EmissionDesc e;
         e.color = *toml_scene::read_color(ctx, r, "emission");
         e.intensity = r.number("emission_intensity", e.intensity, kNonNegative);
+        e.two_sided = r.boolean("emission_two_sided", e.two_sided);
         e.group = read_light_group(r);
         o.emission = std::move(e);
     }

@@ -3,12 +3,14 @@
 #include <fmt/format.h>
 #include <unistd.h>
 
+#include <array>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <map>
 
 #include "core/error.h"
+#include "core/map_projection.h"
 #include "geometry/ply_writer.h"
 
 namespace fs = std::filesystem;
@@ -88,6 +90,7 @@ struct Writer {
     fs::path mesh_dir;  ///< where inline meshes go
     std::string out;    ///< the text so far
     std::map<const TriangleMesh*, std::string> meshes;  ///< inline meshes written, by mesh
+    std::map<const Cage*, std::string> cages;           ///< inline cages written, by cage
     SceneWriteReport report;
 
     void line(const std::string& key, const std::string& value) {
@@ -120,6 +123,11 @@ struct Writer {
         line("frame_end", fmt::to_string(r.frame_end));
         line("fps", num(r.fps));
         line("shutter", fmt::format("[{}, {}]", num(r.shutter_open), num(r.shutter_close)));
+        if (r.crop) line("crop_window", window(*r.crop));
+    }
+
+    static std::string window(const std::array<double, 4>& w) {
+        return fmt::format("[{}, {}, {}, {}]", num(w[0]), num(w[1]), num(w[2]), num(w[3]));
     }
 
     void camera(const CameraDesc& c) {
@@ -130,6 +138,8 @@ struct Writer {
         line("fov", num(c.fov_deg));
         line("aperture", num(c.aperture));
         if (c.focus_distance) line("focus_distance", num(*c.focus_distance));
+        if (c.mirror) line("mirror", "true");
+        if (c.screen) line("screen_window", window(*c.screen));
         if (c.keys.keys.empty()) return;
         line("interpolation", str(c.keys.smooth ? "smooth" : "linear"));
         for (const CameraKey& k : c.keys.keys) {
@@ -151,6 +161,12 @@ struct Writer {
             line("map", path(e.map->path));
             if (e.map->color_space) line("color_space", str(*e.map->color_space));
             line("rotation", num(e.map->rotation_deg));
+            if (e.map->projection != MapProjection::LatLongYUp) {
+                line("projection",
+                     str(e.map->projection == MapProjection::LatLongZUp ? "latlong_z_up"
+                                                                        : "equal_area"));
+                line("frame", matrix12(e.map->to_world));
+            }
         } else if (e.color) {
             line("color", color(*e.color));
         }
@@ -214,6 +230,18 @@ struct Writer {
         return meshes.emplace(&mesh, path(file.string())).first->second;
     }
 
+    /** A cage the scene held itself (pbrt's loopsubdiv), written once as an OBJ file. */
+    std::string inline_cage(const Cage& cage) {
+        auto it = cages.find(&cage);
+        if (it != cages.end()) return it->second;
+        std::error_code ec;
+        fs::create_directories(mesh_dir, ec);
+        const fs::path file = mesh_dir / fmt::format("cage_{:03}.obj", cages.size());
+        write_obj_cage(cage, file.string(), "written by spangle convert from " + cage.source);
+        report.meshes.push_back(file.string());
+        return cages.emplace(&cage, path(file.string())).first->second;
+    }
+
     void subdiv(const SubdivShape& s) {
         static const char* schemes[] = {"catmull-clark", "loop"};
         static const char* boundaries[] = {"none", "edge_only", "edge_and_corner"};
@@ -236,7 +264,7 @@ struct Writer {
                 fmt::format("[{}, {}]", o.corner_vertices[i], num(o.corner_sharpness[i])));
         if (!creases.empty()) t += fmt::format(", creases = [{}]", fmt::join(creases, ", "));
         if (!corners.empty()) t += fmt::format(", corners = [{}]", fmt::join(corners, ", "));
-        line("mesh", path(s.path));
+        line("mesh", s.cage ? inline_cage(*s.cage) : path(s.path));
         line("subdiv", t + " }");
     }
 
@@ -250,8 +278,11 @@ struct Writer {
         else
             line("mesh", inline_mesh(*std::get<InlineMeshShape>(o.shape).mesh));
         line("material", str(o.material));
-        if (o.placement.matrix) {
-            line("matrix", matrix12(*o.placement.matrix));
+        if (o.placement.matrix || !o.matrix_keys.keys.empty()) {
+            // Matrix keys need a matrix placement in TOML; with keys it is not used (the keys
+            // give the placement at every time), so the first key's stands in.
+            line("matrix", matrix12(o.placement.matrix ? *o.placement.matrix
+                                                       : o.matrix_keys.keys.front().matrix));
         } else {
             line("translate", vec(o.placement.parts.translate));
             line("rotate", vec(o.placement.parts.rotate));
@@ -261,6 +292,7 @@ struct Writer {
         if (o.emission) {
             line("emission", color(o.emission->color));
             line("emission_intensity", num(o.emission->intensity));
+            if (o.emission->two_sided) line("emission_two_sided", "true");
             group(o.emission->group);
         }
         keys(o);

@@ -175,6 +175,49 @@ TEST(Convert, AnEnvironmentFromTheCommandLineReplacesTheScenesAndIsWrittenOut) {
     EXPECT_NE(lit, render_path(scene));  // the map, not the scene's own sky, lights it
 }
 
+TEST(Convert, APbrtSceneKeepsWhatOnlyPbrtSaysAndRendersTheSameBitForBit) {
+    // pbrt's left-handed camera (mirror), its screen window and crop window, a z-up map in the
+    // light's frame, a two-sided area light and a loopsubdiv cage written in the file (an OBJ
+    // cage beside the TOML).
+    test::TempDir dir("convert_pbrt");
+    std::ofstream(dir.file("all.pbrt")) << fmt::format(R"(
+LookAt 0 -5 1.5  0 0 0.5  0 0 1
+Camera "perspective" "float fov" [40] "float screenwindow" [-1.2 1.0 -0.8 0.9]
+Film "image" "integer xresolution" [64] "integer yresolution" [36] "float cropwindow" [0.1 0.9 0 1]
+WorldBegin
+AttributeBegin
+  Rotate 90 1 0 0
+  LightSource "infinite" "string mapname" "{}/env/studio.exr" "float scale" [0.5]
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [3 3 3] "bool twosided" true
+  Translate 0 0 3
+  Shape "trianglemesh" "integer indices" [0 1 2 0 2 3] "point P" [-1 -1 0 1 -1 0 1 1 0 -1 1 0]
+AttributeEnd
+Material "matte" "rgb Kd" [0.6 0.2 0.1]
+AttributeBegin
+  Translate 0 0 0.6
+  Shape "loopsubdiv" "integer levels" [2] "integer indices" [0 1 2 0 2 3 0 3 1 1 3 2]
+        "point P" [0 0 0.7 0.6 0 -0.3 -0.3 0.5 -0.3 -0.3 -0.5 -0.3]
+AttributeEnd
+Shape "trianglemesh" "integer indices" [0 1 2 0 2 3] "point P" [-5 -5 0 5 -5 0 5 5 0 -5 5 0]
+WorldEnd
+)",
+                                                       test::asset_dir());
+    const SceneDescription d = read_scene(dir.file("all.pbrt"));
+    ASSERT_TRUE(d.camera.mirror && d.camera.screen && d.render.crop);
+    ASSERT_TRUE(d.environment && d.environment->map);
+    EXPECT_EQ(d.environment->map->projection, MapProjection::LatLongZUp);
+    const SceneWriteReport rep = write_toml_scene(d, dir.file("all.toml"), dir.file("all_meshes"));
+    EXPECT_EQ(rep.meshes.size(), 3u);  // two triangle meshes and the cage
+    const SceneDescription back = read_scene(dir.file("all.toml"));
+    EXPECT_TRUE(back.camera.mirror);
+    EXPECT_EQ(back.camera.screen, d.camera.screen);
+    EXPECT_EQ(back.render.crop, d.render.crop);
+    EXPECT_EQ(back.environment->map->projection, MapProjection::LatLongZUp);
+    EXPECT_EQ(render_path(dir.file("all.toml")), render_path(dir.file("all.pbrt")));
+}
+
 TEST(Convert, AnUnresolvedImportIsRefusedNotDropped) {
     SceneDescription d;
     d.path = "shot.toml";

@@ -290,6 +290,15 @@ TEST(GltfReader, WithoutCameraOrLightTheDefaultsFrameTheBoundsAndLightTheStudio)
     EXPECT_EQ(d.materials[0].name, "gltf_default");
     EXPECT_EQ(d.materials[0].model, "metal_rough");
     EXPECT_EQ(param(d.materials[0], "metallic")->number, 1.0);
+
+    // --env lights the scene instead: then no stand-in light, and the map is the environment.
+    SceneReadOptions with_env;
+    with_env.environment = test::asset_dir() + "/env/studio.exr";
+    const SceneDescription lit = read_scene(dir.file("bare.gltf"), with_env);
+    EXPECT_TRUE(lit.lights.empty());
+    EXPECT_FALSE(has_note(lit, "default studio light"));
+    ASSERT_TRUE(lit.environment && lit.environment->map);
+    EXPECT_EQ(lit.environment->map->path, with_env.environment);
 }
 
 TEST(GltfReader, PunctualLightsTakeTheirNodesPlaceAndPhotometricUnits) {

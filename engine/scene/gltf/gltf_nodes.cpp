@@ -334,7 +334,8 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
     choose_camera(ctx, cameras, options.camera, motions);
     bool emits = false;
     for (const ObjectDesc& o : ctx.scene->objects) emits = emits || o.emission.has_value();
-    if (ctx.scene->lights.empty() && !emits) default_light(ctx);
+    // --env lights the scene itself: no stand-in then.
+    if (ctx.scene->lights.empty() && !emits && options.environment.empty()) default_light(ctx);
     RenderDesc& r = ctx.scene->render;
     r.loc = r.working_space_loc = r.color_space_loc = FileLoc{ctx.path, 1, 1};
     if (end > 0.0)

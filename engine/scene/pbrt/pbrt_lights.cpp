@@ -52,7 +52,12 @@ void infinite(Reader& r, const ParamList& p, const FileLoc& loc, ColorDesc L, do
         r.notes.add(portal->loc,
                     "infinite light 'portal' is not supported: the whole map is "
                     "sampled");
-    const std::string file = p.string("filename", "");
+    // pbrt-v3 names the map "mapname", pbrt-v4 "filename".
+    std::string file = p.string("filename", "");
+    if (const Param* v3 = p.find("mapname", {"string"})) {
+        r.sign(false, v3->loc, "infinite light 'mapname'");
+        if (file.empty()) file = p.string("mapname", "");
+    }
     const double illuminance = p.number("illuminance", -1.0);
     if (file.empty()) {
         // pbrt-v4: a constant L with 'illuminance' E makes E at an upward surface: L = E / pi.
