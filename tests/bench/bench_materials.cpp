@@ -7,7 +7,11 @@
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -191,6 +195,59 @@ BENCHMARK(BM_Flake)
     ->Args({100000, 1, 0, 0});
 /** Neighbouring shading points, as a render makes them, and the colour table's cost. */
 BENCHMARK(BM_Flake)->Args({100, 0, 1, 0})->Args({10000, 0, 1, 0})->Args({100, 0, 0, 1});
+
+/** The fixed cost of a flake material: creating an instance, whose smooth lobe (and rough coat)
+ *  tables are built (cold: the table cache off) or read from the persistent cache (cached).
+ *  Args: material (index into kTableMaterials), cached. One build thread unless
+ *  SPANGLE_FLAKE_THREADS says otherwise (set it before running to compare). */
+struct TableMaterial {
+    const char* label;
+    double alpha, gamma;
+    bool rough_coat;
+};
+constexpr TableMaterial kTableMaterials[] = {
+    {"default: alpha 0.15, gamma 3", 0.15, 3.0, false},
+    {"car paint of the issue: alpha 0.047, gamma 5", 0.047, 5.0, false},
+    {"alpha 0.15, gamma 10", 0.15, 10.0, false},
+    {"alpha 0.05, gamma 10", 0.05, 10.0, false},
+    {"alpha 0.35, gamma 30", 0.35, 30.0, false},
+    {"alpha 0.001, gamma 45 (cone 400x the lobe)", 0.001, 45.0, false},
+    {"default with a rough coat (0.3)", 0.15, 3.0, true},
+};
+
+void BM_FlakeTables(benchmark::State& state) {
+    const TableMaterial& tm = kTableMaterials[state.range(0)];
+    const bool cached = state.range(1) != 0;
+    const std::string dir = fmt::format("/tmp/spangle_bench_tables_{}", ::getpid());
+    setenv("SPANGLE_FLAKE_CACHE", cached ? dir.c_str() : "off", 1);
+    if (!std::getenv("SPANGLE_FLAKE_THREADS")) setenv("SPANGLE_FLAKE_THREADS", "1", 1);
+    ColorConfig color = test::shipped_config();
+    HostServices host(color, test::quiet_log());
+    PluginLoader loader{plugin_search_path({})};
+    Material m;
+    m.name = "bench";
+    m.plugin = "flake";
+    m.model = "flake";
+    m.params = {number("flake_roughness", tm.alpha), number("gamma", tm.gamma)};
+    if (tm.rough_coat) {
+        ParamEntry coat = number("coat", 1.0);
+        coat.kind = ParamEntry::Kind::Bool;
+        m.params.push_back(coat);
+        m.params.push_back(number("coat_roughness", 0.3));
+    }
+    if (cached) create_material(loader, m, host);  // fills the cache
+    for (auto _ : state) benchmark::DoNotOptimize(create_material(loader, m, host));
+    state.SetLabel(fmt::format("{}, {}", tm.label, cached ? "cached" : "cold"));
+    state.counters["ms_per_material"] =
+        benchmark::Counter(static_cast<double>(state.iterations()) * 1e-3,
+                           benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+}
+BENCHMARK(BM_FlakeTables)
+    ->ArgsProduct({{0, 1, 2, 3, 4, 5, 6}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.5);
 
 }  // namespace
 }  // namespace spangle
