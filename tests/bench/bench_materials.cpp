@@ -249,7 +249,44 @@ BENCHMARK(BM_FlakeTables)
     ->Unit(benchmark::kMillisecond)
     ->MinTime(0.5);
 
+/** `spangle_bench --shade CONFIG BATCHES` shades BATCHES batches of one configuration once, with
+ *  no timing: for instruction counts under valgrind --tool=callgrind, which the machine's load
+ *  does not change (run two batch counts and take the difference to drop the set-up). CONFIG is
+ *  `conductor` or `flake:LAMBDA:ALGORITHM` (tree or enumerate; lambda 0: the smooth regime). */
+int shade_only(const std::string& config, int batches) {
+    std::unique_ptr<Fixture> f;
+    if (config == "conductor") {
+        f = std::make_unique<Fixture>(
+            "smooth", "conductor",
+            ParamList{number("roughness", 0.15), text("preset", "aluminium")}, 0.0, false);
+    } else if (config.rfind("flake:", 0) == 0) {
+        const auto colon = config.find(':', 6);
+        const double lambda = std::stod(config.substr(6, colon - 6));
+        const std::string algorithm =
+            colon == std::string::npos ? "tree" : config.substr(colon + 1);
+        const ParamList p = {number("density", 1e5),      number("flake_roughness", 0.15),
+                             number("flake_weight", 1.0), number("base_color", 0.0),
+                             number("min_flakes", 5e8),   number("max_flakes", 1e9),
+                             text("algorithm", algorithm)};
+        f = std::make_unique<Fixture>("flake", "flake", p,
+                                      lambda > 0 ? std::sqrt(lambda / 1e5) : 0.0, lambda > 0);
+    } else {
+        fmt::print(stderr, "unknown configuration '{}'\n", config);
+        return 2;
+    }
+    for (int i = 0; i < batches; ++i) f->shade();
+    return 0;
+}
+
 }  // namespace
 }  // namespace spangle
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+    if (argc == 4 && std::string(argv[1]) == "--shade")
+        return spangle::shade_only(argv[2], std::atoi(argv[3]));
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}
