@@ -263,7 +263,10 @@ uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty) {
 }
 
 uint64_t node_key(uint64_t tile, int depth, uint32_t ix, uint32_t iy) {
-    return mix(mix(tile, static_cast<uint64_t>(depth)), (static_cast<uint64_t>(ix) << 32) | iy);
+    // One hash: the depth enters through a distinct odd multiple per level (a bijection of the
+    // tile key for each depth), the cell through its packed coordinates.
+    return mix(tile ^ (static_cast<uint64_t>(depth + 1) * 0x9e3779b97f4a7c15ull),
+               (static_cast<uint64_t>(ix) << 32) | iy);
 }
 
 namespace {
