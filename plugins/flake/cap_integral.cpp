@@ -214,8 +214,10 @@ void arc_at(const Region& r, int k, double& mass, double mass_f[3]) {
     const double vc = dot(r.v, r.c0), vd = dot(r.v, d);
     mass = arc_mass(vc, vd, t) * jac;
     if (!r.fresnel) return;
-    // F along the arc, at the middle of sub-arcs that each turn the (stretched) normal by at most
-    // 0.05 rad: the unstretched frame magnifies angles near the normal by 1 / alpha.
+    // F along the arc, over sub-arcs that each turn the (stretched) normal by at most 0.05 rad
+    // (the unstretched frame magnifies angles near the normal by 1 / alpha): per sub-arc, F at two
+    // Gauss points weighted by the mass density there, so that the sub-arc from c0, whose mass
+    // grows as t, is not weighted as if uniform.
     double s_end, c_end;
     fast_sincos(t, s_end, c_end);
     const D3 n_end = r.c0 * c_end + d * s_end;
@@ -225,17 +227,24 @@ void arc_at(const Region& r, int k, double& mass, double mass_f[3]) {
     const int pieces = std::min(32, 1 + static_cast<int>(turn / 0.05));
     double prev = 0.0, t0 = 0.0;
     mass_f[0] = mass_f[1] = mass_f[2] = 0.0;
+    constexpr double kHalfGauss = 0.5 / 1.7320508075688772;  // Gauss points mid +- half / sqrt 3
     for (int p = 1; p <= pieces; ++p) {
         const double t1 = t * p / pieces;
         const double cum = arc_mass(vc, vd, t1);
-        double s, c;
-        fast_sincos(0.5 * (t0 + t1), s, c);
-        const D3 n = r.c0 * c + d * s;
-        const D3 m = normalized({r.alpha * n.x, r.alpha * n.y, n.z});
-        float f[3];
-        r.fresnel->eval(static_cast<float>(dot(r.wo, m)), f);
+        double sum[3] = {0, 0, 0}, wsum = 0.0;
+        for (const double g : {0.5 - kHalfGauss, 0.5 + kHalfGauss}) {
+            double s, c;
+            fast_sincos(t0 + (t1 - t0) * g, s, c);
+            const double w = std::max(0.0, vc * s * c + vd * s * s);  // d(arc_mass)/dt
+            const D3 n = r.c0 * c + d * s;
+            const D3 m = normalized({r.alpha * n.x, r.alpha * n.y, n.z});
+            float f[3];
+            r.fresnel->eval(static_cast<float>(dot(r.wo, m)), f);
+            for (int ch = 0; ch < 3; ++ch) sum[ch] += w * static_cast<double>(f[ch]);
+            wsum += w;
+        }
         for (int ch = 0; ch < 3; ++ch)
-            mass_f[ch] += (cum - prev) * jac * static_cast<double>(f[ch]);
+            mass_f[ch] += (cum - prev) * jac * (wsum > 0.0 ? sum[ch] / wsum : 0.0);
         prev = cum;
         t0 = t1;
     }

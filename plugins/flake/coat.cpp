@@ -2,6 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <thread>
+#include <vector>
+
+#include "table_cache.h"
 
 namespace spangle::flake {
 
@@ -35,15 +40,36 @@ double rough_albedo(float cos_theta, float ior, float alpha) {
 
 }  // namespace
 
-void Coat::init(bool on_, float ior_, float roughness) {
+void Coat::init(bool on_, float ior_, float roughness, const TableCache* cache) {
     on = on_;
     ior = ior_;
     smooth = roughness < mf::kDeltaAlpha;
     alpha = std::max(mf::kDeltaAlpha, roughness);
     if (!on || smooth) return;
-    for (int i = 0; i < kNodes; ++i)
-        albedo[i] = std::min(
-            1.0f, static_cast<float>(rough_albedo(node_cos(i), ior, alpha)) + kQuadratureBound);
+    TableKey key("rough coat albedo");
+    key.add(ior);
+    key.add(alpha);
+    std::vector<uint8_t> bytes;
+    if (cache && cache->load(key, bytes) && bytes.size() == sizeof(albedo)) {
+        std::memcpy(albedo, bytes.data(), sizeof(albedo));
+        return;
+    }
+    // The nodes are independent: one thread each (the result does not depend on their number).
+    const int threads = table_threads();
+    std::vector<std::thread> pool;
+    for (int w = 0; w < threads; ++w)
+        pool.emplace_back([&, w] {
+            for (int i = w; i < kNodes; i += threads)
+                albedo[i] =
+                    std::min(1.0f, static_cast<float>(rough_albedo(node_cos(i), ior, alpha)) +
+                                       kQuadratureBound);
+        });
+    for (auto& t : pool) t.join();
+    if (cache) {
+        bytes.resize(sizeof(albedo));
+        std::memcpy(bytes.data(), albedo, sizeof(albedo));
+        cache->store(key, bytes);
+    }
 }
 
 float Coat::albedo_at(float cos_theta) const {

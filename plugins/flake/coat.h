@@ -9,21 +9,24 @@
 // the exact Fresnel reflectance, at any angle. For a rough coat E comes from a table over
 // sqrt(cos theta) (dense at grazing, node 0 at cos = 1e-6) whose entries are quadratures of the
 // single-scattering microfacet reflection, raised by their error bound, and read as the larger of
-// the two neighbouring entries (the albedo only grows towards grazing).
+// the two neighbouring entries (the albedo only grows towards grazing). The table is built once
+// per (ior, roughness) on all cores and kept in the persistent table cache (table_cache.h).
 
 #include "field.h"
 
 namespace spangle::flake {
 
+class TableCache;
+
 struct Coat {
-    static constexpr int kNodes = 129;
+    static constexpr int kNodes = 65;
     bool on = false;
     bool smooth = true;         ///< roughness below 1e-4: a delta reflection
     float ior = 1.5f;           ///< index of the coat relative to the outside
     float alpha = 0.0f;         ///< GGX roughness of a rough coat
     float albedo[kNodes] = {};  ///< rough coat: E at cos = max(1e-6, (i / (kNodes - 1))^2)
 
-    void init(bool on_, float ior_, float roughness);
+    void init(bool on_, float ior_, float roughness, const TableCache* cache = nullptr);
     /** E(cos theta): exact for a smooth coat, an upper bound for a rough one; 0 when off. */
     float albedo_at(float cos_theta) const;
     /** A rough coat's f and the density of sample_rough() at wi. */

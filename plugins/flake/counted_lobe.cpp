@@ -18,12 +18,14 @@ void DirectionGrid::init(float alpha_, float gamma_rad) {
     weight_normals.clear();
     for (int j = 0; j < nodes; ++j)
         for (int i = 0; i < nodes; ++i)
-            for (int b = 0; b < 4; ++b)
-                for (int a = 0; a < 4; ++a)
-                    weight_normals.push_back(flake_normal(
-                        alpha,
-                        (static_cast<float>(4 * i + a) + 0.5f) / static_cast<float>(4 * nodes),
-                        (static_cast<float>(4 * j + b) + 0.5f) / static_cast<float>(4 * nodes)));
+            for (int b = 0; b < kWeightSide; ++b)
+                for (int a = 0; a < kWeightSide; ++a)
+                    weight_normals.push_back(
+                        flake_normal(alpha,
+                                     (static_cast<float>(kWeightSide * i + a) + 0.5f) /
+                                         static_cast<float>(kWeightSide * nodes),
+                                     (static_cast<float>(kWeightSide * j + b) + 0.5f) /
+                                         static_cast<float>(kWeightSide * nodes)));
     const int side = 1 << depth;
     centres.resize(static_cast<std::size_t>(side) * side);
     for (int j = 0; j < side; ++j)
@@ -38,6 +40,36 @@ int footprint_level(const FieldParams& fp, const Footprint& p) {
     if (!(s > 0.0) || !std::isfinite(s)) return fp.max_depth;
     if (s >= 1.0) return 0;
     return std::clamp(static_cast<int>(std::floor(-std::log2(s))), 0, fp.max_depth);
+}
+
+NodeRef CellResolver::resolve(int64_t tx, int64_t ty, int depth, uint32_t ix, uint32_t iy) {
+    if (levels_ == 0 || tx != tx_ || ty != ty_) {
+        tx_ = tx;
+        ty_ = ty;
+        tile_ = tile_key(fp_.seed, tx, ty);
+        path_[0] = {0, 0, 0, root_count(fp_)};
+        levels_ = 1;
+    }
+    // The deepest kept node that is an ancestor of the cell (or the cell itself).
+    int l = 0;
+    while (l + 1 < levels_ && path_[l + 1].depth <= depth &&
+           path_[l + 1].ix == (ix >> (depth - path_[l + 1].depth)) &&
+           path_[l + 1].iy == (iy >> (depth - path_[l + 1].depth)))
+        ++l;
+    NodeRef node = path_[l];
+    while (node.depth < depth && node.n > 0) {
+        if (static_cast<int>(node.n) <= fp_.leaf_size || node.depth >= fp_.max_depth) break;
+        const int shift = depth - node.depth - 1;
+        uint32_t c[4];
+        split_counts_cached(node_key(tile_, node.depth, node.ix, node.iy), node.n, fp_.exact_below,
+                            c);
+        const uint32_t qx = (ix >> shift) & 1u, qy = (iy >> shift) & 1u;
+        node = {node.depth + 1, 2 * node.ix + qx, 2 * node.iy + qy, c[qx | (qy << 1)]};
+        ++l;
+        if (l < 32) path_[l] = node;
+    }
+    levels_ = std::min(l + 1, 32);
+    return node;
 }
 
 NodeRef resolve_cell(const FieldParams& fp, int64_t tx, int64_t ty, int depth, uint32_t ix,
@@ -160,10 +192,13 @@ void visit_leaves(const Aggregate& a, const DirectionGrid& grid, int exact_below
         leaf(static_cast<int>(ni[cur][k]), static_cast<int>(nj[cur][k]), nn[cur][k], nk[cur][k]);
 }
 
-/** Levels below the grid's at which sparse aggregates make their virtual flakes: cells of 4^-3
- *  of a leaf, so that a cone's preimage spans some hundred cells and the flakes visited are about
- *  those that can light wi. */
-constexpr int kVirtualLevels = 3;
+/** Levels below the grid's at which sparse aggregates make their virtual flakes: one. The grid's
+ *  leaves hold on average k 4^-depth flakes, and a sparse aggregate (k p1 < 16 at the lobe's peak,
+ *  see mark_sparse) has k 4^-depth < 8 cos(theta_o), so that the cells one level below hold a
+ *  handful each (every one is made, at most kMaxVirtual, uniform within its cell: the flake
+ *  distribution exactly), and the cells visited for a direction are few (measured: one level
+ *  costs the least of zero to three). */
+constexpr int kVirtualLevels = 1;
 
 /** A cell's flakes as individual virtual flakes: positions uniform in the cell (hashed from its
  *  key), so their normals follow the flake distribution exactly within it. At most kMaxVirtual
@@ -204,7 +239,7 @@ V3 virtual_normal(const DirectionGrid& grid, int depth, int i, int j, uint64_t k
     h = mix(key, 0x5eed0000u + q);
     float a, b;
     unit2(h, a, b);
-    const float inv_side = std::ldexp(1.0f, -depth);
+    const auto inv_side = static_cast<float>(pow2_neg(depth));
     return flake_normal(grid.alpha, (static_cast<float>(i) + a) * inv_side,
                         (static_cast<float>(j) + b) * inv_side);
 }
@@ -213,14 +248,15 @@ V3 virtual_normal(const DirectionGrid& grid, int depth, int i, int j, uint64_t k
 
 void node_weights(const DirectionGrid& grid, V3 wo, float out[DirectionGrid::kWeightNodes]) {
     const int nodes = 1 << (2 * grid.weight_level);
+    constexpr int kPer = DirectionGrid::kWeightSide * DirectionGrid::kWeightSide;
     for (int n = 0; n < nodes; ++n) {
         float sum = 0.0f;
-        for (int s = 0; s < 16; ++s) {
-            const V3 m = grid.weight_normals[static_cast<std::size_t>(16 * n + s)];
+        for (int s = 0; s < kPer; ++s) {
+            const V3 m = grid.weight_normals[static_cast<std::size_t>(kPer * n + s)];
             const float c = mf::dot(wo, m);
             if (c > 0.0f && 2.0f * c * m.z - wo.z > 0.0f) sum += c / m.z;
         }
-        out[n] = sum * (1.0f / 16.0f);
+        out[n] = sum * (1.0f / kPer);
     }
 }
 

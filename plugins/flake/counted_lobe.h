@@ -57,12 +57,14 @@ struct DirectionGrid {
      *  realised_weight). */
     static constexpr int kWeightLevel = 2;
     static constexpr int kWeightNodes = 1 << (2 * kWeightLevel);
+    /** kWeightSide^2 stratified normals per node estimate its mean weight. */
+    static constexpr int kWeightSide = 2;
     int depth = 4;            ///< leaves are 4^-depth of the square of flake normals
     int weight_level = 2;     ///< min(kWeightLevel, depth)
     float alpha = 0.15f;      ///< flake roughness
     float sin2_half = 0.0f;   ///< sin^2(gamma / 2) of the cone
     std::vector<V3> centres;  ///< normal at each leaf centre, row-major (2^depth per row)
-    /** 4 x 4 stratified normals in each node of weight_level (node-major), for node_weights. */
+    /** kWeightSide^2 stratified normals in each node of weight_level (node-major). */
     std::vector<V3> weight_normals;
     /** Chooses the leaf level from the cone's size relative to the flake roughness. */
     void init(float alpha_, float gamma_rad);
@@ -119,7 +121,7 @@ void aggregate_lobe(const CountedFootprint& cf, const DirectionGrid& grid, const
 
 /** The mean projected-area weight w = (wo.m) / m.z of the valid flakes (facing wo, reflecting
  *  above the horizon) in each node of the direction tree's weight_level, as a share of the
- *  square (4 x 4 normals per node). */
+ *  square (kWeightSide^2 normals per node). */
 void node_weights(const DirectionGrid& grid, V3 wo, float out[DirectionGrid::kWeightNodes]);
 
 /** An aggregate's realised weight relative to its expected one, k E[w]: its flakes' counts in the
@@ -147,6 +149,22 @@ struct NodeRef {
 NodeRef resolve_cell(const FieldParams& fp, int64_t tx, int64_t ty, int depth, uint32_t ix,
                      uint32_t iy);
 
+/** resolve_cell() for the neighbouring cells of one footprint: the path from the tile's root is
+ *  kept, so that the next cell of the same tile starts from the deepest common ancestor (the 2 x 2
+ *  cells of a footprint share all but the last few levels). Same results. */
+class CellResolver {
+public:
+    explicit CellResolver(const FieldParams& fp) : fp_(fp) {}
+    NodeRef resolve(int64_t tx, int64_t ty, int depth, uint32_t ix, uint32_t iy);
+
+private:
+    const FieldParams& fp_;
+    int64_t tx_ = 0, ty_ = 0;
+    uint64_t tile_ = 0;
+    int levels_ = 0;  ///< path_[0 .. levels_ - 1] are valid (0: none yet)
+    NodeRef path_[32];
+};
+
 // ------------------------------------------------------------------------------------ template
 
 template <class Exact>
@@ -159,13 +177,14 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
         return;
     }
     const int depth = footprint_level(fp, p);
-    const double size = std::ldexp(1.0, -depth);
+    const double size = pow2_neg(depth);
+    CellResolver resolver(fp);
     for (int64_t ty = tr.ty0; ty <= tr.ty1; ++ty)
         for (int64_t tx = tr.tx0; tx <= tr.tx1; ++tx) {
             // P relative to this tile; the cells of `depth` under its bounding box.
             const double cu = p.cu - static_cast<double>(tx), cv = p.cv - static_cast<double>(ty);
             const double hx = p.half_width(), hy = p.half_height();
-            const double cells = std::ldexp(1.0, depth);
+            const double cells = 1.0 / size;
             const auto lo = [&](double x) {
                 return static_cast<int64_t>(std::clamp(std::floor(x / size), 0.0, cells - 1));
             };
@@ -181,8 +200,8 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     const double x0 = static_cast<double>(ix) * size,
                                  y0 = static_cast<double>(iy) * size;
                     if (!overlaps(local, x0, y0, x0 + size, y0 + size)) continue;
-                    const NodeRef node = resolve_cell(fp, tx, ty, depth, static_cast<uint32_t>(ix),
-                                                      static_cast<uint32_t>(iy));
+                    const NodeRef node = resolver.resolve(tx, ty, depth, static_cast<uint32_t>(ix),
+                                                          static_cast<uint32_t>(iy));
                     if (node.n == 0) continue;
                     // Cells inside one leaf share it: visit each node once.
                     bool dup = false;
@@ -198,7 +217,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                         continue;
                     }
                     // The share of the cell inside P, and as many of its flakes (monotone in it).
-                    const double nsize = std::ldexp(1.0, -node.depth);
+                    const double nsize = pow2_neg(node.depth);
                     const double nx0 = node.ix * nsize, ny0 = node.iy * nsize;
                     const double rho =
                         overlap_area(local, nx0, ny0, nx0 + nsize, ny0 + nsize) / (nsize * nsize);

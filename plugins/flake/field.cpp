@@ -129,15 +129,21 @@ struct BinomialTables {
     BinomialTables() {
         inv[0] = 0.0;
         for (int k = 1; k <= kMaxExact + 1; ++k) inv[k] = 1.0 / k;
-        // Quantiles by bisection on the normal CDF 0.5 erfc(-z / sqrt 2): exact to 1e-12.
+        // Quantiles of the normal CDF 0.5 erfc(-z / sqrt 2): Abramowitz and Stegun's rational
+        // approximation 26.2.23 (error under 4.5e-4), then three Newton steps (each squares the
+        // error: 1e-14). The library loads faster than with bisection (80 erfc per entry).
         for (int i = 0; i < kNormalTable; ++i) {
             const double u = (i + 0.5) / kNormalTable;
-            double lo = -10.0, hi = 10.0;
-            for (int it = 0; it < 80; ++it) {
-                const double mid = 0.5 * (lo + hi);
-                (0.5 * std::erfc(-mid / std::sqrt(2.0)) < u ? lo : hi) = mid;
+            const double p = std::min(u, 1.0 - u), t = std::sqrt(-2.0 * std::log(p));
+            double z = t - (2.515517 + t * (0.802853 + t * 0.010328)) /
+                               (1.0 + t * (1.432788 + t * (0.189269 + t * 0.001308)));
+            if (u < 0.5) z = -z;
+            for (int it = 0; it < 3; ++it) {
+                const double cdf = 0.5 * std::erfc(-z / std::sqrt(2.0));
+                const double pdf = std::exp(-0.5 * z * z) / std::sqrt(2.0 * 3.14159265358979323846);
+                z -= (cdf - u) / pdf;
             }
-            quantile[i] = 0.5 * (lo + hi);
+            quantile[i] = z;
         }
     }
 };
@@ -257,7 +263,10 @@ uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty) {
 }
 
 uint64_t node_key(uint64_t tile, int depth, uint32_t ix, uint32_t iy) {
-    return mix(mix(tile, static_cast<uint64_t>(depth)), (static_cast<uint64_t>(ix) << 32) | iy);
+    // One hash: the depth enters through a distinct odd multiple per level (a bijection of the
+    // tile key for each depth), the cell through its packed coordinates.
+    return mix(tile ^ (static_cast<uint64_t>(depth + 1) * 0x9e3779b97f4a7c15ull),
+               (static_cast<uint64_t>(ix) << 32) | iy);
 }
 
 namespace {

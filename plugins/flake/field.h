@@ -12,6 +12,7 @@
 // square onto GGX normals in flake_normal().
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdint>
 
@@ -32,6 +33,11 @@ inline uint64_t mix(uint64_t a, uint64_t b) {
     x *= 0x94d049bb133111ebull;
     x ^= x >> 31;
     return x;
+}
+
+/** 2^-d exactly, for 0 <= d <= 1022 (the cell size at depth d), without a libm call. */
+inline double pow2_neg(int d) {
+    return std::bit_cast<double>(static_cast<uint64_t>(1023 - d) << 52);
 }
 
 /** Uniform double in [0, 1) from the top 53 bits. */
@@ -123,21 +129,25 @@ struct Flake {
 };
 
 /** The position of flake i of the leaf with key `key` whose cell is [x0, x0 + size]^2
- *  (tile-relative); returns the flake's hash for leaf_flake_finish(). */
+ *  (tile-relative): one hash, its two halves the position's fractions of the cell (32 bits each:
+ *  2^-32 of a cell, far below any footprint). Returns the hash for leaf_flake_finish(). */
 inline uint64_t leaf_flake_position(uint64_t key, uint32_t i, double x0, double y0, double size,
                                     Flake& f) {
     const uint64_t h = mix(key, i);
-    f.u = x0 + size * unit(mix(h, 1));
-    f.v = y0 + size * unit(mix(h, 2));
+    f.u = x0 + size * (static_cast<double>(h >> 32) * 0x1p-32);
+    f.v = y0 + size * (static_cast<double>(h & 0xffffffffu) * 0x1p-32);
     return h;
 }
 
-/** The rest of a flake from its hash: its normal and its colour number. */
+/** The rest of a flake from its hash, by one more hash: its normal (24 bits per coordinate of the
+ *  square of normals) and its colour number (16 bits: the colour table has at most 360 entries).
+ */
 inline void leaf_flake_finish(const FieldParams& fp, uint64_t h, Flake& f) {
+    const uint64_t g = mix(h, 3);
     float s, t;
-    unit2(mix(h, 3), s, t);
+    unit2(g, s, t);
     f.m = flake_normal(fp.alpha, s, t);
-    f.color_u = static_cast<float>(mix(h, 4) >> 40) * 0x1p-24f;
+    f.color_u = static_cast<float>(g & 0xffffu) * 0x1p-16f;
 }
 
 /** The flake count of one tile, as the root of its quad-tree. */
@@ -187,7 +197,7 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
     while (top > 0) {
         const Node node = stack[--top];
         if (node.n == 0) continue;
-        const double size = std::ldexp(1.0, -node.depth);
+        const double size = pow2_neg(node.depth);
         const double x0 = node.ix * size, y0 = node.iy * size;
         if (!overlaps(local, x0, y0, x0 + size, y0 + size)) continue;
         const uint64_t key = node_key(tk, node.depth, node.ix, node.iy);

@@ -159,6 +159,8 @@ uint32_t flake_stats(const void* inst, SpangleStat_v3* out, uint32_t capacity) {
         {"ns per point in prepare", per_point(m.ns_prepare)},
         {"ns per point in eval", per_point(m.ns_eval)},
         {"ns per point in sample", per_point(m.ns_sample)},
+        {"smooth lobe tables built (ms, 0: read from the table cache)", m.smooth.build_ms},
+        {"smooth lobe tables read from the table cache", m.smooth.from_cache ? 1.0 : 0.0},
     };
     const auto n = static_cast<uint32_t>(sizeof(s) / sizeof(s[0]));
     for (uint32_t i = 0; i < std::min(n, capacity); ++i) out[i] = s[i];

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "../common/plugin_support.h"
+#include "table_cache.h"
 
 namespace spangle::flake {
 
@@ -53,11 +54,15 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
         std::max(param_number(p, "exact_flakes"), static_cast<double>(m.field.leaf_size)));
     m.enumerate_cap =
         static_cast<uint32_t>(std::min(4.0 * m.max_flakes + 64.0, double{kEnumerateBound}));
+    // Tables come from the persistent cache when an earlier process (or this one) built them.
+    const TableCache cache = TableCache::from_environment([host](const std::string& msg) {
+        if (host && host->log) host->log(host->context, SPANGLE_LOG_WARNING, msg.c_str());
+    });
     m.coat.init(param_number(p, "coat") != 0.0, static_cast<float>(param_number(p, "coat_ior")),
-                static_cast<float>(param_number(p, "coat_roughness")));
+                static_cast<float>(param_number(p, "coat_roughness")), &cache);
     if (!build_fresnel(m.fresnel, p, host, why) || !build_colors(m.colors, m.base, p, host, why))
         return false;
-    m.smooth.init(m.alpha, gamma, &m.fresnel);
+    m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
     m.grid.init(m.alpha, gamma);
     return true;
 }

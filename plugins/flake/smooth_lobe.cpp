@@ -1,31 +1,19 @@
 #include "smooth_lobe.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstring>
 #include <map>
 #include <mutex>
+#include <string>
+#include <thread>
 #include <tuple>
 
-namespace spangle::flake {
+#include "slope_integral.h"
+#include "table_cache.h"
 
-/** The blur table: n_o view angles x n_x x n_y compactified slopes, four floats per node (R and
- *  the blurred Fresnel's ratio to F(wo.h) per channel). A view angle's slice is computed the first
- *  time it is needed; call_once makes that safe from any number of shading threads. */
-struct BlurTable {
-    float alpha = 0.15f, kappa = 0.0f, sigma = 0.0f;
-    double sin2_half = 0.0;
-    FresnelTable fresnel;  ///< a copy: the table may outlive the material that made it
-    int n_o = 0, n_x = 0, n_y = 0;
-    std::vector<float> data;
-    std::unique_ptr<std::once_flag[]> built;
-    /** Mass corrections at kPerNode view angles per node interval (index kPerNode k is node k):
-     *  interpolating two nodes' R at an angle between them does not keep the exact mass. */
-    std::vector<float> correction;
-    std::unique_ptr<std::once_flag[]> corrected;
-    const float* node(int k) const;
-    float mass_correction(float fk) const;
-};
+namespace spangle::flake {
 
 namespace {
 
@@ -37,9 +25,9 @@ constexpr int kGrazingNodes = 26;  ///< cos = 0.5 / 1.2^j, j = 1..26 (down to 0.
 constexpr int kViewNodes = kThetaNodes + kGrazingNodes;
 constexpr float kThetaStep = 4.0f * 3.14159265f / 180.0f;
 const float kLogRatio = std::log(1.2f);
-/** Mass corrections per view-node interval (see BlurTable::correction). */
-constexpr int kPerNode = 2;
-constexpr int kVndfGrid = 256;  ///< stratified VNDF samples per side for the normalisation
+/** Below the last view node the last node's table is used; its mass is corrected at
+ *  cos = cos_last / 2^m, m = 0 .. kTailCorrections - 1 (down to 1e-7). */
+constexpr int kTailCorrections = 17;
 
 /** wo's azimuth as (cos, sin); (1, 0) at normal incidence. */
 void azimuth(V3 wo, float& c, float& s) {
@@ -69,7 +57,7 @@ float scale_x(float kappa) {
 }
 /** 1 / cos(theta_o), smoothly limited to 20 at grazing views: the cone's reach across wo's plane
  *  grows as 1 / cos, and a kink (a hard clamp) would be a kink in every table entry between two
- *  view nodes, which linear interpolation cannot follow. */
+ *  view nodes, which interpolation cannot follow. */
 float grazing_stretch(float cos_o) {
     return 1.0f / std::hypot(cos_o, 0.05f);
 }
@@ -92,7 +80,18 @@ double unsquash(double w, double s) {
     return s * w / (1.0 - std::fabs(w));
 }
 
-/** Bilinear lookup of view node k at compactified slopes (wx in [-1, 1], wy in [0, 1]). */
+/** Catmull-Rom weights of the four taps around a fraction t in [0, 1]. */
+void catmull_rom(float t, float w[4]) {
+    const float t2 = t * t, t3 = t2 * t;
+    w[0] = 0.5f * (-t3 + 2.0f * t2 - t);
+    w[1] = 0.5f * (3.0f * t3 - 5.0f * t2 + 2.0f);
+    w[2] = 0.5f * (-3.0f * t3 + 4.0f * t2 + t);
+    w[3] = 0.5f * (t3 - t2);
+}
+
+/** Lookup in one view node's slice at compactified slopes (wx in [-1, 1], wy in [0, 1]): R
+ *  bicubically (Catmull-Rom; rows mirrored at wy = 0, where the table is symmetric; clamped to
+ *  be non-negative), the Fresnel ratios bilinearly. */
 void lookup_node(const BlurTable& t, const float* slice, float wx, float wy, float out[4]) {
     const float fx = (wx + 1.0f) * 0.5f * static_cast<float>(t.n_x - 1);
     const float fy = wy * static_cast<float>(t.n_y - 1);
@@ -102,11 +101,27 @@ void lookup_node(const BlurTable& t, const float* slice, float wx, float wy, flo
                 ay = std::clamp(fy - static_cast<float>(iy), 0.0f, 1.0f);
     const std::size_t row = static_cast<std::size_t>(t.n_x) * 4;
     const float* p = slice + static_cast<std::size_t>(iy) * row + 4 * ix;
-    for (int c = 0; c < 4; ++c) {
+    for (int c = 1; c < 4; ++c) {
         const float top = p[c] + ax * (p[4 + c] - p[c]);
         const float bottom = p[row + c] + ax * (p[row + 4 + c] - p[row + c]);
         out[c] = top + ay * (bottom - top);
     }
+    float wxs[4], wys[4];
+    catmull_rom(ax, wxs);
+    catmull_rom(ay, wys);
+    float r = 0.0f;
+    for (int b = 0; b < 4; ++b) {
+        int j = iy - 1 + b;
+        j = j < 0 ? -j : std::min(j, t.n_y - 1);
+        const float* line = slice + static_cast<std::size_t>(j) * row;
+        float sum = 0.0f;
+        for (int a = 0; a < 4; ++a) {
+            const int i = std::clamp(ix - 1 + a, 0, t.n_x - 1);
+            sum += wxs[a] * line[4 * i];
+        }
+        r += wys[b] * sum;
+    }
+    out[0] = std::max(0.0f, r);
 }
 
 /** The compactified slopes of h at view node k. */
@@ -137,7 +152,7 @@ float fractional_node_cos(float fk) {
 /** R (and the Fresnel ratios) at fractional view node fk: the two nodes around it, linearly. */
 void interpolate_nodes(const BlurTable& bt, float fk, V3 h, float out[4]) {
     const int k = std::min(static_cast<int>(fk), bt.n_o - 2);
-    const float t = fk - static_cast<float>(k);
+    const float t = std::min(fk - static_cast<float>(k), 1.0f);
     float a[4], b[4], wx, wy;
     node_coords(bt, node_cos(k), h, wx, wy);
     lookup_node(bt, bt.node(k), wx, wy, a);
@@ -146,22 +161,29 @@ void interpolate_nodes(const BlurTable& bt, float fk, V3 h, float out[4]) {
     for (int c = 0; c < 4; ++c) out[c] = a[c] + t * (b[c] - a[c]);
 }
 
-/** Fills node k of the blur table from the exact integral. */
-void build_node(BlurTable& t, int k) {
+/** Table columns and rows, (32 r + 1) x (16 r + 1): the rim of a wide cone over near-mirror
+ *  flakes is about one slope unit wide at a distance kappa; it is resolved with a few nodes.
+ *  r = 1 up to kappa 1.2, where the tabulated lobe is within 0.3% of the exact one for views
+ *  above cos 0.3 (tests/stat/test_flake_smooth.cpp). */
+int refinement(float kappa) {
+    return std::clamp(static_cast<int>(std::ceil(kappa / 1.2f)), 1, 4);
+}
+
+/** Fills node k of the blur table from the exact integral (R and the Fresnel ratios). */
+void build_node(BlurTable& t, const FresnelTable& fresnel, int k) {
     const float cos_k = node_cos(k);
     const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_k * cos_k)), 0.0f, cos_k};
-    const CapParams cp{t.alpha, t.sin2_half, &t.fresnel};
     const double sx = scale_x(t.kappa), sy = scale_y(t.kappa, cos_k);
     float ax, ay;
     proposal_alpha_of(t.alpha, t.kappa, cos_k, ax, ay);
     const float g1 = mf::ggx_g1(wo, ax, ay);
+    float* slice = &t.data[static_cast<std::size_t>(k) * t.n_x * t.n_y * 4];
     for (int j = 0; j < t.n_y; ++j)
         for (int i = 0; i < t.n_x; ++i) {
-            float* out = &t.data[((static_cast<std::size_t>(k) * t.n_y + j) * t.n_x + i) * 4];
+            float* out = slice + (static_cast<std::size_t>(j) * t.n_x + i) * 4;
+            out[0] = -1.0f;  // not yet known
             const double wx = -1.0 + 2.0 * i / (t.n_x - 1),
                          wy = static_cast<double>(j) / (t.n_y - 1);
-            out[0] = out[1] = out[2] = out[3] = 1.0f;  // at infinite slope the blur is nothing
-            out[0] = -1.0f;                            // not yet known
             // The last nodes stand for infinite slopes: take them just short of it.
             const double x = unsquash(std::clamp(wx, -0.999, 0.999), sx),
                          y = unsquash(std::min(wy, 0.999), sy);
@@ -170,20 +192,20 @@ void build_node(BlurTable& t, int k) {
             const V3 wi = mf::reflect(wo, h);
             if (!(wi.z > 1e-5f)) continue;
             float i_f[3], i_1;
-            cap_integral(cp, wo, wi, i_f, i_1, 1e-4);
+            slope_integral(t.alpha, t.sin2_half, &fresnel, wo, wi, i_f, i_1);
             // The share of wi's cone above the horizon is geometry, applied exactly at eval time.
             const auto above = static_cast<float>(cone_fraction_above(wi.z, t.sin2_half));
             const float p = g1 * mf::ggx_d(h, ax, ay) / (4.0f * wo.z) * above;
             if (!(p > 0.0f)) continue;
             out[0] = (i_1 / t.sigma) / p;
             float f[3];
-            t.fresnel.eval(mf::dot(wo, h), f);
+            fresnel.eval(mf::dot(wo, h), f);
             for (int c = 0; c < 3; ++c)
                 out[1 + c] = i_1 > 0.0f && f[c] > 0.0f ? i_f[c] / (i_1 * f[c]) : 1.0f;
         }
     // Directions under the horizon were skipped: continue each row from its nearest known node.
     for (int j = 0; j < t.n_y; ++j) {
-        float* row = &t.data[(static_cast<std::size_t>(k) * t.n_y + j) * t.n_x * 4];
+        float* row = slice + static_cast<std::size_t>(j) * t.n_x * 4;
         int known = -1;
         for (int i = 0; i < t.n_x; ++i)
             if (row[4 * i] >= 0.0f) known = i;
@@ -199,50 +221,131 @@ void build_node(BlurTable& t, int k) {
     }
 }
 
-/** The exact mass of the blurred lobe over wi against the table's, at view cosine cos_e (wo in the
- *  xz-plane), for `lookup(h, v)` giving R and the Fresnel ratios at half vector h. Exact:
- *  E[A 1_valid] over the visible normals (r their mirror direction, A the share of its cone above
- *  the horizon). Table: the eval'd lobe is q A R, so its mass is E[A R] over the proposal's own
- *  directions; R is bounded there (the proposal is wider than the blurred lobe), where an estimate
- *  over the unblurred normals would weight the blur's tails by rho / p and need far more samples
- *  once the cone is wider than the flake lobe. Both on stratified grids. */
+/** The table lobe's mass over wi at view cosine cos_e (wo in the xz-plane), for lookup(h, v)
+ *  giving R and the Fresnel ratios at half vector h: the integral of p A R over the directions
+ *  above the horizon. In half-vector slopes (x, y) (units of alpha) those directions are the disc
+ *  (x - T)^2 + y^2 < 1 / (alpha cos)^2, T = tan(theta) / alpha, so the integral is taken row by
+ *  row up to its edge (no direction under the horizon inside the quadrature), in compactified
+ *  coordinates: 6 x 12 pieces of 3-point Gauss-Legendre, dw_i = 4 (wo.h) alpha^2 h_z^3 dx dy. */
 template <class Lookup>
-double mass_ratio(const BlurTable& t, float cos_e, int grid, Lookup&& lookup) {
-    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_e * cos_e)), 0.0f, cos_e};
+double table_mass(const BlurTable& t, float cos_e, Lookup&& lookup) {
+    constexpr double kX3[3] = {0.112701665379258311, 0.5, 0.887298334620741689};
+    constexpr double kW3[3] = {0.277777777777777778, 0.444444444444444444, 0.277777777777777778};
+    constexpr int kRows = 6, kCols = 12;
+    const double c = std::clamp(static_cast<double>(cos_e), 1e-7, 1.0);
+    const double s = std::sqrt(std::max(0.0, 1.0 - c * c));
+    const V3 wo{static_cast<float>(s), 0.0f, static_cast<float>(c)};
+    const double a = t.alpha, centre = s / (c * a), radius = 1.0 / (a * c);
+    const double sx = scale_x(t.kappa), sy = scale_y(t.kappa, static_cast<float>(c));
     float ax, ay;
-    proposal_alpha_of(t.alpha, t.kappa, cos_e, ax, ay);
-    double exact = 0.0, tabled = 0.0;
-    const auto g = static_cast<float>(grid);
-    for (int a = 0; a < grid; ++a)
-        for (int b = 0; b < grid; ++b) {
-            const float u0 = (static_cast<float>(a) + 0.5f) / g,
-                        u1 = (static_cast<float>(b) + 0.5f) / g;
-            const V3 r = mf::reflect(wo, mf::ggx_sample_visible(wo, t.alpha, t.alpha, u0, u1));
-            if (r.z > 0.0f) exact += cone_fraction_above(r.z, t.sin2_half);
-            const V3 h = mf::ggx_sample_visible(wo, ax, ay, u0, u1);
-            const V3 wi = mf::reflect(wo, h);
-            if (!(wi.z > 0.0f)) continue;
-            float v[4];
-            lookup(h, v);
-            tabled += static_cast<double>(v[0]) * cone_fraction_above(wi.z, t.sin2_half);
+    proposal_alpha_of(t.alpha, t.kappa, static_cast<float>(c), ax, ay);
+    const float g1 = mf::ggx_g1(wo, ax, ay);
+    const double wy_end = radius / (sy + radius);
+    double sum = 0.0;
+    for (int pj = 0; pj < kRows; ++pj)
+        for (int gj = 0; gj < 3; ++gj) {
+            const double wy = wy_end * (pj + kX3[gj]) / kRows;
+            const double y = unsquash(wy, sy), dy = sy / ((1.0 - wy) * (1.0 - wy));
+            const double chord = std::sqrt(std::max(0.0, radius * radius - y * y));
+            const double x0 = centre - chord, x1 = centre + chord;
+            const double w0 = x0 / (sx + std::fabs(x0)), w1 = x1 / (sx + std::fabs(x1));
+            double row = 0.0;
+            for (int pi = 0; pi < kCols; ++pi)
+                for (int gi = 0; gi < 3; ++gi) {
+                    const double wx = w0 + (w1 - w0) * (pi + kX3[gi]) / kCols;
+                    const double x = unsquash(wx, sx);
+                    const double dx = sx / ((1.0 - std::fabs(wx)) * (1.0 - std::fabs(wx)));
+                    const V3 h = mf::normalize(
+                        {t.alpha * static_cast<float>(x), t.alpha * static_cast<float>(y), 1.0f});
+                    const V3 wi = mf::reflect(wo, h);
+                    if (!(wi.z > 0.0f)) continue;
+                    float v[4];
+                    lookup(h, v);
+                    const double p = static_cast<double>(g1 * mf::ggx_d(h, ax, ay)) / (4.0 * c);
+                    const double hz = h.z;
+                    const double jac =
+                        4.0 * static_cast<double>(mf::dot(wo, h)) * a * a * hz * hz * hz * dx * dy;
+                    row += kW3[gi] * p * cone_fraction_above(wi.z, t.sin2_half) *
+                           static_cast<double>(v[0]) * jac;
+                }
+            sum += kW3[gj] * row * (w1 - w0) / kCols;
         }
-    return tabled > 0.0 ? exact / tabled : 1.0;
+    return 2.0 * sum * wy_end / kRows;  // both halves of the symmetric disc
 }
 
-/** Scales node k's R so that the table's mass over wi equals the exact one (mass_ratio). */
+/** Scales node k's R so that the table's mass over wi equals the exact one. */
 void normalise_node(BlurTable& t, int k) {
     const float cos_k = node_cos(k);
-    const float* slice = &t.data[static_cast<std::size_t>(k) * t.n_x * t.n_y * 4];
-    const auto scale = static_cast<float>(mass_ratio(t, cos_k, kVndfGrid, [&](V3 h, float v[4]) {
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_k * cos_k)), 0.0f, cos_k};
+    const double mass = table_mass(t, cos_k, [&](V3 h, float v[4]) {
         float wx, wy;
         node_coords(t, cos_k, h, wx, wy);
-        lookup_node(t, slice, wx, wy, v);
-    }));
-    for (std::size_t n = 0; n < static_cast<std::size_t>(t.n_x * t.n_y); ++n)
-        t.data[(static_cast<std::size_t>(k) * t.n_x * t.n_y + n) * 4] *= scale;
+        lookup_node(t, t.node(k), wx, wy, v);
+    });
+    const double exact = lobe_mass(t.alpha, t.sin2_half, wo);
+    const auto scale = static_cast<float>(mass > 0.0 ? exact / mass : 1.0);
+    float* slice = &t.data[static_cast<std::size_t>(k) * t.n_x * t.n_y * 4];
+    for (std::size_t n = 0; n < static_cast<std::size_t>(t.n_x * t.n_y); ++n) slice[n * 4] *= scale;
+}
+
+/** The mass correction at fractional node fk (the interpolated table against the exact mass);
+ *  fk beyond the last node stands for cos = cos_last / 2^(fk - last) on the last node's table. */
+float correction_at(const BlurTable& t, float fk) {
+    const float last = static_cast<float>(t.n_o - 1);
+    const float cos_e =
+        fk <= last ? fractional_node_cos(fk) : node_cos(t.n_o - 1) * std::exp2(-(fk - last));
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_e * cos_e)), 0.0f, cos_e};
+    const double mass = table_mass(
+        t, cos_e, [&](V3 h, float v[4]) { interpolate_nodes(t, std::min(fk, last), h, v); });
+    return static_cast<float>(mass > 0.0 ? lobe_mass(t.alpha, t.sin2_half, wo) / mass : 1.0);
+}
+
+/** Runs job(i) for i in [0, n) on up to `threads` threads. */
+template <class Job>
+void parallel_for(int n, int threads, Job&& job) {
+    threads = std::clamp(threads, 1, n);
+    if (threads == 1) {
+        for (int i = 0; i < n; ++i) job(i);
+        return;
+    }
+    std::vector<std::thread> pool;
+    for (int w = 0; w < threads; ++w)
+        pool.emplace_back([&, w] {
+            for (int i = w; i < n; i += threads) job(i);
+        });
+    for (auto& th : pool) th.join();
 }
 
 }  // namespace
+
+std::shared_ptr<BlurTable> build_blur_table(float alpha, double sin2_half,
+                                            const FresnelTable& fresnel, int threads) {
+    auto t = std::make_shared<BlurTable>();
+    t->alpha = alpha;
+    t->sin2_half = sin2_half;
+    t->sigma = static_cast<float>(4.0 * 3.14159265358979 * sin2_half);
+    const double half = std::asin(std::sqrt(sin2_half));
+    t->kappa = std::tan(static_cast<float>(half)) / alpha;
+    const int r = refinement(t->kappa);
+    t->n_o = kViewNodes;
+    t->n_x = 32 * r + 1;
+    t->n_y = 16 * r + 1;
+    t->data.assign(static_cast<std::size_t>(t->n_o) * t->n_x * t->n_y * 4, 1.0f);
+    parallel_for(t->n_o, threads, [&](int k) {
+        build_node(*t, fresnel, k);
+        normalise_node(*t, k);
+    });
+    // Halfway between view nodes (and below the last one) the interpolated table's mass.
+    const int mids = t->n_o - 1;
+    t->correction.assign(static_cast<std::size_t>(2 * mids + 1 + kTailCorrections), 1.0f);
+    parallel_for(mids + kTailCorrections, threads, [&](int i) {
+        const float fk =
+            i < mids ? static_cast<float>(i) + 0.5f : static_cast<float>(mids + 1 + (i - mids));
+        t->correction[static_cast<std::size_t>(i < mids ? 2 * i + 1 : 2 * mids + 1 + (i - mids))] =
+            correction_at(*t, fk);
+    });
+    return t;
+}
 
 double cone_fraction_above(double r_z, double sin2_half) {
     // The cone (a spherical cap of radius gamma around r) against the lower hemisphere (a cap of
@@ -262,87 +365,6 @@ double cone_fraction_above(double r_z, double sin2_half) {
     return std::clamp(1.0 - below / cap, 0.0, 1.0);
 }
 
-const float* BlurTable::node(int k) const {
-    std::call_once(built[k], [&] {
-        auto& self = const_cast<BlurTable&>(*this);
-        build_node(self, k);
-        normalise_node(self, k);
-    });
-    return &data[static_cast<std::size_t>(k) * n_x * n_y * 4];
-}
-
-float BlurTable::mass_correction(float fk) const {
-    const float e = std::clamp(kPerNode * fk, 0.0f, static_cast<float>(correction.size() - 1));
-    const int e0 = std::min(static_cast<int>(e), static_cast<int>(correction.size()) - 2);
-    for (int i = e0; i <= e0 + 1; ++i) {
-        std::call_once(corrected[static_cast<std::size_t>(i)], [&] {
-            // The table between nodes, as interpolated, against the exact mass (as in
-            // normalise_node).
-            const float fi = static_cast<float>(i) / kPerNode;
-            auto& self = const_cast<BlurTable&>(*this);
-            self.correction[static_cast<std::size_t>(i)] = static_cast<float>(
-                mass_ratio(*this, fractional_node_cos(fi), kVndfGrid,
-                           [&](V3 h, float v[4]) { interpolate_nodes(*this, fi, h, v); }));
-        });
-    }
-    const float t = e - static_cast<float>(e0);
-    return correction[static_cast<std::size_t>(e0)] +
-           t * (correction[static_cast<std::size_t>(e0) + 1] -
-                correction[static_cast<std::size_t>(e0)]);
-}
-
-namespace {
-
-/** Tables by (alpha, gamma, Fresnel), shared within the process: scenes and tests often create
- *  the same material many times. Entries live as long as some material holds them. */
-std::shared_ptr<BlurTable> shared_table(float alpha, double sin2_half, float kappa, float sigma,
-                                        const FresnelTable& fresnel) {
-    using Key = std::tuple<float, double, std::vector<float>>;
-    static std::mutex mutex;
-    static std::map<Key, std::weak_ptr<BlurTable>> cache;
-    Key key{alpha, sin2_half,
-            std::vector<float>(&fresnel.rgb[0][0], &fresnel.rgb[0][0] + 3 * FresnelTable::kNodes)};
-    std::lock_guard<std::mutex> lock(mutex);
-    if (auto hit = cache[key].lock()) return hit;
-    auto t = std::make_shared<BlurTable>();
-    t->alpha = alpha;
-    t->kappa = kappa;
-    t->sigma = sigma;
-    t->sin2_half = sin2_half;
-    t->fresnel = fresnel;
-    // The rim of a wide cone over near-mirror flakes is about one slope unit wide at a distance
-    // kappa: resolve it with a few nodes.
-    const int refine = std::clamp(static_cast<int>(std::ceil(kappa / 1.5f)), 1, 4);
-    t->n_o = kViewNodes;
-    t->n_x = 48 * refine + 1;
-    t->n_y = 24 * refine + 1;
-    t->data.assign(static_cast<std::size_t>(t->n_o) * t->n_x * t->n_y * 4, 1.0f);
-    t->built = std::make_unique<std::once_flag[]>(static_cast<std::size_t>(t->n_o));
-    t->correction.assign(static_cast<std::size_t>(kPerNode * (t->n_o - 1) + 1), 1.0f);
-    t->corrected = std::make_unique<std::once_flag[]>(t->correction.size());
-    cache[key] = t;
-    return t;
-}
-
-}  // namespace
-
-void SmoothLobe::init(float alpha_, float gamma_rad, const FresnelTable* fresnel_) {
-    alpha = alpha_;
-    const double s = std::sin(0.5 * static_cast<double>(gamma_rad));
-    sin2_half = s * s;
-    sigma = static_cast<float>(4.0 * 3.14159265358979 * sin2_half);
-    kappa = std::tan(0.5f * gamma_rad) / alpha;
-    // The blur changes the lobe by O(kappa^2): below kappa = 0.01 it is under 1e-4.
-    blur_negligible = kappa < 0.01f;
-    fresnel = fresnel_;
-    for (int i = 0; i < kValidNodes; ++i) {
-        const float mu = std::max(1e-7f, static_cast<float>(i) / (kValidNodes - 1));
-        const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
-        valid[i] = static_cast<float>(valid_fraction_exact(alpha, wo, 1e-9));
-    }
-    table = blur_negligible ? nullptr : shared_table(alpha, sin2_half, kappa, sigma, *fresnel);
-}
-
 float SmoothLobe::valid_fraction(float cos_o) const {
     const float x = std::clamp(cos_o, 0.0f, 1.0f) * static_cast<float>(kValidNodes - 1);
     const int i = std::min(static_cast<int>(x), kValidNodes - 2);
@@ -355,9 +377,155 @@ void SmoothLobe::blur(float cos_o, V3 h, float out[4]) const {
         out[0] = out[1] = out[2] = out[3] = 1.0f;
         return;
     }
+    const BlurTable& t = *table;
+    const float last = static_cast<float>(t.n_o - 1);
     const float fk = node_index(cos_o);
-    interpolate_nodes(*table, fk, h, out);
-    out[0] *= table->mass_correction(fk);
+    interpolate_nodes(t, fk, h, out);
+    // The correction, linear between its samples: at nodes and halfway (1 at nodes), then below
+    // the last node at cos_last / 2^m.
+    const float cos_last = node_cos(t.n_o - 1);
+    float corr;
+    if (cos_o >= cos_last || fk < last) {
+        const float e = std::clamp(2.0f * fk, 0.0f, 2.0f * last);
+        const int e0 = std::min(static_cast<int>(e), 2 * (t.n_o - 1) - 1);
+        const float a = e - static_cast<float>(e0);
+        corr = t.correction[static_cast<std::size_t>(e0)] +
+               a * (t.correction[static_cast<std::size_t>(e0) + 1] -
+                    t.correction[static_cast<std::size_t>(e0)]);
+    } else {
+        const float m = std::clamp(std::log2(cos_last / std::max(cos_o, 1e-30f)), 0.0f,
+                                   static_cast<float>(kTailCorrections - 1) - 1e-3f);
+        const auto m0 = static_cast<std::size_t>(m);
+        const std::size_t base = static_cast<std::size_t>(2 * (t.n_o - 1));
+        // Sample 0 of the tail is the last node itself (correction 1).
+        const float c0 = m0 == 0 ? t.correction[base] : t.correction[base + m0];
+        const float c1 = t.correction[base + m0 + 1];
+        corr = c0 + (m - static_cast<float>(m0)) * (c1 - c0);
+    }
+    out[0] *= corr;
+}
+
+namespace {
+
+/** Tables by (alpha, gamma, Fresnel), shared within the process: scenes and tests often create
+ *  the same material many times. Entries live as long as some material holds them. */
+std::mutex g_shared_mutex;
+std::map<std::string, std::weak_ptr<const BlurTable>> g_shared;
+
+}  // namespace
+
+void SmoothLobe::init(float alpha_, float gamma_rad, const FresnelTable* fresnel_,
+                      const TableCache* cache) {
+    alpha = alpha_;
+    const double s = std::sin(0.5 * static_cast<double>(gamma_rad));
+    sin2_half = s * s;
+    sigma = static_cast<float>(4.0 * 3.14159265358979 * sin2_half);
+    kappa = std::tan(0.5f * gamma_rad) / alpha;
+    // The blur changes the lobe by O(kappa^2): below kappa = 0.01 it is under 1e-4.
+    blur_negligible = kappa < 0.01f;
+    fresnel = fresnel_;
+    const auto t0 = std::chrono::steady_clock::now();
+    // Everything the tables depend on, as bytes: the key of the process-wide share and of the
+    // disk cache (which adds the plugin's version).
+    TableKey key("smooth lobe");
+    key.add(alpha);
+    key.add(sin2_half);
+    key.add(blur_negligible);
+    if (!blur_negligible) key.add_bytes(&fresnel->rgb[0][0], sizeof(fresnel->rgb));
+    std::lock_guard<std::mutex> lock(g_shared_mutex);
+    std::vector<uint8_t> blob;
+    from_cache = cache && cache->load(key, blob) && unpack(blob);
+    if (!from_cache) {
+        for (int i = 0; i < kValidNodes; ++i) {
+            const float mu = std::max(1e-7f, static_cast<float>(i) / (kValidNodes - 1));
+            const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
+            valid[i] = static_cast<float>(valid_fraction_exact(alpha, wo, 1e-9));
+        }
+        table.reset();
+        if (!blur_negligible) {
+            const std::string name(key.bytes().begin(), key.bytes().end());
+            if (auto hit = g_shared[name].lock()) {
+                table = hit;
+            } else {
+                auto built = build_blur_table(alpha, sin2_half, *fresnel, table_threads());
+                g_shared[name] = built;
+                table = built;
+            }
+        }
+        build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0)
+                       .count();
+        if (cache) cache->store(key, pack());
+    }
+}
+
+namespace {
+
+template <class T>
+void put(std::vector<uint8_t>& out, const T* p, std::size_t n) {
+    const auto* b = reinterpret_cast<const uint8_t*>(p);
+    out.insert(out.end(), b, b + n * sizeof(T));
+}
+
+template <class T>
+bool get(const std::vector<uint8_t>& in, std::size_t& at, T* p, std::size_t n) {
+    if (at + n * sizeof(T) > in.size()) return false;
+    std::memcpy(p, in.data() + at, n * sizeof(T));
+    at += n * sizeof(T);
+    return true;
+}
+
+}  // namespace
+
+std::vector<uint8_t> SmoothLobe::pack() const {
+    std::vector<uint8_t> out;
+    put(out, valid, kValidNodes);
+    const int32_t has = table ? 1 : 0;
+    put(out, &has, 1);
+    if (!table) return out;
+    const BlurTable& t = *table;
+    const int32_t dims[3] = {t.n_o, t.n_x, t.n_y};
+    const float scalars[3] = {t.alpha, t.kappa, t.sigma};
+    const auto counts = static_cast<uint64_t>(t.data.size()),
+               corrections = static_cast<uint64_t>(t.correction.size());
+    put(out, dims, 3);
+    put(out, scalars, 3);
+    put(out, &t.sin2_half, 1);
+    put(out, &counts, 1);
+    put(out, &corrections, 1);
+    put(out, t.data.data(), t.data.size());
+    put(out, t.correction.data(), t.correction.size());
+    return out;
+}
+
+bool SmoothLobe::unpack(const std::vector<uint8_t>& in) {
+    std::size_t at = 0;
+    int32_t has = 0;
+    if (!get(in, at, valid, kValidNodes) || !get(in, at, &has, 1)) return false;
+    if (has != (blur_negligible ? 0 : 1)) return false;
+    table.reset();
+    if (!has) return at == in.size();
+    auto t = std::make_shared<BlurTable>();
+    int32_t dims[3];
+    float scalars[3];
+    uint64_t counts = 0, corrections = 0;
+    if (!get(in, at, dims, 3) || !get(in, at, scalars, 3) || !get(in, at, &t->sin2_half, 1) ||
+        !get(in, at, &counts, 1) || !get(in, at, &corrections, 1))
+        return false;
+    t->n_o = dims[0];
+    t->n_x = dims[1];
+    t->n_y = dims[2];
+    t->alpha = scalars[0];
+    t->kappa = scalars[1];
+    t->sigma = scalars[2];
+    if (counts != static_cast<uint64_t>(t->n_o) * t->n_x * t->n_y * 4 || corrections > (1u << 16) ||
+        at + (counts + corrections) * sizeof(float) != in.size())
+        return false;
+    t->data.resize(counts);
+    t->correction.resize(corrections);
+    get(in, at, t->data.data(), counts);
+    get(in, at, t->correction.data(), corrections);
+    table = t;
+    return true;
 }
 
 void SmoothLobe::proposal_alpha(float cos_o, float& ax, float& ay) const {

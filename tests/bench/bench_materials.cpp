@@ -7,7 +7,11 @@
 #include <benchmark/benchmark.h>
 #include <fmt/format.h>
 
+#include <unistd.h>
+
 #include <cmath>
+#include <cstdlib>
+#include <filesystem>
 #include <memory>
 #include <vector>
 
@@ -192,7 +196,97 @@ BENCHMARK(BM_Flake)
 /** Neighbouring shading points, as a render makes them, and the colour table's cost. */
 BENCHMARK(BM_Flake)->Args({100, 0, 1, 0})->Args({10000, 0, 1, 0})->Args({100, 0, 0, 1});
 
+/** The fixed cost of a flake material: creating an instance, whose smooth lobe (and rough coat)
+ *  tables are built (cold: the table cache off) or read from the persistent cache (cached).
+ *  Args: material (index into kTableMaterials), cached. One build thread unless
+ *  SPANGLE_FLAKE_THREADS says otherwise (set it before running to compare). */
+struct TableMaterial {
+    const char* label;
+    double alpha, gamma;
+    bool rough_coat;
+};
+constexpr TableMaterial kTableMaterials[] = {
+    {"default: alpha 0.15, gamma 3", 0.15, 3.0, false},
+    {"car paint of the issue: alpha 0.047, gamma 5", 0.047, 5.0, false},
+    {"alpha 0.15, gamma 10", 0.15, 10.0, false},
+    {"alpha 0.05, gamma 10", 0.05, 10.0, false},
+    {"alpha 0.35, gamma 30", 0.35, 30.0, false},
+    {"alpha 0.001, gamma 45 (cone 400x the lobe)", 0.001, 45.0, false},
+    {"default with a rough coat (0.3)", 0.15, 3.0, true},
+};
+
+void BM_FlakeTables(benchmark::State& state) {
+    const TableMaterial& tm = kTableMaterials[state.range(0)];
+    const bool cached = state.range(1) != 0;
+    const std::string dir = fmt::format("/tmp/spangle_bench_tables_{}", ::getpid());
+    setenv("SPANGLE_FLAKE_CACHE", cached ? dir.c_str() : "off", 1);
+    if (!std::getenv("SPANGLE_FLAKE_THREADS")) setenv("SPANGLE_FLAKE_THREADS", "1", 1);
+    ColorConfig color = test::shipped_config();
+    HostServices host(color, test::quiet_log());
+    PluginLoader loader{plugin_search_path({})};
+    Material m;
+    m.name = "bench";
+    m.plugin = "flake";
+    m.model = "flake";
+    m.params = {number("flake_roughness", tm.alpha), number("gamma", tm.gamma)};
+    if (tm.rough_coat) {
+        ParamEntry coat = number("coat", 1.0);
+        coat.kind = ParamEntry::Kind::Bool;
+        m.params.push_back(coat);
+        m.params.push_back(number("coat_roughness", 0.3));
+    }
+    if (cached) create_material(loader, m, host);  // fills the cache
+    for (auto _ : state) benchmark::DoNotOptimize(create_material(loader, m, host));
+    state.SetLabel(fmt::format("{}, {}", tm.label, cached ? "cached" : "cold"));
+    state.counters["ms_per_material"] =
+        benchmark::Counter(static_cast<double>(state.iterations()) * 1e-3,
+                           benchmark::Counter::kIsRate | benchmark::Counter::kInvert);
+    std::error_code ec;
+    std::filesystem::remove_all(dir, ec);
+}
+BENCHMARK(BM_FlakeTables)
+    ->ArgsProduct({{0, 1, 2, 3, 4, 5, 6}, {0, 1}})
+    ->Unit(benchmark::kMillisecond)
+    ->MinTime(0.5);
+
+/** `spangle_bench --shade CONFIG BATCHES` shades BATCHES batches of one configuration once, with
+ *  no timing: for instruction counts under valgrind --tool=callgrind, which the machine's load
+ *  does not change (run two batch counts and take the difference to drop the set-up). CONFIG is
+ *  `conductor` or `flake:LAMBDA:ALGORITHM` (tree or enumerate; lambda 0: the smooth regime). */
+int shade_only(const std::string& config, int batches) {
+    std::unique_ptr<Fixture> f;
+    if (config == "conductor") {
+        f = std::make_unique<Fixture>(
+            "smooth", "conductor",
+            ParamList{number("roughness", 0.15), text("preset", "aluminium")}, 0.0, false);
+    } else if (config.rfind("flake:", 0) == 0) {
+        const auto colon = config.find(':', 6);
+        const double lambda = std::stod(config.substr(6, colon - 6));
+        const std::string algorithm =
+            colon == std::string::npos ? "tree" : config.substr(colon + 1);
+        const ParamList p = {number("density", 1e5),      number("flake_roughness", 0.15),
+                             number("flake_weight", 1.0), number("base_color", 0.0),
+                             number("min_flakes", 5e8),   number("max_flakes", 1e9),
+                             text("algorithm", algorithm)};
+        f = std::make_unique<Fixture>("flake", "flake", p,
+                                      lambda > 0 ? std::sqrt(lambda / 1e5) : 0.0, lambda > 0);
+    } else {
+        fmt::print(stderr, "unknown configuration '{}'\n", config);
+        return 2;
+    }
+    for (int i = 0; i < batches; ++i) f->shade();
+    return 0;
+}
+
 }  // namespace
 }  // namespace spangle
 
-BENCHMARK_MAIN();
+int main(int argc, char** argv) {
+    if (argc == 4 && std::string(argv[1]) == "--shade")
+        return spangle::shade_only(argv[2], std::atoi(argv[3]));
+    benchmark::Initialize(&argc, argv);
+    if (benchmark::ReportUnrecognizedArguments(argc, argv)) return 1;
+    benchmark::RunSpecifiedBenchmarks();
+    benchmark::Shutdown();
+    return 0;
+}
