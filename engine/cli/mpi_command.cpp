@@ -128,7 +128,11 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
     });
     const std::vector<std::pair<int64_t, bool>> frames = frames_of(a);
     Progress progress(::isatty(STDERR_FILENO) != 0);
-    for (const auto& [f, numbered] : frames) {
+    for (const auto& frame : frames) {
+        // Plain names, not a structured binding: lambdas capture those only from C++20 on, and
+        // clang 14 (the fuzz and sanitizer build) refuses them.
+        const int64_t f = frame.first;
+        const bool numbered = frame.second;
         together(job, [&] {
             const double time =
                 numbered && session->has_scene() ? frame_time(session->info(), f) : 0.0;
