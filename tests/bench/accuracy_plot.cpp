@@ -128,8 +128,9 @@ void draw_panel(std::string& out, const Panel& panel, double x0, double y0, doub
                 ys.push_back(p.second);
             }
     if (panel.floor > 0) ys.push_back(panel.floor);
-    const auto [xa, xb] = decades(xs);
-    const auto [ya, yb] = decades(ys);
+    // Plain names (lambdas below use them; clang 14 cannot capture structured bindings).
+    const std::pair<int, int> xd = decades(xs), yd = decades(ys);
+    const int xa = xd.first, xb = xd.second, ya = yd.first, yb = yd.second;
     const double left = x0 + kMarginLeft, right = x0 + w - kMarginRight;
     const double top = y0 + kMarginTop, bottom = y0 + h - kMarginBottom;
     const auto px = [&](double x) {
