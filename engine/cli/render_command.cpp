@@ -7,6 +7,7 @@
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
+#include <filesystem>
 #include <memory>
 #include <string>
 
@@ -27,6 +28,8 @@
 
 namespace spangle {
 namespace {
+
+namespace fs = std::filesystem;
 
 /** Registers the scene, the outputs' paths, the size and samples, plugins and --stats. */
 void add_scene_options(CLI::App* r, RenderArgs& a) {
@@ -174,7 +177,7 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
 /** The one-shot render: load, render (passes written with --pass-output, shown with --serve),
  *  write the image. */
 int run_one_shot(const RenderArgs& a) {
-    const RenderSetup s = set_up_render(a);
+    RenderSetup s = set_up_render(a);
     FrameRequest req;
     req.scene = a.scene;
     req.plugin_dirs = a.plugin_dirs;
@@ -204,6 +207,14 @@ int run_one_shot(const RenderArgs& a) {
             server->progress(done, total);
         };
     req.on_loaded = [&](const ColorConfig& c, const SceneInfo& i) {
+        // The image the scene asks for (pbrt's Film "filename") when -o gives none, as an EXR
+        // (its PNG preview beside it), relative to the working folder as pbrt writes it.
+        if (a.output.empty() && !i.output.empty()) {
+            RenderArgs named = a;
+            named.output = fs::path(i.output).replace_extension(".exr").string();
+            s.out = outputs_for(named);
+            if (!a.quiet) s.log.info("the scene asks for '{}': writing {}", i.output, s.out.exr);
+        }
         s.out.check_view(c);  // a display or view the config lacks: an error before rendering
         warn_if_no_chromaticities(s.log, c);
         color = &c;

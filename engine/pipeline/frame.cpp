@@ -1,5 +1,7 @@
 #include "pipeline/frame.h"
 
+#include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 
@@ -74,11 +76,29 @@ void add_scene_facts(const Session& session, FrameResult& r) {
         }
 }
 
+/** The scene's own crop window (pbrt's cropwindow) when the request gives none, in pixels of
+ *  the film as rendered, each edge rounded up as pbrt rounds it. A window that holds no pixel
+ *  leaves the whole image. */
+void apply_scene_crop(Session& session) {
+    RenderOptions& o = session.options();
+    const SceneInfo& info = session.info();
+    const auto* films = session.registry().find_pool<Film>();
+    if (!o.crop.whole() || !info.crop || !films || films->size() == 0) return;
+    const Film film = films->columns().get(0);
+    const double w = o.width_override ? o.width_override : film.width;
+    const double h = o.height_override ? o.height_override : film.height;
+    const auto px = [](double f, double n) { return static_cast<uint32_t>(std::ceil(f * n)); };
+    const std::array<double, 4>& c = *info.crop;  // x0, x1, y0, y1
+    const CropWindow win{px(c[0], w), px(c[2], h), px(c[1], w), px(c[3], h)};
+    if (win.x0 < win.x1 && win.y0 < win.y1) o.crop = win;
+}
+
 }  // namespace
 
 FrameResult render_frame(const FrameRequest& req) {
     Session session(req.plugin_dirs, req.ocio_config, req.options, *req.log);
     const ReloadReport loaded = session.load(req.scene, req.time);
+    apply_scene_crop(session);
     if (req.on_loaded) req.on_loaded(session.color(), session.info());
     if (!req.export_obj.empty()) export_world_obj(session, req.export_obj);
     FrameResult r{session.color().clone(),

@@ -6,8 +6,8 @@
 
 #include <fmt/format.h>
 
-#include "scene/pbrt/pbrt_reader.h"
 #include "scene/gltf/gltf_reader.h"
+#include "scene/pbrt/pbrt_reader.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_import.h"
 #include "scene/scene_paths.h"
@@ -17,10 +17,8 @@ namespace spangle {
 
 const std::vector<SceneFormat>& scene_formats() {
     static const std::vector<SceneFormat> formats = {
-        {".toml", "TOML", &read_toml_scene},
-        {".pbrt", "pbrt", &read_pbrt_scene},
-        {".pbrt.gz", "pbrt", &read_pbrt_scene},
-        {".gltf", "glTF", &read_gltf_scene},
+        {".toml", "TOML", &read_toml_scene},    {".pbrt", "pbrt", &read_pbrt_scene},
+        {".pbrt.gz", "pbrt", &read_pbrt_scene}, {".gltf", "glTF", &read_gltf_scene},
         {".glb", "glTF", &read_gltf_scene},
     };
     return formats;

@@ -10,8 +10,8 @@
 
 namespace spangle::fuzz {
 
-/** Runs `target` ("scene", "pbrt", "gltf", "ply", "obj" or "cage") on one input. Returns true when the
- * loader accepted it, false when it threw a SpangleError; any other outcome propagates. Throws
+/** Runs `target` ("scene", "pbrt", "gltf", "ply", "obj" or "cage") on one input. Returns true when
+ * the loader accepted it, false when it threw a SpangleError; any other outcome propagates. Throws
  * std::invalid_argument for an unknown target. */
 bool run_one(const std::string& target, const std::uint8_t* data, std::size_t size);
 

@@ -8,8 +8,10 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
 
 #include "core/hash.h"
+#include "pipeline/frame.h"
 #include "pipeline/session.h"
 #include "render/camera.h"
 #include "render/lights.h"
@@ -241,6 +243,38 @@ Shape "trianglemesh" "integer indices" [0 1 2 0 2 3]
     EXPECT_NEAR(two.x, 2.0f, 1e-4f);
     EXPECT_NEAR(two.y, 3.0f, 1e-4f);
     EXPECT_NEAR(two.z, 4.0f, 1e-4f);
+}
+
+TEST(PbrtRender, TheFilmsCropWindowIsRenderedUnlessTheRequestGivesOne) {
+    // Film 40 x 20 with cropwindow [0.25 0.75 0.1 0.6]: pixels x [ceil(10), ceil(30)) and
+    // y [ceil(2), ceil(12)), as pbrt rounds them; a request's own crop (the CLI's --crop) wins.
+    test::TempDir dir("pbrt_crop");
+    std::ofstream(dir.file("crop.pbrt")) << R"(LookAt 0 0 -3  0 0 0  0 1 0
+Camera "perspective" "float fov" 30
+Film "image" "integer xresolution" 40 "integer yresolution" 20
+  "float cropwindow" [0.25 0.75 0.1 0.6]
+Sampler "halton" "integer pixelsamples" 1
+WorldBegin
+LightSource "infinite" "rgb L" [1 1 1]
+Material "diffuse"
+Shape "trianglemesh" "integer indices" [0 1 2 0 2 3]
+  "point3 P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0]
+)";
+    FrameRequest req;
+    req.scene = dir.file("crop.pbrt");
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.threads = 2;
+    const FrameResult cropped = render_frame(req);
+    EXPECT_EQ(cropped.width, 20u);
+    EXPECT_EQ(cropped.height, 10u);
+    EXPECT_EQ(cropped.window.x0, 10u);
+    EXPECT_EQ(cropped.window.y0, 2u);
+    EXPECT_EQ(cropped.window.full_width, 40u);
+    req.options.crop = CropWindow{0, 0, 40, 20};
+    const FrameResult whole = render_frame(req);
+    EXPECT_EQ(whole.width, 40u);
+    EXPECT_EQ(whole.height, 20u);
 }
 
 bool contains(const std::vector<std::string>& v, const std::string& s) {
