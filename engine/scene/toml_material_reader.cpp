@@ -50,6 +50,20 @@ bool two_numbers(const toml::node& n, float& a, float& b) {
     return true;
 }
 
+bool finite_numbers(const toml::node& n, std::size_t size, std::vector<double>& out,
+                    std::size_t other_size) {
+    const auto* arr = n.as_array();
+    if (!arr || (arr->size() != size && (other_size == 0 || arr->size() != other_size)))
+        return false;
+    out.clear();
+    for (const toml::node& x : *arr) {
+        const auto v = x.value<double>();
+        if (!x.is_number() || !v || !std::isfinite(*v)) return false;
+        out.push_back(*v);
+    }
+    return true;
+}
+
 namespace {
 
 /** Which table a texture is read for: a material parameter, or one of the host's maps. */
@@ -62,13 +76,9 @@ void read_uv_transform(const ReadContext& ctx, const toml::table& t, TextureDesc
     // `matrix = [m0, ..., m5]`: the 2x3 matrix itself, (u, v) -> (m0 u + m1 v + m2, m3 u + m4 v
     // + m5), as `spangle convert` writes it.
     if (const toml::node* n = u.node("matrix")) {
-        const toml::array* a = n->as_array();
-        bool ok = a && a->size() == 6;
-        for (std::size_t i = 0; ok && i < 6; ++i) {
-            const auto x = (*a)[i].value<double>();
-            ok = (*a)[i].is_number() && x && std::isfinite(*x);
-            if (ok) tex.uv[i] = static_cast<float>(*x);
-        }
+        std::vector<double> m;
+        const bool ok = finite_numbers(*n, 6, m);
+        for (std::size_t i = 0; ok && i < 6; ++i) tex.uv[i] = static_cast<float>(m[i]);
         if (!ok)
             throw_error(loc_of(*n, ctx.file),
                         "'matrix' must be 6 finite numbers: (u, v) -> (m0 u + m1 v + m2, m3 u + "

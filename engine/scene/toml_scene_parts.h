@@ -1,4 +1,6 @@
 #pragma once
+
+#include <vector>
 // What the two files of the TOML scene reader share (toml_scene_reader.cpp reads the scene's
 // tables, toml_material_reader.cpp its materials, colours and textures). Internal to the reader.
 
@@ -29,6 +31,11 @@ std::optional<ColorDesc> read_color(const ReadContext& ctx, TableReader& r, std:
 
 /** `[a, b]`: an array of exactly two numbers, into a and b; false for anything else. */
 bool two_numbers(const toml::node& n, float& a, float& b);
+
+/** An array of finite numbers whose length is `size` or `other_size` (0: only `size`), into
+ *  `out`; false for anything else (not an array, another length, a non-number, inf or nan). */
+bool finite_numbers(const toml::node& n, std::size_t size, std::vector<double>& out,
+                    std::size_t other_size = 0);
 
 /** A [[material]] table (finished: no unknown key left). */
 MaterialDesc read_material(const ReadContext& ctx, TableReader& r);

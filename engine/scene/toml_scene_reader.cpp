@@ -23,17 +23,10 @@ std::string read_file(const ReadContext& ctx, TableReader& r, std::string_view k
 std::optional<std::array<double, 4>> read_window(TableReader& r, std::string_view key) {
     const toml::node* n = r.node(key);
     if (!n) return std::nullopt;
-    const toml::array* a = n->as_array();
-    std::array<double, 4> w{};
-    bool ok = a && a->size() == 4;
-    for (std::size_t i = 0; ok && i < 4; ++i) {
-        const auto x = (*a)[i].value<double>();
-        ok = (*a)[i].is_number() && x && std::isfinite(*x);
-        if (ok) w[i] = *x;
-    }
-    if (!ok)
+    std::vector<double> v;
+    if (!toml_scene::finite_numbers(*n, 4, v))
         throw_error(loc_of(*n, r.file()), "'{}' must be 4 finite numbers: x0, x1, y0, y1", key);
-    return w;
+    return std::array<double, 4>{v[0], v[1], v[2], v[3]};
 }
 
 /** The [render] table (or an empty one). */
@@ -240,21 +233,15 @@ std::optional<Vec3> read_scale(TableReader& r) {
 std::optional<Affine> read_matrix(TableReader& r, std::string_view key) {
     const toml::node* n = r.node(key);
     if (!n) return std::nullopt;
-    const toml::array* a = n->as_array();
     const auto fail = [&]() {
         throw_error(loc_of(*n, r.file()),
                     "'{}' must be 12 numbers (the rows of a 3x4 object-to-world matrix) or 16 (a "
                     "4x4 one with last row 0, 0, 0, 1)",
                     key);
     };
-    if (!a || (a->size() != 12 && a->size() != 16)) fail();
-    double v[16];
-    for (std::size_t i = 0; i < a->size(); ++i) {
-        const auto x = (*a)[i].value<double>();
-        if (!(*a)[i].is_number() || !x || !std::isfinite(*x)) fail();
-        v[i] = *x;
-    }
-    if (a->size() == 16 && !(v[12] == 0 && v[13] == 0 && v[14] == 0 && v[15] == 1)) fail();
+    std::vector<double> v;
+    if (!toml_scene::finite_numbers(*n, 12, v, 16)) fail();
+    if (v.size() == 16 && !(v[12] == 0 && v[13] == 0 && v[14] == 0 && v[15] == 1)) fail();
     Affine m;
     for (int row = 0; row < 3; ++row) {
         for (int c = 0; c < 3; ++c) m.m[row][c] = static_cast<float>(v[4 * row + c]);
