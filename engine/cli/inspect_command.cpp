@@ -1,9 +1,19 @@
-// `spangle inspect IMAGE`: the image's size, mean luminance, non-finite and negative pixels, and
-// fireflies (pixels above 10x the median of their 3x3 neighbourhood).
+// `spangle inspect IMAGE`: the image's size, mean luminance, non-finite and negative pixels,
+// outliers (pixels above 10x the median of their 3x3 neighbourhood) told apart into glints and
+// fireflies by the glints layer when the EXR has one, and every channel's min, max and mean (an
+// EXR's render layers included: the tool to check a denoised or adaptive glitter render with).
 
 #include <fmt/format.h>
 
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfTestFile.h>
 #include <CLI/CLI.hpp>
+#include <algorithm>
+#include <cmath>
+#include <limits>
 #include <memory>
 #include <string>
 #include <vector>
@@ -16,18 +26,160 @@
 namespace spangle {
 namespace {
 
-/** Measures and prints the image at `path`. */
-int run_inspect(const std::string& path) {
+/** Every channel of an image, by name, one plane each. */
+struct Planes {
+    int width = 0, height = 0;
+    std::vector<std::string> names;        ///< in the file's order (OpenEXR's: by name)
+    std::vector<std::vector<float>> data;  ///< one plane per name (empty: not a float channel)
+    const std::vector<float>* find(const std::string& name) const {
+        const auto it = std::find(names.begin(), names.end(), name);
+        return it == names.end() || data[static_cast<std::size_t>(it - names.begin())].empty()
+                   ? nullptr
+                   : &data[static_cast<std::size_t>(it - names.begin())];
+    }
+    /** Channels a, b, c interleaved (RGB per pixel); empty when one is missing. */
+    std::vector<float> three(const std::string& a, const std::string& b,
+                             const std::string& c) const {
+        const std::vector<float>*x = find(a), *y = find(b), *z = find(c);
+        if (!x || !y || !z) return {};
+        std::vector<float> out(3 * x->size());
+        for (std::size_t i = 0; i < x->size(); ++i) {
+            out[3 * i] = (*x)[i];
+            out[3 * i + 1] = (*y)[i];
+            out[3 * i + 2] = (*z)[i];
+        }
+        return out;
+    }
+};
+
+/** Every channel of an OpenEXR file (UINT channels, the exact sums of a --spp-range part, are
+ *  named but not read). Throws SpangleError. */
+Planes read_exr_planes(const std::string& path) {
+    try {
+        Imf::InputFile in(path.c_str());
+        const Imath::Box2i dw = in.header().dataWindow();
+        Planes p;
+        p.width = dw.max.x - dw.min.x + 1;
+        p.height = dw.max.y - dw.min.y + 1;
+        const auto n = static_cast<std::size_t>(p.width) * static_cast<std::size_t>(p.height);
+        Imf::FrameBuffer fb;
+        const Imf::ChannelList& list = in.header().channels();
+        for (auto it = list.begin(); it != list.end(); ++it) p.names.emplace_back(it.name());
+        p.data.resize(p.names.size());
+        for (std::size_t c = 0; c < p.names.size(); ++c) {
+            if (list.findChannel(p.names[c])->type == Imf::UINT) continue;
+            p.data[c].assign(n, 0.0f);
+            fb.insert(p.names[c],
+                      Imf::Slice::Make(Imf::FLOAT, p.data[c].data(), dw, sizeof(float),
+                                       sizeof(float) * static_cast<std::size_t>(p.width)));
+        }
+        in.setFrameBuffer(fb);
+        in.readPixels(dw.min.y, dw.max.y);
+        return p;
+    } catch (const SpangleError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw_error("cannot read '{}': {}", path, e.what());
+    }
+}
+
+/** Prints one line per channel: min, max, mean over its finite values, and non-finite count. */
+void print_channels(const Planes& p) {
+    fmt::print("channels ({}):\n", p.names.size());
+    for (std::size_t c = 0; c < p.names.size(); ++c) {
+        if (p.data[c].empty()) {
+            fmt::print("  {:<20} (32-bit integer: exact sums of a sample range)\n", p.names[c]);
+            continue;
+        }
+        double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0.0;
+        std::size_t bad = 0;
+        for (const float v : p.data[c]) {
+            if (!std::isfinite(v)) {
+                ++bad;
+                continue;
+            }
+            lo = std::min(lo, static_cast<double>(v));
+            hi = std::max(hi, static_cast<double>(v));
+            sum += static_cast<double>(v);
+        }
+        const std::size_t good = p.data[c].size() - bad;
+        if (good == 0) lo = hi = 0.0;
+        fmt::print("  {:<20} min {:<12.6g} max {:<12.6g} mean {:<12.6g}{}\n", p.names[c], lo, hi,
+                   good ? sum / static_cast<double>(good) : 0.0,
+                   bad ? fmt::format(" non-finite {}", bad) : "");
+    }
+}
+
+/** The RGB of an image (an EXR's R, G, B; any other format through OpenImageIO). */
+std::vector<float> read_rgb(const std::string& path, int& width, int& height) {
+    if (Imf::isOpenExrFile(path.c_str())) {
+        const Planes p = read_exr_planes(path);
+        width = p.width;
+        height = p.height;
+        std::vector<float> rgb = p.three("R", "G", "B");
+        if (rgb.empty()) throw_error("'{}' has no R, G and B channels", path);
+        return rgb;
+    }
     ImageHeader spec;
-    const std::vector<float> all = read_image(path, 3, spec);
+    std::vector<float> rgb = read_image(path, 3, spec);
     if (spec.channels < 3) throw_error("'{}' has {} channels; expected RGB", path, spec.channels);
-    const std::vector<float>& rgb = all;
-    const ImageMetrics m = measure_image(rgb, spec.width, spec.height);
-    fmt::print("{}: {}x{}\n", path, spec.width, spec.height);
+    width = spec.width;
+    height = spec.height;
+    return rgb;
+}
+
+/** relMSE of `image` against `reference`: the mean over pixels and channels of
+ *  (x - r)^2 / (r^2 + 0.01). */
+double rel_mse(const std::vector<float>& image, const std::vector<float>& reference) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < image.size(); ++i) {
+        const double x = image[i], r = reference[i];
+        sum += (x - r) * (x - r) / (r * r + 0.01);
+    }
+    return image.empty() ? 0.0 : sum / static_cast<double>(image.size());
+}
+
+/** Measures and prints the image at `path` (against `reference` when not empty). */
+int run_inspect(const std::string& path, const std::string& reference) {
+    Planes planes;
+    std::vector<float> rgb, glints;
+    if (Imf::isOpenExrFile(path.c_str())) {
+        planes = read_exr_planes(path);
+        rgb = planes.three("R", "G", "B");
+        if (rgb.empty()) throw_error("'{}' has no R, G and B channels", path);
+        glints = planes.three("glints.R", "glints.G", "glints.B");
+    } else {
+        ImageHeader spec;
+        rgb = read_image(path, 3, spec);
+        if (spec.channels < 3)
+            throw_error("'{}' has {} channels; expected RGB", path, spec.channels);
+        planes.width = spec.width;
+        planes.height = spec.height;
+    }
+    const ImageMetrics m = measure_image(rgb, planes.width, planes.height, 10.0, 1e-3,
+                                         glints.empty() ? nullptr : &glints);
+    fmt::print("{}: {}x{}\n", path, planes.width, planes.height);
     fmt::print("mean luminance: {:.6g}\nnon-finite pixels: {}\nnegative pixels: {}\n",
                m.mean_luminance, m.nonfinite, m.negative);
-    fmt::print("fireflies (> 10x the 3x3 median): {} ({:.4f}% of pixels)\n", m.fireflies,
-               100.0 * m.firefly_fraction);
+    if (m.told_apart) {
+        fmt::print("glints (> 10x the 3x3 median, mostly light through a glint): {}\n", m.glints);
+        fmt::print("fireflies (> 10x the 3x3 median, not glints): {} ({:.4f}% of pixels)\n",
+                   m.fireflies, 100.0 * m.firefly_fraction);
+    } else {
+        fmt::print(
+            "fireflies (> 10x the 3x3 median): {} ({:.4f}% of pixels; glints count too: render "
+            "with --layers to tell them apart)\n",
+            m.fireflies, 100.0 * m.firefly_fraction);
+    }
+    if (!reference.empty()) {
+        int rw = 0, rh = 0;
+        const std::vector<float> ref = read_rgb(reference, rw, rh);
+        if (rw != planes.width || rh != planes.height)
+            throw_error("'{}' is {}x{}, the reference '{}' {}x{}", path, planes.width,
+                        planes.height, reference, rw, rh);
+        fmt::print("relMSE against {}: {:.6g}\n", reference, rel_mse(rgb, ref));
+    }
+    if (!planes.names.empty()) print_channels(planes);
     return 0;
 }
 
@@ -35,11 +187,16 @@ int run_inspect(const std::string& path) {
 
 Command add_inspect_command(CLI::App& app) {
     auto path = std::make_shared<std::string>();
-    CLI::App* sub =
-        app.add_subcommand("inspect", "measure an image: mean, non-finite pixels, fireflies");
+    auto reference = std::make_shared<std::string>();
+    CLI::App* sub = app.add_subcommand(
+        "inspect",
+        "measure an image: mean, non-finite pixels, glints and fireflies, every channel's range");
     sub->add_option("image", *path, "EXR (or any image OpenImageIO reads, through its module)")
         ->required();
-    return {sub, [path] { return run_inspect(*path); }};
+    sub->add_option("--against", *reference,
+                    "a reference image of the same size: print the relMSE, the mean over "
+                    "pixels and channels of (x - r)^2 / (r^2 + 0.01)");
+    return {sub, [path, reference] { return run_inspect(*path, *reference); }};
 }
 
 }  // namespace spangle

@@ -23,6 +23,7 @@
 #include "cli/render_setup.h"
 #include "cli/usage.h"
 #include "pipeline/session.h"
+#include "render/denoise.h"
 
 namespace spangle {
 namespace {
@@ -153,6 +154,10 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
             throw RankExit{1};
         if (job.rank() != 0) continue;
         progress.finish();
+        // The denoiser reads neighbouring pixels: it runs on the assembled image.
+        if (options.denoise)
+            denoise(DenoiseImage{&img.image, &img.layers, &img.layer_names, img.width, img.height},
+                    options.denoise_glints, options.threads);
         write_on_rank0(a, job, *session, log, out, f, numbered, img);
     }
     return 0;

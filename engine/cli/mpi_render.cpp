@@ -24,6 +24,7 @@
 
 #include "core/error.h"
 #include "pipeline/session.h"
+#include "render/adaptive.h"
 #include "render/layers/layer_sink.h"
 
 namespace spangle {
@@ -91,6 +92,9 @@ BandPlan plan_bands(Session& session, const CropWindow& crop, uint32_t band_rows
         if (groups.empty()) groups.push_back("default");
         p.layer_names = layer_channel_names(groups);
     }
+    // Adaptive sampling: the samples of each pixel come back as the last channel (render/
+    // adaptive.h: a band's pixels take the samples the whole render gives them).
+    if (adaptive_on(p.film, session.options())) p.layer_names.emplace_back("spp");
     p.lc = p.layer_names.size();
     if (static_cast<double>(p.band_px) * p.cw * static_cast<double>(p.per_pixel()) >= 2147483647.0)
         throw_error("bands of {} rows of {} pixels are too large to send: lower --band-rows",
@@ -300,7 +304,17 @@ void render_on_rank0(const MpiJob& job, Session& session, const BandPlan& plan,
         job.abort(1);
     }
     RenderStats& s = out.stats;
-    s.spp_reached = s.spp_target = plan.film.spp;
+    const AdaptivePlan adaptive = adaptive_plan(plan.film, session.options());
+    s.spp_reached = s.spp_target = adaptive.on() ? adaptive.max_spp : plan.film.spp;
+    if (adaptive.on() && plan.lc > 0 && !out.layers.empty()) {
+        s.noise_threshold = adaptive.threshold;
+        s.pixel_spp_min = ~0u;
+        for (std::size_t i = plan.lc - 1; i < out.layers.size(); i += plan.lc) {
+            const auto n = static_cast<uint32_t>(out.layers[i]);
+            s.pixel_spp_min = std::min(s.pixel_spp_min, n);
+            s.pixel_spp_max = std::max(s.pixel_spp_max, n);
+        }
+    }
     s.passes = 1;
     s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
 }

@@ -15,8 +15,15 @@ RenderOptions render_options(const RenderArgs& a) {
     o.camera = a.camera;
     o.environment = a.environment;
     o.spp_override = a.spp;
+    o.noise_threshold_override = a.noise_threshold;
+    o.min_spp_override = a.min_spp;
+    o.max_spp_override = a.max_spp;
     o.texture_cache = a.texture_cache;
-    o.layers = a.layers;
+    o.layers = a.layers || a.denoise;  // the denoiser's guides and the glints are layers
+    o.denoise = a.denoise;
+    o.denoise_glints = a.denoise_glints == "filter" ? GlintDenoise::Filter
+                       : a.denoise_glints == "keep" ? GlintDenoise::Keep
+                                                    : GlintDenoise::Apart;
     if (!a.crop.empty()) o.crop = parse_crop(a.crop);
     if (!a.spp_range.empty()) parse_spp_range(a.spp_range, o.spp_first, o.spp_end);
     o.texture_memory_mb = a.texture_memory_mb;

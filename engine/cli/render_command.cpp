@@ -25,6 +25,7 @@
 #include "cli/watch/watch_command.h"
 #include "core/error.h"
 #include "pipeline/frame.h"
+#include "render/denoise.h"
 
 namespace spangle {
 namespace {
@@ -43,6 +44,18 @@ void add_scene_options(CLI::App* r, RenderArgs& a) {
     r->add_flag("--no-preview", a.no_preview, "write no PNG preview");
     r->add_option("--size", a.size, "image size WIDTHxHEIGHT (overrides the scene)");
     r->add_option("--spp", a.spp, "samples per pixel (overrides the scene)")
+        ->check(CLI::Range(1u, 1u << 20));
+    r->add_option("--noise-threshold", a.noise_threshold,
+                  "adaptive sampling: a pixel stops once its relative standard error is below "
+                  "this (e.g. 0.01; 0 = off; overrides [render] noise_threshold; "
+                  "docs/adaptive.md)")
+        ->check(CLI::Range(0.0f, 1.0f));
+    r->add_option("--min-spp", a.min_spp,
+                  "adaptive sampling: samples every pixel takes first (default 16)")
+        ->check(CLI::Range(1u, 1u << 20));
+    r->add_option("--max-spp", a.max_spp,
+                  "adaptive sampling: most samples a pixel takes (default: --spp or the "
+                  "scene's spp)")
         ->check(CLI::Range(1u, 1u << 20));
     r->add_option("--threads", a.threads, "worker threads (default: all cores)")
         ->check(CLI::Range(1, 1024));
@@ -67,6 +80,15 @@ void add_part_options(CLI::App* r, RenderArgs& a) {
                   "under mpirun: tile rows (16 pixels each) per unit of work handed to a rank "
                   "(default 1)")
         ->check(CLI::Range(1u, 4096u));
+    r->add_flag("--denoise", a.denoise,
+                "denoise the final image with Intel Open Image Denoise (albedo and normal "
+                "guides; glints denoised apart from the rest); the noisy beauty and the guides are "
+                "kept as layers (implies --layers; docs/denoise.md)");
+    r->add_option("--denoise-glints", a.denoise_glints,
+                  "apart: the glints layer is denoised on its own and added back, so that no "
+                  "glint is smeared into the surface around it (default); keep: glints pass "
+                  "untouched, noise and all; filter: the whole beauty at once (for comparison)")
+        ->check(CLI::IsMember({"apart", "keep", "filter"}));
     r->add_flag("--layers", a.layers,
                 "write render layers into the EXR beside the beauty: A (coverage), albedo, "
                 "N, Z, P, glints, and lightgroup_<name> per light group (docs/layers.md)");
@@ -141,6 +163,13 @@ void print_stats(const FrameResult& r, const std::string& exr) {
         fmt::print("rays: {} camera, {} bounce, {} shadow\n", st.camera_rays, st.bounce_rays,
                    st.shadow_rays);
         fmt::print("non-finite samples replaced by black: {}\n", st.nonfinite);
+        if (st.noise_threshold > 0.0f)
+            fmt::print(
+                "adaptive sampling: noise threshold {}, {:.1f} samples per pixel on average "
+                "({} to {}; the spp layer has each pixel's)\n",
+                st.noise_threshold,
+                static_cast<double>(st.samples) / (static_cast<double>(r.width) * r.height),
+                st.pixel_spp_min, st.pixel_spp_max);
     }
     for (const auto& sd : r.subdiv)
         fmt::print("subdivision: {} level {}{}: {} cage faces -> {} triangles in {:.3f} s\n",
@@ -236,9 +265,15 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
                 "--spp-range parts carry the beauty's exact sums, not the layers': render "
                 "--layers without --spp-range");
         if (a.watch) usage_error("--spp-range renders a part of a frame; --watch a whole one");
+        if (a.denoise)
+            usage_error(
+                "--spp-range parts are sums to merge: a denoised part could not be added; render "
+                "the frame whole (or by --crop or MPI) with --denoise");
         if (launcher_info().size > 1)
             usage_error("--spp-range is for one process (under mpirun, ranks share the image)");
     }
+    // A denoiser that cannot run is said before the render, not after it.
+    if (std::string why; a.denoise && !denoiser_available(&why)) throw_error("{}", why);
     if (launcher_info().size > 1) {
         // Started by mpirun (or srun) as one of several ranks.
         if (a.watch || a.pass_output || !a.serve.empty())

@@ -7,6 +7,7 @@
 
 #include "core/files.h"
 #include "pipeline/session.h"
+#include "render/denoise.h"
 #include "shading/plugin_loader.h"
 
 namespace fs = std::filesystem;
@@ -129,6 +130,9 @@ FrameResult render_frame(const FrameRequest& req) {
     r.layer_names = std::move(out.layer_names);
     r.sums = std::move(out.sums);
     r.stats = out.stats;
+    if (req.options.denoise && r.stats.spp_reached > 0)
+        denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
+                req.options.denoise_glints, req.options.threads);
     r.info = session.info();
     r.plugins_opened = session.plugins().opened();
     add_scene_facts(session, r);

@@ -7,8 +7,9 @@
 namespace spangle {
 
 ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height, double ratio,
-                           double floor) {
+                           double floor, const std::vector<float>* glints) {
     ImageMetrics m;
+    m.told_apart = glints != nullptr;
     const auto n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
     std::vector<double> lum(n, 0.0);
     double sum = 0.0;
@@ -38,7 +39,18 @@ ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
             std::nth_element(window.begin(), window.begin() + 4, window.end());
             const double v = lum[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
                                  static_cast<std::size_t>(x)];
-            if (v > floor && v > ratio * window[4]) ++m.fireflies;
+            if (!(v > floor && v > ratio * window[4])) continue;
+            const std::size_t i = static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+                                  static_cast<std::size_t>(x);
+            double g = 0.0;
+            if (glints)
+                g = 0.2126 * static_cast<double>((*glints)[3 * i]) +
+                    0.7152 * static_cast<double>((*glints)[3 * i + 1]) +
+                    0.0722 * static_cast<double>((*glints)[3 * i + 2]);
+            if (g >= 0.5 * v)
+                ++m.glints;
+            else
+                ++m.fireflies;
         }
     m.firefly_fraction = n ? static_cast<double>(m.fireflies) / static_cast<double>(n) : 0.0;
     return m;

@@ -11,14 +11,20 @@ struct ImageMetrics {
     double mean_luminance = 0.0;
     uint64_t nonfinite = 0;         ///< pixels with a NaN or infinite channel
     uint64_t negative = 0;          ///< pixels with a negative channel
-    uint64_t fireflies = 0;         ///< pixels brighter than `ratio` x their neighbourhood median
+    uint64_t fireflies = 0;         ///< outliers that are not glints (all, without glints)
     double firefly_fraction = 0.0;  ///< fireflies / pixels
+    uint64_t glints = 0;            ///< outliers whose light came mostly through a glint
+    bool told_apart = false;        ///< a glints layer told glints from fireflies
 };
 
-/** Measures width x height RGB. A firefly is a pixel whose luminance exceeds `ratio` times the
+/** Measures width x height RGB. An outlier is a pixel whose luminance exceeds `ratio` times the
  *  median luminance of its 3x3 neighbourhood (itself included), and exceeds `floor` (so that
- *  noise in black regions does not count). */
+ *  noise in black regions does not count). With `glints` (the glints layer, RGB per pixel), an
+ *  outlier at least half of whose luminance came through a glint is a glint -- a flake mirroring
+ *  a light, which is meant to stand out -- and the others are fireflies; without it every
+ *  outlier counts as a firefly. */
 ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
-                           double ratio = 10.0, double floor = 1e-3);
+                           double ratio = 10.0, double floor = 1e-3,
+                           const std::vector<float>* glints = nullptr);
 
 }  // namespace spangle

@@ -55,24 +55,73 @@ struct TileRun {
                     std::min(ty + kTileSize, win.y1)};
     }
 
-    /** Samples [first, end) of one tile, wave by wave, until a stop request. */
+    /** The image index of full-frame pixel (x, y). */
+    std::size_t image_index(uint32_t x, uint32_t y) const {
+        return static_cast<std::size_t>(y - win.y0) * (win.x1 - win.x0) + (x - win.x0);
+    }
+
+    /** Pixels of tile `t` still taking samples (all of them without adaptive sampling). */
+    uint64_t active_pixels(const Tile& t) const {
+        if (!job.adaptive_film) return static_cast<uint64_t>(t.x1 - t.x0) * (t.y1 - t.y0);
+        uint64_t n = 0;
+        for (uint32_t y = t.y0; y < t.y1; ++y)
+            for (uint32_t x = t.x0; x < t.x1; ++x)
+                n += job.adaptive_film->active[image_index(x, y)];
+        return n;
+    }
+
+    /** Adaptive sampling's checkpoint at `samples`: each active pixel of the tile judges its own
+     *  error; one within the threshold at two checkpoints in a row stops (the samples it leaves
+     *  untaken count as done for the progress). Returns the samples skipped. */
+    uint64_t check_tile(const Tile& t, uint32_t samples) {
+        AdaptiveFilm& a = *job.adaptive_film;
+        const uint32_t lc = job.layer_film.channels;
+        uint64_t skipped = 0;
+        for (uint32_t y = t.y0; y < t.y1; ++y)
+            for (uint32_t x = t.x0; x < t.x1; ++x) {
+                const std::size_t i = image_index(x, y);
+                if (!a.active[i]) continue;
+                const PixelSums sums{
+                    &(*job.sums)[3 * i],
+                    job.layers ? &(*job.layer_film.film)[i * lc + kAovCount] : nullptr,
+                    &a.odd[6 * i], a.count[i]};
+                if (adaptive_error(*job.adaptive, sums) > 1.0f) {
+                    a.strikes[i] = 0;
+                } else if (++a.strikes[i] >= 2 && samples >= job.adaptive->min_spp) {
+                    a.active[i] = 0;
+                    skipped += job.spp - samples;
+                }
+            }
+        return skipped;
+    }
+
+    /** Samples [first, end) of one tile, wave by wave, until a stop request. With adaptive
+     *  sampling a wave ends at each checkpoint, where the tile's pixels are judged. */
     void run_tile(Workspace& ws, const Tile& t, uint32_t first, uint32_t end, bool count_progress) {
-        for (uint32_t s = first; s < end; s += kSamplesPerWave) {
+        uint64_t active = active_pixels(t);
+        for (uint32_t s = first; s < end && active > 0;) {
             if (stopped.load(std::memory_order_relaxed)) return;
             if (options.stop && options.stop()) {
                 stopped = true;
                 return;
             }
-            const uint32_t count = std::min(kSamplesPerWave, end - s);
+            uint32_t count = std::min(kSamplesPerWave, end - s);
+            const uint32_t checkpoint = job.adaptive ? next_checkpoint(*job.adaptive, s) : 0;
+            if (job.adaptive) count = std::min(count, checkpoint - s);
             if (job.layers)
                 trace_wave(job, ws, ws.layers, t, s, count);
             else {
                 NullSink none;
                 trace_wave(job, ws, none, t, s, count);
             }
+            s += count;
+            uint64_t samples = active * count;
+            if (job.adaptive && s == checkpoint) {
+                samples += check_tile(t, s);
+                active = active_pixels(t);
+            }
             if (!count_progress) continue;
-            const uint64_t done = job.samples_done +=
-                static_cast<uint64_t>(t.x1 - t.x0) * (t.y1 - t.y0) * count;
+            const uint64_t done = job.samples_done += samples;
             if (options.progress) {
                 std::lock_guard<std::mutex> lock(job.progress_mutex);
                 options.progress(done, total);
@@ -112,7 +161,13 @@ uint32_t set_up_job(RenderJob& job, const RenderScene& scene, const RenderOption
     job.max_depth = film.max_depth;
     job.rr_depth = film.rr_depth;
     job.seed = film.seed;
+    if (job.adaptive) job.spp = job.adaptive->max_spp;
     if (options.spp_end == 0) return 0;
+    if (job.adaptive)
+        throw_error(
+            "--spp-range cannot split an adaptive render (noise_threshold): a part cannot know "
+            "which pixels stopped before its first sample without rendering those samples; "
+            "split it by pixels (--crop, MPI bands), which give the whole render bit for bit");
     if (!(options.spp_first < options.spp_end && options.spp_end <= job.spp))
         throw_error(
             "sample range {}..{} is not inside the frame's {} samples per pixel (it needs A < B "
@@ -184,21 +239,25 @@ uint32_t full_passes(TileRun& run, uint32_t first_sample, RenderResult& out, uin
     for (uint32_t& e : ends) e += first_sample;
     std::vector<SampleSum> before;
     std::vector<float> layers_before;
+    AdaptiveFilm adaptive_before;
     uint32_t reached = first_sample;
     for (const uint32_t end : ends) {
         // The first pass starts from black: rolling it back needs no copy.
         if (options.stop && reached > first_sample) {
             before = out.sums;
             layers_before = out.layers;
+            if (job.adaptive_film) adaptive_before = *job.adaptive_film;
         }
         if (!run.stopped) run.run(reached, end, true);
         if (run.stopped) {
             if (reached > first_sample) {
                 out.sums.swap(before);
                 out.layers.swap(layers_before);
+                if (job.adaptive_film) std::swap(*job.adaptive_film, adaptive_before);
             } else {
                 std::fill(out.sums.begin(), out.sums.end(), SampleSum(0));
                 std::fill(out.layers.begin(), out.layers.end(), 0.0f);
+                if (job.adaptive_film) job.adaptive_film->reset(out.sums.size() / 3);
             }
             break;
         }
@@ -207,12 +266,39 @@ uint32_t full_passes(TileRun& run, uint32_t first_sample, RenderResult& out, uin
         if (options.on_pass && end < job.spp) {
             std::vector<float> shown(out.sums.size());
             for (std::size_t i = 0; i < shown.size(); ++i)
-                shown[i] = sample_mean(out.sums[i], end - first_sample);
+                shown[i] =
+                    sample_mean(out.sums[i], job.adaptive_film ? job.adaptive_film->count[i / 3]
+                                                               : end - first_sample);
             options.on_pass(PassImage{shown, out.width, out.height, end - first_sample,
                                       job.spp - first_sample, 1, seconds_since(t0), out.window});
         }
     }
     return reached;
+}
+
+/** Adaptive sampling's outputs: the samples each pixel took as the layer `spp` (after the
+ *  other layers, or alone when they were not asked for: the glints layer was only the
+ *  estimate's), and their range and total in the counters. */
+void add_spp_layer(const AdaptiveFilm& a, bool keep_layers, RenderResult& out) {
+    const std::size_t pixels = a.count.size();
+    const std::size_t lc = keep_layers ? out.layer_names.size() : 0;
+    std::vector<float> layers(pixels * (lc + 1));
+    uint64_t total = 0;
+    uint32_t lo = ~0u, hi = 0;
+    for (std::size_t p = 0; p < pixels; ++p) {
+        std::copy_n(out.layers.begin() + static_cast<std::ptrdiff_t>(p * lc), lc,
+                    layers.begin() + static_cast<std::ptrdiff_t>(p * (lc + 1)));
+        layers[p * (lc + 1) + lc] = static_cast<float>(a.count[p]);
+        total += a.count[p];
+        lo = std::min(lo, a.count[p]);
+        hi = std::max(hi, a.count[p]);
+    }
+    out.layers.swap(layers);
+    if (!keep_layers) out.layer_names.clear();
+    out.layer_names.emplace_back("spp");
+    out.stats.samples = total;
+    out.stats.pixel_spp_min = pixels ? lo : 0;
+    out.stats.pixel_spp_max = hi;
 }
 
 /** The render's counters. */
@@ -227,6 +313,7 @@ void record_stats(const RenderJob& job, const RenderOptions& options, const Film
     st.spp_target = job.spp - first_sample;
     st.spp_frame = options.spp_override ? options.spp_override : film.spp;
     st.passes = passes;
+    st.noise_threshold = job.adaptive ? job.adaptive->threshold : 0.0f;
     st.nonfinite = job.nonfinite;
     if (st.nonfinite > 0) {
         const uint64_t key = job.first_bad;
@@ -292,6 +379,9 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     const FilterSampler filter(film.filter);
     RenderJob job;
     job.filter = &filter;
+    const AdaptivePlan plan = adaptive_plan(film, options);
+    AdaptiveFilm adaptive;
+    if (plan.on()) job.adaptive = &plan;
     const uint32_t first_sample = set_up_job(job, scene, options, cam, film, camera_steps);
     // The crop window (the whole image without one).
     const CropWindow win = crop_within(options.crop, film.width, film.height);
@@ -303,11 +393,17 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     out.window = ImageWindow{win.x0, win.y0, film.width, film.height};
     out.layers.clear();
     out.layer_names.clear();
-    if (options.layers) set_up_layers(job, scene, camera, out);
+    // Adaptive sampling judges the glints apart: it needs their layer, shown or not.
+    if (options.layers || plan.on()) set_up_layers(job, scene, camera, out);
+    // Adaptive sampling's per-pixel state (32 bytes) counted as 8 layer channels.
     check_film_memory(out.width, out.height, job.spp - first_sample, options,
-                      job.layer_film.channels);
+                      job.layer_film.channels + (plan.on() ? 8 : 0));
     out.sums.assign(static_cast<std::size_t>(out.width) * out.height * 3, SampleSum(0));
     job.sums = &out.sums;
+    if (plan.on()) {
+        adaptive.reset(static_cast<std::size_t>(out.width) * out.height);
+        job.adaptive_film = &adaptive;
+    }
     out.layers.assign(static_cast<std::size_t>(out.width) * out.height * job.layer_film.channels,
                       0.0f);
 
@@ -322,10 +418,12 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     const uint32_t samples = full_passes(run, first_sample, out, passes, t0) - first_sample;
     // The image: the mean of the samples summed.
     out.image.resize(out.sums.size());
+    const uint32_t* counts = plan.on() ? adaptive.count.data() : nullptr;
     for (std::size_t i = 0; i < out.image.size(); ++i)
-        out.image[i] = sample_mean(out.sums[i], samples);
-    if (job.layers) finish_layers(out.layers, job.layer_film.channels, samples);
+        out.image[i] = sample_mean(out.sums[i], counts ? counts[i / 3] : samples);
+    if (job.layers) finish_layers(out.layers, job.layer_film.channels, samples, counts);
     record_stats(job, options, film, samples, first_sample, passes, out);
+    if (plan.on()) add_spp_layer(adaptive, options.layers, out);
     out.stats.seconds = seconds_since(t0);
 }
 

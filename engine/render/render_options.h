@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "core/progress.h"
+#include "render/denoise.h"
 #include "render/lights.h"
 
 namespace spangle {
@@ -82,6 +83,14 @@ struct RenderOptions {
     std::string camera;
     /** `--env`: a lat-long image lighting the scene instead of its environment; empty: none. */
     std::string environment;
+    /** --noise-threshold, --min-spp, --max-spp: replace the scene's adaptive sampling settings
+     *  ([render] noise_threshold, min_spp, max_spp) when set (threshold >= 0, counts > 0). */
+    float noise_threshold_override = -1.0f;
+    uint32_t min_spp_override = 0, max_spp_override = 0;
+    /** --denoise: the final image denoised (render/denoise.h; needs the layers), its glints
+     *  kept or filtered with the rest. Pass images are not denoised. */
+    bool denoise = false;
+    GlintDenoise denoise_glints = GlintDenoise::Apart;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:
@@ -110,6 +119,10 @@ struct RenderStats {
     uint32_t spp_target = 0;   ///< samples per pixel asked for
     uint32_t spp_frame = 0;    ///< the frame's samples per pixel (spp_target unless --spp-range)
     uint32_t passes = 0;       ///< passes completed
+    /** Adaptive sampling: the noise threshold it rendered to (0: off, every pixel got
+     *  spp_reached samples) and the fewest and most samples a pixel received. */
+    float noise_threshold = 0.0f;
+    uint32_t pixel_spp_min = 0, pixel_spp_max = 0;
 };
 
 }  // namespace spangle

@@ -75,15 +75,23 @@ std::size_t start_paths(const RenderJob& job, Workspace& ws, const Tile& tile,
     const std::size_t n = static_cast<std::size_t>(tw) * th * count;
     ws.paths.resize(n);
     std::size_t i = 0;
+    const std::vector<uint8_t>* active =
+        job.adaptive_film && st == 1 ? &job.adaptive_film->active : nullptr;
     for (uint32_t y = tile.y0; y < tile.y1; y += st)
-        for (uint32_t x = tile.x0; x < tile.x1; x += st)
+        for (uint32_t x = tile.x0; x < tile.x1; x += st) {
+            // Adaptive sampling: a pixel that has stopped takes no more samples.
+            if (active && !(*active)[static_cast<std::size_t>(y - job.crop_y0) * job.crop_width +
+                                     (x - job.crop_x0)])
+                continue;
             for (uint32_t s = 0; s < count; ++s, ++i) {
                 // The pixel that holds the block's value (the pixel itself when st == 1).
                 const uint32_t pix = std::min(y + st / 2, tile.y1 - 1) * job.width +
                                      std::min(x + st / 2, tile.x1 - 1);
                 start_path(job, ws.paths, i, x, y, pix, first_sample + s);
             }
-    return n;
+        }
+    ws.paths.resize(i);
+    return i;
 }
 
 }  // namespace spangle

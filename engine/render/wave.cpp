@@ -42,6 +42,20 @@ void accumulate(RenderJob& job, const PathBatch& p, Sink& sink, std::size_t n) {
             px[2] += l.z;
         }
         sink.accumulate(k, at, finite);
+        if (job.adaptive_film && job.sums) {
+            AdaptiveFilm& a = *job.adaptive_film;
+            ++a.count[at];
+            if (p.sample[k] & 1u) {  // the odd half-sum (the even one is the rest)
+                const Vec3 g = finite ? sink.glint(k) : Vec3(0.0f);
+                float* o = &a.odd[6 * at];
+                o[0] += l.x;
+                o[1] += l.y;
+                o[2] += l.z;
+                o[3] += g.x;
+                o[4] += g.y;
+                o[5] += g.z;
+            }
+        }
     }
 }
 

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "core/sample_sum.h"
+#include "render/adaptive.h"
 #include "render/arena.h"
 #include "render/layers/layer_sink.h"
 #include "render/path_state.h"
@@ -77,6 +78,10 @@ struct RenderJob {
     std::vector<float>* image = nullptr;
     bool layers = false;  ///< the render layers are on (and `layer_film` says where)
     LayerFilm layer_film;
+    /** Adaptive sampling (render/adaptive.h): the plan, and the pixels' counts, half-sums and
+     *  activity; null when every pixel takes every sample. */
+    const AdaptivePlan* adaptive = nullptr;
+    AdaptiveFilm* adaptive_film = nullptr;
     std::atomic<uint64_t> camera_rays{0}, bounce_rays{0}, shadow_rays{0}, samples_done{0};
     std::atomic<uint64_t> nonfinite{0};
     std::atomic<uint64_t> first_bad{~0ull};  ///< (pixel << 24 | sample) of the first bad value

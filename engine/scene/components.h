@@ -221,15 +221,18 @@ inline bool same_value(const std::vector<Camera>& a, const std::vector<Camera>& 
  *  camera at the shutter's middle. */
 SPANGLE_COMPONENT(CameraMotion, SPANGLE_CAMERA_MOTION_FIELDS);
 
-#define SPANGLE_FILM_FIELDS(X)                               \
-    X(uint32_t, width, "pixels")                             \
-    X(uint32_t, height, "pixels")                            \
-    X(uint32_t, spp, "samples per pixel")                    \
-    X(uint32_t, max_depth, "maximum bounces")                \
-    X(uint32_t, rr_depth, "bounces before Russian roulette") \
-    X(uint64_t, seed, "random seed")                         \
-    X(FilterKind, filter, "pixel filter")                    \
-    X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")
+#define SPANGLE_FILM_FIELDS(X)                                                           \
+    X(uint32_t, width, "pixels")                                                         \
+    X(uint32_t, height, "pixels")                                                        \
+    X(uint32_t, spp, "samples per pixel")                                                \
+    X(uint32_t, max_depth, "maximum bounces")                                            \
+    X(uint32_t, rr_depth, "bounces before Russian roulette")                             \
+    X(uint64_t, seed, "random seed")                                                     \
+    X(FilterKind, filter, "pixel filter")                                                \
+    X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")      \
+    X(float, noise_threshold, "adaptive sampling's noise threshold; 0 = off")            \
+    X(uint32_t, min_spp, "adaptive sampling: samples before a pixel may stop; 0 = auto") \
+    X(uint32_t, max_spp, "adaptive sampling: most samples of a pixel; 0 = spp")
 /** Image size and render settings. */
 SPANGLE_COMPONENT(Film, SPANGLE_FILM_FIELDS);
 

@@ -92,6 +92,9 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     f.seed = d.seed;
     f.filter = d.filter;
     f.clamp_indirect = d.clamp_indirect;
+    f.noise_threshold = d.noise_threshold;
+    f.min_spp = d.min_spp;
+    f.max_spp = d.max_spp;
     ctx.registry->put(settings, f);
     SceneInfo& info = *ctx.info;
     info.frame_start = d.frame_start;

@@ -295,6 +295,9 @@ struct RenderDesc {
     uint64_t seed = 0;                         ///< random seed
     FilterKind filter = FilterKind::Gaussian;  ///< pixel filter
     float clamp_indirect = 0.0f;               ///< max luminance of one indirect contribution
+    float noise_threshold = 0.0f;              ///< adaptive sampling; 0 = off
+    uint32_t min_spp = 0;                      ///< adaptive: samples before a stop; 0 = auto
+    uint32_t max_spp = 0;                      ///< adaptive: most samples of a pixel; 0 = spp
     std::optional<std::string> working_space;  ///< as written; none = the config's, else ACEScg
     std::optional<std::string> color_space;    ///< of bare colours; none = lin_rec709
     int64_t frame_start = 1;                   ///< first frame of the animation

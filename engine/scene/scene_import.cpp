@@ -113,6 +113,9 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     keep("seed", &RenderDesc::seed);
     keep("filter", &RenderDesc::filter);
     keep("clamp_indirect", &RenderDesc::clamp_indirect);
+    keep("noise_threshold", &RenderDesc::noise_threshold);
+    keep("min_spp", &RenderDesc::min_spp);
+    keep("max_spp", &RenderDesc::max_spp);
     keep("frame_start", &RenderDesc::frame_start);
     keep("frame_end", &RenderDesc::frame_end);
     keep("fps", &RenderDesc::fps);

@@ -49,6 +49,12 @@ RenderDesc read_render(TableReader& r) {
     d.seed = static_cast<uint64_t>(r.integer("seed", 0, {0, 9.0e18}));
     const std::string filter = r.string("filter", "gaussian");
     d.clamp_indirect = static_cast<float>(r.number("clamp_indirect", 0.0, {0.0, 1e30}));
+    d.noise_threshold = static_cast<float>(r.number("noise_threshold", 0.0, {0.0, 1.0}));
+    d.min_spp = static_cast<uint32_t>(r.integer("min_spp", 0, {0, 1 << 20}));
+    d.max_spp = static_cast<uint32_t>(r.integer("max_spp", 0, {0, 1 << 20}));
+    if (d.min_spp > 0 && d.max_spp > 0 && d.min_spp > d.max_spp)
+        throw_error(r.loc("min_spp"), "min_spp = {} is more than max_spp = {}", d.min_spp,
+                    d.max_spp);
     if (!parse_filter(filter, d.filter))
         throw_error(r.loc("filter"), "unknown filter '{}' (valid: box, gaussian, blackman-harris)",
                     filter);

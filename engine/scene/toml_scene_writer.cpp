@@ -117,6 +117,9 @@ struct Writer {
         line("seed", fmt::to_string(r.seed));
         line("filter", str(filter_name(r.filter)));
         line("clamp_indirect", num(r.clamp_indirect));
+        if (r.noise_threshold > 0.0f) line("noise_threshold", num(r.noise_threshold));
+        if (r.min_spp > 0) line("min_spp", fmt::to_string(r.min_spp));
+        if (r.max_spp > 0) line("max_spp", fmt::to_string(r.max_spp));
         if (r.working_space) line("working_space", str(*r.working_space));
         if (r.color_space) line("color_space", str(*r.color_space));
         line("frame_start", fmt::to_string(r.frame_start));

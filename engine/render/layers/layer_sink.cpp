@@ -14,14 +14,19 @@ std::vector<std::string> layer_channel_names(const std::vector<std::string>& lig
     return out;
 }
 
-void finish_layers(std::vector<float>& film, std::size_t channels, uint32_t samples) {
-    const float inv_spp = samples > 0 ? 1.0f / static_cast<float>(samples) : 0.0f;
+void finish_layers(std::vector<float>& film, std::size_t channels, uint32_t samples,
+                   const uint32_t* counts) {
+    float inv_spp = samples > 0 ? 1.0f / static_cast<float>(samples) : 0.0f;
     // Depth, position, object-space position and object number: averages over the samples whose
     // camera ray hit something (0 where none did: alpha 0), so that edges are not pulled
     // towards the origin (an object number between two integers marks a pixel shared by
     // objects).
     for (std::size_t p = 0; p < film.size(); p += channels) {
         float* v = &film[p];
+        if (counts) {
+            const uint32_t n = counts[p / channels];
+            inv_spp = n > 0 ? 1.0f / static_cast<float>(n) : 0.0f;
+        }
         const float hits = v[kAovA];
         const float inv_hits = hits > 0.0f ? 1.0f / hits : 0.0f;
         for (std::size_t c = 0; c < channels; ++c) {

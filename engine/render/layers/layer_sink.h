@@ -61,6 +61,7 @@ struct NullSink {
     void scattered(std::size_t, uint32_t, std::size_t, Vec3, Vec3, float) {}
     void survived(std::size_t, float) {}
     void accumulate(std::size_t, std::size_t, bool) {}
+    Vec3 glint(std::size_t) const { return Vec3(0.0f); }
 };
 
 /** The render layers of the paths of one wave (one per worker thread, reused across waves). */
@@ -190,6 +191,9 @@ public:
             add3(lp + kAovCount + 3 + 3 * g, group_radiance_[k * film_->groups + g]);
     }
 
+    /** Path k's glint part (what accumulate adds to the glints layer when finite). */
+    Vec3 glint(std::size_t k) const { return is_finite(glint_[k]) ? glint_[k] : Vec3(0.0f); }
+
 private:
     /** One contribution c of path k to its light group, and its glint part. */
     void add(std::size_t k, Vec3 c, uint32_t group, Vec3 glint) {
@@ -218,9 +222,11 @@ private:
  *  Pobj.X/Y/Z, object, glints.R/G/B, then lightgroup_<name>.R/G/B per light group). */
 std::vector<std::string> layer_channel_names(const std::vector<std::string>& light_groups);
 
-/** Turns the layer film's sums of `samples` samples per pixel into the layers: coverage,
- *  albedo, glints and light groups averaged over all samples; depth, positions and the object
- *  number over the samples whose camera ray hit something; the normal normalised. */
-void finish_layers(std::vector<float>& film, std::size_t channels, uint32_t samples);
+/** Turns the layer film's sums of `samples` samples per pixel (or counts[p] for pixel p,
+ *  when counts is not null: adaptive sampling) into the layers: coverage, albedo, glints and
+ *  light groups averaged over all samples; depth, positions and the object number over the
+ *  samples whose camera ray hit something; the normal normalised. */
+void finish_layers(std::vector<float>& film, std::size_t channels, uint32_t samples,
+                   const uint32_t* counts = nullptr);
 
 }  // namespace spangle

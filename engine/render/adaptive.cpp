@@ -1,0 +1,92 @@
+// Adaptive sampling's plan, checkpoints and per-pixel error estimate: see adaptive.h.
+
+#include "render/adaptive.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "core/error.h"
+
+namespace spangle {
+
+namespace {
+
+/** Samples before a pixel may stop when neither the scene nor the options say. */
+constexpr uint32_t kAutoMinSpp = 16;
+/** The floor of dark pixels in the relative error (the relMSE metric's 0.01 = 0.1^2). */
+constexpr double kDarkFloor2 = 0.01;
+
+}  // namespace
+
+AdaptivePlan adaptive_plan(const Film& film, const RenderOptions& options) {
+    AdaptivePlan p;
+    p.threshold = options.noise_threshold_override >= 0.0f ? options.noise_threshold_override
+                                                           : film.noise_threshold;
+    if (!(p.threshold > 0.0f)) return AdaptivePlan{};
+    const uint32_t spp = options.spp_override ? options.spp_override : film.spp;
+    p.max_spp =
+        options.max_spp_override ? options.max_spp_override : (film.max_spp ? film.max_spp : spp);
+    const uint32_t asked = options.min_spp_override ? options.min_spp_override : film.min_spp;
+    if (asked > p.max_spp)
+        throw_error("min_spp {} is more than the {} samples a pixel may take (max_spp, or spp)",
+                    asked, p.max_spp);
+    p.min_spp = asked ? asked : std::min(kAutoMinSpp, p.max_spp);
+    p.min_spp = std::min(p.max_spp, p.min_spp + (p.min_spp & 1u));  // even: two equal halves
+    return p;
+}
+
+bool adaptive_on(const Film& film, const RenderOptions& options) {
+    return adaptive_plan(film, options).on();
+}
+
+uint32_t next_checkpoint(const AdaptivePlan& plan, uint32_t samples) {
+    // A look at half of min_spp first, so that a pixel within the threshold there and at
+    // min_spp stops at min_spp.
+    const uint32_t half = (plan.min_spp / 2) & ~1u;
+    if (half >= 2 && samples < half) return half;
+    if (samples < plan.min_spp) return plan.min_spp;
+    uint32_t c = plan.min_spp;
+    while (c <= samples) c += std::max(8u, (c / 8) & ~1u);
+    return std::min(c, plan.max_spp);
+}
+
+void AdaptiveFilm::reset(std::size_t pixels) {
+    count.assign(pixels, 0);
+    odd.assign(6 * pixels, 0.0f);
+    strikes.assign(pixels, 0);
+    active.assign(pixels, 1);
+}
+
+float adaptive_error(const AdaptivePlan& plan, const PixelSums& s) {
+    if (s.samples < 2) return 1e30f;
+    const double n = s.samples, h = 0.5 * n;
+    double smooth = 0.0, glint_se2 = 0.0, glint_mean2 = 0.0, glint_abs = 0.0;
+    for (int c = 0; c < 3; ++c) {
+        const double total = static_cast<double>(s.beauty[c]) * 0x1p-40;
+        const double odd = static_cast<double>(s.odd[c]), even = total - odd;
+        const double g_total = s.glints ? static_cast<double>(s.glints[c]) : 0.0;
+        const double g_odd = s.glints ? static_cast<double>(s.odd[3 + c]) : 0.0;
+        const double g_even = g_total - g_odd;
+        const double mean = total / n;
+        const double norm = mean * mean + kDarkFloor2;
+        // The standard error of the mean, squared, is (A - B)^2 / 4 for half-means A and B.
+        const double ds = ((odd - g_odd) - (even - g_even)) / h;
+        smooth += 0.25 * ds * ds / norm;
+        const double dg = (g_odd - g_even) / h;
+        glint_se2 += 0.25 * dg * dg;
+        glint_abs += 0.25 * dg * dg / norm;
+        const double g_mean = g_total / n;
+        glint_mean2 += g_mean * g_mean;
+    }
+    const double t = static_cast<double>(plan.threshold);
+    double ratio = std::sqrt(smooth / 3.0) / t;
+    if (glint_mean2 > 0.0) {
+        const double tolerance = std::min(0.5, 10.0 * t);
+        const double relative = std::sqrt(glint_se2 / glint_mean2) / tolerance;
+        const double absolute = std::sqrt(glint_abs / 3.0) / t;
+        ratio = std::max(ratio, std::min(relative, absolute));
+    }
+    return std::isfinite(ratio) ? static_cast<float>(ratio) : 1e30f;
+}
+
+}  // namespace spangle

@@ -1,0 +1,73 @@
+#pragma once
+// Adaptive sampling: every pixel stops taking samples once its own samples say that its value is
+// known to the noise threshold (docs/adaptive.md).
+//
+// The estimate of a pixel's error comes from two interleaved half-sums of its samples (the odd
+// and the even sample numbers): their difference estimates the standard error of the mean. A
+// pixel is looked at only at fixed checkpoints (sample counts that depend on min_spp alone) and
+// stops after two checkpoints in a row within the threshold (the first look is at half of
+// min_spp, so that a flat pixel stops at min_spp). Because the decision reads nothing
+// but the pixel's own samples, and each pixel's samples depend on the pixel alone, the samples a
+// pixel receives are the same whatever the split of the work: threads, tiles, crop windows, MPI
+// bands and progressive passes give the whole render's pixels bit for bit, without a halo.
+//
+// Glints are signal: the part of a pixel that came through a glint (the glints layer) is judged
+// apart from the rest. The rest must reach the threshold as a relative error of the pixel (as
+// the relMSE metric measures it, with 0.1 as the floor of dark pixels); the glint part must know
+// its own brightness to ten times the threshold relative to itself (at most 50%), or be below the
+// threshold relative to the pixel. So a bright sparkle neither keeps its pixel sampling until its
+// absolute noise is that of a dull pixel, nor lets the pixel stop while the glint was seen in one
+// half of the samples only (its two halves then differ by all of it).
+
+#include <cstdint>
+#include <vector>
+
+#include "core/sample_sum.h"
+#include "render/render_options.h"
+#include "scene/components.h"
+
+namespace spangle {
+
+/** Adaptive sampling's settings, resolved from the scene's film and the options. */
+struct AdaptivePlan {
+    float threshold = 0.0f;  ///< the relative standard error a pixel stops at; 0: off
+    uint32_t min_spp = 0;    ///< samples every pixel takes (even)
+    uint32_t max_spp = 0;    ///< samples no pixel goes beyond (the render's spp)
+    bool on() const { return threshold > 0.0f; }
+};
+
+/** The plan for `film` under `options` (its overrides); off when the threshold is 0. Throws
+ *  SpangleError for min_spp above max_spp. */
+AdaptivePlan adaptive_plan(const Film& film, const RenderOptions& options);
+
+/** Whether a render of `film` under `options` samples adaptively. */
+bool adaptive_on(const Film& film, const RenderOptions& options);
+
+/** The first checkpoint after `samples`: half of min_spp (rounded down to even, when at least
+ *  2), min_spp, then every max(8, c / 8) samples (even), capped at max_spp. A pixel stops at a
+ *  checkpoint from min_spp on, after two in a row within the threshold. */
+uint32_t next_checkpoint(const AdaptivePlan& plan, uint32_t samples);
+
+/** Per pixel of the image: the samples taken, the odd samples' sums (beauty RGB, glints RGB),
+ *  checkpoints in a row within the threshold, and whether it still takes samples. */
+struct AdaptiveFilm {
+    std::vector<uint32_t> count;   ///< samples taken
+    std::vector<float> odd;        ///< 6 per pixel: odd-numbered samples' beauty and glint sums
+    std::vector<uint8_t> strikes;  ///< checkpoints in a row within the threshold
+    std::vector<uint8_t> active;   ///< 1: takes more samples
+    /** Sized for `pixels`, every pixel active with no samples. */
+    void reset(std::size_t pixels);
+};
+
+/** What pixel `p`'s error estimate reads: the film's sums and the layers' glint sums. */
+struct PixelSums {
+    const SampleSum* beauty;  ///< RGB sums of all its samples
+    const float* glints;      ///< RGB sums of its glint parts (null: no glints layer)
+    const float* odd;         ///< AdaptiveFilm::odd of the pixel
+    uint32_t samples;         ///< samples taken (even)
+};
+
+/** The pixel's error over what the plan allows (<= 1: within the threshold). */
+float adaptive_error(const AdaptivePlan& plan, const PixelSums& s);
+
+}  // namespace spangle

@@ -1,0 +1,44 @@
+#pragma once
+// The denoiser: Intel Open Image Denoise (OIDN 2, its C API), opened with dlopen when a render
+// asks for it, so that Spangle builds and runs without it (docs/denoise.md).
+//
+// The glints apart: the beauty minus its glints layer (the light that came through a glint at
+// the first surface) is denoised with the albedo and normal layers as guides (each guide
+// filtered first, so that their own noise is not taken for detail); the glints layer is
+// denoised on its own (or passed through as rendered: GlintDenoise::Keep) and added back. A
+// glint's light then stays in its pixel instead of being spread into the surface around it.
+//
+// Where the library is looked for, in order: $SPANGLE_OIDN (the library file, or a folder
+// holding it or lib/ with it), /opt/spangle/oidn/lib (where scripts/install-deps.sh unpacks it
+// from the `pyoidn` wheel on PyPI), then the system's libOpenImageDenoise.so.2.
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace spangle {
+
+/** Whether the denoiser can run; when it cannot, `why` (if given) says what was tried. */
+bool denoiser_available(std::string* why = nullptr);
+
+/** How the glints are treated. */
+enum class GlintDenoise {
+    Apart,   ///< the glints layer filtered on its own, then added (the default)
+    Keep,    ///< the glints layer passes through unfiltered
+    Filter,  ///< the whole beauty is filtered, glints and all (for comparison)
+};
+
+/** A render's image and layers, as the denoiser reads and writes them. */
+struct DenoiseImage {
+    std::vector<float>* image;              ///< RGB per pixel: replaced by the denoised beauty
+    std::vector<float>* layers;             ///< layer_names per pixel: noisy.R/G/B added
+    std::vector<std::string>* layer_names;  ///< must hold albedo.*, N.* and glints.*
+    uint32_t width, height;                 ///< pixels
+};
+
+/** Denoises `im` in place: its image becomes the denoised beauty and its noisy beauty is kept
+ *  as the layer `noisy` (added after the others). `threads`: 0 = all cores. Throws
+ *  SpangleError when the library cannot be opened, a guide layer is missing or OIDN fails. */
+void denoise(DenoiseImage im, GlintDenoise glints, int threads);
+
+}  // namespace spangle

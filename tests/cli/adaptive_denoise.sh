@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# Adaptive sampling, the denoiser and inspect from the command line: an adaptive render's crops
+# merge into exactly the whole render (spp layer included); --spp-range with adaptive sampling,
+# --denoise with --spp-range and a denoiser that cannot be opened are refused, writing nothing;
+# --denoise keeps the noisy beauty as a layer; inspect reads every layer and tells glints from
+# fireflies.
+#   adaptive_denoise.sh SPANGLE REPO_DIR
+set -u
+S=$1 REPO=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; cat "$T/err.txt" 2>/dev/null; exit 1; }
+SCENE="$REPO/assets/scenes/demo.toml"
+ARGS=(--size 90x50 --spp 64 --noise-threshold 0.05 --min-spp 8 -q --no-preview --float)
+
+"$S" render "$SCENE" -o "$T/whole.exr" "${ARGS[@]}" 2> "$T/err.txt" || fail "adaptive render"
+oiiotool --info -v "$T/whole.exr" | grep -q "channel list: R, G, B, spp" || fail "no spp layer"
+"$S" render "$SCENE" -o "$T/left.exr" "${ARGS[@]}" --crop 0,0,37,50 2> "$T/err.txt" || fail "left crop"
+"$S" render "$SCENE" -o "$T/right.exr" "${ARGS[@]}" --crop 37,0,90,50 2> "$T/err.txt" || fail "right crop"
+"$S" merge "$T/left.exr" "$T/right.exr" -o "$T/merged.exr" > /dev/null 2> "$T/err.txt" || fail "merge"
+oiiotool "$T/whole.exr" "$T/merged.exr" --diff --fail 0 --warn 0 > "$T/diff.txt" 2>&1 ||
+    { cat "$T/diff.txt"; fail "the merged adaptive crops differ from the whole render"; }
+
+"$S" render "$SCENE" -o "$T/range.exr" "${ARGS[@]}" --spp-range 0..32 2> "$T/err.txt"
+[ $? -eq 1 ] || fail "an adaptive render split by --spp-range was not refused"
+grep -q "cannot split an adaptive render" "$T/err.txt" || fail "no reason for refusing --spp-range"
+[ ! -e "$T/range.exr" ] || fail "an output was written for a refused sample range"
+"$S" render "$SCENE" -o "$T/dr.exr" --spp 4 --denoise --spp-range 0..2 2> "$T/err.txt"
+[ $? -eq 2 ] || fail "--denoise with --spp-range is not a usage error"
+SPANGLE_OIDN="$T/nowhere.so" "$S" render "$SCENE" -o "$T/nolib.exr" --size 90x50 --spp 2 -q \
+    --denoise 2> "$T/err.txt"
+[ $? -eq 1 ] || fail "a denoiser that cannot be opened did not fail the render"
+grep -q "Open Image Denoise 2 could not be opened" "$T/err.txt" || fail "no reason for the denoiser"
+[ ! -e "$T/nolib.exr" ] || fail "an output was written without its denoiser"
+
+"$S" render "$SCENE" -o "$T/layers.exr" --size 90x50 --spp 4 -q --no-preview --layers 2> "$T/err.txt" || fail "layers render"
+"$S" inspect "$T/layers.exr" --against "$T/whole.exr" > "$T/out.txt" 2> "$T/err.txt" || fail "inspect"
+grep -q "^glints (> 10x the 3x3 median" "$T/out.txt" || fail "inspect did not tell glints apart: $(cat "$T/out.txt")"
+grep -q "^  glints.R  *min " "$T/out.txt" || fail "inspect did not print the layers: $(cat "$T/out.txt")"
+grep -q "^relMSE against " "$T/out.txt" || fail "inspect did not compare: $(cat "$T/out.txt")"
+
+# The denoiser itself, where the install script put it in place.
+if [ -f /opt/spangle/oidn/lib/libOpenImageDenoise.so.2 ] || [ -n "${SPANGLE_OIDN:-}" ]; then
+    "$S" render "$SCENE" -o "$T/dn.exr" --size 90x50 --spp 4 -q --no-preview --denoise 2> "$T/err.txt" || fail "denoise"
+    oiiotool --info -v "$T/dn.exr" | grep -q "noisy.R" || fail "the noisy beauty is not a layer"
+fi
+echo PASS
