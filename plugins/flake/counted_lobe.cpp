@@ -100,7 +100,7 @@ constexpr int kExactVirtual = 32;
  *  at its mean. */
 constexpr uint32_t kDrawn = 8;
 void leaf_colours(uint64_t leaf_key, uint32_t n, const ColorTable& colors, float out[3]) {
-    if (colors.cdf.empty()) {
+    if (colors.cdf.empty() && colors.varied.empty()) {
         for (int c = 0; c < 3; ++c) out[c] = static_cast<float>(n) * colors.single[c];
         return;
     }
@@ -108,7 +108,8 @@ void leaf_colours(uint64_t leaf_key, uint32_t n, const ColorTable& colors, float
     const auto rest = static_cast<float>(n - drawn);
     for (int c = 0; c < 3; ++c) out[c] = rest * colors.mean[c];
     for (uint32_t i = 0; i < drawn; ++i) {
-        const float* col = colors.pick(static_cast<float>(mix(leaf_key, i) >> 40) * 0x1p-24f);
+        const uint64_t id = mix(leaf_key, i);
+        const float* col = colors.pick(static_cast<float>(id >> 40) * 0x1p-24f, id);
         for (int c = 0; c < 3; ++c) out[c] += col[c];
     }
 }
@@ -208,8 +209,8 @@ constexpr uint32_t kMaxVirtual = 32;
 V3 virtual_normal(const DirectionGrid& grid, int depth, int i, int j, uint64_t key, uint32_t q,
                   uint64_t& h);
 float virtual_flakes(const DirectionGrid& grid, const ColorTable& colors,
-                     const FresnelTable& fresnel, V3 wo, V3 wi, int depth, int i, int j, uint32_t n,
-                     uint64_t key, float sum[3]) {
+                     const FresnelTable& fresnel, const FilmTables& film, V3 wo, V3 wi, int depth,
+                     int i, int j, uint32_t n, uint64_t key, float sum[3]) {
     float lit = 0.0f;
     const uint32_t made = std::min(n, kMaxVirtual);
     const float weight = static_cast<float>(n) / static_cast<float>(made);
@@ -224,8 +225,9 @@ float virtual_flakes(const DirectionGrid& grid, const ColorTable& colors,
         const V3 d = wi - r;
         if (mf::dot(d, d) > thr) continue;
         CacheEntry e;
-        const float* col = colors.pick(static_cast<float>(mix(h, 0xc0) >> 40) * 0x1p-24f);
-        if (!make_entry(wo, m, col, fresnel, e)) continue;
+        const uint64_t id = mix(h, 0xc0);
+        const float* col = colors.pick(static_cast<float>(id >> 40) * 0x1p-24f, id);
+        if (!make_entry(wo, m, col, film.pick(id, fresnel), e)) continue;
         for (int c = 0; c < 3; ++c) sum[c] += weight * e.rgb[c];
         lit += weight;
     }
@@ -296,8 +298,8 @@ float realised_weight(const Aggregate& a, const DirectionGrid& grid,
 }
 
 void aggregate_lobe(const CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
-                    const FresnelTable& fresnel, V3 wo, V3 wi, int exact_below, float virt[3],
-                    float mod[3], float& lit) {
+                    const FresnelTable& fresnel, const FilmTables& film, V3 wo, V3 wi,
+                    int exact_below, float virt[3], float mod[3], float& lit) {
     virt[0] = virt[1] = virt[2] = mod[0] = mod[1] = mod[2] = lit = 0.0f;
     if (cf.n_agg == 0 || !(wi.z > 0.0f) || !(wo.z > 0.0f)) return;
     V3 h = wo + wi;
@@ -385,8 +387,8 @@ void aggregate_lobe(const CountedFootprint& cf, const DirectionGrid& grid, const
             if (dense[a]) continue;
             visit_leaves(cf.agg[a], grid, exact_below, depth, i0, i1, j0, j1,
                          [&](int i, int j, uint32_t n, uint64_t key) {
-                             const float w = virtual_flakes(grid, colors, fresnel, wo, wi, depth, i,
-                                                            j, n, key, virt);
+                             const float w = virtual_flakes(grid, colors, fresnel, film, wo, wi,
+                                                            depth, i, j, n, key, virt);
                              if (cf.agg[a].sparse) lit += w;
                          });
         }

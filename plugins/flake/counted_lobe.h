@@ -35,6 +35,7 @@
 #include "discrete_lobe.h"
 #include "field.h"
 #include "palette.h"
+#include "thin_film.h"
 
 namespace spangle::flake {
 
@@ -116,8 +117,8 @@ constexpr float kDenseLit = 16.0f;
  *  mark_sparse) are always treated the first way; `lit` gets the summed weight of their virtual
  *  flakes whose cone holds wi (for the density of sample_aggregate). */
 void aggregate_lobe(const CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
-                    const FresnelTable& fresnel, V3 wo, V3 wi, int exact_below, float virt[3],
-                    float mod[3], float& lit);
+                    const FresnelTable& fresnel, const FilmTables& film, V3 wo, V3 wi,
+                    int exact_below, float virt[3], float mod[3], float& lit);
 
 /** The mean projected-area weight w = (wo.m) / m.z of the valid flakes (facing wo, reflecting
  *  above the horizon) in each node of the direction tree's weight_level, as a share of the

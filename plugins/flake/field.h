@@ -126,6 +126,7 @@ struct Flake {
     double u = 0, v = 0;  ///< position in uv (absolute, tile included)
     V3 m;                 ///< normal, local shading frame
     float color_u = 0;    ///< uniform number that picks its colour-table entry
+    uint64_t id = 0;      ///< the flake's own hash: its colour variation and film draw from it
 };
 
 /** The position of flake i of the leaf with key `key` whose cell is [x0, x0 + size]^2
@@ -136,6 +137,7 @@ inline uint64_t leaf_flake_position(uint64_t key, uint32_t i, double x0, double 
     const uint64_t h = mix(key, i);
     f.u = x0 + size * (static_cast<double>(h >> 32) * 0x1p-32);
     f.v = y0 + size * (static_cast<double>(h & 0xffffffffu) * 0x1p-32);
+    f.id = h;
     return h;
 }
 

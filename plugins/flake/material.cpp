@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <new>
 #include <vector>
 
 #include "../common/plugin_support.h"
@@ -22,6 +23,37 @@ Material::Space parse_space(const std::string& s) {
     if (s == "world") return Material::Space::World;
     if (s == "object") return Material::Space::Object;
     return Material::Space::Auto;
+}
+
+/** Builds m.second from the flakes2_* parameters: the same parameter set with the second
+ *  population's density, roughness, cone and colour in place of the first's, no colour table,
+ *  coat or further population, and its own seed stream. */
+bool init_second(Material& m, const SpangleParams_v3* p, const SpangleHost_v3* host,
+                 std::string& why) {
+    m.second_weight = static_cast<float>(param_number(p, "flakes2_weight"));
+    if (!(m.second_weight > 0.0f)) return true;
+    std::vector<SpangleParamValue_v3> values(p->values, p->values + p->count);
+    const auto set = [&](const char* name, const char* from) {
+        const SpangleParamValue_v3* src = from ? find_param(p, from) : nullptr;
+        for (auto& v : values)
+            if (std::strcmp(v.name, name) == 0)
+                for (int c = 0; c < 3; ++c) v.number[c] = src ? src->number[c] : 0.0;
+    };
+    set("density", "flakes2_density");
+    set("flake_roughness", "flakes2_roughness");
+    set("gamma", "flakes2_gamma");
+    set("flake_color", "flakes2_color");
+    set("color_table", nullptr);
+    set("coat", nullptr);
+    set("flakes2_weight", nullptr);
+    const SpangleParams_v3 p2{values.data(), p->count};
+    m.second = std::make_unique<Material>();
+    if (!init_material(*m.second, &p2, host, why)) {
+        why = "flakes2: " + why;
+        return false;
+    }
+    m.second->field.seed = mix(m.field.seed, 0x5ec0d);
+    return true;
 }
 
 }  // namespace
@@ -60,11 +92,12 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     });
     m.coat.init(param_number(p, "coat") != 0.0, static_cast<float>(param_number(p, "coat_ior")),
                 static_cast<float>(param_number(p, "coat_roughness")), &cache);
-    if (!build_fresnel(m.fresnel, p, host, why) || !build_colors(m.colors, m.base, p, host, why))
+    if (!build_fresnel(m.fresnel, p, host, why) || !build_film(m.film, m.fresnel, p, host, why) ||
+        !build_colors(m.colors, m.base, p, host, why))
         return false;
     m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
     m.grid.init(m.alpha, gamma);
-    return true;
+    return init_second(m, p, host, why);
 }
 
 namespace {
@@ -112,7 +145,8 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     const Footprint& p = view.footprint;
     const auto add = [&](const Flake& f) {
         CacheEntry e;
-        if (kept(f, view.keep) && make_entry(c.wo, f.m, m.colors.pick(f.color_u), m.fresnel, e))
+        if (kept(f, view.keep) &&
+            make_entry(c.wo, f.m, m.colors.pick(f.color_u, f.id), m.film.pick(f.id, m.fresnel), e))
             scratch.push_back(e);
     };
     if (m.tree) {
@@ -207,16 +241,13 @@ FieldView field_view(const Material& m, const PointInput& in) {
     return view;
 }
 
-void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
-                   PointStats& st) {
-    c = Closure{};
-    c.wo = in.wo;
-    std::copy(in.base, in.base + 3, c.base);
-    c.weight = in.weight;
-    c.valid = c.wo.z > 0.0f ? 1u : 0u;
-    if (!c.valid) return;
+namespace {
+
+/** The flake part of a closure (c.wo and c.weight set): its expected weight, the blend and the
+ *  discrete lobe of the point's footprint in m's field. */
+void prepare_flakes(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
+                    PointStats& st) {
     c.v_o = m.smooth.valid_fraction(c.wo.z);
-    c.e_coat_o = m.coat.albedo_at(c.wo.z);
     // E[w] over D(m)(m.n): (cos_o / G1(wo)) times the share of visible normals that count.
     c.w_expected = c.wo.z * c.v_o / mf::ggx_g1(c.wo, m.alpha, m.alpha);
     double lambda = INFINITY;
@@ -235,12 +266,54 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
         ++st.lambda_count;
     }
     ++(c.t <= 0.0f ? st.discrete : c.t >= 1.0f ? st.smooth : st.blended);
+}
+
+/** The luminance a population's flakes reflect at normal incidence (floored: every lobe is
+ *  sampled), the weight that steers sampling between lobes. */
+float flake_luminance(const Material& m) {
+    return std::max(0.05f, luminance(m.colors.mean) * m.fresnel.normal_luminance());
+}
+
+/** The second population's closure for the same point, in the arena (the statistics count the
+ *  first population only). Leaves c without one when the arena is full. */
+void prepare_second(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena) {
+    if (!arena) return;
+    void* mem = arena->allocate(arena->context, sizeof(Closure), alignof(Closure));
+    if (!mem) return;
+    auto* c2 = new (mem) Closure{};
+    c2->wo = c.wo;
+    c2->valid = c.valid;
+    c2->weight = c.weight;
+    PointStats ignored;
+    prepare_flakes(*m.second, in, *c2, arena, ignored);
+    c.second = c2;
+    c.w_second = m.second_weight;
+    const float l1 = (1.0f - c.w_second) * flake_luminance(m);
+    const float l2 = c.w_second * flake_luminance(*m.second);
+    c.q_second = l2 / (l1 + l2);
+}
+
+}  // namespace
+
+void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
+                   PointStats& st) {
+    c = Closure{};
+    c.wo = in.wo;
+    std::copy(in.base, in.base + 3, c.base);
+    c.weight = in.weight;
+    c.valid = c.wo.z > 0.0f ? 1u : 0u;
+    if (!c.valid) return;
+    c.e_coat_o = m.coat.albedo_at(c.wo.z);
+    prepare_flakes(m, in, c, arena, st);
+    if (m.second) prepare_second(m, in, c, arena);
     // Lobe selection in proportion to the energy each returns (a floor keeps every lobe sampled).
     const float under = 1.0f - c.e_coat_o;
     const float w_coat = m.coat.on ? c.e_coat_o : 0.0f;
     const float w_base = under * (1.0f - c.weight) * luminance(c.base);
-    const float w_flake =
-        under * c.weight * std::max(0.05f, luminance(m.colors.mean) * m.fresnel.normal_luminance());
+    const float w_flake = under * c.weight *
+                          (c.second ? (1.0f - c.w_second) * flake_luminance(m) +
+                                          c.w_second * flake_luminance(*m.second)
+                                    : flake_luminance(m));
     const float total = w_coat + w_base + w_flake;
     if (total > 0.0f) {
         c.p_coat = w_coat / total;
@@ -275,8 +348,8 @@ void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& 
         // The aggregates' flakes: sparse ones as virtual flakes (cone sums like the cache's),
         // dense ones as the smooth lobe per unit weight times the modulation of their counts.
         float virt[3];
-        aggregate_lobe(c.counted, m.grid, m.colors, m.fresnel, c.wo, wi, m.field.exact_below, virt,
-                       mod, lit);
+        aggregate_lobe(c.counted, m.grid, m.colors, m.fresnel, m.film, c.wo, wi,
+                       m.field.exact_below, virt, mod, lit);
         for (int ch = 0; ch < 3; ++ch) sum[ch] += virt[ch];
     }
     const float per_cone = 1.0f / (m.cone.solid_angle * wi.z);
@@ -314,6 +387,16 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
     }
     float fl[3], pdf_fl, disc[3];
     eval_flakes(m, c, wi, fl, pdf_fl, disc);
+    if (c.second) {
+        // Two populations: their lobes mixed by their shares (a convex sum: no energy gained).
+        float f2[3], pdf2, disc2[3];
+        eval_flakes(*m.second, *c.second, wi, f2, pdf2, disc2);
+        for (int ch = 0; ch < 3; ++ch) {
+            fl[ch] = (1.0f - c.w_second) * fl[ch] + c.w_second * f2[ch];
+            disc[ch] = (1.0f - c.w_second) * disc[ch] + c.w_second * disc2[ch];
+        }
+        pdf_fl = (1.0f - c.q_second) * pdf_fl + c.q_second * pdf2;
+    }
     for (int ch = 0; ch < 3; ++ch)
         f[ch] = f_coat + under * ((1.0f - c.weight) * c.base[ch] * mf::kInvPi + c.weight * fl[ch]);
     pdf = c.p_coat * pdf_coat + c.p_base * wi.z * mf::kInvPi + c.p_flake * pdf_fl;
@@ -335,6 +418,34 @@ bool pick(float& u, float p) {
     }
     u = std::min((u - p) / std::max(1e-12f, 1.0f - p), 0x1.fffffep-1f);
     return false;
+}
+
+/** Samples the flake lobe of one population (the smooth lobe, the cache or an aggregate, u
+ *  choosing); false when it fails. */
+bool sample_flakes(const Material& m, const Closure& c, float u, float u0, float u1, V3& wi) {
+    bool ok = true;
+    if (pick(u, c.t)) {
+        ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
+    } else if (pick(u, c.p_cache)) {
+        ok = sample_discrete(c.lobe, m.cone, u, u0, u1, wi);
+    } else {
+        // One of the aggregated flakes: its aggregate by count, then within it.
+        const CountedFootprint& cf = c.counted;
+        float x = u * static_cast<float>(cf.aggregated);
+        uint32_t a = 0;
+        while (a + 1 < cf.n_agg && x >= static_cast<float>(cf.agg[a].count))
+            x -= static_cast<float>(cf.agg[a++].count);
+        if (cf.n_agg == 0) {
+            ok = false;
+        } else if (cf.agg[a].sparse) {
+            const float ua =
+                std::clamp(x / static_cast<float>(cf.agg[a].count), 0.0f, 0x1.fffffep-1f);
+            ok = sample_aggregate(cf.agg[a], m.grid, m.field.exact_below, c.wo, ua, u0, u1, wi);
+        } else {
+            ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
+        }
+    }
+    return ok;
 }
 
 }  // namespace
@@ -362,26 +473,9 @@ void sample_material(const Material& m, const Closure& c, float u0, float u1, fl
     } else if (pick(u, c.p_base / std::max(1e-12f, 1.0f - c.p_coat))) {
         wi = mf::cosine_hemisphere(u0, u1);
         kind = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_DIFFUSE;
-    } else if (pick(u, c.t)) {
-        ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
-    } else if (pick(u, c.p_cache)) {
-        ok = sample_discrete(c.lobe, m.cone, u, u0, u1, wi);
     } else {
-        // One of the aggregated flakes: its aggregate by count, then within it.
-        const CountedFootprint& cf = c.counted;
-        float x = u * static_cast<float>(cf.aggregated);
-        uint32_t a = 0;
-        while (a + 1 < cf.n_agg && x >= static_cast<float>(cf.agg[a].count))
-            x -= static_cast<float>(cf.agg[a++].count);
-        if (cf.n_agg == 0) {
-            ok = false;
-        } else if (cf.agg[a].sparse) {
-            const float ua =
-                std::clamp(x / static_cast<float>(cf.agg[a].count), 0.0f, 0x1.fffffep-1f);
-            ok = sample_aggregate(cf.agg[a], m.grid, m.field.exact_below, c.wo, ua, u0, u1, wi);
-        } else {
-            ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
-        }
+        const bool two = c.second && pick(u, c.q_second);
+        ok = sample_flakes(two ? *m.second : m, two ? *c.second : c, u, u0, u1, wi);
     }
     if (!ok || !(wi.z > 0.0f)) return;
     eval_material(m, c, wi, f, pdf, glint);  // the whole mixture, so MIS sees one density

@@ -16,6 +16,7 @@
 #include <spangle/plugin.h>
 
 #include <atomic>
+#include <memory>
 #include <string>
 
 #include "coat.h"
@@ -24,6 +25,7 @@
 #include "field.h"
 #include "palette.h"
 #include "smooth_lobe.h"
+#include "thin_film.h"
 
 namespace spangle::flake {
 
@@ -44,11 +46,17 @@ struct Material {
     float base[3] = {0, 0, 0};
     float flake_weight = 0.6f;
     bool shadowing = true;
-    FresnelTable fresnel;
+    FresnelTable fresnel;  ///< the flakes' Fresnel (with a film: its mean over the thicknesses)
+    FilmTables film;       ///< per-thickness Fresnel tables of interference flakes (empty: none)
     ColorTable colors;
     SmoothLobe smooth;
     DirectionGrid grid;
     Coat coat;
+    /** The second flake population (flakes2_*): a material of its own density, roughness, cone,
+     *  colour and field (its seed salted), sharing this one's Fresnel, film, colour variation and
+     *  footprint; only its flake lobe is used. Null with flakes2_weight = 0. */
+    std::unique_ptr<Material> second;
+    float second_weight = 0;  ///< flakes2_weight: the second population's share of the flakes
 
     // Statistics for --stats (relaxed atomics, summed per batch).
     mutable std::atomic<uint64_t> points{0}, discrete{0}, blended{0}, smooth_only{0};
@@ -76,6 +84,9 @@ struct Closure {
     uint32_t valid = 0;         ///< wo above the surface
     float base[3] = {0, 0, 0};  ///< base_color here (textured or the material's)
     float weight = 0;           ///< flake_weight here (textured or the material's)
+    const Closure* second = nullptr;  ///< the second population's flakes (arena; null: none)
+    float w_second = 0;               ///< its share of the flake lobe (0 without it)
+    float q_second = 0;               ///< probability that flake sampling picks it
 };
 
 /** What prepare_point() reports for the statistics. */

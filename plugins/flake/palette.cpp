@@ -111,13 +111,88 @@ bool base_in_rec709(const float base[3], const SpangleHost_v3* host, float out[3
     return true;
 }
 
+/** The variation of flake colours, in HSV of the working space's linear values. */
+struct Variation {
+    float hue = 0;         ///< degrees: hue offsets uniform in [-hue, hue]
+    float saturation = 0;  ///< saturation offsets uniform in [-saturation, saturation]
+    float value = 0;       ///< value factors uniform in [1 - value, 1 + value]
+};
+
+/** RGB (non-negative) to HSV: h in degrees (0 for a grey), s and v as in Smith 1978. */
+void rgb_to_hsv(const float rgb[3], float& h, float& s, float& v) {
+    v = std::max({rgb[0], rgb[1], rgb[2]});
+    const float mn = std::min({rgb[0], rgb[1], rgb[2]});
+    s = v > 0.0f ? (v - mn) / v : 0.0f;
+    h = std::max(0.0f, hue_of(rgb));
+}
+
+/** HSV to RGB (h in degrees, any real: wrapped). */
+void hsv_to_rgb(float h, float s, float v, float rgb[3]) {
+    float hp = std::fmod(h, 360.0f) / 60.0f;
+    if (hp < 0.0f) hp += 6.0f;
+    const float c = v * s, x = c * (1.0f - std::fabs(std::fmod(hp, 2.0f) - 1.0f));
+    const int sector = std::min(static_cast<int>(hp), 5);
+    const float r[6] = {c, x, 0, 0, x, c}, g[6] = {x, c, c, x, 0, 0}, b[6] = {0, 0, x, c, c, x};
+    const float m = v - c;
+    rgb[0] = r[sector] + m;
+    rgb[1] = g[sector] + m;
+    rgb[2] = b[sector] + m;
+}
+
+/** Variant v of colour `in`: its offsets are the v-th point of the R2 sequence (Roberts 2018),
+ *  stratified over the cube of (hue, saturation, value) offsets. A grey keeps its (absent)
+ *  hue and saturation; the value never exceeds max(1, the colour's own value), so varied
+ *  flakes reflect no more than the brightest of the table. */
+void vary(const float in[3], uint32_t v, const Variation& var, float out[3]) {
+    constexpr double kG = 1.2207440846057596;  // the plastic number: x^4 = x + 1's real root
+    constexpr double kA[3] = {1.0 / kG, 1.0 / (kG * kG), 1.0 / (kG * kG * kG)};
+    float x[3];
+    for (int k = 0; k < 3; ++k) {
+        const double a = 0.5 + kA[k] * static_cast<double>(v + 1);
+        x[k] = static_cast<float>(2.0 * (a - std::floor(a)) - 1.0);
+    }
+    float h, s, val;
+    rgb_to_hsv(in, h, s, val);
+    const float s2 = s > 0.0f ? std::clamp(s + var.saturation * x[1], 0.0f, 1.0f) : 0.0f;
+    const float v2 = std::clamp(val * (1.0f + var.value * x[2]), 0.0f, std::max(1.0f, val));
+    hsv_to_rgb(h + var.hue * x[0], s2, v2, out);
+}
+
+/** Fills t.varied (kVariants per entry of probability w[k] / sum w, a single entry when the
+ *  table is off) and sets t.mean to the varied colours' exact mean; nothing without variation.
+ */
+void build_variants(ColorTable& t, const SpangleParams_v3* p, const std::vector<double>& w) {
+    Variation var;
+    var.hue = static_cast<float>(param_number(p, "hue_variation"));
+    var.saturation = static_cast<float>(param_number(p, "saturation_variation"));
+    var.value = static_cast<float>(param_number(p, "value_variation"));
+    if (var.hue == 0.0f && var.saturation == 0.0f && var.value == 0.0f) return;
+    const std::size_t entries = t.cdf.empty() ? 1 : t.cdf.size();
+    const double total = std::accumulate(w.begin(), w.end(), 0.0);
+    t.varied.resize(3 * entries * ColorTable::kVariants);
+    double mean[3] = {0.0, 0.0, 0.0};
+    for (std::size_t k = 0; k < entries; ++k) {
+        const float* in = t.cdf.empty() ? t.single : &t.rgb[3 * k];
+        const double pk = w[k] / total / ColorTable::kVariants;
+        for (uint32_t v = 0; v < ColorTable::kVariants; ++v) {
+            float* out = &t.varied[3 * (k * ColorTable::kVariants + v)];
+            vary(in, v, var, out);
+            for (int c = 0; c < 3; ++c) mean[c] += pk * static_cast<double>(out[c]);
+        }
+    }
+    for (int c = 0; c < 3; ++c) t.mean[c] = static_cast<float>(mean[c]);
+}
+
 }  // namespace
 
 bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3* p,
                   const SpangleHost_v3* host, std::string& why) {
     for (int c = 0; c < 3; ++c) t.single[c] = static_cast<float>(param_number(p, "flake_color", c));
     std::copy(t.single, t.single + 3, t.mean);
-    if (param_number(p, "color_table") == 0.0) return true;
+    if (param_number(p, "color_table") == 0.0) {
+        build_variants(t, p, {1.0});
+        return true;
+    }
     const auto n = static_cast<int>(param_number(p, "table_size"));
     const auto s = static_cast<float>(param_number(p, "table_s")),
                l = static_cast<float>(param_number(p, "table_l"));
@@ -160,6 +235,7 @@ bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3
     }
     t.cdf.back() = 1.0f;
     for (int c = 0; c < 3; ++c) t.mean[c] = static_cast<float>(mean[c]);
+    build_variants(t, p, w);
     t.guide.resize(ColorTable::kGuide);
     std::size_t k = 0;
     for (int b = 0; b < ColorTable::kGuide; ++b) {

@@ -12,6 +12,8 @@
 #include <string>
 #include <vector>
 
+#include "field.h"
+
 namespace spangle::flake {
 
 /** RGB Fresnel reflectance of a flake against cos(theta) at the flake, working space, linearly
@@ -42,21 +44,36 @@ struct ColorTable {
     std::vector<float> cdf;       ///< cumulative probabilities of the entries
     std::vector<uint16_t> guide;  ///< first entry whose cdf exceeds b / kGuide, per bucket b
     float single[3] = {1, 1, 1};  ///< the colour when the table is off
-    float mean[3] = {1, 1, 1};    ///< expected flake colour
-    /** The colour picked by a uniform number in [0, 1): the first entry whose cdf exceeds it
-     *  (the guide table starts the search in u's bucket, so it is O(1) on average). */
-    const float* pick(float u) const {
-        if (cdf.empty()) return single;
+    float mean[3] = {1, 1, 1};    ///< expected flake colour (the variation's mean included)
+    /** Varied colours a flake may take: kVariants per entry (one entry, `single`, when the table
+     *  is off), 3 floats each, entry-major (empty: no hue, saturation or value variation). */
+    static constexpr uint32_t kVariants = 256;
+    std::vector<float> varied;
+    /** The entry picked by a uniform number in [0, 1): the first whose cdf exceeds it (the guide
+     *  table starts the search in u's bucket, so it is O(1) on average); 0 when the table is off.
+     */
+    std::size_t index(float u) const {
+        if (cdf.empty()) return 0;
         const int b = std::min(static_cast<int>(u * kGuide), kGuide - 1);
         std::size_t k = guide[static_cast<std::size_t>(b)];
         while (k + 1 < cdf.size() && cdf[k] <= u) ++k;
-        return &rgb[3 * k];
+        return k;
+    }
+    /** The colour picked by a uniform number in [0, 1), without variation. */
+    const float* pick(float u) const { return cdf.empty() ? single : &rgb[3 * index(u)]; }
+    /** The colour of the flake whose own hash is `id` and whose colour number is u: its entry,
+     *  varied by the variant its hash selects (each of the kVariants equally likely). */
+    const float* pick(float u, uint64_t id) const {
+        if (varied.empty()) return pick(u);
+        const auto v = static_cast<std::size_t>(mix(id, 0xc0107) >> 56);
+        return &varied[3 * (index(u) * kVariants + v)];
     }
 };
 
 /** Builds the table from `flake_color`, `color_table`, `table_size`, `table_s`, `table_l`,
  *  `table_space` and `hue_spread` (the bias towards base_rgb's hue, base_rgb in the working
- *  space). Returns false and sets `why` on a colour-management failure. */
+ *  space), and its variants from `hue_variation`, `saturation_variation` and `value_variation`.
+ *  Returns false and sets `why` on a colour-management failure. */
 bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3* p,
                   const SpangleHost_v3* host, std::string& why);
 

@@ -28,10 +28,11 @@ float radians(float deg) {
 /** The cones of the flakes a prepared closure caches, found independently of the plugin: the
  *  field's flakes in the footprint (all of them for `enumerate`, those of the cells the counting
  *  algorithm enumerates for `tree`) that face wo and reflect it above the horizon. */
-std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point& pt, Vec3 wo) {
+std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point& pt, Vec3 wo,
+                               uint64_t seed = 0, double density = kTestDensity) {
     fl::FieldParams fp;
-    fp.seed = 0;
-    fp.flakes_per_tile = kTestDensity;
+    fp.seed = seed;
+    fp.flakes_per_tile = density;
     fp.alpha = alpha;
     const fl::Footprint p = fl::make_footprint(pt.u, pt.v, pt.dudx, pt.dvdx, pt.dudy, pt.dvdy, 1.0);
     std::vector<Vec3> cones;
@@ -89,6 +90,7 @@ struct LobeCase {
     const char* algorithm;
     double lambda;
     float gamma_deg, alpha, cos_o;
+    FlakeParams extra = {};  ///< further parameters (the looks: colour variation, film)
 };
 
 /** Chi-square of sample() against pdf() for the discrete lobe of one footprint, in the warped
@@ -101,13 +103,24 @@ void lobe_chi2(const LobeCase& c, uint64_t seed) {
     SCOPED_TRACE(testing::Message() << c.algorithm << " lambda " << c.lambda << " gamma "
                                     << c.gamma_deg << " cos_o " << c.cos_o);
     const bool tree = std::string(c.algorithm) == "tree";
-    auto m = flake_material(true, {{"gamma", {c.gamma_deg}}, {"flake_roughness", {c.alpha}}},
-                            {{"algorithm", c.algorithm}});
+    FlakeParams params = {{"gamma", {c.gamma_deg}}, {"flake_roughness", {c.alpha}}};
+    params.insert(params.end(), c.extra.begin(), c.extra.end());
+    auto m = flake_material(true, params, {{"algorithm", c.algorithm}});
     const Vec3 wo = dir(c.cos_o, 0.3f);
     const BsdfHarness::Point pt = random_footprint(c.lambda, seed, 0);
     m->prepare(wo, pt);
     const float gamma = radians(c.gamma_deg);
-    const std::vector<Vec3> list = cached_cones(tree, c.alpha, pt, wo);
+    std::vector<Vec3> list = cached_cones(tree, c.alpha, pt, wo);
+    // A second population (of the same cone): its own field's flakes, by the plugin's seed salt.
+    const auto value = [&](const char* name) {
+        for (const auto& [key, v] : c.extra)
+            if (key == name) return v[0];
+        return 0.0;
+    };
+    if (value("flakes2_weight") > 0.0)
+        for (const Vec3& r : cached_cones(tree, static_cast<float>(value("flakes2_roughness")), pt,
+                                          wo, fl::mix(0, 0x5ec0d), value("flakes2_density")))
+            list.push_back(r);
     const ConeSet cones(list, gamma);
 
     std::vector<Vec3> q;
@@ -216,6 +229,34 @@ TEST(FlakeLobe, SamplingMatchesPdfWithAggregates) {
     lobe_chi2({"tree", 5000, 3.0f, 0.15f, 0.7f}, 5);
     lobe_chi2({"tree", 700, 3.0f, 0.15f, 0.7f}, 6);
     lobe_chi2({"tree", 5000, 10.0f, 0.3f, 0.1f}, 7);
+}
+
+TEST(FlakeLobe, SamplingMatchesPdfWithColourVariationAndFilm) {
+    // The looks change what each flake reflects, hence how likely sampling picks it (by
+    // luminance): varied colours from the table and interference films over the flakes, with
+    // enumerated flakes and with the tree's aggregates (whose virtual flakes vary alike).
+    const FlakeParams hsv = {{"color_table", {1.0}},
+                             {"hue_variation", {40.0}},
+                             {"saturation_variation", {0.5}},
+                             {"value_variation", {0.8}}};
+    const FlakeParams film = {
+        {"film_thickness_min", {200.0}}, {"film_thickness_max", {900.0}}, {"film_ior", {2.0}}};
+    FlakeParams both = hsv;
+    both.insert(both.end(), film.begin(), film.end());
+    lobe_chi2({"enumerate", 50, 3.0f, 0.15f, 0.5f, both}, 22);
+    lobe_chi2({"tree", 700, 3.0f, 0.15f, 0.7f, both}, 23);
+}
+
+TEST(FlakeLobe, SamplingMatchesPdfWithTwoPopulations) {
+    // The mixture of two populations' discrete lobes (each its own cache and field) is sampled
+    // as its pdf says: the second population is picked by its share of the luminance.
+    const FlakeParams two = {{"flakes2_weight", {0.4}},
+                             {"flakes2_density", {0.5 * kTestDensity}},
+                             {"flakes2_color", {1.0, 0.3, 0.1}},
+                             {"flakes2_roughness", {0.3}},
+                             {"flakes2_gamma", {3.0}}};
+    lobe_chi2({"enumerate", 40, 3.0f, 0.15f, 0.7f, two}, 31);
+    lobe_chi2({"tree", 40, 3.0f, 0.15f, 0.5f, two}, 32);
 }
 
 TEST(FlakeLobe, TreeSeesTheEnumeratedFlakesInSmallFootprints) {
