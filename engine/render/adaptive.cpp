@@ -31,7 +31,7 @@ AdaptivePlan adaptive_plan(const Film& film, const RenderOptions& options) {
         throw_error("min_spp {} is more than the {} samples a pixel may take (max_spp, or spp)",
                     asked, p.max_spp);
     p.min_spp = asked ? asked : std::min(kAutoMinSpp, p.max_spp);
-    p.min_spp = std::min(p.max_spp, p.min_spp + (p.min_spp & 1u));  // even: two equal halves
+    p.min_spp = std::min(p.max_spp, (p.min_spp + 3u) & ~3u);  // four equal quarters
     return p;
 }
 
@@ -42,39 +42,53 @@ bool adaptive_on(const Film& film, const RenderOptions& options) {
 uint32_t next_checkpoint(const AdaptivePlan& plan, uint32_t samples) {
     // A look at half of min_spp first, so that a pixel within the threshold there and at
     // min_spp stops at min_spp.
-    const uint32_t half = (plan.min_spp / 2) & ~1u;
-    if (half >= 2 && samples < half) return half;
+    const uint32_t half = (plan.min_spp / 2) & ~3u;
+    if (half >= 4 && samples < half) return half;
     if (samples < plan.min_spp) return plan.min_spp;
     uint32_t c = plan.min_spp;
-    while (c <= samples) c += std::max(8u, (c / 8) & ~1u);
+    while (c <= samples) c += std::max(8u, (c / 8) & ~3u);
     return std::min(c, plan.max_spp);
 }
 
 void AdaptiveFilm::reset(std::size_t pixels) {
     count.assign(pixels, 0);
-    odd.assign(6 * pixels, 0.0f);
+    parts.assign(kParts * pixels, 0.0f);
     strikes.assign(pixels, 0);
     active.assign(pixels, 1);
 }
 
 float adaptive_error(const AdaptivePlan& plan, const PixelSums& s) {
-    if (s.samples < 2) return 1e30f;
-    const double n = s.samples, h = 0.5 * n;
+    if (s.samples < 4) return 1e30f;
+    const double n = s.samples, q = 0.25 * n;
     double smooth = 0.0, glint_se2 = 0.0, glint_mean2 = 0.0, glint_abs = 0.0;
     for (int c = 0; c < 3; ++c) {
         const double total = static_cast<double>(s.beauty[c]) * 0x1p-40;
-        const double odd = static_cast<double>(s.odd[c]), even = total - odd;
         const double g_total = s.glints ? static_cast<double>(s.glints[c]) : 0.0;
-        const double g_odd = s.glints ? static_cast<double>(s.odd[3 + c]) : 0.0;
-        const double g_even = g_total - g_odd;
+        // The four quarters' sums of the beauty without its glints, and of the glints.
+        double rest[4], glint[4];
+        rest[0] = total - g_total;
+        glint[0] = g_total;
+        for (int k = 1; k < 4; ++k) {
+            const double b = static_cast<double>(s.parts[6 * (k - 1) + c]);
+            const double g = s.glints ? static_cast<double>(s.parts[6 * (k - 1) + 3 + c]) : 0.0;
+            rest[k] = b - g;
+            glint[k] = g;
+            rest[0] -= rest[k];
+            glint[0] -= g;
+        }
+        // The squared standard error of the mean: the quarter means' sample variance over 4.
+        const auto se2 = [q](const double* sums) {
+            const double mean = (sums[0] + sums[1] + sums[2] + sums[3]) / (4.0 * q);
+            double v = 0.0;
+            for (int k = 0; k < 4; ++k) v += (sums[k] / q - mean) * (sums[k] / q - mean);
+            return v / 12.0;
+        };
         const double mean = total / n;
         const double norm = mean * mean + kDarkFloor2;
-        // The standard error of the mean, squared, is (A - B)^2 / 4 for half-means A and B.
-        const double ds = ((odd - g_odd) - (even - g_even)) / h;
-        smooth += 0.25 * ds * ds / norm;
-        const double dg = (g_odd - g_even) / h;
-        glint_se2 += 0.25 * dg * dg;
-        glint_abs += 0.25 * dg * dg / norm;
+        smooth += se2(rest) / norm;
+        const double g2 = se2(glint);
+        glint_se2 += g2;
+        glint_abs += g2 / norm;
         const double g_mean = g_total / n;
         glint_mean2 += g_mean * g_mean;
     }

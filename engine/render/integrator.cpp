@@ -84,7 +84,7 @@ struct TileRun {
                 const PixelSums sums{
                     &(*job.sums)[3 * i],
                     job.layers ? &(*job.layer_film.film)[i * lc + kAovCount] : nullptr,
-                    &a.odd[6 * i], a.count[i]};
+                    &a.parts[AdaptiveFilm::kParts * i], a.count[i]};
                 if (adaptive_error(*job.adaptive, sums) > 1.0f) {
                     a.strikes[i] = 0;
                 } else if (++a.strikes[i] >= 2 && samples >= job.adaptive->min_spp) {
@@ -395,9 +395,9 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     out.layer_names.clear();
     // Adaptive sampling judges the glints apart: it needs their layer, shown or not.
     if (options.layers || plan.on()) set_up_layers(job, scene, camera, out);
-    // Adaptive sampling's per-pixel state (32 bytes) counted as 8 layer channels.
+    // Adaptive sampling's per-pixel state (80 bytes) counted as 20 layer channels.
     check_film_memory(out.width, out.height, job.spp - first_sample, options,
-                      job.layer_film.channels + (plan.on() ? 8 : 0));
+                      job.layer_film.channels + (plan.on() ? 20 : 0));
     out.sums.assign(static_cast<std::size_t>(out.width) * out.height * 3, SampleSum(0));
     job.sums = &out.sums;
     if (plan.on()) {

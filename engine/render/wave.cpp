@@ -45,9 +45,10 @@ void accumulate(RenderJob& job, const PathBatch& p, Sink& sink, std::size_t n) {
         if (job.adaptive_film && job.sums) {
             AdaptiveFilm& a = *job.adaptive_film;
             ++a.count[at];
-            if (p.sample[k] & 1u) {  // the odd half-sum (the even one is the rest)
+            // The quarter-sums of sample numbers 1, 2, 3 modulo 4 (that of 0 is the rest).
+            if (const uint32_t quarter = p.sample[k] & 3u) {
                 const Vec3 g = finite ? sink.glint(k) : Vec3(0.0f);
-                float* o = &a.odd[6 * at];
+                float* o = &a.parts[AdaptiveFilm::kParts * at + 6 * (quarter - 1)];
                 o[0] += l.x;
                 o[1] += l.y;
                 o[2] += l.z;

@@ -6,10 +6,10 @@
 #
 # SCENE: a scene file, or `interior` (spangle bench's procedural room); default: the beetle and
 # the interior. For each scene: a reference of REF_SPP samples (cached in OUT_DIR, kept between
-# runs), then fixed sample counts, adaptive sampling at falling thresholds, and adaptive sampling
-# with --denoise; each whole process timed (wall seconds, `date`), its relMSE against the
-# reference measured by `spangle inspect --against`. Prints every run, then per way the first
-# time it reached relMSE 0.01 and 0.002. Environment: SIZE (320x180), REF_SPP (2048), MAX_SPP
+# runs), then fixed sample counts (with and without --denoise), adaptive sampling at falling
+# thresholds, and adaptive sampling with --denoise; each whole process timed (wall seconds,
+# `date`), its relMSE against the reference measured by `spangle inspect --against`. Prints every
+# run, then per way the first time it reached relMSE 0.01 and 0.002. Environment: SIZE (320x180), REF_SPP (2048), MAX_SPP
 # (1024), THREADS (all cores). Time it on a quiet machine: anything running beside it counts.
 set -euo pipefail
 build=$(cd "${1:?usage: time_to_quality.sh BUILD_DIR [OUT_DIR] [SCENE...]}" && pwd)
@@ -61,6 +61,9 @@ for scene in "${scenes[@]}"; do
         r=$(render "${label}_fixed_$spp" "$scene" --spp "$spp")
         echo "fixed $spp $r"
         results+=("fixed $spp $r")
+        r=$(render "${label}_fixed_denoised_$spp" "$scene" --spp "$spp" --denoise)
+        echo "fixed+denoise $spp $r"
+        results+=("fixed+denoise $spp $r")
     done
     for t in 0.2 0.1 0.05 0.03 0.02 0.01 0.005; do
         r=$(render "${label}_adaptive_$t" "$scene" --spp "$max_spp" --noise-threshold "$t")
@@ -72,7 +75,7 @@ for scene in "${scenes[@]}"; do
         results+=("adaptive+denoise $t $r")
     done
     for target in 0.01 0.002; do
-        for way in fixed adaptive adaptive+denoise; do
+        for way in fixed fixed+denoise adaptive adaptive+denoise; do
             printf '%s\n' "${results[@]}" | awk -v w="$way" -v t="$target" -v l="$label" '
                 $1 == w && $4 <= t && (best == "" || $3 < best) { best = $3; at = $2 }
                 END { if (best == "") printf "%s: %s never reached relMSE %s\n", l, w, t;

@@ -165,10 +165,10 @@ intensity = 40
 }
 
 TEST(Adaptive, AGlintPixelIsNotStarved) {
-    // The glittering stripes of the textured scene: adaptive sampling to 0.02 (glints to 20% of
+    // The glittering stripes of the textured scene: adaptive sampling to 0.03 (glints to 30% of
     // themselves, one standard error) against a fixed render of as many samples as it may take.
     test::TempDir dir("adaptive_glints");
-    FrameRequest req = textured_adaptive(dir, 0.02f);
+    FrameRequest req = textured_adaptive(dir, 0.03f);
     req.options.spp_override = 128;
     req.options.min_spp_override = 16;
     req.options.layers = true;
@@ -205,35 +205,35 @@ TEST(Adaptive, AGlintPixelIsNotStarved) {
                 static_cast<unsigned long long>(close), static_cast<unsigned long long>(other_px),
                 static_cast<double>(other_samples) / static_cast<double>(other_px));
     ASSERT_GT(glint_px, 20u);
-    // Not starved: glint pixels stop no sooner than the others on average (measured: 108.7
-    // against 107.4 samples; 0.8 leaves room for a different realisation of the flakes) and
-    // their glints are known: at 20% one standard error, 30% is 1.5 of them (87% of a normal's
-    // mass); measured 96 of 97 pixels.
+    // Not starved: glint pixels take on average at least 3/4 of the others' samples (measured
+    // 97.2 against 117.5: their glint part is known sooner than the surface under it) and their
+    // glints are known: 30% is one standard error at this threshold, 68% of a normal's mass, and
+    // the estimate is conservative (measured 94 of 97 pixels).
     EXPECT_GT(static_cast<double>(glint_samples) / static_cast<double>(glint_px),
-              0.8 * static_cast<double>(other_samples) / static_cast<double>(other_px));
+              0.75 * static_cast<double>(other_samples) / static_cast<double>(other_px));
     EXPECT_GE(close, glint_px * 85 / 100);
-    // Nor do they eat the budget: they do not all run to max_spp (measured 85% of it).
+    // Nor do they eat the budget: they do not all run to max_spp (measured 76% of it).
     EXPECT_LT(glint_samples, glint_px * 128 * 95 / 100);
 }
 
-/** A pixel's sums from per-sample values (beauty, glint part). */
+/** A pixel's sums from per-sample values (beauty, glint part), as the film keeps them. */
 struct SyntheticPixel {
     SampleSum beauty[3] = {0, 0, 0};
     float glints[3] = {0, 0, 0};
-    float odd[6] = {0, 0, 0, 0, 0, 0};
+    float parts[AdaptiveFilm::kParts] = {};
     uint32_t n = 0;
     void add(float b, float g) {
         for (int c = 0; c < 3; ++c) {
             beauty[c] += to_sample_sum(b);
             glints[c] += g;
-            if (n & 1u) {
-                odd[c] += b;
-                odd[3 + c] += g;
+            if (const uint32_t q = n & 3u) {
+                parts[6 * (q - 1) + c] += b;
+                parts[6 * (q - 1) + 3 + c] += g;
             }
         }
         ++n;
     }
-    PixelSums sums() const { return PixelSums{beauty, glints, odd, n}; }
+    PixelSums sums() const { return PixelSums{beauty, glints, parts, n}; }
 };
 
 TEST(Adaptive, TheErrorEstimateJudgesTheGlintPartApart) {
@@ -245,24 +245,26 @@ TEST(Adaptive, TheErrorEstimateJudgesTheGlintPartApart) {
     SyntheticPixel flat;
     for (int i = 0; i < 16; ++i) flat.add(0.5f, 0.0f);
     EXPECT_EQ(adaptive_error(plan, flat.sums()), 0.0f);
-    // The same pixel with a glint of 20 seen in one sample of 16: its two halves differ by all
-    // of it, so it goes on although the rest of the pixel is flat.
+    // The same pixel with a glint of 20 seen in one sample of 16: one quarter holds all of it,
+    // so it goes on although the rest of the pixel is flat.
     SyntheticPixel once;
     for (int i = 0; i < 16; ++i) once.add(i == 5 ? 20.5f : 0.5f, i == 5 ? 20.0f : 0.0f);
     EXPECT_GT(adaptive_error(plan, once.sums()), 1.0f);
-    // A bright glint known to 5% of itself stops (the rule is 10 x the threshold relative to
-    // the glint), although its absolute noise is 50 times the threshold relative to the pixel.
+    // A bright glint known to 3% of itself stops (the rule is 10 x the threshold relative to the
+    // glint), although its absolute noise is 30 times the threshold relative to the pixel.
     SyntheticPixel known;
     for (int i = 0; i < 64; ++i) {
-        const float g = (i & 1) ? 21.0f : 19.0f;  // halves differ by 2: standard error 1 = 5%
+        const float g = (i & 1) ? 21.0f : 19.0f;  // quarter means 19, 21, 19, 21: SE 0.58 = 3%
         known.add(0.5f + g, g);
     }
     EXPECT_LT(adaptive_error(plan, known.sums()), 1.0f);
     // The same numbers with no glints layer are judged as a pixel's noise: far beyond.
     PixelSums no_layer = known.sums();
     no_layer.glints = nullptr;
-    float zero[6] = {known.odd[0], known.odd[1], known.odd[2], 0, 0, 0};
-    no_layer.odd = zero;
+    float beauty_only[AdaptiveFilm::kParts] = {};
+    for (int k = 0; k < 3; ++k)
+        for (int c = 0; c < 3; ++c) beauty_only[6 * k + c] = known.parts[6 * k + c];
+    no_layer.parts = beauty_only;
     EXPECT_GT(adaptive_error(plan, no_layer), 1.0f);
 }
 
@@ -274,7 +276,7 @@ TEST(Adaptive, CheckpointsDependOnMinSppAlone) {
     std::vector<uint32_t> at;
     for (uint32_t s = 0; s < plan.max_spp; s = next_checkpoint(plan, s)) at.push_back(s);
     at.push_back(plan.max_spp);
-    const std::vector<uint32_t> want = {0, 8, 16, 24, 32, 40, 48, 56, 64, 72, 80, 90, 100};
+    const std::vector<uint32_t> want = {0, 8, 16, 24, 32, 40, 48, 56, 64, 72, 80, 88, 96, 100};
     EXPECT_EQ(at, want);
 }
 
