@@ -82,12 +82,13 @@ void add_part_options(CLI::App* r, RenderArgs& a) {
         ->check(CLI::Range(1u, 4096u));
     r->add_flag("--denoise", a.denoise,
                 "denoise the final image with Intel Open Image Denoise (albedo and normal "
-                "guides; glints denoised apart from the rest); the noisy beauty and the guides are "
+                "guides; glints pass through unfiltered); the noisy beauty and the guides are "
                 "kept as layers (implies --layers; docs/denoise.md)");
     r->add_option("--denoise-glints", a.denoise_glints,
-                  "apart: the glints layer is denoised on its own and added back, so that no "
-                  "glint is smeared into the surface around it (default); keep: glints pass "
-                  "untouched, noise and all; filter: the whole beauty at once (for comparison)")
+                  "keep: the glints layer passes the denoiser untouched, so glints stay points "
+                  "(default); apart: it is denoised on its own and added back (smoother dense "
+                  "glitter at low spp, softer glints); filter: the whole beauty at once (for "
+                  "comparison)")
         ->check(CLI::IsMember({"apart", "keep", "filter"}));
     r->add_flag("--layers", a.layers,
                 "write render layers into the EXR beside the beauty: A (coverage), albedo, "

@@ -4,9 +4,9 @@
 //
 // The glints apart: the beauty minus its glints layer (the light that came through a glint at
 // the first surface) is denoised with the albedo and normal layers as guides (each guide
-// filtered first, so that their own noise is not taken for detail); the glints layer is
-// denoised on its own (or passed through as rendered: GlintDenoise::Keep) and added back. A
-// glint's light then stays in its pixel instead of being spread into the surface around it.
+// filtered first, so that their own noise is not taken for detail); the glints layer is added
+// back as rendered (or denoised on its own: GlintDenoise::Apart). A glint then stays the point
+// it was rendered as, with its colour and brightness, instead of a blot the denoiser made.
 //
 // Where the library is looked for, in order: $SPANGLE_OIDN (the library file, or a folder
 // holding it or lib/ with it), /opt/spangle/oidn/lib (where scripts/install-deps.sh unpacks it
@@ -23,8 +23,8 @@ bool denoiser_available(std::string* why = nullptr);
 
 /** How the glints are treated. */
 enum class GlintDenoise {
-    Apart,   ///< the glints layer filtered on its own, then added (the default)
-    Keep,    ///< the glints layer passes through unfiltered
+    Apart,   ///< the glints layer filtered on its own, then added
+    Keep,    ///< the glints layer passes through unfiltered (the default)
     Filter,  ///< the whole beauty is filtered, glints and all (for comparison)
 };
 

@@ -90,7 +90,7 @@ struct RenderOptions {
     /** --denoise: the final image denoised (render/denoise.h; needs the layers), its glints
      *  kept or filtered with the rest. Pass images are not denoised. */
     bool denoise = false;
-    GlintDenoise denoise_glints = GlintDenoise::Apart;
+    GlintDenoise denoise_glints = GlintDenoise::Keep;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:

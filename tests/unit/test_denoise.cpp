@@ -29,7 +29,8 @@ namespace {
 
 /** A render of tests/scenes/`scene` at w x h, `spp` samples, with layers. */
 FrameResult render(const test::TempDir& dir, const std::string& scene, uint32_t w, uint32_t h,
-                   uint32_t spp, bool denoise, GlintDenoise glints = GlintDenoise::Apart) {
+                   uint32_t spp, bool denoise, GlintDenoise glints = GlintDenoise::Keep,
+                   float threshold = 0.0f) {
     std::ofstream(dir.file(scene)) << test::scene_text(scene);
     FrameRequest req;
     req.scene = dir.file(scene);
@@ -41,6 +42,7 @@ FrameResult render(const test::TempDir& dir, const std::string& scene, uint32_t 
     req.options.layers = true;
     req.options.denoise = denoise;
     req.options.denoise_glints = glints;
+    req.options.noise_threshold_override = threshold;
     req.options.texture_cache = dir.file("cache");
     return render_frame(req);
 }
@@ -135,23 +137,31 @@ double glints_kept(const FrameResult& reference, const FrameResult& image) {
 TEST(Denoise, KeepsTheGlintsAndLowersTheError) {
     REQUIRE_DENOISER();
     test::TempDir dir("denoise_glints");
-    // The textured scene's glitter (a flake sphere with a colour table, masked stripes).
+    // The textured scene's glitter (a flake sphere with a colour table, masked stripes) sampled
+    // adaptively to 0.05 (at most 128 spp), as --denoise is meant to be used, against 256 spp.
     const FrameResult reference = render(dir, "textured.toml", 160, 64, 256, false);
-    const FrameResult noisy = render(dir, "textured.toml", 160, 64, 16, false);
-    const FrameResult apart = render(dir, "textured.toml", 160, 64, 16, true);
-    const FrameResult plain = render(dir, "textured.toml", 160, 64, 16, true, GlintDenoise::Filter);
-    const double kept = glints_kept(reference, apart), plain_kept = glints_kept(reference, plain);
+    const FrameResult noisy =
+        render(dir, "textured.toml", 160, 64, 128, false, GlintDenoise::Keep, 0.05f);
+    const FrameResult keep =
+        render(dir, "textured.toml", 160, 64, 128, true, GlintDenoise::Keep, 0.05f);
+    const FrameResult apart =
+        render(dir, "textured.toml", 160, 64, 128, true, GlintDenoise::Apart, 0.05f);
+    const FrameResult whole =
+        render(dir, "textured.toml", 160, 64, 128, true, GlintDenoise::Filter, 0.05f);
+    const double kept = glints_kept(reference, keep);
     const double e_noisy = rel_mse(noisy.image, reference.image),
-                 e_apart = rel_mse(apart.image, reference.image);
+                 e_keep = rel_mse(keep.image, reference.image);
     std::printf(
-        "glints kept at 16 spp: %.3f apart, %.3f whole beauty filtered; relMSE %.5f "
-        "noisy, %.5f apart, %.5f whole\n",
-        kept, plain_kept, e_noisy, e_apart, rel_mse(plain.image, reference.image));
-    // Measured: 0.994 kept, relMSE 0.0232 -> 0.0025. (Open Image Denoise 2.5 on the whole
-    // beauty keeps as many of these glints, 0.996, by the same measure: the issue expected
-    // fewer; the test does not claim it.)
+        "glints kept: %.3f passed through, %.3f apart, %.3f whole beauty; relMSE %.5f noisy, "
+        "%.5f passed through, %.5f apart, %.5f whole\n",
+        kept, glints_kept(reference, apart), glints_kept(reference, whole), e_noisy, e_keep,
+        rel_mse(apart.image, reference.image), rel_mse(whole.image, reference.image));
+    // Measured: 0.982 of the glints kept, relMSE 0.0020 -> 0.0016 (the glints keep their own
+    // sampling noise: that is what passing them through means). Denoising the glints apart, or
+    // the whole beauty, keeps as many by this measure and lowers relMSE further (0.0012), but
+    // turns sparse point glints into soft blots: docs/denoise.md shows the beetle's.
     EXPECT_GE(kept, 0.95);
-    EXPECT_LT(e_apart * 2.0, e_noisy);
+    EXPECT_LT(e_keep, e_noisy);
 }
 
 TEST(Denoise, AMissingGuideIsAnError) {
