@@ -12,6 +12,7 @@
 #include <filesystem>
 #include <mutex>
 
+#include "core/dynamic_library.h"
 #include "core/error.h"
 #include "core/files.h"
 
@@ -60,13 +61,6 @@ struct OiioModule {
     std::string error;  ///< why it could not be opened
 };
 
-/** dlsym into a typed function pointer; false when the symbol is missing. */
-template <class Fn>
-bool bind(void* handle, const char* name, Fn& fn) {
-    fn = reinterpret_cast<Fn>(dlsym(handle, name));
-    return fn != nullptr;
-}
-
 const OiioModule& oiio_module() {
     static OiioModule module;
     static std::once_flag once;
@@ -85,14 +79,14 @@ const OiioModule& oiio_module() {
             }
             AbiFn abi = nullptr;
             OiioTextureApi& t = module.texture;
-            const bool complete = bind(handle, "spangle_oiio_abi", abi) &&
-                                  abi() == kOiioModuleAbi &&
-                                  bind(handle, "spangle_oiio_header", module.header) &&
-                                  bind(handle, "spangle_oiio_read", module.read) &&
-                                  bind(handle, "spangle_oiio_make_texture", t.make_texture) &&
-                                  bind(handle, "spangle_oiio_texture_system", t.create) &&
-                                  bind(handle, "spangle_oiio_texture_handle", t.handle) &&
-                                  bind(handle, "spangle_oiio_texture_lookup", t.lookup);
+            const bool complete =
+                bind_symbol(handle, "spangle_oiio_abi", abi) && abi() == kOiioModuleAbi &&
+                bind_symbol(handle, "spangle_oiio_header", module.header) &&
+                bind_symbol(handle, "spangle_oiio_read", module.read) &&
+                bind_symbol(handle, "spangle_oiio_make_texture", t.make_texture) &&
+                bind_symbol(handle, "spangle_oiio_texture_system", t.create) &&
+                bind_symbol(handle, "spangle_oiio_texture_handle", t.handle) &&
+                bind_symbol(handle, "spangle_oiio_texture_lookup", t.lookup);
             if (!complete) {
                 module = OiioModule{};
                 module.error = fmt::format("'{}' is not this version's OpenImageIO module", path);

@@ -13,6 +13,7 @@
 #include <mutex>
 
 #include "core/check.h"
+#include "core/dynamic_library.h"
 #include "core/error.h"
 
 namespace fs = std::filesystem;
@@ -44,12 +45,6 @@ struct OidnApi {
     void (*release_filter)(Filter) = nullptr;
     std::string error;  ///< why it could not be opened (empty: it was)
 };
-
-template <class Fn>
-bool bind(void* handle, const char* name, Fn& fn) {
-    fn = reinterpret_cast<Fn>(dlsym(handle, name));
-    return fn != nullptr;
-}
 
 /** The library files to try, in order. */
 std::vector<std::string> library_candidates() {
@@ -83,18 +78,18 @@ const OidnApi& oidn() {
                                      why ? why : "not found");
                 continue;
             }
-            const bool complete = bind(handle, "oidnNewDevice", api.new_device) &&
-                                  bind(handle, "oidnCommitDevice", api.commit_device) &&
-                                  bind(handle, "oidnReleaseDevice", api.release_device) &&
-                                  bind(handle, "oidnSetDeviceInt", api.set_device_int) &&
-                                  bind(handle, "oidnGetDeviceError", api.device_error) &&
-                                  bind(handle, "oidnNewFilter", api.new_filter) &&
-                                  bind(handle, "oidnSetSharedFilterImage", api.set_image) &&
-                                  bind(handle, "oidnSetFilterBool", api.set_bool) &&
-                                  bind(handle, "oidnSetFilterInt", api.set_int) &&
-                                  bind(handle, "oidnCommitFilter", api.commit_filter) &&
-                                  bind(handle, "oidnExecuteFilter", api.execute) &&
-                                  bind(handle, "oidnReleaseFilter", api.release_filter);
+            const bool complete = bind_symbol(handle, "oidnNewDevice", api.new_device) &&
+                                  bind_symbol(handle, "oidnCommitDevice", api.commit_device) &&
+                                  bind_symbol(handle, "oidnReleaseDevice", api.release_device) &&
+                                  bind_symbol(handle, "oidnSetDeviceInt", api.set_device_int) &&
+                                  bind_symbol(handle, "oidnGetDeviceError", api.device_error) &&
+                                  bind_symbol(handle, "oidnNewFilter", api.new_filter) &&
+                                  bind_symbol(handle, "oidnSetSharedFilterImage", api.set_image) &&
+                                  bind_symbol(handle, "oidnSetFilterBool", api.set_bool) &&
+                                  bind_symbol(handle, "oidnSetFilterInt", api.set_int) &&
+                                  bind_symbol(handle, "oidnCommitFilter", api.commit_filter) &&
+                                  bind_symbol(handle, "oidnExecuteFilter", api.execute) &&
+                                  bind_symbol(handle, "oidnReleaseFilter", api.release_filter);
             if (complete) return;  // kept open for the life of the process
             api = OidnApi{};
             tried += fmt::format("{}{} (not Open Image Denoise 2: a function is missing)",
