@@ -53,6 +53,7 @@ uint32_t next_checkpoint(const AdaptivePlan& plan, uint32_t samples) {
 void AdaptiveFilm::reset(std::size_t pixels) {
     count.assign(pixels, 0);
     parts.assign(kParts * pixels, 0.0f);
+    ratio.assign(pixels, 1e30f);
     strikes.assign(pixels, 0);
     active.assign(pixels, 1);
 }

@@ -9,10 +9,15 @@
 // three times the threshold, against one in twenty with three). A
 // pixel is looked at only at fixed checkpoints (sample counts that depend on min_spp alone) and
 // stops after two checkpoints in a row within the threshold (the first look is at half of
-// min_spp, so that a flat pixel stops at min_spp). Because the decision reads nothing
-// but the pixel's own samples, and each pixel's samples depend on the pixel alone, the samples a
-// pixel receives are the same whatever the split of the work: threads, tiles, crop windows, MPI
-// bands and progressive passes give the whole render's pixels bit for bit, without a halo.
+// min_spp, so that a flat pixel stops at min_spp). Within the threshold means: the pixel and
+// each of its 3 x 3 neighbours inside its 16 x 16 tile of the frame (a pixel that saw a rare
+// bright path keeps its neighbours, which have not seen theirs yet, sampling).
+//
+// Because a decision reads only the pixel's tile, and each pixel's samples depend on the pixel
+// alone, the samples a pixel receives are the same whatever the split of the work: threads,
+// progressive passes, crop windows and MPI bands give the whole render's pixels bit for bit. A
+// crop window is rendered as the whole tiles it meets (at most 15 pixels more on a side) and
+// cut down to the window.
 //
 // Glints are signal: the part of a pixel that came through a glint (the glints layer) is judged
 // apart from the rest. The rest must reach the threshold as a relative error of the pixel (as
@@ -20,7 +25,7 @@
 // its own brightness to ten times the threshold relative to itself (at most 50%), or be below the
 // threshold relative to the pixel. So a bright sparkle neither keeps its pixel sampling until its
 // absolute noise is that of a dull pixel, nor lets the pixel stop while the glint was seen in one
-// half of the samples only (its two halves then differ by all of it).
+// quarter of the samples only (the quarters then differ by all of it).
 
 #include <cstdint>
 #include <vector>
@@ -59,6 +64,7 @@ struct AdaptiveFilm {
     static constexpr std::size_t kParts = 18;  ///< floats per pixel in `parts`
     std::vector<uint32_t> count;               ///< samples taken
     std::vector<float> parts;      ///< kParts per pixel: quarters 1..3, beauty then glint RGB
+    std::vector<float> ratio;      ///< its error over the threshold at its last checkpoint
     std::vector<uint8_t> strikes;  ///< checkpoints in a row within the threshold
     std::vector<uint8_t> active;   ///< 1: takes more samples
     /** Sized for `pixels`, every pixel active with no samples. */

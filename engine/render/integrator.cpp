@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <chrono>
 #include <functional>
+#include <numeric>
 
 #include "core/memory.h"
 #include "render/wave.h"
@@ -70,13 +71,15 @@ struct TileRun {
         return n;
     }
 
-    /** Adaptive sampling's checkpoint at `samples`: each active pixel of the tile judges its own
-     *  error; one within the threshold at two checkpoints in a row stops (the samples it leaves
-     *  untaken count as done for the progress). Returns the samples skipped. */
+    /** Adaptive sampling's checkpoint at `samples`: each active pixel of the tile measures its
+     *  error; a pixel is within the threshold when every pixel of its 3 x 3 neighbourhood inside
+     *  the tile is (a stopped one by the error it stopped at), and one within it at two
+     *  checkpoints in a row stops (the samples it leaves untaken count as done for the
+     *  progress). The tile is the full frame's, whole (the window is tile-aligned), so the
+     *  decision is the same in every split of the work. Returns the samples skipped. */
     uint64_t check_tile(const Tile& t, uint32_t samples) {
         AdaptiveFilm& a = *job.adaptive_film;
         const uint32_t lc = job.layer_film.channels;
-        uint64_t skipped = 0;
         for (uint32_t y = t.y0; y < t.y1; ++y)
             for (uint32_t x = t.x0; x < t.x1; ++x) {
                 const std::size_t i = image_index(x, y);
@@ -85,7 +88,19 @@ struct TileRun {
                     &(*job.sums)[3 * i],
                     job.layers ? &(*job.layer_film.film)[i * lc + kAovCount] : nullptr,
                     &a.parts[AdaptiveFilm::kParts * i], a.count[i]};
-                if (adaptive_error(*job.adaptive, sums) > 1.0f) {
+                a.ratio[i] = adaptive_error(*job.adaptive, sums);
+            }
+        uint64_t skipped = 0;
+        for (uint32_t y = t.y0; y < t.y1; ++y)
+            for (uint32_t x = t.x0; x < t.x1; ++x) {
+                const std::size_t i = image_index(x, y);
+                if (!a.active[i]) continue;
+                float worst = 0.0f;
+                for (uint32_t ny = std::max(y, t.y0 + 1) - 1; ny <= std::min(y + 1, t.y1 - 1); ++ny)
+                    for (uint32_t nx = std::max(x, t.x0 + 1) - 1; nx <= std::min(x + 1, t.x1 - 1);
+                         ++nx)
+                        worst = std::max(worst, a.ratio[image_index(nx, ny)]);
+                if (worst > 1.0f) {
                     a.strikes[i] = 0;
                 } else if (++a.strikes[i] >= 2 && samples >= job.adaptive->min_spp) {
                     a.active[i] = 0;
@@ -276,27 +291,58 @@ uint32_t full_passes(TileRun& run, uint32_t first_sample, RenderResult& out, uin
     return reached;
 }
 
+/** `win` grown to the whole tiles of the full frame's grid that it meets (within the image). */
+CropWindow whole_tiles(const CropWindow& win, uint32_t width, uint32_t height) {
+    return CropWindow{win.x0 / kTileSize * kTileSize, win.y0 / kTileSize * kTileSize,
+                      std::min(width, (win.x1 + kTileSize - 1) / kTileSize * kTileSize),
+                      std::min(height, (win.y1 + kTileSize - 1) / kTileSize * kTileSize)};
+}
+
+/** The pixels of `to` (inside `from`) of a row-major image of `from`, `n` values per pixel. */
+template <class T>
+std::vector<T> cropped(const std::vector<T>& v, const CropWindow& from, const CropWindow& to,
+                       std::size_t n) {
+    const std::size_t fw = from.x1 - from.x0, tw = to.x1 - to.x0;
+    std::vector<T> out(tw * (to.y1 - to.y0) * n);
+    for (uint32_t y = to.y0; y < to.y1; ++y)
+        std::copy_n(
+            v.begin() + static_cast<std::ptrdiff_t>(((y - from.y0) * fw + (to.x0 - from.x0)) * n),
+            tw * n, out.begin() + static_cast<std::ptrdiff_t>((y - to.y0) * tw * n));
+    return out;
+}
+
+/** Cuts a render of `from` down to the window asked for, `to` (the same when equal). */
+void crop_result(const CropWindow& from, const CropWindow& to, std::vector<uint32_t>& counts,
+                 RenderResult& out) {
+    if (from.x0 == to.x0 && from.y0 == to.y0 && from.x1 == to.x1 && from.y1 == to.y1) return;
+    out.image = cropped(out.image, from, to, 3);
+    out.sums = cropped(out.sums, from, to, 3);
+    out.layers = cropped(out.layers, from, to, out.layer_names.size());
+    counts = cropped(counts, from, to, 1);
+    out.width = to.x1 - to.x0;
+    out.height = to.y1 - to.y0;
+    out.window.x0 = to.x0;
+    out.window.y0 = to.y0;
+}
+
 /** Adaptive sampling's outputs: the samples each pixel took as the layer `spp` (after the
  *  other layers, or alone when they were not asked for: the glints layer was only the
- *  estimate's), and their range and total in the counters. */
-void add_spp_layer(const AdaptiveFilm& a, bool keep_layers, RenderResult& out) {
-    const std::size_t pixels = a.count.size();
+ *  estimate's), and their range in the counters. */
+void add_spp_layer(const std::vector<uint32_t>& counts, bool keep_layers, RenderResult& out) {
+    const std::size_t pixels = counts.size();
     const std::size_t lc = keep_layers ? out.layer_names.size() : 0;
     std::vector<float> layers(pixels * (lc + 1));
-    uint64_t total = 0;
     uint32_t lo = ~0u, hi = 0;
     for (std::size_t p = 0; p < pixels; ++p) {
         std::copy_n(out.layers.begin() + static_cast<std::ptrdiff_t>(p * lc), lc,
                     layers.begin() + static_cast<std::ptrdiff_t>(p * (lc + 1)));
-        layers[p * (lc + 1) + lc] = static_cast<float>(a.count[p]);
-        total += a.count[p];
-        lo = std::min(lo, a.count[p]);
-        hi = std::max(hi, a.count[p]);
+        layers[p * (lc + 1) + lc] = static_cast<float>(counts[p]);
+        lo = std::min(lo, counts[p]);
+        hi = std::max(hi, counts[p]);
     }
     out.layers.swap(layers);
     if (!keep_layers) out.layer_names.clear();
     out.layer_names.emplace_back("spp");
-    out.stats.samples = total;
     out.stats.pixel_spp_min = pixels ? lo : 0;
     out.stats.pixel_spp_max = hi;
 }
@@ -383,8 +429,10 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     AdaptiveFilm adaptive;
     if (plan.on()) job.adaptive = &plan;
     const uint32_t first_sample = set_up_job(job, scene, options, cam, film, camera_steps);
-    // The crop window (the whole image without one).
-    const CropWindow win = crop_within(options.crop, film.width, film.height);
+    // The crop window (the whole image without one); adaptive sampling renders the whole tiles
+    // it meets, since a pixel's decision reads its neighbours in its tile.
+    const CropWindow asked = crop_within(options.crop, film.width, film.height);
+    const CropWindow win = plan.on() ? whole_tiles(asked, film.width, film.height) : asked;
     job.crop_x0 = win.x0;
     job.crop_y0 = win.y0;
     job.crop_width = win.x1 - win.x0;
@@ -423,7 +471,13 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
         out.image[i] = sample_mean(out.sums[i], counts ? counts[i / 3] : samples);
     if (job.layers) finish_layers(out.layers, job.layer_film.channels, samples, counts);
     record_stats(job, options, film, samples, first_sample, passes, out);
-    if (plan.on()) add_spp_layer(adaptive, options.layers, out);
+    if (plan.on()) {
+        // Every sample taken counts (those of the tiles' pixels outside the window too).
+        out.stats.samples =
+            std::accumulate(adaptive.count.begin(), adaptive.count.end(), uint64_t{0});
+        crop_result(win, asked, adaptive.count, out);
+        add_spp_layer(adaptive.count, options.layers, out);
+    }
     out.stats.seconds = seconds_since(t0);
 }
 
