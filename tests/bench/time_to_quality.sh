@@ -65,7 +65,7 @@ for scene in "${scenes[@]}"; do
         echo "fixed+denoise $spp $r"
         results+=("fixed+denoise $spp $r")
     done
-    for t in 0.2 0.1 0.05 0.03 0.02 0.01 0.005; do
+    for t in 0.5 0.3 0.2 0.1 0.05 0.03 0.02 0.01; do
         r=$(render "${label}_adaptive_$t" "$scene" --spp "$max_spp" --noise-threshold "$t")
         echo "adaptive $t $r"
         results+=("adaptive $t $r")
