@@ -10,6 +10,7 @@
 
 #include "pipeline/frame.h"
 #include "render/adaptive.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -18,17 +19,9 @@ namespace {
 /** tests/scenes/textured.toml (glitter, textures, a normal map) at 72 x 40, adaptive sampling
  *  to `threshold` with at most 64 samples per pixel. */
 FrameRequest textured_adaptive(const test::TempDir& dir, float threshold) {
-    std::ofstream(dir.file("scene.toml")) << test::scene_text("textured.toml");
-    FrameRequest req;
-    req.scene = dir.file("scene.toml");
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.width_override = 72;
-    req.options.height_override = 40;
-    req.options.spp_override = 64;
+    FrameRequest req = test::scene_request(dir, "textured.toml", 72, 40, 64);
     req.options.noise_threshold_override = threshold;
     req.options.min_spp_override = 8;
-    req.options.texture_cache = dir.file("cache");
     return req;
 }
 

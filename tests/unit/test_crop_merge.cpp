@@ -16,6 +16,7 @@
 #include "color/image_merge.h"
 #include "color/image_output.h"
 #include "pipeline/frame.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -23,16 +24,7 @@ namespace {
 
 /** A render of tests/scenes/textured.toml (absolute paths) at 72 x 40, `spp` samples. */
 FrameRequest textured_request(const test::TempDir& dir, uint32_t spp) {
-    std::ofstream(dir.file("scene.toml")) << test::scene_text("textured.toml");
-    FrameRequest req;
-    req.scene = dir.file("scene.toml");
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.width_override = 72;
-    req.options.height_override = 40;
-    req.options.spp_override = spp;
-    req.options.texture_cache = dir.file("cache");
-    return req;
+    return test::scene_request(dir, "textured.toml", 72, 40, spp);
 }
 
 /** The textured scene at 4 spp with layers, in a crop window. */

@@ -12,6 +12,7 @@
 
 #include "pipeline/frame.h"
 #include "render/denoise.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -31,19 +32,11 @@ namespace {
 FrameResult render(const test::TempDir& dir, const std::string& scene, uint32_t w, uint32_t h,
                    uint32_t spp, bool denoise, GlintDenoise glints = GlintDenoise::Keep,
                    float threshold = 0.0f) {
-    std::ofstream(dir.file(scene)) << test::scene_text(scene);
-    FrameRequest req;
-    req.scene = dir.file(scene);
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.width_override = w;
-    req.options.height_override = h;
-    req.options.spp_override = spp;
+    FrameRequest req = test::scene_request(dir, scene, w, h, spp);
     req.options.layers = true;
     req.options.denoise = denoise;
     req.options.denoise_glints = glints;
     req.options.noise_threshold_override = threshold;
-    req.options.texture_cache = dir.file("cache");
     return render_frame(req);
 }
 
