@@ -110,52 +110,28 @@ void print_channels(const Planes& p) {
     }
 }
 
-/** The RGB of an image (an EXR's R, G, B; any other format through OpenImageIO). */
-std::vector<float> read_rgb(const std::string& path, int& width, int& height) {
+/** The RGB of an image; an EXR's every channel goes into `planes` too (only the size, for any
+ *  other format, read through OpenImageIO). Throws SpangleError. */
+std::vector<float> read_rgb(const std::string& path, Planes& planes) {
     if (Imf::isOpenExrFile(path.c_str())) {
-        const Planes p = read_exr_planes(path);
-        width = p.width;
-        height = p.height;
-        std::vector<float> rgb = p.three("R", "G", "B");
+        planes = read_exr_planes(path);
+        std::vector<float> rgb = planes.three("R", "G", "B");
         if (rgb.empty()) throw_error("'{}' has no R, G and B channels", path);
         return rgb;
     }
     ImageHeader spec;
     std::vector<float> rgb = read_image(path, 3, spec);
     if (spec.channels < 3) throw_error("'{}' has {} channels; expected RGB", path, spec.channels);
-    width = spec.width;
-    height = spec.height;
+    planes.width = spec.width;
+    planes.height = spec.height;
     return rgb;
-}
-
-/** relMSE of `image` against `reference`: the mean over pixels and channels of
- *  (x - r)^2 / (r^2 + 0.01). */
-double rel_mse(const std::vector<float>& image, const std::vector<float>& reference) {
-    double sum = 0.0;
-    for (std::size_t i = 0; i < image.size(); ++i) {
-        const double x = image[i], r = reference[i];
-        sum += (x - r) * (x - r) / (r * r + 0.01);
-    }
-    return image.empty() ? 0.0 : sum / static_cast<double>(image.size());
 }
 
 /** Measures and prints the image at `path` (against `reference` when not empty). */
 int run_inspect(const std::string& path, const std::string& reference) {
     Planes planes;
-    std::vector<float> rgb, glints;
-    if (Imf::isOpenExrFile(path.c_str())) {
-        planes = read_exr_planes(path);
-        rgb = planes.three("R", "G", "B");
-        if (rgb.empty()) throw_error("'{}' has no R, G and B channels", path);
-        glints = planes.three("glints.R", "glints.G", "glints.B");
-    } else {
-        ImageHeader spec;
-        rgb = read_image(path, 3, spec);
-        if (spec.channels < 3)
-            throw_error("'{}' has {} channels; expected RGB", path, spec.channels);
-        planes.width = spec.width;
-        planes.height = spec.height;
-    }
+    const std::vector<float> rgb = read_rgb(path, planes);
+    const std::vector<float> glints = planes.three("glints.R", "glints.G", "glints.B");
     const ImageMetrics m = measure_image(rgb, planes.width, planes.height, 10.0, 1e-3,
                                          glints.empty() ? nullptr : &glints);
     fmt::print("{}: {}x{}\n", path, planes.width, planes.height);
@@ -172,12 +148,12 @@ int run_inspect(const std::string& path, const std::string& reference) {
             m.fireflies, 100.0 * m.firefly_fraction);
     }
     if (!reference.empty()) {
-        int rw = 0, rh = 0;
-        const std::vector<float> ref = read_rgb(reference, rw, rh);
-        if (rw != planes.width || rh != planes.height)
+        Planes ref_planes;
+        const std::vector<float> ref = read_rgb(reference, ref_planes);
+        if (ref_planes.width != planes.width || ref_planes.height != planes.height)
             throw_error("'{}' is {}x{}, the reference '{}' {}x{}", path, planes.width,
-                        planes.height, reference, rw, rh);
-        fmt::print("relMSE against {}: {:.6g}\n", reference, rel_mse(rgb, ref));
+                        planes.height, reference, ref_planes.width, ref_planes.height);
+        fmt::print("relMSE against {}: {:.6g}\n", reference, relative_mse(rgb, ref));
     }
     if (!planes.names.empty()) print_channels(planes);
     return 0;

@@ -56,4 +56,13 @@ ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
     return m;
 }
 
+double relative_mse(const std::vector<float>& image, const std::vector<float>& reference) {
+    double sum = 0.0;
+    for (std::size_t i = 0; i < image.size(); ++i) {
+        const double x = image[i], r = reference[i];
+        sum += (x - r) * (x - r) / (r * r + 0.01);
+    }
+    return image.empty() ? 0.0 : sum / static_cast<double>(image.size());
+}
+
 }  // namespace spangle

@@ -27,4 +27,8 @@ ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
                            double ratio = 10.0, double floor = 1e-3,
                            const std::vector<float>* glints = nullptr);
 
+/** relMSE of `image` against `reference` (the same size): the mean over pixels and channels of
+ *  (x - r)^2 / (r^2 + 0.01), the 0.01 keeping dark pixels from dominating. */
+double relative_mse(const std::vector<float>& image, const std::vector<float>& reference);
+
 }  // namespace spangle

@@ -12,6 +12,7 @@
 
 #include "pipeline/frame.h"
 #include "render/denoise.h"
+#include "render/image_metrics.h"
 #include "scene_request.h"
 #include "test_support.h"
 
@@ -40,16 +41,6 @@ FrameResult render(const test::TempDir& dir, const std::string& scene, uint32_t 
     return render_frame(req);
 }
 
-/** relMSE = mean over pixels and channels of (x - r)^2 / (r^2 + 0.01). */
-double rel_mse(const std::vector<float>& x, const std::vector<float>& r) {
-    double sum = 0.0;
-    for (std::size_t i = 0; i < x.size(); ++i) {
-        const double d = static_cast<double>(x[i]) - static_cast<double>(r[i]);
-        sum += d * d / (static_cast<double>(r[i]) * static_cast<double>(r[i]) + 0.01);
-    }
-    return sum / static_cast<double>(x.size());
-}
-
 TEST(Denoise, LowersTheErrorOfANoisyRenderAtLeastFiveFold) {
     REQUIRE_DENOISER();
     test::TempDir dir("denoise_plain");
@@ -57,8 +48,8 @@ TEST(Denoise, LowersTheErrorOfANoisyRenderAtLeastFiveFold) {
     const FrameResult reference = render(dir, "small_lit.toml", 96, 64, 1024, false);
     const FrameResult noisy = render(dir, "small_lit.toml", 96, 64, 8, false);
     const FrameResult clean = render(dir, "small_lit.toml", 96, 64, 8, true);
-    const double before = rel_mse(noisy.image, reference.image);
-    const double after = rel_mse(clean.image, reference.image);
+    const double before = relative_mse(noisy.image, reference.image);
+    const double after = relative_mse(clean.image, reference.image);
     std::printf("relMSE at 8 spp: %.5f noisy, %.5f denoised (%.1fx)\n", before, after,
                 before / after);
     EXPECT_LT(after * 5.0, before);
@@ -142,13 +133,13 @@ TEST(Denoise, KeepsTheGlintsAndLowersTheError) {
     const FrameResult whole =
         render(dir, "textured.toml", 160, 64, 128, true, GlintDenoise::Filter, 0.05f);
     const double kept = glints_kept(reference, keep);
-    const double e_noisy = rel_mse(noisy.image, reference.image),
-                 e_keep = rel_mse(keep.image, reference.image);
+    const double e_noisy = relative_mse(noisy.image, reference.image),
+                 e_keep = relative_mse(keep.image, reference.image);
     std::printf(
         "glints kept: %.3f passed through, %.3f apart, %.3f whole beauty; relMSE %.5f noisy, "
         "%.5f passed through, %.5f apart, %.5f whole\n",
         kept, glints_kept(reference, apart), glints_kept(reference, whole), e_noisy, e_keep,
-        rel_mse(apart.image, reference.image), rel_mse(whole.image, reference.image));
+        relative_mse(apart.image, reference.image), relative_mse(whole.image, reference.image));
     // Measured: all the glints kept, relMSE 0.00108 -> 0.00096 (the glints keep their own
     // sampling noise: that is what passing them through means). Denoising the glints apart, or
     // the whole beauty, keeps as many by this measure and lowers relMSE a little further
