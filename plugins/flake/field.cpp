@@ -64,7 +64,7 @@ bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1) {
         const double rp = 0.5 * other;                              // P's half extent on the axis
         const double rc = ex * std::fabs(nx) + ey * std::fabs(ny);  // the cell's
         const double d = std::fabs(nx * (cx - p.cu) + ny * (cy - p.cv));
-        if (d > rp + rc) return false;
+        if (d > rp + rc + p.reach * std::hypot(nx, ny)) return false;
     }
     return true;
 }

@@ -17,6 +17,7 @@
 #include <cstdint>
 
 #include "../common/microfacet.h"
+#include "facet.h"
 
 namespace spangle::flake {
 
@@ -58,9 +59,14 @@ struct Footprint {
     double bx = 0, by = 0;  ///< axis b = (du/dy, dv/dy) x footprint_scale
     double i00 = 0, i01 = 0, i10 = 0,
            i11 = 0;  ///< inverse of [a b]: uv offset -> (s, t); all 0 when singular
+    /** Flakes whose centre lies within this uv distance of P may reach into it (the facets'
+     *  circumradius with flake_size; 0 for point flakes). Cells and tiles are searched that far
+     *  around P. */
+    double reach = 0;
     double area() const { return std::fabs(ax * by - ay * bx); }
-    double half_width() const { return 0.5 * (std::fabs(ax) + std::fabs(bx)); }
-    double half_height() const { return 0.5 * (std::fabs(ay) + std::fabs(by)); }
+    /** Half extents of P's bounding box, widened by `reach`. */
+    double half_width() const { return 0.5 * (std::fabs(ax) + std::fabs(bx)) + reach; }
+    double half_height() const { return 0.5 * (std::fabs(ay) + std::fabs(by)) + reach; }
 };
 
 /** Footprint from uv derivatives, scaled, with the ratio of its principal axes clamped to
@@ -71,8 +77,8 @@ Footprint make_footprint(double u, double v, double dudx, double dvdx, double du
 /** Whether (u, v) lies inside P (in P's own coordinates, in double). */
 bool inside(const Footprint& p, double u, double v);
 
-/** Whether the cell [x0, x1] x [y0, y1] may intersect P (separating axes; exact for a
- *  parallelogram and a box). */
+/** Whether the cell [x0, x1] x [y0, y1] may intersect P widened by its reach (separating axes;
+ *  exact for a parallelogram and a box when the reach is 0, conservative otherwise). */
 bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1);
 
 /** Whether the cell lies entirely inside P. */
@@ -89,6 +95,10 @@ struct FieldParams {
     int leaf_size = 16;          ///< nodes with at most this many flakes are leaves
     int max_depth = 12;          ///< deepest level of the quad-tree
     int exact_below = 128;       ///< splits of fewer flakes than this are exact multinomials
+    /** Facets (flake_size): each flake is this outline, `facet_size` wide in uv and turned by an
+     *  angle from its own hash, and counts by the share of it inside P. Null: point flakes. */
+    const FacetShape* facet = nullptr;
+    double facet_size = 0;  ///< width of a facet in the footprint's plane (uv units)
 };
 
 /** Deterministic binomial B(n, p) from a uniform u: exact inversion of the CDF when n is below
@@ -127,6 +137,7 @@ struct Flake {
     V3 m;                 ///< normal, local shading frame
     float color_u = 0;    ///< uniform number that picks its colour-table entry
     uint64_t id = 0;      ///< the flake's own hash: its colour variation and film draw from it
+    float cover = 1;      ///< share of the flake inside P (1 for a point flake inside it)
 };
 
 /** The position of flake i of the leaf with key `key` whose cell is [x0, x0 + size]^2
@@ -207,7 +218,12 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
             for (uint32_t i = 0; i < node.n; ++i) {
                 Flake f;
                 const uint64_t h = leaf_flake_position(key, i, x0, y0, size, f);
-                if (!inside(local, f.u, f.v)) continue;
+                if (fp.facet) {
+                    f.cover = facet_coverage(local, *fp.facet, fp.facet_size, f.u, f.v, h);
+                    if (!(f.cover > 0.0f)) continue;
+                } else if (!inside(local, f.u, f.v)) {
+                    continue;
+                }
                 if (visited >= budget) {
                     truncated = true;
                     return visited;

@@ -97,6 +97,13 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
         return false;
     m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
     m.grid.init(m.alpha, gamma);
+    m.flake_size = param_number(p, "flake_size");
+    if (m.flake_size > 0.0) {
+        const std::string shape = param_string(p, "flake_shape");
+        m.facet = std::make_unique<FacetShape>(shape == "square"  ? FacetKind::Square
+                                               : shape == "round" ? FacetKind::Round
+                                                                  : FacetKind::Hexagon);
+    }
     return init_second(m, p, host, why);
 }
 
@@ -142,12 +149,25 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     FieldParams field = m.field;
     field.seed = view.seed;
     field.flakes_per_tile = std::min(view.per_tile, 2147483647.0);
+    if (m.facet && view.facet_size > 0.0) {
+        field.facet = m.facet.get();
+        field.facet_size = view.facet_size;
+    }
     const Footprint& p = view.footprint;
+    float cover = 0.0f;
     const auto add = [&](const Flake& f) {
+        if (!kept(f, view.keep)) return;
+        cover += f.cover;
         CacheEntry e;
-        if (kept(f, view.keep) &&
-            make_entry(c.wo, f.m, m.colors.pick(f.color_u, f.id), m.film.pick(f.id, m.fresnel), e))
-            scratch.push_back(e);
+        if (!make_entry(c.wo, f.m, m.colors.pick(f.color_u, f.id), m.film.pick(f.id, m.fresnel), e))
+            return;
+        // A facet partly inside the footprint reflects as much of it as lies inside.
+        if (f.cover < 1.0f) {
+            for (float& x : e.rgb) x *= f.cover;
+            e.lum *= f.cover;
+            e.w *= f.cover;
+        }
+        scratch.push_back(e);
     };
     if (m.tree) {
         gather_cells(field, p, m.exact_flakes, c.counted, add);
@@ -172,6 +192,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         if (truncated) return false;
     }
     if (!store_cache(scratch, arena, c)) return false;
+    c.cover = cover + static_cast<float>(c.counted.aggregated);
     st.cached += scratch.size();
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;
@@ -222,6 +243,11 @@ FieldView field_view(const Material& m, const PointInput& in) {
         view.per_tile = m.space == Material::Space::World
                             ? static_cast<double>(m.density) * static_cast<double>(in.uv_area)
                             : static_cast<double>(m.density);
+        // flake_size is in metres: in uv units by the local uv-to-area scale (none where the uv
+        // scale is unknown: point flakes there).
+        if (m.facet && in.uv_area > 0.0f && std::isfinite(in.uv_area))
+            view.facet_size = m.flake_size / std::sqrt(static_cast<double>(in.uv_area));
+        view.footprint.reach = m.facet ? view.facet_size * m.facet->radius : 0.0;
         return view;
     }
     const float n[3] = {std::fabs(in.n_obj.x), std::fabs(in.n_obj.y), std::fabs(in.n_obj.z)};
@@ -238,6 +264,10 @@ FieldView field_view(const Material& m, const PointInput& in) {
     view.keep = len > 0.0f && std::isfinite(len)
                     ? std::min(1.0f, len / (static_cast<float>(kSqrt3) * n[k]))
                     : 0.0f;
+    if (m.facet) {
+        view.facet_size = m.flake_size;
+        view.footprint.reach = m.flake_size * m.facet->radius;
+    }
     return view;
 }
 
@@ -259,6 +289,15 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
         if (c.t < 1.0f && !prepare_discrete(m, view, c, arena, st)) {
             ++st.truncated;
             c.t = 1.0f;
+        }
+        // Facets cover the base: the footprint's flake share follows the facets it holds (their
+        // shares inside it against the expected lambda), so a footprint inside a facet is all
+        // mirror and one between facets all base; it averages to flake_weight as the footprint
+        // grows, and the smooth lobe keeps flake_weight.
+        if (m.facet && view.facet_size > 0.0 && c.t < 1.0f && lambda > 0.0) {
+            const float local = std::min(
+                1.0f, c.weight * static_cast<float>(static_cast<double>(c.cover) / lambda));
+            c.weight = (1.0f - c.t) * local + c.t * c.weight;
         }
     }
     if (std::isfinite(lambda)) {

@@ -52,6 +52,9 @@ struct Material {
     SmoothLobe smooth;
     DirectionGrid grid;
     Coat coat;
+    /** Facets (flake_size > 0): the outline every flake has; null for point flakes. */
+    std::unique_ptr<FacetShape> facet;
+    double flake_size = 0;  ///< metres (object units in object space): a facet's width
     /** The second flake population (flakes2_*): a material of its own density, roughness, cone,
      *  colour and field (its seed salted), sharing this one's Fresnel, film, colour variation and
      *  footprint; only its flake lobe is used. Null with flakes2_weight = 0. */
@@ -86,6 +89,7 @@ struct Closure {
     float weight = 0;           ///< flake_weight here (textured or the material's)
     const Closure* second = nullptr;  ///< the second population's flakes (arena; null: none)
     float w_second = 0;               ///< its share of the flake lobe (0 without it)
+    float cover = 0;                  ///< facets: the shares of the flakes inside the footprint
     float q_second = 0;               ///< probability that flake sampling picks it
 };
 
@@ -109,9 +113,10 @@ struct PointInput {
  *  density there and seed, and the share of the field's flakes that belong to the surface. */
 struct FieldView {
     Footprint footprint;
-    double per_tile = 0;  ///< flakes per unit square of the plane
-    uint64_t seed = 0;    ///< the field's seed (the material's, salted per object-space plane)
-    float keep = 1.0f;    ///< each flake is kept with this probability (hashed per flake)
+    double per_tile = 0;    ///< flakes per unit square of the plane
+    uint64_t seed = 0;      ///< the field's seed (the material's, salted per object-space plane)
+    float keep = 1.0f;      ///< each flake is kept with this probability (hashed per flake)
+    double facet_size = 0;  ///< facets: a flake's width in the plane's units (0: point flakes)
     double lambda() const { return per_tile * footprint.area() * static_cast<double>(keep); }
 };
 

@@ -49,6 +49,8 @@ inline const SpangleParamDesc_v3 kParams[] = {
     {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0, 1, nullptr, "add a clear coat on top", 0},
     {"coat_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of the clear coat", 0},
     {"coat_roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the clear coat; below 1e-4 a smooth coat", 0},
+    {"flake_size", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "metres: width of a flake's facet (flat mirror with the flake_shape outline, seen where a pixel is not much larger); 0 = point flakes", 0},
+    {"flake_shape", SPANGLE_PARAM_STRING, {0, 0, 0}, "hexagon", 0, 0, "hexagon|square|round", "outline of a flake's facet when flake_size > 0 (width flat to flat, side, or diameter)", 0},
     {"seed", SPANGLE_PARAM_INT, {0, 0, 0}, nullptr, 0.0, 2147483647.0, nullptr, "which realisation of flakes: change it for a different but equivalent pattern", 0},
 };
 // clang-format on

@@ -29,12 +29,20 @@ float radians(float deg) {
  *  field's flakes in the footprint (all of them for `enumerate`, those of the cells the counting
  *  algorithm enumerates for `tree`) that face wo and reflect it above the horizon. */
 std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point& pt, Vec3 wo,
-                               uint64_t seed = 0, double density = kTestDensity) {
+                               uint64_t seed = 0, double density = kTestDensity,
+                               double facet = 0.0) {
     fl::FieldParams fp;
     fp.seed = seed;
     fp.flakes_per_tile = density;
     fp.alpha = alpha;
-    const fl::Footprint p = fl::make_footprint(pt.u, pt.v, pt.dudx, pt.dvdx, pt.dudy, pt.dvdy, 1.0);
+    fl::Footprint p = fl::make_footprint(pt.u, pt.v, pt.dudx, pt.dvdx, pt.dudy, pt.dvdy, 1.0);
+    // Hexagonal facets of that width (uv units: the harness's uv_area is 1) reach around P.
+    const fl::FacetShape hexagon(fl::FacetKind::Hexagon);
+    if (facet > 0.0) {
+        fp.facet = &hexagon;
+        fp.facet_size = facet;
+        p.reach = facet * hexagon.radius;
+    }
     std::vector<Vec3> cones;
     const auto add = [&](const fl::Flake& f) {
         const Vec3 m(f.m.x, f.m.y, f.m.z);
@@ -110,13 +118,14 @@ void lobe_chi2(const LobeCase& c, uint64_t seed) {
     const BsdfHarness::Point pt = random_footprint(c.lambda, seed, 0);
     m->prepare(wo, pt);
     const float gamma = radians(c.gamma_deg);
-    std::vector<Vec3> list = cached_cones(tree, c.alpha, pt, wo);
-    // A second population (of the same cone): its own field's flakes, by the plugin's seed salt.
     const auto value = [&](const char* name) {
         for (const auto& [key, v] : c.extra)
             if (key == name) return v[0];
         return 0.0;
     };
+    std::vector<Vec3> list =
+        cached_cones(tree, c.alpha, pt, wo, 0, kTestDensity, value("flake_size"));
+    // A second population (of the same cone): its own field's flakes, by the plugin's seed salt.
     if (value("flakes2_weight") > 0.0)
         for (const Vec3& r : cached_cones(tree, static_cast<float>(value("flakes2_roughness")), pt,
                                           wo, fl::mix(0, 0x5ec0d), value("flakes2_density")))
@@ -257,6 +266,15 @@ TEST(FlakeLobe, SamplingMatchesPdfWithTwoPopulations) {
                              {"flakes2_gamma", {3.0}}};
     lobe_chi2({"enumerate", 40, 3.0f, 0.15f, 0.7f, two}, 31);
     lobe_chi2({"tree", 40, 3.0f, 0.15f, 0.5f, two}, 32);
+}
+
+TEST(FlakeLobe, SamplingMatchesPdfWithFacets) {
+    // Facets (flake_size) weigh each flake by its share inside the footprint: the cache is
+    // sampled by those weights. Facets as wide as the footprint (lambda 3) and a tenth of it.
+    const double side3 = std::sqrt(3.0 / kTestDensity), side60 = std::sqrt(60.0 / kTestDensity);
+    lobe_chi2({"enumerate", 3, 4.0f, 0.3f, 0.6f, {{"flake_size", {side3}}}}, 41);
+    lobe_chi2({"tree", 3, 4.0f, 0.3f, 0.4f, {{"flake_size", {side3}}}}, 42);
+    lobe_chi2({"enumerate", 60, 3.0f, 0.15f, 0.7f, {{"flake_size", {0.1 * side60}}}}, 43);
 }
 
 TEST(FlakeLobe, TreeSeesTheEnumeratedFlakesInSmallFootprints) {

@@ -71,6 +71,18 @@ void expect_mean_is_smooth(const FlakeParams& params, Vec3 wo, Vec3 wi, double l
     }
 }
 
+TEST(FlakeExpectation, FacetsAverageToTheSmoothLobe) {
+    // Facets a thirtieth of the footprint's width (1,200 facet areas per footprint; about a tenth
+    // of its facets straddle its edge and count in part), covering half the surface as
+    // flake_weight 0.5 says: the footprints average to the smooth lobe at that weight.
+    const double facet = std::sqrt(0.5 / (kTestDensity * std::sqrt(3.0) / 2.0));
+    const Vec3 wo = dir(0.7f, 0.0f);
+    expect_mean_is_smooth({{"flake_size", {facet}}, {"flake_weight", {0.5}}}, wo, mirror(wo), 600.0,
+                          1500, 410);
+    expect_mean_is_smooth({{"flake_size", {facet}}, {"flake_weight", {0.5}}}, wo, dir(0.75f, 2.9f),
+                          600.0, 1500, 411);
+}
+
 TEST(FlakeExpectation, ColourVariationAveragesToItsMean) {
     // Varied colours, from the table and from one flake colour: the smooth lobe takes the
     // variants' exact mean, so the footprints average to it.
