@@ -3,7 +3,8 @@
 # gzip'd pbrt scenes); with --tests,
 # also what only the tests need (headless Chromium and its WebDriver for the live preview page;
 # clang and its libFuzzer runtime for the fuzz targets). libtinygltf-dev (2.7.0) reads glTF scenes;
-# python3-pip fetches Open Image Denoise's libraries (below).
+# python3-pip fetches Open Image Denoise's libraries (below); pybind11-dev, python3-dev and
+# python3-numpy build the Python module (python/), python3-pytest tests it.
 # The list and the CMake traps behind it are in ../shared/NOTES-deps.md and cmake/SpangleDeps.cmake.
 set -euo pipefail
 packages=(
@@ -11,10 +12,11 @@ packages=(
     libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev libpng-dev
     zlib1g-dev libtbb-dev libtomlplusplus-dev libcli11-dev libtinyobjloader-dev libtinygltf-dev libcpp-httplib-dev libgtest-dev libbenchmark-dev
     openimageio-tools opencolorio-tools clang-format python3-pip
+    pybind11-dev python3-dev python3-numpy
     libopenmpi-dev openmpi-bin
 )
 if [ "${1:-}" = "--tests" ]; then
-    packages+=(chromium chromium-driver curl clang libclang-rt-14-dev)
+    packages+=(chromium chromium-driver curl clang libclang-rt-14-dev python3-pytest)
 fi
 missing=()
 for p in "${packages[@]}"; do

@@ -15,7 +15,22 @@ std::string file_identity(const std::string& path) {
                        static_cast<long long>(st.st_size));
 }
 
+namespace {
+
+/** set_executable_dir()'s directory (empty: none). Written once at start-up, read after. */
+std::string& executable_dir_override() {
+    static std::string dir;
+    return dir;
+}
+
+}  // namespace
+
+void set_executable_dir(const std::string& dir) {
+    executable_dir_override() = dir;
+}
+
 std::string executable_dir() {
+    if (!executable_dir_override().empty()) return executable_dir_override();
     std::error_code ec;
     const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
     return ec ? std::string() : exe.parent_path().string();

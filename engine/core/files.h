@@ -10,7 +10,13 @@ namespace spangle {
  *  editor's save changes the modification time even when it rewrites the same bytes). */
 std::string file_identity(const std::string& path);
 
-/** Directory of the running executable (via /proc/self/exe), or empty. */
+/** Directory of the running executable (via /proc/self/exe), or empty; the directory given to
+ *  set_executable_dir() when one was (a library loaded into another program, such as the Python
+ *  module, whose plugins and OCIO config lie beside it rather than beside the program). */
 std::string executable_dir();
+
+/** Makes executable_dir() return `dir` from now on (empty: /proc/self/exe's again). Call before
+ *  any session is made. */
+void set_executable_dir(const std::string& dir);
 
 }  // namespace spangle

@@ -1,0 +1,438 @@
+// The `spangle` Python module (import spangle): load any scene Spangle reads into a session, edit
+// its materials, object transforms, camera and lights, render with progress and a way to stop,
+// and get the beauty and every render layer as numpy arrays; write EXR/PNG through the CLI's own
+// outputs. The GIL is released while rendering; errors are Python exceptions carrying the
+// message's file:line.
+
+#include <pybind11/functional.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include <cstring>
+#include <map>
+#include <regex>
+
+#include "cli/outputs.h"
+#include "core/error.h"
+#include "session.h"
+
+namespace py = pybind11;
+
+namespace spangle::py_bind {
+
+using spangle::python::ParamValue;
+using spangle::python::PySession;
+using spangle::python::RenderedImage;
+
+namespace {
+
+/** spangle.SceneError, a RuntimeError with file, line and column attributes. */
+PyObject* g_scene_error = nullptr;
+
+/** Raises SceneError from a SpangleError, with the location its message starts with. */
+void raise_scene_error(const SpangleError& e) {
+    const std::string msg = e.what();
+    static const std::regex loc(R"(^(.+?)(?::(\d+))?(?::(\d+))?: error: )");
+    py::object err = py::reinterpret_borrow<py::object>(g_scene_error)(msg);
+    std::smatch m;
+    if (std::regex_search(msg, m, loc)) {
+        err.attr("file") = m[1].str();
+        err.attr("line") = m[2].matched ? std::stoi(m[2].str()) : 0;
+        err.attr("column") = m[3].matched ? std::stoi(m[3].str()) : 0;
+    } else {
+        err.attr("file") = py::none();
+        err.attr("line") = 0;
+        err.attr("column") = 0;
+    }
+    PyErr_SetObject(g_scene_error, err.ptr());
+}
+
+Vec3 vec3(const std::array<double, 3>& a) {
+    return Vec3(static_cast<float>(a[0]), static_cast<float>(a[1]), static_cast<float>(a[2]));
+}
+std::optional<Vec3> vec3(const std::optional<std::array<double, 3>>& a) {
+    return a ? std::optional<Vec3>(vec3(*a)) : std::nullopt;
+}
+py::tuple tuple3(Vec3 v) {
+    return py::make_tuple(v.x, v.y, v.z);
+}
+
+/** An H x W x C float32 array of `channels` interleaved channels starting at `first` of
+ *  `stride` per pixel. */
+py::array_t<float> image_array(const std::vector<float>& data, uint32_t w, uint32_t h,
+                               std::size_t stride, std::size_t first, std::size_t channels) {
+    py::array_t<float> a({static_cast<py::ssize_t>(h), static_cast<py::ssize_t>(w),
+                          static_cast<py::ssize_t>(channels)});
+    float* out = a.mutable_data();
+    const std::size_t n = static_cast<std::size_t>(w) * h;
+    for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t c = 0; c < channels; ++c)
+            out[i * channels + c] = data[i * stride + first + c];
+    return a;
+}
+
+/** The layers by name: channels "albedo.R", "albedo.G", "albedo.B" make "albedo" (H x W x 3);
+ *  a channel without a dot is a layer of one channel. */
+py::dict layer_arrays(const RenderResult& r) {
+    py::dict out;
+    const std::size_t stride = r.layer_names.size();
+    std::size_t k = 0;
+    while (k < stride) {
+        const std::string& name = r.layer_names[k];
+        const std::size_t dot = name.rfind('.');
+        const std::string layer = dot == std::string::npos ? name : name.substr(0, dot);
+        std::size_t end = k + 1;
+        while (dot != std::string::npos && end < stride && r.layer_names[end].rfind('.') == dot &&
+               r.layer_names[end].compare(0, dot, layer) == 0)
+            ++end;
+        out[py::str(layer)] = image_array(r.layers, r.width, r.height, stride, k, end - k);
+        k = end;
+    }
+    return out;
+}
+
+/** A material parameter's value from Python: bool, int, float, str or three numbers. */
+ParamValue param_value(const std::string& key, const py::handle& v) {
+    if (py::isinstance<py::bool_>(v)) return v.cast<bool>();
+    if (py::isinstance<py::int_>(v)) return v.cast<long long>();
+    if (py::isinstance<py::float_>(v)) return v.cast<double>();
+    if (py::isinstance<py::str>(v)) return v.cast<std::string>();
+    if (py::isinstance<py::sequence>(v) && py::len(v) == 3) return v.cast<std::array<double, 3>>();
+    throw py::type_error("parameter '" + key +
+                         "': expected a bool, an int, a float, a str or three numbers");
+}
+
+py::object param_to_python(const ParamDesc& p) {
+    switch (p.kind) {
+        case ParamDesc::Kind::Bool:
+            return py::bool_(p.number != 0.0);
+        case ParamDesc::Kind::Number:
+            return p.is_integer ? py::object(py::int_(static_cast<long long>(p.number)))
+                                : py::object(py::float_(p.number));
+        case ParamDesc::Kind::String:
+            return py::str(p.text);
+        case ParamDesc::Kind::Color:
+            return tuple3(p.color.rgb);
+        case ParamDesc::Kind::Texture: {
+            py::dict t;
+            t["texture"] = p.texture.path;
+            return t;
+        }
+    }
+    return py::none();
+}
+
+/** Writes a rendered image as the CLI does: the EXR (half floats unless `full_float`, with the
+ *  layers when there are any) and, unless `preview` is empty, its PNG through the OCIO view. */
+void write_image(const RenderedImage& img, const PySession& s, const std::string& path,
+                 const std::string& preview, bool full_float, const std::string& compression) {
+    Outputs out;
+    out.exr = path;
+    out.preview = preview;
+    out.scene = img.scene;
+    out.exr_options.half = !full_float;
+    out.exr_options.compression = compression;
+    const auto& valid = exr_compressions();
+    if (std::find(valid.begin(), valid.end(), compression) == valid.end())
+        throw SpangleError(fmt::format("unknown EXR compression '{}'", compression));
+    if (path.size() < 4 || path.compare(path.size() - 4, 4, ".exr") != 0)
+        throw SpangleError(fmt::format("output '{}' must end in .exr", path));
+    out.write(final_image(img.result, s.color(), s.info()));
+}
+
+}  // namespace
+
+}  // namespace spangle::py_bind
+
+PYBIND11_MODULE(_spangle, m) {
+    using namespace spangle;
+    using namespace spangle::py_bind;
+    m.doc() = "Spangle, an offline renderer for glitter, from Python (see docs/python.md).";
+    static py::exception<SpangleError> scene_error(m, "SceneError", PyExc_RuntimeError);
+    g_scene_error = scene_error.ptr();
+    // A SpangleError leaving a binding (after any released GIL is taken again) becomes SceneError.
+    py::register_exception_translator([](std::exception_ptr p) {
+        try {
+            if (p) std::rethrow_exception(p);
+        } catch (const SpangleError& e) {
+            raise_scene_error(e);
+        }
+    });
+    m.attr("__version__") = SPANGLE_VERSION;
+    m.def("_set_module_location", &spangle::python::set_module_location);
+
+    py::class_<RenderedImage>(m, "Image", "A rendered image: the beauty, its layers, its samples.")
+        .def_property_readonly(
+            "beauty",
+            [](const RenderedImage& i) {
+                return image_array(i.result.image, i.result.width, i.result.height, 3, 0, 3);
+            },
+            "RGB in the scene's working space, float32, H x W x 3.")
+        .def_property_readonly(
+            "layers", [](const RenderedImage& i) { return layer_arrays(i.result); },
+            "The render layers by name (alpha, albedo, normal, depth, position, glints, one per "
+            "light group), each float32 H x W x C; empty unless rendered with layers=True.")
+        .def_property_readonly(
+            "glints",
+            [](const RenderedImage& i) -> py::object {
+                py::dict l = layer_arrays(i.result);
+                return l.contains("glints") ? py::object(l["glints"]) : py::object(py::none());
+            },
+            "The glints alone (the part of the beauty the discrete flakes make), or None.")
+        .def_readonly("spp", &RenderedImage::spp, "Samples per pixel reached.")
+        .def_readonly("stopped", &RenderedImage::stopped, "Whether stop() ended it early.")
+        .def_property_readonly(
+            "seconds", [](const RenderedImage& i) { return i.result.stats.seconds; },
+            "Render time in seconds.")
+        .def_property_readonly("width", [](const RenderedImage& i) { return i.result.width; })
+        .def_property_readonly("height", [](const RenderedImage& i) { return i.result.height; });
+
+    py::class_<PySession>(m, "Session", "A live scene to edit and render.")
+        .def(py::init([](std::vector<std::string> plugin_path, const std::string& ocio, int threads,
+                         bool verbose) {
+                 return std::make_unique<PySession>(std::move(plugin_path), ocio, threads, verbose);
+             }),
+             py::arg("plugin_path") = std::vector<std::string>{}, py::arg("ocio") = "",
+             py::arg("threads") = 0, py::arg("verbose") = false)
+        .def(
+            "load",
+            [](PySession& s, const std::string& path, double time) {
+                py::gil_scoped_release release;
+                s.load(path, time);
+            },
+            py::arg("path"), py::arg("time") = 0.0,
+            "Reads a scene file (TOML, pbrt-v3/v4, glTF) into the session. `time`: seconds after "
+            "its first frame.")
+        .def_property_readonly("materials", [](PySession& s) { return s.materials(); })
+        .def(
+            "material",
+            [](PySession& s, const std::string& name) {
+                return [&]() -> py::dict {
+                    for (const MaterialDesc& mat : s.description().materials) {
+                        if (mat.name != name) continue;
+                        py::dict d, params;
+                        d["name"] = mat.name;
+                        d["plugin"] = mat.plugin;
+                        d["model"] = mat.model;
+                        for (const ParamDesc& p : mat.params)
+                            params[py::str(p.name)] = param_to_python(p);
+                        d["params"] = params;
+                        return d;
+                    }
+                    throw SpangleError(fmt::format("no material '{}'", name));
+                }();
+            },
+            py::arg("name"), "The material as written: plugin, model and parameters.")
+        .def(
+            "set_material",
+            [](PySession& s, const std::string& name, const py::kwargs& params) {
+                std::vector<std::pair<std::string, ParamValue>> values;
+                for (const auto& [k, v] : params) {
+                    const std::string key = py::str(k);
+                    values.emplace_back(key, param_value(key, v));
+                }
+                py::gil_scoped_release release;
+                s.set_material(name, values);
+            },
+            py::arg("name"),
+            "Sets parameters of a material by keyword; the plugin's schema validates them (a bad "
+            "value raises SceneError and changes nothing).")
+        .def_property_readonly("objects", [](PySession& s) { return s.objects(); })
+        .def(
+            "transform",
+            [](PySession& s, const std::string& name) {
+                return [&]() -> py::dict {
+                    const std::vector<std::string> names = s.objects();
+                    for (std::size_t i = 0; i < names.size(); ++i) {
+                        if (names[i] != name) continue;
+                        const PlacementDesc& p = s.description().objects[i].placement;
+                        py::dict d;
+                        if (p.matrix) {
+                            py::list rows;
+                            for (int r = 0; r < 3; ++r)
+                                rows.append(py::make_tuple(p.matrix->m[r][0], p.matrix->m[r][1],
+                                                           p.matrix->m[r][2], (&p.matrix->t.x)[r]));
+                            d["matrix"] = rows;
+                        } else {
+                            d["translate"] = tuple3(p.parts.translate);
+                            d["rotate"] = tuple3(p.parts.rotate);
+                            d["scale"] = tuple3(p.parts.scale);
+                        }
+                        return d;
+                    }
+                    throw SpangleError(fmt::format("no object '{}'", name));
+                }();
+            },
+            py::arg("name"), "The object's placement: translate/rotate/scale, or a 3 x 4 matrix.")
+        .def(
+            "set_transform",
+            [](PySession& s, const std::string& name,
+               std::optional<std::array<double, 3>> translate,
+               std::optional<std::array<double, 3>> rotate,
+               std::optional<std::array<double, 3>> scale,
+               std::optional<std::array<std::array<double, 4>, 3>> matrix) {
+                std::optional<Affine> a;
+                if (matrix) {
+                    Affine x;
+                    for (int r = 0; r < 3; ++r) {
+                        for (int c = 0; c < 3; ++c) x.m[r][c] = static_cast<float>((*matrix)[r][c]);
+                        (&x.t.x)[r] = static_cast<float>((*matrix)[r][3]);
+                    }
+                    a = x;
+                }
+                py::gil_scoped_release release;
+                s.set_transform(name, vec3(translate), vec3(rotate), vec3(scale), a);
+            },
+            py::arg("name"), py::kw_only(), py::arg("translate") = py::none(),
+            py::arg("rotate") = py::none(), py::arg("scale") = py::none(),
+            py::arg("matrix") = py::none(),
+            "Places an object: translate (world units), rotate (degrees about X, Y, Z), scale, or "
+            "a 3 x 4 object-to-world matrix.")
+        .def_property_readonly(
+            "camera",
+            [](PySession& s) {
+                return [&] {
+                    const CameraDesc& c = s.description().camera;
+                    py::dict d;
+                    d["position"] = tuple3(c.position);
+                    d["look_at"] = tuple3(c.look_at);
+                    d["up"] = tuple3(c.up);
+                    d["fov"] = c.fov_deg;
+                    d["aperture"] = c.aperture;
+                    d["focus_distance"] = c.focus_distance
+                                              ? py::object(py::float_(*c.focus_distance))
+                                              : py::object(py::none());
+                    return d;
+                }();
+            },
+            "The camera: position, look_at, up, fov (vertical, degrees), aperture (lens radius, "
+            "metres), focus_distance.")
+        .def(
+            "set_camera",
+            [](PySession& s, std::optional<std::array<double, 3>> position,
+               std::optional<std::array<double, 3>> look_at,
+               std::optional<std::array<double, 3>> up, std::optional<double> fov,
+               std::optional<double> aperture, std::optional<double> focus_distance) {
+                py::gil_scoped_release release;
+                s.set_camera(vec3(position), vec3(look_at), vec3(up), fov, aperture,
+                             focus_distance);
+            },
+            py::kw_only(), py::arg("position") = py::none(), py::arg("look_at") = py::none(),
+            py::arg("up") = py::none(), py::arg("fov") = py::none(),
+            py::arg("aperture") = py::none(), py::arg("focus_distance") = py::none(),
+            "Moves or changes the camera; what is not given stays.")
+        .def_property_readonly(
+            "lights",
+            [](PySession& s) {
+                return [&] {
+                    py::list out;
+                    for (const LightDesc& l : s.description().lights) {
+                        py::dict d;
+                        d["intensity"] = l.intensity;
+                        d["color"] =
+                            l.color ? py::object(tuple3(l.color->rgb)) : py::object(py::none());
+                        std::visit(
+                            [&](const auto& x) {
+                                using S = std::decay_t<decltype(x)>;
+                                if constexpr (std::is_same_v<S, QuadLightDesc>) {
+                                    d["kind"] = "quad";
+                                    d["position"] = tuple3(x.corner);
+                                } else if constexpr (std::is_same_v<S, SphereLightDesc>) {
+                                    d["kind"] = "sphere";
+                                    d["position"] = tuple3(x.center);
+                                    d["radius"] = x.radius;
+                                } else if constexpr (std::is_same_v<S, PointLightDesc>) {
+                                    d["kind"] = "point";
+                                    d["position"] = tuple3(x.position);
+                                } else if constexpr (std::is_same_v<S, SpotLightDesc>) {
+                                    d["kind"] = "spot";
+                                    d["position"] = tuple3(x.position);
+                                } else {
+                                    d["kind"] = "distant";
+                                    d["direction"] = tuple3(x.direction);
+                                }
+                            },
+                            l.shape);
+                        out.append(d);
+                    }
+                    return out;
+                }();
+            },
+            "The lights, in the order written: kind, intensity, color, position (and radius).")
+        .def(
+            "set_light",
+            [](PySession& s, std::size_t index, std::optional<double> intensity,
+               std::optional<std::array<double, 3>> color,
+               std::optional<std::array<double, 3>> position, std::optional<double> radius) {
+                py::gil_scoped_release release;
+                s.set_light(index, intensity, vec3(color), vec3(position), radius);
+            },
+            py::arg("index"), py::kw_only(), py::arg("intensity") = py::none(),
+            py::arg("color") = py::none(), py::arg("position") = py::none(),
+            py::arg("radius") = py::none(), "Changes a light; what is not given stays.")
+        .def(
+            "render",
+            [](PySession& s, std::optional<uint32_t> spp,
+               std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
+               std::optional<py::function> progress, std::optional<py::function> on_pass) {
+                // Callbacks run on render threads: they take the GIL, and a Python exception in
+                // one stops the render and is raised once it has ended.
+                std::mutex failed_m;
+                std::optional<py::error_already_set> failed;
+                spangle::python::RenderCallbacks cb;
+                if (progress)
+                    cb.progress = [&](uint64_t done, uint64_t total) {
+                        py::gil_scoped_acquire gil;
+                        try {
+                            (*progress)(done, total);
+                        } catch (py::error_already_set& e) {
+                            std::lock_guard<std::mutex> l(failed_m);
+                            if (!failed) failed = std::move(e);
+                            s.stop();
+                        }
+                    };
+                if (on_pass)
+                    cb.on_pass = [&](const PassImage& p) {
+                        py::gil_scoped_acquire gil;
+                        try {
+                            (*on_pass)(image_array(p.image, p.width, p.height, 3, 0, 3), p.spp);
+                        } catch (py::error_already_set& e) {
+                            std::lock_guard<std::mutex> l(failed_m);
+                            if (!failed) failed = std::move(e);
+                            s.stop();
+                        }
+                    };
+                RenderedImage img;
+                {
+                    py::gil_scoped_release release;
+                    img = s.render(spp, size, layers, cb);
+                }
+                if (failed) throw std::move(*failed);
+                return img;
+            },
+            py::kw_only(), py::arg("spp") = py::none(), py::arg("size") = py::none(),
+            py::arg("layers") = true, py::arg("progress") = py::none(),
+            py::arg("on_pass") = py::none(),
+            "Renders the live scene (the GIL is released). spp and size=(width, height) override "
+            "the scene's; progress(done, total) is told the samples done; on_pass(beauty, spp) "
+            "gets each progressive pass. stop() from another thread ends it early.")
+        .def("stop", &PySession::stop,
+             "Ends a render running in another thread after the waves in flight; safe to call "
+             "from any thread.")
+        .def(
+            "write",
+            [](PySession& s, const RenderedImage& img, const std::string& path,
+               std::optional<std::string> preview, bool full_float,
+               const std::string& compression) {
+                std::string png = preview.value_or(
+                    path.size() > 4 ? path.substr(0, path.size() - 4) + ".png" : "");
+                py::gil_scoped_release release;
+                write_image(img, s, path, png, full_float, compression);
+            },
+            py::arg("image"), py::arg("path"), py::kw_only(), py::arg("preview") = py::none(),
+            py::arg("float") = false, py::arg("compression") = "zip",
+            "Writes an image as spangle render does: an EXR in the working space (its layers "
+            "beside the beauty), whole or not at all, and a PNG preview through the OCIO view "
+            "(preview='' for none; default: the EXR's name with .png).");
+}

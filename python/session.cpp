@@ -1,0 +1,255 @@
+#include "session.h"
+
+#include <filesystem>
+
+#include "core/error.h"
+#include "core/files.h"
+#include "scene/scene_loader.h"
+
+namespace spangle::python {
+
+namespace fs = std::filesystem;
+
+void set_module_location(const std::string& package_dir) {
+    // An installed package carries its plugins, OCIO config and OpenImageIO module beside
+    // itself; a module in the build tree finds them in the build directory it was built in.
+    if (fs::is_directory(fs::path(package_dir) / "plugins")) {
+        set_executable_dir(package_dir);
+        return;
+    }
+#ifdef SPANGLE_BUILD_DIR
+    set_executable_dir(SPANGLE_BUILD_DIR);
+#endif
+}
+
+PySession::PySession(std::vector<std::string> plugin_path, const std::string& ocio, int threads,
+                     bool verbose) {
+    log_.threshold = verbose ? LogLevel::Info : LogLevel::Warning;
+    RenderOptions options;
+    options.threads = threads;
+    options.progressive = false;
+    session_ = std::make_unique<Session>(std::move(plugin_path), ocio, options, log_);
+}
+
+void PySession::load(const std::string& path, double time) {
+    SceneDescription d = read_scene(path, SceneReadOptions{});
+    session_->load(d, time);
+    desc_ = std::move(d);
+    time_ = time;
+    loaded_ = true;
+}
+
+const SceneDescription& PySession::description() const {
+    if (!loaded_) throw SpangleError("no scene is loaded: call load(path) first");
+    return desc_;
+}
+
+void PySession::apply(SceneDescription edited) {
+    session_->load(edited, time_);
+    desc_ = std::move(edited);
+}
+
+std::vector<std::string> PySession::materials() const {
+    std::vector<std::string> out;
+    for (const MaterialDesc& m : description().materials) out.push_back(m.name);
+    return out;
+}
+
+namespace {
+
+/** Where an edit from Python is blamed in messages. */
+FileLoc python_loc(const std::string& what) {
+    return FileLoc{"python: " + what, 0, 0};
+}
+
+}  // namespace
+
+void PySession::set_material(const std::string& name,
+                             const std::vector<std::pair<std::string, ParamValue>>& params) {
+    SceneDescription d = description();
+    MaterialDesc* m = nullptr;
+    for (MaterialDesc& x : d.materials)
+        if (x.name == name) m = &x;
+    if (!m) {
+        std::string names;
+        for (const MaterialDesc& x : d.materials) names += (names.empty() ? "" : ", ") + x.name;
+        throw SpangleError(
+            fmt::format("no material '{}' (materials: {})", name, names.empty() ? "none" : names));
+    }
+    for (const auto& [key, value] : params) {
+        ParamDesc* p = nullptr;
+        for (ParamDesc& x : m->params)
+            if (x.name == key) p = &x;
+        if (!p) {
+            m->params.emplace_back();
+            p = &m->params.back();
+            p->name = key;
+        }
+        p->loc = p->key_loc = python_loc(fmt::format("set_material('{}', {}=...)", name, key));
+        p->is_integer = false;
+        if (const bool* b = std::get_if<bool>(&value)) {
+            p->kind = ParamDesc::Kind::Bool;
+            p->number = *b ? 1.0 : 0.0;
+        } else if (const long long* i = std::get_if<long long>(&value)) {
+            p->kind = ParamDesc::Kind::Number;
+            p->number = static_cast<double>(*i);
+            p->is_integer = true;
+        } else if (const double* x = std::get_if<double>(&value)) {
+            if (!std::isfinite(*x))
+                throw SpangleError(fmt::format("material '{}': '{}' must be finite", name, key));
+            p->kind = ParamDesc::Kind::Number;
+            p->number = *x;
+        } else if (const std::string* s = std::get_if<std::string>(&value)) {
+            p->kind = ParamDesc::Kind::String;
+            p->text = *s;
+        } else {
+            const auto& c = std::get<std::array<double, 3>>(value);
+            for (double v : c)
+                if (!std::isfinite(v))
+                    throw SpangleError(
+                        fmt::format("material '{}': the colour '{}' must be finite", name, key));
+            p->kind = ParamDesc::Kind::Color;
+            p->color = ColorDesc{};
+            p->color.rgb =
+                Vec3(static_cast<float>(c[0]), static_cast<float>(c[1]), static_cast<float>(c[2]));
+            p->color.loc = p->color.space_loc = p->loc;
+        }
+    }
+    apply(std::move(d));
+}
+
+std::vector<std::string> PySession::objects() const {
+    std::vector<std::string> out;
+    const SceneDescription& d = description();
+    for (std::size_t i = 0; i < d.objects.size(); ++i)
+        out.push_back(!d.objects[i].name.empty() ? d.objects[i].name
+                                                 : fmt::format("[[object]] #{}", i + 1));
+    return out;
+}
+
+ObjectDesc& PySession::object_named(SceneDescription& d, const std::string& name) const {
+    const std::vector<std::string> names = objects();
+    for (std::size_t i = 0; i < names.size(); ++i)
+        if (names[i] == name) return d.objects[i];
+    std::string all;
+    for (const std::string& n : names) all += (all.empty() ? "" : ", ") + n;
+    throw SpangleError(
+        fmt::format("no object '{}' (objects: {})", name, all.empty() ? "none" : all));
+}
+
+void PySession::set_transform(const std::string& name, const std::optional<Vec3>& translate,
+                              const std::optional<Vec3>& rotate, const std::optional<Vec3>& scale,
+                              const std::optional<Affine>& matrix) {
+    SceneDescription d = description();
+    ObjectDesc& o = object_named(d, name);
+    if (matrix && (translate || rotate || scale))
+        throw SpangleError(fmt::format(
+            "object '{}': give either matrix or translate/rotate/scale, not both", name));
+    if (matrix) {
+        o.placement.matrix = *matrix;
+    } else {
+        // Parts replace a matrix (the object's keys, if any, move the parts).
+        if (o.placement.matrix && !(translate && rotate && scale))
+            throw SpangleError(fmt::format(
+                "object '{}' is placed by a matrix: give translate, rotate and scale together, "
+                "or a matrix",
+                name));
+        o.placement.matrix.reset();
+        if (translate) o.placement.parts.translate = *translate;
+        if (rotate) o.placement.parts.rotate = *rotate;
+        if (scale) o.placement.parts.scale = *scale;
+    }
+    o.loc = python_loc(fmt::format("set_transform('{}')", name));
+    apply(std::move(d));
+}
+
+void PySession::set_camera(const std::optional<Vec3>& position, const std::optional<Vec3>& look_at,
+                           const std::optional<Vec3>& up, const std::optional<double>& fov,
+                           const std::optional<double>& aperture,
+                           const std::optional<double>& focus_distance) {
+    SceneDescription d = description();
+    CameraDesc& c = d.camera;
+    if (position) c.position = *position;
+    if (look_at) c.look_at = *look_at;
+    if (up) c.up = *up;
+    if (fov) c.fov_deg = *fov;
+    if (aperture) c.aperture = *aperture;
+    if (focus_distance) c.focus_distance = *focus_distance;
+    c.loc = c.look_at_loc = c.up_loc = python_loc("set_camera()");
+    apply(std::move(d));
+}
+
+void PySession::set_light(std::size_t index, const std::optional<double>& intensity,
+                          const std::optional<Vec3>& color, const std::optional<Vec3>& position,
+                          const std::optional<double>& radius) {
+    SceneDescription d = description();
+    if (index >= d.lights.size())
+        throw SpangleError(
+            fmt::format("no light {} (the scene has {} lights)", index, d.lights.size()));
+    LightDesc& l = d.lights[index];
+    const FileLoc loc = python_loc(fmt::format("set_light({})", index));
+    if (intensity) l.intensity = *intensity;
+    if (color) {
+        ColorDesc c;
+        c.rgb = *color;
+        c.loc = c.space_loc = loc;
+        l.color = c;
+    }
+    if (position || radius) {
+        bool placed = false;
+        std::visit(
+            [&](auto& s) {
+                using S = std::decay_t<decltype(s)>;
+                if constexpr (std::is_same_v<S, SphereLightDesc>) {
+                    if (position) s.center = *position;
+                    if (radius) s.radius = *radius;
+                    placed = true;
+                } else if constexpr (std::is_same_v<S, PointLightDesc> ||
+                                     std::is_same_v<S, SpotLightDesc>) {
+                    if (position) s.position = *position;
+                    placed = !radius;
+                } else if constexpr (std::is_same_v<S, QuadLightDesc>) {
+                    if (position) s.corner = *position;
+                    placed = !radius;
+                }
+            },
+            l.shape);
+        if (!placed)
+            throw SpangleError(
+                fmt::format("light {}: its kind has no {}", index, radius ? "radius" : "position"));
+    }
+    l.loc = loc;
+    apply(std::move(d));
+}
+
+RenderedImage PySession::render(std::optional<uint32_t> spp,
+                                std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
+                                const RenderCallbacks& callbacks) {
+    if (!loaded_) throw SpangleError("no scene is loaded: call load(path) first");
+    std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
+    if (!lock.owns_lock()) throw SpangleError("this session is already rendering");
+    stop_.store(false);
+    RenderOptions& o = session_->options();
+    o.spp_override = spp.value_or(0);
+    o.width_override = size ? size->first : 0;
+    o.height_override = size ? size->second : 0;
+    o.layers = layers;
+    o.progressive = true;  // passes of 1, 1, 2, 4, ... samples: a stop keeps those completed
+    o.progress = callbacks.progress;
+    o.on_pass = callbacks.on_pass;
+    o.stop = [this] { return stop_.load(); };
+    const ecs::SystemReport report = session_->render();
+    o.progress = nullptr;
+    o.on_pass = nullptr;
+    o.stop = nullptr;
+    RenderedImage out;
+    out.result = session_->take_result();
+    if (out.result.image.empty())
+        throw SpangleError(fmt::format("nothing was rendered: {}", report.reason));
+    out.spp = out.result.stats.spp_reached;
+    out.stopped = out.result.stats.spp_reached < out.result.stats.spp_target;
+    out.scene = desc_.path;
+    return out;
+}
+
+}  // namespace spangle::python

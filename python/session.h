@@ -1,0 +1,97 @@
+#pragma once
+// The Python module's session: a Spangle Session plus the scene description it was loaded from,
+// so that materials, transforms, the camera and lights can be edited and the scene reloaded
+// incrementally (only what an edit changes is rebuilt). Plain C++: python/module.cpp binds it.
+
+#include <atomic>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <variant>
+#include <vector>
+
+#include "core/log.h"
+#include "pipeline/session.h"
+#include "scene/scene_description.h"
+
+namespace spangle::python {
+
+/** A material parameter's value as Python gives it: a number, a flag, a name or a colour. */
+using ParamValue = std::variant<bool, long long, double, std::string, std::array<double, 3>>;
+
+/** A render's output: the beauty and every layer, and how far it got. */
+struct RenderedImage {
+    RenderResult result;
+    uint32_t spp = 0;      ///< samples per pixel reached
+    bool stopped = false;  ///< stop() ended it before its samples
+    std::string scene;     ///< the scene file it came from
+};
+
+/** Progress callbacks, called from render threads with the GIL not held (the bindings take it). */
+struct RenderCallbacks {
+    std::function<void(uint64_t, uint64_t)> progress;
+    std::function<void(const PassImage&)> on_pass;
+};
+
+class PySession {
+public:
+    PySession(std::vector<std::string> plugin_path, const std::string& ocio, int threads,
+              bool verbose);
+
+    /** Reads a scene file (any format Spangle reads) and makes it the live scene. */
+    void load(const std::string& path, double time);
+    bool loaded() const { return loaded_; }
+    const SceneDescription& description() const;
+
+    std::vector<std::string> materials() const;
+    /** Sets parameters of material `name` (validated against the plugin's schema by the reload:
+     *  a bad value raises and leaves the scene as it was). */
+    void set_material(const std::string& name,
+                      const std::vector<std::pair<std::string, ParamValue>>& params);
+
+    /** Object names, or "[[object]] #N" for unnamed ones. */
+    std::vector<std::string> objects() const;
+    void set_transform(const std::string& name, const std::optional<Vec3>& translate,
+                       const std::optional<Vec3>& rotate, const std::optional<Vec3>& scale,
+                       const std::optional<Affine>& matrix);
+
+    void set_camera(const std::optional<Vec3>& position, const std::optional<Vec3>& look_at,
+                    const std::optional<Vec3>& up, const std::optional<double>& fov,
+                    const std::optional<double>& aperture,
+                    const std::optional<double>& focus_distance);
+
+    void set_light(std::size_t index, const std::optional<double>& intensity,
+                   const std::optional<Vec3>& color, const std::optional<Vec3>& position,
+                   const std::optional<double>& radius);
+
+    /** Renders the live scene; stop() from another thread ends it after the waves in flight. */
+    RenderedImage render(std::optional<uint32_t> spp,
+                         std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
+                         const RenderCallbacks& callbacks);
+    void stop() { stop_.store(true); }
+
+    const ColorConfig& color() const { return session_->color(); }
+    const SceneInfo& info() const { return session_->info(); }
+
+private:
+    /** Reloads `edited`; on success it becomes the description (else it throws, nothing
+     *  changed). */
+    void apply(SceneDescription edited);
+    ObjectDesc& object_named(SceneDescription& d, const std::string& name) const;
+
+    Logger log_;
+    std::unique_ptr<Session> session_;
+    SceneDescription desc_;
+    bool loaded_ = false;
+    double time_ = 0.0;
+    std::atomic<bool> stop_{false};
+    std::mutex rendering_;
+};
+
+/** Where `spangle` was imported from: its plugins, OCIO config and OpenImageIO module are found
+ *  there (an installed package), else in the build tree it was built in. */
+void set_module_location(const std::string& package_dir);
+
+}  // namespace spangle::python

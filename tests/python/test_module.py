@@ -1,0 +1,171 @@
+"""Tests of the spangle Python module (python/module.cpp): load, edit, render, arrays,
+exceptions, stop from another thread, outputs. Run by ctest (python.module) with PYTHONPATH at
+the build tree's python/ folder, or by hand:
+
+    PYTHONPATH=build/python /usr/bin/python3 -m pytest -q tests/python
+"""
+
+import os
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+import spangle
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+FLAKES = os.path.join(ROOT, "tests", "scenes", "flake_plane.toml")
+SMALL = os.path.join(ROOT, "tests", "scenes", "small_lit.toml")
+BAD = os.path.join(ROOT, "tests", "scenes_bad", "camera_degenerate.toml")
+
+
+@pytest.fixture()
+def session():
+    return spangle.Session(threads=2)
+
+
+def test_renders_the_beauty_and_every_layer_as_float32_arrays(session):
+    session.load(FLAKES)
+    img = session.render(spp=4, size=(48, 32))
+    assert img.beauty.shape == (32, 48, 3) and img.beauty.dtype == np.float32
+    assert img.spp == 4 and not img.stopped and img.width == 48 and img.height == 32
+    assert np.isfinite(img.beauty).all() and img.beauty.max() > 0.0
+    for name, channels in {"A": 1, "albedo": 3, "N": 3, "Z": 1, "P": 3, "glints": 3}.items():
+        assert img.layers[name].shape == (32, 48, channels), name
+        assert img.layers[name].dtype == np.float32
+    # The flake plane glitters: its glints are a part of the beauty, never more than it.
+    assert img.glints is not None and img.glints.max() > 0.0
+    assert (img.glints <= img.beauty + 1e-4).all()
+    # Without layers: the beauty alone.
+    plain = session.render(spp=4, size=(48, 32), layers=False)
+    assert plain.layers == {} and plain.glints is None
+
+
+def test_a_render_is_the_same_as_the_command_lines(session, tmp_path):
+    # The module renders through the same pipeline as `spangle render`: the same pixels (EXR as
+    # 32-bit floats), here compared through oiiotool's channel means and the module's own write.
+    session.load(SMALL)
+    img = session.render(spp=4, size=(40, 24), layers=False)
+    again = session.render(spp=4, size=(40, 24), layers=False)
+    assert np.array_equal(img.beauty, again.beauty)  # deterministic
+    cli = tmp_path / "cli.exr"
+    spangle_bin = os.path.join(os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build")), "spangle")
+    subprocess.run([spangle_bin, "render", SMALL, "--spp", "4", "--size", "40x24", "--float",
+                    "--no-preview", "--threads", "2", "-q", "-o", str(cli)], check=True)
+    py = tmp_path / "py.exr"
+    session.write(img, str(py), preview="", float=True)
+    stats = [subprocess.run(["oiiotool", "--stats", str(p)], capture_output=True, text=True,
+                            check=True).stdout for p in (cli, py)]
+    mean = [line for line in stats[0].splitlines() if "Avg" in line]
+    assert mean and mean == [line for line in stats[1].splitlines() if "Avg" in line]
+
+
+def test_material_edits_are_validated_and_change_the_image(session):
+    session.load(FLAKES)
+    before = session.render(spp=2, size=(32, 32), layers=False).beauty
+    assert session.materials == ["glitter"]
+    assert session.material("glitter")["params"]["density"] == 200000
+    with pytest.raises(spangle.SceneError) as err:
+        session.set_material("glitter", gamma=-1.0)
+    assert "gamma" in str(err.value)
+    with pytest.raises(spangle.SceneError) as err:
+        session.set_material("glitter", densty=1e5)
+    assert "density" in str(err.value)  # the valid names, with a suggestion
+    with pytest.raises(spangle.SceneError) as err:
+        session.set_material("nothing", density=1.0)
+    assert "glitter" in str(err.value)
+    with pytest.raises(TypeError):
+        session.set_material("glitter", density=[1, 2])
+    # A failed edit changes nothing.
+    assert np.array_equal(session.render(spp=2, size=(32, 32), layers=False).beauty, before)
+    session.set_material("glitter", flake_color=(1.0, 0.2, 0.1), seed=3)
+    after = session.render(spp=2, size=(32, 32), layers=False).beauty
+    assert session.material("glitter")["params"]["flake_color"] == pytest.approx((1.0, 0.2, 0.1))
+    assert after[..., 1].sum() < 0.5 * before[..., 1].sum()
+
+
+def test_transforms_camera_and_lights_are_edited(session):
+    session.load(SMALL)
+    base = session.render(spp=2, size=(32, 24), layers=False).beauty
+    name = session.objects[0]
+    session.set_transform(name, translate=(0.0, 5.0, 0.0))
+    assert session.transform(name)["translate"] == pytest.approx((0.0, 5.0, 0.0))
+    moved = session.render(spp=2, size=(32, 24), layers=False).beauty
+    assert not np.array_equal(moved, base)
+    with pytest.raises(spangle.SceneError):
+        session.set_transform("no such object", translate=(0, 0, 0))
+    cam = session.camera
+    session.set_camera(fov=cam["fov"] * 0.5)
+    assert session.camera["fov"] == pytest.approx(cam["fov"] * 0.5)
+    with pytest.raises(spangle.SceneError):
+        session.set_camera(look_at=cam["position"])  # looks nowhere
+    assert session.camera["fov"] == pytest.approx(cam["fov"] * 0.5)
+    lights = session.lights
+    assert lights and "kind" in lights[0]
+    session.set_light(0, intensity=0.0)
+    dark = session.render(spp=2, size=(32, 24), layers=False).beauty
+    assert dark.sum() < moved.sum()
+    with pytest.raises(spangle.SceneError):
+        session.set_light(len(lights), intensity=1.0)
+
+
+def test_errors_carry_file_line_and_column(session):
+    with pytest.raises(spangle.SceneError) as err:
+        session.load(BAD)
+    assert err.value.file == BAD and err.value.line == 4 and err.value.column == 11
+    assert isinstance(err.value, RuntimeError)
+    with pytest.raises(spangle.SceneError):
+        session.render()  # nothing loaded
+    with pytest.raises(spangle.SceneError):
+        session.load(os.path.join(ROOT, "no_such_scene.toml"))
+
+
+def test_progress_passes_and_a_stop_from_another_thread(session):
+    session.load(FLAKES)
+    seen = []
+    passes = []
+    img = session.render(spp=8, size=(32, 32), progress=lambda d, t: seen.append((d, t)),
+                         on_pass=lambda beauty, spp: passes.append((beauty.shape, spp)))
+    assert seen and seen[-1][0] == seen[-1][1] and all(b[0] <= a[0] for b, a in zip(seen, seen[1:]))
+    assert passes and passes[0][0] == (32, 32, 3) and img.spp == 8
+    # A long render stopped from another thread ends early with what it has; the GIL is free
+    # meanwhile (the other thread runs).
+    ticks = []
+    done = {}
+
+    def run():
+        done["img"] = session.render(spp=100000, size=(64, 64))
+
+    t = threading.Thread(target=run)
+    t.start()
+    start = time.time()
+    while time.time() - start < 1.0:
+        ticks.append(1)
+        time.sleep(0.01)
+    session.stop()
+    session.stop()  # twice is harmless
+    t.join(timeout=60)
+    assert not t.is_alive()
+    assert len(ticks) > 20
+    assert done["img"].stopped and 0 < done["img"].spp < 100000
+    # A Python error in a callback stops the render and is raised.
+    with pytest.raises(ZeroDivisionError):
+        session.render(spp=64, size=(32, 32), progress=lambda d, t: 1 / 0)
+
+
+def test_write_exr_and_png_whole(session, tmp_path):
+    session.load(FLAKES)
+    img = session.render(spp=2, size=(32, 32))
+    out = tmp_path / "flakes.exr"
+    session.write(img, str(out))
+    assert out.stat().st_size > 0 and (tmp_path / "flakes.png").stat().st_size > 0
+    info = subprocess.run(["oiiotool", "--info", "-v", str(out)], capture_output=True, text=True,
+                          check=True).stdout
+    assert "glints.R" in info and "32 x   32" in info
+    with pytest.raises(spangle.SceneError):
+        session.write(img, str(tmp_path / "flakes.png"))
+    with pytest.raises(spangle.SceneError):
+        session.write(img, str(tmp_path / "x.exr"), compression="nope")
+    assert not (tmp_path / "x.exr").exists()
