@@ -417,6 +417,47 @@ PYBIND11_MODULE(_spangle, m) {
             "Renders the live scene (the GIL is released). spp and size=(width, height) override "
             "the scene's; progress(done, total) is told the samples done; on_pass(beauty, spp) "
             "gets each progressive pass. stop() from another thread ends it early.")
+        .def(
+            "parameters",
+            [](PySession& s, const std::string& plugin, const std::string& model) {
+                py::list out;
+                for (const SpangleParamDesc_v3& p : s.parameters(plugin, model)) {
+                    py::dict d;
+                    d["name"] = p.name;
+                    static const char* kTypes[] = {"float", "int", "bool", "color", "string"};
+                    const auto t = static_cast<std::size_t>(p.type);
+                    d["type"] = t < 5 ? kTypes[t] : "unknown";
+                    if (p.type == SPANGLE_PARAM_COLOR)
+                        d["default"] = py::make_tuple(p.default_value[0], p.default_value[1],
+                                                      p.default_value[2]);
+                    else if (p.type == SPANGLE_PARAM_STRING)
+                        d["default"] = p.default_string ? p.default_string : "";
+                    else if (p.type == SPANGLE_PARAM_BOOL)
+                        d["default"] = p.default_value[0] != 0.0;
+                    else if (p.type == SPANGLE_PARAM_INT)
+                        d["default"] = static_cast<long long>(p.default_value[0]);
+                    else
+                        d["default"] = p.default_value[0];
+                    d["min"] = p.min_value;
+                    d["max"] = p.max_value;
+                    py::list choices;
+                    if (p.choices) {
+                        std::string c = p.choices;
+                        for (std::size_t a = 0, b; a <= c.size(); a = b + 1) {
+                            b = std::min(c.find('|', a), c.size());
+                            if (b > a) choices.append(c.substr(a, b - a));
+                        }
+                    }
+                    d["choices"] = choices;
+                    d["doc"] = p.doc ? p.doc : "";
+                    d["texturable"] = (p.flags & SPANGLE_PARAM_TEXTURABLE) != 0;
+                    out.append(d);
+                }
+                return out;
+            },
+            py::arg("plugin"), py::arg("model") = "",
+            "The parameters of a plugin's model as its schema declares them: name, type (float, "
+            "int, bool, color, string), default, min, max, choices, doc, texturable.")
         .def("stop", &PySession::stop,
              "Ends a render running in another thread after the waves in flight; safe to call "
              "from any thread.")

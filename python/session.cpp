@@ -5,6 +5,7 @@
 #include "core/error.h"
 #include "core/files.h"
 #include "scene/scene_loader.h"
+#include "shading/plugin_loader.h"
 
 namespace spangle::python {
 
@@ -220,6 +221,25 @@ void PySession::set_light(std::size_t index, const std::optional<double>& intens
     }
     l.loc = loc;
     apply(std::move(d));
+}
+
+std::vector<SpangleParamDesc_v3> PySession::parameters(const std::string& plugin,
+                                                       const std::string& model) {
+    const std::shared_ptr<LoadedPlugin> p =
+        session_->plugins().open(plugin, FileLoc{"python: parameters('" + plugin + "')", 0, 0});
+    const std::vector<std::string> names = p->model_names();
+    const std::string& want = model.empty() && names.size() == 1 ? names[0] : model;
+    const SpangleMaterialModel_v3* m = p->model(want);
+    if (!m) {
+        std::string all;
+        for (const std::string& n : names) all += (all.empty() ? "" : ", ") + n;
+        if (want.empty())
+            throw SpangleError(
+                fmt::format("plugin '{}' has several models: name one ({})", plugin, all));
+        throw SpangleError(
+            fmt::format("plugin '{}' has no model '{}' (models: {})", plugin, want, all));
+    }
+    return std::vector<SpangleParamDesc_v3>(m->params, m->params + m->param_count);
 }
 
 RenderedImage PySession::render(std::optional<uint32_t> spp,

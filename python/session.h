@@ -72,6 +72,11 @@ public:
                          const RenderCallbacks& callbacks);
     void stop() { stop_.store(true); }
 
+    /** The parameters of a plugin's model (the plugin's only model when `model` is empty), as
+     *  its schema declares them. */
+    std::vector<SpangleParamDesc_v3> parameters(const std::string& plugin,
+                                                const std::string& model);
+
     const ColorConfig& color() const { return session_->color(); }
     const SceneInfo& info() const { return session_->info(); }
 

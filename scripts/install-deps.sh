@@ -58,3 +58,16 @@ PY
     rm -rf "$tmp"
 fi
 
+# Blender as a Python module (PyPI's bpy, 4.2 LTS, for Debian's Python 3.11) for the headless
+# tests of the Blender add-on (tests/blender): a virtual environment at /opt/spangle/bpy that also
+# sees Debian's packages (numpy, pytest). Only with --tests; without network access it warns, and
+# the add-on's test is skipped (or fails where SPANGLE_REQUIRE_BLENDER=1, as in .ci/run).
+bpy_env=/opt/spangle/bpy
+if [ "${1:-}" = "--tests" ] && ! "$bpy_env/bin/python" -c "import bpy" >/dev/null 2>&1; then
+    if /usr/bin/python3 -m venv --system-site-packages "$bpy_env" &&
+            "$bpy_env/bin/pip" install -q "bpy==4.2.23"; then
+        :
+    else
+        echo "install-deps: bpy could not be installed: the Blender add-on's test will be skipped" >&2
+    fi
+fi

@@ -1,0 +1,380 @@
+"""Blender scene -> Spangle scene: a TOML file and binary PLY meshes in a folder.
+
+What is exported, from the evaluated depsgraph (modifiers applied, instances expanded):
+meshes (and anything that converts to one) per material slot, with corner normals and the
+active uv map; their world matrices; the camera (perspective, with depth of field); point, spot,
+sun and area lights; the world's background colour (an environment texture's mean colour stands
+in for it); Principled BSDF materials onto the smooth plugin's metal_rough (or dielectric for
+transmission), emission onto the object, and materials whose "Spangle Flakes" panel is on onto
+the flake plugin. What cannot be carried over is a warning each (returned), never an error.
+"""
+
+import math
+import os
+
+import numpy as np
+
+try:  # Blender's own modules; absent when the exporter's helpers are tested alone
+    import bpy
+    import mathutils  # noqa: F401
+except ImportError:  # pragma: no cover
+    bpy = None
+
+
+def _fmt(x):
+    return repr(float(x))
+
+
+def _vec(v):
+    return "[" + ", ".join(_fmt(c) for c in v) + "]"
+
+
+def _toml_value(v):
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(v)
+    if isinstance(v, float):
+        return _fmt(v)
+    if isinstance(v, str):
+        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return _vec(v)
+
+
+def _toml_string(s):
+    return _toml_value(str(s))
+
+
+def write_ply(path, positions, normals, uvs, triangles):
+    """Binary little-endian PLY: positions, normals, uvs (n x 3, n x 3, n x 2 float32) and
+    triangles (m x 3 int32)."""
+    n, m = len(positions), len(triangles)
+    header = (
+        "ply\nformat binary_little_endian 1.0\ncomment Spangle's Blender add-on\n"
+        f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
+        "property float nx\nproperty float ny\nproperty float nz\n"
+        "property float s\nproperty float t\n"
+        f"element face {m}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
+    vert = np.empty((n, 8), dtype="<f4")
+    vert[:, 0:3] = positions
+    vert[:, 3:6] = normals
+    vert[:, 6:8] = uvs
+    face = np.empty(m, dtype=[("n", "u1"), ("v", "<i4", 3)])
+    face["n"] = 3
+    face["v"] = triangles
+    with open(path, "wb") as f:
+        f.write(header.encode("ascii"))
+        f.write(vert.tobytes())
+        f.write(face.tobytes())
+
+
+def mesh_arrays(mesh):
+    """Triangles of an evaluated mesh, one vertex per corner (corner normals and uvs kept):
+    positions, normals, uvs, triangles and each triangle's material index."""
+    mesh.calc_loop_triangles()
+    ntri = len(mesh.loop_triangles)
+    loops = np.empty(ntri * 3, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("loops", loops)
+    mat_index = np.empty(ntri, dtype=np.int32)
+    mesh.loop_triangles.foreach_get("material_index", mat_index)
+    co = np.empty(len(mesh.vertices) * 3, dtype=np.float32)
+    mesh.vertices.foreach_get("co", co)
+    co = co.reshape(-1, 3)
+    loop_vert = np.empty(len(mesh.loops), dtype=np.int32)
+    mesh.loops.foreach_get("vertex_index", loop_vert)
+    normals = np.empty(len(mesh.loops) * 3, dtype=np.float32)
+    if hasattr(mesh, "corner_normals"):  # Blender 4.1 and later
+        mesh.corner_normals.foreach_get("vector", normals)
+    else:  # pragma: no cover (4.0)
+        mesh.calc_normals_split()
+        mesh.loops.foreach_get("normal", normals)
+    normals = normals.reshape(-1, 3)
+    uv = np.zeros((len(mesh.loops), 2), dtype=np.float32)
+    if mesh.uv_layers.active is not None:
+        flat = np.empty(len(mesh.loops) * 2, dtype=np.float32)
+        mesh.uv_layers.active.data.foreach_get("uv", flat)
+        uv = flat.reshape(-1, 2)
+    positions = co[loop_vert[loops]]
+    return positions, normals[loops], uv[loops], np.arange(ntri * 3, dtype=np.int32).reshape(-1, 3), mat_index
+
+
+def _principled(mat):
+    if not mat.use_nodes or mat.node_tree is None:
+        return None
+    for node in mat.node_tree.nodes:
+        if node.type == "OUTPUT_MATERIAL" and node.is_active_output:
+            surf = node.inputs.get("Surface")
+            if surf is not None and surf.is_linked:
+                src = surf.links[0].from_node
+                if src.type == "BSDF_PRINCIPLED":
+                    return src
+    return None
+
+
+def _input(node, *names, default=None):
+    for name in names:
+        sock = node.inputs.get(name)
+        if sock is not None:
+            return sock
+    return default
+
+
+def _socket_value(sock, warnings, what):
+    if sock is None:
+        return None
+    if sock.is_linked:
+        src = sock.links[0].from_node
+        if src.type == "TEX_IMAGE" and src.image is not None and src.image.filepath:
+            return {"texture": bpy.path.abspath(src.image.filepath)}
+        warnings.append(f"{what}: a node input ({sock.name}) is linked to a {src.type} node; its "
+                        "own value stands in")
+    v = sock.default_value
+    try:
+        return tuple(v)[:3]
+    except TypeError:
+        return float(v)
+
+
+def material_entry(mat, flake_params, warnings):
+    """(plugin, model, params, emission) for a Blender material; emission is (rgb, intensity)
+    or None."""
+    if mat is None:
+        return "smooth", "diffuse", {"albedo": (0.8, 0.8, 0.8)}, None
+    flakes = getattr(mat, "spangle_flakes", None)
+    if flakes is not None and flakes.enabled:
+        params = {}
+        for p in flake_params:
+            v = getattr(flakes, p["name"])
+            # Blender keeps floats in single precision: a value within its rounding of the
+            # default is the default (and is left out, as the plugin's default applies).
+            if p["type"] == "color":
+                v = tuple(float(c) for c in v)
+                if all(abs(a - b) <= 1e-6 * max(1.0, abs(b)) for a, b in zip(v, p["default"])):
+                    continue
+            elif p["type"] == "float":
+                v = float(v)
+                if abs(v - p["default"]) <= 1e-6 * max(1.0, abs(p["default"])):
+                    continue
+            elif v == p["default"]:
+                continue
+            params[p["name"]] = v
+        return "flake", "", params, None
+    node = _principled(mat)
+    what = f"material '{mat.name}'"
+    if node is None:
+        warnings.append(f"{what}: not a Principled BSDF; a diffuse of its viewport colour stands in")
+        return "smooth", "diffuse", {"albedo": tuple(mat.diffuse_color)[:3]}, None
+    base = _socket_value(_input(node, "Base Color"), warnings, what)
+    metallic = _socket_value(_input(node, "Metallic"), warnings, what)
+    roughness = _socket_value(_input(node, "Roughness"), warnings, what)
+    ior = _socket_value(_input(node, "IOR"), warnings, what) or 1.5
+    transmission = _socket_value(_input(node, "Transmission Weight", "Transmission"), warnings, what) or 0.0
+    emission = None
+    e_color = _socket_value(_input(node, "Emission Color", "Emission"), warnings, what)
+    e_strength = _socket_value(_input(node, "Emission Strength"), warnings, what)
+    if isinstance(e_color, tuple) and e_strength and max(e_color) > 0.0:
+        emission = (e_color, float(e_strength))
+    if isinstance(transmission, float) and transmission > 0.5:
+        return "smooth", "dielectric", {"ior": min(max(float(ior), 1.0), 10.0),
+                                        "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}, emission
+    params = {}
+    params["base_color"] = base if base is not None else (0.8, 0.8, 0.8)
+    if isinstance(metallic, float):
+        params["metallic"] = min(max(metallic, 0.0), 1.0)
+    if isinstance(roughness, float):
+        params["roughness"] = min(max(roughness, 0.0), 1.0)
+    params["ior"] = min(max(float(ior), 1.0), 10.0)
+    level = _socket_value(_input(node, "Specular IOR Level"), warnings, what)
+    if isinstance(level, float):
+        params["specular"] = min(max(2.0 * level, 0.0), 1.0)
+    coat = _socket_value(_input(node, "Coat Weight"), warnings, what)
+    if isinstance(coat, float) and coat > 0.0:
+        params["clearcoat"] = min(coat, 1.0)
+        coat_r = _socket_value(_input(node, "Coat Roughness"), warnings, what)
+        if isinstance(coat_r, float):
+            params["clearcoat_roughness"] = min(max(coat_r, 0.0), 1.0)
+    return "smooth", "metal_rough", params, emission
+
+
+def _param_toml(k, v):
+    if isinstance(v, dict):
+        return f'{k} = {{ texture = {_toml_string(v["texture"])}, space = "srgb_texture" }}'
+    return f"{k} = {_toml_value(v)}"
+
+
+def vertical_fov(cam, width, height):
+    """Blender's camera as a vertical field of view in degrees for a width x height image."""
+    aspect = width / height
+    fit = cam.sensor_fit
+    if fit == "AUTO":
+        fit, sensor = ("HORIZONTAL" if width >= height else "VERTICAL"), cam.sensor_width
+    else:
+        sensor = cam.sensor_width if fit == "HORIZONTAL" else cam.sensor_height
+    half = math.atan(sensor / (2.0 * cam.lens))
+    if fit == "HORIZONTAL":
+        return math.degrees(2.0 * math.atan(math.tan(half) / aspect))
+    return math.degrees(2.0 * half)
+
+
+def _world_color(world, warnings):
+    if world is None:
+        return (0.0, 0.0, 0.0), 0.0
+    if not world.use_nodes or world.node_tree is None:
+        return tuple(world.color)[:3], 1.0
+    for node in world.node_tree.nodes:
+        if node.type == "BACKGROUND":
+            color = node.inputs["Color"]
+            strength = float(node.inputs["Strength"].default_value)
+            if color.is_linked:
+                src = color.links[0].from_node
+                if src.type == "TEX_ENVIRONMENT" and src.image is not None:
+                    px = np.empty(len(src.image.pixels), dtype=np.float32)
+                    src.image.pixels.foreach_get(px)
+                    mean = px.reshape(-1, src.image.channels)[:, :3].mean(axis=0)
+                    warnings.append("world: an environment texture is not exported yet; its mean "
+                                    "colour lights the scene instead")
+                    return tuple(float(c) for c in mean), strength
+                warnings.append(f"world: its colour comes from a {src.type} node; its own value stands in")
+            return tuple(color.default_value)[:3], strength
+    return (0.0, 0.0, 0.0), 0.0
+
+
+def _light_lines(obj, matrix, warnings):
+    light = obj.data
+    pos = matrix.translation
+    color = tuple(light.color)
+    lines = []
+    if light.type in ("POINT", "SPOT"):
+        # Blender's watts as radiant intensity, P / (4 pi) W/sr (as its glTF exporter converts).
+        intensity = light.energy / (4.0 * math.pi)
+        if light.shadow_soft_size > 1e-6:
+            warnings.append(f"light '{obj.name}': its radius ({light.shadow_soft_size:g} m) is "
+                            "not exported; a point light stands in")
+        if light.type == "POINT":
+            lines += ["[[light]]", 'type = "point"', f"position = {_vec(pos)}"]
+        else:
+            axis = matrix.to_3x3() @ mathutils.Vector((0.0, 0.0, -1.0))
+            half = math.degrees(light.spot_size) / 2.0
+            lines += ["[[light]]", 'type = "spot"', f"position = {_vec(pos)}",
+                      f"look_at = {_vec(pos + axis)}", f"cone_angle = {_fmt(min(half, 90.0))}",
+                      f"cone_falloff = {_fmt(min(half * light.spot_blend, half))}"]
+        lines += [f"color = {_vec(color)}", f"intensity = {_fmt(intensity)}"]
+    elif light.type == "SUN":
+        direction = matrix.to_3x3() @ mathutils.Vector((0.0, 0.0, 1.0))
+        lines += ["[[light]]", 'type = "distant"', f"direction = {_vec(direction)}",
+                  f"angular_radius = {_fmt(math.degrees(light.angle) / 2.0)}",
+                  f"color = {_vec(color)}", f"intensity = {_fmt(light.strength)}"]
+    elif light.type == "AREA":
+        sx = light.size
+        sy = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
+        if light.shape in ("DISK", "ELLIPSE"):
+            warnings.append(f"light '{obj.name}': a {light.shape.lower()} area light is exported as "
+                            "the rectangle of the same area")
+            sx, sy = sx * math.sqrt(math.pi) / 2.0, sy * math.sqrt(math.pi) / 2.0
+        m3 = matrix.to_3x3()
+        ex = m3 @ mathutils.Vector((sx, 0.0, 0.0))
+        ey = m3 @ mathutils.Vector((0.0, sy, 0.0))
+        corner = pos - 0.5 * ex - 0.5 * ey
+        area = ex.length * ey.length
+        # Power P of a one-sided Lambertian emitter: radiance P / (pi A). It emits along the
+        # light's -Z: edge2 x edge1 order.
+        radiance = light.energy / (math.pi * max(area, 1e-12))
+        lines += ["[[light]]", 'type = "quad"', f"corner = {_vec(corner)}", f"edge1 = {_vec(ey)}",
+                  f"edge2 = {_vec(ex)}", f"color = {_vec(color)}", f"intensity = {_fmt(radiance)}"]
+    else:
+        warnings.append(f"light '{obj.name}': type {light.type} is not supported")
+    return lines
+
+
+def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
+    """Writes folder/scene.toml and its meshes; returns the warnings."""
+    scene = depsgraph.scene
+    warnings = []
+    out = ["# Exported by Spangle's Blender add-on", "", "[render]",
+           f"width = {size[0]}", f"height = {size[1]}", f"spp = {spp}", f"max_depth = {max_depth}",
+           'working_space = "lin_rec709"', 'color_space = "lin_rec709"', ""]
+    cam_obj = scene.camera
+    if cam_obj is None:
+        raise RuntimeError("the scene has no camera")
+    cam = cam_obj.data
+    if cam.type != "PERSP":
+        warnings.append(f"camera '{cam_obj.name}': {cam.type.lower()} cameras are not supported; "
+                        "a perspective camera stands in")
+    m = cam_obj.matrix_world
+    eye = m.translation
+    forward = m.to_3x3() @ mathutils.Vector((0.0, 0.0, -1.0))
+    up = m.to_3x3() @ mathutils.Vector((0.0, 1.0, 0.0))
+    out += ["[camera]", f"position = {_vec(eye)}", f"look_at = {_vec(eye + forward)}",
+            f"up = {_vec(up)}", f"fov = {_fmt(vertical_fov(cam, size[0], size[1]))}"]
+    if cam.dof.use_dof:
+        focus = cam.dof.focus_distance
+        if cam.dof.focus_object is not None:
+            focus = (cam.dof.focus_object.matrix_world.translation - eye).dot(forward)
+        out += [f"aperture = {_fmt(cam.lens / 1000.0 / (2.0 * cam.dof.aperture_fstop))}",
+                f"focus_distance = {_fmt(max(focus, 1e-4))}"]
+    out.append("")
+    color, strength = _world_color(scene.world, warnings)
+    if strength > 0.0 and max(color) > 0.0:
+        out += ["[environment]", f"color = {_vec(color)}", f"intensity = {_fmt(strength)}", ""]
+
+    materials = {}  # name -> (plugin, model, params, emission)
+    meshes = {}  # evaluated object name -> [(ply file, material name)]
+    objects = []
+    names = {}  # object name -> how many instances took it (names are unique in the scene)
+    mesh_dir = os.path.join(folder, "meshes")
+    os.makedirs(mesh_dir, exist_ok=True)
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type == "LIGHT":
+            out += _light_lines(obj, inst.matrix_world.copy(), warnings) + [""]
+            continue
+        if obj.type not in ("MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES"):
+            continue
+        key = obj.name
+        if key not in meshes:
+            meshes[key] = []
+            try:
+                mesh = obj.to_mesh(preserve_all_data_layers=False, depsgraph=depsgraph)
+            except RuntimeError:
+                mesh = None
+            if mesh is None:
+                continue
+            positions, normals, uvs, tris, mat_index = mesh_arrays(mesh)
+            slots = [s.material for s in obj.material_slots] or [None]
+            for k, mat in enumerate(slots):
+                sel = np.nonzero(np.clip(mat_index, 0, len(slots) - 1) == k)[0]
+                if len(sel) == 0:
+                    continue
+                corners = tris[sel].reshape(-1)
+                name = mat.name if mat is not None else "spangle_default"
+                if name not in materials:
+                    materials[name] = material_entry(mat, flake_params, warnings)
+                ply = os.path.join("meshes", f"mesh_{sum(len(v) for v in meshes.values()):05d}.ply")
+                write_ply(os.path.join(folder, ply), positions[corners], normals[corners],
+                          uvs[corners], np.arange(len(corners), dtype=np.int32).reshape(-1, 3))
+                meshes[key].append((ply, name))
+            obj.to_mesh_clear()
+        for ply, name in meshes[key]:
+            k = names.get(obj.name, 0)
+            names[obj.name] = k + 1
+            unique = obj.name if k == 0 else f"{obj.name}.{k}"
+            objects.append((ply, name, inst.matrix_world.copy(), unique))
+
+    for name, (plugin, model, params, _emission) in materials.items():
+        out += ["[[material]]", f"name = {_toml_string(name)}", f"plugin = {_toml_string(plugin)}"]
+        if model:
+            out.append(f"model = {_toml_string(model)}")
+        out.append("params = { " + ", ".join(_param_toml(k, v) for k, v in params.items()) + " }")
+        out.append("")
+    for ply, name, mw, obj_name in objects:
+        rows = [mw[r][c] for r in range(3) for c in range(4)]
+        out += ["[[object]]", f"name = {_toml_string(obj_name)}", f"mesh = {_toml_string(ply)}",
+                f"material = {_toml_string(name)}", "matrix = " + _vec(rows)]
+        emission = materials[name][3]
+        if emission is not None:
+            out += [f"emission = {_vec(emission[0])}", f"emission_intensity = {_fmt(emission[1])}"]
+        out.append("")
+    with open(os.path.join(folder, "scene.toml"), "w", encoding="utf-8") as f:
+        f.write("\n".join(out) + "\n")
+    return warnings
