@@ -197,13 +197,16 @@ PYBIND11_MODULE(_spangle, m) {
              py::arg("threads") = 0, py::arg("verbose") = false)
         .def(
             "load",
-            [](PySession& s, const std::string& path, double time) {
+            [](PySession& s, const std::string& path, double time,
+               std::optional<std::pair<uint32_t, uint32_t>> size) {
                 py::gil_scoped_release release;
-                s.load(path, time);
+                s.load(path, time, size);
             },
-            py::arg("path"), py::arg("time") = 0.0,
+            py::arg("path"), py::arg("time") = 0.0, py::arg("size") = py::none(),
             "Reads a scene file (TOML, pbrt-v3/v4, glTF) into the session. `time`: seconds after "
-            "its first frame.")
+            "its first frame; `size`: (width, height) to build it for (what depends on the "
+            "image's pixels, such as automatic subdivision levels, is built for it), else the "
+            "scene's own.")
         .def_property_readonly("materials", [](PySession& s) { return s.materials(); })
         .def(
             "material",

@@ -32,8 +32,20 @@ PySession::PySession(std::vector<std::string> plugin_path, const std::string& oc
     session_ = std::make_unique<Session>(std::move(plugin_path), ocio, options, log_);
 }
 
-void PySession::load(const std::string& path, double time) {
+void PySession::check_size(const std::pair<uint32_t, uint32_t>& size) {
+    if (size.first < 1 || size.second < 1 || size.first > 16384 || size.second > 16384)
+        throw SpangleError(
+            fmt::format("size ({}, {}) must be 1 to 16384 pixels a side", size.first, size.second));
+}
+
+void PySession::load(const std::string& path, double time,
+                     const std::optional<std::pair<uint32_t, uint32_t>>& size) {
+    if (size) check_size(*size);
     SceneDescription d = read_scene(path, SceneReadOptions{});
+    if (size) {
+        d.render.width = size->first;
+        d.render.height = size->second;
+    }
     session_->load(d, time);
     desc_ = std::move(d);
     time_ = time;
@@ -249,10 +261,18 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
     if (!lock.owns_lock()) throw SpangleError("this session is already rendering");
     stop_.store(false);
+    // A size is the scene's film size: set in the description and reloaded (only what reads
+    // the film is rebuilt, e.g. subdivision levels chosen from the camera's pixels), so that the
+    // scene is built as `spangle render --size` builds it.
+    if (size && (size->first != desc_.render.width || size->second != desc_.render.height)) {
+        check_size(*size);
+        SceneDescription d = desc_;
+        d.render.width = size->first;
+        d.render.height = size->second;
+        apply(std::move(d));
+    }
     RenderOptions& o = session_->options();
     o.spp_override = spp.value_or(0);
-    o.width_override = size ? size->first : 0;
-    o.height_override = size ? size->second : 0;
     o.layers = layers;
     o.progressive = true;  // passes of 1, 1, 2, 4, ... samples: a stop keeps those completed
     o.progress = callbacks.progress;

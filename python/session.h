@@ -40,8 +40,10 @@ public:
     PySession(std::vector<std::string> plugin_path, const std::string& ocio, int threads,
               bool verbose);
 
-    /** Reads a scene file (any format Spangle reads) and makes it the live scene. */
-    void load(const std::string& path, double time);
+    /** Reads a scene file (any format Spangle reads) and makes it the live scene, built for
+     *  `size` (width, height) when given (the scene's own size otherwise). */
+    void load(const std::string& path, double time,
+              const std::optional<std::pair<uint32_t, uint32_t>>& size);
     bool loaded() const { return loaded_; }
     const SceneDescription& description() const;
 
@@ -84,6 +86,8 @@ private:
     /** Reloads `edited`; on success it becomes the description (else it throws, nothing
      *  changed). */
     void apply(SceneDescription edited);
+    /** Throws unless `size` is 1 to 16384 pixels a side. */
+    static void check_size(const std::pair<uint32_t, uint32_t>& size);
     ObjectDesc& object_named(SceneDescription& d, const std::string& name) const;
 
     Logger log_;

@@ -18,6 +18,7 @@ import spangle
 ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 FLAKES = os.path.join(ROOT, "tests", "scenes", "flake_plane.toml")
 SMALL = os.path.join(ROOT, "tests", "scenes", "small_lit.toml")
+SUBDIV = os.path.join(ROOT, "tests", "scenes", "subdiv_near_far.toml")
 BAD = os.path.join(ROOT, "tests", "scenes_bad", "camera_degenerate.toml")
 
 
@@ -43,23 +44,30 @@ def test_renders_the_beauty_and_every_layer_as_float32_arrays(session):
     assert plain.layers == {} and plain.glints is None
 
 
-def test_a_render_is_the_same_as_the_command_lines(session, tmp_path):
+@pytest.mark.parametrize("scene", [SMALL, SUBDIV])
+def test_a_render_is_the_same_as_the_command_lines(session, tmp_path, scene):
     # The module renders through the same pipeline as `spangle render`: the same pixels (EXR as
-    # 32-bit floats), here compared through oiiotool's channel means and the module's own write.
-    session.load(SMALL)
+    # 32-bit floats; compared through oiiotool's per-channel statistics and the module's own
+    # write), also where the scene is built for the size asked for (subdivision levels chosen
+    # from the camera's pixels).
+    session.load(scene)
     img = session.render(spp=4, size=(40, 24), layers=False)
     again = session.render(spp=4, size=(40, 24), layers=False)
     assert np.array_equal(img.beauty, again.beauty)  # deterministic
+    # Built for the size at load: the same scene, the same pixels.
+    other = spangle.Session(threads=2)
+    other.load(scene, size=(40, 24))
+    assert np.array_equal(other.render(spp=4, layers=False).beauty, img.beauty)
     cli = tmp_path / "cli.exr"
     spangle_bin = os.path.join(os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build")), "spangle")
-    subprocess.run([spangle_bin, "render", SMALL, "--spp", "4", "--size", "40x24", "--float",
+    subprocess.run([spangle_bin, "render", scene, "--spp", "4", "--size", "40x24", "--float",
                     "--no-preview", "--threads", "2", "-q", "-o", str(cli)], check=True)
     py = tmp_path / "py.exr"
     session.write(img, str(py), preview="", float=True)
     stats = [subprocess.run(["oiiotool", "--stats", str(p)], capture_output=True, text=True,
                             check=True).stdout for p in (cli, py)]
-    mean = [line for line in stats[0].splitlines() if "Avg" in line]
-    assert mean and mean == [line for line in stats[1].splitlines() if "Avg" in line]
+    lines = [[l for l in s.splitlines() if "Avg" in l or "Max" in l or "StdDev" in l] for s in stats]
+    assert lines[0] and lines[0] == lines[1]
 
 
 def test_material_edits_are_validated_and_change_the_image(session):
