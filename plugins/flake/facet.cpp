@@ -46,16 +46,16 @@ float facet_coverage(const Footprint& p, const FacetShape& shape, double size, d
     // the ratio of areas is the same in both coordinates (the map is affine).
     const double angle = static_cast<double>(mix(id, 0xface7) >> 11) * 0x1p-53 * 6.283185307179586;
     const double ca = std::cos(angle) * size, sa = std::sin(angle) * size;
-    constexpr int kMax = FacetShape::kMaxVertices + 4;
-    double xs[2][kMax], ys[2][kMax];
+    static_assert(FacetShape::kMaxVertices <= kMaxClipVertices);
+    double xs[FacetShape::kMaxVertices], ys[FacetShape::kMaxVertices];
     bool all_in = true;
     double lo_s = 1e300, hi_s = -1e300, lo_t = 1e300, hi_t = -1e300;
     for (int i = 0; i < shape.n; ++i) {
         const double du = u - p.cu + ca * shape.x[i] - sa * shape.y[i];
         const double dv = v - p.cv + sa * shape.x[i] + ca * shape.y[i];
         const double s = p.i00 * du + p.i01 * dv, t = p.i10 * du + p.i11 * dv;
-        xs[0][i] = s;
-        ys[0][i] = t;
+        xs[i] = s;
+        ys[i] = t;
         all_in = all_in && std::fabs(s) <= 0.5 && std::fabs(t) <= 0.5;
         lo_s = std::min(lo_s, s);
         hi_s = std::max(hi_s, s);
@@ -64,35 +64,9 @@ float facet_coverage(const Footprint& p, const FacetShape& shape, double size, d
     }
     if (all_in) return 1.0f;
     if (hi_s <= -0.5 || lo_s >= 0.5 || hi_t <= -0.5 || lo_t >= 0.5) return 0.0f;
-    const double whole = std::fabs(twice_area(xs[0], ys[0], shape.n));
+    const double whole = 0.5 * std::fabs(twice_area(xs, ys, shape.n));
     if (!(whole > 0.0)) return 0.0f;
-    // Sutherland-Hodgman against the square's four half-planes.
-    int n = shape.n, cur = 0;
-    for (int edge = 0; edge < 4 && n > 0; ++edge) {
-        const bool on_t = (edge & 1) != 0;
-        const double sign = edge < 2 ? 1.0 : -1.0;  // keep sign * (coord + 0.5 sign) >= 0
-        int m = 0;
-        for (int i = 0; i < n; ++i) {
-            const int j = i + 1 == n ? 0 : i + 1;
-            const double ai = on_t ? ys[cur][i] : xs[cur][i];
-            const double aj = on_t ? ys[cur][j] : xs[cur][j];
-            const double di = sign * ai + 0.5, dj = sign * aj + 0.5;
-            if (di >= 0.0) {
-                xs[1 - cur][m] = xs[cur][i];
-                ys[1 - cur][m] = ys[cur][i];
-                ++m;
-            }
-            if ((di >= 0.0) != (dj >= 0.0) && m < kMax) {
-                const double k = di / (di - dj);
-                xs[1 - cur][m] = xs[cur][i] + k * (xs[cur][j] - xs[cur][i]);
-                ys[1 - cur][m] = ys[cur][i] + k * (ys[cur][j] - ys[cur][i]);
-                ++m;
-            }
-        }
-        n = std::min(m, kMax);
-        cur = 1 - cur;
-    }
-    const double part = n > 2 ? std::fabs(twice_area(xs[cur], ys[cur], n)) : 0.0;
+    const double part = clipped_area(xs, ys, shape.n, -0.5, -0.5, 0.5, 0.5);
     return static_cast<float>(std::clamp(part / whole, 0.0, 1.0));
 }
 

@@ -73,14 +73,16 @@ bool contains(const Footprint& p, double x0, double y0, double x1, double y1) {
     return inside(p, x0, y0) && inside(p, x1, y0) && inside(p, x0, y1) && inside(p, x1, y1);
 }
 
-double overlap_area(const Footprint& p, double x0, double y0, double x1, double y1) {
-    // Sutherland-Hodgman: clip P's four corners by the cell's four half-planes.
-    double poly[2][16][2];
-    int n = 4;
-    const double sa[4] = {-0.5, 0.5, 0.5, -0.5}, tb[4] = {-0.5, -0.5, 0.5, 0.5};
-    for (int i = 0; i < 4; ++i) {
-        poly[0][i][0] = p.cu + sa[i] * p.ax + tb[i] * p.bx;
-        poly[0][i][1] = p.cv + sa[i] * p.ay + tb[i] * p.by;
+double clipped_area(const double* xs, const double* ys, int n, double x0, double y0, double x1,
+                    double y1) {
+    // Sutherland-Hodgman: the polygon clipped by the box's four half-planes (x >= x0, y >= y0,
+    // x <= x1, y <= y1, in that order), then the shoelace formula.
+    constexpr int kMax = kMaxClipVertices + 4;
+    double poly[2][kMax][2];
+    n = std::min(n, kMaxClipVertices);
+    for (int i = 0; i < n; ++i) {
+        poly[0][i][0] = xs[i];
+        poly[0][i][1] = ys[i];
     }
     int cur = 0;
     for (int edge = 0; edge < 4 && n > 0; ++edge) {
@@ -92,12 +94,12 @@ double overlap_area(const Footprint& p, double x0, double y0, double x1, double 
             const double* a = poly[cur][i];
             const double* b = poly[cur][(i + 1) % n];
             const double da = sign * (a[axis] - bound), db = sign * (b[axis] - bound);
-            if (da >= 0.0) {
+            if (da >= 0.0 && m < kMax) {
                 poly[1 - cur][m][0] = a[0];
                 poly[1 - cur][m][1] = a[1];
                 ++m;
             }
-            if ((da >= 0.0) != (db >= 0.0) && m < 16) {
+            if ((da >= 0.0) != (db >= 0.0) && m < kMax) {
                 const double t = da / (da - db);
                 poly[1 - cur][m][0] = a[0] + t * (b[0] - a[0]);
                 poly[1 - cur][m][1] = a[1] + t * (b[1] - a[1]);
@@ -114,6 +116,17 @@ double overlap_area(const Footprint& p, double x0, double y0, double x1, double 
         twice += a[0] * b[1] - a[1] * b[0];
     }
     return 0.5 * std::fabs(twice);
+}
+
+double overlap_area(const Footprint& p, double x0, double y0, double x1, double y1) {
+    // P's four corners clipped by the cell.
+    double xs[4], ys[4];
+    const double sa[4] = {-0.5, 0.5, 0.5, -0.5}, tb[4] = {-0.5, -0.5, 0.5, 0.5};
+    for (int i = 0; i < 4; ++i) {
+        xs[i] = p.cu + sa[i] * p.ax + tb[i] * p.bx;
+        ys[i] = p.cv + sa[i] * p.ay + tb[i] * p.by;
+    }
+    return clipped_area(xs, ys, 4, x0, y0, x1, y1);
 }
 
 namespace {

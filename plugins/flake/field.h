@@ -84,6 +84,14 @@ bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1);
 /** Whether the cell lies entirely inside P. */
 bool contains(const Footprint& p, double x0, double y0, double x1, double y1);
 
+/** The most vertices of a polygon clipped_area() takes. */
+constexpr int kMaxClipVertices = 32;
+
+/** Area of the convex polygon (xs, ys) of n vertices (at most kMaxClipVertices) intersected with
+ *  the box [x0, x1] x [y0, y1] (Sutherland-Hodgman clipping, in double). */
+double clipped_area(const double* xs, const double* ys, int n, double x0, double y0, double x1,
+                    double y1);
+
 /** Area of P intersected with the cell [x0, x1] x [y0, y1] (polygon clipping, in double). */
 double overlap_area(const Footprint& p, double x0, double y0, double x1, double y1);
 

@@ -114,16 +114,25 @@ def _flake_settings_class():
     return type("SpangleFlakeSettings", (bpy.types.PropertyGroup,), {"__annotations__": ann})
 
 
-class SPANGLE_PT_flakes(bpy.types.Panel):
-    bl_label = "Spangle Flakes"
+class _SpanglePanel:
+    """A properties-editor panel shown while Spangle is the render engine."""
+
     bl_space_type = "PROPERTIES"
     bl_region_type = "WINDOW"
-    bl_context = "material"
     COMPAT_ENGINES = {ENGINE}
 
     @classmethod
     def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES and context.material is not None
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class SPANGLE_PT_flakes(_SpanglePanel, bpy.types.Panel):
+    bl_label = "Spangle Flakes"
+    bl_context = "material"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.material is not None
 
     def draw_header(self, context):
         self.layout.prop(context.material.spangle_flakes, "enabled", text="")
@@ -136,16 +145,9 @@ class SPANGLE_PT_flakes(bpy.types.Panel):
             col.prop(flakes, p["name"])
 
 
-class SPANGLE_PT_render(bpy.types.Panel):
+class SPANGLE_PT_render(_SpanglePanel, bpy.types.Panel):
     bl_label = "Spangle"
-    bl_space_type = "PROPERTIES"
-    bl_region_type = "WINDOW"
     bl_context = "render"
-    COMPAT_ENGINES = {ENGINE}
-
-    @classmethod
-    def poll(cls, context):
-        return context.engine in cls.COMPAT_ENGINES
 
     def draw(self, context):
         s = context.scene.spangle
