@@ -171,3 +171,53 @@ def test_unsupported_things_are_warnings_and_the_export_is_fast(tmp_path):
     seconds = time.time() - t0
     print(f"\nexport of a scene of {tris} triangles: {seconds:.2f} s")
     assert math.isfinite(seconds)
+
+
+def test_an_environment_texture_faces_where_cycles_shows_it(tmp_path):
+    # An equirectangular map with a bright patch at one azimuth and elevation (and a dim
+    # gradient elsewhere), seen straight by a camera: Spangle's render through the add-on shows
+    # the patch where Blender's own Cycles does.
+    w, h = 64, 32
+    px = np.zeros((h, w, 4), dtype=np.float32)
+    px[..., 3] = 1.0
+    px[..., 0] = np.linspace(0.05, 0.1, w)[None, :]
+    px[..., 2] = np.linspace(0.02, 0.2, h)[:, None]  # rows bottom-up: brighter blue up
+    # Around u 0.72, v 0.62: a little off -Y (Blender's u 0.75) and above the horizon.
+    px[18:22, 44:48, :3] = 50.0
+    img = bpy.data.images.new("env", w, h, float_buffer=True, alpha=True)
+    img.pixels.foreach_set(px.ravel())
+    path = str(tmp_path / "env.exr")
+    img.filepath_raw = path
+    img.file_format = "OPEN_EXR"
+    img.save()
+    scene = build_scene()
+    for name in ("body", "Plane"):
+        bpy.data.objects.remove(bpy.data.objects[name])
+    tex = scene.world.node_tree.nodes.new("ShaderNodeTexEnvironment")
+    tex.image = bpy.data.images.load(path)
+    scene.world.node_tree.links.new(tex.outputs["Color"],
+                                    scene.world.node_tree.nodes["Background"].inputs["Color"])
+    cam = scene.camera
+    cam.location = (0.0, 0.0, 0.0)
+    cam.rotation_euler = (math.radians(90.0), 0.0, math.radians(180.0))  # looking along -Y
+    cam.data.angle = math.radians(100.0)
+    scene.render.resolution_x, scene.render.resolution_y = 96, 64
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "spangle.exr")
+    scene.spangle.spp = 4
+    bpy.ops.render.render(write_still=True)
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 4
+    scene.cycles.device = "CPU"
+    scene.render.filepath = str(tmp_path / "cycles.exr")
+    bpy.ops.render.render(write_still=True)
+    ours, theirs = read_exr(str(tmp_path / "spangle.exr")), read_exr(str(tmp_path / "cycles.exr"))
+    def patch(a):  # the bright patch's pixel count and centroid
+        ys, xs = np.nonzero(a.sum(axis=2) > 10.0)
+        return len(ys), ys.mean() if len(ys) else -1.0, xs.mean() if len(xs) else -1.0
+
+    (n0, y0, x0), (n1, y1, x1) = patch(ours), patch(theirs)
+    assert n0 > 20 and n1 > 20 and abs(n0 - n1) < 0.2 * n1, (n0, n1)
+    assert abs(y0 - y1) < 1.0 and abs(x0 - x1) < 1.0, ((y0, x0), (y1, x1))
+    # And the gradient: both brighter blue at the top than at the bottom.
+    assert ours[2, :, 2].mean() > ours[-3, :, 2].mean() and theirs[2, :, 2].mean() > theirs[-3, :, 2].mean()

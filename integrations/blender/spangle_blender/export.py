@@ -217,27 +217,57 @@ def vertical_fov(cam, width, height):
     return math.degrees(2.0 * half)
 
 
-def _world_color(world, warnings):
+def _image_space(image):
+    """The Spangle colour space of a Blender image's colour space."""
+    name = image.colorspace_settings.name
+    if name in ("sRGB",):
+        return "srgb_texture"
+    if name in ("Non-Color", "Raw"):
+        return "raw"
+    return "lin_rec709"
+
+
+def _world_lines(world, warnings):
+    """[environment] for Blender's world: its background colour, or its environment texture as a
+    lat-long map. Blender's equirectangular layout (Cycles: u = 1/2 - atan2(y, x) / 2 pi, v =
+    1/2 + elevation / pi) is pbrt-v3's z-up one (u = atan2(y, x) / 2 pi) with x mirrored: the
+    map's frame flips x."""
     if world is None:
-        return (0.0, 0.0, 0.0), 0.0
+        return []
     if not world.use_nodes or world.node_tree is None:
-        return tuple(world.color)[:3], 1.0
+        color, strength = tuple(world.color)[:3], 1.0
+        return ["[environment]", f"color = {_vec(color)}", f"intensity = {_fmt(strength)}", ""]
     for node in world.node_tree.nodes:
-        if node.type == "BACKGROUND":
-            color = node.inputs["Color"]
-            strength = float(node.inputs["Strength"].default_value)
-            if color.is_linked:
-                src = color.links[0].from_node
-                if src.type == "TEX_ENVIRONMENT" and src.image is not None:
-                    px = np.empty(len(src.image.pixels), dtype=np.float32)
-                    src.image.pixels.foreach_get(px)
-                    mean = px.reshape(-1, src.image.channels)[:, :3].mean(axis=0)
-                    warnings.append("world: an environment texture is not exported yet; its mean "
-                                    "colour lights the scene instead")
-                    return tuple(float(c) for c in mean), strength
-                warnings.append(f"world: its colour comes from a {src.type} node; its own value stands in")
-            return tuple(color.default_value)[:3], strength
-    return (0.0, 0.0, 0.0), 0.0
+        if node.type != "BACKGROUND":
+            continue
+        color = node.inputs["Color"]
+        strength = float(node.inputs["Strength"].default_value)
+        if strength <= 0.0:
+            return []
+        if color.is_linked:
+            src = color.links[0].from_node
+            if src.type == "TEX_ENVIRONMENT" and src.image is not None:
+                path = bpy.path.abspath(src.image.filepath)
+                if src.inputs["Vector"].is_linked:
+                    warnings.append("world: the environment texture's mapping is not exported")
+                if src.projection == "EQUIRECTANGULAR" and path and os.path.isfile(path):
+                    return ["[environment]", f"map = {_toml_string(path)}",
+                            f"color_space = {_toml_string(_image_space(src.image))}",
+                            'projection = "latlong_z_up"',
+                            "frame = [-1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0]",
+                            f"intensity = {_fmt(strength)}", ""]
+                px = np.empty(len(src.image.pixels), dtype=np.float32)
+                src.image.pixels.foreach_get(px)
+                mean = px.reshape(-1, src.image.channels)[:, :3].mean(axis=0)
+                warnings.append("world: the environment texture is not an equirectangular image "
+                                "file on disk; its mean colour lights the scene instead")
+                return ["[environment]", f"color = {_vec(mean)}", f"intensity = {_fmt(strength)}", ""]
+            warnings.append(f"world: its colour comes from a {src.type} node; its own value stands in")
+        c = tuple(color.default_value)[:3]
+        if max(c) <= 0.0:
+            return []
+        return ["[environment]", f"color = {_vec(c)}", f"intensity = {_fmt(strength)}", ""]
+    return []
 
 
 def _light_lines(obj, matrix, warnings):
@@ -314,9 +344,7 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
         out += [f"aperture = {_fmt(cam.lens / 1000.0 / (2.0 * cam.dof.aperture_fstop))}",
                 f"focus_distance = {_fmt(max(focus, 1e-4))}"]
     out.append("")
-    color, strength = _world_color(scene.world, warnings)
-    if strength > 0.0 and max(color) > 0.0:
-        out += ["[environment]", f"color = {_vec(color)}", f"intensity = {_fmt(strength)}", ""]
+    out += _world_lines(scene.world, warnings)
 
     materials = {}  # name -> (plugin, model, params, emission)
     meshes = {}  # evaluated object name -> [(ply file, material name)]
