@@ -8,7 +8,9 @@
 #include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfTestFile.h>
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "core/error.h"
 
@@ -25,7 +27,12 @@ struct Frame {
      *  placement in this frame (spangle:objectToWorld, 12 floats each); empty when the frame
      *  lacks them (rendered before Spangle wrote them). */
     std::vector<float> ox, oy, oz, object, object_to_world;
+    /** Per object: 1 when its Pobj is the position in its rest pose (a deforming mesh,
+     *  spangle:restPose); empty when the frame does not say (no object deforms). */
+    std::vector<float> rest_pose;
     bool has_objects() const { return !object.empty() && !object_to_world.empty(); }
+    /** Whether object k (from 0) deforms: its points are found by their rest position. */
+    bool deforms(std::size_t k) const { return k < rest_pose.size() && rest_pose[k] > 0.5f; }
 };
 
 Frame read_frame(const std::string& path) {
@@ -60,6 +67,9 @@ Frame read_frame(const std::string& path) {
         const auto* xf = h.findTypedAttribute<Imf::FloatVectorAttribute>("spangle:objectToWorld");
         if (xf && h.channels().findChannel("object")) {
             f.object_to_world = xf->value();
+            if (const auto* rest =
+                    h.findTypedAttribute<Imf::FloatVectorAttribute>("spangle:restPose"))
+                f.rest_pose = rest->value();
             const std::pair<const char*, std::vector<float>*> objs[] = {
                 {"Pobj.X", &f.ox}, {"Pobj.Y", &f.oy}, {"Pobj.Z", &f.oz}, {"object", &f.object}};
             for (const auto& [name, buf] : objs) {
@@ -82,6 +92,55 @@ Frame read_frame(const std::string& path) {
     } catch (const std::exception& e) {
         throw_error("cannot read '{}': {}", path, e.what());
     }
+}
+
+/** Pixel index of (x, y) in `f`. */
+std::size_t pixel(const Frame& f, int x, int y) {
+    return static_cast<std::size_t>(y) * static_cast<std::size_t>(f.width) +
+           static_cast<std::size_t>(x);
+}
+
+/** Squared distance between the Pobj of pixel i of `a` and pixel j of `b`. */
+float pobj_distance2(const Frame& a, std::size_t i, const Frame& b, std::size_t j) {
+    const float dx = b.ox[j] - a.ox[i], dy = b.oy[j] - a.oy[i], dz = b.oz[j] - a.oz[i];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/** Where `b` shows the point of a deforming object that pixel i of `a` shows: the pixel of the
+ *  same object whose rest position (Pobj) is nearest to it, searched within kDeformSearch
+ *  pixels of (bx, by) (where the point was, seen from b's camera). Accepted when it lies within
+ *  the pixel's own size in the rest pose (3/4 of the larger distance to its neighbours' rest
+ *  positions, measured to the covered neighbours of the same object): the same point up to the
+ *  pixel's width. */
+bool find_rest_point(const Frame& a, std::size_t i, const Frame& b, int bx, int by, float id,
+                     std::size_t& j) {
+    constexpr int kDeformSearch = 8;
+    float best = INFINITY;
+    for (int y = std::max(0, by - kDeformSearch); y <= std::min(b.height - 1, by + kDeformSearch);
+         ++y)
+        for (int x = std::max(0, bx - kDeformSearch);
+             x <= std::min(b.width - 1, bx + kDeformSearch); ++x) {
+            const std::size_t c = pixel(b, x, y);
+            if (!(b.a[c] > 0.999f) || std::round(b.object[c]) != std::round(id)) continue;
+            const float d2 = pobj_distance2(a, i, b, c);
+            if (d2 < best) {
+                best = d2;
+                j = c;
+            }
+        }
+    if (!std::isfinite(best)) return false;
+    const int jx = static_cast<int>(j % static_cast<std::size_t>(b.width));
+    const int jy = static_cast<int>(j / static_cast<std::size_t>(b.width));
+    float spacing2 = 0.0f;
+    for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        const int x = jx + dx, y = jy + dy;
+        if (x < 0 || y < 0 || x >= b.width || y >= b.height) continue;
+        const std::size_t c = pixel(b, x, y);
+        if (!(b.a[c] > 0.999f) || std::round(b.object[c]) != std::round(id)) continue;
+        spacing2 = std::max(spacing2, pobj_distance2(b, j, b, c));
+    }
+    // The nearest pixel centre lies within half a pixel's diagonal (0.71 of its width).
+    return best <= 0.75f * 0.75f * spacing2;
 }
 
 }  // namespace
@@ -157,6 +216,7 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                 // say where objects stand (a turning object), else where it was (a still one).
                 Imath::V3f w(a.px[i], a.py[i], a.pz[i]);
                 float id = 0.0f;
+                bool deforming = false;
                 if (objects) {
                     id = a.object[i];
                     const float k_obj = std::round(id) - 1.0f;
@@ -166,9 +226,13 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                     if (!(std::fabs(id - std::round(id)) < 1e-3f && k_obj >= 0.0f &&
                           12.0f * (k_obj + 1.0f) <= static_cast<float>(b.object_to_world.size())))
                         continue;
-                    const float* m = &b.object_to_world[12 * static_cast<std::size_t>(k_obj)];
+                    const auto obj = static_cast<std::size_t>(k_obj);
+                    // A deforming object's point is searched for from where it was (its world
+                    // position in this frame); a rigid one's is carried by its placement.
+                    deforming = a.deforms(obj) && b.deforms(obj);
+                    const float* m = &b.object_to_world[12 * obj];
                     const Imath::V3f q(a.ox[i], a.oy[i], a.oz[i]);
-                    for (int r = 0; r < 3; ++r)
+                    for (int r = 0; r < 3 && !deforming; ++r)
                         w[r] =
                             m[4 * r] * q.x + m[4 * r + 1] * q.y + m[4 * r + 2] * q.z + m[4 * r + 3];
                 }
@@ -180,14 +244,17 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                 if (!(nx >= 0.0f && nx < 1.0f && ny >= 0.0f && ny < 1.0f)) continue;
                 const auto bx = static_cast<int>(nx * static_cast<float>(b.width));
                 const auto by = static_cast<int>(ny * static_cast<float>(b.height));
-                const std::size_t j =
-                    static_cast<std::size_t>(by) * static_cast<std::size_t>(b.width) +
-                    static_cast<std::size_t>(bx);
-                if (!(b.a[j] > 0.999f)) continue;
-                // The same point (of the same object), not something in front of it.
-                if (objects && std::round(b.object[j]) != std::round(id)) continue;
-                const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
-                if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) continue;
+                std::size_t j = pixel(b, bx, by);
+                if (deforming) {
+                    // A deforming object's point moved on the object: found by its rest pose.
+                    if (!find_rest_point(a, i, b, bx, by, id, j)) continue;
+                } else {
+                    if (!(b.a[j] > 0.999f)) continue;
+                    // The same point (of the same object), not something in front of it.
+                    if (objects && std::round(b.object[j]) != std::round(id)) continue;
+                    const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
+                    if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) continue;
+                }
                 const double ga = a.glint[i], gb = b.glint[j];
                 if (!std::isfinite(ga) || !std::isfinite(gb)) continue;
                 rep.pixels += 1.0;

@@ -8,6 +8,7 @@
 
 #include "core/files.h"
 #include "geometry/mesh_load.h"
+#include "geometry/rest_pose.h"
 #include "pipeline/systems.h"
 
 namespace spangle {
@@ -15,7 +16,29 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/** The meshes of the mesh files, one per distinct file, referenced from their objects. */
+/** The mesh in `path` (named at `loc`), from the cache when the file has not changed. */
+std::shared_ptr<const TriangleMesh> cached_mesh(World& w, const std::string& path,
+                                                const FileLoc& loc) {
+    w.read_file("mesh", path);
+    return build_cached(
+        w.cache, &BuildCache::meshes, "meshes", [&] { return "mesh|" + file_identity(path); },
+        [&] { return std::make_shared<const TriangleMesh>(load_mesh(path, loc)); }, "mesh " + path);
+}
+
+/** `mesh` (of f.path) with the rest pose in f.rest (geometry/rest_pose.h), cached by both
+ *  files' identities so that a reload that changes neither keeps the very same mesh (and its
+ *  BVH). */
+std::shared_ptr<const TriangleMesh> posed_mesh(World& w, std::shared_ptr<const TriangleMesh> mesh,
+                                               const MeshFile& f) {
+    const std::shared_ptr<const TriangleMesh> rest = cached_mesh(w, f.rest, f.rest_loc);
+    return build_cached(
+        w.cache, &BuildCache::meshes, "meshes",
+        [&] { return "posed|" + file_identity(f.path) + "|" + file_identity(f.rest); },
+        [&] { return with_rest_pose(mesh, *rest, f.loc); }, "");
+}
+
+/** The meshes of the mesh files, one per distinct file (and rest pose), referenced from their
+ *  objects. */
 void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
                      std::vector<std::pair<ecs::Entity, uint32_t>>& refs) {
     auto* pool = r.find_pool<MeshFile>();
@@ -38,20 +61,16 @@ void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
     };
     report();
     for (std::size_t i = 0; i < pool->size(); ++i) {
-        const std::string& path = pool->columns().path[i];
-        auto it = loaded.find(path);
+        const MeshFile f = pool->columns().get(i);
+        // A mesh with a rest pose is its own mesh: the same file without one is shared apart.
+        const std::string key = f.rest.empty() ? f.path : f.path + '\n' + f.rest;
+        auto it = loaded.find(key);
         if (it == loaded.end()) {
-            w.read_file("mesh", path);
-            out.meshes.push_back(build_cached(
-                w.cache, &BuildCache::meshes, "meshes",
-                [&] { return "mesh|" + file_identity(path); },
-                [&] {
-                    return std::make_shared<const TriangleMesh>(
-                        load_mesh(path, pool->columns().loc[i]));
-                },
-                "mesh " + path));
-            it = loaded.emplace(path, static_cast<uint32_t>(out.meshes.size() - 1)).first;
-            done += sizes[path];
+            std::shared_ptr<const TriangleMesh> mesh = cached_mesh(w, f.path, f.loc);
+            if (!f.rest.empty()) mesh = posed_mesh(w, std::move(mesh), f);
+            out.meshes.push_back(std::move(mesh));
+            it = loaded.emplace(key, static_cast<uint32_t>(out.meshes.size() - 1)).first;
+            done += sizes[f.path];
             report();
         }
         refs.emplace_back(pool->entities()[i], it->second);

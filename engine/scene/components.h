@@ -77,10 +77,13 @@ SPANGLE_COMPONENT(Transform, SPANGLE_TRANSFORM_FIELDS);
  *  at the shutter's middle. */
 SPANGLE_COMPONENT(Motion, SPANGLE_MOTION_FIELDS);
 
-#define SPANGLE_MESH_FILE_FIELDS(X)                 \
-    X(std::string, path, "resolved mesh file path") \
-    X(FileLoc, loc, "where the scene names the file")
-/** A mesh to load from an OBJ or PLY file (input of the mesh_load system). */
+#define SPANGLE_MESH_FILE_FIELDS(X)                                                     \
+    X(std::string, path, "resolved mesh file path (a sequence's file of the frame)")    \
+    X(FileLoc, loc, "where the scene names the file")                                   \
+    X(std::string, rest, "the rest pose's file (same topology); empty: the mesh's own") \
+    X(FileLoc, rest_loc, "where the scene names the rest pose (loc for a sequence's own)")
+/** A mesh to load from an OBJ or PLY file (input of the mesh_load system), and the rest pose its
+ *  object-space shading inputs are taken from when it deforms. */
 SPANGLE_COMPONENT(MeshFile, SPANGLE_MESH_FILE_FIELDS);
 
 namespace ecs {

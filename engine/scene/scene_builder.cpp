@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <utility>
 
 #include "scene/components.h"
+#include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
 
 namespace spangle {
@@ -294,13 +296,54 @@ void build_material(BuildContext& ctx, const MaterialDesc& d) {
     ctx.registry->put(ctx.registry->create(), m);
 }
 
+/** The file of a sequence `pattern` (named at `at`) for `frame`, checked to exist; `what`
+ *  words it for the message ("mesh", "cage"). */
+std::string sequence_file(const std::string& pattern, int64_t frame, const FileLoc& at,
+                          const char* what) {
+    const std::string path = expand_frame_pattern(pattern, frame);
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        throw_error(at, "{} file of frame {} not found (looked for {}, from the sequence {})", what,
+                    frame, path, pattern);
+    return path;
+}
+
+/** A mesh file, or a sequence's file of the frame the scene is evaluated at, with its rest
+ *  pose: `rest_mesh`, or a sequence's file of frame_start (the same in every process and every
+ *  split of the work). */
+MeshFile mesh_file(BuildContext& ctx, const MeshFileShape& m) {
+    MeshFile f{m.path, m.loc, m.rest_path, m.rest_loc};
+    if (!m.sequence) return f;
+    const SceneInfo& info = *ctx.info;
+    ctx.info->animated = true;
+    f.path = sequence_file(m.path, frame_at(info.frame_start, info.fps, info.time), m.loc, "mesh");
+    if (f.rest.empty()) {
+        f.rest = expand_frame_pattern(m.path, info.frame_start);
+        f.rest_loc = m.loc;
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(f.rest, ec))
+            throw_error(m.loc,
+                        "mesh file of frame_start {} not found (looked for {}): without "
+                        "'rest_mesh' it is the sequence's rest pose; give 'rest_mesh' or that file",
+                        info.frame_start, f.rest);
+    }
+    return f;
+}
+
 /** An object's shape as the geometry systems take it. */
 void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
     if (const auto* mesh = std::get_if<MeshFileShape>(&d.shape)) {
-        ctx.registry->put(e, MeshFile{mesh->path, mesh->loc});
+        ctx.registry->put(e, mesh_file(ctx, *mesh));
     } else if (const auto* sub = std::get_if<SubdivShape>(&d.shape)) {
         const uint64_t content = sub->cage ? cage_content_hash(*sub->cage) : 0;
-        ctx.registry->put(e, SubdivSurface{sub->path, sub->loc, sub->options, sub->max_level,
+        std::string path = sub->path;
+        if (sub->sequence) {
+            const SceneInfo& info = *ctx.info;
+            ctx.info->animated = true;
+            path = sequence_file(sub->path, frame_at(info.frame_start, info.fps, info.time),
+                                 sub->loc, "cage");
+        }
+        ctx.registry->put(e, SubdivSurface{std::move(path), sub->loc, sub->options, sub->max_level,
                                            sub->pixel_budget, sub->cage, content});
     } else {
         const auto& in = std::get<InlineMeshShape>(d.shape);
@@ -385,6 +428,11 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     }
     registry.put(e, Transform{motion.middle});
     info.object_to_world.push_back(motion.middle);
+    const auto* file = std::get_if<MeshFileShape>(&d.shape);
+    if (file && (file->sequence || !file->rest_path.empty())) {
+        info.rest_pose.resize(index + 1, 0);
+        info.rest_pose[index] = 1;
+    }
     if (d.emission) {
         const Vec3 le = working_color(ctx, d.emission->color, {0, 0, 0}) *
                         static_cast<float>(d.emission->intensity);

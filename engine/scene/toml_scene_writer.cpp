@@ -274,9 +274,10 @@ struct Writer {
     void object(const ObjectDesc& o) {
         out += "\n[[object]]\n";
         if (!o.name.empty()) line("name", str(o.name));
-        if (const auto* m = std::get_if<MeshFileShape>(&o.shape))
-            line("mesh", path(m->path));
-        else if (const auto* s = std::get_if<SubdivShape>(&o.shape))
+        if (const auto* m = std::get_if<MeshFileShape>(&o.shape)) {
+            line("mesh", path(m->path));  // a sequence's pattern as it is
+            if (!m->rest_path.empty()) line("rest_mesh", path(m->rest_path));
+        } else if (const auto* s = std::get_if<SubdivShape>(&o.shape))
             subdiv(*s);
         else
             line("mesh", inline_mesh(*std::get<InlineMeshShape>(o.shape).mesh));
