@@ -143,6 +143,93 @@ bool find_rest_point(const Frame& a, std::size_t i, const Frame& b, int bx, int 
     return best <= 0.75f * 0.75f * spacing2;
 }
 
+/** The glint-mask threshold when none is given: 4 x the mean glint luminance over the covered
+ *  pixels of all frames (1 when none is covered). */
+double default_threshold(const std::vector<Frame>& frames) {
+    double sum = 0.0, count = 0.0;
+    for (const Frame& f : frames)
+        for (std::size_t i = 0; i < f.glint.size(); ++i)
+            if (f.a[i] > 0.999f && std::isfinite(f.glint[i])) {
+                sum += static_cast<double>(f.glint[i]);
+                count += 1.0;
+            }
+    return count > 0.0 ? 4.0 * sum / count : 1.0;
+}
+
+/** The glints of `f`: pixels brighter than `threshold` and than 3 times the mean of their 5x5
+ *  neighbourhood (a sparkle; a broad highlight, bright whatever the flakes, is not a glint). */
+std::vector<uint8_t> glint_mask(const Frame& f, double threshold) {
+    std::vector<uint8_t> m(f.glint.size(), 0);
+    for (int y = 0; y < f.height; ++y)
+        for (int x = 0; x < f.width; ++x) {
+            const std::size_t i = pixel(f, x, y);
+            const double g = f.glint[i];
+            if (!(g > threshold)) continue;
+            double sum = 0.0;
+            int n = 0;
+            for (int dy = -2; dy <= 2; ++dy)
+                for (int dx = -2; dx <= 2; ++dx) {
+                    const int xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= f.width || yy >= f.height) continue;
+                    const float v = f.glint[pixel(f, xx, yy)];
+                    if (std::isfinite(v)) {
+                        sum += static_cast<double>(v);
+                        ++n;
+                    }
+                }
+            m[i] = g > 3.0 * sum / n ? 1 : 0;
+        }
+    return m;
+}
+
+/** Pixel j of `b` that shows the surface point pixel i of `a` shows, when there is one: the
+ *  point carried by its object when the frames say where objects stand (`objects`: a turning
+ *  object), found by its rest position on an object that deforms in both, else where it was (a
+ *  still one); then projected with b's camera and checked to be the same point. */
+bool next_pixel(const Frame& a, const Frame& b, std::size_t i, bool objects, std::size_t& j) {
+    Imath::V3f w(a.px[i], a.py[i], a.pz[i]);
+    float id = 0.0f;
+    bool deforming = false;
+    if (objects) {
+        id = a.object[i];
+        const float k_obj = std::round(id) - 1.0f;
+        // A pixel shared by objects has no one number: skipped when its average is not a whole
+        // number (halves of objects 1 and 3 average to 2: such a pixel fails the same-point
+        // test below instead).
+        if (!(std::fabs(id - std::round(id)) < 1e-3f && k_obj >= 0.0f &&
+              12.0f * (k_obj + 1.0f) <= static_cast<float>(b.object_to_world.size())))
+            return false;
+        const auto obj = static_cast<std::size_t>(k_obj);
+        // A deforming object's point is searched for from where it was (its world position in
+        // this frame); a rigid one's is carried by its placement.
+        deforming = a.deforms(obj) && b.deforms(obj);
+        const float* m = &b.object_to_world[12 * obj];
+        const Imath::V3f q(a.ox[i], a.oy[i], a.oz[i]);
+        for (int r = 0; r < 3 && !deforming; ++r)
+            w[r] = m[4 * r] * q.x + m[4 * r + 1] * q.y + m[4 * r + 2] * q.z + m[4 * r + 3];
+    }
+    // Where it lies in the next frame's image (row vectors, divide by w).
+    const Imath::V4f p(w.x, w.y, w.z, 1.0f);
+    const Imath::V4f q = p * b.world_to_ndc;
+    if (!(q.w > 0.0f)) return false;
+    const float nx = q.x / q.w, ny = q.y / q.w;
+    if (!(nx >= 0.0f && nx < 1.0f && ny >= 0.0f && ny < 1.0f)) return false;
+    const auto bx = static_cast<int>(nx * static_cast<float>(b.width));
+    const auto by = static_cast<int>(ny * static_cast<float>(b.height));
+    j = pixel(b, bx, by);
+    if (deforming) {
+        // A deforming object's point moved on the object: found by its rest pose.
+        if (!find_rest_point(a, i, b, bx, by, id, j)) return false;
+    } else {
+        if (!(b.a[j] > 0.999f)) return false;
+        // The same point (of the same object), not something in front of it.
+        if (objects && std::round(b.object[j]) != std::round(id)) return false;
+        const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
+        if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) return false;
+    }
+    return true;
+}
+
 }  // namespace
 
 FlickerReport measure_flicker(const std::vector<std::string>& paths, double threshold) {
@@ -158,47 +245,10 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                         frames.front().width, frames.front().height);
     }
     FlickerReport rep;
-    if (threshold <= 0.0) {
-        double sum = 0.0, count = 0.0;
-        for (const Frame& f : frames)
-            for (std::size_t i = 0; i < f.glint.size(); ++i)
-                if (f.a[i] > 0.999f && std::isfinite(f.glint[i])) {
-                    sum += static_cast<double>(f.glint[i]);
-                    count += 1.0;
-                }
-        threshold = count > 0.0 ? 4.0 * sum / count : 1.0;
-    }
-    rep.threshold = threshold;
-    // A glint is a sparkle: brighter than the threshold and than 3 times the mean of its 5x5
-    // neighbourhood (a broad highlight, bright whatever the flakes, is not a glint).
+    rep.threshold = threshold > 0.0 ? threshold : default_threshold(frames);
+    threshold = rep.threshold;
     std::vector<std::vector<uint8_t>> masks;
-    for (const Frame& f : frames) {
-        std::vector<uint8_t> m(f.glint.size(), 0);
-        for (int y = 0; y < f.height; ++y)
-            for (int x = 0; x < f.width; ++x) {
-                const std::size_t i =
-                    static_cast<std::size_t>(y) * static_cast<std::size_t>(f.width) +
-                    static_cast<std::size_t>(x);
-                const double g = f.glint[i];
-                if (!(g > threshold)) continue;
-                double sum = 0.0;
-                int n = 0;
-                for (int dy = -2; dy <= 2; ++dy)
-                    for (int dx = -2; dx <= 2; ++dx) {
-                        const int xx = x + dx, yy = y + dy;
-                        if (xx < 0 || yy < 0 || xx >= f.width || yy >= f.height) continue;
-                        const float v = f.glint[static_cast<std::size_t>(yy) *
-                                                    static_cast<std::size_t>(f.width) +
-                                                static_cast<std::size_t>(xx)];
-                        if (std::isfinite(v)) {
-                            sum += static_cast<double>(v);
-                            ++n;
-                        }
-                    }
-                m[i] = g > 3.0 * sum / n ? 1 : 0;
-            }
-        masks.push_back(std::move(m));
-    }
+    for (const Frame& f : frames) masks.push_back(glint_mask(f, threshold));
     double diff = 0.0, coverage = 0.0, rel_num = 0.0, rel_den = 0.0, kept = 0.0, glints = 0.0;
     for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
         const Frame& a = frames[k];
@@ -212,49 +262,8 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                     static_cast<std::size_t>(y) * static_cast<std::size_t>(a.width) +
                     static_cast<std::size_t>(x);
                 if (!(a.a[i] > 0.999f)) continue;  // only pixels wholly on a surface
-                // The surface point in the next frame: carried by its object when the frames
-                // say where objects stand (a turning object), else where it was (a still one).
-                Imath::V3f w(a.px[i], a.py[i], a.pz[i]);
-                float id = 0.0f;
-                bool deforming = false;
-                if (objects) {
-                    id = a.object[i];
-                    const float k_obj = std::round(id) - 1.0f;
-                    // A pixel shared by objects has no one number: skipped when its average is
-                    // not a whole number (halves of objects 1 and 3 average to 2: such a pixel
-                    // fails the same-point test below instead).
-                    if (!(std::fabs(id - std::round(id)) < 1e-3f && k_obj >= 0.0f &&
-                          12.0f * (k_obj + 1.0f) <= static_cast<float>(b.object_to_world.size())))
-                        continue;
-                    const auto obj = static_cast<std::size_t>(k_obj);
-                    // A deforming object's point is searched for from where it was (its world
-                    // position in this frame); a rigid one's is carried by its placement.
-                    deforming = a.deforms(obj) && b.deforms(obj);
-                    const float* m = &b.object_to_world[12 * obj];
-                    const Imath::V3f q(a.ox[i], a.oy[i], a.oz[i]);
-                    for (int r = 0; r < 3 && !deforming; ++r)
-                        w[r] =
-                            m[4 * r] * q.x + m[4 * r + 1] * q.y + m[4 * r + 2] * q.z + m[4 * r + 3];
-                }
-                // Where it lies in the next frame's image (row vectors, divide by w).
-                const Imath::V4f p(w.x, w.y, w.z, 1.0f);
-                const Imath::V4f q = p * b.world_to_ndc;
-                if (!(q.w > 0.0f)) continue;
-                const float nx = q.x / q.w, ny = q.y / q.w;
-                if (!(nx >= 0.0f && nx < 1.0f && ny >= 0.0f && ny < 1.0f)) continue;
-                const auto bx = static_cast<int>(nx * static_cast<float>(b.width));
-                const auto by = static_cast<int>(ny * static_cast<float>(b.height));
-                std::size_t j = pixel(b, bx, by);
-                if (deforming) {
-                    // A deforming object's point moved on the object: found by its rest pose.
-                    if (!find_rest_point(a, i, b, bx, by, id, j)) continue;
-                } else {
-                    if (!(b.a[j] > 0.999f)) continue;
-                    // The same point (of the same object), not something in front of it.
-                    if (objects && std::round(b.object[j]) != std::round(id)) continue;
-                    const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
-                    if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) continue;
-                }
+                std::size_t j = 0;
+                if (!next_pixel(a, b, i, objects, j)) continue;
                 const double ga = a.glint[i], gb = b.glint[j];
                 if (!std::isfinite(ga) || !std::isfinite(gb)) continue;
                 rep.pixels += 1.0;

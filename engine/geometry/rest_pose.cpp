@@ -22,6 +22,26 @@ void check_same_topology(const TriangleMesh& mesh, const TriangleMesh& rest, con
     }
 }
 
+void check_same_topology(const Cage& cage, const Cage& rest, const FileLoc& ref) {
+    if (cage.vertex_count() != rest.vertex_count() || cage.face_count() != rest.face_count())
+        throw_error(ref,
+                    "cage '{}' ({} vertices, {} faces) does not have the topology of its rest "
+                    "pose '{}' ({} vertices, {} faces): every frame of a deforming cage needs "
+                    "the same vertices and faces",
+                    cage.source, cage.vertex_count(), cage.face_count(), rest.source,
+                    rest.vertex_count(), rest.face_count());
+    if (cage.face_sizes != rest.face_sizes || cage.face_vertices != rest.face_vertices)
+        throw_error(ref,
+                    "cage '{}' does not have the topology of its rest pose '{}': the same "
+                    "counts, but its faces join other vertices",
+                    cage.source, rest.source);
+    if (cage.face_uvs != rest.face_uvs)
+        throw_error(ref,
+                    "cage '{}' does not have the uv layout of its rest pose '{}': its faces' "
+                    "corners use other uv indices",
+                    cage.source, rest.source);
+}
+
 std::shared_ptr<const TriangleMesh> with_rest_pose(std::shared_ptr<const TriangleMesh> mesh,
                                                    const TriangleMesh& rest, const FileLoc& ref) {
     check_same_topology(*mesh, rest, ref);

@@ -8,6 +8,7 @@
 #include <memory>
 
 #include "core/error.h"
+#include "geometry/cage.h"
 #include "geometry/triangle_mesh.h"
 
 namespace spangle {
@@ -15,6 +16,10 @@ namespace spangle {
 /** Throws SpangleError at `ref`, naming both meshes' files, unless `rest` has `mesh`'s topology:
  *  the same vertex count, triangle count and vertex indices. */
 void check_same_topology(const TriangleMesh& mesh, const TriangleMesh& rest, const FileLoc& ref);
+
+/** The same for subdivision cages: the same vertex count, faces (corner counts and vertex
+ *  indices) and uv indices, so that both refine to meshes of one topology. */
+void check_same_topology(const Cage& cage, const Cage& rest, const FileLoc& ref);
 
 /** `mesh` with `rest`'s positions as its rest pose (topology checked as above). `mesh` itself,
  *  with no rest positions, when the positions are equal: a mesh in its rest pose needs none, and

@@ -178,6 +178,32 @@ std::shared_ptr<const Cage> reuse_inline_cage(World& w, std::string& key,
     return cage;
 }
 
+/** `mesh`, the refinement (cache key `key`) of `cage`, the cage of surface `s`, with the rest
+ *  pose of s.rest refined with the same options (geometry/rest_pose.h): the rest cage must have
+ *  the cage's topology, and then its refinement has the mesh's. */
+std::shared_ptr<const TriangleMesh> posed_refinement(World& w, const SubdivSurface& s,
+                                                     const Cage& cage, const SubdivOptions& options,
+                                                     const std::string& key,
+                                                     std::shared_ptr<const TriangleMesh> mesh) {
+    w.read_file("cage", s.rest);
+    const std::string rest_file = w.cache ? file_identity(s.rest) : std::string();
+    const std::shared_ptr<const Cage> rest_cage = build_cached(
+        w.cache, &BuildCache::cages, "cages", [&] { return "cage|" + rest_file; },
+        [&] { return std::make_shared<const Cage>(load_cage(s.rest, s.rest_loc)); }, "");
+    check_same_topology(cage, *rest_cage, s.loc);
+    const std::shared_ptr<const TriangleMesh> rest = build_cached(
+        w.cache, &BuildCache::meshes, "subdivided meshes",
+        [&] { return subdiv_key(rest_file, options); },
+        [&] {
+            return std::make_shared<const TriangleMesh>(subdivide(*rest_cage, options, s.rest_loc));
+        },
+        fmt::format("subdivision of {} at level {}", s.rest, options.level));
+    return build_cached(
+        w.cache, &BuildCache::meshes, "subdivided meshes",
+        [&] { return "posed|" + key + "|" + rest_file; },
+        [&] { return with_rest_pose(mesh, *rest, s.loc); }, "");
+}
+
 void system_subdivide(ecs::Registry& r, World& w) {
     auto& pool = r.pool<SubdivSurface>();
     // The camera decides "auto" levels: a far object is not tessellated as finely as a near one.
@@ -223,7 +249,7 @@ void system_subdivide(ecs::Registry& r, World& w) {
                        : s.max_level;
         }
         rep.level = options.level;
-        const std::shared_ptr<const TriangleMesh> mesh = build_cached(
+        std::shared_ptr<const TriangleMesh> mesh = build_cached(
             w.cache, &BuildCache::meshes, "subdivided meshes",
             [&] { return subdiv_key(file, options); },
             [&] {
@@ -233,6 +259,8 @@ void system_subdivide(ecs::Registry& r, World& w) {
                               fmt::format("subdividing {} at level {}", s.path, options.level)));
             },
             fmt::format("subdivision of {} at level {}", s.path, options.level));
+        if (!s.rest.empty())
+            mesh = posed_refinement(w, s, *cage, options, subdiv_key(file, options), mesh);
         rep.triangles = mesh->triangle_count();
         out.meshes.push_back(mesh);
         rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -308,43 +308,51 @@ std::string sequence_file(const std::string& pattern, int64_t frame, const FileL
     return path;
 }
 
-/** A mesh file, or a sequence's file of the frame the scene is evaluated at, with its rest
- *  pose: `rest_mesh`, or a sequence's file of frame_start (the same in every process and every
- *  split of the work). */
-MeshFile mesh_file(BuildContext& ctx, const MeshFileShape& m) {
-    MeshFile f{m.path, m.loc, m.rest_path, m.rest_loc};
-    if (!m.sequence) return f;
-    const SceneInfo& info = *ctx.info;
-    ctx.info->animated = true;
-    f.path = sequence_file(m.path, frame_at(info.frame_start, info.fps, info.time), m.loc, "mesh");
+/** The file a mesh or cage is read from and its rest pose. */
+struct PosedFile {
+    std::string path;  ///< the file (a sequence's of the frame)
+    std::string rest;  ///< the rest pose's file; empty: none
+    FileLoc rest_loc;  ///< where the rest pose is named
+};
+
+/** The file of an object's mesh or cage `path` (a pattern when `sequence`, named at `loc`) at
+ *  the frame the scene is evaluated at, and its rest pose: `rest` (named at `rest_loc`), or a
+ *  sequence's file of frame_start (the same in every process and every split of the work).
+ *  `what` words them ("mesh", "cage"). */
+PosedFile posed_file(BuildContext& ctx, const std::string& path, bool sequence,
+                     const std::string& rest, const FileLoc& loc, const FileLoc& rest_loc,
+                     const char* what) {
+    PosedFile f{path, rest, rest_loc};
+    if (!sequence) return f;
+    SceneInfo& info = *ctx.info;
+    info.animated = true;
+    f.path = sequence_file(path, frame_at(info.frame_start, info.fps, info.time), loc, what);
     if (f.rest.empty()) {
-        f.rest = expand_frame_pattern(m.path, info.frame_start);
-        f.rest_loc = m.loc;
+        f.rest = expand_frame_pattern(path, info.frame_start);
+        f.rest_loc = loc;
         std::error_code ec;
         if (!std::filesystem::is_regular_file(f.rest, ec))
-            throw_error(m.loc,
-                        "mesh file of frame_start {} not found (looked for {}): without "
+            throw_error(loc,
+                        "{} file of frame_start {} not found (looked for {}): without "
                         "'rest_mesh' it is the sequence's rest pose; give 'rest_mesh' or that file",
-                        info.frame_start, f.rest);
+                        what, info.frame_start, f.rest);
     }
     return f;
 }
 
 /** An object's shape as the geometry systems take it. */
 void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
-    if (const auto* mesh = std::get_if<MeshFileShape>(&d.shape)) {
-        ctx.registry->put(e, mesh_file(ctx, *mesh));
+    if (const auto* m = std::get_if<MeshFileShape>(&d.shape)) {
+        PosedFile f =
+            posed_file(ctx, m->path, m->sequence, m->rest_path, m->loc, m->rest_loc, "mesh");
+        ctx.registry->put(e, MeshFile{std::move(f.path), m->loc, std::move(f.rest), f.rest_loc});
     } else if (const auto* sub = std::get_if<SubdivShape>(&d.shape)) {
         const uint64_t content = sub->cage ? cage_content_hash(*sub->cage) : 0;
-        std::string path = sub->path;
-        if (sub->sequence) {
-            const SceneInfo& info = *ctx.info;
-            ctx.info->animated = true;
-            path = sequence_file(sub->path, frame_at(info.frame_start, info.fps, info.time),
-                                 sub->loc, "cage");
-        }
-        ctx.registry->put(e, SubdivSurface{std::move(path), sub->loc, sub->options, sub->max_level,
-                                           sub->pixel_budget, sub->cage, content});
+        PosedFile f = posed_file(ctx, sub->path, sub->sequence, sub->rest_path, sub->loc,
+                                 sub->rest_loc, "cage");
+        ctx.registry->put(
+            e, SubdivSurface{std::move(f.path), sub->loc, sub->options, sub->max_level,
+                             sub->pixel_budget, sub->cage, content, std::move(f.rest), f.rest_loc});
     } else {
         const auto& in = std::get<InlineMeshShape>(d.shape);
         if (!in.mesh) throw_error(in.loc, "{}: its triangle mesh is missing", d.what);
@@ -429,7 +437,9 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     registry.put(e, Transform{motion.middle});
     info.object_to_world.push_back(motion.middle);
     const auto* file = std::get_if<MeshFileShape>(&d.shape);
-    if (file && (file->sequence || !file->rest_path.empty())) {
+    const auto* cage = std::get_if<SubdivShape>(&d.shape);
+    if ((file && (file->sequence || !file->rest_path.empty())) ||
+        (cage && (cage->sequence || !cage->rest_path.empty()))) {
         info.rest_pose.resize(index + 1, 0);
         info.rest_pose[index] = 1;
     }

@@ -200,8 +200,13 @@ struct MeshFileShape {
 /** A subdivision surface: a cage in a file, or one the scene file holds itself, and how to
  *  refine it. */
 struct SubdivShape {
-    std::string path;                  ///< resolved cage path (OBJ); empty with an inline cage
-    bool sequence = false;             ///< `path` is a pattern: one cage per frame
+    std::string path;       ///< resolved cage path (OBJ); empty with an inline cage
+    bool sequence = false;  ///< `path` is a pattern: one cage per frame
+    /** The rest cage (`rest_mesh`, same topology) whose refinement object-space patterns are
+     *  laid out on; empty: a sequence rests in its cage of frame_start, a single cage in
+     *  itself. */
+    std::string rest_path;
+    FileLoc rest_loc;                  ///< where the rest cage is named
     std::shared_ptr<const Cage> cage;  ///< the cage written in the scene (pbrt's loopsubdiv),
                                        ///< validated by the reader; null: read `path`
     FileLoc loc;                       ///< where the cage is named or written

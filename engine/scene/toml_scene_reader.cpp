@@ -397,26 +397,22 @@ std::string read_mesh_path(const ReadContext& ctx, TableReader& r, bool& sequenc
     return std::filesystem::absolute(p).lexically_normal().string();
 }
 
-/** An object's shape: a mesh file or sequence with its rest pose, or a cage (`subdiv`). */
+/** An object's shape: a mesh file or sequence, or a cage or cage sequence (`subdiv`), with its
+ *  rest pose (`rest_mesh`). */
 ShapeDesc read_shape(const ReadContext& ctx, TableReader& r) {
     bool sequence = false;
     std::string mesh_path = read_mesh_path(ctx, r, sequence);
+    std::string rest_path;
+    if (r.has("rest_mesh")) rest_path = read_file(ctx, r, "rest_mesh");
     if (const toml::table* sub = r.table("subdiv")) {
-        if (r.has("rest_mesh"))
-            throw_error(r.loc("rest_mesh"),
-                        "'rest_mesh' gives a triangle mesh its rest pose; a subdivision cage "
-                        "(with 'subdiv') has none: its object-space patterns follow the cage "
-                        "of each frame");
         SubdivShape s = read_subdiv(ctx, *sub, std::move(mesh_path), r.loc("mesh"));
         s.sequence = sequence;
+        s.rest_path = std::move(rest_path);
+        s.rest_loc = r.loc("rest_mesh");
         return s;
     }
-    MeshFileShape m{std::move(mesh_path), r.loc("mesh"), sequence, {}, {}};
-    if (r.has("rest_mesh")) {
-        m.rest_path = read_file(ctx, r, "rest_mesh");
-        m.rest_loc = r.loc("rest_mesh");
-    }
-    return m;
+    return MeshFileShape{std::move(mesh_path), r.loc("mesh"), sequence, std::move(rest_path),
+                         r.loc("rest_mesh")};
 }
 
 /** One [[object]] table: its mesh or cage, material, placement, keys and emission. */

@@ -268,6 +268,7 @@ struct Writer {
         if (!creases.empty()) t += fmt::format(", creases = [{}]", fmt::join(creases, ", "));
         if (!corners.empty()) t += fmt::format(", corners = [{}]", fmt::join(corners, ", "));
         line("mesh", s.cage ? inline_cage(*s.cage) : path(s.path));
+        if (!s.rest_path.empty()) line("rest_mesh", path(s.rest_path));
         line("subdiv", t + " }");
     }
 

@@ -343,6 +343,52 @@ TEST(DeformingMesh, WithARestPoseTheFlakesMoveWithTheSurface) {
     EXPECT_LT(glint_correlation(first, second, 0), 0.2);
 }
 
+/** A cage of n x n quads over [-2, 2]^2 at z = 0, moved by `move`. */
+template <class Move>
+Cage quad_cage(int n, const Move& move) {
+    const TriangleMesh m = grid(n, move);
+    Cage c;
+    c.positions = m.positions;
+    const auto v = [n](int i, int j) { return j * (n + 1) + i; };
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            c.face_sizes.push_back(4);
+            c.face_vertices.insert(c.face_vertices.end(),
+                                   {v(i, j), v(i + 1, j), v(i + 1, j + 1), v(i, j + 1)});
+        }
+    return c;
+}
+
+// A cage sequence: each frame refines its own cage, and the rest cage (here frame_start's) is
+// refined alike, so the object-space inputs are those of the refined rest surface.
+TEST(DeformingMesh, ACageSequenceRefinesEachFrameWithItsRestPose) {
+    test::TempDir dir("deform_cages");
+    constexpr int kShift = 4;
+    const float dx = kShift * kPixel;
+    write_obj_cage(quad_cage(3, [](Vec3 p) { return p; }), dir.file("cage.1.obj"), "test");
+    write_obj_cage(quad_cage(3, [dx](Vec3 p) { return p + Vec3(dx, 0, 0); }),
+                   dir.file("cage.2.obj"), "test");
+    write_obj_cage(quad_cage(2, [](Vec3 p) { return p; }), dir.file("cage.3.obj"), "test");
+    const std::string scene = dir.file("scene.toml");
+    std::ofstream(scene) << plane_scene("mesh = \"cage.#.obj\"\nsubdiv = { level = 2 }");
+    Session session = layer_session();
+    const Rendered first = render_at(session, scene, 1);
+    const Rendered second = render_at(session, scene, 2);
+    for (int y = 8; y < 40; y += 8)
+        for (int x = 8; x < 40; x += 8)
+            EXPECT_NEAR(second.at("Pobj.X", x + kShift, y), first.at("Pobj.X", x, y),
+                        0.25f * kPixel);
+    try {
+        session.load_frame(scene, 3);
+        FAIL() << "a cage of 4 faces passed for one of 9";
+    } catch (const SpangleError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find(scene + ":29:8: error:"), std::string::npos) << what;
+        EXPECT_NE(what.find("cage.3.obj"), std::string::npos) << what;
+        EXPECT_NE(what.find("cage.1.obj"), std::string::npos) << what;
+    }
+}
+
 TEST(DeformingMesh, ConvertWritesThePatternAndTheRestMeshBack) {
     test::TempDir dir("deform_convert");
     write_ply(grid(2, [](Vec3 p) { return p; }), dir.file("plane.0001.ply"), "test");
