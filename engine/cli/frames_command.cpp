@@ -17,16 +17,6 @@
 namespace spangle {
 namespace {
 
-/** Loads the scene at frame f's time (known once a first load has read frame_start and fps:
- *  the first frame loads twice when its time is not 0). */
-ReloadReport load_frame(Session& session, const std::string& scene, int64_t f) {
-    const double time = session.has_scene() ? frame_time(session.info(), f) : 0.0;
-    ReloadReport rep = session.load(scene, time);
-    if (rep.first && frame_time(session.info(), f) != time)
-        rep = session.load(scene, frame_time(session.info(), f));
-    return rep;
-}
-
 /** The line of a written frame: its time, how long it took, the systems that ran. */
 void print_frame_line(const Session& session, int64_t f, double seconds, const ReloadReport& rep,
                       const std::string& exr) {
@@ -46,7 +36,7 @@ int run_frames(const RenderArgs& a) {
     session.options().stop = stop_requested;
     for (int64_t f = first; f <= last; ++f) {
         const auto t0 = std::chrono::steady_clock::now();
-        const ReloadReport rep = load_frame(session, a.scene, f);
+        const ReloadReport rep = session.load_frame(a.scene, f);
         if (f == first) {
             s.out.check_view(session.color());
             if (!session.info().animated)

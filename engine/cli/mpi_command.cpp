@@ -135,11 +135,10 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
         const int64_t f = frame.first;
         const bool numbered = frame.second;
         together(job, [&] {
-            const double time =
-                numbered && session->has_scene() ? frame_time(session->info(), f) : 0.0;
-            const ReloadReport rep = session->load(a.scene, time);
-            if (numbered && rep.first && frame_time(session->info(), f) != time)
-                session->load(a.scene, frame_time(session->info(), f));
+            if (numbered)
+                session->load_frame(a.scene, f);
+            else
+                session->load(a.scene, 0.0);
             if (job.rank() == 0 && f == frames.front().first) {
                 out.check_view(session->color());
                 warn_if_no_chromaticities(log, session->color());

@@ -46,6 +46,14 @@ void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t fra
             for (int r = 0; r < 3; ++r)
                 xf.insert(xf.end(), {a.m[r][0], a.m[r][1], a.m[r][2], a.t[r]});
         o.float_vectors.emplace_back("spangle:objectToWorld", std::move(xf));
+        // Which objects deform: their Pobj is the rest pose's, the same at the same spot of the
+        // surface in every frame.
+        if (!d.info->rest_pose.empty()) {
+            std::vector<float> rest(d.info->object_to_world.size(), 0.0f);
+            for (std::size_t k = 0; k < d.info->rest_pose.size() && k < rest.size(); ++k)
+                rest[k] = static_cast<float>(d.info->rest_pose[k]);
+            o.float_vectors.emplace_back("spangle:restPose", std::move(rest));
+        }
     }
 }
 

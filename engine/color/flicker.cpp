@@ -8,7 +8,9 @@
 #include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfTestFile.h>
 
+#include <algorithm>
 #include <cmath>
+#include <utility>
 
 #include "core/error.h"
 
@@ -25,7 +27,12 @@ struct Frame {
      *  placement in this frame (spangle:objectToWorld, 12 floats each); empty when the frame
      *  lacks them (rendered before Spangle wrote them). */
     std::vector<float> ox, oy, oz, object, object_to_world;
+    /** Per object: 1 when its Pobj is the position in its rest pose (a deforming mesh,
+     *  spangle:restPose); empty when the frame does not say (no object deforms). */
+    std::vector<float> rest_pose;
     bool has_objects() const { return !object.empty() && !object_to_world.empty(); }
+    /** Whether object k (from 0) deforms: its points are found by their rest position. */
+    bool deforms(std::size_t k) const { return k < rest_pose.size() && rest_pose[k] > 0.5f; }
 };
 
 Frame read_frame(const std::string& path) {
@@ -60,6 +67,9 @@ Frame read_frame(const std::string& path) {
         const auto* xf = h.findTypedAttribute<Imf::FloatVectorAttribute>("spangle:objectToWorld");
         if (xf && h.channels().findChannel("object")) {
             f.object_to_world = xf->value();
+            if (const auto* rest =
+                    h.findTypedAttribute<Imf::FloatVectorAttribute>("spangle:restPose"))
+                f.rest_pose = rest->value();
             const std::pair<const char*, std::vector<float>*> objs[] = {
                 {"Pobj.X", &f.ox}, {"Pobj.Y", &f.oy}, {"Pobj.Z", &f.oz}, {"object", &f.object}};
             for (const auto& [name, buf] : objs) {
@@ -84,6 +94,142 @@ Frame read_frame(const std::string& path) {
     }
 }
 
+/** Pixel index of (x, y) in `f`. */
+std::size_t pixel(const Frame& f, int x, int y) {
+    return static_cast<std::size_t>(y) * static_cast<std::size_t>(f.width) +
+           static_cast<std::size_t>(x);
+}
+
+/** Squared distance between the Pobj of pixel i of `a` and pixel j of `b`. */
+float pobj_distance2(const Frame& a, std::size_t i, const Frame& b, std::size_t j) {
+    const float dx = b.ox[j] - a.ox[i], dy = b.oy[j] - a.oy[i], dz = b.oz[j] - a.oz[i];
+    return dx * dx + dy * dy + dz * dz;
+}
+
+/** Where `b` shows the point of a deforming object that pixel i of `a` shows: the pixel of the
+ *  same object whose rest position (Pobj) is nearest to it, searched within kDeformSearch
+ *  pixels of (bx, by) (where the point was, seen from b's camera). Accepted when it lies within
+ *  the pixel's own size in the rest pose (3/4 of the larger distance to its neighbours' rest
+ *  positions, measured to the covered neighbours of the same object): the same point up to the
+ *  pixel's width. */
+bool find_rest_point(const Frame& a, std::size_t i, const Frame& b, int bx, int by, float id,
+                     std::size_t& j) {
+    constexpr int kDeformSearch = 8;
+    float best = INFINITY;
+    for (int y = std::max(0, by - kDeformSearch); y <= std::min(b.height - 1, by + kDeformSearch);
+         ++y)
+        for (int x = std::max(0, bx - kDeformSearch);
+             x <= std::min(b.width - 1, bx + kDeformSearch); ++x) {
+            const std::size_t c = pixel(b, x, y);
+            if (!(b.a[c] > 0.999f) || std::round(b.object[c]) != std::round(id)) continue;
+            const float d2 = pobj_distance2(a, i, b, c);
+            if (d2 < best) {
+                best = d2;
+                j = c;
+            }
+        }
+    if (!std::isfinite(best)) return false;
+    const int jx = static_cast<int>(j % static_cast<std::size_t>(b.width));
+    const int jy = static_cast<int>(j / static_cast<std::size_t>(b.width));
+    float spacing2 = 0.0f;
+    for (const auto& [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}}) {
+        const int x = jx + dx, y = jy + dy;
+        if (x < 0 || y < 0 || x >= b.width || y >= b.height) continue;
+        const std::size_t c = pixel(b, x, y);
+        if (!(b.a[c] > 0.999f) || std::round(b.object[c]) != std::round(id)) continue;
+        spacing2 = std::max(spacing2, pobj_distance2(b, j, b, c));
+    }
+    // The nearest pixel centre lies within half a pixel's diagonal (0.71 of its width).
+    return best <= 0.75f * 0.75f * spacing2;
+}
+
+/** The glint-mask threshold when none is given: 4 x the mean glint luminance over the covered
+ *  pixels of all frames (1 when none is covered). */
+double default_threshold(const std::vector<Frame>& frames) {
+    double sum = 0.0, count = 0.0;
+    for (const Frame& f : frames)
+        for (std::size_t i = 0; i < f.glint.size(); ++i)
+            if (f.a[i] > 0.999f && std::isfinite(f.glint[i])) {
+                sum += static_cast<double>(f.glint[i]);
+                count += 1.0;
+            }
+    return count > 0.0 ? 4.0 * sum / count : 1.0;
+}
+
+/** The glints of `f`: pixels brighter than `threshold` and than 3 times the mean of their 5x5
+ *  neighbourhood (a sparkle; a broad highlight, bright whatever the flakes, is not a glint). */
+std::vector<uint8_t> glint_mask(const Frame& f, double threshold) {
+    std::vector<uint8_t> m(f.glint.size(), 0);
+    for (int y = 0; y < f.height; ++y)
+        for (int x = 0; x < f.width; ++x) {
+            const std::size_t i = pixel(f, x, y);
+            const double g = f.glint[i];
+            if (!(g > threshold)) continue;
+            double sum = 0.0;
+            int n = 0;
+            for (int dy = -2; dy <= 2; ++dy)
+                for (int dx = -2; dx <= 2; ++dx) {
+                    const int xx = x + dx, yy = y + dy;
+                    if (xx < 0 || yy < 0 || xx >= f.width || yy >= f.height) continue;
+                    const float v = f.glint[pixel(f, xx, yy)];
+                    if (std::isfinite(v)) {
+                        sum += static_cast<double>(v);
+                        ++n;
+                    }
+                }
+            m[i] = g > 3.0 * sum / n ? 1 : 0;
+        }
+    return m;
+}
+
+/** Pixel j of `b` that shows the surface point pixel i of `a` shows, when there is one: the
+ *  point carried by its object when the frames say where objects stand (`objects`: a turning
+ *  object), found by its rest position on an object that deforms in both, else where it was (a
+ *  still one); then projected with b's camera and checked to be the same point. */
+bool next_pixel(const Frame& a, const Frame& b, std::size_t i, bool objects, std::size_t& j) {
+    Imath::V3f w(a.px[i], a.py[i], a.pz[i]);
+    float id = 0.0f;
+    bool deforming = false;
+    if (objects) {
+        id = a.object[i];
+        const float k_obj = std::round(id) - 1.0f;
+        // A pixel shared by objects has no one number: skipped when its average is not a whole
+        // number (halves of objects 1 and 3 average to 2: such a pixel fails the same-point
+        // test below instead).
+        if (!(std::fabs(id - std::round(id)) < 1e-3f && k_obj >= 0.0f &&
+              12.0f * (k_obj + 1.0f) <= static_cast<float>(b.object_to_world.size())))
+            return false;
+        const auto obj = static_cast<std::size_t>(k_obj);
+        // A deforming object's point is searched for from where it was (its world position in
+        // this frame); a rigid one's is carried by its placement.
+        deforming = a.deforms(obj) && b.deforms(obj);
+        const float* m = &b.object_to_world[12 * obj];
+        const Imath::V3f q(a.ox[i], a.oy[i], a.oz[i]);
+        for (int r = 0; r < 3 && !deforming; ++r)
+            w[r] = m[4 * r] * q.x + m[4 * r + 1] * q.y + m[4 * r + 2] * q.z + m[4 * r + 3];
+    }
+    // Where it lies in the next frame's image (row vectors, divide by w).
+    const Imath::V4f p(w.x, w.y, w.z, 1.0f);
+    const Imath::V4f q = p * b.world_to_ndc;
+    if (!(q.w > 0.0f)) return false;
+    const float nx = q.x / q.w, ny = q.y / q.w;
+    if (!(nx >= 0.0f && nx < 1.0f && ny >= 0.0f && ny < 1.0f)) return false;
+    const auto bx = static_cast<int>(nx * static_cast<float>(b.width));
+    const auto by = static_cast<int>(ny * static_cast<float>(b.height));
+    j = pixel(b, bx, by);
+    if (deforming) {
+        // A deforming object's point moved on the object: found by its rest pose.
+        if (!find_rest_point(a, i, b, bx, by, id, j)) return false;
+    } else {
+        if (!(b.a[j] > 0.999f)) return false;
+        // The same point (of the same object), not something in front of it.
+        if (objects && std::round(b.object[j]) != std::round(id)) return false;
+        const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
+        if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) return false;
+    }
+    return true;
+}
+
 }  // namespace
 
 FlickerReport measure_flicker(const std::vector<std::string>& paths, double threshold) {
@@ -99,47 +245,10 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                         frames.front().width, frames.front().height);
     }
     FlickerReport rep;
-    if (threshold <= 0.0) {
-        double sum = 0.0, count = 0.0;
-        for (const Frame& f : frames)
-            for (std::size_t i = 0; i < f.glint.size(); ++i)
-                if (f.a[i] > 0.999f && std::isfinite(f.glint[i])) {
-                    sum += static_cast<double>(f.glint[i]);
-                    count += 1.0;
-                }
-        threshold = count > 0.0 ? 4.0 * sum / count : 1.0;
-    }
-    rep.threshold = threshold;
-    // A glint is a sparkle: brighter than the threshold and than 3 times the mean of its 5x5
-    // neighbourhood (a broad highlight, bright whatever the flakes, is not a glint).
+    rep.threshold = threshold > 0.0 ? threshold : default_threshold(frames);
+    threshold = rep.threshold;
     std::vector<std::vector<uint8_t>> masks;
-    for (const Frame& f : frames) {
-        std::vector<uint8_t> m(f.glint.size(), 0);
-        for (int y = 0; y < f.height; ++y)
-            for (int x = 0; x < f.width; ++x) {
-                const std::size_t i =
-                    static_cast<std::size_t>(y) * static_cast<std::size_t>(f.width) +
-                    static_cast<std::size_t>(x);
-                const double g = f.glint[i];
-                if (!(g > threshold)) continue;
-                double sum = 0.0;
-                int n = 0;
-                for (int dy = -2; dy <= 2; ++dy)
-                    for (int dx = -2; dx <= 2; ++dx) {
-                        const int xx = x + dx, yy = y + dy;
-                        if (xx < 0 || yy < 0 || xx >= f.width || yy >= f.height) continue;
-                        const float v = f.glint[static_cast<std::size_t>(yy) *
-                                                    static_cast<std::size_t>(f.width) +
-                                                static_cast<std::size_t>(xx)];
-                        if (std::isfinite(v)) {
-                            sum += static_cast<double>(v);
-                            ++n;
-                        }
-                    }
-                m[i] = g > 3.0 * sum / n ? 1 : 0;
-            }
-        masks.push_back(std::move(m));
-    }
+    for (const Frame& f : frames) masks.push_back(glint_mask(f, threshold));
     double diff = 0.0, coverage = 0.0, rel_num = 0.0, rel_den = 0.0, kept = 0.0, glints = 0.0;
     for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
         const Frame& a = frames[k];
@@ -153,41 +262,8 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                     static_cast<std::size_t>(y) * static_cast<std::size_t>(a.width) +
                     static_cast<std::size_t>(x);
                 if (!(a.a[i] > 0.999f)) continue;  // only pixels wholly on a surface
-                // The surface point in the next frame: carried by its object when the frames
-                // say where objects stand (a turning object), else where it was (a still one).
-                Imath::V3f w(a.px[i], a.py[i], a.pz[i]);
-                float id = 0.0f;
-                if (objects) {
-                    id = a.object[i];
-                    const float k_obj = std::round(id) - 1.0f;
-                    // A pixel shared by objects has no one number: skipped when its average is
-                    // not a whole number (halves of objects 1 and 3 average to 2: such a pixel
-                    // fails the same-point test below instead).
-                    if (!(std::fabs(id - std::round(id)) < 1e-3f && k_obj >= 0.0f &&
-                          12.0f * (k_obj + 1.0f) <= static_cast<float>(b.object_to_world.size())))
-                        continue;
-                    const float* m = &b.object_to_world[12 * static_cast<std::size_t>(k_obj)];
-                    const Imath::V3f q(a.ox[i], a.oy[i], a.oz[i]);
-                    for (int r = 0; r < 3; ++r)
-                        w[r] =
-                            m[4 * r] * q.x + m[4 * r + 1] * q.y + m[4 * r + 2] * q.z + m[4 * r + 3];
-                }
-                // Where it lies in the next frame's image (row vectors, divide by w).
-                const Imath::V4f p(w.x, w.y, w.z, 1.0f);
-                const Imath::V4f q = p * b.world_to_ndc;
-                if (!(q.w > 0.0f)) continue;
-                const float nx = q.x / q.w, ny = q.y / q.w;
-                if (!(nx >= 0.0f && nx < 1.0f && ny >= 0.0f && ny < 1.0f)) continue;
-                const auto bx = static_cast<int>(nx * static_cast<float>(b.width));
-                const auto by = static_cast<int>(ny * static_cast<float>(b.height));
-                const std::size_t j =
-                    static_cast<std::size_t>(by) * static_cast<std::size_t>(b.width) +
-                    static_cast<std::size_t>(bx);
-                if (!(b.a[j] > 0.999f)) continue;
-                // The same point (of the same object), not something in front of it.
-                if (objects && std::round(b.object[j]) != std::round(id)) continue;
-                const float dx = b.px[j] - w.x, dy = b.py[j] - w.y, dz = b.pz[j] - w.z;
-                if (!(std::sqrt(dx * dx + dy * dy + dz * dz) <= 0.01f * b.z[j])) continue;
+                std::size_t j = 0;
+                if (!next_pixel(a, b, i, objects, j)) continue;
                 const double ga = a.glint[i], gb = b.glint[j];
                 if (!std::isfinite(ga) || !std::isfinite(gb)) continue;
                 rep.pixels += 1.0;

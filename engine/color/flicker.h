@@ -4,8 +4,9 @@
 // its object (the Pobj and object layers and the next frame's spangle:objectToWorld placements,
 // so a turning object is followed) and projected with the next frame's worldToNDC matrix, all
 // written by `spangle render --layers`; frames without the object layers use the world P layer
-// (right for a moving camera only). Glints that are fixed to the surface land on glints; a
-// per-frame random realisation does not.
+// (right for a moving camera only). A deforming object's points (spangle:restPose: its Pobj is
+// the rest pose's position) are found where the next frame shows the same rest position.
+// Glints that are fixed to the surface land on glints; a per-frame random realisation does not.
 
 #include <string>
 #include <vector>
@@ -30,7 +31,9 @@ struct FlickerReport {
  *  (<= 0: 4 x the mean over covered pixels of all frames) and 3 x the mean of its 5x5
  *  neighbourhood (a sparkle, not a broad highlight).
  *  A pixel is compared when its surface point projects inside the next frame and the next frame
- *  sees the same point there (positions within 1% of the depth; the same object). Throws
+ *  sees the same point there (positions within 1% of the depth; the same object), or, on an
+ *  object that deforms in both frames, when a pixel of the same object within 8 pixels of
+ *  where it projects shows its rest position (within 3/4 of that pixel's size). Throws
  *  SpangleError. */
 FlickerReport measure_flicker(const std::vector<std::string>& frames, double threshold = 0.0);
 

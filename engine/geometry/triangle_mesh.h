@@ -16,12 +16,19 @@ struct TriangleMesh {
     std::vector<float> normals;     ///< xyz per vertex (unit), or empty: use face normals
     std::vector<float> uvs;         ///< uv per vertex, or empty: uv from barycentrics
     std::vector<uint32_t> indices;  ///< three per triangle, each < vertex_count()
-    std::string source;             ///< file it came from, for messages
+    /** xyz per vertex of the rest pose (geometry/rest_pose.h), object space; empty: the mesh is
+     *  its own rest pose. Object-space shading inputs are taken from it. */
+    std::vector<float> rest_positions;
+    std::string source;  ///< file it came from, for messages
 
     std::size_t vertex_count() const { return positions.size() / 3; }
     std::size_t triangle_count() const { return indices.size() / 3; }
     Vec3 position(uint32_t i) const {
         return {positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]};
+    }
+    /** Vertex i in the rest pose (only when rest_positions is not empty). */
+    Vec3 rest_position(uint32_t i) const {
+        return {rest_positions[3 * i], rest_positions[3 * i + 1], rest_positions[3 * i + 2]};
     }
     /** The share of the surface (by area) whose uvs map its triangles to a non-zero uv area: 0
      *  without uvs, or with uvs that are all zero (as exported by some tools). */

@@ -59,9 +59,10 @@ void add_scene_facts(const Session& session, FrameResult& r) {
         for (const Instance& inst : g->instances)
             r.triangles += g->geometry.mesh(inst.mesh).triangle_count();
         for (const auto& mesh : g->geometry.meshes)
-            r.mesh_bytes += sizeof(float) * (mesh->positions.capacity() + mesh->normals.capacity() +
-                                             mesh->uvs.capacity()) +
-                            sizeof(uint32_t) * mesh->indices.capacity();
+            r.mesh_bytes +=
+                sizeof(float) * (mesh->positions.capacity() + mesh->normals.capacity() +
+                                 mesh->uvs.capacity() + mesh->rest_positions.capacity()) +
+                sizeof(uint32_t) * mesh->indices.capacity();
         r.accel_bytes = g->accel->bytes();
         r.accel_peak_bytes = g->accel->peak_bytes();
     }

@@ -8,6 +8,7 @@
 
 #include "core/files.h"
 #include "geometry/mesh_load.h"
+#include "geometry/rest_pose.h"
 #include "pipeline/systems.h"
 
 namespace spangle {
@@ -15,7 +16,29 @@ namespace {
 
 namespace fs = std::filesystem;
 
-/** The meshes of the mesh files, one per distinct file, referenced from their objects. */
+/** The mesh in `path` (named at `loc`), from the cache when the file has not changed. */
+std::shared_ptr<const TriangleMesh> cached_mesh(World& w, const std::string& path,
+                                                const FileLoc& loc) {
+    w.read_file("mesh", path);
+    return build_cached(
+        w.cache, &BuildCache::meshes, "meshes", [&] { return "mesh|" + file_identity(path); },
+        [&] { return std::make_shared<const TriangleMesh>(load_mesh(path, loc)); }, "mesh " + path);
+}
+
+/** `mesh` (of f.path) with the rest pose in f.rest (geometry/rest_pose.h), cached by both
+ *  files' identities so that a reload that changes neither keeps the very same mesh (and its
+ *  BVH). */
+std::shared_ptr<const TriangleMesh> posed_mesh(World& w, std::shared_ptr<const TriangleMesh> mesh,
+                                               const MeshFile& f) {
+    const std::shared_ptr<const TriangleMesh> rest = cached_mesh(w, f.rest, f.rest_loc);
+    return build_cached(
+        w.cache, &BuildCache::meshes, "meshes",
+        [&] { return "posed|" + file_identity(f.path) + "|" + file_identity(f.rest); },
+        [&] { return with_rest_pose(mesh, *rest, f.loc); }, "");
+}
+
+/** The meshes of the mesh files, one per distinct file (and rest pose), referenced from their
+ *  objects. */
 void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
                      std::vector<std::pair<ecs::Entity, uint32_t>>& refs) {
     auto* pool = r.find_pool<MeshFile>();
@@ -38,20 +61,16 @@ void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
     };
     report();
     for (std::size_t i = 0; i < pool->size(); ++i) {
-        const std::string& path = pool->columns().path[i];
-        auto it = loaded.find(path);
+        const MeshFile f = pool->columns().get(i);
+        // A mesh with a rest pose is its own mesh: the same file without one is shared apart.
+        const std::string key = f.rest.empty() ? f.path : f.path + '\n' + f.rest;
+        auto it = loaded.find(key);
         if (it == loaded.end()) {
-            w.read_file("mesh", path);
-            out.meshes.push_back(build_cached(
-                w.cache, &BuildCache::meshes, "meshes",
-                [&] { return "mesh|" + file_identity(path); },
-                [&] {
-                    return std::make_shared<const TriangleMesh>(
-                        load_mesh(path, pool->columns().loc[i]));
-                },
-                "mesh " + path));
-            it = loaded.emplace(path, static_cast<uint32_t>(out.meshes.size() - 1)).first;
-            done += sizes[path];
+            std::shared_ptr<const TriangleMesh> mesh = cached_mesh(w, f.path, f.loc);
+            if (!f.rest.empty()) mesh = posed_mesh(w, std::move(mesh), f);
+            out.meshes.push_back(std::move(mesh));
+            it = loaded.emplace(key, static_cast<uint32_t>(out.meshes.size() - 1)).first;
+            done += sizes[f.path];
             report();
         }
         refs.emplace_back(pool->entities()[i], it->second);
@@ -159,6 +178,32 @@ std::shared_ptr<const Cage> reuse_inline_cage(World& w, std::string& key,
     return cage;
 }
 
+/** `mesh`, the refinement (cache key `key`) of `cage`, the cage of surface `s`, with the rest
+ *  pose of s.rest refined with the same options (geometry/rest_pose.h): the rest cage must have
+ *  the cage's topology, and then its refinement has the mesh's. */
+std::shared_ptr<const TriangleMesh> posed_refinement(World& w, const SubdivSurface& s,
+                                                     const Cage& cage, const SubdivOptions& options,
+                                                     const std::string& key,
+                                                     std::shared_ptr<const TriangleMesh> mesh) {
+    w.read_file("cage", s.rest);
+    const std::string rest_file = w.cache ? file_identity(s.rest) : std::string();
+    const std::shared_ptr<const Cage> rest_cage = build_cached(
+        w.cache, &BuildCache::cages, "cages", [&] { return "cage|" + rest_file; },
+        [&] { return std::make_shared<const Cage>(load_cage(s.rest, s.rest_loc)); }, "");
+    check_same_topology(cage, *rest_cage, s.loc);
+    const std::shared_ptr<const TriangleMesh> rest = build_cached(
+        w.cache, &BuildCache::meshes, "subdivided meshes",
+        [&] { return subdiv_key(rest_file, options); },
+        [&] {
+            return std::make_shared<const TriangleMesh>(subdivide(*rest_cage, options, s.rest_loc));
+        },
+        fmt::format("subdivision of {} at level {}", s.rest, options.level));
+    return build_cached(
+        w.cache, &BuildCache::meshes, "subdivided meshes",
+        [&] { return "posed|" + key + "|" + rest_file; },
+        [&] { return with_rest_pose(mesh, *rest, s.loc); }, "");
+}
+
 void system_subdivide(ecs::Registry& r, World& w) {
     auto& pool = r.pool<SubdivSurface>();
     // The camera decides "auto" levels: a far object is not tessellated as finely as a near one.
@@ -204,7 +249,7 @@ void system_subdivide(ecs::Registry& r, World& w) {
                        : s.max_level;
         }
         rep.level = options.level;
-        const std::shared_ptr<const TriangleMesh> mesh = build_cached(
+        std::shared_ptr<const TriangleMesh> mesh = build_cached(
             w.cache, &BuildCache::meshes, "subdivided meshes",
             [&] { return subdiv_key(file, options); },
             [&] {
@@ -214,6 +259,8 @@ void system_subdivide(ecs::Registry& r, World& w) {
                               fmt::format("subdividing {} at level {}", s.path, options.level)));
             },
             fmt::format("subdivision of {} at level {}", s.path, options.level));
+        if (!s.rest.empty())
+            mesh = posed_refinement(w, s, *cage, options, subdiv_key(file, options), mesh);
         rep.triangles = mesh->triangle_count();
         out.meshes.push_back(mesh);
         rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

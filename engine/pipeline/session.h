@@ -52,6 +52,10 @@ public:
      *  the scene's frame_start, where its keyframes are evaluated (an animation renders frame
      *  after frame through one session: only what moved is rebuilt). */
     ReloadReport load(const std::string& scene, double time = 0.0);
+    /** Reads `scene` and makes frame `frame` of its animation live: its keys and its
+     *  sequences' files at that frame's time, (frame - frame_start) / fps after frame_start,
+     *  from the file's own frame range (read once: no first load at another time). */
+    ReloadReport load_frame(const std::string& scene, int64_t frame);
     /** The same for a scene already read (or made by a program: no file behind it but the
      *  ones it names). */
     ReloadReport load(const SceneDescription& scene, double time = 0.0);

@@ -141,11 +141,12 @@ void resolve_surfaces(const RenderJob& job, Workspace& ws, Sink& sink, uint32_t 
         Instance moved;
         if (!placed.motion.empty()) moved = instance_at(placed, p.time[k]);
         const Instance& inst = placed.motion.empty() ? placed : moved;
-        p.surf[k] = surface_at(w.geometry->mesh(inst.mesh), inst, hit, p.ray[k].d);
+        const TriangleMesh& mesh = w.geometry->mesh(inst.mesh);
+        p.surf[k] = surface_at(mesh, inst, hit, p.ray[k].d);
         if (bounce == 0) sink.first_surface(k, p.surf[k].p_obj, inst.object);
         bool has_diff = p.has_diff[k] != 0;
         footprint_at(p.surf[k], p.ray[k], has_diff, p.fp_width[k] + p.fp_spread[k] * hit.t);
-        object_footprint(p.surf[k], inst);
+        object_footprint(p.surf[k], inst, mesh, hit.prim);
         p.has_diff[k] = has_diff ? 1 : 0;
         p.material[k] = inst.material;
         ++ws.group_start[inst.material + 1];

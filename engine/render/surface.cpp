@@ -24,9 +24,13 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     const Vec3 p2 = inst.to_world.apply_point(mesh.position(i2));
     SurfacePoint sp;
     sp.p = p0 * b0 + p1 * h.b1 + p2 * h.b2;
-    // The same point in object space, for patterns fixed to the object.
+    // The same point in object space, for patterns fixed to the object: on a deforming mesh,
+    // the point of its rest pose with the same barycentrics.
     {
-        const Vec3 q0 = mesh.position(i0), q1 = mesh.position(i1), q2 = mesh.position(i2);
+        const bool rest = !mesh.rest_positions.empty();
+        const Vec3 q0 = rest ? mesh.rest_position(i0) : mesh.position(i0);
+        const Vec3 q1 = rest ? mesh.rest_position(i1) : mesh.position(i1);
+        const Vec3 q2 = rest ? mesh.rest_position(i2) : mesh.position(i2);
         sp.p_obj = q0 * b0 + q1 * h.b1 + q2 * h.b2;
         const Vec3 nq = cross(q1 - q0, q2 - q0);
         const float len = length(nq);
@@ -111,6 +115,29 @@ bool solve_uv(const SurfacePoint& sp, Vec3 dpx, Vec3 dpy, float& dux, float& dvx
     return std::isfinite(dux) && std::isfinite(dvx) && std::isfinite(duy) && std::isfinite(dvy);
 }
 
+/** Carries sp's object-space footprint axes from the deformed triangle `prim` to its rest
+ *  pose: the affine map of the triangle that takes the deformed edges e1, e2 to the rest edges
+ *  r1, r2. An axis v = a e1 + b e2 (least squares: the axes lie in the triangle's plane up to
+ *  rounding) becomes a r1 + b r2. A degenerate deformed triangle leaves the axes as they are. */
+void rest_footprint(SurfacePoint& sp, const TriangleMesh& mesh, uint32_t prim) {
+    const uint32_t* i = &mesh.indices[3 * static_cast<std::size_t>(prim)];
+    const Vec3 q0 = mesh.position(i[0]);
+    const Vec3 e1 = mesh.position(i[1]) - q0, e2 = mesh.position(i[2]) - q0;
+    const Vec3 r0 = mesh.rest_position(i[0]);
+    const Vec3 r1 = mesh.rest_position(i[1]) - r0, r2 = mesh.rest_position(i[2]) - r0;
+    const double a = dot(e1, e1), b = dot(e1, e2), c = dot(e2, e2);
+    const double det = a * c - b * b;
+    if (!(det > 1e-30 * a * c)) return;
+    const auto to_rest = [&](Vec3 v) {
+        const double p = dot(e1, v), q = dot(e2, v);
+        const auto x = static_cast<float>((c * p - b * q) / det);
+        const auto y = static_cast<float>((a * q - b * p) / det);
+        return r1 * x + r2 * y;
+    };
+    sp.dpdx_obj = to_rest(sp.dpdx_obj);
+    sp.dpdy_obj = to_rest(sp.dpdy_obj);
+}
+
 }  // namespace
 
 void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, float widened) {
@@ -139,9 +166,11 @@ void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, 
     sp.dudy = sp.dvdx = 0.0f;
 }
 
-void object_footprint(SurfacePoint& sp, const Instance& inst) {
+void object_footprint(SurfacePoint& sp, const Instance& inst, const TriangleMesh& mesh,
+                      uint32_t prim) {
     sp.dpdx_obj = inst.to_object.apply_vector(sp.dpdx);
     sp.dpdy_obj = inst.to_object.apply_vector(sp.dpdy);
+    if (!mesh.rest_positions.empty()) rest_footprint(sp, mesh, prim);
 }
 
 }  // namespace spangle

@@ -21,8 +21,10 @@ struct SurfacePoint {
     Vec3 dpdx, dpdy;                               ///< footprint axes on the surface (world)
     float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;  ///< footprint axes in uv
     float footprint = 0;                           ///< world width of the footprint
-    bool has_uv = false;      ///< the mesh has uvs here and they map the triangle to an area
-    Vec3 p_obj, ng_obj;       ///< position and (unit) geometric normal in object space
+    bool has_uv = false;  ///< the mesh has uvs here and they map the triangle to an area
+    /** Position and (unit) geometric normal in object space; on a mesh with a rest pose, in
+     *  the rest pose (the same barycentrics on the rest triangle). */
+    Vec3 p_obj, ng_obj;
     Vec3 dpdx_obj, dpdy_obj;  ///< footprint axes in object space (set by object_footprint)
 };
 
@@ -38,7 +40,10 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
  *  dp/du and dp/dv. */
 void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, float widened);
 
-/** Fills sp's object-space footprint axes from its world ones (after footprint_at). */
-void object_footprint(SurfacePoint& sp, const Instance& inst);
+/** Fills sp's object-space footprint axes from its world ones (after footprint_at), for a hit
+ *  on triangle `prim` of `mesh` placed by `inst`. On a mesh with a rest pose the axes are those
+ *  of the rest pose: carried through the triangle's deformed-to-rest affine map. */
+void object_footprint(SurfacePoint& sp, const Instance& inst, const TriangleMesh& mesh,
+                      uint32_t prim);
 
 }  // namespace spangle

@@ -77,10 +77,13 @@ SPANGLE_COMPONENT(Transform, SPANGLE_TRANSFORM_FIELDS);
  *  at the shutter's middle. */
 SPANGLE_COMPONENT(Motion, SPANGLE_MOTION_FIELDS);
 
-#define SPANGLE_MESH_FILE_FIELDS(X)                 \
-    X(std::string, path, "resolved mesh file path") \
-    X(FileLoc, loc, "where the scene names the file")
-/** A mesh to load from an OBJ or PLY file (input of the mesh_load system). */
+#define SPANGLE_MESH_FILE_FIELDS(X)                                                     \
+    X(std::string, path, "resolved mesh file path (a sequence's file of the frame)")    \
+    X(FileLoc, loc, "where the scene names the file")                                   \
+    X(std::string, rest, "the rest pose's file (same topology); empty: the mesh's own") \
+    X(FileLoc, rest_loc, "where the scene names the rest pose (loc for a sequence's own)")
+/** A mesh to load from an OBJ or PLY file (input of the mesh_load system), and the rest pose its
+ *  object-space shading inputs are taken from when it deforms. */
 SPANGLE_COMPONENT(MeshFile, SPANGLE_MESH_FILE_FIELDS);
 
 namespace ecs {
@@ -114,9 +117,12 @@ inline bool same_value(const std::shared_ptr<const Cage>&, const std::shared_ptr
     X(int, max_level, "upper bound of the camera-chosen level")                          \
     X(float, pixel_budget, "camera-chosen level: longest refined edge, in pixels")       \
     X(std::shared_ptr<const Cage>, cage, "a cage the scene file holds itself, or null")  \
-    X(uint64_t, cage_content, "its content hash (cage_content_hash); 0 without one")
+    X(uint64_t, cage_content, "its content hash (cage_content_hash); 0 without one")     \
+    X(std::string, rest, "the rest pose's cage file (same topology); empty: its own")    \
+    X(FileLoc, rest_loc, "where the scene names the rest cage (loc for a sequence's own)")
 /** A subdivision surface to refine (input of the subdivide system): a cage file or a cage the
- *  scene reader made. */
+ *  scene reader made, and the rest cage its object-space shading inputs are taken from when it
+ *  deforms (refined alike). */
 SPANGLE_COMPONENT(SubdivSurface, SPANGLE_SUBDIV_FIELDS);
 
 #define SPANGLE_MATERIAL_FIELDS(X)                                               \

@@ -2,10 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <map>
 #include <utility>
 
 #include "scene/components.h"
+#include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
 
 namespace spangle {
@@ -294,14 +296,63 @@ void build_material(BuildContext& ctx, const MaterialDesc& d) {
     ctx.registry->put(ctx.registry->create(), m);
 }
 
+/** The file of a sequence `pattern` (named at `at`) for `frame`, checked to exist; `what`
+ *  words it for the message ("mesh", "cage"). */
+std::string sequence_file(const std::string& pattern, int64_t frame, const FileLoc& at,
+                          const char* what) {
+    const std::string path = expand_frame_pattern(pattern, frame);
+    std::error_code ec;
+    if (!std::filesystem::is_regular_file(path, ec))
+        throw_error(at, "{} file of frame {} not found (looked for {}, from the sequence {})", what,
+                    frame, path, pattern);
+    return path;
+}
+
+/** The file a mesh or cage is read from and its rest pose. */
+struct PosedFile {
+    std::string path;  ///< the file (a sequence's of the frame)
+    std::string rest;  ///< the rest pose's file; empty: none
+    FileLoc rest_loc;  ///< where the rest pose is named
+};
+
+/** The file of an object's mesh or cage `path` (a pattern when `sequence`, named at `loc`) at
+ *  the frame the scene is evaluated at, and its rest pose: `rest` (named at `rest_loc`), or a
+ *  sequence's file of frame_start (the same in every process and every split of the work).
+ *  `what` words them ("mesh", "cage"). */
+PosedFile posed_file(BuildContext& ctx, const std::string& path, bool sequence,
+                     const std::string& rest, const FileLoc& loc, const FileLoc& rest_loc,
+                     const char* what) {
+    PosedFile f{path, rest, rest_loc};
+    if (!sequence) return f;
+    SceneInfo& info = *ctx.info;
+    info.animated = true;
+    f.path = sequence_file(path, frame_at(info.frame_start, info.fps, info.time), loc, what);
+    if (f.rest.empty()) {
+        f.rest = expand_frame_pattern(path, info.frame_start);
+        f.rest_loc = loc;
+        std::error_code ec;
+        if (!std::filesystem::is_regular_file(f.rest, ec))
+            throw_error(loc,
+                        "{} file of frame_start {} not found (looked for {}): without "
+                        "'rest_mesh' it is the sequence's rest pose; give 'rest_mesh' or that file",
+                        what, info.frame_start, f.rest);
+    }
+    return f;
+}
+
 /** An object's shape as the geometry systems take it. */
 void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
-    if (const auto* mesh = std::get_if<MeshFileShape>(&d.shape)) {
-        ctx.registry->put(e, MeshFile{mesh->path, mesh->loc});
+    if (const auto* m = std::get_if<MeshFileShape>(&d.shape)) {
+        PosedFile f =
+            posed_file(ctx, m->path, m->sequence, m->rest_path, m->loc, m->rest_loc, "mesh");
+        ctx.registry->put(e, MeshFile{std::move(f.path), m->loc, std::move(f.rest), f.rest_loc});
     } else if (const auto* sub = std::get_if<SubdivShape>(&d.shape)) {
         const uint64_t content = sub->cage ? cage_content_hash(*sub->cage) : 0;
-        ctx.registry->put(e, SubdivSurface{sub->path, sub->loc, sub->options, sub->max_level,
-                                           sub->pixel_budget, sub->cage, content});
+        PosedFile f = posed_file(ctx, sub->path, sub->sequence, sub->rest_path, sub->loc,
+                                 sub->rest_loc, "cage");
+        ctx.registry->put(
+            e, SubdivSurface{std::move(f.path), sub->loc, sub->options, sub->max_level,
+                             sub->pixel_budget, sub->cage, content, std::move(f.rest), f.rest_loc});
     } else {
         const auto& in = std::get<InlineMeshShape>(d.shape);
         if (!in.mesh) throw_error(in.loc, "{}: its triangle mesh is missing", d.what);
@@ -385,6 +436,13 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     }
     registry.put(e, Transform{motion.middle});
     info.object_to_world.push_back(motion.middle);
+    const auto* file = std::get_if<MeshFileShape>(&d.shape);
+    const auto* cage = std::get_if<SubdivShape>(&d.shape);
+    if ((file && (file->sequence || !file->rest_path.empty())) ||
+        (cage && (cage->sequence || !cage->rest_path.empty()))) {
+        info.rest_pose.resize(index + 1, 0);
+        info.rest_pose[index] = 1;
+    }
     if (d.emission) {
         const Vec3 le = working_color(ctx, d.emission->color, {0, 0, 0}) *
                         static_cast<float>(d.emission->intensity);

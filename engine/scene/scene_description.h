@@ -183,16 +183,30 @@ struct MatrixKey {
     std::string what;  ///< what messages call the key
 };
 
-/** A triangle mesh in a file (OBJ, PLY). */
+/** A triangle mesh in a file (OBJ, PLY), or a sequence of them, one per frame. */
 struct MeshFileShape {
-    std::string path;  ///< resolved path
-    FileLoc loc;       ///< where it is named
+    /** Resolved path; a sequence's pattern (a run of '#' in its file name, scene/frame_sequence.h)
+     *  when `sequence`: the builder picks the frame's file. */
+    std::string path;
+    FileLoc loc;            ///< where it is named
+    bool sequence = false;  ///< `path` is a pattern: one file per frame
+    /** The rest pose (`rest_mesh`): a mesh of the same topology whose positions object-space
+     *  patterns are laid out on. Empty: a sequence rests in the file of frame_start; a single
+     *  file is its own rest pose. */
+    std::string rest_path;
+    FileLoc rest_loc;  ///< where the rest pose is named
 };
 
 /** A subdivision surface: a cage in a file, or one the scene file holds itself, and how to
  *  refine it. */
 struct SubdivShape {
-    std::string path;                  ///< resolved cage path (OBJ); empty with an inline cage
+    std::string path;       ///< resolved cage path (OBJ); empty with an inline cage
+    bool sequence = false;  ///< `path` is a pattern: one cage per frame
+    /** The rest cage (`rest_mesh`, same topology) whose refinement object-space patterns are
+     *  laid out on; empty: a sequence rests in its cage of frame_start, a single cage in
+     *  itself. */
+    std::string rest_path;
+    FileLoc rest_loc;                  ///< where the rest cage is named
     std::shared_ptr<const Cage> cage;  ///< the cage written in the scene (pbrt's loopsubdiv),
                                        ///< validated by the reader; null: read `path`
     FileLoc loc;                       ///< where the cage is named or written

@@ -49,6 +49,10 @@ struct SceneInfo {
     /** Each [[object]]'s placement (at the shutter's middle), in file order: the render layers'
      *  `object` channel numbers them from 1 and the EXR header carries these. */
     std::vector<Affine> object_to_world;
+    /** Per [[object]], in file order: 1 when it is a deforming mesh with a rest pose (a sequence,
+     *  or a `rest_mesh`), whose Pobj layer is then the position in its rest pose. Empty when no
+     *  object has one. */
+    std::vector<uint8_t> rest_pose;
 };
 
 /** The time of frame f of a scene (in seconds since its frame_start). */

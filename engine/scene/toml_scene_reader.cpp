@@ -3,6 +3,7 @@
 #include <cmath>
 #include <utility>
 
+#include "scene/frame_sequence.h"
 #include "scene/scene_paths.h"
 #include "scene/toml_scene_parts.h"
 
@@ -379,17 +380,48 @@ SubdivShape read_subdiv(const ReadContext& ctx, const toml::table& t, std::strin
     return s;
 }
 
+/** `mesh`: a file, checked to exist, or a sequence's pattern (a run of '#' in the file name,
+ *  scene/frame_sequence.h) made absolute, whose files the builder checks frame by frame. */
+std::string read_mesh_path(const ReadContext& ctx, TableReader& r, bool& sequence) {
+    const std::string given = r.string("mesh");
+    const FrameRun run = find_frame_run(given);
+    sequence = run.count > 0;
+    if (!sequence) return find_scene_file(given, ctx.dir, "mesh", r.loc("mesh"));
+    if (run.several)
+        throw_error(r.loc("mesh"),
+                    "'mesh' = \"{}\" has more than one run of '#' in its file name: a sequence "
+                    "numbers its frames with one run (e.g. \"body.####.ply\")",
+                    given);
+    std::filesystem::path p(given);
+    if (p.is_relative()) p = ctx.dir / p;
+    return std::filesystem::absolute(p).lexically_normal().string();
+}
+
+/** An object's shape: a mesh file or sequence, or a cage or cage sequence (`subdiv`), with its
+ *  rest pose (`rest_mesh`). */
+ShapeDesc read_shape(const ReadContext& ctx, TableReader& r) {
+    bool sequence = false;
+    std::string mesh_path = read_mesh_path(ctx, r, sequence);
+    std::string rest_path;
+    if (r.has("rest_mesh")) rest_path = read_file(ctx, r, "rest_mesh");
+    if (const toml::table* sub = r.table("subdiv")) {
+        SubdivShape s = read_subdiv(ctx, *sub, std::move(mesh_path), r.loc("mesh"));
+        s.sequence = sequence;
+        s.rest_path = std::move(rest_path);
+        s.rest_loc = r.loc("rest_mesh");
+        return s;
+    }
+    return MeshFileShape{std::move(mesh_path), r.loc("mesh"), sequence, std::move(rest_path),
+                         r.loc("rest_mesh")};
+}
+
 /** One [[object]] table: its mesh or cage, material, placement, keys and emission. */
 ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
     ObjectDesc o;
     o.loc = r.loc();
     o.what = r.what();
     o.name = r.string("name", "");
-    std::string mesh_path = read_file(ctx, r, "mesh");
-    if (const toml::table* sub = r.table("subdiv"))
-        o.shape = read_subdiv(ctx, *sub, std::move(mesh_path), r.loc("mesh"));
-    else
-        o.shape = MeshFileShape{std::move(mesh_path), r.loc("mesh")};
+    o.shape = read_shape(ctx, r);
     o.material = r.string("material");
     o.material_loc = r.loc("material");
     o.placement = read_placement(r);

@@ -268,15 +268,17 @@ struct Writer {
         if (!creases.empty()) t += fmt::format(", creases = [{}]", fmt::join(creases, ", "));
         if (!corners.empty()) t += fmt::format(", corners = [{}]", fmt::join(corners, ", "));
         line("mesh", s.cage ? inline_cage(*s.cage) : path(s.path));
+        if (!s.rest_path.empty()) line("rest_mesh", path(s.rest_path));
         line("subdiv", t + " }");
     }
 
     void object(const ObjectDesc& o) {
         out += "\n[[object]]\n";
         if (!o.name.empty()) line("name", str(o.name));
-        if (const auto* m = std::get_if<MeshFileShape>(&o.shape))
-            line("mesh", path(m->path));
-        else if (const auto* s = std::get_if<SubdivShape>(&o.shape))
+        if (const auto* m = std::get_if<MeshFileShape>(&o.shape)) {
+            line("mesh", path(m->path));  // a sequence's pattern as it is
+            if (!m->rest_path.empty()) line("rest_mesh", path(m->rest_path));
+        } else if (const auto* s = std::get_if<SubdivShape>(&o.shape))
             subdiv(*s);
         else
             line("mesh", inline_mesh(*std::get<InlineMeshShape>(o.shape).mesh));

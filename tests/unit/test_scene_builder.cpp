@@ -184,7 +184,7 @@ SceneDescription hand_made_scene() {
     d.materials = {m};
     ObjectDesc o;
     o.name = "ball";
-    o.shape = MeshFileShape{mesh_path(), {}};
+    o.shape = MeshFileShape{mesh_path(), {}, false, {}, {}};
     o.material = "red";
     o.placement.parts.scale = Vec3(2);
     o.placement.parts.translate = {0, 1, 0};

@@ -179,7 +179,7 @@ Made plymesh(Reader& r, const ParamList& p, const FileLoc& loc) {
         r.notes.add(loc,
                     "plymesh under ReverseOrientation or a mirroring transform: its faces "
                     "keep the file's winding (Spangle orients PLY faces as written)");
-    return {MeshFileShape{r.find_file(file, "plymesh filename", loc), loc}, nullptr};
+    return {MeshFileShape{r.find_file(file, "plymesh filename", loc), loc, false, {}, {}}, nullptr};
 }
 
 Made loopsubdiv(Reader& r, const ParamList& p, const FileLoc& loc) {
