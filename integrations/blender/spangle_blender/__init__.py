@@ -192,8 +192,8 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
             try:
                 warnings = export.export_scene(depsgraph, folder, (w, h), settings.spp,
                                                flake_parameters(), settings.max_depth)
-            except RuntimeError as e:
-                self.report({"ERROR"}, f"Spangle: {e}")
+            except Exception as e:  # a scene it cannot export: say so, never take Blender down
+                self.report({"ERROR"}, f"Spangle: the scene could not be exported: {e}")
                 return
             self.export_seconds = time.time() - t0
             for msg in warnings:
@@ -204,7 +204,10 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
             except spangle.SceneError as e:
                 self.report({"ERROR"}, f"Spangle: {e}")
                 return
-            self._render(session, w, h, settings.spp)
+            try:
+                self._render(session, w, h, settings.spp)
+            except Exception as e:  # reported in the info area, never raised into Blender
+                self.report({"ERROR"}, f"Spangle: {e}")
 
     def _render(self, session, w, h, spp):
         state = {"pass": None, "progress": 0.0, "image": None, "error": None}

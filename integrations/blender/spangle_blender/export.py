@@ -291,10 +291,11 @@ def _light_lines(obj, matrix, warnings):
                       f"cone_falloff = {_fmt(min(half * light.spot_blend, half))}"]
         lines += [f"color = {_vec(color)}", f"intensity = {_fmt(intensity)}"]
     elif light.type == "SUN":
+        # A sun's strength (its `energy`) is irradiance in W/m^2.
         direction = matrix.to_3x3() @ mathutils.Vector((0.0, 0.0, 1.0))
         lines += ["[[light]]", 'type = "distant"', f"direction = {_vec(direction)}",
                   f"angular_radius = {_fmt(math.degrees(light.angle) / 2.0)}",
-                  f"color = {_vec(color)}", f"intensity = {_fmt(light.strength)}"]
+                  f"color = {_vec(color)}", f"intensity = {_fmt(light.energy)}"]
     elif light.type == "AREA":
         sx = light.size
         sy = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
