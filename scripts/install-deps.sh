@@ -4,7 +4,8 @@
 # also what only the tests need (headless Chromium and its WebDriver for the live preview page;
 # clang and its libFuzzer runtime for the fuzz targets). libtinygltf-dev (2.7.0) reads glTF scenes;
 # python3-pip fetches Open Image Denoise's libraries (below); pybind11-dev, python3-dev and
-# python3-numpy build the Python module (python/), python3-pytest tests it.
+# python3-numpy build the Python module (python/), python3-pytest tests it; python3-venv makes
+# the environment of the Blender tests (below).
 # The list and the CMake traps behind it are in ../shared/NOTES-deps.md and cmake/SpangleDeps.cmake.
 set -euo pipefail
 packages=(
@@ -16,7 +17,7 @@ packages=(
     libopenmpi-dev openmpi-bin
 )
 if [ "${1:-}" = "--tests" ]; then
-    packages+=(chromium chromium-driver curl clang libclang-rt-14-dev python3-pytest)
+    packages+=(chromium chromium-driver curl clang libclang-rt-14-dev python3-pytest python3-venv)
 fi
 missing=()
 for p in "${packages[@]}"; do
