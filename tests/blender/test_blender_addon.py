@@ -83,6 +83,30 @@ def read_exr(path):
     return px[::-1, :, :3]
 
 
+def render_through_gltf(tmp_path):
+    """The current Blender scene through Blender's glTF exporter and `spangle render`'s glTF
+    reader (a TOML that imports the file, in the add-on's working space): its RGB."""
+    bpy.ops.export_scene.gltf(filepath=str(tmp_path / "scene.gltf"), export_format="GLTF_SEPARATE",
+                              export_lights=True, export_cameras=True, export_apply=True)
+    (tmp_path / "wrap.toml").write_text(
+        '[render]\nworking_space = "lin_rec709"\n\n[[import]]\nfile = "scene.gltf"\n')
+    subprocess.run([SPANGLE, "render", str(tmp_path / "wrap.toml"), "--size", f"{W}x{H}",
+                    "--spp", str(SPP), "--float", "--no-preview", "--threads", "2", "-q",
+                    "-o", str(tmp_path / "gltf.exr")], check=True)
+    return read_exr(str(tmp_path / "gltf.exr"))
+
+
+def assert_within_noise(ours, theirs):
+    """Two renders of one scene agree within noise: the whole image's mean to 3%, and 8 x 8
+    blocks' means nearly proportional. (The two routes triangulate and order the scene
+    differently, so pixels are not equal; a glint is a few pixels of a 64-spp render, the blocks
+    average them.)"""
+    assert ours.shape == theirs.shape == (H, W, 3)
+    assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)
+    blocks = lambda a: a.reshape(H // 8, 8, W // 8, 8, 3).mean(axis=(1, 3)).ravel()
+    assert np.corrcoef(blocks(ours), blocks(theirs))[0, 1] > 0.97
+
+
 def channel_means(path):
     """Each channel's mean, by name (oiiotool --stats, channels in the file's order)."""
     out = subprocess.run(["oiiotool", "--info", "-v", "--stats", path], capture_output=True,
@@ -99,24 +123,10 @@ def test_the_engine_renders_what_the_gltf_route_renders(tmp_path):
     bpy.ops.render.render(write_still=True)
     ours = read_exr(str(tmp_path / "blender.exr"))
     # The same scene through Blender's glTF exporter (the add-on writes the flake paint as
-    # SPANGLE_materials_flakes) and spangle render's glTF reader, in the same working space.
-    gltf = tmp_path / "scene.gltf"
-    bpy.ops.export_scene.gltf(filepath=str(gltf), export_format="GLTF_SEPARATE",
-                              export_lights=True, export_cameras=True, export_apply=True)
-    assert "SPANGLE_materials_flakes" in gltf.read_text()
-    (tmp_path / "wrap.toml").write_text(
-        '[render]\nworking_space = "lin_rec709"\n\n[[import]]\nfile = "scene.gltf"\n')
-    subprocess.run([SPANGLE, "render", str(tmp_path / "wrap.toml"), "--size", f"{W}x{H}",
-                    "--spp", str(SPP), "--float", "--no-preview", "--threads", "2", "-q",
-                    "-o", str(tmp_path / "gltf.exr")], check=True)
-    theirs = read_exr(str(tmp_path / "gltf.exr"))
-    assert ours.shape == theirs.shape == (H, W, 3)
-    # Within noise: the whole image's mean to 3%, and 8 x 8 blocks' means nearly proportional.
-    # (The two routes triangulate and order the scene differently, so pixels are not equal; a
-    # glint is a few pixels of a 64-spp render, the blocks average them.)
-    assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)
-    blocks = lambda a: a.reshape(H // 8, 8, W // 8, 8, 3).mean(axis=(1, 3)).ravel()
-    assert np.corrcoef(blocks(ours), blocks(theirs))[0, 1] > 0.97
+    # SPANGLE_materials_flakes) and spangle render's glTF reader.
+    theirs = render_through_gltf(tmp_path)
+    assert "SPANGLE_materials_flakes" in (tmp_path / "scene.gltf").read_text()
+    assert_within_noise(ours, theirs)
     # The paint glitters in both.
     assert ours.max() > 5.0 and theirs.max() > 5.0
 
@@ -244,14 +254,5 @@ def test_spot_and_sun_lights_render_as_through_gltf(tmp_path):
     scene.render.filepath = str(tmp_path / "blender.exr")
     bpy.ops.render.render(write_still=True)
     ours = read_exr(str(tmp_path / "blender.exr"))
-    bpy.ops.export_scene.gltf(filepath=str(tmp_path / "scene.gltf"), export_format="GLTF_SEPARATE",
-                              export_lights=True, export_cameras=True, export_apply=True)
-    (tmp_path / "wrap.toml").write_text(
-        '[render]\nworking_space = "lin_rec709"\n\n[[import]]\nfile = "scene.gltf"\n')
-    subprocess.run([SPANGLE, "render", str(tmp_path / "wrap.toml"), "--size", f"{W}x{H}",
-                    "--spp", str(SPP), "--float", "--no-preview", "--threads", "2", "-q",
-                    "-o", str(tmp_path / "gltf.exr")], check=True)
-    theirs = read_exr(str(tmp_path / "gltf.exr"))
-    assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)
-    blocks = lambda a: a.reshape(H // 8, 8, W // 8, 8, 3).mean(axis=(1, 3)).ravel()
-    assert np.corrcoef(blocks(ours), blocks(theirs))[0, 1] > 0.97
+    theirs = render_through_gltf(tmp_path)
+    assert_within_noise(ours, theirs)
