@@ -180,8 +180,15 @@ PYBIND11_MODULE(_spangle, m) {
                 return l.contains("glints") ? py::object(l["glints"]) : py::object(py::none());
             },
             "The glints alone (the part of the beauty the discrete flakes make), or None.")
-        .def_readonly("spp", &RenderedImage::spp, "Samples per pixel reached.")
-        .def_readonly("stopped", &RenderedImage::stopped, "Whether stop() ended it early.")
+        .def_property_readonly(
+            "spp", [](const RenderedImage& i) { return i.result.stats.spp_reached; },
+            "Samples per pixel reached.")
+        .def_property_readonly(
+            "stopped",
+            [](const RenderedImage& i) {
+                return i.result.stats.spp_reached < i.result.stats.spp_target;
+            },
+            "Whether stop() ended it early.")
         .def_property_readonly(
             "seconds", [](const RenderedImage& i) { return i.result.stats.seconds; },
             "Render time in seconds.")

@@ -286,8 +286,6 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     out.result = session_->take_result();
     if (out.result.image.empty())
         throw SpangleError(fmt::format("nothing was rendered: {}", report.reason));
-    out.spp = out.result.stats.spp_reached;
-    out.stopped = out.result.stats.spp_reached < out.result.stats.spp_target;
     out.scene = desc_.path;
     return out;
 }

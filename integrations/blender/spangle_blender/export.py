@@ -71,7 +71,8 @@ def write_ply(path, positions, normals, uvs, triangles):
 
 def mesh_arrays(mesh):
     """Triangles of an evaluated mesh, one vertex per corner (corner normals and uvs kept):
-    positions, normals, uvs, triangles and each triangle's material index."""
+    positions, normals and uvs of the corners (triangle t's are rows 3t .. 3t + 2), and each
+    triangle's material index."""
     mesh.calc_loop_triangles()
     ntri = len(mesh.loop_triangles)
     loops = np.empty(ntri * 3, dtype=np.int32)
@@ -96,7 +97,7 @@ def mesh_arrays(mesh):
         mesh.uv_layers.active.data.foreach_get("uv", flat)
         uv = flat.reshape(-1, 2)
     positions = co[loop_vert[loops]]
-    return positions, normals[loops], uv[loops], np.arange(ntri * 3, dtype=np.int32).reshape(-1, 3), mat_index
+    return positions, normals[loops], uv[loops], mat_index
 
 
 def _principled(mat):
@@ -369,13 +370,13 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
                 mesh = None
             if mesh is None:
                 continue
-            positions, normals, uvs, tris, mat_index = mesh_arrays(mesh)
+            positions, normals, uvs, mat_index = mesh_arrays(mesh)
             slots = [s.material for s in obj.material_slots] or [None]
             for k, mat in enumerate(slots):
                 sel = np.nonzero(np.clip(mat_index, 0, len(slots) - 1) == k)[0]
                 if len(sel) == 0:
                     continue
-                corners = tris[sel].reshape(-1)
+                corners = (3 * sel[:, None] + np.arange(3)).reshape(-1)
                 name = mat.name if mat is not None else "spangle_default"
                 if name not in materials:
                     materials[name] = material_entry(mat, flake_params, warnings)
