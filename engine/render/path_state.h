@@ -89,7 +89,6 @@ SPANGLE_SOA(PathBatch, SPANGLE_PATH_FIELDS);
     X(float, u1, "BSDF sample number, second")                                         \
     X(float, u2, "BSDF lobe choice number")                                            \
     X(float, eta, "relative index of refraction of a sampled transmission")            \
-    X(float, u_select, "light selection number")                                       \
     X(uint32_t, closure_index, "the shading point of each eval query")                 \
     X(uint32_t, sample_flags, "SPANGLE_SAMPLE_* flags of each sample")                 \
     X(uint32_t, light_query, "the shading point of each light query")                  \

@@ -91,6 +91,51 @@ inline uint32_t sobol_1_reversed(uint32_t i) {
     return t[0][i & 0xffu] ^ t[1][(i >> 8) & 0xffu] ^ t[2][(i >> 16) & 0xffu] ^ t[3][i >> 24];
 }
 
+/** Direction numbers of the third Sobol dimension (primitive polynomial x^2 + x + 1, initial
+ *  m_1 = 1, m_2 = 3; m_k = 2 m_{k-1} ^ 4 m_{k-2} ^ m_{k-2}), v_k = m_k 2^(32 - k). */
+struct Sobol2Directions {
+    uint32_t v[32];
+    constexpr Sobol2Directions() : v() {
+        uint64_t m[33] = {};
+        m[1] = 1;
+        m[2] = 3;
+        for (int k = 3; k <= 32; ++k) m[k] = (2 * m[k - 1]) ^ (4 * m[k - 2]) ^ m[k - 2];
+        for (int k = 1; k <= 32; ++k) v[k - 1] = static_cast<uint32_t>(m[k] << (32 - k));
+    }
+};
+inline constexpr Sobol2Directions kSobol2Directions{};
+
+/** Third Sobol dimension, bit-serial reference version. */
+constexpr uint32_t sobol_2_reference(uint32_t i) {
+    uint32_t r = 0;
+    for (int k = 0; i; i >>= 1, ++k)
+        if (i & 1u) r ^= kSobol2Directions.v[k];
+    return r;
+}
+
+namespace detail {
+/** reverse_bits of the third dimension's direction numbers XORed for every value of each byte. */
+struct Sobol2ReversedTables {
+    uint32_t t[4][256];
+    constexpr Sobol2ReversedTables() : t() {
+        for (int b = 0; b < 4; ++b)
+            for (uint32_t x = 0; x < 256; ++x) {
+                uint32_t r = 0;
+                for (int k = 0; k < 8; ++k)
+                    if (x & (1u << k)) r ^= kSobol2Directions.v[8 * b + k];
+                t[b][x] = reverse_bits(r);
+            }
+    }
+};
+inline constexpr Sobol2ReversedTables kSobol2ReversedTables{};
+}  // namespace detail
+
+/** reverse_bits(sobol_2_reference(i)), four table lookups. */
+inline uint32_t sobol_2_reversed(uint32_t i) {
+    const auto& t = detail::kSobol2ReversedTables.t;
+    return t[0][i & 0xffu] ^ t[1][(i >> 8) & 0xffu] ^ t[2][(i >> 16) & 0xffu] ^ t[3][i >> 24];
+}
+
 /** 24-bit fixed point to float in [0, 1). */
 constexpr float fixed_to_unit(uint32_t x) {
     return static_cast<float>(x >> 8) * 0x1p-24f;
@@ -112,6 +157,23 @@ inline void sobol_2d_keyed(uint64_t key, uint32_t index, uint32_t pair, float& u
     // reverse(i) and a table of reversed sobol_1 values, two reversals per pair cancel.
     u0 = fixed_to_unit(reverse_bits(laine_karras_permutation(shuffled, seed0)));
     u1 = fixed_to_unit(reverse_bits(laine_karras_permutation(sobol_1_reversed(shuffled), seed1)));
+}
+
+/** The 3D point for sample `index` of the pixel whose key is `key`, in dimension set `set`: the
+ *  first three Sobol dimensions under one index shuffle, each Owen-scrambled by its own seed.
+ *  (u0, u1) is sobol_2d_keyed's point of the same number; u2 is stratified jointly with them
+ *  (the three dimensions form a (1, 3)-sequence), so that a choice made with u2 (a BSDF lobe, a
+ *  light) leaves the samples that make the same choice stratified in (u0, u1). */
+inline void sobol_3d_keyed(uint64_t key, uint32_t index, uint32_t set, float& u0, float& u1,
+                           float& u2) {
+    const uint64_t h = mix64(key ^ (static_cast<uint64_t>(set) + 1) * 0x9e3779b97f4a7c15ull);
+    const auto shuffled = nested_uniform_scramble(index, static_cast<uint32_t>(h));
+    const auto seed0 = static_cast<uint32_t>(h >> 32);
+    const auto seed1 = static_cast<uint32_t>((h * 0xd1342543de82ef95ull) >> 32);
+    const auto seed2 = static_cast<uint32_t>((h * 0xaf251af3b0f025b5ull) >> 32);
+    u0 = fixed_to_unit(reverse_bits(laine_karras_permutation(shuffled, seed0)));
+    u1 = fixed_to_unit(reverse_bits(laine_karras_permutation(sobol_1_reversed(shuffled), seed1)));
+    u2 = fixed_to_unit(reverse_bits(laine_karras_permutation(sobol_2_reversed(shuffled), seed2)));
 }
 
 /** The 2D point for sample `index` of `pixel` in dimension pair `pair`. */

@@ -103,7 +103,7 @@ void scatter(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInst
              const uint32_t* paths, uint32_t n, uint32_t bounce) {
     ShadingBatch& b = ws.batch;
     for (uint32_t k = 0; k < n; ++k) {
-        rnd2(ws.paths, paths[k], bounce, kPairBsdf, b.u0[k], b.u1[k]);
+        rnd3(ws.paths, paths[k], bounce, kPairBsdf, b.u0[k], b.u1[k], b.u2[k]);
         b.eta[k] = 1.0f;
     }
     SpangleSampleBatch_v3 sb{n,

@@ -212,9 +212,9 @@ uint32_t sample_lights(const RenderJob& job, Workspace& ws, Sink& sink, const Ma
     for (uint32_t k = 0; k < n; ++k) {
         const uint32_t i = paths[k];
         const SurfacePoint& sp = ws.paths.surf[i];
-        float lu, lv;
-        rnd2(ws.paths, i, bounce, kPairLight, lu, lv);
-        const LightSample ls = job.scene->lights->sample(sp.p, b.u_select[k], lu, lv);
+        float lu, lv, sel;
+        rnd3(ws.paths, i, bounce, kPairLight, lu, lv, sel);
+        const LightSample ls = job.scene->lights->sample(sp.p, sel, lu, lv);
         if (!(ls.pdf > 0.0f)) continue;
         b.light[q] = ls;
         b.light_query[q] = k;
@@ -305,13 +305,6 @@ void shade(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInstan
     SpangleShadingBatch_v3 batch = abi_batch(ws.batch, n);
     if (!mat.textures().empty()) batch.param_values = lookup_textures(w, ws, mat, n);
     prepare(ws, mat, batch, n);
-    // Random numbers of this bounce, shared by light and BSDF sampling.
-    for (uint32_t k = 0; k < n; ++k) {
-        float sel, lobe;
-        rnd2(ws.paths, paths[k], bounce, kPairSelect, sel, lobe);
-        ws.batch.u2[k] = lobe;
-        ws.batch.u_select[k] = sel;
-    }
     if (w.lights->empty()) return;
     const uint32_t q = sample_lights(job, ws, sink, mat, paths, n, bounce);
     trace_shadows(job, ws, sink, paths, q, bounce, shadow_rays);

@@ -37,14 +37,15 @@ constexpr uint32_t kTileSize = 16;
 constexpr uint32_t kSamplesPerWave = 8;  ///< samples of each tile pixel traced together
 constexpr uint32_t kMaxBatch = 256;  ///< shading points per plugin call: bounds per-batch scratch
 
-/** Sobol dimension pairs: two for the camera, then kPairsPerBounce per bounce. */
+/** Sobol dimension sets: two pairs for the camera, then kPairsPerBounce sets per bounce. A set is
+ *  a pair (rnd2) or a triple (rnd3) of jointly stratified numbers. */
 enum Pair : uint32_t {
     kPairFilter = 0,
     kPairLens = 1,
     kPairBounceBase = 2,
-    kPairLight = 0,     ///< light position (u1, u2)
-    kPairBsdf = 1,      ///< BSDF direction (u0, u1)
-    kPairSelect = 2,    ///< light selection, BSDF lobe choice
+    kPairLight = 0,     ///< triple: light position (u1, u2), then the light's selection
+    kPairBsdf = 1,      ///< triple: BSDF direction (u0, u1), then its lobe choice (u2)
+    kPairSpare = 2,     ///< unused (it held the selections, drawn apart from what they select)
     kPairRoulette = 3,  ///< Russian roulette, spare
     kPairsPerBounce = 4,
     /** The path's time within the shutter (motion blur; first value). Far beyond the bounce
@@ -131,6 +132,14 @@ inline void rnd2(const PathBatch& p, uint32_t path, uint32_t bounce, uint32_t pa
                  float& b) {
     sobol_2d_keyed(p.key[path], p.sample[path], kPairBounceBase + bounce * kPairsPerBounce + pair,
                    a, b);
+}
+
+/** Sobol triple `set` of path `path` at `bounce`: a choice made with c leaves the samples that
+ *  make the same choice stratified in (a, b). */
+inline void rnd3(const PathBatch& p, uint32_t path, uint32_t bounce, uint32_t set, float& a,
+                 float& b, float& c) {
+    sobol_3d_keyed(p.key[path], p.sample[path], kPairBounceBase + bounce * kPairsPerBounce + set, a,
+                   b, c);
 }
 
 /** The factor that caps the luminance of one indirect contribution c (a biased, optional

@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <vector>
 
@@ -37,6 +38,66 @@ TEST(Sobol, EveryElementaryIntervalHoldsOnePoint) {
                         << "pixel " << pixel << " pair " << pair << " grid " << cx << "x" << cy;
             }
         }
+}
+
+TEST(Sobol, ThirdDimensionTablesMatchTheBitSerialDefinition) {
+    // The third dimension's first direction numbers, m = 1, 3, 3, 9, 29 (Sobol's x^2 + x + 1).
+    EXPECT_EQ(sobol_2_reference(1), 0x80000000u);
+    EXPECT_EQ(sobol_2_reference(2), 0xc0000000u);
+    EXPECT_EQ(sobol_2_reference(4), 3u << 29);
+    EXPECT_EQ(sobol_2_reference(8), 9u << 28);
+    EXPECT_EQ(sobol_2_reference(16), 29u << 27);
+    for (uint32_t i : {0u, 1u, 2u, 3u, 255u, 256u, 65535u, 0x12345678u, 0xffffffffu})
+        EXPECT_EQ(sobol_2_reversed(i), reverse_bits(sobol_2_reference(i))) << i;
+}
+
+TEST(Sobol, TriplesAreStratifiedJointly) {
+    // The first three Sobol dimensions form a (1, 3)-sequence, which Owen scrambling and the
+    // index shuffle keep: 256 points of one pixel and set fall two in each box of every
+    // 2^a x 2^b x 2^c grid with a + b + c = 7. So the samples whose third number makes one
+    // choice (a lobe, a light) are stratified in the first two. The first two are the pair's.
+    for (uint64_t key : {3ull, 977ull, 0x123456789abcdefull})
+        for (uint32_t set : {1u, 6u}) {
+            float u[256][3];
+            for (uint32_t i = 0; i < 256; ++i) {
+                sobol_3d_keyed(key, i, set, u[i][0], u[i][1], u[i][2]);
+                float p0, p1;
+                sobol_2d_keyed(key, i, set, p0, p1);
+                ASSERT_EQ(p0, u[i][0]);
+                ASSERT_EQ(p1, u[i][1]);
+            }
+            for (int a = 0; a <= 7; ++a)
+                for (int b = 0; a + b <= 7; ++b) {
+                    const int c = 7 - a - b;
+                    std::vector<int> cells(std::size_t{1} << 7, 0);
+                    for (const auto& p : u) {
+                        const int x = static_cast<int>(p[0] * static_cast<float>(1 << a));
+                        const int y = static_cast<int>(p[1] * static_cast<float>(1 << b));
+                        const int z = static_cast<int>(p[2] * static_cast<float>(1 << c));
+                        ++cells[static_cast<std::size_t>((z << (a + b)) | (y << a) | x)];
+                    }
+                    for (int n : cells)
+                        ASSERT_EQ(n, 2) << "key " << key << " set " << set << " grid 2^" << a
+                                        << " x 2^" << b << " x 2^" << c;
+                }
+        }
+    // The check can fail: a third number drawn from another pair (as the lobe choice was before)
+    // is not stratified with the first two.
+    int uneven = 0;
+    for (int a = 0; a <= 7; ++a) {
+        std::vector<int> cells(std::size_t{1} << 7, 0);
+        for (uint32_t i = 0; i < 256; ++i) {
+            float u0, u1, other, spare;
+            sobol_2d_keyed(3, i, 1, u0, u1);
+            sobol_2d_keyed(3, i, 2, other, spare);
+            const int c = 7 - a;
+            ++cells[static_cast<std::size_t>(
+                (static_cast<int>(other * static_cast<float>(1 << c)) << a) |
+                static_cast<int>(u0 * static_cast<float>(1 << a)))];
+        }
+        for (int n : cells) uneven += n != 2 ? 1 : 0;
+    }
+    EXPECT_GT(uneven, 0);
 }
 
 TEST(Sobol, PairsAndPixelsAreDecorrelated) {
