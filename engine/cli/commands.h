@@ -8,6 +8,7 @@
 //   plugins  plugins_command.cpp      inspect  inspect_command.cpp
 //   merge    merge_command.cpp        flicker  flicker_command.cpp
 //   bench    bench_command.cpp        convert  convert_command.cpp
+//   new      new_command.cpp
 
 #include <functional>
 
@@ -37,5 +38,7 @@ Command add_flicker_command(CLI::App& app);
 Command add_bench_command(CLI::App& app);
 /** `spangle convert`: any scene written as a TOML scene. */
 Command add_convert_command(CLI::App& app);
+/** `spangle new`: a scene to start from around a model. */
+Command add_new_command(CLI::App& app);
 
 }  // namespace spangle

@@ -78,7 +78,8 @@ int main(int argc, char** argv) {
                                            add_merge_command(app),
                                            add_flicker_command(app),
                                            add_bench_command(app),
-                                           add_convert_command(app)};
+                                           add_convert_command(app),
+                                           add_new_command(app)};
     if (refuse_unknown_command(app, argc, argv)) return 2;
     try {
         app.parse(argc, argv);

@@ -99,8 +99,8 @@ void add_part_options(CLI::App* r, RenderArgs& a) {
 void add_look_options(CLI::App* r, RenderArgs& a) {
     r->add_option("--view", a.view,
                   "OCIO view of the PNG preview (default: the display's default view; the "
-                  "shipped config's is \"Glint\", a hue-preserving tone map; \"Standard\" "
-                  "clips at 1)");
+                  "shipped config's is \"Sparkle\": hue kept, very bright glints go to white; "
+                  "\"Glint\" keeps their hue; \"Standard\" clips at 1)");
     r->add_option("--display", a.display,
                   "OCIO display of the PNG preview (default: the config's default display)");
     r->add_option("--texture-cache", a.texture_cache,

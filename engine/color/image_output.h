@@ -69,7 +69,8 @@ struct PngOptions {
     uint32_t block = 1;
     int compression_level = 6;  ///< zlib level 0..9 (1 for pass outputs: speed over size)
     /** OCIO display and view of the preview; empty: the config's default display and its
-     *  default view (the shipped config's is "Glint", a hue-preserving tone map). */
+     *  default view (the shipped config's is "Sparkle", a hue-keeping tone map that takes very
+     *  bright glints to white). */
     std::string display, view;
 };
 

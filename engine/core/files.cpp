@@ -15,6 +15,12 @@ std::string file_identity(const std::string& path) {
                        static_cast<long long>(st.st_size));
 }
 
+std::string absolute_path(const std::string& path) {
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::absolute(path, ec);
+    return ec ? path : p.lexically_normal().string();
+}
+
 namespace {
 
 /** set_executable_dir()'s directory (empty: none). Written once at start-up, read after. */

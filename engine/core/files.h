@@ -10,6 +10,11 @@ namespace spangle {
  *  editor's save changes the modification time even when it rewrites the same bytes). */
 std::string file_identity(const std::string& path);
 
+/** `path` made absolute (against the working directory) and normalised, for messages that
+ *  say where a file was looked for: a relative path says nothing once the working directory is
+ *  not the reader's. `path` itself when it cannot be made absolute. */
+std::string absolute_path(const std::string& path);
+
 /** Directory of the running executable (via /proc/self/exe), or empty; the directory given to
  *  set_executable_dir() when one was (a library loaded into another program, such as the Python
  *  module, whose plugins and OCIO config lie beside it rather than beside the program). */

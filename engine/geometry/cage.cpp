@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "core/hash.h"
+#include "core/files.h"
 
 namespace spangle {
 
@@ -41,7 +42,8 @@ bool same_cage_content(const Cage& a, const Cage& b) {
 
 Cage load_cage(const std::string& path, const FileLoc& ref) {
     std::error_code ec;
-    if (!std::filesystem::exists(path, ec)) throw_error(ref, "cage file '{}' not found", path);
+    if (!std::filesystem::exists(path, ec))
+        throw_error(ref, "cage file '{}' not found (looked for {})", path, absolute_path(path));
     if (!std::filesystem::is_regular_file(path, ec))
         throw_error(ref, "cage file '{}' is not a regular file (a folder, a device or a pipe)",
                     path);

@@ -8,13 +8,15 @@
 #include <filesystem>
 
 #include "core/hash.h"
+#include "core/files.h"
 
 namespace spangle {
 
 TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
     namespace fs = std::filesystem;
     std::error_code ec;
-    if (!fs::exists(path, ec)) throw_error(ref, "mesh file '{}' not found", path);
+    if (!fs::exists(path, ec))
+        throw_error(ref, "mesh file '{}' not found (looked for {})", path, absolute_path(path));
     if (!fs::is_regular_file(path, ec))
         throw_error(ref, "mesh file '{}' is not a regular file (a folder, a device or a pipe)",
                     path);

@@ -9,6 +9,7 @@
 #include "scene/components.h"
 #include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
+#include "core/files.h"
 
 namespace spangle {
 
@@ -304,7 +305,7 @@ std::string sequence_file(const std::string& pattern, int64_t frame, const FileL
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
         throw_error(at, "{} file of frame {} not found (looked for {}, from the sequence {})", what,
-                    frame, path, pattern);
+                    frame, absolute_path(path), pattern);
     return path;
 }
 
@@ -335,7 +336,7 @@ PosedFile posed_file(BuildContext& ctx, const std::string& path, bool sequence,
             throw_error(loc,
                         "{} file of frame_start {} not found (looked for {}): without "
                         "'rest_mesh' it is the sequence's rest pose; give 'rest_mesh' or that file",
-                        what, info.frame_start, f.rest);
+                        what, info.frame_start, absolute_path(f.rest));
     }
     return f;
 }

@@ -1,5 +1,7 @@
 #include "scene/scene_paths.h"
 
+#include "core/files.h"
+
 namespace fs = std::filesystem;
 
 namespace spangle {
@@ -11,13 +13,15 @@ std::string find_scene_file(const std::string& given, const fs::path& dir, std::
     if (p.is_relative()) p = dir / p;
     std::error_code ec;
     if (!fs::is_regular_file(p, ec))
-        throw_error(at, "{} file '{}' not found (looked for {})", key, given, p.string());
+        throw_error(at, "{} file '{}' not found (looked for {})", key, given,
+                    absolute_path(p.string()));
     return p.lexically_normal().string();
 }
 
 void check_scene_file(const std::string& path) {
     std::error_code ec;
-    if (!fs::exists(path, ec)) throw_error("scene file '{}' not found", path);
+    if (!fs::exists(path, ec))
+        throw_error("scene file '{}' not found (looked for {})", path, absolute_path(path));
     if (!fs::is_regular_file(path, ec))
         throw_error("scene file '{}' is not a regular file (a folder, a device or a pipe)", path);
 }

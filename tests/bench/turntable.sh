@@ -25,8 +25,8 @@ path, frames, step, motion = sys.argv[1], int(sys.argv[2]), float(sys.argv[3]), 
 text = open(path).read()
 last = frames if frames > 1 else 2
 if motion == "orbit":
-    cx, cz = 0.1, 0.0                      # look_at of beetle.toml
-    px, py, pz = 4.6, 1.9, 4.2             # its camera position
+    cx, cz = 0.05, 0.0                     # look_at of beetle.toml
+    px, py, pz = 4.3, 1.75, 3.6            # its camera position
     r, a0 = math.hypot(px - cx, pz - cz), math.atan2(pz - cz, px - cx)
     text += "\n"
     for k in range(frames):

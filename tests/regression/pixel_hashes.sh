@@ -97,7 +97,7 @@ run_scene() {
 
     # Watch mode on a copy whose relative file names are made absolute; the edit appends a
     # point light (a reload that rebuilds the lights and carries meshes, materials and BVHs).
-    sed -E "s#\"([^\"/][^\"]*\.(obj|ply|exr|hdr|png|jpg|tif|tx))\"#\"$dir/\1\"#g" "$scene" \
+    sed -E "s#\"([^\"/][^\"]*\.(obj|ply|exr|hdr|png|jpg|tif|tx|toml))\"#\"$dir/\1\"#g" "$scene" \
         > "$T/watch.toml"
     "$S" render "$T/watch.toml" --watch --no-pass-output --layers -o "$T/watch.exr" \
         "${COMMON[@]}" > "$T/watch.log" 2>&1 &

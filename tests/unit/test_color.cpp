@@ -1,5 +1,8 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdlib>
 #include <filesystem>
 
@@ -49,13 +52,66 @@ float srgb_decode(float v) {
     return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
 }
 
-TEST(ColorConfig, TheDefaultViewIsToneMappedAndKeepsABrightGlintsColour) {
+/** The Sparkle view's formula in display-linear values (assets/tools/make_glint_lut.py): every
+ *  channel times d / m (m the largest channel, d linear to 0.5 and a shoulder above), blended
+ *  towards (d, d, d) by a smoothstep of log2 m from 1 to 6. */
+std::array<float, 3> sparkle_formula(const float* in) {
+    const double m = std::max({in[0], in[1], in[2]});
+    const double d = m <= 0.5 ? m : 0.5 + 0.5 * (1.0 - std::exp(-(m - 0.5) / 0.5));
+    const double t = std::clamp((std::log2(m) - 1.0) / 5.0, 0.0, 1.0);
+    const double w = t * t * (3.0 - 2.0 * t);
+    std::array<float, 3> out{};
+    for (int ch = 0; ch < 3; ++ch) out[ch] = float((1.0 - w) * in[ch] * d / m + w * d);
+    return out;
+}
+
+TEST(ColorConfig, TheDefaultViewKeepsHueBelowTwiceWhiteAndTakesBrightGlintsToWhite) {
     ColorConfig c = shipped_config();
     c.set_working_space("lin_rec709");
     std::string display, view;
     c.resolve_view(display, view);
     EXPECT_EQ(display, "sRGB");
-    EXPECT_EQ(view, "Glint");
+    EXPECT_EQ(view, "Sparkle");
+    const float colours[][3] = {{0.18f, 0.18f, 0.18f}, {1.0f, 1.0f, 1.0f}, {0.05f, 0.3f, 0.9f},
+                                {1.9f, 0.6f, 0.2f},    {8.0f, 2.5f, 1.2f},  {30.0f, 0.5f, 12.0f},
+                                {44.0f, 20.0f, 8.0f},  {0.6f, 0.01f, 0.2f}, {120.f, 90.f, 100.f}};
+    for (const auto& in : colours) {
+        float out[3] = {in[0], in[1], in[2]};
+        c.to_display("sRGB", "Sparkle", out, 1);
+        const auto want = sparkle_formula(in);
+        // Tolerance: the LUT's nodes are 0.625 stops apart; between them the tone curve and the
+        // white blend (both smooth in log2 m but with kinks in curvature at m = 0.5 and 2) are
+        // interpolated linearly. The formula, put through a tetrahedral interpolation of the
+        // same nodes in Python, errs by at most 2.9% of a channel's display-linear value over
+        // these colours (at 1.9, next to the blend's start): 4% leaves room for float.
+        for (int ch = 0; ch < 3; ++ch)
+            EXPECT_NEAR(srgb_decode(out[ch]), std::min(want[ch], 1.0f), 0.04f * want[ch] + 2e-4f)
+                << "input (" << in[0] << ", " << in[1] << ", " << in[2] << ") channel " << ch;
+    }
+    // Diffuse white shows at 0.816 display-linear (sRGB 0.914), middle grey at 0.18 (0.461).
+    float white[3] = {1.0f, 1.0f, 1.0f}, grey[3] = {0.18f, 0.18f, 0.18f};
+    c.to_display("sRGB", "Sparkle", white, 1);
+    c.to_display("sRGB", "Sparkle", grey, 1);
+    EXPECT_NEAR(white[0], 0.914f, 0.005f);
+    EXPECT_NEAR(grey[0], 0.461f, 0.005f);
+    // An orange glint below twice diffuse white keeps its channel ratios, as under Glint.
+    float orange[3] = {1.9f, 0.6f, 0.2f};
+    c.to_display("sRGB", "Sparkle", orange, 1);
+    EXPECT_NEAR(srgb_decode(orange[1]) / srgb_decode(orange[0]), 0.6f / 1.9f, 0.01f);
+    EXPECT_NEAR(srgb_decode(orange[2]) / srgb_decode(orange[0]), 0.2f / 1.9f, 0.01f);
+    // A glint 44 times diffuse white (the brightest pixels of a render at 16 spp) shows white:
+    // every channel above 0.97 in sRGB, where Glint keeps it a dimmer orange.
+    float bright[3] = {44.0f, 20.0f, 8.0f}, glint[3] = {44.0f, 20.0f, 8.0f};
+    c.to_display("sRGB", "Sparkle", bright, 1);
+    c.to_display("sRGB", "Glint", glint, 1);
+    for (float v : bright) EXPECT_GT(v, 0.97f) << "a bright glint reaches white";
+    EXPECT_LT(glint[2], 0.75f) << "the Glint view keeps it coloured";
+}
+
+TEST(ColorConfig, TheGlintViewIsToneMappedAndKeepsABrightGlintsColour) {
+    ColorConfig c = shipped_config();
+    c.set_working_space("lin_rec709");
+    std::string display = "sRGB", view;
     // The view's formula (assets/tools/make_glint_lut.py): every channel times d / m, m the
     // largest, d = m / (m + 0.8). The LUT between log encodings must reproduce it.
     const float colours[][3] = {{8.0f, 2.5f, 1.2f},  {0.18f, 0.18f, 0.18f}, {1.0f, 1.0f, 1.0f},
@@ -84,14 +140,14 @@ TEST(ColorConfig, TheDefaultViewIsToneMappedAndKeepsABrightGlintsColour) {
     for (float v : standard) EXPECT_NEAR(v, 1.0f, 1e-6f) << "Standard clips it to white";
     EXPECT_NEAR(srgb_decode(kept[1]) / srgb_decode(kept[0]), 2.5f / 8.0f, 0.01f);
     EXPECT_NEAR(srgb_decode(kept[2]) / srgb_decode(kept[0]), 1.2f / 8.0f, 0.01f);
-    EXPECT_GT(aces[2], 0.8f) << "ACES 1.0 desaturates it (why Glint is the default)";
+    EXPECT_GT(aces[2], 0.8f) << "ACES 1.0 desaturates it";
     // Unknown names say what exists.
     std::string bad_view = "Filmic";
     try {
         c.resolve_view(display, bad_view);
         FAIL() << "an unknown view was accepted";
     } catch (const SpangleError& e) {
-        EXPECT_NE(std::string(e.what()).find("views: Glint, ACES 1.0 - SDR Video, Standard, Raw"),
+        EXPECT_NE(std::string(e.what()).find("views: Sparkle, Glint, ACES 1.0 - SDR Video, Standard, Raw"),
                   std::string::npos)
             << e.what();
     }

@@ -125,14 +125,29 @@ TEST(PngPreview, GoesThroughTheDisplayView) {
     EXPECT_EQ(px[0], 188) << "sRGB encoding of 0.5 is 0.7354, 187.5 in 8 bits";
     EXPECT_EQ(px[1], 0);
     EXPECT_EQ(px[2], 255) << "clipped";
-    // The default view (Glint): both channels times d / m = (4 / 4.8) / 4, ratio kept.
-    write_png_preview(dir.file("g.png"), rgb, 1, 1, color);
+    // The Glint view: both channels times d / m = (4 / 4.8) / 4, ratio kept.
+    PngOptions glint;
+    glint.view = "Glint";
+    write_png_preview(dir.file("g.png"), rgb, 1, 1, color, glint);
     in = OIIO::ImageInput::open(dir.file("g.png"));
     ASSERT_TRUE(in);
     ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px));
     EXPECT_EQ(px[0], 91) << "sRGB encoding of 0.5 * 0.8333 / 4 = 0.104 is 0.3585, 91.4 in 8 bits";
     EXPECT_LE(px[1], 1);
     EXPECT_EQ(px[2], 235) << "sRGB encoding of 0.8333 is 0.9216, 235.0 in 8 bits";
+    // The default view (Sparkle): m = 4 gives d = 0.99954 and a white share w = 0.104, so
+    // R = 0.896 * 0.5 * d / 4 + w d = 0.2159 (sRGB 128.6), G = w d = 0.1040 (91.7), B = d (255).
+    // Tolerance: the LUT errs by up to 3% in display-linear values (test_color.cpp), about 1.7
+    // levels of 8 bits here; a channel that is 0 gets its white share from nodes on either side
+    // of the blend's start, interpolated in log2 where it rises from nothing: 4% low (89 for
+    // 91.7), so 3 levels.
+    write_png_preview(dir.file("s.png"), rgb, 1, 1, color);
+    in = OIIO::ImageInput::open(dir.file("s.png"));
+    ASSERT_TRUE(in);
+    ASSERT_TRUE(in->read_image(0, 0, 0, 3, OIIO::TypeDesc::UINT8, px));
+    EXPECT_NEAR(px[0], 128.6, 3.0);
+    EXPECT_NEAR(px[1], 91.7, 3.0) << "a glint four times white starts to whiten";
+    EXPECT_GE(px[2], 254);
 }
 
 }  // namespace

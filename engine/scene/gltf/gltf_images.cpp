@@ -11,6 +11,7 @@
 
 #include "core/hash.h"
 #include "scene/gltf/gltf_parts.h"
+#include "core/files.h"
 
 namespace spangle::gltf {
 namespace {
@@ -96,7 +97,7 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
         ctx.note("missing image " + file.string(), ctx.at(ip + "/uri"),
                  fmt::format("image file '{}' not found (looked for {}): the textures using it "
                              "are dropped, their factors stand in",
-                             img.uri, file.string()));
+                             img.uri, absolute_path(file.string())));
         return out;
     }
     const std::vector<unsigned char>& bytes = ctx.images[static_cast<std::size_t>(image)];

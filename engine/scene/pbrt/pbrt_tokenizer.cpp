@@ -7,6 +7,7 @@
 #include <fstream>
 
 #include "core/memory.h"
+#include "core/files.h"
 
 namespace spangle::pbrt {
 
@@ -41,7 +42,8 @@ std::string inflate_file(const std::string& path, const FileLoc& ref) {
 std::string read_whole(const std::string& path, const FileLoc& ref) {
     std::error_code ec;
     if (!std::filesystem::is_regular_file(path, ec))
-        throw_error(ref, "pbrt file '{}' not found (or not a regular file)", path);
+        throw_error(ref, "pbrt file '{}' not found (or not a regular file; looked for {})", path,
+                    absolute_path(path));
     std::ifstream in(path, std::ios::binary);
     if (!in) throw_error(ref, "cannot open '{}'", path);
     unsigned char magic[2] = {0, 0};

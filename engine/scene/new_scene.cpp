@@ -1,0 +1,263 @@
+#include "scene/new_scene.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <variant>
+
+#include "core/error.h"
+#include "geometry/mesh_load.h"
+#include "geometry/ply_writer.h"
+#include "scene/scene_loader.h"
+#include "scene/scene_paths.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+
+void Box::add(Vec3 p) {
+    lo = {std::min(lo.x, p.x), std::min(lo.y, p.y), std::min(lo.z, p.z)};
+    hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
+}
+
+namespace {
+
+constexpr double kPiD = 3.14159265358979323846;
+constexpr double kFovDeg = 30.0;  ///< the camera's vertical field of view
+/** Flakes a pixel of the written image sees at the look_at distance: few enough that each pixel
+ *  holds separate glints (the discrete lobe is used below the flake material's min_flakes, 500),
+ *  many enough that the paint reads as a paint and not as scattered points. */
+constexpr double kFlakesPerPixel = 30.0;
+
+std::string lower_extension(const std::string& path) {
+    std::string e = fs::path(path).extension().string();
+    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return std::tolower(c); });
+    return e;
+}
+
+bool is_gltf(const std::string& path) {
+    const std::string e = lower_extension(path);
+    return e == ".gltf" || e == ".glb";
+}
+
+/** A scene's object-to-world matrix from its placement parts: scale, X, Y, Z rotations
+ *  (degrees), translation; the order every reader uses. */
+Affine placement_matrix(const PlacementDesc& p) {
+    if (p.matrix) return *p.matrix;
+    Affine m = Affine::scale(p.parts.scale);
+    m = Affine::rotate(p.parts.rotate.x, {1, 0, 0}).compose(m);
+    m = Affine::rotate(p.parts.rotate.y, {0, 1, 0}).compose(m);
+    m = Affine::rotate(p.parts.rotate.z, {0, 0, 1}).compose(m);
+    return Affine::translate(p.parts.translate).compose(m);
+}
+
+void add_mesh(Box& box, const TriangleMesh& mesh, const Affine& to_world) {
+    for (std::size_t v = 0; v < mesh.vertex_count(); ++v)
+        box.add(to_world.apply_point(mesh.position(static_cast<uint32_t>(v))));
+}
+
+/** `path` as a scene file at `dir` should name it: relative when it lies in `dir` or below,
+ *  else absolute (as `spangle convert` names files). */
+std::string scene_relative(const fs::path& path, const fs::path& dir) {
+    const fs::path rel = path.lexically_relative(dir);
+    if (!rel.empty() && *rel.begin() != "..") return rel.generic_string();
+    return path.generic_string();
+}
+
+/** A TOML basic string holding `s`. */
+std::string toml_quoted(const std::string& s) {
+    std::string out = "\"";
+    for (char c : s) {
+        if (c == '"' || c == '\\') out += '\\';
+        out += c;
+    }
+    return out + "\"";
+}
+
+std::string vec(Vec3 v) { return fmt::format("[{:.4g}, {:.4g}, {:.4g}]", v.x, v.y, v.z); }
+
+/** Rounds to two significant digits, so the written density reads as a chosen number. */
+double two_digits(double x) {
+    const double p = std::pow(10.0, std::floor(std::log10(x)) - 1.0);
+    return std::round(x / p) * p;
+}
+
+/** The camera distance along `dir` from `look_at` at which every corner of `box` lies inside
+ *  85% of the image (so the model fills the frame with a margin). */
+double framing_distance(const Box& box, Vec3 look_at, Vec3 dir, double aspect) {
+    const Vec3 fwd = -dir;
+    const Vec3 right = normalize(cross(fwd, Vec3{0, 1, 0}));
+    const Vec3 up = cross(right, fwd);
+    const double ty = std::tan(kFovDeg * kPiD / 360.0) * 0.85, tx = ty * aspect;
+    double d = 0.0;
+    for (int i = 0; i < 8; ++i) {
+        const Vec3 c{(i & 1) ? box.hi.x : box.lo.x, (i & 2) ? box.hi.y : box.lo.y,
+                     (i & 4) ? box.hi.z : box.lo.z};
+        const Vec3 r = c - look_at;
+        const double along = double(dot(r, dir));
+        const double x = double(std::abs(dot(r, right))), y = double(std::abs(dot(r, up)));
+        d = std::max({d, along + x / tx, along + y / ty});
+    }
+    return d;
+}
+
+}  // namespace
+
+Box model_bounds(const std::string& model) {
+    std::error_code ec;
+    const fs::path abs = fs::absolute(model, ec).lexically_normal();
+    if (!fs::is_regular_file(abs, ec))
+        throw_error("model file '{}' not found (looked for {})", model, abs.string());
+    const std::string e = lower_extension(model);
+    Box box;
+    if (e == ".obj" || e == ".ply") {
+        add_mesh(box, load_mesh(abs.string(), FileLoc{}), Affine{});
+    } else if (is_gltf(model)) {
+        const SceneDescription scene = read_scene(abs.string());
+        for (const ObjectDesc& o : scene.objects) {
+            Affine m = placement_matrix(o.placement);
+            if (o.parent) m = o.parent->compose(m);
+            if (const auto* s = std::get_if<InlineMeshShape>(&o.shape))
+                add_mesh(box, *s->mesh, m);
+            else if (const auto* f = std::get_if<MeshFileShape>(&o.shape); f && !f->sequence)
+                add_mesh(box, load_mesh(f->path, f->loc), m);
+        }
+    } else {
+        throw_error("model file '{}': unknown kind '{}' (expected .obj, .ply, .gltf or .glb)",
+                    model, e);
+    }
+    if (box.empty()) throw_error("model file '{}' has no triangles", abs.string());
+    return box;
+}
+
+NewSceneReport write_new_scene(const NewSceneRequest& r) {
+    std::error_code ec;
+    const fs::path out = fs::absolute(r.output, ec).lexically_normal();
+    const fs::path folder = out.parent_path();
+    const fs::path model = fs::absolute(r.model, ec).lexically_normal();
+    const fs::path env = fs::absolute(r.env_map, ec).lexically_normal();
+    if (!fs::is_regular_file(env, ec))
+        throw_error("environment map '{}' not found (looked for {})", r.env_map, env.string());
+    NewSceneReport rep;
+    rep.model_bounds = model_bounds(r.model);
+    const Box& b = rep.model_bounds;
+    // Stand the model on the ground (y = 0), centred over the origin.
+    rep.offset = {-b.centre().x, -b.lo.y, -b.centre().z};
+    Box placed;
+    placed.add(b.lo + rep.offset);
+    placed.add(b.hi + rep.offset);
+    const Vec3 size = placed.hi - placed.lo;
+    const float radius = std::max(0.5f * length(size), 1e-6f);
+    rep.look_at = placed.centre();
+    rep.fov_deg = kFovDeg;
+    // A three-quarter view from slightly above, as a product shot is taken.
+    const Vec3 view = normalize(Vec3{0.75f, 0.38f, 1.0f});
+    const double aspect = double(r.width) / double(r.height);
+    const double dist = framing_distance(placed, rep.look_at, view, aspect);
+    rep.camera = rep.look_at + view * static_cast<float>(dist);
+    // Flakes per square unit such that a pixel at the look_at distance sees kFlakesPerPixel.
+    const double pixel = 2.0 * dist * std::tan(kFovDeg * kPiD / 360.0) / r.height;
+    rep.density = std::clamp(two_digits(kFlakesPerPixel / (pixel * pixel)), 1.0, 2.0e9);
+    rep.flakes_per_pixel = rep.density * pixel * pixel;
+
+    // The ground: a square 40 model sizes wide, written beside the scene.
+    rep.ground = r.ground.empty() ? (folder / (out.stem().string() + "_ground.ply")).string()
+                                  : fs::absolute(r.ground, ec).lexically_normal().string();
+    TriangleMesh ground;
+    const float g = 20.0f * radius;
+    ground.positions = {-g, 0, -g, g, 0, -g, g, 0, g, -g, 0, g};
+    ground.normals = {0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1, 0};
+    ground.uvs = {0, 0, 1, 0, 1, 1, 0, 1};
+    ground.indices = {0, 2, 1, 0, 3, 2};
+    write_ply(ground, rep.ground, "ground plane written by spangle new");
+
+    // The key light: a small sphere above the camera's shoulder, 4 radii from the model, whose
+    // irradiance there is 2.5 (E = L pi a^2 / D^2 for a sphere of radius a at distance D).
+    const Vec3 key = rep.look_at + normalize(Vec3{0.25f, 1.0f, 0.7f}) * (4.0f * radius);
+    const double key_radius = 0.15 * double(radius);
+    const double key_radiance = 2.5 * 16.0 / (kPiD * 0.15 * 0.15);
+
+    std::string paint = "paint";
+    std::vector<std::string> other_materials;
+    if (is_gltf(r.model)) {
+        const SceneDescription scene = read_scene(model.string());
+        for (const MaterialDesc& m : scene.materials) other_materials.push_back(m.name);
+        if (!other_materials.empty()) {
+            paint = other_materials.front();
+            other_materials.erase(other_materials.begin());
+        }
+    }
+    rep.paint = paint;
+
+    std::string t;
+    t += fmt::format(
+        "# A scene around {} written by `spangle new`: the model on a ground plane, lit by an\n"
+        "# environment map and a key light, the camera framed on the model's bounds, and a flake\n"
+        "# paint to start from. Render it with\n"
+        "#     spangle render {} -o {}.exr\n"
+        "# Paths are relative to this file. The model's bounds: {} to {} (its own units).\n\n",
+        model.filename().string(), out.filename().string(), out.stem().string(), vec(b.lo),
+        vec(b.hi));
+    t += fmt::format(
+        "[render]\nwidth = {}\nheight = {}\nspp = 64\nmax_depth = 6\nfilter = \"blackman-harris\"\n"
+        "clamp_indirect = 20            # a firefly guard for caustics; biased, 0 = off\n"
+        "working_space = \"ACEScg\"\ncolor_space = \"srgb_texture\"\n\n",
+        r.width, r.height);
+    t += fmt::format("[camera]\nposition = {}\nlook_at = {}\nfov = {:g}\n\n", vec(rep.camera),
+                     vec(rep.look_at), kFovDeg);
+    t += fmt::format(
+        "[environment]\nmap = {}\ncolor_space = \"lin_rec709\"\nrotation = 0\nintensity = 1.0\n\n",
+        toml_quoted(scene_relative(env, folder)));
+    t += fmt::format(
+        "[[light]]                      # the key light: small, so that flakes flash\n"
+        "type = \"sphere\"\ncenter = {}\nradius = {:.4g}\ncolor = [1.0, 0.97, 0.92]\n"
+        "intensity = {:.4g}\n\n",
+        vec(key), key_radius, key_radiance);
+    t += fmt::format(
+        "[[material]]\nname = {}\nplugin = \"flake\"\n"
+        "# Red glitter paint under a clear coat. density counts flakes per square unit of the\n"
+        "# model (density_space = \"object\": no uvs needed); at this camera a pixel sees about\n"
+        "# {:.0f} flakes, so each pixel holds a few separate glints. Raise density for a finer\n"
+        "# metallic look, lower it for sparser, bigger-looking sparkle; flake_roughness spreads\n"
+        "# the glints over the surface, gamma makes each flake's cone (and glint) wider.\n"
+        "params = {{ base_color = [0.55, 0.03, 0.04], flake_weight = 0.5, density = {:.6g}, "
+        "density_space = \"object\", flake_roughness = 0.2, gamma = 2, color_table = true, "
+        "hue_spread = 30, table_l = 0.6, coat = true, coat_ior = 1.5 }}\n\n",
+        toml_quoted(paint), rep.flakes_per_pixel, rep.density);
+    t += "[[material]]\nname = \"spangle_new_ground\"\nplugin = \"smooth\"\nmodel = \"plastic\"\n"
+         "params = { albedo = 0.3, roughness = 0.35 }\n\n";
+    t += fmt::format("[[object]]\nname = \"ground\"\nmesh = {}\nmaterial = \"spangle_new_ground\"\n\n",
+                     toml_quoted(scene_relative(rep.ground, folder)));
+    if (is_gltf(r.model)) {
+        t += fmt::format(
+            "[[import]]                     # the model, with its own materials; the flake paint\n"
+            "                               # above replaces its material {}{}\n"
+            "file = {}\ntranslate = {}\ncamera = false\nenvironment = false\nlights = false\n",
+            toml_quoted(paint),
+            other_materials.empty()
+                ? std::string()
+                : fmt::format(" (its others: {})", fmt::join(other_materials, ", ")),
+            toml_quoted(scene_relative(model, folder)), vec(rep.offset));
+    } else {
+        t += fmt::format("[[object]]\nname = \"model\"\nmesh = {}\nmaterial = {}\ntranslate = {}\n",
+                         toml_quoted(scene_relative(model, folder)), toml_quoted(paint), vec(rep.offset));
+    }
+
+    const fs::path tmp = out.string() + ".tmp";
+    std::FILE* f = std::fopen(tmp.c_str(), "w");
+    if (!f) throw_error("cannot write the scene '{}'", out.string());
+    const bool ok = std::fwrite(t.data(), 1, t.size(), f) == t.size();
+    if (std::fclose(f) != 0 || !ok) {
+        fs::remove(tmp, ec);
+        throw_error("cannot write the scene '{}'", out.string());
+    }
+    fs::rename(tmp, out, ec);
+    if (ec) throw_error("cannot write the scene '{}': {}", out.string(), ec.message());
+    return rep;
+}
+
+}  // namespace spangle
