@@ -35,6 +35,25 @@ void DirectionGrid::init(float alpha_, float gamma_rad) {
                              (static_cast<float>(j) + 0.5f) / static_cast<float>(side));
 }
 
+uint64_t place_key(uint64_t cell_key, const Footprint& local, double x0, double y0, double size) {
+    // Grid spacing: the largest power-of-two fraction of the cell not above the footprint's
+    // half extent (at most 2^16 per side).
+    const double half = std::max(local.half_width(), local.half_height());
+    int q = 0;
+    while (q < 16 && size * std::ldexp(1.0, -(q + 1)) >= half) ++q;
+    const double step = size * std::ldexp(1.0, -q);
+    // The centre of the part of the cell under the footprint's bounding box (a footprint whose
+    // centre lies outside the cell is placed by the part it covers).
+    const auto cell = [&](double c, double h, double origin) {
+        const double lo = std::max(c - h, origin), hi = std::min(c + h, origin + size);
+        return static_cast<uint64_t>(std::clamp(std::floor((0.5 * (lo + hi) - origin) / step), 0.0,
+                                                std::ldexp(1.0, q) - 1.0));
+    };
+    return mix(
+        mix(cell_key, 0x9a11 + static_cast<uint64_t>(q)),
+        (cell(local.cu, local.half_width(), x0) << 20) | cell(local.cv, local.half_height(), y0));
+}
+
 int footprint_level(const FieldParams& fp, const Footprint& p) {
     const double s = 2.0 * std::max(p.half_width(), p.half_height());
     if (!(s > 0.0) || !std::isfinite(s)) return fp.max_depth;

@@ -135,6 +135,17 @@ void node_weights(const DirectionGrid& grid, V3 wo, float out[DirectionGrid::kWe
 float realised_weight(const Aggregate& a, const DirectionGrid& grid,
                       const float node_w[DirectionGrid::kWeightNodes], int exact_below);
 
+/** The key of an aggregate's flakes: the cell's key and where in the cell the footprint's centre
+ *  lies, on a grid of the footprint's half size (a power-of-two fraction of the cell). The k
+ *  flakes counted in a cell are stand-ins for the flakes of the part of the cell the footprint
+ *  covers, so two footprints at different places of one cell (neighbouring pixels) must not see
+ *  the same stand-ins: keyed by the cell alone they did, and the same glints and the same
+ *  modulation of the lobe spread over every pixel of the cell (blotches and dashes where real
+ *  flakes are points). With the place in the key, footprints half their size apart or more see
+ *  independent stand-ins, as footprints that share no flake do; a footprint that moves by less
+ *  keeps them. */
+uint64_t place_key(uint64_t cell_key, const Footprint& local, double x0, double y0, double size);
+
 /** The quad-tree level (0 = the tile) whose cells are the smallest at least as large as P's
  *  bounding box, so that P overlaps at most 2 x 2 of them; at most the field's max_depth. */
 int footprint_level(const FieldParams& fp, const Footprint& p);
@@ -227,7 +238,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     const uint32_t k = binomial(node.n, std::clamp(rho, 0.0, 1.0),
                                                 unit(mix(key, 0x51)), fp.exact_below);
                     if (k == 0 || out.n_agg >= kMaxAggregates) continue;
-                    out.agg[out.n_agg++] = {key, k};
+                    out.agg[out.n_agg++] = {place_key(key, local, nx0, ny0, nsize), k};
                     out.aggregated += k;
                 }
         }

@@ -142,6 +142,23 @@ bool kept(const Flake& f, float keep) {
     return unit(mix(mix(bu, bv), 0x7417)) < static_cast<double>(keep);
 }
 
+/** The largest cell the counting algorithm enumerates for a view of cos(theta_o) = cos_o:
+ *  exact_flakes, or more for cells whose flakes would light every direction sparsely (fewer than
+ *  kDenseLit per cone on average, the test of mark_sparse applied to the whole cell), up to
+ *  kSparseExactCap. A sparse aggregate's glints are its virtual flakes, the first k of the cell
+ *  whatever part of it the footprint covers: neighbouring pixels in one cell then show the same
+ *  glints, as multi-pixel blotches and dashes where real flakes are points. Enumerated, each
+ *  glint is a flake with its own position. Dense aggregates (their lobe a modulated smooth lobe)
+ *  stay counted. */
+constexpr double kSparseExactCap = 4096.0;
+uint32_t exact_limit(const Material& m, float cos_o) {
+    const auto alpha = static_cast<double>(m.grid.alpha);
+    const double sparse = static_cast<double>(kDenseLit) * alpha * alpha *
+                          std::max(static_cast<double>(cos_o), 0.0) /
+                          std::max(static_cast<double>(m.grid.sin2_half), 1e-12);
+    return std::max(m.exact_flakes, static_cast<uint32_t>(std::min(sparse, kSparseExactCap)));
+}
+
 bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v3* arena,
                       PointStats& st) {
     thread_local std::vector<CacheEntry> scratch;
@@ -170,7 +187,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         scratch.push_back(e);
     };
     if (m.tree) {
-        gather_cells(field, p, m.exact_flakes, c.counted, add);
+        gather_cells(field, p, exact_limit(m, c.wo.z), c.counted, add);
         if (c.counted.truncated) return false;
         if (view.keep < 1.0f) {
             // The aggregates' counts thinned alike (binomially, monotone in keep).
