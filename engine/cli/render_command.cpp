@@ -243,6 +243,7 @@ int run_one_shot(const RenderArgs& a) {
             RenderArgs named = a;
             named.output = fs::path(i.output).replace_extension(".exr").string();
             s.out = outputs_for(named);
+            s.out.remove_stale_temporaries(s.log);
             if (!a.quiet) s.log.info("the scene asks for '{}': writing {}", i.output, s.out.exr);
         }
         s.out.check_view(c);  // a display or view the config lacks: an error before rendering
