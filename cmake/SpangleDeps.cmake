@@ -31,10 +31,6 @@ find_package(ZLIB REQUIRED)
 # OpenColorIO's CMake config computes a wrong prefix on Debian: use pkg-config.
 pkg_check_modules(OCIO REQUIRED IMPORTED_TARGET OpenColorIO)
 
-# cpp-httplib (the live preview page of --serve) has only a pkg-config file on Debian. Its
-# cflags turn on OpenSSL, zlib and Brotli support, whose headers its -dev package pulls in.
-pkg_check_modules(HTTPLIB REQUIRED IMPORTED_TARGET cpp-httplib)
-
 # OpenSubdiv's config references static libraries Debian does not ship: find it by hand.
 find_library(OSD_CPU_LIBRARY osdCPU REQUIRED)
 find_path(OSD_INCLUDE_DIR opensubdiv/far/topologyRefiner.h REQUIRED)

@@ -11,7 +11,7 @@ set -euo pipefail
 packages=(
     cmake ninja-build g++ pkg-config
     libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev libpng-dev
-    zlib1g-dev libtbb-dev libtomlplusplus-dev libcli11-dev libtinyobjloader-dev libtinygltf-dev libcpp-httplib-dev libgtest-dev libbenchmark-dev
+    zlib1g-dev libtbb-dev libtomlplusplus-dev libcli11-dev libtinyobjloader-dev libtinygltf-dev libgtest-dev libbenchmark-dev
     openimageio-tools opencolorio-tools clang-format python3-pip
     pybind11-dev python3-dev python3-numpy
     libopenmpi-dev openmpi-bin

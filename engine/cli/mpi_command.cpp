@@ -124,7 +124,10 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
     if (job.rank() != 0) options.work_progress = nullptr;  // rank 0 speaks for all
     std::unique_ptr<Session> session;
     together(job, [&] {
-        if (job.rank() == 0) out = outputs_for(a);
+        if (job.rank() == 0) {
+            out = outputs_for(a);
+            out.remove_stale_temporaries(log);
+        }
         session = std::make_unique<Session>(a.plugin_dirs, a.ocio, options, log);
     });
     const std::vector<std::pair<int64_t, bool>> frames = frames_of(a);

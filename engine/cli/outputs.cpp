@@ -13,6 +13,7 @@
 #include "cli/output_paths.h"
 #include "cli/usage.h"
 #include "color/color_config.h"
+#include "color/temporary_files.h"
 #include "core/check.h"
 #include "core/error.h"
 #include "render/camera.h"
@@ -155,6 +156,22 @@ Outputs Outputs::for_frame(int64_t f) const {
 void Outputs::check_view(const ColorConfig& color) const {
     std::string d = display, v = view;
     color.resolve_view(d, v);
+}
+
+void Outputs::remove_stale_temporaries(const Logger& log) const {
+    std::vector<fs::path> folders;
+    for (const std::string& path : {exr, preview}) {
+        if (path.empty()) continue;
+        const fs::path dir = fs::path(path).parent_path();
+        if (std::find(folders.begin(), folders.end(), dir) == folders.end()) folders.push_back(dir);
+    }
+    for (const fs::path& dir : folders) {
+        const StaleTemporaries found = spangle::remove_stale_temporaries(dir.string());
+        for (const std::string& p : found.removed)
+            log.info("removed '{}', left by a render that was killed while writing it", p);
+        for (const std::string& why : found.failed)
+            log.warn("cannot remove the temporary image a killed render left: {}", why);
+    }
 }
 
 Outputs outputs_for(const RenderArgs& a) {

@@ -86,6 +86,9 @@ struct Outputs {
     /** Throws SpangleError when the preview's display or view is not in `color`: an error before
      *  any rendering. */
     void check_view(const ColorConfig& color) const;
+    /** Removes the temporary images a killed render left in the folders of the EXR and the
+     *  preview (color/temporary_files.h), saying which; what cannot be removed is a warning. */
+    void remove_stale_temporaries(const Logger& log) const;
 };
 
 /** The outputs `spangle render` asked for, checked before any work: an .exr name, a known

@@ -3,15 +3,15 @@
 #include "cli/preview_server.h"
 
 #include <fmt/format.h>
-#include <httplib.h>
-#include <sys/socket.h>
 
 #include <chrono>
 #include <cstdio>
+#include <cstdlib>
 
 #include "color/color_config.h"
 #include "color/image_output.h"
 #include "core/error.h"
+#include "core/log.h"
 #include "render/render_options.h"
 
 namespace spangle {
@@ -34,7 +34,7 @@ pre { margin: 0 12px 12px; padding: 8px; background: #111; max-height: 30vh; ove
 .error { color: #f66; }
 </style></head>
 <body>
-<header><strong>Spangle</strong><span id="status">waiting for the first pass</span>
+<header><strong>Spangle</strong><span id="status">connecting</span>
 <div id="bar"><div id="fill"></div></div><span id="conn">connecting</span></header>
 <main><img id="image" alt="latest pass"></main>
 <pre id="log"></pre>
@@ -44,11 +44,12 @@ const es = new EventSource('/events');
 es.onopen = () => { $('conn').textContent = 'live'; };
 es.onerror = () => { $('conn').textContent = 'disconnected'; };
 es.addEventListener('pass', (e) => {
+  $('image').src = '/image.png?v=' + JSON.parse(e.data).image;
+});
+es.addEventListener('status', (e) => {
   const d = JSON.parse(e.data);
-  $('image').src = '/image.png?v=' + d.image;
-  $('status').textContent = d.spp === 0
-    ? 'preview pass (1/' + d.block + ' resolution) of ' + d.target + ' spp'
-    : 'pass ' + d.pass + ': ' + d.spp + ' of ' + d.target + ' spp';
+  $('status').textContent = d.text + (d.fraction >= 0 ? ' ' + Math.floor(100 * d.fraction) + '%' : '');
+  if (d.fraction >= 0) $('fill').style.width = 100 * d.fraction + '%';
 });
 es.addEventListener('progress', (e) => {
   const d = JSON.parse(e.data);
@@ -105,100 +106,27 @@ std::pair<std::string, int> parse_serve_address(const std::string& spec) {
     return {host, static_cast<int>(port)};
 }
 
-struct PreviewServer::Http {
-    httplib::Server server;
-};
+namespace {
 
-PreviewServer::PreviewServer(const std::string& spec) : http_(std::make_unique<Http>()) {
-    std::tie(host_, port_) = parse_serve_address(spec);
+/** The status line of a pass. */
+std::string pass_status(uint32_t passes, uint32_t spp, uint32_t target, uint32_t block) {
+    if (spp == 0) return fmt::format("preview pass (1/{} resolution) of {} spp", block, target);
+    return fmt::format("pass {}: {} of {} spp", passes, spp, target);
+}
+
+}  // namespace
+
+PreviewServer::PreviewServer(const std::string& spec, std::function<void(const std::string&)> note,
+                             const HttpLoop::Limits& limits) {
+    int port = 0;
+    std::tie(host_, port) = parse_serve_address(spec);
     loopback_ = host_ == "127.0.0.1" || host_ == "localhost" || host_ == "::1";
-    // The library's default also sets SO_REUSEPORT, which lets a second server take a port
-    // already in use: only SO_REUSEADDR here (a restart may reuse a port in TIME_WAIT).
-    http_->server.set_socket_options([](int sock) {
-        int yes = 1;
-        ::setsockopt(sock, SOL_SOCKET, SO_REUSEADDR, &yes, sizeof(yes));
-    });
-    add_routes();
-    const int port = port_;
-    httplib::Server& s = http_->server;
-    const bool bound =
-        port_ == 0 ? (port_ = s.bind_to_any_port(host_)) > 0 : s.bind_to_port(host_, port_);
-    if (!bound)
-        throw_error("--serve: cannot listen on {}:{} (in use, or not an address of this machine)",
-                    host_, port);
+    http_ = std::make_unique<HttpLoop>(host_, port, limits);
     const bool v6 = host_.find(':') != std::string::npos;
-    url_ = fmt::format("http://{}{}{}:{}/", v6 ? "[" : "", host_, v6 ? "]" : "", port_);
-    listener_ = std::thread([this] { http_->server.listen_after_bind(); });
+    url_ = fmt::format("http://{}{}{}:{}/", v6 ? "[" : "", host_, v6 ? "]" : "", http_->port());
     encoder_ = std::thread([this] { encode_loop(); });
-}
-
-void PreviewServer::add_routes() {
-    httplib::Server& s = http_->server;
-    // Bound to loopback, answer only requests addressed to it: a page elsewhere cannot reach
-    // this one through a rebound DNS name.
-    s.set_pre_routing_handler([this](const httplib::Request& req, httplib::Response& res) {
-        if (!loopback_) return httplib::Server::HandlerResponse::Unhandled;
-        const std::string h = host_name(req.get_header_value("Host"));
-        if (h == "127.0.0.1" || h == "localhost" || h == "[::1]")
-            return httplib::Server::HandlerResponse::Unhandled;
-        res.status = 403;
-        res.set_content("forbidden: not a loopback host\n", "text/plain");
-        return httplib::Server::HandlerResponse::Handled;
-    });
-    s.Get("/", [](const httplib::Request&, httplib::Response& res) {
-        res.set_header("Cache-Control", "no-store");
-        res.set_content(kPage, "text/html; charset=utf-8");
-    });
-    s.Get("/image.png", [this](const httplib::Request&, httplib::Response& res) {
-        std::string png;
-        {
-            std::lock_guard<std::mutex> lock(mutex_);
-            png = png_;
-        }
-        res.set_header("Cache-Control", "no-store");
-        if (png.empty()) {
-            res.status = 503;
-            res.set_content("no pass yet\n", "text/plain");
-            return;
-        }
-        res.set_content(png, "image/png");
-    });
-    s.Get("/events", [this](const httplib::Request& req, httplib::Response& res) {
-        res.set_header("Cache-Control", "no-store");
-        // Every kept event after the client's last one, then new ones as they come.
-        auto last = std::make_shared<uint64_t>(0);
-        if (req.has_header("Last-Event-ID"))
-            *last = std::strtoull(req.get_header_value("Last-Event-ID").c_str(), nullptr, 10);
-        auto progress_seen = std::make_shared<uint64_t>(0);
-        res.set_chunked_content_provider(
-            "text/event-stream", [this, last, progress_seen](std::size_t, httplib::DataSink& sink) {
-                std::string out;
-                if (!next_events(*last, *progress_seen, out)) return false;
-                return sink.write(out.data(), out.size());
-            });
-    });
-}
-
-bool PreviewServer::next_events(uint64_t& last, uint64_t& progress_seen, std::string& out) {
-    std::unique_lock<std::mutex> lock(mutex_);
-    const auto fresh = [&] {
-        return stopping_ || progress_version_ != progress_seen ||
-               (!events_.empty() && events_.back().id > last);
-    };
-    if (!changed_.wait_for(lock, std::chrono::seconds(1), fresh))
-        out = ": still here\n\n";  // finds closed connections
-    if (stopping_) return false;
-    for (const Event& e : events_)
-        if (e.id > last) {
-            out += fmt::format("id: {}\nevent: {}\ndata: {}\n\n", e.id, e.type, e.data);
-            last = e.id;
-        }
-    if (progress_version_ != progress_seen) {
-        out +=
-            fmt::format("event: progress\ndata: {{\"done\":{},\"total\":{}}}\n\n", done_, total_);
-        progress_seen = progress_version_;
-    }
-    return true;
+    http_->start([this](const HttpRequest& req) { return route(req); },
+                 [this](std::span<HttpLoop::StreamNews> news) { pump(news); }, std::move(note));
 }
 
 PreviewServer::~PreviewServer() {
@@ -207,14 +135,94 @@ PreviewServer::~PreviewServer() {
         stopping_ = true;
     }
     changed_.notify_all();
-    http_->server.stop();
-    if (listener_.joinable()) listener_.join();
-    if (encoder_.joinable()) encoder_.join();
+    if (encoder_.joinable()) encoder_.join();  // it notifies the loop: stopped first
+    http_.reset();                             // stops the loop before what its routes read goes
+}
+
+HttpReply PreviewServer::route(const HttpRequest& req) {
+    static const auto page = std::make_shared<const std::string>(kPage);
+    HttpReply r;
+    // Bound to loopback, answer only requests addressed to it: a page elsewhere cannot reach
+    // this one through a rebound DNS name.
+    const std::string h = host_name(req.host);
+    if (loopback_ && h != "127.0.0.1" && h != "localhost" && h != "[::1]") {
+        r.status = 403;
+        r.body = std::make_shared<const std::string>("forbidden: not a loopback host\n");
+    } else if (req.path == "/") {
+        r.content_type = "text/html; charset=utf-8";
+        r.body = page;
+    } else if (req.path == "/image.png") {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (png_) {
+            r.content_type = "image/png";
+            r.body = png_;  // shared: a thousand requests hold one copy
+        } else {
+            r.status = 503;
+            r.body = std::make_shared<const std::string>("no pass yet\n");
+        }
+    } else if (req.path == "/events") {
+        // Every kept event after the client's last one, then the current progress and status;
+        // new ones follow as they come (pump).
+        r.event_stream = true;
+        r.cursor[0] = std::strtoull(req.last_event_id.c_str(), nullptr, 10);
+        std::lock_guard<std::mutex> lock(mutex_);
+        r.body = std::make_shared<const std::string>("retry: 2000\n\n" + news_for(r.cursor));
+    } else {
+        r.status = 404;
+        r.body = std::make_shared<const std::string>("not found\n");
+    }
+    return r;
+}
+
+std::string PreviewServer::news_for(StreamCursor& cursor) const {
+    std::string out;
+    for (const Event& e : events_)
+        if (e.id > cursor[0]) {
+            out += e.text;
+            cursor[0] = e.id;
+        }
+    if (progress_version_ != cursor[1]) {
+        out +=
+            fmt::format("event: progress\ndata: {{\"done\":{},\"total\":{}}}\n\n", done_, total_);
+        cursor[1] = progress_version_;
+    }
+    if (status_version_ != cursor[2]) {
+        out += fmt::format("event: status\ndata: {{\"text\":{},\"fraction\":{:.3f}}}\n\n",
+                           json_string(status_), status_fraction_);
+        cursor[2] = status_version_;
+    }
+    return out;
+}
+
+void PreviewServer::pump(std::span<HttpLoop::StreamNews> news) {
+    std::lock_guard<std::mutex> lock(mutex_);
+    // Streams at the same place hear the same text: one buffer shared by all of them.
+    StreamCursor from{}, to{};
+    std::shared_ptr<const std::string> text;
+    bool have = false;
+    for (HttpLoop::StreamNews& n : news) {
+        if (!have || n.cursor != from) {
+            from = to = n.cursor;
+            std::string t = news_for(to);
+            text = t.empty() ? nullptr : std::make_shared<const std::string>(std::move(t));
+            have = true;
+        }
+        n.cursor = to;
+        n.text = text;
+    }
 }
 
 void PreviewServer::push_event(const std::string& type, const std::string& data) {
-    events_.push_back({next_event_++, type, data});
+    const uint64_t id = next_event_++;
+    events_.push_back({id, fmt::format("id: {}\nevent: {}\ndata: {}\n\n", id, type, data)});
     if (events_.size() > kKeptEvents) events_.pop_front();
+}
+
+void PreviewServer::set_status(const std::string& text, double fraction) {
+    status_ = text;
+    status_fraction_ = fraction;
+    status_at_ = std::chrono::steady_clock::now();
+    ++status_version_;
 }
 
 void PreviewServer::publish_pass(const std::vector<float>& image, uint32_t width, uint32_t height,
@@ -230,6 +238,7 @@ void PreviewServer::publish_pass(const std::vector<float>& image, uint32_t width
     p->color = &color;
     {
         std::lock_guard<std::mutex> lock(mutex_);
+        p->stage_serial = stage_serial_;
         pending_ = std::move(p);  // an older pass not yet encoded is dropped
     }
     changed_.notify_all();
@@ -249,7 +258,24 @@ void PreviewServer::progress(uint64_t done, uint64_t total) {
         total_ = total;
         ++progress_version_;
     }
-    changed_.notify_all();
+    http_->notify();
+}
+
+void PreviewServer::stage(const std::string& what, double fraction) {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        // A piece of work reports often (every BVH build step): its first and last word go
+        // out, and between them at most five a second.
+        if (what == stage_ && fraction < 1.0 &&
+            std::chrono::steady_clock::now() - status_at_ < std::chrono::milliseconds(200))
+            return;
+        if (what != stage_) {
+            stage_ = what;
+            ++stage_serial_;
+        }
+        set_status(what, fraction);
+    }
+    http_->notify();
 }
 
 void PreviewServer::log(const std::string& level, const std::string& text) {
@@ -258,7 +284,7 @@ void PreviewServer::log(const std::string& level, const std::string& text) {
         push_event("log", fmt::format("{{\"level\":{},\"text\":{}}}", json_string(level),
                                       json_string(text)));
     }
-    changed_.notify_all();
+    http_->notify();
 }
 
 void PreviewServer::encode_loop() {
@@ -285,22 +311,35 @@ void PreviewServer::encode_loop() {
         for (const uint32_t end : pass_ends(p->target)) passes += end <= p->spp ? 1 : 0;
         {
             std::lock_guard<std::mutex> lock(mutex_);
-            png_ = std::move(png);
+            png_ = std::make_shared<const std::string>(std::move(png));
             ++image_version_;
             push_event("pass", fmt::format("{{\"pass\":{},\"spp\":{},\"target\":{},\"block\":{},"
                                            "\"image\":{}}}",
                                            passes, p->spp, p->target, p->block, image_version_));
+            // A pass of work that a newer stage (a reload) has replaced shows its image, but
+            // the status line stays with the newer work.
+            if (p->stage_serial == stage_serial_)
+                set_status(pass_status(passes, p->spp, p->target, p->block), -1.0);
         }
-        changed_.notify_all();
+        http_->notify();
     }
 }
 
-std::unique_ptr<PreviewServer> start_preview_server(const std::string& spec) {
+std::unique_ptr<PreviewServer> start_preview_server(const std::string& spec, const Logger& log) {
     if (spec.empty()) return nullptr;
-    auto server = std::make_unique<PreviewServer>(spec);
+    auto server = std::make_unique<PreviewServer>(
+        spec, [&log](const std::string& line) { log.info("{}", line); });
     fmt::print("live preview at {}\n", server->url());  // even with --quiet: it was asked for
     std::fflush(stdout);
     return server;
+}
+
+WorkProgress work_progress_to(PreviewServer* server, WorkProgress inner) {
+    if (!server) return inner;
+    return [server, inner = std::move(inner)](const std::string& what, double fraction) {
+        server->stage(what, fraction);
+        if (inner) inner(what, fraction);
+    };
 }
 
 }  // namespace spangle

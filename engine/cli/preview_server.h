@@ -1,9 +1,11 @@
 #pragma once
 // The live preview page of `spangle render --serve [ADDR:]PORT`: a small web page that shows the
-// latest pass through the OCIO display and view, the pass and samples reached, progress, and the
-// reload lines and errors as they come (server-sent events). The render never waits for it: a
-// pass is handed over as a copy and encoded to PNG on the server's own thread, the newest pass
-// replacing one not yet encoded. It serves three fixed routes and no files; it binds to
+// latest pass through the OCIO display and view, what the renderer is doing (loading, building
+// BVHs, making materials, the pass and samples reached), progress, and the reload lines and
+// errors as they come (server-sent events). The render never waits for it: a pass is handed over
+// as a copy and encoded to PNG on the server's own thread, the newest pass replacing one not yet
+// encoded. It serves three fixed routes and no files through a single-threaded non-blocking loop
+// (http_loop.h: any number of open pages up to its caps, slow clients dropped); it binds to
 // 127.0.0.1 unless told otherwise, and then answers only requests addressed to the loopback host.
 //
 // It lives beside the render modes rather than in watch/: a one-shot render serves it too
@@ -14,27 +16,36 @@
 #include <condition_variable>
 #include <cstdint>
 #include <deque>
+#include <functional>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
 #include <thread>
 #include <utility>
 #include <vector>
 
+#include "cli/http_loop.h"
+#include "core/progress.h"
+
 namespace spangle {
 
 class ColorConfig;
+struct Logger;
 
 /** Splits "PORT" or "ADDR:PORT" ("[::1]:PORT" for IPv6) into address (default 127.0.0.1) and
  *  port. Throws SpangleError when malformed. */
 std::pair<std::string, int> parse_serve_address(const std::string& spec);
 
-/** The live preview page: an HTTP server on two threads of its own (listening, encoding). */
+/** The live preview page: an HTTP loop and a PNG encoder, each on a thread of its own. */
 class PreviewServer {
 public:
     /** Binds `spec` ("PORT" or "ADDR:PORT"; port 0 picks a free one) and starts serving.
-     *  Throws SpangleError when the spec is malformed or the address cannot be bound. */
-    explicit PreviewServer(const std::string& spec);
+     *  `note` receives lines for the user (a client dropped, connections refused); may be
+     *  empty. Throws SpangleError when the spec is malformed or the address cannot be bound. */
+    explicit PreviewServer(const std::string& spec,
+                           std::function<void(const std::string&)> note = {},
+                           const HttpLoop::Limits& limits = {});
     ~PreviewServer();
     PreviewServer(const PreviewServer&) = delete;
     PreviewServer& operator=(const PreviewServer&) = delete;
@@ -48,22 +59,30 @@ public:
                       uint32_t spp, uint32_t target, uint32_t block, const ColorConfig& color);
     /** Samples done of the current render. */
     void progress(uint64_t done, uint64_t total);
+    /** What the renderer is doing now ("loading scene.toml", "building BVHs"), `fraction` of it
+     *  done in [0, 1] or < 0 when unknown: the page's status line until the next pass. A
+     *  WorkProgress can forward here. Thread-safe; at most a few updates a second go out. */
+    void stage(const std::string& what, double fraction = -1.0);
     /** A line for the page's log: level "info" (reloads) or "error". */
     void log(const std::string& level, const std::string& text);
 
 private:
     /** One server-sent event, kept for clients that connect late. */
     struct Event {
-        uint64_t id;             ///< the SSE id (Last-Event-ID of a reconnecting client)
-        std::string type, data;  ///< SSE event name and JSON payload
+        uint64_t id;       ///< the SSE id (Last-Event-ID of a reconnecting client)
+        std::string text;  ///< the whole event as sent ("id: ..\nevent: ..\ndata: ..\n\n")
     };
-    /** Registers the routes (/, /image.png, /events) and the loopback Host check. */
-    void add_routes();
-    /** Waits up to a second for news after event `last` and progress version `progress_seen`,
-     *  appends them to `out` as SSE text and moves both on; false once the server stops. */
-    bool next_events(uint64_t& last, uint64_t& progress_seen, std::string& out);
+    /** Answers /, /image.png and /events, and refuses foreign Host headers. */
+    HttpReply route(const HttpRequest& req);
+    /** What a stream at `cursor` has not heard yet, moving the cursor on; the caller holds
+     *  mutex_. Cursor: last event id, progress version, status version. */
+    std::string news_for(StreamCursor& cursor) const;
+    /** Every open stream's news (HttpLoop::Pump). */
+    void pump(std::span<HttpLoop::StreamNews> news);
     /** Keeps the latest events (kKeptEvents); the caller holds mutex_. */
     void push_event(const std::string& type, const std::string& data);
+    /** Sets the status line; the caller holds mutex_. */
+    void set_status(const std::string& text, double fraction);
     /** The encoder thread: turns the newest pending pass into the PNG the page shows. */
     void encode_loop();
 
@@ -72,32 +91,41 @@ private:
         std::vector<float> image;                                        ///< working space
         uint32_t width = 0, height = 0, spp = 0, target = 0, block = 1;  ///< as publish_pass
         const ColorConfig* color = nullptr;                              ///< outlives the server
+        uint64_t stage_serial = 0;  ///< stage_serial_ when published
     };
 
     std::string url_;       ///< the page's address
     std::string host_;      ///< bound address
-    int port_ = 0;          ///< bound port
     bool loopback_ = true;  ///< bound to loopback: answer loopback Host headers only
 
-    std::mutex mutex_;                 ///< guards everything below but the threads
-    std::condition_variable changed_;  ///< events, progress or a pass to encode
+    mutable std::mutex mutex_;         ///< guards everything below but the loop and threads
+    std::condition_variable changed_;  ///< a pass to encode, or stopping
     bool stopping_ = false;            ///< the destructor has begun
     std::deque<Event> events_;         ///< the latest events, for clients that connect late
     uint64_t next_event_ = 1;          ///< id of the next event
     uint64_t done_ = 0, total_ = 0;    ///< samples of the current render
     uint64_t progress_version_ = 0;    ///< bumped on each progress update sent
     std::chrono::steady_clock::time_point progress_at_;  ///< when progress was last sent
-    std::unique_ptr<Pending> pending_;  ///< the pass waiting to be encoded; null: none
-    std::string png_;                   ///< the latest encoded pass
-    uint64_t image_version_ = 0;        ///< bumped with each encoded pass
+    std::string status_ = "starting";                    ///< the page's status line
+    double status_fraction_ = -1.0;                      ///< of the stage in status_; < 0: none
+    uint64_t status_version_ = 1;                        ///< bumped with each status sent
+    std::chrono::steady_clock::time_point status_at_;    ///< when the status was last sent
+    std::string stage_;                                  ///< the last stage() text
+    uint64_t stage_serial_ = 0;                          ///< bumped when stage() names new work
+    std::unique_ptr<Pending> pending_;        ///< the pass waiting to be encoded; null: none
+    std::shared_ptr<const std::string> png_;  ///< the latest encoded pass; null: none yet
+    uint64_t image_version_ = 0;              ///< bumped with each encoded pass
 
-    struct Http;                      ///< the httplib server, kept out of this header
-    std::unique_ptr<Http> http_;      ///< the server
-    std::thread listener_, encoder_;  ///< serving requests; encoding passes
+    std::unique_ptr<HttpLoop> http_;  ///< the server loop (its thread)
+    std::thread encoder_;             ///< encoding passes
 };
 
 /** The page --serve asks for (`spec`: [ADDR:]PORT; empty: none, nullptr). Prints its address on
- *  stdout, even with --quiet: it was asked for. Throws SpangleError when it cannot listen. */
-std::unique_ptr<PreviewServer> start_preview_server(const std::string& spec);
+ *  stdout, even with --quiet: it was asked for; lines about clients go to `log`. Throws
+ *  SpangleError when it cannot listen. */
+std::unique_ptr<PreviewServer> start_preview_server(const std::string& spec, const Logger& log);
+
+/** A WorkProgress that tells `server` (when not null) and then `inner` (when set). */
+WorkProgress work_progress_to(PreviewServer* server, WorkProgress inner);
 
 }  // namespace spangle

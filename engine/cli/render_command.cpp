@@ -222,7 +222,11 @@ int run_one_shot(const RenderArgs& a) {
     // through this pointer, set by on_loaded below before any pass ends.
     const ColorConfig* color = nullptr;
     const SceneInfo* info = nullptr;
-    const std::unique_ptr<PreviewServer> server = start_preview_server(a.serve);
+    const std::unique_ptr<PreviewServer> server = start_preview_server(a.serve, s.log);
+    if (server) {
+        server->stage(fmt::format("loading {}", a.scene));
+        req.options.work_progress = work_progress_to(server.get(), req.options.work_progress);
+    }
     req.options.preview_pass = a.pass_output || server;
     if (a.pass_output || server)
         req.options.on_pass = [&](const PassImage& p) {
@@ -243,12 +247,14 @@ int run_one_shot(const RenderArgs& a) {
             RenderArgs named = a;
             named.output = fs::path(i.output).replace_extension(".exr").string();
             s.out = outputs_for(named);
+            s.out.remove_stale_temporaries(s.log);
             if (!a.quiet) s.log.info("the scene asks for '{}': writing {}", i.output, s.out.exr);
         }
         s.out.check_view(c);  // a display or view the config lacks: an error before rendering
         warn_if_no_chromaticities(s.log, c);
         color = &c;
         info = &i;
+        if (server) server->stage("rendering");
     };
     const FrameResult frame = render_frame(req);
     progress.finish();

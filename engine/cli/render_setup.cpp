@@ -8,6 +8,7 @@ namespace spangle {
 
 RenderSetup set_up_render(const RenderArgs& a) {
     RenderSetup s{render_logger(a), outputs_for(a)};
+    s.out.remove_stale_temporaries(s.log);
     install_signal_handlers();
     return s;
 }

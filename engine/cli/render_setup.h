@@ -16,7 +16,8 @@ struct RenderSetup {
 };
 
 /** Sets a one-process render up, in this order: the logger, the outputs (checked before any
- *  work: UsageError or SpangleError), then the stop signals' handlers. */
+ *  work: UsageError or SpangleError; temporary images a killed render left in their folders
+ *  removed), then the stop signals' handlers. */
 RenderSetup set_up_render(const RenderArgs& a);
 
 /** Says how many sample values were non-finite and replaced by black, and the first of them

@@ -27,6 +27,7 @@
 #include <mutex>
 #include <system_error>
 
+#include "color/temporary_files.h"
 #include "core/error.h"
 
 namespace fs = std::filesystem;
@@ -89,15 +90,6 @@ private:
     InProgress* slot_ = nullptr;
 };
 
-/** Temporary name beside `path`, unique to this process. */
-std::string temp_path_for(const std::string& path) {
-    static std::atomic<unsigned> counter{0};
-    const fs::path p(path);
-    return (p.parent_path() /
-            fmt::format(".{}.tmp{}.{}", p.filename().string(), ::getpid(), counter++))
-        .string();
-}
-
 /** Rows written per strip: images are converted and written a strip at a time, so writing
  *  needs a strip's worth of memory beside the film, not a converted copy of the whole image. */
 constexpr int kStripRows = 256;
@@ -110,8 +102,9 @@ void write_atomically(const std::string& path,
     const fs::path dir = fs::path(path).parent_path();
     if (!dir.empty() && !fs::is_directory(dir))
         throw_error("cannot write '{}': directory '{}' does not exist", path, dir.string());
-    const std::string tmp = temp_path_for(path);
+    const std::string tmp = temporary_path_for(path);
     const InProgressSlot slot(tmp);
+    const TemporaryLock lock(tmp);
     std::error_code ec;
     try {
         write_file(tmp);

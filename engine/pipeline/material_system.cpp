@@ -1,6 +1,8 @@
 // The materials system: one plugin instance per [[material]] that an object uses, and a warning
 // for objects whose material lays a pattern out in uv on a mesh without usable uvs.
 
+#include <algorithm>
+
 #include "core/files.h"
 #include "pipeline/systems.h"
 
@@ -70,6 +72,8 @@ void system_materials(ecs::Registry& r, World& w) {
     MaterialSet set;
     set.instances.resize(names.size());
     const auto& pool = r.pool<Material>();
+    const auto count = static_cast<std::size_t>(std::count(used.begin(), used.end(), true));
+    std::size_t made_so_far = 0;
     for (std::size_t i = 0; i < pool.size(); ++i) {
         const Material m = pool.columns().get(i);
         std::size_t index = 0;
@@ -81,8 +85,18 @@ void system_materials(ecs::Registry& r, World& w) {
         }
         set.instances[index] = build_cached(
             w.cache, &BuildCache::materials, "materials", [&] { return material_key(w, m); },
-            [&] { return create_material(*w.plugins, m, *w.host); },
+            [&] {
+                // A plugin may take seconds here (the flake plugin builds its tables): the
+                // progress names the material, so a slow one is seen while it is made.
+                const std::string what = fmt::format("making material '{}' (plugin {}, {} of {})",
+                                                     m.name, m.plugin, made_so_far + 1, count);
+                if (w.options.work_progress) w.options.work_progress(what, 0.0);
+                auto made = create_material(*w.plugins, m, *w.host);
+                if (w.options.work_progress) w.options.work_progress(what, 1.0);
+                return made;
+            },
             fmt::format("material '{}'", m.name));
+        ++made_so_far;
         // An edited plugin library or texture makes the material anew.
         const MaterialInstance& made = *set.instances[index];
         w.read_file("plugin", made.plugin().path());

@@ -57,6 +57,8 @@ private:
     void flush_unannounced();
     /** Shows and writes the image of a pass that is not the last. */
     void on_pass(const PassImage& p);
+    /** Starts the render thread (and says so on the page). */
+    void start_render();
     /** The render thread's body: renders the live scene, then writes what it reached. */
     void render();
     /** Writes the render's image when it is complete or a signal stopped it after a pass. */
@@ -92,11 +94,15 @@ WatchLoop::WatchLoop(const RenderArgs& a, const RenderSetup& s)
       session_(a.plugin_dirs, a.ocio, watch_options(a), s.log) {
     out_.check_view(session_.color());  // a display or view the config lacks: an error now
     session_.options().stop = [this] { return stop_requested() || reload_.load(); };
-    server_ = start_preview_server(a.serve);
-    if (server_)
+    server_ = start_preview_server(a.serve, log_);
+    if (server_) {
         session_.options().progress = [this](uint64_t done, uint64_t total) {
             server_->progress(done, total);
         };
+        // The page says what the load is doing (meshes, BVHs, materials) before any pass.
+        session_.options().work_progress =
+            work_progress_to(server_.get(), std::move(session_.options().work_progress));
+    }
     session_.options().on_pass = [this](const PassImage& p) { on_pass(p); };
 }
 
@@ -147,6 +153,11 @@ void WatchLoop::on_pass(const PassImage& p) {
     announce(p.spp, p.block);
 }
 
+void WatchLoop::start_render() {
+    if (server_) server_->stage("rendering");
+    worker_ = std::thread([this] { render(); });
+}
+
 void WatchLoop::render() {
     try {
         session_.render();
@@ -187,6 +198,9 @@ void WatchLoop::finish_render() {
 }
 
 bool WatchLoop::load(const std::string& what) {
+    if (server_)
+        server_->stage(session_.has_scene() ? fmt::format("reloading {} ({})", a_.scene, what)
+                                            : fmt::format("loading {}", a_.scene));
     try {
         const ReloadReport rep = session_.load(a_.scene);
         std::lock_guard<std::mutex> lock(mutex_);
@@ -196,9 +210,11 @@ bool WatchLoop::load(const std::string& what) {
         return true;
     } catch (const SpangleError& e) {
         report_error(e.what());
-        say(fmt::format("reload failed; {}", session_.has_scene()
-                                                 ? "still showing the last good scene"
-                                                 : "waiting for a good save"));
+        const std::string line = fmt::format(
+            "reload failed; {}",
+            session_.has_scene() ? "still showing the last good scene" : "waiting for a good save");
+        say(line);
+        if (server_) server_->stage(line);
         return false;
     }
 }
@@ -235,7 +251,7 @@ void WatchLoop::apply_change(const std::vector<std::string>& touched) {
     // A failed reload keeps the last good scene: its image stays on disk, and a render of it
     // that the change interrupted goes on.
     if (session_.has_scene() && (ok || interrupted)) {
-        worker_ = std::thread([this] { render(); });
+        start_render();
     } else {
         std::lock_guard<std::mutex> lock(mutex_);
         finished_ = true;
@@ -246,7 +262,7 @@ int WatchLoop::run() {
     FileWatcher watcher;
     changed_at_ = std::chrono::steady_clock::now();
     load("first load");
-    if (session_.has_scene()) worker_ = std::thread([this] { render(); });
+    if (session_.has_scene()) start_render();
     for (;;) {
         const std::vector<std::string> touched = wait_for_change(watcher);
         if (touched.empty()) break;  // a stop signal
