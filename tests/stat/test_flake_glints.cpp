@@ -19,6 +19,7 @@ struct GlintRuns {
     double lit = 0.0;          ///< share of (footprint, direction) pairs with a glint
     double correlation = 0.0;  ///< of f between two neighbours, the same direction (mean over them)
     double run = 0.0;          ///< mean length of a run of neighbours brighter than twice the mean
+    double cv = 0.0;           ///< spread of f over footprints / its mean (mean over directions)
 };
 
 /** Rows of adjacent square footprints of `lambda` flakes each, wo at cos_o, and a fan of
@@ -54,7 +55,7 @@ GlintRuns glint_runs(const char* algorithm, double lambda, float cos_o, float al
             for (const Vec3& x : f) out.push_back(x.y);
         }
     }
-    double lit = 0.0, cells = 0.0, corr = 0.0, runs = 0.0, run_cells = 0.0;
+    double lit = 0.0, cells = 0.0, corr = 0.0, runs = 0.0, run_cells = 0.0, cvsum = 0.0;
     for (std::size_t j = 0; j < nd; ++j) {
         double mean = 0.0;
         for (const auto& v : rows) mean += v[j];
@@ -74,6 +75,7 @@ GlintRuns glint_runs(const char* algorithm, double lambda, float cos_o, float al
         mx /= n;
         my /= n;
         const double var_x = cxx / n - mx * mx, var_y = cyy / n - my * my;
+        cvsum += mx > 0 ? std::sqrt(std::max(var_x, 0.0)) / mx : 0.0;
         corr += var_x > 0.0 && var_y > 0.0 ? (cxy / n - mx * my) / std::sqrt(var_x * var_y) : 0.0;
         for (int row = 0; row < kRows; ++row) {
             int run = 0;
@@ -95,20 +97,22 @@ GlintRuns glint_runs(const char* algorithm, double lambda, float cos_o, float al
     g.lit = lit / cells;
     g.correlation = corr / static_cast<double>(nd);
     g.run = runs > 0.0 ? run_cells / runs : 0.0;
+    g.cv = cvsum / static_cast<double>(nd);
     return g;
 }
 
 TEST(FlakeGlints, NeighbouringFootprintsShowTheirOwnGlints) {
     // Where the counting algorithm aggregates a cell, every footprint in the cell used to see the
-    // cell's first k flakes: neighbours lit the same directions (sparse cells: a correlation of
-    // 0.22 to 0.35 and fewer, longer glints, blotches and dashes in a render) or the same
-    // modulation of the lobe (dense cells: 0.25). Sparse cells are now enumerated up to 4096
-    // flakes, and an aggregate's stand-ins are keyed by where the footprint lies in its cell. The
-    // enumeration's neighbours are independent: a correlation of 0 up to sampling noise (about
-    // 0.01 here), glints one footprint long. (Not yet right: a cone wide against the flake lobe,
-    // gamma 6 at alpha 0.1, lambda 1800, cos 0.5: the counted lobe varies 4-10x less between
-    // footprints than real flakes do, CV 0.3-0.9% against 3.3%, and what varies is correlated,
-    // 0.17: its direction tree's leaves are a quarter of the square there.)
+    // cell's first k stand-ins: neighbours lit the same directions (sparse cells: a correlation
+    // of 0.22 to 0.35, fewer and longer glints: blotches and dashes in a render) or the same
+    // modulation of the lobe (dense cells: 0.17 to 0.25). Sparse cells are now enumerated up to
+    // 4096 flakes, and an aggregate's stand-ins are keyed by where the footprint lies in its
+    // cell. The enumeration's neighbours are independent: a correlation of 0 up to sampling
+    // noise (about 0.01 here), glints one footprint long. And the counted lobe varies from
+    // footprint to footprint as much as the flakes' own, sqrt(lambda) x CV flat as theirs (a cone
+    // wide against the flake lobe, gamma 6 at alpha 0.1, used to vary 4-10x less: its direction
+    // tree had 4 leaves; the default material beyond lambda 3000, 0.55 times as much: the
+    // modulation's tent spans more than a cone).
     struct Case {
         double lambda;
         float cos_o, alpha, gamma;
@@ -116,11 +120,14 @@ TEST(FlakeGlints, NeighbouringFootprintsShowTheirOwnGlints) {
     };
     for (const Case& c :
          {Case{600, 0.8f, 0.25f, 2.5f, true}, Case{1500, 0.8f, 0.25f, 2.5f, true},
-          Case{300, 0.9f, 0.15f, 3.0f, true}, Case{1500, 0.9f, 0.15f, 3.0f, false}}) {
+          Case{300, 0.9f, 0.15f, 3.0f, true}, Case{1500, 0.9f, 0.15f, 3.0f, false},
+          Case{1800, 0.5f, 0.1f, 6.0f, false}, Case{8000, 0.5f, 0.1f, 6.0f, false},
+          Case{3000, 0.8f, 0.15f, 3.0f, false}, Case{10000, 0.8f, 0.15f, 3.0f, false}}) {
         const GlintRuns e = glint_runs("enumerate", c.lambda, c.cos_o, c.alpha, c.gamma);
         const GlintRuns t = glint_runs("tree", c.lambda, c.cos_o, c.alpha, c.gamma);
         EXPECT_LT(std::fabs(e.correlation), 0.05) << "enumerate, lambda " << c.lambda;
         EXPECT_LT(t.correlation, 0.05) << "tree, lambda " << c.lambda;
+        EXPECT_NEAR(t.cv, e.cv, 0.25 * e.cv) << "tree, lambda " << c.lambda;
         if (c.sparse) {
             // Enough glints to measure (pairs brighter than twice the mean: 0.1% to a few %),
             // as many under both algorithms, as short.
