@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "core/hash.h"
@@ -136,6 +137,51 @@ TEST(FlakeGlints, NeighbouringFootprintsShowTheirOwnGlints) {
             EXPECT_LT(t.run, 1.1 * e.run) << "tree, lambda " << c.lambda;
         }
     }
+}
+
+TEST(FlakeGlints, NestedFootprintsLightNestedDirections) {
+    // A footprint holds the flakes of every footprint inside it, so every direction its half-size
+    // copy (same centre, a quarter of the area) lights, it lights too: glints do not appear and
+    // vanish as the camera dollies. The enumeration nests exactly; the counting algorithm's
+    // aggregates, counted per cell at each footprint's own level, did not (14-26% of the
+    // directions at lambda 200-2000); with sparse cells enumerated, under 1% here.
+    for (const char* algorithm : {"enumerate", "tree"})
+        for (double lambda : {200.0, 600.0}) {
+            auto m = flake_material(true, {}, {{"algorithm", algorithm}});
+            const Vec3 wo = dir(0.8f, 0.3f);
+            const Vec3 r = mirror(wo);
+            std::vector<Vec3> wis;
+            for (int a = -6; a <= 6; ++a)
+                for (int b = -6; b <= 6; ++b) {
+                    const Vec3 d = normalize(Vec3(r.x + 0.05f * static_cast<float>(a),
+                                                  r.y + 0.05f * static_cast<float>(b), r.z));
+                    if (d.z > 0.05f) wis.push_back(d);
+                }
+            double lit_small = 0.0, not_big = 0.0;
+            std::vector<Vec3> fs, fb;
+            std::vector<float> pdf;
+            for (uint64_t k = 0; k < 200; ++k) {
+                const BsdfHarness::Point big = random_footprint(lambda, 77, k);
+                BsdfHarness::Point small = big;
+                small.dudx *= 0.5f;
+                small.dvdy *= 0.5f;
+                m->prepare(wo, small);
+                m->eval(wis, fs, pdf);
+                m->prepare(wo, big);
+                m->eval(wis, fb, pdf);
+                for (std::size_t j = 0; j < wis.size(); ++j)
+                    if (fs[j].y > 0.0f) {
+                        lit_small += 1.0;
+                        not_big += fb[j].y > 0.0f ? 0.0 : 1.0;
+                    }
+            }
+            ASSERT_GT(lit_small, 1000.0) << algorithm << " lambda " << lambda;
+            const double share = not_big / lit_small;
+            if (std::string(algorithm) == "enumerate")
+                EXPECT_EQ(not_big, 0.0) << "lambda " << lambda;
+            else
+                EXPECT_LT(share, 0.01) << "tree, lambda " << lambda;
+        }
 }
 
 }  // namespace
