@@ -30,6 +30,7 @@ struct Instance {
     Affine normal_to_world;  ///< inverse transpose of to_world's linear part (no translation)
     int32_t emitter = -1;    ///< first light-table entry of its triangles, or -1
     uint32_t object = 0;     ///< its [[object]] number in the scene file, from 0
+    uint8_t shadow_catcher = 0;  ///< 1: shows only the shadows and reflections of others
     /** A moving instance (motion blur): to_world at evenly spaced times over the shutter (ray
      *  time 0 to 1), interpolated linearly in between; empty for one that stands still (to_world
      *  is then its placement at every time). */

@@ -45,6 +45,9 @@ namespace spangle {
     X(float, prev_pdf, "solid-angle pdf of the last BSDF sample")                               \
     X(uint8_t, prev_delta, "the last bounce was a delta lobe (or the camera)")                  \
     X(uint8_t, active, "the path goes on")                                                      \
+    X(uint8_t, catcher,                                                                         \
+      "0: ordinary; 1: its camera ray met a shadow catcher, its light is the plate's (dropped); " \
+      "2: it then met another object, its light is a reflection (kept)")                         \
     X(uint32_t, material, "material of the surface hit at this bounce")                         \
     X(SurfacePoint, surf, "the surface hit at this bounce, as shading sees it")
 /** The paths of one wave. */
