@@ -92,9 +92,9 @@ BandPlan plan_bands(Session& session, const CropWindow& crop, uint32_t band_rows
         const SceneInfo& info = session.info();
         const bool catcher = std::any_of(info.shadow_catchers.begin(), info.shadow_catchers.end(),
                                          [](uint8_t c) { return c != 0; });
-        p.layer_names = layer_channel_names(layer_plan(session.options(), &info.light_groups,
-                                                       &info.object_names, &info.material_names,
-                                                       catcher));
+        p.layer_names =
+            layer_channel_names(layer_plan(session.options(), &info.light_groups,
+                                           &info.object_names, &info.material_names, catcher));
     }
     // Adaptive sampling: the samples of each pixel come back as the last channel (render/
     // adaptive.h: a band's pixels take the samples the whole render gives them).

@@ -8,7 +8,9 @@
 namespace spangle {
 namespace {
 
-uint32_t rotl32(uint32_t x, int r) { return (x << r) | (x >> (32 - r)); }
+uint32_t rotl32(uint32_t x, int r) {
+    return (x << r) | (x >> (32 - r));
+}
 
 /** MurmurHash3's finaliser: every input bit affects every output bit. */
 uint32_t fmix32(uint32_t h) {
@@ -54,13 +56,18 @@ uint32_t murmur3_32(std::string_view text, uint32_t seed) {
     const unsigned char* tail = data + 4 * blocks;
     uint32_t k = 0;
     switch (len & 3u) {
-        case 3: k ^= static_cast<uint32_t>(tail[2]) << 16; [[fallthrough]];
-        case 2: k ^= static_cast<uint32_t>(tail[1]) << 8; [[fallthrough]];
+        case 3:
+            k ^= static_cast<uint32_t>(tail[2]) << 16;
+            [[fallthrough]];
+        case 2:
+            k ^= static_cast<uint32_t>(tail[1]) << 8;
+            [[fallthrough]];
         case 1:
             k ^= tail[0];
             h ^= rotl32(k * c1, 15) * c2;
             break;
-        default: break;
+        default:
+            break;
     }
     return fmix32(h ^ static_cast<uint32_t>(len));
 }

@@ -216,8 +216,8 @@ void set_up_layers(RenderJob& job, const RenderScene& scene, const RenderOptions
                    const Camera& camera, RenderResult& out) {
     const bool catcher = std::any_of(scene.instances->begin(), scene.instances->end(),
                                      [](const Instance& i) { return i.shadow_catcher != 0; });
-    job.layer_plan = layer_plan(options, scene.light_groups, scene.object_names,
-                                scene.material_names, catcher);
+    job.layer_plan =
+        layer_plan(options, scene.light_groups, scene.object_names, scene.material_names, catcher);
     out.layer_names = layer_channel_names(job.layer_plan);
     job.layers = true;
     LayerFilm& f = job.layer_film;
@@ -472,7 +472,6 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     out.layer_names.clear();
     // Adaptive sampling judges the glints apart: it needs their layer, shown or not.
     if (options.layers || plan.on()) set_up_layers(job, scene, options, camera, out);
-    out.alpha_matters = film.transparent_background != 0 || job.layer_plan.catcher;
     // Adaptive sampling's per-pixel state (80 bytes) counted as 20 layer channels.
     check_film_memory(out.width, out.height, job.spp - first_sample, options,
                       job.layer_film.channels + (plan.on() ? 20 : 0));

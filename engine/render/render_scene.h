@@ -47,9 +47,6 @@ struct RenderResult {
     std::vector<float> layers;
     std::vector<std::string> layer_names;
     RenderStats stats;
-    /** The render had a shadow catcher, or a transparent background: its alpha (layer `A`) is
-     *  part of the picture. */
-    bool alpha_matters = false;
 };
 
 }  // namespace spangle

@@ -59,10 +59,10 @@ struct ParamEntry {
 };
 using ParamList = std::vector<ParamEntry>;
 
-#define SPANGLE_OBJECT_INFO_FIELDS(X)                           \
-    X(std::string, name, "the object's name, empty if unnamed") \
-    X(FileLoc, loc, "the [[object]] table")                     \
-    X(uint32_t, index, "its [[object]] number in the file, from 0")   \
+#define SPANGLE_OBJECT_INFO_FIELDS(X)                               \
+    X(std::string, name, "the object's name, empty if unnamed")     \
+    X(FileLoc, loc, "the [[object]] table")                         \
+    X(uint32_t, index, "its [[object]] number in the file, from 0") \
     X(uint8_t, shadow_catcher, "1: a shadow catcher (only the shadows and reflections of others)")
 /** What messages about an object call it. */
 SPANGLE_COMPONENT(ObjectInfo, SPANGLE_OBJECT_INFO_FIELDS);

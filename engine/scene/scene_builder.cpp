@@ -295,6 +295,7 @@ void build_material(BuildContext& ctx, const MaterialDesc& d) {
     if (std::find(names.begin(), names.end(), m.name) != names.end())
         throw_error(d.name_loc, "material '{}' is defined twice", m.name);
     names.push_back(m.name);
+    ctx.info->material_catchers.push_back(d.shadow_catcher ? 1 : 0);
     ctx.registry->put(ctx.registry->create(), m);
 }
 
@@ -443,11 +444,13 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     ecs::Registry& registry = *ctx.registry;
     SceneInfo& info = *ctx.info;
     const ecs::Entity e = registry.create();
-    registry.put(e, ObjectInfo{d.name, d.loc, index, static_cast<uint8_t>(d.shadow_catcher)});
+    const uint32_t material = material_index(ctx, d);
+    const bool catcher = d.shadow_catcher || info.material_catchers[material] != 0;
+    registry.put(e, ObjectInfo{d.name, d.loc, index, static_cast<uint8_t>(catcher)});
     info.object_names.push_back(object_name(d, index));
-    info.shadow_catchers.push_back(d.shadow_catcher ? 1 : 0);
+    info.shadow_catchers.push_back(catcher ? 1 : 0);
     put_shape(ctx, e, d);
-    registry.put(e, MaterialRef{material_index(ctx, d)});
+    registry.put(e, MaterialRef{material});
     KeyedMotion<Affine> motion = placement_motion(ctx, d);
     if (!d.keys.keys.empty() || !d.matrix_keys.keys.empty()) info.animated = true;
     if (d.parent) {  // imported: the importing file's placement of the import, after its own

@@ -72,10 +72,11 @@ struct MaterialDesc {
     /** normal_map or bump_map (at most one), as a Texture parameter of that name: the host
      *  applies it to the shading frame before the plugin sees the point. */
     std::vector<ParamDesc> maps;
-    FileLoc loc;         ///< the material as a whole
-    FileLoc name_loc;    ///< its name
-    FileLoc plugin_loc;  ///< its plugin
-    FileLoc model_loc;   ///< its model (loc when not written)
+    bool shadow_catcher = false;  ///< every object in it is a shadow catcher
+    FileLoc loc;                  ///< the material as a whole
+    FileLoc name_loc;             ///< its name
+    FileLoc plugin_loc;           ///< its plugin
+    FileLoc model_loc;            ///< its model (loc when not written)
 };
 
 /** When a key is: seconds, or a frame of the render settings' range. */

@@ -56,7 +56,10 @@ struct SceneInfo {
     /** Per [[object]], in file order: its name for the Cryptomatte layers (object_name in
      *  scene_builder.h: `name`, else its mesh file's name). */
     std::vector<std::string> object_names;
-    /** Per [[object]], in file order: 1 when it is a shadow catcher. */
+    /** Per [[material]], in file order: 1 when its objects are shadow catchers. */
+    std::vector<uint8_t> material_catchers;
+    /** Per [[object]], in file order: 1 when it is a shadow catcher (its own flag or its
+     *  material's). */
     std::vector<uint8_t> shadow_catchers;
 };
 

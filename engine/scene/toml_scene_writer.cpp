@@ -221,6 +221,7 @@ struct Writer {
         for (const ParamDesc& p : m.params) params.push_back(str(p.name) + " = " + param(p));
         line("params", fmt::format("{{ {} }}", fmt::join(params, ", ")));
         for (const ParamDesc& p : m.maps) line(p.name, texture(p.texture, p.name.c_str()));
+        if (m.shadow_catcher) line("shadow_catcher", "true");
     }
 
     std::string inline_mesh(const TriangleMesh& mesh) {

@@ -19,6 +19,7 @@
 #include <map>
 
 #include "core/cryptomatte.h"
+#include "pipeline/frame.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -171,8 +172,7 @@ std::vector<std::pair<std::string, float>> ids_at(const ExrFile& f, const std::s
             if (c == 0.0f) continue;
             const uint32_t bits = bits_of(f.at(fmt::format("{}{:02}.{}", layer, k, id), x, y));
             const auto n = names.find(bits);
-            EXPECT_NE(n, names.end()) << layer << ": an id the manifest lacks at " << x << ","
-                                      << y;
+            EXPECT_NE(n, names.end()) << layer << ": an id the manifest lacks at " << x << "," << y;
             out.emplace_back(n == names.end() ? "?" : n->second, c);
         }
     return out;
@@ -205,8 +205,10 @@ TEST(Compositing, LayeredExrIsReadyForACompositor) {
         const bool is_data = name == "Z" || name == "object" || name.rfind("P.", 0) == 0 ||
                              name.rfind("Pobj.", 0) == 0 || name.rfind("N.", 0) == 0 ||
                              name.rfind("Crypto", 0) == 0;
-        if (is_data) EXPECT_EQ(type, Imf::FLOAT) << name;
-        if (is_data) EXPECT_NE(data.find(name), std::string::npos) << name << " is not listed";
+        if (is_data) {
+            EXPECT_EQ(type, Imf::FLOAT) << name;
+            EXPECT_NE(data.find(name), std::string::npos) << name << " is not listed";
+        }
     }
     EXPECT_EQ(listed, 11u + 24u) << "N, Z, P, Pobj, object and 2 x 12 Cryptomatte channels";
 
@@ -217,7 +219,8 @@ TEST(Compositing, LayeredExrIsReadyForACompositor) {
             const float a = f.at("A", x, y);
             if (a == 0.0f) {
                 ++empty;
-                for (const char* c : {"R", "G", "B"}) ASSERT_EQ(f.at(c, x, y), 0.0f) << x << "," << y;
+                for (const char* c : {"R", "G", "B"})
+                    ASSERT_EQ(f.at(c, x, y), 0.0f) << x << "," << y;
             } else if (a == 1.0f && f.at("R", x, y) > 0.0f) {
                 ++covered;
             }
@@ -257,7 +260,9 @@ TEST(Compositing, LayeredExrIsReadyForACompositor) {
                 float sum = 0.0f;
                 for (std::size_t r = 0; r < ids.size(); ++r) {
                     sum += ids[r].second;
-                    if (r > 0) EXPECT_LE(ids[r].second, ids[r - 1].second);
+                    if (r > 0) {
+                        EXPECT_LE(ids[r].second, ids[r - 1].second);
+                    }
                 }
                 // Coverages are counts of 16 samples: exact in float.
                 ASSERT_NEAR(sum, f.at("A", x, y), 1e-6f) << kind << " at " << x << "," << y;
@@ -273,6 +278,101 @@ TEST(Compositing, LayeredExrIsReadyForACompositor) {
     EXPECT_EQ(ids_at(f, "CryptoObject", objects, 32, 12), (Ids{{"slab", 1.0f}}));
     EXPECT_EQ(ids_at(f, "CryptoMaterial", materials, 32, 12), (Ids{{"stone", 1.0f}}));
     EXPECT_EQ(ids_at(f, "CryptoObject", objects, 12, 22), (Ids{{"plane", 1.0f}}));
+}
+
+/** A floor seen from straight above, lit by a point light up and to the left (-x), and a small
+ *  square "blocker" 0.5 m over the floor's middle: its shadow falls 0.5 m to the right (+x), on
+ *  pixel (43, 32) of the 64 x 64 image; pixel (10, 32) is floor in the light. */
+std::string catcher_scene(bool catcher) {
+    return fmt::format(R"(
+[render]
+width = 64
+height = 64
+spp = 16
+max_depth = 3
+filter = "box"
+transparent_background = true
+working_space = "lin_rec709"
+[camera]
+position = [0, 4, 0]
+look_at = [0, 0, 0]
+up = [0, 0, -1]
+fov = 40
+[[material]]
+name = "ground"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = 0.5 }}
+shadow_catcher = {}
+[[material]]
+name = "paint"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = 0.8 }}
+[[object]]
+name = "floor"
+mesh = "{}/meshes/plane.ply"
+material = "ground"
+scale = 2
+[[object]]
+name = "blocker"
+mesh = "{}/meshes/plane.ply"
+material = "paint"
+translate = [0, 0.5, 0]
+scale = 0.15
+[[light]]
+type = "point"
+position = [-1.5, 2, 0]
+intensity = 5
+)",
+                       catcher, test::asset_dir(), test::asset_dir());
+}
+
+FrameResult render_catcher(const test::TempDir& dir, bool catcher) {
+    { std::ofstream(dir.file("catcher.toml")) << catcher_scene(catcher); }
+    FrameRequest req;
+    req.scene = dir.file("catcher.toml");
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.layers = true;
+    req.options.background_apart = true;
+    return render_frame(req);
+}
+
+TEST(Compositing, AShadowCatcherKeepsOnlyTheShadowAsAlpha) {
+    test::TempDir dir("shadow_catcher");
+    const FrameResult with = render_catcher(dir, true);
+    const FrameResult without = render_catcher(dir, false);
+    const auto& n = with.layer_names;
+    const std::size_t lc = n.size();
+    const auto index = [&](const std::string& name) {
+        return static_cast<std::size_t>(std::find(n.begin(), n.end(), name) - n.begin());
+    };
+    ASSERT_LT(index("shadow"), lc) << "a scene with a shadow catcher has a shadow matte";
+    const auto layer = [&](const std::string& name, std::size_t x, std::size_t y) {
+        return with.layers[(y * with.width + x) * lc + index(name)];
+    };
+    const auto red = [](const FrameResult& r, std::size_t x, std::size_t y) {
+        return r.image[3 * (y * r.width + x)];
+    };
+    // In the blocker's shadow: every next-event query is blocked (one point light: no noise),
+    // so the floor there is opaque shadow, and shows no light of its own.
+    EXPECT_EQ(layer("shadow", 43, 32), 1.0f);
+    EXPECT_EQ(layer("A", 43, 32), 1.0f);
+    EXPECT_LT(red(with, 43, 32), 0.01f);
+    // In the light: no shadow, fully transparent; the floor's own light is the plate's, gone
+    // from the beauty but for what the blocker reflects onto it.
+    EXPECT_EQ(layer("shadow", 10, 32), 0.0f);
+    EXPECT_EQ(layer("A", 10, 32), 0.0f);
+    EXPECT_GT(red(without, 10, 32), 0.05f) << "an ordinary floor is lit there";
+    EXPECT_LT(red(with, 10, 32), 0.05f * red(without, 10, 32));
+    // The blocker itself is untouched: opaque and lit as without a catcher, bit for bit.
+    EXPECT_EQ(layer("A", 32, 32), 1.0f);
+    EXPECT_EQ(layer("shadow", 32, 32), 0.0f);
+    EXPECT_EQ(red(with, 32, 32), red(without, 32, 32));
+    // Without a catcher the floor is opaque everywhere and no matte is written.
+    EXPECT_EQ(std::find(without.layer_names.begin(), without.layer_names.end(), "shadow"),
+              without.layer_names.end());
 }
 
 }  // namespace

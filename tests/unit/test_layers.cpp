@@ -235,8 +235,12 @@ TEST(Layers, TheBackgroundApartMakesTheBeautyPremultiplied) {
             ASSERT_NEAR(beauty + back, whole.image[3 * p + c],
                         1e-5f * std::max(1.0f, whole.image[3 * p + c]))
                 << "pixel " << p;
-            if (alpha == 0.0f) ASSERT_EQ(beauty, 0.0f) << "pixel " << p;
-            if (alpha == 1.0f) ASSERT_EQ(back, 0.0f) << "pixel " << p;
+            if (alpha == 0.0f) {
+                ASSERT_EQ(beauty, 0.0f) << "pixel " << p;
+            }
+            if (alpha == 1.0f) {
+                ASSERT_EQ(back, 0.0f) << "pixel " << p;
+            }
         }
         empty += alpha == 0.0f;
     }

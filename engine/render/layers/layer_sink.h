@@ -57,13 +57,13 @@ struct LayerPlan {
 
 /** Where each part of a render's layers sits in the film, in values from a pixel's first. */
 struct LayerLayout {
-    uint32_t groups = 0;         ///< light groups
-    uint32_t glints = 0;         ///< glints RGB (kAovCount)
-    uint32_t group_light = 0;    ///< light per group, RGB each
-    uint32_t group_glints = 0;   ///< glint part per group, RGB each
-    uint32_t background = 0;     ///< the environment seen directly, RGB
-    uint32_t catcher = 0;        ///< shadow catcher: its samples, light without and with shadows
-    uint32_t crypto_object = 0;  ///< kCryptoSlots (id, coverage) pairs of objects
+    uint32_t groups = 0;           ///< light groups
+    uint32_t glints = 0;           ///< glints RGB (kAovCount)
+    uint32_t group_light = 0;      ///< light per group, RGB each
+    uint32_t group_glints = 0;     ///< glint part per group, RGB each
+    uint32_t background = 0;       ///< the environment seen directly, RGB
+    uint32_t catcher = 0;          ///< shadow catcher: its samples, light without and with shadows
+    uint32_t crypto_object = 0;    ///< kCryptoSlots (id, coverage) pairs of objects
     uint32_t crypto_material = 0;  ///< the same for materials
     uint32_t channels = 0;         ///< values per pixel in the film
 };
