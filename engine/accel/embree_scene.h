@@ -23,13 +23,14 @@ namespace spangle {
 
 /** One placed mesh: which mesh, its material, its transform. */
 struct Instance {
-    uint32_t mesh = 0;       ///< index into GeometryStore::meshes
-    uint32_t material = 0;   ///< index into the scene's materials
-    Affine to_world;         ///< object to world
-    Affine to_object;        ///< world to object (the inverse of to_world)
-    Affine normal_to_world;  ///< inverse transpose of to_world's linear part (no translation)
-    int32_t emitter = -1;    ///< first light-table entry of its triangles, or -1
-    uint32_t object = 0;     ///< its [[object]] number in the scene file, from 0
+    uint32_t mesh = 0;           ///< index into GeometryStore::meshes
+    uint32_t material = 0;       ///< index into the scene's materials
+    Affine to_world;             ///< object to world
+    Affine to_object;            ///< world to object (the inverse of to_world)
+    Affine normal_to_world;      ///< inverse transpose of to_world's linear part (no translation)
+    int32_t emitter = -1;        ///< first light-table entry of its triangles, or -1
+    uint32_t object = 0;         ///< its [[object]] number in the scene file, from 0
+    uint8_t shadow_catcher = 0;  ///< 1: shows only the shadows and reflections of others
     /** A moving instance (motion blur): to_world at evenly spaced times over the shutter (ray
      *  time 0 to 1), interpolated linearly in between; empty for one that stands still (to_world
      *  is then its placement at every time). */

@@ -25,6 +25,7 @@
 #include "core/error.h"
 #include "pipeline/session.h"
 #include "render/adaptive.h"
+#include "render/integrator.h"
 #include "render/layers/layer_sink.h"
 
 namespace spangle {
@@ -88,9 +89,12 @@ BandPlan plan_bands(Session& session, const CropWindow& crop, uint32_t band_rows
     p.cw = p.win.x1 - p.win.x0;
     p.ch = p.win.y1 - p.win.y0;
     if (session.options().layers) {
-        std::vector<std::string> groups = session.info().light_groups;
-        if (groups.empty()) groups.push_back("default");
-        p.layer_names = layer_channel_names(groups);
+        const SceneInfo& info = session.info();
+        const bool catcher = std::any_of(info.shadow_catchers.begin(), info.shadow_catchers.end(),
+                                         [](uint8_t c) { return c != 0; });
+        p.layer_names =
+            layer_channel_names(layer_plan(session.options(), &info.light_groups,
+                                           &info.object_names, &info.material_names, catcher));
     }
     // Adaptive sampling: the samples of each pixel come back as the last channel (render/
     // adaptive.h: a band's pixels take the samples the whole render gives them).

@@ -15,8 +15,10 @@
 #include "color/color_config.h"
 #include "color/temporary_files.h"
 #include "core/check.h"
+#include "core/cryptomatte.h"
 #include "core/error.h"
 #include "render/camera.h"
+#include "render/layers/layer_sink.h"
 #include "scene/scene_loader.h"
 
 #ifndef SPANGLE_VERSION
@@ -58,6 +60,32 @@ void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t fra
     }
 }
 
+/** The header attributes of the layers: which channels are data (written as 32-bit floats)
+ *  and, for each Cryptomatte, its name, hash, conversion and manifest under the key the
+ *  specification derives from its name. */
+void add_layer_attributes(ExrOptions& o, const ImageDescription& d) {
+    std::string data;
+    o.layer_full_float.clear();
+    bool crypto = false;
+    for (const std::string& n : o.layer_names) {
+        const bool is_data = layer_channel_is_data(n);
+        o.layer_full_float.push_back(is_data ? 1 : 0);
+        if (is_data) data += (data.empty() ? "" : ",") + n;
+        crypto = crypto || n.rfind("Crypto", 0) == 0;
+    }
+    o.metadata.emplace_back("spangle:dataChannels", data);
+    if (!crypto || !d.info) return;
+    const std::pair<const char*, const std::vector<std::string>*> kinds[] = {
+        {"CryptoObject", &d.info->object_names}, {"CryptoMaterial", &d.info->material_names}};
+    for (const auto& [layer, names] : kinds) {
+        const std::string at = "cryptomatte/" + cryptomatte_key(layer) + "/";
+        o.metadata.emplace_back(at + "name", layer);
+        o.metadata.emplace_back(at + "hash", "MurmurHash3_32");
+        o.metadata.emplace_back(at + "conversion", "uint32_to_float32");
+        o.metadata.emplace_back(at + "manifest", cryptomatte_manifest(*names));
+    }
+}
+
 /** The EXR options of `d` written as `out` says: its place in the frame, layers, header. */
 ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
     ExrOptions o = out.exr_options;
@@ -88,6 +116,7 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
     }
     if (d.seconds >= 0.0) o.floats.emplace_back("renderTimeSeconds", static_cast<float>(d.seconds));
     if (d.info) add_scene_attributes(o, d, frame_w, frame_h);
+    if (o.layers) add_layer_attributes(o, d);
     // A reduced-resolution preview pass (0 spp, blocks of `block` pixels).
     if (d.block > 1) o.metadata.emplace_back("spangle:preview_stride", std::to_string(d.block));
     return o;
@@ -114,8 +143,23 @@ std::size_t Outputs::write(const ImageDescription& d) const {
     SPANGLE_CHECK(d.image && d.color, "an image to write needs its pixels and colour config");
     const ExrOptions o = exr_options_for(*this, d);
     const int width = static_cast<int>(d.width), height = static_cast<int>(d.height);
-    // The PNG is written beside the EXR, on another thread.
+    // The PNG is written beside the EXR, on another thread. It shows the picture whole: the
+    // premultiplied beauty over the environment kept apart in the layer `background`.
     std::future<void> png_done;
+    std::vector<float> composite;
+    const std::vector<float>* shown = d.image;
+    if (!preview.empty() && o.layers) {
+        const auto& names = o.layer_names;
+        const auto at = std::find(names.begin(), names.end(), "background.R");
+        if (at != names.end()) {
+            const std::size_t lc = names.size(), b = static_cast<std::size_t>(at - names.begin());
+            composite = *d.image;
+            for (std::size_t p = 0; p < composite.size() / 3; ++p)
+                for (std::size_t c = 0; c < 3; ++c)
+                    composite[3 * p + c] += (*o.layers)[p * lc + b + c];
+            shown = &composite;
+        }
+    }
     if (!preview.empty()) {
         PngOptions png;
         if (d.partial) png.compression_level = 1;  // passes come often: speed over size
@@ -123,7 +167,7 @@ std::size_t Outputs::write(const ImageDescription& d) const {
         png.display = display;
         png.view = view;
         png_done = std::async(std::launch::async, [&, png] {
-            write_png_preview(preview, *d.image, width, height, *d.color, png);
+            write_png_preview(preview, *shown, width, height, *d.color, png);
         });
     }
     std::size_t overflow = 0;

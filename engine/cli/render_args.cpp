@@ -20,6 +20,9 @@ RenderOptions render_options(const RenderArgs& a) {
     o.max_spp_override = a.max_spp;
     o.texture_cache = a.texture_cache;
     o.layers = a.layers || a.denoise;  // the denoiser's guides and the glints are layers
+    // With --layers the beauty is premultiplied by its alpha: the environment seen directly
+    // goes to a layer of its own.
+    o.background_apart = a.layers;
     o.denoise = a.denoise;
     o.denoise_glints = a.denoise_glints == "filter" ? GlintDenoise::Filter
                        : a.denoise_glints == "keep" ? GlintDenoise::Keep

@@ -190,13 +190,14 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
     warn_nonfinite(s.log, frame.stats);
     const ImageDescription image = final_image(frame, frame.color, frame.info);
     if (frame.stats.spp_reached == 0) {
-        s.log.warn("stopped by a signal before the first pass ended: no image written");
+        s.log.warn("stopped by a signal ({}) before the first pass ended: no image written",
+                   stop_signal_name());
         return exit_status_for_signal();
     }
     s.out.write_image(s.log, image);
     if (image.partial)
-        s.log.warn("stopped by a signal: wrote {} with {} of {} samples per pixel", s.out.exr,
-                   frame.stats.spp_reached, frame.stats.spp_target);
+        s.log.warn("stopped by a signal ({}): wrote {} with {} of {} samples per pixel",
+                   stop_signal_name(), s.out.exr, frame.stats.spp_reached, frame.stats.spp_target);
     if (a.stats)
         print_stats(frame, s.out.exr);
     else if (!a.quiet)

@@ -37,6 +37,10 @@ bool stop_requested() {
     return stop_signal != 0;
 }
 
+const char* stop_signal_name() {
+    return stop_signal == SIGINT ? "SIGINT" : stop_signal == SIGTERM ? "SIGTERM" : "";
+}
+
 int exit_status_for_signal() {
     return stop_signal == SIGTERM ? 143 : 0;
 }

@@ -17,4 +17,7 @@ bool stop_requested();
  *  when none arrived. */
 int exit_status_for_signal();
 
+/** "SIGINT" or "SIGTERM": the stop signal that arrived ("" before any). */
+const char* stop_signal_name();
+
 }  // namespace spangle

@@ -187,8 +187,13 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
                                                         static_cast<std::size_t>(height))
         throw_error("cannot write '{}': {} layer values for {} channels of {}x{} pixels", path,
                     options.layers->size(), lc, width, height);
+    // Data channels (positions, ids) are 32-bit floats whatever the beauty's precision.
+    const auto layer_type = [&](std::size_t c) {
+        return c < options.layer_full_float.size() && options.layer_full_float[c] ? Imf::FLOAT
+                                                                                  : type;
+    };
     for (std::size_t c = 0; c < lc; ++c)
-        header.channels().insert(options.layer_names[c], Imf::Channel(type));
+        header.channels().insert(options.layer_names[c], Imf::Channel(layer_type(c)));
     if (options.sums) {
         if (options.sums->size() != 3 * static_cast<std::size_t>(width) * height)
             throw_error("cannot write '{}': {} sums for {}x{} pixels", path, options.sums->size(),
@@ -255,16 +260,17 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
             // The layers, a strip at a time (converted to half here when the image is half).
             if (lc > 0) {
                 const float* lrows = options.layers->data() + static_cast<std::size_t>(y0) * w * lc;
-                if (!options.half) {
-                    for (std::size_t c = 0; c < lc; ++c)
-                        fb.insert(options.layer_names[c],
-                                  Imf::Slice::Make(Imf::FLOAT, lrows + c, strip, lc * sizeof(float),
-                                                   lc * sizeof(float) * w));
-                } else {
+                if (options.half) {
                     layer_halves.resize(static_cast<std::size_t>(y1 - y0) * w * lc);
                     for (std::size_t i = 0; i < layer_halves.size(); ++i)
                         layer_halves[i] = Imath::half(lrows[i]);
-                    for (std::size_t c = 0; c < lc; ++c)
+                }
+                for (std::size_t c = 0; c < lc; ++c) {
+                    if (layer_type(c) == Imf::FLOAT)
+                        fb.insert(options.layer_names[c],
+                                  Imf::Slice::Make(Imf::FLOAT, lrows + c, strip, lc * sizeof(float),
+                                                   lc * sizeof(float) * w));
+                    else
                         fb.insert(options.layer_names[c],
                                   Imf::Slice::Make(Imf::HALF, layer_halves.data() + c, strip,
                                                    lc * sizeof(Imath::half),

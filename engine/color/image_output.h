@@ -29,6 +29,9 @@ struct ExrOptions {
      *  pixel, interleaved, row-major; null for none. */
     const std::vector<float>* layers = nullptr;
     std::vector<std::string> layer_names;
+    /** Per layer channel: 1 to write it as 32-bit floats even when `half` (data channels);
+     *  shorter than layer_names: the rest follow `half`. */
+    std::vector<uint8_t> layer_full_float;
     /** --spp-range parts: the film's exact sums (RGB per pixel), written as 32-bit UINT
      *  channels named by sample_sum_channels() (four words per colour, least significant
      *  first), from which spangle merge adds parts exactly; null for none. */

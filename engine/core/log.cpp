@@ -6,6 +6,7 @@ namespace spangle {
 
 void Logger::write(LogLevel level, std::string_view message) const {
     if (level < threshold) return;
+    if (level == LogLevel::Warning && once && !once->first_time(message)) return;
     const char* prefix = "";
     switch (level) {
         case LogLevel::Debug:

@@ -24,7 +24,10 @@ std::vector<Instance> place_instances(const ecs::Registry& r, uint32_t loaded_co
         inst.to_object = inst.to_world.inverse();
         if (r.has<EmitterRef>(e)) inst.emitter = r.get<EmitterRef>(e).first;
         if (r.has<Motion>(e)) inst.motion = r.get<Motion>(e).steps;
-        if (r.has<ObjectInfo>(e)) inst.object = r.get<ObjectInfo>(e).index;
+        if (r.has<ObjectInfo>(e)) {
+            inst.object = r.get<ObjectInfo>(e).index;
+            inst.shadow_catcher = r.get<ObjectInfo>(e).shadow_catcher;
+        }
         out.push_back(std::move(inst));
     }
     return out;

@@ -252,6 +252,8 @@ RenderScene Session::render_scene() const {
     }
     s.host = host_.get();
     s.light_groups = &info_->light_groups;
+    s.object_names = &info_->object_names;
+    s.material_names = &info_->material_names;
     return s;
 }
 

@@ -14,6 +14,7 @@
 #include <functional>
 #include <numeric>
 
+#include "core/cryptomatte.h"
 #include "core/memory.h"
 #include "render/wave.h"
 
@@ -176,6 +177,7 @@ uint32_t set_up_job(RenderJob& job, const RenderScene& scene, const RenderOption
     job.max_depth = film.max_depth;
     job.rr_depth = film.rr_depth;
     job.seed = film.seed;
+    job.camera_sees_environment = film.transparent_background == 0;
     if (job.adaptive) job.spp = job.adaptive->max_spp;
     if (options.spp_end == 0) return 0;
     if (job.adaptive)
@@ -192,19 +194,46 @@ uint32_t set_up_job(RenderJob& job, const RenderScene& scene, const RenderOption
     return options.spp_first;
 }
 
+}  // namespace
+
+LayerPlan layer_plan(const RenderOptions& options, const std::vector<std::string>* light_groups,
+                     const std::vector<std::string>* object_names,
+                     const std::vector<std::string>* material_names, bool catcher) {
+    LayerPlan plan;
+    if (light_groups) plan.groups = *light_groups;
+    if (plan.groups.empty()) plan.groups.push_back("default");
+    plan.background = options.background_apart && options.layers;
+    plan.catcher = catcher;
+    if (object_names) plan.object_names = *object_names;
+    if (material_names) plan.material_names = *material_names;
+    return plan;
+}
+
+namespace {
+
 /** Where the layers go (with options.layers): their names, and the job's layer film. */
-void set_up_layers(RenderJob& job, const RenderScene& scene, const Camera& camera,
-                   RenderResult& out) {
-    std::vector<std::string> groups =
-        scene.light_groups ? *scene.light_groups : std::vector<std::string>{};
-    if (groups.empty()) groups.push_back("default");
-    out.layer_names = layer_channel_names(groups);
+void set_up_layers(RenderJob& job, const RenderScene& scene, const RenderOptions& options,
+                   const Camera& camera, RenderResult& out) {
+    const bool catcher = std::any_of(scene.instances->begin(), scene.instances->end(),
+                                     [](const Instance& i) { return i.shadow_catcher != 0; });
+    job.layer_plan =
+        layer_plan(options, scene.light_groups, scene.object_names, scene.material_names, catcher);
+    out.layer_names = layer_channel_names(job.layer_plan);
     job.layers = true;
-    job.layer_film.film = &out.layers;
-    job.layer_film.groups = static_cast<uint32_t>(groups.size());
-    job.layer_film.channels = static_cast<uint32_t>(out.layer_names.size());
-    job.layer_film.camera_position = camera.position;
-    job.layer_film.camera_forward = normalize(camera.look_at - camera.position);
+    LayerFilm& f = job.layer_film;
+    f.film = &out.layers;
+    f.groups = static_cast<uint32_t>(job.layer_plan.groups.size());
+    f.layout = layer_layout(f.groups);
+    f.channels = f.layout.channels;
+    f.camera_position = camera.position;
+    f.camera_forward = normalize(camera.look_at - camera.position);
+    f.object_ids.clear();
+    for (const std::string& n : job.layer_plan.object_names)
+        f.object_ids.push_back(cryptomatte_id(n));
+    f.material_ids.clear();
+    for (const std::string& n : job.layer_plan.material_names)
+        f.material_ids.push_back(cryptomatte_id(n));
+    job.background_apart = options.background_apart && options.layers;
 }
 
 /** A preview pass: one path per block of pixels, shown before the first full pass. It is not
@@ -442,7 +471,7 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     out.layers.clear();
     out.layer_names.clear();
     // Adaptive sampling judges the glints apart: it needs their layer, shown or not.
-    if (options.layers || plan.on()) set_up_layers(job, scene, camera, out);
+    if (options.layers || plan.on()) set_up_layers(job, scene, options, camera, out);
     // Adaptive sampling's per-pixel state (80 bytes) counted as 20 layer channels.
     check_film_memory(out.width, out.height, job.spp - first_sample, options,
                       job.layer_film.channels + (plan.on() ? 20 : 0));
@@ -469,7 +498,8 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     const uint32_t* counts = plan.on() ? adaptive.count.data() : nullptr;
     for (std::size_t i = 0; i < out.image.size(); ++i)
         out.image[i] = sample_mean(out.sums[i], counts ? counts[i / 3] : samples);
-    if (job.layers) finish_layers(out.layers, job.layer_film.channels, samples, counts);
+    if (job.layers)
+        finish_layers(out.layers, job.layer_film.layout, job.layer_plan, samples, counts);
     record_stats(job, options, film, samples, first_sample, passes, out);
     if (plan.on()) {
         // Every sample taken counts (those of the tiles' pixels outside the window too).

@@ -6,6 +6,7 @@
 
 #include <vector>
 
+#include "render/layers/layer_sink.h"
 #include "render/render_options.h"
 #include "render/render_scene.h"
 #include "scene/components.h"
@@ -15,6 +16,13 @@ namespace spangle {
 /** Renders the camera's view of `scene` into `out` (width x height RGB, the sums, the layers,
  *  the counters). `camera_steps`: a camera that moves while the shutter is open (CameraMotion),
  *  empty for one that stands still. */
+/** The layers a render with `options` writes: the light groups (or "default"), the
+ *  environment apart with options.background_apart, a shadow catcher's matte when `catcher`,
+ *  the Cryptomatte names. The MPI ranks agree on the channels through it. */
+LayerPlan layer_plan(const RenderOptions& options, const std::vector<std::string>* light_groups,
+                     const std::vector<std::string>* object_names,
+                     const std::vector<std::string>* material_names, bool catcher);
+
 void render_image(const RenderScene& scene, const RenderOptions& options, const Camera& camera,
                   const Film& film, const std::vector<Camera>& camera_steps, RenderResult& out);
 

@@ -31,21 +31,24 @@
 
 namespace spangle {
 
-#define SPANGLE_PATH_FIELDS(X)                                                                  \
-    X(uint32_t, pixel, "full-frame pixel index y * width + x (the block's pixel in a preview)") \
-    X(uint32_t, sample, "sample index within the pixel")                                        \
-    X(uint64_t, key, "sobol_pixel_key of the pixel")                                            \
-    X(float, time, "time in the shutter, 0..1 (0 without motion)")                              \
-    X(RayDifferential, ray, "the ray to trace next, with its differentials")                    \
-    X(uint8_t, has_diff, "the ray's differentials are real (camera or specular bounces)")       \
-    X(float, fp_width, "footprint width at the ray origin (without differentials)")             \
-    X(float, fp_spread, "footprint growth per unit distance (without differentials)")           \
-    X(Vec3, throughput, "product of f cos / pdf along the path")                                \
-    X(Vec3, radiance, "light the path has gathered")                                            \
-    X(float, prev_pdf, "solid-angle pdf of the last BSDF sample")                               \
-    X(uint8_t, prev_delta, "the last bounce was a delta lobe (or the camera)")                  \
-    X(uint8_t, active, "the path goes on")                                                      \
-    X(uint32_t, material, "material of the surface hit at this bounce")                         \
+#define SPANGLE_PATH_FIELDS(X)                                                                    \
+    X(uint32_t, pixel, "full-frame pixel index y * width + x (the block's pixel in a preview)")   \
+    X(uint32_t, sample, "sample index within the pixel")                                          \
+    X(uint64_t, key, "sobol_pixel_key of the pixel")                                              \
+    X(float, time, "time in the shutter, 0..1 (0 without motion)")                                \
+    X(RayDifferential, ray, "the ray to trace next, with its differentials")                      \
+    X(uint8_t, has_diff, "the ray's differentials are real (camera or specular bounces)")         \
+    X(float, fp_width, "footprint width at the ray origin (without differentials)")               \
+    X(float, fp_spread, "footprint growth per unit distance (without differentials)")             \
+    X(Vec3, throughput, "product of f cos / pdf along the path")                                  \
+    X(Vec3, radiance, "light the path has gathered")                                              \
+    X(float, prev_pdf, "solid-angle pdf of the last BSDF sample")                                 \
+    X(uint8_t, prev_delta, "the last bounce was a delta lobe (or the camera)")                    \
+    X(uint8_t, active, "the path goes on")                                                        \
+    X(uint8_t, catcher,                                                                           \
+      "0: ordinary; 1: its camera ray met a shadow catcher, its light is the plate's (dropped); " \
+      "2: it then met another object, its light is a reflection (kept)")                          \
+    X(uint32_t, material, "material of the surface hit at this bounce")                           \
     X(SurfacePoint, surf, "the surface hit at this bounce, as shading sees it")
 /** The paths of one wave. */
 SPANGLE_SOA(PathBatch, SPANGLE_PATH_FIELDS);

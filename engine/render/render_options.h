@@ -67,6 +67,10 @@ struct RenderOptions {
     /** Render layers beside the beauty (RenderResult::layers): coverage, albedo, normal, depth,
      *  position, glints, one per light group. */
     bool layers = false;
+    /** With the layers: the environment seen directly by camera rays goes to the layer
+     *  `background` instead of the beauty and its light group, so that RGB is premultiplied
+     *  by `A` (the beauty over the background is RGB + background). */
+    bool background_apart = false;
     /** Renders only this window of the image (its pixels are those of the whole render, bit
      *  for bit: each pixel's samples depend on the pixel alone). */
     CropWindow crop;

@@ -31,6 +31,9 @@ struct RenderScene {
     const EmbreeScene* accel = nullptr;  ///< null: nothing to hit
     const HostServices* host = nullptr;  ///< textures (for maps)
     const std::vector<std::string>* light_groups = nullptr;  ///< names, for the layers
+    /** Cryptomatte names by [[object]] number and by material index (null: none). */
+    const std::vector<std::string>* object_names = nullptr;
+    const std::vector<std::string>* material_names = nullptr;
 };
 
 /** The render's output. */

@@ -64,6 +64,7 @@ void start_path(const RenderJob& job, PathBatch& p, std::size_t i, uint32_t x, u
     p.prev_pdf[i] = 0.0f;
     p.prev_delta[i] = 1;  // camera rays see emitters with full weight
     p.active[i] = 1;
+    p.catcher[i] = 0;
 }
 
 }  // namespace

@@ -67,18 +67,26 @@ void trace_active(const RenderJob& job, Workspace& ws, std::size_t n) {
                                            job.motion ? ws.stream_time.data() : nullptr);
 }
 
-/** Path k's ray escaped: the constant environment and every light at infinity. */
+/** Path k's ray escaped: the constant environment and every light at infinity. A camera ray
+ *  sees none of it with a transparent background, and puts it in the background layer when
+ *  that is kept apart; a shadow catcher's path that met no other object adds nothing (its
+ *  light is the plate's). */
 template <class Sink>
 void escape(const RenderJob& job, Workspace& ws, Sink& sink, std::size_t k, uint32_t bounce) {
     const RenderScene& w = *job.scene;
     PathBatch& p = ws.paths;
+    p.active[k] = 0;
+    if ((bounce == 0 && !job.camera_sees_environment) || p.catcher[k] == 1) return;
     const Vec3 esc = w.lights->escaped(p.ray[k].d, p.prev_pdf[k], p.prev_delta[k] != 0,
                                        job.strategy, sink.escape_buffer());
     const Vec3 c = p.throughput[k] * (w.environment + esc);
+    if (bounce == 0 && job.background_apart) {
+        sink.background(k, c);
+        return;
+    }
     const float kc = clamp_factor(job, c, bounce);
     p.radiance[k] += c * kc;
     sink.escaped(k, bounce, p.throughput[k], w.environment, w.environment_group, kc);
-    p.active[k] = 0;
 }
 
 /** Path k's ray hit something: the light it emits towards the path. Returns whether the path
@@ -87,13 +95,23 @@ template <class Sink>
 bool meet(const RenderJob& job, Workspace& ws, Sink& sink, std::size_t k, const Hit& hit,
           uint32_t bounce) {
     PathBatch& p = ws.paths;
-    uint32_t group = 0;
-    const Vec3 e = emission_at_hit(*job.scene, job.strategy, p, k, hit, group);
-    const Vec3 c = p.throughput[k] * e;
-    const float kc = clamp_factor(job, c, bounce);
-    p.radiance[k] += c * kc;
-    sink.emitted(k, bounce, c, kc, group, e);
+    // A camera ray on a shadow catcher starts a catcher path; one that then meets another
+    // object carries that object's reflection from there on.
+    const bool on_catcher =
+        hit.kind == HitKind::Instance &&
+        (*job.scene->instances)[static_cast<std::size_t>(hit.instance)].shadow_catcher != 0;
+    if (bounce == 0 && on_catcher) p.catcher[k] = 1;
+    if (p.catcher[k] == 1 && bounce > 0 && hit.kind == HitKind::Instance && !on_catcher)
+        p.catcher[k] = 2;
     if (bounce == 0) sink.camera_hit(k, p.ray[k], hit.t);
+    if (p.catcher[k] != 1) {
+        uint32_t group = 0;
+        const Vec3 e = emission_at_hit(*job.scene, job.strategy, p, k, hit, group);
+        const Vec3 c = p.throughput[k] * e;
+        const float kc = clamp_factor(job, c, bounce);
+        p.radiance[k] += c * kc;
+        sink.emitted(k, bounce, c, kc, group, e);
+    }
     if (hit.kind != HitKind::Instance || bounce == job.max_depth) {
         p.active[k] = 0;
         return false;
@@ -143,7 +161,9 @@ void resolve_surfaces(const RenderJob& job, Workspace& ws, Sink& sink, uint32_t 
         const Instance& inst = placed.motion.empty() ? placed : moved;
         const TriangleMesh& mesh = w.geometry->mesh(inst.mesh);
         p.surf[k] = surface_at(mesh, inst, hit, p.ray[k].d);
-        if (bounce == 0) sink.first_surface(k, p.surf[k].p_obj, inst.object);
+        if (bounce == 0)
+            sink.first_surface(k, p.surf[k].p_obj, inst.object, inst.material,
+                               inst.shadow_catcher != 0);
         bool has_diff = p.has_diff[k] != 0;
         footprint_at(p.surf[k], p.ray[k], has_diff, p.fp_width[k] + p.fp_spread[k] * hit.t);
         object_footprint(p.surf[k], inst, mesh, hit.prim);

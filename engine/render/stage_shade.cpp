@@ -285,11 +285,18 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
                                           ws.shadow_tmax.data(), rays, ws.stream_found.data(),
                                           job.motion ? ws.stream_time.data() : nullptr);
     for (std::size_t r = 0; r < rays; ++r) {
+        const uint32_t path = ws.stream_path[r];
+        // A shadow catcher's own light is the plate's: only how much of it others shadow is
+        // kept, for its alpha.
+        if (p.catcher[path] == 1) {
+            if (bounce == 0) sink.catcher_light(path, ws.shadow_contrib[r], !ws.stream_found[r]);
+            continue;
+        }
         if (ws.stream_found[r]) continue;
         const float kc = clamp_factor(job, ws.shadow_contrib[r], bounce + 1);
         const Vec3 c = ws.shadow_contrib[r] * kc;
-        p.radiance[ws.stream_path[r]] += c;
-        sink.unoccluded(r, ws.stream_path[r], c, kc);
+        p.radiance[path] += c;
+        sink.unoccluded(r, path, c, kc);
     }
 }
 

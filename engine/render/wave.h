@@ -79,6 +79,11 @@ struct RenderJob {
     std::vector<float>* image = nullptr;
     bool layers = false;  ///< the render layers are on (and `layer_film` says where)
     LayerFilm layer_film;
+    LayerPlan layer_plan;  ///< the layers written
+    /** Camera rays see the environment (false: [render] transparent_background). */
+    bool camera_sees_environment = true;
+    /** The environment camera rays see goes to the `background` layer, not the beauty. */
+    bool background_apart = false;
     /** Adaptive sampling (render/adaptive.h): the plan, and the pixels' counts, half-sums and
      *  activity; null when every pixel takes every sample. */
     const AdaptivePlan* adaptive = nullptr;

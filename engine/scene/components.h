@@ -59,10 +59,11 @@ struct ParamEntry {
 };
 using ParamList = std::vector<ParamEntry>;
 
-#define SPANGLE_OBJECT_INFO_FIELDS(X)                           \
-    X(std::string, name, "the object's name, empty if unnamed") \
-    X(FileLoc, loc, "the [[object]] table")                     \
-    X(uint32_t, index, "its [[object]] number in the file, from 0")
+#define SPANGLE_OBJECT_INFO_FIELDS(X)                               \
+    X(std::string, name, "the object's name, empty if unnamed")     \
+    X(FileLoc, loc, "the [[object]] table")                         \
+    X(uint32_t, index, "its [[object]] number in the file, from 0") \
+    X(uint8_t, shadow_catcher, "1: a shadow catcher (only the shadows and reflections of others)")
 /** What messages about an object call it. */
 SPANGLE_COMPONENT(ObjectInfo, SPANGLE_OBJECT_INFO_FIELDS);
 
@@ -238,7 +239,8 @@ SPANGLE_COMPONENT(CameraMotion, SPANGLE_CAMERA_MOTION_FIELDS);
     X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")      \
     X(float, noise_threshold, "adaptive sampling's noise threshold; 0 = off")            \
     X(uint32_t, min_spp, "adaptive sampling: samples before a pixel may stop; 0 = auto") \
-    X(uint32_t, max_spp, "adaptive sampling: most samples of a pixel; 0 = spp")
+    X(uint32_t, max_spp, "adaptive sampling: most samples of a pixel; 0 = spp")          \
+    X(uint8_t, transparent_background, "1: camera rays do not see the environment")
 /** Image size and render settings. */
 SPANGLE_COMPONENT(Film, SPANGLE_FILM_FIELDS);
 

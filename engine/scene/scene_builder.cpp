@@ -98,6 +98,7 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     f.noise_threshold = d.noise_threshold;
     f.min_spp = d.min_spp;
     f.max_spp = d.max_spp;
+    f.transparent_background = d.transparent_background ? 1 : 0;
     ctx.registry->put(settings, f);
     SceneInfo& info = *ctx.info;
     info.frame_start = d.frame_start;
@@ -294,6 +295,7 @@ void build_material(BuildContext& ctx, const MaterialDesc& d) {
     if (std::find(names.begin(), names.end(), m.name) != names.end())
         throw_error(d.name_loc, "material '{}' is defined twice", m.name);
     names.push_back(m.name);
+    ctx.info->material_catchers.push_back(d.shadow_catcher ? 1 : 0);
     ctx.registry->put(ctx.registry->create(), m);
 }
 
@@ -421,14 +423,34 @@ KeyedMotion<Affine> placement_motion(const BuildContext& ctx, const ObjectDesc& 
     return keyed_motion<Affine>(track, ctx.shutter, make);
 }
 
+}  // namespace
+
+std::string object_name(const ObjectDesc& d, uint32_t index) {
+    if (!d.name.empty()) return d.name;
+    std::string file;
+    if (const auto* m = std::get_if<MeshFileShape>(&d.shape)) file = m->path;
+    if (const auto* c = std::get_if<SubdivShape>(&d.shape)) file = c->path;
+    std::string stem = std::filesystem::path(file).stem().string();
+    // A sequence's pattern names its frames with a run of '#': the object is the sequence.
+    while (!stem.empty() && (stem.back() == '#' || stem.back() == '.' || stem.back() == '_'))
+        stem.pop_back();
+    return stem.empty() ? fmt::format("object{}", index + 1) : stem;
+}
+
+namespace {
+
 /** One object's entity: what it is, its shape, material, placement, emission and motion. */
 void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     ecs::Registry& registry = *ctx.registry;
     SceneInfo& info = *ctx.info;
     const ecs::Entity e = registry.create();
-    registry.put(e, ObjectInfo{d.name, d.loc, index});
+    const uint32_t material = material_index(ctx, d);
+    const bool catcher = d.shadow_catcher || info.material_catchers[material] != 0;
+    registry.put(e, ObjectInfo{d.name, d.loc, index, static_cast<uint8_t>(catcher)});
+    info.object_names.push_back(object_name(d, index));
+    info.shadow_catchers.push_back(catcher ? 1 : 0);
     put_shape(ctx, e, d);
-    registry.put(e, MaterialRef{material_index(ctx, d)});
+    registry.put(e, MaterialRef{material});
     KeyedMotion<Affine> motion = placement_motion(ctx, d);
     if (!d.keys.keys.empty() || !d.matrix_keys.keys.empty()) info.animated = true;
     if (d.parent) {  // imported: the importing file's placement of the import, after its own

@@ -72,10 +72,11 @@ struct MaterialDesc {
     /** normal_map or bump_map (at most one), as a Texture parameter of that name: the host
      *  applies it to the shading frame before the plugin sees the point. */
     std::vector<ParamDesc> maps;
-    FileLoc loc;         ///< the material as a whole
-    FileLoc name_loc;    ///< its name
-    FileLoc plugin_loc;  ///< its plugin
-    FileLoc model_loc;   ///< its model (loc when not written)
+    bool shadow_catcher = false;  ///< every object in it is a shadow catcher
+    FileLoc loc;                  ///< the material as a whole
+    FileLoc name_loc;             ///< its name
+    FileLoc plugin_loc;           ///< its plugin
+    FileLoc model_loc;            ///< its model (loc when not written)
 };
 
 /** When a key is: seconds, or a frame of the render settings' range. */
@@ -244,6 +245,7 @@ struct ObjectDesc {
      *  (and its motion's); none for an object of the scene itself. */
     std::optional<Affine> parent;
     std::optional<EmissionDesc> emission;  ///< when it is a light
+    bool shadow_catcher = false;           ///< renders only the shadows and reflections of others
     FileLoc loc;                           ///< the object
     FileLoc material_loc;                  ///< its material's name
     std::string what;                      ///< what messages call it, e.g. "[[object]] #3"
@@ -312,6 +314,7 @@ struct RenderDesc {
     float noise_threshold = 0.0f;              ///< adaptive sampling; 0 = off
     uint32_t min_spp = 0;                      ///< adaptive: samples before a stop; 0 = auto
     uint32_t max_spp = 0;                      ///< adaptive: most samples of a pixel; 0 = spp
+    bool transparent_background = false;       ///< camera rays do not see the environment
     std::optional<std::string> working_space;  ///< as written; none = the config's, else ACEScg
     std::optional<std::string> color_space;    ///< of bare colours; none = lin_rec709
     int64_t frame_start = 1;                   ///< first frame of the animation

@@ -116,6 +116,7 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     keep("noise_threshold", &RenderDesc::noise_threshold);
     keep("min_spp", &RenderDesc::min_spp);
     keep("max_spp", &RenderDesc::max_spp);
+    keep("transparent_background", &RenderDesc::transparent_background);
     keep("frame_start", &RenderDesc::frame_start);
     keep("frame_end", &RenderDesc::frame_end);
     keep("fps", &RenderDesc::fps);

@@ -53,6 +53,14 @@ struct SceneInfo {
      *  or a `rest_mesh`), whose Pobj layer is then the position in its rest pose. Empty when no
      *  object has one. */
     std::vector<uint8_t> rest_pose;
+    /** Per [[object]], in file order: its name for the Cryptomatte layers (object_name in
+     *  scene_builder.h: `name`, else its mesh file's name). */
+    std::vector<std::string> object_names;
+    /** Per [[material]], in file order: 1 when its objects are shadow catchers. */
+    std::vector<uint8_t> material_catchers;
+    /** Per [[object]], in file order: 1 when it is a shadow catcher (its own flag or its
+     *  material's). */
+    std::vector<uint8_t> shadow_catchers;
 };
 
 /** The time of frame f of a scene (in seconds since its frame_start). */

@@ -236,6 +236,7 @@ MaterialDesc read_material(const ReadContext& ctx, TableReader& r) {
         p.texture = read_texture(ctx, *t, key, use);
         m.maps.push_back(std::move(p));
     }
+    m.shadow_catcher = r.boolean("shadow_catcher", false);
     if (m.maps.size() == 2)
         throw_error(r.loc("bump_map"), "material '{}': give a normal_map or a bump_map, not both",
                     m.name);

@@ -53,6 +53,7 @@ RenderDesc read_render(TableReader& r) {
     d.noise_threshold = static_cast<float>(r.number("noise_threshold", 0.0, {0.0, 1.0}));
     d.min_spp = static_cast<uint32_t>(r.integer("min_spp", 0, {0, 1 << 20}));
     d.max_spp = static_cast<uint32_t>(r.integer("max_spp", 0, {0, 1 << 20}));
+    d.transparent_background = r.boolean("transparent_background", false);
     if (d.min_spp > 0 && d.max_spp > 0 && d.min_spp > d.max_spp)
         throw_error(r.loc("min_spp"), "min_spp = {} is more than max_spp = {}", d.min_spp,
                     d.max_spp);
@@ -426,6 +427,7 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
     o.material_loc = r.loc("material");
     o.placement = read_placement(r);
     o.parent = read_matrix(r, "import_matrix");
+    o.shadow_catcher = r.boolean("shadow_catcher", false);
     const auto name = [&](std::size_t k) {
         return fmt::format("[[object.keys]] #{} of {}", k, r.what());
     };

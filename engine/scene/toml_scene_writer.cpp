@@ -120,6 +120,7 @@ struct Writer {
         if (r.noise_threshold > 0.0f) line("noise_threshold", num(r.noise_threshold));
         if (r.min_spp > 0) line("min_spp", fmt::to_string(r.min_spp));
         if (r.max_spp > 0) line("max_spp", fmt::to_string(r.max_spp));
+        if (r.transparent_background) line("transparent_background", "true");
         if (r.working_space) line("working_space", str(*r.working_space));
         if (r.color_space) line("color_space", str(*r.color_space));
         line("frame_start", fmt::to_string(r.frame_start));
@@ -220,6 +221,7 @@ struct Writer {
         for (const ParamDesc& p : m.params) params.push_back(str(p.name) + " = " + param(p));
         line("params", fmt::format("{{ {} }}", fmt::join(params, ", ")));
         for (const ParamDesc& p : m.maps) line(p.name, texture(p.texture, p.name.c_str()));
+        if (m.shadow_catcher) line("shadow_catcher", "true");
     }
 
     std::string inline_mesh(const TriangleMesh& mesh) {
@@ -275,6 +277,7 @@ struct Writer {
     void object(const ObjectDesc& o) {
         out += "\n[[object]]\n";
         if (!o.name.empty()) line("name", str(o.name));
+        if (o.shadow_catcher) line("shadow_catcher", "true");
         if (const auto* m = std::get_if<MeshFileShape>(&o.shape)) {
             line("mesh", path(m->path));  // a sequence's pattern as it is
             if (!m->rest_path.empty()) line("rest_mesh", path(m->rest_path));

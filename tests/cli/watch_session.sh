@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # End to end: `spangle render --watch` on a temporary copy of a scene. Edits, in turn, a material
-# parameter, a transform, the mesh file, the camera; saves a syntax error, fixes it; "rebuilds"
+# parameter, a transform, the mesh file, the camera; saves a syntax error, then fixes it in a save
+# that also moves the camera (compared with the last good scene: only the camera changed); saves
+# another error and fixes it back (nothing changed: the image is kept, nothing renders); "rebuilds"
 # the plugin (a new file over the old one). After each, checks the reload line (what changed and
-# which systems ran) and whether the output EXR changed, stayed, or recovered.
+# which systems ran) and whether the output EXR changed, stayed, or recovered. The scene has an
+# unused material: its warning is said once, not at every reload. SIGINT ends with one line
+# saying what the EXR holds.
 #   watch_session.sh SPANGLE PLUGIN_DIR SCENE_DIR
 set -u
 S=$1 PLUGINS=$2 SCENES=$3
@@ -14,6 +18,7 @@ mkdir "$T/plugins"
 cp "$PLUGINS/libspangle_flake.so" "$T/plugins/"
 cd "$T"
 sed -i 's/^spp = 16/spp = 4/' scene.toml
+printf '\n[[material]]\nname = "spare"\nplugin = "smooth"\nmodel = "diffuse"\nparams = { albedo = 0.5 }\n' >> scene.toml
 
 fail() { echo "FAIL: $*"; echo "--- log"; cat log.txt; exit 1; }
 LINES=0
@@ -74,22 +79,39 @@ grep -q "scene.toml:[0-9]*:[0-9]*: error" log.txt || fail "no file:line for the 
 sleep 1
 keep F; same E F || fail "a bad save changed the image on disk"
 
+# The fix comes with another edit: compared with the last good scene, only the camera changed.
+sed -i -e '$d' -e 's/fov = 28/fov = 30/' scene.toml
+await "^reload"
+echo "$NEW" | grep -q "changed: Camera; ran: nothing; rebuilt: nothing" || fail "fixed save: $NEW"
+finished 6
+keep G; ! same E G || fail "the fixed save's camera edit did not change the image"
+
+# Broken again and fixed back: the same scene as the last good one, its image kept.
+echo "broken = = 1" >> scene.toml
+await "reload failed"
 sed -i '$d' scene.toml
 await "^reload"
-finished 6
-keep G; same E G || fail "the fixed scene does not render as before the bad save"
+echo "$NEW" | grep -q "changed: nothing; .*the same as the last good scene: its image is kept" ||
+    fail "fixed back: $NEW"
+sleep 1
+[ "$(grep -c 'watching for changes' log.txt)" -eq 6 ] || fail "the unchanged scene rendered again"
+keep G2; same G G2 || fail "the image changed after a save that changed nothing"
 
 # A rebuilt plugin: a new file replaces the library (same code, new file: it is reopened).
 cp "$PLUGINS/libspangle_flake.so" plugins/new.so && mv plugins/new.so plugins/libspangle_flake.so
 await "^reload"
 echo "$NEW" | grep -q "changed: plugin file .*libspangle_flake.so; ran: materials; rebuilt: material 'glitter'" || fail "plugin: $NEW"
 finished 7
-keep H; same E H || fail "the reopened plugin renders differently"
+keep H; same G H || fail "the reopened plugin renders differently"
 
 kill -INT $PID
 wait $PID
 RC=$?
 [ $RC -eq 0 ] || fail "exit status $RC after SIGINT"
+# The materials system ran at the first load, the material edit and the plugin: one warning.
+[ "$(grep -c "material 'spare' is not used" log.txt)" -eq 1 ] || fail "the unused material's warning repeated"
+grep -qx 'stopped by SIGINT: out.exr holds the finished image at 4 samples per pixel' log.txt ||
+    fail "no line saying what SIGINT left"
 ls -a | grep -q '\.tmp' && fail "temporary file left behind"
 echo "watch session: all reloads as expected"
 exit 0

@@ -258,10 +258,10 @@ TEST(DeformingMesh, ASequenceOfIdenticalFramesRendersAsThePlainMeshBitForBit) {
     const TriangleMesh m = grid(4, [](Vec3 p) { return Vec3(p.x, p.y, 0.05f * p.x * p.y); });
     write_ply(m, dir.file("plain.ply"), "test");
     for (int f = 1; f <= 2; ++f) write_ply(m, dir.file(fmt::format("seq.{:02}.ply", f)), "test");
-    std::ofstream(dir.file("plain.toml")) << plane_scene("mesh = \"plain.ply\"");
-    std::ofstream(dir.file("seq.toml")) << plane_scene("mesh = \"seq.##.ply\"");
+    std::ofstream(dir.file("plain.toml")) << plane_scene("name = \"sheet\"\nmesh = \"plain.ply\"");
+    std::ofstream(dir.file("seq.toml")) << plane_scene("name = \"sheet\"\nmesh = \"seq.##.ply\"");
     std::ofstream(dir.file("rest.toml"))
-        << plane_scene("mesh = \"seq.##.ply\"\nrest_mesh = \"plain.ply\"");
+        << plane_scene("name = \"sheet\"\nmesh = \"seq.##.ply\"\nrest_mesh = \"plain.ply\"");
     Session a = layer_session(), b = layer_session(), c = layer_session();
     const Rendered plain = render_at(a, dir.file("plain.toml"), 2);
     const Rendered seq = render_at(b, dir.file("seq.toml"), 2);

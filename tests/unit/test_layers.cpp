@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 
@@ -72,14 +73,22 @@ intensity = 2
 }
 
 FrameResult render_square(const test::TempDir& dir, bool layers, double clamp = 0.0,
-                          double flake_weight = 0.5) {
+                          double flake_weight = 0.5, bool background_apart = false) {
     { std::ofstream(dir.file("square.toml")) << square_scene(clamp, flake_weight); }
     FrameRequest req;
     req.scene = dir.file("square.toml");
     req.ocio_config = test::shipped_ocio();
     req.log = &test::quiet_log();
     req.options.layers = layers;
+    req.options.background_apart = background_apart;
     return render_frame(req);
+}
+
+/** The channel named `name` of layer list `names`. */
+std::size_t channel(const std::vector<std::string>& names, const std::string& name) {
+    const auto it = std::find(names.begin(), names.end(), name);
+    EXPECT_NE(it, names.end()) << name;
+    return static_cast<std::size_t>(it - names.begin());
 }
 
 TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
@@ -92,9 +101,17 @@ TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
         // (which names none).
         "lightgroup_sky.R", "lightgroup_sky.G", "lightgroup_sky.B", "lightgroup_key.R",
         "lightgroup_key.G", "lightgroup_key.B", "lightgroup_default.R", "lightgroup_default.G",
-        "lightgroup_default.B"};
-    ASSERT_EQ(r.layer_names, want);
-    const std::size_t lc = want.size(), w = r.width, h = r.height;
+        "lightgroup_default.B",
+        // The glint part of each group's light.
+        "glints_sky.R", "glints_sky.G", "glints_sky.B", "glints_key.R", "glints_key.G",
+        "glints_key.B", "glints_default.R", "glints_default.G", "glints_default.B"};
+    ASSERT_GE(r.layer_names.size(), want.size());
+    ASSERT_EQ(std::vector<std::string>(r.layer_names.begin(),
+                                       r.layer_names.begin() + static_cast<long>(want.size())),
+              want);
+    EXPECT_EQ(r.layer_names[want.size()], "CryptoObject00.R");
+    EXPECT_EQ(r.layer_names.back(), "CryptoMaterial02.A");
+    const std::size_t lc = r.layer_names.size(), w = r.width, h = r.height;
     ASSERT_EQ(r.layers.size(), lc * w * h);
     const auto at = [&](std::size_t x, std::size_t y, std::size_t c) {
         return r.layers[(y * w + x) * lc + c];
@@ -150,7 +167,7 @@ TEST(Layers, ClampedContributionsStillAddUpAndNoFlakesMeanNoGlints) {
     // A firefly clamp low enough to scale most indirect light, and no flakes at all.
     const FrameResult r = render_square(dir, true, 0.05, 0.0);
     const std::size_t lc = r.layer_names.size();
-    ASSERT_EQ(lc, 27u);
+    ASSERT_EQ(lc, 27u + 9u + 24u) << "with each group's glints and the Cryptomatte pairs";
     const std::size_t pixels = r.width * r.height;
     const FrameResult unclamped = render_square(dir, true, 0.0, 0.0);
     double clamped_sum = 0.0, unclamped_sum = 0.0;
@@ -165,6 +182,69 @@ TEST(Layers, ClampedContributionsStillAddUpAndNoFlakesMeanNoGlints) {
             unclamped_sum += unclamped.image[3 * p + c];
         }
     EXPECT_LT(clamped_sum, 0.999 * unclamped_sum) << "the clamp took effect";
+}
+
+TEST(Layers, BeautyIsRestPlusGlintsInEveryLightGroup) {
+    test::TempDir dir("layers_glint_recipe");
+    const FrameResult r = render_square(dir, true);
+    const auto& n = r.layer_names;
+    const std::size_t lc = n.size(), pixels = static_cast<std::size_t>(r.width) * r.height;
+    double glints_seen[3] = {0, 0, 0};
+    for (std::size_t p = 0; p < pixels; ++p) {
+        const float* l = &r.layers[p * lc];
+        for (std::size_t c = 0; c < 3; ++c) {
+            const char* rgb[] = {"R", "G", "B"};
+            const float beauty = r.image[3 * p + c];
+            const float glints = l[channel(n, fmt::format("glints.{}", rgb[c]))];
+            // The recipe of docs/layers.md: rest = lightgroup - glints_group per group; the
+            // beauty is the rests plus the glints. Sums of floats: rounding only.
+            double rest = 0.0, group_glints = 0.0;
+            std::size_t g = 0;
+            for (const char* group : {"sky", "key", "default"}) {
+                const float light = l[channel(n, fmt::format("lightgroup_{}.{}", group, rgb[c]))];
+                const float gl = l[channel(n, fmt::format("glints_{}.{}", group, rgb[c]))];
+                ASSERT_GE(gl, 0.0f);
+                ASSERT_LE(gl, light * (1.0f + 1e-5f) + 1e-6f) << "a group's glints are its light";
+                rest += light - gl;
+                group_glints += gl;
+                glints_seen[g++] += gl;
+            }
+            const float tol = 1e-5f * std::max(1.0f, beauty);
+            ASSERT_NEAR(group_glints, glints, tol) << "pixel " << p;
+            ASSERT_NEAR(rest + glints, beauty, tol) << "pixel " << p;
+        }
+    }
+    // The key light (a small sphere) makes glints; so does the sky (by BSDF sampling).
+    EXPECT_GT(glints_seen[1], 1.0);
+    EXPECT_GT(glints_seen[0], 0.0);
+}
+
+TEST(Layers, TheBackgroundApartMakesTheBeautyPremultiplied) {
+    test::TempDir dir("layers_background");
+    const FrameResult apart = render_square(dir, true, 0.0, 0.5, true);
+    const FrameResult whole = render_square(dir, true, 0.0, 0.5, false);
+    const auto& n = apart.layer_names;
+    const std::size_t lc = n.size(), pixels = static_cast<std::size_t>(apart.width) * apart.height;
+    const std::size_t bg = channel(n, "background.R"), a = channel(n, "A");
+    int empty = 0;
+    for (std::size_t p = 0; p < pixels; ++p) {
+        const float alpha = apart.layers[p * lc + a];
+        for (std::size_t c = 0; c < 3; ++c) {
+            const float beauty = apart.image[3 * p + c], back = apart.layers[p * lc + bg + c];
+            // Over the background it is the picture without the split (float rounding).
+            ASSERT_NEAR(beauty + back, whole.image[3 * p + c],
+                        1e-5f * std::max(1.0f, whole.image[3 * p + c]))
+                << "pixel " << p;
+            if (alpha == 0.0f) {
+                ASSERT_EQ(beauty, 0.0f) << "pixel " << p;
+            }
+            if (alpha == 1.0f) {
+                ASSERT_EQ(back, 0.0f) << "pixel " << p;
+            }
+        }
+        empty += alpha == 0.0f;
+    }
+    EXPECT_EQ(empty, 64 * 64 - 32 * 32);
 }
 
 TEST(Layers, TurningThemOnLeavesTheBeautyAlone) {

@@ -70,9 +70,12 @@ private:
     std::vector<std::string> wait_for_change(FileWatcher& watcher);
     /** Stops the render, reloads, and renders again when there is something to show. */
     void apply_change(const std::vector<std::string>& touched);
+    /** The line a stop signal ends the session with: what is on disk, at how many samples. */
+    void say_stopped();
 
     const RenderArgs& a_;                    ///< the command line
-    const Logger& log_;                      ///< the render's logger
+    WarningsSaid warnings_said_;             ///< each warning once per watch session
+    Logger log_;                             ///< the render's logger, saying each warning once
     const Outputs& out_;                     ///< where images go
     const bool pass_output_;                 ///< write every pass (not --no-pass-output)
     std::atomic<bool> reload_{false};        ///< stops the render for a reload
@@ -81,9 +84,12 @@ private:
     std::mutex mutex_;                       ///< the four below: the render thread's reports
     std::string pending_line_;               ///< the reload line not yet printed
     std::chrono::steady_clock::time_point changed_at_;  ///< when the pending change was seen
-    bool finished_ = false;     ///< the last render completed (or has nothing)
-    std::string preview_note_;  ///< when the preview pass of the change was written
-    std::thread worker_;        ///< the render thread
+    bool finished_ = false;        ///< the last render completed (or has nothing)
+    std::string preview_note_;     ///< when the preview pass of the change was written
+    bool unchanged_ = false;       ///< the last good reload changed nothing of the live scene
+    uint32_t written_spp_ = 0;     ///< samples per pixel of the last image written (0: none)
+    uint32_t written_target_ = 0;  ///< and the samples it was going to
+    std::thread worker_;           ///< the render thread
 };
 
 WatchLoop::WatchLoop(const RenderArgs& a, const RenderSetup& s)
@@ -91,7 +97,8 @@ WatchLoop::WatchLoop(const RenderArgs& a, const RenderSetup& s)
       log_(s.log),
       out_(s.out),
       pass_output_(!a.no_pass_output),
-      session_(a.plugin_dirs, a.ocio, watch_options(a), s.log) {
+      session_(a.plugin_dirs, a.ocio, watch_options(a), log_) {
+    log_.once = &warnings_said_;
     out_.check_view(session_.color());  // a display or view the config lacks: an error now
     session_.options().stop = [this] { return stop_requested() || reload_.load(); };
     server_ = start_preview_server(a.serve, log_);
@@ -147,6 +154,11 @@ void WatchLoop::on_pass(const PassImage& p) {
     if (!pass_output_) return;
     try {
         out_.write_pass(p, session_.color(), &session_.info());
+        if (p.spp > 0) {
+            std::lock_guard<std::mutex> lock(mutex_);
+            written_spp_ = p.spp;
+            written_target_ = p.target;
+        }
     } catch (const SpangleError& e) {
         report_error(e.what());
     }
@@ -182,6 +194,9 @@ void WatchLoop::finish_render() {
                                   session_.color());
         try {
             out_.write_image(log_, image);
+            std::lock_guard<std::mutex> lock(mutex_);
+            written_spp_ = st.spp_reached;
+            written_target_ = st.spp_target;
         } catch (const SpangleError& e) {
             report_error(e.what());
         }
@@ -204,6 +219,8 @@ bool WatchLoop::load(const std::string& what) {
     try {
         const ReloadReport rep = session_.load(a_.scene);
         std::lock_guard<std::mutex> lock(mutex_);
+        // Compared with the live scene: the last good one, whatever failed in between.
+        unchanged_ = !rep.first && rep.changed.empty();
         pending_line_ = rep.first ? fmt::format("loaded {} in {:.3f} s", a_.scene, rep.seconds)
                                   : fmt::format("reload ({}): {}; applied in {:.3f} s", what,
                                                 rep.summary(), rep.seconds);
@@ -248,6 +265,15 @@ void WatchLoop::apply_change(const std::vector<std::string>& touched) {
         finished_ = false;
     }
     const bool ok = load(what);
+    // A good save that changed nothing of the last good scene (a failed save fixed back, a
+    // file touched) keeps the finished image: there is nothing to render again.
+    if (ok && unchanged_ && !interrupted) {
+        std::lock_guard<std::mutex> lock(mutex_);
+        say(fmt::format("{}; the same as the last good scene: its image is kept", pending_line_));
+        pending_line_.clear();
+        finished_ = true;
+        return;
+    }
     // A failed reload keeps the last good scene: its image stays on disk, and a render of it
     // that the change interrupted goes on.
     if (session_.has_scene() && (ok || interrupted)) {
@@ -269,7 +295,20 @@ int WatchLoop::run() {
         apply_change(touched);
     }
     if (worker_.joinable()) worker_.join();
+    say_stopped();
     return exit_status_for_signal();
+}
+
+void WatchLoop::say_stopped() {
+    std::lock_guard<std::mutex> lock(mutex_);
+    if (written_spp_ == 0)
+        say(fmt::format("stopped by {}: no image written", stop_signal_name()));
+    else if (written_spp_ < written_target_)
+        say(fmt::format("stopped by {}: wrote {} at {} of {} samples per pixel", stop_signal_name(),
+                        out_.exr, written_spp_, written_target_));
+    else
+        say(fmt::format("stopped by {}: {} holds the finished image at {} samples per pixel",
+                        stop_signal_name(), out_.exr, written_spp_));
 }
 
 }  // namespace

@@ -8,8 +8,13 @@
 // transport has no layer code of its own.
 //
 // The layers, per pixel (layer_channel_names): coverage A, albedo, normal N, depth Z along the
-// view, position P, position in its object's space Pobj, the object's number, the glints, and
-// the light of each light group. Light groups add up to the beauty.
+// view, position P, position in its object's space Pobj, the object's number, the glints, the
+// light of each light group and its glint part, the environment seen directly (when it is kept
+// apart from the beauty), the shadow catcher's matte and the Cryptomatte id/coverage pairs of
+// objects and materials. Light groups add up to the beauty.
+//
+// The film holds more than is written: a shadow catcher's light sums and a fixed number of
+// unranked id/coverage slots per pixel; finish_layers turns them into the written channels.
 
 #include <algorithm>
 #include <cmath>
@@ -35,13 +40,47 @@ enum Aov : uint32_t {
     kAovCount = 15
 };
 
+/** Id/coverage pairs a pixel gathers per Cryptomatte while rendering: ids beyond these are
+ *  dropped (their coverage is then missing from the pixel's sum). */
+constexpr uint32_t kCryptoSlots = 8;
+/** Ranks written per Cryptomatte: the specification's suggested 6, three RGBA layers. */
+constexpr uint32_t kCryptoRanks = 6;
+
+/** Which optional layers a render writes and the names they carry. */
+struct LayerPlan {
+    std::vector<std::string> groups;          ///< light groups, in order of first use
+    bool background = false;                  ///< the environment seen directly, apart
+    bool catcher = false;                     ///< a shadow catcher's matte
+    std::vector<std::string> object_names;    ///< Cryptomatte names by [[object]] number
+    std::vector<std::string> material_names;  ///< Cryptomatte names by material index
+};
+
+/** Where each part of a render's layers sits in the film, in values from a pixel's first. */
+struct LayerLayout {
+    uint32_t groups = 0;           ///< light groups
+    uint32_t glints = 0;           ///< glints RGB (kAovCount)
+    uint32_t group_light = 0;      ///< light per group, RGB each
+    uint32_t group_glints = 0;     ///< glint part per group, RGB each
+    uint32_t background = 0;       ///< the environment seen directly, RGB
+    uint32_t catcher = 0;          ///< shadow catcher: its samples, light without and with shadows
+    uint32_t crypto_object = 0;    ///< kCryptoSlots (id, coverage) pairs of objects
+    uint32_t crypto_material = 0;  ///< the same for materials
+    uint32_t channels = 0;         ///< values per pixel in the film
+};
+
+/** The film layout of a render with `groups` light groups. */
+LayerLayout layer_layout(uint32_t groups);
+
 /** Where one render's layers go: the layer film and what its channels are measured by. */
 struct LayerFilm {
-    std::vector<float>* film = nullptr;  ///< channels values per pixel of the image
+    std::vector<float>* film = nullptr;  ///< layout.channels values per pixel of the image
     uint32_t groups = 0;                 ///< light groups
-    uint32_t channels = 0;               ///< values per pixel: kAovCount + 3 + 3 * groups
+    uint32_t channels = 0;               ///< values per pixel (layout.channels)
+    LayerLayout layout;                  ///< where each part sits
     Vec3 camera_position;                ///< depth is measured from here
     Vec3 camera_forward;                 ///< along this unit direction
+    std::vector<float> object_ids;       ///< Cryptomatte id per [[object]] number
+    std::vector<float> material_ids;     ///< Cryptomatte id per material index
 };
 
 /** No layers: every hook does nothing. */
@@ -51,7 +90,9 @@ struct NullSink {
     void escaped(std::size_t, uint32_t, Vec3, Vec3, uint32_t, float) {}
     void emitted(std::size_t, uint32_t, Vec3, float, uint32_t, Vec3) {}
     void camera_hit(std::size_t, const RayDifferential&, float) {}
-    void first_surface(std::size_t, Vec3, uint32_t) {}
+    void first_surface(std::size_t, Vec3, uint32_t, uint32_t, bool) {}
+    void background(std::size_t, Vec3) {}
+    void catcher_light(std::size_t, Vec3, bool) {}
     bool wants_glints(uint32_t) const { return false; }
     void glint_outputs(std::size_t, float*&, float*&, float*&) {}
     void begin_shadows() {}
@@ -73,8 +114,15 @@ public:
         glint_throughput_.assign(n, Vec3(0.0f));
         glint_.assign(n, Vec3(0.0f));
         group_radiance_.assign(n * film.groups, Vec3(0.0f));
+        group_glint_.assign(n * film.groups, Vec3(0.0f));
         aov_.assign(n * kAovCount, 0.0f);
         escaped_by_group_.assign(film.groups, Vec3(0.0f));
+        background_.assign(n, Vec3(0.0f));
+        object_id_.assign(n, 0.0f);
+        material_id_.assign(n, 0.0f);
+        catcher_.assign(n, 0);
+        catcher_free_.assign(n, 0.0f);
+        catcher_lit_.assign(n, 0.0f);
     }
 
     /** A zeroed buffer, one entry per light group, for an escaping ray's light by group. */
@@ -106,13 +154,29 @@ public:
         aov[kAovP + 1] = p.y;
         aov[kAovP + 2] = p.z;
     }
-    /** The camera ray of path k landed on object `object` at p_obj in its own space. */
-    void first_surface(std::size_t k, Vec3 p_obj, uint32_t object) {
+    /** The camera ray of path k landed on object `object` (material `material`; a shadow
+     *  catcher when `catcher`) at p_obj in its own space. */
+    void first_surface(std::size_t k, Vec3 p_obj, uint32_t object, uint32_t material,
+                       bool catcher) {
         float* aov = &aov_[k * kAovCount];
         aov[kAovPobj] = p_obj.x;
         aov[kAovPobj + 1] = p_obj.y;
         aov[kAovPobj + 2] = p_obj.z;
         aov[kAovObject] = static_cast<float>(object + 1);
+        if (object < film_->object_ids.size()) object_id_[k] = film_->object_ids[object];
+        if (material < film_->material_ids.size()) material_id_[k] = film_->material_ids[material];
+        catcher_[k] = catcher ? 1 : 0;
+    }
+    /** The camera ray of path k escaped and saw c of the environment, kept out of the beauty. */
+    void background(std::size_t k, Vec3 c) { background_[k] += c; }
+    /** A next-event query from the shadow catcher path k's first hit would add c, and `arrived`
+     *  says whether its shadow ray was unblocked: the catcher's light without and with the
+     *  shadows of others (by luminance). */
+    void catcher_light(std::size_t k, Vec3 c, bool arrived) {
+        const float l = luminance(c);
+        if (!(l > 0.0f) || !std::isfinite(l)) return;
+        catcher_free_[k] += l;
+        if (arrived) catcher_lit_[k] += l;
     }
 
     /** Whether shading at `bounce` should ask the plugins for the glint part of f (at the
@@ -185,10 +249,23 @@ public:
         const float* aov = &aov_[k * kAovCount];
         for (uint32_t c = 0; c < kAovCount; ++c)
             if (std::isfinite(aov[c])) lp[c] += aov[c];
+        const LayerLayout& l = film_->layout;
+        if (object_id_[k] != 0.0f) {
+            add_id(lp + l.crypto_object, object_id_[k]);
+            add_id(lp + l.crypto_material, material_id_[k]);
+        }
+        if (catcher_[k]) {
+            lp[l.catcher] += 1.0f;
+            lp[l.catcher + 1] += catcher_free_[k];
+            lp[l.catcher + 2] += catcher_lit_[k];
+        }
         if (!finite) return;
-        add3(lp + kAovCount, glint_[k]);
-        for (uint32_t g = 0; g < film_->groups; ++g)
-            add3(lp + kAovCount + 3 + 3 * g, group_radiance_[k * film_->groups + g]);
+        add3(lp + l.glints, glint_[k]);
+        add3(lp + l.background, background_[k]);
+        for (uint32_t g = 0; g < film_->groups; ++g) {
+            add3(lp + l.group_light + 3 * g, group_radiance_[k * film_->groups + g]);
+            add3(lp + l.group_glints + 3 * g, group_glint_[k * film_->groups + g]);
+        }
     }
 
     /** Path k's glint part (what accumulate adds to the glints layer when finite). */
@@ -198,7 +275,20 @@ private:
     /** One contribution c of path k to its light group, and its glint part. */
     void add(std::size_t k, Vec3 c, uint32_t group, Vec3 glint) {
         group_radiance_[k * film_->groups + group] += c;
+        group_glint_[k * film_->groups + group] += glint;
         glint_[k] += glint;
+    }
+    /** One sample of id `id` into a pixel's kCryptoSlots (id, weight) pairs: its own slot, else
+     *  the first empty one (weight 0); dropped when every slot holds another id. */
+    static void add_id(float* slots, float id) {
+        for (uint32_t s = 0; s < kCryptoSlots; ++s) {
+            float* slot = slots + 2 * s;
+            if (slot[1] == 0.0f) slot[0] = id;
+            if (slot[0] == id) {
+                slot[1] += 1.0f;
+                return;
+            }
+        }
     }
     static void add3(float* to, Vec3 v) {
         if (!is_finite(v)) return;
@@ -211,6 +301,13 @@ private:
     std::vector<Vec3> glint_throughput_;  ///< per path: its throughput's part through a glint
     std::vector<Vec3> glint_;             ///< per path: its light through a glint
     std::vector<Vec3> group_radiance_;    ///< per path and group: its light by light group
+    std::vector<Vec3> group_glint_;       ///< per path and group: that light's glint part
+    std::vector<Vec3> background_;        ///< per path: the environment its camera ray saw
+    std::vector<float> object_id_;        ///< per path: Cryptomatte id of its first object
+    std::vector<float> material_id_;      ///< per path: Cryptomatte id of its first material
+    std::vector<uint8_t> catcher_;        ///< per path: its first hit is a shadow catcher
+    std::vector<float> catcher_free_;     ///< per path: its catcher's light, shadows ignored
+    std::vector<float> catcher_lit_;      ///< per path: its catcher's light, shadows included
     std::vector<float> aov_;              ///< per path: kAovCount values of the first hit
     std::vector<Vec3> escaped_by_group_;  ///< one escaped ray's light by group
     std::vector<float> g_r_, g_g_, g_b_;  ///< the glint part of f per query
@@ -218,15 +315,23 @@ private:
     std::vector<Vec3> shadow_glint_;      ///< per shadow query: its glint part
 };
 
-/** The render layers' channel names in film order (A, albedo.R/G/B, N.X/Y/Z, Z, P.X/Y/Z,
- *  Pobj.X/Y/Z, object, glints.R/G/B, then lightgroup_<name>.R/G/B per light group). */
-std::vector<std::string> layer_channel_names(const std::vector<std::string>& light_groups);
+/** The render layers' channel names as written (A, albedo.R/G/B, N.X/Y/Z, Z, P.X/Y/Z,
+ *  Pobj.X/Y/Z, object, glints.R/G/B, lightgroup_<name>.R/G/B per light group,
+ *  glints_<name>.R/G/B per light group, background.R/G/B when kept apart, shadow with a shadow
+ *  catcher, then CryptoObject00..02 and CryptoMaterial00..02, R/G/B/A each). */
+std::vector<std::string> layer_channel_names(const LayerPlan& plan);
 
-/** Turns the layer film's sums of `samples` samples per pixel (or counts[p] for pixel p,
- *  when counts is not null: adaptive sampling) into the layers: coverage, albedo, glints and
- *  light groups averaged over all samples; depth, positions and the object number over the
- *  samples whose camera ray hit something; the normal normalised. */
-void finish_layers(std::vector<float>& film, std::size_t channels, uint32_t samples,
-                   const uint32_t* counts = nullptr);
+/** Whether a written layer channel is data (positions, depth, normals, ids, coverages: written
+ *  as 32-bit floats whatever the beauty's precision) rather than light or a matte. */
+bool layer_channel_is_data(const std::string& name);
+
+/** Turns the layer film (`layout`) holding the sums of `samples` samples per pixel (or
+ *  counts[p] for pixel p, when counts is not null: adaptive sampling) into the written
+ *  channels of `plan` (layer_channel_names), in place: coverage, albedo, glints, light groups
+ *  and the environment averaged over all samples; depth, positions and the object number over
+ *  the samples whose camera ray hit something; the normal normalised; the shadow catcher's
+ *  samples turned into alpha; the Cryptomatte pairs ranked by coverage. */
+void finish_layers(std::vector<float>& film, const LayerLayout& layout, const LayerPlan& plan,
+                   uint32_t samples, const uint32_t* counts = nullptr);
 
 }  // namespace spangle
