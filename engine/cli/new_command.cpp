@@ -40,8 +40,8 @@ std::vector<fs::path> studio_map_locations() {
     const std::string exe = executable_dir();
     if (!exe.empty()) {
         out.push_back(fs::path(exe) / "env" / kStudioMap);
-        out.push_back((fs::path(exe) / ".." / "share" / "spangle" / "env" / kStudioMap)
-                          .lexically_normal());
+        out.push_back(
+            (fs::path(exe) / ".." / "share" / "spangle" / "env" / kStudioMap).lexically_normal());
     }
 #ifdef SPANGLE_SOURCE_DIR
     out.push_back(fs::path(SPANGLE_SOURCE_DIR) / "assets" / "env" / kStudioMap);
@@ -76,13 +76,14 @@ int run_new(const NewArgs& a) {
     const NewSceneReport rep = write_new_scene(req);
     Logger log;
     if (a.quiet) log.threshold = LogLevel::Warning;
-    log.info("wrote {} and its ground plane {}: the model's bounds {:.3g} x {:.3g} x {:.3g}, "
-             "paint '{}' with {:.3g} flakes per square unit (about {:.0f} per pixel); render it "
-             "with: spangle render {}",
-             output, rep.ground, rep.model_bounds.hi.x - rep.model_bounds.lo.x,
-             rep.model_bounds.hi.y - rep.model_bounds.lo.y,
-             rep.model_bounds.hi.z - rep.model_bounds.lo.z, rep.paint, rep.density,
-             rep.flakes_per_pixel, output);
+    log.info(
+        "wrote {} and its ground plane {}: the model's bounds {:.3g} x {:.3g} x {:.3g}, "
+        "paint '{}' with {:.3g} flakes per square unit (about {:.0f} per pixel); render it "
+        "with: spangle render {}",
+        output, rep.ground, rep.model_bounds.hi.x - rep.model_bounds.lo.x,
+        rep.model_bounds.hi.y - rep.model_bounds.lo.y,
+        rep.model_bounds.hi.z - rep.model_bounds.lo.z, rep.paint, rep.density, rep.flakes_per_pixel,
+        output);
     return 0;
 }
 

@@ -10,8 +10,8 @@
 #include <fstream>
 #include <sstream>
 
-#include "core/hash.h"
 #include "core/files.h"
+#include "core/hash.h"
 
 namespace spangle {
 

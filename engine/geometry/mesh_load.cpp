@@ -7,8 +7,8 @@
 #include <cstring>
 #include <filesystem>
 
-#include "core/hash.h"
 #include "core/files.h"
+#include "core/hash.h"
 
 namespace spangle {
 

@@ -78,7 +78,9 @@ std::string toml_quoted(const std::string& s) {
     return out + "\"";
 }
 
-std::string vec(Vec3 v) { return fmt::format("[{:.4g}, {:.4g}, {:.4g}]", v.x, v.y, v.z); }
+std::string vec(Vec3 v) {
+    return fmt::format("[{:.4g}, {:.4g}, {:.4g}]", v.x, v.y, v.z);
+}
 
 /** Rounds to two significant digits, so the written density reads as a chosen number. */
 double two_digits(double x) {
@@ -230,8 +232,9 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         toml_quoted(paint), rep.flakes_per_pixel, rep.density);
     t += "[[material]]\nname = \"spangle_new_ground\"\nplugin = \"smooth\"\nmodel = \"plastic\"\n"
          "params = { albedo = 0.3, roughness = 0.35 }\n\n";
-    t += fmt::format("[[object]]\nname = \"ground\"\nmesh = {}\nmaterial = \"spangle_new_ground\"\n\n",
-                     toml_quoted(scene_relative(rep.ground, folder)));
+    t += fmt::format(
+        "[[object]]\nname = \"ground\"\nmesh = {}\nmaterial = \"spangle_new_ground\"\n\n",
+        toml_quoted(scene_relative(rep.ground, folder)));
     if (is_gltf(r.model)) {
         t += fmt::format(
             "[[import]]                     # the model, with its own materials; the flake paint\n"
@@ -244,7 +247,8 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
             toml_quoted(scene_relative(model, folder)), vec(rep.offset));
     } else {
         t += fmt::format("[[object]]\nname = \"model\"\nmesh = {}\nmaterial = {}\ntranslate = {}\n",
-                         toml_quoted(scene_relative(model, folder)), toml_quoted(paint), vec(rep.offset));
+                         toml_quoted(scene_relative(model, folder)), toml_quoted(paint),
+                         vec(rep.offset));
     }
 
     const fs::path tmp = out.string() + ".tmp";

@@ -30,14 +30,14 @@ struct NewSceneRequest {
 
 /** What was written, for the command's message and the tests. */
 struct NewSceneReport {
-    Box model_bounds;       ///< the model's bounds as read (its own units, before placement)
-    Vec3 offset;            ///< translation that stands it on the ground, centred on y
-    Vec3 camera, look_at;   ///< the camera written
-    double fov_deg = 0.0;   ///< its vertical field of view
-    double density = 0.0;   ///< flakes per square unit of the paint
+    Box model_bounds;      ///< the model's bounds as read (its own units, before placement)
+    Vec3 offset;           ///< translation that stands it on the ground, centred on y
+    Vec3 camera, look_at;  ///< the camera written
+    double fov_deg = 0.0;  ///< its vertical field of view
+    double density = 0.0;  ///< flakes per square unit of the paint
     double flakes_per_pixel = 0.0;  ///< expected flakes a pixel sees at the look_at distance
-    std::string ground;     ///< the ground plane's path
-    std::string paint;      ///< the name of the flake material written
+    std::string ground;             ///< the ground plane's path
+    std::string paint;              ///< the name of the flake material written
 };
 
 /** The model's bounds in its own units: every vertex of an OBJ or PLY, or of every object of a

@@ -6,10 +6,10 @@
 #include <map>
 #include <utility>
 
+#include "core/files.h"
 #include "scene/components.h"
 #include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
-#include "core/files.h"
 
 namespace spangle {
 

@@ -72,7 +72,7 @@ TEST(ColorConfig, TheDefaultViewKeepsHueBelowTwiceWhiteAndTakesBrightGlintsToWhi
     c.resolve_view(display, view);
     EXPECT_EQ(display, "sRGB");
     EXPECT_EQ(view, "Sparkle");
-    const float colours[][3] = {{0.18f, 0.18f, 0.18f}, {1.0f, 1.0f, 1.0f}, {0.05f, 0.3f, 0.9f},
+    const float colours[][3] = {{0.18f, 0.18f, 0.18f}, {1.0f, 1.0f, 1.0f},  {0.05f, 0.3f, 0.9f},
                                 {1.9f, 0.6f, 0.2f},    {8.0f, 2.5f, 1.2f},  {30.0f, 0.5f, 12.0f},
                                 {44.0f, 20.0f, 8.0f},  {0.6f, 0.01f, 0.2f}, {120.f, 90.f, 100.f}};
     for (const auto& in : colours) {
@@ -147,7 +147,8 @@ TEST(ColorConfig, TheGlintViewIsToneMappedAndKeepsABrightGlintsColour) {
         c.resolve_view(display, bad_view);
         FAIL() << "an unknown view was accepted";
     } catch (const SpangleError& e) {
-        EXPECT_NE(std::string(e.what()).find("views: Sparkle, Glint, ACES 1.0 - SDR Video, Standard, Raw"),
+        EXPECT_NE(std::string(e.what()).find(
+                      "views: Sparkle, Glint, ACES 1.0 - SDR Video, Standard, Raw"),
                   std::string::npos)
             << e.what();
     }

@@ -119,8 +119,9 @@ TEST(NewScene, AMissingModelNamesTheAbsolutePathItLookedFor) {
         write_new_scene(req);
         FAIL() << "a missing model was accepted";
     } catch (const SpangleError& e) {
-        EXPECT_NE(std::string(e.what()).find("not found (looked for " + dir.file("nowhere/model.obj")),
-                  std::string::npos)
+        EXPECT_NE(
+            std::string(e.what()).find("not found (looked for " + dir.file("nowhere/model.obj")),
+            std::string::npos)
             << e.what();
     }
     EXPECT_FALSE(fs::exists(req.output)) << "nothing written";
@@ -159,8 +160,8 @@ TEST(ScenePaths, NotFoundNamesTheAbsolutePathOfAFileNamedRelativeToTheScene) {
             read_scene("scene.toml");
             FAIL() << "a missing map was accepted";
         } catch (const SpangleError& e) {
-            EXPECT_NE(std::string(e.what()).find("map file '../env/studio.exr' not found (looked for " +
-                                                 want_map + ")"),
+            EXPECT_NE(std::string(e.what()).find(
+                          "map file '../env/studio.exr' not found (looked for " + want_map + ")"),
                       std::string::npos)
                 << e.what();
         }
@@ -168,15 +169,16 @@ TEST(ScenePaths, NotFoundNamesTheAbsolutePathOfAFileNamedRelativeToTheScene) {
             read_scene("mesh.toml");
             FAIL() << "a missing mesh was accepted";
         } catch (const SpangleError& e) {
-            EXPECT_NE(std::string(e.what()).find("(looked for " + want_mesh + ")"), std::string::npos)
+            EXPECT_NE(std::string(e.what()).find("(looked for " + want_mesh + ")"),
+                      std::string::npos)
                 << e.what();
         }
         try {
             read_scene("absent.toml");
             FAIL() << "a missing scene was accepted";
         } catch (const SpangleError& e) {
-            EXPECT_NE(std::string(e.what()).find("(looked for " +
-                                                 (dir.path() / "copied" / "absent.toml").string() + ")"),
+            EXPECT_NE(std::string(e.what()).find(
+                          "(looked for " + (dir.path() / "copied" / "absent.toml").string() + ")"),
                       std::string::npos)
                 << e.what();
         }

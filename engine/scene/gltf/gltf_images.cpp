@@ -9,9 +9,9 @@
 #include <cstdlib>
 #include <fstream>
 
+#include "core/files.h"
 #include "core/hash.h"
 #include "scene/gltf/gltf_parts.h"
-#include "core/files.h"
 
 namespace spangle::gltf {
 namespace {

@@ -6,8 +6,8 @@
 #include <filesystem>
 #include <fstream>
 
-#include "core/memory.h"
 #include "core/files.h"
+#include "core/memory.h"
 
 namespace spangle::pbrt {
 
