@@ -146,17 +146,33 @@ constexpr uint64_t sobol_pixel_key(uint64_t seed, uint64_t pixel) {
     return hash2(seed, pixel);
 }
 
-/** The 2D point for sample `index` of the pixel whose key is `key`, in dimension pair `pair`.
- *  One 64-bit hash per pair gives the three scramble seeds (index shuffle, both dimensions). */
+namespace detail {
+/** One dimension set's index shuffle and scramble hash, shared by its dimensions: one 64-bit hash
+ *  per set gives the shuffle's seed and each dimension's scramble seed. */
+struct SobolSet {
+    uint32_t shuffled;
+    uint64_t h;
+    uint32_t seed(uint64_t multiplier) const {
+        return static_cast<uint32_t>((h * multiplier) >> 32);
+    }
+};
+inline SobolSet sobol_set(uint64_t key, uint32_t index, uint32_t set) {
+    const uint64_t h = mix64(key ^ (static_cast<uint64_t>(set) + 1) * 0x9e3779b97f4a7c15ull);
+    return {nested_uniform_scramble(index, static_cast<uint32_t>(h)), h};
+}
+/** A dimension's value from its bit-reversed Sobol value: nested_uniform_scramble(x) =
+ *  reverse(permutation(reverse(x))), so with reversed Sobol values two reversals per dimension
+ *  cancel (sobol_0(i) = reverse(i): its reversed value is the index itself). */
+inline float scrambled(uint32_t reversed, uint32_t seed) {
+    return fixed_to_unit(reverse_bits(laine_karras_permutation(reversed, seed)));
+}
+}  // namespace detail
+
+/** The 2D point for sample `index` of the pixel whose key is `key`, in dimension pair `pair`. */
 inline void sobol_2d_keyed(uint64_t key, uint32_t index, uint32_t pair, float& u0, float& u1) {
-    const uint64_t h = mix64(key ^ (static_cast<uint64_t>(pair) + 1) * 0x9e3779b97f4a7c15ull);
-    const auto shuffled = nested_uniform_scramble(index, static_cast<uint32_t>(h));
-    const auto seed0 = static_cast<uint32_t>(h >> 32);
-    const auto seed1 = static_cast<uint32_t>((h * 0xd1342543de82ef95ull) >> 32);
-    // nested_uniform_scramble(x) = reverse(permutation(reverse(x))): with sobol_0(i) =
-    // reverse(i) and a table of reversed sobol_1 values, two reversals per pair cancel.
-    u0 = fixed_to_unit(reverse_bits(laine_karras_permutation(shuffled, seed0)));
-    u1 = fixed_to_unit(reverse_bits(laine_karras_permutation(sobol_1_reversed(shuffled), seed1)));
+    const detail::SobolSet s = detail::sobol_set(key, index, pair);
+    u0 = detail::scrambled(s.shuffled, s.seed(1));
+    u1 = detail::scrambled(sobol_1_reversed(s.shuffled), s.seed(0xd1342543de82ef95ull));
 }
 
 /** The 3D point for sample `index` of the pixel whose key is `key`, in dimension set `set`: the
@@ -166,14 +182,10 @@ inline void sobol_2d_keyed(uint64_t key, uint32_t index, uint32_t pair, float& u
  *  light) leaves the samples that make the same choice stratified in (u0, u1). */
 inline void sobol_3d_keyed(uint64_t key, uint32_t index, uint32_t set, float& u0, float& u1,
                            float& u2) {
-    const uint64_t h = mix64(key ^ (static_cast<uint64_t>(set) + 1) * 0x9e3779b97f4a7c15ull);
-    const auto shuffled = nested_uniform_scramble(index, static_cast<uint32_t>(h));
-    const auto seed0 = static_cast<uint32_t>(h >> 32);
-    const auto seed1 = static_cast<uint32_t>((h * 0xd1342543de82ef95ull) >> 32);
-    const auto seed2 = static_cast<uint32_t>((h * 0xaf251af3b0f025b5ull) >> 32);
-    u0 = fixed_to_unit(reverse_bits(laine_karras_permutation(shuffled, seed0)));
-    u1 = fixed_to_unit(reverse_bits(laine_karras_permutation(sobol_1_reversed(shuffled), seed1)));
-    u2 = fixed_to_unit(reverse_bits(laine_karras_permutation(sobol_2_reversed(shuffled), seed2)));
+    const detail::SobolSet s = detail::sobol_set(key, index, set);
+    u0 = detail::scrambled(s.shuffled, s.seed(1));
+    u1 = detail::scrambled(sobol_1_reversed(s.shuffled), s.seed(0xd1342543de82ef95ull));
+    u2 = detail::scrambled(sobol_2_reversed(s.shuffled), s.seed(0xaf251af3b0f025b5ull));
 }
 
 /** The 2D point for sample `index` of `pixel` in dimension pair `pair`. */

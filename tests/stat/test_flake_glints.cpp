@@ -40,8 +40,7 @@ GlintRuns glint_runs(const char* algorithm, double lambda, float cos_o, float al
     const double side = std::sqrt(lambda / kTestDensity);
     constexpr int kRows = 80, kPerRow = 16;
     const std::size_t nd = wis.size();
-    // Per direction: sums for the mean and the neighbour covariance.
-    std::vector<double> s1(nd), s2(nd), sxy(nd), sx(nd), sy(nd), sxx(nd), syy(nd), npair(nd);
+    // f of every footprint (row by row) in every direction.
     std::vector<std::vector<float>> rows(kRows * kPerRow);
     std::vector<Vec3> f;
     std::vector<float> pdf;
