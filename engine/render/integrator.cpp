@@ -166,6 +166,7 @@ uint32_t set_up_job(RenderJob& job, const RenderScene& scene, const RenderOption
     job.scene = &scene;
     job.strategy = options.strategy;
     job.clamp_indirect = film.clamp_indirect;
+    job.filter_glossy = film.filter_glossy;
     job.camera = &cam;
     if (camera_steps.size() >= 2) job.camera_steps = &camera_steps;
     job.motion = job.camera_steps != nullptr ||

@@ -44,6 +44,7 @@ namespace spangle {
     X(Vec3, radiance, "light the path has gathered")                                              \
     X(float, prev_pdf, "solid-angle pdf of the last BSDF sample")                                 \
     X(uint8_t, prev_delta, "the last bounce was a delta lobe (or the camera)")                    \
+    X(float, min_pdf, "smallest pdf of the path's non-delta bounces (+inf: none yet)")            \
     X(uint8_t, active, "the path goes on")                                                        \
     X(uint8_t, catcher,                                                                           \
       "0: ordinary; 1: its camera ray met a shadow catcher, its light is the plate's (dropped); " \
@@ -81,6 +82,7 @@ SPANGLE_SOA(PathBatch, SPANGLE_PATH_FIELDS);
     X(float, odyz, "footprint y axis, z, object space")                                \
     X(uint32_t, flags, "SPANGLE_SHADING_* flags")                                      \
     X(uint32_t, path_id, "the path each point belongs to")                             \
+    X(float, rough_floor, "path regularisation: GGX alpha floor (0: none)")            \
     X(float, f_r, "BSDF value, red (eval and sample)")                                 \
     X(float, f_g, "BSDF value, green")                                                 \
     X(float, f_b, "BSDF value, blue")                                                  \

@@ -2,6 +2,7 @@
 // filter and the lens, with differentials towards the neighbouring pixels.
 
 #include <algorithm>
+#include <limits>
 
 #include "render/wave.h"
 
@@ -63,6 +64,7 @@ void start_path(const RenderJob& job, PathBatch& p, std::size_t i, uint32_t x, u
     p.radiance[i] = Vec3(0.0f);
     p.prev_pdf[i] = 0.0f;
     p.prev_delta[i] = 1;  // camera rays see emitters with full weight
+    p.min_pdf[i] = std::numeric_limits<float>::infinity();
     p.active[i] = 1;
     p.catcher[i] = 0;
 }

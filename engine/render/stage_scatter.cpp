@@ -58,6 +58,7 @@ void leave(PathBatch& p, uint32_t i, Vec3 wi, float pdf, uint32_t sflags, float 
     p.ray[i].d = wi;
     p.prev_pdf[i] = pdf;
     p.prev_delta[i] = delta ? 1 : 0;
+    if (!delta) p.min_pdf[i] = std::min(p.min_pdf[i], pdf);
 }
 
 /** The sample of shading point k (path i): its weight into the throughput, Russian roulette,

@@ -90,8 +90,18 @@ void apply_map(const RenderScene& w, Workspace& ws, const MaterialInstance& mat,
     }
 }
 
+/** The GGX alpha below which path regularisation keeps the lobes of a point whose path's least
+ *  likely rough bounce had density min_pdf (0: no floor). A path that has only met mirrors (or
+ *  none) keeps its sharp lobes; after a diffuse bounce (pdf <= 1/pi) the floor is about 0.4-0.5,
+ *  after a glossy one of density well above filter_glossy none. The curve is Cycles' (its
+ *  "filter glossy"), so that the two renderers' images can be compared like for like. */
+float roughness_floor(float filter_glossy, float min_pdf) {
+    if (!(filter_glossy > 0.0f) || !(min_pdf < filter_glossy)) return 0.0f;
+    return 0.5f * std::sqrt(1.0f - min_pdf / filter_glossy);
+}
+
 /** Fills the batch's shading points from the paths' surfaces (the plugin ABI's arrays). */
-void fill_points(Workspace& ws, const uint32_t* paths, uint32_t n) {
+void fill_points(const RenderJob& job, Workspace& ws, const uint32_t* paths, uint32_t n) {
     const PathBatch& p = ws.paths;
     ShadingBatch& b = ws.batch;
     for (uint32_t k = 0; k < n; ++k) {
@@ -123,9 +133,11 @@ void fill_points(Workspace& ws, const uint32_t* paths, uint32_t n) {
         b.odyx[k] = sp.dpdy_obj.x;
         b.odyy[k] = sp.dpdy_obj.y;
         b.odyz[k] = sp.dpdy_obj.z;
+        b.rough_floor[k] = roughness_floor(job.filter_glossy, p.min_pdf[i]);
         b.flags[k] = (sp.backface ? SPANGLE_SHADING_BACKFACE : 0u) |
                      (p.has_diff[i] ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u) |
-                     (sp.has_uv ? 0u : SPANGLE_SHADING_NO_UV);
+                     (sp.has_uv ? 0u : SPANGLE_SHADING_NO_UV) |
+                     (b.rough_floor[k] > 0.0f ? SPANGLE_SHADING_ROUGHNESS_FLOOR : 0u);
         b.path_id[k] = i;
     }
 }
@@ -160,7 +172,8 @@ SpangleShadingBatch_v3 abi_batch(ShadingBatch& b, uint32_t n) {
                                   b.odyz.data(),
                                   b.flags.data(),
                                   b.path_id.data(),
-                                  nullptr};
+                                  nullptr,
+                                  b.rough_floor.data()};
 }
 
 /** Textured parameters: looked up per point, scaled, clamped into the parameter's range;
@@ -308,7 +321,7 @@ void shade(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInstan
     const RenderScene& w = *job.scene;
     ws.batch.resize(n);
     if (mat.map_kind() != MapKind::None) apply_map(w, ws, mat, paths, n);
-    fill_points(ws, paths, n);
+    fill_points(job, ws, paths, n);
     SpangleShadingBatch_v3 batch = abi_batch(ws.batch, n);
     if (!mat.textures().empty()) batch.param_values = lookup_textures(w, ws, mat, n);
     prepare(ws, mat, batch, n);

@@ -58,6 +58,9 @@ struct RenderJob {
     const RenderScene* scene;
     Strategy strategy;
     float clamp_indirect;  ///< 0 = off
+    /** Path regularisation ([render] filter_glossy; 0 = off): after a bounce of pdf p, later
+     *  glossy lobes are kept at least as rough as alpha = 0.5 sqrt(1 - p / filter_glossy). */
+    float filter_glossy = 0.0f;
     const CameraModel* camera;
     /** A camera moving while the shutter is open: its fields at evenly spaced times (empty:
      *  `camera` at every time). */

@@ -237,6 +237,7 @@ SPANGLE_COMPONENT(CameraMotion, SPANGLE_CAMERA_MOTION_FIELDS);
     X(uint64_t, seed, "random seed")                                                     \
     X(FilterKind, filter, "pixel filter")                                                \
     X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")      \
+    X(float, filter_glossy, "path regularisation after rough bounces; 0 = off")          \
     X(float, noise_threshold, "adaptive sampling's noise threshold; 0 = off")            \
     X(uint32_t, min_spp, "adaptive sampling: samples before a pixel may stop; 0 = auto") \
     X(uint32_t, max_spp, "adaptive sampling: most samples of a pixel; 0 = spp")          \

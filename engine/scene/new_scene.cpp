@@ -207,6 +207,8 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     t += fmt::format(
         "[render]\nwidth = {}\nheight = {}\nspp = 64\nmax_depth = 6\nfilter = \"blackman-harris\"\n"
         "clamp_indirect = 20            # a firefly guard for caustics; biased, 0 = off\n"
+        "filter_glossy = 1              # caustics through mirrors and coats blurred, not "
+        "fireflies; biased, 0 = off\n"
         "working_space = \"ACEScg\"\ncolor_space = \"srgb_texture\"\n\n",
         r.width, r.height);
     t += fmt::format("[camera]\nposition = {}\nlook_at = {}\nfov = {:g}\n\n", vec(rep.camera),

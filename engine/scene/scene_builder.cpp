@@ -95,6 +95,7 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     f.seed = d.seed;
     f.filter = d.filter;
     f.clamp_indirect = d.clamp_indirect;
+    f.filter_glossy = d.filter_glossy;
     f.noise_threshold = d.noise_threshold;
     f.min_spp = d.min_spp;
     f.max_spp = d.max_spp;

@@ -311,6 +311,7 @@ struct RenderDesc {
     uint64_t seed = 0;                         ///< random seed
     FilterKind filter = FilterKind::Gaussian;  ///< pixel filter
     float clamp_indirect = 0.0f;               ///< max luminance of one indirect contribution
+    float filter_glossy = 0.0f;                ///< path regularisation; 0 = off (unbiased)
     float noise_threshold = 0.0f;              ///< adaptive sampling; 0 = off
     uint32_t min_spp = 0;                      ///< adaptive: samples before a stop; 0 = auto
     uint32_t max_spp = 0;                      ///< adaptive: most samples of a pixel; 0 = spp

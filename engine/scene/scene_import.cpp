@@ -113,6 +113,7 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     keep("seed", &RenderDesc::seed);
     keep("filter", &RenderDesc::filter);
     keep("clamp_indirect", &RenderDesc::clamp_indirect);
+    keep("filter_glossy", &RenderDesc::filter_glossy);
     keep("noise_threshold", &RenderDesc::noise_threshold);
     keep("min_spp", &RenderDesc::min_spp);
     keep("max_spp", &RenderDesc::max_spp);

@@ -50,6 +50,7 @@ RenderDesc read_render(TableReader& r) {
     d.seed = static_cast<uint64_t>(r.integer("seed", 0, {0, 9.0e18}));
     const std::string filter = r.string("filter", "gaussian");
     d.clamp_indirect = static_cast<float>(r.number("clamp_indirect", 0.0, {0.0, 1e30}));
+    d.filter_glossy = static_cast<float>(r.number("filter_glossy", 0.0, {0.0, 100.0}));
     d.noise_threshold = static_cast<float>(r.number("noise_threshold", 0.0, {0.0, 1.0}));
     d.min_spp = static_cast<uint32_t>(r.integer("min_spp", 0, {0, 1 << 20}));
     d.max_spp = static_cast<uint32_t>(r.integer("max_spp", 0, {0, 1 << 20}));

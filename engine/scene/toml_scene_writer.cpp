@@ -117,6 +117,7 @@ struct Writer {
         line("seed", fmt::to_string(r.seed));
         line("filter", str(filter_name(r.filter)));
         line("clamp_indirect", num(r.clamp_indirect));
+        if (r.filter_glossy > 0.0f) line("filter_glossy", num(r.filter_glossy));
         if (r.noise_threshold > 0.0f) line("noise_threshold", num(r.noise_threshold));
         if (r.min_spp > 0) line("min_spp", fmt::to_string(r.min_spp));
         if (r.max_spp > 0) line("max_spp", fmt::to_string(r.max_spp));

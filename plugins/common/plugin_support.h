@@ -49,6 +49,14 @@ inline bool rec709_to_working(const SpangleHost_v3* host, float m[9], std::strin
     return true;
 }
 
+/** Point i's path-regularisation floor on GGX alpha (SpangleShadingBatch_v3.roughness_floor),
+ *  or 0 when the host gives none for it. */
+inline float roughness_floor(const SpangleShadingBatch_v3* b, uint32_t i) {
+    if (!(b->flags[i] & SPANGLE_SHADING_ROUGHNESS_FLOOR) || !b->roughness_floor) return 0.0f;
+    const float f = b->roughness_floor[i];
+    return f > 0.0f ? std::min(f, 1.0f) : 0.0f;  // NaN and nonsense read as no floor
+}
+
 /** Radical inverse in base 2 (van der Corput), for Hammersley quadrature. */
 inline float radical_inverse2(uint32_t i) {
     i = (i << 16) | (i >> 16);

@@ -95,4 +95,16 @@ bool Coat::sample_rough(V3 wo, float u0, float u1, V3& wi) const {
     return wi.z > 0.0f;
 }
 
+CoatFloors::CoatFloors(const Coat& own, const TableCache& cache)
+    : own_(own), cache_(cache.dir(), cache.max_bytes()) {}
+
+const Coat& CoatFloors::at(float floor) const {
+    if (!own_.on || !(floor > (own_.smooth ? 0.0f : own_.alpha))) return own_;
+    int k = 0;
+    while (k + 1 < kCount && kLevels[k] < floor) ++k;
+    if (!own_.smooth && kLevels[k] <= own_.alpha) return own_;
+    std::call_once(once_[k], [&] { coats_[k].init(true, own_.ior, kLevels[k], &cache_); });
+    return coats_[k];
+}
+
 }  // namespace spangle::flake

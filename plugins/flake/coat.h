@@ -12,11 +12,12 @@
 // the two neighbouring entries (the albedo only grows towards grazing). The table is built once
 // per (ior, roughness) on all cores and kept in the persistent table cache (table_cache.h).
 
+#include <mutex>
+
 #include "field.h"
+#include "table_cache.h"
 
 namespace spangle::flake {
-
-class TableCache;
 
 struct Coat {
     static constexpr int kNodes = 65;
@@ -33,6 +34,29 @@ struct Coat {
     void eval_rough(V3 wo, V3 wi, float& f, float& pdf) const;
     /** A rough coat's reflection of a visible normal (u0, u1); false under the horizon. */
     bool sample_rough(V3 wo, float u0, float u1, V3& wi) const;
+};
+
+/** Rough versions of a coat for path regularisation (the host's roughness floor): one per
+ *  level of kLevels, each made on first use (its albedo table is a few tens of milliseconds, or
+ *  a read from the table cache) so that a scene that never asks for a floor never pays for it. A
+ *  floor is rounded up to the next level: never sharper than the host asks. */
+class CoatFloors {
+public:
+    static constexpr int kCount = 3;
+    static constexpr float kLevels[kCount] = {0.125f, 0.25f, 0.5f};
+
+    /** `own`: the material's coat (its ior, and the roughness a floor must exceed to matter),
+     *  which must outlive this; `cache`: where the tables are kept between processes. */
+    CoatFloors(const Coat& own, const TableCache& cache);
+    /** The coat a point with GGX floor `floor` uses: `own` when the floor does not exceed its
+     *  roughness, else the rough coat of the level at or above the floor. */
+    const Coat& at(float floor) const;
+
+private:
+    const Coat& own_;
+    TableCache cache_;
+    mutable std::once_flag once_[kCount];
+    mutable Coat coats_[kCount];
 };
 
 }  // namespace spangle::flake

@@ -71,6 +71,7 @@ void flake_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* clos
         in.dpdx_obj = {b->obj_dpdx_x[i], b->obj_dpdx_y[i], b->obj_dpdx_z[i]};
         in.dpdy_obj = {b->obj_dpdy_x[i], b->obj_dpdy_y[i], b->obj_dpdy_z[i]};
         in.flags = b->flags[i];
+        in.roughness_floor = plugin_support::roughness_floor(b, i);
         prepare_point(m, in, out[i], arena, st);
     }
     m.points += b->count;

@@ -92,6 +92,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     });
     m.coat.init(param_number(p, "coat") != 0.0, static_cast<float>(param_number(p, "coat_ior")),
                 static_cast<float>(param_number(p, "coat_roughness")), &cache);
+    m.coat_floors = std::make_unique<CoatFloors>(m.coat, cache);
     if (!build_fresnel(m.fresnel, p, host, why) || !build_film(m.film, m.fresnel, p, host, why) ||
         !build_colors(m.colors, m.base, p, host, why))
         return false;
@@ -359,12 +360,17 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     c.weight = in.weight;
     c.valid = c.wo.z > 0.0f ? 1u : 0u;
     if (!c.valid) return;
-    c.e_coat_o = m.coat.albedo_at(c.wo.z);
+    // Path regularisation: the coat, sharp or rough, no sharper than the host's floor. (The
+    // flakes keep their lobe: after a rough bounce a footprint has no differentials, so it is
+    // the smooth lobe already, of the flakes' own width.)
+    c.coat = m.coat_floors && in.roughness_floor > 0.0f ? &m.coat_floors->at(in.roughness_floor)
+                                                        : &m.coat;
+    c.e_coat_o = c.coat->albedo_at(c.wo.z);
     prepare_flakes(m, in, c, arena, st);
     if (m.second) prepare_second(m, in, c, arena);
     // Lobe selection in proportion to the energy each returns (a floor keeps every lobe sampled).
     const float under = 1.0f - c.e_coat_o;
-    const float w_coat = m.coat.on ? c.e_coat_o : 0.0f;
+    const float w_coat = c.coat->on ? c.e_coat_o : 0.0f;
     const float w_base = under * (1.0f - c.weight) * luminance(c.base);
     const float w_flake = under * c.weight *
                           (c.second ? (1.0f - c.w_second) * flake_luminance(m) +
@@ -437,9 +443,10 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
     if (glint) glint[0] = glint[1] = glint[2] = 0.0f;
     if (!c.valid || wi.z <= 0.0f) return;
     float f_coat = 0.0f, pdf_coat = 0.0f, under = 1.0f;
-    if (m.coat.on) {
-        under = (1.0f - c.e_coat_o) * (1.0f - m.coat.albedo_at(wi.z));
-        if (!m.coat.smooth) m.coat.eval_rough(c.wo, wi, f_coat, pdf_coat);
+    const Coat& coat = c.coat ? *c.coat : m.coat;
+    if (coat.on) {
+        under = (1.0f - c.e_coat_o) * (1.0f - coat.albedo_at(wi.z));
+        if (!coat.smooth) coat.eval_rough(c.wo, wi, f_coat, pdf_coat);
     }
     float fl[3], pdf_fl, disc[3];
     eval_flakes(m, c, wi, fl, pdf_fl, disc);
@@ -517,15 +524,16 @@ void sample_material(const Material& m, const Closure& c, float u0, float u1, fl
     uint32_t kind = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_GLOSSY;
     bool ok = true;
     if (pick(u, c.p_coat)) {
-        if (m.coat.smooth) {
-            const float fr = mf::fresnel_dielectric(c.wo.z, m.coat.ior);
+        const Coat& coat = c.coat ? *c.coat : m.coat;
+        if (coat.smooth) {
+            const float fr = mf::fresnel_dielectric(c.wo.z, coat.ior);
             wi = {-c.wo.x, -c.wo.y, c.wo.z};
             f[0] = f[1] = f[2] = fr / c.wo.z;
             pdf = c.p_coat;
             flags = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR;
             return;
         }
-        ok = m.coat.sample_rough(c.wo, u0, u1, wi);
+        ok = coat.sample_rough(c.wo, u0, u1, wi);
     } else if (pick(u, c.p_base / std::max(1e-12f, 1.0f - c.p_coat))) {
         wi = mf::cosine_hemisphere(u0, u1);
         kind = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_DIFFUSE;

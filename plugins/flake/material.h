@@ -52,6 +52,8 @@ struct Material {
     SmoothLobe smooth;
     DirectionGrid grid;
     Coat coat;
+    /** The coat made rougher for path regularisation (SPANGLE_SHADING_ROUGHNESS_FLOOR). */
+    std::unique_ptr<CoatFloors> coat_floors;
     /** Facets (flake_size > 0): the outline every flake has; null for point flakes. */
     std::unique_ptr<FacetShape> facet;
     double flake_size = 0;  ///< metres (object units in object space): a facet's width
@@ -83,10 +85,11 @@ struct Closure {
     float p_cache = 1;         ///< discrete part: probability of sampling the cache
     float p_coat = 0, p_base = 0, p_flake = 0;  ///< lobe selection probabilities
     float e_coat_o = 0;                         ///< coat albedo at wo
-    float v_o = 1;              ///< share of visible flake normals reflecting above the horizon
-    uint32_t valid = 0;         ///< wo above the surface
-    float base[3] = {0, 0, 0};  ///< base_color here (textured or the material's)
-    float weight = 0;           ///< flake_weight here (textured or the material's)
+    const Coat* coat = nullptr;  ///< the material's coat, or a rougher one (path regularisation)
+    float v_o = 1;               ///< share of visible flake normals reflecting above the horizon
+    uint32_t valid = 0;          ///< wo above the surface
+    float base[3] = {0, 0, 0};   ///< base_color here (textured or the material's)
+    float weight = 0;            ///< flake_weight here (textured or the material's)
     const Closure* second = nullptr;  ///< the second population's flakes (arena; null: none)
     float w_second = 0;               ///< its share of the flake lobe (0 without it)
     float cover = 0;                  ///< facets: the shares of the flakes inside the footprint
@@ -105,6 +108,7 @@ struct PointInput {
     float u = 0, v = 0, du_dx = 0, du_dy = 0, dv_dx = 0, dv_dy = 0, uv_area = 0;
     V3 p_obj, n_obj, dpdx_obj, dpdy_obj;  ///< object space: position, normal, footprint axes
     uint32_t flags = 0;
+    float roughness_floor = 0;  ///< path regularisation: GGX alpha the coat is kept above (0: none)
     float base[3] = {0, 0, 0};  ///< base_color at the point
     float weight = 0;           ///< flake_weight at the point (0: no flakes, nothing to find)
 };

@@ -229,6 +229,9 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
         c.coat = at(b, kCoat, i, m.coat);
         const float rc = at(b, kCoatRough, i, m.coat_rough);
         c.alpha_c = std::max(rc * rc, kMinAlpha);
+        const float floor = roughness_floor(b, i);  // path regularisation
+        c.alpha = std::max(c.alpha, floor);
+        c.alpha_c = std::max(c.alpha_c, floor);
         const float mu = std::max(c.wo.z, 0.0f);
         const float a = lookup(t.a, mu, c.alpha), bb = lookup(t.b, mu, c.alpha);
         const float aa = lookup_avg(t.a_avg, c.alpha), ba = lookup_avg(t.b_avg, c.alpha);

@@ -125,7 +125,8 @@ struct AlphaParams {
 
 /** The closure's GGX alphas: the model's (clamped) constants ax, ay, delta, or where a
  *  roughness is textured, alphas from point i's values and the other parameter's constant as
- *  written (raw_r, raw_rv: unclamped; raw_rv -1 = the same as roughness). */
+ *  written (raw_r, raw_rv: unclamped; raw_rv -1 = the same as roughness); then raised to the
+ *  host's path-regularisation floor, where it gives one (a mirror becomes a rough lobe). */
 void alpha_at(const SpangleShadingBatch_v3* b, uint32_t i, AlphaParams k, float raw_r, float raw_rv,
               float ax, float ay, bool delta, Closure& c) {
     const float* r = varying(b, k.roughness);
@@ -136,6 +137,12 @@ void alpha_at(const SpangleShadingBatch_v3* b, uint32_t i, AlphaParams k, float 
         ay = v < 0.0f ? ax : v;
         delta = is_delta(ax, ay);
         clamp_alpha(ax, ay);
+    }
+    const float floor = roughness_floor(b, i);
+    if (floor > 0.0f) {
+        ax = std::max(ax, floor);
+        ay = std::max(ay, floor);
+        delta = delta && is_delta(ax, ay);
     }
     c.ax = ax;
     c.ay = ay;

@@ -95,7 +95,7 @@ struct Fixture {
             woz.data(),  u.data(),    v.data(),     dudx.data(), dudy.data(), dvdx.data(),
             dvdy.data(), area.data(), u.data(),     v.data(),    zero.data(), zero.data(),
             zero.data(), one.data(),  dudx.data(),  dvdx.data(), zero.data(), dudy.data(),
-            dvdy.data(), zero.data(), flags.data(), ids.data(),  nullptr};
+            dvdy.data(), zero.data(), flags.data(), ids.data(),  nullptr,     nullptr};
         void* cl = closures.data();
         std::size_t space = closures.size();
         cl = std::align(16, kBatch * mat->model().closure_size, cl, space);

@@ -61,7 +61,8 @@ void BsdfHarness::prepare(Vec3 wo, const Point& pt, bool backface) {
     const float zero = 0.0f;
     const uint32_t flags = (backface ? SPANGLE_SHADING_BACKFACE : 0u) |
                            (pt.has_differentials ? SPANGLE_SHADING_HAS_DIFFERENTIALS : 0u) |
-                           (pt.no_uv ? SPANGLE_SHADING_NO_UV : 0u);
+                           (pt.no_uv ? SPANGLE_SHADING_NO_UV : 0u) |
+                           (pt.roughness_floor > 0.0f ? SPANGLE_SHADING_ROUGHNESS_FLOOR : 0u);
     const uint32_t id = 0;
     const SpangleShadingBatch_v3 b{1,
                                    &zero,
@@ -91,7 +92,8 @@ void BsdfHarness::prepare(Vec3 wo, const Point& pt, bool backface) {
                                    &pt.dpdy_obj.z,
                                    &flags,
                                    &id,
-                                   nullptr};
+                                   nullptr,
+                                   &pt.roughness_floor};
     arena_.reset();
     SpangleArena_v3 arena = arena_.api();
     model_->prepare(instance_, &b, closure_.data(), &arena);

@@ -39,6 +39,7 @@ public:
         bool no_uv = false;          ///< SPANGLE_SHADING_NO_UV
         Vec3 p_obj, n_obj{0, 0, 1};  ///< object-space position and normal
         Vec3 dpdx_obj, dpdy_obj;     ///< object-space footprint axes
+        float roughness_floor = 0;   ///< > 0: SPANGLE_SHADING_ROUGHNESS_FLOOR with this alpha
     };
     /** Prepares the closure for wo at a given point (the scratch arena is reset first). */
     void prepare(Vec3 wo, const Point& point, bool backface = false);

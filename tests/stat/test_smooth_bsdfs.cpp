@@ -210,5 +210,110 @@ TEST(SmoothConsistency, SampleAndEvalAgree) {
     }
 }
 
+// ---------------------------------------------------------------- path regularisation
+
+/** f and pdf of `b` at `n` directions spread over the sphere (a Fibonacci set, both sides). */
+void eval_sphere(const BsdfHarness& b, uint32_t n, std::vector<Vec3>& f, std::vector<float>& pdf) {
+    std::vector<Vec3> wi;
+    for (uint32_t k = 0; k < n; ++k) {
+        const float z = 1.0f - 2.0f * (static_cast<float>(k) + 0.5f) / static_cast<float>(n);
+        const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+        const float phi = 2.39996323f * static_cast<float>(k);
+        wi.push_back({r * std::cos(phi), r * std::sin(phi), z});
+    }
+    b.eval(wi, f, pdf);
+}
+
+/** The points of a model prepared with a roughness floor are those of the same model made as
+ *  rough as the floor: every f and pdf over the sphere agree. */
+void expect_same_lobes(const BsdfHarness& floored, const BsdfHarness& rough, const char* what) {
+    std::vector<Vec3> f1, f2;
+    std::vector<float> p1, p2;
+    eval_sphere(floored, 4000, f1, p1);
+    eval_sphere(rough, 4000, f2, p2);
+    int nonzero = 0;
+    for (std::size_t i = 0; i < f1.size(); ++i) {
+        EXPECT_NEAR(f1[i].y, f2[i].y, 1e-4f * std::max(1.0f, f2[i].y)) << what << " wi " << i;
+        EXPECT_NEAR(p1[i], p2[i], 1e-4f * std::max(1.0f, p2[i])) << what << " wi " << i;
+        nonzero += f1[i].y > 0.0f ? 1 : 0;
+    }
+    EXPECT_GT(nonzero, 100) << what << ": the floored lobe must be a spread lobe";
+}
+
+TEST(SmoothRegularisation, AFloorMakesAMirrorTheLobeOfThatRoughness) {
+    const Vec3 wo = wo_for(0.6f);
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.4f;
+    // A perfect mirror with a floor: the GGX conductor of alpha 0.4.
+    BsdfHarness mirror("smooth", "conductor", {{"roughness", {0.0}}}, {{"preset", "gold"}});
+    BsdfHarness rough("smooth", "conductor", {{"roughness", {0.4}}}, {{"preset", "gold"}});
+    mirror.prepare(wo, floored);
+    rough.prepare(wo);
+    expect_same_lobes(mirror, rough, "conductor");
+    for (const auto& s : mirror.sample(2000, 5))
+        EXPECT_EQ(s.flags & SPANGLE_SAMPLE_SPECULAR, 0u) << "a floored mirror is no delta lobe";
+    // Without the flag the mirror stays a mirror, whatever the field holds.
+    mirror.prepare(wo);
+    for (const auto& s : mirror.sample(200, 5))
+        EXPECT_NE(s.flags & SPANGLE_SAMPLE_SPECULAR, 0u) << "no floor: still a delta lobe";
+    // Already rougher than the floor: unchanged.
+    BsdfHarness rougher("smooth", "conductor", {{"roughness", {0.6}}}, {{"preset", "gold"}});
+    BsdfHarness same("smooth", "conductor", {{"roughness", {0.6}}}, {{"preset", "gold"}});
+    rougher.prepare(wo, floored);
+    same.prepare(wo);
+    expect_same_lobes(rougher, same, "conductor rougher than the floor");
+}
+
+TEST(SmoothRegularisation, SmoothGlassWithAFloorIsRoughGlassOnBothSides) {
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.45f;
+    for (bool back : {false, true}) {
+        BsdfHarness smooth("smooth", "dielectric", {{"ior", {1.5}}, {"roughness", {0.0}}});
+        BsdfHarness rough("smooth", "dielectric", {{"ior", {1.5}}, {"roughness", {0.45}}});
+        smooth.prepare(wo_for(0.5f), floored, back);
+        rough.prepare(wo_for(0.5f), back);
+        expect_same_lobes(smooth, rough, back ? "dielectric, back" : "dielectric, front");
+    }
+}
+
+TEST(SmoothRegularisation, MetalRoughRaisesBaseAndCoatToTheFloor) {
+    // alpha = roughness^2: the floor 0.3 is roughness sqrt(0.3) for base and coat alike.
+    const double r = std::sqrt(0.3);
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.3f;
+    BsdfHarness sharp("smooth", "metal_rough",
+                      {{"metallic", {0.0}},
+                       {"roughness", {0.1}},
+                       {"clearcoat", {1.0}},
+                       {"clearcoat_roughness", {0.0}}});
+    BsdfHarness rough("smooth", "metal_rough",
+                      {{"metallic", {0.0}},
+                       {"roughness", {r}},
+                       {"clearcoat", {1.0}},
+                       {"clearcoat_roughness", {r}}});
+    sharp.prepare(wo_for(0.7f), floored);
+    rough.prepare(wo_for(0.7f));
+    expect_same_lobes(sharp, rough, "metal_rough");
+}
+
+TEST(SmoothRegularisation, FlooredMirrorSamplesFollowTheirPdf) {
+    const Vec3 wo = wo_for(0.5f);
+    BsdfHarness mirror("smooth", "conductor", {{"roughness", {0.0}}}, {{"preset", "perfect"}});
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.35f;
+    mirror.prepare(wo, floored);
+    double total = 0.0;
+    const Chi2Result r = warped_chi2(mirror, Warp{wo, 0.35f, 0.35f, 0.0f}, kSamples, 4243,
+                                     kSignificance, "floored_mirror", total);
+    EXPECT_LT(total, 1.0 + 2e-3);
+    EXPECT_GT(r.p_value, kSignificance) << "chi2 " << r.statistic << " with " << r.dof << " dof";
+    // The energy is the rough conductor's, which single scattering keeps below 1.
+    BsdfHarness rough("smooth", "conductor", {{"roughness", {0.35}}}, {{"preset", "perfect"}});
+    rough.prepare(wo);
+    const Albedo e = albedo(mirror), r_e = albedo(rough);
+    EXPECT_LE(e.mean, 1.0 + 4.0 * e.stderr_);
+    EXPECT_NEAR(e.mean, r_e.mean, 1e-4) << "same lobe, same samples";
+}
+
 }  // namespace
 }  // namespace spangle::test

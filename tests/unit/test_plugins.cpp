@@ -252,10 +252,10 @@ protected:
         const float zero = 0.0f, one = 1.0f;
         const float wox = 0.3f, woy = 0.0f, woz = std::sqrt(1.0f - 0.09f);
         const uint32_t flags = 0, id = 0;
-        SpangleShadingBatch_v3 b{1,     &zero, &zero,  &zero, &wox,   &woy,  &woz,  &zero,
-                                 &zero, &zero, &zero,  &zero, &zero,  &one,  &zero, &zero,
-                                 &zero, &zero, &zero,  &one,  &zero,  &zero, &zero, &zero,
-                                 &zero, &zero, &flags, &id,   nullptr};
+        SpangleShadingBatch_v3 b{1,     &zero, &zero,  &zero, &wox,    &woy,   &woz,  &zero,
+                                 &zero, &zero, &zero,  &zero, &zero,   &one,   &zero, &zero,
+                                 &zero, &zero, &zero,  &one,  &zero,   &zero,  &zero, &zero,
+                                 &zero, &zero, &flags, &id,   nullptr, nullptr};
         closure_.resize(model_->closure_size);
         model_->prepare(instance_, &b, closure_.data(), nullptr);
     }

@@ -282,7 +282,7 @@ TEST(MemoryLimits, BvhAndEnvironmentMapsAreRefusedUpFront) {
         // A 512x256 environment map: 4 MiB while loading.
         const MemoryLimit limit("3M");
         const std::string msg = render_error(test::asset_dir() + "/scenes/materials.toml");
-        EXPECT_NE(msg.find("materials.toml:27:7: error: environment map"), std::string::npos)
+        EXPECT_NE(msg.find("materials.toml:28:7: error: environment map"), std::string::npos)
             << msg;
         EXPECT_NE(msg.find("(512x256) needs about 4.0 MiB to load, but only 3.0 MiB of memory is "
                            "available: use a smaller map"),

@@ -7,6 +7,8 @@
  * parameters it can vary over the surface (SPANGLE_PARAM_TEXTURABLE), and the host hands it
  * their per-point values in the shading batch (param_values); and the optional glint outputs of
  * eval and sample (the part of f that comes from discrete glints, for the render layers).
+ * Within version 3, the shading batch gained roughness_floor at its end, announced per point by
+ * the flag SPANGLE_SHADING_ROUGHNESS_FLOOR, so that plugins and hosts of either age still agree.
  *
  * The only header a plugin includes. Plain C: no exceptions, no C++ types, memory freed by
  * whoever allocated it. A plugin is a shared library exporting one symbol:
@@ -142,6 +144,9 @@ typedef struct SpangleArena_v3 {
 #define SPANGLE_SHADING_NO_UV                                              \
     4u /* the mesh has no uvs here (none at all, or a degenerate mapping): \
           u, v and their derivatives carry no layout */
+#define SPANGLE_SHADING_ROUGHNESS_FLOOR                                      \
+    8u /* path regularisation: roughness_floor[i] holds a GGX alpha that the \
+          point's glossy lobes should not be sharper than (see the field) */
 
 /** Shading points, structure of arrays, `count` entries each. Positions in world space (metres),
  *  wo in the local shading frame. When SPANGLE_SHADING_HAS_DIFFERENTIALS is clear for a point,
@@ -185,6 +190,13 @@ typedef struct SpangleShadingBatch_v3 {
      *  interleaved, working space), already within the parameter's range. Only parameters marked
      *  SPANGLE_PARAM_TEXTURABLE are ever given here. */
     const float* const* param_values;
+    /** Path regularisation (the host's [render] filter_glossy): for a point whose flags carry
+     *  SPANGLE_SHADING_ROUGHNESS_FLOOR, a GGX alpha in (0, 0.5] below which the model should
+     *  not let its glossy and mirror lobes go (a path that already scattered off a rough or
+     *  diffuse surface sees a sharp lobe only by chance: caustics). Read it only for points
+     *  with the bit: a host older than this field never sets it, and the field may then be
+     *  absent. A model that ignores it stays correct, only noisier. */
+    const float* roughness_floor;
 } SpangleShadingBatch_v3;
 
 /** Directions to evaluate: for query i, closure closure_index[i] and direction wi[i] (local
