@@ -16,8 +16,10 @@ inspect computes it. Cycles' time is bpy.ops.render.render's (its scene sync inc
 the whole `spangle render` process. Each reference uses another seed than the runs (a run of N
 samples would otherwise share its first N samples with it). Both cap an indirect sample's value
 alike: CLAMP (default 10, Cycles' own default; 0: no cap, both unbiased, and then the scene's
-sun-chrome-ground caustics make fireflies that dominate relMSE for both). Environment: SIZE
-(320x180), REF_SPP (2048), THREADS (2), CLAMP. Time it on a quiet machine.
+sun-chrome-ground caustics make fireflies that dominate relMSE for both). Both regularise paths
+alike: FILTER_GLOSSY (default 1, Cycles' default "Filter Glossy"; Spangle's [render]
+filter_glossy follows the same curve; 0: off for both). Environment: SIZE (320x180), REF_SPP
+(2048), THREADS (2), CLAMP, FILTER_GLOSSY. Time it on a quiet machine.
 """
 
 import math
@@ -109,6 +111,9 @@ def rel_mse(x, r):
 # The cap on one indirect sample's value, for both renderers (Cycles' sample_clamp_indirect,
 # whose default is 10, and Spangle's [render] clamp_indirect); 0: none (both unbiased).
 CLAMP = float(os.environ.get("CLAMP", "10"))
+# Path regularisation, for both renderers alike: Cycles' blur_glossy ("Filter Glossy", default 1)
+# and Spangle's [render] filter_glossy, which follows the same curve; 0: off for both.
+FILTER_GLOSSY = float(os.environ.get("FILTER_GLOSSY", "1"))
 
 
 def cycles_render(scene, path, samples, threshold=None, denoise=False):
@@ -125,6 +130,7 @@ def cycles_render(scene, path, samples, threshold=None, denoise=False):
         c.denoiser = "OPENIMAGEDENOISE"
     c.max_bounces = 5
     c.sample_clamp_indirect = CLAMP
+    c.blur_glossy = FILTER_GLOSSY
     c.sample_clamp_direct = 0.0
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
@@ -164,6 +170,8 @@ def main():
     text = open(os.path.join(folder, "scene.toml")).read()
     if CLAMP > 0.0:
         text = text.replace("[render]\n", f"[render]\nclamp_indirect = {CLAMP}\n", 1)
+    if FILTER_GLOSSY > 0.0:
+        text = text.replace("[render]\n", f"[render]\nfilter_glossy = {FILTER_GLOSSY}\n", 1)
     with open(os.path.join(folder, "car.toml"), "w") as f:
         f.write(text)
     os.remove(os.path.join(folder, "scene.toml"))
