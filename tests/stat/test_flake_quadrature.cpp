@@ -61,7 +61,7 @@ struct Quadrature {
  *  The coarse cells left (relative change below `jump` to every neighbour: no rim, a lobe smooth
  *  across them) take the midpoint rule, with its error bounded from the second differences. */
 Quadrature quadrature(const BsdfHarness& m, double gamma_rad, uint64_t seed, int sub = 16,
-                      double jump = 0.1) {
+                      double jump = 0.02) {
     // Coarse spacing: the map stretches a cell by up to 4 (radially at the rim, where dtheta/dr
     // = 2); every pair of neighbouring nodes is checked.
     const int n = std::max(64, static_cast<int>(std::ceil(4.5 / gamma_rad)));
@@ -233,8 +233,7 @@ void expect_every_footprint_keeps_its_energy(const char* algorithm) {
         for (double shadowing : mat.shadowing)
             for (double lambda : {5.0, 110.0, 1000.0, 1e5})
                 for (float cos_o : {1.0f, 0.3f, 0.019f, 1e-4f}) {
-                    if (mat.gamma < 3.0 && (lambda < 10.0 || lambda > 1e4 || cos_o == 0.3f))
-                        continue;
+                    if (mat.gamma < 3.0 && (lambda != 1000.0 || cos_o == 0.3f)) continue;
                     const Case c{algorithm, shadowing, mat.gamma, mat.alpha, lambda, cos_o};
                     measure(c, mat.footprints, 3100, true);
                 }
