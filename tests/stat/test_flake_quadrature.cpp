@@ -220,7 +220,7 @@ Worst measure(const Case& c, int footprints, uint64_t seed, bool expect) {
 /** The cases of the committed tests: every cone and roughness of the brief, at the footprint
  *  sizes that bound the regimes (a few flakes; cells enumerated; aggregates with every flake a
  *  stand-in; dense aggregates) and views from normal to cos 1e-4, shadowing on and off. The
- *  narrowest cone (a coarse grid of 258^2) on fewer cases; gamma 0.5 (540^2) takes the sweep. */
+ *  narrowest cone (a coarse grid of 258^2) on fewer cases; gamma 0.5 (516^2) takes the sweep. */
 void expect_every_footprint_keeps_its_energy(const char* algorithm) {
     struct Material {
         double gamma, alpha;
