@@ -11,23 +11,27 @@
 // - its count inside the footprint is k = B(n, rho), rho the share of the cell's area the
 //   footprint covers, drawn by inverting a uniform fixed per cell (so k only grows as the
 //   footprint covers more of the cell);
-// - its k flakes' normals are spread over the square of flake normals (see flake_normal) by a
-//   quad-tree keyed by the cell, down to leaves about half the cone's preimage: stratified splits
-//   (each child n / 4, the remainder to hashed children) above the last level, so that the
-//   aggregate's energy footprint by footprint is its expected one, and a multinomial in the last
-//   level for the local grain; adding a flake to k adds it to exactly one leaf;
-// - its lobe is the exact smooth lobe times a modulation M(wi) = (tent-weighted count of the
-//   leaves whose centre reflects wo near wi) / (that count's expectation). E[M] = 1 exactly, for
-//   any leaf size and weighting, so the aggregate's mean is the smooth lobe's; the counts give
-//   it the grain of real flakes (Poisson-like in each direction, glints of about the cone's size)
-//   and each leaf's flakes their own colours from the colour table.
+// - K = min(k, K_max) of its flakes are stand-ins: normals drawn from the flake distribution by a
+//   hash of (the aggregate's key, index), each entering the reflection cache as a real flake does
+//   (its own cone, colour and film), with its weight times sqrt(k / K); the other k (1 - beta)
+//   flakes' worth, beta = sqrt(K / k), is the smooth lobe (the exact expectation of one flake's
+//   lobe) times k (1 - beta) flakes of the expected weight. With k <= K_max every flake of the
+//   aggregate is a stand-in of its own (beta = 1).
 //
-// Aggregated flakes are statistical stand-ins: a pure function of (seed, cell, leaf), the same
-// from every view and frame, but not the same flakes as the enumeration would find (a cell
-// switches between the two when the footprint's size crosses the cell's). Normalisation follows
-// the reflection cache: W = sum of the cached flakes' w + k E[w] per aggregate, so a footprint
-// reflects the mean F c of its flakes, up to the spread of the aggregated flakes' w (about
-// CV(w) / sqrt(k)).
+// Energy: the normaliser W is the sum of the weights of what the lobe holds, the cache's (true
+// flakes and stand-ins, each w_j times its factor) plus k (1 - beta) E[w]; each cache entry
+// reflects at most its weight (the share of its cone above the horizon, times F <= 1) and the
+// smooth lobe at most E[w] per flake, so every footprint reflects at most what it receives, as the
+// enumeration does, whatever the stand-ins drawn.
+// Mean: the stand-ins' normals follow the flake distribution, so the expected lobe of the
+// aggregate is k smooth lobes whatever beta is: the footprint average is the smooth lobe.
+// Grain: in a direction lit by k p flakes on average (p the chance that one flake's cone holds
+// it), the stand-ins give the lobe a relative variance beta^2 / (K p) = 1 / (k p), that of k real
+// flakes; with few flakes per cone (K = k) the glints are single flakes, as real ones are.
+//
+// Stand-ins are statistical: a pure function of (seed, cell, place, index), the same from every
+// view and frame, but not the same flakes as the enumeration would find (a cell switches between
+// the two when the footprint's size crosses the cell's).
 
 #include <cstdint>
 #include <vector>
@@ -39,35 +43,20 @@
 
 namespace spangle::flake {
 
-/** Virtual flakes of one aggregated cell inside the footprint. */
+/** Flakes of one aggregated cell inside the footprint. */
 struct Aggregate {
-    uint64_t key = 0;    ///< the cell's node key (its direction tree is keyed from it)
+    uint64_t key = 0;    ///< the cell's node key with the footprint's place (see place_key)
     uint32_t count = 0;  ///< k: flakes of the cell inside the footprint
-    /** Sparse in every direction (see mark_sparse): its lobe is always its virtual flakes, and
-     *  it is sampled by picking one of them. */
-    bool sparse = false;
 };
 
 /** At most this many aggregates per shading point (2 x 2 cells in each of up to four tiles). */
 constexpr uint32_t kMaxAggregates = 16;
 
-/** The direction side of the counting algorithm, per material: the leaf level of the aggregates'
- *  direction trees and the normals at the leaf centres. */
+/** The direction side of the counting algorithm, per material: the flake distribution and the
+ *  cone. */
 struct DirectionGrid {
-    /** Level of the direction tree whose realised counts set an aggregate's weight (see
-     *  realised_weight). */
-    static constexpr int kWeightLevel = 2;
-    static constexpr int kWeightNodes = 1 << (2 * kWeightLevel);
-    /** kWeightSide^2 stratified normals per node estimate its mean weight. */
-    static constexpr int kWeightSide = 2;
-    int depth = 4;            ///< leaves are 4^-depth of the square of flake normals
-    int weight_level = 2;     ///< min(kWeightLevel, depth)
-    float alpha = 0.15f;      ///< flake roughness
-    float sin2_half = 0.0f;   ///< sin^2(gamma / 2) of the cone
-    std::vector<V3> centres;  ///< normal at each leaf centre, row-major (2^depth per row)
-    /** kWeightSide^2 stratified normals in each node of weight_level (node-major). */
-    std::vector<V3> weight_normals;
-    /** Chooses the leaf level from the cone's size relative to the flake roughness. */
+    float alpha = 0.15f;     ///< flake roughness
+    float sin2_half = 0.0f;  ///< sin^2(gamma / 2) of the cone
     void init(float alpha_, float gamma_rad);
 };
 
@@ -76,22 +65,26 @@ struct CountedFootprint {
     Aggregate agg[kMaxAggregates];
     uint32_t n_agg = 0;
     uint32_t aggregated = 0;  ///< sum of the aggregates' counts
-    uint32_t dense = 0;       ///< sum of the counts of the aggregates that are not sparse
-    bool truncated = false;   ///< the footprint spans more tiles than the algorithm handles
+    /** Flakes of the aggregates carried by the smooth lobe, sum of k (1 - beta) (set by
+     *  add_stand_ins). */
+    float smooth = 0.0f;
+    bool truncated = false;  ///< the footprint spans more tiles than the algorithm handles
 };
 
-/** Marks the aggregates that light every direction sparsely: k times the largest chance that
- *  one flake lights a direction (thr / (4 alpha^2 cos_o), at the distribution's peak) is below
- *  kDenseLit. Sets cf.dense. */
-void mark_sparse(CountedFootprint& cf, const DirectionGrid& grid, float cos_o);
+/** Aggregates of at most this many flakes light every direction sparsely (fewer than kDenseLit
+ *  flakes per cone on average at the distribution's peak, thr / (4 alpha^2 cos_o) per flake). */
+constexpr float kDenseLit = 16.0f;
+float sparse_count(const DirectionGrid& grid, float cos_o);
 
-/** Samples a direction from sparse aggregate a: one of its virtual flakes, each as likely as
- *  its weight (a descent of its direction tree by the counts, u choosing the way), then a
- *  direction uniform in that flake's cone (u0, u1). False when the flake faces away from wo or
- *  the direction falls under the horizon. The density is lit / (k sigma), lit from
- *  aggregate_lobe. */
-bool sample_aggregate(const Aggregate& a, const DirectionGrid& grid, int exact_below, V3 wo,
-                      float u, float u0, float u1, V3& wi);
+/** Stand-ins per aggregate, at most: sparse_count() clamped to [kMinStandIns, kMaxStandIns]. */
+constexpr uint32_t kMinStandIns = 16;
+constexpr uint32_t kMaxStandIns = 64;
+
+/** Appends the stand-ins of cf's aggregates, seen from wo, to the reflection cache `out` and sets
+ *  cf.smooth (see the top of this file). */
+void add_stand_ins(CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
+                   const FresnelTable& fresnel, const FilmTables& film, V3 wo,
+                   std::vector<CacheEntry>& out);
 
 /** Walks the cells of P: calls exact(const Flake&) for every flake of the enumerated cells that
  *  lies inside P and fills `out` with the aggregates. `exact_flakes` is the largest cell count
@@ -99,41 +92,6 @@ bool sample_aggregate(const Aggregate& a, const DirectionGrid& grid, int exact_b
 template <class Exact>
 void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flakes,
                   CountedFootprint& out, Exact&& exact);
-
-/** Aggregates whose expected count of flakes lighting a direction is at least this are "dense"
- *  there (see aggregate_lobe). */
-constexpr float kDenseLit = 16.0f;
-
-/** The aggregates' part of the discrete lobe at wi, in two forms, per aggregate by how densely
- *  its flakes light wi on average:
- *  - sparse (fewer than kDenseLit expected): its flakes near wi as individual virtual flakes, in
- *    the leaves of its direction tree that can reach wi, at positions hashed uniformly within
- *    each leaf; `virt` gets sum w c F over those whose cone holds wi, in the units of the
- *    reflection cache's cone sums (each glint as sharp and as bright as a real flake's);
- *  - dense: `mod` gets sum_a k_a M_a(wi) per channel, the colour-weighted modulation of the
- *    smooth lobe (per flake of unit colour) by the counts of the leaves near wi, E[M] = 1. With
- *    many flakes per cone the lobe is nearly continuous, and this costs the same for any count.
- *  Both are unbiased: the expected lobe is the smooth lobe either way. Sparse aggregates (see
- *  mark_sparse) are always treated the first way; `lit` gets the summed weight of their virtual
- *  flakes whose cone holds wi (for the density of sample_aggregate). */
-void aggregate_lobe(const CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
-                    const FresnelTable& fresnel, const FilmTables& film, V3 wo, V3 wi,
-                    int exact_below, float virt[3], float mod[3], float& lit);
-
-/** The mean projected-area weight w = (wo.m) / m.z of the valid flakes (facing wo, reflecting
- *  above the horizon) in each node of the direction tree's weight_level, as a share of the
- *  square (kWeightSide^2 normals per node). */
-void node_weights(const DirectionGrid& grid, V3 wo, float out[DirectionGrid::kWeightNodes]);
-
-/** An aggregate's realised weight relative to its expected one, k E[w]: its flakes' counts in the
- *  nodes of weight_level (the same splits the modulation descends through) weighted by the nodes'
- *  mean weights. The reflection cache normalises by its flakes' actual weights, so that a
- *  footprint whose flakes happen to face the viewer more reflects no more than it receives; this
- *  does the same for the aggregates at the scale where their counts vary most in energy (the
- *  square's quadrants differ most at grazing views, where half of them reflect under the
- *  horizon). Returns 1 when no node holds a valid flake. */
-float realised_weight(const Aggregate& a, const DirectionGrid& grid,
-                      const float node_w[DirectionGrid::kWeightNodes], int exact_below);
 
 /** The key of an aggregate's flakes: the cell's key and where in the cell the footprint's centre
  *  lies, on a grid of the footprint's half size (a power-of-two fraction of the cell). The k

@@ -145,12 +145,9 @@ bool kept(const Flake& f, float keep) {
 
 /** The largest cell the counting algorithm enumerates for a view of cos(theta_o) = cos_o:
  *  exact_flakes, or more for cells whose flakes would light every direction sparsely (fewer than
- *  kDenseLit per cone on average, the test of mark_sparse applied to the whole cell), up to
- *  kSparseExactCap. A sparse aggregate's glints are its virtual flakes, the first k of the cell
- *  whatever part of it the footprint covers: neighbouring pixels in one cell then show the same
- *  glints, as multi-pixel blotches and dashes where real flakes are points. Enumerated, each
- *  glint is a flake with its own position. Dense aggregates (their lobe a modulated smooth lobe)
- *  stay counted. */
+ *  kDenseLit per cone on average: sparse_count() applied to the whole cell), up to
+ *  kSparseExactCap. Enumerated, each glint is a flake with its own position; counted, a cell's
+ *  glints are stand-ins (see counted_lobe.h). Dense cells stay counted. */
 constexpr double kSparseExactCap = 4096.0;
 uint32_t exact_limit(const Material& m, float cos_o) {
     const auto alpha = static_cast<double>(m.grid.alpha);
@@ -209,31 +206,23 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         for_each_flake(field, p, m.enumerate_cap, truncated, add);
         if (truncated) return false;
     }
+    st.cached += scratch.size();
+    // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
+    if (c.counted.n_agg > 0)
+        add_stand_ins(c.counted, m.grid, m.colors, m.fresnel, m.film, c.wo, scratch);
     if (!store_cache(scratch, arena, c)) return false;
     c.cover = cover + static_cast<float>(c.counted.aggregated);
-    st.cached += scratch.size();
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;
-    // The aggregates' weight: k E[w] each, scaled by how their flakes' realised spread over the
-    // square of normals weighs against the expected one (realised_weight).
-    float agg_w = 0.0f;
-    if (c.counted.n_agg > 0) {
-        mark_sparse(c.counted, m.grid, c.wo.z);
-        float node_w[DirectionGrid::kWeightNodes];
-        node_weights(m.grid, c.wo, node_w);
-        for (uint32_t a = 0; a < c.counted.n_agg; ++a)
-            agg_w += static_cast<float>(c.counted.agg[a].count) *
-                     realised_weight(c.counted.agg[a], m.grid, node_w, m.field.exact_below);
-    }
-    c.w_norm = c.lobe.w_sum + agg_w * c.w_expected;
-    // Sampling within the discrete part: the cache by its luminance, the aggregates by theirs
-    // (each flake as likely: sparse aggregates by one of their virtual flakes, dense ones
-    // through the smooth lobe's proposal).
+    // W: the cache's weights (stand-ins included) and the expected weight of the aggregated
+    // flakes the smooth lobe carries: each part reflects at most its weight.
+    c.w_norm = c.lobe.w_sum + c.counted.smooth * c.w_expected;
+    // Sampling within the discrete part: the cache by its luminance, the smooth part by its
+    // expected one, through the smooth lobe's proposal.
     float fr[3];
     m.fresnel.eval(1.0f, fr);
     float mean[3] = {m.colors.mean[0] * fr[0], m.colors.mean[1] * fr[1], m.colors.mean[2] * fr[2]};
-    const float agg_lum =
-        static_cast<float>(c.counted.aggregated) * c.w_expected * std::max(1e-3f, luminance(mean));
+    const float agg_lum = c.counted.smooth * c.w_expected * std::max(1e-3f, luminance(mean));
     const float total = c.lobe.lum_sum + agg_lum;
     c.p_cache = total > 0.0f ? c.lobe.lum_sum / total : 1.0f;
     return true;
@@ -393,7 +382,7 @@ void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& 
     f[0] = f[1] = f[2] = pdf = 0.0f;
     disc[0] = disc[1] = disc[2] = 0.0f;
     const float g1_wi = m.shadowing ? mf::ggx_g1(wi, m.alpha, m.alpha) : 1.0f;
-    const bool has_agg = c.t < 1.0f && c.counted.n_agg > 0;
+    const bool has_agg = c.t < 1.0f && c.counted.smooth > 0.0f;
     const bool need_smooth = c.t > 0.0f || has_agg;
     float fs[3] = {0, 0, 0}, pdf_s = 0.0f;
     if (need_smooth) eval_smooth(m.smooth, c.wo, c.v_o, wi, fs, pdf_s);
@@ -405,30 +394,18 @@ void eval_flakes(const Material& m, const Closure& c, V3 wi, float f[3], float& 
     if (c.t >= 1.0f || !(c.w_norm > 0.0f)) return;
     float sum[3] = {0, 0, 0}, lum = 0.0f;
     if (c.lobe.count > 0) cone_sums(c.lobe, m.cone, wi, sum, lum);
-    float mod[3] = {0, 0, 0}, lit = 0.0f;
-    if (has_agg) {
-        // The aggregates' flakes: sparse ones as virtual flakes (cone sums like the cache's),
-        // dense ones as the smooth lobe per unit weight times the modulation of their counts.
-        float virt[3];
-        aggregate_lobe(c.counted, m.grid, m.colors, m.fresnel, m.film, c.wo, wi,
-                       m.field.exact_below, virt, mod, lit);
-        for (int ch = 0; ch < 3; ++ch) sum[ch] += virt[ch];
-    }
+    // The aggregated flakes the smooth lobe carries, of the expected weight and mean colour.
+    const float agg = has_agg ? c.counted.smooth * c.w_expected : 0.0f;
     const float per_cone = 1.0f / (m.cone.solid_angle * wi.z);
-    for (int ch = 0; ch < 3; ++ch) sum[ch] = sum[ch] * per_cone + mod[ch] * c.w_expected * fs[ch];
+    for (int ch = 0; ch < 3; ++ch) sum[ch] = sum[ch] * per_cone + agg * mean[ch] * fs[ch];
     const float k = (1.0f - c.t) * g1_wi / c.w_norm;
     for (int ch = 0; ch < 3; ++ch) {
         disc[ch] = k * sum[ch];
         f[ch] += disc[ch];
     }
-    // The aggregates' part: a flake of all K aggregated ones, uniformly; the sparse aggregates'
-    // flakes lighting wi each add 1 / (K sigma), the dense ones sample the smooth proposal.
+    // The smooth part samples the smooth lobe's proposal.
     float pdf_d = 0.0f;
-    if (c.p_cache < 1.0f && c.counted.aggregated > 0) {
-        const auto k_all = static_cast<float>(c.counted.aggregated);
-        pdf_d = (1.0f - c.p_cache) * (lit / (k_all * m.cone.solid_angle) +
-                                      static_cast<float>(c.counted.dense) / k_all * pdf_s);
-    }
+    if (c.p_cache < 1.0f && has_agg) pdf_d = (1.0f - c.p_cache) * pdf_s;
     if (c.p_cache > 0.0f && c.lobe.lum_sum > 0.0f)
         pdf_d += c.p_cache * lum / (c.lobe.lum_sum * m.cone.solid_angle);
     pdf += (1.0f - c.t) * pdf_d;
@@ -492,21 +469,8 @@ bool sample_flakes(const Material& m, const Closure& c, float u, float u0, float
     } else if (pick(u, c.p_cache)) {
         ok = sample_discrete(c.lobe, m.cone, u, u0, u1, wi);
     } else {
-        // One of the aggregated flakes: its aggregate by count, then within it.
-        const CountedFootprint& cf = c.counted;
-        float x = u * static_cast<float>(cf.aggregated);
-        uint32_t a = 0;
-        while (a + 1 < cf.n_agg && x >= static_cast<float>(cf.agg[a].count))
-            x -= static_cast<float>(cf.agg[a++].count);
-        if (cf.n_agg == 0) {
-            ok = false;
-        } else if (cf.agg[a].sparse) {
-            const float ua =
-                std::clamp(x / static_cast<float>(cf.agg[a].count), 0.0f, 0x1.fffffep-1f);
-            ok = sample_aggregate(cf.agg[a], m.grid, m.field.exact_below, c.wo, ua, u0, u1, wi);
-        } else {
-            ok = sample_smooth(m.smooth, c.wo, u0, u1, wi);
-        }
+        // The aggregated flakes the smooth lobe carries.
+        ok = c.counted.smooth > 0.0f && sample_smooth(m.smooth, c.wo, u0, u1, wi);
     }
     return ok;
 }
