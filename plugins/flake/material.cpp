@@ -347,13 +347,12 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     c.wo = in.wo;
     std::copy(in.base, in.base + 3, c.base);
     c.weight = in.weight;
+    // Path regularisation: the coat, sharp or rough, no sharper than the host's floor (the
+    // material's own coat without one). The flakes keep their lobe: after a rough bounce a
+    // footprint has no differentials, so it is the smooth lobe already, of the flakes' own width.
+    c.coat = &m.coat_floors->at(in.roughness_floor);
     c.valid = c.wo.z > 0.0f ? 1u : 0u;
     if (!c.valid) return;
-    // Path regularisation: the coat, sharp or rough, no sharper than the host's floor. (The
-    // flakes keep their lobe: after a rough bounce a footprint has no differentials, so it is
-    // the smooth lobe already, of the flakes' own width.)
-    c.coat = m.coat_floors && in.roughness_floor > 0.0f ? &m.coat_floors->at(in.roughness_floor)
-                                                        : &m.coat;
     c.e_coat_o = c.coat->albedo_at(c.wo.z);
     prepare_flakes(m, in, c, arena, st);
     if (m.second) prepare_second(m, in, c, arena);
@@ -420,7 +419,7 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
     if (glint) glint[0] = glint[1] = glint[2] = 0.0f;
     if (!c.valid || wi.z <= 0.0f) return;
     float f_coat = 0.0f, pdf_coat = 0.0f, under = 1.0f;
-    const Coat& coat = c.coat ? *c.coat : m.coat;
+    const Coat& coat = *c.coat;
     if (coat.on) {
         under = (1.0f - c.e_coat_o) * (1.0f - coat.albedo_at(wi.z));
         if (!coat.smooth) coat.eval_rough(c.wo, wi, f_coat, pdf_coat);
@@ -488,7 +487,7 @@ void sample_material(const Material& m, const Closure& c, float u0, float u1, fl
     uint32_t kind = SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_GLOSSY;
     bool ok = true;
     if (pick(u, c.p_coat)) {
-        const Coat& coat = c.coat ? *c.coat : m.coat;
+        const Coat& coat = *c.coat;
         if (coat.smooth) {
             const float fr = mf::fresnel_dielectric(c.wo.z, coat.ior);
             wi = {-c.wo.x, -c.wo.y, c.wo.z};

@@ -85,7 +85,7 @@ struct Closure {
     float p_cache = 1;         ///< discrete part: probability of sampling the cache
     float p_coat = 0, p_base = 0, p_flake = 0;  ///< lobe selection probabilities
     float e_coat_o = 0;                         ///< coat albedo at wo
-    const Coat* coat = nullptr;  ///< the material's coat, or a rougher one (path regularisation)
+    const Coat* coat = nullptr;  ///< the material's coat, or a rougher one (set by prepare_point)
     float v_o = 1;               ///< share of visible flake normals reflecting above the horizon
     uint32_t valid = 0;          ///< wo above the surface
     float base[3] = {0, 0, 0};   ///< base_color here (textured or the material's)

@@ -1,5 +1,7 @@
 #include "bsdf_harness.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstring>
 
 namespace spangle::test {
@@ -97,6 +99,32 @@ void BsdfHarness::prepare(Vec3 wo, const Point& pt, bool backface) {
     arena_.reset();
     SpangleArena_v3 arena = arena_.api();
     model_->prepare(instance_, &b, closure_.data(), &arena);
+}
+
+void BsdfHarness::eval(const std::vector<Sample>& samples, std::vector<Vec3>& f,
+                       std::vector<float>& pdf) const {
+    std::vector<Vec3> wi;
+    wi.reserve(samples.size());
+    for (const Sample& s : samples) wi.push_back(s.wi);
+    eval(wi, f, pdf);
+}
+
+BsdfHarness::Albedo BsdfHarness::albedo(uint32_t n, uint64_t seed, int channel,
+                                        double transmission_scale) const {
+    double sum = 0.0, sum2 = 0.0;
+    for (const Sample& s : sample(n, seed)) {
+        double w = 0.0;
+        if (s.flags != 0 && s.pdf > 0.0f) {
+            w = static_cast<double>(s.f[channel]) * std::fabs(s.wi.z) / s.pdf;
+            if (s.flags & SPANGLE_SAMPLE_TRANSMISSION) w *= transmission_scale;
+        }
+        sum += w;
+        sum2 += w * w;
+    }
+    Albedo a;
+    a.mean = sum / n;
+    a.se = std::sqrt(std::max(0.0, sum2 / n - a.mean * a.mean) / n);
+    return a;
 }
 
 std::vector<BsdfHarness::Sample> BsdfHarness::sample(uint32_t n, uint64_t seed) const {

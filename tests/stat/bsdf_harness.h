@@ -53,6 +53,18 @@ public:
     std::vector<Sample> sample(uint32_t n, uint64_t seed) const;
     /** f and pdf for each wi. */
     void eval(const std::vector<Vec3>& wi, std::vector<Vec3>& f, std::vector<float>& pdf) const;
+    /** f and pdf at the wi of each sample (for sample/eval agreement). */
+    void eval(const std::vector<Sample>& samples, std::vector<Vec3>& f,
+              std::vector<float>& pdf) const;
+
+    /** The directional albedo of the prepared closure estimated from n of its samples: the mean
+     *  of f[channel] |cos theta_i| / pdf (an invalid sample counts 0; a transmitted one is scaled
+     *  by transmission_scale) and its standard error. */
+    struct Albedo {
+        double mean = 0.0, se = 0.0;
+    };
+    Albedo albedo(uint32_t n, uint64_t seed, int channel = 1,
+                  double transmission_scale = 1.0) const;
 
     const SpangleMaterialModel_v3& model() const { return *model_; }
 

@@ -17,23 +17,6 @@ namespace fl = spangle::flake;
 
 constexpr float kGrazing[] = {1.0f, 0.5f, 0.1f, 1e-3f, 1e-6f};
 
-/** Albedo of one prepared closure with its standard error, from n of its own samples. */
-struct Albedo {
-    double mean = 0.0, se = 0.0;
-};
-Albedo closure_albedo(const BsdfHarness& m, uint32_t n, uint64_t seed) {
-    double sum = 0.0, sum2 = 0.0;
-    for (const auto& s : m.sample(n, seed)) {
-        const double w = s.flags != 0 && s.pdf > 0.0f ? s.f.y * s.wi.z / s.pdf : 0.0;
-        sum += w;
-        sum2 += w * w;
-    }
-    Albedo a;
-    a.mean = sum / n;
-    a.se = std::sqrt(std::max(0.0, sum2 / n - a.mean * a.mean) / n);
-    return a;
-}
-
 TEST(FlakeEnergy, EveryFootprintOfMirrorFlakesKeepsAtMostItsEnergy) {
     // Perfect white mirror flakes, shadowing off: a footprint reflects the mean over its flakes of
     // the share of each flake's cone above the horizon, never more than 1. The enumerated cache
@@ -50,7 +33,7 @@ TEST(FlakeEnergy, EveryFootprintOfMirrorFlakesKeepsAtMostItsEnergy) {
                                         {{"preset", "perfect"}, {"algorithm", algorithm}});
                 for (uint64_t k = 0; k < 12; ++k) {
                     m->prepare(dir(cos_o, 0.7f), random_footprint(lambda, 700, k));
-                    const Albedo a = closure_albedo(*m, 4000, k);
+                    const BsdfHarness::Albedo a = m->albedo(4000, k);
                     EXPECT_LE(a.mean, 1.0 + 4.0 * a.se + 1e-4)
                         << algorithm << " lambda " << lambda << " cos_o " << cos_o << " footprint "
                         << k << ": +- " << a.se;
@@ -87,7 +70,7 @@ TEST(FlakeEnergy, WholeMaterialNeverGainsEnergy) {
                         BsdfHarness::Point pt = random_footprint(std::max(lambda, 1.0), 900, 0);
                         pt.has_differentials = lambda > 0.0;
                         m.prepare(dir(cos_o, 0.4f), pt);
-                        const Albedo a = closure_albedo(m, 8000, 3);
+                        const BsdfHarness::Albedo a = m.albedo(8000, 3);
                         EXPECT_LE(a.mean, 1.0 + 4.0 * a.se + 1e-4)
                             << layer.name << " shadowing " << shadowing << " " << algorithm
                             << " lambda " << lambda << " cos_o " << cos_o << ": +- " << a.se;

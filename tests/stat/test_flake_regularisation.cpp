@@ -70,22 +70,13 @@ TEST(FlakeRegularisation, AFlooredPaintKeepsItsEnergyAndSamplesByItsPdf) {
         const Vec3 wo = dir(cos_o, 1.1f);
         // White furnace: white base, perfect white flakes, a floored coat over them.
         auto m = paint(0.0, wo, 0.45f, true, 1.0);
-        double sum = 0.0, sum2 = 0.0;
-        const uint32_t n = 40000;
-        for (const auto& s : m->sample(n, 9)) {
-            const double w = s.flags != 0 && s.pdf > 0.0f ? s.f.y * s.wi.z / s.pdf : 0.0;
-            sum += w;
-            sum2 += w * w;
-        }
-        const double mean = sum / n, se = std::sqrt(std::max(0.0, sum2 / n - mean * mean) / n);
+        const auto [mean, se] = m->albedo(40000, 9);
         EXPECT_LE(mean, 1.0 + 4.0 * se) << "cos_o " << cos_o;
         EXPECT_GT(mean, 0.8) << "cos_o " << cos_o;
         const auto samples = m->sample(3000, 11);
-        std::vector<Vec3> wi;
-        for (const auto& s : samples) wi.push_back(s.wi);
         std::vector<Vec3> f;
         std::vector<float> pdf;
-        m->eval(wi, f, pdf);
+        m->eval(samples, f, pdf);
         for (std::size_t i = 0; i < samples.size(); ++i) {
             if (samples[i].flags == 0) continue;
             EXPECT_NEAR(pdf[i], samples[i].pdf, 1e-3f * samples[i].pdf) << "cos_o " << cos_o;

@@ -97,18 +97,9 @@ TEST_P(MetalRoughChi2, SampleMatchesPdf) {
 INSTANTIATE_TEST_SUITE_P(MetalRough, MetalRoughChi2, ::testing::ValuesIn(all_cases()),
                          [](const ::testing::TestParamInfo<Case>& p) { return p.param.name; });
 
-/** Mean and standard error of f cos / pdf (channel `ch`) over samples. */
-std::pair<double, double> albedo(const BsdfHarness& b, int ch) {
-    double sum = 0.0, sum2 = 0.0;
-    for (const auto& s : b.sample(kSamples, 78)) {
-        const double w = s.flags != 0 && s.pdf > 0.0f
-                             ? static_cast<double>(s.f[ch]) * std::fabs(s.wi.z) / s.pdf
-                             : 0.0;
-        sum += w;
-        sum2 += w * w;
-    }
-    const double mean = sum / kSamples;
-    return {mean, std::sqrt(std::max(0.0, sum2 / kSamples - mean * mean) / kSamples)};
+/** Albedo estimates of channel `ch` from kSamples samples, seed 78. */
+BsdfHarness::Albedo albedo(const BsdfHarness& b, int ch) {
+    return b.albedo(kSamples, 78, ch);
 }
 
 TEST(MetalRoughFurnace, WhiteDielectricReturnsOne) {
@@ -175,11 +166,9 @@ TEST(MetalRoughConsistency, SampleAndEvalAgree) {
         BsdfHarness bsdf("smooth", "metal_rough", c.params);
         bsdf.prepare(wo_for(c.cos_o));
         const auto samples = bsdf.sample(2000, 98);
-        std::vector<Vec3> wi;
-        for (const auto& s : samples) wi.push_back(s.wi);
         std::vector<Vec3> f;
         std::vector<float> pdf;
-        bsdf.eval(wi, f, pdf);
+        bsdf.eval(samples, f, pdf);
         std::size_t valid = 0;
         for (std::size_t i = 0; i < samples.size(); ++i) {
             const auto& s = samples[i];
