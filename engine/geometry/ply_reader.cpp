@@ -1,6 +1,7 @@
 #include "geometry/ply_reader.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -59,23 +60,29 @@ struct Element {
 };
 
 /** The data after the header: binary values or ASCII tokens, every read bounded. */
-class Reader {
+class BodyReader {
 public:
-    Reader(const std::string& data, std::size_t pos, Format format, const std::string& path,
-           const FileLoc& ref)
+    BodyReader(const std::string& data, std::size_t pos, Format format, const std::string& path,
+               const FileLoc& ref)
         : data_(data), pos_(pos), format_(format), path_(path), ref_(ref) {}
 
     std::size_t remaining() const { return data_.size() - pos_; }
 
-    double read(Type t, const char* what) {
-        if (format_ == Format::Ascii) return read_ascii(t, what);
-        const std::size_t n = size_of(t);
+    /** The next n bytes, raw (binary formats), or an error naming `what` when fewer remain. */
+    const char* take(std::size_t n, const char* what) {
         if (remaining() < n)
             throw_error(ref_, "mesh '{}' ends early, in {} (the header promised more data)", path_,
                         what);
-        unsigned char b[8];
-        std::memcpy(b, data_.data() + pos_, n);
+        const char* at = data_.data() + pos_;
         pos_ += n;
+        return at;
+    }
+
+    double read(Type t, const char* what) {
+        if (format_ == Format::Ascii) return read_ascii(t, what);
+        const std::size_t n = size_of(t);
+        unsigned char b[8];
+        std::memcpy(b, take(n, what), n);
         if (format_ == Format::BinaryBig) std::reverse(b, b + n);
         switch (t) {
             case Type::Int8:
@@ -137,9 +144,22 @@ private:
 TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw_error(ref, "cannot read mesh '{}'", path);
-    std::ostringstream ss;
-    ss << in.rdbuf();
-    const std::string data = ss.str();
+    // Read whole: a regular file in one read of its size, anything else through the stream.
+    std::string data;
+    in.seekg(0, std::ios::end);
+    const std::streamoff size = in.tellg();
+    if (size > 0) {
+        data.resize(static_cast<std::size_t>(size));
+        in.seekg(0, std::ios::beg);
+        in.read(data.data(), size);
+        if (in.gcount() != size) throw_error(ref, "cannot read mesh '{}'", path);
+    } else {
+        in.clear();
+        in.seekg(0, std::ios::beg);
+        std::ostringstream ss;
+        ss << in.rdbuf();
+        data = ss.str();
+    }
 
     // The header: text lines up to "end_header".
     if (data.compare(0, 4, "ply\n") != 0 && data.compare(0, 5, "ply\r\n") != 0)
@@ -217,7 +237,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     if (!format) throw_error(ref, "mesh '{}' has no 'format' line in its header", path);
 
     // Every element takes at least this many bytes: what the header claims must fit the file.
-    Reader reader(data, pos, *format, path, ref);
+    BodyReader reader(data, pos, *format, path, ref);
     {
         long double need = 0.0L;
         for (const Element& e : elements) {
@@ -263,6 +283,31 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             mesh.positions.reserve(3 * e.count);
             if (normals) mesh.normals.reserve(3 * e.count);
             if (uvs) mesh.uvs.reserve(2 * e.count);
+            // The common layout, little-endian float properties only, is copied row by row (the
+            // same values as the general path below, which converts through double).
+            const bool raw_floats =
+                *format == Format::BinaryLittle && std::endian::native == std::endian::little &&
+                std::all_of(e.props.begin(), e.props.end(),
+                            [](const Property& p) { return !p.list && p.type == Type::Float32; });
+            if (raw_floats) {
+                const std::size_t stride = 4 * e.props.size();
+                const char* rows = reader.take(stride * e.count, "the vertices");
+                mesh.positions.resize(3 * e.count);
+                if (normals) mesh.normals.resize(3 * e.count);
+                if (uvs) mesh.uvs.resize(2 * e.count);
+                const auto copy = [&](std::vector<float>& out, std::initializer_list<int> props) {
+                    const std::size_t width = props.size();
+                    for (uint64_t i = 0; i < e.count; ++i) {
+                        std::size_t c = 0;
+                        for (const int k : props)
+                            std::memcpy(&out[width * i + c++], rows + stride * i + 4 * k, 4);
+                    }
+                };
+                copy(mesh.positions, {x, y, z});
+                if (normals) copy(mesh.normals, {nx, ny, nz});
+                if (uvs) copy(mesh.uvs, {u, v});
+                continue;
+            }
             std::vector<double> values(e.props.size());
             for (uint64_t i = 0; i < e.count; ++i) {
                 for (std::size_t k = 0; k < e.props.size(); ++k) {
@@ -295,6 +340,41 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             if (list < 0)
                 throw_error(ref, "mesh '{}': its faces have no vertex_indices list", path);
             mesh.indices.reserve(3 * e.count);
+            // The common layout, one little-endian list of uchar count and int or uint indices,
+            // read directly, with the general path's checks and messages.
+            const Property& lp = e.props[static_cast<std::size_t>(list)];
+            if (*format == Format::BinaryLittle && std::endian::native == std::endian::little &&
+                e.props.size() == 1 && lp.count_type == Type::UInt8 &&
+                (lp.type == Type::Int32 || lp.type == Type::UInt32)) {
+                const bool is_signed = lp.type == Type::Int32;
+                uint32_t corner[256];
+                for (uint64_t i = 0; i < e.count; ++i) {
+                    const auto n = static_cast<unsigned char>(*reader.take(1, "the faces"));
+                    if (n > reader.remaining())
+                        throw_error(ref,
+                                    "mesh '{}': face {} claims {} corners, more than the "
+                                    "file holds",
+                                    path, i, n);
+                    if (n < 3)
+                        throw_error(ref,
+                                    "mesh '{}': face {} has {} corners; a face needs 3 or more",
+                                    path, i, n);
+                    const char* at = reader.take(4 * std::size_t{n}, "the faces");
+                    for (unsigned j = 0; j < n; ++j) {
+                        uint32_t c;
+                        std::memcpy(&c, at + 4 * j, 4);
+                        if (is_signed ? static_cast<int32_t>(c) < 0 : c == 0xffffffffu)
+                            throw_error(ref, "mesh '{}': face {} has corner index {}", path, i,
+                                        is_signed ? static_cast<int64_t>(static_cast<int32_t>(c))
+                                                  : static_cast<int64_t>(c));
+                        corner[j] = c;
+                    }
+                    for (unsigned j = 1; j + 1 < n; ++j)
+                        mesh.indices.insert(mesh.indices.end(),
+                                            {corner[0], corner[j], corner[j + 1]});
+                }
+                continue;
+            }
             std::vector<uint32_t> corners;
             for (uint64_t i = 0; i < e.count; ++i) {
                 for (std::size_t k = 0; k < e.props.size(); ++k) {
