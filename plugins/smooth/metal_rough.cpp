@@ -34,6 +34,7 @@
 
 #include "../common/microfacet.h"
 #include "../common/plugin_support.h"
+#include "albedo_tables.h"
 
 namespace spangle::smooth {
 namespace {
@@ -41,9 +42,9 @@ namespace {
 using namespace spangle::mf;
 using namespace spangle::plugin_support;
 
-constexpr float kMinAlpha = 1e-3f;  ///< alphas below are clamped (a near-mirror)
-constexpr int kMu = 32;             ///< albedo table: cosines (i + 0.5) / 32
-constexpr int kRough = 32;          ///< albedo table: sqrt(alpha) = j / 31
+constexpr float kMinAlpha = kAlbedoMinAlpha;  ///< alphas below are clamped (a near-mirror)
+constexpr int kMu = kAlbedoMu;
+constexpr int kRough = kAlbedoRough;
 
 // clang-format off
 const SpangleParamDesc_v3 kParams[] = {
@@ -71,50 +72,8 @@ enum Param : uint32_t {
     kCoatRough
 };
 
-/** The GGX lobe's albedo split by Schlick's Fresnel: E = f0 A + f90 B (tables in mu, sqrt alpha).
- */
-struct AlbedoTables {
-    float a[kRough][kMu], b[kRough][kMu];  ///< at (sqrt alpha = j / 31, mu = (i + 0.5) / 32)
-    float a_avg[kRough], b_avg[kRough];    ///< cosine-weighted averages 2 int E(mu) mu dmu
-};
-
-/** A(mu, alpha), B(mu, alpha) by VNDF sampling over a Hammersley set: each sample of the
- *  visible normals weighs G2 / G1 times (1 - w) or w, w = (1 - v.h)^5. */
-AlbedoTables make_tables() {
-    AlbedoTables t{};
-    constexpr uint32_t kN = 512;
-    for (int j = 0; j < kRough; ++j) {
-        const float r = static_cast<float>(j) / (kRough - 1);
-        const float alpha = std::max(r * r, kMinAlpha);
-        double avg_a = 0.0, avg_b = 0.0;
-        for (int i = 0; i < kMu; ++i) {
-            const float mu = (static_cast<float>(i) + 0.5f) / kMu;
-            const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
-            double sa = 0.0, sb = 0.0;
-            for (uint32_t k = 0; k < kN; ++k) {
-                const V3 h = ggx_sample_visible(
-                    wo, alpha, alpha, (static_cast<float>(k) + 0.5f) / kN, radical_inverse2(k));
-                const V3 wi = reflect(wo, h);
-                if (wi.z <= 0.0f) continue;
-                const float g = ggx_g2(wo, wi, alpha, alpha) / ggx_g1(wo, alpha, alpha);
-                const float w = std::pow(1.0f - std::clamp(dot(wo, h), 0.0f, 1.0f), 5.0f);
-                sa += static_cast<double>((1.0f - w) * g);
-                sb += static_cast<double>(w * g);
-            }
-            t.a[j][i] = static_cast<float>(sa / kN);
-            t.b[j][i] = static_cast<float>(sb / kN);
-            avg_a += 2.0 * static_cast<double>(t.a[j][i] * mu) / kMu;
-            avg_b += 2.0 * static_cast<double>(t.b[j][i] * mu) / kMu;
-        }
-        t.a_avg[j] = static_cast<float>(avg_a);
-        t.b_avg[j] = static_cast<float>(avg_b);
-    }
-    return t;
-}
-
 const AlbedoTables& tables() {
-    static const AlbedoTables t = make_tables();
-    return t;
+    return shipped_albedo_tables();
 }
 
 /** Bilinear lookup of a table at (mu, alpha); avg: the j-row's average (mu ignored). */
@@ -188,7 +147,6 @@ void* create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint
     m->specular = param_f(p, "specular");
     m->coat = param_f(p, "clearcoat");
     m->coat_rough = param_f(p, "clearcoat_roughness");
-    (void)tables();  // made once, before the first batch
     return m;
 }
 

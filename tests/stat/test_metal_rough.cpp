@@ -6,7 +6,10 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 
+#include "../../plugins/smooth/albedo_tables.h"
 #include "bsdf_harness.h"
 #include "chi2.h"
 #include "warp_chi2.h"
@@ -20,7 +23,7 @@ constexpr double kSignificance = 0.01;
 using Params = std::vector<std::pair<std::string, std::vector<double>>>;
 
 /** One chi-square case: the model's parameters and wo. */
-struct Case {
+struct ChiCase {
     std::string name;
     Params params;
     float roughness;  ///< perceptual: the warp's alpha is its square
@@ -28,12 +31,12 @@ struct Case {
 };
 
 /** gtest prints a case by its name. */
-void PrintTo(const Case& c, std::ostream* os) {
+void PrintTo(const ChiCase& c, std::ostream* os) {
     *os << c.name;
 }
 
 /** Four kinds of point at three angles. */
-std::vector<Case> all_cases() {
+std::vector<ChiCase> all_cases() {
     struct Kind {
         const char* name;
         float roughness;
@@ -57,7 +60,7 @@ std::vector<Case> all_cases() {
           {"clearcoat_roughness", {0.05}},
           {"base_color", {0.1, 0.1, 0.5}}}},
     };
-    std::vector<Case> out;
+    std::vector<ChiCase> out;
     for (const Kind& k : kinds)
         for (float c : {0.95f, 0.5f, 0.1f}) {
             Params p = k.params;
@@ -74,10 +77,10 @@ Vec3 wo_for(float cos_o) {
     return {s * std::cos(0.7f), s * std::sin(0.7f), cos_o};
 }
 
-class MetalRoughChi2 : public ::testing::TestWithParam<Case> {};
+class MetalRoughChi2 : public ::testing::TestWithParam<ChiCase> {};
 
 TEST_P(MetalRoughChi2, SampleMatchesPdf) {
-    const Case& c = GetParam();
+    const ChiCase& c = GetParam();
     BsdfHarness bsdf("smooth", "metal_rough", c.params);
     const Vec3 wo = wo_for(c.cos_o);
     bsdf.prepare(wo);
@@ -95,7 +98,7 @@ TEST_P(MetalRoughChi2, SampleMatchesPdf) {
 }
 
 INSTANTIATE_TEST_SUITE_P(MetalRough, MetalRoughChi2, ::testing::ValuesIn(all_cases()),
-                         [](const ::testing::TestParamInfo<Case>& p) { return p.param.name; });
+                         [](const ::testing::TestParamInfo<ChiCase>& p) { return p.param.name; });
 
 /** Albedo estimates of channel `ch` from kSamples samples, seed 78. */
 BsdfHarness::Albedo albedo(const BsdfHarness& b, int ch) {
@@ -121,7 +124,7 @@ TEST(MetalRoughFurnace, WhiteDielectricReturnsOne) {
 }
 
 TEST(MetalRoughFurnace, NoPointReturnsMoreThanItReceives) {
-    for (const Case& k : all_cases())
+    for (const ChiCase& k : all_cases())
         for (float c : {1.0f, 0.3f, 0.05f}) {
             Params p = k.params;
             p.push_back({"base_color", {1.0, 1.0, 1.0}});  // the brightest base
@@ -137,7 +140,7 @@ TEST(MetalRoughFurnace, NoPointReturnsMoreThanItReceives) {
 }
 
 TEST(MetalRoughReciprocity, EvalIsSymmetric) {
-    for (const Case& k : all_cases()) {
+    for (const ChiCase& k : all_cases()) {
         BsdfHarness a("smooth", "metal_rough", k.params), b("smooth", "metal_rough", k.params);
         for (uint32_t i = 0; i < 100; ++i) {
             const auto dir = [&](uint32_t d) {
@@ -162,7 +165,7 @@ TEST(MetalRoughReciprocity, EvalIsSymmetric) {
 }
 
 TEST(MetalRoughConsistency, SampleAndEvalAgree) {
-    for (const Case& c : all_cases()) {
+    for (const ChiCase& c : all_cases()) {
         BsdfHarness bsdf("smooth", "metal_rough", c.params);
         bsdf.prepare(wo_for(c.cos_o));
         const auto samples = bsdf.sample(2000, 98);
@@ -180,6 +183,43 @@ TEST(MetalRoughConsistency, SampleAndEvalAgree) {
         }
         EXPECT_GT(valid, samples.size() / 2) << c.name << ": most samples are invalid";
     }
+}
+
+/** The albedo tables metal_rough ships are the quadrature they were written from: bit for bit
+ *  on the machine that wrote them, within float rounding elsewhere (another libm may round a
+ *  sine or a power differently in the last place). When they differ by more, the quadrature or
+ *  the GGX functions changed: the file is written anew next to the test's working directory. */
+TEST(MetalRoughTables, ShippedTablesAreTheQuadrature) {
+    const smooth::AlbedoTables computed = smooth::compute_albedo_tables();
+    const smooth::AlbedoTables& shipped = smooth::shipped_albedo_tables();
+    double worst = 0.0;
+    int differ = 0;
+    const auto compare = [&](float a, float b) {
+        worst = std::max(worst, std::fabs(static_cast<double>(a) - static_cast<double>(b)));
+        differ += a != b ? 1 : 0;
+    };
+    for (int j = 0; j < smooth::kAlbedoRough; ++j) {
+        for (int i = 0; i < smooth::kAlbedoMu; ++i) {
+            compare(computed.a[j][i], shipped.a[j][i]);
+            compare(computed.b[j][i], shipped.b[j][i]);
+        }
+        compare(computed.a_avg[j], shipped.a_avg[j]);
+        compare(computed.b_avg[j], shipped.b_avg[j]);
+    }
+    // Sanity of the tables themselves: a white GGX reflects at most what it receives, and the
+    // smoothest lobe at normal incidence nearly all of it.
+    EXPECT_GT(shipped.a[0][smooth::kAlbedoMu - 1] + shipped.b[0][smooth::kAlbedoMu - 1], 0.99f);
+    for (int j = 0; j < smooth::kAlbedoRough; ++j)
+        for (int i = 0; i < smooth::kAlbedoMu; ++i)
+            EXPECT_LE(shipped.a[j][i] + shipped.b[j][i], 1.0f + 1e-6f) << j << "," << i;
+    if (worst > 1e-6) {
+        const std::filesystem::path out = std::filesystem::absolute("albedo_tables_data.inc.new");
+        std::ofstream(out) << smooth::albedo_tables_source(computed);
+        ADD_FAILURE() << differ << " entries differ, by up to " << worst
+                      << "; the quadrature's tables are in " << out.string()
+                      << ": copy them to plugins/smooth/albedo_tables_data.inc";
+    }
+    RecordProperty("entries_differing_in_the_last_place", differ);
 }
 
 }  // namespace
