@@ -78,7 +78,7 @@ std::string toml_quoted(const std::string& s) {
     return out + "\"";
 }
 
-std::string vec(Vec3 v) {
+std::string vec4g(Vec3 v) {
     return fmt::format("[{:.4g}, {:.4g}, {:.4g}]", v.x, v.y, v.z);
 }
 
@@ -202,8 +202,8 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         "# paint to start from. Render it with\n"
         "#     spangle render {} -o {}.exr\n"
         "# Paths are relative to this file. The model's bounds: {} to {} (its own units).\n\n",
-        model.filename().string(), out.filename().string(), out.stem().string(), vec(b.lo),
-        vec(b.hi));
+        model.filename().string(), out.filename().string(), out.stem().string(), vec4g(b.lo),
+        vec4g(b.hi));
     t += fmt::format(
         "[render]\nwidth = {}\nheight = {}\nspp = 64\nmax_depth = 6\nfilter = \"blackman-harris\"\n"
         "clamp_indirect = 20            # a firefly guard for caustics; biased, 0 = off\n"
@@ -211,8 +211,8 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         "fireflies; biased, 0 = off\n"
         "working_space = \"ACEScg\"\ncolor_space = \"srgb_texture\"\n\n",
         r.width, r.height);
-    t += fmt::format("[camera]\nposition = {}\nlook_at = {}\nfov = {:g}\n\n", vec(rep.camera),
-                     vec(rep.look_at), kFovDeg);
+    t += fmt::format("[camera]\nposition = {}\nlook_at = {}\nfov = {:g}\n\n", vec4g(rep.camera),
+                     vec4g(rep.look_at), kFovDeg);
     t += fmt::format(
         "[environment]\nmap = {}\ncolor_space = \"lin_rec709\"\nrotation = 0\nintensity = 1.0\n\n",
         toml_quoted(scene_relative(env, folder)));
@@ -220,7 +220,7 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         "[[light]]                      # the key light: small, so that flakes flash\n"
         "type = \"sphere\"\ncenter = {}\nradius = {:.4g}\ncolor = [1.0, 0.97, 0.92]\n"
         "intensity = {:.4g}\n\n",
-        vec(key), key_radius, key_radiance);
+        vec4g(key), key_radius, key_radiance);
     t += fmt::format(
         "[[material]]\nname = {}\nplugin = \"flake\"\n"
         "# Red glitter paint under a clear coat. density counts flakes per square unit of the\n"
@@ -246,11 +246,11 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
             other_materials.empty()
                 ? std::string()
                 : fmt::format(" (its others: {})", fmt::join(other_materials, ", ")),
-            toml_quoted(scene_relative(model, folder)), vec(rep.offset));
+            toml_quoted(scene_relative(model, folder)), vec4g(rep.offset));
     } else {
         t += fmt::format("[[object]]\nname = \"model\"\nmesh = {}\nmaterial = {}\ntranslate = {}\n",
                          toml_quoted(scene_relative(model, folder)), toml_quoted(paint),
-                         vec(rep.offset));
+                         vec4g(rep.offset));
     }
 
     const fs::path tmp = out.string() + ".tmp";

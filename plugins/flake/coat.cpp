@@ -15,7 +15,7 @@ namespace {
 constexpr int kGrid = 96;                  ///< visible-normal quadrature per side
 constexpr float kQuadratureBound = 2e-3f;  ///< measured error bound of that quadrature
 
-float node_cos(int i) {
+float coat_node_cos(int i) {
     const float x = static_cast<float>(i) / static_cast<float>(Coat::kNodes - 1);
     return std::max(1e-6f, x * x);
 }
@@ -61,7 +61,7 @@ void Coat::init(bool on_, float ior_, float roughness, const TableCache* cache) 
         pool.emplace_back([&, w] {
             for (int i = w; i < kNodes; i += threads)
                 albedo[i] =
-                    std::min(1.0f, static_cast<float>(rough_albedo(node_cos(i), ior, alpha)) +
+                    std::min(1.0f, static_cast<float>(rough_albedo(coat_node_cos(i), ior, alpha)) +
                                        kQuadratureBound);
         });
     for (auto& t : pool) t.join();

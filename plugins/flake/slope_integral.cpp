@@ -10,7 +10,7 @@ namespace spangle::flake {
 
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
+constexpr double kPiD = 3.14159265358979323846;
 
 /** The 15-point Gauss-Kronrod rule on [-1, 1] (Kronrod 1965; the constants of QUADPACK's qk15):
  *  nodes +-kXk[i], Kronrod weights kWk[i]; the 7-point Gauss rule uses the odd nodes with
@@ -23,9 +23,6 @@ constexpr double kWk[8] = {0.022935322010529225, 0.063092092629978553, 0.1047900
                            0.204432940075298892, 0.209482141084727828};
 constexpr double kWg[4] = {0.129484966168869693, 0.279705391489276668, 0.381830050505118945,
                            0.417959183673469388};
-/** 3-point Gauss-Legendre on [0, 1]: nodes and weights. */
-constexpr double kX3[3] = {0.112701665379258311, 0.5, 0.887298334620741689};
-constexpr double kW3[3] = {0.277777777777777778, 0.444444444444444444, 0.277777777777777778};
 /** 8-point Gauss-Legendre on [-1, 1] (positive half; the rule is symmetric). */
 constexpr double kX8[4] = {0.183434642495649805, 0.525532409916328986, 0.796666477413626740,
                            0.960289856497536232};
@@ -45,7 +42,7 @@ double radial(double a0, double a1, double ra, double rb) {
         d1 = d * (rb + ra) / (2.0 * pa * pb);
         d2 = 0.5 * (std::atan2(d, 1.0 + ra * rb) - d * (1.0 - ra * rb) / (pa * pb));
     }
-    return (a0 * d1 + a1 * d2) / kPi;
+    return (a0 * d1 + a1 * d2) / kPiD;
 }
 
 /** Roots r0 <= r1 of a rho^2 + b rho + c, a != 0 (numerically stable); false without any. */
@@ -177,7 +174,7 @@ struct Problem {
                 for (int c = 0; c < 3; ++c) mf[c] += part * sum[c] / wsum;
             return;
         }
-        const double t0 = std::atan(lo), t1 = std::isinf(hi) ? 0.5 * kPi : std::atan(hi);
+        const double t0 = std::atan(lo), t1 = std::isinf(hi) ? 0.5 * kPiD : std::atan(hi);
         const auto cos_at = [&](double t, double& weight) {
             const double c = std::cos(t), s = std::sin(t), lin = std::max(0.0, woz * c + a1 * s);
             weight = lin * s;
@@ -188,10 +185,10 @@ struct Problem {
         for (int p = 0; p < n; ++p)
             for (int g = 0; g < 3; ++g) {
                 double weight;
-                const double cos_om = cos_at(t0 + (t1 - t0) * (p + kX3[g]) / n, weight);
+                const double cos_om = cos_at(t0 + (t1 - t0) * (p + kGauss3Nodes[g]) / n, weight);
                 float f[3];
                 fresnel->eval(static_cast<float>(cos_om), f);
-                const double w = kW3[g] * weight;
+                const double w = kGauss3Weights[g] * weight;
                 for (int c = 0; c < 3; ++c) sum[c] += w * static_cast<double>(f[c]);
                 wsum += w;
             }
@@ -327,8 +324,8 @@ double arc(const Problem& pr, double c, double h, bool horizon, double mf[3]) {
         return jac * m;
     };
     double cuts[8];
-    const int n = horizon ? kinks(pr, c, h, -0.5 * kPi, 0.5 * kPi, cuts) : 0;
-    return pieces(g, -0.5 * kPi, 0.5 * kPi, cuts, n, mf);
+    const int n = horizon ? kinks(pr, c, h, -0.5 * kPiD, 0.5 * kPiD, cuts) : 0;
+    return pieces(g, -0.5 * kPiD, 0.5 * kPiD, cuts, n, mf);
 }
 
 /** The periodic trapezoid rule over the whole circle, doubling from 16 directions until two
@@ -339,7 +336,7 @@ double circle(const Problem& pr, double mf[3]) {
     int n = 16;
     double sum = 0.0, first_f[3] = {0, 0, 0};
     for (int k = 0; k < n; ++k) {
-        const double phi = 2.0 * kPi * k / n;
+        const double phi = 2.0 * kPiD * k / n;
         sum += pr.ray(std::cos(phi), std::sin(phi), first_f);
     }
     double first = sum;
@@ -347,7 +344,7 @@ double circle(const Problem& pr, double mf[3]) {
         const bool with_f = n < 64;
         double add = 0.0;
         for (int k = 0; k < n; ++k) {
-            const double phi = 2.0 * kPi * (k + 0.5) / n;
+            const double phi = 2.0 * kPiD * (k + 0.5) / n;
             add += pr.ray(std::cos(phi), std::sin(phi), with_f ? first_f : nullptr);
         }
         const double before = sum / n;
@@ -356,7 +353,7 @@ double circle(const Problem& pr, double mf[3]) {
         n *= 2;
         if (std::fabs(sum / n - before) <= 1e-4 * std::fabs(sum / n)) break;
     }
-    const double mass = sum * 2.0 * kPi / n;
+    const double mass = sum * 2.0 * kPiD / n;
     if (first > 0.0)
         for (int c = 0; c < 3; ++c) mf[c] += mass * first_f[c] / first;
     return mass;
@@ -367,10 +364,10 @@ double circle(const Problem& pr, double mf[3]) {
 double circle_with_kinks(const Problem& pr, bool horizon, double mf[3]) {
     double cuts[8];
     // phi = pi sin(theta) maps theta in [-pi/2, pi/2] onto [-pi, pi] one to one.
-    const int n = horizon ? kinks(pr, 0.0, kPi, -0.5 * kPi, 0.5 * kPi, cuts) : 0;
-    for (int i = 0; i < n; ++i) cuts[i] = kPi * std::sin(cuts[i]);
+    const int n = horizon ? kinks(pr, 0.0, kPiD, -0.5 * kPiD, 0.5 * kPiD, cuts) : 0;
+    for (int i = 0; i < n; ++i) cuts[i] = kPiD * std::sin(cuts[i]);
     const auto g = [&](double phi, double f[3]) { return pr.ray(std::cos(phi), std::sin(phi), f); };
-    return pieces(g, -kPi, kPi, cuts, n, mf);
+    return pieces(g, -kPiD, kPiD, cuts, n, mf);
 }
 
 /** A region that contains the origin, by its boundary (Green's theorem in polar form): with the
@@ -503,10 +500,10 @@ bool boundary_integral(const Problem& pr, bool horizon, double& mass, double mf[
         constexpr int kScan = 32;
         bool prev = cone_bounds(0.0);
         for (int i = 1; i <= kScan && n_cuts < 8; ++i) {
-            const double th = 2.0 * kPi * i / kScan;
+            const double th = 2.0 * kPiD * i / kScan;
             const bool now = cone_bounds(th);
             if (now == prev) continue;
-            double lo = 2.0 * kPi * (i - 1) / kScan, hi = th;
+            double lo = 2.0 * kPiD * (i - 1) / kScan, hi = th;
             for (int it = 0; it < 24; ++it) {
                 const double m = 0.5 * (lo + hi);
                 (cone_bounds(m) == prev ? lo : hi) = m;
@@ -521,7 +518,7 @@ bool boundary_integral(const Problem& pr, bool horizon, double& mass, double mf[
         mass = 0.0;
         double f[3] = {0, 0, 0};
         for (int i = 0; i < n_cuts; ++i) {
-            const double a0 = cuts[i], a1 = i + 1 < n_cuts ? cuts[i + 1] : cuts[0] + 2.0 * kPi;
+            const double a0 = cuts[i], a1 = i + 1 < n_cuts ? cuts[i + 1] : cuts[0] + 2.0 * kPiD;
             mass += pieces(g, a0, a1, nullptr, 0, f, 1e-5);
         }
         for (int c = 0; c < 3; ++c) mf[c] = f[c];
@@ -532,19 +529,19 @@ bool boundary_integral(const Problem& pr, bool horizon, double& mass, double mf[
     // Fresnel (a smooth average) from at most the first 64 angles.
     int n = 16;
     double sum = 0.0, fw[3] = {0, 0, 0};
-    for (int k = 0; k < n; ++k) sum += b.at(2.0 * kPi * k / n, pr.fresnel ? fw : nullptr);
+    for (int k = 0; k < n; ++k) sum += b.at(2.0 * kPiD * k / n, pr.fresnel ? fw : nullptr);
     double first = sum;
     while (n < 1024) {
         const bool with_f = pr.fresnel && n < 64;
         double add = 0.0;
-        for (int k = 0; k < n; ++k) add += b.at(2.0 * kPi * (k + 0.5) / n, with_f ? fw : nullptr);
+        for (int k = 0; k < n; ++k) add += b.at(2.0 * kPiD * (k + 0.5) / n, with_f ? fw : nullptr);
         const double before = sum / n;
         sum += add;
         if (with_f) first = sum;
         n *= 2;
         if (std::fabs(sum / n - before) <= 1e-5 * std::fabs(sum / n)) break;
     }
-    mass = sum * 2.0 * kPi / n;
+    mass = sum * 2.0 * kPiD / n;
     for (int c = 0; c < 3; ++c) mf[c] = first > 0.0 ? mass * fw[c] / first : 0.0;
     return true;
 }
@@ -600,7 +597,7 @@ void slope_integral(float alpha, double sin2_half, const FresnelTable* fresnel, 
         } else {
             const double phi0 = 0.5 * std::atan2(q, p);
             const double h = 0.5 * std::acos(std::clamp(-m / amp, -1.0, 1.0));
-            for (const double c : {phi0, phi0 + kPi}) {
+            for (const double c : {phi0, phi0 + kPiD}) {
                 if (!pr.meets(std::cos(c), std::sin(c))) continue;
                 mass += arc(pr, c, h, horizon, mf);
             }
@@ -645,7 +642,8 @@ double lobe_mass(float alpha, double sin2_half, V3 wo_f) {
                     const double c = std::cos(th), sn = std::sin(th), rho = sn / c;
                     const double rz = (2.0 * (woz + a1 * rho) - woz * (1.0 + a2 * rho * rho)) /
                                       (1.0 + a2 * rho * rho);
-                    band += w * (woz * c + a1 * sn) * sn / kPi * cone_fraction_above(rz, sin2_half);
+                    band +=
+                        w * (woz * c + a1 * sn) * sn / kPiD * cone_fraction_above(rz, sin2_half);
                 }
         }
         return full + band;
@@ -654,7 +652,7 @@ double lobe_mass(float alpha, double sin2_half, V3 wo_f) {
     // integrand has kinks, which the periodic trapezoid rule would converge to slowly.
     double unused[3] = {0, 0, 0};
     const double half =
-        pieces([&](double phi, double*) { return ray(phi); }, 0.0, kPi, nullptr, 0, unused, 1e-6);
+        pieces([&](double phi, double*) { return ray(phi); }, 0.0, kPiD, nullptr, 0, unused, 1e-6);
     // Twice the half circle, times G1(wo) / wo_z.
     const double g1 = static_cast<double>(mf::ggx_g1(wo_f, alpha, alpha)) / woz;
     return std::clamp(2.0 * half * g1, 0.0, 1.0);

@@ -24,6 +24,11 @@
 
 namespace spangle::flake {
 
+/** 3-point Gauss-Legendre on [0, 1]: nodes and weights (the table integrals' inner rule). */
+inline constexpr double kGauss3Nodes[3] = {0.112701665379258311, 0.5, 0.887298334620741689};
+inline constexpr double kGauss3Weights[3] = {0.277777777777777778, 0.444444444444444444,
+                                             0.277777777777777778};
+
 /** I_F (RGB, Fresnel-weighted; zero without `fresnel`) and I_1 at (wo, wi), the same quantities
  *  as cap_integral(): the visible-normal probability that a flake reflects wo within gamma of wi
  *  and above the horizon. Zero when wo or wi is under the horizon. Relative accuracy about 1e-4

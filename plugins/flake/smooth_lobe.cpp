@@ -229,8 +229,6 @@ void build_node(BlurTable& t, const FresnelTable& fresnel, int k) {
  *  coordinates: 6 x 12 pieces of 3-point Gauss-Legendre, dw_i = 4 (wo.h) alpha^2 h_z^3 dx dy. */
 template <class Lookup>
 double table_mass(const BlurTable& t, float cos_e, Lookup&& lookup) {
-    constexpr double kX3[3] = {0.112701665379258311, 0.5, 0.887298334620741689};
-    constexpr double kW3[3] = {0.277777777777777778, 0.444444444444444444, 0.277777777777777778};
     constexpr int kRows = 6, kCols = 12;
     const double c = std::clamp(static_cast<double>(cos_e), 1e-7, 1.0);
     const double s = std::sqrt(std::max(0.0, 1.0 - c * c));
@@ -244,7 +242,7 @@ double table_mass(const BlurTable& t, float cos_e, Lookup&& lookup) {
     double sum = 0.0;
     for (int pj = 0; pj < kRows; ++pj)
         for (int gj = 0; gj < 3; ++gj) {
-            const double wy = wy_end * (pj + kX3[gj]) / kRows;
+            const double wy = wy_end * (pj + kGauss3Nodes[gj]) / kRows;
             const double y = unsquash(wy, sy), dy = sy / ((1.0 - wy) * (1.0 - wy));
             const double chord = std::sqrt(std::max(0.0, radius * radius - y * y));
             const double x0 = centre - chord, x1 = centre + chord;
@@ -252,7 +250,7 @@ double table_mass(const BlurTable& t, float cos_e, Lookup&& lookup) {
             double row = 0.0;
             for (int pi = 0; pi < kCols; ++pi)
                 for (int gi = 0; gi < 3; ++gi) {
-                    const double wx = w0 + (w1 - w0) * (pi + kX3[gi]) / kCols;
+                    const double wx = w0 + (w1 - w0) * (pi + kGauss3Nodes[gi]) / kCols;
                     const double x = unsquash(wx, sx);
                     const double dx = sx / ((1.0 - std::fabs(wx)) * (1.0 - std::fabs(wx)));
                     const V3 h = mf::normalize(
@@ -265,10 +263,10 @@ double table_mass(const BlurTable& t, float cos_e, Lookup&& lookup) {
                     const double hz = h.z;
                     const double jac =
                         4.0 * static_cast<double>(mf::dot(wo, h)) * a * a * hz * hz * hz * dx * dy;
-                    row += kW3[gi] * p * cone_fraction_above(wi.z, t.sin2_half) *
+                    row += kGauss3Weights[gi] * p * cone_fraction_above(wi.z, t.sin2_half) *
                            static_cast<double>(v[0]) * jac;
                 }
-            sum += kW3[gj] * row * (w1 - w0) / kCols;
+            sum += kGauss3Weights[gj] * row * (w1 - w0) / kCols;
         }
     return 2.0 * sum * wy_end / kRows;  // both halves of the symmetric disc
 }

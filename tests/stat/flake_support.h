@@ -8,6 +8,7 @@
 #include <utility>
 #include <vector>
 
+#include "../common/microfacet.h"
 #include "bsdf_harness.h"
 #include "core/hash.h"
 
@@ -37,6 +38,12 @@ inline std::unique_ptr<BsdfHarness> flake_material(bool discrete, FlakeParams ex
 inline Vec3 dir(float cos_t, float phi) {
     const float s = std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t));
     return {s * std::cos(phi), s * std::sin(phi), cos_t};
+}
+
+/** dir() as the plugins' own vector type, for tests that call the flake model's parts directly. */
+inline mf::V3 fdir(float cos_t, float phi) {
+    const Vec3 d = dir(cos_t, phi);
+    return {d.x, d.y, d.z};
 }
 
 /** The mirror direction of wo about the normal. */

@@ -17,11 +17,6 @@ namespace {
 
 namespace fl = spangle::flake;
 
-fl::V3 fdir(float cos_t, float phi) {
-    const Vec3 d = dir(cos_t, phi);
-    return {d.x, d.y, d.z};
-}
-
 /** A Fresnel table varying with the angle (a dielectric, steep at grazing), so that tests see the
  *  Fresnel weighting too. */
 fl::FresnelTable dielectric_table() {

@@ -27,11 +27,6 @@ namespace {
 namespace fl = spangle::flake;
 namespace fs = std::filesystem;
 
-fl::V3 fdir(float cos_t, float phi) {
-    const Vec3 d = dir(cos_t, phi);
-    return {d.x, d.y, d.z};
-}
-
 /** A dielectric Fresnel table (steep at grazing), so that the Fresnel weighting is exercised. */
 fl::FresnelTable dielectric() {
     fl::FresnelTable t;

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "desc_support.h"
 #include "gltf_writer.h"
 #include "pipeline/session.h"
 #include "scene/gltf/gltf_reader.h"
@@ -21,6 +22,7 @@ namespace spangle {
 namespace {
 
 using test::GltfWriter;
+using test::has_note;
 namespace fs = std::filesystem;
 
 /** The bytes of a file. */
@@ -42,7 +44,7 @@ std::string quad_mesh(GltfWriter& w, int material) {
 }
 
 /** m's parameter `name` (throws when m has none). */
-const ParamDesc& param(const MaterialDesc& m, const std::string& name) {
+const ParamDesc& param_of(const MaterialDesc& m, const std::string& name) {
     for (const ParamDesc& p : m.params)
         if (p.name == name) return p;
     throw std::runtime_error("material " + m.name + " has no parameter " + name);
@@ -52,13 +54,6 @@ const ParamDesc& param(const MaterialDesc& m, const std::string& name) {
 bool has_param(const MaterialDesc& m, const std::string& name) {
     for (const ParamDesc& p : m.params)
         if (p.name == name) return true;
-    return false;
-}
-
-/** Whether a note contains `text`. */
-bool has_note(const SceneDescription& d, const std::string& text) {
-    for (const std::string& n : d.notes)
-        if (n.find(text) != std::string::npos) return true;
     return false;
 }
 
@@ -124,14 +119,14 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_EQ(paint.name, "Paint");
     EXPECT_EQ(paint.plugin, "smooth");
     EXPECT_EQ(paint.model, "metal_rough");
-    EXPECT_EQ(param(paint, "base_color").kind, ParamDesc::Kind::Color);
-    EXPECT_EQ(param(paint, "base_color").color.space, "lin_rec709");  // glTF factors are linear
-    EXPECT_FLOAT_EQ(param(paint, "base_color").color.rgb.y, 0.2f);
-    EXPECT_EQ(param(paint, "metallic").number, 0.25);
-    EXPECT_EQ(param(paint, "roughness").number, 0.5);
+    EXPECT_EQ(param_of(paint, "base_color").kind, ParamDesc::Kind::Color);
+    EXPECT_EQ(param_of(paint, "base_color").color.space, "lin_rec709");  // glTF factors are linear
+    EXPECT_FLOAT_EQ(param_of(paint, "base_color").color.rgb.y, 0.2f);
+    EXPECT_EQ(param_of(paint, "metallic").number, 0.25);
+    EXPECT_EQ(param_of(paint, "roughness").number, 0.5);
 
     const MaterialDesc& tex = d.materials[1];
-    const ParamDesc& base = param(tex, "base_color");
+    const ParamDesc& base = param_of(tex, "base_color");
     ASSERT_EQ(base.kind, ParamDesc::Kind::Texture);
     EXPECT_EQ(base.texture.space, "srgb_texture");  // colour textures are sRGB-encoded
     EXPECT_EQ(base.texture.scale[0], 0.5f);         // times baseColorFactor
@@ -140,7 +135,7 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     // s = 2 u + 0.5 and 1 - t = 1 - (4 (1 - v) + 0.25) = 4 v - 3.25.
     const float want[6] = {2, 0, 0.5f, 0, 4, -3.25f};
     for (int k = 0; k < 6; ++k) EXPECT_NEAR(base.texture.uv[k], want[k], 1e-6f) << k;
-    const ParamDesc& mr = param(tex, "metallic_roughness");
+    const ParamDesc& mr = param_of(tex, "metallic_roughness");
     ASSERT_EQ(mr.kind, ParamDesc::Kind::Texture);
     EXPECT_EQ(mr.texture.space, "raw");  // data
     EXPECT_EQ(mr.texture.wrap, 3);       // MIRRORED_REPEAT (wrapT differs: noted)
@@ -158,18 +153,18 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_EQ(bytes_of(base.texture.path), png);
 
     const MaterialDesc& coat = d.materials[2];
-    EXPECT_EQ(param(coat, "clearcoat").number, 0.75);
-    EXPECT_NEAR(param(coat, "clearcoat_roughness").number, 0.1, 1e-12);
-    EXPECT_NEAR(param(coat, "ior").number, 1.8, 1e-12);
-    EXPECT_EQ(param(coat, "specular").number, 0.5);
-    EXPECT_FLOAT_EQ(param(coat, "specular_color").color.rgb.z, 0.8f);
+    EXPECT_EQ(param_of(coat, "clearcoat").number, 0.75);
+    EXPECT_NEAR(param_of(coat, "clearcoat_roughness").number, 0.1, 1e-12);
+    EXPECT_NEAR(param_of(coat, "ior").number, 1.8, 1e-12);
+    EXPECT_EQ(param_of(coat, "specular").number, 0.5);
+    EXPECT_FLOAT_EQ(param_of(coat, "specular_color").color.rgb.z, 0.8f);
     EXPECT_TRUE(has_note(d, "specularTexture (its alpha channel) is dropped"));
     EXPECT_TRUE(has_note(d, "clearcoatNormalTexture is dropped"));
 
     const MaterialDesc& glass = d.materials[3];
     EXPECT_EQ(glass.model, "dielectric");
-    EXPECT_NEAR(param(glass, "roughness").number, 0.09, 1e-12);  // alpha = roughness^2
-    EXPECT_NEAR(param(glass, "ior").number, 1.33, 1e-12);
+    EXPECT_NEAR(param_of(glass, "roughness").number, 0.09, 1e-12);  // alpha = roughness^2
+    EXPECT_NEAR(param_of(glass, "ior").number, 1.33, 1e-12);
 
     EXPECT_TRUE(has_note(d, "KHR_materials_iridescence is dropped"));
     EXPECT_TRUE(has_note(d, "material extension KHR_materials_sheen is not read"));
@@ -182,17 +177,17 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
 
     const MaterialDesc& flakes = d.materials[5];
     EXPECT_EQ(flakes.plugin, "flake");
-    EXPECT_EQ(param(flakes, "density").number, 150000.0);
-    EXPECT_TRUE(param(flakes, "seed").is_integer);
-    EXPECT_EQ(param(flakes, "shadowing").kind, ParamDesc::Kind::Bool);
-    EXPECT_EQ(param(flakes, "fresnel").text, "schlick");
-    EXPECT_EQ(param(flakes, "flake_color").kind, ParamDesc::Kind::Color);
-    EXPECT_EQ(param(flakes, "flake_weight").kind, ParamDesc::Kind::Texture);
-    EXPECT_EQ(param(flakes, "flake_weight").texture.space, "raw");
-    EXPECT_EQ(param(flakes, "flake_weight").texture.scale[0], 0.5f);
-    EXPECT_FLOAT_EQ(param(flakes, "base_color").color.rgb.x, 0.1f);
-    EXPECT_EQ(param(flakes, "coat").number, 1.0);
-    EXPECT_NEAR(param(flakes, "coat_roughness").number, 0.04, 1e-12);
+    EXPECT_EQ(param_of(flakes, "density").number, 150000.0);
+    EXPECT_TRUE(param_of(flakes, "seed").is_integer);
+    EXPECT_EQ(param_of(flakes, "shadowing").kind, ParamDesc::Kind::Bool);
+    EXPECT_EQ(param_of(flakes, "fresnel").text, "schlick");
+    EXPECT_EQ(param_of(flakes, "flake_color").kind, ParamDesc::Kind::Color);
+    EXPECT_EQ(param_of(flakes, "flake_weight").kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(param_of(flakes, "flake_weight").texture.space, "raw");
+    EXPECT_EQ(param_of(flakes, "flake_weight").texture.scale[0], 0.5f);
+    EXPECT_FLOAT_EQ(param_of(flakes, "base_color").color.rgb.x, 0.1f);
+    EXPECT_EQ(param_of(flakes, "coat").number, 1.0);
+    EXPECT_NEAR(param_of(flakes, "coat_roughness").number, 0.04, 1e-12);
     EXPECT_FALSE(has_param(flakes, "metallic"));
 
     EXPECT_EQ(d.materials[6].name, "Twin");
@@ -205,8 +200,8 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_EQ(d.objects[1].emission->intensity, 4.0);
     EXPECT_FALSE(d.objects[0].emission);
     // Each parameter is blamed on its place in the JSON: line 1, the column of its value.
-    EXPECT_EQ(param(paint, "metallic").loc.line, 1);
-    EXPECT_GT(param(paint, "metallic").loc.column, 1);
+    EXPECT_EQ(param_of(paint, "metallic").loc.line, 1);
+    EXPECT_GT(param_of(paint, "metallic").loc.column, 1);
 }
 
 TEST(GltfMaterials, EveryMaterialIsAcceptedByItsPluginAndRenders) {
@@ -235,10 +230,10 @@ TEST(GltfMaterials, AnImageWrittenOnceIsNotWrittenAgain) {
     GltfWriter w;
     w.write_gltf(dir.file("mat.gltf"), material_body(w, png));
     const std::string file =
-        param(read_gltf_scene(dir.file("mat.gltf"), {}).materials[1], "base_color").texture.path;
+        param_of(read_gltf_scene(dir.file("mat.gltf"), {}).materials[1], "base_color").texture.path;
     const auto written = fs::last_write_time(file);
     const std::string again =
-        param(read_gltf_scene(dir.file("mat.gltf"), {}).materials[1], "base_color").texture.path;
+        param_of(read_gltf_scene(dir.file("mat.gltf"), {}).materials[1], "base_color").texture.path;
     EXPECT_EQ(again, file);
     EXPECT_EQ(fs::last_write_time(file), written);  // unchanged: the texture cache keeps its entry
 }

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "desc_support.h"
 #include "gltf_writer.h"
 #include "render/camera.h"
 #include "scene/gltf/gltf_reader.h"
@@ -18,6 +19,8 @@ namespace spangle {
 namespace {
 
 using test::GltfWriter;
+using test::has_note;
+using test::param;
 
 /** A unit quad in the xy plane facing +z: accessors for POSITION, NORMAL, TEXCOORD_0, indices. */
 struct QuadAccessors {
@@ -42,24 +45,11 @@ std::string quad_primitive(const QuadAccessors& q, int material, const std::stri
         material >= 0 ? fmt::format(R"(,"material":{})", material) : std::string());
 }
 
-/** Whether a note contains `text`. */
-bool has_note(const SceneDescription& d, const std::string& text) {
-    for (const std::string& n : d.notes)
-        if (n.find(text) != std::string::npos) return true;
-    return false;
-}
-
 /** How many notes contain `text`. */
 int count_notes(const SceneDescription& d, const std::string& text) {
     int n = 0;
     for (const std::string& s : d.notes) n += s.find(text) != std::string::npos ? 1 : 0;
     return n;
-}
-
-const ParamDesc* param(const MaterialDesc& m, const std::string& name) {
-    for (const ParamDesc& p : m.params)
-        if (p.name == name) return &p;
-    return nullptr;
 }
 
 /** Expects every entry of a and b within tol. */

@@ -9,6 +9,7 @@
 #include <cmath>
 #include <fstream>
 
+#include "desc_support.h"
 #include "geometry/mesh_load.h"
 #include "scene/pbrt/pbrt_reader.h"
 #include "scene/scene_builder.h"
@@ -17,6 +18,8 @@
 
 namespace spangle {
 namespace {
+
+using test::param;
 
 /** A folder with the files the scenes below name (an image, a PLY, a spectrum). */
 class Files {
@@ -54,12 +57,6 @@ const MaterialDesc& material(const SceneDescription& d, const std::string& name)
     for (const MaterialDesc& m : d.materials)
         if (m.name == name) return m;
     throw std::runtime_error("no material " + name);
-}
-
-const ParamDesc* param(const MaterialDesc& m, const std::string& name) {
-    for (const ParamDesc& p : m.params)
-        if (p.name == name) return &p;
-    return nullptr;
 }
 
 double number(const MaterialDesc& m, const std::string& name) {
