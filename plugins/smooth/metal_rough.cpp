@@ -76,16 +76,20 @@ const AlbedoTables& tables() {
     return shipped_albedo_tables();
 }
 
-/** Bilinear lookup of a table at (mu, alpha); avg: the j-row's average (mu ignored). */
-float lookup(const float (&tab)[kRough][kMu], float mu, float alpha) {
+/** Bilinear lookup of both tables, A and B, at (mu, alpha): one set of weights for the two. */
+void lookup(const AlbedoTables& tab, float mu, float alpha, float& a, float& b) {
     const float x = std::clamp(mu * kMu - 0.5f, 0.0f, static_cast<float>(kMu - 1));
     const float y =
         std::clamp(std::sqrt(alpha) * (kRough - 1), 0.0f, static_cast<float>(kRough - 1));
     const int i = std::min(static_cast<int>(x), kMu - 2),
               j = std::min(static_cast<int>(y), kRough - 2);
     const float s = x - static_cast<float>(i), t = y - static_cast<float>(j);
-    return (tab[j][i] * (1 - s) + tab[j][i + 1] * s) * (1 - t) +
-           (tab[j + 1][i] * (1 - s) + tab[j + 1][i + 1] * s) * t;
+    const auto bilerp = [&](const float(&v)[kRough][kMu]) {
+        return (v[j][i] * (1 - s) + v[j][i + 1] * s) * (1 - t) +
+               (v[j + 1][i] * (1 - s) + v[j + 1][i + 1] * s) * t;
+    };
+    a = bilerp(tab.a);
+    b = bilerp(tab.b);
 }
 
 /** Linear lookup of an average table at alpha. */
@@ -191,7 +195,8 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
         c.alpha = std::max(c.alpha, floor);
         c.alpha_c = std::max(c.alpha_c, floor);
         const float mu = std::max(c.wo.z, 0.0f);
-        const float a = lookup(t.a, mu, c.alpha), bb = lookup(t.b, mu, c.alpha);
+        float a, bb;
+        lookup(t, mu, c.alpha, a, bb);
         const float aa = lookup_avg(t.a_avg, c.alpha), ba = lookup_avg(t.b_avg, c.alpha);
         float e_metal[3];
         for (int ch = 0; ch < 3; ++ch) {
@@ -199,7 +204,9 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
             c.e_avg[ch] = c.f0[ch] * aa + c.f90 * ba;
             e_metal[ch] = c.base[ch] * a + bb;
         }
-        c.ec_o = c.coat * (0.04f * lookup(t.a, mu, c.alpha_c) + lookup(t.b, mu, c.alpha_c));
+        float ac, bc;
+        lookup(t, mu, c.alpha_c, ac, bc);
+        c.ec_o = c.coat * (0.04f * ac + bc);
         // Lobes in proportion to the energy each returns at wo, every present lobe at least a
         // tenth of the time so that none is starved of samples.
         const float under = 1.0f - c.ec_o;
@@ -231,9 +238,10 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
     const float w = std::pow(1.0f - std::clamp(dot(wo, h), 0.0f, 1.0f), 5.0f);
     const float d = ggx_d(h, c.alpha, c.alpha);
     const float s = d * ggx_g2(wo, wi, c.alpha, c.alpha) / (4.0f * wo.z * wi.z);
-    const float a_i = lookup(t.a, wi.z, c.alpha), b_i = lookup(t.b, wi.z, c.alpha);
-    const float ec_i =
-        c.coat * (0.04f * lookup(t.a, wi.z, c.alpha_c) + lookup(t.b, wi.z, c.alpha_c));
+    float a_i, b_i, ac_i, bc_i;
+    lookup(t, wi.z, c.alpha, a_i, b_i);
+    lookup(t, wi.z, c.alpha_c, ac_i, bc_i);
+    const float ec_i = c.coat * (0.04f * ac_i + bc_i);
     const float dc = ggx_d(h, c.alpha_c, c.alpha_c);
     const float sc = dc * ggx_g2(wo, wi, c.alpha_c, c.alpha_c) / (4.0f * wo.z * wi.z);
     const float coat = c.coat * (0.04f + 0.96f * w) * sc;
