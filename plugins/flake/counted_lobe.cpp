@@ -94,13 +94,25 @@ void add_stand_ins(CountedFootprint& cf, const DirectionGrid& grid, const ColorT
                    const FresnelTable& fresnel, const FilmTables& film, V3 wo,
                    std::vector<CacheEntry>& out) {
     cf.smooth = 0.0f;
-    // Sparse aggregates (up to kMaxStandIns flakes) are all stand-ins; denser ones have as many
-    // as a sparse one would, at least kMinStandIns: the glints' grain needs no more.
+    // The footprint's stand-ins: as many as a sparse footprint would light every direction with
+    // (at least kMinStandIns, at most kMaxStandIns; the glints' grain needs no more), shared
+    // among its aggregates by their counts. A footprint whose aggregates hold fewer flakes has
+    // them all as stand-ins. Shared per footprint, not given per aggregate: a footprint over
+    // four cells would otherwise hold four times the stand-ins of its neighbour inside one cell
+    // (finer grain in a pattern of the cell grid, and four times the cost).
     const auto cap =
         static_cast<uint32_t>(std::clamp(sparse_count(grid, wo.z), static_cast<float>(kMinStandIns),
                                          static_cast<float>(kMaxStandIns)));
+    uint64_t total = 0;
+    for (uint32_t a = 0; a < cf.n_agg; ++a) total += cf.agg[a].count;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
-        const uint32_t k = cf.agg[a].count, stand_ins = std::min(k, cap);
+        const uint32_t k = cf.agg[a].count;
+        const uint32_t stand_ins =
+            total <= cap
+                ? k
+                : std::min(k, std::max<uint32_t>(
+                                  1, static_cast<uint32_t>(std::ceil(static_cast<double>(cap) * k /
+                                                                     static_cast<double>(total)))));
         if (stand_ins == 0) continue;
         // beta = sqrt(K / k) of the aggregate's weight is in its K stand-ins, sqrt(k / K) each.
         const float scale = std::sqrt(static_cast<float>(k) / static_cast<float>(stand_ins));

@@ -11,12 +11,13 @@
 // - its count inside the footprint is k = B(n, rho), rho the share of the cell's area the
 //   footprint covers, drawn by inverting a uniform fixed per cell (so k only grows as the
 //   footprint covers more of the cell);
-// - K = min(k, K_max) of its flakes are stand-ins: normals drawn from the flake distribution by a
+// - K of its flakes are stand-ins (the footprint's K_max shared among its aggregates by their
+//   counts, K = min(k, ceil(K_max k / sum of k))): normals drawn from the flake distribution by a
 //   hash of (the aggregate's key, index), each entering the reflection cache as a real flake does
 //   (its own cone, colour and film), with its weight times sqrt(k / K); the other k (1 - beta)
 //   flakes' worth, beta = sqrt(K / k), is the smooth lobe (the exact expectation of one flake's
-//   lobe) times k (1 - beta) flakes of the expected weight. With k <= K_max every flake of the
-//   aggregate is a stand-in of its own (beta = 1).
+//   lobe) times k (1 - beta) flakes of the expected weight. When the footprint's aggregates hold
+//   at most K_max flakes in all, every one is a stand-in of its own (beta = 1).
 //
 // Energy: the normaliser W is the sum of the weights of what the lobe holds, the cache's (true
 // flakes and stand-ins, each w_j times its factor) plus k (1 - beta) E[w]; each cache entry
@@ -76,7 +77,8 @@ struct CountedFootprint {
 constexpr float kDenseLit = 16.0f;
 float sparse_count(const DirectionGrid& grid, float cos_o);
 
-/** Stand-ins per aggregate, at most: sparse_count() clamped to [kMinStandIns, kMaxStandIns]. */
+/** Stand-ins per footprint, shared among its aggregates (each at least one): sparse_count()
+ *  clamped to [kMinStandIns, kMaxStandIns]. */
 constexpr uint32_t kMinStandIns = 16;
 constexpr uint32_t kMaxStandIns = 64;
 
