@@ -6,7 +6,8 @@
 // The tables are shipped as numbers (albedo_tables_data.inc) rather than made when the plugin
 // loads: 32 x 32 entries of 512 visible-normal samples each cost about 180 million instructions,
 // which every process that renders a metal_rough material paid before its first sample (measured
-// with callgrind on a car of 262k triangles: 13% of a small render's instructions).
+// with callgrind: 13% of the instructions of a 160x90, 4-spp render of the car of
+// tests/bench/cycles_time_to_quality.py).
 // compute_albedo_tables() is the quadrature they were written from; the test
 // MetalRoughTables.ShippedTablesAreTheQuadrature recomputes it and compares, and writes the file
 // anew when they differ (after a change of the quadrature or of the GGX functions).
