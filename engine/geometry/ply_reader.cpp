@@ -340,6 +340,25 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             if (list < 0)
                 throw_error(ref, "mesh '{}': its faces have no vertex_indices list", path);
             mesh.indices.reserve(3 * e.count);
+            // The checks of a face's list, and its triangle fan, for both paths below.
+            const auto check_count = [&](uint64_t i, double n, double fit) {
+                if (n < 0 || n > fit)
+                    throw_error(ref,
+                                "mesh '{}': face {} claims {} corners, more than the file holds",
+                                path, i, n);
+            };
+            const auto check_corners = [&](uint64_t i, double n) {
+                if (n < 3)
+                    throw_error(ref, "mesh '{}': face {} has {} corners; a face needs 3 or more",
+                                path, i, n);
+            };
+            const auto bad_index = [&](uint64_t i, double c) {
+                throw_error(ref, "mesh '{}': face {} has corner index {}", path, i, c);
+            };
+            const auto fan = [&](const uint32_t* c, std::size_t n) {
+                for (std::size_t j = 1; j + 1 < n; ++j)
+                    mesh.indices.insert(mesh.indices.end(), {c[0], c[j], c[j + 1]});
+            };
             // The common layout, one little-endian list of uchar count and int or uint indices,
             // read directly, with the general path's checks and messages.
             const Property& lp = e.props[static_cast<std::size_t>(list)];
@@ -350,28 +369,18 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 uint32_t corner[256];
                 for (uint64_t i = 0; i < e.count; ++i) {
                     const auto n = static_cast<unsigned char>(*reader.take(1, "the faces"));
-                    if (n > reader.remaining())
-                        throw_error(ref,
-                                    "mesh '{}': face {} claims {} corners, more than the "
-                                    "file holds",
-                                    path, i, n);
-                    if (n < 3)
-                        throw_error(ref,
-                                    "mesh '{}': face {} has {} corners; a face needs 3 or more",
-                                    path, i, n);
+                    check_count(i, n, static_cast<double>(reader.remaining()));
+                    check_corners(i, n);
                     const char* at = reader.take(4 * std::size_t{n}, "the faces");
                     for (unsigned j = 0; j < n; ++j) {
                         uint32_t c;
                         std::memcpy(&c, at + 4 * j, 4);
                         if (is_signed ? static_cast<int32_t>(c) < 0 : c == 0xffffffffu)
-                            throw_error(ref, "mesh '{}': face {} has corner index {}", path, i,
-                                        is_signed ? static_cast<int64_t>(static_cast<int32_t>(c))
-                                                  : static_cast<int64_t>(c));
+                            bad_index(i, is_signed ? static_cast<double>(static_cast<int32_t>(c))
+                                                   : static_cast<double>(c));
                         corner[j] = c;
                     }
-                    for (unsigned j = 1; j + 1 < n; ++j)
-                        mesh.indices.insert(mesh.indices.end(),
-                                            {corner[0], corner[j], corner[j + 1]});
+                    fan(corner, n);
                 }
                 continue;
             }
@@ -386,30 +395,20 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                     const double n = reader.read(p.count_type, "the faces");
                     const double fit = static_cast<double>(reader.remaining()) /
                                        (*format == Format::Ascii ? 2.0 : 1.0);
-                    if (n < 0 || n > fit)
-                        throw_error(ref,
-                                    "mesh '{}': face {} claims {} corners, more than the "
-                                    "file holds",
-                                    path, i, n);
+                    check_count(i, n, fit);
                     if (static_cast<int>(k) != list) {
                         for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j)
                             reader.read(p.type, "the faces");
                         continue;
                     }
-                    if (n < 3)
-                        throw_error(ref,
-                                    "mesh '{}': face {} has {} corners; a face needs 3 or more",
-                                    path, i, n);
+                    check_corners(i, n);
                     corners.clear();
                     for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j) {
                         const double c = reader.read(p.type, "the faces");
-                        if (!(c >= 0 && c < 4294967295.0) || c != std::floor(c))
-                            throw_error(ref, "mesh '{}': face {} has corner index {}", path, i, c);
+                        if (!(c >= 0 && c < 4294967295.0) || c != std::floor(c)) bad_index(i, c);
                         corners.push_back(static_cast<uint32_t>(c));
                     }
-                    for (std::size_t j = 1; j + 1 < corners.size(); ++j)
-                        mesh.indices.insert(mesh.indices.end(),
-                                            {corners[0], corners[j], corners[j + 1]});
+                    fan(corners.data(), corners.size());
                 }
             }
         } else if (!e.props.empty()) {

@@ -2,12 +2,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace spangle::flake {
 
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 struct D3 {
     double x = 0, y = 0, z = 0;
@@ -95,16 +94,16 @@ struct RayQuadric {
         // a + 2 b x + c x^2 = 0 for x = tan t: x > 0 gives t in (0, pi/2), x < 0 t in (pi/2, pi).
         if (c == 0.0) {
             // cos t (a cos t + 2 b sin t): zero at pi/2, or earlier when b < 0.
-            return b < 0.0 ? fast_atan(-a / (2.0 * b)) : 0.5 * kPi;
+            return b < 0.0 ? fast_atan(-a / (2.0 * b)) : 0.5 * std::numbers::pi;
         }
         const double disc = b * b - a * c;
-        if (disc < 0.0) return kPi;
+        if (disc < 0.0) return std::numbers::pi;
         const double q = -(b + std::copysign(std::sqrt(disc), b));
-        if (q == 0.0) return kPi;
-        double best = kPi;
+        if (q == 0.0) return std::numbers::pi;
+        double best = std::numbers::pi;
         for (const double x : {q / c, a / q}) {
             if (!std::isfinite(x) || x == 0.0) continue;
-            best = std::min(best, x > 0.0 ? fast_atan(x) : kPi - fast_atan(-x));
+            best = std::min(best, x > 0.0 ? fast_atan(x) : std::numbers::pi - fast_atan(-x));
         }
         return best;
     }
@@ -132,7 +131,8 @@ struct RayPlane {
     double first_zero(double cs, double sn) const {
         const double l = cs * l1 + sn * l2;
         // l0 cos t + l sin t = 0.
-        if (l >= 0.0) return l == 0.0 ? 0.5 * kPi : kPi - fast_atan(l0 / l);
+        if (l >= 0.0)
+            return l == 0.0 ? 0.5 * std::numbers::pi : std::numbers::pi - fast_atan(l0 / l);
         return fast_atan(l0 / -l);
     }
     double distance() const { return std::asin(std::clamp(l0, -1.0, 1.0)); }
@@ -187,8 +187,8 @@ struct AngleTable {
     double c[kSize], s[kSize];
     AngleTable() {
         for (int k = 0; k < kSize; ++k) {
-            c[k] = std::cos(2.0 * kPi * k / kSize);
-            s[k] = std::sin(2.0 * kPi * k / kSize);
+            c[k] = std::cos(2.0 * std::numbers::pi * k / kSize);
+            s[k] = std::sin(2.0 * std::numbers::pi * k / kSize);
         }
     }
 };
@@ -280,7 +280,7 @@ double angular_sum(const Region& r, double tolerance, double sum_f[3]) {
         const double current = total / n;
         if (std::fabs(current - previous) <= tolerance * std::fabs(current)) break;
     }
-    const double w = 2.0 * kPi / n;
+    const double w = 2.0 * std::numbers::pi / n;
     for (int c = 0; c < 3; ++c) sum_f[c] *= w;
     return total * w;
 }
@@ -308,7 +308,7 @@ D3 unstretched_view(float alpha, V3 wo, double& area) {
     const double a = alpha;
     const D3 v = normalized(
         {a * static_cast<double>(wo.x), a * static_cast<double>(wo.y), static_cast<double>(wo.z)});
-    area = 0.5 * kPi * (1.0 + v.z);
+    area = 0.5 * std::numbers::pi * (1.0 + v.z);
     return v;
 }
 
@@ -365,7 +365,7 @@ void cap_integral(const CapParams& p, V3 wo_f, V3 wi_f, float i_f[3], float& i_1
     // The cap's extent bounds where the other constraints can matter.
     double reach = 0.0;
     for (int j = 0; j < 8; ++j) {
-        const double phi = 2.0 * kPi * j / 8;
+        const double phi = 2.0 * std::numbers::pi * j / 8;
         reach = std::max(reach, cap.first_zero(std::cos(phi), std::sin(phi)));
     }
     const double margin = 1.5 * reach + 1e-3;

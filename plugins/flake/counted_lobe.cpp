@@ -103,8 +103,7 @@ void add_stand_ins(CountedFootprint& cf, const DirectionGrid& grid, const ColorT
     const auto cap =
         static_cast<uint32_t>(std::clamp(sparse_count(grid, wo.z), static_cast<float>(kMinStandIns),
                                          static_cast<float>(kMaxStandIns)));
-    uint64_t total = 0;
-    for (uint32_t a = 0; a < cf.n_agg; ++a) total += cf.agg[a].count;
+    const uint32_t total = cf.aggregated;  // the sum of the aggregates' counts
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const uint32_t k = cf.agg[a].count;
         const uint32_t stand_ins =

@@ -2,27 +2,27 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "field.h"
 
 namespace spangle::flake {
 
 FacetShape::FacetShape(FacetKind kind) {
-    constexpr double kPi = 3.14159265358979323846;
     // Regular polygons: the hexagon is 1 wide flat to flat (circumradius 1 / sqrt 3), the square
     // 1 wide side to side, the disc a 32-gon of diameter 1 through its corners.
     const int sides = kind == FacetKind::Hexagon ? 6 : kind == FacetKind::Square ? 4 : 32;
     radius = kind == FacetKind::Hexagon  ? 1.0 / std::sqrt(3.0)
              : kind == FacetKind::Square ? std::sqrt(0.5)
                                          : 0.5;
-    const double start = kind == FacetKind::Square ? 0.25 * kPi : 0.0;
+    const double start = kind == FacetKind::Square ? 0.25 * std::numbers::pi : 0.0;
     n = sides;
     for (int i = 0; i < n; ++i) {
-        const double a = start + 2.0 * kPi * i / n;
+        const double a = start + 2.0 * std::numbers::pi * i / n;
         x[i] = radius * std::cos(a);
         y[i] = radius * std::sin(a);
     }
-    area = 0.5 * n * radius * radius * std::sin(2.0 * kPi / n);
+    area = 0.5 * n * radius * radius * std::sin(2.0 * std::numbers::pi / n);
 }
 
 namespace {

@@ -3,14 +3,13 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <numbers>
 
 #include "smooth_lobe.h"
 
 namespace spangle::flake {
 
 namespace {
-
-constexpr double kPiD = 3.14159265358979323846;
 
 /** The 15-point Gauss-Kronrod rule on [-1, 1] (Kronrod 1965; the constants of QUADPACK's qk15):
  *  nodes +-kXk[i], Kronrod weights kWk[i]; the 7-point Gauss rule uses the odd nodes with
@@ -42,7 +41,7 @@ double radial(double a0, double a1, double ra, double rb) {
         d1 = d * (rb + ra) / (2.0 * pa * pb);
         d2 = 0.5 * (std::atan2(d, 1.0 + ra * rb) - d * (1.0 - ra * rb) / (pa * pb));
     }
-    return (a0 * d1 + a1 * d2) / kPiD;
+    return (a0 * d1 + a1 * d2) / std::numbers::pi;
 }
 
 /** Roots r0 <= r1 of a rho^2 + b rho + c, a != 0 (numerically stable); false without any. */
@@ -174,7 +173,8 @@ struct Problem {
                 for (int c = 0; c < 3; ++c) mf[c] += part * sum[c] / wsum;
             return;
         }
-        const double t0 = std::atan(lo), t1 = std::isinf(hi) ? 0.5 * kPiD : std::atan(hi);
+        const double t0 = std::atan(lo),
+                     t1 = std::isinf(hi) ? 0.5 * std::numbers::pi : std::atan(hi);
         const auto cos_at = [&](double t, double& weight) {
             const double c = std::cos(t), s = std::sin(t), lin = std::max(0.0, woz * c + a1 * s);
             weight = lin * s;
@@ -324,8 +324,9 @@ double arc(const Problem& pr, double c, double h, bool horizon, double mf[3]) {
         return jac * m;
     };
     double cuts[8];
-    const int n = horizon ? kinks(pr, c, h, -0.5 * kPiD, 0.5 * kPiD, cuts) : 0;
-    return pieces(g, -0.5 * kPiD, 0.5 * kPiD, cuts, n, mf);
+    const int n =
+        horizon ? kinks(pr, c, h, -0.5 * std::numbers::pi, 0.5 * std::numbers::pi, cuts) : 0;
+    return pieces(g, -0.5 * std::numbers::pi, 0.5 * std::numbers::pi, cuts, n, mf);
 }
 
 /** The periodic trapezoid rule over the whole circle, doubling from 16 directions until two
@@ -336,7 +337,7 @@ double circle(const Problem& pr, double mf[3]) {
     int n = 16;
     double sum = 0.0, first_f[3] = {0, 0, 0};
     for (int k = 0; k < n; ++k) {
-        const double phi = 2.0 * kPiD * k / n;
+        const double phi = 2.0 * std::numbers::pi * k / n;
         sum += pr.ray(std::cos(phi), std::sin(phi), first_f);
     }
     double first = sum;
@@ -344,7 +345,7 @@ double circle(const Problem& pr, double mf[3]) {
         const bool with_f = n < 64;
         double add = 0.0;
         for (int k = 0; k < n; ++k) {
-            const double phi = 2.0 * kPiD * (k + 0.5) / n;
+            const double phi = 2.0 * std::numbers::pi * (k + 0.5) / n;
             add += pr.ray(std::cos(phi), std::sin(phi), with_f ? first_f : nullptr);
         }
         const double before = sum / n;
@@ -353,7 +354,7 @@ double circle(const Problem& pr, double mf[3]) {
         n *= 2;
         if (std::fabs(sum / n - before) <= 1e-4 * std::fabs(sum / n)) break;
     }
-    const double mass = sum * 2.0 * kPiD / n;
+    const double mass = sum * 2.0 * std::numbers::pi / n;
     if (first > 0.0)
         for (int c = 0; c < 3; ++c) mf[c] += mass * first_f[c] / first;
     return mass;
@@ -364,10 +365,12 @@ double circle(const Problem& pr, double mf[3]) {
 double circle_with_kinks(const Problem& pr, bool horizon, double mf[3]) {
     double cuts[8];
     // phi = pi sin(theta) maps theta in [-pi/2, pi/2] onto [-pi, pi] one to one.
-    const int n = horizon ? kinks(pr, 0.0, kPiD, -0.5 * kPiD, 0.5 * kPiD, cuts) : 0;
-    for (int i = 0; i < n; ++i) cuts[i] = kPiD * std::sin(cuts[i]);
+    const int n = horizon ? kinks(pr, 0.0, std::numbers::pi, -0.5 * std::numbers::pi,
+                                  0.5 * std::numbers::pi, cuts)
+                          : 0;
+    for (int i = 0; i < n; ++i) cuts[i] = std::numbers::pi * std::sin(cuts[i]);
     const auto g = [&](double phi, double f[3]) { return pr.ray(std::cos(phi), std::sin(phi), f); };
-    return pieces(g, -kPiD, kPiD, cuts, n, mf);
+    return pieces(g, -std::numbers::pi, std::numbers::pi, cuts, n, mf);
 }
 
 /** A region that contains the origin, by its boundary (Green's theorem in polar form): with the
@@ -500,10 +503,10 @@ bool boundary_integral(const Problem& pr, bool horizon, double& mass, double mf[
         constexpr int kScan = 32;
         bool prev = cone_bounds(0.0);
         for (int i = 1; i <= kScan && n_cuts < 8; ++i) {
-            const double th = 2.0 * kPiD * i / kScan;
+            const double th = 2.0 * std::numbers::pi * i / kScan;
             const bool now = cone_bounds(th);
             if (now == prev) continue;
-            double lo = 2.0 * kPiD * (i - 1) / kScan, hi = th;
+            double lo = 2.0 * std::numbers::pi * (i - 1) / kScan, hi = th;
             for (int it = 0; it < 24; ++it) {
                 const double m = 0.5 * (lo + hi);
                 (cone_bounds(m) == prev ? lo : hi) = m;
@@ -518,7 +521,8 @@ bool boundary_integral(const Problem& pr, bool horizon, double& mass, double mf[
         mass = 0.0;
         double f[3] = {0, 0, 0};
         for (int i = 0; i < n_cuts; ++i) {
-            const double a0 = cuts[i], a1 = i + 1 < n_cuts ? cuts[i + 1] : cuts[0] + 2.0 * kPiD;
+            const double a0 = cuts[i],
+                         a1 = i + 1 < n_cuts ? cuts[i + 1] : cuts[0] + 2.0 * std::numbers::pi;
             mass += pieces(g, a0, a1, nullptr, 0, f, 1e-5);
         }
         for (int c = 0; c < 3; ++c) mf[c] = f[c];
@@ -529,19 +533,21 @@ bool boundary_integral(const Problem& pr, bool horizon, double& mass, double mf[
     // Fresnel (a smooth average) from at most the first 64 angles.
     int n = 16;
     double sum = 0.0, fw[3] = {0, 0, 0};
-    for (int k = 0; k < n; ++k) sum += b.at(2.0 * kPiD * k / n, pr.fresnel ? fw : nullptr);
+    for (int k = 0; k < n; ++k)
+        sum += b.at(2.0 * std::numbers::pi * k / n, pr.fresnel ? fw : nullptr);
     double first = sum;
     while (n < 1024) {
         const bool with_f = pr.fresnel && n < 64;
         double add = 0.0;
-        for (int k = 0; k < n; ++k) add += b.at(2.0 * kPiD * (k + 0.5) / n, with_f ? fw : nullptr);
+        for (int k = 0; k < n; ++k)
+            add += b.at(2.0 * std::numbers::pi * (k + 0.5) / n, with_f ? fw : nullptr);
         const double before = sum / n;
         sum += add;
         if (with_f) first = sum;
         n *= 2;
         if (std::fabs(sum / n - before) <= 1e-5 * std::fabs(sum / n)) break;
     }
-    mass = sum * 2.0 * kPiD / n;
+    mass = sum * 2.0 * std::numbers::pi / n;
     for (int c = 0; c < 3; ++c) mf[c] = first > 0.0 ? mass * fw[c] / first : 0.0;
     return true;
 }
@@ -597,7 +603,7 @@ void slope_integral(float alpha, double sin2_half, const FresnelTable* fresnel, 
         } else {
             const double phi0 = 0.5 * std::atan2(q, p);
             const double h = 0.5 * std::acos(std::clamp(-m / amp, -1.0, 1.0));
-            for (const double c : {phi0, phi0 + kPiD}) {
+            for (const double c : {phi0, phi0 + std::numbers::pi}) {
                 if (!pr.meets(std::cos(c), std::sin(c))) continue;
                 mass += arc(pr, c, h, horizon, mf);
             }
@@ -642,8 +648,8 @@ double lobe_mass(float alpha, double sin2_half, V3 wo_f) {
                     const double c = std::cos(th), sn = std::sin(th), rho = sn / c;
                     const double rz = (2.0 * (woz + a1 * rho) - woz * (1.0 + a2 * rho * rho)) /
                                       (1.0 + a2 * rho * rho);
-                    band +=
-                        w * (woz * c + a1 * sn) * sn / kPiD * cone_fraction_above(rz, sin2_half);
+                    band += w * (woz * c + a1 * sn) * sn / std::numbers::pi *
+                            cone_fraction_above(rz, sin2_half);
                 }
         }
         return full + band;
@@ -651,8 +657,8 @@ double lobe_mass(float alpha, double sin2_half, V3 wo_f) {
     // Adaptive Gauss-Kronrod over the half circle: where the band appears on the rays the
     // integrand has kinks, which the periodic trapezoid rule would converge to slowly.
     double unused[3] = {0, 0, 0};
-    const double half =
-        pieces([&](double phi, double*) { return ray(phi); }, 0.0, kPiD, nullptr, 0, unused, 1e-6);
+    const double half = pieces([&](double phi, double*) { return ray(phi); }, 0.0, std::numbers::pi,
+                               nullptr, 0, unused, 1e-6);
     // Twice the half circle, times G1(wo) / wo_z.
     const double g1 = static_cast<double>(mf::ggx_g1(wo_f, alpha, alpha)) / woz;
     return std::clamp(2.0 * half * g1, 0.0, 1.0);

@@ -72,10 +72,6 @@ enum Param : uint32_t {
     kCoatRough
 };
 
-const AlbedoTables& tables() {
-    return shipped_albedo_tables();
-}
-
 /** Bilinear lookup of both tables, A and B, at (mu, alpha): one set of weights for the two. */
 void lookup(const AlbedoTables& tab, float mu, float alpha, float& a, float& b) {
     const float x = std::clamp(mu * kMu - 0.5f, 0.0f, static_cast<float>(kMu - 1));
@@ -169,7 +165,7 @@ float at(const SpangleShadingBatch_v3* b, uint32_t k, uint32_t i, float constant
 /** Per point: the parameters' values, Fresnel terms, albedos at wo, lobe probabilities. */
 void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, SpangleArena_v3*) {
     const auto& m = *static_cast<const MetalRough*>(inst);
-    const AlbedoTables& t = tables();
+    const AlbedoTables& t = shipped_albedo_tables();
     auto* out = static_cast<Closure*>(closures);
     const float r0 = (m.ior - 1.0f) / (m.ior + 1.0f);
     for (uint32_t i = 0; i < b->count; ++i) {
@@ -232,7 +228,7 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
 
 /** f (per channel) and pdf of the whole mixture for wo, wi in the upper hemisphere. */
 void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
-    const AlbedoTables& t = tables();
+    const AlbedoTables& t = shipped_albedo_tables();
     const V3 wo = c.wo;
     const V3 h = normalize(wo + wi);
     const float w = std::pow(1.0f - std::clamp(dot(wo, h), 0.0f, 1.0f), 5.0f);
