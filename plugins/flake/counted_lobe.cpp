@@ -11,27 +11,6 @@ void DirectionGrid::init(float alpha_, float gamma_rad) {
     sin2_half = s * s;
 }
 
-uint64_t place_key(uint64_t cell_key, const Footprint& local, double x0, double y0, double size) {
-    // Grid spacing: the largest power-of-two fraction of the cell not above half the footprint's
-    // half extent (at most 2^16 per side). Where the footprint is clipped by the cell's edge, two
-    // neighbours' parts of the cell are centred closer than the footprints are: a grid as coarse
-    // as the footprint put a sixth of such pairs in one place.
-    const double half = std::max(local.half_width(), local.half_height());
-    int q = 0;
-    while (q < 16 && size * std::ldexp(1.0, -(q + 1)) >= 0.5 * half) ++q;
-    const double step = size * std::ldexp(1.0, -q);
-    // The centre of the part of the cell under the footprint's bounding box (a footprint whose
-    // centre lies outside the cell is placed by the part it covers).
-    const auto cell = [&](double c, double h, double origin) {
-        const double lo = std::max(c - h, origin), hi = std::min(c + h, origin + size);
-        return static_cast<uint64_t>(std::clamp(std::floor((0.5 * (lo + hi) - origin) / step), 0.0,
-                                                std::ldexp(1.0, q) - 1.0));
-    };
-    return mix(
-        mix(cell_key, 0x9a11 + static_cast<uint64_t>(q)),
-        (cell(local.cu, local.half_width(), x0) << 20) | cell(local.cv, local.half_height(), y0));
-}
-
 int footprint_level(const FieldParams& fp, const Footprint& p) {
     const double s = 2.0 * std::max(p.half_width(), p.half_height());
     if (!(s > 0.0) || !std::isfinite(s)) return fp.max_depth;
@@ -85,40 +64,59 @@ NodeRef resolve_cell(const FieldParams& fp, int64_t tx, int64_t ty, int depth, u
     return node;
 }
 
-float sparse_count(const DirectionGrid& grid, float cos_o) {
-    return kDenseLit * grid.alpha * grid.alpha * std::max(cos_o, 0.0f) /
-           std::max(grid.sin2_half, 1e-12f);
-}
-
-void add_stand_ins(CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
-                   const FresnelTable& fresnel, const FilmTables& film, V3 wo,
-                   std::vector<CacheEntry>& out) {
+void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid& grid,
+                   const ColorTable& colors, const FresnelTable& fresnel, const FilmTables& film,
+                   V3 wo, std::vector<CacheEntry>& out) {
     cf.smooth = 0.0f;
-    // The footprint's stand-ins: as many as a sparse footprint would light every direction with
-    // (at least kMinStandIns, at most kMaxStandIns; the glints' grain needs no more), shared
-    // among its aggregates by their counts. A footprint whose aggregates hold fewer flakes has
-    // them all as stand-ins. Shared per footprint, not given per aggregate: a footprint over
-    // four cells would otherwise hold four times the stand-ins of its neighbour inside one cell
-    // (finer grain in a pattern of the cell grid, and four times the cost).
-    const auto cap =
-        static_cast<uint32_t>(std::clamp(sparse_count(grid, wo.z), static_cast<float>(kMinStandIns),
-                                         static_cast<float>(kMaxStandIns)));
-    const uint32_t total = cf.aggregated;  // the sum of the aggregates' counts
+    const double area = p.area();
+    uint32_t found_all = 0;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
-        const uint32_t k = cf.agg[a].count;
-        const uint32_t stand_ins =
-            total <= cap
-                ? k
-                : std::min(k, std::max<uint32_t>(
-                                  1, static_cast<uint32_t>(std::ceil(static_cast<double>(cap) * k /
-                                                                     static_cast<double>(total)))));
-        if (stand_ins == 0) continue;
+        const Aggregate& ag = cf.agg[a];
+        const uint32_t k = ag.count;
+        // The cell's virtual flakes: v per block, kStandIns per footprint area on average (the
+        // footprint is at most as large as the cell, so v >= 1 up to rounding).
+        const double block = ag.size / kStandInBlocks;
+        const double per_block = area > 0.0 ? kStandIns * block * block / area : 1.0;
+        const auto v = static_cast<uint32_t>(std::clamp(std::round(per_block), 1.0, 64.0));
+        Footprint local = p;
+        local.cu -= static_cast<double>(ag.tx);
+        local.cv -= static_cast<double>(ag.ty);
+        const auto range = [&](double c, double h, double origin, int& lo, int& hi) {
+            lo = std::clamp(static_cast<int>(std::floor((c - h - origin) / block)), 0,
+                            kStandInBlocks - 1);
+            hi = std::clamp(static_cast<int>(std::floor((c + h - origin) / block)), 0,
+                            kStandInBlocks - 1);
+        };
+        int bx0, bx1, by0, by1;
+        range(local.cu, local.half_width(), ag.x0, bx0, bx1);
+        range(local.cv, local.half_height(), ag.y0, by0, by1);
+        // The virtual flakes inside the footprint, at most k of them (the first in block order).
+        uint64_t found[kMaxStandIns];
+        uint32_t n = 0;
+        const uint32_t room = std::min(k, kMaxStandIns - found_all);
+        for (int by = by0; by <= by1 && n < room; ++by)
+            for (int bx = bx0; bx <= bx1 && n < room; ++bx) {
+                const uint64_t bkey =
+                    mix(ag.key, 0xb10c0000u + static_cast<uint64_t>(by * kStandInBlocks + bx));
+                for (uint32_t i = 0; i < v && n < room; ++i) {
+                    const uint64_t h = mix(bkey, i);
+                    float fx, fy;  // 24 bits each: a block's width / 2^24 apart
+                    unit2(h, fx, fy);
+                    const double x = ag.x0 + (bx + static_cast<double>(fx)) * block;
+                    const double y = ag.y0 + (by + static_cast<double>(fy)) * block;
+                    if (inside(local, x, y)) found[n++] = h;
+                }
+            }
+        found_all += n;
+        if (n == 0) {
+            cf.smooth += static_cast<float>(k);
+            continue;
+        }
         // beta = sqrt(K / k) of the aggregate's weight is in its K stand-ins, sqrt(k / K) each.
-        const float scale = std::sqrt(static_cast<float>(k) / static_cast<float>(stand_ins));
-        cf.smooth += static_cast<float>(k) - scale * static_cast<float>(stand_ins);
-        const uint64_t root = mix(cf.agg[a].key, 0xd1ec);
-        for (uint32_t q = 0; q < stand_ins; ++q) {
-            const uint64_t h = mix(root, 0x5eed0000u + q);
+        const float scale = std::sqrt(static_cast<float>(k) / static_cast<float>(n));
+        cf.smooth += static_cast<float>(k) - scale * static_cast<float>(n);
+        for (uint32_t q = 0; q < n; ++q) {
+            const uint64_t h = mix(found[q], 0x5eed);
             float s, t;
             unit2(h, s, t);
             const V3 m = flake_normal(grid.alpha, s, t);

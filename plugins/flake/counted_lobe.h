@@ -11,13 +11,18 @@
 // - its count inside the footprint is k = B(n, rho), rho the share of the cell's area the
 //   footprint covers, drawn by inverting a uniform fixed per cell (so k only grows as the
 //   footprint covers more of the cell);
-// - K of its flakes are stand-ins (the footprint's K_max shared among its aggregates by their
-//   counts, K = min(k, ceil(K_max k / sum of k))): normals drawn from the flake distribution by a
-//   hash of (the aggregate's key, index), each entering the reflection cache as a real flake does
-//   (its own cone, colour and film), with its weight times sqrt(k / K); the other k (1 - beta)
-//   flakes' worth, beta = sqrt(K / k), is the smooth lobe (the exact expectation of one flake's
-//   lobe) times k (1 - beta) flakes of the expected weight. When the footprint's aggregates hold
-//   at most K_max flakes in all, every one is a stand-in of its own (beta = 1).
+// - its stand-ins are virtual flakes of the cell: a sparse population with positions (a fixed
+//   number per block of an 8 x 8 grid over the cell, so many that about kStandIns of them fall
+//   inside a footprint of this size), each with a normal drawn from the flake distribution, its
+//   own colour and film, all a pure function of (seed, cell, block, index). The K of them inside
+//   the footprint (at most k) enter the reflection cache as real flakes do, each with its weight
+//   times sqrt(k / K); the other k (1 - beta) flakes' worth, beta = sqrt(K / k), is the smooth
+//   lobe (the exact expectation of one flake's lobe) times k (1 - beta) flakes of the expected
+//   weight. When a footprint's aggregate holds at most as many flakes as it finds stand-ins, the
+//   first k of them are its flakes (beta = 1).
+//   Because stand-ins have places, footprints share them as they share real flakes: two that
+//   overlap by half share about half (the samples of one pixel see nearly the same glints, as
+//   they see nearly the same flakes), two side by side share none (their glints are their own).
 //
 // Energy: the normaliser W is the sum of the weights of what the lobe holds, the cache's (true
 // flakes and stand-ins, each w_j times its factor) plus k (1 - beta) E[w]; each cache entry
@@ -30,7 +35,7 @@
 // it), the stand-ins give the lobe a relative variance beta^2 / (K p) = 1 / (k p), that of k real
 // flakes; with few flakes per cone (K = k) the glints are single flakes, as real ones are.
 //
-// Stand-ins are statistical: a pure function of (seed, cell, place, index), the same from every
+// Stand-ins are statistical: a pure function of (seed, cell, block, index), the same from every
 // view and frame, but not the same flakes as the enumeration would find (a cell switches between
 // the two when the footprint's size crosses the cell's).
 
@@ -46,8 +51,10 @@ namespace spangle::flake {
 
 /** Flakes of one aggregated cell inside the footprint. */
 struct Aggregate {
-    uint64_t key = 0;    ///< the cell's node key with the footprint's place (see place_key)
-    uint32_t count = 0;  ///< k: flakes of the cell inside the footprint
+    uint64_t key = 0;                 ///< the cell's node key
+    uint32_t count = 0;               ///< k: flakes of the cell inside the footprint
+    int64_t tx = 0, ty = 0;           ///< the tile holding the cell
+    double x0 = 0, y0 = 0, size = 0;  ///< the cell in its tile's coordinates
 };
 
 /** At most this many aggregates per shading point (2 x 2 cells in each of up to four tiles). */
@@ -72,21 +79,28 @@ struct CountedFootprint {
     bool truncated = false;  ///< the footprint spans more tiles than the algorithm handles
 };
 
-/** Aggregates of at most this many flakes light every direction sparsely (fewer than kDenseLit
- *  flakes per cone on average at the distribution's peak, thr / (4 alpha^2 cos_o) per flake). */
+/** Cells of at most 16 alpha^2 cos_o / sin^2(gamma / 2) flakes light every direction sparsely:
+ *  fewer than kDenseLit per cone on average at the distribution's peak (material.cpp enumerates
+ *  them). */
 constexpr float kDenseLit = 16.0f;
-float sparse_count(const DirectionGrid& grid, float cos_o);
 
-/** Stand-ins per footprint, shared among its aggregates (each at least one): sparse_count()
- *  clamped to [kMinStandIns, kMaxStandIns]. */
-constexpr uint32_t kMinStandIns = 16;
-constexpr uint32_t kMaxStandIns = 64;
+/** Stand-ins a footprint finds on average: the cells' virtual flakes are this dense. (Drawn
+ *  per footprint and fewer at grazing views, 16 there, a receding flake plane's glints were a grey
+ *  floor with a few bright dashes where the enumeration shows dense sparkle; and stand-ins keyed
+ *  by where the footprint lay in its cell, the samples of one pixel fell on up to four places and
+ *  averaged independent stand-ins: a smoother pixel than one of real flakes.) */
+constexpr uint32_t kStandIns = 64;
+/** Virtual flakes are kept in an kStandInBlocks x kStandInBlocks grid of blocks per cell, so
+ *  that a footprint tests only those of the blocks it overlaps. */
+constexpr int kStandInBlocks = 8;
+/** At most this many stand-ins per footprint (all its aggregates together). */
+constexpr uint32_t kMaxStandIns = 256;
 
-/** Appends the stand-ins of cf's aggregates, seen from wo, to the reflection cache `out` and sets
- *  cf.smooth (see the top of this file). */
-void add_stand_ins(CountedFootprint& cf, const DirectionGrid& grid, const ColorTable& colors,
-                   const FresnelTable& fresnel, const FilmTables& film, V3 wo,
-                   std::vector<CacheEntry>& out);
+/** Appends the stand-ins of cf's aggregates inside footprint p, seen from wo, to the reflection
+ *  cache `out` and sets cf.smooth (see the top of this file). */
+void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid& grid,
+                   const ColorTable& colors, const FresnelTable& fresnel, const FilmTables& film,
+                   V3 wo, std::vector<CacheEntry>& out);
 
 /** Walks the cells of P: calls exact(const Flake&) for every flake of the enumerated cells that
  *  lies inside P and fills `out` with the aggregates. `exact_flakes` is the largest cell count
@@ -94,17 +108,6 @@ void add_stand_ins(CountedFootprint& cf, const DirectionGrid& grid, const ColorT
 template <class Exact>
 void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flakes,
                   CountedFootprint& out, Exact&& exact);
-
-/** The key of an aggregate's flakes: the cell's key and where in the cell the footprint's centre
- *  lies, on a grid of the footprint's half size (a power-of-two fraction of the cell). The k
- *  flakes counted in a cell are stand-ins for the flakes of the part of the cell the footprint
- *  covers, so two footprints at different places of one cell (neighbouring pixels) must not see
- *  the same stand-ins: keyed by the cell alone they did, and the same glints and the same
- *  modulation of the lobe spread over every pixel of the cell (blotches and dashes where real
- *  flakes are points). With the place in the key, footprints half their size apart or more see
- *  independent stand-ins, as footprints that share no flake do; a footprint that moves by less
- *  keeps them. */
-uint64_t place_key(uint64_t cell_key, const Footprint& local, double x0, double y0, double size);
 
 /** The quad-tree level (0 = the tile) whose cells are the smallest at least as large as P's
  *  bounding box, so that P overlaps at most 2 x 2 of them; at most the field's max_depth. */
@@ -198,7 +201,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     const uint32_t k = binomial(node.n, std::clamp(rho, 0.0, 1.0),
                                                 unit(mix(key, 0x51)), fp.exact_below);
                     if (k == 0 || out.n_agg >= kMaxAggregates) continue;
-                    out.agg[out.n_agg++] = {place_key(key, local, nx0, ny0, nsize), k};
+                    out.agg[out.n_agg++] = {key, k, tx, ty, nx0, ny0, nsize};
                     out.aggregated += k;
                 }
         }

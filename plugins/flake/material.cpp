@@ -145,7 +145,7 @@ bool kept(const Flake& f, float keep) {
 
 /** The largest cell the counting algorithm enumerates for a view of cos(theta_o) = cos_o:
  *  exact_flakes, or more for cells whose flakes would light every direction sparsely (fewer than
- *  kDenseLit per cone on average: sparse_count() applied to the whole cell), up to
+ *  kDenseLit per cone on average at the lobe's peak), up to
  *  kSparseExactCap. Enumerated, each glint is a flake with its own position; counted, a cell's
  *  glints are stand-ins (see counted_lobe.h). Dense cells stay counted. */
 constexpr double kSparseExactCap = 4096.0;
@@ -196,7 +196,8 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
                 const uint32_t k = binomial(cf.agg[a].count, view.keep,
                                             unit(mix(cf.agg[a].key, 0x7417)), field.exact_below);
                 if (k == 0) continue;
-                cf.agg[kept_agg++] = {cf.agg[a].key, k};
+                cf.agg[kept_agg] = cf.agg[a];
+                cf.agg[kept_agg++].count = k;
                 cf.aggregated += k;
             }
             cf.n_agg = kept_agg;
@@ -209,7 +210,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     st.cached += scratch.size();
     // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
     if (c.counted.n_agg > 0)
-        add_stand_ins(c.counted, m.grid, m.colors, m.fresnel, m.film, c.wo, scratch);
+        add_stand_ins(c.counted, p, m.grid, m.colors, m.fresnel, m.film, c.wo, scratch);
     if (!store_cache(scratch, arena, c)) return false;
     c.cover = cover + static_cast<float>(c.counted.aggregated);
     st.aggregated += c.counted.aggregated;

@@ -26,8 +26,9 @@ float radians(float deg) {
 }
 
 /** The cones of the flakes a prepared closure caches, found independently of the plugin: the
- *  field's flakes in the footprint (all of them for `enumerate`, those of the cells the counting
- *  algorithm enumerates for `tree`) that face wo and reflect it above the horizon. */
+ *  field's flakes in the footprint (all of them for `enumerate`; for `tree`, those of the cells the
+ *  counting algorithm enumerates and its aggregates' stand-ins) that face wo and reflect it above
+ *  the horizon. */
 std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point& pt, Vec3 wo,
                                uint64_t seed = 0, double density = kTestDensity,
                                double facet = 0.0) {
@@ -53,6 +54,16 @@ std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point&
     if (tree) {
         fl::CountedFootprint cf;
         fl::gather_cells(fp, p, 256, cf, add);
+        // The aggregates' stand-ins: their cones depend on their normals only (the colour and
+        // film tables, left plain here, scale what they reflect).
+        fl::DirectionGrid grid;
+        grid.alpha = alpha;
+        const fl::ColorTable colors;
+        fl::FresnelTable fresnel;
+        const fl::FilmTables film;
+        std::vector<fl::CacheEntry> stand_ins;
+        fl::add_stand_ins(cf, p, grid, colors, fresnel, film, {wo.x, wo.y, wo.z}, stand_ins);
+        for (const fl::CacheEntry& e : stand_ins) cones.emplace_back(e.r.x, e.r.y, e.r.z);
     } else {
         bool truncated = false;
         fl::for_each_flake(fp, p, 1u << 20, truncated, add);
