@@ -64,6 +64,14 @@ NodeRef resolve_cell(const FieldParams& fp, int64_t tx, int64_t ty, int depth, u
     return node;
 }
 
+uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos_o) {
+    const auto alpha = static_cast<double>(grid.alpha);
+    const double sparse = static_cast<double>(kDenseLit) * alpha * alpha *
+                          std::max(static_cast<double>(cos_o), 0.0) /
+                          std::max(static_cast<double>(grid.sin2_half), 1e-12);
+    return std::max(exact_flakes, static_cast<uint32_t>(std::min(sparse, kSparseExactCap)));
+}
+
 void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid& grid,
                    const ColorTable& colors, const FresnelTable& fresnel, const FilmTables& film,
                    V3 wo, std::vector<CacheEntry>& out) {
@@ -73,38 +81,61 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const Aggregate& ag = cf.agg[a];
         const uint32_t k = ag.count;
-        // The cell's virtual flakes: v per block, kStandIns per footprint area on average (the
-        // footprint is at most as large as the cell, so v >= 1 up to rounding).
+        // The cell's virtual flakes: per_block per block on average, kStandIns per footprint
+        // area. A block holds floor(per_block) of them, and one more when its own hash falls
+        // under the fraction: exactly kStandIns per footprint area in expectation, and a block's
+        // flakes only gain members as footprints shrink (rounded, the count per footprint ran in
+        // a sawtooth from 54 to 76 as the footprint's size changed).
         const double block = ag.size / kStandInBlocks;
-        const double per_block = area > 0.0 ? kStandIns * block * block / area : 1.0;
-        const auto v = static_cast<uint32_t>(std::clamp(std::round(per_block), 1.0, 64.0));
+        const double per_block =
+            area > 0.0 ? std::min(kStandIns * block * block / area, 64.0) : 0.0;
+        const double whole = std::floor(per_block);
         Footprint local = p;
         local.cu -= static_cast<double>(ag.tx);
         local.cv -= static_cast<double>(ag.ty);
+        // Blocks under the footprint's own bounding box (not widened by a facet's reach: the
+        // virtual flakes are points); a centre that is not finite has none.
         const auto range = [&](double c, double h, double origin, int& lo, int& hi) {
-            lo = std::clamp(static_cast<int>(std::floor((c - h - origin) / block)), 0,
-                            kStandInBlocks - 1);
-            hi = std::clamp(static_cast<int>(std::floor((c + h - origin) / block)), 0,
-                            kStandInBlocks - 1);
+            const auto index = [&](double x) {
+                const double f = std::floor((x - origin) / block);
+                return f >= 0.0
+                           ? (f < kStandInBlocks - 1 ? static_cast<int>(f) : kStandInBlocks - 1)
+                           : 0;  // NaN too
+            };
+            lo = index(c - h);
+            hi = index(c + h);
         };
         int bx0, bx1, by0, by1;
-        range(local.cu, local.half_width(), ag.x0, bx0, bx1);
-        range(local.cv, local.half_height(), ag.y0, by0, by1);
-        // The virtual flakes inside the footprint, at most k of them (the first in block order).
+        range(local.cu, 0.5 * (std::fabs(local.ax) + std::fabs(local.bx)), ag.x0, bx0, bx1);
+        range(local.cv, 0.5 * (std::fabs(local.ay) + std::fabs(local.by)), ag.y0, by0, by1);
+        if (!std::isfinite(local.cu) || !std::isfinite(local.cv)) bx1 = bx0 - 1;
+        // The virtual flakes inside the footprint; where they outnumber its k flakes (or the room
+        // left), those of the smallest hashes (a priority of their own: two overlapping footprints
+        // keep the same ones among those they share), in a max-heap once full.
         uint64_t found[kMaxStandIns];
         uint32_t n = 0;
         const uint32_t room = std::min(k, kMaxStandIns - found_all);
-        for (int by = by0; by <= by1 && n < room; ++by)
-            for (int bx = bx0; bx <= bx1 && n < room; ++bx) {
+        for (int by = by0; by <= by1 && room > 0; ++by)
+            for (int bx = bx0; bx <= bx1; ++bx) {
                 const uint64_t bkey =
                     mix(ag.key, 0xb10c0000u + static_cast<uint64_t>(by * kStandInBlocks + bx));
-                for (uint32_t i = 0; i < v && n < room; ++i) {
+                const auto v = static_cast<uint32_t>(whole) +
+                               (unit(mix(bkey, 0xd17)) < per_block - whole ? 1u : 0u);
+                for (uint32_t i = 0; i < v; ++i) {
                     const uint64_t h = mix(bkey, i);
                     float fx, fy;  // 24 bits each: a block's width / 2^24 apart
                     unit2(h, fx, fy);
                     const double x = ag.x0 + (bx + static_cast<double>(fx)) * block;
                     const double y = ag.y0 + (by + static_cast<double>(fy)) * block;
-                    if (inside(local, x, y)) found[n++] = h;
+                    if (!inside(local, x, y)) continue;
+                    if (n < room) {
+                        found[n++] = h;
+                        if (n == room) std::make_heap(found, found + n);
+                    } else if (h < found[0]) {
+                        std::pop_heap(found, found + n);
+                        found[n - 1] = h;
+                        std::push_heap(found, found + n);
+                    }
                 }
             }
         found_all += n;

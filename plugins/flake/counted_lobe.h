@@ -11,15 +11,16 @@
 // - its count inside the footprint is k = B(n, rho), rho the share of the cell's area the
 //   footprint covers, drawn by inverting a uniform fixed per cell (so k only grows as the
 //   footprint covers more of the cell);
-// - its stand-ins are virtual flakes of the cell: a sparse population with positions (a fixed
-//   number per block of an 8 x 8 grid over the cell, so many that about kStandIns of them fall
-//   inside a footprint of this size), each with a normal drawn from the flake distribution, its
-//   own colour and film, all a pure function of (seed, cell, block, index). The K of them inside
-//   the footprint (at most k) enter the reflection cache as real flakes do, each with its weight
-//   times sqrt(k / K); the other k (1 - beta) flakes' worth, beta = sqrt(K / k), is the smooth
-//   lobe (the exact expectation of one flake's lobe) times k (1 - beta) flakes of the expected
-//   weight. When a footprint's aggregate holds at most as many flakes as it finds stand-ins, the
-//   first k of them are its flakes (beta = 1).
+// - its stand-ins are virtual flakes of the cell: a sparse population with positions (per block
+//   of an 8 x 8 grid over the cell, floor(x) of them or one more, by the block's hash, x chosen
+//   so that kStandIns of them fall inside a footprint of this size on average), each with a
+//   normal drawn from the flake distribution, its own colour and film, all a pure function of
+//   (seed, cell, block, index). The K of them inside the footprint (at most k: those of smallest
+//   hash) enter the reflection cache as real flakes do, each with its weight times sqrt(k / K);
+//   the other k (1 - beta) flakes' worth, beta = sqrt(K / k), is the smooth lobe (the exact
+//   expectation of one flake's lobe) times k (1 - beta) flakes of the expected weight. When a
+//   footprint's aggregate holds at most as many flakes as it finds stand-ins, k of them are its
+//   flakes (beta = 1).
 //   Because stand-ins have places, footprints share them as they share real flakes: two that
 //   overlap by half share about half (the samples of one pixel see nearly the same glints, as
 //   they see nearly the same flakes), two side by side share none (their glints are their own).
@@ -80,9 +81,15 @@ struct CountedFootprint {
 };
 
 /** Cells of at most 16 alpha^2 cos_o / sin^2(gamma / 2) flakes light every direction sparsely:
- *  fewer than kDenseLit per cone on average at the distribution's peak (material.cpp enumerates
- *  them). */
+ *  fewer than kDenseLit per cone on average at the distribution's peak. */
 constexpr float kDenseLit = 16.0f;
+constexpr double kSparseExactCap = 4096.0;
+
+/** The largest cell the counting algorithm enumerates for a view of cos(theta_o) = cos_o:
+ *  exact_flakes, or more for cells whose flakes would light every direction sparsely (above), up
+ *  to kSparseExactCap. Enumerated, each glint is a flake with its own position; counted, a cell's
+ *  glints are stand-ins. Dense cells stay counted. */
+uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos_o);
 
 /** Stand-ins a footprint finds on average: the cells' virtual flakes are this dense. (Drawn
  *  per footprint and fewer at grazing views, 16 there, a receding flake plane's glints were a grey

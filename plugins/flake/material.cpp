@@ -143,20 +143,6 @@ bool kept(const Flake& f, float keep) {
     return unit(mix(mix(bu, bv), 0x7417)) < static_cast<double>(keep);
 }
 
-/** The largest cell the counting algorithm enumerates for a view of cos(theta_o) = cos_o:
- *  exact_flakes, or more for cells whose flakes would light every direction sparsely (fewer than
- *  kDenseLit per cone on average at the lobe's peak), up to
- *  kSparseExactCap. Enumerated, each glint is a flake with its own position; counted, a cell's
- *  glints are stand-ins (see counted_lobe.h). Dense cells stay counted. */
-constexpr double kSparseExactCap = 4096.0;
-uint32_t exact_limit(const Material& m, float cos_o) {
-    const auto alpha = static_cast<double>(m.grid.alpha);
-    const double sparse = static_cast<double>(kDenseLit) * alpha * alpha *
-                          std::max(static_cast<double>(cos_o), 0.0) /
-                          std::max(static_cast<double>(m.grid.sin2_half), 1e-12);
-    return std::max(m.exact_flakes, static_cast<uint32_t>(std::min(sparse, kSparseExactCap)));
-}
-
 bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v3* arena,
                       PointStats& st) {
     thread_local std::vector<CacheEntry> scratch;
@@ -185,7 +171,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         scratch.push_back(e);
     };
     if (m.tree) {
-        gather_cells(field, p, exact_limit(m, c.wo.z), c.counted, add);
+        gather_cells(field, p, exact_limit(m.exact_flakes, m.grid, c.wo.z), c.counted, add);
         if (c.counted.truncated) return false;
         if (view.keep < 1.0f) {
             // The aggregates' counts thinned alike (binomially, monotone in keep).

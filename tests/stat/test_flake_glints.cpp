@@ -161,14 +161,19 @@ TEST(FlakeGlints, OverlappingFootprintsShareGlintsAsFlakesDo) {
         float cos_o;
         double step, aspect;
     };
-    for (const Case& c : {Case{3000, 0.8f, 0.5, 1.0}, Case{20000, 0.8f, 0.25, 1.0},
-                          Case{3000, 0.3f, 0.5, 4.0}, Case{20000, 0.3f, 0.25, 4.0}}) {
+    // Lambda 600 and 1000: aggregates whose k is at times below the number of stand-ins the
+    // footprint finds (it then keeps the k of smallest hash, so that overlapping footprints keep
+    // the same ones; keeping the first k in block order gave the same figures here).
+    for (const Case& c :
+         {Case{600, 0.8f, 0.5, 1.0}, Case{1000, 0.8f, 0.25, 1.0}, Case{3000, 0.8f, 0.5, 1.0},
+          Case{20000, 0.8f, 0.25, 1.0}, Case{3000, 0.3f, 0.5, 4.0}, Case{20000, 0.3f, 0.25, 4.0}}) {
         const GlintRuns e =
             glint_runs("enumerate", c.lambda, c.cos_o, 0.15f, 3.0f, c.step, c.aspect);
         const GlintRuns t = glint_runs("tree", c.lambda, c.cos_o, 0.15f, 3.0f, c.step, c.aspect);
         // Half and three quarters of each footprint shared: the enumeration's lobes are
         // correlated by about as much (0.49 to 0.50 and 0.75). The counting algorithm's agree
-        // within 0.005 here (keyed by place they were 0.03, 0.39, 0.66 and 0.78); 0.05 is well
+        // within 0.01 here (keyed by place they were 0.03, 0.39, 0.66 and 0.78 at lambda 3000 and
+        // 20000); 0.05 is well
         // above the sampling spread of a correlation over 1200 pairs (about 0.02 for one
         // direction, less for the mean over the fan).
         EXPECT_GT(e.correlation, 0.3) << "enumerate, lambda " << c.lambda;

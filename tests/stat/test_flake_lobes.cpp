@@ -30,8 +30,8 @@ float radians(float deg) {
  *  counting algorithm enumerates and its aggregates' stand-ins) that face wo and reflect it above
  *  the horizon. */
 std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point& pt, Vec3 wo,
-                               uint64_t seed = 0, double density = kTestDensity,
-                               double facet = 0.0) {
+                               uint64_t seed = 0, double density = kTestDensity, double facet = 0.0,
+                               float gamma = 0.0f) {
     fl::FieldParams fp;
     fp.seed = seed;
     fp.flakes_per_tile = density;
@@ -52,12 +52,13 @@ std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point&
         if (r.z > 0.0f) cones.push_back(r);
     };
     if (tree) {
-        fl::CountedFootprint cf;
-        fl::gather_cells(fp, p, 256, cf, add);
-        // The aggregates' stand-ins: their cones depend on their normals only (the colour and
-        // film tables, left plain here, scale what they reflect).
+        // The cells the plugin enumerates at this view (the default exact_flakes, raised for
+        // sparse cells), and the aggregates' stand-ins: their cones depend on their normals only
+        // (the colour and film tables, left plain here, scale what they reflect).
         fl::DirectionGrid grid;
-        grid.alpha = alpha;
+        grid.init(alpha, gamma);
+        fl::CountedFootprint cf;
+        fl::gather_cells(fp, p, fl::exact_limit(256, grid, wo.z), cf, add);
         const fl::ColorTable colors;
         fl::FresnelTable fresnel;
         const fl::FilmTables film;
@@ -135,11 +136,12 @@ void lobe_chi2(const LobeCase& c, uint64_t seed) {
         return 0.0;
     };
     std::vector<Vec3> list =
-        cached_cones(tree, c.alpha, pt, wo, 0, kTestDensity, value("flake_size"));
+        cached_cones(tree, c.alpha, pt, wo, 0, kTestDensity, value("flake_size"), gamma);
     // A second population (of the same cone): its own field's flakes, by the plugin's seed salt.
     if (value("flakes2_weight") > 0.0)
-        for (const Vec3& r : cached_cones(tree, static_cast<float>(value("flakes2_roughness")), pt,
-                                          wo, fl::mix(0, 0x5ec0d), value("flakes2_density")))
+        for (const Vec3& r :
+             cached_cones(tree, static_cast<float>(value("flakes2_roughness")), pt, wo,
+                          fl::mix(0, 0x5ec0d), value("flakes2_density"), 0.0, gamma))
             list.push_back(r);
     const ConeSet cones(list, gamma);
 
