@@ -280,7 +280,9 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
         const FieldView view = field_view(m, in);
         lambda = view.lambda();
         c.t = blend_weight(m, lambda);
-        if (c.t < 1.0f && !prepare_discrete(m, view, c, arena, st)) {
+        // A centre that is not finite (uv NaN or infinite) has no cells: the smooth lobe.
+        const bool finite = std::isfinite(view.footprint.cu) && std::isfinite(view.footprint.cv);
+        if (c.t < 1.0f && (!finite || !prepare_discrete(m, view, c, arena, st))) {
             ++st.truncated;
             c.t = 1.0f;
         }

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <unordered_map>
 
 #include "chi2.h"
@@ -288,6 +289,35 @@ TEST(FlakeLobe, SamplingMatchesPdfWithFacets) {
     lobe_chi2({"enumerate", 3, 4.0f, 0.3f, 0.6f, {{"flake_size", {side3}}}}, 41);
     lobe_chi2({"tree", 3, 4.0f, 0.3f, 0.4f, {{"flake_size", {side3}}}}, 42);
     lobe_chi2({"enumerate", 60, 3.0f, 0.15f, 0.7f, {{"flake_size", {0.1 * side60}}}}, 43);
+}
+
+TEST(FlakeLobe, UvThatIsNotFiniteGivesTheSmoothLobe) {
+    // A mesh with NaN or infinite uvs: no cell holds the point, so the lobe is the smooth one
+    // (before, the counting algorithm converted the NaN centre to a block index: undefined
+    // behaviour, which the sanitizer build reports).
+    const Vec3 wo = dir(0.7f, 0.3f);
+    std::vector<Vec3> wis;
+    for (int a = -4; a <= 4; ++a)
+        for (int b = -4; b <= 4; ++b)
+            wis.push_back(normalize(Vec3(-wo.x + 0.1f * static_cast<float>(a),
+                                         -wo.y + 0.1f * static_cast<float>(b), wo.z)));
+    for (const char* algorithm : {"tree", "enumerate"}) {
+        auto m = flake_material(true, {}, {{"algorithm", algorithm}});
+        const std::vector<Vec3> smooth = smooth_f(*m, wo, wis);
+        for (const float u :
+             {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity()}) {
+            m->prepare(wo, footprint(1000.0, u, 0.5f));
+            std::vector<Vec3> f;
+            std::vector<float> pdf;
+            m->eval(wis, f, pdf);
+            for (std::size_t j = 0; j < wis.size(); ++j) {
+                ASSERT_TRUE(std::isfinite(f[j].y) && std::isfinite(pdf[j]))
+                    << algorithm << " " << u;
+                EXPECT_NEAR(f[j].y, smooth[j].y, 1e-5f * (1.0f + smooth[j].y))
+                    << algorithm << " " << u;
+            }
+        }
+    }
 }
 
 TEST(FlakeLobe, TreeSeesTheEnumeratedFlakesInSmallFootprints) {

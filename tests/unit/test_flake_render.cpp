@@ -345,7 +345,7 @@ TEST(FlakeRender, GrazingGlintsArePointsAsTheEnumerationsAre) {
     // with horizontal dashes (runs of 2.21 pixels against 1.76): 16 stand-ins at grazing views,
     // keyed by where the footprint lay in its cell, so that neighbours across the plane and the
     // samples of one pixel saw the same or independent ones where real flakes are partly shared.
-    // Now 20.0%, 0.66, runs of 1.85.
+    // Now 19.9%, 0.66, runs of 1.87.
     test::TempDir dir("flake_grazing");
     constexpr uint32_t kX0 = 480, kY0 = 190, kX1 = 600, kY1 = 250;
     const auto render = [&](const std::string& tag,
