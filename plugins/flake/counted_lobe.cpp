@@ -72,23 +72,27 @@ uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos
     return std::max(exact_flakes, static_cast<uint32_t>(std::min(sparse, kSparseExactCap)));
 }
 
-void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid& grid,
-                   const ColorTable& colors, const FresnelTable& fresnel, const FilmTables& film,
-                   V3 wo, std::vector<CacheEntry>& out) {
+void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
+                   const DirectionGrid& grid, const ColorTable& colors, const FresnelTable& fresnel,
+                   const FilmTables& film, V3 wo, std::vector<CacheEntry>& out) {
     cf.smooth = 0.0f;
     const double area = p.area();
+    // At most four times the average in all (the footprint's aggregates together).
+    const uint32_t cap = 4 * stand_ins;
+    thread_local std::vector<uint64_t> found;
     uint32_t found_all = 0;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const Aggregate& ag = cf.agg[a];
         const uint32_t k = ag.count;
-        // The cell's virtual flakes: per_block per block on average, kStandIns per footprint
+        // The cell's virtual flakes: per_block per block on average, stand_ins per footprint
         // area. A block holds floor(per_block) of them, and one more when its own hash falls
-        // under the fraction: exactly kStandIns per footprint area in expectation, and a block's
+        // under the fraction: exactly stand_ins per footprint area in expectation, and a block's
         // flakes only gain members as footprints shrink (rounded, the count per footprint ran in
         // a sawtooth from 54 to 76 as the footprint's size changed).
         const double block = ag.size / kStandInBlocks;
         const double per_block =
-            area > 0.0 ? std::min(kStandIns * block * block / area, 64.0) : 0.0;
+            area > 0.0 ? std::min(stand_ins * block * block / area, static_cast<double>(stand_ins))
+                       : 0.0;
         const double whole = std::floor(per_block);
         Footprint local = p;
         local.cu -= static_cast<double>(ag.tx);
@@ -112,9 +116,9 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid
         // The virtual flakes inside the footprint; where they outnumber its k flakes (or the room
         // left), those of the smallest hashes (a priority of their own: two overlapping footprints
         // keep the same ones among those they share), in a max-heap once full.
-        uint64_t found[kMaxStandIns];
+        found.resize(cap);
         uint32_t n = 0;
-        const uint32_t room = std::min(k, kMaxStandIns - found_all);
+        const uint32_t room = std::min(k, cap - found_all);
         for (int by = by0; by <= by1 && room > 0; ++by)
             for (int bx = bx0; bx <= bx1; ++bx) {
                 const uint64_t bkey =
@@ -130,11 +134,11 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid
                     if (!inside(local, x, y)) continue;
                     if (n < room) {
                         found[n++] = h;
-                        if (n == room) std::make_heap(found, found + n);
+                        if (n == room) std::make_heap(found.begin(), found.begin() + n);
                     } else if (h < found[0]) {
-                        std::pop_heap(found, found + n);
+                        std::pop_heap(found.begin(), found.begin() + n);
                         found[n - 1] = h;
-                        std::push_heap(found, found + n);
+                        std::push_heap(found.begin(), found.begin() + n);
                     }
                 }
             }

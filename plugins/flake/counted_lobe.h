@@ -13,7 +13,7 @@
 //   footprint covers more of the cell);
 // - its stand-ins are virtual flakes of the cell: a sparse population with positions (per block
 //   of an 8 x 8 grid over the cell, floor(x) of them or one more, by the block's hash, x chosen
-//   so that kStandIns of them fall inside a footprint of this size on average), each with a
+//   so that `stand_ins` of them fall inside a footprint of this size on average), each with a
 //   normal drawn from the flake distribution, its own colour and film, all a pure function of
 //   (seed, cell, block, index). The K of them inside the footprint (at most k: those of smallest
 //   hash) enter the reflection cache as real flakes do, each with its weight times sqrt(k / K);
@@ -91,23 +91,23 @@ constexpr double kSparseExactCap = 4096.0;
  *  glints are stand-ins. Dense cells stay counted. */
 uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos_o);
 
-/** Stand-ins a footprint finds on average: the cells' virtual flakes are this dense. (Drawn
- *  per footprint and fewer at grazing views, 16 there, a receding flake plane's glints were a grey
- *  floor with a few bright dashes where the enumeration shows dense sparkle; and stand-ins keyed
- *  by where the footprint lay in its cell, the samples of one pixel fell on up to four places and
- *  averaged independent stand-ins: a smoother pixel than one of real flakes.) */
+/** Stand-ins a footprint finds on average by default (the `stand_ins` parameter): the cells'
+ *  virtual flakes are this dense. (Drawn per footprint and fewer at grazing views, 16 there, a
+ *  receding flake plane's glints were a grey floor with a few bright dashes where the enumeration
+ *  shows dense sparkle; and stand-ins keyed by where the footprint lay in its cell, the samples of
+ *  one pixel fell on up to four places and averaged independent stand-ins: a smoother pixel than
+ *  one of real flakes.) A footprint keeps at most four times as many in all. */
 constexpr uint32_t kStandIns = 64;
 /** Virtual flakes are kept in an kStandInBlocks x kStandInBlocks grid of blocks per cell, so
  *  that a footprint tests only those of the blocks it overlaps. */
 constexpr int kStandInBlocks = 8;
-/** At most this many stand-ins per footprint (all its aggregates together). */
-constexpr uint32_t kMaxStandIns = 256;
 
-/** Appends the stand-ins of cf's aggregates inside footprint p, seen from wo, to the reflection
- *  cache `out` and sets cf.smooth (see the top of this file). */
-void add_stand_ins(CountedFootprint& cf, const Footprint& p, const DirectionGrid& grid,
-                   const ColorTable& colors, const FresnelTable& fresnel, const FilmTables& film,
-                   V3 wo, std::vector<CacheEntry>& out);
+/** Appends the stand-ins of cf's aggregates inside footprint p, `stand_ins` per footprint area
+ *  on average, seen from wo, to the reflection cache `out` and sets cf.smooth (see the top of
+ *  this file). */
+void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
+                   const DirectionGrid& grid, const ColorTable& colors, const FresnelTable& fresnel,
+                   const FilmTables& film, V3 wo, std::vector<CacheEntry>& out);
 
 /** Walks the cells of P: calls exact(const Flake&) for every flake of the enumerated cells that
  *  lies inside P and fills `out` with the aggregates. `exact_flakes` is the largest cell count

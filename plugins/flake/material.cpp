@@ -84,6 +84,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     // A cell must be enumerated whenever it is a leaf: its flakes are not split further.
     m.exact_flakes = static_cast<uint32_t>(
         std::max(param_number(p, "exact_flakes"), static_cast<double>(m.field.leaf_size)));
+    m.stand_ins = static_cast<uint32_t>(std::clamp(param_number(p, "stand_ins"), 1.0, 1024.0));
     m.enumerate_cap =
         static_cast<uint32_t>(std::min(4.0 * m.max_flakes + 64.0, double{kEnumerateBound}));
     // Tables come from the persistent cache when an earlier process (or this one) built them.
@@ -196,7 +197,8 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     st.cached += scratch.size();
     // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
     if (c.counted.n_agg > 0)
-        add_stand_ins(c.counted, p, m.grid, m.colors, m.fresnel, m.film, c.wo, scratch);
+        add_stand_ins(c.counted, p, m.stand_ins, m.grid, m.colors, m.fresnel, m.film, c.wo,
+                      scratch);
     if (!store_cache(scratch, arena, c)) return false;
     c.cover = cover + static_cast<float>(c.counted.aggregated);
     st.aggregated += c.counted.aggregated;
