@@ -80,6 +80,7 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
     // At most four times the average in all (the footprint's aggregates together).
     const uint32_t cap = 4 * stand_ins;
     thread_local std::vector<uint64_t> found;
+    found.resize(cap);
     uint32_t found_all = 0;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const Aggregate& ag = cf.agg[a];
@@ -98,7 +99,8 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         local.cu -= static_cast<double>(ag.tx);
         local.cv -= static_cast<double>(ag.ty);
         // Blocks under the footprint's own bounding box (not widened by a facet's reach: the
-        // virtual flakes are points); a centre that is not finite has none.
+        // virtual flakes are points); a centre that is not finite gives one block, none of whose
+        // flakes lies inside.
         const auto range = [&](double c, double h, double origin, int& lo, int& hi) {
             const auto index = [&](double x) {
                 const double f = std::floor((x - origin) / block);
@@ -112,11 +114,9 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         int bx0, bx1, by0, by1;
         range(local.cu, 0.5 * (std::fabs(local.ax) + std::fabs(local.bx)), ag.x0, bx0, bx1);
         range(local.cv, 0.5 * (std::fabs(local.ay) + std::fabs(local.by)), ag.y0, by0, by1);
-        if (!std::isfinite(local.cu) || !std::isfinite(local.cv)) bx1 = bx0 - 1;
         // The virtual flakes inside the footprint; where they outnumber its k flakes (or the room
         // left), those of the smallest hashes (a priority of their own: two overlapping footprints
         // keep the same ones among those they share), in a max-heap once full.
-        found.resize(cap);
         uint32_t n = 0;
         const uint32_t room = std::min(k, cap - found_all);
         for (int by = by0; by <= by1 && room > 0; ++by)

@@ -16,11 +16,17 @@
 namespace spangle {
 namespace {
 
-FrameResult render_plane(const std::string& scene, uint32_t size) {
+/** A quiet render of `scene` through the shipped OCIO config. */
+FrameRequest quiet_request(const std::string& scene) {
     FrameRequest req;
     req.scene = scene;
     req.ocio_config = test::shipped_ocio();
     req.log = &test::quiet_log();
+    return req;
+}
+
+FrameResult render_plane(const std::string& scene, uint32_t size) {
+    FrameRequest req = quiet_request(scene);
     req.options.width_override = req.options.height_override = size;
     return render_frame(req);
 }
@@ -275,11 +281,8 @@ TEST(FlakeRender, BlendBandIsInvisibleInRowMeans) {
     constexpr int kW = 128, kH = 96;
     const auto render = [&](const std::string& tag,
                             const std::vector<std::pair<std::string, std::string>>& edits) {
-        FrameRequest req;
-        req.scene = edited_scene(dir.path().string(), "flake_receding.toml", tag, edits);
-        req.ocio_config = test::shipped_ocio();
-        req.log = &test::quiet_log();
-        return luminance_of(render_frame(req));
+        return luminance_of(render_frame(
+            quiet_request(edited_scene(dir.path().string(), "flake_receding.toml", tag, edits))));
     };
     const auto blended = render("blended", {});
     const auto smooth = render(
@@ -350,10 +353,8 @@ TEST(FlakeRender, GrazingGlintsArePointsAsTheEnumerationsAre) {
     constexpr uint32_t kX0 = 480, kY0 = 190, kX1 = 600, kY1 = 250;
     const auto render = [&](const std::string& tag,
                             const std::vector<std::pair<std::string, std::string>>& edits) {
-        FrameRequest req;
-        req.scene = edited_scene(dir.path().string(), "flake_receding.toml", tag, edits);
-        req.ocio_config = test::shipped_ocio();
-        req.log = &test::quiet_log();
+        FrameRequest req =
+            quiet_request(edited_scene(dir.path().string(), "flake_receding.toml", tag, edits));
         req.options.width_override = 640;
         req.options.height_override = 360;
         req.options.crop = {kX0, kY0, kX1, kY1};
