@@ -349,10 +349,17 @@ void flake_square(float alpha, V3 m, float& s, float& t) {
 TileRange tiles_of(const Footprint& p) {
     TileRange r;
     const double hx = p.half_width(), hy = p.half_height();
-    // Clamp far-away uv before converting: a tile index must fit an int64.
+    // Clamp far-away uv before converting: a tile index must fit an int64. A bound that is not
+    // a number (NaN uv or extent) stands for every tile: callers see too many and give up.
     const auto fl = [](double x) {
         return static_cast<int64_t>(std::floor(std::clamp(x, -4.0e18, 4.0e18)));
     };
+    if (std::isnan(p.cu - hx) || std::isnan(p.cu + hx) || std::isnan(p.cv - hy) ||
+        std::isnan(p.cv + hy)) {
+        r.tx0 = r.ty0 = -4'000'000'000'000'000'000;
+        r.tx1 = r.ty1 = 4'000'000'000'000'000'000;
+        return r;
+    }
     r.tx0 = fl(p.cu - hx);
     r.tx1 = fl(p.cu + hx);
     r.ty0 = fl(p.cv - hy);

@@ -179,7 +179,13 @@ inline uint32_t root_count(const FieldParams& fp) {
 /** Tiles a footprint spans: [tx0, tx1] x [ty0, ty1]. */
 struct TileRange {
     int64_t tx0 = 0, tx1 = -1, ty0 = 0, ty1 = -1;
-    int64_t count() const { return (tx1 - tx0 + 1) * (ty1 - ty0 + 1); }
+    /** Tiles in the range, saturating (a range over far-away uv must not overflow). */
+    uint64_t count() const {
+        if (tx1 < tx0 || ty1 < ty0) return 0;
+        const uint64_t w = static_cast<uint64_t>(tx1 - tx0) + 1,
+                       h = static_cast<uint64_t>(ty1 - ty0) + 1;
+        return w > UINT64_MAX / h ? UINT64_MAX : w * h;
+    }
 };
 TileRange tiles_of(const Footprint& p);
 

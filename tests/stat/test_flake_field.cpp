@@ -6,6 +6,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <set>
 
 #include "chi2.h"
@@ -313,6 +315,42 @@ TEST(FlakeCounting, WorkIsBoundedForAnyFootprint) {
                 EXPECT_TRUE(cf.truncated);
             }
         }
+}
+
+TEST(FlakeCounting, FootprintsThatAreNotNumbersOrFarAwayAreDeclined) {
+    // A NaN centre or extent (a degenerate uv) and uv far beyond any tile index: the tile range
+    // is computed without overflow or a float-to-int conversion of NaN, and counting declines
+    // (truncated, no cells) so that the smooth lobe takes over instead of a black lobe.
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double inf = std::numeric_limits<double>::infinity();
+    const FieldParams fp = field(1e4);
+    struct Case {
+        double u, v, side;
+    };
+    for (const Case c :
+         {Case{nan, 0.5, 1e-3}, Case{0.5, nan, 1e-3}, Case{0.5, 0.5, nan}, Case{0.5, 0.5, inf},
+          Case{1e30, -1e30, 1e-3}, Case{-inf, 0.5, 1e-3}, Case{0.5, 0.5, 1e25}}) {
+        Footprint p = flake::make_footprint(0.3, 0.6, 1e-3, 0.0, 0.0, 1e-3, 1.0);
+        p.cu = c.u;
+        p.cv = c.v;
+        p.ax = p.by = c.side;
+        const flake::TileRange tr = flake::tiles_of(p);
+        if (std::isnan(c.u) || std::isnan(c.v) || std::isnan(c.side)) {
+            EXPECT_GT(tr.count(), 64u) << c.u << " " << c.v << " " << c.side;
+        }
+        flake::CountedFootprint cf;
+        uint32_t exact = 0;
+        flake::gather_cells(fp, p, 256, cf, [&](const Flake&) { ++exact; });
+        if (std::isnan(c.u) || std::isnan(c.v) || std::isnan(c.side) || c.side > 2.0) {
+            EXPECT_TRUE(cf.truncated) << c.u << " " << c.v << " " << c.side;
+            EXPECT_EQ(cf.n_agg, 0u);
+            EXPECT_EQ(exact, 0u);
+        }
+    }
+    // A wide range saturates instead of overflowing.
+    Footprint wide;
+    wide.ax = wide.by = 1e19;
+    EXPECT_EQ(flake::tiles_of(wide).count(), UINT64_MAX);
 }
 
 }  // namespace
