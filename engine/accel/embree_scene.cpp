@@ -278,6 +278,15 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
     meter.begin(top_, static_cast<double>(instances.size() + quad_vertices.size() / 4 + 1));
     rtcCommitScene(top_);
     check("building the scene's acceleration structure");
+    offset_scale_ = 1.0f;
+    RTCBounds b;
+    rtcGetSceneBounds(top_, &b);
+    if (b.upper_x >= b.lower_x) {
+        const float m =
+            std::max({std::fabs(b.lower_x), std::fabs(b.lower_y), std::fabs(b.lower_z),
+                      std::fabs(b.upper_x), std::fabs(b.upper_y), std::fabs(b.upper_z)});
+        if (std::isfinite(m) && m > 0.0f) offset_scale_ = std::min(1.0f, m);
+    }
     if (progress) meter.at(1.0);
 }
 

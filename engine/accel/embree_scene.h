@@ -82,6 +82,11 @@ public:
 
     /** Centre and radius of a sphere bounding everything in the scene (0 radius when empty). */
     void bounding_sphere(Vec3& center, float& radius) const;
+    /** The scale of the scene's coordinates for offsetting ray origins near the world's origin
+     *  (offset_origin): the largest coordinate magnitude of its bounds, at most 1 (1 when
+     *  empty). Hit points are interpolated from vertices, so their error is relative to that
+     *  magnitude: a fixed offset there would be far too large in a millimetre-sized scene. */
+    float offset_scale() const { return offset_scale_; }
 
     /** Closest hit along o + t d for t in (0, tmax) at ray time `time` (in [0, 1] over the
      *  shutter: where moving instances are); false when nothing is hit. */
@@ -130,6 +135,7 @@ private:
     int built_ = 0, reused_ = 0;
     uint32_t quad_geom_ = RTC_INVALID_GEOMETRY_ID;
     uint32_t sphere_geom_ = RTC_INVALID_GEOMETRY_ID;
+    float offset_scale_ = 1.0f;
     std::atomic<std::ptrdiff_t> bytes_{0}, peak_bytes_{0};
     mutable std::string error_;  ///< last message from the error callback
 };

@@ -269,6 +269,7 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
     ws.stream_time.clear();
     ws.shadow_tmax.clear();
     sink.begin_shadows();
+    const float offset_scale = job.scene->accel ? job.scene->accel->offset_scale() : 1.0f;
     for (uint32_t j = 0; j < q; ++j) {
         const Vec3 f(b.f_r[j], b.f_g[j], b.f_b[j]);
         if (max_component(f) <= 0.0f) continue;
@@ -285,10 +286,27 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
         const float weight = std::fabs(b.wiz[j]) * mis / ls.pdf;
         ws.shadow_contrib.push_back(p.throughput[i] * f * ls.radiance * weight);
         sink.shadow_query(bounce, j, i, p.throughput[i], f, ls.radiance, weight, ls.group);
-        ws.stream_o.push_back(offset_origin(sp.p, side));
-        ws.stream_d.push_back(ls.wi);
+        const Vec3 o = offset_origin(sp.p, side, offset_scale);
+        // A light at a finite distance: the shadow ray runs from the offset origin to the light's
+        // point itself and stops just short of it. Along wi from the offset origin it would pass
+        // beside that point, and near a sphere light's (or any emitter's) silhouette meet the
+        // light's own surface well before it: in small scenes, where the offset is large against
+        // the light, a good share of light samples were blocked by their own light.
+        Vec3 d = ls.wi;
+        float tmax = 1e30f;
+        if (std::isfinite(ls.dist)) {
+            const Vec3 to = sp.p + ls.wi * ls.dist - o;
+            const float len = length(to);
+            tmax = 0.0f;
+            if (len > 0.0f && std::isfinite(len)) {
+                d = to / len;
+                tmax = len * (1.0f - 1e-4f);
+            }
+        }
+        ws.stream_o.push_back(o);
+        ws.stream_d.push_back(d);
         ws.stream_time.push_back(p.time[i]);
-        ws.shadow_tmax.push_back(std::isfinite(ls.dist) ? ls.dist * (1.0f - 1e-4f) : 1e30f);
+        ws.shadow_tmax.push_back(tmax);
     }
     const std::size_t rays = ws.stream_path.size();
     shadow_rays += rays;

@@ -162,8 +162,10 @@ inline float clamp_factor(const RenderJob& job, Vec3 c, uint32_t scatterings) {
 
 /** Offsets a ray origin off a surface along the geometric normal by a few float ulps, scaled to
  *  the coordinates' magnitude (Waechter and Binder, "A Fast and Robust Method for Avoiding
- *  Self-Intersection", Ray Tracing Gems, 2019). n must face the side the ray leaves towards. */
-inline Vec3 offset_origin(Vec3 p, Vec3 n) {
+ *  Self-Intersection", Ray Tracing Gems, 2019). n must face the side the ray leaves towards.
+ *  Near the origin the offset is absolute, 1/65536 times `scale` (EmbreeScene::offset_scale():
+ *  the scene's coordinate magnitude, at most 1), so that it stays small against small scenes. */
+inline Vec3 offset_origin(Vec3 p, Vec3 n, float scale = 1.0f) {
     constexpr float kOrigin = 1.0f / 32.0f, kFloatScale = 1.0f / 65536.0f, kIntScale = 256.0f;
     float out[3];
     const float pc[3] = {p.x, p.y, p.z}, nc[3] = {n.x, n.y, n.z};
@@ -174,7 +176,7 @@ inline Vec3 offset_origin(Vec3 p, Vec3 n) {
         bits += pc[i] < 0.0f ? -of : of;
         float moved;
         std::memcpy(&moved, &bits, sizeof(moved));
-        out[i] = std::fabs(pc[i]) < kOrigin ? pc[i] + kFloatScale * nc[i] : moved;
+        out[i] = std::fabs(pc[i]) < kOrigin ? pc[i] + kFloatScale * scale * nc[i] : moved;
     }
     return {out[0], out[1], out[2]};
 }

@@ -5,6 +5,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <fstream>
 #include <numeric>
 
 #include "pipeline/frame.h"
@@ -124,6 +125,46 @@ TEST(Render, MisNeeOnlyAndBsdfOnlyAgree) {
         for (float v : mis.image) lum += v;
         EXPECT_GT(lum, 0.0) << scene << " is lit";
     }
+}
+
+TEST(Render, MillimetreSceneRendersAsTheSameSceneInMetres) {
+    // Light transport is scale-invariant: the scene shrunk a thousandfold (a jewel or a
+    // glitter flake modelled in metres) is the same image. Ray origins left the surface by a
+    // fixed 1.5e-5 near the world's origin, more than a shadow ray's margin at this scale and
+    // 6% of the sphere light's radius: most light samples were blocked (the image 40x darker
+    // under NEE in a real case), and only BSDF sampling saw the light.
+    const test::TempDir dir("mm_scene");
+    const std::string name = "glossy_sphere_light.toml";
+    std::ofstream(dir.file("mm.toml")) << test::scene_text(
+        name, {{"position = [0, 1.2, 3]", "position = [0, 0.0012, 0.003]"},
+               {"scale = 0.3", "scale = 0.0003"},
+               {"scale = 4", "scale = 0.004"},
+               {"translate = [-0.8, 1.0, -1.5]", "translate = [-0.0008, 0.001, -0.0015]"},
+               {"center = [0.6, 0.8, -1.2]", "center = [0.0006, 0.0008, -0.0012]"},
+               {"radius = 0.25", "radius = 0.00025"}});
+    std::ofstream(dir.file("m.toml")) << test::scene_text(name);
+    const auto at = [&](const std::string& file, Strategy strategy) {
+        FrameRequest req;
+        req.scene = dir.file(file);
+        req.ocio_config = test::shipped_ocio();
+        req.log = &test::quiet_log();
+        req.options.threads = 2;
+        req.options.strategy = strategy;
+        return render_frame(req);
+    };
+    const FrameResult metres = at("m.toml", Strategy::Mis);
+    const FrameResult mm = at("mm.toml", Strategy::Mis);
+    const FrameResult mm_nee = at("mm.toml", Strategy::NeeOnly);
+    const FrameResult mm_bsdf = at("mm.toml", Strategy::BsdfOnly);
+    EXPECT_LT(max_z_of_mean_difference(metres, mm), 4.0);
+    EXPECT_LT(max_z_of_mean_difference(mm_nee, mm_bsdf), 4.0);
+    double sum_m = 0.0, sum_mm = 0.0;
+    for (std::size_t i = 0; i < metres.image.size(); ++i) {
+        sum_m += metres.image[i];
+        sum_mm += mm_nee.image[i];
+    }
+    EXPECT_GT(sum_m, 0.0);
+    EXPECT_NEAR(sum_mm / sum_m, 1.0, 0.05) << "the image's total light under NEE";
 }
 
 TEST(Render, SceneWithoutLightsSkipsTheLightSystem) {
