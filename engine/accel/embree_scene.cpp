@@ -193,6 +193,7 @@ RTCScene make_top_level(RTCDevice device, const std::vector<RTCScene>& blas,
         }
         rtcCommitGeometry(g);
         rtcAttachGeometry(top, g);  // ids are attachment order: instance i has id i
+        if (inst.hidden) rtcDisableGeometry(g);
         rtcReleaseGeometry(g);
     }
     if (!quad_vertices.empty()) {

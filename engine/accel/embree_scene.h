@@ -35,6 +35,9 @@ struct Instance {
      *  time 0 to 1), interpolated linearly in between; empty for one that stands still (to_world
      *  is then its placement at every time). */
     std::vector<Affine> motion;
+    /** Not traced: its placement is singular (a scale of 0, as an animation passing through it
+     *  has at one instant), so the object has no extent and rays could not enter its space. */
+    bool hidden = false;
 };
 
 /** Where ray time `time` (in [0, 1]; clamped, 0 when not finite) falls among `steps` >= 2 evenly

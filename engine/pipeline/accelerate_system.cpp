@@ -1,11 +1,40 @@
 // The accelerate system: every object with a mesh placed as an instance, and the Embree scene
 // over the instances and the lights' shapes (quads, spheres).
 
+#include <cmath>
+
 #include "core/memory.h"
 #include "pipeline/systems.h"
 
 namespace spangle {
 namespace {
+
+/** Whether a placement can be inverted safely: its linear part's determinant is finite and not
+ *  negligible against its columns' lengths (a scale of 1e-6 along one axis still is). */
+bool invertible(const Affine& a) {
+    const float det = a.determinant();
+    float norms = 1.0f;
+    for (int c = 0; c < 3; ++c)
+        norms *= std::sqrt(a.m[0][c] * a.m[0][c] + a.m[1][c] * a.m[1][c] + a.m[2][c] * a.m[2][c]);
+    return std::isfinite(det) && std::isfinite(norms) && norms > 0.0f &&
+           std::fabs(det) > 1e-15f * norms;
+}
+
+/** Makes an instance safe to trace. Embree blends a moving instance's steps linearly, so a step
+ *  that is singular, or two steps whose determinants differ in sign (a mirror flip within the
+ *  shutter: the blend passes through a flat object), would send rays into a singular space
+ *  (Embree asserts); such an instance stands still at its frame placement for this frame. An
+ *  instance whose placement is singular then (an animated scale crossing 0 at this frame) is
+ *  hidden: it has no extent. */
+void make_traceable(Instance& inst) {
+    bool moving_ok = !inst.motion.empty();
+    for (std::size_t k = 0; k < inst.motion.size() && moving_ok; ++k)
+        moving_ok =
+            invertible(inst.motion[k]) && (k == 0 || (inst.motion[k].determinant() > 0.0f) ==
+                                                         (inst.motion[k - 1].determinant() > 0.0f));
+    if (!inst.motion.empty() && !moving_ok) inst.motion.clear();
+    if (inst.motion.empty() && !invertible(inst.to_world)) inst.hidden = true;
+}
 
 /** The instances of every object with a mesh, in TriangleMeshRef order; meshes indexed as in
  *  `geometry` (loaded ones, then subdivided ones). */
@@ -28,6 +57,7 @@ std::vector<Instance> place_instances(const ecs::Registry& r, uint32_t loaded_co
             inst.object = r.get<ObjectInfo>(e).index;
             inst.shadow_catcher = r.get<ObjectInfo>(e).shadow_catcher;
         }
+        make_traceable(inst);
         out.push_back(std::move(inst));
     }
     return out;

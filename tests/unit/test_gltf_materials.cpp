@@ -4,6 +4,7 @@
 // .glb and external .bin files read as the same scene.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
@@ -12,6 +13,7 @@
 
 #include "desc_support.h"
 #include "gltf_writer.h"
+#include "pipeline/frame.h"
 #include "pipeline/session.h"
 #include "scene/gltf/gltf_reader.h"
 #include "scene/scene_builder.h"
@@ -259,6 +261,77 @@ std::string animated_body(GltfWriter& w) {
         R"({{"channels":[{{"sampler":0,"target":{{"node":2,"path":"scale"}}}},{{"sampler":0,"target":{{"node":2,"path":"weights"}}}}],)"
         R"("samplers":[{{"input":{},"output":{},"interpolation":"CUBICSPLINE"}}]}}])",
         mesh, t_turn, v_turn, t_step, v_step, t_cubic, v_cubic);
+}
+
+// A card flip: a cube's x scale animated LINEAR from 1 to -1 over one second. At 0.5 s its
+// placement is singular (the cube is a square of no thickness) and rays sent into its space made
+// Embree assert: a crash on a real glTF (this test aborted before the fix). That instant now
+// leaves the cube out: an object with no volume, its placement not invertible.
+TEST(GltfAnimation, AScaleThroughZeroNeitherCrashesNorShowsTheFlatObject) {
+    test::TempDir dir("gltf_flip");
+    const auto write = [&](const std::string& name) {
+        GltfWriter w;
+        // A unit cube with a normal per face corner, as exporters write it.
+        std::vector<float> cp, cn;
+        std::vector<uint16_t> ci;
+        for (int axis = 0; axis < 3; ++axis)
+            for (const float side : {0.0f, 1.0f}) {
+                const auto base = static_cast<uint16_t>(cp.size() / 3);
+                for (int k = 0; k < 4; ++k) {
+                    float q[3];
+                    q[axis] = side;
+                    q[(axis + 1) % 3] = static_cast<float>(k == 1 || k == 2);
+                    q[(axis + 2) % 3] = static_cast<float>(k >= 2);
+                    cp.insert(cp.end(), {q[0] - 0.5f, q[1] - 0.5f, q[2] - 0.5f});
+                    float n[3] = {0, 0, 0};
+                    n[axis] = side > 0.0f ? 1.0f : -1.0f;
+                    cn.insert(cn.end(), {n[0], n[1], n[2]});
+                }
+                const bool flip = side == 0.0f;
+                ci.insert(ci.end(), {base, static_cast<uint16_t>(base + (flip ? 2 : 1)),
+                                     static_cast<uint16_t>(base + (flip ? 1 : 2)), base,
+                                     static_cast<uint16_t>(base + (flip ? 3 : 2)),
+                                     static_cast<uint16_t>(base + (flip ? 2 : 3))});
+            }
+        const int pa = w.floats(cp, "VEC3", 3), na = w.floats(cn, "VEC3", 3), ia = w.u16(ci);
+        const std::string cube = fmt::format(
+            R"({{"primitives":[{{"attributes":{{"POSITION":{},"NORMAL":{}}},"indices":{},"material":0}}]}})",
+            pa, na, ia);
+        const int t = w.floats({0, 1}, "SCALAR", 1);
+        const int v = w.floats({1, 1, 1, -1, 1, 1}, "VEC3", 3);
+        // No camera: the default framing looks at the cube from above and aside, as at the
+        // real file that crashed.
+        w.write_gltf(
+            dir.file(name),
+            fmt::format(
+                R"("materials":[{{"pbrMetallicRoughness":{{"metallicFactor":0}}}}],"meshes":[{}],)"
+                R"("nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0,)"
+                R"("animations":[{{"channels":[{{"sampler":0,"target":{{"node":0,"path":"scale"}}}}],)"
+                R"("samplers":[{{"input":{},"output":{}}}]}}])",
+                cube, t, v));
+        return dir.file(name);
+    };
+    const std::string flipping = write("flip.gltf");
+    const auto render = [&](const std::string& path, double time) {
+        FrameRequest req;
+        req.scene = path;
+        req.ocio_config = test::shipped_ocio();
+        req.log = &test::quiet_log();
+        req.options.threads = 2;
+        req.options.width_override = 32;
+        req.options.height_override = 24;
+        req.options.spp_override = 4;
+        req.time = time;
+        return render_frame(req).image;
+    };
+    const auto finite = [](const std::vector<float>& img) {
+        return std::all_of(img.begin(), img.end(), [](float x) { return std::isfinite(x); });
+    };
+    const std::vector<float> flat = render(flipping, 0.5);
+    ASSERT_TRUE(finite(flat));
+    const std::vector<float> half = render(flipping, 0.25);
+    ASSERT_TRUE(finite(half));
+    EXPECT_NE(half, flat) << "at scale 0.5 the cube shows, at 0 it is left out";
 }
 
 TEST(GltfAnimation, NodeChannelsBecomeMatrixKeysAtTheUnionOfTheirTimes) {
