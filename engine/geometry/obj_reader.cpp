@@ -37,6 +37,8 @@ public:
         int first_line = 0;
         for (int number = 1; std::getline(in, line); ++number) {
             if (!line.empty() && line.back() == '\r') line.pop_back();
+            // A UTF-8 byte order mark (some Windows tools write one) is not part of the text.
+            if (number == 1 && line.starts_with("\xEF\xBB\xBF")) line.erase(0, 3);
             if (joined.empty()) first_line = number;
             // A backslash at the end of a line continues the statement on the next one.
             if (!line.empty() && line.back() == '\\') {
@@ -119,10 +121,12 @@ private:
         const std::string_view vt = rest.substr(0, s2);
         if (!vt.empty()) c.vt = index(vt, uvs_.size() / 2, "uv", worst_vt_);
         if (s2 != std::string_view::npos) {
+            // "v/vt/" and "v//" (a trailing slash with nothing after it, as some exporters
+            // write) give no normal.
             const std::string_view vn = rest.substr(s2 + 1);
-            if (vn.empty() || vn.find('/') != std::string_view::npos)
+            if (vn.find('/') != std::string_view::npos)
                 fail(fmt::format("face corner '{}' is not v, v/vt, v//vn or v/vt/vn", token));
-            c.vn = index(vn, normals_.size() / 3, "normal", worst_vn_);
+            if (!vn.empty()) c.vn = index(vn, normals_.size() / 3, "normal", worst_vn_);
         }
         return c;
     }
@@ -138,6 +142,8 @@ private:
     }
 
     void statement(std::string_view s) {
+        // A comment runs from '#' to the end of the line, also after a statement's data.
+        s = s.substr(0, s.find('#'));
         const std::string_view keyword = next_token(s);
         if (keyword == "v") {
             numbers(s, 3, positions_, "vertex");
@@ -156,12 +162,112 @@ private:
             if (face_.size() < 3)
                 fail(fmt::format("face has {} corner{}; a face needs at least 3", face_.size(),
                                  face_.size() == 1 ? "" : "s"));
-            // Fan triangulation around the first corner.
-            for (std::size_t k = 1; k + 1 < face_.size(); ++k)
-                indices_.insert(indices_.end(), {face_[0], face_[k], face_[k + 1]});
+            // Triangulated at the end, when every vertex a face may name forward is known.
+            polygons_.insert(polygons_.end(), face_.begin(), face_.end());
+            polygon_ends_.push_back(static_cast<uint32_t>(polygons_.size()));
         }
         // Everything else (comments, o, g, s, usemtl, mtllib, l, p, curves) is not geometry
         // Spangle renders.
+    }
+
+    Vec3 position_of(uint32_t vertex) const {
+        const auto v = static_cast<std::size_t>(corners_[vertex].v);
+        return {positions_[3 * v], positions_[3 * v + 1], positions_[3 * v + 2]};
+    }
+
+    /** Every face as triangles: a convex one as a fan around its first corner, a concave one
+     *  (an L, a U, a ring cut open, as modellers write them) by ear clipping in its plane.
+     *  Convex faces keep the fan the reader always made, so their meshes are unchanged. */
+    void triangulate() {
+        std::vector<double> x, y;
+        uint32_t begin = 0;
+        for (const uint32_t end : polygon_ends_) {
+            const uint32_t* f = &polygons_[begin];
+            const std::size_t n = end - begin;
+            begin = end;
+            // (Beyond kMaxClipped corners, O(n^3) at worst, a fan.)
+            constexpr std::size_t kMaxClipped = 256;
+            if (n == 3 || n > kMaxClipped || !project(f, n, x, y) || convex(x, y)) {
+                for (std::size_t k = 1; k + 1 < n; ++k)
+                    indices_.insert(indices_.end(), {f[0], f[k], f[k + 1]});
+                continue;
+            }
+            // Ear clipping: cut off a corner whose triangle turns the polygon's way and holds
+            // no other corner, until a triangle is left (O(n^2) per face).
+            std::vector<std::size_t> at(n);
+            for (std::size_t k = 0; k < n; ++k) at[k] = k;
+            const auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
+                return (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a]);
+            };
+            while (at.size() > 3) {
+                const std::size_t m = at.size();
+                bool cut = false;
+                for (std::size_t k = 0; k < m && !cut; ++k) {
+                    const std::size_t a = at[(k + m - 1) % m], b = at[k], c = at[(k + 1) % m];
+                    if (cross(a, b, c) <= 0.0) continue;  // a reflex (or flat) corner
+                    bool empty = true;
+                    for (std::size_t j = 0; j < m && empty; ++j) {
+                        const std::size_t q = at[j];
+                        // Corners that coincide with the ear's (a hole's bridge visits its two
+                        // ends twice) do not block it.
+                        const auto same = [&](std::size_t r) {
+                            return f[q] == f[r] || (x[q] == x[r] && y[q] == y[r]);
+                        };
+                        if (same(a) || same(b) || same(c)) continue;
+                        empty = !(cross(a, b, q) >= 0.0 && cross(b, c, q) >= 0.0 &&
+                                  cross(c, a, q) >= 0.0);
+                    }
+                    if (!empty) continue;
+                    indices_.insert(indices_.end(), {f[a], f[b], f[c]});
+                    at.erase(at.begin() + static_cast<std::ptrdiff_t>(k));
+                    cut = true;
+                }
+                if (!cut) {
+                    // No ear (a self-intersecting outline): the rest as a fan.
+                    for (std::size_t k = 1; k + 1 < at.size(); ++k)
+                        indices_.insert(indices_.end(), {f[at[0]], f[at[k]], f[at[k + 1]]});
+                    at.clear();
+                }
+            }
+            if (at.size() == 3) indices_.insert(indices_.end(), {f[at[0]], f[at[1]], f[at[2]]});
+        }
+    }
+
+    /** The face's corners in 2D, in the plane of its Newell normal, turning counter-clockwise;
+     *  false when the face has no area to speak of. */
+    bool project(const uint32_t* f, std::size_t n, std::vector<double>& x,
+                 std::vector<double>& y) const {
+        double nx = 0, ny = 0, nz = 0;
+        for (std::size_t k = 0; k < n; ++k) {
+            const Vec3 a = position_of(f[k]), b = position_of(f[(k + 1) % n]);
+            nx += (static_cast<double>(a.y) - b.y) * (static_cast<double>(a.z) + b.z);
+            ny += (static_cast<double>(a.z) - b.z) * (static_cast<double>(a.x) + b.x);
+            nz += (static_cast<double>(a.x) - b.x) * (static_cast<double>(a.y) + b.y);
+        }
+        const double ax = std::fabs(nx), ay = std::fabs(ny), az = std::fabs(nz);
+        if (!(ax + ay + az > 0.0)) return false;
+        // Drop the normal's largest axis; keep the orientation counter-clockwise.
+        const int drop = ax >= ay && ax >= az ? 0 : (ay >= az ? 1 : 2);
+        const double sign = (drop == 0 ? nx : drop == 1 ? ny : nz) > 0.0 ? 1.0 : -1.0;
+        x.resize(n);
+        y.resize(n);
+        for (std::size_t k = 0; k < n; ++k) {
+            const Vec3 p = position_of(f[k]);
+            const double c[3] = {p.x, p.y, p.z};
+            x[k] = c[(drop + 1) % 3];
+            y[k] = sign * c[(drop + 2) % 3];
+        }
+        return true;
+    }
+
+    /** Whether the projected outline turns the same way at every corner. */
+    static bool convex(const std::vector<double>& x, const std::vector<double>& y) {
+        const std::size_t n = x.size();
+        for (std::size_t k = 0; k < n; ++k) {
+            const std::size_t a = (k + n - 1) % n, c = (k + 1) % n;
+            if ((x[k] - x[a]) * (y[c] - y[a]) - (y[k] - y[a]) * (x[c] - x[a]) < 0.0) return false;
+        }
+        return true;
     }
 
     /** Checks the largest index of a kind against the number read. */
@@ -175,6 +281,7 @@ private:
         check(worst_v_, positions_.size() / 3, "vertex");
         check(worst_vt_, uvs_.size() / 2, "uv");
         check(worst_vn_, normals_.size() / 3, "normal");
+        triangulate();
         TriangleMesh mesh;
         mesh.source = path_;
         bool all_normals = !corners_.empty(), any_uv = false;
@@ -207,6 +314,7 @@ private:
     int line_ = 0;
     std::vector<float> positions_, uvs_, normals_;
     std::vector<uint32_t> indices_, face_;
+    std::vector<uint32_t> polygons_, polygon_ends_;  ///< every face's vertices; where each ends
     std::vector<Corner> corners_;
     std::pair<int64_t, int> worst_v_{-1, 0}, worst_vt_{-1, 0}, worst_vn_{-1, 0};
     std::unordered_map<Corner, uint32_t, CornerHash> vertices_;

@@ -162,6 +162,57 @@ TEST(ObjReader, NormalsOnlyWhenEveryCornerHasOneAndForwardIndices) {
     EXPECT_TRUE(mixed.normals.empty()) << "a corner without a normal: face normals for all";
 }
 
+TEST(ObjReader, ConcaveFacesAreClippedConvexOnesFanned) {
+    // A U (8 corners, counter-clockwise seen from +z, then the same U written clockwise and
+    // turned into the yz-plane): its notch x in (1, 3), y in (1, 4) must stay empty and its six
+    // triangles must cover its area, 10, once.
+    const std::string u =
+        "v 0 0 0\nv 4 0 0\nv 4 4 0\nv 3 4 0\nv 3 1 0\nv 1 1 0\nv 1 4 0\nv 0 4 0\n";
+    const std::string u_yz =
+        "v 0 0 0\nv 0 0 4\nv 0 4 4\nv 0 4 3\nv 0 1 3\nv 0 1 1\nv 0 4 1\nv 0 4 0\n";
+    for (const std::string& text : {u + "f 1 2 3 4 5 6 7 8\n", u_yz + "f 8 7 6 5 4 3 2 1\n"}) {
+        const TriangleMesh m = load_obj_text(text);
+        ASSERT_EQ(m.triangle_count(), 6u) << text;
+        double area = 0.0;
+        for (uint32_t t = 0; t < m.triangle_count(); ++t) {
+            Vec3 p[3];
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t v = m.indices[3 * t + static_cast<uint32_t>(k)];
+                p[k] = {m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]};
+            }
+            area += 0.5 * static_cast<double>(length(cross(p[1] - p[0], p[2] - p[0])));
+            // The notch's middle, (2, 2.5) in the face's plane, is in no triangle.
+            const bool yz = text == u_yz + "f 8 7 6 5 4 3 2 1\n";
+            const auto c2 = [&](Vec3 q) { return yz ? std::pair{q.z, q.y} : std::pair{q.x, q.y}; };
+            const auto side = [&](Vec3 a, Vec3 b) {
+                const auto [ax, ay] = c2(a);
+                const auto [bx, by] = c2(b);
+                return (bx - ax) * (2.5f - ay) - (by - ay) * (2.0f - ax);
+            };
+            const float s0 = side(p[0], p[1]), s1 = side(p[1], p[2]), s2 = side(p[2], p[0]);
+            EXPECT_FALSE((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+                << "triangle " << t << " covers the notch";
+        }
+        EXPECT_NEAR(area, 10.0, 1e-5);
+    }
+    // A convex pentagon keeps its fan (the meshes the reader made before are unchanged).
+    const TriangleMesh convex =
+        load_obj_text("v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 3 0\nv -1 1 0\nf 1 2 3 4 5\n");
+    EXPECT_EQ(convex.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 3, 4}));
+}
+
+TEST(ObjReader, ReadsWhatRealExportersWrite) {
+    // A UTF-8 byte order mark, corners ending in a slash ("v/vt/", "v//"), comments after data.
+    const TriangleMesh m = load_obj_text(
+        "\xEF\xBB\xBFv 0 0 0\nv 1 0 0 # x axis\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+        "f 1/1/ 2/2/ 3/3/ # a triangle\nf 1// 3// 2//\n");
+    EXPECT_EQ(m.triangle_count(), 2u);
+    ASSERT_EQ(m.positions.size() % 3, 0u);
+    EXPECT_FLOAT_EQ(m.positions[0], 0.0f) << "the first vertex is read despite the mark";
+    EXPECT_EQ(m.vertex_count(), 6u) << "(v, vt) pairs: three with uvs, three without";
+    EXPECT_TRUE(m.normals.empty());
+}
+
 TEST(ObjReader, ErrorsNameTheLine) {
     const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
     const auto has = [](const std::string& msg, const std::string& part) {
@@ -180,8 +231,8 @@ TEST(ObjReader, ErrorsNameTheLine) {
                  "line 4: face refers to uv 1, but the file has 0");
     EXPECT_PRED2(has, obj_error(tri + "f 1/x 2 3\n"),
                  "line 4: face corner has 'x' where a uv index belongs");
-    EXPECT_PRED2(has, obj_error(tri + "f 1/1/ 2 3\n"),
-                 "line 4: face corner '1/1/' is not v, v/vt, v//vn or v/vt/vn");
+    EXPECT_PRED2(has, obj_error(tri + "f 1/1/1/ 2 3\n"),
+                 "line 4: face corner '1/1/1/' is not v, v/vt, v//vn or v/vt/vn");
     EXPECT_PRED2(has, obj_error("v 0 0\n"), "line 1: vertex is missing a number");
     EXPECT_PRED2(has, obj_error("v 0 0 1e39\n"),
                  "line 1: vertex has '1e39', out of the range of a float");
