@@ -32,9 +32,9 @@ Vec3 xyz_to_rec709(double x, double y, double z) {
             static_cast<float>(0.0556434 * x - 0.2040259 * y + 1.0572252 * z)};
 }
 
-/** RGB of the spectrum s(lambda), 1 nm steps over 360..830 nm, normalised by the integral of y. */
+/** XYZ of the spectrum s(lambda), 1 nm steps over 360..830 nm, normalised by the integral of y. */
 template <class S>
-Vec3 integrate(const S& s) {
+std::array<double, 3> integrate_xyz(const S& s) {
     double x = 0, y = 0, z = 0, norm = 0;
     for (int i = 360; i <= 830; ++i) {
         const double l = i;
@@ -45,7 +45,14 @@ Vec3 integrate(const S& s) {
         z += v * c[2];
         norm += c[1];
     }
-    return xyz_to_rec709(x / norm, y / norm, z / norm);
+    return {x / norm, y / norm, z / norm};
+}
+
+/** Linear Rec.709 of the spectrum s(lambda) as light (no white adaptation). */
+template <class S>
+Vec3 integrate(const S& s) {
+    const std::array<double, 3> c = integrate_xyz(s);
+    return xyz_to_rec709(c[0], c[1], c[2]);
 }
 
 /** Planck's law: spectral radiance at wavelength `nm` of a blackbody at `kelvin` (W/m^3/sr). */
@@ -78,6 +85,30 @@ double spectrum_at(const std::vector<double>& pairs, double l) {
 Vec3 sampled_spectrum_rgb(const std::vector<double>& pairs) {
     if (pairs.size() < 2) return Vec3(0.0f);
     return integrate([&](double l) { return spectrum_at(pairs, l); });
+}
+
+Vec3 reflectance_spectrum_rgb(const std::vector<double>& pairs) {
+    if (pairs.size() < 2) return Vec3(0.0f);
+    // A reflectance is a ratio, seen under the working space's white (D65), as pbrt-v4 takes it:
+    // XYZ under equal energy, adapted to D65 by the Bradford transform (a flat spectrum is then
+    // grey; as light, integrate() above, a flat spectrum is the pinkish equal-energy white).
+    const std::array<double, 3> c = integrate_xyz([&](double l) { return spectrum_at(pairs, l); });
+    static const std::array<double, 3> e = integrate_xyz([](double) { return 1.0; });
+    static constexpr double kBradford[3][3] = {
+        {0.8951, 0.2664, -0.1614}, {-0.7502, 1.7135, 0.0367}, {0.0389, -0.0685, 1.0296}};
+    static constexpr double kInverse[3][3] = {{0.9869929, -0.1470543, 0.1599627},
+                                              {0.4323053, 0.5183603, 0.0492912},
+                                              {-0.0085287, 0.0400428, 0.9684867}};
+    const double d65[3] = {0.95047, 1.0, 1.08883};
+    const auto cone = [&](const double* xyz, int i) {
+        return kBradford[i][0] * xyz[0] + kBradford[i][1] * xyz[1] + kBradford[i][2] * xyz[2];
+    };
+    double lms[3];
+    for (int i = 0; i < 3; ++i) lms[i] = cone(c.data(), i) * cone(d65, i) / cone(e.data(), i);
+    double xyz[3];
+    for (int i = 0; i < 3; ++i)
+        xyz[i] = kInverse[i][0] * lms[0] + kInverse[i][1] * lms[1] + kInverse[i][2] * lms[2];
+    return xyz_to_rec709(xyz[0], xyz[1], xyz[2]);
 }
 
 Vec3 blackbody_rgb(double kelvin) {

@@ -15,6 +15,10 @@ namespace spangle::pbrt {
  *  and constant beyond them: XYZ = integral S(l) xyz(l) dl / integral y(l) dl, 360 to 830 nm. */
 Vec3 sampled_spectrum_rgb(const std::vector<double>& lambda_value_pairs);
 
+/** The same spectrum as a reflectance (a ratio, not light): seen under the working white (D65),
+ *  by Bradford adaptation from equal energy, so that a flat spectrum is grey of its value. */
+Vec3 reflectance_spectrum_rgb(const std::vector<double>& lambda_value_pairs);
+
 /** CIE XYZ -> linear Rec.709 (D65 white), IEC 61966-2-1. */
 Vec3 xyz_to_rec709(Vec3 xyz);
 

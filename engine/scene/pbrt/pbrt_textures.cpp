@@ -215,11 +215,12 @@ std::optional<ColorDesc> color_param(Reader& r, const ParamList& p, const char* 
             c.rgb = Vec3(1.0f);
             return c;
         }
-        c.rgb = sampled_spectrum_rgb(spd_file(r, s, q->loc));
+        const std::vector<double> pairs = spd_file(r, s, q->loc);
+        c.rgb = illuminant ? sampled_spectrum_rgb(pairs) : reflectance_spectrum_rgb(pairs);
     } else {
         if (v.size() < 2 || v.size() % 2 != 0)
             throw_error(q->loc, "'spectrum {}' needs wavelength-value pairs", name);
-        c.rgb = sampled_spectrum_rgb(v);
+        c.rgb = illuminant ? sampled_spectrum_rgb(v) : reflectance_spectrum_rgb(v);
     }
     if (illuminant && r.v4()) c.rgb = unit_luminance(c.rgb);
     c.rgb = Vec3(std::max(c.rgb.x, 0.0f), std::max(c.rgb.y, 0.0f), std::max(c.rgb.z, 0.0f));
