@@ -19,6 +19,7 @@
 namespace spangle {
 namespace {
 
+using test::has_note;
 using test::param;
 
 /** A folder with the files the scenes below name (an image, a PLY, a spectrum). */
@@ -172,6 +173,47 @@ ActiveTransform All
     // Seconds map onto Spangle's shutter at one frame per second.
     EXPECT_EQ(d.render.fps, 1.0);
     EXPECT_EQ(d.render.shutter_close, 0.5);
+}
+
+TEST(PbrtReader, WorldBeginResetsTheBlockStateAsPbrtDoes) {
+    // ActiveTransform before WorldBegin does not reach into the world block (pbrt sets both
+    // transforms active again there): the Translate moves the quad at both times, no blur.
+    const Files f;
+    const SceneDescription d = read(f, std::string(R"(ActiveTransform StartTime
+WorldBegin
+Translate 2 0 0
+)") + kQuad + "\n");
+    ASSERT_EQ(d.objects.size(), 1u);
+    const Keys<MatrixKey>& keys = d.objects[0].matrix_keys;
+    for (const MatrixKey& k : keys.keys) EXPECT_NEAR(k.matrix.t.x, 2.0f, 1e-6f);
+    // A camera inside the world block is not the scene's camera (pbrt refuses or ignores it).
+    const SceneDescription c = read(f, std::string(R"(LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective" "float fov" 30
+WorldBegin
+Translate 0 0 -5
+Camera "perspective" "float fov" 90
+)") + kQuad + "\n");
+    EXPECT_NEAR(c.camera.fov_deg, 30.0, 1e-9);
+    EXPECT_NEAR(c.camera.position.z, 5.0f, 1e-5f);
+    EXPECT_TRUE(has_note(c, "Camera inside the world block"));
+}
+
+TEST(PbrtReader, AVersion3LightScaleIsASpectrum) {
+    // pbrt-v3 lights take "scale" as a spectrum (FindOneSpectrum): it multiplies the colour.
+    const Files f;
+    const SceneDescription d = read(f, std::string(R"(WorldBegin
+LightSource "point" "point from" [0 0 3] "color I" [5 5 5] "rgb scale" [4 2 1]
+AttributeBegin
+AreaLightSource "area" "color L" [1 1 1] "color scale" [3 3 3]
+Shape "sphere" "float radius" 0.3
+AttributeEnd
+)"));
+    ASSERT_EQ(d.lights.size(), 1u);
+    EXPECT_EQ(d.lights[0].color->rgb, Vec3(20, 10, 5));
+    ASSERT_EQ(d.objects.size(), 1u);
+    ASSERT_TRUE(d.objects[0].emission.has_value());
+    EXPECT_EQ(d.objects[0].emission->color.rgb, Vec3(3, 3, 3));
+    EXPECT_FALSE(has_note(d, "not supported"));
 }
 
 TEST(PbrtReader, ObjectInstancesShareOneMesh) {

@@ -92,6 +92,14 @@ void infinite(Reader& r, const ParamList& p, const FileLoc& loc, ColorDesc L, do
     r.d.environment = std::move(e);
 }
 
+/** pbrt-v3's light 'scale' is a spectrum ("rgb scale" [4 4 4], "color scale", "spectrum
+ *  scale"): it multiplies the light's colour; white when the light has none. */
+void colour_scale(Reader& r, const ParamList& p, ColorDesc& c) {
+    if (const auto s = color_param(r, p, "scale", false)) {
+        c.rgb = Vec3(c.rgb.x * s->rgb.x, c.rgb.y * s->rgb.y, c.rgb.z * s->rgb.z);
+    }
+}
+
 }  // namespace
 
 void read_light(Reader& r, const std::string& type, ParamList& p, const FileLoc& loc) {
@@ -107,7 +115,8 @@ void read_light(Reader& r, const std::string& type, ParamList& p, const FileLoc&
     const double power = p.number("power", -1.0);
     if (p.find("power")) r.sign(true, loc, "light 'power'");
     if (type == "point" || type == "spot" || type == "goniometric" || type == "projection") {
-        const ColorDesc I = color_param(r, p, "I", true).value_or(r.color(Vec3(1.0f), loc));
+        ColorDesc I = color_param(r, p, "I", true).value_or(r.color(Vec3(1.0f), loc));
+        colour_scale(r, p, I);
         l.color = I;
         const Vec3 from = light_point(r, p, "from", Vec3(0.0f));
         if (type == "spot") {
@@ -115,7 +124,12 @@ void read_light(Reader& r, const std::string& type, ParamList& p, const FileLoc&
             s.position = from;
             s.look_at = light_point(r, p, "to", Vec3(0, 0, 1));
             s.look_at_loc = s.cone_falloff_loc = loc;
-            s.cone_angle = std::clamp(p.number("coneangle", 30.0), 1e-3, 90.0);
+            const double cone = p.number("coneangle", 30.0);
+            if (cone > 90.0)
+                r.notes.add(loc, fmt::format("spot 'coneangle' {} is beyond Spangle's 90 degrees: "
+                                             "a hemisphere it is",
+                                             cone));
+            s.cone_angle = std::clamp(cone, 1e-3, 90.0);
             s.cone_falloff = std::clamp(p.number("conedeltaangle", 5.0), 0.0, s.cone_angle);
             if (power > 0.0) {
                 // pbrt-v4: the intensity whose cone (with its smooth falloff) emits `power`.
@@ -136,6 +150,7 @@ void read_light(Reader& r, const std::string& type, ParamList& p, const FileLoc&
         }
     } else if (type == "distant") {
         l.color = color_param(r, p, "L", true).value_or(r.color(Vec3(1.0f), loc));
+        colour_scale(r, p, *l.color);
         DistantLightDesc dl;
         const Vec3 from = light_point(r, p, "from", Vec3(0.0f)),
                    to = light_point(r, p, "to", Vec3(0, 0, 1));
@@ -145,7 +160,8 @@ void read_light(Reader& r, const std::string& type, ParamList& p, const FileLoc&
         if (e > 0.0) scale *= e;
         l.shape = dl;
     } else if (type == "infinite") {
-        const ColorDesc L = color_param(r, p, "L", true).value_or(r.color(Vec3(1.0f), loc));
+        ColorDesc L = color_param(r, p, "L", true).value_or(r.color(Vec3(1.0f), loc));
+        colour_scale(r, p, L);
         infinite(r, p, loc, L, scale);
         r.notes.unused(p, what);
         return;
@@ -172,6 +188,7 @@ void read_area_light(Reader& r, const std::string& type, ParamList& p, const Fil
     AreaLight a;
     a.loc = loc;
     a.L = color_param(r, p, "L", true).value_or(r.color(Vec3(1.0f), loc));
+    colour_scale(r, p, a.L);
     a.scale = std::max(0.0, p.number("scale", 1.0));
     a.two_sided = p.boolean("twosided", false);
     if (const Param* pw = p.find("power", {"float"});

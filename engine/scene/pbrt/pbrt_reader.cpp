@@ -263,6 +263,8 @@ private:
         } else if (name == "WorldBegin") {
             r_.world = true;
             r_.gs.ctm[0] = r_.gs.ctm[1] = Mat4();
+            // As in pbrt (v3 and v4): both transforms active again.
+            r_.gs.active[0] = r_.gs.active[1] = true;
             r_.coord_systems["world"] = {Mat4(), Mat4()};
         } else if (name == "WorldEnd") {
             r_.sign(false, loc, "WorldEnd");
@@ -397,6 +399,12 @@ private:
                                               type));
             r_.materials[type] =
                 mtype.empty() ? default_material(r_, loc) : read_material(r_, mtype, type, p, loc);
+        } else if (name == "Camera" && r_.world) {
+            // pbrt-v4 refuses a camera inside the world block and pbrt-v3 ignores it (with an
+            // error): it would otherwise replace the scene's camera silently.
+            r_.notes.add(loc,
+                         "Camera inside the world block (after WorldBegin): pbrt does not "
+                         "allow it; ignored");
         } else if (name == "Camera") {
             r_.camera.type = type;
             r_.camera.params = std::move(p);
