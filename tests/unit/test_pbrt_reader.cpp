@@ -327,6 +327,17 @@ Shape "loopsubdiv" "integer levels" 2 "integer indices" [0 1 2 0 2 3 0 3 1 1 3 2
     EXPECT_NE(e.find("scene.pbrt:1:1: error: loopsubdiv: index 7"), std::string::npos) << e;
 }
 
+TEST(PbrtReader, AByteOrderMarkAndOldMacLineEndsAreText) {
+    const Files f;
+    // A UTF-8 byte order mark before the first directive; carriage returns alone ending lines.
+    const SceneDescription d = read(
+        f, std::string("\xEF\xBB\xBFWorldBegin\r") + "LightSource \"point\" \"rgb I\" [1 1 1]\r");
+    EXPECT_EQ(d.lights.size(), 1u);
+    const std::string e = error_of(f, "WorldBegin\r\rFrobnicate\r");
+    EXPECT_NE(e.find("scene.pbrt:3:1: error: unknown directive 'Frobnicate'"), std::string::npos)
+        << e;
+}
+
 TEST(PbrtReader, PlyMeshesStayMeshFilesForMeshLoad) {
     const Files f;
     const SceneDescription d = read(f, "Shape \"plymesh\" \"string filename\" \"mesh.ply\"\n");

@@ -65,13 +65,22 @@ bool is_space(char c) {
     return c == ' ' || c == '\t' || c == '\n' || c == '\r' || c == '\f' || c == '\v';
 }
 
+/** The text without a UTF-8 byte order mark, a lone carriage return (old Mac line ends) made a
+ *  line feed, so that lines count and the first directive reads. */
+std::string plain(std::string text) {
+    if (text.starts_with("\xEF\xBB\xBF")) text.erase(0, 3);
+    for (std::size_t i = 0; i < text.size(); ++i)
+        if (text[i] == '\r' && (i + 1 == text.size() || text[i + 1] != '\n')) text[i] = '\n';
+    return text;
+}
+
 }  // namespace
 
 Tokenizer::Tokenizer(const std::string& path, const FileLoc& ref)
-    : path_(path), text_(read_whole(path, ref)) {}
+    : path_(path), text_(plain(read_whole(path, ref))) {}
 
 Tokenizer::Tokenizer(std::string name, std::string text)
-    : path_(std::move(name)), text_(std::move(text)) {}
+    : path_(std::move(name)), text_(plain(std::move(text))) {}
 
 const Token& Tokenizer::peek() {
     if (!peeked_) {
