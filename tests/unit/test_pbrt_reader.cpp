@@ -478,6 +478,8 @@ TEST(PbrtReader, TexturesBecomeLookupsOrConstants) {
 Texture "wood" "spectrum" "imagemap" "string filename" "wood.png" "float uscale" 4
   "float vscale" 2 "float udelta" 0.5 "float vdelta" 0.25 "string wrap" "clamp"
 Texture "dark" "spectrum" "scale" "texture tex" "wood" "rgb scale" [0.5 0.5 0.5]
+Texture "quarter" "float" "constant" "float value" 0.25
+Texture "darker" "spectrum" "scale" "texture tex" "wood" "texture scale" "quarter"
 Texture "grey" "spectrum" "constant" "rgb value" [0.3 0.3 0.3]
 Texture "blend" "spectrum" "mix" "rgb tex1" [0 0 0] "rgb tex2" [1 1 1] "float amount" 0.25
 Texture "check" "spectrum" "checkerboard" "rgb tex1" [1 1 1] "rgb tex2" [0 0 0]
@@ -491,6 +493,7 @@ MakeNamedMaterial "m4" "string type" "matte" "texture Kd" "check"
 MakeNamedMaterial "m5" "string type" "conductor" "texture roughness" "rough"
   "bool remaproughness" false
 MakeNamedMaterial "m6" "string type" "diffuse" "string normalmap" "bumps.png"
+MakeNamedMaterial "m7" "string type" "diffuse" "texture reflectance" "darker"
 )");
     const ParamDesc* kd = param(material(d, "m1"), "albedo");
     ASSERT_EQ(kd->kind, ParamDesc::Kind::Texture);
@@ -511,6 +514,9 @@ MakeNamedMaterial "m6" "string type" "diffuse" "string normalmap" "bumps.png"
     ASSERT_EQ(rough->kind, ParamDesc::Kind::Texture);
     EXPECT_EQ(*rough->texture.space, "raw");
     EXPECT_EQ(material(d, "m6").maps.at(0).name, "normal_map");
+    // pbrt-v4: a spectrum texture's "texture scale" names a float texture.
+    EXPECT_EQ(param(material(d, "m7"), "albedo")->texture.scale[0], 0.25f);
+    EXPECT_FALSE(noted(d, "is not defined"));
     EXPECT_TRUE(noted(d, "checkerboard texture is not supported"));
     EXPECT_TRUE(noted(d, "texture \"fbm\" is not supported: a constant 0.5 stands in"));
 }

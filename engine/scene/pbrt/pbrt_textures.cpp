@@ -113,6 +113,10 @@ TextureValue operand(Reader& r, const std::string& kind, const ParamList& p, con
         auto& table = kind == "float" ? r.float_textures : r.color_textures;
         const auto it = table.find(t->strings[0]);
         if (it != table.end()) return it->second;
+        // pbrt-v4's scale of a spectrum texture is a float texture (a grey factor).
+        if (kind != "float")
+            if (const auto f = r.float_textures.find(t->strings[0]); f != r.float_textures.end())
+                return f->second;
         r.notes.add(t->loc, fmt::format("texture '{}' is not defined: {} stands in", t->strings[0],
                                         fallback.x));
     }
