@@ -149,21 +149,39 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     const Box& b = rep.model_bounds;
     // Stand the model on the ground (y = 0), centred over the origin.
     rep.offset = {-b.centre().x, -b.lo.y, -b.centre().z};
+    // A flat model (a leaf, a card, a decal lying in y = const) would lie in the ground's plane
+    // and fight it for every pixel: it is lifted by a thousandth of its size.
+    const Vec3 model_size = b.hi - b.lo;
+    if (model_size.y < 1e-3f * std::max(model_size.x, model_size.z))
+        rep.offset.y += 1e-3f * std::max(model_size.x, model_size.z);
     Box placed;
     placed.add(b.lo + rep.offset);
     placed.add(b.hi + rep.offset);
     const Vec3 size = placed.hi - placed.lo;
-    const float radius = std::max(0.5f * length(size), 1e-6f);
+    // In double: the squares of a 1e20 model's extent overflow a float.
+    const double extent =
+        std::sqrt(double(size.x) * size.x + double(size.y) * size.y + double(size.z) * size.z);
+    // Everything the scene writes lies within about 40 model sizes of the origin; a scene's
+    // coordinates are at most 1e30.
+    if (!(extent < 1e27))
+        throw_error(
+            "model '{}' is {:.3g} units across: too large for a scene (coordinates are at "
+            "most 1e30); scale it down",
+            r.model, extent);
+    const float radius = std::max(0.5f * static_cast<float>(extent), 1e-6f);
     rep.look_at = placed.centre();
     rep.fov_deg = kFovDeg;
     // A three-quarter view from slightly above, as a product shot is taken.
     const Vec3 view = normalize(Vec3{0.75f, 0.38f, 1.0f});
     const double aspect = double(r.width) / double(r.height);
-    const double dist = framing_distance(placed, rep.look_at, view, aspect);
+    double dist = framing_distance(placed, rep.look_at, view, aspect);
+    // A model with no extent (one point, or all its vertices alike) is framed as a tiny one.
+    if (!(dist > 0.5 * radius)) dist = 4.0 * radius;
     rep.camera = rep.look_at + view * static_cast<float>(dist);
     // Flakes per square unit such that a pixel at the look_at distance sees kFlakesPerPixel.
     const double pixel = 2.0 * dist * std::tan(kFovDeg * kPiD / 360.0) / r.height;
-    rep.density = std::clamp(two_digits(kFlakesPerPixel / (pixel * pixel)), 1.0, 2.0e9);
+    const double per_area = kFlakesPerPixel / (pixel * pixel);
+    rep.density = std::isfinite(per_area) ? std::clamp(two_digits(per_area), 1.0, 2.0e9) : 2.0e9;
     rep.flakes_per_pixel = rep.density * pixel * pixel;
 
     // The ground: a square 40 model sizes wide, written beside the scene.

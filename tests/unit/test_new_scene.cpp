@@ -109,6 +109,40 @@ TEST(NewScene, StandsTheModelOnTheGroundAndFramesItsBounds) {
     EXPECT_EQ(img.stats.nonfinite, 0u);
 }
 
+TEST(NewScene, ModelsOfNoSizeFlatOrHugeGiveScenesThatLoadOrAClearError) {
+    test::TempDir dir("new_scene_odd");
+    NewSceneRequest req;
+    req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+    const auto make = [&](const std::string& name, Vec3 lo, Vec3 hi) {
+        write_box_obj(dir.file(name + ".obj"), lo, hi);
+        req.model = dir.file(name + ".obj");
+        req.output = dir.file(name + ".toml");
+        return write_new_scene(req);
+    };
+    // Every vertex alike (a degenerate export): the density was NaN and the scene did not load.
+    const NewSceneReport point = make("point", Vec3(1, 2, 3), Vec3(1, 2, 3));
+    EXPECT_TRUE(std::isfinite(point.density)) << point.density;
+    EXPECT_NO_THROW(read_scene(req.output));
+    // A flat card lying in y = const is lifted off the ground's plane (they fought for every
+    // pixel).
+    const NewSceneReport card = make("card", Vec3(0, 0, 0), Vec3(1, 0, 1));
+    EXPECT_NEAR(card.offset.y, 1e-3f, 1e-6f);
+    EXPECT_NO_THROW(read_scene(req.output));
+    // 1e20 across: the extent's square overflowed a float (an infinite position was written).
+    const NewSceneReport big = make("big", Vec3(-1e20f), Vec3(1e20f));
+    EXPECT_TRUE(std::isfinite(big.camera.x) && std::isfinite(big.density));
+    EXPECT_NO_THROW(read_scene(req.output));
+    // Beyond what a scene can hold: a clear error, nothing written.
+    try {
+        make("huge", Vec3(-1e30f), Vec3(1e30f));
+        FAIL() << "a 3e30 model was accepted";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("too large for a scene"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_FALSE(fs::exists(dir.file("huge.toml")));
+}
+
 TEST(NewScene, AMissingModelNamesTheAbsolutePathItLookedFor) {
     test::TempDir dir("new_scene_missing");
     NewSceneRequest req;
