@@ -239,10 +239,11 @@ private:
                  std::vector<double>& y) const {
         double nx = 0, ny = 0, nz = 0;
         for (std::size_t k = 0; k < n; ++k) {
-            const Vec3 a = position_of(f[k]), b = position_of(f[(k + 1) % n]);
-            nx += (static_cast<double>(a.y) - b.y) * (static_cast<double>(a.z) + b.z);
-            ny += (static_cast<double>(a.z) - b.z) * (static_cast<double>(a.x) + b.x);
-            nz += (static_cast<double>(a.x) - b.x) * (static_cast<double>(a.y) + b.y);
+            const Vec3 fa = position_of(f[k]), fb = position_of(f[(k + 1) % n]);
+            const double a[3] = {fa.x, fa.y, fa.z}, b[3] = {fb.x, fb.y, fb.z};
+            nx += (a[1] - b[1]) * (a[2] + b[2]);
+            ny += (a[2] - b[2]) * (a[0] + b[0]);
+            nz += (a[0] - b[0]) * (a[1] + b[1]);
         }
         const double ax = std::fabs(nx), ay = std::fabs(ny), az = std::fabs(nz);
         if (!(ax + ay + az > 0.0)) return false;

@@ -160,7 +160,8 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     const Vec3 size = placed.hi - placed.lo;
     // In double: the squares of a 1e20 model's extent overflow a float.
     const double extent =
-        std::sqrt(double(size.x) * size.x + double(size.y) * size.y + double(size.z) * size.z);
+        std::sqrt(double(size.x) * double(size.x) + double(size.y) * double(size.y) +
+                  double(size.z) * double(size.z));
     // Everything the scene writes lies within about 40 model sizes of the origin; a scene's
     // coordinates are at most 1e30.
     if (!(extent < 1e27))
@@ -176,7 +177,7 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     const double aspect = double(r.width) / double(r.height);
     double dist = framing_distance(placed, rep.look_at, view, aspect);
     // A model with no extent (one point, or all its vertices alike) is framed as a tiny one.
-    if (!(dist > 0.5 * radius)) dist = 4.0 * radius;
+    if (!(dist > 0.5 * double(radius))) dist = 4.0 * double(radius);
     rep.camera = rep.look_at + view * static_cast<float>(dist);
     // Flakes per square unit such that a pixel at the look_at distance sees kFlakesPerPixel.
     const double pixel = 2.0 * dist * std::tan(kFovDeg * kPiD / 360.0) / r.height;

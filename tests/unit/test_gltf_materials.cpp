@@ -334,6 +334,35 @@ TEST(GltfAnimation, AScaleThroughZeroNeitherCrashesNorShowsTheFlatObject) {
     EXPECT_NE(half, flat) << "at scale 0.5 the cube shows, at 0 it is left out";
 }
 
+TEST(GltfSkin, ASkinnedMeshIsPlacedByItsJointNotItsNode) {
+    // As Blender and Mixamo export a character: an "Armature" node (at x = 2, scale 0.01) with a
+    // joint under it (at y = 100 in the armature's units: 1 m up), the skinned mesh's node at the
+    // root with no transform of its own (the spec ignores it), and an inverse bind matrix that
+    // undoes the joint's local offset. The mesh belongs at the armature: at x = 2, 1/100 size.
+    test::TempDir dir("gltf_skin");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    const int ibm = w.floats({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -100, 0, 1}, "MAT4", 16);
+    w.write_gltf(dir.file("skin.gltf"),
+                 fmt::format(R"("materials":[{{}}],"meshes":[{}],)"
+                             R"("nodes":[{{"name":"Armature","translation":[2,0,0],)"
+                             R"("scale":[0.01,0.01,0.01],"children":[1]}},)"
+                             R"({{"name":"hips","translation":[0,100,0]}},)"
+                             R"({{"name":"body","mesh":0,"skin":0}}],)"
+                             R"("skins":[{{"joints":[1],"inverseBindMatrices":{}}}],)"
+                             R"("scenes":[{{"nodes":[0,2]}}],"scene":0)",
+                             mesh, ibm));
+    const SceneDescription d = read_gltf_scene(dir.file("skin.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    ASSERT_TRUE(d.objects[0].placement.matrix);
+    const Affine& m = *d.objects[0].placement.matrix;
+    const Vec3 o = m.apply_point({0, 0, 0}), x = m.apply_point({1, 0, 0});
+    EXPECT_NEAR(o.x, 2.0f, 1e-5f);
+    EXPECT_NEAR(o.y, 0.0f, 1e-5f) << "the joint's offset is undone by its inverse bind matrix";
+    EXPECT_NEAR(x.x - o.x, 0.01f, 1e-6f) << "the armature's scale applies";
+    EXPECT_TRUE(has_note(d, "placed by its first joint"));
+}
+
 TEST(GltfAnimation, NodeChannelsBecomeMatrixKeysAtTheUnionOfTheirTimes) {
     test::TempDir dir("gltf_anim");
     GltfWriter w;

@@ -64,6 +64,30 @@ bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const 
 }
 
 /** The reader never writes through tinygltf. */
+/** tinygltf's message made fit to print: its lines joined by "; ", control characters (a NUL
+ *  from a bad percent escape) dropped, and each line cut at 200 characters (it quotes a whole
+ *  base64 data URI, megabytes, when one does not decode). */
+std::string readable(const std::string& text) {
+    std::string out, line;
+    const auto flush = [&] {
+        while (!line.empty() && line.back() == ' ') line.pop_back();
+        if (line.empty()) return;
+        if (line.size() > 200) line = line.substr(0, 200) + "...";
+        if (!out.empty()) out += "; ";
+        out += line;
+        line.clear();
+    };
+    for (const char c : text) {
+        if (c == '\n' || c == '\r') {
+            flush();
+        } else if (static_cast<unsigned char>(c) >= 0x20) {
+            line += c;
+        }
+    }
+    flush();
+    return out;
+}
+
 bool write_nothing(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
     if (err) *err += "the glTF reader writes no files\n";
     return false;
@@ -149,12 +173,11 @@ void load_document(Context& ctx) {
         err = e.what();
     }
     if (!ok || !err.empty()) {
-        while (!err.empty() && (err.back() == '\n' || err.back() == ' ')) err.pop_back();
+        err = readable(err);
         throw_error(FileLoc{ctx.path, 1, 1}, "glTF: {}", err.empty() ? "could not be read" : err);
     }
     if (!warn.empty()) {
-        while (!warn.empty() && warn.back() == '\n') warn.pop_back();
-        ctx.note("tinygltf", FileLoc{ctx.path, 1, 1}, "glTF: " + warn);
+        ctx.note("tinygltf", FileLoc{ctx.path, 1, 1}, "glTF: " + readable(warn));
     }
     if (ctx.model.asset.version.empty() || ctx.model.asset.version[0] != '2')
         throw_error(ctx.at("asset/version"), "glTF version '{}': only 2.x is read",

@@ -5,8 +5,10 @@
 // A file without a camera gets a framing of its bounds, one without light a studio light
 // (docs/gltf.md gives both).
 
+#include <algorithm>
 #include <cmath>
 
+#include "scene/gltf/gltf_accessors.h"
 #include "scene/gltf/gltf_parts.h"
 
 namespace spangle::gltf {
@@ -97,8 +99,8 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
     check_index(ctx, np + "/mesh", node.mesh, ctx.model.meshes.size(), "mesh");
     if (node.skin >= 0)
         ctx.note("skin", ctx.at(np + "/skin"),
-                 "skins are not read: meshes are drawn in their "
-                 "bind pose, placed by their node");
+                 "skins are not deformed: a skinned mesh is drawn rigidly in its bind pose, "
+                 "placed by its first joint (its world matrix times its inverse bind matrix)");
     if (motion.times.empty() && !(std::fabs(motion.rest.determinant()) > 1e-18f)) {
         ctx.note(fmt::format("hidden {}", n), ctx.at(np),
                  fmt::format("node {} is scaled to nothing: its mesh is not drawn", n));
@@ -129,6 +131,37 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
             o.matrix_keys = matrix_keys(motion, ctx.at(np), o.what);
         ctx.scene->objects.push_back(std::move(o));
     }
+}
+
+/** Where a skinned mesh is drawn: the glTF spec ignores a skinned mesh node's own transform;
+ *  its vertices go through joint world matrix x inverse bind matrix. Without deformation (the
+ *  joints' weights are not read) the mesh follows its first joint, rigidly: at the bind pose
+ *  that is exactly where every joint puts it (an exporter's armature with a scale of 0.01 and
+ *  the mesh node at the root, as Blender and Mixamo write them, was drawn 100 times too big). */
+NodeMotion skinned_motion(Context& ctx, int n, const std::vector<NodeMotion>& motions) {
+    const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
+    const std::string sp = fmt::format("skins/{}", node.skin);
+    check_index(ctx, fmt::format("nodes/{}/skin", n), node.skin, ctx.model.skins.size(), "skin");
+    const tinygltf::Skin& skin = ctx.model.skins[static_cast<std::size_t>(node.skin)];
+    if (skin.joints.empty()) return motions[static_cast<std::size_t>(n)];
+    const int j0 = skin.joints[0];
+    check_index(ctx, sp + "/joints", j0, ctx.model.nodes.size(), "node");
+    Affine ibm;
+    if (skin.inverseBindMatrices >= 0) {
+        const std::vector<float> f =
+            read_floats(ctx, skin.inverseBindMatrices, 16, "an inverse bind matrix",
+                        sp + "/inverseBindMatrices");
+        if (f.size() >= 16) {
+            // Column-major 4 x 4; its last row is (0, 0, 0, 1) for an affine placement.
+            for (int r = 0; r < 3; ++r)
+                for (int c = 0; c < 3; ++c) ibm.m[r][c] = f[static_cast<std::size_t>(4 * c + r)];
+            ibm.t = Vec3(f[12], f[13], f[14]);
+        }
+    }
+    NodeMotion out = motions[static_cast<std::size_t>(j0)];
+    out.rest = out.rest.compose(ibm);
+    for (Affine& a : out.matrices) a = a.compose(ibm);
+    return out;
 }
 
 /** v made unit length; -z for a zero vector (a node scaled to nothing). */
@@ -212,7 +245,14 @@ void default_camera(Context& ctx) {
     Vec3 lo{-1, -1, -1}, hi{1, 1, 1};
     scene_bounds(ctx, lo, hi);
     const Vec3 centre = (lo + hi) * 0.5f;
-    const float radius = std::max(0.5f * length(hi - lo), 1e-3f);
+    // In double (the squares of a 1e20 extent overflow a float); a floor relative to where the
+    // model lies, not 1 mm: a 10 micrometre model filled a millionth of the frame.
+    const Vec3 e = hi - lo;
+    const double extent = std::sqrt(double(e.x) * double(e.x) + double(e.y) * double(e.y) +
+                                    double(e.z) * double(e.z));
+    const float radius = std::max(
+        static_cast<float>(0.5 * extent),
+        1e-6f * std::max({1.0f, std::fabs(centre.x), std::fabs(centre.y), std::fabs(centre.z)}));
     const float distance = radius / std::sin(20.0f * kPi / 180.0f);
     const float up = std::sin(15.0f * kPi / 180.0f), front = std::cos(15.0f * kPi / 180.0f);
     c.position = centre + Vec3{0, up, front} * distance;
@@ -317,7 +357,13 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
         const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
         const NodeMotion& motion = motions[static_cast<std::size_t>(n)];
         if (!motion.times.empty()) end = std::max(end, motion.times.back());
-        if (node.mesh >= 0) mesh_objects(ctx, n, motion);
+        if (node.mesh >= 0) {
+            if (node.skin >= 0) {
+                mesh_objects(ctx, n, skinned_motion(ctx, n, motions));
+            } else {
+                mesh_objects(ctx, n, motion);
+            }
+        }
         if (node.camera >= 0) {
             check_index(ctx, fmt::format("nodes/{}/camera", n), node.camera,
                         ctx.model.cameras.size(), "camera");
