@@ -47,10 +47,15 @@ void validate_mesh(const TriangleMesh& mesh, const FileLoc& ref) {
             throw_error(ref,
                         "mesh '{}': triangle {} refers to vertex {}, but there are {} vertices",
                         mesh.source, i / 3, mesh.indices[i], n);
-    for (float x : mesh.normals)
-        if (!std::isfinite(x)) throw_error(ref, "mesh '{}' has a non-finite normal", mesh.source);
-    for (float x : mesh.uvs)
-        if (!std::isfinite(x)) throw_error(ref, "mesh '{}' has a non-finite uv", mesh.source);
+    for (std::size_t i = 0; i < mesh.normals.size(); ++i)
+        if (!std::isfinite(mesh.normals[i]))
+            throw_error(ref, "mesh '{}': vertex {} has a non-finite normal ({}, {}, {})",
+                        mesh.source, i / 3, mesh.normals[i / 3 * 3], mesh.normals[i / 3 * 3 + 1],
+                        mesh.normals[i / 3 * 3 + 2]);
+    for (std::size_t i = 0; i < mesh.uvs.size(); ++i)
+        if (!std::isfinite(mesh.uvs[i]))
+            throw_error(ref, "mesh '{}': vertex {} has a non-finite uv ({}, {})", mesh.source,
+                        i / 2, mesh.uvs[i / 2 * 2], mesh.uvs[i / 2 * 2 + 1]);
 }
 
 }  // namespace spangle

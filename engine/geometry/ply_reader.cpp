@@ -161,9 +161,30 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
         data = ss.str();
     }
 
-    // The header: text lines up to "end_header".
-    if (data.compare(0, 4, "ply\n") != 0 && data.compare(0, 5, "ply\r\n") != 0)
-        throw_error(ref, "mesh '{}' is not a PLY file (it does not start with 'ply')", path);
+    // The header: text lines up to "end_header". Its first line is "ply" (after a UTF-8 byte
+    // order mark some tools write, and before trailing blanks some leave).
+    if (data.starts_with("\xEF\xBB\xBF")) data.erase(0, 3);
+    {
+        const std::size_t eol = data.find('\n');
+        std::string first = data.substr(0, std::min<std::size_t>(eol, 64));
+        while (!first.empty() &&
+               (first.back() == '\r' || first.back() == ' ' || first.back() == '\t'))
+            first.pop_back();
+        if (first != "ply" || eol == std::string::npos) {
+            std::string shown;
+            for (const char c : first.substr(0, 16))
+                shown +=
+                    static_cast<unsigned char>(c) >= 0x20 && static_cast<unsigned char>(c) < 0x7F
+                        ? c
+                        : '?';
+            throw_error(ref,
+                        "mesh '{}' is not a PLY file (its first line must be 'ply', it is '{}'{})",
+                        path, shown,
+                        eol == std::string::npos || first.find('\r') != std::string::npos
+                            ? "; lines must end in a line feed"
+                            : "");
+        }
+    }
     std::optional<Format> format;
     std::vector<Element> elements;
     std::size_t pos = data.find('\n') + 1;

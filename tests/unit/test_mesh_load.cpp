@@ -51,6 +51,29 @@ TEST(MeshLoad, AsciiPlyAndQuadsAreTriangulated) {
     EXPECT_EQ(o.uvs.size() / 2, o.vertex_count());
 }
 
+TEST(MeshLoad, PlyFirstLineAsToolsWriteIt) {
+    // "ply" followed by blanks, after a UTF-8 byte order mark: still a PLY file.
+    const test::TempDir dir("ply_first_line");
+    const std::string body =
+        "format ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    std::ofstream(dir.file("a.ply")) << "ply \t\r\n" << body;
+    std::ofstream(dir.file("b.ply")) << "\xEF\xBB\xBFply\n" << body;
+    for (const char* name : {"a.ply", "b.ply"})
+        EXPECT_EQ(load_mesh(dir.file(name), FileLoc{"s.toml", 1, 1}).triangle_count(), 1u) << name;
+    // Not a PLY: the message shows what the first line is.
+    std::ofstream(dir.file("c.ply")) << "solid cube\n" << body;
+    try {
+        load_mesh(dir.file("c.ply"), FileLoc{"s.toml", 1, 1});
+        FAIL() << "an STL-like file was read as PLY";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("its first line must be 'ply', it is 'solid cube'"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(MeshLoad, BigEndianPlyWithOtherElementsAndTypes) {
     // Spangle's own PLY reader: big-endian doubles, s/t uvs, an element it does not use (read
     // through, not misread as data of the next), a non-list face property, a ushort count.
@@ -257,6 +280,17 @@ TEST(MeshLoad, ValidateCatchesIndicesPastTheEnd) {
         EXPECT_NE(
             std::string(e.what()).find("triangle 0 refers to vertex 3, but there are 3 vertices"),
             std::string::npos)
+            << e.what();
+    }
+    // A non-finite normal is named by its vertex.
+    m.indices = {0, 1, 2};
+    m.normals = {0, 0, 1, 0, 0, 1, 0, NAN, 1};
+    try {
+        validate_mesh(m, {});
+        FAIL();
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("vertex 2 has a non-finite normal (0, nan, 1)"),
+                  std::string::npos)
             << e.what();
     }
 }
