@@ -49,16 +49,22 @@ void warn_about_missing_uvs(const ecs::Registry& r, const World& w, const Materi
         const double mapped = mesh.uv_mapped_fraction();
         if (mapped >= 0.5) continue;
         const ObjectInfo info = r.has<ObjectInfo>(e) ? r.get<ObjectInfo>(e) : ObjectInfo{};
+        // Without uvs each triangle takes (0, 0), (1, 0), (0, 1) at its corners: a texture is
+        // repeated per triangle, not laid out; a uv pattern (flakes) gets no layout at all.
         w.log->warn(
-            "{}: object {}(mesh {}) has {}; material '{}' lays {} out in uv and will render "
-            "without {} there{}",
+            "{}: object {}(mesh {}) has {}; material '{}' lays {} out in uv and will render {} "
+            "there{}",
             info.loc.str(), info.name.empty() ? std::string() : fmt::format("'{}' ", info.name),
             mesh.source,
             mesh.uvs.empty() ? std::string("no uvs")
                              : fmt::format("degenerate uvs ({:.0f}% of its area maps to no uv "
                                            "area)",
                                            100.0 * (1.0 - mapped)),
-            mat->name(), textured ? "its textures" : "its pattern", textured ? "them" : "it",
+            mat->name(), textured ? "its textures" : "its pattern",
+            textured ? (mesh.uvs.empty()
+                            ? "them once per triangle (corners at uv (0, 0), (1, 0), (0, 1))"
+                            : "them stretched or flat")
+                     : "without it",
             plugin_needs ? " (for flakes, density_space = \"object\" or \"auto\" places them "
                            "by object-space position instead)"
                          : "");
