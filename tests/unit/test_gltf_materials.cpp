@@ -471,6 +471,25 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     EXPECT_THROW(read_gltf_scene(dir.file("idx.gltf"), {}), SpangleError);
 }
 
+TEST(GltfMeshes, ANanNormalFallsBackToFaceNormalsLikeAZeroOne) {
+    // Some exporters write NaN normals for degenerate faces: the file is read, the mesh takes
+    // its face normals, and a note says so (it refused the whole file).
+    test::TempDir dir("gltf_nan_normal");
+    GltfWriter w;
+    const int p = w.floats({0, 0, 0, 1, 0, 0, 0, 1, 0}, "VEC3", 3);
+    const int n = w.floats({0, 0, 1, NAN, 0, 1, 0, 0, 1}, "VEC3", 3);
+    w.write_gltf(dir.file("nan.gltf"),
+                 fmt::format(R"("meshes":[{{"primitives":[{{"attributes":{{"POSITION":{},)"
+                             R"("NORMAL":{}}}}}]}}],"nodes":[{{"mesh":0}}])",
+                             p, n));
+    const SceneDescription d = read_gltf_scene(dir.file("nan.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    const auto* shape = std::get_if<InlineMeshShape>(&d.objects[0].shape);
+    ASSERT_NE(shape, nullptr);
+    EXPECT_TRUE(shape->mesh->normals.empty());
+    EXPECT_TRUE(has_note(d, "a NORMAL is not a finite number"));
+}
+
 TEST(GltfErrors, NumbersBeyondAFloatAndUnboundedZeroAccessorsAreRefused) {
     test::TempDir dir("gltf_range");
     const std::string head = "{\"asset\":{\"version\":\"2.0\"},\n";

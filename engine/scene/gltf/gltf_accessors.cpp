@@ -185,7 +185,7 @@ std::size_t accessor_count(const Context& ctx, int index, const std::string& ref
 }
 
 std::vector<float> read_floats(const Context& ctx, int index, int components, const char* what,
-                               const std::string& ref) {
+                               const std::string& ref, bool finite) {
     int ncomp = 0;
     const std::vector<double> v = read_numbers(ctx, index, ref, ncomp);
     if (ncomp != components)
@@ -195,7 +195,7 @@ std::vector<float> read_floats(const Context& ctx, int index, int components, co
     std::vector<float> out(v.size());
     for (std::size_t i = 0; i < v.size(); ++i) {
         out[i] = static_cast<float>(v[i]);
-        if (!std::isfinite(out[i]))
+        if (finite && !std::isfinite(out[i]))
             throw_error(ctx.at(fmt::format("accessors/{}", index)),
                         "{}: accessor {} holds a value that is not a finite float ({}) at element "
                         "{}",

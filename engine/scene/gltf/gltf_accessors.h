@@ -12,9 +12,10 @@ namespace spangle::gltf {
 
 /** Accessor `index` (the value of JSON path `ref`) as `components` floats per element: it must
  *  have that many components (`what` names it in messages); integer components are converted
- *  as the accessor's `normalized` says. Throws SpangleError at the accessor. */
+ *  as the accessor's `normalized` says. Throws SpangleError at the accessor, also for a value
+ *  that is not a finite float unless `finite` is false. */
 std::vector<float> read_floats(const Context& ctx, int index, int components, const char* what,
-                               const std::string& ref);
+                               const std::string& ref, bool finite = true);
 
 /** Accessor `index` as unsigned integers (a scalar of unsigned byte, short or int: indices).
  *  Throws SpangleError at the accessor. */

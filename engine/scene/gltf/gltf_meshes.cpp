@@ -3,6 +3,7 @@
 // and fans as indexed triangles. What a TriangleMesh cannot hold (tangents -- Spangle derives
 // them from the uvs --, a second uv set, vertex colours, skins, morph targets) is one note each.
 
+#include <algorithm>
 #include <cmath>
 
 #include "scene/gltf/gltf_accessors.h"
@@ -88,16 +89,25 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
     m->source = ctx.path;
     m->positions = read_floats(ctx, pos->second, 3, "POSITION", pp + "/attributes/POSITION");
     const std::size_t nv = m->vertex_count();
-    const auto attribute = [&](const char* name, int comps, std::vector<float>& out) {
+    const auto attribute = [&](const char* name, int comps, std::vector<float>& out,
+                               bool finite = true) {
         const auto a = p.attributes.find(name);
         if (a == p.attributes.end()) return;
         const std::string ref = pp + "/attributes/" + name;
-        out = read_floats(ctx, a->second, comps, name, ref);
+        out = read_floats(ctx, a->second, comps, name, ref, finite);
         if (out.size() != nv * static_cast<std::size_t>(comps))
             throw_error(ctx.at(ref), "{} has {} elements, POSITION {}", name,
                         out.size() / static_cast<std::size_t>(comps), nv);
     };
-    attribute("NORMAL", 3, m->normals);
+    // A NaN normal (some exporters write them for degenerate faces) is not worth refusing the
+    // file for: the mesh takes its face normals, as for a zero normal.
+    attribute("NORMAL", 3, m->normals, false);
+    if (!std::all_of(m->normals.begin(), m->normals.end(),
+                     [](float x) { return std::isfinite(x); })) {
+        ctx.note("nan normal", ctx.at(pp + "/attributes/NORMAL"),
+                 "a NORMAL is not a finite number: that mesh uses its face normals");
+        m->normals.clear();
+    }
     if (!normalize_normals(m->normals)) {
         ctx.note("zero normal", ctx.at(pp + "/attributes/NORMAL"),
                  "a NORMAL is zero: that mesh uses its face normals");
