@@ -39,8 +39,7 @@ void propagate_specular(PathBatch& p, uint32_t i, Vec3 wi, bool transmission, fl
 
 /** Path i leaves its surface along wi (a sample of pdf `pdf` with flags `sflags`, relative
  *  index of refraction eta): its footprint follows, its next ray starts off the surface. */
-void leave(PathBatch& p, uint32_t i, Vec3 wi, float pdf, uint32_t sflags, float eta,
-           float offset_scale) {
+void leave(PathBatch& p, uint32_t i, Vec3 wi, float pdf, uint32_t sflags, float eta, float scale) {
     const SurfacePoint& sp = p.surf[i];
     const bool delta = (sflags & SPANGLE_SAMPLE_SPECULAR) != 0;
     if (delta && p.has_diff[i]) {
@@ -55,7 +54,7 @@ void leave(PathBatch& p, uint32_t i, Vec3 wi, float pdf, uint32_t sflags, float 
         p.fp_width[i] = sp.footprint;
     }
     const Vec3 side = dot(wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
-    p.ray[i].o = offset_origin(sp.p, side, offset_scale);
+    p.ray[i].o = offset_origin(sp.p, side, scale);
     p.ray[i].d = wi;
     p.prev_pdf[i] = pdf;
     p.prev_delta[i] = delta ? 1 : 0;
@@ -95,8 +94,7 @@ void continue_path(const RenderJob& job, Workspace& ws, Sink& sink, uint32_t k, 
         sink.survived(i, scale);
     }
     p.throughput[i] = t;
-    leave(p, i, wi, pdf, sflags, b.eta[k],
-          job.scene->accel ? job.scene->accel->offset_scale() : 1.0f);
+    leave(p, i, wi, pdf, sflags, b.eta[k], offset_scale(job));
 }
 
 }  // namespace

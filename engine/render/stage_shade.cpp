@@ -269,7 +269,7 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
     ws.stream_time.clear();
     ws.shadow_tmax.clear();
     sink.begin_shadows();
-    const float offset_scale = job.scene->accel ? job.scene->accel->offset_scale() : 1.0f;
+    const float scale = offset_scale(job);
     for (uint32_t j = 0; j < q; ++j) {
         const Vec3 f(b.f_r[j], b.f_g[j], b.f_b[j]);
         if (max_component(f) <= 0.0f) continue;
@@ -286,7 +286,7 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
         const float weight = std::fabs(b.wiz[j]) * mis / ls.pdf;
         ws.shadow_contrib.push_back(p.throughput[i] * f * ls.radiance * weight);
         sink.shadow_query(bounce, j, i, p.throughput[i], f, ls.radiance, weight, ls.group);
-        const Vec3 o = offset_origin(sp.p, side, offset_scale);
+        const Vec3 o = offset_origin(sp.p, side, scale);
         // A light at a finite distance: the shadow ray runs from the offset origin to the light's
         // point itself and stops just short of it. Along wi from the offset origin it would pass
         // beside that point, and near a sphere light's (or any emitter's) silhouette meet the

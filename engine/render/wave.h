@@ -160,6 +160,11 @@ inline float clamp_factor(const RenderJob& job, Vec3 c, uint32_t scatterings) {
     return lum > job.clamp_indirect ? job.clamp_indirect / lum : 1.0f;
 }
 
+/** The scene's scale for offset_origin (EmbreeScene::offset_scale; 1 without geometry). */
+inline float offset_scale(const RenderJob& job) {
+    return job.scene->accel ? job.scene->accel->offset_scale() : 1.0f;
+}
+
 /** Offsets a ray origin off a surface along the geometric normal by a few float ulps, scaled to
  *  the coordinates' magnitude (Waechter and Binder, "A Fast and Robust Method for Avoiding
  *  Self-Intersection", Ray Tracing Gems, 2019). n must face the side the ray leaves towards.

@@ -159,9 +159,7 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     placed.add(b.hi + rep.offset);
     const Vec3 size = placed.hi - placed.lo;
     // In double: the squares of a 1e20 model's extent overflow a float.
-    const double extent =
-        std::sqrt(double(size.x) * double(size.x) + double(size.y) * double(size.y) +
-                  double(size.z) * double(size.z));
+    const double extent = std::hypot(double(size.x), double(size.y), double(size.z));
     // Everything the scene writes lies within about 40 model sizes of the origin; a scene's
     // coordinates are at most 1e30.
     if (!(extent < 1e27))

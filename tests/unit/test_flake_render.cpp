@@ -11,22 +11,14 @@
 #include <sstream>
 
 #include "pipeline/frame.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle {
 namespace {
 
-/** A quiet render of `scene` through the shipped OCIO config. */
-FrameRequest quiet_request(const std::string& scene) {
-    FrameRequest req;
-    req.scene = scene;
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    return req;
-}
-
 FrameResult render_plane(const std::string& scene, uint32_t size) {
-    FrameRequest req = quiet_request(scene);
+    FrameRequest req = test::quiet_request(scene);
     req.options.width_override = req.options.height_override = size;
     return render_frame(req);
 }
@@ -281,8 +273,8 @@ TEST(FlakeRender, BlendBandIsInvisibleInRowMeans) {
     constexpr int kW = 128, kH = 96;
     const auto render = [&](const std::string& tag,
                             const std::vector<std::pair<std::string, std::string>>& edits) {
-        return luminance_of(render_frame(
-            quiet_request(edited_scene(dir.path().string(), "flake_receding.toml", tag, edits))));
+        return luminance_of(render_frame(test::quiet_request(
+            edited_scene(dir.path().string(), "flake_receding.toml", tag, edits))));
     };
     const auto blended = render("blended", {});
     const auto smooth = render(
@@ -353,8 +345,8 @@ TEST(FlakeRender, GrazingGlintsArePointsAsTheEnumerationsAre) {
     constexpr uint32_t kX0 = 480, kY0 = 190, kX1 = 600, kY1 = 250;
     const auto render = [&](const std::string& tag,
                             const std::vector<std::pair<std::string, std::string>>& edits) {
-        FrameRequest req =
-            quiet_request(edited_scene(dir.path().string(), "flake_receding.toml", tag, edits));
+        FrameRequest req = test::quiet_request(
+            edited_scene(dir.path().string(), "flake_receding.toml", tag, edits));
         req.options.width_override = 640;
         req.options.height_override = 360;
         req.options.crop = {kX0, kY0, kX1, kY1};

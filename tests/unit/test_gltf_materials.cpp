@@ -18,6 +18,7 @@
 #include "scene/gltf/gltf_reader.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -313,10 +314,7 @@ TEST(GltfAnimation, AScaleThroughZeroNeitherCrashesNorShowsTheFlatObject) {
     };
     const std::string flipping = write("flip.gltf");
     const auto render = [&](const std::string& path, double time) {
-        FrameRequest req;
-        req.scene = path;
-        req.ocio_config = test::shipped_ocio();
-        req.log = &test::quiet_log();
+        FrameRequest req = test::quiet_request(path);
         req.options.threads = 2;
         req.options.width_override = 32;
         req.options.height_override = 24;

@@ -13,6 +13,7 @@
 #include "pipeline/frame.h"
 #include "scene/new_scene.h"
 #include "scene/scene_loader.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -91,10 +92,7 @@ TEST(NewScene, StandsTheModelOnTheGroundAndFramesItsBounds) {
 
     // It renders: the plugins accept the parameters written, and the box (red glitter paint)
     // covers the image's centre while the ground and sky fill its corner.
-    FrameRequest fr;
-    fr.scene = req.output;
-    fr.ocio_config = test::shipped_ocio();
-    fr.log = &test::quiet_log();
+    FrameRequest fr = test::quiet_request(req.output);
     fr.options.threads = 2;
     fr.options.spp_override = 4;
     fr.options.width_override = 64;

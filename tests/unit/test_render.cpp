@@ -9,6 +9,7 @@
 #include <numeric>
 
 #include "pipeline/frame.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -144,10 +145,7 @@ TEST(Render, MillimetreSceneRendersAsTheSameSceneInMetres) {
                {"radius = 0.25", "radius = 0.00025"}});
     std::ofstream(dir.file("m.toml")) << test::scene_text(name);
     const auto at = [&](const std::string& file, Strategy strategy) {
-        FrameRequest req;
-        req.scene = dir.file(file);
-        req.ocio_config = test::shipped_ocio();
-        req.log = &test::quiet_log();
+        FrameRequest req = test::quiet_request(dir.file(file));
         req.options.threads = 2;
         req.options.strategy = strategy;
         return render_frame(req);

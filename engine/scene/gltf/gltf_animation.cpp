@@ -205,11 +205,16 @@ Affine local_matrix(const Context& ctx, int n) {
         if (!std::isfinite(narrow(v)))
             throw_error(ctx.at(fmt::format("nodes/{}/matrix", n)),
                         "node {}'s matrix holds a number that is not a finite float ({})", n, v);
+    float m[16];
+    for (std::size_t i = 0; i < 16; ++i) m[i] = narrow(node.matrix[i]);
+    return column_major_affine(m);
+}
+
+Affine column_major_affine(const float* m) {
     Affine a;
     for (int r = 0; r < 3; ++r)
-        for (int c = 0; c < 3; ++c)
-            a.m[r][c] = narrow(node.matrix[static_cast<std::size_t>(4 * c + r)]);
-    a.t = {narrow(node.matrix[12]), narrow(node.matrix[13]), narrow(node.matrix[14])};
+        for (int c = 0; c < 3; ++c) a.m[r][c] = m[4 * c + r];
+    a.t = {m[12], m[13], m[14]};
     return a;
 }
 

@@ -63,7 +63,6 @@ bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const 
     return true;
 }
 
-/** The reader never writes through tinygltf. */
 /** tinygltf's message made fit to print: its lines joined by "; ", control characters (a NUL
  *  from a bad percent escape) dropped, and each line cut at 200 characters (it quotes a whole
  *  base64 data URI, megabytes, when one does not decode). */
@@ -88,6 +87,7 @@ std::string readable(const std::string& text) {
     return out;
 }
 
+/** The reader never writes through tinygltf. */
 bool write_nothing(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
     if (err) *err += "the glTF reader writes no files\n";
     return false;

@@ -151,12 +151,7 @@ NodeMotion skinned_motion(Context& ctx, int n, const std::vector<NodeMotion>& mo
         const std::vector<float> f =
             read_floats(ctx, skin.inverseBindMatrices, 16, "an inverse bind matrix",
                         sp + "/inverseBindMatrices");
-        if (f.size() >= 16) {
-            // Column-major 4 x 4; its last row is (0, 0, 0, 1) for an affine placement.
-            for (int r = 0; r < 3; ++r)
-                for (int c = 0; c < 3; ++c) ibm.m[r][c] = f[static_cast<std::size_t>(4 * c + r)];
-            ibm.t = Vec3(f[12], f[13], f[14]);
-        }
+        if (f.size() >= 16) ibm = column_major_affine(f.data());
     }
     NodeMotion out = motions[static_cast<std::size_t>(j0)];
     out.rest = out.rest.compose(ibm);
@@ -248,8 +243,7 @@ void default_camera(Context& ctx) {
     // In double (the squares of a 1e20 extent overflow a float); a floor relative to where the
     // model lies, not 1 mm: a 10 micrometre model filled a millionth of the frame.
     const Vec3 e = hi - lo;
-    const double extent = std::sqrt(double(e.x) * double(e.x) + double(e.y) * double(e.y) +
-                                    double(e.z) * double(e.z));
+    const double extent = std::hypot(double(e.x), double(e.y), double(e.z));
     const float radius = std::max(
         static_cast<float>(0.5 * extent),
         1e-6f * std::max({1.0f, std::fabs(centre.x), std::fabs(centre.y), std::fabs(centre.z)}));

@@ -49,6 +49,10 @@ std::vector<NodeMotion> node_motions(Context& ctx, const std::vector<int>& paren
 /** gltf_animation.cpp: node `n`'s own matrix (its matrix, or T R S), with no animation. */
 Affine local_matrix(const Context& ctx, int n);
 
+/** gltf_animation.cpp: a glTF 4 x 4 matrix (16 numbers, column-major) as a placement; its last
+ *  row, (0, 0, 0, 1) for a placement, is not read. */
+Affine column_major_affine(const float* m);
+
 /** gltf_nodes.cpp: the objects, cameras and lights of the scene's node tree, and the default
  *  camera and light when the file has none. */
 void read_nodes(Context& ctx, const SceneReadOptions& options);
