@@ -5,7 +5,8 @@
 
 namespace spangle::flake {
 
-bool make_entry(V3 wo, V3 m, const float col[3], const FresnelTable& fresnel, CacheEntry& e) {
+bool make_entry(V3 wo, V3 m, const float col[3], const FresnelTable& fresnel, CacheEntry& e,
+                float scale) {
     const float cos_om = mf::dot(wo, m);
     if (cos_om <= 0.0f) return false;
     const V3 r = mf::reflect(wo, m);
@@ -15,10 +16,12 @@ bool make_entry(V3 wo, V3 m, const float col[3], const FresnelTable& fresnel, Ca
     const float w = cos_om / m.z;
     float f[3];
     fresnel.eval(cos_om, f);
+    float rgb[3];
+    for (int c = 0; c < 3; ++c) rgb[c] = w * col[c] * f[c];
     e.r = r;
-    for (int c = 0; c < 3; ++c) e.rgb[c] = w * col[c] * f[c];
-    e.lum = std::max(0.0f, luminance(e.rgb));
-    e.w = w;
+    for (int c = 0; c < 3; ++c) e.rgb[c] = rgb[c] * scale;
+    e.lum = std::max(0.0f, luminance(rgb)) * scale;
+    e.w = w * scale;
     return true;
 }
 

@@ -25,9 +25,12 @@ struct CacheEntry {
     float w;       ///< w_j, the flake's projected area towards wo
 };
 
-/** The cache entry of a flake of normal m seen from wo with colour col; false when the flake
- *  faces away from wo or reflects under the horizon (it is skipped). */
-bool make_entry(V3 wo, V3 m, const float col[3], const FresnelTable& fresnel, CacheEntry& e);
+/** The cache entry of a flake of normal m seen from wo with colour col, its rgb, lum and w then
+ *  multiplied by `scale` (a stand-in's share, a facet's cover); false when the flake faces away
+ *  from wo or reflects under the horizon (it is skipped). Write e where it is to stay (in the
+ *  cache itself): copied right after these scalar stores, it stalled on store forwarding. */
+bool make_entry(V3 wo, V3 m, const float col[3], const FresnelTable& fresnel, CacheEntry& e,
+                float scale = 1.0f);
 
 /** The discrete lobe of one shading point: the cache, its weights and a cumulative luminance
  *  table for sampling. The arrays live in the host's per-batch arena. */

@@ -75,7 +75,14 @@ Footprint make_footprint(double u, double v, double dudx, double dvdx, double du
                          double scale, double max_ratio = 4.0);
 
 /** Whether (u, v) lies inside P (in P's own coordinates, in double). */
-bool inside(const Footprint& p, double u, double v);
+inline bool inside(const Footprint& p, double u, double v) {
+    // (s, t) = [a b]^-1 ((u, v) - c); a singular footprint (zero area) holds no flake.
+    if (p.i00 == 0.0 && p.i01 == 0.0 && p.i10 == 0.0 && p.i11 == 0.0) return false;
+    const double du = u - p.cu, dv = v - p.cv;
+    const double s = p.i00 * du + p.i01 * dv;
+    const double t = p.i10 * du + p.i11 * dv;
+    return s >= -0.5 && s <= 0.5 && t >= -0.5 && t <= 0.5;
+}
 
 /** Whether the cell [x0, x1] x [y0, y1] may intersect P widened by its reach (separating axes;
  *  exact for a parallelogram and a box when the reach is 0, conservative otherwise). */

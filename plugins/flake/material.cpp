@@ -160,16 +160,12 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     const auto add = [&](const Flake& f) {
         if (!kept(f, view.keep)) return;
         cover += f.cover;
-        CacheEntry e;
-        if (!make_entry(c.wo, f.m, m.colors.pick(f.color_u, f.id), m.film.pick(f.id, m.fresnel), e))
-            return;
         // A facet partly inside the footprint reflects as much of it as lies inside.
-        if (f.cover < 1.0f) {
-            for (float& x : e.rgb) x *= f.cover;
-            e.lum *= f.cover;
-            e.w *= f.cover;
-        }
-        scratch.push_back(e);
+        std::vector<CacheEntry>& out = scratch;
+        out.emplace_back();
+        if (!make_entry(c.wo, f.m, m.colors.pick(f.color_u, f.id), m.film.pick(f.id, m.fresnel),
+                        out.back(), std::min(f.cover, 1.0f)))
+            out.pop_back();
     };
     if (m.tree) {
         gather_cells(field, p, exact_limit(m.exact_flakes, m.grid, c.wo.z), c.counted, add);
