@@ -32,11 +32,13 @@ void print_frame_line(const Session& session, int64_t f, double seconds, const R
 int run_frames(const RenderArgs& a) {
     const auto [first, last] = parse_frames(a.frames);
     const RenderSetup s = set_up_render(a);
+    s.out.check_frames(first, last);
     Session session(a.plugin_dirs, a.ocio, render_options(a), s.log);
     session.options().stop = stop_requested;
     for (int64_t f = first; f <= last; ++f) {
         const auto t0 = std::chrono::steady_clock::now();
         const ReloadReport rep = session.load_frame(a.scene, f);
+        s.out.for_frame(f).check_not_inputs(session.watched_files());
         if (f == first) {
             s.out.check_view(session.color());
             if (!session.info().animated)

@@ -68,6 +68,12 @@ int run_new(const NewArgs& a) {
     std::error_code ec;
     if (!a.force && fs::exists(output, ec))
         usage_error("'{}' exists; --force overwrites it", fs::absolute(output, ec).string());
+    // The ground plane's PLY goes beside it (new_scene.h): not over a file of the user's either.
+    const fs::path ground = fs::absolute(output, ec).lexically_normal().parent_path() /
+                            (fs::path(output).stem().string() + "_ground.ply");
+    if (!a.force && fs::exists(ground, ec))
+        usage_error("'{}' (the scene's ground plane) exists; --force overwrites it",
+                    ground.string());
     check_writable(output, "TOML scene");
     NewSceneRequest req;
     req.model = a.mesh;

@@ -40,6 +40,9 @@ void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t fra
                     frame_h, FilmLayout{c.mirror, c.screen})
             .matrices();
     o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
+    // Which scene (its files' bytes) and which moment: spangle merge refuses parts that differ.
+    o.metadata.emplace_back("spangle:sceneHash", fmt::format("{:016x}", d.info->content_hash));
+    o.metadata.emplace_back("spangle:time", fmt::format("{}", d.info->time));
     // With the layers: where each object stands (12 floats each, the rows of its 3x4
     // object-to-world matrix), so that Pobj carries a point into world space and a sequence's
     // frames can follow a turning object (spangle flicker).
@@ -202,6 +205,34 @@ void Outputs::check_view(const ColorConfig& color) const {
     color.resolve_view(d, v);
 }
 
+void Outputs::check_not_inputs(const std::vector<std::string>& inputs) const {
+    for (const std::string& in : inputs)
+        for (const auto& [path, what] : {std::pair{exr, "EXR"}, std::pair{preview, "PNG preview"}})
+            if (!path.empty() && same_file(path, in))
+                throw_error(
+                    "the {} '{}' is {}a file the scene reads: the render would overwrite it; "
+                    "give {} another path",
+                    what, path, path == in ? "" : fmt::format("'{}', ", in),
+                    path == exr ? "-o" : "--preview");
+}
+
+void Outputs::check_frames(int64_t first, int64_t last) const {
+    for (int64_t f = first; f <= last; ++f) {
+        const Outputs o = for_frame(f);
+        if (!o.preview.empty() && same_file(o.exr, o.preview))
+            usage_error(
+                "frame {}'s EXR and PNG preview are the same file '{}': give --preview another "
+                "path or --no-preview",
+                f, o.exr);
+        for (const auto& [path, what] :
+             {std::pair{o.exr, "EXR"}, std::pair{o.preview, "PNG preview"}}) {
+            std::error_code ec;
+            if (!path.empty() && fs::is_directory(path, ec))
+                throw_error("cannot write frame {}'s {} '{}': it is a folder", f, what, path);
+        }
+    }
+}
+
 void Outputs::remove_stale_temporaries(const Logger& log) const {
     std::vector<fs::path> folders;
     for (const std::string& path : {exr, preview}) {
@@ -237,6 +268,14 @@ Outputs outputs_for(const RenderArgs& a) {
             "path or --no-preview",
             out.exr);
     if (same_file(out.exr, a.scene)) usage_error("the output '{}' is the scene file", out.exr);
+    // Lossy for 32-bit floats: the ids, depth and positions of the layers would be corrupt.
+    if (a.layers &&
+        (a.compression == "pxr24" || a.compression == "dwaa" || a.compression == "dwab"))
+        usage_error(
+            "--compression {} is lossy for 32-bit floats and would corrupt the data layers of "
+            "--layers (object and material ids, depth, positions): use zip, zips, piz, rle, b44, "
+            "b44a or none, or render without --layers",
+            a.compression);
     check_writable(out.exr, "EXR");
     if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
     out.exr_options.half = !a.full_float;

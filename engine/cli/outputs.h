@@ -86,6 +86,12 @@ struct Outputs {
     /** Throws SpangleError when the preview's display or view is not in `color`: an error before
      *  any rendering. */
     void check_view(const ColorConfig& color) const;
+    /** Throws SpangleError when the EXR or the preview is one of `inputs` (the files the scene
+     *  read: its scene files, meshes, textures, maps): the render would overwrite its input. */
+    void check_not_inputs(const std::vector<std::string>& inputs) const;
+    /** Checks the outputs of frames first..last of --frames before any work: each frame's EXR
+     *  and preview are different files and not folders. Throws UsageError or SpangleError. */
+    void check_frames(int64_t first, int64_t last) const;
     /** Removes the temporary images a killed render left in the folders of the EXR and the
      *  preview (color/temporary_files.h), saying which; what cannot be removed is a warning. */
     void remove_stale_temporaries(const Logger& log) const;

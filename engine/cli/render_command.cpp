@@ -241,7 +241,8 @@ int run_one_shot(const RenderArgs& a) {
             if (print) print(done, total);
             server->progress(done, total);
         };
-    req.on_loaded = [&](const ColorConfig& c, const SceneInfo& i) {
+    req.on_loaded = [&](const ColorConfig& c, const SceneInfo& i,
+                        const std::vector<std::string>& inputs) {
         // The image the scene asks for (pbrt's Film "filename") when -o gives none, as an EXR
         // (its PNG preview beside it), relative to the working folder as pbrt writes it.
         if (a.output.empty() && !i.output.empty()) {
@@ -251,6 +252,7 @@ int run_one_shot(const RenderArgs& a) {
             s.out.remove_stale_temporaries(s.log);
             if (!a.quiet) s.log.info("the scene asks for '{}': writing {}", i.output, s.out.exr);
         }
+        s.out.check_not_inputs(inputs);
         s.out.check_view(c);  // a display or view the config lacks: an error before rendering
         warn_if_no_chromaticities(s.log, c);
         color = &c;

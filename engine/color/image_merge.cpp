@@ -12,6 +12,7 @@
 #include <cinttypes>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <tuple>
 
 #include "color/image_output.h"
@@ -48,11 +49,31 @@ std::string attribute(const Imf::Header& h, const char* name) {
     return a ? a->value() : std::string();
 }
 
+/** Refuses a part whose header says it is of another scene (the bytes of its files) or of
+ *  another moment of it than the first part. Parts written before these attributes pass. */
+void check_same_render(const Imf::Header& hd, const Imf::Header& first, const std::string& path,
+                       const std::string& first_path) {
+    const auto differ = [&](const char* name) {
+        const std::string a = attribute(hd, name), b = attribute(first, name);
+        return !a.empty() && !b.empty() && a != b;
+    };
+    if (differ("spangle:sceneHash"))
+        throw_error(
+            "'{}' and '{}' were rendered from different scenes (or the scene's files changed "
+            "between them): parts of one render merge",
+            path, first_path);
+    if (differ("spangle:time"))
+        throw_error("'{}' is of the scene at {} s, '{}' at {} s: parts of one frame merge", path,
+                    attribute(hd, "spangle:time"), first_path, attribute(first, "spangle:time"));
+}
+
 /** Opens the part at `path` and hands it to read(); any failure but our own errors becomes
  *  "cannot read 'path': ...". */
 template <class Read>
 void read_part(const std::string& path, Read&& read) {
     try {
+        std::error_code ec;
+        if (!std::filesystem::exists(path, ec)) throw_error("'{}' does not exist", path);
         if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
         Imf::InputFile in(path.c_str());
         read(in);
@@ -114,6 +135,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                         "'{}' has other channels than '{}' (render every part with the same "
                         "options: --float)",
                         path, parts.front());
+                check_same_render(hd, *first, path, parts.front());
                 if (std::strtoull(attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10) !=
                     spp_frame)
                     throw_error("'{}' is part of a frame of {} samples per pixel, '{}' of {}", path,
@@ -254,6 +276,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
                         "'{}' has other channels than '{}' (render every part with the "
                         "same options: --layers, --float)",
                         path, parts.front());
+                check_same_render(hd, *first, path, parts.front());
                 if (attribute(hd, "spangle:spp") != attribute(*first, "spangle:spp"))
                     throw_error(
                         "'{}' has {} samples per pixel, '{}' {}: parts of one frame must "

@@ -122,8 +122,9 @@ void write_atomically(const std::string& path,
     }
     fs::rename(tmp, path, ec);
     if (ec) {
-        fs::remove(tmp, ec);
-        throw_error("cannot move the finished image onto '{}': {}", path, ec.message());
+        const std::string why = fs::is_directory(path) ? "it is a folder" : ec.message();
+        fs::remove(tmp, ec);  // (overwrites ec: the reason is kept above)
+        throw_error("cannot move the finished image onto '{}': {}", path, why);
     }
 }
 

@@ -101,7 +101,7 @@ FrameResult render_frame(const FrameRequest& req) {
     Session session(req.plugin_dirs, req.ocio_config, req.options, *req.log);
     const ReloadReport loaded = session.load(req.scene, req.time);
     apply_scene_crop(session);
-    if (req.on_loaded) req.on_loaded(session.color(), session.info());
+    if (req.on_loaded) req.on_loaded(session.color(), session.info(), session.watched_files());
     if (!req.export_obj.empty()) export_world_obj(session, req.export_obj);
     FrameResult r{session.color().clone(),
                   0,

@@ -25,8 +25,10 @@ struct FrameRequest {
     RenderOptions options;                 ///< threads, spp override, progress
     const Logger* log = nullptr;           ///< required
     /** Called once the scene is loaded and built, before it renders, with the colour config
-     *  images are written in (for options.on_pass); may be empty. */
-    std::function<void(const ColorConfig&, const SceneInfo&)> on_loaded;
+     *  images are written in (for options.on_pass) and every file the scene read (scene files,
+     *  meshes, textures, maps, the OCIO config: outputs must not overwrite them); may be empty. */
+    std::function<void(const ColorConfig&, const SceneInfo&, const std::vector<std::string>&)>
+        on_loaded;
     /** When set, the scene's triangles as traced (subdivided, in world space) are written here
      *  as an OBJ, for other tools (Embree's viewer) to measure the same geometry. */
     std::string export_obj;

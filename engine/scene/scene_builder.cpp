@@ -2,11 +2,14 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <map>
 #include <utility>
 
 #include "core/files.h"
+#include "core/hash.h"
 #include "scene/components.h"
 #include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
@@ -536,6 +539,34 @@ void build_light(BuildContext& ctx, const LightDesc& d) {
     std::visit(LightPut{*ctx.registry, e, color * intensity}, d.shape);
 }
 
+/** SceneInfo::content_hash of the scene file and `files`. */
+uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files) {
+    uint64_t h = 0x5ce9e5ull;
+    std::vector<std::string> all{path};
+    all.insert(all.end(), files.begin(), files.end());
+    std::vector<char> bytes;
+    for (const std::string& f : all) {
+        std::error_code ec;
+        const uintmax_t size = std::filesystem::file_size(f, ec);
+        if (ec) continue;
+        h = hash2(h, size);
+        if (size > (uintmax_t{64} << 20)) continue;
+        std::ifstream in(f, std::ios::binary);
+        bytes.assign(static_cast<std::size_t>(size), 0);
+        if (!in.read(bytes.data(), static_cast<std::streamsize>(size))) continue;
+        std::size_t i = 0;
+        for (; i + 8 <= bytes.size(); i += 8) {
+            uint64_t w;
+            std::memcpy(&w, bytes.data() + i, 8);
+            h = hash2(h, w);
+        }
+        uint64_t tail = 0;
+        std::memcpy(&tail, bytes.data() + i, bytes.size() - i);
+        h = hash2(h, tail);
+    }
+    return h;
+}
+
 }  // namespace
 
 SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Registry& registry,
@@ -543,6 +574,7 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
     SceneInfo info;
     info.path = scene.path;
     info.files = scene.files;
+    info.content_hash = scene_content_hash(scene.path, scene.files);
     info.notes = scene.notes;
     info.output = scene.render.output.value_or("");
     info.time = time;

@@ -17,7 +17,11 @@ namespace spangle {
 struct SceneInfo {
     std::string path;                ///< the scene file
     std::vector<std::string> files;  ///< scene files it includes or imports
-    std::string output;              ///< the image it asks for; empty: none
+    /** A hash of the bytes of the scene file and the files it includes or imports (a file over
+     *  64 MiB by its size alone): written into the EXR header so that `spangle merge` can tell
+     *  parts of different scenes, or of a scene edited between its parts. */
+    uint64_t content_hash = 0;
+    std::string output;  ///< the image it asks for; empty: none
     /** The part of the image it asks to render (pbrt's cropwindow): x0, x1, y0, y1 as fractions
      *  of the width and height, y down, 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1; none: all. The
      *  pixels are [ceil(x0 W), ceil(x1 W)) x [ceil(y0 H), ceil(y1 H)), as pbrt takes them. */

@@ -273,8 +273,13 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
     // E[w] over D(m)(m.n): (cos_o / G1(wo)) times the share of visible normals that count.
     c.w_expected = c.wo.z * c.v_o / mf::ggx_g1(c.wo, m.alpha, m.alpha);
     double lambda = INFINITY;
-    // Where flake_weight is 0 (a mask's empty region) there are no flakes to find.
-    if ((in.flags & SPANGLE_SHADING_HAS_DIFFERENTIALS) && c.weight > 0.0f) {
+    // Where flake_weight is 0 (a mask's empty region) there are no flakes to find; nor on a
+    // triangle without usable uvs when the flakes are laid out in uv (the host's stand-in uvs
+    // would repeat one triangle's flakes on every triangle): the smooth lobe there, as the
+    // host's warning and the README say.
+    const bool no_layout = (m.space == Material::Space::Uv || m.space == Material::Space::World) &&
+                           (in.flags & SPANGLE_SHADING_NO_UV);
+    if ((in.flags & SPANGLE_SHADING_HAS_DIFFERENTIALS) && c.weight > 0.0f && !no_layout) {
         const FieldView view = field_view(m, in);
         lambda = view.lambda();
         c.t = blend_weight(m, lambda);

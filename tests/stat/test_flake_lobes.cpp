@@ -321,6 +321,41 @@ TEST(FlakeLobe, UvThatIsNotFiniteGivesTheSmoothLobe) {
     }
 }
 
+TEST(FlakeLobe, AUvLayoutOnATriangleWithoutUvsGivesTheSmoothLobe) {
+    // density_space "uv" (or "world") where the mesh has no usable uvs (SPANGLE_SHADING_NO_UV):
+    // the host's stand-in uvs, (0, 0), (1, 0), (0, 1) on every triangle, would give every
+    // triangle the same flakes, so the lobe is the smooth one, as the host's warning says.
+    // "auto" and "object" place flakes by object-space position there instead: glints.
+    const Vec3 wo = dir(0.7f, 0.3f);
+    std::vector<Vec3> wis;
+    for (int a = -6; a <= 6; ++a)
+        for (int b = -6; b <= 6; ++b)
+            wis.push_back(normalize(Vec3(-wo.x + 0.04f * static_cast<float>(a),
+                                         -wo.y + 0.04f * static_cast<float>(b), wo.z)));
+    BsdfHarness::Point pt = footprint(300.0, 0.3f, 0.2f);
+    pt.no_uv = true;
+    pt.p_obj = Vec3(0.3f, 0.2f, 0.0f);
+    pt.dpdx_obj = Vec3(pt.dudx, 0.0f, 0.0f);
+    pt.dpdy_obj = Vec3(0.0f, pt.dvdy, 0.0f);
+    for (const char* space : {"uv", "world", "auto"}) {
+        auto m = flake_material(true, {}, {{"density_space", space}});
+        const std::vector<Vec3> smooth = smooth_f(*m, wo, wis);
+        m->prepare(wo, pt);
+        std::vector<Vec3> f;
+        std::vector<float> pdf;
+        m->eval(wis, f, pdf);
+        double off = 0.0, total = 0.0;
+        for (std::size_t j = 0; j < wis.size(); ++j) {
+            off += std::fabs(static_cast<double>(f[j].y - smooth[j].y));
+            total += static_cast<double>(smooth[j].y);
+        }
+        if (std::string(space) == "auto")
+            EXPECT_GT(off, 0.1 * total) << "object-space flakes make glints";
+        else
+            EXPECT_LT(off, 1e-5 * total) << space;
+    }
+}
+
 TEST(FlakeLobe, TreeSeesTheEnumeratedFlakesInSmallFootprints) {
     // Up to a few dozen flakes per footprint every cell is enumerated: the same glints, exactly.
     auto tree = flake_material(true, {}, {{"algorithm", "tree"}});

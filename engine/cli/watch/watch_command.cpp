@@ -172,6 +172,8 @@ void WatchLoop::start_render() {
 
 void WatchLoop::render() {
     try {
+        // An edit may have made an output one of the scene's own files: refused, not rendered.
+        out_.check_not_inputs(session_.watched_files());
         session_.render();
     } catch (const std::exception& e) {
         // A render that fails (a texture whose cached tiles vanished, memory) is reported; the
