@@ -2,8 +2,11 @@
 
 #include <fmt/format.h>
 #include <sys/stat.h>
+#include <zlib.h>
 
 #include <filesystem>
+
+#include "core/memory.h"
 
 namespace spangle {
 
@@ -40,6 +43,35 @@ std::string executable_dir() {
     std::error_code ec;
     const std::filesystem::path exe = std::filesystem::read_symlink("/proc/self/exe", ec);
     return ec ? std::string() : exe.parent_path().string();
+}
+
+std::string inflate_gzip_file(const std::string& path, const FileLoc& ref) {
+    gzFile f = gzopen(path.c_str(), "rb");
+    if (!f) throw_error(ref, "cannot open '{}'", path);
+    std::string out;
+    char buf[1 << 16];
+    for (;;) {
+        const int n = gzread(f, buf, sizeof buf);
+        if (n < 0) {
+            int code = 0;
+            const std::string why = gzerror(f, &code);
+            gzclose(f);
+            throw_error(ref, "'{}' is not a valid gzip file: {}", path, why);
+        }
+        if (n == 0) break;
+        // Inflating can multiply the size a thousandfold: stop before memory runs out.
+        if (memory_short_for(2.0 * static_cast<double>(out.size() + static_cast<std::size_t>(n))))
+            throw_error(ref, "'{}' inflates to more than the memory available ({} so far)", path,
+                        format_bytes(static_cast<double>(out.size())));
+        out.append(buf, static_cast<std::size_t>(n));
+    }
+    // A stream cut short or damaged ends the reads without an error from gzread itself.
+    int code = Z_OK;
+    const std::string why = gzerror(f, &code);
+    gzclose(f);
+    if (code != Z_OK && code != Z_STREAM_END)
+        throw_error(ref, "'{}' is not a valid gzip file: {}", path, why);
+    return out;
 }
 
 }  // namespace spangle

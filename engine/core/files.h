@@ -1,8 +1,10 @@
 #pragma once
 // What identifies a file's content cheaply, for the caches of a watch session; where the running
-// program lies.
+// program lies; gzip'd files inflated.
 
 #include <string>
+
+#include "core/error.h"
 
 namespace spangle {
 
@@ -14,6 +16,17 @@ std::string file_identity(const std::string& path);
  *  say where a file was looked for: a relative path says nothing once the working directory is
  *  not the reader's. `path` itself when it cannot be made absolute. */
 std::string absolute_path(const std::string& path);
+
+/** The bytes of the gzip'd file `path`, inflated (pbrt's .pbrt.gz and .ply.gz). Throws
+ *  SpangleError at `ref` for a file that cannot be opened, is not valid gzip, or inflates to more
+ *  than the memory available. */
+std::string inflate_gzip_file(const std::string& path, const FileLoc& ref);
+
+/** Whether `bytes` begin with gzip's magic number. */
+inline bool is_gzip(const std::string& bytes) {
+    return bytes.size() >= 2 && static_cast<unsigned char>(bytes[0]) == 0x1f &&
+           static_cast<unsigned char>(bytes[1]) == 0x8b;
+}
 
 /** Directory of the running executable (via /proc/self/exe), or empty; the directory given to
  *  set_executable_dir() when one was (a library loaded into another program, such as the Python

@@ -20,9 +20,14 @@ TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
     if (!fs::is_regular_file(path, ec))
         throw_error(ref, "mesh file '{}' is not a regular file (a folder, a device or a pipe)",
                     path);
-    const std::string ext = fs::path(path).extension().string();
+    std::string ext = fs::path(path).extension().string();
+    // A gzip'd PLY (pbrt-v4's scenes: ".ply.gz") is read as the PLY it holds.
+    if ((ext == ".gz" || ext == ".GZ") && (fs::path(path).stem().extension() == ".ply" ||
+                                           fs::path(path).stem().extension() == ".PLY"))
+        ext = ".ply";
     if (ext != ".obj" && ext != ".OBJ" && ext != ".ply" && ext != ".PLY")
-        throw_error(ref, "mesh file '{}' has extension '{}'; expected .obj or .ply", path, ext);
+        throw_error(ref, "mesh file '{}' has extension '{}'; expected .obj, .ply or .ply.gz", path,
+                    ext);
     if (ext == ".ply" || ext == ".PLY") {
         TriangleMesh mesh = read_ply(path, ref);
         validate_mesh(mesh, ref);

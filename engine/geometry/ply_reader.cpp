@@ -10,6 +10,8 @@
 #include <sstream>
 #include <vector>
 
+#include "core/files.h"
+
 namespace spangle {
 namespace {
 
@@ -160,6 +162,9 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
         ss << in.rdbuf();
         data = ss.str();
     }
+
+    // gzip'd (pbrt-v4's scenes ship meshes as .ply.gz): inflated whole.
+    if (is_gzip(data)) data = inflate_gzip_file(path, ref);
 
     // The header: text lines up to "end_header". Its first line is "ply" (after a UTF-8 byte
     // order mark some tools write, and before trailing blanks some leave).

@@ -21,6 +21,12 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
         throw_error(file.loc, "environment map '{}' is {}x{}; expected between 2x1 and 32768x16384",
                     file.path, spec.width, spec.height);
     if (spec.channels < 1) throw_error(file.loc, "environment map '{}' has no channels", file.path);
+    // An equal-area (octahedral) map is square: another shape would wrap as garbage.
+    if (file.projection == MapProjection::EqualArea && spec.width != spec.height)
+        throw_error(file.loc,
+                    "environment map '{}' is {}x{}: an equal-area map is square (a 2:1 map is "
+                    "lat-long: projection = \"latlong\")",
+                    file.path, spec.width, spec.height);
     // What the header claims must be plausible for the file's size before anything is
     // allocated: no image format packs more than a few thousand pixels into a byte (a 157-byte
     // HDR claiming 32768x16384 took 6 GB before failing).

@@ -86,7 +86,8 @@ void system_materials(ecs::Registry& r, World& w) {
         while (names[index] != m.name) ++index;
         if (!used[index]) {
             // Nothing uses it: its plugin is not opened (only what the scene needs runs).
-            w.log->warn("{}: material '{}' is not used by any object", m.loc.str(), m.name);
+            if (!m.quiet_unused)
+                w.log->warn("{}: material '{}' is not used by any object", m.loc.str(), m.name);
             continue;
         }
         set.instances[index] = build_cached(

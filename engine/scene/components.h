@@ -134,7 +134,8 @@ SPANGLE_COMPONENT(SubdivSurface, SPANGLE_SUBDIV_FIELDS);
     X(ParamList, maps, "normal_map / bump_map textures (the host applies them)") \
     X(FileLoc, loc, "the [[material]] table")                                    \
     X(FileLoc, plugin_loc, "the plugin key")                                     \
-    X(FileLoc, model_loc, "the model key, or the table when absent")
+    X(FileLoc, model_loc, "the model key, or the table when absent")             \
+    X(bool, quiet_unused, "defined by an imported file: no warning when nothing uses it")
 /** A material definition (input of the materials system). */
 SPANGLE_COMPONENT(Material, SPANGLE_MATERIAL_FIELDS);
 

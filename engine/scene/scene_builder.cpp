@@ -6,6 +6,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <type_traits>
 #include <utility>
 
 #include "core/files.h"
@@ -289,6 +290,7 @@ void build_material(BuildContext& ctx, const MaterialDesc& d) {
     Material m;
     m.loc = d.loc;
     m.name = d.name;
+    m.quiet_unused = d.quiet_unused;
     m.plugin = d.plugin;
     m.plugin_loc = d.plugin_loc;
     m.model = d.model;
@@ -587,6 +589,23 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
     for (std::size_t i = 0; i < scene.objects.size(); ++i)
         build_object(ctx, scene.objects[i], static_cast<uint32_t>(i));
     for (const LightDesc& l : scene.lights) build_light(ctx, l);
+    // Nothing emits: the image is black. Said, as pbrt does, rather than left to be found.
+    const auto has = [&](auto tag) {
+        using T = typename decltype(tag)::type;
+        const auto* pool = registry.find_pool<T>();
+        return pool && pool->size() > 0;
+    };
+    bool lit = has(std::type_identity<QuadLight>{}) || has(std::type_identity<SphereLight>{}) ||
+               has(std::type_identity<PointLight>{}) || has(std::type_identity<DistantLight>{}) ||
+               has(std::type_identity<Emission>{}) || has(std::type_identity<EnvironmentMapFile>{});
+    if (const auto* env = registry.find_pool<Environment>())
+        for (std::size_t i = 0; i < env->size() && !lit; ++i)
+            lit = max_component(env->columns().get(i).radiance) > 0.0f;
+    if (!lit)
+        info.notes.push_back(fmt::format(
+            "{}: the scene has no light (no light, no emitting object, a black environment): "
+            "it renders black",
+            scene.path));
     return info;
 }
 

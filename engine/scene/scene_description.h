@@ -73,10 +73,13 @@ struct MaterialDesc {
      *  applies it to the shading frame before the plugin sees the point. */
     std::vector<ParamDesc> maps;
     bool shadow_catcher = false;  ///< every object in it is a shadow catcher
-    FileLoc loc;                  ///< the material as a whole
-    FileLoc name_loc;             ///< its name
-    FileLoc plugin_loc;           ///< its plugin
-    FileLoc model_loc;            ///< its model (loc when not written)
+    /** No warning when no object uses it: a pbrt scene's library of materials (pbrt says
+     *  nothing of those either), or the operands of a mix that Spangle replaced by one. */
+    bool quiet_unused = false;
+    FileLoc loc;         ///< the material as a whole
+    FileLoc name_loc;    ///< its name
+    FileLoc plugin_loc;  ///< its plugin
+    FileLoc model_loc;   ///< its model (loc when not written)
 };
 
 /** When a key is: seconds, or a frame of the render settings' range. */

@@ -1,8 +1,10 @@
 #include <gtest/gtest.h>
+#include <zlib.h>
 
 #include <cmath>
 #include <cstring>
 #include <fstream>
+#include <iterator>
 
 #include "core/error.h"
 #include "geometry/mesh_load.h"
@@ -70,6 +72,35 @@ TEST(MeshLoad, PlyFirstLineAsToolsWriteIt) {
     } catch (const SpangleError& e) {
         EXPECT_NE(std::string(e.what()).find("its first line must be 'ply', it is 'solid cube'"),
                   std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(MeshLoad, GzippedPlyIsReadAsThePlyItHolds) {
+    // pbrt-v4's scenes (ganesha, sssdragon, lte-orb) ship their meshes as .ply.gz: the same
+    // mesh as the plain file (they were "has extension '.gz'; expected .obj or .ply").
+    const test::TempDir dir("ply_gz");
+    std::ifstream in(test::asset_dir() + "/meshes/plane.ply", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    gzFile gz = gzopen(dir.file("plane.ply.gz").c_str(), "wb");
+    gzwrite(gz, bytes.data(), static_cast<unsigned>(bytes.size()));
+    gzclose(gz);
+    const TriangleMesh plain = load_mesh(test::asset_dir() + "/meshes/plane.ply", {});
+    const TriangleMesh packed = load_mesh(dir.file("plane.ply.gz"), {});
+    EXPECT_EQ(packed.positions, plain.positions);
+    EXPECT_EQ(packed.normals, plain.normals);
+    EXPECT_EQ(packed.uvs, plain.uvs);
+    EXPECT_EQ(packed.indices, plain.indices);
+    // A .gz that holds something else is not taken for a mesh of another kind.
+    std::ofstream(dir.file("x.obj.gz")) << "v 0 0 0\n";
+    EXPECT_THROW(load_mesh(dir.file("x.obj.gz"), {}), SpangleError);
+    // A damaged gzip stream says so.
+    std::ofstream(dir.file("bad.ply.gz")) << std::string("\x1f\x8b\x08\x00garbage", 12);
+    try {
+        load_mesh(dir.file("bad.ply.gz"), {});
+        FAIL() << "a damaged .ply.gz was read";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("not a valid gzip file"), std::string::npos)
             << e.what();
     }
 }

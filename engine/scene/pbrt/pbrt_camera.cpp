@@ -5,6 +5,7 @@
 
 #include <cmath>
 
+#include "color/image_io.h"
 #include "scene/pbrt/pbrt_state.h"
 
 namespace spangle::pbrt {
@@ -35,6 +36,7 @@ void film(Reader& r) {
     }
     if (!r.film_type.empty() && r.film_type != "image" && r.film_type != "rgb")
         r.notes.add(r.film_loc, fmt::format("Film \"{}\": an RGB film stands in", r.film_type));
+    p.number("iso", 100.0);  // read by exposure() once the camera's shutter is known
     r.notes.unused(p, fmt::format("Film \"{}\"", r.film_type));
 }
 
@@ -77,6 +79,32 @@ void sampling(Reader& r) {
                                                   f));
     }
     r.notes.unused(r.filter, fmt::format("PixelFilter \"{}\"", f));
+}
+
+/** pbrt-v4's sensor exposure: its image is the radiance times the imaging ratio
+ *  (shutterclose - shutteropen) x iso / 100 (1 by default); Spangle's image is the radiance, so
+ *  every light of the scene is scaled by it. pbrt-v3 has no such factor. */
+void exposure(Reader& r) {
+    if (!r.v4()) return;
+    const double iso = r.film.number("iso", 100.0);
+    const ParamList& cp = r.camera.params;
+    const double open = cp.number("shutteropen", 0.0), close = cp.number("shutterclose", 1.0);
+    const double ratio = std::fabs(close - open) * iso / 100.0;
+    if (ratio == 1.0) return;
+    if (!(ratio > 0.0 && std::isfinite(ratio))) {
+        r.notes.add(r.film_loc, fmt::format("Film: the exposure (shutter {} s x iso {} / 100) is "
+                                            "{}: pbrt's image would be black; 1 stands in",
+                                            std::fabs(close - open), iso, ratio));
+        return;
+    }
+    for (LightDesc& l : r.d.lights) l.intensity *= ratio;
+    if (r.d.environment) r.d.environment->intensity *= ratio;
+    for (ObjectDesc& o : r.d.objects)
+        if (o.emission) o.emission->intensity *= ratio;
+    r.notes.add(r.film_loc,
+                fmt::format("Film: pbrt-v4's exposure (shutter {} s x iso {} / 100 = {}) scales "
+                            "every light",
+                            std::fabs(close - open), iso, ratio));
 }
 
 /** The shutter in seconds as Spangle's frames at one frame per second. */
@@ -182,10 +210,28 @@ void finish_camera_and_render(Reader& r) {
     const double focus = p.number("focaldistance", 1e6);
     if (c.aperture > 0.0 && focus > 0.0) c.focus_distance = focus;
     shutter(r);
+    exposure(r);
     camera_keys(r);
     r.notes.unused(p, fmt::format("Camera \"{}\"", cs.type));
-    if (r.env_map_pending && r.d.environment && r.d.environment->map && r.v4())
-        r.d.environment->map->projection = MapProjection::EqualArea;
+    if (r.env_map_pending && r.d.environment && r.d.environment->map && r.v4()) {
+        // pbrt-v4 takes only square (equal-area octahedral) maps; a 2:1 map in a v4 file is a
+        // lat-long one (pbrt-v3's layout, its z up): read so, with a note, rather than wrapped
+        // onto the octahedron as garbage. A map that cannot be read is left to its loader's
+        // error.
+        EnvironmentDesc::Map& map = *r.d.environment->map;
+        bool square = true;
+        try {
+            const ImageHeader h = read_image_header(map.path, "environment map");
+            square = h.width == h.height;
+            if (!square)
+                r.notes.add(map.loc, fmt::format("infinite light: '{}' is {}x{}, not square: "
+                                                 "pbrt-v4 takes only square equal-area maps; it is "
+                                                 "read as a lat-long map (pbrt-v3's layout)",
+                                                 map.path, h.width, h.height));
+        } catch (const SpangleError&) {
+        }
+        if (square) map.projection = MapProjection::EqualArea;
+    }
 }
 
 }  // namespace spangle::pbrt

@@ -140,7 +140,14 @@ public:
                    bool remap_on) {
         if (const Param* t = p_.find(pbrt, {"texture"})) {
             if (const TextureValue* v = texture(*t, false)) {
-                if (v->image) {
+                // Spangle's plastic (coateddiffuse, v3 plastic, uber, substrate) tabulates its
+                // coat's albedo for one roughness: it takes a constant, the material's default.
+                if (v->image && m_.model == "plastic") {
+                    note(fmt::format(
+                        "a texture of '{}' is not supported on this material (its coat takes one "
+                        "roughness): '{}' {} stands in",
+                        pbrt, pbrt, fallback));
+                } else if (v->image) {
                     if (remap_on)
                         note(
                             fmt::format("a texture of '{}' cannot be remapped: its values are "
@@ -153,8 +160,9 @@ public:
                     d.loc = d.key_loc = t->loc;
                     m_.params.push_back(std::move(d));
                     return;
+                } else {
+                    fallback = v->value.x;
                 }
-                fallback = v->value.x;
             }
         } else {
             fallback = p_.number(pbrt, fallback);
@@ -358,6 +366,7 @@ bool v3_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         b.roughness_uv(0.1, Remap::V3);
         if (!(b.constant("Ks", Vec3(0.25f)) == Vec3(1.0f)))
             b.note("'Ks' is not supported: the coat reflects as a dielectric of index 1.5 (Ks 1)");
+        p.find("Ks");
     } else if (t == "metal") {
         b.model("smooth", "conductor");
         b.metal("eta", "k", nullptr);
@@ -368,6 +377,7 @@ bool v3_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         b.number("roughness", 0.0);
         if (!(b.constant("Kr", Vec3(0.9f)) == Vec3(1.0f)))
             b.note("'Kr' is not supported: a perfect mirror (Kr 1) stands in");
+        p.find("Kr");
     } else if (t == "glass") {
         b.model("smooth", "dielectric");
         if (p.find("index"))
@@ -378,10 +388,12 @@ bool v3_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         if (!(b.constant("Kr", Vec3(1.0f)) == Vec3(1.0f)) ||
             !(b.constant("Kt", Vec3(1.0f)) == Vec3(1.0f)))
             b.note("'Kr' and 'Kt' are not supported: clear glass (1, 1) stands in");
+        for (const char* k : {"Kr", "Kt"}) p.find(k);  // said above, not again as dropped
     } else if (t == "uber") {
         b.model("smooth", "plastic");
         b.color("Kd", "albedo", Vec3(0.25f));
-        b.ior("eta", "ior", 1.5);
+        // pbrt-v3's uber takes "index" where "eta" is not given.
+        b.ior(p.find("eta") || !p.find("index") ? "eta" : "index", "ior", 1.5);
         b.roughness_uv(0.1, Remap::V3);
         for (const char* k : {"Ks", "Kr", "Kt", "opacity"}) p.find(k);
         b.note(

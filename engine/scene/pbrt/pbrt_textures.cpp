@@ -158,6 +158,15 @@ TextureValue mix_texture(Reader& r, const std::string& kind, const ParamList& p,
         v.value = a.value * (1.0f - amount.value.x) + b.value * amount.value.x;
         return v;
     }
+    if (!a.image && !b.image) {
+        // Constant operands blended by an image: their average (amount 0.5) stands in.
+        r.notes.add(loc,
+                    "a mix texture whose 'amount' is an image is not supported: the average of "
+                    "its two operands stands in");
+        TextureValue v = a;
+        v.value = (a.value + b.value) * 0.5f;
+        return v;
+    }
     const bool second = !amount.image && amount.value.x > 0.5f;
     r.notes.add(loc, fmt::format("a mix texture of images is not supported: its {} operand "
                                  "stands in",

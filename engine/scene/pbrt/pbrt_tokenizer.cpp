@@ -1,7 +1,5 @@
 #include "scene/pbrt/pbrt_tokenizer.h"
 
-#include <zlib.h>
-
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -13,31 +11,6 @@ namespace spangle::pbrt {
 
 namespace {
 
-/** The bytes of a gzip'd file, inflated. */
-std::string inflate_file(const std::string& path, const FileLoc& ref) {
-    gzFile f = gzopen(path.c_str(), "rb");
-    if (!f) throw_error(ref, "cannot open '{}'", path);
-    std::string out;
-    char buf[1 << 16];
-    for (;;) {
-        const int n = gzread(f, buf, sizeof buf);
-        if (n < 0) {
-            int code = 0;
-            const std::string why = gzerror(f, &code);
-            gzclose(f);
-            throw_error(ref, "'{}' is not a valid gzip file: {}", path, why);
-        }
-        if (n == 0) break;
-        // Inflating can multiply the size a thousandfold: stop before memory runs out.
-        if (memory_short_for(2.0 * static_cast<double>(out.size() + static_cast<std::size_t>(n))))
-            throw_error(ref, "'{}' inflates to more than the memory available ({} so far)", path,
-                        format_bytes(static_cast<double>(out.size())));
-        out.append(buf, static_cast<std::size_t>(n));
-    }
-    gzclose(f);
-    return out;
-}
-
 /** The bytes of `path`, inflated when they are gzip'd. */
 std::string read_whole(const std::string& path, const FileLoc& ref) {
     std::error_code ec;
@@ -48,7 +21,8 @@ std::string read_whole(const std::string& path, const FileLoc& ref) {
     if (!in) throw_error(ref, "cannot open '{}'", path);
     unsigned char magic[2] = {0, 0};
     in.read(reinterpret_cast<char*>(magic), 2);
-    if (in.gcount() == 2 && magic[0] == 0x1f && magic[1] == 0x8b) return inflate_file(path, ref);
+    if (in.gcount() == 2 && magic[0] == 0x1f && magic[1] == 0x8b)
+        return inflate_gzip_file(path, ref);
     const auto size = std::filesystem::file_size(path, ec);
     if (ec) throw_error(ref, "cannot read '{}': {}", path, ec.message());
     if (memory_short_for(static_cast<double>(size)))
