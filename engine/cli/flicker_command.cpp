@@ -10,6 +10,7 @@
 
 #include "cli/commands.h"
 #include "color/flicker.h"
+#include "core/error.h"
 
 namespace spangle {
 namespace {
@@ -23,6 +24,12 @@ struct FlickerArgs {
 /** Measures the sequence and prints its figures. */
 int run_flicker(const FlickerArgs& a) {
     const FlickerReport r = measure_flicker(a.frames, a.threshold);
+    // No pixel of one frame lands on a pixel of the next (frames of different scenes or
+    // cameras, or no glints layer's points in view): every figure would read as perfect.
+    if (!(r.pixels > 0.0))
+        throw_error(
+            "no pixel of a frame could be followed into the next one, so nothing was compared: "
+            "are these frames of one sequence, rendered with --frames --layers?");
     fmt::print(
         "frames: {} ({} pairs), pixels compared: {:.0f} (points carried by {})\n"
         "glint mask threshold: {:.4g}, mask coverage: {:.4f}\n"

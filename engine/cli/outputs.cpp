@@ -278,6 +278,18 @@ Outputs outputs_for(const RenderArgs& a) {
             a.compression);
     check_writable(out.exr, "EXR");
     if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
+    // A frame number goes into one run of '#': a second would stay in every frame's name.
+    for (const std::string& path : {out.exr, out.preview}) {
+        const std::string name = fs::path(path).filename().string();
+        int runs = 0;
+        for (std::size_t i = 0; i < name.size(); ++i)
+            if (name[i] == '#' && (i == 0 || name[i - 1] != '#')) ++runs;
+        if (runs > 1)
+            usage_error("'{}' has {} runs of '#'; the frame number goes into one", path, runs);
+    }
+    // The preview is a PNG whatever its name: another ending would mislabel it (p.jpg held PNG).
+    if (!out.preview.empty() && fs::path(out.preview).extension() != ".png")
+        usage_error("--preview '{}' must end in .png (the preview is a PNG)", out.preview);
     out.exr_options.half = !a.full_float;
     out.exr_options.compression = a.compression;
     out.scene = a.scene;

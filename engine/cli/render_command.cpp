@@ -3,7 +3,9 @@
 // by mpirun as one of several ranks, a render shared by the ranks (mpi_command.cpp).
 
 #include <fmt/format.h>
+
 #include <unistd.h>
+#include <cmath>
 
 #include <CLI/CLI.hpp>
 #include <cstdio>
@@ -269,6 +271,19 @@ int run_one_shot(const RenderArgs& a) {
 
 /** Refuses options that clash (UsageError) and runs the mode they ask for. */
 int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
+    // CLI11's range checks let NaN through (every comparison with it is false).
+    if (std::isnan(a.noise_threshold))
+        usage_error("--noise-threshold must be a number in [0, 1], got nan");
+    // Options that contradict each other, or name what is not there, are refused rather than
+    // one of them silently winning.
+    if (!a.preview.empty() && a.no_preview)
+        usage_error("--preview names a preview and --no-preview asks for none: choose one");
+    if (a.pass_output && a.no_pass_output)
+        usage_error("--pass-output and --no-pass-output: choose one");
+    for (const std::string& dir : a.plugin_dirs) {
+        std::error_code ec;
+        if (!fs::is_directory(dir, ec)) usage_error("--plugin-path '{}' is not a folder", dir);
+    }
     if (!a.spp_range.empty()) {
         if (a.layers)
             usage_error(

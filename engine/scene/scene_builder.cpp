@@ -133,6 +133,15 @@ Camera still_camera(const CameraDesc& d) {
     c.up = d.up;
     c.fov_deg = static_cast<float>(d.fov_deg);
     const Vec3 dir = c.look_at - c.position;
+    // In double: a camera 1e20 away overflowed the float length and was "parallel to 'up'".
+    const double dx = static_cast<double>(dir.x), dy = static_cast<double>(dir.y),
+                 dz = static_cast<double>(dir.z);
+    const double distance = std::sqrt(dx * dx + dy * dy + dz * dz);
+    if (!(distance <= 1e15))
+        throw_error(d.look_at_loc,
+                    "the camera is {:.3g} units from its 'look_at': rays are traced in 32-bit "
+                    "floats, keep the camera within 1e15 of what it looks at",
+                    distance);
     if (!(length(dir) > 0.0f)) throw_error(d.look_at_loc, "'look_at' must differ from 'position'");
     if (!(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)))
         throw_error(d.up_loc, "'up' must not be parallel to the viewing direction");

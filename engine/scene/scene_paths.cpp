@@ -1,5 +1,7 @@
 #include "scene/scene_paths.h"
 
+#include <fmt/format.h>
+
 #include "core/files.h"
 
 namespace fs = std::filesystem;
@@ -12,8 +14,13 @@ std::string find_scene_file(const std::string& given, const fs::path& dir, std::
     fs::path p(given);
     if (p.is_relative()) p = dir / p;
     std::error_code ec;
+    // The key names the file ("mesh", "file"): "file file" reads badly.
+    const std::string what = key == "file" ? std::string("file") : fmt::format("{} file", key);
+    if (fs::is_directory(p, ec))
+        throw_error(at, "{} '{}' is a folder, not a file ({})", what, given,
+                    absolute_path(p.string()));
     if (!fs::is_regular_file(p, ec))
-        throw_error(at, "{} file '{}' not found (looked for {})", key, given,
+        throw_error(at, "{} '{}' not found (looked for {})", what, given,
                     absolute_path(p.string()));
     return p.lexically_normal().string();
 }

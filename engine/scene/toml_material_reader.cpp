@@ -218,6 +218,7 @@ MaterialDesc read_material(const ReadContext& ctx, TableReader& r) {
     m.loc = r.loc();
     m.name = r.string("name");
     m.name_loc = r.loc("name");
+    if (m.name.empty()) throw_error(m.name_loc, "a material's 'name' must not be empty");
     m.plugin = r.string("plugin");
     m.plugin_loc = r.loc("plugin");
     m.model = r.string("model", "");

@@ -234,7 +234,8 @@ Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view n
             throw_error(loc_of(e, file), "'{}' element {} must be a number, got {}", name, i,
                         toml_type_name(e));
         if (!std::isfinite(x) || std::fabs(x) > 1e30)
-            throw_error(loc_of(e, file), "'{}' element {} must be finite, got {}", name, i, x);
+            throw_error(loc_of(e, file), "'{}' element {} must be finite and within +-1e30, got {}",
+                        name, i, x);
         v[i] = static_cast<float>(x);
     }
     return {v[0], v[1], v[2]};

@@ -459,6 +459,15 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
         e.two_sided = r.boolean("emission_two_sided", e.two_sided);
         e.group = read_light_group(r);
         o.emission = std::move(e);
+    } else {
+        // Keys of an emitting object on one that does not emit: say what is missing (they were
+        // "unknown key ... did you mean 'emission'?").
+        for (const char* k : {"emission_intensity", "emission_two_sided", "light_group"})
+            if (r.has(k))
+                throw_error(r.loc(k),
+                            "'{}' is for an object that emits: give it 'emission' (the emitted "
+                            "radiance, RGB) too",
+                            k);
     }
     r.finish();
     return o;

@@ -4,7 +4,8 @@
 # left behind. Before: --size 4294967312x16 rendered 16x16; a bad --size or --compression exited
 # 1; `-o same.exr --preview same.exr` replaced the EXR with a PNG and exited 0; a missing folder,
 # a folder as output or an unwritable place was found after the whole render; `spangle rendr`
-# said "A subcommand is required".
+# said "A subcommand is required"; --noise-threshold nan, --preview with --no-preview, a missing
+# --plugin-path, a .jpg preview (PNG bytes) and a second run of '#' were accepted.
 #   bad_outputs.sh SPANGLE SCENE
 set -u
 S=$1 SCENE=$2
@@ -36,6 +37,13 @@ expect 2 "same file" render "$SCENE" -o same.exr --preview same.exr
 mkdir sub
 expect 2 "same file" render "$SCENE" -o same.exr --preview ./sub/../same.exr
 expect 2 "PORT or ADDR:PORT" render "$SCENE" --serve 70000
+# Options that contradict each other or name nothing (one of them silently won before).
+expect 2 "got nan" render "$SCENE" --noise-threshold nan
+expect 2 "choose one" render "$SCENE" --preview p.png --no-preview
+expect 2 "choose one" render "$SCENE" --pass-output --no-pass-output
+expect 2 "is not a folder" render "$SCENE" --plugin-path "$T/no_such_plugins"
+expect 2 "must end in .png" render "$SCENE" -o out.exr --preview out.jpg
+expect 2 "2 runs of '#'" render "$SCENE" -o "a.##.##.exr" --frames 1..1
 expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/out.exr"
 mkdir folder.exr
 expect 1 "it is a folder" render "$SCENE" -o folder.exr

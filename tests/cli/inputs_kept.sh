@@ -4,8 +4,8 @@
 # case below exited 0 and replaced or mixed files):
 # - `-o` or `--preview` naming the scene file, a mesh or the environment map is refused before
 #   anything renders, and the file is intact;
-# - `--frames` checks every frame's EXR and preview before the first renders (a preview pattern
-#   that gives a frame's EXR name replaced the EXR with PNG bytes; a folder at frame 2's path
+# - a preview that does not end in .png is refused (it wrote PNG bytes into scene.toml, p.jpg);
+# - `--frames` checks every frame's paths before the first renders (a folder at frame 2's path
 #   failed after frame 1 with "...: Success");
 # - `--layers` with a compression lossy for 32-bit floats (pxr24, dwaa, dwab) is refused: it
 #   corrupted the ids, depth and positions;
@@ -28,6 +28,7 @@ expect() {
 }
 cd "$T"
 cp "$REPO/assets/meshes/sphere.obj" "$REPO/assets/meshes/plane.ply" "$REPO/assets/env/studio.exr" .
+cp "$REPO/assets/textures/beetle_livery.png" tex.png
 cat > scene.toml <<'EOF'
 [render]
 width = 24
@@ -46,25 +47,29 @@ name = "grey"
 plugin = "smooth"
 model = "diffuse"
 params = { albedo = 0.5 }
+[[material]]
+name = "textured"
+plugin = "smooth"
+model = "diffuse"
+params = { albedo = { texture = "tex.png" } }
 [[object]]
 mesh = "plane.ply"
 material = "grey"
 scale = 20
 [[object]]
 mesh = "sphere.obj"
-material = "grey"
+material = "textured"
 translate = [0, 0.7, 0]
 keys = [{ frame = 1, translate = [0, 0.7, 0] }, { frame = 3, translate = [1, 0.7, 0] }]
 EOF
-sum() { md5sum scene.toml sphere.obj plane.ply studio.exr; }
+sum() { md5sum scene.toml sphere.obj plane.ply studio.exr tex.png; }
 before=$(sum)
 expect 1 "a file the scene reads" render scene.toml -o studio.exr -q
 expect 1 "a file the scene reads" render scene.toml -o ./studio.exr -q
-expect 1 "a file the scene reads" render scene.toml -o out.exr --preview scene.toml -q
-expect 1 "a file the scene reads" render scene.toml -o out.exr --preview sphere.obj -q
+expect 1 "a file the scene reads" render scene.toml -o scene.toml.exr --preview tex.png -q
+expect 2 "must end in .png" render scene.toml -o out.exr --preview scene.toml -q
+expect 2 "must end in .png" render scene.toml -o out.exr --preview sphere.obj -q
 [ "$(sum)" = "$before" ] || fail "an input file changed"
-expect 2 "frame 1's EXR and PNG preview are the same file" \
-    render scene.toml -o f.exr --preview f.####.exr --frames 1..2 -q
 mkdir o.0002.exr
 expect 1 "frame 2's EXR 'o.0002.exr': it is a folder" render scene.toml -o o.exr --frames 1..3 -q
 [ ! -e o.0001.exr ] || fail "frame 1 rendered before frame 2's folder was found"
