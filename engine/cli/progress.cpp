@@ -73,7 +73,9 @@ struct WorkMeter {
 
     void update(const std::string& w, double fraction) {
         const auto now = std::chrono::steady_clock::now();
-        if (w != what) {
+        // A new piece, or the same piece begun again (a reload after one that failed before
+        // its end: its clock ran on from the failed one, "done in 7s" for a 1 ms build).
+        if (w != what || fraction <= 0.0) {
             what = w;
             start = last_draw = now;
             shown = false;

@@ -756,6 +756,7 @@ TEST(PbrtReader, SyntaxErrorsAreAtFileLineColumn) {
     has("Shape \"sphere\" \"float radius\" [1\n",
         "scene.pbrt:1:31: error: '[' of 'float radius' is never closed");
     has("WorldBegin\nFrobnicate 1 2\n", "scene.pbrt:2:1: error: unknown directive 'Frobnicate'");
+    has("SurfaceIntegrator \"path\"\n", "'SurfaceIntegrator' (a pbrt-v2 directive");
     has("Translate 1 two 3\n", "scene.pbrt:1:13: error: Translate expects 3 numbers, got 'two'");
     has("Shape \"sphere\" \"float radius\" [one]\n",
         "scene.pbrt:1:32: error: 'float radius' takes numbers");

@@ -153,7 +153,12 @@ public:
             const std::string name(tok.text);
             if (!transform(t, name, loc) && !state(t, name, loc) && !scene(t, name, loc) &&
                 !include(t, name, loc, depth))
-                throw_error(loc, "unknown directive '{}'", name);
+                throw_error(
+                    loc, "unknown directive '{}'{}", name,
+                    name == "SurfaceIntegrator" || name == "VolumeIntegrator" || name == "Renderer"
+                        ? " (a pbrt-v2 directive: Spangle reads pbrt-v3 and pbrt-v4 "
+                          "files)"
+                        : "");
         }
     }
 
