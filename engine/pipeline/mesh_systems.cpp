@@ -214,10 +214,15 @@ void system_subdivide(ecs::Registry& r, World& w) {
         cam = r.pool<Camera>().columns().get(0);
         const Film film = r.pool<Film>().columns().get(0);
         const uint32_t height = w.options.height_override ? w.options.height_override : film.height;
+        const uint32_t width = w.options.width_override ? w.options.width_override : film.width;
         // A screen window spans y0..y1 in units of tan(fov / 2); without one, -1..1.
         const float span = cam.screen == ScreenWindow{} ? 2.0f : cam.screen[3] - cam.screen[2];
-        pixel_angle =
-            span * std::tan(0.5f * cam.fov_deg * kPi / 180.0f) / static_cast<float>(height);
+        // pbrt's fov on a portrait image spans its width (camera.h, FilmLayout::fov_shorter).
+        const float portrait = cam.fov_shorter && cam.screen == ScreenWindow{} && width < height
+                                   ? static_cast<float>(height) / static_cast<float>(width)
+                                   : 1.0f;
+        pixel_angle = span * portrait * std::tan(0.5f * cam.fov_deg * kPi / 180.0f) /
+                      static_cast<float>(height);
         camera = &cam;
     }
     SubdividedMeshes out;

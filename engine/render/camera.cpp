@@ -83,6 +83,7 @@ CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, fl
       width_(static_cast<float>(width)),
       height_(static_cast<float>(height)) {
     screen_ = layout.screen;
+    if (layout.fov_shorter && !has_screen() && aspect_ < 1.0f) tan_half_ /= aspect_;
     right_ = normalize(cross(forward_, up));
     up_ = cross(right_, forward_);
     if (layout.mirror) right_ = -right_;

@@ -53,6 +53,9 @@ struct FilmLayout {
     /** The image's x0, x1, y0, y1 on the plane at distance 1, in units of tan(fov / 2) (pbrt's
      *  screen window; y up); all 0 = [-aspect, aspect] x [-1, 1]. */
     std::array<float, 4> screen{};
+    /** fov spans the shorter side (pbrt's convention): on an image taller than wide it is the
+     *  horizontal field of view. Without a screen window only. */
+    bool fov_shorter = false;
 };
 
 class CameraModel {

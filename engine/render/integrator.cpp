@@ -451,7 +451,7 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
                           camera.aperture, camera.focus_distance, film.width, film.height,
-                          FilmLayout{camera.mirror, camera.screen});
+                          FilmLayout{camera.mirror, camera.screen, camera.fov_shorter});
     const FilterSampler filter(film.filter);
     RenderJob job;
     job.filter = &filter;

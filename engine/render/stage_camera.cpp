@@ -22,7 +22,7 @@ CameraModel camera_at(const RenderJob& job, float time) {
     return CameraModel(mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
                        mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
                        mix(a.focus_distance, b.focus_distance), job.width, job.height,
-                       FilmLayout{a.mirror, a.screen});
+                       FilmLayout{a.mirror, a.screen, a.fov_shorter});
 }
 
 /** Path i: sample `smp` of pixel (x, y), the top-left of a block of job.stride pixels whose

@@ -211,6 +211,7 @@ using ScreenWindow = std::array<float, 4>;
     X(float, aperture, "lens radius, metres; 0 = pinhole")                                    \
     X(float, focus_distance, "distance of the plane in focus, metres")                        \
     X(bool, mirror, "image x along up x forward: pbrt's left-handed camera (mirrored image)") \
+    X(bool, fov_shorter, "fov spans the image's shorter side (pbrt), not its height")         \
     X(ScreenWindow, screen, "pbrt's screen window (y up), tan(fov / 2) units; all 0 = none")
 /** A perspective camera: pinhole or thin lens. */
 SPANGLE_COMPONENT(Camera, SPANGLE_CAMERA_FIELDS);

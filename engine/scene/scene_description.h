@@ -118,6 +118,9 @@ struct CameraDesc {
     /** The image is the mirror image of a right-handed camera's: its x runs along up x forward
      *  (pbrt's left-handed camera space). */
     bool mirror = false;
+    /** fov spans the image's shorter side (pbrt's convention) instead of its height: resolved
+     *  against the size rendered, so that a --size of another aspect frames as pbrt would. */
+    bool fov_shorter = false;
     /** pbrt's screen window: x0, x1, y0, y1 of the image in units of tan(fov / 2), y up (fov is
      *  then the window's unit, not the vertical field of view); none = centred, fov vertical. */
     std::optional<std::array<double, 4>> screen;

@@ -148,6 +148,16 @@ CameraDesc read_camera(TableReader& r) {
     c.up = r.vec3("up", c.up);
     c.up_loc = r.loc("up");
     c.fov_deg = r.number("fov", c.fov_deg, {0.0, 180.0, true, true});
+    // "vertical" (the default) or "shorter": the image's shorter side, as pbrt takes fov.
+    if (r.has("fov_axis")) {
+        const std::string axis = r.string("fov_axis");
+        if (axis != "vertical" && axis != "shorter")
+            throw_error(r.loc("fov_axis"),
+                        "'fov_axis' must be \"vertical\" or \"shorter\", got "
+                        "\"{}\"",
+                        axis);
+        c.fov_shorter = axis == "shorter";
+    }
     c.aperture = r.number("aperture", c.aperture, {0.0, 1e3});
     if (focus_given) c.focus_distance = r.number("focus_distance", {0.0, 1e30, true});
     c.mirror = r.boolean("mirror", c.mirror);

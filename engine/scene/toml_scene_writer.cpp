@@ -141,6 +141,7 @@ struct Writer {
         line("look_at", vec(c.look_at));
         line("up", vec(c.up));
         line("fov", num(c.fov_deg));
+        if (c.fov_shorter) line("fov_axis", str("shorter"));
         line("aperture", num(c.aperture));
         if (c.focus_distance) line("focus_distance", num(*c.focus_distance));
         if (c.mirror) line("mirror", "true");

@@ -676,9 +676,12 @@ LookAt 0 0 5  0 0 0  0 1 0
 Camera "perspective" "float fov" 40
 Film "image" "integer xresolution" 100 "integer yresolution" 200
 )");
-    // Portrait: pbrt's 40 degrees span the width; the height spans 2 atan(tan(20) / 0.5).
-    EXPECT_NEAR(tall.camera.fov_deg,
-                2.0 * std::atan(std::tan(20.0 * M_PI / 180.0) / 0.5) * 180.0 / M_PI, 1e-9);
+    // Portrait: pbrt's 40 degrees span the shorter side, the width, of the size rendered (the
+    // camera model resolves it: PbrtCamera.PointsProjectWherePbrtPutsThem and
+    // ...AtAnotherSize... check where points land).
+    EXPECT_EQ(tall.camera.fov_deg, 40.0);
+    EXPECT_TRUE(tall.camera.fov_shorter);
+    EXPECT_TRUE(wide.camera.fov_shorter);
     EXPECT_FALSE(tall.camera.mirror) << "Scale -1 1 1 undoes pbrt's mirror";
     const SceneDescription window =
         read(f, "Camera \"perspective\" \"float screenwindow\" [0 1 0 1]\n");

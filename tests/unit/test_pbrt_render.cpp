@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <tuple>
 
 #include "core/hash.h"
 #include "pipeline/frame.h"
@@ -134,9 +135,10 @@ std::pair<double, double> pbrt_raster(Vec3 e, Vec3 l, Vec3 up, double fov, doubl
 
 /** Where Spangle's EXR worldToNDC puts p, in raster pixels. */
 std::pair<double, double> exr_raster(const Camera& c, uint32_t w, uint32_t h, Vec3 p) {
-    const CameraMatrices m = CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture,
-                                         c.focus_distance, w, h, FilmLayout{c.mirror, c.screen})
-                                 .matrices();
+    const CameraMatrices m =
+        CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, w, h,
+                    FilmLayout{c.mirror, c.screen, c.fov_shorter})
+            .matrices();
     const float v[4] = {p.x, p.y, p.z, 1.0f};
     double o[4] = {0, 0, 0, 0};
     for (int j = 0; j < 4; ++j)
@@ -167,6 +169,32 @@ TEST(PbrtCamera, PointsProjectWherePbrtPutsThem) {
                 EXPECT_NEAR(sy, py, 1e-3 * h) << w << "x" << h << (flip ? " flipped" : "");
             }
         }
+}
+
+TEST(PbrtCamera, AtAnotherSizeTheFovStaysOnTheShorterSideAsPbrtsDoes) {
+    // A portrait Film rendered at a landscape --size (and the other way): pbrt's fov spans the
+    // shorter side of the image rendered. Before, the fov was turned into a vertical one for the
+    // Film's aspect, so a portrait scene at 320x180 showed 3x the width pbrt shows.
+    const Vec3 e(1, 2, 6), l(0, 0.5, 0), up(0, 1, 0);
+    const Vec3 points[] = {{0, 0, 0}, {1, 0.5, -1}, {-1.5, 2, 0.5}};
+    for (const auto& [fw, fh, w, h] :
+         {std::tuple{100u, 200u, 320u, 180u}, std::tuple{320u, 180u, 90u, 160u}}) {
+        const std::string text = fmt::format(
+            "LookAt {} {} {}  {} {} {}  {} {} {}\nCamera \"perspective\" \"float fov\" 35\n"
+            "Film \"image\" \"integer xresolution\" {} \"integer yresolution\" {}\n",
+            e.x, e.y, e.z, l.x, l.y, l.z, up.x, up.y, up.z, fw, fh);
+        PbrtReadInfo info;
+        ColorConfig color = test::shipped_config();
+        ecs::Registry registry;
+        const SceneInfo si =
+            build_scene(read_pbrt_text("camera.pbrt", text, info), color, registry);
+        for (const Vec3& p : points) {
+            const auto [px, py] = pbrt_raster(e, l, up, 35.0, w, h, false, p);
+            const auto [sx, sy] = exr_raster(si.camera, w, h, p);
+            EXPECT_NEAR(sx, px, 1e-3 * w) << fw << "x" << fh << " at " << w << "x" << h;
+            EXPECT_NEAR(sy, py, 1e-3 * h) << fw << "x" << fh << " at " << w << "x" << h;
+        }
+    }
 }
 
 TEST(PbrtCamera, AScreenWindowShowsItsPartOfTheFilmPlane) {

@@ -201,10 +201,10 @@ void finish_camera_and_render(Reader& r) {
                                 : std::array<double, 4>{-1.0, 1.0, -1.0 / frame, 1.0 / frame};
         c.fov_deg = fov;
     } else {
-        // pbrt's fov spans the shorter image axis; Spangle's spans the height.
-        c.fov_deg = aspect >= 1.0
-                        ? fov
-                        : 2.0 * std::atan(std::tan(fov * M_PI / 360.0) / aspect) * 180.0 / M_PI;
+        // pbrt's fov spans the shorter image axis, of the size rendered (--size may turn a
+        // portrait film into a landscape image): resolved by the camera model.
+        c.fov_deg = fov;
+        c.fov_shorter = true;
     }
     c.aperture = std::max(0.0, p.number("lensradius", 0.0));
     const double focus = p.number("focaldistance", 1e6);
