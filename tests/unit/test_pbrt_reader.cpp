@@ -509,6 +509,8 @@ MakeNamedMaterial "m8" "string type" "coateddiffuse" "texture roughness" "rough"
     ASSERT_EQ(m1.maps.size(), 1u);
     EXPECT_EQ(m1.maps[0].name, "bump_map");
     EXPECT_FLOAT_EQ(m1.maps[0].texture.amount, 0.01f);
+    // An 8-bit bump image is sRGB-decoded, as pbrt reads float image maps (it was read raw).
+    EXPECT_EQ(*m1.maps[0].texture.space, "srgb_texture");
     EXPECT_EQ(param(material(d, "m2"), "albedo")->color.rgb, Vec3(0.3f));
     EXPECT_EQ(param(material(d, "m3"), "albedo")->color.rgb, Vec3(0.25f));
     EXPECT_EQ(param(material(d, "m4"), "albedo")->color.rgb, Vec3(0.5f));

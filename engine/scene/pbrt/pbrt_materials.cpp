@@ -324,7 +324,8 @@ public:
         // pbrt displaces by the texture's value in scene units: a height of 1 per unit value.
         d.texture.amount = std::clamp(d.texture.scale[0], -1.0f, 1.0f);
         d.texture.scale[0] = d.texture.scale[1] = d.texture.scale[2] = 1.0f;
-        d.texture.space = "raw";
+        // The float texture's own encoding: an 8-bit image is sRGB-decoded unless it says
+        // "linear", as pbrt-v3 and v4 read float image maps (it was read raw).
         m_.maps.push_back(std::move(d));
     }
 
