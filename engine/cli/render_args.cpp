@@ -24,9 +24,9 @@ RenderOptions render_options(const RenderArgs& a) {
     // goes to a layer of its own.
     o.background_apart = a.layers;
     o.denoise = a.denoise;
-    o.denoise_glints = a.denoise_glints == "filter" ? GlintDenoise::Filter
-                       : a.denoise_glints == "keep" ? GlintDenoise::Keep
-                                                    : GlintDenoise::Apart;
+    o.denoise_glints = a.denoise_glints == "filter"  ? GlintDenoise::Filter
+                       : a.denoise_glints == "apart" ? GlintDenoise::Apart
+                                                     : GlintDenoise::Keep;
     if (!a.crop.empty()) o.crop = parse_crop(a.crop);
     if (!a.spp_range.empty()) parse_spp_range(a.spp_range, o.spp_first, o.spp_end);
     o.texture_memory_mb = a.texture_memory_mb;

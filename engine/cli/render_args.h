@@ -45,7 +45,7 @@ struct RenderArgs {
     float noise_threshold = -1.0f;         ///< adaptive sampling's threshold; < 0: the scene's
     uint32_t min_spp = 0, max_spp = 0;     ///< adaptive sampling's bounds; 0: the scene's
     bool denoise = false;                  ///< --denoise: the final image denoised
-    std::string denoise_glints = "keep";   ///< keep (pass through), apart or filter (with all)
+    std::string denoise_glints;            ///< keep (pass through), apart or filter; "" = keep
 };
 
 /** The render's options from the command line (threads, size, spp, crop, strategy); throws

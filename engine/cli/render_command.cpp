@@ -280,6 +280,8 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
         usage_error("--preview names a preview and --no-preview asks for none: choose one");
     if (a.pass_output && a.no_pass_output)
         usage_error("--pass-output and --no-pass-output: choose one");
+    if (!a.denoise_glints.empty() && !a.denoise)
+        usage_error("--denoise-glints says how --denoise treats the glints: add --denoise");
     for (const std::string& dir : a.plugin_dirs) {
         std::error_code ec;
         if (!fs::is_directory(dir, ec)) usage_error("--plugin-path '{}' is not a folder", dir);
