@@ -1,5 +1,6 @@
 #include "session.h"
 
+#include <cmath>
 #include <filesystem>
 
 #include "core/error.h"
@@ -25,6 +26,9 @@ void set_module_location(const std::string& package_dir) {
 
 PySession::PySession(std::vector<std::string> plugin_path, const std::string& ocio, int threads,
                      bool verbose) {
+    // As the command line's --threads (TBB crashed on 70000; a negative count was taken).
+    if (threads < 0 || threads > 1024)
+        throw SpangleError(fmt::format("threads {} must be 0 (every core) to 1024", threads));
     log_.threshold = verbose ? LogLevel::Info : LogLevel::Warning;
     RenderOptions options;
     options.threads = threads;
@@ -38,9 +42,24 @@ void PySession::check_size(const std::pair<uint32_t, uint32_t>& size) {
             fmt::format("size ({}, {}) must be 1 to 16384 pixels a side", size.first, size.second));
 }
 
+std::unique_lock<std::mutex> PySession::edit_lock() {
+    std::unique_lock<std::mutex> lock;
+    if (!busy_.load()) lock = std::unique_lock<std::mutex>(rendering_, std::try_to_lock);
+    if (!lock.owns_lock())
+        throw SpangleError(
+            "this session is rendering: load or edit it after render() returns (stop() ends a "
+            "render early)");
+    return lock;
+}
+
 void PySession::load(const std::string& path, double time,
                      const std::optional<std::pair<uint32_t, uint32_t>>& size) {
+    const auto lock = edit_lock();
     if (size) check_size(*size);
+    // A time that is not a number crashed the keyframe evaluation; one beyond 1e9 s named a
+    // frame number that overflowed.
+    if (!(std::fabs(time) <= 1e9))
+        throw SpangleError(fmt::format("time {} must be a number of seconds within +-1e9", time));
     SceneDescription d = read_scene(path, SceneReadOptions{});
     if (size) {
         d.render.width = size->first;
@@ -58,6 +77,11 @@ const SceneDescription& PySession::description() const {
 }
 
 void PySession::apply(SceneDescription edited) {
+    const auto lock = edit_lock();
+    apply_locked(std::move(edited));
+}
+
+void PySession::apply_locked(SceneDescription edited) {
     session_->load(edited, time_);
     desc_ = std::move(edited);
 }
@@ -140,6 +164,26 @@ std::vector<std::string> PySession::objects() const {
     return out;
 }
 
+namespace {
+
+/** The checks the TOML reader makes on the same keys, for the edits (they were taken as given: a
+ *  negative radius lit the scene 860 times, a NaN fov rendered black). */
+void check_vec(const char* call, const char* key, const std::optional<Vec3>& v) {
+    if (v && !(std::isfinite(v->x) && std::isfinite(v->y) && std::isfinite(v->z) &&
+               std::fabs(v->x) <= 1e30f && std::fabs(v->y) <= 1e30f && std::fabs(v->z) <= 1e30f))
+        throw SpangleError(fmt::format("python: {}: '{}' must be finite, got ({}, {}, {})", call,
+                                       key, v->x, v->y, v->z));
+}
+
+void check_number(const char* call, const char* key, const std::optional<double>& v, double lo,
+                  double hi, bool lo_open) {
+    if (v && !((lo_open ? *v > lo : *v >= lo) && *v <= hi))
+        throw SpangleError(fmt::format("python: {}: '{}' must be in {}{}, {}], got {}", call, key,
+                                       lo_open ? "(" : "[", lo, hi, *v));
+}
+
+}  // namespace
+
 ObjectDesc& PySession::object_named(SceneDescription& d, const std::string& name) const {
     const std::vector<std::string> names = objects();
     for (std::size_t i = 0; i < names.size(); ++i)
@@ -155,6 +199,26 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
                               const std::optional<Affine>& matrix) {
     SceneDescription d = description();
     ObjectDesc& o = object_named(d, name);
+    check_vec("set_transform()", "translate", translate);
+    check_vec("set_transform()", "rotate", rotate);
+    check_vec("set_transform()", "scale", scale);
+    if (scale && (scale->x == 0.0f || scale->y == 0.0f || scale->z == 0.0f))
+        throw SpangleError(
+            fmt::format("python: set_transform('{}'): 'scale' must not be 0 on any "
+                        "axis, got ({}, {}, {})",
+                        name, scale->x, scale->y, scale->z));
+    if (matrix) {
+        bool finite =
+            std::isfinite(matrix->t.x) && std::isfinite(matrix->t.y) && std::isfinite(matrix->t.z);
+        for (const auto& row : matrix->m)
+            for (const float x : row) finite = finite && std::isfinite(x);
+        const float det = matrix->determinant();
+        if (!finite || !(std::fabs(det) > 1e-24f && std::isfinite(det)))
+            throw SpangleError(
+                fmt::format("python: set_transform('{}'): the matrix must be finite "
+                            "and invertible",
+                            name));
+    }
     if (matrix && (translate || rotate || scale))
         throw SpangleError(fmt::format(
             "object '{}': give either matrix or translate/rotate/scale, not both", name));
@@ -182,6 +246,12 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
                            const std::optional<double>& focus_distance) {
     SceneDescription d = description();
     CameraDesc& c = d.camera;
+    check_vec("set_camera()", "position", position);
+    check_vec("set_camera()", "look_at", look_at);
+    check_vec("set_camera()", "up", up);
+    check_number("set_camera()", "fov", fov, 0.0, 179.999, true);
+    check_number("set_camera()", "aperture", aperture, 0.0, 1e3, false);
+    check_number("set_camera()", "focus_distance", focus_distance, 0.0, 1e30, true);
     if (position) c.position = *position;
     if (look_at) c.look_at = *look_at;
     if (up) c.up = *up;
@@ -201,6 +271,15 @@ void PySession::set_light(std::size_t index, const std::optional<double>& intens
             fmt::format("no light {} (the scene has {} lights)", index, d.lights.size()));
     LightDesc& l = d.lights[index];
     const FileLoc loc = python_loc(fmt::format("set_light({})", index));
+    check_number("set_light()", "intensity", intensity, 0.0, 1e30, false);
+    check_number("set_light()", "radius", radius, 0.0, 1e30, true);
+    check_vec("set_light()", "position", position);
+    check_vec("set_light()", "color", color);
+    if (color && (color->x < 0.0f || color->y < 0.0f || color->z < 0.0f))
+        throw SpangleError(
+            fmt::format("python: set_light(): 'color' must not be negative, got "
+                        "({}, {}, {})",
+                        color->x, color->y, color->z));
     if (intensity) l.intensity = *intensity;
     if (color) {
         ColorDesc c;
@@ -258,27 +337,55 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
                                 std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
                                 const RenderCallbacks& callbacks) {
     if (!loaded_) throw SpangleError("no scene is loaded: call load(path) first");
+    if (busy_.load()) throw SpangleError("this session is already rendering");
     std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
     if (!lock.owns_lock()) throw SpangleError("this session is already rendering");
+    busy_.store(true);
+    struct Idle {
+        std::atomic<bool>& busy;
+        ~Idle() { busy.store(false); }
+    } idle{busy_};
     stop_.store(false);
     // A size is the scene's film size: set in the description and reloaded (only what reads
     // the film is rebuilt, e.g. subdivision levels chosen from the camera's pixels), so that the
     // scene is built as `spangle render --size` builds it.
+    if (spp && (*spp < 1 || *spp > (1u << 20)))
+        throw SpangleError(fmt::format("spp {} must be 1 to 1048576 (None: the scene's)", *spp));
+    // A size that fails (a film beyond memory) leaves the session at the size it had.
+    std::optional<SceneDescription> before;
     if (size && (size->first != desc_.render.width || size->second != desc_.render.height)) {
         check_size(*size);
         SceneDescription d = desc_;
         d.render.width = size->first;
         d.render.height = size->second;
-        apply(std::move(d));
+        before = desc_;
+        apply_locked(std::move(d));
     }
     RenderOptions& o = session_->options();
     o.spp_override = spp.value_or(0);
     o.layers = layers;
+    // As `spangle render --layers`: the environment seen directly goes to its own layer and the
+    // beauty is premultiplied (without it the layers did not match the command line's).
+    o.background_apart = layers;
     o.progressive = true;  // passes of 1, 1, 2, 4, ... samples: a stop keeps those completed
     o.progress = callbacks.progress;
     o.on_pass = callbacks.on_pass;
     o.stop = [this] { return stop_.load(); };
-    const ecs::SystemReport report = session_->render();
+    ecs::SystemReport report;
+    try {
+        report = session_->render();
+    } catch (...) {
+        o.progress = nullptr;
+        o.on_pass = nullptr;
+        o.stop = nullptr;
+        if (before) {
+            try {
+                apply_locked(std::move(*before));
+            } catch (...) {
+            }
+        }
+        throw;
+    }
     o.progress = nullptr;
     o.on_pass = nullptr;
     o.stop = nullptr;

@@ -84,8 +84,13 @@ public:
 
 private:
     /** Reloads `edited`; on success it becomes the description (else it throws, nothing
-     *  changed). */
+     *  changed). Refused while the session renders (from another thread or a callback: the
+     *  render reads what a reload frees). */
     void apply(SceneDescription edited);
+    /** apply() for a caller that holds rendering_. */
+    void apply_locked(SceneDescription edited);
+    /** Locks rendering_ for an edit or a load, or throws when a render holds it. */
+    std::unique_lock<std::mutex> edit_lock();
     /** Throws unless `size` is 1 to 16384 pixels a side. */
     static void check_size(const std::pair<uint32_t, uint32_t>& size);
     ObjectDesc& object_named(SceneDescription& d, const std::string& name) const;
@@ -97,6 +102,9 @@ private:
     double time_ = 0.0;
     std::atomic<bool> stop_{false};
     std::mutex rendering_;
+    /** Set while render() holds rendering_: an edit from its own callbacks (the same thread,
+     *  which must not try_lock a mutex it holds) is refused by this. */
+    std::atomic<bool> busy_{false};
 };
 
 /** Where `spangle` was imported from: its plugins, OCIO config and OpenImageIO module are found

@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <chrono>
+#include <cmath>
 #include <set>
 #include <typeindex>
 
@@ -120,6 +121,10 @@ ReloadReport Session::load_frame(const std::string& scene, int64_t frame) {
 }
 
 ReloadReport Session::load(const SceneDescription& scene, double time) {
+    // Keyframes are evaluated at `time`: NaN crashed their evaluation, and beyond 1e9 s a frame
+    // number overflowed.
+    if (!(std::fabs(time) <= 1e9))
+        throw_error("the scene's time {} s must be a number within +-1e9 s", time);
     const auto t0 = std::chrono::steady_clock::now();
     ReloadReport rep;
     rep.first = !world_;

@@ -177,3 +177,67 @@ def test_write_exr_and_png_whole(session, tmp_path):
     with pytest.raises(spangle.SceneError):
         session.write(img, str(tmp_path / "x.exr"), compression="nope")
     assert not (tmp_path / "x.exr").exists()
+
+
+def test_a_session_is_not_edited_or_reloaded_while_it_renders(session):
+    # Found by a user: set_material or load from another thread (or from on_pass) while render()
+    # ran freed what the render read (SIGSEGV in the flake plugin). They are refused now.
+    session.load(FLAKES)
+    done = {}
+
+    def run():
+        done["img"] = session.render(spp=100000, size=(64, 64))
+
+    t = threading.Thread(target=run)
+    t.start()
+    time.sleep(0.5)
+    try:
+        with pytest.raises(spangle.SceneError, match="rendering"):
+            session.set_material("glitter", density=100000)
+        with pytest.raises(spangle.SceneError, match="rendering"):
+            session.load(SMALL)
+    finally:
+        session.stop()
+        t.join(timeout=60)
+    assert not t.is_alive() and done["img"].stopped
+    with pytest.raises(spangle.SceneError, match="rendering"):
+        session.render(spp=4, size=(16, 16),
+                       on_pass=lambda beauty, spp: session.set_material("glitter", density=1e5))
+    # The session renders as before afterwards.
+    assert session.render(spp=2, size=(16, 16)).spp == 2
+
+
+def test_times_sizes_threads_and_edits_are_checked(session):
+    with pytest.raises(spangle.SceneError, match="time"):
+        session.load(os.path.join(ROOT, "tests", "scenes", "moving_camera.toml"), time=float("nan"))
+    with pytest.raises(spangle.SceneError, match="threads"):
+        spangle.Session(threads=70000)
+    session.load(FLAKES, size=(32, 32))
+    before = session.render(spp=2).beauty
+    for edit in (lambda: session.set_light(0, radius=-1.0),
+                 lambda: session.set_light(0, intensity=-100.0),
+                 lambda: session.set_light(0, color=(float("nan"), 1, 1)),
+                 lambda: session.set_camera(fov=float("nan")),
+                 lambda: session.set_camera(fov=-10),
+                 lambda: session.set_camera(aperture=-1),
+                 lambda: session.set_transform("[[object]] #1", scale=(0, 0, 0)),
+                 lambda: session.set_transform("[[object]] #1", translate=(float("nan"), 0, 0))):
+        with pytest.raises(spangle.SceneError):
+            edit()
+    assert np.array_equal(session.render(spp=2).beauty, before), "refused edits change nothing"
+    with pytest.raises(spangle.SceneError, match="spp"):
+        session.render(spp=0)
+    # A size refused leaves the session at the size it had.
+    with pytest.raises(spangle.SceneError):
+        session.render(spp=1, size=(0, 4))
+    assert session.render(spp=2).beauty.shape == (32, 32, 3)
+
+
+def test_layers_match_the_command_line_with_layers(session, tmp_path):
+    # With layers (the default) the module renders as `spangle render --layers`: the environment
+    # seen directly is a layer of its own and the beauty is premultiplied by A (it was not).
+    session.load(SMALL)
+    img = session.render(spp=4, size=(40, 24))
+    assert "background" in img.layers
+    a = img.layers["A"][..., 0]
+    assert (a == 0).any() and np.abs(img.beauty[a == 0]).max() == 0.0
