@@ -385,7 +385,8 @@ PYBIND11_MODULE(_spangle, m) {
             "render",
             [](PySession& s, std::optional<uint32_t> spp,
                std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
-               std::optional<py::function> progress, std::optional<py::function> on_pass) {
+               std::optional<py::function> progress, std::optional<py::function> on_pass,
+               std::optional<bool> background_apart) {
                 // Callbacks run on render threads: they take the GIL, and a Python exception in
                 // one stops the render and is raised once it has ended.
                 std::mutex failed_m;
@@ -416,17 +417,20 @@ PYBIND11_MODULE(_spangle, m) {
                 RenderedImage img;
                 {
                     py::gil_scoped_release release;
-                    img = s.render(spp, size, layers, cb);
+                    img = s.render(spp, size, layers, cb, background_apart.value_or(layers));
                 }
                 if (failed) throw std::move(*failed);
                 return img;
             },
             py::kw_only(), py::arg("spp") = py::none(), py::arg("size") = py::none(),
             py::arg("layers") = true, py::arg("progress") = py::none(),
-            py::arg("on_pass") = py::none(),
+            py::arg("on_pass") = py::none(), py::arg("background_apart") = py::none(),
             "Renders the live scene (the GIL is released). spp and size=(width, height) override "
             "the scene's; progress(done, total) is told the samples done; on_pass(beauty, spp) "
-            "gets each progressive pass. stop() from another thread ends it early.")
+            "gets each progressive pass. stop() from another thread ends it early. With layers, "
+            "the environment seen directly is the 'background' layer and the beauty is "
+            "premultiplied, as with `spangle render --layers`; background_apart=False keeps it "
+            "in the beauty.")
         .def(
             "parameters",
             [](PySession& s, const std::string& plugin, const std::string& model) {

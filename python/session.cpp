@@ -335,7 +335,7 @@ std::vector<SpangleParamDesc_v3> PySession::parameters(const std::string& plugin
 
 RenderedImage PySession::render(std::optional<uint32_t> spp,
                                 std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
-                                const RenderCallbacks& callbacks) {
+                                const RenderCallbacks& callbacks, bool background_apart) {
     if (!loaded_) throw SpangleError("no scene is loaded: call load(path) first");
     if (busy_.load()) throw SpangleError("this session is already rendering");
     std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
@@ -366,7 +366,7 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     o.layers = layers;
     // As `spangle render --layers`: the environment seen directly goes to its own layer and the
     // beauty is premultiplied (without it the layers did not match the command line's).
-    o.background_apart = layers;
+    o.background_apart = layers && background_apart;
     o.progressive = true;  // passes of 1, 1, 2, 4, ... samples: a stop keeps those completed
     o.progress = callbacks.progress;
     o.on_pass = callbacks.on_pass;

@@ -71,7 +71,7 @@ public:
     /** Renders the live scene; stop() from another thread ends it after the waves in flight. */
     RenderedImage render(std::optional<uint32_t> spp,
                          std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
-                         const RenderCallbacks& callbacks);
+                         const RenderCallbacks& callbacks, bool background_apart);
     void stop() { stop_.store(true); }
 
     /** The parameters of a plugin's model (the plugin's only model when `model` is empty), as

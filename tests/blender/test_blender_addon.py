@@ -256,3 +256,27 @@ def test_spot_and_sun_lights_render_as_through_gltf(tmp_path):
     ours = read_exr(str(tmp_path / "blender.exr"))
     theirs = render_through_gltf(tmp_path)
     assert_within_noise(ours, theirs)
+
+
+def test_the_sky_and_alpha_follow_film_transparent(tmp_path):
+    # Film > Transparent off: the sky is in Combined and every pixel is opaque (alpha was the
+    # coverage, 0 on the sky, so a saved RGBA image had a see-through sky); on: the sky leaves
+    # Combined (premultiplied, alpha = coverage), as Cycles does.
+    scene = build_scene(world=(0.3, 0.4, 0.6))
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_mode = "RGBA"
+    scene.spangle.spp = 4
+    rgba = {}
+    for transparent in (False, True):
+        scene.render.film_transparent = transparent
+        scene.render.filepath = str(tmp_path / f"t{int(transparent)}.exr")
+        bpy.ops.render.render(write_still=True)
+        img = bpy.data.images.load(scene.render.filepath, check_existing=False)
+        rgba[transparent] = np.array(img.pixels[:], dtype=np.float32).reshape(H, W, 4)[::-1]
+        bpy.data.images.remove(img)
+    opaque, clear = rgba[False], rgba[True]
+    sky = clear[..., 3] == 0.0
+    assert sky.any() and (~sky).any()
+    assert (opaque[..., 3] == 1.0).all()
+    assert np.allclose(opaque[sky][:, :3], (0.3, 0.4, 0.6), rtol=0.05)
+    assert np.abs(clear[sky][:, :3]).max() == 0.0

@@ -241,3 +241,13 @@ def test_layers_match_the_command_line_with_layers(session, tmp_path):
     assert "background" in img.layers
     a = img.layers["A"][..., 0]
     assert (a == 0).any() and np.abs(img.beauty[a == 0]).max() == 0.0
+
+
+def test_background_apart_false_keeps_the_sky_in_the_beauty(session):
+    session.load(SMALL)
+    apart = session.render(spp=2, size=(40, 24))
+    kept = session.render(spp=2, size=(40, 24), background_apart=False)
+    assert "background" not in kept.layers
+    a = apart.layers["A"][..., 0]
+    # The sky is in the beauty again, and it is what the background layer held.
+    assert np.allclose(kept.beauty[a == 0], apart.layers["background"][a == 0], atol=1e-6)

@@ -205,17 +205,19 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
                 self.report({"ERROR"}, f"Spangle: {e}")
                 return
             try:
-                self._render(session, w, h, settings.spp)
+                self._render(session, w, h, settings.spp, scene.render.film_transparent)
             except Exception as e:  # reported in the info area, never raised into Blender
                 self.report({"ERROR"}, f"Spangle: {e}")
 
-    def _render(self, session, w, h, spp):
+    def _render(self, session, w, h, spp, transparent=False):
         state = {"pass": None, "progress": 0.0, "image": None, "error": None}
 
         def run():
             try:
+                # Film > Transparent: the sky leaves the beauty (premultiplied, alpha = coverage);
+                # otherwise the beauty keeps the sky and every pixel is opaque, as in Cycles.
                 state["image"] = session.render(
-                    spp=spp, size=(w, h), layers=True,
+                    spp=spp, size=(w, h), layers=True, background_apart=transparent,
                     progress=lambda done, total: state.__setitem__("progress", done / max(total, 1)),
                     on_pass=lambda beauty, n: state.__setitem__("pass", (beauty, n)))
             except Exception as e:  # raised once the render thread has ended
@@ -243,7 +245,8 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
             return
         img = state["image"]
         layers = img.layers
-        alpha = layers.get("A", np.ones(img.beauty.shape[:2] + (1,), np.float32))
+        opaque = np.ones(img.beauty.shape[:2] + (1,), np.float32)
+        alpha = layers.get("A", opaque) if transparent else opaque
         passes = result.layers[0].passes
         passes["Combined"].rect = _rect(np.concatenate([img.beauty, alpha], axis=2))
         if "Glints" in passes and "glints" in layers:
