@@ -280,3 +280,24 @@ def test_the_sky_and_alpha_follow_film_transparent(tmp_path):
     assert (opaque[..., 3] == 1.0).all()
     assert np.allclose(opaque[sky][:, :3], (0.3, 0.4, 0.6), rtol=0.05)
     assert np.abs(clear[sky][:, :3]).max() == 0.0
+
+
+def test_a_render_region_is_the_whole_frames_pixels_there(tmp_path):
+    # Render > Region (crop to it or not): the region's pixels of the whole frame (it failed:
+    # "RenderPass.rect: array length cannot be changed").
+    scene = build_scene(world=(0.3, 0.4, 0.6))
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.spangle.spp = 4
+    scene.render.filepath = str(tmp_path / "whole.exr")
+    bpy.ops.render.render(write_still=True)
+    whole = read_exr(scene.render.filepath)
+    scene.render.use_border = True
+    scene.render.border_min_x, scene.render.border_max_x = 0.25, 0.75
+    scene.render.border_min_y, scene.render.border_max_y = 0.25, 1.0
+    scene.render.use_crop_to_border = True
+    scene.render.filepath = str(tmp_path / "region.exr")
+    bpy.ops.render.render(write_still=True)
+    region = read_exr(scene.render.filepath)
+    x0, x1, y0, y1 = W // 4, 3 * W // 4, 0, 3 * H // 4  # rows from the top
+    assert region.shape == (y1 - y0, x1 - x0, 3)
+    assert np.allclose(region, whole[y0:y1, x0:x1], atol=1e-5)

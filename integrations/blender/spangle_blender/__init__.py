@@ -205,11 +205,12 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
                 self.report({"ERROR"}, f"Spangle: {e}")
                 return
             try:
-                self._render(session, w, h, settings.spp, scene.render.film_transparent)
+                self._render(session, w, h, settings.spp, scene.render.film_transparent,
+                             scene.render)
             except Exception as e:  # reported in the info area, never raised into Blender
                 self.report({"ERROR"}, f"Spangle: {e}")
 
-    def _render(self, session, w, h, spp, transparent=False):
+    def _render(self, session, w, h, spp, transparent=False, render_settings=None):
         state = {"pass": None, "progress": 0.0, "image": None, "error": None}
 
         def run():
@@ -224,6 +225,18 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
                 state["error"] = e
 
         result = self.begin_result(0, 0, w, h)
+        # A render region (Render > Region): Blender's result holds only the region's pixels;
+        # the whole frame is rendered and the region cut out of it (it failed: "array length
+        # cannot be changed").
+        rw = getattr(result, "resolution_x", w) or w
+        rh = getattr(result, "resolution_y", h) or h
+        x0 = y0 = 0
+        if (rw, rh) != (w, h) and render_settings is not None:
+            x0 = min(max(0, int(render_settings.border_min_x * w)), w - rw)
+            y0 = min(max(0, int(render_settings.border_min_y * h)), h - rh)
+
+        def region(a):
+            return a[h - (y0 + rh):h - y0, x0:x0 + rw] if (rw, rh) != (w, h) else a
         worker = threading.Thread(target=run, name="spangle-render")
         worker.start()
         # Blender's API from this thread only: the render thread just records what it has.
@@ -236,7 +249,7 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
             if p is not None:
                 beauty, n = p
                 rgba = np.concatenate([beauty, np.ones(beauty.shape[:2] + (1,), np.float32)], axis=2)
-                result.layers[0].passes["Combined"].rect = _rect(rgba)
+                result.layers[0].passes["Combined"].rect = _rect(region(rgba))
                 self.update_result(result)
                 self.update_stats("Spangle", f"{n} samples per pixel")
         if state["error"] is not None:
@@ -248,15 +261,15 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
         opaque = np.ones(img.beauty.shape[:2] + (1,), np.float32)
         alpha = layers.get("A", opaque) if transparent else opaque
         passes = result.layers[0].passes
-        passes["Combined"].rect = _rect(np.concatenate([img.beauty, alpha], axis=2))
+        passes["Combined"].rect = _rect(region(np.concatenate([img.beauty, alpha], axis=2)))
         if "Glints" in passes and "glints" in layers:
-            passes["Glints"].rect = _rect(layers["glints"])
+            passes["Glints"].rect = _rect(region(layers["glints"]))
         if "Spangle Albedo" in passes and "albedo" in layers:
-            passes["Spangle Albedo"].rect = _rect(layers["albedo"])
+            passes["Spangle Albedo"].rect = _rect(region(layers["albedo"]))
         if "Depth" in passes and "Z" in layers:
-            passes["Depth"].rect = _rect(layers["Z"])
+            passes["Depth"].rect = _rect(region(layers["Z"]))
         if "Normal" in passes and "N" in layers:
-            passes["Normal"].rect = _rect(layers["N"])
+            passes["Normal"].rect = _rect(region(layers["N"]))
         self.end_result(result)
         self.update_stats("Spangle", f"done: {img.spp} samples per pixel in {img.seconds:.1f} s")
 
