@@ -301,3 +301,31 @@ def test_a_render_region_is_the_whole_frames_pixels_there(tmp_path):
     x0, x1, y0, y1 = W // 4, 3 * W // 4, 0, 3 * H // 4  # rows from the top
     assert region.shape == (y1 - y0, x1 - x0, 3)
     assert np.allclose(region, whole[y0:y1, x0:x1], atol=1e-5)
+
+
+def test_metallic_and_roughness_images_are_textures_in_their_own_space(tmp_path):
+    # An image linked into Metallic or Roughness was left out (the plugin's metallic 1 and
+    # roughness 1 made a plastic a rough metal), and every texture was tagged sRGB (a Non-Color
+    # or linear image decoded as sRGB).
+    from spangle_blender import export, flake_parameters
+
+    scene = build_scene()
+    gm = bpy.data.materials["ground"]
+    bsdf = gm.node_tree.nodes["Principled BSDF"]
+    for socket, name, space in (("Metallic", "metal.png", "Non-Color"),
+                                ("Roughness", "rough.png", "Non-Color"),
+                                ("Base Color", "base.exr", "Linear Rec.709")):
+        img = bpy.data.images.new(name, 4, 4, float_buffer=name.endswith(".exr"))
+        img.filepath_raw = str(tmp_path / name)
+        img.file_format = "OPEN_EXR" if name.endswith(".exr") else "PNG"
+        img.save()
+        img.colorspace_settings.name = space
+        tex = gm.node_tree.nodes.new("ShaderNodeTexImage")
+        tex.image = img
+        gm.node_tree.links.new(tex.outputs["Color"], bsdf.inputs[socket])
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    export.export_scene(depsgraph, str(tmp_path / "out"), (W, H), 4, flake_parameters())
+    toml = (tmp_path / "out" / "scene.toml").read_text()
+    assert "metallic = { texture = " in toml and 'metal.png", space = "raw" }' in toml
+    assert 'rough.png", space = "raw" }' in toml
+    assert 'base.exr", space = "lin_rec709" }' in toml

@@ -127,7 +127,10 @@ def _socket_value(sock, warnings, what):
     if sock.is_linked:
         src = sock.links[0].from_node
         if src.type == "TEX_IMAGE" and src.image is not None and src.image.filepath:
-            return {"texture": bpy.path.abspath(src.image.filepath)}
+            # The image's own colour space (a Non-Color roughness map is data, a linear EXR
+            # is linear: every texture was tagged sRGB).
+            return {"texture": bpy.path.abspath(src.image.filepath),
+                    "space": _image_space(src.image)}
         warnings.append(f"{what}: a node input ({sock.name}) is linked to a {src.type} node; its "
                         "own value stands in")
     v = sock.default_value
@@ -181,10 +184,17 @@ def material_entry(mat, flake_params, warnings):
                                         "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}, emission
     params = {}
     params["base_color"] = base if base is not None else (0.8, 0.8, 0.8)
+    # An image linked into Metallic or Roughness is a texture of the parameter (both are
+    # texturable); it was left out, and the plugin's defaults (metallic 1, roughness 1) turned
+    # a plastic with a black metallic map into a rough metal.
     if isinstance(metallic, float):
         params["metallic"] = min(max(metallic, 0.0), 1.0)
+    elif isinstance(metallic, dict):
+        params["metallic"] = metallic
     if isinstance(roughness, float):
         params["roughness"] = min(max(roughness, 0.0), 1.0)
+    elif isinstance(roughness, dict):
+        params["roughness"] = roughness
     params["ior"] = min(max(float(ior), 1.0), 10.0)
     level = _socket_value(_input(node, "Specular IOR Level"), warnings, what)
     if isinstance(level, float):
@@ -200,7 +210,8 @@ def material_entry(mat, flake_params, warnings):
 
 def _param_toml(k, v):
     if isinstance(v, dict):
-        return f'{k} = {{ texture = {_toml_string(v["texture"])}, space = "srgb_texture" }}'
+        space = v.get("space", "srgb_texture")
+        return f'{k} = {{ texture = {_toml_string(v["texture"])}, space = {_toml_string(space)} }}'
     return f"{k} = {_toml_value(v)}"
 
 
