@@ -95,8 +95,27 @@ py::dict layer_arrays(const RenderResult& r) {
 /** A material parameter's value from Python: bool, int, float, str or three numbers. */
 ParamValue param_value(const std::string& key, const py::handle& v) {
     if (py::isinstance<py::bool_>(v)) return v.cast<bool>();
-    if (py::isinstance<py::int_>(v)) return v.cast<long long>();
+    if (py::isinstance<py::int_>(v)) {
+        // Beyond 64 bits: say which parameter, not pybind's "Unable to cast".
+        try {
+            return v.cast<long long>();
+        } catch (const py::cast_error&) {
+            throw SpangleError("python: set_material(): parameter '" + key + "' " +
+                               py::str(v).cast<std::string>() + " is out of range");
+        }
+    }
     if (py::isinstance<py::float_>(v)) return v.cast<double>();
+    // numpy scalars (np.float32(3), np.int32, np.bool_) as the Python numbers they stand for,
+    // as set_camera and render take them.
+    const py::object numpy_generic = []() -> py::object {
+        try {
+            return py::module_::import("numpy").attr("generic");
+        } catch (const py::error_already_set&) {
+            return py::object();
+        }
+    }();
+    if (numpy_generic && py::isinstance(v, numpy_generic))
+        return param_value(key, v.attr("item")());
     if (py::isinstance<py::str>(v)) return v.cast<std::string>();
     if (py::isinstance<py::sequence>(v) && py::len(v) == 3) return v.cast<std::array<double, 3>>();
     throw py::type_error("parameter '" + key +
@@ -204,8 +223,11 @@ PYBIND11_MODULE(_spangle, m) {
              py::arg("threads") = 0, py::arg("verbose") = false)
         .def(
             "load",
-            [](PySession& s, const std::string& path, double time,
+            [](PySession& s, const py::object& path_like, double time,
                std::optional<std::pair<uint32_t, uint32_t>> size) {
+                // A str or any os.PathLike (pathlib.Path).
+                const std::string path =
+                    py::module_::import("os").attr("fspath")(path_like).cast<std::string>();
                 py::gil_scoped_release release;
                 s.load(path, time, size);
             },

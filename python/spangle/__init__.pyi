@@ -1,5 +1,6 @@
 """Type hints of the spangle module (python/module.cpp)."""
 
+import os
 from typing import Callable, Optional, Sequence, Union
 
 import numpy as np
@@ -49,7 +50,8 @@ class Session:
         verbose: bool = False,
     ) -> None: ...
     def load(
-        self, path: str, time: float = 0.0, size: Optional[tuple[int, int]] = None
+        self, path: Union[str, os.PathLike], time: float = 0.0,
+        size: Optional[tuple[int, int]] = None
     ) -> None: ...
     @property
     def materials(self) -> list[str]: ...

@@ -251,3 +251,12 @@ def test_background_apart_false_keeps_the_sky_in_the_beauty(session):
     a = apart.layers["A"][..., 0]
     # The sky is in the beauty again, and it is what the background layer held.
     assert np.allclose(kept.beauty[a == 0], apart.layers["background"][a == 0], atol=1e-6)
+
+
+def test_numpy_scalars_and_path_objects_are_taken(session):
+    import pathlib
+    session.load(pathlib.Path(FLAKES), size=(16, 16))
+    session.set_material("glitter", gamma=np.float32(4.0), density=np.int64(200000))
+    assert session.material("glitter")["params"]["gamma"] == pytest.approx(4.0)
+    with pytest.raises(spangle.SceneError, match="out of range"):
+        session.set_material("glitter", seed=2**70)
