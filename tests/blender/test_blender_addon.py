@@ -329,3 +329,34 @@ def test_metallic_and_roughness_images_are_textures_in_their_own_space(tmp_path)
     assert "metallic = { texture = " in toml and 'metal.png", space = "raw" }' in toml
     assert 'rough.png", space = "raw" }' in toml
     assert 'base.exr", space = "lin_rec709" }' in toml
+
+
+def test_lens_shift_moves_the_image_and_depth_is_far_on_the_sky(tmp_path):
+    # Camera shift_x / shift_y were dropped silently; Blender shifts by that fraction of the
+    # fitted sensor side (the width of a landscape image under Auto): the content moves left by
+    # shift_x x W pixels. The Depth pass is 1e10 where nothing is hit, as Cycles writes it.
+    scene = build_scene(world=(0.3, 0.4, 0.6))
+    scene.view_layers[0].use_pass_z = True
+    scene.render.image_settings.file_format = "OPEN_EXR_MULTILAYER"
+    scene.spangle.spp = 16
+    images = {}
+    for shift in (0.0, 0.25):
+        scene.camera.data.shift_x = shift
+        scene.render.filepath = str(tmp_path / f"s{shift}.exr")
+        bpy.ops.render.render(write_still=True)
+        images[shift] = scene.render.filepath
+    means = [channel_means(images[s]) for s in (0.0, 0.25)]
+    assert means[0]["ViewLayer.Combined.R"] != means[1]["ViewLayer.Combined.R"]
+    # Columns: the shifted image's column c is the unshifted image's column c + W / 4.
+    def columns(path):
+        rgb = str(tmp_path / "rgb.exr")
+        subprocess.run(["oiiotool", path, "--ch",
+                        "R=ViewLayer.Combined.R,G=ViewLayer.Combined.G,B=ViewLayer.Combined.B",
+                        "-o", rgb], check=True)
+        return read_exr(rgb)[..., 0].mean(axis=0)
+    a, b = columns(images[0.0]), columns(images[0.25])
+    lag = lambda k: np.corrcoef(a[k:], b[:W - k])[0, 1]
+    assert max(range(W // 2), key=lag) == W // 4
+    assert lag(W // 4) > 0.95
+    # The sky's depth is far.
+    assert means[0]["ViewLayer.Depth.Z"] > 1e8

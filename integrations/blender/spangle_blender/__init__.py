@@ -267,7 +267,12 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
         if "Spangle Albedo" in passes and "albedo" in layers:
             passes["Spangle Albedo"].rect = _rect(region(layers["albedo"]))
         if "Depth" in passes and "Z" in layers:
-            passes["Depth"].rect = _rect(region(layers["Z"]))
+            # Where no ray hit anything Cycles writes 1e10 (far), which Z-defocus and mist
+            # expect; Spangle's layer holds 0 there.
+            z = layers["Z"].copy()
+            if "A" in layers:
+                z[layers["A"][..., 0] <= 0.0] = 1e10
+            passes["Depth"].rect = _rect(region(z))
         if "Normal" in passes and "N" in layers:
             passes["Normal"].rect = _rect(region(layers["N"]))
         self.end_result(result)

@@ -229,6 +229,20 @@ def vertical_fov(cam, width, height):
     return math.degrees(2.0 * half)
 
 
+def shifted_window(cam, width, height):
+    """Blender's lens shift as Spangle's screen window (x0, x1, y0, y1 in units of the tangent of
+    half the vertical fov, y up), or None without a shift. Blender shifts by shift x the size of
+    the sensor's fitted side (the wider one under Auto); it was dropped, silently."""
+    if cam.shift_x == 0.0 and cam.shift_y == 0.0:
+        return None
+    aspect = width / height
+    fit = cam.sensor_fit
+    horizontal = fit == "HORIZONTAL" or (fit == "AUTO" and width >= height)
+    span = 2.0 * aspect if horizontal else 2.0
+    dx, dy = cam.shift_x * span, cam.shift_y * span
+    return (-aspect + dx, aspect + dx, -1.0 + dy, 1.0 + dy)
+
+
 def _image_space(image):
     """The Spangle colour space of a Blender image's colour space."""
     name = image.colorspace_settings.name
@@ -350,6 +364,9 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     up = m.to_3x3() @ mathutils.Vector((0.0, 1.0, 0.0))
     out += ["[camera]", f"position = {_vec(eye)}", f"look_at = {_vec(eye + forward)}",
             f"up = {_vec(up)}", f"fov = {_fmt(vertical_fov(cam, size[0], size[1]))}"]
+    window = shifted_window(cam, size[0], size[1])
+    if window is not None:
+        out.append(f"screen_window = [{', '.join(_fmt(v) for v in window)}]")
     if cam.dof.use_dof:
         focus = cam.dof.focus_distance
         if cam.dof.focus_object is not None:
