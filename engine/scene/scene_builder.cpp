@@ -573,7 +573,8 @@ uint64_t scene_content_hash(const std::string& path, const std::vector<std::stri
             h = hash2(h, w);
         }
         uint64_t tail = 0;
-        std::memcpy(&tail, bytes.data() + i, bytes.size() - i);
+        // (An empty file has no data pointer: memcpy from null is undefined even for 0 bytes.)
+        if (i < bytes.size()) std::memcpy(&tail, bytes.data() + i, bytes.size() - i);
         h = hash2(h, tail);
     }
     return h;
