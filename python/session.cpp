@@ -56,10 +56,6 @@ void PySession::load(const std::string& path, double time,
                      const std::optional<std::pair<uint32_t, uint32_t>>& size) {
     const auto lock = edit_lock();
     if (size) check_size(*size);
-    // A time that is not a number crashed the keyframe evaluation; one beyond 1e9 s named a
-    // frame number that overflowed.
-    if (!(std::fabs(time) <= 1e9))
-        throw SpangleError(fmt::format("time {} must be a number of seconds within +-1e9", time));
     SceneDescription d = read_scene(path, SceneReadOptions{});
     if (size) {
         d.render.width = size->first;
@@ -346,12 +342,12 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
         ~Idle() { busy.store(false); }
     } idle{busy_};
     stop_.store(false);
-    // A size is the scene's film size: set in the description and reloaded (only what reads
-    // the film is rebuilt, e.g. subdivision levels chosen from the camera's pixels), so that the
-    // scene is built as `spangle render --size` builds it.
     if (spp && (*spp < 1 || *spp > (1u << 20)))
         throw SpangleError(fmt::format("spp {} must be 1 to 1048576 (None: the scene's)", *spp));
-    // A size that fails (a film beyond memory) leaves the session at the size it had.
+    // A size is the scene's film size: set in the description and reloaded (only what reads
+    // the film is rebuilt, e.g. subdivision levels chosen from the camera's pixels), so that the
+    // scene is built as `spangle render --size` builds it. A size that fails (a film beyond
+    // memory) leaves the session at the size it had.
     std::optional<SceneDescription> before;
     if (size && (size->first != desc_.render.width || size->second != desc_.render.height)) {
         check_size(*size);
@@ -373,11 +369,18 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     o.stop = [this] { return stop_.load(); };
     ecs::SystemReport report;
     try {
+        // The callbacks are this call's: gone when it ends, however it ends (before a failed
+        // render's size is restored below).
+        const struct Detach {
+            RenderOptions& o;
+            ~Detach() {
+                o.progress = nullptr;
+                o.on_pass = nullptr;
+                o.stop = nullptr;
+            }
+        } detach{o};
         report = session_->render();
     } catch (...) {
-        o.progress = nullptr;
-        o.on_pass = nullptr;
-        o.stop = nullptr;
         if (before) {
             try {
                 apply_locked(std::move(*before));
@@ -386,9 +389,6 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
         }
         throw;
     }
-    o.progress = nullptr;
-    o.on_pass = nullptr;
-    o.stop = nullptr;
     RenderedImage out;
     out.result = session_->take_result();
     if (out.result.image.empty())

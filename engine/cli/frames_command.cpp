@@ -32,7 +32,6 @@ void print_frame_line(const Session& session, int64_t f, double seconds, const R
 int run_frames(const RenderArgs& a) {
     const auto [first, last] = parse_frames(a.frames);
     const RenderSetup s = set_up_render(a);
-    s.out.check_frames(first, last);
     Session session(a.plugin_dirs, a.ocio, render_options(a), s.log);
     session.options().stop = stop_requested;
     for (int64_t f = first; f <= last; ++f) {

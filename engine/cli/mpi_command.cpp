@@ -142,11 +142,8 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
                 session->load_frame(a.scene, f);
             else
                 session->load(a.scene, 0.0);
-            if (job.rank() == 0) {
-                const Outputs o = numbered ? out.for_frame(f) : out;
-                if (numbered) out.check_frames(f, f);
-                o.check_not_inputs(session->watched_files());
-            }
+            if (job.rank() == 0)
+                (numbered ? out.for_frame(f) : out).check_not_inputs(session->watched_files());
             if (job.rank() == 0 && f == frames.front().first) {
                 out.check_view(session->color());
                 warn_if_no_chromaticities(log, session->color());

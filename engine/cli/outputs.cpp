@@ -19,6 +19,7 @@
 #include "core/error.h"
 #include "render/camera.h"
 #include "render/layers/layer_sink.h"
+#include "scene/frame_sequence.h"
 #include "scene/scene_loader.h"
 
 #ifndef SPANGLE_VERSION
@@ -216,23 +217,6 @@ void Outputs::check_not_inputs(const std::vector<std::string>& inputs) const {
                     path == exr ? "-o" : "--preview");
 }
 
-void Outputs::check_frames(int64_t first, int64_t last) const {
-    for (int64_t f = first; f <= last; ++f) {
-        const Outputs o = for_frame(f);
-        if (!o.preview.empty() && same_file(o.exr, o.preview))
-            usage_error(
-                "frame {}'s EXR and PNG preview are the same file '{}': give --preview another "
-                "path or --no-preview",
-                f, o.exr);
-        for (const auto& [path, what] :
-             {std::pair{o.exr, "EXR"}, std::pair{o.preview, "PNG preview"}}) {
-            std::error_code ec;
-            if (!path.empty() && fs::is_directory(path, ec))
-                throw_error("cannot write frame {}'s {} '{}': it is a folder", f, what, path);
-        }
-    }
-}
-
 void Outputs::remove_stale_temporaries(const Logger& log) const {
     std::vector<fs::path> folders;
     for (const std::string& path : {exr, preview}) {
@@ -248,6 +232,25 @@ void Outputs::remove_stale_temporaries(const Logger& log) const {
             log.warn("cannot remove the temporary image a killed render left: {}", why);
     }
 }
+
+namespace {
+
+/** --frames: no frame's EXR or preview path is a folder (found after the frames before it had
+ *  rendered, "...: Success"). The paths are otherwise checked once, as a pattern: a frame's
+ *  EXR and preview keep their endings, .exr and .png, so they are never one file. */
+void check_frame_paths(const Outputs& out, int64_t first, int64_t last) {
+    for (int64_t f = first; f <= last; ++f) {
+        const Outputs o = out.for_frame(f);
+        for (const auto& [path, what] :
+             {std::pair{o.exr, "EXR"}, std::pair{o.preview, "PNG preview"}}) {
+            std::error_code ec;
+            if (!path.empty() && fs::is_directory(path, ec))
+                throw_error("cannot write frame {}'s {} '{}': it is a folder", f, what, path);
+        }
+    }
+}
+
+}  // namespace
 
 Outputs outputs_for(const RenderArgs& a) {
     Outputs out;
@@ -279,17 +282,16 @@ Outputs outputs_for(const RenderArgs& a) {
     check_writable(out.exr, "EXR");
     if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
     // A frame number goes into one run of '#': a second would stay in every frame's name.
-    for (const std::string& path : {out.exr, out.preview}) {
-        const std::string name = fs::path(path).filename().string();
-        int runs = 0;
-        for (std::size_t i = 0; i < name.size(); ++i)
-            if (name[i] == '#' && (i == 0 || name[i - 1] != '#')) ++runs;
-        if (runs > 1)
-            usage_error("'{}' has {} runs of '#'; the frame number goes into one", path, runs);
-    }
+    for (const std::string& path : {out.exr, out.preview})
+        if (find_frame_run(path).several)
+            usage_error("'{}' has more than one run of '#'; the frame number goes into one", path);
     // The preview is a PNG whatever its name: another ending would mislabel it (p.jpg held PNG).
     if (!out.preview.empty() && fs::path(out.preview).extension() != ".png")
         usage_error("--preview '{}' must end in .png (the preview is a PNG)", out.preview);
+    if (!a.frames.empty()) {
+        const auto [first, last] = parse_frames(a.frames);
+        check_frame_paths(out, first, last);
+    }
     out.exr_options.half = !a.full_float;
     out.exr_options.compression = a.compression;
     out.scene = a.scene;

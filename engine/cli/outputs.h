@@ -89,16 +89,14 @@ struct Outputs {
     /** Throws SpangleError when the EXR or the preview is one of `inputs` (the files the scene
      *  read: its scene files, meshes, textures, maps): the render would overwrite its input. */
     void check_not_inputs(const std::vector<std::string>& inputs) const;
-    /** Checks the outputs of frames first..last of --frames before any work: each frame's EXR
-     *  and preview are different files and not folders. Throws UsageError or SpangleError. */
-    void check_frames(int64_t first, int64_t last) const;
     /** Removes the temporary images a killed render left in the folders of the EXR and the
      *  preview (color/temporary_files.h), saying which; what cannot be removed is a warning. */
     void remove_stale_temporaries(const Logger& log) const;
 };
 
 /** The outputs `spangle render` asked for, checked before any work: an .exr name, a known
- *  compression, a preview that is another file, neither the scene file, both writable. Throws
+ *  compression, a preview that is another file, neither the scene file, both writable (with
+ *  --frames, every frame's, none a folder). Throws
  *  UsageError (a clash on the command line) or SpangleError (a path that cannot be written). */
 Outputs outputs_for(const RenderArgs& a);
 

@@ -22,9 +22,8 @@ TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
                     path);
     std::string ext = fs::path(path).extension().string();
     // A gzip'd PLY (pbrt-v4's scenes: ".ply.gz") is read as the PLY it holds.
-    if ((ext == ".gz" || ext == ".GZ") && (fs::path(path).stem().extension() == ".ply" ||
-                                           fs::path(path).stem().extension() == ".PLY"))
-        ext = ".ply";
+    const std::string inner = fs::path(path).stem().extension().string();
+    if ((ext == ".gz" || ext == ".GZ") && (inner == ".ply" || inner == ".PLY")) ext = ".ply";
     if (ext != ".obj" && ext != ".OBJ" && ext != ".ply" && ext != ".PLY")
         throw_error(ref, "mesh file '{}' has extension '{}'; expected .obj, .ply or .ply.gz", path,
                     ext);

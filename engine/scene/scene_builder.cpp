@@ -6,7 +6,6 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
-#include <type_traits>
 #include <utility>
 
 #include "core/files.h"
@@ -601,14 +600,9 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
         build_object(ctx, scene.objects[i], static_cast<uint32_t>(i));
     for (const LightDesc& l : scene.lights) build_light(ctx, l);
     // Nothing emits: the image is black. Said, as pbrt does, rather than left to be found.
-    const auto has = [&](auto tag) {
-        using T = typename decltype(tag)::type;
-        const auto* pool = registry.find_pool<T>();
-        return pool && pool->size() > 0;
-    };
-    bool lit = has(std::type_identity<QuadLight>{}) || has(std::type_identity<SphereLight>{}) ||
-               has(std::type_identity<PointLight>{}) || has(std::type_identity<DistantLight>{}) ||
-               has(std::type_identity<Emission>{}) || has(std::type_identity<EnvironmentMapFile>{});
+    bool lit = registry.count<QuadLight>() > 0 || registry.count<SphereLight>() > 0 ||
+               registry.count<PointLight>() > 0 || registry.count<DistantLight>() > 0 ||
+               registry.count<Emission>() > 0 || registry.count<EnvironmentMapFile>() > 0;
     if (const auto* env = registry.find_pool<Environment>())
         for (std::size_t i = 0; i < env->size() && !lit; ++i)
             lit = max_component(env->columns().get(i).radiance) > 0.0f;
