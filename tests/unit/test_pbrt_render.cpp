@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
-#include <tuple>
 
 #include "core/hash.h"
 #include "pipeline/frame.h"
@@ -147,54 +146,44 @@ std::pair<double, double> exr_raster(const Camera& c, uint32_t w, uint32_t h, Ve
     return {o[0] / o[3] * w, o[1] / o[3] * h};
 }
 
-TEST(PbrtCamera, PointsProjectWherePbrtPutsThem) {
+/** A pbrt camera (fov 35, a Film of film_w x film_h, mirrored by `Scale -1 1 1` with `flip`)
+ *  rendered at w x h: points land where pbrt puts them at that size, to a thousandth of a pixel
+ *  (float matrices). */
+void expect_points_where_pbrt_puts_them(uint32_t film_w, uint32_t film_h, uint32_t w, uint32_t h,
+                                        bool flip) {
     const Vec3 e(1, 2, 6), l(0, 0.5, 0), up(0, 1, 0);
     const Vec3 points[] = {{0, 0, 0}, {1, 0.5, -1}, {-1.5, 2, 0.5}, {0.3f, -0.8f, 1}};
+    const std::string text = fmt::format(
+        "{}LookAt {} {} {}  {} {} {}  {} {} {}\nCamera \"perspective\" \"float fov\" 35\n"
+        "Film \"image\" \"integer xresolution\" {} \"integer yresolution\" {}\n",
+        flip ? "Scale -1 1 1\n" : "", e.x, e.y, e.z, l.x, l.y, l.z, up.x, up.y, up.z, film_w,
+        film_h);
+    PbrtReadInfo info;
+    ColorConfig color = test::shipped_config();
+    ecs::Registry registry;
+    const SceneInfo si = build_scene(read_pbrt_text("camera.pbrt", text, info), color, registry);
+    for (const Vec3& p : points) {
+        const auto [px, py] = pbrt_raster(e, l, up, 35.0, w, h, flip, p);
+        const auto [sx, sy] = exr_raster(si.camera, w, h, p);
+        EXPECT_NEAR(sx, px, 1e-3 * w)
+            << film_w << "x" << film_h << " at " << w << "x" << h << (flip ? " flipped" : "");
+        EXPECT_NEAR(sy, py, 1e-3 * h)
+            << film_w << "x" << film_h << " at " << w << "x" << h << (flip ? " flipped" : "");
+    }
+}
+
+TEST(PbrtCamera, PointsProjectWherePbrtPutsThem) {
     for (const bool flip : {false, true})
-        for (const auto& [w, h] : {std::pair{320u, 200u}, std::pair{120u, 240u}}) {
-            const std::string text = fmt::format(
-                "{}LookAt {} {} {}  {} {} {}  {} {} {}\nCamera \"perspective\" \"float fov\" 35\n"
-                "Film \"image\" \"integer xresolution\" {} \"integer yresolution\" {}\n",
-                flip ? "Scale -1 1 1\n" : "", e.x, e.y, e.z, l.x, l.y, l.z, up.x, up.y, up.z, w, h);
-            PbrtReadInfo info;
-            ColorConfig color = test::shipped_config();
-            ecs::Registry registry;
-            const SceneInfo si =
-                build_scene(read_pbrt_text("camera.pbrt", text, info), color, registry);
-            for (const Vec3& p : points) {
-                const auto [px, py] = pbrt_raster(e, l, up, 35.0, w, h, flip, p);
-                const auto [sx, sy] = exr_raster(si.camera, w, h, p);
-                // Float matrices: a thousandth of a pixel.
-                EXPECT_NEAR(sx, px, 1e-3 * w) << w << "x" << h << (flip ? " flipped" : "");
-                EXPECT_NEAR(sy, py, 1e-3 * h) << w << "x" << h << (flip ? " flipped" : "");
-            }
-        }
+        for (const auto& [w, h] : {std::pair{320u, 200u}, std::pair{120u, 240u}})
+            expect_points_where_pbrt_puts_them(w, h, w, h, flip);
 }
 
 TEST(PbrtCamera, AtAnotherSizeTheFovStaysOnTheShorterSideAsPbrtsDoes) {
     // A portrait Film rendered at a landscape --size (and the other way): pbrt's fov spans the
     // shorter side of the image rendered. Before, the fov was turned into a vertical one for the
     // Film's aspect, so a portrait scene at 320x180 showed 3x the width pbrt shows.
-    const Vec3 e(1, 2, 6), l(0, 0.5, 0), up(0, 1, 0);
-    const Vec3 points[] = {{0, 0, 0}, {1, 0.5, -1}, {-1.5, 2, 0.5}};
-    for (const auto& [fw, fh, w, h] :
-         {std::tuple{100u, 200u, 320u, 180u}, std::tuple{320u, 180u, 90u, 160u}}) {
-        const std::string text = fmt::format(
-            "LookAt {} {} {}  {} {} {}  {} {} {}\nCamera \"perspective\" \"float fov\" 35\n"
-            "Film \"image\" \"integer xresolution\" {} \"integer yresolution\" {}\n",
-            e.x, e.y, e.z, l.x, l.y, l.z, up.x, up.y, up.z, fw, fh);
-        PbrtReadInfo info;
-        ColorConfig color = test::shipped_config();
-        ecs::Registry registry;
-        const SceneInfo si =
-            build_scene(read_pbrt_text("camera.pbrt", text, info), color, registry);
-        for (const Vec3& p : points) {
-            const auto [px, py] = pbrt_raster(e, l, up, 35.0, w, h, false, p);
-            const auto [sx, sy] = exr_raster(si.camera, w, h, p);
-            EXPECT_NEAR(sx, px, 1e-3 * w) << fw << "x" << fh << " at " << w << "x" << h;
-            EXPECT_NEAR(sy, py, 1e-3 * h) << fw << "x" << fh << " at " << w << "x" << h;
-        }
-    }
+    expect_points_where_pbrt_puts_them(100, 200, 320, 180, false);
+    expect_points_where_pbrt_puts_them(320, 180, 90, 160, false);
 }
 
 TEST(PbrtCamera, AScreenWindowShowsItsPartOfTheFilmPlane) {
