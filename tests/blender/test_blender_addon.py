@@ -168,6 +168,16 @@ def test_unsupported_things_are_warnings_and_the_export_is_fast(tmp_path):
     warnings = export.export_scene(depsgraph, str(tmp_path), (W, H), 4, flake_parameters())
     assert any("disk area light" in w for w in warnings)
     assert any("ortho cameras are not supported" in w for w in warnings)
+    # Principled inputs the export does not carry are warnings (they were dropped silently).
+    ground = bpy.data.materials["ground"].node_tree.nodes["Principled BSDF"]
+    ground.inputs["Alpha"].default_value = 0.5
+    ground.inputs["Subsurface Weight"].default_value = 0.2
+    ground.inputs["Sheen Weight"].default_value = 0.3
+    ground.inputs["Transmission Weight"].default_value = 0.3
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    warnings = export.export_scene(depsgraph, str(tmp_path), (W, H), 4, flake_parameters())
+    for what in ("Alpha", "subsurface", "sheen", "transmission 0.3"):
+        assert any(w.startswith("material 'ground'") and what in w for w in warnings), what
     toml = (tmp_path / "scene.toml").read_text()
     assert 'plugin = "flake"' in toml and 'type = "quad"' in toml and "density = 300000" in toml
     # A mesh of a million triangles: the export's time (reported, not asserted).
@@ -243,7 +253,7 @@ def test_spot_and_sun_lights_render_as_through_gltf(tmp_path):
     spot.data.energy = 4000.0
     spot.data.shadow_soft_size = 0.0
     spot.data.spot_size = math.radians(50.0)
-    spot.data.spot_blend = 0.3
+    spot.data.spot_blend = 0.0  # a hard edge (glTF's blend is not Cycles': see the next test)
     spot.rotation_euler = (mathutils.Vector((0, 0, 0.5)) - spot.location).to_track_quat("-Z", "Y").to_euler()
     bpy.ops.object.light_add(type="SUN", location=(0, 0, 10))
     sun = bpy.context.active_object
@@ -256,6 +266,155 @@ def test_spot_and_sun_lights_render_as_through_gltf(tmp_path):
     ours = read_exr(str(tmp_path / "blender.exr"))
     theirs = render_through_gltf(tmp_path)
     assert_within_noise(ours, theirs)
+
+
+def spot_on_a_floor(tmp_path, pixel_aspect=(1.0, 1.0)):
+    """A white diffuse floor under a spot (90-degree cone, blend 0.5) seen from above, rendered
+    by Spangle through the add-on and by Cycles: their mean RGB (row 0 at the top)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_utils.enable("spangle_blender", default_set=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=12)
+    floor = bpy.context.active_object
+    mat = bpy.data.materials.new("white")
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    floor.data.materials.append(mat)
+    bpy.ops.object.light_add(type="SPOT", location=(0.0, 0.0, 1.0))
+    spot = bpy.context.active_object
+    spot.data.energy = 1000.0
+    spot.data.shadow_soft_size = 0.0
+    spot.data.spot_size = math.radians(90.0)
+    spot.data.spot_blend = 0.5
+    bpy.ops.object.camera_add(location=(0.0, 0.0, 3.0))
+    scene.camera = bpy.context.active_object
+    scene.camera.data.angle = math.radians(60.0)
+    scene.world = bpy.data.worlds.new("world")
+    scene.world.use_nodes = True
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
+    scene.render.resolution_x, scene.render.resolution_y = 64, 64
+    scene.render.resolution_percentage = 100
+    scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = pixel_aspect
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.engine = "SPANGLE"
+    scene.spangle.spp = 16
+    scene.spangle.threads = 2
+    scene.render.filepath = str(tmp_path / "spangle.exr")
+    bpy.ops.render.render(write_still=True)
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 16
+    scene.cycles.device = "CPU"
+    scene.cycles.use_denoising = False
+    scene.cycles.max_bounces = 0
+    scene.render.filepath = str(tmp_path / "cycles.exr")
+    bpy.ops.render.render(write_still=True)
+    return (read_exr(str(tmp_path / "spangle.exr")).mean(axis=2),
+            read_exr(str(tmp_path / "cycles.exr")).mean(axis=2))
+
+
+def test_a_spot_fades_at_its_edge_as_in_cycles(tmp_path):
+    # The same light on the floor pixel by pixel, the fading rim included. (Cycles fades with a
+    # smoothstep in the cosine of the angle off the axis; the add-on wrote Blender's glTF rule,
+    # linear in the angle, and the rim got 0.5-0.8x Cycles' light.)
+    ours, theirs = spot_on_a_floor(tmp_path)
+    centre = theirs[28:36, 28:36].mean()
+    assert centre > 1.0 and ours[28:36, 28:36].mean() == pytest.approx(centre, rel=0.03)
+    # The rim: pixels between 5% and 95% of the centre's light (in Cycles), where the two rules
+    # differed most.
+    rim = (theirs > 0.05 * centre) & (theirs < 0.95 * centre)
+    assert rim.sum() > 100
+    ratio = ours[rim].sum() / theirs[rim].sum()
+    assert ratio == pytest.approx(1.0, abs=0.02), ratio  # 1.006 measured; 0.82 before
+    assert np.abs(ours - theirs).mean() < 0.005 * centre  # 0.0009 measured
+
+
+def test_non_square_pixels_frame_as_in_cycles(tmp_path):
+    # Pixel Aspect X 2 (anamorphic): each pixel spans twice as much across, so the spot's round
+    # pool of light is half as wide in pixels as it is tall, in Cycles and through the add-on
+    # (which ignored the setting: a round pool). Both also with Y 2.
+    for aspect in ((2.0, 1.0), (1.0, 2.0)):
+        ours, theirs = spot_on_a_floor(tmp_path, aspect)
+        lit = lambda a: a > 0.5 * a[28:36, 28:36].mean()
+        rows = lambda a: lit(a).any(axis=1).sum()
+        cols = lambda a: lit(a).any(axis=0).sum()
+        assert abs(rows(ours) - rows(theirs)) <= 1 and abs(cols(ours) - cols(theirs)) <= 1, (
+            aspect, rows(ours), cols(ours), rows(theirs), cols(theirs))
+        wide = cols(theirs) / rows(theirs)
+        assert wide == pytest.approx(aspect[1] / aspect[0], rel=0.15), wide
+        assert np.abs(ours - theirs).mean() < 0.01 * theirs.max()
+
+
+def test_a_normal_map_shades_as_in_cycles(tmp_path):
+    # A floor whose Principled BSDF takes a Normal Map node (tangent space, an image of stripes
+    # tilted +-35 degrees along u) under a low sun, seen from above: the stripes Cycles shows,
+    # through the add-on too (the Normal input was dropped silently: a flat, even floor).
+    w = 64
+    tilt = math.radians(35.0)
+    px = np.zeros((w, w, 4), dtype=np.float32)
+    sign = np.where((np.arange(w) // 8) % 2 == 0, 1.0, -1.0)[None, :]
+    px[..., 0] = 0.5 + 0.5 * math.sin(tilt) * sign
+    px[..., 1] = 0.5
+    px[..., 2] = 0.5 + 0.5 * math.cos(tilt)
+    px[..., 3] = 1.0
+    img = bpy.data.images.new("nrm", w, w, float_buffer=True, alpha=True)
+    img.pixels.foreach_set(px.ravel())
+    path = str(tmp_path / "normal.exr")
+    img.filepath_raw = path
+    img.file_format = "OPEN_EXR"
+    img.save()
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_utils.enable("spangle_blender", default_set=True)
+    scene = bpy.context.scene
+    bpy.ops.mesh.primitive_plane_add(size=2)
+    floor = bpy.context.active_object
+    mat = bpy.data.materials.new("bumpy")
+    mat.use_nodes = True
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
+    bsdf.inputs["Roughness"].default_value = 1.0
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path)
+    tex.image.colorspace_settings.name = "Non-Color"
+    nmap = nodes.new("ShaderNodeNormalMap")
+    links.new(tex.outputs["Color"], nmap.inputs["Color"])
+    links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
+    floor.data.materials.append(mat)
+    bpy.ops.object.light_add(type="SUN", location=(0, 0, 5))
+    sun = bpy.context.active_object
+    sun.data.energy = 3.0
+    sun.data.angle = 0.0
+    sun.rotation_euler = (0.0, math.radians(50.0), 0.0)  # from +x, 50 degrees off the zenith
+    bpy.ops.object.camera_add(location=(0.0, 0.0, 2.0))
+    scene.camera = bpy.context.active_object
+    scene.camera.data.angle = math.radians(40.0)
+    scene.world = bpy.data.worlds.new("world")
+    scene.world.use_nodes = True
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
+    scene.render.resolution_x, scene.render.resolution_y = 64, 64
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.engine = "SPANGLE"
+    scene.spangle.spp = 16
+    scene.spangle.threads = 2
+    scene.render.filepath = str(tmp_path / "spangle.exr")
+    bpy.ops.render.render(write_still=True)
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = 16
+    scene.cycles.device = "CPU"
+    scene.cycles.use_denoising = False
+    scene.cycles.max_bounces = 0
+    scene.render.filepath = str(tmp_path / "cycles.exr")
+    bpy.ops.render.render(write_still=True)
+    ours = read_exr(str(tmp_path / "spangle.exr")).mean(axis=2)
+    theirs = read_exr(str(tmp_path / "cycles.exr")).mean(axis=2)
+    # Columns: stripes facing the sun are bright, the others dim, in both.
+    c0, c1 = ours.mean(axis=0), theirs.mean(axis=0)
+    assert c1.max() > 1.4 * c1.min()  # 1.6 in both
+    assert np.corrcoef(c0, c1)[0, 1] > 0.99  # 0.9999 measured; flat (unexported) ~0
+    assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)  # 0.4% measured
 
 
 def test_the_sky_and_alpha_follow_film_transparent(tmp_path):

@@ -25,6 +25,19 @@ def _fmt(x):
     return repr(float(x))
 
 
+def spot_falloff(half_deg, blend):
+    """The cone_falloff (degrees) that gives a Blender spot's edge as Cycles draws it: Cycles
+    fades with a smoothstep in the cosine from cos(half) up to cos(half) + (1 - cos(half)) blend
+    (checked against a Cycles render of a plane under a spot: no other factor), and Spangle's
+    spot fades with a smoothstep in the cosine from cos(cone_angle) to cos(cone_angle -
+    cone_falloff), so the falloff ends where that cosine is reached. (Half the cone times the
+    blend, as Blender's glTF exporter writes it, is linear in the angle: 0.5-0.8x Cycles' light
+    off the axis.)"""
+    c = math.cos(math.radians(half_deg))
+    inner = c + (1.0 - c) * min(max(blend, 0.0), 1.0)
+    return min(max(half_deg - math.degrees(math.acos(min(inner, 1.0))), 0.0), half_deg)
+
+
 def _vec(v):
     return "[" + ", ".join(_fmt(c) for c in v) + "]"
 
@@ -140,6 +153,88 @@ def _socket_value(sock, warnings, what):
         return float(v)
 
 
+def _image_of(sock):
+    """The file of an image texture node linked into sock, or None."""
+    if sock is None or not sock.is_linked:
+        return None
+    src = sock.links[0].from_node
+    if src.type == "TEX_IMAGE" and src.image is not None and src.image.filepath:
+        return bpy.path.abspath(src.image.filepath)
+    return None
+
+
+def _surface_map(node, warnings, what):
+    """("normal_map" or "bump_map", its table) for what drives the Principled BSDF's Normal
+    input: a tangent-space Normal Map node or a Bump node reading an image texture (both the
+    engine applies to any material); None (with a warning for anything else linked there)."""
+    sock = _input(node, "Normal")
+    if sock is None or not sock.is_linked:
+        return None
+    src = sock.links[0].from_node
+    if src.type == "NORMAL_MAP":
+        image = _image_of(src.inputs.get("Color"))
+        if src.space == "TANGENT" and image is not None:
+            strength = src.inputs["Strength"]
+            if strength.is_linked:
+                warnings.append(f"{what}: the normal map's Strength is linked; its own value "
+                                "stands in")
+            if src.uv_map:
+                warnings.append(f"{what}: the normal map's uv map '{src.uv_map}' is not exported; "
+                                "the active one stands in")
+            return "normal_map", {"texture": image,
+                                  "strength": min(max(float(strength.default_value), 0.0), 10.0)}
+        warnings.append(f"{what}: a normal map that is not a tangent-space image texture "
+                        f"({src.space.lower()} space) is not exported")
+        return None
+    if src.type == "BUMP":
+        image = _image_of(src.inputs.get("Height"))
+        if image is not None:
+            if src.invert or src.inputs["Normal"].is_linked:
+                warnings.append(f"{what}: the bump node's Invert and Normal input are not exported")
+            # Cycles displaces by height x Distance, and Strength blends the bumped normal with
+            # the unbumped one: for gentle slopes the tilt scales with both.
+            height = float(src.inputs["Distance"].default_value) * float(
+                src.inputs["Strength"].default_value)
+            return "bump_map", {"texture": image, "height": max(height, 0.0)}
+        warnings.append(f"{what}: a bump node whose Height is not an image texture is not "
+                        "exported")
+        return None
+    warnings.append(f"{what}: the Normal input is linked to a {src.type} node; it is not exported")
+    return None
+
+
+def _dropped_inputs(node, transmission, warnings, what):
+    """Warnings for the Principled inputs the export does not carry (each set away from its
+    neutral value: they were dropped silently)."""
+    def value(*names):
+        sock = _input(node, *names)
+        if sock is None:
+            return None
+        if sock.is_linked:
+            return "linked"
+        try:
+            return float(sock.default_value)
+        except TypeError:
+            return None
+
+    alpha = value("Alpha")
+    if alpha == "linked" or (isinstance(alpha, float) and alpha < 1.0):
+        warnings.append(f"{what}: Alpha (transparency) is not exported; the surface is opaque")
+    for names, label in ((("Subsurface Weight", "Subsurface"), "subsurface scattering"),
+                         (("Sheen Weight", "Sheen"), "sheen"),
+                         (("Anisotropic",), "anisotropy"),
+                         (("Thin Film Thickness",), "a thin film")):
+        v = value(*names)
+        if v == "linked" or (isinstance(v, float) and v > 0.0):
+            warnings.append(f"{what}: {label} is not exported")
+    if isinstance(transmission, float) and 0.0 < transmission <= 0.5:
+        warnings.append(f"{what}: transmission {transmission:g} is not exported (at most 0.5: "
+                        "an opaque surface; above it, glass)")
+    coat_normal = _input(node, "Coat Normal")
+    if coat_normal is not None and coat_normal.is_linked:
+        warnings.append(f"{what}: the coat's normal input is not exported")
+
+
 def material_entry(mat, flake_params, warnings):
     """(plugin, model, params, emission) for a Blender material; emission is (rgb, intensity)
     or None."""
@@ -179,10 +274,17 @@ def material_entry(mat, flake_params, warnings):
     e_strength = _socket_value(_input(node, "Emission Strength"), warnings, what)
     if isinstance(e_color, tuple) and e_strength and max(e_color) > 0.0:
         emission = (e_color, float(e_strength))
+    _dropped_inputs(node, transmission, warnings, what)
+    surface = _surface_map(node, warnings, what)
     if isinstance(transmission, float) and transmission > 0.5:
-        return "smooth", "dielectric", {"ior": min(max(float(ior), 1.0), 10.0),
-                                        "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}, emission
+        params = {"ior": min(max(float(ior), 1.0), 10.0),
+                  "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}
+        if surface is not None:
+            params[surface[0]] = surface[1]
+        return "smooth", "dielectric", params, emission
     params = {}
+    if surface is not None:
+        params[surface[0]] = surface[1]  # written beside params, not in them
     params["base_color"] = base if base is not None else (0.8, 0.8, 0.8)
     # An image linked into Metallic or Roughness is a texture of the parameter (both are
     # texturable); it was left out, and the plugin's defaults (metallic 1, roughness 1) turned
@@ -206,6 +308,9 @@ def material_entry(mat, flake_params, warnings):
         if isinstance(coat_r, float):
             params["clearcoat_roughness"] = min(max(coat_r, 0.0), 1.0)
     return "smooth", "metal_rough", params, emission
+
+
+_SURFACE_MAPS = ("normal_map", "bump_map")
 
 
 def _param_toml(k, v):
@@ -311,10 +416,10 @@ def _light_lines(obj, matrix, warnings):
             lines += ["[[light]]", 'type = "point"', f"position = {_vec(pos)}"]
         else:
             axis = matrix.to_3x3() @ mathutils.Vector((0.0, 0.0, -1.0))
-            half = math.degrees(light.spot_size) / 2.0
+            half = min(math.degrees(light.spot_size) / 2.0, 90.0)
             lines += ["[[light]]", 'type = "spot"', f"position = {_vec(pos)}",
-                      f"look_at = {_vec(pos + axis)}", f"cone_angle = {_fmt(min(half, 90.0))}",
-                      f"cone_falloff = {_fmt(min(half * light.spot_blend, half))}"]
+                      f"look_at = {_vec(pos + axis)}", f"cone_angle = {_fmt(half)}",
+                      f"cone_falloff = {_fmt(spot_falloff(half, light.spot_blend))}"]
         lines += [f"color = {_vec(color)}", f"intensity = {_fmt(intensity)}"]
     elif light.type == "SUN":
         # A sun's strength (its `energy`) is irradiance in W/m^2.
@@ -355,6 +460,9 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     if cam_obj is None:
         raise RuntimeError("the scene has no camera")
     cam = cam_obj.data
+    # The frame's shape as Blender frames it: with non-square pixels (Pixel Aspect X/Y) the image
+    # spans width x aspect_x by height x aspect_y, and the screen window stretches the pixels.
+    framed = (size[0] * scene.render.pixel_aspect_x, size[1] * scene.render.pixel_aspect_y)
     if cam.type != "PERSP":
         warnings.append(f"camera '{cam_obj.name}': {cam.type.lower()} cameras are not supported; "
                         "a perspective camera stands in")
@@ -363,8 +471,10 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     forward = m.to_3x3() @ mathutils.Vector((0.0, 0.0, -1.0))
     up = m.to_3x3() @ mathutils.Vector((0.0, 1.0, 0.0))
     out += ["[camera]", f"position = {_vec(eye)}", f"look_at = {_vec(eye + forward)}",
-            f"up = {_vec(up)}", f"fov = {_fmt(vertical_fov(cam, size[0], size[1]))}"]
-    window = shifted_window(cam, size[0], size[1])
+            f"up = {_vec(up)}", f"fov = {_fmt(vertical_fov(cam, *framed))}"]
+    window = shifted_window(cam, *framed)
+    if window is None and framed[0] * size[1] != framed[1] * size[0]:
+        window = (-framed[0] / framed[1], framed[0] / framed[1], -1.0, 1.0)
     if window is not None:
         out.append(f"screen_window = [{', '.join(_fmt(v) for v in window)}]")
     if cam.dof.use_dof:
@@ -423,7 +533,12 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
         out += ["[[material]]", f"name = {_toml_string(name)}", f"plugin = {_toml_string(plugin)}"]
         if model:
             out.append(f"model = {_toml_string(model)}")
-        out.append("params = { " + ", ".join(_param_toml(k, v) for k, v in params.items()) + " }")
+        maps = {k: v for k, v in params.items() if k in _SURFACE_MAPS}
+        plain = {k: v for k, v in params.items() if k not in _SURFACE_MAPS}
+        out.append("params = { " + ", ".join(_param_toml(k, v) for k, v in plain.items()) + " }")
+        for k, v in maps.items():  # keys of the material itself, applied by the engine
+            out.append(f"{k} = {{ " + ", ".join(f"{a} = {_toml_value(b)}" for a, b in v.items())
+                       + " }")
         out.append("")
     for ply, name, mw, obj_name in objects:
         rows = [mw[r][c] for r in range(3) for c in range(4)]
