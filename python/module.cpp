@@ -9,9 +9,13 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <chrono>
+#include <condition_variable>
 #include <cstring>
 #include <map>
+#include <mutex>
 #include <regex>
+#include <thread>
 
 #include "cli/outputs.h"
 #include "core/error.h"
@@ -436,12 +440,47 @@ PYBIND11_MODULE(_spangle, m) {
                             s.stop();
                         }
                     };
+                // The render runs on a thread of its own while this one waits with the GIL
+                // released, looking for signals every 50 ms: Ctrl-C stops the render and
+                // raises KeyboardInterrupt (it waited for the whole render, then discarded it).
                 RenderedImage img;
+                std::exception_ptr error;
+                std::optional<py::error_already_set> interrupted;
                 {
                     py::gil_scoped_release release;
-                    img = s.render(spp, size, layers, cb, background_apart.value_or(layers));
+                    std::mutex m;
+                    std::condition_variable cv;
+                    bool finished = false;
+                    std::thread worker([&] {
+                        try {
+                            img =
+                                s.render(spp, size, layers, cb, background_apart.value_or(layers));
+                        } catch (...) {
+                            error = std::current_exception();
+                        }
+                        std::lock_guard<std::mutex> l(m);
+                        finished = true;
+                        cv.notify_all();
+                    });
+                    std::unique_lock<std::mutex> l(m);
+                    while (
+                        !cv.wait_for(l, std::chrono::milliseconds(50), [&] { return finished; })) {
+                        l.unlock();
+                        {
+                            py::gil_scoped_acquire gil;
+                            if (!interrupted && PyErr_CheckSignals() != 0) {
+                                interrupted.emplace();  // the pending exception, fetched
+                                s.stop();
+                            }
+                        }
+                        l.lock();
+                    }
+                    l.unlock();
+                    worker.join();
                 }
+                if (interrupted) throw std::move(*interrupted);
                 if (failed) throw std::move(*failed);
+                if (error) std::rethrow_exception(error);
                 return img;
             },
             py::kw_only(), py::arg("spp") = py::none(), py::arg("size") = py::none(),

@@ -337,11 +337,18 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
     if (!lock.owns_lock()) throw SpangleError("this session is already rendering");
     busy_.store(true);
+    // A stop() is cleared when the render ends, not when it starts: one that came before
+    // (from a thread that started this render and stopped it at once) is not lost.
     struct Idle {
         std::atomic<bool>& busy;
-        ~Idle() { busy.store(false); }
-    } idle{busy_};
-    stop_.store(false);
+        std::atomic<bool>& stop;
+        ~Idle() {
+            stop.store(false);
+            busy.store(false);
+        }
+    } idle{busy_, stop_};
+    // A stop that came before the render: its first pass (one sample) only, reported stopped.
+    const bool stop_pending = stop_.exchange(false);
     if (spp && (*spp < 1 || *spp > (1u << 20)))
         throw SpangleError(fmt::format("spp {} must be 1 to 1048576 (None: the scene's)", *spp));
     // A size is the scene's film size: set in the description and reloaded (only what reads
@@ -358,7 +365,7 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
         apply_locked(std::move(d));
     }
     RenderOptions& o = session_->options();
-    o.spp_override = spp.value_or(0);
+    o.spp_override = stop_pending ? 1u : spp.value_or(0);
     o.layers = layers;
     // As `spangle render --layers`: the environment seen directly goes to its own layer and the
     // beauty is premultiplied (without it the layers did not match the command line's).
@@ -391,6 +398,9 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     }
     RenderedImage out;
     out.result = session_->take_result();
+    if (stop_pending)
+        out.result.stats.spp_target =
+            std::max(out.result.stats.spp_target, spp.value_or(desc_.render.spp));
     if (out.result.image.empty())
         throw SpangleError(fmt::format("nothing was rendered: {}", report.reason));
     out.scene = desc_.path;

@@ -6,6 +6,7 @@ the build tree's python/ folder, or by hand:
 """
 
 import os
+import signal
 import subprocess
 import threading
 import time
@@ -158,6 +159,23 @@ def test_progress_passes_and_a_stop_from_another_thread(session):
     assert not t.is_alive()
     assert len(ticks) > 20
     assert done["img"].stopped and 0 < done["img"].spp < 100000
+    # A stop() is never lost, however early: one made before render() starts (a thread that
+    # starts a render and stops it at once lost it 1 time in 5, and the render ran on) ends
+    # that render after its first pass; the next render is whole.
+    session.stop()
+    early = session.render(spp=100000, size=(16, 16))
+    assert early.stopped and early.spp == 1
+    assert session.render(spp=4, size=(16, 16)).spp == 4
+    # Ctrl-C during render() stops it and raises KeyboardInterrupt at once (it waited for the
+    # whole render, then dropped it).
+    timer = threading.Timer(0.5, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    start = time.time()
+    with pytest.raises(KeyboardInterrupt):
+        session.render(spp=100000, size=(64, 64))
+    timer.join()
+    assert time.time() - start < 30.0
+    assert session.render(spp=2, size=(16, 16)).spp == 2
     # A Python error in a callback stops the render and is raised.
     with pytest.raises(ZeroDivisionError):
         session.render(spp=64, size=(32, 32), progress=lambda d, t: 1 / 0)
