@@ -448,7 +448,7 @@ PYBIND11_MODULE(_spangle, m) {
                 std::optional<py::error_already_set> interrupted;
                 {
                     py::gil_scoped_release release;
-                    std::mutex m;
+                    std::mutex done_m;
                     std::condition_variable cv;
                     bool finished = false;
                     std::thread worker([&] {
@@ -458,11 +458,11 @@ PYBIND11_MODULE(_spangle, m) {
                         } catch (...) {
                             error = std::current_exception();
                         }
-                        std::lock_guard<std::mutex> l(m);
+                        std::lock_guard<std::mutex> l(done_m);
                         finished = true;
                         cv.notify_all();
                     });
-                    std::unique_lock<std::mutex> l(m);
+                    std::unique_lock<std::mutex> l(done_m);
                     while (
                         !cv.wait_for(l, std::chrono::milliseconds(50), [&] { return finished; })) {
                         l.unlock();

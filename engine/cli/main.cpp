@@ -42,6 +42,25 @@ bool refuse_unknown_command(const CLI::App& app, int argc, char** argv) {
     return true;
 }
 
+/** An option given an empty value (`-o ''`, an unset shell variable) is an error: it fell
+ *  back to the default (`-o ''` wrote SCENE.exr) or named the working folder. Says which and
+ *  returns true. */
+bool refuse_empty_values(const CLI::App& app) {
+    for (const CLI::App* sub : app.get_subcommands({})) {
+        if (!sub->parsed()) continue;
+        for (const CLI::Option* opt : sub->get_options()) {
+            if (opt->count() == 0 || opt->get_expected_min() == 0) continue;  // flags
+            for (const std::string& v : opt->results())
+                if (v.empty()) {
+                    fmt::print(stderr, "spangle: error: {} needs a value, got an empty one\n",
+                               opt->get_name());
+                    return true;
+                }
+        }
+    }
+    return false;
+}
+
 /** Runs the command the line chose; an error becomes its message and exit status. */
 int run_chosen(const std::vector<Command>& commands) {
     try {
@@ -86,5 +105,6 @@ int main(int argc, char** argv) {
     } catch (const CLI::ParseError& e) {
         return app.exit(e) == 0 ? 0 : 2;
     }
+    if (refuse_empty_values(app)) return 2;
     return run_chosen(commands);
 }

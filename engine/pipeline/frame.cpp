@@ -1,5 +1,7 @@
 #include "pipeline/frame.h"
 
+#include <fmt/ranges.h>
+
 #include <array>
 #include <cmath>
 #include <cstdio>
@@ -92,7 +94,13 @@ void apply_scene_crop(Session& session) {
     const auto px = [](double f, double n) { return static_cast<uint32_t>(std::ceil(f * n)); };
     const std::array<double, 4>& c = *info.crop;  // x0, x1, y0, y1
     const CropWindow win{px(c[0], w), px(c[2], h), px(c[1], w), px(c[3], h)};
-    if (win.x0 < win.x1 && win.y0 < win.y1) o.crop = win;
+    // A window narrower than a pixel is an error, as in pbrt (it rendered the whole image).
+    if (!(win.x0 < win.x1 && win.y0 < win.y1))
+        throw_error(info.crop_loc,
+                    "the crop window [{}] covers no pixel of the {}x{} image (pixels [{}, {}) x "
+                    "[{}, {}), from ceil(fraction x size))",
+                    fmt::join(c, ", "), w, h, win.x0, win.x1, win.y0, win.y1);
+    o.crop = win;
 }
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include "core/files.h"
 #include "pipeline/frame.h"
 #include "pipeline/systems.h"
+#include "render/adaptive.h"
 #include "render/integrator.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
@@ -275,6 +276,14 @@ ecs::SystemReport Session::render() {
     const std::vector<Camera> steps = live_->has<CameraMotion>(camera)
                                           ? live_->get<CameraMotion>(camera).steps
                                           : std::vector<Camera>{};
+    // --min-spp / --max-spp bound adaptive sampling only: said once, not ignored silently.
+    if ((options_.min_spp_override || options_.max_spp_override) && !adaptive_warned_ &&
+        !adaptive_on(film, options_)) {
+        log_.warn(
+            "--min-spp and --max-spp bound adaptive sampling, which is off (no --noise-threshold "
+            "and no [render] noise_threshold): every pixel takes the scene's spp");
+        adaptive_warned_ = true;
+    }
     render_image(render_scene(), options_, live_->get<Camera>(camera), film, steps, result_);
     rep.ran = true;
     rep.seconds = result_.stats.seconds;

@@ -89,6 +89,7 @@ private:
     RenderScene render_scene() const;
 
     const Logger& log_;
+    bool adaptive_warned_ = false;  ///< the --min-spp/--max-spp without adaptive warning given
     RenderOptions options_;
     std::string ocio_request_;
     std::unique_ptr<ColorConfig> color_;

@@ -120,6 +120,7 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
                         "the crop window [{}] must be x0 < x1 and y0 < y1, each within [0, 1]",
                         fmt::join(c, ", "));
         info.crop = c;
+        info.crop_loc = d.crop_loc;
     }
     ctx.shutter = frame_shutter(info.time, info.fps, info.shutter_open, info.shutter_close);
 }

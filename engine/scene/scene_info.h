@@ -26,6 +26,7 @@ struct SceneInfo {
      *  of the width and height, y down, 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1; none: all. The
      *  pixels are [ceil(x0 W), ceil(x1 W)) x [ceil(y0 H), ceil(y1 H)), as pbrt takes them. */
     std::optional<std::array<double, 4>> crop;
+    FileLoc crop_loc;                         ///< where the scene writes it
     std::string working_space;                ///< canonical OCIO name
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order

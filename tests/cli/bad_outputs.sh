@@ -45,6 +45,10 @@ expect 2 "is not a folder" render "$SCENE" --plugin-path "$T/no_such_plugins"
 expect 2 "must end in .png" render "$SCENE" -o out.exr --preview out.jpg
 expect 2 "more than one run of '#'" render "$SCENE" -o "a.##.##.exr" --frames 1..1
 expect 2 "add --denoise" render "$SCENE" --denoise-glints apart
+# An empty value (an unset shell variable): `-o ''` wrote SCENE.exr beside the scene.
+expect 2 "--output needs a value" render "$SCENE" -o ''
+expect 2 "--preview needs a value" render "$SCENE" --preview ''
+expect 2 "--output needs a value" merge -o '' a.exr
 expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/out.exr"
 mkdir folder.exr
 expect 1 "it is a folder" render "$SCENE" -o folder.exr
@@ -57,4 +61,12 @@ expect 1 "cannot create files in folder '/proc'" render "$SCENE" -o /proc/out.ex
 # And a good command line still renders.
 "$S" render "$SCENE" -o good.exr -q || fail "a good render failed"
 [ -s good.exr ] && [ -s good.png ] || fail "the good render wrote no images"
+# --min-spp / --max-spp without adaptive sampling render, and say they do nothing (silent before).
+"$S" render "$SCENE" -o good.exr -q --min-spp 4 --max-spp 8 2> "$T/err.txt" ||
+    fail "--min-spp without a threshold failed: $(cat "$T/err.txt")"
+grep -q "adaptive sampling, which is off" "$T/err.txt" ||
+    fail "--min-spp without a threshold said nothing: $(cat "$T/err.txt")"
+"$S" render "$SCENE" -o good.exr -q --min-spp 4 --noise-threshold 0.1 2> "$T/err.txt" ||
+    fail "--min-spp with a threshold failed"
+grep -q "adaptive sampling, which is off" "$T/err.txt" && fail "warned with a threshold"
 echo "PASS"
