@@ -4,10 +4,12 @@
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfRgbaFile.h>
 #include <OpenEXR/ImfTestFile.h>
 #include <dlfcn.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cstddef>
 #include <filesystem>
 #include <mutex>
@@ -22,15 +24,29 @@ namespace spangle {
 
 namespace {
 
-/** The channels of an EXR to read, in order: R, G, B (as many as exist) when it has R, else Y,
- *  else its channels in the file's (alphabetical) order. */
+/** The channels of an EXR to read, in order: R, G, B, A (those that exist) when it has R; else
+ *  the first layer (in the file's order) with all of LAYER.R, LAYER.G and LAYER.B (Blender's and
+ *  Nuke's multi-layer files: read alphabetically they came out B, G, R), and its LAYER.A; else
+ *  Y (and A); else its channels in the file's (alphabetical) order. */
 std::vector<std::string> exr_channels(const Imf::Header& header) {
     const Imf::ChannelList& list = header.channels();
     std::vector<std::string> out;
-    if (list.findChannel("R")) {
+    const auto take = [&](const std::string& prefix) {
         for (const char* c : {"R", "G", "B", "A"})
-            if (list.findChannel(c)) out.emplace_back(c);
+            if (list.findChannel(prefix + c)) out.push_back(prefix + c);
+    };
+    if (list.findChannel("R")) {
+        take("");
         return out;
+    }
+    for (auto it = list.begin(); it != list.end(); ++it) {
+        const std::string name = it.name();
+        if (name.size() < 3 || name.compare(name.size() - 2, 2, ".R") != 0) continue;
+        const std::string prefix = name.substr(0, name.size() - 1);
+        if (list.findChannel(prefix + "G") && list.findChannel(prefix + "B")) {
+            take(prefix);
+            return out;
+        }
     }
     if (list.findChannel("Y")) {
         out.emplace_back("Y");
@@ -38,6 +54,44 @@ std::vector<std::string> exr_channels(const Imf::Header& header) {
         return out;
     }
     for (auto it = list.begin(); it != list.end(); ++it) out.emplace_back(it.name());
+    return out;
+}
+
+/** Luminance and chroma (Y, RY, BY: OpenEXR's subsampled YC images): read through RgbaInputFile,
+ *  which rebuilds RGB (read as Y alone, they lost their colour). */
+bool exr_is_yc(const Imf::Header& header) {
+    const Imf::ChannelList& list = header.channels();
+    return list.findChannel("Y") && (list.findChannel("RY") || list.findChannel("BY")) &&
+           !list.findChannel("R");
+}
+
+/** The window an EXR's pixels fill: its display window where the caller places the data window
+ *  in it (textures and maps span the display window, black outside the data), else the data
+ *  window. */
+Imath::Box2i exr_frame(const Imf::Header& header, bool in_display) {
+    return in_display ? header.displayWindow() : header.dataWindow();
+}
+
+/** The data window's pixels (n channels each) put into `frame` (zeros elsewhere). */
+std::vector<float> place_in_frame(const std::vector<float>& data, const Imath::Box2i& dw,
+                                  const Imath::Box2i& frame, int n) {
+    if (dw == frame) return data;
+    const auto fw = static_cast<std::size_t>(frame.max.x - frame.min.x + 1);
+    const auto fh = static_cast<std::size_t>(frame.max.y - frame.min.y + 1);
+    const auto dwidth = static_cast<std::size_t>(dw.max.x - dw.min.x + 1);
+    const auto nc = static_cast<std::size_t>(n);
+    std::vector<float> out(fw * fh * nc, 0.0f);
+    const int x0 = std::max(dw.min.x, frame.min.x), x1 = std::min(dw.max.x, frame.max.x);
+    const int y0 = std::max(dw.min.y, frame.min.y), y1 = std::min(dw.max.y, frame.max.y);
+    if (x0 > x1) return out;
+    for (int y = y0; y <= y1; ++y)
+        std::copy_n(&data[(static_cast<std::size_t>(y - dw.min.y) * dwidth +
+                           static_cast<std::size_t>(x0 - dw.min.x)) *
+                          nc],
+                    static_cast<std::size_t>(x1 - x0 + 1) * nc,
+                    &out[(static_cast<std::size_t>(y - frame.min.y) * fw +
+                          static_cast<std::size_t>(x0 - frame.min.x)) *
+                         nc]);
     return out;
 }
 
@@ -132,15 +186,17 @@ std::vector<std::string> oiio_module_locations() {
     return out;
 }
 
-ImageHeader read_image_header(const std::string& path, const char* what) {
+ImageHeader read_image_header(const std::string& path, const char* what, bool display_window) {
     ImageHeader h;
     if (is_exr(path)) {
         try {
             Imf::InputFile file(path.c_str());
-            const Imath::Box2i dw = file.header().dataWindow();
+            const Imath::Box2i dw = exr_frame(file.header(), display_window);
             h.width = dw.max.x - dw.min.x + 1;
             h.height = dw.max.y - dw.min.y + 1;
-            h.channels = static_cast<int>(exr_channels(file.header()).size());
+            h.channels = exr_is_yc(file.header())
+                             ? (file.header().channels().findChannel("A") ? 4 : 3)
+                             : static_cast<int>(exr_channels(file.header()).size());
         } catch (const std::exception& e) {
             throw_error("cannot read {} '{}': {}", what, path, e.what());
         }
@@ -154,30 +210,52 @@ ImageHeader read_image_header(const std::string& path, const char* what) {
 }
 
 std::vector<float> read_image(const std::string& path, int max_channels, ImageHeader& header,
-                              const char* what) {
+                              const char* what, bool display_window) {
     std::vector<float> pixels;
     if (is_exr(path)) {
         try {
             Imf::InputFile file(path.c_str());
             const Imath::Box2i dw = file.header().dataWindow();
+            const Imath::Box2i frame = exr_frame(file.header(), display_window);
+            const int dwidth = dw.max.x - dw.min.x + 1, dheight = dw.max.y - dw.min.y + 1;
+            header.width = frame.max.x - frame.min.x + 1;
+            header.height = frame.max.y - frame.min.y + 1;
+            if (dwidth < 1 || dheight < 1 || header.width < 1 || header.height < 1)
+                throw_error("cannot read {} '{}': it has no pixels", what, path);
+            const auto count = static_cast<std::size_t>(dwidth) * static_cast<std::size_t>(dheight);
+            if (exr_is_yc(file.header())) {
+                const bool alpha = file.header().channels().findChannel("A") != nullptr;
+                header.channels = alpha ? 4 : 3;
+                const int n = std::min(header.channels, max_channels);
+                std::vector<Imf::Rgba> rgba(count);
+                Imf::RgbaInputFile yc(path.c_str());
+                yc.setFrameBuffer(
+                    rgba.data() - dw.min.x - static_cast<std::ptrdiff_t>(dw.min.y) * dwidth, 1,
+                    static_cast<std::size_t>(dwidth));
+                yc.readPixels(dw.min.y, dw.max.y);
+                pixels.resize(count * static_cast<std::size_t>(n));
+                for (std::size_t i = 0; i < count; ++i) {
+                    const float v[4] = {rgba[i].r, rgba[i].g, rgba[i].b, rgba[i].a};
+                    for (int c = 0; c < n; ++c)
+                        pixels[i * static_cast<std::size_t>(n) + static_cast<std::size_t>(c)] =
+                            v[c];
+                }
+                return place_in_frame(pixels, dw, frame, n);
+            }
             const std::vector<std::string> names = exr_channels(file.header());
-            header.width = dw.max.x - dw.min.x + 1;
-            header.height = dw.max.y - dw.min.y + 1;
             header.channels = static_cast<int>(names.size());
             const int n = std::min(header.channels, max_channels);
-            if (header.width < 1 || header.height < 1 || n < 1)
-                throw_error("cannot read {} '{}': it has no pixels or no channels", what, path);
-            pixels.assign(static_cast<std::size_t>(header.width) * header.height *
-                              static_cast<std::size_t>(n),
-                          0.0f);
+            if (n < 1) throw_error("cannot read {} '{}': it has no channels", what, path);
+            pixels.assign(count * static_cast<std::size_t>(n), 0.0f);
             Imf::FrameBuffer fb;
             const std::size_t xs = sizeof(float) * static_cast<std::size_t>(n);
-            const std::size_t ys = xs * static_cast<std::size_t>(header.width);
+            const std::size_t ys = xs * static_cast<std::size_t>(dwidth);
             for (int c = 0; c < n; ++c)
                 fb.insert(names[static_cast<std::size_t>(c)],
                           Imf::Slice::Make(Imf::FLOAT, pixels.data() + c, dw, xs, ys));
             file.setFrameBuffer(fb);
             file.readPixels(dw.min.y, dw.max.y);
+            pixels = place_in_frame(pixels, dw, frame, n);
         } catch (const SpangleError&) {
             throw;
         } catch (const std::exception& e) {
@@ -198,6 +276,13 @@ std::vector<float> read_image(const std::string& path, int max_channels, ImageHe
     if (m.read(path.c_str(), n, pixels.data(), error, sizeof(error)) != 0)
         throw_error("cannot read {} '{}': {}", what, path, error);
     return pixels;
+}
+
+std::string usual_image_space(const std::string& path) {
+    std::string ext = fs::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return ext == ".exr" || ext == ".hdr" || ext == ".tx" ? "lin_rec709" : "srgb_texture";
 }
 
 }  // namespace spangle

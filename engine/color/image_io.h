@@ -12,6 +12,13 @@
 
 namespace spangle {
 
+/** What an image file's header may claim before its pixels are allocated: at most this many
+ *  pixels per byte of the file (a 157-byte HDR claiming 32768x16384 took 6 GB before failing).
+ *  Deflate packs at most about 1032 bytes into one and a 1-bit PNG 8 pixels into a byte, so a
+ *  valid 1-bit mask reaches about 8000 (4096 refused one); WebP's and EXR's run lengths go
+ *  further. Allocation is bounded by the memory check besides. */
+inline constexpr double kMaxPixelsPerByte = 65536.0;
+
 /** Size and channel count of an image file. */
 struct ImageHeader {
     int width = 0, height = 0, channels = 0;
@@ -19,12 +26,22 @@ struct ImageHeader {
 
 /** Reads the header only (cheap: for plausibility checks before pixels are allocated). Throws
  *  SpangleError "cannot read <what> '<path>': <the reader's message>". */
-ImageHeader read_image_header(const std::string& path, const char* what = "image");
+ImageHeader read_image_header(const std::string& path, const char* what = "image",
+                              bool display_window = false);
 
 /** Reads the first min(channels, max_channels) channels as floats, interleaved, row 0 at the
- *  top; `header` receives the file's size and its full channel count. Throws SpangleError. */
+ *  top; `header` receives the file's size and its full channel count. An EXR's channels: R, G,
+ *  B, A; a layer's LAYER.R, ...; Y (and A); or luminance-chroma (Y, RY, BY) as RGB. With
+ *  `display_window` an EXR's image is its display window, black where its data window does not
+ *  reach (as textures and environment maps take it: a crop part of a render spans the frame it
+ *  came from); else its data window. Alpha is read as stored (straight, never multiplied into
+ *  the colour). Throws SpangleError. */
 std::vector<float> read_image(const std::string& path, int max_channels, ImageHeader& header,
-                              const char* what = "image");
+                              const char* what = "image", bool display_window = false);
+
+/** The colour space a file's values are usually in when a scene names none: lin_rec709 for
+ *  EXR, HDR and .tx files, srgb_texture for the rest (8- and 16-bit formats). */
+std::string usual_image_space(const std::string& path);
 
 /** Version of the OpenImageIO module's C interface this build expects. */
 inline constexpr int kOiioModuleAbi = 2;

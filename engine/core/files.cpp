@@ -13,9 +13,14 @@ namespace spangle {
 std::string file_identity(const std::string& path) {
     struct stat st {};
     if (::stat(path.c_str(), &st) != 0) return path + "|missing";
-    return fmt::format("{}|{}.{:09}|{}", path, static_cast<long long>(st.st_mtim.tv_sec),
-                       static_cast<long long>(st.st_mtim.tv_nsec),
-                       static_cast<long long>(st.st_size));
+    // The inode and the change time besides the modification time: `cp -p`, `rsync -t` and
+    // unpacked archives restore an old mtime, and an edit of the same size then looked
+    // unchanged (a converted texture's stale copy was used).
+    return fmt::format(
+        "{}|{}.{:09}|{}|{}|{}.{:09}", path, static_cast<long long>(st.st_mtim.tv_sec),
+        static_cast<long long>(st.st_mtim.tv_nsec), static_cast<long long>(st.st_size),
+        static_cast<unsigned long long>(st.st_ino), static_cast<long long>(st.st_ctim.tv_sec),
+        static_cast<long long>(st.st_ctim.tv_nsec));
 }
 
 std::string absolute_path(const std::string& path) {

@@ -8,7 +8,7 @@
 
 namespace spangle {
 
-/** "path|mtime-ns|size" of a file, or "path|missing": equal strings mean an unchanged file (an
+/** "path|mtime-ns|size|inode|ctime-ns" of a file, or "path|missing": equal strings mean an unchanged file (an
  *  editor's save changes the modification time even when it rewrites the same bytes). */
 std::string file_identity(const std::string& path);
 

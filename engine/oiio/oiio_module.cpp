@@ -53,7 +53,12 @@ __attribute__((visibility("default"))) int spangle_oiio_header(const char* path,
 __attribute__((visibility("default"))) int spangle_oiio_read(const char* path, int channels,
                                                              float* out, char* error,
                                                              std::size_t size) {
-    auto in = OIIO::ImageInput::open(path);
+    // Alpha as stored: by default OpenImageIO multiplies a PNG's, TGA's or TIFF's straight
+    // alpha into its (still sRGB-encoded) colour, so half-transparent texels came out 4x too
+    // dark, transparent ones black, and a normal map with height in alpha turned black.
+    OIIO::ImageSpec config;
+    config.attribute("oiio:UnassociatedAlpha", 1);
+    auto in = OIIO::ImageInput::open(path, &config);
     if (!in) {
         set_error(error, size, OIIO::geterror());
         return 1;

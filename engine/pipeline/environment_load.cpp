@@ -13,7 +13,7 @@ namespace spangle {
 EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorConfig& color) {
     ImageHeader spec;
     try {
-        spec = read_image_header(file.path, "environment map");
+        spec = read_image_header(file.path, "environment map", true);
     } catch (const SpangleError& e) {
         throw_error(file.loc, "{}", e.what());
     }
@@ -33,7 +33,7 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
     std::error_code ec;
     const auto bytes = static_cast<double>(std::filesystem::file_size(file.path, ec));
     const double pixels_claimed = static_cast<double>(spec.width) * spec.height;
-    if (!ec && pixels_claimed > 4096.0 * std::max(bytes, 1.0))
+    if (!ec && pixels_claimed > kMaxPixelsPerByte * std::max(bytes, 1.0))
         throw_error(file.loc,
                     "environment map '{}' claims {}x{} pixels in a file of {} bytes: it is "
                     "damaged or truncated",
@@ -51,7 +51,7 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
     std::vector<float> pixels;
     ImageHeader read;
     try {
-        pixels = read_image(file.path, 3, read, "environment map");
+        pixels = read_image(file.path, 3, read, "environment map", true);
     } catch (const SpangleError& e) {
         throw_error(file.loc, "{}", e.what());
     }
@@ -62,8 +62,11 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
     std::vector<float> rgb(3 * n);
     for (std::size_t i = 0; i < n; ++i)
         for (int c = 0; c < 3; ++c) {
-            const float v = pixels[i * static_cast<std::size_t>(channels) +
-                                   static_cast<std::size_t>(std::min(c, channels - 1))];
+            // A grey map (and a grey + alpha one: its grey, not grey, alpha, alpha) in every
+            // channel.
+            const int from = channels == 2 ? 0 : std::min(c, channels - 1);
+            const float v =
+                pixels[i * static_cast<std::size_t>(channels) + static_cast<std::size_t>(from)];
             if (!std::isfinite(v))
                 throw_error(file.loc,
                             "environment map '{}' has a non-finite value at pixel ({}, {})",

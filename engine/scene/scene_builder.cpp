@@ -8,6 +8,7 @@
 #include <map>
 #include <utility>
 
+#include "color/image_io.h"
 #include "core/files.h"
 #include "core/hash.h"
 #include "scene/components.h"
@@ -223,9 +224,12 @@ void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
         EnvironmentMapFile m;
         m.path = d.map->path;
         m.loc = d.map->loc;
+        // Without a colour space, the file type's usual one, as for textures: an 8-bit PNG or
+        // JPEG is sRGB-encoded (read as linear, 128 became 0.50 instead of 0.22).
         m.color_space = d.map->color_space
                             ? resolve_space(ctx, *d.map->color_space, d.map->color_space_loc)
-                            : resolve_space(ctx, "lin_rec709", d.loc, "default (no key written) ");
+                            : resolve_space(ctx, usual_image_space(d.map->path), d.loc,
+                                            "default (no key written) ");
         m.rotation_deg = static_cast<float>(d.map->rotation_deg);
         m.intensity = k;
         m.projection = d.map->projection;

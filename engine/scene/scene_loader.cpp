@@ -70,7 +70,7 @@ SceneDescription read_scene(const std::string& path, const SceneReadOptions& opt
     SceneDescription scene = read_with_imports(path, options, chain);
     if (!options.environment.empty()) {
         // --env: the map lights the scene instead of what the file says (its colour space is
-        // the default's, lin_rec709, as for a map a scene names without one).
+        // the default's, the file type's usual one, as for a map a scene names without one).
         EnvironmentDesc env;
         env.loc = FileLoc{"--env", 0, 0};
         EnvironmentDesc::Map map;

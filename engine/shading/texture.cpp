@@ -26,14 +26,6 @@ uint64_t hash_text(const std::string& s) {
     return mix64(h);
 }
 
-/** The colour space a file's values are usually in when the scene names none. */
-std::string usual_space(const std::string& path) {
-    std::string ext = fs::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    return ext == ".exr" || ext == ".hdr" || ext == ".tx" ? "lin_rec709" : "srgb_texture";
-}
-
 }  // namespace
 
 std::string texture_cache_dir(const TextureSettings& settings) {
@@ -82,7 +74,7 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
     std::lock_guard<std::mutex> lock(mutex_);
     // What the converted file depends on: the source's content, the conversion, the config.
     std::string space = ref.space;
-    if (space.empty()) space = color ? usual_space(ref.path) : "raw";
+    if (space.empty()) space = color ? usual_image_space(ref.path) : "raw";
     if (space != "raw") {
         const auto resolved = color_.resolve(space);
         if (!resolved)
@@ -118,10 +110,10 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
         try {
             // The header first: a damaged file's claimed size must not allocate anything. No
             // image format packs more than a few thousand pixels into a byte.
-            const ImageHeader claimed = read_image_header(ref.path, "texture");
+            const ImageHeader claimed = read_image_header(ref.path, "texture", true);
             const double px = static_cast<double>(claimed.width) * claimed.height;
             const auto bytes = static_cast<double>(fs::file_size(ref.path, ec));
-            if (!ec && px > 4096.0 * std::max(bytes, 1.0))
+            if (!ec && px > kMaxPixelsPerByte * std::max(bytes, 1.0))
                 throw_error(
                     "texture '{}' claims {}x{} pixels in a file of {} bytes: it is "
                     "damaged or truncated",
@@ -135,7 +127,7 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
                     "memory is available: use a smaller image (oiiotool --resize)",
                     ref.path, claimed.width, claimed.height, format_bytes(px * kBytesPerPixel),
                     format_bytes(static_cast<double>(have)));
-            pixels = read_image(ref.path, 4, h, "texture");
+            pixels = read_image(ref.path, 4, h, "texture", true);
         } catch (const SpangleError& e) {
             throw_error(loc, "{}", e.what());
         }
@@ -223,11 +215,16 @@ void TextureService::lookup(const Texture& tex, const TextureRef& ref, const Tex
                      o, ods, odt, error, sizeof(error)) != 0)
         throw_error("texture '{}': lookup failed: {}", tex.source, error);
     if (direct) return;
-    // Fewer channels than asked for: the last one repeats (a grey map for a colour input).
+    // Fewer channels than asked for: a grey map's value in every colour channel (a grey + alpha
+    // map's grey, its alpha only as a fourth; it gave grey, alpha, alpha), else the last repeats.
+    const auto source = [&](int c) {
+        if (have == 2) return c < 3 ? 0 : 1;
+        return std::min(c, have - 1);
+    };
     for (std::size_t i = n; i-- > 0;)
         for (int c = 0; c < channels; ++c) {
-            const std::size_t from = i * static_cast<std::size_t>(have) +
-                                     static_cast<std::size_t>(std::min(c, have - 1));
+            const std::size_t from =
+                i * static_cast<std::size_t>(have) + static_cast<std::size_t>(source(c));
             const std::size_t to =
                 i * static_cast<std::size_t>(channels) + static_cast<std::size_t>(c);
             out[to] = buf[from];

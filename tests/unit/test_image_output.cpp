@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <OpenEXR/ImfRgbaFile.h>
 #include <OpenImageIO/imageio.h>
 
 #include <filesystem>
@@ -195,6 +196,31 @@ TEST(ImageInput, ExrIsReadDirectlyAndOtherFormatsThroughTheOiioModule) {
     ASSERT_EQ(from_hdr.size(), rgb.size());
     for (std::size_t i = 0; i < rgb.size(); ++i)
         EXPECT_NEAR(from_hdr[i], rgb[i], 0.01f * rgb[i]) << "RGBE keeps 8 bits of mantissa";
+}
+
+TEST(ImageInput, LuminanceChromaExrKeepsItsColour) {
+    // OpenEXR's YC images (Y, RY, BY; written by cameras and some compositors) are rebuilt into
+    // RGB: read as Y alone they came out grey.
+    test::TempDir dir("image_yc");
+    const int w = 8, h = 6;
+    std::vector<Imf::Rgba> px(static_cast<std::size_t>(w * h));
+    for (auto& p : px) p = Imf::Rgba(0.8f, 0.2f, 0.1f, 1.0f);
+    {
+        Imf::RgbaOutputFile out(dir.file("yc.exr").c_str(), w, h, Imf::WRITE_YC);
+        out.setFrameBuffer(px.data(), 1, static_cast<std::size_t>(w));
+        out.writePixels(h);
+    }
+    ImageHeader header;
+    EXPECT_EQ(read_image_header(dir.file("yc.exr")).channels, 3);
+    const std::vector<float> rgb = read_image(dir.file("yc.exr"), 3, header);
+    ASSERT_EQ(rgb.size(), static_cast<std::size_t>(w * h * 3));
+    EXPECT_EQ(header.channels, 3);
+    // Chroma is subsampled and stored in half floats: a flat colour comes back within 2%.
+    for (std::size_t p = 0; p < static_cast<std::size_t>(w * h); ++p) {
+        EXPECT_NEAR(rgb[3 * p + 0], 0.8f, 0.016f);
+        EXPECT_NEAR(rgb[3 * p + 1], 0.2f, 0.004f);
+        EXPECT_NEAR(rgb[3 * p + 2], 0.1f, 0.002f);
+    }
 }
 
 TEST(ExrOutput, CarriesRenderTimeAndCameraMatrices) {
