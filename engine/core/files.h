@@ -8,8 +8,9 @@
 
 namespace spangle {
 
-/** "path|mtime-ns|size|inode|ctime-ns" of a file, or "path|missing": equal strings mean an unchanged file (an
- *  editor's save changes the modification time even when it rewrites the same bytes). */
+/** "path|mtime-ns|size|inode|ctime-ns" of a file, or "path|missing": equal strings mean an
+ * unchanged file (an editor's save changes the modification time even when it rewrites the same
+ * bytes). */
 std::string file_identity(const std::string& path);
 
 /** `path` made absolute (against the working directory) and normalised, for messages that
