@@ -77,9 +77,21 @@ void apply_map(const RenderScene& w, Workspace& ws, const MaterialInstance& mat,
     const bool is_bump = mat.map_kind() == MapKind::Bump;
     ws.map_ds.resize(is_bump ? n : 0);
     ws.map_dt.resize(is_bump ? n : 0);
-    w.host->textures().lookup(*b.texture, b.ref, ws.tex_query, n, b.channels, ws.map_value.data(),
-                              is_bump ? ws.map_ds.data() : nullptr,
+    // A two-channel normal map (X and Y only, as BC5-compressed maps are kept): z is rebuilt
+    // from them (read as grey, every tilt was lost).
+    const bool xy_only = !is_bump && c == 3 && b.texture->channels == 2;
+    w.host->textures().lookup(*b.texture, b.ref, ws.tex_query, n, xy_only ? 2 : b.channels,
+                              ws.map_value.data(), is_bump ? ws.map_ds.data() : nullptr,
                               is_bump ? ws.map_dt.data() : nullptr);
+    if (xy_only)
+        for (uint32_t k = n; k-- > 0;) {
+            const float x = ws.map_value[2 * k], y = ws.map_value[2 * k + 1];
+            const float tx = 2.0f * x - 1.0f, ty = 2.0f * y - 1.0f;
+            ws.map_value[3 * k] = x;
+            ws.map_value[3 * k + 1] = y;
+            ws.map_value[3 * k + 2] =
+                0.5f + 0.5f * std::sqrt(std::max(0.0f, 1.0f - tx * tx - ty * ty));
+        }
     for (uint32_t k = 0; k < n; ++k) {
         SurfacePoint& sp = ws.paths.surf[paths[k]];
         if (!sp.has_uv) continue;  // no tangent space to read the map in

@@ -115,6 +115,24 @@ expect "an 8-bit PNG sky (sRGB)" "0.2158 0.2158 0.2158" 0.002
 scene 1.0 'map = "greyalpha.exr"' > s.toml
 render
 expect "a grey + alpha sky" "0.5 0.5 0.5" 0.002
+# A two-channel normal map (X, Y) tilts as the three-channel one does (it was read as grey).
+oiiotool --pattern constant:color=0.75,0.5,0.9330127 8x8 3 -d float -o nxyz.exr
+oiiotool nxyz.exr --ch R,G -o nxy.exr
+light='color = [0, 0, 0]
+[[light]]
+type = "distant"
+direction = [0.6, 0.3, 0.8]
+intensity = 3.14159'
+for m in nxyz nxy; do
+    scene 0.5 "$light" | sed "s|^params = { albedo = 0.5 }|&\nnormal_map = { texture = \"$m.exr\" }|" > s.toml
+    render
+    eval "lit_$m=\"\$(mean)\""
+done
+scene 0.5 "$light" > s.toml
+render
+flat=$(mean)
+near "$lit_nxy" "$lit_nxyz" 0.003 || fail "a two-channel normal map: $lit_nxy, three channels: $lit_nxyz"
+near "$lit_nxyz" "$flat" 0.02 && fail "the normal map did not tilt: $lit_nxyz against flat $flat"
 # A texture replaced by another of the same size and modification time.
 oiiotool --pattern constant:color=1,0,0 8x8 3 -d uint8 -o swap.tga
 touch -d 2020-01-01 swap.tga
