@@ -131,6 +131,17 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
         } catch (const SpangleError& e) {
             throw_error(loc, "{}", e.what());
         }
+        // NaN and infinite values are 0, and said (OpenImageIO's conversion made NaN a
+        // neighbour's value and infinity 0, silently).
+        std::size_t bad = 0;
+        for (float& v : pixels)
+            if (!std::isfinite(v)) {
+                v = 0.0f;
+                ++bad;
+            }
+        if (bad > 0)
+            log_.warn("{}: texture '{}' has {} values that are NaN or infinite; they are read as 0",
+                      loc.str(), ref.path, bad);
         int channels = std::min(h.channels, 4);
         if (space != "raw") {
             // Colour: grey (and grey + alpha) images become RGB, then the RGB goes through OCIO;

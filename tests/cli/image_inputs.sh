@@ -133,6 +133,17 @@ render
 flat=$(mean)
 near "$lit_nxy" "$lit_nxyz" 0.003 || fail "a two-channel normal map: $lit_nxy, three channels: $lit_nxyz"
 near "$lit_nxyz" "$flat" 0.02 && fail "the normal map did not tilt: $lit_nxyz against flat $flat"
+# NaN and infinite texels are 0, and said (they were replaced silently).
+python3 -c "
+import struct
+vals = [float('nan'), float('inf'), 0.5] * 64
+open('nan.pfm', 'wb').write(b'PF\n8 8\n-1.0\n' + struct.pack('<192f', *vals))"
+oiiotool nan.pfm -o nan.exr
+scene '{ texture = "nan.exr" }' > s.toml
+"$S" render s.toml -o o.exr --no-preview --float --texture-cache "$T/cache" 2> err.txt ||
+    fail "the NaN texture failed: $(cat err.txt)"
+grep -q "has 128 values that are NaN or infinite" err.txt || fail "NaN texels not said: $(cat err.txt)"
+expect "NaN and infinity as 0" "0 0 0.5" 0.002
 # A texture replaced by another of the same size and modification time.
 oiiotool --pattern constant:color=1,0,0 8x8 3 -d uint8 -o swap.tga
 touch -d 2020-01-01 swap.tga
