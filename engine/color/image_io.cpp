@@ -7,10 +7,13 @@
 #include <OpenEXR/ImfRgbaFile.h>
 #include <OpenEXR/ImfTestFile.h>
 #include <dlfcn.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cstddef>
+#include <cstring>
 #include <filesystem>
 #include <mutex>
 
@@ -186,7 +189,15 @@ std::vector<std::string> oiio_module_locations() {
     return out;
 }
 
+/** Throws "cannot read <what> '<path>': <the system's reason>" when the file cannot be opened
+ *  for reading (the readers said "Could not open file", not why: permission denied). */
+void check_readable(const std::string& path, const char* what) {
+    if (::access(path.c_str(), R_OK) != 0)
+        throw_error("cannot read {} '{}': {}", what, path, std::strerror(errno));
+}
+
 ImageHeader read_image_header(const std::string& path, const char* what, bool display_window) {
+    check_readable(path, what);
     ImageHeader h;
     if (is_exr(path)) {
         try {
@@ -211,6 +222,7 @@ ImageHeader read_image_header(const std::string& path, const char* what, bool di
 
 std::vector<float> read_image(const std::string& path, int max_channels, ImageHeader& header,
                               const char* what, bool display_window) {
+    check_readable(path, what);
     std::vector<float> pixels;
     if (is_exr(path)) {
         try {
