@@ -13,6 +13,7 @@
 #include <cctype>
 #include <cerrno>
 #include <cstddef>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <mutex>
@@ -291,6 +292,21 @@ std::vector<float> read_image(const std::string& path, int max_channels, ImageHe
 }
 
 std::string usual_image_space(const std::string& path) {
+    // The file's own first bytes first: an EXR or a Radiance HDR is linear whatever it is
+    // called (a PNG named .exr was read as linear, an EXR named .png sRGB-decoded).
+    if (std::FILE* f = std::fopen(path.c_str(), "rb")) {
+        char head[10] = {};
+        const std::size_t got = std::fread(head, 1, sizeof(head), f);
+        std::fclose(f);
+        const bool exr = got >= 4 && static_cast<unsigned char>(head[0]) == 0x76 &&
+                         head[1] == 0x2f && head[2] == 0x31 && head[3] == 0x01;
+        const bool radiance = got >= 2 && head[0] == '#' && head[1] == '?';
+        if (exr || radiance) return "lin_rec709";
+        if (got >= 4) {
+            const std::string ext = fs::path(path).extension().string();
+            return ext == ".tx" || ext == ".TX" ? "lin_rec709" : "srgb_texture";
+        }
+    }
     std::string ext = fs::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });

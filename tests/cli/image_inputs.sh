@@ -133,6 +133,15 @@ render
 flat=$(mean)
 near "$lit_nxy" "$lit_nxyz" 0.003 || fail "a two-channel normal map: $lit_nxy, three channels: $lit_nxyz"
 near "$lit_nxyz" "$flat" 0.02 && fail "the normal map did not tilt: $lit_nxyz against flat $flat"
+# A file's colour space follows what it holds, not its name: a PNG called .exr is sRGB, an EXR
+# called .png linear (each was read the other way).
+cp opaque.png png_named.exr
+cp rgb.exr exr_named.png
+for t in png_named.exr exr_named.png; do
+    scene "{ texture = \"$t\" }" > s.toml
+    render
+    expect "$t" "0.8 0.2 0.1" 0.004
+done
 # NaN and infinite texels are 0, and said (they were replaced silently).
 python3 -c "
 import struct
