@@ -362,6 +362,9 @@ struct SceneReadOptions {
      *  A reader that would put a stand-in light into a scene without lights does not when this
      *  is given. */
     std::string environment;
+    /** Read as another file's [[import]]: a TOML file without a [camera] is fine (the importing
+     *  file or another import gives it; a scene with none anywhere is still an error). */
+    bool imported = false;
 };
 
 /** Everything a scene file says, in the order written within each kind. */

@@ -57,7 +57,9 @@ SceneDescription read_with_imports(const std::string& path, const SceneReadOptio
             throw_error(at, "'{}' imports itself (through {})", imported, fmt::join(chain, " -> "));
         if (chain.size() >= kMaxImportDepth)
             throw_error(at, "imports nest deeper than {} files", kMaxImportDepth);
-        return read_with_imports(imported, options, chain);
+        SceneReadOptions as_import = options;
+        as_import.imported = true;
+        return read_with_imports(imported, as_import, chain);
     });
     chain.pop_back();
     return scene;

@@ -565,7 +565,7 @@ void read_each(TableReader& top, const char* key, std::vector<Desc>& out, const 
 
 }  // namespace
 
-SceneDescription read_toml_scene(const std::string& path, const SceneReadOptions&) {
+SceneDescription read_toml_scene(const std::string& path, const SceneReadOptions& options) {
     const toml::table root = parse_toml_file(path);
     SceneDescription d;
     d.path = path;
@@ -584,7 +584,7 @@ SceneDescription read_toml_scene(const std::string& path, const SceneReadOptions
     if (const toml::table* t = top.table("camera")) {
         TableReader r(*t, path, "[camera]");
         d.camera = read_camera(r);
-    } else if (d.imports.empty()) {
+    } else if (d.imports.empty() && !options.imported) {
         top.missing("camera");
     } else {
         d.has_camera = false;  // an import gives it

@@ -170,6 +170,26 @@ TEST(Import, AFileThatImportsItselfIsRefusedAtTheImport) {
     }
 }
 
+TEST(Import, AnImportedFileNeedsNoCameraOfItsOwn) {
+    // A model file (materials and objects only) imported into a look file with the camera: as
+    // docs/import.md says (it failed: "car.toml: the scene is missing required key 'camera'").
+    test::TempDir dir("import_no_camera");
+    std::ofstream(dir.file("model.toml")) << fmt::format(
+        "[[material]]\nname = \"paint\"\nplugin = \"smooth\"\nmodel = \"diffuse\"\n\n"
+        "[[object]]\nmesh = \"{}/meshes/sphere.obj\"\nmaterial = \"paint\"\n",
+        test::asset_dir());
+    std::ofstream(dir.file("look.toml"))
+        << "[render]\nwidth = 16\nheight = 12\nspp = 1\n\n[camera]\nposition = [0, 0, 5]\n"
+           "look_at = [0, 0, 0]\n\n[environment]\ncolor = [1, 1, 1]\n\n[[import]]\nfile = "
+           "\"model.toml\"\n";
+    const SceneDescription d = read_scene(dir.file("look.toml"));
+    EXPECT_EQ(d.objects.size(), 1u);
+    EXPECT_EQ(d.camera.position.z, 5.0f);
+    EXPECT_EQ(render_file(dir.file("look.toml")).size(), 16u * 12u * 3u);
+    // Read alone, the model file still needs its camera.
+    EXPECT_THROW(read_scene(dir.file("model.toml")), SpangleError);
+}
+
 TEST(Import, AWatchSessionWatchesTheImportedFiles) {
     test::TempDir dir("import_watch");
     write_car(dir);
