@@ -555,7 +555,9 @@ void build_light(BuildContext& ctx, const LightDesc& d) {
     std::visit(LightPut{*ctx.registry, e, color * intensity}, d.shape);
 }
 
-/** SceneInfo::content_hash of the scene file and `files`. */
+
+}  // namespace
+
 uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files) {
     uint64_t h = 0x5ce9e5ull;
     std::vector<std::string> all{path};
@@ -583,8 +585,6 @@ uint64_t scene_content_hash(const std::string& path, const std::vector<std::stri
     }
     return h;
 }
-
-}  // namespace
 
 SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Registry& registry,
                       double time) {

@@ -14,14 +14,17 @@
 
 namespace spangle {
 
-/** Builds `scene` as it stands at `time` (seconds) into `registry` (which should be empty):
- *  one entity of settings (Film, Camera, CameraMotion), then the environment, the materials,
- *  the objects and the lights, in the description's order. Sets `color`'s working space (one
- *  already set is kept when the scene names none). Throws SpangleError at file:line:col. */
 /** The name an object goes by in the Cryptomatte layers: its `name`, else its mesh or cage
  *  file's name without the folder and ending, else "object<index + 1>". */
 std::string object_name(const ObjectDesc& d, uint32_t index);
 
+/** SceneInfo::content_hash of a scene file and the files it includes or imports (`files`). */
+uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files);
+
+/** Builds `scene` as it stands at `time` (seconds) into `registry` (which should be empty):
+ *  one entity of settings (Film, Camera, CameraMotion), then the environment, the materials,
+ *  the objects and the lights, in the description's order. Sets `color`'s working space (one
+ *  already set is kept when the scene names none). Throws SpangleError at file:line:col. */
 SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Registry& registry,
                       double time = 0.0);
 

@@ -37,20 +37,44 @@ FileWatcher::~FileWatcher() {
     if (fd_ >= 0) ::close(fd_);
 }
 
-void FileWatcher::watch(const std::vector<std::string>& files) {
-    for (const auto& [wd, dir] : dirs_) inotify_rm_watch(fd_, wd);
-    dirs_.clear();
+void FileWatcher::watch(const std::vector<std::string>& files, bool any_new_file,
+                        const std::vector<std::string>& ignored) {
     files_.clear();
     std::set<std::string> dirs;
-    for (const auto& f : files) {
-        const std::string p = normal(f);
+    const auto add = [&](const std::string& p) {
         files_.insert(p);
         dirs.insert(fs::path(p).parent_path().string());
+    };
+    for (const auto& f : files) {
+        const std::string p = normal(f);
+        add(p);
+        // A link (a "current" scene pointing at a version file): its target's folder is where
+        // an editor's save of the target shows up.
+        std::error_code ec;
+        if (fs::is_symlink(p, ec)) {
+            const fs::path target = fs::weakly_canonical(p, ec);
+            if (!ec) add(target.lexically_normal().string());
+        }
+    }
+    any_new_file_ = any_new_file;
+    ignored_.clear();
+    for (const auto& f : ignored) ignored_.insert(normal(f));
+    // Folders no longer needed lose their watch; those kept keep theirs (re-adding every watch
+    // gave new descriptors, and the events queued under the old ones were dropped).
+    for (auto it = dirs_.begin(); it != dirs_.end();) {
+        if (dirs.count(it->second) == 0) {
+            inotify_rm_watch(fd_, it->first);
+            it = dirs_.erase(it);
+        } else {
+            dirs.erase(it->second);
+            ++it;
+        }
     }
     for (const auto& d : dirs) {
-        const int wd = inotify_add_watch(fd_, d.c_str(),
-                                         IN_CLOSE_WRITE | IN_MOVED_TO | IN_CREATE | IN_DELETE |
-                                             IN_MODIFY | IN_MOVED_FROM | IN_ATTRIB);
+        const int wd =
+            inotify_add_watch(fd_, d.c_str(),
+                              IN_CLOSE_WRITE | IN_MOVED_TO | IN_CREATE | IN_DELETE | IN_MODIFY |
+                                  IN_MOVED_FROM | IN_ATTRIB | IN_DELETE_SELF | IN_MOVE_SELF);
         if (wd >= 0) dirs_[wd] = d;
     }
 }
@@ -66,9 +90,22 @@ void FileWatcher::drain(std::map<std::string, bool>& hit) {
             const char* name = buf + off + static_cast<ssize_t>(sizeof(inotify_event));
             off += static_cast<ssize_t>(sizeof(inotify_event) + ev.len);
             auto it = dirs_.find(ev.wd);
-            if (it == dirs_.end() || ev.len == 0) continue;
+            if (it == dirs_.end()) continue;
+            if ((ev.mask & (IN_IGNORED | IN_DELETE_SELF | IN_MOVE_SELF)) != 0) {
+                // The folder itself went (deleted, or moved: its watch would follow it away):
+                // the next watch() adds one at the path again.
+                if ((ev.mask & IN_IGNORED) == 0) inotify_rm_watch(fd_, ev.wd);
+                dirs_.erase(it);
+                continue;
+            }
+            if (ev.len == 0) continue;
             const std::string path = (fs::path(it->second) / name).string();
-            if (!files_.count(path)) continue;
+            if (!files_.count(path)) {
+                // Waiting on a scene that failed: a new file (written or moved in) may be the
+                // one it lacked. Not an output, not a hidden temporary.
+                const bool arrived = (ev.mask & (IN_CLOSE_WRITE | IN_MOVED_TO)) != 0;
+                if (!any_new_file_ || !arrived || name[0] == '.' || ignored_.count(path)) continue;
+            }
             // Settled: the last event ends a save (closed after writing, renamed into place, or
             // only its times or mode changed). Anything else means a save still under way.
             auto [entry, fresh] = hit.emplace(path, false);

@@ -26,8 +26,13 @@ public:
     FileWatcher(const FileWatcher&) = delete;
     FileWatcher& operator=(const FileWatcher&) = delete;
 
-    /** Replaces the set of watched files. */
-    void watch(const std::vector<std::string>& files);
+    /** Replaces the set of watched files. The folders already watched keep their watches (and
+     *  the events queued on them: a save made while the caller reloaded is not lost). A file
+     *  that is a symbolic link is watched at its target too. With `any_new_file`, any file
+     *  written or moved into a watched folder counts (but the names in `ignored`, and hidden
+     *  names: a scene that failed on a missing file is retried when it appears). */
+    void watch(const std::vector<std::string>& files, bool any_new_file = false,
+               const std::vector<std::string>& ignored = {});
 
     /** Waits up to timeout_ms for an event on a watched file; after the first, keeps reading
      *  until the files have been quiet (an editor's save is several events; see WatchDebounce).
@@ -42,6 +47,8 @@ private:
     int fd_ = -1;
     std::map<int, std::string> dirs_;  ///< watch descriptor -> directory
     std::set<std::string> files_;      ///< absolute, normalised paths
+    bool any_new_file_ = false;        ///< report any file written into a watched folder
+    std::set<std::string> ignored_;    ///< except these (absolute, normalised)
 };
 
 }  // namespace spangle

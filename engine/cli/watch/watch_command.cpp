@@ -4,16 +4,19 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
 
+#include "cli/output_paths.h"
 #include "cli/outputs.h"
 #include "cli/preview_server.h"
 #include "cli/render_setup.h"
@@ -21,7 +24,10 @@
 #include "cli/usage.h"
 #include "cli/watch/file_watcher.h"
 #include "core/error.h"
+#include "core/files.h"
 #include "pipeline/session.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_loader.h"
 
 namespace fs = std::filesystem;
 
@@ -53,8 +59,9 @@ private:
     /** A pass was written: the pending reload line goes out at the first full pass (with the
      *  preview pass's time when there was one). */
     void announce(uint32_t spp, uint32_t block);
-    /** A change interrupted the render before its first pass: the line goes out as it stands. */
-    void flush_unannounced();
+    /** A change (or a stop signal) interrupted the render before its first pass: the line goes
+     *  out as it stands, ending with `why`. */
+    void flush_unannounced(const char* why = "interrupted by the next change");
     /** Shows and writes the image of a pass that is not the last. */
     void on_pass(const PassImage& p);
     /** Starts the render thread (and says so on the page). */
@@ -72,6 +79,12 @@ private:
     void apply_change(const std::vector<std::string>& touched);
     /** The line a stop signal ends the session with: what is on disk, at how many samples. */
     void say_stopped();
+    /** The files a load reads (the scene's watched files and the scene file). */
+    std::vector<std::string> files_to_watch() const;
+    /** A save of scene description files only, while a render runs: false when it must reload;
+     *  true when it was dealt with and the render goes on (the files hold what the live scene
+     *  was built from: an editor's autosave, a touch; or they do not parse: said). */
+    bool render_goes_on(const std::vector<std::string>& touched);
 
     const RenderArgs& a_;                    ///< the command line
     WarningsSaid warnings_said_;             ///< each warning once per watch session
@@ -89,7 +102,15 @@ private:
     bool unchanged_ = false;       ///< the last good reload changed nothing of the live scene
     uint32_t written_spp_ = 0;     ///< samples per pixel of the last image written (0: none)
     uint32_t written_target_ = 0;  ///< and the samples it was going to
+    uint32_t written_block_ = 0;   ///< >0: the file holds a preview of 1/block resolution
     std::thread worker_;           ///< the render thread
+    /** Each watched file's identity as it was before the last load read it: a file that
+     *  differs from it has been saved since, whether or not its events were seen (a save while
+     *  the scene loaded). */
+    std::map<std::string, std::string> baseline_;
+    bool last_load_failed_ = false;       ///< retry when a new file appears (the one it lacked)
+    std::atomic<bool> rendering_{false};  ///< the render thread is rendering
+    std::string last_error_;              ///< why the last load failed (empty: it did not)
 };
 
 WatchLoop::WatchLoop(const RenderArgs& a, const RenderSetup& s)
@@ -139,10 +160,10 @@ void WatchLoop::announce(uint32_t spp, uint32_t block) {
     preview_note_.clear();
 }
 
-void WatchLoop::flush_unannounced() {
+void WatchLoop::flush_unannounced(const char* why) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (pending_line_.empty()) return;
-    say(fmt::format("{}; {}interrupted by the next change", pending_line_, preview_note_));
+    say(fmt::format("{}; {}{}", pending_line_, preview_note_, why));
     pending_line_.clear();
     preview_note_.clear();
 }
@@ -154,11 +175,10 @@ void WatchLoop::on_pass(const PassImage& p) {
     if (!pass_output_) return;
     try {
         out_.write_pass(p, session_.color(), &session_.info());
-        if (p.spp > 0) {
-            std::lock_guard<std::mutex> lock(mutex_);
-            written_spp_ = p.spp;
-            written_target_ = p.target;
-        }
+        std::lock_guard<std::mutex> lock(mutex_);
+        written_spp_ = p.spp;
+        written_target_ = p.target;
+        written_block_ = p.spp == 0 ? p.block : 0;  // a preview replaced what was on disk
     } catch (const SpangleError& e) {
         report_error(e.what());
     }
@@ -171,6 +191,11 @@ void WatchLoop::start_render() {
 }
 
 void WatchLoop::render() {
+    rendering_ = true;
+    const struct Done {
+        std::atomic<bool>& flag;
+        ~Done() { flag = false; }
+    } done{rendering_};
     try {
         // An edit may have made an output one of the scene's own files: refused, not rendered.
         out_.check_not_inputs(session_.watched_files());
@@ -199,6 +224,7 @@ void WatchLoop::finish_render() {
             std::lock_guard<std::mutex> lock(mutex_);
             written_spp_ = st.spp_reached;
             written_target_ = st.spp_target;
+            written_block_ = 0;
         } catch (const SpangleError& e) {
             report_error(e.what());
         }
@@ -214,12 +240,34 @@ void WatchLoop::finish_render() {
     finished_ = true;
 }
 
+std::vector<std::string> WatchLoop::files_to_watch() const {
+    std::vector<std::string> files = session_.watched_files();
+    files.push_back(a_.scene);
+    // Each once, absolute (the scene as typed and as the session knows it are one file).
+    for (std::string& f : files) f = absolute_path(f);
+    std::sort(files.begin(), files.end());
+    files.erase(std::unique(files.begin(), files.end()), files.end());
+    return files;
+}
+
 bool WatchLoop::load(const std::string& what) {
     if (server_)
         server_->stage(session_.has_scene() ? fmt::format("reloading {} ({})", a_.scene, what)
                                             : fmt::format("loading {}", a_.scene));
+    // The files as they are before the load reads them: one saved from now on differs.
+    std::map<std::string, std::string> before;
+    for (const std::string& f : files_to_watch()) before[f] = file_identity(f);
+    const auto keep_baseline = [&](bool failed) {
+        baseline_ = before;
+        // Files the load found that were not known before it: as they are now.
+        for (const std::string& f : files_to_watch())
+            if (!baseline_.count(f)) baseline_[f] = file_identity(f);
+        last_load_failed_ = failed;
+    };
     try {
         const ReloadReport rep = session_.load(a_.scene);
+        keep_baseline(false);
+        last_error_.clear();
         std::lock_guard<std::mutex> lock(mutex_);
         // Compared with the live scene: the last good one, whatever failed in between.
         unchanged_ = !rep.first && rep.changed.empty();
@@ -228,10 +276,13 @@ bool WatchLoop::load(const std::string& what) {
                                                 rep.summary(), rep.seconds);
         return true;
     } catch (const SpangleError& e) {
+        keep_baseline(true);
+        last_error_ = e.what();
         report_error(e.what());
-        const std::string line = fmt::format(
-            "reload failed; {}",
-            session_.has_scene() ? "still showing the last good scene" : "waiting for a good save");
+        const std::string line =
+            session_.has_scene() ? std::string("reload failed; still showing the last good scene")
+                                 : fmt::format("{} failed; waiting for a good save",
+                                               what == "first load" ? "loading" : "reload");
         say(line);
         if (server_) server_->stage(line);
         return false;
@@ -239,16 +290,87 @@ bool WatchLoop::load(const std::string& what) {
 }
 
 std::vector<std::string> WatchLoop::wait_for_change(FileWatcher& watcher) {
-    std::vector<std::string> files = session_.watched_files();
-    files.push_back(a_.scene);
-    watcher.watch(files);
-    std::vector<std::string> touched;
-    while (touched.empty() && !stop_requested()) touched = watcher.wait(250);
-    if (stop_requested()) touched.clear();
-    return touched;
+    const std::vector<std::string> ignored = {out_.exr, out_.preview};
+    while (!stop_requested()) {
+        const std::vector<std::string> files = files_to_watch();
+        watcher.watch(files, last_load_failed_, ignored);
+        // Saves whose events were not seen (made while the scene loaded, or in a folder that
+        // was away): the files differ from what the load read. Once they stop changing.
+        std::vector<std::string> saved;
+        for (int settle = 0; settle < 40; ++settle) {
+            std::vector<std::string> now;
+            for (const std::string& f : files) {
+                const auto it = baseline_.find(f);
+                if (it != baseline_.end() && file_identity(f) != it->second) now.push_back(f);
+            }
+            if (now.empty() || now == saved) {
+                saved = now;
+                break;
+            }
+            saved = now;
+            std::this_thread::sleep_for(std::chrono::milliseconds(50));
+        }
+        if (!saved.empty()) return saved;
+        std::vector<std::string> touched = watcher.wait(250);
+        if (!touched.empty() && !stop_requested()) return touched;
+    }
+    return {};
+}
+
+bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
+    {
+        std::lock_guard<std::mutex> lock(mutex_);
+        if (!rendering_) return false;  // nothing in progress to keep
+    }
+    const SceneInfo& info = session_.info();
+    std::vector<std::string> described = info.files;
+    described.push_back(info.path);
+    described.push_back(a_.scene);
+    for (const std::string& t : touched) {
+        bool scene_file = false;
+        for (const std::string& d : described) scene_file = scene_file || same_file(t, d);
+        if (!scene_file) return false;  // a mesh, a texture, a map: reload
+    }
+    std::string what;
+    for (const auto& f : touched)
+        what += (what.empty() ? "" : ", ") + fs::path(f).filename().string();
+    std::map<std::string, std::string> before;
+    for (const std::string& f : files_to_watch()) before[f] = file_identity(f);
+    try {
+        const SceneDescription d =
+            read_scene(a_.scene, SceneReadOptions{a_.camera, a_.environment});
+        if (scene_content_hash(d.path, d.files) != info.content_hash) return false;
+        say(fmt::format("reload ({}): the same as the scene being rendered: its render goes on",
+                        what));
+    } catch (const SpangleError& e) {
+        report_error(e.what());
+        say("reload failed; the last good scene's render goes on");
+        last_load_failed_ = true;  // retried when a file it lacks appears
+        last_error_ = e.what();
+    }
+    for (const auto& [f, id] : before) baseline_[f] = id;
+    return true;
 }
 
 void WatchLoop::apply_change(const std::vector<std::string>& touched) {
+    // After a failed load, a file that appeared in a watched folder may be the one the scene
+    // lacked: the scene is read again, and when it fails as before, nothing is said or stopped.
+    const std::vector<std::string> watched = files_to_watch();
+    bool arrivals_only = true;
+    for (const std::string& t : touched)
+        arrivals_only =
+            arrivals_only && !std::binary_search(watched.begin(), watched.end(), absolute_path(t));
+    if (arrivals_only && !last_error_.empty()) {
+        try {
+            read_scene(a_.scene, SceneReadOptions{a_.camera, a_.environment});
+        } catch (const SpangleError& e) {
+            if (e.what() == last_error_) return;
+        }
+    }
+    // A save that changes nothing the render reads, or that does not parse, leaves the render
+    // in progress alone (it restarted from its first sample: an autosave every few seconds
+    // kept it from ever finishing).
+    if (render_goes_on(touched)) return;
     {
         std::lock_guard<std::mutex> lock(mutex_);  // the render thread reads it in announce
         changed_at_ = std::chrono::steady_clock::now();
@@ -297,13 +419,19 @@ int WatchLoop::run() {
         apply_change(touched);
     }
     if (worker_.joinable()) worker_.join();
+    flush_unannounced("stopped before its first pass");
     say_stopped();
     return exit_status_for_signal();
 }
 
 void WatchLoop::say_stopped() {
     std::lock_guard<std::mutex> lock(mutex_);
-    if (written_spp_ == 0)
+    if (written_block_ > 0)
+        say(
+            fmt::format("stopped by {}: {} holds only the preview (1/{} resolution) of the last "
+                        "change, before its first pass",
+                        stop_signal_name(), out_.exr, written_block_));
+    else if (written_spp_ == 0)
         say(fmt::format("stopped by {}: no image written", stop_signal_name()));
     else if (written_spp_ < written_target_)
         say(fmt::format("stopped by {}: wrote {} at {} of {} samples per pixel", stop_signal_name(),
