@@ -555,7 +555,6 @@ void build_light(BuildContext& ctx, const LightDesc& d) {
     std::visit(LightPut{*ctx.registry, e, color * intensity}, d.shape);
 }
 
-
 }  // namespace
 
 uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files) {

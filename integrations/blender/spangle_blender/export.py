@@ -134,6 +134,62 @@ def _input(node, *names, default=None):
     return default
 
 
+_WRAPS = {"REPEAT": "periodic", "EXTEND": "clamp", "CLIP": "black", "MIRROR": "mirror"}
+
+
+def _texture_placement(node, warnings, what):
+    """An Image Texture node's wrap and its Vector input as Spangle's uv_transform: UV (or
+    nothing) through at most one Mapping node of type Point or Texture (its scale, Z rotation
+    and location; they were ignored). Anything else is a warning."""
+    out = {}
+    wrap = _WRAPS.get(getattr(node, "extension", "REPEAT"), "periodic")
+    if wrap != "periodic":
+        out["wrap"] = wrap
+    vec = node.inputs.get("Vector")
+    if vec is None or not vec.is_linked:
+        return out
+    src = vec.links[0].from_node
+    if src.type != "MAPPING":
+        if not (src.type == "TEX_COORD" and vec.links[0].from_socket.name == "UV") and not (
+                src.type == "UVMAP"):
+            warnings.append(f"{what}: a texture's coordinates come from a {src.type} node; "
+                            "the mesh's uvs stand in")
+        return out
+    inner = src.inputs.get("Vector")
+    if inner is not None and inner.is_linked:
+        feed = inner.links[0]
+        if not ((feed.from_node.type == "TEX_COORD" and feed.from_socket.name == "UV") or
+                feed.from_node.type == "UVMAP"):
+            warnings.append(f"{what}: a texture's mapping reads {feed.from_node.type} "
+                            "coordinates; the mesh's uvs stand in")
+            return out
+    if any(src.inputs[n].is_linked for n in ("Location", "Rotation", "Scale") if n in src.inputs):
+        warnings.append(f"{what}: a texture mapping's linked inputs are not exported")
+        return out
+    if src.vector_type not in ("POINT", "TEXTURE"):
+        warnings.append(f"{what}: a {src.vector_type.lower()} texture mapping is not exported")
+        return out
+    loc = src.inputs["Location"].default_value
+    rot = src.inputs["Rotation"].default_value
+    sc = src.inputs["Scale"].default_value
+    if abs(rot[0]) > 1e-6 or abs(rot[1]) > 1e-6:
+        warnings.append(f"{what}: a texture mapping's X/Y rotation is not exported")
+    # Point: uv' = R (S uv) + L. Texture is its inverse: uv' = S^-1 R^-1 (uv - L).
+    a = rot[2]
+    c, s_ = math.cos(a), math.sin(a)
+    if src.vector_type == "POINT":
+        m = [c * sc[0], -s_ * sc[1], loc[0], s_ * sc[0], c * sc[1], loc[1]]
+    else:
+        if abs(sc[0]) < 1e-12 or abs(sc[1]) < 1e-12:
+            return out
+        r = [[c / sc[0], s_ / sc[0]], [-s_ / sc[1], c / sc[1]]]
+        m = [r[0][0], r[0][1], -(r[0][0] * loc[0] + r[0][1] * loc[1]),
+             r[1][0], r[1][1], -(r[1][0] * loc[0] + r[1][1] * loc[1])]
+    if m != [1.0, 0.0, 0.0, 0.0, 1.0, 0.0]:
+        out["uv_transform"] = {"matrix": m}
+    return out
+
+
 def _socket_value(sock, warnings, what):
     if sock is None:
         return None
@@ -142,8 +198,10 @@ def _socket_value(sock, warnings, what):
         if src.type == "TEX_IMAGE" and src.image is not None and src.image.filepath:
             # The image's own colour space (a Non-Color roughness map is data, a linear EXR
             # is linear: every texture was tagged sRGB).
-            return {"texture": bpy.path.abspath(src.image.filepath),
-                    "space": _image_space(src.image)}
+            tex = {"texture": bpy.path.abspath(src.image.filepath),
+                   "space": _image_space(src.image)}
+            tex.update(_texture_placement(src, warnings, what))
+            return tex
         warnings.append(f"{what}: a node input ({sock.name}) is linked to a {src.type} node; its "
                         "own value stands in")
     v = sock.default_value
@@ -193,8 +251,12 @@ def _surface_map(node, warnings, what):
                 warnings.append(f"{what}: the bump node's Invert and Normal input are not exported")
             # Cycles displaces by height x Distance, and Strength blends the bumped normal with
             # the unbumped one: for gentle slopes the tilt scales with both.
-            height = float(src.inputs["Distance"].default_value) * float(
-                src.inputs["Strength"].default_value)
+            strength = float(src.inputs["Strength"].default_value)
+            height = float(src.inputs["Distance"].default_value) * strength
+            if strength < 1.0:
+                warnings.append(f"{what}: the bump's Strength {strength:g} is exported as a "
+                                "lower height (Cycles blends the normals: the same only for "
+                                "gentle bumps)")
             return "bump_map", {"texture": image, "height": max(height, 0.0)}
         warnings.append(f"{what}: a bump node whose Height is not an image texture is not "
                         "exported")
@@ -274,9 +336,15 @@ def material_entry(mat, flake_params, warnings):
     e_strength = _socket_value(_input(node, "Emission Strength"), warnings, what)
     if isinstance(e_color, tuple) and e_strength and max(e_color) > 0.0:
         emission = (e_color, float(e_strength))
+    elif isinstance(e_color, dict) and e_strength:
+        warnings.append(f"{what}: an image texture in Emission Color is not exported; the "
+                        "object does not emit")
     _dropped_inputs(node, transmission, warnings, what)
     surface = _surface_map(node, warnings, what)
     if isinstance(transmission, float) and transmission > 0.5:
+        if isinstance(base, dict) or (isinstance(base, tuple) and
+                                      any(abs(c - 1.0) > 1e-3 for c in base)):
+            warnings.append(f"{what}: glass is exported clear; its Base Color tint is not")
         params = {"ior": min(max(float(ior), 1.0), 10.0),
                   "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}
         if surface is not None:
@@ -298,12 +366,30 @@ def material_entry(mat, flake_params, warnings):
     elif isinstance(roughness, dict):
         params["roughness"] = roughness
     params["ior"] = min(max(float(ior), 1.0), 10.0)
+    # Specular IOR Level scales the dielectric's F0 by 2 level (0.5: as the IOR gives); above
+    # 0.5 it brightens it, which KHR_materials_specular's specular_color carries (the level was
+    # clamped to 0.5). Specular Tint colours F0 the same way.
     level = _socket_value(_input(node, "Specular IOR Level"), warnings, what)
+    tint = _socket_value(_input(node, "Specular Tint"), warnings, what)
+    boost = 1.0
     if isinstance(level, float):
         params["specular"] = min(max(2.0 * level, 0.0), 1.0)
+        boost = min(max(2.0 * level, 1.0), 10.0)
+    tint = tint if isinstance(tint, tuple) and len(tint) == 3 else (1.0, 1.0, 1.0)
+    spec_color = tuple(min(t * boost, 10.0) for t in tint)
+    if any(abs(c - 1.0) > 1e-6 for c in spec_color):
+        params["specular_color"] = spec_color
     coat = _socket_value(_input(node, "Coat Weight"), warnings, what)
     if isinstance(coat, float) and coat > 0.0:
         params["clearcoat"] = min(coat, 1.0)
+        coat_tint = _input(node, "Coat Tint")
+        if coat_tint is not None and (coat_tint.is_linked or any(
+                abs(c - 1.0) > 1e-6 for c in tuple(coat_tint.default_value)[:3])):
+            warnings.append(f"{what}: Coat Tint is not exported; the coat is clear")
+        coat_ior = _input(node, "Coat IOR")
+        if coat_ior is not None and (coat_ior.is_linked or
+                                     abs(float(coat_ior.default_value) - 1.5) > 1e-3):
+            warnings.append(f"{what}: Coat IOR is not exported; the coat's index is 1.5")
         coat_r = _socket_value(_input(node, "Coat Roughness"), warnings, what)
         if isinstance(coat_r, float):
             params["clearcoat_roughness"] = min(max(coat_r, 0.0), 1.0)
@@ -316,7 +402,13 @@ _SURFACE_MAPS = ("normal_map", "bump_map")
 def _param_toml(k, v):
     if isinstance(v, dict):
         space = v.get("space", "srgb_texture")
-        return f'{k} = {{ texture = {_toml_string(v["texture"])}, space = {_toml_string(space)} }}'
+        extra = ""
+        if "wrap" in v:
+            extra += f", wrap = {_toml_string(v['wrap'])}"
+        if "uv_transform" in v:
+            extra += f", uv_transform = {{ matrix = {_vec(v['uv_transform']['matrix'])} }}"
+        return (f'{k} = {{ texture = {_toml_string(v["texture"])}, '
+                f'space = {_toml_string(space)}{extra} }}')
     return f"{k} = {_toml_value(v)}"
 
 
@@ -401,11 +493,44 @@ def _world_lines(world, warnings):
     return []
 
 
+def _light_node_factor(obj, warnings):
+    """(colour, strength) of a light's node tree: an Emission node into the Light Output scales
+    the light's colour and power, as in Cycles (it was ignored); anything else is a warning."""
+    light = obj.data
+    if not getattr(light, "use_nodes", False) or light.node_tree is None:
+        return (1.0, 1.0, 1.0), 1.0
+    for node in light.node_tree.nodes:
+        if node.type == "OUTPUT_LIGHT" and node.is_active_output:
+            surf = node.inputs.get("Surface")
+            if surf is None or not surf.is_linked:
+                return (1.0, 1.0, 1.0), 1.0
+            src = surf.links[0].from_node
+            if src.type == "EMISSION" and not any(i.is_linked for i in src.inputs):
+                return (tuple(src.inputs["Color"].default_value)[:3],
+                        float(src.inputs["Strength"].default_value))
+            warnings.append(f"light '{obj.name}': its node tree is not exported (an Emission node "
+                            "with unlinked inputs is); its colour and power stand in")
+            break
+    return (1.0, 1.0, 1.0), 1.0
+
+
 def _light_lines(obj, matrix, warnings):
     light = obj.data
     pos = matrix.translation
-    color = tuple(light.color)
+    tint, strength = _light_node_factor(obj, warnings)
+    color = tuple(c * t * strength for c, t in zip(light.color, tint))
     lines = []
+    what = f"light '{obj.name}'"
+    if getattr(light, "use_shadow", True) is False:
+        warnings.append(f"{what}: Cast Shadow off is not exported; it casts shadows")
+    linking = getattr(obj, "light_linking", None)
+    if linking is not None and (getattr(linking, "receiver_collection", None) is not None or
+                                getattr(linking, "blocker_collection", None) is not None):
+        warnings.append(f"{what}: light linking is not exported; it lights everything")
+    scale = matrix.to_scale()
+    if light.type == "SPOT" and max(abs(scale.x), abs(scale.y)) > 1.0001 * min(abs(scale.x),
+                                                                               abs(scale.y)):
+        warnings.append(f"{what}: a spot's non-uniform scale is not exported; its cone stays round")
     if light.type in ("POINT", "SPOT"):
         # Blender's watts as radiant intensity, P / (4 pi) W/sr (as its glTF exporter converts).
         intensity = light.energy / (4.0 * math.pi)
@@ -442,11 +567,37 @@ def _light_lines(obj, matrix, warnings):
         # Power P of a one-sided Lambertian emitter: radiance P / (pi A). It emits along the
         # light's -Z: edge2 x edge1 order.
         radiance = light.energy / (math.pi * max(area, 1e-12))
+        if getattr(light, "spread", math.pi) < math.pi - 1e-4:
+            warnings.append(f"{what}: its spread ({math.degrees(light.spread):g} degrees) is not "
+                            "exported; it emits into the whole hemisphere")
+        # Cycles' lights are invisible to the camera (by default) and cast no shadow; a quad
+        # light is a surface: seen, and in the way of light behind it.
+        warnings.append(f"{what}: exported as a quad light, which the camera sees (black from "
+                        "behind) and which shadows what is behind it; Cycles' area lights are "
+                        "neither seen nor in the way")
         lines += ["[[light]]", 'type = "quad"', f"corner = {_vec(corner)}", f"edge1 = {_vec(ey)}",
                   f"edge2 = {_vec(ex)}", f"color = {_vec(color)}", f"intensity = {_fmt(radiance)}"]
     else:
         warnings.append(f"light '{obj.name}': type {light.type} is not supported")
     return lines
+
+
+def _object_warnings(obj, warnings):
+    """Warnings for an object's Cycles settings that the export does not carry (they were
+    dropped silently). A shadow catcher is carried over (Spangle's `shadow_catcher`)."""
+    what = f"object '{obj.name}'"
+    for attr, label in (("visible_camera", "camera"), ("visible_shadow", "shadow"),
+                        ("visible_diffuse", "diffuse"), ("visible_glossy", "glossy"),
+                        ("visible_transmission", "transmission")):
+        if getattr(obj, attr, True) is False:
+            warnings.append(f"{what}: its ray visibility ({label} off) is not exported; it is seen "
+                            "by every ray")
+    if getattr(obj, "is_holdout", False):
+        warnings.append(f"{what}: holdout is not exported; the object renders as itself")
+    linking = getattr(obj, "light_linking", None)
+    if linking is not None and (getattr(linking, "receiver_collection", None) is not None or
+                                getattr(linking, "blocker_collection", None) is not None):
+        warnings.append(f"{what}: light linking is not exported; it lights and shadows everything")
 
 
 def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
@@ -494,12 +645,20 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     os.makedirs(mesh_dir, exist_ok=True)
     for inst in depsgraph.object_instances:
         obj = inst.object
+        # An instancer shown only through its instances (a particle emitter with Show Emitter
+        # off for render) is not drawn itself (it was).
+        if not getattr(inst, "show_self", True):
+            continue
         if obj.type == "LIGHT":
             out += _light_lines(obj, inst.matrix_world.copy(), warnings) + [""]
             continue
         if obj.type not in ("MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES"):
             continue
-        key = obj.name
+        _object_warnings(obj, warnings)
+        # One mesh file per geometry: Geometry Nodes instances are objects named after their
+        # instancer but hold the instanced mesh (keyed by name, every instance took the
+        # instancer's own mesh, or an empty one).
+        key = (obj.name, obj.data.as_pointer() if obj.data is not None else 0)
         if key not in meshes:
             meshes[key] = []
             try:
@@ -527,7 +686,8 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
             k = names.get(obj.name, 0)
             names[obj.name] = k + 1
             unique = obj.name if k == 0 else f"{obj.name}.{k}"
-            objects.append((ply, name, inst.matrix_world.copy(), unique))
+            objects.append((ply, name, inst.matrix_world.copy(), unique,
+                            bool(getattr(obj, "is_shadow_catcher", False))))
 
     for name, (plugin, model, params, _emission) in materials.items():
         out += ["[[material]]", f"name = {_toml_string(name)}", f"plugin = {_toml_string(plugin)}"]
@@ -540,13 +700,18 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
             out.append(f"{k} = {{ " + ", ".join(f"{a} = {_toml_value(b)}" for a, b in v.items())
                        + " }")
         out.append("")
-    for ply, name, mw, obj_name in objects:
+    for ply, name, mw, obj_name, catcher in objects:
         rows = [mw[r][c] for r in range(3) for c in range(4)]
         out += ["[[object]]", f"name = {_toml_string(obj_name)}", f"mesh = {_toml_string(ply)}",
                 f"material = {_toml_string(name)}", "matrix = " + _vec(rows)]
+        if catcher:
+            out.append("shadow_catcher = true")
         emission = materials[name][3]
         if emission is not None:
-            out += [f"emission = {_vec(emission[0])}", f"emission_intensity = {_fmt(emission[1])}"]
+            # Cycles' emission shines from both sides of a face (one-sided, an emitter whose
+            # normals faced away was black).
+            out += [f"emission = {_vec(emission[0])}", f"emission_intensity = {_fmt(emission[1])}",
+                    "emission_two_sided = true"]
         out.append("")
     with open(os.path.join(folder, "scene.toml"), "w", encoding="utf-8") as f:
         f.write("\n".join(out) + "\n")
