@@ -22,8 +22,10 @@ void reframe(SurfacePoint& sp, Vec3 nf) {
 }
 
 /** Tilts sp's normal by a bump map's height slopes (hs, ht) along the image's axes: a height
- *  field in metres along the normal, its slope from the filtered texture's derivatives. */
-void bump(SurfacePoint& sp, const float* m, float hs, float ht) {
+ *  field in metres along the normal, its slope from the filtered texture's derivatives; with
+ *  `blend` below 1 the normal is the surface's blended that far towards the bumped one (Cycles'
+ *  Bump Strength: a strong bump softened, which a lower height cannot give). */
+void bump(SurfacePoint& sp, const float* m, float hs, float ht, float blend) {
     const Vec3 nf = sp.backface ? -sp.n : sp.n;
     // Height h = height * value; dh/du and dh/dv through the uv transform (t = 1 - v').
     const float dhdu = hs * m[0] - ht * m[3];
@@ -31,6 +33,11 @@ void bump(SurfacePoint& sp, const float* m, float hs, float ht) {
     Vec3 nb = cross(sp.dpdu + nf * dhdu, sp.dpdv + nf * dhdv);
     // cross(dpdu, dpdv) points to either side, by the uvs' handedness.
     if (dot(cross(sp.dpdu, sp.dpdv), nf) < 0.0f) nb = -nb;
+    if (blend < 1.0f) {
+        const float len = length(nb);
+        if (!(len > 0.0f) || !std::isfinite(len)) return;
+        nb = nf + (nb / len - nf) * blend;
+    }
     reframe(sp, nb);
 }
 
@@ -96,7 +103,8 @@ void apply_map(const RenderScene& w, Workspace& ws, const MaterialInstance& mat,
         SurfacePoint& sp = ws.paths.surf[paths[k]];
         if (!sp.has_uv) continue;  // no tangent space to read the map in
         if (is_bump)
-            bump(sp, b.ref.uv, ws.map_ds[k] * b.ref.amount, ws.map_dt[k] * b.ref.amount);
+            bump(sp, b.ref.uv, ws.map_ds[k] * b.ref.amount, ws.map_dt[k] * b.ref.amount,
+                 b.ref.blend);
         else
             normal_map(sp, b.ref.uv, &ws.map_value[3 * k], b.ref.amount);
     }

@@ -36,6 +36,7 @@ struct TextureRef {
     int wrap = 0;                      ///< 0 periodic, 1 clamp, 2 black, 3 mirror
     int filter = 0;                    ///< 0 trilinear, 1 anisotropic
     float amount = 1;                  ///< normal_map: strength; bump_map: height in metres
+    float blend = 1;  ///< bump_map: how far the bumped normal replaces the surface's (0..1)
     bool operator==(const TextureRef&) const = default;
 };
 

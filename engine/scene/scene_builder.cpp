@@ -260,6 +260,7 @@ TextureRef texture_ref(BuildContext& ctx, const TextureDesc& t) {
     ref.wrap = t.wrap;
     ref.filter = t.filter;
     ref.amount = t.amount;
+    ref.blend = t.blend;
     return ref;
 }
 

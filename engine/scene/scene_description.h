@@ -46,6 +46,7 @@ struct TextureDesc {
     int wrap = 0;                      ///< 0 periodic, 1 clamp, 2 black, 3 mirror
     int filter = 0;                    ///< 0 trilinear, 1 anisotropic
     float amount = 1;                  ///< normal map: strength; bump map: height in metres
+    float blend = 1;  ///< bump map: how far the bumped normal replaces the surface's (0..1)
 };
 
 /** One material parameter as written, before the plugin's schema checks it. */

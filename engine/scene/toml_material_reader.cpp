@@ -139,8 +139,8 @@ void read_texture_scale(const ReadContext& ctx, TableReader& r, TextureDesc& tex
 }
 
 /** `{ texture = "file", space = ..., scale = ..., uv_transform = {...}, wrap = ..., filter =
- *  ... }` (plus `strength` for a normal map, `height` for a bump map; `scale` only for a
- *  parameter). */
+ *  ... }` (plus `strength` for a normal map, `height` and `strength` for a bump map; `scale` only
+ * for a parameter). */
 TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::string_view name,
                          TextureUse use) {
     TableReader r(t, ctx.file, fmt::format("texture '{}'", name));
@@ -153,8 +153,11 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
     if (use == TextureUse::Param && r.has("scale")) read_texture_scale(ctx, r, tex);
     if (use == TextureUse::NormalMap)
         tex.amount = static_cast<float>(r.number("strength", 1.0, {0.0, 10.0}));
-    if (use == TextureUse::BumpMap)
+    if (use == TextureUse::BumpMap) {
         tex.amount = static_cast<float>(r.number("height", 0.001, {-1.0, 1.0}));
+        // Cycles' Bump Strength: the normal is the surface's blended with the bumped one.
+        tex.blend = static_cast<float>(r.number("strength", 1.0, {0.0, 1.0}));
+    }
     if (const toml::table* uv = r.table("uv_transform")) read_uv_transform(ctx, *uv, tex);
     if (r.has("wrap")) {
         const std::string w = r.string("wrap");

@@ -188,7 +188,10 @@ struct Writer {
             s += fmt::format(", scale = [{}, {}, {}]", num(t.scale[0]), num(t.scale[1]),
                              num(t.scale[2]));
         if (std::string(use) == "normal_map") s += ", strength = " + num(t.amount);
-        if (std::string(use) == "bump_map") s += ", height = " + num(t.amount);
+        if (std::string(use) == "bump_map") {
+            s += ", height = " + num(t.amount);
+            if (t.blend != 1.0f) s += ", strength = " + num(t.blend);
+        }
         std::vector<std::string> uv;
         for (float x : t.uv) uv.push_back(num(x));
         s += fmt::format(", uv_transform = {{ matrix = [{}] }}", fmt::join(uv, ", "));

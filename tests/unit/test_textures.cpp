@@ -275,6 +275,40 @@ params = { preset = "gold", roughness = 0.2 })";
         ASSERT_NEAR(turned.image[i], t.image[i], 1e-3f * std::max(1.0f, t.image[i])) << i;
 }
 
+TEST(Texture, ABumpMapsStrengthBlendsTheNormalsAsBlendersBumpDoes) {
+    // strength 0: the surface's normal (the image of no map); 1: the bumped one; between: the
+    // normalised blend of the two, which is not a lower height (Blender's Bump Strength).
+    test::TempDir dir("texture_bump_strength");
+    std::vector<float> ramp(3 * 16 * 16);
+    for (std::size_t p = 0; p < 16 * 16; ++p)
+        ramp[3 * p] = ramp[3 * p + 1] = ramp[3 * p + 2] = static_cast<float>(p % 16) / 15.0f;
+    write_float_exr(dir.file("ramp.exr"), ramp, 16, 16);
+    const std::string body = R"(plugin = "smooth"
+model = "diffuse")";
+    const auto with = [&](const std::string& name, const std::string& map) {
+        return render_text(dir, name, plane_scene(body + "\n" + map)).image;
+    };
+    const std::vector<float> plain = with("plain.toml", "");
+    const std::string bump = "bump_map = { texture = \"ramp.exr\", ";
+    const std::vector<float> none = with("none.toml", bump + "height = 1, strength = 0 }");
+    const std::vector<float> full = with("full.toml", bump + "height = 1 }");
+    const std::vector<float> half = with("half.toml", bump + "height = 1, strength = 0.5 }");
+    const std::vector<float> lower = with("lower.toml", bump + "height = 0.5 }");
+    const auto distance = [](const std::vector<float>& a, const std::vector<float>& b) {
+        double d = 0.0;
+        for (std::size_t i = 0; i < a.size(); ++i) d += std::fabs(a[i] - b[i]);
+        return d;
+    };
+    ASSERT_EQ(plain.size(), none.size());
+    EXPECT_LT(distance(none, plain), 1e-3 * distance(full, plain));
+    EXPECT_GT(distance(half, plain), 0.1 * distance(full, plain));
+    EXPECT_GT(distance(half, full), 0.1 * distance(full, plain));
+    EXPECT_GT(distance(half, lower), 0.05 * distance(full, plain)) << "a blend is not a height";
+    // Out of [0, 1] is an error at the key.
+    EXPECT_THROW(with("bad.toml", "bump_map = { texture = \"ramp.exr\", strength = 1.5 }"),
+                 SpangleError);
+}
+
 TEST(Texture, AFlakeMaskHoldsNoGlintWhereItIsZero) {
     test::TempDir dir("texture_mask");
     // Left half of the image 0, right half 1. The plane's uvs span [0, 4]: a uv scale of 1/4

@@ -251,13 +251,14 @@ def _surface_map(node, warnings, what):
                 warnings.append(f"{what}: the bump node's Invert and Normal input are not exported")
             # Cycles displaces by height x Distance, and Strength blends the bumped normal with
             # the unbumped one: for gentle slopes the tilt scales with both.
-            strength = float(src.inputs["Strength"].default_value)
-            height = float(src.inputs["Distance"].default_value) * strength
+            # Cycles displaces by height x Distance and blends the bumped normal with the
+            # surface's by Strength: the bump map's height and strength.
+            strength = min(max(float(src.inputs["Strength"].default_value), 0.0), 1.0)
+            height = float(src.inputs["Distance"].default_value)
+            bump = {"texture": image, "height": min(max(height, 0.0), 1.0)}
             if strength < 1.0:
-                warnings.append(f"{what}: the bump's Strength {strength:g} is exported as a "
-                                "lower height (Cycles blends the normals: the same only for "
-                                "gentle bumps)")
-            return "bump_map", {"texture": image, "height": max(height, 0.0)}
+                bump["strength"] = strength
+            return "bump_map", bump
         warnings.append(f"{what}: a bump node whose Height is not an image texture is not "
                         "exported")
         return None
