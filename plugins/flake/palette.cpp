@@ -207,7 +207,9 @@ bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3
         why = "colour table: " + std::string(err);
         return false;
     }
-    for (float& x : t.rgb) x = std::max(0.0f, x);
+    // Within [0, 1] in the working space, as colour parameters are: a table in a wider space
+    // (ACEScg into Rec.709) gave flakes reflecting 1.4-1.7 times the light in one channel.
+    for (float& x : t.rgb) x = std::clamp(x, 0.0f, 1.0f);
     // Hue bias towards base_color: its hue measured in linear Rec.709.
     float base709[3];
     if (!base_in_rec709(base_rgb, host, base709, why)) return false;

@@ -157,6 +157,29 @@ TEST(FlakeEnergy, ThinFilmReflectanceNeverExceedsOne) {
         }
 }
 
+TEST(FlakeEnergy, AColourTableInAWiderSpaceNeverGainsEnergy) {
+    // Found by a user: a table of saturated ACEScg hues in a Rec.709 working space gave white
+    // flakes reflecting 1.4-1.7 times the light in red (the colours were clipped below 0, not
+    // above 1). Every channel of every footprint reflects at most 1.
+    auto m = flake_material(true,
+                            {{"color_table", {1.0}},
+                             {"table_size", {1.0}},
+                             {"shadowing", {0.0}},
+                             {"table_l", {0.5}},
+                             {"table_s", {1.0}}},
+                            {{"algorithm", "enumerate"}, {"table_space", "ACEScg"}});
+    double red = 0.0;
+    for (uint64_t k = 0; k < 4; ++k) {
+        m->prepare(dir(1.0f, 0.0f), random_footprint(300.0, 431, k));
+        for (int ch = 0; ch < 3; ++ch) {
+            const double a = albedo(*m, 4000, k, ch);
+            EXPECT_LE(a, 1.0 + 1e-4) << "channel " << ch << ", footprint " << k;
+            if (ch == 0) red = std::max(red, a);
+        }
+    }
+    EXPECT_GT(red, 0.5) << "the flakes are red and bright (the test can fail)";
+}
+
 TEST(FlakeLooks, InterferenceColourShiftsWithTheViewAngle) {
     // A pearl pigment (250 nm of TiO2, index 2.4, over mica flakes of index 1.6): the highlight's
     // chromaticity moves as the view tilts from near normal to 70 degrees (measured 0.20 in
