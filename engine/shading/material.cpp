@@ -178,8 +178,10 @@ ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Mate
             };
             const auto check_range = [&](double x) {
                 if (!(x >= d.min_value && x <= d.max_value))
-                    throw_error(p->loc, "material '{}': '{}' must be in {}, got {}", m.name, d.name,
-                                range_text(d), x);
+                    // Seven digits: a colour passes through single precision (1.2 printed
+                    // as 1.2000000476837158).
+                    throw_error(p->loc, "material '{}': '{}' must be in {}, got {:.7g}", m.name,
+                                d.name, range_text(d), x);
             };
             switch (d.type) {
                 case SPANGLE_PARAM_FLOAT:
