@@ -30,6 +30,13 @@ int run_flicker(const FlickerArgs& a) {
         throw_error(
             "no pixel of a frame could be followed into the next one, so nothing was compared: "
             "are these frames of one sequence, rendered with --frames --layers?");
+    // No glint anywhere: the figures below would read as "every glint flickers".
+    if (!(r.mask_fraction > 0.0))
+        throw_error(
+            "no glint in these frames (their glints layers hold nothing above the threshold "
+            "{:.4g}): "
+            "nothing to measure; render a flake material with --layers",
+            r.threshold);
     fmt::print(
         "frames: {} ({} pairs), pixels compared: {:.0f} (points carried by {})\n"
         "glint mask threshold: {:.4g}, mask coverage: {:.4f}\n"

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 
 #include "../common/microfacet.h"
 #include "../common/plugin_support.h"
@@ -69,10 +70,24 @@ bool build_film(FilmTables& film, FresnelTable& mean, const SpangleParams_v3* p,
                 const SpangleHost_v3* host, std::string& why) {
     film.levels.clear();
     const double d_max = param_number(p, "film_thickness_max");
-    if (d_max <= 0.0) return true;
     const double d_min = param_number(p, "film_thickness_min");
+    // A minimum alone asks for a film that the maximum's 0 (no film) would drop silently.
+    if (d_max <= 0.0 && d_min > 0.0) {
+        char text[160];
+        std::snprintf(text, sizeof(text),
+                      "film_thickness_min is %g nm but film_thickness_max is 0 (no film): give "
+                      "film_thickness_max too",
+                      d_min);
+        why = text;
+        return false;
+    }
+    if (d_max <= 0.0) return true;
     if (d_min > d_max) {
-        why = "film_thickness_min must not exceed film_thickness_max";
+        char text[160];
+        std::snprintf(text, sizeof(text),
+                      "film_thickness_min (%g nm) must not exceed film_thickness_max (%g nm)",
+                      d_min, d_max);
+        why = text;
         return false;
     }
     float to_working[9];
