@@ -229,7 +229,8 @@ RTCScene make_top_level(RTCDevice device, const std::vector<RTCScene>& blas,
 
 void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instance>& instances,
                         const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres,
-                        const WorkProgress& progress) {
+                        const WorkProgress& progress,
+                        const std::vector<uint8_t>& quad_see_through) {
     BuildProgress meter;
     meter.report = &progress;
     {
@@ -276,6 +277,24 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
     if (top_) rtcReleaseScene(top_);
     top_ =
         make_top_level(device_, blas_, instances, quad_vertices, spheres, quad_geom_, sphere_geom_);
+    quad_see_through_ = quad_see_through;
+    if (quad_geom_ != RTC_INVALID_GEOMETRY_ID &&
+        std::find(quad_see_through_.begin(), quad_see_through_.end(), 1) !=
+            quad_see_through_.end()) {
+        // Transparent quad lights: shadow rays ignore their triangles (intersection rays still
+        // meet them, and the path tracer goes on through them).
+        RTCGeometry g = rtcGetGeometry(top_, quad_geom_);
+        rtcSetGeometryUserData(g, quad_see_through_.data());
+        rtcSetGeometryOccludedFilterFunction(g, [](const RTCFilterFunctionNArguments* args) {
+            const auto* through = static_cast<const uint8_t*>(args->geometryUserPtr);
+            for (unsigned i = 0; i < args->N; ++i) {
+                if (args->valid[i] != -1) continue;
+                const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+                if (through[prim / 2]) args->valid[i] = 0;
+            }
+        });
+        rtcCommitGeometry(g);
+    }
     meter.begin(top_, static_cast<double>(instances.size() + quad_vertices.size() / 4 + 1));
     rtcCommitScene(top_);
     check("building the scene's acceleration structure");
@@ -315,11 +334,13 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time) co
 }
 
 void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits,
-                                   uint8_t* found, const float* time) const {
+                                   uint8_t* found, const float* time, const float* tnear) const {
     thread_local std::vector<RTCRayHit> rays;
     rays.resize(n);
-    for (std::size_t i = 0; i < n; ++i)  // a non-finite ray misses
+    for (std::size_t i = 0; i < n; ++i) {  // a non-finite ray misses
         make_ray_hit(o[i], d[i], 1e30f, time ? time[i] : 0.0f, rays[i]);
+        if (tnear && std::isfinite(tnear[i])) rays[i].ray.tnear = std::max(0.0f, tnear[i]);
+    }
     RTCIntersectContext ctx;
     rtcInitIntersectContext(&ctx);
     ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;  // ray by ray: see the header

@@ -81,7 +81,8 @@ public:
      *  be empty) is told how far the builds are, by triangles. Throws SpangleError. */
     void build(const GeometryStore& geometry, const std::vector<Instance>& instances,
                const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres,
-               const WorkProgress& progress = {});
+               const WorkProgress& progress = {},
+               const std::vector<uint8_t>& quad_see_through = {});
 
     /** Centre and radius of a sphere bounding everything in the scene (0 radius when empty). */
     void bounding_sphere(Vec3& center, float& radius) const;
@@ -102,7 +103,7 @@ public:
      *  could differ from the whole render; they saved no time here). It may differ from
      *  intersect()'s in the last bits (another Embree code path). */
     void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits, uint8_t* found,
-                          const float* time = nullptr) const;
+                          const float* time = nullptr, const float* tnear = nullptr) const;
     /** blocked[i] = whether something blocks o[i] + t d[i] for t in (0, tmax[i]), for n rays
      *  traced as one (incoherent) stream, at times time[i] (null: all at 0). A non-finite ray
      *  counts as blocked. */
@@ -137,6 +138,9 @@ private:
         by_mesh_;
     int built_ = 0, reused_ = 0;
     uint32_t quad_geom_ = RTC_INVALID_GEOMETRY_ID;
+    /** Per quad light: 1 when shadow rays pass through it (its geometry's occlusion filter
+     *  reads this; none is set when every quad blocks). */
+    std::vector<uint8_t> quad_see_through_;
     uint32_t sphere_geom_ = RTC_INVALID_GEOMETRY_ID;
     float offset_scale_ = 1.0f;
     std::atomic<std::ptrdiff_t> bytes_{0}, peak_bytes_{0};

@@ -67,6 +67,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
             a.radiance = q.radiance;
             a.parallelogram = true;
             a.two_sided = q.two_sided;
+            a.transparent = q.transparent;
             a.group = light_group(r, quads->entities()[i]);
             set.areas.push_back(a);
         }

@@ -46,7 +46,8 @@ struct AreaEmitter {
     Vec3 radiance;      ///< working-space RGB, W/(m^2 sr)
     bool parallelogram = false;
     bool two_sided = false;
-    uint32_t group = 0;  ///< light group (render layers)
+    bool transparent = false;  ///< a quad that lets every ray through (QuadLight::transparent)
+    uint32_t group = 0;        ///< light group (render layers)
 };
 
 /** A spherical emitter. */

@@ -119,6 +119,27 @@ bool meet(const RenderJob& job, Workspace& ws, Sink& sink, std::size_t k, const 
     return true;
 }
 
+/** Whether `hit` is on a quad light that lets every ray through (QuadLight::transparent). */
+bool see_through(const RenderScene& w, const Hit& hit) {
+    return hit.kind == HitKind::Quad &&
+           w.lights->area(w.quad_light_first + hit.prim / 2).transparent;
+}
+
+/** Path k's ray met a transparent quad light: the light it picks up there (MIS-weighted, as at
+ *  any light; none for a camera ray, which does not see it), before it goes on. */
+template <class Sink>
+void pass_light(const RenderJob& job, Workspace& ws, Sink& sink, std::size_t k, const Hit& hit,
+                uint32_t bounce) {
+    PathBatch& p = ws.paths;
+    if (bounce == 0 || p.catcher[k] == 1) return;
+    uint32_t group = 0;
+    const Vec3 e = emission_at_hit(*job.scene, job.strategy, p, k, hit, group);
+    const Vec3 c = p.throughput[k] * e;
+    const float kc = clamp_factor(job, c, bounce);
+    p.radiance[k] += c * kc;
+    sink.emitted(k, bounce, c, kc, group, e);
+}
+
 /** Starts the fetch of the mesh data of hit h (its triangle's vertices) into the cache. */
 void prefetch_vertices(const RenderScene& w, const Workspace& ws, std::size_t h) {
     const Hit& hit = ws.hits[h].hit;
@@ -193,13 +214,53 @@ void intersect(RenderJob& job, Workspace& ws, Sink& sink, std::size_t n, uint32_
     ws.group_start.assign(material_count + 1, 0u);
     ws.hits.clear();
     trace_active(job, ws, n);
-    for (std::size_t j = 0; j < ws.stream_path.size(); ++j) {
-        const std::size_t k = ws.stream_path[j];
+    // Rays that met a transparent quad light go on past it (from the same origin, beyond the
+    // light): up to kThrough lights in a row.
+    constexpr int kThrough = 8;
+    thread_local std::vector<uint32_t> again, next;
+    thread_local std::vector<float> again_t, next_t;
+    again.clear();
+    again_t.clear();
+    const auto take = [&](std::size_t k, bool found, const Hit& hit, int depth) {
         ++rays;
-        if (!ws.stream_found[j])
+        if (!found)
             escape(job, ws, sink, k, bounce);
-        else if (meet(job, ws, sink, k, ws.stream_hit[j], bounce))
-            ws.hits.push_back({static_cast<uint32_t>(k), ws.stream_hit[j]});
+        else if (see_through(*job.scene, hit) && depth < kThrough) {
+            pass_light(job, ws, sink, k, hit, bounce);
+            next.push_back(static_cast<uint32_t>(k));
+            next_t.push_back(hit.t);
+        } else if (meet(job, ws, sink, k, hit, bounce))
+            ws.hits.push_back({static_cast<uint32_t>(k), hit});
+    };
+    next.clear();
+    next_t.clear();
+    for (std::size_t j = 0; j < ws.stream_path.size(); ++j)
+        take(ws.stream_path[j], ws.stream_found[j] != 0, ws.stream_hit[j], 0);
+    for (int depth = 1; !next.empty(); ++depth) {
+        again.swap(next);
+        again_t.swap(next_t);
+        next.clear();
+        next_t.clear();
+        const PathBatch& p = ws.paths;
+        const std::size_t m = again.size();
+        ws.stream_o.resize(m);
+        ws.stream_d.resize(m);
+        ws.stream_time.resize(m);
+        ws.stream_hit.resize(m);
+        ws.stream_found.assign(m, 0);
+        thread_local std::vector<float> tnear;
+        tnear.resize(m);
+        for (std::size_t i = 0; i < m; ++i) {
+            ws.stream_o[i] = p.ray[again[i]].o;
+            ws.stream_d[i] = p.ray[again[i]].d;
+            ws.stream_time[i] = p.time[again[i]];
+            tnear[i] = again_t[i] * (1.0f + 1e-5f) + 1e-6f;
+        }
+        job.scene->accel->intersect_stream(
+            ws.stream_o.data(), ws.stream_d.data(), m, ws.stream_hit.data(), ws.stream_found.data(),
+            job.motion ? ws.stream_time.data() : nullptr, tnear.data());
+        for (std::size_t i = 0; i < m; ++i)
+            take(again[i], ws.stream_found[i] != 0, ws.stream_hit[i], depth);
     }
     resolve_surfaces(job, ws, sink, bounce);
     sort_by_material(ws, n, material_count);

@@ -155,7 +155,8 @@ SPANGLE_COMPONENT(Emission, SPANGLE_EMISSION_FIELDS);
     X(Vec3, edge1, "first edge from the corner")               \
     X(Vec3, edge2, "second edge; emits towards edge1 x edge2") \
     X(Vec3, radiance, "working-space RGB radiance")            \
-    X(bool, two_sided, "emit from both faces")
+    X(bool, two_sided, "emit from both faces")                 \
+    X(bool, transparent, "lets every ray through: unseen, no shadow")
 /** A parallelogram area light. */
 SPANGLE_COMPONENT(QuadLight, SPANGLE_QUAD_LIGHT_FIELDS);
 

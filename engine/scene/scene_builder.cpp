@@ -515,7 +515,7 @@ struct LightPut {
     void operator()(const QuadLightDesc& d) const {
         if (!(length(cross(d.edge1, d.edge2)) > 0.0f))
             throw_error(d.edge2_loc, "quad light edges must span a non-zero area");
-        registry.put(e, QuadLight{d.corner, d.edge1, d.edge2, value, d.two_sided});
+        registry.put(e, QuadLight{d.corner, d.edge1, d.edge2, value, d.two_sided, d.transparent});
     }
     /** A sphere. */
     void operator()(const SphereLightDesc& d) const {

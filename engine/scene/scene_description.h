@@ -264,7 +264,10 @@ struct QuadLightDesc {
     Vec3 edge1;              ///< first edge from the corner
     Vec3 edge2;              ///< second edge; emits towards edge1 x edge2
     bool two_sided = false;  ///< emits from both faces
-    FileLoc edge2_loc;       ///< blamed when the edges span no area
+    /** Lets every ray through (Cycles' lights): the camera does not see it, it casts no
+     *  shadow, and rays that meet it pick up its light and go on. */
+    bool transparent = false;
+    FileLoc edge2_loc;  ///< blamed when the edges span no area
 };
 
 /** A spherical area light. */

@@ -492,6 +492,7 @@ LightShapeDesc read_light_shape(TableReader& r, const std::string& type) {
         q.edge2 = r.vec3("edge2");
         q.edge2_loc = r.loc("edge2");
         q.two_sided = r.boolean("two_sided", q.two_sided);
+        q.transparent = r.boolean("transparent", q.transparent);
         return q;
     }
     if (type == "sphere") {

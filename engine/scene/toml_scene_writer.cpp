@@ -339,6 +339,7 @@ struct Writer {
                 w.line("edge1", vec(q.edge1));
                 w.line("edge2", vec(q.edge2));
                 w.line("two_sided", q.two_sided ? "true" : "false");
+                if (q.transparent) w.line("transparent", "true");
             }
             void operator()(const SphereLightDesc& s) const {
                 w.line("type", str("sphere"));

@@ -63,29 +63,34 @@ TEST(Render, FurnaceSphereIsAlbedoTimesEnvironmentExactly) {
 }
 
 TEST(Render, RectangleLightMatchesClosedFormIrradiance) {
-    const FrameResult r = render("quad_irradiance.toml", 2);
-    // Point below the centre of a 2 x 2 light at height 1 = four 1 x 1 rectangles with a corner
-    // above it. Form factor of each (parallel planes, corner above the point):
-    //   F = 1/(2 pi) [X/sqrt(1+X^2) atan(Y/sqrt(1+X^2)) + Y/sqrt(1+Y^2) atan(X/sqrt(1+Y^2))]
-    // with X = Y = 1. Lambert albedo 1 under radiance 1 then reflects L = 4 F.
-    const double a = 1.0 / std::sqrt(2.0) * std::atan(1.0 / std::sqrt(2.0));
-    const double expected = 4.0 * (2.0 * a) / (2.0 * M_PI);
-    double sum = 0.0, sum2 = 0.0;
-    const std::size_t n = static_cast<std::size_t>(r.width) * r.height;
-    for (std::size_t i = 0; i < n; ++i) {
-        const double g = r.image[3 * i + 1];
-        sum += g;
-        sum2 += g * g;
+    // And the same light made transparent, seen through from above (Cycles' lights: the
+    // camera does not see it, it casts no shadow, rays that meet it go on).
+    for (const char* scene : {"quad_irradiance.toml", "quad_transparent.toml"}) {
+        SCOPED_TRACE(scene);
+        const FrameResult r = render(scene, 2);
+        // Point below the centre of a 2 x 2 light at height 1 = four 1 x 1 rectangles with a corner
+        // above it. Form factor of each (parallel planes, corner above the point):
+        //   F = 1/(2 pi) [X/sqrt(1+X^2) atan(Y/sqrt(1+X^2)) + Y/sqrt(1+Y^2) atan(X/sqrt(1+Y^2))]
+        // with X = Y = 1. Lambert albedo 1 under radiance 1 then reflects L = 4 F.
+        const double a = 1.0 / std::sqrt(2.0) * std::atan(1.0 / std::sqrt(2.0));
+        const double expected = 4.0 * (2.0 * a) / (2.0 * M_PI);
+        double sum = 0.0, sum2 = 0.0;
+        const std::size_t n = static_cast<std::size_t>(r.width) * r.height;
+        for (std::size_t i = 0; i < n; ++i) {
+            const double g = r.image[3 * i + 1];
+            sum += g;
+            sum2 += g * g;
+        }
+        const double mean = sum / static_cast<double>(n);
+        const double var = (sum2 / static_cast<double>(n) - mean * mean) * static_cast<double>(n) /
+                           static_cast<double>(n - 1);
+        const double stderr_mean = std::sqrt(var / static_cast<double>(n));
+        // The 9 x 9 pixels see a 4 mm patch, where the exact value changes by under 1e-5: the pixel
+        // means are independent estimates of the same number, so 4 standard errors (+1e-4 for that
+        // spread) bound a correct estimator's deviation with probability > 0.9999.
+        EXPECT_NEAR(mean, expected, 4.0 * stderr_mean + 1e-4) << "stderr " << stderr_mean;
+        EXPECT_LT(stderr_mean, 0.003) << "the estimate must be tight enough to mean something";
     }
-    const double mean = sum / static_cast<double>(n);
-    const double var = (sum2 / static_cast<double>(n) - mean * mean) * static_cast<double>(n) /
-                       static_cast<double>(n - 1);
-    const double stderr_mean = std::sqrt(var / static_cast<double>(n));
-    // The 9 x 9 pixels see a 4 mm patch, where the exact value changes by under 1e-5: the pixel
-    // means are independent estimates of the same number, so 4 standard errors (+1e-4 for that
-    // spread) bound a correct estimator's deviation with probability > 0.9999.
-    EXPECT_NEAR(mean, expected, 4.0 * stderr_mean + 1e-4) << "stderr " << stderr_mean;
-    EXPECT_LT(stderr_mean, 0.003) << "the estimate must be tight enough to mean something";
 }
 
 TEST(Render, PointLightOnLambertPlaneMatchesClosedForm) {
@@ -113,7 +118,8 @@ double max_z_of_mean_difference(const FrameResult& a, const FrameResult& b) {
 }
 
 TEST(Render, MisNeeOnlyAndBsdfOnlyAgree) {
-    for (const char* scene : {"quad_irradiance.toml", "glossy_sphere_light.toml"}) {
+    for (const char* scene :
+         {"quad_irradiance.toml", "glossy_sphere_light.toml", "quad_transparent.toml"}) {
         const FrameResult mis = render(scene, 2, 0, Strategy::Mis);
         const FrameResult nee = render(scene, 2, 0, Strategy::NeeOnly);
         const FrameResult bsdf = render(scene, 2, 0, Strategy::BsdfOnly);

@@ -571,12 +571,12 @@ def _light_lines(obj, matrix, warnings):
         if getattr(light, "spread", math.pi) < math.pi - 1e-4:
             warnings.append(f"{what}: its spread ({math.degrees(light.spread):g} degrees) is not "
                             "exported; it emits into the whole hemisphere")
-        # Cycles' lights are invisible to the camera (by default) and cast no shadow; a quad
-        # light is a surface: seen, and in the way of light behind it.
-        warnings.append(f"{what}: exported as a quad light, which the camera sees (black from "
-                        "behind) and which shadows what is behind it; Cycles' area lights are "
-                        "neither seen nor in the way")
-        lines += ["[[light]]", 'type = "quad"', f"corner = {_vec(corner)}", f"edge1 = {_vec(ey)}",
+        # As in Cycles, a light is not in the way: the camera does not see it (a black quad
+        # from behind), it casts no shadow, and rays that meet it go on.
+        if getattr(obj, "visible_camera", False):
+            warnings.append(f"{what}: its camera visibility is not exported; the camera does "
+                            "not see it")
+        lines += ["[[light]]", 'type = "quad"', "transparent = true", f"corner = {_vec(corner)}", f"edge1 = {_vec(ey)}",
                   f"edge2 = {_vec(ex)}", f"color = {_vec(color)}", f"intensity = {_fmt(radiance)}"]
     else:
         warnings.append(f"light '{obj.name}': type {light.type} is not supported")
