@@ -89,13 +89,13 @@ void system_accelerate(ecs::Registry& r, World& w) {
         out.geometry.meshes.insert(out.geometry.meshes.end(), m->meshes.begin(), m->meshes.end());
     out.instances = place_instances(r, loaded);
     std::vector<Vec3> quads;
-    std::vector<uint8_t> see_through;  // per quad: shadow rays pass it
+    std::vector<uint8_t> quad_through;  // per quad: shadow rays pass it
     if (const auto* pool = r.find_pool<QuadLight>())
         for (std::size_t i = 0; i < pool->size(); ++i) {
             const QuadLight q = pool->columns().get(i);
             quads.insert(quads.end(), {q.corner, q.corner + q.edge1, q.corner + q.edge1 + q.edge2,
                                        q.corner + q.edge2});
-            see_through.push_back(q.transparent ? 1 : 0);
+            quad_through.push_back(q.transparent ? 1 : 0);
         }
     std::vector<float> spheres;
     if (const auto* pool = r.find_pool<SphereLight>())
@@ -113,7 +113,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
         out.accel = std::make_shared<EmbreeScene>();
     }
     out.accel->build(out.geometry, out.instances, quads, spheres, w.options.work_progress,
-                     see_through);
+                     quad_through);
     if (w.cache) {
         const EmbreeScene& a = *out.accel;
         if (a.blas_reused() > 0) w.cache->reused["mesh BVHs"] += a.blas_reused();

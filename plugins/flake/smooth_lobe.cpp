@@ -252,9 +252,9 @@ double table_mass(const BlurTable& t, float cos_e, Lookup&& lookup) {
         if (!by_cell) {
             for (int i = 1; i < equal; ++i) cuts.push_back(lo + (hi - lo) * i / equal);
         } else {
-            for (double c = origin + cell * std::ceil((lo - origin) / cell + 1e-9); c < hi;
-                 c += cell)
-                if (c > lo) cuts.push_back(c);
+            for (double at = origin + cell * std::ceil((lo - origin) / cell + 1e-9); at < hi;
+                 at += cell)
+                if (at > lo) cuts.push_back(at);
         }
         cuts.push_back(hi);
         return cuts;
