@@ -116,6 +116,70 @@ def channel_means(path):
     return dict(zip([n.strip() for n in names.split(",")], [float(x) for x in avg.split()[:-1]]))
 
 
+def empty_scene(size=(64, 64), world=(0.0, 0.0, 0.0)):
+    """A factory scene with the add-on, a world colour and a small EXR output."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_utils.enable("spangle_blender", default_set=True)
+    scene = bpy.context.scene
+    scene.world = bpy.data.worlds.new("world")
+    scene.world.use_nodes = True
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*world, 1.0)
+    scene.render.resolution_x, scene.render.resolution_y = size
+    scene.render.resolution_percentage = 100
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.spangle.threads = 2
+    return scene
+
+
+def principled(name, color=(0.8, 0.8, 0.8), roughness=0.5, **inputs):
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    bsdf = mat.node_tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
+    bsdf.inputs["Roughness"].default_value = roughness
+    for k, v in inputs.items():
+        bsdf.inputs[k.replace("_", " ")].default_value = v
+    return mat
+
+
+def look_down(scene, height=4.0, angle=50.0):
+    bpy.ops.object.camera_add(location=(0.0, 0.0, height))
+    scene.camera = bpy.context.active_object
+    scene.camera.data.angle = math.radians(angle)
+
+
+def both(scene, tmp_path, tag, spp=16):
+    """The scene rendered by Spangle and by Cycles: their RGB."""
+    scene.render.engine = "SPANGLE"
+    scene.spangle.spp = spp
+    scene.render.filepath = str(tmp_path / f"{tag}_spangle.exr")
+    bpy.ops.render.render(write_still=True)
+    scene.render.engine = "CYCLES"
+    scene.cycles.samples = spp
+    scene.cycles.device = "CPU"
+    scene.cycles.use_denoising = False
+    scene.render.filepath = str(tmp_path / f"{tag}_cycles.exr")
+    bpy.ops.render.render(write_still=True)
+    return (read_exr(str(tmp_path / f"{tag}_spangle.exr")),
+            read_exr(str(tmp_path / f"{tag}_cycles.exr")))
+
+
+def save_image(px, path):
+    """An H x W x 4 float array (row 0 at the bottom, as Blender's pixels) written as an EXR."""
+    img = bpy.data.images.new(os.path.basename(path), px.shape[1], px.shape[0], float_buffer=True,
+                              alpha=True)
+    img.pixels.foreach_set(px.ravel())
+    img.filepath_raw = path
+    img.file_format = "OPEN_EXR"
+    img.save()
+    return path
+
+
+def blocks(a, n=8):
+    h, w = a.shape[:2]
+    return a[: h // n * n, : w // n * n].reshape(h // n, n, w // n, n, -1).mean(axis=(1, 3)).ravel()
+
+
 def test_the_engine_renders_what_the_gltf_route_renders(tmp_path):
     scene = build_scene()
     scene.render.image_settings.file_format = "OPEN_EXR"
@@ -215,12 +279,7 @@ def test_an_environment_texture_faces_where_cycles_shows_it(tmp_path):
     px[..., 2] = np.linspace(0.02, 0.2, h)[:, None]  # rows bottom-up: brighter blue up
     # Around u 0.72, v 0.62: a little off -Y (Blender's u 0.75) and above the horizon.
     px[18:22, 44:48, :3] = 50.0
-    img = bpy.data.images.new("env", w, h, float_buffer=True, alpha=True)
-    img.pixels.foreach_set(px.ravel())
-    path = str(tmp_path / "env.exr")
-    img.filepath_raw = path
-    img.file_format = "OPEN_EXR"
-    img.save()
+    path = save_image(px, str(tmp_path / "env.exr"))
     scene = build_scene()
     for name in ("body", "Plane"):
         bpy.data.objects.remove(bpy.data.objects[name])
@@ -282,47 +341,20 @@ def test_spot_and_sun_lights_render_as_through_gltf(tmp_path):
 def spot_on_a_floor(tmp_path, pixel_aspect=(1.0, 1.0)):
     """A white diffuse floor under a spot (90-degree cone, blend 0.5) seen from above, rendered
     by Spangle through the add-on and by Cycles: their mean RGB (row 0 at the top)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    addon_utils.enable("spangle_blender", default_set=True)
-    scene = bpy.context.scene
+    scene = empty_scene()
     bpy.ops.mesh.primitive_plane_add(size=12)
-    floor = bpy.context.active_object
-    mat = bpy.data.materials.new("white")
-    mat.use_nodes = True
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
-    floor.data.materials.append(mat)
+    bpy.context.active_object.data.materials.append(principled("white", roughness=1.0))
     bpy.ops.object.light_add(type="SPOT", location=(0.0, 0.0, 1.0))
     spot = bpy.context.active_object
     spot.data.energy = 1000.0
     spot.data.shadow_soft_size = 0.0
     spot.data.spot_size = math.radians(90.0)
     spot.data.spot_blend = 0.5
-    bpy.ops.object.camera_add(location=(0.0, 0.0, 3.0))
-    scene.camera = bpy.context.active_object
-    scene.camera.data.angle = math.radians(60.0)
-    scene.world = bpy.data.worlds.new("world")
-    scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
-    scene.render.resolution_x, scene.render.resolution_y = 64, 64
-    scene.render.resolution_percentage = 100
+    look_down(scene, 3.0, 60.0)
     scene.render.pixel_aspect_x, scene.render.pixel_aspect_y = pixel_aspect
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.engine = "SPANGLE"
-    scene.spangle.spp = 16
-    scene.spangle.threads = 2
-    scene.render.filepath = str(tmp_path / "spangle.exr")
-    bpy.ops.render.render(write_still=True)
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = 16
-    scene.cycles.device = "CPU"
-    scene.cycles.use_denoising = False
     scene.cycles.max_bounces = 0
-    scene.render.filepath = str(tmp_path / "cycles.exr")
-    bpy.ops.render.render(write_still=True)
-    return (read_exr(str(tmp_path / "spangle.exr")).mean(axis=2),
-            read_exr(str(tmp_path / "cycles.exr")).mean(axis=2))
+    ours, theirs = both(scene, tmp_path, "spot")
+    return ours.mean(axis=2), theirs.mean(axis=2)
 
 
 def test_a_spot_fades_at_its_edge_as_in_cycles(tmp_path):
@@ -369,116 +401,31 @@ def test_a_normal_map_shades_as_in_cycles(tmp_path):
     px[..., 1] = 0.5
     px[..., 2] = 0.5 + 0.5 * math.cos(tilt)
     px[..., 3] = 1.0
-    img = bpy.data.images.new("nrm", w, w, float_buffer=True, alpha=True)
-    img.pixels.foreach_set(px.ravel())
-    path = str(tmp_path / "normal.exr")
-    img.filepath_raw = path
-    img.file_format = "OPEN_EXR"
-    img.save()
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    addon_utils.enable("spangle_blender", default_set=True)
-    scene = bpy.context.scene
+    path = save_image(px, str(tmp_path / "normal.exr"))
+    scene = empty_scene()
     bpy.ops.mesh.primitive_plane_add(size=2)
-    floor = bpy.context.active_object
-    mat = bpy.data.materials.new("bumpy")
-    mat.use_nodes = True
+    mat = principled("bumpy", roughness=1.0)
     nodes, links = mat.node_tree.nodes, mat.node_tree.links
-    bsdf = nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (0.8, 0.8, 0.8, 1.0)
-    bsdf.inputs["Roughness"].default_value = 1.0
     tex = nodes.new("ShaderNodeTexImage")
     tex.image = bpy.data.images.load(path)
     tex.image.colorspace_settings.name = "Non-Color"
     nmap = nodes.new("ShaderNodeNormalMap")
     links.new(tex.outputs["Color"], nmap.inputs["Color"])
-    links.new(nmap.outputs["Normal"], bsdf.inputs["Normal"])
-    floor.data.materials.append(mat)
+    links.new(nmap.outputs["Normal"], nodes["Principled BSDF"].inputs["Normal"])
+    bpy.context.active_object.data.materials.append(mat)
     bpy.ops.object.light_add(type="SUN", location=(0, 0, 5))
     sun = bpy.context.active_object
     sun.data.energy = 3.0
     sun.data.angle = 0.0
     sun.rotation_euler = (0.0, math.radians(50.0), 0.0)  # from +x, 50 degrees off the zenith
-    bpy.ops.object.camera_add(location=(0.0, 0.0, 2.0))
-    scene.camera = bpy.context.active_object
-    scene.camera.data.angle = math.radians(40.0)
-    scene.world = bpy.data.worlds.new("world")
-    scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0, 0, 0, 1)
-    scene.render.resolution_x, scene.render.resolution_y = 64, 64
-    scene.render.resolution_percentage = 100
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.engine = "SPANGLE"
-    scene.spangle.spp = 16
-    scene.spangle.threads = 2
-    scene.render.filepath = str(tmp_path / "spangle.exr")
-    bpy.ops.render.render(write_still=True)
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = 16
-    scene.cycles.device = "CPU"
-    scene.cycles.use_denoising = False
+    look_down(scene, 2.0, 40.0)
     scene.cycles.max_bounces = 0
-    scene.render.filepath = str(tmp_path / "cycles.exr")
-    bpy.ops.render.render(write_still=True)
-    ours = read_exr(str(tmp_path / "spangle.exr")).mean(axis=2)
-    theirs = read_exr(str(tmp_path / "cycles.exr")).mean(axis=2)
+    ours, theirs = (a.mean(axis=2) for a in both(scene, tmp_path, "normal"))
     # Columns: stripes facing the sun are bright, the others dim, in both.
     c0, c1 = ours.mean(axis=0), theirs.mean(axis=0)
     assert c1.max() > 1.4 * c1.min()  # 1.6 in both
     assert np.corrcoef(c0, c1)[0, 1] > 0.99  # 0.9999 measured; flat (unexported) ~0
     assert ours.mean() == pytest.approx(theirs.mean(), rel=0.03)  # 0.4% measured
-
-
-def empty_scene(size=(64, 64), world=(0.0, 0.0, 0.0)):
-    """A factory scene with the add-on, a world colour and a small EXR output."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    addon_utils.enable("spangle_blender", default_set=True)
-    scene = bpy.context.scene
-    scene.world = bpy.data.worlds.new("world")
-    scene.world.use_nodes = True
-    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (*world, 1.0)
-    scene.render.resolution_x, scene.render.resolution_y = size
-    scene.render.resolution_percentage = 100
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.spangle.threads = 2
-    return scene
-
-
-def principled(name, color=(0.8, 0.8, 0.8), roughness=0.5, **inputs):
-    mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
-    bsdf = mat.node_tree.nodes["Principled BSDF"]
-    bsdf.inputs["Base Color"].default_value = (*color, 1.0)
-    bsdf.inputs["Roughness"].default_value = roughness
-    for k, v in inputs.items():
-        bsdf.inputs[k.replace("_", " ")].default_value = v
-    return mat
-
-
-def look_down(scene, height=4.0, angle=50.0):
-    bpy.ops.object.camera_add(location=(0.0, 0.0, height))
-    scene.camera = bpy.context.active_object
-    scene.camera.data.angle = math.radians(angle)
-
-
-def both(scene, tmp_path, tag, spp=16):
-    """The scene rendered by Spangle and by Cycles: their RGB."""
-    scene.render.engine = "SPANGLE"
-    scene.spangle.spp = spp
-    scene.render.filepath = str(tmp_path / f"{tag}_spangle.exr")
-    bpy.ops.render.render(write_still=True)
-    scene.render.engine = "CYCLES"
-    scene.cycles.samples = spp
-    scene.cycles.device = "CPU"
-    scene.cycles.use_denoising = False
-    scene.render.filepath = str(tmp_path / f"{tag}_cycles.exr")
-    bpy.ops.render.render(write_still=True)
-    return (read_exr(str(tmp_path / f"{tag}_spangle.exr")),
-            read_exr(str(tmp_path / f"{tag}_cycles.exr")))
-
-
-def blocks(a, n=8):
-    h, w = a.shape[:2]
-    return a[: h // n * n, : w // n * n].reshape(h // n, n, w // n, n, -1).mean(axis=(1, 3)).ravel()
 
 
 def test_instances_emitters_and_specular_as_in_cycles(tmp_path):
@@ -528,12 +475,7 @@ def test_a_texture_mapping_and_extension_as_in_cycles(tmp_path):
     px = np.ones((w, w, 4), dtype=np.float32) * 0.2
     px[w // 2:, : w // 2, :3] = (0.9, 0.05, 0.05)
     px[..., 3] = 1.0
-    img = bpy.data.images.new("quads", w, w, float_buffer=True, alpha=True)
-    img.pixels.foreach_set(px.ravel())
-    path = str(tmp_path / "quads.exr")
-    img.filepath_raw = path
-    img.file_format = "OPEN_EXR"
-    img.save()
+    path = save_image(px, str(tmp_path / "quads.exr"))
     scene = empty_scene(size=(96, 48), world=(1.0, 1.0, 1.0))
     for x, (vector_type, extension) in zip((-1.05, 1.05), (("POINT", "REPEAT"),
                                                              ("TEXTURE", "CLIP"))):
@@ -573,12 +515,7 @@ def test_a_bump_node_shades_as_in_cycles(tmp_path):
     px = np.zeros((w, w, 4), dtype=np.float32)
     px[..., :3] = (0.5 + 0.5 * np.sin(np.arange(w) * 2.0 * math.pi / 16.0))[None, :, None]
     px[..., 3] = 1.0
-    img = bpy.data.images.new("height", w, w, float_buffer=True, alpha=True)
-    img.pixels.foreach_set(px.ravel())
-    path = str(tmp_path / "height.exr")
-    img.filepath_raw = path
-    img.file_format = "OPEN_EXR"
-    img.save()
+    path = save_image(px, str(tmp_path / "height.exr"))
     for distance, strength in ((0.02, 1.0), (1.0, 0.1)):
         scene = empty_scene()
         bpy.ops.mesh.primitive_plane_add(size=2)
