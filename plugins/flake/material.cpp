@@ -289,14 +289,23 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
             ++st.truncated;
             c.t = 1.0f;
         }
-        // Facets cover the base: the footprint's flake share follows the facets it holds (their
-        // shares inside it against the expected lambda), so a footprint inside a facet is all
-        // mirror and one between facets all base; it averages to flake_weight as the footprint
-        // grows, and the smooth lobe keeps flake_weight.
-        if (m.facet && view.facet_size > 0.0 && c.t < 1.0f && lambda > 0.0) {
-            const float local = std::min(
-                1.0f, c.weight * static_cast<float>(static_cast<double>(c.cover) / lambda));
-            c.weight = (1.0f - c.t) * local + c.t * c.weight;
+        // The footprint's own flake share (c.weight holds the population's nominal share w).
+        // Facets cover the base: the share follows the facets it holds (their shares inside it
+        // against the expected lambda), so a footprint inside a facet is all mirror and one
+        // between facets all base. Point flakes: a footprint that holds none shows the base
+        // alone, and one that holds any the share w / P(it holds any) = w / (1 - e^-lambda), at
+        // most 1, so the share averages to w wherever w <= 1 - e^-lambda (a footprint of fewer
+        // than ~3 flakes reflected (1 - e^-lambda) of the smooth limit when it kept w always).
+        // Both average to w as the footprint grows, and the smooth lobe keeps w.
+        if (c.t < 1.0f && lambda > 0.0) {
+            float local = 0.0f;
+            if (m.facet && view.facet_size > 0.0)
+                local = std::min(
+                    1.0f, c.weight * static_cast<float>(static_cast<double>(c.cover) / lambda));
+            else if (c.cover > 0.0f)
+                local = std::min(
+                    1.0f, static_cast<float>(static_cast<double>(c.weight) / -std::expm1(-lambda)));
+            if (local != c.weight) c.weight = (1.0f - c.t) * local + c.t * c.weight;
         }
     }
     if (std::isfinite(lambda)) {
@@ -313,19 +322,35 @@ float flake_luminance(const Material& m) {
 }
 
 /** The second population's closure for the same point, in the arena (the statistics count the
- *  first population only). Leaves c without one when the arena is full. */
-void prepare_second(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena) {
-    if (!arena) return;
+ *  first population only); null when the arena is full (the first population alone). */
+Closure* new_second(SpangleArena_v3* arena) {
+    if (!arena) return nullptr;
     void* mem = arena->allocate(arena->context, sizeof(Closure), alignof(Closure));
-    if (!mem) return;
-    auto* c2 = new (mem) Closure{};
-    c2->wo = c.wo;
-    c2->valid = c.valid;
-    c2->weight = c.weight;
+    return mem ? new (mem) Closure{} : nullptr;
+}
+
+/** Prepares the second population into c2 (flake_weight w at the point; c prepared with its
+ *  share w (1 - flakes2_weight)) and mixes the two: each footprint shows each population's own
+ *  share (prepare_flakes), scaled down together where they add up to more than the surface. */
+void prepare_second(const Material& m, const PointInput& in, float w, Closure& c, Closure& c2,
+                    SpangleArena_v3* arena) {
+    c2.wo = c.wo;
+    c2.valid = c.valid;
+    const float p1 = c.weight;
+    const float p2 = w * m.second_weight;
+    c2.weight = p2;
     PointStats ignored;
-    prepare_flakes(*m.second, in, *c2, arena, ignored);
-    c.second = c2;
-    c.w_second = m.second_weight;
+    prepare_flakes(*m.second, in, c2, arena, ignored);
+    c.second = &c2;
+    if (c.weight == p1 && c2.weight == p2) {
+        // Both as nominal (the smooth lobe, or footprints of many flakes).
+        c.weight = w;
+        c.w_second = m.second_weight;
+    } else {
+        const float sum = c.weight + c2.weight;
+        c.weight = std::min(1.0f, sum);
+        c.w_second = sum > 0.0f ? c2.weight / sum : m.second_weight;
+    }
     const float l1 = (1.0f - c.w_second) * flake_luminance(m);
     const float l2 = c.w_second * flake_luminance(*m.second);
     c.q_second = l2 / (l1 + l2);
@@ -346,8 +371,10 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     c.valid = c.wo.z > 0.0f ? 1u : 0u;
     if (!c.valid) return;
     c.e_coat_o = c.coat->albedo_at(c.wo.z);
+    Closure* c2 = m.second ? new_second(arena) : nullptr;
+    if (c2) c.weight = in.weight * (1.0f - m.second_weight);
     prepare_flakes(m, in, c, arena, st);
-    if (m.second) prepare_second(m, in, c, arena);
+    if (c2) prepare_second(m, in, in.weight, c, *c2, arena);
     // Lobe selection in proportion to the energy each returns (a floor keeps every lobe sampled).
     const float under = 1.0f - c.e_coat_o;
     const float w_coat = c.coat->on ? c.e_coat_o : 0.0f;

@@ -80,6 +80,30 @@ TEST(FlakeEnergy, WholeMaterialNeverGainsEnergy) {
                 }
 }
 
+TEST(FlakeEnergy, AWhiteFurnaceOfSparseFlakesStaysWhite) {
+    // White base and perfect white flakes covering 90% of the surface, footprints of 0.3 flakes
+    // on average: a footprint without a flake is all base (albedo 1), one with a flake all flake
+    // (at most 1). Every footprint stays at most 1 and the mean stays near 1 (it was
+    // 0.1 + 0.9 (1 - e^-0.3) = 0.33 when an empty footprint kept the flakes' 90%).
+    for (const char* algorithm : {"tree", "enumerate"}) {
+        auto m = flake_material(true,
+                                {{"flake_weight", {0.9}},
+                                 {"base_color", {1.0}},
+                                 {"shadowing", {0.0}},
+                                 {"gamma", {3.0}}},
+                                {{"preset", "perfect"}, {"algorithm", algorithm}});
+        constexpr int kFootprints = 600;
+        double sum = 0.0;
+        for (int k = 0; k < kFootprints; ++k) {
+            m->prepare(dir(0.8f, 0.3f), random_footprint(0.3, 401, static_cast<uint64_t>(k)));
+            const BsdfHarness::Albedo a = m->albedo(2000, static_cast<uint64_t>(k));
+            EXPECT_LE(a.mean, 1.0 + 4.0 * a.se + 1e-4) << algorithm << " footprint " << k;
+            sum += a.mean;
+        }
+        EXPECT_GT(sum / kFootprints, 0.97) << algorithm;
+    }
+}
+
 TEST(FlakeEnergy, RoughCoatAlbedoTableIsAnUpperBound) {
     // The layering is energy-conserving when the coat's tabulated albedo is at least its true
     // albedo, at every angle (between the table's nodes too). The reference: the same integral
