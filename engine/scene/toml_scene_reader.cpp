@@ -452,6 +452,28 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
             key.matrix = *m;
             return key;
         });
+        // From a mirrored placement to one that is not (or back), the interpolated matrices
+        // pass through a flat one: the object would vanish in between (as scale keys through 0,
+        // refused alike). (Imported animations keep their own rule: a glTF scale through 0 is
+        // the spec's.)
+        const auto& mk = o.matrix_keys.keys;
+        for (std::size_t k = 1; k < mk.size(); ++k) {
+            const float d0 = mk[k - 1].matrix.determinant(), d1 = mk[k].matrix.determinant();
+            if ((d0 < 0.0f) != (d1 < 0.0f))
+                throw_error(mk[k].loc,
+                            "{}: its matrix {} and the key's before {} (determinants {:.4g} "
+                            "and {:.4g}): in between the object would pass through flat; key a "
+                            "mirrored object mirrored at every key",
+                            mk[k].what, d1 < 0.0f ? "mirrors" : "does not mirror",
+                            d1 < 0.0f ? "does not" : "does", d1, d0);
+        }
+        // Matrices interpolate linearly (decomposed); an explicit "smooth" would be ignored.
+        if (!o.matrix_keys.keys.empty() && r.has("interpolation") && o.matrix_keys.smooth)
+            throw_error(r.loc("interpolation"),
+                        "{}: keys of whole matrices interpolate linearly (decomposed into "
+                        "rotation, stretch and translation); interpolation = \"smooth\" is for "
+                        "keys of scale, rotate and translate",
+                        r.what());
     } else {
         o.keys = read_keys<ObjectKey>(r, name, [](TableReader& kr) {
             ObjectKey key;

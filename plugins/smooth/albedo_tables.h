@@ -1,7 +1,8 @@
 #pragma once
 // The GGX lobe's directional albedo split by Schlick's Fresnel, E(mu) = f0 A(mu, alpha) +
 // f90 B(mu, alpha), which metal_rough uses to give its diffuse base the light the specular lobe
-// leaves (see metal_rough.cpp).
+// leaves (see metal_rough.cpp), and metal_rough's metal and the conductor to return the light
+// single scattering loses (multiple scattering, below).
 //
 // The tables are shipped as numbers (albedo_tables_data.inc) rather than made when the plugin
 // loads: 32 x 32 entries of 512 visible-normal samples each cost about 180 million instructions,
@@ -74,6 +75,66 @@ inline const AlbedoTables& shipped_albedo_tables() {
 #include "albedo_tables_data.inc"
     };
     return kTables;
+}
+
+/** Bilinear lookup of both tables, A and B, at (mu, alpha): one set of weights for the two. */
+inline void albedo_lookup(const AlbedoTables& tab, float mu, float alpha, float& a, float& b) {
+    const float x = std::clamp(mu * kAlbedoMu - 0.5f, 0.0f, static_cast<float>(kAlbedoMu - 1));
+    const float y = std::clamp(std::sqrt(alpha) * (kAlbedoRough - 1), 0.0f,
+                               static_cast<float>(kAlbedoRough - 1));
+    const int i = std::min(static_cast<int>(x), kAlbedoMu - 2),
+              j = std::min(static_cast<int>(y), kAlbedoRough - 2);
+    const float s = x - static_cast<float>(i), t = y - static_cast<float>(j);
+    const auto bilerp = [&](const float(&v)[kAlbedoRough][kAlbedoMu]) {
+        return (v[j][i] * (1 - s) + v[j][i + 1] * s) * (1 - t) +
+               (v[j + 1][i] * (1 - s) + v[j + 1][i + 1] * s) * t;
+    };
+    a = bilerp(tab.a);
+    b = bilerp(tab.b);
+}
+
+/** Linear lookup of an average table at alpha. */
+inline float albedo_avg_lookup(const float (&row)[kAlbedoRough], float alpha) {
+    const float y = std::clamp(std::sqrt(alpha) * (kAlbedoRough - 1), 0.0f,
+                               static_cast<float>(kAlbedoRough - 1));
+    const int j = std::min(static_cast<int>(y), kAlbedoRough - 2);
+    const float t = y - static_cast<float>(j);
+    return row[j] * (1 - t) + row[j + 1] * t;
+}
+
+// Multiple scattering (Kulla and Conty 2017, "Revisiting physically based shading at
+// Imageworks"). Single-scattering GGX drops the light that bounces more than once between the
+// microfacets: 1 - E(mu_o) for F = 1, E = A + B above (0.69 of it at alpha 1 head-on). The
+// compensation lobe returns it, spread over wi as
+//     f_ms = F_ms (1 - E(mu_o)) (1 - E(mu_i)) / (pi (1 - E_avg)),
+// whose cosine-weighted integral over wi is exactly 1 - E(mu_o), so that a white conductor
+// reflects everything at every angle and roughness; it is symmetric in wo and wi. For a
+// coloured metal each further bounce is tinted by the average Fresnel F_avg = 2 int F mu dmu:
+//     F_ms = F_avg^2 E_avg / (1 - F_avg (1 - E_avg)),
+// the sum over bounces of what leaves after each (1 for F_avg = 1).
+
+/** E(mu) of GGX for F = 1 at alpha (isotropic; an anisotropic lobe takes sqrt(ax ay)). */
+inline float ggx_albedo(float mu, float alpha) {
+    float a, b;
+    albedo_lookup(shipped_albedo_tables(), std::max(mu, 0.0f), alpha, a, b);
+    return std::min(a + b, 1.0f);
+}
+
+/** E_avg of GGX for F = 1 at alpha. */
+inline float ggx_albedo_avg(float alpha) {
+    const AlbedoTables& t = shipped_albedo_tables();
+    return std::min(albedo_avg_lookup(t.a_avg, alpha) + albedo_avg_lookup(t.b_avg, alpha), 0.9999f);
+}
+
+/** f_ms / F_ms at (mu_o, mu_i): the shape of the compensation lobe (see above). */
+inline float ms_shape(float e_o, float e_i, float e_avg) {
+    return std::max(0.0f, 1.0f - e_o) * std::max(0.0f, 1.0f - e_i) /
+           (3.14159265358979f * (1.0f - e_avg));
+}
+
+/** F_ms of a channel whose Fresnel averages f_avg over the hemisphere (see above). */
+inline float ms_colour(float f_avg, float e_avg) {
+    return f_avg * f_avg * e_avg / (1.0f - f_avg * (1.0f - e_avg));
 }
 
 /** The text of albedo_tables_data.inc for t: every float as a hexadecimal literal (exact). */

@@ -3,6 +3,7 @@
 //   f = cc Fc(v.h) Dc G2c / (4 |n.v| |n.l|)  +  (1 - Ec(v)) (1 - Ec(l)) f_base
 //   f_base = (1 - metallic) f_dielectric + metallic f_metal
 //   f_metal = F_schlick(base_color, v.h) D G2 / (4 |n.v| |n.l|)
+//             + F_ms (1 - E1(v)) (1 - E1(l)) / (pi (1 - E1_avg))   (multiscatter; albedo_tables.h)
 //   f_dielectric = F_schlick(f0, f90, v.h) D G2 / (4 |n.v| |n.l|)
 //                  + base_color / pi (1 - E(v)) (1 - E(l)) / (1 - E_avg)
 //   f0 = min(((ior - 1) / (ior + 1))^2 specular_color, 1) specular, f90 = specular
@@ -25,6 +26,7 @@
 //   specular_color      color [1]    KHR_materials_specular specularColorFactor
 //   clearcoat           float 0      KHR_materials_clearcoat clearcoatFactor
 //   clearcoat_roughness float 0      KHR_materials_clearcoat clearcoatRoughnessFactor
+//   multiscatter        bool  true   the metal's multiple scattering (Kulla and Conty 2017)
 
 #include "metal_rough.h"
 
@@ -43,8 +45,6 @@ using namespace spangle::mf;
 using namespace spangle::plugin_support;
 
 constexpr float kMinAlpha = kAlbedoMinAlpha;  ///< alphas below are clamped (a near-mirror)
-constexpr int kMu = kAlbedoMu;
-constexpr int kRough = kAlbedoRough;
 
 // clang-format off
 const SpangleParamDesc_v3 kParams[] = {
@@ -57,6 +57,7 @@ const SpangleParamDesc_v3 kParams[] = {
     {"specular_color", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 10.0, nullptr, "tint of the dielectric's F0 (KHR_materials_specular)", SPANGLE_PARAM_TEXTURABLE},
     {"clearcoat", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "strength of a clear coat of index 1.5 (KHR_materials_clearcoat)", SPANGLE_PARAM_TEXTURABLE},
     {"clearcoat_roughness", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "perceptual roughness of the clear coat: alpha = roughness^2 (at least 1e-3)", SPANGLE_PARAM_TEXTURABLE},
+    {"multiscatter", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "the metal returns the light that bounces more than once between its microfacets (Kulla-Conty, as Cycles' Multiscatter GGX); false: single-scattering GGX (glTF's reference BRDF), darker when rough", 0},
 };
 // clang-format on
 
@@ -69,37 +70,14 @@ enum Param : uint32_t {
     kSpecular,
     kSpecColor,
     kCoat,
-    kCoatRough
+    kCoatRough,
+    kMultiscatter
 };
-
-/** Bilinear lookup of both tables, A and B, at (mu, alpha): one set of weights for the two. */
-void lookup(const AlbedoTables& tab, float mu, float alpha, float& a, float& b) {
-    const float x = std::clamp(mu * kMu - 0.5f, 0.0f, static_cast<float>(kMu - 1));
-    const float y =
-        std::clamp(std::sqrt(alpha) * (kRough - 1), 0.0f, static_cast<float>(kRough - 1));
-    const int i = std::min(static_cast<int>(x), kMu - 2),
-              j = std::min(static_cast<int>(y), kRough - 2);
-    const float s = x - static_cast<float>(i), t = y - static_cast<float>(j);
-    const auto bilerp = [&](const float(&v)[kRough][kMu]) {
-        return (v[j][i] * (1 - s) + v[j][i + 1] * s) * (1 - t) +
-               (v[j + 1][i] * (1 - s) + v[j + 1][i + 1] * s) * t;
-    };
-    a = bilerp(tab.a);
-    b = bilerp(tab.b);
-}
-
-/** Linear lookup of an average table at alpha. */
-float lookup_avg(const float (&row)[kRough], float alpha) {
-    const float y =
-        std::clamp(std::sqrt(alpha) * (kRough - 1), 0.0f, static_cast<float>(kRough - 1));
-    const int j = std::min(static_cast<int>(y), kRough - 2);
-    const float t = y - static_cast<float>(j);
-    return row[j] * (1 - t) + row[j + 1] * t;
-}
 
 /** The instance: the parameters' constants. */
 struct MetalRough {
     float base[3], metallic, roughness, packed[3], ior, specular, spec_color[3], coat, coat_rough;
+    bool multiscatter;
 };
 
 /** One shading point. */
@@ -114,6 +92,9 @@ struct Closure {
     float alpha_c;    ///< coat GGX alpha
     float e_o[3];     ///< dielectric specular albedo at wo
     float e_avg[3];   ///< its cosine-weighted average
+    float e1_o;       ///< GGX albedo for F = 1 at wo (the metal's multiple scattering)
+    float e1_avg;     ///< its cosine-weighted average
+    float ms[3];      ///< the metal's multiple-scattering colour F_ms (0: single scattering)
     float ec_o;       ///< coat albedo at wo, times `coat`
     float p_diffuse;  ///< probability of sampling the diffuse lobe
     float p_spec;     ///< the base specular lobe (the coat: the rest)
@@ -147,6 +128,7 @@ void* create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint
     m->specular = param_f(p, "specular");
     m->coat = param_f(p, "clearcoat");
     m->coat_rough = param_f(p, "clearcoat_roughness");
+    m->multiscatter = param_number(p, "multiscatter", 0) != 0.0;
     return m;
 }
 
@@ -192,24 +174,34 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
         c.alpha_c = std::max(c.alpha_c, floor);
         const float mu = std::max(c.wo.z, 0.0f);
         float a, bb;
-        lookup(t, mu, c.alpha, a, bb);
-        const float aa = lookup_avg(t.a_avg, c.alpha), ba = lookup_avg(t.b_avg, c.alpha);
+        albedo_lookup(t, mu, c.alpha, a, bb);
+        const float aa = albedo_avg_lookup(t.a_avg, c.alpha),
+                    ba = albedo_avg_lookup(t.b_avg, c.alpha);
         float e_metal[3];
+        c.e1_o = std::min(a + bb, 1.0f);
+        c.e1_avg = std::min(aa + ba, 0.9999f);
         for (int ch = 0; ch < 3; ++ch) {
             c.e_o[ch] = c.f0[ch] * a + c.f90 * bb;
             c.e_avg[ch] = c.f0[ch] * aa + c.f90 * ba;
             e_metal[ch] = c.base[ch] * a + bb;
+            // Schlick's F from base_color to 1 averages base + (1 - base) / 21.
+            const float f_avg = c.base[ch] + (1.0f - c.base[ch]) / 21.0f;
+            c.ms[ch] = m.multiscatter ? ms_colour(f_avg, c.e1_avg) : 0.0f;
         }
         float ac, bc;
-        lookup(t, mu, c.alpha_c, ac, bc);
+        albedo_lookup(t, mu, c.alpha_c, ac, bc);
         c.ec_o = c.coat * (0.04f * ac + bc);
         // Lobes in proportion to the energy each returns at wo, every present lobe at least a
         // tenth of the time so that none is starved of samples.
         const float under = 1.0f - c.ec_o;
-        float w[3] = {under * (1.0f - c.metallic) * lum(c.base) * (1.0f - lum(c.e_o)),
+        // The metal's multiple scattering is sampled with the diffuse lobe (its shape is close
+        // to cosine).
+        const float ms_o = c.metallic * lum(c.ms) * (1.0f - c.e1_o);
+        float w[3] = {under * ((1.0f - c.metallic) * lum(c.base) * (1.0f - lum(c.e_o)) + ms_o),
                       under * ((1.0f - c.metallic) * lum(c.e_o) + c.metallic * lum(e_metal)),
                       c.ec_o};
-        const bool present[3] = {c.metallic < 1.0f && lum(c.base) > 0.0f, true, c.coat > 0.0f};
+        const bool present[3] = {(c.metallic < 1.0f && lum(c.base) > 0.0f) || ms_o > 0.0f, true,
+                                 c.coat > 0.0f};
         float sum = 0.0f;
         int n = 0;
         for (int k = 0; k < 3; ++k) {
@@ -235,9 +227,10 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
     const float d = ggx_d(h, c.alpha, c.alpha);
     const float s = d * ggx_g2(wo, wi, c.alpha, c.alpha) / (4.0f * wo.z * wi.z);
     float a_i, b_i, ac_i, bc_i;
-    lookup(t, wi.z, c.alpha, a_i, b_i);
-    lookup(t, wi.z, c.alpha_c, ac_i, bc_i);
+    albedo_lookup(t, wi.z, c.alpha, a_i, b_i);
+    albedo_lookup(t, wi.z, c.alpha_c, ac_i, bc_i);
     const float ec_i = c.coat * (0.04f * ac_i + bc_i);
+    const float ms = ms_shape(c.e1_o, a_i + b_i, c.e1_avg);
     const float dc = ggx_d(h, c.alpha_c, c.alpha_c);
     const float sc = dc * ggx_g2(wo, wi, c.alpha_c, c.alpha_c) / (4.0f * wo.z * wi.z);
     const float coat = c.coat * (0.04f + 0.96f * w) * sc;
@@ -248,7 +241,8 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
         const float diffuse = c.base[ch] * kInvPi * (1.0f - c.e_o[ch]) * (1.0f - e_i) /
                               std::max(1e-6f, 1.0f - c.e_avg[ch]);
         const float fm = c.base[ch] + (1.0f - c.base[ch]) * w;
-        const float base = (1.0f - c.metallic) * (fd * s + diffuse) + c.metallic * fm * s;
+        const float metal = fm * s + c.ms[ch] * ms;
+        const float base = (1.0f - c.metallic) * (fd * s + diffuse) + c.metallic * metal;
         f[ch] = coat + under * base;
     }
     const float p_coat = 1.0f - c.p_diffuse - c.p_spec;

@@ -10,6 +10,8 @@
 //                                       with preset = "custom", where both are required
 //     roughness     float  0.2          GGX alpha along the tangent; below 1e-4 a mirror
 //     roughness_v   float  -1           alpha along the bitangent; -1 = same as roughness
+//     multiscatter  bool   true         the light of further bounces between microfacets
+//                                       (Kulla and Conty 2017; albedo_tables.h)
 //   dielectric  Rough glass: GGX reflection and transmission (Walter et al. 2007).
 //     ior, roughness, roughness_v
 //   metal_rough glTF's metallic-roughness BRDF with ior, specular and clear coat (metal_rough.cpp).
@@ -33,6 +35,7 @@
 
 #include "../common/microfacet.h"
 #include "../common/plugin_support.h"
+#include "albedo_tables.h"
 #include "metal_rough.h"
 
 namespace {
@@ -67,12 +70,14 @@ struct Closure {
     V3 wo;         ///< outgoing direction, local frame
     float eta;     ///< dielectric: relative index across the interface seen from wo
     float rgb[3];  ///< diffuse/plastic albedo
-    float p_spec;  ///< plastic: probability of sampling the coat
-    float e_o;     ///< plastic: coat albedo at wo
+    float p_spec;  ///< plastic: probability of sampling the coat; conductor: of its multiple
+                   ///< scattering (0: single scattering)
+    float e_o;     ///< plastic: coat albedo at wo; conductor: GGX albedo for F = 1 at wo
+    float e_avg;   ///< conductor: its cosine-weighted average
     float ax, ay;  ///< conductor/dielectric: GGX alphas here (clamped away from zero)
     float delta;   ///< conductor/dielectric: 1 where the roughness makes a mirror lobe
 };
-static_assert(sizeof(Closure) == 48, "closure layout");
+static_assert(sizeof(Closure) == 52, "closure layout");
 
 V3 wo_of(const SpangleShadingBatch_v3* b, uint32_t i) {
     return {b->wo_x[i], b->wo_y[i], b->wo_z[i]};
@@ -219,6 +224,7 @@ const SpangleParamDesc_v3 kConductorParams[] = {
     {"k", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "imaginary part (extinction) per channel; only with preset = custom", 0},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.2, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a perfect mirror", SPANGLE_PARAM_TEXTURABLE},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent (anisotropy); -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
+    {"multiscatter", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (Kulla-Conty, as Cycles' Multiscatter GGX); false: single-scattering GGX (pbrt's, Mitsuba's), darker when rough", 0},
 };
 // clang-format on
 
@@ -229,6 +235,8 @@ struct Conductor {
     bool perfect;  ///< F = 1 (white furnace reference)
     float eta[3], k[3];
     float to_working[9];  ///< linear Rec.709 -> working space, row-major
+    bool multiscatter;    ///< Kulla-Conty compensation (albedo_tables.h)
+    float f_avg[3];       ///< cosine-weighted hemispherical average of the Fresnel term
 };
 
 /** Reads the Rec.709 -> working-space matrix; reports a failure through the ABI buffer. */
@@ -237,6 +245,20 @@ bool rec709_matrix(const SpangleHost_v3* host, float m[9], char* error, uint32_t
     if (rec709_to_working(host, m, why)) return true;
     set_error(error, cap, "cannot convert Fresnel colours: " + why);
     return false;
+}
+
+/** Fresnel reflectance in the working space for cosine c. */
+void conductor_fresnel(const Conductor& m, float c, float out[3]) {
+    if (m.perfect) {
+        out[0] = out[1] = out[2] = 1.0f;
+        return;
+    }
+    float f[3];
+    for (int ch = 0; ch < 3; ++ch) f[ch] = fresnel_conductor(c, m.eta[ch], m.k[ch]);
+    for (int r = 0; r < 3; ++r)
+        out[r] = std::clamp(m.to_working[3 * r] * f[0] + m.to_working[3 * r + 1] * f[1] +
+                                m.to_working[3 * r + 2] * f[2],
+                            0.0f, 1.0f);
 }
 
 void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, char* error,
@@ -273,23 +295,28 @@ void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, ch
             }
     }
     if (!rec709_matrix(host, c.to_working, error, cap)) return nullptr;
+    c.multiscatter = param_number(p, "multiscatter", 0) != 0.0;
+    // F_avg = 2 int F(mu) mu dmu by the midpoint rule (F is smooth; 256 points: 1e-5).
+    constexpr int kN = 256;
+    double sum[3] = {0, 0, 0};
+    for (int i = 0; i < kN; ++i) {
+        const float mu = (static_cast<float>(i) + 0.5f) / kN;
+        float f[3];
+        conductor_fresnel(c, mu, f);
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += 2.0 * static_cast<double>(f[ch] * mu) / kN;
+    }
+    for (int ch = 0; ch < 3; ++ch) c.f_avg[ch] = static_cast<float>(sum[ch]);
     auto* out = new (std::nothrow) Conductor(c);
     if (!out) set_error(error, cap, "out of memory");
     return out;
 }
 
-/** Fresnel reflectance in the working space for cosine c. */
-void conductor_fresnel(const Conductor& m, float c, float out[3]) {
-    if (m.perfect) {
-        out[0] = out[1] = out[2] = 1.0f;
-        return;
-    }
-    float f[3];
-    for (int ch = 0; ch < 3; ++ch) f[ch] = fresnel_conductor(c, m.eta[ch], m.k[ch]);
-    for (int r = 0; r < 3; ++r)
-        out[r] = std::clamp(m.to_working[3 * r] * f[0] + m.to_working[3 * r + 1] * f[1] +
-                                m.to_working[3 * r + 2] * f[2],
-                            0.0f, 1.0f);
+/** GGX alpha of the multiple-scattering tables for an anisotropic lobe: the mean of the two
+ *  (the geometric mean returned too little of the loss, 0.83 of a white 0.2/0.8 lobe's light
+ *  head-on, the root mean square slightly more than all of it, 1.013); the tables are
+ *  isotropic, so an anisotropic lobe gets back most of its loss, not all (0.93-0.99 at 0.2/0.8). */
+float ms_alpha(const Closure& c) {
+    return 0.5f * (c.ax + c.ay);
 }
 
 void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures,
@@ -297,9 +324,36 @@ void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* 
     const auto& m = *static_cast<const Conductor*>(inst);
     auto* out = static_cast<Closure*>(closures);
     for (uint32_t i = 0; i < b->count; ++i) {
-        out[i] = Closure{};
-        out[i].wo = wo_of(b, i);
-        alpha_at(b, i, {3, 4}, m.raw_r, m.raw_rv, m.ax, m.ay, m.delta, out[i]);
+        Closure& c = out[i];
+        c = Closure{};
+        c.wo = wo_of(b, i);
+        alpha_at(b, i, {3, 4}, m.raw_r, m.raw_rv, m.ax, m.ay, m.delta, c);
+        if (m.multiscatter && c.delta == 0.0f && c.wo.z > 0.0f) {
+            const float alpha = ms_alpha(c);
+            c.e_o = spangle::smooth::ggx_albedo(c.wo.z, alpha);
+            c.e_avg = spangle::smooth::ggx_albedo_avg(alpha);
+            // The share of the light (F = 1) single scattering loses at wo.
+            c.p_spec = 1.0f - c.e_o;
+        }
+    }
+}
+
+/** f and pdf of the rough conductor for wo, wi above the surface and their half vector h:
+ *  single-scattering GGX plus, where the closure has it, the multiple-scattering lobe
+ *  (albedo_tables.h), sampled in proportion p_spec by the cosine. */
+void conductor_rough(const Conductor& m, const Closure& c, V3 wo, V3 wi, V3 h, float f[3],
+                     float& pdf) {
+    const float d = ggx_d(h, c.ax, c.ay);
+    conductor_fresnel(m, dot(wo, h), f);
+    const float s = d * ggx_g2(wo, wi, c.ax, c.ay) / (4.0f * wo.z * wi.z);
+    pdf = ggx_g1(wo, c.ax, c.ay) * d / (4.0f * wo.z);
+    for (int ch = 0; ch < 3; ++ch) f[ch] *= s;
+    if (c.p_spec > 0.0f) {
+        const float shape = spangle::smooth::ms_shape(
+            c.e_o, spangle::smooth::ggx_albedo(wi.z, ms_alpha(c)), c.e_avg);
+        for (int ch = 0; ch < 3; ++ch)
+            f[ch] += spangle::smooth::ms_colour(m.f_avg[ch], c.e_avg) * shape;
+        pdf = (1.0f - c.p_spec) * pdf + c.p_spec * wi.z * kInvPi;
     }
 }
 
@@ -314,13 +368,9 @@ void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v3*
             write_eval(q, i, 0, 0, 0, 0);
             continue;
         }
-        const V3 h = normalize(wo + wi);
-        const float d = ggx_d(h, c.ax, c.ay);
-        float f[3];
-        conductor_fresnel(m, dot(wo, h), f);
-        const float s = d * ggx_g2(wo, wi, c.ax, c.ay) / (4.0f * wo.z * wi.z);
-        const float pdf = ggx_g1(wo, c.ax, c.ay) * d / (4.0f * wo.z);
-        write_eval(q, i, f[0] * s, f[1] * s, f[2] * s, pdf);
+        float f[3], pdf;
+        conductor_rough(m, c, wo, wi, normalize(wo + wi), f, pdf);
+        write_eval(q, i, f[0], f[1], f[2], pdf);
     }
 }
 
@@ -342,18 +392,25 @@ void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch
                          SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
             continue;
         }
-        const V3 h = ggx_sample_visible(wo, c.ax, c.ay, q->u0[i], q->u1[i]);
-        const V3 wi = reflect(wo, h);
+        // The multiple-scattering lobe by the cosine, with probability p_spec.
+        const bool ms = c.p_spec > 0.0f && q->u2[i] < c.p_spec;
+        V3 wi, h;
+        if (ms) {
+            wi = cosine_hemisphere(q->u0[i], q->u1[i]);
+            h = normalize(wo + wi);
+        } else {
+            h = ggx_sample_visible(wo, c.ax, c.ay, q->u0[i], q->u1[i]);
+            wi = reflect(wo, h);
+        }
         if (wi.z <= 0.0f) {
             invalid_sample(q, i);
             continue;
         }
-        const float d = ggx_d(h, c.ax, c.ay);
-        conductor_fresnel(m, dot(wo, h), f);
-        const float s = d * ggx_g2(wo, wi, c.ax, c.ay) / (4.0f * wo.z * wi.z);
-        const float pdf = ggx_g1(wo, c.ax, c.ay) * d / (4.0f * wo.z);
-        write_sample(q, i, wi, f[0] * s, f[1] * s, f[2] * s, pdf,
-                     SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_GLOSSY);
+        float pdf;
+        conductor_rough(m, c, wo, wi, h, f, pdf);
+        write_sample(
+            q, i, wi, f[0], f[1], f[2], pdf,
+            SPANGLE_SAMPLE_REFLECTION | (ms ? SPANGLE_SAMPLE_DIFFUSE : SPANGLE_SAMPLE_GLOSSY));
     }
 }
 

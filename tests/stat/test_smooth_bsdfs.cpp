@@ -99,17 +99,66 @@ BsdfHarness::Albedo albedo(const BsdfHarness& b, float eta2 = 1.0f) {
     return b.albedo(kSamples, 77, 1, eta2);
 }
 
-TEST(SmoothFurnace, PerfectConductorNeverGainsEnergy) {
-    for (float a : {0.001f, 0.1f, 0.5f, 1.0f})
+TEST(SmoothFurnace, PerfectConductorReturnsOne) {
+    // With its multiple scattering (the default) a white isotropic conductor reflects everything
+    // at every roughness and angle: E(o) + (1 - E(o)) = 1 by construction; 5e-3 allows for the
+    // albedo tables (512-point quadratures, bilinear in 32 cosines x 32 roughnesses). An
+    // anisotropic one is compensated as an isotropic one (smooth.cpp, ms_alpha): most of its loss
+    // comes back, never more than all of it. Single-scattering GGX loses energy at high roughness
+    // (at alpha 1, 0.69 of it head-on) and never gains any.
+    const std::pair<float, float> alphas[] = {{0.001f, 0.001f}, {0.1f, 0.1f}, {0.5f, 0.5f},
+                                              {1.0f, 1.0f},     {0.2f, 0.8f}, {0.05f, 0.4f},
+                                              {0.001f, 1.0f},   {1.0f, 0.01f}};
+    for (const auto& [ax, ay] : alphas)
         for (float c : {1.0f, 0.7f, 0.3f, 0.05f}) {
-            BsdfHarness b("smooth", "conductor", {{"roughness", {a}}}, {{"preset", "perfect"}});
-            b.prepare(wo_for(c));
-            const BsdfHarness::Albedo e = albedo(b);
-            // Single-scattering GGX loses energy at high roughness, never gains: <= 1 within
-            // 4 standard errors. And a smooth mirror at normal incidence keeps nearly all of it.
-            EXPECT_LE(e.mean, 1.0 + 4.0 * e.se) << "alpha " << a << " cos " << c;
-            if (a <= 0.1f && c >= 0.7f) {
-                EXPECT_GT(e.mean, 0.98) << "alpha " << a << " cos " << c;
+            BsdfHarness ms("smooth", "conductor", {{"roughness", {ax}}, {"roughness_v", {ay}}},
+                           {{"preset", "perfect"}});
+            ms.prepare(wo_for(c));
+            const BsdfHarness::Albedo e = albedo(ms);
+            BsdfHarness ss("smooth", "conductor",
+                           {{"roughness", {ax}}, {"roughness_v", {ay}}, {"multiscatter", {0.0}}},
+                           {{"preset", "perfect"}});
+            ss.prepare(wo_for(c));
+            const BsdfHarness::Albedo e1 = albedo(ss);
+            if (ax == ay) {
+                EXPECT_NEAR(e.mean, 1.0, 4.0 * e.se + 5e-3) << "alpha " << ax << " cos " << c;
+            } else {
+                EXPECT_LE(e.mean, 1.0 + 4.0 * e.se) << "alpha " << ax << "/" << ay << " cos " << c;
+                EXPECT_GT(e.mean, e1.mean + 0.5 * (1.0 - e1.mean))
+                    << "alpha " << ax << "/" << ay << " cos " << c << ": single " << e1.mean;
+            }
+            EXPECT_LE(e1.mean, 1.0 + 4.0 * e1.se) << "alpha " << ax << " cos " << c;
+            if (ax <= 0.1f && ay <= 0.1f && c >= 0.7f) {
+                EXPECT_GT(e1.mean, 0.98) << "alpha " << ax << " cos " << c;
+            }
+            if (ax >= 1.0f && ay >= 1.0f && c >= 0.7f) {
+                EXPECT_LT(e1.mean, 0.8) << "single scattering loses light at alpha 1, cos " << c;
+            }
+        }
+}
+
+TEST(SmoothFurnace, ColouredConductorGainsWithItsMultipleScatteringButNeverExceedsOne) {
+    // Gold: multiple scattering adds light at high roughness, tinted (each further bounce is
+    // coloured by the Fresnel average), and never lifts a channel above 1 or changes a near
+    // mirror.
+    for (float a : {0.01f, 0.3f, 1.0f})
+        for (float c : {1.0f, 0.3f}) {
+            BsdfHarness ms("smooth", "conductor", {{"roughness", {a}}}, {{"preset", "gold"}});
+            BsdfHarness ss("smooth", "conductor", {{"roughness", {a}}, {"multiscatter", {0.0}}},
+                           {{"preset", "gold"}});
+            ms.prepare(wo_for(c));
+            ss.prepare(wo_for(c));
+            for (int ch = 0; ch < 3; ++ch) {
+                const BsdfHarness::Albedo em = ms.albedo(kSamples, 77, ch);
+                const BsdfHarness::Albedo es = ss.albedo(kSamples, 77, ch);
+                EXPECT_LE(em.mean, 1.0 + 4.0 * em.se) << "alpha " << a << " ch " << ch;
+                EXPECT_GE(em.mean, es.mean - 4.0 * (em.se + es.se)) << "alpha " << a;
+                if (a <= 0.01f) {
+                    EXPECT_NEAR(em.mean, es.mean, 4.0 * (em.se + es.se) + 2e-3) << "near mirror";
+                }
+                if (a >= 1.0f) {
+                    EXPECT_GT(em.mean, es.mean * 1.1) << "alpha 1 cos " << c << " ch " << ch;
+                }
             }
         }
 }

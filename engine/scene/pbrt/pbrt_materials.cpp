@@ -48,6 +48,12 @@ public:
         m_.params.push_back(std::move(d));
     }
 
+    /** A true/false parameter. */
+    void boolean(const char* name, bool v) {
+        number(name, v ? 1.0 : 0.0);
+        m_.params.back().kind = ParamDesc::Kind::Bool;
+    }
+
     /** A string parameter. */
     void string(const char* name, const std::string& v) {
         ParamDesc d;
@@ -370,6 +376,7 @@ bool v3_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         p.find("Ks");
     } else if (t == "metal") {
         b.model("smooth", "conductor");
+        b.boolean("multiscatter", false);  // pbrt's GGX scatters once
         b.metal("eta", "k", nullptr);
         b.roughness_uv(0.01, Remap::V3);
     } else if (t == "mirror") {
@@ -439,10 +446,12 @@ bool v4_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         b.roughness_uv(0.0, Remap::V4);
     } else if (t == "conductor") {
         b.model("smooth", "conductor");
+        b.boolean("multiscatter", false);  // pbrt's GGX scatters once
         b.metal("eta", "k", "reflectance");
         b.roughness_uv(0.0, Remap::V4);
     } else if (t == "coatedconductor") {
         b.model("smooth", "conductor");
+        b.boolean("multiscatter", false);  // pbrt's GGX scatters once
         b.metal("conductor.eta", "conductor.k", "reflectance");
         const bool remap_on = p.boolean("remaproughness", true);
         b.roughness("conductor.roughness", "roughness", 0.0, Remap::V4, remap_on);

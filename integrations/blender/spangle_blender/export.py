@@ -380,6 +380,10 @@ def material_entry(mat, flake_params, warnings):
     spec_color = tuple(min(t * boost, 10.0) for t in tint)
     if any(abs(c - 1.0) > 1e-6 for c in spec_color):
         params["specular_color"] = spec_color
+    # Principled's default distribution, Multiscatter GGX, keeps the light single-scattering
+    # GGX loses on rough metal: the plugin's multiscatter (on by default) does the same.
+    if getattr(node, "distribution", "MULTI_GGX") == "GGX":
+        params["multiscatter"] = False
     coat = _socket_value(_input(node, "Coat Weight"), warnings, what)
     if isinstance(coat, float) and coat > 0.0:
         params["clearcoat"] = min(coat, 1.0)

@@ -131,7 +131,7 @@ params = {{ albedo = [0.7, 0.2, 0.1], ior = 1.5, roughness = {plastic_alpha:.9f}
 name = "metal"
 plugin = "smooth"
 model = "conductor"
-params = {{ preset = "custom", eta = [0.2, 0.92, 1.1], k = [3.9, 2.45, 2.14], roughness = {metal_alpha:.9f} }}
+params = {{ preset = "custom", eta = [0.2, 0.92, 1.1], k = [3.9, 2.45, 2.14], roughness = {metal_alpha:.9f}, multiscatter = false }}
 
 [[object]]
 mesh = "twin_v3_light.obj"
@@ -224,7 +224,7 @@ params = {{ albedo = [0.7, 0.2, 0.1], ior = 1.5, roughness = 0.2 }}
 name = "gold"
 plugin = "smooth"
 model = "conductor"
-params = {{ preset = "gold", roughness = 0.1 }}
+params = {{ preset = "gold", roughness = 0.1, multiscatter = false }}
 
 [[object]]
 mesh = "twin_v4_light.obj"
