@@ -379,7 +379,8 @@ void add_bench_options(CLI::App* sub, BenchArgs& a) {
         ->check(CLI::Range(1, 1024));
     sub->add_option("--repeat", a.repeat, "renders per scene, the fastest counts (default 1)")
         ->check(CLI::Range(1, 100));
-    sub->add_option("--plugin-path", a.plugin_dirs, "directory searched for plugins first");
+    sub->add_option("--plugin-path", a.plugin_dirs, "directory searched for plugins first")
+        ->allow_extra_args(false);  // one folder each: the scene after it is not a folder
     sub->add_option("--work-dir", a.work_dir,
                     "where the interior scene is written (default: a folder in the temp dir)");
     sub->add_option("--csv", a.csv, "also write the results as CSV");

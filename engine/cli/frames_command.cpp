@@ -13,6 +13,7 @@
 #include "cli/render_setup.h"
 #include "cli/signals.h"
 #include "pipeline/session.h"
+#include "render/render_scene.h"
 
 namespace spangle {
 namespace {
@@ -25,6 +26,13 @@ void print_frame_line(const Session& session, int64_t f, double seconds, const R
         seconds,
         rep.ran.empty() ? std::string("nothing") : fmt::format("{}", fmt::join(rep.ran, ", ")),
         exr);
+}
+
+/** The exit status of a sequence a signal stopped before its last frame (128 + SIGINT, as a
+ *  shell reports an interrupted command; SIGTERM's 143 likewise). */
+int interrupted_status() {
+    const int st = exit_status_for_signal();
+    return st != 0 ? st : 130;
 }
 
 }  // namespace
@@ -45,10 +53,18 @@ int run_frames(const RenderArgs& a) {
                            a.scene);
         }
         session.render();
-        const RenderResult& w = session.result();
+        RenderResult scratch;
+        const RenderResult& w = for_output(session.result(), session.options(), s.log, scratch);
+        // Frames a signal left unrendered: the sequence is not whole, whatever the signal (a
+        // farm script must not take it for done).
+        const auto left = [&](int64_t from) {
+            return from > last ? std::string()
+                               : fmt::format("; frames {}..{} not rendered", from, last);
+        };
         if (w.stats.spp_reached == 0) {
-            s.log.warn("stopped by a signal before frame {} had a pass: not written", f);
-            return exit_status_for_signal();
+            s.log.warn("stopped by a signal ({}) before frame {} had a pass: not written{}",
+                       stop_signal_name(), f, left(f));
+            return interrupted_status();
         }
         const Outputs out = s.out.for_frame(f);
         const ImageDescription image = final_image(w, session.color(), session.info());
@@ -60,10 +76,15 @@ int run_frames(const RenderArgs& a) {
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), rep,
                 out.exr);
         std::fflush(stdout);
-        if (image.partial) {
-            s.log.warn("stopped by a signal: frame {} has {} of {} samples per pixel", f,
-                       w.stats.spp_reached, w.stats.spp_target);
-            return exit_status_for_signal();
+        if (image.partial || (stop_requested() && f < last)) {
+            if (image.partial)
+                s.log.warn("stopped by a signal ({}): wrote {} with {} of {} samples per pixel{}",
+                           stop_signal_name(), out.exr, w.stats.spp_reached, w.stats.spp_target,
+                           left(f + 1));
+            else
+                s.log.warn("stopped by a signal ({}) after frame {}{}", stop_signal_name(), f,
+                           left(f + 1));
+            return f < last ? interrupted_status() : exit_status_for_signal();
         }
     }
     return 0;

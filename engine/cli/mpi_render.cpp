@@ -313,11 +313,16 @@ void render_on_rank0(const MpiJob& job, Session& session, const BandPlan& plan,
     if (adaptive.on() && plan.lc > 0 && !out.layers.empty()) {
         s.noise_threshold = adaptive.threshold;
         s.pixel_spp_min = ~0u;
+        double sum = 0.0;
+        std::size_t pixels = 0;
         for (std::size_t i = plan.lc - 1; i < out.layers.size(); i += plan.lc) {
             const auto n = static_cast<uint32_t>(out.layers[i]);
             s.pixel_spp_min = std::min(s.pixel_spp_min, n);
             s.pixel_spp_max = std::max(s.pixel_spp_max, n);
+            sum += n;
+            ++pixels;
         }
+        s.pixel_spp_mean = pixels ? sum / static_cast<double>(pixels) : 0.0;
     }
     s.passes = 1;
     s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();

@@ -18,7 +18,9 @@
 #include "core/cryptomatte.h"
 #include "core/error.h"
 #include "render/camera.h"
+#include "render/denoise.h"
 #include "render/layers/layer_sink.h"
+#include "render/render_scene.h"
 #include "scene/frame_sequence.h"
 #include "scene/scene_loader.h"
 
@@ -272,19 +274,27 @@ Outputs outputs_for(const RenderArgs& a) {
             out.exr);
     if (same_file(out.exr, a.scene)) usage_error("the output '{}' is the scene file", out.exr);
     // Lossy for 32-bit floats: the ids, depth and positions of the layers would be corrupt.
-    if (a.layers &&
+    if ((a.layers || a.denoise) &&
         (a.compression == "pxr24" || a.compression == "dwaa" || a.compression == "dwab"))
         usage_error(
             "--compression {} is lossy for 32-bit floats and would corrupt the data layers of "
-            "--layers (object and material ids, depth, positions): use zip, zips, piz, rle, b44, "
-            "b44a or none, or render without --layers",
-            a.compression);
+            "{} (object and material ids, depth, positions): use zip, zips, piz, rle, b44, "
+            "b44a or none, or render without {}",
+            a.compression, a.layers ? "--layers" : "--denoise (which writes the layers)",
+            a.layers ? "--layers" : "--denoise");
     check_writable(out.exr, "EXR");
     if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
     // A frame number goes into one run of '#': a second would stay in every frame's name.
-    for (const std::string& path : {out.exr, out.preview})
+    for (const std::string& path : {out.exr, out.preview}) {
         if (find_frame_run(path).several)
             usage_error("'{}' has more than one run of '#'; the frame number goes into one", path);
+        // Without --frames nothing numbers it: the file was written as 'still.####.exr'.
+        if (a.frames.empty() && find_frame_run(path).count > 0)
+            usage_error(
+                "'{}' holds a frame number pattern ('#'), but only --frames numbers files: render "
+                "the sequence with --frames FIRST..LAST, or name one file",
+                path);
+    }
     // The preview is a PNG whatever its name: another ending would mislabel it (p.jpg held PNG).
     if (!out.preview.empty() && fs::path(out.preview).extension() != ".png")
         usage_error("--preview '{}' must end in .png (the preview is a PNG)", out.preview);
@@ -318,6 +328,17 @@ void warn_half_overflow(const Logger& log, std::size_t values, const std::string
             "{} values in {} are brighter than a half float holds (65504) and were stored as "
             "infinity; write 32-bit floats with --float",
             values, exr);
+}
+
+const RenderResult& for_output(const RenderResult& r, const RenderOptions& o, const Logger& log,
+                               RenderResult& scratch) {
+    if (!o.denoise || r.stats.spp_reached == 0) return r;
+    scratch = r;
+    if (!denoise(DenoiseImage{&scratch.image, &scratch.layers, &scratch.layer_names, scratch.width,
+                              scratch.height},
+                 o.denoise_glints, o.threads))
+        log.warn("{}", not_denoised_warning(scratch.width, scratch.height));
+    return scratch;
 }
 
 }  // namespace spangle

@@ -37,6 +37,13 @@ struct ImageDescription {
     uint32_t spp_frame = 0;                        ///< the frame's samples per pixel (--spp-range)
 };
 
+struct RenderResult;
+
+/** The render as its outputs take it: `r` itself, or with --denoise (o.denoise) a denoised copy
+ *  in `scratch` (every mode denoises its final image alike: one-shot, --frames, --watch). */
+const RenderResult& for_output(const RenderResult& r, const RenderOptions& o, const Logger& log,
+                               RenderResult& scratch);
+
 /** The final (or stopped) image of a render: a RenderResult, FrameResult or DistributedImage,
  *  with its layers, window and, where the result has them, the exact sums. */
 template <class Result>

@@ -48,7 +48,8 @@ int run_plugins(const std::vector<std::string>& dirs) {
 Command add_plugins_command(CLI::App& app) {
     auto dirs = std::make_shared<std::vector<std::string>>();
     CLI::App* sub = app.add_subcommand("plugins", "list the plugins found and their parameters");
-    sub->add_option("--plugin-path", *dirs, "directory searched for plugins first (repeatable)");
+    sub->add_option("--plugin-path", *dirs, "directory searched for plugins first (repeatable)")
+        ->allow_extra_args(false);  // one folder each: the scene after it is not a folder
     return {sub, [dirs] { return run_plugins(*dirs); }};
 }
 

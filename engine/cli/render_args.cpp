@@ -15,14 +15,15 @@ RenderOptions render_options(const RenderArgs& a) {
     o.camera = a.camera;
     o.environment = a.environment;
     o.spp_override = a.spp;
-    o.noise_threshold_override = a.noise_threshold;
+    o.noise_threshold_override = static_cast<float>(a.noise_threshold);
     o.min_spp_override = a.min_spp;
     o.max_spp_override = a.max_spp;
     o.texture_cache = a.texture_cache;
     o.layers = a.layers || a.denoise;  // the denoiser's guides and the glints are layers
-    // With --layers the beauty is premultiplied by its alpha: the environment seen directly
-    // goes to a layer of its own.
-    o.background_apart = a.layers;
+    // With the layers (--layers, or --denoise's) the beauty is premultiplied by its alpha: the
+    // environment seen directly goes to a layer of its own (with --denoise alone the sky was in
+    // RGB where A said 0, and in every light group).
+    o.background_apart = o.layers;
     o.denoise = a.denoise;
     o.denoise_glints = a.denoise_glints == "filter"  ? GlintDenoise::Filter
                        : a.denoise_glints == "apart" ? GlintDenoise::Apart

@@ -42,7 +42,7 @@ struct RenderArgs {
     std::string frames;                    ///< A..B or A; empty = one still at frame_start
     uint32_t band_rows = 1;                ///< under MPI: tile rows per unit of work
     std::string spp_range;                 ///< A..B: samples [A, B) of the frame's; empty = all
-    float noise_threshold = -1.0f;         ///< adaptive sampling's threshold; < 0: the scene's
+    double noise_threshold = -1.0;         ///< adaptive sampling's threshold; < 0: the scene's
     uint32_t min_spp = 0, max_spp = 0;     ///< adaptive sampling's bounds; 0: the scene's
     bool denoise = false;                  ///< --denoise: the final image denoised
     std::string denoise_glints;            ///< keep (pass through), apart or filter; "" = keep

@@ -51,7 +51,7 @@ void add_scene_options(CLI::App* r, RenderArgs& a) {
                   "adaptive sampling: a pixel stops once its relative standard error is below "
                   "this (e.g. 0.01; 0 = off; overrides [render] noise_threshold; "
                   "docs/adaptive.md)")
-        ->check(CLI::Range(0.0f, 1.0f));
+        ->check(CLI::Range(0.0, 1.0));
     r->add_option("--min-spp", a.min_spp,
                   "adaptive sampling: samples every pixel takes first (default 16)")
         ->check(CLI::Range(1u, 1u << 20));
@@ -62,7 +62,8 @@ void add_scene_options(CLI::App* r, RenderArgs& a) {
     r->add_option("--threads", a.threads, "worker threads (default: all cores)")
         ->check(CLI::Range(1, 1024));
     r->add_option("--plugin-path", a.plugin_dirs,
-                  "directory searched for plugins first (repeatable)");
+                  "directory searched for plugins first (repeatable)")
+        ->allow_extra_args(false);  // one folder each: the scene after it is not a folder
     r->add_flag("--stats", a.stats, "print which systems ran and render statistics");
 }
 
@@ -170,9 +171,7 @@ void print_stats(const FrameResult& r, const std::string& exr) {
             fmt::print(
                 "adaptive sampling: noise threshold {}, {:.1f} samples per pixel on average "
                 "({} to {}; the spp layer has each pixel's)\n",
-                st.noise_threshold,
-                static_cast<double>(st.samples) / (static_cast<double>(r.width) * r.height),
-                st.pixel_spp_min, st.pixel_spp_max);
+                st.noise_threshold, st.pixel_spp_mean, st.pixel_spp_min, st.pixel_spp_max);
     }
     for (const auto& sd : r.subdiv)
         fmt::print("subdivision: {} level {}{}: {} cage faces -> {} triangles in {:.3f} s\n",
@@ -272,8 +271,17 @@ int run_one_shot(const RenderArgs& a) {
 /** Refuses options that clash (UsageError) and runs the mode they ask for. */
 int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
     // CLI11's range checks let NaN through (every comparison with it is false).
+    if (a.stats && !a.frames.empty())
+        usage_error(
+            "--stats reports one render: render a frame of the sequence alone for them "
+            "(each frame's line already gives its time)");
     if (std::isnan(a.noise_threshold))
         usage_error("--noise-threshold must be a number in [0, 1], got nan");
+    if (a.noise_threshold > 0.0 && a.noise_threshold < kMinNoiseThreshold)
+        usage_error(
+            "--noise-threshold {:g} is below {:g}, which no pixel reaches before its --max-spp: "
+            "0 turns adaptive sampling off",
+            a.noise_threshold, kMinNoiseThreshold);
     // Options that contradict each other, or name what is not there, are refused rather than
     // one of them silently winning.
     if (!a.preview.empty() && a.no_preview)

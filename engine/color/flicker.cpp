@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <utility>
 
 #include "core/error.h"
@@ -37,6 +38,8 @@ struct Frame {
 
 Frame read_frame(const std::string& path) {
     try {
+        std::error_code ec;
+        if (!std::filesystem::exists(path, ec)) throw_error("'{}' does not exist", path);
         if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
         Imf::InputFile in(path.c_str());
         const Imf::Header& h = in.header();

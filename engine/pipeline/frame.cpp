@@ -139,9 +139,10 @@ FrameResult render_frame(const FrameRequest& req) {
     r.layer_names = std::move(out.layer_names);
     r.sums = std::move(out.sums);
     r.stats = out.stats;
-    if (req.options.denoise && r.stats.spp_reached > 0)
-        denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
-                req.options.denoise_glints, req.options.threads);
+    if (req.options.denoise && r.stats.spp_reached > 0 &&
+        !denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
+                 req.options.denoise_glints, req.options.threads))
+        req.log->warn("{}", not_denoised_warning(r.width, r.height));
     r.info = session.info();
     r.plugins_opened = session.plugins().opened();
     add_scene_facts(session, r);

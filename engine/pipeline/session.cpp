@@ -284,6 +284,15 @@ ecs::SystemReport Session::render() {
             "and no [render] noise_threshold): every pixel takes the scene's spp");
         adaptive_warned_ = true;
     }
+    // --spp raises no adaptive pixel above the scene's max_spp: said once.
+    if (options_.spp_override && !options_.max_spp_override && film.max_spp &&
+        film.max_spp < options_.spp_override && !adaptive_warned_ && adaptive_on(film, options_)) {
+        log_.warn(
+            "--spp {}: with adaptive sampling the scene's max_spp {} is the most samples a pixel "
+            "takes (give --max-spp to change it)",
+            options_.spp_override, film.max_spp);
+        adaptive_warned_ = true;
+    }
     render_image(render_scene(), options_, live_->get<Camera>(camera), film, steps, result_);
     rep.ran = true;
     rep.seconds = result_.stats.seconds;

@@ -45,8 +45,10 @@ uint32_t next_checkpoint(const AdaptivePlan& plan, uint32_t samples) {
     const uint32_t half = (plan.min_spp / 2) & ~3u;
     if (half >= 4 && samples < half) return half;
     if (samples < plan.min_spp) return plan.min_spp;
+    // Then steps of an eighth (at least 8); from a min_spp of 4 (no half look before it) the
+    // next look is at 8, so that a lower min_spp never stops later (it stopped at 12: 4 + 8).
     uint32_t c = plan.min_spp;
-    while (c <= samples) c += std::max(8u, (c / 8) & ~3u);
+    while (c <= samples) c += c < 8 ? 8 - c : std::max(8u, (c / 8) & ~3u);
     return std::min(c, plan.max_spp);
 }
 

@@ -95,11 +95,18 @@ const OidnApi& oidn() {
             tried += fmt::format("{}{} (not Open Image Denoise 2: a function is missing)",
                                  tried.empty() ? "" : "; ", path);
         }
-        api.error = fmt::format(
-            "Intel Open Image Denoise 2 could not be opened (tried {}): run "
-            "scripts/install-deps.sh, which unpacks it into /opt/spangle/oidn, or set "
-            "SPANGLE_OIDN to the library",
-            tried);
+        const char* env = std::getenv("SPANGLE_OIDN");
+        api.error = env && *env
+                        ? fmt::format(
+                              "Intel Open Image Denoise 2 could not be opened from SPANGLE_OIDN "
+                              "(tried {}): point SPANGLE_OIDN at the library (or its folder), "
+                              "or unset it to use /opt/spangle/oidn or the system's",
+                              tried)
+                        : fmt::format(
+                              "Intel Open Image Denoise 2 could not be opened (tried {}): run "
+                              "scripts/install-deps.sh, which unpacks it into "
+                              "/opt/spangle/oidn, or set SPANGLE_OIDN to the library",
+                              tried);
     });
     return api;
 }
@@ -158,6 +165,21 @@ std::size_t channel(const std::vector<std::string>& names, const char* name) {
     return static_cast<std::size_t>(it - names.begin());
 }
 
+/** The noisy beauty becomes the layer `noisy` (after the others); `result` the image. */
+void keep_noisy(DenoiseImage im, std::vector<float>& result) {
+    std::vector<std::string>& names = *im.layer_names;
+    const std::size_t lc = names.size(), pixels = static_cast<std::size_t>(im.width) * im.height;
+    std::vector<float> layers(pixels * (lc + 3));
+    for (std::size_t p = 0; p < pixels; ++p) {
+        std::copy_n(im.layers->begin() + static_cast<std::ptrdiff_t>(p * lc), lc,
+                    layers.begin() + static_cast<std::ptrdiff_t>(p * (lc + 3)));
+        for (std::size_t c = 0; c < 3; ++c) layers[p * (lc + 3) + lc + c] = (*im.image)[3 * p + c];
+    }
+    im.layers->swap(layers);
+    for (const char* c : {"noisy.R", "noisy.G", "noisy.B"}) names.emplace_back(c);
+    if (&result != im.image) im.image->swap(result);
+}
+
 /** Three channels from `first` of each pixel of the interleaved layers. */
 std::vector<float> three(const std::vector<float>& layers, std::size_t lc, std::size_t first) {
     const std::size_t pixels = layers.size() / lc;
@@ -175,13 +197,18 @@ bool denoiser_available(std::string* why) {
     return api.error.empty();
 }
 
-void denoise(DenoiseImage im, GlintDenoise glints, int threads) {
+bool denoise(DenoiseImage im, GlintDenoise glints, int threads) {
     const OidnApi& api = oidn();
     if (!api.error.empty()) throw_error("{}", api.error);
     std::vector<std::string>& names = *im.layer_names;
     const std::size_t lc = names.size(), pixels = static_cast<std::size_t>(im.width) * im.height;
     SPANGLE_CHECK(im.image->size() == 3 * pixels && im.layers->size() == lc * pixels,
                   "the denoiser's image and layers must match its size");
+    const bool filter = im.width >= kMinDenoiseSide && im.height >= kMinDenoiseSide;
+    if (!filter) {
+        keep_noisy(im, *im.image);
+        return false;
+    }
     std::vector<float> albedo = three(*im.layers, lc, channel(names, "albedo.R"));
     std::vector<float> normal = three(*im.layers, lc, channel(names, "N.X"));
     const std::vector<float> glint = three(*im.layers, lc, channel(names, "glints.R"));
@@ -204,16 +231,17 @@ void denoise(DenoiseImage im, GlintDenoise glints, int threads) {
     }
     if (glints != GlintDenoise::Filter)
         for (std::size_t i = 0; i < out.size(); ++i) out[i] += glint_out[i];
-    // The noisy beauty becomes a layer; the denoised one the image.
-    std::vector<float> layers(pixels * (lc + 3));
-    for (std::size_t p = 0; p < pixels; ++p) {
-        std::copy_n(im.layers->begin() + static_cast<std::ptrdiff_t>(p * lc), lc,
-                    layers.begin() + static_cast<std::ptrdiff_t>(p * (lc + 3)));
-        for (std::size_t c = 0; c < 3; ++c) layers[p * (lc + 3) + lc + c] = (*im.image)[3 * p + c];
+    // Where no camera ray hit anything the beauty is what it was (0 when the environment is a
+    // layer of its own): nothing spreads into the transparent pixels.
+    const auto a = std::find(names.begin(), names.end(), "A");
+    if (a != names.end()) {
+        const std::size_t ai = static_cast<std::size_t>(a - names.begin());
+        for (std::size_t p = 0; p < pixels; ++p)
+            if ((*im.layers)[p * lc + ai] == 0.0f)
+                for (std::size_t c = 0; c < 3; ++c) out[3 * p + c] = (*im.image)[3 * p + c];
     }
-    im.layers->swap(layers);
-    for (const char* c : {"noisy.R", "noisy.G", "noisy.B"}) names.emplace_back(c);
-    im.image->swap(out);
+    keep_noisy(im, out);
+    return true;
 }
 
 }  // namespace spangle

@@ -36,9 +36,23 @@ struct DenoiseImage {
     uint32_t width, height;                 ///< pixels
 };
 
+/** Images narrower or lower than this are not filtered (a 1-pixel strip came out at 0.2-1.2x
+ *  its mean: the network needs neighbours). */
+constexpr uint32_t kMinDenoiseSide = 8;
+
 /** Denoises `im` in place: its image becomes the denoised beauty and its noisy beauty is kept
- *  as the layer `noisy` (added after the others). `threads`: 0 = all cores. Throws
- *  SpangleError when the library cannot be opened, a guide layer is missing or OIDN fails. */
-void denoise(DenoiseImage im, GlintDenoise glints, int threads);
+ *  as the layer `noisy` (added after the others). Pixels no camera ray covered (layer `A` 0)
+ *  keep their rendered value (the denoiser spread light into them: a fringe in a composite).
+ *  `threads`: 0 = all cores. Returns false, the image as rendered (and its `noisy` copy), when
+ *  it is below kMinDenoiseSide pixels either way. Throws SpangleError when the library cannot
+ *  be opened, a guide layer is missing or OIDN fails. */
+bool denoise(DenoiseImage im, GlintDenoise glints, int threads);
+
+/** What to warn when denoise() returned false. */
+inline std::string not_denoised_warning(uint32_t width, uint32_t height) {
+    return "--denoise: a " + std::to_string(width) + "x" + std::to_string(height) +
+           " image is too small to denoise (at least " + std::to_string(kMinDenoiseSide) +
+           " pixels each way): written as rendered";
+}
 
 }  // namespace spangle

@@ -363,13 +363,16 @@ void add_spp_layer(const std::vector<uint32_t>& counts, bool keep_layers, Render
     const std::size_t lc = keep_layers ? out.layer_names.size() : 0;
     std::vector<float> layers(pixels * (lc + 1));
     uint32_t lo = ~0u, hi = 0;
+    double sum = 0.0;
     for (std::size_t p = 0; p < pixels; ++p) {
         std::copy_n(out.layers.begin() + static_cast<std::ptrdiff_t>(p * lc), lc,
                     layers.begin() + static_cast<std::ptrdiff_t>(p * (lc + 1)));
         layers[p * (lc + 1) + lc] = static_cast<float>(counts[p]);
         lo = std::min(lo, counts[p]);
         hi = std::max(hi, counts[p]);
+        sum += counts[p];
     }
+    out.stats.pixel_spp_mean = pixels ? sum / static_cast<double>(pixels) : 0.0;
     out.layers.swap(layers);
     if (!keep_layers) out.layer_names.clear();
     out.layer_names.emplace_back("spp");

@@ -127,6 +127,7 @@ struct RenderStats {
      *  spp_reached samples) and the fewest and most samples a pixel received. */
     float noise_threshold = 0.0f;
     uint32_t pixel_spp_min = 0, pixel_spp_max = 0;
+    double pixel_spp_mean = 0.0;  ///< the image's pixels (a crop's halo not counted)
 };
 
 }  // namespace spangle

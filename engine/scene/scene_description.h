@@ -311,6 +311,10 @@ struct LightDesc {
     FileLoc loc;                     ///< the light
 };
 
+/** The smallest noise_threshold (a relative standard error) other than 0: below it no pixel
+ *  stops before max_spp, and the value would underflow in float (adaptive sampling off). */
+constexpr double kMinNoiseThreshold = 1e-6;
+
 /** Image size, sampling, colour spaces, frame range and shutter. */
 struct RenderDesc {
     uint32_t width = 640;                      ///< pixels
@@ -322,7 +326,7 @@ struct RenderDesc {
     FilterKind filter = FilterKind::Gaussian;  ///< pixel filter
     float clamp_indirect = 0.0f;               ///< max luminance of one indirect contribution
     float filter_glossy = 0.0f;                ///< path regularisation; 0 = off (unbiased)
-    float noise_threshold = 0.0f;              ///< adaptive sampling; 0 = off
+    float noise_threshold = 0.0f;              ///< adaptive sampling; 0 = off, else >= 1e-6
     uint32_t min_spp = 0;                      ///< adaptive: samples before a stop; 0 = auto
     uint32_t max_spp = 0;                      ///< adaptive: most samples of a pixel; 0 = spp
     bool transparent_background = false;       ///< camera rays do not see the environment

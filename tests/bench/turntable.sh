@@ -8,12 +8,16 @@
 # Writes OUT_DIR/fixed/beetle.####.exr (+ .png), OUT_DIR/reseeded/..., the two `spangle flicker`
 # reports, a contact sheet of the fixed sequence, an animated GIF of it and, when ffmpeg is
 # installed, an MP4 of each sequence.
-set -eu
+set -eu -o pipefail
 OUT=${1:?usage: turntable.sh OUT_DIR [FRAMES] [SIZE] [SPP] [DEGREES_PER_FRAME] [turn|orbit]}
 FRAMES=${2:-12} SIZE=${3:-480x270} SPP=${4:-32} STEP=${5:-2} MOTION=${6:-turn}
+[ "$FRAMES" -ge 2 ] 2>/dev/null || { echo "turntable.sh: FRAMES must be a number of at least 2 (flicker compares frames), not '$FRAMES'" >&2; exit 2; }
 case "$MOTION" in turn|orbit) ;; *) echo "turntable.sh: MOTION is turn or orbit, not '$MOTION'" >&2; exit 2 ;; esac
 REPO=$(cd "$(dirname "$0")/../.." && pwd)
 S="$REPO/build/spangle"
+# Frames of an earlier run into OUT would join the measurement and the GIF: start afresh.
+rm -f "$OUT"/fixed/beetle.*.exr "$OUT"/fixed/beetle.*.png "$OUT"/reseeded/beetle.*.exr \
+    "$OUT"/reseeded/beetle.*.png
 mkdir -p "$OUT/fixed" "$OUT/reseeded"
 
 # The beetle scene with absolute asset paths and its motion: keys at the first and last frame,

@@ -43,5 +43,30 @@ grep -q "^relMSE against " "$T/out.txt" || fail "inspect did not compare: $(cat 
 if [ -f /opt/spangle/oidn/lib/libOpenImageDenoise.so.2 ] || [ -n "${SPANGLE_OIDN:-}" ]; then
     "$S" render "$SCENE" -o "$T/dn.exr" --size 90x50 --spp 4 -q --no-preview --denoise 2> "$T/err.txt" || fail "denoise"
     oiiotool --info -v "$T/dn.exr" | grep -q "noisy.R" || fail "the noisy beauty is not a layer"
+    # As with --layers the sky is a layer of its own, and pixels no camera ray covered (A 0)
+    # stay 0 (the sky was in RGB where A said 0; the denoiser spread light into them).
+    oiiotool --info -v "$T/dn.exr" | grep -q "background.R" || fail "--denoise has no background layer"
+    A0=$(oiiotool "$T/dn.exr" --ch A --colorcount:eps=0 0 | awk 'NF {n = $1} END {print n}')
+    RGBA0=$(oiiotool "$T/dn.exr" --ch R,G,B,A --colorcount:eps=0,0,0,0 "0,0,0,0" | awk 'NF {n = $1} END {print n}')
+    [ "${A0:-0}" -gt 0 ] && [ "$A0" = "$RGBA0" ] ||
+        fail "pixels with A 0 are not black after denoising ($A0 with A 0, $RGBA0 all 0)"
+    # Every mode denoises its final image: each frame of --frames, and --watch's finished image.
+    "$S" render "$SCENE" -o "$T/seq.#.exr" --size 90x50 --spp 4 -q --no-preview --denoise \
+        --frames 1..2 2> "$T/err.txt" || fail "denoised frames"
+    for f in 1 2; do
+        oiiotool --info -v "$T/seq.$f.exr" | grep -q "noisy.R" || fail "frame $f was not denoised"
+    done
+    "$S" render "$SCENE" -o "$T/w.exr" --size 90x50 --spp 4 --no-preview --denoise --watch \
+        > "$T/watch.txt" 2>&1 &
+    PID=$!
+    for _ in $(seq 1 300); do grep -q "watching for changes" "$T/watch.txt" && break; sleep 0.1; done
+    kill -INT $PID; wait $PID
+    oiiotool --info -v "$T/w.exr" | grep -q "noisy.R" || fail "--watch did not denoise its finished image"
+    # An image too small for the network is written as rendered, said.
+    "$S" render "$SCENE" -o "$T/tiny.exr" --size 4x4 --spp 2 -q --no-preview --denoise 2> "$T/err.txt" || fail "tiny denoise"
+    grep -q "too small to denoise" "$T/err.txt" || fail "a 4x4 denoise was not said to be skipped"
 fi
+# The layers --denoise writes refuse a lossy compression as --layers does.
+"$S" render "$SCENE" -o "$T/lossy.exr" --size 90x50 --spp 2 -q --denoise --compression pxr24 2> "$T/err.txt"
+[ $? -eq 2 ] || fail "--denoise with a lossy compression is not a usage error"
 echo PASS

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # SIGINT and SIGTERM in the middle of a render: the passes completed so far are written, the EXR
 # header says partial and how many samples per pixel, the exit status is 0 (SIGINT) or 143
-# (SIGTERM), and no temporary file is left.
+# (SIGTERM), and no temporary file is left; a sequence stopped before its last frame exits 130.
 #   signals.sh SPANGLE PLUGIN_DIR SCENE_DIR
 set -u
 S=$1 PLUGINS=$2 SCENES=$3
@@ -39,4 +39,17 @@ wait $PID
 RC=$?
 [ $RC -eq 0 ] || [ $RC -eq 130 ] || fail "second SIGINT: exit status $RC"
 ls -a | grep -q '\.tmp' && fail "second SIGINT: temporary file left behind"
+# A sequence stopped before its last frame is not done: exit status 130 (SIGINT), and the line
+# names the frames left (it exited 0 with frames 3..8 never rendered).
+"$S" render flake_uvless.toml -o seq.####.exr --spp 100000 --threads 2 -q --pass-output \
+    --frames 1..8 --plugin-path "$PLUGINS" 2> err.txt &
+PID=$!
+for _ in $(seq 1 200); do [ -f seq.0001.exr ] && break; sleep 0.05; done
+sleep 0.5
+kill -INT $PID
+wait $PID
+RC=$?
+[ $RC -eq 130 ] || fail "SIGINT in a sequence: exit status $RC, expected 130"
+grep -q "stopped by a signal (SIGINT): wrote seq.0001.exr with .*; frames 2..8 not rendered" err.txt ||
+    fail "SIGINT in a sequence: $(cat err.txt)"
 echo "signals: partial images, exit statuses and no temporary files as expected"

@@ -212,7 +212,13 @@ void WatchLoop::render() {
 }
 
 void WatchLoop::finish_render() {
-    const RenderResult& w = session_.result();
+    // --denoise: the image written (finished, or stopped by a signal) is denoised; one a
+    // reload cut short is not written.
+    const RenderResult& done = session_.result();
+    const bool written = done.stats.spp_reached >= done.stats.spp_target ||
+                         (stop_requested() && done.stats.spp_reached > 0);
+    RenderResult scratch;
+    const RenderResult& w = written ? for_output(done, session_.options(), log_, scratch) : done;
     const RenderStats& st = w.stats;
     const ImageDescription image = final_image(w, session_.color(), session_.info());
     if (!image.partial || (stop_requested() && st.spp_reached > 0)) {
