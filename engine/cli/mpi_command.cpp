@@ -159,10 +159,14 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
         if (job.rank() != 0) continue;
         progress.finish();
         // The denoiser reads neighbouring pixels: it runs on the assembled image.
-        if (options.denoise &&
-            !denoise(DenoiseImage{&img.image, &img.layers, &img.layer_names, img.width, img.height},
-                     options.denoise_glints, options.threads))
-            log.warn("{}", not_denoised_warning(img.width, img.height));
+        if (options.denoise) {
+            if (denoise(
+                    DenoiseImage{&img.image, &img.layers, &img.layer_names, img.width, img.height},
+                    options.denoise_glints, options.threads))
+                mark_denoised(img.stats, options.denoise_glints);
+            else
+                log.warn("{}", not_denoised_warning(img.width, img.height));
+        }
         write_on_rank0(a, job, *session, log, out, f, numbered, img);
     }
     return 0;

@@ -312,6 +312,7 @@ void render_on_rank0(const MpiJob& job, Session& session, const BandPlan& plan,
     s.spp_reached = s.spp_target = adaptive.on() ? adaptive.max_spp : plan.film.spp;
     if (adaptive.on() && plan.lc > 0 && !out.layers.empty()) {
         s.noise_threshold = adaptive.threshold;
+        s.adaptive_min_spp = adaptive.min_spp;
         s.pixel_spp_min = ~0u;
         double sum = 0.0;
         std::size_t pixels = 0;

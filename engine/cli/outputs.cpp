@@ -113,6 +113,10 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
                   {"spangle:version", SPANGLE_VERSION},
                   {"spangle:spp", std::to_string(d.spp)},
                   {"spangle:partial", d.partial ? "1" : "0"}};
+    // How the samples were taken and whether the image was denoised: spangle merge refuses
+    // parts that differ (adaptive crops of other thresholds made a quilt) or were denoised.
+    if (!d.sampling.empty()) o.metadata.emplace_back("spangle:sampling", d.sampling);
+    if (!d.denoised.empty()) o.metadata.emplace_back("spangle:denoised", d.denoised);
     // A --spp-range part: its samples' exact sums, for spangle merge.
     if (out.spp_end > 0 && d.sums && !d.partial) {
         o.sums = d.sums;
@@ -330,13 +334,34 @@ void warn_half_overflow(const Logger& log, std::size_t values, const std::string
             values, exr);
 }
 
+std::string sampling_note(const RenderStats& st) {
+    if (!(st.noise_threshold > 0.0f)) return {};
+    return fmt::format("adaptive {} min_spp {} max_spp {}", st.noise_threshold, st.adaptive_min_spp,
+                       st.spp_target);
+}
+
+std::string denoise_note(const RenderStats& st) {
+    if (!st.denoised) return {};
+    switch (st.denoise_glints) {
+        case GlintDenoise::Apart:
+            return "apart";
+        case GlintDenoise::Filter:
+            return "filter";
+        case GlintDenoise::Keep:
+            break;
+    }
+    return "keep";
+}
+
 const RenderResult& for_output(const RenderResult& r, const RenderOptions& o, const Logger& log,
                                RenderResult& scratch) {
     if (!o.denoise || r.stats.spp_reached == 0) return r;
     scratch = r;
-    if (!denoise(DenoiseImage{&scratch.image, &scratch.layers, &scratch.layer_names, scratch.width,
-                              scratch.height},
-                 o.denoise_glints, o.threads))
+    if (denoise(DenoiseImage{&scratch.image, &scratch.layers, &scratch.layer_names, scratch.width,
+                             scratch.height},
+                o.denoise_glints, o.threads))
+        mark_denoised(scratch.stats, o.denoise_glints);
+    else
         log.warn("{}", not_denoised_warning(scratch.width, scratch.height));
     return scratch;
 }

@@ -35,9 +35,19 @@ struct ImageDescription {
     ImageWindow window;                            ///< place in the full frame; full_width 0: all
     const std::vector<SampleSum>* sums = nullptr;  ///< exact sums, kept for a --spp-range part
     uint32_t spp_frame = 0;                        ///< the frame's samples per pixel (--spp-range)
+    /** How the samples were taken: "adaptive T min_spp A max_spp B", or empty (fixed). */
+    std::string sampling;
+    /** The denoiser's glint treatment (keep, apart, filter), or empty (not denoised). */
+    std::string denoised;
 };
 
 struct RenderResult;
+
+/** The header's note of how a render took its samples (adaptive settings; empty: fixed spp). */
+std::string sampling_note(const RenderStats& st);
+
+/** The header's note of how a render was denoised (empty: it was not). */
+std::string denoise_note(const RenderStats& st);
 
 /** The render as its outputs take it: `r` itself, or with --denoise (o.denoise) a denoised copy
  *  in `scratch` (every mode denoises its final image alike: one-shot, --frames, --watch). */
@@ -60,6 +70,8 @@ ImageDescription final_image(const Result& r, const ColorConfig& color, const Sc
     d.layers = &r.layers;
     d.layer_names = &r.layer_names;
     d.window = r.window;
+    d.sampling = sampling_note(r.stats);
+    d.denoised = denoise_note(r.stats);
     if constexpr (requires { r.sums; }) {
         d.sums = &r.sums;
         d.spp_frame = r.stats.spp_frame;

@@ -65,6 +65,24 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
     if (differ("spangle:time"))
         throw_error("'{}' is of the scene at {} s, '{}' at {} s: parts of one frame merge", path,
                     attribute(hd, "spangle:time"), first_path, attribute(first, "spangle:time"));
+    // Adaptive sampling's settings decide each pixel's samples: parts of other settings are
+    // parts of other renders.
+    if (attribute(hd, "spangle:sampling") != attribute(first, "spangle:sampling"))
+        throw_error("'{}' was sampled '{}', '{}' '{}': parts of one render merge", path,
+                    attribute(hd, "spangle:sampling").empty() ? std::string("fixed")
+                                                              : attribute(hd, "spangle:sampling"),
+                    first_path,
+                    attribute(first, "spangle:sampling").empty()
+                        ? std::string("fixed")
+                        : attribute(first, "spangle:sampling"));
+    // A denoised part was denoised from its own pixels alone: parts do not add up to the
+    // denoised whole (a seam where they meet).
+    if (!attribute(hd, "spangle:denoised").empty())
+        throw_error(
+            "'{}' was denoised (--denoise): the denoiser saw only that part's pixels, so denoised "
+            "parts do not merge into the denoised whole; merge parts rendered without --denoise, "
+            "or render the whole frame with --denoise (MPI denoises the assembled image)",
+            path);
 }
 
 /** Opens the part at `path` and hands it to read(); any failure but our own errors becomes

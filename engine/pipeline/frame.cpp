@@ -139,10 +139,13 @@ FrameResult render_frame(const FrameRequest& req) {
     r.layer_names = std::move(out.layer_names);
     r.sums = std::move(out.sums);
     r.stats = out.stats;
-    if (req.options.denoise && r.stats.spp_reached > 0 &&
-        !denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
-                 req.options.denoise_glints, req.options.threads))
-        req.log->warn("{}", not_denoised_warning(r.width, r.height));
+    if (req.options.denoise && r.stats.spp_reached > 0) {
+        if (denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
+                    req.options.denoise_glints, req.options.threads))
+            mark_denoised(r.stats, req.options.denoise_glints);
+        else
+            req.log->warn("{}", not_denoised_warning(r.width, r.height));
+    }
     r.info = session.info();
     r.plugins_opened = session.plugins().opened();
     add_scene_facts(session, r);

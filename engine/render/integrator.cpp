@@ -393,6 +393,7 @@ void record_stats(const RenderJob& job, const RenderOptions& options, const Film
     st.spp_frame = options.spp_override ? options.spp_override : film.spp;
     st.passes = passes;
     st.noise_threshold = job.adaptive ? job.adaptive->threshold : 0.0f;
+    st.adaptive_min_spp = job.adaptive ? job.adaptive->min_spp : 0;
     st.nonfinite = job.nonfinite;
     if (st.nonfinite > 0) {
         const uint64_t key = job.first_bad;

@@ -127,7 +127,17 @@ struct RenderStats {
      *  spp_reached samples) and the fewest and most samples a pixel received. */
     float noise_threshold = 0.0f;
     uint32_t pixel_spp_min = 0, pixel_spp_max = 0;
-    double pixel_spp_mean = 0.0;  ///< the image's pixels (a crop's halo not counted)
+    double pixel_spp_mean = 0.0;    ///< the image's pixels (a crop's halo not counted)
+    uint32_t adaptive_min_spp = 0;  ///< adaptive sampling's min_spp (its max is spp_target)
+    /** The image was denoised (--denoise), treating the glints so. */
+    bool denoised = false;
+    GlintDenoise denoise_glints = GlintDenoise::Keep;
 };
+
+/** Records in `st` that its image was denoised, treating the glints so. */
+inline void mark_denoised(RenderStats& st, GlintDenoise glints) {
+    st.denoised = true;
+    st.denoise_glints = glints;
+}
 
 }  // namespace spangle

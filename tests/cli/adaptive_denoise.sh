@@ -21,6 +21,14 @@ oiiotool --info -v "$T/whole.exr" | grep -q "channel list: R, G, B, spp" || fail
 oiiotool "$T/whole.exr" "$T/merged.exr" --diff --fail 0 --warn 0 > "$T/diff.txt" 2>&1 ||
     { cat "$T/diff.txt"; fail "the merged adaptive crops differ from the whole render"; }
 
+# A part of other adaptive settings is a part of another render: refused (it merged into a
+# quilt of two thresholds).
+"$S" render "$SCENE" -o "$T/other.exr" "${ARGS[@]/0.05/0.5}" --crop 37,0,90,50 2> "$T/err.txt" || fail "other crop"
+"$S" merge "$T/left.exr" "$T/other.exr" -o "$T/quilt.exr" > /dev/null 2> "$T/err.txt" &&
+    fail "crops of different noise thresholds merged"
+grep -q "sampled 'adaptive 0.5 min_spp 8 max_spp 64'" "$T/err.txt" || fail "no reason for refusing the quilt"
+[ ! -e "$T/quilt.exr" ] || fail "a refused merge wrote its output"
+
 "$S" render "$SCENE" -o "$T/range.exr" "${ARGS[@]}" --spp-range 0..32 2> "$T/err.txt"
 [ $? -eq 1 ] || fail "an adaptive render split by --spp-range was not refused"
 grep -q "cannot split an adaptive render" "$T/err.txt" || fail "no reason for refusing --spp-range"
@@ -62,6 +70,11 @@ if [ -f /opt/spangle/oidn/lib/libOpenImageDenoise.so.2 ] || [ -n "${SPANGLE_OIDN
     for _ in $(seq 1 300); do grep -q "watching for changes" "$T/watch.txt" && break; sleep 0.1; done
     kill -INT $PID; wait $PID
     oiiotool --info -v "$T/w.exr" | grep -q "noisy.R" || fail "--watch did not denoise its finished image"
+    # Denoised parts do not add up to the denoised whole (a seam): merge refuses them.
+    "$S" render "$SCENE" -o "$T/dl.exr" --size 90x50 --spp 4 -q --no-preview --denoise --crop 0,0,45,50 2> "$T/err.txt" || fail "denoised crop"
+    "$S" render "$SCENE" -o "$T/dr2.exr" --size 90x50 --spp 4 -q --no-preview --denoise --crop 45,0,90,50 2> "$T/err.txt" || fail "denoised crop"
+    "$S" merge "$T/dl.exr" "$T/dr2.exr" -o "$T/dm.exr" > /dev/null 2> "$T/err.txt" && fail "denoised crops merged"
+    grep -q "was denoised (--denoise)" "$T/err.txt" || fail "no reason for refusing denoised parts"
     # An image too small for the network is written as rendered, said.
     "$S" render "$SCENE" -o "$T/tiny.exr" --size 4x4 --spp 2 -q --no-preview --denoise 2> "$T/err.txt" || fail "tiny denoise"
     grep -q "too small to denoise" "$T/err.txt" || fail "a 4x4 denoise was not said to be skipped"
