@@ -6,6 +6,7 @@
 
 #include <chrono>
 #include <cstdio>
+#include <filesystem>
 #include <string>
 
 #include "cli/arguments.h"
@@ -13,6 +14,8 @@
 #include "cli/render_setup.h"
 #include "cli/signals.h"
 #include "pipeline/session.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_loader.h"
 #include "render/render_scene.h"
 
 namespace spangle {
@@ -42,6 +45,10 @@ int run_frames(const RenderArgs& a) {
     const RenderSetup s = set_up_render(a);
     Session session(a.plugin_dirs, a.ocio, render_options(a), s.log);
     session.options().stop = stop_requested;
+    // Every frame's mesh and cage files exist before the first frame renders (sequences are
+    // written in TOML scenes; a missing frame 5 failed after frames 1 to 4 had rendered).
+    if (std::filesystem::path(a.scene).extension() == ".toml")
+        check_sequence_files(read_scene(a.scene), first, last);
     for (int64_t f = first; f <= last; ++f) {
         const auto t0 = std::chrono::steady_clock::now();
         const ReloadReport rep = session.load_frame(a.scene, f);

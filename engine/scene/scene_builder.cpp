@@ -332,6 +332,19 @@ std::string sequence_file(const std::string& pattern, int64_t frame, const FileL
     return path;
 }
 
+}  // namespace
+
+void check_sequence_files(const SceneDescription& scene, int64_t first, int64_t last) {
+    for (const ObjectDesc& d : scene.objects) {
+        if (const auto* m = std::get_if<MeshFileShape>(&d.shape); m && m->sequence)
+            for (int64_t f = first; f <= last; ++f) sequence_file(m->path, f, m->loc, "mesh");
+        if (const auto* c = std::get_if<SubdivShape>(&d.shape); c && c->sequence)
+            for (int64_t f = first; f <= last; ++f) sequence_file(c->path, f, c->loc, "cage");
+    }
+}
+
+namespace {
+
 /** The file a mesh or cage is read from and its rest pose. */
 struct PosedFile {
     std::string path;  ///< the file (a sequence's of the frame)

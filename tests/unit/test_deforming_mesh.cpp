@@ -14,6 +14,7 @@
 #include "pipeline/session.h"
 #include "render/surface.h"
 #include "scene/frame_sequence.h"
+#include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
 #include "scene/toml_scene_writer.h"
 #include "test_support.h"
@@ -251,6 +252,28 @@ TEST(DeformingMesh, AMissingFrameOrAnotherTopologyIsAClearErrorAndKeepsTheLiveSc
                            dir.file("plane.0001.ply")),
               std::string::npos)
         << no_rest;
+}
+
+TEST(DeformingMesh, EveryFramesFileIsCheckedBeforeAnyFrameRenders) {
+    // --frames checks each frame's files first: a missing frame 5 failed after frames 1 to 4
+    // had rendered.
+    test::TempDir dir("deform_check");
+    for (int f : {1, 2, 4})
+        write_ply(grid(2, [](Vec3 p) { return p; }), dir.file(fmt::format("plane.{:04}.ply", f)),
+                  "test");
+    const std::string scene = dir.file("scene.toml");
+    std::ofstream(scene) << plane_scene("mesh = \"plane.####.ply\"");
+    const SceneDescription d = read_scene(scene);
+    EXPECT_NO_THROW(check_sequence_files(d, 1, 2));
+    try {
+        check_sequence_files(d, 1, 4);
+        ADD_FAILURE() << "frame 3 is missing";
+    } catch (const SpangleError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(m.find(scene + ":29:8: error: mesh file of frame 3 not found"),
+                  std::string::npos)
+            << m;
+    }
 }
 
 TEST(DeformingMesh, ASequenceOfIdenticalFramesRendersAsThePlainMeshBitForBit) {
