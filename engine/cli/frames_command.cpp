@@ -14,9 +14,9 @@
 #include "cli/render_setup.h"
 #include "cli/signals.h"
 #include "pipeline/session.h"
+#include "render/render_scene.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
-#include "render/render_scene.h"
 
 namespace spangle {
 namespace {

@@ -204,14 +204,15 @@ bool denoise(DenoiseImage im, GlintDenoise glints, int threads) {
     const std::size_t lc = names.size(), pixels = static_cast<std::size_t>(im.width) * im.height;
     SPANGLE_CHECK(im.image->size() == 3 * pixels && im.layers->size() == lc * pixels,
                   "the denoiser's image and layers must match its size");
-    const bool filter = im.width >= kMinDenoiseSide && im.height >= kMinDenoiseSide;
-    if (!filter) {
-        keep_noisy(im, *im.image);
-        return false;
-    }
+
     std::vector<float> albedo = three(*im.layers, lc, channel(names, "albedo.R"));
     std::vector<float> normal = three(*im.layers, lc, channel(names, "N.X"));
     const std::vector<float> glint = three(*im.layers, lc, channel(names, "glints.R"));
+    // (The guides are checked first: a small image without them is still an error.)
+    if (im.width < kMinDenoiseSide || im.height < kMinDenoiseSide) {
+        keep_noisy(im, *im.image);
+        return false;
+    }
     // The beauty without its glints (never below 0: the layers are float sums, the beauty
     // fixed-point ones), denoised; then the glints added back as rendered.
     std::vector<float> base = *im.image;

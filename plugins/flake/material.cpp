@@ -293,7 +293,8 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
         // Facets cover the base: the share follows the facets it holds (their shares inside it
         // against the expected lambda), so a footprint inside a facet is all mirror and one
         // between facets all base. Point flakes: a footprint that holds none shows the base
-        // alone, and one that holds any the share w / P(it holds any) = w / (1 - e^-lambda), at
+        // alone (as one whose flakes all face away from wo), and one that holds any the share
+        // w / P(it holds any) = w / (1 - e^-lambda), at
         // most 1, so the share averages to w wherever w <= 1 - e^-lambda (a footprint of fewer
         // than ~3 flakes reflected (1 - e^-lambda) of the smooth limit when it kept w always).
         // Both average to w as the footprint grows, and the smooth lobe keeps w.
@@ -302,7 +303,7 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
             if (m.facet && view.facet_size > 0.0)
                 local = std::min(
                     1.0f, c.weight * static_cast<float>(static_cast<double>(c.cover) / lambda));
-            else if (c.cover > 0.0f)
+            else if (c.cover > 0.0f && c.w_norm > 0.0f)  // holds a flake that wo sees
                 local = std::min(
                     1.0f, static_cast<float>(static_cast<double>(c.weight) / -std::expm1(-lambda)));
             if (local != c.weight) c.weight = (1.0f - c.t) * local + c.t * c.weight;

@@ -270,8 +270,7 @@ TEST(DeformingMesh, EveryFramesFileIsCheckedBeforeAnyFrameRenders) {
         ADD_FAILURE() << "frame 3 is missing";
     } catch (const SpangleError& e) {
         const std::string m = e.what();
-        EXPECT_NE(m.find(scene + ":29:8: error: mesh file of frame 3 not found"),
-                  std::string::npos)
+        EXPECT_NE(m.find(scene + ":29:8: error: mesh file of frame 3 not found"), std::string::npos)
             << m;
     }
 }
