@@ -6,13 +6,12 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfMatrixAttribute.h>
-#include <OpenEXR/ImfTestFile.h>
 
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <utility>
 
+#include "color/image_io.h"
 #include "core/error.h"
 
 namespace spangle {
@@ -38,9 +37,7 @@ struct Frame {
 
 Frame read_frame(const std::string& path) {
     try {
-        std::error_code ec;
-        if (!std::filesystem::exists(path, ec)) throw_error("'{}' does not exist", path);
-        if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+        require_exr_file(path);
         Imf::InputFile in(path.c_str());
         const Imf::Header& h = in.header();
         const auto* m = h.findTypedAttribute<Imf::M44fAttribute>("worldToNDC");

@@ -291,6 +291,12 @@ std::vector<float> read_image(const std::string& path, int max_channels, ImageHe
     return pixels;
 }
 
+void require_exr_file(const std::string& path) {
+    std::error_code ec;
+    if (!std::filesystem::exists(path, ec)) throw_error("'{}' does not exist", path);
+    if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+}
+
 std::string usual_image_space(const std::string& path) {
     // The file's own first bytes first: an EXR or a Radiance HDR is linear whatever it is
     // called (a PNG named .exr was read as linear, an EXR named .png sRGB-decoded).

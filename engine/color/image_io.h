@@ -43,6 +43,10 @@ std::vector<float> read_image(const std::string& path, int max_channels, ImageHe
  *  EXR, HDR and .tx files, srgb_texture for the rest (8- and 16-bit formats). */
 std::string usual_image_space(const std::string& path);
 
+/** Throws SpangleError unless `path` is an OpenEXR file ("does not exist" or "is not an OpenEXR
+ *  file"), for the commands that read Spangle's EXRs back (merge, flicker). */
+void require_exr_file(const std::string& path);
+
 /** Version of the OpenImageIO module's C interface this build expects. */
 inline constexpr int kOiioModuleAbi = 2;
 

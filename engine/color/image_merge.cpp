@@ -6,15 +6,14 @@
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStringAttribute.h>
-#include <OpenEXR/ImfTestFile.h>
 
 #include <algorithm>
 #include <cinttypes>
 #include <cstdio>
 #include <cstring>
-#include <filesystem>
 #include <tuple>
 
+#include "color/image_io.h"
 #include "color/image_output.h"
 #include "core/error.h"
 #include "core/memory.h"
@@ -67,14 +66,13 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
                     attribute(hd, "spangle:time"), first_path, attribute(first, "spangle:time"));
     // Adaptive sampling's settings decide each pixel's samples: parts of other settings are
     // parts of other renders.
-    if (attribute(hd, "spangle:sampling") != attribute(first, "spangle:sampling"))
+    const auto sampling = [](const Imf::Header& h) {
+        const std::string s = attribute(h, "spangle:sampling");
+        return s.empty() ? std::string("fixed") : s;
+    };
+    if (sampling(hd) != sampling(first))
         throw_error("'{}' was sampled '{}', '{}' '{}': parts of one render merge", path,
-                    attribute(hd, "spangle:sampling").empty() ? std::string("fixed")
-                                                              : attribute(hd, "spangle:sampling"),
-                    first_path,
-                    attribute(first, "spangle:sampling").empty()
-                        ? std::string("fixed")
-                        : attribute(first, "spangle:sampling"));
+                    sampling(hd), first_path, sampling(first));
     // A denoised part was denoised from its own pixels alone: parts do not add up to the
     // denoised whole (a seam where they meet).
     if (!attribute(hd, "spangle:denoised").empty())
@@ -90,9 +88,7 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
 template <class Read>
 void read_part(const std::string& path, Read&& read) {
     try {
-        std::error_code ec;
-        if (!std::filesystem::exists(path, ec)) throw_error("'{}' does not exist", path);
-        if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+        require_exr_file(path);
         Imf::InputFile in(path.c_str());
         read(in);
     } catch (const SpangleError&) {

@@ -89,6 +89,19 @@ void escape(const RenderJob& job, Workspace& ws, Sink& sink, std::size_t k, uint
     sink.escaped(k, bounce, p.throughput[k], w.environment, w.environment_group, kc);
 }
 
+/** The light `hit` emits towards path k (MIS-weighted), added to its radiance and told to the
+ *  sink: what meet() adds at any surface and pass_light() at a see-through quad light. */
+template <class Sink>
+void add_emission(const RenderJob& job, PathBatch& p, Sink& sink, std::size_t k, const Hit& hit,
+                  uint32_t bounce) {
+    uint32_t group = 0;
+    const Vec3 e = emission_at_hit(*job.scene, job.strategy, p, k, hit, group);
+    const Vec3 c = p.throughput[k] * e;
+    const float kc = clamp_factor(job, c, bounce);
+    p.radiance[k] += c * kc;
+    sink.emitted(k, bounce, c, kc, group, e);
+}
+
 /** Path k's ray hit something: the light it emits towards the path. Returns whether the path
  *  goes on from a surface (lights do not scatter; nor does the last bounce). */
 template <class Sink>
@@ -104,14 +117,7 @@ bool meet(const RenderJob& job, Workspace& ws, Sink& sink, std::size_t k, const 
     if (p.catcher[k] == 1 && bounce > 0 && hit.kind == HitKind::Instance && !on_catcher)
         p.catcher[k] = 2;
     if (bounce == 0) sink.camera_hit(k, p.ray[k], hit.t);
-    if (p.catcher[k] != 1) {
-        uint32_t group = 0;
-        const Vec3 e = emission_at_hit(*job.scene, job.strategy, p, k, hit, group);
-        const Vec3 c = p.throughput[k] * e;
-        const float kc = clamp_factor(job, c, bounce);
-        p.radiance[k] += c * kc;
-        sink.emitted(k, bounce, c, kc, group, e);
-    }
+    if (p.catcher[k] != 1) add_emission(job, p, sink, k, hit, bounce);
     if (hit.kind != HitKind::Instance || bounce == job.max_depth) {
         p.active[k] = 0;
         return false;
@@ -132,12 +138,7 @@ void pass_light(const RenderJob& job, Workspace& ws, Sink& sink, std::size_t k, 
                 uint32_t bounce) {
     PathBatch& p = ws.paths;
     if (bounce == 0 || p.catcher[k] == 1) return;
-    uint32_t group = 0;
-    const Vec3 e = emission_at_hit(*job.scene, job.strategy, p, k, hit, group);
-    const Vec3 c = p.throughput[k] * e;
-    const float kc = clamp_factor(job, c, bounce);
-    p.radiance[k] += c * kc;
-    sink.emitted(k, bounce, c, kc, group, e);
+    add_emission(job, p, sink, k, hit, bounce);
 }
 
 /** Starts the fetch of the mesh data of hit h (its triangle's vertices) into the cache. */
