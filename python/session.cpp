@@ -251,6 +251,10 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     if (position) c.position = *position;
     if (look_at) c.look_at = *look_at;
     if (up) c.up = *up;
+    if (fov && c.ortho_height > 0.0)
+        throw SpangleError(
+            "python: set_camera(): 'fov': the camera is orthographic (ortho_height), it has no "
+            "field of view");
     if (fov) c.fov_deg = *fov;
     if (aperture) c.aperture = *aperture;
     if (focus_distance) c.focus_distance = *focus_distance;

@@ -40,7 +40,7 @@ void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t fra
     const Camera& c = d.info->camera;
     const CameraMatrices m =
         CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, frame_w,
-                    frame_h, FilmLayout{c.mirror, c.screen, c.fov_shorter})
+                    frame_h, FilmLayout{c.mirror, c.screen, c.fov_shorter, c.ortho_height})
             .matrices();
     o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
     // Which scene (its files' bytes) and which moment: spangle merge refuses parts that differ.

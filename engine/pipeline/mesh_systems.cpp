@@ -131,7 +131,8 @@ bool levels_from_camera(const ecs::Registry& r) {
 }
 
 /** The level of a surface whose level is chosen from the camera: its longest refined edge about
- *  `pixel_budget` pixels seen from the nearest point of the cage's bounding sphere. */
+ *  `pixel_budget` pixels seen from the nearest point of the cage's bounding sphere (pixel_angle
+ *  is a pixel's width at distance 1, or on the film of an orthographic camera). */
 int camera_level(const Cage& cage, const SubdivSurface& s, const Affine& xf, const Camera& cam,
                  float pixel_angle) {
     Vec3 lo(1e30f), hi(-1e30f);
@@ -142,8 +143,11 @@ int camera_level(const Cage& cage, const SubdivSurface& s, const Affine& xf, con
         hi = {std::max(hi.x, p.x), std::max(hi.y, p.y), std::max(hi.z, p.z)};
     }
     const Vec3 c = (lo + hi) * 0.5f;
-    const double dist =
-        std::max(1e-3, static_cast<double>(length(c - cam.position) - 0.5f * length(hi - lo)));
+    // Orthographic: pixel_angle is a pixel's width itself, at any distance.
+    const double dist = cam.ortho_height > 0.0f
+                            ? 1.0
+                            : std::max(1e-3, static_cast<double>(length(c - cam.position) -
+                                                                 0.5f * length(hi - lo)));
     return level_for_camera(longest_edge(cage, xf), dist, pixel_angle, s.pixel_budget, s.max_level);
 }
 
@@ -221,8 +225,10 @@ void system_subdivide(ecs::Registry& r, World& w) {
         const float portrait = cam.fov_shorter && cam.screen == ScreenWindow{} && width < height
                                    ? static_cast<float>(height) / static_cast<float>(width)
                                    : 1.0f;
-        pixel_angle = span * portrait * std::tan(0.5f * cam.fov_deg * kPi / 180.0f) /
-                      static_cast<float>(height);
+        // An orthographic camera: a pixel's width on the film, the same at every distance.
+        const float unit = cam.ortho_height > 0.0f ? 0.5f * cam.ortho_height
+                                                   : std::tan(0.5f * cam.fov_deg * kPi / 180.0f);
+        pixel_angle = span * portrait * unit / static_cast<float>(height);
         camera = &cam;
     }
     SubdividedMeshes out;

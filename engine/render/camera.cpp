@@ -76,13 +76,15 @@ CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, fl
                          const FilmLayout& layout)
     : origin_(position),
       forward_(normalize(look_at - position)),
-      tan_half_(std::tan(0.5f * fov_deg * kPi / 180.0f)),
+      tan_half_(layout.ortho_height > 0.0f ? 0.5f * layout.ortho_height
+                                           : std::tan(0.5f * fov_deg * kPi / 180.0f)),
       aspect_(static_cast<float>(width) / static_cast<float>(height)),
       aperture_(aperture),
       focus_(focus_distance),
       width_(static_cast<float>(width)),
       height_(static_cast<float>(height)) {
     screen_ = layout.screen;
+    ortho_ = layout.ortho_height > 0.0f;
     if (layout.fov_shorter && !has_screen() && aspect_ < 1.0f) tan_half_ /= aspect_;
     right_ = normalize(cross(forward_, up));
     up_ = cross(right_, forward_);
@@ -108,23 +110,39 @@ CameraMatrices CameraModel::matrices() const {
     }
     c[15] = 1.0f;
     // Camera space to NDC: x = 0.5 + 0.5 (cx / cz) / (tan_half aspect), y = 0.5 - 0.5 (cy / cz) /
-    // tan_half, as (X, Y, Z, W) with W = cz.
+    // tan_half, as (X, Y, Z, W) with W = cz. Orthographic: cx and cy themselves, W = 1.
     const float t = tan_half_, aspect = aspect_;
     float p[16] = {};
-    p[0 * 4 + 0] = 0.5f / (t * aspect);
-    p[1 * 4 + 1] = -0.5f / t;
-    p[2 * 4 + 0] = 0.5f;
-    p[2 * 4 + 1] = 0.5f;
-    p[2 * 4 + 2] = 1.0f;
-    p[2 * 4 + 3] = 1.0f;
-    p[3 * 4 + 3] = 0.0f;
-    if (has_screen()) {
-        // x = ((cx / cz) / t - x0) / (x1 - x0), y = (y1 - (cy / cz) / t) / (y1 - y0).
-        const float w = screen_[1] - screen_[0], h = screen_[3] - screen_[2];
-        p[0 * 4 + 0] = 1.0f / (t * w);
-        p[1 * 4 + 1] = -1.0f / (t * h);
-        p[2 * 4 + 0] = -screen_[0] / w;
-        p[2 * 4 + 1] = screen_[3] / h;
+    if (ortho_) {
+        p[0 * 4 + 0] = 0.5f / (t * aspect);
+        p[1 * 4 + 1] = -0.5f / t;
+        p[2 * 4 + 2] = 1.0f;
+        p[3 * 4 + 0] = 0.5f;
+        p[3 * 4 + 1] = 0.5f;
+        p[3 * 4 + 3] = 1.0f;
+        if (has_screen()) {
+            const float w = screen_[1] - screen_[0], h = screen_[3] - screen_[2];
+            p[0 * 4 + 0] = 1.0f / (t * w);
+            p[1 * 4 + 1] = -1.0f / (t * h);
+            p[3 * 4 + 0] = -screen_[0] / w;
+            p[3 * 4 + 1] = screen_[3] / h;
+        }
+    } else {
+        p[0 * 4 + 0] = 0.5f / (t * aspect);
+        p[1 * 4 + 1] = -0.5f / t;
+        p[2 * 4 + 0] = 0.5f;
+        p[2 * 4 + 1] = 0.5f;
+        p[2 * 4 + 2] = 1.0f;
+        p[2 * 4 + 3] = 1.0f;
+        p[3 * 4 + 3] = 0.0f;
+        if (has_screen()) {
+            // x = ((cx / cz) / t - x0) / (x1 - x0), y = (y1 - (cy / cz) / t) / (y1 - y0).
+            const float w = screen_[1] - screen_[0], h = screen_[3] - screen_[2];
+            p[0 * 4 + 0] = 1.0f / (t * w);
+            p[1 * 4 + 1] = -1.0f / (t * h);
+            p[2 * 4 + 0] = -screen_[0] / w;
+            p[2 * 4 + 1] = screen_[3] / h;
+        }
     }
     for (std::size_t i = 0; i < 4; ++i)
         for (std::size_t j = 0; j < 4; ++j) {
@@ -147,18 +165,11 @@ Vec3 CameraModel::point_on_film(float fx, float fy) const {
 }
 
 RayDifferential CameraModel::generate(float fx, float fy, float lu, float lv) const {
-    RayDifferential r;
-    const auto make = [&](float x, float y, Vec3& o, Vec3& d) {
-        const Vec3 dir = point_on_film(x, y);  // direction with unit forward component
-        if (aperture_ <= 0.0f) {
-            o = origin_;
-            d = normalize(dir);
-            return;
-        }
-        // Thin lens: every ray through the lens point reaches the same point on the focal plane.
-        const Vec3 focus_point = origin_ + dir * focus_;
+    // The lens point (concentric disk mapping), the same for the ray and its differentials.
+    Vec3 lens(0.0f);
+    if (aperture_ > 0.0f) {
         const float a = 2.0f * lu - 1.0f, b = 2.0f * lv - 1.0f;
-        float rr = 0.0f, phi = 0.0f;  // concentric disk mapping
+        float rr = 0.0f, phi = 0.0f;
         if (a != 0.0f || b != 0.0f) {
             if (std::fabs(a) > std::fabs(b)) {
                 rr = a;
@@ -168,9 +179,24 @@ RayDifferential CameraModel::generate(float fx, float fy, float lu, float lv) co
                 phi = kPi / 2.0f - (kPi / 4.0f) * (a / b);
             }
         }
-        o = origin_ + (right_ * std::cos(phi) + up_ * std::sin(phi)) * (rr * aperture_);
-        d = normalize(focus_point - o);
+        lens = (right_ * std::cos(phi) + up_ * std::sin(phi)) * (rr * aperture_);
+    }
+    const auto make = [&](float x, float y, Vec3& o, Vec3& d) {
+        const Vec3 dir = point_on_film(x, y);  // direction with unit forward component
+        // Perspective: from the position towards the film point; orthographic: from the film
+        // point on the plane through the position, along the view.
+        const Vec3 from = ortho_ ? origin_ + (dir - forward_) : origin_;
+        const Vec3 along = ortho_ ? forward_ : dir;
+        if (aperture_ <= 0.0f) {
+            o = from;
+            d = normalize(along);
+            return;
+        }
+        // Thin lens: every ray through the lens point reaches the same point on the focal plane.
+        o = from + lens;
+        d = normalize(from + along * focus_ - o);
     };
+    RayDifferential r;
     make(fx, fy, r.o, r.d);
     make(fx + 1.0f, fy, r.dx_o, r.dx_d);
     make(fx, fy + 1.0f, r.dy_o, r.dy_d);

@@ -1,7 +1,7 @@
 #pragma once
-// The camera: perspective pinhole or thin lens, a pixel filter sampled by importance (each sample
-// lands where the filter puts it and weighs 1; Ernst et al. 2006), and ray differentials towards
-// the neighbouring pixels for texture and flake footprints.
+// The camera: perspective or orthographic, pinhole or thin lens, a pixel filter sampled by
+// importance (each sample lands where the filter puts it and weighs 1; Ernst et al. 2006), and ray
+// differentials towards the neighbouring pixels for texture and flake footprints.
 
 #include <array>
 #include <string>
@@ -56,6 +56,11 @@ struct FilmLayout {
     /** fov spans the shorter side (pbrt's convention): on an image taller than wide it is the
      *  horizontal field of view. Without a screen window only. */
     bool fov_shorter = false;
+    /** > 0: an orthographic camera whose view is this many scene units tall (or along its
+     *  shorter side, with fov_shorter). It takes the place of tan(fov / 2) at distance 1: the
+     *  screen window's unit is half of it. Rays leave the film plane through the position, all
+     *  along the view (through the lens towards the plane in focus, with an aperture). */
+    float ortho_height = 0.0f;
 };
 
 class CameraModel {
@@ -69,21 +74,27 @@ public:
      *  sample (lu, lv) in [0, 1)^2. */
     RayDifferential generate(float fx, float fy, float lu, float lv) const;
 
-    /** World-space width of one pixel at distance 1 along the view direction (for footprints). */
-    float pixel_angle() const { return pixel_angle_; }
+    /** World-space width of one pixel at distance 1 along the view direction (for footprints);
+     *  0 for an orthographic camera. */
+    float pixel_angle() const { return ortho_ ? 0.0f : pixel_angle_; }
+    /** World-space width of one pixel at the camera: an orthographic camera's, else 0. */
+    float pixel_width() const { return ortho_ ? pixel_angle_ : 0.0f; }
     /** The camera's frame and projection as the EXR header's matrices. */
     CameraMatrices matrices() const;
 
 private:
-    Vec3 point_on_film(float fx, float fy) const;  ///< on the plane at distance 1
-    bool has_screen() const;                       ///< a screen window was given
+    /** On the plane at distance 1 (perspective), or forward plus the offset on the film plane
+     *  from the position (orthographic). */
+    Vec3 point_on_film(float fx, float fy) const;
+    bool has_screen() const;  ///< a screen window was given
 
     Vec3 origin_, forward_, right_, up_;
     float tan_half_, aspect_;
     std::array<float, 4> screen_;  ///< all 0: the default window
     float aperture_, focus_;
     float width_, height_;
-    float pixel_angle_;
+    float pixel_angle_;  ///< a pixel's width at distance 1, or on the film (orthographic)
+    bool ortho_ = false;
 };
 
 }  // namespace spangle

@@ -19,10 +19,11 @@ CameraModel camera_at(const RenderJob& job, float time) {
     const Camera& a = steps[i];
     const Camera& b = steps[i + 1];
     const auto mix = [s](auto x, auto y) { return x + (y - x) * s; };
-    return CameraModel(mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
-                       mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
-                       mix(a.focus_distance, b.focus_distance), job.width, job.height,
-                       FilmLayout{a.mirror, a.screen, a.fov_shorter});
+    return CameraModel(
+        mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
+        mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
+        mix(a.focus_distance, b.focus_distance), job.width, job.height,
+        FilmLayout{a.mirror, a.screen, a.fov_shorter, mix(a.ortho_height, b.ortho_height)});
 }
 
 /** Path i: sample `smp` of pixel (x, y), the top-left of a block of job.stride pixels whose
@@ -42,11 +43,12 @@ void start_path(const RenderJob& job, PathBatch& p, std::size_t i, uint32_t x, u
     p.key[i] = key;
     p.sample[i] = smp;
     p.time[i] = tu;
-    float pixel_angle = job.camera->pixel_angle();
+    float pixel_angle = job.camera->pixel_angle(), pixel_width = job.camera->pixel_width();
     if (job.camera_steps) {  // a moving camera (2 or more steps)
         const CameraModel cam = camera_at(job, tu);
         p.ray[i] = cam.generate(fx, fy, lu, lv);
         pixel_angle = cam.pixel_angle();
+        pixel_width = cam.pixel_width();
     } else {
         p.ray[i] = job.camera->generate(fx, fy, lu, lv);
     }
@@ -58,7 +60,7 @@ void start_path(const RenderJob& job, PathBatch& p, std::size_t i, uint32_t x, u
         r.dy_d = r.d + (r.dy_d - r.d) * scale;
     }
     p.has_diff[i] = 1;
-    p.fp_width[i] = 0.0f;
+    p.fp_width[i] = pixel_width * scale;
     p.fp_spread[i] = pixel_angle * scale;
     p.throughput[i] = Vec3(1.0f);
     p.radiance[i] = Vec3(0.0f);

@@ -205,17 +205,20 @@ SPANGLE_COMPONENT(EnvironmentMapFile, SPANGLE_ENVIRONMENT_MAP_FIELDS);
 /** An image's window on the film plane: x0, x1, y0, y1 in units of tan(fov / 2). */
 using ScreenWindow = std::array<float, 4>;
 
-#define SPANGLE_CAMERA_FIELDS(X)                                                              \
-    X(Vec3, position, "eye, world space")                                                     \
-    X(Vec3, look_at, "point looked at")                                                       \
-    X(Vec3, up, "up hint")                                                                    \
-    X(float, fov_deg, "vertical field of view, degrees (with a screen window: its unit)")     \
-    X(float, aperture, "lens radius, metres; 0 = pinhole")                                    \
-    X(float, focus_distance, "distance of the plane in focus, metres")                        \
-    X(bool, mirror, "image x along up x forward: pbrt's left-handed camera (mirrored image)") \
-    X(bool, fov_shorter, "fov spans the image's shorter side (pbrt), not its height")         \
-    X(ScreenWindow, screen, "pbrt's screen window (y up), tan(fov / 2) units; all 0 = none")
-/** A perspective camera: pinhole or thin lens. */
+#define SPANGLE_CAMERA_FIELDS(X)                                                               \
+    X(Vec3, position, "eye, world space")                                                      \
+    X(Vec3, look_at, "point looked at")                                                        \
+    X(Vec3, up, "up hint")                                                                     \
+    X(float, fov_deg, "vertical field of view, degrees (with a screen window: its unit)")      \
+    X(float, aperture, "lens radius, metres; 0 = pinhole")                                     \
+    X(float, focus_distance, "distance of the plane in focus, metres")                         \
+    X(bool, mirror, "image x along up x forward: pbrt's left-handed camera (mirrored image)")  \
+    X(bool, fov_shorter, "fov spans the image's shorter side (pbrt), not its height")          \
+    X(ScreenWindow, screen, "pbrt's screen window (y up), tan(fov / 2) units; all 0 = none")   \
+    X(float, ortho_height,                                                                     \
+      "an orthographic camera's view height in scene units (the screen window's unit is half " \
+      "of it); 0 = perspective")
+/** A perspective or orthographic camera: pinhole or thin lens. */
 SPANGLE_COMPONENT(Camera, SPANGLE_CAMERA_FIELDS);
 
 namespace ecs {

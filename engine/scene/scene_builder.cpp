@@ -150,6 +150,7 @@ Camera still_camera(const CameraDesc& d) {
     c.focus_distance = d.focus_distance ? static_cast<float>(*d.focus_distance) : length(dir);
     c.mirror = d.mirror;
     c.fov_shorter = d.fov_shorter && !d.screen;
+    c.ortho_height = static_cast<float>(d.ortho_height);
     if (d.screen) {
         const std::array<double, 4>& w = *d.screen;
         for (double v : w)

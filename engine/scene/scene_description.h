@@ -108,7 +108,7 @@ struct CameraKey {
     std::string what;               ///< what messages call the key, e.g. "[[camera.keys]] #2"
 };
 
-/** A perspective camera, pinhole or thin lens. */
+/** A perspective or orthographic camera, pinhole or thin lens. */
 struct CameraDesc {
     Vec3 position;                         ///< eye, world space
     Vec3 look_at;                          ///< point looked at
@@ -125,7 +125,11 @@ struct CameraDesc {
     /** pbrt's screen window: x0, x1, y0, y1 of the image in units of tan(fov / 2), y up (fov is
      *  then the window's unit, not the vertical field of view); none = centred, fov vertical. */
     std::optional<std::array<double, 4>> screen;
-    FileLoc screen_loc;    ///< where the window is written
+    FileLoc screen_loc;  ///< where the window is written
+    /** An orthographic camera: parallel rays along the view over a view this many scene units
+     *  tall (with fov_shorter, its shorter side; with a screen window, the window's unit is half
+     *  of it), instead of fov_deg; 0 = perspective. */
+    double ortho_height = 0.0;
     Keys<CameraKey> keys;  ///< its motion
     FileLoc loc;           ///< the camera
     FileLoc look_at_loc;   ///< its look_at (blamed when it meets the position)

@@ -154,6 +154,13 @@ CameraDesc read_camera(TableReader& r) {
     c.look_at_loc = r.loc("look_at");
     c.up = r.vec3("up", c.up);
     c.up_loc = r.loc("up");
+    if (r.has("ortho_height")) {
+        if (r.has("fov"))
+            throw_error(r.loc("fov"),
+                        "'fov' and 'ortho_height' are both given: an orthographic camera "
+                        "(ortho_height, the view's height in scene units) has no field of view");
+        c.ortho_height = r.number("ortho_height", {0.0, 1e30, true});
+    }
     c.fov_deg = r.number("fov", c.fov_deg, {0.0, 180.0, true, true});
     // "vertical" (the default) or "shorter": the image's shorter side, as pbrt takes fov.
     if (r.has("fov_axis")) {
@@ -171,13 +178,18 @@ CameraDesc read_camera(TableReader& r) {
     c.screen = read_window(r, "screen_window");
     c.screen_loc = r.loc("screen_window");
     const auto name = [](std::size_t k) { return fmt::format("[[camera.keys]] #{}", k); };
-    c.keys = read_keys<CameraKey>(r, name, [](TableReader& kr) {
+    c.keys = read_keys<CameraKey>(r, name, [&c](TableReader& kr) {
         CameraKey key;
         key.time = read_key_time(kr);
         key.position = optional_vec3(kr, "position");
         key.look_at = optional_vec3(kr, "look_at");
         key.up = optional_vec3(kr, "up");
-        if (kr.has("fov")) key.fov_deg = kr.number("fov", {0.0, 180.0, true, true});
+        if (kr.has("fov")) {
+            if (c.ortho_height > 0.0)
+                throw_error(kr.loc("fov"),
+                            "an orthographic camera (ortho_height) has no field of view to key");
+            key.fov_deg = kr.number("fov", {0.0, 180.0, true, true});
+        }
         return key;
     });
     r.finish();

@@ -140,7 +140,10 @@ struct Writer {
         line("position", vec(c.position));
         line("look_at", vec(c.look_at));
         line("up", vec(c.up));
-        line("fov", num(c.fov_deg));
+        if (c.ortho_height > 0.0)
+            line("ortho_height", num(c.ortho_height));
+        else
+            line("fov", num(c.fov_deg));
         if (c.fov_shorter) line("fov_axis", str("shorter"));
         line("aperture", num(c.aperture));
         if (c.focus_distance) line("focus_distance", num(*c.focus_distance));

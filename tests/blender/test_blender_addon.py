@@ -227,11 +227,11 @@ def test_unsupported_things_are_warnings_and_the_export_is_fast(tmp_path):
     bpy.ops.object.light_add(type="AREA", location=(0, 0, 4))
     bpy.context.active_object.data.shape = "DISK"
     cam = scene.camera.data
-    cam.type = "ORTHO"
+    cam.type = "PANO"
     depsgraph = bpy.context.evaluated_depsgraph_get()
     warnings = export.export_scene(depsgraph, str(tmp_path), (W, H), 4, flake_parameters())
     assert any("disk area light" in w for w in warnings)
-    assert any("ortho cameras are not supported" in w for w in warnings)
+    assert any("pano cameras are not supported" in w for w in warnings)
     # Principled inputs the export does not carry are warnings (they were dropped silently).
     ground = bpy.data.materials["ground"].node_tree.nodes["Principled BSDF"]
     ground.inputs["Alpha"].default_value = 0.5
@@ -387,6 +387,32 @@ def test_non_square_pixels_frame_as_in_cycles(tmp_path):
         wide = cols(theirs) / rows(theirs)
         assert wide == pytest.approx(aspect[1] / aspect[0], rel=0.15), wide
         assert np.abs(ours - theirs).mean() < 0.01 * theirs.max()
+
+
+def test_an_orthographic_camera_frames_as_in_cycles(tmp_path):
+    # Two white cubes at different heights under a sun, seen from above by an orthographic
+    # camera (Ortho Scale 6 across a 2:1 image, and 6 up a 1:2 one): both the same size on the
+    # image, as in Cycles; the add-on exported a perspective camera (with a warning) before.
+    for size in ((96, 48), (48, 96)):
+        scene = empty_scene(size, world=(0.05, 0.05, 0.05))
+        for x, z in ((-1.2, 0.5), (1.4, 2.0)):
+            bpy.ops.mesh.primitive_cube_add(size=1.0, location=(x, 0.3, z))
+            bpy.context.active_object.data.materials.append(principled("white", roughness=1.0))
+        bpy.ops.object.light_add(type="SUN", location=(0, 0, 5))
+        bpy.context.active_object.data.energy = 3.0
+        bpy.ops.object.camera_add(location=(0.3, 0.0, 6.0))
+        scene.camera = bpy.context.active_object
+        scene.camera.data.type = "ORTHO"
+        scene.camera.data.ortho_scale = 6.0
+        scene.cycles.max_bounces = 0
+        ours, theirs = both(scene, tmp_path, f"ortho{size[0]}", spp=8)
+        lit = lambda a: a.mean(axis=2) > 0.3 * a.mean(axis=2).max()
+        mask_ours, mask_theirs = lit(ours), lit(theirs)
+        # A cube's top, 1 unit across, is 1/6 of the fitted side: 16 pixels tall on either
+        # image, near and far cube alike (both lie on the same rows).
+        rows = mask_ours.any(axis=1).sum()
+        assert rows == pytest.approx(max(size) / 6, abs=2), rows
+        assert (mask_ours != mask_theirs).mean() < 0.01, (mask_ours != mask_theirs).mean()
 
 
 def test_a_normal_map_shades_as_in_cycles(tmp_path):

@@ -233,5 +233,49 @@ TEST(CameraMatrices, ProjectPointsToThePixelsTheirRaysCameFrom) {
     }
 }
 
+TEST(OrthographicCamera, ParallelRaysOverTheViewHeight) {
+    // ortho_height 4 on a 320 x 200 image: rays leave the plane through the position, all along
+    // the view, over 4 units up and 6.4 across; a pixel is 4 / 200 units wide at every depth,
+    // which the differentials carry as an offset of the origin, not of the direction.
+    const Vec3 pos(1.0f, 2.0f, 5.0f), at(1.0f, 2.0f, -1.0f);
+    const uint32_t w = 320, h = 200;
+    FilmLayout layout;
+    layout.ortho_height = 4.0f;
+    const CameraModel cam(pos, at, {0, 1, 0}, 40.0f, 0.0f, 6.0f, w, h, layout);
+    EXPECT_EQ(cam.pixel_angle(), 0.0f);
+    EXPECT_NEAR(cam.pixel_width(), 4.0f / 200.0f, 1e-7f);
+    const RayDifferential c = cam.generate(160.0f, 100.0f, 0.5f, 0.5f);
+    EXPECT_NEAR(length(c.o - pos), 0.0f, 1e-6f);
+    const RayDifferential corner = cam.generate(0.0f, 0.0f, 0.5f, 0.5f);
+    EXPECT_NEAR(corner.o.x, 1.0f - 3.2f, 1e-5f) << "the image's left edge";
+    EXPECT_NEAR(corner.o.y, 2.0f + 2.0f, 1e-5f) << "its top";
+    EXPECT_NEAR(corner.o.z, 5.0f, 1e-6f);
+    for (const RayDifferential* r : {&c, &corner}) {
+        EXPECT_NEAR(r->d.z, -1.0f, 1e-7f);
+        EXPECT_EQ(r->dx_d.z, r->d.z);
+        EXPECT_NEAR(r->dx_o.x - r->o.x, 0.02f, 1e-6f);
+        EXPECT_NEAR(r->dy_o.y - r->o.y, -0.02f, 1e-6f) << "image y runs down";
+    }
+    // The matrices put a point at any depth on the pixel its ray came from.
+    const CameraMatrices m = cam.matrices();
+    for (const float depth : {0.5f, 3.0f, 300.0f}) {
+        const RayDifferential r = cam.generate(17.5f, 150.25f, 0.5f, 0.5f);
+        const auto ndc = times(r.o + r.d * depth, m.world_to_ndc);
+        EXPECT_NEAR(ndc[0] / ndc[3], 17.5f / w, 1e-5f) << depth;
+        EXPECT_NEAR(ndc[1] / ndc[3], 150.25f / h, 1e-5f) << depth;
+    }
+    // Through a lens, every ray of a film point meets at the plane in focus, straight ahead.
+    FilmLayout lens = layout;
+    const CameraModel thin(pos, at, {0, 1, 0}, 40.0f, 0.3f, 6.0f, w, h, lens);
+    for (const auto& [lu, lv] : {std::pair{0.1f, 0.9f}, {0.7f, 0.2f}}) {
+        const RayDifferential r = thin.generate(0.0f, 0.0f, lu, lv);
+        const float t = 6.0f / -r.d.z;
+        const Vec3 hit = r.o + r.d * t;
+        EXPECT_NEAR(hit.x, corner.o.x, 1e-4f);
+        EXPECT_NEAR(hit.y, corner.o.y, 1e-4f);
+        EXPECT_GT(length(r.o - corner.o), 1e-3f) << "the ray leaves from the lens";
+    }
+}
+
 }  // namespace
 }  // namespace spangle

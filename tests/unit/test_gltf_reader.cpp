@@ -213,6 +213,36 @@ TEST(GltfReader, CameraLooksDownItsMinusZWithYUpAndYfovVertical) {
     EXPECT_NEAR(ty, 0.0f, 0.05f);  // film positions to 1/20 pixel: Newton on float rays
 }
 
+TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {
+    // xmag 3, ymag 1.5: a view 3 units tall and 6 wide (a 2:1 image), parallel rays down the
+    // node's -z. Before, the camera was noted as unsupported and the default framing stood in.
+    test::TempDir dir("gltf_ortho");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const std::string body = fmt::format(
+        R"("nodes":[{{"mesh":0}},{{"camera":0,"translation":[1,2,10]}}],)"
+        R"("cameras":[{{"type":"orthographic","orthographic":{{"xmag":3,"ymag":1.5,"znear":0.1,"zfar":100}}}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        quad_primitive(q, -1));
+    w.write_gltf(dir.file("ortho.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("ortho.gltf"), {});
+    const CameraDesc& c = d.camera;
+    for (const std::string& n : d.notes) EXPECT_EQ(n.find("camera"), std::string::npos) << n;
+    EXPECT_EQ(c.ortho_height, 3.0);
+    EXPECT_EQ(d.render.height * 2, d.render.width);
+    EXPECT_NEAR(c.position.x, 1.0f, kTol);
+    EXPECT_LT(c.look_at.z, c.position.z);
+    FilmLayout layout;
+    layout.ortho_height = static_cast<float>(c.ortho_height);
+    const CameraModel cam(c.position, c.look_at, c.up, 40.0f, 0.0f, 1.0f, d.render.width,
+                          d.render.height, layout);
+    // The image's top-right corner ray leaves 3 units right and 1.5 up of the camera.
+    const RayDifferential r = cam.generate(static_cast<float>(d.render.width), 0.0f, 0.5f, 0.5f);
+    EXPECT_NEAR(r.o.x, 1.0f + 3.0f, 1e-4f);
+    EXPECT_NEAR(r.o.y, 2.0f + 1.5f, 1e-4f);
+    EXPECT_NEAR(r.d.z, -1.0f, 1e-6f);
+}
+
 /** A quad and two cameras: an unnamed one on node "front", "top" on node "high". */
 std::string two_cameras_body(GltfWriter& w) {
     const QuadAccessors q = quad(w);

@@ -692,7 +692,13 @@ Film "image" "integer xresolution" 100 "integer yresolution" 200
     EXPECT_EQ(window.camera.fov_deg, 90.0);
     const SceneDescription ortho =
         read(f, "Camera \"orthographic\" \"float screenwindow\" [0 1 0 1]\n");
-    EXPECT_TRUE(noted(ortho, "Camera \"orthographic\" is not supported"));
+    // Orthographic: the screen window is in camera space, so the view's unit is 1.
+    EXPECT_FALSE(noted(ortho, "Camera \"orthographic\""));
+    EXPECT_EQ(ortho.camera.ortho_height, 2.0);
+    ASSERT_TRUE(ortho.camera.screen);
+    EXPECT_EQ((*ortho.camera.screen)[1], 1.0);
+    const SceneDescription realistic = read(f, "Camera \"realistic\"\n");
+    EXPECT_TRUE(noted(realistic, "Camera \"realistic\" is not supported"));
 }
 
 TEST(PbrtReader, FilmSamplerIntegratorAndFilterTakeEachVersionsDefaults) {

@@ -136,7 +136,7 @@ std::pair<double, double> pbrt_raster(Vec3 e, Vec3 l, Vec3 up, double fov, doubl
 std::pair<double, double> exr_raster(const Camera& c, uint32_t w, uint32_t h, Vec3 p) {
     const CameraMatrices m =
         CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, w, h,
-                    FilmLayout{c.mirror, c.screen, c.fov_shorter})
+                    FilmLayout{c.mirror, c.screen, c.fov_shorter, c.ortho_height})
             .matrices();
     const float v[4] = {p.x, p.y, p.z, 1.0f};
     double o[4] = {0, 0, 0, 0};
@@ -233,6 +233,51 @@ AttributeEnd
     EXPECT_EQ(best % 64, static_cast<std::size_t>(px)) << "pbrt puts +x on the image's left";
     EXPECT_EQ(best / 64, static_cast<std::size_t>(py));
     EXPECT_LT(px, 32.0) << "the point at world +x lies left of the centre in pbrt's image";
+}
+
+TEST(PbrtCamera, OrthographicPointsLandWherePbrtPutsThem) {
+    // pbrt's orthographic camera: camera-space x and y themselves on the screen window (by
+    // default [-aspect, aspect] x [-1, 1] for a landscape film), whatever the depth. Both the
+    // EXR's matrices and a rendered emitter land there; a point twice as far lands on the same
+    // pixel. Before, the camera was noted as unsupported and a perspective one stood in.
+    const Vec3 e(0, 0, 5);
+    const auto raster = [](Vec3 p, double w, double h) {
+        // LookAt 0 0 5 -> 0 0 0: camera x is world -x (pbrt's left-handed space), y is y.
+        const double sx = -p.x, sy = p.y, aspect = w / h;
+        return std::pair{(sx + aspect) / (2.0 * aspect) * w, (1.0 - sy) / 2.0 * h};
+    };
+    const auto scene = [&](Vec3 p) {
+        return fmt::format(R"(LookAt {} {} {}  0 0 0  0 1 0
+Camera "orthographic"
+Film "image" "integer xresolution" 64 "integer yresolution" 48
+Sampler "halton" "integer pixelsamples" 4
+WorldBegin
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [10 10 10]
+  Translate {} {} {}
+  Shape "sphere" "float radius" 0.03
+AttributeEnd
+)",
+                           e.x, e.y, e.z, p.x, p.y, p.z);
+    };
+    for (const Vec3& p : {Vec3(0.6f, 0.35f, 0.0f), Vec3(-0.9f, -0.2f, -4.0f)}) {
+        PbrtReadInfo info;
+        ColorConfig color = test::shipped_config();
+        ecs::Registry registry;
+        const SceneInfo si = build_scene(read_pbrt_text("o.pbrt", scene(p), info), color, registry);
+        EXPECT_GT(si.camera.ortho_height, 0.0f);
+        const auto [px, py] = raster(p, 64, 48);
+        const auto [sx, sy] = exr_raster(si.camera, 64, 48, p);
+        EXPECT_NEAR(sx, px, 1e-3 * 64);
+        EXPECT_NEAR(sy, py, 1e-3 * 48);
+        PbrtReadInfo info2;
+        const std::vector<float> image = render(read_pbrt_text("o.pbrt", scene(p), info2));
+        std::size_t best = 0;
+        for (std::size_t i = 0; i < image.size() / 3; ++i)
+            if (image[3 * i] > image[3 * best]) best = i;
+        EXPECT_EQ(best % 64, static_cast<std::size_t>(px)) << "x of " << p.x;
+        EXPECT_EQ(best / 64, static_cast<std::size_t>(py)) << "y of " << p.y;
+    }
 }
 
 TEST(PbrtRender, ATwoSidedAreaLightEmitsFromBothFaces) {

@@ -258,19 +258,30 @@ void default_camera(Context& ctx) {
 void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
     const tinygltf::Camera& g = ctx.model.cameras[static_cast<std::size_t>(index)];
     const std::string cp = fmt::format("cameras/{}", index);
-    if (g.type != "perspective") {
-        ctx.note("orthographic", ctx.at(cp + "/type"),
-                 "orthographic cameras are not supported: the default framing stands in");
-        return default_camera(ctx);
-    }
     CameraDesc& c = ctx.scene->camera;
     c.loc = c.look_at_loc = c.up_loc = ctx.at(fmt::format("nodes/{}", n));
-    const double yfov = g.perspective.yfov * 180.0 / M_PI;
-    if (!(yfov > 0.0 && yfov < 180.0))
-        throw_error(ctx.at(cp + "/perspective/yfov"), "yfov must be in (0, pi) radians, got {}",
-                    g.perspective.yfov);
-    c.fov_deg = yfov;
-    const double aspect = g.perspective.aspectRatio;
+    double aspect = 0.0;
+    if (g.type == "orthographic") {
+        // xmag and ymag are half the view's width and height (glTF 2.0, 3.10.3); the image's
+        // aspect is the viewport's, as for a perspective camera: ymag is kept and xmag only
+        // sets the aspect, as aspectRatio does.
+        // (They must not be 0 and should not be negative: a negative one is taken by its size.)
+        const double ymag = std::fabs(g.orthographic.ymag), xmag = std::fabs(g.orthographic.xmag);
+        if (!(ymag > 0.0 && ymag < 1e30))
+            throw_error(ctx.at(cp + "/orthographic/ymag"),
+                        "an orthographic camera's ymag must be a finite number other than 0, "
+                        "got {}",
+                        g.orthographic.ymag);
+        c.ortho_height = 2.0 * ymag;
+        aspect = xmag / ymag;
+    } else {
+        const double yfov = g.perspective.yfov * 180.0 / M_PI;
+        if (!(yfov > 0.0 && yfov < 180.0))
+            throw_error(ctx.at(cp + "/perspective/yfov"), "yfov must be in (0, pi) radians, got {}",
+                        g.perspective.yfov);
+        c.fov_deg = yfov;
+        aspect = g.perspective.aspectRatio;
+    }
     if (aspect > 0.0 && std::isfinite(aspect)) {
         const double h = std::round(ctx.scene->render.width / aspect);
         ctx.scene->render.height = static_cast<uint32_t>(std::clamp(h, 1.0, 16384.0));

@@ -163,7 +163,10 @@ void finish_camera_and_render(Reader& r) {
     CameraDesc& c = r.d.camera;
     CameraState& cs = r.camera;
     c.loc = c.look_at_loc = c.up_loc = c.screen_loc = cs.loc;
-    if (cs.given && cs.type != "perspective") {
+    // pbrt's orthographic camera: its screen window is in camera space (by default the shorter
+    // side spans 2 units), so the view's unit is 1: an ortho_height of 2.
+    const bool ortho = cs.given && cs.type == "orthographic";
+    if (cs.given && cs.type != "perspective" && !ortho) {
         for (const Param& q : cs.params.all()) q.used = true;
         r.notes.add(cs.loc, fmt::format("Camera \"{}\" is not supported: a perspective camera "
                                         "(fov 90) stands in",
@@ -183,7 +186,8 @@ void finish_camera_and_render(Reader& r) {
                     "Camera: the camera transform shears or scales unevenly: only its "
                     "position and orientation are kept");
     const ParamList& p = cs.params;
-    double fov = p.number("fov", 90.0);
+    const double fov = ortho ? 90.0 : p.number("fov", 90.0);
+    if (ortho) c.ortho_height = 2.0;
     if (!(fov > 0.0 && fov < 180.0))
         throw_error(cs.loc, "Camera 'fov' must be in (0, 180), got {}", fov);
     const double aspect = static_cast<double>(r.d.render.width) / r.d.render.height;

@@ -431,6 +431,14 @@ def vertical_fov(cam, width, height):
     return math.degrees(2.0 * half)
 
 
+def ortho_height(cam, width, height):
+    """Blender's orthographic camera as the view's height in scene units for a width x height
+    image: Ortho Scale spans the fitted side (the wider one under Auto)."""
+    fit = cam.sensor_fit
+    horizontal = fit == "HORIZONTAL" or (fit == "AUTO" and width >= height)
+    return cam.ortho_scale * height / width if horizontal else cam.ortho_scale
+
+
 def shifted_window(cam, width, height):
     """Blender's lens shift as Spangle's screen window (x0, x1, y0, y1 in units of the tangent of
     half the vertical fov, y up), or None without a shift. Blender shifts by shift x the size of
@@ -619,7 +627,7 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     # The frame's shape as Blender frames it: with non-square pixels (Pixel Aspect X/Y) the image
     # spans width x aspect_x by height x aspect_y, and the screen window stretches the pixels.
     framed = (size[0] * scene.render.pixel_aspect_x, size[1] * scene.render.pixel_aspect_y)
-    if cam.type != "PERSP":
+    if cam.type not in ("PERSP", "ORTHO"):
         warnings.append(f"camera '{cam_obj.name}': {cam.type.lower()} cameras are not supported; "
                         "a perspective camera stands in")
     m = cam_obj.matrix_world
@@ -627,7 +635,9 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     forward = m.to_3x3() @ mathutils.Vector((0.0, 0.0, -1.0))
     up = m.to_3x3() @ mathutils.Vector((0.0, 1.0, 0.0))
     out += ["[camera]", f"position = {_vec(eye)}", f"look_at = {_vec(eye + forward)}",
-            f"up = {_vec(up)}", f"fov = {_fmt(vertical_fov(cam, *framed))}"]
+            f"up = {_vec(up)}",
+            f"ortho_height = {_fmt(ortho_height(cam, *framed))}" if cam.type == "ORTHO" else
+            f"fov = {_fmt(vertical_fov(cam, *framed))}"]
     window = shifted_window(cam, *framed)
     if window is None and framed[0] * size[1] != framed[1] * size[0]:
         window = (-framed[0] / framed[1], framed[0] / framed[1], -1.0, 1.0)
