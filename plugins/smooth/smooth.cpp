@@ -14,6 +14,8 @@
 //                                       (Kulla and Conty 2017; albedo_tables.h)
 //   dielectric  Rough glass: GGX reflection and transmission (Walter et al. 2007).
 //     ior, roughness, roughness_v
+//     multiscatter  bool   false        both lobes scaled by 1 / E(mu_o), the light of further
+//                                       bounces (Turquin 2019; below)
 //   metal_rough glTF's metallic-roughness BRDF with ior, specular and clear coat (metal_rough.cpp).
 //   plastic     Diffuse base under a GGX dielectric coat; the base sees the light the coat's
 //               reflection leaves (Kulla and Conty 2017 energy-preserving layering), so that
@@ -30,6 +32,9 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <new>
 #include <string>
 
@@ -421,8 +426,84 @@ const SpangleParamDesc_v3 kDielectricParams[] = {
     {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of refraction inside (the outside is 1); within 1e-3 of 1 an index-matched interface light passes straight through", 0},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface", SPANGLE_PARAM_TEXTURABLE},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
+    {"multiscatter", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (energy compensation, as Cycles' Multiscatter GGX glass; the Blender add-on and the glTF importer set it); false: single-scattering GGX (pbrt's, Mitsuba's), darker when rough", 0},
 };
 // clang-format on
+
+// Multiple scattering of rough glass (Turquin 2019, "Practical multiple scattering compensation
+// for microfacet models"; Cycles' Multiscatter GGX glass does the same): single-scattering GGX
+// reflection and transmission together lose 1 - E(mu_o) of the energy that reaches the surface
+// from wo, E the single-scattering albedo of both lobes (transmission counted as energy, without
+// radiance transport's 1/eta^2). Both lobes are scaled by 1 / E(mu_o): the white furnace returns
+// everything from either side, and the split between reflection and transmission is single
+// scattering's. E depends on the index, so each index gets its own table, made once per process.
+
+/** Cosines mu = (i / 31)^2 (the first at 1e-4): dense at grazing, where E falls fast under a
+ *  smooth interface of a high index (inside, near total internal reflection), and reaching
+ *  head-on, where E of rough glass seen from inside still changes. */
+constexpr int kGlassMu = 32;
+constexpr int kGlassRough = 16;  ///< sqrt(alpha) = j / 15
+
+/** E of one index, from outside (eta = ior) and from inside (eta = 1 / ior). */
+struct GlassAlbedo {
+    float e[2][kGlassRough][kGlassMu];
+};
+
+/** E at (mu, alpha) from the side whose relative index is eta: over a Hammersley set of visible
+ *  normals h, each weighs F G2(wo, reflected) / G1 + (1 - F) G2(wo, refracted) / G1, so that the
+ *  choice between the lobes is not sampled. */
+float glass_albedo(float mu, float alpha, float eta) {
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
+    constexpr uint32_t kN = 256;
+    const float g1 = ggx_g1(wo, alpha, alpha);
+    double sum = 0.0;
+    for (uint32_t k = 0; k < kN; ++k) {
+        const V3 h = ggx_sample_visible(wo, alpha, alpha, (static_cast<float>(k) + 0.5f) / kN,
+                                        radical_inverse2(k));
+        const float R = fresnel_dielectric(dot(wo, h), eta);
+        const V3 wr = reflect(wo, h);
+        if (wr.z > 0.0f) sum += static_cast<double>(R * ggx_g2(wo, wr, alpha, alpha) / g1);
+        V3 wt;
+        if (R < 1.0f && refract(wo, h, eta, wt) && wt.z < 0.0f)
+            sum += static_cast<double>((1.0f - R) * ggx_g2(wo, wt, alpha, alpha) / g1);
+    }
+    return static_cast<float>(std::min(1.0, sum / kN));
+}
+
+/** The table of an index, shared by every material of that index in the process. */
+std::shared_ptr<const GlassAlbedo> glass_albedo_table(float ior) {
+    static std::mutex mutex;
+    static std::map<float, std::weak_ptr<const GlassAlbedo>> made;
+    std::lock_guard<std::mutex> lock(mutex);
+    if (auto hit = made[ior].lock()) return hit;
+    auto t = std::make_shared<GlassAlbedo>();
+    for (int side = 0; side < 2; ++side)
+        for (int j = 0; j < kGlassRough; ++j) {
+            const float r = static_cast<float>(j) / (kGlassRough - 1);
+            const float alpha = std::max(r * r, kDeltaAlpha);
+            for (int i = 0; i < kGlassMu; ++i) {
+                const float s = static_cast<float>(i) / (kGlassMu - 1);
+                t->e[side][j][i] =
+                    glass_albedo(std::max(s * s, 1e-4f), alpha, side == 0 ? ior : 1.0f / ior);
+            }
+        }
+    made[ior] = t;
+    return t;
+}
+
+/** Bilinear lookup of E from one side at (mu, alpha). */
+float glass_albedo_at(const GlassAlbedo& t, int side, float mu, float alpha) {
+    const float x = std::clamp(std::sqrt(std::max(mu, 0.0f)) * (kGlassMu - 1), 0.0f,
+                               static_cast<float>(kGlassMu - 1));
+    const float y =
+        std::clamp(std::sqrt(alpha) * (kGlassRough - 1), 0.0f, static_cast<float>(kGlassRough - 1));
+    const int i = std::min(static_cast<int>(x), kGlassMu - 2),
+              j = std::min(static_cast<int>(y), kGlassRough - 2);
+    const float s = x - static_cast<float>(i), u = y - static_cast<float>(j);
+    const auto& e = t.e[side];
+    return (e[j][i] * (1 - s) + e[j][i + 1] * s) * (1 - u) +
+           (e[j + 1][i] * (1 - s) + e[j + 1][i + 1] * s) * u;
+}
 
 struct Dielectric {
     float ax, ay, ior;
@@ -431,6 +512,8 @@ struct Dielectric {
     /** ior within 1e-3 of 1: an index-matched interface. Light passes straight through (a delta
      *  transmission, rough or not: the half vector of refraction, wi eta + wo, vanishes). */
     bool matched;
+    /** The single-scattering albedo of this index (null without multiple scattering). */
+    std::shared_ptr<const GlassAlbedo> albedo;
 };
 
 void* dielectric_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error,
@@ -443,6 +526,9 @@ void* dielectric_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* 
     clamp_alpha(d.ax, d.ay);
     d.ior = param_f(p, "ior");
     d.matched = d.ior < 1.001f;
+    // A smooth interface loses nothing (unless textured rough: the table is made then too).
+    if (param_number(p, "multiscatter", 0) != 0.0 && !d.matched)
+        d.albedo = glass_albedo_table(d.ior);
     auto* out = new (std::nothrow) Dielectric(d);
     if (!out) set_error(error, cap, "out of memory");
     return out;
@@ -456,8 +542,16 @@ void dielectric_prepare(const void* inst, const SpangleShadingBatch_v3* b, void*
         out[i] = Closure{};
         out[i].wo = wo_of(b, i);
         // The host turned the frame towards wo: from the back side, wo is inside the glass.
-        out[i].eta = (b->flags[i] & SPANGLE_SHADING_BACKFACE) ? 1.0f / m.ior : m.ior;
+        const bool inside = (b->flags[i] & SPANGLE_SHADING_BACKFACE) != 0;
+        out[i].eta = inside ? 1.0f / m.ior : m.ior;
         alpha_at(b, i, {1, 2}, m.raw_r, m.raw_rv, m.ax, m.ay, m.delta, out[i]);
+        // e_o: the scale of both lobes, 1 / E(mu_o) with multiple scattering, else 1.
+        out[i].e_o = 1.0f;
+        if (m.albedo && out[i].delta == 0.0f && out[i].wo.z > 0.0f) {
+            const float e =
+                glass_albedo_at(*m.albedo, inside ? 1 : 0, out[i].wo.z, ms_alpha(out[i]));
+            if (e > 0.0f) out[i].e_o = 1.0f / e;
+        }
     }
 }
 
@@ -496,6 +590,7 @@ void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v3
         }
         float f, pdf;
         dielectric_rough(c, c.wo, {q->wi_x[i], q->wi_y[i], q->wi_z[i]}, c.eta, f, pdf);
+        f *= c.e_o;
         write_eval(q, i, f, f, f, pdf);
     }
 }
@@ -543,6 +638,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
         }
         float f, pdf;
         dielectric_rough(c, wo, wi, c.eta, f, pdf);
+        f *= c.e_o;
         write_sample(q, i, wi, f, f, f, pdf, lobe | SPANGLE_SAMPLE_GLOSSY);
         if (q->eta && !reflect_) q->eta[i] = c.eta;
     }

@@ -168,6 +168,7 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_EQ(glass.model, "dielectric");
     EXPECT_NEAR(param_of(glass, "roughness").number, 0.09, 1e-12);  // alpha = roughness^2
     EXPECT_NEAR(param_of(glass, "ior").number, 1.33, 1e-12);
+    EXPECT_EQ(param_of(glass, "multiscatter").number, 1.0) << "rough glass keeps its light";
 
     EXPECT_TRUE(has_note(d, "KHR_materials_iridescence is dropped"));
     EXPECT_TRUE(has_note(d, "material extension KHR_materials_sheen is not read"));

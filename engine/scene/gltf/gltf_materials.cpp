@@ -220,6 +220,12 @@ void transmissive(Builder& b, const tinygltf::Material& g, const std::string& mp
                  "dielectric is clear");
     const double r = std::clamp(g.pbrMetallicRoughness.roughnessFactor, 0.0, 1.0);
     b.number("roughness", r * r, mp + "/pbrMetallicRoughness/roughnessFactor");
+    // Rough glass keeps the light of further bounces between microfacets, as metal_rough's
+    // metal does (its multiscatter is on by default; the dielectric's is off unless asked).
+    ParamDesc ms = b.base("multiscatter", mp);
+    ms.kind = ParamDesc::Kind::Bool;
+    ms.number = 1.0;
+    b.m.params.push_back(std::move(ms));
     if (const tinygltf::Value* i = extension(g, "KHR_materials_ior"))
         b.number("ior", std::clamp(number_of(i, "ior", 1.5), 1.0, 10.0),
                  mp + "/extensions/KHR_materials_ior/ior");

@@ -350,6 +350,11 @@ def material_entry(mat, flake_params, warnings):
                   "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}
         if surface is not None:
             params[surface[0]] = surface[1]
+        # Multiscatter GGX (Principled's default) keeps the light single scattering loses in
+        # rough glass, as the dielectric's multiscatter does (off unless asked for); plain GGX
+        # does not.
+        if getattr(node, "distribution", "MULTI_GGX") != "GGX":
+            params["multiscatter"] = True
         return "smooth", "dielectric", params, emission
     params = {}
     if surface is not None:
