@@ -207,6 +207,14 @@ PYBIND11_MODULE(_spangle, m) {
             "spp", [](const RenderedImage& i) { return i.result.stats.spp_reached; },
             "Samples per pixel reached.")
         .def_property_readonly(
+            "spp_mean",
+            [](const RenderedImage& i) {
+                return i.result.stats.pixel_spp_mean > 0.0
+                           ? i.result.stats.pixel_spp_mean
+                           : static_cast<double>(i.result.stats.spp_reached);
+            },
+            "Samples per pixel on average: below spp where adaptive sampling stopped pixels.")
+        .def_property_readonly(
             "stopped",
             [](const RenderedImage& i) {
                 return i.result.stats.spp_reached < i.result.stats.spp_target;
@@ -416,7 +424,8 @@ PYBIND11_MODULE(_spangle, m) {
             [](PySession& s, std::optional<uint32_t> spp,
                std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
                std::optional<py::function> progress, std::optional<py::function> on_pass,
-               std::optional<bool> background_apart) {
+               std::optional<bool> background_apart, std::optional<double> noise_threshold,
+               std::optional<uint32_t> min_spp, std::optional<uint32_t> max_spp) {
                 // Callbacks run on render threads: they take the GIL, and a Python exception in
                 // one stops the render and is raised once it has ended.
                 std::mutex failed_m;
@@ -457,8 +466,8 @@ PYBIND11_MODULE(_spangle, m) {
                     bool finished = false;
                     std::thread worker([&] {
                         try {
-                            img =
-                                s.render(spp, size, layers, cb, background_apart.value_or(layers));
+                            img = s.render(spp, size, layers, cb, background_apart.value_or(layers),
+                                           {noise_threshold, min_spp, max_spp});
                         } catch (...) {
                             error = std::current_exception();
                         }
@@ -490,12 +499,15 @@ PYBIND11_MODULE(_spangle, m) {
             py::kw_only(), py::arg("spp") = py::none(), py::arg("size") = py::none(),
             py::arg("layers") = true, py::arg("progress") = py::none(),
             py::arg("on_pass") = py::none(), py::arg("background_apart") = py::none(),
+            py::arg("noise_threshold") = py::none(), py::arg("min_spp") = py::none(),
+            py::arg("max_spp") = py::none(),
             "Renders the live scene (the GIL is released). spp and size=(width, height) override "
             "the scene's; progress(done, total) is told the samples done; on_pass(beauty, spp) "
             "gets each progressive pass. stop() from another thread ends it early. With layers, "
             "the environment seen directly is the 'background' layer and the beauty is "
             "premultiplied, as with `spangle render --layers`; background_apart=False keeps it "
-            "in the beauty.")
+            "in the beauty. noise_threshold, min_spp and max_spp set adaptive sampling as "
+            "`spangle render --noise-threshold --min-spp --max-spp` do (None: the scene's).")
         .def(
             "parameters",
             [](PySession& s, const std::string& plugin, const std::string& model) {

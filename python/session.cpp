@@ -335,7 +335,8 @@ std::vector<SpangleParamDesc_v3> PySession::parameters(const std::string& plugin
 
 RenderedImage PySession::render(std::optional<uint32_t> spp,
                                 std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
-                                const RenderCallbacks& callbacks, bool background_apart) {
+                                const RenderCallbacks& callbacks, bool background_apart,
+                                const AdaptiveArgs& adaptive) {
     if (!loaded_) throw SpangleError("no scene is loaded: call load(path) first");
     if (busy_.load()) throw SpangleError("this session is already rendering");
     std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
@@ -355,6 +356,21 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     const bool stop_pending = stop_.exchange(false);
     if (spp && (*spp < 1 || *spp > (1u << 20)))
         throw SpangleError(fmt::format("spp {} must be 1 to 1048576 (None: the scene's)", *spp));
+    if (const auto& t = adaptive.noise_threshold) {
+        if (!(*t >= 0.0 && *t <= 1.0))
+            throw SpangleError(
+                fmt::format("noise_threshold {} must be in [0, 1] (0: adaptive sampling off)", *t));
+        if (*t > 0.0 && *t < kMinNoiseThreshold)
+            throw SpangleError(
+                fmt::format("noise_threshold {:g} is below {:g}, which no pixel reaches before "
+                            "its max_spp: 0 turns adaptive sampling off",
+                            *t, kMinNoiseThreshold));
+    }
+    for (const auto& [name, v] :
+         {std::pair{"min_spp", adaptive.min_spp}, std::pair{"max_spp", adaptive.max_spp}})
+        if (v && (*v < 1 || *v > (1u << 20)))
+            throw SpangleError(
+                fmt::format("{} {} must be 1 to 1048576 (None: the scene's)", name, *v));
     // A size is the scene's film size: set in the description and reloaded (only what reads
     // the film is rebuilt, e.g. subdivision levels chosen from the camera's pixels), so that the
     // scene is built as `spangle render --size` builds it. A size that fails (a film beyond
@@ -375,6 +391,10 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     // beauty is premultiplied (without it the layers did not match the command line's).
     o.background_apart = layers && background_apart;
     o.progressive = true;  // passes of 1, 1, 2, 4, ... samples: a stop keeps those completed
+    o.noise_threshold_override =
+        adaptive.noise_threshold ? static_cast<float>(*adaptive.noise_threshold) : -1.0f;
+    o.min_spp_override = adaptive.min_spp.value_or(0);
+    o.max_spp_override = adaptive.max_spp.value_or(0);
     o.progress = callbacks.progress;
     o.on_pass = callbacks.on_pass;
     o.stop = [this] { return stop_.load(); };
@@ -388,6 +408,8 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
                 o.progress = nullptr;
                 o.on_pass = nullptr;
                 o.stop = nullptr;
+                o.noise_threshold_override = -1.0f;
+                o.min_spp_override = o.max_spp_override = 0;
             }
         } detach{o};
         report = session_->render();

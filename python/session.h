@@ -35,6 +35,13 @@ struct RenderCallbacks {
     std::function<void(const PassImage&)> on_pass;
 };
 
+/** Adaptive sampling for one render, as `spangle render --noise-threshold --min-spp --max-spp`
+ *  (none: the scene's [render] values). */
+struct AdaptiveArgs {
+    std::optional<double> noise_threshold;
+    std::optional<uint32_t> min_spp, max_spp;
+};
+
 class PySession {
 public:
     PySession(std::vector<std::string> plugin_path, const std::string& ocio, int threads,
@@ -72,7 +79,8 @@ public:
      *  (a stop() while no render runs ends the next one after its first pass). */
     RenderedImage render(std::optional<uint32_t> spp,
                          std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
-                         const RenderCallbacks& callbacks, bool background_apart);
+                         const RenderCallbacks& callbacks, bool background_apart,
+                         const AdaptiveArgs& adaptive = {});
     void stop() { stop_.store(true); }
 
     /** The parameters of a plugin's model (the plugin's only model when `model` is empty), as

@@ -278,3 +278,31 @@ def test_numpy_scalars_and_path_objects_are_taken(session):
     assert session.material("glitter")["params"]["gamma"] == pytest.approx(4.0)
     with pytest.raises(spangle.SceneError, match="out of range"):
         session.set_material("glitter", seed=2**70)
+
+
+def test_adaptive_sampling_is_the_command_lines(session, tmp_path):
+    # render(noise_threshold=, min_spp=, max_spp=) is `spangle render --noise-threshold --min-spp
+    # --max-spp`: the same pixels, fewer samples where the image is flat; the next render without
+    # them is the scene's again. Bad values raise and leave the session usable.
+    session.load(SMALL)
+    img = session.render(spp=64, size=(40, 24), layers=False, noise_threshold=0.2, min_spp=8,
+                         max_spp=64)
+    assert 8 <= img.spp_mean < 64, img.spp_mean
+    cli = tmp_path / "cli.exr"
+    spangle_bin = os.path.join(os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build")), "spangle")
+    subprocess.run([spangle_bin, "render", SMALL, "--spp", "64", "--size", "40x24",
+                    "--noise-threshold", "0.2", "--min-spp", "8", "--max-spp", "64", "--float",
+                    "--no-preview", "--threads", "2", "-q", "-o", str(cli)], check=True)
+    py = tmp_path / "py.exr"
+    session.write(img, str(py), preview="", float=True)
+    stats = [subprocess.run(["oiiotool", "--stats", str(p)], capture_output=True, text=True,
+                            check=True).stdout for p in (cli, py)]
+    lines = [[l for l in s.splitlines() if "Avg" in l or "Max" in l or "StdDev" in l] for s in stats]
+    assert lines[0] and lines[0] == lines[1]
+    fixed = session.render(spp=64, size=(40, 24), layers=False)
+    assert fixed.spp_mean == 64 and not np.array_equal(fixed.beauty, img.beauty)
+    for bad in (dict(noise_threshold=-0.1), dict(noise_threshold=1e-9), dict(min_spp=0),
+                dict(noise_threshold=0.1, min_spp=128, max_spp=64)):
+        with pytest.raises(spangle.SceneError):
+            session.render(spp=8, size=(40, 24), layers=False, **bad)
+    assert session.render(spp=4, size=(40, 24), layers=False).spp == 4
