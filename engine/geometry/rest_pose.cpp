@@ -51,4 +51,20 @@ std::shared_ptr<const TriangleMesh> with_rest_pose(std::shared_ptr<const Triangl
     return posed;
 }
 
+std::size_t flat_in_rest_pose(const TriangleMesh& posed) {
+    if (posed.rest_positions.empty()) return 0;
+    std::size_t flat = 0;
+    for (std::size_t t = 0; t < posed.triangle_count(); ++t) {
+        const uint32_t* v = &posed.indices[3 * t];
+        const auto area2 = [&](auto at) {
+            const Vec3 a = at(v[0]);
+            return length(cross(at(v[1]) - a, at(v[2]) - a));
+        };
+        const float drawn = area2([&](uint32_t i) { return posed.position(i); });
+        const float rest = area2([&](uint32_t i) { return posed.rest_position(i); });
+        if (drawn > 0.0f && !(rest > 0.0f)) ++flat;
+    }
+    return flat;
+}
+
 }  // namespace spangle

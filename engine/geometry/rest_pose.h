@@ -27,4 +27,9 @@ void check_same_topology(const Cage& cage, const Cage& rest, const FileLoc& ref)
 std::shared_ptr<const TriangleMesh> with_rest_pose(std::shared_ptr<const TriangleMesh> mesh,
                                                    const TriangleMesh& rest, const FileLoc& ref);
 
+/** How many triangles of a mesh with a rest pose have an area in the pose it is drawn in but
+ *  none in the rest pose (its object-space patterns, flakes among them, have no room there: a
+ *  patch without glitter). */
+std::size_t flat_in_rest_pose(const TriangleMesh& posed);
+
 }  // namespace spangle

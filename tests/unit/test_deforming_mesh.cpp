@@ -294,6 +294,31 @@ TEST(DeformingMesh, ASequenceOfIdenticalFramesRendersAsThePlainMeshBitForBit) {
     EXPECT_EQ(rest.layers, plain.layers);
 }
 
+TEST(RestPose, TrianglesFlatInTheRestPoseAreSaid) {
+    // A rest pose whose last column of vertices lies on the one before it: the two triangles of
+    // each quad between them have no area there, so flakes (laid out on the rest pose) have no
+    // room on them. That was silent (a patch without glitter); now the load says how many.
+    const auto rest_move = [](Vec3 p) { return p.x > 1.5f ? Vec3(0.0f, p.y, p.z) : p; };
+    const TriangleMesh drawn = grid(2, [](Vec3 p) { return p; });
+    const TriangleMesh flat_rest = grid(2, rest_move);
+    auto mesh = std::make_shared<const TriangleMesh>(drawn);
+    EXPECT_EQ(flat_in_rest_pose(*with_rest_pose(mesh, flat_rest, {})), 4u);  // 2 quads x 2
+    EXPECT_EQ(flat_in_rest_pose(*mesh), 0u) << "no rest pose";
+    test::TempDir dir("deform_flat_rest");
+    write_ply(drawn, dir.file("plane.ply"), "test");
+    write_ply(flat_rest, dir.file("rest.ply"), "test");
+    std::ofstream(dir.file("s.toml"))
+        << plane_scene("mesh = \"plane.ply\"\nrest_mesh = \"rest.ply\"");
+    RenderOptions options;
+    options.threads = 2;
+    Session session({}, test::shipped_ocio(), options, Logger{LogLevel::Warning});
+    testing::internal::CaptureStderr();
+    session.load(dir.file("s.toml"));
+    const std::string said = testing::internal::GetCapturedStderr();
+    EXPECT_NE(said.find("4 of the 8 triangles"), std::string::npos) << said;
+    EXPECT_NE(said.find("no area in the rest pose"), std::string::npos) << said;
+}
+
 /** The glints layer's luminance of pixel (x, y). */
 float luminance(const Rendered& r, int x, int y) {
     return 0.2126f * r.at("glints.R", x, y) + 0.7152f * r.at("glints.G", x, y) +
