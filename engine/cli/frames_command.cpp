@@ -43,7 +43,12 @@ int interrupted_status() {
 int run_frames(const RenderArgs& a) {
     const auto [first, last] = parse_frames(a.frames);
     const RenderSetup s = set_up_render(a);
-    Session session(a.plugin_dirs, a.ocio, render_options(a), s.log);
+    // A warning that holds for every frame (an emitter that moves while the shutter is open, a
+    // material no object uses) is said for the first frame only, as --watch says it once.
+    WarningsSaid said;
+    Logger frame_log = s.log;
+    frame_log.once = &said;
+    Session session(a.plugin_dirs, a.ocio, render_options(a), frame_log);
     session.options().stop = stop_requested;
     // Every frame's mesh and cage files exist before the first frame renders (sequences are
     // written in TOML scenes; a missing frame 5 failed after frames 1 to 4 had rendered).
