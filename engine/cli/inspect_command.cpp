@@ -153,6 +153,24 @@ int run_inspect(const std::string& path, const std::string& reference) {
         if (ref_planes.width != planes.width || ref_planes.height != planes.height)
             throw_error("'{}' is {}x{}, the reference '{}' {}x{}", path, planes.width,
                         planes.height, reference, ref_planes.width, ref_planes.height);
+        // One render with --layers (or --denoise) keeps the sky seen directly in its 'background'
+        // layer, not in RGB; one without has it in RGB: their RGB differ wherever the sky shows,
+        // and the figure measures that, not noise (said, as the user compares renders made alike).
+        const auto has_background = [](const Planes& p) {
+            for (const std::string& n : p.names)
+                if (n.rfind("background.", 0) == 0) return true;
+            return false;
+        };
+        if (has_background(planes) != has_background(ref_planes)) {
+            const std::string& with = has_background(planes) ? path : reference;
+            const std::string& without = has_background(planes) ? reference : path;
+            fmt::print(stderr,
+                       "warning: '{}' keeps the sky seen directly in its 'background' layer "
+                       "(rendered with --layers or --denoise) and '{}' in its RGB: where the sky "
+                       "shows their RGB differ, and the relMSE measures that; compare renders "
+                       "made alike\n",
+                       with, without);
+        }
         fmt::print("relMSE against {}: {:.6g}\n", reference, relative_mse(rgb, ref));
     }
     if (!planes.names.empty()) print_channels(planes);

@@ -46,6 +46,12 @@ grep -q "Open Image Denoise 2 could not be opened" "$T/err.txt" || fail "no reas
 grep -q "^glints (> 10x the 3x3 median" "$T/out.txt" || fail "inspect did not tell glints apart: $(cat "$T/out.txt")"
 grep -q "^  glints.R  *min " "$T/out.txt" || fail "inspect did not print the layers: $(cat "$T/out.txt")"
 grep -q "^relMSE against " "$T/out.txt" || fail "inspect did not compare: $(cat "$T/out.txt")"
+# whole.exr keeps the sky in RGB, layers.exr in its background layer: the comparison says so
+# (the relMSE of renders made differently measured the sky, silently); alike, it says nothing.
+grep -q "keeps the sky seen directly in its 'background' layer" "$T/err.txt" ||
+    fail "inspect --against did not say the sky is a layer in one image only: $(cat "$T/err.txt")"
+"$S" inspect "$T/layers.exr" --against "$T/layers.exr" > "$T/out.txt" 2> "$T/err.txt" || fail "inspect"
+[ ! -s "$T/err.txt" ] || fail "inspect --against of renders made alike warned: $(cat "$T/err.txt")"
 
 # The denoiser itself, where the install script put it in place.
 if [ -f /opt/spangle/oidn/lib/libOpenImageDenoise.so.2 ] || [ -n "${SPANGLE_OIDN:-}" ]; then
