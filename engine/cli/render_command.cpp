@@ -284,6 +284,13 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
             a.noise_threshold, kMinNoiseThreshold);
     // Options that contradict each other, or name what is not there, are refused rather than
     // one of them silently winning.
+    // (An adaptive threshold from the scene file meets --spp-range when the scene is loaded:
+    // refused there, exit 1; two options that clash are a usage error before any work.)
+    if (a.noise_threshold > 0.0 && !a.spp_range.empty())
+        usage_error(
+            "--spp-range cannot split an adaptive render (--noise-threshold): a part cannot know "
+            "which pixels stopped before its first sample without rendering those samples; "
+            "split it by pixels (--crop, MPI bands), which give the whole render bit for bit");
     if (!a.preview.empty() && a.no_preview)
         usage_error("--preview names a preview and --no-preview asks for none: choose one");
     if (a.pass_output && a.no_pass_output)

@@ -29,10 +29,18 @@ oiiotool "$T/whole.exr" "$T/merged.exr" --diff --fail 0 --warn 0 > "$T/diff.txt"
 grep -q "sampled 'adaptive 0.5 min_spp 8 max_spp 64'" "$T/err.txt" || fail "no reason for refusing the quilt"
 [ ! -e "$T/quilt.exr" ] || fail "a refused merge wrote its output"
 
-"$S" render "$SCENE" -o "$T/range.exr" "${ARGS[@]}" --spp-range 0..32 2> "$T/err.txt"
-[ $? -eq 1 ] || fail "an adaptive render split by --spp-range was not refused"
+# A scene whose [render] asks for adaptive sampling, split by --spp-range: refused once read.
+sed -e "s#\"\.\./\.\./#\"$REPO/#g" -e 's/^seed = 3/seed = 3\nnoise_threshold = 0.05/' \
+    "$REPO/tests/scenes/small_lit.toml" > "$T/adaptive.toml"
+grep -q "^noise_threshold" "$T/adaptive.toml" || fail "the adaptive scene was not made"
+"$S" render "$T/adaptive.toml" -o "$T/range.exr" --spp-range 0..4 -q 2> "$T/err.txt"
+[ $? -eq 1 ] || fail "an adaptive render split by --spp-range was not refused: $(cat "$T/err.txt")"
 grep -q "cannot split an adaptive render" "$T/err.txt" || fail "no reason for refusing --spp-range"
 [ ! -e "$T/range.exr" ] || fail "an output was written for a refused sample range"
+# The same clash between two options is a usage error (2), found before the scene is read.
+"$S" render "$SCENE" -o "$T/range.exr" --noise-threshold 0.1 --spp-range 0..2 2> "$T/err.txt"
+[ $? -eq 2 ] || fail "--noise-threshold with --spp-range is not a usage error"
+grep -q "cannot split an adaptive render" "$T/err.txt" || fail "no reason for refusing --spp-range"
 "$S" render "$SCENE" -o "$T/dr.exr" --spp 4 --denoise --spp-range 0..2 2> "$T/err.txt"
 [ $? -eq 2 ] || fail "--denoise with --spp-range is not a usage error"
 SPANGLE_OIDN="$T/nowhere.so" "$S" render "$SCENE" -o "$T/nolib.exr" --size 90x50 --spp 2 -q \
