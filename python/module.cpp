@@ -361,15 +361,18 @@ PYBIND11_MODULE(_spangle, m) {
             [](PySession& s, std::optional<std::array<double, 3>> position,
                std::optional<std::array<double, 3>> look_at,
                std::optional<std::array<double, 3>> up, std::optional<double> fov,
-               std::optional<double> aperture, std::optional<double> focus_distance) {
+               std::optional<double> aperture, std::optional<double> focus_distance,
+               std::optional<double> ortho_height) {
                 py::gil_scoped_release release;
-                s.set_camera(vec3(position), vec3(look_at), vec3(up), fov, aperture,
-                             focus_distance);
+                s.set_camera(vec3(position), vec3(look_at), vec3(up), fov, aperture, focus_distance,
+                             ortho_height);
             },
             py::kw_only(), py::arg("position") = py::none(), py::arg("look_at") = py::none(),
             py::arg("up") = py::none(), py::arg("fov") = py::none(),
             py::arg("aperture") = py::none(), py::arg("focus_distance") = py::none(),
-            "Moves or changes the camera; what is not given stays.")
+            py::arg("ortho_height") = py::none(),
+            "Moves or changes the camera; what is not given stays. ortho_height > 0 makes it "
+            "orthographic (the view's height in scene units), 0 perspective again.")
         .def_property_readonly(
             "lights",
             [](PySession& s) {

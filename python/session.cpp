@@ -239,7 +239,8 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
 void PySession::set_camera(const std::optional<Vec3>& position, const std::optional<Vec3>& look_at,
                            const std::optional<Vec3>& up, const std::optional<double>& fov,
                            const std::optional<double>& aperture,
-                           const std::optional<double>& focus_distance) {
+                           const std::optional<double>& focus_distance,
+                           const std::optional<double>& ortho_height) {
     SceneDescription d = description();
     CameraDesc& c = d.camera;
     check_vec("set_camera()", "position", position);
@@ -248,13 +249,16 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     check_number("set_camera()", "fov", fov, 0.0, 179.999, true);
     check_number("set_camera()", "aperture", aperture, 0.0, 1e3, false);
     check_number("set_camera()", "focus_distance", focus_distance, 0.0, 1e30, true);
+    check_number("set_camera()", "ortho_height", ortho_height, 0.0, 1e30, false);
+    // ortho_height > 0 makes the camera orthographic, 0 perspective again (with its fov).
+    if (ortho_height) c.ortho_height = *ortho_height;
     if (position) c.position = *position;
     if (look_at) c.look_at = *look_at;
     if (up) c.up = *up;
     if (fov && c.ortho_height > 0.0)
         throw SpangleError(
             "python: set_camera(): 'fov': the camera is orthographic (ortho_height), it has no "
-            "field of view");
+            "field of view (ortho_height=0 makes it perspective)");
     if (fov) c.fov_deg = *fov;
     if (aperture) c.aperture = *aperture;
     if (focus_distance) c.focus_distance = *focus_distance;

@@ -82,6 +82,7 @@ class Session:
         fov: Optional[float] = None,
         aperture: Optional[float] = None,
         focus_distance: Optional[float] = None,
+        ortho_height: Optional[float] = None,
     ) -> None: ...
     @property
     def lights(self) -> list[dict]: ...

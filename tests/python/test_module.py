@@ -306,3 +306,22 @@ def test_adaptive_sampling_is_the_command_lines(session, tmp_path):
         with pytest.raises(spangle.SceneError):
             session.render(spp=8, size=(40, 24), layers=False, **bad)
     assert session.render(spp=4, size=(40, 24), layers=False).spp == 4
+
+
+def test_the_camera_turns_orthographic_and_back(session):
+    # set_camera(ortho_height=H) makes the camera orthographic (the view H units tall), 0 makes
+    # it the perspective camera it was, pixel for pixel; a fov for an orthographic camera raises.
+    session.load(SMALL)
+    persp = session.render(spp=2, size=(40, 24), layers=False)
+    assert session.camera["ortho_height"] is None
+    session.set_camera(ortho_height=3.0)
+    assert session.camera["ortho_height"] == 3.0
+    ortho = session.render(spp=2, size=(40, 24), layers=False)
+    assert not np.array_equal(ortho.beauty, persp.beauty) and np.isfinite(ortho.beauty).all()
+    with pytest.raises(spangle.SceneError):
+        session.set_camera(fov=30)
+    with pytest.raises(spangle.SceneError):
+        session.set_camera(ortho_height=-1.0)
+    session.set_camera(ortho_height=0.0)
+    assert session.camera["ortho_height"] is None
+    assert np.array_equal(session.render(spp=2, size=(40, 24), layers=False).beauty, persp.beauty)
