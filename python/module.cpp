@@ -343,6 +343,9 @@ PYBIND11_MODULE(_spangle, m) {
                     d["look_at"] = tuple3(c.look_at);
                     d["up"] = tuple3(c.up);
                     d["fov"] = c.fov_deg;
+                    d["projection"] = c.equirect             ? "equirectangular"
+                                      : c.ortho_height > 0.0 ? "orthographic"
+                                                             : "perspective";
                     d["ortho_height"] = c.ortho_height > 0.0
                                             ? py::object(py::float_(c.ortho_height))
                                             : py::object(py::none());
@@ -353,7 +356,8 @@ PYBIND11_MODULE(_spangle, m) {
                     return d;
                 }();
             },
-            "The camera: position, look_at, up, fov (vertical, degrees), ortho_height (an "
+            "The camera: position, look_at, up, projection, fov (vertical, degrees), ortho_height "
+            "(an "
             "orthographic camera's view height in scene units, or None), aperture (lens radius, "
             "metres), focus_distance.")
         .def(

@@ -255,6 +255,9 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     if (position) c.position = *position;
     if (look_at) c.look_at = *look_at;
     if (up) c.up = *up;
+    if ((fov || ortho_height || aperture || focus_distance) && c.equirect)
+        throw SpangleError(
+            "python: set_camera(): an equirectangular camera has no fov, view height or lens");
     if (fov && c.ortho_height > 0.0)
         throw SpangleError(
             "python: set_camera(): 'fov': the camera is orthographic (ortho_height), it has no "

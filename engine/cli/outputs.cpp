@@ -38,11 +38,13 @@ namespace {
 void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t frame_w,
                           uint32_t frame_h) {
     const Camera& c = d.info->camera;
-    const CameraMatrices m =
-        CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, frame_w,
-                    frame_h, FilmLayout{c.mirror, c.screen, c.fov_shorter, c.ortho_height})
-            .matrices();
-    o.matrices = {{"worldToCamera", m.world_to_camera}, {"worldToNDC", m.world_to_ndc}};
+    const CameraModel model(
+        c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, frame_w, frame_h,
+        FilmLayout{c.mirror, c.screen, c.fov_shorter, c.ortho_height, c.equirect});
+    const CameraMatrices m = model.matrices();
+    o.matrices = {{"worldToCamera", m.world_to_camera}};
+    // A panorama projects onto no plane: it has no worldToNDC (spangle flicker says so).
+    if (model.projects_to_ndc()) o.matrices.push_back({"worldToNDC", m.world_to_ndc});
     // Which scene (its files' bytes) and which moment: spangle merge refuses parts that differ.
     o.metadata.emplace_back("spangle:sceneHash", fmt::format("{:016x}", d.info->content_hash));
     o.metadata.emplace_back("spangle:time", fmt::format("{}", d.info->time));

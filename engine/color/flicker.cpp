@@ -41,7 +41,11 @@ Frame read_frame(const std::string& path) {
         Imf::InputFile in(path.c_str());
         const Imf::Header& h = in.header();
         const auto* m = h.findTypedAttribute<Imf::M44fAttribute>("worldToNDC");
-        if (!m) throw_error("'{}' has no worldToNDC matrix (render it with Spangle)", path);
+        if (!m)
+            throw_error(
+                "'{}' has no worldToNDC matrix (render it with Spangle; a panoramic camera has "
+                "none, and its frames cannot be compared)",
+                path);
         const Imath::Box2i dw = h.dataWindow();
         if (dw != h.displayWindow())
             throw_error("'{}' is a crop window: merge the parts first (spangle merge)", path);

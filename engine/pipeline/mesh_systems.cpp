@@ -161,7 +161,7 @@ int camera_level(const Cage& cage, const SubdivSurface& s, const Affine& xf, con
     }
     const Vec3 c = (lo + hi) * 0.5f;
     // Orthographic: pixel_angle is a pixel's width itself, at any distance.
-    const double dist = cam.ortho_height > 0.0f
+    const double dist = cam.ortho_height > 0.0f && !cam.equirect
                             ? 1.0
                             : std::max(1e-3, static_cast<double>(length(c - cam.position) -
                                                                  0.5f * length(hi - lo)));
@@ -248,8 +248,10 @@ void system_subdivide(ecs::Registry& r, World& w) {
                                    ? static_cast<float>(height) / static_cast<float>(width)
                                    : 1.0f;
         // An orthographic camera: a pixel's width on the film, the same at every distance.
-        const float unit = cam.ortho_height > 0.0f ? 0.5f * cam.ortho_height
-                                                   : std::tan(0.5f * cam.fov_deg * kPi / 180.0f);
+        // A panorama: a pixel's height in elevation, pi / height.
+        const float unit = cam.equirect              ? 0.5f * kPi
+                           : cam.ortho_height > 0.0f ? 0.5f * cam.ortho_height
+                                                     : std::tan(0.5f * cam.fov_deg * kPi / 180.0f);
         pixel_angle = span * portrait * unit / static_cast<float>(height);
         camera = &cam;
     }

@@ -84,13 +84,19 @@ CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, fl
       width_(static_cast<float>(width)),
       height_(static_cast<float>(height)) {
     screen_ = layout.screen;
-    ortho_ = layout.ortho_height > 0.0f;
+    ortho_ = layout.ortho_height > 0.0f && !layout.equirect;
+    equirect_ = layout.equirect;
+    if (equirect_) {
+        screen_ = {};
+        aperture_ = 0.0f;
+    }
     if (layout.fov_shorter && !has_screen() && aspect_ < 1.0f) tan_half_ /= aspect_;
     right_ = normalize(cross(forward_, up));
     up_ = cross(right_, forward_);
     if (layout.mirror) right_ = -right_;
     pixel_angle_ =
         has_screen() ? (screen_[3] - screen_[2]) * tan_half_ / height_ : 2.0f * tan_half_ / height_;
+    if (equirect_) pixel_angle_ = kPi / height_;  // a pixel's height in elevation
 }
 
 bool CameraModel::has_screen() const {
@@ -154,6 +160,13 @@ CameraMatrices CameraModel::matrices() const {
 }
 
 Vec3 CameraModel::point_on_film(float fx, float fy) const {
+    if (equirect_) {
+        const float phi = (fx / width_ - 0.5f) * (2.0f * kPi);
+        const float theta = (0.5f - fy / height_) * kPi;
+        const float c = std::cos(theta);
+        return forward_ * (c * std::cos(phi)) + right_ * (c * std::sin(phi)) +
+               up_ * std::sin(theta);
+    }
     if (has_screen()) {
         const float sx = (screen_[0] + (screen_[1] - screen_[0]) * fx / width_) * tan_half_;
         const float sy = (screen_[3] - (screen_[3] - screen_[2]) * fy / height_) * tan_half_;
@@ -182,7 +195,8 @@ RayDifferential CameraModel::generate(float fx, float fy, float lu, float lv) co
         lens = (right_ * std::cos(phi) + up_ * std::sin(phi)) * (rr * aperture_);
     }
     const auto make = [&](float x, float y, Vec3& o, Vec3& d) {
-        const Vec3 dir = point_on_film(x, y);  // direction with unit forward component
+        // The direction with a unit forward component (a unit direction for a panorama).
+        const Vec3 dir = point_on_film(x, y);
         // Perspective: from the position towards the film point; orthographic: from the film
         // point on the plane through the position, along the view.
         const Vec3 from = ortho_ ? origin_ + (dir - forward_) : origin_;

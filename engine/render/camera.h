@@ -1,7 +1,8 @@
 #pragma once
-// The camera: perspective or orthographic, pinhole or thin lens, a pixel filter sampled by
-// importance (each sample lands where the filter puts it and weighs 1; Ernst et al. 2006), and ray
-// differentials towards the neighbouring pixels for texture and flake footprints.
+// The camera: perspective or orthographic (pinhole or thin lens) or an equirectangular panorama, a
+// pixel filter sampled by importance (each sample lands where the filter puts it and weighs 1;
+// Ernst et al. 2006), and ray differentials towards the neighbouring pixels for texture and flake
+// footprints.
 
 #include <array>
 #include <string>
@@ -61,6 +62,10 @@ struct FilmLayout {
      *  screen window's unit is half of it. Rays leave the film plane through the position, all
      *  along the view (through the lens towards the plane in focus, with an aperture). */
     float ortho_height = 0.0f;
+    /** An equirectangular panorama: the direction at film (x, y) has azimuth 360 (x / width -
+     *  1/2) degrees from the view (positive to the right) and elevation 180 (1/2 - y / height)
+     *  degrees; fov, the screen window and the lens do not apply. */
+    bool equirect = false;
 };
 
 class CameraModel {
@@ -79,6 +84,8 @@ public:
     float pixel_angle() const { return ortho_ ? 0.0f : pixel_angle_; }
     /** World-space width of one pixel at the camera: an orthographic camera's, else 0. */
     float pixel_width() const { return ortho_ ? pixel_angle_ : 0.0f; }
+    /** The EXR header's worldToNDC exists: no projection onto a plane makes a panorama. */
+    bool projects_to_ndc() const { return !equirect_; }
     /** The camera's frame and projection as the EXR header's matrices. */
     CameraMatrices matrices() const;
 
@@ -95,6 +102,7 @@ private:
     float width_, height_;
     float pixel_angle_;  ///< a pixel's width at distance 1, or on the film (orthographic)
     bool ortho_ = false;
+    bool equirect_ = false;
 };
 
 }  // namespace spangle

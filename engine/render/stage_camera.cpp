@@ -19,11 +19,11 @@ CameraModel camera_at(const RenderJob& job, float time) {
     const Camera& a = steps[i];
     const Camera& b = steps[i + 1];
     const auto mix = [s](auto x, auto y) { return x + (y - x) * s; };
-    return CameraModel(
-        mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
-        mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
-        mix(a.focus_distance, b.focus_distance), job.width, job.height,
-        FilmLayout{a.mirror, a.screen, a.fov_shorter, mix(a.ortho_height, b.ortho_height)});
+    return CameraModel(mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
+                       mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
+                       mix(a.focus_distance, b.focus_distance), job.width, job.height,
+                       FilmLayout{a.mirror, a.screen, a.fov_shorter,
+                                  mix(a.ortho_height, b.ortho_height), a.equirect});
 }
 
 /** Path i: sample `smp` of pixel (x, y), the top-left of a block of job.stride pixels whose

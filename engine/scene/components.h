@@ -217,8 +217,11 @@ using ScreenWindow = std::array<float, 4>;
     X(ScreenWindow, screen, "pbrt's screen window (y up), tan(fov / 2) units; all 0 = none")   \
     X(float, ortho_height,                                                                     \
       "an orthographic camera's view height in scene units (the screen window's unit is half " \
-      "of it); 0 = perspective")
-/** A perspective or orthographic camera: pinhole or thin lens. */
+      "of it); 0 = perspective")                                                               \
+    X(bool, equirect,                                                                          \
+      "an equirectangular panorama: every direction, 360 degrees across the image and 180 "    \
+      "up it, the view at its centre")
+/** A perspective, orthographic or panoramic camera; the first two pinhole or thin lens. */
 SPANGLE_COMPONENT(Camera, SPANGLE_CAMERA_FIELDS);
 
 namespace ecs {

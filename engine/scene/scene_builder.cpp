@@ -151,6 +151,30 @@ Camera still_camera(const CameraDesc& d) {
     c.mirror = d.mirror;
     c.fov_shorter = d.fov_shorter && !d.screen;
     c.ortho_height = static_cast<float>(d.ortho_height);
+    c.equirect = d.equirect;
+    // Rays leave the lens, or an orthographic camera's film plane, up to this far from the
+    // position: beyond it 32-bit rays stop working (Embree refused rays from 3e18 away, and the
+    // render aborted). Each value had its own range; their product had none.
+    constexpr double kMaxSpread = 1e13;
+    if (!(d.aperture <= kMaxSpread))
+        throw_error(d.loc,
+                    "the camera's lens radius {:.3g} is beyond {:.0g} units: rays are traced in "
+                    "32-bit floats",
+                    d.aperture, kMaxSpread);
+    if (d.ortho_height > 0.0 && !d.equirect) {
+        double window = 1.0;
+        if (d.screen)
+            for (double v : *d.screen) window = std::max(window, std::fabs(v));
+        const double half = 0.5 * d.ortho_height * window;
+        if (!(half <= kMaxSpread))
+            throw_error(d.screen ? d.screen_loc : d.loc,
+                        "the orthographic camera's view reaches {:.3g} units from its position "
+                        "(ortho_height {:.3g}{}): rays are traced in 32-bit floats, keep it "
+                        "within {:.0g}",
+                        half, d.ortho_height,
+                        d.screen ? fmt::format(", screen window up to {:.3g}", window) : "",
+                        kMaxSpread);
+    }
     if (d.screen) {
         const std::array<double, 4>& w = *d.screen;
         for (double v : w)

@@ -108,7 +108,7 @@ struct CameraKey {
     std::string what;               ///< what messages call the key, e.g. "[[camera.keys]] #2"
 };
 
-/** A perspective or orthographic camera, pinhole or thin lens. */
+/** A perspective, orthographic or equirectangular camera, pinhole or thin lens. */
 struct CameraDesc {
     Vec3 position;                         ///< eye, world space
     Vec3 look_at;                          ///< point looked at
@@ -130,6 +130,10 @@ struct CameraDesc {
      *  tall (with fov_shorter, its shorter side; with a screen window, the window's unit is half
      *  of it), instead of fov_deg; 0 = perspective. */
     double ortho_height = 0.0;
+    /** An equirectangular panorama (`projection = "equirectangular"`): every direction from the
+     *  position, 360 degrees of azimuth across the image (the view at its centre, the right to
+     *  its right) and 180 of elevation up it; no fov, lens or screen window. */
+    bool equirect = false;
     Keys<CameraKey> keys;  ///< its motion
     FileLoc loc;           ///< the camera
     FileLoc look_at_loc;   ///< its look_at (blamed when it meets the position)

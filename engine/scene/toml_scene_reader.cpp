@@ -154,12 +154,41 @@ CameraDesc read_camera(TableReader& r) {
     c.look_at_loc = r.loc("look_at");
     c.up = r.vec3("up", c.up);
     c.up_loc = r.loc("up");
+    // "perspective" (the default), "orthographic" (with ortho_height; ortho_height alone also
+    // makes one) or "equirectangular".
+    std::string projection = "perspective";
+    if (r.has("projection")) {
+        projection = r.string("projection");
+        if (projection != "perspective" && projection != "orthographic" &&
+            projection != "equirectangular")
+            throw_error(r.loc("projection"),
+                        "'projection' must be \"perspective\", \"orthographic\" or "
+                        "\"equirectangular\", got \"{}\"",
+                        projection);
+        if (projection == "orthographic" && !r.has("ortho_height"))
+            throw_error(r.loc("projection"),
+                        "an orthographic camera needs 'ortho_height' (the view's height in scene "
+                        "units)");
+        if (projection != "orthographic" && r.has("ortho_height"))
+            throw_error(r.loc("ortho_height"),
+                        "'ortho_height' is an orthographic camera's, not a{} {} one's",
+                        projection == "perspective" ? "" : "n", projection);
+    }
+    c.equirect = projection == "equirectangular";
+    if (c.equirect)
+        for (const char* key : {"fov", "fov_axis", "screen_window", "aperture", "focus_distance"})
+            if (r.has(key))
+                throw_error(r.loc(key),
+                            "'{}' is not for an equirectangular camera: it sees every direction "
+                            "from its position (360 degrees across the image, 180 up it) through "
+                            "a pinhole",
+                            key);
     if (r.has("ortho_height")) {
         if (r.has("fov"))
             throw_error(r.loc("fov"),
                         "'fov' and 'ortho_height' are both given: an orthographic camera "
                         "(ortho_height, the view's height in scene units) has no field of view");
-        c.ortho_height = r.number("ortho_height", {0.0, 1e30, true});
+        c.ortho_height = r.number("ortho_height", {0.0, 2e13, true});
     }
     c.fov_deg = r.number("fov", c.fov_deg, {0.0, 180.0, true, true});
     // "vertical" (the default) or "shorter": the image's shorter side, as pbrt takes fov.
@@ -185,9 +214,10 @@ CameraDesc read_camera(TableReader& r) {
         key.look_at = optional_vec3(kr, "look_at");
         key.up = optional_vec3(kr, "up");
         if (kr.has("fov")) {
-            if (c.ortho_height > 0.0)
-                throw_error(kr.loc("fov"),
-                            "an orthographic camera (ortho_height) has no field of view to key");
+            if (c.ortho_height > 0.0 || c.equirect)
+                throw_error(
+                    kr.loc("fov"), "an {} has no field of view to key",
+                    c.equirect ? "equirectangular camera" : "orthographic camera (ortho_height)");
             key.fov_deg = kr.number("fov", {0.0, 180.0, true, true});
         }
         return key;

@@ -140,12 +140,14 @@ struct Writer {
         line("position", vec(c.position));
         line("look_at", vec(c.look_at));
         line("up", vec(c.up));
-        if (c.ortho_height > 0.0)
+        if (c.equirect)
+            line("projection", str("equirectangular"));
+        else if (c.ortho_height > 0.0)
             line("ortho_height", num(c.ortho_height));
         else
             line("fov", num(c.fov_deg));
-        if (c.fov_shorter) line("fov_axis", str("shorter"));
-        line("aperture", num(c.aperture));
+        if (c.fov_shorter && !c.equirect) line("fov_axis", str("shorter"));
+        if (!c.equirect) line("aperture", num(c.aperture));
         if (c.focus_distance) line("focus_distance", num(*c.focus_distance));
         if (c.mirror) line("mirror", "true");
         if (c.screen) line("screen_window", window(*c.screen));

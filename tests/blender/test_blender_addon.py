@@ -415,6 +415,45 @@ def test_an_orthographic_camera_frames_as_in_cycles(tmp_path):
         assert (mask_ours != mask_theirs).mean() < 0.01, (mask_ours != mask_theirs).mean()
 
 
+def test_an_equirectangular_panorama_sees_all_round_as_in_cycles(tmp_path):
+    # A full equirectangular panoramic camera among four glowing cubes, red ahead (the camera's
+    # -z), green to its right (+x), blue behind it to the left and white above: each lands
+    # where Cycles puts it, so the image's centre, left-right and top are Blender's. The add-on
+    # exported a perspective camera (with a warning) before.
+    scene = empty_scene((128, 64), world=(0.0, 0.0, 0.0))
+    cubes = {"red": ((0.0, 0.0, -4.0), (1, 0, 0)), "green": ((4.0, 0.0, -1.0), (0, 1, 0)),
+             "blue": ((-3.0, 0.0, 3.0), (0, 0, 1)), "white": ((0.5, 4.0, 0.0), (1, 1, 1))}
+    for name, (loc, color) in cubes.items():
+        bpy.ops.mesh.primitive_cube_add(size=1.5, location=loc)
+        mat = principled(name, (0.0, 0.0, 0.0), 1.0, Emission_Color=(*color, 1.0),
+                         Emission_Strength=2.0)
+        bpy.context.active_object.data.materials.append(mat)
+    bpy.ops.object.camera_add(location=(0.0, 0.0, 0.0), rotation=(0.0, 0.0, 0.0))
+    cam = bpy.context.active_object
+    scene.camera = cam
+    cam.data.type = "PANO"
+    holder = cam.data if hasattr(cam.data, "panorama_type") else cam.data.cycles
+    holder.panorama_type = "EQUIRECTANGULAR"
+    scene.cycles.max_bounces = 0
+    ours, theirs = both(scene, tmp_path, "pano", spp=8)
+    h, w = ours.shape[:2]
+    def centre(img, channel, others):
+        m = (img[..., channel] > 0.5) & (img[..., others].max(axis=-1) < 0.2)
+        ys, xs = np.nonzero(m)
+        assert len(xs) > 3, (channel, m.sum())
+        return xs.mean() / w, ys.mean() / h
+    for name, ch, others in (("red", 0, [1, 2]), ("green", 1, [0, 2]), ("blue", 2, [0, 1])):
+        o, t = centre(ours, ch, others), centre(theirs, ch, others)
+        assert abs(o[0] - t[0]) < 0.02 and abs(o[1] - t[1]) < 0.03, (name, o, t)
+    # Spangle's own convention, as documented: the view at the centre, the right to its right.
+    assert abs(centre(ours, 0, [1, 2])[0] - 0.5) < 0.02
+    assert centre(ours, 1, [0, 2])[0] > 0.6
+    white = (ours.min(axis=2) > 0.5)
+    assert white[: h // 4].sum() > 0.8 * white.sum() > 0, "the white cube above is at the top"
+    lit = lambda a: a.max(axis=2) > 0.5
+    assert (lit(ours) != lit(theirs)).mean() < 0.01, (lit(ours) != lit(theirs)).mean()
+
+
 def test_a_normal_map_shades_as_in_cycles(tmp_path):
     # A floor whose Principled BSDF takes a Normal Map node (tangent space, an image of stripes
     # tilted +-35 degrees along u) under a low sun, seen from above: the stripes Cycles shows,

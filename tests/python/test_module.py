@@ -316,6 +316,7 @@ def test_the_camera_turns_orthographic_and_back(session):
     assert session.camera["ortho_height"] is None
     session.set_camera(ortho_height=3.0)
     assert session.camera["ortho_height"] == 3.0
+    assert session.camera["projection"] == "orthographic"
     ortho = session.render(spp=2, size=(40, 24), layers=False)
     assert not np.array_equal(ortho.beauty, persp.beauty) and np.isfinite(ortho.beauty).all()
     with pytest.raises(spangle.SceneError):
@@ -323,5 +324,5 @@ def test_the_camera_turns_orthographic_and_back(session):
     with pytest.raises(spangle.SceneError):
         session.set_camera(ortho_height=-1.0)
     session.set_camera(ortho_height=0.0)
-    assert session.camera["ortho_height"] is None
+    assert session.camera["ortho_height"] is None and session.camera["projection"] == "perspective"
     assert np.array_equal(session.render(spp=2, size=(40, 24), layers=False).beauty, persp.beauty)

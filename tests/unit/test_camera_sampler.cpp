@@ -277,5 +277,35 @@ TEST(OrthographicCamera, ParallelRaysOverTheViewHeight) {
     }
 }
 
+TEST(EquirectangularCamera, EveryDirectionOnceAcrossTheImage) {
+    // The image centre looks along the view, x runs round the horizon (to the right first, the
+    // edges behind), y from straight up to straight down; differentials are a pixel's turn.
+    const Vec3 pos(1.0f, 2.0f, 3.0f), at(1.0f, 2.0f, -5.0f);  // looking down -z, y up
+    const uint32_t w = 360, h = 180;
+    FilmLayout layout;
+    layout.equirect = true;
+    const CameraModel cam(pos, at, {0, 1, 0}, 40.0f, 0.5f, 6.0f, w, h, layout);
+    EXPECT_FALSE(cam.projects_to_ndc());
+    const auto dir = [&](float fx, float fy) {
+        const RayDifferential r = cam.generate(fx, fy, 0.3f, 0.7f);
+        EXPECT_EQ(r.o, pos) << "every ray leaves the position (no lens)";
+        return r.d;
+    };
+    const auto near = [](Vec3 a, Vec3 b) { return length(a - b) < 1e-5f; };
+    EXPECT_TRUE(near(dir(180.0f, 90.0f), {0, 0, -1})) << "the view at the centre";
+    EXPECT_TRUE(near(dir(270.0f, 90.0f), {1, 0, 0})) << "the right a quarter to the right";
+    EXPECT_TRUE(near(dir(90.0f, 90.0f), {-1, 0, 0})) << "the left a quarter to the left";
+    EXPECT_TRUE(near(dir(0.0f, 90.0f), {0, 0, 1})) << "behind at the edge";
+    EXPECT_TRUE(near(dir(360.0f, 90.0f), {0, 0, 1})) << "behind at the other edge";
+    EXPECT_TRUE(near(dir(123.0f, 0.0f), {0, 1, 0})) << "up at the top";
+    EXPECT_TRUE(near(dir(17.0f, 180.0f), {0, -1, 0})) << "down at the bottom";
+    EXPECT_TRUE(near(dir(180.0f, 45.0f), normalize(Vec3(0, 1, -1)))) << "45 degrees up";
+    // A pixel is a degree of azimuth on the horizon and a degree of elevation.
+    const RayDifferential r = cam.generate(200.0f, 90.0f, 0.5f, 0.5f);
+    EXPECT_NEAR(std::acos(std::clamp(dot(r.d, r.dx_d), -1.0f, 1.0f)), kPi / 180.0f, 1e-4f);
+    EXPECT_NEAR(std::acos(std::clamp(dot(r.d, r.dy_d), -1.0f, 1.0f)), kPi / 180.0f, 1e-4f);
+    EXPECT_NEAR(cam.pixel_angle(), kPi / 180.0f, 1e-7f);
+}
+
 }  // namespace
 }  // namespace spangle

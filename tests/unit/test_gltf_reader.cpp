@@ -241,6 +241,51 @@ TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {
     EXPECT_NEAR(r.o.x, 1.0f + 3.0f, 1e-4f);
     EXPECT_NEAR(r.o.y, 2.0f + 1.5f, 1e-4f);
     EXPECT_NEAR(r.d.z, -1.0f, 1e-6f);
+    // A magnification of 0 is an error at its place; a negative one is taken by its size, noted.
+    for (const auto& [xmag, ymag] : {std::pair{"0", "1.5"}, std::pair{"3", "0"}}) {
+        const std::string bad = fmt::format(
+            R"("nodes":[{{"mesh":0}},{{"camera":0}}],)"
+            R"("cameras":[{{"type":"orthographic","orthographic":{{"xmag":{},"ymag":{},"znear":0.1,"zfar":100}}}}],)"
+            R"("meshes":[{{"primitives":[{}]}}])",
+            xmag, ymag, quad_primitive(q, -1));
+        w.write_gltf(dir.file("bad.gltf"), bad);
+        EXPECT_THROW(read_gltf_scene(dir.file("bad.gltf"), {}), SpangleError)
+            << xmag << " " << ymag;
+    }
+}
+
+TEST(GltfReader, UnnamedCamerasArePickedByTheirIndex) {
+    // The Khronos "Cameras" sample's two cameras have no names, nor do their nodes: --camera
+    // "#1" picks the second (an orthographic one); before, no name could, and the error listed
+    // two empty names.
+    test::TempDir dir("gltf_unnamed_cameras");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const std::string body = fmt::format(
+        R"("nodes":[{{"mesh":0}},{{"camera":0,"translation":[0,0,5]}},{{"camera":1,"translation":[0,0,7]}}],)"
+        R"("cameras":[{{"type":"perspective","perspective":{{"yfov":0.7,"znear":0.1}}}},)"
+        R"({{"type":"orthographic","orthographic":{{"xmag":2,"ymag":-1,"znear":0.1,"zfar":100}}}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        quad_primitive(q, -1));
+    w.write_gltf(dir.file("cams.gltf"), body);
+    EXPECT_EQ(read_gltf_scene(dir.file("cams.gltf"), {}).camera.ortho_height, 0.0);
+    SceneReadOptions second;
+    second.camera = "#1";
+    const SceneDescription d = read_gltf_scene(dir.file("cams.gltf"), second);
+    EXPECT_EQ(d.camera.ortho_height, 2.0);
+    EXPECT_NEAR(d.camera.position.z, 7.0f, kTol);
+    bool noted = false;
+    for (const std::string& n : d.notes)
+        noted = noted || n.find("ymag -1 is negative") != std::string::npos;
+    EXPECT_TRUE(noted);
+    SceneReadOptions wrong;
+    wrong.camera = "side";
+    try {
+        read_gltf_scene(dir.file("cams.gltf"), wrong);
+        FAIL() << "no error for an unknown camera";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("(cameras: #0, #1)"), std::string::npos) << e.what();
+    }
 }
 
 /** A quad and two cameras: an unnamed one on node "front", "top" on node "high". */

@@ -697,6 +697,18 @@ Film "image" "integer xresolution" 100 "integer yresolution" 200
     EXPECT_EQ(ortho.camera.ortho_height, 2.0);
     ASSERT_TRUE(ortho.camera.screen);
     EXPECT_EQ((*ortho.camera.screen)[1], 1.0);
+    // A uniform scale before LookAt scales camera space: the view (and a lens) in world units.
+    const SceneDescription scaled = read(
+        f,
+        "Scale 2 2 2\nLookAt 0 0 10 0 0 0 0 1 0\nCamera \"orthographic\" \"float lensradius\" 0.1 "
+        "\"float focaldistance\" 4\n");
+    EXPECT_NEAR(scaled.camera.ortho_height, 1.0, 1e-6) << "pbrt shows half as much";
+    EXPECT_NEAR(scaled.camera.aperture, 0.05, 1e-7);
+    EXPECT_NEAR(*scaled.camera.focus_distance, 2.0, 1e-6);
+    EXPECT_THROW(
+        read(f, "Camera \"perspective\" \"float lensradius\" 0.1 \"float focaldistance\" 0\n"),
+        SpangleError)
+        << "a lens focused at 0";
     const SceneDescription realistic = read(f, "Camera \"realistic\"\n");
     EXPECT_TRUE(noted(realistic, "Camera \"realistic\" is not supported"));
 }

@@ -264,14 +264,20 @@ void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
     if (g.type == "orthographic") {
         // xmag and ymag are half the view's width and height (glTF 2.0, 3.10.3); the image's
         // aspect is the viewport's, as for a perspective camera: ymag is kept and xmag only
-        // sets the aspect, as aspectRatio does.
-        // (They must not be 0 and should not be negative: a negative one is taken by its size.)
+        // sets the aspect, as aspectRatio does. Neither may be 0; a negative one (the
+        // specification says it should not be) is taken by its size, with a note.
+        for (const auto& [key, v] :
+             {std::pair{"xmag", g.orthographic.xmag}, std::pair{"ymag", g.orthographic.ymag}}) {
+            if (!(std::fabs(v) > 0.0) || !std::isfinite(v))
+                throw_error(ctx.at(cp + "/orthographic/" + key),
+                            "an orthographic camera's {} must be a finite number other than 0, "
+                            "got {}",
+                            key, v);
+            if (v < 0.0)
+                ctx.note("negative magnification", ctx.at(cp + "/orthographic/" + key),
+                         fmt::format("{} {} is negative: its size is taken", key, v));
+        }
         const double ymag = std::fabs(g.orthographic.ymag), xmag = std::fabs(g.orthographic.xmag);
-        if (!(ymag > 0.0 && ymag < 1e30))
-            throw_error(ctx.at(cp + "/orthographic/ymag"),
-                        "an orthographic camera's ymag must be a finite number other than 0, "
-                        "got {}",
-                        g.orthographic.ymag);
         c.ortho_height = 2.0 * ymag;
         aspect = xmag / ymag;
     } else {
@@ -308,20 +314,28 @@ void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
     }
 }
 
-/** Picks the camera: the one `name` names (a camera's or its node's name), else the first. */
+/** Picks the camera: the one `name` names (a camera's or its node's name, or "#N" for the
+ *  file's camera N, which unnamed cameras have only), else the first. */
 void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras,
                    const std::string& name, const std::vector<NodeMotion>& motions) {
+    int index = -1;
+    if (name.size() > 1 && name.size() < 10 && name[0] == '#' &&
+        std::all_of(name.begin() + 1, name.end(), [](char ch) { return ch >= '0' && ch <= '9'; }))
+        index = std::stoi(name.substr(1));
     for (const auto& [node, cam] : cameras) {
         const bool named = ctx.model.cameras[static_cast<std::size_t>(cam)].name == name ||
-                           ctx.model.nodes[static_cast<std::size_t>(node)].name == name;
+                           ctx.model.nodes[static_cast<std::size_t>(node)].name == name ||
+                           cam == index;
         if (name.empty() || named)
             return use_camera(ctx, node, cam, motions[static_cast<std::size_t>(node)]);
     }
     if (!name.empty()) {
+        // Each camera by a name --camera takes: its own, its node's, or "#N".
         std::vector<std::string> names;
         for (const auto& [node, cam] : cameras) {
             const std::string& cn = ctx.model.cameras[static_cast<std::size_t>(cam)].name;
-            names.push_back(cn.empty() ? ctx.model.nodes[static_cast<std::size_t>(node)].name : cn);
+            const std::string& nn = ctx.model.nodes[static_cast<std::size_t>(node)].name;
+            names.push_back(!cn.empty() ? cn : !nn.empty() ? nn : fmt::format("#{}", cam));
         }
         throw_error(
             ctx.at("cameras"), "no camera named '{}' (cameras: {})", name,

@@ -187,7 +187,10 @@ void finish_camera_and_render(Reader& r) {
                     "position and orientation are kept");
     const ParamList& p = cs.params;
     const double fov = ortho ? 90.0 : p.number("fov", 90.0);
-    if (ortho) c.ortho_height = 2.0;
+    // A uniform scale in the camera transform scales camera space: an orthographic camera's
+    // screen window (its view), and the lens of either camera, are that many world units.
+    const double scale = lx > 0.0f && std::isfinite(lx) ? static_cast<double>(lx) : 1.0;
+    if (ortho) c.ortho_height = 2.0 * scale;
     if (!(fov > 0.0 && fov < 180.0))
         throw_error(cs.loc, "Camera 'fov' must be in (0, 180), got {}", fov);
     const double aspect = static_cast<double>(r.d.render.width) / r.d.render.height;
@@ -210,9 +213,13 @@ void finish_camera_and_render(Reader& r) {
         c.fov_deg = fov;
         c.fov_shorter = true;
     }
-    c.aperture = std::max(0.0, p.number("lensradius", 0.0));
+    c.aperture = std::max(0.0, p.number("lensradius", 0.0)) * scale;
     const double focus = p.number("focaldistance", 1e6);
-    if (c.aperture > 0.0 && focus > 0.0) c.focus_distance = focus;
+    if (c.aperture > 0.0 && !(focus > 0.0))
+        throw_error(p.find("focaldistance") ? p.find("focaldistance")->loc : cs.loc,
+                    "Camera 'focaldistance' must be positive with a lens ('lensradius' {}), got {}",
+                    c.aperture / scale, focus);
+    if (c.aperture > 0.0) c.focus_distance = focus * scale;
     shutter(r);
     exposure(r);
     camera_keys(r);

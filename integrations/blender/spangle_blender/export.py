@@ -436,6 +436,19 @@ def vertical_fov(cam, width, height):
     return math.degrees(2.0 * half)
 
 
+def _full_equirectangular(cam):
+    """Whether a panoramic camera is an equirectangular one over the whole sphere (Spangle's
+    equirectangular camera): Blender 4 keeps the type and range on the camera, 3.x in cycles."""
+    holder = cam if hasattr(cam, "panorama_type") else getattr(cam, "cycles", None)
+    if holder is None or getattr(holder, "panorama_type", "") != "EQUIRECTANGULAR":
+        return False
+    full = ((getattr(holder, "latitude_min", -math.pi / 2), -math.pi / 2),
+            (getattr(holder, "latitude_max", math.pi / 2), math.pi / 2),
+            (getattr(holder, "longitude_min", -math.pi), -math.pi),
+            (getattr(holder, "longitude_max", math.pi), math.pi))
+    return all(abs(v - want) < 1e-4 for v, want in full)
+
+
 def ortho_height(cam, width, height):
     """Blender's orthographic camera as the view's height in scene units for a width x height
     image: Ortho Scale spans the fitted side (the wider one under Auto)."""
@@ -632,23 +645,27 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     # The frame's shape as Blender frames it: with non-square pixels (Pixel Aspect X/Y) the image
     # spans width x aspect_x by height x aspect_y, and the screen window stretches the pixels.
     framed = (size[0] * scene.render.pixel_aspect_x, size[1] * scene.render.pixel_aspect_y)
-    if cam.type not in ("PERSP", "ORTHO"):
-        warnings.append(f"camera '{cam_obj.name}': {cam.type.lower()} cameras are not supported; "
-                        "a perspective camera stands in")
+    equirect = cam.type == "PANO" and _full_equirectangular(cam)
+    if cam.type not in ("PERSP", "ORTHO") and not equirect:
+        what = cam.type.lower() if cam.type != "PANO" else \
+            f"{getattr(cam, 'panorama_type', 'panoramic').lower()} panoramic"
+        warnings.append(f"camera '{cam_obj.name}': {what} cameras are not supported (only full "
+                        "equirectangular panoramas are); a perspective camera stands in")
     m = cam_obj.matrix_world
     eye = m.translation
     forward = m.to_3x3() @ mathutils.Vector((0.0, 0.0, -1.0))
     up = m.to_3x3() @ mathutils.Vector((0.0, 1.0, 0.0))
     out += ["[camera]", f"position = {_vec(eye)}", f"look_at = {_vec(eye + forward)}",
             f"up = {_vec(up)}",
+            'projection = "equirectangular"' if equirect else
             f"ortho_height = {_fmt(ortho_height(cam, *framed))}" if cam.type == "ORTHO" else
             f"fov = {_fmt(vertical_fov(cam, *framed))}"]
-    window = shifted_window(cam, *framed)
-    if window is None and framed[0] * size[1] != framed[1] * size[0]:
+    window = None if equirect else shifted_window(cam, *framed)
+    if window is None and not equirect and framed[0] * size[1] != framed[1] * size[0]:
         window = (-framed[0] / framed[1], framed[0] / framed[1], -1.0, 1.0)
     if window is not None:
         out.append(f"screen_window = [{', '.join(_fmt(v) for v in window)}]")
-    if cam.dof.use_dof:
+    if cam.dof.use_dof and not equirect:
         focus = cam.dof.focus_distance
         if cam.dof.focus_object is not None:
             focus = (cam.dof.focus_object.matrix_world.translation - eye).dot(forward)
