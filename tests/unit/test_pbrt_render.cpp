@@ -280,6 +280,63 @@ AttributeEnd
     }
 }
 
+TEST(PbrtCamera, EquirectangularPointsLandWherePbrtPutsThem) {
+    // pbrt-v4's spherical camera with the equirectangular mapping (and v3's environment camera):
+    // a direction (sin t cos p, cos t, sin t sin p) in its left-handed camera space at image
+    // (p / 2 pi, t / pi). A small emitter in each of several directions lands on that pixel.
+    // Before, a perspective camera of fov 90 stood in with a note.
+    const auto pixel = [](Vec3 p) {
+        // LookAt 0 0 0 -> 0 0 -1, up y: camera x is world -x, y is y, z is world -z.
+        const Vec3 d = normalize(p);
+        const double cx = -d.x, cy = d.y, cz = -d.z;
+        double phi = std::atan2(cz, cx);
+        if (phi < 0.0) phi += 2.0 * M_PI;
+        return std::pair{phi / (2.0 * M_PI) * 64.0, std::acos(cy) / M_PI * 32.0};
+    };
+    for (const char* camera :
+         {R"(Camera "spherical" "string mapping" "equirectangular")", R"(Camera "environment")"})
+        for (const Vec3& p : {Vec3(3.0f, 0.0f, 0.0f), Vec3(0.0f, 0.0f, -3.0f),
+                              Vec3(2.0f, 1.5f, 1.0f), Vec3(-1.0f, -2.0f, 2.5f)}) {
+            const std::string text = fmt::format(R"(LookAt 0 0 0  0 0 -1  0 1 0
+{}
+Film "image" "integer xresolution" 64 "integer yresolution" 32
+Sampler "halton" "integer pixelsamples" 4
+WorldBegin
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [10 10 10]
+  Translate {} {} {}
+  Shape "sphere" "float radius" 0.25
+AttributeEnd
+)",
+                                                 camera, p.x, p.y, p.z);
+            PbrtReadInfo info;
+            const SceneDescription d = read_pbrt_text("pano.pbrt", text, info);
+            EXPECT_TRUE(d.camera.equirect) << camera;
+            for (const std::string& n : d.notes)
+                EXPECT_EQ(n.find("not supported"), std::string::npos) << n;
+            // The emitter (a few pixels across) by its light's centroid, in pixels (+0.5: a
+            // pixel's centre); x taken round the seam nearest the expected column.
+            const std::vector<float> image = render(d);
+            const auto [px, py] = pixel(p);
+            double sum = 0.0, sx = 0.0, sy = 0.0;
+            for (std::size_t i = 0; i < image.size() / 3; ++i) {
+                const double v = image[3 * i];
+                double x = static_cast<double>(i % 64) + 0.5;
+                x += 64.0 * std::round((px - x) / 64.0);
+                sum += v;
+                sx += v * x;
+                sy += v * (static_cast<double>(i / 64) + 0.5);
+            }
+            ASSERT_GT(sum, 0.0) << camera;
+            EXPECT_NEAR(sx / sum, px, 0.35) << camera << " x of " << p.x << " " << p.y;
+            EXPECT_NEAR(sy / sum, py, 0.35) << camera << " y of " << p.x << " " << p.y;
+        }
+    // Its default mapping, equal-area, is not Spangle's: noted, a perspective camera stands in.
+    PbrtReadInfo info;
+    const SceneDescription ea = read_pbrt_text("ea.pbrt", "Camera \"spherical\"\n", info);
+    EXPECT_FALSE(ea.camera.equirect);
+}
+
 TEST(PbrtRender, ATwoSidedAreaLightEmitsFromBothFaces) {
     // The camera sees the quad's back face: one-sided it is black there, two-sided it shows L.
     const auto centre = [](bool two_sided) {

@@ -126,10 +126,13 @@ void shutter(Reader& r) {
     d.shutter_close = close;
 }
 
-/** Eye, look-at, up and mirror of a camera-to-world transform. */
-void view_of(const Mat4& m, Vec3& eye, Vec3& look, Vec3& up) {
+/** Eye, look-at and up of a camera-to-world transform. pbrt's equirectangular camera (v4's
+ *  `spherical` with mapping "equirectangular", v3's `environment`) puts camera space's -x at the
+ *  image's centre (direction (sin t cos p, cos t, sin t sin p), t = pi v, p = 2 pi u, up +y):
+ *  Spangle's panorama looking along -x. */
+void view_of(const Mat4& m, Vec3& eye, Vec3& look, Vec3& up, bool equirect = false) {
     eye = m.point(Vec3(0.0f));
-    look = eye + normalize(m.vector({0, 0, 1}));
+    look = eye + normalize(equirect ? -m.vector({1, 0, 0}) : m.vector({0, 0, 1}));
     up = normalize(m.vector({0, 1, 0}));
 }
 
@@ -145,7 +148,7 @@ void camera_keys(Reader& r) {
         CameraKey k;
         k.time.seconds = times[i];
         Vec3 e, l, u;
-        view_of(cs.to_world[i], e, l, u);
+        view_of(cs.to_world[i], e, l, u, r.d.camera.equirect);
         k.position = e;
         k.look_at = l;
         k.up = u;
@@ -166,17 +169,28 @@ void finish_camera_and_render(Reader& r) {
     // pbrt's orthographic camera: its screen window is in camera space (by default the shorter
     // side spans 2 units), so the view's unit is 1: an ortho_height of 2.
     const bool ortho = cs.given && cs.type == "orthographic";
-    if (cs.given && cs.type != "perspective" && !ortho) {
+    // pbrt's equirectangular cameras: v4's spherical with that mapping (its default, equal-area,
+    // is not Spangle's), v3's environment camera.
+    const bool equirect =
+        cs.given && ((cs.type == "spherical" &&
+                      cs.params.string("mapping", "equalarea") == "equirectangular") ||
+                     cs.type == "environment");
+    if (cs.given && cs.type != "perspective" && !ortho && !equirect) {
         for (const Param& q : cs.params.all()) q.used = true;
         r.notes.add(cs.loc, fmt::format("Camera \"{}\" is not supported: a perspective camera "
                                         "(fov 90) stands in",
                                         cs.type));
     }
     const Mat4& m = cs.to_world[0];
-    view_of(m, c.position, c.look_at, c.up);
+    c.equirect = equirect;
+    view_of(m, c.position, c.look_at, c.up, equirect);
     // pbrt's camera space is left-handed: a camera-to-world transform that keeps handedness
-    // (det > 0, as LookAt makes) shows the mirror image of Spangle's right-handed view.
-    c.mirror = m.determinant3() > 0.0;
+    // (det > 0, as LookAt makes) shows the mirror image of Spangle's right-handed view. The
+    // panorama's right (its azimuth's +90 degrees) is camera space's -z: mirrored when
+    // Spangle's right-handed right, look x up, is not.
+    c.mirror = equirect ? dot(cross(m.vector({-1, 0, 0}), m.vector({0, 1, 0})),
+                              m.vector({0, 0, -1})) < 0.0f
+                        : m.determinant3() > 0.0;
     const Vec3 x = m.vector({1, 0, 0}), y = m.vector({0, 1, 0}), z = m.vector({0, 0, 1});
     const float lx = length(x), ly = length(y), lz = length(z);
     if (std::fabs(dot(x, y)) > 1e-3f * lx * ly || std::fabs(dot(y, z)) > 1e-3f * ly * lz ||
@@ -186,7 +200,7 @@ void finish_camera_and_render(Reader& r) {
                     "Camera: the camera transform shears or scales unevenly: only its "
                     "position and orientation are kept");
     const ParamList& p = cs.params;
-    const double fov = ortho ? 90.0 : p.number("fov", 90.0);
+    const double fov = ortho || equirect ? 90.0 : p.number("fov", 90.0);
     // A uniform scale in the camera transform scales camera space: an orthographic camera's
     // screen window (its view), and the lens of either camera, are that many world units.
     const double scale = lx > 0.0f && std::isfinite(lx) ? static_cast<double>(lx) : 1.0;
@@ -194,8 +208,10 @@ void finish_camera_and_render(Reader& r) {
     if (!(fov > 0.0 && fov < 180.0))
         throw_error(cs.loc, "Camera 'fov' must be in (0, 180), got {}", fov);
     const double aspect = static_cast<double>(r.d.render.width) / r.d.render.height;
-    const double frame = p.number("frameaspectratio", aspect);
-    if (const Param* w = p.find("screenwindow", {"float"})) {
+    const double frame = equirect ? aspect : p.number("frameaspectratio", aspect);
+    if (equirect) {
+        c.fov_deg = fov;  // unused: a panorama sees every direction
+    } else if (const Param* w = p.find("screenwindow", {"float"})) {
         if (w->numbers.size() != 4)
             throw_error(w->loc, "'screenwindow' needs 4 numbers x0 x1 y0 y1, got {}",
                         w->numbers.size());
@@ -213,8 +229,8 @@ void finish_camera_and_render(Reader& r) {
         c.fov_deg = fov;
         c.fov_shorter = true;
     }
-    c.aperture = std::max(0.0, p.number("lensradius", 0.0)) * scale;
-    const double focus = p.number("focaldistance", 1e6);
+    c.aperture = equirect ? 0.0 : std::max(0.0, p.number("lensradius", 0.0)) * scale;
+    const double focus = equirect ? 1e6 : p.number("focaldistance", 1e6);
     if (c.aperture > 0.0 && !(focus > 0.0))
         throw_error(p.find("focaldistance") ? p.find("focaldistance")->loc : cs.loc,
                     "Camera 'focaldistance' must be positive with a lens ('lensradius' {}), got {}",
