@@ -231,7 +231,18 @@ def test_unsupported_things_are_warnings_and_the_export_is_fast(tmp_path):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     warnings = export.export_scene(depsgraph, str(tmp_path), (W, H), 4, flake_parameters())
     assert any("disk area light" in w for w in warnings)
-    assert any("pano cameras are not supported" in w for w in warnings)
+    assert any("panoramic cameras are not supported" in w for w in warnings), warnings
+    # A full equirectangular panorama is Spangle's; one over a part of the sphere is not.
+    holder = cam if hasattr(cam, "panorama_type") else cam.cycles
+    holder.panorama_type = "EQUIRECTANGULAR"
+    warnings = export.export_scene(bpy.context.evaluated_depsgraph_get(), str(tmp_path), (W, H),
+                                   4, flake_parameters())
+    assert not any("camera" in w for w in warnings), warnings
+    assert 'projection = "equirectangular"' in (tmp_path / "scene.toml").read_text()
+    holder.latitude_max = 1.0
+    warnings = export.export_scene(bpy.context.evaluated_depsgraph_get(), str(tmp_path), (W, H),
+                                   4, flake_parameters())
+    assert any("equirectangular panoramic cameras are not supported" in w for w in warnings)
     # Principled inputs the export does not carry are warnings (they were dropped silently).
     ground = bpy.data.materials["ground"].node_tree.nodes["Principled BSDF"]
     ground.inputs["Alpha"].default_value = 0.5
