@@ -342,7 +342,9 @@ PYBIND11_MODULE(_spangle, m) {
                     d["position"] = tuple3(c.position);
                     d["look_at"] = tuple3(c.look_at);
                     d["up"] = tuple3(c.up);
-                    d["fov"] = c.fov_deg;
+                    d["fov"] = c.equirect || c.ortho_height > 0.0
+                                   ? py::object(py::none())
+                                   : py::object(py::float_(c.fov_deg));
                     d["projection"] = c.equirect             ? "equirectangular"
                                       : c.ortho_height > 0.0 ? "orthographic"
                                                              : "perspective";
@@ -428,11 +430,22 @@ PYBIND11_MODULE(_spangle, m) {
             py::arg("radius") = py::none(), "Changes a light; what is not given stays.")
         .def(
             "render",
-            [](PySession& s, std::optional<uint32_t> spp,
+            [](PySession& s, std::optional<int64_t> spp_in,
                std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
                std::optional<py::function> progress, std::optional<py::function> on_pass,
                std::optional<bool> background_apart, std::optional<double> noise_threshold,
-               std::optional<uint32_t> min_spp, std::optional<uint32_t> max_spp) {
+               std::optional<int64_t> min_spp_in, std::optional<int64_t> max_spp_in) {
+                // Sample counts as Python ints of any size: one out of range is a SceneError
+                // naming it (a negative or huge one was pybind's TypeError).
+                const auto count = [](const char* name, std::optional<int64_t> v) {
+                    if (v && (*v < 1 || *v > (int64_t{1} << 20)))
+                        throw SpangleError(fmt::format(
+                            "render(): {} {} must be 1 to 1048576 (None: the scene's)", name, *v));
+                    return v ? std::optional<uint32_t>(static_cast<uint32_t>(*v)) : std::nullopt;
+                };
+                const std::optional<uint32_t> spp = count("spp", spp_in),
+                                              min_spp = count("min_spp", min_spp_in),
+                                              max_spp = count("max_spp", max_spp_in);
                 // Callbacks run on render threads: they take the GIL, and a Python exception in
                 // one stops the render and is raised once it has ended.
                 std::mutex failed_m;

@@ -228,6 +228,8 @@ void set_up_layers(RenderJob& job, const RenderScene& scene, const RenderOptions
     f.channels = f.layout.channels;
     f.camera_position = camera.position;
     f.camera_forward = normalize(camera.look_at - camera.position);
+    // A panorama looks every way: its depth is the distance (along the view it ran from -d to d).
+    f.radial_depth = camera.equirect;
     f.object_ids.clear();
     for (const std::string& n : job.layer_plan.object_names)
         f.object_ids.push_back(cryptomatte_id(n));

@@ -311,7 +311,8 @@ TEST(RestPose, TrianglesFlatInTheRestPoseAreSaid) {
         << plane_scene("mesh = \"plane.ply\"\nrest_mesh = \"rest.ply\"");
     RenderOptions options;
     options.threads = 2;
-    Session session({}, test::shipped_ocio(), options, Logger{LogLevel::Warning});
+    const Logger log{LogLevel::Warning};  // the session keeps a reference: it must outlive it
+    Session session({}, test::shipped_ocio(), options, log);
     testing::internal::CaptureStderr();
     session.load(dir.file("s.toml"));
     const std::string said = testing::internal::GetCapturedStderr();

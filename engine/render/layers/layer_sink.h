@@ -8,10 +8,10 @@
 // transport has no layer code of its own.
 //
 // The layers, per pixel (layer_channel_names): coverage A, albedo, normal N, depth Z along the
-// view, position P, position in its object's space Pobj, the object's number, the glints, the
-// light of each light group and its glint part, the environment seen directly (when it is kept
-// apart from the beauty), the shadow catcher's matte and the Cryptomatte id/coverage pairs of
-// objects and materials. Light groups add up to the beauty.
+// view (a panorama's: the distance from the camera), position P, position in its object's space
+// Pobj, the object's number, the glints, the light of each light group and its glint part, the
+// environment seen directly (when it is kept apart from the beauty), the shadow catcher's matte and
+// the Cryptomatte id/coverage pairs of objects and materials. Light groups add up to the beauty.
 //
 // The film holds more than is written: a shadow catcher's light sums and a fixed number of
 // unranked id/coverage slots per pixel; finish_layers turns them into the written channels.
@@ -79,6 +79,7 @@ struct LayerFilm {
     LayerLayout layout;                  ///< where each part sits
     Vec3 camera_position;                ///< depth is measured from here
     Vec3 camera_forward;                 ///< along this unit direction
+    bool radial_depth = false;           ///< a panorama's depth: the distance from the camera
     std::vector<float> object_ids;       ///< Cryptomatte id per [[object]] number
     std::vector<float> material_ids;     ///< Cryptomatte id per material index
 };
@@ -149,7 +150,8 @@ public:
         float* aov = &aov_[k * kAovCount];
         const Vec3 p = ray.o + ray.d * t;
         aov[kAovA] = 1.0f;
-        aov[kAovZ] = dot(p - film_->camera_position, film_->camera_forward);
+        aov[kAovZ] = film_->radial_depth ? length(p - film_->camera_position)
+                                         : dot(p - film_->camera_position, film_->camera_forward);
         aov[kAovP] = p.x;
         aov[kAovP + 1] = p.y;
         aov[kAovP + 2] = p.z;

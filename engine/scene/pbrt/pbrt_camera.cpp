@@ -177,9 +177,15 @@ void finish_camera_and_render(Reader& r) {
                      cs.type == "environment");
     if (cs.given && cs.type != "perspective" && !ortho && !equirect) {
         for (const Param& q : cs.params.all()) q.used = true;
-        r.notes.add(cs.loc, fmt::format("Camera \"{}\" is not supported: a perspective camera "
-                                        "(fov 90) stands in",
-                                        cs.type));
+        r.notes.add(cs.loc,
+                    cs.type == "spherical"
+                        ? fmt::format("Camera \"spherical\" with mapping \"{}\" is not supported "
+                                      "(only \"equirectangular\" is): a perspective camera (fov "
+                                      "90) stands in",
+                                      cs.params.string("mapping", "equalarea"))
+                        : fmt::format("Camera \"{}\" is not supported: a perspective camera (fov "
+                                      "90) stands in",
+                                      cs.type));
     }
     const Mat4& m = cs.to_world[0];
     c.equirect = equirect;
