@@ -170,7 +170,8 @@ void EnvironmentMap::to_uv(Vec3 d, float& u, float& v) const {
         v = std::atan2(std::sqrt(w.x * w.x + w.y * w.y), w.z) / kPi;
         return;
     }
-    // Undo the rotation about +y, then phi = atan2(x, -z): u = 0.5 looks down -z. theta comes
+    // Undo the map's turn about +y (rotation_deg 90 takes its centre from -z to +x), then
+    // phi = atan2(x, -z): u = 0.5 looks down -z. theta comes
     // from atan2 of the horizontal length and y, which stays accurate at the poles (acos(y)
     // does not).
     const float x = cos_rot_ * d.x + sin_rot_ * d.z;

@@ -80,9 +80,9 @@ struct DistantEmitter {
 /** A lat-long environment map in the working space. */
 class EnvironmentMap {
 public:
-    /** rgb: width x height RGB, row 0 = up (+y). rotation_deg turns the map about +y. With
-     *  another projection, `to_map` (a rotation) takes world directions into the map's frame and
-     *  rotation_deg is unused. */
+    /** rgb: width x height RGB, row 0 = up (+y). rotation_deg turns the map about +y (90 takes
+     *  its centre from -z to +x). With another projection, `to_map` (a rotation) takes world
+     * directions into the map's frame and rotation_deg is unused. */
     EnvironmentMap(std::vector<float> rgb, int width, int height, float rotation_deg,
                    MapProjection projection = MapProjection::LatLongYUp, const Affine& to_map = {});
     EnvironmentMap() = default;
