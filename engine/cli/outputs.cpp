@@ -38,9 +38,7 @@ namespace {
 void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t frame_w,
                           uint32_t frame_h) {
     const Camera& c = d.info->camera;
-    const CameraModel model(
-        c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, frame_w, frame_h,
-        FilmLayout{c.mirror, c.screen, c.fov_shorter, c.ortho_height, c.equirect});
+    const CameraModel model = CameraModel::of(c, frame_w, frame_h);
     const CameraMatrices m = model.matrices();
     o.matrices = {{"worldToCamera", m.world_to_camera}};
     // A panorama projects onto no plane: it has no worldToNDC (spangle flicker says so).

@@ -10,6 +10,7 @@
 #include "geometry/mesh_load.h"
 #include "geometry/rest_pose.h"
 #include "pipeline/systems.h"
+#include "render/camera.h"
 
 namespace spangle {
 namespace {
@@ -241,18 +242,11 @@ void system_subdivide(ecs::Registry& r, World& w) {
         const Film film = r.pool<Film>().columns().get(0);
         const uint32_t height = w.options.height_override ? w.options.height_override : film.height;
         const uint32_t width = w.options.width_override ? w.options.width_override : film.width;
-        // A screen window spans y0..y1 in units of tan(fov / 2); without one, -1..1.
-        const float span = cam.screen == ScreenWindow{} ? 2.0f : cam.screen[3] - cam.screen[2];
-        // pbrt's fov on a portrait image spans its width (camera.h, FilmLayout::fov_shorter).
-        const float portrait = cam.fov_shorter && cam.screen == ScreenWindow{} && width < height
-                                   ? static_cast<float>(height) / static_cast<float>(width)
-                                   : 1.0f;
-        // An orthographic camera: a pixel's width on the film, the same at every distance.
-        // A panorama: a pixel's height in elevation, pi / height.
-        const float unit = cam.equirect              ? 0.5f * kPi
-                           : cam.ortho_height > 0.0f ? 0.5f * cam.ortho_height
-                                                     : std::tan(0.5f * cam.fov_deg * kPi / 180.0f);
-        pixel_angle = span * portrait * unit / static_cast<float>(height);
+        // A pixel's width at distance 1 as the renderer's camera makes it (screen window, fov on
+        // the shorter side, a panorama's pi / height), or on an orthographic camera's film,
+        // the same at every distance.
+        const CameraModel model = CameraModel::of(cam, width, height);
+        pixel_angle = model.pixel_width() > 0.0f ? model.pixel_width() : model.pixel_angle();
         camera = &cam;
     }
     SubdividedMeshes out;

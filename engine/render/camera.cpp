@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include "scene/components.h"
+
 namespace spangle {
 
 namespace {
@@ -99,6 +101,12 @@ CameraModel::CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, fl
     if (equirect_) pixel_angle_ = kPi / height_;  // a pixel's height in elevation
 }
 
+CameraModel CameraModel::of(const Camera& c, uint32_t width, uint32_t height) {
+    return CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, width,
+                       height,
+                       FilmLayout{c.mirror, c.screen, c.fov_shorter, c.ortho_height, c.equirect});
+}
+
 bool CameraModel::has_screen() const {
     return screen_[0] != 0.0f || screen_[1] != 0.0f || screen_[2] != 0.0f || screen_[3] != 0.0f;
 }
@@ -115,41 +123,27 @@ CameraMatrices CameraModel::matrices() const {
         c[static_cast<std::size_t>(3 * 4 + j)] = -dot(origin_, a);
     }
     c[15] = 1.0f;
-    // Camera space to NDC: x = 0.5 + 0.5 (cx / cz) / (tan_half aspect), y = 0.5 - 0.5 (cy / cz) /
-    // tan_half, as (X, Y, Z, W) with W = cz. Orthographic: cx and cy themselves, W = 1.
+    // Camera space to NDC: x = sx cx / W + ox, y = sy cy / W + oy, as (X, Y, Z, W) with W = cz
+    // (perspective) or 1 (orthographic); the offsets sit in the row W comes from. Without a
+    // screen window sx = 0.5 / (tan_half aspect), sy = -0.5 / tan_half and the offsets are 0.5;
+    // with one x = (cx / W / t - x0) / (x1 - x0), y = (y1 - cy / W / t) / (y1 - y0).
     const float t = tan_half_, aspect = aspect_;
-    float p[16] = {};
-    if (ortho_) {
-        p[0 * 4 + 0] = 0.5f / (t * aspect);
-        p[1 * 4 + 1] = -0.5f / t;
-        p[2 * 4 + 2] = 1.0f;
-        p[3 * 4 + 0] = 0.5f;
-        p[3 * 4 + 1] = 0.5f;
-        p[3 * 4 + 3] = 1.0f;
-        if (has_screen()) {
-            const float w = screen_[1] - screen_[0], h = screen_[3] - screen_[2];
-            p[0 * 4 + 0] = 1.0f / (t * w);
-            p[1 * 4 + 1] = -1.0f / (t * h);
-            p[3 * 4 + 0] = -screen_[0] / w;
-            p[3 * 4 + 1] = screen_[3] / h;
-        }
-    } else {
-        p[0 * 4 + 0] = 0.5f / (t * aspect);
-        p[1 * 4 + 1] = -0.5f / t;
-        p[2 * 4 + 0] = 0.5f;
-        p[2 * 4 + 1] = 0.5f;
-        p[2 * 4 + 2] = 1.0f;
-        p[2 * 4 + 3] = 1.0f;
-        p[3 * 4 + 3] = 0.0f;
-        if (has_screen()) {
-            // x = ((cx / cz) / t - x0) / (x1 - x0), y = (y1 - (cy / cz) / t) / (y1 - y0).
-            const float w = screen_[1] - screen_[0], h = screen_[3] - screen_[2];
-            p[0 * 4 + 0] = 1.0f / (t * w);
-            p[1 * 4 + 1] = -1.0f / (t * h);
-            p[2 * 4 + 0] = -screen_[0] / w;
-            p[2 * 4 + 1] = screen_[3] / h;
-        }
+    float sx = 0.5f / (t * aspect), sy = -0.5f / t, ox = 0.5f, oy = 0.5f;
+    if (has_screen()) {
+        const float w = screen_[1] - screen_[0], h = screen_[3] - screen_[2];
+        sx = 1.0f / (t * w);
+        sy = -1.0f / (t * h);
+        ox = -screen_[0] / w;
+        oy = screen_[3] / h;
     }
+    const std::size_t w_row = ortho_ ? 3 : 2;
+    float p[16] = {};
+    p[0 * 4 + 0] = sx;
+    p[1 * 4 + 1] = sy;
+    p[2 * 4 + 2] = 1.0f;
+    p[w_row * 4 + 0] = ox;
+    p[w_row * 4 + 1] = oy;
+    p[w_row * 4 + 3] = 1.0f;
     for (std::size_t i = 0; i < 4; ++i)
         for (std::size_t j = 0; j < 4; ++j) {
             float sum = 0.0f;

@@ -13,6 +13,8 @@
 
 namespace spangle {
 
+struct Camera;  // scene/components.h
+
 /** A 1D filter tabulated for sampling: piecewise constant over kBins bins on [-radius, radius]. */
 class FilterSampler {
 public:
@@ -74,6 +76,8 @@ public:
     CameraModel(Vec3 position, Vec3 look_at, Vec3 up, float fov_deg, float aperture,
                 float focus_distance, uint32_t width, uint32_t height,
                 const FilmLayout& layout = {});
+    /** The model of a scene's Camera component on a width x height image, every field of it. */
+    static CameraModel of(const Camera& c, uint32_t width, uint32_t height);
 
     /** The ray through film position (fx, fy) in pixels (0..width, 0..height, y down), with lens
      *  sample (lu, lv) in [0, 1)^2. */

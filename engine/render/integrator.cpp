@@ -455,10 +455,7 @@ void check_film_memory(uint32_t width, uint32_t height, uint32_t spp, const Rend
 void render_image(const RenderScene& scene, const RenderOptions& options, const Camera& camera,
                   const Film& film, const std::vector<Camera>& camera_steps, RenderResult& out) {
     const auto t0 = std::chrono::steady_clock::now();
-    const CameraModel cam(camera.position, camera.look_at, camera.up, camera.fov_deg,
-                          camera.aperture, camera.focus_distance, film.width, film.height,
-                          FilmLayout{camera.mirror, camera.screen, camera.fov_shorter,
-                                     camera.ortho_height, camera.equirect});
+    const CameraModel cam = CameraModel::of(camera, film.width, film.height);
     const FilterSampler filter(film.filter);
     RenderJob job;
     job.filter = &filter;

@@ -19,11 +19,15 @@ CameraModel camera_at(const RenderJob& job, float time) {
     const Camera& a = steps[i];
     const Camera& b = steps[i + 1];
     const auto mix = [s](auto x, auto y) { return x + (y - x) * s; };
-    return CameraModel(mix(a.position, b.position), mix(a.look_at, b.look_at), mix(a.up, b.up),
-                       mix(a.fov_deg, b.fov_deg), mix(a.aperture, b.aperture),
-                       mix(a.focus_distance, b.focus_distance), job.width, job.height,
-                       FilmLayout{a.mirror, a.screen, a.fov_shorter,
-                                  mix(a.ortho_height, b.ortho_height), a.equirect});
+    Camera c = a;  // the flags and the screen window are a's
+    c.position = mix(a.position, b.position);
+    c.look_at = mix(a.look_at, b.look_at);
+    c.up = mix(a.up, b.up);
+    c.fov_deg = mix(a.fov_deg, b.fov_deg);
+    c.aperture = mix(a.aperture, b.aperture);
+    c.focus_distance = mix(a.focus_distance, b.focus_distance);
+    c.ortho_height = mix(a.ortho_height, b.ortho_height);
+    return CameraModel::of(c, job.width, job.height);
 }
 
 /** Path i: sample `smp` of pixel (x, y), the top-left of a block of job.stride pixels whose

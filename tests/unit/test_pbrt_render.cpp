@@ -134,10 +134,7 @@ std::pair<double, double> pbrt_raster(Vec3 e, Vec3 l, Vec3 up, double fov, doubl
 
 /** Where Spangle's EXR worldToNDC puts p, in raster pixels. */
 std::pair<double, double> exr_raster(const Camera& c, uint32_t w, uint32_t h, Vec3 p) {
-    const CameraMatrices m =
-        CameraModel(c.position, c.look_at, c.up, c.fov_deg, c.aperture, c.focus_distance, w, h,
-                    FilmLayout{c.mirror, c.screen, c.fov_shorter, c.ortho_height})
-            .matrices();
+    const CameraMatrices m = CameraModel::of(c, w, h).matrices();
     const float v[4] = {p.x, p.y, p.z, 1.0f};
     double o[4] = {0, 0, 0, 0};
     for (int j = 0; j < 4; ++j)
@@ -208,27 +205,38 @@ Film "image" "integer xresolution" 100 "integer yresolution" 100
     EXPECT_NEAR(y2, 50.0, 1e-2);
 }
 
-TEST(PbrtCamera, ARenderedPointLandsAtPbrtsPixel) {
-    // A small emitter off the view axis, everything else black: its brightest pixel is where
-    // pbrt's own projection puts it (within the pixel it falls in).
-    const Vec3 p(0.9f, 0.5f, 0.0f);
-    const std::string text = fmt::format(R"(LookAt 0 0 5  0 0 0  0 1 0
-Camera "perspective" "float fov" 40
-Film "image" "integer xresolution" 64 "integer yresolution" 48
+/** A pbrt scene of `view` (LookAt and Camera lines) on a w x h film, 4 samples per pixel, and
+ *  nothing but a small emitting sphere of radius r at p, in a black world. */
+std::string emitter_scene(const std::string& view, int w, int h, Vec3 p, float r) {
+    return fmt::format(R"({}
+Film "image" "integer xresolution" {} "integer yresolution" {}
 Sampler "halton" "integer pixelsamples" 4
 WorldBegin
 AttributeBegin
   AreaLightSource "diffuse" "rgb L" [10 10 10]
   Translate {} {} {}
-  Shape "sphere" "float radius" 0.03
+  Shape "sphere" "float radius" {}
 AttributeEnd
 )",
-                                         p.x, p.y, p.z);
-    PbrtReadInfo info;
-    const std::vector<float> image = render(read_pbrt_text("dot.pbrt", text, info));
+                       view, w, h, p.x, p.y, p.z, r);
+}
+
+/** The index of an RGB image's pixel of the largest red value. */
+std::size_t brightest(const std::vector<float>& image) {
     std::size_t best = 0;
     for (std::size_t i = 0; i < image.size() / 3; ++i)
         if (image[3 * i] > image[3 * best]) best = i;
+    return best;
+}
+
+TEST(PbrtCamera, ARenderedPointLandsAtPbrtsPixel) {
+    // A small emitter off the view axis, everything else black: its brightest pixel is where
+    // pbrt's own projection puts it (within the pixel it falls in).
+    const Vec3 p(0.9f, 0.5f, 0.0f);
+    const std::string text = emitter_scene(
+        "LookAt 0 0 5  0 0 0  0 1 0\nCamera \"perspective\" \"float fov\" 40", 64, 48, p, 0.03f);
+    PbrtReadInfo info;
+    const std::size_t best = brightest(render(read_pbrt_text("dot.pbrt", text, info)));
     const auto [px, py] = pbrt_raster({0, 0, 5}, {0, 0, 0}, {0, 1, 0}, 40.0, 64, 48, false, p);
     EXPECT_EQ(best % 64, static_cast<std::size_t>(px)) << "pbrt puts +x on the image's left";
     EXPECT_EQ(best / 64, static_cast<std::size_t>(py));
@@ -247,18 +255,9 @@ TEST(PbrtCamera, OrthographicPointsLandWherePbrtPutsThem) {
         return std::pair{(sx + aspect) / (2.0 * aspect) * w, (1.0 - sy) / 2.0 * h};
     };
     const auto scene = [&](Vec3 p) {
-        return fmt::format(R"(LookAt {} {} {}  0 0 0  0 1 0
-Camera "orthographic"
-Film "image" "integer xresolution" 64 "integer yresolution" 48
-Sampler "halton" "integer pixelsamples" 4
-WorldBegin
-AttributeBegin
-  AreaLightSource "diffuse" "rgb L" [10 10 10]
-  Translate {} {} {}
-  Shape "sphere" "float radius" 0.03
-AttributeEnd
-)",
-                           e.x, e.y, e.z, p.x, p.y, p.z);
+        return emitter_scene(
+            fmt::format("LookAt {} {} {}  0 0 0  0 1 0\nCamera \"orthographic\"", e.x, e.y, e.z),
+            64, 48, p, 0.03f);
     };
     for (const Vec3& p : {Vec3(0.6f, 0.35f, 0.0f), Vec3(-0.9f, -0.2f, -4.0f)}) {
         PbrtReadInfo info;
@@ -271,10 +270,7 @@ AttributeEnd
         EXPECT_NEAR(sx, px, 1e-3 * 64);
         EXPECT_NEAR(sy, py, 1e-3 * 48);
         PbrtReadInfo info2;
-        const std::vector<float> image = render(read_pbrt_text("o.pbrt", scene(p), info2));
-        std::size_t best = 0;
-        for (std::size_t i = 0; i < image.size() / 3; ++i)
-            if (image[3 * i] > image[3 * best]) best = i;
+        const std::size_t best = brightest(render(read_pbrt_text("o.pbrt", scene(p), info2)));
         EXPECT_EQ(best % 64, static_cast<std::size_t>(px)) << "x of " << p.x;
         EXPECT_EQ(best / 64, static_cast<std::size_t>(py)) << "y of " << p.y;
     }
@@ -297,18 +293,8 @@ TEST(PbrtCamera, EquirectangularPointsLandWherePbrtPutsThem) {
          {R"(Camera "spherical" "string mapping" "equirectangular")", R"(Camera "environment")"})
         for (const Vec3& p : {Vec3(3.0f, 0.0f, 0.0f), Vec3(0.0f, 0.0f, -3.0f),
                               Vec3(2.0f, 1.5f, 1.0f), Vec3(-1.0f, -2.0f, 2.5f)}) {
-            const std::string text = fmt::format(R"(LookAt 0 0 0  0 0 -1  0 1 0
-{}
-Film "image" "integer xresolution" 64 "integer yresolution" 32
-Sampler "halton" "integer pixelsamples" 4
-WorldBegin
-AttributeBegin
-  AreaLightSource "diffuse" "rgb L" [10 10 10]
-  Translate {} {} {}
-  Shape "sphere" "float radius" 0.25
-AttributeEnd
-)",
-                                                 camera, p.x, p.y, p.z);
+            const std::string text = emitter_scene(
+                fmt::format("LookAt 0 0 0  0 0 -1  0 1 0\n{}", camera), 64, 32, p, 0.25f);
             PbrtReadInfo info;
             const SceneDescription d = read_pbrt_text("pano.pbrt", text, info);
             EXPECT_TRUE(d.camera.equirect) << camera;
