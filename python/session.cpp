@@ -361,23 +361,10 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     } idle{busy_, stop_};
     // A stop that came before the render: its first pass (one sample) only, reported stopped.
     const bool stop_pending = stop_.exchange(false);
-    if (spp && (*spp < 1 || *spp > (1u << 20)))
-        throw SpangleError(fmt::format("spp {} must be 1 to 1048576 (None: the scene's)", *spp));
-    if (const auto& t = adaptive.noise_threshold) {
-        if (!(*t >= 0.0 && *t <= 1.0))
-            throw SpangleError(
-                fmt::format("noise_threshold {} must be in [0, 1] (0: adaptive sampling off)", *t));
-        if (*t > 0.0 && *t < kMinNoiseThreshold)
-            throw SpangleError(
-                fmt::format("noise_threshold {:g} is below {:g}, which no pixel reaches before "
-                            "its max_spp: 0 turns adaptive sampling off",
-                            *t, kMinNoiseThreshold));
-    }
-    for (const auto& [name, v] :
-         {std::pair{"min_spp", adaptive.min_spp}, std::pair{"max_spp", adaptive.max_spp}})
-        if (v && (*v < 1 || *v > (1u << 20)))
-            throw SpangleError(
-                fmt::format("{} {} must be 1 to 1048576 (None: the scene's)", name, *v));
+    // (spp, min_spp and max_spp come checked from the binding, which takes Python ints.)
+    if (const auto& t = adaptive.noise_threshold)
+        if (const std::string why = noise_threshold_problem(*t); !why.empty())
+            throw SpangleError("render(): noise_threshold " + why);
     // A size is the scene's film size: set in the description and reloaded (only what reads
     // the film is rebuilt, e.g. subdivision levels chosen from the camera's pixels), so that the
     // scene is built as `spangle render --size` builds it. A size that fails (a film beyond

@@ -77,7 +77,8 @@ public:
                    const std::optional<double>& radius);
 
     /** Renders the live scene; stop() from another thread ends it after the waves in flight
-     *  (a stop() while no render runs ends the next one after its first pass). */
+     *  (a stop() while no render runs ends the next one after its first pass). The sample
+     *  counts are the binding's, checked there (1 to 2^20). */
     RenderedImage render(std::optional<uint32_t> spp,
                          std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
                          const RenderCallbacks& callbacks, bool background_apart,

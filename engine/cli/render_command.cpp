@@ -275,13 +275,10 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
         usage_error(
             "--stats reports one render: render a frame of the sequence alone for them "
             "(each frame's line already gives its time)");
-    if (std::isnan(a.noise_threshold))
-        usage_error("--noise-threshold must be a number in [0, 1], got nan");
-    if (a.noise_threshold > 0.0 && a.noise_threshold < kMinNoiseThreshold)
-        usage_error(
-            "--noise-threshold {:g} is below {:g}, which no pixel reaches before its --max-spp: "
-            "0 turns adaptive sampling off",
-            a.noise_threshold, kMinNoiseThreshold);
+    // (Negative: not given, the scene's; CLI11 refuses other values outside [0, 1].)
+    if (!(a.noise_threshold < 0.0))
+        if (const std::string why = noise_threshold_problem(a.noise_threshold); !why.empty())
+            usage_error("--noise-threshold {}", why);
     // Options that contradict each other, or name what is not there, are refused rather than
     // one of them silently winning.
     // (An adaptive threshold from the scene file meets --spp-range when the scene is loaded:

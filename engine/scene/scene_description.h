@@ -323,6 +323,19 @@ struct LightDesc {
  *  stops before max_spp, and the value would underflow in float (adaptive sampling off). */
 constexpr double kMinNoiseThreshold = 1e-6;
 
+/** What is wrong with a noise threshold given in a scene, on the command line or from Python,
+ *  after the name it was given under; empty when nothing is: a number in [0, 1] (not NaN), 0
+ *  (off) or at least kMinNoiseThreshold (a tiny one became 0 in float, off, silently). */
+inline std::string noise_threshold_problem(double t) {
+    if (!(t >= 0.0 && t <= 1.0)) return fmt::format("must be a number in [0, 1], got {}", t);
+    if (t > 0.0 && t < kMinNoiseThreshold)
+        return fmt::format(
+            "{:g} is below {:g}, which no pixel reaches before its max_spp: 0 turns adaptive "
+            "sampling off",
+            t, kMinNoiseThreshold);
+    return {};
+}
+
 /** Image size, sampling, colour spaces, frame range and shutter. */
 struct RenderDesc {
     uint32_t width = 640;                      ///< pixels

@@ -52,12 +52,8 @@ RenderDesc read_render(TableReader& r) {
     d.clamp_indirect = static_cast<float>(r.number("clamp_indirect", 0.0, {0.0, 1e30}));
     d.filter_glossy = static_cast<float>(r.number("filter_glossy", 0.0, {0.0, 100.0}));
     const double threshold = r.number("noise_threshold", 0.0, {0.0, 1.0});
-    // A tiny threshold became 0 in float (off) silently.
-    if (threshold > 0.0 && threshold < kMinNoiseThreshold)
-        throw_error(r.loc("noise_threshold"),
-                    "noise_threshold {:g} is below {:g}, which no pixel reaches before its "
-                    "max_spp: 0 turns adaptive sampling off",
-                    threshold, kMinNoiseThreshold);
+    if (const std::string why = noise_threshold_problem(threshold); !why.empty())
+        throw_error(r.loc("noise_threshold"), "noise_threshold {}", why);
     d.noise_threshold = static_cast<float>(threshold);
     d.min_spp = static_cast<uint32_t>(r.integer("min_spp", 0, {0, 1 << 20}));
     d.max_spp = static_cast<uint32_t>(r.integer("max_spp", 0, {0, 1 << 20}));

@@ -237,8 +237,9 @@ void finish_camera_and_render(Reader& r) {
     }
     c.aperture = equirect ? 0.0 : std::max(0.0, p.number("lensradius", 0.0)) * scale;
     const double focus = equirect ? 1e6 : p.number("focaldistance", 1e6);
+    const Param* focus_param = p.find("focaldistance");
     if (c.aperture > 0.0 && !(focus > 0.0))
-        throw_error(p.find("focaldistance") ? p.find("focaldistance")->loc : cs.loc,
+        throw_error(focus_param ? focus_param->loc : cs.loc,
                     "Camera 'focaldistance' must be positive with a lens ('lensradius' {}), got {}",
                     c.aperture / scale, focus);
     if (c.aperture > 0.0) c.focus_distance = focus * scale;
