@@ -28,6 +28,21 @@ def session():
     return spangle.Session(threads=2)
 
 
+def assert_same_as_the_command_line(session, img, tmp_path, scene, args):
+    """img (written through the module, 32-bit floats) has the pixels of `spangle render scene
+    ARGS` (compared through oiiotool's per-channel statistics)."""
+    cli = tmp_path / "cli.exr"
+    spangle_bin = os.path.join(os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build")), "spangle")
+    subprocess.run([spangle_bin, "render", scene, *args, "--float", "--no-preview", "--threads",
+                    "2", "-q", "-o", str(cli)], check=True)
+    py = tmp_path / "py.exr"
+    session.write(img, str(py), preview="", float=True)
+    stats = [subprocess.run(["oiiotool", "--stats", str(p)], capture_output=True, text=True,
+                            check=True).stdout for p in (cli, py)]
+    lines = [[l for l in s.splitlines() if "Avg" in l or "Max" in l or "StdDev" in l] for s in stats]
+    assert lines[0] and lines[0] == lines[1]
+
+
 def test_renders_the_beauty_and_every_layer_as_float32_arrays(session):
     session.load(FLAKES)
     img = session.render(spp=4, size=(48, 32))
@@ -59,16 +74,8 @@ def test_a_render_is_the_same_as_the_command_lines(session, tmp_path, scene):
     other = spangle.Session(threads=2)
     other.load(scene, size=(40, 24))
     assert np.array_equal(other.render(spp=4, layers=False).beauty, img.beauty)
-    cli = tmp_path / "cli.exr"
-    spangle_bin = os.path.join(os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build")), "spangle")
-    subprocess.run([spangle_bin, "render", scene, "--spp", "4", "--size", "40x24", "--float",
-                    "--no-preview", "--threads", "2", "-q", "-o", str(cli)], check=True)
-    py = tmp_path / "py.exr"
-    session.write(img, str(py), preview="", float=True)
-    stats = [subprocess.run(["oiiotool", "--stats", str(p)], capture_output=True, text=True,
-                            check=True).stdout for p in (cli, py)]
-    lines = [[l for l in s.splitlines() if "Avg" in l or "Max" in l or "StdDev" in l] for s in stats]
-    assert lines[0] and lines[0] == lines[1]
+    assert_same_as_the_command_line(session, img, tmp_path, scene,
+                                    ["--spp", "4", "--size", "40x24"])
 
 
 def test_material_edits_are_validated_and_change_the_image(session):
@@ -288,17 +295,9 @@ def test_adaptive_sampling_is_the_command_lines(session, tmp_path):
     img = session.render(spp=64, size=(40, 24), layers=False, noise_threshold=0.2, min_spp=8,
                          max_spp=64)
     assert 8 <= img.spp_mean < 64, img.spp_mean
-    cli = tmp_path / "cli.exr"
-    spangle_bin = os.path.join(os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build")), "spangle")
-    subprocess.run([spangle_bin, "render", SMALL, "--spp", "64", "--size", "40x24",
-                    "--noise-threshold", "0.2", "--min-spp", "8", "--max-spp", "64", "--float",
-                    "--no-preview", "--threads", "2", "-q", "-o", str(cli)], check=True)
-    py = tmp_path / "py.exr"
-    session.write(img, str(py), preview="", float=True)
-    stats = [subprocess.run(["oiiotool", "--stats", str(p)], capture_output=True, text=True,
-                            check=True).stdout for p in (cli, py)]
-    lines = [[l for l in s.splitlines() if "Avg" in l or "Max" in l or "StdDev" in l] for s in stats]
-    assert lines[0] and lines[0] == lines[1]
+    assert_same_as_the_command_line(session, img, tmp_path, SMALL,
+                                    ["--spp", "64", "--size", "40x24", "--noise-threshold", "0.2",
+                                     "--min-spp", "8", "--max-spp", "64"])
     fixed = session.render(spp=64, size=(40, 24), layers=False)
     assert fixed.spp_mean == 64 and not np.array_equal(fixed.beauty, img.beauty)
     for bad in (dict(noise_threshold=-0.1), dict(noise_threshold=1e-9), dict(min_spp=0),

@@ -219,13 +219,18 @@ TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {
     test::TempDir dir("gltf_ortho");
     GltfWriter w;
     const QuadAccessors q = quad(w);
-    const std::string body = fmt::format(
-        R"("nodes":[{{"mesh":0}},{{"camera":0,"translation":[1,2,10]}}],)"
-        R"("cameras":[{{"type":"orthographic","orthographic":{{"xmag":3,"ymag":1.5,"znear":0.1,"zfar":100}}}}],)"
-        R"("meshes":[{{"primitives":[{}]}}])",
-        quad_primitive(q, -1));
-    w.write_gltf(dir.file("ortho.gltf"), body);
-    const SceneDescription d = read_gltf_scene(dir.file("ortho.gltf"), {});
+    // A quad and an orthographic camera of these magnifications at (1, 2, 10), as `name`.
+    const auto write = [&](const char* name, const char* xmag, const char* ymag) {
+        w.write_gltf(
+            dir.file(name),
+            fmt::format(
+                R"("nodes":[{{"mesh":0}},{{"camera":0,"translation":[1,2,10]}}],)"
+                R"("cameras":[{{"type":"orthographic","orthographic":{{"xmag":{},"ymag":{},"znear":0.1,"zfar":100}}}}],)"
+                R"("meshes":[{{"primitives":[{}]}}])",
+                xmag, ymag, quad_primitive(q, -1)));
+        return dir.file(name);
+    };
+    const SceneDescription d = read_gltf_scene(write("ortho.gltf", "3", "1.5"), {});
     const CameraDesc& c = d.camera;
     for (const std::string& n : d.notes) EXPECT_EQ(n.find("camera"), std::string::npos) << n;
     EXPECT_EQ(c.ortho_height, 3.0);
@@ -241,17 +246,10 @@ TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {
     EXPECT_NEAR(r.o.x, 1.0f + 3.0f, 1e-4f);
     EXPECT_NEAR(r.o.y, 2.0f + 1.5f, 1e-4f);
     EXPECT_NEAR(r.d.z, -1.0f, 1e-6f);
-    // A magnification of 0 is an error at its place; a negative one is taken by its size, noted.
-    for (const auto& [xmag, ymag] : {std::pair{"0", "1.5"}, std::pair{"3", "0"}}) {
-        const std::string bad = fmt::format(
-            R"("nodes":[{{"mesh":0}},{{"camera":0}}],)"
-            R"("cameras":[{{"type":"orthographic","orthographic":{{"xmag":{},"ymag":{},"znear":0.1,"zfar":100}}}}],)"
-            R"("meshes":[{{"primitives":[{}]}}])",
-            xmag, ymag, quad_primitive(q, -1));
-        w.write_gltf(dir.file("bad.gltf"), bad);
-        EXPECT_THROW(read_gltf_scene(dir.file("bad.gltf"), {}), SpangleError)
+    // A magnification of 0 is an error (a negative one: UnnamedCamerasArePickedByTheirIndex).
+    for (const auto& [xmag, ymag] : {std::pair{"0", "1.5"}, std::pair{"3", "0"}})
+        EXPECT_THROW(read_gltf_scene(write("bad.gltf", xmag, ymag), {}), SpangleError)
             << xmag << " " << ymag;
-    }
 }
 
 TEST(GltfReader, UnnamedCamerasArePickedByTheirIndex) {
