@@ -293,7 +293,19 @@ ecs::SystemReport Session::render() {
             options_.spp_override, film.max_spp);
         adaptive_warned_ = true;
     }
-    render_image(render_scene(), options_, live_->get<Camera>(camera), film, steps, result_);
+    // A panorama maps 360 x 180 degrees onto the image: anything but 2:1 stretches it. Said once.
+    const Camera& cam = live_->get<Camera>(camera);
+    if (cam.equirect && !panorama_warned_ &&
+        std::abs(static_cast<double>(film.width) - 2.0 * film.height) > 0.01 * film.width + 1.0) {
+        log_.warn(
+            "the equirectangular camera maps 360 x 180 degrees onto a {}x{} image, which is not "
+            "2:1: a pixel spans {:.3g} degrees across and {:.3g} up, so the panorama is stretched "
+            "(give --size {}x{}, or a 2:1 width and height in the scene)",
+            film.width, film.height, 360.0 / film.width, 180.0 / film.height, 2 * film.height,
+            film.height);
+        panorama_warned_ = true;
+    }
+    render_image(render_scene(), options_, cam, film, steps, result_);
     rep.ran = true;
     rep.seconds = result_.stats.seconds;
     return rep;

@@ -90,6 +90,7 @@ private:
 
     const Logger& log_;
     bool adaptive_warned_ = false;  ///< the --min-spp/--max-spp without adaptive warning given
+    bool panorama_warned_ = false;  ///< the stretched-panorama warning given
     RenderOptions options_;
     std::string ocio_request_;
     std::unique_ptr<ColorConfig> color_;

@@ -5,7 +5,8 @@
 # 1; `-o same.exr --preview same.exr` replaced the EXR with a PNG and exited 0; a missing folder,
 # a folder as output or an unwritable place was found after the whole render; `spangle rendr`
 # said "A subcommand is required"; --noise-threshold nan, --preview with --no-preview, a missing
-# --plugin-path, a .jpg preview (PNG bytes) and a second run of '#' were accepted.
+# --plugin-path, a .jpg preview (PNG bytes) and a second run of '#' were accepted. A panorama that
+# is not 2:1 renders stretched with a warning.
 #   bad_outputs.sh SPANGLE SCENE
 set -u
 S=$1 SCENE=$2
@@ -69,4 +70,22 @@ grep -q "adaptive sampling, which is off" "$T/err.txt" ||
 "$S" render "$SCENE" -o good.exr -q --min-spp 4 --noise-threshold 0.1 2> "$T/err.txt" ||
     fail "--min-spp with a threshold failed"
 grep -q "adaptive sampling, which is off" "$T/err.txt" && fail "warned with a threshold"
+# A panorama on an image that is not 2:1 renders stretched: said (silent before), and not at 2:1.
+cat > pano.toml <<'TOML'
+[render]
+width = 32
+height = 16
+spp = 1
+[camera]
+position = [0, 0, 0]
+look_at = [0, 0, -1]
+projection = "equirectangular"
+[environment]
+color = [0.5, 0.5, 0.5]
+TOML
+"$S" render pano.toml -o pano.exr -q --size 40x16 2> "$T/err.txt" || fail "a 40x16 panorama failed"
+grep -q "40x16 image, which is not 2:1" "$T/err.txt" ||
+    fail "a 40x16 panorama said nothing: $(cat "$T/err.txt")"
+"$S" render pano.toml -o pano.exr -q 2> "$T/err.txt" || fail "a 32x16 panorama failed"
+[ -s "$T/err.txt" ] && fail "a 2:1 panorama warned: $(cat "$T/err.txt")"
 echo "PASS"
