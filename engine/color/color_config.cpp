@@ -16,7 +16,8 @@ struct ColorConfig::Impl {
     OCIO::ConstConfigRcPtr config;
     std::string path;
     std::string working;
-    bool from_env = false;  ///< chosen through $OCIO
+    std::string default_working;  ///< the scene_linear role's space, or empty
+    bool from_env = false;        ///< chosen through $OCIO
 };
 
 ColorConfig::ColorConfig(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
@@ -61,6 +62,7 @@ ColorConfig ColorConfig::load(const std::string& path, const std::vector<std::st
     ColorConfig cfg(std::move(impl));
     const char* scene_linear = cfg.impl_->config->getCanonicalName(OCIO::ROLE_SCENE_LINEAR);
     cfg.impl_->working = (scene_linear && *scene_linear) ? scene_linear : "";
+    cfg.impl_->default_working = cfg.impl_->working;
     return cfg;
 }
 
@@ -69,6 +71,9 @@ const std::string& ColorConfig::path() const {
 }
 const std::string& ColorConfig::working_space() const {
     return impl_->working;
+}
+const std::string& ColorConfig::default_working_space() const {
+    return impl_->default_working;
 }
 
 std::optional<std::string> ColorConfig::canonical_name(const std::string& space) const {

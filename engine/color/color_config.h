@@ -52,6 +52,9 @@ public:
     /** Sets the working space; throws SpangleError if the config does not define it. */
     void set_working_space(const std::string& space);
     const std::string& working_space() const;
+    /** The working space a scene that names none renders in: the config's scene_linear role's
+     *  space (empty without the role), whatever set_working_space() set since. */
+    const std::string& default_working_space() const;
 
     /** Converts count RGB triples in place from `from` to `to`. Throws SpangleError. */
     void convert(const std::string& from, const std::string& to, float* rgb,

@@ -82,9 +82,14 @@ LightGroup light_group(BuildContext& ctx, const LightGroupDesc& g) {
 /** The working space, the bare colours' space, the Film, the frame range and the shutter. */
 void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) {
     ColorConfig& color = *ctx.color;
+    // Every build sets it: a reload that drops `working_space` goes back to the default, the
+    // config's scene_linear, else ACEScg (it kept the space of the scene loaded before, which
+    // the live config still held).
     if (d.working_space)
         color.set_working_space(resolve_space(ctx, *d.working_space, d.working_space_loc));
-    if (color.working_space().empty())
+    else if (!color.default_working_space().empty())
+        color.set_working_space(color.default_working_space());
+    else
         color.set_working_space(
             resolve_space(ctx, "ACEScg", d.loc, "default (no key written) working "));
     ctx.bare_space = d.color_space

@@ -241,6 +241,29 @@ TEST(Session, ReloadRunsOnlyWhatTheChangeNeeds) {
     EXPECT_EQ(session.result().image, cold.image);
 }
 
+TEST(Session, ADroppedWorkingSpaceGoesBackToTheDefault) {
+    // The scene names lin_rec709; the edit drops the key, so the reload must render in the
+    // default working space (ACEScg), as a fresh session of the edited file does. It kept
+    // lin_rec709: the live config's space carried over into every later scene (a Python
+    // load() of another file too).
+    TempScene scene;
+    RenderOptions options;
+    options.threads = 2;
+    options.spp_override = 2;
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(scene.file.string());
+    EXPECT_EQ(session.info().working_space, "lin_rec709");
+    scene.replace("working_space = \"lin_rec709\"", "");
+    const ReloadReport edit = session.load(scene.file.string());
+    EXPECT_TRUE(contains(edit.changed, "working space"));
+    EXPECT_EQ(session.info().working_space, "ACEScg");
+    session.render();
+    Session fresh({}, test::shipped_ocio(), options, test::quiet_log());
+    fresh.load(scene.file.string());
+    fresh.render();
+    EXPECT_EQ(session.result().image, fresh.result().image);
+}
+
 TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {
     // Every light kind, three materials, meshes: each edit reruns exactly the systems whose
     // declared reads it changed (and those reading what they wrote), and the reloaded scene
