@@ -215,6 +215,10 @@ PYBIND11_MODULE(_spangle, m) {
             },
             "Samples per pixel on average: below spp where adaptive sampling stopped pixels.")
         .def_property_readonly(
+            "denoised", [](const RenderedImage& i) { return i.result.stats.denoised; },
+            "Whether the beauty was denoised (render(denoise=True); False where the image was "
+            "too small to filter, with a warning).")
+        .def_property_readonly(
             "stopped",
             [](const RenderedImage& i) {
                 return i.result.stats.spp_reached < i.result.stats.spp_target;
@@ -434,7 +438,8 @@ PYBIND11_MODULE(_spangle, m) {
                std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
                std::optional<py::function> progress, std::optional<py::function> on_pass,
                std::optional<bool> background_apart, std::optional<double> noise_threshold,
-               std::optional<int64_t> min_spp_in, std::optional<int64_t> max_spp_in) {
+               std::optional<int64_t> min_spp_in, std::optional<int64_t> max_spp_in, bool denoise,
+               std::optional<std::string> denoise_glints) {
                 // Sample counts as Python ints of any size: one out of range is a SceneError
                 // naming it (a negative or huge one was pybind's TypeError).
                 const auto count = [](const char* name, std::optional<int64_t> v) {
@@ -446,6 +451,12 @@ PYBIND11_MODULE(_spangle, m) {
                 const std::optional<uint32_t> spp = count("spp", spp_in),
                                               min_spp = count("min_spp", min_spp_in),
                                               max_spp = count("max_spp", max_spp_in);
+                // As the command line's --denoise-glints without --denoise: it names nothing.
+                if (denoise_glints && !denoise)
+                    throw SpangleError(fmt::format(
+                        "render(): denoise_glints=\"{}\" needs denoise=True", *denoise_glints));
+                spangle::python::DenoiseArgs denoise_args;
+                if (denoise) denoise_args.glints = denoise_glints.value_or("keep");
                 // Callbacks run on render threads: they take the GIL, and a Python exception in
                 // one stops the render and is raised once it has ended.
                 std::mutex failed_m;
@@ -487,7 +498,7 @@ PYBIND11_MODULE(_spangle, m) {
                     std::thread worker([&] {
                         try {
                             img = s.render(spp, size, layers, cb, background_apart.value_or(layers),
-                                           {noise_threshold, min_spp, max_spp});
+                                           {noise_threshold, min_spp, max_spp}, denoise_args);
                         } catch (...) {
                             error = std::current_exception();
                         }
@@ -520,14 +531,19 @@ PYBIND11_MODULE(_spangle, m) {
             py::arg("layers") = true, py::arg("progress") = py::none(),
             py::arg("on_pass") = py::none(), py::arg("background_apart") = py::none(),
             py::arg("noise_threshold") = py::none(), py::arg("min_spp") = py::none(),
-            py::arg("max_spp") = py::none(),
+            py::arg("max_spp") = py::none(), py::arg("denoise") = false,
+            py::arg("denoise_glints") = py::none(),
             "Renders the live scene (the GIL is released). spp and size=(width, height) override "
             "the scene's; progress(done, total) is told the samples done; on_pass(beauty, spp) "
             "gets each progressive pass. stop() from another thread ends it early. With layers, "
             "the environment seen directly is the 'background' layer and the beauty is "
             "premultiplied, as with `spangle render --layers`; background_apart=False keeps it "
             "in the beauty. noise_threshold, min_spp and max_spp set adaptive sampling as "
-            "`spangle render --noise-threshold --min-spp --max-spp` do (None: the scene's).")
+            "`spangle render --noise-threshold --min-spp --max-spp` do (None: the scene's). "
+            "denoise=True denoises the final image as `--denoise` does (Intel Open Image "
+            "Denoise, albedo and normal guides; needs layers): the beauty is the denoised one, "
+            "the noisy one the layer 'noisy'; denoise_glints is \"keep\" (the default: glints "
+            "pass through unfiltered), \"apart\" or \"filter\", as `--denoise-glints`.")
         .def(
             "parameters",
             [](PySession& s, const std::string& plugin, const std::string& model) {

@@ -343,8 +343,28 @@ std::vector<SpangleParamDesc_v3> PySession::parameters(const std::string& plugin
 RenderedImage PySession::render(std::optional<uint32_t> spp,
                                 std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
                                 const RenderCallbacks& callbacks, bool background_apart,
-                                const AdaptiveArgs& adaptive) {
+                                const AdaptiveArgs& adaptive, const DenoiseArgs& denoise_args) {
     if (!loaded_) throw SpangleError("no scene is loaded: call load(path) first");
+    // The denoiser's guides are layers: as `--denoise`, which implies `--layers`.
+    std::optional<GlintDenoise> denoise_glints;
+    if (const auto& g = denoise_args.glints) {
+        if (*g == "keep")
+            denoise_glints = GlintDenoise::Keep;
+        else if (*g == "apart")
+            denoise_glints = GlintDenoise::Apart;
+        else if (*g == "filter")
+            denoise_glints = GlintDenoise::Filter;
+        else
+            throw SpangleError(fmt::format(
+                "render(): denoise_glints must be \"keep\", \"apart\" or \"filter\", got \"{}\"",
+                *g));
+        if (!layers)
+            throw SpangleError(
+                "render(): denoise needs the layers (its albedo and normal guides and the glints): "
+                "leave layers=True");
+        std::string why;
+        if (!denoiser_available(&why)) throw SpangleError("render(): cannot denoise: " + why);
+    }
     if (busy_.load()) throw SpangleError("this session is already rendering");
     std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
     if (!lock.owns_lock()) throw SpangleError("this session is already rendering");
@@ -423,6 +443,14 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
             std::max(out.result.stats.spp_target, spp.value_or(desc_.render.spp));
     if (out.result.image.empty())
         throw SpangleError(fmt::format("nothing was rendered: {}", report.reason));
+    if (denoise_glints) {
+        RenderResult& r = out.result;
+        if (denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
+                    *denoise_glints, o.threads))
+            mark_denoised(r.stats, *denoise_glints);
+        else
+            log_.warn("{}", not_denoised_warning(r.width, r.height));
+    }
     out.scene = desc_.path;
     return out;
 }

@@ -42,6 +42,12 @@ struct AdaptiveArgs {
     std::optional<uint32_t> min_spp, max_spp;
 };
 
+/** render()'s denoiser, as `spangle render --denoise --denoise-glints`: off unless `glints` is
+ *  given ("keep", "apart" or "filter"). */
+struct DenoiseArgs {
+    std::optional<std::string> glints;
+};
+
 class PySession {
 public:
     PySession(std::vector<std::string> plugin_path, const std::string& ocio, int threads,
@@ -82,7 +88,7 @@ public:
     RenderedImage render(std::optional<uint32_t> spp,
                          std::optional<std::pair<uint32_t, uint32_t>> size, bool layers,
                          const RenderCallbacks& callbacks, bool background_apart,
-                         const AdaptiveArgs& adaptive = {});
+                         const AdaptiveArgs& adaptive = {}, const DenoiseArgs& denoise = {});
     void stop() { stop_.store(true); }
 
     /** The parameters of a plugin's model (the plugin's only model when `model` is empty), as
