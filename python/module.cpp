@@ -372,17 +372,19 @@ PYBIND11_MODULE(_spangle, m) {
                std::optional<std::array<double, 3>> look_at,
                std::optional<std::array<double, 3>> up, std::optional<double> fov,
                std::optional<double> aperture, std::optional<double> focus_distance,
-               std::optional<double> ortho_height) {
+               std::optional<double> ortho_height, std::optional<std::string> projection) {
                 py::gil_scoped_release release;
                 s.set_camera(vec3(position), vec3(look_at), vec3(up), fov, aperture, focus_distance,
-                             ortho_height);
+                             ortho_height, projection);
             },
             py::kw_only(), py::arg("position") = py::none(), py::arg("look_at") = py::none(),
             py::arg("up") = py::none(), py::arg("fov") = py::none(),
             py::arg("aperture") = py::none(), py::arg("focus_distance") = py::none(),
-            py::arg("ortho_height") = py::none(),
+            py::arg("ortho_height") = py::none(), py::arg("projection") = py::none(),
             "Moves or changes the camera; what is not given stays. ortho_height > 0 makes it "
-            "orthographic (the view's height in scene units), 0 perspective again.")
+            "orthographic (the view's height in scene units), 0 perspective again. projection "
+            "\"perspective\", \"orthographic\" (with an ortho_height) or \"equirectangular\" "
+            "(a panorama: no fov and no lens) switches it, as [camera] projection does.")
         .def_property_readonly(
             "lights",
             [](PySession& s) {

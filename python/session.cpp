@@ -240,7 +240,8 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
                            const std::optional<Vec3>& up, const std::optional<double>& fov,
                            const std::optional<double>& aperture,
                            const std::optional<double>& focus_distance,
-                           const std::optional<double>& ortho_height) {
+                           const std::optional<double>& ortho_height,
+                           const std::optional<std::string>& projection) {
     SceneDescription d = description();
     CameraDesc& c = d.camera;
     check_vec("set_camera()", "position", position);
@@ -250,14 +251,47 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     check_number("set_camera()", "aperture", aperture, 0.0, 1e3, false);
     check_number("set_camera()", "focus_distance", focus_distance, 0.0, 1e30, true);
     check_number("set_camera()", "ortho_height", ortho_height, 0.0, 1e30, false);
+    // A projection switches the camera as [camera] projection does: perspective (with its fov),
+    // orthographic (with a view height) or equirectangular (no fov, view height or lens).
+    if (projection) {
+        if (*projection == "perspective") {
+            c.equirect = false;
+            c.ortho_height = 0.0;
+        } else if (*projection == "orthographic") {
+            c.equirect = false;
+            if (!(ortho_height.value_or(c.ortho_height) > 0.0))
+                throw SpangleError(
+                    "python: set_camera(): projection \"orthographic\" needs ortho_height > 0 "
+                    "(the view's height in scene units)");
+        } else if (*projection == "equirectangular") {
+            if (ortho_height || fov || focus_distance)
+                throw SpangleError(
+                    "python: set_camera(): an equirectangular camera has no fov, view height or "
+                    "focus distance");
+            // Its lens goes with the switch: aperture=0 or none is accepted, a lens is not.
+            if (aperture.value_or(0.0) > 0.0 || (!aperture && c.aperture > 0.0))
+                throw SpangleError(
+                    "python: set_camera(): an equirectangular camera is a pinhole: give "
+                    "aperture=0 with it (the camera's aperture is " +
+                    fmt::format("{}", aperture.value_or(c.aperture)) + ")");
+            c.equirect = true;
+            c.ortho_height = 0.0;
+        } else {
+            throw SpangleError(
+                "python: set_camera(): projection must be \"perspective\", \"orthographic\" or "
+                "\"equirectangular\", got \"" +
+                *projection + "\"");
+        }
+    } else if ((fov || ortho_height || aperture || focus_distance) && c.equirect) {
+        throw SpangleError(
+            "python: set_camera(): an equirectangular camera has no fov, view height or lens "
+            "(projection=\"perspective\" or \"orthographic\" switches it back)");
+    }
     // ortho_height > 0 makes the camera orthographic, 0 perspective again (with its fov).
     if (ortho_height) c.ortho_height = *ortho_height;
     if (position) c.position = *position;
     if (look_at) c.look_at = *look_at;
     if (up) c.up = *up;
-    if ((fov || ortho_height || aperture || focus_distance) && c.equirect)
-        throw SpangleError(
-            "python: set_camera(): an equirectangular camera has no fov, view height or lens");
     if (fov && c.ortho_height > 0.0)
         throw SpangleError(
             "python: set_camera(): 'fov': the camera is orthographic (ortho_height), it has no "

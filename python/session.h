@@ -76,7 +76,8 @@ public:
                     const std::optional<Vec3>& up, const std::optional<double>& fov,
                     const std::optional<double>& aperture,
                     const std::optional<double>& focus_distance,
-                    const std::optional<double>& ortho_height = std::nullopt);
+                    const std::optional<double>& ortho_height = std::nullopt,
+                    const std::optional<std::string>& projection = std::nullopt);
 
     void set_light(std::size_t index, const std::optional<double>& intensity,
                    const std::optional<Vec3>& color, const std::optional<Vec3>& position,

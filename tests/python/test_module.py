@@ -363,6 +363,41 @@ def test_the_camera_turns_orthographic_and_back(session):
     assert np.array_equal(session.render(spp=2, size=(40, 24), layers=False).beauty, persp.beauty)
 
 
+def test_the_camera_turns_equirectangular_and_back(session, tmp_path):
+    # set_camera(projection="equirectangular") is [camera] projection = "equirectangular": the
+    # same pixels as that scene file loaded; "perspective" gives back the camera it was, pixel for
+    # pixel; "orthographic" takes an ortho_height. A lens, a fov or an unknown name raise.
+    session.load(SMALL)
+    persp = session.render(spp=2, size=(64, 32), layers=False)
+    session.set_camera(projection="equirectangular")
+    assert session.camera["projection"] == "equirectangular" and session.camera["fov"] is None
+    pano = session.render(spp=2, size=(64, 32), layers=False)
+    text = open(SMALL).read().replace('"../../', '"' + ROOT + '/').replace(
+        "fov = 32", 'projection = "equirectangular"')
+    scene = tmp_path / "pano.toml"
+    scene.write_text(text)
+    other = spangle.Session(threads=2)
+    other.load(str(scene))
+    assert np.array_equal(other.render(spp=2, size=(64, 32), layers=False).beauty, pano.beauty)
+    for bad in (dict(fov=30), dict(aperture=0.1), dict(ortho_height=2.0)):
+        with pytest.raises(spangle.SceneError):
+            session.set_camera(**bad)
+    session.set_camera(projection="perspective")
+    assert session.camera["projection"] == "perspective" and session.camera["fov"] == 32
+    assert np.array_equal(session.render(spp=2, size=(64, 32), layers=False).beauty, persp.beauty)
+    with pytest.raises(spangle.SceneError, match="needs ortho_height"):
+        session.set_camera(projection="orthographic")
+    session.set_camera(projection="orthographic", ortho_height=3.0)
+    assert session.camera["projection"] == "orthographic"
+    with pytest.raises(spangle.SceneError, match="projection must be"):
+        session.set_camera(projection="fisheye")
+    session.set_camera(projection="perspective", aperture=0.2)
+    with pytest.raises(spangle.SceneError, match="aperture=0"):
+        session.set_camera(projection="equirectangular")
+    session.set_camera(projection="equirectangular", aperture=0.0)
+    assert session.camera["projection"] == "equirectangular"
+
+
 def test_a_panoramas_depth_is_the_distance(session, tmp_path):
     # An equirectangular camera looks every way: its Z layer is each point's distance from the
     # camera (along the view it ran from -d to d, negative behind), and the camera reports no fov.
