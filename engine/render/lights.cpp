@@ -67,7 +67,18 @@ bool sample_spherical_triangle(Vec3 a, Vec3 b, Vec3 c, float u0, float u1, Vec3&
 
 float power_heuristic(float a, float b) {
     const float a2 = a * a, b2 = b * b;
-    return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+    if (a2 + b2 <= std::numeric_limits<float>::max()) return a2 + b2 > 0.0f ? a2 / (a2 + b2) : 0.0f;
+    // A density beyond 1.8e19 (an emitter seen exactly edge-on: cos 1e-17 from a 6e-17 rotation
+    // term) squared to inf and the weight was inf / inf = NaN: through the ratio of the smaller
+    // density to the larger instead. (NaN densities give 0, as the sum above compares false.)
+    if (!(a > 0.0f) || !(b >= 0.0f)) return 0.0f;
+    if (std::isinf(a) && std::isinf(b)) return 0.5f;
+    if (a >= b) {
+        const float r = b / a;
+        return 1.0f / (1.0f + r * r);
+    }
+    const float r = a / b, r2 = r * r;
+    return r2 / (1.0f + r2);
 }
 
 double triangle_solid_angle(Vec3 p, Vec3 a, Vec3 b, Vec3 c) {

@@ -278,6 +278,48 @@ scale = 0.3
     EXPECT_GT(mean(r), 1e-3);
 }
 
+TEST(RenderStability, AnEmitterTurnedAboutByAFloatRotation) {
+    // An emissive quad turned 180 degrees with the 1.2e-16 a rotation matrix in floats leaves
+    // (three.js writes such quaternions), seen from behind: its two triangles are not quite
+    // coplanar, so each sees the other at cos 1e-17 and a light density of 1e17 and more.
+    // Squared in the power heuristic that overflowed: 800 samples of 160x90 were NaN (replaced
+    // by black, the panel 2.6% darker). It must render as the exactly turned quad does.
+    const std::string scene = R"(
+[render]
+width = 64
+height = 36
+spp = 8
+max_depth = 5
+[camera]
+position = [0, 0.8, 5]
+look_at = [0, 0.76, 4]
+fov = 40
+[[object]]
+mesh = "quad.obj"
+material = "diffuse"
+matrix = [-1.0, 0.0, TERM, 0.0, 0.0, 1.0, 0.0, 0.6, -TERM, 0.0, -1.0, 0.0]
+emission = [1.0, 0.8, 0.5]
+[[light]]
+type = "distant"
+direction = [0.2, 0.7, 0.7]
+intensity = 3
+)";
+    const std::vector<std::pair<std::string, std::string>> quad = {
+        {"quad.obj",
+         "v -0.4 -0.4 0\nv 0.4 -0.4 0\nv 0.4 0.4 0\nv -0.4 0.4 0\nvn 0 0 1\n"
+         "f 1//1 2//1 3//1\nf 1//1 3//1 4//1\n"}};
+    const auto with = [&](const std::string& term) {
+        std::string s = scene;
+        for (std::size_t at = s.find("TERM"); at != std::string::npos; at = s.find("TERM"))
+            s.replace(at, 4, term);
+        return s;
+    };
+    const FrameResult turned = render_checked("emitter_turned", with("1.2246469e-16"), quad);
+    const FrameResult exact = render_checked("emitter_exact", with("0.0"), quad);
+    EXPECT_GT(mean(exact), 0.01);
+    EXPECT_NEAR(mean(turned), mean(exact), 0.01 * mean(exact));
+}
+
 TEST(RenderStability, TinyAndHugeObjectScales) {
     // A glitter ball of radius 1e-7 seen from 5e-7, and one of radius 1e7 seen from 5e7: ray
     // offsets, footprints and flake densities per square metre at both ends of float range.
