@@ -4,6 +4,7 @@
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfMatrixAttribute.h>
 #include <OpenEXR/ImfOutputFile.h>
 #include <OpenEXR/ImfStringAttribute.h>
 
@@ -60,6 +61,22 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
         throw_error(
             "'{}' and '{}' were rendered from different scenes (or the scene's files changed "
             "between them): parts of one render merge",
+            path, first_path);
+    // The colour space the pixels are in (another OCIO config or working space) and where the
+    // camera stood (another --camera, a moved camera): parts of other renders.
+    const auto space = [](const Imf::Header& h) {
+        const auto* a = h.findTypedAttribute<Imf::StringAttribute>("colorSpace");
+        return a ? a->value() : std::string();
+    };
+    if (!space(hd).empty() && !space(first).empty() && space(hd) != space(first))
+        throw_error("'{}' is in colour space '{}', '{}' in '{}': parts of one render merge", path,
+                    space(hd), first_path, space(first));
+    const auto* cam = hd.findTypedAttribute<Imf::M44fAttribute>("worldToCamera");
+    const auto* cam_first = first.findTypedAttribute<Imf::M44fAttribute>("worldToCamera");
+    if (cam && cam_first && cam->value() != cam_first->value())
+        throw_error(
+            "'{}' and '{}' were seen through different cameras (their worldToCamera differ: "
+            "another --camera, or the camera moved): parts of one render merge",
             path, first_path);
     if (differ("spangle:time"))
         throw_error("'{}' is of the scene at {} s, '{}' at {} s: parts of one frame merge", path,

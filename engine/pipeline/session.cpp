@@ -8,6 +8,7 @@
 #include <typeindex>
 
 #include "core/files.h"
+#include "core/hash.h"
 #include "pipeline/frame.h"
 #include "pipeline/systems.h"
 #include "render/adaptive.h"
@@ -215,6 +216,26 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     }
     next->system.clear();
     next->previous = nullptr;
+    // The scene's hash covers the files the systems read too (a mesh or texture edited between
+    // crop parts made parts that merged into a seam): each file's bytes hashed once per
+    // identity (path, size, modification time), in path order. (Bytes only, not paths: farm
+    // nodes may mount the same files elsewhere.)
+    std::map<std::string, std::pair<std::string, uint64_t>> hashes;
+    {
+        std::map<std::string, std::string> read;  // path -> identity
+        for (const auto& [system, reads] : next->files)
+            for (const auto& [path, fr] : reads) read[path] = fr.identity;
+        uint64_t h = info->content_hash;
+        for (const auto& [path, identity] : read) {
+            auto it = file_hashes_.find(path);
+            const uint64_t fh = it != file_hashes_.end() && it->second.first == identity
+                                    ? it->second.second
+                                    : file_content_hash(path);
+            hashes[path] = {identity, fh};
+            h = hash2(h, fh);
+        }
+        info->content_hash = h;
+    }
 
     // Commit: from here on nothing throws.
     if (full && !rep.first) {
@@ -228,6 +249,7 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     }
     live_ = std::move(cand);
     info_ = std::move(info);
+    file_hashes_ = std::move(hashes);
     world_ = std::move(next);
     cache_.evict();
     rep.built = cache_.built;

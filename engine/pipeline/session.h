@@ -101,6 +101,9 @@ private:
     std::unique_ptr<SceneInfo> info_;
     std::unique_ptr<World> world_;
     std::string ocio_identity_;  ///< file_identity of the OCIO config when loaded
+    /** The files the live scene's systems read: path -> (identity, file_content_hash), so that
+     *  a reload hashes only files that changed. */
+    std::map<std::string, std::pair<std::string, uint64_t>> file_hashes_;
     RenderResult result_;
     /** Colour configs and host services replaced by an OCIO edit: material instances made with
      *  them may still point at them. */

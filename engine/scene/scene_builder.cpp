@@ -601,31 +601,31 @@ void build_light(BuildContext& ctx, const LightDesc& d) {
 
 }  // namespace
 
+uint64_t file_content_hash(const std::string& path) {
+    std::error_code ec;
+    const uintmax_t size = std::filesystem::file_size(path, ec);
+    if (ec) return 0;
+    uint64_t h = hash2(0x5ce9e5ull, size);
+    if (size > (uintmax_t{64} << 20)) return h;
+    std::ifstream in(path, std::ios::binary);
+    std::vector<char> bytes(static_cast<std::size_t>(size), 0);
+    if (!in.read(bytes.data(), static_cast<std::streamsize>(size))) return h;
+    std::size_t i = 0;
+    for (; i + 8 <= bytes.size(); i += 8) {
+        uint64_t w;
+        std::memcpy(&w, bytes.data() + i, 8);
+        h = hash2(h, w);
+    }
+    uint64_t tail = 0;
+    // (An empty file has no data pointer: memcpy from null is undefined even for 0 bytes.)
+    if (i < bytes.size()) std::memcpy(&tail, bytes.data() + i, bytes.size() - i);
+    return hash2(h, tail);
+}
+
 uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files) {
     uint64_t h = 0x5ce9e5ull;
-    std::vector<std::string> all{path};
-    all.insert(all.end(), files.begin(), files.end());
-    std::vector<char> bytes;
-    for (const std::string& f : all) {
-        std::error_code ec;
-        const uintmax_t size = std::filesystem::file_size(f, ec);
-        if (ec) continue;
-        h = hash2(h, size);
-        if (size > (uintmax_t{64} << 20)) continue;
-        std::ifstream in(f, std::ios::binary);
-        bytes.assign(static_cast<std::size_t>(size), 0);
-        if (!in.read(bytes.data(), static_cast<std::streamsize>(size))) continue;
-        std::size_t i = 0;
-        for (; i + 8 <= bytes.size(); i += 8) {
-            uint64_t w;
-            std::memcpy(&w, bytes.data() + i, 8);
-            h = hash2(h, w);
-        }
-        uint64_t tail = 0;
-        // (An empty file has no data pointer: memcpy from null is undefined even for 0 bytes.)
-        if (i < bytes.size()) std::memcpy(&tail, bytes.data() + i, bytes.size() - i);
-        h = hash2(h, tail);
-    }
+    h = hash2(h, file_content_hash(path));
+    for (const std::string& f : files) h = hash2(h, file_content_hash(f));
     return h;
 }
 

@@ -18,7 +18,11 @@ namespace spangle {
  *  file's name without the folder and ending, else "object<index + 1>". */
 std::string object_name(const ObjectDesc& d, uint32_t index);
 
-/** SceneInfo::content_hash of a scene file and the files it includes or imports (`files`). */
+/** A hash of a file's bytes (of its size alone beyond 64 MiB); 0 when it cannot be read. */
+uint64_t file_content_hash(const std::string& path);
+
+/** The hash of a scene file and the files it includes or imports (`files`); the session adds
+ *  the files its systems read (meshes, textures, maps) to make SceneInfo::content_hash. */
 uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files);
 
 /** Checks that every mesh and cage sequence of `scene` has its file for each frame of

@@ -17,9 +17,10 @@ namespace spangle {
 struct SceneInfo {
     std::string path;                ///< the scene file
     std::vector<std::string> files;  ///< scene files it includes or imports
-    /** A hash of the bytes of the scene file and the files it includes or imports (a file over
-     *  64 MiB by its size alone): written into the EXR header so that `spangle merge` can tell
-     *  parts of different scenes, or of a scene edited between its parts. */
+    /** A hash of the bytes of the scene file, the files it includes or imports and, once a
+     *  session has built it, every file its systems read (meshes, cages, textures, maps; a file
+     *  over 64 MiB by its size alone): written into the EXR header so that `spangle merge` can
+     *  tell parts of different scenes, or of a scene or asset edited between its parts. */
     uint64_t content_hash = 0;
     std::string output;  ///< the image it asks for; empty: none
     /** The part of the image it asks to render (pbrt's cropwindow): x0, x1, y0, y1 as fractions

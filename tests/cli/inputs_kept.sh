@@ -10,6 +10,8 @@
 # - `--layers` with a compression lossy for 32-bit floats (pxr24, dwaa, dwab) is refused: it
 #   corrupted the ids, depth and positions;
 # - `spangle merge` refuses crops of different scenes, and of different frames of one scene;
+#   of a scene whose mesh or texture was edited between them, of another camera (--camera), of another
+#   colour space;
 # - `spangle new` does not overwrite an existing ground plane PLY without --force.
 #   inputs_kept.sh SPANGLE REPO
 set -u
@@ -88,6 +90,35 @@ expect 1 "rendered from different scenes" merge a.exr b.exr -o m.exr
 "$S" render scene.toml -o fb.exr --crop 12,0,24,16 --frames 3..3 -q --no-preview || fail "frame 3"
 expect 1 "parts of one frame merge" merge fa.0001.exr fb.0003.exr -o m2.exr
 expect 1 "'nope.exr' does not exist" merge nope.exr a.exr -o m3.exr
+# A mesh, texture or map edited between the parts changes the scene's hash too (only the scene
+# files counted: parts of a scaled sphere merged into a seam); so do another camera position and
+# another colour space (another OCIO config or working space).
+cp sphere.obj sphere.keep
+echo "# edited" >> sphere.obj
+"$S" render scene.toml -o d.exr --crop 12,0,24,16 -q --no-preview || fail "crop d"
+expect 1 "rendered from different scenes" merge a.exr d.exr -o m4.exr
+cp sphere.keep sphere.obj
+cp tex.png tex.keep
+oiiotool tex.keep --mulc 0.5 -o tex.png
+"$S" render scene.toml -o e.exr --crop 12,0,24,16 -q --no-preview || fail "crop e"
+expect 1 "rendered from different scenes" merge a.exr e.exr -o m5.exr
+cp tex.keep tex.png
+cat > two.gltf <<'JSON'
+{"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1]}],
+ "nodes": [{"camera": 0, "translation": [0, 0, 5]}, {"camera": 1, "translation": [1, 0, 5]}],
+ "cameras": [{"name": "Camera", "type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}},
+             {"name": "Camera2", "type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}]}
+JSON
+TWO=two.gltf
+"$S" render "$TWO" --camera Camera -o f1.exr --size 24x16 --spp 1 --crop 0,0,12,16 -q \
+    --no-preview || fail "crop f1"
+"$S" render "$TWO" --camera Camera2 -o f2.exr --size 24x16 --spp 1 --crop 12,0,24,16 -q \
+    --no-preview || fail "crop f2"
+expect 1 "different cameras" merge f1.exr f2.exr -o m6.exr
+OCIO="$REPO/tests/ocio/foreign.ocio" "$S" render scene.toml -o g.exr --crop 12,0,24,16 -q \
+    --no-preview 2> /dev/null || fail "crop g"
+expect 1 "in colour space" merge a.exr g.exr -o m7.exr
+"$S" merge a.exr c.exr -o m.exr > /dev/null || fail "crops of one render no longer merge"
 # spangle new and its ground plane.
 echo precious > ball_ground.ply
 expect 2 "ball_ground.ply' (the scene's ground plane) exists" new --mesh sphere.obj -o ball.toml \

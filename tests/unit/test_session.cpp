@@ -264,6 +264,29 @@ TEST(Session, ADroppedWorkingSpaceGoesBackToTheDefault) {
     EXPECT_EQ(session.result().image, fresh.result().image);
 }
 
+TEST(Session, TheSceneHashCoversTheFilesItsSystemsRead) {
+    // spangle merge refuses parts whose sceneHash differs: an edited mesh (or texture, map)
+    // between two crop parts must change it. It covered the scene files only, so parts of a
+    // scaled sphere merged into a seam. A reload of an unchanged scene keeps it; a fresh session
+    // of the same files gives the same hash (crop parts and MPI ranks are separate processes).
+    TempScene scene;
+    RenderOptions options;
+    options.threads = 1;
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(scene.file.string());
+    const uint64_t before = session.info().content_hash;
+    session.load(scene.file.string());
+    EXPECT_EQ(session.info().content_hash, before);
+    { std::ofstream(scene.dir / "uvless_ball.obj", std::ios::app) << "# edited\n"; }
+    const ReloadReport edit = session.load(scene.file.string());
+    EXPECT_TRUE(contains(edit.ran, "mesh_load"));
+    const uint64_t after = session.info().content_hash;
+    EXPECT_NE(after, before);
+    Session fresh({}, test::shipped_ocio(), options, test::quiet_log());
+    fresh.load(scene.file.string());
+    EXPECT_EQ(fresh.info().content_hash, after);
+}
+
 TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {
     // Every light kind, three materials, meshes: each edit reruns exactly the systems whose
     // declared reads it changed (and those reading what they wrote), and the reloaded scene

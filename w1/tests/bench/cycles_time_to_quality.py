@@ -1,0 +1,232 @@
+"""Time to a clean image, Spangle against Blender's Cycles, on one scene built in Blender.
+
+    /opt/spangle/bpy/bin/python tests/bench/cycles_time_to_quality.py BUILD_DIR OUT_DIR
+
+(a Python with PyPI's bpy: scripts/install-deps.sh --tests makes /opt/spangle/bpy; PYTHONPATH
+needs BUILD_DIR/python.) The scene is a car of our own, built here in Blender's Python: a
+subdivided body in a red plastic paint under a clear coat (no flakes, so both renderers draw the
+same kind of material), four wheels, windows, a grey ground, a sun and a sky colour. Spangle
+renders it through the Blender add-on's export (integrations/blender) with
+tests/bench/time_to_quality.sh (fixed spp with and without --denoise, adaptive, adaptive +
+denoise); Cycles renders the same Blender scene with fixed samples (adaptive sampling off), with
+its adaptive sampling at falling noise thresholds, and each with Open Image Denoise when the bpy
+build has it. Each renderer is measured against its own reference of REF_SPP samples (their
+materials are not the same BRDFs), relMSE = mean (x - r)^2 / (r^2 + 0.01) over RGB, as spangle
+inspect computes it. Cycles' time is bpy.ops.render.render's (its scene sync included), Spangle's
+the whole `spangle render` process. Each reference uses another seed than the runs (a run of N
+samples would otherwise share its first N samples with it). Both cap an indirect sample's value
+alike: CLAMP (default 10, Cycles' own default; 0: no cap, both unbiased, and then the scene's
+sun-chrome-ground caustics make fireflies that dominate relMSE for both). Both regularise paths
+alike: FILTER_GLOSSY (default 1, Cycles' default "Filter Glossy"; Spangle's [render]
+filter_glossy follows the same curve; 0: off for both). Environment: SIZE (320x180), REF_SPP
+(2048), THREADS (2), CLAMP, FILTER_GLOSSY. Time it on a quiet machine.
+"""
+
+import math
+import os
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
+sys.path.insert(0, os.path.join(ROOT, "integrations", "blender"))
+import bpy  # noqa: E402  (first: it puts Blender's own modules on the path)
+import addon_utils  # noqa: E402
+import mathutils  # noqa: E402
+
+
+def principled(name, color, roughness, metallic=0.0, coat=0.0, transmission=0.0):
+    m = bpy.data.materials.new(name)
+    m.use_nodes = True
+    b = m.node_tree.nodes["Principled BSDF"]
+    b.inputs["Base Color"].default_value = (*color, 1.0)
+    b.inputs["Roughness"].default_value = roughness
+    b.inputs["Metallic"].default_value = metallic
+    b.inputs["Coat Weight"].default_value = coat
+    b.inputs["Transmission Weight"].default_value = transmission
+    return m
+
+
+def build_car(width, height):
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    addon_utils.enable("spangle_blender", default_set=True)
+    scene = bpy.context.scene
+    paint = principled("paint", (0.6, 0.03, 0.03), 0.3, coat=1.0)
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=64, ring_count=32, location=(0, 0, 0.75))
+    body = bpy.context.active_object
+    body.scale = (2.2, 0.95, 0.62)
+    body.modifiers.new("subdivision", "SUBSURF").levels = 2
+    bpy.ops.object.shade_smooth()
+    body.data.materials.append(paint)
+    glass = principled("glass", (0.02, 0.02, 0.03), 0.05, metallic=0.0)
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, location=(-0.2, 0, 1.15))
+    cabin = bpy.context.active_object
+    cabin.scale = (1.1, 0.8, 0.45)
+    bpy.ops.object.shade_smooth()
+    cabin.data.materials.append(glass)
+    rubber = principled("rubber", (0.02, 0.02, 0.02), 0.7)
+    chrome = principled("chrome", (0.9, 0.9, 0.9), 0.15, metallic=1.0)
+    for x in (-1.3, 1.3):
+        for y in (-0.85, 0.85):
+            bpy.ops.mesh.primitive_torus_add(location=(x, y, 0.38), rotation=(math.pi / 2, 0, 0),
+                                             major_radius=0.28, minor_radius=0.11)
+            bpy.ops.object.shade_smooth()
+            bpy.context.active_object.data.materials.append(rubber)
+            bpy.ops.mesh.primitive_cylinder_add(location=(x, y, 0.38), rotation=(math.pi / 2, 0, 0),
+                                                radius=0.2, depth=0.16)
+            bpy.context.active_object.data.materials.append(chrome)
+    bpy.ops.mesh.primitive_plane_add(size=40)
+    bpy.context.active_object.data.materials.append(principled("ground", (0.35, 0.35, 0.35), 0.5))
+    bpy.ops.object.light_add(type="SUN", location=(0, 0, 10))
+    sun = bpy.context.active_object
+    sun.data.energy = 3.0
+    sun.data.angle = math.radians(2.0)
+    sun.rotation_euler = (math.radians(45.0), 0.0, math.radians(35.0))
+    bpy.ops.object.camera_add(location=(6.5, -5.5, 2.6))
+    cam = bpy.context.active_object
+    cam.rotation_euler = (mathutils.Vector((0, 0, 0.7)) - cam.location).to_track_quat("-Z", "Y").to_euler()
+    scene.camera = cam
+    scene.world = bpy.data.worlds.new("sky")
+    scene.world.use_nodes = True
+    scene.world.node_tree.nodes["Background"].inputs["Color"].default_value = (0.45, 0.55, 0.75, 1.0)
+    scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.8
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def read_rgb(path):
+    img = bpy.data.images.load(path, check_existing=False)
+    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], -1)[..., :3]
+    bpy.data.images.remove(img)
+    return px
+
+
+def rel_mse(x, r):
+    return float(np.mean((x - r) ** 2 / (r * r + 0.01)))
+
+
+# The cap on one indirect sample's value, for both renderers (Cycles' sample_clamp_indirect,
+# whose default is 10, and Spangle's [render] clamp_indirect); 0: none (both unbiased).
+CLAMP = float(os.environ.get("CLAMP", "10"))
+# Path regularisation, for both renderers alike: Cycles' blur_glossy ("Filter Glossy", default 1)
+# and Spangle's [render] filter_glossy, which follows the same curve; 0: off for both.
+FILTER_GLOSSY = float(os.environ.get("FILTER_GLOSSY", "1"))
+
+
+def cycles_render(scene, path, samples, threshold=None, denoise=False):
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.use_adaptive_sampling = threshold is not None
+    if threshold is not None:
+        c.adaptive_threshold = threshold
+        c.adaptive_min_samples = 0  # Cycles' automatic minimum
+    c.use_denoising = denoise
+    if denoise:
+        c.denoiser = "OPENIMAGEDENOISE"
+    c.max_bounces = 5
+    c.sample_clamp_indirect = CLAMP
+    c.blur_glossy = FILTER_GLOSSY
+    c.sample_clamp_direct = 0.0
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.image_settings.color_depth = "32"
+    scene.render.filepath = path
+    t0 = time.time()
+    bpy.ops.render.render(write_still=True)
+    return time.time() - t0
+
+
+def report(label, results):
+    for target in (0.01, 0.002):
+        for way in dict.fromkeys(r[0] for r in results):
+            hits = [(t, s) for w, s, t, e in results if w == way and e <= target]
+            if hits:
+                t, s = min(hits)
+                print(f"{label}: {way} reached relMSE {target} in {t:.2f} s ({s})")
+            else:
+                print(f"{label}: {way} never reached relMSE {target}")
+
+
+def main():
+    build, out = os.path.abspath(sys.argv[1]), os.path.abspath(sys.argv[2])
+    os.makedirs(out, exist_ok=True)
+    w, h = (int(v) for v in os.environ.get("SIZE", "320x180").split("x"))
+    ref_spp = int(os.environ.get("REF_SPP", "2048"))
+    threads = int(os.environ.get("THREADS", "2"))
+    scene = build_car(w, h)
+    scene.render.threads_mode = "FIXED"
+    scene.render.threads = threads
+    # Spangle: the add-on's export, then the shell script's sweep.
+    from spangle_blender import export, flake_parameters
+
+    folder = os.path.join(out, "car")
+    os.makedirs(folder, exist_ok=True)
+    export.export_scene(bpy.context.evaluated_depsgraph_get(), folder, (w, h), 16,
+                        flake_parameters())
+    text = open(os.path.join(folder, "scene.toml")).read()
+    if CLAMP > 0.0:
+        text = text.replace("[render]\n", f"[render]\nclamp_indirect = {CLAMP}\n", 1)
+    if FILTER_GLOSSY > 0.0:
+        text = text.replace("[render]\n", f"[render]\nfilter_glossy = {FILTER_GLOSSY}\n", 1)
+    with open(os.path.join(folder, "car.toml"), "w") as f:
+        f.write(text)
+    os.remove(os.path.join(folder, "scene.toml"))
+    env = dict(os.environ, SIZE=f"{w}x{h}", REF_SPP=str(ref_spp), THREADS=str(threads))
+    # Each reference with another seed than the runs measured against it: a run of N samples
+    # would otherwise share its first N samples with the reference (for both renderers).
+    spangle_out = os.path.join(out, "spangle")
+    os.makedirs(spangle_out, exist_ok=True)
+    if not os.path.exists(os.path.join(spangle_out, "ref_car.exr")):
+        text = open(os.path.join(folder, "car.toml")).read().replace("[render]\n", "[render]\nseed = 977\n", 1)
+        with open(os.path.join(folder, "car_ref.toml"), "w") as f:
+            f.write(text)
+        print(f"# spangle: rendering the reference ({ref_spp} spp)...", file=sys.stderr)
+        subprocess.run([os.path.join(build, "spangle"), "render", os.path.join(folder, "car_ref.toml"),
+                        "--size", f"{w}x{h}", "--spp", str(ref_spp), "--threads", str(threads),
+                        "-q", "--float", "--no-preview", "-o", os.path.join(spangle_out, "ref_car.exr")],
+                       check=True)
+    subprocess.run(["bash", os.path.join(ROOT, "tests", "bench", "time_to_quality.sh"), build,
+                    spangle_out, os.path.join(folder, "car.toml")],
+                   env=env, check=True)
+    # Cycles: its reference, then fixed samples, adaptive thresholds, each denoised too.
+    ref = os.path.join(out, "cycles_ref.exr")
+    if not os.path.exists(ref):
+        print(f"# cycles: rendering the reference ({ref_spp} spp)...", file=sys.stderr)
+        scene.cycles.seed = 977
+        cycles_render(scene, ref, ref_spp)
+        scene.cycles.seed = 0
+    r = read_rgb(ref)
+    probe = os.path.join(out, "cycles_probe.exr")
+    cycles_render(scene, probe, 4)
+    plain = read_rgb(probe)
+    cycles_render(scene, probe, 4, denoise=True)
+    has_denoiser = not np.array_equal(read_rgb(probe), plain)
+    if not has_denoiser:
+        print("# cycles: this bpy build has no Open Image Denoise: no denoised runs", file=sys.stderr)
+    results = []
+    print(f"# car at {w}x{h}, cycles: way, setting, seconds, relMSE")
+    for spp in (4, 8, 16, 32, 64, 128, 256, 512):
+        for denoise in (False, True) if has_denoiser else (False,):
+            p = os.path.join(out, f"cycles_fixed_{spp}{'_dn' if denoise else ''}.exr")
+            t = cycles_render(scene, p, spp, denoise=denoise)
+            way = "fixed+denoise" if denoise else "fixed"
+            results.append((way, spp, t, rel_mse(read_rgb(p), r)))
+            print(f"{way} {spp} {t:.3f} {results[-1][3]:.6f}")
+    for threshold in (0.1, 0.05, 0.03, 0.02, 0.01, 0.005):
+        for denoise in (False, True) if has_denoiser else (False,):
+            p = os.path.join(out, f"cycles_adaptive_{threshold}{'_dn' if denoise else ''}.exr")
+            t = cycles_render(scene, p, 1024, threshold=threshold, denoise=denoise)
+            way = "adaptive+denoise" if denoise else "adaptive"
+            results.append((way, threshold, t, rel_mse(read_rgb(p), r)))
+            print(f"{way} {threshold} {t:.3f} {results[-1][3]:.6f}")
+    report("car (cycles)", results)
+    sys.stdout.flush()
+    os._exit(0)  # bpy's exit handlers can crash once add-ons registered classes
+
+
+if __name__ == "__main__":
+    main()

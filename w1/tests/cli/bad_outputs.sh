@@ -1,0 +1,91 @@
+#!/usr/bin/env bash
+# Bad command lines and output paths are refused before any rendering, with the documented exit
+# status (2: the command line, 1: an input or output problem), one clear message, and no file
+# left behind. Before: --size 4294967312x16 rendered 16x16; a bad --size or --compression exited
+# 1; `-o same.exr --preview same.exr` replaced the EXR with a PNG and exited 0; a missing folder,
+# a folder as output or an unwritable place was found after the whole render; `spangle rendr`
+# said "A subcommand is required"; --noise-threshold nan, --preview with --no-preview, a missing
+# --plugin-path, a .jpg preview (PNG bytes) and a second run of '#' were accepted. A panorama that
+# is not 2:1 renders stretched with a warning.
+#   bad_outputs.sh SPANGLE SCENE
+set -u
+S=$1 SCENE=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+# expect STATUS PATTERN ARGS...: runs spangle, checks the status and that stderr matches.
+expect() {
+    local want=$1 pattern=$2
+    shift 2
+    local start=$SECONDS
+    "$S" "$@" > "$T/out.txt" 2> "$T/err.txt"
+    local got=$?
+    [ "$got" = "$want" ] || fail "spangle $*: exit $got, expected $want; stderr: $(cat "$T/err.txt")"
+    grep -q -- "$pattern" "$T/err.txt" || fail "spangle $*: stderr lacks '$pattern': $(cat "$T/err.txt")"
+    grep -q "render:" "$T/err.txt" && fail "spangle $*: rendered before refusing"
+    [ $((SECONDS - start)) -le 5 ] || fail "spangle $*: took $((SECONDS - start)) s to refuse"
+    return 0
+}
+cd "$T"
+expect 2 "did you mean 'render'" rendr "$SCENE"
+expect 2 "unknown command 'frobnicate'" frobnicate
+expect 2 "WIDTHxHEIGHT" render "$SCENE" --size 4294967312x16
+expect 2 "WIDTHxHEIGHT" render "$SCENE" --size 16x
+expect 2 "WIDTHxHEIGHT" render "$SCENE" --size -16x16
+expect 2 "unknown EXR compression 'foo'" render "$SCENE" --compression foo
+expect 2 "must end in .exr" render "$SCENE" -o out.png
+expect 2 "same file" render "$SCENE" -o same.exr --preview same.exr
+mkdir sub
+expect 2 "same file" render "$SCENE" -o same.exr --preview ./sub/../same.exr
+expect 2 "PORT or ADDR:PORT" render "$SCENE" --serve 70000
+# Options that contradict each other or name nothing (one of them silently won before).
+expect 2 "got nan" render "$SCENE" --noise-threshold nan
+expect 2 "choose one" render "$SCENE" --preview p.png --no-preview
+expect 2 "choose one" render "$SCENE" --pass-output --no-pass-output
+expect 2 "is not a folder" render "$SCENE" --plugin-path "$T/no_such_plugins"
+expect 2 "must end in .png" render "$SCENE" -o out.exr --preview out.jpg
+expect 2 "more than one run of '#'" render "$SCENE" -o "a.##.##.exr" --frames 1..1
+expect 2 "add --denoise" render "$SCENE" --denoise-glints apart
+# An empty value (an unset shell variable): `-o ''` wrote SCENE.exr beside the scene.
+expect 2 "--output needs a value" render "$SCENE" -o ''
+expect 2 "--preview needs a value" render "$SCENE" --preview ''
+expect 2 "--output needs a value" merge -o '' a.exr
+expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/out.exr"
+mkdir folder.exr
+expect 1 "it is a folder" render "$SCENE" -o folder.exr
+expect 1 "it is a folder" render "$SCENE" -o out.exr --preview folder.exr
+LONG=$(printf 'a%.0s' $(seq 1 300))
+expect 1 "file name is longer" render "$SCENE" -o "$LONG.exr"
+expect 1 "cannot create files in folder '/proc'" render "$SCENE" -o /proc/out.exr
+[ -z "$(ls -A "$T" | grep -v -e out.txt -e err.txt -e folder.exr -e "^sub$")" ] ||
+    fail "files left behind: $(ls -A "$T")"
+# And a good command line still renders.
+"$S" render "$SCENE" -o good.exr -q || fail "a good render failed"
+[ -s good.exr ] && [ -s good.png ] || fail "the good render wrote no images"
+# --min-spp / --max-spp without adaptive sampling render, and say they do nothing (silent before).
+"$S" render "$SCENE" -o good.exr -q --min-spp 4 --max-spp 8 2> "$T/err.txt" ||
+    fail "--min-spp without a threshold failed: $(cat "$T/err.txt")"
+grep -q "adaptive sampling, which is off" "$T/err.txt" ||
+    fail "--min-spp without a threshold said nothing: $(cat "$T/err.txt")"
+"$S" render "$SCENE" -o good.exr -q --min-spp 4 --noise-threshold 0.1 2> "$T/err.txt" ||
+    fail "--min-spp with a threshold failed"
+grep -q "adaptive sampling, which is off" "$T/err.txt" && fail "warned with a threshold"
+# A panorama on an image that is not 2:1 renders stretched: said (silent before), and not at 2:1.
+cat > pano.toml <<'TOML'
+[render]
+width = 32
+height = 16
+spp = 1
+[camera]
+position = [0, 0, 0]
+look_at = [0, 0, -1]
+projection = "equirectangular"
+[environment]
+color = [0.5, 0.5, 0.5]
+TOML
+"$S" render pano.toml -o pano.exr -q --size 40x16 2> "$T/err.txt" || fail "a 40x16 panorama failed"
+grep -q "40x16 image, which is not 2:1" "$T/err.txt" ||
+    fail "a 40x16 panorama said nothing: $(cat "$T/err.txt")"
+"$S" render pano.toml -o pano.exr -q 2> "$T/err.txt" || fail "a 32x16 panorama failed"
+[ -s "$T/err.txt" ] && fail "a 2:1 panorama warned: $(cat "$T/err.txt")"
+echo "PASS"

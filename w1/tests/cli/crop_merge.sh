@@ -1,0 +1,47 @@
+#!/usr/bin/env bash
+# spangle render --crop and spangle merge from the command line: two crop windows of the demo
+# (half floats, layers) merge into exactly the whole render; bad crops and merges are refused
+# with the reason, writing nothing.
+#   crop_merge.sh SPANGLE REPO_DIR
+set -u
+S=$1 REPO=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; cat "$T/err.txt" 2>/dev/null; exit 1; }
+SCENE="$REPO/assets/scenes/demo.toml"
+ARGS=(--size 90x50 --spp 4 -q --layers --no-preview)
+
+"$S" render "$SCENE" -o "$T/whole.exr" "${ARGS[@]}" 2> "$T/err.txt" || fail "whole render"
+"$S" render "$SCENE" -o "$T/left.exr" "${ARGS[@]}" --crop 0,0,41,50 2> "$T/err.txt" || fail "left crop"
+"$S" render "$SCENE" -o "$T/right.exr" "${ARGS[@]}" --crop 41,0,90,50 2> "$T/err.txt" || fail "right crop"
+oiiotool --info -v "$T/left.exr" | grep -q "41 x   50" || fail "the left part is not 41x50"
+oiiotool --info -v "$T/left.exr" | grep -q "full/display size: 90 x 50" || fail "the left part does not sit in a 90x50 frame"
+"$S" merge "$T/left.exr" "$T/right.exr" -o "$T/merged.exr" > "$T/out.txt" 2> "$T/err.txt" || fail "merge"
+grep -q "merged 2 parts into .*merged.exr (90x50)" "$T/out.txt" || fail "merge did not report: $(cat "$T/out.txt")"
+oiiotool "$T/whole.exr" --ch R,G,B,A,Z,glints.R "$T/merged.exr" --ch R,G,B,A,Z,glints.R --diff --fail 0 --warn 0 > "$T/diff.txt" 2>&1 ||
+    { cat "$T/diff.txt"; fail "the merged frame differs from the whole render"; }
+
+"$S" render "$SCENE" -o "$T/bad.exr" "${ARGS[@]}" --crop 80,0,100,10 2> "$T/err.txt" && fail "a crop outside the image rendered"
+grep -q "crop window 80,0,100,10 is not inside the 90x50 image" "$T/err.txt" || fail "no reason for the bad crop"
+[ ! -e "$T/bad.exr" ] || fail "an output was written for a bad crop"
+"$S" render "$SCENE" -o "$T/bad.exr" --crop 5,5,5,9 2> "$T/err.txt"; [ $? -eq 2 ] || fail "an empty crop is not a usage error"
+"$S" merge "$T/left.exr" -o "$T/holes.exr" 2> "$T/err.txt" && fail "a frame with a hole was merged"
+grep -q "uncovered" "$T/err.txt" || fail "no reason for the hole"
+[ ! -e "$T/holes.exr" ] || fail "a partial merge was written"
+echo PASS
+
+# --spp-range parts of a crop window (half floats): their sums add up to the window's whole render.
+"$S" render "$SCENE" -o "$T/win.exr" --size 90x50 --spp 6 -q --no-preview --crop 10,5,70,45 2> "$T/err.txt" || fail "window render"
+"$S" render "$SCENE" -o "$T/s1.exr" --size 90x50 --spp 6 -q --no-preview --crop 10,5,70,45 --spp-range 2..6 2> "$T/err.txt" || fail "samples 2..6"
+"$S" render "$SCENE" -o "$T/s0.exr" --size 90x50 --spp 6 -q --no-preview --crop 10,5,70,45 --spp-range 0..2 2> "$T/err.txt" || fail "samples 0..2"
+"$S" merge "$T/s1.exr" "$T/s0.exr" -o "$T/smerged.exr" > "$T/out.txt" 2> "$T/err.txt" || fail "sample-range merge"
+grep -q "added 2 sample ranges into .*smerged.exr (90x50 frame)" "$T/out.txt" || fail "merge did not report: $(cat "$T/out.txt")"
+oiiotool "$T/win.exr" "$T/smerged.exr" --diff --fail 0 --warn 0 > "$T/diff.txt" 2>&1 ||
+    { cat "$T/diff.txt"; fail "the merged sample ranges differ from the whole render"; }
+"$S" merge "$T/s1.exr" -o "$T/short.exr" 2> "$T/err.txt" && fail "a merge missing samples 0..2 was written"
+grep -q "samples 0..2 of the frame's 6 are in no part (render them with --spp-range 0..2)" "$T/err.txt" || fail "no reason for the missing samples"
+[ ! -e "$T/short.exr" ] || fail "a merge missing samples was written"
+"$S" render "$SCENE" -o "$T/bad.exr" --spp 6 --spp-range 4..9 2> "$T/err.txt" && fail "a range beyond the frame's samples rendered"
+grep -q "sample range 4..9 is not inside the frame's 6 samples per pixel" "$T/err.txt" || fail "no reason for the bad range"
+"$S" render "$SCENE" -o "$T/bad.exr" --spp-range 4..4 2> "$T/err.txt"; [ $? -eq 2 ] || fail "an empty range is not a usage error"
+echo "crop_merge: OK"

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# `spangle render --frames` says a warning that holds for every frame once, for the first frame:
+# an emitter that moves while the shutter is open (it is not blurred) was said once per frame,
+# burying the frames' own lines. A warning that differs between frames is still said for each.
+#   frames_warnings.sh SPANGLE REPO
+set -u
+S=$1 REPO=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+cd "$T"
+cp "$REPO/assets/meshes/plane.ply" .
+cat > scene.toml <<'SCENE'
+[render]
+width = 16
+height = 12
+spp = 1
+frame_start = 0
+frame_end = 3
+fps = 4
+shutter = [0, 1]
+[camera]
+position = [0, 4, 6]
+look_at = [0, 0.5, 0]
+[[material]]
+name = "white"
+plugin = "smooth"
+model = "diffuse"
+[[object]]
+mesh = "plane.ply"
+material = "white"
+emission = [1, 1, 1]
+interpolation = "linear"
+[[object.keys]]
+time = 0.0
+[[object.keys]]
+time = 1.0
+translate = [1, 1, 0]
+SCENE
+"$S" render scene.toml --frames 0..3 -o f.#.exr --no-preview > out.txt 2> err.txt ||
+    fail "the sequence did not render: $(cat err.txt)"
+n=$(grep -c "emits light" err.txt)
+[ "$n" = 1 ] || fail "the moving emitter's warning was said $n times, not once: $(cat err.txt)"
+for f in 0 1 2 3; do [ -f "f.$f.exr" ] || fail "frame $f was not written"; done
+echo PASS

@@ -1,0 +1,99 @@
+#!/usr/bin/env bash
+# What a render writes never replaces what it reads or what it should not touch, and parts of
+# different renders do not merge (each found by a user trying the command line; before, every
+# case below exited 0 and replaced or mixed files):
+# - `-o` or `--preview` naming the scene file, a mesh or the environment map is refused before
+#   anything renders, and the file is intact;
+# - a preview that does not end in .png is refused (it wrote PNG bytes into scene.toml, p.jpg);
+# - `--frames` checks every frame's paths before the first renders (a folder at frame 2's path
+#   failed after frame 1 with "...: Success");
+# - `--layers` with a compression lossy for 32-bit floats (pxr24, dwaa, dwab) is refused: it
+#   corrupted the ids, depth and positions;
+# - `spangle merge` refuses crops of different scenes, and of different frames of one scene;
+# - `spangle new` does not overwrite an existing ground plane PLY without --force.
+#   inputs_kept.sh SPANGLE REPO
+set -u
+S=$1 REPO=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+expect() {
+    local want=$1 pattern=$2
+    shift 2
+    "$S" "$@" > "$T/out.txt" 2> "$T/err.txt"
+    local got=$?
+    [ "$got" = "$want" ] || fail "spangle $*: exit $got, expected $want; stderr: $(cat "$T/err.txt")"
+    grep -q -- "$pattern" "$T/err.txt" || fail "spangle $*: stderr lacks '$pattern': $(cat "$T/err.txt")"
+    return 0
+}
+cd "$T"
+cp "$REPO/assets/meshes/sphere.obj" "$REPO/assets/meshes/plane.ply" "$REPO/assets/env/studio.exr" .
+cp "$REPO/assets/textures/beetle_livery.png" tex.png
+cat > scene.toml <<'EOF'
+[render]
+width = 24
+height = 16
+spp = 2
+frame_start = 1
+frame_end = 3
+[camera]
+position = [0, 1.3, 6]
+look_at = [0, 0.7, 0]
+fov = 30
+[environment]
+map = "studio.exr"
+[[material]]
+name = "grey"
+plugin = "smooth"
+model = "diffuse"
+params = { albedo = 0.5 }
+[[material]]
+name = "textured"
+plugin = "smooth"
+model = "diffuse"
+params = { albedo = { texture = "tex.png" } }
+[[object]]
+mesh = "plane.ply"
+material = "grey"
+scale = 20
+[[object]]
+mesh = "sphere.obj"
+material = "textured"
+translate = [0, 0.7, 0]
+keys = [{ frame = 1, translate = [0, 0.7, 0] }, { frame = 3, translate = [1, 0.7, 0] }]
+EOF
+sum() { md5sum scene.toml sphere.obj plane.ply studio.exr tex.png; }
+before=$(sum)
+expect 1 "a file the scene reads" render scene.toml -o studio.exr -q
+expect 1 "a file the scene reads" render scene.toml -o ./studio.exr -q
+expect 1 "a file the scene reads" render scene.toml -o scene.toml.exr --preview tex.png -q
+expect 2 "must end in .png" render scene.toml -o out.exr --preview scene.toml -q
+expect 2 "must end in .png" render scene.toml -o out.exr --preview sphere.obj -q
+[ "$(sum)" = "$before" ] || fail "an input file changed"
+mkdir o.0002.exr
+expect 1 "frame 2's EXR 'o.0002.exr': it is a folder" render scene.toml -o o.exr --frames 1..3 -q
+[ ! -e o.0001.exr ] || fail "frame 1 rendered before frame 2's folder was found"
+for c in pxr24 dwaa dwab; do
+    expect 2 "lossy for 32-bit floats" render scene.toml --layers --compression "$c" -o l.exr -q
+done
+"$S" render scene.toml --layers --compression b44 -o l.exr -q || fail "b44 with --layers refused"
+# Merges.
+sed 's/albedo = 0.5/albedo = 0.6/' scene.toml > other.toml
+"$S" render scene.toml -o a.exr --crop 0,0,12,16 -q --no-preview || fail "crop a"
+"$S" render other.toml -o b.exr --crop 12,0,24,16 -q --no-preview || fail "crop b"
+"$S" render scene.toml -o c.exr --crop 12,0,24,16 -q --no-preview || fail "crop c"
+expect 1 "rendered from different scenes" merge a.exr b.exr -o m.exr
+"$S" merge a.exr c.exr -o m.exr > /dev/null || fail "crops of one render did not merge"
+"$S" render scene.toml -o fa.exr --crop 0,0,12,16 --frames 1..1 -q --no-preview || fail "frame 1"
+"$S" render scene.toml -o fb.exr --crop 12,0,24,16 --frames 3..3 -q --no-preview || fail "frame 3"
+expect 1 "parts of one frame merge" merge fa.0001.exr fb.0003.exr -o m2.exr
+expect 1 "'nope.exr' does not exist" merge nope.exr a.exr -o m3.exr
+# spangle new and its ground plane.
+echo precious > ball_ground.ply
+expect 2 "ball_ground.ply' (the scene's ground plane) exists" new --mesh sphere.obj -o ball.toml \
+    --env studio.exr
+[ "$(cat ball_ground.ply)" = precious ] || fail "the ground plane file was replaced"
+[ ! -e ball.toml ] || fail "the scene was written although its ground plane was refused"
+"$S" new --mesh sphere.obj -o ball.toml --env studio.exr --force -q > /dev/null ||
+    fail "new --force failed"
+echo "PASS"

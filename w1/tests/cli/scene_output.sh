@@ -1,0 +1,22 @@
+#!/usr/bin/env bash
+# The image a scene asks for: a pbrt Film's "filename" is the output when -o gives none (as an
+# EXR, its PNG preview beside it, in the working folder as pbrt writes it); -o wins over it.
+#   scene_output.sh SPANGLE TESTS_DIR
+set -u
+S=$1 TESTS=$2
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+mkdir -p "$T/scene" "$T/work"
+cp "$TESTS/scenes/pbrt/twin_box.ply" "$T/scene/"
+sed 's/"string filename" "twin_v3.exr"/"string filename" "asked_for.png"/' \
+    "$TESTS/scenes/pbrt/twin_v3.pbrt" > "$T/scene/twin.pbrt"
+scene="$T/scene/twin.pbrt"
+cd "$T/work" || fail "no temp folder"
+"$S" render "$scene" --size 24x18 --spp 1 > out.txt 2>&1 || fail "render failed: $(cat out.txt)"
+[ -f asked_for.exr ] || fail "no asked_for.exr (the Film's filename as an EXR): $(ls)"
+[ -f asked_for.png ] || fail "no asked_for.png preview beside it"
+grep -q "asks for 'asked_for.png'" out.txt || fail "no line saying where the image went"
+"$S" render "$scene" --size 24x18 --spp 1 -q -o given.exr || fail "render -o failed"
+[ -f given.exr ] || fail "-o did not win over the Film's filename"
+echo "ok"

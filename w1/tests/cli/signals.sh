@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# SIGINT and SIGTERM in the middle of a render: the passes completed so far are written, the EXR
+# header says partial and how many samples per pixel, the exit status is 0 (SIGINT) or 143
+# (SIGTERM), and no temporary file is left; a sequence stopped before its last frame exits 130.
+#   signals.sh SPANGLE PLUGIN_DIR SCENE_DIR
+set -u
+S=$1 PLUGINS=$2 SCENES=$3
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+cp "$SCENES/flake_uvless.toml" "$SCENES/uvless_ball.obj" "$T/"
+cd "$T"
+fail() { echo "FAIL: $*"; exit 1; }
+for sig in INT TERM; do
+    "$S" render flake_uvless.toml -o $sig.exr --spp 100000 --threads 2 -q --pass-output \
+        --plugin-path "$PLUGINS" 2> err.txt &
+    PID=$!
+    # Wait for the first pass output, then a little more, then signal.
+    for _ in $(seq 1 200); do [ -f $sig.exr ] && break; sleep 0.05; done
+    [ -f $sig.exr ] || fail "no pass output before SIG$sig"
+    sleep 0.5
+    kill -$sig $PID
+    wait $PID
+    RC=$?
+    want=0; [ $sig = TERM ] && want=143
+    [ $RC -eq $want ] || fail "SIG$sig: exit status $RC, expected $want"
+    oiiotool --info -v $sig.exr > info.txt || fail "SIG$sig: unreadable output"
+    grep -q 'spangle:partial: "1"' info.txt || fail "SIG$sig: not marked partial"
+    spp=$(sed -n 's/.*spangle:spp: "\([0-9]*\)".*/\1/p' info.txt)
+    [ -n "$spp" ] && [ "$spp" -ge 1 ] && [ "$spp" -lt 100000 ] || fail "SIG$sig: spp '$spp'"
+    grep -q "stopped by a signal" err.txt || fail "SIG$sig: no message"
+    ls -a | grep -q '\.tmp' && fail "SIG$sig: temporary file left behind"
+done
+# A second SIGINT exits at once, without leaving a temporary file.
+"$S" render flake_uvless.toml -o twice.exr --spp 100000 --threads 2 -q --plugin-path "$PLUGINS" &
+PID=$!
+sleep 1
+kill -INT $PID; kill -INT $PID
+wait $PID
+RC=$?
+[ $RC -eq 0 ] || [ $RC -eq 130 ] || fail "second SIGINT: exit status $RC"
+ls -a | grep -q '\.tmp' && fail "second SIGINT: temporary file left behind"
+# A sequence stopped before its last frame is not done: exit status 130 (SIGINT), and the line
+# names the frames left (it exited 0 with frames 3..8 never rendered).
+"$S" render flake_uvless.toml -o seq.####.exr --spp 100000 --threads 2 -q --pass-output \
+    --frames 1..8 --plugin-path "$PLUGINS" 2> err.txt &
+PID=$!
+for _ in $(seq 1 200); do [ -f seq.0001.exr ] && break; sleep 0.05; done
+sleep 0.5
+kill -INT $PID
+wait $PID
+RC=$?
+[ $RC -eq 130 ] || fail "SIGINT in a sequence: exit status $RC, expected 130"
+grep -q "stopped by a signal (SIGINT): wrote seq.0001.exr with .*; frames 2..8 not rendered" err.txt ||
+    fail "SIGINT in a sequence: $(cat err.txt)"
+echo "signals: partial images, exit statuses and no temporary files as expected"

@@ -1,0 +1,88 @@
+#pragma once
+// Helpers shared by the flake model's tests: the material through the real ABI (BsdfHarness) with
+// flake-friendly defaults, footprints of a given expected count, and directions.
+
+#include <cmath>
+#include <memory>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "../common/microfacet.h"
+#include "bsdf_harness.h"
+#include "core/hash.h"
+
+namespace spangle::test {
+
+using FlakeParams = std::vector<std::pair<std::string, std::vector<double>>>;
+using FlakeStrings = std::vector<std::pair<std::string, std::string>>;
+
+/** Density of the test materials, flakes per uv unit square. */
+constexpr double kTestDensity = 1e5;
+
+/** A flake material, flakes only (no base), density kTestDensity. With `discrete` the discrete
+ *  lobe is kept for every footprint (the smooth lobe is reached by preparing without
+ *  differentials). */
+inline std::unique_ptr<BsdfHarness> flake_material(bool discrete, FlakeParams extra = {},
+                                                   FlakeStrings strings = {}) {
+    FlakeParams p = {{"flake_weight", {1.0}}, {"base_color", {0.0}}, {"density", {kTestDensity}}};
+    if (discrete) {
+        p.push_back({"min_flakes", {5e8}});
+        p.push_back({"max_flakes", {1e9}});
+    }
+    for (auto& e : extra) p.push_back(e);
+    return std::make_unique<BsdfHarness>("flake", "flake", p, strings);
+}
+
+/** Unit direction with the given cosine and azimuth. */
+inline Vec3 dir(float cos_t, float phi) {
+    const float s = std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t));
+    return {s * std::cos(phi), s * std::sin(phi), cos_t};
+}
+
+/** dir() as the plugins' own vector type, for tests that call the flake model's parts directly. */
+inline mf::V3 fdir(float cos_t, float phi) {
+    const Vec3 d = dir(cos_t, phi);
+    return {d.x, d.y, d.z};
+}
+
+/** The mirror direction of wo about the normal. */
+inline Vec3 mirror(Vec3 wo) {
+    return {-wo.x, -wo.y, wo.z};
+}
+
+/** A square footprint of expected count lambda (density kTestDensity) centred at (u, v). */
+inline BsdfHarness::Point footprint(double lambda, float u, float v) {
+    BsdfHarness::Point pt;
+    const double side = std::sqrt(lambda / kTestDensity);
+    pt.u = u;
+    pt.v = v;
+    pt.dudx = static_cast<float>(side);
+    pt.dvdy = static_cast<float>(side);
+    return pt;
+}
+
+/** The k-th of a series of random footprint centres (fixed seed `seed`), spread over 100 tiles
+ *  so that footprints are independent realisations. */
+inline BsdfHarness::Point random_footprint(double lambda, uint64_t seed, uint64_t k) {
+    return footprint(lambda, static_cast<float>(to_unit_double(hash2(seed, 2 * k)) * 100.0),
+                     static_cast<float>(to_unit_double(hash2(seed, 2 * k + 1)) * 100.0));
+}
+
+/** The smooth lobe's f at each wi (prepared without differentials). */
+inline std::vector<Vec3> smooth_f(BsdfHarness& m, Vec3 wo, const std::vector<Vec3>& wis) {
+    BsdfHarness::Point sp;
+    sp.has_differentials = false;
+    m.prepare(wo, sp);
+    std::vector<Vec3> f;
+    std::vector<float> pdf;
+    m.eval(wis, f, pdf);
+    return f;
+}
+
+/** Directional albedo of the prepared closure: mean of f cos / pdf over n samples. */
+inline double albedo(const BsdfHarness& m, uint32_t n, uint64_t seed, int channel = 1) {
+    return m.albedo(n, seed, channel).mean;
+}
+
+}  // namespace spangle::test

@@ -1,0 +1,292 @@
+// Flake facets (flake_size): the share of a facet inside a footprint, its nesting and mean, the
+// point-flake limit, and the material around a facet through the plugin ABI (a footprint inside
+// one facet is that flat mirror, one between facets is the base; energy; sampling against pdf is
+// in test_flake_lobes.cpp, the footprint average against the smooth lobe in
+// test_flake_looks.cpp).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <map>
+#include <vector>
+
+#include "core/hash.h"
+#include "facet.h"
+#include "field.h"
+#include "flake_support.h"
+
+namespace spangle::test {
+namespace {
+
+namespace fl = spangle::flake;
+
+/** An axis-aligned square footprint of side `side` centred at (u, v). */
+fl::Footprint square(double u, double v, double side) {
+    return fl::make_footprint(u, v, side, 0.0, 0.0, side, 1.0);
+}
+
+TEST(FlakeFacets, CoverageIsTheShareOfTheOutlineInside) {
+    // Exact cases by symmetry, for any turn of the facet (the turn comes from the flake's hash):
+    // the disc (a 32-gon) and the square are unchanged by quarter turns and every regular polygon
+    // by a half turn, so an edge through the centre halves each of them and a corner quarters the
+    // disc and the square.
+    const fl::Footprint p = square(0.5, 0.5, 0.2);
+    for (fl::FacetKind kind :
+         {fl::FacetKind::Hexagon, fl::FacetKind::Square, fl::FacetKind::Round}) {
+        const fl::FacetShape shape(kind);
+        for (uint64_t id = 1; id < 40; ++id) {
+            const uint64_t h = hash2(17, id);
+            EXPECT_EQ(fl::facet_coverage(p, shape, 0.01, 0.5, 0.5, h), 1.0f);
+            EXPECT_EQ(fl::facet_coverage(p, shape, 0.01, 0.75, 0.5, h), 0.0f);
+            EXPECT_NEAR(fl::facet_coverage(p, shape, 0.01, 0.4, 0.52, h), 0.5f, 1e-5f);
+            EXPECT_NEAR(fl::facet_coverage(p, shape, 0.01, 0.55, 0.6, h), 0.5f, 1e-5f);
+            if (kind != fl::FacetKind::Hexagon) {
+                EXPECT_NEAR(fl::facet_coverage(p, shape, 0.01, 0.4, 0.4, h), 0.25f, 1e-5f);
+                EXPECT_NEAR(fl::facet_coverage(p, shape, 0.01, 0.6, 0.6, h), 0.25f, 1e-5f);
+            }
+        }
+        // Areas at unit width: flat to flat for the hexagon, side for the square, diameter for
+        // the disc (its 32-gon within 0.7% of pi / 4).
+        const double expected = kind == fl::FacetKind::Hexagon  ? std::sqrt(3.0) / 2.0
+                                : kind == fl::FacetKind::Square ? 1.0
+                                                                : M_PI / 4.0;
+        EXPECT_NEAR(shape.area, expected, kind == fl::FacetKind::Round ? 0.007 : 1e-12);
+    }
+    // A singular footprint covers nothing.
+    const fl::Footprint flat = fl::make_footprint(0.5, 0.5, 0.0, 0.0, 0.0, 0.0, 1.0);
+    EXPECT_EQ(fl::facet_coverage(flat, fl::FacetShape(fl::FacetKind::Hexagon), 0.01, 0.5, 0.5, 3),
+              0.0f);
+}
+
+/** A sheared footprint of expected count lambda (density kTestDensity) at (u, v), scaled. */
+fl::Footprint sheared(double lambda, double u, double v, double scale) {
+    const double side = std::sqrt(lambda / kTestDensity / 1.06);  // det [a b] = 1.06 side^2
+    return fl::make_footprint(u, v, side, 0.3 * side, -0.2 * side, side, scale);
+}
+
+/** The facets reaching into P (sheared footprint of expected count lambda at (u, v)), by id. */
+std::map<uint64_t, float> facets_in(const fl::FacetShape& shape, double facet, double lambda,
+                                    double u, double v, double scale) {
+    fl::FieldParams fp;
+    fp.flakes_per_tile = kTestDensity;
+    fp.alpha = 0.3f;
+    fp.facet = &shape;
+    fp.facet_size = facet;
+    fl::Footprint p = sheared(lambda, u, v, scale);
+    p.reach = facet * shape.radius;
+    std::map<uint64_t, float> out;
+    bool truncated = false;
+    fl::for_each_flake(fp, p, 1u << 20, truncated,
+                       [&](const fl::Flake& f) { out[f.id] = f.cover; });
+    EXPECT_FALSE(truncated);
+    return out;
+}
+
+TEST(FlakeFacets, SharesAreNestedAndAverageToTheExpectedCount) {
+    // A footprint inside another sees each facet at most as much; over random footprints the
+    // shares add up to lambda on average (a facet's area is counted once wherever it falls), for
+    // facets from a tenth of the footprint's width to three times it.
+    const fl::FacetShape shape(fl::FacetKind::Hexagon);
+    const double lambda = 20.0, side = std::sqrt(lambda / kTestDensity);
+    EXPECT_NEAR(sheared(lambda, 0.5, 0.5, 1.0).area() * kTestDensity, lambda, 1e-9);
+    for (double rel : {0.1, 1.0, 3.0}) {
+        double sum = 0.0, sum2 = 0.0;
+        constexpr int kFootprints = 1500;
+        for (int k = 0; k < kFootprints; ++k) {
+            const double u = to_unit_double(hash2(5, 2 * k)) * 50.0;
+            const double v = to_unit_double(hash2(5, 2 * k + 1)) * 50.0;
+            const auto whole = facets_in(shape, rel * side, lambda, u, v, 1.0);
+            const auto half = facets_in(shape, rel * side, lambda, u, v, 0.5);
+            for (const auto& [id, c] : half) {
+                const auto it = whole.find(id);
+                ASSERT_NE(it, whole.end()) << "rel " << rel << " footprint " << k;
+                EXPECT_GE(it->second, c - 1e-6f) << "rel " << rel << " footprint " << k;
+            }
+            double s = 0.0;
+            for (const auto& [id, c] : whole) s += c;
+            sum += s;
+            sum2 += s * s;
+        }
+        const double mean = sum / kFootprints;
+        const double se = std::sqrt((sum2 / kFootprints - mean * mean) / kFootprints);
+        EXPECT_NEAR(mean, lambda, 4.0 * se) << "facets " << rel << " x the footprint";
+    }
+}
+
+TEST(FlakeFacets, TinyFacetsAreThePointFlakes) {
+    // As the facets shrink against the footprint the lobe becomes the point flakes' lobe: with
+    // facets a millionth of the footprint's width every flake counts wholly or not at all (but
+    // those within that distance of P's edge), so the flake lobe is the point model's: the same
+    // pdf, and f the same up to one factor per footprint, the footprint's flake share (its flake
+    // count against lambda, at most 1: facets cover the base where they are).
+    auto points = flake_material(true, {{"gamma", {4.0}}, {"flake_roughness", {0.3}}},
+                                 {{"algorithm", "enumerate"}});
+    auto facets =
+        flake_material(true, {{"gamma", {4.0}}, {"flake_roughness", {0.3}}, {"flake_size", {1e-9}}},
+                       {{"algorithm", "enumerate"}});
+    std::vector<Vec3> wis;
+    for (uint32_t i = 0; i < 300; ++i)
+        wis.push_back(dir(sample_1d(9, i, 0, 0), 2.0f * kPi * sample_1d(9, i, 0, 1)));
+    int lit = 0;
+    for (uint64_t k = 0; k < 30; ++k) {
+        const Vec3 wo = dir(0.3f + 0.02f * static_cast<float>(k), 0.2f * static_cast<float>(k));
+        const BsdfHarness::Point pt = random_footprint(40.0, 21, k);
+        points->prepare(wo, pt);
+        facets->prepare(wo, pt);
+        std::vector<Vec3> fp, ff;
+        std::vector<float> pp, pf;
+        points->eval(wis, fp, pp);
+        facets->eval(wis, ff, pf);
+        float share = -1.0f;
+        for (std::size_t i = 0; i < wis.size(); ++i) {
+            EXPECT_EQ(pp[i], pf[i]) << "footprint " << k << " direction " << i;
+            if (fp[i].y <= 0.0f) {
+                EXPECT_EQ(ff[i].y, 0.0f);
+                continue;
+            }
+            ++lit;
+            if (share < 0.0f) share = ff[i].y / fp[i].y;
+            EXPECT_NEAR(ff[i].y / fp[i].y, share, 1e-5f) << "footprint " << k;
+        }
+        EXPECT_LE(share, 1.0f);
+    }
+    EXPECT_GT(lit, 50);  // the directions do meet glints
+}
+
+/** The first flake (by id order) whose facet covers the footprint of side `side` at its centre
+ *  wholly, searching around (u, v); returns its centre. */
+bool facet_centre(const fl::FacetShape& shape, double facet, double u, double v, double& cu,
+                  double& cv) {
+    const auto around = facets_in(shape, facet, 400.0, u, v, 1.0);
+    fl::FieldParams fp;
+    fp.flakes_per_tile = kTestDensity;
+    fp.alpha = 0.3f;
+    const double side = std::sqrt(400.0 / kTestDensity);
+    fl::Footprint p = fl::make_footprint(u, v, side, 0.3 * side, -0.2 * side, side, 1.0);
+    bool truncated = false, found = false;
+    fl::for_each_flake(fp, p, 1u << 20, truncated, [&](const fl::Flake& f) {
+        if (!found && around.count(f.id)) {
+            cu = f.u;
+            cv = f.v;
+            found = true;
+        }
+    });
+    return found;
+}
+
+TEST(FlakeFacets, AFootprintInsideAFacetSeesThatMirrorAndOneBetweenThemTheBase) {
+    // Facets covering a fifth of the surface (flake_weight 0.2), footprints a hundredth of a
+    // facet wide: a macro view.
+    const double density = kTestDensity;
+    const double facet = std::sqrt(0.2 / (density * std::sqrt(3.0) / 2.0));
+    const fl::FacetShape shape(fl::FacetKind::Hexagon);
+    auto m = flake_material(true,
+                            {{"gamma", {4.0}},
+                             {"flake_roughness", {0.3}},
+                             {"flake_size", {facet}},
+                             {"flake_weight", {0.2}},
+                             {"base_color", {0.5, 0.5, 0.5}},
+                             {"shadowing", {0.0}}},
+                            {{"preset", "perfect"}, {"algorithm", "enumerate"}});
+    const Vec3 wo = dir(0.8f, 0.4f);
+    int on = 0, alone = 0, between = 0;
+    for (uint64_t k = 0; k < 40; ++k) {
+        double cu = 0.0, cv = 0.0;
+        const double u0 = to_unit_double(hash2(8, 2 * k)) * 40.0;
+        const double v0 = to_unit_double(hash2(8, 2 * k + 1)) * 40.0;
+        ASSERT_TRUE(facet_centre(shape, facet, u0, v0, cu, cv));
+        // Two tiny footprints near the centre of the facet: the same flat mirror, all of the
+        // light in one cone (albedo 1 but for the cone's share under the horizon; at cos 0.8 and
+        // a roughness of 0.3 a cone may dip under it, hence >= 0.9 rather than 1).
+        BsdfHarness::Point pt;
+        pt.u = static_cast<float>(cu);
+        pt.v = static_cast<float>(cv);
+        pt.dudx = pt.dvdy = static_cast<float>(facet * 0.01);
+        const auto lit_cones = [&](const BsdfHarness& h) {
+            double sum = 0.0;
+            for (const auto& s : h.sample(2000, k))
+                if (s.flags != 0 && s.pdf > 0.0f) sum += s.f.y * s.wi.z / s.pdf;
+            return sum / 2000.0;
+        };
+        m->prepare(wo, pt);
+        const double albedo = lit_cones(*m);
+        std::vector<Vec3> wis, f0, f;
+        std::vector<float> pdf;
+        for (const auto& s : m->sample(64, 3 * k))
+            if (s.flags != 0) wis.push_back(s.wi);
+        if (wis.empty()) continue;  // the facet faces away from wo
+        m->eval(wis, f0, pdf);
+        pt.u += static_cast<float>(facet * 0.05);
+        m->prepare(wo, pt);
+        m->eval(wis, f, pdf);
+        // Where the neighbouring footprint lies on this facet alone (facets may overlap: a fifth
+        // of the surface is covered), it reflects each sampled direction as brightly: one mirror.
+        const double lambda_pt = kTestDensity * facet * facet * 1e-4;
+        if (facets_in(shape, facet, lambda_pt, cu, cv, 1.0).size() == 1 &&
+            facets_in(shape, facet, lambda_pt, pt.u, pt.v, 1.0).size() == 1) {
+            ++alone;
+            for (std::size_t i = 0; i < wis.size(); ++i)
+                EXPECT_NEAR(f[i].y, f0[i].y, 1e-3f * f0[i].y + 1e-6f);
+        }
+        EXPECT_LE(albedo, 1.0 + 1e-3);
+        // The facet may overlap another; alone it reflects all it receives but its cone's share
+        // under the horizon.
+        if (albedo > 0.0) {
+            EXPECT_GT(albedo, 0.5);
+            ++on;
+        }
+    }
+    EXPECT_GT(on, 20);
+    EXPECT_GT(alone, 15);
+    // Between facets: the base alone, f = base / pi, in every direction.
+    for (uint64_t k = 0; k < 200 && between < 10; ++k) {
+        BsdfHarness::Point pt;
+        pt.u = static_cast<float>(to_unit_double(hash2(9, 2 * k)) * 40.0);
+        pt.v = static_cast<float>(to_unit_double(hash2(9, 2 * k + 1)) * 40.0);
+        pt.dudx = pt.dvdy = static_cast<float>(facet * 0.01);
+        fl::FieldParams fp;
+        fp.flakes_per_tile = density;
+        fp.alpha = 0.3f;
+        fp.facet = &shape;
+        fp.facet_size = facet;
+        fl::Footprint p = fl::make_footprint(pt.u, pt.v, pt.dudx, 0.0, 0.0, pt.dvdy, 1.0);
+        p.reach = facet * shape.radius;
+        bool truncated = false, any = false;
+        fl::for_each_flake(fp, p, 1000, truncated, [&](const fl::Flake&) { any = true; });
+        if (any) continue;
+        ++between;
+        m->prepare(wo, pt);
+        std::vector<Vec3> f;
+        std::vector<float> pdf;
+        m->eval({dir(0.9f, 1.0f), mirror(wo), dir(0.2f, 2.0f)}, f, pdf);
+        for (const Vec3& x : f) EXPECT_NEAR(x.y, 0.5f / kPi, 1e-5f);
+    }
+    EXPECT_EQ(between, 10);
+}
+
+TEST(FlakeFacets, NoFootprintGainsEnergy) {
+    // Perfect white mirror facets, shadowing off, from footprints a tenth of a facet to many
+    // facets wide, down to grazing views: each footprint's lobe is normalised by its facets'
+    // shares, so it reflects at most what it receives (the cache is sampled in proportion to
+    // its lobe: the estimate has float rounding's variance only).
+    const double facet = std::sqrt(0.5 / (kTestDensity * std::sqrt(3.0) / 2.0));
+    for (double lambda : {0.05, 2.0, 60.0})
+        for (float cos_o : {1.0f, 0.3f, 1e-3f}) {
+            auto m = flake_material(true,
+                                    {{"shadowing", {0.0}},
+                                     {"gamma", {3.0}},
+                                     {"flake_size", {facet}},
+                                     {"flake_weight", {0.5}}},
+                                    {{"preset", "perfect"}, {"algorithm", "enumerate"}});
+            for (uint64_t k = 0; k < 40; ++k) {
+                m->prepare(dir(cos_o, 0.7f), random_footprint(lambda, 33, k));
+                double sum = 0.0;
+                for (const auto& s : m->sample(1000, k))
+                    if (s.flags != 0 && s.pdf > 0.0f) sum += s.f.y * s.wi.z / s.pdf;
+                EXPECT_LE(sum / 1000.0, 1.0 + 1e-4) << "lambda " << lambda << " cos_o " << cos_o;
+            }
+        }
+}
+
+}  // namespace
+}  // namespace spangle::test

@@ -1,0 +1,357 @@
+// The flake field (../shared/FLAKES.md sections 1 to 3): determinism and nesting of the flakes,
+// unbiased counts, exact multinomial splits, the map from the unit square to GGX flake normals,
+// and the counting algorithm's view of the same field.
+
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <limits>
+#include <set>
+
+#include "chi2.h"
+#include "core/hash.h"
+#include "counted_lobe.h"
+#include "field.h"
+
+namespace spangle::test {
+namespace {
+
+using flake::FieldParams;
+using flake::Flake;
+using flake::Footprint;
+
+std::vector<std::pair<double, double>> flakes_in(const FieldParams& fp, const Footprint& p,
+                                                 uint32_t cap = 1000000) {
+    std::vector<std::pair<double, double>> out;
+    bool truncated = false;
+    flake::for_each_flake(fp, p, cap, truncated,
+                          [&](const Flake& f) { out.emplace_back(f.u, f.v); });
+    EXPECT_FALSE(truncated);
+    std::sort(out.begin(), out.end());
+    return out;
+}
+
+FieldParams field(double n) {
+    FieldParams fp;
+    fp.seed = 11;
+    fp.flakes_per_tile = n;
+    return fp;
+}
+
+TEST(FlakeField, ChildCountsSumToParent) {
+    for (uint32_t n : {0u, 1u, 5u, 16u, 127u, 128u, 1000u, 123456u, 2147483647u})
+        for (uint64_t key = 0; key < 200; ++key) {
+            uint32_t c[4];
+            flake::split_counts(hash2(key, n), n, 128, c);
+            ASSERT_EQ(static_cast<uint64_t>(c[0]) + c[1] + c[2] + c[3], n) << "n " << n;
+        }
+}
+
+TEST(FlakeField, SplitsHaveMultinomialMoments) {
+    // Each child ~ B(n, 1/4): mean n/4, variance 3n/16, covariance of two children -n/16, for the
+    // exact split (n = 40, 500 with exact_below 1000) and the normal approximation (n = 1e5).
+    for (const auto& [n, exact_below] :
+         {std::pair<uint32_t, int>{40, 1000}, {500, 1000}, {100000, 0}}) {
+        constexpr int kN = 40000;
+        double s0 = 0, s00 = 0, s1 = 0, s01 = 0;
+        for (int i = 0; i < kN; ++i) {
+            uint32_t c[4];
+            flake::split_counts(hash2(17, static_cast<uint64_t>(i)), n, exact_below, c);
+            s0 += c[0];
+            s00 += static_cast<double>(c[0]) * c[0];
+            s1 += c[1];
+            s01 += static_cast<double>(c[0]) * c[1];
+        }
+        const double m0 = s0 / kN, v0 = s00 / kN - m0 * m0, m1 = s1 / kN;
+        const double cov = s01 / kN - m0 * m1;
+        const double var = 3.0 * n / 16.0;
+        // Standard errors: of a mean sqrt(var / N); of a variance about var sqrt(2 / N); of the
+        // covariance about sqrt(var^2 / N).
+        EXPECT_NEAR(m0, n / 4.0, 4.0 * std::sqrt(var / kN)) << "n " << n;
+        EXPECT_NEAR(v0, var, 4.0 * var * std::sqrt(2.0 / kN)) << "n " << n;
+        EXPECT_NEAR(cov, -static_cast<double>(n) / 16.0, 4.0 * var / std::sqrt(kN)) << "n " << n;
+    }
+}
+
+TEST(FlakeField, AddingAFlakeAddsItToOneChild) {
+    // Below exact_below a split draws two bits per flake: n + 1 flakes split like n, plus one.
+    for (uint64_t key = 0; key < 500; ++key)
+        for (uint32_t n = 0; n < 120; n += 7) {
+            uint32_t a[4], b[4];
+            flake::split_counts(hash2(key, 99), n, 128, a);
+            flake::split_counts(hash2(key, 99), n + 1, 128, b);
+            int grew = 0;
+            for (int c = 0; c < 4; ++c) {
+                ASSERT_GE(b[c], a[c]);
+                grew += static_cast<int>(b[c] - a[c]);
+            }
+            ASSERT_EQ(grew, 1);
+        }
+}
+
+TEST(FlakeField, BinomialMomentsExactAndNormal) {
+    // Mean n p and variance n p (1 - p) for both samplers (n = 100 exact, n = 100000 normal).
+    for (const auto& [n, exact_below] : {std::pair<uint32_t, int>{100, 1000}, {100000, 0}}) {
+        double sum = 0, sum2 = 0;
+        constexpr int kN = 40000;
+        for (int i = 0; i < kN; ++i) {
+            const double k = flake::binomial(
+                n, 0.3, to_unit_double(hash2(3, static_cast<uint64_t>(i))), exact_below);
+            sum += k;
+            sum2 += k * k;
+        }
+        const double mean = sum / kN, var = sum2 / kN - mean * mean;
+        const double want_mean = n * 0.3, want_var = n * 0.3 * 0.7;
+        EXPECT_NEAR(mean, want_mean, 4.0 * std::sqrt(want_var / kN)) << "n " << n;
+        EXPECT_NEAR(var, want_var, 4.0 * want_var * std::sqrt(2.0 / kN)) << "n " << n;
+    }
+}
+
+TEST(FlakeField, BinomialNeverDecreasesWithP) {
+    // The counting algorithm thins a cell's flakes by the share of it the footprint covers: a
+    // footprint that covers more must not see fewer (inversion of the CDF is monotone).
+    for (uint32_t n : {3u, 50u, 120u})
+        for (int i = 0; i < 300; ++i) {
+            const double u = to_unit_double(hash2(5, static_cast<uint64_t>(i)));
+            uint32_t prev = 0;
+            for (double p = 0.0; p <= 1.0; p += 0.01) {
+                const uint32_t k = flake::binomial(n, p, u, 128);
+                ASSERT_GE(k, prev) << "n " << n << " p " << p;
+                prev = k;
+            }
+        }
+}
+
+TEST(FlakeField, SetIsAPureFunctionOfTheFootprint) {
+    const FieldParams fp = field(100000);
+    const Footprint p = flake::make_footprint(0.3, 0.7, 0.01, 0.002, -0.003, 0.012, 1.0);
+    const auto a = flakes_in(fp, p), b = flakes_in(fp, p);
+    EXPECT_GT(a.size(), 5u);
+    EXPECT_EQ(a, b);
+    FieldParams other = fp;
+    other.seed = 12;
+    EXPECT_NE(flakes_in(other, p), a) << "another seed is another realisation";
+}
+
+TEST(FlakeField, NestedFootprintsGiveSubsets) {
+    const FieldParams fp = field(500000);
+    for (int trial = 0; trial < 20; ++trial) {
+        const double cu = 0.05 + 0.9 * to_unit_double(hash2(7, static_cast<uint64_t>(trial)));
+        const double cv = 0.05 + 0.9 * to_unit_double(hash2(8, static_cast<uint64_t>(trial)));
+        const Footprint big = flake::make_footprint(cu, cv, 0.02, 0.004, -0.006, 0.018, 1.0);
+        const Footprint small = flake::make_footprint(cu, cv, 0.02, 0.004, -0.006, 0.018, 0.5);
+        const auto outer = flakes_in(fp, big), inner = flakes_in(fp, small);
+        EXPECT_TRUE(std::includes(outer.begin(), outer.end(), inner.begin(), inner.end()))
+            << "trial " << trial;
+        EXPECT_LT(inner.size(), outer.size());
+    }
+}
+
+TEST(FlakeField, CountsAreUnbiasedWithBinomialVariance) {
+    // Random footprints of fixed area A inside a tile of N flakes hold Binomial(N, A) flakes.
+    for (const auto& [n, scale, depth] : {std::tuple<double, double, int>{200000, 0.004, 12},
+                                          {2147483647.0, 0.0002, 24},
+                                          {2000, 0.05, 10}}) {
+        FieldParams fp = field(n);
+        fp.max_depth = depth;
+        constexpr int kTrials = 3000;
+        double sum = 0, sum2 = 0, area = 0;
+        for (int t = 0; t < kTrials; ++t) {
+            const double cu = 0.1 + 0.8 * to_unit_double(hash2(21, static_cast<uint64_t>(t)));
+            const double cv = 0.1 + 0.8 * to_unit_double(hash2(22, static_cast<uint64_t>(t)));
+            const Footprint p =
+                flake::make_footprint(cu, cv, scale, 0.3 * scale, -0.2 * scale, 0.9 * scale, 1.0);
+            area = p.area();
+            bool truncated = false;
+            const double k =
+                flake::for_each_flake(fp, p, 100000000, truncated, [](const Flake&) {});
+            sum += k;
+            sum2 += k * k;
+        }
+        const double lambda = n * area;
+        const double mean = sum / kTrials, var = sum2 / kTrials - mean * mean;
+        const double want_var = lambda * (1.0 - area);
+        EXPECT_NEAR(mean, lambda, 4.0 * std::sqrt(want_var / kTrials)) << "N " << n;
+        // The sample variance of a Poisson-like count has standard error ~ var sqrt(2 / trials)
+        // (plus a kurtosis term 1 / lambda that is small here).
+        EXPECT_NEAR(var, want_var,
+                    5.0 * want_var * std::sqrt(2.0 / kTrials + 1.0 / (kTrials * lambda)))
+            << "N " << n;
+    }
+}
+
+TEST(FlakeField, FootprintClampKeepsCentreAndBoundsTheRatio) {
+    const Footprint p = flake::make_footprint(0.5, 0.5, 0.1, 0.0, 0.0, 0.001, 1.0);
+    const double la = std::hypot(p.ax, p.ay), lb = std::hypot(p.bx, p.by);
+    EXPECT_NEAR(std::max(la, lb) / std::min(la, lb), 4.0, 1e-9);
+    EXPECT_EQ(p.cu, 0.5);
+    const Footprint z = flake::make_footprint(0.5, 0.5, 0, 0, 0, 0, 1.0);
+    EXPECT_EQ(z.area(), 0.0);
+}
+
+TEST(FlakeField, OverlapAreaMatchesMonteCarlo) {
+    for (int t = 0; t < 30; ++t) {
+        const auto r = [&](int k) {
+            return to_unit_double(hash2(31 + k, static_cast<uint64_t>(t)));
+        };
+        const Footprint p = flake::make_footprint(r(0), r(1), 0.6 * r(2) - 0.3, 0.6 * r(3) - 0.3,
+                                                  0.6 * r(4) - 0.3, 0.6 * r(5) - 0.3, 1.0);
+        const double x0 = 0.2 * r(6), y0 = 0.2 * r(7), x1 = x0 + 0.5, y1 = y0 + 0.4;
+        constexpr int kN = 200000;
+        int in = 0;
+        for (int i = 0; i < kN; ++i) {
+            const double u = x0 + (x1 - x0) * to_unit_double(hash2(41, static_cast<uint64_t>(i)));
+            const double v = y0 + (y1 - y0) * to_unit_double(hash2(42, static_cast<uint64_t>(i)));
+            in += flake::inside(p, u, v);
+        }
+        const double cell = (x1 - x0) * (y1 - y0), frac = static_cast<double>(in) / kN;
+        EXPECT_NEAR(flake::overlap_area(p, x0, y0, x1, y1) / cell, frac,
+                    4.0 * std::sqrt(frac * (1.0 - frac) / kN) + 1e-9)
+            << "trial " << t;
+    }
+}
+
+TEST(FlakeNormals, SquareMapRoundTrips) {
+    for (float alpha : {0.001f, 0.15f, 1.0f})
+        for (int i = 0; i < 20000; ++i) {
+            const auto s = static_cast<float>(to_unit_double(hash2(51, static_cast<uint64_t>(i))));
+            const auto t = static_cast<float>(to_unit_double(hash2(52, static_cast<uint64_t>(i))));
+            const flake::V3 m = flake::flake_normal(alpha, s, t);
+            ASSERT_NEAR(std::sqrt(m.x * m.x + m.y * m.y + m.z * m.z), 1.0f, 1e-5f);
+            float s2, t2;
+            flake::flake_square(alpha, m, s2, t2);
+            // Float precision of the stretch: tilted normals of alpha 0.001 lose a few bits.
+            ASSERT_NEAR(s2, s, 2e-3f) << "alpha " << alpha;
+            ASSERT_NEAR(t2, t, 2e-3f) << "alpha " << alpha;
+        }
+}
+
+TEST(FlakeNormals, FollowTheGgxDistribution) {
+    // Normals with density D(m) (m.n) have tan^2(theta) with CDF x / (alpha^2 + x); their azimuth
+    // is uniform. Chi-square over equal-probability bins of both.
+    for (float alpha : {0.05f, 0.3f}) {
+        constexpr int kBins = 40, kN = 200000;
+        std::vector<double> radial(kBins, 0.0), azimuth(kBins, 0.0);
+        for (int i = 0; i < kN; ++i) {
+            const auto s = static_cast<float>(to_unit_double(hash2(61, static_cast<uint64_t>(i))));
+            const auto t = static_cast<float>(to_unit_double(hash2(62, static_cast<uint64_t>(i))));
+            const flake::V3 m = flake::flake_normal(alpha, s, t);
+            const double x = (m.x * m.x + m.y * m.y) / (static_cast<double>(m.z) * m.z);
+            const double cdf = x / (static_cast<double>(alpha) * alpha + x);
+            radial[std::min(kBins - 1, static_cast<int>(cdf * kBins))] += 1.0;
+            const double phi = std::atan2(m.y, m.x) / (2.0 * M_PI) + 0.5;
+            azimuth[std::min(kBins - 1, static_cast<int>(phi * kBins))] += 1.0;
+        }
+        const std::vector<double> expected(kBins, static_cast<double>(kN) / kBins);
+        EXPECT_GT(chi2_test(radial, expected).p_value, 0.01) << "alpha " << alpha;
+        EXPECT_GT(chi2_test(azimuth, expected).p_value, 0.01) << "alpha " << alpha;
+    }
+}
+
+TEST(FlakeCounting, SmallFootprintsSeeTheEnumeratedFlakes) {
+    // Cells under exact_flakes are enumerated: the counting algorithm finds exactly the flakes
+    // the enumeration finds.
+    const FieldParams fp = field(100000);
+    for (int t = 0; t < 40; ++t) {
+        const double side = std::sqrt((5.0 + t) / 100000.0);
+        const Footprint p =
+            flake::make_footprint(10.0 * to_unit_double(hash2(71, static_cast<uint64_t>(t))),
+                                  10.0 * to_unit_double(hash2(72, static_cast<uint64_t>(t))), side,
+                                  0.2 * side, 0.0, side, 1.0);
+        std::vector<std::pair<double, double>> counted;
+        flake::CountedFootprint cf;
+        flake::gather_cells(fp, p, 1000, cf,
+                            [&](const Flake& f) { counted.emplace_back(f.u, f.v); });
+        std::sort(counted.begin(), counted.end());
+        EXPECT_EQ(cf.n_agg, 0u);
+        EXPECT_EQ(counted, flakes_in(fp, p)) << "trial " << t;
+    }
+}
+
+TEST(FlakeCounting, CountsAreUnbiased) {
+    // Enumerated plus aggregated flakes in random footprints of expected count lambda: mean lambda
+    // (the aggregates' binomial thinning is unbiased), variance about lambda.
+    const FieldParams fp = field(100000);
+    for (double lambda : {50.0, 800.0, 20000.0}) {
+        constexpr int kTrials = 3000;
+        double sum = 0, sum2 = 0;
+        const double side = std::sqrt(lambda / 100000.0);
+        for (int t = 0; t < kTrials; ++t) {
+            const Footprint p =
+                flake::make_footprint(50.0 * to_unit_double(hash2(81, static_cast<uint64_t>(t))),
+                                      50.0 * to_unit_double(hash2(82, static_cast<uint64_t>(t))),
+                                      side, 0.0, 0.0, side, 1.0);
+            flake::CountedFootprint cf;
+            uint32_t exact = 0;
+            flake::gather_cells(fp, p, 64, cf, [&](const Flake&) { ++exact; });
+            ASSERT_FALSE(cf.truncated);
+            const double k = exact + cf.aggregated;
+            sum += k;
+            sum2 += k * k;
+        }
+        const double mean = sum / kTrials, var = sum2 / kTrials - mean * mean;
+        EXPECT_NEAR(mean, lambda, 4.0 * std::sqrt(lambda / kTrials)) << "lambda " << lambda;
+        // A cell's count and its thinning are both binomial: the variance is lambda to within
+        // the correlation of neighbouring cells' counts (under 20% here).
+        EXPECT_NEAR(var / lambda, 1.0, 0.2) << "lambda " << lambda;
+    }
+}
+
+TEST(FlakeCounting, WorkIsBoundedForAnyFootprint) {
+    // However large the footprint or the density, a shading point visits at most 4 tiles and
+    // 16 cells: the counting algorithm either gathers or declines (the smooth lobe takes over).
+    for (double density : {1.0, 1e5, 2147483647.0})
+        for (double side : {1e-7, 1e-3, 0.5, 3.0, 1e6}) {
+            const FieldParams fp = field(density);
+            const Footprint p = flake::make_footprint(0.3, 0.6, side, 0.0, 0.0, side, 1.0);
+            flake::CountedFootprint cf;
+            uint32_t exact = 0;
+            flake::gather_cells(fp, p, 256, cf, [&](const Flake&) { ++exact; });
+            EXPECT_LE(cf.n_agg, flake::kMaxAggregates);
+            EXPECT_LE(exact, 16u * 256u);
+            if (side > 2.0) {
+                EXPECT_TRUE(cf.truncated);
+            }
+        }
+}
+
+TEST(FlakeCounting, FootprintsThatAreNotNumbersOrFarAwayAreDeclined) {
+    // A NaN centre or extent (a degenerate uv) and uv far beyond any tile index: the tile range
+    // is computed without overflow or a float-to-int conversion of NaN, and counting declines
+    // (truncated, no cells) so that the smooth lobe takes over instead of a black lobe.
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const double inf = std::numeric_limits<double>::infinity();
+    const FieldParams fp = field(1e4);
+    struct Case {
+        double u, v, side;
+    };
+    for (const Case c :
+         {Case{nan, 0.5, 1e-3}, Case{0.5, nan, 1e-3}, Case{0.5, 0.5, nan}, Case{0.5, 0.5, inf},
+          Case{1e30, -1e30, 1e-3}, Case{-inf, 0.5, 1e-3}, Case{0.5, 0.5, 1e25}}) {
+        Footprint p = flake::make_footprint(0.3, 0.6, 1e-3, 0.0, 0.0, 1e-3, 1.0);
+        p.cu = c.u;
+        p.cv = c.v;
+        p.ax = p.by = c.side;
+        const flake::TileRange tr = flake::tiles_of(p);
+        if (std::isnan(c.u) || std::isnan(c.v) || std::isnan(c.side)) {
+            EXPECT_GT(tr.count(), 64u) << c.u << " " << c.v << " " << c.side;
+        }
+        flake::CountedFootprint cf;
+        uint32_t exact = 0;
+        flake::gather_cells(fp, p, 256, cf, [&](const Flake&) { ++exact; });
+        if (std::isnan(c.u) || std::isnan(c.v) || std::isnan(c.side) || c.side > 2.0) {
+            EXPECT_TRUE(cf.truncated) << c.u << " " << c.v << " " << c.side;
+            EXPECT_EQ(cf.n_agg, 0u);
+            EXPECT_EQ(exact, 0u);
+        }
+    }
+    // A wide range saturates instead of overflowing.
+    Footprint wide;
+    wide.ax = wide.by = 1e19;
+    EXPECT_EQ(flake::tiles_of(wide).count(), UINT64_MAX);
+}
+
+}  // namespace
+}  // namespace spangle::test

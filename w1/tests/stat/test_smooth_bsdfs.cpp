@@ -1,0 +1,396 @@
+// Statistical tests of the smooth plugin through its ABI: chi-square of sample() against pdf(),
+// agreement of sample() and eval(), white furnace, reciprocity.
+//
+// The chi-square bins samples in a warped domain where every roughness looks alike
+// (warp_chi2.h).
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+#include <numeric>
+
+#include "bsdf_harness.h"
+#include "chi2.h"
+#include "warp_chi2.h"
+
+namespace spangle::test {
+namespace {
+
+constexpr uint32_t kSamples = 100000;
+constexpr double kSignificance = 0.01;
+
+/** One chi-square case: model, parameters, wo, side. */
+struct Case {
+    std::string name;
+    std::string model;
+    float ax, ay;
+    float cos_o;
+    bool backface;
+};
+
+/** gtest prints a case by its name rather than its bytes. */
+void PrintTo(const Case& c, std::ostream* os) {
+    *os << c.name;
+}
+
+std::vector<Case> all_cases() {
+    std::vector<Case> out;
+    const std::pair<float, float> alphas[] = {
+        {0.001f, 0.001f}, {0.05f, 0.05f}, {0.3f, 0.3f}, {1.0f, 1.0f}, {0.05f, 0.4f}};
+    const float cosines[] = {0.95f, 0.5f, 0.1f};
+    for (const char* model : {"conductor", "dielectric", "dielectric_back", "plastic"})
+        for (const auto& [ax, ay] : alphas)
+            for (float c : cosines) {
+                const std::string m = model;
+                const bool back = m == "dielectric_back";
+                const std::string name =
+                    fmt::format("{}_a{}_{}_cos{}", m, static_cast<int>(ax * 1000),
+                                static_cast<int>(ay * 1000), static_cast<int>(c * 100));
+                out.push_back({name, back ? "dielectric" : m, ax, ay, c, back});
+            }
+    for (float c : cosines)
+        out.push_back(
+            {fmt::format("diffuse_cos{}", static_cast<int>(c * 100)), "diffuse", 1, 1, c, false});
+    return out;
+}
+
+std::unique_ptr<BsdfHarness> make(const Case& c) {
+    std::vector<std::pair<std::string, std::vector<double>>> num;
+    std::vector<std::pair<std::string, std::string>> str;
+    if (c.model != "diffuse") {
+        num.push_back({"roughness", {c.ax}});
+        num.push_back({"roughness_v", {c.ay}});
+    }
+    if (c.model == "plastic") num.push_back({"albedo", {0.5, 0.5, 0.5}});
+    if (c.model == "conductor") str.push_back({"preset", "gold"});
+    return std::make_unique<BsdfHarness>("smooth", c.model, num, str);
+}
+
+Vec3 wo_for(float cos_o) {
+    const float s = std::sqrt(1.0f - cos_o * cos_o);
+    return {s * std::cos(0.7f), s * std::sin(0.7f), cos_o};  // off-axis, to exercise anisotropy
+}
+
+class SmoothChi2 : public ::testing::TestWithParam<Case> {};
+
+TEST_P(SmoothChi2, SampleMatchesPdf) {
+    const Case& c = GetParam();
+    auto bsdf = make(c);
+    const Vec3 wo = wo_for(c.cos_o);
+    bsdf->prepare(wo, c.backface);
+    const float ior = 1.5f;
+    const float eta = c.model == "dielectric" ? (c.backface ? 1.0f / ior : ior) : 0.0f;
+    const Warp warp{wo, c.ax, c.ay, eta};
+    double total = 0.0;
+    const double per_test =
+        1.0 - std::pow(1.0 - kSignificance, 1.0 / static_cast<double>(all_cases().size()));
+    const Chi2Result r = warped_chi2(*bsdf, warp, kSamples, 4242, per_test, c.name, total);
+    EXPECT_LT(total, 1.0 + 2e-3) << "the pdf integrates to more than 1";
+    EXPECT_GT(r.p_value, per_test) << c.name << ": chi2 " << r.statistic << " with " << r.dof
+                                   << " dof, pooled " << r.pooled << " cells";
+}
+
+INSTANTIATE_TEST_SUITE_P(Smooth, SmoothChi2, ::testing::ValuesIn(all_cases()),
+                         [](const ::testing::TestParamInfo<Case>& p) { return p.param.name; });
+
+/** Albedo estimates from kSamples samples, seed 77 (transmission scaled by eta2: radiance). */
+BsdfHarness::Albedo albedo(const BsdfHarness& b, float eta2 = 1.0f) {
+    return b.albedo(kSamples, 77, 1, eta2);
+}
+
+TEST(SmoothFurnace, PerfectConductorReturnsOne) {
+    // With its multiple scattering (the default) a white isotropic conductor reflects everything
+    // at every roughness and angle: E(o) + (1 - E(o)) = 1 by construction; 5e-3 allows for the
+    // albedo tables (512-point quadratures, bilinear in 32 cosines x 32 roughnesses). An
+    // anisotropic one is compensated as an isotropic one (smooth.cpp, ms_alpha): most of its loss
+    // comes back, never more than all of it. Single-scattering GGX loses energy at high roughness
+    // (at alpha 1, 0.69 of it head-on) and never gains any.
+    const std::pair<float, float> alphas[] = {{0.001f, 0.001f}, {0.1f, 0.1f}, {0.5f, 0.5f},
+                                              {1.0f, 1.0f},     {0.2f, 0.8f}, {0.05f, 0.4f},
+                                              {0.001f, 1.0f},   {1.0f, 0.01f}};
+    for (const auto& [ax, ay] : alphas)
+        for (float c : {1.0f, 0.7f, 0.3f, 0.05f}) {
+            BsdfHarness ms("smooth", "conductor", {{"roughness", {ax}}, {"roughness_v", {ay}}},
+                           {{"preset", "perfect"}});
+            ms.prepare(wo_for(c));
+            const BsdfHarness::Albedo e = albedo(ms);
+            BsdfHarness ss("smooth", "conductor",
+                           {{"roughness", {ax}}, {"roughness_v", {ay}}, {"multiscatter", {0.0}}},
+                           {{"preset", "perfect"}});
+            ss.prepare(wo_for(c));
+            const BsdfHarness::Albedo e1 = albedo(ss);
+            if (ax == ay) {
+                EXPECT_NEAR(e.mean, 1.0, 4.0 * e.se + 5e-3) << "alpha " << ax << " cos " << c;
+            } else {
+                EXPECT_LE(e.mean, 1.0 + 4.0 * e.se) << "alpha " << ax << "/" << ay << " cos " << c;
+                EXPECT_GT(e.mean, e1.mean + 0.5 * (1.0 - e1.mean))
+                    << "alpha " << ax << "/" << ay << " cos " << c << ": single " << e1.mean;
+            }
+            EXPECT_LE(e1.mean, 1.0 + 4.0 * e1.se) << "alpha " << ax << " cos " << c;
+            if (ax <= 0.1f && ay <= 0.1f && c >= 0.7f) {
+                EXPECT_GT(e1.mean, 0.98) << "alpha " << ax << " cos " << c;
+            }
+            if (ax >= 1.0f && ay >= 1.0f && c >= 0.7f) {
+                EXPECT_LT(e1.mean, 0.8) << "single scattering loses light at alpha 1, cos " << c;
+            }
+        }
+}
+
+TEST(SmoothFurnace, ColouredConductorGainsWithItsMultipleScatteringButNeverExceedsOne) {
+    // Gold: multiple scattering adds light at high roughness, tinted (each further bounce is
+    // coloured by the Fresnel average), and never lifts a channel above 1 or changes a near
+    // mirror.
+    for (float a : {0.01f, 0.3f, 1.0f})
+        for (float c : {1.0f, 0.3f}) {
+            BsdfHarness ms("smooth", "conductor", {{"roughness", {a}}}, {{"preset", "gold"}});
+            BsdfHarness ss("smooth", "conductor", {{"roughness", {a}}, {"multiscatter", {0.0}}},
+                           {{"preset", "gold"}});
+            ms.prepare(wo_for(c));
+            ss.prepare(wo_for(c));
+            for (int ch = 0; ch < 3; ++ch) {
+                const BsdfHarness::Albedo em = ms.albedo(kSamples, 77, ch);
+                const BsdfHarness::Albedo es = ss.albedo(kSamples, 77, ch);
+                EXPECT_LE(em.mean, 1.0 + 4.0 * em.se) << "alpha " << a << " ch " << ch;
+                EXPECT_GE(em.mean, es.mean - 4.0 * (em.se + es.se)) << "alpha " << a;
+                if (a <= 0.01f) {
+                    EXPECT_NEAR(em.mean, es.mean, 4.0 * (em.se + es.se) + 2e-3) << "near mirror";
+                }
+                if (a >= 1.0f) {
+                    EXPECT_GT(em.mean, es.mean * 1.1) << "alpha 1 cos " << c << " ch " << ch;
+                }
+            }
+        }
+}
+
+TEST(SmoothFurnace, DielectricReflectionPlusTransmissionIsAtMostOne) {
+    for (float a : {0.0f, 0.001f, 0.2f, 0.7f})
+        for (bool back : {false, true})
+            for (float c : {1.0f, 0.6f, 0.2f}) {
+                BsdfHarness b("smooth", "dielectric", {{"roughness", {a}}, {"ior", {1.5}}});
+                b.prepare(wo_for(c), back);
+                const float eta = back ? 1.0f / 1.5f : 1.5f;
+                // Radiance transport scales transmission by 1/eta^2; undo it to count energy.
+                const BsdfHarness::Albedo e = albedo(b, eta * eta);
+                // 1e-5: a smooth interface's weights are exactly 1 up to float rounding.
+                EXPECT_LE(e.mean, 1.0 + 4.0 * e.se + 1e-5)
+                    << "alpha " << a << " back " << back << " cos " << c;
+                if (a == 0.0f) {
+                    EXPECT_NEAR(e.mean, 1.0, 1e-5) << "a smooth interface loses nothing";
+                }
+            }
+}
+
+TEST(SmoothFurnace, RoughGlassWithMultipleScatteringReturnsEverything) {
+    // Energy (transmission counted without radiance transport's 1/eta^2) from either side, at
+    // every roughness, index and angle: 1 by construction (both lobes scaled by 1 / E(mu_o));
+    // 5e-3 allows for the table (256-point quadratures, bilinear in 32 cosines, spaced in
+    // sqrt(mu) from grazing to head-on, x 16 roughnesses). Single scattering loses up to a quarter
+    // at alpha 1 (checked below, so that the compensation is seen to act); a smooth interface is
+    // unchanged.
+    double worst_single = 1.0;
+    for (float ior : {1.33f, 1.5f, 2.4f})
+        for (float a : {0.0f, 0.05f, 0.3f, 0.7f, 1.0f})
+            for (bool back : {false, true})
+                for (float c : {1.0f, 0.6f, 0.2f, 0.05f}) {
+                    BsdfHarness ms("smooth", "dielectric",
+                                   {{"roughness", {a}}, {"ior", {ior}}, {"multiscatter", {1.0}}});
+                    BsdfHarness ss("smooth", "dielectric",
+                                   {{"roughness", {a}}, {"ior", {ior}}, {"multiscatter", {0.0}}});
+                    ms.prepare(wo_for(c), back);
+                    ss.prepare(wo_for(c), back);
+                    const float eta = back ? 1.0f / ior : ior;
+                    const BsdfHarness::Albedo e = albedo(ms, eta * eta);
+                    const BsdfHarness::Albedo e1 = albedo(ss, eta * eta);
+                    EXPECT_NEAR(e.mean, 1.0, 4.0 * e.se + 5e-3)
+                        << "ior " << ior << " alpha " << a << " back " << back << " cos " << c
+                        << ": single scattering " << e1.mean;
+                    EXPECT_GE(e.mean, e1.mean - 4.0 * (e.se + e1.se));
+                    if (a == 0.0f) {
+                        EXPECT_NEAR(e.mean, e1.mean, 1e-5) << "a smooth interface";
+                    }
+                    worst_single = std::min(worst_single, e1.mean);
+                    // eval() gives what sample() gave: the scale is the closure's, not the
+                    // sample's.
+                    const auto samples = ms.sample(200, 5);
+                    std::vector<Vec3> f;
+                    std::vector<float> pdf;
+                    ms.eval(samples, f, pdf);
+                    for (std::size_t i = 0; i < samples.size(); ++i)
+                        if (samples[i].flags != 0 && a > 0.0f) {
+                            EXPECT_NEAR(f[i].y, samples[i].f.y, 2e-3f * samples[i].f.y + 1e-7f);
+                            EXPECT_NEAR(pdf[i], samples[i].pdf, 2e-3f * samples[i].pdf);
+                        }
+                }
+    EXPECT_LT(worst_single, 0.8) << "single scattering loses light when rough";
+}
+
+TEST(SmoothFurnace, WhitePlasticReturnsOne) {
+    for (float a : {0.0f, 0.001f, 0.1f, 0.5f, 1.0f})
+        for (float c : {1.0f, 0.6f, 0.2f, 0.05f}) {
+            BsdfHarness b("smooth", "plastic", {{"roughness", {a}}, {"albedo", {1.0, 1.0, 1.0}}});
+            b.prepare(wo_for(c));
+            const BsdfHarness::Albedo e = albedo(b);
+            // E(o) + (1 - E(o)) = 1 by construction; 3e-3 allows for the coat albedo table
+            // (1024-point quadrature, linear interpolation in 64 steps of cos theta).
+            EXPECT_NEAR(e.mean, 1.0, 4.0 * e.se + 3e-3) << "alpha " << a << " cos " << c;
+        }
+}
+
+TEST(SmoothReciprocity, NonTransmissiveModelsAreSymmetric) {
+    const std::vector<
+        std::pair<std::string, std::vector<std::pair<std::string, std::vector<double>>>>>
+        models = {
+            {"diffuse", {}},
+            {"conductor", {{"roughness", {0.3}}, {"roughness_v", {0.1}}}},
+            {"plastic", {{"roughness", {0.2}}, {"albedo", {0.6, 0.3, 0.2}}}},
+        };
+    for (const auto& [model, params] : models) {
+        BsdfHarness a("smooth", model, params), b("smooth", model, params);
+        for (uint32_t i = 0; i < 200; ++i) {
+            const auto dir = [&](uint32_t d) {
+                const float z = 0.05f + 0.95f * sample_1d(5, i, d, 0);
+                const float phi = 2.0f * kPi * sample_1d(5, i, d, 1);
+                const float s = std::sqrt(1.0f - z * z);
+                return Vec3(s * std::cos(phi), s * std::sin(phi), z);
+            };
+            const Vec3 w1 = dir(0), w2 = dir(1);
+            std::vector<Vec3> f12, f21;
+            std::vector<float> p;
+            a.prepare(w1);
+            a.eval({w2}, f12, p);
+            b.prepare(w2);
+            b.eval({w1}, f21, p);
+            for (int ch = 0; ch < 3; ++ch)
+                EXPECT_NEAR(f12[0][ch], f21[0][ch], 1e-4f * std::max(1.0f, f12[0][ch]))
+                    << model << " pair " << i;
+        }
+    }
+}
+
+TEST(SmoothConsistency, SampleAndEvalAgree) {
+    for (const Case& c : all_cases()) {
+        auto bsdf = make(c);
+        bsdf->prepare(wo_for(c.cos_o), c.backface);
+        const auto samples = bsdf->sample(2000, 99);
+        std::vector<Vec3> f;
+        std::vector<float> pdf;
+        bsdf->eval(samples, f, pdf);
+        for (std::size_t i = 0; i < samples.size(); ++i) {
+            const auto& s = samples[i];
+            ASSERT_TRUE(std::isfinite(s.pdf) && std::isfinite(s.f.x)) << c.name;
+            if (s.flags == 0) continue;
+            EXPECT_GT(pdf[i], 0.0f) << c.name << ": eval gives no density where sample() went";
+            EXPECT_NEAR(pdf[i], s.pdf, 2e-3f * s.pdf) << c.name;
+            EXPECT_NEAR(f[i].y, s.f.y, 2e-3f * s.f.y + 1e-7f) << c.name;
+        }
+    }
+}
+
+// ---------------------------------------------------------------- path regularisation
+
+/** f and pdf of `b` at `n` directions spread over the sphere (a Fibonacci set, both sides). */
+void eval_sphere(const BsdfHarness& b, uint32_t n, std::vector<Vec3>& f, std::vector<float>& pdf) {
+    std::vector<Vec3> wi;
+    for (uint32_t k = 0; k < n; ++k) {
+        const float z = 1.0f - 2.0f * (static_cast<float>(k) + 0.5f) / static_cast<float>(n);
+        const float r = std::sqrt(std::max(0.0f, 1.0f - z * z));
+        const float phi = 2.39996323f * static_cast<float>(k);
+        wi.push_back({r * std::cos(phi), r * std::sin(phi), z});
+    }
+    b.eval(wi, f, pdf);
+}
+
+/** The points of a model prepared with a roughness floor are those of the same model made as
+ *  rough as the floor: every f and pdf over the sphere agree. */
+void expect_same_lobes(const BsdfHarness& floored, const BsdfHarness& rough, const char* what) {
+    std::vector<Vec3> f1, f2;
+    std::vector<float> p1, p2;
+    eval_sphere(floored, 4000, f1, p1);
+    eval_sphere(rough, 4000, f2, p2);
+    int nonzero = 0;
+    for (std::size_t i = 0; i < f1.size(); ++i) {
+        EXPECT_NEAR(f1[i].y, f2[i].y, 1e-4f * std::max(1.0f, f2[i].y)) << what << " wi " << i;
+        EXPECT_NEAR(p1[i], p2[i], 1e-4f * std::max(1.0f, p2[i])) << what << " wi " << i;
+        nonzero += f1[i].y > 0.0f ? 1 : 0;
+    }
+    EXPECT_GT(nonzero, 100) << what << ": the floored lobe must be a spread lobe";
+}
+
+TEST(SmoothRegularisation, AFloorMakesAMirrorTheLobeOfThatRoughness) {
+    const Vec3 wo = wo_for(0.6f);
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.4f;
+    // A perfect mirror with a floor: the GGX conductor of alpha 0.4.
+    BsdfHarness mirror("smooth", "conductor", {{"roughness", {0.0}}}, {{"preset", "gold"}});
+    BsdfHarness rough("smooth", "conductor", {{"roughness", {0.4}}}, {{"preset", "gold"}});
+    mirror.prepare(wo, floored);
+    rough.prepare(wo);
+    expect_same_lobes(mirror, rough, "conductor");
+    for (const auto& s : mirror.sample(2000, 5))
+        EXPECT_EQ(s.flags & SPANGLE_SAMPLE_SPECULAR, 0u) << "a floored mirror is no delta lobe";
+    // Without the flag the mirror stays a mirror, whatever the field holds.
+    mirror.prepare(wo);
+    for (const auto& s : mirror.sample(200, 5))
+        EXPECT_NE(s.flags & SPANGLE_SAMPLE_SPECULAR, 0u) << "no floor: still a delta lobe";
+    // Already rougher than the floor: unchanged.
+    BsdfHarness rougher("smooth", "conductor", {{"roughness", {0.6}}}, {{"preset", "gold"}});
+    BsdfHarness same("smooth", "conductor", {{"roughness", {0.6}}}, {{"preset", "gold"}});
+    rougher.prepare(wo, floored);
+    same.prepare(wo);
+    expect_same_lobes(rougher, same, "conductor rougher than the floor");
+}
+
+TEST(SmoothRegularisation, SmoothGlassWithAFloorIsRoughGlassOnBothSides) {
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.45f;
+    for (bool back : {false, true}) {
+        BsdfHarness smooth("smooth", "dielectric", {{"ior", {1.5}}, {"roughness", {0.0}}});
+        BsdfHarness rough("smooth", "dielectric", {{"ior", {1.5}}, {"roughness", {0.45}}});
+        smooth.prepare(wo_for(0.5f), floored, back);
+        rough.prepare(wo_for(0.5f), back);
+        expect_same_lobes(smooth, rough, back ? "dielectric, back" : "dielectric, front");
+    }
+}
+
+TEST(SmoothRegularisation, MetalRoughRaisesBaseAndCoatToTheFloor) {
+    // alpha = roughness^2: the floor 0.3 is roughness sqrt(0.3) for base and coat alike.
+    const double r = std::sqrt(0.3);
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.3f;
+    BsdfHarness sharp("smooth", "metal_rough",
+                      {{"metallic", {0.0}},
+                       {"roughness", {0.1}},
+                       {"clearcoat", {1.0}},
+                       {"clearcoat_roughness", {0.0}}});
+    BsdfHarness rough("smooth", "metal_rough",
+                      {{"metallic", {0.0}},
+                       {"roughness", {r}},
+                       {"clearcoat", {1.0}},
+                       {"clearcoat_roughness", {r}}});
+    sharp.prepare(wo_for(0.7f), floored);
+    rough.prepare(wo_for(0.7f));
+    expect_same_lobes(sharp, rough, "metal_rough");
+}
+
+TEST(SmoothRegularisation, FlooredMirrorSamplesFollowTheirPdf) {
+    const Vec3 wo = wo_for(0.5f);
+    BsdfHarness mirror("smooth", "conductor", {{"roughness", {0.0}}}, {{"preset", "perfect"}});
+    BsdfHarness::Point floored;
+    floored.roughness_floor = 0.35f;
+    mirror.prepare(wo, floored);
+    double total = 0.0;
+    const Chi2Result r = warped_chi2(mirror, Warp{wo, 0.35f, 0.35f, 0.0f}, kSamples, 4243,
+                                     kSignificance, "floored_mirror", total);
+    EXPECT_LT(total, 1.0 + 2e-3);
+    EXPECT_GT(r.p_value, kSignificance) << "chi2 " << r.statistic << " with " << r.dof << " dof";
+    // The energy is the rough conductor's, which single scattering keeps below 1.
+    BsdfHarness rough("smooth", "conductor", {{"roughness", {0.35}}}, {{"preset", "perfect"}});
+    rough.prepare(wo);
+    const BsdfHarness::Albedo e = albedo(mirror), r_e = albedo(rough);
+    EXPECT_LE(e.mean, 1.0 + 4.0 * e.se);
+    EXPECT_NEAR(e.mean, r_e.mean, 1e-4) << "same lobe, same samples";
+}
+
+}  // namespace
+}  // namespace spangle::test

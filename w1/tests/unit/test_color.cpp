@@ -1,0 +1,210 @@
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+
+#include "core/error.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+using test::shipped_config;
+
+TEST(ColorConfig, SrgbTextureDecodesToLinear) {
+    ColorConfig c = shipped_config();
+    float rgb[3] = {0.5f, 0.0f, 1.0f};
+    c.convert("srgb_texture", "lin_rec709", rgb, 1);
+    // IEC 61966-2-1: ((0.5 + 0.055) / 1.055)^2.4 = 0.214041.
+    EXPECT_NEAR(rgb[0], 0.214041f, 1e-5f);
+    EXPECT_NEAR(rgb[1], 0.0f, 1e-6f);
+    EXPECT_NEAR(rgb[2], 1.0f, 1e-5f);
+}
+
+TEST(ColorConfig, Rec709RedInAcescg) {
+    ColorConfig c = shipped_config();
+    float rgb[3] = {1.0f, 0.0f, 0.0f};
+    c.convert("lin_rec709", "ACEScg", rgb, 1);
+    // Published linear-sRGB-to-ACEScg (Bradford) matrix, first column: 0.61310, 0.07019, 0.02062.
+    EXPECT_NEAR(rgb[0], 0.61310f, 2e-4f);
+    EXPECT_NEAR(rgb[1], 0.07019f, 2e-4f);
+    EXPECT_NEAR(rgb[2], 0.02062f, 2e-4f);
+    float grey[3] = {0.5f, 0.5f, 0.5f};
+    c.convert("lin_rec709", "ACEScg", grey, 1);
+    for (float g : grey) EXPECT_NEAR(g, 0.5f, 1e-4f) << "white maps to white under Bradford";
+}
+
+TEST(ColorConfig, DisplayViewEncodesSrgb) {
+    ColorConfig c = shipped_config();
+    c.set_working_space("lin_rec709");
+    float rgb[3] = {0.214041f, 2.0f, -1.0f};
+    c.to_display("sRGB", "Standard", rgb, 1);
+    EXPECT_NEAR(rgb[0], 0.5f, 1e-4f);
+    EXPECT_NEAR(rgb[1], 1.0f, 1e-6f) << "the Standard view clips above 1";
+    EXPECT_NEAR(rgb[2], 0.0f, 1e-6f) << "and below 0";
+}
+
+/** sRGB decoding (the IEC 61966-2-1 curve). */
+float srgb_decode(float v) {
+    return v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+}
+
+/** The Sparkle view's formula in display-linear values (assets/tools/make_glint_lut.py): every
+ *  channel times d / m (m the largest channel, d linear to 0.5 and a shoulder above), blended
+ *  towards (d, d, d) by a smoothstep of log2 m from 1 to 6. */
+std::array<float, 3> sparkle_formula(const float* in) {
+    const double m = std::max({in[0], in[1], in[2]});
+    const double d = m <= 0.5 ? m : 0.5 + 0.5 * (1.0 - std::exp(-(m - 0.5) / 0.5));
+    const double t = std::clamp((std::log2(m) - 1.0) / 5.0, 0.0, 1.0);
+    const double w = t * t * (3.0 - 2.0 * t);
+    std::array<float, 3> out{};
+    for (int ch = 0; ch < 3; ++ch) out[ch] = float((1.0 - w) * in[ch] * d / m + w * d);
+    return out;
+}
+
+TEST(ColorConfig, TheDefaultViewKeepsHueBelowTwiceWhiteAndTakesBrightGlintsToWhite) {
+    ColorConfig c = shipped_config();
+    c.set_working_space("lin_rec709");
+    std::string display, view;
+    c.resolve_view(display, view);
+    EXPECT_EQ(display, "sRGB");
+    EXPECT_EQ(view, "Sparkle");
+    const float colours[][3] = {{0.18f, 0.18f, 0.18f}, {1.0f, 1.0f, 1.0f},  {0.05f, 0.3f, 0.9f},
+                                {1.9f, 0.6f, 0.2f},    {8.0f, 2.5f, 1.2f},  {30.0f, 0.5f, 12.0f},
+                                {44.0f, 20.0f, 8.0f},  {0.6f, 0.01f, 0.2f}, {120.f, 90.f, 100.f}};
+    for (const auto& in : colours) {
+        float out[3] = {in[0], in[1], in[2]};
+        c.to_display("sRGB", "Sparkle", out, 1);
+        const auto want = sparkle_formula(in);
+        // Tolerance: the LUT's nodes are 0.625 stops apart; between them the tone curve and the
+        // white blend (both smooth in log2 m but with kinks in curvature at m = 0.5 and 2) are
+        // interpolated linearly. The formula, put through a tetrahedral interpolation of the
+        // same nodes in Python, errs by at most 2.9% of a channel's display-linear value over
+        // these colours (at 1.9, next to the blend's start): 4% leaves room for float.
+        for (int ch = 0; ch < 3; ++ch)
+            EXPECT_NEAR(srgb_decode(out[ch]), std::min(want[ch], 1.0f), 0.04f * want[ch] + 2e-4f)
+                << "input (" << in[0] << ", " << in[1] << ", " << in[2] << ") channel " << ch;
+    }
+    // Diffuse white shows at 0.816 display-linear (sRGB 0.914), middle grey at 0.18 (0.461).
+    float white[3] = {1.0f, 1.0f, 1.0f}, grey[3] = {0.18f, 0.18f, 0.18f};
+    c.to_display("sRGB", "Sparkle", white, 1);
+    c.to_display("sRGB", "Sparkle", grey, 1);
+    EXPECT_NEAR(white[0], 0.914f, 0.005f);
+    EXPECT_NEAR(grey[0], 0.461f, 0.005f);
+    // An orange glint below twice diffuse white keeps its channel ratios, as under Glint.
+    float orange[3] = {1.9f, 0.6f, 0.2f};
+    c.to_display("sRGB", "Sparkle", orange, 1);
+    EXPECT_NEAR(srgb_decode(orange[1]) / srgb_decode(orange[0]), 0.6f / 1.9f, 0.01f);
+    EXPECT_NEAR(srgb_decode(orange[2]) / srgb_decode(orange[0]), 0.2f / 1.9f, 0.01f);
+    // A glint 44 times diffuse white (the brightest pixels of a render at 16 spp) shows white:
+    // every channel above 0.97 in sRGB, where Glint keeps it a dimmer orange.
+    float bright[3] = {44.0f, 20.0f, 8.0f}, glint[3] = {44.0f, 20.0f, 8.0f};
+    c.to_display("sRGB", "Sparkle", bright, 1);
+    c.to_display("sRGB", "Glint", glint, 1);
+    for (float v : bright) EXPECT_GT(v, 0.97f) << "a bright glint reaches white";
+    EXPECT_LT(glint[2], 0.75f) << "the Glint view keeps it coloured";
+}
+
+TEST(ColorConfig, TheGlintViewIsToneMappedAndKeepsABrightGlintsColour) {
+    ColorConfig c = shipped_config();
+    c.set_working_space("lin_rec709");
+    std::string display = "sRGB", view;
+    // The view's formula (assets/tools/make_glint_lut.py): every channel times d / m, m the
+    // largest, d = m / (m + 0.8). The LUT between log encodings must reproduce it.
+    const float colours[][3] = {{8.0f, 2.5f, 1.2f},  {0.18f, 0.18f, 0.18f}, {1.0f, 1.0f, 1.0f},
+                                {0.05f, 0.3f, 0.9f}, {30.0f, 0.5f, 12.0f},  {0.6f, 0.01f, 0.2f},
+                                {120.f, 90.f, 100.f}};
+    for (const auto& in : colours) {
+        float out[3] = {in[0], in[1], in[2]};
+        c.to_display("sRGB", "Glint", out, 1);
+        const float m = std::max({in[0], in[1], in[2]});
+        const float d = m / (m + 0.8f);
+        // Tolerance: linear interpolation of log2 d between nodes h = 0.625 stops apart errs by
+        // at most h^2 / 8 times the curvature of log2(m + 0.8) in stops (<= ln 2 / 4): 0.0085
+        // in log2, 0.6% relative.
+        for (int ch = 0; ch < 3; ++ch)
+            EXPECT_NEAR(srgb_decode(out[ch]), in[ch] * d / m, 0.006f * (in[ch] * d / m) + 2e-4f)
+                << "input (" << in[0] << ", " << in[1] << ", " << in[2] << ") channel " << ch;
+    }
+    // An orange glint eight times brighter than white: Standard clips it to white, the Glint
+    // view keeps it orange (channel ratios 8 : 2.5 : 1.2), ACES 1.0 takes it near white.
+    float glint[3] = {8.0f, 2.5f, 1.2f};
+    float standard[3] = {glint[0], glint[1], glint[2]}, kept[3] = {glint[0], glint[1], glint[2]},
+          aces[3] = {glint[0], glint[1], glint[2]};
+    c.to_display("sRGB", "Standard", standard, 1);
+    c.to_display("sRGB", "Glint", kept, 1);
+    c.to_display("sRGB", "ACES 1.0 - SDR Video", aces, 1);
+    for (float v : standard) EXPECT_NEAR(v, 1.0f, 1e-6f) << "Standard clips it to white";
+    EXPECT_NEAR(srgb_decode(kept[1]) / srgb_decode(kept[0]), 2.5f / 8.0f, 0.01f);
+    EXPECT_NEAR(srgb_decode(kept[2]) / srgb_decode(kept[0]), 1.2f / 8.0f, 0.01f);
+    EXPECT_GT(aces[2], 0.8f) << "ACES 1.0 desaturates it";
+    // Unknown names say what exists.
+    std::string bad_view = "Filmic";
+    try {
+        c.resolve_view(display, bad_view);
+        FAIL() << "an unknown view was accepted";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find(
+                      "views: Sparkle, Glint, ACES 1.0 - SDR Video, Standard, Raw"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(ColorConfig, AliasesAndUnknownNames) {
+    ColorConfig c = shipped_config();
+    EXPECT_EQ(c.canonical_name("acescg").value_or(""), "ACEScg");
+    EXPECT_FALSE(c.canonical_name("no such space").has_value());
+    try {
+        c.set_working_space("sRGB2");
+        FAIL() << "an unknown working space must be refused";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("unknown colour space 'sRGB2'"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_EQ(c.working_space(), "ACEScg") << "scene_linear role is the default working space";
+}
+
+TEST(ColorConfig, WorkingChromaticities) {
+    ColorConfig c = shipped_config();
+    auto ap1 = c.working_chromaticities();
+    ASSERT_TRUE(ap1.has_value());
+    EXPECT_FLOAT_EQ(ap1->xy[0], 0.713f);
+    EXPECT_FLOAT_EQ(ap1->xy[6], 0.32168f);
+    c.set_working_space("lin_rec709");
+    auto rec = c.working_chromaticities();
+    ASSERT_TRUE(rec.has_value());
+    EXPECT_FLOAT_EQ(rec->xy[0], 0.64f);
+    EXPECT_FLOAT_EQ(rec->xy[7], 0.3290f);
+}
+
+TEST(ColorConfig, EnvironmentVariableOverridesFallbacks) {
+    test::TempDir dir("ocio_env");
+    const std::string copy = dir.file("copy.ocio");
+    std::filesystem::copy_file(test::shipped_ocio(), copy);
+    ::setenv("OCIO", copy.c_str(), 1);
+    ColorConfig from_env = ColorConfig::load("", {test::shipped_ocio()});
+    ColorConfig explicit_path = ColorConfig::load(test::shipped_ocio(), {});
+    ::unsetenv("OCIO");
+    EXPECT_EQ(from_env.path(), copy);
+    EXPECT_EQ(explicit_path.path(), test::shipped_ocio()) << "an explicit path beats $OCIO";
+    ColorConfig fallback = ColorConfig::load("", {dir.file("missing.ocio"), test::shipped_ocio()});
+    EXPECT_EQ(fallback.path(), test::shipped_ocio());
+}
+
+TEST(ColorConfig, MissingConfigIsAClearError) {
+    ::unsetenv("OCIO");
+    try {
+        ColorConfig::load("", {"/nonexistent/config.ocio"});
+        FAIL();
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("no OpenColorIO config found"), std::string::npos);
+        EXPECT_NE(std::string(e.what()).find("/nonexistent/config.ocio"), std::string::npos);
+    }
+}
+
+}  // namespace
+}  // namespace spangle

@@ -1,0 +1,161 @@
+// The flicker measurement on synthetic frames whose geometry is known: the same sparkles on the
+// same surface points persist and do not flicker; sparkles moved to other points do.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+#include "color/flicker.h"
+#include "color/image_output.h"
+#include "core/error.h"
+#include "core/hash.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+/** A 32 x 32 frame seeing the plane z = 0 straight on (worldToNDC the identity: P = (ndc x,
+ *  ndc y, 0)), a dim glint layer with sparkles where hash(seed, point) says. The plane is an
+ *  object moved `shift` pixels to the right of its own space (shift / 32 in x): a sparkle stays
+ *  on its object-space point. `objects`: write the Pobj and object layers and the placements. */
+void write_frame(const std::string& path, uint64_t seed, int shift = 0, bool objects = false) {
+    constexpr int kN = 32;
+    std::vector<std::string> names = {"A",   "Z",        "P.X",      "P.Y",
+                                      "P.Z", "glints.R", "glints.G", "glints.B"};
+    if (objects) names.insert(names.end(), {"Pobj.X", "Pobj.Y", "Pobj.Z", "object"});
+    std::vector<float> layers(kN * kN * names.size(), 0.0f);
+    for (int y = 0; y < kN; ++y)
+        for (int x = 0; x < kN; ++x) {
+            float* v = &layers[static_cast<std::size_t>(y * kN + x) * names.size()];
+            v[0] = 1.0f;
+            v[1] = 1.0f;
+            v[2] = (static_cast<float>(x) + 0.5f) / kN;
+            v[3] = (static_cast<float>(y) + 0.5f) / kN;
+            const int ox = x - shift;  // the object-space column
+            const bool sparkle =
+                to_unit_float(hash2(seed, static_cast<uint64_t>(y * kN + ox + kN))) < 0.05f;
+            v[5] = v[6] = v[7] = sparkle ? 5.0f : 0.1f;
+            if (objects) {
+                v[8] = (static_cast<float>(ox) + 0.5f) / kN;
+                v[9] = v[3];
+                v[11] = 1.0f;
+            }
+        }
+    ExrOptions o;
+    o.half = false;
+    o.layers = &layers;
+    o.layer_names = names;
+    o.matrices = {{"worldToNDC", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}}};
+    if (objects)
+        o.float_vectors = {{"spangle:objectToWorld",
+                            {1, 0, 0, static_cast<float>(shift) / kN, 0, 1, 0, 0, 0, 0, 1, 0}}};
+    const ColorConfig color = test::shipped_config();
+    write_exr(path, std::vector<float>(kN * kN * 3, 0.1f), kN, kN, color, o);
+}
+
+TEST(Flicker, FixedSparklesPersistAndMovedOnesFlicker) {
+    test::TempDir dir("flicker");
+    write_frame(dir.file("a.exr"), 1);
+    write_frame(dir.file("b.exr"), 1);
+    write_frame(dir.file("c.exr"), 2);
+    const FlickerReport same = measure_flicker({dir.file("a.exr"), dir.file("b.exr")}, 1.0);
+    EXPECT_EQ(same.pairs, 1u);
+    EXPECT_EQ(same.pixels, 32.0 * 32.0);
+    EXPECT_DOUBLE_EQ(same.mask_persistence, 1.0);
+    EXPECT_DOUBLE_EQ(same.mask_flicker, 0.0);
+    EXPECT_GT(same.mask_fraction, 0.02);
+    const FlickerReport moved = measure_flicker({dir.file("b.exr"), dir.file("c.exr")}, 1.0);
+    EXPECT_LT(moved.mask_persistence, 0.3) << "independent sparkles coincide about 5% of the time";
+    EXPECT_GT(moved.mask_flicker, 0.05);
+    try {
+        measure_flicker({dir.file("a.exr")});
+        FAIL() << "one frame was measured";
+    } catch (const SpangleError&) {
+    }
+}
+
+// A turning (here: sliding) object: its sparkles stay on its points, which the frames' object
+// layers and placements follow; the world positions alone (frames without them) lose them.
+TEST(Flicker, SparklesOnAMovingObjectAreFollowedByTheirObject) {
+    test::TempDir dir("flicker_objects");
+    write_frame(dir.file("a.exr"), 1, 0, true);
+    write_frame(dir.file("b.exr"), 1, 8, true);
+    write_frame(dir.file("c.exr"), 2, 8, true);
+    write_frame(dir.file("a_world.exr"), 1, 0, false);
+    write_frame(dir.file("b_world.exr"), 1, 8, false);
+    const FlickerReport followed = measure_flicker({dir.file("a.exr"), dir.file("b.exr")}, 1.0);
+    EXPECT_TRUE(followed.by_objects);
+    EXPECT_EQ(followed.pixels, 24.0 * 32.0) << "the columns that stay in the frame";
+    EXPECT_DOUBLE_EQ(followed.mask_persistence, 1.0);
+    EXPECT_DOUBLE_EQ(followed.mask_flicker, 0.0);
+    const FlickerReport reseeded = measure_flicker({dir.file("a.exr"), dir.file("c.exr")}, 1.0);
+    EXPECT_LT(reseeded.mask_persistence, 0.3);
+    const FlickerReport world =
+        measure_flicker({dir.file("a_world.exr"), dir.file("b_world.exr")}, 1.0);
+    EXPECT_FALSE(world.by_objects);
+    EXPECT_LT(world.mask_persistence, 0.3) << "world positions do not follow the object";
+}
+
+/** A 32 x 32 frame seeing the plane z = 0 straight on, as write_frame, where a deforming object
+ *  is stretched `stretch` times along x about x = 0: pixel x shows the rest point x_w / stretch
+ *  (Pobj), and sparkles sit on the rest cells (32 across the rest width) that hash(seed, cell)
+ *  picks. `rest_pose`: the header says the object deforms (spangle:restPose). */
+void write_stretched_frame(const std::string& path, uint64_t seed, float stretch, bool rest_pose) {
+    constexpr int kN = 32;
+    const std::vector<std::string> names = {"A",      "Z",        "P.X",      "P.Y",
+                                            "P.Z",    "glints.R", "glints.G", "glints.B",
+                                            "Pobj.X", "Pobj.Y",   "Pobj.Z",   "object"};
+    std::vector<float> layers(kN * kN * names.size(), 0.0f);
+    for (int y = 0; y < kN; ++y)
+        for (int x = 0; x < kN; ++x) {
+            float* v = &layers[static_cast<std::size_t>(y * kN + x) * names.size()];
+            v[0] = v[1] = 1.0f;
+            v[2] = (static_cast<float>(x) + 0.5f) / kN;
+            v[3] = (static_cast<float>(y) + 0.5f) / kN;
+            v[8] = v[2] / stretch;
+            v[9] = v[3];
+            v[11] = 1.0f;
+            const auto cell = static_cast<int>(std::floor(v[8] * kN));
+            const bool sparkle =
+                to_unit_float(hash2(seed, static_cast<uint64_t>(y * kN + cell))) < 0.05f;
+            v[5] = v[6] = v[7] = sparkle ? 5.0f : 0.1f;
+        }
+    ExrOptions o;
+    o.half = false;
+    o.layers = &layers;
+    o.layer_names = names;
+    o.matrices = {{"worldToNDC", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}}};
+    o.float_vectors = {{"spangle:objectToWorld", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0}}};
+    if (rest_pose) o.float_vectors.push_back({"spangle:restPose", {1.0f}});
+    const ColorConfig color = test::shipped_config();
+    write_exr(path, std::vector<float>(kN * kN * 3, 0.1f), kN, kN, color, o);
+}
+
+// A deforming object (here: one stretched by a quarter): its points slide over its own space, so
+// its placement cannot carry them; with a rest pose the frames' Pobj is the rest position, and a
+// point is found in the next frame where the same rest position is. Rest points the next frame
+// does not show (the stretch pushed them out of the image) are not compared.
+TEST(Flicker, SparklesOnADeformingObjectAreFoundByTheirRestPosition) {
+    test::TempDir dir("flicker_deforming");
+    write_stretched_frame(dir.file("a.exr"), 1, 1.0f, true);
+    write_stretched_frame(dir.file("b.exr"), 1, 1.25f, true);
+    write_stretched_frame(dir.file("c.exr"), 2, 1.25f, true);
+    write_stretched_frame(dir.file("a_rigid.exr"), 1, 1.0f, false);
+    write_stretched_frame(dir.file("b_rigid.exr"), 1, 1.25f, false);
+    const FlickerReport found = measure_flicker({dir.file("a.exr"), dir.file("b.exr")}, 1.0);
+    // The rest width the stretched frame shows, 0.8 of it, is 25.6 of frame a's 32 columns.
+    EXPECT_GE(found.pixels, 25.0 * 32.0);
+    EXPECT_LE(found.pixels, 27.0 * 32.0);
+    EXPECT_DOUBLE_EQ(found.mask_persistence, 1.0);
+    const FlickerReport reseeded = measure_flicker({dir.file("a.exr"), dir.file("c.exr")}, 1.0);
+    EXPECT_LT(reseeded.mask_persistence, 0.3);
+    // Carried as a rigid object (no rest pose said), the points land where they were, on other
+    // rest cells.
+    const FlickerReport rigid =
+        measure_flicker({dir.file("a_rigid.exr"), dir.file("b_rigid.exr")}, 1.0);
+    EXPECT_EQ(rigid.pixels, 32.0 * 32.0);
+    EXPECT_LT(rigid.mask_persistence, 0.5);
+}
+
+}  // namespace
+}  // namespace spangle

@@ -1,0 +1,588 @@
+// The glTF reader's materials, animations, errors and containers: metallic-roughness and its
+// extensions onto the smooth plugin, SPANGLE_materials_flakes onto the flake plugin, embedded
+// images as cached files, node animations as matrix keys, errors at the JSON's line:col, and
+// .glb and external .bin files read as the same scene.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+
+#include "desc_support.h"
+#include "gltf_writer.h"
+#include "pipeline/frame.h"
+#include "pipeline/session.h"
+#include "scene/gltf/gltf_reader.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_loader.h"
+#include "scene_request.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+using test::GltfWriter;
+using test::has_note;
+namespace fs = std::filesystem;
+
+/** The bytes of a file. */
+std::string bytes_of(const std::string& path) {
+    std::ifstream in(path, std::ios::binary);
+    std::stringstream ss;
+    ss << in.rdbuf();
+    return ss.str();
+}
+
+/** A unit quad's mesh JSON with material `material`. */
+std::string quad_mesh(GltfWriter& w, int material) {
+    const int p = w.floats({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, "VEC3", 3);
+    const int uv = w.floats({0, 1, 1, 1, 1, 0, 0, 0}, "VEC2", 2);
+    const int i = w.u16({0, 1, 2, 0, 2, 3});
+    return fmt::format(
+        R"({{"primitives":[{{"attributes":{{"POSITION":{},"TEXCOORD_0":{}}},"indices":{},"material":{}}}]}})",
+        p, uv, i, material);
+}
+
+/** m's parameter `name` (throws when m has none). */
+const ParamDesc& param_of(const MaterialDesc& m, const std::string& name) {
+    for (const ParamDesc& p : m.params)
+        if (p.name == name) return p;
+    throw std::runtime_error("material " + m.name + " has no parameter " + name);
+}
+
+/** Whether m has a parameter `name`. */
+bool has_param(const MaterialDesc& m, const std::string& name) {
+    for (const ParamDesc& p : m.params)
+        if (p.name == name) return true;
+    return false;
+}
+
+/** Sets $SPANGLE_TEXTURE_CACHE to `dir` for the test's life. */
+struct CacheEnv {
+    explicit CacheEnv(const std::string& dir) { ::setenv("SPANGLE_TEXTURE_CACHE", dir.c_str(), 1); }
+    ~CacheEnv() { ::unsetenv("SPANGLE_TEXTURE_CACHE"); }
+    CacheEnv(const CacheEnv&) = delete;
+    CacheEnv& operator=(const CacheEnv&) = delete;
+};
+
+/** A scene of nine quads, one per material, using every material feature the reader reads. */
+std::string material_body(GltfWriter& w, const std::string& png) {
+    const int image_view = w.view(png.data(), png.size());
+    std::string meshes, nodes;
+    for (int m = 0; m < 9; ++m) {
+        if (m) meshes += ',';
+        meshes += quad_mesh(w, m);
+        nodes += fmt::format(R"({}{{"mesh":{}}})", m ? "," : "", m);
+    }
+    const std::string tt =
+        R"("extensions":{"KHR_texture_transform":{"offset":[0.5,0.25],"rotation":0,"scale":[2,4]}})";
+    return fmt::format(
+        R"("extensionsUsed":["KHR_texture_transform","KHR_materials_clearcoat","KHR_materials_ior","KHR_materials_specular","KHR_materials_transmission","KHR_materials_emissive_strength","KHR_materials_iridescence","SPANGLE_materials_flakes","KHR_materials_sheen","EXT_mesh_gpu_instancing"],)"
+        R"("images":[{{"bufferView":{},"mimeType":"image/png"}},{{"uri":"data:image/png;base64,{}"}}],)"
+        R"("samplers":[{{"wrapS":33071,"wrapT":33071}},{{"wrapS":33648,"wrapT":10497}}],)"
+        R"("textures":[{{"source":0,"sampler":0}},{{"source":1,"sampler":1}}],)"
+        R"("materials":[)"
+        // 0: factors only.
+        R"({{"name":"Paint","pbrMetallicRoughness":{{"baseColorFactor":[0.8,0.2,0.1,1],"metallicFactor":0.25,"roughnessFactor":0.5}}}},)"
+        // 1: every texture, with a transform, a normal map, occlusion and emission.
+        R"({{"name":"Textured","pbrMetallicRoughness":{{"baseColorTexture":{{"index":0,{}}},"baseColorFactor":[0.5,0.5,0.5,1],)"
+        R"("metallicRoughnessTexture":{{"index":1}}}},"normalTexture":{{"index":0,"scale":0.5}},)"
+        R"("occlusionTexture":{{"index":0}},"emissiveFactor":[1,0.5,0],)"
+        R"("extensions":{{"KHR_materials_emissive_strength":{{"emissiveStrength":4}}}}}},)"
+        // 2: clear coat, ior, specular.
+        R"({{"name":"Coated","extensions":{{"KHR_materials_clearcoat":{{"clearcoatFactor":0.75,"clearcoatRoughnessFactor":0.1,"clearcoatNormalTexture":{{"index":0}}}},)"
+        R"("KHR_materials_ior":{{"ior":1.8}},"KHR_materials_specular":{{"specularFactor":0.5,"specularColorFactor":[1,0.9,0.8],"specularTexture":{{"index":0}}}}}}}},)"
+        // 3: transmission onto the dielectric.
+        R"({{"name":"Glass","pbrMetallicRoughness":{{"roughnessFactor":0.3,"metallicFactor":0}},"extensions":{{"KHR_materials_transmission":{{"transmissionFactor":1}},"KHR_materials_ior":{{"ior":1.33}}}}}},)"
+        // 4: iridescence and sheen (not carried), alpha blending.
+        R"({{"name":"Bubble","alphaMode":"BLEND","extensions":{{"KHR_materials_iridescence":{{"iridescenceFactor":1}},"KHR_materials_sheen":{{}}}}}},)"
+        // 5: flakes with every kind of value; base colour and coat from the core material.
+        R"({{"name":"CarPaint","pbrMetallicRoughness":{{"baseColorFactor":[0.1,0.02,0.02,1]}},)"
+        R"("extensions":{{"KHR_materials_clearcoat":{{"clearcoatFactor":1,"clearcoatRoughnessFactor":0.2}},)"
+        R"("SPANGLE_materials_flakes":{{"density":150000,"flake_roughness":0.2,"seed":7,"shadowing":false,)"
+        R"("fresnel":"schlick","flake_f0":0.8,"flake_color":[1,0.9,0.7],"flake_weight":{{"index":1,"scale":0.5}}}}}}}},)"
+        // 6 and 7: two materials with one name; 8: no name.
+        R"({{"name":"Twin"}},{{"name":"Twin"}},{{}}],)"
+        R"("nodes":[{}],"meshes":[{}])",
+        image_view, test::base64(png), tt, nodes, meshes);
+}
+
+TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlugins) {
+    test::TempDir dir("gltf_materials");
+    CacheEnv cache(dir.file("cache"));
+    const std::string png = bytes_of(test::test_dir() + "/scenes/textures/roughness_ramp.png");
+    GltfWriter w;
+    w.write_gltf(dir.file("mat.gltf"), material_body(w, png));
+    const SceneDescription d = read_gltf_scene(dir.file("mat.gltf"), {});
+    ASSERT_EQ(d.materials.size(), 9u);
+    const MaterialDesc& paint = d.materials[0];
+    EXPECT_EQ(paint.name, "Paint");
+    EXPECT_EQ(paint.plugin, "smooth");
+    EXPECT_EQ(paint.model, "metal_rough");
+    EXPECT_EQ(param_of(paint, "base_color").kind, ParamDesc::Kind::Color);
+    EXPECT_EQ(param_of(paint, "base_color").color.space, "lin_rec709");  // glTF factors are linear
+    EXPECT_FLOAT_EQ(param_of(paint, "base_color").color.rgb.y, 0.2f);
+    EXPECT_EQ(param_of(paint, "metallic").number, 0.25);
+    EXPECT_EQ(param_of(paint, "roughness").number, 0.5);
+
+    const MaterialDesc& tex = d.materials[1];
+    const ParamDesc& base = param_of(tex, "base_color");
+    ASSERT_EQ(base.kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(base.texture.space, "srgb_texture");  // colour textures are sRGB-encoded
+    EXPECT_EQ(base.texture.scale[0], 0.5f);         // times baseColorFactor
+    EXPECT_EQ(base.texture.wrap, 1);                // CLAMP_TO_EDGE
+    // KHR_texture_transform, offset (0.5, 0.25), scale (2, 4), in Spangle's v = 1 - t:
+    // s = 2 u + 0.5 and 1 - t = 1 - (4 (1 - v) + 0.25) = 4 v - 3.25.
+    const float want[6] = {2, 0, 0.5f, 0, 4, -3.25f};
+    for (int k = 0; k < 6; ++k) EXPECT_NEAR(base.texture.uv[k], want[k], 1e-6f) << k;
+    const ParamDesc& mr = param_of(tex, "metallic_roughness");
+    ASSERT_EQ(mr.kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(mr.texture.space, "raw");  // data
+    EXPECT_EQ(mr.texture.wrap, 3);       // MIRRORED_REPEAT (wrapT differs: noted)
+    EXPECT_TRUE(has_note(d, "wraps s and t differently"));
+    ASSERT_EQ(tex.maps.size(), 1u);
+    EXPECT_EQ(tex.maps[0].name, "normal_map");
+    EXPECT_EQ(tex.maps[0].texture.amount, 0.5f);
+    EXPECT_EQ(tex.maps[0].texture.space, "raw");
+    EXPECT_TRUE(has_note(d, "occlusionTexture is ignored"));
+    // The embedded image (a buffer view) and the data URI of the same bytes are one file in the
+    // cache, named by the bytes' hash, holding those bytes.
+    EXPECT_EQ(base.texture.path, mr.texture.path);
+    EXPECT_EQ(fs::path(base.texture.path).parent_path(),
+              fs::path(dir.file("cache")) / "gltf-images");
+    EXPECT_EQ(bytes_of(base.texture.path), png);
+
+    const MaterialDesc& coat = d.materials[2];
+    EXPECT_EQ(param_of(coat, "clearcoat").number, 0.75);
+    EXPECT_NEAR(param_of(coat, "clearcoat_roughness").number, 0.1, 1e-12);
+    EXPECT_NEAR(param_of(coat, "ior").number, 1.8, 1e-12);
+    EXPECT_EQ(param_of(coat, "specular").number, 0.5);
+    EXPECT_FLOAT_EQ(param_of(coat, "specular_color").color.rgb.z, 0.8f);
+    EXPECT_TRUE(has_note(d, "specularTexture (its alpha channel) is dropped"));
+    EXPECT_TRUE(has_note(d, "clearcoatNormalTexture is dropped"));
+
+    const MaterialDesc& glass = d.materials[3];
+    EXPECT_EQ(glass.model, "dielectric");
+    EXPECT_NEAR(param_of(glass, "roughness").number, 0.09, 1e-12);  // alpha = roughness^2
+    EXPECT_NEAR(param_of(glass, "ior").number, 1.33, 1e-12);
+    EXPECT_EQ(param_of(glass, "multiscatter").number, 1.0) << "rough glass keeps its light";
+
+    EXPECT_TRUE(has_note(d, "KHR_materials_iridescence is dropped"));
+    EXPECT_TRUE(has_note(d, "material extension KHR_materials_sheen is not read"));
+    EXPECT_TRUE(has_note(d, "alphaMode BLEND is not supported"));
+    int sheen = 0;  // one note, at the material, not another for extensionsUsed
+    for (const std::string& n : d.notes)
+        sheen += n.find("KHR_materials_sheen") != std::string::npos;
+    EXPECT_EQ(sheen, 1);
+    EXPECT_TRUE(has_note(d, "extension EXT_mesh_gpu_instancing is not read"));
+
+    const MaterialDesc& flakes = d.materials[5];
+    EXPECT_EQ(flakes.plugin, "flake");
+    EXPECT_EQ(param_of(flakes, "density").number, 150000.0);
+    EXPECT_TRUE(param_of(flakes, "seed").is_integer);
+    EXPECT_EQ(param_of(flakes, "shadowing").kind, ParamDesc::Kind::Bool);
+    EXPECT_EQ(param_of(flakes, "fresnel").text, "schlick");
+    EXPECT_EQ(param_of(flakes, "flake_color").kind, ParamDesc::Kind::Color);
+    EXPECT_EQ(param_of(flakes, "flake_weight").kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(param_of(flakes, "flake_weight").texture.space, "raw");
+    EXPECT_EQ(param_of(flakes, "flake_weight").texture.scale[0], 0.5f);
+    EXPECT_FLOAT_EQ(param_of(flakes, "base_color").color.rgb.x, 0.1f);
+    EXPECT_EQ(param_of(flakes, "coat").number, 1.0);
+    EXPECT_NEAR(param_of(flakes, "coat_roughness").number, 0.04, 1e-12);
+    EXPECT_FALSE(has_param(flakes, "metallic"));
+
+    EXPECT_EQ(d.materials[6].name, "Twin");
+    EXPECT_EQ(d.materials[7].name, "Twin_2");
+    EXPECT_EQ(d.materials[8].name, "material_8");
+
+    // Emission: emissiveFactor x emissiveStrength, linear Rec.709, on the objects using it.
+    ASSERT_TRUE(d.objects[1].emission);
+    EXPECT_EQ(d.objects[1].emission->color.rgb.y, 0.5f);
+    EXPECT_EQ(d.objects[1].emission->intensity, 4.0);
+    EXPECT_FALSE(d.objects[0].emission);
+    // Each parameter is blamed on its place in the JSON: line 1, the column of its value.
+    EXPECT_EQ(param_of(paint, "metallic").loc.line, 1);
+    EXPECT_GT(param_of(paint, "metallic").loc.column, 1);
+}
+
+TEST(GltfMaterials, EveryMaterialIsAcceptedByItsPluginAndRenders) {
+    test::TempDir dir("gltf_materials_render");
+    CacheEnv cache(dir.file("cache"));
+    const std::string png = bytes_of(test::test_dir() + "/scenes/textures/roughness_ramp.png");
+    GltfWriter w;
+    w.write_gltf(dir.file("mat.gltf"), material_body(w, png));
+    SceneDescription d = read_gltf_scene(dir.file("mat.gltf"), {});
+    d.render.width = 16;
+    d.render.height = 8;
+    d.render.spp = 1;
+    RenderOptions options;
+    options.threads = 2;
+    options.texture_cache = dir.file("textures");
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    ASSERT_NO_THROW(session.load(d)) << "a plugin refused a material the reader made";
+    session.render();
+    for (float v : session.result().image) ASSERT_TRUE(std::isfinite(v));
+}
+
+TEST(GltfMaterials, AnImageWrittenOnceIsNotWrittenAgain) {
+    test::TempDir dir("gltf_image_once");
+    CacheEnv cache(dir.file("cache"));
+    const std::string png = bytes_of(test::test_dir() + "/scenes/textures/roughness_ramp.png");
+    GltfWriter w;
+    w.write_gltf(dir.file("mat.gltf"), material_body(w, png));
+    const std::string file =
+        param_of(read_gltf_scene(dir.file("mat.gltf"), {}).materials[1], "base_color").texture.path;
+    const auto written = fs::last_write_time(file);
+    const std::string again =
+        param_of(read_gltf_scene(dir.file("mat.gltf"), {}).materials[1], "base_color").texture.path;
+    EXPECT_EQ(again, file);
+    EXPECT_EQ(fs::last_write_time(file), written);  // unchanged: the texture cache keeps its entry
+}
+
+/** Two nodes: a parent turning LINEAR about +y at t = 0, 1, 2 (0, 90, 180 degrees) and a child
+ *  stepping from (0, 0, 1) to (1, 0, 1) at t = 0.5, 1.5 (STEP), and a third node animated by a
+ *  CUBICSPLINE scale. */
+std::string animated_body(GltfWriter& w) {
+    const std::string mesh = quad_mesh(w, 0);
+    const float s = std::sqrt(0.5f);
+    const int t_turn = w.floats({0, 1, 2}, "SCALAR", 1);
+    const int v_turn = w.floats({0, 0, 0, 1, 0, s, 0, s, 0, 1, 0, 0}, "VEC4", 4);
+    const int t_step = w.floats({0.5f, 1.5f}, "SCALAR", 1);
+    const int v_step = w.floats({0, 0, 1, 1, 0, 1}, "VEC3", 3);
+    const int t_cubic = w.floats({0, 1}, "SCALAR", 1);
+    const int v_cubic = w.floats({0, 0, 0, 1, 1, 1, 0, 0, 0, 0, 0, 0, 2, 2, 2, 0, 0, 0}, "VEC3", 3);
+    return fmt::format(
+        R"("materials":[{{}}],"meshes":[{}],)"
+        R"("nodes":[{{"children":[1]}},{{"mesh":0,"translation":[0,0,1]}},{{"mesh":0}}],)"
+        R"("animations":[{{"channels":[{{"sampler":0,"target":{{"node":0,"path":"rotation"}}}},)"
+        R"({{"sampler":1,"target":{{"node":1,"path":"translation"}}}}],)"
+        R"("samplers":[{{"input":{},"output":{}}},{{"input":{},"output":{},"interpolation":"STEP"}}]}},)"
+        R"({{"channels":[{{"sampler":0,"target":{{"node":2,"path":"scale"}}}},{{"sampler":0,"target":{{"node":2,"path":"weights"}}}}],)"
+        R"("samplers":[{{"input":{},"output":{},"interpolation":"CUBICSPLINE"}}]}}])",
+        mesh, t_turn, v_turn, t_step, v_step, t_cubic, v_cubic);
+}
+
+// A card flip: a cube's x scale animated LINEAR from 1 to -1 over one second. At 0.5 s its
+// placement is singular (the cube is a square of no thickness) and rays sent into its space made
+// Embree assert: a crash on a real glTF (this test aborted before the fix). That instant now
+// leaves the cube out: an object with no volume, its placement not invertible.
+TEST(GltfAnimation, AScaleThroughZeroNeitherCrashesNorShowsTheFlatObject) {
+    test::TempDir dir("gltf_flip");
+    const auto write = [&](const std::string& name) {
+        GltfWriter w;
+        // A unit cube with a normal per face corner, as exporters write it.
+        std::vector<float> cp, cn;
+        std::vector<uint16_t> ci;
+        for (int axis = 0; axis < 3; ++axis)
+            for (const float side : {0.0f, 1.0f}) {
+                const auto base = static_cast<uint16_t>(cp.size() / 3);
+                for (int k = 0; k < 4; ++k) {
+                    float q[3];
+                    q[axis] = side;
+                    q[(axis + 1) % 3] = static_cast<float>(k == 1 || k == 2);
+                    q[(axis + 2) % 3] = static_cast<float>(k >= 2);
+                    cp.insert(cp.end(), {q[0] - 0.5f, q[1] - 0.5f, q[2] - 0.5f});
+                    float n[3] = {0, 0, 0};
+                    n[axis] = side > 0.0f ? 1.0f : -1.0f;
+                    cn.insert(cn.end(), {n[0], n[1], n[2]});
+                }
+                const bool flip = side == 0.0f;
+                ci.insert(ci.end(), {base, static_cast<uint16_t>(base + (flip ? 2 : 1)),
+                                     static_cast<uint16_t>(base + (flip ? 1 : 2)), base,
+                                     static_cast<uint16_t>(base + (flip ? 3 : 2)),
+                                     static_cast<uint16_t>(base + (flip ? 2 : 3))});
+            }
+        const int pa = w.floats(cp, "VEC3", 3), na = w.floats(cn, "VEC3", 3), ia = w.u16(ci);
+        const std::string cube = fmt::format(
+            R"({{"primitives":[{{"attributes":{{"POSITION":{},"NORMAL":{}}},"indices":{},"material":0}}]}})",
+            pa, na, ia);
+        const int t = w.floats({0, 1}, "SCALAR", 1);
+        const int v = w.floats({1, 1, 1, -1, 1, 1}, "VEC3", 3);
+        // No camera: the default framing looks at the cube from above and aside, as at the
+        // real file that crashed.
+        w.write_gltf(
+            dir.file(name),
+            fmt::format(
+                R"("materials":[{{"pbrMetallicRoughness":{{"metallicFactor":0}}}}],"meshes":[{}],)"
+                R"("nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0,)"
+                R"("animations":[{{"channels":[{{"sampler":0,"target":{{"node":0,"path":"scale"}}}}],)"
+                R"("samplers":[{{"input":{},"output":{}}}]}}])",
+                cube, t, v));
+        return dir.file(name);
+    };
+    const std::string flipping = write("flip.gltf");
+    const auto render = [&](const std::string& path, double time) {
+        FrameRequest req = test::quiet_request(path);
+        req.options.threads = 2;
+        req.options.width_override = 32;
+        req.options.height_override = 24;
+        req.options.spp_override = 4;
+        req.time = time;
+        return render_frame(req).image;
+    };
+    const auto finite = [](const std::vector<float>& img) {
+        return std::all_of(img.begin(), img.end(), [](float x) { return std::isfinite(x); });
+    };
+    const std::vector<float> flat = render(flipping, 0.5);
+    ASSERT_TRUE(finite(flat));
+    const std::vector<float> half = render(flipping, 0.25);
+    ASSERT_TRUE(finite(half));
+    EXPECT_NE(half, flat) << "at scale 0.5 the cube shows, at 0 it is left out";
+}
+
+TEST(GltfSkin, ASkinnedMeshIsPlacedByItsJointNotItsNode) {
+    // As Blender and Mixamo export a character: an "Armature" node (at x = 2, scale 0.01) with a
+    // joint under it (at y = 100 in the armature's units: 1 m up), the skinned mesh's node at the
+    // root with no transform of its own (the spec ignores it), and an inverse bind matrix that
+    // undoes the joint's local offset. The mesh belongs at the armature: at x = 2, 1/100 size.
+    test::TempDir dir("gltf_skin");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    const int ibm = w.floats({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -100, 0, 1}, "MAT4", 16);
+    w.write_gltf(dir.file("skin.gltf"),
+                 fmt::format(R"("materials":[{{}}],"meshes":[{}],)"
+                             R"("nodes":[{{"name":"Armature","translation":[2,0,0],)"
+                             R"("scale":[0.01,0.01,0.01],"children":[1]}},)"
+                             R"({{"name":"hips","translation":[0,100,0]}},)"
+                             R"({{"name":"body","mesh":0,"skin":0}}],)"
+                             R"("skins":[{{"joints":[1],"inverseBindMatrices":{}}}],)"
+                             R"("scenes":[{{"nodes":[0,2]}}],"scene":0)",
+                             mesh, ibm));
+    const SceneDescription d = read_gltf_scene(dir.file("skin.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    ASSERT_TRUE(d.objects[0].placement.matrix);
+    const Affine& m = *d.objects[0].placement.matrix;
+    const Vec3 o = m.apply_point({0, 0, 0}), x = m.apply_point({1, 0, 0});
+    EXPECT_NEAR(o.x, 2.0f, 1e-5f);
+    EXPECT_NEAR(o.y, 0.0f, 1e-5f) << "the joint's offset is undone by its inverse bind matrix";
+    EXPECT_NEAR(x.x - o.x, 0.01f, 1e-6f) << "the armature's scale applies";
+    EXPECT_TRUE(has_note(d, "placed by its first joint"));
+}
+
+TEST(GltfAnimation, NodeChannelsBecomeMatrixKeysAtTheUnionOfTheirTimes) {
+    test::TempDir dir("gltf_anim");
+    GltfWriter w;
+    w.write_gltf(dir.file("anim.gltf"), animated_body(w));
+    const SceneDescription d = read_gltf_scene(dir.file("anim.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 2u);
+    const Keys<MatrixKey>& child = d.objects[0].matrix_keys;
+    // The parent's 0, 1, 2 and the child's 0.5 and 1.5, the step at 1.5 with a key 1e-4 s before
+    // it holding the previous value (before its first key a channel holds its first value).
+    std::vector<double> times;
+    for (const MatrixKey& k : child.keys) times.push_back(k.time.seconds);
+    const std::vector<double> want = {0, 0.5, 1, 1.5 - 1e-4, 1.5, 2};
+    ASSERT_EQ(times.size(), want.size());
+    for (std::size_t i = 0; i < want.size(); ++i) EXPECT_NEAR(times[i], want[i], 1e-6) << i;
+    // The child's origin is the parent's turn R_y(90 t degrees) applied to its translation:
+    // (x, 0, z) -> (x cos + z sin, 0, z cos - x sin).
+    const auto origin = [&](std::size_t i) { return child.keys[i].matrix.apply_point({0, 0, 0}); };
+    const float h = std::sqrt(0.5f);
+    const Vec3 expected[] = {{0, 0, 1},  {h, 0, h},      {1, 0, 0},
+                             {h, 0, -h}, {0, 0, -2 * h}, {-1, 0, -1}};
+    for (std::size_t i = 0; i < want.size(); ++i) {
+        const float turn = static_cast<float>(times[i]) * kPi / 2;  // 1e-4 s is 1.6e-4 rad
+        if (i == 3) {
+            EXPECT_NEAR(origin(i).x, std::sin(turn), 1e-5f);
+            continue;
+        }
+        EXPECT_NEAR(origin(i).x, expected[i].x, 1e-5f) << i;
+        EXPECT_NEAR(origin(i).z, expected[i].z, 1e-5f) << i;
+    }
+    // The cubic spline is sampled at its keys and three points between: at s = 0.5 the Hermite
+    // value of 1 -> 2 with zero tangents is 1.5.
+    const Keys<MatrixKey>& cubic = d.objects[1].matrix_keys;
+    ASSERT_EQ(cubic.keys.size(), 5u);
+    EXPECT_NEAR(cubic.keys[2].matrix.m[0][0], 1.5f, 1e-5f);
+    EXPECT_TRUE(has_note(d, "CUBICSPLINE animation is approximated"));
+    EXPECT_TRUE(has_note(d, "animations of 'weights' are dropped"));
+    // 2 s at 24 fps: frames 1 to 49.
+    EXPECT_EQ(d.render.frame_end, 49);
+    // The builder turns the keys into motion; the scene is animated.
+    ColorConfig color = test::shipped_config();
+    ecs::Registry registry;
+    const SceneInfo info = build_scene(d, color, registry, 1.0);
+    EXPECT_TRUE(info.animated);
+    const Vec3 o = info.object_to_world[0].apply_point({0, 0, 0});
+    EXPECT_NEAR(o.x, 1.0f, 1e-4f);  // at t = 1 s, key 3 exactly
+    EXPECT_NEAR(o.z, 0.0f, 1e-4f);
+}
+
+/** The SpangleError message of reading `text` as a .gltf in `dir`. */
+std::string error_of(const test::TempDir& dir, const std::string& text,
+                     const char* name = "bad.gltf") {
+    std::ofstream(dir.file(name), std::ios::binary) << text;
+    try {
+        read_gltf_scene(dir.file(name), {});
+    } catch (const SpangleError& e) {
+        return e.what();
+    }
+    return "no error";
+}
+
+TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
+    test::TempDir dir("gltf_errors");
+    const std::string f = dir.file("bad.gltf");
+    EXPECT_EQ(error_of(dir, "{\n  \"asset\": {\"version\": \"2.0\"},\n  \"nodes\": [ {] \n}"),
+              f + ":3:15: error: invalid JSON: expected a member name in double quotes");
+    EXPECT_EQ(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\n\"nodes\":[{\"mesh\":4}]}"),
+              f + ":2:18: error: mesh 4 does not exist (the file has 0)");
+    EXPECT_EQ(error_of(dir,
+                       "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_draco_mesh_"
+                       "compression\"],\"extensionsUsed\":[\"KHR_draco_mesh_compression\"]}"),
+              f + ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
+                  "Spangle does not read");
+    EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"1.0\"}}").find("only 2.x is read"),
+              std::string::npos);
+    EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\"nodes\":[{\"children\":[0]}]}")
+                  .find("must form trees"),
+              std::string::npos);
+    // An accessor that runs past its buffer view.
+    GltfWriter w;
+    const int p = w.floats({0, 0, 0, 1, 0, 0, 1, 1, 0}, "VEC3", 3);
+    w.accessors[static_cast<std::size_t>(p)] =
+        R"({"bufferView":0,"componentType":5126,"count":4,"type":"VEC3"})";
+    w.write_gltf(
+        dir.file("short.gltf"),
+        fmt::format(
+            R"("nodes":[{{"mesh":0}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":{}}}}}]}}])",
+            p));
+    try {
+        read_gltf_scene(dir.file("short.gltf"), {});
+        FAIL() << "no error";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("do not fit in buffer view 0 (36 bytes)"),
+                  std::string::npos)
+            << e.what();
+        EXPECT_NE(std::string(e.what()).find("short.gltf:1:"), std::string::npos) << e.what();
+    }
+    // Indices beyond the vertices.
+    GltfWriter w2;
+    const int p2 = w2.floats({0, 0, 0, 1, 0, 0, 1, 1, 0}, "VEC3", 3);
+    const int i2 = w2.u16({0, 1, 3});
+    w2.write_gltf(
+        dir.file("idx.gltf"),
+        fmt::format(
+            R"("nodes":[{{"mesh":0}}],"meshes":[{{"primitives":[{{"attributes":{{"POSITION":{}}},"indices":{}}}]}}])",
+            p2, i2));
+    EXPECT_THROW(read_gltf_scene(dir.file("idx.gltf"), {}), SpangleError);
+}
+
+TEST(GltfMeshes, ANanNormalFallsBackToFaceNormalsLikeAZeroOne) {
+    // Some exporters write NaN normals for degenerate faces: the file is read, the mesh takes
+    // its face normals, and a note says so (it refused the whole file).
+    test::TempDir dir("gltf_nan_normal");
+    GltfWriter w;
+    const int p = w.floats({0, 0, 0, 1, 0, 0, 0, 1, 0}, "VEC3", 3);
+    const int n = w.floats({0, 0, 1, NAN, 0, 1, 0, 0, 1}, "VEC3", 3);
+    w.write_gltf(dir.file("nan.gltf"),
+                 fmt::format(R"("meshes":[{{"primitives":[{{"attributes":{{"POSITION":{},)"
+                             R"("NORMAL":{}}}}}]}}],"nodes":[{{"mesh":0}}])",
+                             p, n));
+    const SceneDescription d = read_gltf_scene(dir.file("nan.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    const auto* shape = std::get_if<InlineMeshShape>(&d.objects[0].shape);
+    ASSERT_NE(shape, nullptr);
+    EXPECT_TRUE(shape->mesh->normals.empty());
+    EXPECT_TRUE(has_note(d, "a NORMAL is not a finite number"));
+}
+
+TEST(GltfErrors, NumbersBeyondAFloatAndUnboundedZeroAccessorsAreRefused) {
+    test::TempDir dir("gltf_range");
+    const std::string head = "{\"asset\":{\"version\":\"2.0\"},\n";
+    const std::string quad =
+        "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+        "\"buffers\":[{\"byteLength\":36,\"uri\":\"data:application/octet-stream;base64,"
+        "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAACAPwAAgD8AAAAA\"}],"
+        "\"bufferViews\":[{\"buffer\":0,\"byteLength\":36}],"
+        "\"accessors\":[{\"bufferView\":0,\"componentType\":5126,\"count\":3,\"type\":"
+        "\"VEC3\",\"min\":[0,0,0],\"max\":[1,1,0]}]}";
+    // A matrix entry past FLT_MAX is an error at the matrix, not an infinite placement.
+    const std::string m = error_of(
+        dir, head + "\"nodes\":[{\"mesh\":0,\"matrix\":[1e39,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]}],\n" +
+                 quad);
+    EXPECT_NE(m.find("bad.gltf:2:"), std::string::npos) << m;
+    EXPECT_NE(m.find("is not a finite float"), std::string::npos) << m;
+    // Two finite scales whose product overflows.
+    const std::string w = error_of(dir, head +
+                                            "\"nodes\":[{\"scale\":[1e30,1,1],\"children\":[1]},"
+                                            "{\"mesh\":0,\"scale\":[1e30,1,1]}],\n" +
+                                            quad);
+    EXPECT_NE(w.find("world transform overflows a float"), std::string::npos) << w;
+    // An accessor without a buffer view is zeros; 20 million of them are refused before any
+    // memory is taken.
+    const std::string z =
+        error_of(dir, head + "\"nodes\":[{\"mesh\":0}],\n" +
+                          "\"meshes\":[{\"primitives\":[{\"attributes\":{\"POSITION\":0}}]}],"
+                          "\"accessors\":[{\"componentType\":5126,\"count\":20000000,\"type\":"
+                          "\"VEC3\",\"min\":[0,0,0],\"max\":[0,0,0]}]}");
+    EXPECT_NE(z.find("has no buffer view and 20000000 elements"), std::string::npos) << z;
+}
+
+TEST(GltfContainers, ATomlSceneImportsAGltfAndOverridesItsMaterialByName) {
+    test::TempDir dir("gltf_import");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    w.write_gltf(
+        dir.file("quad.gltf"),
+        R"("nodes":[{"mesh":0,"translation":[0,0,-2]}],"meshes":[)" + mesh +
+            R"(],"materials":[{"name":"Paint","pbrMetallicRoughness":{"metallicFactor":1}}])");
+    std::ofstream(dir.file("scene.toml")) << R"([camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+
+[[import]]
+file = "quad.gltf"
+translate = [1, 0, 0]
+lights = false
+
+[[material]]
+name = "Paint"
+plugin = "smooth"
+model = "diffuse"
+)";
+    const SceneDescription d = read_scene(dir.file("scene.toml"));
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_EQ(d.objects[0].material, "Paint");
+    ASSERT_EQ(d.materials.size(), 1u);  // the importing file's replaces the glTF's
+    EXPECT_EQ(d.materials[0].model, "diffuse");
+    EXPECT_TRUE(d.lights.empty());         // lights = false drops the studio light
+    EXPECT_EQ(d.camera.position.z, 5.0f);  // the importing file's camera wins
+    ColorConfig color = test::shipped_config();
+    ecs::Registry registry;
+    const SceneInfo info = build_scene(d, color, registry, 0.0);
+    // The glTF node's translation, then the import's placement.
+    const Vec3 o = info.object_to_world[0].apply_point({0, 0, 0});
+    EXPECT_NEAR(o.x, 1.0f, 1e-6f);
+    EXPECT_NEAR(o.z, -2.0f, 1e-6f);
+}
+
+TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
+    test::TempDir dir("gltf_glb");
+    GltfWriter w;
+    const std::string body = animated_body(w);
+    w.write_gltf(dir.file("a.gltf"), body);
+    w.write_gltf_bin(dir.file("b.gltf"), "b.bin", body);
+    w.write_glb(dir.file("c.glb"), body);
+    const SceneDescription a = read_scene(dir.file("a.gltf"));
+    const SceneDescription b = read_scene(dir.file("b.gltf"));
+    const SceneDescription c = read_scene(dir.file("c.glb"));  // the loader picks glTF by extension
+    ASSERT_EQ(a.objects.size(), 2u);
+    for (const SceneDescription* d : {&b, &c}) {
+        ASSERT_EQ(d->objects.size(), a.objects.size());
+        const auto& ma = *std::get<InlineMeshShape>(a.objects[0].shape).mesh;
+        const auto& md = *std::get<InlineMeshShape>(d->objects[0].shape).mesh;
+        EXPECT_EQ(ma.positions, md.positions);
+        EXPECT_EQ(ma.indices, md.indices);
+        EXPECT_EQ(a.objects[0].matrix_keys.keys.size(), d->objects[0].matrix_keys.keys.size());
+    }
+    // The external buffer is a file the scene read (watch mode reloads when it changes).
+    ASSERT_EQ(b.files.size(), 1u);
+    EXPECT_EQ(b.files[0], dir.file("b.bin"));
+    EXPECT_EQ(scene_format_for("x.GLB").name, std::string("glTF"));
+}
+
+}  // namespace
+}  // namespace spangle

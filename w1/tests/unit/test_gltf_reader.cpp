@@ -1,0 +1,409 @@
+// The glTF 2.0 reader: glTF files written here (tests/unit/gltf_writer.h) with every feature the
+// reader reads, checked in the SceneDescription it makes and in what the builder makes of it;
+// camera conventions by projecting known points; errors at the JSON's line:col; and a glTF
+// scene rendered against the TOML scene written to be equivalent, by a z-test per pixel block.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <fstream>
+
+#include "desc_support.h"
+#include "gltf_writer.h"
+#include "render/camera.h"
+#include "scene/gltf/gltf_reader.h"
+#include "scene/scene_builder.h"
+#include "scene/scene_loader.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+using test::GltfWriter;
+using test::has_note;
+using test::param;
+
+/** A unit quad in the xy plane facing +z: accessors for POSITION, NORMAL, TEXCOORD_0, indices. */
+struct QuadAccessors {
+    int position, normal, uv, indices;
+};
+
+/** The quad's accessors in w. */
+QuadAccessors quad(GltfWriter& w) {
+    QuadAccessors q{};
+    q.position = w.floats({0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}, "VEC3", 3);
+    q.normal = w.floats({0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1}, "VEC3", 3);
+    q.uv = w.floats({0, 1, 1, 1, 1, 0, 0, 0}, "VEC2", 2);
+    q.indices = w.u16({0, 1, 2, 0, 2, 3});
+    return q;
+}
+
+/** The quad as a primitive (with `extra` attributes; material -1: none). */
+std::string quad_primitive(const QuadAccessors& q, int material, const std::string& extra = "") {
+    return fmt::format(
+        R"({{"attributes":{{"POSITION":{},"NORMAL":{},"TEXCOORD_0":{}{}}},"indices":{}{}}})",
+        q.position, q.normal, q.uv, extra, q.indices,
+        material >= 0 ? fmt::format(R"(,"material":{})", material) : std::string());
+}
+
+/** How many notes contain `text`. */
+int count_notes(const SceneDescription& d, const std::string& text) {
+    int n = 0;
+    for (const std::string& s : d.notes) n += s.find(text) != std::string::npos ? 1 : 0;
+    return n;
+}
+
+/** Expects every entry of a and b within tol. */
+void expect_affine_near(const Affine& a, const Affine& b, float tol) {
+    for (int r = 0; r < 3; ++r)
+        for (int c = 0; c < 3; ++c) EXPECT_NEAR(a.m[r][c], b.m[r][c], tol) << r << "," << c;
+    EXPECT_NEAR(a.t.x, b.t.x, tol);
+    EXPECT_NEAR(a.t.y, b.t.y, tol);
+    EXPECT_NEAR(a.t.z, b.t.z, tol);
+}
+
+// Tolerances: the reader composes float matrices from doubles in the JSON; 1e-5 is a few ulps
+// at the sizes used here.
+constexpr float kTol = 1e-5f;
+
+TEST(GltfReader, NodeHierarchyComposesIntoWorldMatrices) {
+    test::TempDir dir("gltf_nodes");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    // Parent: translate (1, 2, 3) and a quarter turn about +y (quaternion (0, s, 0, s)); child:
+    // scale 2 and translate (0, 0, 1) in the parent's frame.
+    const float s = std::sqrt(0.5f);
+    const std::string body = fmt::format(
+        R"("scene":0,"scenes":[{{"nodes":[0]}}],)"
+        R"("nodes":[{{"name":"parent","translation":[1,2,3],"rotation":[0,{},0,{}],"children":[1]}},)"
+        R"({{"name":"child","mesh":0,"scale":[2,2,2],"translation":[0,0,1]}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        s, s, quad_primitive(q, -1));
+    w.write_gltf(dir.file("nodes.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("nodes.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    ASSERT_TRUE(d.objects[0].placement.matrix);
+    const Affine expected = Affine::translate({1, 2, 3})
+                                .compose(Affine::rotate(90.0f, {0, 1, 0}))
+                                .compose(Affine::translate({0, 0, 1}))
+                                .compose(Affine::scale({2, 2, 2}));
+    expect_affine_near(*d.objects[0].placement.matrix, expected, kTol);
+    EXPECT_EQ(d.objects[0].name, "child");
+    // The child's origin lands at the parent's translation plus its offset turned by 90 degrees
+    // about +y: (0, 0, 1) -> (1, 0, 0).
+    const Vec3 o = d.objects[0].placement.matrix->apply_point({0, 0, 0});
+    EXPECT_NEAR(o.x, 2.0f, kTol);
+    EXPECT_NEAR(o.y, 2.0f, kTol);
+    EXPECT_NEAR(o.z, 3.0f, kTol);
+    // The builder places the object by that matrix.
+    ColorConfig color = test::shipped_config();
+    ecs::Registry registry;
+    const SceneInfo info = build_scene(d, color, registry);
+    ASSERT_EQ(info.object_to_world.size(), 1u);
+    expect_affine_near(info.object_to_world[0], expected, kTol);
+}
+
+TEST(GltfReader, NodesSharingAMeshShareOneTriangleMeshAndMatrixNodesRead) {
+    test::TempDir dir("gltf_share");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const std::string body = fmt::format(
+        R"("nodes":[{{"mesh":0}},{{"mesh":0,"matrix":[1,0,0,0, 0,1,0,0, 0,0,1,0, 5,6,7,1]}}],)"
+        R"("meshes":[{{"name":"quad","primitives":[{},{}]}}])",
+        quad_primitive(q, -1), quad_primitive(q, -1));
+    w.write_gltf(dir.file("share.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("share.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 4u);  // two nodes, two primitives each
+    const auto mesh = [&](std::size_t i) {
+        return std::get<InlineMeshShape>(d.objects[i].shape).mesh;
+    };
+    EXPECT_EQ(mesh(0), mesh(2));  // node 0 and node 1, primitive 0: one pointer, one BVH
+    EXPECT_EQ(mesh(1), mesh(3));
+    EXPECT_NE(mesh(0), mesh(1));
+    EXPECT_EQ(d.objects[0].name, "quad#0");
+    EXPECT_NEAR(d.objects[2].placement.matrix->t.x, 5.0f, kTol);
+    EXPECT_NEAR(d.objects[2].placement.matrix->t.z, 7.0f, kTol);
+}
+
+TEST(GltfReader, PrimitivesKeepPositionsNormalsAndUvsWithVFlipped) {
+    test::TempDir dir("gltf_prims");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const int tangent = w.floats({1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1, 1, 0, 0, 1}, "VEC4", 4);
+    const int uv1 = w.floats({0, 0, 0, 0, 0, 0, 0, 0}, "VEC2", 2);
+    const int strip_idx = w.u32({0, 1, 3, 2});
+    const std::string extra = fmt::format(R"(,"TANGENT":{},"TEXCOORD_1":{})", tangent, uv1);
+    const std::string body =
+        fmt::format(R"("nodes":[{{"mesh":0}},{{"mesh":1}}],"meshes":[{{"primitives":[{}]}},)"
+                    R"({{"primitives":[{{"attributes":{{"POSITION":{}}},"indices":{},"mode":5}},)"
+                    R"({{"attributes":{{"POSITION":{}}},"mode":1}}]}}])",
+                    quad_primitive(q, -1, extra), q.position, strip_idx, q.position);
+    w.write_gltf(dir.file("prims.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("prims.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 2u);  // the line primitive is not drawn
+    const TriangleMesh& m = *std::get<InlineMeshShape>(d.objects[0].shape).mesh;
+    EXPECT_EQ(m.positions, (std::vector<float>{0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0}));
+    EXPECT_EQ(m.normals, (std::vector<float>{0, 0, 1, 0, 0, 1, 0, 0, 1, 0, 0, 1}));
+    // glTF's t runs down the image: (0, 1) at the bottom-left corner is Spangle's v = 0.
+    EXPECT_EQ(m.uvs, (std::vector<float>{0, 0, 1, 0, 1, 1, 0, 1}));
+    EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+    // A strip 0 1 3 2 is the triangles (0 1 3) and (3 1 2): the second flips its first two.
+    const TriangleMesh& strip = *std::get<InlineMeshShape>(d.objects[1].shape).mesh;
+    EXPECT_EQ(strip.indices, (std::vector<uint32_t>{0, 1, 3, 3, 1, 2}));
+    EXPECT_TRUE(strip.normals.empty());
+    EXPECT_EQ(count_notes(d, "TANGENT attributes are dropped"), 1);
+    EXPECT_EQ(count_notes(d, "TEXCOORD_1 is dropped"), 1);
+    EXPECT_EQ(count_notes(d, "points or lines (mode 1)"), 1);
+    // Each note is "file:line:col: ..." at the attribute that was dropped.
+    EXPECT_TRUE(has_note(d, dir.file("prims.gltf") + ":1:"));
+}
+
+/** The film position (pixels, y down) where camera c of a w x h image sees world point p. */
+std::pair<float, float> project(const CameraModel& cam, Vec3 p, const CameraDesc& c, uint32_t w,
+                                uint32_t h) {
+    // Search the film for the ray closest to p's direction (the camera model has no inverse):
+    // Newton steps on the film position from the centre.
+    float fx = 0.5f * static_cast<float>(w), fy = 0.5f * static_cast<float>(h);
+    const Vec3 want = normalize(p - c.position);
+    for (int it = 0; it < 50; ++it) {
+        const Vec3 d0 = cam.generate(fx, fy, 0.5f, 0.5f).d;
+        const Vec3 dx = cam.generate(fx + 1, fy, 0.5f, 0.5f).d - d0;
+        const Vec3 dy = cam.generate(fx, fy + 1, 0.5f, 0.5f).d - d0;
+        const Vec3 e = want - d0;
+        fx += dot(e, dx) / dot(dx, dx);
+        fy += dot(e, dy) / dot(dy, dy);
+    }
+    return {fx, fy};
+}
+
+TEST(GltfReader, CameraLooksDownItsMinusZWithYUpAndYfovVertical) {
+    test::TempDir dir("gltf_camera");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    // A camera at (0, 0, 10) turned 90 degrees about +y looks down world -x; yfov 0.8 rad with
+    // aspect 2 makes a 640 x 320 image.
+    const float s = std::sqrt(0.5f);
+    const std::string body = fmt::format(
+        R"("nodes":[{{"mesh":0}},{{"name":"cam","camera":0,"translation":[0,0,10],"rotation":[0,{},0,{}]}}],)"
+        R"("cameras":[{{"name":"main","type":"perspective","perspective":{{"yfov":0.8,"aspectRatio":2.0,"znear":0.1}}}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        s, s, quad_primitive(q, -1));
+    w.write_gltf(dir.file("camera.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("camera.gltf"), {});
+    const CameraDesc& c = d.camera;
+    EXPECT_NEAR(c.fov_deg, 0.8 * 180.0 / M_PI, 1e-9);
+    EXPECT_EQ(d.render.width, 640u);
+    EXPECT_EQ(d.render.height, 320u);
+    EXPECT_NEAR(c.position.z, 10.0f, kTol);
+    const CameraModel cam(c.position, c.look_at, c.up, static_cast<float>(c.fov_deg), 0.0f, 1.0f,
+                          d.render.width, d.render.height);
+    // Straight ahead (world -x) is the image centre; +y (the camera's up) is above it; world
+    // -z, to the camera's right in a right-handed frame looking down -x with y up, is right of
+    // it; a point tan(yfov / 2) up at distance 1 is on the top edge.
+    const auto [cx, cy] = project(cam, c.position + Vec3{-5, 0, 0}, c, 640, 320);
+    EXPECT_NEAR(cx, 320.0f, 0.01f);
+    EXPECT_NEAR(cy, 160.0f, 0.01f);
+    const auto [ux, uy] = project(cam, c.position + Vec3{-5, 1, 0}, c, 640, 320);
+    EXPECT_NEAR(ux, 320.0f, 0.01f);
+    EXPECT_LT(uy, 160.0f);
+    const auto [rx, ry] = project(cam, c.position + Vec3{-5, 0, -1}, c, 640, 320);
+    EXPECT_GT(rx, 320.0f);
+    EXPECT_NEAR(ry, 160.0f, 0.01f);
+    const auto [tx, ty] = project(cam, c.position + Vec3{-1, std::tan(0.4f), 0}, c, 640, 320);
+    EXPECT_NEAR(tx, 320.0f, 0.01f);
+    EXPECT_NEAR(ty, 0.0f, 0.05f);  // film positions to 1/20 pixel: Newton on float rays
+}
+
+TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {
+    // xmag 3, ymag 1.5: a view 3 units tall and 6 wide (a 2:1 image), parallel rays down the
+    // node's -z. Before, the camera was noted as unsupported and the default framing stood in.
+    test::TempDir dir("gltf_ortho");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    // A quad and an orthographic camera of these magnifications at (1, 2, 10), as `name`.
+    const auto write = [&](const char* name, const char* xmag, const char* ymag) {
+        w.write_gltf(
+            dir.file(name),
+            fmt::format(
+                R"("nodes":[{{"mesh":0}},{{"camera":0,"translation":[1,2,10]}}],)"
+                R"("cameras":[{{"type":"orthographic","orthographic":{{"xmag":{},"ymag":{},"znear":0.1,"zfar":100}}}}],)"
+                R"("meshes":[{{"primitives":[{}]}}])",
+                xmag, ymag, quad_primitive(q, -1)));
+        return dir.file(name);
+    };
+    const SceneDescription d = read_gltf_scene(write("ortho.gltf", "3", "1.5"), {});
+    const CameraDesc& c = d.camera;
+    for (const std::string& n : d.notes) EXPECT_EQ(n.find("camera"), std::string::npos) << n;
+    EXPECT_EQ(c.ortho_height, 3.0);
+    EXPECT_EQ(d.render.height * 2, d.render.width);
+    EXPECT_NEAR(c.position.x, 1.0f, kTol);
+    EXPECT_LT(c.look_at.z, c.position.z);
+    FilmLayout layout;
+    layout.ortho_height = static_cast<float>(c.ortho_height);
+    const CameraModel cam(c.position, c.look_at, c.up, 40.0f, 0.0f, 1.0f, d.render.width,
+                          d.render.height, layout);
+    // The image's top-right corner ray leaves 3 units right and 1.5 up of the camera.
+    const RayDifferential r = cam.generate(static_cast<float>(d.render.width), 0.0f, 0.5f, 0.5f);
+    EXPECT_NEAR(r.o.x, 1.0f + 3.0f, 1e-4f);
+    EXPECT_NEAR(r.o.y, 2.0f + 1.5f, 1e-4f);
+    EXPECT_NEAR(r.d.z, -1.0f, 1e-6f);
+    // A magnification of 0 is an error (a negative one: UnnamedCamerasArePickedByTheirIndex).
+    for (const auto& [xmag, ymag] : {std::pair{"0", "1.5"}, std::pair{"3", "0"}})
+        EXPECT_THROW(read_gltf_scene(write("bad.gltf", xmag, ymag), {}), SpangleError)
+            << xmag << " " << ymag;
+}
+
+TEST(GltfReader, UnnamedCamerasArePickedByTheirIndex) {
+    // The Khronos "Cameras" sample's two cameras have no names, nor do their nodes: --camera
+    // "#1" picks the second (an orthographic one); before, no name could, and the error listed
+    // two empty names.
+    test::TempDir dir("gltf_unnamed_cameras");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const std::string body = fmt::format(
+        R"("nodes":[{{"mesh":0}},{{"camera":0,"translation":[0,0,5]}},{{"camera":1,"translation":[0,0,7]}}],)"
+        R"("cameras":[{{"type":"perspective","perspective":{{"yfov":0.7,"znear":0.1}}}},)"
+        R"({{"type":"orthographic","orthographic":{{"xmag":2,"ymag":-1,"znear":0.1,"zfar":100}}}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        quad_primitive(q, -1));
+    w.write_gltf(dir.file("cams.gltf"), body);
+    EXPECT_EQ(read_gltf_scene(dir.file("cams.gltf"), {}).camera.ortho_height, 0.0);
+    SceneReadOptions second;
+    second.camera = "#1";
+    const SceneDescription d = read_gltf_scene(dir.file("cams.gltf"), second);
+    EXPECT_EQ(d.camera.ortho_height, 2.0);
+    EXPECT_NEAR(d.camera.position.z, 7.0f, kTol);
+    bool noted = false;
+    for (const std::string& n : d.notes)
+        noted = noted || n.find("ymag -1 is negative") != std::string::npos;
+    EXPECT_TRUE(noted);
+    SceneReadOptions wrong;
+    wrong.camera = "side";
+    try {
+        read_gltf_scene(dir.file("cams.gltf"), wrong);
+        FAIL() << "no error for an unknown camera";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("(cameras: #0, #1)"), std::string::npos) << e.what();
+    }
+}
+
+/** A quad and two cameras: an unnamed one on node "front", "top" on node "high". */
+std::string two_cameras_body(GltfWriter& w) {
+    const QuadAccessors q = quad(w);
+    return fmt::format(
+        R"("nodes":[{{"mesh":0}},{{"name":"front","camera":0,"translation":[0,0,5]}},)"
+        R"({{"name":"high","camera":1,"translation":[0,9,0],"rotation":[-0.7071068,0,0,0.7071068]}}],)"
+        R"("cameras":[{{"type":"perspective","perspective":{{"yfov":0.5,"znear":0.1}}}},)"
+        R"({{"name":"top","type":"perspective","perspective":{{"yfov":0.7,"znear":0.1}}}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        quad_primitive(q, -1));
+}
+
+TEST(GltfReader, CameraIsTheFirstOrTheOneNamed) {
+    test::TempDir dir("gltf_cameras");
+    GltfWriter w;
+    w.write_gltf(dir.file("cams.gltf"), two_cameras_body(w));
+    const SceneDescription first = read_gltf_scene(dir.file("cams.gltf"), {});
+    EXPECT_NEAR(first.camera.fov_deg, 0.5 * 180.0 / M_PI, 1e-9);
+    SceneReadOptions by_camera;
+    by_camera.camera = "top";  // a camera's name
+    const SceneDescription top = read_gltf_scene(dir.file("cams.gltf"), by_camera);
+    EXPECT_NEAR(top.camera.fov_deg, 0.7 * 180.0 / M_PI, 1e-9);
+    EXPECT_NEAR(top.camera.look_at.y, 8.0f, kTol);  // looking straight down from y = 9
+    SceneReadOptions by_node;
+    by_node.camera = "front";  // a camera node's name
+    EXPECT_NEAR(read_gltf_scene(dir.file("cams.gltf"), by_node).camera.position.z, 5.0f, kTol);
+    SceneReadOptions wrong;
+    wrong.camera = "side";
+    try {
+        read_gltf_scene(dir.file("cams.gltf"), wrong);
+        FAIL() << "no error for an unknown camera";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("no camera named 'side' (cameras: front, top)"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(GltfReader, WithoutCameraOrLightTheDefaultsFrameTheBoundsAndLightTheStudio) {
+    test::TempDir dir("gltf_defaults");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    w.write_gltf(
+        dir.file("bare.gltf"),
+        fmt::format(
+            R"("nodes":[{{"mesh":0,"translation":[10,0,0]}}],"meshes":[{{"primitives":[{}]}}])",
+            quad_primitive(q, -1)));
+    const SceneDescription d = read_gltf_scene(dir.file("bare.gltf"), {});
+    // The quad spans [10, 11] x [0, 1] x 0: the camera looks at its centre from +z, 15 degrees
+    // up, at the distance where its bounding sphere (radius sqrt(2) / 2) fills the 40-degree view.
+    EXPECT_NEAR(d.camera.look_at.x, 10.5f, kTol);
+    EXPECT_NEAR(d.camera.look_at.y, 0.5f, kTol);
+    const Vec3 v = d.camera.position - d.camera.look_at;
+    EXPECT_NEAR(length(v), std::sqrt(0.5f) / std::sin(20.0f * kPi / 180.0f), 1e-4f);
+    EXPECT_NEAR(std::atan2(v.y, v.z) * 180.0f / kPi, 15.0f, 1e-3f);
+    EXPECT_EQ(d.camera.fov_deg, 40.0);
+    EXPECT_TRUE(has_note(d, "no camera: a default framing"));
+    ASSERT_TRUE(d.environment && d.environment->color);
+    EXPECT_EQ(d.environment->color->rgb.x, 0.25f);
+    ASSERT_EQ(d.lights.size(), 1u);
+    EXPECT_TRUE(std::holds_alternative<DistantLightDesc>(d.lights[0].shape));
+    EXPECT_TRUE(has_note(d, "default studio light"));
+    // The material-less primitive gets glTF's default material: white, metallic 1, roughness 1.
+    ASSERT_EQ(d.materials.size(), 1u);
+    EXPECT_EQ(d.materials[0].name, "gltf_default");
+    EXPECT_EQ(d.materials[0].model, "metal_rough");
+    EXPECT_EQ(param(d.materials[0], "metallic")->number, 1.0);
+
+    // --env lights the scene instead: then no stand-in light, and the map is the environment.
+    SceneReadOptions with_env;
+    with_env.environment = test::asset_dir() + "/env/studio.exr";
+    const SceneDescription lit = read_scene(dir.file("bare.gltf"), with_env);
+    EXPECT_TRUE(lit.lights.empty());
+    EXPECT_FALSE(has_note(lit, "default studio light"));
+    ASSERT_TRUE(lit.environment && lit.environment->map);
+    EXPECT_EQ(lit.environment->map->path, with_env.environment);
+}
+
+TEST(GltfReader, PunctualLightsTakeTheirNodesPlaceAndPhotometricUnits) {
+    test::TempDir dir("gltf_lights");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    // A spot at (0, 3, 0) pointing down (-z turned to -y), a point and a sun.
+    const std::string body = fmt::format(
+        R"("extensionsUsed":["KHR_lights_punctual"],)"
+        R"("extensions":{{"KHR_lights_punctual":{{"lights":[)"
+        R"({{"type":"point","color":[1,0.5,0.25],"intensity":683,"range":4}},)"
+        R"({{"type":"spot","intensity":1366,"spot":{{"innerConeAngle":0.2,"outerConeAngle":0.6}}}},)"
+        R"({{"type":"directional","intensity":6.83}}]}}}},)"
+        R"("nodes":[{{"mesh":0}},{{"translation":[1,2,3],"extensions":{{"KHR_lights_punctual":{{"light":0}}}}}},)"
+        R"({{"translation":[0,3,0],"rotation":[-0.7071068,0,0,0.7071068],"extensions":{{"KHR_lights_punctual":{{"light":1}}}}}},)"
+        R"({{"rotation":[-0.7071068,0,0,0.7071068],"extensions":{{"KHR_lights_punctual":{{"light":2}}}}}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        quad_primitive(q, -1));
+    w.write_gltf(dir.file("lights.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("lights.gltf"), {});
+    ASSERT_EQ(d.lights.size(), 3u);
+    EXPECT_FALSE(d.environment);
+    // 683 cd is 1 W/sr at 555 nm.
+    EXPECT_NEAR(d.lights[0].intensity, 1.0, 1e-12);
+    EXPECT_EQ(d.lights[0].color->rgb.y, 0.5f);
+    EXPECT_EQ(d.lights[0].color->space, "lin_rec709");
+    const auto& point = std::get<PointLightDesc>(d.lights[0].shape);
+    EXPECT_NEAR(point.position.z, 3.0f, kTol);
+    const auto& spot = std::get<SpotLightDesc>(d.lights[1].shape);
+    EXPECT_NEAR(spot.look_at.y - spot.position.y, -1.0f, kTol);
+    EXPECT_NEAR(spot.cone_angle, 0.6 * 180.0 / M_PI, 1e-6);
+    EXPECT_NEAR(spot.cone_falloff, 0.4 * 180.0 / M_PI, 1e-6);
+    EXPECT_NEAR(d.lights[1].intensity, 2.0, 1e-12);
+    const auto& sun = std::get<DistantLightDesc>(d.lights[2].shape);
+    EXPECT_NEAR(sun.direction.y, 1.0f, kTol);  // towards the light: up
+    EXPECT_NEAR(d.lights[2].intensity, 0.01, 1e-12);
+    EXPECT_TRUE(has_note(d, "range is dropped"));
+    // The builder puts each light on an entity without complaint.
+    ColorConfig color = test::shipped_config();
+    ecs::Registry registry;
+    EXPECT_NO_THROW(build_scene(d, color, registry));
+}
+
+}  // namespace
+}  // namespace spangle

@@ -1,0 +1,330 @@
+#include <gtest/gtest.h>
+#include <zlib.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <iterator>
+
+#include "core/error.h"
+#include "geometry/mesh_load.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+TEST(MeshLoad, ObjWithNormalsAndUvs) {
+    const TriangleMesh m = load_mesh(test::asset_dir() + "/meshes/sphere.obj", {});
+    EXPECT_GT(m.triangle_count(), 1000u);
+    ASSERT_EQ(m.normals.size(), m.positions.size());
+    ASSERT_EQ(m.uvs.size() / 2, m.vertex_count());
+    for (std::size_t i = 0; i < m.vertex_count(); ++i) {
+        const Vec3 n(m.normals[3 * i], m.normals[3 * i + 1], m.normals[3 * i + 2]);
+        EXPECT_NEAR(length(n), 1.0f, 1e-4f);
+        EXPECT_NEAR(length(m.position(static_cast<uint32_t>(i))), 1.0f, 1e-4f) << "unit sphere";
+    }
+}
+
+TEST(MeshLoad, BinaryLittleEndianPly) {
+    const TriangleMesh m = load_mesh(test::asset_dir() + "/meshes/plane.ply", {});
+    EXPECT_EQ(m.vertex_count(), 4u);
+    EXPECT_EQ(m.triangle_count(), 2u);
+    ASSERT_EQ(m.normals.size(), 12u);
+    EXPECT_FLOAT_EQ(m.normals[1], 1.0f);
+    ASSERT_EQ(m.uvs.size(), 8u);
+    EXPECT_FLOAT_EQ(*std::max_element(m.uvs.begin(), m.uvs.end()), 4.0f);
+}
+
+TEST(MeshLoad, AsciiPlyAndQuadsAreTriangulated) {
+    test::TempDir dir("mesh_ascii");
+    std::ofstream(dir.file("quad.ply"))
+        << "ply\nformat ascii 1.0\nelement vertex 4\n"
+           "property float x\nproperty float y\nproperty float z\n"
+           "element face 1\nproperty list uchar int vertex_indices\n"
+           "end_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n";
+    const TriangleMesh m = load_mesh(dir.file("quad.ply"), {});
+    EXPECT_EQ(m.triangle_count(), 2u);
+    EXPECT_TRUE(m.normals.empty()) << "no normals in the file, none invented";
+    EXPECT_TRUE(m.uvs.empty());
+    std::ofstream(dir.file("quad.obj")) << "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt "
+                                           "1 1\nvt 0 1\nf 1/1 2/2 3/3 4/4\n";
+    const TriangleMesh o = load_mesh(dir.file("quad.obj"), {});
+    EXPECT_EQ(o.triangle_count(), 2u);
+    EXPECT_EQ(o.uvs.size() / 2, o.vertex_count());
+}
+
+TEST(MeshLoad, PlyFirstLineAsToolsWriteIt) {
+    // "ply" followed by blanks, after a UTF-8 byte order mark: still a PLY file.
+    const test::TempDir dir("ply_first_line");
+    const std::string body =
+        "format ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\nelement face 1\nproperty list uchar int vertex_indices\nend_header\n"
+        "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    std::ofstream(dir.file("a.ply")) << "ply \t\r\n" << body;
+    std::ofstream(dir.file("b.ply")) << "\xEF\xBB\xBFply\n" << body;
+    for (const char* name : {"a.ply", "b.ply"})
+        EXPECT_EQ(load_mesh(dir.file(name), FileLoc{"s.toml", 1, 1}).triangle_count(), 1u) << name;
+    // Not a PLY: the message shows what the first line is.
+    std::ofstream(dir.file("c.ply")) << "solid cube\n" << body;
+    try {
+        load_mesh(dir.file("c.ply"), FileLoc{"s.toml", 1, 1});
+        FAIL() << "an STL-like file was read as PLY";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("its first line must be 'ply', it is 'solid cube'"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(MeshLoad, GzippedPlyIsReadAsThePlyItHolds) {
+    // pbrt-v4's scenes (ganesha, sssdragon, lte-orb) ship their meshes as .ply.gz: the same
+    // mesh as the plain file (they were "has extension '.gz'; expected .obj or .ply").
+    const test::TempDir dir("ply_gz");
+    std::ifstream in(test::asset_dir() + "/meshes/plane.ply", std::ios::binary);
+    const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    gzFile gz = gzopen(dir.file("plane.ply.gz").c_str(), "wb");
+    gzwrite(gz, bytes.data(), static_cast<unsigned>(bytes.size()));
+    gzclose(gz);
+    const TriangleMesh plain = load_mesh(test::asset_dir() + "/meshes/plane.ply", {});
+    const TriangleMesh packed = load_mesh(dir.file("plane.ply.gz"), {});
+    EXPECT_EQ(packed.positions, plain.positions);
+    EXPECT_EQ(packed.normals, plain.normals);
+    EXPECT_EQ(packed.uvs, plain.uvs);
+    EXPECT_EQ(packed.indices, plain.indices);
+    // A .gz that holds something else is not taken for a mesh of another kind.
+    std::ofstream(dir.file("x.obj.gz")) << "v 0 0 0\n";
+    EXPECT_THROW(load_mesh(dir.file("x.obj.gz"), {}), SpangleError);
+    // A damaged gzip stream says so.
+    std::ofstream(dir.file("bad.ply.gz")) << std::string("\x1f\x8b\x08\x00garbage", 12);
+    try {
+        load_mesh(dir.file("bad.ply.gz"), {});
+        FAIL() << "a damaged .ply.gz was read";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("not a valid gzip file"), std::string::npos)
+            << e.what();
+    }
+}
+
+TEST(MeshLoad, BigEndianPlyWithOtherElementsAndTypes) {
+    // Spangle's own PLY reader: big-endian doubles, s/t uvs, an element it does not use (read
+    // through, not misread as data of the next), a non-list face property, a ushort count.
+    test::TempDir dir("mesh_big_endian");
+    std::string data =
+        "ply\r\nformat binary_big_endian 1.0\r\ncomment made by hand\r\n"
+        "element material 2\r\nproperty uchar red\r\nproperty list uchar float weights\r\n"
+        "element vertex 3\r\nproperty double x\r\nproperty double y\r\nproperty double z\r\n"
+        "property float s\r\nproperty float t\r\n"
+        "element face 1\r\nproperty int flags\r\nproperty list ushort uint vertex_indices\r\n"
+        "end_header\r\n";
+    const auto put = [&](const void* p, std::size_t n) {
+        const auto* b = static_cast<const unsigned char*>(p);
+        for (std::size_t i = 0; i < n; ++i) data.push_back(static_cast<char>(b[n - 1 - i]));
+    };
+    for (int m = 0; m < 2; ++m) {  // material: red, 2 weights
+        data.push_back(static_cast<char>(200));
+        data.push_back(2);
+        const float w = 0.5f;
+        put(&w, 4);
+        put(&w, 4);
+    }
+    const double xyz[3][3] = {{0, 0, 0}, {2, 0, 0}, {0, 3, 0}};
+    for (int v = 0; v < 3; ++v) {
+        for (double c : xyz[v]) put(&c, 8);
+        const float st[2] = {0.25f * static_cast<float>(v), 0.5f};
+        put(&st[0], 4);
+        put(&st[1], 4);
+    }
+    const int32_t flags = 7;
+    put(&flags, 4);
+    const uint16_t n = 3;
+    put(&n, 2);
+    for (uint32_t i : {0u, 1u, 2u}) put(&i, 4);
+    std::ofstream(dir.file("be.ply"), std::ios::binary) << data;
+    const TriangleMesh m = load_mesh(dir.file("be.ply"), {});
+    ASSERT_EQ(m.vertex_count(), 3u);
+    ASSERT_EQ(m.triangle_count(), 1u);
+    EXPECT_FLOAT_EQ(m.positions[3], 2.0f);
+    EXPECT_FLOAT_EQ(m.positions[7], 3.0f);
+    ASSERT_EQ(m.uvs.size(), 6u);
+    EXPECT_FLOAT_EQ(m.uvs[4], 0.5f);
+    EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2}));
+}
+
+TEST(MeshLoad, ErrorsNameTheSceneLineAndTheFile) {
+    const FileLoc ref{"scene.toml", 12, 8};
+    try {
+        load_mesh(test::test_dir() + "/scenes_bad/meshes/nan_vertex.obj", ref);
+        FAIL();
+    } catch (const SpangleError& e) {
+        const std::string msg = e.what();
+        EXPECT_EQ(msg.rfind("scene.toml:12:8: error: mesh '", 0), 0u) << msg;
+        EXPECT_NE(msg.find("nan_vertex.obj', line 2: vertex has the non-finite value 'nan'"),
+                  std::string::npos)
+            << msg;
+    }
+    try {
+        load_mesh(test::test_dir() + "/scenes_bad/meshes/ok.stl", ref);
+        FAIL();
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("not found"), std::string::npos) << e.what();
+    }
+}
+
+/** Writes `text` to a temporary .obj and loads it. */
+TriangleMesh load_obj_text(const std::string& text) {
+    const test::TempDir dir("obj_reader");
+    const std::string path = dir.file("m.obj");
+    std::ofstream(path) << text;
+    return load_mesh(path, FileLoc{"scene.toml", 3, 8});
+}
+
+/** The message loading `text` as an OBJ throws (empty when it loads). */
+std::string obj_error(const std::string& text) {
+    try {
+        load_obj_text(text);
+        return "";
+    } catch (const SpangleError& e) {
+        return e.what();
+    }
+}
+
+TEST(ObjReader, CornersSharingIndicesShareAVertexAndPolygonsAreFanned) {
+    // A quad and a pentagon over shared corners; uvs on every corner, no normals.
+    const TriangleMesh m = load_obj_text(
+        "# comment\no quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nv -1 0.5 0\n"
+        "vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvt 0.5\nusemtl paint\ns off\n"
+        "f 1/1 2/2 3/3 4/4\nf 1/1 4/4 5/5 -1/-1 -2/-2\n");
+    EXPECT_EQ(m.vertex_count(), 5u) << "(v, vt) pairs repeat: shared";
+    EXPECT_EQ(m.triangle_count(), 2u + 3u);
+    EXPECT_TRUE(m.normals.empty());
+    ASSERT_EQ(m.uvs.size(), 10u);
+    EXPECT_FLOAT_EQ(m.uvs[9], 0.0f) << "vt with one number has v = 0";
+    // Fan around the first corner: (0,1,2), (0,2,3); then (0,3,4), (0,4,4), (0,4,3).
+    EXPECT_EQ(m.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 3, 4, 0, 4, 4, 0, 4, 3}));
+}
+
+TEST(ObjReader, NormalsOnlyWhenEveryCornerHasOneAndForwardIndices) {
+    // Faces before the vertices they name (allowed), a continued line, CRLF endings.
+    const TriangleMesh m = load_obj_text(
+        "f 1//1 2//1 \\\r\n 3//1\r\nv 0 0 0\r\nv 1 0 0\r\nv +0 1 0 1\r\nvn 0 0 1\r\n");
+    EXPECT_EQ(m.triangle_count(), 1u);
+    ASSERT_EQ(m.normals.size(), 9u);
+    EXPECT_FLOAT_EQ(m.normals[8], 1.0f);
+    EXPECT_FLOAT_EQ(m.positions[7], 1.0f);
+    const TriangleMesh mixed =
+        load_obj_text("v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\nf 1 3 2\n");
+    EXPECT_TRUE(mixed.normals.empty()) << "a corner without a normal: face normals for all";
+}
+
+TEST(ObjReader, ConcaveFacesAreClippedConvexOnesFanned) {
+    // A U (8 corners, counter-clockwise seen from +z, then the same U written clockwise and
+    // turned into the yz-plane): its notch x in (1, 3), y in (1, 4) must stay empty and its six
+    // triangles must cover its area, 10, once.
+    const std::string u =
+        "v 0 0 0\nv 4 0 0\nv 4 4 0\nv 3 4 0\nv 3 1 0\nv 1 1 0\nv 1 4 0\nv 0 4 0\n";
+    const std::string u_yz =
+        "v 0 0 0\nv 0 0 4\nv 0 4 4\nv 0 4 3\nv 0 1 3\nv 0 1 1\nv 0 4 1\nv 0 4 0\n";
+    for (const std::string& text : {u + "f 1 2 3 4 5 6 7 8\n", u_yz + "f 8 7 6 5 4 3 2 1\n"}) {
+        const TriangleMesh m = load_obj_text(text);
+        ASSERT_EQ(m.triangle_count(), 6u) << text;
+        double area = 0.0;
+        for (uint32_t t = 0; t < m.triangle_count(); ++t) {
+            Vec3 p[3];
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t v = m.indices[3 * t + static_cast<uint32_t>(k)];
+                p[k] = {m.positions[3 * v], m.positions[3 * v + 1], m.positions[3 * v + 2]};
+            }
+            area += 0.5 * static_cast<double>(length(cross(p[1] - p[0], p[2] - p[0])));
+            // The notch's middle, (2, 2.5) in the face's plane, is in no triangle.
+            const bool yz = text == u_yz + "f 8 7 6 5 4 3 2 1\n";
+            const auto c2 = [&](Vec3 q) { return yz ? std::pair{q.z, q.y} : std::pair{q.x, q.y}; };
+            const auto side = [&](Vec3 a, Vec3 b) {
+                const auto [ax, ay] = c2(a);
+                const auto [bx, by] = c2(b);
+                return (bx - ax) * (2.5f - ay) - (by - ay) * (2.0f - ax);
+            };
+            const float s0 = side(p[0], p[1]), s1 = side(p[1], p[2]), s2 = side(p[2], p[0]);
+            EXPECT_FALSE((s0 > 0 && s1 > 0 && s2 > 0) || (s0 < 0 && s1 < 0 && s2 < 0))
+                << "triangle " << t << " covers the notch";
+        }
+        EXPECT_NEAR(area, 10.0, 1e-5);
+    }
+    // A convex pentagon keeps its fan (the meshes the reader made before are unchanged).
+    const TriangleMesh convex =
+        load_obj_text("v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 3 0\nv -1 1 0\nf 1 2 3 4 5\n");
+    EXPECT_EQ(convex.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 3, 4}));
+}
+
+TEST(ObjReader, ReadsWhatRealExportersWrite) {
+    // A UTF-8 byte order mark, corners ending in a slash ("v/vt/", "v//"), comments after data.
+    const TriangleMesh m = load_obj_text(
+        "\xEF\xBB\xBFv 0 0 0\nv 1 0 0 # x axis\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\n"
+        "f 1/1/ 2/2/ 3/3/ # a triangle\nf 1// 3// 2//\n");
+    EXPECT_EQ(m.triangle_count(), 2u);
+    ASSERT_EQ(m.positions.size() % 3, 0u);
+    EXPECT_FLOAT_EQ(m.positions[0], 0.0f) << "the first vertex is read despite the mark";
+    EXPECT_EQ(m.vertex_count(), 6u) << "(v, vt) pairs: three with uvs, three without";
+    EXPECT_TRUE(m.normals.empty());
+}
+
+TEST(ObjReader, ErrorsNameTheLine) {
+    const std::string tri = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    const auto has = [](const std::string& msg, const std::string& part) {
+        return msg.rfind("scene.toml:3:8: error: mesh '", 0) == 0 &&
+               msg.find(part) != std::string::npos;
+    };
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 0\n"),
+                 "line 4: face refers to vertex 0; OBJ indices start at 1");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 -4\n"),
+                 "line 4: face refers to vertex -4, but only 3 have been read so far");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 3\nf 1 2 9\n"),
+                 "line 5: face refers to vertex 9, but the file has 3");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2\n"),
+                 "line 4: face has 2 corners; a face needs at least 3");
+    EXPECT_PRED2(has, obj_error(tri + "f 1/1 2 3\n"),
+                 "line 4: face refers to uv 1, but the file has 0");
+    EXPECT_PRED2(has, obj_error(tri + "f 1/x 2 3\n"),
+                 "line 4: face corner has 'x' where a uv index belongs");
+    EXPECT_PRED2(has, obj_error(tri + "f 1/1/1/ 2 3\n"),
+                 "line 4: face corner '1/1/1/' is not v, v/vt, v//vn or v/vt/vn");
+    EXPECT_PRED2(has, obj_error("v 0 0\n"), "line 1: vertex is missing a number");
+    EXPECT_PRED2(has, obj_error("v 0 0 1e39\n"),
+                 "line 1: vertex has '1e39', out of the range of a float");
+    EXPECT_PRED2(has, obj_error("v 0 inf 0\n"), "line 1: vertex has the non-finite value 'inf'");
+    EXPECT_PRED2(has, obj_error("v 0 0x1 0\n"), "line 1: vertex has '0x1' where a number belongs");
+    EXPECT_PRED2(has, obj_error(tri + "vn 0 0 nan\n"),
+                 "line 4: normal has the non-finite value 'nan'");
+    EXPECT_PRED2(has, obj_error(tri), "has no triangles");
+    EXPECT_PRED2(has, obj_error(tri + "f 1 2 99999999999999999999\n"),
+                 "where a vertex index belongs");
+}
+
+TEST(MeshLoad, ValidateCatchesIndicesPastTheEnd) {
+    TriangleMesh m;
+    m.source = "made.obj";
+    m.positions = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    m.indices = {0, 1, 3};
+    try {
+        validate_mesh(m, {});
+        FAIL();
+    } catch (const SpangleError& e) {
+        EXPECT_NE(
+            std::string(e.what()).find("triangle 0 refers to vertex 3, but there are 3 vertices"),
+            std::string::npos)
+            << e.what();
+    }
+    // A non-finite normal is named by its vertex.
+    m.indices = {0, 1, 2};
+    m.normals = {0, 0, 1, 0, 0, 1, 0, NAN, 1};
+    try {
+        validate_mesh(m, {});
+        FAIL();
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("vertex 2 has a non-finite normal (0, nan, 1)"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
+}  // namespace
+}  // namespace spangle

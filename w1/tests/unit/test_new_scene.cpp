@@ -1,0 +1,221 @@
+// `spangle new`'s scene (engine/scene/new_scene.h): it loads, stands the model on the ground and
+// frames it; and every "not found" names the absolute path it looked for.
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <variant>
+
+#include "core/error.h"
+#include "pipeline/frame.h"
+#include "scene/new_scene.h"
+#include "scene/scene_loader.h"
+#include "scene_request.h"
+#include "test_support.h"
+
+namespace fs = std::filesystem;
+
+namespace spangle {
+namespace {
+
+/** A box from lo to hi as an OBJ (12 triangles), away from the origin on purpose. */
+void write_box_obj(const std::string& path, Vec3 lo, Vec3 hi) {
+    std::ofstream f(path);
+    for (int i = 0; i < 8; ++i)
+        f << "v " << ((i & 1) ? hi.x : lo.x) << ' ' << ((i & 2) ? hi.y : lo.y) << ' '
+          << ((i & 4) ? hi.z : lo.z) << '\n';
+    const int faces[6][4] = {{1, 3, 7, 5}, {2, 6, 8, 4}, {1, 5, 6, 2},
+                             {3, 4, 8, 7}, {1, 2, 4, 3}, {5, 7, 8, 6}};
+    for (const auto& q : faces)
+        f << "f " << q[0] << ' ' << q[1] << ' ' << q[2] << "\nf " << q[0] << ' ' << q[2] << ' '
+          << q[3] << '\n';
+}
+
+/** Where `p` lands in the camera's image, in units of the half-height (y) and half-width (x):
+ *  inside the image when both are in [-1, 1]. */
+std::pair<double, double> project(const CameraDesc& cam, Vec3 p, double aspect) {
+    const Vec3 fwd = normalize(cam.look_at - cam.position);
+    const Vec3 right = normalize(cross(fwd, cam.up));
+    const Vec3 up = cross(right, fwd);
+    const Vec3 d = p - cam.position;
+    const double z = dot(d, fwd);
+    const double t = std::tan(cam.fov_deg * 3.14159265358979 / 360.0);
+    return {dot(d, right) / z / (t * aspect), dot(d, up) / z / t};
+}
+
+TEST(NewScene, StandsTheModelOnTheGroundAndFramesItsBounds) {
+    test::TempDir dir("new_scene");
+    const Vec3 lo{10, 5, -3}, hi{14, 6, 1};
+    fs::create_directories(dir.path() / "models");
+    write_box_obj(dir.file("models/box.obj"), lo, hi);
+    NewSceneRequest req;
+    req.model = dir.file("models/box.obj");
+    req.output = dir.file("box.toml");
+    req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+    const NewSceneReport rep = write_new_scene(req);
+    EXPECT_NEAR(rep.model_bounds.lo.x, 10.0f, 1e-6f);
+    EXPECT_NEAR(rep.model_bounds.hi.y, 6.0f, 1e-6f);
+
+    const SceneDescription scene = read_scene(req.output);
+    ASSERT_TRUE(scene.environment && scene.environment->map);
+    EXPECT_EQ(fs::canonical(scene.environment->map->path), fs::canonical(req.env_map));
+    ASSERT_EQ(scene.objects.size(), 2u) << "the ground and the model";
+    const ObjectDesc& model = scene.objects[1];
+    const auto* mesh = std::get_if<MeshFileShape>(&model.shape);
+    ASSERT_NE(mesh, nullptr);
+    EXPECT_EQ(fs::canonical(mesh->path), fs::canonical(req.model))
+        << "written relative to the scene, read back as the model";
+    // Stood on y = 0, centred over the origin: the box spans x -2..2, y 0..1, z -2..2.
+    const Vec3 t = model.placement.parts.translate;
+    EXPECT_NEAR(t.x, -12.0f, 1e-4f);
+    EXPECT_NEAR(t.y, -5.0f, 1e-4f);
+    EXPECT_NEAR(t.z, 1.0f, 1e-4f);
+    EXPECT_NEAR(scene.camera.look_at.y, 0.5f, 1e-3f) << "looks at the bounds' centre";
+    // Every corner of the placed box is inside the image, and the box is not a speck: its
+    // corners reach past half the frame's height or width (the framing keeps them within 85%,
+    // up to the 4-digit rounding of the written camera).
+    const double aspect = double(scene.render.width) / scene.render.height;
+    double reach = 0.0;
+    for (int i = 0; i < 8; ++i) {
+        const Vec3 c{(i & 1) ? 2.0f : -2.0f, (i & 2) ? 1.0f : 0.0f, (i & 4) ? 2.0f : -2.0f};
+        const auto [x, y] = project(scene.camera, c, aspect);
+        EXPECT_LE(std::abs(x), 0.86) << "corner " << i;
+        EXPECT_LE(std::abs(y), 0.86) << "corner " << i;
+        reach = std::max({reach, std::abs(x), std::abs(y)});
+    }
+    EXPECT_GT(reach, 0.8) << "framed tightly, not from afar";
+    // The paint's density gives about 30 flakes per pixel at the look_at distance.
+    EXPECT_NEAR(rep.flakes_per_pixel, 30.0, 1.0);
+
+    // It renders: the plugins accept the parameters written, and the box (red glitter paint)
+    // covers the image's centre while the ground and sky fill its corner.
+    FrameRequest fr = test::quiet_request(req.output);
+    fr.options.threads = 2;
+    fr.options.spp_override = 4;
+    fr.options.width_override = 64;
+    fr.options.height_override = 36;
+    const FrameResult img = render_frame(fr);
+    ASSERT_EQ(img.width, 64u);
+    const auto px = [&](uint32_t x, uint32_t y, int c) {
+        return img.image[3 * (std::size_t(y) * img.width + x) + std::size_t(c)];
+    };
+    EXPECT_GT(px(32, 18, 0), 2.0f * px(32, 18, 2)) << "the centre shows the red paint";
+    EXPECT_LT(px(0, 0, 0), 2.0f * px(0, 0, 2)) << "the corner does not";
+    EXPECT_EQ(img.stats.nonfinite, 0u);
+}
+
+TEST(NewScene, ModelsOfNoSizeFlatOrHugeGiveScenesThatLoadOrAClearError) {
+    test::TempDir dir("new_scene_odd");
+    NewSceneRequest req;
+    req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+    const auto make = [&](const std::string& name, Vec3 lo, Vec3 hi) {
+        write_box_obj(dir.file(name + ".obj"), lo, hi);
+        req.model = dir.file(name + ".obj");
+        req.output = dir.file(name + ".toml");
+        return write_new_scene(req);
+    };
+    // Every vertex alike (a degenerate export): the density was NaN and the scene did not load.
+    const NewSceneReport point = make("point", Vec3(1, 2, 3), Vec3(1, 2, 3));
+    EXPECT_TRUE(std::isfinite(point.density)) << point.density;
+    EXPECT_NO_THROW(read_scene(req.output));
+    // A flat card lying in y = const is lifted off the ground's plane (they fought for every
+    // pixel).
+    const NewSceneReport card = make("card", Vec3(0, 0, 0), Vec3(1, 0, 1));
+    EXPECT_NEAR(card.offset.y, 1e-3f, 1e-6f);
+    EXPECT_NO_THROW(read_scene(req.output));
+    // 1e20 across: the extent's square overflowed a float (an infinite position was written).
+    const NewSceneReport big = make("big", Vec3(-1e20f), Vec3(1e20f));
+    EXPECT_TRUE(std::isfinite(big.camera.x) && std::isfinite(big.density));
+    EXPECT_NO_THROW(read_scene(req.output));
+    // Beyond what a scene can hold: a clear error, nothing written.
+    try {
+        make("huge", Vec3(-1e30f), Vec3(1e30f));
+        FAIL() << "a 3e30 model was accepted";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("too large for a scene"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_FALSE(fs::exists(dir.file("huge.toml")));
+}
+
+TEST(NewScene, AMissingModelNamesTheAbsolutePathItLookedFor) {
+    test::TempDir dir("new_scene_missing");
+    NewSceneRequest req;
+    req.model = dir.file("nowhere/model.obj");
+    req.output = dir.file("model.toml");
+    req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+    try {
+        write_new_scene(req);
+        FAIL() << "a missing model was accepted";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(
+            std::string(e.what()).find("not found (looked for " + dir.file("nowhere/model.obj")),
+            std::string::npos)
+            << e.what();
+    }
+    EXPECT_FALSE(fs::exists(req.output)) << "nothing written";
+}
+
+/** Runs `fn` with the working directory set to `dir`, restoring it after. */
+template <class Fn>
+void in_directory(const fs::path& dir, Fn fn) {
+    const fs::path before = fs::current_path();
+    fs::current_path(dir);
+    try {
+        fn();
+    } catch (...) {
+        fs::current_path(before);
+        throw;
+    }
+    fs::current_path(before);
+}
+
+TEST(ScenePaths, NotFoundNamesTheAbsolutePathOfAFileNamedRelativeToTheScene) {
+    // A scene copied to another folder, read by a relative name: its map (named relative to the
+    // scene) and its mesh are missing there, and the messages say where they were looked for.
+    test::TempDir dir("not_found_abs");
+    fs::create_directories(dir.path() / "copied");
+    std::ofstream(dir.file("copied/scene.toml"))
+        << "[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\n"
+           "[environment]\nmap = \"../env/studio.exr\"\n";
+    std::ofstream(dir.file("copied/mesh.toml"))
+        << "[camera]\nposition = [0, 1, 5]\nlook_at = [0, 0, 0]\n"
+           "[[material]]\nname = \"m\"\nplugin = \"smooth\"\nmodel = \"diffuse\"\n"
+           "[[object]]\nmesh = \"../meshes/car.obj\"\nmaterial = \"m\"\n";
+    const std::string want_map = (dir.path() / "env" / "studio.exr").string();
+    const std::string want_mesh = (dir.path() / "meshes" / "car.obj").string();
+    in_directory(dir.path() / "copied", [&] {
+        try {
+            read_scene("scene.toml");
+            FAIL() << "a missing map was accepted";
+        } catch (const SpangleError& e) {
+            EXPECT_NE(std::string(e.what()).find(
+                          "map file '../env/studio.exr' not found (looked for " + want_map + ")"),
+                      std::string::npos)
+                << e.what();
+        }
+        try {
+            read_scene("mesh.toml");
+            FAIL() << "a missing mesh was accepted";
+        } catch (const SpangleError& e) {
+            EXPECT_NE(std::string(e.what()).find("(looked for " + want_mesh + ")"),
+                      std::string::npos)
+                << e.what();
+        }
+        try {
+            read_scene("absent.toml");
+            FAIL() << "a missing scene was accepted";
+        } catch (const SpangleError& e) {
+            EXPECT_NE(std::string(e.what()).find(
+                          "(looked for " + (dir.path() / "copied" / "absent.toml").string() + ")"),
+                      std::string::npos)
+                << e.what();
+        }
+    });
+}
+
+}  // namespace
+}  // namespace spangle

@@ -1,0 +1,302 @@
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+
+#include "core/hash.h"
+#include "shading/material.h"
+#include "shading/plugin_loader.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string broken(const std::string& variant) {
+    return std::string(SPANGLE_TEST_PLUGIN_DIR) + "/libspangle_" + variant + ".so";
+}
+
+/** Runs f and returns the SpangleError message it throws (or fails the test). */
+template <class F>
+std::string error_of(F&& f) {
+    try {
+        f();
+    } catch (const SpangleError& e) {
+        return e.what();
+    }
+    ADD_FAILURE() << "expected a SpangleError";
+    return {};
+}
+
+#define EXPECT_HAS(msg, text)                                                  \
+    do {                                                                       \
+        const std::string spangle_msg_ = (msg);                                \
+        EXPECT_NE(spangle_msg_.find(text), std::string::npos) << spangle_msg_; \
+    } while (0)
+
+TEST(PluginLoader, FindsSmoothBesideTheBinary) {
+    ::unsetenv("SPANGLE_PLUGIN_PATH");
+    PluginLoader loader(plugin_search_path({}));
+    auto p = loader.open("smooth", {});
+    EXPECT_STREQ(p->table().name, "smooth");
+    EXPECT_NE(p->model("diffuse"), nullptr);
+    EXPECT_EQ(loader.open("smooth", {}).get(), p.get()) << "a plugin is opened once";
+    EXPECT_EQ(loader.opened(), std::vector<std::string>{"smooth"});
+}
+
+TEST(PluginLoader, NotFoundNamesEveryDirectory) {
+    PluginLoader loader({"/nowhere/a", "/nowhere/b"});
+    const std::string msg = error_of([&] { loader.open("chrome", FileLoc{"s.toml", 3, 10}); });
+    EXPECT_EQ(msg.rfind("s.toml:3:10: error: plugin 'chrome' not found", 0), 0u) << msg;
+    EXPECT_HAS(msg, "libspangle_chrome.so");
+    EXPECT_HAS(msg, "/nowhere/a, /nowhere/b");
+}
+
+TEST(PluginLoader, RejectsPathLikeNames) {
+    PluginLoader loader({});
+    EXPECT_HAS(error_of([&] { loader.open("../smooth", {}); }), "is not valid");
+}
+
+TEST(PluginLoader, AbiMismatch) {
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("abi"), "abi"); }),
+               "was built for material ABI version 999, but this spangle uses version 3");
+}
+
+TEST(PluginLoader, NotAPluginWithoutEntryPoint) {
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("noentry"), "noentry"); }),
+               "is not a Spangle plugin: it has no entry point 'spangle_material_plugin'");
+}
+
+TEST(PluginLoader, PluginRefusingTheHost) {
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("refuses"), "refuses"); }),
+               "refused this host's material ABI version 3");
+}
+
+TEST(PluginLoader, FileNameAndPluginNameMustAgree) {
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("misnamed"), "misnamed"); }),
+               "calls itself 'someone_else', expected 'misnamed'");
+}
+
+TEST(PluginLoader, MalformedTable) {
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("malformed"), "malformed"); }),
+               "declares closure_size 0");
+}
+
+TEST(PluginLoader, GarbageFileIsNotALibrary) {
+    test::TempDir dir("garbage_plugin");
+    std::ofstream(dir.file("libspangle_garbage.so")) << "not an ELF file\n";
+    PluginLoader loader({dir.path().string()});
+    const std::string msg = error_of([&] { loader.open("garbage", {}); });
+    EXPECT_HAS(msg, "is not a shared library (no ELF header)");
+    EXPECT_HAS(msg, "libspangle_garbage.so");
+}
+
+TEST(PluginLoader, PipeTruncatedLibraryAndDataEntryAreRefusedSafely) {
+    // Before: a named pipe hung dlopen, a truncated library died with SIGBUS, an entry point
+    // exported as data was called and crashed.
+    test::TempDir dir("unsafe_plugins");
+    const std::string pipe = dir.file("libspangle_pipe.so");
+    ASSERT_EQ(::mkfifo(pipe.c_str(), 0600), 0);
+    EXPECT_HAS(error_of([&] { PluginLoader::open_file(pipe, "pipe"); }),
+               "is not a regular file (a folder, a device or a pipe)");
+    PluginLoader loader({dir.path().string()});
+    EXPECT_HAS(error_of([&] { loader.open("pipe", {}); }), "is not a regular file");
+
+    const std::string whole = broken("misnamed");
+    const auto size = fs::file_size(whole);
+    for (const double keep : {0.3, 0.6, 0.9}) {
+        const std::string cut = dir.file("libspangle_cut.so");
+        fs::copy_file(whole, cut, fs::copy_options::overwrite_existing);
+        fs::resize_file(cut, static_cast<std::uintmax_t>(keep * static_cast<double>(size)));
+        SCOPED_TRACE(keep);
+        EXPECT_HAS(error_of([&] { PluginLoader::open_file(cut, "cut"); }), "is truncated");
+    }
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("dataentry"), "dataentry"); }),
+               "its 'spangle_material_plugin' is data, not a function");
+}
+
+TEST(PluginLoader, SearchOrderCliThenEnvironmentThenBinary) {
+    test::TempDir cli("plugins_cli"), env("plugins_env");
+    // A broken plugin called "smooth" in the CLI directory must shadow the real one.
+    fs::copy_file(broken("abi"), cli.file("libspangle_smooth.so"));
+    fs::copy_file(broken("failcreate"), env.file("libspangle_failcreate.so"));
+    fs::copy_file(broken("refuses"), env.file("libspangle_smooth.so"));
+    ::setenv("SPANGLE_PLUGIN_PATH", (std::string("/nowhere:") + env.path().string()).c_str(), 1);
+    const auto dirs = plugin_search_path({cli.path().string()});
+    ::unsetenv("SPANGLE_PLUGIN_PATH");
+    ASSERT_GE(dirs.size(), 4u);
+    EXPECT_EQ(dirs[0], cli.path().string());
+    EXPECT_EQ(dirs[1], "/nowhere");
+    EXPECT_EQ(dirs[2], env.path().string());
+    PluginLoader loader(dirs);
+    EXPECT_HAS(error_of([&] { loader.open("smooth", {}); }), "ABI version 999");
+    EXPECT_NO_THROW(loader.open("failcreate", {})) << "found through $SPANGLE_PLUGIN_PATH";
+    PluginLoader without_cli(plugin_search_path({}));
+    EXPECT_NO_THROW(without_cli.open("smooth", {})) << "the binary's own directory comes last";
+}
+
+/** A schema exercising every parameter type, validated without any plugin. */
+const SpangleParamDesc_v3 kSchema[] = {
+    {"roughness", SPANGLE_PARAM_FLOAT, {0.5, 0, 0}, nullptr, 0.0, 1.0, nullptr, "r", 0},
+    {"count", SPANGLE_PARAM_INT, {4, 0, 0}, nullptr, 1.0, 64.0, nullptr, "n", 0},
+    {"coat", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "c", 0},
+    {"tint", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 1.0, nullptr, "t", 0},
+    {"fresnel",
+     SPANGLE_PARAM_STRING,
+     {0, 0, 0},
+     "schlick",
+     0.0,
+     0.0,
+     "schlick|conductor|dielectric",
+     "f",
+     0},
+};
+SpangleMaterialModel_v3 schema_model() {
+    SpangleMaterialModel_v3 m{};
+    m.name = "test";
+    m.params = kSchema;
+    m.param_count = 5;
+    return m;
+}
+
+ParamEntry entry(const std::string& name, ParamEntry::Kind kind, double x, bool integer = false,
+                 std::string text = {}) {
+    ParamEntry p;
+    p.name = name;
+    p.kind = kind;
+    p.number[0] = p.number[1] = p.number[2] = x;
+    p.is_integer = integer;
+    p.text = std::move(text);
+    p.loc = FileLoc{"m.toml", 7, 3};
+    p.key_loc = FileLoc{"m.toml", 7, 1};
+    return p;
+}
+
+TEST(ValidateParams, DefaultsInSchemaOrder) {
+    ColorConfig color = test::shipped_config();
+    Material m;
+    m.name = "x";
+    const ValidatedParams v = validate_params(schema_model(), m, color);
+    ASSERT_EQ(v.values.size(), 5u);
+    EXPECT_DOUBLE_EQ(v.values[0].number[0], 0.5);
+    EXPECT_DOUBLE_EQ(v.values[1].number[0], 4.0);
+    EXPECT_STREQ(v.values[4].string, "schlick");
+}
+
+TEST(ValidateParams, TypesRangesAndChoices) {
+    ColorConfig color = test::shipped_config();
+    const auto fails = [&](ParamEntry p) {
+        Material m;
+        m.name = "x";
+        m.params = {std::move(p)};
+        return error_of([&] { validate_params(schema_model(), m, color); });
+    };
+    using K = ParamEntry::Kind;
+    EXPECT_HAS(fails(entry("count", K::Number, 2.5)), "'count' must be an integer");
+    EXPECT_HAS(fails(entry("count", K::Number, 65, true)), "'count' must be in [1, 64], got 65");
+    EXPECT_HAS(fails(entry("coat", K::Number, 1)), "'coat' must be true or false");
+    EXPECT_HAS(fails(entry("roughness", K::String, 0, false, "high")),
+               "'roughness' must be a number");
+    EXPECT_HAS(fails(entry("fresnel", K::String, 0, false, "fancy")),
+               "'fresnel' must be one of schlick, conductor, dielectric, got \"fancy\"");
+    const std::string unknown = fails(entry("roughnes", K::Number, 0.1));
+    EXPECT_EQ(unknown.rfind("m.toml:7:1: error:", 0), 0u)
+        << "unknown names point at the key: " << unknown;
+    EXPECT_HAS(unknown,
+               "has no parameter 'roughnes'; did you mean 'roughness'? (parameters: roughness, "
+               "count, coat, tint, fresnel)");
+}
+
+TEST(ValidateParams, ColoursAreConvertedToTheWorkingSpace) {
+    ColorConfig color = test::shipped_config();
+    color.set_working_space("lin_rec709");
+    Material m;
+    ParamEntry p = entry("tint", ParamEntry::Kind::Color, 0.5);
+    p.text = "srgb_texture";
+    m.params = {p};
+    const ValidatedParams v = validate_params(schema_model(), m, color);
+    EXPECT_NEAR(v.values[3].number[0], 0.214041, 1e-5);
+}
+
+TEST(Materials, CreateFailureIsReportedWithThePluginsReason) {
+    test::TempDir dir("failcreate");
+    fs::copy_file(broken("failcreate"), dir.file("libspangle_failcreate.so"));
+    PluginLoader loader({dir.path().string()});
+    ColorConfig color = test::shipped_config();
+    HostServices host(color, test::quiet_log());
+    Material m;
+    m.name = "bad";
+    m.plugin = "failcreate";
+    m.loc = FileLoc{"s.toml", 4, 1};
+    const std::string msg = error_of([&] { create_material(loader, m, host); });
+    EXPECT_EQ(msg.rfind("s.toml:4:1: error: material 'bad'", 0), 0u) << msg;
+    EXPECT_HAS(msg, "could not create model 'broken': x and y cannot both be set");
+}
+
+/** A diffuse closure of the real smooth plugin, driven through the ABI. */
+class DiffuseThroughAbi : public ::testing::Test {
+protected:
+    void SetUp() override {
+        plugin_ = PluginLoader(plugin_search_path({})).open("smooth", {});
+        model_ = plugin_->model("diffuse");
+        ASSERT_NE(model_, nullptr);
+        SpangleParamValue_v3 albedo{"albedo", SPANGLE_PARAM_COLOR, {1.0, 1.0, 1.0}, nullptr};
+        SpangleParams_v3 params{&albedo, 1};
+        char err[256];
+        instance_ = model_->create(&params, host_.api(), err, sizeof(err));
+        ASSERT_NE(instance_, nullptr) << err;
+        const float zero = 0.0f, one = 1.0f;
+        const float wox = 0.3f, woy = 0.0f, woz = std::sqrt(1.0f - 0.09f);
+        const uint32_t flags = 0, id = 0;
+        SpangleShadingBatch_v3 b{1,     &zero, &zero,  &zero, &wox,    &woy,   &woz,  &zero,
+                                 &zero, &zero, &zero,  &zero, &zero,   &one,   &zero, &zero,
+                                 &zero, &zero, &zero,  &one,  &zero,   &zero,  &zero, &zero,
+                                 &zero, &zero, &flags, &id,   nullptr, nullptr};
+        closure_.resize(model_->closure_size);
+        model_->prepare(instance_, &b, closure_.data(), nullptr);
+    }
+    void TearDown() override {
+        if (instance_) model_->destroy(instance_);
+    }
+
+    ColorConfig color_ = test::shipped_config();
+    HostServices host_{color_, test::quiet_log()};
+    std::shared_ptr<LoadedPlugin> plugin_;
+    const SpangleMaterialModel_v3* model_ = nullptr;
+    void* instance_ = nullptr;
+    std::vector<std::byte> closure_;
+};
+
+TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
+    constexpr uint32_t kN = 4096;
+    std::vector<float> u0(kN), u1(kN), u2(kN), x(kN), y(kN), z(kN), r(kN), g(kN), b(kN), pdf(kN);
+    std::vector<uint32_t> flags(kN), idx(kN, 0);
+    for (uint32_t i = 0; i < kN; ++i) {
+        u0[i] = sample_1d(1, i, 0, 0);
+        u1[i] = sample_1d(1, i, 0, 1);
+        u2[i] = sample_1d(1, i, 0, 2);
+    }
+    SpangleSampleBatch_v3 q{kN,           idx.data(), u0.data(), u1.data(), u2.data(), x.data(),
+                            y.data(),     z.data(),   r.data(),  g.data(),  b.data(),  pdf.data(),
+                            flags.data(), nullptr,    nullptr,   nullptr,   nullptr};
+    model_->sample(instance_, closure_.data(), &q);
+    std::vector<float> er(kN), eg(kN), eb(kN), epdf(kN);
+    SpangleEvalBatch_v3 e{kN,        idx.data(), x.data(),    y.data(), z.data(), er.data(),
+                          eg.data(), eb.data(),  epdf.data(), nullptr,  nullptr,  nullptr};
+    model_->eval(instance_, closure_.data(), &e);
+    for (uint32_t i = 0; i < kN; ++i) {
+        if (flags[i] == 0) continue;  // the cosine sampler only fails exactly on the horizon
+        ASSERT_GT(pdf[i], 0.0f);
+        // f cos / pdf = (1/pi) cos / (cos/pi) = 1 for every sample; float rounding only.
+        EXPECT_NEAR(r[i] * z[i] / pdf[i], 1.0f, 1e-5f);
+        EXPECT_NEAR(epdf[i], pdf[i], 1e-6f) << "eval's pdf must equal sample's pdf";
+        EXPECT_NEAR(er[i], r[i], 1e-7f);
+    }
+}
+
+}  // namespace
+}  // namespace spangle

@@ -1,0 +1,198 @@
+// End-to-end renders of tiny scenes: determinism across thread counts, an exact furnace, the
+// closed-form irradiance of a rectangle light, and systems skipped for what a scene lacks.
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstring>
+#include <fstream>
+#include <numeric>
+
+#include "pipeline/frame.h"
+#include "scene_request.h"
+#include "test_support.h"
+
+namespace spangle {
+namespace {
+
+FrameResult render(const std::string& scene, int threads, uint32_t spp = 0,
+                   Strategy strategy = Strategy::Mis) {
+    FrameRequest req;
+    req.scene = test::test_dir() + "/scenes/" + scene;
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.threads = threads;
+    req.options.spp_override = spp;
+    req.options.strategy = strategy;
+    return render_frame(req);
+}
+
+const ecs::SystemReport& report(const FrameResult& r, const std::string& name) {
+    for (const auto& s : r.systems)
+        if (s.name == name) return s;
+    throw std::runtime_error("no system " + name);
+}
+
+TEST(Render, SameImageOnOneAndTwoThreads) {
+    const FrameResult one = render("small_lit.toml", 1);
+    const FrameResult two = render("small_lit.toml", 2);
+    ASSERT_EQ(one.image.size(), two.image.size());
+    ASSERT_EQ(one.image.size(), 40u * 24u * 3u);
+    EXPECT_EQ(std::memcmp(one.image.data(), two.image.data(), one.image.size() * sizeof(float)), 0)
+        << "counter-based sampling must make the image independent of scheduling";
+    const double sum = std::accumulate(one.image.begin(), one.image.end(), 0.0);
+    EXPECT_GT(sum, 0.0) << "the scene is lit";
+    EXPECT_EQ(one.stats.nonfinite, 0u);
+    EXPECT_TRUE(report(one, "area_lights").ran);
+}
+
+TEST(Render, FurnaceSphereIsAlbedoTimesEnvironmentExactly) {
+    const FrameResult r = render("furnace_sphere.toml", 2);
+    ASSERT_EQ(r.width, 48u);
+    const auto px = [&](uint32_t x, uint32_t y, int c) {
+        return r
+            .image[3 * (static_cast<std::size_t>(y) * r.width + x) + static_cast<std::size_t>(c)];
+    };
+    // Every path scatters once off a convex sphere and escapes: L = albedo x Le = 0.5 x 0.8,
+    // with no variance, so only float rounding is tolerated.
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(px(24, 24, c), 0.4f, 1e-5f);
+        EXPECT_NEAR(px(20, 28, c), 0.4f, 1e-5f);
+        EXPECT_NEAR(px(0, 0, c), 0.8f, 1e-6f) << "background is the environment";
+    }
+}
+
+TEST(Render, RectangleLightMatchesClosedFormIrradiance) {
+    // And the same light made transparent, seen through from above (Cycles' lights: the
+    // camera does not see it, it casts no shadow, rays that meet it go on).
+    for (const char* scene : {"quad_irradiance.toml", "quad_transparent.toml"}) {
+        SCOPED_TRACE(scene);
+        const FrameResult r = render(scene, 2);
+        // Point below the centre of a 2 x 2 light at height 1 = four 1 x 1 rectangles with a corner
+        // above it. Form factor of each (parallel planes, corner above the point):
+        //   F = 1/(2 pi) [X/sqrt(1+X^2) atan(Y/sqrt(1+X^2)) + Y/sqrt(1+Y^2) atan(X/sqrt(1+Y^2))]
+        // with X = Y = 1. Lambert albedo 1 under radiance 1 then reflects L = 4 F.
+        const double a = 1.0 / std::sqrt(2.0) * std::atan(1.0 / std::sqrt(2.0));
+        const double expected = 4.0 * (2.0 * a) / (2.0 * M_PI);
+        double sum = 0.0, sum2 = 0.0;
+        const std::size_t n = static_cast<std::size_t>(r.width) * r.height;
+        for (std::size_t i = 0; i < n; ++i) {
+            const double g = r.image[3 * i + 1];
+            sum += g;
+            sum2 += g * g;
+        }
+        const double mean = sum / static_cast<double>(n);
+        const double var = (sum2 / static_cast<double>(n) - mean * mean) * static_cast<double>(n) /
+                           static_cast<double>(n - 1);
+        const double stderr_mean = std::sqrt(var / static_cast<double>(n));
+        // The 9 x 9 pixels see a 4 mm patch, where the exact value changes by under 1e-5: the pixel
+        // means are independent estimates of the same number, so 4 standard errors (+1e-4 for that
+        // spread) bound a correct estimator's deviation with probability > 0.9999.
+        EXPECT_NEAR(mean, expected, 4.0 * stderr_mean + 1e-4) << "stderr " << stderr_mean;
+        EXPECT_LT(stderr_mean, 0.003) << "the estimate must be tight enough to mean something";
+    }
+}
+
+TEST(Render, PointLightOnLambertPlaneMatchesClosedForm) {
+    const FrameResult r = render("point_plane.toml", 1);
+    // L = albedo / pi x I / h^2: no randomness reaches the result but the pixel position, and
+    // the 0.2 degree view covers a 2 mm patch where I / d^2 cos varies by under 1e-5.
+    const double expected = 2.0 / (1.5 * 1.5) / M_PI;
+    for (std::size_t i = 0; i < r.image.size(); ++i)
+        EXPECT_NEAR(r.image[i], expected, 1e-5 * expected + 1e-6);
+}
+
+/** Per-pixel difference of two renders in units of their combined standard error, estimated
+ *  from the spread of the difference over all pixels' green channel. */
+double max_z_of_mean_difference(const FrameResult& a, const FrameResult& b) {
+    const std::size_t n = a.image.size() / 3;
+    double sum = 0.0, sum2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+        const double d = static_cast<double>(a.image[3 * i + 1]) - b.image[3 * i + 1];
+        sum += d;
+        sum2 += d * d;
+    }
+    const double mean = sum / static_cast<double>(n);
+    const double sd = std::sqrt(std::max(1e-30, sum2 / static_cast<double>(n) - mean * mean));
+    return std::fabs(mean) / (sd / std::sqrt(static_cast<double>(n)));
+}
+
+TEST(Render, MisNeeOnlyAndBsdfOnlyAgree) {
+    for (const char* scene :
+         {"quad_irradiance.toml", "glossy_sphere_light.toml", "quad_transparent.toml"}) {
+        const FrameResult mis = render(scene, 2, 0, Strategy::Mis);
+        const FrameResult nee = render(scene, 2, 0, Strategy::NeeOnly);
+        const FrameResult bsdf = render(scene, 2, 0, Strategy::BsdfOnly);
+        // The image means of unbiased estimators of the same image differ by noise only:
+        // their difference is within 4 standard errors.
+        EXPECT_LT(max_z_of_mean_difference(mis, nee), 4.0) << scene;
+        EXPECT_LT(max_z_of_mean_difference(mis, bsdf), 4.0) << scene;
+        EXPECT_LT(max_z_of_mean_difference(nee, bsdf), 4.0) << scene;
+        double lum = 0.0;
+        for (float v : mis.image) lum += v;
+        EXPECT_GT(lum, 0.0) << scene << " is lit";
+    }
+}
+
+TEST(Render, MillimetreSceneRendersAsTheSameSceneInMetres) {
+    // Light transport is scale-invariant: the scene shrunk a thousandfold (a jewel or a
+    // glitter flake modelled in metres) is the same image. Ray origins left the surface by a
+    // fixed 1.5e-5 near the world's origin, more than a shadow ray's margin at this scale and
+    // 6% of the sphere light's radius: most light samples were blocked (the image 40x darker
+    // under NEE in a real case), and only BSDF sampling saw the light.
+    const test::TempDir dir("mm_scene");
+    const std::string name = "glossy_sphere_light.toml";
+    std::ofstream(dir.file("mm.toml")) << test::scene_text(
+        name, {{"position = [0, 1.2, 3]", "position = [0, 0.0012, 0.003]"},
+               {"scale = 0.3", "scale = 0.0003"},
+               {"scale = 4", "scale = 0.004"},
+               {"translate = [-0.8, 1.0, -1.5]", "translate = [-0.0008, 0.001, -0.0015]"},
+               {"center = [0.6, 0.8, -1.2]", "center = [0.0006, 0.0008, -0.0012]"},
+               {"radius = 0.25", "radius = 0.00025"}});
+    std::ofstream(dir.file("m.toml")) << test::scene_text(name);
+    const auto at = [&](const std::string& file, Strategy strategy) {
+        FrameRequest req = test::quiet_request(dir.file(file));
+        req.options.threads = 2;
+        req.options.strategy = strategy;
+        return render_frame(req);
+    };
+    const FrameResult metres = at("m.toml", Strategy::Mis);
+    const FrameResult mm = at("mm.toml", Strategy::Mis);
+    const FrameResult mm_nee = at("mm.toml", Strategy::NeeOnly);
+    const FrameResult mm_bsdf = at("mm.toml", Strategy::BsdfOnly);
+    EXPECT_LT(max_z_of_mean_difference(metres, mm), 4.0);
+    EXPECT_LT(max_z_of_mean_difference(mm_nee, mm_bsdf), 4.0);
+    double sum_m = 0.0, sum_mm = 0.0;
+    for (std::size_t i = 0; i < metres.image.size(); ++i) {
+        sum_m += metres.image[i];
+        sum_mm += mm_nee.image[i];
+    }
+    EXPECT_GT(sum_m, 0.0);
+    EXPECT_NEAR(sum_mm / sum_m, 1.0, 0.05) << "the image's total light under NEE";
+}
+
+TEST(Render, SceneWithoutLightsSkipsTheLightSystem) {
+    const FrameResult r = render("furnace_sphere.toml", 1, 1);
+    const auto& lights = report(r, "area_lights");
+    EXPECT_FALSE(lights.ran);
+    EXPECT_EQ(lights.reason, "no QuadLight, SphereLight, Emission");
+    EXPECT_TRUE(report(r, "environment").ran);
+    EXPECT_TRUE(report(r, "render").ran);
+}
+
+TEST(Render, UnusedMaterialNeverOpensItsPlugin) {
+    const FrameResult r = render("unused_material.toml", 1, 1);
+    EXPECT_EQ(r.plugins_opened, std::vector<std::string>{"smooth"})
+        << "the unused material names a plugin that does not exist; it must not be looked for";
+}
+
+TEST(Render, EmptySceneRendersTheEnvironment) {
+    const FrameResult r = render("empty.toml", 1, 1);
+    EXPECT_FALSE(report(r, "mesh_load").ran);
+    EXPECT_FALSE(report(r, "materials").ran);
+    EXPECT_FALSE(report(r, "accelerate").ran);
+    for (float v : r.image) EXPECT_NEAR(v, 0.25f, 1e-6f);
+}
+
+}  // namespace
+}  // namespace spangle
