@@ -873,6 +873,16 @@ Shape "sphere"
     const Vec3 le = e.objects.at(0).emission->color.rgb;
     EXPECT_NEAR(le.x / le.y, 1.2048f / 0.9483f, 0.03f);
     EXPECT_NEAR(le.z / le.y, 0.9088f / 0.9483f, 0.03f);
+    // The fluorescent illuminants stand in by their colour temperatures, as the warning says
+    // (they were D65's white): F12 (3000 K) warm, F7 (6500 K) near white.
+    const SceneDescription fl = read(f, R"(WorldBegin
+LightSource "point" "point3 from" [0 1 0] "spectrum I" "stdillum-F12"
+LightSource "point" "point3 from" [0 1 0] "spectrum I" "stdillum-F7"
+)");
+    ASSERT_EQ(fl.lights.size(), 2u);
+    const Vec3 f12 = fl.lights[0].color->rgb, f7 = fl.lights[1].color->rgb;
+    EXPECT_GT(f12.x / f12.z, 3.0f);
+    EXPECT_NEAR(f7.x / f7.z, 1.0f, 0.1f);
 }
 
 TEST(PbrtReader, ItsScenesBuildIntoTheRegistry) {

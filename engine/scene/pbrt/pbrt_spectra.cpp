@@ -164,7 +164,15 @@ std::optional<Vec3> named_illuminant(const std::string& name, bool& exact) {
     // The other D illuminants by their correlated colour temperatures.
     if (name == "stdillum-D50") return unit_luminance(blackbody_rgb(5003.0));
     if (name == "illum-acesD60") return unit_luminance(blackbody_rgb(6004.0));
-    if (name.rfind("stdillum-F", 0) == 0) return Vec3(1.0f);
+    // The fluorescent F1-F12 by their correlated colour temperatures (CIE 15:2004); they were
+    // white, while the warning said a blackbody stood in.
+    static constexpr std::pair<const char*, double> kFluorescent[] = {
+        {"stdillum-F1", 6430.0},  {"stdillum-F2", 4230.0},  {"stdillum-F3", 3450.0},
+        {"stdillum-F4", 2940.0},  {"stdillum-F5", 6350.0},  {"stdillum-F6", 4150.0},
+        {"stdillum-F7", 6500.0},  {"stdillum-F8", 5000.0},  {"stdillum-F9", 4150.0},
+        {"stdillum-F10", 5000.0}, {"stdillum-F11", 4000.0}, {"stdillum-F12", 3000.0}};
+    for (const auto& [n, kelvin] : kFluorescent)
+        if (name == n) return unit_luminance(blackbody_rgb(kelvin));
     return std::nullopt;
 }
 
