@@ -90,7 +90,7 @@ std::string material_body(GltfWriter& w, const std::string& png) {
         // 1: every texture, with a transform, a normal map, occlusion and emission.
         R"({{"name":"Textured","pbrMetallicRoughness":{{"baseColorTexture":{{"index":0,{}}},"baseColorFactor":[0.5,0.5,0.5,1],)"
         R"("metallicRoughnessTexture":{{"index":1}}}},"normalTexture":{{"index":0,"scale":0.5}},)"
-        R"("occlusionTexture":{{"index":0}},"emissiveFactor":[1,0.5,0],)"
+        R"("occlusionTexture":{{"index":0}},"emissiveFactor":[1,0.5,0],"doubleSided":true,)"
         R"("extensions":{{"KHR_materials_emissive_strength":{{"emissiveStrength":4}}}}}},)"
         // 2: clear coat, ior, specular.
         R"({{"name":"Coated","extensions":{{"KHR_materials_clearcoat":{{"clearcoatFactor":0.75,"clearcoatRoughnessFactor":0.1,"clearcoatNormalTexture":{{"index":0}}}},)"
@@ -105,7 +105,7 @@ std::string material_body(GltfWriter& w, const std::string& png) {
         R"("SPANGLE_materials_flakes":{{"density":150000,"flake_roughness":0.2,"seed":7,"shadowing":false,)"
         R"("fresnel":"schlick","flake_f0":0.8,"flake_color":[1,0.9,0.7],"flake_weight":{{"index":1,"scale":0.5}}}}}}}},)"
         // 6 and 7: two materials with one name; 8: no name.
-        R"({{"name":"Twin"}},{{"name":"Twin"}},{{}}],)"
+        R"({{"name":"Twin","alphaMode":"MASK"}},{{"name":"Twin"}},{{}}],)"
         R"("nodes":[{}],"meshes":[{}])",
         image_view, test::base64(png), tt, nodes, meshes);
 }
@@ -173,6 +173,9 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_TRUE(has_note(d, "KHR_materials_iridescence is dropped"));
     EXPECT_TRUE(has_note(d, "material extension KHR_materials_sheen is not read"));
     EXPECT_TRUE(has_note(d, "alphaMode BLEND is not supported"));
+    // MASK is noted too (only the first mode was: BLEND after MASK was silent).
+    EXPECT_TRUE(has_note(d, "alphaMode MASK is not supported"));
+    EXPECT_TRUE(has_note(d, "doubleSided emissive material emits from its front faces only"));
     int sheen = 0;  // one note, at the material, not another for extensionsUsed
     for (const std::string& n : d.notes)
         sheen += n.find("KHR_materials_sheen") != std::string::npos;

@@ -7,6 +7,7 @@
 // objects' emission. Colours are linear Rec.709 factors and sRGB-encoded textures; data
 // textures are raw.
 
+#include <algorithm>
 #include <cmath>
 
 #include "scene/gltf/gltf_parts.h"
@@ -316,10 +317,18 @@ void note_unread(Context& ctx, const tinygltf::Material& g, const std::string& m
     if (g.occlusionTexture.index >= 0)
         ctx.note("occlusion", ctx.at(mp + "/occlusionTexture"),
                  "occlusionTexture is ignored: the path tracer computes occlusion");
+    // One note per mode (BLEND after MASK was dropped silently).
     if (g.alphaMode == "BLEND" || g.alphaMode == "MASK")
         ctx.note(
-            "alphaMode", ctx.at(mp + "/alphaMode"),
+            "alphaMode " + g.alphaMode, ctx.at(mp + "/alphaMode"),
             fmt::format("alphaMode {} is not supported: surfaces are drawn opaque", g.alphaMode));
+    // Both sides are shaded whatever doubleSided says; only emission differs from a viewer's.
+    const bool emits = std::any_of(g.emissiveFactor.begin(), g.emissiveFactor.end(),
+                                   [](double v) { return v > 0.0; });
+    if (g.doubleSided && emits)
+        ctx.note("doubleSided emission", ctx.at(mp + "/doubleSided"),
+                 "a doubleSided emissive material emits from its front faces only (a viewer "
+                 "lights both sides)");
     for (const auto& [name, value] : g.extensions) {
         (void)value;
         if (name == "KHR_materials_iridescence")

@@ -74,7 +74,7 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
     const int mode = p.mode < 0 ? TINYGLTF_MODE_TRIANGLES : p.mode;
     if (mode != TINYGLTF_MODE_TRIANGLES && mode != TINYGLTF_MODE_TRIANGLE_STRIP &&
         mode != TINYGLTF_MODE_TRIANGLE_FAN) {
-        ctx.note("mode", ctx.at(pp + "/mode"),
+        ctx.note(fmt::format("mode {}", mode), ctx.at(pp + "/mode"),
                  fmt::format("primitives of points or lines (mode {}) are not drawn", mode));
         return ctx.meshes[key] = nullptr;
     }
