@@ -364,6 +364,33 @@ TEST(GltfReader, WithoutCameraOrLightTheDefaultsFrameTheBoundsAndLightTheStudio)
     EXPECT_EQ(lit.environment->map->path, with_env.environment);
 }
 
+TEST(GltfReader, EmissionTooFaintToLightTheFileGetsTheStudioLight) {
+    // A 1 x 1 grey quad beside a small emissive quad (scaled 0.02, an LED): the LED's power
+    // spread over the surfaces is far below the studio light's, and the file rendered black
+    // (the emission counted as light). A large emissive panel lights the file itself.
+    test::TempDir dir("gltf_faint");
+    const auto write = [&](const std::string& file, double led_scale, double strength) {
+        GltfWriter w;
+        const QuadAccessors q = quad(w);
+        w.write_gltf(
+            dir.file(file),
+            fmt::format(
+                R"("materials":[{{"name":"grey"}},{{"name":"led","emissiveFactor":[0,1,0],)"
+                R"("extensions":{{"KHR_materials_emissive_strength":{{"emissiveStrength":{}}}}}}}],)"
+                R"("nodes":[{{"mesh":0}},{{"mesh":1,"scale":[{},{},1],"translation":[0,0,0.1]}}],)"
+                R"("meshes":[{{"primitives":[{}]}},{{"primitives":[{}]}}])",
+                strength, led_scale, led_scale, quad_primitive(q, 0), quad_primitive(q, 1)));
+        return read_gltf_scene(dir.file(file), {});
+    };
+    const SceneDescription led = write("led.gltf", 0.02, 5.0);
+    EXPECT_EQ(led.lights.size(), 1u);
+    EXPECT_TRUE(has_note(led, "emission too faint to light it"));
+    // (Power 5 pi 4e-4 over 1.0004 square units: irradiance 0.006.)
+    const SceneDescription panel = write("panel.gltf", 1.0, 1.0);
+    EXPECT_TRUE(panel.lights.empty());
+    EXPECT_FALSE(has_note(panel, "studio light"));
+}
+
 TEST(GltfReader, PunctualLightsTakeTheirNodesPlaceAndPhotometricUnits) {
     test::TempDir dir("gltf_lights");
     GltfWriter w;

@@ -2,11 +2,13 @@
 // primitive of a node's mesh is an object placed by the node's world matrix (or its matrix
 // keys when an animation moves it); the first perspective camera, or the one asked for by
 // name, looks down its node's -Z with +Y up; KHR_lights_punctual lights sit at their nodes.
-// A file without a camera gets a framing of its bounds, one without light a studio light
+// A file without a camera gets a framing of its bounds, one without light (or whose emission
+// is too faint to light it) a studio light
 // (docs/gltf.md gives both).
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 #include "scene/gltf/gltf_accessors.h"
 #include "scene/gltf/gltf_parts.h"
@@ -346,12 +348,55 @@ void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras
     default_camera(ctx);
 }
 
+/** The world-space area of an object the reader placed (an inline mesh under a matrix); 0 for
+ *  any other shape. */
+double placed_area(const ObjectDesc& o) {
+    const auto* in = std::get_if<InlineMeshShape>(&o.shape);
+    if (!in || !in->mesh) return 0.0;
+    const TriangleMesh& m = *in->mesh;
+    const Affine xf = o.placement.matrix.value_or(Affine{});
+    double a = 0.0;
+    for (std::size_t t = 0; t < m.triangle_count(); ++t) {
+        const Vec3 p0 = xf.apply_point(m.position(m.indices[3 * t])),
+                   p1 = xf.apply_point(m.position(m.indices[3 * t + 1])),
+                   p2 = xf.apply_point(m.position(m.indices[3 * t + 2]));
+        a += 0.5 * static_cast<double>(length(cross(p1 - p0, p2 - p0)));
+    }
+    return a;
+}
+
+/** How brightly the file's own emission lights it: its emitted power (radiance x area x pi)
+ *  spread over every surface of the file, an irradiance to set against the studio light's
+ *  (about 2.5). */
+double emission_irradiance(const SceneDescription& s) {
+    double power = 0.0, area = 0.0;
+    for (const ObjectDesc& o : s.objects) {
+        const double a = placed_area(o);
+        area += a;
+        if (o.emission) {
+            const Vec3 c = o.emission->color.rgb;
+            power += std::numbers::pi * a * o.emission->intensity *
+                     static_cast<double>(std::max({c.x, c.y, c.z}));
+        }
+    }
+    return area > 0.0 ? power / area : 0.0;
+}
+
+/** Emission spread this thin leaves the file black or nearly (surfaces of albedo 0.6 at
+ *  about 0.02): an emissive atlas that is black but for one LED under emissiveFactor 1, as
+ *  exporters write it, or a small LED on a device. 4% of the studio light's irradiance. */
+constexpr double kFaintEmission = 0.1;
+
 /** With no light in the file: a grey sky and a key light (docs/gltf.md). */
-void default_light(Context& ctx) {
+void default_light(Context& ctx, bool faint_emission) {
     const FileLoc file{ctx.path, 1, 1};
     ctx.note("default light", file,
-             "the file has no light: the default studio light stands in (a grey sky and a key "
-             "light)");
+             faint_emission
+                 ? "the file's only light is emission too faint to light it (its power spread "
+                   "over its surfaces is below 4% of the studio light's): the default studio "
+                   "light is added (a grey sky and a key light)"
+                 : "the file has no light: the default studio light stands in (a grey sky and a "
+                   "key light)");
     EnvironmentDesc env;
     env.loc = env.group.loc = file;
     env.color = ColorDesc{{0.25f, 0.25f, 0.25f}, std::string("lin_rec709"), file, file};
@@ -399,8 +444,11 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
     choose_camera(ctx, cameras, options.camera, motions);
     bool emits = false;
     for (const ObjectDesc& o : ctx.scene->objects) emits = emits || o.emission.has_value();
-    // --env lights the scene itself: no stand-in then.
-    if (ctx.scene->lights.empty() && !emits && options.environment.empty()) default_light(ctx);
+    // --env lights the scene itself: no stand-in then. Nor where its emission lights it; faint
+    // emission alone (which rendered black) gets the studio light beside it.
+    const bool faint = emits && emission_irradiance(*ctx.scene) < kFaintEmission;
+    if (ctx.scene->lights.empty() && (!emits || faint) && options.environment.empty())
+        default_light(ctx, faint);
     RenderDesc& r = ctx.scene->render;
     r.loc = r.working_space_loc = r.color_space_loc = FileLoc{ctx.path, 1, 1};
     if (end > 0.0)
