@@ -373,26 +373,26 @@ TEST(GltfAnimation, NodeChannelsBecomeMatrixKeysAtTheUnionOfTheirTimes) {
     ASSERT_EQ(d.objects.size(), 2u);
     const Keys<MatrixKey>& child = d.objects[0].matrix_keys;
     // The parent's 0, 1, 2 and the child's 0.5 and 1.5, the step at 1.5 with a key 1e-4 s before
-    // it holding the previous value (before its first key a channel holds its first value).
+    // it holding the previous value (before its first key a channel holds its first value); and,
+    // as the parent's turn carries the child along an arc, a key every 3 degrees of that turn
+    // (90 degrees a second: 1/30 s apart).
     std::vector<double> times;
     for (const MatrixKey& k : child.keys) times.push_back(k.time.seconds);
-    const std::vector<double> want = {0, 0.5, 1, 1.5 - 1e-4, 1.5, 2};
-    ASSERT_EQ(times.size(), want.size());
-    for (std::size_t i = 0; i < want.size(); ++i) EXPECT_NEAR(times[i], want[i], 1e-6) << i;
-    // The child's origin is the parent's turn R_y(90 t degrees) applied to its translation:
-    // (x, 0, z) -> (x cos + z sin, 0, z cos - x sin).
-    const auto origin = [&](std::size_t i) { return child.keys[i].matrix.apply_point({0, 0, 0}); };
-    const float h = std::sqrt(0.5f);
-    const Vec3 expected[] = {{0, 0, 1},  {h, 0, h},      {1, 0, 0},
-                             {h, 0, -h}, {0, 0, -2 * h}, {-1, 0, -1}};
-    for (std::size_t i = 0; i < want.size(); ++i) {
-        const float turn = static_cast<float>(times[i]) * kPi / 2;  // 1e-4 s is 1.6e-4 rad
-        if (i == 3) {
-            EXPECT_NEAR(origin(i).x, std::sin(turn), 1e-5f);
-            continue;
-        }
-        EXPECT_NEAR(origin(i).x, expected[i].x, 1e-5f) << i;
-        EXPECT_NEAR(origin(i).z, expected[i].z, 1e-5f) << i;
+    for (const double t : {0.0, 0.5, 1.0, 1.5 - 1e-4, 1.5, 2.0})
+        EXPECT_TRUE(std::any_of(times.begin(), times.end(),
+                                [&](double k) { return std::fabs(k - t) < 1e-6; }))
+            << "no key at " << t;
+    for (std::size_t i = 1; i < times.size(); ++i)
+        EXPECT_LE(times[i] - times[i - 1], 1.0 / 30.0 + 1e-6) << i;
+    // The child's origin is the parent's turn R_y(90 t degrees) applied to its translation,
+    // (0, 0, 1) until the step at 1.5 s and (1, 0, 1) from it: (x, 0, z) -> (x cos + z sin, 0,
+    // z cos - x sin).
+    for (std::size_t i = 0; i < times.size(); ++i) {
+        const auto turn = static_cast<float>(times[i] * kPi / 2);
+        const float x = times[i] >= 1.5 ? 1.0f : 0.0f;
+        const Vec3 o = child.keys[i].matrix.apply_point({0, 0, 0});
+        EXPECT_NEAR(o.x, x * std::cos(turn) + std::sin(turn), 1e-5f) << times[i];
+        EXPECT_NEAR(o.z, std::cos(turn) - x * std::sin(turn), 1e-5f) << times[i];
     }
     // The cubic spline is sampled at its keys and three points between: at s = 0.5 the Hermite
     // value of 1 -> 2 with zero tangents is 1.5.
@@ -409,8 +409,15 @@ TEST(GltfAnimation, NodeChannelsBecomeMatrixKeysAtTheUnionOfTheirTimes) {
     const SceneInfo info = build_scene(d, color, registry, 1.0);
     EXPECT_TRUE(info.animated);
     const Vec3 o = info.object_to_world[0].apply_point({0, 0, 0});
-    EXPECT_NEAR(o.x, 1.0f, 1e-4f);  // at t = 1 s, key 3 exactly
+    EXPECT_NEAR(o.x, 1.0f, 1e-4f);  // at t = 1 s, a key exactly
     EXPECT_NEAR(o.z, 0.0f, 1e-4f);
+    // Between keys the child stays on its circle (it cut the chord between the parent's keys:
+    // at 0.25 s, 0.92 of the radius from the axis).
+    ecs::Registry between;
+    const SceneInfo at = build_scene(d, color, between, 0.26);
+    const Vec3 q = at.object_to_world[0].apply_point({0, 0, 0});
+    EXPECT_NEAR(std::hypot(q.x, q.z), 1.0f, 4e-4f);
+    EXPECT_NEAR(std::atan2(q.x, q.z), 0.26f * kPi / 2, 1e-3f);
 }
 
 /** The SpangleError message of reading `text` as a .gltf in `dir`. */
