@@ -444,6 +444,15 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
                        "compression\"],\"extensionsUsed\":[\"KHR_draco_mesh_compression\"]}"),
               f + ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
                   "Spangle does not read");
+    // The same where the extension's data would fail tinygltf first (a Draco accessor has no
+    // bufferView): the requirement is what is wrong ("accessor[0] invalid bufferView" before).
+    EXPECT_EQ(error_of(dir,
+                       "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_draco_mesh_"
+                       "compression\"],\"accessors\":[{\"componentType\":5123,\"count\":3,"
+                       "\"type\":\"SCALAR\"}],\"meshes\":[{\"primitives\":[{\"attributes\":{},"
+                       "\"indices\":0}]}]}"),
+              f + ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
+                  "Spangle does not read");
     EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"1.0\"}}").find("only 2.x is read"),
               std::string::npos);
     EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\"nodes\":[{\"children\":[0]}]}")

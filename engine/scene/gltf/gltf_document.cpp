@@ -134,12 +134,19 @@ bool noted_in_place(const std::string& e) {
            e == "EXT_texture_webp";
 }
 
-/** Fails on required extensions not read; notes used ones not read (once each). */
+/** Fails on a required extension Spangle does not read (from the JSON itself, before tinygltf
+ *  reads the data it changes: Draco-compressed accessors without a buffer view failed there as
+ *  "accessor[3] invalid bufferView"). */
+void check_required(const Context& ctx) {
+    const std::vector<std::string>& required = ctx.json.required_extensions();
+    for (std::size_t i = 0; i < required.size(); ++i)
+        if (!kRead.count(required[i]))
+            throw_error(ctx.at(fmt::format("extensionsRequired/{}", i)),
+                        "the file requires extension {}, which Spangle does not read", required[i]);
+}
+
+/** Notes used extensions not read (once each). */
 void check_extensions(Context& ctx) {
-    for (const std::string& e : ctx.model.extensionsRequired)
-        if (!kRead.count(e))
-            throw_error(ctx.at("extensionsRequired"),
-                        "the file requires extension {}, which Spangle does not read", e);
     for (const std::string& e : ctx.model.extensionsUsed)
         if (!kRead.count(e) && !noted_in_place(e))
             ctx.note("extension " + e, ctx.at("extensionsUsed"),
@@ -155,6 +162,7 @@ void load_document(Context& ctx) {
     const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
     const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
     ctx.json = JsonLocations(json, ctx.path);
+    check_required(ctx);
     if (bytes.size() > 0xFFFFFFFFu)
         throw_error(FileLoc{ctx.path, 0, 0}, "the file is larger than 4 GiB");
     tinygltf::TinyGLTF loader;

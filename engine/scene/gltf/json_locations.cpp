@@ -11,8 +11,9 @@ constexpr int kMaxDepth = 256;  ///< deeper nesting is refused (no glTF needs mo
 class Scanner {
 public:
     Scanner(std::string_view text, const std::string& file,
-            std::unordered_map<std::string, std::pair<int, int>>& places)
-        : text_(text), file_(file), places_(places) {}
+            std::unordered_map<std::string, std::pair<int, int>>& places,
+            std::vector<std::string>& required)
+        : text_(text), file_(file), places_(places), required_(required) {}
 
     void document() {
         skip_space();
@@ -59,7 +60,17 @@ private:
         const char c = peek();
         if (c == '{') return object(depth);
         if (c == '[') return array(depth);
-        if (c == '"') return string(nullptr);
+        if (c == '"') {
+            // The required extensions' names are kept: a file that needs one Spangle does not
+            // read is refused by that, before tinygltf trips over what it compresses.
+            if (path_ == "extensionsRequired") {
+                std::string name;
+                string(&name);
+                required_.push_back(std::move(name));
+                return;
+            }
+            return string(nullptr);
+        }
         if (c == '-' || (c >= '0' && c <= '9')) return number();
         for (const char* word : {"true", "false", "null"}) {
             const std::string_view w(word);
@@ -177,6 +188,7 @@ private:
     std::string_view text_;
     const std::string& file_;
     std::unordered_map<std::string, std::pair<int, int>>& places_;
+    std::vector<std::string>& required_;
     std::size_t pos_ = 0;
     int line_ = 1;
     int column_ = 1;
@@ -186,7 +198,7 @@ private:
 }  // namespace
 
 JsonLocations::JsonLocations(std::string_view text, std::string file) : file_(std::move(file)) {
-    Scanner(text, file_, places_).document();
+    Scanner(text, file_, places_, required_).document();
 }
 
 FileLoc JsonLocations::at(std::string_view path) const {

@@ -8,6 +8,7 @@
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <vector>
 
 #include "core/error.h"
 
@@ -30,9 +31,13 @@ public:
     /** The file's name as messages give it. */
     const std::string& file() const { return file_; }
 
+    /** The names in its top-level extensionsRequired, as written (escapes kept). */
+    const std::vector<std::string>& required_extensions() const { return required_; }
+
 private:
     std::string file_;
     std::unordered_map<std::string, std::pair<int, int>> places_;  ///< path -> (line, column)
+    std::vector<std::string> required_;                            ///< extensionsRequired
 };
 
 }  // namespace spangle::gltf
