@@ -152,7 +152,7 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
     }
     if (use == TextureUse::Param && r.has("scale")) read_texture_scale(ctx, r, tex);
     if (use == TextureUse::NormalMap)
-        tex.amount = static_cast<float>(r.number("strength", 1.0, {0.0, 10.0}));
+        tex.amount = static_cast<float>(r.number("strength", 1.0, {-10.0, 10.0}));  // < 0: inverted
     if (use == TextureUse::BumpMap) {
         tex.amount = static_cast<float>(r.number("height", 0.001, {-1.0, 1.0}));
         // Cycles' Bump Strength: the normal is the surface's blended with the bumped one.

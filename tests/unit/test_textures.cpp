@@ -273,6 +273,13 @@ params = { preset = "gold", roughness = 0.2 })";
                            "180 } }"));
     for (std::size_t i = 0; i < t.image.size(); ++i)
         ASSERT_NEAR(turned.image[i], t.image[i], 1e-3f * std::max(1.0f, t.image[i])) << i;
+    // A negative strength inverts the bumps (glTF's negative normalTexture.scale, which the
+    // reader clamped to 0, a flat map): the opposite tilt at strength -1 is the tilt.
+    const FrameResult inverted = render_text(
+        dir, "inverted.toml",
+        plane_scene(body + "\nnormal_map = { texture = \"opposite.exr\", strength = -1 }"));
+    for (std::size_t i = 0; i < t.image.size(); ++i)
+        ASSERT_NEAR(inverted.image[i], t.image[i], 1e-3f * std::max(1.0f, t.image[i])) << i;
 }
 
 TEST(Texture, ABumpMapsStrengthBlendsTheNormalsAsBlendersBumpDoes) {

@@ -351,12 +351,13 @@ void normal_map(Builder& b, const tinygltf::Material& g, const std::string& mp) 
         b.ctx, {g.normalTexture.index, g.normalTexture.texCoord, &g.normalTexture.extensions}, np,
         false);
     if (!tex) return;
+    // A negative scale inverts the bumps, as viewers draw it (the schema has no minimum).
     double scale = std::isfinite(g.normalTexture.scale) ? g.normalTexture.scale : 1.0;
-    if (scale < 0.0 || scale > 10.0)
+    if (scale < -10.0 || scale > 10.0)
         b.ctx.note("normal scale", b.ctx.at(np + "/scale"),
-                   fmt::format("normalTexture scale {} is outside [0, 10]: {} stands in", scale,
-                               std::clamp(scale, 0.0, 10.0)));
-    tex->amount = static_cast<float>(std::clamp(scale, 0.0, 10.0));
+                   fmt::format("normalTexture scale {} is outside [-10, 10]: {} stands in", scale,
+                               std::clamp(scale, -10.0, 10.0)));
+    tex->amount = static_cast<float>(std::clamp(scale, -10.0, 10.0));
     ParamDesc p = b.base("normal_map", np);
     p.kind = ParamDesc::Kind::Texture;
     p.texture = std::move(*tex);
