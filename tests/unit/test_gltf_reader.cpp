@@ -364,6 +364,28 @@ TEST(GltfReader, WithoutCameraOrLightTheDefaultsFrameTheBoundsAndLightTheStudio)
     EXPECT_EQ(lit.environment->map->path, with_env.environment);
 }
 
+TEST(GltfReader, ANodeFlattenedOntoAPlaneIsDrawnFlat) {
+    // scale [1, 0, 1] flattens the quad's node onto a plane: drawn flat, as viewers draw it (it
+    // was "scaled to nothing" and dropped); onto a line ([0, 0, 1]) nothing keeps an area.
+    test::TempDir dir("gltf_flat");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    w.write_gltf(
+        dir.file("flat.gltf"),
+        fmt::format(R"("nodes":[{{"mesh":0,"scale":[1,1,0]}},{{"mesh":0,"scale":[0,1,0]}}],)"
+                    R"("meshes":[{{"primitives":[{}]}}])",
+                    quad_primitive(q, -1)));
+    const SceneDescription d = read_gltf_scene(dir.file("flat.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    const Affine& m = *d.objects[0].placement.matrix;
+    EXPECT_GT(std::fabs(m.determinant()), 1e-18f);
+    const Vec3 corner = m.apply_point({1, 1, 0});
+    EXPECT_NEAR(corner.x, 1.0f, 1e-5f);
+    EXPECT_NEAR(corner.y, 1.0f, 1e-5f);
+    EXPECT_NEAR(corner.z, 0.0f, 1e-5f);
+    EXPECT_EQ(count_notes(d, "scaled to nothing"), 1);
+}
+
 TEST(GltfReader, EmissionTooFaintToLightTheFileGetsTheStudioLight) {
     // A 1 x 1 grey quad beside a small emissive quad (scaled 0.02, an LED): the LED's power
     // spread over the surfaces is far below the studio light's, and the file rendered black

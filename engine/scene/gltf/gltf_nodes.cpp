@@ -94,8 +94,39 @@ Keys<MatrixKey> matrix_keys(const NodeMotion& m, const FileLoc& at, const std::s
     return keys;
 }
 
+/** A placement that flattens its mesh onto a plane (one scale 0: a decal, a squashed shape)
+ *  made invertible by the least thickness along the flattened direction (1e-6 of its size), so
+ *  that it is drawn flat as a viewer draws it. False where it flattens the mesh onto a line or a
+ *  point (nothing keeps an area). */
+bool thicken(Affine& a) {
+    const auto longest = [](Vec3 x, Vec3 y, Vec3 z) {
+        const Vec3 c[3] = {cross(x, y), cross(y, z), cross(z, x)};
+        Vec3 best = c[0];
+        for (const Vec3& v : c)
+            if (length(v) > length(best)) best = v;
+        return best;
+    };
+    const Vec3 r0{a.m[0][0], a.m[0][1], a.m[0][2]}, r1{a.m[1][0], a.m[1][1], a.m[1][2]},
+        r2{a.m[2][0], a.m[2][1], a.m[2][2]};
+    const Vec3 c0{a.m[0][0], a.m[1][0], a.m[2][0]}, c1{a.m[0][1], a.m[1][1], a.m[2][1]},
+        c2{a.m[0][2], a.m[1][2], a.m[2][2]};
+    const Vec3 flat = longest(r0, r1, r2), missing = longest(c0, c1, c2);
+    const float size = std::max({length(c0), length(c1), length(c2)});
+    if (!(length(flat) > 1e-12f * size * size && length(missing) > 1e-12f * size * size))
+        return false;
+    const Vec3 n = normalize(flat), u = normalize(missing);
+    const float e = 1e-6f * size;
+    const float un[3][3] = {{u.x * n.x, u.x * n.y, u.x * n.z},
+                            {u.y * n.x, u.y * n.y, u.y * n.z},
+                            {u.z * n.x, u.z * n.y, u.z * n.z}};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) a.m[i][j] += e * un[i][j];
+    return std::fabs(a.determinant()) > 1e-18f;
+}
+
 /** The objects of node n's mesh, one per primitive. */
-void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
+void mesh_objects(Context& ctx, int n, const NodeMotion& motion_in) {
+    NodeMotion motion = motion_in;
     const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
     const std::string np = fmt::format("nodes/{}", n);
     check_index(ctx, np + "/mesh", node.mesh, ctx.model.meshes.size(), "mesh");
@@ -103,9 +134,12 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
         ctx.note("skin", ctx.at(np + "/skin"),
                  "skins are not deformed: a skinned mesh is drawn rigidly in its bind pose, "
                  "placed by its first joint (its world matrix times its inverse bind matrix)");
-    if (motion.times.empty() && !(std::fabs(motion.rest.determinant()) > 1e-18f)) {
+    if (motion.times.empty() && !(std::fabs(motion.rest.determinant()) > 1e-18f) &&
+        !thicken(motion.rest)) {
         ctx.note(fmt::format("hidden {}", n), ctx.at(np),
-                 fmt::format("node {} is scaled to nothing: its mesh is not drawn", n));
+                 fmt::format("node {} is scaled to nothing (onto a line or a point): its mesh "
+                             "is not drawn",
+                             n));
         return;
     }
     const tinygltf::Mesh& mesh = ctx.model.meshes[static_cast<std::size_t>(node.mesh)];
