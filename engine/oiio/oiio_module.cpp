@@ -137,7 +137,7 @@ __attribute__((visibility("default"))) void* spangle_oiio_texture_handle(void* s
 /** Filtered lookups of `count` points: texture coordinates s, t (0 at the left and top edges,
  *  1 at the right and bottom) and their screen-space derivatives; writes `channels` values per
  *  point to out and, when not NULL, their derivatives along s and t. wrap: 0 periodic,
- *  1 clamp, 2 black, 3 mirror; filter: 0 trilinear, 1 anisotropic. 0 on success. */
+ *  1 clamp, 2 black, 3 mirror; filter: 0 trilinear, 1 anisotropic, 2 closest. 0 on success. */
 __attribute__((visibility("default"))) int spangle_oiio_texture_lookup(
     void* system, void* handle, int wrap, int filter, int count, const float* s, const float* t,
     const float* dsdx, const float* dtdx, const float* dsdy, const float* dtdy, int channels,
@@ -154,9 +154,13 @@ __attribute__((visibility("default"))) int spangle_oiio_texture_lookup(
     // filter 0: trilinear (one isotropic footprint, the longer axis); 1: anisotropic, up to 8
     // probes along the longer axis (sharper at grazing angles, ~20% more render time on the
     // textured beetle than trilinear, whose cost is that of an untextured material).
+    // 2: closest, the texel the point falls in at the finest level (glTF's NEAREST: pixel art).
     if (filter == 1) {
         opt.mipmode = OIIO::TextureOpt::MipModeAniso;
         opt.anisotropic = 8;
+    } else if (filter == 2) {
+        opt.interpmode = OIIO::TextureOpt::InterpClosest;
+        opt.mipmode = OIIO::TextureOpt::MipModeNoMIP;
     } else {
         opt.mipmode = OIIO::TextureOpt::MipModeTrilinear;
     }

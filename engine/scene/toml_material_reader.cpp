@@ -171,10 +171,11 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
     }
     if (r.has("filter")) {
         const std::string f = r.string("filter");
-        if (f != "trilinear" && f != "anisotropic")
-            throw_error(r.loc("filter"),
-                        "'filter' must be \"trilinear\" or \"anisotropic\", got \"{}\"", f);
-        tex.filter = f == "anisotropic" ? 1 : 0;
+        if (f != "trilinear" && f != "anisotropic" && f != "closest")
+            throw_error(
+                r.loc("filter"),
+                "'filter' must be \"trilinear\", \"anisotropic\" or \"closest\", got \"{}\"", f);
+        tex.filter = f == "anisotropic" ? 1 : f == "closest" ? 2 : 0;
     }
     r.finish();
     return tex;

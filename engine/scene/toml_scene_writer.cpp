@@ -201,7 +201,9 @@ struct Writer {
         for (float x : t.uv) uv.push_back(num(x));
         s += fmt::format(", uv_transform = {{ matrix = [{}] }}", fmt::join(uv, ", "));
         s += fmt::format(", wrap = {}, filter = {} }}", str(wraps[t.wrap & 3]),
-                         str(t.filter == 1 ? "anisotropic" : "trilinear"));
+                         str(t.filter == 1   ? "anisotropic"
+                             : t.filter == 2 ? "closest"
+                                             : "trilinear"));
         return s;
     }
 

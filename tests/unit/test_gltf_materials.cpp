@@ -82,7 +82,7 @@ std::string material_body(GltfWriter& w, const std::string& png) {
     return fmt::format(
         R"("extensionsUsed":["KHR_texture_transform","KHR_materials_clearcoat","KHR_materials_ior","KHR_materials_specular","KHR_materials_transmission","KHR_materials_emissive_strength","KHR_materials_iridescence","SPANGLE_materials_flakes","KHR_materials_sheen","EXT_mesh_gpu_instancing"],)"
         R"("images":[{{"bufferView":{},"mimeType":"image/png"}},{{"uri":"data:image/png;base64,{}"}}],)"
-        R"("samplers":[{{"wrapS":33071,"wrapT":33071}},{{"wrapS":33648,"wrapT":10497}}],)"
+        R"("samplers":[{{"wrapS":33071,"wrapT":33071,"magFilter":9728}},{{"wrapS":33648,"wrapT":10497,"magFilter":9729}}],)"
         R"("textures":[{{"source":0,"sampler":0}},{{"source":1,"sampler":1}}],)"
         R"("materials":[)"
         // 0: factors only.
@@ -134,6 +134,7 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_EQ(base.texture.space, "srgb_texture");  // colour textures are sRGB-encoded
     EXPECT_EQ(base.texture.scale[0], 0.5f);         // times baseColorFactor
     EXPECT_EQ(base.texture.wrap, 1);                // CLAMP_TO_EDGE
+    EXPECT_EQ(base.texture.filter, 2);              // magFilter NEAREST: closest
     // KHR_texture_transform, offset (0.5, 0.25), scale (2, 4), in Spangle's v = 1 - t:
     // s = 2 u + 0.5 and 1 - t = 1 - (4 (1 - v) + 0.25) = 4 v - 3.25.
     const float want[6] = {2, 0, 0.5f, 0, 4, -3.25f};
@@ -142,6 +143,7 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     ASSERT_EQ(mr.kind, ParamDesc::Kind::Texture);
     EXPECT_EQ(mr.texture.space, "raw");  // data
     EXPECT_EQ(mr.texture.wrap, 3);       // MIRRORED_REPEAT (wrapT differs: noted)
+    EXPECT_EQ(mr.texture.filter, 0);     // magFilter LINEAR: trilinear
     EXPECT_TRUE(has_note(d, "wraps s and t differently"));
     ASSERT_EQ(tex.maps.size(), 1u);
     EXPECT_EQ(tex.maps[0].name, "normal_map");

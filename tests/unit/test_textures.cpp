@@ -101,6 +101,19 @@ TEST(Texture, LookupsAreBilinearAtTheFinestLevel) {
             EXPECT_NEAR(got[static_cast<std::size_t>(c)], want, 2e-3f * std::max(1.0f, want))
                 << "at texel coordinates (" << fx << ", " << fy << ") channel " << c;
         }
+        // filter = "closest" (glTF's NEAREST): the texel the point falls in, even under a
+        // footprint of several texels (no blurred level). (Points on a texel's edge, x = 3, may
+        // take either side.)
+        if (fx == std::floor(fx) || fy == std::floor(fy)) continue;
+        for (const float d : {1e-5f, 0.3f}) {
+            const std::vector<float> near = lookup(t.service, *tex, s, tt, d, 3, 2);
+            const int x = std::min(static_cast<int>(fx), kW - 1),
+                      y = std::min(static_cast<int>(fy), kH - 1);
+            for (int c = 0; c < 3; ++c)
+                EXPECT_NEAR(near[static_cast<std::size_t>(c)], texel(x, y, c),
+                            2e-3f * std::max(1.0f, texel(x, y, c)))
+                    << "closest at (" << fx << ", " << fy << ") footprint " << d;
+        }
     }
 }
 
