@@ -74,19 +74,58 @@ int run_new(const NewArgs& a) {
     if (!a.force && fs::exists(ground, ec))
         usage_error("'{}' (the scene's ground plane) exists; --force overwrites it",
                     ground.string());
+    // Never over the model itself, --force or not (`new --mesh t_ground.ply -o t.toml --force`
+    // replaced the user's mesh with the ground plane).
+    const auto same_file = [&](const fs::path& a_path, const std::string& b_path) {
+        std::error_code e;
+        return fs::exists(a_path, e) && fs::equivalent(a_path, b_path, e);
+    };
+    if (same_file(ground, a.mesh) || same_file(output, a.mesh))
+        usage_error(
+            "the scene '{}' and its ground plane '{}' would overwrite the model '{}': "
+            "give another -o",
+            output, ground.string(), a.mesh);
+    // The shipped studio map is copied beside the scene, so that the scene does not point into
+    // the folder Spangle was built or installed in (a farm node without it failed).
+    const fs::path studio =
+        ground.parent_path() / (fs::path(output).stem().string() + "_studio.exr");
+    if (a.env.empty()) {
+        if (same_file(studio, a.mesh))
+            usage_error(
+                "the scene's studio map '{}' would overwrite the model '{}': give another -o",
+                studio.string(), a.mesh);
+        if (!a.force && fs::exists(studio, ec))
+            usage_error("'{}' (the scene's studio map) exists; --force overwrites it",
+                        studio.string());
+    }
     check_writable(output, "TOML scene");
     NewSceneRequest req;
     req.model = a.mesh;
     req.output = output;
-    req.env_map = a.env.empty() ? find_studio_map() : a.env;
-    const NewSceneReport rep = write_new_scene(req);
+    req.env_map = a.env;
+    if (a.env.empty()) {
+        const std::string shipped = find_studio_map();
+        fs::copy_file(shipped, studio, fs::copy_options::overwrite_existing, ec);
+        if (ec)
+            throw_error("cannot copy the studio map {} to {}: {}", shipped, studio.string(),
+                        ec.message());
+        req.env_map = studio.string();
+    }
+    NewSceneReport rep;
+    try {
+        rep = write_new_scene(req);
+    } catch (...) {
+        if (a.env.empty()) fs::remove(studio, ec);  // a failed scene leaves no map behind
+        throw;
+    }
     Logger log;
     if (a.quiet) log.threshold = LogLevel::Warning;
     log.info(
-        "wrote {} and its ground plane {}: the model's bounds {:.3g} x {:.3g} x {:.3g}, "
+        "wrote {} and its ground plane {}{}: the model's bounds {:.3g} x {:.3g} x {:.3g}, "
         "paint '{}' with {:.3g} flakes per square unit (about {:.0f} per pixel); render it "
         "with: spangle render {}",
-        output, rep.ground, rep.model_bounds.hi.x - rep.model_bounds.lo.x,
+        output, rep.ground, a.env.empty() ? " and studio map " + studio.string() : std::string(),
+        rep.model_bounds.hi.x - rep.model_bounds.lo.x,
         rep.model_bounds.hi.y - rep.model_bounds.lo.y,
         rep.model_bounds.hi.z - rep.model_bounds.lo.z, rep.paint, rep.density, rep.flakes_per_pixel,
         output);

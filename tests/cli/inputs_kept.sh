@@ -127,4 +127,13 @@ expect 2 "ball_ground.ply' (the scene's ground plane) exists" new --mesh sphere.
 [ ! -e ball.toml ] || fail "the scene was written although its ground plane was refused"
 "$S" new --mesh sphere.obj -o ball.toml --env studio.exr --force -q > /dev/null ||
     fail "new --force failed"
+# The ground plane never replaces the model, even with --force (it did: t_ground.ply became the
+# plane); the shipped studio map is copied beside the scene (it pointed into the build tree).
+cp plane.ply t_ground.ply
+before_model=$(md5sum < t_ground.ply)
+expect 2 "would overwrite the model" new --mesh t_ground.ply -o t.toml --force
+[ "$(md5sum < t_ground.ply)" = "$before_model" ] || fail "new replaced the model"
+"$S" new --mesh sphere.obj -o own.toml -q > /dev/null || fail "new without --env failed"
+grep -q '^map = "own_studio.exr"' own.toml || fail "the studio map is not beside the scene"
+[ -s own_studio.exr ] || fail "the studio map was not copied"
 echo "PASS"
