@@ -79,7 +79,8 @@ std::string toml_quoted(const std::string& s) {
 }
 
 std::string vec4g(Vec3 v) {
-    return fmt::format("[{:.4g}, {:.4g}, {:.4g}]", v.x, v.y, v.z);
+    // + 0.0f: a negated zero reads 0, not -0.
+    return fmt::format("[{:.4g}, {:.4g}, {:.4g}]", v.x + 0.0f, v.y + 0.0f, v.z + 0.0f);
 }
 
 /** Rounds to two significant digits, so the written density reads as a chosen number. */
