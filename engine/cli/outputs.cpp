@@ -121,11 +121,14 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
     // parts that differ (adaptive crops of other thresholds made a quilt) or were denoised.
     if (!d.sampling.empty()) o.metadata.emplace_back("spangle:sampling", d.sampling);
     if (!d.denoised.empty()) o.metadata.emplace_back("spangle:denoised", d.denoised);
-    // A --spp-range part: its samples' exact sums, for spangle merge.
-    if (out.spp_end > 0 && d.sums && !d.partial) {
+    // A --spp-range part: its samples' exact sums, for spangle merge. One a signal stopped holds
+    // the samples of its completed passes, first..first+spp: a part of that range (merge then
+    // names the samples still missing; it was written as a plain image that merge called "not
+    // crops of one render").
+    if (out.spp_end > 0 && d.sums && d.spp > 0 && d.block <= 1) {
         o.sums = d.sums;
         o.metadata.emplace_back("spangle:spp_range",
-                                fmt::format("{}..{}", out.spp_first, out.spp_end));
+                                fmt::format("{}..{}", out.spp_first, out.spp_first + d.spp));
         o.metadata.emplace_back("spangle:spp_frame", std::to_string(d.spp_frame));
     }
     if (d.seconds >= 0.0) o.floats.emplace_back("renderTimeSeconds", static_cast<float>(d.seconds));

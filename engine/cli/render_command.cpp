@@ -203,7 +203,9 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
         print_stats(frame, s.out.exr);
     else if (!a.quiet)
         s.log.info("wrote {}{}", s.out.exr, s.out.preview.empty() ? "" : " and " + s.out.preview);
-    return image.partial ? exit_status_for_signal() : 0;
+    // A SIGTERM that came after the last pass (while the image was written) still ends the
+    // process as terminated (143), its image whole; SIGINT's status is 0 either way.
+    return image.partial || stop_requested() ? exit_status_for_signal() : 0;
 }
 
 /** The one-shot render: load, render (passes written with --pass-output, shown with --serve),

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # SIGINT and SIGTERM in the middle of a render: the passes completed so far are written, the EXR
 # header says partial and how many samples per pixel, the exit status is 0 (SIGINT) or 143
-# (SIGTERM), and no temporary file is left; a sequence stopped before its last frame exits 130.
+# (SIGTERM), and no temporary file is left; a sequence stopped before its last frame exits 130;
+# a stopped --spp-range part holds the samples it completed, as a part of that range.
 #   signals.sh SPANGLE PLUGIN_DIR SCENE_DIR
 set -u
 S=$1 PLUGINS=$2 SCENES=$3
@@ -52,4 +53,19 @@ RC=$?
 [ $RC -eq 130 ] || fail "SIGINT in a sequence: exit status $RC, expected 130"
 grep -q "stopped by a signal (SIGINT): wrote seq.0001.exr with .*; frames 2..8 not rendered" err.txt ||
     fail "SIGINT in a sequence: $(cat err.txt)"
+# A --spp-range part stopped by SIGINT is the part of the samples its passes completed (it was a
+# plain image, which merge called "not crops of one render"): merge names the samples missing.
+"$S" render flake_uvless.toml -o range.exr --spp 100000 --spp-range 0..100000 --threads 2 -q \
+    --pass-output --plugin-path "$PLUGINS" 2> err.txt &
+PID=$!
+for _ in $(seq 1 200); do [ -f range.exr ] && break; sleep 0.05; done
+sleep 0.5
+kill -INT $PID
+wait $PID
+oiiotool --info -v range.exr > info.txt || fail "stopped range: unreadable output"
+spp=$(sed -n 's/.*spangle:spp: "\([0-9]*\)".*/\1/p' info.txt)
+grep -q "spangle:spp_range: \"0..$spp\"" info.txt || fail "stopped range: $(grep spangle info.txt)"
+"$S" merge range.exr -o merged.exr 2> err.txt && fail "a stopped range merged as the whole frame"
+grep -q "samples $spp..100000 of the frame's 100000 are in no part" err.txt ||
+    fail "stopped range: merge said $(cat err.txt)"
 echo "signals: partial images, exit statuses and no temporary files as expected"
