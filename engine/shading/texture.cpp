@@ -93,18 +93,25 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
         throw_error(loc, "{}", e.what());
     }
 
-    const fs::path dir = texture_cache_dir(settings_);
-    const fs::path converted =
-        dir / fmt::format("{}-{:016x}.exr", fs::path(ref.path).stem().string(), hash_text(key));
+    // The cache: the one chosen (--texture-cache, $SPANGLE_TEXTURE_CACHE), else the user's, and
+    // where the user's cannot be written (a read-only or missing home on a farm node) a folder
+    // in the temporary directory instead, said once (the render failed at the texture's line).
+    const char* env_cache = std::getenv("SPANGLE_TEXTURE_CACHE");
+    const bool chosen = !settings_.cache_dir.empty() || (env_cache && *env_cache);
+    std::vector<fs::path> dirs{texture_cache_dir(settings_)};
+    if (!chosen)
+        dirs.push_back(fs::temp_directory_path() / fmt::format("spangle-textures-{}", ::getuid()));
+    const std::string name =
+        fmt::format("{}-{:016x}.exr", fs::path(ref.path).stem().string(), hash_text(key));
     std::error_code ec;
+    fs::path converted = dirs[0] / name;
+    for (const fs::path& d : dirs)
+        if (fs::is_regular_file(d / name, ec)) {
+            converted = d / name;
+            break;
+        }
     if (!fs::is_regular_file(converted, ec)) {
         const auto t0 = std::chrono::steady_clock::now();
-        fs::create_directories(dir, ec);
-        if (ec)
-            throw_error(loc,
-                        "texture '{}': cannot create the texture cache directory '{}': {} (choose "
-                        "another with --texture-cache DIR or $SPANGLE_TEXTURE_CACHE)",
-                        ref.path, dir.string(), ec.message());
         ImageHeader h;
         std::vector<float> pixels;
         try {
@@ -168,21 +175,47 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
         }
         // Written under a temporary name and renamed: a render beside this one never sees half
         // a file, and an interrupted conversion leaves nothing behind that looks complete.
-        const fs::path tmp = dir / fmt::format(".{}.{}.tmp.exr", converted.filename().string(),
-                                               static_cast<long>(::getpid()));
-        char error[1024] = "";
-        if (api_->make_texture(pixels.data(), h.width, h.height, channels, tmp.c_str(), error,
-                               sizeof(error)) != 0) {
-            fs::remove(tmp, ec);
-            throw_error(loc, "texture '{}': cannot write its converted copy '{}': {}", ref.path,
-                        converted.string(), error);
+        std::string why;
+        bool written = false;
+        for (const fs::path& d : dirs) {
+            converted = d / name;
+            fs::create_directories(d, ec);
+            if (ec) {
+                why = fmt::format("cannot create the texture cache directory '{}': {}", d.string(),
+                                  ec.message());
+                continue;
+            }
+            const fs::path tmp =
+                d / fmt::format(".{}.{}.tmp.exr", name, static_cast<long>(::getpid()));
+            char error[1024] = "";
+            if (api_->make_texture(pixels.data(), h.width, h.height, channels, tmp.c_str(), error,
+                                   sizeof(error)) != 0) {
+                fs::remove(tmp, ec);
+                why = fmt::format("cannot write its converted copy in '{}': {}", d.string(), error);
+                continue;
+            }
+            fs::rename(tmp, converted, ec);
+            if (ec) {
+                fs::remove(tmp, ec);
+                why = fmt::format("cannot write '{}': {}", converted.string(), ec.message());
+                continue;
+            }
+            written = true;
+            if (d != dirs[0] && !fallback_said_) {
+                log_.warn(
+                    "the texture cache '{}' cannot be written ({}): converted textures go "
+                    "to '{}' (choose a folder with --texture-cache DIR or "
+                    "$SPANGLE_TEXTURE_CACHE)",
+                    dirs[0].string(), why, d.string());
+                fallback_said_ = true;
+            }
+            break;
         }
-        fs::rename(tmp, converted, ec);
-        if (ec) {
-            fs::remove(tmp, ec);
-            throw_error(loc, "texture '{}': cannot write '{}': {}", ref.path, converted.string(),
-                        ec.message());
-        }
+        if (!written)
+            throw_error(loc,
+                        "texture '{}': {} (choose another folder with --texture-cache DIR or "
+                        "$SPANGLE_TEXTURE_CACHE)",
+                        ref.path, why);
         log_.info("texture {} ({}x{}, {}) converted in {:.2f} s to {}", ref.path, h.width, h.height,
                   space == "raw" ? std::string("data") : space + " -> " + working,
                   std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(),

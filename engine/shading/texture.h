@@ -81,6 +81,7 @@ private:
     const ColorConfig& color_;
     const Logger& log_;
     TextureSettings settings_;
+    bool fallback_said_ = false;  ///< the unwritable-cache warning was given
     const OiioTextureApi* api_ = nullptr;
     void* system_ = nullptr;
     std::mutex mutex_;

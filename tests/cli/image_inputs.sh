@@ -163,4 +163,18 @@ oiiotool --pattern constant:color=0,0,1 8x8 3 -d uint8 -o swap.tga
 touch -d 2020-01-01 swap.tga
 render
 expect "the replacement, same size and mtime" "0 0 1" 0.002
+# A home whose cache cannot be written (a farm node's read-only or missing home): the converted
+# texture goes to the temporary folder, said once (the render failed at the texture's line). A
+# cache folder chosen with --texture-cache that cannot be written is an error naming it.
+oiiotool --pattern constant:color=0,1,0 8x8 3 -d uint8 -o home.tga
+scene '{ texture = "home.tga" }' > s.toml
+env -u XDG_CACHE_HOME -u SPANGLE_TEXTURE_CACHE HOME=/proc/no_home TMPDIR="$T" \
+    "$S" render s.toml -o o.exr --no-preview --float 2> err.txt ||
+    fail "an unwritable home failed the render: $(cat err.txt)"
+grep -q "texture cache '/proc/no_home/.cache/spangle/textures' cannot be written" err.txt ||
+    fail "the cache's stand-in was not said: $(cat err.txt)"
+expect "the texture through the temporary cache" "0 1 0" 0.002
+"$S" render s.toml -o o.exr -q --no-preview --texture-cache /proc/no_cache 2> err.txt &&
+    fail "an unwritable --texture-cache rendered"
+grep -q "choose another folder with --texture-cache" err.txt || fail "unwritable cache: $(cat err.txt)"
 echo PASS
