@@ -75,6 +75,12 @@ int run_chosen(const std::vector<Command>& commands) {
     } catch (const std::logic_error& e) {
         fmt::print(stderr, "spangle: {}\n", e.what());
         return 3;
+    } catch (const std::bad_alloc&) {
+        print_error(
+            "out of memory: the process may not allocate more (the machine's memory, ulimit -v or "
+            "a scheduler's memory limit); render smaller (--size, --crop parts, fewer --layers) "
+            "or give it more memory");
+        return 1;
     } catch (const std::exception& e) {
         print_error(e.what());
         return 1;
@@ -103,7 +109,12 @@ int main(int argc, char** argv) {
     try {
         app.parse(argc, argv);
     } catch (const CLI::ParseError& e) {
-        return app.exit(e) == 0 ? 0 : 2;
+        // --help and --version print as CLI11 prints them; a bad command line is one line as
+        // every other error ("spangle: error: --threads: Value 0 not in range 1 to 1024"), the
+        // help named, exit status 2.
+        if (e.get_exit_code() == 0) return app.exit(e);
+        print_error(fmt::format("{} (see --help)", e.what()));
+        return 2;
     }
     if (refuse_empty_values(app)) return 2;
     return run_chosen(commands);

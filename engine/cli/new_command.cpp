@@ -76,11 +76,7 @@ int run_new(const NewArgs& a) {
                     ground.string());
     // Never over the model itself, --force or not (`new --mesh t_ground.ply -o t.toml --force`
     // replaced the user's mesh with the ground plane).
-    const auto same_file = [&](const fs::path& a_path, const std::string& b_path) {
-        std::error_code e;
-        return fs::exists(a_path, e) && fs::equivalent(a_path, b_path, e);
-    };
-    if (same_file(ground, a.mesh) || same_file(output, a.mesh))
+    if (same_file(ground.string(), a.mesh) || same_file(output, a.mesh))
         usage_error(
             "the scene '{}' and its ground plane '{}' would overwrite the model '{}': "
             "give another -o",
@@ -90,7 +86,7 @@ int run_new(const NewArgs& a) {
     const fs::path studio =
         ground.parent_path() / (fs::path(output).stem().string() + "_studio.exr");
     if (a.env.empty()) {
-        if (same_file(studio, a.mesh))
+        if (same_file(studio.string(), a.mesh))
             usage_error(
                 "the scene's studio map '{}' would overwrite the model '{}': give another -o",
                 studio.string(), a.mesh);

@@ -148,7 +148,7 @@ class OutputLock {
 public:
     explicit OutputLock(const std::string& exr) {
         const fs::path p(exr);
-        path_ = (p.parent_path() / ("." + p.filename().string() + ".lock")).string();
+        path_ = (p.parent_path() / fmt::format(".{}.lock", p.filename().string())).string();
         for (int tries = 0; tries < 1000; ++tries) {
             fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
             if (fd_ < 0) return;

@@ -31,6 +31,9 @@ void install_signal_handlers() {
     sa.sa_flags = 0;  // no SA_RESTART: a blocking wait returns early
     sigaction(SIGINT, &sa, nullptr);
     sigaction(SIGTERM, &sa, nullptr);
+    // A file-size limit (ulimit -f) makes the write fail with EFBIG, an error Spangle reports
+    // and cleans up after, instead of killing the process with its temporary file left.
+    std::signal(SIGXFSZ, SIG_IGN);
 }
 
 bool stop_requested() {

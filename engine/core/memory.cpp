@@ -1,5 +1,8 @@
 #include "core/memory.h"
 
+#include <sys/resource.h>
+#include <unistd.h>
+
 #include <charconv>
 #include <cstdlib>
 #include <fstream>
@@ -44,10 +47,69 @@ uint64_t parse_size(std::string_view text) {
     return static_cast<uint64_t>(value * scale);
 }
 
+/** What this process may still map under its address-space limit (ulimit -v, RLIMIT_AS, which
+ *  schedulers set); 0 when there is no limit. */
+uint64_t address_space_left() {
+    rlimit r{};
+    if (::getrlimit(RLIMIT_AS, &r) != 0 || r.rlim_cur == RLIM_INFINITY) return 0;
+    std::ifstream statm("/proc/self/statm");
+    uint64_t pages = 0;
+    statm >> pages;
+    const uint64_t used = pages * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+    return r.rlim_cur > used ? r.rlim_cur - used : 1;
+}
+
+/** A number read from a cgroup file; false when the file is missing or says "max". */
+bool read_count(const std::string& file, uint64_t& out) {
+    std::ifstream in(file);
+    std::string text;
+    if (!(in >> text) || text == "max") return false;
+    const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), out);
+    return ec == std::errc();
+}
+
+/** What this process's cgroup may still use under its memory limit (a container's or a batch
+ *  job's, which MemAvailable does not see): v2's memory.max, v1's memory.limit_in_bytes (where
+ *  the namespace hides the path, the mount's root is this cgroup). 0 when there is none. */
+uint64_t cgroup_memory_left() {
+    std::ifstream self("/proc/self/cgroup");
+    std::string line, v2, v1;
+    bool has_v1 = false;
+    while (std::getline(self, line)) {
+        if (line.rfind("0::", 0) == 0) v2 = line.substr(3);
+        const std::size_t at = line.find(":memory:");
+        if (at != std::string::npos) {
+            v1 = line.substr(at + 8);
+            has_v1 = true;
+        }
+    }
+    const auto left = [](uint64_t limit, uint64_t used) {
+        // v1 writes "no limit" as a number near 2^63.
+        if (limit >= (uint64_t{1} << 60)) return uint64_t{0};
+        return limit > used ? limit - used : uint64_t{1};
+    };
+    uint64_t limit = 0, used = 0;
+    if (has_v1) {
+        for (const std::string& dir : {"/sys/fs/cgroup/memory" + (v1 == "/" ? std::string() : v1),
+                                       std::string("/sys/fs/cgroup/memory")})
+            if (read_count(dir + "/memory.limit_in_bytes", limit) &&
+                read_count(dir + "/memory.usage_in_bytes", used))
+                return left(limit, used);
+        return 0;
+    }
+    const std::string dir = "/sys/fs/cgroup" + (v2 == "/" || v2.empty() ? std::string() : v2);
+    if (read_count(dir + "/memory.max", limit) && read_count(dir + "/memory.current", used))
+        return left(limit, used);
+    return 0;
+}
+
 }  // namespace
 
 uint64_t available_memory() {
     uint64_t have = mem_available();
+    // The least of the machine's free memory and the process's limits.
+    for (const uint64_t cap : {address_space_left(), cgroup_memory_left()})
+        if (cap > 0) have = have == 0 ? cap : std::min(have, cap);
     if (const char* limit = std::getenv("SPANGLE_MEMORY_LIMIT"); limit && *limit) {
         const uint64_t cap = parse_size(limit);
         have = have == 0 ? cap : std::min(have, cap);

@@ -8,10 +8,11 @@
 
 namespace spangle {
 
-/** Bytes this process may still take: /proc/meminfo's MemAvailable, lowered to the limit in
- *  $SPANGLE_MEMORY_LIMIT when that is set (a size such as 8G, 512M or 1000000 bytes; for shared
- *  machines and for tests). 0 when neither can be read. Throws SpangleError for a malformed
- *  $SPANGLE_MEMORY_LIMIT. */
+/** Bytes this process may still take: /proc/meminfo's MemAvailable, lowered to what its
+ *  address-space limit (ulimit -v) and its cgroup's memory limit (a container's, a batch job's)
+ *  leave, and to $SPANGLE_MEMORY_LIMIT when that is set (a size such as 8G, 512M or 1000000
+ *  bytes; for shared machines and for tests). 0 when nothing can be read. Throws SpangleError
+ *  for a malformed $SPANGLE_MEMORY_LIMIT. */
 uint64_t available_memory();
 
 /** The one rule every estimate follows: when `need` bytes would take more than 90% of

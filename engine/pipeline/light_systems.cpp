@@ -109,7 +109,7 @@ void system_point_lights(ecs::Registry& r, World& w) {
         for (std::size_t i = 0; i < points->size(); ++i) {
             const PointLight p = points->columns().get(i);
             set.points.push_back({p.position, p.intensity, p.axis, p.cos_outer, p.cos_inner,
-                                  light_group(r, points->entities()[i])});
+                                  light_group(r, points->entities()[i]), p.quartic});
         }
     if (auto* distant = r.find_pool<DistantLight>())
         for (std::size_t i = 0; i < distant->size(); ++i)

@@ -499,7 +499,8 @@ LightSample sample_point(const PointEmitter& e, Vec3 p, float sel) {
         const float c = dot(-s.wi, e.axis);
         const float t =
             std::clamp((c - e.cos_outer) / std::max(1e-6f, e.cos_inner - e.cos_outer), 0.0f, 1.0f);
-        falloff = t * t * (3.0f - 2.0f * t);  // smoothstep from the outer to the inner cone
+        // Smoothstep from the outer to the inner cone, or pbrt-v3's fourth power.
+        falloff = e.quartic ? (t * t) * (t * t) : t * t * (3.0f - 2.0f * t);
     }
     s.radiance = e.intensity * (falloff / (s.dist * s.dist));
     s.pdf = sel;

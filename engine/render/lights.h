@@ -66,6 +66,7 @@ struct PointEmitter {
     float cos_outer = -1.0f;  ///< spot: no light beyond this angle (-1: a point light)
     float cos_inner = -1.0f;  ///< spot: full intensity within this angle
     uint32_t group = 0;
+    bool quartic = false;  ///< spot: fades as t^4 (pbrt-v3), else smoothstep (pbrt-v4)
 };
 
 /** A light at infinity. */

@@ -172,7 +172,8 @@ SPANGLE_COMPONENT(SphereLight, SPANGLE_SPHERE_LIGHT_FIELDS);
     X(Vec3, intensity, "working-space RGB, W/sr")                                  \
     X(Vec3, axis, "spot: unit direction of the cone")                              \
     X(float, cos_outer, "spot: cosine of the cone's half-angle; -1 = point light") \
-    X(float, cos_inner, "spot: cosine where the falloff ends")
+    X(float, cos_inner, "spot: cosine where the falloff ends")                     \
+    X(bool, quartic, "spot: fades as t^4 (pbrt-v3), else smoothstep")
 /** A point light, or a spot light when cos_outer > -1. */
 SPANGLE_COMPONENT(PointLight, SPANGLE_POINT_LIGHT_FIELDS);
 

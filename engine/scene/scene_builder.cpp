@@ -579,7 +579,7 @@ struct LightPut {
         const auto cos_outer = static_cast<float>(std::cos(d.cone_angle * M_PI / 180.0));
         const auto cos_inner =
             static_cast<float>(std::cos((d.cone_angle - d.cone_falloff) * M_PI / 180.0));
-        registry.put(e, PointLight{d.position, value, axis, cos_outer, cos_inner});
+        registry.put(e, PointLight{d.position, value, axis, cos_outer, cos_inner, d.quartic});
     }
     /** A distant light: its direction must not be zero. */
     void operator()(const DistantLightDesc& d) const {
@@ -634,7 +634,7 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
     SceneInfo info;
     info.path = scene.path;
     info.files = scene.files;
-    info.content_hash = scene_content_hash(scene.path, scene.files);
+    info.content_hash = info.scene_files_hash = scene_content_hash(scene.path, scene.files);
     info.notes = scene.notes;
     info.output = scene.render.output.value_or("");
     info.time = time;

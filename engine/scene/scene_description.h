@@ -295,8 +295,11 @@ struct SpotLightDesc {
     Vec3 look_at;               ///< the cone's axis points here
     double cone_angle = 30.0;   ///< the cone's half-angle, degrees, in (0, 90]
     double cone_falloff = 5.0;  ///< degrees inside the edge over which it fades, in [0, 90]
-    FileLoc look_at_loc;        ///< blamed when it meets the position
-    FileLoc cone_falloff_loc;   ///< blamed when the falloff exceeds the angle
+    /** How it fades over the falloff, in t from 0 at the edge to 1 inside: smoothstep
+     *  3t^2 - 2t^3 (pbrt-v4's, the default), or t^4 (pbrt-v3's, `falloff = "quartic"`). */
+    bool quartic = false;
+    FileLoc look_at_loc;       ///< blamed when it meets the position
+    FileLoc cone_falloff_loc;  ///< blamed when the falloff exceeds the angle
 };
 
 /** A light at infinity: a delta direction or a sun disk. */

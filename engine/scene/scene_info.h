@@ -22,6 +22,9 @@ struct SceneInfo {
      *  over 64 MiB by its size alone): written into the EXR header so that `spangle merge` can
      *  tell parts of different scenes, or of a scene or asset edited between its parts. */
     uint64_t content_hash = 0;
+    /** The part of content_hash from the scene files alone (scene_content_hash): a save that
+     *  leaves it the same changed nothing the scene says. */
+    uint64_t scene_files_hash = 0;
     std::string output;  ///< the image it asks for; empty: none
     /** The part of the image it asks to render (pbrt's cropwindow): x0, x1, y0, y1 as fractions
      *  of the width and height, y down, 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1; none: all. The

@@ -577,6 +577,13 @@ LightShapeDesc read_light_shape(TableReader& r, const std::string& type) {
         s.cone_angle = r.number("cone_angle", s.cone_angle, {0.0, 90.0, true, false});
         s.cone_falloff = r.number("cone_falloff", s.cone_falloff, {0.0, 90.0});
         s.cone_falloff_loc = r.loc("cone_falloff");
+        if (r.has("falloff")) {
+            const std::string f = r.string("falloff");
+            if (f != "smoothstep" && f != "quartic")
+                throw_error(r.loc("falloff"),
+                            "'falloff' must be \"smoothstep\" or \"quartic\", got \"{}\"", f);
+            s.quartic = f == "quartic";
+        }
         return s;
     }
     if (type == "distant") {

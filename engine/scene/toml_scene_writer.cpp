@@ -363,6 +363,7 @@ struct Writer {
                 w.line("look_at", vec(s.look_at));
                 w.line("cone_angle", num(s.cone_angle));
                 w.line("cone_falloff", num(s.cone_falloff));
+                if (s.quartic) w.line("falloff", str("quartic"));
             }
             void operator()(const DistantLightDesc& d) const {
                 w.line("type", str("distant"));

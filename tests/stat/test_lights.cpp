@@ -143,6 +143,22 @@ TEST(LightSampling, PointSpotAndDistant) {
             << "inside the cone";
         EXPECT_EQ(nee_irradiance(t, {2, 0, 0}, {0, 1, 0}, 10).first, 0.0) << "outside the cone";
     }
+    for (const bool quartic : {false, true}) {
+        // Half way through the falloff (t = 1/2): smoothstep gives 1/2, pbrt-v3's t^4 1/16.
+        LightTable t;
+        const float outer = 0.4f, inner = 0.2f;
+        PointEmitter e{{0, 2, 0}, Vec3(8.0f), {0, -1, 0}, std::cos(outer), std::cos(inner)};
+        e.quartic = quartic;
+        t.add_point(e);
+        t.finalize(10.0f);
+        const float c = 0.5f * (std::cos(outer) + std::cos(inner));  // t = 1/2 in the cosine
+        const float s = std::sqrt(1.0f - c * c);
+        const Vec3 p{2.0f * s / c, 0.0f, 0.0f};  // on the floor, seen at that angle
+        const double d2 = static_cast<double>(dot(p - Vec3(0, 2, 0), p - Vec3(0, 2, 0)));
+        const double want = 8.0 / d2 * static_cast<double>(c) * (quartic ? 1.0 / 16.0 : 0.5);
+        EXPECT_NEAR(nee_irradiance(t, p, {0, 1, 0}, 10).first, want, 1e-4 * want)
+            << (quartic ? "quartic" : "smoothstep");
+    }
     for (float radius_deg : {0.0f, 0.27f, 5.0f}) {
         LightTable t;
         DistantEmitter d;

@@ -630,6 +630,14 @@ AttributeEnd
     const auto& spot = std::get<SpotLightDesc>(d.lights[1].shape);
     EXPECT_EQ(spot.cone_angle, 20.0);
     EXPECT_EQ(spot.cone_falloff, 4.0);
+    EXPECT_FALSE(spot.quartic) << "pbrt-v4's spot fades by smoothstep";
+    // pbrt-v3's fades as t^4, decided by the whole file (its WorldEnd comes after the light).
+    const SceneDescription v3 = read(f, R"(WorldBegin
+LightSource "spot" "point from" [0 5 0] "point to" [0 0 0] "float coneangle" 30
+WorldEnd
+)");
+    ASSERT_EQ(v3.lights.size(), 1u);
+    EXPECT_TRUE(std::get<SpotLightDesc>(v3.lights[0].shape).quartic);
     EXPECT_EQ(std::get<DistantLightDesc>(d.lights[2].shape).direction, Vec3(0, 1, 0))
         << "towards the light: from - to";
     EXPECT_NEAR(luminance(d.lights[2].color->rgb), 1.0f, 1e-4f)

@@ -345,7 +345,7 @@ bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
     try {
         const SceneDescription d =
             read_scene(a_.scene, SceneReadOptions{a_.camera, a_.environment});
-        if (scene_content_hash(d.path, d.files) != info.content_hash) return false;
+        if (scene_content_hash(d.path, d.files) != info.scene_files_hash) return false;
         say(fmt::format("reload ({}): the same as the scene being rendered: its render goes on",
                         what));
     } catch (const SpangleError& e) {

@@ -216,14 +216,14 @@ std::vector<double> refine_for_arcs(const std::vector<double>& times,
             float qa[4], qb[4];
             evaluate(*k, static_cast<float>(a), qa);
             evaluate(*k, static_cast<float>(b), qb);
-            const double na = std::sqrt(qa[0] * qa[0] + qa[1] * qa[1] + qa[2] * qa[2] +
-                                        qa[3] * qa[3]),
-                         nb = std::sqrt(qb[0] * qb[0] + qb[1] * qb[1] + qb[2] * qb[2] +
-                                        qb[3] * qb[3]);
+            double dot = 0.0, na = 0.0, nb = 0.0;
+            for (int c = 0; c < 4; ++c) {
+                dot += static_cast<double>(qa[c]) * static_cast<double>(qb[c]);
+                na += static_cast<double>(qa[c]) * static_cast<double>(qa[c]);
+                nb += static_cast<double>(qb[c]) * static_cast<double>(qb[c]);
+            }
             if (!(na > 0.0 && nb > 0.0)) continue;
-            const double d =
-                std::fabs(qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3]) /
-                (na * nb);
+            const double d = std::fabs(dot) / std::sqrt(na * nb);
             turn = std::max(turn, 2.0 * std::acos(std::min(1.0, d)));
         }
         const int pieces = std::clamp(static_cast<int>(std::ceil(turn / kMaxCarriedTurn)), 1, 120);

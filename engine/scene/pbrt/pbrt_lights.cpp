@@ -131,6 +131,7 @@ void read_light(Reader& r, const std::string& type, ParamList& p, const FileLoc&
                                              cone));
             s.cone_angle = std::clamp(cone, 1e-3, 90.0);
             s.cone_falloff = std::clamp(p.number("conedeltaangle", 5.0), 0.0, s.cone_angle);
+            // (pbrt-v3 fades the edge as t^4: set once the whole file says which it is.)
             if (power > 0.0) {
                 // pbrt-v4: the intensity whose cone (with its smooth falloff) emits `power`.
                 const double c0 = std::cos((s.cone_angle - s.cone_falloff) * M_PI / 180.0),

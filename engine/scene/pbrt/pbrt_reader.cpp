@@ -508,6 +508,11 @@ SceneDescription read_all(Reader& r, Tokenizer& t) {
                                 "pbrt-v4",
                                 r.info.v3_sign, r.info.v4_sign));
     finish_camera_and_render(r);
+    // pbrt-v3 fades a spot light's edge as t^4 (its Falloff()), v4 by smoothstep: decided by the
+    // whole file, whose v3 sign may come after its lights (WorldEnd).
+    if (r.info.version == PbrtVersion::V3)
+        for (LightDesc& l : r.d.lights)
+            if (auto* s = std::get_if<SpotLightDesc>(&l.shape)) s->quartic = true;
     // A pbrt scene's named materials are a library (pbrt says nothing of those no shape uses),
     // and a mix's operands stay defined after Spangle picked one of them.
     for (MaterialDesc& m : r.d.materials) m.quiet_unused = true;
