@@ -88,6 +88,18 @@ grep -q "40x16 image, which is not 2:1" "$T/err.txt" ||
     fail "a 40x16 panorama said nothing: $(cat "$T/err.txt")"
 "$S" render pano.toml -o pano.exr -q 2> "$T/err.txt" || fail "a 32x16 panorama failed"
 [ -s "$T/err.txt" ] && fail "a 2:1 panorama warned: $(cat "$T/err.txt")"
+# A file-size limit (ulimit -f) is a write error naming the file, exit 1, no temporary file left
+# (SIGXFSZ killed the process, exit 153, its temporary file left behind).
+(ulimit -f 4; "$S" render pano.toml -o big.exr --size 256x128 --float --compression none -q \
+    2> "$T/err.txt")
+RC=$?
+[ $RC = 1 ] || fail "a write past ulimit -f exited $RC: $(cat "$T/err.txt")"
+grep -q "cannot write '.*big.exr'" "$T/err.txt" || fail "ulimit -f: $(cat "$T/err.txt")"
+ls -A | grep -q "big.exr" && fail "a write past ulimit -f left $(ls -A | grep big.exr)"
+# A bad value on the command line is one line like every other error, exit 2.
+"$S" render pano.toml --threads 0 > /dev/null 2> "$T/err.txt" && fail "--threads 0 rendered"
+[ "$(wc -l < "$T/err.txt")" = 1 ] && grep -q "^spangle: error: --threads: Value 0" "$T/err.txt" ||
+    fail "--threads 0 said: $(cat "$T/err.txt")"
 # Two renders of one output write their EXR and PNG one pair at a time (a hidden lock file
 # beside the EXR): a render waits while another holds the pair's lock, and removes the lock when
 # done. (Unlocked, duplicate jobs left the EXR of one render beside the PNG of the other.)
