@@ -12,7 +12,9 @@
 #include "cli/commands.h"
 #include "cli/output_paths.h"
 #include "cli/usage.h"
+#include "core/error.h"
 #include "core/log.h"
+#include "scene/gltf/gltf_reader.h"
 #include "scene/scene_loader.h"
 #include "scene/toml_scene_writer.h"
 
@@ -35,17 +37,48 @@ int run_convert(const ConvertArgs& a) {
         usage_error("output '{}' must end in .toml", a.output);
     if (same_file(a.output, a.scene)) usage_error("the output '{}' is the scene file", a.output);
     check_writable(a.output, "TOML scene");
-    const SceneDescription scene = read_scene(a.scene, SceneReadOptions{a.camera, a.env});
+    SceneDescription scene = read_scene(a.scene, SceneReadOptions{a.camera, a.env});
     Logger log;
     if (a.quiet) log.threshold = LogLevel::Warning;
     for (const std::string& note : scene.notes) log.warn("{}", note);
     const fs::path out(a.output);
     const fs::path meshes = out.parent_path() / (out.stem().string() + "_meshes");
+    // Images a glTF held itself (data URIs, a .glb's buffer views) were written to the user's
+    // cache for the texture system: copied beside the meshes, so that the converted scene moves
+    // whole (it named the cache, and broke on another machine or when the cache was cleared).
+    std::error_code ec;
+    const fs::path cache = fs::absolute(gltf_embedded_image_dir(), ec).lexically_normal();
+    std::size_t images = 0;
+    const auto carry = [&](TextureDesc& t) {
+        const fs::path from = fs::absolute(t.path, ec).lexically_normal();
+        if (from.parent_path() != cache) return;
+        fs::create_directories(meshes, ec);
+        const fs::path to = meshes / from.filename();
+        if (!fs::exists(to, ec)) {
+            fs::copy_file(from, to, ec);
+            if (ec)
+                throw_error("cannot copy the embedded image {} to {}: {}", from.string(),
+                            to.string(), ec.message());
+            ++images;
+        }
+        t.path = to.string();
+    };
+    for (MaterialDesc& m : scene.materials) {
+        for (ParamDesc& p : m.params)
+            if (p.kind == ParamDesc::Kind::Texture) carry(p.texture);
+        for (ParamDesc& p : m.maps)
+            if (p.kind == ParamDesc::Kind::Texture) carry(p.texture);
+    }
     const SceneWriteReport rep = write_toml_scene(scene, a.output, meshes.string());
-    log.info("wrote {}{}", a.output,
-             rep.meshes.empty() ? std::string()
-                                : fmt::format(" and {} mesh{} in {}", rep.meshes.size(),
-                                              rep.meshes.size() == 1 ? "" : "es", meshes.string()));
+    std::string beside;
+    if (!rep.meshes.empty())
+        beside = fmt::format("{} mesh{}", rep.meshes.size(), rep.meshes.size() == 1 ? "" : "es");
+    if (images > 0)
+        beside += fmt::format("{}{} image{}", beside.empty() ? "" : " and ", images,
+                              images == 1 ? "" : "s");
+    log.info(
+        "wrote {}{}", a.output,
+        beside.empty() ? std::string() : fmt::format(" and {} in {}", beside, meshes.string()));
     return 0;
 }
 

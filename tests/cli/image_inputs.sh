@@ -177,4 +177,17 @@ expect "the texture through the temporary cache" "0 1 0" 0.002
 "$S" render s.toml -o o.exr -q --no-preview --texture-cache /proc/no_cache 2> err.txt &&
     fail "an unwritable --texture-cache rendered"
 grep -q "choose another folder with --texture-cache" err.txt || fail "unwritable cache: $(cat err.txt)"
+# spangle convert of a .glb whose image is embedded copies the image beside the meshes: the
+# scene renders the same once the cache it was unpacked to is gone (it named the cache).
+CUBE=$(dirname "$0")/../scenes/gltf/cube.glb
+mkdir -p conv
+XDG_CACHE_HOME="$T/xdg" "$S" convert "$CUBE" -o conv/cube.toml -q || fail "convert of cube.glb failed"
+grep -q 'texture = "cube_meshes/' conv/cube.toml || fail "the embedded image is not beside: $(grep texture conv/cube.toml)"
+rm -rf "$T/xdg"
+"$S" render conv/cube.toml -o c1.exr -q --no-preview --float --size 48x32 --spp 2 \
+    --texture-cache "$T/cache" 2> err.txt || fail "the converted cube failed: $(cat err.txt)"
+"$S" render "$CUBE" -o c2.exr -q --no-preview --float --size 48x32 --spp 2 \
+    --texture-cache "$T/cache" || fail "the cube failed"
+[ "$(iinfo --hash c1.exr | grep -o 'SHA-1: .*')" = "$(iinfo --hash c2.exr | grep -o 'SHA-1: .*')" ] ||
+    fail "the converted cube renders other pixels"
 echo PASS

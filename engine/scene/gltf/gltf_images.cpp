@@ -12,6 +12,7 @@
 #include "core/files.h"
 #include "core/hash.h"
 #include "scene/gltf/gltf_parts.h"
+#include "scene/gltf/gltf_reader.h"
 
 namespace spangle::gltf {
 namespace {
@@ -115,3 +116,11 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
 }
 
 }  // namespace spangle::gltf
+
+namespace spangle {
+
+std::string gltf_embedded_image_dir() {
+    return gltf::embedded_image_dir();
+}
+
+}  // namespace spangle
