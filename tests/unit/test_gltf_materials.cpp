@@ -434,6 +434,41 @@ std::string error_of(const test::TempDir& dir, const std::string& text,
     return "no error";
 }
 
+TEST(GltfMaterials, ImageUrisWithASchemeAndAByteOrderMark) {
+    // file:// names a path on this machine (it was looked for as "DIR/file:/..."); an https://
+    // image is not fetched, said once at its URI, with no raw tinygltf line besides; a UTF-8
+    // byte-order mark before the JSON is skipped ("unexpected character" at 1:1 before).
+    test::TempDir dir("gltf_uris");
+    const std::string ramp = test::test_dir() + "/scenes/textures/roughness_ramp.png";
+    const auto write = [&](const std::string& file, const std::string& uri, bool bom) {
+        GltfWriter w;
+        const std::string mesh = quad_mesh(w, 0);
+        w.write_gltf(dir.file(file),
+                     fmt::format(R"("images":[{{"uri":"{}"}}],"textures":[{{"source":0}}],)"
+                                 R"("materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":)"
+                                 R"({{"index":0}}}}}}],"meshes":[{}],"nodes":[{{"mesh":0}}])",
+                                 uri, mesh));
+        if (!bom) return;
+        const std::string text = bytes_of(dir.file(file));
+        std::ofstream(dir.file(file), std::ios::binary) << "\xEF\xBB\xBF" << text;
+    };
+    write("file.gltf", "file://" + ramp, true);
+    const SceneDescription f = read_gltf_scene(dir.file("file.gltf"), {});
+    ASSERT_EQ(f.materials.size(), 1u);
+    EXPECT_EQ(param_of(f.materials[0], "base_color").texture.path, ramp);
+    write("web.gltf", "https://example.com/ramp.png", false);
+    const SceneDescription web = read_gltf_scene(dir.file("web.gltf"), {});
+    EXPECT_TRUE(has_note(web, "image URI 'https://example.com/ramp.png' is not fetched"));
+    for (const std::string& n : web.notes)
+        EXPECT_EQ(n.find("Failed to load external"), std::string::npos) << n;
+    // A spot light without its "spot" object: said at the lights, in words.
+    EXPECT_NE(
+        error_of(dir, R"({"asset":{"version":"2.0"},"extensionsUsed":["KHR_lights_punctual"],)"
+                      R"("extensions":{"KHR_lights_punctual":{"lights":[{"type":"spot"}]}}})")
+            .find(R"(light of type "spot" needs its "spot" object)"),
+        std::string::npos);
+}
+
 TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     test::TempDir dir("gltf_errors");
     const std::string f = dir.file("bad.gltf");

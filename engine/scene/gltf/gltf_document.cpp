@@ -6,6 +6,7 @@
 #include <cstring>
 #include <fstream>
 #include <iterator>
+#include <sstream>
 
 #include "scene/gltf/gltf_parts.h"
 
@@ -158,7 +159,10 @@ void check_extensions(Context& ctx) {
 }  // namespace
 
 void load_document(Context& ctx) {
-    const std::string bytes = read_bytes(ctx.path);
+    std::string bytes = read_bytes(ctx.path);
+    // A UTF-8 byte-order mark before the JSON (Windows editors write one; RFC 8259 lets a
+    // reader ignore it): skipped ("unexpected character" at 1:1 before).
+    if (bytes.compare(0, 3, "\xEF\xBB\xBF") == 0) bytes.erase(0, 3);
     const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
     const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
     ctx.json = JsonLocations(json, ctx.path);
@@ -182,9 +186,29 @@ void load_document(Context& ctx) {
     }
     if (!ok || !err.empty()) {
         err = readable(err);
+        // tinygltf's words for what a file misses, said where it is missed.
+        if (err.find("Spot light description not found") != std::string::npos)
+            throw_error(ctx.at("extensions/KHR_lights_punctual/lights"),
+                        "a KHR_lights_punctual light of type \"spot\" needs its \"spot\" object "
+                        "(the extension requires it; its cone angles default to 0 and pi/4)");
         throw_error(FileLoc{ctx.path, 1, 1}, "glTF: {}", err.empty() ? "could not be read" : err);
     }
-    if (!warn.empty()) {
+    // tinygltf's own attempt at an external image (Spangle reads images itself, and notes a
+    // missing one at its place): not said twice.
+    {
+        std::string kept, line;
+        std::istringstream lines(warn);
+        while (std::getline(lines, line)) {
+            bool image_line =
+                line.find("Failed to load external 'uri' for image") != std::string::npos;
+            for (const tinygltf::Image& img : ctx.model.images)
+                image_line = image_line || (!img.uri.empty() && line.find("File not found") == 0 &&
+                                            line.find(img.uri) != std::string::npos);
+            if (!image_line) kept += line + "\n";
+        }
+        warn = kept;
+    }
+    if (!readable(warn).empty()) {
         ctx.note("tinygltf", FileLoc{ctx.path, 1, 1}, "glTF: " + readable(warn));
     }
     if (ctx.model.asset.version.empty() || ctx.model.asset.version[0] != '2')

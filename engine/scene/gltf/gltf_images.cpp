@@ -5,6 +5,8 @@
 
 #include <unistd.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
@@ -92,7 +94,39 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
     const tinygltf::Image& img = ctx.model.images[static_cast<std::size_t>(image)];
     const std::string ip = fmt::format("images/{}", image);
     if (!img.uri.empty() && img.uri.rfind("data:", 0) != 0) {
-        const fs::path file = (ctx.dir / percent_decoded(img.uri)).lexically_normal();
+        // A URI with a scheme: file:// names a path on this machine; others (https://) are not
+        // fetched (they were looked for as relative paths: ".../file:/tmp/...").
+        const std::size_t colon = img.uri.find("://");
+        const std::string scheme = colon == std::string::npos ? "" : img.uri.substr(0, colon);
+        const bool has_scheme =
+            !scheme.empty() && std::all_of(scheme.begin(), scheme.end(), [](char c) {
+                return std::isalnum(static_cast<unsigned char>(c)) || c == '+' || c == '-' ||
+                       c == '.';
+            });
+        if (has_scheme && scheme != "file") {
+            ctx.note("remote image " + img.uri, ctx.at(ip + "/uri"),
+                     fmt::format("image URI '{}' is not fetched (Spangle reads files, not {} "
+                                 "URIs): the textures using it are dropped, their factors stand in",
+                                 img.uri, scheme));
+            return out;
+        }
+        std::string rel = img.uri;
+        if (has_scheme) {
+            // file://host/path or file:///path: the path (a host other than localhost is not
+            // this machine's).
+            rel = img.uri.substr(colon + 3);
+            const std::size_t slash = rel.find('/');
+            const std::string host = slash == std::string::npos ? rel : rel.substr(0, slash);
+            rel = slash == std::string::npos ? std::string() : rel.substr(slash);
+            if (!host.empty() && host != "localhost") {
+                ctx.note("remote image " + img.uri, ctx.at(ip + "/uri"),
+                         fmt::format("image URI '{}' names host '{}', not this machine: the "
+                                     "textures using it are dropped, their factors stand in",
+                                     img.uri, host));
+                return out;
+            }
+        }
+        const fs::path file = (ctx.dir / percent_decoded(rel)).lexically_normal();
         std::error_code ec;
         if (fs::is_regular_file(file, ec)) return out = file.string();
         ctx.note("missing image " + file.string(), ctx.at(ip + "/uri"),
