@@ -1,6 +1,7 @@
 #include "color/image_merge.h"
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFloatAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -100,6 +101,26 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
             path);
 }
 
+/** What the merged header says of its parts as a whole: partial when any part was (a stopped
+ *  render), and the render time of all of them together (it said the first part's). */
+struct PartTotals {
+    bool partial = false;
+    double seconds = 0.0;
+    bool timed = true;  ///< every part has a render time
+    void add(const Imf::Header& h) {
+        partial = partial || attribute(h, "spangle:partial") == "1";
+        const auto* t = h.findTypedAttribute<Imf::FloatAttribute>("renderTimeSeconds");
+        if (t)
+            seconds += static_cast<double>(t->value());
+        else
+            timed = false;
+    }
+    void apply(Imf::Header& h) const {
+        h.insert("spangle:partial", Imf::StringAttribute(partial ? "1" : "0"));
+        if (timed) h.insert("renderTimeSeconds", Imf::FloatAttribute(static_cast<float>(seconds)));
+    }
+};
+
 /** Opens the part at `path` and hands it to read(); any failure but our own errors becomes
  *  "cannot read 'path': ...". */
 template <class Read>
@@ -126,9 +147,11 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     uint64_t spp_frame = 0;
     std::vector<std::tuple<uint64_t, uint64_t, std::string>> ranges;  // [a, b), file
     const std::vector<std::string>& sum_names = sample_sum_channels();
+    PartTotals totals;
     for (const std::string& path : parts) {
         read_part(path, [&](Imf::InputFile& in) {
             const Imf::Header& hd = in.header();
+            totals.add(hd);
             const std::string range = attribute(hd, "spangle:spp_range");
             if (range.empty())
                 throw_error(
@@ -225,6 +248,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
             channels.insert(c.name, Imf::Channel(c.type));
     header.channels() = channels;
     header.insert("spangle:spp", Imf::StringAttribute(std::to_string(spp_frame)));
+    totals.apply(header);
     const Imath::Box2i dw = header.dataWindow();
     write_file_atomically(out, [&](const std::string& tmp) {
         Imf::OutputFile file(tmp.c_str(), header);
@@ -272,9 +296,11 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
     std::vector<uint8_t> covered;    // per pixel
     std::vector<std::string> owner;  // which part covered a pixel first (for messages)
     std::size_t nc = 0, w = 0, h = 0;
+    PartTotals totals;
     for (const std::string& path : parts) {
         read_part(path, [&](Imf::InputFile& in) {
             const Imf::Header& hd = in.header();
+            totals.add(hd);
             const Imath::Box2i dw = hd.dataWindow();
             if (!first) {
                 first = std::make_unique<Imf::Header>(hd);
@@ -364,6 +390,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
 
     Imf::Header header(*first);
     header.dataWindow() = display;
+    totals.apply(header);
     write_file_atomically(out, [&](const std::string& tmp) {
         Imf::OutputFile file(tmp.c_str(), header);
         // Half channels are written from half copies (their values came from halves: exact).

@@ -86,6 +86,10 @@ sed 's/albedo = 0.5/albedo = 0.6/' scene.toml > other.toml
 "$S" render scene.toml -o c.exr --crop 12,0,24,16 -q --no-preview || fail "crop c"
 expect 1 "rendered from different scenes" merge a.exr b.exr -o m.exr
 "$S" merge a.exr c.exr -o m.exr > /dev/null || fail "crops of one render did not merge"
+# The merged header's render time is the parts' together (it was the first part's).
+t() { iinfo -v "$1" | sed -n 's/.*renderTimeSeconds: *\([0-9.e-]*\).*/\1/p'; }
+python3 -c "import sys; a, c, m = map(float, sys.argv[1:]); sys.exit(0 if abs(a + c - m) <= 1e-4 * max(m, 1e-3) else 1)" \
+    "$(t a.exr)" "$(t c.exr)" "$(t m.exr)" || fail "merged time $(t m.exr), parts $(t a.exr) + $(t c.exr)"
 "$S" render scene.toml -o fa.exr --crop 0,0,12,16 --frames 1..1 -q --no-preview || fail "frame 1"
 "$S" render scene.toml -o fb.exr --crop 12,0,24,16 --frames 3..3 -q --no-preview || fail "frame 3"
 expect 1 "parts of one frame merge" merge fa.0001.exr fb.0003.exr -o m2.exr
