@@ -60,9 +60,17 @@ int run_frames(const RenderArgs& a) {
         s.out.for_frame(f).check_not_inputs(session.watched_files());
         if (f == first) {
             s.out.check_view(session.color());
-            if (!session.info().animated)
+            const SceneInfo& info = session.info();
+            if (!info.animated)
                 s.log.warn("{}: nothing in the scene has keyframes: every frame is the same image",
                            a.scene);
+            else if (first < info.frame_start || last > info.frame_end)
+                // Frames past the scene's range (where keys usually end): said, not silent.
+                s.log.warn(
+                    "{}: frames {}..{} reach beyond the scene's frame range {}..{} "
+                    "([render] frame_start, frame_end); past its keys a frame holds the "
+                    "nearest key",
+                    a.scene, first, last, info.frame_start, info.frame_end);
         }
         session.render();
         RenderResult scratch;

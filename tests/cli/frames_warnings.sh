@@ -2,6 +2,7 @@
 # `spangle render --frames` says a warning that holds for every frame once, for the first frame:
 # an emitter that moves while the shutter is open (it is not blurred) was said once per frame,
 # burying the frames' own lines. A warning that differs between frames is still said for each.
+# Frames past the scene's frame range are said (once).
 #   frames_warnings.sh SPANGLE REPO
 set -u
 S=$1 REPO=$2
@@ -42,4 +43,10 @@ SCENE
 n=$(grep -c "emits light" err.txt)
 [ "$n" = 1 ] || fail "the moving emitter's warning was said $n times, not once: $(cat err.txt)"
 for f in 0 1 2 3; do [ -f "f.$f.exr" ] || fail "frame $f was not written"; done
+grep -q "beyond the scene's frame range" err.txt && fail "frames inside the range warned"
+# Frames past the scene's range are said once (they rendered the last pose, silently).
+"$S" render scene.toml --frames 3..5 -o g.#.exr --no-preview > out.txt 2> err.txt ||
+    fail "frames past the range did not render: $(cat err.txt)"
+n=$(grep -c "frames 3..5 reach beyond the scene's frame range 0..3" err.txt)
+[ "$n" = 1 ] || fail "frames past the range said $n times: $(cat err.txt)"
 echo PASS
