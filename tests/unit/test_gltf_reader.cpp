@@ -266,7 +266,10 @@ TEST(GltfReader, UnnamedCamerasArePickedByTheirIndex) {
         R"("meshes":[{{"primitives":[{}]}}])",
         quad_primitive(q, -1));
     w.write_gltf(dir.file("cams.gltf"), body);
-    EXPECT_EQ(read_gltf_scene(dir.file("cams.gltf"), {}).camera.ortho_height, 0.0);
+    const SceneDescription first = read_gltf_scene(dir.file("cams.gltf"), {});
+    EXPECT_EQ(first.camera.ortho_height, 0.0);
+    // The first of several cameras is taken, and said (it was silent).
+    EXPECT_TRUE(has_note(first, "the file has 2 cameras: the first, '#0', is used"));
     SceneReadOptions second;
     second.camera = "#1";
     const SceneDescription d = read_gltf_scene(dir.file("cams.gltf"), second);

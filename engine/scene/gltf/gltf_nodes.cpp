@@ -358,21 +358,27 @@ void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras
     if (name.size() > 1 && name.size() < 10 && name[0] == '#' &&
         std::all_of(name.begin() + 1, name.end(), [](char ch) { return ch >= '0' && ch <= '9'; }))
         index = std::stoi(name.substr(1));
+    // Each camera by a name --camera takes: its own, its node's, or "#N".
+    std::vector<std::string> names;
+    for (const auto& [node, cam] : cameras) {
+        const std::string& cn = ctx.model.cameras[static_cast<std::size_t>(cam)].name;
+        const std::string& nn = ctx.model.nodes[static_cast<std::size_t>(node)].name;
+        names.push_back(!cn.empty() ? cn : !nn.empty() ? nn : fmt::format("#{}", cam));
+    }
     for (const auto& [node, cam] : cameras) {
         const bool named = ctx.model.cameras[static_cast<std::size_t>(cam)].name == name ||
                            ctx.model.nodes[static_cast<std::size_t>(node)].name == name ||
                            cam == index;
+        if (name.empty() && cameras.size() > 1)
+            // Not silently: the others are there to be chosen.
+            ctx.note("first camera", ctx.at(fmt::format("nodes/{}", node)),
+                     fmt::format("the file has {} cameras: the first, '{}', is used (--camera "
+                                 "picks another: {})",
+                                 cameras.size(), names.front(), fmt::join(names, ", ")));
         if (name.empty() || named)
             return use_camera(ctx, node, cam, motions[static_cast<std::size_t>(node)]);
     }
     if (!name.empty()) {
-        // Each camera by a name --camera takes: its own, its node's, or "#N".
-        std::vector<std::string> names;
-        for (const auto& [node, cam] : cameras) {
-            const std::string& cn = ctx.model.cameras[static_cast<std::size_t>(cam)].name;
-            const std::string& nn = ctx.model.nodes[static_cast<std::size_t>(node)].name;
-            names.push_back(!cn.empty() ? cn : !nn.empty() ? nn : fmt::format("#{}", cam));
-        }
         throw_error(
             ctx.at("cameras"), "no camera named '{}' (cameras: {})", name,
             names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
