@@ -6,9 +6,11 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfMatrixAttribute.h>
+#include <OpenEXR/ImfStringAttribute.h>
 
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <utility>
 
 #include "color/image_io.h"
@@ -30,6 +32,7 @@ struct Frame {
     /** Per object: 1 when its Pobj is the position in its rest pose (a deforming mesh,
      *  spangle:restPose); empty when the frame does not say (no object deforms). */
     std::vector<float> rest_pose;
+    std::string scene, time;  ///< spangle:scene and spangle:time; empty where not written
     bool has_objects() const { return !object.empty() && !object_to_world.empty(); }
     /** Whether object k (from 0) deforms: its points are found by their rest position. */
     bool deforms(std::size_t k) const { return k < rest_pose.size() && rest_pose[k] > 0.5f; }
@@ -50,6 +53,9 @@ Frame read_frame(const std::string& path) {
         if (dw != h.displayWindow())
             throw_error("'{}' is a crop window: merge the parts first (spangle merge)", path);
         Frame f;
+        for (const auto& [name, out] :
+             {std::pair{"spangle:scene", &f.scene}, std::pair{"spangle:time", &f.time}})
+            if (const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name)) *out = a->value();
         f.width = dw.max.x - dw.min.x + 1;
         f.height = dw.max.y - dw.min.y + 1;
         f.world_to_ndc = m->value();
@@ -247,6 +253,24 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
             throw_error("'{}' is {}x{}, '{}' {}x{}: frames of one sequence have one size", p,
                         frames.back().width, frames.back().height, paths.front(),
                         frames.front().width, frames.front().height);
+        // Frames of one scene (by its file's name: frames may be rendered from other folders),
+        // each moment once: another scene's frames, or a frame given twice, compared as if
+        // they were a sequence.
+        const Frame& f = frames.back();
+        const Frame& first = frames.front();
+        if (!f.scene.empty() && !first.scene.empty() &&
+            std::filesystem::path(f.scene).filename() !=
+                std::filesystem::path(first.scene).filename())
+            throw_error(
+                "'{}' is a frame of {}, '{}' of {}: frames of one sequence are of one "
+                "scene",
+                p, f.scene, paths.front(), first.scene);
+        for (std::size_t k = 0; k + 1 < frames.size(); ++k)
+            if (!f.time.empty() && frames[k].time == f.time)
+                throw_error(
+                    "'{}' and '{}' are the same moment of the scene ({} s): give each "
+                    "frame of the sequence once, in order",
+                    paths[k], p, f.time);
     }
     FlickerReport rep;
     rep.threshold = threshold > 0.0 ? threshold : default_threshold(frames);

@@ -18,7 +18,8 @@ namespace {
  *  ndc y, 0)), a dim glint layer with sparkles where hash(seed, point) says. The plane is an
  *  object moved `shift` pixels to the right of its own space (shift / 32 in x): a sparkle stays
  *  on its object-space point. `objects`: write the Pobj and object layers and the placements. */
-void write_frame(const std::string& path, uint64_t seed, int shift = 0, bool objects = false) {
+void write_frame(const std::string& path, uint64_t seed, int shift = 0, bool objects = false,
+                 const std::string& scene = "", const std::string& time = "") {
     constexpr int kN = 32;
     std::vector<std::string> names = {"A",   "Z",        "P.X",      "P.Y",
                                       "P.Z", "glints.R", "glints.G", "glints.B"};
@@ -49,6 +50,7 @@ void write_frame(const std::string& path, uint64_t seed, int shift = 0, bool obj
     if (objects)
         o.float_vectors = {{"spangle:objectToWorld",
                             {1, 0, 0, static_cast<float>(shift) / kN, 0, 1, 0, 0, 0, 0, 1, 0}}};
+    if (!scene.empty()) o.metadata = {{"spangle:scene", scene}, {"spangle:time", time}};
     const ColorConfig color = test::shipped_config();
     write_exr(path, std::vector<float>(kN * kN * 3, 0.1f), kN, kN, color, o);
 }
@@ -72,6 +74,22 @@ TEST(Flicker, FixedSparklesPersistAndMovedOnesFlicker) {
         FAIL() << "one frame was measured";
     } catch (const SpangleError&) {
     }
+    // Frames of other scenes, and one moment twice, are refused (they were measured as a
+    // sequence); frames of one scene written from another folder are one scene.
+    write_frame(dir.file("s1.exr"), 1, 0, false, "shots/bend.toml", "0");
+    write_frame(dir.file("s2.exr"), 1, 0, false, "/farm/shots/bend.toml", "0.0416667");
+    write_frame(dir.file("t2.exr"), 1, 0, false, "turn.toml", "0.0416667");
+    EXPECT_EQ(measure_flicker({dir.file("s1.exr"), dir.file("s2.exr")}, 1.0).pairs, 1u);
+    const auto refused = [&](std::vector<std::string> frames, const char* why) {
+        try {
+            measure_flicker(frames, 1.0);
+            ADD_FAILURE() << "measured: " << why;
+        } catch (const SpangleError& e) {
+            EXPECT_NE(std::string(e.what()).find(why), std::string::npos) << e.what();
+        }
+    };
+    refused({dir.file("s1.exr"), dir.file("t2.exr")}, "frames of one sequence are of one scene");
+    refused({dir.file("s1.exr"), dir.file("s2.exr"), dir.file("s1.exr")}, "the same moment");
 }
 
 // A turning (here: sliding) object: its sparkles stay on its points, which the frames' object
