@@ -9,6 +9,7 @@
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfMultiPartInputFile.h>
 #include <OpenEXR/ImfTestFile.h>
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -29,6 +30,9 @@ namespace {
 /** Every channel of an image, by name, one plane each. */
 struct Planes {
     int width = 0, height = 0;
+    int x0 = 0, y0 = 0;                    ///< the data window's corner (a crop part's place)
+    int full_width = 0, full_height = 0;   ///< the display window's size
+    int parts = 1;                         ///< parts of a multi-part file (the first is read)
     std::vector<std::string> names;        ///< in the file's order (OpenEXR's: by name)
     std::vector<std::vector<float>> data;  ///< one plane per name (empty: not a float channel)
     const std::vector<float>* find(const std::string& name) const {
@@ -58,9 +62,15 @@ Planes read_exr_planes(const std::string& path) {
     try {
         Imf::InputFile in(path.c_str());
         const Imath::Box2i dw = in.header().dataWindow();
+        const Imath::Box2i disp = in.header().displayWindow();
         Planes p;
         p.width = dw.max.x - dw.min.x + 1;
         p.height = dw.max.y - dw.min.y + 1;
+        p.x0 = dw.min.x;
+        p.y0 = dw.min.y;
+        p.full_width = disp.max.x - disp.min.x + 1;
+        p.full_height = disp.max.y - disp.min.y + 1;
+        p.parts = Imf::MultiPartInputFile(path.c_str()).parts();
         const auto n = static_cast<std::size_t>(p.width) * static_cast<std::size_t>(p.height);
         Imf::FrameBuffer fb;
         const Imf::ChannelList& list = in.header().channels();
@@ -91,6 +101,14 @@ void print_channels(const Planes& p) {
             fmt::print("  {:<20} (32-bit integer: exact sums of a sample range)\n", p.names[c]);
             continue;
         }
+        // Cryptomatte's id channels hold hashes as float bits: a range of them means nothing.
+        const std::string& name = p.names[c];
+        const std::size_t dot = name.rfind('.');
+        const std::string last = dot == std::string::npos ? name : name.substr(dot + 1);
+        if (name.find("Crypto") != std::string::npos && (last == "R" || last == "B")) {
+            fmt::print("  {:<20} (Cryptomatte ids: hashes, no range)\n", name);
+            continue;
+        }
         double lo = std::numeric_limits<double>::infinity(), hi = -lo, sum = 0.0;
         std::size_t bad = 0;
         for (const float v : p.data[c]) {
@@ -116,7 +134,9 @@ std::vector<float> read_rgb(const std::string& path, Planes& planes) {
     if (Imf::isOpenExrFile(path.c_str())) {
         planes = read_exr_planes(path);
         std::vector<float> rgb = planes.three("R", "G", "B");
-        if (rgb.empty()) throw_error("'{}' has no R, G and B channels", path);
+        // A grey image (a single Y channel, as luminance-only EXRs hold): its value in all three.
+        if (rgb.empty() && planes.find("Y")) rgb = planes.three("Y", "Y", "Y");
+        if (rgb.empty()) throw_error("'{}' has no R, G and B channels (nor Y)", path);
         return rgb;
     }
     ImageHeader spec;
@@ -134,7 +154,18 @@ int run_inspect(const std::string& path, const std::string& reference) {
     const std::vector<float> glints = planes.three("glints.R", "glints.G", "glints.B");
     const ImageMetrics m = measure_image(rgb, planes.width, planes.height, 10.0, 1e-3,
                                          glints.empty() ? nullptr : &glints);
-    fmt::print("{}: {}x{}\n", path, planes.width, planes.height);
+    // A crop part says where it lies in its frame; a multi-part file that only its first part
+    // was read.
+    const bool crop = planes.full_width > 0 &&
+                      (planes.width != planes.full_width || planes.height != planes.full_height ||
+                       planes.x0 != 0 || planes.y0 != 0);
+    fmt::print("{}: {}x{}{}{}\n", path, planes.width, planes.height,
+               crop ? fmt::format(" at ({}, {}) of a {}x{} frame", planes.x0, planes.y0,
+                                  planes.full_width, planes.full_height)
+                    : std::string(),
+               planes.parts > 1
+                   ? fmt::format(" (part 1 of {}: the others are not read)", planes.parts)
+                   : std::string());
     fmt::print("mean luminance: {:.6g}\nnon-finite pixels: {}\nnegative pixels: {}\n",
                m.mean_luminance, m.nonfinite, m.negative);
     if (m.told_apart) {

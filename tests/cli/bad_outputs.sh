@@ -100,6 +100,17 @@ ls -A | grep -q "big.exr" && fail "a write past ulimit -f left $(ls -A | grep bi
 "$S" render pano.toml --threads 0 > /dev/null 2> "$T/err.txt" && fail "--threads 0 rendered"
 [ "$(wc -l < "$T/err.txt")" = 1 ] && grep -q "^spangle: error: --threads: Value 0" "$T/err.txt" ||
     fail "--threads 0 said: $(cat "$T/err.txt")"
+# spangle inspect reads a grey (Y-only) EXR, says where a crop part lies in its frame, and gives
+# no range for Cryptomatte's id channels (hashes). Each was refused, missing or meaningless.
+oiiotool --pattern constant:color=0.5 16x8 1 --chnames Y -o y.exr
+"$S" inspect y.exr > "$T/out.txt" 2>&1 || fail "inspect of a Y-only EXR: $(cat "$T/out.txt")"
+grep -q "mean luminance: 0.5" "$T/out.txt" || fail "Y-only EXR: $(cat "$T/out.txt")"
+"$S" render pano.toml --crop 8,4,20,12 --layers -o cropped.exr -q --no-preview ||
+    fail "the crop failed"
+"$S" inspect cropped.exr > "$T/out.txt" || fail "inspect of a crop failed"
+grep -q "12x8 at (8, 4) of a 32x16 frame" "$T/out.txt" || fail "crop: $(head -1 "$T/out.txt")"
+grep -q "CryptoObject00.R .*(Cryptomatte ids: hashes, no range)" "$T/out.txt" ||
+    fail "crypto ids: $(grep Crypto "$T/out.txt")"
 # Two renders of one output write their EXR and PNG one pair at a time (a hidden lock file
 # beside the EXR): a render waits while another holds the pair's lock, and removes the lock when
 # done. (Unlocked, duplicate jobs left the EXR of one render beside the PNG of the other.)
