@@ -263,6 +263,19 @@ Shape "trianglemesh" "point3 P" [0 0 0 1 0 0 0 1 0]
     EXPECT_EQ(mesh_of(d.objects[2]).triangle_count(), 1u);
 }
 
+TEST(PbrtReader, AttributeParametersGoWhereTheyAreTaken) {
+    // Attribute "shape" "float radius" sizes the sphere, and the mesh that takes no radius says
+    // nothing of it, as pbrt ignores it there (every trianglemesh warned).
+    const Files f;
+    const SceneDescription d = read(f, std::string(R"(WorldBegin
+Attribute "shape" "float radius" 0.4
+Shape "sphere"
+)") + kQuad + "\n");
+    ASSERT_EQ(d.objects.size(), 2u);
+    EXPECT_NEAR(length(mesh_of(d.objects[0]).position(0)), 0.4f, 1e-5f);
+    EXPECT_FALSE(noted(d, "radius")) << d.notes.front();
+}
+
 TEST(PbrtReader, QuadricsAreTessellatedOnTheirSurfaces) {
     const Files f;
     const SceneDescription d = read(f, R"(WorldBegin

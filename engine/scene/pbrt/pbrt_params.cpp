@@ -176,7 +176,11 @@ void ParamList::add_defaults(const ParamList& defaults) {
     for (const Param& d : defaults.params_) {
         bool named = false;
         for (const Param& p : params_) named = named || p.name == d.name;
-        if (!named) params_.push_back(d);
+        if (named) continue;
+        // pbrt ignores an Attribute's parameters a directive does not take: no warning for them
+        // (Attribute "shape" "float radius" warned at every trianglemesh).
+        params_.push_back(d);
+        params_.back().used = true;
     }
 }
 
