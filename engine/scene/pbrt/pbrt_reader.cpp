@@ -266,6 +266,9 @@ private:
         } else if (name == "ObjectInstance") {
             instance(string_arg(t, name), loc);
         } else if (name == "WorldBegin") {
+            // pbrt refuses a second WorldBegin (v4: "WorldBegin called twice"): so does Spangle,
+            // which read on as if it were the first.
+            if (r_.world) throw_error(loc, "WorldBegin again: a scene has one world block");
             r_.world = true;
             r_.gs.ctm[0] = r_.gs.ctm[1] = Mat4();
             // As in pbrt (v3 and v4): both transforms active again.
