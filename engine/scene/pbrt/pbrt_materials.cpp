@@ -384,7 +384,10 @@ bool v3_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         b.string("preset", "perfect");
         b.number("roughness", 0.0);
         if (!(b.constant("Kr", Vec3(0.9f)) == Vec3(1.0f)))
-            b.note("'Kr' is not supported: a perfect mirror (Kr 1) stands in");
+            b.note(p.find("Kr")
+                       ? "'Kr' is not supported: a perfect mirror (Kr 1) stands in"
+                       : "a mirror reflects pbrt-v3's default 'Kr' 0.9 at every angle: a perfect "
+                         "mirror (1) stands in");
         p.find("Kr");
     } else if (t == "glass") {
         b.model("smooth", "dielectric");
