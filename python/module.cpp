@@ -17,6 +17,7 @@
 #include <regex>
 #include <thread>
 
+#include "cli/output_paths.h"
 #include "cli/outputs.h"
 #include "core/error.h"
 #include "session.h"
@@ -148,8 +149,8 @@ py::object param_to_python(const ParamDesc& p) {
 
 /** Writes a rendered image as the CLI does: the EXR (half floats unless `full_float`, with the
  *  layers when there are any) and, unless `preview` is empty, its PNG through the OCIO view. */
-void write_image(const RenderedImage& img, const PySession& s, const std::string& path,
-                 const std::string& preview, bool full_float, const std::string& compression) {
+void write_image(const RenderedImage& img, const std::string& path, const std::string& preview,
+                 bool full_float, const std::string& compression) {
     Outputs out;
     out.exr = path;
     out.preview = preview;
@@ -161,7 +162,8 @@ void write_image(const RenderedImage& img, const PySession& s, const std::string
         throw SpangleError(fmt::format("unknown EXR compression '{}'", compression));
     if (path.size() < 4 || path.compare(path.size() - 4, 4, ".exr") != 0)
         throw SpangleError(fmt::format("output '{}' must end in .exr", path));
-    out.write(final_image(img.result, s.color(), s.info()));
+    if (!img.info || !img.color) throw SpangleError("write(): this image holds no render");
+    out.write(final_image(img.result, *img.color, *img.info));
 }
 
 }  // namespace
@@ -257,7 +259,8 @@ PYBIND11_MODULE(_spangle, m) {
             "material",
             [](PySession& s, const std::string& name) {
                 return [&]() -> py::dict {
-                    for (const MaterialDesc& mat : s.description().materials) {
+                    const SceneDescription desc = s.description();  // a copy: edits swap it
+                    for (const MaterialDesc& mat : desc.materials) {
                         if (mat.name != name) continue;
                         py::dict d, params;
                         d["name"] = mat.name;
@@ -294,7 +297,8 @@ PYBIND11_MODULE(_spangle, m) {
                     const std::vector<std::string> names = s.objects();
                     for (std::size_t i = 0; i < names.size(); ++i) {
                         if (names[i] != name) continue;
-                        const PlacementDesc& p = s.description().objects[i].placement;
+                        const SceneDescription desc = s.description();
+                        const PlacementDesc& p = desc.objects[i].placement;
                         py::dict d;
                         if (p.matrix) {
                             py::list rows;
@@ -341,7 +345,8 @@ PYBIND11_MODULE(_spangle, m) {
             "camera",
             [](PySession& s) {
                 return [&] {
-                    const CameraDesc& c = s.description().camera;
+                    const SceneDescription desc = s.description();
+                    const CameraDesc& c = desc.camera;
                     py::dict d;
                     d["position"] = tuple3(c.position);
                     d["look_at"] = tuple3(c.look_at);
@@ -390,7 +395,8 @@ PYBIND11_MODULE(_spangle, m) {
             [](PySession& s) {
                 return [&] {
                     py::list out;
-                    for (const LightDesc& l : s.description().lights) {
+                    const SceneDescription desc = s.description();
+                    for (const LightDesc& l : desc.lights) {
                         py::dict d;
                         d["intensity"] = l.intensity;
                         d["color"] =
@@ -553,10 +559,11 @@ PYBIND11_MODULE(_spangle, m) {
                 for (const SpangleParamDesc_v3& p : s.parameters(plugin, model)) {
                     py::dict d;
                     d["name"] = p.name;
-                    static const char* kTypes[] = {"float", "int", "bool", "color", "string"};
+                    static const char* kTypes[] = {"float", "int",    "bool",
+                                                   "color", "string", "vec3"};
                     const auto t = static_cast<std::size_t>(p.type);
-                    d["type"] = t < 5 ? kTypes[t] : "unknown";
-                    if (p.type == SPANGLE_PARAM_COLOR)
+                    d["type"] = t < 6 ? kTypes[t] : "unknown";
+                    if (p.type == SPANGLE_PARAM_COLOR || p.type == SPANGLE_PARAM_VEC3)
                         d["default"] = py::make_tuple(p.default_value[0], p.default_value[1],
                                                       p.default_value[2]);
                     else if (p.type == SPANGLE_PARAM_STRING)
@@ -592,13 +599,33 @@ PYBIND11_MODULE(_spangle, m) {
              "from any thread.")
         .def(
             "write",
-            [](PySession& s, const RenderedImage& img, const std::string& path,
-               std::optional<std::string> preview, bool full_float,
-               const std::string& compression) {
-                std::string png = preview.value_or(
-                    path.size() > 4 ? path.substr(0, path.size() - 4) + ".png" : "");
+            [](PySession&, const RenderedImage& img, const py::object& path_in,
+               const py::object& preview_in, bool full_float, const std::string& compression) {
+                // Paths as str or os.PathLike (pathlib.Path was a TypeError), checked as the
+                // command line checks -o and --preview.
+                const auto text = [](const py::object& o, const char* what) {
+                    const std::string t =
+                        py::module_::import("os").attr("fspath")(o).cast<std::string>();
+                    if (t.find('\0') != std::string::npos)
+                        throw SpangleError(
+                            fmt::format("write(): the {} path holds a NUL byte", what));
+                    return t;
+                };
+                const std::string path = text(path_in, "image");
+                std::string png = preview_in.is_none()
+                                      ? (path.size() > 4 ? path.substr(0, path.size() - 4) + ".png"
+                                                         : std::string())
+                                      : text(preview_in, "preview");
+                if (!png.empty()) {
+                    if (png.size() < 4 || png.compare(png.size() - 4, 4, ".png") != 0)
+                        throw SpangleError(fmt::format(
+                            "write(): preview '{}' must end in .png (it is a PNG)", png));
+                    if (same_file(png, path))
+                        throw SpangleError(fmt::format(
+                            "write(): the EXR and the PNG preview are the same file '{}'", path));
+                }
                 py::gil_scoped_release release;
-                write_image(img, s, path, png, full_float, compression);
+                write_image(img, path, png, full_float, compression);
             },
             py::arg("image"), py::arg("path"), py::kw_only(), py::arg("preview") = py::none(),
             py::arg("float") = false, py::arg("compression") = "zip",

@@ -56,19 +56,26 @@ void PySession::load(const std::string& path, double time,
                      const std::optional<std::pair<uint32_t, uint32_t>>& size) {
     const auto lock = edit_lock();
     if (size) check_size(*size);
-    SceneDescription d = read_scene(path, SceneReadOptions{});
+    // By its absolute path: edits reload it, and the process may change folder in between (every
+    // edit after os.chdir failed to find the scene's meshes).
+    SceneDescription d =
+        read_scene(std::filesystem::absolute(path).lexically_normal().string(), SceneReadOptions{});
     if (size) {
         d.render.width = size->first;
         d.render.height = size->second;
     }
     session_->load(d, time);
+    const std::lock_guard<std::mutex> l(desc_mutex_);
     desc_ = std::move(d);
     time_ = time;
     loaded_ = true;
 }
 
-const SceneDescription& PySession::description() const {
+SceneDescription PySession::description() const {
     if (!loaded_) throw SpangleError("no scene is loaded: call load(path) first");
+    // A copy, under the lock an edit swaps the description under: a reader on another thread
+    // (s.materials while s.set_camera runs) read it as it was freed and crashed.
+    const std::lock_guard<std::mutex> l(desc_mutex_);
     return desc_;
 }
 
@@ -79,6 +86,7 @@ void PySession::apply(SceneDescription edited) {
 
 void PySession::apply_locked(SceneDescription edited) {
     session_->load(edited, time_);
+    const std::lock_guard<std::mutex> l(desc_mutex_);
     desc_ = std::move(edited);
 }
 
@@ -198,11 +206,15 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
     check_vec("set_transform()", "translate", translate);
     check_vec("set_transform()", "rotate", rotate);
     check_vec("set_transform()", "scale", scale);
-    if (scale && (scale->x == 0.0f || scale->y == 0.0f || scale->z == 0.0f))
-        throw SpangleError(
-            fmt::format("python: set_transform('{}'): 'scale' must not be 0 on any "
-                        "axis, got ({}, {}, {})",
-                        name, scale->x, scale->y, scale->z));
+    // The scene file's range (1e-8 to 1e8 in size on every axis): a scale of 1e-20 was taken
+    // and the render aborted in Embree.
+    if (scale)
+        for (const float v : {scale->x, scale->y, scale->z})
+            if (!(std::fabs(v) >= 1e-8f && std::fabs(v) <= 1e8f))
+                throw SpangleError(
+                    fmt::format("python: set_transform('{}'): 'scale' must be between 1e-8 and "
+                                "1e8 in size on every axis, got ({}, {}, {})",
+                                name, scale->x, scale->y, scale->z));
     if (matrix) {
         bool finite =
             std::isfinite(matrix->t.x) && std::isfinite(matrix->t.y) && std::isfinite(matrix->t.z);
@@ -253,8 +265,18 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     check_number("set_camera()", "ortho_height", ortho_height, 0.0, 1e30, false);
     // A projection switches the camera as [camera] projection does: perspective (with its fov),
     // orthographic (with a view height) or equirectangular (no fov, view height or lens).
+    // A keyframed camera goes where its keys say: an edit of its placement or lens would be
+    // reported by `camera` and ignored by the render (it was, silently).
+    if (!c.keys.keys.empty() && (position || look_at || up || fov || aperture || focus_distance))
+        throw SpangleError(
+            "python: set_camera(): the camera is keyframed ([[camera.keys]]): its keys decide "
+            "where it stands and its lens; edit them in the scene file");
     if (projection) {
         if (*projection == "perspective") {
+            if (ortho_height.value_or(0.0) > 0.0)
+                throw SpangleError(
+                    "python: set_camera(): projection \"perspective\" takes no ortho_height (it "
+                    "makes the camera orthographic)");
             c.equirect = false;
             c.ortho_height = 0.0;
         } else if (*projection == "orthographic") {
@@ -486,6 +508,8 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
             log_.warn("{}", not_denoised_warning(r.width, r.height));
     }
     out.scene = desc_.path;
+    out.info = std::make_shared<const SceneInfo>(session_->info());
+    out.color = std::make_shared<const ColorConfig>(session_->color().clone());
     return out;
 }
 

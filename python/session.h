@@ -27,6 +27,11 @@ struct RenderedImage {
     uint32_t spp = 0;      ///< samples per pixel reached
     bool stopped = false;  ///< stop() ended it before its samples
     std::string scene;     ///< the scene file it came from
+    /** The scene as rendered (camera, objects, colour space) and its colour config: write()
+     *  labels the image with these, not with the session's state when it is written (an image
+     *  written after a later edit or load took that scene's camera, space and names). */
+    std::shared_ptr<const SceneInfo> info;
+    std::shared_ptr<const ColorConfig> color;
 };
 
 /** Progress callbacks, called from render threads with the GIL not held (the bindings take it). */
@@ -58,7 +63,7 @@ public:
     void load(const std::string& path, double time,
               const std::optional<std::pair<uint32_t, uint32_t>>& size);
     bool loaded() const { return loaded_; }
-    const SceneDescription& description() const;
+    SceneDescription description() const;
 
     std::vector<std::string> materials() const;
     /** Sets parameters of material `name` (validated against the plugin's schema by the reload:
@@ -116,6 +121,7 @@ private:
     Logger log_;
     std::unique_ptr<Session> session_;
     SceneDescription desc_;
+    mutable std::mutex desc_mutex_;  ///< held while desc_ is read for a copy or replaced
     bool loaded_ = false;
     double time_ = 0.0;
     std::atomic<bool> stop_{false};

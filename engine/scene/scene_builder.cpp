@@ -450,6 +450,10 @@ Affine compose(const TransformParts& p) {
     return Affine::translate(p.translate).compose(m);
 }
 
+/** The most a placement's matrix, or its inverse, may scale: beyond, rays carried into the
+ *  object's space leave the range Embree accepts. */
+constexpr float kMaxPlacementScale = 1e12f;
+
 /** An object's placement through the shutter; each key's parts default to the object's own. */
 KeyedMotion<Affine> placement_motion(const BuildContext& ctx, const ObjectDesc& d) {
     if (!d.matrix_keys.keys.empty()) {
@@ -521,6 +525,27 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
         motion.middle = d.parent->compose(motion.middle);
         for (Affine& step : motion.steps) step = d.parent->compose(step);
     }
+    // Rays are carried into object space through the inverse: a placement that squashes an
+    // axis to almost nothing (1e-20 in a matrix, a Python scale) sent rays Embree refuses, and
+    // the render aborted in its assertion. Every placement through the shutter is checked.
+    const auto check = [&](const Affine& m) {
+        const Affine inv = m.inverse();
+        float big = 0.0f, big_inv = 0.0f;
+        for (int r = 0; r < 3; ++r)
+            for (int c = 0; c < 3; ++c) {
+                big = std::max(big, std::fabs(m.m[r][c]));
+                big_inv = std::max(big_inv, std::fabs(inv.m[r][c]));
+            }
+        if (!(big <= kMaxPlacementScale && big_inv <= kMaxPlacementScale) ||
+            !std::isfinite(m.determinant()))
+            throw_error(d.loc,
+                        "{}: its placement squashes or stretches it beyond what rays can follow "
+                        "(its matrix's largest entry {:.3g}, its inverse's {:.3g}; both must stay "
+                        "within {:g}: keep every axis's scale between 1e-12 and 1e12)",
+                        d.what, big, big_inv, kMaxPlacementScale);
+    };
+    check(motion.middle);
+    for (const Affine& step : motion.steps) check(step);
     registry.put(e, Transform{motion.middle});
     info.object_to_world.push_back(motion.middle);
     const auto* file = std::get_if<MeshFileShape>(&d.shape);

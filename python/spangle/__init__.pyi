@@ -33,6 +33,8 @@ class Image:
     @property
     def spp_mean(self) -> float: ...
     @property
+    def denoised(self) -> bool: ...
+    @property
     def stopped(self) -> bool: ...
     @property
     def seconds(self) -> float: ...
@@ -83,6 +85,7 @@ class Session:
         aperture: Optional[float] = None,
         focus_distance: Optional[float] = None,
         ortho_height: Optional[float] = None,
+        projection: Optional[str] = None,
     ) -> None: ...
     @property
     def lights(self) -> list[dict]: ...
@@ -107,15 +110,17 @@ class Session:
         noise_threshold: Optional[float] = None,
         min_spp: Optional[int] = None,
         max_spp: Optional[int] = None,
+        denoise: bool = False,
+        denoise_glints: Optional[str] = None,
     ) -> Image: ...
     def parameters(self, plugin: str, model: str = "") -> list[dict]: ...
     def stop(self) -> None: ...
     def write(
         self,
         image: Image,
-        path: str,
+        path: Union[str, os.PathLike[str]],
         *,
-        preview: Optional[str] = None,
+        preview: Optional[Union[str, os.PathLike[str]]] = None,
         float: bool = False,
         compression: str = "zip",
     ) -> None: ...
