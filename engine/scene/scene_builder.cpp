@@ -59,6 +59,14 @@ Vec3 working_color(BuildContext& ctx, const std::optional<ColorDesc>& c, Vec3 fa
     if (!c) return fallback;
     float rgb[3] = {c->rgb.x, c->rgb.y, c->rgb.z};
     ctx.color->to_working(space_of(ctx, *c), rgb, 1);
+    // A colour that is finite as written can overflow in the conversion (an sRGB-encoded 1e20
+    // decodes to infinity): the light vanished, or an environment turned the image black.
+    if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2]))
+        throw_error(c->loc,
+                    "colour ({}, {}, {}) in '{}' is beyond a float in the working space '{}' "
+                    "(components above about 1e15 overflow there): make it smaller, or give a "
+                    "linear space",
+                    c->rgb.x, c->rgb.y, c->rgb.z, space_of(ctx, *c), ctx.color->working_space());
     // Gamut mapping can push a channel a hair below zero; radiance and albedo cannot be negative.
     return {std::max(rgb[0], 0.0f), std::max(rgb[1], 0.0f), std::max(rgb[2], 0.0f)};
 }
