@@ -236,8 +236,9 @@ ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Mate
                     const auto choices = split_choices(d.choices);
                     if (!choices.empty() &&
                         std::find(choices.begin(), choices.end(), p->text) == choices.end())
-                        throw_error(p->loc, "material '{}': '{}' must be one of {}, got \"{}\"",
-                                    m.name, d.name, fmt::join(choices, ", "), p->text);
+                        throw_error(p->loc, "material '{}': '{}' must be one of {}, got \"{}\"{}",
+                                    m.name, d.name, fmt::join(choices, ", "), p->text,
+                                    did_you_mean(p->text, choices));
                     out.strings.back() = p->text;
                     break;
                 }
