@@ -263,14 +263,14 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     check_number("set_camera()", "aperture", aperture, 0.0, 1e3, false);
     check_number("set_camera()", "focus_distance", focus_distance, 0.0, 1e30, true);
     check_number("set_camera()", "ortho_height", ortho_height, 0.0, 1e30, false);
-    // A projection switches the camera as [camera] projection does: perspective (with its fov),
-    // orthographic (with a view height) or equirectangular (no fov, view height or lens).
     // A keyframed camera goes where its keys say: an edit of its placement or lens would be
     // reported by `camera` and ignored by the render (it was, silently).
     if (!c.keys.keys.empty() && (position || look_at || up || fov || aperture || focus_distance))
         throw SpangleError(
             "python: set_camera(): the camera is keyframed ([[camera.keys]]): its keys decide "
             "where it stands and its lens; edit them in the scene file");
+    // A projection switches the camera as [camera] projection does: perspective (with its fov),
+    // orthographic (with a view height) or equirectangular (no fov, view height or lens).
     if (projection) {
         if (*projection == "perspective") {
             if (ortho_height.value_or(0.0) > 0.0)
@@ -404,13 +404,8 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     // The denoiser's guides are layers: as `--denoise`, which implies `--layers`.
     std::optional<GlintDenoise> denoise_glints;
     if (const auto& g = denoise_args.glints) {
-        if (*g == "keep")
-            denoise_glints = GlintDenoise::Keep;
-        else if (*g == "apart")
-            denoise_glints = GlintDenoise::Apart;
-        else if (*g == "filter")
-            denoise_glints = GlintDenoise::Filter;
-        else
+        denoise_glints = glint_denoise_named(*g);
+        if (!denoise_glints)
             throw SpangleError(fmt::format(
                 "render(): denoise_glints must be \"keep\", \"apart\" or \"filter\", got \"{}\"",
                 *g));

@@ -105,7 +105,7 @@ void print_channels(const Planes& p) {
         const std::string& name = p.names[c];
         const std::size_t dot = name.rfind('.');
         const std::string last = dot == std::string::npos ? name : name.substr(dot + 1);
-        if (name.find("Crypto") != std::string::npos && (last == "R" || last == "B")) {
+        if (name.rfind("Crypto", 0) == 0 && (last == "R" || last == "B")) {
             fmt::print("  {:<20} (Cryptomatte ids: hashes, no range)\n", name);
             continue;
         }

@@ -25,9 +25,7 @@ RenderOptions render_options(const RenderArgs& a) {
     // RGB where A said 0, and in every light group).
     o.background_apart = o.layers;
     o.denoise = a.denoise;
-    o.denoise_glints = a.denoise_glints == "filter"  ? GlintDenoise::Filter
-                       : a.denoise_glints == "apart" ? GlintDenoise::Apart
-                                                     : GlintDenoise::Keep;
+    o.denoise_glints = glint_denoise_named(a.denoise_glints).value_or(GlintDenoise::Keep);
     if (!a.crop.empty()) o.crop = parse_crop(a.crop);
     if (!a.spp_range.empty()) parse_spp_range(a.spp_range, o.spp_first, o.spp_end);
     o.texture_memory_mb = a.texture_memory_mb;

@@ -65,13 +65,9 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
             path, first_path);
     // The colour space the pixels are in (another OCIO config or working space) and where the
     // camera stood (another --camera, a moved camera): parts of other renders.
-    const auto space = [](const Imf::Header& h) {
-        const auto* a = h.findTypedAttribute<Imf::StringAttribute>("colorSpace");
-        return a ? a->value() : std::string();
-    };
-    if (!space(hd).empty() && !space(first).empty() && space(hd) != space(first))
+    if (differ("colorSpace"))
         throw_error("'{}' is in colour space '{}', '{}' in '{}': parts of one render merge", path,
-                    space(hd), first_path, space(first));
+                    attribute(hd, "colorSpace"), first_path, attribute(first, "colorSpace"));
     const auto* cam = hd.findTypedAttribute<Imf::M44fAttribute>("worldToCamera");
     const auto* cam_first = first.findTypedAttribute<Imf::M44fAttribute>("worldToCamera");
     if (cam && cam_first && cam->value() != cam_first->value())

@@ -39,6 +39,19 @@ struct TriangleMesh {
  *  equal content. */
 uint64_t mesh_content_hash(const TriangleMesh& mesh);
 
+/** The area of a mesh whose points `place` carries where it stands (a placement's point map). */
+template <class Place>
+double placed_area(const TriangleMesh& m, Place&& place) {
+    double a = 0.0;
+    for (std::size_t t = 0; t < m.triangle_count(); ++t) {
+        const Vec3 p0 = place(m.position(m.indices[3 * t])),
+                   p1 = place(m.position(m.indices[3 * t + 1])),
+                   p2 = place(m.position(m.indices[3 * t + 2]));
+        a += 0.5 * static_cast<double>(length(cross(p1 - p0, p2 - p0)));
+    }
+    return a;
+}
+
 /** All meshes of a scene; objects refer to them by index, so one file loaded twice is shared. */
 struct GeometryStore {
     /** Loaded meshes, shared with the build cache of a watch session (a reload that does not

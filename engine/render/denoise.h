@@ -13,7 +13,9 @@
 // from the `pyoidn` wheel on PyPI), then the system's libOpenImageDenoise.so.2.
 
 #include <cstdint>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace spangle {
@@ -27,6 +29,15 @@ enum class GlintDenoise {
     Keep,    ///< the glints layer passes through unfiltered (the default)
     Filter,  ///< the whole beauty is filtered, glints and all (for comparison)
 };
+
+/** The treatment a name says, as --denoise-glints and Python's denoise_glints take them ("keep",
+ *  "apart", "filter"); none for another name. */
+inline std::optional<GlintDenoise> glint_denoise_named(std::string_view name) {
+    if (name == "keep") return GlintDenoise::Keep;
+    if (name == "apart") return GlintDenoise::Apart;
+    if (name == "filter") return GlintDenoise::Filter;
+    return std::nullopt;
+}
 
 /** A render's image and layers, as the denoiser reads and writes them. */
 struct DenoiseImage {

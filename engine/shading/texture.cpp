@@ -28,14 +28,16 @@ uint64_t hash_text(const std::string& s) {
 
 }  // namespace
 
-std::string texture_cache_dir(const TextureSettings& settings) {
-    if (!settings.cache_dir.empty()) return settings.cache_dir;
-    if (const char* env = std::getenv("SPANGLE_TEXTURE_CACHE"); env && *env) return env;
+std::vector<std::string> texture_cache_dirs(const TextureSettings& settings) {
+    if (!settings.cache_dir.empty()) return {settings.cache_dir};
+    if (const char* env = std::getenv("SPANGLE_TEXTURE_CACHE"); env && *env) return {env};
+    const std::string temporary =
+        (fs::temp_directory_path() / fmt::format("spangle-textures-{}", ::getuid())).string();
     if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
-        return (fs::path(xdg) / "spangle" / "textures").string();
+        return {(fs::path(xdg) / "spangle" / "textures").string(), temporary};
     if (const char* home = std::getenv("HOME"); home && *home)
-        return (fs::path(home) / ".cache" / "spangle" / "textures").string();
-    return (fs::temp_directory_path() / fmt::format("spangle-textures-{}", ::getuid())).string();
+        return {(fs::path(home) / ".cache" / "spangle" / "textures").string(), temporary};
+    return {temporary};
 }
 
 void texture_coordinates(const TextureRef& ref, const float* u, const float* v, const float* dudx,
@@ -93,14 +95,10 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
         throw_error(loc, "{}", e.what());
     }
 
-    // The cache: the one chosen (--texture-cache, $SPANGLE_TEXTURE_CACHE), else the user's, and
-    // where the user's cannot be written (a read-only or missing home on a farm node) a folder
-    // in the temporary directory instead, said once (the render failed at the texture's line).
-    const char* env_cache = std::getenv("SPANGLE_TEXTURE_CACHE");
-    const bool chosen = !settings_.cache_dir.empty() || (env_cache && *env_cache);
-    std::vector<fs::path> dirs{texture_cache_dir(settings_)};
-    if (!chosen)
-        dirs.push_back(fs::temp_directory_path() / fmt::format("spangle-textures-{}", ::getuid()));
+    // The cache, or where the user's cannot be written (a read-only or missing home on a farm
+    // node) the temporary directory's, said once (the render failed at the texture's line).
+    const std::vector<std::string> dir_names = texture_cache_dirs(settings_);
+    const std::vector<fs::path> dirs(dir_names.begin(), dir_names.end());
     const std::string name =
         fmt::format("{}-{:016x}.exr", fs::path(ref.path).stem().string(), hash_text(key));
     std::error_code ec;

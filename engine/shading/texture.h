@@ -27,8 +27,10 @@ struct TextureSettings {
     uint32_t memory_mb = 1024;  ///< tile cache bound
 };
 
-/** The cache directory `settings` name, or the default one (see TextureSettings). */
-std::string texture_cache_dir(const TextureSettings& settings);
+/** The cache directories to try, in order: the one `settings` or $SPANGLE_TEXTURE_CACHE
+ *  chooses alone; else the user's ($XDG_CACHE_HOME or ~/.cache /spangle/textures), then the
+ *  temporary directory's spangle-textures-UID for when the user's cannot be written. */
+std::vector<std::string> texture_cache_dirs(const TextureSettings& settings);
 
 /** One opened texture: the converted file and its handle in the texture system. */
 struct Texture {

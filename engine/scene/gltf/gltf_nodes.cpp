@@ -125,8 +125,7 @@ bool thicken(Affine& a) {
 }
 
 /** The objects of node n's mesh, one per primitive. */
-void mesh_objects(Context& ctx, int n, const NodeMotion& motion_in) {
-    NodeMotion motion = motion_in;
+void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
     const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
     const std::string np = fmt::format("nodes/{}", n);
     check_index(ctx, np + "/mesh", node.mesh, ctx.model.meshes.size(), "mesh");
@@ -134,8 +133,8 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion_in) {
         ctx.note("skin", ctx.at(np + "/skin"),
                  "skins are not deformed: a skinned mesh is drawn rigidly in its bind pose, "
                  "placed by its first joint (its world matrix times its inverse bind matrix)");
-    if (motion.times.empty() && !(std::fabs(motion.rest.determinant()) > 1e-18f) &&
-        !thicken(motion.rest)) {
+    Affine rest = motion.rest;
+    if (motion.times.empty() && !(std::fabs(rest.determinant()) > 1e-18f) && !thicken(rest)) {
         ctx.note(fmt::format("hidden {}", n), ctx.at(np),
                  fmt::format("node {} is scaled to nothing (onto a line or a point): its mesh "
                              "is not drawn",
@@ -162,7 +161,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion_in) {
             fmt::format("node {}{} primitive {}", n,
                         node.name.empty() ? std::string() : fmt::format(" '{}'", node.name), p);
         if (motion.times.empty())
-            o.placement.matrix = motion.rest;
+            o.placement.matrix = rest;
         else
             o.matrix_keys = matrix_keys(motion, ctx.at(np), o.what);
         ctx.scene->objects.push_back(std::move(o));
@@ -365,16 +364,16 @@ void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras
         const std::string& nn = ctx.model.nodes[static_cast<std::size_t>(node)].name;
         names.push_back(!cn.empty() ? cn : !nn.empty() ? nn : fmt::format("#{}", cam));
     }
+    // The first of several, not silently: the others are there to be chosen.
+    if (name.empty() && cameras.size() > 1)
+        ctx.note("first camera", ctx.at(fmt::format("nodes/{}", cameras.front().first)),
+                 fmt::format("the file has {} cameras: the first, '{}', is used (--camera picks "
+                             "another: {})",
+                             cameras.size(), names.front(), fmt::join(names, ", ")));
     for (const auto& [node, cam] : cameras) {
         const bool named = ctx.model.cameras[static_cast<std::size_t>(cam)].name == name ||
                            ctx.model.nodes[static_cast<std::size_t>(node)].name == name ||
                            cam == index;
-        if (name.empty() && cameras.size() > 1)
-            // Not silently: the others are there to be chosen.
-            ctx.note("first camera", ctx.at(fmt::format("nodes/{}", node)),
-                     fmt::format("the file has {} cameras: the first, '{}', is used (--camera "
-                                 "picks another: {})",
-                                 cameras.size(), names.front(), fmt::join(names, ", ")));
         if (name.empty() || named)
             return use_camera(ctx, node, cam, motions[static_cast<std::size_t>(node)]);
     }
@@ -390,19 +389,11 @@ void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras
 
 /** The world-space area of an object the reader placed (an inline mesh under a matrix); 0 for
  *  any other shape. */
-double placed_area(const ObjectDesc& o) {
+double object_area(const ObjectDesc& o) {
     const auto* in = std::get_if<InlineMeshShape>(&o.shape);
     if (!in || !in->mesh) return 0.0;
-    const TriangleMesh& m = *in->mesh;
     const Affine xf = o.placement.matrix.value_or(Affine{});
-    double a = 0.0;
-    for (std::size_t t = 0; t < m.triangle_count(); ++t) {
-        const Vec3 p0 = xf.apply_point(m.position(m.indices[3 * t])),
-                   p1 = xf.apply_point(m.position(m.indices[3 * t + 1])),
-                   p2 = xf.apply_point(m.position(m.indices[3 * t + 2]));
-        a += 0.5 * static_cast<double>(length(cross(p1 - p0, p2 - p0)));
-    }
-    return a;
+    return placed_area(*in->mesh, [&](Vec3 p) { return xf.apply_point(p); });
 }
 
 /** How brightly the file's own emission lights it: its emitted power (radiance x area x pi)
@@ -411,7 +402,7 @@ double placed_area(const ObjectDesc& o) {
 double emission_irradiance(const SceneDescription& s) {
     double power = 0.0, area = 0.0;
     for (const ObjectDesc& o : s.objects) {
-        const double a = placed_area(o);
+        const double a = object_area(o);
         area += a;
         if (o.emission) {
             const Vec3 c = o.emission->color.rgb;

@@ -332,18 +332,6 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
     return {InlineMeshShape{cached, loc}, cached};
 }
 
-/** The world-space area of a mesh placed by `xf`. */
-double world_area(const TriangleMesh& m, const Mat4& xf) {
-    double a = 0.0;
-    for (std::size_t t = 0; t < m.triangle_count(); ++t) {
-        const Vec3 p0 = xf.point(m.position(m.indices[3 * t])),
-                   p1 = xf.point(m.position(m.indices[3 * t + 1])),
-                   p2 = xf.point(m.position(m.indices[3 * t + 2]));
-        a += 0.5 * static_cast<double>(length(cross(p1 - p0, p2 - p0)));
-    }
-    return a;
-}
-
 /** The shape's emission from the current area light; v4 "power" needs its area. */
 EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const FileLoc& loc) {
     EmissionDesc e;
@@ -352,7 +340,9 @@ EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const 
     e.two_sided = a.two_sided;
     if (a.power) {
         // pbrt-v4: the radiance that makes the shape emit `power` watts, pi A per side.
-        const double area = made.mesh ? world_area(*made.mesh, r.gs.ctm[0]) : 0.0;
+        const Mat4& xf = r.gs.ctm[0];
+        const double area =
+            made.mesh ? placed_area(*made.mesh, [&](Vec3 p) { return xf.point(p); }) : 0.0;
         if (area > 0.0)
             e.intensity = a.scale * *a.power / (M_PI * area * (a.two_sided ? 2.0 : 1.0));
         else
