@@ -33,15 +33,23 @@ constexpr double kW8[4] = {0.362683783378361983, 0.313706645877887287, 0.2223810
 double radial(double a0, double a1, double ra, double rb) {
     const double pa = 1.0 + ra * ra;
     double d1, d2;
+    // Both angles below are atan(y / x) with x > 0 (ra, rb >= 0), which atan gives at half the
+    // cost of atan2.
     if (std::isinf(rb)) {
         d1 = 0.5 / pa;
-        d2 = 0.5 * (std::atan2(1.0, ra) + ra / pa);
+        d2 = 0.5 * ((ra > 0.0 ? std::atan(1.0 / ra) : 0.5 * std::numbers::pi) + ra / pa);
     } else {
         const double pb = 1.0 + rb * rb, d = rb - ra;
         d1 = d * (rb + ra) / (2.0 * pa * pb);
-        d2 = 0.5 * (std::atan2(d, 1.0 + ra * rb) - d * (1.0 - ra * rb) / (pa * pb));
+        d2 = 0.5 * (std::atan(d / (1.0 + ra * rb)) - d * (1.0 - ra * rb) / (pa * pb));
     }
     return (a0 * d1 + a1 * d2) / std::numbers::pi;
+}
+
+/** cos(x) and sin(x) (one sincos call). */
+void sincos_of(double x, double& c, double& s) {
+    c = std::cos(x);
+    s = std::sin(x);
 }
 
 /** Roots r0 <= r1 of a rho^2 + b rho + c, a != 0 (numerically stable); false without any. */
@@ -173,25 +181,39 @@ struct Problem {
                 for (int c = 0; c < 3; ++c) mf[c] += part * sum[c] / wsum;
             return;
         }
-        const double t0 = std::atan(lo),
-                     t1 = std::isinf(hi) ? 0.5 * std::numbers::pi : std::atan(hi);
-        const auto cos_at = [&](double t, double& weight) {
-            const double c = std::cos(t), s = std::sin(t), lin = std::max(0.0, woz * c + a1 * s);
+        // theta runs from atan(lo) over dt = atan(hi) - atan(lo), written as one atan; the
+        // points' cosines and sines come from (cos, sin) of atan(lo) (algebraic) turned by the
+        // pieces' step and the Gauss offsets, with four sincos calls instead of one per point.
+        const double dt = std::isinf(hi) ? (lo > 0.0 ? std::atan(1.0 / lo) : 0.5 * std::numbers::pi)
+                                         : std::atan((hi - lo) / (1.0 + lo * hi));
+        const auto cos_at = [&](double c, double s, double& weight) {
+            const double lin = std::max(0.0, woz * c + a1 * s);
             weight = lin * s;
             return lin / std::sqrt(c * c + a2 * s * s);
         };
         const int n = std::min(8, 1 + static_cast<int>(span / 0.05));
+        double step_c, step_s, off_c[3], off_s[3];
+        sincos_of(dt / n, step_c, step_s);
+        for (int g = 0; g < 3; ++g) sincos_of(dt * kGauss3Nodes[g] / n, off_c[g], off_s[g]);
+        double base_c = 1.0 / std::sqrt(1.0 + lo * lo), base_s = lo * base_c;
         double sum[3] = {0, 0, 0}, wsum = 0.0;
-        for (int p = 0; p < n; ++p)
+        for (int p = 0; p < n; ++p) {
+            if (p > 0) {
+                const double c = base_c * step_c - base_s * step_s;
+                base_s = base_s * step_c + base_c * step_s;
+                base_c = c;
+            }
             for (int g = 0; g < 3; ++g) {
                 double weight;
-                const double cos_om = cos_at(t0 + (t1 - t0) * (p + kGauss3Nodes[g]) / n, weight);
+                const double cos_om = cos_at(base_c * off_c[g] - base_s * off_s[g],
+                                             base_s * off_c[g] + base_c * off_s[g], weight);
                 float f[3];
                 fresnel->eval(static_cast<float>(cos_om), f);
                 const double w = kGauss3Weights[g] * weight;
                 for (int c = 0; c < 3; ++c) sum[c] += w * static_cast<double>(f[c]);
                 wsum += w;
             }
+        }
         if (!(wsum > 0.0)) return;
         for (int c = 0; c < 3; ++c) mf[c] += part * sum[c] / wsum;
     }
@@ -654,11 +676,20 @@ double lobe_mass(float alpha, double sin2_half, V3 wo_f) {
         }
         return full + band;
     };
-    // Adaptive Gauss-Kronrod over the half circle: where the band appears on the rays the
-    // integrand has kinks, which the periodic trapezoid rule would converge to slowly.
+    // Adaptive Gauss-Kronrod over the half circle, split where the integrand has a kink: when
+    // the view is lower than the cone is wide (wo_z < sin(gamma)), the rays with
+    // a1^2 < alpha^2 (sin^2(gamma) - wo_z^2) meet no direction whose whole cone is above the
+    // horizon, and the interval with A = 1 appears where the quadratic's discriminant vanishes,
+    // cos(phi) = sqrt(sin^2(gamma) - wo_z^2) / wo_x (its roots are negative on the other side).
+    double cuts[1];
+    int n_cuts = 0;
+    if (woz < sg && wox > 0.0) {
+        const double c = std::sqrt(sg * sg - woz * woz) / wox;
+        if (c < 1.0) cuts[n_cuts++] = std::acos(c);
+    }
     double unused[3] = {0, 0, 0};
     const double half = pieces([&](double phi, double*) { return ray(phi); }, 0.0, std::numbers::pi,
-                               nullptr, 0, unused, 1e-6);
+                               cuts, n_cuts, unused, 1e-6);
     // Twice the half circle, times G1(wo) / wo_z.
     const double g1 = static_cast<double>(mf::ggx_g1(wo_f, alpha, alpha)) / woz;
     return std::clamp(2.0 * half * g1, 0.0, 1.0);
