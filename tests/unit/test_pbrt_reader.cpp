@@ -375,6 +375,58 @@ TEST(PbrtReader, APlyMeshOfQuadsLoadsAsTriangles) {
     EXPECT_EQ(load_mesh(m.path, m.loc).triangle_count(), 4u);
 }
 
+TEST(PbrtReader, APlyMeshTurnsAsPbrtTurnsIt) {
+    // pbrt turns a mesh without normals under ReverseOrientation or a mirroring transform, and
+    // v4 turns authored normals under ReverseOrientation: a PLY file as much as a trianglemesh
+    // (its faces kept the file's winding: a one-sided PLY emitter lit the wrong side). Read
+    // there and then, turned; one read per file and orientation; the file is one of the scene's.
+    const Files f;
+    const char* header =
+        "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+        "property float z\n";
+    std::ofstream(f.file("tri.ply")) << header
+                                     << "element face 1\nproperty list uchar int vertex_indices\n"
+                                        "end_header\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n";
+    std::ofstream(f.file("tri_n.ply"))
+        << header
+        << "property float nx\nproperty float ny\nproperty float nz\nelement face 1\n"
+           "property list uchar int vertex_indices\nend_header\n0 0 0 0 0 1\n1 0 0 0 0 1\n"
+           "0 1 0 0 0 1\n3 0 1 2\n";
+    const SceneDescription d = read(f, R"(Film "rgb"
+WorldBegin
+Shape "plymesh" "string filename" "tri.ply"
+AttributeBegin
+  ReverseOrientation
+  Shape "plymesh" "string filename" "tri.ply"
+  Shape "plymesh" "string filename" "tri.ply"
+  Shape "plymesh" "string filename" "tri_n.ply"
+AttributeEnd
+AttributeBegin
+  Scale -1 1 1
+  Shape "plymesh" "string filename" "tri.ply"
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1] "float power" 10
+  Shape "plymesh" "string filename" "tri.ply"
+AttributeEnd
+)");
+    ASSERT_EQ(d.objects.size(), 6u);
+    EXPECT_TRUE(std::holds_alternative<MeshFileShape>(d.objects[0].shape))
+        << "an unturned PLY stays a file for the mesh system";
+    const TriangleMesh& reversed = mesh_of(d.objects[1]);
+    EXPECT_EQ(reversed.indices, (std::vector<uint32_t>{0, 2, 1}));
+    EXPECT_EQ(&reversed, &mesh_of(d.objects[2])) << "one read per file and orientation";
+    const TriangleMesh& normals = mesh_of(d.objects[3]);
+    EXPECT_EQ(normals.indices, (std::vector<uint32_t>{0, 1, 2})) << "normals orient it";
+    ASSERT_EQ(normals.normals.size(), 9u);
+    EXPECT_EQ(normals.normals[2], -1.0f) << "v4 (Film \"rgb\") turns authored normals";
+    EXPECT_EQ(mesh_of(d.objects[4]).indices, (std::vector<uint32_t>{0, 2, 1})) << "a mirror";
+    // 'power' needs the area (0.5): 10 W = L pi A, so L = 20 / pi.
+    ASSERT_TRUE(d.objects[5].emission.has_value());
+    EXPECT_NEAR(d.objects[5].emission->intensity, 20.0 / M_PI, 1e-4);
+    EXPECT_NE(std::find(d.files.begin(), d.files.end(), f.file("tri.ply")), d.files.end());
+}
+
 TEST(PbrtReader, TheDefaultMaterialNeverTakesAWrittenMaterialsName) {
     // A scene may name its own material pbrt_default: the default then gets a name of its own.
     const Files f;

@@ -1,10 +1,12 @@
-// pbrt's shapes: triangle meshes written in the file, PLY meshes (read by mesh_load), bilinear
-// patch meshes, Loop subdivision cages (refined by the subdivide system), and spheres, disks and
-// cylinders tessellated finely enough that their silhouettes stay within a few ten-thousandths of
-// their radius. Every shape takes the current material, area light and orientation.
+// pbrt's shapes: triangle meshes written in the file, PLY meshes (read by mesh_load; here when
+// they must turn or emit a given power), bilinear patch meshes, Loop subdivision cages (refined
+// by the subdivide system), and spheres, disks and cylinders tessellated finely enough that their
+// silhouettes stay within a few ten-thousandths of their radius. Every shape takes the current
+// material, area light and orientation.
 
 #include <cmath>
 
+#include "geometry/mesh_load.h"
 #include "scene/pbrt/pbrt_state.h"
 
 namespace spangle::pbrt {
@@ -175,11 +177,23 @@ Made bilinearmesh(Reader& r, const ParamList& p, const FileLoc& loc) {
 Made plymesh(Reader& r, const ParamList& p, const FileLoc& loc) {
     const std::string file = p.string("filename", "");
     if (file.empty()) throw_error(loc, "plymesh needs \"string filename\"");
-    if (flip_faces(r))
-        r.notes.add(loc,
-                    "plymesh under ReverseOrientation or a mirroring transform: its faces "
-                    "keep the file's winding (Spangle orients PLY faces as written)");
-    return {MeshFileShape{r.find_file(file, "plymesh filename", loc), loc, false, {}, {}}, nullptr};
+    const std::string path = r.find_file(file, "plymesh filename", loc);
+    // The file is read here, turned as pbrt turns it, when its faces or normals must turn
+    // (ReverseOrientation, a mirroring transform) or an area light's 'power' needs its area;
+    // otherwise the mesh system reads it (and caches it between reloads).
+    const bool turn = flip_faces(r) || (r.v4() && r.gs.reverse);
+    if (!turn && !(r.gs.area && r.gs.area->power))
+        return {MeshFileShape{path, loc, false, {}, {}}, nullptr};
+    const std::string key =
+        fmt::format("ply {} {} {}", path, flip_faces(r), r.v4() && r.gs.reverse);
+    auto& cached = r.shape_cache[key];
+    if (!cached) {
+        auto m = std::make_shared<TriangleMesh>(load_mesh(path, loc));
+        orient_like_pbrt(r, *m);
+        cached = m;
+        r.d.files.push_back(path);  // watched and hashed as the scene's own files are
+    }
+    return {InlineMeshShape{cached, loc}, cached};
 }
 
 Made loopsubdiv(Reader& r, const ParamList& p, const FileLoc& loc) {
@@ -347,8 +361,8 @@ EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const 
             e.intensity = a.scale * *a.power / (M_PI * area * (a.two_sided ? 2.0 : 1.0));
         else
             r.notes.add(loc,
-                        "area light 'power' on a shape whose area is not known here (a PLY "
-                        "mesh or a subdivision surface): 'L' x 'scale' stands in");
+                        "area light 'power' on a shape whose area is not known here (a "
+                        "subdivision surface): 'L' x 'scale' stands in");
     }
     return e;
 }
