@@ -687,6 +687,11 @@ AttributeBegin
   Scale 2 2 2
 )" + kQuad + R"(
 AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "float power" 10
+  Scale 3 3 3
+  Shape "sphere" "float radius" 0.5
+AttributeEnd
 )");
     ASSERT_EQ(d.lights.size(), 5u);
     EXPECT_EQ(d.lights[0].color->rgb, Vec3(1, 2, 3));
@@ -715,12 +720,14 @@ WorldEnd
     EXPECT_NEAR(map.to_world.apply_vector({0, 0, 1}).y, 1.0f, 1e-6f) << "the map's +z is up";
     EXPECT_EQ(d.environment->intensity, 1.5);
     EXPECT_TRUE(noted(d, "LightSource \"goniometric\" is not supported: a point light"));
-    ASSERT_EQ(d.objects.size(), 2u);
+    ASSERT_EQ(d.objects.size(), 3u);
     const EmissionDesc& e = *d.objects[0].emission;
     EXPECT_TRUE(e.two_sided);
     EXPECT_EQ(e.intensity, 0.5);
     // v4 area 'power': W over pi A (the scaled quad's area is 4).
     EXPECT_NEAR(d.objects[1].emission->intensity, 10.0 / (M_PI * 4.0), 1e-6);
+    // A quadric's area is its own (pbrt's Sphere::Area(): 4 pi r^2 = pi, the scale aside).
+    EXPECT_NEAR(d.objects[2].emission->intensity, 10.0 / (M_PI * M_PI), 1e-9);
 }
 
 TEST(PbrtReader, AV3InfiniteMapIsLatLongWithItsZUp) {

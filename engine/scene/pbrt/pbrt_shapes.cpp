@@ -21,6 +21,9 @@ constexpr int kTurnSegments = 256;
 struct Made {
     ShapeDesc shape;                           ///< the shape
     std::shared_ptr<const TriangleMesh> mesh;  ///< its triangles, when the reader made them
+    /** A quadric's exact area in its own space, which pbrt's 'power' divides by (0: the
+     *  placed triangles' area). */
+    double object_area = 0.0;
 };
 
 /** Whether the faces must turn: pbrt orients faces by ReverseOrientation and a mirroring
@@ -287,12 +290,14 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
     const std::string turned = flip ? " turned" : "";
     std::string key;
     std::shared_ptr<TriangleMesh> m;
+    double area = 0.0;
     if (type == "sphere") {
         const double z0 = std::clamp(p.number("zmin", -radius), -radius, radius),
                      z1 = std::clamp(p.number("zmax", radius), -radius, radius);
         const double t0 = std::acos(std::min(z0, z1) / radius),
                      t1 = std::acos(std::max(z0, z1) / radius);
         key = fmt::format("sphere {} {} {} {}{}", radius, t0, t1, phimax, turned);
+        area = phimax * radius * std::fabs(z1 - z0);
         if (!r.shape_cache.count(key))
             m = grid(
                 segments(phimax, kTurnSegments),
@@ -310,6 +315,7 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
         if (!(ri >= 0.0 && ri < radius))
             throw_error(loc, "disk: 'innerradius' must be in [0, radius), got {}", ri);
         key = fmt::format("disk {} {} {} {}{}", radius, h, ri, phimax, turned);
+        area = 0.5 * phimax * (radius * radius - ri * ri);
         if (!r.shape_cache.count(key))
             m = grid(
                 segments(phimax, kTurnSegments), 4,
@@ -325,6 +331,7 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
         if (!(z0 != z1)) throw_error(loc, "cylinder: 'zmin' and 'zmax' must differ");
         key = fmt::format("cylinder {} {} {} {}{}", radius, std::min(z0, z1), std::max(z0, z1),
                           phimax, turned);
+        area = phimax * radius * std::fabs(z1 - z0);
         if (!r.shape_cache.count(key))
             m = grid(
                 segments(phimax, kTurnSegments), 1,
@@ -343,7 +350,7 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
         orient(*m, flip, flip);
         cached = m;
     }
-    return {InlineMeshShape{cached, loc}, cached};
+    return {InlineMeshShape{cached, loc}, cached, area};
 }
 
 /** The shape's emission from the current area light; v4 "power" needs its area. */
@@ -353,10 +360,14 @@ EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const 
     e.intensity = a.scale;
     e.two_sided = a.two_sided;
     if (a.power) {
-        // pbrt-v4: the radiance that makes the shape emit `power` watts, pi A per side.
+        // pbrt-v4: the radiance that makes the shape emit `power` watts, pi A per side, with A
+        // a quadric's area in its own space (pbrt's Sphere::Area() and the like: a scaled
+        // sphere keeps the radiance of the unscaled one) and a mesh's as placed.
         const Mat4& xf = r.gs.ctm[0];
-        const double area =
-            made.mesh ? placed_area(*made.mesh, [&](Vec3 p) { return xf.point(p); }) : 0.0;
+        const double area = made.object_area > 0.0 ? made.object_area
+                            : made.mesh
+                                ? placed_area(*made.mesh, [&](Vec3 p) { return xf.point(p); })
+                                : 0.0;
         if (area > 0.0)
             e.intensity = a.scale * *a.power / (M_PI * area * (a.two_sided ? 2.0 : 1.0));
         else
