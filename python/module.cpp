@@ -9,12 +9,14 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include <cxxabi.h>
 #include <chrono>
 #include <condition_variable>
 #include <cstring>
 #include <map>
 #include <mutex>
 #include <regex>
+#include <set>
 #include <thread>
 
 #include "cli/output_paths.h"
@@ -31,6 +33,55 @@ using spangle::python::PySession;
 using spangle::python::RenderedImage;
 
 namespace {
+
+/** The renders under way, so that the interpreter's exit can stop them. Python ends a daemon
+ *  thread that wants the GIL once finalisation has begun by unwinding it, and a render's
+ *  callbacks run on TBB's threads, which catch that unwinding (the process aborted). An atexit
+ *  hook, which runs before finalisation while daemon threads still live, stops every render and
+ *  waits for it with the GIL released; renders asked for after it raise. Never destroyed (static
+ *  destructors run after the interpreter is gone). */
+struct ActiveRenders {
+    std::mutex m;
+    std::condition_variable cv;
+    std::set<PySession*> sessions;  // one render at a time per session
+    bool exiting = false;
+};
+ActiveRenders& active_renders() {
+    static auto* a = new ActiveRenders;
+    return *a;
+}
+
+/** Registers a render for its lifetime (throws when the interpreter is exiting). */
+class RenderUnderWay {
+public:
+    explicit RenderUnderWay(PySession& s) : s_(s) {
+        ActiveRenders& a = active_renders();
+        std::lock_guard<std::mutex> l(a.m);
+        if (a.exiting) throw SpangleError("render(): the interpreter is exiting");
+        a.sessions.insert(&s_);
+    }
+    ~RenderUnderWay() {
+        ActiveRenders& a = active_renders();
+        std::lock_guard<std::mutex> l(a.m);
+        a.sessions.erase(&s_);
+        a.cv.notify_all();
+    }
+    RenderUnderWay(const RenderUnderWay&) = delete;
+    RenderUnderWay& operator=(const RenderUnderWay&) = delete;
+
+private:
+    PySession& s_;
+};
+
+/** The atexit hook: stops the renders under way and waits for them to end. */
+void stop_renders_at_exit() {
+    py::gil_scoped_release release;
+    ActiveRenders& a = active_renders();
+    std::unique_lock<std::mutex> l(a.m);
+    a.exiting = true;
+    for (PySession* s : a.sessions) s->stop();
+    a.cv.wait(l, [&] { return a.sessions.empty(); });
+}
 
 /** spangle.SceneError, a RuntimeError with file, line and column attributes. */
 PyObject* g_scene_error = nullptr;
@@ -186,6 +237,7 @@ PYBIND11_MODULE(_spangle, m) {
     });
     m.attr("__version__") = SPANGLE_VERSION;
     m.def("_set_module_location", &spangle::python::set_module_location);
+    py::module_::import("atexit").attr("register")(py::cpp_function(&stop_renders_at_exit));
 
     py::class_<RenderedImage>(m, "Image", "A rendered image: the beauty, its layers, its samples.")
         .def_property_readonly(
@@ -498,6 +550,7 @@ PYBIND11_MODULE(_spangle, m) {
                 RenderedImage img;
                 std::exception_ptr error;
                 std::optional<py::error_already_set> interrupted;
+                const RenderUnderWay under_way(s);
                 {
                     py::gil_scoped_release release;
                     std::mutex done_m;
@@ -507,6 +560,10 @@ PYBIND11_MODULE(_spangle, m) {
                         try {
                             img = s.render(spp, size, layers, cb, background_apart.value_or(layers),
                                            {noise_threshold, min_spp, max_spp}, denoise_args);
+                        } catch (abi::__forced_unwind&) {
+                            // Python ends a thread that wants the GIL after finalisation began
+                            // (a progress callback at exit) by unwinding it: let it go.
+                            throw;
                         } catch (...) {
                             error = std::current_exception();
                         }
@@ -514,6 +571,18 @@ PYBIND11_MODULE(_spangle, m) {
                         finished = true;
                         cv.notify_all();
                     });
+                    // A daemon thread rendering when the interpreter exits is unwound where it
+                    // takes the GIL: the render is stopped and waited for, not left running on
+                    // this frame's variables (a joinable std::thread destroyed aborts).
+                    struct StopAndJoin {
+                        PySession& s;
+                        std::thread& worker;
+                        ~StopAndJoin() {
+                            if (!worker.joinable()) return;
+                            s.stop();
+                            worker.join();
+                        }
+                    } stop_and_join{s, worker};
                     std::unique_lock<std::mutex> l(done_m);
                     while (
                         !cv.wait_for(l, std::chrono::milliseconds(50), [&] { return finished; })) {

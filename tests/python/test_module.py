@@ -513,3 +513,29 @@ def test_the_type_stubs_name_every_keyword_the_module_takes():
     props = {f.name for f in cls["Image"].body if isinstance(f, ast.FunctionDef)}
     bound = {n for n in dir(spangle.Image) if not n.startswith("_")}
     assert props == bound, props ^ bound
+
+
+def test_the_interpreter_exits_cleanly_while_a_daemon_thread_renders():
+    # Python ends a daemon thread that wants the GIL after finalisation began by unwinding it;
+    # the render's progress callback, on a TBB thread, had that unwinding caught ("FATAL:
+    # exception not rethrown", every run) and the waiting thread's std::thread was destroyed
+    # joinable ("terminate called", about one run in four). An atexit hook now stops renders.
+    script = f"""
+import threading, time, spangle
+s = spangle.Session(threads=1)
+s.load({FLAKES!r})
+started = threading.Event()
+def progress(done, total):
+    if done > 0:
+        started.set()
+threading.Thread(target=lambda: s.render(spp=100000, size=(320, 180), progress=progress),
+                 daemon=True).start()
+started.wait(60)
+time.sleep(1.0)  # callbacks come often by then
+"""
+    env = dict(os.environ)
+    for _ in range(3):
+        run = subprocess.run([os.sys.executable, "-c", script], capture_output=True, text=True,
+                             timeout=120, env=env)
+        assert run.returncode == 0, run.stderr
+        assert "terminate" not in run.stderr and "FATAL" not in run.stderr, run.stderr
