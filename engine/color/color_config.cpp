@@ -130,6 +130,18 @@ std::vector<std::string> ColorConfig::space_names() const {
     return names;
 }
 
+std::optional<std::string> ColorConfig::not_scene_linear(const std::string& space) const {
+    OCIO::ConstColorSpaceRcPtr cs = impl_->config->getColorSpace(space.c_str());
+    if (!cs) return std::nullopt;
+    if (cs->isData()) return std::string("it is a data space (isdata: true)");
+    if (cs->getReferenceSpaceType() == OCIO::REFERENCE_SPACE_DISPLAY)
+        return std::string("it is a display colour space");
+    const std::string encoding = cs->getEncoding() ? cs->getEncoding() : "";
+    if (!encoding.empty() && encoding != "scene-linear")
+        return fmt::format("its encoding is {}", encoding);
+    return std::nullopt;
+}
+
 void ColorConfig::set_working_space(const std::string& space) {
     auto name = resolve(space);
     if (!name)

@@ -49,6 +49,10 @@ public:
     /** All colour space names, for error messages. */
     std::vector<std::string> space_names() const;
 
+    /** Why `space` (a name the config has) cannot hold light as it adds up: a data space, a
+     *  display-referred one, or an encoding other than scene-linear ("its encoding is
+     *  sdr-video"); nothing when the config says it is linear or does not say. */
+    std::optional<std::string> not_scene_linear(const std::string& space) const;
     /** Sets the working space; throws SpangleError if the config does not define it. */
     void set_working_space(const std::string& space);
     const std::string& working_space() const;

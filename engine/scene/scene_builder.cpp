@@ -93,9 +93,18 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     // Every build sets it: a reload that drops `working_space` goes back to the default, the
     // config's scene_linear, else ACEScg (it kept the space of the scene loaded before, which
     // the live config still held).
-    if (d.working_space)
-        color.set_working_space(resolve_space(ctx, *d.working_space, d.working_space_loc));
-    else if (!color.default_working_space().empty())
+    if (d.working_space) {
+        const std::string space = resolve_space(ctx, *d.working_space, d.working_space_loc);
+        // Light is added and multiplied in the working space: an encoded (sRGB), display or data
+        // space rendered with no word, its header naming it (a furnace's 0.5 showed as 0.21).
+        if (const auto why = color.not_scene_linear(space))
+            throw_error(d.working_space_loc,
+                        "working_space '{}' is not scene-linear ({}): light adds up only in a "
+                        "linear space; use a scene-linear one such as ACEScg or lin_rec709 (the "
+                        "encoding belongs to textures' 'space' and to the display view)",
+                        *d.working_space, *why);
+        color.set_working_space(space);
+    } else if (!color.default_working_space().empty())
         color.set_working_space(color.default_working_space());
     else
         color.set_working_space(
