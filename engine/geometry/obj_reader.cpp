@@ -7,6 +7,8 @@
 #include <string_view>
 #include <unordered_map>
 
+#include "geometry/polygon.h"
+
 namespace spangle {
 
 namespace {
@@ -175,100 +177,19 @@ private:
         return {positions_[3 * v], positions_[3 * v + 1], positions_[3 * v + 2]};
     }
 
-    /** Every face as triangles: a convex one as a fan around its first corner, a concave one
-     *  (an L, a U, a ring cut open, as modellers write them) by ear clipping in its plane.
-     *  Convex faces keep the fan the reader always made, so their meshes are unchanged. */
+    /** Every face as triangles (geometry/polygon.h): a convex one as a fan around its first
+     *  corner, a concave one (an L, a U, a star, a ring cut open) by ear clipping in its plane. */
     void triangulate() {
-        std::vector<double> x, y;
+        std::vector<Vec3> p;
         uint32_t begin = 0;
         for (const uint32_t end : polygon_ends_) {
             const uint32_t* f = &polygons_[begin];
             const std::size_t n = end - begin;
             begin = end;
-            // (Beyond kMaxClipped corners, O(n^3) at worst, a fan.)
-            constexpr std::size_t kMaxClipped = 256;
-            if (n == 3 || n > kMaxClipped || !project(f, n, x, y) || convex(x, y)) {
-                for (std::size_t k = 1; k + 1 < n; ++k)
-                    indices_.insert(indices_.end(), {f[0], f[k], f[k + 1]});
-                continue;
-            }
-            // Ear clipping: cut off a corner whose triangle turns the polygon's way and holds
-            // no other corner, until a triangle is left (O(n^2) per face).
-            std::vector<std::size_t> at(n);
-            for (std::size_t k = 0; k < n; ++k) at[k] = k;
-            const auto cross = [&](std::size_t a, std::size_t b, std::size_t c) {
-                return (x[b] - x[a]) * (y[c] - y[a]) - (y[b] - y[a]) * (x[c] - x[a]);
-            };
-            while (at.size() > 3) {
-                const std::size_t m = at.size();
-                bool cut = false;
-                for (std::size_t k = 0; k < m && !cut; ++k) {
-                    const std::size_t a = at[(k + m - 1) % m], b = at[k], c = at[(k + 1) % m];
-                    if (cross(a, b, c) <= 0.0) continue;  // a reflex (or flat) corner
-                    bool empty = true;
-                    for (std::size_t j = 0; j < m && empty; ++j) {
-                        const std::size_t q = at[j];
-                        // Corners that coincide with the ear's (a hole's bridge visits its two
-                        // ends twice) do not block it.
-                        const auto same = [&](std::size_t r) {
-                            return f[q] == f[r] || (x[q] == x[r] && y[q] == y[r]);
-                        };
-                        if (same(a) || same(b) || same(c)) continue;
-                        empty = !(cross(a, b, q) >= 0.0 && cross(b, c, q) >= 0.0 &&
-                                  cross(c, a, q) >= 0.0);
-                    }
-                    if (!empty) continue;
-                    indices_.insert(indices_.end(), {f[a], f[b], f[c]});
-                    at.erase(at.begin() + static_cast<std::ptrdiff_t>(k));
-                    cut = true;
-                }
-                if (!cut) {
-                    // No ear (a self-intersecting outline): the rest as a fan.
-                    for (std::size_t k = 1; k + 1 < at.size(); ++k)
-                        indices_.insert(indices_.end(), {f[at[0]], f[at[k]], f[at[k + 1]]});
-                    at.clear();
-                }
-            }
-            if (at.size() == 3) indices_.insert(indices_.end(), {f[at[0]], f[at[1]], f[at[2]]});
+            p.resize(n);
+            for (std::size_t k = 0; k < n; ++k) p[k] = position_of(f[k]);
+            triangulate_polygon(f, p.data(), n, indices_);
         }
-    }
-
-    /** The face's corners in 2D, in the plane of its Newell normal, turning counter-clockwise;
-     *  false when the face has no area to speak of. */
-    bool project(const uint32_t* f, std::size_t n, std::vector<double>& x,
-                 std::vector<double>& y) const {
-        double nx = 0, ny = 0, nz = 0;
-        for (std::size_t k = 0; k < n; ++k) {
-            const Vec3 fa = position_of(f[k]), fb = position_of(f[(k + 1) % n]);
-            const double a[3] = {fa.x, fa.y, fa.z}, b[3] = {fb.x, fb.y, fb.z};
-            nx += (a[1] - b[1]) * (a[2] + b[2]);
-            ny += (a[2] - b[2]) * (a[0] + b[0]);
-            nz += (a[0] - b[0]) * (a[1] + b[1]);
-        }
-        const double ax = std::fabs(nx), ay = std::fabs(ny), az = std::fabs(nz);
-        if (!(ax + ay + az > 0.0)) return false;
-        // Drop the normal's largest axis; keep the orientation counter-clockwise.
-        const int drop = ax >= ay && ax >= az ? 0 : (ay >= az ? 1 : 2);
-        const double sign = (drop == 0 ? nx : drop == 1 ? ny : nz) > 0.0 ? 1.0 : -1.0;
-        x.resize(n);
-        y.resize(n);
-        for (std::size_t k = 0; k < n; ++k) {
-            const Vec3 p = position_of(f[k]);
-            const double c[3] = {p.x, p.y, p.z};
-            x[k] = c[(drop + 1) % 3];
-            y[k] = sign * c[(drop + 2) % 3];
-        }
-        return true;
-    }
-
-    /** Whether the projected outline turns the same way at every corner. */
-    static bool convex(const std::vector<double>& x, const std::vector<double>& y) {
-        const std::size_t n = x.size();
-        for (std::size_t k = 0; k < n; ++k) {
-            const std::size_t a = (k + n - 1) % n, c = (k + 1) % n;
-            if ((x[k] - x[a]) * (y[c] - y[a]) - (y[k] - y[a]) * (x[c] - x[a]) < 0.0) return false;
-        }
-        return true;
     }
 
     /** Checks the largest index of a kind against the number read. */

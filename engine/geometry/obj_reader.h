@@ -1,7 +1,8 @@
 #pragma once
 // Spangle's own reader for Wavefront OBJ meshes: v, vt, vn and f statements (positive or
-// negative 1-based indices, v, v/vt, v//vn and v/vt/vn corners, polygons fan-triangulated);
-// every other statement (o, g, s, usemtl, mtllib, l, p, ...) is skipped. Errors name the line.
+// negative 1-based indices, v, v/vt, v//vn and v/vt/vn corners, polygons triangulated by
+// geometry/polygon.h); every other statement (o, g, s, usemtl, mtllib, l, p, ...) is skipped.
+// Errors name the line.
 // It replaced a general-purpose importer that spent milliseconds on every file, leaked memory on
 // some malformed ones and reported problems without a line.
 

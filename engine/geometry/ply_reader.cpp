@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/files.h"
+#include "geometry/polygon.h"
 
 namespace spangle {
 namespace {
@@ -289,6 +290,8 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
 
     TriangleMesh mesh;
     mesh.source = path;
+    std::vector<uint32_t> polygons;         // faces of more than three corners, one after another
+    std::vector<std::size_t> polygon_ends;  // where each ends in `polygons`
     bool have_vertices = false, have_faces = false;
     for (const Element& e : elements) {
         const auto find = [&](std::initializer_list<const char*> names) -> int {
@@ -381,9 +384,15 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             const auto bad_index = [&](uint64_t i, double c) {
                 throw_error(ref, "mesh '{}': face {} has corner index {}", path, i, c);
             };
+            // Triangles at once; polygons once every position is known (the vertex element
+            // may come after the faces), by polygon.h (fans, or ear clipping when concave).
             const auto fan = [&](const uint32_t* c, std::size_t n) {
-                for (std::size_t j = 1; j + 1 < n; ++j)
-                    mesh.indices.insert(mesh.indices.end(), {c[0], c[j], c[j + 1]});
+                if (n == 3) {
+                    mesh.indices.insert(mesh.indices.end(), {c[0], c[1], c[2]});
+                    return;
+                }
+                polygons.insert(polygons.end(), c, c + n);
+                polygon_ends.push_back(polygons.size());
             };
             // The common layout, one little-endian list of uchar count and int or uint indices,
             // read directly, with the general path's checks and messages.
@@ -453,6 +462,20 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     }
     if (!have_vertices) throw_error(ref, "mesh '{}' has no vertex element", path);
     if (!have_faces) throw_error(ref, "mesh '{}' has no face element", path);
+    if (!polygons.empty()) {
+        const std::size_t nv = mesh.vertex_count();
+        std::vector<Vec3> p;
+        std::size_t begin = 0;
+        for (const std::size_t end : polygon_ends) {
+            const uint32_t* f = &polygons[begin];
+            const std::size_t n = end - begin;
+            begin = end;
+            p.resize(n);
+            // An index beyond the vertices is the validator's to name: a zero stands in here.
+            for (std::size_t k = 0; k < n; ++k) p[k] = f[k] < nv ? mesh.position(f[k]) : Vec3(0.0f);
+            triangulate_polygon(f, p.data(), n, mesh.indices);
+        }
+    }
     return mesh;
 }
 

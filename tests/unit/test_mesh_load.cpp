@@ -6,6 +6,8 @@
 #include <fstream>
 #include <iterator>
 
+#include <fmt/format.h>
+
 #include "core/error.h"
 #include "geometry/mesh_load.h"
 #include "test_support.h"
@@ -253,6 +255,69 @@ TEST(ObjReader, ConcaveFacesAreClippedConvexOnesFanned) {
     const TriangleMesh convex =
         load_obj_text("v 0 0 0\nv 2 0 0\nv 3 1 0\nv 1 3 0\nv -1 1 0\nf 1 2 3 4 5\n");
     EXPECT_EQ(convex.indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3, 0, 3, 4}));
+}
+
+/** The triangles' areas in the xy-plane, signed (counter-clockwise positive), summed, and the
+ *  sum of their sizes: both equal the outline's area when they tile it once. */
+std::pair<double, double> xy_areas(const TriangleMesh& m) {
+    double signed_sum = 0.0, size_sum = 0.0;
+    for (uint32_t t = 0; t < m.triangle_count(); ++t) {
+        const Vec3 a = m.position(m.indices[3 * t]), b = m.position(m.indices[3 * t + 1]),
+                   c = m.position(m.indices[3 * t + 2]);
+        const double s =
+            0.5 * ((static_cast<double>(b.x) - a.x) * (static_cast<double>(c.y) - a.y) -
+                   (static_cast<double>(b.y) - a.y) * (static_cast<double>(c.x) - a.x));
+        signed_sum += s;
+        size_sum += std::fabs(s);
+    }
+    return {signed_sum, size_sum};
+}
+
+TEST(MeshLoad, ConcavePolygonsOfAnySizeAreClippedInBothFormats) {
+    // Stars of n points (radius 0.9 and 0.5 in turn), as text, logos and boolean caps give
+    // them: beyond 256 corners they were fanned from the first (a 300-corner star covered 20
+    // times its area; 200,000 corners, 16,000 times). Every size, OBJ and PLY, tiles the
+    // outline once; the largest in well under a second (the reflex corners in a grid).
+    const test::TempDir dir("mesh_stars");
+    for (const int n : {8, 300, 4000, 100000}) {
+        std::vector<std::pair<double, double>> pts;
+        double area = 0.0;
+        for (int i = 0; i < n; ++i) {
+            const double r = i % 2 == 0 ? 0.9 : 0.5, a = 2.0 * M_PI * i / n;
+            pts.emplace_back(r * std::cos(a), r * std::sin(a));
+        }
+        for (int i = 0; i < n; ++i) {
+            const auto [x0, y0] = pts[static_cast<std::size_t>(i)];
+            const auto [x1, y1] = pts[static_cast<std::size_t>((i + 1) % n)];
+            area += 0.5 * (x0 * y1 - x1 * y0);
+        }
+        std::string obj, ply = fmt::format(
+                             "ply\nformat ascii 1.0\nelement vertex {}\nproperty float x\n"
+                             "property float y\nproperty float z\nelement face 1\n"
+                             "property list uint int vertex_indices\nend_header\n",
+                             n);
+        for (const auto& [x, y] : pts) {
+            obj += fmt::format("v {:.9g} {:.9g} 0\n", x, y);
+            ply += fmt::format("{:.9g} {:.9g} 0\n", x, y);
+        }
+        obj += "f";
+        ply += fmt::format("{}", n);
+        for (int i = 0; i < n; ++i) {
+            obj += fmt::format(" {}", i + 1);
+            ply += fmt::format(" {}", i);
+        }
+        obj += "\n";
+        ply += "\n";
+        std::ofstream(dir.file("star.obj")) << obj;
+        std::ofstream(dir.file("star.ply")) << ply;
+        for (const char* file : {"star.obj", "star.ply"}) {
+            const TriangleMesh m = load_mesh(dir.file(file), {});
+            ASSERT_EQ(m.triangle_count(), static_cast<std::size_t>(n - 2)) << file << " " << n;
+            const auto [signed_sum, size_sum] = xy_areas(m);
+            EXPECT_NEAR(signed_sum, area, 1e-6 * area) << file << " " << n;
+            EXPECT_NEAR(size_sum, area, 1e-6 * area) << file << " " << n << ": triangles overlap";
+        }
+    }
 }
 
 TEST(ObjReader, ReadsWhatRealExportersWrite) {

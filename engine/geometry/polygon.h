@@ -1,0 +1,21 @@
+#pragma once
+// Polygons as triangles, for the mesh readers (OBJ and PLY faces of more than three corners).
+
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "core/math.h"
+
+namespace spangle {
+
+/** Appends the triangles of the polygon with vertex indices f[0..n) and corner positions
+ *  p[0..n) to `out` (three indices each). A convex polygon (or one without area) is a fan about
+ *  its first corner; a concave one (an L, a star, a ring cut open, text and logo outlines) is
+ *  cut by ear clipping in the plane of its Newell normal, its reflex corners kept in a grid so
+ *  that a face of a hundred thousand corners takes milliseconds. An outline that crosses itself
+ *  leaves no ear at some point: the rest is a fan. */
+void triangulate_polygon(const uint32_t* f, const Vec3* p, std::size_t n,
+                         std::vector<uint32_t>& out);
+
+}  // namespace spangle
