@@ -9,7 +9,6 @@ find_package(fmt REQUIRED)
 find_package(TBB REQUIRED)
 find_package(tomlplusplus REQUIRED)
 find_package(CLI11 REQUIRED)
-find_package(tinyobjloader REQUIRED)  # subdivision cages: keeps polygons and face-varying uv indices
 find_package(TinyGLTF REQUIRED)  # glTF scenes: Debian ships it as a shared library (TinyGLTF::TinyGLTF)
 
 # OpenImageIO's imported target names /usr/include/opencv4, which Debian does not ship;

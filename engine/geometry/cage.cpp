@@ -1,7 +1,5 @@
 #include "geometry/cage.h"
 
-#include <tiny_obj_loader.h>
-
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
@@ -12,6 +10,7 @@
 
 #include "core/files.h"
 #include "core/hash.h"
+#include "geometry/obj_reader.h"
 
 namespace spangle {
 
@@ -51,68 +50,40 @@ Cage load_cage(const std::string& path, const FileLoc& ref) {
     if (ext != ".obj" && ext != ".OBJ")
         throw_error(ref, "cage file '{}' has extension '{}'; subdivision cages are read from .obj",
                     path, ext);
-    // tinyobjloader reads "nan" and "inf" as ordinary numbers without a word, so positions are
-    // checked here first, with the line they are on.
-    {
-        std::ifstream in(path);
-        std::string line;
-        for (int number = 1; std::getline(in, line); ++number) {
-            // tinyobjloader skips leading blanks: so does this check.
-            const std::size_t start = line.find_first_not_of(" \t");
-            if (start == std::string::npos) continue;
-            line.erase(0, start);
-            if (line.size() >= 2 && line[0] == 'f' && (line[1] == ' ' || line[1] == '\t')) {
-                // Its face sizes are bytes: a face of 256 or more corners would wrap silently.
-                std::istringstream corners(line.substr(2));
-                std::string corner;
-                std::size_t count = 0;
-                while (corners >> corner) ++count;
-                if (count > 255)
-                    throw_error(ref,
-                                "cage '{}': line {}: a face of {} corners; at most 255 are "
-                                "supported (split the face)",
-                                path, number, count);
-                continue;
-            }
-            if (line.size() < 2 || line[0] != 'v' || (line[1] != ' ' && line[1] != '\t')) continue;
-            std::istringstream fields(line.substr(2));
-            std::string token;
-            for (int k = 0; k < 3 && fields >> token; ++k) {
-                char* end = nullptr;
-                const double x = std::strtod(token.c_str(), &end);
-                if (end == token.c_str() || !std::isfinite(x))
-                    throw_error(ref,
-                                "cage '{}': line {}: vertex position '{}' is not a finite number",
-                                path, number, token);
-            }
-        }
-    }
-    tinyobj::ObjReaderConfig config;
-    config.triangulate = false;  // keep quads and n-gons: they are the cage
-    config.vertex_color = false;
-    tinyobj::ObjReader reader;
-    if (!reader.ParseFromFile(path, config))
-        throw_error(ref, "cannot read cage '{}': {}", path,
-                    reader.Error().empty() ? "unknown error" : reader.Error());
-    const auto& attrib = reader.GetAttrib();
+    // Spangle's own OBJ reader (the mesh reader's syntax: a byte order mark, continued lines,
+    // negative indices, non-finite numbers named at their line), faces kept as written.
+    const ObjPolygons obj = read_obj_polygons(path, ref);
     Cage cage;
     cage.source = path;
-    cage.positions.assign(attrib.vertices.begin(), attrib.vertices.end());
-    cage.uvs.assign(attrib.texcoords.begin(), attrib.texcoords.end());
+    cage.positions = obj.positions;
+    cage.uvs = obj.uvs;
     bool any_uv = false, all_uv = true;
-    for (const auto& shape : reader.GetShapes()) {
-        std::size_t at = 0;
-        for (unsigned char n : shape.mesh.num_face_vertices) {
-            cage.face_sizes.push_back(n);
-            for (unsigned k = 0; k < n; ++k) {
-                const tinyobj::index_t& idx = shape.mesh.indices[at + k];
-                cage.face_vertices.push_back(idx.vertex_index);
-                cage.face_uvs.push_back(idx.texcoord_index);
-                any_uv = any_uv || idx.texcoord_index >= 0;
-                all_uv = all_uv && idx.texcoord_index >= 0;
-            }
-            at += n;
+    std::size_t at = 0;
+    for (std::size_t f = 0; f < obj.face_sizes.size(); ++f) {
+        const int n = obj.face_sizes[f];
+        const int line = obj.face_lines[f];
+        // OpenSubdiv takes any size, but the refiner's tables are sized for ordinary meshes.
+        if (n > 255)
+            throw_error(ref,
+                        "cage '{}', line {}: a face of {} corners; at most 255 are supported "
+                        "(split the face)",
+                        path, line, n);
+        for (int k = 0; k < n; ++k) {
+            const int64_t v = obj.face_vertices[at + static_cast<std::size_t>(k)];
+            for (int j = 0; j < k; ++j)
+                if (obj.face_vertices[at + static_cast<std::size_t>(j)] == v)
+                    throw_error(ref,
+                                "cage '{}', line {}: the face uses vertex {} twice (a degenerate "
+                                "face)",
+                                path, line, v + 1);
+            const int64_t t = obj.face_uvs[at + static_cast<std::size_t>(k)];
+            any_uv = any_uv || t >= 0;
+            all_uv = all_uv && t >= 0;
+            cage.face_vertices.push_back(static_cast<int>(v));
+            cage.face_uvs.push_back(static_cast<int>(t));
         }
+        cage.face_sizes.push_back(n);
+        at += static_cast<std::size_t>(n);
     }
     if (any_uv && !all_uv)
         throw_error(

@@ -30,11 +30,27 @@ struct CornerHash {
 
 class Reader {
 public:
-    Reader(const std::string& path, const FileLoc& ref) : path_(path), ref_(ref) {}
+    /** `polygons`: keep each face's corners as written (a cage) instead of making triangles. */
+    Reader(const std::string& path, const FileLoc& ref, bool polygons = false)
+        : path_(path), ref_(ref), keep_polygons_(polygons), kind_(polygons ? "cage" : "mesh") {}
 
     TriangleMesh read() {
+        parse();
+        return finish();
+    }
+
+    ObjPolygons read_polygons() {
+        parse();
+        check_indices();
+        raw_.positions = std::move(positions_);
+        raw_.uvs = std::move(uvs_);
+        return std::move(raw_);
+    }
+
+private:
+    void parse() {
         std::ifstream in(path_, std::ios::binary);
-        if (!in) throw_error(ref_, "cannot open mesh '{}'", path_);
+        if (!in) throw_error(ref_, "cannot open {} '{}'", kind_, path_);
         std::string line, joined;
         int first_line = 0;
         for (int number = 1; std::getline(in, line); ++number) {
@@ -57,12 +73,10 @@ public:
             line_ = first_line;
             statement(joined);
         }
-        return finish();
     }
 
-private:
     [[noreturn]] void fail(const std::string& what) const {
-        throw_error(ref_, "mesh '{}', line {}: {}", path_, line_, what);
+        throw_error(ref_, "{} '{}', line {}: {}", kind_, path_, line_, what);
     }
 
     static std::string_view next_token(std::string_view& s) {
@@ -157,6 +171,19 @@ private:
             uvs_.push_back(v.empty() ? 0.0f : number(v, "uv"));
         } else if (keyword == "vn") {
             numbers(s, 3, normals_, "normal");
+        } else if (keyword == "f" && keep_polygons_) {
+            const std::size_t first = raw_.face_vertices.size();
+            for (std::string_view t = next_token(s); !t.empty(); t = next_token(s)) {
+                const Corner c = corner(t);
+                raw_.face_vertices.push_back(c.v);
+                raw_.face_uvs.push_back(c.vt);
+            }
+            const std::size_t n = raw_.face_vertices.size() - first;
+            if (n < 3)
+                fail(fmt::format("face has {} corner{}; a face needs at least 3", n,
+                                 n == 1 ? "" : "s"));
+            raw_.face_sizes.push_back(static_cast<int>(n));
+            raw_.face_lines.push_back(line_);
         } else if (keyword == "f") {
             face_.clear();
             for (std::string_view t = next_token(s); !t.empty(); t = next_token(s))
@@ -199,10 +226,14 @@ private:
         fail(fmt::format("face refers to {} {}, but the file has {}", kind, worst.first + 1, have));
     }
 
-    TriangleMesh finish() {
+    void check_indices() {
         check(worst_v_, positions_.size() / 3, "vertex");
         check(worst_vt_, uvs_.size() / 2, "uv");
         check(worst_vn_, normals_.size() / 3, "normal");
+    }
+
+    TriangleMesh finish() {
+        check_indices();
         triangulate();
         TriangleMesh mesh;
         mesh.source = path_;
@@ -233,6 +264,9 @@ private:
 
     std::string path_;
     FileLoc ref_;
+    bool keep_polygons_ = false;
+    const char* kind_ = "mesh";
+    ObjPolygons raw_;
     int line_ = 0;
     std::vector<float> positions_, uvs_, normals_;
     std::vector<uint32_t> indices_, face_;
@@ -246,6 +280,10 @@ private:
 
 TriangleMesh read_obj(const std::string& path, const FileLoc& ref) {
     return Reader(path, ref).read();
+}
+
+ObjPolygons read_obj_polygons(const std::string& path, const FileLoc& ref) {
+    return Reader(path, ref, true).read_polygons();
 }
 
 }  // namespace spangle

@@ -6,7 +6,9 @@
 // It replaced a general-purpose importer that spent milliseconds on every file, leaked memory on
 // some malformed ones and reported problems without a line.
 
+#include <cstdint>
 #include <string>
+#include <vector>
 
 #include "core/error.h"
 #include "geometry/triangle_mesh.h"
@@ -19,5 +21,17 @@ namespace spangle {
  *  line naming the file) for a bad number, a non-finite value, an index out of range or a face
  *  of fewer than 3 corners. */
 TriangleMesh read_obj(const std::string& path, const FileLoc& ref);
+
+/** An OBJ file's faces as written (a subdivision cage): positions, uvs and each face's corners
+ *  (0-based vertex and uv indices, uv -1 where a corner has none) with the line it is on. */
+struct ObjPolygons {
+    std::vector<float> positions, uvs;
+    std::vector<int> face_sizes, face_lines;
+    std::vector<int64_t> face_vertices, face_uvs;
+};
+
+/** Reads an OBJ file's faces without triangulating them, with read_obj's syntax and checks
+ *  (errors say "cage '...', line N"). */
+ObjPolygons read_obj_polygons(const std::string& path, const FileLoc& ref);
 
 }  // namespace spangle

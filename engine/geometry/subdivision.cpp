@@ -8,6 +8,7 @@
 #include <cmath>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <unordered_map>
 
 #include "core/memory.h"
@@ -127,6 +128,31 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
         if (v < 0 || v >= nv)
             throw_error(ref, "corner names cage vertex {}, but '{}' has {} vertices", v,
                         cage.source, nv);
+    // A crease on two vertices that share no edge creases nothing (OpenSubdiv drops it): the
+    // numbers were probably an OBJ's f-line ones, which count from 1.
+    if (!o.crease_vertices.empty()) {
+        std::set<std::pair<int, int>> edges;
+        std::size_t at = 0;
+        for (const int n : cage.face_sizes) {
+            for (int k = 0; k < n; ++k) {
+                const int a = cage.face_vertices[at + static_cast<std::size_t>(k)];
+                const int b = cage.face_vertices[at + static_cast<std::size_t>((k + 1) % n)];
+                edges.emplace(std::min(a, b), std::max(a, b));
+            }
+            at += static_cast<std::size_t>(n);
+        }
+        for (std::size_t i = 0; i + 1 < o.crease_vertices.size(); i += 2) {
+            const int a = o.crease_vertices[i], b = o.crease_vertices[i + 1];
+            if (!edges.count({std::min(a, b), std::max(a, b)}))
+                throw_error(
+                    ref,
+                    "crease [{}, {}]: {} of '{}' (vertices count from 0, where an OBJ's "
+                    "f lines count from 1)",
+                    a, b,
+                    a == b ? "names one vertex twice" : "those vertices share no edge of the cage",
+                    cage.source);
+        }
+    }
     const bool loop = o.scheme == SubdivOptions::Scheme::Loop;
     if (loop)
         for (std::size_t f = 0; f < cage.face_count(); ++f)

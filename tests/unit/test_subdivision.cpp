@@ -169,6 +169,40 @@ TEST(Subdivision, OddButValidCagesRefine) {
     for (float x : m.normals) ASSERT_TRUE(std::isfinite(x));
 }
 
+TEST(Subdivision, CagesAreReadWithTheMeshReadersSyntax) {
+    // The cage reader is the OBJ mesh reader keeping faces whole (it was tinyobjloader): a byte
+    // order mark no longer hides the first vertex (every face index moved by one, a sheet of
+    // random triangles and no word), a backslash continues a line, a face of two corners and
+    // a repeated vertex are errors at the file's line in its own numbering.
+    const test::TempDir dir("cage_syntax");
+    const std::string cube =
+        "v -1 -1 -1\nv 1 -1 -1\nv -1 1 -1\nv 1 1 -1\nv -1 -1 1\nv 1 -1 1\nv -1 1 1\n"
+        "v 1 1 1\nf 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 \\\n6\n";
+    std::ofstream(dir.file("bom.obj")) << "\xEF\xBB\xBF" << cube;
+    const Cage c = load_cage(dir.file("bom.obj"), {});
+    EXPECT_EQ(c.vertex_count(), 8u);
+    ASSERT_EQ(c.face_count(), 6u);
+    EXPECT_EQ(c.positions[0], -1.0f);
+    EXPECT_EQ(std::vector<int>(c.face_vertices.end() - 4, c.face_vertices.end()),
+              (std::vector<int>{1, 3, 7, 5}))
+        << "the continued line";
+    const auto error = [&](const std::string& text) {
+        std::ofstream(dir.file("bad.obj")) << text;
+        try {
+            load_cage(dir.file("bad.obj"), {});
+        } catch (const SpangleError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    EXPECT_NE(error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\nf 1 2\n")
+                  .find("line 5: face has 2 corners; a face needs at least 3"),
+              std::string::npos);
+    EXPECT_NE(error("v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 2 4\n")
+                  .find("line 5: the face uses vertex 2 twice"),
+              std::string::npos);
+}
+
 TEST(Subdivision, SceneWithoutSubdivisionNeverRunsIt) {
     FrameRequest req;
     req.scene = test::test_dir() + "/scenes/furnace_sphere.toml";
