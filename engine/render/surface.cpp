@@ -149,10 +149,14 @@ void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, 
         if (std::isfinite(tx) && std::isfinite(ty)) {
             sp.dpdx = ray.dx_o + ray.dx_d * tx - sp.p;
             sp.dpdy = ray.dy_o + ray.dy_d * ty - sp.p;
-            if (solve_uv(sp, sp.dpdx, sp.dpdy, sp.dudx, sp.dvdx, sp.dudy, sp.dvdy)) {
-                sp.footprint = std::max(length(sp.dpdx), length(sp.dpdy));
-                return;
-            }
+            // Where the uvs map the triangle to no area (all (0, 0), as some exporters write
+            // them) there is no uv footprint, but the surface footprint stands: object-space
+            // patterns (flakes) take it. Dropping it left a footprint of the widened width
+            // alone: a few flakes a pixel, and the glitter of such a mesh was gone.
+            if (!solve_uv(sp, sp.dpdx, sp.dpdy, sp.dudx, sp.dvdx, sp.dudy, sp.dvdy))
+                sp.dudx = sp.dvdx = sp.dudy = sp.dvdy = 0.0f;
+            sp.footprint = std::max(length(sp.dpdx), length(sp.dpdy));
+            return;
         }
         has_diff = false;
     }

@@ -242,6 +242,30 @@ TEST(FlakeRender, MeshWithoutUvsGlittersInObjectSpace) {
         glints += smooth[i] > 1e-6 && disc[i] > 4.0 * smooth[i];
     EXPECT_GT(glints, 100u) << "glints: pixels far brighter than the smooth limit";
     EXPECT_NEAR(r.ratio, 1.0, 4.0 * r.se + 0.01) << "discrete / smooth mean, +- " << r.se;
+    {
+        // The ball with every corner's uv (0, 0), as exporters write a mesh without a uv map:
+        // "auto" lays its flakes out in object space as for no uvs. Its footprint was dropped
+        // with the uv solve (a few flakes a pixel): a smooth sheen, no glint, no word.
+        std::ifstream in(test::test_dir() + "/scenes/uvless_ball.obj");
+        std::ofstream out(dir.file("zero_uv_ball.obj"));
+        out << "vt 0 0\n";
+        for (std::string line; std::getline(in, line);) {
+            if (line.starts_with("f "))
+                for (std::size_t at = line.find("//"); at != std::string::npos;
+                     at = line.find("//", at))
+                    line.replace(at, 2, "/1/");
+            out << line << "\n";
+        }
+        out.close();
+        const auto zero = render("zero_uv", {{"mesh = \"uvless_ball.obj\"",
+                                              "mesh = \"" + dir.file("zero_uv_ball.obj") + "\""}});
+        std::size_t zero_glints = 0;
+        for (std::size_t i = 0; i < zero.size(); ++i)
+            zero_glints += smooth[i] > 1e-6 && zero[i] > 4.0 * smooth[i];
+        EXPECT_GT(zero_glints, glints / 2) << "a mesh with all-zero uvs glitters too";
+        const Ratio rz = mean_ratio(zero, smooth, smooth, kSize, 0, kSize);
+        EXPECT_NEAR(rz.ratio, 1.0, 4.0 * rz.se + 0.01) << "all-zero uvs: +- " << rz.se;
+    }
     const auto moved =
         render("moved", {{"position = [0, 0, 4]", "position = [3, -2, 9]"},
                          {"look_at = [0, 0, 0]", "look_at = [3, -2, 5]"},
