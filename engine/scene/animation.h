@@ -34,15 +34,18 @@ int motion_segments(double t0, double t1, const std::function<bool(double, doubl
 
 /** The steps motion blur needs of a motion `at(t)` over the shutter [t0, t1]: its values at the
  *  evenly spaced times of motion_segments, where a segment [a, b] is straight enough when
- *  `close(va, vb, vm, q)` holds for q = 1/4, 1/2, 3/4 -- whether vm, the value at a + (b - a) q,
- *  lies near enough to the straight line from va = at(a) to vb = at(b). Empty when every step
- *  is `same` as the first (nothing moves). */
+ *  `close(va, vb, vm, q)` holds for q = 1/4, 1/2, 3/4, 2 - phi and 1 / sqrt(2) -- whether vm,
+ *  the value at a + (b - a) q, lies near enough to the straight line from va = at(a) to
+ *  vb = at(b). Empty when every step is `same` as the first (nothing moves). */
 template <class At, class Close, class Same>
 auto motion_steps(double t0, double t1, const At& at, const Close& close, const Same& same) {
     using Value = decltype(at(t0));
     const auto straight = [&](double a, double b) {
         const Value va = at(a), vb = at(b);
-        for (const double q : {0.25, 0.5, 0.75})
+        // Quarters, and two irrational fractions: a spin of a whole number of turns per
+        // quarter of the shutter looked the same at every quarter, hence still (a wheel at
+        // 1440 degrees a frame rendered sharp).
+        for (const double q : {0.25, 0.5, 0.75, 0.3819660112501051, 0.7071067811865476})
             if (!close(va, vb, at(a + (b - a) * q), static_cast<float>(q))) return false;
         return true;
     };

@@ -12,6 +12,7 @@
 #include "pipeline/frame.h"
 #include "pipeline/session.h"
 #include "scene/animation.h"
+#include "scene/keyed_motion.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -167,6 +168,25 @@ TEST(MotionBlur, TheBlurredFrameIsTheAverageOfStillsOverTheShutter) {
     EXPECT_LT(error, 0.0012);
     EXPECT_LT(worst, 0.012);
     EXPECT_GT(unblurred, 10 * 0.0012) << "the test scene hardly moves";
+}
+
+TEST(MotionBlur, ASpinOfWholeTurnsPerQuarterOfTheShutterIsBlurred) {
+    // A wheel at 1440 degrees over the shutter looks the same at every quarter of it: tested at
+    // the quarters alone the motion was "straight" with no step moving, and the frame rendered
+    // as a still. Spins of n turns are cut into the most steps; a still stays without any.
+    Shutter shutter = frame_shutter(0.0, 24.0, 0.0, 1.0);
+    for (const double turns : {1.0, 4.0, 8.0, 20.0}) {
+        const auto at = [&](double t) {
+            return Affine::rotate(static_cast<float>(360.0 * turns * (t - shutter.open) * 24.0),
+                                  {0, 1, 0});
+        };
+        const KeyedMotion<Affine> m = motion_through<Affine>(shutter, at);
+        EXPECT_EQ(m.steps.size(), static_cast<std::size_t>(kMaxMotionSegments + 1)) << turns;
+    }
+    const KeyedMotion<Affine> still = motion_through<Affine>(shutter, [](double) {
+        return Affine::rotate(30.0f, {0, 1, 0});
+    });
+    EXPECT_TRUE(still.steps.empty());
 }
 
 // A shutter of no length is an instant: [s, s] renders the still at time + s frames, bit for bit
