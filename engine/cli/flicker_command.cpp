@@ -2,6 +2,8 @@
 // (color/flicker.h measures; this prints the figures).
 
 #include <fmt/format.h>
+#include <cmath>
+#include <cstdlib>
 
 #include <CLI/CLI.hpp>
 #include <memory>
@@ -37,6 +39,10 @@ int run_flicker(const FlickerArgs& a) {
             "{:.4g}): "
             "nothing to measure; render a flake material with --layers",
             r.threshold);
+    if (r.reordered)
+        fmt::print(
+            "frames taken in the order of their spangle:time, not as given (a shell's glob puts "
+            "frame -003 after -001)\n");
     fmt::print(
         "frames: {} ({} pairs), pixels compared: {:.0f} (points carried by {})\n"
         "glint mask threshold: {:.4g}, mask coverage: {:.4f}\n"
@@ -57,7 +63,15 @@ Command add_flicker_command(CLI::App& app) {
     sub->add_option("frames", a->frames, "the frames' EXRs, in order")->required();
     sub->add_option("--threshold", a->threshold,
                     "glint-mask threshold (glints layer luminance; default 4 x its mean)")
-        ->check(CLI::Range(0.0, 1e30));
+        ->check(CLI::Validator(
+            [](std::string& text) -> std::string {
+                // Range() let 0 and nan through, which then meant the default without a word.
+                const double v = std::strtod(text.c_str(), nullptr);
+                return std::isfinite(v) && v > 0.0
+                           ? std::string()
+                           : "must be a positive number (leave it out for 4 x the glints' mean)";
+            },
+            "POSITIVE"));
     return {sub, [a] { return run_flicker(*a); }};
 }
 

@@ -10,6 +10,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <filesystem>
 #include <utility>
 
@@ -273,6 +274,25 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
                     paths[k], p, f.time);
     }
     FlickerReport rep;
+    // In time order: pairs are consecutive moments (a shell's glob gives -001 -002 -003 0000
+    // for frames -3..0, which measured 0.31 persistence where the sequence has 0.38).
+    if (std::all_of(frames.begin(), frames.end(), [](const Frame& f) { return !f.time.empty(); })) {
+        std::vector<std::size_t> order(frames.size());
+        for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
+        const auto seconds = [&](std::size_t k) {
+            return std::strtod(frames[k].time.c_str(), nullptr);
+        };
+        std::stable_sort(order.begin(), order.end(),
+                         [&](std::size_t x, std::size_t y) { return seconds(x) < seconds(y); });
+        for (std::size_t k = 0; k < order.size(); ++k)
+            rep.reordered = rep.reordered || order[k] != k;
+        if (rep.reordered) {
+            std::vector<Frame> sorted;
+            sorted.reserve(frames.size());
+            for (const std::size_t k : order) sorted.push_back(std::move(frames[k]));
+            frames = std::move(sorted);
+        }
+    }
     rep.threshold = threshold > 0.0 ? threshold : default_threshold(frames);
     threshold = rep.threshold;
     std::vector<std::vector<uint8_t>> masks;

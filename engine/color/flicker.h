@@ -23,11 +23,13 @@ struct FlickerReport {
     double relative_difference = 0;  ///< mean |g_k - g_k+1| / mean g over compared pixels
     double mask_persistence = 0;     ///< of the glint pixels of frame k, the share still glints
     bool by_objects = false;         ///< points were carried by their objects (Pobj layers)
+    bool reordered = false;          ///< the frames were not given in time order: sorted
 };
 
 /** Reads the frames (EXRs with P.X/Y/Z, Z, A and glints.R/G/B layers and worldToNDC, and
- *  Pobj.X/Y/Z, object and spangle:objectToWorld when they have them, in order)
- *  and measures. A pixel is in a frame's glint mask when its glint luminance exceeds `threshold`
+ *  Pobj.X/Y/Z, object and spangle:objectToWorld when they have them), in the order of their
+ *  spangle:time when every frame has one (else as given), and measures. A pixel is in a frame's
+ * glint mask when its glint luminance exceeds `threshold`
  *  (<= 0: 4 x the mean over covered pixels of all frames) and 3 x the mean of its 5x5
  *  neighbourhood (a sparkle, not a broad highlight).
  *  A pixel is compared when its surface point projects inside the next frame and the next frame

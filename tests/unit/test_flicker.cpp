@@ -90,6 +90,19 @@ TEST(Flicker, FixedSparklesPersistAndMovedOnesFlicker) {
     };
     refused({dir.file("s1.exr"), dir.file("t2.exr")}, "frames of one sequence are of one scene");
     refused({dir.file("s1.exr"), dir.file("s2.exr"), dir.file("s1.exr")}, "the same moment");
+    // Frames given out of time order (a shell's glob of frames -3..0 gives -001 -002 -003 0000)
+    // are measured in the order of their times, and the report says so.
+    write_frame(dir.file("o1.exr"), 1, 0, false, "turn.toml", "-0.125");
+    write_frame(dir.file("o2.exr"), 1, 0, false, "turn.toml", "-0.0833333");
+    write_frame(dir.file("o3.exr"), 2, 0, false, "turn.toml", "-0.0416667");
+    const FlickerReport in_order =
+        measure_flicker({dir.file("o1.exr"), dir.file("o2.exr"), dir.file("o3.exr")}, 1.0);
+    const FlickerReport shuffled =
+        measure_flicker({dir.file("o3.exr"), dir.file("o1.exr"), dir.file("o2.exr")}, 1.0);
+    EXPECT_FALSE(in_order.reordered);
+    EXPECT_TRUE(shuffled.reordered);
+    EXPECT_EQ(shuffled.mask_persistence, in_order.mask_persistence);
+    EXPECT_EQ(shuffled.mask_flicker, in_order.mask_flicker);
 }
 
 // A turning (here: sliding) object: its sparkles stay on its points, which the frames' object
