@@ -21,6 +21,17 @@
 namespace spangle {
 namespace {
 
+/** Whether frames first..last reach past both the scene's frame range and its keys (the
+ *  frames past both hold the nearest key). */
+bool beyond_range_and_keys(const SceneInfo& info, int64_t first, int64_t last) {
+    const auto frame_of = [&](double t) {
+        return static_cast<double>(info.frame_start) + t * info.fps;
+    };
+    const double from = std::min(static_cast<double>(info.frame_start), frame_of(info.keys_from));
+    const double to = std::max(static_cast<double>(info.frame_end), frame_of(info.keys_to));
+    return static_cast<double>(first) < from || static_cast<double>(last) > to;
+}
+
 /** The line of a written frame: its time, how long it took, the systems that ran. */
 void print_frame_line(const Session& session, int64_t f, double seconds, const ReloadReport& rep,
                       const std::string& exr) {
@@ -64,8 +75,9 @@ int run_frames(const RenderArgs& a) {
             if (!info.animated)
                 s.log.warn("{}: nothing in the scene has keyframes: every frame is the same image",
                            a.scene);
-            else if (first < info.frame_start || last > info.frame_end)
-                // Frames past the scene's range (where keys usually end): said, not silent.
+            else if (beyond_range_and_keys(info, first, last))
+                // Frames past the scene's range and its keys: said, not silent (frames past
+                // frame_end but within the keys, as a turntable's, do move).
                 s.log.warn(
                     "{}: frames {}..{} reach beyond the scene's frame range {}..{} "
                     "([render] frame_start, frame_end); past its keys a frame holds the "

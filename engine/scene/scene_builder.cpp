@@ -244,6 +244,16 @@ KeyedMotion<Camera> camera_motion(const BuildContext& ctx, const CameraDesc& d,
     return keyed_motion<Camera>(track, ctx.shutter, make);
 }
 
+/** Widens the scene's span of keys (SceneInfo::keys_from, keys_to) by `keys`. */
+template <class Key>
+void note_key_times(SceneInfo& info, const Keys<Key>& keys) {
+    for (const Key& k : keys.keys) {
+        const double t = key_seconds(k.time, info.frame_start, info.fps);
+        info.keys_from = std::min(info.keys_from, t);
+        info.keys_to = std::max(info.keys_to, t);
+    }
+}
+
 /** The Camera (at the shutter's middle) and, when it blurs, its CameraMotion. */
 void build_camera(BuildContext& ctx, const CameraDesc& d, ecs::Entity settings) {
     SceneInfo& info = *ctx.info;
@@ -257,6 +267,7 @@ void build_camera(BuildContext& ctx, const CameraDesc& d, ecs::Entity settings) 
             info.motion_blur = true;
         }
         info.animated = true;
+        note_key_times(info, d.keys);
     }
     ctx.registry->put(settings, info.camera);
 }
@@ -538,6 +549,8 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     registry.put(e, MaterialRef{material});
     KeyedMotion<Affine> motion = placement_motion(ctx, d);
     if (!d.keys.keys.empty() || !d.matrix_keys.keys.empty()) info.animated = true;
+    note_key_times(info, d.keys);
+    note_key_times(info, d.matrix_keys);
     if (d.parent) {  // imported: the importing file's placement of the import, after its own
         motion.middle = d.parent->compose(motion.middle);
         for (Affine& step : motion.steps) step = d.parent->compose(step);

@@ -4,6 +4,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 #include <vector>
@@ -48,6 +49,10 @@ struct SceneInfo {
     int64_t frame_start = 1, frame_end = 1;
     double fps = 24.0;
     bool animated = false;
+    /** The earliest and the latest key of any keyed camera or object (seconds; +inf and -inf
+     *  without keys): frames past the frame range but within the keys still move. */
+    double keys_from = std::numeric_limits<double>::infinity();
+    double keys_to = -std::numeric_limits<double>::infinity();
     double time = 0.0;  ///< the time the scene was evaluated at
     /** [render] shutter = [open, close], in frames from the frame's time: the exposure. With
      *  open < close, moving things are blurred over [time + open / fps, time + close / fps]

@@ -2,7 +2,7 @@
 # `spangle render --frames` says a warning that holds for every frame once, for the first frame:
 # an emitter that moves while the shutter is open (it is not blurred) was said once per frame,
 # burying the frames' own lines. A warning that differs between frames is still said for each.
-# Frames past the scene's frame range are said (once).
+# Frames past the scene's frame range and its keys are said (once).
 #   frames_warnings.sh SPANGLE REPO
 set -u
 S=$1 REPO=$2
@@ -49,4 +49,9 @@ grep -q "beyond the scene's frame range" err.txt && fail "frames inside the rang
     fail "frames past the range did not render: $(cat err.txt)"
 n=$(grep -c "frames 3..5 reach beyond the scene's frame range 0..3" err.txt)
 [ "$n" = 1 ] || fail "frames past the range said $n times: $(cat err.txt)"
+# Frames past frame_end but within the keys (1 s = frame 4) move: nothing to say (a turntable's
+# keys ran past a frame_end left at its default and every frame was warned of holding a key).
+"$S" render scene.toml --frames 3..4 -o h.#.exr --no-preview > out.txt 2> err.txt ||
+    fail "frames within the keys did not render: $(cat err.txt)"
+grep -q "beyond the scene's frame range" err.txt && fail "frames within the keys warned: $(cat err.txt)"
 echo PASS
