@@ -5,8 +5,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <sstream>
 
 #include "core/error.h"
+#include "core/hash.h"
 
 namespace OCIO = OCIO_NAMESPACE;
 
@@ -148,6 +150,20 @@ void ColorConfig::set_working_space(const std::string& space) {
         throw_error("unknown colour space '{}' (known: {}); {}", space,
                     fmt::join(space_names(), ", "), how_to_fix());
     impl_->working = name->name;
+}
+
+std::string ColorConfig::conversion_id(const std::string& from, const std::string& to) const {
+    try {
+        return impl_->config->getProcessor(from.c_str(), to.c_str())->getCacheID();
+    } catch (const OCIO::Exception& e) {
+        throw_error("colour conversion from '{}' to '{}' failed: {}", from, to, e.what());
+    }
+}
+
+uint64_t ColorConfig::content_hash() const {
+    std::ostringstream text;
+    impl_->config->serialize(text);
+    return hash_text(text.str());
 }
 
 void ColorConfig::convert(const std::string& from, const std::string& to, float* rgb,

@@ -60,6 +60,13 @@ public:
      *  space (empty without the role), whatever set_working_space() set since. */
     const std::string& default_working_space() const;
 
+    /** An identity of the conversion from `from` to `to` as this config defines it
+     *  (OpenColorIO's processor cache id: equal for equal transforms, whatever the config's
+     *  path). Throws SpangleError. */
+    std::string conversion_id(const std::string& from, const std::string& to) const;
+    /** A hash of the config's text as loaded (its spaces, roles, displays and looks; not the
+     *  bytes of the LUT files it names): equal on every machine that loads an equal config. */
+    uint64_t content_hash() const;
     /** Converts count RGB triples in place from `from` to `to`. Throws SpangleError. */
     void convert(const std::string& from, const std::string& to, float* rgb,
                  std::size_t count) const;

@@ -3,6 +3,7 @@
 // sample, dimension), so images are identical on any thread count and flakes never need storing.
 
 #include <cstdint>
+#include <string_view>
 
 namespace spangle {
 
@@ -24,6 +25,13 @@ constexpr uint64_t hash2(uint64_t a, uint64_t b) {
 /** Hash of four words. */
 constexpr uint64_t hash4(uint64_t a, uint64_t b, uint64_t c, uint64_t d) {
     return hash2(hash2(a, b), hash2(c, d));
+}
+
+/** Hash of text: FNV-1a over its bytes, then mix64. */
+constexpr uint64_t hash_text(std::string_view s) {
+    uint64_t h = 0xcbf29ce484222325ull;
+    for (const char c : s) h = (h ^ static_cast<unsigned char>(c)) * 0x100000001b3ull;
+    return mix64(h);
 }
 
 /** Uniform float in [0, 1) from the top 24 bits of h: never returns 1.0f. */

@@ -234,7 +234,9 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
             hashes[path] = {identity, fh};
             h = hash2(h, fh);
         }
-        info->content_hash = h;
+        // And the colour config's text: parts of a crop render made before and after an edit
+        // of the config in place (the same space names) merged into a seam.
+        info->content_hash = hash2(h, live_color->content_hash());
     }
 
     // Commit: from here on nothing throws.

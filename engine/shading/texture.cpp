@@ -20,12 +20,6 @@ namespace {
 /** Version of the converted files' recipe: a change makes new cache entries. */
 constexpr const char* kRecipe = "spangle-texture-1|half|tile64|box";
 
-uint64_t hash_text(const std::string& s) {
-    uint64_t h = 0xcbf29ce484222325ull;  // FNV-1a, then a final mix
-    for (const unsigned char c : s) h = (h ^ c) * 0x100000001b3ull;
-    return mix64(h);
-}
-
 }  // namespace
 
 std::vector<std::string> texture_cache_dirs(const TextureSettings& settings) {
@@ -85,8 +79,16 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
         space = resolved->name;
     }
     const std::string working = space == "raw" ? std::string() : color_.working_space();
-    const std::string key = fmt::format("{}|{}|{}|{}|{}", kRecipe, file_identity(ref.path), space,
-                                        working, space == "raw" ? "" : color_.path());
+    // The conversion by what it does (the config's definition of both spaces), not by the
+    // config's path: a config edited in place (a show's new version) kept the old colours.
+    std::string conversion;
+    if (space != "raw") try {
+            conversion = color_.conversion_id(space, working);
+        } catch (const SpangleError& e) {
+            throw_error(loc, "texture '{}': {}", ref.path, e.what());
+        }
+    const std::string key =
+        fmt::format("{}|{}|{}|{}|{}", kRecipe, file_identity(ref.path), space, working, conversion);
     for (const auto& [k, tex] : opened_)
         if (k == key) return tex;
     try {

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <fstream>
+#include <sstream>
 
 #include "color/image_output.h"
 #include "pipeline/frame.h"
@@ -199,6 +200,36 @@ TEST(Texture, ColourTexturesAreConvertedToTheWorkingSpaceOnce) {
     const auto files = std::distance(std::filesystem::directory_iterator(dir.file("cache")),
                                      std::filesystem::directory_iterator{});
     EXPECT_EQ(files, 1);
+}
+
+TEST(Texture, AConfigEditedInPlaceConvertsAnew) {
+    // The converted copy is found by what the conversion does, not by the config's path: a
+    // config edited in place (a show's new version at the same $OCIO) kept the old colours until
+    // someone emptied the cache.
+    test::TempDir dir("texture_config_edit");
+    const std::filesystem::path shipped = test::shipped_ocio();
+    std::filesystem::copy(shipped.parent_path(), dir.file("ocio"),
+                          std::filesystem::copy_options::recursive);
+    const std::string config = dir.file("ocio") + "/" + shipped.filename().string();
+    write_float_exr(dir.file("flat.exr"), std::vector<float>(12, 0.5f), 2, 2);
+    TextureRef ref;
+    ref.path = dir.file("flat.exr");
+    ref.space = "srgb_texture";
+    const auto value = [&] {
+        ColorConfig color = ColorConfig::load(config, {});
+        color.set_working_space("lin_rec709");
+        TextureService service(color, test::quiet_log(), {dir.file("cache"), 64});
+        return lookup(service, *service.open(ref, true, {}), 0.5f, 0.5f, 1e-3f, 3)[0];
+    };
+    EXPECT_NEAR(value(), 0.2140f, 2e-3f) << "sRGB 0.5 decoded";
+    std::stringstream read;
+    read << std::ifstream(config).rdbuf();
+    std::string text = read.str();
+    const std::string curve = "{gamma: 2.4, offset: 0.055}";
+    ASSERT_NE(text.find(curve), std::string::npos);
+    test::replace_all(text, curve, "{gamma: 1.0, offset: 0.0}");
+    std::ofstream(config) << text;
+    EXPECT_NEAR(value(), 0.5f, 2e-3f) << "the edited config's identity curve";
 }
 
 /** A camera looking straight down at a unit plane under a small light; `material` is the
