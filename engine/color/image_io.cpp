@@ -5,6 +5,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfRgbaFile.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfTestFile.h>
 #include <dlfcn.h>
 #include <unistd.h>
@@ -295,6 +296,31 @@ void require_exr_file(const std::string& path) {
     std::error_code ec;
     if (!std::filesystem::exists(path, ec)) throw_error("'{}' does not exist", path);
     if (!Imf::isOpenExrFile(path.c_str())) throw_error("'{}' is not an OpenEXR file", path);
+}
+
+std::string exr_named_space(const std::string& path) {
+    try {
+        if (!Imf::isOpenExrFile(path.c_str())) return "";
+        Imf::InputFile in(path.c_str());
+        for (const char* name : {"colorSpace", "oiio:ColorSpace"})
+            if (const auto* a = in.header().findTypedAttribute<Imf::StringAttribute>(name))
+                if (!a->value().empty()) return a->value();
+    } catch (const std::exception&) {
+        // Unreadable here: the reader proper says why.
+    }
+    return "";
+}
+
+std::string default_image_space(const std::string& path,
+                                const std::function<bool(const std::string&)>& known,
+                                std::string& unknown) {
+    unknown.clear();
+    const std::string named = exr_named_space(path);
+    if (!named.empty()) {
+        if (known(named)) return named;
+        unknown = named;
+    }
+    return usual_image_space(path);
 }
 
 std::string usual_image_space(const std::string& path) {

@@ -7,6 +7,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -42,6 +43,18 @@ std::vector<float> read_image(const std::string& path, int max_channels, ImageHe
 /** The colour space a file's values are usually in when a scene names none: lin_rec709 for
  *  EXR, HDR and .tx files, srgb_texture for the rest (8- and 16-bit formats). */
 std::string usual_image_space(const std::string& path);
+
+/** The colour space an OpenEXR file names in its header ("colorSpace", else
+ *  "oiio:ColorSpace", as Spangle, OpenImageIO and others write them); empty for other files,
+ *  files that name none, and files that cannot be read. */
+std::string exr_named_space(const std::string& path);
+
+/** The colour space to read `path` in when the scene names none: the one its EXR header names
+ *  when `known(name)` (the config has it), else usual_image_space(path); `unknown` receives a
+ *  name the header gives that the config lacks (else it is cleared). */
+std::string default_image_space(const std::string& path,
+                                const std::function<bool(const std::string&)>& known,
+                                std::string& unknown);
 
 /** Throws SpangleError unless `path` is an OpenEXR file ("does not exist" or "is not an OpenEXR
  *  file"), for the commands that read Spangle's EXRs back (merge, flicker). */

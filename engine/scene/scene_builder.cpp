@@ -284,10 +284,23 @@ void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
         m.loc = d.map->loc;
         // Without a colour space, the file type's usual one, as for textures: an 8-bit PNG or
         // JPEG is sRGB-encoded (read as linear, 128 became 0.50 instead of 0.22).
-        m.color_space = d.map->color_space
-                            ? resolve_space(ctx, *d.map->color_space, d.map->color_space_loc)
-                            : resolve_space(ctx, usual_image_space(d.map->path), d.loc,
-                                            "default (no key written) ");
+        if (d.map->color_space) {
+            m.color_space = resolve_space(ctx, *d.map->color_space, d.map->color_space_loc);
+        } else {
+            // An EXR whose header names a space the config has is read in it (a render of
+            // Spangle's in ACEScg was read as lin_rec709).
+            std::string unknown;
+            const std::string usual = default_image_space(
+                d.map->path,
+                [&](const std::string& s) { return ctx.color->canonical_name(s).has_value(); },
+                unknown);
+            if (!unknown.empty())
+                ctx.info->notes.push_back(fmt::format(
+                    "{}: environment map '{}' names colour space '{}' in its header, which the "
+                    "OCIO config does not have: read as {} (give 'color_space' to say otherwise)",
+                    d.loc.str(), d.map->path, unknown, usual));
+            m.color_space = resolve_space(ctx, usual, d.loc, "default (no key written) ");
+        }
         m.rotation_deg = static_cast<float>(d.map->rotation_deg);
         m.intensity = k;
         m.projection = d.map->projection;

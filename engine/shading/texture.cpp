@@ -70,7 +70,20 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
     std::lock_guard<std::mutex> lock(mutex_);
     // What the converted file depends on: the source's content, the conversion, the config.
     std::string space = ref.space;
-    if (space.empty()) space = color ? usual_image_space(ref.path) : "raw";
+    if (space.empty() && !color) space = "raw";
+    if (space.empty()) {
+        // The space an EXR's header names (Spangle's own renders say theirs: an ACEScg plate
+        // was read as lin_rec709), else the file type's usual one.
+        std::string unknown;
+        space = default_image_space(
+            ref.path, [&](const std::string& s) { return color_.canonical_name(s).has_value(); },
+            unknown);
+        if (!unknown.empty())
+            log_.warn(
+                "{}: texture '{}' names colour space '{}' in its header, which the OCIO "
+                "config does not have: read as {} (give 'space' to say otherwise)",
+                loc.str(), ref.path, unknown, space);
+    }
     if (space != "raw") {
         const auto resolved = color_.resolve(space);
         if (!resolved)

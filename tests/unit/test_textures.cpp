@@ -202,6 +202,40 @@ TEST(Texture, ColourTexturesAreConvertedToTheWorkingSpaceOnce) {
     EXPECT_EQ(files, 1);
 }
 
+TEST(Texture, AnExrIsReadInTheSpaceItsHeaderNames) {
+    // Spangle's own render (colorSpace "ACEScg") used as a texture was read as lin_rec709,
+    // though the file says what it is: now the header's space, when the config has it.
+    test::TempDir dir("texture_header_space");
+    ColorConfig acescg = test::shipped_config();
+    acescg.set_working_space("ACEScg");
+    ExrOptions o;
+    o.half = false;
+    write_exr(dir.file("plate.exr"),
+              {0.5f, 0.2f, 0.1f, 0.5f, 0.2f, 0.1f, 0.5f, 0.2f, 0.1f, 0.5f, 0.2f, 0.1f}, 2, 2,
+              acescg, o);
+    Textures t(dir);  // working space lin_rec709
+    TextureRef ref;
+    ref.path = dir.file("plate.exr");
+    const std::vector<float> got =
+        lookup(t.service, *t.service.open(ref, true, {}), 0.5f, 0.5f, 1e-3f, 3);
+    float want[3] = {0.5f, 0.2f, 0.1f};
+    t.color.convert("ACEScg", "lin_rec709", want, 1);
+    for (int c = 0; c < 3; ++c) EXPECT_NEAR(got[static_cast<std::size_t>(c)], want[c], 2e-3f);
+    EXPECT_GT(std::fabs(want[0] - 0.5f), 0.05f) << "the two spaces differ here";
+    // A space the config lacks: the usual one (linear for EXR), and a warning.
+    ExrOptions named = o;
+    named.metadata = {{"colorSpace", "Some Studio Space"}};
+    write_exr(dir.file("other.exr"),
+              {0.5f, 0.2f, 0.1f, 0.5f, 0.2f, 0.1f, 0.5f, 0.2f, 0.1f, 0.5f, 0.2f, 0.1f}, 2, 2,
+              acescg, named);
+    ref.path = dir.file("other.exr");
+    const std::vector<float> as_is =
+        lookup(t.service, *t.service.open(ref, true, {}), 0.5f, 0.5f, 1e-3f, 3);
+    EXPECT_NEAR(as_is[0], 0.5f, 2e-3f);
+    EXPECT_NEAR(as_is[1], 0.2f, 2e-3f);
+    EXPECT_NEAR(as_is[2], 0.1f, 2e-3f);
+}
+
 TEST(Texture, AConfigEditedInPlaceConvertsAnew) {
     // The converted copy is found by what the conversion does, not by the config's path: a
     // config edited in place (a show's new version at the same $OCIO) kept the old colours until
