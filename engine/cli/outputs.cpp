@@ -260,6 +260,12 @@ Outputs Outputs::for_frame(int64_t f) const {
 void Outputs::check_view(const ColorConfig& color) const {
     std::string d = display, v = view;
     color.resolve_view(d, v);
+    // The preview's transform built once now (on one pixel): a LUT file the config names but
+    // lacks was found after the whole render, with the EXR written and no PNG.
+    if (!preview.empty()) {
+        float rgb[3] = {0.18f, 0.18f, 0.18f};
+        color.to_display(d, v, rgb, 1);
+    }
 }
 
 void Outputs::check_not_inputs(const std::vector<std::string>& inputs) const {

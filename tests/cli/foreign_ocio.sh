@@ -44,4 +44,12 @@ grep -q "unset OCIO (or pass --ocio)" "$T/err.txt" || fail "the error does not s
 "$S" render "$REPO/assets/scenes/demo.toml" -o "$T/d.exr" --size 32x18 --spp 1 -q \
     --ocio "$REPO/assets/ocio/config.ocio" 2> "$T/err.txt" || fail "demo with --ocio did not render"
 [ ! -s "$T/err.txt" ] || fail "warnings with Spangle's own config"
+
+# A config whose view LUT is missing fails before rendering, with no output (the EXR was written
+# after the whole render, then the PNG's transform failed).
+mkdir "$T/lutless" && cp "$REPO/assets/ocio/config.ocio" "$T/lutless/"
+"$S" render "$REPO/tests/scenes/small_lit.toml" -o "$T/e.exr" --ocio "$T/lutless/config.ocio" \
+    2> "$T/err.txt" && fail "rendered without the view's LUT"
+grep -q "sparkle_view.spi3d' could not be located" "$T/err.txt" || fail "no word of the LUT: $(cat "$T/err.txt")"
+[ ! -e "$T/e.exr" ] || fail "an EXR was written though the preview could not be"
 echo PASS
