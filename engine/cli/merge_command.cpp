@@ -29,8 +29,7 @@ struct MergeArgs {
 int run_merge(const MergeArgs& a) {
     for (const std::string& p : a.parts)
         if (same_file(p, a.output)) usage_error("the output '{}' is one of the parts", a.output);
-    if (fs::path(a.output).extension() != ".exr")
-        usage_error("output '{}' must end in .exr", a.output);
+    if (!has_extension(a.output, ".exr")) usage_error("output '{}' must end in .exr", a.output);
     check_writable(a.output, "EXR");
     const MergeReport rep = merge_exr_parts(a.parts, a.output);
     if (rep.sample_ranges > 0) {

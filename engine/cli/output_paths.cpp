@@ -5,6 +5,8 @@
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <unistd.h>
+#include <algorithm>
+#include <cctype>
 
 #include <cerrno>
 #include <climits>
@@ -68,6 +70,13 @@ std::string frame_path(const std::string& pattern, int64_t f) {
         out = fmt::format("{}.{:04d}{}", p.stem().string(), f, p.extension().string());
     }
     return (fs::path(pattern).parent_path() / out).string();
+}
+
+bool has_extension(const std::string& path, const std::string& ext) {
+    std::string e = std::filesystem::path(path).extension().string();
+    std::transform(e.begin(), e.end(), e.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    return e == ext;
 }
 
 }  // namespace spangle

@@ -16,6 +16,9 @@ void check_writable(const std::string& path, const char* what);
 /** Whether two output paths name the same file (existing or not). */
 bool same_file(const std::string& a, const std::string& b);
 
+/** Whether `path` ends in `ext` (given in lower case), in any case: out.EXR is an EXR. */
+bool has_extension(const std::string& path, const std::string& ext);
+
 /** The output path of frame f: a run of '#' in `pattern` becomes f zero-padded to the run's
  *  length; without one, ".####" goes before the extension. */
 std::string frame_path(const std::string& pattern, int64_t f);

@@ -317,8 +317,7 @@ void check_frame_paths(const Outputs& out, int64_t first, int64_t last) {
 Outputs outputs_for(const RenderArgs& a) {
     Outputs out;
     out.exr = a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
-    if (fs::path(out.exr).extension() != ".exr")
-        usage_error("output '{}' must end in .exr", out.exr);
+    if (!has_extension(out.exr, ".exr")) usage_error("output '{}' must end in .exr", out.exr);
     const auto& comps = exr_compressions();
     if (std::find(comps.begin(), comps.end(), a.compression) == comps.end())
         usage_error("unknown EXR compression '{}' (valid: {})", a.compression,
@@ -356,7 +355,7 @@ Outputs outputs_for(const RenderArgs& a) {
                 path);
     }
     // The preview is a PNG whatever its name: another ending would mislabel it (p.jpg held PNG).
-    if (!out.preview.empty() && fs::path(out.preview).extension() != ".png")
+    if (!out.preview.empty() && !has_extension(out.preview, ".png"))
         usage_error("--preview '{}' must end in .png (the preview is a PNG)", out.preview);
     if (!a.frames.empty()) {
         const auto [first, last] = parse_frames(a.frames);

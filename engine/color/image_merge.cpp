@@ -58,11 +58,8 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
         const std::string a = attribute(hd, name), b = attribute(first, name);
         return !a.empty() && !b.empty() && a != b;
     };
-    if (differ("spangle:sceneHash"))
-        throw_error(
-            "'{}' and '{}' were rendered from different scenes (or the scene's files changed "
-            "between them): parts of one render merge",
-            path, first_path);
+    // The specific differences first, the scene's hash last (another frame of a deforming
+    // sequence, another OCIO config also hash differently): the message then says which.
     // The colour space the pixels are in (another OCIO config or working space) and where the
     // camera stood (another --camera, a moved camera): parts of other renders.
     if (differ("colorSpace"))
@@ -95,6 +92,11 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
             "parts do not merge into the denoised whole; merge parts rendered without --denoise, "
             "or render the whole frame with --denoise (MPI denoises the assembled image)",
             path);
+    if (differ("spangle:sceneHash"))
+        throw_error(
+            "'{}' and '{}' were rendered from different scenes (or the scene's files changed "
+            "between them): parts of one render merge",
+            path, first_path);
 }
 
 /** What the merged header says of its parts as a whole: partial when any part was (a stopped

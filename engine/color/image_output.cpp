@@ -97,8 +97,18 @@ constexpr int kStripRows = 256;
 /** Lets write_file write a temporary file beside `path` (it throws SpangleError or any
  *  std::exception on failure), checks the file is not empty, and renames it onto `path`.
  *  Anything that fails removes the temporary file and throws SpangleError. */
-void write_atomically(const std::string& path,
+void write_atomically(const std::string& given,
                       const std::function<void(const std::string&)>& write_file) {
+    // An output that is a symbolic link is written where it points (the rename replaced the
+    // link with a file of its own and the target was never written), even a dangling one.
+    fs::path target = given;
+    std::error_code link_ec;
+    for (int hops = 0; hops < 40 && fs::is_symlink(target, link_ec); ++hops) {
+        const fs::path to = fs::read_symlink(target, link_ec);
+        if (link_ec) break;
+        target = to.is_absolute() ? to : target.parent_path() / to;
+    }
+    const std::string path = target.string();
     const fs::path dir = fs::path(path).parent_path();
     if (!dir.empty() && !fs::is_directory(dir))
         throw_error("cannot write '{}': directory '{}' does not exist", path, dir.string());

@@ -125,4 +125,14 @@ if command -v flock > /dev/null; then
     [ -e .locked.exr.lock ] && fail "the lock file was left behind"
     [ -s locked.exr ] && [ -s locked.png ] || fail "the locked render wrote nothing"
 fi
+# An upper-case ending is an EXR (out.EXR was refused: "must end in .exr").
+"$S" render pano.toml -o upper.EXR --preview upper.PNG -q 2> "$T/err.txt" ||
+    fail "an .EXR output was refused: $(cat "$T/err.txt")"
+[ -s upper.EXR ] && [ -s upper.PNG ] || fail "the .EXR render wrote nothing"
+# An output that is a symbolic link is written where it points (the link was replaced by a
+# file of its own, the target never written), dangling or not.
+mkdir -p real && : > real/target.exr && ln -s real/target.exr link.exr && ln -s real/new.png link.png
+"$S" render pano.toml -o link.exr -q 2> "$T/err.txt" || fail "a linked output failed: $(cat "$T/err.txt")"
+[ -L link.exr ] && [ -L link.png ] || fail "the links were replaced by files"
+[ -s real/target.exr ] && [ -s real/new.png ] || fail "the links' targets were not written"
 echo "PASS"

@@ -203,6 +203,12 @@ std::optional<ColorDesc> color_param(Reader& r, const ParamList& p, const char* 
                         "(v3)",
                         name);
         r.sign(v.size() == 1, q->loc, v.size() == 1 ? "a one-number blackbody" : "blackbody [T s]");
+        // A temperature of 0 or below (or beyond any star's) is no blackbody: it emitted black
+        // with only "the scene has no light" to say so.
+        if (!(v[0] > 0.0 && v[0] <= 1e6))
+            throw_error(q->loc,
+                        "'blackbody {}' has temperature {} K; it must be above 0 (up to 1e6)", name,
+                        v[0]);
         c.rgb = blackbody_rgb(v[0]);
         if (v.size() == 2)
             c.rgb *= static_cast<float>(v[1]);
