@@ -6,6 +6,7 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <sstream>
 
 #include "core/files.h"
@@ -95,7 +96,73 @@ Cage load_cage(const std::string& path, const FileLoc& ref) {
         cage.face_uvs.clear();
     }
     validate_cage(cage, ref);
+    cage.turned_faces = orient_cage(cage);
     return cage;
+}
+
+std::size_t orient_cage(Cage& cage) {
+    const std::size_t nf = cage.face_count();
+    std::vector<std::size_t> first(nf + 1, 0);
+    for (std::size_t f = 0; f < nf; ++f)
+        first[f + 1] = first[f] + static_cast<std::size_t>(cage.face_sizes[f]);
+    // Every edge with the faces that use it and the way each crosses it (+1: low to high).
+    struct Use {
+        std::size_t face;
+        int way;
+    };
+    std::map<std::pair<int, int>, std::vector<Use>> edges;
+    for (std::size_t f = 0; f < nf; ++f) {
+        const std::size_t n = first[f + 1] - first[f];
+        for (std::size_t k = 0; k < n; ++k) {
+            const int a = cage.face_vertices[first[f] + k];
+            const int b = cage.face_vertices[first[f] + (k + 1) % n];
+            if (a == b) continue;
+            edges[{std::min(a, b), std::max(a, b)}].push_back({f, a < b ? 1 : -1});
+        }
+    }
+    std::vector<std::vector<std::pair<std::size_t, bool>>> next(nf);  // neighbour, same way
+    for (const auto& [edge, uses] : edges)
+        if (uses.size() == 2 && uses[0].face != uses[1].face) {
+            const bool same = uses[0].way == uses[1].way;
+            next[uses[0].face].push_back({uses[1].face, same});
+            next[uses[1].face].push_back({uses[0].face, same});
+        }
+    // Each piece: a flip per face relative to its first, then the winding most faces have.
+    std::vector<int> flip(nf, -1);
+    std::vector<std::size_t> piece, stack;
+    std::size_t turned = 0;
+    for (std::size_t seed = 0; seed < nf; ++seed) {
+        if (flip[seed] >= 0) continue;
+        piece.clear();
+        flip[seed] = 0;
+        stack.assign(1, seed);
+        while (!stack.empty()) {
+            const std::size_t f = stack.back();
+            stack.pop_back();
+            piece.push_back(f);
+            for (const auto& [g, same] : next[f]) {
+                if (flip[g] >= 0) continue;
+                // Across a shared edge two faces wound alike cross it in opposite ways.
+                flip[g] = same ? 1 - flip[f] : flip[f];
+                stack.push_back(g);
+            }
+        }
+        std::size_t flipped = 0;
+        for (const std::size_t f : piece) flipped += static_cast<std::size_t>(flip[f]);
+        const bool keep_majority = 2 * flipped > piece.size();
+        for (const std::size_t f : piece) {
+            const bool turn = keep_majority ? flip[f] == 0 : flip[f] == 1;
+            if (!turn) continue;
+            ++turned;
+            // Reversed about the first corner.
+            std::reverse(cage.face_vertices.begin() + static_cast<std::ptrdiff_t>(first[f] + 1),
+                         cage.face_vertices.begin() + static_cast<std::ptrdiff_t>(first[f + 1]));
+            if (!cage.face_uvs.empty())
+                std::reverse(cage.face_uvs.begin() + static_cast<std::ptrdiff_t>(first[f] + 1),
+                             cage.face_uvs.begin() + static_cast<std::ptrdiff_t>(first[f + 1]));
+        }
+    }
+    return turned;
 }
 
 void validate_cage(const Cage& cage, const FileLoc& ref) {

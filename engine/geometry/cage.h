@@ -19,6 +19,8 @@ struct Cage {
     std::vector<float> uvs;          ///< uv per face-varying value (may be empty)
     std::vector<int> face_uvs;       ///< uv index per corner (empty when uvs is)
     std::string source;              ///< file, for messages
+    /** Faces orient_cage() turned to agree with their neighbours (for the load's warning). */
+    std::size_t turned_faces = 0;
 
     std::size_t vertex_count() const { return positions.size() / 3; }
     std::size_t face_count() const { return face_sizes.size(); }
@@ -30,7 +32,15 @@ uint64_t cage_content_hash(const Cage& cage);
 /** Same positions, faces and uvs. */
 bool same_cage_content(const Cage& a, const Cage& b);
 
-/** Loads an OBJ cage without triangulating it; validates it (see validate_cage). */
+/** Winds every face as its neighbours are wound (OpenSubdiv takes an edge two faces cross the
+ *  same way as a seam: a reversed face stayed a flat, sharp-edged panel on a rounded body).
+ *  Per connected piece (faces joined by edges of exactly two faces), the winding most of its
+ *  faces have is kept and the rest turned (corners reversed, uvs with them). Returns how many
+ *  faces were turned; a piece that cannot be wound one way (a Moebius strip) keeps what it can. */
+std::size_t orient_cage(Cage& cage);
+
+/** Loads an OBJ cage without triangulating it; validates it (see validate_cage) and winds its
+ *  faces one way (orient_cage, counted in turned_faces). */
 Cage load_cage(const std::string& path, const FileLoc& ref);
 
 /** Checks a cage: finite positions, at least one face, faces of >= 3 corners, indices in range,

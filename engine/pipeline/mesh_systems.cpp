@@ -265,7 +265,17 @@ void system_subdivide(ecs::Registry& r, World& w) {
             if (w.cache) file = file_identity(s.path);
             cage = build_cached(
                 w.cache, &BuildCache::cages, "cages", [&] { return "cage|" + file; },
-                [&] { return std::make_shared<const Cage>(load_cage(s.path, s.loc)); }, "");
+                [&] {
+                    auto loaded = std::make_shared<const Cage>(load_cage(s.path, s.loc));
+                    if (loaded->turned_faces > 0 && w.log)
+                        w.log->warn(
+                            "{}: {} of the {} faces of cage '{}' are wound against their "
+                            "neighbours: turned (OpenSubdiv needs one winding; a reversed face "
+                            "stayed a flat panel with seams)",
+                            s.loc.str(), loaded->turned_faces, loaded->face_count(), s.path);
+                    return loaded;
+                },
+                "");
         }
         SubdivOptions options = s.options;
         SubdivReport rep;

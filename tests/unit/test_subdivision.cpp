@@ -4,6 +4,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdlib>
 #include <fstream>
@@ -167,6 +168,35 @@ TEST(Subdivision, OddButValidCagesRefine) {
     EXPECT_GT(m.triangle_count(), 0u);
     for (float x : m.positions) ASSERT_TRUE(std::isfinite(x));
     for (float x : m.normals) ASSERT_TRUE(std::isfinite(x));
+}
+
+TEST(Subdivision, FacesWoundAgainstTheirNeighboursAreTurned) {
+    // A cube cage with one face written the other way round (mirrored or merged parts in real
+    // cages): OpenSubdiv took its edges as seams, a flat sharp-edged panel on a rounded body.
+    // Turned to agree with its neighbours, the cage refines as the consistent one does; the
+    // majority's winding is kept however many faces are turned.
+    const Cage good = cube_cage();
+    Cage bad = good;
+    std::reverse(bad.face_vertices.begin() + 9, bad.face_vertices.begin() + 12);  // face 2
+    std::reverse(bad.face_uvs.begin() + 9, bad.face_uvs.begin() + 12);
+    Cage fixed = bad;
+    EXPECT_EQ(orient_cage(fixed), 1u);
+    EXPECT_EQ(fixed.face_vertices, good.face_vertices);
+    EXPECT_EQ(fixed.face_uvs, good.face_uvs);
+    Cage same = good;
+    EXPECT_EQ(orient_cage(same), 0u) << "a consistent cage is left alone";
+    // Five of six turned: the one face that disagrees is the one turned back.
+    Cage mostly = good;
+    for (std::size_t f = 1; f < 6; ++f)
+        std::reverse(mostly.face_vertices.begin() + static_cast<std::ptrdiff_t>(4 * f + 1),
+                     mostly.face_vertices.begin() + static_cast<std::ptrdiff_t>(4 * f + 4));
+    Cage flipped_good = mostly;
+    EXPECT_EQ(orient_cage(flipped_good), 1u);
+    const TriangleMesh a = subdivide(good, level(3), {});
+    const TriangleMesh b = subdivide(fixed, level(3), {});
+    ASSERT_EQ(a.positions.size(), b.positions.size());
+    for (std::size_t i = 0; i < a.positions.size(); ++i)
+        ASSERT_NEAR(a.positions[i], b.positions[i], 1e-6f);
 }
 
 TEST(Subdivision, CagesAreReadWithTheMeshReadersSyntax) {

@@ -219,6 +219,10 @@ Made loopsubdiv(Reader& r, const ParamList& p, const FileLoc& loc) {
             std::swap(cage->face_vertices[f + 1], cage->face_vertices[f + 2]);
     cage->source = fmt::format("{}:{}", loc.file, loc.line);
     validate_cage(*cage, loc);
+    if (const std::size_t turned = orient_cage(*cage))
+        r.notes.add(loc, fmt::format("loopsubdiv: {} of its {} faces are wound against their "
+                                     "neighbours: turned to agree",
+                                     turned, cage->face_count()));
     const Param* levels = p.find("levels", {"integer"});
     if (!levels) levels = p.find("nlevels", {"integer"});
     double level = levels && !levels->numbers.empty() ? levels->numbers[0] : 3.0;
