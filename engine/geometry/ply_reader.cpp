@@ -6,8 +6,10 @@
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <sstream>
+#include <tuple>
 #include <vector>
 
 #include "core/files.h"
@@ -140,6 +142,15 @@ private:
     Format format_;
     const std::string& path_;
     const FileLoc& ref_;
+};
+
+/** A face corner with its own uv (MeshLab's per-corner texcoords). */
+struct Wedge {
+    uint32_t vertex = 0;
+    float u = 0.0f, v = 0.0f;
+    bool operator<(const Wedge& o) const {
+        return std::tie(vertex, u, v) < std::tie(o.vertex, o.u, o.v);
+    }
 };
 
 }  // namespace
@@ -290,6 +301,8 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
 
     TriangleMesh mesh;
     mesh.source = path;
+    std::vector<Wedge> wedges;  // with per-corner uvs: each distinct (vertex, u, v)
+    std::map<Wedge, uint32_t> wedge_ids;
     std::vector<uint32_t> polygons;         // faces of more than three corners, one after another
     std::vector<std::size_t> polygon_ends;  // where each ends in `polygons`
     bool have_vertices = false, have_faces = false;
@@ -419,8 +432,17 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 }
                 continue;
             }
+            // Per-corner uvs (MeshLab's "wedge" texcoords: a list of u, v per corner on the
+            // face): each distinct (vertex, u, v) becomes a vertex of its own (a seam splits).
+            int texcoord = -1;
+            for (std::size_t k = 0; k < e.props.size(); ++k)
+                if (e.props[k].list && e.props[k].name == "texcoord")
+                    texcoord = static_cast<int>(k);
             std::vector<uint32_t> corners;
+            std::vector<double> uv;
             for (uint64_t i = 0; i < e.count; ++i) {
+                uv.clear();
+                corners.clear();
                 for (std::size_t k = 0; k < e.props.size(); ++k) {
                     const Property& p = e.props[k];
                     if (!p.list) {
@@ -431,20 +453,42 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                     const double fit = static_cast<double>(reader.remaining()) /
                                        (*format == Format::Ascii ? 2.0 : 1.0);
                     check_count(i, n, fit);
+                    if (static_cast<int>(k) == texcoord) {
+                        for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j)
+                            uv.push_back(reader.read(p.type, "the faces"));
+                        continue;
+                    }
                     if (static_cast<int>(k) != list) {
                         for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j)
                             reader.read(p.type, "the faces");
                         continue;
                     }
                     check_corners(i, n);
-                    corners.clear();
                     for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j) {
                         const double c = reader.read(p.type, "the faces");
                         if (!(c >= 0 && c < 4294967295.0) || c != std::floor(c)) bad_index(i, c);
                         corners.push_back(static_cast<uint32_t>(c));
                     }
-                    fan(corners.data(), corners.size());
                 }
+                if (texcoord >= 0 && !corners.empty()) {
+                    if (!uv.empty() && uv.size() != 2 * corners.size())
+                        throw_error(ref,
+                                    "mesh '{}': face {} has {} corners but {} texcoord values "
+                                    "(two per corner)",
+                                    path, i, corners.size(), uv.size());
+                    for (std::size_t j = 0; j < corners.size(); ++j) {
+                        const float cu = uv.empty() ? 0.0f : static_cast<float>(uv[2 * j]);
+                        const float cv = uv.empty() ? 0.0f : static_cast<float>(uv[2 * j + 1]);
+                        if (!std::isfinite(cu) || !std::isfinite(cv))
+                            throw_error(ref, "mesh '{}': face {} has a non-finite texcoord", path,
+                                        i);
+                        const auto [it, added] = wedge_ids.try_emplace(
+                            Wedge{corners[j], cu, cv}, static_cast<uint32_t>(wedges.size()));
+                        if (added) wedges.push_back(Wedge{corners[j], cu, cv});
+                        corners[j] = it->second;
+                    }
+                }
+                if (!corners.empty()) fan(corners.data(), corners.size());
             }
         } else if (!e.props.empty()) {
             // Skipped, but read through: its data lies before later elements'. (An element
@@ -462,6 +506,26 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     }
     if (!have_vertices) throw_error(ref, "mesh '{}' has no vertex element", path);
     if (!have_faces) throw_error(ref, "mesh '{}' has no face element", path);
+    if (!wedges.empty()) {
+        // The corners' vertices, one per distinct (vertex, u, v); the faces index them.
+        const std::size_t nv = mesh.vertex_count();
+        TriangleMesh split;
+        split.source = mesh.source;
+        for (const Wedge& w : wedges) {
+            if (w.vertex >= nv)
+                throw_error(ref, "mesh '{}': a face refers to vertex {}, but there are {} vertices",
+                            path, w.vertex, nv);
+            const std::size_t v = w.vertex;
+            split.positions.insert(split.positions.end(), mesh.positions.begin() + 3 * v,
+                                   mesh.positions.begin() + 3 * v + 3);
+            if (!mesh.normals.empty())
+                split.normals.insert(split.normals.end(), mesh.normals.begin() + 3 * v,
+                                     mesh.normals.begin() + 3 * v + 3);
+            split.uvs.insert(split.uvs.end(), {w.u, w.v});
+        }
+        split.indices = std::move(mesh.indices);
+        mesh = std::move(split);
+    }
     if (!polygons.empty()) {
         const std::size_t nv = mesh.vertex_count();
         std::vector<Vec3> p;

@@ -55,6 +55,32 @@ TEST(MeshLoad, AsciiPlyAndQuadsAreTriangulated) {
     EXPECT_EQ(o.uvs.size() / 2, o.vertex_count());
 }
 
+TEST(MeshLoad, PlyCornerUvsAsMeshLabWritesThem) {
+    // MeshLab writes uvs per face corner ("property list uchar float texcoord"): read, the
+    // corners of one vertex with other uvs split into vertices of their own (a seam). They were
+    // dropped, and a uv-laid material then warned that the mesh had none.
+    test::TempDir dir("ply_wedges");
+    std::ofstream(dir.file("wedge.ply"))
+        << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+           "property float z\nelement face 2\nproperty list uchar int vertex_indices\n"
+           "property list uchar float texcoord\nend_header\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n"
+           "3 0 1 2 6 0 0 1 0 1 1\n3 0 2 3 6 0.5 0 1 1 0 1\n";
+    const TriangleMesh m = load_mesh(dir.file("wedge.ply"), {});
+    ASSERT_EQ(m.triangle_count(), 2u);
+    EXPECT_EQ(m.vertex_count(), 5u) << "vertex 0 has two uvs: two vertices";
+    ASSERT_EQ(m.uvs.size(), 2 * m.vertex_count());
+    // Each corner's uv is the one the file gives it, at the corner's own position.
+    const float want[6][4] = {{0, 0, 0, 0},    {1, 0, 1, 0}, {1, 1, 1, 1},
+                              {0, 0, 0.5f, 0}, {1, 1, 1, 1}, {0, 1, 0, 1}};
+    for (std::size_t c = 0; c < 6; ++c) {
+        const uint32_t v = m.indices[c];
+        EXPECT_EQ(m.position(v).x, want[c][0]) << c;
+        EXPECT_EQ(m.position(v).y, want[c][1]) << c;
+        EXPECT_EQ(m.uvs[2 * v], want[c][2]) << c;
+        EXPECT_EQ(m.uvs[2 * v + 1], want[c][3]) << c;
+    }
+}
+
 TEST(MeshLoad, PlyFirstLineAsToolsWriteIt) {
     // "ply" followed by blanks, after a UTF-8 byte order mark: still a PLY file.
     const test::TempDir dir("ply_first_line");
