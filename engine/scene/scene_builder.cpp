@@ -68,6 +68,19 @@ Vec3 working_color(BuildContext& ctx, const std::optional<ColorDesc>& c, Vec3 fa
                     "linear space",
                     c->rgb.x, c->rgb.y, c->rgb.z, space_of(ctx, *c), ctx.color->working_space());
     // Gamut mapping can push a channel a hair below zero; radiance and albedo cannot be negative.
+    // More than a hair is a colour outside the working space's gamut: clipped, and said (ACEScg
+    // green in lin_rec709 is (-0.62, 1.14, -0.13): its clipped (0, 1.14, 0) is another colour).
+    const float most = std::max({std::fabs(rgb[0]), std::fabs(rgb[1]), std::fabs(rgb[2])});
+    if (std::min({rgb[0], rgb[1], rgb[2]}) < -1e-3f * most) {
+        const std::string note = fmt::format(
+            "{}: colour ({}, {}, {}) in '{}' is outside the working space '{}' ({:.4g}, {:.4g}, "
+            "{:.4g}): its negative parts are clipped to 0 (render in a wider working space, such "
+            "as ACEScg, to keep it)",
+            c->loc.str(), c->rgb.x, c->rgb.y, c->rgb.z, space_of(ctx, *c),
+            ctx.color->working_space(), rgb[0], rgb[1], rgb[2]);
+        auto& notes = ctx.info->notes;
+        if (std::find(notes.begin(), notes.end(), note) == notes.end()) notes.push_back(note);
+    }
     return {std::max(rgb[0], 0.0f), std::max(rgb[1], 0.0f), std::max(rgb[2], 0.0f)};
 }
 

@@ -5,8 +5,10 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
 
 #include "core/error.h"
+#include "pipeline/session.h"
 #include "test_support.h"
 
 namespace spangle {
@@ -152,6 +154,30 @@ TEST(ColorConfig, TheGlintViewIsToneMappedAndKeepsABrightGlintsColour) {
                   std::string::npos)
             << e.what();
     }
+}
+
+TEST(ColorConfig, AColourOutsideTheWorkingGamutIsClippedAndSaid) {
+    // ACEScg green in a lin_rec709 scene is (-0.62, 1.14, -0.13): its negative parts are
+    // clipped (radiance cannot be negative), which makes another colour: said at the colour,
+    // once. In ACEScg it is kept, and nothing is said.
+    test::TempDir dir("gamut_note");
+    const auto notes_for = [&](const std::string& working) {
+        std::ofstream(dir.file("s.toml"))
+            << "[render]\nwidth = 8\nheight = 8\nworking_space = \"" << working
+            << "\"\n[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[environment]\n"
+               "color = { rgb = [0, 1, 0], space = \"ACEScg\" }\n";
+        RenderOptions options;
+        Session session({}, test::shipped_ocio(), options, test::quiet_log());
+        session.load(dir.file("s.toml"), 0.0);
+        return session.info().notes;
+    };
+    const std::vector<std::string> narrow = notes_for("lin_rec709");
+    ASSERT_EQ(narrow.size(), 1u);
+    EXPECT_NE(narrow[0].find("s.toml:9:9: colour (0, 1, 0) in 'ACEScg' is outside the working "
+                             "space 'lin_rec709'"),
+              std::string::npos)
+        << narrow[0];
+    EXPECT_TRUE(notes_for("ACEScg").empty());
 }
 
 TEST(ColorConfig, AliasesAndUnknownNames) {
