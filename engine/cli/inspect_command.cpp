@@ -6,6 +6,7 @@
 #include <fmt/format.h>
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfChromaticitiesAttribute.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -13,6 +14,7 @@
 #include <OpenEXR/ImfTestFile.h>
 #include <CLI/CLI.hpp>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -30,9 +32,12 @@ namespace {
 /** Every channel of an image, by name, one plane each. */
 struct Planes {
     int width = 0, height = 0;
-    int x0 = 0, y0 = 0;                    ///< the data window's corner (a crop part's place)
-    int full_width = 0, full_height = 0;   ///< the display window's size
-    int parts = 1;                         ///< parts of a multi-part file (the first is read)
+    int x0 = 0, y0 = 0;                   ///< the data window's corner (a crop part's place)
+    int full_width = 0, full_height = 0;  ///< the display window's size
+    int parts = 1;                        ///< parts of a multi-part file (the first is read)
+    /** Luminance weights of its primaries (its chromaticities attribute; Rec.709 without). */
+    std::array<double, 3> luma = kRec709Luma;
+    bool luma_from_header = false;
     std::vector<std::string> names;        ///< in the file's order (OpenEXR's: by name)
     std::vector<std::vector<float>> data;  ///< one plane per name (empty: not a float channel)
     const std::vector<float>* find(const std::string& name) const {
@@ -71,6 +76,17 @@ Planes read_exr_planes(const std::string& path) {
         p.full_width = disp.max.x - disp.min.x + 1;
         p.full_height = disp.max.y - disp.min.y + 1;
         p.parts = Imf::MultiPartInputFile(path.c_str()).parts();
+        // Luminance in the image's own primaries (an ACEScg render weighed as Rec.709 read
+        // 0.246 where its luminance is 0.257): the Y row of its RGB to XYZ matrix.
+        if (const auto* c =
+                in.header().findTypedAttribute<Imf::ChromaticitiesAttribute>("chromaticities")) {
+            const Imath::M44f m = Imf::RGBtoXYZ(c->value(), 1.0f);
+            const std::array<double, 3> w = {m[0][1], m[1][1], m[2][1]};
+            if (std::isfinite(w[0] + w[1] + w[2]) && w[0] + w[1] + w[2] > 0.5) {
+                p.luma = w;
+                p.luma_from_header = true;
+            }
+        }
         const auto n = static_cast<std::size_t>(p.width) * static_cast<std::size_t>(p.height);
         Imf::FrameBuffer fb;
         const Imf::ChannelList& list = in.header().channels();
@@ -121,10 +137,12 @@ void print_channels(const Planes& p) {
             sum += static_cast<double>(v);
         }
         const std::size_t good = p.data[c].size() - bad;
-        if (good == 0) lo = hi = 0.0;
+        if (good == 0) {
+            fmt::print("  {:<20} no finite value (non-finite {})\n", p.names[c], bad);
+            continue;
+        }
         fmt::print("  {:<20} min {:<12.6g} max {:<12.6g} mean {:<12.6g}{}\n", p.names[c], lo, hi,
-                   good ? sum / static_cast<double>(good) : 0.0,
-                   bad ? fmt::format(" non-finite {}", bad) : "");
+                   sum / static_cast<double>(good), bad ? fmt::format(" non-finite {}", bad) : "");
     }
 }
 
@@ -141,10 +159,16 @@ std::vector<float> read_rgb(const std::string& path, Planes& planes) {
     }
     ImageHeader spec;
     std::vector<float> rgb = read_image(path, 3, spec);
-    if (spec.channels < 3) throw_error("'{}' has {} channels; expected RGB", path, spec.channels);
     planes.width = spec.width;
     planes.height = spec.height;
-    return rgb;
+    if (spec.channels >= 3) return rgb;
+    // Grey (and grey + alpha): the grey in all three.
+    const int stride = std::max(spec.channels, 1);
+    const auto n = static_cast<std::size_t>(spec.width) * static_cast<std::size_t>(spec.height);
+    std::vector<float> grey(3 * n);
+    for (std::size_t i = 0; i < n; ++i)
+        grey[3 * i] = grey[3 * i + 1] = grey[3 * i + 2] = rgb[i * static_cast<std::size_t>(stride)];
+    return grey;
 }
 
 /** Measures and prints the image at `path` (against `reference` when not empty). */
@@ -153,7 +177,7 @@ int run_inspect(const std::string& path, const std::string& reference) {
     const std::vector<float> rgb = read_rgb(path, planes);
     const std::vector<float> glints = planes.three("glints.R", "glints.G", "glints.B");
     const ImageMetrics m = measure_image(rgb, planes.width, planes.height, 10.0, 1e-3,
-                                         glints.empty() ? nullptr : &glints);
+                                         glints.empty() ? nullptr : &glints, planes.luma);
     // A crop part says where it lies in its frame; a multi-part file that only its first part
     // was read.
     const bool crop = planes.full_width > 0 &&
@@ -166,8 +190,11 @@ int run_inspect(const std::string& path, const std::string& reference) {
                planes.parts > 1
                    ? fmt::format(" (part 1 of {}: the others are not read)", planes.parts)
                    : std::string());
-    fmt::print("mean luminance: {:.6g}\nnon-finite pixels: {}\nnegative pixels: {}\n",
-               m.mean_luminance, m.nonfinite, m.negative);
+    fmt::print("mean luminance: {:.6g}{}\nnon-finite pixels: {}\nnegative pixels: {}\n",
+               m.mean_luminance,
+               planes.luma_from_header ? " (weighed by the primaries of its chromaticities)"
+                                       : " (Rec.709 weights)",
+               m.nonfinite, m.negative);
     if (m.told_apart) {
         fmt::print("glints (> 10x the 3x3 median, mostly light through a glint): {}\n", m.glints);
         fmt::print("fireflies (> 10x the 3x3 median, not glints): {} ({:.4f}% of pixels)\n",

@@ -7,7 +7,8 @@
 namespace spangle {
 
 ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height, double ratio,
-                           double floor, const std::vector<float>* glints) {
+                           double floor, const std::vector<float>* glints,
+                           const std::array<double, 3>& luma) {
     ImageMetrics m;
     m.told_apart = glints != nullptr;
     const auto n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
@@ -20,7 +21,7 @@ ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
             continue;
         }
         if (r < 0 || g < 0 || b < 0) ++m.negative;
-        lum[i] = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+        lum[i] = luma[0] * r + luma[1] * g + luma[2] * b;
         sum += lum[i];
     }
     m.mean_luminance = n ? sum / static_cast<double>(n) : 0.0;
@@ -44,9 +45,9 @@ ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
                                   static_cast<std::size_t>(x);
             double g = 0.0;
             if (glints)
-                g = 0.2126 * static_cast<double>((*glints)[3 * i]) +
-                    0.7152 * static_cast<double>((*glints)[3 * i + 1]) +
-                    0.0722 * static_cast<double>((*glints)[3 * i + 2]);
+                g = luma[0] * static_cast<double>((*glints)[3 * i]) +
+                    luma[1] * static_cast<double>((*glints)[3 * i + 1]) +
+                    luma[2] * static_cast<double>((*glints)[3 * i + 2]);
             if (g >= 0.5 * v)
                 ++m.glints;
             else

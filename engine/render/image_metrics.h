@@ -1,6 +1,7 @@
 #pragma once
 // Measurements of a rendered image, for `spangle inspect` and the tests.
 
+#include <array>
 #include <cstdint>
 #include <vector>
 
@@ -17,15 +18,19 @@ struct ImageMetrics {
     bool told_apart = false;        ///< a glints layer told glints from fireflies
 };
 
-/** Measures width x height RGB. An outlier is a pixel whose luminance exceeds `ratio` times the
- *  median luminance of its 3x3 neighbourhood (itself included), and exceeds `floor` (so that
- *  noise in black regions does not count). With `glints` (the glints layer, RGB per pixel), an
- *  outlier at least half of whose luminance came through a glint is a glint -- a flake mirroring
- *  a light, which is meant to stand out -- and the others are fireflies; without it every
- *  outlier counts as a firefly. */
+/** Luminance of linear Rec.709 RGB (the Y row of its RGB to XYZ matrix). */
+inline constexpr std::array<double, 3> kRec709Luma = {0.2126, 0.7152, 0.0722};
+
+/** Measures width x height RGB (luminance by `luma`, the weights of the image's primaries). An
+ * outlier is a pixel whose luminance exceeds `ratio` times the median luminance of its 3x3
+ * neighbourhood (itself included), and exceeds `floor` (so that noise in black regions does not
+ * count). With `glints` (the glints layer, RGB per pixel), an outlier at least half of whose
+ * luminance came through a glint is a glint -- a flake mirroring a light, which is meant to stand
+ * out -- and the others are fireflies; without it every outlier counts as a firefly. */
 ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
                            double ratio = 10.0, double floor = 1e-3,
-                           const std::vector<float>* glints = nullptr);
+                           const std::vector<float>* glints = nullptr,
+                           const std::array<double, 3>& luma = kRec709Luma);
 
 /** relMSE of `image` against `reference` (the same size): the mean over pixels and channels of
  *  (x - r)^2 / (r^2 + 0.01), the 0.01 keeping dark pixels from dominating. */

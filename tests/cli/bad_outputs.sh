@@ -111,6 +111,15 @@ grep -q "mean luminance: 0.5" "$T/out.txt" || fail "Y-only EXR: $(cat "$T/out.tx
 grep -q "12x8 at (8, 4) of a 32x16 frame" "$T/out.txt" || fail "crop: $(head -1 "$T/out.txt")"
 grep -q "CryptoObject00.R .*(Cryptomatte ids: hashes, no range)" "$T/out.txt" ||
     fail "crypto ids: $(grep Crypto "$T/out.txt")"
+# Luminance by the image's own primaries (an ACEScg render weighed as Rec.709 read 0.2464 for
+# 0.2578), and a grey PNG read (it was refused: "expected RGB").
+printf '[render]\nwidth = 8\nheight = 8\nspp = 1\nworking_space = "ACEScg"\n[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[environment]\ncolor = [0.5, 0.2, 0.1]\n' > aces.toml
+"$S" render aces.toml -o aces.exr --float -q --no-preview || fail "the ACEScg render failed"
+"$S" inspect aces.exr > "$T/out.txt" || fail "inspect of the ACEScg render failed"
+grep -q "mean luminance: 0.257.*chromaticities" "$T/out.txt" || fail "ACEScg luminance: $(head -2 "$T/out.txt")"
+oiiotool --pattern constant:color=0.25 8x8 1 -d uint8 -o grey.png
+"$S" inspect grey.png > "$T/out.txt" 2>&1 || fail "inspect of a grey PNG: $(cat "$T/out.txt")"
+grep -q "mean luminance: 0.25" "$T/out.txt" || fail "grey PNG: $(cat "$T/out.txt")"
 # Two renders of one output write their EXR and PNG one pair at a time (a hidden lock file
 # beside the EXR): a render waits while another holds the pair's lock, and removes the lock when
 # done. (Unlocked, duplicate jobs left the EXR of one render beside the PNG of the other.)
