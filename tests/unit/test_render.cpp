@@ -102,6 +102,34 @@ TEST(Render, PointLightOnLambertPlaneMatchesClosedForm) {
         EXPECT_NEAR(r.image[i], expected, 1e-5 * expected + 1e-6);
 }
 
+TEST(Render, SmallAndFarSphereLightsGiveTheirClosedFormIrradiance) {
+    // A sphere light of radius R and radiance L at distance D over a white floor: the floor
+    // below shows L (R / D)^2. Its cone was computed as 1 - sqrt(1 - (R / D)^2) in floats: 4-7%
+    // bright at R / D = 1e-3 (a 1 cm bulb 10 m away), black at 1e-4 and below.
+    test::TempDir dir("sphere_light_far");
+    for (const double ratio : {1e-2, 1e-3, 3e-4, 1e-4, 1e-6}) {
+        const double d = 2.0, r = ratio * d;
+        std::string text = test::scene_text("point_plane.toml");
+        test::replace_all(text, "../../assets/", test::asset_dir() + "/");
+        test::replace_all(text, "type = \"point\"\nposition = [0, 1.5, 0]\nintensity = 2.0",
+                          fmt::format("type = \"sphere\"\ncenter = [0, {}, 0]\nradius = {}\n"
+                                      "intensity = {}",
+                                      d, r, 1.0 / (ratio * ratio)));
+        ASSERT_NE(text.find("type = \"sphere\""), std::string::npos);
+        std::ofstream(dir.file("s.toml")) << text;
+        FrameRequest req;
+        req.scene = dir.file("s.toml");
+        req.ocio_config = test::shipped_ocio();
+        req.log = &test::quiet_log();
+        req.options.threads = 1;
+        const FrameResult f = render_frame(req);
+        double mean = 0.0;
+        for (const float v : f.image) mean += static_cast<double>(v);
+        mean /= static_cast<double>(f.image.size());
+        EXPECT_NEAR(mean, 1.0, 2e-3) << "R / D = " << ratio;
+    }
+}
+
 /** Per-pixel difference of two renders in units of their combined standard error, estimated
  *  from the spread of the difference over all pixels' green channel. */
 double max_z_of_mean_difference(const FrameResult& a, const FrameResult& b) {
