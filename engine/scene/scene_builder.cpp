@@ -285,6 +285,20 @@ void build_camera(BuildContext& ctx, const CameraDesc& d, ecs::Entity settings) 
     ctx.registry->put(settings, info.camera);
 }
 
+/** colour x intensity, an emitter's radiance or intensity (working space). Refused beyond
+ *  1e18: the film clips a sample at 2^60 (1.15e18) and past a float's range the light went
+ *  black, counted only among non-finite samples, though each number passed its own range. */
+Vec3 emitted(Vec3 color, double intensity, const FileLoc& at, const char* what) {
+    const double most = static_cast<double>(max_component(color)) * intensity;
+    if (!(most <= 1e18))
+        throw_error(at,
+                    "{}: colour x intensity is {:.4g}, beyond 1e18, the most a sample can carry "
+                    "(brighter ones are clipped, and past a float's range lost): lower its "
+                    "'intensity' (or the scene's units)",
+                    what, most);
+    return color * static_cast<float>(intensity);
+}
+
 /** The environment's entity: its light group and its colour or map. */
 void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
     const auto k = static_cast<float>(d.intensity);
@@ -327,7 +341,8 @@ void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
         }
         registry.put(env, m);
     } else {
-        registry.put(env, Environment{working_color(ctx, d.color, {0, 0, 0}) * k});
+        registry.put(env, Environment{emitted(working_color(ctx, d.color, {0, 0, 0}), d.intensity,
+                                              d.loc, "the environment")});
     }
 }
 
@@ -612,8 +627,8 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
         info.rest_pose[index] = 1;
     }
     if (d.emission) {
-        const Vec3 le = working_color(ctx, d.emission->color, {0, 0, 0}) *
-                        static_cast<float>(d.emission->intensity);
+        const Vec3 le = emitted(working_color(ctx, d.emission->color, {0, 0, 0}),
+                                d.emission->intensity, d.emission->color.loc, d.what.c_str());
         if (max_component(le) > 0.0f) registry.put(e, Emission{le, d.emission->two_sided});
         registry.put(e, light_group(ctx, d.emission->group));
     }
@@ -673,11 +688,10 @@ struct LightPut {
 
 /** One light's entity: its light group and its light. */
 void build_light(BuildContext& ctx, const LightDesc& d) {
-    const Vec3 color = working_color(ctx, d.color, {1, 1, 1});
-    const auto intensity = static_cast<float>(d.intensity);
+    const Vec3 value = emitted(working_color(ctx, d.color, {1, 1, 1}), d.intensity, d.loc, "light");
     const ecs::Entity e = ctx.registry->create();
     ctx.registry->put(e, light_group(ctx, d.group));
-    std::visit(LightPut{*ctx.registry, e, color * intensity}, d.shape);
+    std::visit(LightPut{*ctx.registry, e, value}, d.shape);
 }
 
 }  // namespace
