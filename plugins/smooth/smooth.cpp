@@ -59,6 +59,17 @@ void read_alpha(const SpangleParams_v3* p, float& ax, float& ay) {
     ay = v < 0.0f ? ax : v;
 }
 
+/** Whether roughness_v is -1 (the same as roughness) or in [0, 1]; else an error (a value in
+ *  (-1, 0) was taken as -1 without a word). A textured one is checked where it is read. */
+bool roughness_v_ok(const SpangleParams_v3* p, char* error, uint32_t cap) {
+    const double v = param_number(p, "roughness_v", 0);
+    if (v >= 0.0 || v == -1.0) return true;
+    set_error(
+        error, cap,
+        "roughness_v " + std::to_string(v) + " must be -1 (the same as roughness) or in [0, 1]");
+    return false;
+}
+
 bool is_delta(float ax, float ay) {
     return std::max(ax, ay) < kDeltaAlpha;
 }
@@ -268,6 +279,7 @@ void conductor_fresnel(const Conductor& m, float c, float out[3]) {
 
 void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, char* error,
                        uint32_t cap) {
+    if (!roughness_v_ok(p, error, cap)) return nullptr;
     Conductor c{};
     read_alpha(p, c.ax, c.ay);
     c.raw_r = param_f(p, "roughness");
@@ -518,6 +530,7 @@ struct Dielectric {
 
 void* dielectric_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error,
                         uint32_t cap) {
+    if (!roughness_v_ok(p, error, cap)) return nullptr;
     Dielectric d{};
     read_alpha(p, d.ax, d.ay);
     d.raw_r = param_f(p, "roughness");
@@ -692,6 +705,7 @@ float plastic_e(const Plastic& m, float mu) {
 }
 
 void* plastic_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint32_t cap) {
+    if (!roughness_v_ok(p, error, cap)) return nullptr;
     auto* m = new (std::nothrow) Plastic{};
     if (!m) {
         set_error(error, cap, "out of memory");
