@@ -4,6 +4,7 @@
 #include <cmath>
 #include <utility>
 
+#include "core/text.h"
 #include "scene/scene_paths.h"
 #include "scene/toml_scene_parts.h"
 
@@ -207,6 +208,17 @@ ParamDesc read_param(const ReadContext& ctx, const toml::key& k, const toml::nod
         p.kind = ParamDesc::Kind::Texture;
         p.texture = read_texture(ctx, *n.as_table(), key, TextureUse::Param);
     } else if (n.is_array() || n.is_table()) {
+        // A table is a colour ({ rgb, space }) or a texture: a misspelt 'texture' said so (it
+        // was "colour 'albedo' is missing required key 'rgb'").
+        if (const toml::table* t = n.as_table(); t && !t->contains("rgb"))
+            for (auto&& [inner, value] : *t) {
+                if (inner.str() == "space") continue;
+                const std::string hint = did_you_mean(inner.str(), {"texture", "rgb", "space"});
+                throw_error(key_location(inner, value, ctx.file),
+                            "parameter '{}': unknown key '{}'{} (a colour is {{ rgb = [r, g, b], "
+                            "space = ... }}, an image {{ texture = \"file\", ... }})",
+                            key, inner.str(), hint);
+            }
         p.kind = ParamDesc::Kind::Color;
         p.color = read_raw_color(ctx, n, key);
     } else {

@@ -201,20 +201,27 @@ bool TableReader::boolean(std::string_view key, bool fallback) {
     return b->get();
 }
 
-std::string TableReader::string(std::string_view key, std::string fallback) {
-    const toml::node* n = node(key);
-    if (!n) return fallback;
-    auto s = n->as_string();
-    if (!s)
-        throw_error(loc_of(*n, file_), "'{}' must be a string, got {}", key, toml_type_name(*n));
+namespace {
+
+/** A string value; a NUL character in it (TOML's \u0000) is an error: a path or a name with
+ *  one stops at it in every system call and message (the reason was cut off). */
+std::string string_of(const toml::node& n, std::string_view key, const std::string& file) {
+    auto s = n.as_string();
+    if (!s) throw_error(loc_of(n, file), "'{}' must be a string, got {}", key, toml_type_name(n));
+    if (s->get().find('\0') != std::string::npos)
+        throw_error(loc_of(n, file), "'{}' must not contain a NUL character (\\u0000)", key);
     return s->get();
 }
 
+}  // namespace
+
+std::string TableReader::string(std::string_view key, std::string fallback) {
+    const toml::node* n = node(key);
+    return n ? string_of(*n, key, file_) : fallback;
+}
+
 std::string TableReader::string(std::string_view key) {
-    const toml::node& n = required(key);
-    auto s = n.as_string();
-    if (!s) throw_error(loc_of(n, file_), "'{}' must be a string, got {}", key, toml_type_name(n));
-    return s->get();
+    return string_of(required(key), key, file_);
 }
 
 Vec3 parse_vec3(const toml::node& n, const std::string& file, std::string_view name) {
