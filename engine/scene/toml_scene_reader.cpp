@@ -263,6 +263,12 @@ EnvironmentDesc read_environment(const ReadContext& ctx, TableReader& r) {
         if (const std::optional<Affine> frame = read_matrix(r, "frame")) m.to_world = *frame;
         e.map = std::move(m);
     } else {
+        // The map's own keys without a map: said as such (they were "unknown keys", though the
+        // README lists them).
+        for (const char* key : {"color_space", "rotation", "projection", "frame"})
+            if (r.has(key))
+                throw_error(r.loc(key), "'{}' applies to an environment 'map'; this one has none",
+                            key);
         e.color = toml_scene::read_color(ctx, r, "color");
     }
     r.finish();
