@@ -289,15 +289,48 @@ FileLoc key_location(const toml::key& key, const toml::node& value, const std::s
     return key_loc(key, value, file);
 }
 
+namespace {
+
+/** The key a "key = value" line sets, unquoted ("" when the line is not one). */
+std::string key_of_line(const std::string& text, std::size_t line) {
+    std::size_t at = 0;
+    for (std::size_t l = 1; l < line && at != std::string::npos; ++l) {
+        at = text.find('\n', at);
+        if (at != std::string::npos) ++at;
+    }
+    if (at == std::string::npos) return "";
+    const std::size_t end = text.find('\n', at);
+    const std::string row = text.substr(at, end == std::string::npos ? end : end - at);
+    const std::size_t eq = row.find('=');
+    if (eq == std::string::npos) return "";
+    std::string key = row.substr(0, eq);
+    const std::size_t b = key.find_first_not_of(" \t"), e = key.find_last_not_of(" \t");
+    if (b == std::string::npos) return "";
+    key = key.substr(b, e - b + 1);
+    if (key.size() >= 2 && (key.front() == '"' || key.front() == '\'') && key.back() == key.front())
+        key = key.substr(1, key.size() - 2);
+    return key;
+}
+
+}  // namespace
+
 toml::table parse_toml_file(const std::string& path) {
+    std::string text;
     try {
-        const std::string text = read_text(path);
+        text = read_text(path);
         check_nesting(text, path);
         return toml::parse(text, path);
     } catch (const toml::parse_error& e) {
         const auto& s = e.source().begin;
-        throw_error(FileLoc{path, static_cast<int>(s.line), static_cast<int>(s.column)},
-                    "invalid TOML: {}", e.description());
+        const FileLoc at{path, static_cast<int>(s.line), static_cast<int>(s.column)};
+        // toml++ garbles a quoted key's name in this message ('"spspp" ' for "spp"): the key is
+        // taken from the line itself.
+        const std::string why(e.description());
+        if (why.find("cannot redefine existing") != std::string::npos) {
+            const std::string key = key_of_line(text, s.line);
+            if (!key.empty()) throw_error(at, "invalid TOML: '{}' is set twice in its table", key);
+        }
+        throw_error(at, "invalid TOML: {}", why);
     }
 }
 
