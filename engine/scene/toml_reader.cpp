@@ -275,13 +275,45 @@ const toml::array* TableReader::table_array(std::string_view key) {
     return a;
 }
 
+namespace {
+
+/** Where a well-known key belongs, for one written in another table (spp in [camera] was
+ *  "did you mean 'up'?"): "; 'spp' belongs in [render]", or "". */
+std::string belongs_elsewhere(const std::string& key, const std::string& table) {
+    static const std::pair<const char*, std::vector<const char*>> kPlaces[] = {
+        {"[render]",
+         {"width", "height", "spp", "max_depth", "rr_depth", "seed", "working_space", "color_space",
+          "filter", "frame_start", "frame_end", "fps", "shutter", "noise_threshold", "min_spp",
+          "max_spp", "transparent_background"}},
+        {"[camera]", {"position", "look_at", "up", "fov", "projection", "ortho_height"}},
+        {"the material's params = { ... }",
+         {"albedo", "base_color", "roughness", "roughness_v", "ior", "preset", "density",
+          "flake_weight", "flake_roughness", "gamma", "coat", "metallic"}},
+    };
+    const bool in_material = table.find("[[material]]") != std::string::npos;
+    for (const auto& [place, keys] : kPlaces) {
+        const std::string_view p(place);
+        if (table.find(place) != std::string::npos) continue;
+        // Lights and objects have positions of their own: camera keys are hinted only from
+        // [render] and [environment]; parameters only from a material.
+        if (p == "[camera]" && table != "[render]" && table != "[environment]") continue;
+        if (p.starts_with("the material") && !in_material) continue;
+        for (const char* k : keys)
+            if (key == k) return fmt::format("; '{}' belongs in {}", key, place);
+    }
+    return "";
+}
+
+}  // namespace
+
 void TableReader::finish() const {
     for (auto&& [key, value] : table_) {
         if (known_.count(key.str())) continue;
+        std::string hint = belongs_elsewhere(std::string(key.str()), what_);
+        if (hint.empty())
+            hint = did_you_mean(key.str(), std::vector<std::string>(known_.begin(), known_.end()));
         throw_error(key_loc(key, value, file_), "unknown key '{}' in {}{} (valid keys: {})",
-                    key.str(), what_,
-                    did_you_mean(key.str(), std::vector<std::string>(known_.begin(), known_.end())),
-                    fmt::join(known_, ", "));
+                    key.str(), what_, hint, fmt::join(known_, ", "));
     }
 }
 
