@@ -39,6 +39,12 @@ int run_flicker(const FlickerArgs& a) {
             "{:.4g}): "
             "nothing to measure; render a flake material with --layers",
             r.threshold);
+    if (r.blurred > 0)
+        fmt::print(
+            "{} of the {} frames were rendered with motion blur: their glints are streaks, so "
+            "the figures below say little of flicker (compare frames rendered without a "
+            "shutter)\n",
+            r.blurred, a.frames.size());
     if (r.reordered)
         fmt::print(
             "frames taken in the order of their spangle:time, not as given (a shell's glob puts "

@@ -50,6 +50,10 @@ void add_scene_attributes(ExrOptions& o, const ImageDescription& d, uint32_t fra
     // Which scene (its files' bytes) and which moment: spangle merge refuses parts that differ.
     o.metadata.emplace_back("spangle:sceneHash", fmt::format("{:016x}", d.info->content_hash));
     o.metadata.emplace_back("spangle:time", fmt::format("{}", d.info->time));
+    // A frame whose motion was blurred (spangle flicker warns: its glints are streaks).
+    if (d.info->motion_blur)
+        o.metadata.emplace_back("spangle:shutter",
+                                fmt::format("{} {}", d.info->shutter_open, d.info->shutter_close));
     // With the layers: where each object stands (12 floats each, the rows of its 3x4
     // object-to-world matrix), so that Pobj carries a point into world space and a sequence's
     // frames can follow a turning object (spangle flicker).

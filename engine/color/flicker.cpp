@@ -34,6 +34,7 @@ struct Frame {
      *  spangle:restPose); empty when the frame does not say (no object deforms). */
     std::vector<float> rest_pose;
     std::string scene, time;  ///< spangle:scene and spangle:time; empty where not written
+    std::string shutter;      ///< spangle:shutter, written when the frame's motion was blurred
     bool has_objects() const { return !object.empty() && !object_to_world.empty(); }
     /** Whether object k (from 0) deforms: its points are found by their rest position. */
     bool deforms(std::size_t k) const { return k < rest_pose.size() && rest_pose[k] > 0.5f; }
@@ -55,7 +56,8 @@ Frame read_frame(const std::string& path) {
             throw_error("'{}' is a crop window: merge the parts first (spangle merge)", path);
         Frame f;
         for (const auto& [name, out] :
-             {std::pair{"spangle:scene", &f.scene}, std::pair{"spangle:time", &f.time}})
+             {std::pair{"spangle:scene", &f.scene}, std::pair{"spangle:time", &f.time},
+              std::pair{"spangle:shutter", &f.shutter}})
             if (const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name)) *out = a->value();
         f.width = dw.max.x - dw.min.x + 1;
         f.height = dw.max.y - dw.min.y + 1;
@@ -293,6 +295,8 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
             frames = std::move(sorted);
         }
     }
+    rep.blurred = std::count_if(frames.begin(), frames.end(),
+                                [](const Frame& f) { return !f.shutter.empty(); });
     rep.threshold = threshold > 0.0 ? threshold : default_threshold(frames);
     threshold = rep.threshold;
     std::vector<std::vector<uint8_t>> masks;

@@ -24,6 +24,7 @@ struct FlickerReport {
     double mask_persistence = 0;     ///< of the glint pixels of frame k, the share still glints
     bool by_objects = false;         ///< points were carried by their objects (Pobj layers)
     bool reordered = false;          ///< the frames were not given in time order: sorted
+    std::size_t blurred = 0;         ///< frames rendered with motion blur (spangle:shutter)
 };
 
 /** Reads the frames (EXRs with P.X/Y/Z, Z, A and glints.R/G/B layers and worldToNDC, and

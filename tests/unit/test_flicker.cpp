@@ -103,6 +103,43 @@ TEST(Flicker, FixedSparklesPersistAndMovedOnesFlicker) {
     EXPECT_TRUE(shuffled.reordered);
     EXPECT_EQ(shuffled.mask_persistence, in_order.mask_persistence);
     EXPECT_EQ(shuffled.mask_flicker, in_order.mask_flicker);
+    EXPECT_EQ(in_order.blurred, 0u);
+}
+
+TEST(Flicker, FramesRenderedWithMotionBlurAreCounted) {
+    // A blurred frame's glints are streaks: its spangle:shutter header (written when the motion
+    // was blurred) is counted, and the command says what the figures are then worth (blurred
+    // frames measured persistence 0 without a word).
+    test::TempDir dir("flicker_blurred");
+    const auto write = [&](const std::string& name, uint64_t seed, const char* time, bool blurred) {
+        constexpr int kN = 8;
+        const std::vector<std::string> names = {"A",   "Z",        "P.X",      "P.Y",
+                                                "P.Z", "glints.R", "glints.G", "glints.B"};
+        std::vector<float> layers(kN * kN * names.size(), 0.0f);
+        for (int i = 0; i < kN * kN; ++i) {
+            float* v = &layers[static_cast<std::size_t>(i) * names.size()];
+            v[0] = v[1] = 1.0f;
+            v[2] = (static_cast<float>(i % kN) + 0.5f) / kN;
+            v[3] = (static_cast<float>(i / kN) + 0.5f) / kN;
+            v[5] = v[6] = v[7] =
+                to_unit_float(hash2(seed, static_cast<uint64_t>(i))) < 0.1f ? 5.0f : 0.1f;
+        }
+        ExrOptions o;
+        o.half = false;
+        o.layers = &layers;
+        o.layer_names = names;
+        o.matrices = {{"worldToNDC", {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1}}};
+        o.metadata = {{"spangle:scene", "spin.toml"}, {"spangle:time", time}};
+        if (blurred) o.metadata.push_back({"spangle:shutter", "0 1"});
+        write_exr(dir.file(name), std::vector<float>(kN * kN * 3, 0.1f), kN, kN,
+                  test::shipped_config(), o);
+    };
+    write("a.exr", 1, "0", true);
+    write("b.exr", 1, "0.0416667", true);
+    write("c.exr", 1, "0.0833333", false);
+    EXPECT_EQ(
+        measure_flicker({dir.file("a.exr"), dir.file("b.exr"), dir.file("c.exr")}, 1.0).blurred,
+        2u);
 }
 
 // A turning (here: sliding) object: its sparkles stay on its points, which the frames' object
