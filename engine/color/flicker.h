@@ -30,9 +30,9 @@ struct FlickerReport {
 /** Reads the frames (EXRs with P.X/Y/Z, Z, A and glints.R/G/B layers and worldToNDC, and
  *  Pobj.X/Y/Z, object and spangle:objectToWorld when they have them), in the order of their
  *  spangle:time when every frame has one (else as given), and measures. A pixel is in a frame's
- * glint mask when its glint luminance exceeds `threshold`
- *  (<= 0: 4 x the mean over covered pixels of all frames) and 3 x the mean of its 5x5
- *  neighbourhood (a sparkle, not a broad highlight).
+ *  glint mask when its glint luminance exceeds `threshold` (<= 0: 4 x the mean over covered
+ *  pixels of all frames) and 3 x the mean of its 5x5 neighbourhood (a sparkle, not a broad
+ *  highlight).
  *  A pixel is compared when its surface point projects inside the next frame and the next frame
  *  sees the same point there (positions within 1% of the depth; the same object), or, on an
  *  object that deforms in both frames, when a pixel of the same object within 8 pixels of

@@ -111,15 +111,9 @@ std::size_t orient_cage(Cage& cage) {
         int way;
     };
     std::map<std::pair<int, int>, std::vector<Use>> edges;
-    for (std::size_t f = 0; f < nf; ++f) {
-        const std::size_t n = first[f + 1] - first[f];
-        for (std::size_t k = 0; k < n; ++k) {
-            const int a = cage.face_vertices[first[f] + k];
-            const int b = cage.face_vertices[first[f] + (k + 1) % n];
-            if (a == b) continue;
-            edges[{std::min(a, b), std::max(a, b)}].push_back({f, a < b ? 1 : -1});
-        }
-    }
+    for_each_edge(cage, [&](std::size_t f, int a, int b) {
+        if (a != b) edges[{std::min(a, b), std::max(a, b)}].push_back({f, a < b ? 1 : -1});
+    });
     std::vector<std::vector<std::pair<std::size_t, bool>>> next(nf);  // neighbour, same way
     for (const auto& [edge, uses] : edges)
         if (uses.size() == 2 && uses[0].face != uses[1].face) {

@@ -26,6 +26,18 @@ struct Cage {
     std::size_t face_count() const { return face_sizes.size(); }
 };
 
+/** Calls edge(face, a, b) for every edge of every face, a then b in the face's winding. */
+template <class Edge>
+void for_each_edge(const Cage& cage, Edge&& edge) {
+    std::size_t at = 0;
+    for (std::size_t f = 0; f < cage.face_count(); ++f) {
+        const auto n = static_cast<std::size_t>(cage.face_sizes[f]);
+        for (std::size_t k = 0; k < n; ++k)
+            edge(f, cage.face_vertices[at + k], cage.face_vertices[at + (k + 1) % n]);
+        at += n;
+    }
+}
+
 /** A hash of a cage's positions, faces and uvs (not its source name): equal for equal content. */
 uint64_t cage_content_hash(const Cage& cage);
 

@@ -193,30 +193,10 @@ private:
                                  face_.size() == 1 ? "" : "s"));
             // Triangulated at the end, when every vertex a face may name forward is known.
             polygons_.insert(polygons_.end(), face_.begin(), face_.end());
-            polygon_ends_.push_back(static_cast<uint32_t>(polygons_.size()));
+            polygon_ends_.push_back(polygons_.size());
         }
         // Everything else (comments, o, g, s, usemtl, mtllib, l, p, curves) is not geometry
         // Spangle renders.
-    }
-
-    Vec3 position_of(uint32_t vertex) const {
-        const auto v = static_cast<std::size_t>(corners_[vertex].v);
-        return {positions_[3 * v], positions_[3 * v + 1], positions_[3 * v + 2]};
-    }
-
-    /** Every face as triangles (geometry/polygon.h): a convex one as a fan around its first
-     *  corner, a concave one (an L, a U, a star, a ring cut open) by ear clipping in its plane. */
-    void triangulate() {
-        std::vector<Vec3> p;
-        uint32_t begin = 0;
-        for (const uint32_t end : polygon_ends_) {
-            const uint32_t* f = &polygons_[begin];
-            const std::size_t n = end - begin;
-            begin = end;
-            p.resize(n);
-            for (std::size_t k = 0; k < n; ++k) p[k] = position_of(f[k]);
-            triangulate_polygon(f, p.data(), n, indices_);
-        }
     }
 
     /** Checks the largest index of a kind against the number read. */
@@ -234,7 +214,6 @@ private:
 
     TriangleMesh finish() {
         check_indices();
-        triangulate();
         TriangleMesh mesh;
         mesh.source = path_;
         bool all_normals = !corners_.empty(), any_uv = false;
@@ -258,7 +237,10 @@ private:
                                                  c.vt >= 0 ? uvs_[2 * t + 1] : 0.0f});
             }
         }
-        mesh.indices = std::move(indices_);
+        // Every face as triangles (geometry/polygon.h): a convex one as a fan around its first
+        // corner, a concave one (an L, a U, a star, a ring cut open) by ear clipping in its
+        // plane. The mesh's vertices are the distinct corners, in the order polygons_ names.
+        triangulate_faces(mesh, polygons_, polygon_ends_);
         return mesh;
     }
 
@@ -269,8 +251,9 @@ private:
     ObjPolygons raw_;
     int line_ = 0;
     std::vector<float> positions_, uvs_, normals_;
-    std::vector<uint32_t> indices_, face_;
-    std::vector<uint32_t> polygons_, polygon_ends_;  ///< every face's vertices; where each ends
+    std::vector<uint32_t> face_;
+    std::vector<uint32_t> polygons_;         ///< every face's vertices, one after another
+    std::vector<std::size_t> polygon_ends_;  ///< where each face ends in polygons_
     std::vector<Corner> corners_;
     std::pair<int64_t, int> worst_v_{-1, 0}, worst_vt_{-1, 0}, worst_vn_{-1, 0};
     std::unordered_map<Corner, uint32_t, CornerHash> vertices_;

@@ -382,7 +382,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             if (list < 0)
                 throw_error(ref, "mesh '{}': its faces have no vertex_indices list", path);
             mesh.indices.reserve(3 * e.count);
-            // The checks of a face's list, and its triangle fan, for both paths below.
+            // The checks of a face's list, and where its corners go, for both paths below.
             const auto check_count = [&](uint64_t i, double n, double fit) {
                 if (n < 0 || n > fit)
                     throw_error(ref,
@@ -399,7 +399,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             };
             // Triangles at once; polygons once every position is known (the vertex element
             // may come after the faces), by polygon.h (fans, or ear clipping when concave).
-            const auto fan = [&](const uint32_t* c, std::size_t n) {
+            const auto add_face = [&](const uint32_t* c, std::size_t n) {
                 if (n == 3) {
                     mesh.indices.insert(mesh.indices.end(), {c[0], c[1], c[2]});
                     return;
@@ -428,7 +428,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                                                    : static_cast<double>(c));
                         corner[j] = c;
                     }
-                    fan(corner, n);
+                    add_face(corner, n);
                 }
                 continue;
             }
@@ -488,7 +488,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                         corners[j] = it->second;
                     }
                 }
-                if (!corners.empty()) fan(corners.data(), corners.size());
+                if (!corners.empty()) add_face(corners.data(), corners.size());
             }
         } else if (!e.props.empty()) {
             // Skipped, but read through: its data lies before later elements'. (An element
@@ -526,20 +526,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
         split.indices = std::move(mesh.indices);
         mesh = std::move(split);
     }
-    if (!polygons.empty()) {
-        const std::size_t nv = mesh.vertex_count();
-        std::vector<Vec3> p;
-        std::size_t begin = 0;
-        for (const std::size_t end : polygon_ends) {
-            const uint32_t* f = &polygons[begin];
-            const std::size_t n = end - begin;
-            begin = end;
-            p.resize(n);
-            // An index beyond the vertices is the validator's to name: a zero stands in here.
-            for (std::size_t k = 0; k < n; ++k) p[k] = f[k] < nv ? mesh.position(f[k]) : Vec3(0.0f);
-            triangulate_polygon(f, p.data(), n, mesh.indices);
-        }
-    }
+    triangulate_faces(mesh, polygons, polygon_ends);
     return mesh;
 }
 

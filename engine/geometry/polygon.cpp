@@ -189,4 +189,19 @@ void triangulate_polygon(const uint32_t* f, const Vec3* p, std::size_t n,
     EarClipper(f, x, y).run(out);
 }
 
+void triangulate_faces(TriangleMesh& mesh, const std::vector<uint32_t>& faces,
+                       const std::vector<std::size_t>& ends) {
+    const std::size_t nv = mesh.vertex_count();
+    std::vector<Vec3> p;
+    std::size_t begin = 0;
+    for (const std::size_t end : ends) {
+        const uint32_t* f = &faces[begin];
+        const std::size_t n = end - begin;
+        begin = end;
+        p.resize(n);
+        for (std::size_t k = 0; k < n; ++k) p[k] = f[k] < nv ? mesh.position(f[k]) : Vec3(0.0f);
+        triangulate_polygon(f, p.data(), n, mesh.indices);
+    }
+}
+
 }  // namespace spangle

@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "core/math.h"
+#include "geometry/triangle_mesh.h"
 
 namespace spangle {
 
@@ -17,5 +18,11 @@ namespace spangle {
  *  leaves no ear at some point: the rest is a fan. */
 void triangulate_polygon(const uint32_t* f, const Vec3* p, std::size_t n,
                          std::vector<uint32_t>& out);
+
+/** Appends to mesh.indices the triangles of faces whose vertex indices stand one after another
+ *  in `faces`, face k ending at ends[k], each by triangulate_polygon over the mesh's positions.
+ *  An index beyond the vertices takes the origin's place here: the mesh's validation names it. */
+void triangulate_faces(TriangleMesh& mesh, const std::vector<uint32_t>& faces,
+                       const std::vector<std::size_t>& ends);
 
 }  // namespace spangle

@@ -132,15 +132,9 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
     // numbers were probably an OBJ's f-line ones, which count from 1.
     if (!o.crease_vertices.empty()) {
         std::set<std::pair<int, int>> edges;
-        std::size_t at = 0;
-        for (const int n : cage.face_sizes) {
-            for (int k = 0; k < n; ++k) {
-                const int a = cage.face_vertices[at + static_cast<std::size_t>(k)];
-                const int b = cage.face_vertices[at + static_cast<std::size_t>((k + 1) % n)];
-                edges.emplace(std::min(a, b), std::max(a, b));
-            }
-            at += static_cast<std::size_t>(n);
-        }
+        for_each_edge(cage, [&](std::size_t, int a, int b) {
+            edges.emplace(std::min(a, b), std::max(a, b));
+        });
         for (std::size_t i = 0; i + 1 < o.crease_vertices.size(); i += 2) {
             const int a = o.crease_vertices[i], b = o.crease_vertices[i + 1];
             if (!edges.count({std::min(a, b), std::max(a, b)}))

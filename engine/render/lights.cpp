@@ -19,25 +19,24 @@ float sphere_one_minus_cos(float r2, float dist2) {
     return static_cast<float>(s2 / (1.0 + std::sqrt(std::max(0.0, 1.0 - s2))));
 }
 
-/** Uniform direction in the cone about axis whose half-angle has 1 - cos = one_minus_cos. */
-Vec3 sample_narrow_cone(Vec3 axis, float one_minus_cos, float u0, float u1) {
-    const float x = u0 * one_minus_cos;  // 1 - cos(theta)
-    const float cos_t = 1.0f - x;
-    const float sin_t = std::sqrt(std::max(0.0f, x * (2.0f - x)));
+/** The direction at polar angle (cos_t, sin_t) from axis and azimuth 2 pi u1 about it. */
+Vec3 cone_direction(Vec3 axis, float cos_t, float sin_t, float u1) {
     const float phi = 2.0f * kPi * u1;
     Vec3 s, t;
     make_basis(axis, s, t);
     return normalize(s * (sin_t * std::cos(phi)) + t * (sin_t * std::sin(phi)) + axis * cos_t);
 }
 
+/** Uniform direction in the cone about axis whose half-angle has 1 - cos = one_minus_cos. */
+Vec3 sample_narrow_cone(Vec3 axis, float one_minus_cos, float u0, float u1) {
+    const float x = u0 * one_minus_cos;  // 1 - cos(theta)
+    return cone_direction(axis, 1.0f - x, std::sqrt(std::max(0.0f, x * (2.0f - x))), u1);
+}
+
 /** Uniform direction in the cone of half-angle acos(cos_max) about axis. */
 Vec3 sample_cone(Vec3 axis, float cos_max, float u0, float u1) {
     const float cos_t = 1.0f - u0 * (1.0f - cos_max);
-    const float sin_t = std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t));
-    const float phi = 2.0f * kPi * u1;
-    Vec3 s, t;
-    make_basis(axis, s, t);
-    return normalize(s * (sin_t * std::cos(phi)) + t * (sin_t * std::sin(phi)) + axis * cos_t);
+    return cone_direction(axis, cos_t, std::sqrt(std::max(0.0f, 1.0f - cos_t * cos_t)), u1);
 }
 
 Vec3 gram_schmidt(Vec3 v, Vec3 w) {

@@ -32,6 +32,13 @@ struct BuildContext {
 
 /** Resolves a colour space name or throws at `at` listing the known ones; notes a stand-in
  *  (once per place and name). `implicit` words a default the scene did not write. */
+/** Adds `note` to the scene's notes unless it is there already (a colour used twice). */
+void note_once(BuildContext& ctx, std::string note) {
+    auto& notes = ctx.info->notes;
+    if (std::find(notes.begin(), notes.end(), note) == notes.end())
+        notes.push_back(std::move(note));
+}
+
 std::string resolve_space(BuildContext& ctx, const std::string& name, const FileLoc& at,
                           const char* implicit = nullptr) {
     auto resolved = ctx.color->resolve(name);
@@ -39,11 +46,10 @@ std::string resolve_space(BuildContext& ctx, const std::string& name, const File
         throw_error(at, "unknown {}colour space '{}' (known: {}); {}", implicit ? implicit : "",
                     name, fmt::join(ctx.color->space_names(), ", "), ctx.color->how_to_fix());
     if (!resolved->via.empty()) {
-        const std::string note =
-            fmt::format("{}: {}colour space '{}' is not in the OCIO config '{}'; using {}",
-                        at.str(), implicit ? implicit : "", name, ctx.color->path(), resolved->via);
-        auto& notes = ctx.info->notes;
-        if (std::find(notes.begin(), notes.end(), note) == notes.end()) notes.push_back(note);
+        note_once(ctx,
+                  fmt::format("{}: {}colour space '{}' is not in the OCIO config '{}'; using {}",
+                              at.str(), implicit ? implicit : "", name, ctx.color->path(),
+                              resolved->via));
     }
     return resolved->name;
 }
@@ -72,14 +78,12 @@ Vec3 working_color(BuildContext& ctx, const std::optional<ColorDesc>& c, Vec3 fa
     // green in lin_rec709 is (-0.62, 1.14, -0.13): its clipped (0, 1.14, 0) is another colour).
     const float most = std::max({std::fabs(rgb[0]), std::fabs(rgb[1]), std::fabs(rgb[2])});
     if (std::min({rgb[0], rgb[1], rgb[2]}) < -1e-3f * most) {
-        const std::string note = fmt::format(
-            "{}: colour ({}, {}, {}) in '{}' is outside the working space '{}' ({:.4g}, {:.4g}, "
-            "{:.4g}): its negative parts are clipped to 0 (render in a wider working space, such "
-            "as ACEScg, to keep it)",
-            c->loc.str(), c->rgb.x, c->rgb.y, c->rgb.z, space_of(ctx, *c),
-            ctx.color->working_space(), rgb[0], rgb[1], rgb[2]);
-        auto& notes = ctx.info->notes;
-        if (std::find(notes.begin(), notes.end(), note) == notes.end()) notes.push_back(note);
+        note_once(ctx, fmt::format("{}: colour ({}, {}, {}) in '{}' is outside the working space "
+                                   "'{}' ({:.4g}, {:.4g}, {:.4g}): its negative parts are clipped "
+                                   "to 0 (render in a wider working space, such as ACEScg, to "
+                                   "keep it)",
+                                   c->loc.str(), c->rgb.x, c->rgb.y, c->rgb.z, space_of(ctx, *c),
+                                   ctx.color->working_space(), rgb[0], rgb[1], rgb[2]));
     }
     return {std::max(rgb[0], 0.0f), std::max(rgb[1], 0.0f), std::max(rgb[2], 0.0f)};
 }

@@ -15,16 +15,23 @@
 namespace spangle {
 namespace {
 
-FrameResult render(const std::string& scene, int threads, uint32_t spp = 0,
-                   Strategy strategy = Strategy::Mis) {
+/** The render of the scene file at `path`. */
+FrameResult render_path(const std::string& path, int threads, uint32_t spp = 0,
+                        Strategy strategy = Strategy::Mis) {
     FrameRequest req;
-    req.scene = test::test_dir() + "/scenes/" + scene;
+    req.scene = path;
     req.ocio_config = test::shipped_ocio();
     req.log = &test::quiet_log();
     req.options.threads = threads;
     req.options.spp_override = spp;
     req.options.strategy = strategy;
     return render_frame(req);
+}
+
+/** The render of tests/scenes/`scene`. */
+FrameResult render(const std::string& scene, int threads, uint32_t spp = 0,
+                   Strategy strategy = Strategy::Mis) {
+    return render_path(test::test_dir() + "/scenes/" + scene, threads, spp, strategy);
 }
 
 const ecs::SystemReport& report(const FrameResult& r, const std::string& name) {
@@ -117,12 +124,7 @@ TEST(Render, SmallAndFarSphereLightsGiveTheirClosedFormIrradiance) {
                                       d, r, 1.0 / (ratio * ratio)));
         ASSERT_NE(text.find("type = \"sphere\""), std::string::npos);
         std::ofstream(dir.file("s.toml")) << text;
-        FrameRequest req;
-        req.scene = dir.file("s.toml");
-        req.ocio_config = test::shipped_ocio();
-        req.log = &test::quiet_log();
-        req.options.threads = 1;
-        const FrameResult f = render_frame(req);
+        const FrameResult f = render_path(dir.file("s.toml"), 1);
         double mean = 0.0;
         for (const float v : f.image) mean += static_cast<double>(v);
         mean /= static_cast<double>(f.image.size());
