@@ -17,7 +17,11 @@ void host_log(void* context, SpangleLogLevel level, const char* message) {
                        : level == SPANGLE_LOG_WARNING ? LogLevel::Warning
                        : level == SPANGLE_LOG_INFO    ? LogLevel::Info
                                                       : LogLevel::Debug;
-    host->log().write(l, message ? message : "");
+    const char* text = message ? message : "";
+    if (l >= LogLevel::Warning && !host->subject().empty())
+        host->log().write(l, fmt::format("{}: {}", host->subject(), text));
+    else
+        host->log().write(l, text);
 }
 
 int host_convert(void* context, const char* from, float* rgb, uint32_t count, char* error,
@@ -300,7 +304,16 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
     }
     const SpangleParams_v3 view = params.view();
     char error[512] = {0};
-    void* instance = model->create(&view, host.api(), error, sizeof(error));
+    void* instance = nullptr;
+    {
+        // The plugin's warnings name the material they are about.
+        struct Subject {
+            const HostServices& host;
+            ~Subject() { host.set_subject({}); }
+        } subject{host};
+        host.set_subject(fmt::format("{}: material '{}'", m.loc.str(), m.name));
+        instance = model->create(&view, host.api(), error, sizeof(error));
+    }
     if (!instance)
         throw_error(m.loc, "material '{}': plugin '{}' could not create model '{}': {}", m.name,
                     m.plugin, model->name, error[0] ? error : "no reason given");

@@ -27,12 +27,17 @@ public:
     const Logger& log() const { return log_; }
     /** Image textures of material inputs (opened while materials are made). */
     TextureService& textures() const { return textures_; }
+    /** What a plugin's warnings and errors are about while a material is made ("FILE:LINE:COL:
+     *  material 'paint'"): host_log puts it before them. Empty: nothing. */
+    void set_subject(std::string subject) const { subject_ = std::move(subject); }
+    const std::string& subject() const { return subject_; }
 
 private:
     const ColorConfig& color_;
     const Logger& log_;
     mutable TextureService textures_;
     std::string working_;  ///< keeps api_.working_space alive
+    mutable std::string subject_;
     SpangleHost_v3 api_{};
 };
 

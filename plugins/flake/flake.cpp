@@ -6,6 +6,8 @@
 #include <spangle/plugin.h>
 
 #include <chrono>
+#include <cstring>
+#include <initializer_list>
 #include <new>
 #include <string>
 
@@ -25,8 +27,73 @@ uint64_t ns_since(Clock::time_point t0) {
         std::chrono::duration_cast<std::chrono::nanoseconds>(Clock::now() - t0).count());
 }
 
+/** Whether parameter `name` differs from its schema default (the host fills in defaults, so a
+ *  value set to the default cannot be told from one left out: it does nothing either way). */
+bool changed(const SpangleParams_v3* p, const char* name) {
+    const SpangleParamValue_v3* v = plugin_support::find_param(p, name);
+    if (!v) return false;
+    for (const SpangleParamDesc_v3& d : kParams) {
+        if (std::strcmp(d.name, name) != 0) continue;
+        if (d.type == SPANGLE_PARAM_STRING)
+            return std::strcmp(v->string ? v->string : "",
+                               d.default_string ? d.default_string : "") != 0;
+        const int n = d.type == SPANGLE_PARAM_COLOR ? 3 : 1;
+        for (int c = 0; c < n; ++c)
+            if (v->number[c] != d.default_value[c]) return true;
+        return false;
+    }
+    return false;
+}
+
+/** Warns about parameters set away from their defaults that the other parameters make inert
+ *  (coat_ior while coat is off, flakes2_* at flakes2_weight 0, ...): the scene renders as if they
+ *  were not there, which an artist tuning them would otherwise not learn. */
+void warn_inert(const SpangleParams_v3* p, const SpangleHost_v3* host) {
+    if (!host || !host->log) return;
+    using plugin_support::param_number;
+    using plugin_support::param_string;
+    const auto check = [&](bool inert, std::initializer_list<const char*> names,
+                           const char* because) {
+        if (!inert) return;
+        std::string set;
+        for (const char* n : names)
+            if (changed(p, n)) {
+                if (!set.empty()) set += ", ";
+                set += n;
+            }
+        if (set.empty()) return;
+        const std::string msg = set + (set.find(',') == std::string::npos ? " has" : " have") +
+                                " no effect: " + because;
+        host->log(host->context, SPANGLE_LOG_WARNING, msg.c_str());
+    };
+    const std::string fresnel = param_string(p, "fresnel");
+    check(param_number(p, "coat") == 0.0, {"coat_ior", "coat_roughness"},
+          "the coat is off (coat = true adds it)");
+    check(param_number(p, "film_thickness_max") == 0.0, {"film_thickness_min", "film_ior"},
+          "the film is off (film_thickness_max > 0 adds it)");
+    check(param_number(p, "color_table") == 0.0,
+          {"table_size", "table_s", "table_l", "table_space", "hue_spread"},
+          "the colour table is off (color_table = true turns it on)");
+    check(param_number(p, "color_table") != 0.0, {"flake_color"},
+          "the colour table gives the flakes their colours");
+    check(param_number(p, "flakes2_weight") == 0.0,
+          {"flakes2_density", "flakes2_color", "flakes2_roughness", "flakes2_gamma"},
+          "there is no second population (flakes2_weight > 0 adds it)");
+    check(fresnel != "conductor", {"preset"},
+          "the preset is the metal of conductor flakes (fresnel = \"conductor\")");
+    check(fresnel != "dielectric", {"flake_ior"},
+          "flake_ior is the index of dielectric flakes (fresnel = \"dielectric\")");
+    check(fresnel != "schlick", {"flake_f0"},
+          "flake_f0 is the reflectance of Schlick flakes (fresnel = \"schlick\")");
+    check(param_number(p, "flake_size") == 0.0, {"flake_shape"},
+          "flakes are points (flake_size > 0 gives them an outline)");
+    check(param_string(p, "algorithm") == "enumerate", {"exact_flakes", "stand_ins"},
+          "they steer the tree algorithm and this material enumerates");
+}
+
 void* flake_create(const SpangleParams_v3* p, const SpangleHost_v3* host, char* error,
                    uint32_t cap) {
+    warn_inert(p, host);
     auto* m = new (std::nothrow) Material;
     if (!m) {
         set_error(error, cap, "out of memory");

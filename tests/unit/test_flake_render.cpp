@@ -11,6 +11,7 @@
 #include <sstream>
 
 #include "pipeline/frame.h"
+#include "pipeline/session.h"
 #include "scene_request.h"
 #include "test_support.h"
 
@@ -400,6 +401,63 @@ TEST(FlakeRender, GrazingGlintsArePointsAsTheEnumerationsAre) {
     EXPECT_GT(more.dark, 0.9 * flakes.dark);
     EXPECT_GT(more.dark, tree.dark);
     EXPECT_NEAR(more.run, flakes.run, 0.1 * flakes.run);
+}
+
+TEST(FlakeRender, ParametersOthersMakeInertAreSaid) {
+    // coat_ior while the coat is off, a second population's colour at flakes2_weight 0, the tree's
+    // stand_ins in an enumerating material: the render is as if they were not written. They were
+    // taken without a word; now each is a warning at its material. A material whose parameters
+    // all act says nothing.
+    test::TempDir dir("flake_inert");
+    std::ofstream(dir.file("s.toml")) << R"([render]
+width = 8
+height = 8
+spp = 1
+
+[camera]
+position = [0, 0, 4]
+look_at = [0, 0, 0]
+
+[[material]]
+name = "inert"
+plugin = "flake"
+params = { coat_ior = 1.8, flakes2_color = [0.2, 0.4, 0.9], algorithm = "enumerate", stand_ins = 32, preset = "gold", fresnel = "schlick" }
+
+[[material]]
+name = "acting"
+plugin = "flake"
+params = { coat = true, coat_ior = 1.8, flakes2_weight = 0.2, flakes2_color = [0.2, 0.4, 0.9], fresnel = "conductor", preset = "gold" }
+
+[[object]]
+mesh = "ball.obj"
+material = "inert"
+
+[[object]]
+mesh = "ball.obj"
+material = "acting"
+translate = [1, 0, 0]
+
+[[light]]
+type = "distant"
+direction = [0, 0, -1]
+intensity = 1
+)";
+    std::filesystem::copy_file(test::test_dir() + "/scenes/uvless_ball.obj", dir.file("ball.obj"));
+    RenderOptions options;
+    options.threads = 1;
+    const Logger log{LogLevel::Warning};  // the session keeps a reference: it must outlive it
+    Session session({}, test::shipped_ocio(), options, log);
+    testing::internal::CaptureStderr();
+    session.load(dir.file("s.toml"));
+    const std::string said = testing::internal::GetCapturedStderr();
+    const std::string at = dir.file("s.toml") + ":10:1: material 'inert': ";
+    for (const std::string& warning :
+         {at + "coat_ior has no effect: the coat is off",
+          at + "flakes2_color has no effect: there is no second population",
+          at + "stand_ins has no effect: they steer the tree algorithm",
+          at + "preset has no effect: the preset is the metal of conductor flakes"})
+        EXPECT_NE(said.find(warning), std::string::npos) << warning << "\nin:\n" << said;
+    EXPECT_EQ(said.find("material 'acting'"), std::string::npos) << said;
 }
 
 }  // namespace
