@@ -17,6 +17,7 @@
 
 #include "cli/commands.h"
 #include "cli/launcher.h"
+#include "cli/signals.h"
 #include "cli/usage.h"
 #include "core/error.h"
 #include "core/text.h"
@@ -93,6 +94,7 @@ int run_chosen(const std::vector<Command>& commands) {
 
 int main(int argc, char** argv) {
     using namespace spangle;
+    install_crash_handlers();
     CLI::App app{"Spangle: a physically based renderer for glittering surfaces"};
     app.set_version_flag("--version", std::string("spangle ") + SPANGLE_VERSION);
     app.require_subcommand(1);

@@ -4,7 +4,10 @@
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
+#include <filesystem>
+#include <map>
 #include <memory>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -23,10 +26,29 @@ int run_plugins(const std::vector<std::string>& dirs) {
     for (const auto& d : loader.search_path()) fmt::print("  {}\n", d);
     const auto files = loader.discover();
     if (files.empty()) fmt::print("no plugins found\n");
+    // Files of the same name later on the path: a render never opens them (the first wins).
+    std::map<std::string, std::vector<std::string>> shadowed;
+    std::set<std::string> first;
+    for (const auto& f : files) first.insert(f);
+    for (const auto& dir : loader.search_path()) {
+        std::error_code ec;
+        for (const auto& e : std::filesystem::directory_iterator(dir, ec)) {
+            const std::string name = e.path().filename().string();
+            if (name.rfind("libspangle_", 0) != 0 || e.path().extension() != ".so" ||
+                first.count(e.path().string()))
+                continue;
+            shadowed[name].push_back(e.path().string());
+        }
+    }
     int bad = 0;
     for (const auto& f : files) {
+        const std::string file = std::filesystem::path(f).filename().string();
+        for (const auto& other : shadowed[file])
+            fmt::print("\n{}: not used: {} comes first on the search path\n", other, f);
         try {
-            auto p = PluginLoader::open_file(f, "");
+            // The name a scene opens it by, as a render checks it.
+            const std::string stem = std::filesystem::path(f).stem().string();
+            auto p = PluginLoader::open_file(f, stem.substr(std::string("libspangle_").size()));
             const SpangleMaterialPlugin_v3& t = p->table();
             fmt::print("\n{} ({}): {}\n", t.name, f, t.doc ? t.doc : "");
             for (uint32_t m = 0; m < t.model_count; ++m) {

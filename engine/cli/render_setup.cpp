@@ -19,6 +19,7 @@ void warn_nonfinite(const Logger& log, const RenderStats& st) {
             "{} non-finite sample values were replaced by black; the first at pixel ({}, {}), "
             "sample {}",
             st.nonfinite, st.first_bad_pixel_x, st.first_bad_pixel_y, st.first_bad_sample);
+    for (const std::string& p : st.plugin_problems) log.warn("{}", p);
 }
 
 }  // namespace spangle

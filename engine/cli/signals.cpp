@@ -7,6 +7,7 @@
 #include <csignal>
 
 #include "color/image_output.h"
+#include "shading/plugin_call.h"
 
 namespace spangle {
 namespace {
@@ -22,7 +23,55 @@ extern "C" void on_stop_signal(int sig) {
     if (stop_signal == 0) stop_signal = sig;
 }
 
+/** write(2) of a C string, ignoring the result (nothing else can be done in a handler). */
+void say(const char* text) {
+    std::size_t n = 0;
+    while (text[n]) ++n;
+    while (n > 0) {
+        const ssize_t w = ::write(STDERR_FILENO, text, n);
+        if (w <= 0) return;
+        text += w;
+        n -= static_cast<std::size_t>(w);
+    }
+}
+
+extern "C" void on_crash(int sig) {
+    const char* what = sig == SIGSEGV   ? "SIGSEGV (invalid memory access)"
+                       : sig == SIGBUS  ? "SIGBUS (a mapped file changed or vanished)"
+                       : sig == SIGILL  ? "SIGILL (illegal instruction)"
+                       : sig == SIGFPE  ? "SIGFPE (arithmetic fault)"
+                       : sig == SIGABRT ? "SIGABRT (aborted)"
+                                        : "a fatal signal";
+    const PluginCallSite call = current_plugin_call();
+    say("spangle: fatal: ");
+    say(what);
+    if (call.label && call.kernel) {
+        say(" in ");
+        say(call.kernel);
+        say("() of ");
+        say(call.label);
+        say(": the plugin crashed (rebuild it, or report it to its author with the scene)\n");
+    } else {
+        say(" in spangle itself: please report it, with the scene and the command line\n");
+    }
+    remove_image_in_progress();
+    // The default action: the status and the core dump the signal would have given.
+    std::signal(sig, SIG_DFL);
+    ::raise(sig);
+}
+
 }  // namespace
+
+void install_crash_handlers() {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;  // the sanitizer's own report says more
+#endif
+    struct sigaction sa {};
+    sa.sa_handler = on_crash;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_RESETHAND;  // a crash inside the handler takes the default action
+    for (const int sig : {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT}) sigaction(sig, &sa, nullptr);
+}
 
 void install_signal_handlers() {
     struct sigaction sa {};

@@ -10,6 +10,12 @@ namespace spangle {
  *  early when one arrives). */
 void install_signal_handlers();
 
+/** Installs the last words of a crash (SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT): one line on
+ *  stderr naming the material plugin, material and kernel the crashing thread was in (or saying
+ *  that it was in spangle itself), the temporary file of an image being written removed; then
+ *  the signal's default action (exit status 128 + the signal, a core dump where enabled). */
+void install_crash_handlers();
+
 /** Whether a stop signal has arrived (async-signal-safe to poll from any thread). */
 bool stop_requested();
 

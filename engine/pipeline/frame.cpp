@@ -72,7 +72,10 @@ void add_scene_facts(const Session& session, FrameResult& r) {
         for (const auto& mat : m->instances) {
             if (!mat || !mat->model().stats) continue;
             SpangleStat_v3 buf[64];
-            const uint32_t n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);
+            uint32_t n = 0;
+            call_plugin(mat->label(), "stats", [&] {
+                n = std::min<uint32_t>(mat->model().stats(mat->instance(), buf, 64), 64);
+            });
             std::vector<std::pair<std::string, double>> values;
             for (uint32_t i = 0; i < n; ++i)
                 values.emplace_back(buf[i].name ? buf[i].name : "?", buf[i].value);

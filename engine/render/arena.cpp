@@ -1,6 +1,7 @@
 #include "render/arena.h"
 
 #include <cstdint>
+#include <new>
 
 namespace spangle {
 
@@ -25,7 +26,11 @@ void* ScratchArena::allocate(std::size_t bytes, std::size_t align) {
             continue;
         }
         const std::size_t size = need > kBlockSize ? need : kBlockSize;
-        blocks_.push_back({std::make_unique<std::byte[]>(size), size});
+        // Not zeroed (a plugin writes what it asks for), and no memory is NULL as the ABI says:
+        // an exception must not unwind through the plugin's C frames.
+        std::unique_ptr<std::byte[]> data(new (std::nothrow) std::byte[size]);
+        if (!data) return nullptr;
+        blocks_.push_back({std::move(data), size});
         block_ = blocks_.size() - 1;
         offset_ = 0;
     }

@@ -25,7 +25,11 @@ public:
 
 private:
     static void* allocate_c(void* self, std::size_t bytes, std::size_t align) {
-        return static_cast<ScratchArena*>(self)->allocate(bytes, align);
+        try {  // blocks_ may fail to grow: NULL for the plugin, never an exception
+            return static_cast<ScratchArena*>(self)->allocate(bytes, align);
+        } catch (...) {
+            return nullptr;
+        }
     }
     static constexpr std::size_t kBlockSize = 1 << 20;
     struct Block {

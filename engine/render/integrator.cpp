@@ -463,6 +463,10 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     AdaptiveFilm adaptive;
     if (plan.on()) job.adaptive = &plan;
     const uint32_t first_sample = set_up_job(job, scene, options, cam, film, camera_steps);
+    // Plugin outputs the host cannot use are counted over this render (an earlier one's go).
+    if (scene.materials)
+        for (const auto& mat : *scene.materials)
+            if (mat) mat->bad_output().take_report();
     // The crop window (the whole image without one); adaptive sampling renders the whole tiles
     // it meets, since a pixel's decision reads its neighbours in its tile.
     const CropWindow asked = crop_within(options.crop, film.width, film.height);
@@ -506,6 +510,13 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     if (job.layers)
         finish_layers(out.layers, job.layer_film.layout, job.layer_plan, samples, counts);
     record_stats(job, options, film, samples, first_sample, passes, out);
+    if (scene.materials)
+        for (const auto& mat : *scene.materials) {
+            if (!mat) continue;
+            if (std::string report = mat->bad_output().take_report(); !report.empty())
+                out.stats.plugin_problems.push_back(fmt::format(
+                    "{}: outputs the renderer could not use: {}", mat->label(), report));
+        }
     if (plan.on()) {
         // Every sample taken counts (those of the tiles' pixels outside the window too).
         out.stats.samples =

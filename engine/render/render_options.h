@@ -118,6 +118,9 @@ struct RenderStats {
     uint64_t samples = 0;      ///< camera samples (pixels x spp)
     uint64_t nonfinite = 0;    ///< contributions replaced by black
     uint32_t first_bad_pixel_x = 0, first_bad_pixel_y = 0, first_bad_sample = 0;
+    /** Per material whose plugin returned outputs the host could not use (dropped or clamped):
+     *  its label and what, with counts. Empty: none. */
+    std::vector<std::string> plugin_problems;
     double seconds = 0.0;      ///< wall time of the render system
     uint32_t spp_reached = 0;  ///< samples per pixel of the passes completed
     uint32_t spp_target = 0;   ///< samples per pixel asked for

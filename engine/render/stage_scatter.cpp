@@ -125,7 +125,9 @@ void scatter(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInst
                              nullptr,
                              nullptr};
     if (sink.wants_glints(bounce)) sink.glint_outputs(n, sb.glint_r, sb.glint_g, sb.glint_b);
-    mat.model().sample(mat.instance(), ws.closure_data, &sb);
+    call_plugin(mat.label(), "sample",
+                [&] { mat.model().sample(mat.instance(), ws.closure_data, &sb); });
+    check_samples(sb, b.woz.data(), n, mat.bad_output());
     for (uint32_t k = 0; k < n; ++k) continue_path(job, ws, sink, k, paths[k], bounce);
 }
 

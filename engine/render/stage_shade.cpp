@@ -231,7 +231,8 @@ void prepare(Workspace& ws, const MaterialInstance& mat, SpangleShadingBatch_v3&
     closures = std::align(16, static_cast<std::size_t>(n) * model.closure_size, closures, space);
     ws.arena.reset();
     SpangleArena_v3 arena = ws.arena.api();
-    model.prepare(mat.instance(), &batch, closures, &arena);
+    call_plugin(mat.label(), "prepare",
+                [&] { model.prepare(mat.instance(), &batch, closures, &arena); });
     ws.closure_data = closures;
 }
 
@@ -270,7 +271,11 @@ uint32_t sample_lights(const RenderJob& job, Workspace& ws, Sink& sink, const Ma
                              nullptr,
                              nullptr};
     if (sink.wants_glints(bounce)) sink.glint_outputs(q, eval.glint_r, eval.glint_g, eval.glint_b);
-    if (q > 0) mat.model().eval(mat.instance(), ws.closure_data, &eval);
+    if (q > 0) {
+        call_plugin(mat.label(), "eval",
+                    [&] { mat.model().eval(mat.instance(), ws.closure_data, &eval); });
+        check_evals(eval, q, mat.bad_output());
+    }
     return q;
 }
 

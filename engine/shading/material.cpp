@@ -86,6 +86,11 @@ std::string range_text(const SpangleParamDesc_v3& d) {
 
 }  // namespace
 
+std::string plugin_label(const LoadedPlugin& plugin, const std::string& material) {
+    return fmt::format("plugin '{}' ({}), material '{}'", plugin.table().name, plugin.path(),
+                       material);
+}
+
 HostServices::HostServices(const ColorConfig& color, const Logger& log, TextureSettings textures)
     : color_(color),
       log_(log),
@@ -125,7 +130,7 @@ std::string describe_param(const SpangleParamDesc_v3& p) {
         range = p.choices ? fmt::format(" one of {}", p.choices) : std::string(" any name");
     else if (p.type != SPANGLE_PARAM_BOOL)
         range = " in " + range_text(p);
-    return fmt::format("{:<18} {:<6} = {:<16}{}  {}{}", p.name, type_name(p.type), def, range,
+    return fmt::format("{:<22} {:<6} = {:<16}{}  {}{}", p.name, type_name(p.type), def, range,
                        p.doc ? p.doc : "",
                        (p.flags & SPANGLE_PARAM_TEXTURABLE) ? " (texture ok)" : "");
 }
@@ -312,7 +317,12 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
             ~Subject() { host.set_subject({}); }
         } subject{host};
         host.set_subject(fmt::format("{}: material '{}'", m.loc.str(), m.name));
-        instance = model->create(&view, host.api(), error, sizeof(error));
+        try {
+            call_plugin(plugin_label(*plugin, m.name), "create",
+                        [&] { instance = model->create(&view, host.api(), error, sizeof(error)); });
+        } catch (const SpangleError& e) {
+            throw SpangleError(m.loc, e.what());
+        }
     }
     if (!instance)
         throw_error(m.loc, "material '{}': plugin '{}' could not create model '{}': {}", m.name,

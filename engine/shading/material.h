@@ -9,6 +9,7 @@
 #include "color/color_config.h"
 #include "core/log.h"
 #include "scene/components.h"
+#include "shading/plugin_call.h"
 #include "shading/plugin_loader.h"
 #include "shading/texture.h"
 
@@ -53,14 +54,25 @@ struct TextureBinding {
 /** What a material's maps do to the shading frame. */
 enum class MapKind { None, Normal, Bump };
 
+/** "plugin 'NAME' (PATH), material 'MATERIAL'". */
+std::string plugin_label(const LoadedPlugin& plugin, const std::string& material);
+
 /** One created material: owns the plugin instance and keeps its library open. */
 class MaterialInstance {
 public:
     MaterialInstance(std::shared_ptr<LoadedPlugin> plugin, const SpangleMaterialModel_v3* model,
                      void* instance, std::string name)
-        : plugin_(std::move(plugin)), model_(model), instance_(instance), name_(std::move(name)) {}
+        : plugin_(std::move(plugin)),
+          model_(model),
+          instance_(instance),
+          name_(std::move(name)),
+          label_(plugin_label(*plugin_, name_)) {}
     ~MaterialInstance() {
-        if (instance_) model_->destroy(instance_);
+        if (!instance_) return;
+        try {
+            call_plugin(label_, "destroy", [&] { model_->destroy(instance_); });
+        } catch (...) {  // nothing to do about it while tearing down
+        }
     }
     MaterialInstance(const MaterialInstance&) = delete;
     MaterialInstance& operator=(const MaterialInstance&) = delete;
@@ -69,6 +81,10 @@ public:
     const void* instance() const { return instance_; }
     const std::string& name() const { return name_; }
     const LoadedPlugin& plugin() const { return *plugin_; }
+    /** "plugin 'smooth' (PATH), material 'paint'": who a message about a plugin call names. */
+    const std::string& label() const { return label_; }
+    /** Outputs of this material's eval() and sample() the host could not use (render/stage_*). */
+    BadOutputCounts& bad_output() const { return bad_output_; }
 
     /** Textures of plugin parameters, in schema order. */
     const std::vector<TextureBinding>& textures() const { return textures_; }
@@ -89,6 +105,8 @@ private:
     const SpangleMaterialModel_v3* model_;
     void* instance_;
     std::string name_;
+    std::string label_;
+    mutable BadOutputCounts bad_output_;
 };
 
 /** A complete parameter set in schema order, with storage for its strings. */

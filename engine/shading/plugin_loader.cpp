@@ -9,6 +9,8 @@
 #include <elf.h>
 
 #include <algorithm>
+#include <cctype>
+#include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
@@ -62,6 +64,61 @@ std::string file_name_for(const std::string& name) {
     return "libspangle_" + name + ".so";
 }
 
+/** What is wrong with one parameter's description (the host would hand create() values its
+ *  own schema forbids, or refuse every value a scene gives); empty when it is fine. */
+std::string param_problem(const SpangleParamDesc_v3& d) {
+    const std::string name = d.name;
+    const bool snake = std::islower(static_cast<unsigned char>(name[0])) &&
+                       std::all_of(name.begin(), name.end(), [](char c) {
+                           return std::islower(static_cast<unsigned char>(c)) ||
+                                  std::isdigit(static_cast<unsigned char>(c)) || c == '_';
+                       });
+    if (!snake) return "is not a snake_case name (a-z, 0-9 and _, starting with a letter)";
+    const int type = static_cast<int>(d.type);
+    if (type < SPANGLE_PARAM_FLOAT || type > SPANGLE_PARAM_VEC3)
+        return fmt::format("has type {}, which is not a SpangleParamType", type);
+    const bool numeric = d.type != SPANGLE_PARAM_STRING && d.type != SPANGLE_PARAM_BOOL;
+    if ((d.flags & SPANGLE_PARAM_TEXTURABLE) && d.type != SPANGLE_PARAM_FLOAT &&
+        d.type != SPANGLE_PARAM_COLOR)
+        return "is marked texturable, which only FLOAT and COLOR parameters may be";
+    if (d.type == SPANGLE_PARAM_STRING) {
+        if (!d.default_string) return "is a STRING without a default_string";
+        if (d.choices) {
+            const std::string choices = d.choices;
+            bool found = false;
+            for (std::size_t at = 0; at <= choices.size();) {
+                const std::size_t bar = std::min(choices.find('|', at), choices.size());
+                found = found || (bar - at == std::strlen(d.default_string) &&
+                                  choices.compare(at, bar - at, d.default_string) == 0);
+                at = bar + 1;
+            }
+            if (!found)
+                return fmt::format("has the default '{}', which is not one of its choices ({})",
+                                   d.default_string, choices);
+        }
+        return {};
+    }
+    if (d.type == SPANGLE_PARAM_BOOL) {
+        if (d.default_value[0] != 0.0 && d.default_value[0] != 1.0)
+            return fmt::format("is a BOOL with the default {}, expected 0 or 1",
+                               d.default_value[0]);
+        return {};
+    }
+    if (numeric && !(d.min_value <= d.max_value))
+        return fmt::format("has the range [{}, {}], whose minimum is not at most its maximum",
+                           d.min_value, d.max_value);
+    const int channels = d.type == SPANGLE_PARAM_COLOR || d.type == SPANGLE_PARAM_VEC3 ? 3 : 1;
+    for (int c = 0; c < channels; ++c) {
+        const double v = d.default_value[c];
+        if (!(v >= d.min_value && v <= d.max_value))
+            return fmt::format("has the default {} outside its range [{}, {}]", v, d.min_value,
+                               d.max_value);
+        if (d.type == SPANGLE_PARAM_INT && v != std::floor(v))
+            return fmt::format("is an INT with the default {}, which is not a whole number", v);
+    }
+    return {};
+}
+
 /** Sanity checks of a table the host is about to trust; returns an empty string when fine. */
 std::string table_problem(const SpangleMaterialPlugin_v3& t) {
     if (!t.name || !*t.name) return "it has no name";
@@ -77,9 +134,19 @@ std::string table_problem(const SpangleMaterialPlugin_v3& t) {
                                m.closure_size);
         if (m.param_count > 0 && !m.params)
             return fmt::format("model '{}' has no parameter table", m.name);
-        for (uint32_t k = 0; k < m.param_count; ++k)
+        for (uint32_t k = 0; k < m.param_count; ++k) {
             if (!m.params[k].name || !*m.params[k].name)
                 return fmt::format("model '{}' parameter #{} has no name", m.name, k);
+            if (std::string why = param_problem(m.params[k]); !why.empty())
+                return fmt::format("model '{}' parameter '{}' {}", m.name, m.params[k].name, why);
+            for (uint32_t j = 0; j < k; ++j)
+                if (std::strcmp(m.params[j].name, m.params[k].name) == 0)
+                    return fmt::format("model '{}' has two parameters called '{}'", m.name,
+                                       m.params[k].name);
+        }
+        for (uint32_t j = 0; j < i; ++j)
+            if (std::strcmp(t.models[j].name, m.name) == 0)
+                return fmt::format("it has two models called '{}'", m.name);
     }
     return {};
 }
@@ -142,12 +209,30 @@ bool in_executable_mapping(const void* address) {
 std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
                                                       const std::string& expected_name,
                                                       const std::string& shown_path) {
-    check_library_file(path);
+    // Messages name the file the user has (a private copy's name would mean nothing to them).
+    const std::string& shown = shown_path.empty() ? path : shown_path;
+    try {
+        check_library_file(path);
+    } catch (const SpangleError& e) {
+        if (shown == path) throw;
+        std::string what = e.what();
+        for (std::size_t at = what.find(path); at != std::string::npos; at = what.find(path, at))
+            what.replace(at, path.size(), shown);
+        throw SpangleError(what);
+    }
     dlerror();
-    void* handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    void* handle = nullptr;
+    try {
+        handle = dlopen(path.c_str(), RTLD_NOW | RTLD_LOCAL);
+    } catch (const std::exception& e) {
+        throw_error("plugin '{}' threw while it was loaded (a static initialiser): {}", shown,
+                    e.what());
+    } catch (...) {
+        throw_error("plugin '{}' threw while it was loaded (a static initialiser)", shown);
+    }
     if (!handle) {
         const char* why = dlerror();
-        throw_error("cannot open plugin '{}': {}", path, why ? why : "unknown dlopen error");
+        throw_error("cannot open plugin '{}': {}", shown, why ? why : "unknown dlopen error");
     }
     // From here on the handle is owned by a guard so that every error path closes it.
     std::unique_ptr<void, int (*)(void*)> guard(handle, dlclose);
@@ -155,34 +240,64 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
     void* sym = dlsym(handle, SPANGLE_MATERIAL_ENTRY_POINT);
     if (!sym) {
         const char* why = dlerror();
-        throw_error("'{}' is not a Spangle plugin: it has no entry point '{}' ({})", path,
-                    SPANGLE_MATERIAL_ENTRY_POINT, why ? why : "symbol is null");
+        throw_error(
+            "'{}' is not a Spangle plugin: it has no entry point '{}' ({}; in C++ the entry "
+            "point must be declared extern \"C\" and exported, e.g. with SPANGLE_PLUGIN_EXPORT)",
+            shown, SPANGLE_MATERIAL_ENTRY_POINT, why ? why : "symbol is null");
     }
     if (!in_executable_mapping(sym))
-        throw_error("'{}' is not a Spangle plugin: its '{}' is data, not a function", path,
+        throw_error("'{}' is not a Spangle plugin: its '{}' is data, not a function", shown,
                     SPANGLE_MATERIAL_ENTRY_POINT);
     SpangleMaterialEntry_v3 entry;
     static_assert(sizeof(entry) == sizeof(sym));
     std::memcpy(&entry, &sym, sizeof(entry));
-    const SpangleMaterialPlugin_v3* table = entry(SPANGLE_MATERIAL_ABI_VERSION);
+    const SpangleMaterialPlugin_v3* table = nullptr;
+    try {
+        table = entry(SPANGLE_MATERIAL_ABI_VERSION);
+    } catch (const std::exception& e) {
+        throw_error("plugin '{}': its entry point threw (a plugin must not throw): {}", shown,
+                    e.what());
+    } catch (...) {
+        throw_error("plugin '{}': its entry point threw (a plugin must not throw)", shown);
+    }
     if (!table)
-        throw_error("plugin '{}' refused this host's material ABI version {}", path,
+        throw_error("plugin '{}' refused this host's material ABI version {}", shown,
                     SPANGLE_MATERIAL_ABI_VERSION);
     if (table->abi_version != SPANGLE_MATERIAL_ABI_VERSION)
         throw_error(
             "plugin '{}' was built for material ABI version {}, but this spangle uses "
             "version {}: rebuild the plugin against this spangle's plugin.h",
-            path, table->abi_version, SPANGLE_MATERIAL_ABI_VERSION);
+            shown, table->abi_version, SPANGLE_MATERIAL_ABI_VERSION);
     if (table->struct_size != sizeof(SpangleMaterialPlugin_v3))
-        throw_error("plugin '{}' has a plugin table of {} bytes, expected {}: ABI mismatch", path,
+        throw_error("plugin '{}' has a plugin table of {} bytes, expected {}: ABI mismatch", shown,
                     table->struct_size, sizeof(SpangleMaterialPlugin_v3));
     if (const std::string p = table_problem(*table); !p.empty())
-        throw_error("plugin '{}' is malformed: {}", path, p);
+        throw_error("plugin '{}' is malformed: {}", shown, p);
     if (!expected_name.empty() && expected_name != table->name)
-        throw_error("plugin file '{}' calls itself '{}', expected '{}'", path, table->name,
+        throw_error("plugin file '{}' calls itself '{}', expected '{}'", shown, table->name,
                     expected_name);
     guard.release();
     return std::make_shared<LoadedPlugin>(shown_path.empty() ? path : shown_path, handle, table);
+}
+
+std::shared_ptr<LoadedPlugin> PluginLoader::open_copy(const std::string& path,
+                                                      const std::string& name,
+                                                      const FileLoc& where) {
+    const fs::path copy =
+        fs::temp_directory_path() /
+        fmt::format("spangle-{}-{}-{}", ::getpid(), ++copies_, fs::path(path).filename().string());
+    std::error_code ec;
+    fs::copy_file(path, copy, fs::copy_options::overwrite_existing, ec);
+    if (ec) throw_error(where, "cannot copy plugin '{}' from {}: {}", name, path, ec.message());
+    std::shared_ptr<LoadedPlugin> plugin;
+    try {
+        plugin = open_file(copy.string(), name, path);
+    } catch (const SpangleError& e) {
+        fs::remove(copy, ec);
+        throw SpangleError(where, e.what());
+    }
+    fs::remove(copy, ec);  // the mapping stays; nothing is left behind
+    return plugin;
 }
 
 std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const FileLoc& where) {
@@ -192,21 +307,7 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const 
         const std::string id = file_identity(path);
         if (id == identity_[name]) return it->second;
         // Rebuilt since it was opened: open the new file through a private copy.
-        const fs::path copy =
-            fs::temp_directory_path() / fmt::format("spangle-{}-{}-{}", ::getpid(), ++copies_,
-                                                    fs::path(path).filename().string());
-        std::error_code ec;
-        fs::copy_file(path, copy, fs::copy_options::overwrite_existing, ec);
-        if (ec)
-            throw_error(where, "cannot reload plugin '{}' from {}: {}", name, path, ec.message());
-        std::shared_ptr<LoadedPlugin> plugin;
-        try {
-            plugin = open_file(copy.string(), name, path);
-        } catch (const SpangleError& e) {
-            fs::remove(copy, ec);
-            throw SpangleError(where, e.what());
-        }
-        fs::remove(copy, ec);
+        std::shared_ptr<LoadedPlugin> plugin = open_copy(path, name, where);
         it->second = plugin;
         identity_[name] = id;
         return plugin;
@@ -220,10 +321,19 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const 
     for (const auto& dir : dirs_) {
         const fs::path candidate = fs::path(dir) / file;
         std::error_code ec;
-        if (!fs::exists(candidate, ec)) continue;
+        if (!fs::exists(candidate, ec)) {
+            if (fs::is_symlink(fs::symlink_status(candidate, ec)))
+                throw_error(where, "plugin '{}': {} is a symbolic link to {}, which does not exist",
+                            name, candidate.string(), fs::read_symlink(candidate, ec).string());
+            continue;
+        }
         try {
             const std::string id = file_identity(candidate.string());
-            auto plugin = open_file(candidate.string(), name);
+            // Watched plugins are mapped from a private copy from the first load on: a rebuild
+            // that writes the library in place (cp, install) would change the pages under the
+            // running process (SIGBUS), where a rename or a new file leaves them alone.
+            auto plugin = reopen_changed ? open_copy(candidate.string(), name, where)
+                                         : open_file(candidate.string(), name);
             cache_[name] = plugin;
             identity_[name] = id;
             return plugin;

@@ -7,6 +7,8 @@
 #include <fstream>
 
 #include "core/hash.h"
+#include "pipeline/frame.h"
+#include "scene_request.h"
 #include "shading/material.h"
 #include "shading/plugin_loader.h"
 #include "test_support.h"
@@ -296,6 +298,102 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
         EXPECT_NEAR(epdf[i], pdf[i], 1e-6f) << "eval's pdf must equal sample's pdf";
         EXPECT_NEAR(er[i], r[i], 1e-7f);
     }
+}
+
+TEST(PluginLoader, SchemasThatContradictThemselvesAreRefused) {
+    // A default outside the parameter's own range was handed to create() as "validated".
+    EXPECT_HAS(error_of([] { PluginLoader::open_file(broken("badschema"), "badschema"); }),
+               "parameter 'x' has the default 5 outside its range [0, 1]");
+    // An entry point that throws was reported as the bare exception text, and stopped
+    // `spangle plugins` from listing the other plugins.
+    const std::string threw =
+        error_of([] { PluginLoader::open_file(broken("throwentry"), "throwentry"); });
+    EXPECT_HAS(threw, "libspangle_throwentry.so");
+    EXPECT_HAS(threw, "its entry point threw");
+    EXPECT_HAS(threw, "boom from the entry point");
+}
+
+/** Renders a 16 x 16 quad in the `kernels` test plugin's mode (see broken_plugin.cpp). */
+FrameResult render_kernels(const test::TempDir& dir, int mode) {
+    const std::string scene = dir.file(fmt::format("mode{}.toml", mode));
+    std::ofstream(scene) << fmt::format(R"([render]
+width = 16
+height = 16
+spp = 4
+max_depth = 3
+
+[camera]
+position = [0, 0, 3]
+look_at = [0, 0, 0]
+
+[environment]
+color = [1, 1, 1]
+
+[[light]]
+type = "distant"
+direction = [0.3, -0.2, -1]
+intensity = 2
+
+[[material]]
+name = "m"
+plugin = "kernels"
+params = {{ x = {} }}
+
+[[object]]
+mesh = "{}/scenes/uvless_ball.obj"
+material = "m"
+)",
+                                        mode / 10.0, test::test_dir());
+    FrameRequest req = test::quiet_request(scene);
+    req.plugin_dirs = {SPANGLE_TEST_PLUGIN_DIR};
+    req.options.threads = 1;
+    req.options.layers = true;
+    return render_frame(req);
+}
+
+TEST(Materials, PluginOutputsTheRendererCannotUseAreDroppedAndSaid) {
+    // A NaN direction from sample() was traced (the ray escaped to the sky: +12% brighter), a
+    // reflection under the surface went into the object, a pdf of 0 or a negative f was lost
+    // without a word, and a glint larger than f broke beauty = rest + glints. Each bad sample is
+    // now dropped as the plugin's own "no sample" would be, and said once per material.
+    test::TempDir dir("plugin_outputs");
+    const FrameResult none = render_kernels(dir, 7);
+    EXPECT_TRUE(none.stats.plugin_problems.empty());
+    const std::pair<int, const char*> sample_modes[] = {{1, "a sampled direction not finite"},
+                                                        {2, "a pdf not finite, negative, or 0"},
+                                                        {3, "an f negative or not finite"},
+                                                        {4, "a reflection leaving on the other"}};
+    for (const auto& [mode, said] : sample_modes) {
+        const FrameResult r = render_kernels(dir, mode);
+        EXPECT_EQ(r.image, none.image) << "mode " << mode << ": dropped like no sample at all";
+        ASSERT_EQ(r.stats.plugin_problems.size(), 1u) << "mode " << mode;
+        EXPECT_HAS(r.stats.plugin_problems[0], "plugin 'kernels'");
+        EXPECT_HAS(r.stats.plugin_problems[0], "material 'm'");
+        EXPECT_HAS(r.stats.plugin_problems[0], said);
+    }
+    // eval(): a NaN f is dropped as an f of 0 would be.
+    const FrameResult nan_eval = render_kernels(dir, 6), zero_eval = render_kernels(dir, 10);
+    EXPECT_EQ(nan_eval.image, zero_eval.image);
+    EXPECT_EQ(nan_eval.stats.nonfinite, 0u);
+    ASSERT_EQ(nan_eval.stats.plugin_problems.size(), 1u);
+    EXPECT_HAS(nan_eval.stats.plugin_problems[0], "an f negative or not finite");
+    // A glint larger than f is clamped to f: the glints layer never exceeds the beauty.
+    const FrameResult good = render_kernels(dir, 0), glint = render_kernels(dir, 5);
+    EXPECT_EQ(glint.image, good.image);
+    ASSERT_EQ(glint.stats.plugin_problems.size(), 1u);
+    EXPECT_HAS(glint.stats.plugin_problems[0], "a glint outside [0, f]");
+    const auto g = std::find(glint.layer_names.begin(), glint.layer_names.end(), "glints.G");
+    ASSERT_NE(g, glint.layer_names.end());
+    const std::size_t nl = glint.layer_names.size(), gc = g - glint.layer_names.begin();
+    for (std::size_t i = 0; i < glint.image.size() / 3; ++i)
+        EXPECT_LE(glint.layers[i * nl + gc], glint.image[3 * i + 1] * 1.0001f + 1e-6f)
+            << "pixel " << i;
+    // An exception out of eval() names the plugin, the material and the kernel.
+    const std::string threw = error_of([&] { render_kernels(dir, 8); });
+    EXPECT_HAS(threw, "plugin 'kernels'");
+    EXPECT_HAS(threw, "material 'm'");
+    EXPECT_HAS(threw, "eval() threw an exception");
+    EXPECT_HAS(threw, "boom from eval");
 }
 
 }  // namespace

@@ -1,0 +1,126 @@
+#include "shading/plugin_call.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <vector>
+
+namespace spangle {
+
+namespace {
+
+thread_local PluginCallSite t_call;
+
+bool finite_nonnegative(float x) {
+    return std::isfinite(x) && x >= 0.0f;
+}
+
+/** Clamps glint channel c of query k into [0, f]; true when it was outside. */
+bool clamp_glint(float* glint, uint32_t k, float f) {
+    if (!glint) return false;
+    const float g = glint[k];
+    if (g >= 0.0f && g <= f) return false;
+    glint[k] = std::isnan(g) ? 0.0f : std::clamp(g, 0.0f, f);
+    return true;
+}
+
+}  // namespace
+
+PluginCallSite current_plugin_call() noexcept {
+    return t_call;
+}
+
+PluginCallMark::PluginCallMark(const char* label, const char* kernel) noexcept : saved_(t_call) {
+    t_call = {kernel, label};
+}
+
+PluginCallMark::~PluginCallMark() {
+    t_call = saved_;
+}
+
+std::string BadOutputCounts::take_report() {
+    const std::pair<std::atomic<uint64_t>*, const char*> kinds[] = {
+        {&direction, "a sampled direction not finite or zero"},
+        {&density, "a pdf not finite, negative, or 0 with a positive f"},
+        {&value, "an f negative or not finite"},
+        {&side, "a reflection leaving on the other side (or a transmission on the same side)"},
+        {&glint, "a glint outside [0, f] (clamped)"}};
+    std::vector<std::string> parts;
+    for (const auto& [count, what] : kinds)
+        if (const uint64_t n = count->exchange(0); n > 0)
+            parts.push_back(fmt::format("{} x {}", n, what));
+    return fmt::format("{}", fmt::join(parts, "; "));
+}
+
+void check_samples(SpangleSampleBatch_v3& s, const float* wo_z, uint32_t n, BadOutputCounts& bad) {
+    uint64_t direction = 0, density = 0, value = 0, side = 0, glint = 0;
+    for (uint32_t k = 0; k < n; ++k) {
+        if (s.flags[k] == 0) continue;
+        const float x = s.wi_x[k], y = s.wi_y[k], z = s.wi_z[k];
+        const float f[3] = {s.f_r[k], s.f_g[k], s.f_b[k]};
+        const float len2 = x * x + y * y + z * z;
+        bool ok = true;
+        if (!std::isfinite(len2) || !(len2 > 0.0f)) {
+            ++direction;
+            ok = false;
+        } else if (!finite_nonnegative(f[0]) || !finite_nonnegative(f[1]) ||
+                   !finite_nonnegative(f[2])) {
+            ++value;
+            ok = false;
+        } else if (!std::isfinite(s.pdf[k]) ||
+                   (!(s.pdf[k] > 0.0f) && std::max({f[0], f[1], f[2]}) > 0.0f)) {
+            ++density;
+            ok = false;
+        } else {
+            // The side wi leaves on against the lobe the plugin says it drew (wo.z exactly 0 or
+            // wi.z exactly 0 says nothing).
+            const float facing = z * wo_z[k];
+            const bool reflection = (s.flags[k] & SPANGLE_SAMPLE_REFLECTION) != 0,
+                       transmission = (s.flags[k] & SPANGLE_SAMPLE_TRANSMISSION) != 0;
+            if ((reflection && !transmission && facing < 0.0f) ||
+                (transmission && !reflection && facing > 0.0f)) {
+                ++side;
+                ok = false;
+            }
+        }
+        if (!ok) {
+            s.flags[k] = 0;
+            s.f_r[k] = s.f_g[k] = s.f_b[k] = s.pdf[k] = 0.0f;
+            if (s.glint_r) s.glint_r[k] = s.glint_g[k] = s.glint_b[k] = 0.0f;
+            continue;
+        }
+        const bool g = clamp_glint(s.glint_r, k, f[0]) | clamp_glint(s.glint_g, k, f[1]) |
+                       clamp_glint(s.glint_b, k, f[2]);
+        glint += g ? 1 : 0;
+    }
+    if (direction) bad.direction += direction;
+    if (density) bad.density += density;
+    if (value) bad.value += value;
+    if (side) bad.side += side;
+    if (glint) bad.glint += glint;
+}
+
+void check_evals(SpangleEvalBatch_v3& e, uint32_t n, BadOutputCounts& bad) {
+    uint64_t density = 0, value = 0, glint = 0;
+    for (uint32_t k = 0; k < n; ++k) {
+        const float f[3] = {e.f_r[k], e.f_g[k], e.f_b[k]};
+        const bool f_ok =
+            finite_nonnegative(f[0]) && finite_nonnegative(f[1]) && finite_nonnegative(f[2]);
+        const bool pdf_ok = finite_nonnegative(e.pdf[k]);
+        if (!f_ok || !pdf_ok) {
+            ++(f_ok ? density : value);
+            e.f_r[k] = e.f_g[k] = e.f_b[k] = e.pdf[k] = 0.0f;
+            if (e.glint_r) e.glint_r[k] = e.glint_g[k] = e.glint_b[k] = 0.0f;
+            continue;
+        }
+        const bool g = clamp_glint(e.glint_r, k, f[0]) | clamp_glint(e.glint_g, k, f[1]) |
+                       clamp_glint(e.glint_b, k, f[2]);
+        glint += g ? 1 : 0;
+    }
+    if (density) bad.density += density;
+    if (value) bad.value += value;
+    if (glint) bad.glint += glint;
+}
+
+}  // namespace spangle
