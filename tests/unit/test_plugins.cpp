@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -298,6 +299,27 @@ TEST_F(DiffuseThroughAbi, WhiteFurnaceWithAlbedoOneIsExactlyOne) {
         EXPECT_NEAR(epdf[i], pdf[i], 1e-6f) << "eval's pdf must equal sample's pdf";
         EXPECT_NEAR(er[i], r[i], 1e-7f);
     }
+}
+
+TEST(PluginLoader, AWatchedPluginOverwrittenInPlaceKeepsRunning) {
+    // `cp new.so libspangle_x.so` writes into the file a watched render had mapped: its pages
+    // changed under the process, which died of SIGBUS. A watched plugin is now mapped from a
+    // private copy from its first load, as reloads always were.
+    test::TempDir dir("plugin_in_place");
+    fs::copy_file(broken("kernels"), dir.file("libspangle_kernels.so"));
+    PluginLoader loader({dir.path().string()});
+    loader.reopen_changed = true;
+    const auto plugin = loader.open("kernels", {});
+    EXPECT_EQ(plugin->path(), dir.file("libspangle_kernels.so")) << "named as the user's file";
+    std::ofstream(dir.file("libspangle_kernels.so"), std::ios::trunc) << "not a library any more";
+    EXPECT_STREQ(plugin->table().name, "kernels");
+    EXPECT_STREQ(plugin->table().models[0].doc,
+                 "a diffuse model whose kernels misbehave as x asks");
+    std::error_code ec;
+    for (const auto& e : fs::directory_iterator(fs::temp_directory_path(), ec))
+        EXPECT_EQ(e.path().filename().string().find(fmt::format("spangle-{}-", ::getpid())),
+                  std::string::npos)
+            << "private copy left behind: " << e.path();
 }
 
 TEST(PluginLoader, SchemasThatContradictThemselvesAreRefused) {

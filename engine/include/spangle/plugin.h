@@ -17,8 +17,10 @@
  *
  * It returns a static table that lives as long as the library is loaded. The host reads
  * abi_version and struct_size first and refuses the table when abi_version differs from its own
- * SPANGLE_MATERIAL_ABI_VERSION. A plugin may offer several models (the smooth plugin offers
- * "diffuse" now and the microfacet models later); a scene names a plugin and one of its models.
+ * SPANGLE_MATERIAL_ABI_VERSION. A plugin may offer several models (the smooth plugin offers five:
+ * diffuse, conductor, dielectric, plastic, metal_rough); a scene names a plugin and one of its
+ * models. The library is found as libspangle_<name>.so on the plugin path; docs/plugins.md says
+ * how to build one outside the source tree, with a complete example.
  *
  * Frames and units. Every direction handed to a kernel is in the local shading frame
  * (x = normalised dpdu made orthogonal to n, z = shading normal n), unit length. The host orients
@@ -31,6 +33,15 @@
  * Threads. create() and destroy() run on one thread. prepare(), eval() and sample() may run
  * concurrently on different batches with the same instance, so an instance is read-only after
  * create() (statistics go through atomics or per-batch counters the plugin owns).
+ *
+ * What the host tolerates. Nothing may throw across this ABI; an exception that escapes anyway
+ * stops the render with an error naming the plugin, material and kernel, and a crash in a kernel
+ * prints their names before the process dies. Outputs the integrator cannot use are dropped and
+ * reported per material at the end of the render: from sample(), a wi not finite or zero, an f
+ * negative or not finite, a pdf not finite, negative or 0 with f > 0, a REFLECTION leaving on
+ * the other side from wo or a TRANSMISSION on the same side (flags become 0); from eval(), an f
+ * negative or not finite or a pdf not finite or negative (both become 0). A glint outside
+ * [0, f] is clamped into it. A wi that is not unit length is normalised.
  */
 #ifndef SPANGLE_PLUGIN_H
 #define SPANGLE_PLUGIN_H
