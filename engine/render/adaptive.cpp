@@ -65,7 +65,8 @@ float adaptive_error(const AdaptivePlan& plan, const PixelSums& s) {
     const double n = s.samples, q = 0.25 * n;
     double smooth = 0.0, glint_se2 = 0.0, glint_mean2 = 0.0, glint_abs = 0.0;
     for (int c = 0; c < 3; ++c) {
-        const double total = static_cast<double>(s.beauty[c]) * 0x1p-40;
+        const double total = static_cast<double>(s.beauty[c]) * 0x1p-40 +
+                             (s.background ? static_cast<double>(s.background[c]) : 0.0);
         const double g_total = s.glints ? static_cast<double>(s.glints[c]) : 0.0;
         // The four quarters' sums of the beauty without its glints, and of the glints.
         double rest[4], glint[4];

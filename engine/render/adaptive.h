@@ -77,6 +77,9 @@ struct PixelSums {
     const float* glints;      ///< RGB sums of its glint parts (null: no glints layer)
     const float* parts;       ///< AdaptiveFilm::parts of the pixel
     uint32_t samples;         ///< samples taken (a multiple of 4)
+    /** RGB sums of the environment it saw directly, when the background layer keeps that out
+     *  of the beauty (null otherwise): judged as part of the pixel. */
+    const float* background = nullptr;
 };
 
 /** The pixel's error over what the plan allows (<= 1: within the threshold). */

@@ -88,7 +88,10 @@ struct TileRun {
                 const PixelSums sums{
                     &(*job.sums)[3 * i],
                     job.layers ? &(*job.layer_film.film)[i * lc + kAovCount] : nullptr,
-                    &a.parts[AdaptiveFilm::kParts * i], a.count[i]};
+                    &a.parts[AdaptiveFilm::kParts * i], a.count[i],
+                    job.layers && job.background_apart
+                        ? &(*job.layer_film.film)[i * lc + job.layer_film.layout.background]
+                        : nullptr};
                 a.ratio[i] = adaptive_error(*job.adaptive, sums);
             }
         uint64_t skipped = 0;

@@ -48,10 +48,13 @@ void accumulate(RenderJob& job, const PathBatch& p, Sink& sink, std::size_t n) {
             // The quarter-sums of sample numbers 1, 2, 3 modulo 4 (that of 0 is the rest).
             if (const uint32_t quarter = p.sample[k] & 3u) {
                 const Vec3 g = finite ? sink.glint(k) : Vec3(0.0f);
+                // The environment seen directly, when its layer keeps it out of the beauty, is
+                // judged with it: the pixel the compositor rebuilds is beauty + background.
+                const Vec3 bg = finite && job.background_apart ? sink.background_of(k) : Vec3(0.0f);
                 float* o = &a.parts[AdaptiveFilm::kParts * at + 6 * (quarter - 1)];
-                o[0] += l.x;
-                o[1] += l.y;
-                o[2] += l.z;
+                o[0] += l.x + bg.x;
+                o[1] += l.y + bg.y;
+                o[2] += l.z + bg.z;
                 o[3] += g.x;
                 o[4] += g.y;
                 o[5] += g.z;

@@ -104,6 +104,7 @@ struct NullSink {
     void survived(std::size_t, float) {}
     void accumulate(std::size_t, std::size_t, bool) {}
     Vec3 glint(std::size_t) const { return Vec3(0.0f); }
+    Vec3 background_of(std::size_t) const { return Vec3(0.0f); }
 };
 
 /** The render layers of the paths of one wave (one per worker thread, reused across waves). */
@@ -272,6 +273,8 @@ public:
 
     /** Path k's glint part (what accumulate adds to the glints layer when finite). */
     Vec3 glint(std::size_t k) const { return is_finite(glint_[k]) ? glint_[k] : Vec3(0.0f); }
+    /** Path k's environment seen directly (what accumulate adds to the background layer). */
+    Vec3 background_of(std::size_t k) const { return background_[k]; }
 
 private:
     /** One contribution c of path k to its light group, and its glint part. */
