@@ -42,13 +42,6 @@ void print_frame_line(const Session& session, int64_t f, double seconds, const R
         exr);
 }
 
-/** The exit status of a sequence a signal stopped before its last frame (128 + SIGINT, as a
- *  shell reports an interrupted command; SIGTERM's 143 likewise). */
-int interrupted_status() {
-    const int st = exit_status_for_signal();
-    return st != 0 ? st : 130;
-}
-
 }  // namespace
 
 int run_frames(const RenderArgs& a) {
@@ -102,7 +95,8 @@ int run_frames(const RenderArgs& a) {
         const ImageDescription image = final_image(w, session.color(), session.info());
         out.write_image(s.log, image);
         warn_nonfinite(s.log, w.stats);
-        if (!a.quiet)
+        // A partial frame is not announced as a finished one: the warning below says what it is.
+        if (!a.quiet && !image.partial)
             print_frame_line(
                 session, f,
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), rep,
@@ -116,7 +110,7 @@ int run_frames(const RenderArgs& a) {
             else
                 s.log.warn("stopped by a signal ({}) after frame {}{}", stop_signal_name(), f,
                            left(f + 1));
-            return f < last ? interrupted_status() : exit_status_for_signal();
+            return f < last || image.partial ? interrupted_status() : exit_status_for_signal();
         }
     }
     return 0;

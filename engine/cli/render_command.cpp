@@ -193,7 +193,7 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
     if (frame.stats.spp_reached == 0) {
         s.log.warn("stopped by a signal ({}) before the first pass ended: no image written",
                    stop_signal_name());
-        return exit_status_for_signal();
+        return interrupted_status();
     }
     s.out.write_image(s.log, image);
     if (image.partial)
@@ -203,9 +203,11 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
         print_stats(frame, s.out.exr);
     else if (!a.quiet)
         s.log.info("wrote {}{}", s.out.exr, s.out.preview.empty() ? "" : " and " + s.out.preview);
-    // A SIGTERM that came after the last pass (while the image was written) still ends the
-    // process as terminated (143), its image whole; SIGINT's status is 0 either way.
-    return image.partial || stop_requested() ? exit_status_for_signal() : 0;
+    // A partial image is not a finished render: 130 after SIGINT, 143 after SIGTERM. A signal
+    // that came after the last pass (while the image was written) leaves the image whole:
+    // SIGTERM still ends the process as terminated (143), SIGINT's status is 0.
+    if (image.partial) return interrupted_status();
+    return stop_requested() ? exit_status_for_signal() : 0;
 }
 
 /** The one-shot render: load, render (passes written with --pass-output, shown with --serve),

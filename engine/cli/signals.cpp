@@ -89,6 +89,10 @@ bool stop_requested() {
     return stop_signal != 0;
 }
 
+int interrupted_status() {
+    return stop_signal == SIGINT ? 130 : stop_signal == SIGTERM ? 143 : 0;
+}
+
 const char* stop_signal_name() {
     return stop_signal == SIGINT ? "SIGINT" : stop_signal == SIGTERM ? "SIGTERM" : "";
 }

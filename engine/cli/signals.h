@@ -23,6 +23,11 @@ bool stop_requested();
  *  when none arrived. */
 int exit_status_for_signal();
 
+/** Exit status of a render a stop signal cut short (a partial image, or none): 130 after SIGINT
+ *  (as a shell reports an interrupted command), 143 after SIGTERM; 0 when none arrived. A farm
+ *  must not take a partial image for a finished one. */
+int interrupted_status();
+
 /** "SIGINT" or "SIGTERM": the stop signal that arrived ("" before any). */
 const char* stop_signal_name();
 

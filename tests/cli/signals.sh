@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # SIGINT and SIGTERM in the middle of a render: the passes completed so far are written, the EXR
-# header says partial and how many samples per pixel, the exit status is 0 (SIGINT) or 143
-# (SIGTERM), and no temporary file is left; a sequence stopped before its last frame exits 130;
+# header says partial and how many samples per pixel, the exit status is 130 (SIGINT; it was 0,
+# and a farm took the partial image for a finished one) or 143 (SIGTERM), and no temporary file
+# is left; a render stopped before its first pass writes nothing and exits 130 (it exited 0,
+# leaving an older image at the output path to be taken for this one); a sequence stopped before its last frame exits 130;
 # a stopped --spp-range part holds the samples it completed, as a part of that range.
 #   signals.sh SPANGLE PLUGIN_DIR SCENE_DIR
 set -u
@@ -22,7 +24,7 @@ for sig in INT TERM; do
     kill -$sig $PID
     wait $PID
     RC=$?
-    want=0; [ $sig = TERM ] && want=143
+    want=130; [ $sig = TERM ] && want=143
     [ $RC -eq $want ] || fail "SIG$sig: exit status $RC, expected $want"
     oiiotool --info -v $sig.exr > info.txt || fail "SIG$sig: unreadable output"
     grep -q 'spangle:partial: "1"' info.txt || fail "SIG$sig: not marked partial"
@@ -31,6 +33,19 @@ for sig in INT TERM; do
     grep -q "stopped by a signal" err.txt || fail "SIG$sig: no message"
     ls -a | grep -q '\.tmp' && fail "SIG$sig: temporary file left behind"
 done
+# Stopped before the first pass: nothing written, the older image left alone, exit 130.
+echo "older" > early.exr
+"$S" render flake_uvless.toml -o early.exr --spp 100000 --size 3840x2160 --threads 2 -q \
+    --plugin-path "$PLUGINS" 2> err.txt &
+PID=$!
+sleep 0.3
+kill -INT $PID
+wait $PID
+RC=$?
+[ $RC -eq 130 ] || fail "SIGINT before the first pass: exit status $RC, expected 130"
+[ "$(cat early.exr)" = "older" ] || fail "SIGINT before the first pass: the older file changed"
+grep -q "before the first pass ended: no image written" err.txt ||
+    fail "SIGINT before the first pass: $(cat err.txt)"
 # A second SIGINT exits at once, without leaving a temporary file.
 "$S" render flake_uvless.toml -o twice.exr --spp 100000 --threads 2 -q --plugin-path "$PLUGINS" &
 PID=$!
