@@ -224,6 +224,15 @@ std::size_t Outputs::write(const ImageDescription& d) const {
             shown = &composite;
         }
     }
+    // The PNG goes to a temporary name of its own and takes its place only once the EXR is
+    // written: an EXR that cannot be written (a full disk) leaves the old pair as it was, not a
+    // new preview beside an old image.
+    const std::string png_target = preview.empty() ? std::string() : output_target(preview);
+    const std::string png_tmp = preview.empty() ? std::string() : temporary_path_for(png_target);
+    const auto drop_png = [&] {
+        std::error_code ec;
+        if (!png_tmp.empty()) fs::remove(png_tmp, ec);
+    };
     if (!preview.empty()) {
         PngOptions png;
         if (d.partial) png.compression_level = 1;  // passes come often: speed over size
@@ -231,7 +240,7 @@ std::size_t Outputs::write(const ImageDescription& d) const {
         png.display = display;
         png.view = view;
         png_done = std::async(std::launch::async, [&, png] {
-            write_png_preview(preview, *shown, width, height, *d.color, png);
+            write_png_preview(png_tmp, *shown, width, height, *d.color, png);
         });
     }
     std::size_t overflow = 0;
@@ -239,9 +248,23 @@ std::size_t Outputs::write(const ImageDescription& d) const {
         overflow = write_exr(exr, *d.image, width, height, *d.color, o);
     } catch (...) {
         if (png_done.valid()) png_done.wait();
+        drop_png();
         throw;
     }
-    if (png_done.valid()) png_done.get();  // rethrows its error
+    if (png_done.valid()) {
+        try {
+            png_done.get();  // rethrows its error
+        } catch (...) {
+            drop_png();
+            throw;
+        }
+        std::error_code ec;
+        fs::rename(png_tmp, png_target, ec);
+        if (ec) {
+            drop_png();
+            throw_error("cannot write the preview '{}': {}", preview, ec.message());
+        }
+    }
     return overflow;
 }
 

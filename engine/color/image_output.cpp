@@ -90,15 +90,9 @@ private:
     InProgress* slot_ = nullptr;
 };
 
-/** Rows written per strip: images are converted and written a strip at a time, so writing
- *  needs a strip's worth of memory beside the film, not a converted copy of the whole image. */
-constexpr int kStripRows = 256;
+}  // namespace
 
-/** Lets write_file write a temporary file beside `path` (it throws SpangleError or any
- *  std::exception on failure), checks the file is not empty, and renames it onto `path`.
- *  Anything that fails removes the temporary file and throws SpangleError. */
-void write_atomically(const std::string& given,
-                      const std::function<void(const std::string&)>& write_file) {
+std::string output_target(const std::string& given) {
     // An output that is a symbolic link is written where it points (the rename replaced the
     // link with a file of its own and the target was never written), even a dangling one.
     fs::path target = given;
@@ -108,7 +102,21 @@ void write_atomically(const std::string& given,
         if (link_ec) break;
         target = to.is_absolute() ? to : target.parent_path() / to;
     }
-    const std::string path = target.string();
+    return target.string();
+}
+
+namespace {
+
+/** Rows written per strip: images are converted and written a strip at a time, so writing
+ *  needs a strip's worth of memory beside the film, not a converted copy of the whole image. */
+constexpr int kStripRows = 256;
+
+/** Lets write_file write a temporary file beside `path` (it throws SpangleError or any
+ *  std::exception on failure), checks the file is not empty, and renames it onto `path`.
+ *  Anything that fails removes the temporary file and throws SpangleError. */
+void write_atomically(const std::string& given,
+                      const std::function<void(const std::string&)>& write_file) {
+    const std::string path = output_target(given);
     const fs::path dir = fs::path(path).parent_path();
     if (!dir.empty() && !fs::is_directory(dir))
         throw_error("cannot write '{}': directory '{}' does not exist", path, dir.string());

@@ -45,6 +45,10 @@ struct ExrOptions {
  *  then word, least significant first). */
 const std::vector<std::string>& sample_sum_channels();
 
+/** Where an output path is written: the file a symbolic link points to (through a chain of
+ *  them, even to one that does not exist yet), else the path itself. */
+std::string output_target(const std::string& path);
+
 /** Removes the temporary file of an image being written, if any. Async-signal-safe: for a
  *  signal handler that exits at once (outputs are written to a temporary file and renamed, so
  *  the output itself is never half-written). */

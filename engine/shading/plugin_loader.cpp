@@ -281,20 +281,19 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
 }
 
 std::shared_ptr<LoadedPlugin> PluginLoader::open_copy(const std::string& path,
-                                                      const std::string& name,
-                                                      const FileLoc& where) {
+                                                      const std::string& name) {
     const fs::path copy =
         fs::temp_directory_path() /
         fmt::format("spangle-{}-{}-{}", ::getpid(), ++copies_, fs::path(path).filename().string());
     std::error_code ec;
     fs::copy_file(path, copy, fs::copy_options::overwrite_existing, ec);
-    if (ec) throw_error(where, "cannot copy plugin '{}' from {}: {}", name, path, ec.message());
+    if (ec) throw_error("cannot copy plugin '{}' from {}: {}", name, path, ec.message());
     std::shared_ptr<LoadedPlugin> plugin;
     try {
         plugin = open_file(copy.string(), name, path);
-    } catch (const SpangleError& e) {
+    } catch (const SpangleError&) {
         fs::remove(copy, ec);
-        throw SpangleError(where, e.what());
+        throw;
     }
     fs::remove(copy, ec);  // the mapping stays; nothing is left behind
     return plugin;
@@ -307,7 +306,12 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const 
         const std::string id = file_identity(path);
         if (id == identity_[name]) return it->second;
         // Rebuilt since it was opened: open the new file through a private copy.
-        std::shared_ptr<LoadedPlugin> plugin = open_copy(path, name, where);
+        std::shared_ptr<LoadedPlugin> plugin;
+        try {
+            plugin = open_copy(path, name);
+        } catch (const SpangleError& e) {
+            throw SpangleError(where, e.what());
+        }
         it->second = plugin;
         identity_[name] = id;
         return plugin;
@@ -332,8 +336,8 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const 
             // Watched plugins are mapped from a private copy from the first load on: a rebuild
             // that writes the library in place (cp, install) would change the pages under the
             // running process (SIGBUS), where a rename or a new file leaves them alone.
-            auto plugin = reopen_changed ? open_copy(candidate.string(), name, where)
-                                         : open_file(candidate.string(), name);
+            auto plugin = copy_on_first_open ? open_copy(candidate.string(), name)
+                                             : open_file(candidate.string(), name);
             cache_[name] = plugin;
             identity_[name] = id;
             return plugin;

@@ -59,8 +59,11 @@ public:
     /** Watch sessions: open() reopens a cached plugin whose file changed since it was opened.
      *  dlopen() returns the handle it already has for a path, so the new file is opened through
      *  a private copy (removed at once; the mapping stays); instances of the old library keep it
-     *  loaded until they are destroyed. With it set, the first open maps a private copy too. */
+     *  loaded until they are destroyed. */
     bool reopen_changed = false;
+    /** Watch mode: the first open maps a private copy too, so that a rebuild writing the library
+     *  in place (cp, install) cannot change the pages under the running process (SIGBUS). */
+    bool copy_on_first_open = false;
 
     /** Every libspangle_*.so on the search path, first occurrence of each name, in order. */
     std::vector<std::string> discover() const;
@@ -71,8 +74,7 @@ public:
 
 private:
     /** open_file() of a private copy of `path` (named as `path` in messages and by the plugin). */
-    std::shared_ptr<LoadedPlugin> open_copy(const std::string& path, const std::string& name,
-                                            const FileLoc& where);
+    std::shared_ptr<LoadedPlugin> open_copy(const std::string& path, const std::string& name);
     std::vector<std::string> dirs_;
     std::map<std::string, std::shared_ptr<LoadedPlugin>> cache_;
     std::map<std::string, std::string> identity_;  ///< file identity when each was opened

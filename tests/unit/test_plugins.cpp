@@ -309,6 +309,7 @@ TEST(PluginLoader, AWatchedPluginOverwrittenInPlaceKeepsRunning) {
     fs::copy_file(broken("kernels"), dir.file("libspangle_kernels.so"));
     PluginLoader loader({dir.path().string()});
     loader.reopen_changed = true;
+    loader.copy_on_first_open = true;
     const auto plugin = loader.open("kernels", {});
     EXPECT_EQ(plugin->path(), dir.file("libspangle_kernels.so")) << "named as the user's file";
     std::ofstream(dir.file("libspangle_kernels.so"), std::ios::trunc) << "not a library any more";

@@ -122,6 +122,7 @@ WatchLoop::WatchLoop(const RenderArgs& a, const RenderSetup& s)
     log_.once = &warnings_said_;
     out_.check_view(session_.color());  // a display or view the config lacks: an error now
     session_.options().stop = [this] { return stop_requested() || reload_.load(); };
+    session_.plugins().copy_on_first_open = true;  // a plugin rebuilt in place while watched
     server_ = start_preview_server(a.serve, log_);
     if (server_) {
         session_.options().progress = [this](uint64_t done, uint64_t total) {
