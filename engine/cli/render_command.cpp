@@ -37,7 +37,7 @@ namespace fs = std::filesystem;
 /** Registers the scene, the outputs' paths, the size and samples, plugins and --stats. */
 void add_scene_options(CLI::App* r, RenderArgs& a) {
     r->add_option("scene", a.scene, "scene file (TOML, or any format Spangle reads)")->required();
-    r->add_option("--camera", a.camera, "the camera to look through, by name (glTF, pbrt)");
+    r->add_option("--camera", a.camera, "the camera to look through, by name (a glTF file's)");
     r->add_option("--env", a.environment,
                   "a lat-long image (EXR, HDR) lighting the scene instead of its environment")
         ->check(CLI::ExistingFile);

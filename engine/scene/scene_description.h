@@ -412,6 +412,8 @@ struct SceneDescription {
     CameraDesc camera;  ///< the camera (every scene has one)
     /** False when the file has no camera of its own (a TOML scene that imports one). */
     bool has_camera = true;
+    /** The camera is the one SceneReadOptions::camera named (a glTF file's, by name). */
+    bool camera_by_name = false;
     std::vector<ImportDesc> imports;             ///< other scene files it brings in
     std::optional<EnvironmentDesc> environment;  ///< none = black, no environment light
     std::vector<MaterialDesc> materials;         ///< in the order written

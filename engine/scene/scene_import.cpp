@@ -175,6 +175,7 @@ void merge(SceneDescription& scene, SceneDescription in, const ImportDesc& how, 
         }
     if (!scene.has_camera && !m.camera && how.camera && in.has_camera) {
         scene.camera = in.camera;
+        scene.camera_by_name = in.camera_by_name;
         if (placed) place_camera(scene.camera, place);
         m.camera = true;
     }

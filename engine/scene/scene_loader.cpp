@@ -70,6 +70,14 @@ SceneDescription read_with_imports(const std::string& path, const SceneReadOptio
 SceneDescription read_scene(const std::string& path, const SceneReadOptions& options) {
     std::vector<std::string> chain;
     SceneDescription scene = read_with_imports(path, options, chain);
+    // --camera that no reader used: the render would look through another camera than the
+    // one asked for, without a word (a typo, or a TOML scene's own [camera]).
+    if (!options.camera.empty() && !scene.camera_by_name)
+        throw_error(FileLoc{path, 0, 0},
+                    "--camera '{}': this scene does not choose its camera by name (--camera picks "
+                    "among a glTF file's cameras, imported ones too when the scene has no "
+                    "[camera] of its own); leave --camera out to render its camera",
+                    options.camera);
     if (!options.environment.empty()) {
         // --env: the map lights the scene instead of what the file says (its colour space is
         // the default's, the file type's usual one, as for a map a scene names without one).

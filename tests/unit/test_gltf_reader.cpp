@@ -327,6 +327,31 @@ TEST(GltfReader, CameraIsTheFirstOrTheOneNamed) {
     }
 }
 
+TEST(GltfReader, CameraByNameIsAnErrorWhereNoFileChoosesByName) {
+    // `--camera top` on a TOML scene with its own [camera] rendered that camera without a word
+    // (a typo too); it is an error now. Through an import into a scene without [camera] it
+    // picks the glTF file's camera as on the file itself.
+    test::TempDir dir("gltf_camera_option");
+    GltfWriter w;
+    w.write_gltf(dir.file("cams.gltf"), two_cameras_body(w));
+    std::ofstream(dir.file("own.toml")) << "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, "
+                                           "0]\n[[import]]\nfile = \"cams.gltf\"\n";
+    std::ofstream(dir.file("none.toml")) << "[[import]]\nfile = \"cams.gltf\"\n";
+    SceneReadOptions top;
+    top.camera = "top";
+    try {
+        read_scene(dir.file("own.toml"), top);
+        FAIL() << "--camera on a scene with its own [camera] was taken silently";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("--camera 'top': this scene does not choose"),
+                  std::string::npos)
+            << e.what();
+    }
+    const SceneDescription imported = read_scene(dir.file("none.toml"), top);
+    EXPECT_NEAR(imported.camera.fov_deg, 0.7 * 180.0 / M_PI, 1e-9) << "the glTF's 'top'";
+    EXPECT_NO_THROW(read_scene(dir.file("own.toml"), {})) << "without --camera: its [camera]";
+}
+
 TEST(GltfReader, WithoutCameraOrLightTheDefaultsFrameTheBoundsAndLightTheStudio) {
     test::TempDir dir("gltf_defaults");
     GltfWriter w;

@@ -374,8 +374,10 @@ void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras
         const bool named = ctx.model.cameras[static_cast<std::size_t>(cam)].name == name ||
                            ctx.model.nodes[static_cast<std::size_t>(node)].name == name ||
                            cam == index;
-        if (name.empty() || named)
+        if (name.empty() || named) {
+            ctx.scene->camera_by_name = !name.empty();
             return use_camera(ctx, node, cam, motions[static_cast<std::size_t>(node)]);
+        }
     }
     if (!name.empty()) {
         throw_error(
