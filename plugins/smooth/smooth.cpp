@@ -244,6 +244,82 @@ const SpangleParamDesc_v3 kConductorParams[] = {
 };
 // clang-format on
 
+/** The single-scattering albedo E (F = 1) of one anisotropic GGX lobe, against the view's
+ *  cosine mu and azimuth phi from the tangent (E(phi) = E(-phi) = E(pi - phi): a quarter turn
+ *  holds every view), and its cosine-weighted average over the hemisphere. The isotropic tables
+ *  at one alpha for every view cannot stand in: at the mean of the two alphas a white 0.8/0.2
+ *  lobe seen along its rough axis returned 1.03 of the light at 80 degrees and 0.83 across it,
+ *  and at the alpha of each view's plane of incidence 1.21 and 0.53. */
+struct AnisoAlbedo {
+    static constexpr int kMu = 32;    ///< mu_i = (i / (kMu - 1))^2, at least 1e-4
+    static constexpr int kPhi = 9;    ///< phi_j = j / (kPhi - 1) pi / 2
+    static constexpr int kGrid = 32;  ///< visible-normal quadrature, kGrid^2 midpoints
+    float e[kPhi][kMu] = {};
+    float e_avg = 0.0f;
+    /** E at w (bilinear in phi and sqrt(mu)). */
+    float at(V3 w) const;
+};
+
+float aniso_mu(int i) {
+    const float x = static_cast<float>(i) / (AnisoAlbedo::kMu - 1);
+    return std::max(1e-4f, x * x);
+}
+
+float AnisoAlbedo::at(V3 w) const {
+    const float x = std::sqrt(std::clamp(w.z, 0.0f, 1.0f)) * (kMu - 1);
+    const int i = std::min(static_cast<int>(x), kMu - 2);
+    const float fx = std::min(1.0f, x - static_cast<float>(i));
+    const float phi = std::atan2(std::fabs(w.y), std::fabs(w.x));  // (0, 0): 0
+    const float y = std::clamp(phi * (2.0f / kPi), 0.0f, 1.0f) * (kPhi - 1);
+    const int j = std::min(static_cast<int>(y), kPhi - 2);
+    const float fy = std::min(1.0f, y - static_cast<float>(j));
+    const float lo = e[j][i] + fx * (e[j][i + 1] - e[j][i]);
+    const float hi = e[j + 1][i] + fx * (e[j + 1][i + 1] - e[j + 1][i]);
+    return lo + fy * (hi - lo);
+}
+
+/** E of the lobe (ax, ay) by quadrature over its visible normals (G2 / G1 of each reflection,
+ *  midpoints of a kGrid x kGrid square), and E_avg from the interpolated table (the azimuthal
+ *  mean of the interpolant, linear in phi, is the trapezoid rule over the nodes), so that the
+ *  compensation lobe returns exactly 1 - E(wo) of what the table says. About 10 ms. */
+std::shared_ptr<const AnisoAlbedo> make_aniso_albedo(float ax, float ay) {
+    auto t = std::make_shared<AnisoAlbedo>();
+    constexpr int g = AnisoAlbedo::kGrid;
+    for (int j = 0; j < AnisoAlbedo::kPhi; ++j) {
+        const float phi = static_cast<float>(j) / (AnisoAlbedo::kPhi - 1) * (0.5f * kPi);
+        for (int i = 0; i < AnisoAlbedo::kMu; ++i) {
+            const float mu = aniso_mu(i), s = std::sqrt(std::max(0.0f, 1.0f - mu * mu));
+            const V3 wo{s * std::cos(phi), s * std::sin(phi), mu};
+            const float g1 = ggx_g1(wo, ax, ay);
+            double sum = 0.0;
+            for (int a = 0; a < g; ++a)
+                for (int b = 0; b < g; ++b) {
+                    const V3 h = ggx_sample_visible(wo, ax, ay, (static_cast<float>(a) + 0.5f) / g,
+                                                    (static_cast<float>(b) + 0.5f) / g);
+                    const V3 wi = reflect(wo, h);
+                    if (wi.z > 0.0f && g1 > 0.0f)
+                        sum += static_cast<double>(ggx_g2(wo, wi, ax, ay) / g1);
+                }
+            t->e[j][i] = std::clamp(static_cast<float>(sum / (g * g)), 0.0f, 1.0f);
+        }
+    }
+    constexpr int kM = 512;
+    double avg = 0.0;
+    for (int j = 0; j < AnisoAlbedo::kPhi; ++j) {
+        const float phi = static_cast<float>(j) / (AnisoAlbedo::kPhi - 1) * (0.5f * kPi);
+        double row = 0.0;
+        for (int k = 0; k < kM; ++k) {
+            const float mu = (static_cast<float>(k) + 0.5f) / kM, s = std::sqrt(1.0f - mu * mu);
+            row += 2.0 *
+                   static_cast<double>(t->at({s * std::cos(phi), s * std::sin(phi), mu}) * mu) / kM;
+        }
+        const double w = (j == 0 || j == AnisoAlbedo::kPhi - 1) ? 0.5 : 1.0;
+        avg += w * row / (AnisoAlbedo::kPhi - 1);
+    }
+    t->e_avg = static_cast<float>(std::min(avg, 0.9999));
+    return t;
+}
+
 struct Conductor {
     float ax, ay;
     float raw_r, raw_rv;  ///< roughness, roughness_v as written
@@ -253,6 +329,10 @@ struct Conductor {
     float to_working[9];  ///< linear Rec.709 -> working space, row-major
     bool multiscatter;    ///< Kulla-Conty compensation (albedo_tables.h)
     float f_avg[3];       ///< cosine-weighted hemispherical average of the Fresnel term
+    /** Multiple scattering of an anisotropic lobe: its own albedo table, for the points at the
+     *  material's alphas (a textured roughness elsewhere falls back to the isotropic tables at
+     *  the mean alpha); null when isotropic or single-scattering. */
+    std::shared_ptr<const AnisoAlbedo> aniso;
 };
 
 /** Reads the Rec.709 -> working-space matrix; reports a failure through the ABI buffer. */
@@ -313,6 +393,7 @@ void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, ch
     }
     if (!rec709_matrix(host, c.to_working, error, cap)) return nullptr;
     c.multiscatter = param_number(p, "multiscatter", 0) != 0.0;
+    if (c.multiscatter && !c.delta && c.ax != c.ay) c.aniso = make_aniso_albedo(c.ax, c.ay);
     // F_avg = 2 int F(mu) mu dmu by the midpoint rule (F is smooth; 256 points: 1e-5).
     constexpr int kN = 256;
     double sum[3] = {0, 0, 0};
@@ -330,10 +411,17 @@ void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, ch
 
 /** GGX alpha of the multiple-scattering tables for an anisotropic lobe: the mean of the two
  *  (the geometric mean returned too little of the loss, 0.83 of a white 0.2/0.8 lobe's light
- *  head-on, the root mean square slightly more than all of it, 1.013); the tables are
- *  isotropic, so an anisotropic lobe gets back most of its loss, not all (0.93-0.99 at 0.2/0.8). */
+ *  head-on, the root mean square slightly more than all of it, 1.013): the fallback for an
+ *  anisotropic roughness that varies over the surface (a texture), which gets back most of its
+ *  loss, not all, and may gain a few per cent seen along its rough axis. A material's own
+ *  anisotropic alphas use their own table (AnisoAlbedo). */
 float ms_alpha(const Closure& c) {
     return 0.5f * (c.ax + c.ay);
+}
+
+/** The material's anisotropic albedo table when the point has the material's own alphas. */
+const AnisoAlbedo* own_aniso(const Conductor& m, const Closure& c) {
+    return m.aniso && c.ax == m.ax && c.ay == m.ay ? m.aniso.get() : nullptr;
 }
 
 void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures,
@@ -346,9 +434,14 @@ void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* 
         c.wo = wo_of(b, i);
         alpha_at(b, i, {3, 4}, m.raw_r, m.raw_rv, m.ax, m.ay, m.delta, c);
         if (m.multiscatter && c.delta == 0.0f && c.wo.z > 0.0f) {
-            const float alpha = ms_alpha(c);
-            c.e_o = spangle::smooth::ggx_albedo(c.wo.z, alpha);
-            c.e_avg = spangle::smooth::ggx_albedo_avg(alpha);
+            if (const AnisoAlbedo* t = own_aniso(m, c)) {
+                c.e_o = t->at(c.wo);
+                c.e_avg = t->e_avg;
+            } else {
+                const float alpha = ms_alpha(c);
+                c.e_o = spangle::smooth::ggx_albedo(c.wo.z, alpha);
+                c.e_avg = spangle::smooth::ggx_albedo_avg(alpha);
+            }
             // The share of the light (F = 1) single scattering loses at wo.
             c.p_spec = 1.0f - c.e_o;
         }
@@ -366,8 +459,9 @@ void conductor_rough(const Conductor& m, const Closure& c, V3 wo, V3 wi, V3 h, f
     pdf = ggx_g1(wo, c.ax, c.ay) * d / (4.0f * wo.z);
     for (int ch = 0; ch < 3; ++ch) f[ch] *= s;
     if (c.p_spec > 0.0f) {
-        const float shape = spangle::smooth::ms_shape(
-            c.e_o, spangle::smooth::ggx_albedo(wi.z, ms_alpha(c)), c.e_avg);
+        const AnisoAlbedo* t = own_aniso(m, c);
+        const float e_i = t ? t->at(wi) : spangle::smooth::ggx_albedo(wi.z, ms_alpha(c));
+        const float shape = spangle::smooth::ms_shape(c.e_o, e_i, c.e_avg);
         for (int ch = 0; ch < 3; ++ch)
             f[ch] += spangle::smooth::ms_colour(m.f_avg[ch], c.e_avg) * shape;
         pdf = (1.0f - c.p_spec) * pdf + c.p_spec * wi.z * kInvPi;

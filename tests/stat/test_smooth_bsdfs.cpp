@@ -102,9 +102,9 @@ BsdfHarness::Albedo albedo(const BsdfHarness& b, float eta2 = 1.0f) {
 TEST(SmoothFurnace, PerfectConductorReturnsOne) {
     // With its multiple scattering (the default) a white isotropic conductor reflects everything
     // at every roughness and angle: E(o) + (1 - E(o)) = 1 by construction; 5e-3 allows for the
-    // albedo tables (512-point quadratures, bilinear in 32 cosines x 32 roughnesses). An
-    // anisotropic one is compensated as an isotropic one (smooth.cpp, ms_alpha): most of its loss
-    // comes back, never more than all of it. Single-scattering GGX loses energy at high roughness
+    // albedo tables (512-point quadratures, bilinear in 32 cosines x 32 roughnesses); an
+    // anisotropic one with its own table (smooth.cpp, AnisoAlbedo). Single-scattering GGX loses
+    // energy at high roughness
     // (at alpha 1, 0.69 of it head-on) and never gains any.
     const std::pair<float, float> alphas[] = {{0.001f, 0.001f}, {0.1f, 0.1f}, {0.5f, 0.5f},
                                               {1.0f, 1.0f},     {0.2f, 0.8f}, {0.05f, 0.4f},
@@ -120,13 +120,8 @@ TEST(SmoothFurnace, PerfectConductorReturnsOne) {
                            {{"preset", "perfect"}});
             ss.prepare(wo_for(c));
             const BsdfHarness::Albedo e1 = albedo(ss);
-            if (ax == ay) {
-                EXPECT_NEAR(e.mean, 1.0, 4.0 * e.se + 5e-3) << "alpha " << ax << " cos " << c;
-            } else {
-                EXPECT_LE(e.mean, 1.0 + 4.0 * e.se) << "alpha " << ax << "/" << ay << " cos " << c;
-                EXPECT_GT(e.mean, e1.mean + 0.5 * (1.0 - e1.mean))
-                    << "alpha " << ax << "/" << ay << " cos " << c << ": single " << e1.mean;
-            }
+            EXPECT_NEAR(e.mean, 1.0, 4.0 * e.se + 5e-3)
+                << "alpha " << ax << "/" << ay << " cos " << c;
             EXPECT_LE(e1.mean, 1.0 + 4.0 * e1.se) << "alpha " << ax << " cos " << c;
             if (ax <= 0.1f && ay <= 0.1f && c >= 0.7f) {
                 EXPECT_GT(e1.mean, 0.98) << "alpha " << ax << " cos " << c;
@@ -135,6 +130,28 @@ TEST(SmoothFurnace, PerfectConductorReturnsOne) {
                 EXPECT_LT(e1.mean, 0.8) << "single scattering loses light at alpha 1, cos " << c;
             }
         }
+}
+
+TEST(SmoothFurnace, AnisotropicConductorNeitherGainsNorLosesMuchAtAnyAzimuth) {
+    // Compensated as one isotropic lobe of the mean alpha, a white 0.8/0.2 conductor seen along
+    // its rough axis returned up to 1.029 of the light at 80 degrees, and 0.83 across it (a user
+    // measured it in a furnace). Each direction now uses the alpha of its own plane of
+    // incidence: views along either axis and between them, head-on to grazing.
+    const std::pair<float, float> alphas[] = {{0.8f, 0.2f},  {0.2f, 0.8f},  {0.8f, 0.05f},
+                                              {0.05f, 0.8f}, {1.0f, 0.01f}, {0.4f, 0.1f}};
+    for (const auto& [ax, ay] : alphas)
+        for (float phi : {0.0f, 0.7f, 1.5707963f})
+            for (float c : {1.0f, 0.7f, 0.3f, 0.17f, 0.09f, 0.05f}) {
+                BsdfHarness ms("smooth", "conductor", {{"roughness", {ax}}, {"roughness_v", {ay}}},
+                               {{"preset", "perfect"}});
+                const float s = std::sqrt(1.0f - c * c);
+                ms.prepare({s * std::cos(phi), s * std::sin(phi), c});
+                const BsdfHarness::Albedo e = albedo(ms);
+                // 5e-3: the table's quadrature (32^2 visible normals) and its interpolation
+                // (measured: 0.9963 to 1.0005 over these cases).
+                EXPECT_NEAR(e.mean, 1.0, 4.0 * e.se + 5e-3)
+                    << "alpha " << ax << "/" << ay << " phi " << phi << " cos " << c;
+            }
 }
 
 TEST(SmoothFurnace, ColouredConductorGainsWithItsMultipleScatteringButNeverExceedsOne) {
