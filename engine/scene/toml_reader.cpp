@@ -1,6 +1,7 @@
 #include "scene/toml_reader.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -323,6 +324,37 @@ FileLoc key_location(const toml::key& key, const toml::node& value, const std::s
 
 namespace {
 
+/** The key set just before `column` of `line` (toml++ reports a key set twice at its value):
+ *  "key = " read backwards, quoted or bare (dotted parts kept); "" when the text there is not
+ *  one. Finds the duplicate inside an inline table, where the line's first key is another. */
+std::string key_before(const std::string& text, std::size_t line, std::size_t column) {
+    std::size_t at = 0;
+    for (std::size_t l = 1; l < line && at != std::string::npos; ++l) {
+        at = text.find('\n', at);
+        if (at != std::string::npos) ++at;
+    }
+    if (at == std::string::npos || column < 1) return "";
+    std::size_t p = at + column - 1;  // the value's first character
+    if (p > text.size()) return "";
+    const auto blank = [&](std::size_t i) { return text[i] == ' ' || text[i] == '\t'; };
+    while (p > at && blank(p - 1)) --p;
+    if (p == at || text[p - 1] != '=') return "";
+    --p;
+    while (p > at && blank(p - 1)) --p;
+    const std::size_t end = p;
+    if (p > at && (text[p - 1] == '"' || text[p - 1] == '\'')) {
+        const char q = text[p - 1];
+        const std::size_t open = text.rfind(q, p - 2);
+        if (open == std::string::npos || open < at) return "";
+        return text.substr(open + 1, p - 2 - open);
+    }
+    const auto bare = [&](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.';
+    };
+    while (p > at && bare(text[p - 1])) --p;
+    return text.substr(p, end - p);
+}
+
 /** The key a "key = value" line sets, unquoted ("" when the line is not one). */
 std::string key_of_line(const std::string& text, std::size_t line) {
     std::size_t at = 0;
@@ -359,7 +391,8 @@ toml::table parse_toml_file(const std::string& path) {
         // taken from the line itself.
         const std::string why(e.description());
         if (why.find("cannot redefine existing") != std::string::npos) {
-            const std::string key = key_of_line(text, s.line);
+            std::string key = key_before(text, s.line, s.column);
+            if (key.empty()) key = key_of_line(text, s.line);
             if (!key.empty()) throw_error(at, "invalid TOML: '{}' is set twice in its table", key);
         }
         throw_error(at, "invalid TOML: {}", why);
