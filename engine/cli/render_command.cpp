@@ -53,7 +53,8 @@ void add_scene_options(CLI::App* r, RenderArgs& a) {
                   "docs/adaptive.md)")
         ->check(CLI::Range(0.0, 1.0));
     r->add_option("--min-spp", a.min_spp,
-                  "adaptive sampling: samples every pixel takes first (default 16)")
+                  "adaptive sampling: samples every pixel takes first (default 16; rounded up to a "
+                  "multiple of 4, at least 8)")
         ->check(CLI::Range(1u, 1u << 20));
     r->add_option("--max-spp", a.max_spp,
                   "adaptive sampling: most samples a pixel takes (default: --spp or the "
@@ -292,6 +293,8 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
             "--spp-range cannot split an adaptive render (--noise-threshold): a part cannot know "
             "which pixels stopped before its first sample without rendering those samples; "
             "split it by pixels (--crop, MPI bands), which give the whole render bit for bit");
+    if (a.min_spp > 0 && a.max_spp > 0 && a.min_spp > a.max_spp)
+        usage_error("--min-spp {} is more than --max-spp {}", a.min_spp, a.max_spp);
     if (!a.preview.empty() && a.no_preview)
         usage_error("--preview names a preview and --no-preview asks for none: choose one");
     if (a.pass_output && a.no_pass_output)
@@ -300,7 +303,12 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
         usage_error("--denoise-glints says how --denoise treats the glints: add --denoise");
     for (const std::string& dir : a.plugin_dirs) {
         std::error_code ec;
-        if (!fs::is_directory(dir, ec)) usage_error("--plugin-path '{}' is not a folder", dir);
+        if (!fs::is_directory(dir, ec))
+            usage_error("--plugin-path '{}' is not a folder{}", dir,
+                        dir.find(':') != std::string::npos
+                            ? " (one folder per --plugin-path: repeat the option, or list "
+                              "folders separated by ':' in $SPANGLE_PLUGIN_PATH)"
+                            : "");
     }
     if (!a.spp_range.empty()) {
         if (a.layers)

@@ -308,6 +308,13 @@ ecs::SystemReport Session::render() {
             "and no [render] noise_threshold): every pixel takes the scene's spp");
         adaptive_warned_ = true;
     }
+    if ((film.min_spp || film.max_spp) && !adaptive_warned_ && !adaptive_on(film, options_)) {
+        log_.warn(
+            "{}: [render] min_spp and max_spp bound adaptive sampling, which is off (no "
+            "noise_threshold): every pixel takes spp",
+            info_ ? info_->path : std::string("the scene"));
+        adaptive_warned_ = true;
+    }
     // --spp raises no adaptive pixel above the scene's max_spp: said once.
     if (options_.spp_override && !options_.max_spp_override && film.max_spp &&
         film.max_spp < options_.spp_override && !adaptive_warned_ && adaptive_on(film, options_)) {

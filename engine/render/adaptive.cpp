@@ -13,6 +13,8 @@ namespace {
 
 /** Samples before a pixel may stop when neither the scene nor the options say. */
 constexpr uint32_t kAutoMinSpp = 16;
+/** The fewest samples after which a pixel can stop: two looks at four samples each. */
+constexpr uint32_t kEarliestStop = 8;
 /** The floor of dark pixels in the relative error (the relMSE metric's 0.01 = 0.1^2). */
 constexpr double kDarkFloor2 = 0.01;
 
@@ -31,7 +33,9 @@ AdaptivePlan adaptive_plan(const Film& film, const RenderOptions& options) {
         throw_error("min_spp {} is more than the {} samples a pixel may take (max_spp, or spp)",
                     asked, p.max_spp);
     p.min_spp = asked ? asked : std::min(kAutoMinSpp, p.max_spp);
-    p.min_spp = std::min(p.max_spp, (p.min_spp + 3u) & ~3u);  // four equal quarters
+    // Four equal quarters, and two looks before a stop (at 4 and 8 samples at the soonest):
+    // a pixel cannot stop before 8 whatever min_spp says, so 8 is what the header records.
+    p.min_spp = std::min(p.max_spp, std::max(kEarliestStop, (p.min_spp + 3u) & ~3u));
     return p;
 }
 

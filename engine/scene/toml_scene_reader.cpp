@@ -55,12 +55,16 @@ RenderDesc read_render(TableReader& r) {
     if (const std::string why = noise_threshold_problem(threshold); !why.empty())
         throw_error(r.loc("noise_threshold"), "noise_threshold {}", why);
     d.noise_threshold = static_cast<float>(threshold);
-    d.min_spp = static_cast<uint32_t>(r.integer("min_spp", 0, {0, 1 << 20}));
-    d.max_spp = static_cast<uint32_t>(r.integer("max_spp", 0, {0, 1 << 20}));
+    // 0 is not a count a pixel can take (left out, they default: 16, and spp).
+    d.min_spp = static_cast<uint32_t>(r.integer("min_spp", 0, {1, 1 << 20}));
+    d.max_spp = static_cast<uint32_t>(r.integer("max_spp", 0, {1, 1 << 20}));
     d.transparent_background = r.boolean("transparent_background", false);
     if (d.min_spp > 0 && d.max_spp > 0 && d.min_spp > d.max_spp)
         throw_error(r.loc("min_spp"), "min_spp = {} is more than max_spp = {}", d.min_spp,
                     d.max_spp);
+    if (d.min_spp > 0 && d.max_spp == 0 && d.min_spp > d.spp)
+        throw_error(r.loc("min_spp"), "min_spp = {} is more than spp = {} (the most a pixel takes)",
+                    d.min_spp, d.spp);
     if (!parse_filter(filter, d.filter))
         throw_error(r.loc("filter"), "unknown filter '{}' (valid: box, gaussian, blackman-harris)",
                     filter);
