@@ -11,6 +11,7 @@
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
 #include <OpenEXR/ImfMultiPartInputFile.h>
+#include <OpenEXR/ImfStringAttribute.h>
 #include <OpenEXR/ImfTestFile.h>
 #include <CLI/CLI.hpp>
 #include <algorithm>
@@ -39,7 +40,12 @@ struct Planes {
     std::array<double, 3> luma = kRec709Luma;
     bool luma_from_header = false;
     std::vector<std::string> names;        ///< in the file's order (OpenEXR's: by name)
-    std::vector<std::vector<float>> data;  ///< one plane per name (empty: not a float channel)
+    std::vector<std::vector<float>> data;  ///< one plane per name (empty: not read)
+    std::vector<bool> sums;  ///< a --spp-range part's exact sums (32-bit integers, not read)
+    /** How the image was rendered, from Spangle's header attributes ("partial: 8 of 64 samples
+     *  per pixel", ...); empty for another renderer's file. */
+    std::vector<std::string> state;
+    bool decoded = false;  ///< an encoded (sRGB) image, decoded to linear for the measures
     const std::vector<float>* find(const std::string& name) const {
         const auto it = std::find(names.begin(), names.end(), name);
         return it == names.end() || data[static_cast<std::size_t>(it - names.begin())].empty()
@@ -87,20 +93,46 @@ Planes read_exr_planes(const std::string& path) {
                 p.luma_from_header = true;
             }
         }
+        const auto text = [&](const char* name) {
+            const auto* a = in.header().findTypedAttribute<Imf::StringAttribute>(name);
+            return a ? a->value() : std::string();
+        };
+        const std::string spp = text("spangle:spp"), range = text("spangle:spp_range");
+        if (text("spangle:partial") == "1")
+            p.state.push_back(
+                fmt::format("partial: stopped at {} samples per pixel", spp.empty() ? "?" : spp));
+        else if (!spp.empty())
+            p.state.push_back(fmt::format("{} samples per pixel", spp));
+        if (!range.empty())
+            p.state.push_back(
+                fmt::format("samples {} of a frame of {}", range, text("spangle:spp_frame")));
+        if (const std::string v = text("spangle:sampling"); !v.empty()) p.state.push_back(v);
+        if (const std::string v = text("spangle:denoised"); !v.empty())
+            p.state.push_back("denoised: " + v);
+        if (const std::string v = text("spangle:preview_stride"); !v.empty())
+            p.state.push_back(fmt::format("a preview pass (one path per {0}x{0} block)", v));
         const auto n = static_cast<std::size_t>(p.width) * static_cast<std::size_t>(p.height);
         Imf::FrameBuffer fb;
         const Imf::ChannelList& list = in.header().channels();
         for (auto it = list.begin(); it != list.end(); ++it) p.names.emplace_back(it.name());
         p.data.resize(p.names.size());
+        p.sums.assign(p.names.size(), false);
         for (std::size_t c = 0; c < p.names.size(); ++c) {
-            if (list.findChannel(p.names[c])->type == Imf::UINT) continue;
+            // A --spp-range part's integer channels are exact sums, not pixel values; another
+            // file's integer channels are read as numbers (OpenEXR converts them).
+            if (list.findChannel(p.names[c])->type == Imf::UINT && !range.empty()) {
+                p.sums[c] = true;
+                continue;
+            }
             p.data[c].assign(n, 0.0f);
             fb.insert(p.names[c],
                       Imf::Slice::Make(Imf::FLOAT, p.data[c].data(), dw, sizeof(float),
                                        sizeof(float) * static_cast<std::size_t>(p.width)));
         }
-        in.setFrameBuffer(fb);
-        in.readPixels(dw.min.y, dw.max.y);
+        if (fb.begin() != fb.end()) {
+            in.setFrameBuffer(fb);
+            in.readPixels(dw.min.y, dw.max.y);
+        }
         return p;
     } catch (const SpangleError&) {
         throw;
@@ -114,7 +146,8 @@ void print_channels(const Planes& p) {
     fmt::print("channels ({}):\n", p.names.size());
     for (std::size_t c = 0; c < p.names.size(); ++c) {
         if (p.data[c].empty()) {
-            fmt::print("  {:<20} (32-bit integer: exact sums of a sample range)\n", p.names[c]);
+            if (p.sums[c])
+                fmt::print("  {:<20} (32-bit integer: exact sums of a sample range)\n", p.names[c]);
             continue;
         }
         // Cryptomatte's id channels hold hashes as float bits: a range of them means nothing.
@@ -154,13 +187,19 @@ std::vector<float> read_rgb(const std::string& path, Planes& planes) {
         std::vector<float> rgb = planes.three("R", "G", "B");
         // A grey image (a single Y channel, as luminance-only EXRs hold): its value in all three.
         if (rgb.empty() && planes.find("Y")) rgb = planes.three("Y", "Y", "Y");
-        if (rgb.empty()) throw_error("'{}' has no R, G and B channels (nor Y)", path);
+        // Only layers (an AOV file: diffuse.R, ...): no image measures, the channels still.
         return rgb;
     }
     ImageHeader spec;
     std::vector<float> rgb = read_image(path, 3, spec);
     planes.width = spec.width;
     planes.height = spec.height;
+    // PNG, JPEG and the like hold sRGB-encoded values: measured linear, as a render is (a PNG
+    // preview's mean read 0.26 where its EXR's is 0.20, and a relMSE against the EXR of 2.2).
+    if (usual_image_space(path) == "srgb_texture") {
+        for (float& v : rgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+        planes.decoded = true;
+    }
     if (spec.channels >= 3) return rgb;
     // Grey (and grey + alpha): the grey in all three.
     const int stride = std::max(spec.channels, 1);
@@ -175,6 +214,16 @@ std::vector<float> read_rgb(const std::string& path, Planes& planes) {
 int run_inspect(const std::string& path, const std::string& reference) {
     Planes planes;
     const std::vector<float> rgb = read_rgb(path, planes);
+    if (rgb.empty()) {
+        if (!reference.empty())
+            throw_error("'{}' has no R, G and B channels (nor Y) to compare with '{}'", path,
+                        reference);
+        fmt::print("{}: {}x{}, no R, G and B channels (nor Y): its channels alone\n", path,
+                   planes.width, planes.height);
+        for (const std::string& st : planes.state) fmt::print("render: {}\n", st);
+        print_channels(planes);
+        return 0;
+    }
     const std::vector<float> glints = planes.three("glints.R", "glints.G", "glints.B");
     const ImageMetrics m = measure_image(rgb, planes.width, planes.height, 10.0, 1e-3,
                                          glints.empty() ? nullptr : &glints, planes.luma);
@@ -190,6 +239,8 @@ int run_inspect(const std::string& path, const std::string& reference) {
                planes.parts > 1
                    ? fmt::format(" (part 1 of {}: the others are not read)", planes.parts)
                    : std::string());
+    for (const std::string& st : planes.state) fmt::print("render: {}\n", st);
+    if (planes.decoded) fmt::print("values: sRGB-encoded, decoded to linear for the measures\n");
     fmt::print("mean luminance: {:.6g}{}\nnon-finite pixels: {}\nnegative pixels: {}\n",
                m.mean_luminance,
                planes.luma_from_header ? " (weighed by the primaries of its chromaticities)"
@@ -229,7 +280,24 @@ int run_inspect(const std::string& path, const std::string& reference) {
                        "made alike\n",
                        with, without);
         }
-        fmt::print("relMSE against {}: {:.6g}\n", reference, relative_mse(rgb, ref));
+        // Over the pixels finite in both (a NaN made the figure nan); how many were left out.
+        std::vector<float> a, b;
+        std::size_t skipped = 0;
+        for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) {
+            const bool ok = std::isfinite(rgb[i] + rgb[i + 1] + rgb[i + 2]) &&
+                            std::isfinite(ref[i] + ref[i + 1] + ref[i + 2]);
+            if (!ok) {
+                ++skipped;
+                continue;
+            }
+            a.insert(a.end(), rgb.begin() + static_cast<std::ptrdiff_t>(i),
+                     rgb.begin() + static_cast<std::ptrdiff_t>(i + 3));
+            b.insert(b.end(), ref.begin() + static_cast<std::ptrdiff_t>(i),
+                     ref.begin() + static_cast<std::ptrdiff_t>(i + 3));
+        }
+        fmt::print("relMSE against {}: {:.6g}{}\n", reference, relative_mse(a, b),
+                   skipped ? fmt::format(" (over the pixels finite in both; {} left out)", skipped)
+                           : std::string());
     }
     if (!planes.names.empty()) print_channels(planes);
     return 0;

@@ -1,0 +1,41 @@
+#!/usr/bin/env bash
+# `spangle inspect` as a farm's quality check: it says how an image was rendered (partial, the
+# samples per pixel, a sample range), measures an AOV-only EXR by its channels (it refused it),
+# reads another file's 32-bit integer channels, decodes a PNG's sRGB before measuring (it took
+# encoded values for linear), and leaves NaN pixels out of a relMSE (it printed nan).
+#   inspect_files.sh SPANGLE PLUGIN_DIR SCENE_DIR
+set -u
+S=$1 PLUGINS=$2 SCENES=$3
+T=$(mktemp -d)
+trap 'rm -rf "$T"' EXIT
+cp "$SCENES/flake_uvless.toml" "$SCENES/uvless_ball.obj" "$T/"
+cd "$T"
+fail() { echo "FAIL: $*"; exit 1; }
+"$S" render flake_uvless.toml -o part.exr --size 48x32 --spp 16 --spp-range 0..8 -q --threads 2 \
+    --plugin-path "$PLUGINS" || fail "render"
+"$S" inspect part.exr > out.txt || fail "inspect part.exr: $(cat out.txt)"
+grep -q "^render: 8 samples per pixel" out.txt || fail "no samples per pixel: $(cat out.txt)"
+grep -q "^render: samples 0..8 of a frame of 16" out.txt || fail "no sample range: $(cat out.txt)"
+"$S" render flake_uvless.toml -o whole.exr --size 48x32 --spp 4 -q --threads 2 \
+    --plugin-path "$PLUGINS" || fail "render"
+oiiotool whole.exr --ch R,G,B --chnames diffuse.R,diffuse.G,diffuse.B -o aov.exr
+"$S" inspect aov.exr > out.txt || fail "inspect aov.exr refused: $(cat out.txt)"
+grep -q "no R, G and B channels (nor Y): its channels alone" out.txt || fail "$(cat out.txt)"
+grep -q "diffuse.G .*mean" out.txt || fail "AOV channel not measured: $(cat out.txt)"
+oiiotool --pattern constant:color=0.5,0.5,0.5 8x8 3 -d uint32 -o ints.exr
+"$S" inspect ints.exr > out.txt || fail "integer EXR: $(cat out.txt)"
+grep -q "^mean luminance" out.txt || fail "integer EXR not measured: $(cat out.txt)"
+# A PNG of sRGB 0.5 (188/255 is 0.5 in linear) measures about 0.5, not 0.74.
+oiiotool --pattern constant:color=0.5,0.5,0.5 8x8 3 --tocolorspace sRGB -d uint8 -o half.png
+"$S" inspect half.png > out.txt || fail "PNG: $(cat out.txt)"
+grep -q "sRGB-encoded, decoded to linear" out.txt || fail "PNG not decoded: $(cat out.txt)"
+python3 - out.txt <<'PY' || fail "PNG mean: $(cat out.txt)"
+import re, sys
+m = float(re.search(r"mean luminance: ([0-9.e+-]+)", open(sys.argv[1]).read()).group(1))
+sys.exit(0 if abs(m - 0.5) < 0.01 else 1)
+PY
+# NaN pixels are left out of a relMSE (and counted), not made its value.
+oiiotool --pattern constant:color=nan,nan,nan 4x4 3 whole.exr --ch R,G,B --paste +0+0 -o nan.exr
+"$S" inspect nan.exr --against whole.exr > out.txt 2>&1 || fail "NaN: $(cat out.txt)"
+grep -q "relMSE against whole.exr: [0-9].*16 left out" out.txt || fail "NaN relMSE: $(cat out.txt)"
+echo ok
