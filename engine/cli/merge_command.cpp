@@ -32,6 +32,12 @@ int run_merge(const MergeArgs& a) {
     if (!has_extension(a.output, ".exr")) usage_error("output '{}' must end in .exr", a.output);
     check_writable(a.output, "EXR");
     const MergeReport rep = merge_exr_parts(a.parts, a.output);
+    // A stopped part makes a partial whole (its header says so too): said, not left to be found.
+    for (const std::string& p : rep.partial_parts)
+        fmt::print(stderr,
+                   "warning: '{}' is partial (a stop signal cut its render short): {} is partial "
+                   "too (spangle:partial = 1)\n",
+                   p, a.output);
     if (rep.sample_ranges > 0) {
         fmt::print("added {} sample ranges into {} ({}x{} frame)\n", rep.sample_ranges, a.output,
                    rep.width, rep.height);

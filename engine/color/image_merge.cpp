@@ -104,9 +104,13 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
 struct PartTotals {
     bool partial = false;
     double seconds = 0.0;
-    bool timed = true;  ///< every part has a render time
-    void add(const Imf::Header& h) {
-        partial = partial || attribute(h, "spangle:partial") == "1";
+    bool timed = true;                  ///< every part has a render time
+    std::vector<std::string> partials;  ///< the parts that were partial
+    void add(const Imf::Header& h, const std::string& path) {
+        if (attribute(h, "spangle:partial") == "1") {
+            partial = true;
+            partials.push_back(path);
+        }
         const auto* t = h.findTypedAttribute<Imf::FloatAttribute>("renderTimeSeconds");
         if (t)
             seconds += static_cast<double>(t->value());
@@ -149,7 +153,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     for (const std::string& path : parts) {
         read_part(path, [&](Imf::InputFile& in) {
             const Imf::Header& hd = in.header();
-            totals.add(hd);
+            totals.add(hd, path);
             const std::string range = attribute(hd, "spangle:spp_range");
             if (range.empty())
                 throw_error(
@@ -247,6 +251,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     header.channels() = channels;
     header.insert("spangle:spp", Imf::StringAttribute(std::to_string(spp_frame)));
     totals.apply(header);
+    rep.partial_parts = totals.partials;
     const Imath::Box2i dw = header.dataWindow();
     write_file_atomically(out, [&](const std::string& tmp) {
         Imf::OutputFile file(tmp.c_str(), header);
@@ -298,7 +303,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
     for (const std::string& path : parts) {
         read_part(path, [&](Imf::InputFile& in) {
             const Imf::Header& hd = in.header();
-            totals.add(hd);
+            totals.add(hd, path);
             const Imath::Box2i dw = hd.dataWindow();
             if (!first) {
                 first = std::make_unique<Imf::Header>(hd);
@@ -389,6 +394,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
     Imf::Header header(*first);
     header.dataWindow() = display;
     totals.apply(header);
+    rep.partial_parts = totals.partials;
     write_file_atomically(out, [&](const std::string& tmp) {
         Imf::OutputFile file(tmp.c_str(), header);
         // Half channels are written from half copies (their values came from halves: exact).

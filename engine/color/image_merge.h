@@ -15,6 +15,8 @@ struct MergeReport {
     std::size_t parts = 0;
     std::size_t overlap_pixels = 0;  ///< pixels more than one part held (with equal values)
     std::size_t sample_ranges = 0;   ///< --spp-range parts added up (0: crop windows placed)
+    /** Parts a stop signal cut short (spangle:partial): the merged image is partial too. */
+    std::vector<std::string> partial_parts;
 };
 
 /** Reads every part, checks they describe the same frame (display window, channels and their

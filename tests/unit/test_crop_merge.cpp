@@ -35,13 +35,15 @@ FrameResult render(const test::TempDir& dir, CropWindow crop) {
     return render_frame(req);
 }
 
-/** Writes r as a 32-bit EXR with its layers, its data window where its crop lies. */
-void write(const FrameResult& r, const std::string& path) {
+/** Writes r as a 32-bit EXR with its layers, its data window where its crop lies (marked as a
+ *  render a stop signal cut short with `partial`). */
+void write(const FrameResult& r, const std::string& path, bool partial = false) {
     ExrOptions o;
     o.half = false;
     o.layers = &r.layers;
     o.layer_names = r.layer_names;
     o.metadata = {{"spangle:spp", "4"}};
+    if (partial) o.metadata.emplace_back("spangle:partial", "1");
     o.origin_x = static_cast<int>(r.window.x0);
     o.origin_y = static_cast<int>(r.window.y0);
     o.display_width = static_cast<int>(r.window.full_width);
@@ -90,6 +92,15 @@ TEST(CropMerge, CropsMergeIntoTheWholeRenderBitForBit) {
     EXPECT_EQ(rep.width, 72);
     EXPECT_EQ(rep.height, 40);
     EXPECT_EQ(rep.overlap_pixels, 7u * 23u);
+    EXPECT_TRUE(rep.partial_parts.empty());
+    {
+        // A part a stop signal cut short makes a partial whole: named (merge warns with it).
+        const FrameResult r = render(dir, windows[2]);
+        write(r, dir.file("stopped.exr"), true);
+        const MergeReport p =
+            merge_exr_parts({parts[0], parts[1], dir.file("stopped.exr")}, dir.file("p.exr"));
+        EXPECT_EQ(p.partial_parts, std::vector<std::string>{dir.file("stopped.exr")});
+    }
     std::vector<std::string> names_whole, names_merged;
     const std::vector<float> a = read_all(dir.file("whole.exr"), names_whole);
     const std::vector<float> b = read_all(dir.file("merged.exr"), names_merged);
