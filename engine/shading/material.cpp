@@ -18,10 +18,19 @@ void host_log(void* context, SpangleLogLevel level, const char* message) {
                        : level == SPANGLE_LOG_INFO    ? LogLevel::Info
                                                       : LogLevel::Debug;
     const char* text = message ? message : "";
-    if (l >= LogLevel::Warning && !host->subject().empty())
-        host->log().write(l, fmt::format("{}: {}", host->subject(), text));
-    else
+    if (l < LogLevel::Warning) {
         host->log().write(l, text);
+        return;
+    }
+    // Warnings and errors name what they are about: the material being made, or the plugin
+    // call this thread is in; and each is said once (a plugin warning once per batch said it
+    // dozens of times a frame).
+    const PluginCallSite call = current_plugin_call();
+    const std::string line =
+        !host->subject().empty() ? fmt::format("{}: {}", host->subject(), text)
+        : call.label             ? fmt::format("{}: {}", call.label, text)
+                                 : std::string(text);
+    if (host->said().first_time(line)) host->log().write(l, line);
 }
 
 int host_convert(void* context, const char* from, float* rgb, uint32_t count, char* error,

@@ -32,6 +32,8 @@ public:
      *  material 'paint'"): host_log puts it before them. Empty: nothing. */
     void set_subject(std::string subject) const { subject_ = std::move(subject); }
     const std::string& subject() const { return subject_; }
+    /** The plugin warnings already said (each is said once). */
+    WarningsSaid& said() const { return said_; }
 
 private:
     const ColorConfig& color_;
@@ -39,6 +41,7 @@ private:
     mutable TextureService textures_;
     std::string working_;  ///< keeps api_.working_space alive
     mutable std::string subject_;
+    mutable WarningsSaid said_;
     SpangleHost_v3 api_{};
 };
 
