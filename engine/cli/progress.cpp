@@ -25,12 +25,14 @@ Progress::Progress(bool interactive, std::FILE* out)
       start_(std::chrono::steady_clock::now()),
       last_draw_(start_) {}
 
-void Progress::update(uint64_t done, uint64_t total) {
+void Progress::update(uint64_t done, uint64_t total, uint64_t traced) {
     const auto now = std::chrono::steady_clock::now();
     const double elapsed = std::chrono::duration<double>(now - start_).count();
     const double frac = total ? static_cast<double>(done) / static_cast<double>(total) : 1.0;
-    const double rate = elapsed > 0.0 ? static_cast<double>(done) / elapsed : 0.0;
-    const double left = rate > 0.0 ? static_cast<double>(total - done) / rate : -1.0;
+    const double work = static_cast<double>(traced > 0 ? traced : done);
+    const double rate = elapsed > 0.0 ? work / elapsed : 0.0;
+    const double left =
+        rate > 0.0 ? static_cast<double>(total - std::min(done, total)) / rate : -1.0;
     if (interactive_) {
         if (done < total && std::chrono::duration<double>(now - last_draw_).count() < 0.2) return;
         last_draw_ = now;

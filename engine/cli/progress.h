@@ -16,7 +16,10 @@ class Progress {
 public:
     /** interactive: redraw one line in place (stderr is a terminal). */
     explicit Progress(bool interactive, std::FILE* out = stderr);
-    void update(uint64_t done, uint64_t total);
+    /** `traced`: the samples actually traced, when adaptive sampling counts the samples of
+     *  stopped pixels as done (0: done are all traced). The rate is the traced one, and the
+     *  time left the remaining samples at that rate (with adaptive sampling, at most that). */
+    void update(uint64_t done, uint64_t total, uint64_t traced = 0);
     /** Ends the line on a terminal. */
     void finish();
 

@@ -8,6 +8,7 @@
 #include <cmath>
 
 #include <CLI/CLI.hpp>
+#include <atomic>
 #include <cstdio>
 #include <filesystem>
 #include <memory>
@@ -222,8 +223,12 @@ int run_one_shot(const RenderArgs& a) {
     req.options = render_options(a);
     req.log = &s.log;
     Progress progress(::isatty(STDERR_FILENO) != 0);
+    std::atomic<uint64_t> traced{0};
+    req.options.traced = &traced;
     if (!a.quiet)
-        req.options.progress = [&](uint64_t done, uint64_t total) { progress.update(done, total); };
+        req.options.progress = [&](uint64_t done, uint64_t total) {
+            progress.update(done, total, traced.load(std::memory_order_relaxed));
+        };
     req.options.stop = stop_requested;
     // The colour config is only known once the frame has loaded it: the pass callback gets it
     // through this pointer, set by on_loaded below before any pass ends.

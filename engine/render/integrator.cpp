@@ -135,6 +135,8 @@ struct TileRun {
             }
             s += count;
             uint64_t samples = active * count;
+            if (count_progress && options.traced)
+                options.traced->fetch_add(samples, std::memory_order_relaxed);
             if (job.adaptive && s == checkpoint) {
                 samples += check_tile(t, s);
                 active = active_pixels(t);

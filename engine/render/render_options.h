@@ -2,6 +2,7 @@
 // How a render is asked for (RenderOptions: from the command line, not the scene), what it reports
 // as it goes (PassImage) and when it ends (RenderStats), and the film's geometry (crop windows).
 
+#include <atomic>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -50,6 +51,10 @@ struct RenderOptions {
     /** Called with (samples done, samples total) from worker threads, serialised by the
      *  integrator; may be empty. */
     std::function<void(uint64_t, uint64_t)> progress;
+    /** When set, the samples actually traced are added here as they are (the progress' done
+     *  also counts, with adaptive sampling, the samples pixels that stopped will not take: a
+     *  rate from it ran at 26-66 Msamples/s on one thread and its time left came out short). */
+    std::atomic<uint64_t>* traced = nullptr;
     /** Told how far the long work before a render is (reading meshes, subdividing, building
      *  BVHs); may be empty. */
     WorkProgress work_progress;
