@@ -67,10 +67,12 @@ extern "C" {
 /** Type of one material parameter. */
 typedef enum SpangleParamType {
     SPANGLE_PARAM_FLOAT = 0,  /* one float, range-checked */
-    SPANGLE_PARAM_INT = 1,    /* one 64-bit integer, range-checked */
+    SPANGLE_PARAM_INT = 1,    /* one integer, range-checked; passed in number[0] as a double
+                                 (exact up to 2^53) */
     SPANGLE_PARAM_BOOL = 2,   /* true or false */
     SPANGLE_PARAM_COLOR = 3,  /* RGB; the host converts it to the working space at load */
-    SPANGLE_PARAM_STRING = 4, /* one of the choices in SpangleParamDesc_v3.choices */
+    SPANGLE_PARAM_STRING = 4, /* one of the choices in SpangleParamDesc_v3.choices (any text
+                                 when choices is NULL) */
     SPANGLE_PARAM_VEC3 = 5    /* three numbers passed as written (no colour management), each
                                  range-checked; e.g. a conductor's per-channel complex IOR */
 } SpangleParamType;
@@ -283,7 +285,9 @@ typedef struct SpangleMaterialModel_v3 {
     /** Frees an instance made by create(). */
     void (*destroy)(void* instance);
 
-    /** Writes batch->count closures of closure_size bytes each (16-byte aligned) to `closures`.
+    /** Writes batch->count closures of closure_size bytes each to `closures`, closure i at
+     *  closures + i * closure_size (the array starts 16-byte aligned; every closure is when
+     *  closure_size is a multiple of 16).
      *  Variable-size data goes to `arena`. */
     void (*prepare)(const void* instance, const SpangleShadingBatch_v3* batch, void* closures,
                     SpangleArena_v3* arena);
