@@ -26,10 +26,9 @@ void host_log(void* context, SpangleLogLevel level, const char* message) {
     // call this thread is in; and each is said once (a plugin warning once per batch said it
     // dozens of times a frame).
     const PluginCallSite call = current_plugin_call();
-    const std::string line =
-        !host->subject().empty() ? fmt::format("{}: {}", host->subject(), text)
-        : call.label             ? fmt::format("{}: {}", call.label, text)
-                                 : std::string(text);
+    const std::string line = !host->subject().empty() ? fmt::format("{}: {}", host->subject(), text)
+                             : call.label             ? fmt::format("{}: {}", call.label, text)
+                                                      : std::string(text);
     if (host->said().first_time(line)) host->log().write(l, line);
 }
 

@@ -240,7 +240,7 @@ const SpangleParamDesc_v3 kConductorParams[] = {
     {"k", SPANGLE_PARAM_VEC3, {-1, -1, -1}, nullptr, -1.0, 100.0, nullptr, "imaginary part (extinction) per channel; only with preset = custom", 0},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.2, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a perfect mirror", SPANGLE_PARAM_TEXTURABLE},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent (anisotropy); -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
-    {"multiscatter", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (Kulla-Conty, as Cycles' Multiscatter GGX); false: single-scattering GGX (pbrt's, Mitsuba's), darker when rough", 0},
+    {"multiscatter", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (Kulla-Conty, as Cycles' Multiscatter GGX); false: single-scattering GGX with height-correlated shadowing (pbrt-v4's; Mitsuba 3's separable shadowing is darker still), darker when rough", 0},
 };
 // clang-format on
 
@@ -532,7 +532,7 @@ const SpangleParamDesc_v3 kDielectricParams[] = {
     {"ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of refraction inside (the outside is 1); within 1e-3 of 1 an index-matched interface light passes straight through", 0},
     {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface", SPANGLE_PARAM_TEXTURABLE},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
-    {"multiscatter", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (energy compensation, as Cycles' Multiscatter GGX glass; the Blender add-on and the glTF importer set it); false: single-scattering GGX (pbrt's, Mitsuba's), darker when rough", 0},
+    {"multiscatter", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (energy compensation, as Cycles' Multiscatter GGX glass; the Blender add-on and the glTF importer set it); false: single-scattering GGX with height-correlated shadowing (pbrt-v4's; Mitsuba 3's separable shadowing is darker still), darker when rough", 0},
 };
 // clang-format on
 
