@@ -8,7 +8,7 @@
 //   plugins  plugins_command.cpp      inspect  inspect_command.cpp
 //   merge    merge_command.cpp        flicker  flicker_command.cpp
 //   bench    bench_command.cpp        convert  convert_command.cpp
-//   new      new_command.cpp
+//   new      new_command.cpp          denoise  denoise_command.cpp
 
 #include <functional>
 
@@ -32,6 +32,8 @@ Command add_plugins_command(CLI::App& app);
 Command add_inspect_command(CLI::App& app);
 /** `spangle merge`: crop windows or sample ranges into the whole render. */
 Command add_merge_command(CLI::App& app);
+/** `spangle denoise`: a render written with --layers denoised (a merged frame). */
+Command add_denoise_command(CLI::App& app);
 /** `spangle flicker`: how glints flicker over a rendered sequence. */
 Command add_flicker_command(CLI::App& app);
 /** `spangle bench`: fixed scenes measured. */

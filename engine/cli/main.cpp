@@ -103,6 +103,7 @@ int main(int argc, char** argv) {
                                            add_plugins_command(app),
                                            add_inspect_command(app),
                                            add_merge_command(app),
+                                           add_denoise_command(app),
                                            add_flicker_command(app),
                                            add_bench_command(app),
                                            add_convert_command(app),

@@ -1,0 +1,198 @@
+// `spangle denoise IN.exr -o OUT.exr`: denoises a render written with --layers as render
+// --denoise would have, for frames assembled from parts: crop windows and MPI bands cannot be
+// denoised apart (a part's border lacks its neighbours, and merge refuses denoised parts), so a
+// farm renders the parts with --layers, merges them, then denoises the whole frame here.
+
+#include <fmt/format.h>
+
+#include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfFrameBuffer.h>
+#include <OpenEXR/ImfHeader.h>
+#include <OpenEXR/ImfInputFile.h>
+#include <OpenEXR/ImfOutputFile.h>
+#include <OpenEXR/ImfStringAttribute.h>
+#include <CLI/CLI.hpp>
+#include <algorithm>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "cli/commands.h"
+#include "cli/output_paths.h"
+#include "cli/usage.h"
+#include "color/image_output.h"
+#include "core/error.h"
+#include "render/denoise.h"
+
+namespace spangle {
+namespace {
+
+/** Options of `spangle denoise`. */
+struct DenoiseArgs {
+    std::string input, output;
+    std::string glints = "keep";
+    int threads = 0;
+};
+
+/** One channel of the input: its name, its pixel type and its values (data window). */
+struct Plane {
+    std::string name;
+    Imf::PixelType type;
+    std::vector<float> values;
+};
+
+std::string attribute(const Imf::Header& h, const char* name) {
+    const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name);
+    return a ? a->value() : std::string();
+}
+
+int run_denoise(const DenoiseArgs& a) {
+    if (same_file(a.input, a.output)) usage_error("the output '{}' is the input", a.output);
+    if (!has_extension(a.output, ".exr")) usage_error("output '{}' must end in .exr", a.output);
+    const std::optional<GlintDenoise> glints = glint_denoise_named(a.glints);
+    if (!glints) usage_error("--denoise-glints '{}': one of keep, apart, filter", a.glints);
+    check_writable(a.output, "EXR");
+    std::string why;
+    if (!denoiser_available(&why)) throw_error("{}", why);
+
+    std::unique_ptr<Imf::Header> header;
+    std::vector<Plane> planes;
+    int width = 0, height = 0;
+    try {
+        Imf::InputFile in(a.input.c_str());
+        header = std::make_unique<Imf::Header>(in.header());
+        const Imath::Box2i dw = header->dataWindow();
+        width = dw.max.x - dw.min.x + 1;
+        height = dw.max.y - dw.min.y + 1;
+        if (!attribute(*header, "spangle:denoised").empty())
+            throw_error("'{}' is denoised already (spangle:denoised = {})", a.input,
+                        attribute(*header, "spangle:denoised"));
+        if (!attribute(*header, "spangle:spp_range").empty())
+            throw_error(
+                "'{}' is a --spp-range part (samples {}): merge the ranges into the frame first, "
+                "then denoise it",
+                a.input, attribute(*header, "spangle:spp_range"));
+        const Imf::ChannelList& list = header->channels();
+        Imf::FrameBuffer fb;
+        const auto n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+        for (auto it = list.begin(); it != list.end(); ++it)
+            planes.push_back({it.name(), it.channel().type, std::vector<float>(n, 0.0f)});
+        for (Plane& p : planes)
+            fb.insert(p.name, Imf::Slice::Make(Imf::FLOAT, p.values.data(), dw, sizeof(float),
+                                               sizeof(float) * static_cast<std::size_t>(width)));
+        in.setFrameBuffer(fb);
+        in.readPixels(dw.min.y, dw.max.y);
+    } catch (const SpangleError&) {
+        throw;
+    } catch (const std::exception& e) {
+        throw_error("cannot read '{}': {}", a.input, e.what());
+    }
+    const auto find = [&](const std::string& name) -> Plane* {
+        for (Plane& p : planes)
+            if (p.name == name) return &p;
+        return nullptr;
+    };
+    std::vector<std::string> missing;
+    for (const char* need : {"R", "G", "B", "albedo.R", "albedo.G", "albedo.B", "N.X", "N.Y", "N.Z",
+                             "glints.R", "glints.G", "glints.B"})
+        if (!find(need)) missing.emplace_back(need);
+    if (!missing.empty())
+        throw_error(
+            "'{}' lacks the channels the denoiser is guided by ({}): render it (or its parts) "
+            "with --layers",
+            a.input, fmt::join(missing, ", "));
+    if (find("noisy.R")) throw_error("'{}' has a 'noisy' layer: it is denoised already", a.input);
+
+    // The beauty and the layers as the renderer holds them: RGB per pixel, the other channels
+    // per pixel in the file's order.
+    const auto n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);
+    const Plane *r = find("R"), *g = find("G"), *b = find("B");
+    std::vector<float> image(3 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+        image[3 * i] = r->values[i];
+        image[3 * i + 1] = g->values[i];
+        image[3 * i + 2] = b->values[i];
+    }
+    // The layers' channels in the renderer's order: a layer's R, G, B (A) and X, Y, Z in that
+    // order, one after the other (the file lists channels by name: B, G, R).
+    std::vector<const Plane*> layer_planes;
+    for (const Plane& p : planes)
+        if (p.name != "R" && p.name != "G" && p.name != "B") layer_planes.push_back(&p);
+    const auto rank = [](const std::string& name) {
+        const std::size_t dot = name.rfind('.');
+        const std::string last = dot == std::string::npos ? name : name.substr(dot + 1);
+        static const std::string order[] = {"R", "G", "B", "A", "X", "Y", "Z"};
+        const auto it = std::find(std::begin(order), std::end(order), last);
+        return std::make_pair(
+            dot == std::string::npos ? name : name.substr(0, dot),
+            it == std::end(order) ? last : std::string(1, char('0' + (it - std::begin(order)))));
+    };
+    std::stable_sort(layer_planes.begin(), layer_planes.end(),
+                     [&](const Plane* x, const Plane* y) { return rank(x->name) < rank(y->name); });
+    std::vector<std::string> names;
+    for (const Plane* p : layer_planes) names.push_back(p->name);
+    std::vector<float> layers(n * names.size());
+    for (std::size_t i = 0; i < n; ++i)
+        for (std::size_t c = 0; c < layer_planes.size(); ++c)
+            layers[i * names.size() + c] = layer_planes[c]->values[i];
+    const std::size_t before = names.size();
+    const bool done = denoise(DenoiseImage{&image, &layers, &names, static_cast<uint32_t>(width),
+                                           static_cast<uint32_t>(height)},
+                              *glints, a.threads);
+    if (!done)
+        fmt::print(
+            stderr, "warning: {}\n",
+            not_denoised_warning(static_cast<uint32_t>(width), static_cast<uint32_t>(height)));
+
+    // The input's header (windows, metadata, compression) with the channels as they are now:
+    // each keeps its type, the noisy beauty takes the beauty's.
+    Imf::Header out = *header;
+    Imf::ChannelList channels;
+    for (const Plane& p : planes) channels.insert(p.name, Imf::Channel(p.type));
+    for (std::size_t c = before; c < names.size(); ++c)
+        channels.insert(names[c], Imf::Channel(r->type));
+    out.channels() = channels;
+    if (done) out.insert("spangle:denoised", Imf::StringAttribute(a.glints));
+    write_file_atomically(a.output, [&](const std::string& tmp) {
+        Imf::OutputFile file(tmp.c_str(), out);
+        Imf::FrameBuffer fb;
+        const Imath::Box2i dw = out.dataWindow();
+        const std::size_t row = sizeof(float) * 3 * static_cast<std::size_t>(width);
+        for (int c = 0; c < 3; ++c)
+            fb.insert(c == 0   ? "R"
+                      : c == 1 ? "G"
+                               : "B",
+                      Imf::Slice::Make(Imf::FLOAT, image.data() + c, dw, 3 * sizeof(float), row));
+        const std::size_t lrow = sizeof(float) * names.size() * static_cast<std::size_t>(width);
+        for (std::size_t c = 0; c < names.size(); ++c)
+            fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, layers.data() + c, dw,
+                                                 names.size() * sizeof(float), lrow));
+        file.setFrameBuffer(fb);
+        file.writePixels(height);
+    });
+    fmt::print(
+        "{} {} into {}{}\n", done ? "denoised" : "copied", a.input, a.output,
+        done ? fmt::format(" (glints: {}; the noisy beauty kept as the layer 'noisy')", a.glints)
+             : std::string());
+    return 0;
+}
+
+}  // namespace
+
+Command add_denoise_command(CLI::App& app) {
+    auto a = std::make_shared<DenoiseArgs>();
+    CLI::App* sub = app.add_subcommand(
+        "denoise",
+        "denoise a render written with --layers (a frame merged from crop windows or MPI bands) "
+        "as render --denoise would have");
+    sub->add_option("image", a->input, "the EXR, with the albedo, N and glints layers")->required();
+    sub->add_option("-o,--output", a->output, "the denoised EXR")->required();
+    sub->add_option("--denoise-glints", a->glints,
+                    "keep (the glints pass through unfiltered, the default), apart (filtered "
+                    "on their own) or filter (with the rest)");
+    sub->add_option("--threads", a->threads, "worker threads (default: all cores)")
+        ->check(CLI::Range(1, 1024));
+    return {sub, [a] { return run_denoise(*a); }};
+}
+
+}  // namespace spangle
