@@ -102,6 +102,13 @@ int run_frames(const RenderArgs& a) {
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count(), rep,
                 out.exr);
         std::fflush(stdout);
+        if (w.stats.denoise_stopped) {
+            s.log.warn(
+                "stopped by a signal ({}) while denoising: wrote {} as rendered, not "
+                "denoised{}",
+                stop_signal_name(), out.exr, left(f + 1));
+            return interrupted_status();
+        }
         if (image.partial || (stop_requested() && f < last)) {
             if (image.partial)
                 s.log.warn("stopped by a signal ({}): wrote {} with {} of {} samples per pixel{}",

@@ -209,6 +209,11 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
     // that came after the last pass (while the image was written) leaves the image whole:
     // SIGTERM still ends the process as terminated (143), SIGINT's status is 0.
     if (image.partial) return interrupted_status();
+    if (frame.stats.denoise_stopped) {
+        s.log.warn("stopped by a signal ({}) while denoising: wrote {} as rendered, not denoised",
+                   stop_signal_name(), s.out.exr);
+        return interrupted_status();
+    }
     return stop_requested() ? exit_status_for_signal() : 0;
 }
 

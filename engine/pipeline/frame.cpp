@@ -143,11 +143,19 @@ FrameResult render_frame(const FrameRequest& req) {
     r.sums = std::move(out.sums);
     r.stats = out.stats;
     if (req.options.denoise && r.stats.spp_reached > 0) {
-        if (denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
-                    req.options.denoise_glints, req.options.threads))
-            mark_denoised(r.stats, req.options.denoise_glints);
-        else
-            req.log->warn("{}", not_denoised_warning(r.width, r.height));
+        DenoiseControl control;
+        control.stop = req.options.stop;
+        if (req.options.work_progress)
+            control.progress = [&](double f) { req.options.work_progress("denoising", f); };
+        try {
+            if (denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
+                        req.options.denoise_glints, req.options.threads, control))
+                mark_denoised(r.stats, req.options.denoise_glints);
+            else
+                req.log->warn("{}", not_denoised_warning(r.width, r.height));
+        } catch (const DenoiseStopped&) {
+            r.stats.denoise_stopped = true;  // the image as rendered; the caller says so
+        }
     }
     r.info = session.info();
     r.plugins_opened = session.plugins().opened();

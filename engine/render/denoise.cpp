@@ -23,10 +23,12 @@ namespace {
 
 using Device = void*;
 using Filter = void*;
-constexpr int kDeviceCpu = 1;     // OIDN_DEVICE_TYPE_CPU
-constexpr int kFormatFloat3 = 3;  // OIDN_FORMAT_FLOAT3
-constexpr int kQualityHigh = 6;   // OIDN_QUALITY_HIGH
-constexpr int kErrorNone = 0;     // OIDN_ERROR_NONE
+constexpr int kDeviceCpu = 1;                            // OIDN_DEVICE_TYPE_CPU
+constexpr int kFormatFloat3 = 3;                         // OIDN_FORMAT_FLOAT3
+constexpr int kQualityHigh = 6;                          // OIDN_QUALITY_HIGH
+constexpr int kErrorNone = 0;                            // OIDN_ERROR_NONE
+constexpr int kErrorCancelled = 6;                       // OIDN_ERROR_CANCELLED
+using ProgressMonitor = bool (*)(void* user, double n);  // OIDNProgressMonitorFunction
 
 /** The OIDN functions Spangle calls, bound from the library. */
 struct OidnApi {
@@ -43,6 +45,8 @@ struct OidnApi {
     void (*commit_filter)(Filter) = nullptr;
     void (*execute)(Filter) = nullptr;
     void (*release_filter)(Filter) = nullptr;
+    /** Optional: a filter's progress, and a way to cancel it (null: neither). */
+    void (*set_progress)(Filter, ProgressMonitor, void*) = nullptr;
     std::string error;  ///< why it could not be opened (empty: it was)
 };
 
@@ -90,6 +94,8 @@ const OidnApi& oidn() {
                                   bind_symbol(handle, "oidnCommitFilter", api.commit_filter) &&
                                   bind_symbol(handle, "oidnExecuteFilter", api.execute) &&
                                   bind_symbol(handle, "oidnReleaseFilter", api.release_filter);
+            if (complete)
+                bind_symbol(handle, "oidnSetFilterProgressMonitorFunction", api.set_progress);
             if (complete) return;  // kept open for the life of the process
             api = OidnApi{};
             tried += fmt::format("{}{} (not Open Image Denoise 2: a function is missing)",
@@ -111,6 +117,12 @@ const OidnApi& oidn() {
     return api;
 }
 
+/** Who a filter tells how far it is, and asks whether to stop (DenoiseStopped then). */
+struct FilterWatch {
+    const DenoiseControl* control = nullptr;
+    double from = 0.0, span = 1.0;  ///< the share of the whole this filter is
+};
+
 /** One OIDN device for a denoise; released with it. */
 class OidnDevice {
 public:
@@ -127,7 +139,7 @@ public:
     /** Runs OIDN's "RT" filter: `main` (color, albedo or normal) into `out`, with guides. */
     void filter(const char* main, std::vector<float>& in, std::vector<float>* albedo,
                 std::vector<float>* normal, std::vector<float>& out, uint32_t w, uint32_t h,
-                bool hdr) {
+                bool hdr, FilterWatch watch = FilterWatch()) {
         Filter f = api_.new_filter(device_, "RT");
         if (!f) throw_error("Open Image Denoise has no RT filter");
         const auto set = [&](const char* name, std::vector<float>& v) {
@@ -140,10 +152,25 @@ public:
         if (hdr) api_.set_bool(f, "hdr", true);
         if (albedo || normal) api_.set_bool(f, "cleanAux", true);  // the guides are filtered
         api_.set_int(f, "quality", kQualityHigh);
+        if (watch.control && api_.set_progress)
+            api_.set_progress(
+                f,
+                [](void* user, double n) {
+                    const FilterWatch& fw = *static_cast<const FilterWatch*>(user);
+                    if (fw.control->progress) fw.control->progress(fw.from + fw.span * n);
+                    return !(fw.control->stop && fw.control->stop());
+                },
+                &watch);
         api_.commit_filter(f);
         api_.execute(f);
         api_.release_filter(f);
-        check(main);
+        // (Reading the device's error clears it: once.)
+        const char* message = nullptr;
+        const int error = api_.device_error(device_, &message);
+        if (error == kErrorCancelled) throw DenoiseStopped();
+        if (error != kErrorNone)
+            throw_error("Open Image Denoise failed ({}): {}", main,
+                        message ? message : "no message");
     }
 
 private:
@@ -197,7 +224,7 @@ bool denoiser_available(std::string* why) {
     return api.error.empty();
 }
 
-bool denoise(DenoiseImage im, GlintDenoise glints, int threads) {
+bool denoise(DenoiseImage im, GlintDenoise glints, int threads, const DenoiseControl& control) {
     const OidnApi& api = oidn();
     if (!api.error.empty()) throw_error("{}", api.error);
     std::vector<std::string>& names = *im.layer_names;
@@ -219,17 +246,25 @@ bool denoise(DenoiseImage im, GlintDenoise glints, int threads) {
     if (glints != GlintDenoise::Filter)
         for (std::size_t i = 0; i < base.size(); ++i) base[i] = std::max(0.0f, base[i] - glint[i]);
     OidnDevice device(api, threads);
+    // The filters' shares of the time: the guides a tenth each, the beauty (and the glints
+    // apart) the rest.
+    const double beauty = glints == GlintDenoise::Apart ? 0.4 : 0.8;
+    using Watch = FilterWatch;
     std::vector<float> clean_albedo(albedo.size()), clean_normal(normal.size());
-    device.filter("albedo", albedo, nullptr, nullptr, clean_albedo, im.width, im.height, false);
-    device.filter("normal", normal, nullptr, nullptr, clean_normal, im.width, im.height, false);
+    device.filter("albedo", albedo, nullptr, nullptr, clean_albedo, im.width, im.height, false,
+                  Watch{&control, 0.0, 0.1});
+    device.filter("normal", normal, nullptr, nullptr, clean_normal, im.width, im.height, false,
+                  Watch{&control, 0.1, 0.1});
     std::vector<float> out(base.size());
-    device.filter("color", base, &clean_albedo, &clean_normal, out, im.width, im.height, true);
+    device.filter("color", base, &clean_albedo, &clean_normal, out, im.width, im.height, true,
+                  Watch{&control, 0.2, beauty});
     std::vector<float> glint_out = glint;
     if (glints == GlintDenoise::Apart) {
         std::vector<float> in = glint;
         device.filter("color", in, &clean_albedo, &clean_normal, glint_out, im.width, im.height,
-                      true);
+                      true, Watch{&control, 0.2 + beauty, beauty});
     }
+    if (control.progress) control.progress(1.0);
     if (glints != GlintDenoise::Filter)
         for (std::size_t i = 0; i < out.size(); ++i) out[i] += glint_out[i];
     // Where no camera ray hit anything the beauty is what it was (0 when the environment is a

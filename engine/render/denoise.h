@@ -13,10 +13,13 @@
 // from the `pyoidn` wheel on PyPI), then the system's libOpenImageDenoise.so.2.
 
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
 #include <vector>
+
+#include "core/error.h"
 
 namespace spangle {
 
@@ -51,13 +54,25 @@ struct DenoiseImage {
  *  its mean: the network needs neighbours). */
 constexpr uint32_t kMinDenoiseSide = 8;
 
+/** How far a denoise is, and whether to stop it (each may be empty). */
+struct DenoiseControl {
+    std::function<void(double fraction)> progress;  ///< 0 to 1, from the thread denoising
+    std::function<bool()> stop;                     ///< polled; true: stop (DenoiseStopped)
+};
+
+/** Thrown by denoise() when its control's stop said so: the image is left as rendered (without
+ *  a `noisy` layer). Needs a library that reports progress (OIDN 2 does). */
+struct DenoiseStopped : SpangleError {
+    DenoiseStopped() : SpangleError("denoising was stopped") {}
+};
+
 /** Denoises `im` in place: its image becomes the denoised beauty and its noisy beauty is kept
  *  as the layer `noisy` (added after the others). Pixels no camera ray covered (layer `A` 0)
  *  keep their rendered value (the denoiser spread light into them: a fringe in a composite).
  *  `threads`: 0 = all cores. Returns false, the image as rendered (and its `noisy` copy), when
  *  it is below kMinDenoiseSide pixels either way. Throws SpangleError when the library cannot
  *  be opened, a guide layer is missing or OIDN fails. */
-bool denoise(DenoiseImage im, GlintDenoise glints, int threads);
+bool denoise(DenoiseImage im, GlintDenoise glints, int threads, const DenoiseControl& control = {});
 
 /** What to warn when denoise() returned false. */
 inline std::string not_denoised_warning(uint32_t width, uint32_t height) {

@@ -139,6 +139,8 @@ struct RenderStats {
     uint32_t adaptive_min_spp = 0;  ///< adaptive sampling's min_spp (its max is spp_target)
     /** The image was denoised (--denoise), treating the glints so. */
     bool denoised = false;
+    /** --denoise was asked for but a stop signal ended the denoise: the image is as rendered. */
+    bool denoise_stopped = false;
     GlintDenoise denoise_glints = GlintDenoise::Keep;
 };
 
