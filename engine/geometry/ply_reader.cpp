@@ -530,4 +530,38 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     return mesh;
 }
 
+bool ply_header_counts(const std::string& path, uint64_t& vertices, uint64_t& faces) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return false;
+    std::string line;
+    bool first = true, has_vertices = false;
+    vertices = faces = 0;
+    for (int n = 0; n < 1000 && std::getline(in, line); ++n) {
+        if (!line.empty() && line.back() == '\r') line.pop_back();
+        if (first) {
+            if (line.starts_with("\xEF\xBB\xBF")) line.erase(0, 3);
+            while (!line.empty() && (line.back() == ' ' || line.back() == '\t')) line.pop_back();
+            if (line != "ply") return false;
+            first = false;
+            continue;
+        }
+        std::istringstream words(line);
+        std::string key, name, count;
+        words >> key;
+        if (key == "end_header") return has_vertices;
+        if (key != "element") continue;
+        words >> name >> count;
+        if (count.empty() || count.size() > 18 ||
+            count.find_first_not_of("0123456789") != std::string::npos)
+            return false;
+        if (name == "vertex") {
+            vertices = std::stoull(count);
+            has_vertices = true;
+        } else if (name == "face") {
+            faces = std::stoull(count);
+        }
+    }
+    return false;
+}
+
 }  // namespace spangle

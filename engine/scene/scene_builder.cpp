@@ -11,6 +11,7 @@
 #include "color/image_io.h"
 #include "core/files.h"
 #include "core/hash.h"
+#include "geometry/ply_reader.h"
 #include "scene/components.h"
 #include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
@@ -439,8 +440,28 @@ std::string sequence_file(const std::string& pattern, int64_t frame, const FileL
 
 void check_sequence_files(const SceneDescription& scene, int64_t first, int64_t last) {
     for (const ObjectDesc& d : scene.objects) {
-        if (const auto* m = std::get_if<MeshFileShape>(&d.shape); m && m->sequence)
-            for (int64_t f = first; f <= last; ++f) sequence_file(m->path, f, m->loc, "mesh");
+        if (const auto* m = std::get_if<MeshFileShape>(&d.shape); m && m->sequence) {
+            // PLY frames declare their counts in their headers: a frame of another topology
+            // is found now, not after the frames before it have rendered.
+            uint64_t v0 = 0, f0 = 0;
+            std::string file0;
+            for (int64_t f = first; f <= last; ++f) {
+                const std::string file = sequence_file(m->path, f, m->loc, "mesh");
+                uint64_t v = 0, faces = 0;
+                if (!ply_header_counts(file, v, faces)) continue;
+                if (file0.empty()) {
+                    file0 = file;
+                    v0 = v;
+                    f0 = faces;
+                } else if (v != v0 || faces != f0) {
+                    throw_error(m->loc,
+                                "mesh sequence '{}': frame {} ({}) has {} vertices and {} faces, "
+                                "{} has {} and {}: every frame of a deforming mesh has one "
+                                "topology",
+                                m->path, f, file, v, faces, file0, v0, f0);
+                }
+            }
+        }
         if (const auto* c = std::get_if<SubdivShape>(&d.shape); c && c->sequence)
             for (int64_t f = first; f <= last; ++f) sequence_file(c->path, f, c->loc, "cage");
     }

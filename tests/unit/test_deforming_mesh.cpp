@@ -273,6 +273,24 @@ TEST(DeformingMesh, EveryFramesFileIsCheckedBeforeAnyFrameRenders) {
         EXPECT_NE(m.find(scene + ":29:8: error: mesh file of frame 3 not found"), std::string::npos)
             << m;
     }
+    // A PLY frame of another topology is found from its header before any frame renders (it
+    // was found when its turn came, after the frames before it).
+    write_ply(grid(2, [](Vec3 p) { return p; }), dir.file("plane.0003.ply"), "test");
+    write_ply(grid(3, [](Vec3 p) { return p; }), dir.file("plane.0005.ply"), "test");
+    EXPECT_NO_THROW(check_sequence_files(d, 1, 4));
+    try {
+        check_sequence_files(d, 1, 5);
+        ADD_FAILURE() << "frame 5 has another topology";
+    } catch (const SpangleError& e) {
+        const std::string m = e.what();
+        EXPECT_NE(
+            m.find("frame 5 (" + dir.file("plane.0005.ply") + ") has 16 vertices and 18 faces"),
+            std::string::npos)
+            << m;
+        EXPECT_NE(m.find("has 9 and 8: every frame of a deforming mesh has one topology"),
+                  std::string::npos)
+            << m;
+    }
 }
 
 TEST(DeformingMesh, ASequenceOfIdenticalFramesRendersAsThePlainMeshBitForBit) {
