@@ -19,7 +19,9 @@
 
 #include "cli/commands.h"
 #include "cli/output_paths.h"
+#include "cli/signals.h"
 #include "cli/usage.h"
+#include "color/exr_header.h"
 #include "color/image_output.h"
 #include "core/error.h"
 #include "render/denoise.h"
@@ -32,6 +34,7 @@ struct DenoiseArgs {
     std::string input, output;
     std::string glints = "keep";
     int threads = 0;
+    bool quiet = false;
 };
 
 /** One channel of the input: its name, its pixel type and its values (data window). */
@@ -52,6 +55,8 @@ int run_denoise(const DenoiseArgs& a) {
     const std::optional<GlintDenoise> glints = glint_denoise_named(a.glints);
     if (!glints) usage_error("--denoise-glints '{}': one of keep, apart, filter", a.glints);
     check_writable(a.output, "EXR");
+    remove_stale_beside(a.output);
+    install_exit_on_stop_signal();
     std::string why;
     if (!denoiser_available(&why)) throw_error("{}", why);
 
@@ -146,34 +151,57 @@ int run_denoise(const DenoiseArgs& a) {
 
     // The input's header (windows, metadata, compression) with the channels as they are now:
     // each keeps its type, the noisy beauty takes the beauty's.
-    Imf::Header out = *header;
-    Imf::ChannelList channels;
-    for (const Plane& p : planes) channels.insert(p.name, Imf::Channel(p.type));
-    for (std::size_t c = before; c < names.size(); ++c)
-        channels.insert(names[c], Imf::Channel(r->type));
-    out.channels() = channels;
+    // (A tiled input is written as scanlines: its tile description is not copied.)
+    Imf::Header out = scanline_header(*header, {"channels"});
+    std::vector<std::pair<std::string, Imf::PixelType>> types;
+    for (const Plane& p : planes)
+        types.emplace_back(p.name, p.type == Imf::UINT ? Imf::FLOAT : p.type);
+    for (std::size_t c = before; c < names.size(); ++c) types.emplace_back(names[c], r->type);
+    for (const auto& [name, type] : types) out.channels().insert(name, Imf::Channel(type));
     if (done) out.insert("spangle:denoised", Imf::StringAttribute(a.glints));
+    // Every channel as one plane in its file's type (a half channel from a half copy: the
+    // library does not write floats into a half channel).
+    const auto value = [&](const std::string& name, std::size_t i) {
+        if (name == "R" || name == "G" || name == "B")
+            return image[3 * i + (name == "R" ? 0 : name == "G" ? 1 : 2)];
+        const auto at =
+            static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
+        return layers[i * names.size() + at];
+    };
+    std::vector<std::vector<float>> floats(types.size());
+    std::vector<std::vector<Imath::half>> halves(types.size());
+    for (std::size_t c = 0; c < types.size(); ++c) {
+        if (types[c].second == Imf::HALF) {
+            halves[c].resize(n);
+            for (std::size_t i = 0; i < n; ++i)
+                halves[c][i] = Imath::half(value(types[c].first, i));
+        } else {
+            floats[c].resize(n);
+            for (std::size_t i = 0; i < n; ++i) floats[c][i] = value(types[c].first, i);
+        }
+    }
     write_file_atomically(a.output, [&](const std::string& tmp) {
         Imf::OutputFile file(tmp.c_str(), out);
         Imf::FrameBuffer fb;
         const Imath::Box2i dw = out.dataWindow();
-        const std::size_t row = sizeof(float) * 3 * static_cast<std::size_t>(width);
-        for (int c = 0; c < 3; ++c)
-            fb.insert(c == 0   ? "R"
-                      : c == 1 ? "G"
-                               : "B",
-                      Imf::Slice::Make(Imf::FLOAT, image.data() + c, dw, 3 * sizeof(float), row));
-        const std::size_t lrow = sizeof(float) * names.size() * static_cast<std::size_t>(width);
-        for (std::size_t c = 0; c < names.size(); ++c)
-            fb.insert(names[c], Imf::Slice::Make(Imf::FLOAT, layers.data() + c, dw,
-                                                 names.size() * sizeof(float), lrow));
+        const std::size_t w = static_cast<std::size_t>(width);
+        for (std::size_t c = 0; c < types.size(); ++c) {
+            if (types[c].second == Imf::HALF)
+                fb.insert(types[c].first,
+                          Imf::Slice::Make(Imf::HALF, halves[c].data(), dw, sizeof(Imath::half),
+                                           sizeof(Imath::half) * w));
+            else
+                fb.insert(types[c].first, Imf::Slice::Make(Imf::FLOAT, floats[c].data(), dw,
+                                                           sizeof(float), sizeof(float) * w));
+        }
         file.setFrameBuffer(fb);
         file.writePixels(height);
     });
-    fmt::print(
-        "{} {} into {}{}\n", done ? "denoised" : "copied", a.input, a.output,
-        done ? fmt::format(" (glints: {}; the noisy beauty kept as the layer 'noisy')", a.glints)
-             : std::string());
+    if (!a.quiet)
+        fmt::print("{} {} into {}{}\n", done ? "denoised" : "copied", a.input, a.output,
+                   done ? fmt::format(" (glints: {}; the noisy beauty kept as the layer 'noisy')",
+                                      a.glints)
+                        : std::string());
     return 0;
 }
 
@@ -192,6 +220,7 @@ Command add_denoise_command(CLI::App& app) {
                     "on their own) or filter (with the rest)");
     sub->add_option("--threads", a->threads, "worker threads (default: all cores)")
         ->check(CLI::Range(1, 1024));
+    sub->add_flag("-q,--quiet", a->quiet, "no line saying what was written");
     return {sub, [a] { return run_denoise(*a); }};
 }
 

@@ -11,6 +11,7 @@
 
 #include "cli/commands.h"
 #include "cli/output_paths.h"
+#include "cli/signals.h"
 #include "cli/usage.h"
 #include "color/image_merge.h"
 
@@ -31,6 +32,8 @@ int run_merge(const MergeArgs& a) {
         if (same_file(p, a.output)) usage_error("the output '{}' is one of the parts", a.output);
     if (!has_extension(a.output, ".exr")) usage_error("output '{}' must end in .exr", a.output);
     check_writable(a.output, "EXR");
+    remove_stale_beside(a.output);
+    install_exit_on_stop_signal();
     const MergeReport rep = merge_exr_parts(a.parts, a.output);
     // A stopped part makes a partial whole (its header says so too): said, not left to be found.
     for (const std::string& p : rep.partial_parts)

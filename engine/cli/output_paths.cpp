@@ -2,6 +2,8 @@
 
 #include "cli/output_paths.h"
 
+#include "color/temporary_files.h"
+
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <unistd.h>
@@ -77,6 +79,17 @@ bool has_extension(const std::string& path, const std::string& ext) {
     std::transform(e.begin(), e.end(), e.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
     return e == ext;
+}
+
+void remove_stale_beside(const std::string& path) {
+    const StaleTemporaries found =
+        remove_stale_temporaries(std::filesystem::path(path).parent_path().string());
+    for (const std::string& p : found.removed)
+        fmt::print(stderr,
+                   "removed '{}', left by a spangle process that was killed while writing it\n", p);
+    for (const std::string& why : found.failed)
+        fmt::print(stderr, "warning: cannot remove a temporary image a killed process left: {}\n",
+                   why);
 }
 
 }  // namespace spangle

@@ -23,4 +23,8 @@ bool has_extension(const std::string& path, const std::string& ext);
  *  length; without one, ".####" goes before the extension. */
 std::string frame_path(const std::string& pattern, int64_t f);
 
+/** Removes the temporary images a killed process left in the folder of `path` (as a render does
+ *  before it writes), saying so on stderr. */
+void remove_stale_beside(const std::string& path);
+
 }  // namespace spangle

@@ -254,9 +254,14 @@ std::size_t Outputs::write(const ImageDescription& d) const {
     if (png_done.valid()) {
         try {
             png_done.get();  // rethrows its error
-        } catch (...) {
+        } catch (const std::exception& e) {
+            // The EXR is this render's: an older preview beside it would show another render.
             drop_png();
-            throw;
+            std::error_code ec;
+            const bool removed = fs::remove(png_target, ec);
+            throw_error("cannot write the preview '{}'{}: {}", preview,
+                        removed ? " (the older one was removed: the EXR is this render's)" : "",
+                        e.what());
         }
         std::error_code ec;
         fs::rename(png_tmp, png_target, ec);

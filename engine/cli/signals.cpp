@@ -60,9 +60,28 @@ extern "C" void on_crash(int sig) {
     ::raise(sig);
 }
 
+extern "C" void on_stop_exit(int sig) {
+    say(sig == SIGINT ? "spangle: stopped by SIGINT: nothing written\n"
+                      : "spangle: stopped by SIGTERM: nothing written\n");
+    remove_image_in_progress();
+    ::_exit(sig == SIGINT ? 130 : 143);
+}
+
 }  // namespace
 
+void install_exit_on_stop_signal() {
+    struct sigaction sa {};
+    sa.sa_handler = on_stop_exit;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = 0;
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+}
+
 void install_crash_handlers() {
+    // A file-size limit (ulimit -f) makes a write fail with EFBIG, an error every command
+    // reports and cleans up after, instead of killing the process with its temporary file left.
+    std::signal(SIGXFSZ, SIG_IGN);
 #if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
     return;  // the sanitizer's own report says more
 #endif

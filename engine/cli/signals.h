@@ -16,6 +16,11 @@ void install_signal_handlers();
  *  the signal's default action (exit status 128 + the signal, a core dump where enabled). */
 void install_crash_handlers();
 
+/** For commands that write one file and do not poll (merge, denoise): SIGINT or SIGTERM ends
+ *  the process at once, with one line, the temporary file of the image being written removed
+ *  (exit status 130 or 143). */
+void install_exit_on_stop_signal();
+
 /** Whether a stop signal has arrived (async-signal-safe to poll from any thread). */
 bool stop_requested();
 

@@ -15,6 +15,7 @@
 #include <cstring>
 #include <tuple>
 
+#include "color/exr_header.h"
 #include "color/image_io.h"
 #include "color/image_output.h"
 #include "core/error.h"
@@ -238,12 +239,8 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     for (std::size_t i = 0; i < rgb.size(); ++i) rgb[i] = sample_mean(total[i], spp_frame);
     // The first part's header without the range's attributes (copied one by one: OpenEXR 3.1's
     // Header::erase leaks the attribute it removes).
-    Imf::Header header(first->displayWindow(), first->dataWindow());
-    for (auto it = first->begin(); it != first->end(); ++it) {
-        const std::string name = it.name();
-        if (name != "spangle:spp_range" && name != "spangle:spp_frame" && name != "channels")
-            header.insert(name, it.attribute());
-    }
+    Imf::Header header =
+        scanline_header(*first, {"spangle:spp_range", "spangle:spp_frame", "channels"});
     Imf::ChannelList channels;
     for (const Channel& c : chans)
         if (std::find(sum_names.begin(), sum_names.end(), c.name) == sum_names.end())
@@ -391,7 +388,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
             "{})): render the missing windows with --crop",
             missing, w, h, first_missing % w, first_missing / w);
 
-    Imf::Header header(*first);
+    Imf::Header header = scanline_header(*first);
     header.dataWindow() = display;
     totals.apply(header);
     rep.partial_parts = totals.partials;

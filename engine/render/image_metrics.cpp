@@ -24,7 +24,10 @@ ImageMetrics measure_image(const std::vector<float>& rgb, int width, int height,
         lum[i] = luma[0] * r + luma[1] * g + luma[2] * b;
         sum += lum[i];
     }
-    m.mean_luminance = n ? sum / static_cast<double>(n) : 0.0;
+    // Over the finite pixels (a non-finite one counted as black pulled the mean down, where the
+    // channels' own means leave it out).
+    const std::size_t finite = n - m.nonfinite;
+    m.mean_luminance = finite ? sum / static_cast<double>(finite) : 0.0;
     std::array<double, 9> window{};
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {

@@ -18,18 +18,30 @@ void host_log(void* context, SpangleLogLevel level, const char* message) {
                        : level == SPANGLE_LOG_INFO    ? LogLevel::Info
                                                       : LogLevel::Debug;
     const char* text = message ? message : "";
-    if (l < LogLevel::Warning) {
+    const PluginCallSite call = current_plugin_call();
+    if (l < LogLevel::Warning && !call.label) {
         host->log().write(l, text);
         return;
     }
-    // Warnings and errors name what they are about: the material being made, or the plugin
-    // call this thread is in; and each is said once (a plugin warning once per batch said it
-    // dozens of times a frame).
-    const PluginCallSite call = current_plugin_call();
+    // Messages name what they are about: the material being made, or the plugin call this
+    // thread is in; each is said once (a plugin warning once per batch said it dozens of times
+    // a frame), and a kernel's messages stop after kMaxKernelMessages different ones (a message
+    // with a counter in it is a new one every batch).
     const std::string line = !host->subject().empty() ? fmt::format("{}: {}", host->subject(), text)
                              : call.label             ? fmt::format("{}: {}", call.label, text)
                                                       : std::string(text);
-    if (host->said().first_time(line)) host->log().write(l, line);
+    if (!host->said().first_time(line)) return;
+    if (call.label && host->subject().empty()) {
+        const int n = host->count_kernel_message(call.label);
+        if (n > HostServices::kMaxKernelMessages) return;
+        if (n == HostServices::kMaxKernelMessages) {
+            host->log().write(LogLevel::Warning,
+                              fmt::format("{}: more messages than {}: the rest are not shown",
+                                          call.label, HostServices::kMaxKernelMessages - 1));
+            return;
+        }
+    }
+    host->log().write(l, line);
 }
 
 int host_convert(void* context, const char* from, float* rgb, uint32_t count, char* error,

@@ -2,7 +2,9 @@
 // Material instances: a plugin model plus a created instance, and the validation of a scene's
 // parameters against the model's schema. The host services plugins receive live here too.
 
+#include <map>
 #include <memory>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -34,6 +36,13 @@ public:
     const std::string& subject() const { return subject_; }
     /** The plugin warnings already said (each is said once). */
     WarningsSaid& said() const { return said_; }
+    /** Different messages a plugin's kernels may log before the rest are dropped. */
+    static constexpr int kMaxKernelMessages = 20;
+    /** Counts one more different message from the kernels of `label`; returns the count. */
+    int count_kernel_message(const std::string& label) const {
+        std::lock_guard<std::mutex> lock(kernel_messages_mutex_);
+        return ++kernel_messages_[label];
+    }
 
 private:
     const ColorConfig& color_;
@@ -42,6 +51,8 @@ private:
     std::string working_;  ///< keeps api_.working_space alive
     mutable std::string subject_;
     mutable WarningsSaid said_;
+    mutable std::mutex kernel_messages_mutex_;
+    mutable std::map<std::string, int> kernel_messages_;
     SpangleHost_v3 api_{};
 };
 

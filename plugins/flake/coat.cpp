@@ -45,13 +45,19 @@ void Coat::init(bool on_, float ior_, float roughness, const TableCache* cache) 
     ior = ior_;
     smooth = roughness < mf::kDeltaAlpha;
     alpha = std::max(mf::kDeltaAlpha, roughness);
-    if (!on || smooth) return;
+    e_avg = 0.0f;
+    if (!on) return;
+    if (smooth) {
+        set_average();
+        return;
+    }
     TableKey key("rough coat albedo");
     key.add(ior);
     key.add(alpha);
     std::vector<uint8_t> bytes;
     if (cache && cache->load(key, bytes) && bytes.size() == sizeof(albedo)) {
         std::memcpy(albedo, bytes.data(), sizeof(albedo));
+        set_average();
         return;
     }
     // The nodes are independent: one thread each (the result does not depend on their number).
@@ -65,11 +71,24 @@ void Coat::init(bool on_, float ior_, float roughness, const TableCache* cache) 
                                        kQuadratureBound);
         });
     for (auto& t : pool) t.join();
+    set_average();
     if (cache) {
         bytes.resize(sizeof(albedo));
         std::memcpy(bytes.data(), albedo, sizeof(albedo));
         cache->store(key, bytes);
     }
+}
+
+void Coat::set_average() {
+    // The integral of albedo_at() as it reads (steps for a rough coat, Fresnel for a smooth
+    // one): midpoints fine enough that its error is far below a float's.
+    constexpr int kN = 8192;
+    double sum = 0.0;
+    for (int i = 0; i < kN; ++i) {
+        const float mu = (static_cast<float>(i) + 0.5f) / kN;
+        sum += 2.0 * static_cast<double>(albedo_at(mu)) * static_cast<double>(mu) / kN;
+    }
+    e_avg = static_cast<float>(std::min(sum, 0.999));
 }
 
 float Coat::albedo_at(float cos_theta) const {

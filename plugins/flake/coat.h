@@ -4,6 +4,12 @@
 //
 //     f = f_coat + (1 - E(wo)) (1 - E(wi)) f_under
 //
+// with the diffuse base's part of f_under divided by 1 - E_avg (E_avg the cosine-weighted
+// average of E): the light the coat reflects back down onto a diffuse base comes out again after
+// bounces between them, so a white base under a coat reflects everything, as the smooth plugin's
+// plastic does (it reflected 0.91: the inter-reflection was lost). The flakes' part keeps single
+// scattering: their light the coat sends back down is lost (a few per cent at most), which keeps
+// every glint where it is and the layering from ever gaining energy.
 // E is the coat's directional albedo. The layering never gains energy as long as E(wo) is at
 // least the coat's true albedo at wo: then albedo(wo) <= E + (1 - E) * 1. For a smooth coat E is
 // the exact Fresnel reflectance, at any angle. For a rough coat E comes from a table over
@@ -26,8 +32,15 @@ struct Coat {
     float ior = 1.5f;           ///< index of the coat relative to the outside
     float alpha = 0.0f;         ///< GGX roughness of a rough coat
     float albedo[kNodes] = {};  ///< rough coat: E at cos = max(1e-6, (i / (kNodes - 1))^2)
+    /** The cosine-weighted average of albedo_at() over the hemisphere, 2 int E(mu) mu dmu: the
+     *  share of a diffuse base's light the coat sends back down (0 when off). */
+    float e_avg = 0.0f;
 
     void init(bool on_, float ior_, float roughness, const TableCache* cache = nullptr);
+    /** Sets e_avg from albedo_at() (on, with its table filled). */
+    void set_average();
+    /** 1 / (1 - e_avg): what the diffuse base's part is divided by (1 when off). */
+    float base_gain() const { return on ? 1.0f / (1.0f - e_avg) : 1.0f; }
     /** E(cos theta): exact for a smooth coat, an upper bound for a rough one; 0 when off. */
     float albedo_at(float cos_theta) const;
     /** A rough coat's f and the density of sample_rough() at wi. */

@@ -379,7 +379,7 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     // Lobe selection in proportion to the energy each returns (a floor keeps every lobe sampled).
     const float under = 1.0f - c.e_coat_o;
     const float w_coat = c.coat->on ? c.e_coat_o : 0.0f;
-    const float w_base = under * (1.0f - c.weight) * luminance(c.base);
+    const float w_base = under * (1.0f - c.weight) * luminance(c.base) * c.coat->base_gain();
     const float w_flake = under * c.weight *
                           (c.second ? (1.0f - c.w_second) * flake_luminance(m) +
                                           c.w_second * flake_luminance(*m.second)
@@ -456,8 +456,9 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
         }
         pdf_fl = (1.0f - c.q_second) * pdf_fl + c.q_second * pdf2;
     }
-    for (int ch = 0; ch < 3; ++ch)
-        f[ch] = f_coat + under * ((1.0f - c.weight) * c.base[ch] * mf::kInvPi + c.weight * fl[ch]);
+    // The diffuse base with the bounces between it and the coat (coat.h), the flakes without.
+    const float base = (1.0f - c.weight) * mf::kInvPi * coat.base_gain();
+    for (int ch = 0; ch < 3; ++ch) f[ch] = f_coat + under * (base * c.base[ch] + c.weight * fl[ch]);
     pdf = c.p_coat * pdf_coat + c.p_base * wi.z * mf::kInvPi + c.p_flake * pdf_fl;
     if (!std::isfinite(f[0] + f[1] + f[2]) || !std::isfinite(pdf)) {
         f[0] = f[1] = f[2] = pdf = 0.0f;
