@@ -305,6 +305,9 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
             "split it by pixels (--crop, MPI bands), which give the whole render bit for bit");
     if (a.min_spp > 0 && a.max_spp > 0 && a.min_spp > a.max_spp)
         usage_error("--min-spp {} is more than --max-spp {}", a.min_spp, a.max_spp);
+    if (a.min_spp > 0 && a.max_spp == 0 && a.spp > 0 && a.min_spp > a.spp)
+        usage_error("--min-spp {} is more than --spp {} (the most a pixel takes without --max-spp)",
+                    a.min_spp, a.spp);
     if (!a.preview.empty() && a.no_preview)
         usage_error("--preview names a preview and --no-preview asks for none: choose one");
     if (a.pass_output && a.no_pass_output)

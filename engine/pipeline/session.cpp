@@ -315,6 +315,19 @@ ecs::SystemReport Session::render() {
             info_ ? info_->path : std::string("the scene"));
         adaptive_warned_ = true;
     }
+    // min_spp (rounded up to a multiple of 4, at least 8) reaching max_spp leaves nothing to
+    // adapt: said once, not a header that says adaptive over an image that is not.
+    if (!adaptive_warned_ && adaptive_on(film, options_)) {
+        const AdaptivePlan plan = adaptive_plan(film, options_);
+        if (plan.min_spp >= plan.max_spp) {
+            log_.warn(
+                "adaptive sampling has nothing to adapt: min_spp, rounded up to a multiple of 4 "
+                "and at least 8, reaches the {} samples a pixel may take, so every pixel takes "
+                "them",
+                plan.max_spp);
+            adaptive_warned_ = true;
+        }
+    }
     // --spp raises no adaptive pixel above the scene's max_spp: said once.
     if (options_.spp_override && !options_.max_spp_override && film.max_spp &&
         film.max_spp < options_.spp_override && !adaptive_warned_ && adaptive_on(film, options_)) {

@@ -13,6 +13,12 @@ fail() { echo "FAIL: $*"; cat "$T/err.txt" 2>/dev/null; exit 1; }
 SCENE="$REPO/assets/scenes/demo.toml"
 ARGS=(--size 90x50 --spp 64 --noise-threshold 0.05 --min-spp 8 -q --no-preview --float)
 
+# A min_spp that, rounded up, reaches the most a pixel takes leaves nothing to adapt: said (the
+# header said adaptive over an image of fixed samples, without a word).
+"$S" render "$SCENE" -o "$T/flat.exr" --size 16x16 --spp 10 --min-spp 9 --noise-threshold 0.05 \
+    -q --no-preview 2> "$T/err.txt" || fail "adaptive render with min_spp at spp"
+grep -q "adaptive sampling has nothing to adapt" "$T/err.txt" || fail "not said"
+
 "$S" render "$SCENE" -o "$T/whole.exr" "${ARGS[@]}" 2> "$T/err.txt" || fail "adaptive render"
 oiiotool --info -v "$T/whole.exr" | grep -q "channel list: R, G, B, spp" || fail "no spp layer"
 "$S" render "$SCENE" -o "$T/left.exr" "${ARGS[@]}" --crop 0,0,37,50 2> "$T/err.txt" || fail "left crop"

@@ -30,6 +30,8 @@ cd "$T"
 expect 2 "did you mean 'render'" rendr "$SCENE"
 expect 2 "unknown command 'frobnicate'" frobnicate
 expect 2 "WIDTHxHEIGHT" render "$SCENE" --size 4294967312x16
+# A --min-spp above --spp (without --max-spp) is the command line's error (it exited 1).
+expect 2 "is more than --spp 16" render "$SCENE" --spp 16 --min-spp 32 --noise-threshold 0.05
 expect 2 "WIDTHxHEIGHT" render "$SCENE" --size 16x
 expect 2 "WIDTHxHEIGHT" render "$SCENE" --size -16x16
 expect 2 "unknown EXR compression 'foo'" render "$SCENE" --compression foo
