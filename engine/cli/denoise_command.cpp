@@ -118,22 +118,10 @@ int run_denoise(const DenoiseArgs& a) {
         image[3 * i + 1] = g->values[i];
         image[3 * i + 2] = b->values[i];
     }
-    // The layers' channels in the renderer's order: a layer's R, G, B (A) and X, Y, Z in that
-    // order, one after the other (the file lists channels by name: B, G, R).
+    // The other channels, the layers, in the file's order (the denoiser finds its guides by name).
     std::vector<const Plane*> layer_planes;
     for (const Plane& p : planes)
         if (p.name != "R" && p.name != "G" && p.name != "B") layer_planes.push_back(&p);
-    const auto rank = [](const std::string& name) {
-        const std::size_t dot = name.rfind('.');
-        const std::string last = dot == std::string::npos ? name : name.substr(dot + 1);
-        static const std::string order[] = {"R", "G", "B", "A", "X", "Y", "Z"};
-        const auto it = std::find(std::begin(order), std::end(order), last);
-        return std::make_pair(
-            dot == std::string::npos ? name : name.substr(0, dot),
-            it == std::end(order) ? last : std::string(1, char('0' + (it - std::begin(order)))));
-    };
-    std::stable_sort(layer_planes.begin(), layer_planes.end(),
-                     [&](const Plane* x, const Plane* y) { return rank(x->name) < rank(y->name); });
     std::vector<std::string> names;
     for (const Plane* p : layer_planes) names.push_back(p->name);
     std::vector<float> layers(n * names.size());
@@ -153,31 +141,37 @@ int run_denoise(const DenoiseArgs& a) {
     // each keeps its type, the noisy beauty takes the beauty's.
     // (A tiled input is written as scanlines: its tile description is not copied.)
     Imf::Header out = scanline_header(*header, {"channels"});
-    std::vector<std::pair<std::string, Imf::PixelType>> types;
-    for (const Plane& p : planes)
-        types.emplace_back(p.name, p.type == Imf::UINT ? Imf::FLOAT : p.type);
-    for (std::size_t c = before; c < names.size(); ++c) types.emplace_back(names[c], r->type);
-    for (const auto& [name, type] : types) out.channels().insert(name, Imf::Channel(type));
     if (done) out.insert("spangle:denoised", Imf::StringAttribute(a.glints));
-    // Every channel as one plane in its file's type (a half channel from a half copy: the
-    // library does not write floats into a half channel).
-    const auto value = [&](const std::string& name, std::size_t i) {
-        if (name == "R" || name == "G" || name == "B")
-            return image[3 * i + (name == "R" ? 0 : name == "G" ? 1 : 2)];
-        const auto at =
-            static_cast<std::size_t>(std::find(names.begin(), names.end(), name) - names.begin());
-        return layers[i * names.size() + at];
+    // Every channel written, where its values are, and its type in the file: R, G, B from the
+    // image, then the layers (those the denoiser added, the noisy beauty, of the beauty's type).
+    struct Out {
+        std::string name;
+        Imf::PixelType type;
+        const float* first;  ///< the value of pixel 0; pixel i's is `stride` floats on
+        std::size_t stride;
     };
-    std::vector<std::vector<float>> floats(types.size());
-    std::vector<std::vector<Imath::half>> halves(types.size());
-    for (std::size_t c = 0; c < types.size(); ++c) {
-        if (types[c].second == Imf::HALF) {
+    std::vector<Out> outs;
+    for (int c = 0; c < 3; ++c) {
+        const Plane* p = c == 0 ? r : c == 1 ? g : b;
+        outs.push_back({p->name, p->type, image.data() + c, 3});
+    }
+    for (std::size_t c = 0; c < names.size(); ++c)
+        outs.push_back({names[c], c < before ? layer_planes[c]->type : r->type, layers.data() + c,
+                        names.size()});
+    // A half channel from a half copy (the library does not write floats into a half channel);
+    // 32-bit integers read as floats are written as floats.
+    std::vector<std::vector<float>> floats(outs.size());
+    std::vector<std::vector<Imath::half>> halves(outs.size());
+    for (std::size_t c = 0; c < outs.size(); ++c) {
+        Out& o = outs[c];
+        if (o.type == Imf::UINT) o.type = Imf::FLOAT;
+        out.channels().insert(o.name, Imf::Channel(o.type));
+        if (o.type == Imf::HALF) {
             halves[c].resize(n);
-            for (std::size_t i = 0; i < n; ++i)
-                halves[c][i] = Imath::half(value(types[c].first, i));
+            for (std::size_t i = 0; i < n; ++i) halves[c][i] = Imath::half(o.first[i * o.stride]);
         } else {
             floats[c].resize(n);
-            for (std::size_t i = 0; i < n; ++i) floats[c][i] = value(types[c].first, i);
+            for (std::size_t i = 0; i < n; ++i) floats[c][i] = o.first[i * o.stride];
         }
     }
     write_file_atomically(a.output, [&](const std::string& tmp) {
@@ -185,14 +179,14 @@ int run_denoise(const DenoiseArgs& a) {
         Imf::FrameBuffer fb;
         const Imath::Box2i dw = out.dataWindow();
         const std::size_t w = static_cast<std::size_t>(width);
-        for (std::size_t c = 0; c < types.size(); ++c) {
-            if (types[c].second == Imf::HALF)
-                fb.insert(types[c].first,
+        for (std::size_t c = 0; c < outs.size(); ++c) {
+            if (outs[c].type == Imf::HALF)
+                fb.insert(outs[c].name,
                           Imf::Slice::Make(Imf::HALF, halves[c].data(), dw, sizeof(Imath::half),
                                            sizeof(Imath::half) * w));
             else
-                fb.insert(types[c].first, Imf::Slice::Make(Imf::FLOAT, floats[c].data(), dw,
-                                                           sizeof(float), sizeof(float) * w));
+                fb.insert(outs[c].name, Imf::Slice::Make(Imf::FLOAT, floats[c].data(), dw,
+                                                         sizeof(float), sizeof(float) * w));
         }
         file.setFrameBuffer(fb);
         file.writePixels(height);

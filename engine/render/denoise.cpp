@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cstdlib>
 #include <filesystem>
 #include <mutex>
@@ -207,12 +208,17 @@ void keep_noisy(DenoiseImage im, std::vector<float>& result) {
     if (&result != im.image) im.image->swap(result);
 }
 
-/** Three channels from `first` of each pixel of the interleaved layers. */
-std::vector<float> three(const std::vector<float>& layers, std::size_t lc, std::size_t first) {
-    const std::size_t pixels = layers.size() / lc;
+/** Channels `of` of each pixel of the interleaved layers, three per pixel. */
+std::vector<float> three(const std::vector<float>& layers, const std::vector<std::string>& names,
+                         const std::array<const char*, 3>& of) {
+    const std::size_t lc = names.size(), pixels = layers.size() / lc;
+    // Each by its name: the channels of a layer need not sit side by side in R, G, B order (a
+    // file's channels come sorted by name: B, G, R).
+    const std::array<std::size_t, 3> at = {channel(names, of[0]), channel(names, of[1]),
+                                           channel(names, of[2])};
     std::vector<float> out(3 * pixels);
     for (std::size_t p = 0; p < pixels; ++p)
-        for (std::size_t c = 0; c < 3; ++c) out[3 * p + c] = layers[p * lc + first + c];
+        for (std::size_t c = 0; c < 3; ++c) out[3 * p + c] = layers[p * lc + at[c]];
     return out;
 }
 
@@ -232,9 +238,9 @@ bool denoise(DenoiseImage im, GlintDenoise glints, int threads, const DenoiseCon
     SPANGLE_CHECK(im.image->size() == 3 * pixels && im.layers->size() == lc * pixels,
                   "the denoiser's image and layers must match its size");
 
-    std::vector<float> albedo = three(*im.layers, lc, channel(names, "albedo.R"));
-    std::vector<float> normal = three(*im.layers, lc, channel(names, "N.X"));
-    const std::vector<float> glint = three(*im.layers, lc, channel(names, "glints.R"));
+    std::vector<float> albedo = three(*im.layers, names, {"albedo.R", "albedo.G", "albedo.B"});
+    std::vector<float> normal = three(*im.layers, names, {"N.X", "N.Y", "N.Z"});
+    const std::vector<float> glint = three(*im.layers, names, {"glints.R", "glints.G", "glints.B"});
     // (The guides are checked first: a small image without them is still an error.)
     if (im.width < kMinDenoiseSide || im.height < kMinDenoiseSide) {
         keep_noisy(im, *im.image);
