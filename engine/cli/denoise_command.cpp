@@ -44,19 +44,12 @@ struct Plane {
     std::vector<float> values;
 };
 
-std::string attribute(const Imf::Header& h, const char* name) {
-    const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name);
-    return a ? a->value() : std::string();
-}
-
 int run_denoise(const DenoiseArgs& a) {
     if (same_file(a.input, a.output)) usage_error("the output '{}' is the input", a.output);
-    if (!has_extension(a.output, ".exr")) usage_error("output '{}' must end in .exr", a.output);
     const std::optional<GlintDenoise> glints = glint_denoise_named(a.glints);
     if (!glints) usage_error("--denoise-glints '{}': one of keep, apart, filter", a.glints);
-    check_writable(a.output, "EXR");
-    remove_stale_beside(a.output);
-    install_exit_on_stop_signal();
+    prepare_exr_output(a.output);
+    install_exit_on_stop_signal();  // nothing polls: a stop signal ends it at once
     std::string why;
     if (!denoiser_available(&why)) throw_error("{}", why);
 
@@ -69,14 +62,14 @@ int run_denoise(const DenoiseArgs& a) {
         const Imath::Box2i dw = header->dataWindow();
         width = dw.max.x - dw.min.x + 1;
         height = dw.max.y - dw.min.y + 1;
-        if (!attribute(*header, "spangle:denoised").empty())
+        if (!string_attribute(*header, "spangle:denoised").empty())
             throw_error("'{}' is denoised already (spangle:denoised = {})", a.input,
-                        attribute(*header, "spangle:denoised"));
-        if (!attribute(*header, "spangle:spp_range").empty())
+                        string_attribute(*header, "spangle:denoised"));
+        if (!string_attribute(*header, "spangle:spp_range").empty())
             throw_error(
                 "'{}' is a --spp-range part (samples {}): merge the ranges into the frame first, "
                 "then denoise it",
-                a.input, attribute(*header, "spangle:spp_range"));
+                a.input, string_attribute(*header, "spangle:spp_range"));
         const Imf::ChannelList& list = header->channels();
         Imf::FrameBuffer fb;
         const auto n = static_cast<std::size_t>(width) * static_cast<std::size_t>(height);

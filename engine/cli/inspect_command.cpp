@@ -23,6 +23,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "color/exr_header.h"
 #include "color/image_io.h"
 #include "core/error.h"
 #include "render/image_metrics.h"
@@ -93,10 +94,7 @@ Planes read_exr_planes(const std::string& path) {
                 p.luma_from_header = true;
             }
         }
-        const auto text = [&](const char* name) {
-            const auto* a = in.header().findTypedAttribute<Imf::StringAttribute>(name);
-            return a ? a->value() : std::string();
-        };
+        const auto text = [&](const char* name) { return string_attribute(in.header(), name); };
         const std::string spp = text("spangle:spp"), range = text("spangle:spp_range");
         if (text("spangle:partial") == "1")
             p.state.push_back(

@@ -30,10 +30,8 @@ struct MergeArgs {
 int run_merge(const MergeArgs& a) {
     for (const std::string& p : a.parts)
         if (same_file(p, a.output)) usage_error("the output '{}' is one of the parts", a.output);
-    if (!has_extension(a.output, ".exr")) usage_error("output '{}' must end in .exr", a.output);
-    check_writable(a.output, "EXR");
-    remove_stale_beside(a.output);
-    install_exit_on_stop_signal();
+    prepare_exr_output(a.output);
+    install_exit_on_stop_signal();  // nothing polls: a stop signal ends it at once
     const MergeReport rep = merge_exr_parts(a.parts, a.output);
     // A stopped part makes a partial whole (its header says so too): said, not left to be found.
     for (const std::string& p : rep.partial_parts)

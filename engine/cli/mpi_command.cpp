@@ -160,12 +160,10 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
         progress.finish();
         // The denoiser reads neighbouring pixels: it runs on the assembled image.
         if (options.denoise) {
-            if (denoise(
-                    DenoiseImage{&img.image, &img.layers, &img.layer_names, img.width, img.height},
-                    options.denoise_glints, options.threads))
-                mark_denoised(img.stats, options.denoise_glints);
-            else
-                log.warn("{}", not_denoised_warning(img.width, img.height));
+            denoise_and_record(
+                DenoiseImage{&img.image, &img.layers, &img.layer_names, img.width, img.height},
+                options.denoise_glints, options.threads, /*control: none, as mpirun signals*/ {},
+                log, img.stats);
         }
         write_on_rank0(a, job, *session, log, out, f, numbered, img);
     }

@@ -2,6 +2,7 @@
 
 #include "cli/output_paths.h"
 
+#include "cli/usage.h"
 #include "color/temporary_files.h"
 
 #include <fcntl.h>
@@ -81,7 +82,9 @@ bool has_extension(const std::string& path, const std::string& ext) {
     return e == ext;
 }
 
-void remove_stale_beside(const std::string& path) {
+void prepare_exr_output(const std::string& path) {
+    if (!has_extension(path, ".exr")) usage_error("output '{}' must end in .exr", path);
+    check_writable(path, "EXR");
     const StaleTemporaries found =
         remove_stale_temporaries(std::filesystem::path(path).parent_path().string());
     for (const std::string& p : found.removed)

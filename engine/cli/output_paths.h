@@ -23,8 +23,9 @@ bool has_extension(const std::string& path, const std::string& ext);
  *  length; without one, ".####" goes before the extension. */
 std::string frame_path(const std::string& pattern, int64_t f);
 
-/** Removes the temporary images a killed process left in the folder of `path` (as a render does
- *  before it writes), saying so on stderr. */
-void remove_stale_beside(const std::string& path);
+/** Before a command that writes one EXR and nothing else (merge, denoise) does its work: `path`
+ *  ends in .exr (else a usage error) and can be written, and the temporary images a killed
+ *  process left beside it are removed (said on stderr, as a render does). */
+void prepare_exr_output(const std::string& path);
 
 }  // namespace spangle

@@ -444,20 +444,9 @@ const RenderResult& for_output(const RenderResult& r, const RenderOptions& o, co
                                RenderResult& scratch) {
     if (!o.denoise || r.stats.spp_reached == 0) return r;
     scratch = r;
-    DenoiseControl control;
-    control.stop = o.stop;
-    if (o.work_progress) control.progress = [&](double f) { o.work_progress("denoising", f); };
-    try {
-        if (denoise(DenoiseImage{&scratch.image, &scratch.layers, &scratch.layer_names,
-                                 scratch.width, scratch.height},
-                    o.denoise_glints, o.threads, control))
-            mark_denoised(scratch.stats, o.denoise_glints);
-        else
-            log.warn("{}", not_denoised_warning(scratch.width, scratch.height));
-    } catch (const DenoiseStopped&) {
-        scratch = r;  // as rendered
-        scratch.stats.denoise_stopped = true;
-    }
+    denoise_and_record(DenoiseImage{&scratch.image, &scratch.layers, &scratch.layer_names,
+                                    scratch.width, scratch.height},
+                       o.denoise_glints, o.threads, denoise_control(o), log, scratch.stats);
     return scratch;
 }
 

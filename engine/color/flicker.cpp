@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <utility>
 
+#include "color/exr_header.h"
 #include "color/image_io.h"
 #include "core/error.h"
 
@@ -58,7 +59,7 @@ Frame read_frame(const std::string& path) {
         for (const auto& [name, out] :
              {std::pair{"spangle:scene", &f.scene}, std::pair{"spangle:time", &f.time},
               std::pair{"spangle:shutter", &f.shutter}})
-            if (const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name)) *out = a->value();
+            *out = string_attribute(h, name);
         f.width = dw.max.x - dw.min.x + 1;
         f.height = dw.max.y - dw.min.y + 1;
         f.world_to_ndc = m->value();

@@ -19,6 +19,7 @@
 #include <filesystem>
 #include <mutex>
 
+#include "color/exr_header.h"
 #include "core/dynamic_library.h"
 #include "core/error.h"
 #include "core/files.h"
@@ -303,8 +304,7 @@ std::string exr_named_space(const std::string& path) {
         if (!Imf::isOpenExrFile(path.c_str())) return "";
         Imf::InputFile in(path.c_str());
         for (const char* name : {"colorSpace", "oiio:ColorSpace"})
-            if (const auto* a = in.header().findTypedAttribute<Imf::StringAttribute>(name))
-                if (!a->value().empty()) return a->value();
+            if (std::string v = string_attribute(in.header(), name); !v.empty()) return v;
     } catch (const std::exception&) {
         // Unreadable here: the reader proper says why.
     }

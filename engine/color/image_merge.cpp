@@ -46,17 +46,12 @@ bool same_channels(const Imf::Header& h, const std::vector<Channel>& chans) {
     return same;
 }
 
-std::string attribute(const Imf::Header& h, const char* name) {
-    const auto* a = h.findTypedAttribute<Imf::StringAttribute>(name);
-    return a ? a->value() : std::string();
-}
-
 /** Refuses a part whose header says it is of another scene (the bytes of its files) or of
  *  another moment of it than the first part. Parts written before these attributes pass. */
 void check_same_render(const Imf::Header& hd, const Imf::Header& first, const std::string& path,
                        const std::string& first_path) {
     const auto differ = [&](const char* name) {
-        const std::string a = attribute(hd, name), b = attribute(first, name);
+        const std::string a = string_attribute(hd, name), b = string_attribute(first, name);
         return !a.empty() && !b.empty() && a != b;
     };
     // The specific differences first, the scene's hash last (another frame of a deforming
@@ -65,7 +60,8 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
     // camera stood (another --camera, a moved camera): parts of other renders.
     if (differ("colorSpace"))
         throw_error("'{}' is in colour space '{}', '{}' in '{}': parts of one render merge", path,
-                    attribute(hd, "colorSpace"), first_path, attribute(first, "colorSpace"));
+                    string_attribute(hd, "colorSpace"), first_path,
+                    string_attribute(first, "colorSpace"));
     const auto* cam = hd.findTypedAttribute<Imf::M44fAttribute>("worldToCamera");
     const auto* cam_first = first.findTypedAttribute<Imf::M44fAttribute>("worldToCamera");
     if (cam && cam_first && cam->value() != cam_first->value())
@@ -75,11 +71,12 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
             path, first_path);
     if (differ("spangle:time"))
         throw_error("'{}' is of the scene at {} s, '{}' at {} s: parts of one frame merge", path,
-                    attribute(hd, "spangle:time"), first_path, attribute(first, "spangle:time"));
+                    string_attribute(hd, "spangle:time"), first_path,
+                    string_attribute(first, "spangle:time"));
     // Adaptive sampling's settings decide each pixel's samples: parts of other settings are
     // parts of other renders.
     const auto sampling = [](const Imf::Header& h) {
-        const std::string s = attribute(h, "spangle:sampling");
+        const std::string s = string_attribute(h, "spangle:sampling");
         return s.empty() ? std::string("fixed") : s;
     };
     if (sampling(hd) != sampling(first))
@@ -87,7 +84,7 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
                     sampling(hd), first_path, sampling(first));
     // A denoised part was denoised from its own pixels alone: parts do not add up to the
     // denoised whole (a seam where they meet).
-    if (!attribute(hd, "spangle:denoised").empty())
+    if (!string_attribute(hd, "spangle:denoised").empty())
         throw_error(
             "'{}' was denoised (--denoise): the denoiser saw only that part's pixels, so denoised "
             "parts do not merge into the denoised whole; merge parts rendered without --denoise, "
@@ -108,7 +105,7 @@ struct PartTotals {
     bool timed = true;                  ///< every part has a render time
     std::vector<std::string> partials;  ///< the parts that were partial
     void add(const Imf::Header& h, const std::string& path) {
-        if (attribute(h, "spangle:partial") == "1") {
+        if (string_attribute(h, "spangle:partial") == "1") {
             partial = true;
             partials.push_back(path);
         }
@@ -155,7 +152,7 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
         read_part(path, [&](Imf::InputFile& in) {
             const Imf::Header& hd = in.header();
             totals.add(hd, path);
-            const std::string range = attribute(hd, "spangle:spp_range");
+            const std::string range = string_attribute(hd, "spangle:spp_range");
             if (range.empty())
                 throw_error(
                     "'{}' is not a --spp-range part, but other parts are: merge the sample "
@@ -171,7 +168,8 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                 for (const std::string& n : sum_names)
                     if (!hd.channels().findChannel(n))
                         throw_error("'{}' lacks the exact sums (channel {})", path, n);
-                spp_frame = std::strtoull(attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10);
+                spp_frame =
+                    std::strtoull(string_attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10);
                 pw = static_cast<std::size_t>(dw.max.x - dw.min.x + 1);
                 ph = static_cast<std::size_t>(dw.max.y - dw.min.y + 1);
                 rep.width = hd.displayWindow().max.x + 1;
@@ -193,10 +191,11 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                         "options: --float)",
                         path, parts.front());
                 check_same_render(hd, *first, path, parts.front());
-                if (std::strtoull(attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10) !=
+                if (std::strtoull(string_attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10) !=
                     spp_frame)
                     throw_error("'{}' is part of a frame of {} samples per pixel, '{}' of {}", path,
-                                attribute(hd, "spangle:spp_frame"), parts.front(), spp_frame);
+                                string_attribute(hd, "spangle:spp_frame"), parts.front(),
+                                spp_frame);
             }
             if (b > spp_frame)
                 throw_error("'{}' holds samples {}..{}, beyond the frame's {}", path, a, b,
@@ -283,7 +282,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
     for (const std::string& path : parts) {
         bool range = false;
         read_part(path, [&](Imf::InputFile& in) {
-            range = !attribute(in.header(), "spangle:spp_range").empty();
+            range = !string_attribute(in.header(), "spangle:spp_range").empty();
         });
         if (range) return merge_sample_ranges(parts, out);
     }
@@ -334,12 +333,12 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
                         "same options: --layers, --float)",
                         path, parts.front());
                 check_same_render(hd, *first, path, parts.front());
-                if (attribute(hd, "spangle:spp") != attribute(*first, "spangle:spp"))
+                if (string_attribute(hd, "spangle:spp") != string_attribute(*first, "spangle:spp"))
                     throw_error(
                         "'{}' has {} samples per pixel, '{}' {}: parts of one frame must "
                         "reach the same count",
-                        path, attribute(hd, "spangle:spp"), parts.front(),
-                        attribute(*first, "spangle:spp"));
+                        path, string_attribute(hd, "spangle:spp"), parts.front(),
+                        string_attribute(*first, "spangle:spp"));
             }
             if (dw.min.x < 0 || dw.min.y < 0 || dw.max.x >= static_cast<int>(w) ||
                 dw.max.y >= static_cast<int>(h) || dw.max.x < dw.min.x || dw.max.y < dw.min.y)

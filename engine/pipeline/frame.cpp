@@ -142,21 +142,10 @@ FrameResult render_frame(const FrameRequest& req) {
     r.layer_names = std::move(out.layer_names);
     r.sums = std::move(out.sums);
     r.stats = out.stats;
-    if (req.options.denoise && r.stats.spp_reached > 0) {
-        DenoiseControl control;
-        control.stop = req.options.stop;
-        if (req.options.work_progress)
-            control.progress = [&](double f) { req.options.work_progress("denoising", f); };
-        try {
-            if (denoise(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
-                        req.options.denoise_glints, req.options.threads, control))
-                mark_denoised(r.stats, req.options.denoise_glints);
-            else
-                req.log->warn("{}", not_denoised_warning(r.width, r.height));
-        } catch (const DenoiseStopped&) {
-            r.stats.denoise_stopped = true;  // the image as rendered; the caller says so
-        }
-    }
+    if (req.options.denoise && r.stats.spp_reached > 0)
+        denoise_and_record(DenoiseImage{&r.image, &r.layers, &r.layer_names, r.width, r.height},
+                           req.options.denoise_glints, req.options.threads,
+                           denoise_control(req.options), *req.log, r.stats);
     r.info = session.info();
     r.plugins_opened = session.plugins().opened();
     add_scene_facts(session, r);

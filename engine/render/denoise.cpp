@@ -16,6 +16,8 @@
 #include "core/check.h"
 #include "core/dynamic_library.h"
 #include "core/error.h"
+#include "core/log.h"
+#include "render/render_options.h"
 
 namespace fs = std::filesystem;
 
@@ -284,6 +286,25 @@ bool denoise(DenoiseImage im, GlintDenoise glints, int threads, const DenoiseCon
     }
     keep_noisy(im, out);
     return true;
+}
+
+DenoiseControl denoise_control(const RenderOptions& o) {
+    DenoiseControl control;
+    control.stop = o.stop;
+    if (o.work_progress) control.progress = [&o](double f) { o.work_progress("denoising", f); };
+    return control;
+}
+
+void denoise_and_record(DenoiseImage im, GlintDenoise glints, int threads,
+                        const DenoiseControl& control, const Logger& log, RenderStats& st) {
+    try {
+        if (denoise(im, glints, threads, control))
+            mark_denoised(st, glints);
+        else
+            log.warn("{}", not_denoised_warning(im.width, im.height));
+    } catch (const DenoiseStopped&) {
+        st.denoise_stopped = true;  // stopped before it changed the image
+    }
 }
 
 }  // namespace spangle

@@ -74,6 +74,20 @@ struct DenoiseStopped : SpangleError {
  *  be opened, a guide layer is missing or OIDN fails. */
 bool denoise(DenoiseImage im, GlintDenoise glints, int threads, const DenoiseControl& control = {});
 
+struct Logger;
+struct RenderOptions;
+struct RenderStats;
+
+/** The control a render's denoise runs under: `o`'s stop, and its work progress as
+ *  "denoising" (`o` must outlive it). */
+DenoiseControl denoise_control(const RenderOptions& o);
+
+/** denoise() with its outcome recorded in `st`: denoised (mark_denoised), too small to denoise
+ *  (warned through `log`; written as rendered), or stopped by the control (st.denoise_stopped,
+ *  the image as rendered: the caller says so). */
+void denoise_and_record(DenoiseImage im, GlintDenoise glints, int threads,
+                        const DenoiseControl& control, const Logger& log, RenderStats& st);
+
 /** What to warn when denoise() returned false. */
 inline std::string not_denoised_warning(uint32_t width, uint32_t height) {
     return "--denoise: a " + std::to_string(width) + "x" + std::to_string(height) +

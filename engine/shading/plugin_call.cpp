@@ -16,14 +16,32 @@ bool finite_nonnegative(float x) {
     return std::isfinite(x) && x >= 0.0f;
 }
 
-/** Clamps glint channel c of query k into [0, f]; true when it was outside. */
-bool clamp_glint(float* glint, uint32_t k, float f) {
-    if (!glint) return false;
-    const float g = glint[k];
-    if (g >= 0.0f && g <= f) return false;
-    glint[k] = std::isnan(g) ? 0.0f : std::clamp(g, 0.0f, f);
-    return true;
+/** True when all three channels are finite and at least 0. */
+bool finite_nonnegative(const float v[3]) {
+    return finite_nonnegative(v[0]) && finite_nonnegative(v[1]) && finite_nonnegative(v[2]);
 }
+
+/** The glint outputs of a sample() or eval() call (null when not asked for). */
+struct Glints {
+    float *r, *g, *b;
+    /** Query k's glint set to 0 (its f was dropped). */
+    void clear(uint32_t k) const {
+        if (r) r[k] = g[k] = b[k] = 0.0f;
+    }
+    /** Query k's glint clamped into [0, f] per channel; true when a channel was outside. */
+    bool clamp(uint32_t k, const float f[3]) const {
+        if (!r) return false;
+        bool outside = false;
+        float* const ch[3] = {r, g, b};
+        for (int c = 0; c < 3; ++c) {
+            const float v = ch[c][k];
+            if (v >= 0.0f && v <= f[c]) continue;
+            ch[c][k] = std::isnan(v) ? 0.0f : std::clamp(v, 0.0f, f[c]);
+            outside = true;
+        }
+        return outside;
+    }
+};
 
 }  // namespace
 
@@ -55,6 +73,7 @@ std::string BadOutputCounts::take_report() {
 
 void check_samples(SpangleSampleBatch_v3& s, const float* wo_z, uint32_t n, BadOutputCounts& bad) {
     uint64_t direction = 0, density = 0, value = 0, side = 0, glint = 0;
+    const Glints glints{s.glint_r, s.glint_g, s.glint_b};
     for (uint32_t k = 0; k < n; ++k) {
         if (s.flags[k] == 0) continue;
         const float x = s.wi_x[k], y = s.wi_y[k], z = s.wi_z[k];
@@ -64,8 +83,7 @@ void check_samples(SpangleSampleBatch_v3& s, const float* wo_z, uint32_t n, BadO
         if (!std::isfinite(len2) || !(len2 > 0.0f)) {
             ++direction;
             ok = false;
-        } else if (!finite_nonnegative(f[0]) || !finite_nonnegative(f[1]) ||
-                   !finite_nonnegative(f[2])) {
+        } else if (!finite_nonnegative(f)) {
             ++value;
             ok = false;
         } else if (!std::isfinite(s.pdf[k]) ||
@@ -87,12 +105,10 @@ void check_samples(SpangleSampleBatch_v3& s, const float* wo_z, uint32_t n, BadO
         if (!ok) {
             s.flags[k] = 0;
             s.f_r[k] = s.f_g[k] = s.f_b[k] = s.pdf[k] = 0.0f;
-            if (s.glint_r) s.glint_r[k] = s.glint_g[k] = s.glint_b[k] = 0.0f;
+            glints.clear(k);
             continue;
         }
-        const bool g = clamp_glint(s.glint_r, k, f[0]) | clamp_glint(s.glint_g, k, f[1]) |
-                       clamp_glint(s.glint_b, k, f[2]);
-        glint += g ? 1 : 0;
+        glint += glints.clamp(k, f) ? 1 : 0;
     }
     if (direction) bad.direction += direction;
     if (density) bad.density += density;
@@ -103,20 +119,17 @@ void check_samples(SpangleSampleBatch_v3& s, const float* wo_z, uint32_t n, BadO
 
 void check_evals(SpangleEvalBatch_v3& e, uint32_t n, BadOutputCounts& bad) {
     uint64_t density = 0, value = 0, glint = 0;
+    const Glints glints{e.glint_r, e.glint_g, e.glint_b};
     for (uint32_t k = 0; k < n; ++k) {
         const float f[3] = {e.f_r[k], e.f_g[k], e.f_b[k]};
-        const bool f_ok =
-            finite_nonnegative(f[0]) && finite_nonnegative(f[1]) && finite_nonnegative(f[2]);
-        const bool pdf_ok = finite_nonnegative(e.pdf[k]);
-        if (!f_ok || !pdf_ok) {
+        const bool f_ok = finite_nonnegative(f);
+        if (!f_ok || !finite_nonnegative(e.pdf[k])) {
             ++(f_ok ? density : value);
             e.f_r[k] = e.f_g[k] = e.f_b[k] = e.pdf[k] = 0.0f;
-            if (e.glint_r) e.glint_r[k] = e.glint_g[k] = e.glint_b[k] = 0.0f;
+            glints.clear(k);
             continue;
         }
-        const bool g = clamp_glint(e.glint_r, k, f[0]) | clamp_glint(e.glint_g, k, f[1]) |
-                       clamp_glint(e.glint_b, k, f[2]);
-        glint += g ? 1 : 0;
+        glint += glints.clamp(k, f) ? 1 : 0;
     }
     if (density) bad.density += density;
     if (value) bad.value += value;

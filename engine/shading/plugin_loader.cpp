@@ -151,41 +151,42 @@ std::string table_problem(const SpangleMaterialPlugin_v3& t) {
     return {};
 }
 
-/** Checks a library before dlopen maps it: a regular file (a pipe hangs dlopen), an ELF file
- *  for this machine, with every segment the loader maps lying inside the file (a truncated
- *  library is mapped past its end and dies with SIGBUS on first touch). Throws SpangleError. */
-void check_library_file(const std::string& path) {
+/** Checks a library before dlopen maps it (`shown`: the path its messages name): a regular file (a
+ * pipe hangs dlopen), an ELF file for this machine, with every segment the loader maps lying inside
+ * the file (a truncated library is mapped past its end and dies with SIGBUS on first touch). Throws
+ * SpangleError. */
+void check_library_file(const std::string& path, const std::string& shown) {
     std::error_code ec;
     if (!fs::is_regular_file(path, ec))
-        throw_error("plugin '{}' is not a regular file (a folder, a device or a pipe)", path);
+        throw_error("plugin '{}' is not a regular file (a folder, a device or a pipe)", shown);
     const auto size = static_cast<uint64_t>(fs::file_size(path, ec));
     std::ifstream in(path, std::ios::binary);
     Elf64_Ehdr eh{};
     if (ec || !in.read(reinterpret_cast<char*>(&eh), sizeof(eh)) ||
         std::memcmp(eh.e_ident, ELFMAG, SELFMAG) != 0)
-        throw_error("plugin '{}' is not a shared library (no ELF header)", path);
+        throw_error("plugin '{}' is not a shared library (no ELF header)", shown);
     if (eh.e_ident[EI_CLASS] != ELFCLASS64 || eh.e_machine != EM_X86_64 || eh.e_type != ET_DYN)
-        throw_error("plugin '{}' is not a 64-bit x86-64 shared library", path);
+        throw_error("plugin '{}' is not a 64-bit x86-64 shared library", shown);
     if (eh.e_phentsize != sizeof(Elf64_Phdr) || eh.e_phoff > size ||
         static_cast<uint64_t>(eh.e_phnum) * sizeof(Elf64_Phdr) > size - eh.e_phoff)
-        throw_error("plugin '{}' is damaged: its program headers lie outside the file", path);
+        throw_error("plugin '{}' is damaged: its program headers lie outside the file", shown);
     // The section headers come last: a file cut short anywhere (a copy still being written)
     // loses them, even when the mapped segments happen to be whole.
     if (eh.e_shoff > size || static_cast<uint64_t>(eh.e_shnum) * eh.e_shentsize > size - eh.e_shoff)
         throw_error(
             "plugin '{}' is truncated: its section headers end at byte {}, the file "
             "has {} (rebuild or copy it again)",
-            path, eh.e_shoff + static_cast<uint64_t>(eh.e_shnum) * eh.e_shentsize, size);
+            shown, eh.e_shoff + static_cast<uint64_t>(eh.e_shnum) * eh.e_shentsize, size);
     in.seekg(static_cast<std::streamoff>(eh.e_phoff));
     for (int i = 0; i < eh.e_phnum; ++i) {
         Elf64_Phdr ph{};
         if (!in.read(reinterpret_cast<char*>(&ph), sizeof(ph)))
-            throw_error("plugin '{}' is damaged: cannot read its program headers", path);
+            throw_error("plugin '{}' is damaged: cannot read its program headers", shown);
         if (ph.p_type == PT_LOAD && (ph.p_offset > size || ph.p_filesz > size - ph.p_offset))
             throw_error(
                 "plugin '{}' is truncated: a segment needs {} bytes, the file has {} "
                 "(rebuild or copy it again)",
-                path, ph.p_offset + ph.p_filesz, size);
+                shown, ph.p_offset + ph.p_filesz, size);
     }
 }
 
@@ -211,15 +212,7 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_file(const std::string& path,
                                                       const std::string& shown_path) {
     // Messages name the file the user has (a private copy's name would mean nothing to them).
     const std::string& shown = shown_path.empty() ? path : shown_path;
-    try {
-        check_library_file(path);
-    } catch (const SpangleError& e) {
-        if (shown == path) throw;
-        std::string what = e.what();
-        for (std::size_t at = what.find(path); at != std::string::npos; at = what.find(path, at))
-            what.replace(at, path.size(), shown);
-        throw SpangleError(what);
-    }
+    check_library_file(path, shown);
     dlerror();
     void* handle = nullptr;
     try {
