@@ -5,24 +5,34 @@
 
 namespace spangle::flake {
 
-bool make_entry(V3 wo, V3 m, const float col[3], const FresnelTable& fresnel, CacheEntry& e,
-                float scale) {
-    const float cos_om = mf::dot(wo, m);
-    if (cos_om <= 0.0f) return false;
-    const V3 r = mf::reflect(wo, m);
-    if (r.z <= 0.0f) return false;
-    // Projected area towards the viewer of a flake covering an equal share of the macro surface
-    // (FLAKES.md 4); G1(wo) is common to all flakes and cancels in f.
-    const float w = cos_om / m.z;
-    float f[3];
-    fresnel.eval(cos_om, f);
-    float rgb[3];
-    for (int c = 0; c < 3; ++c) rgb[c] = w * col[c] * f[c];
-    e.r = r;
-    for (int c = 0; c < 3; ++c) e.rgb[c] = rgb[c] * scale;
-    e.lum = std::max(0.0f, luminance(rgb)) * scale;
-    e.w = w * scale;
-    return true;
+void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& out) {
+    constexpr uint32_t kSize = EntryBatch::kSize;
+    const uint32_t n = std::min(b.n, kSize);
+    b.n = 0;
+    // Normals, the cosine with wo, the mirror direction's height and the weight: four at a time.
+    alignas(64) float mx[kSize], my[kSize], mz[kSize], cos_om[kSize], rz[kSize], w[kSize];
+    for (uint32_t i = 0; i < n; ++i) flake_normal_of(alpha, b.s[i], b.t[i], mx[i], my[i], mz[i]);
+    for (uint32_t i = 0; i < n; ++i) {
+        cos_om[i] = wo.x * mx[i] + wo.y * my[i] + wo.z * mz[i];
+        rz[i] = mz[i] * (2.0f * cos_om[i]) - wo.z;
+        w[i] = cos_om[i] / mz[i];
+    }
+    // The rest per flake (its Fresnel table and colour are its own).
+    out.reserve(out.size() + n);
+    for (uint32_t i = 0; i < n; ++i) {
+        if (cos_om[i] <= 0.0f || rz[i] <= 0.0f) continue;
+        const float c2 = 2.0f * cos_om[i];
+        float f[3];
+        b.fresnel[i]->eval(cos_om[i], f);
+        float rgb[3];
+        for (int c = 0; c < 3; ++c) rgb[c] = w[i] * b.col[i][c] * f[c];
+        CacheEntry& e = out.emplace_back();
+        e.r = {mx[i] * c2 - wo.x, my[i] * c2 - wo.y, rz[i]};
+        const float scale = b.scale[i];
+        for (int c = 0; c < 3; ++c) e.rgb[c] = rgb[c] * scale;
+        e.lum = std::max(0.0f, luminance(rgb)) * scale;
+        e.w = w[i] * scale;
+    }
 }
 
 Cone::Cone(float gamma_rad) {

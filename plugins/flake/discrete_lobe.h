@@ -11,6 +11,7 @@
 // (binary search in a cumulative table), then a direction uniform in its cone.
 
 #include <cstdint>
+#include <vector>
 
 #include "field.h"
 #include "palette.h"
@@ -25,12 +26,38 @@ struct CacheEntry {
     float w;       ///< w_j, the flake's projected area towards wo
 };
 
-/** The cache entry of a flake of normal m seen from wo with colour col, its rgb, lum and w then
- *  multiplied by `scale` (a stand-in's share, a facet's cover); false when the flake faces away
- *  from wo or reflects under the horizon (it is skipped). Write e where it is to stay (in the
- *  cache itself): copied right after these scalar stores, it stalled on store forwarding. */
-bool make_entry(V3 wo, V3 m, const float col[3], const FresnelTable& fresnel, CacheEntry& e,
-                float scale = 1.0f);
+/** Flakes waiting for their cache entries, as a structure of arrays so that their normals and
+ *  mirror directions are computed many at a time (the compiler makes vector code of those
+ *  loops): each flake's point of the unit square of normals (flake_normal), colour, Fresnel
+ *  table and scale. */
+struct EntryBatch {
+    static constexpr uint32_t kSize = 64;
+    uint32_t n = 0;
+    float s[kSize], t[kSize], scale[kSize];
+    const float* col[kSize];
+    const FresnelTable* fresnel[kSize];
+    /** Queues a flake; flushes (into out) first when the batch is full. */
+    inline void add(V3 wo, float alpha, float s_, float t_, const float* col_,
+                    const FresnelTable* fr, float scale_, std::vector<CacheEntry>& out);
+};
+
+/** Appends to `out`, in order, the cache entries of the batch's flakes seen from wo, and empties
+ *  the batch. A flake of normal m = flake_normal(alpha, s, t) and colour c has the entry
+ *  r = reflect(wo, m), w = (wo.m) / m.z, rgb = w c F(wo.m), lum its luminance, each times its
+ *  scale (a stand-in's share, a facet's cover); a flake facing away from wo or reflecting it under
+ *  the horizon has none (it is skipped). */
+void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& out);
+
+inline void EntryBatch::add(V3 wo, float alpha, float s_, float t_, const float* col_,
+                            const FresnelTable* fr, float scale_, std::vector<CacheEntry>& out) {
+    if (n == kSize) flush_entries(wo, alpha, *this, out);
+    s[n] = s_;
+    t[n] = t_;
+    col[n] = col_;
+    fresnel[n] = fr;
+    scale[n] = scale_;
+    ++n;
+}
 
 /** The discrete lobe of one shading point: the cache, its weights and a cumulative luminance
  *  table for sampling. The arrays live in the host's per-batch arena. */

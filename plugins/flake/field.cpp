@@ -55,7 +55,8 @@ bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1) {
         const double rp = 0.5 * other;                              // P's half extent on the axis
         const double rc = ex * std::fabs(nx) + ey * std::fabs(ny);  // the cell's
         const double d = std::fabs(nx * (cx - p.cu) + ny * (cy - p.cv));
-        if (d > rp + rc + p.reach * std::hypot(nx, ny)) return false;
+        // (The reach's term only where there is one: hypot is a libm call.)
+        if (d > rp + rc + (p.reach > 0.0 ? p.reach * std::hypot(nx, ny) : 0.0)) return false;
     }
     return true;
 }
@@ -273,44 +274,10 @@ uint64_t node_key(uint64_t tile, int depth, uint32_t ix, uint32_t iy) {
                (static_cast<uint64_t>(ix) << 32) | iy);
 }
 
-namespace {
-
-/** sin and cos of x in [-pi/4, pi/4]: Taylor to x^9 and x^8 (error below 4e-8) in Horner form
- *  with constant coefficients (nested divisions by 6, 20, ... cost eight divides per normal). */
-inline void sincos_quarter(float x, float& s, float& c) {
-    const float x2 = x * x;
-    s = x * (1.0f + x2 * (-1.0f / 6.0f +
-                          x2 * (1.0f / 120.0f + x2 * (-1.0f / 5040.0f + x2 * (1.0f / 362880.0f)))));
-    c = 1.0f + x2 * (-0.5f + x2 * (1.0f / 24.0f + x2 * (-1.0f / 720.0f + x2 * (1.0f / 40320.0f))));
-}
-
-}  // namespace
-
 V3 flake_normal(float alpha, float s, float t) {
-    // Concentric map of [0,1)^2 onto the unit disk (Shirley and Chiu 1997): within each of the
-    // four sectors the angle is pi/4 times a ratio in [-1, 1], around the sector's axis.
-    const float a = 2.0f * s - 1.0f, b = 2.0f * t - 1.0f;
-    float x = 0.0f, y = 0.0f;
-    if (a != 0.0f || b != 0.0f) {
-        constexpr float kQuarter = 0.25f * mf::kPi;
-        float sn, cs;
-        if (std::fabs(a) > std::fabs(b)) {
-            sincos_quarter(kQuarter * (b / a), sn, cs);  // angle phi, around +x
-            x = a * cs;
-            y = a * sn;
-        } else {
-            // phi = pi/2 - delta: cos(phi) = sin(delta), sin(phi) = cos(delta).
-            sincos_quarter(kQuarter * (a / b), sn, cs);
-            x = b * sn;
-            y = b * cs;
-        }
-    }
-    // Lift to the hemisphere (x, y, sqrt(1 - x^2 - y^2)) and stretch; the length of the
-    // stretched vector from z^2 itself, so that its square root does not wait for z's.
-    const float r2 = x * x + y * y, z2 = std::max(1e-12f, 1.0f - r2);
-    const float z = std::sqrt(z2);
-    const float inv = 1.0f / std::sqrt(alpha * alpha * r2 + z2);
-    return {alpha * x * inv, alpha * y * inv, z * inv};
+    V3 m;
+    flake_normal_of(alpha, s, t, m.x, m.y, m.z);
+    return m;
 }
 
 void flake_square(float alpha, V3 m, float& s, float& t) {

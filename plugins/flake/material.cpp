@@ -157,15 +157,15 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     }
     const Footprint& p = view.footprint;
     float cover = 0.0f;
+    // The flakes' entries are made a batch at a time (their normals in vector code).
+    field.lazy_normals = true;
+    EntryBatch batch;
     const auto add = [&](const Flake& f) {
         if (!kept(f, view.keep)) return;
         cover += f.cover;
         // A facet partly inside the footprint reflects as much of it as lies inside.
-        std::vector<CacheEntry>& out = scratch;
-        out.emplace_back();
-        if (!make_entry(c.wo, f.m, m.colors.pick(f.color_u, f.id), m.film.pick(f.id, m.fresnel),
-                        out.back(), std::min(f.cover, 1.0f)))
-            out.pop_back();
+        batch.add(c.wo, field.alpha, f.s, f.t, m.colors.pick(f.color_u, f.id),
+                  &m.film.pick(f.id, m.fresnel), std::min(f.cover, 1.0f), scratch);
     };
     if (m.tree) {
         gather_cells(field, p, exact_limit(m.exact_flakes, m.grid, c.wo.z), c.counted, add);
@@ -190,6 +190,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         for_each_flake(field, p, m.enumerate_cap, truncated, add);
         if (truncated) return false;
     }
+    flush_entries(c.wo, field.alpha, batch, scratch);
     st.cached += scratch.size();
     // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
     if (c.counted.n_agg > 0)
