@@ -261,6 +261,9 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
         uint32_t ix, iy, n;
     };
     Node stack[4 * 26];
+    // A footprint of zero area holds no point flake (inside() is false everywhere).
+    const bool singular =
+        local.i00 == 0.0 && local.i01 == 0.0 && local.i10 == 0.0 && local.i11 == 0.0;
     int top = 0;
     stack[top++] = {depth, ix, iy, n};
     uint32_t visited = 0;
@@ -272,15 +275,48 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
         if (!overlaps(local, x0, y0, x0 + size, y0 + size)) continue;
         const uint64_t key = node_key(tk, node.depth, node.ix, node.iy);
         if (static_cast<int>(node.n) <= fp.leaf_size || node.depth >= fp.max_depth) {
+            if (!fp.facet) {
+                // Point flakes: which of the leaf's flakes lie inside P, tested without branches
+                // a chunk at a time (whether one does is a coin toss along P's edges, and the
+                // branch on it was mispredicted often), then those visited in order.
+                if (singular) continue;
+                constexpr uint32_t kChunk = 64;
+                uint32_t in_leaf[kChunk];
+                for (uint32_t first = 0; first < node.n; first += kChunk) {
+                    const uint32_t end = std::min(node.n, first + kChunk);
+                    uint32_t found = 0;
+                    for (uint32_t i = first; i < end; ++i) {
+                        const uint64_t h = mix(key, i);
+                        const double du =
+                            x0 + size * (static_cast<double>(h >> 32) * 0x1p-32) - local.cu;
+                        const double dv =
+                            y0 + size * (static_cast<double>(h & 0xffffffffu) * 0x1p-32) - local.cv;
+                        const double ps = local.i00 * du + local.i01 * dv;
+                        const double pt = local.i10 * du + local.i11 * dv;
+                        in_leaf[found] = i;
+                        found += (ps >= -0.5) & (ps <= 0.5) & (pt >= -0.5) & (pt <= 0.5) ? 1u : 0u;
+                    }
+                    for (uint32_t j = 0; j < found; ++j) {
+                        if (visited >= budget) {
+                            truncated = true;
+                            return visited;
+                        }
+                        Flake f;
+                        const uint64_t h = leaf_flake_position(key, in_leaf[j], x0, y0, size, f);
+                        leaf_flake_finish(fp, h, f);
+                        f.u += static_cast<double>(tx);
+                        f.v += static_cast<double>(ty);
+                        visit(static_cast<const Flake&>(f));
+                        ++visited;
+                    }
+                }
+                continue;
+            }
             for (uint32_t i = 0; i < node.n; ++i) {
                 Flake f;
                 const uint64_t h = leaf_flake_position(key, i, x0, y0, size, f);
-                if (fp.facet) {
-                    f.cover = facet_coverage(local, *fp.facet, fp.facet_size, f.u, f.v, h);
-                    if (!(f.cover > 0.0f)) continue;
-                } else if (!inside(local, f.u, f.v)) {
-                    continue;
-                }
+                f.cover = facet_coverage(local, *fp.facet, fp.facet_size, f.u, f.v, h);
+                if (!(f.cover > 0.0f)) continue;
                 if (visited >= budget) {
                     truncated = true;
                     return visited;
