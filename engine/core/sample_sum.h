@@ -21,7 +21,11 @@ inline SampleSum to_sample_sum(float x) {
     constexpr float kMax = 0x1p60f;
     if (!(x == x)) return 0;
     x = x > kMax ? kMax : (x < -kMax ? -kMax : x);
-    return static_cast<SampleSum>(std::nearbyint(x * 0x1p40f));
+    const float y = std::nearbyint(x * 0x1p40f);
+    // Values below 2^63 (radiance below 2^23: all but the brightest samples) through a 64-bit
+    // integer, one instruction; a float's conversion to 128 bits is a libgcc call.
+    if (std::fabs(y) < 0x1p63f) return static_cast<int64_t>(y);
+    return static_cast<SampleSum>(y);
 }
 
 /** The mean of `count` samples whose fixed-point sum is `s` (0 when count is 0). */
