@@ -43,11 +43,35 @@ namespace {
 
 constexpr std::size_t kMaxImportDepth = 16;
 
+/** Refuses a file whose name says it is a mesh or another program's scene: read as TOML (the
+ *  format of names Spangle does not know), it failed with a TOML syntax error at its first line.
+ */
+void check_scene_format(const std::string& path) {
+    std::string ext = std::filesystem::path(path).extension().string();
+    std::transform(ext.begin(), ext.end(), ext.begin(),
+                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    if (ext == ".obj" || ext == ".ply" || ext == ".stl")
+        throw_error(FileLoc{path, 0, 0},
+                    "this is a mesh ({}), not a scene: `spangle new --mesh {}` writes a scene "
+                    "around it (ground, light, camera, paint), or name it as the `mesh` of an "
+                    "[[object]] in a TOML scene",
+                    ext.substr(1), path);
+    for (const char* other : {".fbx", ".usd", ".usda", ".usdc", ".usdz", ".abc", ".blend", ".dae",
+                              ".3ds", ".x3d", ".xml"})
+        if (ext == other)
+            throw_error(FileLoc{path, 0, 0},
+                        "Spangle does not read {} files: it reads TOML (.toml), pbrt (.pbrt, "
+                        ".pbrt.gz) and glTF (.gltf, .glb) scenes; export to glTF (from Blender, "
+                        "or use its Spangle add-on)",
+                        ext.substr(1));
+}
+
 /** Reads `path` and, recursively, what it imports; `chain` holds the files being read, to
  *  refuse a file that imports itself. */
 SceneDescription read_with_imports(const std::string& path, const SceneReadOptions& options,
                                    std::vector<std::string>& chain) {
     check_scene_file(path);
+    check_scene_format(path);
     SceneDescription scene = scene_format_for(path).read(path, options);
     std::error_code ec;
     chain.push_back(std::filesystem::weakly_canonical(path, ec).string());

@@ -894,6 +894,36 @@ TEST(PbrtReader, IncludedAndGzippedFilesAreRead) {
     EXPECT_EQ(read_scene(f.file("whole.pbrt.gz")).objects.size(), 1u);
 }
 
+TEST(PbrtReader, AnImportedFileKeepsItsGraphicsStateToItself) {
+    // pbrt-v4 reads an Import from a copy of the graphics state: the file's shapes, lights and
+    // named materials join the scene, its transforms and current material do not carry back
+    // (Spangle read it as an Include: the importer's next shape moved by the file's Translate).
+    const Files f;
+    std::ofstream(f.file("part.pbrt"))
+        << "Translate 0 2 0\nMakeNamedMaterial \"red\" \"string type\" \"diffuse\"\n"
+           "NamedMaterial \"red\"\nShape \"sphere\" \"float radius\" 0.3\n"
+           "CoordinateSystem \"inside\"\nAttributeEnd\n";
+    const SceneDescription d = read(f,
+                                    "WorldBegin\nAttributeBegin\nImport \"part.pbrt\"\n"
+                                    "Shape \"sphere\" \"float radius\" 0.5\nAttributeEnd\n"
+                                    "NamedMaterial \"red\"\nShape \"disk\"\n");
+    ASSERT_EQ(d.objects.size(), 3u);
+    EXPECT_EQ(d.objects[0].placement.matrix->t.y, 2.0f);
+    EXPECT_EQ(*d.objects[1].placement.matrix, Affine()) << "the Translate stayed in the import";
+    EXPECT_EQ(d.objects[0].material, "red");
+    EXPECT_NE(d.objects[1].material, "red") << "the current material stayed in the import";
+    EXPECT_EQ(d.objects[2].material, "red") << "the named material joined the scene";
+    // Its AttributeEnd could not end the importer's block: said, and ignored.
+    EXPECT_TRUE(noted(d, "part.pbrt:6: AttributeEnd without its begin"));
+    // Its named coordinate system stayed in it too.
+    EXPECT_TRUE(noted(read(f, "WorldBegin\nImport \"part.pbrt\"\nCoordSysTransform \"inside\"\n"),
+                      "no coordinate system 'inside'"));
+    // As in pbrt-v4, Import is for the world block.
+    EXPECT_NE(error_of(f, "Import \"part.pbrt\"\nWorldBegin\n")
+                  .find("scene.pbrt:1:1: error: Import is only allowed in the world block"),
+              std::string::npos);
+}
+
 TEST(PbrtReader, ATomlSceneImportsAPbrtSceneAndOverridesItsMaterials) {
     // [[import]] takes any format the loader reads: a pbrt car with its paint replaced by name.
     const Files f;

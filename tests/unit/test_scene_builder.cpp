@@ -327,6 +327,29 @@ TEST(SceneLoader, PicksTheReaderByTheFilesExtension) {
     for (const SceneFormat& f : scene_formats()) EXPECT_NE(f.read, nullptr) << f.extension;
 }
 
+TEST(SceneLoader, AMeshOrAnotherProgramsSceneIsNamedAsSuch) {
+    // Read as TOML, an OBJ given to `spangle render` failed with "invalid TOML: expected '='"
+    // at its first line.
+    const test::TempDir dir("scene_loader");
+    const auto message = [&](const std::string& name) {
+        const std::string path = dir.file(name);
+        std::ofstream(path) << "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        try {
+            read_scene(path);
+        } catch (const SpangleError& e) {
+            return std::string(e.what());
+        }
+        return std::string("read");
+    };
+    EXPECT_NE(message("car.obj").find("this is a mesh (obj), not a scene: `spangle new --mesh"),
+              std::string::npos)
+        << message("car.obj");
+    EXPECT_NE(message("car.PLY").find("this is a mesh (ply), not a scene"), std::string::npos);
+    EXPECT_NE(message("car.fbx").find("Spangle does not read fbx files"), std::string::npos);
+    EXPECT_NE(message("car.txt").find("invalid TOML"), std::string::npos)
+        << "other names are read as TOML, as always";
+}
+
 }  // namespace
 }  // namespace spangle
 

@@ -284,7 +284,7 @@ private:
 
     /** Ends a block of kind `kind`; an unmatched end is a warning, as pbrt makes it. */
     void pop(char kind, const std::string& name, const FileLoc& loc) {
-        if (r_.stack.empty() ||
+        if (r_.stack.size() <= r_.stack_floor ||
             (r_.stack.back().first != kind && !(kind == 'a' && r_.stack.back().first == 'o'))) {
             r_.notes.add(loc, fmt::format("{} without its begin: ignored", name));
             return;
@@ -471,10 +471,21 @@ private:
         }
     }
 
-    /** Include and Import: the file's directives, in the same graphics state. */
+    /** Include: the file's directives, in the same graphics state. Import (pbrt-v4): in the
+     *  world block only, the file read from a copy of the graphics state (as pbrt-v4 parses it
+     *  with a copy of its builder): its shapes, lights, named materials, textures and object
+     *  definitions join the scene, but its transforms, current material, area light, colour
+     *  space, attributes and named coordinate systems stay its own. */
     bool include(Tokenizer& t, const std::string& name, const FileLoc& loc, int depth) {
         if (name != "Include" && name != "Import") return false;
-        if (name == "Import") r_.sign(true, loc, "Import");
+        const bool import = name == "Import";
+        if (import) {
+            r_.sign(true, loc, "Import");
+            if (!r_.world)
+                throw_error(loc,
+                            "Import is only allowed in the world block (after WorldBegin), "
+                            "as in pbrt-v4; Include reads a file anywhere");
+        }
         const std::string given = string_arg(t, name);
         if (depth + 1 > kMaxIncludeDepth)
             throw_error(loc, "{} nested more than {} deep (does a file include itself?)", name,
@@ -484,8 +495,28 @@ private:
         Tokenizer inner(path, loc);
         const std::filesystem::path saved = r_.current_dir;
         r_.current_dir = std::filesystem::path(path).parent_path();
+        if (!import) {
+            file(inner, depth + 1);
+            r_.current_dir = saved;
+            return true;
+        }
+        const GraphicsState gs = r_.gs;
+        const auto coord_systems = r_.coord_systems;
+        const std::size_t stack = r_.stack.size(), floor = r_.stack_floor;
+        const std::string defining = r_.defining;
+        r_.stack_floor = stack;
         file(inner, depth + 1);
         r_.current_dir = saved;
+        r_.stack_floor = floor;
+        if (r_.stack.size() > stack) {
+            r_.notes.add(loc, fmt::format("'{}' leaves {} AttributeBegin / TransformBegin / "
+                                          "ObjectBegin open: closed where its Import ends",
+                                          given, r_.stack.size() - stack));
+            r_.stack.resize(stack);
+        }
+        r_.gs = gs;
+        r_.coord_systems = coord_systems;
+        r_.defining = defining;
         return true;
     }
 
