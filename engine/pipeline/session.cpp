@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <set>
 #include <typeindex>
 
@@ -37,11 +38,24 @@ std::vector<std::type_index> derived_components(const ecs::Schedule<World>& sche
 }
 
 /** The files a system read for the live scene that have changed since, as reload report lines
- *  ("mesh file PATH"), in order of kind then path. */
-std::vector<std::string> edited_files(const std::map<std::string, FileRead>& files) {
+ *  ("mesh file PATH"), in order of kind then path. A file saved again with the same bytes (a
+ *  bad save put back, a touch, an editor's save without an edit) has not: its bytes are compared
+ *  with those the live scene read, by their hash in `hashes` (path -> identity, hash; files of
+ *  at most 64 MiB, whose hash covers every byte). */
+std::vector<std::string> edited_files(
+    const std::map<std::string, FileRead>& files,
+    const std::map<std::string, std::pair<std::string, uint64_t>>& hashes) {
     std::vector<std::pair<std::string, std::string>> edited;
-    for (const auto& [path, read] : files)
-        if (file_identity(path) != read.identity) edited.emplace_back(read.kind, path);
+    for (const auto& [path, read] : files) {
+        if (file_identity(path) == read.identity) continue;
+        const auto it = hashes.find(path);
+        std::error_code ec;
+        const uintmax_t size = std::filesystem::file_size(path, ec);
+        if (it != hashes.end() && it->second.first == read.identity && !ec &&
+            size <= (uintmax_t{64} << 20) && file_content_hash(path) == it->second.second)
+            continue;
+        edited.emplace_back(read.kind, path);
+    }
     std::sort(edited.begin(), edited.end());
     std::vector<std::string> out;
     for (const auto& [kind, path] : edited) out.push_back(fmt::format("{} file {}", kind, path));
@@ -162,7 +176,7 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
         }
         std::vector<std::string> files;
         for (const auto& [system, reads] : world_->files) {
-            const std::vector<std::string> lines = edited_files(reads);
+            const std::vector<std::string> lines = edited_files(reads, file_hashes_);
             edited[system] = !lines.empty();
             files.insert(files.end(), lines.begin(), lines.end());
         }

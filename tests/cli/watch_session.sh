@@ -96,12 +96,30 @@ sed -i '$d' scene.toml
 await "^reload"
 echo "$NEW" | grep -q "changed: nothing; .*the same as the last good scene: its image is kept" ||
     fail "fixed back: $NEW"
+# Only the scene is named (sed -i's temporary file, seen in the folder watched after the failed
+# load, was: "reload (scene.toml, sedSIiHUg)").
+echo "$NEW" | grep -q "^reload (scene.toml): " || fail "the reload line names another file: $NEW"
 sleep 1
 [ "$(grep -c 'watching for changes' log.txt)" -eq 6 ] || fail "the unchanged scene rendered again"
 keep G2; same G G2 || fail "the image changed after a save that changed nothing"
 
-# A rebuilt plugin: a new file replaces the library (same code, new file: it is reopened).
-cp "$PLUGINS/libspangle_flake.so" plugins/new.so && mv plugins/new.so plugins/libspangle_flake.so
+# The mesh saved broken, then put back as it was (the same bytes, a new file): nothing changed
+# (it was "changed: mesh file", and the scene rendered again).
+cp uvless_ball.obj ball.bak
+head -c 200 ball.bak > uvless_ball.obj
+await "reload failed"
+cp ball.bak uvless_ball.obj
+await "^reload"
+echo "$NEW" | grep -q "changed: nothing; .*the same as the last good scene: its image is kept" ||
+    fail "mesh put back: $NEW"
+sleep 1
+[ "$(grep -c 'watching for changes' log.txt)" -eq 6 ] || fail "the mesh put back rendered again"
+rm ball.bak
+
+# A rebuilt plugin: a new file replaces the library (the same code, other bytes: a trailing one,
+# which the dynamic loader ignores): it is reopened.
+cp "$PLUGINS/libspangle_flake.so" plugins/new.so && printf '\0' >> plugins/new.so &&
+    mv plugins/new.so plugins/libspangle_flake.so
 await "^reload"
 echo "$NEW" | grep -q "changed: plugin file .*libspangle_flake.so; ran: materials; rebuilt: material 'glitter'" || fail "plugin: $NEW"
 finished 7

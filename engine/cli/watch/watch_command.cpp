@@ -85,6 +85,8 @@ private:
      *  true when it was dealt with and the render goes on (the files hold what the live scene
      *  was built from: an editor's autosave, a touch; or they do not parse: said). */
     bool render_goes_on(const std::vector<std::string>& touched);
+    /** The touched files' names for the reload line (those that exist or are watched). */
+    std::string touched_names(const std::vector<std::string>& touched) const;
 
     const RenderArgs& a_;                    ///< the command line
     WarningsSaid warnings_said_;             ///< each warning once per watch session
@@ -324,6 +326,21 @@ std::vector<std::string> WatchLoop::wait_for_change(FileWatcher& watcher) {
     return {};
 }
 
+std::string WatchLoop::touched_names(const std::vector<std::string>& touched) const {
+    // An editor's temporary file (sed -i, vim's 4913), seen in a watched folder and renamed or
+    // removed since, is not named: the line said "reload (scene.toml, sedSIiHUg)".
+    const std::vector<std::string> watched = files_to_watch();
+    std::string what;
+    for (const auto& f : touched) {
+        std::error_code ec;
+        if (!fs::exists(f, ec) &&
+            !std::binary_search(watched.begin(), watched.end(), absolute_path(f)))
+            continue;
+        what += (what.empty() ? "" : ", ") + fs::path(f).filename().string();
+    }
+    return what.empty() ? std::string("a file removed") : what;
+}
+
 bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
     {
         std::lock_guard<std::mutex> lock(mutex_);
@@ -338,9 +355,7 @@ bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
         for (const std::string& d : described) scene_file = scene_file || same_file(t, d);
         if (!scene_file) return false;  // a mesh, a texture, a map: reload
     }
-    std::string what;
-    for (const auto& f : touched)
-        what += (what.empty() ? "" : ", ") + fs::path(f).filename().string();
+    const std::string what = touched_names(touched);
     std::map<std::string, std::string> before;
     for (const std::string& f : files_to_watch()) before[f] = file_identity(f);
     try {
@@ -386,9 +401,7 @@ void WatchLoop::apply_change(const std::vector<std::string>& touched) {
     if (worker_.joinable()) worker_.join();
     reload_ = false;
     flush_unannounced();
-    std::string what;
-    for (const auto& f : touched)
-        what += (what.empty() ? "" : ", ") + fs::path(f).filename().string();
+    const std::string what = touched_names(touched);
     bool interrupted = false;
     {
         std::lock_guard<std::mutex> lock(mutex_);
