@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <variant>
 
+#include "color/image_io.h"
 #include "core/error.h"
 #include "geometry/mesh_load.h"
 #include "geometry/ply_writer.h"
@@ -145,6 +146,12 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     const fs::path env = fs::absolute(r.env_map, ec).lexically_normal();
     if (!fs::is_regular_file(env, ec))
         throw_error("environment map '{}' not found (looked for {})", r.env_map, env.string());
+    // Read whole now, so that a map that is not an image, or is cut short, is said here rather
+    // than when the scene written around it first renders.
+    {
+        ImageHeader header;
+        read_image(env.string(), 3, header, "environment map");
+    }
     NewSceneReport rep;
     rep.model_bounds = model_bounds(r.model);
     const Box& b = rep.model_bounds;
@@ -231,8 +238,12 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         r.width, r.height);
     t += fmt::format("[camera]\nposition = {}\nlook_at = {}\nfov = {:g}\n\n", vec4g(rep.camera),
                      vec4g(rep.look_at), kFovDeg);
+    // The map's own colour space (the one its EXR header names, else its file type's usual
+    // one): "lin_rec709" was written for every map, and an 8-bit sRGB PNG was read as linear.
     t += fmt::format(
-        "[environment]\nmap = {}\ncolor_space = \"lin_rec709\"\nrotation = 0\nintensity = 1.0\n\n",
+        "[environment]\nmap = {}\n# color_space: left to the map (its EXR header's space, else "
+        "lin_rec709 for EXR and HDR,\n# srgb_texture for 8- and 16-bit files)\nrotation = "
+        "0\nintensity = 1.0\n\n",
         toml_quoted(scene_relative(env, folder)));
     t += fmt::format(
         "[[light]]                      # the key light: small, so that flakes flash\n"

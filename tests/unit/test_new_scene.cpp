@@ -159,6 +159,35 @@ TEST(NewScene, AMissingModelNamesTheAbsolutePathItLookedFor) {
     EXPECT_FALSE(fs::exists(req.output)) << "nothing written";
 }
 
+TEST(NewScene, TheMapIsReadInItsOwnSpaceAndACutShortOneIsRefused) {
+    // "lin_rec709" was written for every map: an 8-bit sRGB PNG was read as linear.
+    test::TempDir dir("new_scene_map");
+    write_box_obj(dir.file("box.obj"), {0, 0, 0}, {1, 1, 1});
+    NewSceneRequest req;
+    req.model = dir.file("box.obj");
+    req.output = dir.file("box.toml");
+    req.env_map = test::asset_dir() + "/textures/concrete.png";
+    write_new_scene(req);
+    const SceneDescription scene = read_scene(req.output);
+    ASSERT_TRUE(scene.environment && scene.environment->map);
+    EXPECT_FALSE(scene.environment->map->color_space) << "left to the map: srgb_texture for a PNG";
+    // A map cut short was taken, and the scene failed when it first rendered.
+    std::ifstream in(test::asset_dir() + "/env/studio_hdri.exr", std::ios::binary);
+    std::string head(3000, '\0');
+    in.read(head.data(), 3000);
+    std::ofstream(dir.file("cut.exr"), std::ios::binary) << head;
+    req.env_map = dir.file("cut.exr");
+    req.output = dir.file("cut.toml");
+    try {
+        write_new_scene(req);
+        FAIL() << "a cut-short map was accepted";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("cannot read environment map"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_FALSE(fs::exists(req.output)) << "nothing written";
+}
+
 /** Runs `fn` with the working directory set to `dir`, restoring it after. */
 template <class Fn>
 void in_directory(const fs::path& dir, Fn fn) {
