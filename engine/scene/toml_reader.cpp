@@ -292,6 +292,13 @@ std::string belongs_elsewhere(const std::string& key, const std::string& table) 
           "flake_weight", "flake_roughness", "gamma", "coat", "metallic"}},
     };
     const bool in_material = table.find("[[material]]") != std::string::npos;
+    // A texture's table: its own keys are near the material's, not the render's ('height' in a
+    // normal map was sent to [render]).
+    if (table.starts_with("texture '")) {
+        if (key == "height" && table != "texture 'bump_map'")
+            return "; 'height' is a bump map's (bump_map = { texture = ..., height = ... })";
+        return "";
+    }
     for (const auto& [place, keys] : kPlaces) {
         const std::string_view p(place);
         if (table.find(place) != std::string::npos) continue;
