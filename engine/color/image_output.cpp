@@ -281,8 +281,15 @@ std::size_t write_exr(const std::string& path, const std::vector<float>& rgb, in
                 const float* lrows = options.layers->data() + static_cast<std::size_t>(y0) * w * lc;
                 if (options.half) {
                     layer_halves.resize(static_cast<std::size_t>(y1 - y0) * w * lc);
-                    for (std::size_t i = 0; i < layer_halves.size(); ++i)
+                    std::size_t over = 0;
+                    for (std::size_t i = 0; i < layer_halves.size(); ++i) {
                         layer_halves[i] = Imath::half(lrows[i]);
+                        // Counted where the channel is written as half (the warning counted the
+                        // beauty's values alone: a layered file held twice as many).
+                        over += std::isfinite(lrows[i]) && layer_halves[i].isInfinity() &&
+                                layer_type(i % lc) == Imf::HALF;
+                    }
+                    overflow += over;
                 }
                 for (std::size_t c = 0; c < lc; ++c) {
                     if (layer_type(c) == Imf::FLOAT)

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 
 #include "color/image_io.h"
 #include "color/image_output.h"
@@ -73,6 +74,26 @@ TEST(ExrOutput, FloatOnRequestAndRec709Chromaticities) {
     const auto* xy = static_cast<const float*>(in->spec().find_attribute("chromaticities")->data());
     EXPECT_FLOAT_EQ(xy[0], 0.64f);
     EXPECT_FLOAT_EQ(xy[6], 0.3127f);
+}
+
+TEST(ExrOutput, CountsEveryValueTooBrightForAHalfFloat) {
+    // The count of values stored as infinity covered the beauty alone: a layered file held more.
+    test::TempDir dir("exr_overflow");
+    const ColorConfig color = test::shipped_config();
+    std::vector<float> rgb = ramp(3, 2);
+    rgb[4] = 1e6f;   // beyond 65504
+    rgb[9] = -2e5f;  // and below -65504
+    std::vector<float> layers(3 * 2 * 2, 1.0f);
+    layers[0] = 1e6f;  // layer "a.R", written as half
+    layers[3] = 1e6f;  // layer "a.Z", written as float: held exactly
+    layers[5] = std::numeric_limits<float>::infinity();  // not finite to begin with: not counted
+    ExrOptions opt;
+    opt.layers = &layers;
+    opt.layer_names = {"a.R", "a.Z"};
+    opt.layer_full_float = {0, 1};
+    EXPECT_EQ(write_exr(dir.file("o.exr"), rgb, 3, 2, color, opt), 3u);
+    opt.half = false;
+    EXPECT_EQ(write_exr(dir.file("f.exr"), rgb, 3, 2, color, opt), 0u);
 }
 
 TEST(ExrOutput, FailedWriteLeavesNothingAndKeepsTheOldFile) {
