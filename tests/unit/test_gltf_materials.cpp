@@ -469,6 +469,48 @@ TEST(GltfMaterials, ImageUrisWithASchemeAndAByteOrderMark) {
         std::string::npos);
 }
 
+TEST(GltfErrors, BufferFaultsAreSaidAtTheirUriWithWhatTheyHold) {
+    // tinygltf's words at 1:1 ("File not found : quad.bin", "Failed to decode 'uri'") said
+    // neither which buffer nor where it looked, nor that a data URI was short; a file:// buffer
+    // was looked for as a relative path.
+    test::TempDir dir("gltf_buffers");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, -1);
+    const std::string body = fmt::format(R"("meshes":[{}],"nodes":[{{"mesh":0}}])", mesh);
+    w.write_gltf_bin(dir.file("buffers.gltf"), "quad.bin", body);
+    ASSERT_EQ(read_gltf_scene(dir.file("buffers.gltf"), {}).objects.size(), 1u);
+    const std::string text = bytes_of(dir.file("buffers.gltf"));
+    // Said where the uri's value is written (line 1 of this one-line file).
+    const std::string at = fmt::format("buffers.gltf:1:{}: error: ", text.find("\"quad.bin\"") + 1);
+    const auto error = [&](const std::string& with) {
+        std::string t = text;
+        t.replace(t.find("\"quad.bin\""), 10, with);
+        return error_of(dir, t, "buffers.gltf");
+    };
+    std::filesystem::rename(dir.file("quad.bin"), dir.file("kept.bin"));
+    EXPECT_NE(error("\"quad.bin\"").find(at), std::string::npos);
+    EXPECT_NE(
+        error("\"quad.bin\"")
+            .find("buffer 0: file 'quad.bin' not found (looked for " + dir.file("quad.bin") + ")"),
+        std::string::npos)
+        << error("\"quad.bin\"");
+    std::ofstream(dir.file("short.bin"), std::ios::binary) << "0123456789";
+    EXPECT_NE(
+        error("\"short.bin\"").find("buffer 0: file 'short.bin' holds 10 bytes, its byteLength"),
+        std::string::npos)
+        << error("\"short.bin\"");
+    EXPECT_NE(error("\"data:application/octet-stream;base64,AAAA\"")
+                  .find("buffer 0: its data URI holds 3 bytes, its byteLength says"),
+              std::string::npos);
+    EXPECT_NE(error("\"data:application/octet-stream;base64,A$A=\"").find("is not base64"),
+              std::string::npos);
+    EXPECT_NE(error("\"https://example.com/quad.bin\"")
+                  .find("buffer 0: URI 'https://example.com/quad.bin' is not fetched"),
+              std::string::npos);
+    // file:// names a path on this machine.
+    EXPECT_EQ(error("\"file://" + dir.file("kept.bin") + "\""), "no error");
+}
+
 TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     test::TempDir dir("gltf_errors");
     const std::string f = dir.file("bad.gltf");

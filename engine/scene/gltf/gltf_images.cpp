@@ -87,6 +87,34 @@ std::string embedded_image_dir() {
     return (fs::temp_directory_path() / fmt::format("spangle-gltf-images-{}", ::getuid())).string();
 }
 
+UriTarget uri_target(const Context& ctx, const std::string& uri) {
+    UriTarget t;
+    const std::size_t colon = uri.find("://");
+    const std::string scheme = colon == std::string::npos ? "" : uri.substr(0, colon);
+    const bool has_scheme =
+        !scheme.empty() && std::all_of(scheme.begin(), scheme.end(), [](char c) {
+            return std::isalnum(static_cast<unsigned char>(c)) || c == '+' || c == '-' || c == '.';
+        });
+    if (!has_scheme) {
+        t.path = (ctx.dir / percent_decoded(uri)).lexically_normal().string();
+        return t;
+    }
+    t.scheme = scheme;
+    if (scheme != "file") return t;
+    // file://host/path or file:///path: the path (a host other than localhost is not this
+    // machine's).
+    std::string rest = uri.substr(colon + 3);
+    const std::size_t slash = rest.find('/');
+    const std::string host = slash == std::string::npos ? rest : rest.substr(0, slash);
+    rest = slash == std::string::npos ? std::string() : rest.substr(slash);
+    if (!host.empty() && host != "localhost") {
+        t.host = host;
+        return t;
+    }
+    t.path = (ctx.dir / percent_decoded(rest)).lexically_normal().string();
+    return t;
+}
+
 std::string image_file(Context& ctx, int image, const std::string& ref) {
     check_index(ctx, ref, image, ctx.model.images.size(), "image");
     if (auto it = ctx.image_files.find(image); it != ctx.image_files.end()) return it->second;
@@ -96,37 +124,22 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
     if (!img.uri.empty() && img.uri.rfind("data:", 0) != 0) {
         // A URI with a scheme: file:// names a path on this machine; others (https://) are not
         // fetched (they were looked for as relative paths: ".../file:/tmp/...").
-        const std::size_t colon = img.uri.find("://");
-        const std::string scheme = colon == std::string::npos ? "" : img.uri.substr(0, colon);
-        const bool has_scheme =
-            !scheme.empty() && std::all_of(scheme.begin(), scheme.end(), [](char c) {
-                return std::isalnum(static_cast<unsigned char>(c)) || c == '+' || c == '-' ||
-                       c == '.';
-            });
-        if (has_scheme && scheme != "file") {
+        const UriTarget target = uri_target(ctx, img.uri);
+        if (target.path.empty() && target.host.empty()) {
             ctx.note("remote image " + img.uri, ctx.at(ip + "/uri"),
                      fmt::format("image URI '{}' is not fetched (Spangle reads files, not {} "
                                  "URIs): the textures using it are dropped, their factors stand in",
-                                 img.uri, scheme));
+                                 img.uri, target.scheme));
             return out;
         }
-        std::string rel = img.uri;
-        if (has_scheme) {
-            // file://host/path or file:///path: the path (a host other than localhost is not
-            // this machine's).
-            rel = img.uri.substr(colon + 3);
-            const std::size_t slash = rel.find('/');
-            const std::string host = slash == std::string::npos ? rel : rel.substr(0, slash);
-            rel = slash == std::string::npos ? std::string() : rel.substr(slash);
-            if (!host.empty() && host != "localhost") {
-                ctx.note("remote image " + img.uri, ctx.at(ip + "/uri"),
-                         fmt::format("image URI '{}' names host '{}', not this machine: the "
-                                     "textures using it are dropped, their factors stand in",
-                                     img.uri, host));
-                return out;
-            }
+        if (target.path.empty()) {
+            ctx.note("remote image " + img.uri, ctx.at(ip + "/uri"),
+                     fmt::format("image URI '{}' names host '{}', not this machine: the "
+                                 "textures using it are dropped, their factors stand in",
+                                 img.uri, target.host));
+            return out;
         }
-        const fs::path file = (ctx.dir / percent_decoded(rel)).lexically_normal();
+        const fs::path file = target.path;
         std::error_code ec;
         if (fs::is_regular_file(file, ec)) return out = file.string();
         ctx.note("missing image " + file.string(), ctx.at(ip + "/uri"),

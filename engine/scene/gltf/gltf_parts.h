@@ -25,6 +25,16 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
  *  into the user's cache folder. Empty (with a note) for an image that cannot be had. */
 std::string image_file(Context& ctx, int image, const std::string& ref);
 
+/** Where an external URI (of an image or a buffer) points: `path` the file it names (relative
+ *  to the glTF file's folder, percent escapes decoded; file:///path and file://localhost/path
+ *  taken as this machine's paths), or `scheme` (and `host`) of one Spangle does not fetch
+ *  (https://, a file:// URI of another host): then `path` is empty. */
+struct UriTarget {
+    std::string path;
+    std::string scheme, host;
+};
+UriTarget uri_target(const Context& ctx, const std::string& uri);
+
 /** The folder embedded images are written to: $SPANGLE_TEXTURE_CACHE/gltf-images, else
  *  $XDG_CACHE_HOME/spangle/gltf-images, else ~/.cache/spangle/gltf-images. */
 std::string embedded_image_dir();

@@ -12,8 +12,9 @@ class Scanner {
 public:
     Scanner(std::string_view text, const std::string& file,
             std::unordered_map<std::string, std::pair<int, int>>& places,
-            std::vector<std::string>& required)
-        : text_(text), file_(file), places_(places), required_(required) {}
+            std::vector<std::string>& required,
+            std::unordered_map<std::string, std::string>& scalars)
+        : text_(text), file_(file), places_(places), required_(required), scalars_(scalars) {}
 
     void document() {
         skip_space();
@@ -69,9 +70,22 @@ private:
                 required_.push_back(std::move(name));
                 return;
             }
+            // The buffers' members (their uri), checked before tinygltf reads the data.
+            if (path_.starts_with("buffers/")) {
+                std::string text;
+                string(&text);
+                scalars_[path_] = std::move(text);
+                return;
+            }
             return string(nullptr);
         }
-        if (c == '-' || (c >= '0' && c <= '9')) return number();
+        if (c == '-' || (c >= '0' && c <= '9')) {
+            const std::size_t start = pos_;
+            number();
+            if (path_.starts_with("buffers/"))
+                scalars_[path_] = std::string(text_.substr(start, pos_ - start));
+            return;
+        }
         for (const char* word : {"true", "false", "null"}) {
             const std::string_view w(word);
             if (text_.substr(pos_, w.size()) == w) {
@@ -189,6 +203,7 @@ private:
     const std::string& file_;
     std::unordered_map<std::string, std::pair<int, int>>& places_;
     std::vector<std::string>& required_;
+    std::unordered_map<std::string, std::string>& scalars_;
     std::size_t pos_ = 0;
     int line_ = 1;
     int column_ = 1;
@@ -198,7 +213,7 @@ private:
 }  // namespace
 
 JsonLocations::JsonLocations(std::string_view text, std::string file) : file_(std::move(file)) {
-    Scanner(text, file_, places_, required_).document();
+    Scanner(text, file_, places_, required_, scalars_).document();
 }
 
 FileLoc JsonLocations::at(std::string_view path) const {

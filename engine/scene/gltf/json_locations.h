@@ -34,10 +34,21 @@ public:
     /** The names in its top-level extensionsRequired, as written (escapes kept). */
     const std::vector<std::string>& required_extensions() const { return required_; }
 
+    /** Whether the value at `path` is an object or array the file writes (exactly there). */
+    bool has(std::string_view path) const { return places_.count(std::string(path)) > 0; }
+
+    /** The text of a string or number the file writes at `path` under "buffers/" (a string's
+     *  escapes kept), for checking buffers before their data is read; null when none. */
+    const std::string* scalar(std::string_view path) const {
+        const auto it = scalars_.find(std::string(path));
+        return it == scalars_.end() ? nullptr : &it->second;
+    }
+
 private:
     std::string file_;
     std::unordered_map<std::string, std::pair<int, int>> places_;  ///< path -> (line, column)
     std::vector<std::string> required_;                            ///< extensionsRequired
+    std::unordered_map<std::string, std::string> scalars_;         ///< buffers' members
 };
 
 }  // namespace spangle::gltf
