@@ -1,4 +1,5 @@
 #include "shading/material.h"
+#include <cctype>
 
 #include <algorithm>
 #include <cmath>
@@ -281,6 +282,35 @@ ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Mate
     return out;
 }
 
+namespace {
+
+/** Where a plugin's refusal of a material is best said: the first parameter the material writes
+ *  whose name the message names as a word ("min_flakes must be below max_flakes" at the
+ *  min_flakes line, not the [[material]] line); the material's table when it names none. */
+FileLoc blamed_param(const Material& m, const char* message) {
+    const std::string_view text(message);
+    const auto word_char = [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) || c == '_';
+    };
+    std::size_t first = std::string_view::npos;
+    FileLoc at = m.loc;
+    for (const ParamEntry& p : m.params) {
+        if (p.name.empty() || p.loc.line <= 0) continue;
+        for (std::size_t i = text.find(p.name); i != std::string_view::npos && i < first;
+             i = text.find(p.name, i + 1)) {
+            const std::size_t end = i + p.name.size();
+            if ((i > 0 && word_char(text[i - 1])) || (end < text.size() && word_char(text[end])))
+                continue;
+            first = i;
+            at = p.loc;
+            break;
+        }
+    }
+    return at;
+}
+
+}  // namespace
+
 std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Material& m,
                                                   const HostServices& host) {
     auto plugin = loader.open(m.plugin, m.plugin_loc);
@@ -345,8 +375,10 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
         }
     }
     if (!instance)
-        throw_error(m.loc, "material '{}': plugin '{}' could not create model '{}': {}", m.name,
-                    m.plugin, model->name, error[0] ? error : "no reason given");
+        throw_error(blamed_param(m, error),
+                    "material '{}': plugin '{}' could not create model "
+                    "'{}': {}",
+                    m.name, m.plugin, model->name, error[0] ? error : "no reason given");
     auto mat = std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
     MapKind kind = MapKind::None;
     TextureBinding map;
