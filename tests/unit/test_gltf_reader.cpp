@@ -213,6 +213,31 @@ TEST(GltfReader, CameraLooksDownItsMinusZWithYUpAndYfovVertical) {
     EXPECT_NEAR(ty, 0.0f, 0.05f);  // film positions to 1/20 pixel: Newton on float rays
 }
 
+TEST(GltfReader, AnAspectRatioThatIsNotUsableIsSaid) {
+    // 0 was ignored, and 1/1000 made a 640 x 16384 image, both without a word.
+    test::TempDir dir("gltf_aspect");
+    const auto read = [&](const std::string& aspect) {
+        GltfWriter w;
+        const QuadAccessors q = quad(w);
+        w.write_gltf(
+            dir.file("a.gltf"),
+            fmt::format(R"("nodes":[{{"mesh":0}},{{"camera":0,"translation":[0,0,5]}}],)"
+                        R"("cameras":[{{"type":"perspective","perspective":{{"yfov":0.8,)"
+                        R"("aspectRatio":{},"znear":0.1}}}}],"meshes":[{{"primitives":[{}]}}])",
+                        aspect, quad_primitive(q, -1)));
+        return read_gltf_scene(dir.file("a.gltf"), {});
+    };
+    const SceneDescription zero = read("0");
+    EXPECT_EQ(zero.render.height, 360u) << "the default size";
+    EXPECT_EQ(count_notes(zero, "aspectRatio 0 is not a positive number: ignored"), 1);
+    const SceneDescription tall = read("0.001");
+    EXPECT_EQ(tall.render.height, 16384u);
+    EXPECT_EQ(count_notes(tall, "the camera's aspect ratio 0.001 makes the image 640 x 16384"), 1);
+    const SceneDescription fine = read("1.5");
+    EXPECT_EQ(fine.render.height, 427u);
+    EXPECT_EQ(count_notes(fine, "aspect ratio") + count_notes(fine, "aspectRatio"), 0);
+}
+
 TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {
     // xmag 3, ymag 1.5: a view 3 units tall and 6 wide (a 2:1 image), parallel rays down the
     // node's -z. Before, the camera was noted as unsupported and the default framing stood in.

@@ -323,9 +323,25 @@ void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
         c.fov_deg = yfov;
         aspect = g.perspective.aspectRatio;
     }
+    const std::string aspect_at =
+        cp + (g.type == "orthographic" ? "/orthographic/xmag" : "/perspective/aspectRatio");
     if (aspect > 0.0 && std::isfinite(aspect)) {
         const double h = std::round(ctx.scene->render.width / aspect);
         ctx.scene->render.height = static_cast<uint32_t>(std::clamp(h, 1.0, 16384.0));
+        // An image of one row, or of 16384 (a width of 640 at an aspect of 1/1000: the clamp was
+        // taken without a word).
+        if (!(h >= 4.0 && h <= 16384.0))
+            ctx.note("extreme aspect", ctx.at(aspect_at),
+                     fmt::format("the camera's aspect ratio {:g} makes the image {} x {} pixels: "
+                                 "give the size you want with --size (or [render] width and "
+                                 "height in a TOML scene that imports this file)",
+                                 aspect, ctx.scene->render.width, ctx.scene->render.height));
+    } else if (g.type != "orthographic" && ctx.json.has(aspect_at)) {
+        // Written, but 0, negative or not a number: the size stays the default (silently before).
+        ctx.note("bad aspect", ctx.at(aspect_at),
+                 fmt::format("aspectRatio {:g} is not a positive number: ignored, the image is "
+                             "{} x {}",
+                             aspect, ctx.scene->render.width, ctx.scene->render.height));
     }
     const auto pose = [](const Affine& m, Vec3& eye, Vec3& look, Vec3& up) {
         eye = m.apply_point({0, 0, 0});
