@@ -1,6 +1,7 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
+#include <limits>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -487,6 +488,10 @@ PosedFile posed_file(BuildContext& ctx, const std::string& path, bool sequence,
     if (!sequence) return f;
     SceneInfo& info = *ctx.info;
     info.animated = true;
+    // A numbered file per frame: every frame has its own shape, past the frame range too (--frames
+    // checks their files exist), so no frame "holds the nearest key".
+    info.keys_from = -std::numeric_limits<double>::infinity();
+    info.keys_to = std::numeric_limits<double>::infinity();
     f.path = sequence_file(path, frame_at(info.frame_start, info.fps, info.time), loc, what);
     if (f.rest.empty()) {
         f.rest = expand_frame_pattern(path, info.frame_start);

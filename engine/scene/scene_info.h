@@ -50,7 +50,8 @@ struct SceneInfo {
     double fps = 24.0;
     bool animated = false;
     /** The earliest and the latest key of any keyed camera or object (seconds; +inf and -inf
-     *  without keys): frames past the frame range but within the keys still move. */
+     *  without keys; -inf and +inf with a mesh or cage sequence, whose every frame is a file of
+     *  its own): frames past the frame range but within the keys still move. */
     double keys_from = std::numeric_limits<double>::infinity();
     double keys_to = -std::numeric_limits<double>::infinity();
     double time = 0.0;  ///< the time the scene was evaluated at

@@ -54,4 +54,11 @@ n=$(grep -c "frames 3..5 reach beyond the scene's frame range 0..3" err.txt)
 "$S" render scene.toml --frames 3..4 -o h.#.exr --no-preview > out.txt 2> err.txt ||
     fail "frames within the keys did not render: $(cat err.txt)"
 grep -q "beyond the scene's frame range" err.txt && fail "frames within the keys warned: $(cat err.txt)"
+# A mesh sequence: every frame past frame_end reads its own file, so none holds a key (they were
+# said to).
+for f in 0 1 2 3 4 5; do cp plane.ply "p.$f.ply"; done
+sed -e 's/^mesh = "plane.ply"/mesh = "p.#.ply"/' scene.toml > seq.toml
+"$S" render seq.toml --frames 3..5 -o s.#.exr --no-preview > out.txt 2> err.txt ||
+    fail "the mesh sequence did not render: $(cat err.txt)"
+grep -q "beyond the scene's frame range" err.txt && fail "a mesh sequence's frames warned: $(cat err.txt)"
 echo PASS
