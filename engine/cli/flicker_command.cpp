@@ -55,7 +55,10 @@ int run_flicker(const FlickerArgs& a) {
         "mask flicker (mean |mask_k - mask_k+1| of reprojected pixels): {:.4f}\n"
         "glint persistence (glint pixels still glints in the next frame): {:.4f}\n"
         "relative glint difference (mean |g_k - g_k+1| / mean g): {:.4f}\n",
-        a.frames.size(), r.pairs, r.pixels, r.by_objects ? "their objects" : "world position",
+        a.frames.size(), r.pairs, r.pixels,
+        r.by_rest      ? "their objects, a deforming one's by their rest position"
+        : r.by_objects ? "their objects"
+                       : "world position",
         r.threshold, r.mask_fraction, r.mask_flicker, r.mask_persistence, r.relative_difference);
     return 0;
 }

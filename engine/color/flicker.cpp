@@ -308,6 +308,8 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
         const Frame& b = frames[k + 1];
         const bool objects = a.has_objects() && b.has_objects();
         rep.by_objects = rep.by_objects || objects;
+        rep.by_rest = rep.by_rest || (objects && std::any_of(a.rest_pose.begin(), a.rest_pose.end(),
+                                                             [](float v) { return v > 0.5f; }));
         ++rep.pairs;
         for (int y = 0; y < a.height; ++y)
             for (int x = 0; x < a.width; ++x) {

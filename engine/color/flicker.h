@@ -23,8 +23,9 @@ struct FlickerReport {
     double relative_difference = 0;  ///< mean |g_k - g_k+1| / mean g over compared pixels
     double mask_persistence = 0;     ///< of the glint pixels of frame k, the share still glints
     bool by_objects = false;         ///< points were carried by their objects (Pobj layers)
-    bool reordered = false;          ///< the frames were not given in time order: sorted
-    std::size_t blurred = 0;         ///< frames rendered with motion blur (spangle:shutter)
+    bool by_rest = false;     ///< and a deforming object's by its rest position (spangle:restPose)
+    bool reordered = false;   ///< the frames were not given in time order: sorted
+    std::size_t blurred = 0;  ///< frames rendered with motion blur (spangle:shutter)
 };
 
 /** Reads the frames (EXRs with P.X/Y/Z, Z, A and glints.R/G/B layers and worldToNDC, and

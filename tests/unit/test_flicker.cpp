@@ -215,6 +215,7 @@ TEST(Flicker, SparklesOnADeformingObjectAreFoundByTheirRestPosition) {
     EXPECT_GE(found.pixels, 25.0 * 32.0);
     EXPECT_LE(found.pixels, 27.0 * 32.0);
     EXPECT_DOUBLE_EQ(found.mask_persistence, 1.0);
+    EXPECT_TRUE(found.by_objects && found.by_rest) << "said as carried by their rest position";
     const FlickerReport reseeded = measure_flicker({dir.file("a.exr"), dir.file("c.exr")}, 1.0);
     EXPECT_LT(reseeded.mask_persistence, 0.3);
     // Carried as a rigid object (no rest pose said), the points land where they were, on other
@@ -222,6 +223,7 @@ TEST(Flicker, SparklesOnADeformingObjectAreFoundByTheirRestPosition) {
     const FlickerReport rigid =
         measure_flicker({dir.file("a_rigid.exr"), dir.file("b_rigid.exr")}, 1.0);
     EXPECT_EQ(rigid.pixels, 32.0 * 32.0);
+    EXPECT_FALSE(rigid.by_rest);
     EXPECT_LT(rigid.mask_persistence, 0.5);
 }
 
