@@ -39,7 +39,10 @@ TriangleMesh load_mesh(const std::string& path, const FileLoc& ref) {
 }
 
 void validate_mesh(const TriangleMesh& mesh, const FileLoc& ref) {
-    if (mesh.triangle_count() == 0) throw_error(ref, "mesh '{}' has no triangles", mesh.source);
+    if (mesh.triangle_count() == 0)
+        throw_error(
+            ref, "mesh '{}' has no triangles{}", mesh.source,
+            mesh.notes.empty() ? std::string() : fmt::format(" ({})", fmt::join(mesh.notes, "; ")));
     for (std::size_t i = 0; i < mesh.positions.size(); ++i)
         if (!std::isfinite(mesh.positions[i]))
             throw_error(ref, "mesh '{}': vertex {} has a non-finite position ({}, {}, {})",

@@ -188,9 +188,12 @@ private:
             face_.clear();
             for (std::string_view t = next_token(s); !t.empty(); t = next_token(s))
                 face_.push_back(vertex_of(corner(t)));
-            if (face_.size() < 3)
-                fail(fmt::format("face has {} corner{}; a face needs at least 3", face_.size(),
-                                 face_.size() == 1 ? "" : "s"));
+            // A point or an edge written as a face (scanners and some exporters write them):
+            // not a surface, skipped and counted (it failed the whole mesh).
+            if (face_.size() < 3) {
+                ++short_faces_;
+                return;
+            }
             // Triangulated at the end, when every vertex a face may name forward is known.
             polygons_.insert(polygons_.end(), face_.begin(), face_.end());
             polygon_ends_.push_back(polygons_.size());
@@ -216,6 +219,10 @@ private:
         check_indices();
         TriangleMesh mesh;
         mesh.source = path_;
+        if (short_faces_ > 0)
+            mesh.notes.push_back(fmt::format(
+                "{} face{} of fewer than 3 corners (points or edges, not surfaces) skipped",
+                short_faces_, short_faces_ == 1 ? "" : "s"));
         bool all_normals = !corners_.empty(), any_uv = false;
         for (const Corner& c : corners_) {
             all_normals = all_normals && c.vn >= 0;
@@ -252,6 +259,7 @@ private:
     int line_ = 0;
     std::vector<float> positions_, uvs_, normals_;
     std::vector<uint32_t> face_;
+    std::size_t short_faces_ = 0;            ///< faces of fewer than 3 corners, skipped
     std::vector<uint32_t> polygons_;         ///< every face's vertices, one after another
     std::vector<std::size_t> polygon_ends_;  ///< where each face ends in polygons_
     std::vector<Corner> corners_;

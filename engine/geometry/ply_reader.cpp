@@ -155,6 +155,18 @@ struct Wedge {
 
 }  // namespace
 
+namespace {
+
+/** Notes the faces of fewer than 3 corners a PLY file's face element held (skipped). */
+void note_short_faces(TriangleMesh& mesh, std::size_t n) {
+    if (n > 0)
+        mesh.notes.push_back(
+            fmt::format("{} face{} of fewer than 3 corners (points or edges, not surfaces) skipped",
+                        n, n == 1 ? "" : "s"));
+}
+
+}  // namespace
+
 TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw_error(ref, "cannot read mesh '{}'", path);
@@ -389,11 +401,9 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                                 "mesh '{}': face {} claims {} corners, more than the file holds",
                                 path, i, n);
             };
-            const auto check_corners = [&](uint64_t i, double n) {
-                if (n < 3)
-                    throw_error(ref, "mesh '{}': face {} has {} corners; a face needs 3 or more",
-                                path, i, n);
-            };
+            // A face of fewer than 3 corners (a point or an edge, as scanners write them) is not a
+            // surface: skipped and counted (it failed the whole mesh).
+            std::size_t short_faces = 0;
             const auto bad_index = [&](uint64_t i, double c) {
                 throw_error(ref, "mesh '{}': face {} has corner index {}", path, i, c);
             };
@@ -418,7 +428,6 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 for (uint64_t i = 0; i < e.count; ++i) {
                     const auto n = static_cast<unsigned char>(*reader.take(1, "the faces"));
                     check_count(i, n, static_cast<double>(reader.remaining()));
-                    check_corners(i, n);
                     const char* at = reader.take(4 * std::size_t{n}, "the faces");
                     for (unsigned j = 0; j < n; ++j) {
                         uint32_t c;
@@ -428,8 +437,13 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                                                    : static_cast<double>(c));
                         corner[j] = c;
                     }
+                    if (n < 3) {
+                        ++short_faces;
+                        continue;
+                    }
                     add_face(corner, n);
                 }
+                note_short_faces(mesh, short_faces);
                 continue;
             }
             // Per-corner uvs (MeshLab's "wedge" texcoords: a list of u, v per corner on the
@@ -463,11 +477,14 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                             reader.read(p.type, "the faces");
                         continue;
                     }
-                    check_corners(i, n);
                     for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j) {
                         const double c = reader.read(p.type, "the faces");
                         if (!(c >= 0 && c < 4294967295.0) || c != std::floor(c)) bad_index(i, c);
                         corners.push_back(static_cast<uint32_t>(c));
+                    }
+                    if (n < 3) {
+                        ++short_faces;
+                        corners.clear();
                     }
                 }
                 if (texcoord >= 0 && !corners.empty()) {
@@ -490,6 +507,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 }
                 if (!corners.empty()) add_face(corners.data(), corners.size());
             }
+            note_short_faces(mesh, short_faces);
         } else if (!e.props.empty()) {
             // Skipped, but read through: its data lies before later elements'. (An element
             // without properties has no data, however many entries it claims.)
@@ -506,11 +524,19 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     }
     if (!have_vertices) throw_error(ref, "mesh '{}' has no vertex element", path);
     if (!have_faces) throw_error(ref, "mesh '{}' has no face element", path);
+    // Data left over in a binary file: its header's counts and its data disagree (a damaged or
+    // mis-written file), said beside what was read.
+    if (*format != Format::Ascii && reader.remaining() > 0)
+        mesh.notes.push_back(
+            fmt::format("{} bytes follow the data its header describes (do "
+                        "its element counts match the data?)",
+                        reader.remaining()));
     if (!wedges.empty()) {
         // The corners' vertices, one per distinct (vertex, u, v); the faces index them.
         const std::size_t nv = mesh.vertex_count();
         TriangleMesh split;
         split.source = mesh.source;
+        split.notes = std::move(mesh.notes);
         for (const Wedge& w : wedges) {
             if (w.vertex >= nv)
                 throw_error(ref, "mesh '{}': a face refers to vertex {}, but there are {} vertices",

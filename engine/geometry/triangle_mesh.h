@@ -20,6 +20,8 @@ struct TriangleMesh {
      *  its own rest pose. Object-space shading inputs are taken from it. */
     std::vector<float> rest_positions;
     std::string source;  ///< file it came from, for messages
+    /** What its reader left out (faces of fewer than three corners), for the loader to say. */
+    std::vector<std::string> notes;
 
     std::size_t vertex_count() const { return positions.size() / 3; }
     std::size_t triangle_count() const { return indices.size() / 3; }

@@ -23,7 +23,15 @@ std::shared_ptr<const TriangleMesh> cached_mesh(World& w, const std::string& pat
     w.read_file("mesh", path);
     return build_cached(
         w.cache, &BuildCache::meshes, "meshes", [&] { return "mesh|" + file_identity(path); },
-        [&] { return std::make_shared<const TriangleMesh>(load_mesh(path, loc)); }, "mesh " + path);
+        [&] {
+            auto mesh = std::make_shared<const TriangleMesh>(load_mesh(path, loc));
+            // What the reader left out, said once per read of the file.
+            if (w.log)
+                for (const std::string& note : mesh->notes)
+                    w.log->warn("{}: mesh '{}': {}", loc.str(), path, note);
+            return mesh;
+        },
+        "mesh " + path);
 }
 
 /** Says (once per build of the posed mesh) where a rest pose leaves triangles without area:

@@ -192,6 +192,8 @@ Made plymesh(Reader& r, const ParamList& p, const FileLoc& loc) {
     auto& cached = r.shape_cache[key];
     if (!cached) {
         auto m = std::make_shared<TriangleMesh>(load_mesh(path, loc));
+        for (const std::string& note : m->notes)
+            r.notes.add(loc, fmt::format("mesh '{}': {}", path, note));
         orient_like_pbrt(r, *m);
         cached = m;
         r.d.files.push_back(path);  // watched and hashed as the scene's own files are
