@@ -318,6 +318,8 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     std::vector<uint32_t> polygons;         // faces of more than three corners, one after another
     std::vector<std::size_t> polygon_ends;  // where each ends in `polygons`
     bool have_vertices = false, have_faces = false;
+    uint32_t largest_index = 0;
+    uint64_t largest_face = 0;
     for (const Element& e : elements) {
         const auto find = [&](std::initializer_list<const char*> names) -> int {
             for (const char* n : names)
@@ -404,6 +406,14 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             // A face of fewer than 3 corners (a point or an edge, as scanners write them) is not a
             // surface: skipped and counted (it failed the whole mesh).
             std::size_t short_faces = 0;
+            // The largest corner index and its face, checked once the vertices are known (the
+            // mesh's check named the triangle, not the file's face: face 0 a quad, "triangle 1").
+            const auto track = [&](uint64_t i, uint32_t c) {
+                if (c >= largest_index) {
+                    largest_index = c;
+                    largest_face = i;
+                }
+            };
             const auto bad_index = [&](uint64_t i, double c) {
                 throw_error(ref, "mesh '{}': face {} has corner index {}", path, i, c);
             };
@@ -436,6 +446,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                             bad_index(i, is_signed ? static_cast<double>(static_cast<int32_t>(c))
                                                    : static_cast<double>(c));
                         corner[j] = c;
+                        track(i, c);
                     }
                     if (n < 3) {
                         ++short_faces;
@@ -481,6 +492,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                         const double c = reader.read(p.type, "the faces");
                         if (!(c >= 0 && c < 4294967295.0) || c != std::floor(c)) bad_index(i, c);
                         corners.push_back(static_cast<uint32_t>(c));
+                        track(i, static_cast<uint32_t>(c));
                     }
                     if (n < 3) {
                         ++short_faces;
@@ -524,6 +536,9 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     }
     if (!have_vertices) throw_error(ref, "mesh '{}' has no vertex element", path);
     if (!have_faces) throw_error(ref, "mesh '{}' has no face element", path);
+    if (largest_index >= mesh.vertex_count() && (!mesh.indices.empty() || !polygons.empty()))
+        throw_error(ref, "mesh '{}': face {} refers to vertex {}, but there are {} vertices", path,
+                    largest_face, largest_index, mesh.vertex_count());
     // Data left over in a binary file: its header's counts and its data disagree (a damaged or
     // mis-written file), said beside what was read.
     if (*format != Format::Ascii && reader.remaining() > 0)

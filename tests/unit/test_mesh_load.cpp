@@ -235,6 +235,17 @@ TEST(MeshLoad, FacesOfFewerThanThreeCornersAreSkippedAndSaid) {
     ASSERT_EQ(ply.notes.size(), 1u);
     EXPECT_EQ(ply.notes[0],
               "2 faces of fewer than 3 corners (points or edges, not surfaces) skipped");
+    // A corner beyond the vertices is named by the file's face (it was the triangle's number:
+    // face 0, a quad, was "triangle 1").
+    std::ofstream(dir.file("b.ply")) << head << "3 0 1 2\n4 0 1 2 7\n3 0 1 2\n";
+    try {
+        load_mesh(dir.file("b.ply"), FileLoc{"s.toml", 1, 1});
+        FAIL() << "an index beyond the vertices was read";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("face 1 refers to vertex 7, but there are 3 vertices"),
+                  std::string::npos)
+            << e.what();
+    }
     // Only such faces: no surface at all, said with the reason.
     EXPECT_NE(obj_error("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2\n")
                   .find("has no triangles (1 face of fewer than 3 corners"),
