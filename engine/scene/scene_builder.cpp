@@ -1,11 +1,11 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
-#include <limits>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <utility>
 
