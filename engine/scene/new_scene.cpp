@@ -146,11 +146,16 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     const fs::path env = fs::absolute(r.env_map, ec).lexically_normal();
     if (!fs::is_regular_file(env, ec))
         throw_error("environment map '{}' not found (looked for {})", r.env_map, env.string());
-    // Read whole now, so that a map that is not an image, or is cut short, is said here rather
-    // than when the scene written around it first renders.
+    // Read now, so that a map that is not an image, or is cut short, is said here rather than
+    // when the scene written around it first renders: whole up to 256 MiB on disk, its header
+    // beyond (a 16k map's pixels are gigabytes).
     {
+        const uintmax_t bytes = fs::file_size(env, ec);
         ImageHeader header;
-        read_image(env.string(), 3, header, "environment map");
+        if (!ec && bytes <= (uintmax_t{256} << 20))
+            read_image(env.string(), 3, header, "environment map");
+        else
+            read_image_header(env.string(), "environment map");
     }
     NewSceneReport rep;
     rep.model_bounds = model_bounds(r.model);
