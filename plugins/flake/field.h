@@ -267,6 +267,20 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
     int top = 0;
     stack[top++] = {depth, ix, iy, n};
     uint32_t visited = 0;
+    // A flake inside P, positioned by hash h: finished, placed in its tile and visited; false
+    // (truncated) when the budget is spent.
+    const auto emit = [&](Flake& f, uint64_t h) {
+        if (visited >= budget) {
+            truncated = true;
+            return false;
+        }
+        leaf_flake_finish(fp, h, f);
+        f.u += static_cast<double>(tx);
+        f.v += static_cast<double>(ty);
+        visit(static_cast<const Flake&>(f));
+        ++visited;
+        return true;
+    };
     while (top > 0) {
         const Node node = stack[--top];
         if (node.n == 0) continue;
@@ -297,17 +311,9 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
                         found += (ps >= -0.5) & (ps <= 0.5) & (pt >= -0.5) & (pt <= 0.5) ? 1u : 0u;
                     }
                     for (uint32_t j = 0; j < found; ++j) {
-                        if (visited >= budget) {
-                            truncated = true;
-                            return visited;
-                        }
                         Flake f;
                         const uint64_t h = leaf_flake_position(key, in_leaf[j], x0, y0, size, f);
-                        leaf_flake_finish(fp, h, f);
-                        f.u += static_cast<double>(tx);
-                        f.v += static_cast<double>(ty);
-                        visit(static_cast<const Flake&>(f));
-                        ++visited;
+                        if (!emit(f, h)) return visited;
                     }
                 }
                 continue;
@@ -317,15 +323,7 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
                 const uint64_t h = leaf_flake_position(key, i, x0, y0, size, f);
                 f.cover = facet_coverage(local, *fp.facet, fp.facet_size, f.u, f.v, h);
                 if (!(f.cover > 0.0f)) continue;
-                if (visited >= budget) {
-                    truncated = true;
-                    return visited;
-                }
-                leaf_flake_finish(fp, h, f);
-                f.u += static_cast<double>(tx);
-                f.v += static_cast<double>(ty);
-                visit(static_cast<const Flake&>(f));
-                ++visited;
+                if (!emit(f, h)) return visited;
             }
             continue;
         }
