@@ -214,6 +214,16 @@ void write_image(const RenderedImage& img, const std::string& path, const std::s
     if (path.size() < 4 || path.compare(path.size() - 4, 4, ".exr") != 0)
         throw SpangleError(fmt::format("output '{}' must end in .exr", path));
     if (!img.info || !img.color) throw SpangleError("write(): this image holds no render");
+    // As spangle render: never over a file the scene reads (the scene file, a mesh, a texture,
+    // a map), and no compression that is lossy for the layers' 32-bit data.
+    out.check_not_inputs(img.inputs, "path=", "preview=");
+    if (!img.result.layer_names.empty() &&
+        (compression == "pxr24" || compression == "dwaa" || compression == "dwab"))
+        throw SpangleError(fmt::format(
+            "write(): compression '{}' is lossy for 32-bit floats and would corrupt the data "
+            "layers (object and material ids, depth, positions, normals): use zip, zips, piz, "
+            "rle, b44, b44a or none, or render with layers=False",
+            compression));
     out.write(final_image(img.result, *img.color, *img.info));
 }
 

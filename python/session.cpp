@@ -66,6 +66,7 @@ void PySession::load(const std::string& path, double time,
     }
     session_->load(d, time);
     const std::lock_guard<std::mutex> l(desc_mutex_);
+    base_size_ = {d.render.width, d.render.height};
     desc_ = std::move(d);
     time_ = time;
     loaded_ = true;
@@ -137,7 +138,8 @@ void PySession::set_material(const std::string& name,
             p->is_integer = true;
         } else if (const double* x = std::get_if<double>(&value)) {
             if (!std::isfinite(*x))
-                throw SpangleError(fmt::format("material '{}': '{}' must be finite", name, key));
+                throw SpangleError(python_loc(fmt::format("set_material('{}', {}=...)", name, key)),
+                                   fmt::format("material '{}': '{}' must be finite", name, key));
             p->kind = ParamDesc::Kind::Number;
             p->number = *x;
         } else if (const std::string* s = std::get_if<std::string>(&value)) {
@@ -148,6 +150,7 @@ void PySession::set_material(const std::string& name,
             for (double v : c)
                 if (!std::isfinite(v))
                     throw SpangleError(
+                        python_loc(fmt::format("set_material('{}', {}=...)", name, key)),
                         fmt::format("material '{}': the colour '{}' must be finite", name, key));
             p->kind = ParamDesc::Kind::Color;
             p->color = ColorDesc{};
@@ -175,15 +178,15 @@ namespace {
 void check_vec(const char* call, const char* key, const std::optional<Vec3>& v) {
     if (v && !(std::isfinite(v->x) && std::isfinite(v->y) && std::isfinite(v->z) &&
                std::fabs(v->x) <= 1e30f && std::fabs(v->y) <= 1e30f && std::fabs(v->z) <= 1e30f))
-        throw SpangleError(fmt::format("python: {}: '{}' must be finite, got ({}, {}, {})", call,
-                                       key, v->x, v->y, v->z));
+        throw SpangleError(python_loc(call), fmt::format("'{}' must be finite, got ({}, {}, {})",
+                                                         key, v->x, v->y, v->z));
 }
 
 void check_number(const char* call, const char* key, const std::optional<double>& v, double lo,
                   double hi, bool lo_open) {
     if (v && !((lo_open ? *v > lo : *v >= lo) && *v <= hi))
-        throw SpangleError(fmt::format("python: {}: '{}' must be in {}{}, {}], got {}", call, key,
-                                       lo_open ? "(" : "[", lo, hi, *v));
+        throw SpangleError(python_loc(call), fmt::format("'{}' must be in {}{}, {}], got {}", key,
+                                                         lo_open ? "(" : "[", lo, hi, *v));
 }
 
 }  // namespace
@@ -203,6 +206,7 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
                               const std::optional<Affine>& matrix) {
     SceneDescription d = description();
     ObjectDesc& o = object_named(d, name);
+    const FileLoc edit = python_loc(fmt::format("set_transform('{}')", name));
     check_vec("set_transform()", "translate", translate);
     check_vec("set_transform()", "rotate", rotate);
     check_vec("set_transform()", "scale", scale);
@@ -212,9 +216,9 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
         for (const float v : {scale->x, scale->y, scale->z})
             if (!(std::fabs(v) >= 1e-8f && std::fabs(v) <= 1e8f))
                 throw SpangleError(
-                    fmt::format("python: set_transform('{}'): 'scale' must be between 1e-8 and "
-                                "1e8 in size on every axis, got ({}, {}, {})",
-                                name, scale->x, scale->y, scale->z));
+                    edit, fmt::format("'scale' must be between 1e-8 and 1e8 in size on every "
+                                      "axis, got ({}, {}, {})",
+                                      scale->x, scale->y, scale->z));
     if (matrix) {
         bool finite =
             std::isfinite(matrix->t.x) && std::isfinite(matrix->t.y) && std::isfinite(matrix->t.z);
@@ -222,29 +226,48 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
             for (const float x : row) finite = finite && std::isfinite(x);
         const float det = matrix->determinant();
         if (!finite || !(std::fabs(det) > 1e-24f && std::isfinite(det)))
-            throw SpangleError(
-                fmt::format("python: set_transform('{}'): the matrix must be finite "
-                            "and invertible",
-                            name));
+            throw SpangleError(edit, "the matrix must be finite and invertible");
     }
     if (matrix && (translate || rotate || scale))
-        throw SpangleError(fmt::format(
-            "object '{}': give either matrix or translate/rotate/scale, not both", name));
+        throw SpangleError(edit, fmt::format("object '{}': give either matrix or "
+                                             "translate/rotate/scale, not both",
+                                             name));
+    // What the object's keys set, they decide at every time: an edit of it would be reported by
+    // transform() and ignored by the render (it was, silently), as for a keyframed camera.
+    const auto keyed = [&](auto part) {
+        return std::any_of(o.keys.keys.begin(), o.keys.keys.end(),
+                           [&](const ObjectKey& k) { return (k.*part).has_value(); });
+    };
+    std::string decided;
+    if (!o.matrix_keys.keys.empty() && (matrix || translate || rotate || scale))
+        decided = "its placement (keyed as whole matrices)";
+    else if (matrix && !o.keys.keys.empty())
+        decided = "its placement";
+    else if (translate && keyed(&ObjectKey::translate))
+        decided = "translate";
+    else if (rotate && keyed(&ObjectKey::rotate))
+        decided = "rotate";
+    else if (scale && keyed(&ObjectKey::scale))
+        decided = "scale";
+    if (!decided.empty())
+        throw SpangleError(edit, fmt::format("the object is keyframed ([[object.keys]]): its "
+                                             "keys decide {}; edit them in the scene file",
+                                             decided));
     if (matrix) {
         o.placement.matrix = *matrix;
     } else {
         // Parts replace a matrix (the object's keys, if any, move the parts).
         if (o.placement.matrix && !(translate && rotate && scale))
-            throw SpangleError(fmt::format(
-                "object '{}' is placed by a matrix: give translate, rotate and scale together, "
-                "or a matrix",
-                name));
+            throw SpangleError(edit, fmt::format("object '{}' is placed by a matrix: give "
+                                                 "translate, rotate and scale together, or a "
+                                                 "matrix",
+                                                 name));
         o.placement.matrix.reset();
         if (translate) o.placement.parts.translate = *translate;
         if (rotate) o.placement.parts.rotate = *rotate;
         if (scale) o.placement.parts.scale = *scale;
     }
-    o.loc = python_loc(fmt::format("set_transform('{}')", name));
+    o.loc = edit;
     apply(std::move(d));
 }
 
@@ -266,48 +289,48 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     // A keyframed camera goes where its keys say: an edit of its placement or lens would be
     // reported by `camera` and ignored by the render (it was, silently).
     if (!c.keys.keys.empty() && (position || look_at || up || fov || aperture || focus_distance))
-        throw SpangleError(
-            "python: set_camera(): the camera is keyframed ([[camera.keys]]): its keys decide "
-            "where it stands and its lens; edit them in the scene file");
+        throw SpangleError(python_loc("set_camera()"),
+                           "the camera is keyframed ([[camera.keys]]): its keys decide "
+                           "where it stands and its lens; edit them in the scene file");
     // A projection switches the camera as [camera] projection does: perspective (with its fov),
     // orthographic (with a view height) or equirectangular (no fov, view height or lens).
     if (projection) {
         if (*projection == "perspective") {
             if (ortho_height.value_or(0.0) > 0.0)
-                throw SpangleError(
-                    "python: set_camera(): projection \"perspective\" takes no ortho_height (it "
-                    "makes the camera orthographic)");
+                throw SpangleError(python_loc("set_camera()"),
+                                   "projection \"perspective\" takes no ortho_height (it "
+                                   "makes the camera orthographic)");
             c.equirect = false;
             c.ortho_height = 0.0;
         } else if (*projection == "orthographic") {
             c.equirect = false;
             if (!(ortho_height.value_or(c.ortho_height) > 0.0))
-                throw SpangleError(
-                    "python: set_camera(): projection \"orthographic\" needs ortho_height > 0 "
-                    "(the view's height in scene units)");
+                throw SpangleError(python_loc("set_camera()"),
+                                   "projection \"orthographic\" needs ortho_height > 0 "
+                                   "(the view's height in scene units)");
         } else if (*projection == "equirectangular") {
             if (ortho_height || fov || focus_distance)
-                throw SpangleError(
-                    "python: set_camera(): an equirectangular camera has no fov, view height or "
-                    "focus distance");
+                throw SpangleError(python_loc("set_camera()"),
+                                   "an equirectangular camera has no fov, view height or "
+                                   "focus distance");
             // Its lens goes with the switch: aperture=0 or none is accepted, a lens is not.
             if (aperture.value_or(0.0) > 0.0 || (!aperture && c.aperture > 0.0))
-                throw SpangleError(
-                    "python: set_camera(): an equirectangular camera is a pinhole: give "
-                    "aperture=0 with it (the camera's aperture is " +
-                    fmt::format("{}", aperture.value_or(c.aperture)) + ")");
+                throw SpangleError(python_loc("set_camera()"),
+                                   "an equirectangular camera is a pinhole: give "
+                                   "aperture=0 with it (the camera's aperture is " +
+                                       fmt::format("{}", aperture.value_or(c.aperture)) + ")");
             c.equirect = true;
             c.ortho_height = 0.0;
         } else {
-            throw SpangleError(
-                "python: set_camera(): projection must be \"perspective\", \"orthographic\" or "
-                "\"equirectangular\", got \"" +
-                *projection + "\"");
+            throw SpangleError(python_loc("set_camera()"),
+                               "projection must be \"perspective\", \"orthographic\" or "
+                               "\"equirectangular\", got \"" +
+                                   *projection + "\"");
         }
     } else if ((fov || ortho_height || aperture || focus_distance) && c.equirect) {
-        throw SpangleError(
-            "python: set_camera(): an equirectangular camera has no fov, view height or lens "
-            "(projection=\"perspective\" or \"orthographic\" switches it back)");
+        throw SpangleError(python_loc("set_camera()"),
+                           "an equirectangular camera has no fov, view height or lens "
+                           "(projection=\"perspective\" or \"orthographic\" switches it back)");
     }
     // ortho_height > 0 makes the camera orthographic, 0 perspective again (with its fov).
     if (ortho_height) c.ortho_height = *ortho_height;
@@ -315,9 +338,9 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     if (look_at) c.look_at = *look_at;
     if (up) c.up = *up;
     if (fov && c.ortho_height > 0.0)
-        throw SpangleError(
-            "python: set_camera(): 'fov': the camera is orthographic (ortho_height), it has no "
-            "field of view (ortho_height=0 makes it perspective)");
+        throw SpangleError(python_loc("set_camera()"),
+                           "'fov': the camera is orthographic (ortho_height), it has no "
+                           "field of view (ortho_height=0 makes it perspective)");
     if (fov) c.fov_deg = *fov;
     if (aperture) c.aperture = *aperture;
     if (focus_distance) c.focus_distance = *focus_distance;
@@ -339,10 +362,8 @@ void PySession::set_light(std::size_t index, const std::optional<double>& intens
     check_vec("set_light()", "position", position);
     check_vec("set_light()", "color", color);
     if (color && (color->x < 0.0f || color->y < 0.0f || color->z < 0.0f))
-        throw SpangleError(
-            fmt::format("python: set_light(): 'color' must not be negative, got "
-                        "({}, {}, {})",
-                        color->x, color->y, color->z));
+        throw SpangleError(loc, fmt::format("'color' must not be negative, got ({}, {}, {})",
+                                            color->x, color->y, color->z));
     if (intensity) l.intensity = *intensity;
     if (color) {
         ColorDesc c;
@@ -440,12 +461,15 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
     // the film is rebuilt, e.g. subdivision levels chosen from the camera's pixels), so that the
     // scene is built as `spangle render --size` builds it. A size that fails (a film beyond
     // memory) leaves the session at the size it had.
+    // Without a size, the size the scene was loaded at (an earlier render's size stuck to every
+    // render after it).
     std::optional<SceneDescription> before;
-    if (size && (size->first != desc_.render.width || size->second != desc_.render.height)) {
-        check_size(*size);
+    const std::pair<uint32_t, uint32_t> want = size.value_or(base_size_);
+    if (want.first != desc_.render.width || want.second != desc_.render.height) {
+        check_size(want);
         SceneDescription d = desc_;
-        d.render.width = size->first;
-        d.render.height = size->second;
+        d.render.width = want.first;
+        d.render.height = want.second;
         before = desc_;
         apply_locked(std::move(d));
     }
@@ -503,6 +527,7 @@ RenderedImage PySession::render(std::optional<uint32_t> spp,
             log_.warn("{}", not_denoised_warning(r.width, r.height));
     }
     out.scene = desc_.path;
+    out.inputs = session_->watched_files();
     out.info = std::make_shared<const SceneInfo>(session_->info());
     out.color = std::make_shared<const ColorConfig>(session_->color().clone());
     return out;

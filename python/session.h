@@ -27,6 +27,9 @@ struct RenderedImage {
     uint32_t spp = 0;      ///< samples per pixel reached
     bool stopped = false;  ///< stop() ended it before its samples
     std::string scene;     ///< the scene file it came from
+    /** Every file the scene read (its file, meshes, textures, maps, plugins, OCIO config):
+     *  write() refuses to write over one, as spangle render does. */
+    std::vector<std::string> inputs;
     /** The scene as rendered (camera, objects, colour space) and its colour config: write()
      *  labels the image with these, not with the session's state when it is written (an image
      *  written after a later edit or load took that scene's camera, space and names). */
@@ -123,6 +126,9 @@ private:
     SceneDescription desc_;
     mutable std::mutex desc_mutex_;  ///< held while desc_ is read for a copy or replaced
     bool loaded_ = false;
+    /** The size load() gave the scene (its own, or load's size=): render(size=None) renders at
+     *  it, whatever size an earlier render() asked for. */
+    std::pair<uint32_t, uint32_t> base_size_{0, 0};
     double time_ = 0.0;
     std::atomic<bool> stop_{false};
     std::mutex rendering_;

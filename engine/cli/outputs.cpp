@@ -300,7 +300,8 @@ void Outputs::check_view(const ColorConfig& color) const {
     }
 }
 
-void Outputs::check_not_inputs(const std::vector<std::string>& inputs) const {
+void Outputs::check_not_inputs(const std::vector<std::string>& inputs, const char* exr_option,
+                               const char* preview_option) const {
     for (const std::string& in : inputs)
         for (const auto& [path, what] : {std::pair{exr, "EXR"}, std::pair{preview, "PNG preview"}})
             if (!path.empty() && same_file(path, in))
@@ -308,7 +309,7 @@ void Outputs::check_not_inputs(const std::vector<std::string>& inputs) const {
                     "the {} '{}' is {}a file the scene reads: the render would overwrite it; "
                     "give {} another path",
                     what, path, path == in ? "" : fmt::format("'{}', ", in),
-                    path == exr ? "-o" : "--preview");
+                    path == exr ? exr_option : preview_option);
 }
 
 void Outputs::remove_stale_temporaries(const Logger& log) const {

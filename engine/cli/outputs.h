@@ -107,7 +107,8 @@ struct Outputs {
     void check_view(const ColorConfig& color) const;
     /** Throws SpangleError when the EXR or the preview is one of `inputs` (the files the scene
      *  read: its scene files, meshes, textures, maps): the render would overwrite its input. */
-    void check_not_inputs(const std::vector<std::string>& inputs) const;
+    void check_not_inputs(const std::vector<std::string>& inputs, const char* exr_option = "-o",
+                          const char* preview_option = "--preview") const;
     /** Removes the temporary images a killed render left in the folders of the EXR and the
      *  preview (color/temporary_files.h), saying which; what cannot be removed is a warning. */
     void remove_stale_temporaries(const Logger& log) const;

@@ -295,7 +295,7 @@ FileLoc blamed_param(const Material& m, const char* message) {
     std::size_t first = std::string_view::npos;
     FileLoc at = m.loc;
     for (const ParamEntry& p : m.params) {
-        if (p.name.empty() || p.loc.line <= 0) continue;
+        if (p.name.empty() || p.loc.file.empty()) continue;
         for (std::size_t i = text.find(p.name); i != std::string_view::npos && i < first;
              i = text.find(p.name, i + 1)) {
             const std::size_t end = i + p.name.size();

@@ -539,3 +539,64 @@ time.sleep(1.0)  # callbacks come often by then
                              timeout=120, env=env)
         assert run.returncode == 0, run.stderr
         assert "terminate" not in run.stderr and "FATAL" not in run.stderr, run.stderr
+
+
+def test_write_refuses_the_scenes_files_and_lossy_layers(session, tmp_path):
+    # Found by a user: write() overwrote a map the scene reads (the command line refuses), and
+    # took dwaa for an image with layers (its normals came back 1.009 long).
+    import shutil
+    shutil.copy(os.path.join(ROOT, "assets", "env", "studio.exr"), tmp_path / "map.exr")
+    text = open(SMALL).read().replace('"../../assets/', '"' + os.path.join(ROOT, "assets") + "/")
+    text = text.replace("color = [0.5, 0.6, 0.8]", 'map = "map.exr"')
+    (tmp_path / "scene.toml").write_text(text)
+    session.load(str(tmp_path / "scene.toml"), size=(16, 12))
+    img = session.render(spp=1)
+    before = (tmp_path / "map.exr").read_bytes()
+    with pytest.raises(spangle.SceneError, match="a file the scene reads"):
+        session.write(img, str(tmp_path / "map.exr"), preview="")
+    assert (tmp_path / "map.exr").read_bytes() == before, "the map is left as it was"
+    with pytest.raises(spangle.SceneError, match="lossy"):
+        session.write(img, str(tmp_path / "lossy.exr"), compression="dwaa", preview="")
+    assert not (tmp_path / "lossy.exr").exists()
+    # Without layers, dwaa is the user's choice.
+    session.write(session.render(spp=1, layers=False), str(tmp_path / "plain.exr"),
+                  compression="dwaa", preview="")
+    assert (tmp_path / "plain.exr").exists()
+
+
+def test_a_keyframed_objects_keyed_parts_are_not_edited(session):
+    # set_transform on what an object's keys decide was reported by transform() and ignored by
+    # the render; a part its keys leave alone is still edited.
+    session.load(os.path.join(ROOT, "tests", "scenes", "moving_camera.toml"), time=1.0,
+                 size=(16, 12))
+    name = session.objects[1]
+    with pytest.raises(spangle.SceneError, match="keyframed"):
+        session.set_transform(name, translate=(0, 3, 0))
+    with pytest.raises(spangle.SceneError, match="keyframed"):
+        session.set_transform(name, rotate=(0, 10, 0))
+    session.set_transform(name, scale=(0.25, 0.25, 0.25))
+    assert session.transform(name)["scale"] == pytest.approx((0.25, 0.25, 0.25))
+
+
+def test_a_renders_size_does_not_stick_to_the_next(session):
+    # render(size=...) then render(): the second was at the first's size (spp did not stick).
+    session.load(SMALL, size=(24, 16))
+    assert session.render(spp=1, size=(12, 8), layers=False).beauty.shape == (8, 12, 3)
+    assert session.render(spp=1, layers=False).beauty.shape == (16, 24, 3)
+
+
+def test_every_refused_edit_names_itself_as_the_file(session):
+    # Some edits' errors had file=None (a NaN gamma, a negative fov, a negative light colour),
+    # and a plugin's refusal of an edited value blamed the scene file's line.
+    session.load(FLAKES, size=(16, 12))
+    for edit, where in ((lambda: session.set_material("glitter", gamma=float("nan")),
+                         "python: set_material('glitter', gamma=...)"),
+                        (lambda: session.set_material("glitter", min_flakes=1e9),
+                         "python: set_material('glitter', min_flakes=...)"),
+                        (lambda: session.set_camera(fov=-1), "python: set_camera()"),
+                        (lambda: session.set_light(0, color=(-1, 0, 0)), "python: set_light(0)"),
+                        (lambda: session.set_transform("[[object]] #1", scale=(0, 0, 0)),
+                         "python: set_transform('[[object]] #1')")):
+        with pytest.raises(spangle.SceneError) as e:
+            edit()
+        assert e.value.file == where, str(e.value)
