@@ -809,3 +809,23 @@ def test_lens_shift_moves_the_image_and_depth_is_far_on_the_sky(tmp_path):
     assert lag(W // 4) > 0.95
     # The sky's depth is far.
     assert means[0]["ViewLayer.Depth.Z"] > 1e8
+
+
+def test_odd_names_and_an_object_scaled_to_nothing_still_render(tmp_path):
+    # Found by a user: a newline in a material's name made the exported scene invalid TOML, and an
+    # object scaled to 0 (how animations hide one) a matrix that is not invertible: either failed
+    # the whole render, which Cycles renders.
+    from spangle_blender import export, flake_parameters
+
+    scene = build_scene()
+    bpy.data.materials["paint"].name = "paint\nv2\x01"
+    bpy.data.objects["Plane"].scale = (0.0, 0.0, 0.0)
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    warnings = export.export_scene(depsgraph, str(tmp_path), (W, H), 4, flake_parameters())
+    assert any(w.startswith("object 'Plane'") and "scaled to nothing" in w for w in warnings)
+    scene.spangle.spp = 4
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "odd.exr")
+    bpy.ops.render.render(write_still=True)
+    px = read_exr(str(tmp_path / "odd.exr"))
+    assert np.isfinite(px).all() and px.max() > 0.0

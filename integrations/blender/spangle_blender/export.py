@@ -50,7 +50,18 @@ def _toml_value(v):
     if isinstance(v, float):
         return _fmt(v)
     if isinstance(v, str):
-        return '"' + v.replace("\\", "\\\\").replace('"', '\\"') + '"'
+        # A TOML basic string: quotes and backslashes escaped, and control characters too (a
+        # newline in a material's name made the whole scene invalid TOML).
+        out = []
+        for ch in v:
+            o = ord(ch)
+            if ch in '"\\':
+                out.append("\\" + ch)
+            elif o < 0x20 or o == 0x7F:
+                out.append("\\u%04x" % o)
+            else:
+                out.append(ch)
+        return '"' + "".join(out) + '"'
     return _vec(v)
 
 
@@ -719,6 +730,11 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
                           uvs[corners], np.arange(len(corners), dtype=np.int32).reshape(-1, 3))
                 meshes[key].append((ply, name))
             obj.to_mesh_clear()
+        # An object scaled to nothing (the usual way to hide one in an animation) draws nothing:
+        # left out (its matrix, not invertible, failed the whole scene).
+        if abs(inst.matrix_world.to_3x3().determinant()) <= 1e-30:
+            warnings.append(f"object '{obj.name}': scaled to nothing, so not exported")
+            continue
         for ply, name in meshes[key]:
             k = names.get(obj.name, 0)
             names[obj.name] = k + 1
