@@ -383,15 +383,42 @@ PYBIND11_MODULE(_spangle, m) {
             "set_transform",
             [](PySession& s, const std::string& name,
                std::optional<std::array<double, 3>> translate,
-               std::optional<std::array<double, 3>> rotate,
-               std::optional<std::array<double, 3>> scale,
-               std::optional<std::array<std::array<double, 4>, 3>> matrix) {
+               std::optional<std::array<double, 3>> rotate, const py::object& scale_in,
+               const py::object& matrix_in) {
+                // scale: three numbers or one (uniform), as the scene file takes it.
+                std::optional<std::array<double, 3>> scale;
+                if (!scale_in.is_none()) {
+                    if (py::isinstance<py::float_>(scale_in) ||
+                        py::isinstance<py::int_>(scale_in) || py::hasattr(scale_in, "__float__")) {
+                        const double k = scale_in.cast<double>();
+                        scale = std::array<double, 3>{k, k, k};
+                    } else {
+                        scale = scale_in.cast<std::array<double, 3>>();
+                    }
+                }
+                // matrix: 3 x 4 or 4 x 4 (its last row 0 0 0 1), nested or flat (12 or 16
+                // numbers, row by row), a list or a numpy array, as the scene file's `matrix`.
                 std::optional<Affine> a;
-                if (matrix) {
+                if (!matrix_in.is_none()) {
+                    const auto np = py::module_::import("numpy");
+                    const py::array_t<double> flat = np.attr("asarray")(matrix_in, "float64")
+                                                         .attr("reshape")(-1)
+                                                         .cast<py::array_t<double>>();
+                    const auto n = static_cast<std::size_t>(flat.size());
+                    const double* v = flat.data();
+                    const FileLoc edit{fmt::format("python: set_transform('{}')", name), 0, 0};
+                    if (n != 12 && n != 16)
+                        throw SpangleError(edit, fmt::format("matrix takes 12 numbers (3 x 4) or "
+                                                             "16 (4 x 4), row by row; got {}",
+                                                             n));
+                    if (n == 16 && !(v[12] == 0.0 && v[13] == 0.0 && v[14] == 0.0 && v[15] == 1.0))
+                        throw SpangleError(edit,
+                                           "a 4 x 4 matrix's last row must be 0 0 0 1 (an "
+                                           "affine placement)");
                     Affine x;
                     for (int r = 0; r < 3; ++r) {
-                        for (int c = 0; c < 3; ++c) x.m[r][c] = static_cast<float>((*matrix)[r][c]);
-                        (&x.t.x)[r] = static_cast<float>((*matrix)[r][3]);
+                        for (int c = 0; c < 3; ++c) x.m[r][c] = static_cast<float>(v[4 * r + c]);
+                        (&x.t.x)[r] = static_cast<float>(v[4 * r + 3]);
                     }
                     a = x;
                 }
@@ -401,8 +428,9 @@ PYBIND11_MODULE(_spangle, m) {
             py::arg("name"), py::kw_only(), py::arg("translate") = py::none(),
             py::arg("rotate") = py::none(), py::arg("scale") = py::none(),
             py::arg("matrix") = py::none(),
-            "Places an object: translate (world units), rotate (degrees about X, Y, Z), scale, or "
-            "a 3 x 4 object-to-world matrix.")
+            "Places an object: translate (world units), rotate (degrees about X, Y, Z), scale "
+            "(three numbers or one), or an object-to-world matrix (3 x 4 or 4 x 4, nested or "
+            "flat, row by row).")
         .def_property_readonly(
             "camera",
             [](PySession& s) {

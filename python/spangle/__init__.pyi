@@ -70,8 +70,8 @@ class Session:
         *,
         translate: Optional[Vec3] = None,
         rotate: Optional[Vec3] = None,
-        scale: Optional[Vec3] = None,
-        matrix: Optional[Sequence[Sequence[float]]] = None,
+        scale: Optional[Union[Vec3, float]] = None,
+        matrix: Optional[Union[Sequence[Sequence[float]], Sequence[float]]] = None,
     ) -> None: ...
     @property
     def camera(self) -> dict: ...

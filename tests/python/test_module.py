@@ -600,3 +600,19 @@ def test_every_refused_edit_names_itself_as_the_file(session):
         with pytest.raises(spangle.SceneError) as e:
             edit()
         assert e.value.file == where, str(e.value)
+
+
+def test_a_matrix_in_every_shape_the_scene_file_takes(session):
+    # 4 x 4 (numpy's eye), flat 12 and a single scale number were TypeErrors from the binding.
+    session.load(SMALL, size=(16, 12))
+    name = session.objects[1]
+    session.set_transform(name, matrix=np.eye(4))
+    assert session.transform(name)["matrix"][0] == pytest.approx((1.0, 0.0, 0.0, 0.0))
+    session.set_transform(name, matrix=[1, 0, 0, 1, 0, 1, 0, 2, 0, 0, 1, 3])
+    assert session.transform(name)["matrix"][2] == pytest.approx((0.0, 0.0, 1.0, 3.0))
+    session.set_transform(name, translate=(0, 1, 0), rotate=(0, 0, 0), scale=2)
+    assert session.transform(name)["scale"] == pytest.approx((2.0, 2.0, 2.0))
+    with pytest.raises(spangle.SceneError, match="12 numbers"):
+        session.set_transform(name, matrix=[1, 2, 3])
+    with pytest.raises(spangle.SceneError, match="last row"):
+        session.set_transform(name, matrix=np.ones((4, 4)))
