@@ -829,3 +829,44 @@ def test_odd_names_and_an_object_scaled_to_nothing_still_render(tmp_path):
     bpy.ops.render.render(write_still=True)
     px = read_exr(str(tmp_path / "odd.exr"))
     assert np.isfinite(px).all() and px.max() > 0.0
+
+
+def test_packed_and_missing_images(tmp_path):
+    # Found by a user: an image packed into the .blend whose file is gone, or a missing image
+    # file, failed the whole render ("texture file ... not found"); Cycles renders both (a
+    # missing image as its pink placeholder). A packed image is written once to a cache folder;
+    # a missing one is a warning and its node's own value stands in.
+    from spangle_blender import export, flake_parameters
+
+    scene = build_scene()
+    img = bpy.data.images.new("packed", 8, 8)
+    img.pixels.foreach_set(np.tile([0.1, 0.8, 0.2, 1.0], 64).astype(np.float32))
+    img.filepath_raw = str(tmp_path / "packed.png")
+    img.file_format = "PNG"
+    img.save()
+    img.pack()
+    os.remove(tmp_path / "packed.png")
+    gone = bpy.data.images.new("gone", 8, 8)
+    gone.filepath_raw = str(tmp_path / "gone.png")
+    gone.source = "FILE"
+    mat = bpy.data.materials["ground"]
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    bsdf = nodes["Principled BSDF"]
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    links.new(tex.outputs["Color"], bsdf.inputs["Base Color"])
+    rough = nodes.new("ShaderNodeTexImage")
+    rough.image = gone
+    links.new(rough.outputs["Color"], bsdf.inputs["Roughness"])
+    warnings = export.export_scene(bpy.context.evaluated_depsgraph_get(), str(tmp_path), (W, H),
+                                   4, flake_parameters())
+    assert any("image 'gone' has no file" in w for w in warnings), warnings
+    assert not any("'packed'" in w for w in warnings), warnings
+    toml = (tmp_path / "scene.toml").read_text()
+    assert "spangle-blender-packed" in toml
+    scene.spangle.spp = 4
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "images.exr")
+    bpy.ops.render.render(write_still=True)
+    px = read_exr(str(tmp_path / "images.exr"))
+    assert np.isfinite(px).all() and px.max() > 0.0

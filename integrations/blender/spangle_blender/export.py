@@ -9,8 +9,10 @@ transmission), emission onto the object, and materials whose "Spangle Flakes" pa
 the flake plugin. What cannot be carried over is a warning each (returned), never an error.
 """
 
+import hashlib
 import math
 import os
+import tempfile
 
 import numpy as np
 
@@ -201,18 +203,56 @@ def _texture_placement(node, warnings, what):
     return out
 
 
+_EXTENSIONS = {"PNG": ".png", "JPEG": ".jpg", "OPEN_EXR": ".exr", "OPEN_EXR_MULTILAYER": ".exr",
+               "HDR": ".hdr", "TIFF": ".tif", "TARGA": ".tga", "TARGA_RAW": ".tga", "BMP": ".bmp",
+               "WEBP": ".webp"}
+
+
+def _image_file(image, warnings=None, what=""):
+    """The file an image node reads: its own file when it is there; a packed image's bytes,
+    written once to a cache folder under a name from their hash (Cycles renders packed images:
+    the render failed on their missing file); None (with a warning) when it has neither."""
+    path = bpy.path.abspath(image.filepath) if image.filepath else ""
+    if path and os.path.isfile(path):
+        return path
+    packed = getattr(image, "packed_file", None)
+    if packed is not None:
+        data = bytes(packed.data)
+        ext = os.path.splitext(path)[1] or _EXTENSIONS.get(image.file_format, ".png")
+        folder = os.path.join(tempfile.gettempdir(), "spangle-blender-packed")
+        os.makedirs(folder, exist_ok=True)
+        out = os.path.join(folder, hashlib.sha1(data).hexdigest()[:20] + ext.lower())
+        if not os.path.isfile(out):
+            tmp = f"{out}.{os.getpid()}.tmp"
+            with open(tmp, "wb") as f:
+                f.write(data)
+            os.replace(tmp, out)
+        return out
+    if warnings is not None:
+        warnings.append(f"{what}: image '{image.name}' has no file ({path or 'no path'}) and is "
+                        "not packed; its node's own value stands in")
+    return None
+
+
 def _socket_value(sock, warnings, what):
     if sock is None:
         return None
     if sock.is_linked:
         src = sock.links[0].from_node
-        if src.type == "TEX_IMAGE" and src.image is not None and src.image.filepath:
+        file = (_image_file(src.image, warnings, what)
+                if src.type == "TEX_IMAGE" and src.image is not None else None)
+        if file is not None:
             # The image's own colour space (a Non-Color roughness map is data, a linear EXR
             # is linear: every texture was tagged sRGB).
-            tex = {"texture": bpy.path.abspath(src.image.filepath),
-                   "space": _image_space(src.image)}
+            tex = {"texture": file, "space": _image_space(src.image)}
             tex.update(_texture_placement(src, warnings, what))
             return tex
+        if src.type == "TEX_IMAGE" and src.image is not None:
+            v = sock.default_value
+            try:
+                return tuple(v)[:3]
+            except TypeError:
+                return float(v)
         warnings.append(f"{what}: a node input ({sock.name}) is linked to a {src.type} node; its "
                         "own value stands in")
     v = sock.default_value
@@ -227,8 +267,8 @@ def _image_of(sock):
     if sock is None or not sock.is_linked:
         return None
     src = sock.links[0].from_node
-    if src.type == "TEX_IMAGE" and src.image is not None and src.image.filepath:
-        return bpy.path.abspath(src.image.filepath)
+    if src.type == "TEX_IMAGE" and src.image is not None:
+        return _image_file(src.image)
     return None
 
 
