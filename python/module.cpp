@@ -521,11 +521,18 @@ PYBIND11_MODULE(_spangle, m) {
             "The lights, in the order written: kind, intensity, color, position (and radius).")
         .def(
             "set_light",
-            [](PySession& s, std::size_t index, std::optional<double> intensity,
+            [](PySession& s, int64_t index, std::optional<double> intensity,
                std::optional<std::array<double, 3>> color,
                std::optional<std::array<double, 3>> position, std::optional<double> radius) {
+                // A negative index is the edit's error, as one past the last (it was a TypeError
+                // from the conversion to an unsigned index).
+                if (index < 0)
+                    throw SpangleError(
+                        FileLoc{fmt::format("python: set_light({})", index), 0, 0},
+                        fmt::format("no light {}: lights are numbered from 0", index));
                 py::gil_scoped_release release;
-                s.set_light(index, intensity, vec3(color), vec3(position), radius);
+                s.set_light(static_cast<std::size_t>(index), intensity, vec3(color), vec3(position),
+                            radius);
             },
             py::arg("index"), py::kw_only(), py::arg("intensity") = py::none(),
             py::arg("color") = py::none(), py::arg("position") = py::none(),

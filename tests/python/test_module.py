@@ -125,6 +125,8 @@ def test_transforms_camera_and_lights_are_edited(session):
     assert dark.sum() < moved.sum()
     with pytest.raises(spangle.SceneError):
         session.set_light(len(lights), intensity=1.0)
+    with pytest.raises(spangle.SceneError, match="numbered from 0"):
+        session.set_light(-1, intensity=1.0)
 
 
 def test_errors_carry_file_line_and_column(session):
