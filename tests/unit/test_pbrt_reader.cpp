@@ -918,6 +918,12 @@ TEST(PbrtReader, AnImportedFileKeepsItsGraphicsStateToItself) {
     // Its named coordinate system stayed in it too.
     EXPECT_TRUE(noted(read(f, "WorldBegin\nImport \"part.pbrt\"\nCoordSysTransform \"inside\"\n"),
                       "no coordinate system 'inside'"));
+    // A block left open is said where it begins (the note had no line).
+    const SceneDescription open =
+        read(f, "WorldBegin\nShape \"sphere\"\nAttributeBegin\nShape \"disk\"\n");
+    EXPECT_TRUE(noted(open,
+                      "scene.pbrt:3: 1 AttributeBegin / TransformBegin / ObjectBegin never "
+                      "ended"));
     // As in pbrt-v4, Import is for the world block.
     EXPECT_NE(error_of(f, "Import \"part.pbrt\"\nWorldBegin\n")
                   .find("scene.pbrt:1:1: error: Import is only allowed in the world block"),

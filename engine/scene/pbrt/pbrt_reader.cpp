@@ -229,6 +229,7 @@ private:
         if (name == "AttributeBegin" || name == "TransformBegin") {
             if (name == "TransformBegin") r_.sign(false, loc, "TransformBegin");
             r_.stack.emplace_back(name == "AttributeBegin" ? 'a' : 't', r_.gs);
+            r_.stack_locs.push_back(loc);
         } else if (name == "AttributeEnd" || name == "TransformEnd") {
             pop(name == "AttributeEnd" ? 'a' : 't', name, loc);
         } else if (name == "Attribute") {
@@ -250,6 +251,7 @@ private:
                 throw_error(loc, "ObjectBegin '{}' inside the definition of '{}'", obj,
                             r_.defining);
             r_.stack.emplace_back('o', r_.gs);
+            r_.stack_locs.push_back(loc);
             r_.defining = obj;
             if (!r_.definitions.emplace(obj, std::vector<InstancedShape>{}).second)
                 r_.notes.add(loc, fmt::format("object '{}' is defined again: the new "
@@ -300,6 +302,7 @@ private:
             r_.gs = r_.stack.back().second;
         }
         r_.stack.pop_back();
+        r_.stack_locs.pop_back();
     }
 
     /** ObjectInstance: every shape of the definition, placed by the current transform. */
@@ -509,10 +512,13 @@ private:
         r_.current_dir = saved;
         r_.stack_floor = floor;
         if (r_.stack.size() > stack) {
-            r_.notes.add(loc, fmt::format("'{}' leaves {} AttributeBegin / TransformBegin / "
-                                          "ObjectBegin open: closed where its Import ends",
-                                          given, r_.stack.size() - stack));
+            r_.notes.add(r_.stack_locs[stack],
+                         fmt::format("'{}' leaves {} AttributeBegin / TransformBegin / "
+                                     "ObjectBegin open (the first here): closed where its Import "
+                                     "ends",
+                                     given, r_.stack.size() - stack));
             r_.stack.resize(stack);
+            r_.stack_locs.resize(stack);
         }
         r_.gs = gs;
         r_.coord_systems = coord_systems;
@@ -533,8 +539,9 @@ SceneDescription read_all(Reader& r, Tokenizer& t) {
     r.d.render.color_space = "lin_rec709";
     Parser(r).file(t, 0);
     if (!r.stack.empty())
-        r.notes.add(FileLoc{t.path(), 0, 0},
-                    fmt::format("{} AttributeBegin / TransformBegin / ObjectBegin never ended",
+        r.notes.add(r.stack_locs.front(),
+                    fmt::format("{} AttributeBegin / TransformBegin / ObjectBegin never ended (the "
+                                "first here)",
                                 r.stack.size()));
     if (!r.info.v3_sign.empty() && !r.info.v4_sign.empty())
         r.notes.add(FileLoc{t.path(), 0, 0},

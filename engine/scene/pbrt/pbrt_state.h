@@ -92,6 +92,7 @@ struct Reader {
     std::filesystem::path current_dir;  ///< folder of the file being read
     GraphicsState gs;                   ///< the graphics state
     std::vector<std::pair<char, GraphicsState>> stack;  ///< 'a' attribute, 't' transform, 'o'
+    std::vector<FileLoc> stack_locs;                    ///< where each block of `stack` begins
     /** Blocks below this depth are not the file's own to end (an Import's importer's). */
     std::size_t stack_floor = 0;
     std::map<std::string, std::array<Mat4, 2>> coord_systems;  ///< named coordinate systems
