@@ -811,6 +811,15 @@ def test_lens_shift_moves_the_image_and_depth_is_far_on_the_sky(tmp_path):
     assert means[0]["ViewLayer.Depth.Z"] > 1e8
 
 
+def render_exr(scene, path, spp=4):
+    """The scene rendered by the Spangle engine to the EXR `path`: its RGB."""
+    scene.spangle.spp = spp
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    return read_exr(str(path))
+
+
 def test_odd_names_and_an_object_scaled_to_nothing_still_render(tmp_path):
     # Found by a user: a newline in a material's name made the exported scene invalid TOML, and an
     # object scaled to 0 (how animations hide one) a matrix that is not invertible: either failed
@@ -823,11 +832,7 @@ def test_odd_names_and_an_object_scaled_to_nothing_still_render(tmp_path):
     depsgraph = bpy.context.evaluated_depsgraph_get()
     warnings = export.export_scene(depsgraph, str(tmp_path), (W, H), 4, flake_parameters())
     assert any(w.startswith("object 'Plane'") and "scaled to nothing" in w for w in warnings)
-    scene.spangle.spp = 4
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.filepath = str(tmp_path / "odd.exr")
-    bpy.ops.render.render(write_still=True)
-    px = read_exr(str(tmp_path / "odd.exr"))
+    px = render_exr(scene, tmp_path / "odd.exr")
     assert np.isfinite(px).all() and px.max() > 0.0
 
 
@@ -864,9 +869,5 @@ def test_packed_and_missing_images(tmp_path):
     assert not any("'packed'" in w for w in warnings), warnings
     toml = (tmp_path / "scene.toml").read_text()
     assert "spangle-blender-packed" in toml
-    scene.spangle.spp = 4
-    scene.render.image_settings.file_format = "OPEN_EXR"
-    scene.render.filepath = str(tmp_path / "images.exr")
-    bpy.ops.render.render(write_still=True)
-    px = read_exr(str(tmp_path / "images.exr"))
+    px = render_exr(scene, tmp_path / "images.exr")
     assert np.isfinite(px).all() and px.max() > 0.0
