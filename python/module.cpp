@@ -393,7 +393,13 @@ PYBIND11_MODULE(_spangle, m) {
                         const double k = scale_in.cast<double>();
                         scale = std::array<double, 3>{k, k, k};
                     } else {
-                        scale = scale_in.cast<std::array<double, 3>>();
+                        try {
+                            scale = scale_in.cast<std::array<double, 3>>();
+                        } catch (const py::cast_error&) {
+                            throw SpangleError(
+                                FileLoc{fmt::format("python: set_transform('{}')", name), 0, 0},
+                                "'scale' takes three numbers or one");
+                        }
                     }
                 }
                 // matrix: 3 x 4 or 4 x 4 (its last row 0 0 0 1), nested or flat (12 or 16

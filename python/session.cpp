@@ -116,6 +116,7 @@ void PySession::set_material(const std::string& name,
         std::string names;
         for (const MaterialDesc& x : d.materials) names += (names.empty() ? "" : ", ") + x.name;
         throw SpangleError(
+            python_loc(fmt::format("set_material('{}')", name)),
             fmt::format("no material '{}' (materials: {})", name, names.empty() ? "none" : names));
     }
     for (const auto& [key, value] : params) {
@@ -175,15 +176,15 @@ namespace {
 
 /** The checks the TOML reader makes on the same keys, for the edits (they were taken as given: a
  *  negative radius lit the scene 860 times, a NaN fov rendered black). */
-void check_vec(const char* call, const char* key, const std::optional<Vec3>& v) {
+void check_vec(const std::string& call, const char* key, const std::optional<Vec3>& v) {
     if (v && !(std::isfinite(v->x) && std::isfinite(v->y) && std::isfinite(v->z) &&
                std::fabs(v->x) <= 1e30f && std::fabs(v->y) <= 1e30f && std::fabs(v->z) <= 1e30f))
         throw SpangleError(python_loc(call), fmt::format("'{}' must be finite, got ({}, {}, {})",
                                                          key, v->x, v->y, v->z));
 }
 
-void check_number(const char* call, const char* key, const std::optional<double>& v, double lo,
-                  double hi, bool lo_open) {
+void check_number(const std::string& call, const char* key, const std::optional<double>& v,
+                  double lo, double hi, bool lo_open) {
     if (v && !((lo_open ? *v > lo : *v >= lo) && *v <= hi))
         throw SpangleError(python_loc(call), fmt::format("'{}' must be in {}{}, {}], got {}", key,
                                                          lo_open ? "(" : "[", lo, hi, *v));
@@ -198,6 +199,7 @@ ObjectDesc& PySession::object_named(SceneDescription& d, const std::string& name
     std::string all;
     for (const std::string& n : names) all += (all.empty() ? "" : ", ") + n;
     throw SpangleError(
+        python_loc(fmt::format("set_transform('{}')", name)),
         fmt::format("no object '{}' (objects: {})", name, all.empty() ? "none" : all));
 }
 
@@ -206,10 +208,11 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
                               const std::optional<Affine>& matrix) {
     SceneDescription d = description();
     ObjectDesc& o = object_named(d, name);
-    const FileLoc edit = python_loc(fmt::format("set_transform('{}')", name));
-    check_vec("set_transform()", "translate", translate);
-    check_vec("set_transform()", "rotate", rotate);
-    check_vec("set_transform()", "scale", scale);
+    const std::string call = fmt::format("set_transform('{}')", name);
+    const FileLoc edit = python_loc(call);
+    check_vec(call, "translate", translate);
+    check_vec(call, "rotate", rotate);
+    check_vec(call, "scale", scale);
     // The scene file's range (1e-8 to 1e8 in size on every axis): a scale of 1e-20 was taken
     // and the render aborted in Embree.
     if (scale)
@@ -352,15 +355,16 @@ void PySession::set_light(std::size_t index, const std::optional<double>& intens
                           const std::optional<Vec3>& color, const std::optional<Vec3>& position,
                           const std::optional<double>& radius) {
     SceneDescription d = description();
+    const std::string call = fmt::format("set_light({})", index);
+    const FileLoc loc = python_loc(call);
     if (index >= d.lights.size())
-        throw SpangleError(
-            fmt::format("no light {} (the scene has {} lights)", index, d.lights.size()));
+        throw SpangleError(loc, fmt::format("no light {} (the scene has {} light{}, from 0)", index,
+                                            d.lights.size(), d.lights.size() == 1 ? "" : "s"));
     LightDesc& l = d.lights[index];
-    const FileLoc loc = python_loc(fmt::format("set_light({})", index));
-    check_number("set_light()", "intensity", intensity, 0.0, 1e30, false);
-    check_number("set_light()", "radius", radius, 0.0, 1e30, true);
-    check_vec("set_light()", "position", position);
-    check_vec("set_light()", "color", color);
+    check_number(call, "intensity", intensity, 0.0, 1e30, false);
+    check_number(call, "radius", radius, 0.0, 1e30, true);
+    check_vec(call, "position", position);
+    check_vec(call, "color", color);
     if (color && (color->x < 0.0f || color->y < 0.0f || color->z < 0.0f))
         throw SpangleError(loc, fmt::format("'color' must not be negative, got ({}, {}, {})",
                                             color->x, color->y, color->z));
@@ -391,8 +395,8 @@ void PySession::set_light(std::size_t index, const std::optional<double>& intens
             },
             l.shape);
         if (!placed)
-            throw SpangleError(
-                fmt::format("light {}: its kind has no {}", index, radius ? "radius" : "position"));
+            throw SpangleError(loc, fmt::format("light {}: its kind has no {}", index,
+                                                radius ? "radius" : "position"));
     }
     l.loc = loc;
     apply(std::move(d));

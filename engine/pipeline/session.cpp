@@ -242,10 +242,14 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
         uint64_t h = info->content_hash;
         for (const auto& [path, identity] : read) {
             auto it = file_hashes_.find(path);
-            const uint64_t fh = it != file_hashes_.end() && it->second.first == identity
-                                    ? it->second.second
-                                    : file_content_hash(path);
-            hashes[path] = {identity, fh};
+            const bool known = it != file_hashes_.end() && it->second.first == identity;
+            const uint64_t fh = known ? it->second.second : file_content_hash(path);
+            // The bytes hashed now are the bytes the load read only if the file has not changed
+            // since: a mesh saved while its edit loaded, then put back, was taken for unchanged
+            // (its hash, of the bytes put back, matched them) and the edit stayed on screen. A
+            // file changed since it was read keeps no hash: the next reload reads it again.
+            const bool same = known || file_identity(path) == identity;
+            hashes[path] = {same ? identity : std::string(), fh};
             h = hash2(h, fh);
         }
         // And the colour config's text: parts of a crop render made before and after an edit

@@ -50,14 +50,24 @@ void check_scene_format(const std::string& path) {
     std::string ext = std::filesystem::path(path).extension().string();
     std::transform(ext.begin(), ext.end(), ext.begin(),
                    [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-    if (ext == ".obj" || ext == ".ply" || ext == ".stl")
+    // A gzip'd PLY (".ply.gz", which the `mesh` key reads) is a mesh too.
+    if (ext == ".gz") {
+        std::string inner = std::filesystem::path(path).stem().extension().string();
+        std::transform(inner.begin(), inner.end(), inner.begin(),
+                       [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+        if (inner == ".ply")
+            throw_error(FileLoc{path, 0, 0},
+                        "this is a mesh (ply.gz), not a scene: name it as the `mesh` of an "
+                        "[[object]] in a TOML scene");
+    }
+    if (ext == ".obj" || ext == ".ply")
         throw_error(FileLoc{path, 0, 0},
                     "this is a mesh ({}), not a scene: `spangle new --mesh {}` writes a scene "
                     "around it (ground, light, camera, paint), or name it as the `mesh` of an "
                     "[[object]] in a TOML scene",
                     ext.substr(1), path);
-    for (const char* other : {".fbx", ".usd", ".usda", ".usdc", ".usdz", ".abc", ".blend", ".dae",
-                              ".3ds", ".x3d", ".xml"})
+    for (const char* other : {".stl", ".fbx", ".usd", ".usda", ".usdc", ".usdz", ".abc", ".blend",
+                              ".dae", ".3ds", ".x3d", ".xml"})
         if (ext == other)
             throw_error(FileLoc{path, 0, 0},
                         "Spangle does not read {} files: it reads TOML (.toml), pbrt (.pbrt, "

@@ -598,7 +598,18 @@ def test_every_refused_edit_names_itself_as_the_file(session):
                         (lambda: session.set_camera(fov=-1), "python: set_camera()"),
                         (lambda: session.set_light(0, color=(-1, 0, 0)), "python: set_light(0)"),
                         (lambda: session.set_transform("[[object]] #1", scale=(0, 0, 0)),
-                         "python: set_transform('[[object]] #1')")):
+                         "python: set_transform('[[object]] #1')"),
+                        (lambda: session.set_transform("[[object]] #1",
+                                                       translate=(float("inf"), 0, 0)),
+                         "python: set_transform('[[object]] #1')"),
+                        (lambda: session.set_transform("[[object]] #1", scale="big"),
+                         "python: set_transform('[[object]] #1')"),
+                        (lambda: session.set_transform("nope", scale=2),
+                         "python: set_transform('nope')"),
+                        (lambda: session.set_material("zzz", roughness=0.1),
+                         "python: set_material('zzz')"),
+                        (lambda: session.set_light(99, intensity=1), "python: set_light(99)"),
+                        (lambda: session.set_light(0, intensity=-1), "python: set_light(0)")):
         with pytest.raises(spangle.SceneError) as e:
             edit()
         assert e.value.file == where, str(e.value)

@@ -507,8 +507,11 @@ TEST(GltfErrors, BufferFaultsAreSaidAtTheirUriWithWhatTheyHold) {
     EXPECT_NE(error("\"https://example.com/quad.bin\"")
                   .find("buffer 0: URI 'https://example.com/quad.bin' is not fetched"),
               std::string::npos);
-    // file:// names a path on this machine.
+    // file:// names a path on this machine, and that file is the one watched and hashed (the
+    // URI as written was: its file was never watched).
     EXPECT_EQ(error("\"file://" + dir.file("kept.bin") + "\""), "no error");
+    const SceneDescription d = read_gltf_scene(dir.file("buffers.gltf"), {});
+    EXPECT_NE(std::find(d.files.begin(), d.files.end(), dir.file("kept.bin")), d.files.end());
 }
 
 TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {

@@ -346,6 +346,10 @@ TEST(SceneLoader, AMeshOrAnotherProgramsSceneIsNamedAsSuch) {
         << message("car.obj");
     EXPECT_NE(message("car.PLY").find("this is a mesh (ply), not a scene"), std::string::npos);
     EXPECT_NE(message("car.fbx").find("Spangle does not read fbx files"), std::string::npos);
+    // STL is not a mesh Spangle reads either (spangle new and `mesh` refuse it); a .ply.gz is.
+    EXPECT_NE(message("car.stl").find("Spangle does not read stl files"), std::string::npos);
+    EXPECT_NE(message("car.ply.gz").find("this is a mesh (ply.gz), not a scene"),
+              std::string::npos);
     EXPECT_NE(message("car.txt").find("invalid TOML"), std::string::npos)
         << "other names are read as TOML, as always";
 }

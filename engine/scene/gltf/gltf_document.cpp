@@ -289,9 +289,12 @@ void load_document(Context& ctx) {
         throw_error(ctx.at("asset/version"), "glTF version '{}': only 2.x is read",
                     ctx.model.asset.version);
     ctx.images.resize(ctx.model.images.size());
+    // The files the buffers were read from, watched and hashed: the path a URI names (a
+    // file:// or percent-escaped URI was added as written, so its file was never watched).
     for (const tinygltf::Buffer& b : ctx.model.buffers)
         if (!b.uri.empty() && b.uri.rfind("data:", 0) != 0)
-            ctx.scene->files.push_back((ctx.dir / b.uri).lexically_normal().string());
+            if (const UriTarget t = uri_target(ctx, b.uri); !t.path.empty())
+                ctx.scene->files.push_back(t.path);
     check_extensions(ctx);
 }
 
