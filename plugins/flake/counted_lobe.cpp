@@ -121,13 +121,9 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         // The virtual flakes inside the footprint; where they outnumber its k flakes (or the room
         // left), those of the smallest hashes (a priority of their own: two overlapping footprints
         // keep the same ones among those they share), in a max-heap once full.
-        // (inside() without its branches: whether a candidate is inside is a coin toss near the
-        // footprint's edges, and the branches on it were mispredicted often enough to be most of
-        // this loop's time. A singular footprint holds none.)
-        const bool singular =
-            local.i00 == 0.0 && local.i01 == 0.0 && local.i10 == 0.0 && local.i11 == 0.0;
+        // (Tested without branches, inside_nonsingular: a singular footprint holds none.)
         uint32_t n = 0;
-        const uint32_t room = singular ? 0u : std::min(k, cap - found_all);
+        const uint32_t room = singular(local) ? 0u : std::min(k, cap - found_all);
         for (int by = by0; by <= by1 && room > 0; ++by)
             for (int bx = bx0; bx <= bx1; ++bx) {
                 const uint64_t bkey =
@@ -138,11 +134,9 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
                     const uint64_t h = mix(bkey, i);
                     float fx, fy;  // 24 bits each: a block's width / 2^24 apart
                     unit2(h, fx, fy);
-                    const double du = ag.x0 + (bx + static_cast<double>(fx)) * block - local.cu;
-                    const double dv = ag.y0 + (by + static_cast<double>(fy)) * block - local.cv;
-                    const double ps = local.i00 * du + local.i01 * dv;
-                    const double pt = local.i10 * du + local.i11 * dv;
-                    const bool in = (ps >= -0.5) & (ps <= 0.5) & (pt >= -0.5) & (pt <= 0.5);
+                    const bool in =
+                        inside_nonsingular(local, ag.x0 + (bx + static_cast<double>(fx)) * block,
+                                           ag.y0 + (by + static_cast<double>(fy)) * block);
                     if (n < room) {
                         // Written always, kept when inside.
                         found[n] = h;

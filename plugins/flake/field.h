@@ -74,14 +74,25 @@ struct Footprint {
 Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy,
                          double scale, double max_ratio = 4.0);
 
-/** Whether (u, v) lies inside P (in P's own coordinates, in double). */
-inline bool inside(const Footprint& p, double u, double v) {
-    // (s, t) = [a b]^-1 ((u, v) - c); a singular footprint (zero area) holds no flake.
-    if (p.i00 == 0.0 && p.i01 == 0.0 && p.i10 == 0.0 && p.i11 == 0.0) return false;
+/** Whether P has no area (its inverse is all 0): it holds no point flake. */
+inline bool singular(const Footprint& p) {
+    return p.i00 == 0.0 && p.i01 == 0.0 && p.i10 == 0.0 && p.i11 == 0.0;
+}
+
+/** inside() for a P that is not singular, without branches: loops over many candidate flakes
+ *  test them with it (whether one lies inside is a coin toss along P's edges, and a branch on
+ *  it was mispredicted often enough to be most of such a loop's time). */
+inline bool inside_nonsingular(const Footprint& p, double u, double v) {
+    // (s, t) = [a b]^-1 ((u, v) - c).
     const double du = u - p.cu, dv = v - p.cv;
     const double s = p.i00 * du + p.i01 * dv;
     const double t = p.i10 * du + p.i11 * dv;
-    return s >= -0.5 && s <= 0.5 && t >= -0.5 && t <= 0.5;
+    return (s >= -0.5) & (s <= 0.5) & (t >= -0.5) & (t <= 0.5);
+}
+
+/** Whether (u, v) lies inside P (in P's own coordinates, in double). */
+inline bool inside(const Footprint& p, double u, double v) {
+    return !singular(p) && inside_nonsingular(p, u, v);
 }
 
 /** Whether the cell [x0, x1] x [y0, y1] may intersect P widened by its reach (separating axes;
@@ -262,8 +273,7 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
     };
     Node stack[4 * 26];
     // A footprint of zero area holds no point flake (inside() is false everywhere).
-    const bool singular =
-        local.i00 == 0.0 && local.i01 == 0.0 && local.i10 == 0.0 && local.i11 == 0.0;
+    const bool no_area = singular(local);
     int top = 0;
     stack[top++] = {depth, ix, iy, n};
     uint32_t visited = 0;
@@ -291,24 +301,18 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
         if (static_cast<int>(node.n) <= fp.leaf_size || node.depth >= fp.max_depth) {
             if (!fp.facet) {
                 // Point flakes: which of the leaf's flakes lie inside P, tested without branches
-                // a chunk at a time (whether one does is a coin toss along P's edges, and the
-                // branch on it was mispredicted often), then those visited in order.
-                if (singular) continue;
+                // a chunk at a time (inside_nonsingular), then those visited in order.
+                if (no_area) continue;
                 constexpr uint32_t kChunk = 64;
                 uint32_t in_leaf[kChunk];
                 for (uint32_t first = 0; first < node.n; first += kChunk) {
                     const uint32_t end = std::min(node.n, first + kChunk);
                     uint32_t found = 0;
                     for (uint32_t i = first; i < end; ++i) {
-                        const uint64_t h = mix(key, i);
-                        const double du =
-                            x0 + size * (static_cast<double>(h >> 32) * 0x1p-32) - local.cu;
-                        const double dv =
-                            y0 + size * (static_cast<double>(h & 0xffffffffu) * 0x1p-32) - local.cv;
-                        const double ps = local.i00 * du + local.i01 * dv;
-                        const double pt = local.i10 * du + local.i11 * dv;
+                        Flake f;
+                        leaf_flake_position(key, i, x0, y0, size, f);
                         in_leaf[found] = i;
-                        found += (ps >= -0.5) & (ps <= 0.5) & (pt >= -0.5) & (pt <= 0.5) ? 1u : 0u;
+                        found += inside_nonsingular(local, f.u, f.v) ? 1u : 0u;
                     }
                     for (uint32_t j = 0; j < found; ++j) {
                         Flake f;
