@@ -217,8 +217,7 @@ void write_image(const RenderedImage& img, const std::string& path, const std::s
     // As spangle render: never over a file the scene reads (the scene file, a mesh, a texture,
     // a map), and no compression that is lossy for the layers' 32-bit data.
     out.check_not_inputs(img.inputs, "path=", "preview=");
-    if (!img.result.layer_names.empty() &&
-        (compression == "pxr24" || compression == "dwaa" || compression == "dwab"))
+    if (!img.result.layer_names.empty() && lossy_for_floats(compression))
         throw SpangleError(fmt::format(
             "write(): compression '{}' is lossy for 32-bit floats and would corrupt the data "
             "layers (object and material ids, depth, positions, normals): use zip, zips, piz, "
@@ -385,6 +384,7 @@ PYBIND11_MODULE(_spangle, m) {
                std::optional<std::array<double, 3>> translate,
                std::optional<std::array<double, 3>> rotate, const py::object& scale_in,
                const py::object& matrix_in) {
+                const FileLoc edit{fmt::format("python: set_transform('{}')", name), 0, 0};
                 // scale: three numbers or one (uniform), as the scene file takes it.
                 std::optional<std::array<double, 3>> scale;
                 if (!scale_in.is_none()) {
@@ -396,9 +396,7 @@ PYBIND11_MODULE(_spangle, m) {
                         try {
                             scale = scale_in.cast<std::array<double, 3>>();
                         } catch (const py::cast_error&) {
-                            throw SpangleError(
-                                FileLoc{fmt::format("python: set_transform('{}')", name), 0, 0},
-                                "'scale' takes three numbers or one");
+                            throw SpangleError(edit, "'scale' takes three numbers or one");
                         }
                     }
                 }
@@ -412,7 +410,6 @@ PYBIND11_MODULE(_spangle, m) {
                                                          .cast<py::array_t<double>>();
                     const auto n = static_cast<std::size_t>(flat.size());
                     const double* v = flat.data();
-                    const FileLoc edit{fmt::format("python: set_transform('{}')", name), 0, 0};
                     if (n != 12 && n != 16)
                         throw SpangleError(edit, fmt::format("matrix takes 12 numbers (3 x 4) or "
                                                              "16 (4 x 4), row by row; got {}",

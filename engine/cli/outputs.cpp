@@ -366,8 +366,7 @@ Outputs outputs_for(const RenderArgs& a) {
             out.exr);
     if (same_file(out.exr, a.scene)) usage_error("the output '{}' is the scene file", out.exr);
     // Lossy for 32-bit floats: the ids, depth and positions of the layers would be corrupt.
-    if ((a.layers || a.denoise) &&
-        (a.compression == "pxr24" || a.compression == "dwaa" || a.compression == "dwab"))
+    if ((a.layers || a.denoise) && lossy_for_floats(a.compression))
         usage_error(
             "--compression {} is lossy for 32-bit floats and would corrupt the data layers of "
             "{} (object and material ids, depth, positions): use zip, zips, piz, rle, b44, "

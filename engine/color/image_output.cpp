@@ -40,6 +40,10 @@ const std::vector<std::string>& exr_compressions() {
     return names;
 }
 
+bool lossy_for_floats(const std::string& compression) {
+    return compression == "pxr24" || compression == "dwaa" || compression == "dwab";
+}
+
 namespace {
 
 // The temporary file being written, for remove_image_in_progress() (a signal handler): a fixed

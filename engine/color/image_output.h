@@ -62,6 +62,10 @@ void write_file_atomically(const std::string& path,
 /** Valid EXR compression names, for validation and messages. */
 const std::vector<std::string>& exr_compressions();
 
+/** Whether an EXR compression is lossy for 32-bit floats (pxr24, dwaa, dwab): data layers (ids,
+ *  depth, positions, normals) written with it would be corrupt. */
+bool lossy_for_floats(const std::string& compression);
+
 /** Writes width x height RGB (working space) to `path` as EXR. Returns how many finite values
  *  were beyond the half-float range (stored as +-Inf; 0 with options.half false). Throws
  *  SpangleError. */

@@ -92,6 +92,13 @@ uint64_t mesh_content_hash(const TriangleMesh& mesh) {
     return h;
 }
 
+void TriangleMesh::note_short_faces(std::size_t n) {
+    if (n > 0)
+        notes.push_back(
+            fmt::format("{} face{} of fewer than 3 corners (points or edges, not surfaces) skipped",
+                        n, n == 1 ? "" : "s"));
+}
+
 double TriangleMesh::uv_mapped_fraction() const {
     if (uvs.empty()) return 0.0;
     double mapped = 0.0, total = 0.0;

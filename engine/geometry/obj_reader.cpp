@@ -219,10 +219,7 @@ private:
         check_indices();
         TriangleMesh mesh;
         mesh.source = path_;
-        if (short_faces_ > 0)
-            mesh.notes.push_back(fmt::format(
-                "{} face{} of fewer than 3 corners (points or edges, not surfaces) skipped",
-                short_faces_, short_faces_ == 1 ? "" : "s"));
+        mesh.note_short_faces(short_faces_);
         bool all_normals = !corners_.empty(), any_uv = false;
         for (const Corner& c : corners_) {
             all_normals = all_normals && c.vn >= 0;

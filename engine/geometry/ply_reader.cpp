@@ -155,18 +155,6 @@ struct Wedge {
 
 }  // namespace
 
-namespace {
-
-/** Notes the faces of fewer than 3 corners a PLY file's face element held (skipped). */
-void note_short_faces(TriangleMesh& mesh, std::size_t n) {
-    if (n > 0)
-        mesh.notes.push_back(
-            fmt::format("{} face{} of fewer than 3 corners (points or edges, not surfaces) skipped",
-                        n, n == 1 ? "" : "s"));
-}
-
-}  // namespace
-
 TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw_error(ref, "cannot read mesh '{}'", path);
@@ -454,7 +442,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                     }
                     add_face(corner, n);
                 }
-                note_short_faces(mesh, short_faces);
+                mesh.note_short_faces(short_faces);
                 continue;
             }
             // Per-corner uvs (MeshLab's "wedge" texcoords: a list of u, v per corner on the
@@ -519,7 +507,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 }
                 if (!corners.empty()) add_face(corners.data(), corners.size());
             }
-            note_short_faces(mesh, short_faces);
+            mesh.note_short_faces(short_faces);
         } else if (!e.props.empty()) {
             // Skipped, but read through: its data lies before later elements'. (An element
             // without properties has no data, however many entries it claims.)

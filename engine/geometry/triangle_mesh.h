@@ -22,6 +22,8 @@ struct TriangleMesh {
     std::string source;  ///< file it came from, for messages
     /** What its reader left out (faces of fewer than three corners), for the loader to say. */
     std::vector<std::string> notes;
+    /** Notes `n` faces of fewer than three corners a reader skipped (none when n is 0). */
+    void note_short_faces(std::size_t n);
 
     std::size_t vertex_count() const { return positions.size() / 3; }
     std::size_t triangle_count() const { return indices.size() / 3; }

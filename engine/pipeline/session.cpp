@@ -41,7 +41,7 @@ std::vector<std::type_index> derived_components(const ecs::Schedule<World>& sche
  *  ("mesh file PATH"), in order of kind then path. A file saved again with the same bytes (a
  *  bad save put back, a touch, an editor's save without an edit) has not: its bytes are compared
  *  with those the live scene read, by their hash in `hashes` (path -> identity, hash; files of
- *  at most 64 MiB, whose hash covers every byte). */
+ *  at most kContentHashedBytes, whose hash covers every byte). */
 std::vector<std::string> edited_files(
     const std::map<std::string, FileRead>& files,
     const std::map<std::string, std::pair<std::string, uint64_t>>& hashes) {
@@ -52,7 +52,7 @@ std::vector<std::string> edited_files(
         std::error_code ec;
         const uintmax_t size = std::filesystem::file_size(path, ec);
         if (it != hashes.end() && it->second.first == read.identity && !ec &&
-            size <= (uintmax_t{64} << 20) && file_content_hash(path) == it->second.second)
+            size <= kContentHashedBytes && file_content_hash(path) == it->second.second)
             continue;
         edited.emplace_back(read.kind, path);
     }

@@ -731,7 +731,7 @@ uint64_t file_content_hash(const std::string& path) {
     const uintmax_t size = std::filesystem::file_size(path, ec);
     if (ec) return 0;
     uint64_t h = hash2(0x5ce9e5ull, size);
-    if (size > (uintmax_t{64} << 20)) return h;
+    if (size > kContentHashedBytes) return h;
     std::ifstream in(path, std::ios::binary);
     std::vector<char> bytes(static_cast<std::size_t>(size), 0);
     if (!in.read(bytes.data(), static_cast<std::streamsize>(size))) return h;

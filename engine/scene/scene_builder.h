@@ -7,6 +7,8 @@
 // degenerate lights, keys out of order); and turns keyframes into motion (scene/keyed_motion.h).
 // Its errors point at the places the description records.
 
+#include <cstdint>
+
 #include "color/color_config.h"
 #include "ecs/registry.h"
 #include "scene/scene_description.h"
@@ -18,7 +20,11 @@ namespace spangle {
  *  file's name without the folder and ending, else "object<index + 1>". */
 std::string object_name(const ObjectDesc& d, uint32_t index);
 
-/** A hash of a file's bytes (of its size alone beyond 64 MiB); 0 when it cannot be read. */
+/** file_content_hash() covers every byte of files up to this size, and only the size beyond. */
+constexpr uintmax_t kContentHashedBytes = uintmax_t{64} << 20;
+
+/** A hash of a file's bytes (of its size alone beyond kContentHashedBytes); 0 when it cannot be
+ *  read. */
 uint64_t file_content_hash(const std::string& path);
 
 /** The hash of a scene file and the files it includes or imports (`files`); the session adds

@@ -47,15 +47,16 @@ constexpr std::size_t kMaxImportDepth = 16;
  *  format of names Spangle does not know), it failed with a TOML syntax error at its first line.
  */
 void check_scene_format(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    const auto lower = [](std::string x) {
+        std::transform(x.begin(), x.end(), x.begin(),
+                       [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+        return x;
+    };
+    const std::filesystem::path file(path);
+    const std::string ext = lower(file.extension().string());
     // A gzip'd PLY (".ply.gz", which the `mesh` key reads) is a mesh too.
     if (ext == ".gz") {
-        std::string inner = std::filesystem::path(path).stem().extension().string();
-        std::transform(inner.begin(), inner.end(), inner.begin(),
-                       [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-        if (inner == ".ply")
+        if (lower(file.stem().extension().string()) == ".ply")
             throw_error(FileLoc{path, 0, 0},
                         "this is a mesh (ply.gz), not a scene: name it as the `mesh` of an "
                         "[[object]] in a TOML scene");

@@ -1,7 +1,7 @@
 #include "shading/material.h"
-#include <cctype>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 
@@ -376,9 +376,8 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
     }
     if (!instance)
         throw_error(blamed_param(m, error),
-                    "material '{}': plugin '{}' could not create model "
-                    "'{}': {}",
-                    m.name, m.plugin, model->name, error[0] ? error : "no reason given");
+                    "material '{}': plugin '{}' could not create model '{}': {}", m.name, m.plugin,
+                    model->name, error[0] ? error : "no reason given");
     auto mat = std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
     MapKind kind = MapKind::None;
     TextureBinding map;
