@@ -54,9 +54,10 @@ bool regular_file(const std::string& path, void*) {
 std::string same_path(const std::string& path, void*) {
     const std::size_t at = path.find("file://");
     if (at == std::string::npos) return path;
-    std::string rest = path.substr(at + 7);
-    if (rest.rfind("localhost/", 0) == 0) rest.erase(0, 9);
-    return rest.rfind('/', 0) == 0 ? rest : path;
+    std::string host, local;
+    return split_file_uri(std::string_view(path).substr(at + 7), host, local) && !local.empty()
+               ? local
+               : path;
 }
 
 bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,

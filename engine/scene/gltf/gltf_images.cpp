@@ -101,18 +101,21 @@ UriTarget uri_target(const Context& ctx, const std::string& uri) {
     }
     t.scheme = scheme;
     if (scheme != "file") return t;
-    // file://host/path or file:///path: the path (a host other than localhost is not this
-    // machine's).
-    std::string rest = uri.substr(colon + 3);
-    const std::size_t slash = rest.find('/');
-    const std::string host = slash == std::string::npos ? rest : rest.substr(0, slash);
-    rest = slash == std::string::npos ? std::string() : rest.substr(slash);
-    if (!host.empty() && host != "localhost") {
+    std::string host, rest;
+    if (!split_file_uri(std::string_view(uri).substr(colon + 3), host, rest)) {
         t.host = host;
         return t;
     }
     t.path = (ctx.dir / percent_decoded(rest)).lexically_normal().string();
     return t;
+}
+
+bool split_file_uri(std::string_view rest, std::string& host, std::string& path) {
+    // file://host/path or file:///path (a host other than localhost is not this machine's).
+    const std::size_t slash = rest.find('/');
+    host = std::string(rest.substr(0, slash));
+    path = slash == std::string_view::npos ? std::string() : std::string(rest.substr(slash));
+    return host.empty() || host == "localhost";
 }
 
 std::string image_file(Context& ctx, int image, const std::string& ref) {

@@ -5,6 +5,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "scene/gltf/gltf_context.h"
@@ -34,6 +35,10 @@ struct UriTarget {
     std::string scheme, host;
 };
 UriTarget uri_target(const Context& ctx, const std::string& uri);
+
+/** What follows "file://" in a URI, split: `host` (empty for "file:///path") and `path` (from
+ *  its first '/', escapes as written). True when the host is this machine (none, or localhost). */
+bool split_file_uri(std::string_view rest, std::string& host, std::string& path);
 
 /** The folder embedded images are written to: $SPANGLE_TEXTURE_CACHE/gltf-images, else
  *  $XDG_CACHE_HOME/spangle/gltf-images, else ~/.cache/spangle/gltf-images. */
