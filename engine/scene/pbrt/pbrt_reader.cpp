@@ -228,8 +228,7 @@ private:
     bool state(Tokenizer& t, const std::string& name, const FileLoc& loc) {
         if (name == "AttributeBegin" || name == "TransformBegin") {
             if (name == "TransformBegin") r_.sign(false, loc, "TransformBegin");
-            r_.stack.emplace_back(name == "AttributeBegin" ? 'a' : 't', r_.gs);
-            r_.stack_locs.push_back(loc);
+            r_.stack.push_back({name == "AttributeBegin" ? 'a' : 't', r_.gs, loc});
         } else if (name == "AttributeEnd" || name == "TransformEnd") {
             pop(name == "AttributeEnd" ? 'a' : 't', name, loc);
         } else if (name == "Attribute") {
@@ -250,8 +249,7 @@ private:
             if (!r_.defining.empty())
                 throw_error(loc, "ObjectBegin '{}' inside the definition of '{}'", obj,
                             r_.defining);
-            r_.stack.emplace_back('o', r_.gs);
-            r_.stack_locs.push_back(loc);
+            r_.stack.push_back({'o', r_.gs, loc});
             r_.defining = obj;
             if (!r_.definitions.emplace(obj, std::vector<InstancedShape>{}).second)
                 r_.notes.add(loc, fmt::format("object '{}' is defined again: the new "
@@ -287,22 +285,21 @@ private:
     /** Ends a block of kind `kind`; an unmatched end is a warning, as pbrt makes it. */
     void pop(char kind, const std::string& name, const FileLoc& loc) {
         if (r_.stack.size() <= r_.stack_floor ||
-            (r_.stack.back().first != kind && !(kind == 'a' && r_.stack.back().first == 'o'))) {
+            (r_.stack.back().kind != kind && !(kind == 'a' && r_.stack.back().kind == 'o'))) {
             r_.notes.add(loc, fmt::format("{} without its begin: ignored", name));
             return;
         }
         if (kind == 't') {
             // TransformEnd restores the transforms only.
-            r_.gs.ctm[0] = r_.stack.back().second.ctm[0];
-            r_.gs.ctm[1] = r_.stack.back().second.ctm[1];
-            r_.gs.active[0] = r_.stack.back().second.active[0];
-            r_.gs.active[1] = r_.stack.back().second.active[1];
+            r_.gs.ctm[0] = r_.stack.back().gs.ctm[0];
+            r_.gs.ctm[1] = r_.stack.back().gs.ctm[1];
+            r_.gs.active[0] = r_.stack.back().gs.active[0];
+            r_.gs.active[1] = r_.stack.back().gs.active[1];
         } else {
-            if (r_.stack.back().first == 'o' && kind != 'o') r_.defining.clear();
-            r_.gs = r_.stack.back().second;
+            if (r_.stack.back().kind == 'o' && kind != 'o') r_.defining.clear();
+            r_.gs = r_.stack.back().gs;
         }
         r_.stack.pop_back();
-        r_.stack_locs.pop_back();
     }
 
     /** ObjectInstance: every shape of the definition, placed by the current transform. */
@@ -512,13 +509,12 @@ private:
         r_.current_dir = saved;
         r_.stack_floor = floor;
         if (r_.stack.size() > stack) {
-            r_.notes.add(r_.stack_locs[stack],
+            r_.notes.add(r_.stack[stack].loc,
                          fmt::format("'{}' leaves {} AttributeBegin / TransformBegin / "
                                      "ObjectBegin open (the first here): closed where its Import "
                                      "ends",
                                      given, r_.stack.size() - stack));
             r_.stack.resize(stack);
-            r_.stack_locs.resize(stack);
         }
         r_.gs = gs;
         r_.coord_systems = coord_systems;
@@ -539,7 +535,7 @@ SceneDescription read_all(Reader& r, Tokenizer& t) {
     r.d.render.color_space = "lin_rec709";
     Parser(r).file(t, 0);
     if (!r.stack.empty())
-        r.notes.add(r.stack_locs.front(),
+        r.notes.add(r.stack.front().loc,
                     fmt::format("{} AttributeBegin / TransformBegin / ObjectBegin never ended (the "
                                 "first here)",
                                 r.stack.size()));

@@ -91,8 +91,13 @@ struct Reader {
     std::filesystem::path dir;          ///< the main file's folder (pbrt's search path)
     std::filesystem::path current_dir;  ///< folder of the file being read
     GraphicsState gs;                   ///< the graphics state
-    std::vector<std::pair<char, GraphicsState>> stack;  ///< 'a' attribute, 't' transform, 'o'
-    std::vector<FileLoc> stack_locs;                    ///< where each block of `stack` begins
+    /** A block AttributeBegin, TransformBegin or ObjectBegin opened: the state it saved. */
+    struct Block {
+        char kind;         ///< 'a' attribute, 't' transform, 'o' object
+        GraphicsState gs;  ///< the graphics state at its begin
+        FileLoc loc;       ///< its begin
+    };
+    std::vector<Block> stack;  ///< the blocks open, innermost last
     /** Blocks below this depth are not the file's own to end (an Import's importer's). */
     std::size_t stack_floor = 0;
     std::map<std::string, std::array<Mat4, 2>> coord_systems;  ///< named coordinate systems
