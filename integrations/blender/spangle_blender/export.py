@@ -239,22 +239,18 @@ def _socket_value(sock, warnings, what):
         return None
     if sock.is_linked:
         src = sock.links[0].from_node
-        file = (_image_file(src.image, warnings, what)
-                if src.type == "TEX_IMAGE" and src.image is not None else None)
-        if file is not None:
-            # The image's own colour space (a Non-Color roughness map is data, a linear EXR
-            # is linear: every texture was tagged sRGB).
-            tex = {"texture": file, "space": _image_space(src.image)}
-            tex.update(_texture_placement(src, warnings, what))
-            return tex
         if src.type == "TEX_IMAGE" and src.image is not None:
-            v = sock.default_value
-            try:
-                return tuple(v)[:3]
-            except TypeError:
-                return float(v)
-        warnings.append(f"{what}: a node input ({sock.name}) is linked to a {src.type} node; its "
-                        "own value stands in")
+            # Its file, or (with a warning from _image_file) the input's own value.
+            file = _image_file(src.image, warnings, what)
+            if file is not None:
+                # The image's own colour space (a Non-Color roughness map is data, a linear
+                # EXR is linear: every texture was tagged sRGB).
+                tex = {"texture": file, "space": _image_space(src.image)}
+                tex.update(_texture_placement(src, warnings, what))
+                return tex
+        else:
+            warnings.append(f"{what}: a node input ({sock.name}) is linked to a {src.type} node; "
+                            "its own value stands in")
     v = sock.default_value
     try:
         return tuple(v)[:3]
