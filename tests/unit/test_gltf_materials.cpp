@@ -514,6 +514,64 @@ TEST(GltfErrors, BufferFaultsAreSaidAtTheirUriWithWhatTheyHold) {
     EXPECT_NE(std::find(d.files.begin(), d.files.end(), dir.file("kept.bin")), d.files.end());
 }
 
+TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {
+    // tinygltf said these at 1:1 in its own words ("'byteLength' property is not a positive
+    // integer", "'uri' is missing", "File not found : data:;base64,..."), and refused a .bin
+    // longer than its byteLength, which glTF allows (exporters pad them to 4 bytes).
+    test::TempDir dir("gltf_buffer_sizes");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, -1);
+    const std::string body = fmt::format(R"("meshes":[{}],"nodes":[{{"mesh":0}}])", mesh);
+    w.write_gltf_bin(dir.file("sizes.gltf"), "quad.bin", body);
+    const std::string text = bytes_of(dir.file("sizes.gltf"));
+    const std::size_t length_at = text.find("\"byteLength\":", text.find("\"buffers\""));
+    ASSERT_NE(length_at, std::string::npos);
+    const std::size_t value_at = length_at + 13;
+    const std::size_t value_end = text.find_first_of(",}", value_at);
+    const std::string length = text.substr(value_at, value_end - value_at);
+    const auto with_length = [&](const std::string& value) {
+        std::string t = text;
+        t.replace(value_at, value_end - value_at, value);
+        return error_of(dir, t, "sizes.gltf");
+    };
+    const std::string at =
+        fmt::format("{}:1:{}: error: buffer 0: ", dir.file("sizes.gltf"), value_at + 1);
+    EXPECT_EQ(with_length("0"), at + "byteLength 0 is not a size in bytes (a whole number, at "
+                                     "least 1)");
+    EXPECT_EQ(with_length("-8"), at + "byteLength -8 is not a size in bytes (a whole number, at "
+                                      "least 1)");
+    EXPECT_EQ(with_length("12.5"), at + "byteLength 12.5 is not a size in bytes (a whole number, "
+                                        "at least 1)");
+    EXPECT_EQ(with_length("\"" + length + "\""),
+              at + "byteLength \"" + length + "\" is a string; write the number without quotes");
+    EXPECT_EQ(with_length("null"), at + "byteLength must be a number");
+    const auto with_uri = [&](const std::string& value) {
+        std::string t = text;
+        t.replace(t.find("\"quad.bin\""), 10, value);
+        return error_of(dir, t, "sizes.gltf");
+    };
+    const std::string uri_at = fmt::format("{}:1:{}: error: buffer 0: ", dir.file("sizes.gltf"),
+                                           text.find("\"quad.bin\"") + 1);
+    EXPECT_EQ(with_uri("\"\""), uri_at + "its uri is empty (it names no file)");
+    EXPECT_EQ(with_uri("7"), uri_at + "its uri must be a string, not 7");
+    EXPECT_EQ(with_uri("\"data:;base64,AAAA\""),
+              uri_at +
+                  "data URI of type '': a buffer's is application/octet-stream or "
+                  "application/gltf-buffer");
+    EXPECT_EQ(with_uri("\"data:application/octet-stream;BASE64,AAAA\""),
+              uri_at + "write ';base64' in a data URI in lower case");
+    EXPECT_EQ(with_uri("\"qu%00ad.bin\""),
+              uri_at + "file 'qu%00ad.bin' not found (looked for " + dir.file("qu%00ad.bin") + ")");
+    // A .bin longer than byteLength is read up to it; FILE:// is file://.
+    std::string bytes = bytes_of(dir.file("quad.bin"));
+    std::ofstream(dir.file("padded.bin"), std::ios::binary) << bytes << std::string(3, '\0');
+    EXPECT_EQ(with_uri("\"padded.bin\""), "no error");
+    EXPECT_EQ(with_uri("\"FILE://" + dir.file("padded.bin") + "\""), "no error");
+    const SceneDescription d = read_gltf_scene(dir.file("sizes.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_NE(std::find(d.files.begin(), d.files.end(), dir.file("padded.bin")), d.files.end());
+}
+
 TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     test::TempDir dir("gltf_errors");
     const std::string f = dir.file("bad.gltf");

@@ -4,13 +4,16 @@
 // against those this reader understands.
 
 #include <cctype>
+#include <cmath>
 #include <cstdlib>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <optional>
 #include <sstream>
 #include <string_view>
+#include <unordered_map>
 
 #include "core/files.h"
 #include "scene/gltf/gltf_parts.h"
@@ -52,7 +55,9 @@ bool regular_file(const std::string& path, void*) {
 /** Paths are not expanded (no ~, no variables), except a file:// URI joined to the file's
  *  folder (tinygltf looks for "DIR/file:///x.bin"): its path, as check_buffers() took it. */
 std::string same_path(const std::string& path, void*) {
-    const std::size_t at = path.find("file://");
+    std::string lower = path;
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const std::size_t at = lower.find("file://");
     if (at == std::string::npos) return path;
     std::string host, local;
     return split_file_uri(std::string_view(path).substr(at + 7), host, local) && !local.empty()
@@ -60,8 +65,20 @@ std::string same_path(const std::string& path, void*) {
                : path;
 }
 
+/** The byteLength of each buffer's file, by the file's canonical path (check_buffers()). */
+using BufferLengths = std::unordered_map<std::string, uintmax_t>;
+
+std::string canonical_key(const std::string& path) {
+    std::error_code ec;
+    const std::filesystem::path p = std::filesystem::weakly_canonical(path, ec);
+    return ec ? path : p.string();
+}
+
+/** tinygltf's file reading: a buffer's file longer than its byteLength is read up to it (glTF
+ *  2.0, 5.10: the resource may be longer, as .bin files padded to 4 bytes are; tinygltf refused
+ *  any size but byteLength's). `user` is the BufferLengths. */
 bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const std::string& path,
-                       void*) {
+                       void* user) {
     if (!regular_file(path, nullptr)) {
         if (err) *err += "'" + path + "' is not a regular file\n";
         return false;
@@ -71,6 +88,10 @@ bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const 
     if (!in.eof() && in.fail()) {
         if (err) *err += "cannot read '" + path + "'\n";
         return false;
+    }
+    if (const auto* lengths = static_cast<const BufferLengths*>(user)) {
+        const auto it = lengths->find(canonical_key(path));
+        if (it != lengths->end() && it->second < out->size()) out->resize(it->second);
     }
     return true;
 }
@@ -176,29 +197,79 @@ long long base64_bytes(std::string_view data) {
     return static_cast<long long>(n / 4 * 3 + (n % 4 == 0 ? 0 : n % 4 - 1));
 }
 
-/** Each buffer's data checked before tinygltf reads it, each fault said at its "uri" with what
- *  it holds (tinygltf said "File not found : x.bin" or "Failed to decode 'uri'" at 1:1 without
- *  saying which buffer, where it looked, or that a data URI was short, and took a file:// URI
- *  for a relative path). A .glb's buffer without a uri is its BIN chunk, which tinygltf checks. */
-void check_buffers(const Context& ctx) {
+/** Each buffer's data checked before tinygltf reads it, each fault said at its "uri" or
+ *  "byteLength" with what it holds (tinygltf said "File not found : x.bin" or "Failed to decode
+ *  'uri'" at 1:1 without saying which buffer, where it looked, or that a data URI was short, and
+ *  took a file:// URI for a relative path). A .glb's first buffer without a uri is its BIN
+ *  chunk, which tinygltf checks. Returns the byteLength of each buffer's file (by canonical
+ *  path), which is what is read of a longer file. */
+BufferLengths check_buffers(const Context& ctx, bool binary) {
+    BufferLengths lengths;
     for (std::size_t i = 0; ctx.json.has(fmt::format("buffers/{}", i)); ++i) {
         const std::string at = fmt::format("buffers/{}/uri", i);
-        const std::string* uri = ctx.json.scalar(at);
-        const std::string* length_text = ctx.json.scalar(fmt::format("buffers/{}/byteLength", i));
-        if (!uri || uri->empty() || !length_text) continue;  // tinygltf says what is missing
-        const double length = std::strtod(length_text->c_str(), nullptr);
+        const std::string length_at = fmt::format("buffers/{}/byteLength", i);
+        const std::string* uri_text = ctx.json.scalar(at);
+        const std::string* length_text = ctx.json.scalar(length_at);
+        if (!length_text && ctx.json.has(length_at))
+            throw_error(ctx.at(length_at), "buffer {}: byteLength must be a number", i);
+        if (!length_text)
+            throw_error(ctx.at(fmt::format("buffers/{}", i)),
+                        "buffer {} has no byteLength (its size in bytes, which glTF requires)", i);
+        if (length_text->starts_with('"'))
+            throw_error(ctx.at(length_at),
+                        "buffer {}: byteLength {} is a string; write the number without quotes", i,
+                        *length_text);
+        char* end = nullptr;
+        const double length = std::strtod(length_text->c_str(), &end);
+        if (end == length_text->c_str() || *end != '\0' || !(length >= 1) ||
+            length != std::floor(length) || length > 9.0e15)
+            throw_error(ctx.at(length_at),
+                        "buffer {}: byteLength {} is not a size in bytes (a whole number, at "
+                        "least 1)",
+                        i, *length_text);
+        if (uri_text && !uri_text->starts_with('"'))
+            throw_error(ctx.at(at), "buffer {}: its uri must be a string, not {}", i, *uri_text);
+        const std::optional<std::string> uri_value =
+            uri_text ? std::optional(uri_text->substr(1, uri_text->size() - 2)) : std::nullopt;
+        const std::string* uri = uri_value ? &*uri_value : nullptr;
+        if (!uri && ctx.json.has(at))
+            throw_error(ctx.at(at), "buffer {}: its uri must be a string", i);
+        if (!uri && binary && i == 0) continue;  // the BIN chunk
+        if (!uri)
+            throw_error(ctx.at(fmt::format("buffers/{}", i)), "buffer {} has no uri: {}", i,
+                        binary ? "only a .glb's first buffer is its BIN chunk, the others name "
+                                 "their data"
+                               : "a .gltf's buffers name their data (a .bin file or a data URI)");
+        if (uri->empty())
+            throw_error(ctx.at(at), "buffer {}: its uri is empty (it names no file)", i);
         if (uri->rfind("data:", 0) == 0) {
             const std::size_t comma = uri->find(',');
             const std::string_view head = std::string_view(*uri).substr(0, comma);
+            std::string lower(head);
+            for (char& c : lower)
+                c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+            if (comma != std::string::npos && lower.ends_with(";base64") &&
+                !head.ends_with(";base64"))
+                throw_error(ctx.at(at), "buffer {}: write ';base64' in a data URI in lower case",
+                            i);
             if (comma == std::string::npos || !head.ends_with(";base64"))
                 throw_error(ctx.at(at),
                             "buffer {}: a data URI must be base64 (\"data:...;base64,...\")", i);
+            if (head != "data:application/octet-stream;base64" &&
+                head != "data:application/gltf-buffer;base64")
+                throw_error(ctx.at(at),
+                            "buffer {}: data URI of type '{}': a buffer's is "
+                            "application/octet-stream or application/gltf-buffer",
+                            i, head.substr(5, head.size() - 12));
             const long long bytes = base64_bytes(std::string_view(*uri).substr(comma + 1));
             if (bytes < 0) throw_error(ctx.at(at), "buffer {}: its data URI is not base64", i);
-            if (static_cast<double>(bytes) < length)
+            if (static_cast<double>(bytes) != length)
                 throw_error(ctx.at(at),
-                            "buffer {}: its data URI holds {} bytes, its byteLength says {}", i,
-                            bytes, *length_text);
+                            "buffer {}: its data URI holds {} bytes, its byteLength says {}{}", i,
+                            bytes, *length_text,
+                            static_cast<double>(bytes) > length
+                                ? " (Spangle reads a data URI of byteLength bytes exactly)"
+                                : "");
             continue;
         }
         const UriTarget target = uri_target(ctx, *uri);
@@ -217,7 +288,9 @@ void check_buffers(const Context& ctx) {
         if (!ec && static_cast<double>(size) < length)
             throw_error(ctx.at(at), "buffer {}: file '{}' holds {} bytes, its byteLength says {}",
                         i, *uri, size, *length_text);
+        lengths.emplace(canonical_key(target.path), static_cast<uintmax_t>(length));
     }
+    return lengths;
 }
 
 /** Notes used extensions not read (once each). */
@@ -241,12 +314,13 @@ void load_document(Context& ctx) {
     const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
     ctx.json = JsonLocations(json, ctx.path);
     check_required(ctx);
-    check_buffers(ctx);
+    BufferLengths buffer_lengths = check_buffers(ctx, binary);
     if (bytes.size() > 0xFFFFFFFFu)
         throw_error(FileLoc{ctx.path, 0, 0}, "the file is larger than 4 GiB");
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&keep_bytes, &ctx.images);
-    loader.SetFsCallbacks({&regular_file, &same_path, &read_regular_file, &write_nothing, nullptr});
+    loader.SetFsCallbacks(
+        {&regular_file, &same_path, &read_regular_file, &write_nothing, &buffer_lengths});
     std::string err, warn;
     bool ok = false;
     try {

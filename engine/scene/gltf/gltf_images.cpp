@@ -25,9 +25,12 @@ namespace fs = std::filesystem;
 std::string percent_decoded(const std::string& uri) {
     std::string out;
     for (std::size_t i = 0; i < uri.size(); ++i) {
+        // (%00 is kept as written: a NUL cut the path short, so "a%00b.bin" was looked for
+        // as "a" and said missing as a name cut at the NUL.)
         if (uri[i] == '%' && i + 2 < uri.size() &&
             std::isxdigit(static_cast<unsigned char>(uri[i + 1])) &&
-            std::isxdigit(static_cast<unsigned char>(uri[i + 2]))) {
+            std::isxdigit(static_cast<unsigned char>(uri[i + 2])) &&
+            uri.compare(i, 3, "%00") != 0) {
             out += static_cast<char>(std::stoi(uri.substr(i + 1, 2), nullptr, 16));
             i += 2;
         } else {
@@ -100,7 +103,10 @@ UriTarget uri_target(const Context& ctx, const std::string& uri) {
         return t;
     }
     t.scheme = scheme;
-    if (scheme != "file") return t;
+    // (Schemes are case-insensitive, RFC 3986 3.1: FILE:///x names a file as file:///x does.)
+    std::string lower = scheme;
+    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (lower != "file") return t;
     std::string host, rest;
     if (!split_file_uri(std::string_view(uri).substr(colon + 3), host, rest)) {
         t.host = host;

@@ -74,7 +74,7 @@ private:
             if (path_.starts_with("buffers/")) {
                 std::string text;
                 string(&text);
-                scalars_[path_] = std::move(text);
+                scalars_[path_] = '"' + text + '"';
                 return;
             }
             return string(nullptr);
