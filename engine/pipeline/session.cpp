@@ -121,16 +121,14 @@ std::vector<std::string> Session::watched_files() const {
 
 ReloadReport Session::load(const std::string& scene, double time) {
     const auto t0 = std::chrono::steady_clock::now();
-    ReloadReport rep =
-        load(read_scene(scene, SceneReadOptions{options_.camera, options_.environment}), time);
+    ReloadReport rep = load(read_scene(scene, read_options()), time);
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;
 }
 
 ReloadReport Session::load_frame(const std::string& scene, int64_t frame) {
     const auto t0 = std::chrono::steady_clock::now();
-    const SceneDescription d =
-        read_scene(scene, SceneReadOptions{options_.camera, options_.environment});
+    const SceneDescription d = read_scene(scene, read_options());
     ReloadReport rep = load(d, static_cast<double>(frame - d.render.frame_start) / d.render.fps);
     rep.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     return rep;

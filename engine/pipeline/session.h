@@ -88,6 +88,13 @@ private:
     /** The live scene as the path tracer reads it. */
     RenderScene render_scene() const;
 
+    /** How scene files are read under these options (camera, environment, a size given). */
+    SceneReadOptions read_options() const {
+        SceneReadOptions r{options_.camera, options_.environment};
+        r.size_given = options_.width_override != 0 || options_.height_override != 0;
+        return r;
+    }
+
     const Logger& log_;
     bool adaptive_warned_ = false;  ///< the --min-spp/--max-spp without adaptive warning given
     bool panorama_warned_ = false;  ///< the stretched-panorama warning given

@@ -397,6 +397,9 @@ struct SceneReadOptions {
     /** Read as another file's [[import]]: a TOML file without a [camera] is fine (the importing
      *  file or another import gives it; a scene with none anywhere is still an error). */
     bool imported = false;
+    /** The image's size is given (`--size`): a reader says nothing of a size its file would
+     *  set (a glTF camera's aspect ratio, which --size overrides). */
+    bool size_given = false;
 };
 
 /** Everything a scene file says, in the order written within each kind. */

@@ -216,7 +216,7 @@ TEST(GltfReader, CameraLooksDownItsMinusZWithYUpAndYfovVertical) {
 TEST(GltfReader, AnAspectRatioThatIsNotUsableIsSaid) {
     // 0 was ignored, and 1/1000 made a 640 x 16384 image, both without a word.
     test::TempDir dir("gltf_aspect");
-    const auto read = [&](const std::string& aspect) {
+    const auto read = [&](const std::string& aspect, bool size_given = false) {
         GltfWriter w;
         const QuadAccessors q = quad(w);
         w.write_gltf(
@@ -225,7 +225,9 @@ TEST(GltfReader, AnAspectRatioThatIsNotUsableIsSaid) {
                         R"("cameras":[{{"type":"perspective","perspective":{{"yfov":0.8,)"
                         R"("aspectRatio":{},"znear":0.1}}}}],"meshes":[{{"primitives":[{}]}}])",
                         aspect, quad_primitive(q, -1)));
-        return read_gltf_scene(dir.file("a.gltf"), {});
+        SceneReadOptions options;
+        options.size_given = size_given;
+        return read_gltf_scene(dir.file("a.gltf"), options);
     };
     const SceneDescription zero = read("0");
     EXPECT_EQ(zero.render.height, 360u) << "the default size";
@@ -236,6 +238,12 @@ TEST(GltfReader, AnAspectRatioThatIsNotUsableIsSaid) {
     const SceneDescription fine = read("1.5");
     EXPECT_EQ(fine.render.height, 427u);
     EXPECT_EQ(count_notes(fine, "aspect ratio") + count_notes(fine, "aspectRatio"), 0);
+    // With --size the file's aspect sets nothing, so nothing is said of it.
+    for (const char* aspect : {"0", "0.001"}) {
+        const SceneDescription sized = read(aspect, true);
+        EXPECT_EQ(count_notes(sized, "aspect ratio") + count_notes(sized, "aspectRatio"), 0)
+            << aspect;
+    }
 }
 
 TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {

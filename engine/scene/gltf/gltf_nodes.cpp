@@ -290,7 +290,7 @@ void default_camera(Context& ctx) {
 }
 
 /** Camera `index` at node n: glTF's camera looks down -Z with +Y up (glTF 2.0, 3.10.1). */
-void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
+void use_camera(Context& ctx, int n, int index, const NodeMotion& motion, bool size_given) {
     const tinygltf::Camera& g = ctx.model.cameras[static_cast<std::size_t>(index)];
     const std::string cp = fmt::format("cameras/{}", index);
     CameraDesc& c = ctx.scene->camera;
@@ -330,13 +330,13 @@ void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
         ctx.scene->render.height = static_cast<uint32_t>(std::clamp(h, 1.0, 16384.0));
         // An image of one row, or of 16384 (a width of 640 at an aspect of 1/1000: the clamp was
         // taken without a word).
-        if (!(h >= 4.0 && h <= 16384.0))
+        if (!(h >= 4.0 && h <= 16384.0) && !size_given)
             ctx.note("extreme aspect", ctx.at(aspect_at),
                      fmt::format("the camera's aspect ratio {:g} makes the image {} x {} pixels: "
                                  "give the size you want with --size (or [render] width and "
                                  "height in a TOML scene that imports this file)",
                                  aspect, ctx.scene->render.width, ctx.scene->render.height));
-    } else if (g.type != "orthographic" && ctx.json.has(aspect_at)) {
+    } else if (g.type != "orthographic" && ctx.json.has(aspect_at) && !size_given) {
         // Written, but 0, negative or not a number: the size stays the default (silently before).
         ctx.note("bad aspect", ctx.at(aspect_at),
                  fmt::format("aspectRatio {:g} is not a positive number: ignored, the image is "
@@ -368,7 +368,8 @@ void use_camera(Context& ctx, int n, int index, const NodeMotion& motion) {
 /** Picks the camera: the one `name` names (a camera's or its node's name, or "#N" for the
  *  file's camera N, which unnamed cameras have only), else the first. */
 void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras,
-                   const std::string& name, const std::vector<NodeMotion>& motions) {
+                   const SceneReadOptions& options, const std::vector<NodeMotion>& motions) {
+    const std::string& name = options.camera;
     int index = -1;
     if (name.size() > 1 && name.size() < 10 && name[0] == '#' &&
         std::all_of(name.begin() + 1, name.end(), [](char ch) { return ch >= '0' && ch <= '9'; }))
@@ -392,7 +393,8 @@ void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras
                            cam == index;
         if (name.empty() || named) {
             ctx.scene->camera_by_name = !name.empty();
-            return use_camera(ctx, node, cam, motions[static_cast<std::size_t>(node)]);
+            return use_camera(ctx, node, cam, motions[static_cast<std::size_t>(node)],
+                              options.size_given);
         }
     }
     if (!name.empty()) {
@@ -490,7 +492,7 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
             punctual_light(ctx, n, v.Get("light").GetNumberAsInt(), motion);
         }
     }
-    choose_camera(ctx, cameras, options.camera, motions);
+    choose_camera(ctx, cameras, options, motions);
     bool emits = false;
     for (const ObjectDesc& o : ctx.scene->objects) emits = emits || o.emission.has_value();
     // --env lights the scene itself: no stand-in then. Nor where its emission lights it; faint
