@@ -43,9 +43,33 @@ namespace {
 
 constexpr std::size_t kMaxImportDepth = 16;
 
-/** Refuses a file whose name says it is a mesh or another program's scene: read as TOML (the
- *  format of names Spangle does not know), it failed with a TOML syntax error at its first line.
- */
+/** Reads `path` and, recursively, what it imports; `chain` holds the files being read, to
+ *  refuse a file that imports itself. */
+SceneDescription read_with_imports(const std::string& path, const SceneReadOptions& options,
+                                   std::vector<std::string>& chain) {
+    check_scene_file(path);
+    check_scene_format(path);
+    SceneDescription scene = scene_format_for(path).read(path, options);
+    std::error_code ec;
+    chain.push_back(std::filesystem::weakly_canonical(path, ec).string());
+    resolve_imports(scene, [&](const std::string& imported, const FileLoc& at) {
+        const std::string canonical = std::filesystem::weakly_canonical(imported, ec).string();
+        if (std::find(chain.begin(), chain.end(), canonical) != chain.end())
+            throw_error(at, "'{}' imports itself (through {})", imported, fmt::join(chain, " -> "));
+        if (chain.size() >= kMaxImportDepth)
+            throw_error(at, "imports nest deeper than {} files", kMaxImportDepth);
+        SceneReadOptions as_import = options;
+        as_import.imported = true;
+        return read_with_imports(imported, as_import, chain);
+    });
+    chain.pop_back();
+    return scene;
+}
+
+}  // namespace
+
+// (Read as TOML, the format of names Spangle does not know, such a file failed with a TOML
+// syntax error at its first line.)
 void check_scene_format(const std::string& path) {
     const auto lower = [](std::string x) {
         std::transform(x.begin(), x.end(), x.begin(),
@@ -76,31 +100,6 @@ void check_scene_format(const std::string& path) {
                         "or use its Spangle add-on)",
                         ext.substr(1));
 }
-
-/** Reads `path` and, recursively, what it imports; `chain` holds the files being read, to
- *  refuse a file that imports itself. */
-SceneDescription read_with_imports(const std::string& path, const SceneReadOptions& options,
-                                   std::vector<std::string>& chain) {
-    check_scene_file(path);
-    check_scene_format(path);
-    SceneDescription scene = scene_format_for(path).read(path, options);
-    std::error_code ec;
-    chain.push_back(std::filesystem::weakly_canonical(path, ec).string());
-    resolve_imports(scene, [&](const std::string& imported, const FileLoc& at) {
-        const std::string canonical = std::filesystem::weakly_canonical(imported, ec).string();
-        if (std::find(chain.begin(), chain.end(), canonical) != chain.end())
-            throw_error(at, "'{}' imports itself (through {})", imported, fmt::join(chain, " -> "));
-        if (chain.size() >= kMaxImportDepth)
-            throw_error(at, "imports nest deeper than {} files", kMaxImportDepth);
-        SceneReadOptions as_import = options;
-        as_import.imported = true;
-        return read_with_imports(imported, as_import, chain);
-    });
-    chain.pop_back();
-    return scene;
-}
-
-}  // namespace
 
 SceneDescription read_scene(const std::string& path, const SceneReadOptions& options) {
     std::vector<std::string> chain;

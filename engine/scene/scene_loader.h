@@ -35,6 +35,11 @@ const std::vector<SceneFormat>& scene_formats();
  *  listed, as scene files have always been read. */
 const SceneFormat& scene_format_for(const std::string& path);
 
+/** Throws SpangleError when `path`'s name says it is a mesh (.obj, .ply, .ply.gz) or another
+ *  program's scene (.fbx, .usd, .blend, ...), saying what to do instead; does nothing for the
+ *  names of scene formats and names it does not know. */
+void check_scene_format(const std::string& path);
+
 /** Reads `path` with the reader of its format. Throws SpangleError at file:line:col. */
 SceneDescription read_scene(const std::string& path, const SceneReadOptions& options = {});
 

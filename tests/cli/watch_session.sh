@@ -6,7 +6,7 @@
 # the plugin (a new file over the old one). After each, checks the reload line (what changed and
 # which systems ran) and whether the output EXR changed, stayed, or recovered. The scene has an
 # unused material: its warning is said once, not at every reload. SIGINT ends with one line
-# saying what the EXR holds.
+# saying what the EXR holds. A mesh given as the scene ends the command at once.
 #   watch_session.sh SPANGLE PLUGIN_DIR SCENE_DIR
 set -u
 S=$1 PLUGINS=$2 SCENES=$3
@@ -55,6 +55,13 @@ reloaded() {
     finished "$3"
     keep "$5"; ! same "$4" "$5" || fail "$1 edit did not change the image"
 }
+
+# A mesh named as the scene can never become one by a save: --watch says so and exits 1 (it
+# waited for a good save).
+timeout 20 "$S" render uvless_ball.obj -o mesh.exr --watch > mesh_log.txt 2>&1
+RC=$?
+[ "$RC" = 1 ] || fail "--watch on a mesh: exit $RC, expected 1: $(cat mesh_log.txt)"
+grep -q "this is a mesh (obj), not a scene" mesh_log.txt || fail "--watch on a mesh: $(cat mesh_log.txt)"
 
 "$S" render scene.toml -o out.exr --watch --plugin-path "$T/plugins" > log.txt 2>&1 &
 PID=$!

@@ -465,6 +465,9 @@ void WatchLoop::say_stopped() {
 }  // namespace
 
 int run_watch(const RenderArgs& a) {
+    // A name no save can make a scene (a mesh, another program's scene) ends the command, as it
+    // does without --watch (it waited for a good save that could never come).
+    check_scene_format(a.scene);
     const RenderSetup s = set_up_render(a);
     WatchLoop loop(a, s);
     return loop.run();
