@@ -73,6 +73,15 @@ public:
 
     std::size_t remaining() const { return data_.size() - pos_; }
 
+    /** Whether what remains is a line end or a few spaces at most (writers that end a binary
+     *  body with a newline, as they end an ASCII one). */
+    bool only_line_end_remains() const {
+        if (remaining() > 4) return false;
+        for (std::size_t i = pos_; i < data_.size(); ++i)
+            if (data_[i] != '\n' && data_[i] != '\r' && data_[i] != ' ') return false;
+        return true;
+    }
+
     /** The next n bytes, raw (binary formats), or an error naming `what` when fewer remain. */
     const char* take(std::size_t n, const char* what) {
         if (remaining() < n)
@@ -529,11 +538,11 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                     largest_face, largest_index, mesh.vertex_count());
     // Data left over in a binary file: its header's counts and its data disagree (a damaged or
     // mis-written file), said beside what was read.
-    if (*format != Format::Ascii && reader.remaining() > 0)
+    if (*format != Format::Ascii && reader.remaining() > 0 && !reader.only_line_end_remains())
         mesh.notes.push_back(
-            fmt::format("{} bytes follow the data its header describes (do "
+            fmt::format("{} byte{} follow the data its header describes (do "
                         "its element counts match the data?)",
-                        reader.remaining()));
+                        reader.remaining(), reader.remaining() == 1 ? "" : "s"));
     if (!wedges.empty()) {
         // The corners' vertices, one per distinct (vertex, u, v); the faces index them.
         const std::size_t nv = mesh.vertex_count();

@@ -35,6 +35,20 @@ TEST(MeshLoad, BinaryLittleEndianPly) {
     EXPECT_FLOAT_EQ(m.normals[1], 1.0f);
     ASSERT_EQ(m.uvs.size(), 8u);
     EXPECT_FLOAT_EQ(*std::max_element(m.uvs.begin(), m.uvs.end()), 4.0f);
+    EXPECT_TRUE(m.notes.empty());
+    // A newline after the binary data (writers that end every body with one) is not data left
+    // over ("1 bytes follow the data its header describes" before); more than that is.
+    std::ifstream in(test::asset_dir() + "/meshes/plane.ply", std::ios::binary);
+    const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    const test::TempDir dir("ply_trailing");
+    std::ofstream(dir.file("newline.ply"), std::ios::binary) << bytes << "\r\n";
+    EXPECT_TRUE(load_mesh(dir.file("newline.ply"), {}).notes.empty());
+    std::ofstream(dir.file("extra.ply"), std::ios::binary) << bytes << "\n\n\n\n\n";
+    const TriangleMesh extra = load_mesh(dir.file("extra.ply"), {});
+    ASSERT_EQ(extra.notes.size(), 1u);
+    EXPECT_EQ(extra.notes[0],
+              "5 bytes follow the data its header describes (do its element "
+              "counts match the data?)");
 }
 
 TEST(MeshLoad, AsciiPlyAndQuadsAreTriangulated) {
