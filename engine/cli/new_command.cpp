@@ -116,6 +116,7 @@ int run_new(const NewArgs& a) {
     }
     Logger log;
     if (a.quiet) log.threshold = LogLevel::Warning;
+    for (const std::string& note : rep.notes) log.warn("{}", note);
     log.info(
         "wrote {} and its ground plane {}{}: the model's bounds {:.3g} x {:.3g} x {:.3g}, "
         "paint '{}' with {:.3g} flakes per square unit (about {:.0f} per pixel); render it "

@@ -111,7 +111,7 @@ double framing_distance(const Box& box, Vec3 look_at, Vec3 dir, double aspect) {
 
 }  // namespace
 
-Box model_bounds(const std::string& model) {
+Box model_bounds(const std::string& model, std::vector<std::string>* notes) {
     std::error_code ec;
     const fs::path abs = fs::absolute(model, ec).lexically_normal();
     if (!fs::is_regular_file(abs, ec))
@@ -119,9 +119,14 @@ Box model_bounds(const std::string& model) {
     const std::string e = lower_extension(model);
     Box box;
     if (e == ".obj" || e == ".ply") {
-        add_mesh(box, load_mesh(abs.string(), FileLoc{}), Affine{});
+        const TriangleMesh mesh = load_mesh(abs.string(), FileLoc{});
+        add_mesh(box, mesh, Affine{});
+        if (notes)
+            for (const std::string& n : mesh.notes)
+                notes->push_back(fmt::format("mesh '{}': {}", model, n));
     } else if (is_gltf(model)) {
         const SceneDescription scene = read_scene(abs.string());
+        if (notes) notes->insert(notes->end(), scene.notes.begin(), scene.notes.end());
         for (const ObjectDesc& o : scene.objects) {
             Affine m = placement_matrix(o.placement);
             if (o.parent) m = o.parent->compose(m);
@@ -158,7 +163,7 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
             read_image_header(env.string(), "environment map");
     }
     NewSceneReport rep;
-    rep.model_bounds = model_bounds(r.model);
+    rep.model_bounds = model_bounds(r.model, &rep.notes);
     const Box& b = rep.model_bounds;
     // Stand the model on the ground (y = 0), centred over the origin.
     rep.offset = {-b.centre().x, -b.lo.y, -b.centre().z};

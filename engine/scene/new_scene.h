@@ -4,6 +4,7 @@
 // its bounds, and a flake paint on it whose density is chosen for the framing.
 
 #include <string>
+#include <vector>
 
 #include "core/math.h"
 
@@ -35,15 +36,17 @@ struct NewSceneReport {
     Vec3 camera, look_at;  ///< the camera written
     double fov_deg = 0.0;  ///< its vertical field of view
     double density = 0.0;  ///< flakes per square unit of the paint
-    double flakes_per_pixel = 0.0;  ///< expected flakes a pixel sees at the look_at distance
-    std::string ground;             ///< the ground plane's path
-    std::string paint;              ///< the name of the flake material written
+    double flakes_per_pixel = 0.0;   ///< expected flakes a pixel sees at the look_at distance
+    std::string ground;              ///< the ground plane's path
+    std::string paint;               ///< the name of the flake material written
+    std::vector<std::string> notes;  ///< what reading the model left out, to be said
 };
 
 /** The model's bounds in its own units: every vertex of an OBJ or PLY, or of every object of a
  *  glTF scene placed by its node transforms. Throws SpangleError naming the absolute path when
- *  the model is missing or unreadable. */
-Box model_bounds(const std::string& model);
+ *  the model is missing or unreadable. What the readers left out (faces skipped, a glTF's
+ *  dropped extensions) is added to `notes`, ready to print. */
+Box model_bounds(const std::string& model, std::vector<std::string>* notes = nullptr);
 
 /** Writes the scene (and its ground plane PLY) for `r`. Paths in the scene are relative to its
  *  folder where they can be, else absolute. Throws SpangleError when the model or the map is

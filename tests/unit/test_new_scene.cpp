@@ -141,6 +141,25 @@ TEST(NewScene, ModelsOfNoSizeFlatOrHugeGiveScenesThatLoadOrAClearError) {
     EXPECT_FALSE(fs::exists(dir.file("huge.toml")));
 }
 
+TEST(NewScene, WhatReadingTheModelLeftOutIsReported) {
+    // A model's skipped faces were said when the scene rendered, not by `spangle new`.
+    test::TempDir dir("new_scene_notes");
+    std::ofstream(dir.file("edges.obj")) << "v 0 0 0\nv 1 0 0\nv 0 1 1\nf 1 2 3\nf 1 2\n";
+    NewSceneRequest req;
+    req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+    req.model = dir.file("edges.obj");
+    req.output = dir.file("edges.toml");
+    const NewSceneReport rep = write_new_scene(req);
+    ASSERT_EQ(rep.notes.size(), 1u);
+    EXPECT_EQ(rep.notes[0], "mesh '" + dir.file("edges.obj") +
+                                "': 1 face of fewer than 3 corners (points or edges, not "
+                                "surfaces) skipped");
+    write_box_obj(dir.file("box.obj"), Vec3(0.0f), Vec3(1.0f));
+    req.model = dir.file("box.obj");
+    req.output = dir.file("box.toml");
+    EXPECT_TRUE(write_new_scene(req).notes.empty());
+}
+
 TEST(NewScene, AMissingModelNamesTheAbsolutePathItLookedFor) {
     test::TempDir dir("new_scene_missing");
     NewSceneRequest req;
