@@ -17,6 +17,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <mutex>
 
 #include "color/exr_header.h"
@@ -192,6 +193,40 @@ std::vector<std::string> oiio_module_locations() {
     return out;
 }
 
+namespace {
+
+/** Throws when `path` is a PNG file whose chunks run past its end or that has no IEND chunk (a
+ *  copy or download cut short): libpng printed its own lines for it on stderr beside the error
+ *  ("libpng error: IDAT: Read error: hit end of file"). Chunk headers only; nothing decoded. */
+void check_png_whole(const std::string& path, const char* what) {
+    std::ifstream in(path, std::ios::binary);
+    unsigned char b[8];
+    static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+    if (!in.read(reinterpret_cast<char*>(b), 8) || std::memcmp(b, kSignature, 8) != 0) return;
+    std::error_code ec;
+    const uintmax_t size = fs::file_size(path, ec);
+    if (ec) return;
+    uintmax_t at = 8;
+    while (at + 8 <= size) {
+        in.seekg(static_cast<std::streamoff>(at));
+        if (!in.read(reinterpret_cast<char*>(b), 8)) return;
+        const uintmax_t length = (uintmax_t{b[0]} << 24) | (uintmax_t{b[1]} << 16) |
+                                 (uintmax_t{b[2]} << 8) | uintmax_t{b[3]};
+        const std::string type(reinterpret_cast<const char*>(b + 4), 4);
+        if (at + 12 + length > size)
+            throw_error(
+                "cannot read {} '{}': the PNG file is cut short ({} bytes; its {} chunk "
+                "at byte {} needs {})",
+                what, path, size, type, at, at + 12 + length);
+        if (type == "IEND") return;
+        at += 12 + length;
+    }
+    throw_error("cannot read {} '{}': the PNG file is cut short ({} bytes, and no IEND chunk)",
+                what, path, size);
+}
+
+}  // namespace
+
 /** Throws "cannot read <what> '<path>': <the system's reason>" when the file cannot be opened
  *  for reading (the readers said "Could not open file", not why: permission denied). */
 void check_readable(const std::string& path, const char* what) {
@@ -279,6 +314,7 @@ std::vector<float> read_image(const std::string& path, int max_channels, ImageHe
         return pixels;
     }
     const OiioModule& m = usable_oiio(path, what);
+    check_png_whole(path, what);
     char error[1024] = "";
     if (m.header(path.c_str(), &header.width, &header.height, &header.channels, error,
                  sizeof(error)) != 0)

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <limits>
 
 #include "color/image_io.h"
@@ -217,6 +218,33 @@ TEST(ImageInput, ExrIsReadDirectlyAndOtherFormatsThroughTheOiioModule) {
     ASSERT_EQ(from_hdr.size(), rgb.size());
     for (std::size_t i = 0; i < rgb.size(); ++i)
         EXPECT_NEAR(from_hdr[i], rgb[i], 0.01f * rgb[i]) << "RGBE keeps 8 bits of mantissa";
+}
+
+TEST(ImageInput, APngCutShortIsSaidBeforeLibpngReadsIt) {
+    // libpng printed "libpng error: IDAT: Read error: hit end of file" on stderr beside the
+    // error, and the error itself held three of its lines.
+    test::TempDir dir("image_png_cut");
+    std::ifstream in(test::asset_dir() + "/textures/beetle_livery.png", std::ios::binary);
+    const std::string bytes{std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    ASSERT_GT(bytes.size(), 3000u);
+    ImageHeader h;
+    std::ofstream(dir.file("whole.png"), std::ios::binary) << bytes;
+    EXPECT_FALSE(read_image(dir.file("whole.png"), 3, h).empty());
+    std::ofstream(dir.file("cut.png"), std::ios::binary) << bytes.substr(0, 3000);
+    try {
+        read_image(dir.file("cut.png"), 3, h, "texture");
+        FAIL() << "a PNG cut short was read";
+    } catch (const SpangleError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("cannot read texture '" + dir.file("cut.png") +
+                            "': the PNG file is cut short (3000 bytes; its IDAT chunk"),
+                  std::string::npos)
+            << what;
+        EXPECT_EQ(what.find('\n'), std::string::npos) << what;
+    }
+    // Cut just before its IEND chunk: every chunk whole, but no end.
+    std::ofstream(dir.file("no_end.png"), std::ios::binary) << bytes.substr(0, bytes.size() - 12);
+    EXPECT_THROW(read_image(dir.file("no_end.png"), 3, h, "texture"), SpangleError);
 }
 
 TEST(ImageInput, LuminanceChromaExrKeepsItsColour) {
