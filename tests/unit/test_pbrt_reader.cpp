@@ -334,11 +334,11 @@ Shape "loopsubdiv" "integer levels" 2 "integer indices" [0 1 2 0 2 3 0 3 1 1 3 2
     EXPECT_EQ(s.cage->face_count(), 4u);
     EXPECT_EQ(s.options.scheme, SubdivOptions::Scheme::Loop);
     EXPECT_EQ(s.options.level, 2);
-    // A cage index beyond its points is an error at the shape.
+    // A cage index beyond its points is an error at its parameter.
     const std::string e = error_of(f,
                                    "Shape \"loopsubdiv\" \"integer indices\" [0 1 7] "
                                    "\"point3 P\" [0 0 0 1 0 0 0 1 0]\n");
-    EXPECT_NE(e.find("scene.pbrt:1:1: error: loopsubdiv: index 7"), std::string::npos) << e;
+    EXPECT_NE(e.find("scene.pbrt:1:20: error: loopsubdiv: index 7"), std::string::npos) << e;
 }
 
 TEST(PbrtReader, AByteOrderMarkAndOldMacLineEndsAreText) {
@@ -866,7 +866,7 @@ TEST(PbrtReader, SyntaxErrorsAreAtFileLineColumn) {
     has("Shape \"sphere\" \"quaternion q\" [1]\n",
         "scene.pbrt:1:16: error: unknown parameter type 'quaternion'");
     has("Shape \"trianglemesh\" \"point3 P\" [0 0 0 1 0 0] \"integer indices\" [0 1 2]\n",
-        "scene.pbrt:1:1: error: trianglemesh: index 2");
+        "scene.pbrt:1:47: error: trianglemesh: index 2");
     has("LookAt 0 0 0 0 0 0 0 1 0\n", "scene.pbrt:1:1: error: LookAt: the eye must differ");
     has("Include \"missing.pbrt\"\n", "scene.pbrt:1:1: error:");
 }

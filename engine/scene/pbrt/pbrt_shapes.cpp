@@ -32,6 +32,13 @@ bool flip_faces(const Reader& r) {
     return r.gs.reverse != (r.gs.ctm[0].determinant3() < 0.0);
 }
 
+/** Where parameter `name` is written, else `loc` (the shape's): errors in a value are said at
+ *  it, as a uv's were (a normal's or an index's were at the line's first column). */
+FileLoc param_at(const ParamList& p, std::string_view name, const FileLoc& loc) {
+    const Param* param = p.find(name);
+    return param ? param->loc : loc;
+}
+
 /** Checks the vertex indices of a mesh: `per` per face, each within `n` vertices. */
 std::vector<uint32_t> checked_indices(const std::vector<double>& idx, std::size_t per,
                                       std::size_t n, const char* what, const FileLoc& loc) {
@@ -53,19 +60,20 @@ void read_vertices(const Reader& r, const ParamList& p, const char* what, const 
                    TriangleMesh& m) {
     const std::vector<double>& P = p.numbers("P", {"point3"});
     if (P.empty() || P.size() % 3 != 0)
-        throw_error(loc, "{}: \"point3 P\" must hold x y z per vertex, got {} numbers", what,
-                    P.size());
+        throw_error(param_at(p, "P", loc),
+                    "{}: \"point3 P\" must hold x y z per vertex, got {} numbers", what, P.size());
     m.positions.assign(P.begin(), P.end());
     for (std::size_t i = 0; i < P.size(); ++i)
         if (!std::isfinite(m.positions[i]))
-            throw_error(loc, "{}: \"point3 P\" value #{} ({}) is beyond a float's range", what, i,
-                        P[i]);
+            throw_error(param_at(p, "P", loc),
+                        "{}: \"point3 P\" value #{} ({}) is beyond a float's range", what, i, P[i]);
     const std::size_t n = P.size() / 3;
     const std::vector<double>& N = p.numbers("N", {"normal3"});
     if (!N.empty()) {
         if (N.size() != P.size())
-            throw_error(loc, "{}: \"normal N\" must hold one normal per vertex ({}), got {}", what,
-                        n, N.size() / 3);
+            throw_error(param_at(p, "N", loc),
+                        "{}: \"normal N\" must hold one normal per vertex ({}), got {}", what, n,
+                        N.size() / 3);
         m.normals.resize(N.size());
         for (std::size_t v = 0; v < n; ++v) {
             const Vec3 nv(static_cast<float>(N[3 * v]), static_cast<float>(N[3 * v + 1]),
@@ -113,7 +121,7 @@ Made trianglemesh(Reader& r, const ParamList& p, const FileLoc& loc) {
     const std::size_t n = m->vertex_count();
     std::vector<double> idx = p.numbers("indices", {"integer"});
     if (idx.empty() && n == 3) idx = {0, 1, 2};  // v4: three vertices need no indices
-    m->indices = checked_indices(idx, 3, n, "trianglemesh", loc);
+    m->indices = checked_indices(idx, 3, n, "trianglemesh", param_at(p, "indices", loc));
     orient_like_pbrt(r, *m);
     return {InlineMeshShape{m, loc}, m};
 }
@@ -169,7 +177,7 @@ Made bilinearmesh(Reader& r, const ParamList& p, const FileLoc& loc) {
     std::vector<double> idx = p.numbers("indices", {"integer"});
     if (idx.empty() && in.vertex_count() == 4) idx = {0, 1, 2, 3};
     const std::vector<uint32_t> quads =
-        checked_indices(idx, 4, in.vertex_count(), "bilinearmesh", loc);
+        checked_indices(idx, 4, in.vertex_count(), "bilinearmesh", param_at(p, "indices", loc));
     auto m = std::make_shared<TriangleMesh>();
     m->source = in.source;
     for (std::size_t q = 0; q < quads.size(); q += 4) bilinear_patch(in, &quads[q], *m);
@@ -210,10 +218,12 @@ Made loopsubdiv(Reader& r, const ParamList& p, const FileLoc& loc) {
     cage->positions.assign(P.begin(), P.end());
     for (std::size_t i = 0; i < P.size(); ++i)
         if (!std::isfinite(cage->positions[i]))
-            throw_error(loc, "loopsubdiv: \"point3 P\" value #{} ({}) is beyond a float's range", i,
+            throw_error(param_at(p, "P", loc),
+                        "loopsubdiv: \"point3 P\" value #{} ({}) is beyond a float's range", i,
                         P[i]);
     const std::vector<uint32_t> idx =
-        checked_indices(p.numbers("indices", {"integer"}), 3, P.size() / 3, "loopsubdiv", loc);
+        checked_indices(p.numbers("indices", {"integer"}), 3, P.size() / 3, "loopsubdiv",
+                        param_at(p, "indices", loc));
     cage->face_vertices.assign(idx.begin(), idx.end());
     cage->face_sizes.assign(idx.size() / 3, 3);
     if (flip_faces(r))
