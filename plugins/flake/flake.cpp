@@ -93,7 +93,6 @@ void warn_inert(const SpangleParams_v3* p, const SpangleHost_v3* host) {
 
 void* flake_create(const SpangleParams_v3* p, const SpangleHost_v3* host, char* error,
                    uint32_t cap) {
-    warn_inert(p, host);
     auto* m = new (std::nothrow) Material;
     if (!m) {
         set_error(error, cap, "out of memory");
@@ -105,6 +104,9 @@ void* flake_create(const SpangleParams_v3* p, const SpangleHost_v3* host, char* 
         delete m;
         return nullptr;
     }
+    // Only for a material made: a refused one's error says what to change (film_thickness_min
+    // alone was warned inert, then refused for the same reason).
+    warn_inert(p, host);
     return m;
 }
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 #include "pipeline/frame.h"
@@ -458,6 +459,17 @@ intensity = 1
           at + "preset has no effect: the preset is the metal of conductor flakes"})
         EXPECT_NE(said.find(warning), std::string::npos) << warning << "\nin:\n" << said;
     EXPECT_EQ(said.find("material 'acting'"), std::string::npos) << said;
+    // A material the plugin refuses is not also warned of: film_thickness_min alone was said
+    // to have no effect, then refused for the same reason.
+    std::ifstream scene(dir.file("s.toml"));
+    std::string refused{std::istreambuf_iterator<char>(scene), std::istreambuf_iterator<char>()};
+    refused.replace(refused.find("params = { coat_ior"), 0,
+                    "params = { film_thickness_min = 300 }\n# ");
+    std::ofstream(dir.file("refused.toml")) << refused;
+    testing::internal::CaptureStderr();
+    EXPECT_THROW(session.load(dir.file("refused.toml")), SpangleError);
+    const std::string said_refused = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(said_refused.find("has no effect"), std::string::npos) << said_refused;
 }
 
 }  // namespace
