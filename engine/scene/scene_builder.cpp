@@ -784,6 +784,14 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
             "{}: the scene has no light (no light, no emitting object, a black environment): "
             "it renders black",
             scene.path));
+    // Nothing to see: an empty export (a glTF of no meshes, an OBJ's objects all dropped) gave
+    // only the background, with notes about the camera and the lights.
+    if (scene.objects.empty())
+        info.notes.push_back(fmt::format(
+            "{}: the scene has no objects: only {} shows", scene.path,
+            lit && registry.count<Environment>() + registry.count<EnvironmentMapFile>() > 0
+                ? "the environment"
+                : "the background"));
     return info;
 }
 

@@ -223,6 +223,25 @@ TEST(SceneBuilder, AHandMadeDescriptionBuildsTheRegistryOfItsToml) {
     EXPECT_EQ(a.notes, b.notes);
 }
 
+TEST(SceneBuilder, ASceneWithNoObjectsIsSaid) {
+    // An empty export (a glTF of no meshes) rendered its background with notes about the camera
+    // and the lights only.
+    const auto notes_of = [](const SceneDescription& d) {
+        ColorConfig color = test::shipped_config();
+        ecs::Registry registry;
+        std::string all;
+        for (const std::string& n : build_scene(d, color, registry, 0.0).notes) all += n + "\n";
+        return all;
+    };
+    SceneDescription d = hand_made_scene();
+    ASSERT_FALSE(d.objects.empty());
+    EXPECT_EQ(notes_of(d).find("no objects"), std::string::npos) << notes_of(d);
+    d.objects.clear();
+    EXPECT_NE(notes_of(d).find("hand-made: the scene has no objects: only the environment shows"),
+              std::string::npos)
+        << notes_of(d);
+}
+
 TEST(SceneBuilder, ErrorsPointWhereTheDescriptionSaysAndAMatrixPlacesAnObject) {
     SceneDescription d = hand_made_scene();
     d.objects[0].material = "gold";
