@@ -637,6 +637,30 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
                 big = std::max(big, std::fabs(m.m[r][c]));
                 big_inv = std::max(big_inv, std::fabs(inv.m[r][c]));
             }
+        // Axes nearly parallel: the determinant, a difference of products of the entries, is
+        // lost in their float rounding (rows [1,1,1], [1,1,1.0001], [1,1.0001,1]: 1e-8 against
+        // products of 1), so the float inverse Embree makes is not finite whatever ours is,
+        // and the render aborted. The rounding is relative to the sum of the products' sizes
+        // (the permanent of |m|): 1e-5 of it leaves the float determinant within about 1%. A
+        // scale, a rotation or a shear, however strong, keeps the two equal or close.
+        double det = 0.0, products = 0.0;
+        {
+            const auto a = [&](int r, int c) { return static_cast<double>(m.m[r][c]); };
+            constexpr int kPerm[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1},
+                                         {0, 2, 1}, {1, 0, 2}, {2, 1, 0}};
+            for (int k = 0; k < 6; ++k) {
+                const double t = a(0, kPerm[k][0]) * a(1, kPerm[k][1]) * a(2, kPerm[k][2]);
+                det += k < 3 ? t : -t;
+                products += std::fabs(t);
+            }
+        }
+        if (std::isfinite(products) && products > 0.0 && std::fabs(det) < 1e-5 * products)
+            throw_error(d.loc,
+                        "{}: its placement's axes are nearly parallel (its matrix's determinant "
+                        "is {:.3g} of the size of the products it is the difference of; at least "
+                        "1e-5 is needed for rays to follow it): it flattens the object almost "
+                        "into a plane or a line",
+                        d.what, std::fabs(det) / products);
         if (!(big <= kMaxPlacementScale && big_inv <= kMaxPlacementScale) ||
             !std::isfinite(m.determinant()))
             throw_error(d.loc,
