@@ -182,7 +182,7 @@ void resolve_surfaces(const RenderJob& job, Workspace& ws, Sink& sink, uint32_t 
         if (!placed.motion.empty()) moved = instance_at(placed, p.time[k]);
         const Instance& inst = placed.motion.empty() ? placed : moved;
         const TriangleMesh& mesh = w.geometry->mesh(inst.mesh);
-        p.surf[k] = surface_at(mesh, inst, hit, p.ray[k].d);
+        p.surf[k] = surface_at(mesh, inst, hit, p.ray[k].o, p.ray[k].d);
         if (bounce == 0)
             sink.first_surface(k, p.surf[k].p_obj, inst.object, inst.material,
                                inst.shadow_catcher != 0);

@@ -311,7 +311,7 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
         const float weight = std::fabs(b.wiz[j]) * mis / ls.pdf;
         ws.shadow_contrib.push_back(p.throughput[i] * f * ls.radiance * weight);
         sink.shadow_query(bounce, j, i, p.throughput[i], f, ls.radiance, weight, ls.group);
-        const Vec3 o = offset_origin(sp.p, side, scale);
+        const Vec3 o = offset_origin(sp.p, side, scale) + side * sp.p_error;
         // A light at a finite distance: the shadow ray runs from the offset origin to the light's
         // point itself and stops just short of it. Along wi from the offset origin it would pass
         // beside that point, and near a sphere light's (or any emitter's) silhouette meet the

@@ -26,14 +26,21 @@ struct SurfacePoint {
      *  the rest pose (the same barycentrics on the rest triangle). */
     Vec3 p_obj, ng_obj;
     Vec3 dpdx_obj, dpdy_obj;  ///< footprint axes in object space (set by object_footprint)
+    /** How far off its triangle's plane a ray leaving p may find that triangle again, beyond
+     *  what offset_origin's ulps of p's own coordinates cover: Embree's float intersection is
+     *  as precise as the triangle's vertices' coordinates, not the hit's. 0 except on
+     *  triangles much larger than the hit's coordinates (a floor scaled to 1e7). */
+    float p_error = 0;
 };
 
 /** A shading frame around unit normal n: s is `along` made orthogonal to n and normalised
  *  (any tangent when that is degenerate), t = n x s. */
 void shading_frame(Vec3 n, Vec3 along, Vec3& s, Vec3& t);
 
-/** Resolves a hit on `inst` (whose mesh is `mesh`) to a surface point oriented towards -d. */
-SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hit& h, Vec3 d);
+/** Resolves a hit of the ray from o along unit d on `inst` (whose mesh is `mesh`) to a surface
+ *  point oriented towards -d. */
+SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hit& h, Vec3 o,
+                        Vec3 d);
 
 /** Fills sp's footprint. With has_diff, from the differential rays hitting sp's tangent plane
  *  (has_diff is cleared if they miss it); otherwise a square of world width `widened` along

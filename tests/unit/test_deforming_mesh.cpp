@@ -105,7 +105,7 @@ TEST(RestPose, ObjectSpaceInputsAreTheRestPosesAtTheHit) {
     Hit h;
     h.b1 = 0.25f;
     h.b2 = 0.5f;
-    SurfacePoint sp = surface_at(m, inst, h, {0, 0, -1});
+    SurfacePoint sp = surface_at(m, inst, h, {0, 0, 5}, {0, 0, -1});
     EXPECT_NEAR(sp.p.x, 0.25f * 2 + 0.5f * 0.5f, 1e-6f);
     EXPECT_NEAR(sp.p.z, 1.0f, 1e-6f);
     EXPECT_NEAR(sp.p_obj.x, 0.25f, 1e-6f);

@@ -116,7 +116,7 @@ TEST(Subdivision, UvDerivativesFiniteAtExtraordinaryVertices) {
         Hit h;
         h.prim = static_cast<uint32_t>(t);
         h.b1 = h.b2 = 1.0f / 3.0f;
-        const SurfacePoint sp = surface_at(m, inst, h, {0, 0, -1});
+        const SurfacePoint sp = surface_at(m, inst, h, {0, 0, 5}, {0, 0, -1});
         ASSERT_TRUE(is_finite(sp.dpdu) && is_finite(sp.dpdv)) << "triangle " << t;
         ASSERT_GT(sp.uv_area, 0.0f) << "triangle " << t;
         const Vec3 p = pos(m, m.indices[3 * t]);
