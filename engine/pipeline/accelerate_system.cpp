@@ -1,7 +1,10 @@
 // The accelerate system: every object with a mesh placed as an instance, and the Embree scene
 // over the instances and the lights' shapes (quads, spheres).
 
+#include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
 
 #include "core/memory.h"
 #include "pipeline/systems.h"
@@ -63,6 +66,101 @@ std::vector<Instance> place_instances(const ecs::Registry& r, uint32_t loaded_co
     return out;
 }
 
+Vec3 lower(Vec3 a, Vec3 b) {
+    return Vec3(std::min(a.x, b.x), std::min(a.y, b.y), std::min(a.z, b.z));
+}
+Vec3 upper(Vec3 a, Vec3 b) {
+    return Vec3(std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z));
+}
+
+/** Embree's float coordinates: it leaves out geometry beyond this from the origin (its
+ *  FLT_LARGE), in object space as in the world. */
+constexpr float kEmbreeReach = 1.8e18f;
+
+/** Checks each placed mesh against what float coordinates can carry: beyond Embree's reach it
+ *  is an error (the object vanished without a word); an object small against its distance
+ *  from the origin is warned of (at 1e6 a unit sphere's points lie 1/16 apart and rays leave
+ *  it by 256 of those steps: its shading broke up in stripes). `instances` are in the order of
+ *  the TriangleMeshRef pool. */
+void check_reach(const ecs::Registry& r, const std::vector<Instance>& instances,
+                 const GeometryStore& geometry, const Logger* log) {
+    const auto* meshes = r.find_pool<TriangleMeshRef>();
+    if (!meshes) return;
+    // Each mesh's own bounds, once.
+    std::vector<std::array<Vec3, 2>> bounds(geometry.meshes.size());
+    std::vector<uint8_t> known(geometry.meshes.size(), 0);
+    std::size_t coarse = 0;  // objects small against their distance from the origin
+    std::string first;       // the first of them, said
+    for (std::size_t i = 0; i < meshes->size() && i < instances.size(); ++i) {
+        const Instance& inst = instances[i];
+        if (inst.hidden || inst.mesh >= geometry.meshes.size()) continue;
+        const TriangleMesh& mesh = *geometry.meshes[inst.mesh];
+        if (mesh.vertex_count() == 0) continue;
+        std::array<Vec3, 2>& b = bounds[inst.mesh];
+        if (!known[inst.mesh]) {
+            b = {Vec3(std::numeric_limits<float>::max()), Vec3(-std::numeric_limits<float>::max())};
+            for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+                const Vec3 p = mesh.position(static_cast<uint32_t>(v));
+                b[0] = lower(b[0], p);
+                b[1] = upper(b[1], p);
+            }
+            known[inst.mesh] = 1;
+        }
+        // The world box of the placed box's corners, over the shutter's steps.
+        Vec3 lo(std::numeric_limits<float>::max()), hi(-std::numeric_limits<float>::max());
+        const auto place = [&](const Affine& m) {
+            for (int c = 0; c < 8; ++c) {
+                const Vec3 p =
+                    m.apply_point(Vec3((c & 1) ? b[1].x : b[0].x, (c & 2) ? b[1].y : b[0].y,
+                                       (c & 4) ? b[1].z : b[0].z));
+                lo = lower(lo, p);
+                hi = upper(hi, p);
+            }
+        };
+        if (inst.motion.empty()) place(inst.to_world);
+        for (const Affine& m : inst.motion) place(m);
+        const auto reach = [](Vec3 a, Vec3 z) {
+            return std::max({std::fabs(a.x), std::fabs(a.y), std::fabs(a.z), std::fabs(z.x),
+                             std::fabs(z.y), std::fabs(z.z)});
+        };
+        const ecs::Entity e = meshes->entities()[i];
+        const bool has_info = r.has<ObjectInfo>(e);
+        const ObjectInfo info = has_info ? r.get<ObjectInfo>(e) : ObjectInfo{};
+        const FileLoc at = info.loc;
+        const std::string name =
+            !info.name.empty() ? fmt::format("object '{}'", info.name)
+                               : fmt::format("[[object]] #{}", has_info ? info.index + 1 : i + 1);
+        const float own = reach(b[0], b[1]), world = reach(lo, hi);
+        if (!(own < kEmbreeReach) || !(world < kEmbreeReach))
+            throw_error(at,
+                        "{}: its points reach {:.3g} from the origin{}, and the ray tracer "
+                        "(Embree) leaves out geometry beyond {:.2g}: scale the scene down",
+                        name, std::max(own, world), own < kEmbreeReach ? "" : " in its own file",
+                        kEmbreeReach);
+        const float extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+        // Rays leave a surface by 256 float steps at its coordinates: past twice its size, its
+        // shading and shadows break up (a unit sphere at 1e6 shaded in stripes; at 1e5 it is
+        // fine).
+        const float step = std::nextafter(world, std::numeric_limits<float>::max()) - world;
+        if (extent > 0.0f && 256.0f * step > 2.0f * extent) {
+            if (coarse == 0)
+                first = fmt::format(
+                    "{}: {} is {:.3g} across but lies {:.3g} from the origin, "
+                    "where float coordinates are {:.3g} apart",
+                    at.str(), name, extent, world, step);
+            ++coarse;
+        }
+    }
+    if (log && coarse > 0)
+        log->warn(
+            "{}{}: its shape, shading and shadows break up; move the scene nearer the "
+            "origin",
+            first,
+            coarse > 1
+                ? fmt::format(" (and {} more object{} so)", coarse - 1, coarse == 2 ? "" : "s")
+                : std::string());
+}
+
 /** Refuses a first BVH build that would not fit in memory: Embree's BVH, with its build-time
  *  peak, takes about 150 bytes per triangle on top of the meshes already loaded. */
 void check_bvh_memory(const GeometryStore& geometry) {
@@ -88,6 +186,7 @@ void system_accelerate(ecs::Registry& r, World& w) {
     if (const auto* m = w.products.find<SubdividedMeshes>())
         out.geometry.meshes.insert(out.geometry.meshes.end(), m->meshes.begin(), m->meshes.end());
     out.instances = place_instances(r, loaded);
+    check_reach(r, out.instances, out.geometry, w.log);
     std::vector<Vec3> quads;
     std::vector<uint8_t> quad_through;  // per quad: shadow rays pass it
     if (const auto* pool = r.find_pool<QuadLight>())

@@ -132,5 +132,53 @@ TEST(FarGeometry, AFloorFarLargerThanTheSceneShadesAsASmallOneDoes) {
         }
 }
 
+TEST(FarGeometry, AnObjectSmallAgainstItsDistanceFromTheOriginIsSaid) {
+    // A unit sphere moved to x = 1e6 with its scene shaded in stripes (its points 1/16 apart,
+    // rays leaving it by 16 units), without a word; at 1e5 it renders as at the origin.
+    test::TempDir dir("far_object");
+    const auto said = [&](double x) {
+        std::ofstream(dir.file("scene.toml")) << fmt::format(
+            R"([render]
+width = 8
+height = 8
+spp = 1
+
+[camera]
+position = [{0}, 1, 6]
+look_at = [{0}, 0.7, 0]
+
+[[material]]
+name = "m"
+plugin = "smooth"
+model = "diffuse"
+
+[[object]]
+name = "ball"
+mesh = "{1}/meshes/sphere.obj"
+material = "m"
+translate = [{0}, 0.7, 0]
+scale = 0.7
+
+[[light]]
+type = "distant"
+direction = [1, 2, 1]
+intensity = 2
+)",
+            x, test::asset_dir());
+        RenderOptions options;
+        options.threads = 1;
+        const Logger log{LogLevel::Warning};
+        Session session({}, test::shipped_ocio(), options, log);
+        testing::internal::CaptureStderr();
+        session.load(dir.file("scene.toml"));
+        return testing::internal::GetCapturedStderr();
+    };
+    EXPECT_NE(said(1e6).find("object 'ball' is 1.4 across but lies 1e+06 from the origin, where "
+                             "float coordinates are 0.0625 apart"),
+              std::string::npos)
+        << said(1e6);
+    EXPECT_EQ(said(1e5).find("from the origin"), std::string::npos) << said(1e5);
+}
+
 }  // namespace
 }  // namespace spangle
