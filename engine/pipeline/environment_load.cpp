@@ -75,7 +75,18 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
             rgb[3 * i + static_cast<std::size_t>(c)] = v;
         }
     color.to_working(file.color_space, rgb.data(), n);
-    for (float& v : rgb) v = std::max(0.0f, v) * file.intensity;  // gamut clipping of negatives
+    // Gamut clipping of negatives; the brightest value times the intensity within the 1e18 a
+    // sample can carry, as a colour's is (a map at intensity 1e30 came out one flat 1.15e18,
+    // a map with a 1e9 texel all black).
+    float most = 0.0f;
+    for (const float v : rgb) most = std::max(most, v);
+    const double brightest = static_cast<double>(most) * static_cast<double>(file.intensity);
+    if (!(brightest <= 1e18))
+        throw_error(file.loc,
+                    "environment map '{}': its brightest value {:.4g} times intensity {:.4g} is "
+                    "{:.4g}, beyond 1e18, the most a sample can carry",
+                    file.path, most, file.intensity, brightest);
+    for (float& v : rgb) v = std::max(0.0f, v) * file.intensity;
     return EnvironmentMap(std::move(rgb), spec.width, spec.height, file.rotation_deg,
                           file.projection, file.to_map);
 }

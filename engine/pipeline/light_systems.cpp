@@ -10,6 +10,13 @@
 namespace spangle {
 namespace {
 
+/** The length of v, in double: a light's edges of 2e10 have a cross product whose square is
+ *  beyond a float (its area was inf and its normal 0: the light was dropped without a word). */
+float length_of(Vec3 v) {
+    return static_cast<float>(
+        std::hypot(static_cast<double>(v.x), static_cast<double>(v.y), static_cast<double>(v.z)));
+}
+
 /** One emitter per world-space triangle of an emissive mesh, facing its authored normals (or
  *  both ways, when two-sided). */
 void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emission& emission,
@@ -25,6 +32,10 @@ void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emissio
         const Vec3 c = cross(a.e1, a.e2);
         a.area = 0.5f * length(c);
         a.n = a.area > 0.0f ? normalize(c) : Vec3(0, 0, 1);
+        if (std::isinf(a.area)) {
+            a.area = 0.5f * length_of(c);
+            a.n = c / (2.0f * a.area);
+        }
         if (!mesh.normals.empty()) {
             // The emitting side follows the authored normals, as shading does.
             Vec3 sum(0.0f);
@@ -64,6 +75,10 @@ void system_area_lights(ecs::Registry& r, World& w) {
             const Vec3 c = cross(q.edge1, q.edge2);
             a.area = length(c);
             a.n = normalize(c);
+            if (std::isinf(a.area)) {
+                a.area = length_of(c);
+                a.n = c / a.area;
+            }
             a.radiance = q.radiance;
             a.parallelogram = true;
             a.two_sided = q.two_sided;

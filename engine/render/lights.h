@@ -5,7 +5,7 @@
 //
 //   area     triangles of emissive meshes (solid-angle sampling, Arvo 1995, where stable; area
 //            sampling otherwise) and quads (area sampling); emit from their front face
-//   sphere   cone of directions subtended by the sphere (area sampling from inside)
+//   sphere   cone of directions subtended by the sphere; it emits outward (none inside it)
 //   point    and spot: delta positions, intensity in W/sr
 //   distant  a delta direction (irradiance), or a disk of angular radius r (uniform radiance
 //            E / (pi sin^2 r), sampled uniformly in its cone): a sun

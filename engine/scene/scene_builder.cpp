@@ -220,7 +220,8 @@ Camera still_camera(const CameraDesc& d) {
         const std::array<double, 4>& w = *d.screen;
         for (double v : w)
             if (!(std::fabs(v) <= 1e6))
-                throw_error(d.screen_loc, "the screen window must be finite, got [{}]",
+                throw_error(d.screen_loc,
+                            "the screen window's bounds must lie within [-1e6, 1e6], got [{}]",
                             fmt::join(w, ", "));
         if (!(w[0] < w[1]) || !(w[2] < w[3]))
             throw_error(d.screen_loc,
@@ -808,14 +809,25 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
             "{}: the scene has no light (no light, no emitting object, a black environment): "
             "it renders black",
             scene.path));
-    // Nothing to see: an empty export (a glTF of no meshes, an OBJ's objects all dropped) gave
-    // only the background, with notes about the camera and the lights.
-    if (scene.objects.empty())
-        info.notes.push_back(fmt::format(
-            "{}: the scene has no objects: only {} shows", scene.path,
-            lit && registry.count<Environment>() + registry.count<EnvironmentMapFile>() > 0
-                ? "the environment"
-                : "the background"));
+    // The camera inside a sphere light: it emits outward, so from within it is black and lights
+    // nothing (a "dome" made of one).
+    for (std::size_t i = 0; i < scene.lights.size(); ++i)
+        if (const auto* sphere = std::get_if<SphereLightDesc>(&scene.lights[i].shape)) {
+            const Vec3 d = scene.camera.position - sphere->center;
+            const double dist = std::hypot(double(d.x), double(d.y), double(d.z));
+            if (dist < sphere->radius)
+                info.notes.push_back(fmt::format(
+                    "{}: the camera is inside this sphere light, which emits outward: from within "
+                    "it is black and lights nothing (for light all around, use [environment])",
+                    scene.lights[i].loc.str()));
+        }
+    // Nothing to see at all: no objects and no environment (an environment alone is a
+    // panorama of it, rendered on purpose).
+    if (scene.objects.empty() && !scene.environment)
+        info.notes.push_back(
+            fmt::format("{}: the scene has no objects and no environment: the image shows only "
+                        "the lights seen directly",
+                        scene.path));
     return info;
 }
 

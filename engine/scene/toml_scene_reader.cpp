@@ -264,7 +264,15 @@ EnvironmentDesc read_environment(const ReadContext& ctx, TableReader& r) {
             throw_error(r.loc("projection"),
                         "unknown projection '{}' (valid: latlong, latlong_z_up, equal_area)",
                         projection);
-        if (const std::optional<Affine> frame = read_matrix(r, "frame")) m.to_world = *frame;
+        if (const std::optional<Affine> frame = read_matrix(r, "frame")) {
+            // (Taken without a word and ignored: Spangle's own layout is turned by 'rotation'.)
+            if (m.projection == MapProjection::LatLongYUp)
+                throw_error(r.loc("frame"),
+                            "'frame' places a map of projection \"latlong_z_up\" or "
+                            "\"equal_area\" (pbrt's layouts); a \"latlong\" map is turned by "
+                            "'rotation'");
+            m.to_world = *frame;
+        }
         e.map = std::move(m);
     } else {
         // The map's own keys without a map: said as such (they were "unknown keys", though the

@@ -423,6 +423,21 @@ TEST(GltfReader, WithoutCameraOrLightTheDefaultsFrameTheBoundsAndLightTheStudio)
     EXPECT_FALSE(has_note(lit, "default studio light"));
     ASSERT_TRUE(lit.environment && lit.environment->map);
     EXPECT_EQ(lit.environment->map->path, with_env.environment);
+    EXPECT_FALSE(has_note(d, "mesh")) << "it draws one";
+
+    // An export of nothing: said (the notes were of the camera and the light only).
+    std::ofstream(dir.file("empty.gltf"))
+        << R"({"asset":{"version":"2.0"},"nodes":[{"name":"nothing"}]})";
+    EXPECT_TRUE(has_note(read_gltf_scene(dir.file("empty.gltf"), {}),
+                         "the file has no meshes: the image shows only the background"));
+    GltfWriter empty;
+    const QuadAccessors unused = quad(empty);
+    empty.write_gltf(
+        dir.file("undrawn.gltf"),
+        fmt::format(R"("nodes":[{{"name":"nothing"}}],"meshes":[{{"primitives":[{}]}}])",
+                    quad_primitive(unused, -1)));
+    EXPECT_TRUE(has_note(read_gltf_scene(dir.file("undrawn.gltf"), {}),
+                         "no node of the scene draws a mesh"));
 }
 
 TEST(GltfReader, ANodeFlattenedOntoAPlaneIsDrawnFlat) {

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <fstream>
@@ -107,6 +108,49 @@ TEST(Render, PointLightOnLambertPlaneMatchesClosedForm) {
     const double expected = 2.0 / (1.5 * 1.5) / M_PI;
     for (std::size_t i = 0; i < r.image.size(); ++i)
         EXPECT_NEAR(r.image[i], expected, 1e-5 * expected + 1e-6);
+}
+
+TEST(Render, AQuadLightAsLargeAsASkyLightsTheFloorUnderIt) {
+    // Edges of 2e10: the cross product's square is beyond a float, so the light's area was inf
+    // and its normal 0, and it was dropped (black under every strategy); its densities squared
+    // to 0 in the power heuristic, whose weight was then 0 for both strategies. Under a light
+    // this large, a white floor reflects its radiance: L = albedo x 1 (the light covers the
+    // hemisphere but for 1e-10 radians).
+    test::TempDir dir("quad_sky");
+    std::string text = test::scene_text("quad_irradiance.toml");
+    test::replace_all(text, "../../assets/", test::asset_dir() + "/");
+    test::replace_all(text, "corner = [-1.0, 1.0, -1.0]", "corner = [-1e10, 1.0, -1e10]");
+    test::replace_all(text, "edge1 = [2.0, 0.0, 0.0]", "edge1 = [2e10, 0.0, 0.0]");
+    test::replace_all(text, "edge2 = [0.0, 0.0, 2.0]", "edge2 = [0.0, 0.0, 2e10]");
+    ASSERT_NE(text.find("2e10"), std::string::npos);
+    std::ofstream(dir.file("s.toml")) << text;
+    // (Not by next-event estimation alone: it samples the quad by area, and a sample lands
+    // within 10 m of the point once in 1e18.)
+    for (const Strategy strategy : {Strategy::Mis, Strategy::BsdfOnly}) {
+        const FrameResult f = render_path(dir.file("s.toml"), 2, 64, strategy);
+        double mean = 0.0;
+        for (const float v : f.image) mean += static_cast<double>(v);
+        mean /= static_cast<double>(f.image.size());
+        EXPECT_NEAR(mean, 1.0, 0.02) << "strategy " << static_cast<int>(strategy);
+    }
+}
+
+TEST(Render, ASphereLightLightsNothingInsideIt) {
+    // It emits outward: the camera and BSDF rays see it black from within, and next-event
+    // estimation lit the inside on its own (a white floor inside one: 0.5 with NEE alone, 0
+    // with BSDF sampling alone).
+    test::TempDir dir("sphere_inside");
+    std::string text = test::scene_text("point_plane.toml");
+    test::replace_all(text, "../../assets/", test::asset_dir() + "/");
+    test::replace_all(text, "type = \"point\"\nposition = [0, 1.5, 0]\nintensity = 2.0",
+                      "type = \"sphere\"\ncenter = [0, 0, 0]\nradius = 100\nintensity = 1");
+    ASSERT_NE(text.find("radius = 100"), std::string::npos);
+    std::ofstream(dir.file("s.toml")) << text;
+    for (const Strategy strategy : {Strategy::Mis, Strategy::NeeOnly, Strategy::BsdfOnly}) {
+        const FrameResult f = render_path(dir.file("s.toml"), 1, 16, strategy);
+        EXPECT_EQ(*std::max_element(f.image.begin(), f.image.end()), 0.0f)
+            << "strategy " << static_cast<int>(strategy);
+    }
 }
 
 TEST(Render, SmallAndFarSphereLightsGiveTheirClosedFormIrradiance) {

@@ -224,8 +224,7 @@ TEST(SceneBuilder, AHandMadeDescriptionBuildsTheRegistryOfItsToml) {
 }
 
 TEST(SceneBuilder, ASceneWithNoObjectsIsSaid) {
-    // An empty export (a glTF of no meshes) rendered its background with notes about the camera
-    // and the lights only.
+    // Nothing to see at all was not said; an environment alone is a panorama, on purpose.
     const auto notes_of = [](const SceneDescription& d) {
         ColorConfig color = test::shipped_config();
         ecs::Registry registry;
@@ -237,7 +236,28 @@ TEST(SceneBuilder, ASceneWithNoObjectsIsSaid) {
     ASSERT_FALSE(d.objects.empty());
     EXPECT_EQ(notes_of(d).find("no objects"), std::string::npos) << notes_of(d);
     d.objects.clear();
-    EXPECT_NE(notes_of(d).find("hand-made: the scene has no objects: only the environment shows"),
+    EXPECT_EQ(notes_of(d).find("no objects"), std::string::npos)
+        << "a panorama of the environment, on purpose: " << notes_of(d);
+    d.environment.reset();
+    EXPECT_NE(notes_of(d).find("hand-made: the scene has no objects and no environment"),
+              std::string::npos)
+        << notes_of(d);
+}
+
+TEST(SceneBuilder, ACameraInsideASphereLightIsSaid) {
+    // It emits outward: from within it is black and lights nothing.
+    const auto notes_of = [](const SceneDescription& d) {
+        ColorConfig color = test::shipped_config();
+        ecs::Registry registry;
+        std::string all;
+        for (const std::string& n : build_scene(d, color, registry, 0.0).notes) all += n + "\n";
+        return all;
+    };
+    SceneDescription d = hand_made_scene();
+    ASSERT_TRUE(std::holds_alternative<SphereLightDesc>(d.lights[0].shape));
+    EXPECT_EQ(notes_of(d).find("inside this sphere light"), std::string::npos) << notes_of(d);
+    std::get<SphereLightDesc>(d.lights[0].shape).radius = 10.0;  // around the camera, 5.8 away
+    EXPECT_NE(notes_of(d).find("the camera is inside this sphere light, which emits outward"),
               std::string::npos)
         << notes_of(d);
 }

@@ -492,6 +492,14 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
             punctual_light(ctx, n, v.Get("light").GetNumberAsInt(), motion);
         }
     }
+    // An export of nothing (no meshes, or none the scene's nodes draw) rendered the studio's
+    // background with notes about the camera and the lights only.
+    if (ctx.scene->objects.empty())
+        ctx.note("no meshes", FileLoc{ctx.path, 1, 1},
+                 ctx.model.meshes.empty()
+                     ? std::string("the file has no meshes: the image shows only the background")
+                     : std::string("no node of the scene draws a mesh: the image shows only the "
+                                   "background"));
     choose_camera(ctx, cameras, options, motions);
     bool emits = false;
     for (const ObjectDesc& o : ctx.scene->objects) emits = emits || o.emission.has_value();
