@@ -704,15 +704,35 @@ struct LightPut {
     ecs::Registry& registry;  ///< where
     ecs::Entity e;            ///< the light's entity
     Vec3 value;               ///< colour x intensity, working space
+    FileLoc loc;              ///< the light
+
+    /** Refuses a light whose shape reaches beyond what the ray tracer holds (it was black). */
+    void check_reach(double reach) const {
+        if (!(reach < 1.8e18))
+            throw_error(loc,
+                        "the light reaches {:.3g} from the origin, and the ray tracer (Embree) "
+                        "leaves out geometry beyond 1.8e18: scale the scene down",
+                        reach);
+    }
 
     /** A quad: its edges must span an area. */
     void operator()(const QuadLightDesc& d) const {
         if (!(length(cross(d.edge1, d.edge2)) > 0.0f))
             throw_error(d.edge2_loc, "quad light edges must span a non-zero area");
+        double reach = 0.0;
+        for (const Vec3 c :
+             {d.corner, d.corner + d.edge1, d.corner + d.edge2, d.corner + d.edge1 + d.edge2})
+            reach = std::max(
+                reach,
+                static_cast<double>(std::max({std::fabs(c.x), std::fabs(c.y), std::fabs(c.z)})));
+        check_reach(reach);
         registry.put(e, QuadLight{d.corner, d.edge1, d.edge2, value, d.two_sided, d.transparent});
     }
     /** A sphere. */
     void operator()(const SphereLightDesc& d) const {
+        check_reach(d.radius +
+                    static_cast<double>(std::max(
+                        {std::fabs(d.center.x), std::fabs(d.center.y), std::fabs(d.center.z)})));
         registry.put(e, SphereLight{d.center, static_cast<float>(d.radius), value});
     }
     /** A point light: a PointLight with no cone. */
@@ -746,7 +766,7 @@ void build_light(BuildContext& ctx, const LightDesc& d) {
     const Vec3 value = emitted(working_color(ctx, d.color, {1, 1, 1}), d.intensity, d.loc, "light");
     const ecs::Entity e = ctx.registry->create();
     ctx.registry->put(e, light_group(ctx, d.group));
-    std::visit(LightPut{*ctx.registry, e, value}, d.shape);
+    std::visit(LightPut{*ctx.registry, e, value, d.loc}, d.shape);
 }
 
 }  // namespace
