@@ -138,6 +138,10 @@ void check_reach(const ecs::Registry& r, const std::vector<Instance>& instances,
                         name, std::max(own, world), own < kEmbreeReach ? "" : " in its own file",
                         kEmbreeReach);
         const float extent = std::max({hi.x - lo.x, hi.y - lo.y, hi.z - lo.z});
+        // Every point in one place (a cage of coincident vertices): nothing to see, said.
+        if (!(extent > 0.0f) && log)
+            log->warn("{}: {} has no extent (its points all lie at one place): it is not seen",
+                      at.str(), name);
         // Rays leave a surface by 256 float steps at its coordinates: past twice its size, its
         // shading and shadows break up (a unit sphere at 1e6 shaded in stripes; at 1e5 it is
         // fine).

@@ -180,5 +180,27 @@ intensity = 2
     EXPECT_EQ(said(1e5).find("from the origin"), std::string::npos) << said(1e5);
 }
 
+TEST(FarGeometry, AnObjectWhosePointsAllCoincideIsSaid) {
+    // A cage or mesh of one point repeated rendered nothing, without a word.
+    test::TempDir dir("point_object");
+    std::ofstream(dir.file("point.obj")) << "v 1 1 1\nv 1 1 1\nv 1 1 1\nf 1 2 3\n";
+    std::ofstream(dir.file("scene.toml")) << fmt::format(
+        "[render]\nwidth = 8\nheight = 8\nspp = 1\n[camera]\nposition = [0, 0, 5]\n"
+        "look_at = [0, 0, 0]\n[[material]]\nname = \"m\"\nplugin = \"smooth\"\n"
+        "model = \"diffuse\"\n[[object]]\nmesh = \"{}\"\nmaterial = \"m\"\n",
+        dir.file("point.obj"));
+    RenderOptions options;
+    options.threads = 1;
+    const Logger log{LogLevel::Warning};
+    Session session({}, test::shipped_ocio(), options, log);
+    testing::internal::CaptureStderr();
+    session.load(dir.file("scene.toml"));
+    const std::string said = testing::internal::GetCapturedStderr();
+    EXPECT_NE(said.find("scene.toml:12:1: [[object]] #1 has no extent (its points all lie at one "
+                        "place): it is not seen"),
+              std::string::npos)
+        << said;
+}
+
 }  // namespace
 }  // namespace spangle
