@@ -274,4 +274,35 @@ ObjPolygons read_obj_polygons(const std::string& path, const FileLoc& ref) {
     return Reader(path, ref, true).read_polygons();
 }
 
+bool obj_counts(const std::string& path, uint64_t& vertices, uint64_t& faces, uint64_t& corners) {
+    std::ifstream in(path, std::ios::binary);
+    if (!in) return false;
+    vertices = faces = corners = 0;
+    std::string line;
+    const auto blank = [](char c) { return c == ' ' || c == '\t'; };
+    while (std::getline(in, line)) {
+        std::size_t i = 0;
+        while (i < line.size() && blank(line[i])) ++i;
+        if (i + 1 >= line.size() || !blank(line[i + 1])) continue;
+        if (line[i] == 'v') {
+            ++vertices;
+        } else if (line[i] == 'f') {
+            // Corners: the runs of non-blank characters after the "f" (a trailing '\r' is
+            // blank to a run's end, not a corner of its own).
+            uint64_t n = 0;
+            bool in_run = false;
+            for (std::size_t k = i + 1; k < line.size(); ++k) {
+                const bool part = !blank(line[k]) && line[k] != '\r';
+                if (part && !in_run) ++n;
+                in_run = part;
+            }
+            if (n >= 3) {
+                ++faces;
+                corners += n;
+            }
+        }
+    }
+    return !in.bad();
+}
+
 }  // namespace spangle

@@ -34,4 +34,9 @@ struct ObjPolygons {
  *  (errors say "cage '...', line N"). */
 ObjPolygons read_obj_polygons(const std::string& path, const FileLoc& ref);
 
+/** The counts of an OBJ file's `v` statements and of its faces of at least three corners, and
+ *  their corners, from a scan of its lines (nothing parsed: for checking a sequence of meshes
+ *  up front); false when the file cannot be read. */
+bool obj_counts(const std::string& path, uint64_t& vertices, uint64_t& faces, uint64_t& corners);
+
 }  // namespace spangle

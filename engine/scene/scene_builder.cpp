@@ -1,6 +1,7 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -12,6 +13,7 @@
 #include "color/image_io.h"
 #include "core/files.h"
 #include "core/hash.h"
+#include "geometry/obj_reader.h"
 #include "geometry/ply_reader.h"
 #include "scene/components.h"
 #include "scene/frame_sequence.h"
@@ -443,24 +445,36 @@ std::string sequence_file(const std::string& pattern, int64_t frame, const FileL
 void check_sequence_files(const SceneDescription& scene, int64_t first, int64_t last) {
     for (const ObjectDesc& d : scene.objects) {
         if (const auto* m = std::get_if<MeshFileShape>(&d.shape); m && m->sequence) {
-            // PLY frames declare their counts in their headers: a frame of another topology
-            // is found now, not after the frames before it have rendered.
-            uint64_t v0 = 0, f0 = 0;
+            // PLY frames declare their counts in their headers, OBJ frames are counted by a scan
+            // of their lines: a frame of another topology is found now, not after the frames
+            // before it have rendered.
+            std::string lower = m->path;
+            for (char& ch : lower)
+                ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
+            const bool obj = lower.ends_with(".obj");
+            uint64_t v0 = 0, f0 = 0, c0 = 0;
             std::string file0;
             for (int64_t f = first; f <= last; ++f) {
                 const std::string file = sequence_file(m->path, f, m->loc, "mesh");
-                uint64_t v = 0, faces = 0;
-                if (!ply_header_counts(file, v, faces)) continue;
+                uint64_t v = 0, faces = 0, corners = 0;
+                if (obj ? !obj_counts(file, v, faces, corners) : !ply_header_counts(file, v, faces))
+                    continue;
                 if (file0.empty()) {
                     file0 = file;
                     v0 = v;
                     f0 = faces;
+                    c0 = corners;
                 } else if (v != v0 || faces != f0) {
                     throw_error(m->loc,
                                 "mesh sequence '{}': frame {} ({}) has {} vertices and {} faces, "
                                 "{} has {} and {}: every frame of a deforming mesh has one "
                                 "topology",
                                 m->path, f, file, v, faces, file0, v0, f0);
+                } else if (corners != c0) {
+                    throw_error(m->loc,
+                                "mesh sequence '{}': frame {} ({}) has faces of {} corners in all, "
+                                "{} of {}: every frame of a deforming mesh has one topology",
+                                m->path, f, file, corners, file0, c0);
                 }
             }
         }

@@ -291,6 +291,33 @@ TEST(DeformingMesh, EveryFramesFileIsCheckedBeforeAnyFrameRenders) {
                   std::string::npos)
             << m;
     }
+    // So is an OBJ frame, by a scan of its lines (found after frames 1 and 2 had rendered):
+    // another count of vertices or faces, or the same counts in faces of other sizes.
+    const std::string quad = "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n";
+    std::ofstream(dir.file("quad.1.obj")) << quad << "f 1 2 3 4\n";
+    std::ofstream(dir.file("quad.2.obj")) << quad << "vt 0 0\nf 1 2 3 4\r\n# f 1 2\nf 3 4\n";
+    std::ofstream(dir.file("quad.3.obj")) << quad << "f 1 2 3\n";
+    std::ofstream(dir.file("quad.4.obj")) << quad << "v 2 2 0\nf 1 2 3 4\n";
+    std::ofstream(scene) << plane_scene("mesh = \"quad.#.obj\"");
+    const SceneDescription objs = read_scene(scene);
+    EXPECT_NO_THROW(check_sequence_files(objs, 1, 2));
+    const auto error = [&](int64_t last) {
+        try {
+            check_sequence_files(objs, 1, last);
+        } catch (const SpangleError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    EXPECT_NE(error(3).find("frame 3 (" + dir.file("quad.3.obj") +
+                            ") has faces of 3 corners in all, " + dir.file("quad.1.obj") +
+                            " of 4: every frame of a deforming mesh has one topology"),
+              std::string::npos)
+        << error(3);
+    std::ofstream(dir.file("quad.3.obj")) << quad << "f 4 3 2 1\n";
+    EXPECT_NE(error(4).find("frame 4 (" + dir.file("quad.4.obj") + ") has 5 vertices and 1 faces"),
+              std::string::npos)
+        << error(4);
 }
 
 TEST(DeformingMesh, ASequenceOfIdenticalFramesRendersAsThePlainMeshBitForBit) {
