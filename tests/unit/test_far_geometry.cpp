@@ -132,6 +132,17 @@ TEST(FarGeometry, AFloorFarLargerThanTheSceneShadesAsASmallOneDoes) {
         }
 }
 
+/** What loading the scene at `path` warns of (stderr). */
+std::string warnings_of(const std::string& path) {
+    RenderOptions options;
+    options.threads = 1;
+    const Logger log{LogLevel::Warning};
+    Session session({}, test::shipped_ocio(), options, log);
+    testing::internal::CaptureStderr();
+    session.load(path);
+    return testing::internal::GetCapturedStderr();
+}
+
 TEST(FarGeometry, AnObjectSmallAgainstItsDistanceFromTheOriginIsSaid) {
     // A unit sphere moved to x = 1e6 with its scene shaded in stripes (its points 1/16 apart,
     // rays leaving it by 16 units), without a word; at 1e5 it renders as at the origin.
@@ -165,13 +176,7 @@ direction = [1, 2, 1]
 intensity = 2
 )",
             x, test::asset_dir());
-        RenderOptions options;
-        options.threads = 1;
-        const Logger log{LogLevel::Warning};
-        Session session({}, test::shipped_ocio(), options, log);
-        testing::internal::CaptureStderr();
-        session.load(dir.file("scene.toml"));
-        return testing::internal::GetCapturedStderr();
+        return warnings_of(dir.file("scene.toml"));
     };
     EXPECT_NE(said(1e6).find("object 'ball' is 1.4 across but lies 1e+06 from the origin, where "
                              "float coordinates are 0.0625 apart"),
@@ -189,13 +194,7 @@ TEST(FarGeometry, AnObjectWhosePointsAllCoincideIsSaid) {
         "look_at = [0, 0, 0]\n[[material]]\nname = \"m\"\nplugin = \"smooth\"\n"
         "model = \"diffuse\"\n[[object]]\nmesh = \"{}\"\nmaterial = \"m\"\n",
         dir.file("point.obj"));
-    RenderOptions options;
-    options.threads = 1;
-    const Logger log{LogLevel::Warning};
-    Session session({}, test::shipped_ocio(), options, log);
-    testing::internal::CaptureStderr();
-    session.load(dir.file("scene.toml"));
-    const std::string said = testing::internal::GetCapturedStderr();
+    const std::string said = warnings_of(dir.file("scene.toml"));
     EXPECT_NE(said.find("scene.toml:12:1: [[object]] #1 has no extent (its points all lie at one "
                         "place): it is not seen"),
               std::string::npos)

@@ -223,15 +223,17 @@ TEST(SceneBuilder, AHandMadeDescriptionBuildsTheRegistryOfItsToml) {
     EXPECT_EQ(a.notes, b.notes);
 }
 
+/** The notes building `d` gives, a line each. */
+std::string notes_of(const SceneDescription& d) {
+    ColorConfig color = test::shipped_config();
+    ecs::Registry registry;
+    std::string all;
+    for (const std::string& n : build_scene(d, color, registry, 0.0).notes) all += n + "\n";
+    return all;
+}
+
 TEST(SceneBuilder, ASceneWithNoObjectsIsSaid) {
     // Nothing to see at all was not said; an environment alone is a panorama, on purpose.
-    const auto notes_of = [](const SceneDescription& d) {
-        ColorConfig color = test::shipped_config();
-        ecs::Registry registry;
-        std::string all;
-        for (const std::string& n : build_scene(d, color, registry, 0.0).notes) all += n + "\n";
-        return all;
-    };
     SceneDescription d = hand_made_scene();
     ASSERT_FALSE(d.objects.empty());
     EXPECT_EQ(notes_of(d).find("no objects"), std::string::npos) << notes_of(d);
@@ -246,13 +248,6 @@ TEST(SceneBuilder, ASceneWithNoObjectsIsSaid) {
 
 TEST(SceneBuilder, ACameraInsideASphereLightIsSaid) {
     // It emits outward: from within it is black and lights nothing.
-    const auto notes_of = [](const SceneDescription& d) {
-        ColorConfig color = test::shipped_config();
-        ecs::Registry registry;
-        std::string all;
-        for (const std::string& n : build_scene(d, color, registry, 0.0).notes) all += n + "\n";
-        return all;
-    };
     SceneDescription d = hand_made_scene();
     ASSERT_TRUE(std::holds_alternative<SphereLightDesc>(d.lights[0].shape));
     EXPECT_EQ(notes_of(d).find("inside this sphere light"), std::string::npos) << notes_of(d);
