@@ -243,7 +243,25 @@ ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Mate
                                     static_cast<float>(p->number[2])};
                     color.to_working(p->text, rgb, 1);
                     // Gamut conversion may move a channel a hair outside the range that was
-                    // checked on the written values; clamp it back.
+                    // checked on the written values; clamp it back. More than a hair is a colour
+                    // outside the working space's gamut: said, as a light's or the sky's is
+                    // (ACEScg green as albedo in lin_rec709 became (0, 1, 0) without a word).
+                    const float most =
+                        std::max({std::fabs(rgb[0]), std::fabs(rgb[1]), std::fabs(rgb[2])});
+                    const double lo = d.min_value, hi = d.max_value;
+                    bool clipped = false;
+                    for (int c = 0; c < 3; ++c)
+                        clipped =
+                            clipped ||
+                            static_cast<double>(rgb[c]) < lo - 1e-3 * static_cast<double>(most) ||
+                            static_cast<double>(rgb[c]) > hi + 1e-3 * static_cast<double>(most);
+                    if (clipped)
+                        out.notes.push_back(fmt::format(
+                            "{}: material '{}': '{}' ({}, {}, {}) in '{}' is ({:.4g}, {:.4g}, "
+                            "{:.4g}) in the working space '{}', outside [{}, {}]: clipped to it "
+                            "(render in a wider working space, such as ACEScg, to keep it)",
+                            p->loc.str(), m.name, d.name, p->number[0], p->number[1], p->number[2],
+                            p->text, rgb[0], rgb[1], rgb[2], color.working_space(), lo, hi));
                     for (int c = 0; c < 3; ++c)
                         v.number[c] =
                             std::clamp(static_cast<double>(rgb[c]), d.min_value, d.max_value);
@@ -330,6 +348,7 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
                         fmt::join(plugin->model_names(), ", "));
     }
     ValidatedParams params = validate_params(*model, m, host.color());
+    for (const std::string& note : params.notes) host.log().warn("{}", note);
     // Textures first: create() sees a textured parameter's average over the image (the
     // coarsest level of its box-filtered mips), scaled and clamped like the per-point values
     // (the flake model biases its colour table towards base_color's hue, for instance).

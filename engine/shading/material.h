@@ -130,6 +130,9 @@ struct ValidatedParams {
     /** Parameters given as textures: (schema index, the entry); create_material() gives
      *  create() their images' averages. */
     std::vector<std::pair<uint32_t, const ParamEntry*>> textured;
+    /** What the conversion changed, to be said: a colour outside the working space's gamut
+     *  ("FILE:LINE:COL: material 'm': ..."). */
+    std::vector<std::string> notes;
     SpangleParams_v3 view() const { return {values.data(), static_cast<uint32_t>(values.size())}; }
 };
 

@@ -180,6 +180,33 @@ TEST(ColorConfig, AColourOutsideTheWorkingGamutIsClippedAndSaid) {
     EXPECT_TRUE(notes_for("ACEScg").empty());
 }
 
+TEST(ColorConfig, AMaterialsColourOutsideTheWorkingGamutIsSaid) {
+    // A parameter's colour was clamped to its range after the conversion without a word (the
+    // same colour on a light or the sky was said).
+    test::TempDir dir("gamut_param");
+    const auto said = [&](const std::string& working) {
+        std::ofstream(dir.file("s.toml"))
+            << "[render]\nwidth = 8\nheight = 8\nworking_space = \"" << working
+            << "\"\n[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[[material]]\n"
+               "name = \"m\"\nplugin = \"smooth\"\nmodel = \"diffuse\"\n"
+               "params = { albedo = { rgb = [0, 1, 0], space = \"ACEScg\" } }\n[[object]]\n"
+               "mesh = \""
+            << test::asset_dir() << "/meshes/sphere.obj\"\nmaterial = \"m\"\n";
+        RenderOptions options;
+        const Logger log{LogLevel::Warning};
+        Session session({}, test::shipped_ocio(), options, log);
+        testing::internal::CaptureStderr();
+        session.load(dir.file("s.toml"), 0.0);
+        return testing::internal::GetCapturedStderr();
+    };
+    const std::string narrow = said("lin_rec709");
+    EXPECT_NE(narrow.find("s.toml:12:21: material 'm': 'albedo' (0, 1, 0) in 'ACEScg' is (-0.6218, "
+                          "1.141, -0.129) in the working space 'lin_rec709', outside [0, 1]"),
+              std::string::npos)
+        << narrow;
+    EXPECT_EQ(said("ACEScg").find("outside"), std::string::npos);
+}
+
 TEST(ColorConfig, AliasesAndUnknownNames) {
     ColorConfig c = shipped_config();
     EXPECT_EQ(c.canonical_name("acescg").value_or(""), "ACEScg");
