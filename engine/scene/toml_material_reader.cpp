@@ -84,13 +84,6 @@ void read_uv_transform(const ReadContext& ctx, const toml::table& t, TextureDesc
             throw_error(loc_of(*n, ctx.file),
                         "'matrix' must be 6 finite numbers: (u, v) -> (m0 u + m1 v + m2, m3 u + "
                         "m4 v + m5)");
-        // A 2x2 part of determinant 0 maps every uv onto a line or a point, as a scale of 0
-        // does, which is refused (the matrix was taken).
-        const double det = m[0] * m[4] - m[1] * m[3];
-        if (!(std::fabs(det) > 1e-12 * (std::fabs(m[0] * m[4]) + std::fabs(m[1] * m[3]))))
-            throw_error(loc_of(*n, ctx.file),
-                        "'matrix' maps every uv onto a line or a point (m0 m4 - m1 m3 is 0): "
-                        "the texture would show one row or one texel");
         for (const char* key : {"scale", "offset", "rotate"})
             if (u.has(key))
                 throw_error(u.loc(key),
