@@ -24,6 +24,7 @@
 #include "core/dynamic_library.h"
 #include "core/error.h"
 #include "core/files.h"
+#include "core/text.h"
 
 namespace fs = std::filesystem;
 
@@ -375,9 +376,7 @@ std::string usual_image_space(const std::string& path) {
             return ext == ".tx" || ext == ".TX" ? "lin_rec709" : "srgb_texture";
         }
     }
-    std::string ext = fs::path(path).extension().string();
-    std::transform(ext.begin(), ext.end(), ext.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    const std::string ext = ascii_lower(fs::path(path).extension().string());
     return ext == ".exr" || ext == ".hdr" || ext == ".tx" ? "lin_rec709" : "srgb_texture";
 }
 

@@ -1,5 +1,7 @@
 #include "core/text.h"
 
+#include <cctype>
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -47,6 +49,12 @@ std::string did_you_mean(std::string_view word, const std::vector<std::string>& 
             (c.rfind(word, 0) == 0 || word.rfind(c, 0) == 0))
             guess = c;
     return guess.empty() ? std::string() : fmt::format("; did you mean '{}'?", guess);
+}
+
+std::string ascii_lower(std::string_view s) {
+    std::string out(s);
+    for (char& c : out) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    return out;
 }
 
 }  // namespace spangle

@@ -9,6 +9,9 @@
 
 namespace spangle {
 
+/** `s` with its ASCII letters in lower case (file extensions, URI schemes, media types). */
+std::string ascii_lower(std::string_view s);
+
 /** Levenshtein distance, for "did you mean" suggestions. */
 std::size_t edit_distance(std::string_view a, std::string_view b);
 

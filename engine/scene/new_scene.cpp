@@ -11,6 +11,7 @@
 
 #include "color/image_io.h"
 #include "core/error.h"
+#include "core/text.h"
 #include "geometry/mesh_load.h"
 #include "geometry/ply_writer.h"
 #include "scene/scene_loader.h"
@@ -35,9 +36,7 @@ constexpr double kFovDeg = 30.0;  ///< the camera's vertical field of view
 constexpr double kFlakesPerPixel = 30.0;
 
 std::string lower_extension(const std::string& path) {
-    std::string e = fs::path(path).extension().string();
-    std::transform(e.begin(), e.end(), e.begin(), [](unsigned char c) { return std::tolower(c); });
-    return e;
+    return ascii_lower(fs::path(path).extension().string());
 }
 
 bool is_gltf(const std::string& path) {

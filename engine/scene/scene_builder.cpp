@@ -1,7 +1,6 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -13,6 +12,7 @@
 #include "color/image_io.h"
 #include "core/files.h"
 #include "core/hash.h"
+#include "core/text.h"
 #include "geometry/obj_reader.h"
 #include "geometry/ply_reader.h"
 #include "scene/components.h"
@@ -448,10 +448,7 @@ void check_sequence_files(const SceneDescription& scene, int64_t first, int64_t 
             // PLY frames declare their counts in their headers, OBJ frames are counted by a scan
             // of their lines: a frame of another topology is found now, not after the frames
             // before it have rendered.
-            std::string lower = m->path;
-            for (char& ch : lower)
-                ch = static_cast<char>(std::tolower(static_cast<unsigned char>(ch)));
-            const bool obj = lower.ends_with(".obj");
+            const bool obj = ascii_lower(m->path).ends_with(".obj");
             uint64_t v0 = 0, f0 = 0, c0 = 0;
             std::string file0;
             for (int64_t f = first; f <= last; ++f) {

@@ -6,6 +6,7 @@
 
 #include <fmt/format.h>
 
+#include "core/text.h"
 #include "scene/gltf/gltf_reader.h"
 #include "scene/pbrt/pbrt_reader.h"
 #include "scene/scene_builder.h"
@@ -26,9 +27,7 @@ const std::vector<SceneFormat>& scene_formats() {
 
 const SceneFormat& scene_format_for(const std::string& path) {
     // The file name's ending, so that a double extension (".pbrt.gz") is one.
-    std::string name = std::filesystem::path(path).filename().string();
-    std::transform(name.begin(), name.end(), name.begin(),
-                   [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+    const std::string name = ascii_lower(std::filesystem::path(path).filename().string());
     const std::vector<SceneFormat>& formats = scene_formats();
     for (const SceneFormat& f : formats) {
         const std::string_view ext = f.extension;
@@ -71,16 +70,11 @@ SceneDescription read_with_imports(const std::string& path, const SceneReadOptio
 // (Read as TOML, the format of names Spangle does not know, such a file failed with a TOML
 // syntax error at its first line.)
 void check_scene_format(const std::string& path) {
-    const auto lower = [](std::string x) {
-        std::transform(x.begin(), x.end(), x.begin(),
-                       [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
-        return x;
-    };
     const std::filesystem::path file(path);
-    const std::string ext = lower(file.extension().string());
+    const std::string ext = ascii_lower(file.extension().string());
     // A gzip'd PLY (".ply.gz", which the `mesh` key reads) is a mesh too.
     if (ext == ".gz") {
-        if (lower(file.stem().extension().string()) == ".ply")
+        if (ascii_lower(file.stem().extension().string()) == ".ply")
             throw_error(FileLoc{path, 0, 0},
                         "this is a mesh (ply.gz), not a scene: name it as the `mesh` of an "
                         "[[object]] in a TOML scene");

@@ -16,6 +16,7 @@
 #include <unordered_map>
 
 #include "core/files.h"
+#include "core/text.h"
 #include "scene/gltf/gltf_parts.h"
 
 namespace spangle::gltf {
@@ -55,9 +56,7 @@ bool regular_file(const std::string& path, void*) {
 /** Paths are not expanded (no ~, no variables), except a file:// URI joined to the file's
  *  folder (tinygltf looks for "DIR/file:///x.bin"): its path, as check_buffers() took it. */
 std::string same_path(const std::string& path, void*) {
-    std::string lower = path;
-    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    const std::size_t at = lower.find("file://");
+    const std::size_t at = ascii_lower(path).find("file://");
     if (at == std::string::npos) return path;
     std::string host, local;
     return split_file_uri(std::string_view(path).substr(at + 7), host, local) && !local.empty()
@@ -245,10 +244,7 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
         if (uri->rfind("data:", 0) == 0) {
             const std::size_t comma = uri->find(',');
             const std::string_view head = std::string_view(*uri).substr(0, comma);
-            std::string lower(head);
-            for (char& c : lower)
-                c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-            if (comma != std::string::npos && lower.ends_with(";base64") &&
+            if (comma != std::string::npos && ascii_lower(head).ends_with(";base64") &&
                 !head.ends_with(";base64"))
                 throw_error(ctx.at(at), "buffer {}: write ';base64' in a data URI in lower case",
                             i);

@@ -13,6 +13,7 @@
 
 #include "core/files.h"
 #include "core/hash.h"
+#include "core/text.h"
 #include "scene/gltf/gltf_parts.h"
 #include "scene/gltf/gltf_reader.h"
 
@@ -104,9 +105,7 @@ UriTarget uri_target(const Context& ctx, const std::string& uri) {
     }
     t.scheme = scheme;
     // (Schemes are case-insensitive, RFC 3986 3.1: FILE:///x names a file as file:///x does.)
-    std::string lower = scheme;
-    for (char& c : lower) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-    if (lower != "file") return t;
+    if (ascii_lower(scheme) != "file") return t;
     std::string host, rest;
     if (!split_file_uri(std::string_view(uri).substr(colon + 3), host, rest)) {
         t.host = host;

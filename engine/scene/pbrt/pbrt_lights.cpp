@@ -4,6 +4,7 @@
 
 #include <cmath>
 
+#include "core/text.h"
 #include "scene/pbrt/pbrt_state.h"
 
 namespace spangle::pbrt {
@@ -69,8 +70,7 @@ void infinite(Reader& r, const ParamList& p, const FileLoc& loc, ColorDesc L, do
         EnvironmentDesc::Map m;
         m.path = r.find_file(file, "infinite light filename", loc);
         m.loc = loc;
-        std::string ext = std::filesystem::path(m.path).extension().string();
-        for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        const std::string ext = ascii_lower(std::filesystem::path(m.path).extension().string());
         if (ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tga" || ext == ".bmp")
             m.color_space = "srgb_texture";
         m.color_space_loc = loc;

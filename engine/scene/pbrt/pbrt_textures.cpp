@@ -7,6 +7,7 @@
 #include <fstream>
 #include <sstream>
 
+#include "core/text.h"
 #include "scene/pbrt/pbrt_spectra.h"
 #include "scene/pbrt/pbrt_state.h"
 
@@ -16,8 +17,7 @@ namespace {
 
 /** Whether an image file holds 8-bit values, which pbrt decodes from sRGB by default. */
 bool eight_bit(const std::string& path) {
-    std::string ext = std::filesystem::path(path).extension().string();
-    for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    const std::string ext = ascii_lower(std::filesystem::path(path).extension().string());
     return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tga" || ext == ".bmp" ||
            ext == ".gif";
 }
