@@ -8,6 +8,10 @@
 
 namespace spangle {
 
+/** How far from the origin the ray tracer (Embree) keeps geometry: beyond (its FLT_LARGE), in
+ *  object space as in the world, it leaves primitives out of its structures without a word. */
+constexpr float kEmbreeReach = 1.8e18f;
+
 /** Three floats: a point, a direction or an RGB colour, by context. */
 struct Vec3 {
     float x = 0.0f, y = 0.0f, z = 0.0f;

@@ -73,10 +73,6 @@ Vec3 upper(Vec3 a, Vec3 b) {
     return Vec3(std::max(a.x, b.x), std::max(a.y, b.y), std::max(a.z, b.z));
 }
 
-/** Embree's float coordinates: it leaves out geometry beyond this from the origin (its
- *  FLT_LARGE), in object space as in the world. */
-constexpr float kEmbreeReach = 1.8e18f;
-
 /** Checks each placed mesh against what float coordinates can carry: beyond Embree's reach it
  *  is an error (the object vanished without a word); an object small against its distance
  *  from the origin is warned of (at 1e6 a unit sphere's points lie 1/16 apart and rays leave

@@ -719,7 +719,7 @@ struct LightPut {
 
     /** Refuses a light whose shape reaches beyond what the ray tracer holds (it was black). */
     void check_reach(double reach) const {
-        if (!(reach < 1.8e18))
+        if (!(reach < static_cast<double>(kEmbreeReach)))
             throw_error(loc,
                         "the light reaches {:.3g} from the origin, and the ray tracer (Embree) "
                         "leaves out geometry beyond 1.8e18: scale the scene down",
