@@ -15,6 +15,7 @@
 #include "cli/signals.h"
 #include "pipeline/session.h"
 #include "render/render_scene.h"
+#include "scene/frame_sequence.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
 

@@ -18,6 +18,19 @@ float Affine::determinant() const {
     return static_cast<float>(a * (e * k - f * h) - b * (d * k - f * g) + c * (d * h - e * g));
 }
 
+double Affine::determinant_share() const {
+    constexpr int kPerm[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1}, {0, 2, 1}, {1, 0, 2}, {2, 1, 0}};
+    double det = 0.0, products = 0.0;
+    for (int k = 0; k < 6; ++k) {
+        const double term = static_cast<double>(m[0][kPerm[k][0]]) *
+                            static_cast<double>(m[1][kPerm[k][1]]) *
+                            static_cast<double>(m[2][kPerm[k][2]]);
+        det += k < 3 ? term : -term;
+        products += std::fabs(term);
+    }
+    return products > 0.0 ? std::fabs(det) / products : 1.0;
+}
+
 Affine Affine::inverse() const {
     double a[3][3];
     for (int i = 0; i < 3; ++i)

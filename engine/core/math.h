@@ -102,6 +102,11 @@ struct Affine {
     Affine inverse() const;
     /** Determinant of the linear part. */
     float determinant() const;
+    /** |determinant| of the linear part over the sum of the sizes of the six products it is the
+     *  difference of (the permanent of its entries' sizes), in double: 1 for a scale, rotation
+     *  or shear however strong; near 0 where the determinant cancels to nothing in float
+     *  (axes nearly parallel). 1 for a linear part of zeros. */
+    double determinant_share() const;
     /** The inverse transpose of the linear part, no translation: transforms normals with
      *  apply_vector. Compute it once per transform, not per normal. */
     Affine normal_matrix() const;

@@ -7,6 +7,9 @@
 #include <cstdint>
 #include <string>
 
+#include "core/error.h"
+#include "scene/scene_description.h"
+
 namespace spangle {
 
 /** Where the run of '#' lies in `pattern`'s file name (after its last '/'): its first character
@@ -34,5 +37,15 @@ std::string expand_frame_pattern(const std::string& pattern, int64_t frame);
 /** The frame a scene is evaluated at: frame_start plus `time` (seconds after it) in frames,
  *  rounded to the nearest frame. */
 int64_t frame_at(int64_t frame_start, double fps, double time);
+
+/** The file of a sequence `pattern` (named at `at`) for `frame`, checked to exist; `what`
+ *  words it for the message ("mesh", "cage"). Throws SpangleError at `at` when it is missing. */
+std::string sequence_file(const std::string& pattern, int64_t frame, const FileLoc& at,
+                          const char* what);
+
+/** Checks that every mesh and cage sequence of `scene` has its file for each frame of
+ *  [first, last], before any frame renders (a missing frame 5 failed after frames 1 to 4).
+ *  Throws SpangleError at the sequence's file:line:col, naming the first missing frame. */
+void check_sequence_files(const SceneDescription& scene, int64_t first, int64_t last);
 
 }  // namespace spangle

@@ -12,9 +12,6 @@
 #include "color/image_io.h"
 #include "core/files.h"
 #include "core/hash.h"
-#include "core/text.h"
-#include "geometry/obj_reader.h"
-#include "geometry/ply_reader.h"
 #include "scene/components.h"
 #include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
@@ -428,60 +425,6 @@ void build_material(BuildContext& ctx, const MaterialDesc& d) {
     ctx.registry->put(ctx.registry->create(), m);
 }
 
-/** The file of a sequence `pattern` (named at `at`) for `frame`, checked to exist; `what`
- *  words it for the message ("mesh", "cage"). */
-std::string sequence_file(const std::string& pattern, int64_t frame, const FileLoc& at,
-                          const char* what) {
-    const std::string path = expand_frame_pattern(pattern, frame);
-    std::error_code ec;
-    if (!std::filesystem::is_regular_file(path, ec))
-        throw_error(at, "{} file of frame {} not found (looked for {}, from the sequence {})", what,
-                    frame, absolute_path(path), pattern);
-    return path;
-}
-
-}  // namespace
-
-void check_sequence_files(const SceneDescription& scene, int64_t first, int64_t last) {
-    for (const ObjectDesc& d : scene.objects) {
-        if (const auto* m = std::get_if<MeshFileShape>(&d.shape); m && m->sequence) {
-            // PLY frames declare their counts in their headers, OBJ frames are counted by a scan
-            // of their lines: a frame of another topology is found now, not after the frames
-            // before it have rendered.
-            const bool obj = ascii_lower(m->path).ends_with(".obj");
-            uint64_t v0 = 0, f0 = 0, c0 = 0;
-            std::string file0;
-            for (int64_t f = first; f <= last; ++f) {
-                const std::string file = sequence_file(m->path, f, m->loc, "mesh");
-                uint64_t v = 0, faces = 0, corners = 0;
-                if (obj ? !obj_counts(file, v, faces, corners) : !ply_header_counts(file, v, faces))
-                    continue;
-                if (file0.empty()) {
-                    file0 = file;
-                    v0 = v;
-                    f0 = faces;
-                    c0 = corners;
-                } else if (v != v0 || faces != f0) {
-                    throw_error(m->loc,
-                                "mesh sequence '{}': frame {} ({}) has {} vertices and {} faces, "
-                                "{} has {} and {}: every frame of a deforming mesh has one "
-                                "topology",
-                                m->path, f, file, v, faces, file0, v0, f0);
-                } else if (corners != c0) {
-                    throw_error(m->loc,
-                                "mesh sequence '{}': frame {} ({}) has faces of {} corners in all, "
-                                "{} of {}: every frame of a deforming mesh has one topology",
-                                m->path, f, file, corners, file0, c0);
-                }
-            }
-        }
-        if (const auto* c = std::get_if<SubdivShape>(&d.shape); c && c->sequence)
-            for (int64_t f = first; f <= last; ++f) sequence_file(c->path, f, c->loc, "cage");
-    }
-}
-
-namespace {
-
 /** The file a mesh or cage is read from and its rest pose. */
 struct PosedFile {
     std::string path;  ///< the file (a sequence's of the frame)
@@ -655,24 +598,14 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
         // and the render aborted. The rounding is relative to the sum of the products' sizes
         // (the permanent of |m|): 1e-5 of it leaves the float determinant within about 1%. A
         // scale, a rotation or a shear, however strong, keeps the two equal or close.
-        double det = 0.0, products = 0.0;
-        {
-            const auto a = [&](int r, int c) { return static_cast<double>(m.m[r][c]); };
-            constexpr int kPerm[6][3] = {{0, 1, 2}, {1, 2, 0}, {2, 0, 1},
-                                         {0, 2, 1}, {1, 0, 2}, {2, 1, 0}};
-            for (int k = 0; k < 6; ++k) {
-                const double t = a(0, kPerm[k][0]) * a(1, kPerm[k][1]) * a(2, kPerm[k][2]);
-                det += k < 3 ? t : -t;
-                products += std::fabs(t);
-            }
-        }
-        if (std::isfinite(products) && products > 0.0 && std::fabs(det) < 1e-5 * products)
+        const double share = m.determinant_share();
+        if (std::isfinite(share) && share < 1e-5)
             throw_error(d.loc,
                         "{}: its placement's axes are nearly parallel (its matrix's determinant "
                         "is {:.3g} of the size of the products it is the difference of; at least "
                         "1e-5 is needed for rays to follow it): it flattens the object almost "
                         "into a plane or a line",
-                        d.what, std::fabs(det) / products);
+                        d.what, share);
         if (!(big <= kMaxPlacementScale && big_inv <= kMaxPlacementScale) ||
             !std::isfinite(m.determinant()))
             throw_error(d.loc,

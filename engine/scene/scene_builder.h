@@ -31,11 +31,6 @@ uint64_t file_content_hash(const std::string& path);
  *  the files its systems read (meshes, textures, maps) to make SceneInfo::content_hash. */
 uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files);
 
-/** Checks that every mesh and cage sequence of `scene` has its file for each frame of
- *  [first, last], before any frame renders (a missing frame 5 failed after frames 1 to 4).
- *  Throws SpangleError at the sequence's file:line:col, naming the first missing frame. */
-void check_sequence_files(const SceneDescription& scene, int64_t first, int64_t last);
-
 /** Builds `scene` as it stands at `time` (seconds) into `registry` (which should be empty):
  *  one entity of settings (Film, Camera, CameraMotion), then the environment, the materials,
  *  the objects and the lights, in the description's order. Sets `color`'s working space (one
