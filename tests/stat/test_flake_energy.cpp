@@ -10,7 +10,7 @@
 #include "core/hash.h"
 #include "flake_support.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_energy {
 namespace {
 
 namespace fl = spangle::flake;
@@ -160,4 +160,4 @@ TEST(FlakeEnergy, RoughCoatAlbedoTableIsAnUpperBound) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_energy

@@ -15,7 +15,7 @@
 #include "field.h"
 #include "flake_support.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_facets {
 namespace {
 
 namespace fl = spangle::flake;
@@ -289,4 +289,4 @@ TEST(FlakeFacets, NoFootprintGainsEnergy) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_facets

@@ -16,7 +16,7 @@
 #include "discrete_lobe.h"
 #include "field.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_field {
 namespace {
 
 using flake::FieldParams;
@@ -453,4 +453,4 @@ TEST(FlakeCounting, FootprintsThatAreNotNumbersOrFarAwayAreDeclined) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_field

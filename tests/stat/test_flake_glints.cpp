@@ -13,7 +13,7 @@
 #include "core/hash.h"
 #include "flake_support.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_glints {
 namespace {
 
 struct GlintRuns {
@@ -229,4 +229,4 @@ TEST(FlakeGlints, NestedFootprintsLightNestedDirections) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_glints

@@ -17,7 +17,7 @@
 #include "smooth_lobe.h"
 #include "warp_chi2.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_lobes {
 namespace {
 
 namespace fl = spangle::flake;
@@ -588,4 +588,4 @@ TEST(FlakeExpectation, AlgorithmsAgreeOnWhereTheEnergyGoes) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_lobes

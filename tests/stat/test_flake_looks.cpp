@@ -18,7 +18,7 @@
 #include "flake_support.h"
 #include "thin_film.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_looks {
 namespace {
 
 namespace fl = spangle::flake;
@@ -383,4 +383,4 @@ TEST(FlakeEnergy, TwoPopulationsNeverGainEnergy) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_looks

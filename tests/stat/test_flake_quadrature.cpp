@@ -14,7 +14,7 @@
 
 #include "flake_support.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_quadrature {
 namespace {
 
 /** The hemisphere of wi as the unit square, area-preserving: Shirley and Chiu's concentric map to
@@ -296,4 +296,4 @@ TEST(FlakeQuadrature, DISABLED_Sweep) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_quadrature

@@ -8,7 +8,7 @@
 
 #include "flake_support.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_regularisation {
 namespace {
 
 /** wi spread over the upper hemisphere (Fibonacci). */
@@ -85,4 +85,4 @@ TEST(FlakeRegularisation, AFlooredPaintKeepsItsEnergyAndSamplesByItsPdf) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_regularisation

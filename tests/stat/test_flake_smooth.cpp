@@ -14,7 +14,7 @@
 #include "smooth_lobe.h"
 #include "warp_chi2.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_smooth {
 namespace {
 
 namespace fl = spangle::flake;
@@ -230,4 +230,4 @@ TEST(FlakeSmooth, SamplingMatchesPdf) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_smooth

@@ -21,7 +21,7 @@
 #include "table_cache.h"
 #include "test_support.h"
 
-namespace spangle::test {
+namespace spangle::test::flake_tables {
 namespace {
 
 namespace fl = spangle::flake;
@@ -329,4 +329,4 @@ TEST(FlakeTables, EnvironmentChoosesTheCacheDirectory) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::flake_tables

@@ -11,7 +11,7 @@
 #include "core/hash.h"
 #include "render/lights.h"
 
-namespace spangle {
+namespace spangle::test::lights {
 namespace {
 
 /** Irradiance at p with normal n from the table by NEE: mean of L cos / pdf over n samples
@@ -266,4 +266,4 @@ TEST(EnvironmentMap, RotationTurnsTheMap) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test::lights

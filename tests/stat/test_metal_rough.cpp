@@ -14,7 +14,7 @@
 #include "chi2.h"
 #include "warp_chi2.h"
 
-namespace spangle::test {
+namespace spangle::test::metal_rough {
 namespace {
 
 constexpr uint32_t kSamples = 100000;
@@ -249,4 +249,4 @@ TEST(MetalRoughTables, ShippedTablesAreTheQuadrature) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::metal_rough

@@ -14,7 +14,7 @@
 #include "chi2.h"
 #include "warp_chi2.h"
 
-namespace spangle::test {
+namespace spangle::test::smooth_bsdfs {
 namespace {
 
 constexpr uint32_t kSamples = 100000;
@@ -410,4 +410,4 @@ TEST(SmoothRegularisation, FlooredMirrorSamplesFollowTheirPdf) {
 }
 
 }  // namespace
-}  // namespace spangle::test
+}  // namespace spangle::test::smooth_bsdfs

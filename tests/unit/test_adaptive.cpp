@@ -14,7 +14,7 @@
 #include "scene_request.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_adaptive {
 namespace {
 
 /** tests/scenes/textured.toml (glitter, textures, a normal map) at 72 x 40, adaptive sampling
@@ -370,4 +370,4 @@ TEST(Adaptive, BadSettingsAreRefused) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_adaptive

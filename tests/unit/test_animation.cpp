@@ -15,7 +15,7 @@
 #include "scene/keyed_motion.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_animation {
 namespace {
 
 TEST(Animation, TracksInterpolateAndHoldTheirEnds) {
@@ -231,4 +231,4 @@ TEST(MotionBlur, MovingEmittersAreNotBlurredAndTheLoadSaysSo) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_animation

@@ -8,7 +8,7 @@
 #include "render/sampler.h"
 #include "render/surface.h"
 
-namespace spangle {
+namespace spangle::test_camera_sampler {
 namespace {
 
 TEST(Sobol, TablesMatchTheBitSerialDefinition) {
@@ -187,7 +187,7 @@ TEST(RayDifferentials, WidenedFootprintWhenDifferentialsAreGone) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_camera_sampler
 
 namespace spangle {
 namespace {

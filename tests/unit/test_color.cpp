@@ -11,7 +11,7 @@
 #include "pipeline/session.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_color {
 namespace {
 
 using test::shipped_config;
@@ -260,4 +260,4 @@ TEST(ColorConfig, MissingConfigIsAClearError) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_color

@@ -22,7 +22,7 @@
 #include "pipeline/frame.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_compositing {
 namespace {
 
 /** A layered EXR as a compositor sees it: every channel as floats, its types, its header's
@@ -376,4 +376,4 @@ TEST(Compositing, AShadowCatcherKeepsOnlyTheShadowAsAlpha) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_compositing

@@ -14,7 +14,7 @@
 #include "scene/toml_scene_writer.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_convert {
 namespace {
 
 namespace fs = std::filesystem;
@@ -228,4 +228,4 @@ TEST(Convert, AnUnresolvedImportIsRefusedNotDropped) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_convert

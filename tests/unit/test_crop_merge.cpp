@@ -19,7 +19,7 @@
 #include "scene_request.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_crop_merge {
 namespace {
 
 /** A render of tests/scenes/textured.toml (absolute paths) at 72 x 40, `spp` samples. */
@@ -233,4 +233,4 @@ TEST(CropMerge, AWindowOutsideTheImageIsRefused) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_crop_merge

@@ -19,7 +19,7 @@
 #include "scene/toml_scene_writer.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_deforming_mesh {
 namespace {
 
 TEST(FrameSequence, TheRunOfHashesBecomesTheZeroPaddedFrame) {
@@ -502,4 +502,4 @@ TEST(DeformingMesh, ConvertWritesThePatternAndTheRestMeshBack) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_deforming_mesh

@@ -16,7 +16,7 @@
 #include "scene_request.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_denoise {
 namespace {
 
 /** Skips (or fails, with SPANGLE_REQUIRE_OIDN) when the denoiser cannot run. */
@@ -158,4 +158,4 @@ TEST(Denoise, AMissingGuideIsAnError) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_denoise

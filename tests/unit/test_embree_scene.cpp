@@ -10,7 +10,7 @@
 #include "accel/embree_scene.h"
 #include "core/hash.h"
 
-namespace spangle {
+namespace spangle::test_embree_scene {
 namespace {
 
 /** A bumpy closed sphere of about 20,000 triangles. */
@@ -231,4 +231,4 @@ TEST(EmbreeScene, MovingInstancesAreWhereInstanceAtPutsThemAtTheRaysTime) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_embree_scene

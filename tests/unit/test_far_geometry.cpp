@@ -17,7 +17,7 @@
 #include "pipeline/session.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_far_geometry {
 namespace {
 
 constexpr double kTilt = 30.0 * M_PI / 180.0;
@@ -202,4 +202,4 @@ TEST(FarGeometry, AnObjectWhosePointsAllCoincideIsSaid) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_far_geometry

@@ -16,7 +16,7 @@
 #include "scene_request.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_flake_render {
 namespace {
 
 FrameResult render_plane(const std::string& scene, uint32_t size) {
@@ -473,4 +473,4 @@ intensity = 1
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_flake_render

@@ -11,7 +11,7 @@
 #include "core/hash.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_flicker {
 namespace {
 
 /** A 32 x 32 frame seeing the plane z = 0 straight on (worldToNDC the identity: P = (ndc x,
@@ -228,4 +228,4 @@ TEST(Flicker, SparklesOnADeformingObjectAreFoundByTheirRestPosition) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_flicker

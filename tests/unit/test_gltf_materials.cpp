@@ -21,7 +21,7 @@
 #include "scene_request.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_gltf_materials {
 namespace {
 
 using test::GltfWriter;
@@ -744,4 +744,4 @@ TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_gltf_materials

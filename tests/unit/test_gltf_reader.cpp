@@ -15,7 +15,7 @@
 #include "scene/scene_loader.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_gltf_reader {
 namespace {
 
 using test::GltfWriter;
@@ -531,4 +531,4 @@ TEST(GltfReader, PunctualLightsTakeTheirNodesPlaceAndPhotometricUnits) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_gltf_reader

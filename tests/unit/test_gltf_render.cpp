@@ -14,7 +14,7 @@
 #include "scene/scene_loader.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_gltf_render {
 namespace {
 
 using test::GltfWriter;
@@ -189,4 +189,4 @@ TEST(GltfRender, RendersAsItsTomlTwinWithinNoise) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_gltf_render

@@ -13,7 +13,7 @@
 #include "core/error.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_image_output {
 namespace {
 
 namespace fs = std::filesystem;
@@ -174,9 +174,9 @@ TEST(PngPreview, GoesThroughTheDisplayView) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_image_output
 
-namespace spangle {
+namespace spangle::test_image_output {
 namespace {
 
 /** Writes rgba (w x h x channels floats) with OpenImageIO in whatever format `path` names. */
@@ -308,4 +308,4 @@ TEST(ImageInput, UnreadableFilesNameWhatAndWhere) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_image_output

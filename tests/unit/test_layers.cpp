@@ -13,7 +13,7 @@
 #include "pipeline/frame.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_layers {
 namespace {
 
 /** A 1.2 m square at z = 0 facing a camera 3 m away whose view is 2.4 m wide: with a box filter
@@ -258,4 +258,4 @@ TEST(Layers, TurningThemOnLeavesTheBeautyAlone) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_layers

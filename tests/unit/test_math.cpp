@@ -7,7 +7,7 @@
 #include "render/arena.h"
 #include "render/distribution.h"
 
-namespace spangle {
+namespace spangle::test_math {
 namespace {
 
 TEST(Hash, IsAPureFunctionAndSpreadsBits) {
@@ -69,4 +69,4 @@ TEST(ScratchArena, AlignsAndReuses) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_math

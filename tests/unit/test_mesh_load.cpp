@@ -12,7 +12,7 @@
 #include "geometry/mesh_load.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_mesh_load {
 namespace {
 
 TEST(MeshLoad, ObjWithNormalsAndUvs) {
@@ -466,4 +466,4 @@ TEST(MeshLoad, ValidateCatchesIndicesPastTheEnd) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_mesh_load

@@ -18,7 +18,7 @@
 
 namespace fs = std::filesystem;
 
-namespace spangle {
+namespace spangle::test_new_scene {
 namespace {
 
 /** A box from lo to hi as an OBJ (12 triangles), away from the origin on purpose. */
@@ -266,4 +266,4 @@ TEST(ScenePaths, NotFoundNamesTheAbsolutePathOfAFileNamedRelativeToTheScene) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_new_scene

@@ -17,7 +17,7 @@
 #include "scene/scene_loader.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_pbrt_reader {
 namespace {
 
 using test::has_note;
@@ -1032,4 +1032,4 @@ AreaLightSource "diffuse" "bool twosided" true
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_pbrt_reader

@@ -20,7 +20,7 @@
 #include "scene/scene_loader.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_pbrt_render {
 namespace {
 
 /** The image a description renders to (working space RGB), on two threads. */
@@ -476,4 +476,4 @@ TEST(PbrtEnvironment, EqualAreaMapsPutTheirCentreUpAndSampleByTheirPdf) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_pbrt_render

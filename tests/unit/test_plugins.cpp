@@ -14,7 +14,7 @@
 #include "shading/plugin_loader.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_plugins {
 namespace {
 
 namespace fs = std::filesystem;
@@ -420,4 +420,4 @@ TEST(Materials, PluginOutputsTheRendererCannotUseAreDroppedAndSaid) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_plugins

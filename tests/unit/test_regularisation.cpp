@@ -12,7 +12,7 @@
 #include "pipeline/frame.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_regularisation {
 namespace {
 
 /** caustic_mirror.toml with `filter_glossy` and the given extra edits, rendered. */
@@ -95,4 +95,4 @@ TEST(Regularisation, PathsThatMetOnlyMirrorsAndSceneWithoutGlossAreUnchanged) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_regularisation

@@ -13,7 +13,7 @@
 #include "scene_request.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_render {
 namespace {
 
 /** The render of the scene file at `path`. */
@@ -269,4 +269,4 @@ TEST(Render, EmptySceneRendersTheEnvironment) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_render

@@ -13,7 +13,7 @@
 #include "scene/toml_scene_reader.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_scene_builder {
 namespace {
 
 /** A small scene using every kind of element; MESH stands for the mesh's path. */
@@ -389,7 +389,7 @@ TEST(SceneLoader, AMeshOrAnotherProgramsSceneIsNamedAsSuch) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_scene_builder
 
 namespace spangle {
 namespace {

@@ -10,7 +10,7 @@
 #include "scene/scene_loader.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_scene_import {
 namespace {
 
 /** A small "car": a red sphere on a plane under a quad light, written in `dir`. */
@@ -205,4 +205,4 @@ TEST(Import, AWatchSessionWatchesTheImportedFiles) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_scene_import

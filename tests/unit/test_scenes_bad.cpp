@@ -12,7 +12,7 @@
 #include "pipeline/frame.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_scenes_bad {
 namespace {
 
 namespace fs = std::filesystem;
@@ -92,4 +92,4 @@ TEST(ScenesBad, MissingSceneFile) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_scenes_bad

@@ -19,7 +19,7 @@
 
 namespace fs = std::filesystem;
 
-namespace spangle {
+namespace spangle::test_session {
 namespace {
 
 /** A quiet request for `scene` with the shipped OCIO config. */
@@ -434,4 +434,4 @@ TEST(Session, RegistryDiffIgnoresWhereValuesAreWritten) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_session

@@ -17,7 +17,7 @@
 #include "render/surface.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_subdivision {
 namespace {
 
 /** A unit cube cage: 8 vertices, 6 quads, each face its own uv tile (u in [f, f + 1]). */
@@ -356,4 +356,4 @@ TEST(MemoryLimits, BvhAndEnvironmentMapsAreRefusedUpFront) {
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_subdivision

@@ -13,7 +13,7 @@
 #include "shading/texture.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_textures {
 namespace {
 
 /** Writes w x h RGB floats as a 32-bit EXR (scene-linear: the working space of the config). */
@@ -527,4 +527,4 @@ params = { albedo = { texture = "nowhere.png" } })"));
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_textures

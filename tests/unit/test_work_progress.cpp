@@ -10,7 +10,7 @@
 #include "pipeline/session.h"
 #include "test_support.h"
 
-namespace spangle {
+namespace spangle::test_work_progress {
 namespace {
 
 /** Every report, by the work it names. */
@@ -84,4 +84,4 @@ TEST(WorkProgress, ALoadReportsReadingSubdivisionAndBvhBuildsAndAReloadOnlyWhatI
 }
 
 }  // namespace
-}  // namespace spangle
+}  // namespace spangle::test_work_progress
