@@ -90,7 +90,7 @@ Vec3 working_color(BuildContext& ctx, const std::optional<ColorDesc>& c, Vec3 fa
 }
 
 /** The index of a light group (added on first use), its name checked. */
-LightGroup light_group(BuildContext& ctx, const LightGroupDesc& g) {
+LightGroup light_group_component(BuildContext& ctx, const LightGroupDesc& g) {
     const std::string& name = g.name;
     if (name.empty() || name.size() > 64 ||
         name.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_") !=
@@ -310,7 +310,7 @@ void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
     const auto k = static_cast<float>(d.intensity);
     ecs::Registry& registry = *ctx.registry;
     const ecs::Entity env = registry.create();
-    registry.put(env, light_group(ctx, d.group));
+    registry.put(env, light_group_component(ctx, d.group));
     if (d.map) {
         EnvironmentMapFile m;
         m.path = d.map->path;
@@ -629,7 +629,7 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
         const Vec3 le = emitted(working_color(ctx, d.emission->color, {0, 0, 0}),
                                 d.emission->intensity, d.emission->color.loc, d.what.c_str());
         if (max_component(le) > 0.0f) registry.put(e, Emission{le, d.emission->two_sided});
-        registry.put(e, light_group(ctx, d.emission->group));
+        registry.put(e, light_group_component(ctx, d.emission->group));
     }
     if (motion.steps.empty()) return;
     if (registry.has<Emission>(e)) {
@@ -709,7 +709,7 @@ struct LightPut {
 void build_light(BuildContext& ctx, const LightDesc& d) {
     const Vec3 value = emitted(working_color(ctx, d.color, {1, 1, 1}), d.intensity, d.loc, "light");
     const ecs::Entity e = ctx.registry->create();
-    ctx.registry->put(e, light_group(ctx, d.group));
+    ctx.registry->put(e, light_group_component(ctx, d.group));
     std::visit(LightPut{*ctx.registry, e, value, d.loc}, d.shape);
 }
 

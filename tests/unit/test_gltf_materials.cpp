@@ -545,6 +545,10 @@ TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {
     EXPECT_EQ(with_length("\"" + length + "\""),
               at + "byteLength \"" + length + "\" is a string; write the number without quotes");
     EXPECT_EQ(with_length("null"), at + "byteLength must be a number");
+    // A whole number written with a fraction or an exponent: tinygltf refused it at 1:1.
+    EXPECT_EQ(with_length(length + ".0"), at + "byteLength " + length +
+                                              ".0 must be written as a whole number (" + length +
+                                              "): glTF readers take it as an integer");
     const auto with_uri = [&](const std::string& value) {
         std::string t = text;
         t.replace(t.find("\"quad.bin\""), 10, value);
@@ -560,6 +564,10 @@ TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {
                   "application/gltf-buffer");
     EXPECT_EQ(with_uri("\"data:application/octet-stream;BASE64,AAAA\""),
               uri_at + "write ';base64' in a data URI in lower case");
+    EXPECT_EQ(with_uri("\"data:Application/Octet-Stream;base64,AAAA\""),
+              uri_at +
+                  "write the data URI's media type in lower case ('application/octet-stream'): "
+                  "glTF readers compare it as written");
     EXPECT_EQ(with_uri("\"qu%00ad.bin\""),
               uri_at + "file 'qu%00ad.bin' not found (looked for " + dir.file("qu%00ad.bin") + ")");
     // A .bin longer than byteLength is read up to it; FILE:// is file://.
@@ -570,6 +578,13 @@ TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {
     const SceneDescription d = read_gltf_scene(dir.file("sizes.gltf"), {});
     ASSERT_EQ(d.objects.size(), 1u);
     EXPECT_NE(std::find(d.files.begin(), d.files.end(), dir.file("padded.bin")), d.files.end());
+    // Two buffers naming one file with different byteLengths: each is read up to its own (the
+    // second was read up to the first's, and tinygltf refused it at 1:1).
+    std::string two = text;
+    two.replace(two.find("\"quad.bin\""), 10, "\"padded.bin\"");
+    two.insert(two.find(']', two.find("\"buffers\"")), R"(,{"uri":"padded.bin","byteLength":4})");
+    EXPECT_EQ(error_of(dir, two, "sizes.gltf"), "no error");
+    EXPECT_EQ(read_gltf_scene(dir.file("sizes.gltf"), {}).objects.size(), 1u);
 }
 
 TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {

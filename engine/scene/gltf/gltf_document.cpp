@@ -64,8 +64,13 @@ std::string same_path(const std::string& path, void*) {
                : path;
 }
 
-/** The byteLength of each buffer's file, by the file's canonical path (check_buffers()). */
-using BufferLengths = std::unordered_map<std::string, uintmax_t>;
+/** The byteLengths of the buffers naming each file, in buffer order, by the file's canonical
+ *  path (check_buffers()); tinygltf reads the buffers in that order, so the n-th read of a file
+ *  is the n-th buffer naming it (two buffers may name one file with different lengths). */
+struct BufferLengths {
+    std::unordered_map<std::string, std::vector<uintmax_t>> by_path;
+    std::unordered_map<std::string, std::size_t> reads;  ///< reads of each file so far
+};
 
 std::string canonical_key(const std::string& path) {
     std::error_code ec;
@@ -88,9 +93,12 @@ bool read_regular_file(std::vector<unsigned char>* out, std::string* err, const 
         if (err) *err += "cannot read '" + path + "'\n";
         return false;
     }
-    if (const auto* lengths = static_cast<const BufferLengths*>(user)) {
-        const auto it = lengths->find(canonical_key(path));
-        if (it != lengths->end() && it->second < out->size()) out->resize(it->second);
+    if (auto* lengths = static_cast<BufferLengths*>(user)) {
+        const std::string key = canonical_key(path);
+        if (const auto it = lengths->by_path.find(key); it != lengths->by_path.end()) {
+            const std::size_t n = lengths->reads[key]++;
+            if (n < it->second.size() && it->second[n] < out->size()) out->resize(it->second[n]);
+        }
     }
     return true;
 }
@@ -220,6 +228,12 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
                         *length_text);
         char* end = nullptr;
         const double length = std::strtod(length_text->c_str(), &end);
+        if (end != length_text->c_str() && *end == '\0' && length >= 1 && length <= 9.0e15 &&
+            length == std::floor(length) && length_text->find_first_of(".eE") != std::string::npos)
+            throw_error(ctx.at(length_at),
+                        "buffer {}: byteLength {} must be written as a whole number ({:.0f}): "
+                        "glTF readers take it as an integer",
+                        i, *length_text, length);
         if (end == length_text->c_str() || *end != '\0' || !(length >= 1) ||
             length != std::floor(length) || length > 9.0e15)
             throw_error(ctx.at(length_at),
@@ -251,6 +265,13 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
             if (comma == std::string::npos || !head.ends_with(";base64"))
                 throw_error(ctx.at(at),
                             "buffer {}: a data URI must be base64 (\"data:...;base64,...\")", i);
+            const std::string lower_head = ascii_lower(head);
+            if (head != lower_head && (lower_head == "data:application/octet-stream;base64" ||
+                                       lower_head == "data:application/gltf-buffer;base64"))
+                throw_error(ctx.at(at),
+                            "buffer {}: write the data URI's media type in lower case ('{}'): "
+                            "glTF readers compare it as written",
+                            i, lower_head.substr(5, lower_head.size() - 12));
             if (head != "data:application/octet-stream;base64" &&
                 head != "data:application/gltf-buffer;base64")
                 throw_error(ctx.at(at),
@@ -284,7 +305,7 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
         if (!ec && static_cast<double>(size) < length)
             throw_error(ctx.at(at), "buffer {}: file '{}' holds {} bytes, its byteLength says {}",
                         i, *uri, size, *length_text);
-        lengths.emplace(canonical_key(target.path), static_cast<uintmax_t>(length));
+        lengths.by_path[canonical_key(target.path)].push_back(static_cast<uintmax_t>(length));
     }
     return lengths;
 }
