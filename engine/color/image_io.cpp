@@ -252,9 +252,12 @@ ImageHeader read_image_header(const std::string& path, const char* what, bool di
         }
         return h;
     }
+    const OiioModule& m = usable_oiio(path, what);
+    // A PNG cut before its first IDAT: its header reads, and libpng printed its own lines
+    // beside the error (textures read the header first).
+    check_png_whole(path, what);
     char error[1024] = "";
-    if (usable_oiio(path, what)
-            .header(path.c_str(), &h.width, &h.height, &h.channels, error, sizeof(error)) != 0)
+    if (m.header(path.c_str(), &h.width, &h.height, &h.channels, error, sizeof(error)) != 0)
         throw_error("cannot read {} '{}': {}", what, path, error);
     return h;
 }

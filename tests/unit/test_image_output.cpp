@@ -245,6 +245,20 @@ TEST(ImageInput, APngCutShortIsSaidBeforeLibpngReadsIt) {
     // Cut just before its IEND chunk: every chunk whole, but no end.
     std::ofstream(dir.file("no_end.png"), std::ios::binary) << bytes.substr(0, bytes.size() - 12);
     EXPECT_THROW(read_image(dir.file("no_end.png"), 3, h, "texture"), SpangleError);
+    // Cut before its first IDAT: the header alone reads (textures read it first), and libpng
+    // printed its lines there.
+    const std::size_t idat = bytes.find("IDAT");
+    ASSERT_NE(idat, std::string::npos);
+    std::ofstream(dir.file("no_data.png"), std::ios::binary) << bytes.substr(0, idat - 4);
+    testing::internal::CaptureStderr();
+    try {
+        read_image_header(dir.file("no_data.png"), "texture", true);
+        ADD_FAILURE() << "the header of a PNG without its data was taken";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("the PNG file is cut short"), std::string::npos)
+            << e.what();
+    }
+    EXPECT_EQ(testing::internal::GetCapturedStderr(), "");
 }
 
 TEST(ImageInput, LuminanceChromaExrKeepsItsColour) {
