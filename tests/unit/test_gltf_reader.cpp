@@ -244,6 +244,18 @@ TEST(GltfReader, AnAspectRatioThatIsNotUsableIsSaid) {
         EXPECT_EQ(count_notes(sized, "aspect ratio") + count_notes(sized, "aspectRatio"), 0)
             << aspect;
     }
+    // Nor when a TOML scene imports it and gives the width and height; with the width alone
+    // the height is still the import's, so the note stays.
+    const auto imported = [&](const std::string& size) {
+        read("0.001");
+        std::ofstream(dir.file("s.toml")) << "[render]\n"
+                                          << size << "\n[[import]]\nfile = \"a.gltf\"\n";
+        return read_scene(dir.file("s.toml"));
+    };
+    const SceneDescription sized = imported("width = 320\nheight = 200");
+    EXPECT_EQ(sized.render.height, 200u);
+    EXPECT_EQ(count_notes(sized, "aspect ratio"), 0);
+    EXPECT_EQ(count_notes(imported("width = 320"), "aspect ratio"), 1);
 }
 
 TEST(GltfReader, OrthographicCameraKeepsItsMagnification) {
