@@ -494,8 +494,9 @@ ShapeDesc read_shape(const ReadContext& ctx, TableReader& r) {
 ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
     ObjectDesc o;
     o.loc = r.loc();
-    o.what = r.what();
     o.name = r.string("name", "");
+    // Messages name the object as the file does: "[[object]] #3 'body'".
+    o.what = o.name.empty() ? r.what() : fmt::format("{} '{}'", r.what(), o.name);
     o.shape = read_shape(ctx, r);
     o.material = r.string("material");
     o.material_loc = r.loc("material");

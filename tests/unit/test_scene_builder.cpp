@@ -125,7 +125,7 @@ TEST(SceneReader, TomlDescribesTheFileAsWrittenWithLocations) {
 
     ASSERT_EQ(d.objects.size(), 1u);
     const ObjectDesc& o = d.objects[0];
-    EXPECT_EQ(o.what, "[[object]] #1");
+    EXPECT_EQ(o.what, "[[object]] #1 'ball'");
     ASSERT_TRUE(std::holds_alternative<MeshFileShape>(o.shape));
     EXPECT_EQ(std::get<MeshFileShape>(o.shape).path, mesh_path());
     EXPECT_EQ(o.material, "red");
