@@ -125,6 +125,8 @@ EmbreeScene::EmbreeScene() {
 
 EmbreeScene::~EmbreeScene() {
     if (top_) rtcReleaseScene(top_);
+    for (RTCScene s : baked_)
+        if (s) rtcReleaseScene(s);
     for (auto& [mesh, entry] : by_mesh_) rtcReleaseScene(entry.second);
     if (device_) rtcReleaseDevice(device_);
 }
@@ -167,19 +169,57 @@ struct BuildProgress {
     }
 };
 
+/** Embree carries a ray into an instance's space through the float inverse of its placement,
+ *  whose determinant is a difference of products of the entries. Where the axes are nearly
+ *  parallel (a rotated object flattened to 1e-5 of its size: the determinant 3e-5 of the
+ *  products) that inverse is off by percents: a flattened cube showed its hidden edges as dark
+ *  seams, at 1e-6 it was noise, and nearer still Embree aborted on a ray that was not finite.
+ *  Below this share (Affine::determinant_share) a still instance's mesh is placed in world
+ *  space in double and traced without a transform: the same triangles, barycentrics and
+ *  distances, so shading (which places the hit itself) is unchanged. */
+constexpr double kBakeBelow = 1e-3;
+
+/** Whether an instance is traced through a mesh placed in world space (see kBakeBelow). */
+bool bake(const Instance& inst) {
+    return inst.motion.size() < 2 && !inst.hidden && inst.to_world.determinant_share() < kBakeBelow;
+}
+
+/** A BLAS of `mesh` with its vertices placed by `xf` in double. */
+RTCScene baked_blas(RTCDevice device, const TriangleMesh& mesh, const Affine& xf) {
+    std::vector<float> xyz(mesh.positions.size());
+    for (std::size_t v = 0; v < mesh.vertex_count(); ++v) {
+        const double p[3] = {mesh.positions[3 * v], mesh.positions[3 * v + 1],
+                             mesh.positions[3 * v + 2]};
+        for (int r = 0; r < 3; ++r)
+            xyz[3 * v + static_cast<std::size_t>(r)] = static_cast<float>(
+                static_cast<double>(xf.m[r][0]) * p[0] + static_cast<double>(xf.m[r][1]) * p[1] +
+                static_cast<double>(xf.m[r][2]) * p[2] + static_cast<double>(xf.t[r]));
+    }
+    RTCScene s = rtcNewScene(device);
+    RTCGeometry g = add_triangles(device, s, xyz.data(), mesh.vertex_count(), mesh.indices.data(),
+                                  mesh.triangle_count());
+    rtcReleaseGeometry(g);
+    return s;
+}
+
 /** The top level, not yet committed: an instance per object (ids in order), then the quad lights'
- *  triangles and the sphere lights (their geometry ids returned, or RTC_INVALID_GEOMETRY_ID). */
+ *  triangles and the sphere lights (their geometry ids returned, or RTC_INVALID_GEOMETRY_ID).
+ *  An instance with a baked BLAS (non-null in `baked`) is that BLAS, untransformed. */
 RTCScene make_top_level(RTCDevice device, const std::vector<RTCScene>& blas,
-                        const std::vector<Instance>& instances,
+                        const std::vector<RTCScene>& baked, const std::vector<Instance>& instances,
                         const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres,
                         uint32_t& quad_geom, uint32_t& sphere_geom) {
     quad_geom = sphere_geom = RTC_INVALID_GEOMETRY_ID;
     RTCScene top = rtcNewScene(device);
-    for (const Instance& inst : instances) {
+    for (std::size_t i = 0; i < instances.size(); ++i) {
+        const Instance& inst = instances[i];
         RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
-        rtcSetGeometryInstancedScene(g, blas[inst.mesh]);
+        rtcSetGeometryInstancedScene(g, baked[i] ? baked[i] : blas[inst.mesh]);
         float xfm[12];
-        if (inst.motion.size() >= 2) {
+        if (baked[i]) {
+            to_embree(Affine{}, xfm);
+            rtcSetGeometryTransform(g, 0, RTC_FORMAT_FLOAT3X4_ROW_MAJOR, xfm);
+        } else if (inst.motion.size() >= 2) {
             // A moving instance: one transform per time step (Embree blends them by ray time).
             rtcSetGeometryTimeStepCount(g, static_cast<unsigned>(inst.motion.size()));
             for (std::size_t k = 0; k < inst.motion.size(); ++k) {
@@ -275,8 +315,21 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
     for (auto& [mesh, entry] : by_mesh_) rtcReleaseScene(entry.second);
     by_mesh_ = std::move(next);
     if (top_) rtcReleaseScene(top_);
-    top_ =
-        make_top_level(device_, blas_, instances, quad_vertices, spheres, quad_geom_, sphere_geom_);
+    top_ = nullptr;
+    for (RTCScene s : baked_)
+        if (s) rtcReleaseScene(s);
+    baked_.assign(instances.size(), nullptr);
+    for (std::size_t i = 0; i < instances.size(); ++i) {
+        if (!bake(instances[i]) || instances[i].mesh >= geometry.meshes.size()) continue;
+        const TriangleMesh& mesh = *geometry.meshes[instances[i].mesh];
+        baked_[i] = baked_blas(device_, mesh, instances[i].to_world);
+        meter.total += static_cast<double>(mesh.triangle_count());
+        meter.begin(baked_[i], static_cast<double>(mesh.triangle_count()));
+        rtcCommitScene(baked_[i]);
+        check("building a flattened object's acceleration structure");
+    }
+    top_ = make_top_level(device_, blas_, baked_, instances, quad_vertices, spheres, quad_geom_,
+                          sphere_geom_);
     quad_see_through_ = quad_see_through;
     if (quad_geom_ != RTC_INVALID_GEOMETRY_ID &&
         std::find(quad_see_through_.begin(), quad_see_through_.end(), 1) !=

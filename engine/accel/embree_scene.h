@@ -136,6 +136,10 @@ private:
     /** BLAS by mesh, holding the mesh alive (Embree reads its vertex buffers). */
     std::map<const TriangleMesh*, std::pair<std::shared_ptr<const TriangleMesh>, RTCScene>>
         by_mesh_;
+    /** Per instance of the last build: the BLAS of its mesh already placed in world space (in
+     *  double), for a still placement whose axes are nearly parallel (see kBakeBelow in the
+     *  .cpp); null for the others. */
+    std::vector<RTCScene> baked_;
     int built_ = 0, reused_ = 0;
     uint32_t quad_geom_ = RTC_INVALID_GEOMETRY_ID;
     /** Per quad light: 1 when shadow rays pass through it (its geometry's occlusion filter

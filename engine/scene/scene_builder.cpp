@@ -584,6 +584,7 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     // Rays are carried into object space through the inverse: a placement that squashes an
     // axis to almost nothing (1e-20 in a matrix, a Python scale) sent rays Embree refuses, and
     // the render aborted in its assertion. Every placement through the shutter is checked.
+    const bool moving = !motion.steps.empty();
     const auto check = [&](const Affine& m) {
         const Affine inv = m.inverse();
         float big = 0.0f, big_inv = 0.0f;
@@ -594,17 +595,19 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
             }
         // Axes nearly parallel: the determinant, a difference of products of the entries, is
         // lost in their float rounding (rows [1,1,1], [1,1,1.0001], [1,1.0001,1]: 1e-8 against
-        // products of 1), so the float inverse Embree makes is not finite whatever ours is,
-        // and the render aborted. The rounding is relative to the sum of the products' sizes
-        // (the permanent of |m|): 1e-5 of it leaves the float determinant within about 1%. A
-        // scale, a rotation or a shear, however strong, keeps the two equal or close.
+        // products of 1), so the float inverse Embree makes is off or not finite whatever ours
+        // is (the render aborted). A still object is traced through its mesh placed in world
+        // space in double instead (EmbreeScene), whatever the share; a moving one's placements
+        // are blended by Embree through the shutter, so they must keep 1e-5 of it (the float
+        // determinant then within about 1%). A scale, a rotation or a shear, however strong,
+        // keeps the two equal or close.
         const double share = m.determinant_share();
-        if (std::isfinite(share) && share < 1e-5)
+        if (moving && std::isfinite(share) && share < 1e-5)
             throw_error(d.loc,
-                        "{}: its placement's axes are nearly parallel (its matrix's determinant "
-                        "is {:.3g} of the size of the products it is the difference of; at least "
-                        "1e-5 is needed for rays to follow it): it flattens the object almost "
-                        "into a plane or a line",
+                        "{}: its placement's axes are nearly parallel while it moves (its "
+                        "matrix's determinant is {:.3g} of the size of the products it is the "
+                        "difference of; at least 1e-5 is needed for rays to follow a moving "
+                        "object): it flattens the object almost into a plane or a line",
                         d.what, share);
         if (!(big <= kMaxPlacementScale && big_inv <= kMaxPlacementScale) ||
             !std::isfinite(m.determinant()))
