@@ -5,6 +5,7 @@
 #include <fmt/format.h>
 
 #include <CLI/CLI.hpp>
+#include <algorithm>
 #include <filesystem>
 #include <memory>
 #include <string>
@@ -47,11 +48,13 @@ int run_convert(const ConvertArgs& a) {
     // cache for the texture system: copied beside the meshes, so that the converted scene moves
     // whole (it named the cache, and broke on another machine or when the cache was cleared).
     std::error_code ec;
-    const fs::path cache = fs::absolute(gltf_embedded_image_dir(), ec).lexically_normal();
+    std::vector<fs::path> caches;
+    for (const std::string& dir : gltf_embedded_image_dirs())
+        caches.push_back(fs::absolute(dir, ec).lexically_normal());
     std::size_t images = 0;
     const auto carry = [&](TextureDesc& t) {
         const fs::path from = fs::absolute(t.path, ec).lexically_normal();
-        if (from.parent_path() != cache) return;
+        if (std::find(caches.begin(), caches.end(), from.parent_path()) == caches.end()) return;
         fs::create_directories(meshes, ec);
         const fs::path to = meshes / from.filename();
         if (!fs::exists(to, ec)) {

@@ -92,6 +92,7 @@ private:
     SceneReadOptions read_options() const {
         SceneReadOptions r{options_.camera, options_.environment};
         r.size_given = options_.width_override != 0 || options_.height_override != 0;
+        r.texture_cache = options_.texture_cache;
         return r;
     }
 

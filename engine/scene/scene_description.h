@@ -400,6 +400,9 @@ struct SceneReadOptions {
     /** The image's size is given (`--size`): a reader says nothing of a size its file would
      *  set (a glTF camera's aspect ratio, which --size overrides). */
     bool size_given = false;
+    /** The folder of converted textures (--texture-cache; empty: the default folders): a glTF's
+     *  embedded images are written under it. */
+    std::string texture_cache = {};
 };
 
 /** Everything a scene file says, in the order written within each kind. */

@@ -156,6 +156,13 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_EQ(fs::path(base.texture.path).parent_path(),
               fs::path(dir.file("cache")) / "gltf-images");
     EXPECT_EQ(bytes_of(base.texture.path), png);
+    // --texture-cache names the folder (it was ignored for embedded images: a farm node with a
+    // read-only home failed to render).
+    SceneReadOptions to_cache;
+    to_cache.texture_cache = dir.file("chosen");
+    const SceneDescription chosen = read_gltf_scene(dir.file("mat.gltf"), to_cache);
+    EXPECT_EQ(fs::path(param_of(chosen.materials[1], "base_color").texture.path).parent_path(),
+              fs::path(dir.file("chosen")) / "gltf-images");
 
     const MaterialDesc& coat = d.materials[2];
     EXPECT_EQ(param_of(coat, "clearcoat").number, 0.75);

@@ -360,7 +360,8 @@ bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
     for (const std::string& f : files_to_watch()) before[f] = file_identity(f);
     try {
         const SceneDescription d = read_scene(
-            a_.scene, SceneReadOptions{a_.camera, a_.environment, false, !a_.size.empty()});
+            a_.scene,
+            SceneReadOptions{a_.camera, a_.environment, false, !a_.size.empty(), a_.texture_cache});
         if (scene_content_hash(d.path, d.files) != info.scene_files_hash) return false;
         say(fmt::format("reload ({}): the same as the scene being rendered: its render goes on",
                         what));
@@ -384,8 +385,8 @@ void WatchLoop::apply_change(const std::vector<std::string>& touched) {
             arrivals_only && !std::binary_search(watched.begin(), watched.end(), absolute_path(t));
     if (arrivals_only && !last_error_.empty()) {
         try {
-            read_scene(a_.scene,
-                       SceneReadOptions{a_.camera, a_.environment, false, !a_.size.empty()});
+            read_scene(a_.scene, SceneReadOptions{a_.camera, a_.environment, false,
+                                                  !a_.size.empty(), a_.texture_cache});
         } catch (const SpangleError& e) {
             if (e.what() == last_error_) return;
         }

@@ -33,6 +33,7 @@ struct Context {
     std::map<std::pair<int, int>, std::shared_ptr<const TriangleMesh>>
         meshes;                              ///< (mesh, primitive)
     std::map<int, std::string> image_files;  ///< glTF image -> file ("" = none)
+    std::string texture_cache;               ///< --texture-cache (empty: the default folders)
 
     /** Where the value at JSON path `p` is written. */
     FileLoc at(const std::string& p) const { return json.at(p); }

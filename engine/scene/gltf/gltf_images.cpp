@@ -7,8 +7,10 @@
 
 #include <algorithm>
 #include <cctype>
+#include <cerrno>
 #include <cstdio>
 #include <cstdlib>
+#include <cstring>
 #include <fstream>
 
 #include "core/files.h"
@@ -62,33 +64,51 @@ std::string bytes_hash(const std::vector<unsigned char>& b) {
 }
 
 /** Writes `bytes` to `file` unless a file of that name and size is there (named by the hash
- *  of its content, it is the same image); through a temporary file renamed into place. */
-void write_once(const fs::path& file, const std::vector<unsigned char>& bytes, const FileLoc& at) {
+ *  of its content, it is the same image); through a temporary file renamed into place. Returns
+ *  why it could not, or an empty string. */
+std::string write_once(const fs::path& file, const std::vector<unsigned char>& bytes) {
     std::error_code ec;
-    if (fs::is_regular_file(file, ec) && fs::file_size(file, ec) == bytes.size()) return;
+    if (fs::is_regular_file(file, ec) && fs::file_size(file, ec) == bytes.size()) return {};
     fs::create_directories(file.parent_path(), ec);
+    if (ec) return fmt::format("cannot create {}: {}", file.parent_path().string(), ec.message());
     const fs::path tmp = file.string() + fmt::format(".{}.tmp", ::getpid());
     {
         std::ofstream out(tmp, std::ios::binary);
+        if (!out) return fmt::format("cannot write {}: {}", tmp.string(), std::strerror(errno));
         out.write(reinterpret_cast<const char*>(bytes.data()),
                   static_cast<std::streamsize>(bytes.size()));
-        if (!out) throw_error(at, "cannot write the embedded image to {}", tmp.string());
+        out.close();
+        if (!out) {
+            const std::string why = std::strerror(errno);
+            fs::remove(tmp, ec);
+            return fmt::format("cannot write {}: {}", tmp.string(), why);
+        }
     }
     fs::rename(tmp, file, ec);
-    if (ec)
-        throw_error(at, "cannot write the embedded image to {}: {}", file.string(), ec.message());
+    if (ec) {
+        const std::string why = ec.message();
+        fs::remove(tmp, ec);
+        return fmt::format("cannot write {}: {}", file.string(), why);
+    }
+    return {};
 }
 
 }  // namespace
 
-std::string embedded_image_dir() {
-    if (const char* env = std::getenv("SPANGLE_TEXTURE_CACHE"); env && *env)
-        return (fs::path(env) / "gltf-images").string();
-    if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg)
-        return (fs::path(xdg) / "spangle" / "gltf-images").string();
-    if (const char* home = std::getenv("HOME"); home && *home)
-        return (fs::path(home) / ".cache" / "spangle" / "gltf-images").string();
-    return (fs::temp_directory_path() / fmt::format("spangle-gltf-images-{}", ::getuid())).string();
+std::vector<std::string> embedded_image_dirs(const std::string& texture_cache) {
+    std::vector<std::string> dirs;
+    if (!texture_cache.empty()) {
+        dirs.push_back((fs::path(texture_cache) / "gltf-images").string());
+    } else if (const char* env = std::getenv("SPANGLE_TEXTURE_CACHE"); env && *env) {
+        dirs.push_back((fs::path(env) / "gltf-images").string());
+    } else if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) {
+        dirs.push_back((fs::path(xdg) / "spangle" / "gltf-images").string());
+    } else if (const char* home = std::getenv("HOME"); home && *home) {
+        dirs.push_back((fs::path(home) / ".cache" / "spangle" / "gltf-images").string());
+    }
+    dirs.push_back(
+        (fs::temp_directory_path() / fmt::format("spangle-gltf-images-{}", ::getuid())).string());
+    return dirs;
 }
 
 UriTarget uri_target(const Context& ctx, const std::string& uri) {
@@ -165,17 +185,35 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
                              image, bytes.empty() ? "no bytes" : img.mimeType));
         return out;
     }
-    const fs::path file = fs::path(embedded_image_dir()) / (bytes_hash(bytes) + ext);
-    write_once(file, bytes, ctx.at(ip));
-    return out = file.string();
+    // The first folder that takes it (a farm node's read-only home: the temporary folder, as
+    // for converted textures; the render failed).
+    const std::vector<std::string> dirs = embedded_image_dirs(ctx.texture_cache);
+    std::vector<std::string> failures;
+    for (const std::string& dir : dirs) {
+        const fs::path file = fs::path(dir) / (bytes_hash(bytes) + ext);
+        const std::string why = write_once(file, bytes);
+        if (why.empty()) {
+            if (!failures.empty())
+                ctx.note("embedded image folder", ctx.at(ip),
+                         fmt::format("{}: embedded images are written to {} instead (give "
+                                     "--texture-cache a folder that can be written)",
+                                     failures.front(), dir));
+            return out = file.string();
+        }
+        failures.push_back(why);
+    }
+    throw_error(ctx.at(ip),
+                "cannot write the embedded image anywhere ({}): give --texture-cache a "
+                "folder that can be written",
+                fmt::join(failures, "; "));
 }
 
 }  // namespace spangle::gltf
 
 namespace spangle {
 
-std::string gltf_embedded_image_dir() {
-    return gltf::embedded_image_dir();
+std::vector<std::string> gltf_embedded_image_dirs(const std::string& texture_cache) {
+    return gltf::embedded_image_dirs(texture_cache);
 }
 
 }  // namespace spangle

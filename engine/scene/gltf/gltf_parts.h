@@ -40,9 +40,11 @@ UriTarget uri_target(const Context& ctx, const std::string& uri);
  *  its first '/', escapes as written). True when the host is this machine (none, or localhost). */
 bool split_file_uri(std::string_view rest, std::string& host, std::string& path);
 
-/** The folder embedded images are written to: $SPANGLE_TEXTURE_CACHE/gltf-images, else
- *  $XDG_CACHE_HOME/spangle/gltf-images, else ~/.cache/spangle/gltf-images. */
-std::string embedded_image_dir();
+/** The folders embedded images are written to, in the order tried: `texture_cache`/gltf-images
+ *  when given (--texture-cache), else $SPANGLE_TEXTURE_CACHE/gltf-images, else
+ *  $XDG_CACHE_HOME/spangle/gltf-images or ~/.cache/spangle/gltf-images, then the temporary
+ *  directory's spangle-gltf-images-UID (when the others cannot be written). */
+std::vector<std::string> embedded_image_dirs(const std::string& texture_cache);
 
 /** gltf_materials.cpp: the name of the Spangle material standing for glTF material `index` (-1:
  *  glTF's default material), made and added to the scene on first use; its emission, if any. */

@@ -11,6 +11,7 @@ SceneDescription read_gltf_scene(const std::string& path, const SceneReadOptions
     ctx.path = path;
     ctx.dir = std::filesystem::path(path).parent_path();
     ctx.scene = &scene;
+    ctx.texture_cache = options.texture_cache;
     gltf::load_document(ctx);
     gltf::read_nodes(ctx, options);
     return scene;

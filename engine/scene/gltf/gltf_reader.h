@@ -14,9 +14,9 @@ namespace spangle {
  *  JSON; of a .glb's JSON chunk) for what is wrong in it; notes what it drops. */
 SceneDescription read_gltf_scene(const std::string& path, const SceneReadOptions& options);
 
-/** The folder a glTF's embedded images (data URIs, a .glb's buffer views) are written to for the
- *  texture system: $SPANGLE_TEXTURE_CACHE/gltf-images, else $XDG_CACHE_HOME/spangle/gltf-images,
- *  else ~/.cache/spangle/gltf-images. `spangle convert` copies them out of it. */
-std::string gltf_embedded_image_dir();
+/** The folders a glTF's embedded images (data URIs, a .glb's buffer views) are written to for
+ *  the texture system, in the order tried (gltf_parts.h: embedded_image_dirs). `spangle convert`
+ *  copies them out of these. */
+std::vector<std::string> gltf_embedded_image_dirs(const std::string& texture_cache = "");
 
 }  // namespace spangle
