@@ -246,6 +246,9 @@ struct EmissionDesc {
     double intensity = 1.0;  ///< scale (non-negative)
     LightGroupDesc group;    ///< its light group
     bool two_sided = false;  ///< emits from its back faces too (pbrt's "twosided")
+    /** The emission is its material's (a glTF material's emissiveFactor): an importing file
+     *  that replaces the material by name replaces it too (scene_import.cpp). */
+    bool of_material = false;
 };
 
 /** A placed shape with a material. */
@@ -405,6 +408,12 @@ struct SceneReadOptions {
     std::string texture_cache = {};
 };
 
+/** The studio light a glTF file lit by its emission alone would have had without it. */
+struct StudioLight {
+    EnvironmentDesc environment;
+    std::vector<LightDesc> lights;
+};
+
 /** Everything a scene file says, in the order written within each kind. */
 struct SceneDescription {
     std::string path;  ///< the file it was read from
@@ -422,9 +431,12 @@ struct SceneDescription {
     bool camera_by_name = false;
     std::vector<ImportDesc> imports;             ///< other scene files it brings in
     std::optional<EnvironmentDesc> environment;  ///< none = black, no environment light
-    std::vector<MaterialDesc> materials;         ///< in the order written
-    std::vector<ObjectDesc> objects;             ///< in the order written (numbered from 0)
-    std::vector<LightDesc> lights;               ///< in the order written
+    /** A glTF file lit by its emission alone: the studio light it would have had without it,
+     *  which an importing file that replaces every emitting material takes instead. */
+    std::optional<StudioLight> studio_light;
+    std::vector<MaterialDesc> materials;  ///< in the order written
+    std::vector<ObjectDesc> objects;      ///< in the order written (numbered from 0)
+    std::vector<LightDesc> lights;        ///< in the order written
 };
 
 }  // namespace spangle

@@ -150,6 +150,38 @@ void merge(SceneDescription& scene, SceneDescription in, const ImportDesc& how, 
     explicit_key_times(in);
     const Affine place = matrix_of(how.placement);
     const bool placed = !is_identity(place);
+    const auto own = [&](const std::string& name) {
+        return std::find(m.own_materials.begin(), m.own_materials.end(), name) !=
+               m.own_materials.end();
+    };
+    // A material the importing file replaces takes its emission with it (a glTF material's
+    // emissiveFactor): the replaced paint still glowed, and the glow kept the file's studio
+    // light out.
+    std::vector<std::string> unlit;
+    for (ObjectDesc& o : in.objects)
+        if (o.emission && o.emission->of_material && own(o.material)) {
+            o.emission.reset();
+            if (std::find(unlit.begin(), unlit.end(), o.material) == unlit.end())
+                unlit.push_back(o.material);
+        }
+    // Its only light gone with them: the studio light it would have had stands in.
+    const bool dark = !unlit.empty() && in.studio_light &&
+                      std::none_of(in.objects.begin(), in.objects.end(),
+                                   [](const ObjectDesc& o) { return o.emission.has_value(); });
+    if (dark) {
+        in.environment = in.studio_light->environment;
+        in.lights = in.studio_light->lights;
+        scene.notes.push_back(fmt::format(
+            "{}: {} has no light left: the default studio light stands in (a grey sky and a key "
+            "light)",
+            how.loc.str(), in.path));
+    }
+    for (const std::string& name : unlit)
+        scene.notes.push_back(fmt::format(
+            "{}: material '{}' of {} emitted light: the importing file's material of that name "
+            "replaces it, emission included (give the replacing material's objects an "
+            "`emission` to keep a glow)",
+            how.loc.str(), name, in.path));
     for (ObjectDesc& o : in.objects) {
         if (placed) o.parent = o.parent ? place.compose(*o.parent) : place;
         m.objects.push_back(std::move(o));

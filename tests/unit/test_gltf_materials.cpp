@@ -709,7 +709,8 @@ TEST(GltfContainers, ATomlSceneImportsAGltfAndOverridesItsMaterialByName) {
     w.write_gltf(
         dir.file("quad.gltf"),
         R"("nodes":[{"mesh":0,"translation":[0,0,-2]}],"meshes":[)" + mesh +
-            R"(],"materials":[{"name":"Paint","pbrMetallicRoughness":{"metallicFactor":1}}])");
+            R"(],"materials":[{"name":"Paint","pbrMetallicRoughness":{"metallicFactor":1},)"
+            R"("emissiveFactor":[1,0,0]}])");
     std::ofstream(dir.file("scene.toml")) << R"([camera]
 position = [0, 0, 5]
 look_at = [0, 0, 0]
@@ -731,6 +732,16 @@ model = "diffuse"
     EXPECT_EQ(d.materials[0].model, "diffuse");
     EXPECT_TRUE(d.lights.empty());         // lights = false drops the studio light
     EXPECT_EQ(d.camera.position.z, 5.0f);  // the importing file's camera wins
+    // The glTF material's glow goes with it (the replaced paint glowed red).
+    EXPECT_FALSE(d.objects[0].emission.has_value());
+    EXPECT_TRUE(has_note(d, "material 'Paint' of " + dir.file("quad.gltf") + " emitted light"));
+    EXPECT_TRUE(read_gltf_scene(dir.file("quad.gltf"), {}).objects[0].emission.has_value());
+    // Its glow was the file's only light (so it had no studio light): the studio light stands
+    // in for it, as for a file without light (the sky; the key light is left out by `lights`).
+    ASSERT_TRUE(d.environment.has_value());
+    ASSERT_TRUE(d.environment->color.has_value());
+    EXPECT_FLOAT_EQ(d.environment->color->rgb.x, 0.25f);
+    EXPECT_TRUE(has_note(d, "has no light left: the default studio light stands in"));
     ColorConfig color = test::shipped_config();
     ecs::Registry registry;
     const SceneInfo info = build_scene(d, color, registry, 0.0);

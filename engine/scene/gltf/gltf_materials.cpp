@@ -387,6 +387,7 @@ std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
     const FileLoc at = ctx.at(mp + "/emissiveFactor");
     d.color = ColorDesc{e, std::string("lin_rec709"), at, at};
     d.group.loc = at;
+    d.of_material = true;
     if (const tinygltf::Value* x = extension(g, "KHR_materials_emissive_strength"))
         d.intensity = std::max(0.0, number_of(x, "emissiveStrength", 1.0));
     return d;

@@ -438,26 +438,34 @@ double emission_irradiance(const SceneDescription& s) {
  *  exporters write it, or a small LED on a device. 4% of the studio light's irradiance. */
 constexpr double kFaintEmission = 0.1;
 
-/** With no light in the file: a grey sky and a key light (docs/gltf.md). */
-void default_light(Context& ctx, bool faint_emission) {
+/** The studio light: a grey sky and a key light (docs/gltf.md). */
+StudioLight studio_light(const Context& ctx) {
     const FileLoc file{ctx.path, 1, 1};
-    ctx.note("default light", file,
+    StudioLight studio;
+    studio.environment.loc = studio.environment.group.loc = file;
+    studio.environment.color =
+        ColorDesc{{0.25f, 0.25f, 0.25f}, std::string("lin_rec709"), file, file};
+    LightDesc key;
+    key.loc = key.group.loc = file;
+    key.color = ColorDesc{{1, 1, 1}, std::string("lin_rec709"), file, file};
+    key.intensity = 2.5;
+    key.shape = DistantLightDesc{{-1.0f, 2.0f, 1.5f}, 2.0, file};
+    studio.lights.push_back(std::move(key));
+    return studio;
+}
+
+/** With no light in the file: the studio light stands in. */
+void default_light(Context& ctx, bool faint_emission) {
+    ctx.note("default light", FileLoc{ctx.path, 1, 1},
              faint_emission
                  ? "the file's only light is emission too faint to light it (its power spread "
                    "over its surfaces is below 4% of the studio light's): the default studio "
                    "light is added (a grey sky and a key light)"
                  : "the file has no light: the default studio light stands in (a grey sky and a "
                    "key light)");
-    EnvironmentDesc env;
-    env.loc = env.group.loc = file;
-    env.color = ColorDesc{{0.25f, 0.25f, 0.25f}, std::string("lin_rec709"), file, file};
-    ctx.scene->environment = env;
-    LightDesc key;
-    key.loc = key.group.loc = file;
-    key.color = ColorDesc{{1, 1, 1}, std::string("lin_rec709"), file, file};
-    key.intensity = 2.5;
-    key.shape = DistantLightDesc{{-1.0f, 2.0f, 1.5f}, 2.0, file};
-    ctx.scene->lights.push_back(std::move(key));
+    StudioLight studio = studio_light(ctx);
+    ctx.scene->environment = std::move(studio.environment);
+    for (LightDesc& l : studio.lights) ctx.scene->lights.push_back(std::move(l));
 }
 
 }  // namespace
@@ -508,6 +516,9 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
     const bool faint = emits && emission_irradiance(*ctx.scene) < kFaintEmission;
     if (ctx.scene->lights.empty() && (!emits || faint) && options.environment.empty())
         default_light(ctx, faint);
+    else if (ctx.scene->lights.empty() && emits && !ctx.scene->environment &&
+             options.environment.empty())
+        ctx.scene->studio_light = studio_light(ctx);  // for an import that drops the emission
     RenderDesc& r = ctx.scene->render;
     r.loc = r.working_space_loc = r.color_space_loc = FileLoc{ctx.path, 1, 1};
     if (end > 0.0)
