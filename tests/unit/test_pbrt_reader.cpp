@@ -272,7 +272,10 @@ Attribute "shape" "float radius" 0.4
 Shape "sphere"
 )") + kQuad + "\n");
     ASSERT_EQ(d.objects.size(), 2u);
-    EXPECT_NEAR(length(mesh_of(d.objects[0]).position(0)), 0.4f, 1e-5f);
+    ASSERT_TRUE(d.objects[0].placement.matrix.has_value());
+    EXPECT_NEAR(
+        length(d.objects[0].placement.matrix->apply_point(mesh_of(d.objects[0]).position(0))), 0.4f,
+        1e-5f);
     EXPECT_FALSE(noted(d, "radius")) << d.notes.front();
 }
 
@@ -280,16 +283,20 @@ TEST(PbrtReader, QuadricsAreTessellatedOnTheirSurfaces) {
     const Files f;
     const SceneDescription d = read(f, R"(WorldBegin
 Shape "sphere" "float radius" 2
-Shape "sphere" "float radius" 2
+Shape "sphere" "float radius" 0.7
 Shape "disk" "float radius" 1 "float innerradius" 0.5 "float height" 0.25
 Shape "cylinder" "float radius" 0.5 "float zmin" 0 "float zmax" 2 "float phimax" 180
 )");
     ASSERT_EQ(d.objects.size(), 4u);
     const TriangleMesh& s = mesh_of(d.objects[0]);
-    EXPECT_EQ(&s, &mesh_of(d.objects[1])) << "equal quadrics share one mesh";
+    // Spheres of any radius share the unit sphere, scaled by their placement (2000 spheres of
+    // as many radii took 13 GB as 2000 meshes).
+    EXPECT_EQ(&s, &mesh_of(d.objects[1])) << "spheres share one mesh";
+    EXPECT_EQ(*d.objects[0].placement.matrix, Affine::scale(Vec3(2.0f)));
+    EXPECT_EQ(*d.objects[1].placement.matrix, Affine::scale(Vec3(0.7f)));
     EXPECT_GT(s.triangle_count(), 10000u);
     for (std::size_t v = 0; v < s.vertex_count(); ++v) {
-        EXPECT_NEAR(length(s.position(static_cast<uint32_t>(v))), 2.0f, 1e-5f);
+        EXPECT_NEAR(length(s.position(static_cast<uint32_t>(v))), 1.0f, 1e-6f);
         // Outward normals, and faces wound to match them.
         const Vec3 n(s.normals[3 * v], s.normals[3 * v + 1], s.normals[3 * v + 2]);
         EXPECT_GT(dot(n, s.position(static_cast<uint32_t>(v))), 0.0f);
@@ -909,7 +916,8 @@ TEST(PbrtReader, AnImportedFileKeepsItsGraphicsStateToItself) {
                                     "NamedMaterial \"red\"\nShape \"disk\"\n");
     ASSERT_EQ(d.objects.size(), 3u);
     EXPECT_EQ(d.objects[0].placement.matrix->t.y, 2.0f);
-    EXPECT_EQ(*d.objects[1].placement.matrix, Affine()) << "the Translate stayed in the import";
+    EXPECT_EQ(*d.objects[1].placement.matrix, Affine::scale(Vec3(0.5f)))
+        << "the Translate stayed in the import (the sphere is the unit one scaled by its radius)";
     EXPECT_EQ(d.objects[0].material, "red");
     EXPECT_NE(d.objects[1].material, "red") << "the current material stayed in the import";
     EXPECT_EQ(d.objects[2].material, "red") << "the named material joined the scene";

@@ -24,6 +24,9 @@ struct Made {
     /** A quadric's exact area in its own space, which pbrt's 'power' divides by (0: the
      *  placed triangles' area). */
     double object_area = 0.0;
+    /** A scale the shape's placement applies first (a sphere is the shared unit sphere scaled
+     *  by its radius). */
+    double scale = 1.0;
 };
 
 /** Whether the faces must turn: pbrt orients faces by ReverseOrientation and a mirroring
@@ -306,14 +309,17 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
     const std::string turned = flip ? " turned" : "";
     std::string key;
     std::shared_ptr<TriangleMesh> m;
-    double area = 0.0;
+    double area = 0.0, scale = 1.0;
     if (type == "sphere") {
         const double z0 = std::clamp(p.number("zmin", -radius), -radius, radius),
                      z1 = std::clamp(p.number("zmax", radius), -radius, radius);
         const double t0 = std::acos(std::min(z0, z1) / radius),
                      t1 = std::acos(std::max(z0, z1) / radius);
-        key = fmt::format("sphere {} {} {} {}{}", radius, t0, t1, phimax, turned);
+        // Every sphere is the unit sphere of its cut scaled by its radius: 2000 spheres of as
+        // many radii made 2000 meshes of 65 280 triangles (13 GB).
+        key = fmt::format("sphere {} {} {}{}", t0, t1, phimax, turned);
         area = phimax * radius * std::fabs(z1 - z0);
+        scale = radius;
         if (!r.shape_cache.count(key))
             m = grid(
                 segments(phimax, kTurnSegments),
@@ -323,7 +329,7 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
                     n = Vec3(static_cast<float>(std::sin(th) * std::cos(phi)),
                              static_cast<float>(std::sin(th) * std::sin(phi)),
                              static_cast<float>(std::cos(th)));
-                    pos = n * static_cast<float>(radius);
+                    pos = n;
                 },
                 loc);
     } else if (type == "disk") {
@@ -366,7 +372,7 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
         orient(*m, flip, flip);
         cached = m;
     }
-    return {InlineMeshShape{cached, loc}, cached, area};
+    return {InlineMeshShape{cached, loc}, cached, area, scale};
 }
 
 /** The shape's emission from the current area light; v4 "power" needs its area. */
@@ -440,11 +446,18 @@ void read_shape(Reader& r, const std::string& type, ParamList& p, const FileLoc&
         else
             o.emission = emission_of(r, *r.gs.area, made, loc);
     }
+    Mat4 xf[2] = {r.gs.ctm[0], r.gs.ctm[1]};
+    if (made.scale != 1.0)
+        for (Mat4& m : xf) {
+            Mat4 s;
+            for (int k = 0; k < 3; ++k) s.m[k][k] = made.scale;
+            m = m * s;
+        }
     if (!r.defining.empty()) {
-        r.definitions[r.defining].push_back({std::move(o), {r.gs.ctm[0], r.gs.ctm[1]}});
+        r.definitions[r.defining].push_back({std::move(o), {xf[0], xf[1]}});
         return;
     }
-    place_object(r, std::move(o), r.gs.ctm);
+    place_object(r, std::move(o), xf);
 }
 
 }  // namespace spangle::pbrt
