@@ -279,6 +279,34 @@ Shape "sphere"
     EXPECT_FALSE(noted(d, "radius")) << d.notes.front();
 }
 
+TEST(PbrtReader, NamedMaterialsMayBeDefinedAfterTheirUse) {
+    // pbrt-v4 looks named materials up once the scene is read: a file that writes its materials
+    // after its shapes rendered them grey. A name never defined is said where first used.
+    const Files f;
+    const SceneDescription d = read(f, R"(WorldBegin
+NamedMaterial "red"
+Shape "sphere"
+ObjectBegin "ball"
+NamedMaterial "red"
+Shape "sphere"
+ObjectEnd
+ObjectInstance "ball"
+NamedMaterial "nothere"
+Shape "disk"
+NamedMaterial "boundary"
+Shape "disk"
+MakeNamedMaterial "red" "string type" "diffuse" "rgb reflectance" [.8 .1 .1]
+MakeNamedMaterial "boundary" "string type" "interface"
+)");
+    ASSERT_EQ(d.objects.size(), 3u) << "the interface's disk is a medium boundary: not drawn";
+    EXPECT_EQ(d.objects[0].material, "red");
+    EXPECT_EQ(d.objects[1].material, "red") << "an instance's shapes too";
+    EXPECT_EQ(d.objects[2].material, "pbrt_default");
+    EXPECT_TRUE(noted(d, ":9: NamedMaterial 'nothere' is not defined"))
+        << ::testing::PrintToString(d.notes);
+    EXPECT_FALSE(noted(d, "'red' is not defined"));
+}
+
 TEST(PbrtReader, QuadricsAreTessellatedOnTheirSurfaces) {
     const Files f;
     const SceneDescription d = read(f, R"(WorldBegin

@@ -345,10 +345,9 @@ private:
             const std::string m = string_arg(t, name);
             const auto it = r_.materials.find(m);
             if (it == r_.materials.end()) {
-                r_.notes.add(loc, fmt::format("NamedMaterial '{}' is not defined: the default "
-                                              "material stands in",
-                                              m));
-                r_.gs.material.clear();
+                // Maybe defined further on: pbrt-v4 resolves names once the scene is read.
+                r_.pending_materials.emplace(m, loc);
+                r_.gs.material = std::string(kPendingMaterial) + m;
             } else {
                 r_.gs.material = it->second;
             }
@@ -526,6 +525,39 @@ private:
 };
 
 /** Reads the tokens of the main file and finishes the description. */
+/** Objects that named a material before its MakeNamedMaterial get it now (a red sphere whose
+ *  material came after it rendered grey); a name never defined is said at its first use and the
+ *  default material stands in; an object of a material found to be "interface" (a medium's
+ *  boundary) is not drawn, unless it emits. */
+void resolve_pending_materials(Reader& r) {
+    if (r.pending_materials.empty()) return;
+    const std::string marker = kPendingMaterial;
+    std::set<std::string> undefined;
+    std::vector<ObjectDesc> kept;
+    kept.reserve(r.d.objects.size());
+    for (ObjectDesc& o : r.d.objects) {
+        if (o.material.rfind(marker, 0) == 0) {
+            const std::string name = o.material.substr(marker.size());
+            const auto it = r.materials.find(name);
+            if (it == r.materials.end()) {
+                const FileLoc& at = r.pending_materials.at(name);
+                if (undefined.insert(name).second)
+                    r.notes.add(at, fmt::format("NamedMaterial '{}' is not defined: the default "
+                                                "material stands in",
+                                                name));
+                o.material = default_material(r, at);
+            } else if (it->second.empty()) {
+                if (!o.emission) continue;  // a medium boundary: nothing to render
+                o.material = default_material(r, o.loc);
+            } else {
+                o.material = it->second;
+            }
+        }
+        kept.push_back(std::move(o));
+    }
+    r.d.objects = std::move(kept);
+}
+
 SceneDescription read_all(Reader& r, Tokenizer& t) {
     r.d.path = t.path();
     r.d.render.width = 640;
@@ -544,6 +576,7 @@ SceneDescription read_all(Reader& r, Tokenizer& t) {
                     fmt::format("the file mixes pbrt-v3 ({}) and pbrt-v4 ({}) spellings: read as "
                                 "pbrt-v4",
                                 r.info.v3_sign, r.info.v4_sign));
+    resolve_pending_materials(r);
     finish_camera_and_render(r);
     // pbrt-v3 fades a spot light's edge as t^4 (its Falloff()), v4 by smoothstep: decided by the
     // whole file, whose v3 sign may come after its lights (WorldEnd).

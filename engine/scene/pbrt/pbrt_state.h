@@ -116,6 +116,10 @@ struct Reader {
     int anonymous = 0;                     ///< anonymous materials so far
     std::string default_material;          ///< its name once added; "" = not yet
     std::set<std::string> material_names;  ///< every material's name (unique in Spangle)
+    /** Named materials used before they are defined (pbrt-v4 looks them up once the whole
+     *  scene is read), each at its first NamedMaterial; objects name them with
+     *  kPendingMaterial before the name until the end. */
+    std::map<std::string, FileLoc> pending_materials;
     /** An environment map whose layout depends on the version (known at the end). */
     bool env_map_pending = false;
 
@@ -135,6 +139,9 @@ struct Reader {
 /** Places `o` by the transforms at the two times (TransformTimes): a matrix, and matrix keys when
  *  they differ; into d.objects. A singular transform drops it with a warning. */
 void place_object(Reader& r, ObjectDesc o, const Mat4 xf[2]);
+
+/** Marks an object's material as a named material not yet defined (pending_materials). */
+inline constexpr const char* kPendingMaterial = "\x1fpending ";
 
 /** Shape "type" params: into d.objects, or into the object being defined. */
 void read_shape(Reader& r, const std::string& type, ParamList& params, const FileLoc& loc);
