@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -597,6 +598,10 @@ TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {
 TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     test::TempDir dir("gltf_errors");
     const std::string f = dir.file("bad.gltf");
+    const std::string kReExport =
+        "re-export it without the extension (Blender's glTF exporter, or gltf-transform for "
+        "compression), or take it out of extensionsRequired if the file's core data stands "
+        "without it";
     EXPECT_EQ(error_of(dir, "{\n  \"asset\": {\"version\": \"2.0\"},\n  \"nodes\": [ {] \n}"),
               f + ":3:15: error: invalid JSON: expected a member name in double quotes");
     EXPECT_EQ(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\n\"nodes\":[{\"mesh\":4}]}"),
@@ -604,8 +609,10 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     EXPECT_EQ(error_of(dir,
                        "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_draco_mesh_"
                        "compression\"],\"extensionsUsed\":[\"KHR_draco_mesh_compression\"]}"),
-              f + ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
-                  "Spangle does not read");
+              f +
+                  ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
+                  "Spangle does not read: " +
+                  kReExport);
     // The same where the extension's data would fail tinygltf first (a Draco accessor has no
     // bufferView): the requirement is what is wrong ("accessor[0] invalid bufferView" before).
     EXPECT_EQ(error_of(dir,
@@ -613,8 +620,10 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
                        "compression\"],\"accessors\":[{\"componentType\":5123,\"count\":3,"
                        "\"type\":\"SCALAR\"}],\"meshes\":[{\"primitives\":[{\"attributes\":{},"
                        "\"indices\":0}]}]}"),
-              f + ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
-                  "Spangle does not read");
+              f +
+                  ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
+                  "Spangle does not read: " +
+                  kReExport);
     EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"1.0\"}}").find("only 2.x is read"),
               std::string::npos);
     EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\"nodes\":[{\"children\":[0]}]}")
@@ -774,6 +783,32 @@ TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
     ASSERT_EQ(b.files.size(), 1u);
     EXPECT_EQ(b.files[0], dir.file("b.bin"));
     EXPECT_EQ(scene_format_for("x.GLB").name, std::string("glTF"));
+    // A JSON chunk with a byte-order mark and NUL padding (both "unexpected character" before)
+    // reads as the clean one; a .glb without the magic says so.
+    std::string glb = bytes_of(dir.file("c.glb"));
+    uint32_t length = 0;
+    std::memcpy(&length, glb.data() + 12, 4);
+    std::string chunk = glb.substr(20, length);
+    while (!chunk.empty() && chunk.back() == ' ') chunk.pop_back();
+    chunk.insert(0, "\xEF\xBB\xBF");
+    chunk.append(8 - chunk.size() % 4, '\0');
+    const auto put = [](std::string& text, std::size_t at, uint32_t v) {
+        std::memcpy(text.data() + at, &v, 4);
+    };
+    std::string mended = glb.substr(0, 20) + chunk + glb.substr(20 + length);
+    put(mended, 8, static_cast<uint32_t>(mended.size()));
+    put(mended, 12, static_cast<uint32_t>(chunk.size()));
+    std::ofstream(dir.file("d.glb"), std::ios::binary) << mended;
+    const SceneDescription d = read_scene(dir.file("d.glb"));
+    ASSERT_EQ(d.objects.size(), a.objects.size());
+    std::ofstream(dir.file("e.glb"), std::ios::binary) << "gltf" << glb.substr(4);
+    try {
+        read_scene(dir.file("e.glb"));
+        ADD_FAILURE() << "a .glb without its magic was read";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("not a binary glTF file"), std::string::npos)
+            << e.what();
+    }
 }
 
 }  // namespace

@@ -3,6 +3,7 @@
 // bytes (the texture system decodes them), and the extensions the file requires are checked
 // against those this reader understands.
 
+#include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdlib>
@@ -182,7 +183,11 @@ void check_required(const Context& ctx) {
     for (std::size_t i = 0; i < required.size(); ++i)
         if (!kRead.count(required[i]))
             throw_error(ctx.at(fmt::format("extensionsRequired/{}", i)),
-                        "the file requires extension {}, which Spangle does not read", required[i]);
+                        "the file requires extension {}, which Spangle does not read: re-export "
+                        "it without the extension (Blender's glTF exporter, or gltf-transform "
+                        "for compression), or take it out of extensionsRequired if the file's "
+                        "core data stands without it",
+                        required[i]);
 }
 
 /** The bytes a base64 data URI's payload decodes to; -1 when it is not base64 (RFC 4648: the
@@ -327,7 +332,22 @@ void load_document(Context& ctx) {
     // A UTF-8 byte-order mark before the JSON (Windows editors write one; RFC 8259 lets a
     // reader ignore it): skipped ("unexpected character" at 1:1 before).
     if (bytes.compare(0, 3, "\xEF\xBB\xBF") == 0) bytes.erase(0, 3);
-    const bool binary = bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0;
+    // A .glb is binary whatever its first bytes (one without the 'glTF' magic was read as JSON:
+    // "unexpected character 'g'"); a file of another name is by its magic.
+    const std::size_t first = bytes.find_first_not_of(" \t\r\n");
+    const bool binary =
+        (bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0) ||
+        (ascii_lower(std::filesystem::path(ctx.path).extension().string()) == ".glb" &&
+         first != std::string::npos && bytes[first] != '{');
+    if (binary && bytes.size() >= 20 && bytes.compare(0, 4, "glTF") == 0) {
+        // Its JSON chunk as writers get it wrong, mended in place (same length, so sizes and
+        // places stand): a byte-order mark before it and NUL padding after it (the spec pads
+        // with spaces) become spaces; both were "unexpected character" errors.
+        const std::size_t end =
+            std::min<std::size_t>(bytes.size(), 20 + std::size_t{u32(bytes, 12)});
+        if (bytes.compare(20, 3, "\xEF\xBB\xBF") == 0) bytes.replace(20, 3, "   ");
+        for (std::size_t i = end; i > 20 && bytes[i - 1] == '\0'; --i) bytes[i - 1] = ' ';
+    }
     const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
     ctx.json = JsonLocations(json, ctx.path);
     check_required(ctx);
