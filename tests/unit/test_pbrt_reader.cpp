@@ -307,6 +307,21 @@ MakeNamedMaterial "boundary" "string type" "interface"
     EXPECT_FALSE(noted(d, "'red' is not defined"));
 }
 
+TEST(PbrtReader, AQuadricWithoutSurfaceIsDroppedNotFatal) {
+    // pbrt draws nothing for these; one of them failed the whole scene.
+    const Files f;
+    const SceneDescription d = read(f, R"(WorldBegin
+Shape "disk" "float radius" 0.3 "float innerradius" 0.3
+Shape "cylinder" "float zmin" 1 "float zmax" 1
+Shape "sphere" "float radius" 0
+Shape "sphere"
+)");
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_TRUE(noted(d, ":2: disk: 'innerradius' 0.3 is not in [0, radius 0.3)"));
+    EXPECT_TRUE(noted(d, ":3: cylinder: 'zmin' and 'zmax' are equal"));
+    EXPECT_TRUE(noted(d, ":4: sphere: 'radius' 0 is not positive"));
+}
+
 TEST(PbrtReader, QuadricsAreTessellatedOnTheirSurfaces) {
     const Files f;
     const SceneDescription d = read(f, R"(WorldBegin

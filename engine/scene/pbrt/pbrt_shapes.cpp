@@ -299,9 +299,18 @@ int segments(double radians, int full) {
     return std::max(4, static_cast<int>(std::ceil(full * radians / (2.0 * M_PI))));
 }
 
-Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileLoc& loc) {
+/** A tessellated quadric; none (said) when it has no surface: pbrt draws nothing for a disk
+ *  whose inner radius reaches its radius or a cylinder of no height, and Spangle failed the
+ *  whole scene on one such shape among thousands. */
+std::optional<Made> quadric(Reader& r, const std::string& type, const ParamList& p,
+                            const FileLoc& loc) {
     const double radius = p.number("radius", 1.0);
-    if (!(radius > 0.0)) throw_error(loc, "{}: 'radius' must be positive, got {}", type, radius);
+    if (!(radius > 0.0)) {
+        r.notes.add(loc, fmt::format("{}: 'radius' {} is not positive: the shape has no surface "
+                                     "and is dropped",
+                                     type, radius));
+        return std::nullopt;
+    }
     const double phimax = phi_max(r, p, loc);
     // Quadrics turn with ReverseOrientation (and a mirror) in both versions: their normals are
     // pbrt's computed ones.
@@ -334,8 +343,12 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
                 loc);
     } else if (type == "disk") {
         const double h = p.number("height", 0.0), ri = p.number("innerradius", 0.0);
-        if (!(ri >= 0.0 && ri < radius))
-            throw_error(loc, "disk: 'innerradius' must be in [0, radius), got {}", ri);
+        if (!(ri >= 0.0 && ri < radius)) {
+            r.notes.add(loc, fmt::format("disk: 'innerradius' {} is not in [0, radius {}): the "
+                                         "disk has no surface and is dropped",
+                                         ri, radius));
+            return std::nullopt;
+        }
         key = fmt::format("disk {} {} {} {}{}", radius, h, ri, phimax, turned);
         area = 0.5 * phimax * (radius * radius - ri * ri);
         if (!r.shape_cache.count(key))
@@ -350,7 +363,12 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
                 loc);
     } else {
         const double z0 = p.number("zmin", -1.0), z1 = p.number("zmax", 1.0);
-        if (!(z0 != z1)) throw_error(loc, "cylinder: 'zmin' and 'zmax' must differ");
+        if (!(z0 != z1)) {
+            r.notes.add(loc,
+                        "cylinder: 'zmin' and 'zmax' are equal: the cylinder has no "
+                        "surface and is dropped");
+            return std::nullopt;
+        }
         key = fmt::format("cylinder {} {} {} {}{}", radius, std::min(z0, z1), std::max(z0, z1),
                           phimax, turned);
         area = phimax * radius * std::fabs(z1 - z0);
@@ -372,7 +390,7 @@ Made quadric(Reader& r, const std::string& type, const ParamList& p, const FileL
         orient(*m, flip, flip);
         cached = m;
     }
-    return {InlineMeshShape{cached, loc}, cached, area, scale};
+    return Made{InlineMeshShape{cached, loc}, cached, area, scale};
 }
 
 /** The shape's emission from the current area light; v4 "power" needs its area. */
@@ -418,9 +436,14 @@ void read_shape(Reader& r, const std::string& type, ParamList& p, const FileLoc&
         made = bilinearmesh(r, p, loc);
     else if (type == "loopsubdiv")
         made = loopsubdiv(r, p, loc);
-    else if (type == "sphere" || type == "disk" || type == "cylinder")
-        made = quadric(r, type, p, loc);
-    else {
+    else if (type == "sphere" || type == "disk" || type == "cylinder") {
+        std::optional<Made> q = quadric(r, type, p, loc);
+        if (!q) {
+            for (const Param& x : p.all()) x.used = true;
+            return;
+        }
+        made = std::move(*q);
+    } else {
         for (const Param& q : p.all()) q.used = true;
         r.notes.add(loc, fmt::format("{} is not supported: dropped", what));
         return;
