@@ -197,6 +197,17 @@ Camera "perspective" "float fov" 90
     EXPECT_NEAR(c.camera.fov_deg, 30.0, 1e-9);
     EXPECT_NEAR(c.camera.position.z, 5.0f, 1e-5f);
     EXPECT_TRUE(has_note(c, "Camera inside the world block"));
+    // Film inside it and a shape before it: pbrt refuses both; said (they were taken silently).
+    const SceneDescription o = read(f, std::string(R"(LookAt 0 0 5  0 0 0  0 1 0
+Camera "perspective"
+Shape "sphere"
+WorldBegin
+Film "rgb" "integer xresolution" 64 "integer yresolution" 64
+)") + kQuad + "\n");
+    EXPECT_TRUE(has_note(o,
+                         ":5: Film inside the world block (after WorldBegin): pbrt does not "
+                         "allow it; taken all the same"));
+    EXPECT_TRUE(has_note(o, ":3: Shape before WorldBegin: pbrt does not allow it"));
 }
 
 TEST(PbrtReader, AVersion3LightScaleIsASpectrum) {

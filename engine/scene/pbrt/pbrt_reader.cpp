@@ -383,6 +383,20 @@ private:
 
     /** The directives of the form Name "type" params. */
     void typed(const std::string& name, const std::string& type, ParamList& p, const FileLoc& loc) {
+        // pbrt refuses the image's options inside the world block and the world's contents
+        // before it; both were taken without a word (a shape before WorldBegin is placed by the
+        // camera's transform, behind the camera).
+        const bool option =
+            name == "Film" || name == "Sampler" || name == "Integrator" || name == "PixelFilter";
+        if (r_.world && option)
+            r_.notes.add(loc, fmt::format("{} inside the world block (after WorldBegin): pbrt "
+                                          "does not allow it; taken all the same",
+                                          name));
+        if (!r_.world && (name == "Shape" || name == "LightSource" || name == "AreaLightSource"))
+            r_.notes.add(loc, fmt::format("{} before WorldBegin: pbrt does not allow it (the "
+                                          "world block starts at WorldBegin); placed by the "
+                                          "transform in effect, the camera's",
+                                          name));
         if (name == "Shape") {
             add_attributes(p, "shape");
             read_shape(r_, type, p, loc);
