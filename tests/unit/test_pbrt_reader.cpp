@@ -331,6 +331,18 @@ Shape "sphere"
     EXPECT_TRUE(noted(d, ":2: disk: 'innerradius' 0.3 is not in [0, radius 0.3)"));
     EXPECT_TRUE(noted(d, ":3: cylinder: 'zmin' and 'zmax' are equal"));
     EXPECT_TRUE(noted(d, ":4: sphere: 'radius' 0 is not positive"));
+    // A parameter given twice and a material type that is no pbrt type, said as such (both
+    // were "is not supported").
+    const SceneDescription t = read(f, R"(WorldBegin
+Material "difuse"
+Shape "sphere" "float radius" 1 "float radius" 2
+)");
+    EXPECT_TRUE(noted(t, ":2: Material \"difuse\": not a pbrt material type"));
+    EXPECT_TRUE(noted(t,
+                      ":3: 'float radius' of Shape \"sphere\" is given more than once: the "
+                      "last one stands"));
+    ASSERT_EQ(t.objects.size(), 1u);
+    EXPECT_EQ(*t.objects[0].placement.matrix, Affine::scale(Vec3(2.0f)));
 }
 
 TEST(PbrtReader, QuadricsAreTessellatedOnTheirSurfaces) {
@@ -550,7 +562,7 @@ MakeNamedMaterial "skin" "string type" "kdsubsurface" "rgb Kd" [0.8 0.6 0.5]
     EXPECT_NEAR(number(paint, "flake_roughness"), 0.2, 1e-12);
     EXPECT_NEAR(number(paint, "gamma"), 5.0, 1e-12);
     EXPECT_EQ(param(material(d, "skin"), "albedo")->color.rgb, Vec3(0.8f, 0.6f, 0.5f));
-    EXPECT_TRUE(noted(d, "Material \"kdsubsurface\": is not supported"));
+    EXPECT_TRUE(noted(d, "Material \"kdsubsurface\": not supported; a diffuse reflector"));
     EXPECT_TRUE(noted(d, "Material \"plastic\": 'Ks' is not supported"));
     EXPECT_TRUE(noted(d,
                       "Material \"mix\": blends are not supported: its heavier material "
@@ -595,7 +607,7 @@ Shape "sphere"
     EXPECT_EQ(material(d, "i").model, "dielectric");
     EXPECT_EQ(param(material(d, "j"), "preset")->text, "copper");
     EXPECT_TRUE(noted(d, "no optical data for \"metal-CuZn-eta\" here: copper stands in"));
-    EXPECT_TRUE(noted(d, "Material \"hair\": is not supported"));
+    EXPECT_TRUE(noted(d, "Material \"hair\": not supported; a diffuse reflector"));
     EXPECT_TRUE(d.objects.empty()) << "an interface is no surface";
 }
 

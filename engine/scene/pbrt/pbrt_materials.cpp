@@ -578,7 +578,15 @@ std::string read_material(Reader& r, const std::string& type, const std::string&
         const bool v4 = p.find("reflectance") != nullptr;
         b.color(v4 ? "reflectance" : "Kd", "albedo", Vec3(0.5f));
         for (const Param& q : p.all()) q.used = true;
-        b.note("is not supported: a diffuse reflector of its colour (or 0.5) stands in");
+        // Another pbrt type (hair, measured, subsurface) is one Spangle lacks; any other name
+        // is no pbrt material at all (a typo: pbrt refuses the file).
+        const bool known = is_v4_type(type) || is_v3_type(type) || type == "hair" ||
+                           type == "measured" || type == "subsurface" || type == "coatedconductor";
+        b.note(known ? "not supported; a diffuse reflector of its colour (or 0.5) stands in"
+                     : "not a pbrt material type (pbrt-v4's: diffuse, coateddiffuse, "
+                       "conductor, coatedconductor, dielectric, thindielectric, "
+                       "diffusetransmission, mix, interface, hair, measured, subsurface): a "
+                       "diffuse reflector of its colour (or 0.5) stands in");
     }
     b.maps();
     p.string("type", "");

@@ -195,10 +195,19 @@ void Notes::add(const FileLoc& at, const std::string& message) {
 }
 
 void Notes::unused(const ParamList& params, const std::string& what) {
-    for (const Param& p : params.all())
-        if (!p.used)
+    for (const Param& p : params.all()) {
+        if (p.used) continue;
+        // Given twice: the later one was taken (it was said to be "not supported").
+        bool again = false;
+        for (const Param& q : params.all())
+            again = again || (&q != &p && q.used && q.name == p.name);
+        if (again)
+            add(p.loc, fmt::format("'{} {}' of {} is given more than once: the last one stands",
+                                   p.type, p.name, what));
+        else
             add(p.loc,
                 fmt::format("'{} {}' of {} is not supported: dropped", p.type, p.name, what));
+    }
 }
 
 std::vector<std::string> Notes::take() const {
