@@ -760,6 +760,37 @@ model = "diffuse"
     EXPECT_NEAR(o.z, -2.0f, 1e-6f);
 }
 
+TEST(GltfMaterials, AMeshTakesTheUvSetItsMaterialReads) {
+    // A mesh whose only uvs are TEXCOORD_1, under a material whose texture reads set 1, had no
+    // uvs at all ("no uvs" once per triangle, the texture mapped through nothing).
+    test::TempDir dir("gltf_uv_set");
+    CacheEnv cache(dir.file("cache"));
+    const std::string png = bytes_of(test::test_dir() + "/scenes/textures/roughness_ramp.png");
+    std::ofstream(dir.file("t.png"), std::ios::binary) << png;
+    const auto write = [&](const char* set, int tex_coord) {
+        GltfWriter w;
+        std::string mesh = quad_mesh(w, 0);
+        mesh.replace(mesh.find("TEXCOORD_0"), 10, set);
+        w.write_gltf(
+            dir.file("uv.gltf"),
+            fmt::format(R"("meshes":[{}],"nodes":[{{"mesh":0}}],"images":[{{"uri":"t.png"}}],)"
+                        R"("textures":[{{"source":0}}],"materials":[{{"pbrMetallicRoughness":)"
+                        R"({{"baseColorTexture":{{"index":0,"texCoord":{}}}}}}}])",
+                        mesh, tex_coord));
+        return read_gltf_scene(dir.file("uv.gltf"), {});
+    };
+    const SceneDescription zero = write("TEXCOORD_0", 0);
+    const SceneDescription one = write("TEXCOORD_1", 1);
+    ASSERT_EQ(one.objects.size(), 1u);
+    const auto uvs = [](const SceneDescription& d) {
+        return std::get<InlineMeshShape>(d.objects[0].shape).mesh->uvs;
+    };
+    EXPECT_FALSE(uvs(one).empty());
+    EXPECT_EQ(uvs(one), uvs(zero));
+    EXPECT_FALSE(has_note(one, "TEXCOORD_1 is dropped"));
+    EXPECT_FALSE(has_note(one, "another uv set"));
+}
+
 TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
     test::TempDir dir("gltf_glb");
     GltfWriter w;

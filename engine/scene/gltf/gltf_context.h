@@ -34,6 +34,8 @@ struct Context {
         meshes;                              ///< (mesh, primitive)
     std::map<int, std::string> image_files;  ///< glTF image -> file ("" = none)
     std::string texture_cache;               ///< --texture-cache (empty: the default folders)
+    int uv_set =
+        0;  ///< the uv set of the material being read (uv_set_of); textures of another are noted
 
     /** Where the value at JSON path `p` is written. */
     FileLoc at(const std::string& p) const { return json.at(p); }

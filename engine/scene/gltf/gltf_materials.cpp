@@ -409,6 +409,22 @@ std::string unique_name(Context& ctx, const std::string& wanted, int index) {
 
 }  // namespace
 
+int uv_set_of(const Context& ctx, int material) {
+    if (material < 0 || static_cast<std::size_t>(material) >= ctx.model.materials.size()) return 0;
+    const tinygltf::Material& g = ctx.model.materials[static_cast<std::size_t>(material)];
+    const std::pair<int, int> textures[] = {
+        {g.pbrMetallicRoughness.baseColorTexture.index,
+         g.pbrMetallicRoughness.baseColorTexture.texCoord},
+        {g.pbrMetallicRoughness.metallicRoughnessTexture.index,
+         g.pbrMetallicRoughness.metallicRoughnessTexture.texCoord},
+        {g.normalTexture.index, g.normalTexture.texCoord},
+        {g.emissiveTexture.index, g.emissiveTexture.texCoord},
+        {g.occlusionTexture.index, g.occlusionTexture.texCoord}};
+    for (const auto& [index, set] : textures)
+        if (index >= 0) return std::max(0, set);
+    return 0;
+}
+
 std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& out) {
     if (auto it = ctx.material_names.find(index); it != ctx.material_names.end()) {
         out = ctx.emissions[index];
@@ -425,6 +441,7 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
     m.loc = ctx.at(mp);
     m.name_loc = ctx.at(mp + "/name");
     m.plugin_loc = m.model_loc = m.loc;
+    ctx.uv_set = uv_set_of(ctx, index);
     if (auto x = g.extensions.find("SPANGLE_materials_flakes"); x != g.extensions.end())
         flakes(b, g, mp, x->second);
     else if (const tinygltf::Value* t = extension(g, "KHR_materials_transmission");
@@ -435,6 +452,7 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
     normal_map(b, g, mp);
     note_unread(ctx, g, mp);
     out = ctx.emissions[index] = index >= 0 ? emission(ctx, g, mp) : std::nullopt;
+    ctx.uv_set = 0;
     ctx.material_names[index] = m.name;
     ctx.scene->materials.push_back(std::move(m));
     return ctx.material_names[index];

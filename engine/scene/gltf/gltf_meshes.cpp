@@ -13,7 +13,7 @@ namespace spangle::gltf {
 namespace {
 
 /** Notes the attributes a TriangleMesh has no room for, once per kind. */
-void note_dropped(Context& ctx, const tinygltf::Primitive& p, const std::string& pp) {
+void note_dropped(Context& ctx, const tinygltf::Primitive& p, const std::string& pp, int set) {
     for (const auto& [name, index] : p.attributes) {
         (void)index;
         const FileLoc at = ctx.at(pp + "/attributes/" + name);
@@ -26,11 +26,11 @@ void note_dropped(Context& ctx, const tinygltf::Primitive& p, const std::string&
             ctx.note("skin", at,
                      "skinning attributes are dropped: meshes are drawn in their "
                      "bind pose");
-        else if (name.rfind("TEXCOORD_", 0) == 0 && name != "TEXCOORD_0")
+        else if (name.rfind("TEXCOORD_", 0) == 0 && name != fmt::format("TEXCOORD_{}", set))
             ctx.note("TEXCOORD_n", at,
-                     name +
-                         " is dropped: Spangle meshes hold one uv set "
-                         "(TEXCOORD_0)");
+                     fmt::format("{} is dropped: Spangle meshes hold one uv set (TEXCOORD_{}, "
+                                 "the one the primitive's material reads)",
+                                 name, set));
     }
     if (!p.targets.empty())
         ctx.note("morph", ctx.at(pp + "/targets"),
@@ -85,6 +85,8 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
     const auto pos = p.attributes.find("POSITION");
     if (pos == p.attributes.end())
         throw_error(ctx.at(pp + "/attributes"), "mesh {} primitive {} has no POSITION", mesh, prim);
+    int set = uv_set_of(ctx, p.material);
+    if (!p.attributes.count(fmt::format("TEXCOORD_{}", set))) set = 0;
     auto m = std::make_shared<TriangleMesh>();
     m->source = ctx.path;
     m->positions = read_floats(ctx, pos->second, 3, "POSITION", pp + "/attributes/POSITION");
@@ -113,7 +115,9 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
                  "a NORMAL is zero: that mesh uses its face normals");
         m->normals.clear();
     }
-    attribute("TEXCOORD_0", 2, m->uvs);
+    // The uv set the material's textures read (a mesh whose only uvs are TEXCOORD_1, for a
+    // material reading it, was mapped through nothing).
+    attribute(fmt::format("TEXCOORD_{}", set).c_str(), 2, m->uvs);
     for (std::size_t i = 1; i < m->uvs.size(); i += 2) m->uvs[i] = 1.0f - m->uvs[i];
     std::vector<uint32_t> idx;
     if (p.indices >= 0) {
@@ -137,7 +141,7 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
         idx.resize(idx.size() - idx.size() % 3);
     }
     m->indices = std::move(idx);
-    note_dropped(ctx, p, pp);
+    note_dropped(ctx, p, pp, set);
     if (m->indices.empty()) {
         ctx.note("no triangles", ctx.at(pp),
                  fmt::format("mesh {} primitive {} has no triangles: "

@@ -46,6 +46,10 @@ bool split_file_uri(std::string_view rest, std::string& host, std::string& path)
  *  directory's spangle-gltf-images-UID (when the others cannot be written). */
 std::vector<std::string> embedded_image_dirs(const std::string& texture_cache);
 
+/** gltf_materials.cpp: the uv set (TEXCOORD_n) a material's textures read: its base colour
+ *  texture's, else its first texture's; 0 without textures or for the default material (-1). */
+int uv_set_of(const Context& ctx, int material);
+
 /** gltf_materials.cpp: the name of the Spangle material standing for glTF material `index` (-1:
  *  glTF's default material), made and added to the scene on first use; its emission, if any. */
 std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& emission);

@@ -48,9 +48,11 @@ void texture_transform(Context& ctx, const tinygltf::Value& x, const std::string
         if (!std::isfinite(tex.uv[k]))
             throw_error(ctx.at(ref), "KHR_texture_transform makes a uv transform beyond a float");
     }
-    if (x.Has("texCoord") && number_or(x, "texCoord", 0) != 0)
+    if (x.Has("texCoord") && number_or(x, "texCoord", 0) != ctx.uv_set)
         ctx.note("TEXCOORD_n", ctx.at(ref + "/texCoord"),
-                 "a texture reads a second uv set: TEXCOORD_0 stands in (Spangle meshes hold one)");
+                 fmt::format("a texture reads another uv set than its material's others: "
+                             "TEXCOORD_{} stands in (Spangle meshes hold one)",
+                             ctx.uv_set));
 }
 
 /** Width x height from a PNG's IHDR or a JPEG's start-of-frame segment; 0 when not found. */
@@ -98,9 +100,11 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
             ctx.note("wrapT", ctx.at(fmt::format("samplers/{}/wrapT", t.sampler)),
                      "a sampler wraps s and t differently: Spangle wraps both as wrapS says");
     }
-    if (use.tex_coord != 0)
+    if (use.tex_coord != ctx.uv_set)
         ctx.note("TEXCOORD_n", ctx.at(ref + "/texCoord"),
-                 "a texture reads a second uv set: TEXCOORD_0 stands in (Spangle meshes hold one)");
+                 fmt::format("a texture reads another uv set than its material's others: "
+                             "TEXCOORD_{} stands in (Spangle meshes hold one)",
+                             ctx.uv_set));
     if (use.extensions)
         if (auto x = use.extensions->find("KHR_texture_transform"); x != use.extensions->end())
             texture_transform(ctx, x->second, ref + "/extensions/KHR_texture_transform", tex);
