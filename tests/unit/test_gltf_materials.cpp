@@ -626,6 +626,21 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
                   kReExport);
     EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"1.0\"}}").find("only 2.x is read"),
               std::string::npos);
+    // An accessor's count, componentType and type at their place (tinygltf said them at 1:1
+    // without naming the accessor).
+    const auto accessor = [&](const std::string& members) {
+        return error_of(dir,
+                        "{\"asset\":{\"version\":\"2.0\"},\n\"accessors\":[{" + members + "}]}");
+    };
+    EXPECT_EQ(accessor(R"("count":24.0,"componentType":5126,"type":"VEC3")"),
+              f + ":2:23: error: accessor 0: count 24.0 is not a number of elements (a whole "
+                  "number, at least 1, written without a fraction)");
+    EXPECT_EQ(accessor(R"("count":24,"componentType":5126,"type":"VEC5")"),
+              f + ":2:54: error: accessor 0: type \"VEC5\" is not one of glTF's (SCALAR, VEC2, "
+                  "VEC3, VEC4, MAT2, MAT3, MAT4)");
+    EXPECT_EQ(accessor(R"("count":24,"type":"VEC3")"),
+              f + ":2:14: error: accessor 0 has no componentType (5120 to 5126: the type of its "
+                  "numbers)");
     EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\"nodes\":[{\"children\":[0]}]}")
                   .find("must form trees"),
               std::string::npos);

@@ -315,6 +315,52 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
     return lengths;
 }
 
+/** Each accessor's count, componentType and type checked where written, before tinygltf reads
+ *  them (it said "'count' property is not a positive integer" or "Invalid accessor type" at
+ *  1:1, without saying which accessor). */
+void check_accessors(const Context& ctx) {
+    for (std::size_t i = 0; ctx.json.has(fmt::format("accessors/{}", i)); ++i) {
+        const std::string ap = fmt::format("accessors/{}", i);
+        const std::string* count = ctx.json.scalar(ap + "/count");
+        if (!count)
+            throw_error(ctx.at(ap), "accessor {} has no count (the number of its elements)", i);
+        char* end = nullptr;
+        const double n = std::strtod(count->c_str(), &end);
+        if (count->starts_with('"') || end == count->c_str() || *end != '\0' || !(n >= 1) ||
+            n != std::floor(n) || count->find_first_of(".eE") != std::string::npos ||
+            n > 4294967295.0)
+            throw_error(ctx.at(ap + "/count"),
+                        "accessor {}: count {} is not a number of elements (a whole number, at "
+                        "least 1, written without a fraction)",
+                        i, *count);
+        const std::string* component = ctx.json.scalar(ap + "/componentType");
+        if (!component)
+            throw_error(ctx.at(ap),
+                        "accessor {} has no componentType (5120 to 5126: the type of its numbers)",
+                        i);
+        if (*component != "5120" && *component != "5121" && *component != "5122" &&
+            *component != "5123" && *component != "5125" && *component != "5126")
+            throw_error(ctx.at(ap + "/componentType"),
+                        "accessor {}: componentType {} is not one of glTF's (5120 byte, 5121 "
+                        "unsigned byte, 5122 short, 5123 unsigned short, 5125 unsigned int, 5126 "
+                        "float)",
+                        i, *component);
+        const std::string* type = ctx.json.scalar(ap + "/type");
+        if (!type)
+            throw_error(ctx.at(ap), "accessor {} has no type (SCALAR, VEC2 to VEC4, MAT2 to MAT4)",
+                        i);
+        bool known = false;
+        for (const char* t :
+             {"\"SCALAR\"", "\"VEC2\"", "\"VEC3\"", "\"VEC4\"", "\"MAT2\"", "\"MAT3\"", "\"MAT4\""})
+            known = known || *type == t;
+        if (!known)
+            throw_error(ctx.at(ap + "/type"),
+                        "accessor {}: type {} is not one of glTF's (SCALAR, VEC2, VEC3, VEC4, "
+                        "MAT2, MAT3, MAT4)",
+                        i, *type);
+    }
+}
+
 /** Notes used extensions not read (once each). */
 void check_extensions(Context& ctx) {
     for (const std::string& e : ctx.model.extensionsUsed)
@@ -352,6 +398,7 @@ void load_document(Context& ctx) {
     ctx.json = JsonLocations(json, ctx.path);
     check_required(ctx);
     BufferLengths buffer_lengths = check_buffers(ctx, binary);
+    check_accessors(ctx);
     if (bytes.size() > 0xFFFFFFFFu)
         throw_error(FileLoc{ctx.path, 0, 0}, "the file is larger than 4 GiB");
     tinygltf::TinyGLTF loader;

@@ -71,7 +71,7 @@ private:
                 return;
             }
             // The buffers' members (their uri), checked before tinygltf reads the data.
-            if (path_.starts_with("buffers/")) {
+            if (kept_scalar()) {
                 std::string text;
                 string(&text);
                 scalars_[path_] = '"' + text + '"';
@@ -82,8 +82,7 @@ private:
         if (c == '-' || (c >= '0' && c <= '9')) {
             const std::size_t start = pos_;
             number();
-            if (path_.starts_with("buffers/"))
-                scalars_[path_] = std::string(text_.substr(start, pos_ - start));
+            if (kept_scalar()) scalars_[path_] = std::string(text_.substr(start, pos_ - start));
             return;
         }
         for (const char* word : {"true", "false", "null"}) {
@@ -204,6 +203,17 @@ private:
     std::unordered_map<std::string, std::pair<int, int>>& places_;
     std::vector<std::string>& required_;
     std::unordered_map<std::string, std::string>& scalars_;
+
+    /** Whether the scalar at path_ is kept (scalars_): a buffer's members, and an accessor's
+     *  count, componentType and type, checked before tinygltf reads them. */
+    bool kept_scalar() const {
+        if (path_.starts_with("buffers/")) return true;
+        if (!path_.starts_with("accessors/")) return false;
+        const std::size_t slash = path_.find('/', 10);
+        if (slash == std::string::npos) return false;
+        const std::string_view key = std::string_view(path_).substr(slash + 1);
+        return key == "count" || key == "componentType" || key == "type";
+    }
     std::size_t pos_ = 0;
     int line_ = 1;
     int column_ = 1;

@@ -37,9 +37,10 @@ public:
     /** Whether the value at `path` is an object or array the file writes (exactly there). */
     bool has(std::string_view path) const { return places_.count(std::string(path)) > 0; }
 
-    /** The text of a string or number the file writes at `path` under "buffers/" (a string in
-     *  its quotes, its escapes kept), for checking buffers before their data is read; null when
-     *  none (or an object, array, true, false or null). */
+    /** The text of a string or number the file writes at `path` under "buffers/", or as an
+     *  accessor's count, componentType or type (a string in its quotes, its escapes kept), for
+     *  checking them before tinygltf reads them; null when none (or an object, array, true,
+     *  false or null). */
     const std::string* scalar(std::string_view path) const {
         const auto it = scalars_.find(std::string(path));
         return it == scalars_.end() ? nullptr : &it->second;
