@@ -593,6 +593,11 @@ TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {
     two.insert(two.find(']', two.find("\"buffers\"")), R"(,{"uri":"padded.bin","byteLength":4})");
     EXPECT_EQ(error_of(dir, two, "sizes.gltf"), "no error");
     EXPECT_EQ(read_gltf_scene(dir.file("sizes.gltf"), {}).objects.size(), 1u);
+    // A JSON-escaped slash (some writers escape every one) and a Windows path's backslash.
+    std::filesystem::create_directories(dir.file("sub"));
+    std::ofstream(dir.file("sub/quad.bin"), std::ios::binary) << bytes;
+    EXPECT_EQ(with_uri(R"("sub\/quad.bin")"), "no error");
+    EXPECT_EQ(with_uri(R"("sub\\quad.bin")"), "no error");
 }
 
 TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {

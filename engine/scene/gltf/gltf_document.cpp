@@ -58,7 +58,15 @@ bool regular_file(const std::string& path, void*) {
  *  folder (tinygltf looks for "DIR/file:///x.bin"): its path, as check_buffers() took it. */
 std::string same_path(const std::string& path, void*) {
     const std::size_t at = ascii_lower(path).find("file://");
-    if (at == std::string::npos) return path;
+    if (at == std::string::npos) {
+        // A path written on Windows ("buffers\\car.bin"): its folders, where the file is not
+        // found as written (as uri_target takes it for the checks and images).
+        std::error_code ec;
+        if (path.find('\\') == std::string::npos || std::filesystem::exists(path, ec)) return path;
+        std::string slashed = path;
+        std::replace(slashed.begin(), slashed.end(), '\\', '/');
+        return std::filesystem::exists(slashed, ec) ? slashed : path;
+    }
     std::string host, local;
     return split_file_uri(std::string_view(path).substr(at + 7), host, local) && !local.empty()
                ? local
@@ -209,6 +217,60 @@ long long base64_bytes(std::string_view data) {
     return static_cast<long long>(n / 4 * 3 + (n % 4 == 0 ? 0 : n % 4 - 1));
 }
 
+/** A JSON string's text without its escapes (\\/ for '/', as some writers write every slash;
+ *  \\uXXXX as UTF-8): the uri tinygltf reads. */
+std::string json_unescaped(std::string_view text) {
+    std::string out;
+    for (std::size_t i = 0; i < text.size(); ++i) {
+        if (text[i] != '\\' || i + 1 >= text.size()) {
+            out += text[i];
+            continue;
+        }
+        const char c = text[++i];
+        switch (c) {
+            case 'b':
+                out += '\b';
+                break;
+            case 'f':
+                out += '\f';
+                break;
+            case 'n':
+                out += '\n';
+                break;
+            case 'r':
+                out += '\r';
+                break;
+            case 't':
+                out += '\t';
+                break;
+            case 'u': {
+                unsigned code = 0;
+                std::size_t k = 0;
+                for (; k < 4 && i + 1 + k < text.size() &&
+                       std::isxdigit(static_cast<unsigned char>(text[i + 1 + k]));
+                     ++k)
+                    code = code * 16 + static_cast<unsigned>(
+                                           std::stoi(std::string(1, text[i + 1 + k]), nullptr, 16));
+                i += k;
+                if (code < 0x80) {
+                    out += static_cast<char>(code);
+                } else if (code < 0x800) {
+                    out += static_cast<char>(0xC0 | (code >> 6));
+                    out += static_cast<char>(0x80 | (code & 0x3F));
+                } else {
+                    out += static_cast<char>(0xE0 | (code >> 12));
+                    out += static_cast<char>(0x80 | ((code >> 6) & 0x3F));
+                    out += static_cast<char>(0x80 | (code & 0x3F));
+                }
+                break;
+            }
+            default:
+                out += c;  // \" \\ \/
+        }
+    }
+    return out;
+}
+
 /** Each buffer's data checked before tinygltf reads it, each fault said at its "uri" or
  *  "byteLength" with what it holds (tinygltf said "File not found : x.bin" or "Failed to decode
  *  'uri'" at 1:1 without saying which buffer, where it looked, or that a data URI was short, and
@@ -248,7 +310,8 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
         if (uri_text && !uri_text->starts_with('"'))
             throw_error(ctx.at(at), "buffer {}: its uri must be a string, not {}", i, *uri_text);
         const std::optional<std::string> uri_value =
-            uri_text ? std::optional(uri_text->substr(1, uri_text->size() - 2)) : std::nullopt;
+            uri_text ? std::optional(json_unescaped(uri_text->substr(1, uri_text->size() - 2)))
+                     : std::nullopt;
         const std::string* uri = uri_value ? &*uri_value : nullptr;
         if (!uri && ctx.json.has(at))
             throw_error(ctx.at(at), "buffer {}: its uri must be a string", i);

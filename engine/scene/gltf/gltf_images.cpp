@@ -121,6 +121,15 @@ UriTarget uri_target(const Context& ctx, const std::string& uri) {
         });
     if (!has_scheme) {
         t.path = (ctx.dir / percent_decoded(uri)).lexically_normal().string();
+        // A path written on Windows ("textures\\wood.png", which glTF forbids but exporters
+        // write): its folders, where the file is not found as written.
+        std::error_code ec;
+        if (uri.find('\\') != std::string::npos && !fs::exists(t.path, ec)) {
+            std::string slashed = percent_decoded(uri);
+            std::replace(slashed.begin(), slashed.end(), '\\', '/');
+            const std::string alt = (ctx.dir / slashed).lexically_normal().string();
+            if (fs::exists(alt, ec)) t.path = alt;
+        }
         return t;
     }
     t.scheme = scheme;
