@@ -112,8 +112,9 @@ void read_light(Reader& r, const std::string& type, ParamList& p, const FileLoc&
         r.notes.add(loc, fmt::format("{}: a negative 'scale' {} stands at 0", what, scale));
         scale = 0.0;
     }
-    const double power = p.number("power", -1.0);
-    if (p.find("power")) r.sign(true, loc, "light 'power'");
+    // An infinite light has no 'power' in pbrt (its 'illuminance' is): left unused, so said.
+    const double power = type == "infinite" ? -1.0 : p.number("power", -1.0);
+    if (type != "infinite" && p.find("power")) r.sign(true, loc, "light 'power'");
     if (type == "point" || type == "spot" || type == "goniometric" || type == "projection") {
         ColorDesc I = color_param(r, p, "I", true).value_or(r.color(Vec3(1.0f), loc));
         colour_scale(r, p, I);
