@@ -345,6 +345,25 @@ Shape "sphere" "float radius" 1 "float radius" 2
     EXPECT_EQ(*t.objects[0].placement.matrix, Affine::scale(Vec3(2.0f)));
 }
 
+TEST(PbrtReader, AnInterfaceAreaLightAndAMixOfUndefinedMaterialsAreSaid) {
+    // pbrt ignores an area light on an interface shape (it emitted here); a mix of names never
+    // defined silently took the default material.
+    const Files f;
+    const SceneDescription d = read(f, R"(WorldBegin
+AttributeBegin
+Material "interface"
+AreaLightSource "diffuse" "rgb L" [5 5 5]
+Shape "sphere"
+AttributeEnd
+Material "mix" "string materials" ["x" "y"]
+Shape "disk"
+)");
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_FALSE(d.objects[0].emission.has_value());
+    EXPECT_TRUE(noted(d, ":5: an area light on a shape of material \"interface\""));
+    EXPECT_TRUE(noted(d, ":7: Material \"mix\": its material 'x' is not defined"));
+}
+
 TEST(PbrtReader, QuadricsAreTessellatedOnTheirSurfaces) {
     const Files f;
     const SceneDescription d = read(f, R"(WorldBegin

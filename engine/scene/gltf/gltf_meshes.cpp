@@ -21,7 +21,9 @@ void note_dropped(Context& ctx, const tinygltf::Primitive& p, const std::string&
             ctx.note("TANGENT", at,
                      "TANGENT attributes are dropped: Spangle derives tangents from TEXCOORD_0");
         else if (name.rfind("COLOR_", 0) == 0)
-            ctx.note("COLOR", at, "vertex colours (" + name + ") are dropped");
+            ctx.note(
+                "COLOR", at,
+                "vertex colours (" + name + ") are dropped: the material's base colour stands in");
         else if (name.rfind("JOINTS_", 0) == 0 || name.rfind("WEIGHTS_", 0) == 0)
             ctx.note("skin", at,
                      "skinning attributes are dropped: meshes are drawn in their "

@@ -520,6 +520,10 @@ std::string mix_material(Reader& r, const ParamList& p, const std::string& name,
                                  "material '{}' stands in",
                                  pick));
     const auto it = r.materials.find(pick);
+    if (it == r.materials.end())
+        r.notes.add(loc, fmt::format("Material \"mix\": its material '{}' is not defined: the "
+                                     "default material stands in",
+                                     pick));
     if (it == r.materials.end() || it->second.empty()) return default_material(r, loc);
     if (name.empty()) return it->second;
     // A named mix is a material of its own name (an [[import]] override can replace it).

@@ -311,7 +311,10 @@ private:
             return;
         }
         if (!r_.defining.empty()) {
-            r_.notes.add(loc, "ObjectInstance inside an object definition: dropped");
+            r_.notes.add(loc,
+                         "ObjectInstance inside an object definition: dropped (pbrt "
+                         "refuses nested instances too; write the inner definition's "
+                         "shapes into the outer one)");
             return;
         }
         ++r_.info.instances;
@@ -542,7 +545,7 @@ private:
 /** Objects that named a material before its MakeNamedMaterial get it now (a red sphere whose
  *  material came after it rendered grey); a name never defined is said at its first use and the
  *  default material stands in; an object of a material found to be "interface" (a medium's
- *  boundary) is not drawn, unless it emits. */
+ *  boundary) is not drawn. */
 void resolve_pending_materials(Reader& r) {
     if (r.pending_materials.empty()) return;
     const std::string marker = kPendingMaterial;
@@ -561,8 +564,7 @@ void resolve_pending_materials(Reader& r) {
                                                 name));
                 o.material = default_material(r, at);
             } else if (it->second.empty()) {
-                if (!o.emission) continue;  // a medium boundary: nothing to render
-                o.material = default_material(r, o.loc);
+                continue;  // a medium boundary: nothing to render (pbrt ignores its area light)
             } else {
                 o.material = it->second;
             }

@@ -423,8 +423,13 @@ EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const 
 void read_shape(Reader& r, const std::string& type, ParamList& p, const FileLoc& loc) {
     ++r.info.shapes;
     const std::string what = fmt::format("Shape \"{}\"", type);
-    if (r.gs.no_surface && !r.gs.area) {
+    if (r.gs.no_surface) {
         for (const Param& q : p.all()) q.used = true;  // a medium boundary: nothing to render
+        // pbrt ignores an area light there too (it emitted here).
+        if (r.gs.area)
+            r.notes.add(loc,
+                        "an area light on a shape of material \"interface\" (a medium's "
+                        "boundary): pbrt ignores it, and so does Spangle");
         return;
     }
     Made made;
