@@ -811,6 +811,35 @@ TEST(GltfMaterials, AMeshTakesTheUvSetItsMaterialReads) {
     EXPECT_FALSE(has_note(one, "another uv set"));
 }
 
+TEST(GltfMaterials, ANoteSaidOnceCountsAndListsItsOtherPlaces) {
+    // Each kind of note is said once per load: it now says how many more places it applies to
+    // and where (an artist with 80 materials could not tell which lost their alpha).
+    test::TempDir dir("gltf_note_places");
+    GltfWriter w;
+    std::string meshes;
+    for (int m = 0; m < 7; ++m) {
+        if (m > 0) meshes += ",";
+        meshes += quad_mesh(w, m);
+    }
+    std::string materials;
+    for (int m = 0; m < 7; ++m)
+        materials += fmt::format(R"({}{{"name":"m{}","alphaMode":"MASK"}})", m ? "," : "", m);
+    std::string nodes;
+    for (int m = 0; m < 7; ++m) nodes += fmt::format(R"({}{{"mesh":{}}})", m ? "," : "", m);
+    w.write_gltf(
+        dir.file("many.gltf"),
+        fmt::format(R"("meshes":[{}],"materials":[{}],"nodes":[{}])", meshes, materials, nodes));
+    const SceneDescription d = read_gltf_scene(dir.file("many.gltf"), {});
+    int said = 0;
+    for (const std::string& n : d.notes)
+        if (n.find("alphaMode MASK") != std::string::npos) {
+            ++said;
+            EXPECT_NE(n.find("(and 6 more places: "), std::string::npos) << n;
+            EXPECT_NE(n.find(", ...)"), std::string::npos) << n;
+        }
+    EXPECT_EQ(said, 1);
+}
+
 TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
     test::TempDir dir("gltf_glb");
     GltfWriter w;

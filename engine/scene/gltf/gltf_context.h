@@ -5,6 +5,7 @@
 
 #include <tiny_gltf.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <limits>
 #include <map>
@@ -28,6 +29,9 @@ struct Context {
     std::vector<std::vector<unsigned char>> images;  ///< each image's encoded bytes, or empty
     SceneDescription* scene = nullptr;               ///< what the reader fills
     std::set<std::string> noted;                     ///< kinds of warnings already given
+    /** Per kind of warning: its note's index in scene->notes and the other places it applies
+     *  to ("line:col", each once). */
+    std::map<std::string, std::pair<std::size_t, std::vector<std::string>>> repeats;
     std::map<int, std::string> material_names;  ///< glTF material -> Spangle name (-1: default)
     std::map<int, std::optional<EmissionDesc>> emissions;  ///< glTF material -> its emission
     std::map<std::pair<int, int>, std::shared_ptr<const TriangleMesh>>
@@ -43,8 +47,37 @@ struct Context {
     /** Adds "file:line:col: message" to the scene's notes, once per `kind` (a warning names
      *  the first place it applies to, and how many more there are is not counted). */
     void note(const std::string& kind, const FileLoc& where, const std::string& message) {
-        if (!noted.insert(kind).second) return;
+        const auto [it, first] = repeats.try_emplace(kind);
+        if (!first) {
+            // Said once; the other places are counted and the first few listed (an artist with
+            // 80 materials could not tell which lost what).
+            if (where.line > 0) {
+                const std::string place = fmt::format("{}:{}", where.line, where.column);
+                if (std::find(it->second.second.begin(), it->second.second.end(), place) ==
+                    it->second.second.end())
+                    it->second.second.push_back(place);
+            }
+            return;
+        }
+        noted.insert(kind);
+        it->second.first = scene->notes.size();
         scene->notes.push_back(fmt::format("{}: {}", where.str(), message));
+    }
+    /** Adds to each note said at several places how many more and where (the first five). */
+    void finish_notes() {
+        for (const auto& [kind, r] : repeats) {
+            const std::vector<std::string>& more = r.second;
+            if (more.empty() || r.first >= scene->notes.size()) continue;
+            std::string places;
+            for (std::size_t i = 0; i < std::min<std::size_t>(more.size(), 5); ++i) {
+                if (i > 0) places += ", ";
+                places += more[i];
+            }
+            scene->notes[r.first] +=
+                fmt::format(" (and {} more place{}: {}{})", more.size(),
+                            more.size() == 1 ? "" : "s", places, more.size() > 5 ? ", ..." : "");
+        }
+        repeats.clear();
     }
 };
 

@@ -14,6 +14,7 @@ SceneDescription read_gltf_scene(const std::string& path, const SceneReadOptions
     ctx.texture_cache = options.texture_cache;
     gltf::load_document(ctx);
     gltf::read_nodes(ctx, options);
+    ctx.finish_notes();
     return scene;
 }
 
