@@ -11,11 +11,15 @@ Affine Affine::compose(const Affine& o) const {
     return r;
 }
 
-float Affine::determinant() const {
+double Affine::determinant_in_double() const {
     // Double: the cofactor sums cancel for thin transforms.
     const double a = m[0][0], b = m[0][1], c = m[0][2], d = m[1][0], e = m[1][1], f = m[1][2],
                  g = m[2][0], h = m[2][1], k = m[2][2];
-    return static_cast<float>(a * (e * k - f * h) - b * (d * k - f * g) + c * (d * h - e * g));
+    return a * (e * k - f * h) - b * (d * k - f * g) + c * (d * h - e * g);
+}
+
+float Affine::determinant() const {
+    return static_cast<float>(determinant_in_double());
 }
 
 double Affine::determinant_share() const {
@@ -35,10 +39,7 @@ Affine Affine::inverse() const {
     double a[3][3];
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) a[i][j] = m[i][j];
-    const double det = a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
-                       a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
-                       a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
-    const double inv = 1.0 / det;
+    const double inv = 1.0 / determinant_in_double();
     Affine r;
     r.m[0][0] = static_cast<float>((a[1][1] * a[2][2] - a[1][2] * a[2][1]) * inv);
     r.m[0][1] = static_cast<float>((a[0][2] * a[2][1] - a[0][1] * a[2][2]) * inv);

@@ -100,7 +100,10 @@ struct Affine {
     Affine compose(const Affine& o) const;
     /** The inverse; the caller guarantees the linear part is invertible. */
     Affine inverse() const;
-    /** Determinant of the linear part. */
+    /** Determinant of the linear part, computed in double (0 only for a part singular as
+     *  written, or within double rounding of it). */
+    double determinant_in_double() const;
+    /** Determinant of the linear part (determinant_in_double, as a float). */
     float determinant() const;
     /** |determinant| of the linear part over the sum of the sizes of the six products it is the
      *  difference of (the permanent of its entries' sizes), in double: 1 for a scale, rotation

@@ -23,15 +23,6 @@ bool invertible(const Affine& a) {
            std::fabs(det) > 1e-15f * norms;
 }
 
-/** The determinant of a placement's linear part, in double (0 only for a placement singular
- *  as written, or within double rounding of it). */
-double determinant_in_double(const Affine& a) {
-    const auto m = [&](int r, int c) { return static_cast<double>(a.m[r][c]); };
-    return m(0, 0) * (m(1, 1) * m(2, 2) - m(1, 2) * m(2, 1)) -
-           m(0, 1) * (m(1, 0) * m(2, 2) - m(1, 2) * m(2, 0)) +
-           m(0, 2) * (m(1, 0) * m(2, 1) - m(1, 1) * m(2, 0));
-}
-
 /** Makes an instance safe to trace. Embree blends a moving instance's steps linearly, so a step
  *  that is singular, or two steps whose determinants differ in sign (a mirror flip within the
  *  shutter: the blend passes through a flat object), would send rays into a singular space
@@ -49,7 +40,7 @@ void make_traceable(Instance& inst) {
     // nearly parallel (EmbreeScene), so only a placement singular in double hides it (one whose
     // float determinant alone vanished, rows [1,1,1], [1,1,1.0001], [1,1.0001,1], was hidden).
     if (inst.motion.empty() && !invertible(inst.to_world) &&
-        !(std::fabs(determinant_in_double(inst.to_world)) > 0.0))
+        !(std::fabs(inst.to_world.determinant_in_double()) > 0.0))
         inst.hidden = true;
 }
 

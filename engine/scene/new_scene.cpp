@@ -14,6 +14,7 @@
 #include "core/text.h"
 #include "geometry/mesh_load.h"
 #include "geometry/ply_writer.h"
+#include "scene/object_placement.h"
 #include "scene/scene_loader.h"
 #include "scene/scene_paths.h"
 
@@ -42,17 +43,6 @@ std::string lower_extension(const std::string& path) {
 bool is_gltf(const std::string& path) {
     const std::string e = lower_extension(path);
     return e == ".gltf" || e == ".glb";
-}
-
-/** A scene's object-to-world matrix from its placement parts: scale, X, Y, Z rotations
- *  (degrees), translation; the order every reader uses. */
-Affine placement_matrix(const PlacementDesc& p) {
-    if (p.matrix) return *p.matrix;
-    Affine m = Affine::scale(p.parts.scale);
-    m = Affine::rotate(p.parts.rotate.x, {1, 0, 0}).compose(m);
-    m = Affine::rotate(p.parts.rotate.y, {0, 1, 0}).compose(m);
-    m = Affine::rotate(p.parts.rotate.z, {0, 0, 1}).compose(m);
-    return Affine::translate(p.parts.translate).compose(m);
 }
 
 void add_mesh(Box& box, const TriangleMesh& mesh, const Affine& to_world) {
@@ -127,7 +117,7 @@ Box model_bounds(const std::string& model, std::vector<std::string>* notes) {
         const SceneDescription scene = read_scene(abs.string());
         if (notes) notes->insert(notes->end(), scene.notes.begin(), scene.notes.end());
         for (const ObjectDesc& o : scene.objects) {
-            Affine m = placement_matrix(o.placement);
+            Affine m = matrix_of(o.placement);
             if (o.parent) m = o.parent->compose(m);
             if (const auto* s = std::get_if<InlineMeshShape>(&o.shape))
                 add_mesh(box, *s->mesh, m);

@@ -10,11 +10,13 @@
 // defaults; a format with other defaults writes its own). Files a scene names are resolved by
 // the reader against the scene's folder and checked to exist (scene/scene_paths.h).
 
+#include <algorithm>
 #include <array>
 #include <cstdint>
 #include <memory>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <variant>
 #include <vector>
 
@@ -373,6 +375,10 @@ struct RenderDesc {
     /** The keys the file wrote (TOML: of [render]); an import fills in the others. Empty for a
      *  reader whose format gives every setting. */
     std::vector<std::string> written;
+    /** Whether the file wrote `key` (it is in `written`). */
+    bool wrote(std::string_view key) const {
+        return std::find(written.begin(), written.end(), key) != written.end();
+    }
     FileLoc loc;                ///< the settings (blamed for defaults)
     FileLoc working_space_loc;  ///< where the working space is named
     FileLoc color_space_loc;    ///< where the bare colours' space is named

@@ -6,22 +6,10 @@
 #include <cmath>
 
 #include "scene/keyed_motion.h"
+#include "scene/object_placement.h"
 
 namespace spangle {
 namespace {
-
-/** The placement parts as one matrix (scale, then X, Y, Z Euler rotations, then the offset). */
-Affine compose_parts(const TransformParts& p) {
-    Affine m = Affine::scale(p.scale);
-    m = Affine::rotate(p.rotate.x, {1, 0, 0}).compose(m);
-    m = Affine::rotate(p.rotate.y, {0, 1, 0}).compose(m);
-    m = Affine::rotate(p.rotate.z, {0, 0, 1}).compose(m);
-    return Affine::translate(p.translate).compose(m);
-}
-
-Affine matrix_of(const PlacementDesc& p) {
-    return p.matrix ? *p.matrix : compose_parts(p.parts);
-}
 
 bool is_identity(const Affine& m) {
     return m == Affine{};
@@ -95,15 +83,12 @@ struct PlaceLight {
 
 /** Takes each [render] setting the importing file did not write from the import. */
 void fill_render(RenderDesc& into, const RenderDesc& from) {
-    const auto written = [&](const char* key) {
-        return std::find(into.written.begin(), into.written.end(), key) != into.written.end();
-    };
     const RenderDesc mine = into;
     into = from;
     into.written = mine.written;
     into.loc = mine.loc;
     const auto keep = [&](const char* key, auto member) {
-        if (written(key)) into.*member = mine.*member;
+        if (mine.wrote(key)) into.*member = mine.*member;
     };
     keep("width", &RenderDesc::width);
     keep("height", &RenderDesc::height);
@@ -130,7 +115,7 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     into.working_space_loc = mine.working_space_loc;
     into.color_space = mine.color_space;
     into.color_space_loc = mine.color_space_loc;
-    if (!written("working_space") && !mine.working_space) {
+    if (!mine.wrote("working_space") && !mine.working_space) {
         into.working_space = from.working_space;
         into.working_space_loc = from.working_space_loc;
     }
@@ -150,19 +135,17 @@ void merge(SceneDescription& scene, SceneDescription in, const ImportDesc& how, 
     explicit_key_times(in);
     const Affine place = matrix_of(how.placement);
     const bool placed = !is_identity(place);
-    const auto own = [&](const std::string& name) {
-        return std::find(m.own_materials.begin(), m.own_materials.end(), name) !=
-               m.own_materials.end();
+    const auto listed = [](const std::vector<std::string>& names, const std::string& name) {
+        return std::find(names.begin(), names.end(), name) != names.end();
     };
     // A material the importing file replaces takes its emission with it (a glTF material's
     // emissiveFactor): the replaced paint still glowed, and the glow kept the file's studio
     // light out.
     std::vector<std::string> unlit;
     for (ObjectDesc& o : in.objects)
-        if (o.emission && o.emission->of_material && own(o.material)) {
+        if (o.emission && o.emission->of_material && listed(m.own_materials, o.material)) {
             o.emission.reset();
-            if (std::find(unlit.begin(), unlit.end(), o.material) == unlit.end())
-                unlit.push_back(o.material);
+            if (!listed(unlit, o.material)) unlit.push_back(o.material);
         }
     // Its only light gone with them: the studio light it would have had stands in.
     const bool dark = !unlit.empty() && in.studio_light &&
@@ -187,11 +170,8 @@ void merge(SceneDescription& scene, SceneDescription in, const ImportDesc& how, 
         m.objects.push_back(std::move(o));
     }
     for (MaterialDesc& mat : in.materials) {
-        const auto has = [&](const std::vector<std::string>& names) {
-            return std::find(names.begin(), names.end(), mat.name) != names.end();
-        };
-        if (has(m.own_materials)) continue;  // the importing file's own replaces it
-        if (has(m.imported_materials)) {
+        if (listed(m.own_materials, mat.name)) continue;  // the importing file's own replaces it
+        if (listed(m.imported_materials, mat.name)) {
             scene.notes.push_back(fmt::format(
                 "{}: material '{}' of {} is also in an earlier import: the earlier one is used",
                 how.loc.str(), mat.name, in.path));

@@ -61,11 +61,8 @@ SceneDescription read_with_imports(const std::string& path, const SceneReadOptio
         as_import.imported = true;
         // The importing file's [render] width and height replace the size an import would set
         // (a glTF camera's aspect ratio), so the import says nothing of it.
-        const auto written = [&](const char* key) {
-            return std::find(scene.render.written.begin(), scene.render.written.end(), key) !=
-                   scene.render.written.end();
-        };
-        as_import.size_given = options.size_given || (written("width") && written("height"));
+        as_import.size_given =
+            options.size_given || (scene.render.wrote("width") && scene.render.wrote("height"));
         return read_with_imports(imported, as_import, chain);
     });
     chain.pop_back();

@@ -28,7 +28,6 @@ struct Context {
     JsonLocations json;                              ///< places of the JSON's values
     std::vector<std::vector<unsigned char>> images;  ///< each image's encoded bytes, or empty
     SceneDescription* scene = nullptr;               ///< what the reader fills
-    std::set<std::string> noted;                     ///< kinds of warnings already given
     /** Per kind of warning: its note's index in scene->notes and the other places it applies
      *  to ("line:col", each once). */
     std::map<std::string, std::pair<std::size_t, std::vector<std::string>>> repeats;
@@ -38,14 +37,15 @@ struct Context {
         meshes;                              ///< (mesh, primitive)
     std::map<int, std::string> image_files;  ///< glTF image -> file ("" = none)
     std::string texture_cache;               ///< --texture-cache (empty: the default folders)
-    int uv_set =
-        0;  ///< the uv set of the material being read (uv_set_of); textures of another are noted
+    /** The uv set of the material being read (uv_set_of); its textures reading another are
+     *  noted. */
+    int uv_set = 0;
 
     /** Where the value at JSON path `p` is written. */
     FileLoc at(const std::string& p) const { return json.at(p); }
 
-    /** Adds "file:line:col: message" to the scene's notes, once per `kind` (a warning names
-     *  the first place it applies to, and how many more there are is not counted). */
+    /** Adds "file:line:col: message" to the scene's notes, once per `kind`: a warning names
+     *  the first place it applies to; finish_notes() adds how many more there are and where. */
     void note(const std::string& kind, const FileLoc& where, const std::string& message) {
         const auto [it, first] = repeats.try_emplace(kind);
         if (!first) {
@@ -59,7 +59,6 @@ struct Context {
             }
             return;
         }
-        noted.insert(kind);
         it->second.first = scene->notes.size();
         scene->notes.push_back(fmt::format("{}: {}", where.str(), message));
     }

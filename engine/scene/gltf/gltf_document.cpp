@@ -55,18 +55,11 @@ bool regular_file(const std::string& path, void*) {
 }
 
 /** Paths are not expanded (no ~, no variables), except a file:// URI joined to the file's
- *  folder (tinygltf looks for "DIR/file:///x.bin"): its path, as check_buffers() took it. */
+ *  folder (tinygltf looks for "DIR/file:///x.bin"): its path, as check_buffers() took it; and
+ *  a path written with Windows backslashes, as slashed_where_missing() takes it. */
 std::string same_path(const std::string& path, void*) {
     const std::size_t at = ascii_lower(path).find("file://");
-    if (at == std::string::npos) {
-        // A path written on Windows ("buffers\\car.bin"): its folders, where the file is not
-        // found as written (as uri_target takes it for the checks and images).
-        std::error_code ec;
-        if (path.find('\\') == std::string::npos || std::filesystem::exists(path, ec)) return path;
-        std::string slashed = path;
-        std::replace(slashed.begin(), slashed.end(), '\\', '/');
-        return std::filesystem::exists(slashed, ec) ? slashed : path;
-    }
+    if (at == std::string::npos) return slashed_where_missing(path);
     std::string host, local;
     return split_file_uri(std::string_view(path).substr(at + 7), host, local) && !local.empty()
                ? local

@@ -111,6 +111,14 @@ std::vector<std::string> embedded_image_dirs(const std::string& texture_cache) {
     return dirs;
 }
 
+std::string slashed_where_missing(const std::string& path) {
+    std::error_code ec;
+    if (path.find('\\') == std::string::npos || fs::exists(path, ec)) return path;
+    std::string slashed = path;
+    std::replace(slashed.begin(), slashed.end(), '\\', '/');
+    return fs::exists(slashed, ec) ? slashed : path;
+}
+
 UriTarget uri_target(const Context& ctx, const std::string& uri) {
     UriTarget t;
     const std::size_t colon = uri.find("://");
@@ -120,16 +128,8 @@ UriTarget uri_target(const Context& ctx, const std::string& uri) {
             return std::isalnum(static_cast<unsigned char>(c)) || c == '+' || c == '-' || c == '.';
         });
     if (!has_scheme) {
-        t.path = (ctx.dir / percent_decoded(uri)).lexically_normal().string();
-        // A path written on Windows ("textures\\wood.png", which glTF forbids but exporters
-        // write): its folders, where the file is not found as written.
-        std::error_code ec;
-        if (uri.find('\\') != std::string::npos && !fs::exists(t.path, ec)) {
-            std::string slashed = percent_decoded(uri);
-            std::replace(slashed.begin(), slashed.end(), '\\', '/');
-            const std::string alt = (ctx.dir / slashed).lexically_normal().string();
-            if (fs::exists(alt, ec)) t.path = alt;
-        }
+        t.path =
+            slashed_where_missing((ctx.dir / percent_decoded(uri)).lexically_normal().string());
         return t;
     }
     t.scheme = scheme;

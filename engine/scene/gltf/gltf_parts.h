@@ -40,6 +40,11 @@ UriTarget uri_target(const Context& ctx, const std::string& uri);
  *  its first '/', escapes as written). True when the host is this machine (none, or localhost). */
 bool split_file_uri(std::string_view rest, std::string& host, std::string& path);
 
+/** `path` with its backslashes as slashes where the file is not found as written and is found
+ *  so (a path written on Windows, "textures\\wood.png", which glTF forbids but exporters
+ *  write); else `path`. For the checks, images and tinygltf's own reads alike. */
+std::string slashed_where_missing(const std::string& path);
+
 /** The folders embedded images are written to, in the order tried: `texture_cache`/gltf-images
  *  when given (--texture-cache), else $SPANGLE_TEXTURE_CACHE/gltf-images, else
  *  $XDG_CACHE_HOME/spangle/gltf-images or ~/.cache/spangle/gltf-images, then the temporary

@@ -23,6 +23,15 @@ double number_or(const tinygltf::Value& v, const char* key, double fallback) {
     return std::isfinite(x) ? x : fallback;
 }
 
+/** Notes that the texture at `ref` reads another uv set than its material's (ctx.uv_set), which
+ *  stands in. */
+void note_uv_set(Context& ctx, const std::string& ref) {
+    ctx.note("TEXCOORD_n", ctx.at(ref + "/texCoord"),
+             fmt::format("a texture reads another uv set than its material's others: TEXCOORD_{} "
+                         "stands in (Spangle meshes hold one)",
+                         ctx.uv_set));
+}
+
 /** KHR_texture_transform's T R S (in glTF's (s, t), t down) as TextureDesc's uv matrix, in
  *  Spangle's (u, v) = (s, 1 - t): s = A00 u - A01 v + A01 + A02, and 1 - t likewise. */
 void texture_transform(Context& ctx, const tinygltf::Value& x, const std::string& ref,
@@ -48,11 +57,7 @@ void texture_transform(Context& ctx, const tinygltf::Value& x, const std::string
         if (!std::isfinite(tex.uv[k]))
             throw_error(ctx.at(ref), "KHR_texture_transform makes a uv transform beyond a float");
     }
-    if (x.Has("texCoord") && number_or(x, "texCoord", 0) != ctx.uv_set)
-        ctx.note("TEXCOORD_n", ctx.at(ref + "/texCoord"),
-                 fmt::format("a texture reads another uv set than its material's others: "
-                             "TEXCOORD_{} stands in (Spangle meshes hold one)",
-                             ctx.uv_set));
+    if (x.Has("texCoord") && number_or(x, "texCoord", 0) != ctx.uv_set) note_uv_set(ctx, ref);
 }
 
 /** Width x height from a PNG's IHDR or a JPEG's start-of-frame segment; 0 when not found. */
@@ -100,11 +105,7 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
             ctx.note("wrapT", ctx.at(fmt::format("samplers/{}/wrapT", t.sampler)),
                      "a sampler wraps s and t differently: Spangle wraps both as wrapS says");
     }
-    if (use.tex_coord != ctx.uv_set)
-        ctx.note("TEXCOORD_n", ctx.at(ref + "/texCoord"),
-                 fmt::format("a texture reads another uv set than its material's others: "
-                             "TEXCOORD_{} stands in (Spangle meshes hold one)",
-                             ctx.uv_set));
+    if (use.tex_coord != ctx.uv_set) note_uv_set(ctx, ref);
     if (use.extensions)
         if (auto x = use.extensions->find("KHR_texture_transform"); x != use.extensions->end())
             texture_transform(ctx, x->second, ref + "/extensions/KHR_texture_transform", tex);

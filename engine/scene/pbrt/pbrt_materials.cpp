@@ -585,7 +585,7 @@ std::string read_material(Reader& r, const std::string& type, const std::string&
         // Another pbrt type (hair, measured, subsurface) is one Spangle lacks; any other name
         // is no pbrt material at all (a typo: pbrt refuses the file).
         const bool known = is_v4_type(type) || is_v3_type(type) || type == "hair" ||
-                           type == "measured" || type == "subsurface" || type == "coatedconductor";
+                           type == "measured" || type == "subsurface";
         b.note(known ? "not supported; a diffuse reflector of its colour (or 0.5) stands in"
                      : "not a pbrt material type (pbrt-v4's: diffuse, coateddiffuse, "
                        "conductor, coatedconductor, dielectric, thindielectric, "

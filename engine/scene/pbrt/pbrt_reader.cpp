@@ -59,14 +59,6 @@ Mat4 translate(double x, double y, double z) {
     return m;
 }
 
-Mat4 scale(double x, double y, double z) {
-    Mat4 m;
-    m.m[0][0] = x;
-    m.m[1][1] = y;
-    m.m[2][2] = z;
-    return m;
-}
-
 /** Rotation by `deg` degrees about `axis` (normalised here), right-handed (Rodrigues). */
 Mat4 rotate(double deg, double x, double y, double z, const FileLoc& at) {
     const double len = std::sqrt(x * x + y * y + z * z);
@@ -172,7 +164,7 @@ private:
             each_active(r_, [&](Mat4& m) { m = m * translate(v[0], v[1], v[2]); });
         } else if (name == "Scale") {
             const auto v = number_args(t, name, 3);
-            each_active(r_, [&](Mat4& m) { m = m * scale(v[0], v[1], v[2]); });
+            each_active(r_, [&](Mat4& m) { m = m * Mat4::scale(v[0], v[1], v[2]); });
         } else if (name == "Rotate") {
             const auto v = number_args(t, name, 4);
             const Mat4 rot = rotate(v[0], v[1], v[2], v[3], loc);

@@ -476,11 +476,7 @@ void read_shape(Reader& r, const std::string& type, ParamList& p, const FileLoc&
     }
     Mat4 xf[2] = {r.gs.ctm[0], r.gs.ctm[1]};
     if (made.scale != 1.0)
-        for (Mat4& m : xf) {
-            Mat4 s;
-            for (int k = 0; k < 3; ++k) s.m[k][k] = made.scale;
-            m = m * s;
-        }
+        for (Mat4& m : xf) m = m * Mat4::scale(made.scale, made.scale, made.scale);
     if (!r.defining.empty()) {
         r.definitions[r.defining].push_back({std::move(o), {xf[0], xf[1]}});
         return;

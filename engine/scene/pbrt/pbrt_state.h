@@ -23,6 +23,8 @@ namespace spangle::pbrt {
 /** A 4x4 transform, row-major, for column vectors (p' = M p), in double as pbrt keeps it. */
 struct Mat4 {
     double m[4][4] = {{1, 0, 0, 0}, {0, 1, 0, 0}, {0, 0, 1, 0}, {0, 0, 0, 1}};
+    /** Scaling by x, y and z along the axes. */
+    static Mat4 scale(double x, double y, double z);
     /** this * o: o applies first. */
     Mat4 operator*(const Mat4& o) const;
     bool operator==(const Mat4&) const = default;

@@ -7,6 +7,14 @@
 
 namespace spangle::pbrt {
 
+Mat4 Mat4::scale(double x, double y, double z) {
+    Mat4 m;
+    m.m[0][0] = x;
+    m.m[1][1] = y;
+    m.m[2][2] = z;
+    return m;
+}
+
 Mat4 Mat4::operator*(const Mat4& o) const {
     Mat4 r;
     for (int i = 0; i < 4; ++i)
