@@ -53,7 +53,7 @@ def livery(tile, s, t):
 def write_png(path, width, height, channels, rows):
     """rows: bytes per row (channels x width, 8-bit)."""
     raw = b"".join(b"\x00" + r for r in rows)
-    kind = {1: 0, 3: 2}[channels]
+    kind = {1: 0, 2: 4, 3: 2, 4: 6}[channels]
 
     def chunk(tag, data):
         c = struct.pack(">I", len(data)) + tag + data

@@ -10,6 +10,7 @@
 #include <string>
 
 #include "core/error.h"
+#include "core/hash.h"
 
 namespace spangle {
 
@@ -63,6 +64,67 @@ bool make_ray_hit(Vec3 o, Vec3 d, float tmax, float time, RTCRayHit& rh) {
     rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
     return make_ray(o, d, tmax, time, rh.ray);
+}
+
+/** An intersection context that carries the cut-outs to its filter. */
+struct CutContext {
+    RTCIntersectContext ctx;  ///< first: Embree hands the filter a pointer to it
+    const CutOut* table = nullptr;
+    std::size_t count = 0;
+};
+
+/** The context filter: drops the candidate hits a cut-out lets through. */
+void cut_filter(const RTCFilterFunctionNArguments* args) {
+    const auto* c = reinterpret_cast<const CutContext*>(args->context);
+    for (unsigned i = 0; i < args->N; ++i) {
+        if (args->valid[i] != -1) continue;
+        const unsigned inst = RTCHitN_instID(args->hit, args->N, i, 0);
+        if (inst >= c->count) continue;  // a light's shape (no instance)
+        const CutOut& cut = c->table[inst];
+        if (!cut.coverage) continue;
+        const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
+        const float a = cut.coverage(cut.self, prim, RTCHitN_u(args->hit, args->N, i),
+                                     RTCHitN_v(args->hit, args->N, i));
+        bool keep;
+        if (cut.cutoff >= 0.0f) {
+            keep = a >= cut.cutoff;
+        } else if (a >= 1.0f || !(a > 0.0f)) {
+            keep = a >= 1.0f;
+        } else {
+            // Per ray and triangle: two half-covering layers on one ray let a quarter through
+            // (one number per ray, as pbrt draws it, would let both or neither).
+            const auto bits = [](float f) {
+                uint32_t b;
+                std::memcpy(&b, &f, sizeof b);
+                return static_cast<uint64_t>(b);
+            };
+            const uint64_t o = bits(RTCRayN_org_x(args->ray, args->N, i)) |
+                               bits(RTCRayN_org_y(args->ray, args->N, i)) << 32;
+            const uint64_t d = bits(RTCRayN_dir_x(args->ray, args->N, i)) |
+                               bits(RTCRayN_dir_y(args->ray, args->N, i)) << 32;
+            const uint64_t z = bits(RTCRayN_org_z(args->ray, args->N, i)) |
+                               bits(RTCRayN_dir_z(args->ray, args->N, i)) << 32;
+            keep = to_unit_float(hash4(o, d, z, static_cast<uint64_t>(inst) << 32 | prim)) < a;
+        }
+        if (!keep) args->valid[i] = 0;
+    }
+}
+
+/** A context for one query: the cut-outs' filter when any instance has one. */
+void init_context(CutContext& c, const CutOuts* cut_outs, bool incoherent) {
+    rtcInitIntersectContext(&c.ctx);
+    if (incoherent) c.ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;  // see the header
+    if (!cut_outs || cut_outs->empty()) return;
+    c.table = cut_outs->data();
+    c.count = cut_outs->size();
+    c.ctx.filter = cut_filter;
+}
+
+/** A new scene that takes the intersection context's filter (the cut-outs'). */
+RTCScene new_scene(RTCDevice device) {
+    RTCScene s = rtcNewScene(device);
+    rtcSetSceneFlags(s, RTC_SCENE_FLAG_CONTEXT_FILTER_FUNCTION);
+    return s;
 }
 
 /** Embree's 3x4 row-major matrix of an affine transform. */
@@ -195,7 +257,7 @@ RTCScene baked_blas(RTCDevice device, const TriangleMesh& mesh, const Affine& xf
                 static_cast<double>(xf.m[r][0]) * p[0] + static_cast<double>(xf.m[r][1]) * p[1] +
                 static_cast<double>(xf.m[r][2]) * p[2] + static_cast<double>(xf.t[r]));
     }
-    RTCScene s = rtcNewScene(device);
+    RTCScene s = new_scene(device);
     RTCGeometry g = add_triangles(device, s, xyz.data(), mesh.vertex_count(), mesh.indices.data(),
                                   mesh.triangle_count());
     rtcReleaseGeometry(g);
@@ -210,7 +272,7 @@ RTCScene make_top_level(RTCDevice device, const std::vector<RTCScene>& blas,
                         const std::vector<Vec3>& quad_vertices, const std::vector<float>& spheres,
                         uint32_t& quad_geom, uint32_t& sphere_geom) {
     quad_geom = sphere_geom = RTC_INVALID_GEOMETRY_ID;
-    RTCScene top = rtcNewScene(device);
+    RTCScene top = new_scene(device);
     for (std::size_t i = 0; i < instances.size(); ++i) {
         const Instance& inst = instances[i];
         RTCGeometry g = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_INSTANCE);
@@ -301,7 +363,7 @@ void EmbreeScene::build(const GeometryStore& geometry, const std::vector<Instanc
             continue;
         }
         const TriangleMesh& mesh = *ptr;
-        RTCScene s = rtcNewScene(device_);
+        RTCScene s = new_scene(device_);
         next.emplace(ptr.get(), std::make_pair(ptr, s));
         blas_.push_back(s);
         ++built_;
@@ -375,29 +437,31 @@ void EmbreeScene::bounding_sphere(Vec3& center, float& radius) const {
     radius = 0.5f * length(hi - lo);
 }
 
-bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time) const {
+bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time,
+                            const CutOuts* cut_outs) const {
     RTCRayHit rh{};
     if (!make_ray_hit(o, d, tmax, time, rh)) return false;  // a non-finite ray misses
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    rtcIntersect1(top_, &ctx, &rh);
+    CutContext c;
+    init_context(c, cut_outs, false);
+    rtcIntersect1(top_, &c.ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     resolve(rh, hit);
     return true;
 }
 
 void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits,
-                                   uint8_t* found, const float* time, const float* tnear) const {
+                                   uint8_t* found, const float* time, const float* tnear,
+                                   const CutOuts* cut_outs) const {
     thread_local std::vector<RTCRayHit> rays;
     rays.resize(n);
     for (std::size_t i = 0; i < n; ++i) {  // a non-finite ray misses
         make_ray_hit(o[i], d[i], 1e30f, time ? time[i] : 0.0f, rays[i]);
         if (tnear && std::isfinite(tnear[i])) rays[i].ray.tnear = std::max(0.0f, tnear[i]);
     }
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;  // ray by ray: see the header
-    if (n > 0) rtcIntersect1M(top_, &ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRayHit));
+    CutContext c;
+    init_context(c, cut_outs, true);  // ray by ray: see the header
+    if (n > 0)
+        rtcIntersect1M(top_, &c.ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRayHit));
     for (std::size_t i = 0; i < n; ++i) {
         found[i] = rays[i].hit.geomID != RTC_INVALID_GEOMETRY_ID ? 1 : 0;
         if (found[i]) resolve(rays[i], hits[i]);
@@ -405,7 +469,8 @@ void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, 
 }
 
 void EmbreeScene::occluded_stream(const Vec3* o, const Vec3* d, const float* tmax, std::size_t n,
-                                  uint8_t* blocked, const float* time) const {
+                                  uint8_t* blocked, const float* time,
+                                  const CutOuts* cut_outs) const {
     thread_local std::vector<RTCRay> rays;
     rays.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
@@ -413,10 +478,9 @@ void EmbreeScene::occluded_stream(const Vec3* o, const Vec3* d, const float* tma
         if (!make_ray(o[i], d[i], tmax[i], time ? time[i] : 0.0f, rays[i]))
             rays[i].tfar = -std::numeric_limits<float>::infinity();
     }
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    ctx.flags = RTC_INTERSECT_CONTEXT_FLAG_INCOHERENT;
-    if (n > 0) rtcOccluded1M(top_, &ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRay));
+    CutContext c;
+    init_context(c, cut_outs, true);
+    if (n > 0) rtcOccluded1M(top_, &c.ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRay));
     for (std::size_t i = 0; i < n; ++i)
         blocked[i] = rays[i].tfar == -std::numeric_limits<float>::infinity() ? 1 : 0;
 }
@@ -435,12 +499,12 @@ void EmbreeScene::resolve(const RTCRayHit& rh, Hit& hit) const {
     }
 }
 
-bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax, float time) const {
+bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax, float time, const CutOuts* cut_outs) const {
     RTCRay r{};
     if (!make_ray(o, d, tmax, time, r)) return true;  // a non-finite ray lets no light through
-    RTCIntersectContext ctx;
-    rtcInitIntersectContext(&ctx);
-    rtcOccluded1(top_, &ctx, &r);
+    CutContext c;
+    init_context(c, cut_outs, false);
+    rtcOccluded1(top_, &c.ctx, &r);
     return r.tfar == -std::numeric_limits<float>::infinity();
 }
 

@@ -66,6 +66,21 @@ struct Hit {
     HitKind kind = HitKind::Instance;  ///< what was hit
 };
 
+/** Whether a ray meets an instance's triangle where it crosses it: a cut-out (a leaf drawn on a
+ *  quad with an alpha texture). The renderer supplies one per instance (RenderScene). */
+struct CutOut {
+    /** The coverage of triangle `prim` at barycentrics (b1, b2), in [0, 1]; null: opaque. It
+     *  runs inside the ray tracer: it must be thread-safe and must not throw. */
+    float (*coverage)(const void* self, uint32_t prim, float b1, float b2) = nullptr;
+    const void* self = nullptr;  ///< what `coverage` reads
+    /** >= 0: a hit counts where coverage >= cutoff (glTF's MASK); < 0: with probability
+     *  coverage, decided by a hash of the ray and the triangle (pbrt's stochastic alpha), so
+     *  the same ray decides alike whatever else is traced with it. */
+    float cutoff = -1.0f;
+};
+/** One CutOut per instance, indexed as the instances; empty (or null): every surface opaque. */
+using CutOuts = std::vector<CutOut>;
+
 /** An Embree device and committed scene. Not copyable; rtc handles released on destruction. */
 class EmbreeScene {
 public:
@@ -94,7 +109,8 @@ public:
 
     /** Closest hit along o + t d for t in (0, tmax) at ray time `time` (in [0, 1] over the
      *  shutter: where moving instances are); false when nothing is hit. */
-    bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time = 0.0f) const;
+    bool intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time = 0.0f,
+                   const CutOuts* cut_outs = nullptr) const;
     /** Closest hits of n rays o[i] + t d[i], t in (0, 1e30), traced as one stream:
      *  found[i] says whether hits[i] is one. A ray's hit is the same bit for bit whatever else
      *  is in the stream (time[i]: the ray's time, as for intersect(); null: all at 0) (an
@@ -103,14 +119,18 @@ public:
      *  could differ from the whole render; they saved no time here). It may differ from
      *  intersect()'s in the last bits (another Embree code path). */
     void intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, Hit* hits, uint8_t* found,
-                          const float* time = nullptr, const float* tnear = nullptr) const;
+                          const float* time = nullptr, const float* tnear = nullptr,
+                          const CutOuts* cut_outs = nullptr) const;
     /** blocked[i] = whether something blocks o[i] + t d[i] for t in (0, tmax[i]), for n rays
      *  traced as one (incoherent) stream, at times time[i] (null: all at 0). A non-finite ray
      *  counts as blocked. */
     void occluded_stream(const Vec3* o, const Vec3* d, const float* tmax, std::size_t n,
-                         uint8_t* blocked, const float* time = nullptr) const;
-    /** True when something blocks o + t d for t in (0, tmax) at ray time `time`. */
-    bool occluded(Vec3 o, Vec3 d, float tmax, float time = 0.0f) const;
+                         uint8_t* blocked, const float* time = nullptr,
+                         const CutOuts* cut_outs = nullptr) const;
+    /** True when something blocks o + t d for t in (0, tmax) at ray time `time`. Each query
+     *  lets rays through the instances' cut-outs when `cut_outs` is given. */
+    bool occluded(Vec3 o, Vec3 d, float tmax, float time = 0.0f,
+                  const CutOuts* cut_outs = nullptr) const;
 
     /** BLAS the last build() made and reused. */
     int blas_built() const { return built_; }

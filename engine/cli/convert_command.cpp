@@ -71,6 +71,7 @@ int run_convert(const ConvertArgs& a) {
             if (p.kind == ParamDesc::Kind::Texture) carry(p.texture);
         for (ParamDesc& p : m.maps)
             if (p.kind == ParamDesc::Kind::Texture) carry(p.texture);
+        if (m.alpha && m.alpha->kind == ParamDesc::Kind::Texture) carry(m.alpha->texture);
     }
     const SceneWriteReport rep = write_toml_scene(scene, a.output, meshes.string());
     std::string beside;

@@ -25,7 +25,7 @@ std::string material_key(const World& w, const Material& m) {
             const TextureRef& t = p.texture;
             key += fmt::format(":{}:{}:{}:{}:{}", file_identity(t.path), t.space,
                                fmt::join(t.scale, ","), fmt::join(t.uv, ","), t.wrap);
-            key += fmt::format(":{}:{}", t.amount, t.filter);
+            key += fmt::format(":{}:{}:{}", t.amount, t.filter, t.channel);
         }
     return key;
 }
@@ -40,7 +40,8 @@ void warn_about_missing_uvs(const ecs::Registry& r, const World& w, const Materi
         const MaterialInstance* mat = set.instances[refs.columns().material[i]].get();
         if (!mat || !r.has<TriangleMeshRef>(e)) continue;
         // Textures and normal or bump maps are laid out in uv too.
-        const bool textured = !mat->textures().empty() || mat->map_kind() != MapKind::None;
+        const bool textured = !mat->textures().empty() || mat->map_kind() != MapKind::None ||
+                              mat->alpha().map.texture;
         const bool plugin_needs =
             mat->model().requirements &&
             (mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV);

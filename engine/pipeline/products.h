@@ -103,6 +103,22 @@ struct SceneGeometry {
     std::shared_ptr<EmbreeScene> accel;
 };
 
+/** One instance's alpha: its material's AlphaMap over its mesh's uvs (CutOut::self). */
+struct AlphaCoverage {
+    std::shared_ptr<const MaterialInstance> material;  ///< holds the AlphaMap
+    std::shared_ptr<const TriangleMesh> mesh;
+    const TextureService* textures = nullptr;
+};
+
+/** cut_outs: the instances rays pass through where their material's alpha says. */
+struct CutOutSet {
+    static constexpr const char* kName = "CutOutSet";
+    static constexpr bool kProduct = true;
+    CutOuts per_instance;  ///< indexed as SceneGeometry::instances
+    /** What per_instance's entries point at. */
+    std::vector<std::unique_ptr<AlphaCoverage>> coverage;
+};
+
 /** light_selection: every light in one table with its selection distribution. */
 struct SceneLights {
     static constexpr const char* kName = "SceneLights";

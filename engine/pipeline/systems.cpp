@@ -13,6 +13,7 @@ ecs::Schedule<World> build_schedule() {
     s.add(point_lights_system());
     s.add(environment_system());
     s.add(accelerate_system());
+    s.add(cut_outs_system());
     s.add(light_selection_system());
     return s;
 }

@@ -10,6 +10,7 @@
 //   point_lights     PointLight, DistantLight      -> PointLightSet
 //   environment      Environment, EnvironmentMapFile -> EnvironmentLight
 //   accelerate       meshes, placements, lights' shapes -> SceneGeometry
+//   cut_outs         AlphaCutOut (+ SceneGeometry, MaterialSet) -> CutOutSet
 //   light_selection  the light sets, the scene's bounds -> SceneLights
 
 #include "ecs/schedule.h"
@@ -27,6 +28,7 @@ ecs::System<World> area_lights_system();
 ecs::System<World> point_lights_system();
 ecs::System<World> environment_system();
 ecs::System<World> accelerate_system();
+ecs::System<World> cut_outs_system();
 ecs::System<World> light_selection_system();
 
 /** The mesh an object's TriangleMeshRef names (the system that made it must have run). */

@@ -18,7 +18,7 @@
 namespace spangle {
 
 /** The built scene as the path tracer sees it. Every pointer is borrowed and outlives the
- *  render; none is null. */
+ *  render; none is null but accel's and cut_outs'. */
 struct RenderScene {
     const GeometryStore* geometry = nullptr;  ///< meshes, indexed by Instance::mesh
     const std::vector<Instance>* instances = nullptr;
@@ -29,7 +29,9 @@ struct RenderScene {
     Vec3 environment;                    ///< constant radiance of escaping rays
     uint32_t environment_group = 0;      ///< its light group
     const EmbreeScene* accel = nullptr;  ///< null: nothing to hit
-    const HostServices* host = nullptr;  ///< textures (for maps)
+    /** Per instance: where rays pass through it (its material's alpha); empty: nowhere. */
+    const CutOuts* cut_outs = nullptr;
+    const HostServices* host = nullptr;                      ///< textures (for maps)
     const std::vector<std::string>* light_groups = nullptr;  ///< names, for the layers
     /** Cryptomatte names by [[object]] number and by material index (null: none). */
     const std::vector<std::string>* object_names = nullptr;

@@ -64,7 +64,8 @@ void trace_active(const RenderJob& job, Workspace& ws, std::size_t n) {
     if (job.scene->accel)
         job.scene->accel->intersect_stream(ws.stream_o.data(), ws.stream_d.data(), traced,
                                            ws.stream_hit.data(), ws.stream_found.data(),
-                                           job.motion ? ws.stream_time.data() : nullptr);
+                                           job.motion ? ws.stream_time.data() : nullptr, nullptr,
+                                           job.scene->cut_outs);
 }
 
 /** Path k's ray escaped: the constant environment and every light at infinity. A camera ray
@@ -259,7 +260,7 @@ void intersect(RenderJob& job, Workspace& ws, Sink& sink, std::size_t n, uint32_
         }
         job.scene->accel->intersect_stream(
             ws.stream_o.data(), ws.stream_d.data(), m, ws.stream_hit.data(), ws.stream_found.data(),
-            job.motion ? ws.stream_time.data() : nullptr, tnear.data());
+            job.motion ? ws.stream_time.data() : nullptr, tnear.data(), job.scene->cut_outs);
         for (std::size_t i = 0; i < m; ++i)
             take(again[i], ws.stream_found[i] != 0, ws.stream_hit[i], depth);
     }

@@ -339,7 +339,8 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
     if (job.scene->accel)
         job.scene->accel->occluded_stream(ws.stream_o.data(), ws.stream_d.data(),
                                           ws.shadow_tmax.data(), rays, ws.stream_found.data(),
-                                          job.motion ? ws.stream_time.data() : nullptr);
+                                          job.motion ? ws.stream_time.data() : nullptr,
+                                          job.scene->cut_outs);
     for (std::size_t r = 0; r < rays; ++r) {
         const uint32_t path = ws.stream_path[r];
         // A shadow catcher's own light is the plate's: only how much of it others shadow is

@@ -9,6 +9,7 @@
 #include <string>
 #include <vector>
 
+#include "core/alpha_channel.h"
 #include "core/error.h"
 #include "core/map_projection.h"
 #include "core/math.h"
@@ -37,6 +38,9 @@ struct TextureRef {
     int filter = 0;                    ///< 0 trilinear, 1 anisotropic
     float amount = 1;                  ///< normal_map: strength; bump_map: height in metres
     float blend = 1;  ///< bump_map: how far the bumped normal replaces the surface's (0..1)
+    /** alpha: the channel read, 0 to 3 (R, G, B, A); kAlphaAuto: A when the image has it, else
+     *  its first; kAlphaOrOpaque: A when the image has it, else 1 (glTF's base colour). */
+    int channel = -1;
     bool operator==(const TextureRef&) const = default;
 };
 
@@ -127,15 +131,15 @@ inline bool same_value(const std::shared_ptr<const Cage>&, const std::shared_ptr
  *  deforms (refined alike). */
 SPANGLE_COMPONENT(SubdivSurface, SPANGLE_SUBDIV_FIELDS);
 
-#define SPANGLE_MATERIAL_FIELDS(X)                                               \
-    X(std::string, name, "scene-unique material name")                           \
-    X(std::string, plugin, "plugin name, e.g. smooth")                           \
-    X(std::string, model, "model name within the plugin, empty = the only one")  \
-    X(ParamList, params, "parameters as written")                                \
-    X(ParamList, maps, "normal_map / bump_map textures (the host applies them)") \
-    X(FileLoc, loc, "the [[material]] table")                                    \
-    X(FileLoc, plugin_loc, "the plugin key")                                     \
-    X(FileLoc, model_loc, "the model key, or the table when absent")             \
+#define SPANGLE_MATERIAL_FIELDS(X)                                                 \
+    X(std::string, name, "scene-unique material name")                             \
+    X(std::string, plugin, "plugin name, e.g. smooth")                             \
+    X(std::string, model, "model name within the plugin, empty = the only one")    \
+    X(ParamList, params, "parameters as written")                                  \
+    X(ParamList, maps, "normal_map / bump_map, alpha / alpha_cutoff (the host's)") \
+    X(FileLoc, loc, "the [[material]] table")                                      \
+    X(FileLoc, plugin_loc, "the plugin key")                                       \
+    X(FileLoc, model_loc, "the model key, or the table when absent")               \
     X(bool, quiet_unused, "defined by an imported file: no warning when nothing uses it")
 /** A material definition (input of the materials system). */
 SPANGLE_COMPONENT(Material, SPANGLE_MATERIAL_FIELDS);
@@ -143,6 +147,12 @@ SPANGLE_COMPONENT(Material, SPANGLE_MATERIAL_FIELDS);
 #define SPANGLE_MATERIAL_REF_FIELDS(X) X(uint32_t, material, "index of the [[material]] entry")
 /** The material an object uses. */
 SPANGLE_COMPONENT(MaterialRef, SPANGLE_MATERIAL_REF_FIELDS);
+
+#define SPANGLE_ALPHA_CUT_OUT_FIELDS(X) \
+    X(uint32_t, material, "index of the [[material]] entry whose alpha cuts its surfaces")
+/** Beside a Material with `alpha`: rays pass through its surfaces where alpha says (input of
+ *  the cut-outs system; a scene without one never runs it). */
+SPANGLE_COMPONENT(AlphaCutOut, SPANGLE_ALPHA_CUT_OUT_FIELDS);
 
 #define SPANGLE_EMISSION_FIELDS(X)                                       \
     X(Vec3, radiance, "emitted radiance, working-space RGB, W/(m^2 sr)") \

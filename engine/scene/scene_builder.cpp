@@ -367,6 +367,7 @@ TextureRef texture_ref(BuildContext& ctx, const TextureDesc& t) {
     ref.filter = t.filter;
     ref.amount = t.amount;
     ref.blend = t.blend;
+    ref.channel = t.channel;
     return ref;
 }
 
@@ -418,12 +419,24 @@ void build_material(BuildContext& ctx, const MaterialDesc& d) {
     m.model_loc = d.model_loc;
     for (const ParamDesc& p : d.params) m.params.push_back(param_entry(ctx, p));
     for (const ParamDesc& p : d.maps) m.maps.push_back(param_entry(ctx, p));
+    if (d.alpha) {
+        m.maps.push_back(param_entry(ctx, *d.alpha));
+        if (d.alpha_cutoff) {
+            ParamEntry c;
+            c.name = "alpha_cutoff";
+            c.number[0] = *d.alpha_cutoff;
+            c.loc = c.key_loc = d.alpha_cutoff_loc;
+            m.maps.push_back(std::move(c));
+        }
+    }
     std::vector<std::string>& names = ctx.info->material_names;
     if (std::find(names.begin(), names.end(), m.name) != names.end())
         throw_error(d.name_loc, "material '{}' is defined twice", m.name);
     names.push_back(m.name);
     ctx.info->material_catchers.push_back(d.shadow_catcher ? 1 : 0);
-    ctx.registry->put(ctx.registry->create(), m);
+    const ecs::Entity e = ctx.registry->create();
+    ctx.registry->put(e, m);
+    if (d.alpha) ctx.registry->put(e, AlphaCutOut{static_cast<uint32_t>(names.size() - 1)});
 }
 
 /** The file a mesh or cage is read from and its rest pose. */

@@ -20,6 +20,7 @@
 #include <variant>
 #include <vector>
 
+#include "core/alpha_channel.h"
 #include "core/error.h"
 #include "core/map_projection.h"
 #include "core/math.h"
@@ -49,6 +50,8 @@ struct TextureDesc {
     int filter = 0;                    ///< 0 trilinear, 1 anisotropic, 2 closest
     float amount = 1;                  ///< normal map: strength; bump map: height in metres
     float blend = 1;  ///< bump map: how far the bumped normal replaces the surface's (0..1)
+    /** alpha: the image channel read (TextureRef::channel). */
+    int channel = -1;
 };
 
 /** One material parameter as written, before the plugin's schema checks it. */
@@ -75,6 +78,12 @@ struct MaterialDesc {
     /** normal_map or bump_map (at most one), as a Texture parameter of that name: the host
      *  applies it to the shading frame before the plugin sees the point. */
     std::vector<ParamDesc> maps;
+    /** `alpha`: a Number in [0, 1] or a Texture: how much of its surfaces stops rays (a
+     *  cut-out: 0 lets them through); none = opaque. */
+    std::optional<ParamDesc> alpha;
+    /** `alpha_cutoff`: a hit counts where alpha >= this; none = with probability alpha. */
+    std::optional<double> alpha_cutoff;
+    FileLoc alpha_cutoff_loc;     ///< where alpha_cutoff is written
     bool shadow_catcher = false;  ///< every object in it is a shadow catcher
     /** No warning when no object uses it: a pbrt scene's library of materials (pbrt says
      *  nothing of those either), or the operands of a mix that Spangle replaced by one. */

@@ -68,7 +68,7 @@ bool finite_numbers(const toml::node& n, std::size_t size, std::vector<double>& 
 namespace {
 
 /** Which table a texture is read for: a material parameter, or one of the host's maps. */
-enum class TextureUse { Param, NormalMap, BumpMap };
+enum class TextureUse { Param, NormalMap, BumpMap, Alpha };
 
 /** `uv_transform = { scale = s | [su, sv], offset = [ou, ov], rotate = degrees }` into the
  *  texture's uv matrix: uv' = R(rotate) (scale * uv) + offset. */
@@ -152,6 +152,20 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
         tex.space_loc = r.loc("space");
     }
     if (use == TextureUse::Param && r.has("scale")) read_texture_scale(ctx, r, tex);
+    if (use == TextureUse::Alpha) {
+        const auto k = static_cast<float>(r.number("scale", 1.0, {0.0, 1e6}));
+        tex.scale[0] = tex.scale[1] = tex.scale[2] = k;
+        if (r.has("channel")) {
+            const std::string c = r.string("channel");
+            const char* names[] = {"r", "g", "b", "a"};
+            tex.channel = -2;
+            for (int i = 0; i < 4; ++i)
+                if (c == names[i]) tex.channel = i;
+            if (tex.channel == -2)
+                throw_error(r.loc("channel"),
+                            "'channel' must be one of \"r\", \"g\", \"b\", \"a\", got \"{}\"", c);
+        }
+    }
     if (use == TextureUse::NormalMap)
         tex.amount = static_cast<float>(r.number("strength", 1.0, {-10.0, 10.0}));  // < 0: inverted
     if (use == TextureUse::BumpMap) {
@@ -252,6 +266,29 @@ MaterialDesc read_material(const ReadContext& ctx, TableReader& r) {
         p.key_loc = p.loc;
         p.texture = read_texture(ctx, *t, key, use);
         m.maps.push_back(std::move(p));
+    }
+    if (const toml::node* n = r.node("alpha")) {
+        ParamDesc p;
+        p.name = "alpha";
+        p.loc = r.loc("alpha");
+        p.key_loc = p.loc;
+        if (const toml::table* t = n->as_table()) {
+            p.kind = ParamDesc::Kind::Texture;
+            p.texture = read_texture(ctx, *t, "alpha", TextureUse::Alpha);
+        } else {
+            p.kind = ParamDesc::Kind::Number;
+            p.number = r.number("alpha", 1.0, {0.0, 1.0});
+        }
+        m.alpha = std::move(p);
+    }
+    if (r.has("alpha_cutoff")) {
+        m.alpha_cutoff_loc = r.loc("alpha_cutoff");
+        m.alpha_cutoff = r.number("alpha_cutoff", 0.5, {0.0, 1.0});
+        if (!m.alpha)
+            throw_error(m.alpha_cutoff_loc,
+                        "material '{}': alpha_cutoff needs an alpha (a number or a texture) to "
+                        "cut by",
+                        m.name);
     }
     m.shadow_catcher = r.boolean("shadow_catcher", false);
     if (m.maps.size() == 2)

@@ -192,6 +192,10 @@ struct Writer {
         if (std::string(use) == "param")
             s += fmt::format(", scale = [{}, {}, {}]", num(t.scale[0]), num(t.scale[1]),
                              num(t.scale[2]));
+        if (std::string(use) == "alpha") {
+            if (t.scale[0] != 1.0f) s += ", scale = " + num(t.scale[0]);
+            if (t.channel >= 0) s += ", channel = " + str(std::string(1, "rgba"[t.channel & 3]));
+        }
         if (std::string(use) == "normal_map") s += ", strength = " + num(t.amount);
         if (std::string(use) == "bump_map") {
             s += ", height = " + num(t.amount);
@@ -233,6 +237,11 @@ struct Writer {
         for (const ParamDesc& p : m.params) params.push_back(str(p.name) + " = " + param(p));
         line("params", fmt::format("{{ {} }}", fmt::join(params, ", ")));
         for (const ParamDesc& p : m.maps) line(p.name, texture(p.texture, p.name.c_str()));
+        if (m.alpha)
+            line("alpha", m.alpha->kind == ParamDesc::Kind::Texture
+                              ? texture(m.alpha->texture, "alpha")
+                              : num(m.alpha->number));
+        if (m.alpha_cutoff) line("alpha_cutoff", num(*m.alpha_cutoff));
         if (m.shadow_catcher) line("shadow_catcher", "true");
     }
 

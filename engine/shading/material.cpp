@@ -400,14 +400,73 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
     auto mat = std::make_unique<MaterialInstance>(std::move(plugin), model, instance, m.name);
     MapKind kind = MapKind::None;
     TextureBinding map;
+    AlphaMap alpha;
     for (const ParamEntry& p : m.maps) {
+        if (p.name == "alpha") {
+            alpha.active = true;
+            if (p.kind != ParamEntry::Kind::Texture) {
+                alpha.value = static_cast<float>(p.number[0]);
+                continue;
+            }
+            alpha.value = p.texture.scale[0];
+            alpha.map.ref = p.texture;
+            alpha.map.texture = host.textures().open(p.texture, false, p.loc);
+            // Its alpha channel when it has one (grey + alpha, RGBA), else its first (or none).
+            const int have = alpha.map.texture->channels;
+            const bool has_alpha = have == 2 || have >= 4;
+            if (p.texture.channel == kAlphaOrOpaque && !has_alpha) {
+                alpha.map = TextureBinding{};
+                continue;
+            }
+            const int channel = p.texture.channel >= 0 && p.texture.channel < 4 ? p.texture.channel
+                                : has_alpha                                     ? 3
+                                                                                : 0;
+            if (p.texture.channel >= 0 && p.texture.channel < 4 && channel >= have &&
+                !(have == 2 && channel == 3))
+                throw_error(
+                    p.loc, "material '{}': alpha channel '{}' is not in '{}' ({} channel{})",
+                    m.name, "rgba"[p.texture.channel], p.texture.path, have, have == 1 ? "" : "s");
+            alpha.map.channels = channel == 0 ? 1 : 4;
+            alpha.channel = channel;
+            continue;
+        }
+        if (p.name == "alpha_cutoff") {
+            alpha.cutoff = static_cast<float>(p.number[0]);
+            continue;
+        }
         kind = p.name == "normal_map" ? MapKind::Normal : MapKind::Bump;
         map.channels = kind == MapKind::Normal ? 3 : 1;
         map.ref = p.texture;
         map.texture = host.textures().open(p.texture, false, p.loc);
     }
-    mat->bind(std::move(textures), kind, std::move(map));
+    mat->bind(std::move(textures), kind, std::move(map), std::move(alpha));
     return mat;
+}
+
+float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, const TextureService& textures,
+               uint32_t prim, float b1, float b2) {
+    if (!a.map.texture) return std::clamp(a.value, 0.0f, 1.0f);
+    float u = b1, v = b2;
+    const std::size_t t = 3 * static_cast<std::size_t>(prim);
+    if (!mesh.uvs.empty() && t + 2 < mesh.indices.size()) {
+        const float b0 = 1.0f - b1 - b2;
+        const std::size_t i0 = 2 * static_cast<std::size_t>(mesh.indices[t]),
+                          i1 = 2 * static_cast<std::size_t>(mesh.indices[t + 1]),
+                          i2 = 2 * static_cast<std::size_t>(mesh.indices[t + 2]);
+        u = b0 * mesh.uvs[i0] + b1 * mesh.uvs[i1] + b2 * mesh.uvs[i2];
+        v = b0 * mesh.uvs[i0 + 1] + b1 * mesh.uvs[i1 + 1] + b2 * mesh.uvs[i2 + 1];
+    }
+    thread_local TextureQuery q;
+    const float zero = 0.0f;
+    texture_coordinates(a.map.ref, &u, &v, &zero, &zero, &zero, &zero, 1, q);
+    float out[4] = {1.0f, 1.0f, 1.0f, 1.0f};
+    try {
+        textures.lookup(*a.map.texture, a.map.ref, q, 1, a.map.channels, out);
+    } catch (...) {
+        return 1.0f;
+    }
+    const float alpha = out[a.map.channels == 1 ? 0 : a.channel] * a.value;
+    return alpha >= 1.0f ? 1.0f : alpha > 0.0f ? alpha : 0.0f;  // NaN: 0
 }
 
 }  // namespace spangle

@@ -10,6 +10,7 @@
 
 #include "color/color_config.h"
 #include "core/log.h"
+#include "geometry/triangle_mesh.h"
 #include "scene/components.h"
 #include "shading/plugin_call.h"
 #include "shading/plugin_loader.h"
@@ -65,6 +66,23 @@ struct TextureBinding {
     std::shared_ptr<const Texture> texture;
 };
 
+/** A material's `alpha`: how much of its surfaces stops rays (a cut-out where it is 0). */
+struct AlphaMap {
+    bool active = false;  ///< the material has an alpha (else every surface is opaque)
+    float value = 1.0f;   ///< the constant alpha, or the factor on the texture's value
+    float cutoff =
+        -1.0f;           ///< >= 0: a hit counts where alpha >= cutoff; < 0: with probability alpha
+    int channel = 0;     ///< the texture's channel looked up (of 4 when 3, else of 1)
+    TextureBinding map;  ///< the texture (map.texture null: the constant alone)
+};
+
+/** The alpha of `a` at barycentrics (b1, b2) of triangle `prim` of `mesh` (its uvs; without
+ *  uvs the triangle's corners take (0, 0), (1, 0), (0, 1)), in [0, 1]: the texture's value at
+ *  full resolution, bilinear, times the factor. Thread-safe. A lookup that fails counts as
+ *  opaque (1): it may run inside the ray tracer, where nothing may be thrown. */
+float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, const TextureService& textures,
+               uint32_t prim, float b1, float b2);
+
 /** What a material's maps do to the shading frame. */
 enum class MapKind { None, Normal, Bump };
 
@@ -105,13 +123,18 @@ public:
     /** The normal or bump map (map_kind() None: neither). */
     MapKind map_kind() const { return map_kind_; }
     const TextureBinding& map() const { return map_; }
-    void bind(std::vector<TextureBinding> textures, MapKind kind, TextureBinding map) {
+    void bind(std::vector<TextureBinding> textures, MapKind kind, TextureBinding map,
+              AlphaMap alpha = {}) {
         textures_ = std::move(textures);
         map_kind_ = kind;
         map_ = std::move(map);
+        alpha_ = std::move(alpha);
     }
+    /** Its alpha (alpha().active false: opaque). */
+    const AlphaMap& alpha() const { return alpha_; }
 
 private:
+    AlphaMap alpha_;
     std::vector<TextureBinding> textures_;
     MapKind map_kind_ = MapKind::None;
     TextureBinding map_;

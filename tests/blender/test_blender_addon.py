@@ -251,8 +251,12 @@ def test_unsupported_things_are_warnings_and_the_export_is_fast(tmp_path):
     ground.inputs["Transmission Weight"].default_value = 0.3
     depsgraph = bpy.context.evaluated_depsgraph_get()
     warnings = export.export_scene(depsgraph, str(tmp_path), (W, H), 4, flake_parameters())
-    for what in ("Alpha", "subsurface", "sheen", "transmission 0.3"):
+    for what in ("subsurface", "sheen", "transmission 0.3"):
         assert any(w.startswith("material 'ground'") and what in w for w in warnings), what
+    # Alpha is a cut-out now (it was warned of and dropped): the material's `alpha`.
+    assert not any("Alpha" in w for w in warnings), warnings
+    assert "alpha = 0.5" in (tmp_path / "scene.toml").read_text()
+    ground.inputs["Alpha"].default_value = 1.0
     ground.inputs["Coat Weight"].default_value = 1.0
     ground.inputs["Coat Tint"].default_value = (0.2, 0.3, 1.0, 1.0)
     bpy.data.objects["body"].visible_camera = False

@@ -182,9 +182,12 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
 
     EXPECT_TRUE(has_note(d, "KHR_materials_iridescence is dropped"));
     EXPECT_TRUE(has_note(d, "material extension KHR_materials_sheen is not read"));
-    EXPECT_TRUE(has_note(d, "alphaMode BLEND is not supported"));
-    // MASK is noted too (only the first mode was: BLEND after MASK was silent).
-    EXPECT_TRUE(has_note(d, "alphaMode MASK is not supported"));
+    // BLEND is a cut-out by chance (noted: no refraction, no blending order); MASK is a cut-out
+    // at alphaCutoff, but Twin's factor alpha (1) passes it whole: nothing to cut.
+    EXPECT_TRUE(has_note(d, "alphaMode BLEND is drawn as a cut-out"));
+    EXPECT_FALSE(d.materials[4].alpha) << "alpha 1 by chance is opaque";
+    EXPECT_FALSE(d.materials[6].alpha);
+    EXPECT_FALSE(has_note(d, "alphaMode MASK"));
     EXPECT_TRUE(has_note(d, "doubleSided emissive material emits from its front faces only"));
     int sheen = 0;  // one note, at the material, not another for extensionsUsed
     for (const std::string& n : d.notes)
@@ -811,6 +814,65 @@ TEST(GltfMaterials, AMeshTakesTheUvSetItsMaterialReads) {
     EXPECT_FALSE(has_note(one, "another uv set"));
 }
 
+TEST(GltfMaterials, MaskAndBlendCutTheSurfaceByTheBaseColoursAlpha) {
+    // alphaMode MASK: the base colour texture's alpha times the factor's, cut at alphaCutoff;
+    // BLEND: the same alpha by chance; without a texture, the factor's alpha alone.
+    test::TempDir dir("gltf_alpha");
+    CacheEnv cache(dir.file("cache"));
+    const std::string png = bytes_of(test::test_dir() + "/scenes/textures/half_alpha.png");
+    std::ofstream(dir.file("leaf.png"), std::ios::binary) << png;
+    GltfWriter w;
+    std::string meshes, nodes;
+    for (int m = 0; m < 4; ++m) {
+        meshes += fmt::format("{}{}", m ? "," : "", quad_mesh(w, m));
+        nodes += fmt::format(R"({}{{"mesh":{}}})", m ? "," : "", m);
+    }
+    w.write_gltf(
+        dir.file("leaves.gltf"),
+        fmt::format(
+            R"("meshes":[{}],"nodes":[{}],"images":[{{"uri":"leaf.png"}}],)"
+            R"("textures":[{{"source":0}}],"materials":[)"
+            R"({{"name":"mask","alphaMode":"MASK","alphaCutoff":0.3,"pbrMetallicRoughness":)"
+            R"({{"baseColorTexture":{{"index":0}},"baseColorFactor":[1,1,1,0.8]}}}},)"
+            R"({{"name":"blend","alphaMode":"BLEND","pbrMetallicRoughness":)"
+            R"({{"baseColorFactor":[1,1,1,0.25]}}}},)"
+            R"({{"name":"default_cutoff","alphaMode":"MASK","pbrMetallicRoughness":)"
+            R"({{"baseColorFactor":[1,1,1,0.4]}}}},)"
+            R"({{"name":"opaque","alphaMode":"OPAQUE","pbrMetallicRoughness":)"
+            R"({{"baseColorTexture":{{"index":0}},"baseColorFactor":[1,1,1,0.1]}}}}])",
+            meshes, nodes));
+    const SceneDescription d = read_gltf_scene(dir.file("leaves.gltf"), {});
+    ASSERT_EQ(d.materials.size(), 4u);
+    const MaterialDesc& mask = d.materials[0];
+    ASSERT_TRUE(mask.alpha);
+    EXPECT_EQ(mask.alpha->kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(mask.alpha->texture.channel, kAlphaOrOpaque) << "alpha, or opaque without one";
+    EXPECT_FLOAT_EQ(mask.alpha->texture.scale[0], 0.8f);
+    EXPECT_EQ(mask.alpha->texture.space, "raw");
+    ASSERT_TRUE(mask.alpha_cutoff);
+    EXPECT_DOUBLE_EQ(*mask.alpha_cutoff, 0.3);
+    const MaterialDesc& blend = d.materials[1];
+    ASSERT_TRUE(blend.alpha);
+    EXPECT_EQ(blend.alpha->kind, ParamDesc::Kind::Number);
+    EXPECT_DOUBLE_EQ(blend.alpha->number, 0.25);
+    EXPECT_FALSE(blend.alpha_cutoff);
+    // 0.4 under the default cutoff 0.5: cut whole (the object is not seen).
+    ASSERT_TRUE(d.materials[2].alpha);
+    EXPECT_DOUBLE_EQ(*d.materials[2].alpha_cutoff, 0.5);
+    EXPECT_FALSE(d.materials[3].alpha) << "OPAQUE ignores alpha";
+    // And it renders: the mask's clear half lets the sky through (the scene builds and runs).
+    const std::string toml = dir.file("leaves.toml");
+    std::ofstream(toml) << "[render]\nwidth = 16\nheight = 16\nspp = 1\n"
+                           "[camera]\nposition = [0.5, 0.5, 3]\nlook_at = [0.5, 0.5, 0]\n"
+                           "[[import]]\nfile = \"leaves.gltf\"\n";
+    FrameRequest req;
+    req.scene = toml;
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.texture_cache = dir.file("cache");
+    EXPECT_NO_THROW(render_frame(req));
+}
+
 TEST(GltfMaterials, ANoteSaidOnceCountsAndListsItsOtherPlaces) {
     // Each kind of note is said once per load: it now says how many more places it applies to
     // and where (an artist with 80 materials could not tell which lost their alpha).
@@ -823,7 +885,7 @@ TEST(GltfMaterials, ANoteSaidOnceCountsAndListsItsOtherPlaces) {
     }
     std::string materials;
     for (int m = 0; m < 7; ++m)
-        materials += fmt::format(R"({}{{"name":"m{}","alphaMode":"MASK"}})", m ? "," : "", m);
+        materials += fmt::format(R"({}{{"name":"m{}","alphaMode":"BLEND"}})", m ? "," : "", m);
     std::string nodes;
     for (int m = 0; m < 7; ++m) nodes += fmt::format(R"({}{{"mesh":{}}})", m ? "," : "", m);
     w.write_gltf(
@@ -832,7 +894,7 @@ TEST(GltfMaterials, ANoteSaidOnceCountsAndListsItsOtherPlaces) {
     const SceneDescription d = read_gltf_scene(dir.file("many.gltf"), {});
     int said = 0;
     for (const std::string& n : d.notes)
-        if (n.find("alphaMode MASK") != std::string::npos) {
+        if (n.find("alphaMode BLEND") != std::string::npos) {
             ++said;
             EXPECT_NE(n.find("(and 6 more places: "), std::string::npos) << n;
             EXPECT_NE(n.find(", ...)"), std::string::npos) << n;

@@ -318,6 +318,51 @@ MakeNamedMaterial "boundary" "string type" "interface"
     EXPECT_FALSE(noted(d, "'red' is not defined"));
 }
 
+TEST(PbrtReader, AShapesAlphaCutsACopyOfItsMaterial) {
+    // pbrt gives alpha to shapes, Spangle to materials: each (material, alpha) is one copy,
+    // a forward NamedMaterial included; alpha 1 and an undefined texture stay opaque.
+    const Files f;
+    const SceneDescription d = read(f, R"(WorldBegin
+Texture "mask" "float" "imagemap" "string filename" "wood.png"
+Texture "half" "float" "constant" "float value" 0.5
+NamedMaterial "leaf"
+Shape "sphere" "float alpha" 0.25
+Shape "sphere" "float alpha" 0.25
+Shape "disk" "texture alpha" "mask"
+Shape "disk" "texture alpha" "half"
+Shape "disk" "float alpha" 1
+Shape "disk" "texture alpha" "nothere"
+Material "diffuse"
+Shape "sphere" "texture alpha" "mask"
+MakeNamedMaterial "leaf" "string type" "diffuse" "rgb reflectance" [.2 .6 .1]
+)");
+    ASSERT_EQ(d.objects.size(), 7u);
+    const MaterialDesc& quarter = material(d, d.objects[0].material);
+    EXPECT_EQ(quarter.name, "leaf_alpha");
+    ASSERT_TRUE(quarter.alpha);
+    EXPECT_EQ(quarter.alpha->kind, ParamDesc::Kind::Number);
+    EXPECT_DOUBLE_EQ(quarter.alpha->number, 0.25);
+    EXPECT_FALSE(quarter.alpha_cutoff) << "by chance, as pbrt-v4";
+    EXPECT_NEAR(number(quarter, "albedo"), number(material(d, "leaf"), "albedo"), 0.0)
+        << "a copy of the material";
+    EXPECT_EQ(d.objects[1].material, d.objects[0].material) << "the same alpha: one copy";
+    const MaterialDesc& masked = material(d, d.objects[2].material);
+    ASSERT_TRUE(masked.alpha);
+    EXPECT_EQ(masked.alpha->kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(masked.alpha->texture.channel, kAlphaAuto);
+    EXPECT_NE(masked.alpha->texture.path.find("wood.png"), std::string::npos);
+    const MaterialDesc& half = material(d, d.objects[3].material);
+    ASSERT_TRUE(half.alpha);
+    EXPECT_DOUBLE_EQ(half.alpha->number, 0.5) << "a constant texture is its value";
+    EXPECT_EQ(d.objects[4].material, "leaf") << "alpha 1 is opaque";
+    EXPECT_EQ(d.objects[5].material, "leaf");
+    EXPECT_TRUE(noted(d, ":10: alpha texture 'nothere' is not defined"));
+    const MaterialDesc& other = material(d, d.objects[6].material);
+    ASSERT_TRUE(other.alpha);
+    EXPECT_NE(other.name, masked.name) << "another material, another copy";
+    EXPECT_FALSE(material(d, "leaf").alpha) << "the material itself stays opaque";
+}
+
 TEST(PbrtReader, AQuadricWithoutSurfaceIsDroppedNotFatal) {
     // pbrt draws nothing for these; one of them failed the whole scene.
     const Files f;
@@ -931,7 +976,7 @@ Accelerator "bvh"
     EXPECT_TRUE(noted(d, "scene.pbrt:2: MakeNamedMedium: participating media are not supported"));
     EXPECT_TRUE(noted(d, "scene.pbrt:3: MediumInterface"));
     EXPECT_TRUE(noted(d, "scene.pbrt:4: Shape \"curve\" is not supported: dropped"));
-    EXPECT_TRUE(noted(d, "scene.pbrt:5: alpha cut-outs are not supported: the surface is opaque"));
+    EXPECT_FALSE(noted(d, "alpha")) << "alpha is a cut-out now, said nowhere";
     // The same drop at two places is one note that counts the second.
     EXPECT_TRUE(noted(d,
                       "scene.pbrt:5: 'float wobble' of Shape \"sphere\" is not supported: "

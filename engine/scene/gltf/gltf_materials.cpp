@@ -312,16 +312,45 @@ void flakes(Builder& b, const tinygltf::Material& g, const std::string& mp,
     }
 }
 
+/** alphaMode MASK and BLEND as the host's alpha: base colour's alpha (its texture's A times
+ *  its factor's fourth), cut at alphaCutoff for MASK, by chance for BLEND. */
+void alpha(Builder& b, const tinygltf::Material& g, const std::string& mp) {
+    if (g.alphaMode != "MASK" && g.alphaMode != "BLEND") return;
+    const bool mask = g.alphaMode == "MASK";
+    const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
+    const double a = f.size() >= 4 && std::isfinite(f[3]) ? std::clamp(f[3], 0.0, 1.0) : 1.0;
+    const double cutoff = std::isfinite(g.alphaCutoff) ? std::clamp(g.alphaCutoff, 0.0, 1.0) : 0.5;
+    ParamDesc p = b.base("alpha", mp + "/alphaMode");
+    p.kind = ParamDesc::Kind::Number;
+    p.number = a;
+    const std::string tp = mp + "/pbrMetallicRoughness/baseColorTexture";
+    if (g.pbrMetallicRoughness.baseColorTexture.index >= 0)
+        if (auto tex =
+                texture_desc(b.ctx, use_of(g.pbrMetallicRoughness.baseColorTexture), tp, false)) {
+            tex->scale[0] = tex->scale[1] = tex->scale[2] = static_cast<float>(a);
+            tex->channel = kAlphaOrOpaque;
+            p.kind = ParamDesc::Kind::Texture;
+            p.texture = std::move(*tex);
+        }
+    // A constant alpha the mode draws whole: nothing to cut.
+    if (p.kind == ParamDesc::Kind::Number && (a >= 1.0 || (mask && a >= cutoff))) return;
+    b.m.alpha = std::move(p);
+    if (mask) {
+        b.m.alpha_cutoff = cutoff;
+        b.m.alpha_cutoff_loc = b.ctx.at(mp + "/alphaCutoff");
+    }
+}
+
 /** The core material's parts no Spangle material carries, one note each. */
 void note_unread(Context& ctx, const tinygltf::Material& g, const std::string& mp) {
     if (g.occlusionTexture.index >= 0)
         ctx.note("occlusion", ctx.at(mp + "/occlusionTexture"),
                  "occlusionTexture is ignored: the path tracer computes occlusion");
-    // One note per mode (BLEND after MASK was dropped silently).
-    if (g.alphaMode == "BLEND" || g.alphaMode == "MASK")
-        ctx.note(
-            "alphaMode " + g.alphaMode, ctx.at(mp + "/alphaMode"),
-            fmt::format("alphaMode {} is not supported: surfaces are drawn opaque", g.alphaMode));
+    if (g.alphaMode == "BLEND")
+        ctx.note("alphaMode BLEND", ctx.at(mp + "/alphaMode"),
+                 "alphaMode BLEND is drawn as a cut-out whose alpha is the chance that a ray "
+                 "meets the surface (coverage): see-through where alpha is low, but no "
+                 "refraction and no blending order");
     // Both sides are shaded whatever doubleSided says; only emission differs from a viewer's.
     const bool emits = std::any_of(g.emissiveFactor.begin(), g.emissiveFactor.end(),
                                    [](double v) { return v > 0.0; });
@@ -450,6 +479,7 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
     else
         metal_rough(b, g, mp);
     normal_map(b, g, mp);
+    alpha(b, g, mp);
     note_unread(ctx, g, mp);
     out = ctx.emissions[index] = index >= 0 ? emission(ctx, g, mp) : std::nullopt;
     ctx.uv_set = 0;

@@ -4,6 +4,7 @@
 
 #include "scene/pbrt/pbrt_reader.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 
@@ -546,7 +547,12 @@ void resolve_pending_materials(Reader& r) {
     kept.reserve(r.d.objects.size());
     for (ObjectDesc& o : r.d.objects) {
         if (o.material.rfind(marker, 0) == 0) {
-            const std::string name = o.material.substr(marker.size());
+            // A shape's alpha after the name (kAlphaMark) stays after the material found.
+            const std::size_t cut = o.material.find(kAlphaMark);
+            const std::string alpha =
+                cut == std::string::npos ? std::string() : o.material.substr(cut);
+            const std::string name = o.material.substr(
+                marker.size(), cut == std::string::npos ? std::string::npos : cut - marker.size());
             const auto it = r.materials.find(name);
             if (it == r.materials.end()) {
                 const FileLoc& at = r.pending_materials.at(name);
@@ -554,16 +560,51 @@ void resolve_pending_materials(Reader& r) {
                     r.notes.add(at, fmt::format("NamedMaterial '{}' is not defined: the default "
                                                 "material stands in",
                                                 name));
-                o.material = default_material(r, at);
+                o.material = default_material(r, at) + alpha;
             } else if (it->second.empty()) {
                 continue;  // a medium boundary: nothing to render (pbrt ignores its area light)
             } else {
-                o.material = it->second;
+                o.material = it->second + alpha;
             }
         }
         kept.push_back(std::move(o));
     }
     r.d.objects = std::move(kept);
+}
+
+/** Objects of shapes with an alpha get their material with that alpha: a copy of it per
+ *  (material, alpha), named after it (pbrt gives alpha to shapes, Spangle to materials). */
+void alpha_materials(Reader& r) {
+    if (r.alphas.empty()) return;
+    const std::string mark = kAlphaMark;
+    std::map<std::string, std::string> made;  // material + mark + index -> the copy's name
+    for (ObjectDesc& o : r.d.objects) {
+        const std::size_t cut = o.material.find(mark);
+        if (cut == std::string::npos) continue;
+        if (const auto it = made.find(o.material); it != made.end()) {
+            o.material = it->second;
+            continue;
+        }
+        const std::string base = o.material.substr(0, cut);
+        const std::size_t index = std::stoul(o.material.substr(cut + mark.size()));
+        const auto m = std::find_if(r.d.materials.begin(), r.d.materials.end(),
+                                    [&](const MaterialDesc& x) { return x.name == base; });
+        if (m == r.d.materials.end() || index >= r.alphas.size()) {
+            o.material = base;
+            continue;
+        }
+        MaterialDesc copy = *m;
+        std::string name = base + "_alpha";
+        for (int k = 2; r.material_names.count(name); ++k)
+            name = fmt::format("{}_alpha{}", base, k);
+        r.material_names.insert(name);
+        copy.name = name;
+        copy.alpha = r.alphas[index];
+        copy.quiet_unused = true;
+        made.emplace(o.material, name);
+        o.material = name;
+        r.d.materials.push_back(std::move(copy));
+    }
 }
 
 SceneDescription read_all(Reader& r, Tokenizer& t) {
@@ -585,6 +626,7 @@ SceneDescription read_all(Reader& r, Tokenizer& t) {
                                 "pbrt-v4",
                                 r.info.v3_sign, r.info.v4_sign));
     resolve_pending_materials(r);
+    alpha_materials(r);
     finish_camera_and_render(r);
     // pbrt-v3 fades a spot light's edge as t^4 (its Falloff()), v4 by smoothstep: decided by the
     // whole file, whose v3 sign may come after its lights (WorldEnd).

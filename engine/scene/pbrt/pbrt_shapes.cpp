@@ -4,7 +4,9 @@
 // silhouettes stay within a few ten-thousandths of their radius. Every shape takes the current
 // material, area light and orientation.
 
+#include <algorithm>
 #include <cmath>
+#include <optional>
 
 #include "geometry/mesh_load.h"
 #include "scene/pbrt/pbrt_state.h"
@@ -418,6 +420,40 @@ EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const 
     return e;
 }
 
+/** A shape's `alpha` as the host's alpha (pbrt-v4: the chance a ray meets the surface, 1
+ *  opaque, 0 none): a number, or a float texture's image (its A channel when it has one, else
+ *  its first); none when the shape is opaque. */
+std::optional<ParamDesc> alpha_of(Reader& r, ParamList& p) {
+    const Param* q = p.find("alpha", {"float", "texture"});
+    if (!q) return std::nullopt;
+    ParamDesc d;
+    d.name = "alpha";
+    d.loc = d.key_loc = q->loc;
+    d.kind = ParamDesc::Kind::Number;
+    if (q->type == "float") {
+        if (q->numbers.empty()) return std::nullopt;
+        d.number = std::clamp(q->numbers[0], 0.0, 1.0);
+        if (!(d.number < 1.0)) return std::nullopt;
+        return d;
+    }
+    const std::string& name = q->strings.empty() ? std::string() : q->strings[0];
+    const auto it = r.float_textures.find(name);
+    if (it == r.float_textures.end()) {
+        r.notes.add(q->loc,
+                    fmt::format("alpha texture '{}' is not defined: the shape is opaque", name));
+        return std::nullopt;
+    }
+    if (!it->second.image) {
+        d.number = std::clamp(static_cast<double>(it->second.value.x), 0.0, 1.0);
+        if (!(d.number < 1.0)) return std::nullopt;
+        return d;
+    }
+    d.kind = ParamDesc::Kind::Texture;
+    d.texture = it->second.tex;
+    d.texture.channel = kAlphaAuto;
+    return d;
+}
+
 }  // namespace
 
 void read_shape(Reader& r, const std::string& type, ParamList& p, const FileLoc& loc) {
@@ -453,12 +489,7 @@ void read_shape(Reader& r, const std::string& type, ParamList& p, const FileLoc&
         r.notes.add(loc, fmt::format("{} is not supported: dropped", what));
         return;
     }
-    if (const Param* alpha = p.find("alpha", {"float", "texture"})) {
-        const bool opaque =
-            alpha->type == "float" && !alpha->numbers.empty() && alpha->numbers[0] >= 1.0;
-        if (!opaque)
-            r.notes.add(alpha->loc, "alpha cut-outs are not supported: the surface is opaque");
-    }
+    const std::optional<ParamDesc> alpha = alpha_of(r, p);
     r.notes.unused(p, what);
     ObjectDesc o;
     o.shape = std::move(made.shape);
@@ -466,6 +497,19 @@ void read_shape(Reader& r, const std::string& type, ParamList& p, const FileLoc&
     o.what = fmt::format("{} at {}:{}", what, loc.file, loc.line);
     o.material = r.gs.material.empty() ? default_material(r, loc) : r.gs.material;
     o.material_loc = loc;
+    if (alpha) {
+        // One entry per different alpha, so that equal ones share one material.
+        const auto same = [&](const ParamDesc& a) {
+            const TextureDesc &x = a.texture, &y = alpha->texture;
+            return a.kind == alpha->kind && a.number == alpha->number && x.path == y.path &&
+                   x.channel == y.channel && x.scale[0] == y.scale[0] &&
+                   std::equal(std::begin(x.uv), std::end(x.uv), std::begin(y.uv)) &&
+                   x.wrap == y.wrap && x.space == y.space;
+        };
+        auto it = std::find_if(r.alphas.begin(), r.alphas.end(), same);
+        if (it == r.alphas.end()) it = r.alphas.insert(it, *alpha);
+        o.material += fmt::format("{}{}", kAlphaMark, it - r.alphas.begin());
+    }
     if (r.gs.area) {
         if (!r.defining.empty())
             r.notes.add(loc,

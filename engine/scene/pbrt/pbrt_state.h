@@ -122,6 +122,9 @@ struct Reader {
      *  scene is read), each at its first NamedMaterial; objects name them with
      *  kPendingMaterial before the name until the end. */
     std::map<std::string, FileLoc> pending_materials;
+    /** Shapes' `alpha` (a Number or an image Texture), each once; a shape's object names its
+     *  material with kAlphaMark and the index after it until the end (alpha_materials). */
+    std::vector<ParamDesc> alphas;
     /** An environment map whose layout depends on the version (known at the end). */
     bool env_map_pending = false;
 
@@ -144,6 +147,11 @@ void place_object(Reader& r, ObjectDesc o, const Mat4 xf[2]);
 
 /** Marks an object's material as a named material not yet defined (pending_materials). */
 inline constexpr const char* kPendingMaterial = "\x1fpending ";
+
+/** Marks an object's material as cut by a shape's alpha (Reader::alphas). */
+inline constexpr const char* kAlphaMark =
+    "\x1f"
+    "alpha ";
 
 /** Shape "type" params: into d.objects, or into the object being defined. */
 void read_shape(Reader& r, const std::string& type, ParamList& params, const FileLoc& loc);

@@ -327,9 +327,6 @@ def _dropped_inputs(node, transmission, warnings, what):
         except TypeError:
             return None
 
-    alpha = value("Alpha")
-    if alpha == "linked" or (isinstance(alpha, float) and alpha < 1.0):
-        warnings.append(f"{what}: Alpha (transparency) is not exported; the surface is opaque")
     for names, label in ((("Subsurface Weight", "Subsurface"), "subsurface scattering"),
                          (("Sheen Weight", "Sheen"), "sheen"),
                          (("Anisotropic",), "anisotropy"),
@@ -343,6 +340,49 @@ def _dropped_inputs(node, transmission, warnings, what):
     coat_normal = _input(node, "Coat Normal")
     if coat_normal is not None and coat_normal.is_linked:
         warnings.append(f"{what}: the coat's normal input is not exported")
+
+
+def _alpha(node, warnings, what):
+    """The Principled BSDF's Alpha as the material's `alpha` (a cut-out: a ray meets the surface
+    with probability alpha, as Cycles draws it): a number below 1, or the image linked into it
+    (its Alpha output: the image's A channel; its Color output: its first channel); None when
+    opaque."""
+    sock = _input(node, "Alpha")
+    if sock is None:
+        return None
+    if not sock.is_linked:
+        v = float(sock.default_value)
+        return min(max(v, 0.0), 1.0) if v < 1.0 else None
+    link = sock.links[0]
+    src = link.from_node
+    if src.type != "TEX_IMAGE" or src.image is None:
+        warnings.append(f"{what}: Alpha is linked to a {src.type} node, which is not exported; "
+                        "the surface is opaque")
+        return None
+    file = _image_file(src.image, warnings, what)
+    if file is None:
+        return None
+    if link.from_socket.name == "Alpha":
+        if getattr(src.image, "channels", 4) not in (2, 4):
+            return None  # an image without alpha gives 1 there: opaque
+        tex = {"texture": file, "channel": "a"}
+    else:
+        tex = {"texture": file, "channel": "r"}
+    tex.update(_texture_placement(src, warnings, what))
+    return tex
+
+
+def _alpha_toml(v):
+    """The `alpha = ...` line of a material."""
+    if not isinstance(v, dict):
+        return f"alpha = {_toml_value(float(v))}"
+    extra = ""
+    if "wrap" in v:
+        extra += f", wrap = {_toml_string(v['wrap'])}"
+    if "uv_transform" in v:
+        extra += f", uv_transform = {{ matrix = {_vec(v['uv_transform']['matrix'])} }}"
+    return (f"alpha = {{ texture = {_toml_string(v['texture'])}, "
+            f"channel = {_toml_string(v['channel'])}{extra} }}")
 
 
 def material_entry(mat, flake_params, warnings):
@@ -389,6 +429,7 @@ def material_entry(mat, flake_params, warnings):
                         "object does not emit")
     _dropped_inputs(node, transmission, warnings, what)
     surface = _surface_map(node, warnings, what)
+    alpha = _alpha(node, warnings, what)
     if isinstance(transmission, float) and transmission > 0.5:
         if isinstance(base, dict) or (isinstance(base, tuple) and
                                       any(abs(c - 1.0) > 1e-3 for c in base)):
@@ -397,6 +438,8 @@ def material_entry(mat, flake_params, warnings):
                   "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}
         if surface is not None:
             params[surface[0]] = surface[1]
+        if alpha is not None:
+            params["alpha"] = alpha
         # Multiscatter GGX (Principled's default) keeps the light single scattering loses in
         # rough glass, as the dielectric's multiscatter does (off unless asked for); plain GGX
         # does not.
@@ -406,6 +449,8 @@ def material_entry(mat, flake_params, warnings):
     params = {}
     if surface is not None:
         params[surface[0]] = surface[1]  # written beside params, not in them
+    if alpha is not None:
+        params["alpha"] = alpha  # written beside params too
     params["base_color"] = base if base is not None else (0.8, 0.8, 0.8)
     # An image linked into Metallic or Roughness is a texture of the parameter (both are
     # texturable); it was left out, and the plugin's defaults (metallic 1, roughness 1) turned
@@ -783,11 +828,13 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
         if model:
             out.append(f"model = {_toml_string(model)}")
         maps = {k: v for k, v in params.items() if k in _SURFACE_MAPS}
-        plain = {k: v for k, v in params.items() if k not in _SURFACE_MAPS}
+        plain = {k: v for k, v in params.items() if k not in _SURFACE_MAPS and k != "alpha"}
         out.append("params = { " + ", ".join(_param_toml(k, v) for k, v in plain.items()) + " }")
         for k, v in maps.items():  # keys of the material itself, applied by the engine
             out.append(f"{k} = {{ " + ", ".join(f"{a} = {_toml_value(b)}" for a, b in v.items())
                        + " }")
+        if "alpha" in params:
+            out.append(_alpha_toml(params["alpha"]))
         out.append("")
     for ply, name, mw, obj_name, catcher in objects:
         rows = [mw[r][c] for r in range(3) for c in range(4)]

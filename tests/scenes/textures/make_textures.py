@@ -3,6 +3,8 @@
 
     ripple_normal.png    64 x 64 tangent-space normal map of concentric ripples (OpenGL, green up)
     roughness_ramp.png   32 x 4 roughness from 0.02 (left) to 0.6 (right), data
+    half_alpha.png       16 x 16 RGBA: green, alpha 0 in the left half and 1 in the right
+    lace.png             64 x 64 grey + alpha: cream, round holes (alpha 0) on a 16-pixel grid
 
     python3 tests/scenes/textures/make_textures.py
 """
@@ -33,6 +35,13 @@ def main():
     write_png(os.path.join(HERE, "ripple_normal.png"), n, n, 3, rows)
     ramp = [bytes(round(255 * (0.02 + 0.58 * (px + 0.5) / 32)) for px in range(32)) for _ in range(4)]
     write_png(os.path.join(HERE, "roughness_ramp.png"), 32, 4, 1, ramp)
+    half = [bytes(v for px in range(16) for v in (40, 160, 60, 0 if px < 8 else 255))
+            for _ in range(16)]
+    write_png(os.path.join(HERE, "half_alpha.png"), 16, 16, 4, half)
+    lace = [bytes(v for px in range(64)
+                  for v in (225, 0 if math.hypot(px % 16 - 7.5, py % 16 - 7.5) < 5.5 else 255))
+            for py in range(64)]
+    write_png(os.path.join(HERE, "lace.png"), 64, 64, 2, lace)
 
 
 if __name__ == "__main__":
