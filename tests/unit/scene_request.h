@@ -33,4 +33,14 @@ inline FrameRequest scene_request(const TempDir& dir, const std::string& name, u
     return req;
 }
 
+/** `text` written to `dir`/`name`, to render quietly with the shipped OCIO config and a texture
+ *  cache in `dir`. */
+inline FrameRequest text_request(const TempDir& dir, const std::string& name,
+                                 const std::string& text) {
+    { std::ofstream(dir.file(name)) << text; }
+    FrameRequest req = quiet_request(dir.file(name));
+    req.options.texture_cache = dir.file("cache");
+    return req;
+}
+
 }  // namespace spangle::test

@@ -7,12 +7,12 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <fstream>
 #include <memory>
 
 #include "accel/embree_scene.h"
 #include "core/hash.h"
 #include "pipeline/frame.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle::test_cut_outs {
@@ -159,13 +159,7 @@ scale = 0.6
 
 FrameResult render_text(const test::TempDir& dir, const std::string& name,
                         const std::string& text) {
-    { std::ofstream(dir.file(name)) << text; }
-    FrameRequest req;
-    req.scene = dir.file(name);
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.texture_cache = dir.file("cache");
-    return render_frame(req);
+    return render_frame(test::text_request(dir, name, text));
 }
 
 /** Mean of the green channel over columns [x0, x1) of a 64-wide image. */

@@ -11,6 +11,7 @@
 #include "color/image_output.h"
 #include "pipeline/frame.h"
 #include "shading/texture.h"
+#include "scene_request.h"
 #include "test_support.h"
 
 namespace spangle::test_textures {
@@ -300,13 +301,7 @@ intensity = 3000
 
 FrameResult render_text(const test::TempDir& dir, const std::string& name,
                         const std::string& text) {
-    { std::ofstream(dir.file(name)) << text; }
-    FrameRequest req;
-    req.scene = dir.file(name);
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.texture_cache = dir.file("cache");
-    return render_frame(req);
+    return render_frame(test::text_request(dir, name, text));
 }
 
 TEST(Texture, ANeutralNormalMapChangesNothing) {

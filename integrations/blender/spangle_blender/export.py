@@ -376,13 +376,8 @@ def _alpha_toml(v):
     """The `alpha = ...` line of a material."""
     if not isinstance(v, dict):
         return f"alpha = {_toml_value(float(v))}"
-    extra = ""
-    if "wrap" in v:
-        extra += f", wrap = {_toml_string(v['wrap'])}"
-    if "uv_transform" in v:
-        extra += f", uv_transform = {{ matrix = {_vec(v['uv_transform']['matrix'])} }}"
     return (f"alpha = {{ texture = {_toml_string(v['texture'])}, "
-            f"channel = {_toml_string(v['channel'])}{extra} }}")
+            f"channel = {_toml_string(v['channel'])}{_placement_toml(v)} }}")
 
 
 def material_entry(mat, flake_params, warnings):
@@ -501,16 +496,21 @@ def material_entry(mat, flake_params, warnings):
 _SURFACE_MAPS = ("normal_map", "bump_map")
 
 
+def _placement_toml(v):
+    """A texture table's wrap and uv_transform entries (each after a comma), as written."""
+    extra = ""
+    if "wrap" in v:
+        extra += f", wrap = {_toml_string(v['wrap'])}"
+    if "uv_transform" in v:
+        extra += f", uv_transform = {{ matrix = {_vec(v['uv_transform']['matrix'])} }}"
+    return extra
+
+
 def _param_toml(k, v):
     if isinstance(v, dict):
         space = v.get("space", "srgb_texture")
-        extra = ""
-        if "wrap" in v:
-            extra += f", wrap = {_toml_string(v['wrap'])}"
-        if "uv_transform" in v:
-            extra += f", uv_transform = {{ matrix = {_vec(v['uv_transform']['matrix'])} }}"
         return (f'{k} = {{ texture = {_toml_string(v["texture"])}, '
-                f'space = {_toml_string(space)}{extra} }}')
+                f'space = {_toml_string(space)}{_placement_toml(v)} }}')
     return f"{k} = {_toml_value(v)}"
 
 
