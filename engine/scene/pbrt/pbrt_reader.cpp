@@ -605,6 +605,14 @@ void alpha_materials(Reader& r) {
         o.material = name;
         r.d.materials.push_back(std::move(copy));
     }
+    // A material every shape of which had an alpha is used only through its copies: dropped
+    // (a converted scene warned that it was unused).
+    std::set<std::string> used, copied;
+    for (const ObjectDesc& o : r.d.objects) used.insert(o.material);
+    for (const auto& [from, name] : made) copied.insert(from.substr(0, from.find(mark)));
+    std::erase_if(r.d.materials, [&](const MaterialDesc& m) {
+        return copied.count(m.name) && !used.count(m.name);
+    });
 }
 
 SceneDescription read_all(Reader& r, Tokenizer& t) {
