@@ -120,6 +120,28 @@ void PySession::set_material(const std::string& name,
             fmt::format("no material '{}' (materials: {})", name, names.empty() ? "none" : names));
     }
     for (const auto& [key, value] : params) {
+        // The host's cut-out keys, beside the plugin's parameters: a number in [0, 1] each.
+        if (key == "alpha" || key == "alpha_cutoff") {
+            const FileLoc at = python_loc(fmt::format("set_material('{}', {}=...)", name, key));
+            const double* x = std::get_if<double>(&value);
+            const long long* i = std::get_if<long long>(&value);
+            const double v = x ? *x : i ? static_cast<double>(*i) : -1.0;
+            if (!(v >= 0.0 && v <= 1.0))
+                throw SpangleError(
+                    at, fmt::format("material '{}': '{}' must be a number in [0, 1]", name, key));
+            if (key == "alpha_cutoff") {
+                m->alpha_cutoff = v;
+                m->alpha_cutoff_loc = at;
+                continue;
+            }
+            ParamDesc a;
+            a.name = "alpha";
+            a.kind = ParamDesc::Kind::Number;
+            a.number = v;
+            a.loc = a.key_loc = at;
+            m->alpha = a;
+            continue;
+        }
         ParamDesc* p = nullptr;
         for (ParamDesc& x : m->params)
             if (x.name == key) p = &x;
@@ -160,6 +182,10 @@ void PySession::set_material(const std::string& name,
             p->color.loc = p->color.space_loc = p->loc;
         }
     }
+    if (m->alpha_cutoff && !m->alpha)
+        throw SpangleError(
+            m->alpha_cutoff_loc,
+            fmt::format("material '{}': alpha_cutoff needs an alpha to cut by", name));
     apply(std::move(d));
 }
 

@@ -83,16 +83,12 @@ void cut_filter(const RTCFilterFunctionNArguments* args) {
         const CutOut& cut = c->table[inst];
         if (!cut.coverage) continue;
         const unsigned prim = RTCHitN_primID(args->hit, args->N, i);
-        const float a = cut.coverage(cut.self, prim, RTCHitN_u(args->hit, args->N, i),
-                                     RTCHitN_v(args->hit, args->N, i));
-        bool keep;
-        if (cut.cutoff >= 0.0f) {
-            keep = a >= cut.cutoff;
-        } else if (a >= 1.0f || !(a > 0.0f)) {
-            keep = a >= 1.0f;
-        } else {
-            // Per ray and triangle: two half-covering layers on one ray let a quarter through
-            // (one number per ray, as pbrt draws it, would let both or neither).
+        const float share = met_share(cut, prim, RTCHitN_u(args->hit, args->N, i),
+                                      RTCHitN_v(args->hit, args->N, i));
+        bool keep = share >= 1.0f;
+        if (share > 0.0f && share < 1.0f) {
+            // By chance, per ray and triangle: two half-covering layers on one ray let a
+            // quarter through (one number per ray, as pbrt draws it, would let both or neither).
             const auto bits = [](float f) {
                 uint32_t b;
                 std::memcpy(&b, &f, sizeof b);
@@ -104,7 +100,7 @@ void cut_filter(const RTCFilterFunctionNArguments* args) {
                                bits(RTCRayN_dir_y(args->ray, args->N, i)) << 32;
             const uint64_t z = bits(RTCRayN_org_z(args->ray, args->N, i)) |
                                bits(RTCRayN_dir_z(args->ray, args->N, i)) << 32;
-            keep = to_unit_float(hash4(o, d, z, static_cast<uint64_t>(inst) << 32 | prim)) < a;
+            keep = to_unit_float(hash4(o, d, z, static_cast<uint64_t>(inst) << 32 | prim)) < share;
         }
         if (!keep) args->valid[i] = 0;
     }

@@ -81,6 +81,23 @@ struct CutOut {
 /** One CutOut per instance, indexed as the instances; empty (or null): every surface opaque. */
 using CutOuts = std::vector<CutOut>;
 
+/** The share of rays `cut` lets meet triangle `prim` at (b1, b2), in expectation: 0 or 1 with a
+ *  cutoff, the coverage by chance. What light sampling weighs an emitter's point by, so that
+ *  its light is cut as the rays that meet it are. */
+inline float met_share(const CutOut& cut, uint32_t prim, float b1, float b2) {
+    if (!cut.coverage) return 1.0f;
+    const float a = cut.coverage(cut.self, prim, b1, b2);
+    if (cut.cutoff >= 0.0f) return a >= cut.cutoff ? 1.0f : 0.0f;
+    return a >= 1.0f ? 1.0f : a > 0.0f ? a : 0.0f;
+}
+
+/** Which instance's triangle an area light's emitter triangle is, when that instance has a
+ *  cut-out (instance -1: none). */
+struct EmitterCut {
+    int32_t instance = -1;
+    uint32_t prim = 0;
+};
+
 /** An Embree device and committed scene. Not copyable; rtc handles released on destruction. */
 class EmbreeScene {
 public:

@@ -8,7 +8,7 @@ namespace {
 
 float coverage(const void* self, uint32_t prim, float b1, float b2) {
     const auto* c = static_cast<const AlphaCoverage*>(self);
-    return alpha_at(c->material->alpha(), *c->mesh, *c->textures, prim, b1, b2);
+    return alpha_at(c->material->alpha(), *c->mesh, prim, b1, b2);
 }
 
 void system_cut_outs(ecs::Registry&, World& w) {
@@ -26,17 +26,25 @@ void system_cut_outs(ecs::Registry&, World& w) {
             if (!mat || !mat->alpha().active) continue;
             const AlphaMap& a = mat->alpha();
             // A constant alpha the cutoff passes whole, or 1, is opaque: no filter to run.
-            if (!a.map.texture && (a.value >= 1.0f || (a.cutoff >= 0.0f && a.value >= a.cutoff)))
+            if (!a.texels && (a.value >= 1.0f || (a.cutoff >= 0.0f && a.value >= a.cutoff)))
                 continue;
             auto c = std::make_unique<AlphaCoverage>();
             c->material = mat;
             c->mesh = g->geometry.meshes[inst.mesh];
-            c->textures = &w.host->textures();
             out.per_instance[i] = CutOut{coverage, c.get(), a.cutoff};
             out.coverage.push_back(std::move(c));
             any = true;
+            // An emitting instance: its light is cut where its surface is (light sampling
+            // weighs each point by the share of rays that meet it there).
+            if (inst.emitter >= 0) {
+                const auto first = static_cast<std::size_t>(inst.emitter);
+                const std::size_t count = g->geometry.meshes[inst.mesh]->triangle_count();
+                if (out.emitters.size() < first + count) out.emitters.resize(first + count);
+                for (std::size_t t = 0; t < count; ++t)
+                    out.emitters[first + t] = {static_cast<int32_t>(i), static_cast<uint32_t>(t)};
+            }
         }
-        if (!any) out.per_instance.clear();
+        if (!any) out.per_instance.clear();  // nothing cut (the emitters' table is empty too)
     }
     w.products.put(std::move(out));
 }

@@ -110,6 +110,7 @@ void system_materials(ecs::Registry& r, World& w) {
         w.read_file("plugin", made.plugin().path());
         for (const TextureBinding& t : made.textures()) w.read_file("texture", t.ref.path);
         if (made.map_kind() != MapKind::None) w.read_file("texture", made.map().ref.path);
+        if (!made.alpha().map.ref.path.empty()) w.read_file("texture", made.alpha().map.ref.path);
     }
     warn_about_missing_uvs(r, w, set);
     w.products.put(std::move(set));

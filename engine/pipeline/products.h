@@ -107,7 +107,6 @@ struct SceneGeometry {
 struct AlphaCoverage {
     std::shared_ptr<const MaterialInstance> material;  ///< holds the AlphaMap
     std::shared_ptr<const TriangleMesh> mesh;
-    const TextureService* textures = nullptr;
 };
 
 /** cut_outs: the instances rays pass through where their material's alpha says. */
@@ -115,6 +114,9 @@ struct CutOutSet {
     static constexpr const char* kName = "CutOutSet";
     static constexpr bool kProduct = true;
     CutOuts per_instance;  ///< indexed as SceneGeometry::instances
+    /** By area light index: the instance triangle of an emitting instance with a cut-out (empty
+     *  when no such instance emits). */
+    std::vector<EmitterCut> emitters;
     /** What per_instance's entries point at. */
     std::vector<std::unique_ptr<AlphaCoverage>> coverage;
 };

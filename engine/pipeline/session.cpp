@@ -287,7 +287,10 @@ RenderScene Session::render_scene() const {
     s.geometry = g ? &g->geometry : &no_geometry;
     s.instances = g ? &g->instances : &no_instances;
     s.accel = g ? g->accel.get() : nullptr;
-    if (const CutOutSet* c = p.find<CutOutSet>()) s.cut_outs = &c->per_instance;
+    if (const CutOutSet* c = p.find<CutOutSet>()) {
+        s.cut_outs = &c->per_instance;
+        s.emitter_cuts = &c->emitters;
+    }
     const MaterialSet* m = p.find<MaterialSet>();
     s.materials = m ? &m->instances : &no_materials;
     const SceneLights* l = p.find<SceneLights>();

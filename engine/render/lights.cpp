@@ -552,6 +552,18 @@ LightSample LightTable::sample_area(uint32_t id, Vec3 p, float sel, float u1, fl
         const float cos_l = std::fabs(dot(e.n, s.wi));
         s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * e.area) : 0.0f;
     }
+    if (!e.parallelogram) {
+        // Where q lies on the triangle (for its cut-out, if it has one).
+        const Vec3 d = q - e.p0;
+        const float d00 = dot(e.e1, e.e1), d01 = dot(e.e1, e.e2), d11 = dot(e.e2, e.e2);
+        const float d20 = dot(d, e.e1), d21 = dot(d, e.e2);
+        const float den = d00 * d11 - d01 * d01;
+        if (den > 0.0f) {
+            s.area = static_cast<int32_t>(id);
+            s.b1 = std::clamp((d11 * d20 - d01 * d21) / den, 0.0f, 1.0f);
+            s.b2 = std::clamp((d00 * d21 - d01 * d20) / den, 0.0f, 1.0f - s.b1);
+        }
+    }
     return s;
 }
 

@@ -123,6 +123,10 @@ struct LightSample {
     float pdf = 0.0f;  ///< solid-angle pdf with selection; delta lights: selection pmf; 0 = invalid
     bool delta = false;  ///< a delta light: no MIS with BSDF sampling
     uint32_t group = 0;  ///< the sampled light's light group
+    /** An area emitter's triangle (not a parallelogram): its index and the point's
+     *  barycentrics (p0 + b1 e1 + b2 e2); -1 for every other light. */
+    int32_t area = -1;
+    float b1 = 0.0f, b2 = 0.0f;
 };
 
 /** The frame's lights. Build with add_*, then finalize(). */

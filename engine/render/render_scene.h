@@ -31,6 +31,8 @@ struct RenderScene {
     const EmbreeScene* accel = nullptr;  ///< null: nothing to hit
     /** Per instance: where rays pass through it (its material's alpha); empty: nowhere. */
     const CutOuts* cut_outs = nullptr;
+    /** By area light index: which cut-out instance triangle it is (empty: none). */
+    const std::vector<EmitterCut>* emitter_cuts = nullptr;
     const HostServices* host = nullptr;                      ///< textures (for maps)
     const std::vector<std::string>* light_groups = nullptr;  ///< names, for the layers
     /** Cryptomatte names by [[object]] number and by material index (null: none). */

@@ -248,8 +248,21 @@ uint32_t sample_lights(const RenderJob& job, Workspace& ws, Sink& sink, const Ma
         const SurfacePoint& sp = ws.paths.surf[i];
         float lu, lv, sel;
         rnd3(ws.paths, i, bounce, kPairLight, lu, lv, sel);
-        const LightSample ls = job.scene->lights->sample(sp.p, sel, lu, lv);
+        LightSample ls = job.scene->lights->sample(sp.p, sel, lu, lv);
         if (!(ls.pdf > 0.0f)) continue;
+        // A point of a cut-out emitter shines by the share of rays that meet it there, as BSDF
+        // rays see its light only where they meet it.
+        const std::vector<EmitterCut>* cuts = job.scene->emitter_cuts;
+        if (ls.area >= 0 && cuts && static_cast<std::size_t>(ls.area) < cuts->size()) {
+            const EmitterCut& c = (*cuts)[static_cast<std::size_t>(ls.area)];
+            if (c.instance >= 0) {
+                const float met =
+                    met_share((*job.scene->cut_outs)[static_cast<std::size_t>(c.instance)], c.prim,
+                              ls.b1, ls.b2);
+                if (!(met > 0.0f)) continue;
+                ls.radiance = ls.radiance * met;
+            }
+        }
         b.light[q] = ls;
         b.light_query[q] = k;
         b.closure_index[q] = k;

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstring>
 
+#include "color/image_io.h"
 #include "core/hash.h"
 #include "core/text.h"
 
@@ -411,23 +412,26 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
             alpha.value = p.texture.scale[0];
             alpha.map.ref = p.texture;
             alpha.map.texture = host.textures().open(p.texture, false, p.loc);
-            // Its alpha channel when it has one (grey + alpha, RGBA), else its first (or none).
+            // The channel asked for (r, g, b: a grey image's grey), else the alpha channel when
+            // the image has one (grey + alpha, RGBA), else its first.
             const int have = alpha.map.texture->channels;
             const bool has_alpha = have == 2 || have >= 4;
-            if (p.texture.channel == kAlphaOrOpaque && !has_alpha) {
-                alpha.map = TextureBinding{};
+            const int asked = p.texture.channel;
+            if ((asked == 3 || asked == kAlphaOrOpaque) && !has_alpha) {
+                // An image without alpha is opaque there, as glTF and Blender read it.
+                if (asked == 3)
+                    host.log().warn(
+                        "{}: material '{}': '{}' has no alpha channel, so its alpha is 1 "
+                        "there (times scale)",
+                        p.loc.str(), m.name, p.texture.path);
+                alpha.map.texture.reset();
                 continue;
             }
-            const int channel = p.texture.channel >= 0 && p.texture.channel < 4 ? p.texture.channel
-                                : has_alpha                                     ? 3
-                                                                                : 0;
-            if (p.texture.channel >= 0 && p.texture.channel < 4 && channel >= have &&
-                !(have == 2 && channel == 3))
-                throw_error(
-                    p.loc, "material '{}': alpha channel '{}' is not in '{}' ({} channel{})",
-                    m.name, "rgba"[p.texture.channel], p.texture.path, have, have == 1 ? "" : "s");
-            alpha.map.channels = channel == 0 ? 1 : 4;
-            alpha.channel = channel;
+            // The channel of the file as read (grey + alpha: grey, alpha; r, g, b of a grey image:
+            // its grey).
+            const int wanted = asked >= 0 && asked < 4 ? asked : has_alpha ? 3 : 0;
+            alpha.channel = have >= 3 ? std::min(wanted, have - 1) : wanted == 3 ? 1 : 0;
+            alpha.texels = alpha_texels(*alpha.map.texture, alpha.channel, p.loc);
             continue;
         }
         if (p.name == "alpha_cutoff") {
@@ -443,9 +447,78 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
     return mat;
 }
 
-float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, const TextureService& textures,
-               uint32_t prim, float b1, float b2) {
-    if (!a.map.texture) return std::clamp(a.value, 0.0f, 1.0f);
+float AlphaTexels::at(float s, float t, int wrap, bool closest) const {
+    if (width <= 0 || height <= 0) return 1.0f;
+    // Texel coordinates (centres at i + 0.5), wrapped per axis as the texture system wraps.
+    const auto texel = [wrap](int i, int n, bool& black) {
+        if (i >= 0 && i < n) return i;
+        switch (wrap) {
+            case 1:  // clamp
+                return i < 0 ? 0 : n - 1;
+            case 2:  // black
+                black = true;
+                return 0;
+            case 3: {  // mirror
+                const int period = 2 * n;
+                int m = i % period;
+                if (m < 0) m += period;
+                return m < n ? m : period - 1 - m;
+            }
+            default: {  // periodic
+                const int m = i % n;
+                return m < 0 ? m + n : m;
+            }
+        }
+    };
+    const auto value = [&](int x, int y) {
+        bool black = false;
+        const int tx = texel(x, width, black), ty = texel(y, height, black);
+        if (black) return 0.0f;
+        const std::size_t at = static_cast<std::size_t>(ty) * static_cast<std::size_t>(width) +
+                               static_cast<std::size_t>(tx);
+        return static_cast<float>(texels[at]) * (1.0f / 65535.0f);
+    };
+    const float x = s * static_cast<float>(width), y = t * static_cast<float>(height);
+    // Far outside (or not a number): opaque, as a lookup that failed was.
+    if (!(std::fabs(x) < 1e9f) || !(std::fabs(y) < 1e9f)) return 1.0f;
+    if (closest) return value(static_cast<int>(std::floor(x)), static_cast<int>(std::floor(y)));
+    const float fx = x - 0.5f, fy = y - 0.5f;
+    const float x0 = std::floor(fx), y0 = std::floor(fy);
+    const float wx = fx - x0, wy = fy - y0;
+    const int ix = static_cast<int>(x0), iy = static_cast<int>(y0);
+    return (value(ix, iy) * (1.0f - wx) + value(ix + 1, iy) * wx) * (1.0f - wy) +
+           (value(ix, iy + 1) * (1.0f - wx) + value(ix + 1, iy + 1) * wx) * wy;
+}
+
+std::shared_ptr<const AlphaTexels> alpha_texels(const Texture& tex, int channel,
+                                                const FileLoc& loc) {
+    auto out = std::make_shared<AlphaTexels>();
+    ImageHeader h;
+    std::vector<float> pixels;
+    try {
+        pixels = read_image(tex.converted, 4, h, "alpha texture", true);
+    } catch (const SpangleError& e) {
+        throw_error(loc, "{}", e.what());
+    }
+    const int n = std::min(h.channels, 4);
+    if (h.width <= 0 || h.height <= 0 || n <= 0) return out;
+    const int c = std::clamp(channel, 0, n - 1);
+    out->width = h.width;
+    out->height = h.height;
+    const std::size_t count =
+        static_cast<std::size_t>(h.width) * static_cast<std::size_t>(h.height);
+    out->texels.resize(count);
+    for (std::size_t i = 0; i < count; ++i) {
+        const float v = pixels[i * static_cast<std::size_t>(n) + static_cast<std::size_t>(c)];
+        out->texels[i] = static_cast<uint16_t>(std::lround(65535.0f * (v >= 1.0f  ? 1.0f
+                                                                       : v > 0.0f ? v
+                                                                                  : 0.0f)));
+    }
+    return out;
+}
+
+float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, uint32_t prim, float b1, float b2) {
+    if (!a.texels) return std::clamp(a.value, 0.0f, 1.0f);
     float u = b1, v = b2;
     const std::size_t t = 3 * static_cast<std::size_t>(prim);
     if (!mesh.uvs.empty() && t + 2 < mesh.indices.size()) {
@@ -456,16 +529,12 @@ float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, const TextureService
         u = b0 * mesh.uvs[i0] + b1 * mesh.uvs[i1] + b2 * mesh.uvs[i2];
         v = b0 * mesh.uvs[i0 + 1] + b1 * mesh.uvs[i1 + 1] + b2 * mesh.uvs[i2 + 1];
     }
-    thread_local TextureQuery q;
-    const float zero = 0.0f;
-    texture_coordinates(a.map.ref, &u, &v, &zero, &zero, &zero, &zero, 1, q);
-    float out[4] = {1.0f, 1.0f, 1.0f, 1.0f};
-    try {
-        textures.lookup(*a.map.texture, a.map.ref, q, 1, a.map.channels, out);
-    } catch (...) {
-        return 1.0f;
-    }
-    const float alpha = out[a.map.channels == 1 ? 0 : a.channel] * a.value;
+    // The texture's uv transform; the image's t runs down while v runs up (as
+    // texture_coordinates() has it).
+    const float* m = a.map.ref.uv;
+    const float s = m[0] * u + m[1] * v + m[2];
+    const float image_t = 1.0f - (m[3] * u + m[4] * v + m[5]);
+    const float alpha = a.texels->at(s, image_t, a.map.ref.wrap, a.map.ref.filter == 2) * a.value;
     return alpha >= 1.0f ? 1.0f : alpha > 0.0f ? alpha : 0.0f;  // NaN: 0
 }
 

@@ -66,22 +66,40 @@ struct TextureBinding {
     std::shared_ptr<const Texture> texture;
 };
 
+/** An alpha texture's channel at full resolution in memory, 16 bits per texel: the ray tracer
+ *  tests it at every triangle a ray crosses, where a texture system's lookup cost as much as
+ *  the rest of the traversal. */
+struct AlphaTexels {
+    int width = 0, height = 0;
+    std::vector<uint16_t> texels;  ///< row 0 at the image's top, value x 65535
+    /** The value at (s, t) (s right, t down, in [0, 1] over the image), wrapped as TextureRef
+     *  says (periodic, clamp, black, mirror); bilinear between texel centres, or the texel
+     *  itself (`closest`). */
+    float at(float s, float t, int wrap, bool closest) const;
+};
+
 /** A material's `alpha`: how much of its surfaces stops rays (a cut-out where it is 0). */
 struct AlphaMap {
     bool active = false;  ///< the material has an alpha (else every surface is opaque)
     float value = 1.0f;   ///< the constant alpha, or the factor on the texture's value
-    float cutoff =
-        -1.0f;           ///< >= 0: a hit counts where alpha >= cutoff; < 0: with probability alpha
-    int channel = 0;     ///< the texture's channel looked up (of 4 when 3, else of 1)
+    /** >= 0: a hit counts where alpha >= cutoff; < 0: with probability alpha. */
+    float cutoff = -1.0f;
+    int channel = 0;     ///< the channel of the converted texture read
     TextureBinding map;  ///< the texture (map.texture null: the constant alone)
+    /** That channel in memory (null with the constant alone). */
+    std::shared_ptr<const AlphaTexels> texels;
 };
+
+/** `channel` of the texture's converted file (its values as looked up) at full resolution.
+ *  Throws SpangleError at `loc`. */
+std::shared_ptr<const AlphaTexels> alpha_texels(const Texture& tex, int channel,
+                                                const FileLoc& loc);
 
 /** The alpha of `a` at barycentrics (b1, b2) of triangle `prim` of `mesh` (its uvs; without
  *  uvs the triangle's corners take (0, 0), (1, 0), (0, 1)), in [0, 1]: the texture's value at
- *  full resolution, bilinear, times the factor. Thread-safe. A lookup that fails counts as
- *  opaque (1): it may run inside the ray tracer, where nothing may be thrown. */
-float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, const TextureService& textures,
-               uint32_t prim, float b1, float b2);
+ *  full resolution, bilinear, times the factor. Thread-safe, and throws nothing (it runs inside
+ *  the ray tracer). */
+float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, uint32_t prim, float b1, float b2);
 
 /** What a material's maps do to the shading frame. */
 enum class MapKind { None, Normal, Bump };

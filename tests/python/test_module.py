@@ -100,6 +100,15 @@ def test_material_edits_are_validated_and_change_the_image(session):
     after = session.render(spp=2, size=(32, 32), layers=False).beauty
     assert session.material("glitter")["params"]["flake_color"] == pytest.approx((1.0, 0.2, 0.1))
     assert after[..., 1].sum() < 0.5 * before[..., 1].sum()
+    # The host's cut-out keys are edited too: alpha 0 lets every ray through the sphere.
+    session.set_material("glitter", alpha=0.0)
+    cut = session.render(spp=2, size=(32, 32), layers=False).beauty
+    assert not np.array_equal(cut, after)
+    with pytest.raises(spangle.SceneError) as err:
+        session.set_material("glitter", alpha=1.5)
+    assert "alpha" in str(err.value)
+    session.set_material("glitter", alpha=1.0)
+    assert np.array_equal(session.render(spp=2, size=(32, 32), layers=False).beauty, after)
 
 
 def test_transforms_camera_and_lights_are_edited(session):

@@ -193,6 +193,26 @@ TEST(CutOut, AnAlphaTexturesClearHalfShowsTheSky) {
     // Without a cut-out the plane hides the sky everywhere (the checks above can fail).
     const FrameResult plain = render_text(dir, "p.toml", sky_scene(""));
     EXPECT_LT(column_mean(plain, 0, 64), 0.001);
+    // The alpha channel of an image without one reads 1 (as glTF and Blender read it), times
+    // scale: a grey mask asked for its "a" is whole; at scale 0 it is not there.
+    const std::string grey = test::test_dir() + "/scenes/textures/roughness_ramp.png";
+    const FrameResult whole = render_text(
+        dir, "w.toml",
+        sky_scene(fmt::format("alpha = {{ texture = \"{}\", channel = \"a\" }}", grey)));
+    EXPECT_LT(column_mean(whole, 0, 64), 0.001);
+    const FrameResult none = render_text(
+        dir, "n.toml",
+        sky_scene(fmt::format("alpha = {{ texture = \"{}\", channel = \"a\", scale = 0 }}", grey)));
+    EXPECT_GT(column_mean(none, 0, 64), 0.999);
+    // r, g and b of a grey image are its grey: the ramp cuts where it is below the cutoff (its
+    // left, 0.02 to 0.6 across), without an error.
+    const FrameResult ramp = render_text(
+        dir, "r.toml",
+        sky_scene(fmt::format("alpha = {{ texture = \"{}\", channel = \"b\", space = \"raw\", "
+                              "uv_transform = {{ scale = 0.25 }} }}\nalpha_cutoff = 0.45",
+                              grey)));
+    EXPECT_GT(column_mean(ramp, 0, 20), 0.999);
+    EXPECT_LT(column_mean(ramp, 56, 64), 0.001);
 }
 
 TEST(CutOut, AConstantAlphaLetsItsShareThroughOrIsCutWhole) {
@@ -259,6 +279,66 @@ intensity = 3
     ASSERT_GT(lit, 0.1);
     EXPECT_NEAR(column_mean(cut, 0, 32), lit, 1e-6 * lit) << "a fully cut screen casts no shadow";
     EXPECT_LT(column_mean(shade, 0, 32), 0.01 * lit) << "the same screen opaque shades the floor";
+}
+
+TEST(CutOut, AnEmittersLightIsCutAsItsSurfaceIs) {
+    // A lamp (an emitting quad) of alpha 0.5 over a white floor, seen from under the lamp:
+    // light sampling weighs each of
+    // its points by the share of rays that meet it, so it lights the floor as BSDF rays find it
+    // (light sampling lit the floor with the whole lamp: an alpha 0 lamp still shone).
+    test::TempDir dir("cut_out_emitter");
+    const auto scene = [](const std::string& alpha) {
+        return fmt::format(R"(
+[render]
+width = 32
+height = 32
+spp = 64
+max_depth = 1
+filter = "box"
+working_space = "lin_rec709"
+[camera]
+position = [0, 0, 1.5]
+look_at = [0, 0, 0]
+fov = 10
+[[material]]
+name = "floor"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = [1, 1, 1] }}
+[[material]]
+name = "lamp"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = [0, 0, 0] }}
+{}
+[[object]]
+mesh = "{}/meshes/plane.ply"
+material = "floor"
+rotate = [90, 0, 0]
+scale = 3
+[[object]]
+mesh = "{}/meshes/plane.ply"
+material = "lamp"
+rotate = [-90, 0, 0]
+translate = [0, 0, 2]
+scale = 2
+emission = [1, 1, 1]
+)",
+                           alpha, test::asset_dir(), test::asset_dir());
+    };
+    const auto floor_mean = [&](const std::string& alpha, Strategy strategy) {
+        FrameRequest req = test::text_request(dir, "lamp.toml", scene(alpha));
+        req.options.strategy = strategy;
+        return column_mean(render_frame(req), 0, 32);
+    };
+    const double opaque = floor_mean("", Strategy::Mis);
+    ASSERT_GT(opaque, 0.05);
+    for (Strategy st : {Strategy::Mis, Strategy::NeeOnly, Strategy::BsdfOnly}) {
+        EXPECT_NEAR(floor_mean("alpha = 0.5", st), 0.5 * opaque, 0.03 * opaque)
+            << static_cast<int>(st);
+        EXPECT_EQ(floor_mean("alpha = 0", st), 0.0) << static_cast<int>(st);
+        EXPECT_EQ(floor_mean("alpha = 0.4\nalpha_cutoff = 0.5", st), 0.0);
+    }
 }
 
 }  // namespace

@@ -19,6 +19,7 @@
 #include "scene/gltf/gltf_reader.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
+#include "scene/toml_scene_writer.h"
 #include "scene_request.h"
 #include "test_support.h"
 
@@ -823,7 +824,7 @@ TEST(GltfMaterials, MaskAndBlendCutTheSurfaceByTheBaseColoursAlpha) {
     std::ofstream(dir.file("leaf.png"), std::ios::binary) << png;
     GltfWriter w;
     std::string meshes, nodes;
-    for (int m = 0; m < 4; ++m) {
+    for (int m = 0; m < 6; ++m) {
         meshes += fmt::format("{}{}", m ? "," : "", quad_mesh(w, m));
         nodes += fmt::format(R"({}{{"mesh":{}}})", m ? "," : "", m);
     }
@@ -839,10 +840,13 @@ TEST(GltfMaterials, MaskAndBlendCutTheSurfaceByTheBaseColoursAlpha) {
             R"({{"name":"default_cutoff","alphaMode":"MASK","pbrMetallicRoughness":)"
             R"({{"baseColorFactor":[1,1,1,0.4]}}}},)"
             R"({{"name":"opaque","alphaMode":"OPAQUE","pbrMetallicRoughness":)"
-            R"({{"baseColorTexture":{{"index":0}},"baseColorFactor":[1,1,1,0.1]}}}}])",
+            R"({{"baseColorTexture":{{"index":0}},"baseColorFactor":[1,1,1,0.1]}}}},)"
+            R"({{"name":"lower","alphaMode":"mask"}},)"
+            R"({{"name":"far","alphaMode":"MASK","alphaCutoff":1.5,"pbrMetallicRoughness":)"
+            R"({{"baseColorFactor":[1,1,1,0.9]}}}}])",
             meshes, nodes));
     const SceneDescription d = read_gltf_scene(dir.file("leaves.gltf"), {});
-    ASSERT_EQ(d.materials.size(), 4u);
+    ASSERT_EQ(d.materials.size(), 6u);
     const MaterialDesc& mask = d.materials[0];
     ASSERT_TRUE(mask.alpha);
     EXPECT_EQ(mask.alpha->kind, ParamDesc::Kind::Texture);
@@ -860,17 +864,27 @@ TEST(GltfMaterials, MaskAndBlendCutTheSurfaceByTheBaseColoursAlpha) {
     ASSERT_TRUE(d.materials[2].alpha);
     EXPECT_DOUBLE_EQ(*d.materials[2].alpha_cutoff, 0.5);
     EXPECT_FALSE(d.materials[3].alpha) << "OPAQUE ignores alpha";
-    // And it renders: the mask's clear half lets the sky through (the scene builds and runs).
-    const std::string toml = dir.file("leaves.toml");
-    std::ofstream(toml) << "[render]\nwidth = 16\nheight = 16\nspp = 1\n"
-                           "[camera]\nposition = [0.5, 0.5, 3]\nlook_at = [0.5, 0.5, 0]\n"
-                           "[[import]]\nfile = \"leaves.gltf\"\n";
-    FrameRequest req;
-    req.scene = toml;
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.texture_cache = dir.file("cache");
-    EXPECT_NO_THROW(render_frame(req));
+    // Modes and cutoffs glTF does not allow are said, not taken silently.
+    EXPECT_FALSE(d.materials[4].alpha);
+    EXPECT_TRUE(has_note(d, "alphaMode \"mask\" is not OPAQUE, MASK or BLEND"))
+        << ::testing::PrintToString(d.notes);
+    ASSERT_TRUE(d.materials[5].alpha);
+    EXPECT_DOUBLE_EQ(*d.materials[5].alpha_cutoff, 1.0);
+    EXPECT_TRUE(has_note(d, "alphaCutoff 1.5 is outside [0, 1]: 1 stands in"));
+    // Converted to TOML, the mask reads the image's alpha channel ("a", which an image without
+    // one reads as 1), not its red (convert wrote "r"), and renders the same image.
+    write_toml_scene(d, dir.file("converted.toml"), dir.file("converted_meshes"));
+    EXPECT_NE(bytes_of(dir.file("converted.toml")).find("channel = \"a\""), std::string::npos);
+    const auto render = [&](const std::string& scene) {
+        FrameRequest req = test::quiet_request(scene);
+        req.options.texture_cache = dir.file("cache");
+        req.options.width_override = 24;
+        req.options.height_override = 16;
+        req.options.spp_override = 4;
+        return render_frame(req).image;
+    };
+    const std::vector<float> direct = render(dir.file("leaves.gltf"));
+    EXPECT_EQ(render(dir.file("converted.toml")), direct);
 }
 
 TEST(GltfMaterials, ANoteSaidOnceCountsAndListsItsOtherPlaces) {

@@ -10,8 +10,8 @@
 
 #include "color/image_output.h"
 #include "pipeline/frame.h"
-#include "shading/texture.h"
 #include "scene_request.h"
+#include "shading/texture.h"
 #include "test_support.h"
 
 namespace spangle::test_textures {

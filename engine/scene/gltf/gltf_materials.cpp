@@ -315,11 +315,22 @@ void flakes(Builder& b, const tinygltf::Material& g, const std::string& mp,
 /** alphaMode MASK and BLEND as the host's alpha: base colour's alpha (its texture's A times
  *  its factor's fourth), cut at alphaCutoff for MASK, by chance for BLEND. */
 void alpha(Builder& b, const tinygltf::Material& g, const std::string& mp) {
-    if (g.alphaMode != "MASK" && g.alphaMode != "BLEND") return;
+    if (g.alphaMode != "MASK" && g.alphaMode != "BLEND") {
+        if (!g.alphaMode.empty() && g.alphaMode != "OPAQUE")
+            b.ctx.note("alphaMode", b.ctx.at(mp + "/alphaMode"),
+                       fmt::format("alphaMode \"{}\" is not OPAQUE, MASK or BLEND (glTF spells "
+                                   "them in capitals): the surface is drawn opaque",
+                                   g.alphaMode));
+        return;
+    }
     const bool mask = g.alphaMode == "MASK";
     const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
     const double a = f.size() >= 4 && std::isfinite(f[3]) ? std::clamp(f[3], 0.0, 1.0) : 1.0;
     const double cutoff = std::isfinite(g.alphaCutoff) ? std::clamp(g.alphaCutoff, 0.0, 1.0) : 0.5;
+    if (mask && cutoff != g.alphaCutoff)
+        b.ctx.note(
+            "alphaCutoff", b.ctx.at(mp + "/alphaCutoff"),
+            fmt::format("alphaCutoff {} is outside [0, 1]: {} stands in", g.alphaCutoff, cutoff));
     ParamDesc p = b.base("alpha", mp + "/alphaMode");
     p.kind = ParamDesc::Kind::Number;
     p.number = a;
