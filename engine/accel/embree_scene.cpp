@@ -55,7 +55,16 @@ bool make_ray(Vec3 o, Vec3 d, float tmax, float time, RTCRay& r) {
     r.mask = 0xffffffffu;
     r.time = std::isfinite(time) ? std::clamp(time, 0.0f, 1.0f) : 0.0f;
     r.flags = 0;
-    r.id = 0;
+    // The ray's identity for the cut-outs' chance (cut_filter), from its world-space bits.
+    const auto bits = [](float f) {
+        uint32_t b;
+        std::memcpy(&b, &f, sizeof b);
+        return static_cast<uint64_t>(b);
+    };
+    r.id = static_cast<unsigned>(hash4(bits(r.org_x) | bits(r.org_y) << 32,
+                                       bits(r.org_z) | bits(r.dir_x) << 32,
+                                       bits(r.dir_y) | bits(r.dir_z) << 32, 0x637574u) >>
+                                 32);
     return finite;
 }
 
@@ -89,18 +98,11 @@ void cut_filter(const RTCFilterFunctionNArguments* args) {
         if (share > 0.0f && share < 1.0f) {
             // By chance, per ray and triangle: two half-covering layers on one ray let a
             // quarter through (one number per ray, as pbrt draws it, would let both or neither).
-            const auto bits = [](float f) {
-                uint32_t b;
-                std::memcpy(&b, &f, sizeof b);
-                return static_cast<uint64_t>(b);
-            };
-            const uint64_t o = bits(RTCRayN_org_x(args->ray, args->N, i)) |
-                               bits(RTCRayN_org_y(args->ray, args->N, i)) << 32;
-            const uint64_t d = bits(RTCRayN_dir_x(args->ray, args->N, i)) |
-                               bits(RTCRayN_dir_y(args->ray, args->N, i)) << 32;
-            const uint64_t z = bits(RTCRayN_org_z(args->ray, args->N, i)) |
-                               bits(RTCRayN_dir_z(args->ray, args->N, i)) << 32;
-            keep = to_unit_float(hash4(o, d, z, static_cast<uint64_t>(inst) << 32 | prim)) < share;
+            // The ray is known by the hash of its world-space origin and direction that
+            // make_ray() left in its id: Embree hands the filter the ray in the instance's
+            // space, whose last bits depend on the CPU's kernels.
+            const uint64_t ray = RTCRayN_id(args->ray, args->N, i);
+            keep = to_unit_float(hash2(ray, static_cast<uint64_t>(inst) << 32 | prim)) < share;
         }
         if (!keep) args->valid[i] = 0;
     }

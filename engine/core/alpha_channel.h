@@ -8,5 +8,8 @@ namespace spangle {
 constexpr int kAlphaAuto = -1;
 /** Its A when the image has one, else none: the surface is opaque (glTF's base colour). */
 constexpr int kAlphaOrOpaque = 4;
+/** pbrt-v4's float image: its A when the image has one that is not 1 everywhere, else the mean
+ *  of its colour channels (a grey image's grey). `channel = "pbrt"` in a scene file. */
+constexpr int kAlphaPbrt = 5;
 
 }  // namespace spangle

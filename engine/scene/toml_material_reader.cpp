@@ -158,12 +158,14 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
         if (r.has("channel")) {
             const std::string c = r.string("channel");
             const char* names[] = {"r", "g", "b", "a"};
-            tex.channel = -2;
+            tex.channel = c == "pbrt" ? kAlphaPbrt : -2;
             for (int i = 0; i < 4; ++i)
                 if (c == names[i]) tex.channel = i;
             if (tex.channel == -2)
                 throw_error(r.loc("channel"),
-                            "'channel' must be one of \"r\", \"g\", \"b\", \"a\", got \"{}\"", c);
+                            "'channel' must be one of \"r\", \"g\", \"b\", \"a\", \"pbrt\", "
+                            "got \"{}\"",
+                            c);
         }
     }
     if (use == TextureUse::NormalMap)

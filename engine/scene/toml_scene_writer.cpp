@@ -194,8 +194,10 @@ struct Writer {
                              num(t.scale[2]));
         if (std::string(use) == "alpha") {
             if (t.scale[0] != 1.0f) s += ", scale = " + num(t.scale[0]);
-            // kAlphaOrOpaque (glTF's base colour) is "a": an image without alpha is opaque.
-            if (t.channel >= 0)
+            // kAlphaOrOpaque (glTF's base colour) is "a": an image without alpha reads 1.
+            if (t.channel == kAlphaPbrt)
+                s += ", channel = " + str("pbrt");
+            else if (t.channel >= 0)
                 s += ", channel = " + str(std::string(1, "rgba"[std::min(t.channel, 3)]));
         }
         if (std::string(use) == "normal_map") s += ", strength = " + num(t.amount);

@@ -430,7 +430,10 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
             // The channel of the file as read (grey + alpha: grey, alpha; r, g, b of a grey image:
             // its grey).
             const int wanted = asked >= 0 && asked < 4 ? asked : has_alpha ? 3 : 0;
-            alpha.channel = have >= 3 ? std::min(wanted, have - 1) : wanted == 3 ? 1 : 0;
+            alpha.channel = asked == kAlphaPbrt ? kAlphaPbrt
+                            : have >= 3         ? std::min(wanted, have - 1)
+                            : wanted == 3       ? 1
+                                                : 0;
             alpha.texels = alpha_texels(*alpha.map.texture, alpha.channel, p.loc);
             continue;
         }
@@ -492,7 +495,16 @@ float AlphaTexels::at(float s, float t, int wrap, bool closest) const {
 
 std::shared_ptr<const AlphaTexels> alpha_texels(const Texture& tex, int channel,
                                                 const FileLoc& loc) {
+    // One copy per converted file and channel while any material holds it (pbrt's alpha
+    // copies of materials, glTF materials sharing a base colour texture).
+    static std::mutex mutex;
+    static std::map<std::string, std::weak_ptr<const AlphaTexels>> made;
+    const std::string key = fmt::format("{}|{}", tex.converted, channel);
+    std::lock_guard<std::mutex> lock(mutex);
+    if (auto it = made.find(key); it != made.end())
+        if (std::shared_ptr<const AlphaTexels> held = it->second.lock()) return held;
     auto out = std::make_shared<AlphaTexels>();
+    made[key] = out;
     ImageHeader h;
     std::vector<float> pixels;
     try {
@@ -502,14 +514,28 @@ std::shared_ptr<const AlphaTexels> alpha_texels(const Texture& tex, int channel,
     }
     const int n = std::min(h.channels, 4);
     if (h.width <= 0 || h.height <= 0 || n <= 0) return out;
-    const int c = std::clamp(channel, 0, n - 1);
     out->width = h.width;
     out->height = h.height;
     const std::size_t count =
         static_cast<std::size_t>(h.width) * static_cast<std::size_t>(h.height);
+    const auto px = [&](std::size_t i, int c) {
+        return pixels[i * static_cast<std::size_t>(n) + static_cast<std::size_t>(c)];
+    };
+    // pbrt's rule: an alpha channel that is 1 everywhere is dropped (pbrt-v4 drops it when it
+    // reads the image), and a float lookup of colours is their mean.
+    bool mean = false;
+    int c = std::clamp(channel, 0, n - 1);
+    if (channel == kAlphaPbrt) {
+        const bool has_alpha = n == 2 || n == 4;
+        bool opaque = true;
+        for (std::size_t i = 0; has_alpha && opaque && i < count; ++i)
+            opaque = px(i, n - 1) >= 1.0f;
+        c = has_alpha && !opaque ? n - 1 : 0;
+        mean = c == 0 && n >= 3;
+    }
     out->texels.resize(count);
     for (std::size_t i = 0; i < count; ++i) {
-        const float v = pixels[i * static_cast<std::size_t>(n) + static_cast<std::size_t>(c)];
+        const float v = mean ? (px(i, 0) + px(i, 1) + px(i, 2)) / 3.0f : px(i, c);
         out->texels[i] = static_cast<uint16_t>(std::lround(65535.0f * (v >= 1.0f  ? 1.0f
                                                                        : v > 0.0f ? v
                                                                                   : 0.0f)));

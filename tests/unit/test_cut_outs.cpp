@@ -213,6 +213,23 @@ TEST(CutOut, AnAlphaTexturesClearHalfShowsTheSky) {
                               grey)));
     EXPECT_GT(column_mean(ramp, 0, 20), 0.999);
     EXPECT_LT(column_mean(ramp, 56, 64), 0.001);
+    // pbrt's rule: an alpha of 1 everywhere is dropped and the colours' mean (red: 1/3) read.
+    const std::string red = test::test_dir() + "/scenes/textures/red_opaque.png";
+    const auto pbrt = [&](const char* name, double cutoff) {
+        return column_mean(
+            render_text(dir, name,
+                        sky_scene(fmt::format("alpha = {{ texture = \"{}\", channel = \"pbrt\", "
+                                              "space = \"raw\" }}\nalpha_cutoff = {}",
+                                              red, cutoff))),
+            0, 64);
+    };
+    EXPECT_LT(pbrt("p3.toml", 0.3), 0.001) << "1/3 >= 0.3: met";
+    EXPECT_GT(pbrt("p4.toml", 0.4), 0.999) << "1/3 < 0.4: cut";
+    // Its alpha channel (1) without pbrt's rule: whole at either cutoff.
+    const FrameResult own = render_text(
+        dir, "pa.toml",
+        sky_scene(fmt::format("alpha = {{ texture = \"{}\" }}\nalpha_cutoff = 0.4", red)));
+    EXPECT_LT(column_mean(own, 0, 64), 0.001);
 }
 
 TEST(CutOut, AConstantAlphaLetsItsShareThroughOrIsCutWhole) {

@@ -349,7 +349,7 @@ MakeNamedMaterial "leaf" "string type" "diffuse" "rgb reflectance" [.2 .6 .1]
     const MaterialDesc& masked = material(d, d.objects[2].material);
     ASSERT_TRUE(masked.alpha);
     EXPECT_EQ(masked.alpha->kind, ParamDesc::Kind::Texture);
-    EXPECT_EQ(masked.alpha->texture.channel, kAlphaAuto);
+    EXPECT_EQ(masked.alpha->texture.channel, kAlphaPbrt) << "read as pbrt reads float images";
     EXPECT_NE(masked.alpha->texture.path.find("wood.png"), std::string::npos);
     const MaterialDesc& half = material(d, d.objects[3].material);
     ASSERT_TRUE(half.alpha);
@@ -365,6 +365,16 @@ MakeNamedMaterial "leaf" "string type" "diffuse" "rgb reflectance" [.2 .6 .1]
     // is not kept (a converted scene said it was unused).
     const std::string base = other.name.substr(0, other.name.rfind("_alpha"));
     EXPECT_THROW(material(d, base), std::runtime_error) << base;
+    // pbrt-v3 cuts only where alpha is 0: a cutoff just above it.
+    const SceneDescription v3 = read(f, R"(WorldBegin
+Material "matte" "rgb Kd" [.5 .5 .5]
+Shape "sphere" "float alpha" 0.25
+)");
+    ASSERT_EQ(v3.objects.size(), 1u);
+    const MaterialDesc& old = material(v3, v3.objects[0].material);
+    ASSERT_TRUE(old.alpha && old.alpha_cutoff);
+    EXPECT_GT(*old.alpha_cutoff, 0.0);
+    EXPECT_LT(*old.alpha_cutoff, 1e-3);
 }
 
 TEST(PbrtReader, AQuadricWithoutSurfaceIsDroppedNotFatal) {

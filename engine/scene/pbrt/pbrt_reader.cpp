@@ -600,6 +600,11 @@ void alpha_materials(Reader& r) {
         r.material_names.insert(name);
         copy.name = name;
         copy.alpha = r.alphas[index];
+        // pbrt-v3 cuts only where alpha is 0 (v4 by chance): a cutoff just above 0.
+        if (!r.v4()) {
+            copy.alpha_cutoff = 1.0 / 65536.0;
+            copy.alpha_cutoff_loc = copy.alpha->loc;
+        }
         copy.quiet_unused = true;
         made.emplace(o.material, name);
         o.material = name;

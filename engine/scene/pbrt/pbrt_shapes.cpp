@@ -421,8 +421,8 @@ EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const 
 }
 
 /** A shape's `alpha` as the host's alpha (pbrt-v4: the chance a ray meets the surface, 1
- *  opaque, 0 none): a number, or a float texture's image (its A channel when it has one, else
- *  its first); none when the shape is opaque. */
+ *  opaque, 0 none): a number, or a float texture's image read as pbrt reads it (kAlphaPbrt);
+ *  none when the shape is opaque. */
 std::optional<ParamDesc> alpha_of(Reader& r, ParamList& p) {
     const Param* q = p.find("alpha", {"float", "texture"});
     if (!q) return std::nullopt;
@@ -450,7 +450,7 @@ std::optional<ParamDesc> alpha_of(Reader& r, ParamList& p) {
     }
     d.kind = ParamDesc::Kind::Texture;
     d.texture = it->second.tex;
-    d.texture.channel = kAlphaAuto;
+    d.texture.channel = kAlphaPbrt;
     return d;
 }
 

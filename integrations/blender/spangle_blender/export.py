@@ -363,11 +363,15 @@ def _alpha(node, warnings, what):
     if file is None:
         return None
     if link.from_socket.name == "Alpha":
-        if getattr(src.image, "channels", 4) not in (2, 4):
-            return None  # an image without alpha gives 1 there: opaque
+        # An image without alpha (or whose alpha Blender is told to ignore) gives 1: opaque.
+        if (getattr(src.image, "channels", 4) not in (2, 4) or
+                getattr(src.image, "alpha_mode", "STRAIGHT") == "NONE"):
+            return None
         tex = {"texture": file, "channel": "a"}
     else:
-        tex = {"texture": file, "channel": "r"}
+        # The Color output, as Blender reads it: in the image's colour space (an sRGB mask is
+        # linearised), its grey (a colour mask's red stands in for Blender's luminance).
+        tex = {"texture": file, "channel": "r", "space": _image_space(src.image)}
     tex.update(_texture_placement(src, warnings, what))
     return tex
 
@@ -376,8 +380,9 @@ def _alpha_toml(v):
     """The `alpha = ...` line of a material."""
     if not isinstance(v, dict):
         return f"alpha = {_toml_value(float(v))}"
+    space = f", space = {_toml_string(v['space'])}" if "space" in v else ""
     return (f"alpha = {{ texture = {_toml_string(v['texture'])}, "
-            f"channel = {_toml_string(v['channel'])}{_placement_toml(v)} }}")
+            f"channel = {_toml_string(v['channel'])}{space}{_placement_toml(v)} }}")
 
 
 def material_entry(mat, flake_params, warnings):

@@ -5,6 +5,7 @@
     roughness_ramp.png   32 x 4 roughness from 0.02 (left) to 0.6 (right), data
     half_alpha.png       16 x 16 RGBA: green, alpha 0 in the left half and 1 in the right
     lace.png             64 x 64 grey + alpha: cream, round holes (alpha 0) on a 16-pixel grid
+    red_opaque.png       8 x 8 RGBA: pure red, alpha 1 everywhere (pbrt drops such an alpha)
 
     python3 tests/scenes/textures/make_textures.py
 """
@@ -42,6 +43,7 @@ def main():
                   for v in (225, 0 if math.hypot(px % 16 - 7.5, py % 16 - 7.5) < 5.5 else 255))
             for py in range(64)]
     write_png(os.path.join(HERE, "lace.png"), 64, 64, 2, lace)
+    write_png(os.path.join(HERE, "red_opaque.png"), 8, 8, 4, [bytes((255, 0, 0, 255) * 8)] * 8)
 
 
 if __name__ == "__main__":
