@@ -41,7 +41,7 @@ void warn_about_missing_uvs(const ecs::Registry& r, const World& w, const Materi
         if (!mat || !r.has<TriangleMeshRef>(e)) continue;
         // Textures and normal or bump maps are laid out in uv too.
         const bool textured = !mat->textures().empty() || mat->map_kind() != MapKind::None ||
-                              mat->alpha().map.texture;
+                              mat->alpha().texels != nullptr;
         const bool plugin_needs =
             mat->model().requirements &&
             (mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV);
@@ -110,7 +110,7 @@ void system_materials(ecs::Registry& r, World& w) {
         w.read_file("plugin", made.plugin().path());
         for (const TextureBinding& t : made.textures()) w.read_file("texture", t.ref.path);
         if (made.map_kind() != MapKind::None) w.read_file("texture", made.map().ref.path);
-        if (!made.alpha().map.ref.path.empty()) w.read_file("texture", made.alpha().map.ref.path);
+        if (!made.alpha().ref.path.empty()) w.read_file("texture", made.alpha().ref.path);
     }
     warn_about_missing_uvs(r, w, set);
     w.products.put(std::move(set));

@@ -410,11 +410,12 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
                 continue;
             }
             alpha.value = p.texture.scale[0];
-            alpha.map.ref = p.texture;
-            alpha.map.texture = host.textures().open(p.texture, false, p.loc);
+            alpha.ref = p.texture;
+            const std::shared_ptr<const Texture> texture =
+                host.textures().open(p.texture, false, p.loc);
             // The channel asked for (r, g, b: a grey image's grey), else the alpha channel when
             // the image has one (grey + alpha, RGBA), else its first.
-            const int have = alpha.map.texture->channels;
+            const int have = texture->channels;
             const bool has_alpha = have == 2 || have >= 4;
             const int asked = p.texture.channel;
             if ((asked == 3 || asked == kAlphaOrOpaque) && !has_alpha) {
@@ -424,17 +425,16 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
                         "{}: material '{}': '{}' has no alpha channel, so its alpha is 1 "
                         "there (times scale)",
                         p.loc.str(), m.name, p.texture.path);
-                alpha.map.texture.reset();
                 continue;
             }
             // The channel of the file as read (grey + alpha: grey, alpha; r, g, b of a grey image:
             // its grey).
             const int wanted = asked >= 0 && asked < 4 ? asked : has_alpha ? 3 : 0;
-            alpha.channel = asked == kAlphaPbrt ? kAlphaPbrt
-                            : have >= 3         ? std::min(wanted, have - 1)
-                            : wanted == 3       ? 1
-                                                : 0;
-            alpha.texels = alpha_texels(*alpha.map.texture, alpha.channel, p.loc);
+            const int channel = asked == kAlphaPbrt ? kAlphaPbrt
+                                : have >= 3         ? std::min(wanted, have - 1)
+                                : wanted == 3       ? 1
+                                                    : 0;
+            alpha.texels = alpha_texels(*texture, channel, p.loc);
             continue;
         }
         if (p.name == "alpha_cutoff") {
@@ -555,12 +555,9 @@ float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, uint32_t prim, float
         u = b0 * mesh.uvs[i0] + b1 * mesh.uvs[i1] + b2 * mesh.uvs[i2];
         v = b0 * mesh.uvs[i0 + 1] + b1 * mesh.uvs[i1 + 1] + b2 * mesh.uvs[i2 + 1];
     }
-    // The texture's uv transform; the image's t runs down while v runs up (as
-    // texture_coordinates() has it).
-    const float* m = a.map.ref.uv;
-    const float s = m[0] * u + m[1] * v + m[2];
-    const float image_t = 1.0f - (m[3] * u + m[4] * v + m[5]);
-    const float alpha = a.texels->at(s, image_t, a.map.ref.wrap, a.map.ref.filter == 2) * a.value;
+    float s = 0.0f, image_t = 0.0f;
+    texture_st(a.ref, u, v, s, image_t);
+    const float alpha = a.texels->at(s, image_t, a.ref.wrap, a.ref.filter == 2) * a.value;
     return alpha >= 1.0f ? 1.0f : alpha > 0.0f ? alpha : 0.0f;  // NaN: 0
 }
 

@@ -84,9 +84,11 @@ struct AlphaMap {
     float value = 1.0f;   ///< the constant alpha, or the factor on the texture's value
     /** >= 0: a hit counts where alpha >= cutoff; < 0: with probability alpha. */
     float cutoff = -1.0f;
-    int channel = 0;     ///< the channel of the converted texture read
-    TextureBinding map;  ///< the texture (map.texture null: the constant alone)
-    /** That channel in memory (null with the constant alone). */
+    /** The texture as written (its path watched, its uv transform and wrap applied); empty
+     *  path: the constant alone. */
+    TextureRef ref;
+    /** Its channel in memory (null with the constant alone, or where the image had no alpha
+     *  channel to read). */
     std::shared_ptr<const AlphaTexels> texels;
 };
 

@@ -41,8 +41,7 @@ void texture_coordinates(const TextureRef& ref, const float* u, const float* v, 
     const float* m = ref.uv;
     for (std::size_t i = 0; i < n; ++i) {
         // uv' = M uv + offset; the image's t runs down while v runs up.
-        q.s[i] = m[0] * u[i] + m[1] * v[i] + m[2];
-        q.t[i] = 1.0f - (m[3] * u[i] + m[4] * v[i] + m[5]);
+        texture_st(ref, u[i], v[i], q.s[i], q.t[i]);
         q.dsdx[i] = m[0] * dudx[i] + m[1] * dvdx[i];
         q.dsdy[i] = m[0] * dudy[i] + m[1] * dvdy[i];
         q.dtdx[i] = -(m[3] * dudx[i] + m[4] * dvdx[i]);

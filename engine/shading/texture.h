@@ -49,6 +49,14 @@ struct TextureQuery {
     }
 };
 
+/** The image coordinates (s right, t down) of surface uv (u, v) through the texture's uv
+ *  transform (v runs up in uv, t down in the image). */
+inline void texture_st(const TextureRef& ref, float u, float v, float& s, float& t) {
+    const float* m = ref.uv;
+    s = m[0] * u + m[1] * v + m[2];
+    t = 1.0f - (m[3] * u + m[4] * v + m[5]);
+}
+
 /** Fills q from surface uvs and their derivatives through the texture's uv transform (v up in
  *  uv, t down in the image). */
 void texture_coordinates(const TextureRef& ref, const float* u, const float* v, const float* dudx,
