@@ -55,7 +55,13 @@ bool make_ray(Vec3 o, Vec3 d, float tmax, float time, RTCRay& r) {
     r.mask = 0xffffffffu;
     r.time = std::isfinite(time) ? std::clamp(time, 0.0f, 1.0f) : 0.0f;
     r.flags = 0;
-    // The ray's identity for the cut-outs' chance (cut_filter), from its world-space bits.
+    r.id = 0;
+    return finite;
+}
+
+/** Gives r the identity the cut-outs' chance reads (cut_filter): a hash of its world-space
+ *  origin and direction. Only queries that carry cut-outs pay for it. */
+void identify(RTCRay& r) {
     const auto bits = [](float f) {
         uint32_t b;
         std::memcpy(&b, &f, sizeof b);
@@ -65,7 +71,6 @@ bool make_ray(Vec3 o, Vec3 d, float tmax, float time, RTCRay& r) {
                                        bits(r.org_z) | bits(r.dir_x) << 32,
                                        bits(r.dir_y) | bits(r.dir_z) << 32, 0x637574u) >>
                                  32);
-    return finite;
 }
 
 /** make_ray with an empty hit record. */
@@ -99,7 +104,7 @@ void cut_filter(const RTCFilterFunctionNArguments* args) {
             // By chance, per ray and triangle: two half-covering layers on one ray let a
             // quarter through (one number per ray, as pbrt draws it, would let both or neither).
             // The ray is known by the hash of its world-space origin and direction that
-            // make_ray() left in its id: Embree hands the filter the ray in the instance's
+            // identify() left in its id: Embree hands the filter the ray in the instance's
             // space, whose last bits depend on the CPU's kernels.
             const uint64_t ray = RTCRayN_id(args->ray, args->N, i);
             keep = to_unit_float(hash2(ray, static_cast<uint64_t>(inst) << 32 | prim)) < share;
@@ -441,6 +446,7 @@ bool EmbreeScene::intersect(Vec3 o, Vec3 d, float tmax, Hit& hit, float time,
     if (!make_ray_hit(o, d, tmax, time, rh)) return false;  // a non-finite ray misses
     CutContext c;
     init_context(c, cut_outs, false);
+    if (c.table) identify(rh.ray);
     rtcIntersect1(top_, &c.ctx, &rh);
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return false;
     resolve(rh, hit);
@@ -458,6 +464,8 @@ void EmbreeScene::intersect_stream(const Vec3* o, const Vec3* d, std::size_t n, 
     }
     CutContext c;
     init_context(c, cut_outs, true);  // ray by ray: see the header
+    if (c.table)
+        for (std::size_t i = 0; i < n; ++i) identify(rays[i].ray);
     if (n > 0)
         rtcIntersect1M(top_, &c.ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRayHit));
     for (std::size_t i = 0; i < n; ++i) {
@@ -478,6 +486,8 @@ void EmbreeScene::occluded_stream(const Vec3* o, const Vec3* d, const float* tma
     }
     CutContext c;
     init_context(c, cut_outs, true);
+    if (c.table)
+        for (std::size_t i = 0; i < n; ++i) identify(rays[i]);
     if (n > 0) rtcOccluded1M(top_, &c.ctx, rays.data(), static_cast<unsigned>(n), sizeof(RTCRay));
     for (std::size_t i = 0; i < n; ++i)
         blocked[i] = rays[i].tfar == -std::numeric_limits<float>::infinity() ? 1 : 0;
@@ -502,6 +512,7 @@ bool EmbreeScene::occluded(Vec3 o, Vec3 d, float tmax, float time, const CutOuts
     if (!make_ray(o, d, tmax, time, r)) return true;  // a non-finite ray lets no light through
     CutContext c;
     init_context(c, cut_outs, false);
+    if (c.table) identify(r);
     rtcOccluded1(top_, &c.ctx, &r);
     return r.tfar == -std::numeric_limits<float>::infinity();
 }
