@@ -191,7 +191,8 @@ py::object param_to_python(const ParamDesc& p) {
             return tuple3(p.color.rgb);
         case ParamDesc::Kind::Texture: {
             py::dict t;
-            t["texture"] = p.texture.path;
+            if (!p.texture.path.empty()) t["texture"] = p.texture.path;
+            if (p.texture.vertex_color) t["vertex_color"] = true;
             return t;
         }
     }

@@ -26,6 +26,7 @@
 #include "color/exr_header.h"
 #include "color/image_io.h"
 #include "core/error.h"
+#include "core/math.h"
 #include "render/image_metrics.h"
 
 namespace spangle {
@@ -195,7 +196,7 @@ std::vector<float> read_rgb(const std::string& path, Planes& planes) {
     // PNG, JPEG and the like hold sRGB-encoded values: measured linear, as a render is (a PNG
     // preview's mean read 0.26 where its EXR's is 0.20, and a relMSE against the EXR of 2.2).
     if (usual_image_space(path) == "srgb_texture") {
-        for (float& v : rgb) v = v <= 0.04045f ? v / 12.92f : std::pow((v + 0.055f) / 1.055f, 2.4f);
+        for (float& v : rgb) v = static_cast<float>(srgb_to_linear(static_cast<double>(v)));
         planes.decoded = true;
     }
     if (spec.channels >= 3) return rgb;

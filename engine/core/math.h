@@ -74,6 +74,12 @@ constexpr float luminance(Vec3 c) {
     return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
 }
 
+/** sRGB's transfer function decoded (IEC 61966-2-1): an encoded value in [0, 1] (8-bit images,
+ *  scanners' vertex colours) to its linear value. */
+inline double srgb_to_linear(double x) {
+    return x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4);
+}
+
 /** Orthonormal basis around unit n (Duff et al. 2017, "Building an Orthonormal Basis,
  *  Revisited"), used when a surface has no usable dpdu. */
 inline void make_basis(Vec3 n, Vec3& s, Vec3& t) {

@@ -32,12 +32,14 @@ uint64_t cage_content_hash(const Cage& cage) {
     add(cage.face_vertices.data(), cage.face_vertices.size() * sizeof(int));
     add(cage.uvs.data(), cage.uvs.size() * sizeof(float));
     add(cage.face_uvs.data(), cage.face_uvs.size() * sizeof(int));
+    add(cage.colors.data(), cage.colors.size() * sizeof(float));
     return h;
 }
 
 bool same_cage_content(const Cage& a, const Cage& b) {
     return a.positions == b.positions && a.face_sizes == b.face_sizes &&
-           a.face_vertices == b.face_vertices && a.uvs == b.uvs && a.face_uvs == b.face_uvs;
+           a.face_vertices == b.face_vertices && a.uvs == b.uvs && a.face_uvs == b.face_uvs &&
+           a.colors == b.colors;
 }
 
 Cage load_cage(const std::string& path, const FileLoc& ref) {
@@ -58,6 +60,7 @@ Cage load_cage(const std::string& path, const FileLoc& ref) {
     cage.source = path;
     cage.positions = obj.positions;
     cage.uvs = obj.uvs;
+    cage.colors = obj.colors;
     bool any_uv = false, all_uv = true;
     std::size_t at = 0;
     for (std::size_t f = 0; f < obj.face_sizes.size(); ++f) {

@@ -18,6 +18,7 @@ struct Cage {
     std::vector<int> face_vertices;  ///< vertex index per corner
     std::vector<float> uvs;          ///< uv per face-varying value (may be empty)
     std::vector<int> face_uvs;       ///< uv index per corner (empty when uvs is)
+    std::vector<float> colors;       ///< linear rgb per vertex, or empty
     std::string source;              ///< file, for messages
     /** Faces orient_cage() turned to agree with their neighbours (for the load's warning). */
     std::size_t turned_faces = 0;
@@ -38,10 +39,11 @@ void for_each_edge(const Cage& cage, Edge&& edge) {
     }
 }
 
-/** A hash of a cage's positions, faces and uvs (not its source name): equal for equal content. */
+/** A hash of a cage's positions, faces, uvs and colours (not its source name): equal for equal
+ * content. */
 uint64_t cage_content_hash(const Cage& cage);
 
-/** Same positions, faces and uvs. */
+/** Same positions, faces, uvs and colours. */
 bool same_cage_content(const Cage& a, const Cage& b);
 
 /** Winds every face as its neighbours are wound (OpenSubdiv takes an edge two faces cross the

@@ -59,6 +59,11 @@ void validate_mesh(const TriangleMesh& mesh, const FileLoc& ref) {
             throw_error(ref, "mesh '{}': vertex {} has a non-finite normal ({}, {}, {})",
                         mesh.source, i / 3, mesh.normals[i / 3 * 3], mesh.normals[i / 3 * 3 + 1],
                         mesh.normals[i / 3 * 3 + 2]);
+    for (std::size_t i = 0; i < mesh.colors.size(); ++i)
+        if (!std::isfinite(mesh.colors[i]))
+            throw_error(ref, "mesh '{}': vertex {} has a non-finite colour ({}, {}, {})",
+                        mesh.source, i / 3, mesh.colors[i / 3 * 3], mesh.colors[i / 3 * 3 + 1],
+                        mesh.colors[i / 3 * 3 + 2]);
     for (std::size_t i = 0; i < mesh.uvs.size(); ++i)
         if (!std::isfinite(mesh.uvs[i]))
             throw_error(ref, "mesh '{}': vertex {} has a non-finite uv ({}, {})", mesh.source,
@@ -88,6 +93,7 @@ uint64_t mesh_content_hash(const TriangleMesh& mesh) {
     words(mesh.positions.data(), mesh.positions.size() * sizeof(float));
     words(mesh.normals.data(), mesh.normals.size() * sizeof(float));
     words(mesh.uvs.data(), mesh.uvs.size() * sizeof(float));
+    words(mesh.colors.data(), mesh.colors.size() * sizeof(float));
     words(mesh.indices.data(), mesh.indices.size() * sizeof(uint32_t));
     return h;
 }

@@ -1,5 +1,6 @@
 #include "geometry/obj_reader.h"
 
+#include <algorithm>
 #include <charconv>
 #include <cmath>
 #include <cstdint>
@@ -44,6 +45,11 @@ public:
         check_indices();
         raw_.positions = std::move(positions_);
         raw_.uvs = std::move(uvs_);
+        if (!colors_.empty()) {
+            colors_.resize(raw_.positions.size(), 1.0f);
+            for (float& c : colors_) c = c >= 0.0f ? c : 1.0f;
+            raw_.colors = std::move(colors_);
+        }
         return std::move(raw_);
     }
 
@@ -162,7 +168,23 @@ private:
         s = s.substr(0, s.find('#'));
         const std::string_view keyword = next_token(s);
         if (keyword == "v") {
-            numbers(s, 3, positions_, "vertex");
+            std::string_view rest = s;
+            for (int i = 0; i < 3; ++i) positions_.push_back(number(next_token(rest), "vertex"));
+            // `v x y z r g b` (MeshLab, ZBrush and scanners write vertex colours so; `v x y z w`
+            // is a weight, which Spangle ignores): sRGB-encoded fractions.
+            std::string_view more = rest;
+            const std::string_view c0 = next_token(more), c1 = next_token(more),
+                                   c2 = next_token(more);
+            const bool colored = !c2.empty() && next_token(more).empty();
+            if (colored) {
+                colors_.resize(positions_.size() - 3, -1.0f);  // earlier vertices without
+                for (const std::string_view c : {c0, c1, c2})
+                    colors_.push_back(static_cast<float>(srgb_to_linear(
+                        std::clamp(static_cast<double>(number(c, "vertex colour")), 0.0, 1.0))));
+                ++colored_;
+            } else if (!colors_.empty()) {
+                colors_.insert(colors_.end(), {-1.0f, -1.0f, -1.0f});
+            }
         } else if (keyword == "vt") {
             // u, and v when given (OBJ allows vt with one number).
             std::string_view rest = s;
@@ -235,6 +257,13 @@ private:
                 mesh.normals.insert(mesh.normals.end(),
                                     {normals_[3 * n], normals_[3 * n + 1], normals_[3 * n + 2]});
             }
+            if (!colors_.empty()) {
+                // A vertex written without a colour among coloured ones is white (said below).
+                const std::size_t k = 3 * v;
+                for (std::size_t i = 0; i < 3; ++i)
+                    mesh.colors.push_back(
+                        k + i < colors_.size() && colors_[k + i] >= 0.0f ? colors_[k + i] : 1.0f);
+            }
             if (any_uv) {
                 const auto t = static_cast<std::size_t>(c.vt);
                 mesh.uvs.insert(mesh.uvs.end(), {c.vt >= 0 ? uvs_[2 * t] : 0.0f,
@@ -245,6 +274,10 @@ private:
         // corner, a concave one (an L, a U, a star, a ring cut open) by ear clipping in its
         // plane. The mesh's vertices are the distinct corners, in the order polygons_ names.
         triangulate_faces(mesh, polygons_, polygon_ends_);
+        if (colored_ > 0 && colored_ < positions_.size() / 3)
+            mesh.notes.push_back(fmt::format(
+                "{} of its {} vertices have no colour among coloured ones: they are white",
+                positions_.size() / 3 - colored_, positions_.size() / 3));
         return mesh;
     }
 
@@ -255,6 +288,9 @@ private:
     ObjPolygons raw_;
     int line_ = 0;
     std::vector<float> positions_, uvs_, normals_;
+    /** rgb per vertex (linear) once any `v` had a colour; -1 for vertices without. */
+    std::vector<float> colors_;
+    std::size_t colored_ = 0;  ///< `v` statements with a colour
     std::vector<uint32_t> face_;
     std::size_t short_faces_ = 0;            ///< faces of fewer than 3 corners, skipped
     std::vector<uint32_t> polygons_;         ///< every face's vertices, one after another

@@ -15,7 +15,8 @@
 
 namespace spangle {
 
-/** Reads an OBJ mesh. Corners sharing the same (v, vt, vn) share a vertex. Normals are kept when
+/** Reads an OBJ mesh. Corners sharing the same (v, vt, vn) share a vertex. Vertex colours
+ *  (`v x y z r g b`, sRGB-encoded) are kept, linear. Normals are kept when
  *  every corner has one, uvs when any corner has one (corners without get (0, 0), which the
  *  renderer treats as unmapped). Throws SpangleError "path:line: ..." (with `ref`, the scene
  *  line naming the file) for a bad number, a non-finite value, an index out of range or a face
@@ -26,6 +27,7 @@ TriangleMesh read_obj(const std::string& path, const FileLoc& ref);
  *  (0-based vertex and uv indices, uv -1 where a corner has none) with the line it is on. */
 struct ObjPolygons {
     std::vector<float> positions, uvs;
+    std::vector<float> colors;  ///< linear rgb per vertex (white where not given), or empty
     std::vector<int> face_sizes, face_lines;
     std::vector<int64_t> face_vertices, face_uvs;
 };

@@ -51,6 +51,31 @@ std::size_t size_of(Type t) {
     return 8;
 }
 
+/** A vertex colour component as linear: integer ones are sRGB-encoded fractions of their type's
+ *  largest value (as scanners, MeshLab and Blender write 8-bit colours), floating-point ones
+ *  linear as written (as Spangle's own writer writes them). */
+float color_component(Type t, double v) {
+    double top = 0.0;
+    switch (t) {
+        case Type::Int8:
+        case Type::UInt8:
+            top = 255.0;
+            break;
+        case Type::Int16:
+        case Type::UInt16:
+            top = 65535.0;
+            break;
+        case Type::Int32:
+        case Type::UInt32:
+            top = 4294967295.0;
+            break;
+        case Type::Float32:
+        case Type::Float64:
+            return static_cast<float>(v);
+    }
+    return static_cast<float>(srgb_to_linear(std::clamp(v / top, 0.0, 1.0)));
+}
+
 struct Property {
     std::string name;
     Type type = Type::Float32;
@@ -332,8 +357,13 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             const int nx = find({"nx"}), ny = find({"ny"}), nz = find({"nz"});
             const int u = find({"u", "s", "texture_u", "texture_s"});
             const int v = find({"v", "t", "texture_v", "texture_t"});
+            const int cr = find({"red", "r", "diffuse_red"});
+            const int cg = find({"green", "g", "diffuse_green"});
+            const int cb = find({"blue", "b", "diffuse_blue"});
             const bool normals = nx >= 0 && ny >= 0 && nz >= 0, uvs = u >= 0 && v >= 0;
+            const bool colors = cr >= 0 && cg >= 0 && cb >= 0;
             mesh.positions.reserve(3 * e.count);
+            if (colors) mesh.colors.reserve(3 * e.count);
             if (normals) mesh.normals.reserve(3 * e.count);
             if (uvs) mesh.uvs.reserve(2 * e.count);
             // The common layout, little-endian float properties only, is copied row by row (the
@@ -359,6 +389,10 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 copy(mesh.positions, {x, y, z});
                 if (normals) copy(mesh.normals, {nx, ny, nz});
                 if (uvs) copy(mesh.uvs, {u, v});
+                if (colors) {
+                    mesh.colors.resize(3 * e.count);
+                    copy(mesh.colors, {cr, cg, cb});
+                }
                 continue;
             }
             std::vector<double> values(e.props.size());
@@ -382,6 +416,10 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 mesh.positions.insert(mesh.positions.end(), {f(x), f(y), f(z)});
                 if (normals) mesh.normals.insert(mesh.normals.end(), {f(nx), f(ny), f(nz)});
                 if (uvs) mesh.uvs.insert(mesh.uvs.end(), {f(u), f(v)});
+                if (colors)
+                    for (const int k : {cr, cg, cb})
+                        mesh.colors.push_back(
+                            color_component(e.props[static_cast<std::size_t>(k)].type, values[k]));
             }
         } else if (e.name == "face" && !have_faces) {
             have_faces = true;
@@ -560,6 +598,9 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 split.normals.insert(split.normals.end(), mesh.normals.begin() + 3 * v,
                                      mesh.normals.begin() + 3 * v + 3);
             split.uvs.insert(split.uvs.end(), {w.u, w.v});
+            if (!mesh.colors.empty())
+                split.colors.insert(split.colors.end(), mesh.colors.begin() + 3 * v,
+                                    mesh.colors.begin() + 3 * v + 3);
         }
         split.indices = std::move(mesh.indices);
         mesh = std::move(split);

@@ -12,8 +12,9 @@
 
 namespace spangle {
 
-/** Reads the vertex positions (x, y, z), normals (nx, ny, nz) and uvs (u, v or s, t) and the
- *  faces (vertex_indices, fan-triangulated) of a PLY file. Other elements and properties are
+/** Reads the vertex positions (x, y, z), normals (nx, ny, nz), uvs (u, v or s, t), colours
+ *  (red, green, blue: integer ones sRGB-encoded, floating-point ones linear) and the faces
+ *  (vertex_indices, triangulated) of a PLY file. Other elements and properties are
  *  skipped. Throws SpangleError at `ref` naming the file and what is wrong. */
 TriangleMesh read_ply(const std::string& path, const FileLoc& ref);
 

@@ -262,6 +262,27 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
     else
         primvar.Limit(src, limit, du, dv);
 
+    // Vertex colours as positions are refined (a vertex primvar), to the limit.
+    std::vector<P3> color_limit;
+    if (!cage.colors.empty()) {
+        std::vector<P3> colors(verts.size());
+        for (int i = 0; i < nv; ++i)
+            for (int c = 0; c < 3; ++c)
+                colors[static_cast<std::size_t>(i)].v[c] =
+                    cage.colors[static_cast<std::size_t>(3 * i + c)];
+        P3* cs = colors.data();
+        for (int level = 1; level <= o.level; ++level) {
+            P3* cd = cs + refiner->GetLevel(level - 1).GetNumVertices();
+            primvar.Interpolate(level, cs, cd);
+            cs = cd;
+        }
+        color_limit.resize(n_last);
+        if (stacked_last)
+            std::copy(cs, cs + n_last, color_limit.begin());
+        else
+            primvar.Limit(cs, color_limit);
+    }
+
     report(kTopologyShare + kLimitShare * 0.5);
     std::vector<P2> uv_limit;
     if (has_uv) {
@@ -305,6 +326,12 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
             if (has_uv)
                 mesh.uvs.insert(mesh.uvs.end(), {uv_limit[static_cast<std::size_t>(t)].v[0],
                                                  uv_limit[static_cast<std::size_t>(t)].v[1]});
+            if (!color_limit.empty()) {
+                // The limit of non-negative colours can undershoot 0 a little (the scheme's
+                // weights are not all positive at creases): clamped.
+                const P3& c = color_limit[static_cast<std::size_t>(v)];
+                for (int k = 0; k < 3; ++k) mesh.colors.push_back(std::max(c.v[k], 0.0f));
+            }
         }
         return it->second;
     };

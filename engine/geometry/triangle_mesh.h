@@ -10,12 +10,16 @@
 
 namespace spangle {
 
-/** An indexed triangle mesh in object space. normals and uvs are empty or one per vertex. */
+/** An indexed triangle mesh in object space. normals, uvs and colors are empty or one per
+ *  vertex. */
 struct TriangleMesh {
     std::vector<float> positions;   ///< xyz per vertex, object space
     std::vector<float> normals;     ///< xyz per vertex (unit), or empty: use face normals
     std::vector<float> uvs;         ///< uv per vertex, or empty: uv from barycentrics
     std::vector<uint32_t> indices;  ///< three per triangle, each < vertex_count()
+    /** rgb per vertex, linear Rec.709 (decoded from the file's encoding by its reader), or
+     *  empty: a material parameter with `vertex_color` reads 1 there. */
+    std::vector<float> colors;
     /** xyz per vertex of the rest pose (geometry/rest_pose.h), object space; empty: the mesh is
      *  its own rest pose. Object-space shading inputs are taken from it. */
     std::vector<float> rest_positions;
@@ -30,6 +34,8 @@ struct TriangleMesh {
     Vec3 position(uint32_t i) const {
         return {positions[3 * i], positions[3 * i + 1], positions[3 * i + 2]};
     }
+    /** Vertex i's colour (only when colors is not empty). */
+    Vec3 color(uint32_t i) const { return {colors[3 * i], colors[3 * i + 1], colors[3 * i + 2]}; }
     /** Vertex i in the rest pose (only when rest_positions is not empty). */
     Vec3 rest_position(uint32_t i) const {
         return {rest_positions[3 * i], rest_positions[3 * i + 1], rest_positions[3 * i + 2]};
@@ -39,7 +45,7 @@ struct TriangleMesh {
     double uv_mapped_fraction() const;
 };
 
-/** A hash of a mesh's positions, normals, uvs and indices (not its source name): equal for
+/** A hash of a mesh's positions, normals, uvs, colours and indices (not its source name): equal for
  *  equal content. */
 uint64_t mesh_content_hash(const TriangleMesh& mesh);
 

@@ -40,8 +40,10 @@ void warn_about_missing_uvs(const ecs::Registry& r, const World& w, const Materi
         const MaterialInstance* mat = set.instances[refs.columns().material[i]].get();
         if (!mat || !r.has<TriangleMeshRef>(e)) continue;
         // Textures and normal or bump maps are laid out in uv too.
-        const bool textured = !mat->textures().empty() || mat->map_kind() != MapKind::None ||
-                              mat->alpha().texels != nullptr;
+        const bool textured =
+            std::any_of(mat->textures().begin(), mat->textures().end(),
+                        [](const TextureBinding& t) { return t.texture != nullptr; }) ||
+            mat->map_kind() != MapKind::None || mat->alpha().texels != nullptr;
         const bool plugin_needs =
             mat->model().requirements &&
             (mat->model().requirements(mat->instance()) & SPANGLE_REQUIRES_UV);
@@ -108,7 +110,8 @@ void system_materials(ecs::Registry& r, World& w) {
         // An edited plugin library or texture makes the material anew.
         const MaterialInstance& made = *set.instances[index];
         w.read_file("plugin", made.plugin().path());
-        for (const TextureBinding& t : made.textures()) w.read_file("texture", t.ref.path);
+        for (const TextureBinding& t : made.textures())
+            if (!t.ref.path.empty()) w.read_file("texture", t.ref.path);
         if (made.map_kind() != MapKind::None) w.read_file("texture", made.map().ref.path);
         if (!made.alpha().ref.path.empty()) w.read_file("texture", made.alpha().ref.path);
     }

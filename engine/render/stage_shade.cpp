@@ -196,22 +196,39 @@ SpangleShadingBatch_v3 abi_batch(ShadingBatch& b, uint32_t n) {
                                   b.rough_floor.data()};
 }
 
-/** Textured parameters: looked up per point, scaled, clamped into the parameter's range;
- *  returns the per-parameter value arrays for the plugin (one per schema entry, null for a
- *  constant). */
+/** Textured parameters: looked up per point (times the vertex colours where they are asked
+ *  for), scaled, clamped into the parameter's range; returns the per-parameter value arrays for
+ *  the plugin (one per schema entry, null for a constant). */
 const float* const* lookup_textures(const RenderScene& w, Workspace& ws,
-                                    const MaterialInstance& mat, uint32_t n) {
+                                    const MaterialInstance& mat, const uint32_t* paths,
+                                    uint32_t n) {
     ws.param_values.assign(mat.model().param_count, nullptr);
     ws.tex_values.resize(std::max(ws.tex_values.size(), mat.textures().size()));
     const ShadingBatch& b = ws.batch;
     for (std::size_t j = 0; j < mat.textures().size(); ++j) {
         const TextureBinding& t = mat.textures()[j];
-        texture_coordinates(t.ref, b.u.data(), b.v.data(), b.dudx.data(), b.dudy.data(),
-                            b.dvdx.data(), b.dvdy.data(), n, ws.tex_query);
         std::vector<float>& out = ws.tex_values[j];
         const auto c = static_cast<std::size_t>(t.channels);
         out.resize(n * c);
-        w.host->textures().lookup(*t.texture, t.ref, ws.tex_query, n, t.channels, out.data());
+        if (t.texture) {
+            texture_coordinates(t.ref, b.u.data(), b.v.data(), b.dudx.data(), b.dudy.data(),
+                                b.dvdx.data(), b.dvdy.data(), n, ws.tex_query);
+            w.host->textures().lookup(*t.texture, t.ref, ws.tex_query, n, t.channels, out.data());
+        } else {
+            std::fill(out.begin(), out.end(), 1.0f);
+        }
+        if (t.ref.vertex_color && c == 3)
+            for (uint32_t k = 0; k < n; ++k) {
+                const Vec3 vc = ws.paths.surf[paths[k]].color;
+                const float* m = t.vertex_to_working;
+                float* o = &out[3 * k];
+                const float r = m[0] * vc.x + m[1] * vc.y + m[2] * vc.z;
+                const float g = m[3] * vc.x + m[4] * vc.y + m[5] * vc.z;
+                const float bl = m[6] * vc.x + m[7] * vc.y + m[8] * vc.z;
+                o[0] *= r;
+                o[1] *= g;
+                o[2] *= bl;
+            }
         for (std::size_t i = 0; i < n * c; ++i) {
             const float x = out[i] * t.ref.scale[i % c];
             out[i] = std::isnan(x) ? t.lo : std::clamp(x, t.lo, t.hi);
@@ -380,7 +397,7 @@ void shade(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInstan
     if (mat.map_kind() != MapKind::None) apply_map(w, ws, mat, paths, n);
     fill_points(job, ws, paths, n);
     SpangleShadingBatch_v3 batch = abi_batch(ws.batch, n);
-    if (!mat.textures().empty()) batch.param_values = lookup_textures(w, ws, mat, n);
+    if (!mat.textures().empty()) batch.param_values = lookup_textures(w, ws, mat, paths, n);
     prepare(ws, mat, batch, n);
     if (w.lights->empty()) return;
     const uint32_t q = sample_lights(job, ws, sink, mat, paths, n, bounce);

@@ -60,6 +60,8 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     const Vec3 p2 = inst.to_world.apply_point(mesh.position(i2));
     SurfacePoint sp;
     sp.p = p0 * b0 + p1 * h.b1 + p2 * h.b2;
+    if (!mesh.colors.empty())
+        sp.color = mesh.color(i0) * b0 + mesh.color(i1) * h.b1 + mesh.color(i2) * h.b2;
     // A triangle whose corners lie far beyond the hit (a ground plane scaled to 1e7): the
     // barycentric sum is as precise as the corners, a unit or more at 1e7, so the floor's
     // points jumped on a grid of that size (shadows became rectangles, then bands). The ray's

@@ -22,6 +22,8 @@ struct SurfacePoint {
     float dudx = 0, dudy = 0, dvdx = 0, dvdy = 0;  ///< footprint axes in uv
     float footprint = 0;                           ///< world width of the footprint
     bool has_uv = false;  ///< the mesh has uvs here and they map the triangle to an area
+    /** The mesh's vertex colour here (linear Rec.709), 1 where it has none. */
+    Vec3 color{1.0f, 1.0f, 1.0f};
     /** Position and (unit) geometric normal in object space; on a mesh with a rest pose, in
      *  the rest pose (the same barycentrics on the rest triangle). */
     Vec3 p_obj, ng_obj;

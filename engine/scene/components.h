@@ -41,6 +41,9 @@ struct TextureRef {
     /** alpha: the channel read, 0 to 3 (R, G, B, A); kAlphaAuto: A when the image has it, else
      *  its first; kAlphaOrOpaque: A when the image has it, else 1 (glTF's base colour). */
     int channel = -1;
+    /** Times the mesh's vertex colours (TriangleMesh::colors; 1 where it has none). path is
+     *  empty for the colours alone (times scale). */
+    bool vertex_color = false;
     bool operator==(const TextureRef&) const = default;
 };
 

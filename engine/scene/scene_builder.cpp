@@ -368,6 +368,7 @@ TextureRef texture_ref(BuildContext& ctx, const TextureDesc& t) {
     ref.amount = t.amount;
     ref.blend = t.blend;
     ref.channel = t.channel;
+    ref.vertex_color = t.vertex_color;
     return ref;
 }
 

@@ -52,6 +52,9 @@ struct TextureDesc {
     float blend = 1;  ///< bump map: how far the bumped normal replaces the surface's (0..1)
     /** alpha: the image channel read (TextureRef::channel). */
     int channel = -1;
+    /** A colour parameter: times the mesh's vertex colours (1 where a mesh has none); path may
+     *  then be empty (the colours alone, times scale). */
+    bool vertex_color = false;
 };
 
 /** One material parameter as written, before the plugin's schema checks it. */

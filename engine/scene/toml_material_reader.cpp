@@ -146,7 +146,18 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
                          TextureUse use) {
     TableReader r(t, ctx.file, fmt::format("texture '{}'", name));
     TextureDesc tex;
-    tex.path = find_scene_file(r.string("texture"), ctx.dir, "texture", r.loc("texture"));
+    // A parameter's `vertex_color = true`: times the meshes' vertex colours, with or without an
+    // image.
+    if (use == TextureUse::Param && r.has("vertex_color")) {
+        tex.vertex_color = r.boolean("vertex_color", false);
+        if (!tex.vertex_color && !r.has("texture"))
+            throw_error(r.loc("vertex_color"),
+                        "parameter '{}': 'vertex_color = false' with no 'texture' reads nothing "
+                        "(give a colour instead)",
+                        name);
+    }
+    if (!tex.vertex_color || r.has("texture"))
+        tex.path = find_scene_file(r.string("texture"), ctx.dir, "texture", r.loc("texture"));
     if (r.has("space")) {
         tex.space = r.string("space");
         tex.space_loc = r.loc("space");
@@ -220,7 +231,8 @@ ParamDesc read_param(const ReadContext& ctx, const toml::key& k, const toml::nod
     } else if (auto s = n.as_string()) {
         p.kind = ParamDesc::Kind::String;
         p.text = s->get();
-    } else if (n.is_table() && n.as_table()->contains("texture")) {
+    } else if (n.is_table() &&
+               (n.as_table()->contains("texture") || n.as_table()->contains("vertex_color"))) {
         p.kind = ParamDesc::Kind::Texture;
         p.texture = read_texture(ctx, *n.as_table(), key, TextureUse::Param);
     } else if (n.is_array() || n.is_table()) {
@@ -229,10 +241,12 @@ ParamDesc read_param(const ReadContext& ctx, const toml::key& k, const toml::nod
         if (const toml::table* t = n.as_table(); t && !t->contains("rgb"))
             for (auto&& [inner, value] : *t) {
                 if (inner.str() == "space") continue;
-                const std::string hint = did_you_mean(inner.str(), {"texture", "rgb", "space"});
+                const std::string hint =
+                    did_you_mean(inner.str(), {"texture", "rgb", "space", "vertex_color"});
                 throw_error(key_location(inner, value, ctx.file),
                             "parameter '{}': unknown key '{}'{} (a colour is {{ rgb = [r, g, b], "
-                            "space = ... }}, an image {{ texture = \"file\", ... }})",
+                            "space = ... }}, an image {{ texture = \"file\", ... }}, the "
+                            "meshes' vertex colours {{ vertex_color = true, ... }})",
                             key, inner.str(), hint);
             }
         p.kind = ParamDesc::Kind::Color;

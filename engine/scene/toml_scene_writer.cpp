@@ -187,7 +187,11 @@ struct Writer {
 
     std::string texture(const TextureDesc& t, const char* use) {
         static const char* wraps[] = {"periodic", "clamp", "black", "mirror"};
+        if (t.path.empty())  // the vertex colours alone
+            return fmt::format("{{ vertex_color = true, scale = [{}, {}, {}] }}", num(t.scale[0]),
+                               num(t.scale[1]), num(t.scale[2]));
         std::string s = "{ texture = " + path(t.path);
+        if (t.vertex_color) s += ", vertex_color = true";
         if (t.space) s += ", space = " + str(*t.space);
         if (std::string(use) == "param")
             s += fmt::format(", scale = [{}, {}, {}]", num(t.scale[0]), num(t.scale[1]),

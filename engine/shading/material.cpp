@@ -185,6 +185,12 @@ ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Mate
         std::copy(d.default_value, d.default_value + 3, v.number);
         out.strings.emplace_back(d.default_string ? d.default_string : "");
         const ParamEntry* p = given[k];
+        if (p && p->kind == ParamEntry::Kind::Texture && p->texture.vertex_color &&
+            d.type != SPANGLE_PARAM_COLOR)
+            throw_error(p->loc,
+                        "material '{}': parameter '{}' of model '{}' is a number; 'vertex_color' "
+                        "gives colours (only colour parameters take it)",
+                        m.name, d.name, model.name);
         if (p && p->kind == ParamEntry::Kind::Texture) {
             // The plugin reads the texture's values per point; create() sees its average.
             if (!(d.flags & SPANGLE_PARAM_TEXTURABLE) ||
@@ -328,6 +334,19 @@ FileLoc blamed_param(const Material& m, const char* message) {
     return at;
 }
 
+/** The matrix taking linear Rec.709 (vertex colours as the mesh readers keep them) to the
+ *  working space: the conversion of the three primaries (both spaces are linear). Identity
+ *  where the config has no Rec.709 space (its own linear space then stands for it). */
+void vertex_color_matrix(const ColorConfig& color, float out[9]) {
+    float basis[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    const std::optional<ResolvedSpace> rec709 = color.resolve("lin_rec709");
+    if (!rec709) return;
+    color.convert(rec709->name, color.working_space(), basis, 3);
+    // basis[3 j + i] is primary j's component i: column j of the matrix.
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) out[3 * i + j] = basis[3 * j + i];
+}
+
 }  // namespace
 
 std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Material& m,
@@ -362,14 +381,18 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
         b.lo = static_cast<float>(d.min_value);
         b.hi = static_cast<float>(d.max_value);
         b.ref = p->texture;
-        b.texture = host.textures().open(p->texture, d.type == SPANGLE_PARAM_COLOR, p->loc);
-        TextureQuery whole;
-        whole.resize(1);
-        whole.s[0] = whole.t[0] = 0.5f;
-        whole.dsdx[0] = whole.dtdy[0] = 1.0f;
-        whole.dtdx[0] = whole.dsdy[0] = 0.0f;
-        float mean[3] = {0, 0, 0};
-        host.textures().lookup(*b.texture, TextureRef{}, whole, 1, b.channels, mean);
+        // Vertex colours alone: create() sees the factor (the colours' average is the meshes').
+        float mean[3] = {1, 1, 1};
+        if (!b.ref.path.empty()) {
+            b.texture = host.textures().open(p->texture, d.type == SPANGLE_PARAM_COLOR, p->loc);
+            TextureQuery whole;
+            whole.resize(1);
+            whole.s[0] = whole.t[0] = 0.5f;
+            whole.dsdx[0] = whole.dtdy[0] = 1.0f;
+            whole.dtdx[0] = whole.dsdy[0] = 0.0f;
+            host.textures().lookup(*b.texture, TextureRef{}, whole, 1, b.channels, mean);
+        }
+        if (b.ref.vertex_color) vertex_color_matrix(host.color(), b.vertex_to_working);
         for (int c = 0; c < b.channels; ++c)
             params.values[k].number[c] =
                 std::clamp(static_cast<double>(mean[c] * b.ref.scale[c]), d.min_value, d.max_value);

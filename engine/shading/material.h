@@ -63,7 +63,9 @@ struct TextureBinding {
     int channels = 1;      ///< values per point: 1 (FLOAT), 3 (COLOR or a normal map)
     float lo = 0, hi = 1;  ///< the parameter's range: looked-up values are clamped into it
     TextureRef ref;        ///< as written: file, uv transform, scale, wrap, strength/height
-    std::shared_ptr<const Texture> texture;
+    std::shared_ptr<const Texture> texture;  ///< null for vertex colours alone (ref.vertex_color)
+    /** ref.vertex_color: the meshes' colours (linear Rec.709) to the working space, row-major. */
+    float vertex_to_working[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
 };
 
 /** An alpha texture's channel at full resolution in memory, 16 bits per texel: the ray tracer

@@ -40,6 +40,8 @@ struct Context {
     /** The uv set of the material being read (uv_set_of); its textures reading another are
      *  noted. */
     int uv_set = 0;
+    /** The material being read colours primitives with COLOR_0 (has_vertex_colors). */
+    bool vertex_colors = false;
 
     /** Where the value at JSON path `p` is written. */
     FileLoc at(const std::string& p) const { return json.at(p); }

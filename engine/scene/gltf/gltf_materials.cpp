@@ -112,7 +112,8 @@ Vec3 clamp3(Vec3 v, float lo, float hi) {
     return {std::clamp(v.x, lo, hi), std::clamp(v.y, lo, hi), std::clamp(v.z, lo, hi)};
 }
 
-/** base_color: the factor, or the sRGB texture scaled by it. */
+/** base_color: the factor, or the sRGB texture scaled by it; times the vertex colours where the
+ *  material's primitives have COLOR_0. */
 void base_color(Builder& b, const tinygltf::Material& g, const std::string& mp) {
     const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
     Vec3 rgb{1, 1, 1};
@@ -127,8 +128,17 @@ void base_color(Builder& b, const tinygltf::Material& g, const std::string& mp) 
             tex->scale[0] = rgb.x;
             tex->scale[1] = rgb.y;
             tex->scale[2] = rgb.z;
+            tex->vertex_color = b.ctx.vertex_colors;
             return b.texture("base_color", std::move(*tex), tp);
         }
+    if (b.ctx.vertex_colors) {
+        TextureDesc tex;
+        tex.vertex_color = true;
+        tex.scale[0] = rgb.x;
+        tex.scale[1] = rgb.y;
+        tex.scale[2] = rgb.z;
+        return b.texture("base_color", std::move(tex), at);
+    }
     b.color("base_color", rgb, at);
 }
 
@@ -482,6 +492,7 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
     m.name_loc = ctx.at(mp + "/name");
     m.plugin_loc = m.model_loc = m.loc;
     ctx.uv_set = uv_set_of(ctx, index);
+    ctx.vertex_colors = has_vertex_colors(ctx, index);
     if (auto x = g.extensions.find("SPANGLE_materials_flakes"); x != g.extensions.end())
         flakes(b, g, mp, x->second);
     else if (const tinygltf::Value* t = extension(g, "KHR_materials_transmission");
@@ -494,6 +505,7 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
     note_unread(ctx, g, mp);
     out = ctx.emissions[index] = index >= 0 ? emission(ctx, g, mp) : std::nullopt;
     ctx.uv_set = 0;
+    ctx.vertex_colors = false;
     ctx.material_names[index] = m.name;
     ctx.scene->materials.push_back(std::move(m));
     return ctx.material_names[index];

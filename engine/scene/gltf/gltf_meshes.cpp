@@ -1,7 +1,9 @@
 // glTF mesh primitives as Spangle triangle meshes: positions, normals and the first texture
 // coordinate set (v flipped: glTF's t runs down the image, Spangle's v up), triangles, strips
-// and fans as indexed triangles. What a TriangleMesh cannot hold (tangents -- Spangle derives
-// them from the uvs --, a second uv set, vertex colours, skins, morph targets) is one note each.
+// and fans as indexed triangles, COLOR_0 as the mesh's vertex colours (which its material's base
+// colour multiplies: has_vertex_colors). What a TriangleMesh cannot hold (tangents -- Spangle
+// derives them from the uvs --, a second uv or colour set, a colour's alpha, skins, morph
+// targets) is one note each.
 
 #include <algorithm>
 #include <cmath>
@@ -20,10 +22,9 @@ void note_dropped(Context& ctx, const tinygltf::Primitive& p, const std::string&
         if (name == "TANGENT")
             ctx.note("TANGENT", at,
                      "TANGENT attributes are dropped: Spangle derives tangents from TEXCOORD_0");
-        else if (name.rfind("COLOR_", 0) == 0)
-            ctx.note(
-                "COLOR", at,
-                "vertex colours (" + name + ") are dropped: the material's base colour stands in");
+        else if (name.rfind("COLOR_", 0) == 0 && name != "COLOR_0")
+            ctx.note("COLOR_n", at,
+                     name + " is dropped: Spangle meshes hold one set of vertex colours (COLOR_0)");
         else if (name.rfind("JOINTS_", 0) == 0 || name.rfind("WEIGHTS_", 0) == 0)
             ctx.note("skin", at,
                      "skinning attributes are dropped: meshes are drawn in their "
@@ -66,6 +67,16 @@ bool normalize_normals(std::vector<float>& n) {
 }
 
 }  // namespace
+
+bool has_vertex_colors(const Context& ctx, int material) {
+    for (const tinygltf::Mesh& mesh : ctx.model.meshes)
+        for (const tinygltf::Primitive& p : mesh.primitives) {
+            const bool valid = p.material >= 0 &&
+                               static_cast<std::size_t>(p.material) < ctx.model.materials.size();
+            if ((valid ? p.material : -1) == material && p.attributes.count("COLOR_0")) return true;
+        }
+    return false;
+}
 
 std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int prim) {
     const auto key = std::pair{mesh, prim};
@@ -120,6 +131,26 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
     // The uv set the material's textures read (a mesh whose only uvs are TEXCOORD_1, for a
     // material reading it, was mapped through nothing).
     attribute(fmt::format("TEXCOORD_{}", set).c_str(), 2, m->uvs);
+    // COLOR_0: linear rgb or rgba (float, or normalised unsigned byte or short).
+    if (const auto c = p.attributes.find("COLOR_0"); c != p.attributes.end()) {
+        const std::string ref = pp + "/attributes/COLOR_0";
+        accessor_count(ctx, c->second, ref);  // checks that it exists
+        const int comps =
+            ctx.model.accessors[static_cast<std::size_t>(c->second)].type == TINYGLTF_TYPE_VEC4 ? 4
+                                                                                                : 3;
+        std::vector<float> rgba;
+        attribute("COLOR_0", comps, rgba);
+        m->colors.reserve(3 * nv);
+        bool translucent = false;
+        for (std::size_t i = 0; i < nv; ++i) {
+            for (std::size_t k = 0; k < 3; ++k)
+                m->colors.push_back(std::max(rgba[i * static_cast<std::size_t>(comps) + k], 0.0f));
+            translucent = translucent || (comps == 4 && rgba[4 * i + 3] < 1.0f);
+        }
+        if (translucent)
+            ctx.note("COLOR_0 alpha", ctx.at(ref),
+                     "COLOR_0's alpha is dropped: vertex colours tint the base colour only");
+    }
     for (std::size_t i = 1; i < m->uvs.size(); i += 2) m->uvs[i] = 1.0f - m->uvs[i];
     std::vector<uint32_t> idx;
     if (p.indices >= 0) {

@@ -54,6 +54,9 @@ std::vector<std::string> embedded_image_dirs(const std::string& texture_cache);
 /** gltf_materials.cpp: the uv set (TEXCOORD_n) a material's textures read: its base colour
  *  texture's, else its first texture's; 0 without textures or for the default material (-1). */
 int uv_set_of(const Context& ctx, int material);
+/** Whether a primitive drawn with glTF material `material` (-1: the default material) has
+ *  COLOR_0, which multiplies its base colour. */
+bool has_vertex_colors(const Context& ctx, int material);
 
 /** gltf_materials.cpp: the name of the Spangle material standing for glTF material `index` (-1:
  *  glTF's default material), made and added to the scene on first use; its emission, if any. */

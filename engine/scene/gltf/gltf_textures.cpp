@@ -133,10 +133,7 @@ std::optional<Vec3> texture_mean(Context& ctx, int index) {
                                  static_cast<int>(bytes.size()), nullptr) ||
         img.width <= 0 || img.height <= 0 || img.component < 3 || img.bits != 8)
         return {};
-    const auto decode = [](unsigned char c) {
-        const double x = c / 255.0;  // sRGB's transfer function (IEC 61966-2-1)
-        return x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4);
-    };
+    const auto decode = [](unsigned char c) { return srgb_to_linear(c / 255.0); };
     double sum[3] = {0, 0, 0};
     const std::size_t n =
         static_cast<std::size_t>(img.width) * static_cast<std::size_t>(img.height);

@@ -71,8 +71,9 @@ def _toml_string(s):
     return _toml_value(str(s))
 
 
-def write_ply(path, positions, normals, uvs, triangles):
-    """Binary little-endian PLY: positions, normals, uvs (n x 3, n x 3, n x 2 float32) and
+def write_ply(path, positions, normals, uvs, triangles, colors=None):
+    """Binary little-endian PLY: positions, normals, uvs (n x 3, n x 3, n x 2 float32),
+    optionally linear vertex colours (n x 3 float32: Spangle reads float colours as linear) and
     triangles (m x 3 int32)."""
     n, m = len(positions), len(triangles)
     header = (
@@ -80,12 +81,16 @@ def write_ply(path, positions, normals, uvs, triangles):
         f"element vertex {n}\nproperty float x\nproperty float y\nproperty float z\n"
         "property float nx\nproperty float ny\nproperty float nz\n"
         "property float s\nproperty float t\n"
-        f"element face {m}\nproperty list uchar int vertex_indices\nend_header\n"
+        + ("property float red\nproperty float green\nproperty float blue\n"
+           if colors is not None else "")
+        + f"element face {m}\nproperty list uchar int vertex_indices\nend_header\n"
     )
-    vert = np.empty((n, 8), dtype="<f4")
+    vert = np.empty((n, 8 if colors is None else 11), dtype="<f4")
     vert[:, 0:3] = positions
     vert[:, 3:6] = normals
     vert[:, 6:8] = uvs
+    if colors is not None:
+        vert[:, 8:11] = colors
     face = np.empty(m, dtype=[("n", "u1"), ("v", "<i4", 3)])
     face["n"] = 3
     face["v"] = triangles
@@ -95,10 +100,26 @@ def write_ply(path, positions, normals, uvs, triangles):
         f.write(face.tobytes())
 
 
+def _corner_colors(mesh, loop_vert):
+    """The mesh's render colour attribute (its active one without) per corner, linear rgb
+    (Blender gives byte colours' linear values too), or None when it has none."""
+    attrs = getattr(mesh, "color_attributes", None)
+    if attrs is None or len(attrs) == 0:
+        return None
+    index = getattr(attrs, "render_color_index", -1)
+    attr = attrs[index] if 0 <= index < len(attrs) else attrs.active_color
+    if attr is None or attr.domain not in ("POINT", "CORNER"):
+        return None
+    flat = np.empty(len(attr.data) * 4, dtype=np.float32)
+    attr.data.foreach_get("color", flat)
+    rgb = flat.reshape(-1, 4)[:, :3]
+    return rgb[loop_vert] if attr.domain == "POINT" else rgb
+
+
 def mesh_arrays(mesh):
     """Triangles of an evaluated mesh, one vertex per corner (corner normals and uvs kept):
-    positions, normals and uvs of the corners (triangle t's are rows 3t .. 3t + 2), and each
-    triangle's material index."""
+    positions, normals, uvs and colours (None without) of the corners (triangle t's are rows
+    3t .. 3t + 2), and each triangle's material index."""
     mesh.calc_loop_triangles()
     ntri = len(mesh.loop_triangles)
     loops = np.empty(ntri * 3, dtype=np.int32)
@@ -123,7 +144,9 @@ def mesh_arrays(mesh):
         mesh.uv_layers.active.data.foreach_get("uv", flat)
         uv = flat.reshape(-1, 2)
     positions = co[loop_vert[loops]]
-    return positions, normals[loops], uv[loops], mat_index
+    colors = _corner_colors(mesh, loop_vert)
+    return (positions, normals[loops], uv[loops], None if colors is None else colors[loops],
+            mat_index)
 
 
 def _principled(mat):
@@ -414,7 +437,14 @@ def material_entry(mat, flake_params, warnings):
     if node is None:
         warnings.append(f"{what}: not a Principled BSDF; a diffuse of its viewport colour stands in")
         return "smooth", "diffuse", {"albedo": tuple(mat.diffuse_color)[:3]}, None
-    base = _socket_value(_input(node, "Base Color"), warnings, what)
+    base_sock = _input(node, "Base Color")
+    base_src = base_sock.links[0].from_node if base_sock is not None and base_sock.is_linked else None
+    if base_src is not None and base_src.type in ("VERTEX_COLOR", "ATTRIBUTE"):
+        # A Color Attribute (or Attribute) node: the mesh's colours, which the export writes
+        # into its PLY files (each mesh's render colour attribute, whichever one the node names).
+        base = {"vertex_color": True}
+    else:
+        base = _socket_value(base_sock, warnings, what)
     metallic = _socket_value(_input(node, "Metallic"), warnings, what)
     roughness = _socket_value(_input(node, "Roughness"), warnings, what)
     ior = _socket_value(_input(node, "IOR"), warnings, what) or 1.5
@@ -512,6 +542,8 @@ def _placement_toml(v):
 
 
 def _param_toml(k, v):
+    if isinstance(v, dict) and "texture" not in v:  # the meshes' vertex colours
+        return f"{k} = {{ vertex_color = true }}"
     if isinstance(v, dict):
         space = v.get("space", "srgb_texture")
         return (f'{k} = {{ texture = {_toml_string(v["texture"])}, '
@@ -801,7 +833,7 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
                 mesh = None
             if mesh is None:
                 continue
-            positions, normals, uvs, mat_index = mesh_arrays(mesh)
+            positions, normals, uvs, colors, mat_index = mesh_arrays(mesh)
             slots = [s.material for s in obj.material_slots] or [None]
             for k, mat in enumerate(slots):
                 sel = np.nonzero(np.clip(mat_index, 0, len(slots) - 1) == k)[0]
@@ -813,7 +845,8 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
                     materials[name] = material_entry(mat, flake_params, warnings)
                 ply = os.path.join("meshes", f"mesh_{sum(len(v) for v in meshes.values()):05d}.ply")
                 write_ply(os.path.join(folder, ply), positions[corners], normals[corners],
-                          uvs[corners], np.arange(len(corners), dtype=np.int32).reshape(-1, 3))
+                          uvs[corners], np.arange(len(corners), dtype=np.int32).reshape(-1, 3),
+                          None if colors is None else colors[corners])
                 meshes[key].append((ply, name))
             obj.to_mesh_clear()
         # An object scaled to nothing (the usual way to hide one in an animation) draws nothing:
