@@ -37,11 +37,13 @@ public:
 
     TriangleMesh read() {
         parse();
+        decode_colors();
         return finish();
     }
 
     ObjPolygons read_polygons() {
         parse();
+        decode_colors();
         check_indices();
         raw_.positions = std::move(positions_);
         raw_.uvs = std::move(uvs_);
@@ -79,6 +81,23 @@ private:
             line_ = first_line;
             statement(joined);
         }
+    }
+
+    /** The colours as written (encoded; -1 where a vertex has none) to linear: fractions, or
+     *  0..255 where any exceeds 1 (as some tools write them). */
+    void decode_colors() {
+        float top = 0.0f;
+        for (const float c : colors_) top = std::max(top, c);
+        const double scale = top > 1.0f ? 1.0 / 255.0 : 1.0;
+        if (top > 1.0f) notes_.push_back("its vertex colours exceed 1: read as 0..255");
+        for (float& c : colors_)
+            if (c >= 0.0f)
+                c = static_cast<float>(
+                    srgb_to_linear(std::clamp(static_cast<double>(c) * scale, 0.0, 1.0)));
+        if (zbrush_)
+            notes_.push_back(
+                "its ZBrush polypaint (#MRGB comments) is not read: export vertex "
+                "colours as `v x y z r g b` (or PLY) to use them");
     }
 
     [[noreturn]] void fail(const std::string& what) const {
@@ -164,23 +183,26 @@ private:
     }
 
     void statement(std::string_view s) {
+        // ZBrush writes its polypaint as `#MRGB` comments, which are not read: said once.
+        if (s.starts_with("#MRGB")) zbrush_ = true;
         // A comment runs from '#' to the end of the line, also after a statement's data.
         s = s.substr(0, s.find('#'));
         const std::string_view keyword = next_token(s);
         if (keyword == "v") {
             std::string_view rest = s;
             for (int i = 0; i < 3; ++i) positions_.push_back(number(next_token(rest), "vertex"));
-            // `v x y z r g b` (MeshLab, ZBrush and scanners write vertex colours so; `v x y z w`
-            // is a weight, which Spangle ignores): sRGB-encoded fractions.
+            // `v x y z r g b` (MeshLab and photogrammetry tools write vertex colours so; some add
+            // an alpha; `v x y z w` is a weight, which Spangle ignores): sRGB-encoded fractions,
+            // kept as written until the end (0..255 is recognised then).
             std::string_view more = rest;
             const std::string_view c0 = next_token(more), c1 = next_token(more),
-                                   c2 = next_token(more);
+                                   c2 = next_token(more), c3 = next_token(more);
             const bool colored = !c2.empty() && next_token(more).empty();
             if (colored) {
                 colors_.resize(positions_.size() - 3, -1.0f);  // earlier vertices without
                 for (const std::string_view c : {c0, c1, c2})
-                    colors_.push_back(static_cast<float>(srgb_to_linear(
-                        std::clamp(static_cast<double>(number(c, "vertex colour")), 0.0, 1.0))));
+                    colors_.push_back(std::max(number(c, "vertex colour"), 0.0f));
+                if (!c3.empty()) number(c3, "vertex colour");  // an alpha: checked, not kept
                 ++colored_;
             } else if (!colors_.empty()) {
                 colors_.insert(colors_.end(), {-1.0f, -1.0f, -1.0f});
@@ -242,6 +264,7 @@ private:
         TriangleMesh mesh;
         mesh.source = path_;
         mesh.note_short_faces(short_faces_);
+        mesh.notes.insert(mesh.notes.end(), notes_.begin(), notes_.end());
         bool all_normals = !corners_.empty(), any_uv = false;
         for (const Corner& c : corners_) {
             all_normals = all_normals && c.vn >= 0;
@@ -291,6 +314,8 @@ private:
     /** rgb per vertex (linear) once any `v` had a colour; -1 for vertices without. */
     std::vector<float> colors_;
     std::size_t colored_ = 0;  ///< `v` statements with a colour
+    bool zbrush_ = false;      ///< a `#MRGB` comment was seen
+    std::vector<std::string> notes_;
     std::vector<uint32_t> face_;
     std::size_t short_faces_ = 0;            ///< faces of fewer than 3 corners, skipped
     std::vector<uint32_t> polygons_;         ///< every face's vertices, one after another

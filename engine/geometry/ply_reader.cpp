@@ -52,8 +52,9 @@ std::size_t size_of(Type t) {
 }
 
 /** A vertex colour component as linear: integer ones are sRGB-encoded fractions of their type's
- *  largest value (as scanners, MeshLab and Blender write 8-bit colours), floating-point ones
- *  linear as written (as Spangle's own writer writes them). */
+ *  largest value (as scanners, MeshLab and Blender write 8-bit colours; 32-bit integers hold
+ *  0..255, as the writers that use them write them), floating-point ones linear as written (as
+ *  Spangle's own writer writes them). */
 float color_component(Type t, double v) {
     double top = 0.0;
     switch (t) {
@@ -67,7 +68,7 @@ float color_component(Type t, double v) {
             break;
         case Type::Int32:
         case Type::UInt32:
-            top = 4294967295.0;
+            top = 255.0;
             break;
         case Type::Float32:
         case Type::Float64:
@@ -362,6 +363,10 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             const int cb = find({"blue", "b", "diffuse_blue"});
             const bool normals = nx >= 0 && ny >= 0 && nz >= 0, uvs = u >= 0 && v >= 0;
             const bool colors = cr >= 0 && cg >= 0 && cb >= 0;
+            if (!colors && (cr >= 0 || cg >= 0 || cb >= 0))
+                mesh.notes.push_back(
+                    "its vertices have some of red, green and blue but not all "
+                    "three: their colours are not read");
             mesh.positions.reserve(3 * e.count);
             if (colors) mesh.colors.reserve(3 * e.count);
             if (normals) mesh.normals.reserve(3 * e.count);

@@ -6,9 +6,84 @@
 #include "core/files.h"
 #include "pipeline/environment_load.h"
 #include "pipeline/systems.h"
+#include "shading/material.h"
 
 namespace spangle {
 namespace {
+
+/** Emission images read through the scene's texture service: the colour at a point filtered
+ *  over nothing (the finest level, bilinear), times the table's `scale`; non-negative. */
+class TexturedEmission final : public EmissionImages {
+public:
+    explicit TexturedEmission(const TextureService& textures) : textures_(textures) {}
+
+    uint32_t add(const TextureRef& ref, std::shared_ptr<const Texture> tex) {
+        entries_.push_back({ref, std::move(tex)});
+        return static_cast<uint32_t>(entries_.size() - 1);
+    }
+
+    Vec3 at(uint32_t index, float u, float v) const override {
+        thread_local TextureQuery q;
+        q.resize(1);
+        texture_st(entries_[index].ref, u, v, q.s[0], q.t[0]);
+        q.dsdx[0] = q.dtdx[0] = q.dsdy[0] = q.dtdy[0] = 0.0f;
+        float out[3] = {0, 0, 0};
+        lookup(index, q, 1, out);
+        return {out[0], out[1], out[2]};
+    }
+
+    /** The luminance of image `index` averaged over each triangle of `mesh` (its uvs; a
+     *  mesh without reads the image at (0, 0)): the texture filtered over the triangle's
+     *  footprint in the image, at its centroid. */
+    std::vector<float> triangle_means(uint32_t index, const TriangleMesh& mesh) const {
+        const std::size_t n = mesh.triangle_count();
+        TextureQuery q;
+        q.resize(n);
+        const TextureRef& ref = entries_[index].ref;
+        for (std::size_t t = 0; t < n; ++t) {
+            float s[3] = {0, 0, 0}, tt[3] = {0, 0, 0};
+            if (!mesh.uvs.empty())
+                for (int k = 0; k < 3; ++k) {
+                    const uint32_t i = mesh.indices[3 * t + static_cast<std::size_t>(k)];
+                    texture_st(ref, mesh.uvs[2 * i], mesh.uvs[2 * i + 1], s[k], tt[k]);
+                }
+            q.s[t] = (s[0] + s[1] + s[2]) / 3.0f;
+            q.t[t] = (tt[0] + tt[1] + tt[2]) / 3.0f;
+            q.dsdx[t] = s[1] - s[0];
+            q.dtdx[t] = tt[1] - tt[0];
+            q.dsdy[t] = s[2] - s[0];
+            q.dtdy[t] = tt[2] - tt[0];
+        }
+        std::vector<float> rgb(3 * n);
+        lookup(index, q, n, rgb.data());
+        std::vector<float> out(n);
+        for (std::size_t t = 0; t < n; ++t)
+            out[t] = luminance(Vec3(rgb[3 * t], rgb[3 * t + 1], rgb[3 * t + 2]));
+        return out;
+    }
+
+private:
+    struct Entry {
+        TextureRef ref;
+        std::shared_ptr<const Texture> tex;
+    };
+
+    void lookup(uint32_t index, const TextureQuery& q, std::size_t n, float* out) const {
+        const Entry& e = entries_[index];
+        try {
+            textures_.lookup(*e.tex, e.ref, q, n, 3, out);
+        } catch (...) {  // a lookup that failed emits nothing (this runs inside the render)
+            std::fill(out, out + 3 * n, 0.0f);
+        }
+        for (std::size_t i = 0; i < 3 * n; ++i) {
+            const float x = out[i] * e.ref.scale[i % 3];
+            out[i] = x > 0.0f && std::isfinite(x) ? x : 0.0f;
+        }
+    }
+
+    const TextureService& textures_;
+    std::vector<Entry> entries_;
+};
 
 /** The length of v, in double: a light's edges of 2e10 have a cross product whose square is
  *  beyond a float (its area was inf and its normal 0: the light was dropped without a word). */
@@ -20,7 +95,8 @@ float length_of(Vec3 v) {
 /** One emitter per world-space triangle of an emissive mesh, facing its authored normals (or
  *  both ways, when two-sided). */
 void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emission& emission,
-                       uint32_t group, std::vector<AreaEmitter>& out) {
+                       uint32_t group, std::vector<AreaEmitter>& out, int32_t image = -1,
+                       const std::vector<float>& image_means = {}) {
     const Affine nxf = xf.normal_matrix();
     for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
         const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
@@ -47,20 +123,49 @@ void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emissio
         a.radiance = emission.radiance;
         a.two_sided = emission.two_sided;
         a.group = group;
+        if (image >= 0) {
+            a.image = image;
+            a.image_mean = image_means[t];
+            if (!mesh.uvs.empty())
+                for (int k = 0; k < 3; ++k) {
+                    const uint32_t v = mesh.indices[3 * t + static_cast<std::size_t>(k)];
+                    a.uv[2 * k] = mesh.uvs[2 * v];
+                    a.uv[2 * k + 1] = mesh.uvs[2 * v + 1];
+                }
+        }
         out.push_back(a);
     }
 }
 
 void system_area_lights(ecs::Registry& r, World& w) {
     AreaLightSet set;
+    std::shared_ptr<TexturedEmission> images;
     if (auto* emission = r.find_pool<Emission>()) {
         std::vector<std::pair<ecs::Entity, int32_t>> refs;
         for (std::size_t i = 0; i < emission->size(); ++i) {
             const ecs::Entity e = emission->entities()[i];
             if (!r.has<TriangleMeshRef>(e)) continue;
             refs.emplace_back(e, static_cast<int32_t>(set.areas.size()));
-            add_mesh_emitters(mesh_of(w, r.get<TriangleMeshRef>(e)), r.get<Transform>(e).to_world,
-                              emission->columns().get(i), light_group(r, e), set.areas);
+            const TriangleMesh& mesh = mesh_of(w, r.get<TriangleMeshRef>(e));
+            int32_t image = -1;
+            std::vector<float> means;
+            if (r.has<EmissionImage>(e) && w.host) {
+                // An emission image: opened (converted to the working space) as a colour
+                // texture, and its mean over each triangle for light selection.
+                const EmissionImage& ei = r.get<EmissionImage>(e);
+                w.read_file("texture", ei.texture.path);
+                if (!images) images = std::make_shared<TexturedEmission>(w.host->textures());
+                image = static_cast<int32_t>(
+                    images->add(ei.texture, w.host->textures().open(ei.texture, true, ei.loc)));
+                means = images->triangle_means(static_cast<uint32_t>(image), mesh);
+                if (mesh.uv_mapped_fraction() <= 0.0 && w.log)
+                    w.log->warn(
+                        "{}: an emission image on mesh '{}', which has no uvs: every "
+                        "point reads the image at uv (0, 0)",
+                        ei.loc.str(), mesh.source);
+            }
+            add_mesh_emitters(mesh, r.get<Transform>(e).to_world, emission->columns().get(i),
+                              light_group(r, e), set.areas, image, means);
         }
         for (const auto& [e, first] : refs) r.put(e, EmitterRef{first});
     }
@@ -93,6 +198,7 @@ void system_area_lights(ecs::Registry& r, World& w) {
             set.spheres.push_back(
                 {l.center, l.radius, l.radiance, light_group(r, spheres->entities()[i])});
         }
+    set.images = std::move(images);
     w.products.put(std::move(set));
 }
 
@@ -169,6 +275,7 @@ void system_light_selection(ecs::Registry&, World& w) {
     if (const auto* set = w.products.find<AreaLightSet>()) {
         for (const AreaEmitter& a : set->areas) lights.table.add_area(a);
         for (const SphereEmitter& s : set->spheres) lights.table.add_sphere(s);
+        lights.table.set_images(set->images);
     }
     if (const auto* set = w.products.find<PointLightSet>()) {
         for (const PointEmitter& p : set->points) lights.table.add_point(p);
@@ -195,7 +302,8 @@ ecs::System<World> area_lights_system() {
     // Emissive meshes are placed in world space: their meshes and placements are read too.
     return ecs::system<World>("area_lights", system_area_lights)
         .needs_any<QuadLight, SphereLight, Emission>()
-        .reading<LightGroup, Transform, TriangleMeshRef, LoadedMeshes, SubdividedMeshes>()
+        .reading<LightGroup, Transform, TriangleMeshRef, LoadedMeshes, SubdividedMeshes,
+                 EmissionImage>()
         .writing<EmitterRef, AreaLightSet>();
 }
 

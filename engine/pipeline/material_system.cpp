@@ -30,6 +30,29 @@ std::string material_key(const World& w, const Material& m) {
     return key;
 }
 
+/** Warns about materials that read vertex colours none of their meshes has (they read 1). */
+void warn_about_missing_colors(const ecs::Registry& r, const World& w, const MaterialSet& set) {
+    const auto& refs = *r.find_pool<MaterialRef>();
+    std::vector<int> state(set.instances.size(), 0);  // 1: reads them, 2: some mesh has them
+    for (std::size_t m = 0; m < set.instances.size(); ++m)
+        if (const MaterialInstance* mat = set.instances[m].get())
+            for (const TextureBinding& t : mat->textures())
+                if (t.ref.vertex_color) state[m] = 1;
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+        const uint32_t m = refs.columns().material[i];
+        const ecs::Entity e = refs.entities()[i];
+        if (m < state.size() && state[m] == 1 && r.has<TriangleMeshRef>(e) &&
+            !mesh_of(w, r.get<TriangleMeshRef>(e)).colors.empty())
+            state[m] = 2;
+    }
+    for (std::size_t m = 0; m < state.size(); ++m)
+        if (state[m] == 1 && w.log)
+            w.log->warn(
+                "material '{}' reads vertex colours (vertex_color), but none of its "
+                "meshes has any: it reads 1 (white) everywhere",
+                set.instances[m]->name());
+}
+
 /** Warns about objects whose material needs uvs their mesh lacks. */
 void warn_about_missing_uvs(const ecs::Registry& r, const World& w, const MaterialSet& set) {
     // A material that lays a pattern out in uv (SPANGLE_REQUIRES_UV) loses it on a mesh without
@@ -116,6 +139,7 @@ void system_materials(ecs::Registry& r, World& w) {
         if (!made.alpha().ref.path.empty()) w.read_file("texture", made.alpha().ref.path);
     }
     warn_about_missing_uvs(r, w, set);
+    warn_about_missing_colors(r, w, set);
     w.products.put(std::move(set));
 }
 

@@ -73,6 +73,8 @@ struct AreaLightSet {
     std::vector<AreaEmitter> areas;      ///< triangles of emissive meshes, then quads
     uint32_t quad_first = 0;             ///< index of the first quad in `areas`
     std::vector<SphereEmitter> spheres;  ///< sphere lights
+    /** The images of textured emitters (AreaEmitter::image), null without. */
+    std::shared_ptr<const EmissionImages> images;
 };
 
 /** point_lights: point and spot lights, lights at infinity. */

@@ -326,7 +326,8 @@ void LightTable::finalize(float scene_radius) {
     std::vector<double> power;
     for (const AreaEmitter& e : area_)
         power.push_back(static_cast<double>(luminance(e.radiance)) * static_cast<double>(e.area) *
-                        M_PI * (e.two_sided ? 2.0 : 1.0));
+                        M_PI * (e.two_sided ? 2.0 : 1.0) *
+                        (e.image >= 0 ? static_cast<double>(e.image_mean) : 1.0));
     for (const SphereEmitter& s : spheres_)
         power.push_back(static_cast<double>(luminance(s.radiance)) * 4.0 * M_PI *
                         static_cast<double>(s.radius * s.radius) * M_PI);
@@ -368,10 +369,16 @@ void LightTable::finalize(float scene_radius) {
     selection_ = Distribution1D(power);
 }
 
-Vec3 LightTable::area_emitted(uint32_t i, Vec3 w) const {
+Vec3 LightTable::area_emitted(uint32_t i, Vec3 w, float b1, float b2) const {
     const AreaEmitter& e = area_[i];
     const float c = dot(e.n, w);
-    return (c > 0.0f || (e.two_sided && c < 0.0f)) ? e.radiance : Vec3(0.0f);
+    if (!(c > 0.0f || (e.two_sided && c < 0.0f))) return Vec3(0.0f);
+    if (e.image < 0 || !images_) return e.radiance;
+    const float b0 = 1.0f - b1 - b2;
+    const float u = e.uv[0] * b0 + e.uv[2] * b1 + e.uv[4] * b2;
+    const float v = e.uv[1] * b0 + e.uv[3] * b1 + e.uv[5] * b2;
+    const Vec3 k = images_->at(static_cast<uint32_t>(e.image), u, v);
+    return {e.radiance.x * k.x, e.radiance.y * k.y, e.radiance.z * k.z};
 }
 
 float LightTable::area_pdf(uint32_t i, Vec3 p, Vec3 q) const {
@@ -563,6 +570,8 @@ LightSample LightTable::sample_area(uint32_t id, Vec3 p, float sel, float u1, fl
             s.b1 = std::clamp((d11 * d20 - d01 * d21) / den, 0.0f, 1.0f);
             s.b2 = std::clamp((d00 * d21 - d01 * d20) / den, 0.0f, 1.0f - s.b1);
         }
+        // A textured emitter shines with its image's colour at that point.
+        if (e.image >= 0) s.radiance = area_emitted(id, -s.wi, s.b1, s.b2);
     }
     return s;
 }

@@ -38,12 +38,26 @@ float power_heuristic(float a, float b);
  *  point: the power heuristic, or the pure strategies' 0 / 1; always 1 after a delta bounce. */
 float bsdf_hit_weight(Strategy strategy, bool after_delta, float bsdf_pdf, float light_pdf);
 
+/** The images of textured area emitters (an emissive mesh whose emission is an image): image
+ *  `index`'s colour at surface uv (u, v). Thread-safe; throws nothing. */
+class EmissionImages {
+public:
+    virtual ~EmissionImages() = default;
+    virtual Vec3 at(uint32_t index, float u, float v) const = 0;
+};
+
 /** One planar emitter: a triangle (p0, p0+e1, p0+e2) or a parallelogram (p0 + s e1 + t e2). */
 struct AreaEmitter {
     Vec3 p0, e1, e2;    ///< world space
     Vec3 n;             ///< unit normal of the emitting side
     float area = 0.0f;  ///< m^2
-    Vec3 radiance;      ///< working-space RGB, W/(m^2 sr)
+    Vec3 radiance;      ///< working-space RGB, W/(m^2 sr) (times its image's colour, if any)
+    /** A triangle's emission image (EmissionImages), -1 for none, with its corners' uvs (u0, v0,
+     *  u1, v1, u2, v2), and the image's mean over the triangle (luminance), which weighs its
+     *  power for light selection. */
+    int32_t image = -1;
+    float uv[6] = {0, 0, 0, 0, 0, 0};
+    float image_mean = 1.0f;
     bool parallelogram = false;
     bool two_sided = false;
     bool transparent = false;  ///< a quad that lets every ray through (QuadLight::transparent)
@@ -151,8 +165,11 @@ public:
     /** Samples one light for reference point p with uniforms u0 (selection), u1, u2. */
     LightSample sample(Vec3 p, float u0, float u1, float u2) const;
 
-    /** Radiance of area emitter i towards w (unit, pointing away from the light). */
-    Vec3 area_emitted(uint32_t i, Vec3 w) const;
+    /** The images of textured area emitters (null: none). */
+    void set_images(std::shared_ptr<const EmissionImages> images) { images_ = std::move(images); }
+    /** Radiance of area emitter i towards w (unit, pointing away from the light), at
+     *  barycentrics (b1, b2) of a triangle (where its image, if any, is read). */
+    Vec3 area_emitted(uint32_t i, Vec3 w, float b1 = 0.0f, float b2 = 0.0f) const;
     /** Solid-angle pdf that sample() picks point q on area emitter i from p. */
     float area_pdf(uint32_t i, Vec3 p, Vec3 q) const;
     /** Solid-angle pdf that sample() picks sphere i from p. */
@@ -172,6 +189,7 @@ private:
     std::vector<PointEmitter> points_;
     std::vector<DistantEmitter> distant_;
     std::shared_ptr<const EnvironmentMap> env_;  ///< null: no map
+    std::shared_ptr<const EmissionImages> images_;
     uint32_t env_group_ = 0;
     Distribution1D selection_;  ///< over [area..., spheres..., points..., distant..., env]
 };

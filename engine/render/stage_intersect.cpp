@@ -34,7 +34,7 @@ Vec3 emission_at_hit(const RenderScene& w, Strategy strategy, const PathBatch& p
     if (emitter < 0) return Vec3(0.0f);
     const auto e = static_cast<uint32_t>(emitter);
     group = w.lights->area(e).group;
-    const Vec3 le = w.lights->area_emitted(e, -r.d);
+    const Vec3 le = w.lights->area_emitted(e, -r.d, hit.b1, hit.b2);
     if (max_component(le) <= 0.0f) return Vec3(0.0f);
     const float weight = bsdf_hit_weight(strategy, p.prev_delta[k] != 0, p.prev_pdf[k],
                                          w.lights->area_pdf(e, r.o, q));

@@ -217,9 +217,13 @@ const float* const* lookup_textures(const RenderScene& w, Workspace& ws,
         } else {
             std::fill(out.begin(), out.end(), 1.0f);
         }
-        if (t.ref.vertex_color && c == 3)
+        // Vertex colours times `scale` (both linear Rec.709) into the working space, then
+        // times the image.
+        const bool vc_scaled = t.ref.vertex_color && c == 3;
+        if (vc_scaled)
             for (uint32_t k = 0; k < n; ++k) {
-                const Vec3 vc = ws.paths.surf[paths[k]].color;
+                const Vec3 s = ws.paths.surf[paths[k]].color;
+                const Vec3 vc(s.x * t.ref.scale[0], s.y * t.ref.scale[1], s.z * t.ref.scale[2]);
                 const float* m = t.vertex_to_working;
                 float* o = &out[3 * k];
                 const float r = m[0] * vc.x + m[1] * vc.y + m[2] * vc.z;
@@ -230,7 +234,7 @@ const float* const* lookup_textures(const RenderScene& w, Workspace& ws,
                 o[2] *= bl;
             }
         for (std::size_t i = 0; i < n * c; ++i) {
-            const float x = out[i] * t.ref.scale[i % c];
+            const float x = vc_scaled ? out[i] : out[i] * t.ref.scale[i % c];
             out[i] = std::isnan(x) ? t.lo : std::clamp(x, t.lo, t.hi);
         }
         ws.param_values[t.param] = out.data();

@@ -163,6 +163,13 @@ SPANGLE_COMPONENT(AlphaCutOut, SPANGLE_ALPHA_CUT_OUT_FIELDS);
 /** Makes an object's mesh an area light emitting from its front faces (both, when two_sided). */
 SPANGLE_COMPONENT(Emission, SPANGLE_EMISSION_FIELDS);
 
+#define SPANGLE_EMISSION_IMAGE_FIELDS(X)                                                     \
+    X(TextureRef, texture, "colour image, read at the mesh's uvs, times Emission::radiance") \
+    X(FileLoc, loc, "where the scene names it")
+/** Beside an Emission: its radiance varies over the surface as an image (a screen, a lamp's
+ *  pattern, glTF's emissiveTexture). */
+SPANGLE_COMPONENT(EmissionImage, SPANGLE_EMISSION_IMAGE_FIELDS);
+
 #define SPANGLE_QUAD_LIGHT_FIELDS(X)                           \
     X(Vec3, corner, "one corner, world space")                 \
     X(Vec3, edge1, "first edge from the corner")               \

@@ -561,7 +561,12 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     if (d.emission) {
         const Vec3 le = emitted(working_color(ctx, d.emission->color, {0, 0, 0}),
                                 d.emission->intensity, d.emission->color.loc, d.what.c_str());
-        if (max_component(le) > 0.0f) registry.put(e, Emission{le, d.emission->two_sided});
+        if (max_component(le) > 0.0f) {
+            registry.put(e, Emission{le, d.emission->two_sided});
+            if (d.emission->texture)
+                registry.put(e, EmissionImage{texture_ref(ctx, *d.emission->texture),
+                                              d.emission->color.loc});
+        }
         registry.put(e, light_group_component(ctx, d.emission->group));
     }
     if (motion.steps.empty()) return;

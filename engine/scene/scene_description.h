@@ -256,13 +256,19 @@ using ShapeDesc = std::variant<MeshFileShape, SubdivShape, InlineMeshShape>;
 
 /** Light an object's surface emits from its front faces (both, when two-sided). */
 struct EmissionDesc {
-    ColorDesc color;         ///< radiance (non-negative), W/(m^2 sr)
+    ColorDesc color;         ///< radiance (non-negative), W/(m^2 sr); 1 with a texture
     double intensity = 1.0;  ///< scale (non-negative)
     LightGroupDesc group;    ///< its light group
     bool two_sided = false;  ///< emits from its back faces too (pbrt's "twosided")
     /** The emission is its material's (a glTF material's emissiveFactor): an importing file
      *  that replaces the material by name replaces it too (scene_import.cpp). */
     bool of_material = false;
+    /** An image whose colour (times its `scale`) multiplies the radiance, read at the mesh's
+     *  uvs (a screen, a lamp's pattern, glTF's emissiveTexture). */
+    std::optional<TextureDesc> texture;
+    /** The texture's mean luminance where the reader knew it (glTF), else 1: how much of the
+     *  colour's power it emits, for the glTF reader's "does the file light itself" test. */
+    double mean = 1.0;
 };
 
 /** A placed shape with a material. */

@@ -68,7 +68,7 @@ bool finite_numbers(const toml::node& n, std::size_t size, std::vector<double>& 
 namespace {
 
 /** Which table a texture is read for: a material parameter, or one of the host's maps. */
-enum class TextureUse { Param, NormalMap, BumpMap, Alpha };
+enum class TextureUse { Param, NormalMap, BumpMap, Alpha, Emission };
 
 /** `uv_transform = { scale = s | [su, sv], offset = [ou, ov], rotate = degrees }` into the
  *  texture's uv matrix: uv' = R(rotate) (scale * uv) + offset. */
@@ -158,11 +158,20 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
     }
     if (!tex.vertex_color || r.has("texture"))
         tex.path = find_scene_file(r.string("texture"), ctx.dir, "texture", r.loc("texture"));
+    else
+        for (const char* key : {"space", "uv_transform", "wrap", "filter"})
+            if (r.has(key))
+                throw_error(r.loc(key),
+                            "parameter '{}': '{}' applies to an image, and there is no "
+                            "'texture' (vertex colours are linear Rec.709, converted as "
+                            "colours)",
+                            name, key);
     if (r.has("space")) {
         tex.space = r.string("space");
         tex.space_loc = r.loc("space");
     }
-    if (use == TextureUse::Param && r.has("scale")) read_texture_scale(ctx, r, tex);
+    if ((use == TextureUse::Param || use == TextureUse::Emission) && r.has("scale"))
+        read_texture_scale(ctx, r, tex);
     if (use == TextureUse::Alpha) {
         const auto k = static_cast<float>(r.number("scale", 1.0, {0.0, 1e6}));
         tex.scale[0] = tex.scale[1] = tex.scale[2] = k;
@@ -258,6 +267,11 @@ ParamDesc read_param(const ReadContext& ctx, const toml::key& k, const toml::nod
 }
 
 }  // namespace
+
+TextureDesc read_color_texture(const ReadContext& ctx, const toml::table& t,
+                               std::string_view name) {
+    return read_texture(ctx, t, name, TextureUse::Emission);
+}
 
 MaterialDesc read_material(const ReadContext& ctx, TableReader& r) {
     MaterialDesc m;

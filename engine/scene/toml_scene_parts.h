@@ -40,4 +40,9 @@ bool finite_numbers(const toml::node& n, std::size_t size, std::vector<double>& 
 /** A [[material]] table (finished: no unknown key left). */
 MaterialDesc read_material(const ReadContext& ctx, TableReader& r);
 
+/** A colour texture table `{ texture = "file", space, scale, uv_transform, wrap, filter }` (as a
+ *  material parameter takes it, without `vertex_color`: an object's emission), named `name` in
+ *  messages. */
+TextureDesc read_color_texture(const ReadContext& ctx, const toml::table& t, std::string_view name);
+
 }  // namespace spangle::toml_scene

@@ -550,7 +550,21 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
     }
     if (r.has("emission")) {
         EmissionDesc e;
-        e.color = *toml_scene::read_color(ctx, r, "emission");
+        // A colour, or an image: `emission = { texture = "screen.png", scale = ... }`.
+        const toml::node* en = r.node("emission");
+        const toml::table* et = en ? en->as_table() : nullptr;
+        if (et && et->contains("vertex_color"))
+            throw_error(r.loc("emission"),
+                        "'emission' is a colour or {{ texture = \"file\", ... }}: vertex colours "
+                        "are for material parameters");
+        if (const toml::table* t = et; t && t->contains("texture")) {
+            e.texture = toml_scene::read_color_texture(ctx, *t, "emission");
+            // White (the image's own colours), in the space glTF's importer names for it.
+            e.color = ColorDesc{
+                {1, 1, 1}, std::string("lin_rec709"), r.loc("emission"), r.loc("emission")};
+        } else {
+            e.color = *toml_scene::read_color(ctx, r, "emission");
+        }
         e.intensity = r.number("emission_intensity", e.intensity, kNonNegative);
         e.two_sided = r.boolean("emission_two_sided", e.two_sided);
         e.group = read_light_group(r);

@@ -327,7 +327,8 @@ struct Writer {
         }
         if (o.parent) line("import_matrix", matrix12(*o.parent));
         if (o.emission) {
-            line("emission", color(o.emission->color));
+            line("emission", o.emission->texture ? texture(*o.emission->texture, "param")
+                                                 : color(o.emission->color));
             line("emission_intensity", num(o.emission->intensity));
             if (o.emission->two_sided) line("emission_two_sided", "true");
             group(o.emission->group);

@@ -392,10 +392,19 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
             whole.dtdx[0] = whole.dsdy[0] = 0.0f;
             host.textures().lookup(*b.texture, TextureRef{}, whole, 1, b.channels, mean);
         }
-        if (b.ref.vertex_color) vertex_color_matrix(host.color(), b.vertex_to_working);
+        // The factor the plugin sees: `scale`, in the working space; for vertex colours it is
+        // linear Rec.709, as they are (stage_shade).
+        float factor[3] = {b.ref.scale[0], b.ref.scale[1], b.ref.scale[2]};
+        if (b.ref.vertex_color) {
+            vertex_color_matrix(host.color(), b.vertex_to_working);
+            const float* mx = b.vertex_to_working;
+            const float s[3] = {factor[0], factor[1], factor[2]};
+            for (int i = 0; i < 3; ++i)
+                factor[i] = mx[3 * i] * s[0] + mx[3 * i + 1] * s[1] + mx[3 * i + 2] * s[2];
+        }
         for (int c = 0; c < b.channels; ++c)
             params.values[k].number[c] =
-                std::clamp(static_cast<double>(mean[c] * b.ref.scale[c]), d.min_value, d.max_value);
+                std::clamp(static_cast<double>(mean[c] * factor[c]), d.min_value, d.max_value);
         if (b.channels == 1)
             params.values[k].number[1] = params.values[k].number[2] = params.values[k].number[0];
         textures.push_back(std::move(b));

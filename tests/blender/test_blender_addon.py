@@ -690,6 +690,38 @@ def test_vertex_colours_shade_as_in_cycles(tmp_path):
         assert ca.mean() == pytest.approx(cb.mean(), rel=0.05), c
 
 
+def test_an_emission_image_shines_as_in_cycles(tmp_path):
+    # An image texture in Emission Color (a red and a blue half) on a plane above a grey floor:
+    # the add-on exports it as the object's emission image, and Spangle shows the screen and
+    # the light it casts as Cycles does (the image was dropped with a warning: no light).
+    w = 16
+    px = np.zeros((w, w, 4), dtype=np.float32)
+    px[:, : w // 2, :3] = (1.0, 0.05, 0.05)
+    px[:, w // 2:, :3] = (0.05, 0.05, 1.0)
+    px[..., 3] = 1.0
+    path = save_image(px, str(tmp_path / "screen.exr"))
+    scene = empty_scene(size=(96, 48))
+    bpy.ops.mesh.primitive_plane_add(size=6, location=(0, 0, 0))
+    bpy.context.active_object.data.materials.append(principled("floor", roughness=1.0))
+    bpy.ops.mesh.primitive_plane_add(size=1.5, location=(0, 0.8, 0.9), rotation=(math.radians(70), 0, 0))
+    mat = principled("screen", color=(0.0, 0.0, 0.0), roughness=1.0)
+    nodes, links = mat.node_tree.nodes, mat.node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = bpy.data.images.load(path)
+    links.new(tex.outputs["Color"], nodes["Principled BSDF"].inputs["Emission Color"])
+    nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 4.0
+    bpy.context.active_object.data.materials.append(mat)
+    bpy.ops.object.camera_add(location=(0.0, -3.0, 2.0), rotation=(math.radians(60), 0, 0))
+    scene.camera = bpy.context.active_object
+    scene.camera.data.angle = math.radians(60.0)
+    ours, theirs = both(scene, tmp_path, "screen", spp=64)
+    a, b = blocks(ours), blocks(theirs)
+    for c in (0, 2):
+        ca, cb = a[c::3], b[c::3]
+        assert np.corrcoef(ca, cb)[0, 1] > 0.95, c
+        assert ca.mean() == pytest.approx(cb.mean(), rel=0.08), (c, ca.mean(), cb.mean())
+
+
 def test_a_bump_node_shades_as_in_cycles(tmp_path):
     # A height map of sine stripes through a Bump node under a low sun, at Distance 0.02 with
     # Strength 1 and at Distance 1 softened by Strength 0.1 (exported as a tenth of the height,

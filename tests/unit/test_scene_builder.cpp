@@ -188,7 +188,9 @@ SceneDescription hand_made_scene() {
     o.material = "red";
     o.placement.parts.scale = Vec3(2);
     o.placement.parts.translate = {0, 1, 0};
-    o.emission = EmissionDesc{bare({1, 1, 1}), 3.0, {}};
+    o.emission = EmissionDesc{};
+    o.emission->color = bare({1, 1, 1});
+    o.emission->intensity = 3.0;
     d.objects = {o};
     LightDesc l;
     l.shape = SphereLightDesc{{0, 4, 0}, 0.5};

@@ -45,6 +45,27 @@ TEST(VertexColors, PlyIntegerColoursAreSrgbEncodedAndFloatOnesLinear) {
     EXPECT_NEAR(a.colors[1], 0.2158605, 1e-6);
     EXPECT_FLOAT_EQ(a.colors[2], 0.0f);
     EXPECT_NEAR(a.colors[4], decoded(20.0 / 255.0), 1e-7);
+    // 32-bit integer colours hold 0..255 (as the writers that use them write them); a vertex
+    // with only some of the three channels has no colour, said.
+    std::ofstream(dir.file("ints.ply")) << "ply\nformat ascii 1.0\nelement vertex 3\n"
+                                           "property float x\nproperty float y\nproperty float z\n"
+                                           "property int red\nproperty int green\n"
+                                           "property int blue\nelement face 1\n"
+                                           "property list uchar int vertex_indices\nend_header\n"
+                                           "0 0 0 255 0 0\n1 0 0 0 255 0\n0 1 0 0 0 255\n"
+                                           "3 0 1 2\n";
+    EXPECT_EQ(read_ply(dir.file("ints.ply"), FileLoc{"t", 1, 1}).colors,
+              (std::vector<float>{1, 0, 0, 0, 1, 0, 0, 0, 1}));
+    std::ofstream(dir.file("two.ply")) << "ply\nformat ascii 1.0\nelement vertex 3\n"
+                                          "property float x\nproperty float y\nproperty float z\n"
+                                          "property uchar red\nproperty uchar green\n"
+                                          "element face 1\nproperty list uchar int "
+                                          "vertex_indices\nend_header\n"
+                                          "0 0 0 1 2\n1 0 0 3 4\n0 1 0 5 6\n3 0 1 2\n";
+    const TriangleMesh two = read_ply(dir.file("two.ply"), FileLoc{"t", 1, 1});
+    EXPECT_TRUE(two.colors.empty());
+    ASSERT_EQ(two.notes.size(), 1u);
+    EXPECT_NE(two.notes[0].find("not all three"), std::string::npos);
     std::ofstream(dir.file("floats.ply"))
         << "ply\nformat ascii 1.0\nelement vertex 3\n"
            "property float x\nproperty float y\nproperty float z\n"
@@ -81,6 +102,19 @@ TEST(VertexColors, ObjColoursAreKeptAndVerticesWithoutOneAreWhite) {
     // `v x y z w` is a weight, not a colour; a file without colours has none.
     std::ofstream(dir.file("w.obj")) << "v 0 0 0 1\nv 1 0 0 1\nv 1 1 0 1\nf 1 2 3\n";
     EXPECT_TRUE(load_mesh(dir.file("w.obj"), FileLoc{"t", 1, 1}).colors.empty());
+    // Colours written 0..255 (any above 1) are read so, said; a fourth number (alpha) is
+    // allowed; ZBrush's #MRGB polypaint is said not to be read.
+    std::ofstream(dir.file("bytes.obj")) << "v 0 0 0 255 128 0 255\nv 1 0 0 0 0 255 255\n"
+                                            "v 1 1 0 0 0 0 255\n#MRGB ff00ff00\nf 1 2 3\n";
+    const TriangleMesh b = load_mesh(dir.file("bytes.obj"), FileLoc{"t", 1, 1});
+    ASSERT_EQ(b.colors.size(), 9u);
+    EXPECT_FLOAT_EQ(b.colors[0], 1.0f);
+    EXPECT_NEAR(b.colors[1], decoded(128.0 / 255.0), 1e-6);
+    EXPECT_FLOAT_EQ(b.colors[5], 1.0f);
+    std::string notes;
+    for (const std::string& n : b.notes) notes += n + "\n";
+    EXPECT_NE(notes.find("0..255"), std::string::npos) << notes;
+    EXPECT_NE(notes.find("#MRGB"), std::string::npos) << notes;
 }
 
 TEST(VertexColors, SubdivisionCarriesThemToTheLimit) {
@@ -187,6 +221,51 @@ translate = [1.2, 0, 0]
     EXPECT_GT(std::fabs(want[0] - 0.1f), 0.05f) << "the test sees the conversion";
     for (float c : {right.x, right.y, right.z})
         EXPECT_NEAR(c, 0.5f, 0.015f) << "a mesh without colours reads 1";
+}
+
+TEST(VertexColors, TheirScaleIsAColourOfTheirOwnSpace) {
+    // `scale` multiplies the vertex colours before they are converted (both linear Rec.709, as
+    // glTF's baseColorFactor times COLOR_0): a red factor on a mesh without colours renders as
+    // the red colour itself, and on green vertices as black (per channel in the working space,
+    // ACEScg, red times green was not black).
+    test::TempDir dir("vertex_colors_scale");
+    const std::string green = quad_ply(dir, "green.ply", "0 1 0");
+    const std::string plain = quad_ply(dir, "plain.ply", "");
+    const auto scene = [&](const std::string& mesh, const std::string& albedo) {
+        return fmt::format(R"([render]
+width = 20
+height = 20
+spp = 16
+max_depth = 2
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+fov = 10
+[environment]
+color = [1, 1, 1]
+[[material]]
+name = "m"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = {} }}
+[[object]]
+mesh = "{}"
+material = "m"
+)",
+                           albedo, mesh);
+    };
+    const auto centre = [&](const std::string& mesh, const std::string& albedo) {
+        return block_mean(render_frame(test::text_request(dir, "s.toml", scene(mesh, albedo))), 8,
+                          8, 4, 4);
+    };
+    const Vec3 factor = centre(plain, "{ vertex_color = true, scale = [1, 0, 0] }");
+    const Vec3 colour = centre(plain, "{ rgb = [1, 0, 0], space = \"lin_rec709\" }");
+    EXPECT_NEAR(factor.x, colour.x, 0.01f * colour.x);
+    EXPECT_NEAR(factor.y, colour.y, 0.01f);
+    EXPECT_NEAR(factor.z, colour.z, 0.01f);
+    EXPECT_GT(colour.y, 0.03f) << "Rec.709 red has green in ACEScg: the test sees the space";
+    const Vec3 black = centre(green, "{ vertex_color = true, scale = [1, 0, 0] }");
+    EXPECT_LT(std::max({std::fabs(black.x), std::fabs(black.y), std::fabs(black.z)}), 1e-3f);
 }
 
 TEST(VertexColors, GltfColor0TintsTheBaseColour) {

@@ -414,8 +414,9 @@ void normal_map(Builder& b, const tinygltf::Material& g, const std::string& mp) 
     b.m.maps.push_back(std::move(p));
 }
 
-/** emissiveFactor x KHR_materials_emissive_strength; an emissive texture's mean colour
- *  multiplies it (the texture itself cannot vary an object's emission). */
+/** emissiveFactor x KHR_materials_emissive_strength; with an emissive texture (sRGB), the
+ *  texture scaled per channel by the factor (as the base colour's), as TOML's `emission =
+ *  { texture, scale }` has it. */
 std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
                                      const std::string& mp) {
     Vec3 e{0, 0, 0};
@@ -423,19 +424,24 @@ std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
         e = {narrow(g.emissiveFactor[0]), narrow(g.emissiveFactor[1]), narrow(g.emissiveFactor[2])};
     if (!std::isfinite(e.x + e.y + e.z)) e = {0, 0, 0};
     e = clamp3(e, 0.0f, 1.0f);
+    EmissionDesc d;
     if (g.emissiveTexture.index >= 0 && (e.x > 0 || e.y > 0 || e.z > 0)) {
-        const std::optional<Vec3> mean = texture_mean(ctx, g.emissiveTexture.index);
-        ctx.note("emissiveTexture", ctx.at(mp + "/emissiveTexture"),
-                 mean ? "emissiveTexture is dropped: its mean colour times emissiveFactor stands "
-                        "in (an object emits one colour)"
-                      : "emissiveTexture is dropped and could not be decoded: emissiveFactor "
-                        "stands in");
-        if (mean) e = {e.x * mean->x, e.y * mean->y, e.z * mean->z};
+        const std::string tp = mp + "/emissiveTexture";
+        d.texture = texture_desc(ctx, use_of(g.emissiveTexture), tp, true);
+        // Its mean weighs how brightly the emission lights the file (a helmet's few glowing
+        // lights do not light it: the studio light stands in beside them).
+        if (const std::optional<Vec3> mean = texture_mean(ctx, g.emissiveTexture.index))
+            d.mean = luminance(*mean);
     }
     if (!(e.x > 0 || e.y > 0 || e.z > 0)) return std::nullopt;
-    EmissionDesc d;
     const FileLoc at = ctx.at(mp + "/emissiveFactor");
     d.color = ColorDesc{e, std::string("lin_rec709"), at, at};
+    if (d.texture) {
+        d.texture->scale[0] = e.x;
+        d.texture->scale[1] = e.y;
+        d.texture->scale[2] = e.z;
+        d.color.rgb = {1, 1, 1};
+    }
     d.group.loc = at;
     d.of_material = true;
     if (const tinygltf::Value* x = extension(g, "KHR_materials_emissive_strength"))

@@ -426,7 +426,7 @@ double emission_irradiance(const SceneDescription& s) {
         area += a;
         if (o.emission) {
             const Vec3 c = o.emission->color.rgb;
-            power += std::numbers::pi * a * o.emission->intensity *
+            power += std::numbers::pi * a * o.emission->intensity * o.emission->mean *
                      static_cast<double>(std::max({c.x, c.y, c.z}));
         }
     }

@@ -198,8 +198,19 @@ void read_area_light(Reader& r, const std::string& type, ParamList& p, const Fil
         r.sign(true, loc, "area light 'power'");
         a.power = pw->numbers[0];
     }
-    if (const Param* f = p.find("filename", {"string"}))
-        r.notes.add(f->loc, "an area light's image is not supported: its 'L' stands in");
+    if (const Param* f = p.find("filename", {"string"}); f && !f->strings.empty()) {
+        // pbrt-v4: the image's colour at the shape's (u, 1 - v) times scale, L unused; Spangle
+        // reads its textures at (u, 1 - v) too.
+        TextureDesc t;
+        t.path = r.find_file(f->strings[0], "area light filename", f->loc);
+        t.wrap = 1;  // clamp, as pbrt's image lookups of a light
+        a.image = t;
+        a.L = r.color(Vec3(1.0f), loc);
+        if (a.power) {
+            r.notes.add(loc, "area light 'power' with an image: 'scale' alone stands in");
+            a.power.reset();
+        }
+    }
     r.notes.unused(p, fmt::format("AreaLightSource \"{}\"", type));
     r.gs.area = a;
 }

@@ -401,6 +401,7 @@ EmissionDesc emission_of(Reader& r, const AreaLight& a, const Made& made, const 
     e.color = a.L;
     e.intensity = a.scale;
     e.two_sided = a.two_sided;
+    e.texture = a.image;
     if (a.power) {
         // pbrt-v4: the radiance that makes the shape emit `power` watts, pi A per side, with A
         // a quadric's area in its own space (pbrt's Sphere::Area() and the like: a scaled

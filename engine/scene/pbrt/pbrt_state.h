@@ -47,6 +47,8 @@ struct AreaLight {
     bool two_sided = false;       ///< "twosided"
     std::optional<double> power;  ///< v4 "power" (W): radiance scaled so the shape emits it
     FileLoc loc;                  ///< the directive
+    /** v4 "filename": an image of radiance read at the shape's uvs (L is then unused). */
+    std::optional<TextureDesc> image;
 };
 
 /** A texture as Spangle can take it: a constant, or an image lookup with its scale. */

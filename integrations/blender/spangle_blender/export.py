@@ -409,8 +409,8 @@ def _alpha_toml(v):
 
 
 def material_entry(mat, flake_params, warnings):
-    """(plugin, model, params, emission) for a Blender material; emission is (rgb, intensity)
-    or None."""
+    """(plugin, model, params, emission) for a Blender material; emission is (rgb or an image
+    texture's table, intensity) or None."""
     if mat is None:
         return "smooth", "diffuse", {"albedo": (0.8, 0.8, 0.8)}, None
     flakes = getattr(mat, "spangle_flakes", None)
@@ -455,8 +455,7 @@ def material_entry(mat, flake_params, warnings):
     if isinstance(e_color, tuple) and e_strength and max(e_color) > 0.0:
         emission = (e_color, float(e_strength))
     elif isinstance(e_color, dict) and e_strength:
-        warnings.append(f"{what}: an image texture in Emission Color is not exported; the "
-                        "object does not emit")
+        emission = (e_color, float(e_strength))  # an image: the emission's texture
     _dropped_inputs(node, transmission, warnings, what)
     surface = _surface_map(node, warnings, what)
     alpha = _alpha(node, warnings, what)
@@ -884,7 +883,9 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
         if emission is not None:
             # Cycles' emission shines from both sides of a face (one-sided, an emitter whose
             # normals faced away was black).
-            out += [f"emission = {_vec(emission[0])}", f"emission_intensity = {_fmt(emission[1])}",
+            color = (_param_toml("emission", emission[0]) if isinstance(emission[0], dict)
+                     else f"emission = {_vec(emission[0])}")
+            out += [color, f"emission_intensity = {_fmt(emission[1])}",
                     "emission_two_sided = true"]
         out.append("")
     with open(os.path.join(folder, "scene.toml"), "w", encoding="utf-8") as f:
