@@ -43,4 +43,15 @@ inline FrameRequest text_request(const TempDir& dir, const std::string& name,
     return req;
 }
 
+/** The mean RGB of the w x h block at (x0, y0) of a render. */
+inline Vec3 block_mean(const FrameResult& r, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h) {
+    Vec3 sum(0.0f);
+    for (uint32_t y = y0; y < y0 + h; ++y)
+        for (uint32_t x = x0; x < x0 + w; ++x) {
+            const float* p = &r.image[3 * (static_cast<std::size_t>(y) * r.width + x)];
+            sum += Vec3(p[0], p[1], p[2]);
+        }
+    return sum / static_cast<float>(w * h);
+}
+
 }  // namespace spangle::test

@@ -49,17 +49,6 @@ std::string write_screen(const test::TempDir& dir) {
     return dir.file("screen.obj");
 }
 
-/** The mean of the w x h block at (x0, y0). */
-Vec3 block_mean(const FrameResult& r, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h) {
-    Vec3 sum(0.0f);
-    for (uint32_t y = y0; y < y0 + h; ++y)
-        for (uint32_t x = x0; x < x0 + w; ++x) {
-            const float* p = &r.image[3 * (y * r.width + x)];
-            sum += Vec3(p[0], p[1], p[2]);
-        }
-    return sum / static_cast<float>(w * h);
-}
-
 TEST(EmissionImage, SeenDirectlyIsTheImageTimesTheIntensity) {
     test::TempDir dir("emission_image_seen");
     write_halves(dir.file("halves.exr"), {1.0f, 0.0f, 0.0f}, {0.0f, 0.25f, 1.0f});
@@ -88,7 +77,7 @@ emission_intensity = 2
                                           screen);
     const FrameResult r = render_frame(test::text_request(dir, "seen.toml", scene));
     // The screen fills the frame (2 units at 4 units, fov 20: 1.41 units high).
-    const Vec3 left = block_mean(r, 4, 12, 6, 8), right = block_mean(r, 22, 12, 6, 8);
+    const Vec3 left = test::block_mean(r, 4, 12, 6, 8), right = test::block_mean(r, 22, 12, 6, 8);
     EXPECT_NEAR(left.x, 2.0f, 1e-3f);
     EXPECT_NEAR(left.y, 0.0f, 1e-3f);
     EXPECT_NEAR(left.z, 0.0f, 1e-3f);
@@ -152,8 +141,9 @@ TEST(EmissionImage, LightsAFloorAlikeUnderEveryStrategy) {
     int k = 0;
     for (Strategy st : {Strategy::Mis, Strategy::NeeOnly, Strategy::BsdfOnly}) {
         const FrameResult r = render(image, st);
-        const Vec3 left = block_mean(r, 0, 0, 12, 32), right = block_mean(r, 20, 0, 12, 32);
-        means[k++] = block_mean(r, 0, 0, 32, 32);
+        const Vec3 left = test::block_mean(r, 0, 0, 12, 32),
+                   right = test::block_mean(r, 20, 0, 12, 32);
+        means[k++] = test::block_mean(r, 0, 0, 32, 32);
         // (1.36 to 1: each floor point sees both halves, the near one larger.)
         EXPECT_GT(left.x, 1.25f * left.z) << static_cast<int>(st);
         EXPECT_GT(right.z, 1.25f * right.x) << static_cast<int>(st);
@@ -165,7 +155,7 @@ TEST(EmissionImage, LightsAFloorAlikeUnderEveryStrategy) {
     // The image's total equals a plain emission of its mean colour's: the floor's mean
     // irradiance (the floor spans the light's whole reach) is the same.
     const FrameResult flat = render("[0.5, 0, 0.5]", Strategy::Mis);
-    const Vec3 m = block_mean(flat, 0, 0, 32, 32);
+    const Vec3 m = test::block_mean(flat, 0, 0, 32, 32);
     EXPECT_NEAR(means[0].x + means[0].z, m.x + m.z, 0.03f * (m.x + m.z));
     EXPECT_GT(means[0].x, 0.01f);
 }
@@ -180,7 +170,7 @@ TEST(EmissionImage, ABlackImageLightsNothing) {
             lit_floor_scene(screen, R"({ texture = "black.exr", space = "lin_rec709" })"));
         req.options.strategy = st;
         const FrameResult r = render_frame(req);
-        const Vec3 m = block_mean(r, 0, 0, 32, 32);
+        const Vec3 m = test::block_mean(r, 0, 0, 32, 32);
         EXPECT_EQ(m.x + m.y + m.z, 0.0f) << static_cast<int>(st);
     }
 }

@@ -166,17 +166,6 @@ std::string quad_ply(const test::TempDir& dir, const std::string& name, const st
     return dir.file(name);
 }
 
-/** The mean of the w x h block at (x0, y0) of an RGB image of width `width`. */
-Vec3 block_mean(const FrameResult& r, uint32_t x0, uint32_t y0, uint32_t w, uint32_t h) {
-    Vec3 sum(0.0f);
-    for (uint32_t y = y0; y < y0 + h; ++y)
-        for (uint32_t x = x0; x < x0 + w; ++x) {
-            const float* p = &r.image[3 * (y * r.width + x)];
-            sum += Vec3(p[0], p[1], p[2]);
-        }
-    return sum / static_cast<float>(w * h);
-}
-
 TEST(VertexColors, MultiplyTheParameterThatAsksForThem) {
     test::TempDir dir("vertex_colors_render");
     const std::string colored = quad_ply(dir, "colored.ply", "0.2 0.6 0.9");
@@ -211,7 +200,7 @@ translate = [1.2, 0, 0]
     const FrameResult r = render_frame(test::text_request(dir, "scene.toml", scene));
     // The frame is 2.68 units high (fov 30 degrees, vertical, at 5): 7.5 pixels a unit, so the
     // quads cover x 3.6..18.5 and 21.5..36.4, y 2.5..17.5.
-    const Vec3 left = block_mean(r, 9, 8, 4, 4), right = block_mean(r, 27, 8, 4, 4);
+    const Vec3 left = test::block_mean(r, 9, 8, 4, 4), right = test::block_mean(r, 27, 8, 4, 4);
     // The colours are linear Rec.709; the image is in the working space (ACEScg by default).
     float want[3] = {0.1f, 0.3f, 0.45f};
     r.color.convert("lin_rec709", r.color.working_space(), want, 1);
@@ -255,8 +244,8 @@ material = "m"
                            albedo, mesh);
     };
     const auto centre = [&](const std::string& mesh, const std::string& albedo) {
-        return block_mean(render_frame(test::text_request(dir, "s.toml", scene(mesh, albedo))), 8,
-                          8, 4, 4);
+        return test::block_mean(
+            render_frame(test::text_request(dir, "s.toml", scene(mesh, albedo))), 8, 8, 4, 4);
     };
     const Vec3 factor = centre(plain, "{ vertex_color = true, scale = [1, 0, 0] }");
     const Vec3 colour = centre(plain, "{ rgb = [1, 0, 0], space = \"lin_rec709\" }");
