@@ -160,8 +160,8 @@ void system_area_lights(ecs::Registry& r, World& w) {
                 means = images->triangle_means(static_cast<uint32_t>(image), mesh);
                 if (mesh.uv_mapped_fraction() <= 0.0 && w.log)
                     w.log->warn(
-                        "{}: an emission image on mesh '{}', which has no uvs: every "
-                        "point reads the image at uv (0, 0)",
+                        "{}: an emission image on mesh '{}', which has no uvs: it emits one "
+                        "colour everywhere (the image's lookup at uv (0, 0))",
                         ei.loc.str(), mesh.source);
             }
             add_mesh_emitters(mesh, r.get<Transform>(e).to_world, emission->columns().get(i),

@@ -553,6 +553,10 @@ ObjectDesc read_object(const ReadContext& ctx, TableReader& r) {
         // A colour, or an image: `emission = { texture = "screen.png", scale = ... }`.
         const toml::node* en = r.node("emission");
         const toml::table* et = en ? en->as_table() : nullptr;
+        if (et && !et->contains("texture") && !et->contains("rgb") && !et->contains("vertex_color"))
+            throw_error(r.loc("emission"),
+                        "'emission' is a colour ([r, g, b] or {{ rgb = [r, g, b], space = ... }}) "
+                        "or an image {{ texture = \"file\", ... }}");
         if (et && et->contains("vertex_color"))
             throw_error(r.loc("emission"),
                         "'emission' is a colour or {{ texture = \"file\", ... }}: vertex colours "

@@ -205,6 +205,10 @@ void read_area_light(Reader& r, const std::string& type, ParamList& p, const Fil
         t.path = r.find_file(f->strings[0], "area light filename", f->loc);
         t.wrap = 1;  // clamp, as pbrt's image lookups of a light
         a.image = t;
+        if (p.find("L", {"rgb", "spectrum", "blackbody"}))
+            r.notes.add(loc,
+                        "an area light with both 'L' and 'filename' (pbrt-v4 refuses "
+                        "it): the image stands, 'L' is unused");
         a.L = r.color(Vec3(1.0f), loc);
         if (a.power) {
             r.notes.add(loc, "area light 'power' with an image: 'scale' alone stands in");
