@@ -53,6 +53,7 @@ int run_convert(const ConvertArgs& a) {
         caches.push_back(fs::absolute(dir, ec).lexically_normal());
     std::size_t images = 0;
     const auto carry = [&](TextureDesc& t) {
+        if (t.path.empty()) return;  // vertex colours alone
         const fs::path from = fs::absolute(t.path, ec).lexically_normal();
         if (std::find(caches.begin(), caches.end(), from.parent_path()) == caches.end()) return;
         fs::create_directories(meshes, ec);
@@ -73,6 +74,8 @@ int run_convert(const ConvertArgs& a) {
             if (p.kind == ParamDesc::Kind::Texture) carry(p.texture);
         if (m.alpha && m.alpha->kind == ParamDesc::Kind::Texture) carry(m.alpha->texture);
     }
+    for (ObjectDesc& o : scene.objects)
+        if (o.emission && o.emission->texture) carry(*o.emission->texture);
     const SceneWriteReport rep = write_toml_scene(scene, a.output, meshes.string());
     std::string beside;
     if (!rep.meshes.empty())

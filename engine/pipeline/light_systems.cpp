@@ -41,12 +41,14 @@ public:
         q.resize(n);
         const TextureRef& ref = entries_[index].ref;
         for (std::size_t t = 0; t < n; ++t) {
-            float s[3] = {0, 0, 0}, tt[3] = {0, 0, 0};
-            if (!mesh.uvs.empty())
-                for (int k = 0; k < 3; ++k) {
-                    const uint32_t i = mesh.indices[3 * t + static_cast<std::size_t>(k)];
-                    texture_st(ref, mesh.uvs[2 * i], mesh.uvs[2 * i + 1], s[k], tt[k]);
-                }
+            float s[3], tt[3];
+            for (int k = 0; k < 3; ++k) {
+                // Without uvs, uv (0, 0), as at() reads it there.
+                const uint32_t i = mesh.indices[3 * t + static_cast<std::size_t>(k)];
+                const bool uv = !mesh.uvs.empty();
+                texture_st(ref, uv ? mesh.uvs[2 * i] : 0.0f, uv ? mesh.uvs[2 * i + 1] : 0.0f, s[k],
+                           tt[k]);
+            }
             q.s[t] = (s[0] + s[1] + s[2]) / 3.0f;
             q.t[t] = (tt[0] + tt[1] + tt[2]) / 3.0f;
             q.dsdx[t] = s[1] - s[0];

@@ -25,7 +25,7 @@ std::string material_key(const World& w, const Material& m) {
             const TextureRef& t = p.texture;
             key += fmt::format(":{}:{}:{}:{}:{}", file_identity(t.path), t.space,
                                fmt::join(t.scale, ","), fmt::join(t.uv, ","), t.wrap);
-            key += fmt::format(":{}:{}:{}", t.amount, t.filter, t.channel);
+            key += fmt::format(":{}:{}:{}:{}", t.amount, t.filter, t.channel, t.vertex_color);
         }
     return key;
 }

@@ -105,7 +105,7 @@ void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
 
 bool same_content(const TriangleMesh& a, const TriangleMesh& b) {
     return a.positions == b.positions && a.normals == b.normals && a.uvs == b.uvs &&
-           a.indices == b.indices;
+           a.colors == b.colors && a.indices == b.indices;
 }
 
 /** An inline mesh, or the equal one the last load used (so that its BVH is reused). */

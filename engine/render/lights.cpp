@@ -554,7 +554,8 @@ LightSample LightTable::sample_area(uint32_t id, Vec3 p, float sel, float u1, fl
     bool solid = false;
     if (!sample_area_point(e, p, sel, u1, u2, q, solid, s.pdf)) return LightSample{};
     if (!towards(p, q, s)) return LightSample{};
-    s.radiance = area_emitted(id, -s.wi);
+    // (A textured emitter's radiance is read below, where the point's barycentrics are known.)
+    if (e.image < 0) s.radiance = area_emitted(id, -s.wi);
     if (!solid) {
         const float cos_l = std::fabs(dot(e.n, s.wi));
         s.pdf = cos_l > 0.0f ? sel * s.dist * s.dist / (cos_l * e.area) : 0.0f;

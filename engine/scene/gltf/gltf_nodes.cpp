@@ -425,7 +425,12 @@ double emission_irradiance(const SceneDescription& s) {
         const double a = object_area(o);
         area += a;
         if (o.emission) {
-            const Vec3 c = o.emission->color.rgb;
+            // With an image, its factor is the texture's scale (the colour is white).
+            const TextureDesc* t = o.emission->texture ? &*o.emission->texture : nullptr;
+            const Vec3 c = t ? Vec3(t->scale[0] * o.emission->color.rgb.x,
+                                    t->scale[1] * o.emission->color.rgb.y,
+                                    t->scale[2] * o.emission->color.rgb.z)
+                             : o.emission->color.rgb;
             power += std::numbers::pi * a * o.emission->intensity * o.emission->mean *
                      static_cast<double>(std::max({c.x, c.y, c.z}));
         }
