@@ -79,6 +79,10 @@ constexpr float luminance(Vec3 c) {
 inline double srgb_to_linear(double x) {
     return x <= 0.04045 ? x / 12.92 : std::pow((x + 0.055) / 1.055, 2.4);
 }
+/** sRGB's transfer function: a linear value in [0, 1] to its encoded value. */
+inline double linear_to_srgb(double x) {
+    return x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055;
+}
 
 /** Orthonormal basis around unit n (Duff et al. 2017, "Building an Orthonormal Basis,
  *  Revisited"), used when a surface has no usable dpdu. */

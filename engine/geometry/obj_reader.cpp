@@ -47,11 +47,7 @@ public:
         check_indices();
         raw_.positions = std::move(positions_);
         raw_.uvs = std::move(uvs_);
-        if (!colors_.empty()) {
-            colors_.resize(raw_.positions.size(), 1.0f);
-            for (float& c : colors_) c = c >= 0.0f ? c : 1.0f;
-            raw_.colors = std::move(colors_);
-        }
+        raw_.colors = std::move(colors_);
         return std::move(raw_);
     }
 
@@ -83,17 +79,19 @@ private:
         }
     }
 
-    /** The colours as written (encoded; -1 where a vertex has none) to linear: fractions, or
-     *  0..255 where any exceeds 1 (as some tools write them). */
+    /** The colours as written (encoded; -1 where a vertex has none) to linear, one per vertex:
+     *  fractions, or 0..255 where any exceeds 1 (as some tools write them); a vertex without a
+     *  colour among coloured ones white. */
     void decode_colors() {
         float top = 0.0f;
         for (const float c : colors_) top = std::max(top, c);
         const double scale = top > 1.0f ? 1.0 / 255.0 : 1.0;
         if (top > 1.0f) notes_.push_back("its vertex colours exceed 1: read as 0..255");
+        if (!colors_.empty()) colors_.resize(positions_.size(), -1.0f);  // the last without
         for (float& c : colors_)
-            if (c >= 0.0f)
-                c = static_cast<float>(
-                    srgb_to_linear(std::clamp(static_cast<double>(c) * scale, 0.0, 1.0)));
+            c = c >= 0.0f ? static_cast<float>(srgb_to_linear(
+                                std::clamp(static_cast<double>(c) * scale, 0.0, 1.0)))
+                          : 1.0f;
         if (zbrush_)
             notes_.push_back(
                 "its ZBrush polypaint (#MRGB comments) is not read: export vertex "
@@ -199,13 +197,11 @@ private:
                                    c2 = next_token(more), c3 = next_token(more);
             const bool colored = !c2.empty() && next_token(more).empty();
             if (colored) {
-                colors_.resize(positions_.size() - 3, -1.0f);  // earlier vertices without
+                colors_.resize(positions_.size() - 3, -1.0f);  // the vertices before without
                 for (const std::string_view c : {c0, c1, c2})
                     colors_.push_back(std::max(number(c, "vertex colour"), 0.0f));
                 if (!c3.empty()) number(c3, "vertex colour");  // an alpha: checked, not kept
                 ++colored_;
-            } else if (!colors_.empty()) {
-                colors_.insert(colors_.end(), {-1.0f, -1.0f, -1.0f});
             }
         } else if (keyword == "vt") {
             // u, and v when given (OBJ allows vt with one number).
@@ -280,13 +276,9 @@ private:
                 mesh.normals.insert(mesh.normals.end(),
                                     {normals_[3 * n], normals_[3 * n + 1], normals_[3 * n + 2]});
             }
-            if (!colors_.empty()) {
-                // A vertex written without a colour among coloured ones is white (said below).
-                const std::size_t k = 3 * v;
-                for (std::size_t i = 0; i < 3; ++i)
-                    mesh.colors.push_back(
-                        k + i < colors_.size() && colors_[k + i] >= 0.0f ? colors_[k + i] : 1.0f);
-            }
+            if (!colors_.empty())
+                mesh.colors.insert(mesh.colors.end(),
+                                   {colors_[3 * v], colors_[3 * v + 1], colors_[3 * v + 2]});
             if (any_uv) {
                 const auto t = static_cast<std::size_t>(c.vt);
                 mesh.uvs.insert(mesh.uvs.end(), {c.vt >= 0 ? uvs_[2 * t] : 0.0f,
@@ -311,7 +303,8 @@ private:
     ObjPolygons raw_;
     int line_ = 0;
     std::vector<float> positions_, uvs_, normals_;
-    /** rgb per vertex (linear) once any `v` had a colour; -1 for vertices without. */
+    /** rgb per vertex once any `v` had a colour: as written, -1 for vertices without; linear
+     *  (white for those) after decode_colors(). */
     std::vector<float> colors_;
     std::size_t colored_ = 0;  ///< `v` statements with a colour
     bool zbrush_ = false;      ///< a `#MRGB` comment was seen

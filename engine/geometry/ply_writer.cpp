@@ -3,13 +3,13 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <vector>
 
 #include "core/error.h"
+#include "core/math.h"
 
 namespace spangle {
 
@@ -67,9 +67,7 @@ void write_obj_cage(const Cage& cage, const std::string& path, const std::string
     const auto exact = [](float x) { return fmt::format("{}", static_cast<double>(x)); };
     // Colours as OBJ readers take them, sRGB-encoded (read_obj decodes them again).
     const auto encoded = [](float c) {
-        const double x = std::clamp(static_cast<double>(c), 0.0, 1.0);
-        return fmt::format("{}",
-                           x <= 0.0031308 ? 12.92 * x : 1.055 * std::pow(x, 1.0 / 2.4) - 0.055);
+        return fmt::format("{}", linear_to_srgb(std::clamp(static_cast<double>(c), 0.0, 1.0)));
     };
     const bool colors = cage.colors.size() == cage.positions.size();
     for (std::size_t v = 0; v < cage.vertex_count(); ++v) {

@@ -241,19 +241,27 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
         }
     }
 
-    // Positions through every level, then to the limit with tangents.
-    std::vector<P3> verts(static_cast<std::size_t>(refiner->GetNumVerticesTotal()));
-    for (int i = 0; i < nv; ++i)
-        for (int c = 0; c < 3; ++c)
-            verts[static_cast<std::size_t>(i)].v[c] =
-                cage.positions[static_cast<std::size_t>(3 * i + c)];
+    // A vertex value (xyz per cage vertex) through every level: the values of all levels, and
+    // where the last level's begin.
     Far::PrimvarRefiner primvar(*refiner);
-    P3* src = verts.data();
-    for (int level = 1; level <= o.level; ++level) {
-        P3* dst = src + refiner->GetLevel(level - 1).GetNumVertices();
-        primvar.Interpolate(level, src, dst);
-        src = dst;
-    }
+    const auto refine_vertex_value = [&](const std::vector<float>& per_cage_vertex,
+                                         std::vector<P3>& all) {
+        all.assign(static_cast<std::size_t>(refiner->GetNumVerticesTotal()), P3{});
+        for (int i = 0; i < nv; ++i)
+            for (int c = 0; c < 3; ++c)
+                all[static_cast<std::size_t>(i)].v[c] =
+                    per_cage_vertex[static_cast<std::size_t>(3 * i + c)];
+        P3* at = all.data();
+        for (int level = 1; level <= o.level; ++level) {
+            P3* next = at + refiner->GetLevel(level - 1).GetNumVertices();
+            primvar.Interpolate(level, at, next);
+            at = next;
+        }
+        return at;
+    };
+    // Positions, then to the limit with tangents.
+    std::vector<P3> verts;
+    P3* src = refine_vertex_value(cage.positions, verts);
     const Far::TopologyLevel& last = refiner->GetLevel(o.level);
     const auto n_last = static_cast<std::size_t>(last.GetNumVertices());
     std::vector<P3> limit(n_last), du(n_last), dv(n_last);
@@ -265,17 +273,8 @@ TriangleMesh subdivide(const Cage& cage, const SubdivOptions& o, const FileLoc& 
     // Vertex colours as positions are refined (a vertex primvar), to the limit.
     std::vector<P3> color_limit;
     if (!cage.colors.empty()) {
-        std::vector<P3> colors(verts.size());
-        for (int i = 0; i < nv; ++i)
-            for (int c = 0; c < 3; ++c)
-                colors[static_cast<std::size_t>(i)].v[c] =
-                    cage.colors[static_cast<std::size_t>(3 * i + c)];
-        P3* cs = colors.data();
-        for (int level = 1; level <= o.level; ++level) {
-            P3* cd = cs + refiner->GetLevel(level - 1).GetNumVertices();
-            primvar.Interpolate(level, cs, cd);
-            cs = cd;
-        }
+        std::vector<P3> colors;
+        P3* cs = refine_vertex_value(cage.colors, colors);
         color_limit.resize(n_last);
         if (stacked_last)
             std::copy(cs, cs + n_last, color_limit.begin());

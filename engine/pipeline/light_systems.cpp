@@ -2,6 +2,7 @@
 // environment), and light_selection, which puts every set into one table sized by the scene.
 
 #include <cmath>
+#include <map>
 
 #include "core/files.h"
 #include "pipeline/environment_load.h"
@@ -17,8 +18,13 @@ class TexturedEmission final : public EmissionImages {
 public:
     explicit TexturedEmission(const TextureService& textures) : textures_(textures) {}
 
-    uint32_t add(const TextureRef& ref, std::shared_ptr<const Texture> tex) {
-        entries_.push_back({ref, std::move(tex)});
+    /** The index of the image `ref` looks up, opened (through `open`) on its first use: many
+     *  objects emitting one image share it. */
+    template <class Open>
+    uint32_t add(const TextureRef& ref, Open&& open) {
+        for (std::size_t i = 0; i < entries_.size(); ++i)
+            if (entries_[i].ref == ref) return static_cast<uint32_t>(i);
+        entries_.push_back({ref, open()});
         return static_cast<uint32_t>(entries_.size() - 1);
     }
 
@@ -98,7 +104,7 @@ float length_of(Vec3 v) {
  *  both ways, when two-sided). */
 void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emission& emission,
                        uint32_t group, std::vector<AreaEmitter>& out, int32_t image = -1,
-                       const std::vector<float>& image_means = {}) {
+                       const std::vector<float>* image_means = nullptr) {
     const Affine nxf = xf.normal_matrix();
     for (std::size_t t = 0; t < mesh.triangle_count(); ++t) {
         const uint32_t i0 = mesh.indices[3 * t], i1 = mesh.indices[3 * t + 1],
@@ -127,7 +133,7 @@ void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emissio
         a.group = group;
         if (image >= 0) {
             a.image = image;
-            a.image_mean = image_means[t];
+            a.image_mean = (*image_means)[t];
             if (!mesh.uvs.empty())
                 for (int k = 0; k < 3; ++k) {
                     const uint32_t v = mesh.indices[3 * t + static_cast<std::size_t>(k)];
@@ -142,6 +148,8 @@ void add_mesh_emitters(const TriangleMesh& mesh, const Affine& xf, const Emissio
 void system_area_lights(ecs::Registry& r, World& w) {
     AreaLightSet set;
     std::shared_ptr<TexturedEmission> images;
+    // Each (mesh, image)'s triangle means, once (instances of one emissive mesh share them).
+    std::map<std::pair<const TriangleMesh*, uint32_t>, std::vector<float>> means_of;
     if (auto* emission = r.find_pool<Emission>()) {
         std::vector<std::pair<ecs::Entity, int32_t>> refs;
         for (std::size_t i = 0; i < emission->size(); ++i) {
@@ -150,16 +158,19 @@ void system_area_lights(ecs::Registry& r, World& w) {
             refs.emplace_back(e, static_cast<int32_t>(set.areas.size()));
             const TriangleMesh& mesh = mesh_of(w, r.get<TriangleMeshRef>(e));
             int32_t image = -1;
-            std::vector<float> means;
+            const std::vector<float>* means = nullptr;
             if (r.has<EmissionImage>(e) && w.host) {
                 // An emission image: opened (converted to the working space) as a colour
                 // texture, and its mean over each triangle for light selection.
                 const EmissionImage& ei = r.get<EmissionImage>(e);
                 w.read_file("texture", ei.texture.path);
                 if (!images) images = std::make_shared<TexturedEmission>(w.host->textures());
-                image = static_cast<int32_t>(
-                    images->add(ei.texture, w.host->textures().open(ei.texture, true, ei.loc)));
-                means = images->triangle_means(static_cast<uint32_t>(image), mesh);
+                const uint32_t index = images->add(
+                    ei.texture, [&] { return w.host->textures().open(ei.texture, true, ei.loc); });
+                image = static_cast<int32_t>(index);
+                auto [it, fresh] = means_of.try_emplace({&mesh, index});
+                if (fresh) it->second = images->triangle_means(index, mesh);
+                means = &it->second;
                 if (mesh.uv_mapped_fraction() <= 0.0 && w.log)
                     w.log->warn(
                         "{}: an emission image on mesh '{}', which has no uvs: it emits one "

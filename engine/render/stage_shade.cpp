@@ -222,16 +222,10 @@ const float* const* lookup_textures(const RenderScene& w, Workspace& ws,
         const bool vc_scaled = t.ref.vertex_color && c == 3;
         if (vc_scaled)
             for (uint32_t k = 0; k < n; ++k) {
-                const Vec3 s = ws.paths.surf[paths[k]].color;
-                const Vec3 vc(s.x * t.ref.scale[0], s.y * t.ref.scale[1], s.z * t.ref.scale[2]);
-                const float* m = t.vertex_to_working;
-                float* o = &out[3 * k];
-                const float r = m[0] * vc.x + m[1] * vc.y + m[2] * vc.z;
-                const float g = m[3] * vc.x + m[4] * vc.y + m[5] * vc.z;
-                const float bl = m[6] * vc.x + m[7] * vc.y + m[8] * vc.z;
-                o[0] *= r;
-                o[1] *= g;
-                o[2] *= bl;
+                const Vec3 f = t.vertex_factor(ws.paths.surf[paths[k]].color);
+                out[3 * k] *= f.x;
+                out[3 * k + 1] *= f.y;
+                out[3 * k + 2] *= f.z;
             }
         for (std::size_t i = 0; i < n * c; ++i) {
             const float x = vc_scaled ? out[i] : out[i] * t.ref.scale[i % c];

@@ -397,10 +397,10 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
         float factor[3] = {b.ref.scale[0], b.ref.scale[1], b.ref.scale[2]};
         if (b.ref.vertex_color) {
             vertex_color_matrix(host.color(), b.vertex_to_working);
-            const float* mx = b.vertex_to_working;
-            const float s[3] = {factor[0], factor[1], factor[2]};
-            for (int i = 0; i < 3; ++i)
-                factor[i] = mx[3 * i] * s[0] + mx[3 * i + 1] * s[1] + mx[3 * i + 2] * s[2];
+            const Vec3 f = b.vertex_factor(Vec3(1.0f));
+            factor[0] = f.x;
+            factor[1] = f.y;
+            factor[2] = f.z;
         }
         for (int c = 0; c < b.channels; ++c)
             params.values[k].number[c] =

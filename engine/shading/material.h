@@ -66,6 +66,14 @@ struct TextureBinding {
     std::shared_ptr<const Texture> texture;  ///< null for vertex colours alone (ref.vertex_color)
     /** ref.vertex_color: the meshes' colours (linear Rec.709) to the working space, row-major. */
     float vertex_to_working[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    /** ref.vertex_color: a vertex colour times ref.scale (both linear Rec.709), in the working
+     *  space: what multiplies the image's value (1 without an image). */
+    Vec3 vertex_factor(Vec3 color) const {
+        const Vec3 c(color.x * ref.scale[0], color.y * ref.scale[1], color.z * ref.scale[2]);
+        const float* m = vertex_to_working;
+        return {m[0] * c.x + m[1] * c.y + m[2] * c.z, m[3] * c.x + m[4] * c.y + m[5] * c.z,
+                m[6] * c.x + m[7] * c.y + m[8] * c.z};
+    }
 };
 
 /** An alpha texture's channel at full resolution in memory, 16 bits per texel: the ray tracer
