@@ -95,6 +95,9 @@ uint64_t mesh_content_hash(const TriangleMesh& mesh) {
     words(mesh.uvs.data(), mesh.uvs.size() * sizeof(float));
     words(mesh.colors.data(), mesh.colors.size() * sizeof(float));
     words(mesh.indices.data(), mesh.indices.size() * sizeof(uint32_t));
+    // Only when there is one (the hashes of meshes without a rest pose stay as they were).
+    if (!mesh.rest_positions.empty())
+        words(mesh.rest_positions.data(), mesh.rest_positions.size() * sizeof(float));
     return h;
 }
 

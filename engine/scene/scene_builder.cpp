@@ -491,10 +491,20 @@ void put_shape(BuildContext& ctx, ecs::Entity e, const ObjectDesc& d) {
                              sub->pixel_budget, sub->cage, content, std::move(f.rest), f.rest_loc});
     } else {
         const auto& in = std::get<InlineMeshShape>(d.shape);
-        if (!in.mesh) throw_error(in.loc, "{}: its triangle mesh is missing", d.what);
-        auto [it, added] = ctx.mesh_hashes.emplace(in.mesh.get(), 0);
-        if (added) it->second = mesh_content_hash(*in.mesh);
-        ctx.registry->put(e, InlineMesh{in.mesh, it->second, in.loc});
+        std::shared_ptr<const TriangleMesh> mesh = in.mesh;
+        if (in.deformation && in.deformation->animated()) {
+            // Its shape at the shutter's middle, where its placement is (a deformation is not
+            // blurred within the shutter, as a mesh sequence's is not).
+            mesh = in.deformation->at(ctx.shutter.middle);
+            SceneInfo& info = *ctx.info;
+            info.animated = true;
+            info.keys_from = std::min(info.keys_from, in.deformation->first);
+            info.keys_to = std::max(info.keys_to, in.deformation->last);
+        }
+        if (!mesh) throw_error(in.loc, "{}: its triangle mesh is missing", d.what);
+        auto [it, added] = ctx.mesh_hashes.emplace(mesh.get(), 0);
+        if (added) it->second = mesh_content_hash(*mesh);
+        ctx.registry->put(e, InlineMesh{mesh, it->second, in.loc});
     }
 }
 
@@ -553,8 +563,10 @@ void build_object(BuildContext& ctx, const ObjectDesc& d, uint32_t index) {
     info.object_to_world.push_back(motion.middle);
     const auto* file = std::get_if<MeshFileShape>(&d.shape);
     const auto* cage = std::get_if<SubdivShape>(&d.shape);
+    const auto* in = std::get_if<InlineMeshShape>(&d.shape);
     if ((file && (file->sequence || !file->rest_path.empty())) ||
-        (cage && (cage->sequence || !cage->rest_path.empty()))) {
+        (cage && (cage->sequence || !cage->rest_path.empty())) ||
+        (in && (in->deformation || (in->mesh && !in->mesh->rest_positions.empty())))) {
         info.rest_pose.resize(index + 1, 0);
         info.rest_pose[index] = 1;
     }

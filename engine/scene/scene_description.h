@@ -245,10 +245,28 @@ struct SubdivShape {
     float pixel_budget = 2.0f;         ///< camera-chosen level: longest refined edge, in pixels
 };
 
+/** A mesh whose shape changes with time, computed rather than read from a file per frame (a
+ *  glTF skin or morph-target animation): the builder asks it for the mesh at the time the scene
+ *  is evaluated at. Its meshes carry their rest pose (TriangleMesh::rest_positions, the shape
+ *  object-space patterns and flakes are laid out on) wherever they differ from it. */
+class MeshDeformation {
+public:
+    virtual ~MeshDeformation() = default;
+    /** The mesh at `seconds` (held before the first key and after the last). Throws
+     *  SpangleError for a shape that is not finite. */
+    virtual std::shared_ptr<const TriangleMesh> at(double seconds) const = 0;
+    /** The first and last key times (seconds); first > last: it does not change with time. */
+    double first = 0.0, last = -1.0;
+    bool animated() const { return first <= last; }
+};
+
 /** A triangle mesh written in the scene file itself (pbrt's trianglemesh, glTF's buffers). */
 struct InlineMeshShape {
     std::shared_ptr<const TriangleMesh> mesh;  ///< object space; `source` names the scene file
     FileLoc loc;                               ///< where it is written
+    /** When its shape changes with time: what gives the mesh at the scene's time (`mesh` is then
+     *  its shape at time 0, for whatever looks at the scene before it is built). */
+    std::shared_ptr<const MeshDeformation> deformation = nullptr;
 };
 
 /** What an object is made of. */

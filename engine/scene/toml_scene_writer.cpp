@@ -12,6 +12,7 @@
 #include "core/error.h"
 #include "core/map_projection.h"
 #include "geometry/ply_writer.h"
+#include "scene/frame_sequence.h"
 
 namespace fs = std::filesystem;
 
@@ -84,6 +85,9 @@ std::string key_time(const KeyTime& t) {
     return t.frame ? fmt::format("frame = {}", *t.frame) : fmt::format("time = {}", num(t.seconds));
 }
 
+/** Most frames a deforming mesh is written for (a file each). */
+constexpr int64_t kMaxWrittenFrames = 10000;
+
 /** Builds the file's text section by section. */
 struct Writer {
     fs::path dir;       ///< the TOML file's folder: paths are written relative to it
@@ -91,6 +95,10 @@ struct Writer {
     std::string out;    ///< the text so far
     std::map<const TriangleMesh*, std::string> meshes;  ///< inline meshes written, by mesh
     std::map<const Cage*, std::string> cages;           ///< inline cages written, by cage
+    std::map<const TriangleMesh*, std::string> rests;   ///< rest poses written, by posed mesh
+    int sequences = 0;                                  ///< deforming meshes written
+    int rest_files = 0;                                 ///< rest poses written
+    const RenderDesc* frames = nullptr;  ///< the frame range deforming meshes are written for
     SceneWriteReport report;
 
     void line(const std::string& key, const std::string& value) {
@@ -264,6 +272,60 @@ struct Writer {
         return meshes.emplace(&mesh, path(file.string())).first->second;
     }
 
+    /** A rest pose (`rest`, positions for `mesh`'s vertices) as a PLY file of its own (positions
+     *  and triangles: all a rest pose gives). Written once per mesh the scene holds (`shared`),
+     *  else every time. */
+    std::string rest_mesh(const TriangleMesh& mesh, const std::vector<float>& rest, bool shared) {
+        if (shared)
+            if (auto it = rests.find(&mesh); it != rests.end()) return it->second;
+        TriangleMesh r;
+        r.positions = rest;
+        r.indices = mesh.indices;
+        const fs::path file = mesh_dir / fmt::format("rest_{:03}.ply", rest_files++);
+        write_ply(r, file.string(), "rest pose, written by spangle convert from " + mesh.source);
+        report.meshes.push_back(file.string());
+        if (!shared) return path(file.string());
+        return rests.emplace(&mesh, path(file.string())).first->second;
+    }
+
+    /** A mesh the scene held itself: one PLY file, with its rest pose beside it when it has one;
+     *  a deforming one as a numbered sequence of PLY files, one per frame of the scene's range,
+     *  at each frame's time, and its rest pose. */
+    void inline_shape(const InlineMeshShape& s) {
+        if (!s.deformation || !s.deformation->animated()) {
+            line("mesh", inline_mesh(*s.mesh));
+            if (!s.mesh->rest_positions.empty())
+                line("rest_mesh", rest_mesh(*s.mesh, s.mesh->rest_positions, true));
+            return;
+        }
+        const int64_t first = frames->frame_start, last = frames->frame_end;
+        if (last - first >= kMaxWrittenFrames)
+            throw_error(s.loc,
+                        "a deforming mesh would be written as {} files, one per frame (at most "
+                        "{}): shorten the frame range",
+                        last - first + 1, kMaxWrittenFrames);
+        std::error_code ec;
+        fs::create_directories(mesh_dir, ec);
+        const std::string pattern =
+            (mesh_dir / fmt::format("deform_{:03}.####.ply", sequences++)).string();
+        std::shared_ptr<const TriangleMesh> shape;
+        for (int64_t f = first; f <= last; ++f) {
+            shape = s.deformation->at(static_cast<double>(f - first) / frames->fps);
+            const std::string file = expand_frame_pattern(pattern, f);
+            write_ply(*shape, file,
+                      "frame " + std::to_string(f) + ", written by spangle convert from " +
+                          shape->source);
+            report.meshes.push_back(file);
+        }
+        line("mesh", path(pattern));
+        // The rest pose: the shape the deformation starts from (every frame that has one carries
+        // the same; a frame without one is in it).
+        line("rest_mesh",
+             rest_mesh(*shape,
+                       shape->rest_positions.empty() ? shape->positions : shape->rest_positions,
+                       false));
+    }
+
     /** A cage the scene held itself (pbrt's loopsubdiv), written once as an OBJ file. */
     std::string inline_cage(const Cage& cage) {
         auto it = cages.find(&cage);
@@ -313,7 +375,7 @@ struct Writer {
         } else if (const auto* s = std::get_if<SubdivShape>(&o.shape))
             subdiv(*s);
         else
-            line("mesh", inline_mesh(*std::get<InlineMeshShape>(o.shape).mesh));
+            inline_shape(std::get<InlineMeshShape>(o.shape));
         line("material", str(o.material));
         if (o.placement.matrix || !o.matrix_keys.keys.empty()) {
             // Matrix keys need a matrix placement in TOML; with keys it is not used (the keys
@@ -403,6 +465,7 @@ SceneWriteReport write_toml_scene(const SceneDescription& scene, const std::stri
     if (!scene.imports.empty() || !scene.has_camera)
         throw_error("{}: the scene's imports must be resolved before it is written", scene.path);
     Writer w;
+    w.frames = &scene.render;
     w.dir = fs::absolute(path).parent_path();
     w.mesh_dir = fs::absolute(mesh_dir);
     w.out = fmt::format("# Written by spangle convert from {}\n\n", scene.path);

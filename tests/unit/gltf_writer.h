@@ -67,6 +67,15 @@ struct GltfWriter {
                         bv, v.size()));
         return static_cast<int>(accessors.size()) - 1;
     }
+    /** An accessor of unsigned shorts with `comps` per element (`type` "VEC4": JOINTS_n); its
+     *  index. */
+    int u16s(const std::vector<uint16_t>& v, const char* type, int comps) {
+        const int bv = view(v.data(), v.size() * 2);
+        accessors.push_back(
+            fmt::format(R"({{"bufferView":{},"componentType":5123,"count":{},"type":"{}"}})", bv,
+                        v.size() / static_cast<std::size_t>(comps), type));
+        return static_cast<int>(accessors.size()) - 1;
+    }
     /** An accessor of unsigned ints (indices); its index. */
     int u32(const std::vector<uint32_t>& v) {
         const int bv = view(v.data(), v.size() * 4);

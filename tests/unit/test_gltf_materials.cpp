@@ -376,7 +376,7 @@ TEST(GltfSkin, ASkinnedMeshIsPlacedByItsJointNotItsNode) {
     EXPECT_NEAR(o.x, 2.0f, 1e-5f);
     EXPECT_NEAR(o.y, 0.0f, 1e-5f) << "the joint's offset is undone by its inverse bind matrix";
     EXPECT_NEAR(x.x - o.x, 0.01f, 1e-6f) << "the armature's scale applies";
-    EXPECT_TRUE(has_note(d, "placed by its first joint"));
+    EXPECT_TRUE(has_note(d, "drawn rigidly, placed by the skin's first joint"));
 }
 
 TEST(GltfAnimation, NodeChannelsBecomeMatrixKeysAtTheUnionOfTheirTimes) {
@@ -414,7 +414,7 @@ TEST(GltfAnimation, NodeChannelsBecomeMatrixKeysAtTheUnionOfTheirTimes) {
     ASSERT_EQ(cubic.keys.size(), 5u);
     EXPECT_NEAR(cubic.keys[2].matrix.m[0][0], 1.5f, 1e-5f);
     EXPECT_TRUE(has_note(d, "CUBICSPLINE animation is approximated"));
-    EXPECT_TRUE(has_note(d, "animations of 'weights' are dropped"));
+    EXPECT_TRUE(has_note(d, "morph weights whose output is not SCALAR is dropped"));
     // 2 s at 24 fps: frames 1 to 49.
     EXPECT_EQ(d.render.frame_end, 49);
     // The builder turns the keys into motion; the scene is animated.

@@ -84,6 +84,7 @@ std::vector<Channel> read_channels(Context& ctx) {
             const tinygltf::AnimationChannel& ch = anim.channels[c];
             const std::string cp = fmt::format("animations/{}/channels/{}", a, c);
             const int path = path_index(ch.target_path);
+            if (ch.target_path == "weights") continue;  // weight_tracks()
             if (path < 0) {
                 ctx.note("animation path " + ch.target_path, ctx.at(cp + "/target"),
                          fmt::format("animations of '{}' are dropped (Spangle animates node "
@@ -234,6 +235,93 @@ std::vector<double> refine_for_arcs(const std::vector<double>& times,
 }
 
 }  // namespace
+
+std::map<int, WeightTrack> weight_tracks(Context& ctx) {
+    std::map<int, WeightTrack> out;
+    for (std::size_t a = 0; a < ctx.model.animations.size(); ++a) {
+        const tinygltf::Animation& anim = ctx.model.animations[a];
+        for (std::size_t c = 0; c < anim.channels.size(); ++c) {
+            const tinygltf::AnimationChannel& ch = anim.channels[c];
+            if (ch.target_path != "weights") continue;
+            const std::string cp = fmt::format("animations/{}/channels/{}", a, c);
+            check_index(ctx, cp + "/target/node", ch.target_node, ctx.model.nodes.size(), "node");
+            check_index(ctx, cp + "/sampler", ch.sampler, anim.samplers.size(), "sampler");
+            if (out.count(ch.target_node)) {
+                ctx.note("animation twice", ctx.at(cp),
+                         fmt::format("node {}'s weights are animated twice: the first channel "
+                                     "is kept",
+                                     ch.target_node));
+                continue;
+            }
+            const tinygltf::AnimationSampler& s =
+                anim.samplers[static_cast<std::size_t>(ch.sampler)];
+            const std::string sp = fmt::format("animations/{}/samplers/{}", a, ch.sampler);
+            WeightTrack w;
+            w.loc = ctx.at(sp);
+            w.interp = s.interpolation == "STEP" ? 1 : s.interpolation == "CUBICSPLINE" ? 2 : 0;
+            if (s.interpolation != "LINEAR" && s.interpolation != "STEP" &&
+                s.interpolation != "CUBICSPLINE")
+                throw_error(ctx.at(sp + "/interpolation"),
+                            "interpolation '{}' must be LINEAR, STEP or CUBICSPLINE",
+                            s.interpolation);
+            check_index(ctx, sp + "/output", s.output, ctx.model.accessors.size(), "accessor");
+            if (ctx.model.accessors[static_cast<std::size_t>(s.output)].type !=
+                TINYGLTF_TYPE_SCALAR) {
+                ctx.note("weights not scalar", ctx.at(sp + "/output"),
+                         "an animation of morph weights whose output is not SCALAR is dropped");
+                continue;
+            }
+            w.times = read_floats(ctx, s.input, 1, "animation input", sp + "/input");
+            w.values = read_floats(ctx, s.output, 1, "animation output", sp + "/output");
+            const std::size_t per_key = w.interp == 2 ? 3 : 1;
+            if (w.times.empty() || w.values.empty() ||
+                w.values.size() % (w.times.size() * per_key) != 0)
+                throw_error(ctx.at(sp),
+                            "the sampler has {} key times and {} output values: not the same "
+                            "number of weights per key",
+                            w.times.size(), w.values.size());
+            w.count = w.values.size() / (w.times.size() * per_key);
+            for (std::size_t i = 1; i < w.times.size(); ++i)
+                if (!(w.times[i] > w.times[i - 1]))
+                    throw_error(ctx.at(sp + "/input"),
+                                "key times must increase ({} s follows {} s)", w.times[i],
+                                w.times[i - 1]);
+            out.emplace(ch.target_node, std::move(w));
+        }
+    }
+    return out;
+}
+
+void evaluate_weights(const WeightTrack& w, double t, float* out) {
+    const std::size_t n = w.count, per = w.interp == 2 ? 3 * n : n;
+    const std::size_t value = w.interp == 2 ? n : 0;  // a CUBICSPLINE key's value
+    const std::size_t last = w.times.size() - 1;
+    const auto tf = static_cast<float>(t);
+    std::size_t i = 0;
+    if (tf >= w.times[last])
+        i = last;
+    else if (tf > w.times[0])
+        i = static_cast<std::size_t>(std::upper_bound(w.times.begin(), w.times.end(), tf) -
+                                     w.times.begin()) -
+            1;
+    const float* a = &w.values[i * per + value];
+    if (i == last || tf <= w.times[0] || w.interp == 1) {
+        std::copy(a, a + n, out);
+        return;
+    }
+    const float* b = &w.values[(i + 1) * per + value];
+    const float dt = w.times[i + 1] - w.times[i], s = (tf - w.times[i]) / dt;
+    if (w.interp == 2) {
+        const float* ta = &w.values[i * per + 2 * n];
+        const float* tb = &w.values[(i + 1) * per];
+        const float s2 = s * s, s3 = s2 * s;
+        for (std::size_t c = 0; c < n; ++c)
+            out[c] = (2 * s3 - 3 * s2 + 1) * a[c] + (s3 - 2 * s2 + s) * dt * ta[c] +
+                     (-2 * s3 + 3 * s2) * b[c] + (s3 - s2) * dt * tb[c];
+    } else {
+        for (std::size_t c = 0; c < n; ++c) out[c] = a[c] + s * (b[c] - a[c]);
+    }
+}
 
 Affine local_matrix(const Context& ctx, int n) {
     const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];

@@ -2,8 +2,8 @@
 // coordinate set (v flipped: glTF's t runs down the image, Spangle's v up), triangles, strips
 // and fans as indexed triangles, COLOR_0 as the mesh's vertex colours (which its material's base
 // colour multiplies: has_vertex_colors). What a TriangleMesh cannot hold (tangents -- Spangle
-// derives them from the uvs --, a second uv or colour set, a colour's alpha, skins, morph
-// targets) is one note each.
+// derives them from the uvs --, a second uv or colour set, a colour's alpha) is one note each.
+// Skins and morph targets deform the mesh per node (gltf_deform.cpp).
 
 #include <algorithm>
 #include <cmath>
@@ -25,19 +25,12 @@ void note_dropped(Context& ctx, const tinygltf::Primitive& p, const std::string&
         else if (name.rfind("COLOR_", 0) == 0 && name != "COLOR_0")
             ctx.note("COLOR_n", at,
                      name + " is dropped: Spangle meshes hold one set of vertex colours (COLOR_0)");
-        else if (name.rfind("JOINTS_", 0) == 0 || name.rfind("WEIGHTS_", 0) == 0)
-            ctx.note("skin", at,
-                     "skinning attributes are dropped: meshes are drawn in their "
-                     "bind pose");
         else if (name.rfind("TEXCOORD_", 0) == 0 && name != fmt::format("TEXCOORD_{}", set))
             ctx.note("TEXCOORD_n", at,
                      fmt::format("{} is dropped: Spangle meshes hold one uv set (TEXCOORD_{}, "
                                  "the one the primitive's material reads)",
                                  name, set));
     }
-    if (!p.targets.empty())
-        ctx.note("morph", ctx.at(pp + "/targets"),
-                 "morph targets are dropped: meshes are drawn in their base shape");
 }
 
 /** Triangles of a strip or fan (glTF 2.0, 3.7.2.1) as a triangle list. */

@@ -125,14 +125,12 @@ bool thicken(Affine& a) {
 }
 
 /** The objects of node n's mesh, one per primitive. */
-void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
+void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
+                  const std::vector<NodeMotion>& motions,
+                  const std::map<int, WeightTrack>& weights) {
     const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
     const std::string np = fmt::format("nodes/{}", n);
     check_index(ctx, np + "/mesh", node.mesh, ctx.model.meshes.size(), "mesh");
-    if (node.skin >= 0)
-        ctx.note("skin", ctx.at(np + "/skin"),
-                 "skins are not deformed: a skinned mesh is drawn rigidly in its bind pose, "
-                 "placed by its first joint (its world matrix times its inverse bind matrix)");
     Affine rest = motion.rest;
     if (motion.times.empty() && !(std::fabs(rest.determinant()) > 1e-18f) && !thicken(rest)) {
         ctx.note(fmt::format("hidden {}", n), ctx.at(np),
@@ -146,6 +144,8 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
         std::shared_ptr<const TriangleMesh> tri =
             read_primitive(ctx, node.mesh, static_cast<int>(p));
         if (!tri) continue;
+        DrawnPrimitive drawn =
+            drawn_primitive(ctx, n, static_cast<int>(p), tri, motions, motion, weights);
         const std::string pp = fmt::format("meshes/{}/primitives/{}", node.mesh, p);
         const int mat = mesh.primitives[p].material;
         if (mat >= 0)
@@ -154,7 +154,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
         o.name = node.name.empty() ? mesh.name : node.name;
         if (mesh.primitives.size() > 1) o.name += fmt::format("#{}", p);
         o.material = use_material(ctx, mat, o.emission);
-        o.shape = InlineMeshShape{tri, ctx.at(pp)};
+        o.shape = InlineMeshShape{drawn.mesh, ctx.at(pp), std::move(drawn.deformation)};
         o.loc = ctx.at(np);
         o.material_loc = ctx.at(mat >= 0 ? pp + "/material" : pp);
         o.what =
@@ -168,11 +168,12 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion) {
     }
 }
 
-/** Where a skinned mesh is drawn: the glTF spec ignores a skinned mesh node's own transform;
- *  its vertices go through joint world matrix x inverse bind matrix. Without deformation (the
- *  joints' weights are not read) the mesh follows its first joint, rigidly: at the bind pose
- *  that is exactly where every joint puts it (an exporter's armature with a scale of 0.01 and
- *  the mesh node at the root, as Blender and Mixamo write them, was drawn 100 times too big). */
+/** Where a skinned mesh is placed: the glTF spec ignores a skinned mesh node's own transform;
+ *  its vertices go through joint world matrix x inverse bind matrix. The object follows its
+ *  first joint (its world matrix times its inverse bind matrix) and its vertices are deformed
+ *  in that placement's space (gltf_deform.cpp): at the bind pose every joint puts them where
+ *  they are written (an exporter's armature with a scale of 0.01 and the mesh node at the root,
+ *  as Blender and Mixamo write them, was drawn 100 times too big before skins were read). */
 NodeMotion skinned_motion(Context& ctx, int n, const std::vector<NodeMotion>& motions) {
     const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
     const std::string sp = fmt::format("skins/{}", node.skin);
@@ -479,17 +480,20 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
     const std::vector<int> parent = node_parents(ctx);
     const std::vector<int> order = scene_nodes(ctx, parent);
     const std::vector<NodeMotion> motions = node_motions(ctx, parent);
+    const std::map<int, WeightTrack> weights = weight_tracks(ctx);
     std::vector<std::pair<int, int>> cameras;
     double end = 0.0;
     for (int n : order) {
         const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
         const NodeMotion& motion = motions[static_cast<std::size_t>(n)];
         if (!motion.times.empty()) end = std::max(end, motion.times.back());
+        if (const auto w = weights.find(n); w != weights.end())
+            end = std::max(end, static_cast<double>(w->second.times.back()));
         if (node.mesh >= 0) {
             if (node.skin >= 0) {
-                mesh_objects(ctx, n, skinned_motion(ctx, n, motions));
+                mesh_objects(ctx, n, skinned_motion(ctx, n, motions), motions, weights);
             } else {
-                mesh_objects(ctx, n, motion);
+                mesh_objects(ctx, n, motion, motions, weights);
             }
         }
         if (node.camera >= 0) {

@@ -2,6 +2,7 @@
 // The parts of the glTF reader, each in its own file, over the shared Context. Internal to
 // engine/scene/gltf/.
 
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -81,6 +82,39 @@ Affine local_matrix(const Context& ctx, int n);
 /** gltf_animation.cpp: a glTF 4 x 4 matrix (16 numbers, column-major) as a placement; its last
  *  row, (0, 0, 0, 1) for a placement, is not read. */
 Affine column_major_affine(const float* m);
+
+/** An animation of a node's morph-target weights (a `weights` channel). */
+struct WeightTrack {
+    std::vector<float> times;  ///< seconds, increasing
+    std::vector<float>
+        values;             ///< `count` per key (CUBICSPLINE: in-tangents, values, out-tangents)
+    std::size_t count = 0;  ///< weights per key
+    int interp = 0;         ///< 0 LINEAR, 1 STEP, 2 CUBICSPLINE
+    FileLoc loc;            ///< its sampler
+};
+
+/** gltf_animation.cpp: the weight animation of every node that has one (the first channel of
+ *  a node's weights, as for its transform). */
+std::map<int, WeightTrack> weight_tracks(Context& ctx);
+
+/** gltf_animation.cpp: a weight track's `count` weights at time t (held outside its keys). */
+void evaluate_weights(const WeightTrack& w, double t, float* out);
+
+/** A primitive as node `n` draws it: its mesh at time 0 and, when its shape changes with time,
+ *  what gives it at any time. */
+struct DrawnPrimitive {
+    std::shared_ptr<const TriangleMesh> mesh;
+    std::shared_ptr<const MeshDeformation> deformation;
+};
+
+/** gltf_deform.cpp: primitive `prim` (read as `base`) as node `n` draws it: deformed by the
+ *  node's skin (placed by `placement`, the skinned motion, its vertices expressed in that
+ *  placement's space) and its mesh's morph targets (the node's or the mesh's weights, or their
+ *  animation in `weights`). `base` itself where neither changes it. */
+DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
+                               std::shared_ptr<const TriangleMesh> base,
+                               const std::vector<NodeMotion>& motions, const NodeMotion& placement,
+                               const std::map<int, WeightTrack>& weights);
 
 /** gltf_nodes.cpp: the objects, cameras and lights of the scene's node tree, and the default
  *  camera and light when the file has none. */
