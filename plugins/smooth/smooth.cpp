@@ -533,8 +533,10 @@ const SpangleParamDesc_v3 kDielectricParams[] = {
     {"roughness", SPANGLE_PARAM_FLOAT, {0.0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a smooth interface", SPANGLE_PARAM_TEXTURABLE},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent; -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
     {"multiscatter", SPANGLE_PARAM_BOOL, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (energy compensation, as Cycles' Multiscatter GGX glass; the Blender add-on and the glTF importer set it); false: single-scattering GGX with height-correlated shadowing (pbrt-v4's; Mitsuba 3's separable shadowing is darker still), darker when rough", 0},
+    {"transmission_color", SPANGLE_PARAM_COLOR, {1, 1, 1}, nullptr, 0.0, 1.0, nullptr, "colour of the light that passes through a closed object (coloured glass: glTF's transmission and Blender's Principled BSDF take the base colour): each crossing of the surface tints by its square root, as Cycles does; the reflection stays white", SPANGLE_PARAM_TEXTURABLE},
 };
 // clang-format on
+constexpr uint32_t kDielectricTint = 4;  ///< transmission_color's schema index
 
 // Multiple scattering of rough glass (Turquin 2019, "Practical multiple scattering compensation
 // for microfacet models"; Cycles' Multiscatter GGX glass does the same): single-scattering GGX
@@ -613,6 +615,7 @@ float glass_albedo_at(const GlassAlbedo& t, int side, float mu, float alpha) {
 
 struct Dielectric {
     float ax, ay, ior;
+    float tint[3];        ///< transmission_color
     float raw_r, raw_rv;  ///< roughness, roughness_v as written
     bool delta;
     /** ior within 1e-3 of 1: an index-matched interface. Light passes straight through (a delta
@@ -632,6 +635,7 @@ void* dielectric_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* 
     d.delta = is_delta(d.ax, d.ay);
     clamp_alpha(d.ax, d.ay);
     d.ior = param_f(p, "ior");
+    for (int c = 0; c < 3; ++c) d.tint[c] = param_f(p, "transmission_color", c);
     d.matched = d.ior < 1.001f;
     // A smooth interface loses nothing (unless textured rough: the table is made then too).
     if (param_number(p, "multiscatter", 0) != 0.0 && !d.matched)
@@ -645,9 +649,13 @@ void dielectric_prepare(const void* inst, const SpangleShadingBatch_v3* b, void*
                         SpangleArena_v3*) {
     const auto& m = *static_cast<const Dielectric*>(inst);
     auto* out = static_cast<Closure*>(closures);
+    const float* tint = varying(b, kDielectricTint);
     for (uint32_t i = 0; i < b->count; ++i) {
         out[i] = Closure{};
         out[i].wo = wo_of(b, i);
+        // Each crossing tints by the square root: a closed object (two crossings) by the colour.
+        color_at(tint, i, m.tint, out[i].rgb);
+        for (float& k : out[i].rgb) k = std::sqrt(std::max(k, 0.0f));
         // The host turned the frame towards wo: from the back side, wo is inside the glass.
         const bool inside = (b->flags[i] & SPANGLE_SHADING_BACKFACE) != 0;
         out[i].eta = inside ? 1.0f / m.ior : m.ior;
@@ -661,6 +669,8 @@ void dielectric_prepare(const void* inst, const SpangleShadingBatch_v3* b, void*
         }
     }
 }
+
+constexpr float kWhite[3] = {1.0f, 1.0f, 1.0f};  ///< the reflection's (untinted) colour
 
 /** f and pdf of the rough dielectric for wo.z > 0 (pbrt-v4's formulation of Walter et al.). */
 void dielectric_rough(const Closure& c, V3 wo, V3 wi, float eta, float& f, float& pdf) {
@@ -698,7 +708,10 @@ void dielectric_eval(const void* inst, const void* closures, SpangleEvalBatch_v3
         float f, pdf;
         dielectric_rough(c, c.wo, {q->wi_x[i], q->wi_y[i], q->wi_z[i]}, c.eta, f, pdf);
         f *= c.e_o;
-        write_eval(q, i, f, f, f, pdf);
+        if (q->wi_z[i] < 0.0f)
+            write_eval(q, i, f * c.rgb[0], f * c.rgb[1], f * c.rgb[2], pdf);
+        else
+            write_eval(q, i, f, f, f, pdf);
     }
 }
 
@@ -715,7 +728,7 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
         if (m.matched) {
             const V3 wi = wo * -1.0f;
             const float f = 1.0f / wo.z;
-            write_sample(q, i, wi, f, f, f, 1.0f,
+            write_sample(q, i, wi, f * c.rgb[0], f * c.rgb[1], f * c.rgb[2], 1.0f,
                          SPANGLE_SAMPLE_TRANSMISSION | SPANGLE_SAMPLE_SPECULAR);
             if (q->eta) q->eta[i] = c.eta;
             continue;
@@ -735,7 +748,9 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
         if (c.delta > 0.0f) {
             const float cos_i = std::fabs(wi.z);
             const float f = reflect_ ? R / cos_i : T / (cos_i * c.eta * c.eta);
-            write_sample(q, i, wi, f, f, f, reflect_ ? R : T, lobe | SPANGLE_SAMPLE_SPECULAR);
+            const float* k = reflect_ ? kWhite : c.rgb;
+            write_sample(q, i, wi, f * k[0], f * k[1], f * k[2], reflect_ ? R : T,
+                         lobe | SPANGLE_SAMPLE_SPECULAR);
             if (q->eta && !reflect_) q->eta[i] = c.eta;
             continue;
         }
@@ -746,7 +761,8 @@ void dielectric_sample(const void* inst, const void* closures, SpangleSampleBatc
         float f, pdf;
         dielectric_rough(c, wo, wi, c.eta, f, pdf);
         f *= c.e_o;
-        write_sample(q, i, wi, f, f, f, pdf, lobe | SPANGLE_SAMPLE_GLOSSY);
+        const float* k = reflect_ ? kWhite : c.rgb;
+        write_sample(q, i, wi, f * k[0], f * k[1], f * k[2], pdf, lobe | SPANGLE_SAMPLE_GLOSSY);
         if (q->eta && !reflect_) q->eta[i] = c.eta;
     }
 }

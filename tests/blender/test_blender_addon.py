@@ -611,6 +611,29 @@ def test_rough_glass_keeps_its_light_as_in_cycles(tmp_path):
             assert o1 < 0.92 * o, (o1, o)  # the compensation acts where the loss is
 
 
+def test_tinted_glass_transmits_its_base_color_as_in_cycles(tmp_path):
+    # A cube of glass whose Base Color is orange in a uniform grey world: Principled tints the
+    # light its glass transmits, at each crossing (it was exported clear, with a warning). Per
+    # channel, the cube's middle must match Cycles'.
+    scene = empty_scene(size=(48, 48), world=(0.5, 0.5, 0.5))
+    bpy.ops.mesh.primitive_cube_add(size=2.0, location=(0.0, 0.0, 0.0))
+    mat = principled("tinted", (0.9, 0.5, 0.2), 0.2, Transmission_Weight=1.0, IOR=1.5)
+    bpy.context.active_object.data.materials.append(mat)
+    bpy.ops.object.camera_add(location=(0.0, -6.0, 2.0), rotation=(math.radians(72), 0, 0))
+    scene.camera = bpy.context.active_object
+    scene.camera.data.angle = math.radians(40.0)
+    scene.spangle.max_depth = 64
+    for k in ("max_bounces", "transmission_bounces", "glossy_bounces"):
+        setattr(scene.cycles, k, 64)
+    ours, theirs = both(scene, tmp_path, "tinted_glass", spp=128)
+    o = ours[18:30, 18:30, :3].reshape(-1, 3).mean(axis=0)
+    t = theirs[18:30, 18:30, :3].reshape(-1, 3).mean(axis=0)
+    print(f"\ntinted glass: Spangle {o}, Cycles {t}")
+    assert o[0] > 1.5 * o[2], o  # orange, not clear
+    for c in range(3):
+        assert o[c] == pytest.approx(t[c], rel=0.04), (c, o, t)  # measured within 1.1%
+
+
 def test_a_texture_mapping_and_extension_as_in_cycles(tmp_path):
     # An image with one red quadrant through a Mapping node (scale 2, a turn of 30 degrees, an
     # offset) and, on a second plane, Extension = Clip: the same texels where Cycles shows them

@@ -334,6 +334,59 @@ void expect_same_lobes(const BsdfHarness& floored, const BsdfHarness& rough, con
     EXPECT_GT(nonzero, 100) << what << ": the floored lobe must be a spread lobe";
 }
 
+TEST(SmoothGlass, TransmissionColorTintsTheTransmittedLightAloneAndMovesNoSample) {
+    // Coloured glass is the clear glass with its transmitted light times the square root of
+    // transmission_color at each crossing (the colour after the two crossings of a closed
+    // object), per channel; the reflection, the pdf and the sampled directions are the clear
+    // glass's.
+    const Vec3 tint{std::sqrt(0.5f), 1.0f, 0.5f};
+    for (float a : {0.0f, 0.3f})
+        for (bool back : {false, true}) {
+            SCOPED_TRACE(testing::Message() << "alpha " << a << " back " << back);
+            BsdfHarness clear("smooth", "dielectric", {{"roughness", {a}}, {"ior", {1.5}}});
+            BsdfHarness tinted(
+                "smooth", "dielectric",
+                {{"roughness", {a}}, {"ior", {1.5}}, {"transmission_color", {0.5f, 1.0f, 0.25f}}});
+            // cos 0.9: inside the glass too, within the critical angle (0.745 at index 1.5).
+            clear.prepare(wo_for(0.9f), back);
+            tinted.prepare(wo_for(0.9f), back);
+            const auto sc = clear.sample(2000, 17), st = tinted.sample(2000, 17);
+            int through = 0, back_out = 0;
+            for (std::size_t i = 0; i < sc.size(); ++i) {
+                ASSERT_EQ(sc[i].flags, st[i].flags);
+                if (sc[i].flags == 0) continue;
+                EXPECT_EQ(sc[i].wi.x, st[i].wi.x);
+                EXPECT_EQ(sc[i].pdf, st[i].pdf);
+                const bool t = sc[i].wi.z < 0.0f;
+                const Vec3 k = t ? tint : Vec3{1, 1, 1};
+                EXPECT_FLOAT_EQ(st[i].f.x, sc[i].f.x * k.x);
+                EXPECT_FLOAT_EQ(st[i].f.y, sc[i].f.y * k.y);
+                EXPECT_FLOAT_EQ(st[i].f.z, sc[i].f.z * k.z);
+                (t ? through : back_out) += 1;
+            }
+            EXPECT_GT(through, 100);
+            EXPECT_GT(back_out, 10);
+            if (a > 0.0f) {
+                std::vector<Vec3> fc, ft;
+                std::vector<float> pc, pt;
+                eval_sphere(clear, 2000, fc, pc);
+                eval_sphere(tinted, 2000, ft, pt);
+                // eval_sphere's directions run from +z down: the second half is under the
+                // surface (transmission).
+                int tinted_points = 0;
+                for (std::size_t i = 0; i < fc.size(); ++i) {
+                    const Vec3 k = 2 * i >= fc.size() ? tint : Vec3{1, 1, 1};
+                    EXPECT_EQ(pc[i], pt[i]);
+                    EXPECT_FLOAT_EQ(ft[i].x, fc[i].x * k.x);
+                    EXPECT_FLOAT_EQ(ft[i].y, fc[i].y * k.y);
+                    EXPECT_FLOAT_EQ(ft[i].z, fc[i].z * k.z);
+                    tinted_points += 2 * i >= fc.size() && fc[i].y > 0.0f ? 1 : 0;
+                }
+                EXPECT_GT(tinted_points, 20);
+            }
+        }
+}
+
 TEST(SmoothRegularisation, AFloorMakesAMirrorTheLobeOfThatRoughness) {
     const Vec3 wo = wo_for(0.6f);
     BsdfHarness::Point floored;

@@ -225,6 +225,38 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_GT(param_of(paint, "metallic").loc.column, 1);
 }
 
+TEST(GltfMaterials, TransmissionTakesTheBaseColourAndTheVolumesAttenuation) {
+    // Coloured glass: the base colour is the dielectric's transmission_color; with
+    // KHR_materials_volume, Beer-Lambert over thicknessFactor deepens it: c^(thickness /
+    // distance), here 0.25^(1 / 2) = 0.5 on red and green.
+    test::TempDir dir("gltf_tint");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    w.write_gltf(
+        dir.file("glass.gltf"),
+        fmt::format(
+            R"("materials":[{{"pbrMetallicRoughness":{{"baseColorFactor":[0.9,0.5,0.2,1]}},)"
+            R"("extensions":{{"KHR_materials_transmission":{{"transmissionFactor":1}},)"
+            R"("KHR_materials_volume":{{"thicknessFactor":1,"attenuationDistance":2,)"
+            R"("attenuationColor":[0.25,0.25,1]}}}}}}],"meshes":[{}],)"
+            R"("nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0)",
+            mesh));
+    const SceneDescription d = read_gltf_scene(dir.file("glass.gltf"), {});
+    ASSERT_EQ(d.materials.size(), 1u);
+    const MaterialDesc& glass = d.materials[0];
+    EXPECT_EQ(glass.model, "dielectric");
+    const ParamDesc& tint = param_of(glass, "transmission_color");
+    EXPECT_NEAR(tint.color.rgb.x, 0.45f, 1e-6f);
+    EXPECT_NEAR(tint.color.rgb.y, 0.25f, 1e-6f);
+    EXPECT_NEAR(tint.color.rgb.z, 0.2f, 1e-6f);
+    EXPECT_EQ(tint.color.space, "lin_rec709");
+    EXPECT_TRUE(has_note(d, "attenuation is approximated"));
+    for (const std::string& n : d.notes) {
+        EXPECT_EQ(n.find("is not read"), std::string::npos) << n;
+        EXPECT_EQ(n.find("base colour"), std::string::npos) << n;
+    }
+}
+
 TEST(GltfMaterials, EveryMaterialIsAcceptedByItsPluginAndRenders) {
     test::TempDir dir("gltf_materials_render");
     CacheEnv cache(dir.file("cache"));

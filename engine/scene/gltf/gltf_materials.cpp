@@ -20,7 +20,8 @@ namespace {
 const std::set<std::string> kMaterialExtensions = {
     "KHR_materials_clearcoat",         "KHR_materials_ior",
     "KHR_materials_specular",          "KHR_materials_transmission",
-    "KHR_materials_emissive_strength", "SPANGLE_materials_flakes"};
+    "KHR_materials_emissive_strength", "KHR_materials_volume",
+    "SPANGLE_materials_flakes"};
 
 /** Builds one MaterialDesc's parameters, each blamed on its place in the JSON. */
 struct Builder {
@@ -210,7 +211,8 @@ void metal_rough(Builder& b, const tinygltf::Material& g, const std::string& mp)
     }
 }
 
-/** KHR_materials_transmission onto the smooth plugin's (untinted) dielectric. */
+/** KHR_materials_transmission onto the smooth plugin's dielectric, tinted by the base colour
+ *  (and KHR_materials_volume's attenuation). */
 void transmissive(Builder& b, const tinygltf::Material& g, const std::string& mp,
                   const tinygltf::Value* x) {
     Context& ctx = b.ctx;
@@ -222,13 +224,43 @@ void transmissive(Builder& b, const tinygltf::Material& g, const std::string& mp
         ctx.note("partial transmission", ctx.at(xp),
                  fmt::format("transmission {}{} is drawn as the dielectric, fully transmissive", t,
                              texture_in(x, "transmissionTexture") ? " with a texture" : ""));
-    const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
-    if ((f.size() >= 3 && (f[0] != 1.0 || f[1] != 1.0 || f[2] != 1.0)) ||
-        g.pbrMetallicRoughness.baseColorTexture.index >= 0 ||
-        g.pbrMetallicRoughness.metallicFactor > 0.0)
-        ctx.note("transmission tint", ctx.at(mp + "/pbrMetallicRoughness"),
-                 "a transmissive material's base colour and metalness are dropped: Spangle's "
-                 "dielectric is clear");
+    if (g.pbrMetallicRoughness.metallicFactor > 0.0)
+        ctx.note("transmission metal", ctx.at(mp + "/pbrMetallicRoughness/metallicFactor"),
+                 "a transmissive material's metalness is dropped: it is drawn as glass");
+    // The base colour (its texture and vertex colours too) tints the transmitted light, as
+    // glTF's BTDF has it; KHR_materials_volume's attenuation deepens the tint (below).
+    base_color(b, g, mp);
+    b.m.params.back().name = "transmission_color";
+    if (const tinygltf::Value* v = extension(g, "KHR_materials_volume")) {
+        const std::string vp = mp + "/extensions/KHR_materials_volume";
+        const Vec3 c = clamp3(vec3_of(v, "attenuationColor", {1, 1, 1}), 0.0f, 1.0f);
+        const double d = number_of(v, "attenuationDistance", 0.0);
+        const double thick = std::max(0.0, number_of(v, "thicknessFactor", 0.0));
+        if (d > 0.0 && thick > 0.0 && (c.x < 1.0f || c.y < 1.0f || c.z < 1.0f)) {
+            // Beer-Lambert over a path of thicknessFactor through the object: c^(t / d) (the
+            // dielectric's colour of a passage in and out). Spangle has no participating
+            // media: thinner and thicker parts of the object get the same tint.
+            const double k = thick / d;
+            const auto power = [&](float value) {
+                return static_cast<float>(std::pow(static_cast<double>(value), k));
+            };
+            const Vec3 tint{power(c.x), power(c.y), power(c.z)};
+            ParamDesc& p = b.m.params.back();
+            if (p.kind == ParamDesc::Kind::Color) {
+                p.color.rgb = p.color.rgb * tint;
+            } else {
+                p.texture.scale[0] *= tint.x;
+                p.texture.scale[1] *= tint.y;
+                p.texture.scale[2] *= tint.z;
+            }
+            ctx.note(
+                "volume attenuation", ctx.at(vp),
+                std::string("KHR_materials_volume's attenuation is approximated by a tint "
+                            "of the light that passes through, as if every path inside "
+                            "were thicknessFactor long (Spangle has no absorbing media)") +
+                    (texture_in(v, "thicknessTexture") ? "; thicknessTexture is dropped" : ""));
+        }
+    }
     const double r = std::clamp(g.pbrMetallicRoughness.roughnessFactor, 0.0, 1.0);
     b.number("roughness", r * r, mp + "/pbrMetallicRoughness/roughnessFactor");
     // Rough glass keeps the light of further bounces between microfacets, as metal_rough's

@@ -460,11 +460,13 @@ def material_entry(mat, flake_params, warnings):
     surface = _surface_map(node, warnings, what)
     alpha = _alpha(node, warnings, what)
     if isinstance(transmission, float) and transmission > 0.5:
-        if isinstance(base, dict) or (isinstance(base, tuple) and
-                                      any(abs(c - 1.0) > 1e-3 for c in base)):
-            warnings.append(f"{what}: glass is exported clear; its Base Color tint is not")
         params = {"ior": min(max(float(ior), 1.0), 10.0),
                   "roughness": float(roughness) ** 2 if isinstance(roughness, float) else 0.0}
+        # Principled's Base Color tints the light its glass transmits (each crossing), as the
+        # dielectric's transmission_color does; the reflection stays white in both.
+        if isinstance(base, dict) or (isinstance(base, tuple) and
+                                      any(abs(c - 1.0) > 1e-3 for c in base[:3])):
+            params["transmission_color"] = base
         if surface is not None:
             params[surface[0]] = surface[1]
         if alpha is not None:
