@@ -105,7 +105,7 @@ void load_mesh_files(ecs::Registry& r, World& w, LoadedMeshes& out,
 
 bool same_content(const TriangleMesh& a, const TriangleMesh& b) {
     return a.positions == b.positions && a.normals == b.normals && a.uvs == b.uvs &&
-           a.colors == b.colors && a.indices == b.indices;
+           a.colors == b.colors && a.indices == b.indices && a.rest_positions == b.rest_positions;
 }
 
 /** An inline mesh, or the equal one the last load used (so that its BVH is reused). */
@@ -119,6 +119,9 @@ std::shared_ptr<const TriangleMesh> reuse_inline(World& w, const InlineMesh& m) 
         return it->second;
     }
     w.cache->meshes[key] = m.mesh;
+    // A mesh posed by its reader (a glTF skin or morph targets) over its rest pose.
+    if (!m.mesh->rest_positions.empty())
+        warn_flat_in_rest_pose(w, *m.mesh, m.loc, "its written shape");
     return m.mesh;
 }
 

@@ -13,6 +13,7 @@
 #include "core/map_projection.h"
 #include "geometry/ply_writer.h"
 #include "scene/frame_sequence.h"
+#include "scene/keyed_motion.h"
 
 namespace fs = std::filesystem;
 
@@ -310,7 +311,11 @@ struct Writer {
             (mesh_dir / fmt::format("deform_{:03}.####.ply", sequences++)).string();
         std::shared_ptr<const TriangleMesh> shape;
         for (int64_t f = first; f <= last; ++f) {
-            shape = s.deformation->at(static_cast<double>(f - first) / frames->fps);
+            // Where the builder evaluates it: at the middle of the frame's shutter.
+            const double time = static_cast<double>(f - first) / frames->fps;
+            shape = s.deformation->at(
+                frame_shutter(time, frames->fps, frames->shutter_open, frames->shutter_close)
+                    .middle);
             const std::string file = expand_frame_pattern(pattern, f);
             write_ply(*shape, file,
                       "frame " + std::to_string(f) + ", written by spangle convert from " +

@@ -284,6 +284,47 @@ TEST(GltfDeform, MorphTargetsTakeTheNodesWeightsElseTheMeshs) {
     }
 }
 
+TEST(GltfDeform, NodesDrawingOnePrimitiveWithTheSameWeightsShareOneMesh) {
+    // Linked duplicates of a morphed mesh (a crowd): one still shape, one mesh in memory.
+    test::TempDir dir("gltf_deform_shared");
+    GltfWriter w;
+    std::string body = morphing_triangle(w, R"(,"weights":[0.5])", "", "");
+    const std::string nodes = R"("nodes":[{"mesh":0}])";
+    body.replace(body.find(nodes), nodes.size(),
+                 R"("nodes":[{"mesh":0},{"mesh":0,"translation":[2,0,0]},)"
+                 R"({"mesh":0,"weights":[0.25]}])");
+    const std::string roots = R"("nodes":[0])";
+    body.replace(body.find(roots), roots.size(), R"("nodes":[0,1,2])");
+    w.write_gltf(dir.file("crowd.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("crowd.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 3u);
+    EXPECT_EQ(shape_of(d, 0).mesh, shape_of(d, 1).mesh) << "same weights: one mesh";
+    EXPECT_NE(shape_of(d, 0).mesh, shape_of(d, 2).mesh) << "its own weights: its own shape";
+    expect_vertex(*shape_of(d, 2).mesh, 0, {0, 0, 0.25f}, "node weights");
+}
+
+TEST(GltfDeform, AFirstJointThatFlattensTheMeshDeformsItInWorldSpace) {
+    // The first joint's inverse bind matrix scales z to 0: no placement the vertices can be
+    // expressed in. The mesh is deformed in world space (placed by none), not refused.
+    test::TempDir dir("gltf_deform_flat");
+    GltfWriter w;
+    std::string body = skinned_bar(w, fmt::format(R"(,"rotation":[0,0,{},{}])", kS, kS), "");
+    const int flat = w.floats({1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0,  0, 1,
+                               1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -1, 0, 1},
+                              "MAT4", 16);
+    const std::string key = R"("inverseBindMatrices":)";
+    const std::size_t at = body.find(key) + key.size();
+    body.replace(at, body.find('}', at) - at, std::to_string(flat));
+    w.write_gltf(dir.file("bar.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("bar.gltf"), {});
+    EXPECT_TRUE(has_note(d, "is not invertible: its mesh is deformed in world space"));
+    ASSERT_EQ(d.objects.size(), 1u);
+    ASSERT_TRUE(d.objects[0].placement.matrix);
+    EXPECT_EQ(*d.objects[0].placement.matrix, Affine{}) << "placed by none";
+    // The top row follows the bend joint (an ordinary inverse bind matrix) as before.
+    expect_vertex(*shape_of(d).mesh, 5, {-1, 2, 0}, "top");
+}
+
 TEST(GltfDeform, AnimatedWeightsFollowTheirChannel) {
     test::TempDir dir("gltf_deform_anim_w");
     GltfWriter w;

@@ -34,7 +34,10 @@ struct Context {
     std::map<int, std::string> material_names;  ///< glTF material -> Spangle name (-1: default)
     std::map<int, std::optional<EmissionDesc>> emissions;  ///< glTF material -> its emission
     std::map<std::pair<int, int>, std::shared_ptr<const TriangleMesh>>
-        meshes;                              ///< (mesh, primitive)
+        meshes;  ///< (mesh, primitive)
+    /** Still shapes made by skins and morph targets (gltf_deform.cpp), by primitive, skin and
+     *  weights: nodes that draw one primitive alike share one mesh. */
+    std::map<std::string, std::shared_ptr<const TriangleMesh>> posed;
     std::map<int, std::string> image_files;  ///< glTF image -> file ("" = none)
     std::string texture_cache;               ///< --texture-cache (empty: the default folders)
     /** The uv set of the material being read (uv_set_of); its textures reading another are

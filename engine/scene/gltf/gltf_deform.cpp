@@ -66,7 +66,7 @@ bool near_identity(const Affine& a, float extent) {
     for (int r = 0; r < 3; ++r)
         for (int c = 0; c < 3; ++c)
             if (!(std::fabs(a.m[r][c] - (r == c ? 1.0f : 0.0f)) <= 1e-5f)) return false;
-    const float tol = 1e-5f * std::max(extent, 1e-30f);
+    const float tol = 1e-5f * extent;
     return std::fabs(a.t.x) <= tol && std::fabs(a.t.y) <= tol && std::fabs(a.t.z) <= tol;
 }
 
@@ -75,7 +75,7 @@ public:
     std::shared_ptr<const TriangleMesh> base;
     FileLoc loc;          ///< the node, blamed for a shape that is not finite
     std::string what;     ///< "node N primitive P"
-    float extent = 1.0f;  ///< the base shape's largest coordinate size
+    float extent = 0.0f;  ///< the base shape's largest coordinate size
 
     // Morph targets: displacements per target (3 per vertex; normals may be empty).
     std::vector<std::vector<float>> dpos, dnrm;
@@ -211,6 +211,22 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
     const bool skinned = node.skin >= 0 && has_joints;
     if (!skinned && p.targets.empty()) return {base, nullptr};
 
+    // A still shape is the same for every node that draws this primitive with the same skin and
+    // weights (linked duplicates, a crowd): made once.
+    const std::vector<double>& given = !node.weights.empty() ? node.weights : mesh.weights;
+    bool moves = !p.targets.empty() && weights.count(n);
+    if (skinned)
+        for (int j : ctx.model.skins[static_cast<std::size_t>(node.skin)].joints)
+            moves = moves || (j >= 0 && static_cast<std::size_t>(j) < motions.size() &&
+                              !motions[static_cast<std::size_t>(j)].times.empty());
+    std::string still_key;
+    if (!moves) {
+        still_key = fmt::format("{}/{}/{}/{}", node.mesh, prim, skinned ? node.skin : -1,
+                                fmt::join(given, ","));
+        if (const auto it = ctx.posed.find(still_key); it != ctx.posed.end())
+            return {it->second, nullptr};
+    }
+
     auto d = std::make_shared<GltfDeformation>();
     d->base = base;
     d->loc = ctx.at(np);
@@ -234,7 +250,6 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
             d->dpos.push_back(std::move(pos));
             d->dnrm.push_back(std::move(nrm));
         }
-        const std::vector<double>& given = !node.weights.empty() ? node.weights : mesh.weights;
         const std::string wp =
             !node.weights.empty() ? np + "/weights" : fmt::format("meshes/{}/weights", node.mesh);
         d->weights.assign(count, 0.0f);
@@ -294,7 +309,15 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
             const std::string jn = fmt::format("JOINTS_{}", set),
                               wn = fmt::format("WEIGHTS_{}", set);
             const auto ja = p.attributes.find(jn), wa = p.attributes.find(wn);
-            if (ja == p.attributes.end() || wa == p.attributes.end()) break;
+            if (ja == p.attributes.end() || wa == p.attributes.end()) {
+                if (ja != p.attributes.end() || wa != p.attributes.end())
+                    ctx.note("joints unpaired",
+                             ctx.at(pp + "/attributes/" + (ja != p.attributes.end() ? jn : wn)),
+                             fmt::format("{} without its {} is dropped",
+                                         ja != p.attributes.end() ? jn : wn,
+                                         ja != p.attributes.end() ? wn : jn));
+                break;
+            }
             const std::vector<float> jv =
                 per_vertex(ctx, ja->second, 4, nv, "JOINTS", pp + "/attributes/" + jn);
             const std::vector<float> wv =
@@ -340,7 +363,9 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
     }
     if (!d->animated()) {
         // A still shape: computed once, no deformation left to evaluate.
-        return {d->at(0.0), nullptr};
+        std::shared_ptr<const TriangleMesh> still = d->at(0.0);
+        ctx.posed[still_key] = still;
+        return {still, nullptr};
     }
     std::shared_ptr<const TriangleMesh> first = d->at(0.0);
     return {first, d};

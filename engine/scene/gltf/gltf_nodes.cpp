@@ -192,6 +192,21 @@ NodeMotion skinned_motion(Context& ctx, int n, const std::vector<NodeMotion>& mo
     NodeMotion out = motions[static_cast<std::size_t>(j0)];
     out.rest = out.rest.compose(ibm);
     for (Affine& a : out.matrices) a = a.compose(ibm);
+    // A placement the vertices cannot be expressed in (the first joint's inverse bind matrix
+    // flattens them): the mesh is placed by none and deformed in world space.
+    const auto invertible = [](const Affine& a) {
+        const double det = a.determinant_in_double();
+        return std::isfinite(det) && std::fabs(det) > 1e-18;
+    };
+    bool ok = invertible(out.rest);
+    for (const Affine& a : out.matrices) ok = ok && invertible(a);
+    if (!ok) {
+        ctx.note("skin placement", ctx.at(sp + "/inverseBindMatrices"),
+                 fmt::format("skin {}'s first joint times its inverse bind matrix is not "
+                             "invertible: its mesh is deformed in world space",
+                             node.skin));
+        return NodeMotion{};
+    }
     return out;
 }
 
