@@ -257,6 +257,76 @@ TEST(GltfMaterials, TransmissionTakesTheBaseColourAndTheVolumesAttenuation) {
     }
 }
 
+TEST(GltfMaterials, SpecularGlossinessBecomesADielectricOfThatF0AndRoughness) {
+    // KHR_materials_pbrSpecularGlossiness (older exporters, Sketchfab): it rendered as glTF's
+    // default material, a white rough metal. Material 0: factors alone, a dim specular (F0
+    // 0.04: index 1.5, specular_color 1); material 1: a bright one (F0 up to 1: index 10) and a
+    // specular-glossiness texture whose alpha is 0 on the left, 1 on the right, times the
+    // glossiness 0.8: roughness 1 on the left, 0.2 on the right.
+    test::TempDir dir("gltf_specgloss");
+    CacheEnv cache(dir.file("cache"));
+    const std::string png = bytes_of(test::test_dir() + "/scenes/textures/half_alpha.png");
+    GltfWriter w;
+    const int view = w.view(png.data(), png.size());
+    const std::string mesh = quad_mesh(w, 0), mesh1 = quad_mesh(w, 1);
+    const std::string sg = "KHR_materials_pbrSpecularGlossiness";
+    w.write_gltf(
+        dir.file("sg.gltf"),
+        fmt::format(R"("materials":[{{"extensions":{{"{0}":{{"diffuseFactor":[0.5,0.25,0.125,1],)"
+                    R"("specularFactor":[0.04,0.04,0.04],"glossinessFactor":0.7}}}}}},)"
+                    R"({{"extensions":{{"{0}":{{"diffuseTexture":{{"index":0}},)"
+                    R"("specularFactor":[1,0.8,0.5],"glossinessFactor":0.8,)"
+                    R"("specularGlossinessTexture":{{"index":0}}}}}}}}],)"
+                    R"("images":[{{"bufferView":{1},"mimeType":"image/png"}}],)"
+                    R"("textures":[{{"source":0}}],"meshes":[{2},{3}],)"
+                    R"("nodes":[{{"mesh":0}},{{"mesh":1}}],"scenes":[{{"nodes":[0,1]}}],"scene":0)",
+                    sg, view, mesh, mesh1));
+    SceneDescription d = read_gltf_scene(dir.file("sg.gltf"), {});
+    ASSERT_EQ(d.materials.size(), 2u);
+    for (const std::string& n : d.notes) EXPECT_EQ(n.find(sg), std::string::npos) << n;
+    const MaterialDesc& dim = d.materials[0];
+    EXPECT_EQ(dim.model, "metal_rough");
+    EXPECT_EQ(param_of(dim, "metallic").number, 0.0);
+    EXPECT_NEAR(param_of(dim, "ior").number, 1.5, 1e-9);
+    EXPECT_NEAR(param_of(dim, "specular_color").color.rgb.x, 1.0f, 1e-5f);
+    EXPECT_NEAR(param_of(dim, "roughness").number, 0.3, 1e-9);
+    EXPECT_FLOAT_EQ(param_of(dim, "base_color").color.rgb.y, 0.25f);
+    const MaterialDesc& bright = d.materials[1];
+    const double ior = param_of(bright, "ior").number;
+    EXPECT_NEAR(ior, 10.0, 1e-9);
+    const double r0 = (ior - 1) * (ior - 1) / ((ior + 1) * (ior + 1));
+    const ParamDesc& sc = param_of(bright, "specular_color");
+    ASSERT_EQ(sc.kind, ParamDesc::Kind::Texture);
+    EXPECT_NEAR(sc.texture.scale[0] * r0, 1.0, 1e-5) << "F0 = specularFactor x texture";
+    EXPECT_NEAR(sc.texture.scale[2] * r0, 0.5, 1e-5);
+    EXPECT_EQ(param_of(bright, "base_color").kind, ParamDesc::Kind::Texture);
+    const ParamDesc& rough = param_of(bright, "roughness");
+    ASSERT_EQ(rough.kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(rough.texture.space.value_or(""), "raw");
+    // The roughness image: 16 x 16 samples of 16 bits, 1 on the left half, 0.2 on the right.
+    const std::string pgm = bytes_of(rough.texture.path);
+    const std::string header = "P5\n16 16\n65535\n";
+    ASSERT_EQ(pgm.substr(0, header.size()), header);
+    ASSERT_EQ(pgm.size(), header.size() + 2 * 16 * 16);
+    const auto sample = [&](int x, int y) {
+        const std::size_t at = header.size() + 2 * static_cast<std::size_t>(16 * y + x);
+        return (static_cast<uint8_t>(pgm[at]) * 256 + static_cast<uint8_t>(pgm[at + 1])) / 65535.0;
+    };
+    EXPECT_NEAR(sample(2, 5), 1.0, 1e-4);
+    EXPECT_NEAR(sample(13, 5), 0.2, 1e-4);
+    // Both are accepted by the plugin and render finite pixels.
+    d.render.width = 16;
+    d.render.height = 8;
+    d.render.spp = 1;
+    RenderOptions options;
+    options.threads = 2;
+    options.texture_cache = dir.file("textures");
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    ASSERT_NO_THROW(session.load(d));
+    session.render();
+    for (float v : session.result().image) ASSERT_TRUE(std::isfinite(v));
+}
+
 TEST(GltfMaterials, EveryMaterialIsAcceptedByItsPluginAndRenders) {
     test::TempDir dir("gltf_materials_render");
     CacheEnv cache(dir.file("cache"));

@@ -194,6 +194,11 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
                              image, bytes.empty() ? "no bytes" : img.mimeType));
         return out;
     }
+    return out = cached_image_file(ctx, bytes, ext, ip);
+}
+
+std::string cached_image_file(Context& ctx, const std::vector<unsigned char>& bytes,
+                              const std::string& ext, const std::string& ref) {
     // The first folder that takes it (a farm node's read-only home: the temporary folder, as
     // for converted textures; the render failed).
     const std::vector<std::string> dirs = embedded_image_dirs(ctx.texture_cache);
@@ -203,15 +208,15 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
         const std::string why = write_once(file, bytes);
         if (why.empty()) {
             if (!failures.empty())
-                ctx.note("embedded image folder", ctx.at(ip),
+                ctx.note("embedded image folder", ctx.at(ref),
                          fmt::format("{}: embedded images are written to {} instead (give "
                                      "--texture-cache a folder that can be written)",
                                      failures.front(), dir));
-            return out = file.string();
+            return file.string();
         }
         failures.push_back(why);
     }
-    throw_error(ctx.at(ip),
+    throw_error(ctx.at(ref),
                 "cannot write the embedded image anywhere ({}): give --texture-cache a "
                 "folder that can be written",
                 fmt::join(failures, "; "));

@@ -17,11 +17,14 @@ namespace spangle::gltf {
 namespace {
 
 /** Extensions of a material that are read here (others are noted). */
-const std::set<std::string> kMaterialExtensions = {
-    "KHR_materials_clearcoat",         "KHR_materials_ior",
-    "KHR_materials_specular",          "KHR_materials_transmission",
-    "KHR_materials_emissive_strength", "KHR_materials_volume",
-    "SPANGLE_materials_flakes"};
+const std::set<std::string> kMaterialExtensions = {"KHR_materials_clearcoat",
+                                                   "KHR_materials_ior",
+                                                   "KHR_materials_specular",
+                                                   "KHR_materials_transmission",
+                                                   "KHR_materials_emissive_strength",
+                                                   "KHR_materials_volume",
+                                                   "KHR_materials_pbrSpecularGlossiness",
+                                                   "SPANGLE_materials_flakes"};
 
 /** Builds one MaterialDesc's parameters, each blamed on its place in the JSON. */
 struct Builder {
@@ -211,6 +214,71 @@ void metal_rough(Builder& b, const tinygltf::Material& g, const std::string& mp)
     }
 }
 
+/** KHR_materials_pbrSpecularGlossiness onto metal_rough as a dielectric (metallic 0) whose
+ *  F0 is the specular colour, through KHR_materials_specular's terms: the index sets the
+ *  largest F0 the colour can reach (1.5 up to 0.4, higher for brighter speculars: F0 = 1 at
+ *  10 x 0.67), specular_color = specular / ((ior - 1) / (ior + 1))^2; base colour = the diffuse
+ *  colour; roughness = 1 - glossiness (its texture's alpha made a roughness image). */
+void spec_gloss(Builder& b, const tinygltf::Material& g, const std::string& mp,
+                const tinygltf::Value* x) {
+    (void)g;
+    Context& ctx = b.ctx;
+    const std::string xp = mp + "/extensions/KHR_materials_pbrSpecularGlossiness";
+    b.m.plugin = "smooth";
+    b.m.model = "metal_rough";
+    Vec3 diffuse{1, 1, 1};
+    if (x->IsObject() && x->Has("diffuseFactor")) {
+        const tinygltf::Value& d = x->Get("diffuseFactor");
+        if (d.IsArray() && d.ArrayLen() == 4) {
+            tinygltf::Value::Array rgb;
+            for (int c = 0; c < 3; ++c) rgb.push_back(d.Get(c));
+            diffuse = three_numbers(tinygltf::Value(rgb)).value_or(diffuse);
+        }
+    }
+    diffuse = clamp3(diffuse, 0.0f, 1.0f);
+    std::optional<TextureDesc> dtex;
+    if (auto u = texture_in(x, "diffuseTexture"))
+        dtex = texture_desc(ctx, *u, xp + "/diffuseTexture", true);
+    if (dtex || ctx.vertex_colors) {
+        TextureDesc tex = dtex ? std::move(*dtex) : TextureDesc{};
+        tex.scale[0] = diffuse.x;
+        tex.scale[1] = diffuse.y;
+        tex.scale[2] = diffuse.z;
+        tex.vertex_color = ctx.vertex_colors;
+        b.texture("base_color", std::move(tex), xp + (dtex ? "/diffuseTexture" : ""));
+    } else {
+        b.color("base_color", diffuse, xp + "/diffuseFactor");
+    }
+    b.number("metallic", 0.0, xp);
+    const Vec3 spec = clamp3(vec3_of(x, "specularFactor", {1, 1, 1}), 0.0f, 1.0f);
+    constexpr double kMaxR0 = (9.0 / 11.0) * (9.0 / 11.0);  // ior 10, the largest
+    const double r0 =
+        std::clamp(static_cast<double>(std::max({spec.x, spec.y, spec.z})), 0.04, kMaxR0);
+    const double ior = (1.0 + std::sqrt(r0)) / (1.0 - std::sqrt(r0));
+    b.number("ior", std::clamp(ior, 1.0, 10.0), xp + "/specularFactor");
+    b.number("specular", 1.0, xp + "/specularFactor");
+    const Vec3 sc = spec * static_cast<float>(1.0 / r0);
+    std::optional<TextureDesc> stex;
+    if (auto u = texture_in(x, "specularGlossinessTexture"))
+        stex = texture_desc(ctx, *u, xp + "/specularGlossinessTexture", true);
+    if (stex) {
+        stex->scale[0] = sc.x;
+        stex->scale[1] = sc.y;
+        stex->scale[2] = sc.z;
+        b.texture("specular_color", std::move(*stex), xp + "/specularGlossinessTexture");
+    } else {
+        b.color("specular_color", sc, xp + "/specularFactor");
+    }
+    const double gloss = std::clamp(number_of(x, "glossinessFactor", 1.0), 0.0, 1.0);
+    std::optional<TextureDesc> rough;
+    if (auto u = texture_in(x, "specularGlossinessTexture"))
+        rough = roughness_from_gloss(ctx, *u, xp + "/specularGlossinessTexture", gloss);
+    if (rough)
+        b.texture("roughness", std::move(*rough), xp + "/specularGlossinessTexture");
+    else
+        b.number("roughness", 1.0 - gloss, xp + "/glossinessFactor");
+}
+
 /** KHR_materials_transmission onto the smooth plugin's dielectric, tinted by the base colour
  *  (and KHR_materials_volume's attenuation). */
 void transmissive(Builder& b, const tinygltf::Material& g, const std::string& mp,
@@ -357,6 +425,24 @@ void flakes(Builder& b, const tinygltf::Material& g, const std::string& mp,
 /** alphaMode MASK and BLEND as the host's alpha: base colour's alpha (its texture's A times
  *  its factor's fourth), cut at alphaCutoff for MASK, by chance for BLEND. */
 void alpha(Builder& b, const tinygltf::Material& g, const std::string& mp) {
+    const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
+    double a = f.size() >= 4 && std::isfinite(f[3]) ? std::clamp(f[3], 0.0, 1.0) : 1.0;
+    std::optional<TextureUse> use;
+    std::string tp = mp + "/pbrMetallicRoughness/baseColorTexture";
+    if (g.pbrMetallicRoughness.baseColorTexture.index >= 0)
+        use = use_of(g.pbrMetallicRoughness.baseColorTexture);
+    // KHR_materials_pbrSpecularGlossiness: its diffuse colour's alpha.
+    if (const tinygltf::Value* x = extension(g, "KHR_materials_pbrSpecularGlossiness")) {
+        a = 1.0;
+        if (x->IsObject() && x->Has("diffuseFactor")) {
+            const tinygltf::Value& d = x->Get("diffuseFactor");
+            if (d.IsArray() && d.ArrayLen() == 4 && d.Get(3).IsNumber() &&
+                std::isfinite(d.Get(3).GetNumberAsDouble()))
+                a = std::clamp(d.Get(3).GetNumberAsDouble(), 0.0, 1.0);
+        }
+        use = texture_in(x, "diffuseTexture");
+        tp = mp + "/extensions/KHR_materials_pbrSpecularGlossiness/diffuseTexture";
+    }
     if (g.alphaMode != "MASK" && g.alphaMode != "BLEND") {
         if (!g.alphaMode.empty() && g.alphaMode != "OPAQUE")
             b.ctx.note("alphaMode", b.ctx.at(mp + "/alphaMode"),
@@ -366,8 +452,6 @@ void alpha(Builder& b, const tinygltf::Material& g, const std::string& mp) {
         return;
     }
     const bool mask = g.alphaMode == "MASK";
-    const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
-    const double a = f.size() >= 4 && std::isfinite(f[3]) ? std::clamp(f[3], 0.0, 1.0) : 1.0;
     const double cutoff = std::isfinite(g.alphaCutoff) ? std::clamp(g.alphaCutoff, 0.0, 1.0) : 0.5;
     if (mask && cutoff != g.alphaCutoff)
         b.ctx.note(
@@ -376,10 +460,8 @@ void alpha(Builder& b, const tinygltf::Material& g, const std::string& mp) {
     ParamDesc p = b.base("alpha", mp + "/alphaMode");
     p.kind = ParamDesc::Kind::Number;
     p.number = a;
-    const std::string tp = mp + "/pbrMetallicRoughness/baseColorTexture";
-    if (g.pbrMetallicRoughness.baseColorTexture.index >= 0)
-        if (auto tex =
-                texture_desc(b.ctx, use_of(g.pbrMetallicRoughness.baseColorTexture), tp, false)) {
+    if (use)
+        if (auto tex = texture_desc(b.ctx, *use, tp, false)) {
             tex->scale[0] = tex->scale[1] = tex->scale[2] = static_cast<float>(a);
             tex->channel = kAlphaOrOpaque;
             p.kind = ParamDesc::Kind::Texture;
@@ -510,6 +592,9 @@ int uv_set_of(const Context& ctx, int material) {
         {g.occlusionTexture.index, g.occlusionTexture.texCoord}};
     for (const auto& [index, set] : textures)
         if (index >= 0) return std::max(0, set);
+    if (const tinygltf::Value* x = extension(g, "KHR_materials_pbrSpecularGlossiness"))
+        for (const char* key : {"diffuseTexture", "specularGlossinessTexture"})
+            if (auto u = texture_in(x, key)) return std::max(0, u->tex_coord);
     return 0;
 }
 
@@ -536,6 +621,8 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
     else if (const tinygltf::Value* t = extension(g, "KHR_materials_transmission");
              t && number_of(t, "transmissionFactor", 0.0) > 0.0)
         transmissive(b, g, mp, t);
+    else if (const tinygltf::Value* sg = extension(g, "KHR_materials_pbrSpecularGlossiness"))
+        spec_gloss(b, g, mp, sg);
     else
         metal_rough(b, g, mp);
     normal_map(b, g, mp);

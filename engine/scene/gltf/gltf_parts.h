@@ -27,6 +27,12 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
  *  into the user's cache folder. Empty (with a note) for an image that cannot be had. */
 std::string image_file(Context& ctx, int image, const std::string& ref);
 
+/** gltf_images.cpp: `bytes` (an image file's, of extension `ext`) written once, named by their
+ *  hash, into the first of embedded_image_dirs() that takes them; the file. Throws at `ref`
+ *  when none does. */
+std::string cached_image_file(Context& ctx, const std::vector<unsigned char>& bytes,
+                              const std::string& ext, const std::string& ref);
+
 /** Where an external URI (of an image or a buffer) points: `path` the file it names (relative
  *  to the glTF file's folder, percent escapes decoded; file:///path and file://localhost/path
  *  taken as this machine's paths), or `scheme` (and `host`) of one Spangle does not fetch

@@ -1,5 +1,6 @@
 #include "scene/gltf/gltf_textures.h"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <iterator>
@@ -112,7 +113,10 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
     return tex;
 }
 
-std::optional<Vec3> texture_mean(Context& ctx, int index) {
+namespace {
+
+/** Texture `index`'s image decoded to 8 bits per channel (at least 3 channels), or none. */
+std::optional<tinygltf::Image> decoded(Context& ctx, int index) {
     if (index < 0 || static_cast<std::size_t>(index) >= ctx.model.textures.size()) return {};
     const int source = ctx.model.textures[static_cast<std::size_t>(index)].source;
     if (source < 0 || static_cast<std::size_t>(source) >= ctx.model.images.size()) return {};
@@ -123,7 +127,7 @@ std::optional<Vec3> texture_mean(Context& ctx, int index) {
         std::ifstream in(file, std::ios::binary);
         bytes.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
     }
-    // Decoding holds 4 bytes a pixel: a stand-in is not worth more than 64 Mpixels.
+    // Decoding holds 4 bytes a pixel: not worth more than 64 Mpixels here.
     const std::size_t pixels = pixel_count(bytes);
     if (pixels == 0 || pixels > (std::size_t{1} << 26) || bytes.size() > (std::size_t{1} << 30))
         return {};
@@ -133,16 +137,50 @@ std::optional<Vec3> texture_mean(Context& ctx, int index) {
                                  static_cast<int>(bytes.size()), nullptr) ||
         img.width <= 0 || img.height <= 0 || img.component < 3 || img.bits != 8)
         return {};
+    const std::size_t n =
+        static_cast<std::size_t>(img.width) * static_cast<std::size_t>(img.height);
+    if (img.image.size() < n * static_cast<std::size_t>(img.component)) return {};
+    return img;
+}
+
+}  // namespace
+
+std::optional<Vec3> texture_mean(Context& ctx, int index) {
+    const std::optional<tinygltf::Image> img = decoded(ctx, index);
+    if (!img) return {};
     const auto decode = [](unsigned char c) { return srgb_to_linear(c / 255.0); };
     double sum[3] = {0, 0, 0};
     const std::size_t n =
-        static_cast<std::size_t>(img.width) * static_cast<std::size_t>(img.height);
-    const auto comp = static_cast<std::size_t>(img.component);
-    if (img.image.size() < n * comp) return {};
+        static_cast<std::size_t>(img->width) * static_cast<std::size_t>(img->height);
+    const auto comp = static_cast<std::size_t>(img->component);
     for (std::size_t i = 0; i < n; ++i)
-        for (std::size_t c = 0; c < 3; ++c) sum[c] += decode(img.image[i * comp + c]);
+        for (std::size_t c = 0; c < 3; ++c) sum[c] += decode(img->image[i * comp + c]);
     const auto mean = [&](int c) { return static_cast<float>(sum[c] / static_cast<double>(n)); };
     return Vec3{mean(0), mean(1), mean(2)};
+}
+
+std::optional<TextureDesc> roughness_from_gloss(Context& ctx, const TextureUse& use,
+                                                const std::string& ref, double factor) {
+    std::optional<TextureDesc> tex = texture_desc(ctx, use, ref, false);
+    if (!tex) return {};
+    const std::optional<tinygltf::Image> img = decoded(ctx, use.index);
+    if (!img || img->component != 4) return {};
+    // A binary PGM (P5) of 16-bit samples, big-endian: 1 - factor x alpha.
+    const std::size_t n =
+        static_cast<std::size_t>(img->width) * static_cast<std::size_t>(img->height);
+    const std::string header = fmt::format("P5\n{} {}\n65535\n", img->width, img->height);
+    std::vector<unsigned char> bytes(header.begin(), header.end());
+    bytes.reserve(header.size() + 2 * n);
+    for (std::size_t i = 0; i < n; ++i) {
+        const double gloss = factor * img->image[4 * i + 3] / 255.0;
+        const auto v =
+            static_cast<uint32_t>(std::lround(std::clamp(1.0 - gloss, 0.0, 1.0) * 65535.0));
+        bytes.push_back(static_cast<unsigned char>(v >> 8));
+        bytes.push_back(static_cast<unsigned char>(v & 0xff));
+    }
+    tex->path = cached_image_file(ctx, bytes, ".pgm", ref);
+    tex->space = "raw";
+    return tex;
 }
 
 }  // namespace spangle::gltf

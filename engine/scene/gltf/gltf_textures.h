@@ -29,4 +29,12 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
  *  cannot be decoded. */
 std::optional<Vec3> texture_mean(Context& ctx, int index);
 
+/** KHR_materials_pbrSpecularGlossiness's glossiness (the alpha channel of the texture `use`
+ *  at `ref`, times `factor`) as a roughness texture, 1 - glossiness per texel (a 16-bit
+ *  greyscale image written once into the embedded-image cache), with the texture's sampler
+ *  and uv transform. None when the image cannot be decoded or has no alpha channel (then the
+ *  factor alone holds). */
+std::optional<TextureDesc> roughness_from_gloss(Context& ctx, const TextureUse& use,
+                                                const std::string& ref, double factor);
+
 }  // namespace spangle::gltf
