@@ -327,6 +327,91 @@ TEST(GltfMaterials, SpecularGlossinessBecomesADielectricOfThatF0AndRoughness) {
     for (float v : session.result().image) ASSERT_TRUE(std::isfinite(v));
 }
 
+TEST(GltfMaterials, ASpecularGlossinessMetalIsAMetalAndBadValuesAreErrors) {
+    // Chrome (white specular, black diffuse, glossiness 0.3): the converter's metalness solve
+    // gives metallic 1, base colour white, so metal_rough keeps the light between its
+    // microfacets (as a dielectric of F0 1 it rendered 30% dark at this roughness). A file
+    // that requires the extension is read; wrong values are errors at their place.
+    test::TempDir dir("gltf_specgloss_metal");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    const auto file = [&](const std::string& ext) {
+        return fmt::format(
+            R"("extensionsUsed":["KHR_materials_pbrSpecularGlossiness"],)"
+            R"("extensionsRequired":["KHR_materials_pbrSpecularGlossiness"],)"
+            R"("materials":[{{"extensions":{{"KHR_materials_pbrSpecularGlossiness":{}}}}}],)"
+            R"("meshes":[{}],"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0)",
+            ext, mesh);
+    };
+    w.write_gltf(dir.file("chrome.gltf"),
+                 file(R"({"diffuseFactor":[0,0,0,1],"specularFactor":[1,1,1],)"
+                      R"("glossinessFactor":0.3})"));
+    const SceneDescription d = read_gltf_scene(dir.file("chrome.gltf"), {});
+    const MaterialDesc& m = d.materials.at(0);
+    EXPECT_NEAR(param_of(m, "metallic").number, 1.0, 1e-9);
+    EXPECT_NEAR(param_of(m, "roughness").number, 0.7, 1e-9);
+    EXPECT_FLOAT_EQ(param_of(m, "base_color").color.rgb.y, 1.0f);
+    for (const std::string& bad : {std::string(R"({"specularFactor":[1,1,1,1]})"),
+                                   std::string(R"({"diffuseFactor":[0.5,0.5,0.5]})"),
+                                   std::string(R"({"glossinessFactor":"high"})")}) {
+        SCOPED_TRACE(bad);
+        w.write_gltf(dir.file("bad.gltf"), file(bad));
+        try {
+            read_gltf_scene(dir.file("bad.gltf"), {});
+            ADD_FAILURE() << "read";
+        } catch (const SpangleError& e) {
+            EXPECT_NE(std::string(e.what()).find("bad.gltf:1:"), std::string::npos) << e.what();
+        }
+    }
+}
+
+TEST(GltfMaterials, AnUnlitMaterialShowsItsBaseColourWhateverTheLight) {
+    // KHR_materials_unlit (scans, baked lighting): the base colour is what the camera sees. It
+    // is emitted (both faces) over a black surface, so a frame-filling unlit quad renders its
+    // base colour, converted to the working space, with or without the studio light.
+    test::TempDir dir("gltf_flat_colour");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    w.write_gltf(dir.file("unlit.gltf"),
+                 fmt::format(R"("materials":[{{"pbrMetallicRoughness":{{)"
+                             R"("baseColorFactor":[0.6,0.3,0.1,1]}},)"
+                             R"("extensions":{{"KHR_materials_unlit":{{}}}}}}],"meshes":[{}],)"
+                             R"("nodes":[{{"mesh":0,"translation":[-0.5,-0.5,0]}}],)"
+                             R"("cameras":[{{"type":"perspective","perspective":)"
+                             R"({{"yfov":0.2,"znear":0.01}}}}],)"
+                             R"("scenes":[{{"nodes":[0]}}],"scene":0)",
+                             mesh));
+    SceneDescription d = read_gltf_scene(dir.file("unlit.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 1u);
+    ASSERT_TRUE(d.objects[0].emission);
+    EXPECT_TRUE(d.objects[0].emission->two_sided);
+    EXPECT_FLOAT_EQ(d.objects[0].emission->color.rgb.x, 0.6f);
+    const MaterialDesc& m = d.materials[0];
+    EXPECT_EQ(m.model, "diffuse");
+    EXPECT_EQ(param_of(m, "albedo").color.rgb.x, 0.0f);
+    for (const std::string& n : d.notes)
+        EXPECT_EQ(n.find("KHR_materials_unlit"), std::string::npos) << n;
+    // Seen head-on from a default camera placed at +z by hand: the middle pixels are the
+    // base colour.
+    d.camera.position = {0, 0, 3};
+    d.camera.look_at = {0, 0, 0};
+    d.render.width = 8;
+    d.render.height = 8;
+    d.render.spp = 4;
+    RenderOptions options;
+    options.threads = 2;
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(d);
+    session.render();
+    const std::vector<float>& img = session.result().image;
+    float want[3] = {0.6f, 0.3f, 0.1f};
+    session.color().convert("lin_rec709", session.color().working_space(), want, 1);
+    const std::size_t mid = (4 * 8 + 4) * 3;
+    EXPECT_NEAR(img[mid], want[0], 2e-3f);
+    EXPECT_NEAR(img[mid + 1], want[1], 2e-3f);
+    EXPECT_NEAR(img[mid + 2], want[2], 2e-3f);
+}
+
 TEST(GltfMaterials, EveryMaterialIsAcceptedByItsPluginAndRenders) {
     test::TempDir dir("gltf_materials_render");
     CacheEnv cache(dir.file("cache"));

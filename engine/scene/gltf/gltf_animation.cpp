@@ -345,6 +345,19 @@ Affine column_major_affine(const float* m) {
 
 std::vector<NodeMotion> node_motions(Context& ctx, const std::vector<int>& parent) {
     const std::size_t count = ctx.model.nodes.size();
+    // A number beyond a float (1e39) read as 0 moved a node to the origin without a word.
+    for (std::size_t n = 0; n < count; ++n) {
+        const tinygltf::Node& node = ctx.model.nodes[n];
+        for (const auto& [name, values] :
+             {std::pair<const char*, const std::vector<double>*>{"translation", &node.translation},
+              {"rotation", &node.rotation},
+              {"scale", &node.scale}})
+            for (double v : *values)
+                if (!std::isfinite(narrow(v)))
+                    throw_error(ctx.at(fmt::format("nodes/{}/{}", n, name)),
+                                "node {}'s {} holds a number that is not a finite float ({})", n,
+                                name, v);
+    }
     const std::vector<Channel> channels = read_channels(ctx);
     std::vector<std::vector<const Channel*>> own(count), moving(count);
     for (const Channel& k : channels) own[static_cast<std::size_t>(k.node)].push_back(&k);

@@ -304,7 +304,7 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
         }
         d->joint.assign(nv * kInfluences, 0);
         d->weight.assign(nv * kInfluences, 0.0f);
-        bool bad_joint = false;
+        bool bad_joint = false, negative = false;
         for (int set = 0; set < 2; ++set) {
             const std::string jn = fmt::format("JOINTS_{}", set),
                               wn = fmt::format("WEIGHTS_{}", set);
@@ -325,6 +325,7 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
             for (std::size_t v = 0; v < nv; ++v)
                 for (std::size_t c = 0; c < 4; ++c) {
                     const float jf = jv[4 * v + c], wf = wv[4 * v + c];
+                    negative = negative || wf < 0.0f;
                     if (!(wf > 0.0f)) continue;  // negative or zero: no influence
                     if (!(jf >= 0.0f && jf < static_cast<float>(nj))) {
                         bad_joint = true;
@@ -343,13 +344,24 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
                      fmt::format("a vertex names a joint the skin does not have (it has {}): "
                                  "that influence is dropped",
                                  nj));
+        std::size_t unweighted = 0;
         for (std::size_t v = 0; v < nv; ++v) {
             float total = 0.0f;
             for (std::size_t k = 0; k < kInfluences; ++k) total += d->weight[v * kInfluences + k];
             if (total > 0.0f)
                 for (std::size_t k = 0; k < kInfluences; ++k)
                     d->weight[v * kInfluences + k] /= total;
+            else
+                ++unweighted;
         }
+        if (unweighted)
+            ctx.note("unweighted vertices", ctx.at(pp + "/attributes/WEIGHTS_0"),
+                     fmt::format("{} of the {} vertices have no positive skin weight: they stay "
+                                 "where they are written (placed by the skin's first joint)",
+                                 unweighted, nv));
+        if (negative)
+            ctx.note("negative weights", ctx.at(pp + "/attributes/WEIGHTS_0"),
+                     "negative skin weights are dropped (glTF's weights are not negative)");
         for (std::size_t j = 0; j < nj; ++j) {
             const NodeMotion& jm = motions[static_cast<std::size_t>(skin.joints[j])];
             d->joints.emplace_back(jm);

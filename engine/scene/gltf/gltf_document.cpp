@@ -32,6 +32,9 @@ const std::set<std::string> kRead = {
     "KHR_materials_transmission",
     "KHR_texture_transform",
     "KHR_materials_emissive_strength",
+    "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_unlit",
+    "KHR_materials_volume",
     "KHR_mesh_quantization",
     "SPANGLE_materials_flakes",
 };

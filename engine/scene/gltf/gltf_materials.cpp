@@ -24,6 +24,7 @@ const std::set<std::string> kMaterialExtensions = {"KHR_materials_clearcoat",
                                                    "KHR_materials_emissive_strength",
                                                    "KHR_materials_volume",
                                                    "KHR_materials_pbrSpecularGlossiness",
+                                                   "KHR_materials_unlit",
                                                    "SPANGLE_materials_flakes"};
 
 /** Builds one MaterialDesc's parameters, each blamed on its place in the JSON. */
@@ -122,7 +123,9 @@ void base_color(Builder& b, const tinygltf::Material& g, const std::string& mp) 
     const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
     Vec3 rgb{1, 1, 1};
     if (f.size() >= 3) rgb = {narrow(f[0]), narrow(f[1]), narrow(f[2])};
-    if (!std::isfinite(rgb.x + rgb.y + rgb.z)) rgb = {1, 1, 1};
+    if (!std::isfinite(rgb.x + rgb.y + rgb.z))
+        throw_error(b.ctx.at(mp + "/pbrMetallicRoughness/baseColorFactor"),
+                    "baseColorFactor holds a number that is not a finite float");
     rgb = clamp3(rgb, 0.0f, 1.0f);
     const std::string at = mp + "/pbrMetallicRoughness/baseColorFactor";
     const std::string tp = mp + "/pbrMetallicRoughness/baseColorTexture";
@@ -226,16 +229,33 @@ void spec_gloss(Builder& b, const tinygltf::Material& g, const std::string& mp,
     const std::string xp = mp + "/extensions/KHR_materials_pbrSpecularGlossiness";
     b.m.plugin = "smooth";
     b.m.model = "metal_rough";
-    Vec3 diffuse{1, 1, 1};
-    if (x->IsObject() && x->Has("diffuseFactor")) {
-        const tinygltf::Value& d = x->Get("diffuseFactor");
-        if (d.IsArray() && d.ArrayLen() == 4) {
-            tinygltf::Value::Array rgb;
-            for (int c = 0; c < 3; ++c) rgb.push_back(d.Get(c));
-            diffuse = three_numbers(tinygltf::Value(rgb)).value_or(diffuse);
+    // Its values as the schema says, else an error at them (a wrong one fell back to white
+    // or to chrome without a word).
+    if (!x->IsObject())
+        throw_error(ctx.at(xp), "KHR_materials_pbrSpecularGlossiness must be an object");
+    const auto numbers = [&](const char* key, int count, float lo, float hi) {
+        std::vector<float> v;
+        if (!x->Has(key)) return v;
+        const tinygltf::Value& a = x->Get(key);
+        bool ok = a.IsArray() && a.ArrayLen() == static_cast<std::size_t>(count);
+        for (int c = 0; ok && c < count; ++c) {
+            ok = a.Get(c).IsNumber();
+            if (ok) v.push_back(narrow(a.Get(c).GetNumberAsDouble()));
+            ok = ok && std::isfinite(v.back()) && v.back() >= lo && v.back() <= hi;
         }
-    }
-    diffuse = clamp3(diffuse, 0.0f, 1.0f);
+        if (!ok)
+            throw_error(ctx.at(xp + "/" + key), "'{}' must be {} numbers in [{}, {}]", key, count,
+                        lo, hi);
+        return v;
+    };
+    const std::vector<float> df = numbers("diffuseFactor", 4, 0.0f, 1.0f);
+    const std::vector<float> sf = numbers("specularFactor", 3, 0.0f, 1.0f);
+    if (x->Has("glossinessFactor") && (!x->Get("glossinessFactor").IsNumber() ||
+                                       !(number_of(x, "glossinessFactor", -1.0) >= 0.0 &&
+                                         number_of(x, "glossinessFactor", -1.0) <= 1.0)))
+        throw_error(ctx.at(xp + "/glossinessFactor"), "'glossinessFactor' must be in [0, 1]");
+    Vec3 diffuse{1, 1, 1};
+    if (!df.empty()) diffuse = {df[0], df[1], df[2]};
     std::optional<TextureDesc> dtex;
     if (auto u = texture_in(x, "diffuseTexture"))
         dtex = texture_desc(ctx, *u, xp + "/diffuseTexture", true);
@@ -249,8 +269,49 @@ void spec_gloss(Builder& b, const tinygltf::Material& g, const std::string& mp,
     } else {
         b.color("base_color", diffuse, xp + "/diffuseFactor");
     }
+    const Vec3 spec = sf.empty() ? Vec3{1, 1, 1} : Vec3{sf[0], sf[1], sf[2]};
+    const double gloss = std::clamp(number_of(x, "glossinessFactor", 1.0), 0.0, 1.0);
+    // Without textures: where the specular is a metal's (the glTF converter's solve for
+    // metalness from the diffuse and specular brightness), a metal, whose light between
+    // microfacets metal_rough keeps (a rough chrome rendered 30% dark as a dielectric of F0 1).
+    if (!texture_in(x, "diffuseTexture") && !texture_in(x, "specularGlossinessTexture")) {
+        const auto perceived = [](Vec3 c) {
+            const double cr = c.x, cg = c.y, cb = c.z;
+            return std::sqrt(0.299 * cr * cr + 0.587 * cg * cg + 0.114 * cb * cb);
+        };
+        const double one_minus_spec = 1.0 - static_cast<double>(std::max({spec.x, spec.y, spec.z}));
+        const double ps = perceived(spec), pd = perceived(diffuse);
+        double metal = 0.0;
+        if (ps >= 0.04) {
+            const double qa = 0.04, qb = pd * one_minus_spec / 0.96 + ps - 0.08, qc = 0.04 - ps;
+            const double disc = std::max(0.0, qb * qb - 4.0 * qa * qc);
+            metal = std::clamp((-qb + std::sqrt(disc)) / (2.0 * qa), 0.0, 1.0);
+        }
+        if (metal > 0.5) {
+            // A metal: its base colour the specular (the diffuse it keeps, at most half the
+            // solve's weight, is dropped); F0 is the base colour at metallic 1.
+            Vec3 base = spec;
+            if (metal < 1.0) {
+                const auto mf = static_cast<float>(metal);
+                const Vec3 from_diffuse = diffuse * static_cast<float>(one_minus_spec / 0.96 /
+                                                                       std::max(1.0 - metal, 1e-6));
+                const Vec3 from_spec = (spec - Vec3(0.04f * (1.0f - mf))) * (1.0f / mf);
+                base = clamp3(from_diffuse + (from_spec - from_diffuse) * (mf * mf), 0.0f, 1.0f);
+            }
+            ParamDesc& bc = b.m.params.back();          // the base colour written above
+            if (bc.kind == ParamDesc::Kind::Texture) {  // vertex colours: their scale
+                bc.texture.scale[0] = base.x;
+                bc.texture.scale[1] = base.y;
+                bc.texture.scale[2] = base.z;
+            } else {
+                bc.color.rgb = base;
+            }
+            b.number("metallic", metal, xp + "/specularFactor");
+            b.number("roughness", 1.0 - gloss, xp + "/glossinessFactor");
+            return;
+        }
+    }
     b.number("metallic", 0.0, xp);
-    const Vec3 spec = clamp3(vec3_of(x, "specularFactor", {1, 1, 1}), 0.0f, 1.0f);
     constexpr double kMaxR0 = (9.0 / 11.0) * (9.0 / 11.0);  // ior 10, the largest
     const double r0 =
         std::clamp(static_cast<double>(std::max({spec.x, spec.y, spec.z})), 0.04, kMaxR0);
@@ -269,7 +330,6 @@ void spec_gloss(Builder& b, const tinygltf::Material& g, const std::string& mp,
     } else {
         b.color("specular_color", sc, xp + "/specularFactor");
     }
-    const double gloss = std::clamp(number_of(x, "glossinessFactor", 1.0), 0.0, 1.0);
     std::optional<TextureDesc> rough;
     if (auto u = texture_in(x, "specularGlossinessTexture"))
         rough = roughness_from_gloss(ctx, *u, xp + "/specularGlossinessTexture", gloss);
@@ -536,7 +596,9 @@ std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
     Vec3 e{0, 0, 0};
     if (g.emissiveFactor.size() == 3)
         e = {narrow(g.emissiveFactor[0]), narrow(g.emissiveFactor[1]), narrow(g.emissiveFactor[2])};
-    if (!std::isfinite(e.x + e.y + e.z)) e = {0, 0, 0};
+    if (!std::isfinite(e.x + e.y + e.z))
+        throw_error(ctx.at(mp + "/emissiveFactor"),
+                    "emissiveFactor holds a number that is not a finite float");
     e = clamp3(e, 0.0f, 1.0f);
     EmissionDesc d;
     if (g.emissiveTexture.index >= 0 && (e.x > 0 || e.y > 0 || e.z > 0)) {
@@ -560,6 +622,44 @@ std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
     d.of_material = true;
     if (const tinygltf::Value* x = extension(g, "KHR_materials_emissive_strength"))
         d.intensity = std::max(0.0, number_of(x, "emissiveStrength", 1.0));
+    return d;
+}
+
+/** KHR_materials_unlit: the base colour (factor x texture) shown as it is, whatever the light:
+ *  emitted, from both faces (viewers draw an unlit surface from either side), over a black
+ *  surface. */
+std::optional<EmissionDesc> unlit_emission(Context& ctx, const tinygltf::Material& g,
+                                           const std::string& mp) {
+    const std::vector<double>& f = g.pbrMetallicRoughness.baseColorFactor;
+    Vec3 rgb{1, 1, 1};
+    if (f.size() >= 3) rgb = {narrow(f[0]), narrow(f[1]), narrow(f[2])};
+    if (!std::isfinite(rgb.x + rgb.y + rgb.z)) rgb = {1, 1, 1};
+    rgb = clamp3(rgb, 0.0f, 1.0f);
+    if (!(rgb.x > 0 || rgb.y > 0 || rgb.z > 0)) return std::nullopt;
+    const std::string pp = mp + "/pbrMetallicRoughness";
+    EmissionDesc d;
+    const FileLoc at = ctx.at(pp + "/baseColorFactor");
+    d.color = ColorDesc{rgb, std::string("lin_rec709"), at, at};
+    if (g.pbrMetallicRoughness.baseColorTexture.index >= 0) {
+        d.texture = texture_desc(ctx, use_of(g.pbrMetallicRoughness.baseColorTexture),
+                                 pp + "/baseColorTexture", true);
+        if (d.texture) {
+            d.texture->scale[0] = rgb.x;
+            d.texture->scale[1] = rgb.y;
+            d.texture->scale[2] = rgb.z;
+            d.color.rgb = {1, 1, 1};
+            if (const std::optional<Vec3> mean =
+                    texture_mean(ctx, g.pbrMetallicRoughness.baseColorTexture.index))
+                d.mean = luminance(*mean);
+        }
+    }
+    if (ctx.vertex_colors)
+        ctx.note("unlit vertex colours", ctx.at(mp),
+                 "an unlit material's vertex colours (COLOR_0) are not shown: its base colour "
+                 "is emitted, and emission does not read vertex colours");
+    d.two_sided = true;
+    d.group.loc = at;
+    d.of_material = true;
     return d;
 }
 
@@ -616,7 +716,12 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
     m.plugin_loc = m.model_loc = m.loc;
     ctx.uv_set = uv_set_of(ctx, index);
     ctx.vertex_colors = has_vertex_colors(ctx, index);
-    if (auto x = g.extensions.find("SPANGLE_materials_flakes"); x != g.extensions.end())
+    const bool unlit = extension(g, "KHR_materials_unlit") != nullptr;
+    if (unlit) {
+        b.m.plugin = "smooth";
+        b.m.model = "diffuse";
+        b.color("albedo", {0, 0, 0}, mp + "/extensions/KHR_materials_unlit");
+    } else if (auto x = g.extensions.find("SPANGLE_materials_flakes"); x != g.extensions.end())
         flakes(b, g, mp, x->second);
     else if (const tinygltf::Value* t = extension(g, "KHR_materials_transmission");
              t && number_of(t, "transmissionFactor", 0.0) > 0.0)
@@ -625,10 +730,12 @@ std::string use_material(Context& ctx, int index, std::optional<EmissionDesc>& o
         spec_gloss(b, g, mp, sg);
     else
         metal_rough(b, g, mp);
-    normal_map(b, g, mp);
+    if (!unlit) normal_map(b, g, mp);
     alpha(b, g, mp);
     note_unread(ctx, g, mp);
-    out = ctx.emissions[index] = index >= 0 ? emission(ctx, g, mp) : std::nullopt;
+    out = ctx.emissions[index] = index < 0 ? std::nullopt
+                                 : unlit   ? unlit_emission(ctx, g, mp)
+                                           : emission(ctx, g, mp);
     ctx.uv_set = 0;
     ctx.vertex_colors = false;
     ctx.material_names[index] = m.name;
