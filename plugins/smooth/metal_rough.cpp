@@ -27,6 +27,21 @@
 //   clearcoat           float 0      KHR_materials_clearcoat clearcoatFactor
 //   clearcoat_roughness float 0      KHR_materials_clearcoat clearcoatRoughnessFactor
 //   multiscatter        bool  true   the metal's multiple scattering (Kulla and Conty 2017)
+//   sheen_color         color [0]    KHR_materials_sheen sheenColorFactor (velvet, cloth)
+//   sheen_roughness     float 0      KHR_materials_sheen sheenRoughnessFactor
+//
+// Sheen (KHR_materials_sheen, after Estevez and Kulla 2017 and Neubelt and Pettineo 2013): a
+// layer over the base, under the coat:
+//   f_under = sheen_color D_charlie(h) V(v, l) / max(1, E_s(v), E_s(l))
+//             + f_base min(1 - s E'_s(v), 1 - s E'_s(l)),   E'_s = min(E_s, 1)
+//   D_charlie = (2 + 1/a) sin(theta_h)^(1/a) / (2 pi), a = sheen_roughness^2 (r >= 0.07),
+//   V = 1 / (4 (n.l + n.v - n.l n.v)),  s = max(sheen_color)
+// E_s(mu, r) is the sheen lobe's directional albedo, a table made once per process by
+// quadrature (sheen_albedo below). At grazing views of a fine sheen it exceeds 1 (the lobe with
+// this visibility gains energy there); dividing by the larger of the two directions' E_s (or 1)
+// keeps the lobe reciprocal and its albedo at most min(E_s, 1). The base sees what the sheen
+// leaves, so a white sheen over a white base returns about all the light. The sheen is sampled
+// with the diffuse lobe (cosine).
 
 #include "metal_rough.h"
 
@@ -58,6 +73,8 @@ const SpangleParamDesc_v3 kParams[] = {
     {"clearcoat", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "strength of a clear coat of index 1.5 (KHR_materials_clearcoat)", SPANGLE_PARAM_TEXTURABLE},
     {"clearcoat_roughness", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "perceptual roughness of the clear coat: alpha = roughness^2 (at least 1e-3)", SPANGLE_PARAM_TEXTURABLE},
     {"multiscatter", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "the metal returns the light that bounces more than once between its microfacets (Kulla-Conty, as Cycles' Multiscatter GGX); false: single-scattering GGX (glTF's reference BRDF), darker when rough", 0},
+    {"sheen_color", SPANGLE_PARAM_COLOR, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "colour of a sheen layer over the base (KHR_materials_sheen sheenColorFactor: velvet, cloth); 0: none", SPANGLE_PARAM_TEXTURABLE},
+    {"sheen_roughness", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "roughness of the sheen (KHR_materials_sheen sheenRoughnessFactor): low, a rim at grazing angles; high, a soft haze (at least 0.07)", SPANGLE_PARAM_TEXTURABLE},
 };
 // clang-format on
 
@@ -71,13 +88,89 @@ enum Param : uint32_t {
     kSpecColor,
     kCoat,
     kCoatRough,
-    kMultiscatter
+    kMultiscatter,
+    kSheen,
+    kSheenRough
 };
+
+constexpr float kMinSheenRoughness = 0.07f;  ///< below, the lobe is a line at the horizon
+
+/** The sheen's microfacet distribution (Charlie) at h, for alpha a. */
+float charlie_d(V3 h, float a) {
+    const float sin2 = std::max(0.0f, 1.0f - h.z * h.z);
+    return (2.0f + 1.0f / a) * std::pow(sin2, 0.5f / a) * (0.5f * kInvPi);
+}
+
+/** The sheen's visibility term (Neubelt and Pettineo's, as glTF's sample viewer uses). */
+float sheen_v(float mu_o, float mu_i) {
+    return 1.0f / (4.0f * (mu_i + mu_o - mu_i * mu_o));
+}
+
+/** E_s(mu, r): the sheen lobe's directional albedo for a white sheen, tabulated in mu (kSheenMu
+ *  points in sqrt(mu)) and roughness r (kSheenR points over [0.07, 1]). */
+constexpr int kSheenMu = 48, kSheenR = 12;
+struct SheenAlbedo {
+    float e[kSheenR][kSheenMu];
+};
+
+/** The albedo at one (mu, r), by a midpoint rule over wi (cos theta_i in 48 steps, phi in 48):
+ *  the lobe is smooth in wi (broad even for r 0.07: sin(theta_h)^204 spans tens of degrees);
+ *  within 1% of a 1024 x 1024 rule. More than 1 at grazing views of a fine sheen (5.4 at
+ *  mu 0.001, r 0.07: Charlie's lobe with this visibility is not energy-conserving there). */
+float sheen_albedo_at(float mu, float r) {
+    const float a = r * r;
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
+    constexpr int kN = 48;
+    double sum = 0.0;
+    for (int i = 0; i < kN; ++i) {
+        const float ci = (static_cast<float>(i) + 0.5f) / kN;
+        const float si = std::sqrt(std::max(0.0f, 1.0f - ci * ci));
+        for (int j = 0; j < kN; ++j) {
+            const float phi = 2.0f * kPi * (static_cast<float>(j) + 0.5f) / kN;
+            const V3 wi{si * std::cos(phi), si * std::sin(phi), ci};
+            const V3 h = normalize(wo + wi);
+            sum += static_cast<double>(charlie_d(h, a) * sheen_v(mu, ci) * ci);
+        }
+    }
+    // d(omega) = d(cos) d(phi): each cell 1/kN x 2 pi/kN.
+    return static_cast<float>(sum * (2.0 * M_PI) / (kN * kN));
+}
+
+const SheenAlbedo& sheen_albedo() {
+    static const SheenAlbedo table = [] {
+        SheenAlbedo t{};
+        for (int j = 0; j < kSheenR; ++j)
+            for (int i = 0; i < kSheenMu; ++i) {
+                const float x = static_cast<float>(i) / (kSheenMu - 1);
+                const float r = kMinSheenRoughness +
+                                (1.0f - kMinSheenRoughness) * static_cast<float>(j) / (kSheenR - 1);
+                t.e[j][i] = sheen_albedo_at(std::max(x * x, 1e-4f), r);
+            }
+        return t;
+    }();
+    return table;
+}
+
+/** E_s at (mu, r), bilinear in (sqrt(mu), r). */
+float sheen_albedo_lookup(float mu, float r) {
+    const SheenAlbedo& t = sheen_albedo();
+    const float x = std::clamp(std::sqrt(std::max(mu, 0.0f)) * (kSheenMu - 1), 0.0f,
+                               static_cast<float>(kSheenMu - 1));
+    const float y =
+        std::clamp((r - kMinSheenRoughness) / (1.0f - kMinSheenRoughness) * (kSheenR - 1), 0.0f,
+                   static_cast<float>(kSheenR - 1));
+    const int i = std::min(static_cast<int>(x), kSheenMu - 2),
+              j = std::min(static_cast<int>(y), kSheenR - 2);
+    const float u = x - static_cast<float>(i), v = y - static_cast<float>(j);
+    return (t.e[j][i] * (1 - u) + t.e[j][i + 1] * u) * (1 - v) +
+           (t.e[j + 1][i] * (1 - u) + t.e[j + 1][i + 1] * u) * v;
+}
 
 /** The instance: the parameters' constants. */
 struct MetalRough {
     float base[3], metallic, roughness, packed[3], ior, specular, spec_color[3], coat, coat_rough;
     bool multiscatter;
+    float sheen[3], sheen_rough;
 };
 
 /** One shading point. */
@@ -96,8 +189,12 @@ struct Closure {
     float e1_avg;     ///< its cosine-weighted average
     float ms[3];      ///< the metal's multiple-scattering colour F_ms (0: single scattering)
     float ec_o;       ///< coat albedo at wo, times `coat`
-    float p_diffuse;  ///< probability of sampling the diffuse lobe
+    float p_diffuse;  ///< probability of sampling the diffuse lobe (and the sheen)
     float p_spec;     ///< the base specular lobe (the coat: the rest)
+    float sheen[3];   ///< sheen colour (0: no sheen)
+    float sheen_max;  ///< its largest channel
+    float sheen_r;    ///< sheen roughness (at least kMinSheenRoughness)
+    float es_o;       ///< sheen albedo at wo (white)
 };
 
 /** Rec.709 luminance weights (for sampling probabilities only). */
@@ -129,6 +226,10 @@ void* create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint
     m->coat = param_f(p, "clearcoat");
     m->coat_rough = param_f(p, "clearcoat_roughness");
     m->multiscatter = param_number(p, "multiscatter", 0) != 0.0;
+    for (int c = 0; c < 3; ++c) m->sheen[c] = param_f(p, "sheen_color", c);
+    m->sheen_rough = param_f(p, "sheen_roughness");
+    // A sheen (a texture's is its mean here): the albedo table now, not in a render thread.
+    if (std::max({m->sheen[0], m->sheen[1], m->sheen[2]}) > 0.0f) (void)sheen_albedo();
     return m;
 }
 
@@ -191,17 +292,26 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
         float ac, bc;
         albedo_lookup(t, mu, c.alpha_c, ac, bc);
         c.ec_o = c.coat * (0.04f * ac + bc);
+        for (int ch = 0; ch < 3; ++ch) c.sheen[ch] = at(b, kSheen, i, m.sheen[ch], ch, 3);
+        c.sheen_max = std::max({c.sheen[0], c.sheen[1], c.sheen[2]});
+        c.sheen_r = std::max(at(b, kSheenRough, i, m.sheen_rough), kMinSheenRoughness);
+        c.es_o = c.sheen_max > 0.0f ? sheen_albedo_lookup(mu, c.sheen_r) : 0.0f;
+        // The base under the sheen keeps what the sheen leaves (at wo, for the weights).
+        const float keep = 1.0f - c.sheen_max * std::min(c.es_o, 1.0f);
         // Lobes in proportion to the energy each returns at wo, every present lobe at least a
         // tenth of the time so that none is starved of samples.
         const float under = 1.0f - c.ec_o;
         // The metal's multiple scattering is sampled with the diffuse lobe (its shape is close
         // to cosine).
         const float ms_o = c.metallic * lum(c.ms) * (1.0f - c.e1_o);
-        float w[3] = {under * ((1.0f - c.metallic) * lum(c.base) * (1.0f - lum(c.e_o)) + ms_o),
-                      under * ((1.0f - c.metallic) * lum(c.e_o) + c.metallic * lum(e_metal)),
-                      c.ec_o};
-        const bool present[3] = {(c.metallic < 1.0f && lum(c.base) > 0.0f) || ms_o > 0.0f, true,
-                                 c.coat > 0.0f};
+        const float sheen_o = lum(c.sheen) * std::min(c.es_o, 1.0f);
+        float w[3] = {
+            under *
+                (keep * ((1.0f - c.metallic) * lum(c.base) * (1.0f - lum(c.e_o)) + ms_o) + sheen_o),
+            under * keep * ((1.0f - c.metallic) * lum(c.e_o) + c.metallic * lum(e_metal)), c.ec_o};
+        const bool present[3] = {
+            (c.metallic < 1.0f && lum(c.base) > 0.0f) || ms_o > 0.0f || sheen_o > 0.0f, true,
+            c.coat > 0.0f};
         float sum = 0.0f;
         int n = 0;
         for (int k = 0; k < 3; ++k) {
@@ -235,6 +345,15 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
     const float sc = dc * ggx_g2(wo, wi, c.alpha_c, c.alpha_c) / (4.0f * wo.z * wi.z);
     const float coat = c.coat * (0.04f + 0.96f * w) * sc;
     const float under = (1.0f - c.ec_o) * (1.0f - ec_i);
+    // The sheen layer and what it leaves the base (1 without a sheen).
+    float sheen = 0.0f, keep = 1.0f;
+    if (c.sheen_max > 0.0f) {
+        const float a_s = c.sheen_r * c.sheen_r;
+        const float es_i = sheen_albedo_lookup(wi.z, c.sheen_r);
+        sheen = charlie_d(h, a_s) * sheen_v(wo.z, wi.z) / std::max({1.0f, c.es_o, es_i});
+        keep = std::min(1.0f - c.sheen_max * std::min(c.es_o, 1.0f),
+                        1.0f - c.sheen_max * std::min(es_i, 1.0f));
+    }
     for (int ch = 0; ch < 3; ++ch) {
         const float fd = c.f0[ch] + (c.f90 - c.f0[ch]) * w;
         const float e_i = c.f0[ch] * a_i + c.f90 * b_i;
@@ -243,7 +362,7 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
         const float fm = c.base[ch] + (1.0f - c.base[ch]) * w;
         const float metal = fm * s + c.ms[ch] * ms;
         const float base = (1.0f - c.metallic) * (fd * s + diffuse) + c.metallic * metal;
-        f[ch] = coat + under * base;
+        f[ch] = coat + under * (c.sheen[ch] * sheen + keep * base);
     }
     const float p_coat = 1.0f - c.p_diffuse - c.p_spec;
     pdf = c.p_diffuse * wi.z * kInvPi +

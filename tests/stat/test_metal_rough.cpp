@@ -59,6 +59,19 @@ std::vector<ChiCase> all_cases() {
           {"clearcoat", {1.0}},
           {"clearcoat_roughness", {0.05}},
           {"base_color", {0.1, 0.1, 0.5}}}},
+        {"velvet",
+         0.6f,
+         {{"metallic", {0.0}},
+          {"base_color", {0.3, 0.05, 0.1}},
+          {"sheen_color", {1.0, 0.8, 0.9}},
+          {"sheen_roughness", {0.3}}}},
+        {"fine_sheen_coated",
+         0.4f,
+         {{"metallic", {0.2}},
+          {"sheen_color", {0.5, 0.5, 0.5}},
+          {"sheen_roughness", {0.07}},
+          {"clearcoat", {0.3}},
+          {"clearcoat_roughness", {0.3}}}},
     };
     std::vector<ChiCase> out;
     for (const Kind& k : kinds)
@@ -163,6 +176,40 @@ TEST(MetalRoughFurnace, NoPointReturnsMoreThanItReceives) {
                 EXPECT_LE(mean, 1.0 + 4.0 * se + 5e-3) << k.name << " cos " << c << " ch " << ch;
             }
         }
+}
+
+TEST(MetalRoughSheen, AWhiteSheenOverAWhiteBaseKeepsItsLightAndLightsTheRim) {
+    // The base keeps what the sheen leaves (1 - E_s, the lesser of the two directions'), so a
+    // white sheen over a white dielectric returns at most everything, and nearly everything:
+    // what is lost is the difference of E_s between the two directions. Seen at grazing, the
+    // sheen brightens the surface (the velvet rim).
+    for (float r : {0.07f, 0.3f, 1.0f})
+        for (float c : {1.0f, 0.6f, 0.2f, 0.05f}) {
+            BsdfHarness b("smooth", "metal_rough",
+                          {{"metallic", {0.0}},
+                           {"roughness", {0.5}},
+                           {"base_color", {1.0, 1.0, 1.0}},
+                           {"sheen_color", {1.0, 1.0, 1.0}},
+                           {"sheen_roughness", {r}}});
+            b.prepare(wo_for(c));
+            const auto [mean, se] = albedo(b, 1);
+            EXPECT_LE(mean, 1.0 + 4.0 * se + 5e-3) << "sheen roughness " << r << " cos " << c;
+            EXPECT_GE(mean, 0.85) << "sheen roughness " << r << " cos " << c;
+        }
+    const Params plain{{"metallic", {0.0}}, {"roughness", {0.6}}, {"base_color", {0.2, 0.2, 0.2}}};
+    Params velvet = plain;
+    velvet.push_back({"sheen_color", {1.0, 1.0, 1.0}});
+    velvet.push_back({"sheen_roughness", {0.3}});
+    BsdfHarness a("smooth", "metal_rough", plain), v("smooth", "metal_rough", velvet);
+    const Vec3 grazing = wo_for(0.1f);
+    a.prepare(grazing);
+    v.prepare(grazing);
+    std::vector<Vec3> fa, fv;
+    std::vector<float> pdf;
+    const Vec3 wi = grazing;  // back towards the viewer, at grazing: the rim
+    a.eval({wi}, fa, pdf);
+    v.eval({wi}, fv, pdf);
+    EXPECT_GT(fv[0].y, 2.0f * fa[0].y) << "a sheen lights the rim";
 }
 
 TEST(MetalRoughReciprocity, EvalIsSymmetric) {

@@ -82,7 +82,7 @@ std::string material_body(GltfWriter& w, const std::string& png) {
     const std::string tt =
         R"("extensions":{"KHR_texture_transform":{"offset":[0.5,0.25],"rotation":0,"scale":[2,4]}})";
     return fmt::format(
-        R"("extensionsUsed":["KHR_texture_transform","KHR_materials_clearcoat","KHR_materials_ior","KHR_materials_specular","KHR_materials_transmission","KHR_materials_emissive_strength","KHR_materials_iridescence","SPANGLE_materials_flakes","KHR_materials_sheen","EXT_mesh_gpu_instancing"],)"
+        R"("extensionsUsed":["KHR_texture_transform","KHR_materials_clearcoat","KHR_materials_ior","KHR_materials_specular","KHR_materials_transmission","KHR_materials_emissive_strength","KHR_materials_iridescence","SPANGLE_materials_flakes","KHR_materials_anisotropy","EXT_mesh_gpu_instancing"],)"
         R"("images":[{{"bufferView":{},"mimeType":"image/png"}},{{"uri":"data:image/png;base64,{}"}}],)"
         R"("samplers":[{{"wrapS":33071,"wrapT":33071,"magFilter":9728}},{{"wrapS":33648,"wrapT":10497,"magFilter":9729}}],)"
         R"("textures":[{{"source":0,"sampler":0}},{{"source":1,"sampler":1}}],)"
@@ -100,7 +100,7 @@ std::string material_body(GltfWriter& w, const std::string& png) {
         // 3: transmission onto the dielectric.
         R"({{"name":"Glass","pbrMetallicRoughness":{{"roughnessFactor":0.3,"metallicFactor":0}},"extensions":{{"KHR_materials_transmission":{{"transmissionFactor":1}},"KHR_materials_ior":{{"ior":1.33}}}}}},)"
         // 4: iridescence and sheen (not carried), alpha blending.
-        R"({{"name":"Bubble","alphaMode":"BLEND","extensions":{{"KHR_materials_iridescence":{{"iridescenceFactor":1}},"KHR_materials_sheen":{{}}}}}},)"
+        R"({{"name":"Bubble","alphaMode":"BLEND","extensions":{{"KHR_materials_iridescence":{{"iridescenceFactor":1}},"KHR_materials_anisotropy":{{}}}}}},)"
         // 5: flakes with every kind of value; base colour and coat from the core material.
         R"({{"name":"CarPaint","pbrMetallicRoughness":{{"baseColorFactor":[0.1,0.02,0.02,1]}},)"
         R"("extensions":{{"KHR_materials_clearcoat":{{"clearcoatFactor":1,"clearcoatRoughnessFactor":0.2}},)"
@@ -182,7 +182,7 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_EQ(param_of(glass, "multiscatter").number, 1.0) << "rough glass keeps its light";
 
     EXPECT_TRUE(has_note(d, "KHR_materials_iridescence is dropped"));
-    EXPECT_TRUE(has_note(d, "material extension KHR_materials_sheen is not read"));
+    EXPECT_TRUE(has_note(d, "material extension KHR_materials_anisotropy is not read"));
     // BLEND is a cut-out by chance (noted: no refraction, no blending order); MASK is a cut-out
     // at alphaCutoff, but Twin's factor alpha (1) passes it whole: nothing to cut.
     EXPECT_TRUE(has_note(d, "alphaMode BLEND is drawn as a cut-out"));
@@ -190,10 +190,10 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     EXPECT_FALSE(d.materials[6].alpha);
     EXPECT_FALSE(has_note(d, "alphaMode MASK"));
     EXPECT_TRUE(has_note(d, "doubleSided emissive material emits from its front faces only"));
-    int sheen = 0;  // one note, at the material, not another for extensionsUsed
+    int aniso = 0;  // one note, at the material, not another for extensionsUsed
     for (const std::string& n : d.notes)
-        sheen += n.find("KHR_materials_sheen") != std::string::npos;
-    EXPECT_EQ(sheen, 1);
+        aniso += n.find("KHR_materials_anisotropy") != std::string::npos;
+    EXPECT_EQ(aniso, 1);
     EXPECT_TRUE(has_note(d, "extension EXT_mesh_gpu_instancing is not read"));
 
     const MaterialDesc& flakes = d.materials[5];
@@ -363,6 +363,28 @@ TEST(GltfMaterials, ASpecularGlossinessMetalIsAMetalAndBadValuesAreErrors) {
             EXPECT_NE(std::string(e.what()).find("bad.gltf:1:"), std::string::npos) << e.what();
         }
     }
+}
+
+TEST(GltfMaterials, SheenBecomesTheSheenLayerOfMetalRough) {
+    test::TempDir dir("gltf_sheen");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, 0);
+    w.write_gltf(
+        dir.file("velvet.gltf"),
+        fmt::format(R"("extensionsUsed":["KHR_materials_sheen"],)"
+                    R"("extensionsRequired":["KHR_materials_sheen"],)"
+                    R"("materials":[{{"extensions":{{"KHR_materials_sheen":{{)"
+                    R"("sheenColorFactor":[0.8,0.2,0.3],"sheenRoughnessFactor":0.4}}}}}}],)"
+                    R"("meshes":[{}],"nodes":[{{"mesh":0}}],)"
+                    R"("scenes":[{{"nodes":[0]}}],"scene":0)",
+                    mesh));
+    const SceneDescription d = read_gltf_scene(dir.file("velvet.gltf"), {});
+    const MaterialDesc& m = d.materials.at(0);
+    EXPECT_EQ(m.model, "metal_rough");
+    EXPECT_FLOAT_EQ(param_of(m, "sheen_color").color.rgb.y, 0.2f);
+    EXPECT_NEAR(param_of(m, "sheen_roughness").number, 0.4, 1e-12);
+    for (const std::string& n : d.notes)
+        EXPECT_EQ(n.find("KHR_materials_sheen"), std::string::npos);
 }
 
 TEST(GltfMaterials, AnUnlitMaterialShowsItsBaseColourWhateverTheLight) {

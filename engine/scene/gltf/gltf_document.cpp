@@ -33,6 +33,7 @@ const std::set<std::string> kRead = {
     "KHR_texture_transform",
     "KHR_materials_emissive_strength",
     "KHR_materials_pbrSpecularGlossiness",
+    "KHR_materials_sheen",
     "KHR_materials_unlit",
     "KHR_materials_volume",
     "KHR_mesh_quantization",

@@ -25,6 +25,7 @@ const std::set<std::string> kMaterialExtensions = {"KHR_materials_clearcoat",
                                                    "KHR_materials_volume",
                                                    "KHR_materials_pbrSpecularGlossiness",
                                                    "KHR_materials_unlit",
+                                                   "KHR_materials_sheen",
                                                    "SPANGLE_materials_flakes"};
 
 /** Builds one MaterialDesc's parameters, each blamed on its place in the JSON. */
@@ -191,6 +192,27 @@ void metal_rough(Builder& b, const tinygltf::Material& g, const std::string& mp)
         if (texture_in(x, "specularTexture"))
             ctx.note("specularTexture", ctx.at(xp + "/specularTexture"),
                      "specularTexture (its alpha channel) is dropped: specularFactor stands in");
+    }
+    if (const tinygltf::Value* x = extension(g, "KHR_materials_sheen")) {
+        const std::string xp = mp + "/extensions/KHR_materials_sheen";
+        const Vec3 sc = clamp3(vec3_of(x, "sheenColorFactor", {0, 0, 0}), 0.0f, 1.0f);
+        std::optional<TextureDesc> tex;
+        if (auto u = texture_in(x, "sheenColorTexture"))
+            tex = texture_desc(ctx, *u, xp + "/sheenColorTexture", true);
+        if (tex) {
+            tex->scale[0] = sc.x;
+            tex->scale[1] = sc.y;
+            tex->scale[2] = sc.z;
+            b.texture("sheen_color", std::move(*tex), xp + "/sheenColorTexture");
+        } else {
+            b.color("sheen_color", sc, xp + "/sheenColorFactor");
+        }
+        b.number("sheen_roughness", std::clamp(number_of(x, "sheenRoughnessFactor", 0.0), 0.0, 1.0),
+                 xp + "/sheenRoughnessFactor");
+        if (texture_in(x, "sheenRoughnessTexture"))
+            ctx.note("sheenRoughnessTexture", ctx.at(xp + "/sheenRoughnessTexture"),
+                     "sheenRoughnessTexture (its alpha channel) is dropped: sheenRoughnessFactor "
+                     "stands in");
     }
     if (const tinygltf::Value* x = extension(g, "KHR_materials_clearcoat")) {
         const std::string xp = mp + "/extensions/KHR_materials_clearcoat";

@@ -350,8 +350,10 @@ def _dropped_inputs(node, transmission, warnings, what):
         except TypeError:
             return None
 
+    sheen = value("Sheen Weight", "Sheen")
+    if sheen == "linked":
+        warnings.append(f"{what}: a sheen weight from a texture is not exported")
     for names, label in ((("Subsurface Weight", "Subsurface"), "subsurface scattering"),
-                         (("Sheen Weight", "Sheen"), "sheen"),
                          (("Anisotropic",), "anisotropy"),
                          (("Thin Film Thickness",), "a thin film")):
         v = value(*names)
@@ -495,6 +497,16 @@ def material_entry(mat, flake_params, warnings):
     elif isinstance(roughness, dict):
         params["roughness"] = roughness
     params["ior"] = min(max(float(ior), 1.0), 10.0)
+    # Sheen (weight x tint, roughness): metal_rough's sheen layer (KHR_materials_sheen's
+    # Charlie sheen; Cycles' is a microfiber model of the same look).
+    sheen_w = _socket_value(_input(node, "Sheen Weight", "Sheen"), warnings, what)
+    if isinstance(sheen_w, float) and sheen_w > 0.0:
+        tint = _socket_value(_input(node, "Sheen Tint"), warnings, what)
+        t = tint[:3] if isinstance(tint, tuple) else (1.0, 1.0, 1.0)
+        params["sheen_color"] = tuple(min(max(sheen_w * float(c), 0.0), 1.0) for c in t)
+        sheen_r = _socket_value(_input(node, "Sheen Roughness"), warnings, what)
+        if isinstance(sheen_r, float):
+            params["sheen_roughness"] = min(max(sheen_r, 0.0), 1.0)
     # Specular IOR Level scales the dielectric's F0 by 2 level (0.5: as the IOR gives); above
     # 0.5 it brightens it, which KHR_materials_specular's specular_color carries (the level was
     # clamped to 0.5). Specular Tint colours F0 the same way.
