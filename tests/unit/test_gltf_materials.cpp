@@ -365,6 +365,53 @@ TEST(GltfMaterials, ASpecularGlossinessMetalIsAMetalAndBadValuesAreErrors) {
     }
 }
 
+TEST(GltfMaterials, AWebPTextureIsRead) {
+    // EXT_texture_webp (glTF-Transform's and web exporters' compressed textures), required and
+    // without a PNG fallback: its image is the base colour texture (it was dropped, the factor
+    // standing in).
+    test::TempDir dir("gltf_webp");
+    CacheEnv cache(dir.file("cache"));
+    // An 8 x 8 pure red WebP (lossy, as oiiotool writes it).
+    const std::string webp = bytes_of(test::test_dir() + "/scenes/textures/red.webp");
+    ASSERT_EQ(webp.substr(8, 4), "WEBP");
+    GltfWriter w;
+    const int view = w.view(webp.data(), webp.size());
+    const std::string mesh = quad_mesh(w, 0);
+    w.write_gltf(
+        dir.file("webp.gltf"),
+        fmt::format(R"("extensionsUsed":["EXT_texture_webp"],)"
+                    R"("extensionsRequired":["EXT_texture_webp"],)"
+                    R"("materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}},)"
+                    R"("metallicFactor":0}}}}],)"
+                    R"("images":[{{"bufferView":{},"mimeType":"image/webp"}}],)"
+                    R"("textures":[{{"extensions":{{"EXT_texture_webp":{{"source":0}}}}}}],)"
+                    R"("meshes":[{}],"nodes":[{{"mesh":0}}],"scenes":[{{"nodes":[0]}}],"scene":0)",
+                    view, mesh));
+    SceneDescription d = read_gltf_scene(dir.file("webp.gltf"), {});
+    const ParamDesc& base = param_of(d.materials.at(0), "base_color");
+    ASSERT_EQ(base.kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(std::filesystem::path(base.texture.path).extension(), ".webp");
+    EXPECT_EQ(bytes_of(base.texture.path), webp);
+    for (const std::string& n : d.notes) EXPECT_EQ(n.find("WebP"), std::string::npos) << n;
+    // Rendered: the quad is red.
+    d.render.width = 8;
+    d.render.height = 8;
+    d.render.spp = 4;
+    d.camera.position = {0.5f, 0.5f, 3};
+    d.camera.look_at = {0.5f, 0.5f, 0};
+    d.camera.fov_deg = 8;
+    RenderOptions options;
+    options.threads = 2;
+    options.texture_cache = dir.file("textures");
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(d);
+    session.render();
+    const std::vector<float>& img = session.result().image;
+    const std::size_t mid = (4 * 8 + 4) * 3;
+    EXPECT_GT(img[mid], 5.0f * img[mid + 1]) << "red";
+    EXPECT_GT(img[mid], 5.0f * img[mid + 2]) << "red";
+}
+
 TEST(GltfMaterials, SheenBecomesTheSheenLayerOfMetalRough) {
     test::TempDir dir("gltf_sheen");
     GltfWriter w;

@@ -37,6 +37,7 @@ const std::set<std::string> kRead = {
     "KHR_materials_unlit",
     "KHR_materials_volume",
     "KHR_mesh_quantization",
+    "EXT_texture_webp",
     "SPANGLE_materials_flakes",
 };
 
@@ -176,8 +177,7 @@ std::string_view glb_json(const std::string& bytes, const std::string& path) {
 /** Extensions noted where they are used (a material, a primitive, a texture), not here. */
 bool noted_in_place(const std::string& e) {
     return (e.rfind("KHR_materials_", 0) == 0 && e != "KHR_materials_variants") ||
-           e == "KHR_draco_mesh_compression" || e == "KHR_texture_basisu" ||
-           e == "EXT_texture_webp";
+           e == "KHR_draco_mesh_compression" || e == "KHR_texture_basisu";
 }
 
 /** Fails on a required extension Spangle does not read (from the JSON itself, before tinygltf

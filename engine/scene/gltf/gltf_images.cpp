@@ -47,6 +47,9 @@ std::string percent_decoded(const std::string& uri) {
 std::string image_extension(const std::vector<unsigned char>& b) {
     if (b.size() >= 8 && b[0] == 0x89 && b[1] == 'P' && b[2] == 'N' && b[3] == 'G') return ".png";
     if (b.size() >= 3 && b[0] == 0xFF && b[1] == 0xD8 && b[2] == 0xFF) return ".jpg";
+    if (b.size() >= 12 && b[0] == 'R' && b[1] == 'I' && b[2] == 'F' && b[3] == 'F' && b[8] == 'W' &&
+        b[9] == 'E' && b[10] == 'B' && b[11] == 'P')
+        return ".webp";
     return "";
 }
 
@@ -188,10 +191,11 @@ std::string image_file(Context& ctx, int image, const std::string& ref) {
     const std::vector<unsigned char>& bytes = ctx.images[static_cast<std::size_t>(image)];
     const std::string ext = image_extension(bytes);
     if (ext.empty()) {
-        ctx.note(fmt::format("image {}", image), ctx.at(ip),
-                 fmt::format("image {} is not a PNG or JPEG image ({}): the textures using it are "
-                             "dropped, their factors stand in",
-                             image, bytes.empty() ? "no bytes" : img.mimeType));
+        ctx.note(
+            fmt::format("image {}", image), ctx.at(ip),
+            fmt::format("image {} is not a PNG, JPEG or WebP image ({}): the textures using it are "
+                        "dropped, their factors stand in",
+                        image, bytes.empty() ? "no bytes" : img.mimeType));
         return out;
     }
     return out = cached_image_file(ctx, bytes, ext, ip);

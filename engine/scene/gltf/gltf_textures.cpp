@@ -83,14 +83,25 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
     check_index(ctx, ref + "/index", use.index, ctx.model.textures.size(), "texture");
     const tinygltf::Texture& t = ctx.model.textures[static_cast<std::size_t>(use.index)];
     const std::string tp = fmt::format("textures/{}", use.index);
-    if (t.source < 0) {
+    // EXT_texture_webp: a WebP image, read as any other (the core source, PNG or JPEG, is its
+    // fallback and may be absent).
+    int source = t.source;
+    std::string source_ref = tp + "/source";
+    if (const auto x = t.extensions.find("EXT_texture_webp"); x != t.extensions.end()) {
+        const tinygltf::Value& v = x->second;
+        if (v.IsObject() && v.Has("source") && v.Get("source").IsInt()) {
+            source = v.Get("source").GetNumberAsInt();
+            source_ref = tp + "/extensions/EXT_texture_webp/source";
+        }
+    }
+    if (source < 0) {
         ctx.note("texture source", ctx.at(tp),
-                 fmt::format("texture {} has no PNG or JPEG source (KTX2 and WebP images are not "
+                 fmt::format("texture {} has no PNG, JPEG or WebP source (KTX2 images are not "
                              "read): the textures using it are dropped, their factors stand in",
                              use.index));
         return std::nullopt;
     }
-    const std::string file = image_file(ctx, t.source, tp + "/source");
+    const std::string file = image_file(ctx, source, source_ref);
     if (file.empty()) return std::nullopt;
     TextureDesc tex;
     tex.path = file;

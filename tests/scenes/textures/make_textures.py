@@ -6,6 +6,7 @@
     half_alpha.png       16 x 16 RGBA: green, alpha 0 in the left half and 1 in the right
     lace.png             64 x 64 grey + alpha: cream, round holes (alpha 0) on a 16-pixel grid
     red_opaque.png       8 x 8 RGBA: pure red, alpha 1 everywhere (pbrt drops such an alpha)
+    red.webp             8 x 8 pure red, lossy WebP (`oiiotool red_opaque.png -o red.webp`; glTF EXT_texture_webp)
 
     python3 tests/scenes/textures/make_textures.py
 """
