@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Writes the small glTF scenes beside this script (seeds of the `gltf` fuzz target and scenes to
-look at with `spangle render`): a lit, animated cube as .gltf (base64 buffer) and as .glb, and a
-flake-painted plane using SPANGLE_materials_flakes. Run it again after editing; the files are
+look at with `spangle render`): a lit, animated cube as .gltf (base64 buffer) and as .glb, a
+flake-painted plane using SPANGLE_materials_flakes, and a skinned, morphing bar in the material
+extensions read since (skin.gltf). Run it again after editing; the files are
 committed."""
 import base64
 import json
@@ -119,6 +120,65 @@ def flake_scene():
     return doc, buf
 
 
+def skin_scene():
+    """A bar of three rows on a two-joint skin, bending over a second, with a morph target whose
+    weight is animated, in four materials of the extensions read since: specular-glossiness,
+    sheen, unlit and tinted glass with a volume."""
+    buf = Buffer()
+    bar = [0, 0, 0, 1, 0, 0, 0, 1, 0, 1, 1, 0, 0, 2, 0, 1, 2, 0]
+    # One bar per material, side by side (1.5 apart in x).
+    pos = [buf.add("f", [v + (1.5 * k if i % 3 == 0 else 0) for i, v in enumerate(bar)], 3,
+                   "VEC3", 5126) for k in range(4)]
+    nor = buf.add("f", [0, 0, 1] * 6, 3, "VEC3", 5126)
+    idx = buf.add("H", [0, 1, 3, 0, 3, 2, 2, 3, 5, 2, 5, 4], 1, "SCALAR", 5123)
+    joints = buf.add("H", [0, 0, 0, 0] * 2 + [0, 1, 0, 0] * 2 + [1, 0, 0, 0] * 2, 4, "VEC4", 5123)
+    weights = buf.add("f", [1, 0, 0, 0] * 2 + [0.5, 0.5, 0, 0] * 2 + [1, 0, 0, 0] * 2, 4,
+                      "VEC4", 5126)
+    dpos = buf.add("f", [0.2, 0, 0.3] * 6, 3, "VEC3", 5126)
+    ibm = buf.add("f", [1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1,
+                        1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, -1, 0, 1], 16, "MAT4", 5126)
+    times = buf.add("f", [0, 1], 1, "SCALAR", 5126)
+    turn = buf.add("f", [0, 0, 0, 1, 0, 0, 0.7071068, 0.7071068], 4, "VEC4", 5126)
+    wkeys = buf.add("f", [0, 1], 1, "SCALAR", 5126)
+
+    def prim(material):
+        return {"attributes": {"POSITION": pos[material], "NORMAL": nor, "JOINTS_0": joints,
+                               "WEIGHTS_0": weights},
+                "targets": [{"POSITION": dpos}], "indices": idx, "material": material}
+    doc = {
+        "asset": {"version": "2.0"},
+        "extensionsUsed": ["KHR_materials_pbrSpecularGlossiness", "KHR_materials_sheen",
+                           "KHR_materials_unlit", "KHR_materials_transmission",
+                           "KHR_materials_volume"],
+        "nodes": [{"name": "bar", "mesh": 0, "skin": 0}, {"name": "root", "children": [2]},
+                  {"name": "bend", "translation": [0, 1, 0]}],
+        "skins": [{"joints": [1, 2], "inverseBindMatrices": ibm}],
+        "meshes": [{"primitives": [prim(0), prim(1), prim(2), prim(3)], "weights": [0.25]}],
+        "animations": [{"channels": [{"sampler": 0, "target": {"node": 2, "path": "rotation"}},
+                                     {"sampler": 1, "target": {"node": 0, "path": "weights"}}],
+                        "samplers": [{"input": times, "output": turn},
+                                     {"input": times, "output": wkeys}]}],
+        "materials": [
+            {"name": "SpecGloss", "extensions": {"KHR_materials_pbrSpecularGlossiness": {
+                "diffuseFactor": [0.5, 0.4, 0.3, 1], "specularFactor": [0.9, 0.9, 0.9],
+                "glossinessFactor": 0.6}}},
+            {"name": "Velvet", "pbrMetallicRoughness": {"baseColorFactor": [0.3, 0.02, 0.05, 1],
+                                                        "metallicFactor": 0},
+             "extensions": {"KHR_materials_sheen": {"sheenColorFactor": [1, 0.6, 0.7],
+                                                    "sheenRoughnessFactor": 0.3}}},
+            {"name": "Unlit", "pbrMetallicRoughness": {"baseColorFactor": [0.2, 0.6, 0.9, 1]},
+             "extensions": {"KHR_materials_unlit": {}}},
+            {"name": "Glass", "pbrMetallicRoughness": {"baseColorFactor": [0.9, 0.6, 0.3, 1],
+                                                       "metallicFactor": 0,
+                                                       "roughnessFactor": 0.1},
+             "extensions": {"KHR_materials_transmission": {"transmissionFactor": 1},
+                            "KHR_materials_volume": {"thicknessFactor": 0.5,
+                                                     "attenuationDistance": 1,
+                                                     "attenuationColor": [0.9, 0.5, 0.2]}}}],
+    }
+    return doc, buf
+
+
 def write_gltf(name, doc, buf):
     doc["buffers"] = [{"byteLength": len(buf.bin),
                        "uri": "data:application/octet-stream;base64," + base64.b64encode(buf.bin).decode()}]
@@ -146,3 +206,4 @@ if __name__ == "__main__":
     write_gltf("cube.gltf", json.loads(json.dumps(doc)), buf)
     write_glb("cube.glb", doc, buf)
     write_gltf("flakes.gltf", *flake_scene())
+    write_gltf("skin.gltf", *skin_scene())
