@@ -59,6 +59,17 @@ std::string skinned_bar(GltfWriter& w, const std::string& bend, const std::strin
         pos, nrm, joints, weights, idx, bend, ibm, animations);
 }
 
+/** The bar with its bend joint turning from nothing to a quarter over one second (LINEAR). */
+std::string bending_bar(GltfWriter& w) {
+    const int t = w.floats({0, 1}, "SCALAR", 1);
+    const int q = w.floats({0, 0, 0, 1, 0, 0, kS, kS}, "VEC4", 4);
+    return skinned_bar(w, "",
+                       fmt::format(R"("animations":[{{"channels":[{{"sampler":0,)"
+                                   R"("target":{{"node":2,"path":"rotation"}}}}],)"
+                                   R"("samplers":[{{"input":{},"output":{}}}]}}],)",
+                                   t, q));
+}
+
 const InlineMeshShape& shape_of(const SceneDescription& d, std::size_t i = 0) {
     return std::get<InlineMeshShape>(d.objects.at(i).shape);
 }
@@ -123,14 +134,7 @@ TEST(GltfDeform, AnAnimatedSkinDeformsAtTheTimeTheSceneIsBuiltAt) {
     // The bend joint turns from nothing to a quarter over one second (LINEAR).
     test::TempDir dir("gltf_deform_anim");
     GltfWriter w;
-    const int t = w.floats({0, 1}, "SCALAR", 1);
-    const int q = w.floats({0, 0, 0, 1, 0, 0, kS, kS}, "VEC4", 4);
-    w.write_gltf(dir.file("bar.gltf"),
-                 skinned_bar(w, "",
-                             fmt::format(R"("animations":[{{"channels":[{{"sampler":0,)"
-                                         R"("target":{{"node":2,"path":"rotation"}}}}],)"
-                                         R"("samplers":[{{"input":{},"output":{}}}]}}],)",
-                                         t, q)));
+    w.write_gltf(dir.file("bar.gltf"), bending_bar(w));
     const SceneDescription d = read_gltf_scene(dir.file("bar.gltf"), {});
     const InlineMeshShape& s = shape_of(d);
     ASSERT_TRUE(s.deformation);
@@ -177,14 +181,7 @@ std::vector<float> render_at(const Scene& scene, double time) {
 TEST(GltfDeform, ConvertWritesADeformingMeshAsAFrameSequenceThatRendersTheSame) {
     test::TempDir dir("gltf_deform_convert");
     GltfWriter w;
-    const int t = w.floats({0, 1}, "SCALAR", 1);
-    const int q = w.floats({0, 0, 0, 1, 0, 0, kS, kS}, "VEC4", 4);
-    w.write_gltf(dir.file("bar.gltf"),
-                 skinned_bar(w, "",
-                             fmt::format(R"("animations":[{{"channels":[{{"sampler":0,)"
-                                         R"("target":{{"node":2,"path":"rotation"}}}}],)"
-                                         R"("samplers":[{{"input":{},"output":{}}}]}}],)",
-                                         t, q)));
+    w.write_gltf(dir.file("bar.gltf"), bending_bar(w));
     const SceneDescription d = read_gltf_scene(dir.file("bar.gltf"), {});
     const std::string out = dir.file("bar.toml");
     const SceneWriteReport rep = write_toml_scene(d, out, dir.file("bar_meshes"));

@@ -136,36 +136,39 @@ std::vector<Channel> read_channels(Context& ctx) {
     return out;
 }
 
-/** Channel k's value (3 or 4 numbers) at time t, held constant outside its keys. */
-void evaluate(const Channel& k, float t, float out[4]) {
-    const std::size_t n = k.path == 1 ? 4 : 3, per = k.interp == 2 ? 3 * n : n;
+/** The value of `n` numbers at time t of keys at `times` with `values` (n per key; CUBICSPLINE:
+ *  in-tangents, values, out-tangents), held constant outside them; `rotation`: a quaternion
+ *  (LINEAR along the shorter arc). */
+void evaluate_keys(const std::vector<float>& times, const std::vector<float>& values, std::size_t n,
+                   int interp, bool rotation, float t, float* out) {
+    const std::size_t per = interp == 2 ? 3 * n : n;
     const std::size_t value =
-        k.interp == 2 ? n : 0;  // a CUBICSPLINE key's value follows its in-tangent
-    const std::size_t last = k.times.size() - 1;
+        interp == 2 ? n : 0;  // a CUBICSPLINE key's value follows its in-tangent
+    const std::size_t last = times.size() - 1;
     std::size_t i = 0;
-    if (t >= k.times[last]) {
+    if (t >= times[last]) {
         i = last;
-    } else if (t > k.times[0]) {
-        i = static_cast<std::size_t>(std::upper_bound(k.times.begin(), k.times.end(), t) -
-                                     k.times.begin()) -
+    } else if (t > times[0]) {
+        i = static_cast<std::size_t>(std::upper_bound(times.begin(), times.end(), t) -
+                                     times.begin()) -
             1;
     }
-    const float* a = &k.values[i * per + value];
-    if (i == last || t <= k.times[0] || k.interp == 1) {
+    const float* a = &values[i * per + value];
+    if (i == last || t <= times[0] || interp == 1) {
         std::copy(a, a + n, out);
         return;
     }
-    const float* b = &k.values[(i + 1) * per + value];
-    const float dt = k.times[i + 1] - k.times[i], s = (t - k.times[i]) / dt;
-    if (k.interp == 2) {
+    const float* b = &values[(i + 1) * per + value];
+    const float dt = times[i + 1] - times[i], s = (t - times[i]) / dt;
+    if (interp == 2) {
         // Hermite spline (glTF 2.0, Appendix C): a's out-tangent and b's in-tangent, times dt.
-        const float* ta = &k.values[i * per + 2 * n];
-        const float* tb = &k.values[(i + 1) * per];
+        const float* ta = &values[i * per + 2 * n];
+        const float* tb = &values[(i + 1) * per];
         const float s2 = s * s, s3 = s2 * s;
         for (std::size_t c = 0; c < n; ++c)
             out[c] = (2 * s3 - 3 * s2 + 1) * a[c] + (s3 - 2 * s2 + s) * dt * ta[c] +
                      (-2 * s3 + 3 * s2) * b[c] + (s3 - s2) * dt * tb[c];
-    } else if (k.path == 1) {
+    } else if (rotation) {
         float d = a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3];
         const float sign = d < 0.0f ? -1.0f : 1.0f;  // the shorter arc
         d = std::min(1.0f, std::fabs(d));
@@ -179,6 +182,11 @@ void evaluate(const Channel& k, float t, float out[4]) {
     } else {
         for (std::size_t c = 0; c < n; ++c) out[c] = a[c] + s * (b[c] - a[c]);
     }
+}
+
+/** Channel k's value (3 or 4 numbers) at time t, held constant outside its keys. */
+void evaluate(const Channel& k, float t, float out[4]) {
+    evaluate_keys(k.times, k.values, k.path == 1 ? 4 : 3, k.interp, k.path == 1, t, out);
 }
 
 /** The times at which a node moved by `channels` is sampled. */
@@ -293,34 +301,7 @@ std::map<int, WeightTrack> weight_tracks(Context& ctx) {
 }
 
 void evaluate_weights(const WeightTrack& w, double t, float* out) {
-    const std::size_t n = w.count, per = w.interp == 2 ? 3 * n : n;
-    const std::size_t value = w.interp == 2 ? n : 0;  // a CUBICSPLINE key's value
-    const std::size_t last = w.times.size() - 1;
-    const auto tf = static_cast<float>(t);
-    std::size_t i = 0;
-    if (tf >= w.times[last])
-        i = last;
-    else if (tf > w.times[0])
-        i = static_cast<std::size_t>(std::upper_bound(w.times.begin(), w.times.end(), tf) -
-                                     w.times.begin()) -
-            1;
-    const float* a = &w.values[i * per + value];
-    if (i == last || tf <= w.times[0] || w.interp == 1) {
-        std::copy(a, a + n, out);
-        return;
-    }
-    const float* b = &w.values[(i + 1) * per + value];
-    const float dt = w.times[i + 1] - w.times[i], s = (tf - w.times[i]) / dt;
-    if (w.interp == 2) {
-        const float* ta = &w.values[i * per + 2 * n];
-        const float* tb = &w.values[(i + 1) * per];
-        const float s2 = s * s, s3 = s2 * s;
-        for (std::size_t c = 0; c < n; ++c)
-            out[c] = (2 * s3 - 3 * s2 + 1) * a[c] + (s3 - 2 * s2 + s) * dt * ta[c] +
-                     (-2 * s3 + 3 * s2) * b[c] + (s3 - s2) * dt * tb[c];
-    } else {
-        for (std::size_t c = 0; c < n; ++c) out[c] = a[c] + s * (b[c] - a[c]);
-    }
+    evaluate_keys(w.times, w.values, w.count, w.interp, false, static_cast<float>(t), out);
 }
 
 Affine local_matrix(const Context& ctx, int n) {
