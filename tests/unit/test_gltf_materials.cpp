@@ -17,6 +17,7 @@
 #include "pipeline/frame.h"
 #include "pipeline/session.h"
 #include "scene/gltf/gltf_reader.h"
+#include "scene/gltf/gltf_textures.h"
 #include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
 #include "scene/toml_scene_writer.h"
@@ -257,12 +258,12 @@ TEST(GltfMaterials, TransmissionTakesTheBaseColourAndTheVolumesAttenuation) {
     }
 }
 
-TEST(GltfMaterials, SpecularGlossinessBecomesADielectricOfThatF0AndRoughness) {
+TEST(GltfMaterials, SpecularGlossinessBecomesMetalRough) {
     // KHR_materials_pbrSpecularGlossiness (older exporters, Sketchfab): it rendered as glTF's
     // default material, a white rough metal. Material 0: factors alone, a dim specular (F0
-    // 0.04: index 1.5, specular_color 1); material 1: a bright one (F0 up to 1: index 10) and a
-    // specular-glossiness texture whose alpha is 0 on the left, 1 on the right, times the
-    // glossiness 0.8: roughness 1 on the left, 0.2 on the right.
+    // 0.04: a dielectric of index 1.5, specular_color 1); material 1: textures (green, alpha 0
+    // on the left and 1 on the right) as diffuse and specular-glossiness, specular factor
+    // [1, 0.8, 0.5], glossiness 0.8.
     test::TempDir dir("gltf_specgloss");
     CacheEnv cache(dir.file("cache"));
     const std::string png = bytes_of(test::test_dir() + "/scenes/textures/half_alpha.png");
@@ -291,29 +292,42 @@ TEST(GltfMaterials, SpecularGlossinessBecomesADielectricOfThatF0AndRoughness) {
     EXPECT_NEAR(param_of(dim, "specular_color").color.rgb.x, 1.0f, 1e-5f);
     EXPECT_NEAR(param_of(dim, "roughness").number, 0.3, 1e-9);
     EXPECT_FLOAT_EQ(param_of(dim, "base_color").color.rgb.y, 0.25f);
-    const MaterialDesc& bright = d.materials[1];
-    const double ior = param_of(bright, "ior").number;
-    EXPECT_NEAR(ior, 10.0, 1e-9);
-    const double r0 = (ior - 1) * (ior - 1) / ((ior + 1) * (ior + 1));
-    const ParamDesc& sc = param_of(bright, "specular_color");
-    ASSERT_EQ(sc.kind, ParamDesc::Kind::Texture);
-    EXPECT_NEAR(sc.texture.scale[0] * r0, 1.0, 1e-5) << "F0 = specularFactor x texture";
-    EXPECT_NEAR(sc.texture.scale[2] * r0, 0.5, 1e-5);
-    EXPECT_EQ(param_of(bright, "base_color").kind, ParamDesc::Kind::Texture);
-    const ParamDesc& rough = param_of(bright, "roughness");
-    ASSERT_EQ(rough.kind, ParamDesc::Kind::Texture);
-    EXPECT_EQ(rough.texture.space.value_or(""), "raw");
-    // The roughness image: 16 x 16 samples of 16 bits, 1 on the left half, 0.2 on the right.
-    const std::string pgm = bytes_of(rough.texture.path);
-    const std::string header = "P5\n16 16\n65535\n";
-    ASSERT_EQ(pgm.substr(0, header.size()), header);
-    ASSERT_EQ(pgm.size(), header.size() + 2 * 16 * 16);
-    const auto sample = [&](int x, int y) {
-        const std::size_t at = header.size() + 2 * static_cast<std::size_t>(16 * y + x);
-        return (static_cast<uint8_t>(pgm[at]) * 256 + static_cast<uint8_t>(pgm[at + 1])) / 65535.0;
+    // Textured: converted texel by texel to metallic-roughness (the converter's metalness
+    // solve), a linear base colour image and a packed one (G roughness, B metallic), 16 bits.
+    const MaterialDesc& textured = d.materials[1];
+    EXPECT_EQ(param_of(textured, "metallic").number, 1.0);
+    EXPECT_EQ(param_of(textured, "roughness").number, 1.0);
+    const ParamDesc& base = param_of(textured, "base_color");
+    ASSERT_EQ(base.kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(base.texture.space.value_or(""), "lin_rec709");
+    const ParamDesc& packed = param_of(textured, "metallic_roughness");
+    ASSERT_EQ(packed.kind, ParamDesc::Kind::Texture);
+    EXPECT_EQ(packed.texture.space.value_or(""), "raw");
+    // 16 x 16 texels of 3 x 16 bits: on the left glossiness 0 (roughness 1), on the right 0.8
+    // (roughness 0.2); the texels are sRGB (40, 160, 60), the specular that times [1, 0.8, 0.5].
+    const std::string ppm = bytes_of(packed.texture.path);
+    const std::string header = "P6\n16 16\n65535\n";
+    ASSERT_EQ(ppm.substr(0, header.size()), header);
+    ASSERT_EQ(ppm.size(), header.size() + 6 * 16 * 16);
+    const auto sample = [&](int x, int y, int c) {
+        const std::size_t at = header.size() + 2 * static_cast<std::size_t>(3 * (16 * y + x) + c);
+        return (static_cast<uint8_t>(ppm[at]) * 256 + static_cast<uint8_t>(ppm[at + 1])) / 65535.0;
     };
-    EXPECT_NEAR(sample(2, 5), 1.0, 1e-4);
-    EXPECT_NEAR(sample(13, 5), 0.2, 1e-4);
+    EXPECT_NEAR(sample(2, 5, 1), 1.0, 1e-4);
+    EXPECT_NEAR(sample(13, 5, 1), 0.2, 1e-4);
+    const Vec3 texel{static_cast<float>(srgb_to_linear(40 / 255.0)),
+                     static_cast<float>(srgb_to_linear(160 / 255.0)),
+                     static_cast<float>(srgb_to_linear(60 / 255.0))};
+    double metallic = 0.0;
+    Vec3 want;
+    gltf::spec_gloss_to_metal(texel, texel * Vec3(1.0f, 0.8f, 0.5f), metallic, want);
+    EXPECT_NEAR(sample(13, 5, 2), metallic, 1e-4);
+    EXPECT_GT(metallic, 0.2) << "a bright specular: partly metal";
+    const std::string bppm = bytes_of(base.texture.path);
+    ASSERT_EQ(bppm.size(), ppm.size());
+    const std::size_t g = header.size() + 2 * static_cast<std::size_t>(3 * (16 * 5 + 13) + 1);
+    EXPECT_NEAR((static_cast<uint8_t>(bppm[g]) * 256 + static_cast<uint8_t>(bppm[g + 1])) / 65535.0,
+                want.y, 1e-4);
     // Both are accepted by the plugin and render finite pixels.
     d.render.width = 16;
     d.render.height = 8;

@@ -293,33 +293,38 @@ void spec_gloss(Builder& b, const tinygltf::Material& g, const std::string& mp,
     }
     const Vec3 spec = sf.empty() ? Vec3{1, 1, 1} : Vec3{sf[0], sf[1], sf[2]};
     const double gloss = std::clamp(number_of(x, "glossinessFactor", 1.0), 0.0, 1.0);
-    // Without textures: where the specular is a metal's (the glTF converter's solve for
-    // metalness from the diffuse and specular brightness), a metal, whose light between
-    // microfacets metal_rough keeps (a rough chrome rendered 30% dark as a dielectric of F0 1).
-    if (!texture_in(x, "diffuseTexture") && !texture_in(x, "specularGlossinessTexture")) {
-        const auto perceived = [](Vec3 c) {
-            const double cr = c.x, cg = c.y, cb = c.z;
-            return std::sqrt(0.299 * cr * cr + 0.587 * cg * cg + 0.114 * cb * cb);
-        };
-        const double one_minus_spec = 1.0 - static_cast<double>(std::max({spec.x, spec.y, spec.z}));
-        const double ps = perceived(spec), pd = perceived(diffuse);
-        double metal = 0.0;
-        if (ps >= 0.04) {
-            const double qa = 0.04, qb = pd * one_minus_spec / 0.96 + ps - 0.08, qc = 0.04 - ps;
-            const double disc = std::max(0.0, qb * qb - 4.0 * qa * qc);
-            metal = std::clamp((-qb + std::sqrt(disc)) / (2.0 * qa), 0.0, 1.0);
+    // With textures: converted texel by texel to metallic-roughness (the glTF converter's
+    // solve), so metal texels are metals whose light between microfacets metal_rough keeps.
+    const std::optional<TextureUse> du = texture_in(x, "diffuseTexture"),
+                                    su = texture_in(x, "specularGlossinessTexture");
+    if (du || su) {
+        if (std::optional<MetalRoughImages> mr = metal_rough_from_spec_gloss(
+                ctx, du, xp + "/diffuseTexture", su, xp + "/specularGlossinessTexture", diffuse,
+                spec, gloss)) {
+            ParamDesc& bc = b.m.params.back();  // the base colour written above
+            bc.kind = ParamDesc::Kind::Texture;
+            const bool vc = ctx.vertex_colors;
+            bc.texture = std::move(mr->base);
+            bc.texture.vertex_color = vc;
+            b.number("metallic", 1.0, xp);
+            b.number("roughness", 1.0, xp);
+            b.texture("metallic_roughness", std::move(mr->packed),
+                      xp + (su ? "/specularGlossinessTexture" : "/diffuseTexture"));
+            return;
         }
+        ctx.note("spec-gloss textures", ctx.at(xp),
+                 "the specular-glossiness textures could not be combined (mapped differently, or "
+                 "an image that cannot be decoded): the material is drawn as a dielectric of "
+                 "their specular colour");
+    }
+    // Without textures: where the specular is a metal's (the converter's solve), a metal, whose
+    // light between microfacets metal_rough keeps (a rough chrome rendered 30% dark as a
+    // dielectric of F0 1); otherwise the dielectric of exactly that F0 below.
+    if (!du && !su) {
+        double metal = 0.0;
+        Vec3 base;
+        spec_gloss_to_metal(diffuse, spec, metal, base);
         if (metal > 0.5) {
-            // A metal: its base colour the specular (the diffuse it keeps, at most half the
-            // solve's weight, is dropped); F0 is the base colour at metallic 1.
-            Vec3 base = spec;
-            if (metal < 1.0) {
-                const auto mf = static_cast<float>(metal);
-                const Vec3 from_diffuse = diffuse * static_cast<float>(one_minus_spec / 0.96 /
-                                                                       std::max(1.0 - metal, 1e-6));
-                const Vec3 from_spec = (spec - Vec3(0.04f * (1.0f - mf))) * (1.0f / mf);
-                base = clamp3(from_diffuse + (from_spec - from_diffuse) * (mf * mf), 0.0f, 1.0f);
-            }
             ParamDesc& bc = b.m.params.back();          // the base colour written above
             if (bc.kind == ParamDesc::Kind::Texture) {  // vertex colours: their scale
                 bc.texture.scale[0] = base.x;

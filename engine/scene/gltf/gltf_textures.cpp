@@ -170,6 +170,103 @@ std::optional<Vec3> texture_mean(Context& ctx, int index) {
     return Vec3{mean(0), mean(1), mean(2)};
 }
 
+void spec_gloss_to_metal(Vec3 diffuse, Vec3 specular, double& metallic, Vec3& base) {
+    const auto perceived = [](Vec3 c) {
+        const double cr = c.x, cg = c.y, cb = c.z;
+        return std::sqrt(0.299 * cr * cr + 0.587 * cg * cg + 0.114 * cb * cb);
+    };
+    const double one_minus_spec =
+        1.0 - static_cast<double>(std::max({specular.x, specular.y, specular.z}));
+    const double ps = perceived(specular), pd = perceived(diffuse);
+    metallic = 0.0;
+    if (ps >= 0.04) {
+        const double qa = 0.04, qb = pd * one_minus_spec / 0.96 + ps - 0.08, qc = 0.04 - ps;
+        const double disc = std::max(0.0, qb * qb - 4.0 * qa * qc);
+        metallic = std::clamp((-qb + std::sqrt(disc)) / (2.0 * qa), 0.0, 1.0);
+    }
+    const auto mf = static_cast<float>(metallic);
+    const Vec3 from_diffuse =
+        diffuse * static_cast<float>(one_minus_spec / 0.96 / std::max(1.0 - metallic, 1e-6));
+    const Vec3 from_spec = (specular - Vec3(0.04f * (1.0f - mf))) * (1.0f / std::max(mf, 1e-6f));
+    const Vec3 mixed = from_diffuse + (from_spec - from_diffuse) * (mf * mf);
+    base = {std::clamp(mixed.x, 0.0f, 1.0f), std::clamp(mixed.y, 0.0f, 1.0f),
+            std::clamp(mixed.z, 0.0f, 1.0f)};
+}
+
+std::optional<MetalRoughImages> metal_rough_from_spec_gloss(
+    Context& ctx, const std::optional<TextureUse>& diffuse, const std::string& dref,
+    const std::optional<TextureUse>& sg, const std::string& sref, Vec3 diffuse_factor,
+    Vec3 specular_factor, double gloss_factor) {
+    std::optional<TextureDesc> dtex, stex;
+    if (diffuse) dtex = texture_desc(ctx, *diffuse, dref, true);
+    if (sg) stex = texture_desc(ctx, *sg, sref, true);
+    if ((diffuse && !dtex) || (sg && !stex) || (!dtex && !stex)) return {};
+    // One mapping for both (the images are combined texel by texel).
+    if (dtex && stex &&
+        (diffuse->tex_coord != sg->tex_coord || dtex->wrap != stex->wrap ||
+         !std::equal(std::begin(dtex->uv), std::end(dtex->uv), std::begin(stex->uv))))
+        return {};
+    std::optional<tinygltf::Image> di, si;
+    if (diffuse && !(di = decoded(ctx, diffuse->index))) return {};
+    if (sg && !(si = decoded(ctx, sg->index))) return {};
+    const int w = std::max(di ? di->width : 0, si ? si->width : 0);
+    const int h = std::max(di ? di->height : 0, si ? si->height : 0);
+    // The texel of img nearest to (x, y) of the output, as linear Rec.709 and its alpha.
+    const auto texel = [&](const tinygltf::Image& img, int x, int y, Vec3& rgb, double& a) {
+        const int sx = std::min(img.width - 1, x * img.width / w);
+        const int sy = std::min(img.height - 1, y * img.height / h);
+        const auto at = static_cast<std::size_t>(sy) * static_cast<std::size_t>(img.width) +
+                        static_cast<std::size_t>(sx);
+        const auto comp = static_cast<std::size_t>(img.component);
+        const unsigned char* p = &img.image[at * comp];
+        rgb = {static_cast<float>(srgb_to_linear(p[0] / 255.0)),
+               static_cast<float>(srgb_to_linear(p[1] / 255.0)),
+               static_cast<float>(srgb_to_linear(p[2] / 255.0))};
+        a = comp == 4 ? p[3] / 255.0 : 1.0;
+    };
+    const std::string header = fmt::format("P6\n{} {}\n65535\n", w, h);
+    std::vector<unsigned char> base(header.begin(), header.end()),
+        packed(header.begin(), header.end());
+    const auto put = [](std::vector<unsigned char>& out, double v) {
+        const auto q = static_cast<uint32_t>(std::lround(std::clamp(v, 0.0, 1.0) * 65535.0));
+        out.push_back(static_cast<unsigned char>(q >> 8));
+        out.push_back(static_cast<unsigned char>(q & 0xff));
+    };
+    for (int y = 0; y < h; ++y)
+        for (int x = 0; x < w; ++x) {
+            Vec3 d = diffuse_factor, sp = specular_factor;
+            double gloss = gloss_factor, unused = 1.0;
+            if (di) {
+                Vec3 c;
+                texel(*di, x, y, c, unused);
+                d = d * c;
+            }
+            if (si) {
+                Vec3 c;
+                double a = 1.0;
+                texel(*si, x, y, c, a);
+                sp = sp * c;
+                gloss *= a;
+            }
+            double metallic = 0.0;
+            Vec3 bc;
+            spec_gloss_to_metal(d, sp, metallic, bc);
+            put(base, bc.x);
+            put(base, bc.y);
+            put(base, bc.z);
+            put(packed, 0.0);
+            put(packed, 1.0 - gloss);
+            put(packed, metallic);
+        }
+    MetalRoughImages out{dtex ? *dtex : *stex, dtex ? *dtex : *stex};
+    const std::string& ref = dtex ? dref : sref;
+    out.base.path = cached_image_file(ctx, base, ".ppm", ref);
+    out.base.space = "lin_rec709";
+    out.packed.path = cached_image_file(ctx, packed, ".ppm", ref);
+    out.packed.space = "raw";
+    return out;
+}
+
 std::optional<TextureDesc> roughness_from_gloss(Context& ctx, const TextureUse& use,
                                                 const std::string& ref, double factor) {
     std::optional<TextureDesc> tex = texture_desc(ctx, use, ref, false);
