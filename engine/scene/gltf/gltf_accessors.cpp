@@ -227,4 +227,13 @@ std::vector<uint32_t> read_indices(const Context& ctx, int index, const std::str
     return out;
 }
 
+std::vector<float> read_per_vertex(const Context& ctx, int index, int components, std::size_t nv,
+                                   const char* what, const std::string& ref, bool finite) {
+    std::vector<float> v = read_floats(ctx, index, components, what, ref, finite);
+    if (v.size() != nv * static_cast<std::size_t>(components))
+        throw_error(ctx.at(ref), "{} has {} elements, POSITION {}", what,
+                    v.size() / static_cast<std::size_t>(components), nv);
+    return v;
+}
+
 }  // namespace spangle::gltf

@@ -17,6 +17,11 @@ namespace spangle::gltf {
 std::vector<float> read_floats(const Context& ctx, int index, int components, const char* what,
                                const std::string& ref, bool finite = true);
 
+/** read_floats() of an attribute of a primitive of nv vertices: an error at `ref` unless it
+ *  has one element per vertex. */
+std::vector<float> read_per_vertex(const Context& ctx, int index, int components, std::size_t nv,
+                                   const char* what, const std::string& ref, bool finite = true);
+
 /** Accessor `index` as unsigned integers (a scalar of unsigned byte, short or int: indices).
  *  Throws SpangleError at the accessor. */
 std::vector<uint32_t> read_indices(const Context& ctx, int index, const std::string& ref);

@@ -74,6 +74,27 @@ int path_index(const std::string& p) {
     return p == "translation" ? 0 : p == "rotation" ? 1 : p == "scale" ? 2 : -1;
 }
 
+/** A sampler's interpolation (0 LINEAR, 1 STEP, 2 CUBICSPLINE), the sampler at JSON path `sp`;
+ *  throws there for another. */
+int sampler_interpolation(Context& ctx, const tinygltf::AnimationSampler& s,
+                          const std::string& sp) {
+    if (s.interpolation != "LINEAR" && s.interpolation != "STEP" &&
+        s.interpolation != "CUBICSPLINE")
+        throw_error(ctx.at(sp + "/interpolation"),
+                    "interpolation '{}' must be LINEAR, STEP or CUBICSPLINE", s.interpolation);
+    return s.interpolation == "STEP" ? 1 : s.interpolation == "CUBICSPLINE" ? 2 : 0;
+}
+/** A sampler's key times; throws where they do not increase. */
+std::vector<float> sampler_times(Context& ctx, const tinygltf::AnimationSampler& s,
+                                 const std::string& sp) {
+    std::vector<float> t = read_floats(ctx, s.input, 1, "animation input", sp + "/input");
+    for (std::size_t i = 1; i < t.size(); ++i)
+        if (!(t[i] > t[i - 1]))
+            throw_error(ctx.at(sp + "/input"), "key times must increase ({} s follows {} s)", t[i],
+                        t[i - 1]);
+    return t;
+}
+
 /** The channels of every animation; a node's path driven twice keeps the first channel. */
 std::vector<Channel> read_channels(Context& ctx) {
     std::vector<Channel> out;
@@ -106,13 +127,8 @@ std::vector<Channel> read_channels(Context& ctx) {
             Channel k;
             k.node = ch.target_node;
             k.path = path;
-            k.interp = s.interpolation == "STEP" ? 1 : s.interpolation == "CUBICSPLINE" ? 2 : 0;
-            if (s.interpolation != "LINEAR" && s.interpolation != "STEP" &&
-                s.interpolation != "CUBICSPLINE")
-                throw_error(ctx.at(sp + "/interpolation"),
-                            "interpolation '{}' must be LINEAR, STEP or CUBICSPLINE",
-                            s.interpolation);
-            k.times = read_floats(ctx, s.input, 1, "animation input", sp + "/input");
+            k.interp = sampler_interpolation(ctx, s, sp);
+            k.times = sampler_times(ctx, s, sp);
             k.values =
                 read_floats(ctx, s.output, path == 1 ? 4 : 3, "animation output", sp + "/output");
             const std::size_t per = (path == 1 ? 4u : 3u) * (k.interp == 2 ? 3u : 1u);
@@ -121,11 +137,6 @@ std::vector<Channel> read_channels(Context& ctx) {
                             "the sampler has {} key times and {} output values; "
                             "expected {} values per key",
                             k.times.size(), k.values.size(), per);
-            for (std::size_t i = 1; i < k.times.size(); ++i)
-                if (!(k.times[i] > k.times[i - 1]))
-                    throw_error(ctx.at(sp + "/input"),
-                                "key times must increase ({} s follows {} s)", k.times[i],
-                                k.times[i - 1]);
             if (k.interp == 2)
                 ctx.note("CUBICSPLINE", ctx.at(sp + "/interpolation"),
                          "CUBICSPLINE animation is approximated: evaluated at its keys and three "
@@ -266,12 +277,7 @@ std::map<int, WeightTrack> weight_tracks(Context& ctx) {
             const std::string sp = fmt::format("animations/{}/samplers/{}", a, ch.sampler);
             WeightTrack w;
             w.loc = ctx.at(sp);
-            w.interp = s.interpolation == "STEP" ? 1 : s.interpolation == "CUBICSPLINE" ? 2 : 0;
-            if (s.interpolation != "LINEAR" && s.interpolation != "STEP" &&
-                s.interpolation != "CUBICSPLINE")
-                throw_error(ctx.at(sp + "/interpolation"),
-                            "interpolation '{}' must be LINEAR, STEP or CUBICSPLINE",
-                            s.interpolation);
+            w.interp = sampler_interpolation(ctx, s, sp);
             check_index(ctx, sp + "/output", s.output, ctx.model.accessors.size(), "accessor");
             if (ctx.model.accessors[static_cast<std::size_t>(s.output)].type !=
                 TINYGLTF_TYPE_SCALAR) {
@@ -279,7 +285,7 @@ std::map<int, WeightTrack> weight_tracks(Context& ctx) {
                          "an animation of morph weights whose output is not SCALAR is dropped");
                 continue;
             }
-            w.times = read_floats(ctx, s.input, 1, "animation input", sp + "/input");
+            w.times = sampler_times(ctx, s, sp);
             w.values = read_floats(ctx, s.output, 1, "animation output", sp + "/output");
             const std::size_t per_key = w.interp == 2 ? 3 : 1;
             if (w.times.empty() || w.values.empty() ||
@@ -289,11 +295,6 @@ std::map<int, WeightTrack> weight_tracks(Context& ctx) {
                             "number of weights per key",
                             w.times.size(), w.values.size());
             w.count = w.values.size() / (w.times.size() * per_key);
-            for (std::size_t i = 1; i < w.times.size(); ++i)
-                if (!(w.times[i] > w.times[i - 1]))
-                    throw_error(ctx.at(sp + "/input"),
-                                "key times must increase ({} s follows {} s)", w.times[i],
-                                w.times[i - 1]);
             out.emplace(ch.target_node, std::move(w));
         }
     }

@@ -178,16 +178,6 @@ public:
     }
 };
 
-/** Accessor `index` of `what` as floats, `comps` per vertex, nv vertices (else an error). */
-std::vector<float> per_vertex(Context& ctx, int index, int comps, std::size_t nv, const char* what,
-                              const std::string& ref) {
-    std::vector<float> v = read_floats(ctx, index, comps, what, ref);
-    if (v.size() != nv * static_cast<std::size_t>(comps))
-        throw_error(ctx.at(ref), "{} has {} elements, POSITION {}", what,
-                    v.size() / static_cast<std::size_t>(comps), nv);
-    return v;
-}
-
 }  // namespace
 
 DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
@@ -241,12 +231,13 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
             const std::string tp = fmt::format("{}/targets/{}", pp, k);
             std::vector<float> pos, nrm;
             if (const auto a = p.targets[k].find("POSITION"); a != p.targets[k].end())
-                pos = per_vertex(ctx, a->second, 3, nv, "a morph target's POSITION",
-                                 tp + "/POSITION");
+                pos = read_per_vertex(ctx, a->second, 3, nv, "a morph target's POSITION",
+                                      tp + "/POSITION");
             else
                 pos.assign(3 * nv, 0.0f);
             if (const auto a = p.targets[k].find("NORMAL"); a != p.targets[k].end())
-                nrm = per_vertex(ctx, a->second, 3, nv, "a morph target's NORMAL", tp + "/NORMAL");
+                nrm = read_per_vertex(ctx, a->second, 3, nv, "a morph target's NORMAL",
+                                      tp + "/NORMAL");
             d->dpos.push_back(std::move(pos));
             d->dnrm.push_back(std::move(nrm));
         }
@@ -319,9 +310,9 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
                 break;
             }
             const std::vector<float> jv =
-                per_vertex(ctx, ja->second, 4, nv, "JOINTS", pp + "/attributes/" + jn);
+                read_per_vertex(ctx, ja->second, 4, nv, "JOINTS", pp + "/attributes/" + jn);
             const std::vector<float> wv =
-                per_vertex(ctx, wa->second, 4, nv, "WEIGHTS", pp + "/attributes/" + wn);
+                read_per_vertex(ctx, wa->second, 4, nv, "WEIGHTS", pp + "/attributes/" + wn);
             for (std::size_t v = 0; v < nv; ++v)
                 for (std::size_t c = 0; c < 4; ++c) {
                     const float jf = jv[4 * v + c], wf = wv[4 * v + c];

@@ -108,6 +108,22 @@ std::optional<TextureUse> texture_in(const tinygltf::Value* x, const char* key) 
     return u;
 }
 
+/** Colour parameter `name`: the factor (written at `factor_path`), or where extension value x
+ *  (at JSON path xp) has a colour texture `texture_key` that can be had, that texture (sRGB)
+ *  scaled per channel by the factor. */
+void factor_or_texture(Builder& b, const std::string& name, Vec3 factor, const tinygltf::Value* x,
+                       const char* texture_key, const std::string& xp,
+                       const std::string& factor_path) {
+    const std::string tp = xp + "/" + texture_key;
+    std::optional<TextureDesc> tex;
+    if (auto u = texture_in(x, texture_key)) tex = texture_desc(b.ctx, *u, tp, true);
+    if (!tex) return b.color(name, factor, factor_path);
+    tex->scale[0] = factor.x;
+    tex->scale[1] = factor.y;
+    tex->scale[2] = factor.z;
+    b.texture(name, std::move(*tex), tp);
+}
+
 /** A core textureInfo as a TextureUse. */
 TextureUse use_of(const tinygltf::TextureInfo& t) {
     return {t.index, t.texCoord, &t.extensions};
@@ -177,36 +193,18 @@ void metal_rough(Builder& b, const tinygltf::Material& g, const std::string& mp)
         const std::string xp = mp + "/extensions/KHR_materials_specular";
         b.number("specular", std::clamp(number_of(x, "specularFactor", 1.0), 0.0, 1.0),
                  xp + "/specularFactor");
-        const Vec3 sc = clamp3(vec3_of(x, "specularColorFactor", {1, 1, 1}), 0.0f, 10.0f);
-        std::optional<TextureDesc> tex;
-        if (auto u = texture_in(x, "specularColorTexture"))
-            tex = texture_desc(ctx, *u, xp + "/specularColorTexture", true);
-        if (tex) {
-            tex->scale[0] = sc.x;
-            tex->scale[1] = sc.y;
-            tex->scale[2] = sc.z;
-            b.texture("specular_color", std::move(*tex), xp + "/specularColorTexture");
-        } else {
-            b.color("specular_color", sc, xp + "/specularColorFactor");
-        }
+        factor_or_texture(b, "specular_color",
+                          clamp3(vec3_of(x, "specularColorFactor", {1, 1, 1}), 0.0f, 10.0f), x,
+                          "specularColorTexture", xp, xp + "/specularColorFactor");
         if (texture_in(x, "specularTexture"))
             ctx.note("specularTexture", ctx.at(xp + "/specularTexture"),
                      "specularTexture (its alpha channel) is dropped: specularFactor stands in");
     }
     if (const tinygltf::Value* x = extension(g, "KHR_materials_sheen")) {
         const std::string xp = mp + "/extensions/KHR_materials_sheen";
-        const Vec3 sc = clamp3(vec3_of(x, "sheenColorFactor", {0, 0, 0}), 0.0f, 1.0f);
-        std::optional<TextureDesc> tex;
-        if (auto u = texture_in(x, "sheenColorTexture"))
-            tex = texture_desc(ctx, *u, xp + "/sheenColorTexture", true);
-        if (tex) {
-            tex->scale[0] = sc.x;
-            tex->scale[1] = sc.y;
-            tex->scale[2] = sc.z;
-            b.texture("sheen_color", std::move(*tex), xp + "/sheenColorTexture");
-        } else {
-            b.color("sheen_color", sc, xp + "/sheenColorFactor");
-        }
+        factor_or_texture(b, "sheen_color",
+                          clamp3(vec3_of(x, "sheenColorFactor", {0, 0, 0}), 0.0f, 1.0f), x,
+                          "sheenColorTexture", xp, xp + "/sheenColorFactor");
         b.number("sheen_roughness", std::clamp(number_of(x, "sheenRoughnessFactor", 0.0), 0.0, 1.0),
                  xp + "/sheenRoughnessFactor");
         if (texture_in(x, "sheenRoughnessTexture"))
@@ -345,18 +343,8 @@ void spec_gloss(Builder& b, const tinygltf::Material& g, const std::string& mp,
     const double ior = (1.0 + std::sqrt(r0)) / (1.0 - std::sqrt(r0));
     b.number("ior", std::clamp(ior, 1.0, 10.0), xp + "/specularFactor");
     b.number("specular", 1.0, xp + "/specularFactor");
-    const Vec3 sc = spec * static_cast<float>(1.0 / r0);
-    std::optional<TextureDesc> stex;
-    if (auto u = texture_in(x, "specularGlossinessTexture"))
-        stex = texture_desc(ctx, *u, xp + "/specularGlossinessTexture", true);
-    if (stex) {
-        stex->scale[0] = sc.x;
-        stex->scale[1] = sc.y;
-        stex->scale[2] = sc.z;
-        b.texture("specular_color", std::move(*stex), xp + "/specularGlossinessTexture");
-    } else {
-        b.color("specular_color", sc, xp + "/specularFactor");
-    }
+    factor_or_texture(b, "specular_color", spec * static_cast<float>(1.0 / r0), x,
+                      "specularGlossinessTexture", xp, xp + "/specularFactor");
     std::optional<TextureDesc> rough;
     if (auto u = texture_in(x, "specularGlossinessTexture"))
         rough = roughness_from_gloss(ctx, *u, xp + "/specularGlossinessTexture", gloss);
@@ -618,6 +606,31 @@ void normal_map(Builder& b, const tinygltf::Material& g, const std::string& mp) 
 /** emissiveFactor x KHR_materials_emissive_strength; with an emissive texture (sRGB), the
  *  texture scaled per channel by the factor (as the base colour's), as TOML's `emission =
  *  { texture, scale }` has it. */
+/** A material's emission of colour `rgb` (linear Rec.709, written at `at_path`, not black),
+ *  times the sRGB texture `tex` (at `tex_path`) where it has one that can be had (scaled per
+ *  channel by rgb; its mean then weighs how brightly the emission lights the file: a helmet's
+ *  few glowing lights do not light it, the studio light stands in beside them). */
+EmissionDesc material_emission(Context& ctx, Vec3 rgb, const std::string& at_path,
+                               const tinygltf::TextureInfo& tex, const std::string& tex_path) {
+    EmissionDesc d;
+    const FileLoc at = ctx.at(at_path);
+    d.color = ColorDesc{rgb, std::string("lin_rec709"), at, at};
+    if (tex.index >= 0) {
+        d.texture = texture_desc(ctx, use_of(tex), tex_path, true);
+        if (d.texture) {
+            d.texture->scale[0] = rgb.x;
+            d.texture->scale[1] = rgb.y;
+            d.texture->scale[2] = rgb.z;
+            d.color.rgb = {1, 1, 1};
+            if (const std::optional<Vec3> mean = texture_mean(ctx, tex.index))
+                d.mean = luminance(*mean);
+        }
+    }
+    d.group.loc = at;
+    d.of_material = true;
+    return d;
+}
+
 std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
                                      const std::string& mp) {
     Vec3 e{0, 0, 0};
@@ -627,26 +640,9 @@ std::optional<EmissionDesc> emission(Context& ctx, const tinygltf::Material& g,
         throw_error(ctx.at(mp + "/emissiveFactor"),
                     "emissiveFactor holds a number that is not a finite float");
     e = clamp3(e, 0.0f, 1.0f);
-    EmissionDesc d;
-    if (g.emissiveTexture.index >= 0 && (e.x > 0 || e.y > 0 || e.z > 0)) {
-        const std::string tp = mp + "/emissiveTexture";
-        d.texture = texture_desc(ctx, use_of(g.emissiveTexture), tp, true);
-        // Its mean weighs how brightly the emission lights the file (a helmet's few glowing
-        // lights do not light it: the studio light stands in beside them).
-        if (const std::optional<Vec3> mean = texture_mean(ctx, g.emissiveTexture.index))
-            d.mean = luminance(*mean);
-    }
     if (!(e.x > 0 || e.y > 0 || e.z > 0)) return std::nullopt;
-    const FileLoc at = ctx.at(mp + "/emissiveFactor");
-    d.color = ColorDesc{e, std::string("lin_rec709"), at, at};
-    if (d.texture) {
-        d.texture->scale[0] = e.x;
-        d.texture->scale[1] = e.y;
-        d.texture->scale[2] = e.z;
-        d.color.rgb = {1, 1, 1};
-    }
-    d.group.loc = at;
-    d.of_material = true;
+    EmissionDesc d = material_emission(ctx, e, mp + "/emissiveFactor", g.emissiveTexture,
+                                       mp + "/emissiveTexture");
     if (const tinygltf::Value* x = extension(g, "KHR_materials_emissive_strength"))
         d.intensity = std::max(0.0, number_of(x, "emissiveStrength", 1.0));
     return d;
@@ -664,29 +660,14 @@ std::optional<EmissionDesc> unlit_emission(Context& ctx, const tinygltf::Materia
     rgb = clamp3(rgb, 0.0f, 1.0f);
     if (!(rgb.x > 0 || rgb.y > 0 || rgb.z > 0)) return std::nullopt;
     const std::string pp = mp + "/pbrMetallicRoughness";
-    EmissionDesc d;
-    const FileLoc at = ctx.at(pp + "/baseColorFactor");
-    d.color = ColorDesc{rgb, std::string("lin_rec709"), at, at};
-    if (g.pbrMetallicRoughness.baseColorTexture.index >= 0) {
-        d.texture = texture_desc(ctx, use_of(g.pbrMetallicRoughness.baseColorTexture),
-                                 pp + "/baseColorTexture", true);
-        if (d.texture) {
-            d.texture->scale[0] = rgb.x;
-            d.texture->scale[1] = rgb.y;
-            d.texture->scale[2] = rgb.z;
-            d.color.rgb = {1, 1, 1};
-            if (const std::optional<Vec3> mean =
-                    texture_mean(ctx, g.pbrMetallicRoughness.baseColorTexture.index))
-                d.mean = luminance(*mean);
-        }
-    }
+    EmissionDesc d =
+        material_emission(ctx, rgb, pp + "/baseColorFactor",
+                          g.pbrMetallicRoughness.baseColorTexture, pp + "/baseColorTexture");
     if (ctx.vertex_colors)
         ctx.note("unlit vertex colours", ctx.at(mp),
                  "an unlit material's vertex colours (COLOR_0) are not shown: its base colour "
                  "is emitted, and emission does not read vertex colours");
     d.two_sided = true;
-    d.group.loc = at;
-    d.of_material = true;
     return d;
 }
 

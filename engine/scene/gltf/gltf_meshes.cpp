@@ -101,11 +101,7 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
                                bool finite = true) {
         const auto a = p.attributes.find(name);
         if (a == p.attributes.end()) return;
-        const std::string ref = pp + "/attributes/" + name;
-        out = read_floats(ctx, a->second, comps, name, ref, finite);
-        if (out.size() != nv * static_cast<std::size_t>(comps))
-            throw_error(ctx.at(ref), "{} has {} elements, POSITION {}", name,
-                        out.size() / static_cast<std::size_t>(comps), nv);
+        out = read_per_vertex(ctx, a->second, comps, nv, name, pp + "/attributes/" + name, finite);
     };
     // A NaN normal (some exporters write them for degenerate faces) is not worth refusing the
     // file for: the mesh takes its face normals, as for a zero normal.
