@@ -72,6 +72,28 @@ uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos
     return std::max(exact_flakes, static_cast<uint32_t>(std::min(sparse, kSparseExactCap)));
 }
 
+namespace {
+
+/** Scratch arrays of add_stand_ins, one set per thread, grown as needed: the candidates (virtual
+ *  flakes under the footprint's bounding box) as a structure of arrays, so that their hashes,
+ *  places and inside tests are one loop of the same arithmetic per candidate, and those kept. */
+struct StandInScratch {
+    std::vector<uint64_t> key, index, hash;  ///< the candidate's block key, index, own hash
+    std::vector<int64_t> bx, by;             ///< its block (x, y) times 2^24
+    std::vector<uint8_t> in;                 ///< whether it lies inside the footprint
+    std::vector<uint64_t> found;             ///< the hashes kept, per aggregate
+    void reserve(std::size_t m) {
+        if (key.size() >= m) return;
+        const std::size_t n = std::max<std::size_t>(2 * m, 256);
+        for (auto* v : {&key, &index, &hash}) v->resize(n);
+        bx.resize(n);
+        by.resize(n);
+        in.resize(n);
+    }
+};
+
+}  // namespace
+
 void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
                    const DirectionGrid& grid, const ColorTable& colors, const FresnelTable& fresnel,
                    const FilmTables& film, V3 wo, std::vector<CacheEntry>& out) {
@@ -79,12 +101,16 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
     const double area = p.area();
     // At most four times the average in all (the footprint's aggregates together).
     const uint32_t cap = 4 * stand_ins;
-    thread_local std::vector<uint64_t> found_tls;
-    found_tls.resize(cap);
-    // The buffer through a plain pointer: every use of a thread_local in a shared library calls
+    // Through a plain reference: every use of a thread_local in a shared library calls
     // __tls_get_addr (it was 3% of the instructions of a shaded point).
-    uint64_t* const found = found_tls.data();
+    thread_local StandInScratch scratch_tls;
+    StandInScratch& sc = scratch_tls;
+    if (sc.found.size() < cap) sc.found.resize(cap);
+    uint64_t* const found = sc.found.data();
     uint32_t found_all = 0;
+    // A stand-in's own hash picks its colour and film; with neither table (one colour, no film)
+    // it is not needed.
+    const bool own = colors.varies() || film.varies();
     EntryBatch batch;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const Aggregate& ag = cf.agg[a];
@@ -118,37 +144,77 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         int bx0, bx1, by0, by1;
         range(local.cu, 0.5 * (std::fabs(local.ax) + std::fabs(local.bx)), ag.x0, bx0, bx1);
         range(local.cv, 0.5 * (std::fabs(local.ay) + std::fabs(local.by)), ag.y0, by0, by1);
-        // The virtual flakes inside the footprint; where they outnumber its k flakes (or the room
-        // left), those of the smallest hashes (a priority of their own: two overlapping footprints
-        // keep the same ones among those they share), in a max-heap once full.
-        // (Tested without branches, inside_nonsingular: a singular footprint holds none.)
         uint32_t n = 0;
         const uint32_t room = singular(local) ? 0u : std::min(k, cap - found_all);
-        for (int by = by0; by <= by1 && room > 0; ++by)
-            for (int bx = bx0; bx <= bx1; ++bx) {
-                const uint64_t bkey =
-                    mix(ag.key, 0xb10c0000u + static_cast<uint64_t>(by * kStandInBlocks + bx));
-                const auto v = static_cast<uint32_t>(whole) +
-                               (unit(mix(bkey, 0xd17)) < per_block - whole ? 1u : 0u);
-                for (uint32_t i = 0; i < v; ++i) {
-                    const uint64_t h = mix(bkey, i);
-                    float fx, fy;  // 24 bits each: a block's width / 2^24 apart
-                    unit2(h, fx, fy);
-                    const bool in =
-                        inside_nonsingular(local, ag.x0 + (bx + static_cast<double>(fx)) * block,
-                                           ag.y0 + (by + static_cast<double>(fy)) * block);
+        if (room > 0) {
+            // The candidates, block by block: each block's count, then one loop over all of them
+            // (hash, place, inside test: tested without branches, inside_nonsingular).
+            const auto whole_n = static_cast<uint32_t>(whole);
+            const double frac = per_block - whole;
+            sc.reserve(static_cast<std::size_t>((bx1 - bx0 + 1) * (by1 - by0 + 1)) * (whole_n + 1));
+            uint64_t* const ckey = sc.key.data();
+            uint64_t* const cidx = sc.index.data();
+            int64_t* const cbx = sc.bx.data();
+            int64_t* const cby = sc.by.data();
+            uint32_t m = 0;
+            for (int by = by0; by <= by1; ++by)
+                for (int bx = bx0; bx <= bx1; ++bx) {
+                    const uint64_t bkey =
+                        mix(ag.key, 0xb10c0000u + static_cast<uint64_t>(by * kStandInBlocks + bx));
+                    const uint32_t v = whole_n + (unit(mix(bkey, 0xd17)) < frac ? 1u : 0u);
+                    // whole_n + 1 slots always (a loop of one length: the block's count was a
+                    // coin toss, and a loop of its length was mispredicted on every other block),
+                    // of which the first v count.
+                    for (uint32_t i = 0; i <= whole_n; ++i) {
+                        ckey[m + i] = bkey;
+                        cidx[m + i] = i;
+                        cbx[m + i] = static_cast<int64_t>(bx) << 24;
+                        cby[m + i] = static_cast<int64_t>(by) << 24;
+                    }
+                    m += v;
+                }
+            uint64_t* const ch = sc.hash.data();
+            uint8_t* const cin = sc.in.data();
+            const double x0 = ag.x0, y0 = ag.y0;
+            uint32_t n_in = 0;
+            for (uint32_t c = 0; c < m; ++c) {
+                const uint64_t h = mix(ckey[c], cidx[c]);
+                ch[c] = h;
+                // The place in blocks, block + (24 bits of the hash) / 2^24 (unit2's numbers),
+                // exact in double: computed from the integer at once.
+                const double x =
+                    static_cast<double>(cbx[c] + static_cast<int64_t>(h >> 40)) * 0x1p-24;
+                const double y =
+                    static_cast<double>(cby[c] + static_cast<int64_t>((h >> 16) & 0xffffffu)) *
+                    0x1p-24;
+                const bool in = inside_nonsingular(local, x0 + x * block, y0 + y * block);
+                cin[c] = in ? 1 : 0;
+                n_in += in ? 1u : 0u;
+            }
+            if (n_in < room) {
+                // All of them, in order.
+                for (uint32_t c = 0; c < m; ++c) {
+                    found[n] = ch[c];
+                    n += cin[c];
+                }
+            } else {
+                // They outnumber its k flakes (or the room left): those of the smallest hashes
+                // (a priority of their own: two overlapping footprints keep the same ones among
+                // those they share), in a max-heap once full.
+                for (uint32_t c = 0; c < m; ++c) {
+                    if (!cin[c]) continue;
+                    const uint64_t h = ch[c];
                     if (n < room) {
-                        // Written always, kept when inside.
-                        found[n] = h;
-                        n += in ? 1u : 0u;
+                        found[n++] = h;
                         if (n == room) std::make_heap(found, found + n);
-                    } else if (in && h < found[0]) {
+                    } else if (h < found[0]) {
                         std::pop_heap(found, found + n);
                         found[n - 1] = h;
                         std::push_heap(found, found + n);
                     }
                 }
             }
+        }
         found_all += n;
         if (n == 0) {
             cf.smooth += static_cast<float>(k);
@@ -157,6 +223,24 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         // beta = sqrt(K / k) of the aggregate's weight is in its K stand-ins, sqrt(k / K) each.
         const float scale = std::sqrt(static_cast<float>(k) / static_cast<float>(n));
         cf.smooth += static_cast<float>(k) - scale * static_cast<float>(n);
+        if (!own) {
+            // Whole runs into the batch: the normals' points in one loop.
+            for (uint32_t q = 0; q < n;) {
+                if (batch.n == EntryBatch::kSize) flush_entries(wo, grid.alpha, batch, out);
+                const uint32_t run = std::min(n - q, EntryBatch::kSize - batch.n);
+                float* const bs = batch.s + batch.n;
+                float* const bt = batch.t + batch.n;
+                for (uint32_t j = 0; j < run; ++j) unit2(mix(found[q + j], 0x5eed), bs[j], bt[j]);
+                for (uint32_t j = 0; j < run; ++j) {
+                    batch.col[batch.n + j] = colors.single;
+                    batch.fresnel[batch.n + j] = &fresnel;
+                    batch.scale[batch.n + j] = scale;
+                }
+                batch.n += run;
+                q += run;
+            }
+            continue;
+        }
         for (uint32_t q = 0; q < n; ++q) {
             const uint64_t h = mix(found[q], 0x5eed);
             float s, t;

@@ -17,8 +17,12 @@ void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& o
         rz[i] = mz[i] * (2.0f * cos_om[i]) - wo.z;
         w[i] = cos_om[i] / mz[i];
     }
-    // The rest per flake (its Fresnel table and colour are its own).
-    out.reserve(out.size() + n);
+    // The rest per flake (its Fresnel table and colour are its own), written in place: the
+    // vector grown once and cut back to the entries kept.
+    const std::size_t base = out.size();
+    out.resize(base + n);
+    CacheEntry* const dst = out.data() + base;
+    uint32_t kept = 0;
     for (uint32_t i = 0; i < n; ++i) {
         if (cos_om[i] <= 0.0f || rz[i] <= 0.0f) continue;
         const float c2 = 2.0f * cos_om[i];
@@ -26,13 +30,14 @@ void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& o
         b.fresnel[i]->eval(cos_om[i], f);
         float rgb[3];
         for (int c = 0; c < 3; ++c) rgb[c] = w[i] * b.col[i][c] * f[c];
-        CacheEntry& e = out.emplace_back();
+        CacheEntry& e = dst[kept++];
         e.r = {mx[i] * c2 - wo.x, my[i] * c2 - wo.y, rz[i]};
         const float scale = b.scale[i];
         for (int c = 0; c < 3; ++c) e.rgb[c] = rgb[c] * scale;
         e.lum = std::max(0.0f, luminance(rgb)) * scale;
         e.w = w[i] * scale;
     }
+    out.resize(base + kept);
 }
 
 Cone::Cone(float gamma_rad) {

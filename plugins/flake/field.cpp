@@ -77,14 +77,18 @@ double clipped_area(const double* xs, const double* ys, int n, double x0, double
         poly[0][i][1] = ys[i];
     }
     int cur = 0;
-    for (int edge = 0; edge < 4 && n > 0; ++edge) {
+    // A polygon inside the box is its own clip (each pass copies it unchanged): skip the passes.
+    bool inside_box = true;
+    for (int i = 0; i < n; ++i)
+        inside_box = inside_box && xs[i] >= x0 && xs[i] <= x1 && ys[i] >= y0 && ys[i] <= y1;
+    for (int edge = 0; edge < 4 && n > 0 && !inside_box; ++edge) {
         const int axis = edge & 1;  // 0: x, 1: y
         const double bound = edge < 2 ? (axis ? y0 : x0) : (axis ? y1 : x1);
         const double sign = edge < 2 ? 1.0 : -1.0;  // keep coord >= bound, or coord <= bound
         int m = 0;
         for (int i = 0; i < n; ++i) {
             const double* a = poly[cur][i];
-            const double* b = poly[cur][(i + 1) % n];
+            const double* b = poly[cur][i + 1 < n ? i + 1 : 0];
             const double da = sign * (a[axis] - bound), db = sign * (b[axis] - bound);
             if (da >= 0.0 && m < kMax) {
                 poly[1 - cur][m][0] = a[0];
@@ -104,7 +108,7 @@ double clipped_area(const double* xs, const double* ys, int n, double x0, double
     double twice = 0.0;
     for (int i = 0; i < n; ++i) {
         const double* a = poly[cur][i];
-        const double* b = poly[cur][(i + 1) % n];
+        const double* b = poly[cur][i + 1 < n ? i + 1 : 0];
         twice += a[0] * b[1] - a[1] * b[0];
     }
     return 0.5 * std::fabs(twice);

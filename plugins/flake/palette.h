@@ -59,6 +59,8 @@ struct ColorTable {
         while (k + 1 < cdf.size() && cdf[k] <= u) ++k;
         return k;
     }
+    /** Whether flakes differ in colour (a table or variation); else every flake is `single`. */
+    bool varies() const { return !cdf.empty() || !varied.empty(); }
     /** The colour picked by a uniform number in [0, 1), without variation. */
     const float* pick(float u) const { return cdf.empty() ? single : &rgb[3 * index(u)]; }
     /** The colour of the flake whose own hash is `id` and whose colour number is u: its entry,

@@ -31,6 +31,8 @@ struct FilmTables {
     std::vector<FresnelTable> levels;
     /** The table of the flake whose own hash is `id`: its level, each equally likely; `bare`
      *  without a film. */
+    /** Whether flakes carry films (each its own table); else every flake has `bare`. */
+    bool varies() const { return !levels.empty(); }
     const FresnelTable& pick(uint64_t id, const FresnelTable& bare) const {
         if (levels.empty()) return bare;
         return levels[static_cast<std::size_t>(mix(id, 0xf11b) >> 58)];
