@@ -10,6 +10,10 @@ find_package(TBB REQUIRED)
 find_package(tomlplusplus REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(TinyGLTF REQUIRED)  # glTF scenes: Debian ships it as a shared library (TinyGLTF::TinyGLTF)
+# Compressed glTF geometry: KHR_draco_mesh_compression (Draco's shared library, draco::draco; its
+# static archive is not built position-independent) and EXT_meshopt_compression (meshoptimizer).
+find_package(draco CONFIG REQUIRED)
+find_package(meshoptimizer CONFIG REQUIRED)
 
 # OpenImageIO's imported target names /usr/include/opencv4, which Debian does not ship;
 # CMake refuses to generate with a missing include directory, so drop that entry.

@@ -2,7 +2,9 @@
 # Installs Spangle's build dependencies from Debian 12's packages (run as root; zlib1g-dev inflates
 # gzip'd pbrt scenes); with --tests,
 # also what only the tests need (headless Chromium and its WebDriver for the live preview page;
-# clang and its libFuzzer runtime for the fuzz targets). libtinygltf-dev (2.7.0) reads glTF scenes;
+# clang and its libFuzzer runtime for the fuzz targets; gltfpack and draco's tools, which compress
+# the glTF test files). libtinygltf-dev (2.7.0) reads glTF scenes, libdraco-dev and
+# libmeshoptimizer-dev decode their compressed geometry;
 # python3-pip fetches Open Image Denoise's libraries (below); pybind11-dev, python3-dev and
 # python3-numpy build the Python module (python/), python3-pytest tests it; python3-venv makes
 # the environment of the Blender tests (below).
@@ -12,12 +14,14 @@ packages=(
     cmake ninja-build g++ pkg-config
     libembree-dev libosd-dev libopencolorio-dev libopenimageio-dev libfmt-dev libopenexr-dev libpng-dev
     zlib1g-dev libtbb-dev libtomlplusplus-dev libcli11-dev libtinyobjloader-dev libtinygltf-dev libgtest-dev libbenchmark-dev
+    libdraco-dev libmeshoptimizer-dev
     openimageio-tools opencolorio-tools clang-format python3-pip
     pybind11-dev python3-dev python3-numpy
     libopenmpi-dev openmpi-bin
 )
 if [ "${1:-}" = "--tests" ]; then
-    packages+=(chromium chromium-driver curl clang libclang-rt-14-dev python3-pytest python3-venv)
+    packages+=(chromium chromium-driver curl clang libclang-rt-14-dev python3-pytest python3-venv
+        gltfpack draco)
 fi
 missing=()
 for p in "${packages[@]}"; do

@@ -83,7 +83,7 @@ std::string material_body(GltfWriter& w, const std::string& png) {
     const std::string tt =
         R"("extensions":{"KHR_texture_transform":{"offset":[0.5,0.25],"rotation":0,"scale":[2,4]}})";
     return fmt::format(
-        R"("extensionsUsed":["KHR_texture_transform","KHR_materials_clearcoat","KHR_materials_ior","KHR_materials_specular","KHR_materials_transmission","KHR_materials_emissive_strength","KHR_materials_iridescence","SPANGLE_materials_flakes","KHR_materials_anisotropy","EXT_mesh_gpu_instancing"],)"
+        R"("extensionsUsed":["KHR_texture_transform","KHR_materials_clearcoat","KHR_materials_ior","KHR_materials_specular","KHR_materials_transmission","KHR_materials_emissive_strength","KHR_materials_iridescence","SPANGLE_materials_flakes","KHR_materials_anisotropy","EXT_lights_image_based"],)"
         R"("images":[{{"bufferView":{},"mimeType":"image/png"}},{{"uri":"data:image/png;base64,{}"}}],)"
         R"("samplers":[{{"wrapS":33071,"wrapT":33071,"magFilter":9728}},{{"wrapS":33648,"wrapT":10497,"magFilter":9729}}],)"
         R"("textures":[{{"source":0,"sampler":0}},{{"source":1,"sampler":1}}],)"
@@ -195,7 +195,7 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     for (const std::string& n : d.notes)
         aniso += n.find("KHR_materials_anisotropy") != std::string::npos;
     EXPECT_EQ(aniso, 1);
-    EXPECT_TRUE(has_note(d, "extension EXT_mesh_gpu_instancing is not read"));
+    EXPECT_TRUE(has_note(d, "extension EXT_lights_image_based is not read"));
 
     const MaterialDesc& flakes = d.materials[5];
     EXPECT_EQ(flakes.plugin, "flake");
@@ -796,6 +796,34 @@ TEST(GltfErrors, BufferFaultsAreSaidAtTheirUriWithWhatTheyHold) {
     EXPECT_NE(std::find(d.files.begin(), d.files.end(), dir.file("kept.bin")), d.files.end());
 }
 
+TEST(GltfErrors, AnImageViewPastItsBufferIsSaidAtTheImage) {
+    // tinygltf hands an image's view to the image callback unchecked: a view one byte past the
+    // end of its buffer was read past the buffer's memory (found by the fuzzer from a
+    // draco_transcoder .glb, whose texture is in a view).
+    test::TempDir dir("gltf_image_view");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, -1);
+    const std::string png(16, 'x');
+    const int view = w.view(png.data(), png.size());
+    const std::string body = fmt::format(
+        R"("meshes":[{}],"nodes":[{{"mesh":0}}],"images":[{{"bufferView":{},"mimeType":"image/png"}}])",
+        mesh, view);
+    w.write_glb(dir.file("ok.glb"), body);
+    EXPECT_NO_THROW(read_gltf_scene(dir.file("ok.glb"), {}));
+    // The buffer one byte shorter than the view's end (the BIN chunk as long as before).
+    std::string text = bytes_of(dir.file("ok.glb"));
+    const std::string length = fmt::format(R"("byteLength":{}}}])", w.bin.size());
+    const std::size_t at = text.find(length);
+    ASSERT_NE(at, std::string::npos);
+    const std::string shorter = fmt::format(R"("byteLength":{}}}])", w.bin.size() - 1);
+    ASSERT_EQ(shorter.size(), length.size()) << "the test keeps the JSON chunk's length";
+    text.replace(at, length.size(), shorter);
+    const std::string e = error_of(dir, text, "short.glb");
+    EXPECT_NE(e.find("image 0: buffer view " + std::to_string(view)), std::string::npos) << e;
+    EXPECT_NE(e.find("runs past the end of buffer 0"), std::string::npos) << e;
+    EXPECT_NE(e.find("short.glb:1:"), std::string::npos) << e;
+}
+
 TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {
     // tinygltf said these at 1:1 in its own words ("'byteLength' property is not a positive
     // integer", "'uri' is missing", "File not found : data:;base64,..."), and refused a .bin
@@ -886,21 +914,21 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     EXPECT_EQ(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\n\"nodes\":[{\"mesh\":4}]}"),
               f + ":2:18: error: mesh 4 does not exist (the file has 0)");
     EXPECT_EQ(error_of(dir,
-                       "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_draco_mesh_"
-                       "compression\"],\"extensionsUsed\":[\"KHR_draco_mesh_compression\"]}"),
+                       "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_texture_"
+                       "basisu\"],\"extensionsUsed\":[\"KHR_texture_basisu\"]}"),
               f +
-                  ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
+                  ":1:49: error: the file requires extension KHR_texture_basisu, which "
                   "Spangle does not read: " +
                   kReExport);
-    // The same where the extension's data would fail tinygltf first (a Draco accessor has no
-    // bufferView): the requirement is what is wrong ("accessor[0] invalid bufferView" before).
+    // The same where the file's data would fail tinygltf first (indices without a bufferView):
+    // the requirement is what is wrong ("accessor[0] invalid bufferView" before).
     EXPECT_EQ(error_of(dir,
-                       "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_draco_mesh_"
-                       "compression\"],\"accessors\":[{\"componentType\":5123,\"count\":3,"
+                       "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_texture_"
+                       "basisu\"],\"accessors\":[{\"componentType\":5123,\"count\":3,"
                        "\"type\":\"SCALAR\"}],\"meshes\":[{\"primitives\":[{\"attributes\":{},"
                        "\"indices\":0}]}]}"),
               f +
-                  ":1:49: error: the file requires extension KHR_draco_mesh_compression, which "
+                  ":1:49: error: the file requires extension KHR_texture_basisu, which "
                   "Spangle does not read: " +
                   kReExport);
     EXPECT_NE(error_of(dir, "{\"asset\":{\"version\":\"1.0\"}}").find("only 2.x is read"),

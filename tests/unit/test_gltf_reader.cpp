@@ -157,6 +157,68 @@ TEST(GltfReader, PrimitivesKeepPositionsNormalsAndUvsWithVFlipped) {
     EXPECT_TRUE(has_note(d, dir.file("prims.gltf") + ":1:"));
 }
 
+TEST(GltfReader, GpuInstancesAreObjectsSharingTheMeshPlacedAfterTheirNode) {
+    // EXT_mesh_gpu_instancing: three instances of a quad under a node moved by (10, 0, 0); the
+    // rotations as normalised shorts (as gltfpack writes them).
+    test::TempDir dir("gltf_instancing");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const int t = w.floats({0, 0, 0, 1, 0, 0, 0, 2, 0}, "VEC3", 3);
+    const int s = w.floats({1, 1, 1, 2, 2, 2, 1, 1, 1}, "VEC3", 3);
+    // Identity, identity, and 90 degrees about z: (0, 0, sin 45, cos 45) x 32767.
+    const std::vector<int16_t> rot = {0, 0, 0, 32767, 0, 0, 0, 32767, 0, 0, 23170, 23170};
+    const int rv = w.view(rot.data(), rot.size() * 2);
+    w.accessors.push_back(fmt::format(
+        R"({{"bufferView":{},"componentType":5122,"normalized":true,"count":3,"type":"VEC4"}})",
+        rv));
+    const auto r = static_cast<int>(w.accessors.size()) - 1;
+    const std::string body = fmt::format(
+        R"("extensionsUsed":["EXT_mesh_gpu_instancing"],"extensionsRequired":)"
+        R"(["EXT_mesh_gpu_instancing"],"nodes":[{{"name":"quad","mesh":0,"translation":[10,0,0],)"
+        R"("extensions":{{"EXT_mesh_gpu_instancing":{{"attributes":{{"TRANSLATION":{},)"
+        R"("ROTATION":{},"SCALE":{},"_ID":{}}}}}}}}}],"meshes":[{{"primitives":[{}]}}])",
+        t, r, s, t, quad_primitive(q, -1));
+    w.write_gltf(dir.file("inst.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("inst.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 3u);
+    const auto mesh = [&](std::size_t i) {
+        return std::get<InlineMeshShape>(d.objects[i].shape).mesh.get();
+    };
+    EXPECT_EQ(mesh(0), mesh(1));
+    EXPECT_EQ(mesh(0), mesh(2));
+    EXPECT_EQ(d.objects[0].name, "quad@0");
+    EXPECT_EQ(d.objects[2].name, "quad@2");
+    // Where the quad's corner (1, 0, 0) goes: node after instance.
+    const auto corner = [&](std::size_t i) {
+        return d.objects[i].placement.matrix.value().apply_point({1, 0, 0});
+    };
+    EXPECT_NEAR(corner(0).x, 11.0f, 1e-4f);
+    EXPECT_NEAR(corner(1).x, 10.0f + 1.0f + 2.0f, 1e-4f);  // scaled by 2, then moved by 1
+    EXPECT_NEAR(corner(2).x, 10.0f, 1e-3f);                // turned onto +y, then moved by 2 in y
+    EXPECT_NEAR(corner(2).y, 3.0f, 1e-3f);
+    EXPECT_EQ(count_notes(d, "instance attribute _ID is dropped"), 1);
+
+    // Attributes of different counts: an error at the second.
+    GltfWriter w2;
+    const QuadAccessors q2 = quad(w2);
+    const int t2 = w2.floats({0, 0, 0, 1, 0, 0}, "VEC3", 3);
+    const int s2 = w2.floats({1, 1, 1}, "VEC3", 3);
+    w2.write_gltf(dir.file("bad.gltf"),
+                  fmt::format(R"("nodes":[{{"mesh":0,"extensions":{{"EXT_mesh_gpu_instancing":)"
+                              R"({{"attributes":{{"TRANSLATION":{},"SCALE":{}}}}}}}}}],)"
+                              R"("meshes":[{{"primitives":[{}]}}])",
+                              t2, s2, quad_primitive(q2, -1)));
+    try {
+        read_gltf_scene(dir.file("bad.gltf"), {});
+        ADD_FAILURE() << "no error";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("instance attribute TRANSLATION has 2 elements, "
+                                             "SCALE has 1"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 /** The film position (pixels, y down) where camera c of a w x h image sees world point p. */
 std::pair<float, float> project(const CameraModel& cam, Vec3 p, const CameraDesc& c, uint32_t w,
                                 uint32_t h) {

@@ -255,6 +255,14 @@ std::vector<double> refine_for_arcs(const std::vector<double>& times,
 
 }  // namespace
 
+Affine trs_matrix(Vec3 t, const float r[4], Vec3 s) {
+    Trs p;
+    p.t = t;
+    for (int k = 0; k < 4; ++k) p.r[k] = r[k];
+    p.s = s;
+    return to_affine(p);
+}
+
 std::map<int, WeightTrack> weight_tracks(Context& ctx) {
     std::map<int, WeightTrack> out;
     for (std::size_t a = 0; a < ctx.model.animations.size(); ++a) {

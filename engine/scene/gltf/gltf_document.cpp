@@ -37,6 +37,9 @@ const std::set<std::string> kRead = {
     "KHR_materials_unlit",
     "KHR_materials_volume",
     "KHR_mesh_quantization",
+    "KHR_draco_mesh_compression",
+    "EXT_meshopt_compression",
+    "EXT_mesh_gpu_instancing",
     "EXT_texture_webp",
     "SPANGLE_materials_flakes",
 };
@@ -177,7 +180,65 @@ std::string_view glb_json(const std::string& bytes, const std::string& path) {
 /** Extensions noted where they are used (a material, a primitive, a texture), not here. */
 bool noted_in_place(const std::string& e) {
     return (e.rfind("KHR_materials_", 0) == 0 && e != "KHR_materials_variants") ||
-           e == "KHR_draco_mesh_compression" || e == "KHR_texture_basisu";
+           e == "KHR_texture_basisu";
+}
+
+/** Whether buffer i only stands in for data EXT_meshopt_compression decodes (a "fallback" buffer
+ *  without a uri, as gltfpack writes): it holds nothing to read. */
+bool meshopt_fallback(const Context& ctx, std::size_t i) {
+    const std::string b = fmt::format("buffers/{}", i);
+    const std::string* fallback =
+        ctx.json.scalar(b + "/extensions/EXT_meshopt_compression/fallback");
+    return fallback && *fallback == "true" && !ctx.json.scalar(b + "/uri") &&
+           !ctx.json.has(b + "/uri");
+}
+
+/** The JSON tinygltf is given: the file's, with two kinds of value it refuses made acceptable
+ *  (decompress() and load_document() undo both): each meshopt fallback buffer becomes a one-byte
+ *  data URI (tinygltf refuses a .gltf buffer without a uri, and gave a .glb's the BIN chunk's
+ *  bytes), and each accessor without a view names view 0 (tinygltf refuses indices without one,
+ *  which Draco-compressed primitives have). Empty when neither occurs (the JSON as it is).
+ *  `viewless` gets the accessors changed. */
+std::string tinygltf_json(const Context& ctx, std::string_view json, std::vector<int>& viewless) {
+    struct Edit {
+        std::size_t start, end;
+        std::string text;
+    };
+    std::vector<Edit> edits;
+    for (std::size_t i = 0; ctx.json.has(fmt::format("buffers/{}", i)); ++i) {
+        if (!meshopt_fallback(ctx, i)) continue;
+        const auto [start, end] = ctx.json.span(fmt::format("buffers/{}", i));
+        if (end > start && end <= json.size())
+            edits.push_back(
+                {start, end,
+                 R"({"byteLength":1,"uri":"data:application/octet-stream;base64,AA=="})"});
+    }
+    if (ctx.json.has("bufferViews/0"))
+        for (std::size_t i = 0; ctx.json.has(fmt::format("accessors/{}", i)); ++i) {
+            const std::string a = fmt::format("accessors/{}", i);
+            if (ctx.json.scalar(a + "/bufferView") || ctx.json.has(a + "/bufferView")) continue;
+            const auto [start, end] = ctx.json.span(a);
+            if (end <= start || end > json.size() || json[start] != '{') continue;
+            edits.push_back({start, start + 1, R"({"bufferView":0,)"});
+            // An accessor written "{}" has no member to follow the inserted one.
+            const std::size_t next = json.find_first_not_of(" \t\r\n", start + 1);
+            if (next != std::string_view::npos && json[next] == '}')
+                edits.back().text = R"({"bufferView":0)";
+            viewless.push_back(static_cast<int>(i));
+        }
+    if (edits.empty()) return {};
+    std::sort(edits.begin(), edits.end(),
+              [](const Edit& a, const Edit& b) { return a.start < b.start; });
+    std::string out;
+    std::size_t copied = 0;
+    for (const Edit& e : edits) {
+        if (e.start < copied) continue;
+        out.append(json.substr(copied, e.start - copied));
+        out += e.text;
+        copied = e.end;
+    }
+    out.append(json.substr(copied));
+    return out;
 }
 
 /** Fails on a required extension Spangle does not read (from the JSON itself, before tinygltf
@@ -312,7 +373,8 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
         const std::string* uri = uri_value ? &*uri_value : nullptr;
         if (!uri && ctx.json.has(at))
             throw_error(ctx.at(at), "buffer {}: its uri must be a string", i);
-        if (!uri && binary && i == 0) continue;  // the BIN chunk
+        if (!uri && meshopt_fallback(ctx, i)) continue;  // decompress() fills its views
+        if (!uri && binary && i == 0) continue;          // the BIN chunk
         if (!uri)
             throw_error(ctx.at(fmt::format("buffers/{}", i)), "buffer {} has no uri: {}", i,
                         binary ? "only a .glb's first buffer is its BIN chunk, the others name "
@@ -421,6 +483,43 @@ void check_accessors(const Context& ctx) {
     }
 }
 
+/** A whole number the file writes at `path` (kept by JsonLocations), or `fallback` when it
+ *  writes none or something else there (tinygltf's own checks say what). */
+double whole_at(const Context& ctx, const std::string& path, double fallback) {
+    const std::string* t = ctx.json.scalar(path);
+    if (!t || t->starts_with('"')) return fallback;
+    char* end = nullptr;
+    const double v = std::strtod(t->c_str(), &end);
+    return end != t->c_str() && *end == '\0' && v >= 0 && v == std::floor(v) ? v : fallback;
+}
+
+/** Each image held in a buffer view checked to lie inside its buffer, before tinygltf reads it:
+ *  tinygltf hands the view's bytes to the image callback without checking the view against the
+ *  buffer (a view one byte past its buffer was read past the end of the buffer's memory). */
+void check_image_views(const Context& ctx) {
+    for (std::size_t i = 0; ctx.json.has(fmt::format("images/{}", i)); ++i) {
+        const std::string ip = fmt::format("images/{}/bufferView", i);
+        const double view = whole_at(ctx, ip, -1);
+        if (view < 0) continue;
+        const std::string vp = fmt::format("bufferViews/{:.0f}", view);
+        if (!ctx.json.has(vp)) continue;  // tinygltf says the view does not exist
+        const double buffer = whole_at(ctx, vp + "/buffer", -1);
+        const double offset = whole_at(ctx, vp + "/byteOffset", 0);
+        const double length = whole_at(ctx, vp + "/byteLength", -1);
+        if (buffer < 0 || length < 0) continue;
+        const std::string bp = fmt::format("buffers/{:.0f}", buffer);
+        // A meshopt fallback buffer holds no bytes (tinygltf is given one).
+        const double size = meshopt_fallback(ctx, static_cast<std::size_t>(buffer))
+                                ? 0.0
+                                : whole_at(ctx, bp + "/byteLength", -1);
+        if (ctx.json.has(bp) && size >= 0 && offset + length > size)
+            throw_error(ctx.at(ip),
+                        "image {}: buffer view {:.0f} ({:.0f} bytes from byte {:.0f}) runs past "
+                        "the end of buffer {:.0f} ({:.0f} bytes)",
+                        i, view, length, offset, buffer, size);
+    }
+}
+
 /** Notes used extensions not read (once each). */
 void check_extensions(Context& ctx) {
     for (const std::string& e : ctx.model.extensionsUsed)
@@ -453,14 +552,44 @@ void load_document(Context& ctx) {
             std::min<std::size_t>(bytes.size(), 20 + std::size_t{u32(bytes, 12)});
         if (bytes.compare(20, 3, "\xEF\xBB\xBF") == 0) bytes.replace(20, 3, "   ");
         for (std::size_t i = end; i > 20 && bytes[i - 1] == '\0'; --i) bytes[i - 1] = ' ';
+        // An empty BIN chunk after it (draco_transcoder writes one for a file without buffer
+        // data; the spec says to leave the chunk out): left out, as tinygltf refused it.
+        if (bytes.size() == end + 8 && u32(bytes, 8) == bytes.size() && u32(bytes, end) == 0 &&
+            u32(bytes, end + 4) == 0x004E4942u) {
+            bytes.resize(end);
+            const auto length = static_cast<uint32_t>(end);
+            std::memcpy(bytes.data() + 8, &length, 4);
+        }
     }
     const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
     ctx.json = JsonLocations(json, ctx.path);
     check_required(ctx);
     BufferLengths buffer_lengths = check_buffers(ctx, binary);
     check_accessors(ctx);
+    check_image_views(ctx);
     if (bytes.size() > 0xFFFFFFFFu)
         throw_error(FileLoc{ctx.path, 0, 0}, "the file is larger than 4 GiB");
+    // Fallback buffers of compressed views made empty for tinygltf (the rest as written; a
+    // .glb's JSON chunk rebuilt around the changed text).
+    std::vector<int> viewless;
+    if (std::string changed = tinygltf_json(ctx, json, viewless); !changed.empty()) {
+        if (binary) {
+            while (changed.size() % 4 != 0) changed += ' ';
+            const std::size_t rest = 20 + std::size_t{u32(bytes, 12)};
+            std::string glb = bytes.substr(0, 12);
+            const auto chunk = static_cast<uint32_t>(changed.size());
+            glb.append(reinterpret_cast<const char*>(&chunk), 4);
+            glb += "JSON";
+            glb += changed;
+            glb.append(bytes, std::min(rest, bytes.size()));
+            const auto total =
+                static_cast<uint32_t>(std::min<std::size_t>(glb.size(), 0xFFFFFFFFu));
+            std::memcpy(glb.data() + 8, &total, 4);
+            bytes = std::move(glb);
+        } else {
+            bytes = std::move(changed);
+        }
+    }
     tinygltf::TinyGLTF loader;
     loader.SetImageLoader(&keep_bytes, &ctx.images);
     loader.SetFsCallbacks(
@@ -514,6 +643,10 @@ void load_document(Context& ctx) {
         if (!b.uri.empty() && b.uri.rfind("data:", 0) != 0)
             if (const UriTarget t = uri_target(ctx, b.uri); !t.path.empty())
                 ctx.scene->files.push_back(t.path);
+    for (const int a : viewless)
+        if (static_cast<std::size_t>(a) < ctx.model.accessors.size())
+            ctx.model.accessors[static_cast<std::size_t>(a)].bufferView = -1;
+    decompress(ctx);
     check_extensions(ctx);
 }
 

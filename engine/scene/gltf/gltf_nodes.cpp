@@ -124,7 +124,63 @@ bool thicken(Affine& a) {
     return std::fabs(a.determinant()) > 1e-18f;
 }
 
-/** The objects of node n's mesh, one per primitive. */
+/** EXT_mesh_gpu_instancing: the transforms of node n's instances (each T R S from its
+ *  TRANSLATION, ROTATION and SCALE, in the node's space: the node's matrix applies after it);
+ *  empty when the node has none. */
+std::vector<Affine> instance_matrices(Context& ctx, int n) {
+    const tinygltf::Node& node = ctx.model.nodes[static_cast<std::size_t>(n)];
+    const auto it = node.extensions.find("EXT_mesh_gpu_instancing");
+    if (it == node.extensions.end()) return {};
+    const std::string xp = fmt::format("nodes/{}/extensions/EXT_mesh_gpu_instancing", n);
+    const tinygltf::Value& x = it->second;
+    if (!x.IsObject() || !x.Has("attributes") || !x.Get("attributes").IsObject())
+        throw_error(ctx.at(xp), "EXT_mesh_gpu_instancing needs its 'attributes' object");
+    std::vector<float> t, r, s;
+    std::size_t count = 0;
+    std::string first;
+    for (const auto& [name, value] : x.Get("attributes").Get<tinygltf::Value::Object>()) {
+        const std::string ap = xp + "/attributes/" + name;
+        std::vector<float>* into = name == "TRANSLATION" ? &t
+                                   : name == "ROTATION"  ? &r
+                                   : name == "SCALE"     ? &s
+                                                         : nullptr;
+        if (!into) {
+            // Custom attributes (_ID, _COLOR, ...) say nothing Spangle draws.
+            ctx.note("instance attribute " + name, ctx.at(ap),
+                     fmt::format("instance attribute {} is dropped (only TRANSLATION, ROTATION "
+                                 "and SCALE place instances)",
+                                 name));
+            continue;
+        }
+        if (!value.IsNumber())
+            throw_error(ctx.at(ap), "instance attribute {} must be an accessor index", name);
+        const int comps = name == "ROTATION" ? 4 : 3;
+        *into = read_floats(ctx, value.GetNumberAsInt(), comps, name.c_str(), ap);
+        const std::size_t c = into->size() / static_cast<std::size_t>(comps);
+        if (!first.empty() && c != count)
+            throw_error(ctx.at(ap),
+                        "instance attribute {} has {} elements, {} has {}: each gives one per "
+                        "instance",
+                        name, c, first, count);
+        count = c;
+        first = name;
+    }
+    std::vector<Affine> out(count);
+    for (std::size_t i = 0; i < count; ++i) {
+        const Vec3 ti = t.empty() ? Vec3(0.0f) : Vec3(t[3 * i], t[3 * i + 1], t[3 * i + 2]);
+        const float identity[4] = {0, 0, 0, 1};
+        const float* ri = r.empty() ? identity : &r[4 * i];
+        const Vec3 si = s.empty() ? Vec3(1.0f) : Vec3(s[3 * i], s[3 * i + 1], s[3 * i + 2]);
+        out[i] = trs_matrix(ti, ri, si);
+    }
+    if (count == 0)
+        ctx.note("no instances", ctx.at(xp),
+                 "EXT_mesh_gpu_instancing gives no instance attribute: the mesh is drawn once");
+    return out;
+}
+
+/** The objects of node n's mesh, one per primitive (and per instance of EXT_mesh_gpu_instancing).
+ */
 void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
                   const std::vector<NodeMotion>& motions,
                   const std::map<int, WeightTrack>& weights) {
@@ -140,6 +196,14 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
         return;
     }
     const tinygltf::Mesh& mesh = ctx.model.meshes[static_cast<std::size_t>(node.mesh)];
+    std::vector<Affine> instances = instance_matrices(ctx, n);
+    if (!instances.empty() && node.skin >= 0) {
+        ctx.note(fmt::format("instanced skin {}", n),
+                 ctx.at(np + "/extensions/EXT_mesh_gpu_instancing"),
+                 "a skinned mesh's instances are not drawn apart (its joints place it): drawn "
+                 "once");
+        instances.clear();
+    }
     for (std::size_t p = 0; p < mesh.primitives.size(); ++p) {
         std::shared_ptr<const TriangleMesh> tri =
             read_primitive(ctx, node.mesh, static_cast<int>(p));
@@ -160,11 +224,31 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
         o.what =
             fmt::format("node {}{} primitive {}", n,
                         node.name.empty() ? std::string() : fmt::format(" '{}'", node.name), p);
-        if (motion.times.empty())
-            o.placement.matrix = rest;
-        else
-            o.matrix_keys = matrix_keys(motion, ctx.at(np), o.what);
-        ctx.scene->objects.push_back(std::move(o));
+        if (instances.empty()) {
+            if (motion.times.empty())
+                o.placement.matrix = rest;
+            else
+                o.matrix_keys = matrix_keys(motion, ctx.at(np), o.what);
+            ctx.scene->objects.push_back(std::move(o));
+            continue;
+        }
+        // One object per instance, sharing the mesh: the node's placement (and motion) after
+        // the instance's own.
+        const std::string name = o.name, what = o.what;
+        for (std::size_t i = 0; i < instances.size(); ++i) {
+            ObjectDesc inst = o;
+            inst.name = fmt::format("{}@{}", name, i);
+            inst.what = fmt::format("{} instance {}", what, i);
+            if (motion.times.empty()) {
+                inst.placement.matrix = rest.compose(instances[i]);
+            } else {
+                NodeMotion m = motion;
+                m.rest = m.rest.compose(instances[i]);
+                for (Affine& k : m.matrices) k = k.compose(instances[i]);
+                inst.matrix_keys = matrix_keys(m, ctx.at(np), inst.what);
+            }
+            ctx.scene->objects.push_back(std::move(inst));
+        }
     }
 }
 

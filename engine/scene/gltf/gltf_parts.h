@@ -18,6 +18,13 @@ namespace spangle::gltf {
  *  extension this reader does not read. Throws SpangleError at file:line:col. */
 void load_document(Context& ctx);
 
+/** gltf_compression.cpp: compressed data decoded into ctx.model as if it had been written
+ *  plainly: each EXT_meshopt_compression buffer view gets its decoded bytes (in a buffer of its
+ *  own), and each KHR_draco_mesh_compression primitive whose attributes or indices have no data
+ *  of their own gets them from its Draco stream (new accessors, in new buffers). Throws
+ *  SpangleError at the extension for data that cannot be decoded. */
+void decompress(Context& ctx);
+
 /** gltf_meshes.cpp: the triangles of primitive `prim` of mesh `mesh`, shared by every node that
  *  draws it; null (with a note) for a primitive of points or lines. */
 std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int prim);
@@ -81,6 +88,10 @@ struct NodeMotion {
 /** gltf_animation.cpp: every node's world placement, animations applied (translation,
  *  rotation and scale channels of every animation), given the node parents (-1 = a root). */
 std::vector<NodeMotion> node_motions(Context& ctx, const std::vector<int>& parent);
+
+/** gltf_animation.cpp: translation x rotation (quaternion x, y, z, w, normalised; a zero one
+ *  is none) x scale as one matrix, as glTF composes a node's parts. */
+Affine trs_matrix(Vec3 t, const float r[4], Vec3 s);
 
 /** gltf_animation.cpp: node `n`'s own matrix (its matrix, or T R S), with no animation. */
 Affine local_matrix(const Context& ctx, int n);

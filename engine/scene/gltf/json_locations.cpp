@@ -13,8 +13,14 @@ public:
     Scanner(std::string_view text, const std::string& file,
             std::unordered_map<std::string, std::pair<int, int>>& places,
             std::vector<std::string>& required,
-            std::unordered_map<std::string, std::string>& scalars)
-        : text_(text), file_(file), places_(places), required_(required), scalars_(scalars) {}
+            std::unordered_map<std::string, std::string>& scalars,
+            std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>& spans)
+        : text_(text),
+          file_(file),
+          places_(places),
+          required_(required),
+          scalars_(scalars),
+          spans_(spans) {}
 
     void document() {
         skip_space();
@@ -89,6 +95,7 @@ private:
             const std::string_view w(word);
             if (text_.substr(pos_, w.size()) == w) {
                 for (std::size_t i = 0; i < w.size(); ++i) advance();
+                if (w != "null" && kept_scalar()) scalars_[path_] = std::string(w);
                 return;
             }
         }
@@ -130,12 +137,18 @@ private:
         for (std::size_t i = 0;; ++i) {
             skip_space();
             const std::size_t size = path_.size();
+            // The buffers' and accessors' objects: where each is written, byte for byte (a buffer
+            // that only stands in for compressed data, and an accessor without a view, are
+            // rewritten in the text tinygltf reads).
+            const bool buffer = (path_ == "buffers" || path_ == "accessors") && peek() == '{';
+            const std::size_t start = pos_;
             if (peek() == '{' || peek() == '[') {
                 if (!path_.empty()) path_ += '/';
                 path_ += std::to_string(i);
                 record();
             }
             value(depth + 1);
+            if (buffer) spans_[path_] = {start, pos_};
             path_.resize(size);
             skip_space();
             if (peek() == ',') {
@@ -203,16 +216,27 @@ private:
     std::unordered_map<std::string, std::pair<int, int>>& places_;
     std::vector<std::string>& required_;
     std::unordered_map<std::string, std::string>& scalars_;
+    std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>& spans_;
 
-    /** Whether the scalar at path_ is kept (scalars_): a buffer's members, and an accessor's
-     *  count, componentType and type, checked before tinygltf reads them. */
+    /** Whether the scalar at path_ is kept (scalars_): a buffer's members, an accessor's count,
+     *  componentType, type and bufferView, a buffer view's buffer, byteOffset and byteLength, and
+     *  an image's bufferView, checked before tinygltf reads them. */
     bool kept_scalar() const {
         if (path_.starts_with("buffers/")) return true;
-        if (!path_.starts_with("accessors/")) return false;
-        const std::size_t slash = path_.find('/', 10);
-        if (slash == std::string::npos) return false;
-        const std::string_view key = std::string_view(path_).substr(slash + 1);
-        return key == "count" || key == "componentType" || key == "type";
+        // The member of element N of a top-level array ("accessors/N/key").
+        const auto key_of = [&](std::string_view array) -> std::string_view {
+            if (!path_.starts_with(array) || path_.size() <= array.size() ||
+                path_[array.size()] != '/')
+                return {};
+            const std::size_t slash = path_.find('/', array.size() + 1);
+            if (slash == std::string::npos) return {};
+            return std::string_view(path_).substr(slash + 1);
+        };
+        if (const std::string_view key = key_of("accessors"); !key.empty())
+            return key == "count" || key == "componentType" || key == "type" || key == "bufferView";
+        if (const std::string_view key = key_of("bufferViews"); !key.empty())
+            return key == "buffer" || key == "byteOffset" || key == "byteLength";
+        return key_of("images") == "bufferView";
     }
     std::size_t pos_ = 0;
     int line_ = 1;
@@ -223,7 +247,7 @@ private:
 }  // namespace
 
 JsonLocations::JsonLocations(std::string_view text, std::string file) : file_(std::move(file)) {
-    Scanner(text, file_, places_, required_, scalars_).document();
+    Scanner(text, file_, places_, required_, scalars_, spans_).document();
 }
 
 FileLoc JsonLocations::at(std::string_view path) const {

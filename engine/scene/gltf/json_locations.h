@@ -5,9 +5,11 @@
 // object or an array, by its JSON path ("materials/2/pbrMetallicRoughness"), so that the reader
 // can blame the place a user wrote for what is wrong or dropped.
 
+#include <cstddef>
 #include <string>
 #include <string_view>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "core/error.h"
@@ -37,13 +39,22 @@ public:
     /** Whether the value at `path` is an object or array the file writes (exactly there). */
     bool has(std::string_view path) const { return places_.count(std::string(path)) > 0; }
 
-    /** The text of a string or number the file writes at `path` under "buffers/", or as an
-     *  accessor's count, componentType or type (a string in its quotes, its escapes kept), for
-     *  checking them before tinygltf reads them; null when none (or an object, array, true,
-     *  false or null). */
+    /** The text of a string, number, true or false the file writes at `path` under
+     *  "buffers/", as an accessor's count, componentType, type or bufferView, a buffer view's
+     *  buffer, byteOffset or byteLength, or an image's bufferView (a string in its quotes, its
+     *  escapes kept), for checking them before tinygltf reads them; null when none (or an
+     *  object, array or null). */
     const std::string* scalar(std::string_view path) const {
         const auto it = scalars_.find(std::string(path));
         return it == scalars_.end() ? nullptr : &it->second;
+    }
+
+    /** Where buffer or accessor object `path` ("buffers/N", "accessors/N") is written in the
+     *  text: its first byte and the byte after it; {0, 0} when it is not an object the file
+     *  writes. */
+    std::pair<std::size_t, std::size_t> span(std::string_view path) const {
+        const auto it = spans_.find(std::string(path));
+        return it == spans_.end() ? std::pair<std::size_t, std::size_t>{0, 0} : it->second;
     }
 
 private:
@@ -51,6 +62,8 @@ private:
     std::unordered_map<std::string, std::pair<int, int>> places_;  ///< path -> (line, column)
     std::vector<std::string> required_;                            ///< extensionsRequired
     std::unordered_map<std::string, std::string> scalars_;         ///< buffers' members
+    std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>
+        spans_;  ///< buffers, accessors
 };
 
 }  // namespace spangle::gltf

@@ -2,12 +2,18 @@
 """Writes the small glTF scenes beside this script (seeds of the `gltf` fuzz target and scenes to
 look at with `spangle render`): a lit, animated cube as .gltf (base64 buffer) and as .glb, a
 flake-painted plane using SPANGLE_materials_flakes, and a skinned, morphing bar in the material
-extensions read since (skin.gltf). Run it again after editing; the files are
-committed."""
+extensions read since (skin.gltf), and a textured, vertex-coloured torus compressed by the
+tools users compress with: torus_draco.glb (draco_transcoder, KHR_draco_mesh_compression) and
+torus_meshopt.glb (gltfpack -cc, EXT_meshopt_compression with quantisation and filters; Debian's
+`draco` and `gltfpack` packages). Run it again after editing; the files are committed."""
 import base64
 import json
+import math
 import os
+import shutil
 import struct
+import subprocess
+import tempfile
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PNG = open(os.path.join(HERE, "..", "textures", "roughness_ramp.png"), "rb").read()
@@ -201,9 +207,67 @@ def write_glb(name, doc, buf):
         f.write(out)
 
 
+def torus_scene():
+    """A torus of 24 x 12 quads with normals, uvs, vertex colours and a textured material."""
+    buf = Buffer()
+    pos, nor, uv, col, idx = [], [], [], [], []
+    nu, nv = 24, 12
+    for j in range(nv + 1):
+        for i in range(nu + 1):
+            u, v = i / nu, j / nv
+            a, b = 2 * math.pi * u, 2 * math.pi * v
+            n = [math.cos(a) * math.cos(b), math.sin(b), math.sin(a) * math.cos(b)]
+            c = [math.cos(a), 0.0, math.sin(a)]
+            pos += [c[k] + 0.4 * n[k] for k in range(3)]
+            nor += n
+            uv += [u, v]
+            col += [u, v, 1 - u, 1.0]
+    for j in range(nv):
+        for i in range(nu):
+            a = j * (nu + 1) + i
+            b = a + nu + 1
+            idx += [a, b, a + 1, a + 1, b, b + 1]
+    attrs = {"POSITION": buf.add("f", pos, 3, "VEC3", 5126),
+             "NORMAL": buf.add("f", nor, 3, "VEC3", 5126),
+             "TEXCOORD_0": buf.add("f", uv, 2, "VEC2", 5126),
+             "COLOR_0": buf.add("f", col, 4, "VEC4", 5126)}
+    buf.accessors[attrs["POSITION"]].update({"min": [-1.4, -0.4, -1.4], "max": [1.4, 0.4, 1.4]})
+    doc = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+           "nodes": [{"mesh": 0}], "images": [{"uri": "texture.png"}], "textures": [{"source": 0}],
+           "materials": [{"pbrMetallicRoughness": {"baseColorTexture": {"index": 0}}}],
+           "meshes": [{"primitives": [{"attributes": attrs,
+                                       "indices": buf.add("H", idx, 1, "SCALAR", 5123),
+                                       "material": 0}]}]}
+    return doc, buf
+
+
+def compressed_toruses():
+    """torus_draco.glb and torus_meshopt.glb, from the torus as .gltf + .bin (the form both tools
+    read), when the tools are installed."""
+    if not shutil.which("draco_transcoder") or not shutil.which("gltfpack"):
+        print("draco_transcoder or gltfpack not found: the compressed toruses are kept as they are")
+        return
+    doc, buf = torus_scene()
+    with tempfile.TemporaryDirectory() as tmp:
+        doc["buffers"] = [{"byteLength": len(buf.bin), "uri": "torus.bin"}]
+        doc["bufferViews"], doc["accessors"] = buf.views, buf.accessors
+        with open(os.path.join(tmp, "torus.gltf"), "w") as f:
+            json.dump(doc, f)
+        with open(os.path.join(tmp, "torus.bin"), "wb") as f:
+            f.write(buf.bin)
+        with open(os.path.join(tmp, "texture.png"), "wb") as f:
+            f.write(PNG)
+        src = os.path.join(tmp, "torus.gltf")
+        subprocess.run(["draco_transcoder", "-i", src, "-o", os.path.join(HERE, "torus_draco.glb"),
+                        "-qp", "12"], check=True, stdout=subprocess.DEVNULL)
+        subprocess.run(["gltfpack", "-i", src, "-o", os.path.join(HERE, "torus_meshopt.glb"),
+                        "-cc"], check=True, stdout=subprocess.DEVNULL)
+
+
 if __name__ == "__main__":
     doc, buf = cube_scene()
     write_gltf("cube.gltf", json.loads(json.dumps(doc)), buf)
     write_glb("cube.glb", doc, buf)
     write_gltf("flakes.gltf", *flake_scene())
     write_gltf("skin.gltf", *skin_scene())
+    compressed_toruses()

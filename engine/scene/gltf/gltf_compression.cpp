@@ -1,0 +1,328 @@
+// Compressed glTF geometry, decoded before anything reads it: EXT_meshopt_compression buffer views
+// (meshoptimizer's vertex and index codecs and filters, as gltfpack and glTF-Transform write them)
+// and KHR_draco_mesh_compression primitives (Google's Draco, as Blender's exporter, Draco's own
+// transcoder and glTF-Transform write them). What they decode to is written into the model as
+// ordinary buffers, views and accessors, so the rest of the reader never knows.
+
+#include <draco/compression/decode.h>
+#include <meshoptimizer.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <limits>
+
+#include "scene/gltf/gltf_parts.h"
+
+namespace spangle::gltf {
+namespace {
+
+/** The most bytes one compressed view or primitive may decode to (a corrupt count would ask for
+ *  terabytes). */
+constexpr double kMaxDecoded = 4294967296.0;
+
+/** A number member of an extension object: its value, `fallback` when absent; an error at `at`
+ *  when it is there but not a number. */
+double number(const Context& ctx, const tinygltf::Value& o, const char* key, double fallback,
+              const std::string& at) {
+    if (!o.Has(key)) return fallback;
+    const tinygltf::Value& v = o.Get(key);
+    if (!v.IsNumber()) throw_error(ctx.at(at + "/" + key), "'{}' must be a number", key);
+    return v.GetNumberAsDouble();
+}
+
+/** A whole number in [lo, hi] (a count, an index, an offset); an error at `at` otherwise, and
+ *  when it is absent with a `fallback` below lo (a member the extension requires). */
+std::size_t whole(const Context& ctx, const tinygltf::Value& o, const char* key, double fallback,
+                  double lo, double hi, const std::string& at) {
+    if (!o.Has(key) && fallback < lo)
+        throw_error(ctx.at(at), "'{}' is missing (the extension requires it)", key);
+    const double v = number(ctx, o, key, fallback, at);
+    if (!(v >= lo && v <= hi) || v != std::floor(v))
+        throw_error(ctx.at(at + "/" + key), "'{}' is {}: it must be a whole number from {} to {}",
+                    key, v, lo, hi);
+    return static_cast<std::size_t>(v);
+}
+
+/** A string member; `fallback` when absent. */
+std::string text(const Context& ctx, const tinygltf::Value& o, const char* key,
+                 const std::string& fallback, const std::string& at) {
+    if (!o.Has(key)) return fallback;
+    const tinygltf::Value& v = o.Get(key);
+    if (!v.IsString()) throw_error(ctx.at(at + "/" + key), "'{}' must be a string", key);
+    return v.Get<std::string>();
+}
+
+/** Bytes [offset, offset + length) of buffer `buffer`, checked to exist. */
+const unsigned char* buffer_bytes(const Context& ctx, std::size_t buffer, std::size_t offset,
+                                  std::size_t length, const std::string& at) {
+    if (buffer >= ctx.model.buffers.size())
+        throw_error(ctx.at(at + "/buffer"), "buffer {} does not exist (the file has {})", buffer,
+                    ctx.model.buffers.size());
+    const std::vector<unsigned char>& data = ctx.model.buffers[buffer].data;
+    if (offset > data.size() || length > data.size() - offset)
+        throw_error(ctx.at(at),
+                    "the compressed data ({} bytes from byte {}) runs past the end of buffer {} "
+                    "({} bytes)",
+                    length, offset, buffer, data.size());
+    return data.data() + offset;
+}
+
+/** A new buffer holding `bytes`; its index. */
+int add_buffer(Context& ctx, std::vector<unsigned char> bytes) {
+    tinygltf::Buffer b;
+    b.data = std::move(bytes);
+    ctx.model.buffers.push_back(std::move(b));
+    return static_cast<int>(ctx.model.buffers.size() - 1);
+}
+
+/** Buffer view `index` with an EXT_meshopt_compression object `x`: its bytes decoded into a
+ *  buffer of their own, the view pointed at them (byteOffset 0, its byteLength and byteStride
+ *  kept). */
+void decode_meshopt_view(Context& ctx, std::size_t index, const tinygltf::Value& x) {
+    const std::string at = fmt::format("bufferViews/{}/extensions/EXT_meshopt_compression", index);
+    if (!x.IsObject())
+        throw_error(ctx.at(at), "EXT_meshopt_compression of buffer view {} must be an object",
+                    index);
+    const std::size_t buffer = whole(ctx, x, "buffer", -1, 0, 1e9, at);
+    const std::size_t offset = whole(ctx, x, "byteOffset", 0, 0, 9e15, at);
+    const std::size_t length = whole(ctx, x, "byteLength", -1, 1, 9e15, at);
+    const std::size_t stride = whole(ctx, x, "byteStride", -1, 1, 256, at);
+    const std::size_t count = whole(ctx, x, "count", -1, 1, 4294967295.0, at);
+    const std::string mode = text(ctx, x, "mode", "", at);
+    const std::string filter = text(ctx, x, "filter", "NONE", at);
+    if (static_cast<double>(count) * static_cast<double>(stride) > kMaxDecoded)
+        throw_error(ctx.at(at + "/count"),
+                    "{} elements of {} bytes would decode to more than 4 GiB", count, stride);
+    const unsigned char* src = buffer_bytes(ctx, buffer, offset, length, at);
+    std::vector<unsigned char> out(count * stride);
+    int status = 0;
+    if (mode == "ATTRIBUTES") {
+        if (stride % 4 != 0)
+            throw_error(ctx.at(at + "/byteStride"),
+                        "byteStride {} of mode ATTRIBUTES must be a multiple of 4", stride);
+        status = meshopt_decodeVertexBuffer(out.data(), count, stride, src, length);
+    } else if (mode == "TRIANGLES" || mode == "INDICES") {
+        if (stride != 2 && stride != 4)
+            throw_error(ctx.at(at + "/byteStride"),
+                        "byteStride {} of mode {} must be 2 or 4 (16- or 32-bit indices)", stride,
+                        mode);
+        if (mode == "TRIANGLES" && count % 3 != 0)
+            throw_error(ctx.at(at + "/count"), "count {} of mode TRIANGLES must be a multiple of 3",
+                        count);
+        status = mode == "TRIANGLES"
+                     ? meshopt_decodeIndexBuffer(out.data(), count, stride, src, length)
+                     : meshopt_decodeIndexSequence(out.data(), count, stride, src, length);
+    } else {
+        throw_error(ctx.at(at + (x.Has("mode") ? "/mode" : "")),
+                    "mode '{}' of buffer view {} is not one of ATTRIBUTES, TRIANGLES, INDICES",
+                    mode, index);
+    }
+    if (status != 0)
+        throw_error(ctx.at(at),
+                    "buffer view {}: its meshopt data could not be decoded (error {}: the bytes "
+                    "are damaged, or not what byteLength, byteStride and count say)",
+                    index, status);
+    if (filter == "OCTAHEDRAL") {
+        if (mode != "ATTRIBUTES" || (stride != 4 && stride != 8))
+            throw_error(ctx.at(at + "/filter"),
+                        "filter OCTAHEDRAL needs mode ATTRIBUTES and byteStride 4 or 8");
+        meshopt_decodeFilterOct(out.data(), count, stride);
+    } else if (filter == "QUATERNION") {
+        if (mode != "ATTRIBUTES" || stride != 8)
+            throw_error(ctx.at(at + "/filter"),
+                        "filter QUATERNION needs mode ATTRIBUTES and byteStride 8");
+        meshopt_decodeFilterQuat(out.data(), count, stride);
+    } else if (filter == "EXPONENTIAL") {
+        if (mode != "ATTRIBUTES")
+            throw_error(ctx.at(at + "/filter"), "filter EXPONENTIAL needs mode ATTRIBUTES");
+        meshopt_decodeFilterExp(out.data(), count, stride);
+    } else if (filter != "NONE") {
+        throw_error(ctx.at(at + "/filter"),
+                    "filter '{}' of buffer view {} is not one of NONE, OCTAHEDRAL, QUATERNION, "
+                    "EXPONENTIAL",
+                    filter, index);
+    }
+    tinygltf::BufferView& v = ctx.model.bufferViews[index];
+    // The view keeps its own length (at least the decoded bytes; padding after them reads 0).
+    if (v.byteLength > out.size()) out.resize(v.byteLength);
+    v.buffer = add_buffer(ctx, std::move(out));
+    v.byteOffset = 0;
+    v.extensions.erase("EXT_meshopt_compression");
+}
+
+/** The decoded values of Draco attribute `att` in the accessor's own component type: one
+ *  element of `ncomp` components per point, little-endian, tightly packed. */
+template <class T>
+std::vector<unsigned char> draco_values(const draco::PointAttribute& att, std::size_t points,
+                                        int ncomp) {
+    std::vector<unsigned char> out(points * static_cast<std::size_t>(ncomp) * sizeof(T));
+    T value[4] = {};
+    for (std::size_t p = 0; p < points; ++p) {
+        const auto i = att.mapped_index(draco::PointIndex(static_cast<uint32_t>(p)));
+        if (!att.ConvertValue<T>(i, static_cast<int8_t>(ncomp), value)) std::fill_n(value, 4, T{});
+        std::memcpy(out.data() + p * static_cast<std::size_t>(ncomp) * sizeof(T), value,
+                    static_cast<std::size_t>(ncomp) * sizeof(T));
+    }
+    return out;
+}
+
+/** A new view over the whole of a new buffer holding `bytes`; its index. */
+int add_view(Context& ctx, std::vector<unsigned char> bytes) {
+    tinygltf::BufferView v;
+    v.byteLength = bytes.size();
+    v.buffer = add_buffer(ctx, std::move(bytes));
+    ctx.model.bufferViews.push_back(std::move(v));
+    return static_cast<int>(ctx.model.bufferViews.size() - 1);
+}
+
+/** Primitive `prim` of mesh `mesh` with a KHR_draco_mesh_compression object `x`: the attributes
+ *  it compresses that have no data of their own, and its indices when they have none, decoded
+ *  into new accessors of the same type (the primitive pointed at them). A file that keeps its
+ *  uncompressed data (not requiring the extension) is read from that, exactly. */
+void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
+                            const tinygltf::Value& x) {
+    const std::string pp = fmt::format("meshes/{}/primitives/{}", mesh, prim);
+    const std::string at = pp + "/extensions/KHR_draco_mesh_compression";
+    tinygltf::Primitive& p = ctx.model.meshes[mesh].primitives[prim];
+    if (!x.IsObject()) throw_error(ctx.at(at), "KHR_draco_mesh_compression must be an object");
+    const auto has_data = [&](int accessor) {
+        return accessor >= 0 && static_cast<std::size_t>(accessor) < ctx.model.accessors.size() &&
+               ctx.model.accessors[static_cast<std::size_t>(accessor)].bufferView >= 0;
+    };
+    if (!x.Has("attributes") || !x.Get("attributes").IsObject())
+        throw_error(ctx.at(at), "KHR_draco_mesh_compression needs its 'attributes' object");
+    const tinygltf::Value::Object& ids = x.Get("attributes").Get<tinygltf::Value::Object>();
+    bool needed = !has_data(p.indices);
+    for (const auto& [name, id] : ids) {
+        (void)id;
+        const auto it = p.attributes.find(name);
+        if (it == p.attributes.end())
+            throw_error(ctx.at(at + "/attributes/" + name),
+                        "attribute {} is compressed but the primitive's attributes do not name "
+                        "its accessor",
+                        name);
+        needed = needed || !has_data(it->second);
+    }
+    if (!needed) {
+        p.extensions.erase("KHR_draco_mesh_compression");
+        return;
+    }
+    const std::size_t view = whole(ctx, x, "bufferView", -1, 0, 1e9, at);
+    if (view >= ctx.model.bufferViews.size())
+        throw_error(ctx.at(at + "/bufferView"), "buffer view {} does not exist (the file has {})",
+                    view, ctx.model.bufferViews.size());
+    const tinygltf::BufferView& v = ctx.model.bufferViews[view];
+    const unsigned char* bytes =
+        buffer_bytes(ctx, static_cast<std::size_t>(std::max(v.buffer, 0)), v.byteOffset,
+                     v.byteLength, fmt::format("bufferViews/{}", view));
+    draco::DecoderBuffer stream;
+    stream.Init(reinterpret_cast<const char*>(bytes), v.byteLength);
+    draco::Decoder decoder;
+    auto decoded = decoder.DecodeMeshFromBuffer(&stream);
+    if (!decoded.ok() || !decoded.value())
+        throw_error(ctx.at(at),
+                    "mesh {} primitive {}: its Draco data (buffer view {}) could not be decoded: "
+                    "{}",
+                    mesh, prim, view,
+                    decoded.ok() ? "no mesh" : decoded.status().error_msg_string());
+    const std::unique_ptr<draco::Mesh> dm = std::move(decoded).value();
+    const std::size_t points = dm->num_points();
+    const std::size_t faces = dm->num_faces();
+    if (static_cast<double>(points) * 64.0 + static_cast<double>(faces) * 12.0 > kMaxDecoded)
+        throw_error(ctx.at(at), "mesh {} primitive {}: its Draco mesh is larger than 4 GiB", mesh,
+                    prim);
+    if (!has_data(p.indices)) {
+        std::vector<unsigned char> out(faces * 3 * sizeof(uint32_t));
+        for (std::size_t f = 0; f < faces; ++f) {
+            const draco::Mesh::Face& face = dm->face(draco::FaceIndex(static_cast<uint32_t>(f)));
+            for (int c = 0; c < 3; ++c) {
+                const uint32_t i = face[static_cast<std::size_t>(c)].value();
+                std::memcpy(out.data() + (3 * f + static_cast<std::size_t>(c)) * 4, &i, 4);
+            }
+        }
+        tinygltf::Accessor a;
+        a.bufferView = add_view(ctx, std::move(out));
+        a.byteOffset = 0;
+        a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
+        a.type = TINYGLTF_TYPE_SCALAR;
+        a.count = faces * 3;
+        ctx.model.accessors.push_back(std::move(a));
+        p.indices = static_cast<int>(ctx.model.accessors.size() - 1);
+    }
+    for (const auto& [name, id] : ids) {
+        int& accessor = p.attributes[name];
+        if (has_data(accessor)) continue;
+        const std::string ap = at + "/attributes/" + name;
+        if (!id.IsNumber() || id.GetNumberAsDouble() < 0 ||
+            id.GetNumberAsDouble() != std::floor(id.GetNumberAsDouble()))
+            throw_error(ctx.at(ap), "the Draco id of attribute {} must be a whole number", name);
+        const draco::PointAttribute* att =
+            dm->GetAttributeByUniqueId(static_cast<uint32_t>(id.GetNumberAsDouble()));
+        if (!att)
+            throw_error(ctx.at(ap), "attribute {}: the Draco data has no attribute of id {}", name,
+                        id.GetNumberAsDouble());
+        if (accessor < 0 || static_cast<std::size_t>(accessor) >= ctx.model.accessors.size())
+            throw_error(ctx.at(pp + "/attributes/" + name),
+                        "accessor {} does not exist (the file has {})", accessor,
+                        ctx.model.accessors.size());
+        tinygltf::Accessor a = ctx.model.accessors[static_cast<std::size_t>(accessor)];
+        const int ncomp = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type));
+        if (ncomp < 1 || ncomp > 4)
+            throw_error(ctx.at(fmt::format("accessors/{}/type", accessor)),
+                        "attribute {}: a Draco attribute is a scalar or a vector", name);
+        std::vector<unsigned char> out;
+        switch (a.componentType) {
+            case TINYGLTF_COMPONENT_TYPE_BYTE:
+                out = draco_values<int8_t>(*att, points, ncomp);
+                break;
+            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
+                out = draco_values<uint8_t>(*att, points, ncomp);
+                break;
+            case TINYGLTF_COMPONENT_TYPE_SHORT:
+                out = draco_values<int16_t>(*att, points, ncomp);
+                break;
+            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
+                out = draco_values<uint16_t>(*att, points, ncomp);
+                break;
+            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
+                out = draco_values<uint32_t>(*att, points, ncomp);
+                break;
+            default:
+                out = draco_values<float>(*att, points, ncomp);
+                a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+                break;
+        }
+        // The accessor as written (its type, normalisation, bounds), over the decoded values:
+        // a copy, so that an accessor another primitive also names keeps its own data.
+        a.bufferView = add_view(ctx, std::move(out));
+        a.byteOffset = 0;
+        a.count = points;
+        a.sparse.isSparse = false;
+        ctx.model.accessors.push_back(std::move(a));
+        accessor = static_cast<int>(ctx.model.accessors.size() - 1);
+    }
+    p.extensions.erase("KHR_draco_mesh_compression");
+}
+
+}  // namespace
+
+void decompress(Context& ctx) {
+    for (std::size_t i = 0; i < ctx.model.bufferViews.size(); ++i) {
+        const auto it = ctx.model.bufferViews[i].extensions.find("EXT_meshopt_compression");
+        if (it != ctx.model.bufferViews[i].extensions.end()) {
+            const tinygltf::Value x = it->second;
+            decode_meshopt_view(ctx, i, x);
+        }
+    }
+    for (std::size_t m = 0; m < ctx.model.meshes.size(); ++m)
+        for (std::size_t p = 0; p < ctx.model.meshes[m].primitives.size(); ++p) {
+            const tinygltf::ExtensionMap& e = ctx.model.meshes[m].primitives[p].extensions;
+            const auto it = e.find("KHR_draco_mesh_compression");
+            if (it == e.end()) continue;
+            const tinygltf::Value x = it->second;
+            decode_draco_primitive(ctx, m, p, x);
+        }
+}
+
+}  // namespace spangle::gltf

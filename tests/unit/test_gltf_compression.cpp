@@ -1,0 +1,383 @@
+// Compressed glTF geometry (KHR_draco_mesh_compression, EXT_meshopt_compression): a mesh written
+// here, compressed by the tools users compress with (Draco's draco_transcoder, meshoptimizer's
+// gltfpack), read back and held against the uncompressed file vertex by vertex, within what each
+// tool's quantisation allows; a damaged stream is an error at its place.
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <sstream>
+
+#include "gltf_writer.h"
+#include "scene/gltf/gltf_reader.h"
+#include "test_support.h"
+
+namespace spangle::test_gltf_compression {
+namespace {
+
+using test::GltfWriter;
+
+/** Skips (or fails, with SPANGLE_REQUIRE_GLTF_TOOLS: the install script installs them) when a
+ *  compression tool is not on the PATH. */
+#define REQUIRE_TOOL(name)                                                                   \
+    do {                                                                                     \
+        if (std::system("command -v " name " > /dev/null 2>&1") != 0) {                      \
+            if (std::getenv("SPANGLE_REQUIRE_GLTF_TOOLS")) FAIL() << name " not found";      \
+            GTEST_SKIP() << name " not found (scripts/install-deps.sh --tests installs it)"; \
+        }                                                                                    \
+    } while (false)
+
+/** Runs a shell command; its exit status. */
+int run(const std::string& command) {
+    return std::system((command + " > /dev/null 2>&1").c_str());
+}
+
+/** A 1 x 1 PNG (8-bit RGB), for a material's texture: both tools drop the uvs of a material
+ *  without one. */
+std::string tiny_png() {
+    static const unsigned char k[] = {
+        0x89, 0x50, 0x4e, 0x47, 0x0d, 0x0a, 0x1a, 0x0a, 0x00, 0x00, 0x00, 0x0d, 0x49, 0x48,
+        0x44, 0x52, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01, 0x08, 0x02, 0x00, 0x00,
+        0x00, 0x90, 0x77, 0x53, 0xde, 0x00, 0x00, 0x00, 0x0c, 0x49, 0x44, 0x41, 0x54, 0x78,
+        0x9c, 0x63, 0x38, 0x91, 0x62, 0x04, 0x00, 0x03, 0x56, 0x01, 0x5f, 0xe8, 0x17, 0x84,
+        0x52, 0x00, 0x00, 0x00, 0x00, 0x49, 0x45, 0x4e, 0x44, 0xae, 0x42, 0x60, 0x82};
+    return std::string(reinterpret_cast<const char*>(k), sizeof(k));
+}
+
+/** A torus of 24 x 12 quads (no degenerate triangle for a tool to drop) with normals, uvs and
+ *  vertex colours, its material textured, written as a .gltf beside its .bin and the image (the
+ *  form both tools read). */
+void write_torus(const std::string& path) {
+    constexpr int kU = 24, kV = 12;
+    std::vector<float> pos, nrm, uv, col;
+    for (int j = 0; j <= kV; ++j)
+        for (int i = 0; i <= kU; ++i) {
+            const float u = static_cast<float>(i) / kU, v = static_cast<float>(j) / kV;
+            const float a = 6.2831853f * u, b = 6.2831853f * v;
+            const float n[3] = {std::cos(a) * std::cos(b), std::sin(b), std::sin(a) * std::cos(b)};
+            const float c[3] = {std::cos(a), 0.0f, std::sin(a)};
+            for (int k = 0; k < 3; ++k) {
+                pos.push_back(c[k] + 0.4f * n[k]);
+                nrm.push_back(n[k]);
+            }
+            uv.push_back(u);
+            uv.push_back(v);
+            col.insert(col.end(), {u, v, 1.0f - u, 1.0f});
+        }
+    std::vector<uint16_t> idx;
+    for (int j = 0; j < kV; ++j)
+        for (int i = 0; i < kU; ++i) {
+            const auto a = static_cast<uint16_t>(j * (kU + 1) + i);
+            const auto b = static_cast<uint16_t>(a + kU + 1);
+            idx.insert(idx.end(), {a, b, static_cast<uint16_t>(a + 1), static_cast<uint16_t>(a + 1),
+                                   b, static_cast<uint16_t>(b + 1)});
+        }
+    GltfWriter w;
+    const int p = w.floats(pos, "VEC3", 3), n = w.floats(nrm, "VEC3", 3),
+              t = w.floats(uv, "VEC2", 2), c = w.floats(col, "VEC4", 4), i = w.u16(idx);
+    // Positions carry their bounds (glTF requires them; the tools read them).
+    w.accessors[static_cast<std::size_t>(p)].insert(
+        w.accessors[static_cast<std::size_t>(p)].size() - 1,
+        R"(,"min":[-1.4,-0.4,-1.4],"max":[1.4,0.4,1.4])");
+    const std::string body = fmt::format(
+        R"("scene":0,"scenes":[{{"nodes":[0]}}],"nodes":[{{"mesh":0}}],)"
+        R"("images":[{{"uri":"tex.png"}}],"textures":[{{"source":0}}],)"
+        R"("materials":[{{"pbrMetallicRoughness":{{"baseColorTexture":{{"index":0}}}}}}],)"
+        R"("meshes":[{{"primitives":[{{"attributes":{{"POSITION":{},"NORMAL":{},)"
+        R"("TEXCOORD_0":{},"COLOR_0":{}}},"indices":{},"material":0}}]}}])",
+        p, n, t, c, i);
+    const std::string name = std::filesystem::path(path).stem().string() + ".bin";
+    w.write_gltf_bin(path, name, body);
+    std::ofstream((std::filesystem::path(path).parent_path() / "tex.png").string(),
+                  std::ios::binary)
+        << tiny_png();
+}
+
+/** The one mesh of a glTF file as the reader makes it. */
+TriangleMesh mesh_of(const std::string& path, SceneDescription* out = nullptr) {
+    SceneDescription d = read_gltf_scene(path, {});
+    EXPECT_EQ(d.objects.size(), 1u) << path;
+    if (d.objects.empty()) return {};
+    TriangleMesh m = *std::get<InlineMeshShape>(d.objects[0].shape).mesh;
+    if (out) *out = std::move(d);
+    return m;
+}
+
+/** The file's text. */
+std::string slurp(const std::string& path) {
+    std::ifstream f(path, std::ios::binary);
+    return {std::istreambuf_iterator<char>(f), {}};
+}
+
+/** Tolerances of one comparison: per attribute, the largest difference allowed; uv and color
+ *  negative: not compared (a quantised file's uvs are scaled back by its material's texture
+ *  transform, not in the mesh). */
+struct Tolerance {
+    float position, normal, uv, color;
+};
+
+/** Expects `got` to be `want` up to vertex and triangle order: the same number of triangles, and
+ *  for every vertex of every triangle of `got` a vertex of `want` at most `tol` away in each
+ *  attribute (the tools reorder, weld and quantise). Its largest differences are returned in the
+ *  message. */
+void expect_same_mesh(const TriangleMesh& got, const TriangleMesh& want, Tolerance tol,
+                      const std::string& what) {
+    ASSERT_EQ(got.indices.size(), want.indices.size()) << what;
+    ASSERT_FALSE(got.normals.empty()) << what;
+    ASSERT_FALSE(got.uvs.empty()) << what;
+    ASSERT_FALSE(got.colors.empty()) << what;
+    float worst[4] = {0, 0, 0, 0};
+    for (std::size_t g = 0; g < got.vertex_count(); ++g) {
+        // The vertex of `want` nearest in position and uv together (the seams hold several
+        // vertices at one place, told apart by their uvs).
+        std::size_t best = 0;
+        float best_d = INFINITY, best_key = INFINITY;
+        for (std::size_t k = 0; k < want.vertex_count(); ++k) {
+            float d = 0, key = 0;
+            for (int c = 0; c < 3; ++c)
+                d = std::max(d, std::fabs(got.positions[3 * g + c] - want.positions[3 * k + c]));
+            key = d;
+            if (tol.uv >= 0)
+                for (int c = 0; c < 2; ++c)
+                    key = std::max(key, std::fabs(got.uvs[2 * g + c] - want.uvs[2 * k + c]));
+            if (key < best_key) {
+                best = k;
+                best_key = key;
+                best_d = d;
+            }
+        }
+        worst[0] = std::max(worst[0], best_d);
+        for (int c = 0; c < 3; ++c)
+            worst[1] =
+                std::max(worst[1], std::fabs(got.normals[3 * g + c] - want.normals[3 * best + c]));
+        for (int c = 0; c < 2; ++c)
+            worst[2] = std::max(worst[2], std::fabs(got.uvs[2 * g + c] - want.uvs[2 * best + c]));
+        for (int c = 0; c < 3; ++c)
+            worst[3] =
+                std::max(worst[3], std::fabs(got.colors[3 * g + c] - want.colors[3 * best + c]));
+    }
+    EXPECT_LE(worst[0], tol.position) << what << ": positions";
+    EXPECT_LE(worst[1], tol.normal) << what << ": normals";
+    if (tol.uv >= 0) {
+        EXPECT_LE(worst[2], tol.uv) << what << ": uvs";
+    }
+    if (tol.color >= 0) {
+        EXPECT_LE(worst[3], tol.color) << what << ": colours";
+    }
+    // Every triangle keeps its area (no triangle lost to welding or a wrong index).
+    const auto area = [](const TriangleMesh& m) {
+        double a = 0;
+        for (std::size_t t = 0; t + 2 < m.indices.size(); t += 3) {
+            const float* p0 = &m.positions[3 * m.indices[t]];
+            const float* p1 = &m.positions[3 * m.indices[t + 1]];
+            const float* p2 = &m.positions[3 * m.indices[t + 2]];
+            const double e1[3] = {p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]};
+            const double e2[3] = {p2[0] - p0[0], p2[1] - p0[1], p2[2] - p0[2]};
+            const double c[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2],
+                                 e1[0] * e2[1] - e1[1] * e2[0]};
+            a += 0.5 * std::sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+        }
+        return a;
+    };
+    EXPECT_NEAR(area(got), area(want), 1e-3 * area(want)) << what << ": surface area";
+}
+
+TEST(GltfCompression, DracoCompressedMeshReadsAsItsSource) {
+    REQUIRE_TOOL("draco_transcoder");
+    test::TempDir dir("gltf_draco");
+    write_torus(dir.file("torus.gltf"));
+    const TriangleMesh want = mesh_of(dir.file("torus.gltf"));
+    // Fine quantisation: positions to 16 bits of the 2.8-unit box, normals, uvs and colours to
+    // 12 and 14 bits.
+    for (const char* out : {"draco.gltf", "draco.glb"}) {
+        ASSERT_EQ(run(fmt::format("draco_transcoder -i {} -o {} -qp 16 -qt 14 -qn 12 -qc 12",
+                                  dir.file("torus.gltf"), dir.file(out))),
+                  0);
+        const std::string text = slurp(dir.file(out));
+        ASSERT_NE(text.find("\"extensionsRequired\""), std::string::npos) << out;
+        ASSERT_NE(text.find("KHR_draco_mesh_compression"), std::string::npos) << out;
+        SceneDescription d;
+        const TriangleMesh got = mesh_of(dir.file(out), &d);
+        expect_same_mesh(got, want, {1e-4f, 5e-3f, 1e-3f, 2e-3f}, out);
+        for (const std::string& note : d.notes)
+            EXPECT_EQ(note.find("KHR_draco"), std::string::npos) << note;
+    }
+}
+
+TEST(GltfCompression, MeshoptCompressedMeshReadsAsItsSource) {
+    REQUIRE_TOOL("gltfpack");
+    test::TempDir dir("gltf_meshopt");
+    write_torus(dir.file("torus.gltf"));
+    const TriangleMesh want = mesh_of(dir.file("torus.gltf"));
+    // -noq keeps the floats (the codec is lossless; gltfpack renormalises normals and re-packs
+    // positions, so they move by an ulp or two, and stores colours in 8 bits); without it gltfpack
+    // quantises (KHR_mesh_quantization), and -cc adds its filters (octahedral normals).
+    struct Case {
+        const char* flags;
+        const char* out;
+        Tolerance tol;
+    };
+    const Case cases[] = {
+        {"-c -noq", "exact.gltf", {1e-6f, 1e-6f, 1e-6f, 2.5e-3f}},
+        {"-c -noq", "exact.glb", {1e-6f, 1e-6f, 1e-6f, 2.5e-3f}},
+        {"-c", "quantised.gltf", {5e-4f, 2e-2f, -1, -1}},
+        {"-cc", "filtered.glb", {5e-4f, 2e-2f, -1, -1}},
+    };
+    for (const Case& c : cases) {
+        ASSERT_EQ(run(fmt::format("gltfpack -i {} -o {} {} -kn -km", dir.file("torus.gltf"),
+                                  dir.file(c.out), c.flags)),
+                  0)
+            << c.out;
+        const std::string text = slurp(dir.file(c.out));
+        ASSERT_NE(text.find("EXT_meshopt_compression"), std::string::npos) << c.out;
+        if (std::string(c.flags) == "-cc") {
+            ASSERT_NE(text.find(R"("filter":"OCTAHEDRAL")"), std::string::npos)
+                << "the filtered case filters its normals";
+        }
+        SceneDescription d;
+        const TriangleMesh got = mesh_of(dir.file(c.out), &d);
+        // gltfpack may move the mesh into a node's transform when it quantises: the reader's
+        // mesh is then in the node's space; the placement maps it back.
+        TriangleMesh placed = got;
+        ASSERT_FALSE(d.objects.empty());
+        const Affine a = d.objects[0].placement.matrix.value_or(Affine{});
+        for (std::size_t v = 0; v < placed.vertex_count(); ++v) {
+            const Vec3 p = a.apply_point(
+                Vec3(got.positions[3 * v], got.positions[3 * v + 1], got.positions[3 * v + 2]));
+            placed.positions[3 * v] = p.x;
+            placed.positions[3 * v + 1] = p.y;
+            placed.positions[3 * v + 2] = p.z;
+        }
+        expect_same_mesh(placed, want, c.tol, std::string(c.out) + " (" + c.flags + ")");
+    }
+}
+
+TEST(GltfCompression, GltfpackInstancesStandWhereTheirNodesStood) {
+    // Five nodes drawing one torus, turned and moved; gltfpack -mi makes them one node with
+    // EXT_mesh_gpu_instancing (-noq: no quantisation, so the placements keep their floats).
+    REQUIRE_TOOL("gltfpack");
+    test::TempDir dir("gltf_instances");
+    write_torus(dir.file("one.gltf"));
+    std::string text = slurp(dir.file("one.gltf"));
+    const std::string node = R"("nodes":[{"mesh":0}])";
+    const std::size_t at = text.find(node);
+    ASSERT_NE(at, std::string::npos);
+    std::string nodes = R"("nodes":[)", roots;
+    for (int i = 0; i < 5; ++i) {
+        const double a = 0.3 * i, c = std::cos(0.5 * a), s = std::sin(0.5 * a);
+        nodes += fmt::format(R"({}{{"mesh":0,"translation":[{},{},0],"rotation":[0,{},0,{}],)"
+                             R"("scale":[{},{},{}]}})",
+                             i ? "," : "", 3.0 * i, 0.5 * i, s, c, 1 + 0.1 * i, 1 + 0.1 * i,
+                             1 + 0.1 * i);
+        roots += fmt::format("{}{}", i ? "," : "", i);
+    }
+    nodes += "]";
+    text.replace(at, node.size(), nodes);
+    const std::string scene = R"("scenes":[{"nodes":[0]}])";
+    ASSERT_NE(text.find(scene), std::string::npos);
+    text.replace(text.find(scene), scene.size(), R"("scenes":[{"nodes":[)" + roots + "]}]");
+    std::ofstream(dir.file("five.gltf"), std::ios::binary) << text;
+    std::filesystem::copy_file(dir.file("one.bin"), dir.file("five.bin"));
+    text = slurp(dir.file("five.gltf"));
+    // The buffer's name follows the file's.
+    text.replace(text.find("one.bin"), 7, "five.bin");
+    std::ofstream(dir.file("five.gltf"), std::ios::binary) << text;
+    const SceneDescription want = read_gltf_scene(dir.file("five.gltf"), {});
+    ASSERT_EQ(want.objects.size(), 5u);
+    ASSERT_EQ(run(fmt::format("gltfpack -i {} -o {} -mi -noq", dir.file("five.gltf"),
+                              dir.file("inst.glb"))),
+              0);
+    ASSERT_NE(slurp(dir.file("inst.glb")).find("EXT_mesh_gpu_instancing"), std::string::npos);
+    const SceneDescription got = read_gltf_scene(dir.file("inst.glb"), {});
+    ASSERT_EQ(got.objects.size(), 5u);
+    const auto* shared = std::get<InlineMeshShape>(got.objects[0].shape).mesh.get();
+    // Each original node's placement is one of the instances' (in some order), to float
+    // rounding: compared by where they put three points of the torus.
+    const Vec3 probes[3] = {{1.4f, 0, 0}, {0, 0.4f, 1}, {-1, -0.4f, 0}};
+    for (const ObjectDesc& w : want.objects) {
+        float best = INFINITY;
+        for (const ObjectDesc& g : got.objects) {
+            EXPECT_EQ(std::get<InlineMeshShape>(g.shape).mesh.get(), shared);
+            float d = 0;
+            for (const Vec3& p : probes) {
+                const Vec3 a = w.placement.matrix.value().apply_point(p);
+                const Vec3 b = g.placement.matrix.value().apply_point(p);
+                d = std::max({d, std::fabs(a.x - b.x), std::fabs(a.y - b.y), std::fabs(a.z - b.z)});
+            }
+            best = std::min(best, d);
+        }
+        EXPECT_LT(best, 1e-4f) << w.name;
+    }
+}
+
+TEST(GltfCompression, DamagedStreamsAreErrorsAtTheirExtension) {
+    REQUIRE_TOOL("gltfpack");
+    REQUIRE_TOOL("draco_transcoder");
+    test::TempDir dir("gltf_damaged");
+    write_torus(dir.file("torus.gltf"));
+    ASSERT_EQ(run(fmt::format("gltfpack -i {} -o {} -c -noq", dir.file("torus.gltf"),
+                              dir.file("mo.gltf"))),
+              0);
+    ASSERT_EQ(run(fmt::format("draco_transcoder -i {} -o {}", dir.file("torus.gltf"),
+                              dir.file("dr.gltf"))),
+              0);
+    // Every byte of the compressed buffers overwritten: neither decoder can make sense of it.
+    for (const char* bin : {"mo.bin", "dr.bin"}) {
+        std::string bytes = slurp(dir.file(bin));
+        ASSERT_FALSE(bytes.empty()) << bin;
+        for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<char>(0xA5 ^ i);
+        std::ofstream(dir.file(bin), std::ios::binary) << bytes;
+    }
+    const auto error_of = [&](const std::string& file) {
+        try {
+            read_gltf_scene(dir.file(file), {});
+        } catch (const SpangleError& e) {
+            return std::string(e.what());
+        }
+        return std::string("no error");
+    };
+    const std::string mo = error_of("mo.gltf");
+    EXPECT_NE(mo.find("meshopt data could not be decoded"), std::string::npos) << mo;
+    EXPECT_EQ(mo.rfind(dir.file("mo.gltf") + ":", 0), 0u) << mo;
+    const std::string dr = error_of("dr.gltf");
+    EXPECT_NE(dr.find("Draco data"), std::string::npos) << dr;
+    EXPECT_EQ(dr.rfind(dir.file("dr.gltf") + ":", 0), 0u) << dr;
+
+    // A mode that is not one of the three, said at its place.
+    std::string text = slurp(dir.file("mo.gltf"));
+    const std::size_t at = text.find("\"ATTRIBUTES\"");
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, 12, "\"VERTICES\"");
+    std::ofstream(dir.file("mode.gltf"), std::ios::binary) << text;
+    const std::string mode = error_of("mode.gltf");
+    EXPECT_NE(mode.find("mode 'VERTICES'"), std::string::npos) << mode;
+}
+
+TEST(GltfCompression, AnEmptyBinChunkIsLeftOut) {
+    // A .glb whose BIN chunk holds no bytes (draco_transcoder writes one for a file without
+    // buffer data): read as a .glb without the chunk.
+    test::TempDir dir("gltf_empty_bin");
+    std::string json = R"({"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[]}]})";
+    while (json.size() % 4) json += ' ';
+    const auto u32le = [](std::string& s, uint32_t v) {
+        s.append(reinterpret_cast<const char*>(&v), 4);
+    };
+    std::string glb = "glTF";
+    u32le(glb, 2);
+    u32le(glb, static_cast<uint32_t>(12 + 8 + json.size() + 8));
+    u32le(glb, static_cast<uint32_t>(json.size()));
+    u32le(glb, 0x4E4F534Au);
+    glb += json;
+    u32le(glb, 0);
+    u32le(glb, 0x004E4942u);
+    std::ofstream(dir.file("empty.glb"), std::ios::binary) << glb;
+    SceneDescription d;
+    EXPECT_NO_THROW(d = read_gltf_scene(dir.file("empty.glb"), {}));
+    EXPECT_TRUE(d.objects.empty());
+}
+
+}  // namespace
+}  // namespace spangle::test_gltf_compression
