@@ -205,6 +205,16 @@ TEST(GltfCompression, DracoCompressedMeshReadsAsItsSource) {
         for (const std::string& note : d.notes)
             EXPECT_EQ(note.find("KHR_draco"), std::string::npos) << note;
     }
+    // An accessor whose component type disagrees with its Draco stream (the stream's floats
+    // behind a normalised-short accessor): read as the stream holds them, not cast to shorts.
+    std::string text = slurp(dir.file("draco.gltf"));
+    const std::string first_float = R"("componentType": 5126,)";  // the transcoder's spacing
+    ASSERT_NE(text.find(first_float), std::string::npos);
+    text.replace(text.find(first_float), first_float.size(),
+                 R"("componentType": 5122, "normalized": true,)");
+    std::ofstream(dir.file("retyped.gltf"), std::ios::binary) << text;
+    expect_same_mesh(mesh_of(dir.file("retyped.gltf")), want, {1e-4f, 5e-3f, 1e-3f, 2e-3f},
+                     "retyped accessor");
 }
 
 TEST(GltfCompression, MeshoptCompressedMeshReadsAsItsSource) {
@@ -253,6 +263,14 @@ TEST(GltfCompression, MeshoptCompressedMeshReadsAsItsSource) {
         }
         expect_same_mesh(placed, want, c.tol, std::string(c.out) + " (" + c.flags + ")");
     }
+    // The placeholder buffer without its "fallback" mark (the extension's own example has
+    // none): a buffer without a uri that compressed views decode into holds nothing to read.
+    std::string text = slurp(dir.file("exact.gltf"));
+    const std::string mark = R"(,"extensions":{"EXT_meshopt_compression":{"fallback":true}})";
+    ASSERT_NE(text.find(mark), std::string::npos);
+    text.erase(text.find(mark), mark.size());
+    std::ofstream(dir.file("unmarked.gltf"), std::ios::binary) << text;
+    expect_same_mesh(mesh_of(dir.file("unmarked.gltf")), want, cases[0].tol, "unmarked fallback");
 }
 
 TEST(GltfCompression, GltfpackInstancesStandWhereTheirNodesStood) {
@@ -354,6 +372,14 @@ TEST(GltfCompression, DamagedStreamsAreErrorsAtTheirExtension) {
     std::ofstream(dir.file("mode.gltf"), std::ios::binary) << text;
     const std::string mode = error_of("mode.gltf");
     EXPECT_NE(mode.find("mode 'VERTICES'"), std::string::npos) << mode;
+    // A count that does not fill its view exactly (one vertex would be left at 0).
+    text = slurp(dir.file("mo.gltf"));
+    const std::size_t count_at = text.find(R"("count":)", text.find("\"ATTRIBUTES\"") - 40);
+    ASSERT_NE(count_at, std::string::npos);
+    text.insert(count_at + 8, "1");  // count N becomes 1N
+    std::ofstream(dir.file("count.gltf"), std::ios::binary) << text;
+    const std::string count = error_of("count.gltf");
+    EXPECT_NE(count.find("(they must be equal)"), std::string::npos) << count;
 }
 
 TEST(GltfCompression, AnEmptyBinChunkIsLeftOut) {

@@ -198,6 +198,23 @@ TEST(GltfReader, GpuInstancesAreObjectsSharingTheMeshPlacedAfterTheirNode) {
     EXPECT_NEAR(corner(2).y, 3.0f, 1e-3f);
     EXPECT_EQ(count_notes(d, "instance attribute _ID is dropped"), 1);
 
+    // Instances scaled onto a point or a line are not drawn (noted), one flattened onto a
+    // plane is drawn flat: as nodes are.
+    GltfWriter w3;
+    const QuadAccessors q3 = quad(w3);
+    const int s3 = w3.floats({1, 1, 1, 0, 0, 0, 1, 0, 0, 1, 1, 0}, "VEC3", 3);
+    w3.write_gltf(dir.file("flat.gltf"),
+                  fmt::format(R"("nodes":[{{"mesh":0,"extensions":{{"EXT_mesh_gpu_instancing":)"
+                              R"({{"attributes":{{"SCALE":{}}}}}}}}}],)"
+                              R"("meshes":[{{"primitives":[{}]}}])",
+                              s3, quad_primitive(q3, -1)));
+    const SceneDescription flat = read_gltf_scene(dir.file("flat.gltf"), {});
+    ASSERT_EQ(flat.objects.size(), 2u);
+    EXPECT_EQ(flat.objects[0].name, "@0");
+    EXPECT_EQ(flat.objects[1].name, "@3");
+    EXPECT_GT(std::fabs(flat.objects[1].placement.matrix.value().determinant()), 0.0f);
+    EXPECT_EQ(count_notes(flat, "instance 1 of node 0 is scaled to nothing"), 1);
+
     // Attributes of different counts: an error at the second.
     GltfWriter w2;
     const QuadAccessors q2 = quad(w2);

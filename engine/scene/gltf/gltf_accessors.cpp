@@ -81,6 +81,11 @@ Run run_of(const Context& ctx, int view, std::size_t offset, std::size_t count, 
     const std::string vp = fmt::format("bufferViews/{}", view);
     const tinygltf::BufferView& v = m.bufferViews[static_cast<std::size_t>(view)];
     check_index(ctx, vp + "/buffer", v.buffer, m.buffers.size(), "buffer");
+    if (ctx.placeholder_buffers.count(v.buffer))
+        throw_error(ctx.at(vp + "/buffer"),
+                    "buffer view {} lies in buffer {}, a meshopt fallback buffer, which holds no "
+                    "data (only views compressed with EXT_meshopt_compression may point there)",
+                    view, v.buffer);
     const std::vector<unsigned char>& data = m.buffers[static_cast<std::size_t>(v.buffer)].data;
     if (v.byteOffset > data.size() || v.byteLength > data.size() - v.byteOffset)
         throw_error(ctx.at(vp),

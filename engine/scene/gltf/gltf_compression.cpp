@@ -94,7 +94,19 @@ void decode_meshopt_view(Context& ctx, std::size_t index, const tinygltf::Value&
     if (static_cast<double>(count) * static_cast<double>(stride) > kMaxDecoded)
         throw_error(ctx.at(at + "/count"),
                     "{} elements of {} bytes would decode to more than 4 GiB", count, stride);
+    if (ctx.placeholder_buffers.count(static_cast<int>(buffer)))
+        throw_error(ctx.at(at + "/buffer"),
+                    "buffer view {}: its compressed data is in buffer {}, a meshopt fallback "
+                    "buffer, which holds no data",
+                    index, buffer);
     const unsigned char* src = buffer_bytes(ctx, buffer, offset, length, at);
+    // The view is the decoded data: count elements of byteStride bytes, exactly.
+    const tinygltf::BufferView& parent = ctx.model.bufferViews[index];
+    if (parent.byteLength != count * stride)
+        throw_error(ctx.at(at),
+                    "buffer view {} is {} bytes long, but its compressed data decodes to count {} "
+                    "x byteStride {} = {} bytes (they must be equal)",
+                    index, parent.byteLength, count, stride, count * stride);
     std::vector<unsigned char> out(count * stride);
     int status = 0;
     if (mode == "ATTRIBUTES") {
@@ -144,25 +156,24 @@ void decode_meshopt_view(Context& ctx, std::size_t index, const tinygltf::Value&
                     filter, index);
     }
     tinygltf::BufferView& v = ctx.model.bufferViews[index];
-    // The view keeps its own length (at least the decoded bytes; padding after them reads 0).
-    if (v.byteLength > out.size()) out.resize(v.byteLength);
     v.buffer = add_buffer(ctx, std::move(out));
     v.byteOffset = 0;
     v.extensions.erase("EXT_meshopt_compression");
 }
 
-/** The decoded values of Draco attribute `att` in the accessor's own component type: one
- *  element of `ncomp` components per point, little-endian, tightly packed. */
-template <class T>
-std::vector<unsigned char> draco_values(const draco::PointAttribute& att, std::size_t points,
+/** The decoded values of Draco attribute `att` as floats (its normalised integers in [0, 1]
+ *  or [-1, 1], as Draco converts them): one element of `ncomp` components per point, tightly
+ *  packed. */
+std::vector<unsigned char> draco_floats(const draco::PointAttribute& att, std::size_t points,
                                         int ncomp) {
-    std::vector<unsigned char> out(points * static_cast<std::size_t>(ncomp) * sizeof(T));
-    T value[4] = {};
+    const std::size_t elem = static_cast<std::size_t>(ncomp) * sizeof(float);
+    std::vector<unsigned char> out(points * elem);
+    float value[4] = {};
     for (std::size_t p = 0; p < points; ++p) {
         const auto i = att.mapped_index(draco::PointIndex(static_cast<uint32_t>(p)));
-        if (!att.ConvertValue<T>(i, static_cast<int8_t>(ncomp), value)) std::fill_n(value, 4, T{});
-        std::memcpy(out.data() + p * static_cast<std::size_t>(ncomp) * sizeof(T), value,
-                    static_cast<std::size_t>(ncomp) * sizeof(T));
+        if (!att.ConvertValue<float>(i, static_cast<int8_t>(ncomp), value))
+            std::fill_n(value, 4, 0.0f);
+        std::memcpy(out.data() + p * elem, value, elem);
     }
     return out;
 }
@@ -233,6 +244,14 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         throw_error(ctx.at(at), "mesh {} primitive {}: its Draco mesh is larger than 4 GiB", mesh,
                     prim);
     if (!has_data(p.indices)) {
+        if (p.indices >= 0 &&
+            ctx.model.accessors[static_cast<std::size_t>(p.indices)].count != faces * 3)
+            ctx.note("draco count", ctx.at(pp + "/indices"),
+                     fmt::format("accessor {} gives count {}, its Draco stream {} indices: the "
+                                 "stream's are read",
+                                 p.indices,
+                                 ctx.model.accessors[static_cast<std::size_t>(p.indices)].count,
+                                 faces * 3));
         std::vector<unsigned char> out(faces * 3 * sizeof(uint32_t));
         for (std::size_t f = 0; f < faces; ++f) {
             const draco::Mesh::Face& face = dm->face(draco::FaceIndex(static_cast<uint32_t>(f)));
@@ -271,28 +290,22 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         if (ncomp < 1 || ncomp > 4)
             throw_error(ctx.at(fmt::format("accessors/{}/type", accessor)),
                         "attribute {}: a Draco attribute is a scalar or a vector", name);
-        std::vector<unsigned char> out;
-        switch (a.componentType) {
-            case TINYGLTF_COMPONENT_TYPE_BYTE:
-                out = draco_values<int8_t>(*att, points, ncomp);
-                break;
-            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_BYTE:
-                out = draco_values<uint8_t>(*att, points, ncomp);
-                break;
-            case TINYGLTF_COMPONENT_TYPE_SHORT:
-                out = draco_values<int16_t>(*att, points, ncomp);
-                break;
-            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_SHORT:
-                out = draco_values<uint16_t>(*att, points, ncomp);
-                break;
-            case TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT:
-                out = draco_values<uint32_t>(*att, points, ncomp);
-                break;
-            default:
-                out = draco_values<float>(*att, points, ncomp);
-                a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
-                break;
-        }
+        if (att->num_components() < ncomp)
+            throw_error(ctx.at(ap),
+                        "attribute {}: its accessor has {} components, the Draco attribute of id "
+                        "{} has {}",
+                        name, ncomp, id.GetNumberAsDouble(), att->num_components());
+        if (a.count != points)
+            ctx.note("draco count", ctx.at(fmt::format("accessors/{}/count", accessor)),
+                     fmt::format("accessor {} gives count {}, its Draco stream {} vertices: the "
+                                 "stream's are read",
+                                 accessor, a.count, points));
+        // As floats, whatever the accessor's component type says: Draco's own type decides how
+        // its values read (normalised integers to [0, 1] or [-1, 1], quantised ones as their
+        // values), so an accessor that disagrees with its stream cannot misread it.
+        std::vector<unsigned char> out = draco_floats(*att, points, ncomp);
+        a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
+        a.normalized = false;
         // The accessor as written (its type, normalisation, bounds), over the decoded values:
         // a copy, so that an accessor another primitive also names keeps its own data.
         a.bufferView = add_view(ctx, std::move(out));

@@ -27,7 +27,11 @@ struct Context {
     tinygltf::Model model;                           ///< what tinygltf read
     JsonLocations json;                              ///< places of the JSON's values
     std::vector<std::vector<unsigned char>> images;  ///< each image's encoded bytes, or empty
-    SceneDescription* scene = nullptr;               ///< what the reader fills
+    /** Buffers that only stand in for EXT_meshopt_compression's decoded data (its "fallback"
+     *  buffers, and buffers without a uri that compressed views decode into): they hold no
+     *  bytes; decompress() points every view into them at decoded bytes of its own. */
+    std::set<int> placeholder_buffers;
+    SceneDescription* scene = nullptr;  ///< what the reader fills
     /** Per kind of warning: its note's index in scene->notes and the other places it applies
      *  to ("line:col", each once). */
     std::map<std::string, std::pair<std::size_t, std::vector<std::string>>> repeats;

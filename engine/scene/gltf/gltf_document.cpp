@@ -183,16 +183,33 @@ bool noted_in_place(const std::string& e) {
            e == "KHR_texture_basisu";
 }
 
-/** Whether buffer i only stands in for data EXT_meshopt_compression decodes (a "fallback" buffer
- *  without a uri, as gltfpack writes): it holds nothing to read. */
-bool meshopt_fallback(const Context& ctx, std::size_t i) {
-    const std::string b = fmt::format("buffers/{}", i);
-    const std::string* fallback =
-        ctx.json.scalar(b + "/extensions/EXT_meshopt_compression/fallback");
-    return fallback && *fallback == "true" && !ctx.json.scalar(b + "/uri") &&
-           !ctx.json.has(b + "/uri");
+/** The buffers that only stand in for data EXT_meshopt_compression decodes: those its
+ *  extension marks "fallback": true (gltfpack writes them without a uri; -cf with one, which
+ *  need not exist), and those without a uri that compressed views decode into (the
+ *  extension's own example marks none), except a .glb's first buffer without a uri (its BIN
+ *  chunk). They hold nothing to read. */
+std::set<int> placeholder_buffers(const Context& ctx, bool binary) {
+    std::set<int> out;
+    for (std::size_t i = 0; ctx.json.has(fmt::format("buffers/{}", i)); ++i) {
+        const std::string b = fmt::format("buffers/{}", i);
+        const std::string* fallback =
+            ctx.json.scalar(b + "/extensions/EXT_meshopt_compression/fallback");
+        if (fallback && *fallback == "true") out.insert(static_cast<int>(i));
+    }
+    for (std::size_t v = 0; ctx.json.has(fmt::format("bufferViews/{}", v)); ++v) {
+        const std::string vp = fmt::format("bufferViews/{}", v);
+        if (!ctx.json.has(vp + "/extensions/EXT_meshopt_compression")) continue;
+        const std::string* buffer = ctx.json.scalar(vp + "/buffer");
+        if (!buffer) continue;
+        char* end = nullptr;
+        const long b = std::strtol(buffer->c_str(), &end, 10);
+        if (*end != '\0' || b < 0 || b > 1000000000) continue;
+        const std::string bp = fmt::format("buffers/{}", b);
+        const bool uri = ctx.json.scalar(bp + "/uri") || ctx.json.has(bp + "/uri");
+        if (ctx.json.has(bp) && !uri && !(binary && b == 0)) out.insert(static_cast<int>(b));
+    }
+    return out;
 }
-
 /** The JSON tinygltf is given: the file's, with two kinds of value it refuses made acceptable
  *  (decompress() and load_document() undo both): each meshopt fallback buffer becomes a one-byte
  *  data URI (tinygltf refuses a .gltf buffer without a uri, and gave a .glb's the BIN chunk's
@@ -206,7 +223,7 @@ std::string tinygltf_json(const Context& ctx, std::string_view json, std::vector
     };
     std::vector<Edit> edits;
     for (std::size_t i = 0; ctx.json.has(fmt::format("buffers/{}", i)); ++i) {
-        if (!meshopt_fallback(ctx, i)) continue;
+        if (!ctx.placeholder_buffers.count(static_cast<int>(i))) continue;
         const auto [start, end] = ctx.json.span(fmt::format("buffers/{}", i));
         if (end > start && end <= json.size())
             edits.push_back(
@@ -373,8 +390,8 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
         const std::string* uri = uri_value ? &*uri_value : nullptr;
         if (!uri && ctx.json.has(at))
             throw_error(ctx.at(at), "buffer {}: its uri must be a string", i);
-        if (!uri && meshopt_fallback(ctx, i)) continue;  // decompress() fills its views
-        if (!uri && binary && i == 0) continue;          // the BIN chunk
+        if (ctx.placeholder_buffers.count(static_cast<int>(i))) continue;  // holds nothing
+        if (!uri && binary && i == 0) continue;                            // the BIN chunk
         if (!uri)
             throw_error(ctx.at(fmt::format("buffers/{}", i)), "buffer {} has no uri: {}", i,
                         binary ? "only a .glb's first buffer is its BIN chunk, the others name "
@@ -508,10 +525,12 @@ void check_image_views(const Context& ctx) {
         const double length = whole_at(ctx, vp + "/byteLength", -1);
         if (buffer < 0 || length < 0) continue;
         const std::string bp = fmt::format("buffers/{:.0f}", buffer);
-        // A meshopt fallback buffer holds no bytes (tinygltf is given one).
-        const double size = meshopt_fallback(ctx, static_cast<std::size_t>(buffer))
-                                ? 0.0
-                                : whole_at(ctx, bp + "/byteLength", -1);
+        if (ctx.placeholder_buffers.count(static_cast<int>(buffer)))
+            throw_error(ctx.at(ip),
+                        "image {}: buffer view {:.0f} lies in buffer {:.0f}, a meshopt fallback "
+                        "buffer, which holds no data",
+                        i, view, buffer);
+        const double size = whole_at(ctx, bp + "/byteLength", -1);
         if (ctx.json.has(bp) && size >= 0 && offset + length > size)
             throw_error(ctx.at(ip),
                         "image {}: buffer view {:.0f} ({:.0f} bytes from byte {:.0f}) runs past "
@@ -564,6 +583,7 @@ void load_document(Context& ctx) {
     const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
     ctx.json = JsonLocations(json, ctx.path);
     check_required(ctx);
+    ctx.placeholder_buffers = placeholder_buffers(ctx, binary);
     BufferLengths buffer_lengths = check_buffers(ctx, binary);
     check_accessors(ctx);
     check_image_views(ctx);

@@ -133,8 +133,13 @@ std::vector<Affine> instance_matrices(Context& ctx, int n) {
     if (it == node.extensions.end()) return {};
     const std::string xp = fmt::format("nodes/{}/extensions/EXT_mesh_gpu_instancing", n);
     const tinygltf::Value& x = it->second;
-    if (!x.IsObject() || !x.Has("attributes") || !x.Get("attributes").IsObject())
+    if (!x.IsObject() || !x.Has("attributes"))
         throw_error(ctx.at(xp), "EXT_mesh_gpu_instancing needs its 'attributes' object");
+    if (!x.Get("attributes").IsObject() || x.Get("attributes").Size() == 0) {
+        ctx.note("no instances", ctx.at(xp),
+                 "EXT_mesh_gpu_instancing gives no instance attribute: the mesh is drawn once");
+        return {};
+    }
     std::vector<float> t, r, s;
     std::size_t count = 0;
     std::string first;
@@ -233,14 +238,24 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
             continue;
         }
         // One object per instance, sharing the mesh: the node's placement (and motion) after
-        // the instance's own.
+        // the instance's own. An instance scaled to nothing is not drawn and one flattened onto
+        // a plane is drawn flat, as a node is.
         const std::string name = o.name, what = o.what;
         for (std::size_t i = 0; i < instances.size(); ++i) {
             ObjectDesc inst = o;
             inst.name = fmt::format("{}@{}", name, i);
             inst.what = fmt::format("{} instance {}", what, i);
             if (motion.times.empty()) {
-                inst.placement.matrix = rest.compose(instances[i]);
+                Affine placed = rest.compose(instances[i]);
+                if (!(std::fabs(placed.determinant()) > 1e-18f) && !thicken(placed)) {
+                    ctx.note(fmt::format("hidden instances {}", n),
+                             ctx.at(np + "/extensions/EXT_mesh_gpu_instancing"),
+                             fmt::format("instance {} of node {} is scaled to nothing (onto a "
+                                         "line or a point): it is not drawn",
+                                         i, n));
+                    continue;
+                }
+                inst.placement.matrix = placed;
             } else {
                 NodeMotion m = motion;
                 m.rest = m.rest.compose(instances[i]);
