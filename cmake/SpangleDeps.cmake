@@ -10,8 +10,15 @@ find_package(TBB REQUIRED)
 find_package(tomlplusplus REQUIRED)
 find_package(CLI11 REQUIRED)
 find_package(TinyGLTF REQUIRED)  # glTF scenes: Debian ships it as a shared library (TinyGLTF::TinyGLTF)
-# Compressed glTF geometry: KHR_draco_mesh_compression (Draco's shared library, draco::draco; its
-# static archive is not built position-independent) and EXT_meshopt_compression (meshoptimizer).
+# Compressed glTF geometry: KHR_draco_mesh_compression (draco::draco) and EXT_meshopt_compression
+# (meshoptimizer). Trap: Debian's libdraco.so exports a tinygltf of its own (its glTF transcoder's,
+# another version). Whichever library comes first in a link (and so in the program's needed
+# libraries) provides tinygltf's symbols, so libdraco must come after libtinygltf:
+# engine/CMakeLists.txt lists TinyGLTF::TinyGLTF first, and no target links draco ahead of
+# spangle_core (spangle_tests did, and its glTF reads crashed in draco's tinygltf: FsCallbacks of
+# another layout). The test GltfCompression.TinygltfIsDebiansNotDracos checks it. The static
+# archive is no way out: libtinygltf.so's stb_image references pull the archive member that
+# holds draco's tinygltf.
 find_package(draco CONFIG REQUIRED)
 find_package(meshoptimizer CONFIG REQUIRED)
 

@@ -2,7 +2,11 @@
 // here, compressed by the tools users compress with (Draco's draco_transcoder, meshoptimizer's
 // gltfpack), read back and held against the uncompressed file vertex by vertex, within what each
 // tool's quantisation allows; a damaged stream is an error at its place.
+#include <dlfcn.h>
+#include <draco/compression/encode.h>
+#include <draco/mesh/triangle_soup_mesh_builder.h>
 #include <gtest/gtest.h>
+#include <tiny_gltf.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -271,6 +275,65 @@ TEST(GltfCompression, MeshoptCompressedMeshReadsAsItsSource) {
     text.erase(text.find(mark), mark.size());
     std::ofstream(dir.file("unmarked.gltf"), std::ios::binary) << text;
     expect_same_mesh(mesh_of(dir.file("unmarked.gltf")), want, cases[0].tol, "unmarked fallback");
+}
+
+TEST(GltfCompression, TinygltfIsDebiansNotDracos) {
+    // libdraco.so carries a tinygltf of its own (another version, another FsCallbacks layout):
+    // linked ahead of libtinygltf it provided the reader's tinygltf and every read crashed.
+    Dl_info info{};
+    const auto fn = &tinygltf::FileExists;
+    ASSERT_NE(dladdr(reinterpret_cast<void*>(fn), &info), 0);
+    ASSERT_NE(info.dli_fname, nullptr);
+    EXPECT_NE(std::string(info.dli_fname).find("libtinygltf"), std::string::npos)
+        << "tinygltf::FileExists comes from " << info.dli_fname;
+}
+
+TEST(GltfCompression, DracoIntegersUnmarkedInTheStreamAreNormalisedAsTheAccessorSays) {
+    // Blender's older exporter and glTF-Transform wrote colours and uvs as integers the Draco
+    // stream does not mark normalised; the accessor (normalized unsigned short) says they are.
+    // Encoded here with Draco's own encoder: one triangle, colours 0, 32768, 65535.
+    draco::TriangleSoupMeshBuilder builder;
+    builder.Start(1);
+    const int pos = builder.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
+    const int col =
+        builder.AddAttribute(draco::GeometryAttribute::COLOR, 4, draco::DT_UINT16, false);
+    const float p[3][3] = {{0, 0, 0}, {1, 0, 0}, {0, 1, 0}};
+    const uint16_t c[3][4] = {
+        {0, 0, 0, 65535}, {32768, 32768, 32768, 65535}, {65535, 65535, 65535, 65535}};
+    builder.SetAttributeValuesForFace(pos, draco::FaceIndex(0), p[0], p[1], p[2]);
+    builder.SetAttributeValuesForFace(col, draco::FaceIndex(0), c[0], c[1], c[2]);
+    const std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
+    ASSERT_TRUE(mesh);
+    draco::Encoder encoder;
+    draco::EncoderBuffer encoded;
+    ASSERT_TRUE(encoder.EncodeMeshToBuffer(*mesh, &encoded).ok());
+    const uint32_t pos_id = mesh->attribute(pos)->unique_id(),
+                   col_id = mesh->attribute(col)->unique_id();
+
+    test::TempDir dir("gltf_draco_unmarked");
+    GltfWriter w;
+    const int view = w.view(encoded.data(), encoded.size());
+    w.accessors.push_back(R"({"componentType":5126,"count":3,"type":"VEC3"})");
+    w.accessors.push_back(R"({"componentType":5123,"normalized":true,"count":3,"type":"VEC4"})");
+    w.accessors.push_back(R"({"componentType":5123,"count":3,"type":"SCALAR"})");
+    w.write_gltf(
+        dir.file("tri.gltf"),
+        fmt::format(
+            R"("extensionsUsed":["KHR_draco_mesh_compression"],"extensionsRequired":)"
+            R"(["KHR_draco_mesh_compression"],"nodes":[{{"mesh":0}}],"meshes":[{{"primitives":)"
+            R"([{{"attributes":{{"POSITION":0,"COLOR_0":1}},"indices":2,"extensions":)"
+            R"({{"KHR_draco_mesh_compression":{{"bufferView":{},"attributes":)"
+            R"({{"POSITION":{},"COLOR_0":{}}}}}}}}}]}}])",
+            view, pos_id, col_id));
+    const TriangleMesh m = mesh_of(dir.file("tri.gltf"));
+    ASSERT_EQ(m.vertex_count(), 3u);
+    ASSERT_EQ(m.colors.size(), 9u);
+    // Each vertex's colour is its grey / 65535, wherever the decoder put the vertex.
+    for (std::size_t v = 0; v < 3; ++v) {
+        const float x = m.positions[3 * v], y = m.positions[3 * v + 1];
+        const float want = x > 0.5f ? 32768.0f / 65535.0f : y > 0.5f ? 1.0f : 0.0f;
+        for (int k = 0; k < 3; ++k) EXPECT_NEAR(m.colors[3 * v + k], want, 1e-6f) << v;
+    }
 }
 
 TEST(GltfCompression, GltfpackInstancesStandWhereTheirNodesStood) {

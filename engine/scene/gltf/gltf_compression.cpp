@@ -161,18 +161,41 @@ void decode_meshopt_view(Context& ctx, std::size_t index, const tinygltf::Value&
     v.extensions.erase("EXT_meshopt_compression");
 }
 
-/** The decoded values of Draco attribute `att` as floats (its normalised integers in [0, 1]
- *  or [-1, 1], as Draco converts them): one element of `ncomp` components per point, tightly
- *  packed. */
+/** The largest value of a Draco integer type (what a normalised integer of it divides by); 0
+ *  for a type that is not one of glTF's integers. */
+double integer_max(draco::DataType t) {
+    switch (t) {
+        case draco::DT_INT8:
+            return 127.0;
+        case draco::DT_UINT8:
+            return 255.0;
+        case draco::DT_INT16:
+            return 32767.0;
+        case draco::DT_UINT16:
+            return 65535.0;
+        default:
+            return 0.0;
+    }
+}
+
+/** The decoded values of Draco attribute `att` as floats, one element of `ncomp` components
+ *  per point, tightly packed: normalised integers in [0, 1] or [-1, 1] where the stream marks
+ *  them normalised (Draco converts them) or the accessor does (`normalized`: encoders that
+ *  leave the stream unmarked, as Blender's older exporter and glTF-Transform did for colours
+ *  and uvs); other integers as their values, floats as they are. */
 std::vector<unsigned char> draco_floats(const draco::PointAttribute& att, std::size_t points,
-                                        int ncomp) {
+                                        int ncomp, bool normalized) {
     const std::size_t elem = static_cast<std::size_t>(ncomp) * sizeof(float);
     std::vector<unsigned char> out(points * elem);
+    const double max = att.normalized() || !normalized ? 0.0 : integer_max(att.data_type());
     float value[4] = {};
     for (std::size_t p = 0; p < points; ++p) {
         const auto i = att.mapped_index(draco::PointIndex(static_cast<uint32_t>(p)));
         if (!att.ConvertValue<float>(i, static_cast<int8_t>(ncomp), value))
             std::fill_n(value, 4, 0.0f);
+        if (max > 0.0)
+            for (int c = 0; c < ncomp; ++c)
+                value[c] = static_cast<float>(std::max(static_cast<double>(value[c]) / max, -1.0));
         std::memcpy(out.data() + p * elem, value, elem);
     }
     return out;
@@ -224,9 +247,15 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         throw_error(ctx.at(at + "/bufferView"), "buffer view {} does not exist (the file has {})",
                     view, ctx.model.bufferViews.size());
     const tinygltf::BufferView& v = ctx.model.bufferViews[view];
+    const std::string vp = fmt::format("bufferViews/{}", view);
+    if (v.buffer < 0) throw_error(ctx.at(vp), "buffer view {} names no buffer", view);
+    if (ctx.placeholder_buffers.count(v.buffer))
+        throw_error(ctx.at(vp + "/buffer"),
+                    "mesh {} primitive {}: its Draco data is in buffer {}, a meshopt fallback "
+                    "buffer, which holds no data",
+                    mesh, prim, v.buffer);
     const unsigned char* bytes =
-        buffer_bytes(ctx, static_cast<std::size_t>(std::max(v.buffer, 0)), v.byteOffset,
-                     v.byteLength, fmt::format("bufferViews/{}", view));
+        buffer_bytes(ctx, static_cast<std::size_t>(v.buffer), v.byteOffset, v.byteLength, vp);
     draco::DecoderBuffer stream;
     stream.Init(reinterpret_cast<const char*>(bytes), v.byteLength);
     draco::Decoder decoder;
@@ -268,12 +297,14 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         a.count = faces * 3;
         ctx.model.accessors.push_back(std::move(a));
         p.indices = static_cast<int>(ctx.model.accessors.size() - 1);
+        // Draco decodes a list of triangles whatever mode the primitive was encoded from.
+        p.mode = TINYGLTF_MODE_TRIANGLES;
     }
     for (const auto& [name, id] : ids) {
         int& accessor = p.attributes[name];
         if (has_data(accessor)) continue;
         const std::string ap = at + "/attributes/" + name;
-        if (!id.IsNumber() || id.GetNumberAsDouble() < 0 ||
+        if (!id.IsNumber() || id.GetNumberAsDouble() < 0 || id.GetNumberAsDouble() > 4294967295.0 ||
             id.GetNumberAsDouble() != std::floor(id.GetNumberAsDouble()))
             throw_error(ctx.at(ap), "the Draco id of attribute {} must be a whole number", name);
         const draco::PointAttribute* att =
@@ -300,10 +331,11 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
                      fmt::format("accessor {} gives count {}, its Draco stream {} vertices: the "
                                  "stream's are read",
                                  accessor, a.count, points));
-        // As floats, whatever the accessor's component type says: Draco's own type decides how
-        // its values read (normalised integers to [0, 1] or [-1, 1], quantised ones as their
-        // values), so an accessor that disagrees with its stream cannot misread it.
-        std::vector<unsigned char> out = draco_floats(*att, points, ncomp);
+        // As floats, whatever the accessor's component type says: the stream's own type
+        // decides how its values read (a float stream behind an integer accessor is not cast
+        // to integers), the accessor's `normalized` as well as the stream's mark deciding
+        // whether its integers are normalised.
+        std::vector<unsigned char> out = draco_floats(*att, points, ncomp, a.normalized);
         a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
         a.normalized = false;
         // The accessor as written (its type, normalisation, bounds), over the decoded values:

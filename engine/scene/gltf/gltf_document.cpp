@@ -523,7 +523,8 @@ void check_image_views(const Context& ctx) {
         const double buffer = whole_at(ctx, vp + "/buffer", -1);
         const double offset = whole_at(ctx, vp + "/byteOffset", 0);
         const double length = whole_at(ctx, vp + "/byteLength", -1);
-        if (buffer < 0 || length < 0) continue;
+        // (A buffer index beyond any file's: tinygltf says it does not exist.)
+        if (buffer < 0 || buffer > 1e9 || length < 0) continue;
         const std::string bp = fmt::format("buffers/{:.0f}", buffer);
         if (ctx.placeholder_buffers.count(static_cast<int>(buffer)))
             throw_error(ctx.at(ip),

@@ -84,10 +84,6 @@ std::shared_ptr<const TriangleMesh> read_primitive(Context& ctx, int mesh, int p
                  fmt::format("primitives of points or lines (mode {}) are not drawn", mode));
         return ctx.meshes[key] = nullptr;
     }
-    if (p.extensions.count("KHR_draco_mesh_compression"))
-        ctx.note("draco", ctx.at(pp + "/extensions"),
-                 "KHR_draco_mesh_compression is not read: the primitive's uncompressed "
-                 "attributes stand in");
     const auto pos = p.attributes.find("POSITION");
     if (pos == p.attributes.end())
         throw_error(ctx.at(pp + "/attributes"), "mesh {} primitive {} has no POSITION", mesh, prim);

@@ -157,10 +157,11 @@ std::vector<Affine> instance_matrices(Context& ctx, int n) {
                                  name));
             continue;
         }
-        if (!value.IsNumber())
+        const double index = value.IsNumber() ? value.GetNumberAsDouble() : -1.0;
+        if (!(index >= 0 && index <= 1e9) || index != std::floor(index))
             throw_error(ctx.at(ap), "instance attribute {} must be an accessor index", name);
         const int comps = name == "ROTATION" ? 4 : 3;
-        *into = read_floats(ctx, value.GetNumberAsInt(), comps, name.c_str(), ap);
+        *into = read_floats(ctx, static_cast<int>(index), comps, name.c_str(), ap);
         const std::size_t c = into->size() / static_cast<std::size_t>(comps);
         if (!first.empty() && c != count)
             throw_error(ctx.at(ap),
@@ -241,25 +242,35 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
         // the instance's own. An instance scaled to nothing is not drawn and one flattened onto
         // a plane is drawn flat, as a node is.
         const std::string name = o.name, what = o.what;
+        const auto hidden = [&](std::size_t i) {
+            ctx.note(fmt::format("hidden instances {}", n),
+                     ctx.at(np + "/extensions/EXT_mesh_gpu_instancing"),
+                     fmt::format("instance {} of node {} is scaled to nothing (onto a line or a "
+                                 "point): it is not drawn",
+                                 i, n));
+        };
         for (std::size_t i = 0; i < instances.size(); ++i) {
             ObjectDesc inst = o;
             inst.name = fmt::format("{}@{}", name, i);
             inst.what = fmt::format("{} instance {}", what, i);
+            // The instance's own transform first (an animated node keeps it in every key),
+            // then, at rest, the placement as a whole.
+            Affine own = instances[i];
+            if (!(std::fabs(own.determinant()) > 1e-18f) && !thicken(own)) {
+                hidden(i);
+                continue;
+            }
             if (motion.times.empty()) {
-                Affine placed = rest.compose(instances[i]);
+                Affine placed = rest.compose(own);
                 if (!(std::fabs(placed.determinant()) > 1e-18f) && !thicken(placed)) {
-                    ctx.note(fmt::format("hidden instances {}", n),
-                             ctx.at(np + "/extensions/EXT_mesh_gpu_instancing"),
-                             fmt::format("instance {} of node {} is scaled to nothing (onto a "
-                                         "line or a point): it is not drawn",
-                                         i, n));
+                    hidden(i);
                     continue;
                 }
                 inst.placement.matrix = placed;
             } else {
                 NodeMotion m = motion;
-                m.rest = m.rest.compose(instances[i]);
-                for (Affine& k : m.matrices) k = k.compose(instances[i]);
+                m.rest = m.rest.compose(own);
+                for (Affine& k : m.matrices) k = k.compose(own);
                 inst.matrix_keys = matrix_keys(m, ctx.at(np), inst.what);
             }
             ctx.scene->objects.push_back(std::move(inst));
