@@ -210,6 +210,7 @@ std::set<int> placeholder_buffers(const Context& ctx, bool binary) {
     }
     return out;
 }
+
 /** The JSON tinygltf is given: the file's, with two kinds of value it refuses made acceptable
  *  (decompress() and load_document() undo both): each meshopt fallback buffer becomes a one-byte
  *  data URI (tinygltf refuses a .gltf buffer without a uri, and gave a .glb's the BIN chunk's
