@@ -327,6 +327,22 @@ TEST(GltfCompression, DracoIntegersUnmarkedInTheStreamAreNormalisedAsTheAccessor
             view, pos_id, col_id));
     const TriangleMesh m = mesh_of(dir.file("tri.gltf"));
     ASSERT_EQ(m.vertex_count(), 3u);
+    // Two primitives naming the same accessors, each with its stream (here the same one): each
+    // decodes its own (the first into the accessors the file wrote, the second into new ones).
+    std::string text = slurp(dir.file("tri.gltf"));
+    const std::size_t open = text.find(R"("primitives":[)") + 14;
+    const std::size_t close = text.find("]}]", open);
+    ASSERT_NE(close, std::string::npos);
+    const std::string prim = text.substr(open, close - open);
+    text.insert(close, "," + prim);
+    std::ofstream(dir.file("two.gltf"), std::ios::binary) << text;
+    const SceneDescription two = read_gltf_scene(dir.file("two.gltf"), {});
+    ASSERT_EQ(two.objects.size(), 2u);
+    for (const ObjectDesc& o : two.objects) {
+        const TriangleMesh& t = *std::get<InlineMeshShape>(o.shape).mesh;
+        EXPECT_EQ(t.positions, m.positions) << o.name;
+        EXPECT_EQ(t.colors, m.colors) << o.name;
+    }
     ASSERT_EQ(m.colors.size(), 9u);
     // Each vertex's colour is its grey / 65535, wherever the decoder put the vertex.
     for (std::size_t v = 0; v < 3; ++v) {

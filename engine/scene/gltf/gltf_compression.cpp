@@ -11,6 +11,7 @@
 #include <cmath>
 #include <cstring>
 #include <limits>
+#include <set>
 
 #include "scene/gltf/gltf_parts.h"
 
@@ -210,19 +211,43 @@ int add_view(Context& ctx, std::vector<unsigned char> bytes) {
     return static_cast<int>(ctx.model.bufferViews.size() - 1);
 }
 
+/** Accessor `a` (decoded data) where accessor `original` stood: in its place, so that messages
+ *  about it name the accessor the file wrote, unless another Draco primitive decoded into that
+ *  one already (two primitives naming one accessor, each with a stream of its own) or there is
+ *  none (-1): then a new accessor. `taken` holds the accessors decoded into. Its index. */
+int place_accessor(Context& ctx, int original, tinygltf::Accessor a, std::set<int>& taken) {
+    if (original >= 0 && static_cast<std::size_t>(original) < ctx.model.accessors.size() &&
+        taken.insert(original).second) {
+        ctx.model.accessors[static_cast<std::size_t>(original)] = std::move(a);
+        return original;
+    }
+    ctx.model.accessors.push_back(std::move(a));
+    return static_cast<int>(ctx.model.accessors.size() - 1);
+}
+
 /** Primitive `prim` of mesh `mesh` with a KHR_draco_mesh_compression object `x`: the attributes
  *  it compresses that have no data of their own, and its indices when they have none, decoded
  *  into new accessors of the same type (the primitive pointed at them). A file that keeps its
  *  uncompressed data (not requiring the extension) is read from that, exactly. */
 void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
-                            const tinygltf::Value& x) {
+                            const tinygltf::Value& x, std::set<int>& taken,
+                            const std::vector<tinygltf::Accessor>& written) {
     const std::string pp = fmt::format("meshes/{}/primitives/{}", mesh, prim);
     const std::string at = pp + "/extensions/KHR_draco_mesh_compression";
     tinygltf::Primitive& p = ctx.model.meshes[mesh].primitives[prim];
     if (!x.IsObject()) throw_error(ctx.at(at), "KHR_draco_mesh_compression must be an object");
+    // An accessor's count as the file wrote it.
+    const auto written_count = [&](int accessor) {
+        const auto k = static_cast<std::size_t>(accessor);
+        return k < written.size()               ? written[k].count
+               : k < ctx.model.accessors.size() ? ctx.model.accessors[k].count
+                                                : std::size_t{0};
+    };
+    // (An accessor another primitive's stream was decoded into has no data of its own.)
     const auto has_data = [&](int accessor) {
         return accessor >= 0 && static_cast<std::size_t>(accessor) < ctx.model.accessors.size() &&
-               ctx.model.accessors[static_cast<std::size_t>(accessor)].bufferView >= 0;
+               ctx.model.accessors[static_cast<std::size_t>(accessor)].bufferView >= 0 &&
+               !taken.count(accessor);
     };
     if (!x.Has("attributes") || !x.Get("attributes").IsObject())
         throw_error(ctx.at(at), "KHR_draco_mesh_compression needs its 'attributes' object");
@@ -273,14 +298,11 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         throw_error(ctx.at(at), "mesh {} primitive {}: its Draco mesh is larger than 4 GiB", mesh,
                     prim);
     if (!has_data(p.indices)) {
-        if (p.indices >= 0 &&
-            ctx.model.accessors[static_cast<std::size_t>(p.indices)].count != faces * 3)
+        if (p.indices >= 0 && written_count(p.indices) != faces * 3)
             ctx.note("draco count", ctx.at(pp + "/indices"),
                      fmt::format("accessor {} gives count {}, its Draco stream {} indices: the "
                                  "stream's are read",
-                                 p.indices,
-                                 ctx.model.accessors[static_cast<std::size_t>(p.indices)].count,
-                                 faces * 3));
+                                 p.indices, written_count(p.indices), faces * 3));
         std::vector<unsigned char> out(faces * 3 * sizeof(uint32_t));
         for (std::size_t f = 0; f < faces; ++f) {
             const draco::Mesh::Face& face = dm->face(draco::FaceIndex(static_cast<uint32_t>(f)));
@@ -295,8 +317,7 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
         a.type = TINYGLTF_TYPE_SCALAR;
         a.count = faces * 3;
-        ctx.model.accessors.push_back(std::move(a));
-        p.indices = static_cast<int>(ctx.model.accessors.size() - 1);
+        p.indices = place_accessor(ctx, p.indices, std::move(a), taken);
         // Draco decodes a list of triangles whatever mode the primitive was encoded from.
         p.mode = TINYGLTF_MODE_TRIANGLES;
     }
@@ -316,7 +337,10 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
             throw_error(ctx.at(pp + "/attributes/" + name),
                         "accessor {} does not exist (the file has {})", accessor,
                         ctx.model.accessors.size());
-        tinygltf::Accessor a = ctx.model.accessors[static_cast<std::size_t>(accessor)];
+        // The accessor as the file wrote it (one decoded into already has been rewritten).
+        tinygltf::Accessor a = static_cast<std::size_t>(accessor) < written.size()
+                                   ? written[static_cast<std::size_t>(accessor)]
+                                   : ctx.model.accessors[static_cast<std::size_t>(accessor)];
         const int ncomp = tinygltf::GetNumComponentsInType(static_cast<uint32_t>(a.type));
         if (ncomp < 1 || ncomp > 4)
             throw_error(ctx.at(fmt::format("accessors/{}/type", accessor)),
@@ -338,14 +362,12 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         std::vector<unsigned char> out = draco_floats(*att, points, ncomp, a.normalized);
         a.componentType = TINYGLTF_COMPONENT_TYPE_FLOAT;
         a.normalized = false;
-        // The accessor as written (its type, normalisation, bounds), over the decoded values:
-        // a copy, so that an accessor another primitive also names keeps its own data.
+        // The accessor as written (its type, bounds), over the decoded values.
         a.bufferView = add_view(ctx, std::move(out));
         a.byteOffset = 0;
         a.count = points;
         a.sparse.isSparse = false;
-        ctx.model.accessors.push_back(std::move(a));
-        accessor = static_cast<int>(ctx.model.accessors.size() - 1);
+        accessor = place_accessor(ctx, accessor, std::move(a), taken);
     }
     p.extensions.erase("KHR_draco_mesh_compression");
 }
@@ -360,13 +382,16 @@ void decompress(Context& ctx) {
             decode_meshopt_view(ctx, i, x);
         }
     }
+    std::set<int> taken;
+    std::vector<tinygltf::Accessor> written;  // the accessors as the file wrote them
     for (std::size_t m = 0; m < ctx.model.meshes.size(); ++m)
         for (std::size_t p = 0; p < ctx.model.meshes[m].primitives.size(); ++p) {
             const tinygltf::ExtensionMap& e = ctx.model.meshes[m].primitives[p].extensions;
             const auto it = e.find("KHR_draco_mesh_compression");
             if (it == e.end()) continue;
             const tinygltf::Value x = it->second;
-            decode_draco_primitive(ctx, m, p, x);
+            if (written.empty()) written = ctx.model.accessors;
+            decode_draco_primitive(ctx, m, p, x, taken, written);
         }
 }
 

@@ -21,7 +21,8 @@ void load_document(Context& ctx);
 /** gltf_compression.cpp: compressed data decoded into ctx.model as if it had been written
  *  plainly: each EXT_meshopt_compression buffer view gets its decoded bytes (in a buffer of its
  *  own), and each KHR_draco_mesh_compression primitive whose attributes or indices have no data
- *  of their own gets them from its Draco stream (new accessors, in new buffers). Throws
+ *  of their own gets them from its Draco stream (in new buffers; its accessors rewritten in
+ *  place, or new ones where two primitives name one accessor). Throws
  *  SpangleError at the extension for data that cannot be decoded. */
 void decompress(Context& ctx);
 
