@@ -130,7 +130,9 @@ if command -v flock > /dev/null; then
     : > .locked.exr.lock
     flock .locked.exr.lock sleep 2 &
     HOLDER=$!
-    sleep 0.3
+    # Until the holder has the lock (a fixed 0.3 s was not always enough on a loaded machine:
+    # the render took the lock first and the check below failed).
+    for _ in $(seq 100); do flock -n .locked.exr.lock true || break; sleep 0.02; done
     "$S" render pano.toml -o locked.exr -q 2> "$T/err.txt" || fail "a locked render failed"
     kill -0 $HOLDER 2> /dev/null && fail "the render wrote while another held the output's lock"
     wait $HOLDER
