@@ -223,31 +223,18 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         // beta = sqrt(K / k) of the aggregate's weight is in its K stand-ins, sqrt(k / K) each.
         const float scale = std::sqrt(static_cast<float>(k) / static_cast<float>(n));
         cf.smooth += static_cast<float>(k) - scale * static_cast<float>(n);
-        if (!own) {
-            // Whole runs into the batch: the normals' points in one loop.
-            for (uint32_t q = 0; q < n;) {
-                if (batch.n == EntryBatch::kSize) flush_entries(wo, grid.alpha, batch, out);
-                const uint32_t run = std::min(n - q, EntryBatch::kSize - batch.n);
-                float* const bs = batch.s + batch.n;
-                float* const bt = batch.t + batch.n;
-                for (uint32_t j = 0; j < run; ++j) unit2(mix(found[q + j], 0x5eed), bs[j], bt[j]);
-                for (uint32_t j = 0; j < run; ++j) {
-                    batch.col[batch.n + j] = colors.single;
-                    batch.fresnel[batch.n + j] = &fresnel;
-                    batch.scale[batch.n + j] = scale;
-                }
-                batch.n += run;
-                q += run;
-            }
-            continue;
-        }
         for (uint32_t q = 0; q < n; ++q) {
             const uint64_t h = mix(found[q], 0x5eed);
             float s, t;
             unit2(h, s, t);
-            const uint64_t id = mix(h, 0xc0);
-            const float* col = colors.pick(static_cast<float>(id >> 40) * 0x1p-24f, id);
-            batch.add(wo, grid.alpha, s, t, col, &film.pick(id, fresnel), scale, out);
+            const float* col = colors.single;
+            const FresnelTable* fr = &fresnel;
+            if (own) {
+                const uint64_t id = mix(h, 0xc0);
+                col = colors.pick(static_cast<float>(id >> 40) * 0x1p-24f, id);
+                fr = &film.pick(id, fresnel);
+            }
+            batch.add(wo, grid.alpha, s, t, col, fr, scale, out);
         }
     }
     flush_entries(wo, grid.alpha, batch, out);
