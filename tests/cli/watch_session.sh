@@ -22,12 +22,16 @@ printf '\n[[material]]\nname = "spare"\nplugin = "smooth"\nmodel = "diffuse"\npa
 
 fail() { echo "FAIL: $*"; echo "--- log"; cat log.txt; exit 1; }
 LINES=0
-# Waits until the log has a new line matching $1; sets NEW to it.
+# Waits until the log has a new line matching $1; sets NEW to it. The next wait reads from the
+# line after it (not from the log's end: a line printed in the same tenth of a second as the one
+# matched was skipped, and the reload after a "render goes on" line was never seen).
 await() {
+    local hit
     for _ in $(seq 1 300); do
-        NEW=$(tail -n +$((LINES + 1)) log.txt | grep -m1 -E "$1" || true)
-        if [ -n "$NEW" ]; then
-            LINES=$(wc -l < log.txt)
+        hit=$(tail -n +$((LINES + 1)) log.txt | grep -n -m1 -E "$1" || true)
+        if [ -n "$hit" ]; then
+            LINES=$((LINES + ${hit%%:*}))
+            NEW=${hit#*:}
             return 0
         fi
         sleep 0.1

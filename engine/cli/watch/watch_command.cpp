@@ -376,6 +376,16 @@ bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
 }
 
 void WatchLoop::apply_change(const std::vector<std::string>& touched) {
+    // A save whose events come in two batches (or are seen by an event and by the identity
+    // poll) is dealt with once: files just as they were when the last load (or the check that
+    // let the render go on) read them hold nothing new. It said "its render goes on" a second
+    // time, or "reload failed" twice for one bad save.
+    bool all_seen = true;
+    for (const std::string& t : touched) {
+        const auto it = baseline_.find(absolute_path(t));
+        all_seen = all_seen && it != baseline_.end() && file_identity(it->first) == it->second;
+    }
+    if (all_seen) return;
     // After a failed load, a file that appeared in a watched folder may be the one the scene
     // lacked: the scene is read again, and when it fails as before, nothing is said or stopped.
     const std::vector<std::string> watched = files_to_watch();
