@@ -92,8 +92,10 @@ struct Closure {
     float e_avg;   ///< conductor: its cosine-weighted average
     float ax, ay;  ///< conductor/dielectric: GGX alphas here (clamped away from zero)
     float delta;   ///< conductor/dielectric: 1 where the roughness makes a mirror lobe
+    float coat_t;  ///< coated conductor: 1 - w E_c(wo), what the coat lets through at wo
+    float p_coat;  ///< coated conductor: probability of sampling the coat
 };
-static_assert(sizeof(Closure) == 52, "closure layout");
+static_assert(sizeof(Closure) == 60, "closure layout");
 
 V3 wo_of(const SpangleShadingBatch_v3* b, uint32_t i) {
     return {b->wo_x[i], b->wo_y[i], b->wo_z[i]};
@@ -231,6 +233,70 @@ void diffuse_sample(const void*, const void* closures, SpangleSampleBatch_v3* q)
     }
 }
 
+// ------------------------------------------------------------------------------------ coats
+
+constexpr int kAlbedoTable = 64;  ///< coat albedo E(mu) tabulated at mu = (i + 0.5) / 64
+
+/** A GGX dielectric coat (the plastic's, the coated conductor's) and its directional albedo:
+ *  what it reflects of the light arriving at cosine mu, so that what lies under it sees the
+ *  rest. */
+struct CoatAlbedo {
+    float ax = 0, ay = 0, ior = 1.5f;
+    bool delta = true;        ///< a smooth (mirror) coat
+    float e[kAlbedoTable]{};  ///< directional albedo of the coat's reflection
+    float e_avg = 0;          ///< cosine-weighted average of e: 2 int e(mu) mu dmu
+    /** Fills the table for alphas (raw, as read) and index. */
+    void init(float ax_, float ay_, float ior_);
+    /** The coat's reflection albedo at cosine mu (linear in the table). */
+    float at(float mu) const {
+        const float x =
+            std::clamp(mu * kAlbedoTable - 0.5f, 0.0f, static_cast<float>(kAlbedoTable - 1));
+        const int i = std::min(static_cast<int>(x), kAlbedoTable - 2);
+        const float t = x - static_cast<float>(i);
+        return e[i] * (1.0f - t) + e[i + 1] * t;
+    }
+    /** The rough coat's f (without the weight) and sampling pdf at wo, wi above the surface. */
+    void rough(V3 wo, V3 wi, float& f, float& pdf) const {
+        const V3 h = normalize(wo + wi);
+        const float d = ggx_d(h, ax, ay);
+        f = fresnel_dielectric(dot(wo, h), ior) * d * ggx_g2(wo, wi, ax, ay) / (4.0f * wo.z * wi.z);
+        pdf = ggx_g1(wo, ax, ay) * d / (4.0f * wo.z);
+    }
+};
+
+/** Coat reflection albedo at cosine mu: int F D G2 / (4 mu) dwi, by VNDF importance sampling over
+ *  a Hammersley set, where each sample weighs F G2 / G1. Deterministic and smooth in mu. */
+float coat_albedo(const CoatAlbedo& m, float mu) {
+    if (m.delta) return fresnel_dielectric(mu, m.ior);
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
+    constexpr uint32_t kN = 1024;
+    double sum = 0.0;
+    for (uint32_t i = 0; i < kN; ++i) {
+        const V3 h = ggx_sample_visible(wo, m.ax, m.ay, (static_cast<float>(i) + 0.5f) / kN,
+                                        radical_inverse2(i));
+        const V3 wi = reflect(wo, h);
+        if (wi.z <= 0.0f) continue;
+        sum += static_cast<double>(fresnel_dielectric(dot(wo, h), m.ior) *
+                                   ggx_g2(wo, wi, m.ax, m.ay) / ggx_g1(wo, m.ax, m.ay));
+    }
+    return static_cast<float>(sum / kN);
+}
+
+void CoatAlbedo::init(float ax_, float ay_, float ior_) {
+    ax = ax_;
+    ay = ay_;
+    delta = is_delta(ax, ay);
+    clamp_alpha(ax, ay);
+    ior = ior_;
+    double avg = 0.0;
+    for (int i = 0; i < kAlbedoTable; ++i) {
+        const float mu = (static_cast<float>(i) + 0.5f) / kAlbedoTable;
+        e[i] = std::min(1.0f, coat_albedo(*this, mu));
+        avg += 2.0 * static_cast<double>(e[i] * mu) / kAlbedoTable;
+    }
+    e_avg = static_cast<float>(avg);
+}
+
 // ------------------------------------------------------------------------------------ conductor
 
 // clang-format off
@@ -241,6 +307,9 @@ const SpangleParamDesc_v3 kConductorParams[] = {
     {"roughness", SPANGLE_PARAM_FLOAT, {0.2, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha along the tangent; below 1e-4 a perfect mirror", SPANGLE_PARAM_TEXTURABLE},
     {"roughness_v", SPANGLE_PARAM_FLOAT, {-1, 0, 0}, nullptr, -1.0, 1.0, nullptr, "GGX alpha along the bitangent (anisotropy); -1 = same as roughness", SPANGLE_PARAM_TEXTURABLE},
     {"multiscatter", SPANGLE_PARAM_BOOL, {1, 0, 0}, nullptr, 0.0, 1.0, nullptr, "return the light that bounces more than once between the microfacets (Kulla-Conty, as Cycles' Multiscatter GGX); false: single-scattering GGX with height-correlated shadowing (pbrt-v4's; Mitsuba 3's separable shadowing is darker still), darker when rough", 0},
+    {"coat", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "weight of a clear dielectric coat over the metal (lacquered metal, pbrt-v4's coatedconductor): 0 none, 1 a full coat", 0},
+    {"coat_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 10.0, nullptr, "index of the coat; the metal's index is taken relative to it", 0},
+    {"coat_roughness", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "GGX alpha of the coat; below 1e-4 a smooth coat", 0},
 };
 // clang-format on
 
@@ -333,6 +402,11 @@ struct Conductor {
      *  material's alphas (a textured roughness elsewhere falls back to the isotropic tables at
      *  the mean alpha); null when isotropic or single-scattering. */
     std::shared_ptr<const AnisoAlbedo> aniso;
+    /** A clear coat of weight `coat` (0: none) over the metal: it reflects coat x its GGX
+     *  dielectric lobe, and the metal under it is seen through (1 - coat E_c(wo)) (1 - coat
+     *  E_c(wi)), E_c the coat's directional albedo (as the plastic's diffuse base is). */
+    float coat = 0.0f;
+    CoatAlbedo coat_e;
 };
 
 /** Reads the Rec.709 -> working-space matrix; reports a failure through the ABI buffer. */
@@ -391,6 +465,18 @@ void* conductor_create(const SpangleParams_v3* p, const SpangleHost_v3* host, ch
                 std::copy(m.k, m.k + 3, c.k);
             }
     }
+    c.coat = param_f(p, "coat");
+    if (c.coat > 0.0f) {
+        c.coat_e.init(param_f(p, "coat_roughness"), param_f(p, "coat_roughness"),
+                      param_f(p, "coat_ior"));
+        // The metal meets the coat, not air: its index relative to the coat's (as pbrt-v4's
+        // coatedconductor), blended towards air as the coat thins.
+        const float outside = 1.0f + c.coat * (c.coat_e.ior - 1.0f);
+        for (int ch = 0; ch < 3; ++ch) {
+            c.eta[ch] /= outside;
+            c.k[ch] /= outside;
+        }
+    }
     if (!rec709_matrix(host, c.to_working, error, cap)) return nullptr;
     c.multiscatter = param_number(p, "multiscatter", 0) != 0.0;
     if (c.multiscatter && !c.delta && c.ax != c.ay) c.aniso = make_aniso_albedo(c.ax, c.ay);
@@ -445,6 +531,16 @@ void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* 
             // The share of the light (F = 1) single scattering loses at wo.
             c.p_spec = 1.0f - c.e_o;
         }
+        if (m.coat > 0.0f && c.wo.z > 0.0f) {
+            const float ec = m.coat * m.coat_e.at(c.wo.z);
+            c.coat_t = 1.0f - ec;
+            // The coat in proportion to what it reflects against what the metal under it
+            // reflects at most (its Fresnel at wo), never below 5% for either.
+            float f[3];
+            conductor_fresnel(m, c.wo.z, f);
+            const float metal = c.coat_t * (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]);
+            c.p_coat = ec + metal > 0.0f ? std::clamp(ec / (ec + metal), 0.05f, 0.95f) : 0.5f;
+        }
     }
 }
 
@@ -468,6 +564,27 @@ void conductor_rough(const Conductor& m, const Closure& c, V3 wo, V3 wi, V3 h, f
     }
 }
 
+/** f and pdf of the coated conductor's lobes that are not mirrors at wi: the rough coat's
+ *  reflection (times its weight) and the rough metal seen through the coat at wo and at wi. */
+void coated_eval(const Conductor& m, const Closure& c, V3 wo, V3 wi, float f[3], float& pdf) {
+    f[0] = f[1] = f[2] = 0.0f;
+    pdf = 0.0f;
+    if (wo.z <= 0.0f || wi.z <= 0.0f) return;
+    if (c.delta == 0.0f) {
+        float fm[3], pm;
+        conductor_rough(m, c, wo, wi, normalize(wo + wi), fm, pm);
+        const float t = c.coat_t * (1.0f - m.coat * m.coat_e.at(wi.z));
+        for (int ch = 0; ch < 3; ++ch) f[ch] = t * fm[ch];
+        pdf = (1.0f - c.p_coat) * pm;
+    }
+    if (!m.coat_e.delta) {
+        float fc, pc;
+        m.coat_e.rough(wo, wi, fc, pc);
+        for (int ch = 0; ch < 3; ++ch) f[ch] += m.coat * fc;
+        pdf += c.p_coat * pc;
+    }
+}
+
 void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v3* q) {
     const auto& m = *static_cast<const Conductor*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
@@ -475,6 +592,12 @@ void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v3*
         const Closure& c = cl[closure_of(q->closure_index, i)];
         const V3 wo = c.wo;
         const V3 wi{q->wi_x[i], q->wi_y[i], q->wi_z[i]};
+        if (m.coat > 0.0f) {
+            float f[3], pdf;
+            coated_eval(m, c, wo, wi, f, pdf);
+            write_eval(q, i, f[0], f[1], f[2], pdf);
+            continue;
+        }
         if (c.delta > 0.0f || wo.z <= 0.0f || wi.z <= 0.0f) {
             write_eval(q, i, 0, 0, 0, 0);
             continue;
@@ -485,6 +608,60 @@ void conductor_eval(const void* inst, const void* closures, SpangleEvalBatch_v3*
     }
 }
 
+/** Samples the coated conductor for point i of q (wo above the surface): the coat with
+ *  probability p_coat, else the metal under it; f and pdf of the whole lobe, a mirror's as a
+ *  delta with its probability. */
+void coated_sample(const Conductor& m, const Closure& c, SpangleSampleBatch_v3* q, uint32_t i) {
+    const V3 wo = c.wo;
+    const V3 mirror{-wo.x, -wo.y, wo.z};
+    const bool coat_delta = m.coat_e.delta, metal_delta = c.delta > 0.0f;
+    float f[3], pdf;
+    if (coat_delta && metal_delta) {
+        // One mirror: the coat's reflection and the metal's seen through the coat both ways.
+        conductor_fresnel(m, wo.z, f);
+        const float fc = m.coat * fresnel_dielectric(wo.z, m.coat_e.ior);
+        const float t2 = c.coat_t * c.coat_t;
+        for (float& x : f) x = (fc + t2 * x) / wo.z;
+        write_sample(q, i, mirror, f[0], f[1], f[2], 1.0f,
+                     SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
+        return;
+    }
+    const float u2 = q->u2[i];
+    const bool coat = u2 < c.p_coat;
+    if (coat && coat_delta) {
+        const float fc = m.coat * fresnel_dielectric(wo.z, m.coat_e.ior) / wo.z;
+        write_sample(q, i, mirror, fc, fc, fc, c.p_coat,
+                     SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
+        return;
+    }
+    if (!coat && metal_delta) {
+        conductor_fresnel(m, wo.z, f);
+        const float t2 = c.coat_t * c.coat_t / wo.z;
+        write_sample(q, i, mirror, f[0] * t2, f[1] * t2, f[2] * t2, 1.0f - c.p_coat,
+                     SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
+        return;
+    }
+    V3 wi;
+    bool diffuse = false;
+    if (coat) {
+        wi = reflect(wo, ggx_sample_visible(wo, m.coat_e.ax, m.coat_e.ay, q->u0[i], q->u1[i]));
+    } else {
+        // The metal's own choice (its multiple scattering) by the rest of u2, rescaled.
+        const float v = std::min((u2 - c.p_coat) / (1.0f - c.p_coat), 0x1.fffffep-1f);
+        diffuse = c.p_spec > 0.0f && v < c.p_spec;
+        wi = diffuse ? cosine_hemisphere(q->u0[i], q->u1[i])
+                     : reflect(wo, ggx_sample_visible(wo, c.ax, c.ay, q->u0[i], q->u1[i]));
+    }
+    if (wi.z <= 0.0f) {
+        invalid_sample(q, i);
+        return;
+    }
+    coated_eval(m, c, wo, wi, f, pdf);
+    write_sample(
+        q, i, wi, f[0], f[1], f[2], pdf,
+        SPANGLE_SAMPLE_REFLECTION | (diffuse ? SPANGLE_SAMPLE_DIFFUSE : SPANGLE_SAMPLE_GLOSSY));
+}
+
 void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch_v3* q) {
     const auto& m = *static_cast<const Conductor*>(inst);
     const auto* cl = static_cast<const Closure*>(closures);
@@ -493,6 +670,10 @@ void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch
         const V3 wo = c.wo;
         if (wo.z <= 0.0f) {
             invalid_sample(q, i);
+            continue;
+        }
+        if (m.coat > 0.0f) {
+            coated_sample(m, c, q, i);
             continue;
         }
         float f[3];
@@ -778,40 +959,13 @@ const SpangleParamDesc_v3 kPlasticParams[] = {
 };
 // clang-format on
 
-constexpr int kAlbedoTable = 64;  ///< coat albedo E(mu) tabulated at mu = (i + 0.5) / 64
-
 struct Plastic {
-    float ax, ay, ior;
-    bool delta;
+    CoatAlbedo coat;  ///< the coat: its alphas, index and albedo table
     float albedo[3];
-    float e[kAlbedoTable];  ///< directional albedo of the coat's reflection
-    float e_avg;            ///< cosine-weighted average of e: 2 int e(mu) mu dmu
 };
 
-/** Coat reflection albedo at cosine mu: int F D G2 / (4 mu) dwi, by VNDF importance sampling over
- *  a Hammersley set, where each sample weighs F G2 / G1. Deterministic and smooth in mu. */
-float coat_albedo(const Plastic& m, float mu) {
-    if (m.delta) return fresnel_dielectric(mu, m.ior);
-    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - mu * mu)), 0.0f, mu};
-    constexpr uint32_t kN = 1024;
-    double sum = 0.0;
-    for (uint32_t i = 0; i < kN; ++i) {
-        const V3 h = ggx_sample_visible(wo, m.ax, m.ay, (static_cast<float>(i) + 0.5f) / kN,
-                                        radical_inverse2(i));
-        const V3 wi = reflect(wo, h);
-        if (wi.z <= 0.0f) continue;
-        sum += static_cast<double>(fresnel_dielectric(dot(wo, h), m.ior) *
-                                   ggx_g2(wo, wi, m.ax, m.ay) / ggx_g1(wo, m.ax, m.ay));
-    }
-    return static_cast<float>(sum / kN);
-}
-
 float plastic_e(const Plastic& m, float mu) {
-    const float x =
-        std::clamp(mu * kAlbedoTable - 0.5f, 0.0f, static_cast<float>(kAlbedoTable - 1));
-    const int i = std::min(static_cast<int>(x), kAlbedoTable - 2);
-    const float t = x - static_cast<float>(i);
-    return m.e[i] * (1.0f - t) + m.e[i + 1] * t;
+    return m.coat.at(mu);
 }
 
 void* plastic_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* error, uint32_t cap) {
@@ -821,18 +975,10 @@ void* plastic_create(const SpangleParams_v3* p, const SpangleHost_v3*, char* err
         set_error(error, cap, "out of memory");
         return nullptr;
     }
-    read_alpha(p, m->ax, m->ay);
-    m->delta = is_delta(m->ax, m->ay);
-    clamp_alpha(m->ax, m->ay);
-    m->ior = param_f(p, "ior");
+    float ax, ay;
+    read_alpha(p, ax, ay);
+    m->coat.init(ax, ay, param_f(p, "ior"));
     for (int c = 0; c < 3; ++c) m->albedo[c] = param_f(p, "albedo", c);
-    double avg = 0.0;
-    for (int i = 0; i < kAlbedoTable; ++i) {
-        const float mu = (static_cast<float>(i) + 0.5f) / kAlbedoTable;
-        m->e[i] = std::min(1.0f, coat_albedo(*m, mu));
-        avg += 2.0 * static_cast<double>(m->e[i] * mu) / kAlbedoTable;
-    }
-    m->e_avg = static_cast<float>(avg);
     return m;
 }
 
@@ -858,7 +1004,8 @@ void plastic_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* cl
 
 /** The base's reflectance factor (1 - E(o)) (1 - E(i)) / (pi (1 - E_avg)), without albedo. */
 float plastic_base(const Plastic& m, const Closure& c, float cos_i) {
-    return (1.0f - c.e_o) * (1.0f - plastic_e(m, cos_i)) / (kPi * std::max(1e-6f, 1.0f - m.e_avg));
+    return (1.0f - c.e_o) * (1.0f - plastic_e(m, cos_i)) /
+           (kPi * std::max(1e-6f, 1.0f - m.coat.e_avg));
 }
 
 void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v3* q) {
@@ -873,13 +1020,7 @@ void plastic_eval(const void* inst, const void* closures, SpangleEvalBatch_v3* q
         }
         const float base = plastic_base(m, c, wi.z);
         float spec = 0.0f, spec_pdf = 0.0f;
-        if (!m.delta) {
-            const V3 h = normalize(wo + wi);
-            const float d = ggx_d(h, m.ax, m.ay);
-            spec = fresnel_dielectric(dot(wo, h), m.ior) * d * ggx_g2(wo, wi, m.ax, m.ay) /
-                   (4.0f * wo.z * wi.z);
-            spec_pdf = ggx_g1(wo, m.ax, m.ay) * d / (4.0f * wo.z);
-        }
+        if (!m.coat.delta) m.coat.rough(wo, wi, spec, spec_pdf);
         const float pdf = c.p_spec * spec_pdf + (1.0f - c.p_spec) * wi.z * kInvPi;
         write_eval(q, i, spec + c.rgb[0] * base, spec + c.rgb[1] * base, spec + c.rgb[2] * base,
                    pdf);
@@ -897,15 +1038,16 @@ void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v
             continue;
         }
         const bool coat = q->u2[i] < c.p_spec;
-        if (coat && m.delta) {
-            const float fr = fresnel_dielectric(wo.z, m.ior);
+        if (coat && m.coat.delta) {
+            const float fr = fresnel_dielectric(wo.z, m.coat.ior);
             const float f = fr / wo.z;
             write_sample(q, i, {-wo.x, -wo.y, wo.z}, f, f, f, c.p_spec,
                          SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
             continue;
         }
-        const V3 wi = coat ? reflect(wo, ggx_sample_visible(wo, m.ax, m.ay, q->u0[i], q->u1[i]))
-                           : cosine_hemisphere(q->u0[i], q->u1[i]);
+        const V3 wi =
+            coat ? reflect(wo, ggx_sample_visible(wo, m.coat.ax, m.coat.ay, q->u0[i], q->u1[i]))
+                 : cosine_hemisphere(q->u0[i], q->u1[i]);
         if (wi.z <= 0.0f) {
             invalid_sample(q, i);
             continue;

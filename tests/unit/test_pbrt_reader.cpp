@@ -665,6 +665,9 @@ MakeNamedMaterial "i" "string type" "mix" "string materials" ["a" "e"] "float am
 MakeNamedMaterial "j" "string type" "conductor" "spectrum eta" "metal-CuZn-eta"
   "spectrum k" "metal-CuZn-k"
 MakeNamedMaterial "k" "string type" "hair"
+MakeNamedMaterial "l" "string type" "coatedconductor" "rgb reflectance" [0.9 0.6 0.3]
+  "float interface.roughness" 0.01 "float interface.eta" 1.6
+  "float conductor.uroughness" 0.04 "float conductor.vroughness" 0.09
 Material "interface"
 Shape "sphere"
 )");
@@ -681,6 +684,15 @@ Shape "sphere"
     EXPECT_EQ(material(d, "f").model, "dielectric");
     EXPECT_EQ(material(d, "g").model, "diffuse");
     EXPECT_EQ(param(material(d, "h"), "preset")->text, "aluminium");
+    // The coat is the conductor's own, pbrt-v4's defaults: a smooth coat of index 1.5.
+    EXPECT_EQ(number(material(d, "h"), "coat"), 1.0);
+    EXPECT_NEAR(number(material(d, "h"), "coat_ior"), 1.5, 1e-12);
+    EXPECT_EQ(number(material(d, "h"), "coat_roughness"), 0.0);
+    EXPECT_FALSE(noted(d, "coat is dropped"));
+    EXPECT_NEAR(number(material(d, "l"), "coat_ior"), 1.6, 1e-12);
+    EXPECT_NEAR(number(material(d, "l"), "coat_roughness"), 0.1, 1e-12);
+    EXPECT_NEAR(number(material(d, "l"), "roughness"), 0.2, 1e-12);
+    EXPECT_NEAR(number(material(d, "l"), "roughness_v"), 0.3, 1e-12);
     // v4's mix picks the second material with probability amount: 0.9 keeps the dielectric.
     EXPECT_EQ(material(d, "i").model, "dielectric");
     EXPECT_EQ(param(material(d, "j"), "preset")->text, "copper");

@@ -148,7 +148,7 @@ public:
             if (const TextureValue* v = texture(*t, false)) {
                 // Spangle's plastic (coateddiffuse, v3 plastic, uber, substrate) tabulates its
                 // coat's albedo for one roughness: it takes a constant, the material's default.
-                if (v->image && m_.model == "plastic") {
+                if (v->image && (m_.model == "plastic" || std::string(name) == "coat_roughness")) {
                     note(fmt::format(
                         "a texture of '{}' is not supported on this material (its coat takes one "
                         "roughness): '{}' {} stands in",
@@ -457,10 +457,23 @@ bool v4_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         b.boolean("multiscatter", false);  // pbrt's GGX scatters once
         b.metal("conductor.eta", "conductor.k", "reflectance");
         const bool remap_on = p.boolean("remaproughness", true);
-        b.roughness("conductor.roughness", "roughness", 0.0, Remap::V4, remap_on);
-        p.find("interface.roughness");
-        p.find("interface.eta");
-        b.note("the conductor under the coat stands in: its coat is dropped");
+        if (p.find("conductor.uroughness") || p.find("conductor.vroughness")) {
+            b.roughness("conductor.uroughness", "roughness", 0.0, Remap::V4, remap_on);
+            b.roughness("conductor.vroughness", "roughness_v", 0.0, Remap::V4, remap_on);
+        } else {
+            b.roughness("conductor.roughness", "roughness", 0.0, Remap::V4, remap_on);
+        }
+        // The coat: the conductor's own (a clear dielectric over the metal, whose index it
+        // takes relative to the coat's, as pbrt-v4 does).
+        b.number("coat", 1.0);
+        b.ior("interface.eta", "coat_ior", 1.5);
+        if (p.find("interface.uroughness") || p.find("interface.vroughness")) {
+            b.roughness("interface.uroughness", "coat_roughness", 0.0, Remap::V4, remap_on);
+            p.find("interface.vroughness");
+            b.note("the coat takes one roughness: 'interface.uroughness' stands in for both");
+        } else {
+            b.roughness("interface.roughness", "coat_roughness", 0.0, Remap::V4, remap_on);
+        }
     } else if (t == "dielectric" || t == "thindielectric") {
         b.model("smooth", "dielectric");
         b.ior("eta", "ior", 1.5);
