@@ -352,6 +352,93 @@ TEST(GltfCompression, DracoIntegersUnmarkedInTheStreamAreNormalisedAsTheAccessor
     }
 }
 
+TEST(GltfCompression, ADracoStreamIsReadWholeOrNotAtAll) {
+    // Draco renumbers vertices: a primitive reads either the file's uncompressed data (all of
+    // it there) or the stream's indices and attributes together. A primitive without indices
+    // whose file kept its vertices had the stream's triangles laid over the file's vertices.
+    // A quad as two triangles, each corner's colour its x (red) and y (green).
+    draco::TriangleSoupMeshBuilder builder;
+    builder.Start(2);
+    const int pos = builder.AddAttribute(draco::GeometryAttribute::POSITION, 3, draco::DT_FLOAT32);
+    const int col = builder.AddAttribute(draco::GeometryAttribute::COLOR, 3, draco::DT_FLOAT32);
+    const float p[6][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, 0}, {0, 0, 0}, {1, 1, 0}, {0, 1, 0}};
+    for (int f = 0; f < 2; ++f) {
+        const draco::FaceIndex face(static_cast<uint32_t>(f));
+        builder.SetAttributeValuesForFace(pos, face, p[3 * f], p[3 * f + 1], p[3 * f + 2]);
+        builder.SetAttributeValuesForFace(col, face, p[3 * f], p[3 * f + 1], p[3 * f + 2]);
+    }
+    const std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
+    ASSERT_TRUE(mesh);
+    draco::Encoder encoder;
+    draco::EncoderBuffer encoded;
+    ASSERT_TRUE(encoder.EncodeMeshToBuffer(*mesh, &encoded).ok());
+    const uint32_t pos_id = mesh->attribute(pos)->unique_id(),
+                   col_id = mesh->attribute(col)->unique_id();
+    std::vector<float> soup(&p[0][0], &p[0][0] + 18);
+    for (float& v : soup) v += 10.0f;  // the file's own data, told apart from the stream's
+
+    test::TempDir dir("gltf_draco_whole");
+    const auto write = [&](const std::string& name, bool colours_kept, bool required,
+                           bool glb = false) {
+        GltfWriter w;
+        const int view = w.view(encoded.data(), encoded.size());
+        const int a_pos = w.floats(soup, "VEC3", 3);
+        int a_col = -1;
+        if (colours_kept) {
+            a_col = w.floats(soup, "VEC3", 3);
+        } else {
+            w.accessors.push_back(R"({"componentType":5126,"count":6,"type":"VEC3"})");
+            a_col = static_cast<int>(w.accessors.size()) - 1;
+        }
+        const std::string body = fmt::format(
+            R"("extensionsUsed":["KHR_draco_mesh_compression"],{}"nodes":[{{"mesh":0}}],)"
+            R"("meshes":[{{"primitives":[{{"attributes":{{"POSITION":{},"COLOR_0":{}}},)"
+            R"("extensions":{{"KHR_draco_mesh_compression":{{"bufferView":{},"attributes":)"
+            R"({{"POSITION":{},"COLOR_0":{}}}}}}}}}]}}])",
+            required ? R"("extensionsRequired":["KHR_draco_mesh_compression"],)" : "", a_pos, a_col,
+            view, pos_id, col_id);
+        if (glb)
+            w.write_glb(dir.file(name), body);
+        else
+            w.write_gltf(dir.file(name), body);
+    };
+    // Every attribute kept: the file's six vertices as written, no stream.
+    write("kept.gltf", true, false);
+    const TriangleMesh kept = mesh_of(dir.file("kept.gltf"));
+    EXPECT_EQ(kept.positions, soup);
+    EXPECT_EQ(kept.indices, (std::vector<uint32_t>{0, 1, 2, 3, 4, 5}));
+    // The colours only in the stream: the stream's positions, colours and triangles together,
+    // the file's positions not mixed in.
+    write("partial.gltf", false, true);
+    const TriangleMesh part = mesh_of(dir.file("partial.gltf"));
+    ASSERT_EQ(part.indices.size(), 6u);
+    ASSERT_EQ(part.colors.size(), part.positions.size());
+    for (std::size_t v = 0; v < part.vertex_count(); ++v) {
+        EXPECT_LT(part.positions[3 * v], 2.0f) << "the stream's position, not the file's";
+        EXPECT_EQ(part.colors[3 * v], part.positions[3 * v]) << v;
+        EXPECT_EQ(part.colors[3 * v + 1], part.positions[3 * v + 1]) << v;
+    }
+    // The two triangles cover the unit square: areas add to 1.
+    double area = 0.0;
+    for (std::size_t t = 0; t < 2; ++t) {
+        const auto at = [&](std::size_t k, int c) {
+            return static_cast<double>(part.positions[3 * part.indices[3 * t + k] + c]);
+        };
+        area += 0.5 * std::fabs((at(1, 0) - at(0, 0)) * (at(2, 1) - at(0, 1)) -
+                                (at(2, 0) - at(0, 0)) * (at(1, 1) - at(0, 1)));
+    }
+    EXPECT_NEAR(area, 1.0, 1e-6);
+    // The same as a .glb with bytes after the length its header gives (ignored, as in a .glb
+    // read as written): its JSON is rebuilt for tinygltf (the accessor without a view), and
+    // the bytes past the length were carried into the rebuilt file and read as a BIN chunk.
+    write("partial.glb", false, true, true);
+    std::ofstream(dir.file("partial.glb"), std::ios::binary | std::ios::app)
+        << std::string(4, '\0');
+    const TriangleMesh glb = mesh_of(dir.file("partial.glb"));
+    EXPECT_EQ(glb.positions, part.positions);
+    EXPECT_EQ(glb.indices, part.indices);
+}
+
 TEST(GltfCompression, GltfpackInstancesStandWhereTheirNodesStood) {
     // Five nodes drawing one torus, turned and moved; gltfpack -mi makes them one node with
     // EXT_mesh_gpu_instancing (-noq: no quantisation, so the placements keep their floats).
@@ -459,6 +546,36 @@ TEST(GltfCompression, DamagedStreamsAreErrorsAtTheirExtension) {
     std::ofstream(dir.file("count.gltf"), std::ios::binary) << text;
     const std::string count = error_of("count.gltf");
     EXPECT_NE(count.find("(they must be equal)"), std::string::npos) << count;
+    // A count (and view) of 2^24 vertices from a few hundred compressed bytes: refused before
+    // anything is decoded (it made 4 GiB of zeros first).
+    text = slurp(dir.file("mo.gltf"));
+    const std::string key = R"("mode":"ATTRIBUTES","count":)";
+    const std::size_t a = text.find(key);
+    ASSERT_NE(a, std::string::npos);
+    const std::size_t n_end = text.find_first_not_of("0123456789", a + key.size());
+    const std::size_t view = text.rfind(R"({"buffer":)", text.rfind(R"("extensions")", a));
+    const std::size_t length_at = text.find(R"("byteLength":)", view) + 13;
+    const std::size_t stride_at = text.find(R"("byteStride":)", view) + 13;
+    ASSERT_LT(length_at, a);
+    ASSERT_LT(stride_at, a);
+    const int stride = std::stoi(text.substr(stride_at));
+    text.replace(a + key.size(), n_end - a - key.size(), "16777216");
+    const std::size_t length_end = text.find_first_not_of("0123456789", length_at);
+    text.replace(length_at, length_end - length_at, std::to_string(16777216LL * stride));
+    std::ofstream(dir.file("huge.gltf"), std::ios::binary) << text;
+    const std::string huge = error_of("huge.gltf");
+    EXPECT_NE(
+        huge.find("count 16777216 x byteStride " + std::to_string(stride) + " cannot come from"),
+        std::string::npos)
+        << huge;
+    // A buffer index past the file's own buffers (the decoded ones are not the file's).
+    text = slurp(dir.file("mo.gltf"));
+    const std::string ext = R"("EXT_meshopt_compression":{"buffer":0)";
+    ASSERT_NE(text.find(ext), std::string::npos);
+    text.replace(text.find(ext), ext.size(), R"("EXT_meshopt_compression":{"buffer":2)");
+    std::ofstream(dir.file("past.gltf"), std::ios::binary) << text;
+    const std::string past = error_of("past.gltf");
+    EXPECT_NE(past.find("buffer 2 does not exist (the file has 2)"), std::string::npos) << past;
 }
 
 TEST(GltfCompression, AnEmptyBinChunkIsLeftOut) {

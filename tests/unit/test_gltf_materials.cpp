@@ -822,6 +822,46 @@ TEST(GltfErrors, AnImageViewPastItsBufferIsSaidAtTheImage) {
     EXPECT_NE(e.find("image 0: buffer view " + std::to_string(view)), std::string::npos) << e;
     EXPECT_NE(e.find("runs past the end of buffer 0"), std::string::npos) << e;
     EXPECT_NE(e.find("short.glb:1:"), std::string::npos) << e;
+    // The image's member written with an escape, which the JSON parser reads as bufferView (the
+    // check read member names as written, missed the view and tinygltf read past the buffer).
+    const std::string plain = R"("images":[{"bufferView")";
+    const std::size_t key = text.find(plain);
+    ASSERT_NE(key, std::string::npos);
+    std::string escaped = text;
+    escaped.replace(key, plain.size(), R"("images":[{"buffer\u0056iew")");
+    // The JSON chunk's length (bytes 12-15) and the file's (8-11) grow by the five bytes.
+    for (const std::size_t field : {std::size_t{8}, std::size_t{12}}) {
+        uint32_t n;
+        std::memcpy(&n, escaped.data() + field, 4);
+        n += 5;
+        std::memcpy(escaped.data() + field, &n, 4);
+    }
+    const std::string e2 = error_of(dir, escaped, "escaped.glb");
+    EXPECT_NE(e2.find("image 0: buffer view " + std::to_string(view)), std::string::npos) << e2;
+    EXPECT_NE(e2.find("runs past the end of buffer 0"), std::string::npos) << e2;
+}
+
+TEST(GltfErrors, MemberNamesAreReadAsTheJsonParserReadsThem) {
+    // An accessor whose "bufferView" is written with a \u escape is the same accessor: its
+    // data were all zeros (the view was taken as missing) without a word.
+    test::TempDir dir("gltf_escaped_names");
+    GltfWriter w;
+    const std::string mesh = quad_mesh(w, -1);
+    w.write_gltf(dir.file("plain.gltf"),
+                 fmt::format(R"("meshes":[{}],"nodes":[{{"mesh":0}}])", mesh));
+    std::string text = bytes_of(dir.file("plain.gltf"));
+    const std::size_t at = text.find(R"("accessors":[{"bufferView")");
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, 26, R"("accessors":[{"buffer\u0056iew")");
+    std::ofstream(dir.file("escaped.gltf"), std::ios::binary) << text;
+    const SceneDescription a = read_gltf_scene(dir.file("plain.gltf"), {});
+    const SceneDescription b = read_gltf_scene(dir.file("escaped.gltf"), {});
+    ASSERT_EQ(a.objects.size(), 1u);
+    ASSERT_EQ(b.objects.size(), 1u);
+    const auto& pa = std::get<InlineMeshShape>(a.objects[0].shape).mesh->positions;
+    const auto& pb = std::get<InlineMeshShape>(b.objects[0].shape).mesh->positions;
+    EXPECT_EQ(pa, pb);
+    EXPECT_EQ(std::vector<float>(pb.begin() + 3, pb.begin() + 6), (std::vector<float>{1, 0, 0}));
 }
 
 TEST(GltfErrors, ABuffersSizeAndUriAreCheckedWhereWritten) {

@@ -199,21 +199,45 @@ TEST(GltfReader, GpuInstancesAreObjectsSharingTheMeshPlacedAfterTheirNode) {
     EXPECT_EQ(count_notes(d, "instance attribute _ID is dropped"), 1);
 
     // Instances scaled onto a point or a line are not drawn (noted), one flattened onto a
-    // plane is drawn flat: as nodes are.
+    // plane is drawn flat: as nodes are. One merely small (gltfpack's instances of a quantised
+    // 1 cm model carry 6e-7 per axis) is drawn: it was hidden as scaled to nothing.
     GltfWriter w3;
     const QuadAccessors q3 = quad(w3);
-    const int s3 = w3.floats({1, 1, 1, 0, 0, 0, 1, 0, 0, 1, 1, 0}, "VEC3", 3);
+    const int s3 =
+        w3.floats({1, 1, 1, 0, 0, 0, 1, 0, 0, 1, 1, 0, 6.1e-7f, 6.1e-7f, 6.1e-7f}, "VEC3", 3);
     w3.write_gltf(dir.file("flat.gltf"),
                   fmt::format(R"("nodes":[{{"mesh":0,"extensions":{{"EXT_mesh_gpu_instancing":)"
                               R"({{"attributes":{{"SCALE":{}}}}}}}}}],)"
                               R"("meshes":[{{"primitives":[{}]}}])",
                               s3, quad_primitive(q3, -1)));
     const SceneDescription flat = read_gltf_scene(dir.file("flat.gltf"), {});
-    ASSERT_EQ(flat.objects.size(), 2u);
+    ASSERT_EQ(flat.objects.size(), 3u);
     EXPECT_EQ(flat.objects[0].name, "@0");
     EXPECT_EQ(flat.objects[1].name, "@3");
+    EXPECT_EQ(flat.objects[2].name, "@4");
+    EXPECT_NEAR(flat.objects[2].placement.matrix.value().apply_point({1, 0, 0}).x, 6.1e-7f, 1e-12f);
     EXPECT_GT(std::fabs(flat.objects[1].placement.matrix.value().determinant()), 0.0f);
     EXPECT_EQ(count_notes(flat, "instance 1 of node 0 is scaled to nothing"), 1);
+
+    // More instances than Spangle makes objects from one file (each is one): an error at the
+    // attribute, before it is read (a 1 KB file asked for 2^24 of them by a view-less
+    // accessor: minutes, and more memory than the machine had).
+    GltfWriter w4;
+    const QuadAccessors q4 = quad(w4);
+    w4.accessors.push_back(R"({"componentType":5126,"count":5000000,"type":"VEC3"})");
+    w4.write_gltf(dir.file("many.gltf"),
+                  fmt::format(R"("nodes":[{{"mesh":0,"extensions":{{"EXT_mesh_gpu_instancing":)"
+                              R"({{"attributes":{{"TRANSLATION":{}}}}}}}}}],)"
+                              R"("meshes":[{{"primitives":[{}]}}])",
+                              w4.accessors.size() - 1, quad_primitive(q4, -1)));
+    try {
+        read_gltf_scene(dir.file("many.gltf"), {});
+        ADD_FAILURE() << "no error";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("node 0 asks for 5000000 instances"),
+                  std::string::npos)
+            << e.what();
+    }
 
     // Attributes of different counts: an error at the second.
     GltfWriter w2;

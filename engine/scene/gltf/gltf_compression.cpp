@@ -57,9 +57,10 @@ std::string text(const Context& ctx, const tinygltf::Value& o, const char* key,
 /** Bytes [offset, offset + length) of buffer `buffer`, checked to exist. */
 const unsigned char* buffer_bytes(const Context& ctx, std::size_t buffer, std::size_t offset,
                                   std::size_t length, const std::string& at) {
-    if (buffer >= ctx.model.buffers.size())
+    // The file's own buffers (the decoded ones added since are not the file's to name).
+    if (buffer >= ctx.file_buffers)
         throw_error(ctx.at(at + "/buffer"), "buffer {} does not exist (the file has {})", buffer,
-                    ctx.model.buffers.size());
+                    ctx.file_buffers);
     const std::vector<unsigned char>& data = ctx.model.buffers[buffer].data;
     if (offset > data.size() || length > data.size() - offset)
         throw_error(ctx.at(at),
@@ -108,6 +109,26 @@ void decode_meshopt_view(Context& ctx, std::size_t index, const tinygltf::Value&
                     "buffer view {} is {} bytes long, but its compressed data decodes to count {} "
                     "x byteStride {} = {} bytes (they must be equal)",
                     index, parent.byteLength, count, stride, count * stride);
+    // What `length` compressed bytes can decode to at most, checked before the output is
+    // made (a 7 KB file asked for 4 GiB, zeroed, before its data was found short): a vertex
+    // stream packs 16 bytes into 2 bits at best (64:1, with a header and a tail of a few
+    // blocks), an index buffer a triangle into a byte, an index sequence an index into a byte.
+    const double bytes = static_cast<double>(length), width = static_cast<double>(stride);
+    const double most = mode == "ATTRIBUTES"  ? 64.0 * bytes + 65536.0
+                        : mode == "TRIANGLES" ? 3.0 * bytes * width
+                        : mode == "INDICES"   ? bytes * width
+                                              : std::numeric_limits<double>::infinity();
+    if (static_cast<double>(count) * static_cast<double>(stride) > most)
+        throw_error(ctx.at(at + "/count"),
+                    "buffer view {}: count {} x byteStride {} cannot come from {} compressed "
+                    "bytes in mode {}",
+                    index, count, stride, length, mode);
+    // Vertex data decode with byteStride between elements: a view that gives none reads them so.
+    if (mode == "ATTRIBUTES" && parent.byteStride != 0 && parent.byteStride != stride)
+        throw_error(ctx.at(fmt::format("bufferViews/{}/byteStride", index)),
+                    "buffer view {}: byteStride {} differs from its compressed data's {}", index,
+                    parent.byteStride, stride);
+    if (mode == "ATTRIBUTES") ctx.model.bufferViews[index].byteStride = stride;
     std::vector<unsigned char> out(count * stride);
     int status = 0;
     if (mode == "ATTRIBUTES") {
@@ -225,10 +246,13 @@ int place_accessor(Context& ctx, int original, tinygltf::Accessor a, std::set<in
     return static_cast<int>(ctx.model.accessors.size() - 1);
 }
 
-/** Primitive `prim` of mesh `mesh` with a KHR_draco_mesh_compression object `x`: the attributes
- *  it compresses that have no data of their own, and its indices when they have none, decoded
- *  into new accessors of the same type (the primitive pointed at them). A file that keeps its
- *  uncompressed data (not requiring the extension) is read from that, exactly. */
+/** Primitive `prim` of mesh `mesh` with a KHR_draco_mesh_compression object `x`. A file that
+ *  keeps all its uncompressed data (not requiring the extension) is read from that, exactly.
+ *  Otherwise the stream is read whole: its indices and every attribute it compresses, in the
+ *  stream's own vertex order (Draco renumbers vertices, so the file's data cannot be mixed with
+ *  the stream's: a primitive without indices had the stream's triangles laid over the file's
+ *  vertices). Decoded data go where the file's accessors without data stood (so that messages
+ *  name them) and into new accessors beside those with data, which other primitives may read. */
 void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
                             const tinygltf::Value& x, std::set<int>& taken,
                             const std::vector<tinygltf::Accessor>& written) {
@@ -252,7 +276,9 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
     if (!x.Has("attributes") || !x.Get("attributes").IsObject())
         throw_error(ctx.at(at), "KHR_draco_mesh_compression needs its 'attributes' object");
     const tinygltf::Value::Object& ids = x.Get("attributes").Get<tinygltf::Value::Object>();
-    bool needed = !has_data(p.indices);
+    // Indices the primitive does not have need nothing; the stream's are read with its
+    // attributes.
+    bool needed = p.indices >= 0 && !has_data(p.indices);
     for (const auto& [name, id] : ids) {
         (void)id;
         const auto it = p.attributes.find(name);
@@ -268,9 +294,9 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         return;
     }
     const std::size_t view = whole(ctx, x, "bufferView", -1, 0, 1e9, at);
-    if (view >= ctx.model.bufferViews.size())
+    if (view >= ctx.file_views)
         throw_error(ctx.at(at + "/bufferView"), "buffer view {} does not exist (the file has {})",
-                    view, ctx.model.bufferViews.size());
+                    view, ctx.file_views);
     const tinygltf::BufferView& v = ctx.model.bufferViews[view];
     const std::string vp = fmt::format("bufferViews/{}", view);
     if (v.buffer < 0) throw_error(ctx.at(vp), "buffer view {} names no buffer", view);
@@ -297,8 +323,8 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
     if (static_cast<double>(points) * 64.0 + static_cast<double>(faces) * 12.0 > kMaxDecoded)
         throw_error(ctx.at(at), "mesh {} primitive {}: its Draco mesh is larger than 4 GiB", mesh,
                     prim);
-    if (!has_data(p.indices)) {
-        if (p.indices >= 0 && written_count(p.indices) != faces * 3)
+    {
+        if (p.indices >= 0 && !has_data(p.indices) && written_count(p.indices) != faces * 3)
             ctx.note("draco count", ctx.at(pp + "/indices"),
                      fmt::format("accessor {} gives count {}, its Draco stream {} indices: the "
                                  "stream's are read",
@@ -317,13 +343,25 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         a.componentType = TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT;
         a.type = TINYGLTF_TYPE_SCALAR;
         a.count = faces * 3;
-        p.indices = place_accessor(ctx, p.indices, std::move(a), taken);
+        p.indices = place_accessor(ctx, has_data(p.indices) ? -1 : p.indices, std::move(a), taken);
         // Draco decodes a list of triangles whatever mode the primitive was encoded from.
         p.mode = TINYGLTF_MODE_TRIANGLES;
     }
+    // Attributes the stream does not hold are in the file's vertex order, not the stream's.
+    for (auto it = p.attributes.begin(); it != p.attributes.end();) {
+        if (ids.count(it->first)) {
+            ++it;
+            continue;
+        }
+        ctx.note("draco attribute", ctx.at(pp + "/attributes/" + it->first),
+                 fmt::format("mesh {} primitive {}: attribute {} is not in its Draco stream, whose "
+                             "vertices are in an order of their own: dropped",
+                             mesh, prim, it->first));
+        it = p.attributes.erase(it);
+    }
     for (const auto& [name, id] : ids) {
         int& accessor = p.attributes[name];
-        if (has_data(accessor)) continue;
+        const bool own_data = has_data(accessor);
         const std::string ap = at + "/attributes/" + name;
         if (!id.IsNumber() || id.GetNumberAsDouble() < 0 || id.GetNumberAsDouble() > 4294967295.0 ||
             id.GetNumberAsDouble() != std::floor(id.GetNumberAsDouble()))
@@ -350,7 +388,7 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
                         "attribute {}: its accessor has {} components, the Draco attribute of id "
                         "{} has {}",
                         name, ncomp, id.GetNumberAsDouble(), att->num_components());
-        if (a.count != points)
+        if (a.count != points && !own_data)
             ctx.note("draco count", ctx.at(fmt::format("accessors/{}/count", accessor)),
                      fmt::format("accessor {} gives count {}, its Draco stream {} vertices: the "
                                  "stream's are read",
@@ -366,8 +404,13 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         a.bufferView = add_view(ctx, std::move(out));
         a.byteOffset = 0;
         a.count = points;
+        if (a.sparse.isSparse && !own_data)
+            ctx.note("draco sparse", ctx.at(fmt::format("accessors/{}/sparse", accessor)),
+                     fmt::format("accessor {} is sparse and decoded from a Draco stream: its "
+                                 "sparse values are dropped",
+                                 accessor));
         a.sparse.isSparse = false;
-        accessor = place_accessor(ctx, accessor, std::move(a), taken);
+        accessor = place_accessor(ctx, own_data ? -1 : accessor, std::move(a), taken);
     }
     p.extensions.erase("KHR_draco_mesh_compression");
 }
@@ -375,6 +418,8 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
 }  // namespace
 
 void decompress(Context& ctx) {
+    ctx.file_buffers = ctx.model.buffers.size();
+    ctx.file_views = ctx.model.bufferViews.size();
     for (std::size_t i = 0; i < ctx.model.bufferViews.size(); ++i) {
         const auto it = ctx.model.bufferViews[i].extensions.find("EXT_meshopt_compression");
         if (it != ctx.model.bufferViews[i].extensions.end()) {

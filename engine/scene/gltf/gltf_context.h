@@ -31,6 +31,11 @@ struct Context {
      *  buffers, and buffers without a uri that compressed views decode into): they hold no
      *  bytes; decompress() points every view into them at decoded bytes of its own. */
     std::set<int> placeholder_buffers;
+    /** The file's own counts of buffers and views, before decompress() added the decoded
+     *  ones (indices in the extensions are checked against these). */
+    std::size_t file_buffers = 0, file_views = 0;
+    /** EXT_mesh_gpu_instancing objects made so far (instances x primitives), bounded. */
+    std::size_t instance_objects = 0;
     SceneDescription* scene = nullptr;  ///< what the reader fills
     /** Per kind of warning: its note's index in scene->notes and the other places it applies
      *  to ("line:col", each once). */

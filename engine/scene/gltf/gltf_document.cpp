@@ -603,7 +603,10 @@ void load_document(Context& ctx) {
             glb.append(reinterpret_cast<const char*>(&chunk), 4);
             glb += "JSON";
             glb += changed;
-            glb.append(bytes, std::min(rest, bytes.size()));
+            // The chunks after the JSON as far as the header's length (bytes past it are not
+            // the file's: appended, they were read as a BIN chunk).
+            const std::size_t length = std::min<std::size_t>(u32(bytes, 8), bytes.size());
+            if (rest < length) glb.append(bytes, rest, length - rest);
             const auto total =
                 static_cast<uint32_t>(std::min<std::size_t>(glb.size(), 0xFFFFFFFFu));
             std::memcpy(glb.data() + 8, &total, 4);

@@ -94,6 +94,25 @@ Keys<MatrixKey> matrix_keys(const NodeMotion& m, const FileLoc& at, const std::s
     return keys;
 }
 
+/** Whether placement `a` squashes space onto a plane, a line or a point (or is not finite): its
+ *  determinant a vanishing share of the product of its columns' lengths. Relative, so that a
+ *  small model's scale is not taken for none (gltfpack puts a quantised 1 cm model's 6e-7 per
+ *  axis into each instance's scale: the determinant, 2e-19, was under an absolute 1e-18, and
+ *  every instance was hidden). */
+bool flattens(const Affine& a) {
+    const double det = a.determinant_in_double();
+    double columns = 1.0;
+    for (int j = 0; j < 3; ++j) {
+        double sq = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            const auto x = static_cast<double>(a.m[i][j]);
+            sq += x * x;
+        }
+        columns *= std::sqrt(sq);
+    }
+    return !std::isfinite(det) || !std::isfinite(columns) || !(std::fabs(det) > 1e-9 * columns);
+}
+
 /** A placement that flattens its mesh onto a plane (one scale 0: a decal, a squashed shape)
  *  made invertible by the least thickness along the flattened direction (1e-6 of its size), so
  *  that it is drawn flat as a viewer draws it. False where it flattens the mesh onto a line or a
@@ -121,8 +140,11 @@ bool thicken(Affine& a) {
                             {u.z * n.x, u.z * n.y, u.z * n.z}};
     for (int i = 0; i < 3; ++i)
         for (int j = 0; j < 3; ++j) a.m[i][j] += e * un[i][j];
-    return std::fabs(a.determinant()) > 1e-18f;
+    return !flattens(a);
 }
+
+/** The most objects EXT_mesh_gpu_instancing makes from one file (instances x primitives). */
+constexpr std::size_t kMaxInstanceObjects = std::size_t{1} << 22;
 
 /** EXT_mesh_gpu_instancing: the transforms of node n's instances (each T R S from its
  *  TRANSLATION, ROTATION and SCALE, in the node's space: the node's matrix applies after it);
@@ -161,6 +183,26 @@ std::vector<Affine> instance_matrices(Context& ctx, int n) {
         if (!(index >= 0 && index <= 1e9) || index != std::floor(index))
             throw_error(ctx.at(ap), "instance attribute {} must be an accessor index", name);
         const int comps = name == "ROTATION" ? 4 : 3;
+        // Each instance is an object per primitive: bounded before anything is read (a 1 KB
+        // file asked for 2^24 of them, about 38 GB).
+        const auto k = static_cast<std::size_t>(index);
+        if (k < ctx.model.accessors.size()) {
+            const std::size_t prims =
+                node.mesh >= 0 && static_cast<std::size_t>(node.mesh) < ctx.model.meshes.size()
+                    ? std::max<std::size_t>(
+                          1,
+                          ctx.model.meshes[static_cast<std::size_t>(node.mesh)].primitives.size())
+                    : 1;
+            const std::size_t wanted = ctx.model.accessors[k].count;
+            if (static_cast<double>(wanted) * static_cast<double>(prims) +
+                    static_cast<double>(ctx.instance_objects) >
+                static_cast<double>(kMaxInstanceObjects))
+                throw_error(ctx.at(ap),
+                            "node {} asks for {} instances of a mesh of {} primitives: more "
+                            "than the {} instanced objects Spangle makes from one file (each "
+                            "is an object of about 2 KB)",
+                            n, wanted, prims, kMaxInstanceObjects);
+        }
         *into = read_floats(ctx, static_cast<int>(index), comps, name.c_str(), ap);
         const std::size_t c = into->size() / static_cast<std::size_t>(comps);
         if (!first.empty() && c != count)
@@ -171,6 +213,10 @@ std::vector<Affine> instance_matrices(Context& ctx, int n) {
         count = c;
         first = name;
     }
+    if (node.mesh >= 0 && static_cast<std::size_t>(node.mesh) < ctx.model.meshes.size())
+        ctx.instance_objects +=
+            count * std::max<std::size_t>(
+                        1, ctx.model.meshes[static_cast<std::size_t>(node.mesh)].primitives.size());
     std::vector<Affine> out(count);
     for (std::size_t i = 0; i < count; ++i) {
         const Vec3 ti = t.empty() ? Vec3(0.0f) : Vec3(t[3 * i], t[3 * i + 1], t[3 * i + 2]);
@@ -194,7 +240,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
     const std::string np = fmt::format("nodes/{}", n);
     check_index(ctx, np + "/mesh", node.mesh, ctx.model.meshes.size(), "mesh");
     Affine rest = motion.rest;
-    if (motion.times.empty() && !(std::fabs(rest.determinant()) > 1e-18f) && !thicken(rest)) {
+    if (motion.times.empty() && flattens(rest) && !thicken(rest)) {
         ctx.note(fmt::format("hidden {}", n), ctx.at(np),
                  fmt::format("node {} is scaled to nothing (onto a line or a point): its mesh "
                              "is not drawn",
@@ -256,18 +302,19 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
             // The instance's own transform first (an animated node keeps it in every key),
             // then, at rest, the placement as a whole.
             Affine own = instances[i];
-            if (!(std::fabs(own.determinant()) > 1e-18f) && !thicken(own)) {
-                hidden(i);
-                continue;
-            }
             if (motion.times.empty()) {
+                // The placement as a whole (a tiny instance in a large node is not tiny).
                 Affine placed = rest.compose(own);
-                if (!(std::fabs(placed.determinant()) > 1e-18f) && !thicken(placed)) {
+                if (flattens(placed) && !thicken(placed)) {
                     hidden(i);
                     continue;
                 }
                 inst.placement.matrix = placed;
             } else {
+                if (flattens(own) && !thicken(own)) {
+                    hidden(i);
+                    continue;
+                }
                 NodeMotion m = motion;
                 m.rest = m.rest.compose(own);
                 for (Affine& k : m.matrices) k = k.compose(own);

@@ -72,7 +72,7 @@ private:
             // read is refused by that, before tinygltf trips over what it compresses.
             if (path_ == "extensionsRequired") {
                 std::string name;
-                string(&name);
+                string(&name, true);
                 required_.push_back(std::move(name));
                 return;
             }
@@ -110,7 +110,7 @@ private:
             skip_space();
             if (peek() != '"') fail("expected a member name in double quotes");
             std::string key;
-            string(&key);
+            string(&key, true);
             skip_space();
             expect(':', "':' after a member name");
             skip_space();
@@ -160,32 +160,79 @@ private:
         }
     }
 
-    /** A string; its text (escapes kept as written: member names never need them) into out. */
-    void string(std::string* out) {
+    /** A string into out: its text as written (escapes kept), or with `decode` as the JSON
+     *  parser reads it (member names and extension names: "buffer\\u0056iew" is the member
+     *  bufferView to tinygltf, and kept as written it hid an image's view from the checks). */
+    void string(std::string* out, bool decode = false) {
         advance();
+        uint32_t high = 0;  // a UTF-16 high surrogate waiting for its low half
         for (;;) {
             if (at_end()) fail("unterminated string");
             const char c = peek();
             if (c == '"') return advance();
             if (static_cast<unsigned char>(c) < 0x20) fail("control character in a string");
-            if (c == '\\') {
+            if (c != '\\') {
                 if (out) *out += c;
                 advance();
-                if (at_end()) fail("unterminated string");
-                const char e = peek();
-                if (e == 'u') {
-                    for (int k = 0; k < 4; ++k) {
-                        if (out) *out += peek();
-                        advance();
-                        if (at_end() || !std::isxdigit(static_cast<unsigned char>(peek())))
-                            fail("'\\u' must be followed by four hexadecimal digits");
-                    }
-                } else if (std::string_view("\"\\/bfnrt").find(e) == std::string_view::npos) {
-                    fail(fmt::format("unknown escape '\\{}' in a string", e));
-                }
+                continue;
             }
-            if (out) *out += peek();
+            if (out && !decode) *out += c;
             advance();
+            if (at_end()) fail("unterminated string");
+            const char e = peek();
+            if (e == 'u') {
+                uint32_t unit = 0;
+                for (int k = 0; k < 4; ++k) {
+                    if (out && !decode) *out += peek();
+                    advance();
+                    if (at_end() || !std::isxdigit(static_cast<unsigned char>(peek())))
+                        fail("'\\u' must be followed by four hexadecimal digits");
+                    const char h = peek();
+                    unit = unit * 16 +
+                           static_cast<uint32_t>(std::isdigit(static_cast<unsigned char>(h))
+                                                     ? h - '0'
+                                                     : std::tolower(h) - 'a' + 10);
+                }
+                if (out && !decode) *out += peek();
+                advance();
+                if (out && decode) {
+                    if (unit >= 0xd800 && unit < 0xdc00) {
+                        high = unit;
+                        continue;
+                    }
+                    uint32_t cp = unit;
+                    if (unit >= 0xdc00 && unit < 0xe000 && high != 0)
+                        cp = 0x10000 + ((high - 0xd800) << 10) + (unit - 0xdc00);
+                    high = 0;
+                    append_utf8(*out, cp);
+                }
+                continue;
+            }
+            const std::string_view escapes("\"\\/bfnrt"), meant("\"\\/\b\f\n\r\t");
+            const std::size_t k = escapes.find(e);
+            if (k == std::string_view::npos)
+                fail(fmt::format("unknown escape '\\{}' in a string", e));
+            if (out) *out += decode ? meant[k] : e;
+            advance();
+        }
+    }
+
+    /** Code point cp as UTF-8. */
+    static void append_utf8(std::string& out, uint32_t cp) {
+        if (cp < 0x80) {
+            out += static_cast<char>(cp);
+        } else if (cp < 0x800) {
+            out += static_cast<char>(0xc0 | (cp >> 6));
+            out += static_cast<char>(0x80 | (cp & 0x3f));
+        } else if (cp < 0x10000) {
+            out += static_cast<char>(0xe0 | (cp >> 12));
+            out += static_cast<char>(0x80 | ((cp >> 6) & 0x3f));
+            out += static_cast<char>(0x80 | (cp & 0x3f));
+        } else {
+            out += static_cast<char>(0xf0 | (cp >> 18));
+            out += static_cast<char>(0x80 | ((cp >> 12) & 0x3f));
+            out += static_cast<char>(0x80 | ((cp >> 6) & 0x3f));
+            out += static_cast<char>(0x80 | (cp & 0x3f));
         }
     }
 
