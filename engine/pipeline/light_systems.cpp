@@ -16,7 +16,10 @@ namespace {
  *  over nothing (the finest level, bilinear), times the table's `scale`; non-negative. */
 class TexturedEmission final : public EmissionImages {
 public:
-    explicit TexturedEmission(const TextureService& textures) : textures_(textures) {}
+    TexturedEmission(const TextureService& textures, const ColorConfig& color)
+        : textures_(textures) {
+        rec709_.init(color);
+    }
 
     /** The index of the image `ref` looks up, opened (through `open`) on its first use: many
      *  objects emitting one image share it. */
@@ -83,13 +86,26 @@ private:
         } catch (...) {  // a lookup that failed emits nothing (this runs inside the render)
             std::fill(out, out + 3 * n, 0.0f);
         }
+        // A coloured factor (glTF's emissiveFactor, linear Rec.709) multiplies in Rec.709.
+        const bool rec709 =
+            !Rec709Factor::grey(e.ref.scale) && e.ref.space != "raw" && e.ref.space != "data";
+        if (rec709) {
+            const Vec3 f(e.ref.scale[0], e.ref.scale[1], e.ref.scale[2]);
+            for (std::size_t t = 0; t < n; ++t) {
+                const Vec3 v = rec709_.apply(Vec3(out[3 * t], out[3 * t + 1], out[3 * t + 2]), f);
+                out[3 * t] = v.x;
+                out[3 * t + 1] = v.y;
+                out[3 * t + 2] = v.z;
+            }
+        }
         for (std::size_t i = 0; i < 3 * n; ++i) {
-            const float x = out[i] * e.ref.scale[i % 3];
+            const float x = rec709 ? out[i] : out[i] * e.ref.scale[i % 3];
             out[i] = x > 0.0f && std::isfinite(x) ? x : 0.0f;
         }
     }
 
     const TextureService& textures_;
+    Rec709Factor rec709_;
     std::vector<Entry> entries_;
 };
 
@@ -164,7 +180,9 @@ void system_area_lights(ecs::Registry& r, World& w) {
                 // texture, and its mean over each triangle for light selection.
                 const EmissionImage& ei = r.get<EmissionImage>(e);
                 w.read_file("texture", ei.texture.path);
-                if (!images) images = std::make_shared<TexturedEmission>(w.host->textures());
+                if (!images)
+                    images =
+                        std::make_shared<TexturedEmission>(w.host->textures(), w.host->color());
                 const uint32_t index = images->add(
                     ei.texture, [&] { return w.host->textures().open(ei.texture, true, ei.loc); });
                 image = static_cast<int32_t>(index);

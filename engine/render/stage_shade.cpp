@@ -217,8 +217,23 @@ const float* const* lookup_textures(const RenderScene& w, Workspace& ws,
         } else {
             std::fill(out.begin(), out.end(), 1.0f);
         }
+        // A colour image times vertex colours and a coloured `scale` (all linear Rec.709 but
+        // the image): multiplied in Rec.709.
+        if (t.rec709_product) {
+            const Vec3 scale(t.ref.scale[0], t.ref.scale[1], t.ref.scale[2]);
+            for (uint32_t k = 0; k < n; ++k) {
+                const Vec3 f = t.ref.vertex_color ? ws.paths.surf[paths[k]].color * scale : scale;
+                const Vec3 v = t.rec709.apply(Vec3(out[3 * k], out[3 * k + 1], out[3 * k + 2]), f);
+                const float x[3] = {v.x, v.y, v.z};
+                for (int i = 0; i < 3; ++i)
+                    out[3 * k + static_cast<uint32_t>(i)] =
+                        std::isnan(x[i]) ? t.lo : std::clamp(x[i], t.lo, t.hi);
+            }
+            ws.param_values[t.param] = out.data();
+            continue;
+        }
         // Vertex colours times `scale` (both linear Rec.709) into the working space, then
-        // times the image.
+        // times the image (a data parameter: its channels are numbers).
         const bool vc_scaled = t.ref.vertex_color && c == 3;
         if (vc_scaled)
             for (uint32_t k = 0; k < n; ++k) {

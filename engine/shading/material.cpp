@@ -349,6 +349,22 @@ void vertex_color_matrix(const ColorConfig& color, float out[9]) {
 
 }  // namespace
 
+void Rec709Factor::init(const ColorConfig& color) {
+    vertex_color_matrix(color, to_working);
+    // The inverse by cofactors (in double: a 3 x 3 of primaries is well conditioned).
+    const auto e = [&](int i, int j) { return static_cast<double>(to_working[3 * i + j]); };
+    const double c00 = e(1, 1) * e(2, 2) - e(1, 2) * e(2, 1),
+                 c01 = e(1, 2) * e(2, 0) - e(1, 0) * e(2, 2),
+                 c02 = e(1, 0) * e(2, 1) - e(1, 1) * e(2, 0);
+    const double det = e(0, 0) * c00 + e(0, 1) * c01 + e(0, 2) * c02;
+    if (!(std::fabs(det) > 1e-12)) return;  // leaves the identity (no conversion known)
+    const double inv[9] = {
+        c00, e(0, 2) * e(2, 1) - e(0, 1) * e(2, 2), e(0, 1) * e(1, 2) - e(0, 2) * e(1, 1),
+        c01, e(0, 0) * e(2, 2) - e(0, 2) * e(2, 0), e(0, 2) * e(1, 0) - e(0, 0) * e(1, 2),
+        c02, e(0, 1) * e(2, 0) - e(0, 0) * e(2, 1), e(0, 0) * e(1, 1) - e(0, 1) * e(1, 0)};
+    for (int k = 0; k < 9; ++k) from_working[k] = static_cast<float>(inv[k] / det);
+}
+
 std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Material& m,
                                                   const HostServices& host) {
     auto plugin = loader.open(m.plugin, m.plugin_loc);
@@ -401,6 +417,20 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
             factor[0] = f.x;
             factor[1] = f.y;
             factor[2] = f.z;
+        }
+        // A colour image (or vertex colours) times a coloured factor: multiplied in linear
+        // Rec.709, where the factor is given (not data: its channels are numbers).
+        const bool data = b.ref.space == "raw" || b.ref.space == "data";
+        b.rec709_product =
+            b.channels == 3 && !data && (b.ref.vertex_color || !Rec709Factor::grey(b.ref.scale));
+        if (b.rec709_product) {
+            b.rec709.init(host.color());
+            const Vec3 v = b.rec709.apply(Vec3(mean[0], mean[1], mean[2]),
+                                          Vec3(b.ref.scale[0], b.ref.scale[1], b.ref.scale[2]));
+            mean[0] = v.x;
+            mean[1] = v.y;
+            mean[2] = v.z;
+            factor[0] = factor[1] = factor[2] = 1.0f;
         }
         for (int c = 0; c < b.channels; ++c)
             params.values[k].number[c] =

@@ -57,6 +57,31 @@ private:
     SpangleHost_v3 api_{};
 };
 
+/** The product of a colour-managed texture's value (working space) with a factor given in
+ *  linear Rec.709, as glTF's factors, Blender's and vertex colours are: taken in Rec.709 (the
+ *  working value carried there, multiplied, carried back), not channel by channel in the
+ *  working space, whose primaries are not Rec.709's (an orange factor over a white image came
+ *  out red in ACEScg). A grey factor is the same either way and keeps the plain product. */
+struct Rec709Factor {
+    float to_working[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};    ///< linear Rec.709 -> working
+    float from_working[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};  ///< its inverse
+    /** Sets the matrices from the colour config. */
+    void init(const ColorConfig& color);
+    /** `working` times `factor` (Rec.709), in the working space. */
+    Vec3 apply(Vec3 working, Vec3 factor) const {
+        const float* b = from_working;
+        const Vec3 r(b[0] * working.x + b[1] * working.y + b[2] * working.z,
+                     b[3] * working.x + b[4] * working.y + b[5] * working.z,
+                     b[6] * working.x + b[7] * working.y + b[8] * working.z);
+        const Vec3 c(r.x * factor.x, r.y * factor.y, r.z * factor.z);
+        const float* m = to_working;
+        return {m[0] * c.x + m[1] * c.y + m[2] * c.z, m[3] * c.x + m[4] * c.y + m[5] * c.z,
+                m[6] * c.x + m[7] * c.y + m[8] * c.z};
+    }
+    /** Whether a factor is grey (the plain product is the same). */
+    static bool grey(const float f[3]) { return f[0] == f[1] && f[1] == f[2]; }
+};
+
 /** A texture bound to a plugin parameter, or to one of the host's normal and bump maps. */
 struct TextureBinding {
     uint32_t param = 0;    ///< schema index of the parameter (parameters only)
@@ -66,6 +91,10 @@ struct TextureBinding {
     std::shared_ptr<const Texture> texture;  ///< null for vertex colours alone (ref.vertex_color)
     /** ref.vertex_color: the meshes' colours (linear Rec.709) to the working space, row-major. */
     float vertex_to_working[9] = {1, 0, 0, 0, 1, 0, 0, 0, 1};
+    /** A colour image times a factor that is not grey, or times vertex colours: the product is
+     *  taken in linear Rec.709 (`rec709`); else channel by channel. */
+    bool rec709_product = false;
+    Rec709Factor rec709;
     /** ref.vertex_color: a vertex colour times ref.scale (both linear Rec.709), in the working
      *  space: what multiplies the image's value (1 without an image). */
     Vec3 vertex_factor(Vec3 color) const {

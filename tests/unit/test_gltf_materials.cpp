@@ -495,6 +495,54 @@ TEST(GltfMaterials, AnUnlitMaterialShowsItsBaseColourWhateverTheLight) {
     EXPECT_NEAR(img[mid + 2], want[2], 2e-3f);
 }
 
+TEST(GltfMaterials, AFactorTimesATextureKeepsTheFactorsHue) {
+    // glTF multiplies a factor and a texture in linear Rec.709; channel by channel in the
+    // working space (ACEScg) an orange factor over a grey texture rendered red. Over the grey
+    // ramp, the pixel's colour in Rec.709 is the factor's times a grey: red / green = 10, no
+    // blue. For a material parameter (an unlit-looking diffuse base) and for emission (unlit).
+    test::TempDir dir("gltf_factor_hue");
+    CacheEnv cache(dir.file("cache"));
+    std::ofstream(dir.file("ramp.png"), std::ios::binary)
+        << bytes_of(test::test_dir() + "/scenes/textures/roughness_ramp.png");
+    for (const bool unlit : {false, true}) {
+        GltfWriter w;
+        const std::string mesh = quad_mesh(w, 0);
+        const std::string material =
+            unlit ? R"("extensions":{"KHR_materials_unlit":{}})"
+                  : R"("extensions":{"KHR_materials_specular":{"specularFactor":0}})";
+        w.write_gltf(
+            dir.file("hue.gltf"),
+            fmt::format(R"("materials":[{{"pbrMetallicRoughness":{{)"
+                        R"("baseColorFactor":[0.8,0.08,0,1],"metallicFactor":0,)"
+                        R"("roughnessFactor":1,"baseColorTexture":{{"index":0}}}},{}}}],)"
+                        R"("images":[{{"uri":"ramp.png"}}],"textures":[{{"source":0}}],)"
+                        R"("meshes":[{}],"nodes":[{{"mesh":0,"translation":[-0.5,-0.5,0]}}],)"
+                        R"("scenes":[{{"nodes":[0]}}],"scene":0)",
+                        material, mesh));
+        SceneDescription d = read_gltf_scene(dir.file("hue.gltf"), {});
+        d.camera.position = {0, 0, 3};
+        d.camera.look_at = {0, 0, 0};
+        d.camera.fov_deg = 5;
+        d.render.width = 8;
+        d.render.height = 8;
+        d.render.spp = 16;
+        RenderOptions options;
+        options.threads = 2;
+        options.texture_cache = dir.file("textures");
+        Session session({}, test::shipped_ocio(), options, test::quiet_log());
+        session.load(d);
+        session.render();
+        const std::vector<float>& img = session.result().image;
+        const std::size_t mid = (4 * 8 + 4) * 3;
+        float px[3] = {img[mid], img[mid + 1], img[mid + 2]};
+        session.color().convert(session.color().working_space(), "lin_rec709", px, 1);
+        ASSERT_GT(px[0], 0.01f) << (unlit ? "unlit" : "lit");
+        EXPECT_NEAR(px[0] / px[1], 10.0f, 0.3f)
+            << (unlit ? "unlit" : "lit") << ": " << px[0] << " " << px[1] << " " << px[2];
+        EXPECT_LT(std::fabs(px[2]), 0.01f * px[0]) << (unlit ? "unlit" : "lit");
+    }
+}
+
 TEST(GltfMaterials, EveryMaterialIsAcceptedByItsPluginAndRenders) {
     test::TempDir dir("gltf_materials_render");
     CacheEnv cache(dir.file("cache"));
