@@ -3,7 +3,11 @@
 
 #include <algorithm>
 
+#include <map>
+#include <set>
+
 #include "core/files.h"
+#include "geometry/rest_pose.h"
 #include "pipeline/systems.h"
 
 namespace spangle {
@@ -97,6 +101,54 @@ void warn_about_missing_uvs(const ecs::Registry& r, const World& w, const Materi
     }
 }
 
+/** Warns, once per material, about meshes whose rest pose (a deforming mesh's, or a glTF skin's
+ *  or morph's written shape) leaves triangles without area where the material lays its pattern
+ *  out in object space: they get none of it (flakes: a patch without glitter). Said by the
+ *  material that loses it: the mesh system said it of every posed mesh, whatever its material,
+ *  once per glTF primitive and naming the file. */
+void warn_about_flat_rest_poses(const ecs::Registry& r, const World& w, const MaterialSet& set) {
+    if (!w.log) return;
+    const auto& refs = *r.find_pool<MaterialRef>();
+    std::set<std::pair<const MaterialInstance*, const TriangleMesh*>> seen;
+    struct Found {
+        std::size_t meshes = 0;
+        std::string first;
+    };
+    std::map<const MaterialInstance*, Found> found;
+    std::vector<const MaterialInstance*> order;
+    for (std::size_t i = 0; i < refs.size(); ++i) {
+        const ecs::Entity e = refs.entities()[i];
+        const MaterialInstance* mat = set.instances[refs.columns().material[i]].get();
+        if (!mat || !mat->model().requirements || !r.has<TriangleMeshRef>(e)) continue;
+        const uint32_t req = mat->model().requirements(mat->instance());
+        if (!(req & (SPANGLE_REQUIRES_OBJECT_SPACE | SPANGLE_REQUIRES_OBJECT_SPACE_WITHOUT_UV)))
+            continue;
+        const TriangleMesh& mesh = mesh_of(w, r.get<TriangleMeshRef>(e));
+        if (mesh.rest_positions.empty() || !seen.insert({mat, &mesh}).second) continue;
+        if (!(req & SPANGLE_REQUIRES_OBJECT_SPACE) && mesh.uv_mapped_fraction() >= 0.5) continue;
+        const std::size_t flat = flat_in_rest_pose(mesh);
+        if (!flat) continue;
+        Found& f = found[mat];
+        if (f.meshes++ == 0) {
+            order.push_back(mat);
+            const ObjectInfo info = r.has<ObjectInfo>(e) ? r.get<ObjectInfo>(e) : ObjectInfo{};
+            f.first = fmt::format(
+                "{}: object {}(mesh {}): {} of the {} triangles have no area in the rest pose",
+                info.loc.str(), info.name.empty() ? std::string() : fmt::format("'{}' ", info.name),
+                mesh.source, flat, mesh.triangle_count());
+        }
+    }
+    for (const MaterialInstance* mat : order) {
+        const Found& f = found[mat];
+        w.log->warn(
+            "{}; material '{}' lays its pattern out there, in object space, and those triangles "
+            "get none of it (no flakes: a patch without glitter){}",
+            f.first, mat->name(),
+            f.meshes > 1 ? fmt::format(" ({} more meshes of this material alike)", f.meshes - 1)
+                         : std::string());
+    }
+}
+
 void system_materials(ecs::Registry& r, World& w) {
     const auto& names = w.info->material_names;
     std::vector<bool> used(names.size(), false);
@@ -139,6 +191,7 @@ void system_materials(ecs::Registry& r, World& w) {
         if (!made.alpha().ref.path.empty()) w.read_file("texture", made.alpha().ref.path);
     }
     warn_about_missing_uvs(r, w, set);
+    warn_about_flat_rest_poses(r, w, set);
     warn_about_missing_colors(r, w, set);
     w.products.put(std::move(set));
 }

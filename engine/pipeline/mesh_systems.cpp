@@ -34,18 +34,6 @@ std::shared_ptr<const TriangleMesh> cached_mesh(World& w, const std::string& pat
         "mesh " + path);
 }
 
-/** Says (once per build of the posed mesh) where a rest pose leaves triangles without area:
- *  their flakes were lost without a word (a dark band in glitter). */
-void warn_flat_in_rest_pose(World& w, const TriangleMesh& posed, const FileLoc& loc,
-                            const std::string& rest) {
-    const std::size_t flat = flat_in_rest_pose(posed);
-    if (flat && w.log)
-        w.log->warn(
-            "{}: {} of the {} triangles of '{}' have no area in the rest pose '{}': "
-            "object-space patterns have no room there (no flakes: a patch without glitter)",
-            loc.str(), flat, posed.triangle_count(), posed.source, rest);
-}
-
 /** `mesh` (of f.path) with the rest pose in f.rest (geometry/rest_pose.h), cached by both
  *  files' identities so that a reload that changes neither keeps the very same mesh (and its
  *  BVH). */
@@ -55,12 +43,7 @@ std::shared_ptr<const TriangleMesh> posed_mesh(World& w, std::shared_ptr<const T
     return build_cached(
         w.cache, &BuildCache::meshes, "meshes",
         [&] { return "posed|" + file_identity(f.path) + "|" + file_identity(f.rest); },
-        [&] {
-            auto posed = with_rest_pose(mesh, *rest, f.loc);
-            warn_flat_in_rest_pose(w, *posed, f.loc, f.rest);
-            return posed;
-        },
-        "");
+        [&] { return with_rest_pose(mesh, *rest, f.loc); }, "");
 }
 
 /** The meshes of the mesh files, one per distinct file (and rest pose), referenced from their
@@ -119,9 +102,6 @@ std::shared_ptr<const TriangleMesh> reuse_inline(World& w, const InlineMesh& m) 
         return it->second;
     }
     w.cache->meshes[key] = m.mesh;
-    // A mesh posed by its reader (a glTF skin or morph targets) over its rest pose.
-    if (!m.mesh->rest_positions.empty())
-        warn_flat_in_rest_pose(w, *m.mesh, m.loc, "its written shape");
     return m.mesh;
 }
 
@@ -234,12 +214,7 @@ std::shared_ptr<const TriangleMesh> posed_refinement(World& w, const SubdivSurfa
     return build_cached(
         w.cache, &BuildCache::meshes, "subdivided meshes",
         [&] { return "posed|" + key + "|" + rest_file; },
-        [&] {
-            auto posed = with_rest_pose(mesh, *rest, s.loc);
-            warn_flat_in_rest_pose(w, *posed, s.loc, s.rest);
-            return posed;
-        },
-        "");
+        [&] { return with_rest_pose(mesh, *rest, s.loc); }, "");
 }
 
 void system_subdivide(ecs::Registry& r, World& w) {

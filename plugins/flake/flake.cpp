@@ -239,8 +239,15 @@ uint32_t flake_stats(const void* inst, SpangleStat_v3* out, uint32_t capacity) {
 
 uint32_t flake_requirements(const void* inst) {
     const Material& m = *static_cast<const Material*>(inst);
-    return m.space == Material::Space::Uv || m.space == Material::Space::World ? SPANGLE_REQUIRES_UV
-                                                                               : 0u;
+    switch (m.space) {
+        case Material::Space::Uv:
+        case Material::Space::World:
+            return SPANGLE_REQUIRES_UV;
+        case Material::Space::Object:
+            return SPANGLE_REQUIRES_OBJECT_SPACE;
+        default:  // auto: object space where a triangle has no usable uvs
+            return SPANGLE_REQUIRES_OBJECT_SPACE_WITHOUT_UV;
+    }
 }
 
 const SpangleMaterialModel_v3 kModels[] = {

@@ -363,6 +363,23 @@ TEST(RestPose, TrianglesFlatInTheRestPoseAreSaid) {
     const std::string said = testing::internal::GetCapturedStderr();
     EXPECT_NE(said.find("4 of the 8 triangles"), std::string::npos) << said;
     EXPECT_NE(said.find("no area in the rest pose"), std::string::npos) << said;
+    EXPECT_NE(said.find("material 'glitter' lays its pattern out there"), std::string::npos)
+        << said;
+    // A material that lays nothing out in object space loses nothing there: not said (it was,
+    // for every posed mesh: a Draco-quantised glTF skin printed it for a file without flakes).
+    std::string text = plane_scene("mesh = \"plane.ply\"\nrest_mesh = \"rest.ply\"");
+    const std::string flake = R"(plugin = "flake")";
+    const std::size_t at = text.find(flake);
+    ASSERT_NE(at, std::string::npos);
+    text.replace(at, flake.size(), "plugin = \"smooth\"\nmodel = \"diffuse\"");
+    const std::size_t params = text.find("params = {", at);
+    text.replace(params, text.find('\n', params) - params, "params = { albedo = 0.5 }");
+    std::ofstream(dir.file("plain.toml")) << text;
+    Session plain({}, test::shipped_ocio(), options, log);
+    testing::internal::CaptureStderr();
+    plain.load(dir.file("plain.toml"));
+    const std::string quiet = testing::internal::GetCapturedStderr();
+    EXPECT_EQ(quiet.find("rest pose"), std::string::npos) << quiet;
 }
 
 /** The glints layer's luminance of pixel (x, y). */

@@ -305,6 +305,11 @@ typedef struct SpangleMaterialModel_v3 {
 
 /** Bits of SpangleMaterialModel_v3.requirements(). */
 #define SPANGLE_REQUIRES_UV 1u /* a layout in uv: a mesh without usable uvs loses it */
+/* A layout in object space (the rest pose of a deforming or posed mesh, where it has one):
+ * triangles without area there lose it. _WITHOUT_UV: only on meshes without usable uvs (the
+ * pattern is laid out in uv where there are some). */
+#define SPANGLE_REQUIRES_OBJECT_SPACE 2u
+#define SPANGLE_REQUIRES_OBJECT_SPACE_WITHOUT_UV 4u
 
 /** The table a plugin returns. */
 typedef struct SpangleMaterialPlugin_v3 {
