@@ -1129,7 +1129,8 @@ TEST(GltfContainers, ATomlSceneImportsAGltfAndOverridesItsMaterialByName) {
         dir.file("quad.gltf"),
         R"("nodes":[{"mesh":0,"translation":[0,0,-2]}],"meshes":[)" + mesh +
             R"(],"materials":[{"name":"Paint","pbrMetallicRoughness":{"metallicFactor":1},)"
-            R"("emissiveFactor":[1,0,0]}])");
+            R"("emissiveFactor":[1,0,0],"extensions":{"KHR_materials_emissive_strength":)"
+            R"({"emissiveStrength":4}}}])");
     std::ofstream(dir.file("scene.toml")) << R"([camera]
 position = [0, 0, 5]
 look_at = [0, 0, 0]

@@ -599,9 +599,16 @@ TEST(GltfReader, EmissionTooFaintToLightTheFileGetsTheStudioLight) {
     EXPECT_EQ(led.lights.size(), 1u);
     EXPECT_TRUE(has_note(led, "emission too faint to light it"));
     // (Power 5 pi 4e-4 over 1.0004 square units: irradiance 0.006.)
-    const SceneDescription panel = write("panel.gltf", 1.0, 1.0);
+    const SceneDescription panel = write("panel.gltf", 1.0, 4.0);
     EXPECT_TRUE(panel.lights.empty());
-    EXPECT_FALSE(has_note(panel, "studio light"));
+    EXPECT_FALSE(has_note(panel, "default studio light"));
+    EXPECT_TRUE(has_note(panel, "the file's only light is its emission (radiance up to 4)"));
+    // The same panel at radiance 1 (emissive factor 1 without a strength: a label, a screen,
+    // as the Khronos test models' labels are) is glow: the studio light is added beside it
+    // (those models rendered nearly black, their labels taken for their light).
+    const SceneDescription label = write("label.gltf", 1.0, 1.0);
+    EXPECT_EQ(label.lights.size(), 1u);
+    EXPECT_TRUE(has_note(label, "emission of radiance at most 1"));
 }
 
 TEST(GltfReader, PunctualLightsTakeTheirNodesPlaceAndPhotometricUnits) {

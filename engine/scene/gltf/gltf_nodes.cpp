@@ -632,13 +632,21 @@ StudioLight studio_light(const Context& ctx) {
     return studio;
 }
 
+/** What the file's emission is, when it has no light of its own. */
+enum class Emission { None, Faint, Glow };
+
 /** With no light in the file: the studio light stands in. */
-void default_light(Context& ctx, bool faint_emission) {
+void default_light(Context& ctx, Emission emission) {
     ctx.note("default light", FileLoc{ctx.path, 1, 1},
-             faint_emission
+             emission == Emission::Faint
                  ? "the file's only light is emission too faint to light it (its power spread "
                    "over its surfaces is below 4% of the studio light's): the default studio "
                    "light is added (a grey sky and a key light)"
+             : emission == Emission::Glow
+                 ? "the file's only light is emission of radiance at most 1 (labels, screens, "
+                   "LEDs, unlit surfaces: glow, as a viewer shows it): the default studio light "
+                   "is added beside it (a grey sky and a key light; emission brighter than 1, "
+                   "by KHR_materials_emissive_strength, lights the file alone)"
                  : "the file has no light: the default studio light stands in (a grey sky and a "
                    "key light)");
     StudioLight studio = studio_light(ctx);
@@ -691,15 +699,37 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
                                    "background"));
     choose_camera(ctx, cameras, options, motions);
     bool emits = false;
-    for (const ObjectDesc& o : ctx.scene->objects) emits = emits || o.emission.has_value();
+    double brightest = 0.0;  // the largest emitted radiance (factor x strength)
+    for (const ObjectDesc& o : ctx.scene->objects)
+        if (o.emission) {
+            emits = true;
+            const TextureDesc* t = o.emission->texture ? &*o.emission->texture : nullptr;
+            const Vec3 c = o.emission->color.rgb;
+            const float peak =
+                t ? std::max({t->scale[0] * c.x, t->scale[1] * c.y, t->scale[2] * c.z})
+                  : std::max({c.x, c.y, c.z});
+            brightest = std::max(brightest, o.emission->intensity * static_cast<double>(peak));
+        }
     // --env lights the scene itself: no stand-in then. Nor where its emission lights it; faint
-    // emission alone (which rendered black) gets the studio light beside it.
-    const bool faint = emits && emission_irradiance(*ctx.scene) < kFaintEmission;
-    if (ctx.scene->lights.empty() && (!emits || faint) && options.environment.empty())
-        default_light(ctx, faint);
-    else if (ctx.scene->lights.empty() && emits && !ctx.scene->environment &&
-             options.environment.empty())
+    // emission alone (which rendered black) gets the studio light beside it, and so does glow
+    // of radiance at most 1 (emissive labels and screens of factor 1: test models whose labels
+    // were taken for their light rendered nearly black).
+    const Emission kind = !emits                                             ? Emission::None
+                          : emission_irradiance(*ctx.scene) < kFaintEmission ? Emission::Faint
+                          : brightest <= 1.0                                 ? Emission::Glow
+                                                                             : Emission::None;
+    const bool lit_by_emission = emits && kind == Emission::None;
+    if (ctx.scene->lights.empty() && !lit_by_emission && options.environment.empty()) {
+        default_light(ctx, kind);
+    } else if (ctx.scene->lights.empty() && lit_by_emission && !ctx.scene->environment &&
+               options.environment.empty()) {
         ctx.scene->studio_light = studio_light(ctx);  // for an import that drops the emission
+        ctx.note("emission lights", FileLoc{ctx.path, 1, 1},
+                 fmt::format("the file's only light is its emission (radiance up to {:.3g}): no "
+                             "studio light is added; what it does not reach stays dark (--env "
+                             "MAP lights the scene otherwise)",
+                             brightest));
+    }
     RenderDesc& r = ctx.scene->render;
     r.loc = r.working_space_loc = r.color_space_loc = FileLoc{ctx.path, 1, 1};
     if (end > 0.0)
