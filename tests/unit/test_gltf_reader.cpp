@@ -611,6 +611,28 @@ TEST(GltfReader, EmissionTooFaintToLightTheFileGetsTheStudioLight) {
     EXPECT_TRUE(has_note(label, "emission of radiance at most 1"));
 }
 
+TEST(GltfReader, LightsThatLeaveTheFileNearlyBlackAreSaid) {
+    // A sun of 3 lux is 0.0044 W/m^2 at 683 lm/W: a file made for a viewer that reads it without
+    // units rendered black without a word. 1000 lux (1.5 W/m^2) is said nothing of.
+    test::TempDir dir("gltf_dim");
+    const auto write = [&](const std::string& file, double lux) {
+        GltfWriter w;
+        const QuadAccessors q = quad(w);
+        w.write_gltf(dir.file(file),
+                     fmt::format(R"("extensionsUsed":["KHR_lights_punctual"],"extensions":)"
+                                 R"({{"KHR_lights_punctual":{{"lights":[{{"type":"directional",)"
+                                 R"("intensity":{}}}]}}}},"nodes":[{{"mesh":0}},)"
+                                 R"({{"extensions":{{"KHR_lights_punctual":{{"light":0}}}}}}],)"
+                                 R"("meshes":[{{"primitives":[{}]}}])",
+                                 lux, quad_primitive(q, -1)));
+        return read_gltf_scene(dir.file(file), {});
+    };
+    const SceneDescription dim = write("dim.gltf", 3.0);
+    EXPECT_TRUE(has_note(dim, "the file's lights give about 0.0044 W/m^2")) << dim.notes.size();
+    EXPECT_TRUE(has_note(dim, "569 times less than the studio key light's"));
+    EXPECT_FALSE(has_note(write("bright.gltf", 1000.0), "the file's lights give"));
+}
+
 TEST(GltfReader, PunctualLightsTakeTheirNodesPlaceAndPhotometricUnits) {
     test::TempDir dir("gltf_lights");
     GltfWriter w;

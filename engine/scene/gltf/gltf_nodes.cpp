@@ -632,6 +632,45 @@ StudioLight studio_light(const Context& ctx) {
     return studio;
 }
 
+/** Says when the file's punctual lights leave it nearly black: their irradiance at the middle
+ *  of its bounds (each light as if it faced it) below 1% of the studio key light's. glTF gives
+ *  candela and lux, read at 683 lm/W as Blender's importer reads them; files made for viewers
+ *  that take them without units (a sofa lit by a 3 lux sun) rendered black without a word. */
+void dim_lights_note(Context& ctx) {
+    if (ctx.scene->lights.empty() || ctx.scene->objects.empty()) return;
+    Vec3 lo, hi;
+    if (!scene_bounds(ctx, lo, hi)) return;
+    const Vec3 middle = (lo + hi) * 0.5f;
+    double irradiance = 0.0;
+    for (const LightDesc& l : ctx.scene->lights) {
+        const double peak =
+            l.color
+                ? static_cast<double>(std::max({l.color->rgb.x, l.color->rgb.y, l.color->rgb.z}))
+                : 1.0;
+        const auto at = [&](Vec3 p) {
+            const Vec3 d = middle - p;
+            return l.intensity * peak / std::max(1e-12, static_cast<double>(dot(d, d)));
+        };
+        if (std::holds_alternative<DistantLightDesc>(l.shape))
+            irradiance += l.intensity * peak;
+        else if (const auto* pt = std::get_if<PointLightDesc>(&l.shape))
+            irradiance += at(pt->position);
+        else if (const auto* sp = std::get_if<SpotLightDesc>(&l.shape))
+            irradiance += at(sp->position);
+        else
+            return;  // a light of another kind: not judged here
+    }
+    constexpr double kKey = 2.5;  // the studio key light's irradiance
+    if (!(irradiance < 0.01 * kKey)) return;
+    ctx.note("dim lights", FileLoc{ctx.path, 1, 1},
+             fmt::format("the file's lights give about {:.2g} W/m^2 at the middle of its bounds, "
+                         "{:.0f} times less than the studio key light's {}: the image will be "
+                         "nearly black (glTF's candela and lux are read at 683 lm/W, as "
+                         "Blender's importer reads them; viewers that take them without units "
+                         "show the file brighter)",
+                         irradiance, kKey / std::max(irradiance, 1e-30), kKey));
+}
+
 /** What the file's emission is, when it has no light of its own. */
 enum class Emission { None, Faint, Glow };
 
@@ -710,6 +749,7 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
                   : std::max({c.x, c.y, c.z});
             brightest = std::max(brightest, o.emission->intensity * static_cast<double>(peak));
         }
+    dim_lights_note(ctx);
     // --env lights the scene itself: no stand-in then. Nor where its emission lights it; faint
     // emission alone (which rendered black) gets the studio light beside it, and so does glow
     // of radiance at most 1 (emissive labels and screens of factor 1: test models whose labels
