@@ -149,7 +149,9 @@ __attribute__((visibility("default"))) int spangle_oiio_texture_lookup(
     const OIIO::TextureOpt::Wrap modes[] = {
         OIIO::TextureOpt::WrapPeriodic, OIIO::TextureOpt::WrapClamp, OIIO::TextureOpt::WrapBlack,
         OIIO::TextureOpt::WrapMirror};
-    opt.swrap = opt.twrap = modes[wrap >= 0 && wrap < 4 ? wrap : 0];
+    // wrap: s's mode + 4 x t's (TextureRef::wraps).
+    opt.swrap = modes[wrap & 3];
+    opt.twrap = modes[(wrap >> 2) & 3];
     opt.interpmode = OIIO::TextureOpt::InterpBilinear;
     // filter 0: trilinear (one isotropic footprint, the longer axis); 1: anisotropic, up to 8
     // probes along the longer axis (sharper at grazing angles, ~20% more render time on the

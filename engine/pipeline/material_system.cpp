@@ -28,7 +28,7 @@ std::string material_key(const World& w, const Material& m) {
             if (p.kind != ParamEntry::Kind::Texture) continue;
             const TextureRef& t = p.texture;
             key += fmt::format(":{}:{}:{}:{}:{}", file_identity(t.path), t.space,
-                               fmt::join(t.scale, ","), fmt::join(t.uv, ","), t.wrap);
+                               fmt::join(t.scale, ","), fmt::join(t.uv, ","), t.wraps());
             key += fmt::format(":{}:{}:{}:{}", t.amount, t.filter, t.channel, t.vertex_color);
         }
     return key;

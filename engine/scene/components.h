@@ -35,9 +35,12 @@ struct TextureRef {
     float scale[3] = {1, 1, 1};  ///< multiplies the looked-up value (per channel)
     float uv[6] = {1, 0, 0, 0, 1, 0};  ///< (u, v) -> (uv0 u + uv1 v + uv2, uv3 u + uv4 v + uv5)
     int wrap = 0;                      ///< 0 periodic, 1 clamp, 2 black, 3 mirror
-    int filter = 0;                    ///< 0 trilinear, 1 anisotropic
-    float amount = 1;                  ///< normal_map: strength; bump_map: height in metres
-    float blend = 1;  ///< bump_map: how far the bumped normal replaces the surface's (0..1)
+    int wrap_t = -1;                   ///< along t, where it differs (glTF's wrapT); -1: wrap
+    /** Both axes' modes in one number: s + 4 t (what the texture lookups take). */
+    int wraps() const { return (wrap & 3) + 4 * ((wrap_t < 0 ? wrap : wrap_t) & 3); }
+    int filter = 0;    ///< 0 trilinear, 1 anisotropic
+    float amount = 1;  ///< normal_map: strength; bump_map: height in metres
+    float blend = 1;   ///< bump_map: how far the bumped normal replaces the surface's (0..1)
     /** alpha: the channel read, 0 to 3 (R, G, B, A); kAlphaAuto: A when the image has it, else
      *  its first; kAlphaOrOpaque: A when the image has it, else 1 (glTF's base colour). */
     int channel = -1;

@@ -364,6 +364,7 @@ TextureRef texture_ref(BuildContext& ctx, const TextureDesc& t) {
     std::copy(std::begin(t.scale), std::end(t.scale), std::begin(ref.scale));
     std::copy(std::begin(t.uv), std::end(t.uv), std::begin(ref.uv));
     ref.wrap = t.wrap;
+    ref.wrap_t = t.wrap_t;
     ref.filter = t.filter;
     ref.amount = t.amount;
     ref.blend = t.blend;

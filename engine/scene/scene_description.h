@@ -47,6 +47,7 @@ struct TextureDesc {
     float scale[3] = {1, 1, 1};        ///< multiplies the looked-up value (per channel)
     float uv[6] = {1, 0, 0, 0, 1, 0};  ///< (u, v) -> (uv0 u + uv1 v + uv2, uv3 u + uv4 v + uv5)
     int wrap = 0;                      ///< 0 periodic, 1 clamp, 2 black, 3 mirror
+    int wrap_t = -1;                   ///< along t, where it differs (glTF's wrapT); -1: wrap
     int filter = 0;                    ///< 0 trilinear, 1 anisotropic, 2 closest
     float amount = 1;                  ///< normal map: strength; bump map: height in metres
     float blend = 1;  ///< bump map: how far the bumped normal replaces the surface's (0..1)

@@ -197,14 +197,26 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
     }
     if (const toml::table* uv = r.table("uv_transform")) read_uv_transform(ctx, *uv, tex);
     if (r.has("wrap")) {
-        const std::string w = r.string("wrap");
+        // One mode, or [s, t]: one per axis (glTF's wrapS and wrapT).
         const char* modes[] = {"periodic", "clamp", "black", "mirror"};
-        tex.wrap = -1;
-        for (int i = 0; i < 4; ++i)
-            if (w == modes[i]) tex.wrap = i;
-        if (tex.wrap < 0)
+        const auto mode = [&](const std::string& w) {
+            for (int i = 0; i < 4; ++i)
+                if (w == modes[i]) return i;
             throw_error(r.loc("wrap"),
-                        "'wrap' must be one of periodic, clamp, black, mirror, got \"{}\"", w);
+                        "'wrap' must be one of periodic, clamp, black, mirror (or [s, t] of "
+                        "them), got \"{}\"",
+                        w);
+        };
+        if (const toml::array* both = r.node("wrap")->as_array()) {
+            if (both->size() != 2 || !(*both)[0].is_string() || !(*both)[1].is_string())
+                throw_error(r.loc("wrap"),
+                            "'wrap' as an array gives two modes, [s, t], as strings");
+            tex.wrap = mode(*(*both)[0].value<std::string>());
+            tex.wrap_t = mode(*(*both)[1].value<std::string>());
+            if (tex.wrap_t == tex.wrap) tex.wrap_t = -1;
+        } else {
+            tex.wrap = mode(r.string("wrap"));
+        }
     }
     if (r.has("filter")) {
         const std::string f = r.string("filter");

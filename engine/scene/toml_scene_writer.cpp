@@ -221,7 +221,11 @@ struct Writer {
         std::vector<std::string> uv;
         for (float x : t.uv) uv.push_back(num(x));
         s += fmt::format(", uv_transform = {{ matrix = [{}] }}", fmt::join(uv, ", "));
-        s += fmt::format(", wrap = {}, filter = {} }}", str(wraps[t.wrap & 3]),
+        const std::string wrap =
+            t.wrap_t >= 0 && t.wrap_t != t.wrap
+                ? fmt::format("[{}, {}]", str(wraps[t.wrap & 3]), str(wraps[t.wrap_t & 3]))
+                : str(wraps[t.wrap & 3]);
+        s += fmt::format(", wrap = {}, filter = {} }}", wrap,
                          str(t.filter == 1   ? "anisotropic"
                              : t.filter == 2 ? "closest"
                                              : "trilinear"));

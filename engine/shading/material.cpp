@@ -514,10 +514,11 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
 
 float AlphaTexels::at(float s, float t, int wrap, bool closest) const {
     if (width <= 0 || height <= 0) return 1.0f;
-    // Texel coordinates (centres at i + 0.5), wrapped per axis as the texture system wraps.
-    const auto texel = [wrap](int i, int n, bool& black) {
+    // Texel coordinates (centres at i + 0.5), wrapped per axis as the texture system wraps:
+    // `wrap` holds s's mode + 4 x t's.
+    const auto texel = [](int i, int n, int mode, bool& black) {
         if (i >= 0 && i < n) return i;
-        switch (wrap) {
+        switch (mode) {
             case 1:  // clamp
                 return i < 0 ? 0 : n - 1;
             case 2:  // black
@@ -537,7 +538,8 @@ float AlphaTexels::at(float s, float t, int wrap, bool closest) const {
     };
     const auto value = [&](int x, int y) {
         bool black = false;
-        const int tx = texel(x, width, black), ty = texel(y, height, black);
+        const int tx = texel(x, width, wrap & 3, black),
+                  ty = texel(y, height, (wrap >> 2) & 3, black);
         if (black) return 0.0f;
         const std::size_t at = static_cast<std::size_t>(ty) * static_cast<std::size_t>(width) +
                                static_cast<std::size_t>(tx);
@@ -619,7 +621,7 @@ float alpha_at(const AlphaMap& a, const TriangleMesh& mesh, uint32_t prim, float
     }
     float s = 0.0f, image_t = 0.0f;
     texture_st(a.ref, u, v, s, image_t);
-    const float alpha = a.texels->at(s, image_t, a.ref.wrap, a.ref.filter == 2) * a.value;
+    const float alpha = a.texels->at(s, image_t, a.ref.wraps(), a.ref.filter == 2) * a.value;
     return alpha >= 1.0f ? 1.0f : alpha > 0.0f ? alpha : 0.0f;  // NaN: 0
 }
 

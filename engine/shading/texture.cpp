@@ -266,7 +266,7 @@ void TextureService::lookup(const Texture& tex, const TextureRef& ref, const Tex
         }
     }
     char error[1024] = "";
-    if (api_->lookup(system_, tex.handle, ref.wrap, ref.filter, static_cast<int>(n), q.s.data(),
+    if (api_->lookup(system_, tex.handle, ref.wraps(), ref.filter, static_cast<int>(n), q.s.data(),
                      q.t.data(), q.dsdx.data(), q.dtdx.data(), q.dsdy.data(), q.dtdy.data(), have,
                      o, ods, odt, error, sizeof(error)) != 0)
         throw_error("texture '{}': lookup failed: {}", tex.source, error);

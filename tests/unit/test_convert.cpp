@@ -101,6 +101,50 @@ TEST(Convert, InlineMeshesBecomePlyFilesOnePerMeshAndRenderTheSame) {
     EXPECT_EQ(render_path(dir.file("scene.toml")), render_description(d));
 }
 
+TEST(Convert, ATexturesWrapPerAxisIsReadAndWrittenBack) {
+    // wrap = [s, t] (glTF's wrapS and wrapT, which differed and were taken as one).
+    test::TempDir dir("convert_wrap");
+    std::ofstream(dir.file("s.toml")) << fmt::format(R"(
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+[[material]]
+name = "m"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = {{ texture = "{0}/scenes/textures/roughness_ramp.png", wrap = ["clamp", "mirror"] }} }}
+[[object]]
+mesh = "{1}/meshes/sphere.obj"
+material = "m"
+)",
+                                                     test::test_dir(), test::asset_dir());
+    const auto wrap_of = [](const SceneDescription& d) {
+        const ParamDesc& p = d.materials.at(0).params.at(0);
+        return std::pair{p.texture.wrap, p.texture.wrap_t};
+    };
+    const SceneDescription d = read_scene(dir.file("s.toml"));
+    EXPECT_EQ(wrap_of(d), (std::pair{1, 3}));
+    write_toml_scene(d, dir.file("back.toml"), dir.file("meshes"));
+    EXPECT_EQ(wrap_of(read_scene(dir.file("back.toml"))), (std::pair{1, 3}));
+    // A wrong mode in the array is an error at the key.
+    std::ofstream(dir.file("bad.toml")) << fmt::format(R"(
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+[[material]]
+name = "m"
+plugin = "smooth"
+params = {{ albedo = {{ texture = "{0}/scenes/textures/roughness_ramp.png", wrap = ["clamp", "tile"] }} }}
+)",
+                                                       test::test_dir());
+    try {
+        read_scene(dir.file("bad.toml"));
+        ADD_FAILURE() << "no error";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("got \"tile\""), std::string::npos) << e.what();
+    }
+}
+
 TEST(Convert, AnImportingSceneIsWrittenWholeWithItsOverrides) {
     test::TempDir dir("convert_import");
     std::ofstream(dir.file("car.toml")) << fmt::format(R"(

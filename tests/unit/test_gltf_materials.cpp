@@ -145,9 +145,10 @@ TEST(GltfMaterials, MetallicRoughnessAndItsExtensionsMapOntoTheSmoothAndFlakePlu
     const ParamDesc& mr = param_of(tex, "metallic_roughness");
     ASSERT_EQ(mr.kind, ParamDesc::Kind::Texture);
     EXPECT_EQ(mr.texture.space, "raw");  // data
-    EXPECT_EQ(mr.texture.wrap, 3);       // MIRRORED_REPEAT (wrapT differs: noted)
+    EXPECT_EQ(mr.texture.wrap, 3);       // MIRRORED_REPEAT along s
+    EXPECT_EQ(mr.texture.wrap_t, 0);     // REPEAT along t (it was noted and wrapped as s)
     EXPECT_EQ(mr.texture.filter, 0);     // magFilter LINEAR: trilinear
-    EXPECT_TRUE(has_note(d, "wraps s and t differently"));
+    EXPECT_FALSE(has_note(d, "wraps s and t differently"));
     ASSERT_EQ(tex.maps.size(), 1u);
     EXPECT_EQ(tex.maps[0].name, "normal_map");
     EXPECT_EQ(tex.maps[0].texture.amount, 0.5f);
@@ -994,9 +995,9 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
     test::TempDir dir("gltf_errors");
     const std::string f = dir.file("bad.gltf");
     const std::string kReExport =
-        "re-export it without the extension (Blender's glTF exporter, or gltf-transform for "
-        "compression), or take it out of extensionsRequired if the file's core data stands "
-        "without it";
+        "re-export it without the extension, or take it out of extensionsRequired if the file's "
+        "core data stands without it (then what the extension adds is left out); gltf-transform "
+        "can turn its KTX2 textures into PNG";
     EXPECT_EQ(error_of(dir, "{\n  \"asset\": {\"version\": \"2.0\"},\n  \"nodes\": [ {] \n}"),
               f + ":3:15: error: invalid JSON: expected a member name in double quotes");
     EXPECT_EQ(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\n\"nodes\":[{\"mesh\":4}]}"),

@@ -65,6 +65,47 @@ std::vector<float> lookup(const TextureService& ts, const Texture& tex, float s,
     return out;
 }
 
+TEST(Texture, EachAxisWrapsAsItsOwnModeSays) {
+    // glTF's wrapS and wrapT differ (a trim sheet clamped across, repeated along): both were
+    // wrapped as wrapS says. 8 x 8 texels, red = x, green = y (quarter units).
+    test::TempDir dir("texture_wrap_axes");
+    constexpr int kW = 8, kH = 8;
+    std::vector<float> img(3 * kW * kH);
+    for (int y = 0; y < kH; ++y)
+        for (int x = 0; x < kW; ++x) {
+            float* p = &img[3 * static_cast<std::size_t>(y * kW + x)];
+            p[0] = 0.25f * static_cast<float>(x);
+            p[1] = 0.25f * static_cast<float>(y);
+        }
+    write_float_exr(dir.file("grid.exr"), img, kW, kH);
+    Textures t(dir);
+    TextureRef ref;
+    ref.path = dir.file("grid.exr");
+    ref.space = "raw";
+    ref.wrap = 1;    // clamp along s
+    ref.wrap_t = 0;  // periodic along t
+    const auto tex = t.service.open(ref, false, {});
+    TextureQuery q;
+    q.resize(1);
+    q.s[0] = -0.5f;             // clamped: the first column, red 0
+    q.t[0] = 1.0f + 2.5f / kH;  // periodic: the third row's centre, green 0.5
+    q.dsdx[0] = q.dtdy[0] = 1e-5f;
+    q.dtdx[0] = q.dsdy[0] = 0.0f;
+    float out[3];
+    t.service.lookup(*tex, ref, q, 1, 3, out);
+    EXPECT_NEAR(out[0], 0.0f, 2e-3f);
+    EXPECT_NEAR(out[1], 0.5f, 2e-3f);
+    // The cut-out's texels in memory wrap alike (s + 4 t).
+    AlphaTexels a;
+    a.width = a.height = 2;
+    a.texels = {0, 65535, 65535, 0};  // row 0: 0 1; row 1: 1 0
+    EXPECT_EQ(ref.wraps(), 1);
+    // s beyond the right edge clamps to column 1; t one period on is row 0 again.
+    EXPECT_NEAR(a.at(1.6f, 1.25f, ref.wraps(), true), 1.0f, 1e-6f);
+    ref.wrap_t = 2;  // black along t: outside is 0
+    EXPECT_NEAR(a.at(1.6f, 1.25f, ref.wraps(), true), 0.0f, 1e-6f);
+}
+
 TEST(Texture, LookupsAreBilinearAtTheFinestLevel) {
     test::TempDir dir("texture_bilinear");
     // 8 x 8 texels with distinct values: red = x, green = y, blue = x * y (quarter units).

@@ -268,10 +268,13 @@ void check_required(const Context& ctx) {
         if (!kRead.count(required[i]))
             throw_error(ctx.at(fmt::format("extensionsRequired/{}", i)),
                         "the file requires extension {}, which Spangle does not read: re-export "
-                        "it without the extension (Blender's glTF exporter, or gltf-transform "
-                        "for compression), or take it out of extensionsRequired if the file's "
-                        "core data stands without it",
-                        required[i]);
+                        "it without the extension, or take it out of extensionsRequired if the "
+                        "file's core data stands without it (then what the extension adds is "
+                        "left out){}",
+                        required[i],
+                        required[i] == "KHR_texture_basisu"
+                            ? "; gltf-transform can turn its KTX2 textures into PNG"
+                            : "");
 }
 
 /** The bytes a base64 data URI's payload decodes to; -1 when it is not base64 (RFC 4648: the

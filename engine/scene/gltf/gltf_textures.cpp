@@ -111,11 +111,9 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
         check_index(ctx, tp + "/sampler", t.sampler, ctx.model.samplers.size(), "sampler");
         const tinygltf::Sampler& s = ctx.model.samplers[static_cast<std::size_t>(t.sampler)];
         tex.wrap = wrap_mode(s.wrapS);
+        if (wrap_mode(s.wrapT) != tex.wrap) tex.wrap_t = wrap_mode(s.wrapT);
         // magFilter NEAREST: texels stay squares when magnified (pixel art, voxel models).
         if (s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST) tex.filter = 2;
-        if (wrap_mode(s.wrapT) != tex.wrap)
-            ctx.note("wrapT", ctx.at(fmt::format("samplers/{}/wrapT", t.sampler)),
-                     "a sampler wraps s and t differently: Spangle wraps both as wrapS says");
     }
     if (use.tex_coord != ctx.uv_set) note_uv_set(ctx, ref);
     if (use.extensions)
