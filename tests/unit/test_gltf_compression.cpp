@@ -100,6 +100,24 @@ void write_torus(const std::string& path) {
         << tiny_png();
 }
 
+/** A Draco stream of the builder's mesh, and the ids of its attributes `pos` and `col` (empty
+ *  bytes when Draco refused it). */
+struct DracoStream {
+    std::string bytes;
+    uint32_t pos_id = 0, col_id = 0;
+};
+DracoStream encode(draco::TriangleSoupMeshBuilder& builder, int pos, int col) {
+    DracoStream out;
+    const std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
+    draco::Encoder encoder;
+    draco::EncoderBuffer encoded;
+    if (!mesh || !encoder.EncodeMeshToBuffer(*mesh, &encoded).ok()) return out;
+    out.bytes.assign(encoded.data(), encoded.size());
+    out.pos_id = mesh->attribute(pos)->unique_id();
+    out.col_id = mesh->attribute(col)->unique_id();
+    return out;
+}
+
 /** The one mesh of a glTF file as the reader makes it. */
 TriangleMesh mesh_of(const std::string& path, SceneDescription* out = nullptr) {
     SceneDescription d = read_gltf_scene(path, {});
@@ -302,17 +320,13 @@ TEST(GltfCompression, DracoIntegersUnmarkedInTheStreamAreNormalisedAsTheAccessor
         {0, 0, 0, 65535}, {32768, 32768, 32768, 65535}, {65535, 65535, 65535, 65535}};
     builder.SetAttributeValuesForFace(pos, draco::FaceIndex(0), p[0], p[1], p[2]);
     builder.SetAttributeValuesForFace(col, draco::FaceIndex(0), c[0], c[1], c[2]);
-    const std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
-    ASSERT_TRUE(mesh);
-    draco::Encoder encoder;
-    draco::EncoderBuffer encoded;
-    ASSERT_TRUE(encoder.EncodeMeshToBuffer(*mesh, &encoded).ok());
-    const uint32_t pos_id = mesh->attribute(pos)->unique_id(),
-                   col_id = mesh->attribute(col)->unique_id();
+    const DracoStream encoded = encode(builder, pos, col);
+    ASSERT_FALSE(encoded.bytes.empty());
+    const uint32_t pos_id = encoded.pos_id, col_id = encoded.col_id;
 
     test::TempDir dir("gltf_draco_unmarked");
     GltfWriter w;
-    const int view = w.view(encoded.data(), encoded.size());
+    const int view = w.view(encoded.bytes.data(), encoded.bytes.size());
     w.accessors.push_back(R"({"componentType":5126,"count":3,"type":"VEC3"})");
     w.accessors.push_back(R"({"componentType":5123,"normalized":true,"count":3,"type":"VEC4"})");
     w.accessors.push_back(R"({"componentType":5123,"count":3,"type":"SCALAR"})");
@@ -367,13 +381,9 @@ TEST(GltfCompression, ADracoStreamIsReadWholeOrNotAtAll) {
         builder.SetAttributeValuesForFace(pos, face, p[3 * f], p[3 * f + 1], p[3 * f + 2]);
         builder.SetAttributeValuesForFace(col, face, p[3 * f], p[3 * f + 1], p[3 * f + 2]);
     }
-    const std::unique_ptr<draco::Mesh> mesh = builder.Finalize();
-    ASSERT_TRUE(mesh);
-    draco::Encoder encoder;
-    draco::EncoderBuffer encoded;
-    ASSERT_TRUE(encoder.EncodeMeshToBuffer(*mesh, &encoded).ok());
-    const uint32_t pos_id = mesh->attribute(pos)->unique_id(),
-                   col_id = mesh->attribute(col)->unique_id();
+    const DracoStream encoded = encode(builder, pos, col);
+    ASSERT_FALSE(encoded.bytes.empty());
+    const uint32_t pos_id = encoded.pos_id, col_id = encoded.col_id;
     std::vector<float> soup(&p[0][0], &p[0][0] + 18);
     for (float& v : soup) v += 10.0f;  // the file's own data, told apart from the stream's
 
@@ -381,7 +391,7 @@ TEST(GltfCompression, ADracoStreamIsReadWholeOrNotAtAll) {
     const auto write = [&](const std::string& name, bool colours_kept, bool required,
                            bool glb = false) {
         GltfWriter w;
-        const int view = w.view(encoded.data(), encoded.size());
+        const int view = w.view(encoded.bytes.data(), encoded.bytes.size());
         const int a_pos = w.floats(soup, "VEC3", 3);
         int a_col = -1;
         if (colours_kept) {

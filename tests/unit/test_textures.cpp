@@ -47,6 +47,20 @@ struct Textures {
     TextureService service;
 };
 
+/** 8 x 8 texels with distinct values: red = x, green = y, blue = x * y (quarter units). */
+constexpr int kGrid = 8;
+std::vector<float> grid_image() {
+    std::vector<float> img(3 * kGrid * kGrid);
+    for (int y = 0; y < kGrid; ++y)
+        for (int x = 0; x < kGrid; ++x) {
+            float* p = &img[3 * static_cast<std::size_t>(y * kGrid + x)];
+            p[0] = 0.25f * static_cast<float>(x);
+            p[1] = 0.25f * static_cast<float>(y);
+            p[2] = 0.0625f * static_cast<float>(x * y);
+        }
+    return img;
+}
+
 /** One lookup at (s, t) with footprint derivatives d along both axes. */
 std::vector<float> lookup(const TextureService& ts, const Texture& tex, float s, float t, float d,
                           int channels, int filter = 0) {
@@ -67,17 +81,10 @@ std::vector<float> lookup(const TextureService& ts, const Texture& tex, float s,
 
 TEST(Texture, EachAxisWrapsAsItsOwnModeSays) {
     // glTF's wrapS and wrapT differ (a trim sheet clamped across, repeated along): both were
-    // wrapped as wrapS says. 8 x 8 texels, red = x, green = y (quarter units).
+    // wrapped as wrapS says. The grid: red = x, green = y (quarter units).
     test::TempDir dir("texture_wrap_axes");
-    constexpr int kW = 8, kH = 8;
-    std::vector<float> img(3 * kW * kH);
-    for (int y = 0; y < kH; ++y)
-        for (int x = 0; x < kW; ++x) {
-            float* p = &img[3 * static_cast<std::size_t>(y * kW + x)];
-            p[0] = 0.25f * static_cast<float>(x);
-            p[1] = 0.25f * static_cast<float>(y);
-        }
-    write_float_exr(dir.file("grid.exr"), img, kW, kH);
+    constexpr int kH = 8;
+    write_float_exr(dir.file("grid.exr"), grid_image(), kGrid, kGrid);
     Textures t(dir);
     TextureRef ref;
     ref.path = dir.file("grid.exr");
@@ -108,16 +115,8 @@ TEST(Texture, EachAxisWrapsAsItsOwnModeSays) {
 
 TEST(Texture, LookupsAreBilinearAtTheFinestLevel) {
     test::TempDir dir("texture_bilinear");
-    // 8 x 8 texels with distinct values: red = x, green = y, blue = x * y (quarter units).
-    constexpr int kW = 8, kH = 8;
-    std::vector<float> img(3 * kW * kH);
-    for (int y = 0; y < kH; ++y)
-        for (int x = 0; x < kW; ++x) {
-            float* p = &img[3 * static_cast<std::size_t>(y * kW + x)];
-            p[0] = 0.25f * static_cast<float>(x);
-            p[1] = 0.25f * static_cast<float>(y);
-            p[2] = 0.0625f * static_cast<float>(x * y);
-        }
+    constexpr int kW = kGrid, kH = kGrid;
+    const std::vector<float> img = grid_image();
     write_float_exr(dir.file("grid.exr"), img, kW, kH);
     Textures t(dir);
     TextureRef ref;
