@@ -84,6 +84,11 @@ std::optional<std::string> ColorConfig::canonical_name(const std::string& space)
     return std::string(name);
 }
 
+bool ColorConfig::is_data(const std::string& space) const {
+    const OCIO::ConstColorSpaceRcPtr cs = impl_->config->getColorSpace(space.c_str());
+    return cs && cs->isData();
+}
+
 std::optional<ResolvedSpace> ColorConfig::resolve(const std::string& space) const {
     if (auto name = canonical_name(space)) return ResolvedSpace{*name, ""};
     // Spangle's own names, in a config that does not have them: common names for the same

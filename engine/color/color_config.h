@@ -39,6 +39,9 @@ public:
     ColorConfig clone() const;
     /** Canonical name of a colour space (aliases resolved), or nullopt when unknown. */
     std::optional<std::string> canonical_name(const std::string& space) const;
+    /** Whether `space` names a data space of the config (OCIO's isdata: "Non-Color", "Utility -
+     *  Raw"): its values are numbers, not colours. False for an unknown name. */
+    bool is_data(const std::string& space) const;
     /** Like canonical_name, but a name of Spangle's own config (ACEScg, lin_rec709,
      *  srgb_texture, raw) missing from a foreign config falls back to a common name for the same
      *  space, then to the role for that kind of space (scene_linear, color_picking, data...). */

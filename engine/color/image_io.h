@@ -61,7 +61,7 @@ std::string default_image_space(const std::string& path,
 void require_exr_file(const std::string& path);
 
 /** Version of the OpenImageIO module's C interface this build expects. */
-inline constexpr int kOiioModuleAbi = 2;
+inline constexpr int kOiioModuleAbi = 3;
 
 /** The OpenImageIO module's texture functions (see engine/oiio/oiio_module.cpp for each). */
 struct OiioTextureApi {

@@ -29,7 +29,7 @@ extern "C" {
 
 /** Version of this interface; the host refuses a module with another one. */
 __attribute__((visibility("default"))) int spangle_oiio_abi() {
-    return 2;
+    return 3;  // 3: the lookup's wrap holds s's mode + 4 x t's
 }
 
 /** Size and channel count of the image at path; 0 on success, else an error message. */
@@ -137,7 +137,8 @@ __attribute__((visibility("default"))) void* spangle_oiio_texture_handle(void* s
 /** Filtered lookups of `count` points: texture coordinates s, t (0 at the left and top edges,
  *  1 at the right and bottom) and their screen-space derivatives; writes `channels` values per
  *  point to out and, when not NULL, their derivatives along s and t. wrap: 0 periodic,
- *  1 clamp, 2 black, 3 mirror; filter: 0 trilinear, 1 anisotropic, 2 closest. 0 on success. */
+ *  1 clamp, 2 black, 3 mirror, s's mode + 4 x t's; filter: 0 trilinear, 1 anisotropic, 2 closest. 0
+ * on success. */
 __attribute__((visibility("default"))) int spangle_oiio_texture_lookup(
     void* system, void* handle, int wrap, int filter, int count, const float* s, const float* t,
     const float* dsdx, const float* dtdx, const float* dsdy, const float* dtdy, int channels,

@@ -357,10 +357,14 @@ void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
 TextureRef texture_ref(BuildContext& ctx, const TextureDesc& t) {
     TextureRef ref;
     ref.path = t.path;
-    if (t.space)
+    if (t.space) {
         ref.space = *t.space == "raw" || *t.space == "data"
                         ? "raw"
                         : resolve_space(ctx, *t.space, t.space_loc);
+        // A data space by another name ("Non-Color", "Utility - Raw"): raw, so that every use
+        // of the texture treats its values as numbers (a coloured scale mixed its channels).
+        if (ref.space != "raw" && ctx.color->is_data(ref.space)) ref.space = "raw";
+    }
     std::copy(std::begin(t.scale), std::end(t.scale), std::begin(ref.scale));
     std::copy(std::begin(t.uv), std::end(t.uv), std::begin(ref.uv));
     ref.wrap = t.wrap;

@@ -26,6 +26,18 @@ TEST(ColorConfig, SrgbTextureDecodesToLinear) {
     EXPECT_NEAR(rgb[2], 1.0f, 1e-5f);
 }
 
+TEST(ColorConfig, DataSpacesAreKnownByWhatTheConfigSays) {
+    // A texture in a data space by another config's name ("Non-Color") is read as numbers: its
+    // coloured scale is not carried through the primaries (scene_builder makes it "raw").
+    const ColorConfig foreign = ColorConfig::load(test::test_dir() + "/ocio/foreign.ocio", {});
+    EXPECT_TRUE(foreign.is_data("Non-Color"));
+    EXPECT_FALSE(foreign.is_data(foreign.working_space()));
+    EXPECT_FALSE(foreign.is_data("no such space"));
+    const ColorConfig shipped = test::shipped_config();
+    EXPECT_TRUE(shipped.is_data("raw"));
+    EXPECT_FALSE(shipped.is_data("srgb_texture"));
+}
+
 TEST(ColorConfig, Rec709RedInAcescg) {
     ColorConfig c = shipped_config();
     float rgb[3] = {1.0f, 0.0f, 0.0f};

@@ -631,6 +631,10 @@ TEST(GltfReader, LightsThatLeaveTheFileNearlyBlackAreSaid) {
     EXPECT_TRUE(has_note(dim, "the file's lights give about 0.0044 W/m^2")) << dim.notes.size();
     EXPECT_TRUE(has_note(dim, "569 times less than the studio key light's"));
     EXPECT_FALSE(has_note(write("bright.gltf", 1000.0), "the file's lights give"));
+    // With --env the map lights it too: not said.
+    SceneReadOptions env;
+    env.environment = test::asset_dir() + "/env/studio.exr";
+    EXPECT_FALSE(has_note(read_scene(dir.file("dim.gltf"), env), "the file's lights give"));
 }
 
 TEST(GltfReader, PunctualLightsTakeTheirNodesPlaceAndPhotometricUnits) {

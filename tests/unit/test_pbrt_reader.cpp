@@ -668,6 +668,9 @@ MakeNamedMaterial "k" "string type" "hair"
 MakeNamedMaterial "l" "string type" "coatedconductor" "rgb reflectance" [0.9 0.6 0.3]
   "float interface.roughness" 0.01 "float interface.eta" 1.6
   "float conductor.uroughness" 0.04 "float conductor.vroughness" 0.09
+MakeNamedMaterial "m" "string type" "coatedconductor" "float conductor.roughness" 0.09
+  "float conductor.vroughness" 0.01 "float interface.roughness" 0.04
+  "float interface.uroughness" 0.25
 Material "interface"
 Shape "sphere"
 )");
@@ -693,6 +696,10 @@ Shape "sphere"
     EXPECT_NEAR(number(material(d, "l"), "coat_roughness"), 0.1, 1e-12);
     EXPECT_NEAR(number(material(d, "l"), "roughness"), 0.2, 1e-12);
     EXPECT_NEAR(number(material(d, "l"), "roughness_v"), 0.3, 1e-12);
+    // u falls back to conductor.roughness, as in pbrt-v4 (it fell back to 0).
+    EXPECT_NEAR(number(material(d, "m"), "roughness"), 0.3, 1e-12);
+    EXPECT_NEAR(number(material(d, "m"), "roughness_v"), 0.1, 1e-12);
+    EXPECT_NEAR(number(material(d, "m"), "coat_roughness"), 0.5, 1e-12);
     // v4's mix picks the second material with probability amount: 0.9 keeps the dielectric.
     EXPECT_EQ(material(d, "i").model, "dielectric");
     EXPECT_EQ(param(material(d, "j"), "preset")->text, "copper");

@@ -12,6 +12,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -110,6 +111,8 @@ private:
      *  differs from it has been saved since, whether or not its events were seen (a save while
      *  the scene loaded). */
     std::map<std::string, std::string> baseline_;
+    /** Files of baseline_ whose identity was taken after the load that found them read them. */
+    std::set<std::string> unproven_;
     bool last_load_failed_ = false;       ///< retry when a new file appears (the one it lacked)
     std::atomic<bool> rendering_{false};  ///< the render thread is rendering
     std::string last_error_;              ///< why the last load failed (empty: it did not)
@@ -268,9 +271,15 @@ bool WatchLoop::load(const std::string& what) {
     for (const std::string& f : files_to_watch()) before[f] = file_identity(f);
     const auto keep_baseline = [&](bool failed) {
         baseline_ = before;
-        // Files the load found that were not known before it: as they are now.
+        // Files the load found that were not known before it: as they are now (taken after the
+        // load read them: a save in between is not proven absent, so a save seen for them is
+        // never taken for one already dealt with).
+        unproven_.clear();
         for (const std::string& f : files_to_watch())
-            if (!baseline_.count(f)) baseline_[f] = file_identity(f);
+            if (!baseline_.count(f)) {
+                baseline_[f] = file_identity(f);
+                unproven_.insert(f);
+            }
         last_load_failed_ = failed;
     };
     try {
@@ -371,7 +380,10 @@ bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
         last_load_failed_ = true;  // retried when a file it lacks appears
         last_error_ = e.what();
     }
-    for (const auto& [f, id] : before) baseline_[f] = id;
+    for (const auto& [f, id] : before) {
+        baseline_[f] = id;
+        unproven_.erase(f);
+    }
     return true;
 }
 
@@ -382,8 +394,10 @@ void WatchLoop::apply_change(const std::vector<std::string>& touched) {
     // time, or "reload failed" twice for one bad save.
     bool all_seen = true;
     for (const std::string& t : touched) {
-        const auto it = baseline_.find(absolute_path(t));
-        all_seen = all_seen && it != baseline_.end() && file_identity(it->first) == it->second;
+        const std::string f = absolute_path(t);
+        const auto it = baseline_.find(f);
+        all_seen = all_seen && it != baseline_.end() && !unproven_.count(f) &&
+                   file_identity(it->first) == it->second;
     }
     if (all_seen) return;
     // After a failed load, a file that appeared in a watched folder may be the one the scene

@@ -347,6 +347,14 @@ void decode_draco_primitive(Context& ctx, std::size_t mesh, std::size_t prim,
         // Draco decodes a list of triangles whatever mode the primitive was encoded from.
         p.mode = TINYGLTF_MODE_TRIANGLES;
     }
+    // Morph targets are in the file's vertex order, not the stream's (Draco has none of its own).
+    if (!p.targets.empty()) {
+        ctx.note("draco targets", ctx.at(pp + "/targets"),
+                 fmt::format("mesh {} primitive {}: its morph targets are not in its Draco "
+                             "stream, whose vertices are in an order of their own: dropped",
+                             mesh, prim));
+        p.targets.clear();
+    }
     // Attributes the stream does not hold are in the file's vertex order, not the stream's.
     for (auto it = p.attributes.begin(); it != p.attributes.end();) {
         if (ids.count(it->first)) {

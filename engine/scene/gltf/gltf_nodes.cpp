@@ -749,7 +749,7 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
                   : std::max({c.x, c.y, c.z});
             brightest = std::max(brightest, o.emission->intensity * static_cast<double>(peak));
         }
-    dim_lights_note(ctx);
+    if (options.environment.empty()) dim_lights_note(ctx);  // --env lights it otherwise
     // --env lights the scene itself: no stand-in then. Nor where its emission lights it; faint
     // emission alone (which rendered black) gets the studio light beside it, and so does glow
     // of radiance at most 1 (emissive labels and screens of factor 1: test models whose labels

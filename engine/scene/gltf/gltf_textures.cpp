@@ -202,6 +202,7 @@ std::optional<MetalRoughImages> metal_rough_from_spec_gloss(
     // One mapping for both (the images are combined texel by texel).
     if (dtex && stex &&
         (diffuse->tex_coord != sg->tex_coord || dtex->wrap != stex->wrap ||
+         dtex->wrap_t != stex->wrap_t ||
          !std::equal(std::begin(dtex->uv), std::end(dtex->uv), std::begin(stex->uv))))
         return {};
     std::optional<tinygltf::Image> di, si;

@@ -458,8 +458,10 @@ bool v4_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         b.metal("conductor.eta", "conductor.k", "reflectance");
         const bool remap_on = p.boolean("remaproughness", true);
         if (p.find("conductor.uroughness") || p.find("conductor.vroughness")) {
-            b.roughness("conductor.uroughness", "roughness", 0.0, Remap::V4, remap_on);
-            b.roughness("conductor.vroughness", "roughness_v", 0.0, Remap::V4, remap_on);
+            // Each falls back to conductor.roughness, as in pbrt-v4.
+            const double both = p.number("conductor.roughness", 0.0);
+            b.roughness("conductor.uroughness", "roughness", both, Remap::V4, remap_on);
+            b.roughness("conductor.vroughness", "roughness_v", both, Remap::V4, remap_on);
         } else {
             b.roughness("conductor.roughness", "roughness", 0.0, Remap::V4, remap_on);
         }
@@ -468,7 +470,8 @@ bool v4_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         b.number("coat", 1.0);
         b.ior("interface.eta", "coat_ior", 1.5);
         if (p.find("interface.uroughness") || p.find("interface.vroughness")) {
-            b.roughness("interface.uroughness", "coat_roughness", 0.0, Remap::V4, remap_on);
+            b.roughness("interface.uroughness", "coat_roughness",
+                        p.number("interface.roughness", 0.0), Remap::V4, remap_on);
             p.find("interface.vroughness");
             b.note("the coat takes one roughness: 'interface.uroughness' stands in for both");
         } else {
