@@ -104,7 +104,9 @@ TEST(Convert, InlineMeshesBecomePlyFilesOnePerMeshAndRenderTheSame) {
 TEST(Convert, ATexturesWrapPerAxisIsReadAndWrittenBack) {
     // wrap = [s, t] (glTF's wrapS and wrapT, which differed and were taken as one).
     test::TempDir dir("convert_wrap");
-    std::ofstream(dir.file("s.toml")) << fmt::format(R"(
+    // The scene with the albedo's texture wrapped as `wrap` says.
+    const auto write = [&](const std::string& file, const std::string& wrap) {
+        std::ofstream(dir.file(file)) << fmt::format(R"(
 [camera]
 position = [0, 0, 5]
 look_at = [0, 0, 0]
@@ -112,12 +114,14 @@ look_at = [0, 0, 0]
 name = "m"
 plugin = "smooth"
 model = "diffuse"
-params = {{ albedo = {{ texture = "{0}/scenes/textures/roughness_ramp.png", wrap = ["clamp", "mirror"] }} }}
+params = {{ albedo = {{ texture = "{0}/scenes/textures/roughness_ramp.png", wrap = {2} }} }}
 [[object]]
 mesh = "{1}/meshes/sphere.obj"
 material = "m"
 )",
-                                                     test::test_dir(), test::asset_dir());
+                                                     test::test_dir(), test::asset_dir(), wrap);
+    };
+    write("s.toml", R"(["clamp", "mirror"])");
     const auto wrap_of = [](const SceneDescription& d) {
         const ParamDesc& p = d.materials.at(0).params.at(0);
         return std::pair{p.texture.wrap, p.texture.wrap_t};
@@ -127,16 +131,7 @@ material = "m"
     write_toml_scene(d, dir.file("back.toml"), dir.file("meshes"));
     EXPECT_EQ(wrap_of(read_scene(dir.file("back.toml"))), (std::pair{1, 3}));
     // A wrong mode in the array is an error at the key.
-    std::ofstream(dir.file("bad.toml")) << fmt::format(R"(
-[camera]
-position = [0, 0, 5]
-look_at = [0, 0, 0]
-[[material]]
-name = "m"
-plugin = "smooth"
-params = {{ albedo = {{ texture = "{0}/scenes/textures/roughness_ramp.png", wrap = ["clamp", "tile"] }} }}
-)",
-                                                       test::test_dir());
+    write("bad.toml", R"(["clamp", "tile"])");
     try {
         read_scene(dir.file("bad.toml"));
         ADD_FAILURE() << "no error";

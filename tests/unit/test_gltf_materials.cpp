@@ -380,6 +380,36 @@ TEST(GltfMaterials, ASpecularGlossinessMetalIsAMetalAndBadValuesAreErrors) {
     }
 }
 
+/** Renders `d` at 8 x 8 from `position` towards `look_at` (vertical fov in degrees) with the
+ *  texture cache in `dir`; the middle pixel (4, 4), in the working space and in linear Rec.709,
+ *  and the working space's name. */
+struct MiddlePixel {
+    Vec3 working, rec709;
+    std::string working_space;
+};
+MiddlePixel middle_pixel(SceneDescription d, const test::TempDir& dir, Vec3 position, Vec3 look_at,
+                         double fov, uint32_t spp) {
+    d.render.width = 8;
+    d.render.height = 8;
+    d.render.spp = spp;
+    d.camera.position = position;
+    d.camera.look_at = look_at;
+    d.camera.fov_deg = fov;
+    RenderOptions options;
+    options.threads = 2;
+    options.texture_cache = dir.file("textures");
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(d);
+    session.render();
+    const std::vector<float>& img = session.result().image;
+    const std::size_t mid = (4 * 8 + 4) * 3;
+    float px[3] = {img[mid], img[mid + 1], img[mid + 2]};
+    MiddlePixel out{{px[0], px[1], px[2]}, {}, session.color().working_space()};
+    session.color().convert(out.working_space, "lin_rec709", px, 1);
+    out.rec709 = Vec3(px[0], px[1], px[2]);
+    return out;
+}
+
 TEST(GltfMaterials, AWebPTextureIsRead) {
     // EXT_texture_webp (glTF-Transform's and web exporters' compressed textures), required and
     // without a PNG fallback: its image is the base colour texture (it was dropped, the factor
@@ -409,22 +439,9 @@ TEST(GltfMaterials, AWebPTextureIsRead) {
     EXPECT_EQ(bytes_of(base.texture.path), webp);
     for (const std::string& n : d.notes) EXPECT_EQ(n.find("WebP"), std::string::npos) << n;
     // Rendered: the quad is red.
-    d.render.width = 8;
-    d.render.height = 8;
-    d.render.spp = 4;
-    d.camera.position = {0.5f, 0.5f, 3};
-    d.camera.look_at = {0.5f, 0.5f, 0};
-    d.camera.fov_deg = 8;
-    RenderOptions options;
-    options.threads = 2;
-    options.texture_cache = dir.file("textures");
-    Session session({}, test::shipped_ocio(), options, test::quiet_log());
-    session.load(d);
-    session.render();
-    const std::vector<float>& img = session.result().image;
-    const std::size_t mid = (4 * 8 + 4) * 3;
-    EXPECT_GT(img[mid], 5.0f * img[mid + 1]) << "red";
-    EXPECT_GT(img[mid], 5.0f * img[mid + 2]) << "red";
+    const Vec3 px = middle_pixel(d, dir, {0.5f, 0.5f, 3}, {0.5f, 0.5f, 0}, 8, 4).working;
+    EXPECT_GT(px.x, 5.0f * px.y) << "red";
+    EXPECT_GT(px.x, 5.0f * px.z) << "red";
 }
 
 TEST(GltfMaterials, SheenBecomesTheSheenLayerOfMetalRough) {
@@ -477,23 +494,12 @@ TEST(GltfMaterials, AnUnlitMaterialShowsItsBaseColourWhateverTheLight) {
         EXPECT_EQ(n.find("KHR_materials_unlit"), std::string::npos) << n;
     // Seen head-on from a default camera placed at +z by hand: the middle pixels are the
     // base colour.
-    d.camera.position = {0, 0, 3};
-    d.camera.look_at = {0, 0, 0};
-    d.render.width = 8;
-    d.render.height = 8;
-    d.render.spp = 4;
-    RenderOptions options;
-    options.threads = 2;
-    Session session({}, test::shipped_ocio(), options, test::quiet_log());
-    session.load(d);
-    session.render();
-    const std::vector<float>& img = session.result().image;
+    const MiddlePixel px = middle_pixel(d, dir, {0, 0, 3}, {0, 0, 0}, d.camera.fov_deg, 4);
     float want[3] = {0.6f, 0.3f, 0.1f};
-    session.color().convert("lin_rec709", session.color().working_space(), want, 1);
-    const std::size_t mid = (4 * 8 + 4) * 3;
-    EXPECT_NEAR(img[mid], want[0], 2e-3f);
-    EXPECT_NEAR(img[mid + 1], want[1], 2e-3f);
-    EXPECT_NEAR(img[mid + 2], want[2], 2e-3f);
+    test::shipped_config().convert("lin_rec709", px.working_space, want, 1);
+    EXPECT_NEAR(px.working.x, want[0], 2e-3f);
+    EXPECT_NEAR(px.working.y, want[1], 2e-3f);
+    EXPECT_NEAR(px.working.z, want[2], 2e-3f);
 }
 
 TEST(GltfMaterials, AFactorTimesATextureKeepsTheFactorsHue) {
@@ -520,27 +526,13 @@ TEST(GltfMaterials, AFactorTimesATextureKeepsTheFactorsHue) {
                         R"("meshes":[{}],"nodes":[{{"mesh":0,"translation":[-0.5,-0.5,0]}}],)"
                         R"("scenes":[{{"nodes":[0]}}],"scene":0)",
                         material, mesh));
-        SceneDescription d = read_gltf_scene(dir.file("hue.gltf"), {});
-        d.camera.position = {0, 0, 3};
-        d.camera.look_at = {0, 0, 0};
-        d.camera.fov_deg = 5;
-        d.render.width = 8;
-        d.render.height = 8;
-        d.render.spp = 16;
-        RenderOptions options;
-        options.threads = 2;
-        options.texture_cache = dir.file("textures");
-        Session session({}, test::shipped_ocio(), options, test::quiet_log());
-        session.load(d);
-        session.render();
-        const std::vector<float>& img = session.result().image;
-        const std::size_t mid = (4 * 8 + 4) * 3;
-        float px[3] = {img[mid], img[mid + 1], img[mid + 2]};
-        session.color().convert(session.color().working_space(), "lin_rec709", px, 1);
-        ASSERT_GT(px[0], 0.01f) << (unlit ? "unlit" : "lit");
-        EXPECT_NEAR(px[0] / px[1], 10.0f, 0.3f)
-            << (unlit ? "unlit" : "lit") << ": " << px[0] << " " << px[1] << " " << px[2];
-        EXPECT_LT(std::fabs(px[2]), 0.01f * px[0]) << (unlit ? "unlit" : "lit");
+        const Vec3 px = middle_pixel(read_gltf_scene(dir.file("hue.gltf"), {}), dir, {0, 0, 3},
+                                     {0, 0, 0}, 5, 16)
+                            .rec709;
+        ASSERT_GT(px.x, 0.01f) << (unlit ? "unlit" : "lit");
+        EXPECT_NEAR(px.x / px.y, 10.0f, 0.3f)
+            << (unlit ? "unlit" : "lit") << ": " << px.x << " " << px.y << " " << px.z;
+        EXPECT_LT(std::fabs(px.z), 0.01f * px.x) << (unlit ? "unlit" : "lit");
     }
 }
 
