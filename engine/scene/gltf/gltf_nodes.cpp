@@ -589,6 +589,16 @@ double object_area(const ObjectDesc& o) {
     return placed_area(*in->mesh, [&](Vec3 p) { return xf.apply_point(p); });
 }
 
+/** The largest channel of an emission's colour times its image's factor (with an image, the
+ *  factor is the texture's scale and the colour white): its peak radiance per unit intensity. */
+double emission_peak(const EmissionDesc& e) {
+    const Vec3 c = e.color.rgb;
+    const TextureDesc* t = e.texture ? &*e.texture : nullptr;
+    return static_cast<double>(
+        t ? std::max({t->scale[0] * c.x, t->scale[1] * c.y, t->scale[2] * c.z})
+          : std::max({c.x, c.y, c.z}));
+}
+
 /** How brightly the file's own emission lights it: its emitted power (radiance x area x pi)
  *  spread over every surface of the file, an irradiance to set against the studio light's
  *  (about 2.5). */
@@ -598,14 +608,8 @@ double emission_irradiance(const SceneDescription& s) {
         const double a = object_area(o);
         area += a;
         if (o.emission) {
-            // With an image, its factor is the texture's scale (the colour is white).
-            const TextureDesc* t = o.emission->texture ? &*o.emission->texture : nullptr;
-            const Vec3 c = t ? Vec3(t->scale[0] * o.emission->color.rgb.x,
-                                    t->scale[1] * o.emission->color.rgb.y,
-                                    t->scale[2] * o.emission->color.rgb.z)
-                             : o.emission->color.rgb;
             power += std::numbers::pi * a * o.emission->intensity * o.emission->mean *
-                     static_cast<double>(std::max({c.x, c.y, c.z}));
+                     emission_peak(*o.emission);
         }
     }
     return area > 0.0 ? power / area : 0.0;
@@ -742,12 +746,7 @@ void read_nodes(Context& ctx, const SceneReadOptions& options) {
     for (const ObjectDesc& o : ctx.scene->objects)
         if (o.emission) {
             emits = true;
-            const TextureDesc* t = o.emission->texture ? &*o.emission->texture : nullptr;
-            const Vec3 c = o.emission->color.rgb;
-            const float peak =
-                t ? std::max({t->scale[0] * c.x, t->scale[1] * c.y, t->scale[2] * c.z})
-                  : std::max({c.x, c.y, c.z});
-            brightest = std::max(brightest, o.emission->intensity * static_cast<double>(peak));
+            brightest = std::max(brightest, o.emission->intensity * emission_peak(*o.emission));
         }
     if (options.environment.empty()) dim_lights_note(ctx);  // --env lights it otherwise
     // --env lights the scene itself: no stand-in then. Nor where its emission lights it; faint
