@@ -258,41 +258,45 @@ int run_inspect(const std::string& path, const std::string& reference) {
     if (!reference.empty()) {
         Planes ref_planes;
         const std::vector<float> ref = read_rgb(reference, ref_planes);
+        if (ref.empty())
+            throw_error("the reference '{}' has no R, G and B channels (nor Y) to compare with",
+                        reference);
         if (ref_planes.width != planes.width || ref_planes.height != planes.height)
             throw_error("'{}' is {}x{}, the reference '{}' {}x{}", path, planes.width,
                         planes.height, reference, ref_planes.width, ref_planes.height);
         // One render with --layers (or --denoise) keeps the sky seen directly in its 'background'
-        // layer, not in RGB; one without has it in RGB: their RGB differ wherever the sky shows,
-        // and the figure measures that, not noise (said, as the user compares renders made alike).
-        const auto has_background = [](const Planes& p) {
-            for (const std::string& n : p.names)
-                if (n.rfind("background.", 0) == 0) return true;
-            return false;
-        };
-        if (has_background(planes) != has_background(ref_planes)) {
-            const std::string& with = has_background(planes) ? path : reference;
-            const std::string& without = has_background(planes) ? reference : path;
-            fmt::print(stderr,
-                       "warning: '{}' keeps the sky seen directly in its 'background' layer "
-                       "(rendered with --layers or --denoise) and '{}' in its RGB: where the sky "
-                       "shows their RGB differ, and the relMSE measures that; compare renders "
-                       "made alike\n",
-                       with, without);
+        // layer, not in RGB; one without has it in RGB. RGB plus background is the whole picture
+        // (the preview shows it): the one with the layer is measured so, as the other holds it,
+        // and the comparison says so (RGB alone measured the sky, not the noise: a denoised
+        // render read 0.15 against its reference).
+        const std::vector<float> background =
+            planes.three("background.R", "background.G", "background.B");
+        const std::vector<float> ref_background =
+            ref_planes.three("background.R", "background.G", "background.B");
+        std::vector<float> whole = rgb, ref_whole = ref;
+        if (background.empty() != ref_background.empty()) {
+            std::vector<float>& into = background.empty() ? ref_whole : whole;
+            const std::vector<float>& sky = background.empty() ? ref_background : background;
+            for (std::size_t i = 0; i < into.size() && i < sky.size(); ++i) into[i] += sky[i];
+            fmt::print(
+                "compared: '{}' as its RGB plus its 'background' layer (the sky seen "
+                "directly), as '{}' holds the sky in its RGB\n",
+                background.empty() ? reference : path, background.empty() ? path : reference);
         }
         // Over the pixels finite in both (a NaN made the figure nan); how many were left out.
         std::vector<float> a, b;
         std::size_t skipped = 0;
-        for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) {
-            const bool ok = std::isfinite(rgb[i] + rgb[i + 1] + rgb[i + 2]) &&
-                            std::isfinite(ref[i] + ref[i + 1] + ref[i + 2]);
+        for (std::size_t i = 0; i + 2 < whole.size(); i += 3) {
+            const bool ok = std::isfinite(whole[i] + whole[i + 1] + whole[i + 2]) &&
+                            std::isfinite(ref_whole[i] + ref_whole[i + 1] + ref_whole[i + 2]);
             if (!ok) {
                 ++skipped;
                 continue;
             }
-            a.insert(a.end(), rgb.begin() + static_cast<std::ptrdiff_t>(i),
-                     rgb.begin() + static_cast<std::ptrdiff_t>(i + 3));
-            b.insert(b.end(), ref.begin() + static_cast<std::ptrdiff_t>(i),
-                     ref.begin() + static_cast<std::ptrdiff_t>(i + 3));
+            a.insert(a.end(), whole.begin() + static_cast<std::ptrdiff_t>(i),
+                     whole.begin() + static_cast<std::ptrdiff_t>(i + 3));
+            b.insert(b.end(), ref_whole.begin() + static_cast<std::ptrdiff_t>(i),
+                     ref_whole.begin() + static_cast<std::ptrdiff_t>(i + 3));
         }
         fmt::print("relMSE against {}: {:.6g}{}\n", reference, relative_mse(a, b),
                    skipped ? fmt::format(" (over the pixels finite in both; {} left out)", skipped)

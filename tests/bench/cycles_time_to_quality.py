@@ -19,7 +19,11 @@ alike: CLAMP (default 10, Cycles' own default; 0: no cap, both unbiased, and the
 sun-chrome-ground caustics make fireflies that dominate relMSE for both). Both regularise paths
 alike: FILTER_GLOSSY (default 1, Cycles' default "Filter Glossy"; Spangle's [render]
 filter_glossy follows the same curve; 0: off for both). Environment: SIZE (320x180), REF_SPP
-(2048), THREADS (2), CLAMP, FILTER_GLOSSY. Time it on a quiet machine.
+(2048), THREADS (2), CLAMP, FILTER_GLOSSY. SEEDS=N measures efficiency instead: fixed 16, 64
+and 256 spp, each renderer over N seeds, the mean relMSE (one seed's figure is ruled by a few
+pixels where the sun's highlight is caught or missed), the mean time and 1 / (relMSE x time),
+Spangle's by its whole process and by its render phase (renderTimeSeconds). Time it on a quiet
+machine.
 """
 
 import math
@@ -151,6 +155,57 @@ def report(label, results):
                 print(f"{label}: {way} never reached relMSE {target}")
 
 
+def spangle_render_time(path):
+    """The render phase's seconds, from the EXR header's renderTimeSeconds."""
+    info = subprocess.run(["oiiotool", "--info", "-v", path], capture_output=True, text=True).stdout
+    for line in info.splitlines():
+        if "renderTimeSeconds" in line:
+            return float(line.split(":")[-1])
+    return float("nan")
+
+
+def efficiency(scene, build, folder, out, w, h, threads, seeds):
+    """Error per unit time at fixed sample counts, each renderer over `seeds` seeds: the mean
+    relMSE (one seed's figure is dominated by a few highlight pixels, a heavy tail), the mean
+    time, and 1 / (relMSE x time) with Spangle's render phase and its whole process."""
+    spangle_ref = os.path.join(out, "spangle", "ref_car.exr")
+    r_sp = read_rgb(spangle_ref)
+    r_cy = read_rgb(os.path.join(out, "cycles_ref.exr"))
+    print(f"# car at {w}x{h}, {seeds} seeds: spp, renderer, mean relMSE (min..max), mean s, efficiency")
+    for spp in (16, 64, 256):
+        sp_e, sp_t, sp_r, cy_e, cy_t = [], [], [], [], []
+        for seed in range(1, seeds + 1):
+            text = open(os.path.join(folder, "car.toml")).read().replace(
+                "[render]\n", f"[render]\nseed = {seed}\n", 1)
+            toml = os.path.join(folder, f"car_seed{seed}.toml")
+            with open(toml, "w") as f:
+                f.write(text)
+            exr = os.path.join(out, f"eff_spangle_{spp}_{seed}.exr")
+            t0 = time.time()
+            subprocess.run([os.path.join(build, "spangle"), "render", toml, "--size", f"{w}x{h}",
+                            "--spp", str(spp), "--threads", str(threads), "-q", "--float",
+                            "--no-preview", "-o", exr], check=True)
+            sp_t.append(time.time() - t0)
+            sp_r.append(spangle_render_time(exr))
+            sp_e.append(rel_mse(read_rgb(exr), r_sp))
+            scene.cycles.seed = seed
+            p = os.path.join(out, f"eff_cycles_{spp}_{seed}.exr")
+            cy_t.append(cycles_render(scene, p, spp))
+            cy_e.append(rel_mse(read_rgb(p), r_cy))
+        scene.cycles.seed = 0
+        mean = lambda v: sum(v) / len(v)  # noqa: E731
+        e_sp, e_cy = mean(sp_e), mean(cy_e)
+        eff_whole, eff_render = 1 / (e_sp * mean(sp_t)), 1 / (e_sp * mean(sp_r))
+        eff_cy = 1 / (e_cy * mean(cy_t))
+        print(f"{spp} spangle {e_sp:.6f} ({min(sp_e):.6f}..{max(sp_e):.6f}) whole {mean(sp_t):.3f} s "
+              f"render {mean(sp_r):.3f} s: efficiency {eff_whole:.0f} whole, {eff_render:.0f} render")
+        print(f"{spp} cycles {e_cy:.6f} ({min(cy_e):.6f}..{max(cy_e):.6f}) {mean(cy_t):.3f} s: "
+              f"efficiency {eff_cy:.0f}")
+        print(f"{spp} spangle / cycles: {eff_whole / eff_cy:.2f}x whole process, "
+              f"{eff_render / eff_cy:.2f}x render phase")
+        sys.stdout.flush()
+
+
 def main():
     build, out = os.path.abspath(sys.argv[1]), os.path.abspath(sys.argv[2])
     os.makedirs(out, exist_ok=True)
@@ -189,16 +244,21 @@ def main():
                         "--size", f"{w}x{h}", "--spp", str(ref_spp), "--threads", str(threads),
                         "-q", "--float", "--no-preview", "-o", os.path.join(spangle_out, "ref_car.exr")],
                        check=True)
-    subprocess.run(["bash", os.path.join(ROOT, "tests", "bench", "time_to_quality.sh"), build,
-                    spangle_out, os.path.join(folder, "car.toml")],
-                   env=env, check=True)
-    # Cycles: its reference, then fixed samples, adaptive thresholds, each denoised too.
     ref = os.path.join(out, "cycles_ref.exr")
     if not os.path.exists(ref):
         print(f"# cycles: rendering the reference ({ref_spp} spp)...", file=sys.stderr)
         scene.cycles.seed = 977
         cycles_render(scene, ref, ref_spp)
         scene.cycles.seed = 0
+    seeds = int(os.environ.get("SEEDS", "0"))
+    if seeds > 0:
+        efficiency(scene, build, folder, out, w, h, threads, seeds)
+        sys.stdout.flush()
+        os._exit(0)
+    subprocess.run(["bash", os.path.join(ROOT, "tests", "bench", "time_to_quality.sh"), build,
+                    spangle_out, os.path.join(folder, "car.toml")],
+                   env=env, check=True)
+    # Cycles: fixed samples, adaptive thresholds, each denoised too.
     r = read_rgb(ref)
     probe = os.path.join(out, "cycles_probe.exr")
     cycles_render(scene, probe, 4)
