@@ -308,7 +308,9 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
         float w[3] = {
             under *
                 (keep * ((1.0f - c.metallic) * lum(c.base) * (1.0f - lum(c.e_o)) + ms_o) + sheen_o),
-            under * keep * ((1.0f - c.metallic) * lum(c.e_o) + c.metallic * lum(e_metal)), c.ec_o};
+            under * keep * ((1.0f - c.metallic) * lum(c.e_o) + c.metallic * lum(e_metal)) *
+                sharp_lobe_weight(c.alpha),
+            c.ec_o * sharp_lobe_weight(c.alpha_c)};
         const bool present[3] = {
             (c.metallic < 1.0f && lum(c.base) > 0.0f) || ms_o > 0.0f || sheen_o > 0.0f, true,
             c.coat > 0.0f};

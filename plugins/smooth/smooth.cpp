@@ -247,6 +247,8 @@ struct CoatAlbedo {
     float e_avg = 0;          ///< cosine-weighted average of e: 2 int e(mu) mu dmu
     /** Fills the table for alphas (raw, as read) and index. */
     void init(float ax_, float ay_, float ior_);
+    /** The coat's GGX roughness for choosing lobes: 0 for a mirror. */
+    float alpha() const { return delta ? 0.0f : 0.5f * (ax + ay); }
     /** The coat's reflection albedo at cosine mu (linear in the table). */
     float at(float mu) const {
         const float x =
@@ -535,11 +537,14 @@ void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* 
             const float ec = m.coat * m.coat_e.at(c.wo.z);
             c.coat_t = 1.0f - ec;
             // The coat in proportion to what it reflects against what the metal under it
-            // reflects at most (its Fresnel at wo), never below 5% for either.
+            // reflects at most (its Fresnel at wo), the sharper weighed up (sharp_lobe_weight),
+            // never below 5% for either.
             float f[3];
             conductor_fresnel(m, c.wo.z, f);
-            const float metal = c.coat_t * (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]);
-            c.p_coat = ec + metal > 0.0f ? std::clamp(ec / (ec + metal), 0.05f, 0.95f) : 0.5f;
+            const float coat = ec * sharp_lobe_weight(m.coat_e.alpha());
+            const float metal = c.coat_t * (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]) *
+                                sharp_lobe_weight(c.delta != 0.0f ? 0.0f : ms_alpha(c));
+            c.p_coat = coat + metal > 0.0f ? std::clamp(coat / (coat + metal), 0.05f, 0.95f) : 0.5f;
         }
     }
 }
@@ -995,10 +1000,11 @@ void plastic_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* cl
         const float lum = 0.2126f * c.rgb[0] + 0.7152f * c.rgb[1] + 0.0722f * c.rgb[2];
         c.e_o = plastic_e(m, std::max(c.wo.z, 0.0f));
         const float diffuse = lum * (1.0f - c.e_o);
-        // Sample the coat in proportion to the energy it reflects; never less than 10% of the
-        // time so that a dark base does not starve the diffuse lobe of samples.
-        c.p_spec =
-            c.e_o + diffuse > 0.0f ? std::clamp(c.e_o / (c.e_o + diffuse), 0.1f, 0.9f) : 0.5f;
+        // Sample the coat in proportion to the energy it reflects, a sharp coat weighed up
+        // (sharp_lobe_weight); never less than 10% of the time so that a dark base does not
+        // starve the diffuse lobe of samples.
+        const float coat = c.e_o * sharp_lobe_weight(m.coat.alpha());
+        c.p_spec = coat + diffuse > 0.0f ? std::clamp(coat / (coat + diffuse), 0.1f, 0.9f) : 0.5f;
     }
 }
 

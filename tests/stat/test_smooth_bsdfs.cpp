@@ -574,5 +574,64 @@ TEST(SmoothRegularisation, FlooredMirrorSamplesFollowTheirPdf) {
     EXPECT_NEAR(e.mean, r_e.mean, 1e-4) << "same lobe, same samples";
 }
 
+/** Relative variance Var(X) / E(X)^2 of X = f cos / pdf (green) over BSDF samples that land in a
+ *  disc of angular radius 1 degree (the sun's size) around the mirror direction of wo; and the
+ *  share of samples that land there. */
+std::pair<double, double> highlight_relative_variance(const BsdfHarness& b, Vec3 wo) {
+    const std::vector<BsdfHarness::Sample> s = b.sample(kSamples, 2027);
+    const Vec3 mirror{-wo.x, -wo.y, wo.z};
+    const double cos_disc = std::cos(1.0 * M_PI / 180.0);
+    double sum = 0.0, sum2 = 0.0, in = 0.0;
+    for (const BsdfHarness::Sample& x : s) {
+        const double c =
+            static_cast<double>(x.wi.x * mirror.x + x.wi.y * mirror.y + x.wi.z * mirror.z);
+        if (!(x.pdf > 0.0f) || c < cos_disc) continue;
+        const double v = static_cast<double>(x.f.y * std::fabs(x.wi.z) / x.pdf);
+        sum += v;
+        sum2 += v * v;
+        in += 1.0;
+    }
+    const double n = static_cast<double>(s.size()), mean = sum / n;
+    return {mean > 0.0 ? (sum2 / n - mean * mean) / (mean * mean) : 1e30, in / n};
+}
+
+// A small bright light seen in a sharp coat (the sun's highlight in a car's clear coat) is lit
+// almost only by the BSDF samples that pick the coat: the light's own samples rarely fall in so
+// narrow a lobe, and MIS gives those directions to the BSDF. Chosen in proportion to its energy
+// alone (4-5% head-on, against a red base's diffuse or a copper's 60%) the coat got 7-26% of the
+// samples, and the highlight's estimate the relative variances in `before` (measured with these
+// samples before sharp_lobe_weight): its pixels converged slowest in the image. A sharp lobe is
+// now chosen up to 3x more often (1.0-1.7 here, 3.1-4.8 under a copper's bright lobe).
+TEST(SmoothSharpLobes, ASmallLightInASharpCoatIsFoundByManySamples) {
+    struct Kind {
+        const char* name;
+        BsdfHarness bsdf;
+        double before[2];  ///< relative variance at cos 0.9 and 0.6, energy-proportional choice
+    };
+    Kind kinds[] = {
+        {"metal_rough clear coat",
+         BsdfHarness("smooth", "metal_rough",
+                     {{"base_color", {0.6, 0.03, 0.03}},
+                      {"roughness", {0.3}},
+                      {"clearcoat", {1.0}},
+                      {"clearcoat_roughness", {0.03}}}),
+         {3.31, 2.83}},
+        {"plastic",
+         BsdfHarness("smooth", "plastic", {{"albedo", {0.75, 0.06, 0.05}}, {"roughness", {0.001}}}),
+         {4.86, 3.01}},
+        {"coated conductor", coated("copper", 0.3f, 1.0f, 1.5f, 0.001f), {14.2, 9.15}},
+    };
+    for (Kind& k : kinds)
+        for (int j = 0; j < 2; ++j) {
+            const float c = j == 0 ? 0.9f : 0.6f;
+            const Vec3 wo = wo_for(c);
+            k.bsdf.prepare(wo);
+            const auto [rel_var, share] = highlight_relative_variance(k.bsdf, wo);
+            // At most 55% of the variance before: at least 1.8x fewer samples for the same noise.
+            EXPECT_LT(rel_var, 0.55 * k.before[j])
+                << k.name << " cos " << c << ": share of samples in the light " << share;
+        }
+}
+
 }  // namespace
 }  // namespace spangle::test::smooth_bsdfs
