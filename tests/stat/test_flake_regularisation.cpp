@@ -84,5 +84,35 @@ TEST(FlakeRegularisation, AFlooredPaintKeepsItsEnergyAndSamplesByItsPdf) {
     }
 }
 
+// A smooth coat (the beetle's) is the only lobe that sees a small bright light in its mirror
+// direction (a softbox, the sun): its reflection there converges as the share of BSDF samples
+// that pick it. By energy alone (the coat reflects 4-6% against a red base and flakes) that share
+// was 7.1% at cos 0.9 and 15.0% at cos 0.5 with these samples; a sharp coat is now chosen 3x as
+// often as its energy says (mf::sharp_lobe_weight), as the smooth plugin's coats are, so at least
+// twice as many samples find it (18.8% and 34.4%).
+TEST(FlakeCoat, ASmoothCoatGetsThreeTimesItsEnergyShareOfSamples) {
+    const std::pair<float, double> cases[] = {{0.9f, 0.071}, {0.5f, 0.150}};  // cos, share before
+    for (const auto& [cos_o, before] : cases) {
+        const Vec3 wo = dir(cos_o, 0.4f);
+        auto m = flake_material(false,
+                                {{"coat", {1.0}},
+                                 {"coat_roughness", {0.0}},
+                                 {"base_color", {0.5, 0.02, 0.03}},
+                                 {"flake_weight", {0.5}}},
+                                {{"preset", "perfect"}});
+        m->prepare(wo, footprint(60.0, 3.3f, 7.1f));
+        const Vec3 mirror{-wo.x, -wo.y, wo.z};
+        uint32_t in = 0;
+        const std::vector<BsdfHarness::Sample> s = m->sample(20000, 99);
+        for (const BsdfHarness::Sample& x : s)
+            if (x.pdf > 0.0f &&
+                x.wi.x * mirror.x + x.wi.y * mirror.y + x.wi.z * mirror.z > 1.0f - 1e-6f)
+                ++in;
+        const double share = static_cast<double>(in) / static_cast<double>(s.size());
+        EXPECT_GT(share, 2.0 * before) << "cos " << cos_o;
+        EXPECT_LT(share, 0.5) << "cos " << cos_o << ": the other lobes keep most samples";
+    }
+}
+
 }  // namespace
 }  // namespace spangle::test::flake_regularisation
