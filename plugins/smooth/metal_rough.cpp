@@ -298,8 +298,9 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
         c.es_o = c.sheen_max > 0.0f ? sheen_albedo_lookup(mu, c.sheen_r) : 0.0f;
         // The base under the sheen keeps what the sheen leaves (at wo, for the weights).
         const float keep = 1.0f - c.sheen_max * std::min(c.es_o, 1.0f);
-        // Lobes in proportion to the energy each returns at wo, every present lobe at least a
-        // tenth of the time so that none is starved of samples.
+        // Lobes in proportion to the energy each returns at wo (a sharp lobe weighed up:
+        // sharp_lobe_weight), a tenth of the samples shared equally among the present lobes so
+        // that none is starved.
         const float under = 1.0f - c.ec_o;
         // The metal's multiple scattering is sampled with the diffuse lobe (its shape is close
         // to cosine).

@@ -86,7 +86,8 @@ TEST(FlakeRegularisation, AFlooredPaintKeepsItsEnergyAndSamplesByItsPdf) {
 
 // A smooth coat (the beetle's) is the only lobe that sees a small bright light in its mirror
 // direction (a softbox, the sun): its reflection there converges as the share of BSDF samples
-// that pick it. By energy alone (the coat reflects 4-6% against a red base and flakes) that share
+// that pick it. By energy alone (the coat reflects 4% head-on and 9% at cos 0.5, against a red
+// base and flakes) that share
 // was 7.1% at cos 0.9 and 15.0% at cos 0.5 with these samples; a sharp coat is now chosen 3x as
 // often as its energy says (mf::sharp_lobe_weight), as the smooth plugin's coats are, so at least
 // twice as many samples find it (18.8% and 34.4%).

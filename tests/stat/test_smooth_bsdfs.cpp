@@ -601,7 +601,8 @@ std::pair<double, double> highlight_relative_variance(const BsdfHarness& b, Vec3
 // alone (4-5% head-on, against a red base's diffuse or a copper's 60%) the coat got 7-26% of the
 // samples, and the highlight's estimate the relative variances in `before` (measured with these
 // samples before sharp_lobe_weight): its pixels converged slowest in the image. A sharp lobe is
-// now chosen up to 3x more often (1.0-1.7 here, 3.1-4.8 under a copper's bright lobe).
+// now chosen up to 3x more often, and the relative variances are 1.0-1.7 (3.1-4.8 under a
+// copper's bright lobe).
 TEST(SmoothSharpLobes, ASmallLightInASharpCoatIsFoundByManySamples) {
     struct Kind {
         const char* name;

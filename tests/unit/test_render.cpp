@@ -90,7 +90,7 @@ TEST(Render, RussianRouletteKeepsTheLightAndLittleNoise) {
     // the pixels' spread is 0.013 at 64 spp. Survival by t itself (before) spread them 0.0225
     // in 15% less time: 2.6x less efficient.
     EXPECT_LT(sd, 0.018) << "the roulette's noise";
-    EXPECT_GT(sd, 0.0) << "roulette decided paths";
+    EXPECT_GT(sd, 0.005) << "roulette decided paths (without it the spread is 5e-4)";
 }
 
 TEST(Render, RectangleLightMatchesClosedFormIrradiance) {
