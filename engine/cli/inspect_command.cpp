@@ -212,7 +212,7 @@ std::vector<float> read_rgb(const std::string& path, Planes& planes) {
 /** Measures and prints the image at `path` (against `reference` when not empty). */
 int run_inspect(const std::string& path, const std::string& reference) {
     Planes planes;
-    const std::vector<float> rgb = read_rgb(path, planes);
+    std::vector<float> rgb = read_rgb(path, planes);
     if (rgb.empty()) {
         if (!reference.empty())
             throw_error("'{}' has no R, G and B channels (nor Y) to compare with '{}'", path,
@@ -257,7 +257,7 @@ int run_inspect(const std::string& path, const std::string& reference) {
     }
     if (!reference.empty()) {
         Planes ref_planes;
-        const std::vector<float> ref = read_rgb(reference, ref_planes);
+        std::vector<float> ref = read_rgb(reference, ref_planes);
         if (ref.empty())
             throw_error("the reference '{}' has no R, G and B channels (nor Y) to compare with",
                         reference);
@@ -273,9 +273,9 @@ int run_inspect(const std::string& path, const std::string& reference) {
             planes.three("background.R", "background.G", "background.B");
         const std::vector<float> ref_background =
             ref_planes.three("background.R", "background.G", "background.B");
-        std::vector<float> whole = rgb, ref_whole = ref;
         if (background.empty() != ref_background.empty()) {
-            std::vector<float>& into = background.empty() ? ref_whole : whole;
+            // (The measures above are the image as read; from here its RGB holds the sky.)
+            std::vector<float>& into = background.empty() ? ref : rgb;
             const std::vector<float>& sky = background.empty() ? ref_background : background;
             for (std::size_t i = 0; i < into.size() && i < sky.size(); ++i) into[i] += sky[i];
             fmt::print(
@@ -286,17 +286,17 @@ int run_inspect(const std::string& path, const std::string& reference) {
         // Over the pixels finite in both (a NaN made the figure nan); how many were left out.
         std::vector<float> a, b;
         std::size_t skipped = 0;
-        for (std::size_t i = 0; i + 2 < whole.size(); i += 3) {
-            const bool ok = std::isfinite(whole[i] + whole[i + 1] + whole[i + 2]) &&
-                            std::isfinite(ref_whole[i] + ref_whole[i + 1] + ref_whole[i + 2]);
+        for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) {
+            const bool ok = std::isfinite(rgb[i] + rgb[i + 1] + rgb[i + 2]) &&
+                            std::isfinite(ref[i] + ref[i + 1] + ref[i + 2]);
             if (!ok) {
                 ++skipped;
                 continue;
             }
-            a.insert(a.end(), whole.begin() + static_cast<std::ptrdiff_t>(i),
-                     whole.begin() + static_cast<std::ptrdiff_t>(i + 3));
-            b.insert(b.end(), ref_whole.begin() + static_cast<std::ptrdiff_t>(i),
-                     ref_whole.begin() + static_cast<std::ptrdiff_t>(i + 3));
+            a.insert(a.end(), rgb.begin() + static_cast<std::ptrdiff_t>(i),
+                     rgb.begin() + static_cast<std::ptrdiff_t>(i + 3));
+            b.insert(b.end(), ref.begin() + static_cast<std::ptrdiff_t>(i),
+                     ref.begin() + static_cast<std::ptrdiff_t>(i + 3));
         }
         fmt::print("relMSE against {}: {:.6g}{}\n", reference, relative_mse(a, b),
                    skipped ? fmt::format(" (over the pixels finite in both; {} left out)", skipped)

@@ -118,7 +118,7 @@ CoatFloors::CoatFloors(const Coat& own, const TableCache& cache)
     : own_(own), cache_(cache.dir(), cache.max_bytes()) {}
 
 const Coat& CoatFloors::at(float floor) const {
-    if (!own_.on || !(floor > (own_.smooth ? 0.0f : own_.alpha))) return own_;
+    if (!own_.on || !(floor > own_.roughness())) return own_;
     int k = 0;
     while (k + 1 < kCount && kLevels[k] < floor) ++k;
     if (!own_.smooth && kLevels[k] <= own_.alpha) return own_;

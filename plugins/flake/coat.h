@@ -39,6 +39,8 @@ struct Coat {
     void init(bool on_, float ior_, float roughness, const TableCache* cache = nullptr);
     /** Sets e_avg from albedo_at() (on, with its table filled). */
     void set_average();
+    /** Its GGX roughness, 0 for a smooth coat (a delta reflection). */
+    float roughness() const { return smooth ? 0.0f : alpha; }
     /** 1 / (1 - e_avg): what the diffuse base's part is divided by (1 when off). */
     float base_gain() const { return on ? 1.0f / (1.0f - e_avg) : 1.0f; }
     /** E(cos theta): exact for a smooth coat, an upper bound for a rough one; 0 when off. */

@@ -381,8 +381,7 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     // alone sees a small bright light in it: mf::sharp_lobe_weight).
     const float under = 1.0f - c.e_coat_o;
     const float w_coat =
-        c.coat->on ? c.e_coat_o * mf::sharp_lobe_weight(c.coat->smooth ? 0.0f : c.coat->alpha)
-                   : 0.0f;
+        c.coat->on ? c.e_coat_o * mf::sharp_lobe_weight(c.coat->roughness()) : 0.0f;
     const float w_base = under * (1.0f - c.weight) * luminance(c.base) * c.coat->base_gain();
     const float w_flake = under * c.weight *
                           (c.second ? (1.0f - c.w_second) * flake_luminance(m) +
