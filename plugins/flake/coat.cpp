@@ -106,11 +106,11 @@ void Coat::eval_rough(V3 wo, V3 wi, float& f, float& pdf) const {
     const float d = mf::ggx_d(h, alpha, alpha);
     f = mf::fresnel_dielectric(mf::dot(wo, h), ior) * d * mf::ggx_g2(wo, wi, alpha, alpha) /
         (4.0f * wo.z * wi.z);
-    pdf = mf::ggx_g1(wo, alpha, alpha) * d / (4.0f * wo.z);
+    pdf = mf::ggx_reflection_pdf(wo, h, alpha, alpha);
 }
 
 bool Coat::sample_rough(V3 wo, float u0, float u1, V3& wi) const {
-    wi = mf::reflect(wo, mf::ggx_sample_visible(wo, alpha, alpha, u0, u1));
+    wi = mf::ggx_sample_reflection(wo, alpha, alpha, u0, u1);
     return wi.z > 0.0f;
 }
 

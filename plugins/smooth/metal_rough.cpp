@@ -289,8 +289,8 @@ void prepare(const void* inst, const SpangleShadingBatch_v3* b, void* closures, 
             const float f_avg = c.base[ch] + (1.0f - c.base[ch]) / 21.0f;
             c.ms[ch] = m.multiscatter ? ms_colour(f_avg, c.e1_avg) : 0.0f;
         }
-        float ac, bc;
-        albedo_lookup(t, mu, c.alpha_c, ac, bc);
+        float ac = 0.0f, bc = 0.0f;
+        if (c.coat > 0.0f) albedo_lookup(t, mu, c.alpha_c, ac, bc);
         c.ec_o = c.coat * (0.04f * ac + bc);
         for (int ch = 0; ch < 3; ++ch) c.sheen[ch] = at(b, kSheen, i, m.sheen[ch], ch, 3);
         c.sheen_max = std::max({c.sheen[0], c.sheen[1], c.sheen[2]});
@@ -336,17 +336,24 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
     const AlbedoTables& t = shipped_albedo_tables();
     const V3 wo = c.wo;
     const V3 h = normalize(wo + wi);
-    const float w = std::pow(1.0f - std::clamp(dot(wo, h), 0.0f, 1.0f), 5.0f);
+    const float x = 1.0f - std::clamp(dot(wo, h), 0.0f, 1.0f), x2 = x * x;
+    const float w = x2 * x2 * x;  // Schlick's (1 - v.h)^5 (powf was 4% of a render's time)
     const float d = ggx_d(h, c.alpha, c.alpha);
     const float s = d * ggx_g2(wo, wi, c.alpha, c.alpha) / (4.0f * wo.z * wi.z);
-    float a_i, b_i, ac_i, bc_i;
+    float a_i, b_i;
     albedo_lookup(t, wi.z, c.alpha, a_i, b_i);
-    albedo_lookup(t, wi.z, c.alpha_c, ac_i, bc_i);
-    const float ec_i = c.coat * (0.04f * ac_i + bc_i);
     const float ms = ms_shape(c.e1_o, a_i + b_i, c.e1_avg);
-    const float dc = ggx_d(h, c.alpha_c, c.alpha_c);
-    const float sc = dc * ggx_g2(wo, wi, c.alpha_c, c.alpha_c) / (4.0f * wo.z * wi.z);
-    const float coat = c.coat * (0.04f + 0.96f * w) * sc;
+    // The clear coat (none: its terms are 0, and their lookups are skipped).
+    float ec_i = 0.0f, coat = 0.0f, coat_pdf = 0.0f;
+    if (c.coat > 0.0f) {
+        float ac_i, bc_i;
+        albedo_lookup(t, wi.z, c.alpha_c, ac_i, bc_i);
+        ec_i = c.coat * (0.04f * ac_i + bc_i);
+        const float dc = ggx_d(h, c.alpha_c, c.alpha_c);
+        const float sc = dc * ggx_g2(wo, wi, c.alpha_c, c.alpha_c) / (4.0f * wo.z * wi.z);
+        coat = c.coat * (0.04f + 0.96f * w) * sc;
+        coat_pdf = ggx_reflection_pdf(wo, h, c.alpha_c, c.alpha_c);
+    }
     const float under = (1.0f - c.ec_o) * (1.0f - ec_i);
     // The sheen layer and what it leaves the base (1 without a sheen).
     float sheen = 0.0f, keep = 1.0f;
@@ -368,9 +375,8 @@ void evaluate(const Closure& c, V3 wi, float f[3], float& pdf) {
         f[ch] = coat + under * (c.sheen[ch] * sheen + keep * base);
     }
     const float p_coat = 1.0f - c.p_diffuse - c.p_spec;
-    pdf = c.p_diffuse * wi.z * kInvPi +
-          c.p_spec * ggx_g1(wo, c.alpha, c.alpha) * d / (4.0f * wo.z) +
-          (p_coat > 0.0f ? p_coat * ggx_g1(wo, c.alpha_c, c.alpha_c) * dc / (4.0f * wo.z) : 0.0f);
+    pdf = c.p_diffuse * wi.z * kInvPi + c.p_spec * ggx_reflection_pdf(wo, h, c.alpha, c.alpha) +
+          (p_coat > 0.0f ? p_coat * coat_pdf : 0.0f);
 }
 
 /** The closure of query i (closure_index, or i). */
@@ -406,7 +412,7 @@ void sample(const void*, const void* closures, SpangleSampleBatch_v3* q) {
             wi = cosine_hemisphere(q->u0[i], q->u1[i]);
         } else {
             const float alpha = u < c.p_diffuse + c.p_spec ? c.alpha : c.alpha_c;
-            wi = reflect(c.wo, ggx_sample_visible(c.wo, alpha, alpha, q->u0[i], q->u1[i]));
+            wi = ggx_sample_reflection(c.wo, alpha, alpha, q->u0[i], q->u1[i]);
         }
         float f[3] = {0, 0, 0}, pdf = 0.0f;
         if (c.wo.z > 0.0f && wi.z > 0.0f) evaluate(c, wi, f, pdf);

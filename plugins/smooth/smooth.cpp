@@ -262,7 +262,7 @@ struct CoatAlbedo {
         const V3 h = normalize(wo + wi);
         const float d = ggx_d(h, ax, ay);
         f = fresnel_dielectric(dot(wo, h), ior) * d * ggx_g2(wo, wi, ax, ay) / (4.0f * wo.z * wi.z);
-        pdf = ggx_g1(wo, ax, ay) * d / (4.0f * wo.z);
+        pdf = ggx_reflection_pdf(wo, h, ax, ay);
     }
 };
 
@@ -557,7 +557,7 @@ void conductor_rough(const Conductor& m, const Closure& c, V3 wo, V3 wi, V3 h, f
     const float d = ggx_d(h, c.ax, c.ay);
     conductor_fresnel(m, dot(wo, h), f);
     const float s = d * ggx_g2(wo, wi, c.ax, c.ay) / (4.0f * wo.z * wi.z);
-    pdf = ggx_g1(wo, c.ax, c.ay) * d / (4.0f * wo.z);
+    pdf = ggx_reflection_pdf(wo, h, c.ax, c.ay);
     for (int ch = 0; ch < 3; ++ch) f[ch] *= s;
     if (c.p_spec > 0.0f) {
         const AnisoAlbedo* t = own_aniso(m, c);
@@ -649,13 +649,13 @@ void coated_sample(const Conductor& m, const Closure& c, SpangleSampleBatch_v3* 
     V3 wi;
     bool diffuse = false;
     if (coat) {
-        wi = reflect(wo, ggx_sample_visible(wo, m.coat_e.ax, m.coat_e.ay, q->u0[i], q->u1[i]));
+        wi = ggx_sample_reflection(wo, m.coat_e.ax, m.coat_e.ay, q->u0[i], q->u1[i]);
     } else {
         // The metal's own choice (its multiple scattering) by the rest of u2, rescaled.
         const float v = std::min((u2 - c.p_coat) / (1.0f - c.p_coat), 0x1.fffffep-1f);
         diffuse = c.p_spec > 0.0f && v < c.p_spec;
         wi = diffuse ? cosine_hemisphere(q->u0[i], q->u1[i])
-                     : reflect(wo, ggx_sample_visible(wo, c.ax, c.ay, q->u0[i], q->u1[i]));
+                     : ggx_sample_reflection(wo, c.ax, c.ay, q->u0[i], q->u1[i]);
     }
     if (wi.z <= 0.0f) {
         invalid_sample(q, i);
@@ -696,8 +696,8 @@ void conductor_sample(const void* inst, const void* closures, SpangleSampleBatch
             wi = cosine_hemisphere(q->u0[i], q->u1[i]);
             h = normalize(wo + wi);
         } else {
-            h = ggx_sample_visible(wo, c.ax, c.ay, q->u0[i], q->u1[i]);
-            wi = reflect(wo, h);
+            wi = ggx_sample_reflection(wo, c.ax, c.ay, q->u0[i], q->u1[i]);
+            h = normalize(wo + wi);
         }
         if (wi.z <= 0.0f) {
             invalid_sample(q, i);
@@ -1051,9 +1051,8 @@ void plastic_sample(const void* inst, const void* closures, SpangleSampleBatch_v
                          SPANGLE_SAMPLE_REFLECTION | SPANGLE_SAMPLE_SPECULAR);
             continue;
         }
-        const V3 wi =
-            coat ? reflect(wo, ggx_sample_visible(wo, m.coat.ax, m.coat.ay, q->u0[i], q->u1[i]))
-                 : cosine_hemisphere(q->u0[i], q->u1[i]);
+        const V3 wi = coat ? ggx_sample_reflection(wo, m.coat.ax, m.coat.ay, q->u0[i], q->u1[i])
+                           : cosine_hemisphere(q->u0[i], q->u1[i]);
         if (wi.z <= 0.0f) {
             invalid_sample(q, i);
             continue;
