@@ -12,9 +12,9 @@
 
 #include "../common/microfacet.h"
 
+namespace spangle::test::ggx_reflection {
 namespace {
 
-namespace mf = spangle::mf;
 using mf::V3;
 
 /** The integral of ggx_reflection_pdf over the directions above the horizon (bounded: true) or
@@ -94,8 +94,6 @@ V3 direction(float cos_theta, float phi) {
     return {s * std::cos(phi), s * std::sin(phi), cos_theta};
 }
 
-}  // namespace
-
 TEST(GgxReflection, TheLeftOutNormalsReflectOnlyUnderTheHorizon) {
     // The pdf's mass above the horizon equals the share of samples that land there, for
     // isotropic and anisotropic lobes at every view: had the bound cut away normals whose mirror
@@ -142,3 +140,6 @@ TEST(GgxReflection, FewerSamplesAreLostUnderTheHorizonAndTheEstimateIsLessNoisy)
             EXPECT_LE(bb.var, pp.var * 1.02);
         }
 }
+
+}  // namespace
+}  // namespace spangle::test::ggx_reflection
