@@ -15,8 +15,9 @@ double filter_value(FilterKind kind, double x, double radius) {
         case FilterKind::Box:
             return 1.0;
         case FilterKind::Gaussian: {
-            // sigma 0.5 px, shifted so that it reaches 0 at the radius.
-            const double s2 = 2.0 * 0.25;
+            // sigma = radius / 3 (0.5 px at the default 1.5), shifted so that it reaches 0 at
+            // the radius.
+            const double sigma = radius / 3.0, s2 = 2.0 * sigma * sigma;
             return std::max(0.0, std::exp(-x * x / s2) - std::exp(-radius * radius / s2));
         }
         case FilterKind::BlackmanHarris: {
@@ -43,7 +44,8 @@ float filter_radius(FilterKind kind) {
 
 }  // namespace
 
-FilterSampler::FilterSampler(FilterKind kind) : radius_(filter_radius(kind)) {
+FilterSampler::FilterSampler(FilterKind kind, float radius)
+    : radius_(radius > 0.0f ? radius : filter_radius(kind)) {
     // Piecewise-constant filter over kBins bins, then its inverse CDF tabulated finely enough that
     // linear interpolation in u reproduces it (sampling is the hot path; this runs once).
     std::array<double, kBins + 1> cdf{};

@@ -15,10 +15,12 @@ namespace spangle {
 
 struct Camera;  // scene/components.h
 
-/** A 1D filter tabulated for sampling: piecewise constant over kBins bins on [-radius, radius]. */
+/** A 1D filter tabulated for sampling: piecewise constant over kBins bins on [-radius, radius].
+ *  The radius stretches the filter: box 0.5, Gaussian 1.5 (sigma = radius / 3: 0.5) and
+ *  Blackman-Harris 2 pixels by default (radius 0). */
 class FilterSampler {
 public:
-    explicit FilterSampler(FilterKind kind);
+    explicit FilterSampler(FilterKind kind, float radius = 0.0f);
     /** Offset from the pixel centre, in pixels, distributed as the filter. */
     float sample(float u) const;
     float radius() const { return radius_; }

@@ -461,7 +461,7 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
                   const Film& film, const std::vector<Camera>& camera_steps, RenderResult& out) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam = CameraModel::of(camera, film.width, film.height);
-    const FilterSampler filter(film.filter);
+    const FilterSampler filter(film.filter, film.filter_radius);
     RenderJob job;
     job.filter = &filter;
     const AdaptivePlan plan = adaptive_plan(film, options);

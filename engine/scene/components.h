@@ -270,6 +270,7 @@ SPANGLE_COMPONENT(CameraMotion, SPANGLE_CAMERA_MOTION_FIELDS);
     X(uint32_t, rr_depth, "bounces before Russian roulette")                             \
     X(uint64_t, seed, "random seed")                                                     \
     X(FilterKind, filter, "pixel filter")                                                \
+    X(float, filter_radius, "pixel filter radius, pixels; 0 = the filter's own")         \
     X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")      \
     X(float, filter_glossy, "path regularisation after rough bounces; 0 = off")          \
     X(float, noise_threshold, "adaptive sampling's noise threshold; 0 = off")            \

@@ -390,11 +390,12 @@ struct RenderDesc {
     uint32_t rr_depth = 3;                     ///< bounces before Russian roulette
     uint64_t seed = 0;                         ///< random seed
     FilterKind filter = FilterKind::Gaussian;  ///< pixel filter
-    float clamp_indirect = 0.0f;               ///< max luminance of one indirect contribution
-    float filter_glossy = 0.0f;                ///< path regularisation; 0 = off (unbiased)
-    float noise_threshold = 0.0f;              ///< adaptive sampling; 0 = off, else >= 1e-6
-    uint32_t min_spp = 0;                      ///< adaptive: samples before a stop; 0 = auto
-    uint32_t max_spp = 0;                      ///< adaptive: most samples of a pixel; 0 = spp
+    float filter_radius = 0.0f;    ///< its radius in pixels; 0 = the filter's own (0.5, 1.5, 2)
+    float clamp_indirect = 0.0f;   ///< max luminance of one indirect contribution
+    float filter_glossy = 0.0f;    ///< path regularisation; 0 = off (unbiased)
+    float noise_threshold = 0.0f;  ///< adaptive sampling; 0 = off, else >= 1e-6
+    uint32_t min_spp = 0;          ///< adaptive: samples before a stop; 0 = auto
+    uint32_t max_spp = 0;          ///< adaptive: most samples of a pixel; 0 = spp
     bool transparent_background = false;       ///< camera rays do not see the environment
     std::optional<std::string> working_space;  ///< as written; none = the config's, else ACEScg
     std::optional<std::string> color_space;    ///< of bare colours; none = lin_rec709

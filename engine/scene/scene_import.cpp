@@ -97,6 +97,10 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     keep("rr_depth", &RenderDesc::rr_depth);
     keep("seed", &RenderDesc::seed);
     keep("filter", &RenderDesc::filter);
+    // A radius goes with its filter: the importing file's filter without a radius of its own
+    // takes that filter's own radius, not the imported file's.
+    if (mine.wrote("filter") && !mine.wrote("filter_radius")) into.filter_radius = 0.0f;
+    keep("filter_radius", &RenderDesc::filter_radius);
     keep("clamp_indirect", &RenderDesc::clamp_indirect);
     keep("filter_glossy", &RenderDesc::filter_glossy);
     keep("noise_threshold", &RenderDesc::noise_threshold);

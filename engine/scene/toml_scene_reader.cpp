@@ -68,6 +68,8 @@ RenderDesc read_render(TableReader& r) {
     if (!parse_filter(filter, d.filter))
         throw_error(r.loc("filter"), "unknown filter '{}' (valid: box, gaussian, blackman-harris)",
                     filter);
+    // A filter's reach in pixels (Cycles' Blackman-Harris of width 1.5 is radius 1.5 here).
+    d.filter_radius = static_cast<float>(r.number("filter_radius", 0.0, {0.05, 8.0}));
     d.frame_start = r.integer("frame_start", d.frame_start, {-1e9, 1e9});
     d.frame_end = r.integer("frame_end", d.frame_start, {static_cast<double>(d.frame_start), 1e9});
     d.fps = r.number("fps", d.fps, {0.0, 1e6, true});

@@ -125,6 +125,7 @@ struct Writer {
         line("rr_depth", fmt::to_string(r.rr_depth));
         line("seed", fmt::to_string(r.seed));
         line("filter", str(filter_name(r.filter)));
+        if (r.filter_radius > 0.0f) line("filter_radius", num(r.filter_radius));
         line("clamp_indirect", num(r.clamp_indirect));
         if (r.filter_glossy > 0.0f) line("filter_glossy", num(r.filter_glossy));
         if (r.noise_threshold > 0.0f) line("noise_threshold", num(r.noise_threshold));

@@ -146,6 +146,52 @@ TEST(FilterSampler, SamplesFollowTheFilter) {
     EXPECT_NEAR(box.sample(0.25f), -0.25f, 1e-3f);
 }
 
+TEST(FilterSampler, TheRadiusStretchesTheFilter) {
+    // [render] filter_radius: Blackman-Harris over [-1.5, 1.5] (Cycles' default filter, width
+    // 1.5), histogram against the window; the Gaussian's sigma is radius / 3, so its default
+    // (1.5, sigma 0.5) is the same table bit for bit and radius 3 has twice the spread.
+    const FilterSampler bh(FilterKind::BlackmanHarris, 1.5f);
+    constexpr int kBins = 12, kN = 120000;
+    std::vector<double> hist(kBins, 0.0);
+    for (int i = 0; i < kN; ++i) {
+        const float x = bh.sample((static_cast<float>(i) + 0.5f) / kN);
+        ASSERT_GE(x, -1.5f);
+        ASSERT_LE(x, 1.5f);
+        hist[static_cast<std::size_t>(
+            std::min(kBins - 1, static_cast<int>((x + 1.5f) / 3.0f * kBins)))] += 1.0;
+    }
+    const auto window = [](double x) {
+        const double t = 2.0 * M_PI * (x / 3.0 + 0.5);
+        return 0.35875 - 0.48829 * std::cos(t) + 0.14128 * std::cos(2 * t) -
+               0.01168 * std::cos(3 * t);
+    };
+    std::vector<double> expect(kBins, 0.0);
+    double total = 0.0;
+    for (int b = 0; b < kBins; ++b) {
+        for (int k = 0; k < 100; ++k)
+            expect[static_cast<std::size_t>(b)] +=
+                window(-1.5 + (b + (k + 0.5) / 100.0) * 3.0 / kBins);
+        total += expect[static_cast<std::size_t>(b)];
+    }
+    for (int b = 0; b < kBins; ++b)
+        EXPECT_NEAR(hist[static_cast<std::size_t>(b)] / kN,
+                    expect[static_cast<std::size_t>(b)] / total, 0.002)
+            << "bin " << b;
+    const FilterSampler g(FilterKind::Gaussian), g15(FilterKind::Gaussian, 1.5f),
+        g3(FilterKind::Gaussian, 3.0f);
+    double v1 = 0.0, v3 = 0.0;
+    for (int i = 0; i < 4096; ++i) {
+        const float u = (static_cast<float>(i) + 0.5f) / 4096.0f;
+        ASSERT_EQ(g.sample(u), g15.sample(u)) << u;
+        v1 += static_cast<double>(g.sample(u)) * g.sample(u);
+        v3 += static_cast<double>(g3.sample(u)) * g3.sample(u);
+    }
+    EXPECT_NEAR(std::sqrt(v3 / v1), 2.0, 0.01);
+    EXPECT_EQ(g3.radius(), 3.0f);
+    const FilterSampler box(FilterKind::Box, 1.0f);
+    EXPECT_NEAR(box.sample(0.25f), -0.5f, 1e-3f);
+}
+
 TEST(RayDifferentials, HeadOnPlaneFootprintIsThePixel) {
     // A camera 3 m in front of a plane z = 0 whose uv is (x / 2, y / 2), looking straight at it.
     const uint32_t w = 320, h = 200;

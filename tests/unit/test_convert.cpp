@@ -140,6 +140,36 @@ material = "m"
     }
 }
 
+TEST(Convert, APixelFiltersRadiusIsReadWrittenBackAndGoesWithItsFilterOnImport) {
+    test::TempDir dir("convert_filter_radius");
+    std::ofstream(dir.file("s.toml")) << R"([render]
+filter = "blackman-harris"
+filter_radius = 1.5
+[camera]
+position = [0, 0, 5]
+look_at = [0, 0, 0]
+)";
+    const SceneDescription d = read_scene(dir.file("s.toml"));
+    EXPECT_EQ(d.render.filter, FilterKind::BlackmanHarris);
+    EXPECT_EQ(d.render.filter_radius, 1.5f);
+    write_toml_scene(d, dir.file("back.toml"), dir.file("meshes"));
+    EXPECT_EQ(read_scene(dir.file("back.toml")).render.filter_radius, 1.5f);
+    // Importing it: the importer's own filter without a radius takes that filter's own radius
+    // (0), not the imported Blackman-Harris's 1.5; a radius it writes is kept.
+    std::ofstream(dir.file("box.toml"))
+        << "[render]\nfilter = \"box\"\n[[import]]\nfile = \"s.toml\"\n";
+    const SceneDescription box = read_scene(dir.file("box.toml"));
+    EXPECT_EQ(box.render.filter, FilterKind::Box);
+    EXPECT_EQ(box.render.filter_radius, 0.0f);
+    std::ofstream(dir.file("wide.toml"))
+        << "[render]\nfilter_radius = 2\n[[import]]\nfile = \"s.toml\"\n";
+    const SceneDescription wide = read_scene(dir.file("wide.toml"));
+    EXPECT_EQ(wide.render.filter, FilterKind::BlackmanHarris);
+    EXPECT_EQ(wide.render.filter_radius, 2.0f);
+    std::ofstream(dir.file("plain.toml")) << "[[import]]\nfile = \"s.toml\"\n";
+    EXPECT_EQ(read_scene(dir.file("plain.toml")).render.filter_radius, 1.5f);
+}
+
 TEST(Convert, AnImportingSceneIsWrittenWholeWithItsOverrides) {
     test::TempDir dir("convert_import");
     std::ofstream(dir.file("car.toml")) << fmt::format(R"(

@@ -994,6 +994,18 @@ Option "integer seed" 7
     EXPECT_TRUE(noted(v4, "pbrt-v4's exposure (shutter 1 s x iso 400 / 100 = 4)"));
     EXPECT_TRUE(noted(v4, "Integrator \"bdpt\": Spangle's path tracer stands in"));
     EXPECT_TRUE(noted(v4, "PixelFilter \"mitchell\": a Gaussian"));
+    EXPECT_EQ(v4.render.filter_radius, 0.0f) << "the default reach: Spangle's own";
+    // The filter's reach: a box of radius 1, a Gaussian of radius 3 whose sigma (0.5) is not
+    // radius / 3 (said), radii that differ by axis (their mean, said).
+    const SceneDescription box =
+        read(f, "PixelFilter \"box\" \"float xradius\" 1 \"float yradius\" 1\n");
+    EXPECT_EQ(box.render.filter, FilterKind::Box);
+    EXPECT_EQ(box.render.filter_radius, 1.0f);
+    const SceneDescription g =
+        read(f, "PixelFilter \"gaussian\" \"float xradius\" 3 \"float yradius\" 2\n");
+    EXPECT_EQ(g.render.filter_radius, 2.5f);
+    EXPECT_TRUE(noted(g, "xradius 3 and yradius 2: radius 2.5 on both axes"));
+    EXPECT_TRUE(noted(g, "Spangle's Gaussian has sigma radius / 3"));
 }
 
 TEST(PbrtReader, WhatIsDroppedIsOneWarningAtItsLine) {

@@ -69,15 +69,31 @@ void sampling(Reader& r) {
     // The default filter: pbrt-v3's is a box of radius 0.5, pbrt-v4's a Gaussian of sigma 0.5
     // and radius 1.5 (Spangle's Gaussian).
     std::string f = r.filter_type.empty() ? (r.v4() ? "gaussian" : "box") : r.filter_type;
+    // Its reach: xradius and yradius (one radius for both axes here: their mean, said), and a
+    // Gaussian's sigma, which is radius / 3 here (another sigma is said).
+    const double def = f == "box" ? 0.5 : 1.5;
+    const double xr = r.filter.number("xradius", def), yr = r.filter.number("yradius", def);
+    const double radius = std::clamp(0.5 * (xr + yr), 0.05, 8.0);
+    if (xr != yr)
+        r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": xradius {} and yradius {}: "
+                                              "radius {} on both axes",
+                                              f, xr, yr, radius));
     if (f == "box") {
         d.filter = FilterKind::Box;
     } else {
         d.filter = FilterKind::Gaussian;
         if (f != "gaussian")
-            r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": a Gaussian (sigma 0.5, "
-                                                  "radius 1.5) stands in",
-                                                  f));
+            r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": a Gaussian (sigma {}, "
+                                                  "radius {}) stands in",
+                                                  f, radius / 3.0, radius));
+        const double sigma = r.filter.number("sigma", 0.5);
+        if (f == "gaussian" && std::fabs(sigma - radius / 3.0) > 1e-6)
+            r.notes.add(r.filter_loc,
+                        fmt::format("PixelFilter \"gaussian\": sigma {} with radius "
+                                    "{}: Spangle's Gaussian has sigma radius / 3 ({})",
+                                    sigma, radius, radius / 3.0));
     }
+    if (radius != def) d.filter_radius = static_cast<float>(radius);
     r.notes.unused(r.filter, fmt::format("PixelFilter \"{}\"", f));
 }
 
