@@ -411,7 +411,10 @@ void sample(const void*, const void* closures, SpangleSampleBatch_v3* q) {
         if (diffuse) {
             wi = cosine_hemisphere(q->u0[i], q->u1[i]);
         } else {
-            const float alpha = u < c.p_diffuse + c.p_spec ? c.alpha : c.alpha_c;
+            // The coat only where there is one (p_coat = 1 - p_diffuse - p_spec may round to a
+            // few 1e-8 without a coat, and the pdf has no coat term then).
+            const bool spec = u < c.p_diffuse + c.p_spec || !(c.coat > 0.0f);
+            const float alpha = spec ? c.alpha : c.alpha_c;
             wi = ggx_sample_reflection(c.wo, alpha, alpha, q->u0[i], q->u1[i]);
         }
         float f[3] = {0, 0, 0}, pdf = 0.0f;

@@ -26,6 +26,8 @@ Spangle's by its whole process and by its render phase (renderTimeSeconds). Time
 machine.
 """
 
+import glob
+import hashlib
 import math
 import os
 import subprocess
@@ -248,6 +250,19 @@ def main():
     # would otherwise share its first N samples with the reference (for both renderers).
     spangle_out = os.path.join(out, "spangle")
     os.makedirs(spangle_out, exist_ok=True)
+    # The cached reference holds for one scene text, size, sample count and build: another (a
+    # filter exported differently, a plugin rebuilt) renders it again (time_to_quality.sh reads
+    # the same file).
+    key = hashlib.sha256(open(os.path.join(folder, "car.toml"), "rb").read())
+    key.update(f"{w}x{h} {ref_spp}".encode())
+    for f in [os.path.join(build, "spangle")] + sorted(glob.glob(os.path.join(build, "plugins", "*.so"))):
+        st = os.stat(f)
+        key.update(f"{f} {st.st_size} {st.st_mtime_ns}".encode())
+    key_file = os.path.join(spangle_out, "ref_car.key")
+    if not os.path.exists(key_file) or open(key_file).read() != key.hexdigest():
+        for stale in (os.path.join(spangle_out, "ref_car.exr"), key_file):
+            if os.path.exists(stale):
+                os.remove(stale)
     if not os.path.exists(os.path.join(spangle_out, "ref_car.exr")):
         text = open(os.path.join(folder, "car.toml")).read().replace("[render]\n", "[render]\nseed = 977\n", 1)
         with open(os.path.join(folder, "car_ref.toml"), "w") as f:
@@ -257,6 +272,8 @@ def main():
                         "--size", f"{w}x{h}", "--spp", str(ref_spp), "--threads", str(threads),
                         "-q", "--float", "--no-preview", "-o", os.path.join(spangle_out, "ref_car.exr")],
                        check=True)
+        with open(key_file, "w") as f:
+            f.write(key.hexdigest())
     ref = os.path.join(out, "cycles_ref.exr")
     if not os.path.exists(ref):
         print(f"# cycles: rendering the reference ({ref_spp} spp)...", file=sys.stderr)

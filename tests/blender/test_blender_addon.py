@@ -1002,3 +1002,38 @@ def test_packed_and_missing_images(tmp_path):
     assert "spangle-blender-packed" in toml
     px = render_exr(scene, tmp_path / "images.exr")
     assert np.isfinite(px).all() and px.max() > 0.0
+
+
+def test_pixel_filter_is_cycles_filter(tmp_path):
+    """Blender's pixel filter is exported as the same filter: Cycles' Blackman-Harris of width w
+    spans [-w, w] (radius w), its Gaussian has sigma w / 4 (radius 0.75 w, sigma radius / 3), its
+    box is one pixel whatever the width; a width beyond Spangle's 8 pixels is said. Rendered, a
+    radius-1.5 Blackman-Harris scene reads back with that filter."""
+    from spangle_blender import export, flake_parameters
+
+    scene = build_scene()
+    cases = [("BLACKMAN_HARRIS", 1.5, 'filter = "blackman-harris"', "filter_radius = 1.5"),
+             ("GAUSSIAN", 2.0, 'filter = "gaussian"', "filter_radius = 1.5"),
+             ("BOX", 3.0, 'filter = "box"', None),
+             ("BLACKMAN_HARRIS", 10.0, 'filter = "blackman-harris"', "filter_radius = 8")]
+    for kind, width, line, radius in cases:
+        scene.cycles.pixel_filter_type = kind
+        scene.cycles.filter_width = width
+        warnings = export.export_scene(bpy.context.evaluated_depsgraph_get(), str(tmp_path),
+                                       (W, H), 4, flake_parameters())
+        toml = (tmp_path / "scene.toml").read_text()
+        assert line in toml, (kind, toml[:300])
+        if radius:
+            assert radius in toml, (kind, toml[:300])
+        else:
+            assert "filter_radius" not in toml
+        assert any("reaches at most 8 pixels" in w for w in warnings) == (width > 8), warnings
+    scene.cycles.pixel_filter_type = "BLACKMAN_HARRIS"
+    scene.cycles.filter_width = 1.5
+    export.export_scene(bpy.context.evaluated_depsgraph_get(), str(tmp_path), (W, H), 4,
+                        flake_parameters())
+    out = subprocess.run([SPANGLE, "convert", str(tmp_path / "scene.toml"), "-o",
+                          str(tmp_path / "back.toml")], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    back = (tmp_path / "back.toml").read_text()
+    assert 'filter = "blackman-harris"' in back and "filter_radius = 1.5" in back, back[:400]

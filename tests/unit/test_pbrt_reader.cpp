@@ -995,17 +995,24 @@ Option "integer seed" 7
     EXPECT_TRUE(noted(v4, "Integrator \"bdpt\": Spangle's path tracer stands in"));
     EXPECT_TRUE(noted(v4, "PixelFilter \"mitchell\": a Gaussian"));
     EXPECT_EQ(v4.render.filter_radius, 0.0f) << "the default reach: Spangle's own";
-    // The filter's reach: a box of radius 1, a Gaussian of radius 3 whose sigma (0.5) is not
-    // radius / 3 (said), radii that differ by axis (their mean, said).
+    // The filter's reach: a box of radius 1; a Gaussian keeps its sigma (radius 3 sigma), cut
+    // where the file's radius is shorter (said), radii that differ by axis (their mean, said);
+    // pbrt-v3's xwidth and alpha (sigma 1 / sqrt(2 alpha)).
     const SceneDescription box =
         read(f, "PixelFilter \"box\" \"float xradius\" 1 \"float yradius\" 1\n");
     EXPECT_EQ(box.render.filter, FilterKind::Box);
     EXPECT_EQ(box.render.filter_radius, 1.0f);
-    const SceneDescription g =
-        read(f, "PixelFilter \"gaussian\" \"float xradius\" 3 \"float yradius\" 2\n");
+    const SceneDescription g = read(
+        f, "PixelFilter \"gaussian\" \"float xradius\" 3 \"float yradius\" 2 \"float sigma\" 1\n");
+    EXPECT_EQ(g.render.filter, FilterKind::Gaussian);
     EXPECT_EQ(g.render.filter_radius, 2.5f);
-    EXPECT_TRUE(noted(g, "xradius 3 and yradius 2: radius 2.5 on both axes"));
-    EXPECT_TRUE(noted(g, "Spangle's Gaussian has sigma radius / 3"));
+    EXPECT_TRUE(noted(g, "radii 3 and 2 (x, y): 2.5 on both axes"));
+    EXPECT_TRUE(noted(g, "sigma 1 cut at radius 2.5"));
+    const SceneDescription narrow = read(
+        f, "PixelFilter \"gaussian\" \"float xwidth\" 2 \"float ywidth\" 2 \"float alpha\" 8\n");
+    EXPECT_EQ(narrow.render.filter_radius, 0.75f);
+    const SceneDescription plain = read(f, "PixelFilter \"gaussian\" \"float sigma\" 0.5\n");
+    EXPECT_EQ(plain.render.filter_radius, 0.0f) << "sigma 0.5: Spangle's own Gaussian";
 }
 
 TEST(PbrtReader, WhatIsDroppedIsOneWarningAtItsLine) {

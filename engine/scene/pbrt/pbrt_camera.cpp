@@ -69,31 +69,48 @@ void sampling(Reader& r) {
     // The default filter: pbrt-v3's is a box of radius 0.5, pbrt-v4's a Gaussian of sigma 0.5
     // and radius 1.5 (Spangle's Gaussian).
     std::string f = r.filter_type.empty() ? (r.v4() ? "gaussian" : "box") : r.filter_type;
-    // Its reach: xradius and yradius (one radius for both axes here: their mean, said), and a
-    // Gaussian's sigma, which is radius / 3 here (another sigma is said).
-    const double def = f == "box" ? 0.5 : 1.5;
-    const double xr = r.filter.number("xradius", def), yr = r.filter.number("yradius", def);
-    const double radius = std::clamp(0.5 * (xr + yr), 0.05, 8.0);
+    // Its reach: pbrt-v4's xradius/yradius or pbrt-v3's xwidth/ywidth (both half-widths), one
+    // value for both axes here (their mean, said). A Gaussian keeps its sigma (v4's sigma, v3's
+    // 1 / sqrt(2 alpha), 0.5 by default in both): Spangle's Gaussian of radius 3 sigma, or of
+    // the file's radius where that is shorter (said: its sigma is then radius / 3). A stand-in
+    // for another filter keeps Spangle's default Gaussian.
+    const double def = f == "box" ? 0.5 : f == "gaussian" ? (r.v4() ? 1.5 : 2.0) : 2.0;
+    const double xr = r.filter.number("xradius", r.filter.number("xwidth", def)),
+                 yr = r.filter.number("yradius", r.filter.number("ywidth", def));
+    const double reach = 0.5 * (xr + yr);
     if (xr != yr)
-        r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": xradius {} and yradius {}: "
-                                              "radius {} on both axes",
-                                              f, xr, yr, radius));
+        r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": radii {} and {} (x, y): {} on "
+                                              "both axes",
+                                              f, xr, yr, reach));
+    double radius = 0.0;  // Spangle's own
     if (f == "box") {
         d.filter = FilterKind::Box;
+        radius = reach;
     } else {
         d.filter = FilterKind::Gaussian;
-        if (f != "gaussian")
-            r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": a Gaussian (sigma {}, "
-                                                  "radius {}) stands in",
-                                                  f, radius / 3.0, radius));
-        const double sigma = r.filter.number("sigma", 0.5);
-        if (f == "gaussian" && std::fabs(sigma - radius / 3.0) > 1e-6)
-            r.notes.add(r.filter_loc,
-                        fmt::format("PixelFilter \"gaussian\": sigma {} with radius "
-                                    "{}: Spangle's Gaussian has sigma radius / 3 ({})",
-                                    sigma, radius, radius / 3.0));
+        if (f == "gaussian") {
+            const double alpha = r.filter.number("alpha", 2.0);
+            const double sigma =
+                r.filter.number("sigma", 1.0 / std::sqrt(2.0 * std::max(1e-6, alpha)));
+            radius = std::min(3.0 * sigma, reach);
+            if (3.0 * sigma > reach + 1e-6)
+                r.notes.add(r.filter_loc,
+                            fmt::format("PixelFilter \"gaussian\": sigma {} cut at radius {}: "
+                                        "Spangle's Gaussian of radius {} (sigma {}) stands in",
+                                        sigma, reach, reach, reach / 3.0));
+        } else {
+            r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": a Gaussian (sigma 0.5, "
+                                                  "radius 1.5) stands in",
+                                                  f));
+        }
     }
-    if (radius != def) d.filter_radius = static_cast<float>(radius);
+    if (radius > 0.0 && (radius > 8.0 || radius < 0.05))
+        r.notes.add(r.filter_loc, fmt::format("PixelFilter \"{}\": radius {} taken as {}", f,
+                                              radius, std::clamp(radius, 0.05, 8.0)));
+    radius = radius > 0.0 ? std::clamp(radius, 0.05, 8.0) : 0.0;
+    const double own = f == "box" ? 0.5 : 1.5;
+    if (radius > 0.0 && std::fabs(radius - own) > 1e-9)
+        d.filter_radius = static_cast<float>(radius);
     r.notes.unused(r.filter, fmt::format("PixelFilter \"{}\"", f));
 }
 

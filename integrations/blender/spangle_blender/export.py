@@ -773,21 +773,24 @@ def _object_warnings(obj, warnings):
         warnings.append(f"{what}: light linking is not exported; it lights and shadows everything")
 
 
-def _pixel_filter(scene):
+def _pixel_filter(scene, warnings):
     """The [render] lines of Blender's pixel filter (Cycles' Film > Pixel Filter; without Cycles
     a Blackman-Harris of the render's filter size). Cycles' width w spans a Blackman-Harris over
-    [-w, w] (its default 1.5: radius 1.5 here), a Gaussian of sigma w / 4 out to 1.5 w (radius
+    [-w, w] (its default 1.5: radius 1.5 here) and a Gaussian of sigma w / 4 out to 1.5 w (radius
     0.75 w here: Spangle's Gaussian has sigma radius / 3; beyond 3 sigma Cycles' keeps 0.3% of
-    its weight) and a box over [-w / 2, w / 2]."""
+    its weight); its box is one pixel whatever the width (Blender's sync sets width 1 for a box).
+    Spangle's radius is at most 8 pixels (Cycles' width goes to 10)."""
     cycles = getattr(scene, "cycles", None)
     kind = getattr(cycles, "pixel_filter_type", "BLACKMAN_HARRIS") if cycles else "BLACKMAN_HARRIS"
+    if kind == "BOX":
+        return ['filter = "box"']
     width = float(getattr(cycles, "filter_width", 0.0) if cycles else 0.0) or \
         float(getattr(scene.render, "filter_size", 1.5))
-    if kind == "GAUSSIAN":
-        return ['filter = "gaussian"', f"filter_radius = {max(0.05, 0.75 * width):.6g}"]
-    if kind == "BOX":
-        return ['filter = "box"', f"filter_radius = {max(0.05, 0.5 * width):.6g}"]
-    return ['filter = "blackman-harris"', f"filter_radius = {max(0.05, width):.6g}"]
+    name, radius = ("gaussian", 0.75 * width) if kind == "GAUSSIAN" else ("blackman-harris", width)
+    if radius > 8.0:
+        warnings.append(f"pixel filter width {width:g}: Spangle's filter reaches at most 8 pixels "
+                        "(radius 8 exported)")
+    return [f'filter = "{name}"', f"filter_radius = {min(8.0, max(0.05, radius)):.6g}"]
 
 
 def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
@@ -796,7 +799,7 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     warnings = []
     out = ["# Exported by Spangle's Blender add-on", "", "[render]",
            f"width = {size[0]}", f"height = {size[1]}", f"spp = {spp}", f"max_depth = {max_depth}",
-           *_pixel_filter(scene),
+           *_pixel_filter(scene, warnings),
            'working_space = "lin_rec709"', 'color_space = "lin_rec709"', ""]
     cam_obj = scene.camera
     if cam_obj is None:
