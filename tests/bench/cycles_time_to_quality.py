@@ -30,6 +30,7 @@ import glob
 import hashlib
 import math
 import os
+import statistics
 import subprocess
 import sys
 import time
@@ -166,12 +167,6 @@ def spangle_render_time(path):
     return float("nan")
 
 
-def median(v):
-    s = sorted(v)
-    n = len(s)
-    return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
-
-
 def efficiency(scene, build, folder, out, w, h, threads, seeds):
     """Error per unit time at fixed sample counts, each renderer over `seeds` seeds: the mean
     relMSE (one seed's figure is dominated by a few highlight pixels, a heavy tail), the mean
@@ -214,7 +209,7 @@ def efficiency(scene, build, folder, out, w, h, threads, seeds):
               f"efficiency {eff_cy:.0f}")
         print(f"{spp} spangle / cycles: {eff_whole / eff_cy:.2f}x whole process, "
               f"{eff_render / eff_cy:.2f}x render phase")
-        m_sp, m_cy = median(sp_e), median(cy_e)
+        m_sp, m_cy = statistics.median(sp_e), statistics.median(cy_e)
         print(f"{spp} median relMSE: spangle {m_sp:.6f}, cycles {m_cy:.6f}; spangle / cycles: "
               f"{(m_cy * mean(cy_t)) / (m_sp * mean(sp_t)):.2f}x whole process, "
               f"{(m_cy * mean(cy_t)) / (m_sp * mean(sp_r)):.2f}x render phase")
