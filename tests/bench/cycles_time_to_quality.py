@@ -24,6 +24,13 @@ and 256 spp, each renderer over N seeds, the mean relMSE (one seed's figure is r
 pixels where the sun's highlight is caught or missed), the mean time and 1 / (relMSE x time),
 Spangle's by its whole process and by its render phase (renderTimeSeconds). Time it on a quiet
 machine.
+
+SCENE=beetle, SCENE=interior (spangle bench's procedural room) or SCENE=path/to/scene.toml
+measures one of Spangle's own scenes instead: Spangle renders the file (time_to_quality.sh),
+Cycles the Blender scene tests/bench/spangle_to_blender.py builds from it (its flake paints as
+Blender's usual Voronoi glitter: not the same BRDF, so again each against its own reference);
+the scene's own max_depth, clamp_indirect, filter_glossy and pixel filter go to both.
+RENDERERS=cycles (or spangle) measures one renderer only.
 """
 
 import glob
@@ -42,6 +49,14 @@ sys.path.insert(0, os.path.join(ROOT, "integrations", "blender"))
 import bpy  # noqa: E402  (first: it puts Blender's own modules on the path)
 import addon_utils  # noqa: E402
 import mathutils  # noqa: E402
+
+
+# The cap on one indirect sample's value, for both renderers (Cycles' sample_clamp_indirect,
+# whose default is 10, and Spangle's [render] clamp_indirect); 0: none (both unbiased).
+CLAMP = float(os.environ.get("CLAMP", "10"))
+# Path regularisation, for both renderers alike: Cycles' blur_glossy ("Filter Glossy", default 1)
+# and Spangle's [render] filter_glossy, which follows the same curve; 0: off for both.
+FILTER_GLOSSY = float(os.environ.get("FILTER_GLOSSY", "1"))
 
 
 def principled(name, color, roughness, metallic=0.0, coat=0.0, transmission=0.0):
@@ -101,6 +116,11 @@ def build_car(width, height):
     scene.world.node_tree.nodes["Background"].inputs["Strength"].default_value = 0.8
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
+    c = scene.cycles
+    c.max_bounces = 5
+    c.sample_clamp_indirect = CLAMP
+    c.blur_glossy = FILTER_GLOSSY
+    c.sample_clamp_direct = 0.0
     return scene
 
 
@@ -115,14 +135,6 @@ def rel_mse(x, r):
     return float(np.mean((x - r) ** 2 / (r * r + 0.01)))
 
 
-# The cap on one indirect sample's value, for both renderers (Cycles' sample_clamp_indirect,
-# whose default is 10, and Spangle's [render] clamp_indirect); 0: none (both unbiased).
-CLAMP = float(os.environ.get("CLAMP", "10"))
-# Path regularisation, for both renderers alike: Cycles' blur_glossy ("Filter Glossy", default 1)
-# and Spangle's [render] filter_glossy, which follows the same curve; 0: off for both.
-FILTER_GLOSSY = float(os.environ.get("FILTER_GLOSSY", "1"))
-
-
 def cycles_render(scene, path, samples, threshold=None, denoise=False):
     scene.render.engine = "CYCLES"
     c = scene.cycles
@@ -135,10 +147,6 @@ def cycles_render(scene, path, samples, threshold=None, denoise=False):
     c.use_denoising = denoise
     if denoise:
         c.denoiser = "OPENIMAGEDENOISE"
-    c.max_bounces = 5
-    c.sample_clamp_indirect = CLAMP
-    c.blur_glossy = FILTER_GLOSSY
-    c.sample_clamp_direct = 0.0
     scene.render.image_settings.file_format = "OPEN_EXR"
     scene.render.image_settings.color_depth = "32"
     scene.render.filepath = path
@@ -174,7 +182,7 @@ def efficiency(scene, build, folder, out, w, h, threads, seeds):
     same by the median relMSE, which one rare sample does not move (a single sun-bright sample
     near a highlight made one seed's relMSE 18x the median's at 64 spp: with 16 seeds the
     mean moved by a factor of two from it alone)."""
-    spangle_ref = os.path.join(out, "spangle", "ref_car.exr")
+    spangle_ref = os.path.join(out, "spangle", "ref_car_seeded.exr")
     r_sp = read_rgb(spangle_ref)
     r_cy = read_rgb(os.path.join(out, "cycles_ref.exr"))
     print(f"# car at {w}x{h}, {seeds} seeds: spp, renderer, mean relMSE (min..max), mean s, efficiency")
@@ -222,6 +230,18 @@ def main():
     w, h = (int(v) for v in os.environ.get("SIZE", "320x180").split("x"))
     ref_spp = int(os.environ.get("REF_SPP", "2048"))
     threads = int(os.environ.get("THREADS", "2"))
+    name = os.environ.get("SCENE", "car")
+    if name != "car":
+        if name == "interior":
+            folder = os.path.join(out, "interior")
+            subprocess.run([os.path.join(build, "spangle"), "bench", "--write-scene", folder],
+                           check=True, stdout=subprocess.DEVNULL)
+            path = os.path.join(folder, "interior.toml")
+        else:
+            path = spangle_scene(out)
+        main_scene(build, out, w, h, ref_spp, threads, path)
+        sys.stdout.flush()
+        os._exit(0)
     scene = build_car(w, h)
     scene.render.threads_mode = "FIXED"
     scene.render.threads = threads
@@ -246,26 +266,26 @@ def main():
     spangle_out = os.path.join(out, "spangle")
     os.makedirs(spangle_out, exist_ok=True)
     # The cached reference holds for one scene text, size, sample count and build: another (a
-    # filter exported differently, a plugin rebuilt) renders it again (time_to_quality.sh reads
-    # the same file).
+    # filter exported differently, a plugin rebuilt) renders it again. It is SEEDS mode's, of
+    # another seed than the runs; time_to_quality.sh keeps its own (ref_car.exr).
     key = hashlib.sha256(open(os.path.join(folder, "car.toml"), "rb").read())
     key.update(f"{w}x{h} {ref_spp}".encode())
     for f in [os.path.join(build, "spangle")] + sorted(glob.glob(os.path.join(build, "plugins", "*.so"))):
         st = os.stat(f)
         key.update(f"{f} {st.st_size} {st.st_mtime_ns}".encode())
-    key_file = os.path.join(spangle_out, "ref_car.key")
+    key_file = os.path.join(spangle_out, "ref_car_seeded.key")
     if not os.path.exists(key_file) or open(key_file).read() != key.hexdigest():
-        for stale in (os.path.join(spangle_out, "ref_car.exr"), key_file):
+        for stale in (os.path.join(spangle_out, "ref_car_seeded.exr"), key_file):
             if os.path.exists(stale):
                 os.remove(stale)
-    if not os.path.exists(os.path.join(spangle_out, "ref_car.exr")):
+    if not os.path.exists(os.path.join(spangle_out, "ref_car_seeded.exr")):
         text = open(os.path.join(folder, "car.toml")).read().replace("[render]\n", "[render]\nseed = 977\n", 1)
         with open(os.path.join(folder, "car_ref.toml"), "w") as f:
             f.write(text)
         print(f"# spangle: rendering the reference ({ref_spp} spp)...", file=sys.stderr)
         subprocess.run([os.path.join(build, "spangle"), "render", os.path.join(folder, "car_ref.toml"),
                         "--size", f"{w}x{h}", "--spp", str(ref_spp), "--threads", str(threads),
-                        "-q", "--float", "--no-preview", "-o", os.path.join(spangle_out, "ref_car.exr")],
+                        "-q", "--float", "--no-preview", "-o", os.path.join(spangle_out, "ref_car_seeded.exr")],
                        check=True)
         with open(key_file, "w") as f:
             f.write(key.hexdigest())
@@ -283,7 +303,14 @@ def main():
     subprocess.run(["bash", os.path.join(ROOT, "tests", "bench", "time_to_quality.sh"), build,
                     spangle_out, os.path.join(folder, "car.toml")],
                    env=env, check=True)
-    # Cycles: fixed samples, adaptive thresholds, each denoised too.
+    cycles_sweep(scene, out, "car", ref, w, h)
+    sys.stdout.flush()
+    os._exit(0)  # bpy's exit handlers can crash once add-ons registered classes
+
+
+def cycles_sweep(scene, out, label, ref, w, h):
+    """Cycles at fixed samples and at falling adaptive thresholds, each denoised too when this
+    bpy has Open Image Denoise; prints every run and the time each way reached the targets."""
     r = read_rgb(ref)
     probe = os.path.join(out, "cycles_probe.exr")
     cycles_render(scene, probe, 4)
@@ -292,25 +319,63 @@ def main():
     has_denoiser = not np.array_equal(read_rgb(probe), plain)
     if not has_denoiser:
         print("# cycles: this bpy build has no Open Image Denoise: no denoised runs", file=sys.stderr)
+    prefix = "" if label == "car" else f"{label}_"
     results = []
-    print(f"# car at {w}x{h}, cycles: way, setting, seconds, relMSE")
+    print(f"# {label} at {w}x{h}, cycles: way, setting, seconds, relMSE")
     for spp in (4, 8, 16, 32, 64, 128, 256, 512):
         for denoise in (False, True) if has_denoiser else (False,):
-            p = os.path.join(out, f"cycles_fixed_{spp}{'_dn' if denoise else ''}.exr")
+            p = os.path.join(out, f"cycles_{prefix}fixed_{spp}{'_dn' if denoise else ''}.exr")
             t = cycles_render(scene, p, spp, denoise=denoise)
             way = "fixed+denoise" if denoise else "fixed"
             results.append((way, spp, t, rel_mse(read_rgb(p), r)))
             print(f"{way} {spp} {t:.3f} {results[-1][3]:.6f}")
-    for threshold in (0.1, 0.05, 0.03, 0.02, 0.01, 0.005):
+            sys.stdout.flush()
+    for threshold in (0.3, 0.2, 0.1, 0.05, 0.03, 0.02, 0.01, 0.005):
         for denoise in (False, True) if has_denoiser else (False,):
-            p = os.path.join(out, f"cycles_adaptive_{threshold}{'_dn' if denoise else ''}.exr")
+            p = os.path.join(out, f"cycles_{prefix}adaptive_{threshold}{'_dn' if denoise else ''}.exr")
             t = cycles_render(scene, p, 1024, threshold=threshold, denoise=denoise)
             way = "adaptive+denoise" if denoise else "adaptive"
             results.append((way, threshold, t, rel_mse(read_rgb(p), r)))
             print(f"{way} {threshold} {t:.3f} {results[-1][3]:.6f}")
-    report("car (cycles)", results)
-    sys.stdout.flush()
-    os._exit(0)  # bpy's exit handlers can crash once add-ons registered classes
+            sys.stdout.flush()
+    report(f"{label} (cycles)", results)
+
+
+def spangle_scene(out):
+    """Another scene than the car: SCENE is `beetle`, `interior` (spangle bench's procedural
+    room, written into OUT) or a Spangle scene file; Cycles renders it as
+    tests/bench/spangle_to_blender.py builds it, Spangle renders the file itself (its flakes
+    included, which the Blender scene draws as a Voronoi glitter)."""
+    name = os.environ.get("SCENE", "car")
+    if name == "beetle":
+        return os.path.join(ROOT, "assets", "scenes", "beetle.toml")
+    return os.path.abspath(name)
+
+
+def main_scene(build, out, w, h, ref_spp, threads, path):
+    import spangle_to_blender
+
+    label = os.path.splitext(os.path.basename(path))[0]
+    scene = spangle_to_blender.build(path, w, h)
+    scene.render.threads_mode = "FIXED"
+    scene.render.threads = threads
+    env = dict(os.environ, SIZE=f"{w}x{h}", REF_SPP=str(ref_spp), THREADS=str(threads))
+    spangle_out = os.path.join(out, "spangle")
+    os.makedirs(spangle_out, exist_ok=True)
+    ref = os.path.join(out, f"cycles_ref_{label}.exr")
+    if not os.path.exists(ref):
+        print(f"# cycles: rendering the reference of {label} ({ref_spp} spp)...", file=sys.stderr)
+        scene.cycles.seed = 977
+        cycles_render(scene, ref, ref_spp)
+        scene.cycles.seed = 0
+    # RENDERERS=cycles or spangle measures one of them (the other's figures from an earlier
+    # run stand).
+    renderers = os.environ.get("RENDERERS", "spangle cycles").split()
+    if "spangle" in renderers:
+        subprocess.run(["bash", os.path.join(ROOT, "tests", "bench", "time_to_quality.sh"), build,
+                        spangle_out, path], env=env, check=True)
+    if "cycles" in renderers:
+        cycles_sweep(scene, out, label, ref, w, h)
 
 
 if __name__ == "__main__":

@@ -5,9 +5,10 @@
 #   tests/bench/time_to_quality.sh BUILD_DIR [OUT_DIR] [SCENE...]
 #
 # SCENE: a scene file, or `interior` (spangle bench's procedural room); default: the beetle and
-# the interior. For each scene: a reference of REF_SPP samples (cached in OUT_DIR, kept between
-# runs), then fixed sample counts (with and without --denoise), adaptive sampling at falling
-# thresholds, and adaptive sampling with --denoise; each whole process timed (wall seconds,
+# the interior. For each scene: a reference of REF_SPP samples that shares none with the runs
+# (cached in OUT_DIR for the same scene, size, sample counts and build), then fixed sample
+# counts (with and without --denoise), adaptive sampling at falling thresholds, and adaptive
+# sampling with --denoise; each whole process timed (wall seconds,
 # `date`), its relMSE against the reference measured by `spangle inspect --against`. Prints every
 # run, then per way the first time it reached relMSE 0.01 and 0.002. Environment: SIZE (320x180), REF_SPP (2048), MAX_SPP
 # (1024), THREADS (all cores). Time it on a quiet machine: anything running beside it counts.
@@ -50,10 +51,19 @@ for scene in "${scenes[@]}"; do
         scene="$out/interior/interior.toml"
     fi
     label=$(basename "$scene" .toml)
-    if [ ! -f "$out/ref_$label.exr" ]; then
+    # The reference holds for one scene text, size, sample counts and build: another renders it
+    # again. It takes samples max_spp.. of a longer frame, so no run (samples 0 to at most
+    # max_spp - 1) shares a sample with it: a run of N samples that did would be closer to it
+    # than its error, by about N / REF_SPP of it.
+    key=$( { cat "$scene"; echo "$size $ref_spp $max_spp"
+             stat -c '%n %s %Y' "$spangle" "$build"/plugins/*.so; } | sha256sum | cut -d' ' -f1)
+    if [ ! -f "$out/ref_$label.exr" ] || [ "$(cat "$out/ref_$label.key" 2>/dev/null)" != "$key" ]; then
         echo "# $label: rendering the reference ($ref_spp spp)..." >&2
+        rm -f "$out/ref_$label.exr" "$out/ref_$label.key"
         "$spangle" render "$scene" --size "$size" -q --float --no-preview "${threads[@]}" \
-            --spp "$ref_spp" -o "$out/ref_$label.exr"
+            --spp $((max_spp + ref_spp)) --spp-range "$max_spp..$((max_spp + ref_spp))" \
+            -o "$out/ref_$label.exr"
+        echo "$key" > "$out/ref_$label.key"
     fi
     echo "# $label at $size: way, setting, seconds, relMSE"
     results=()

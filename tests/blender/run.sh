@@ -1,5 +1,6 @@
 #!/usr/bin/env bash
-# Runs the Blender add-on's tests (test_blender_addon.py) with a Python that has bpy:
+# Runs the Blender tests (test_blender_addon.py: the add-on; test_spangle_to_blender.py: the
+# benchmark's importer of Spangle scenes) with a Python that has bpy:
 # $SPANGLE_BLENDER_PYTHON, else /opt/spangle/bpy/bin/python (scripts/install-deps.sh --tests).
 # Usage: run.sh BUILD_DIR. Exit 77 (skipped) without one, unless SPANGLE_REQUIRE_BLENDER=1.
 set -u
