@@ -8,14 +8,16 @@ scenes, and the time-to-quality comparison renders each in Cycles as close as Cy
 reads the subset of the scene format those scenes use and says on stderr what it approximates:
 
 - placement (`matrix`, or `translate` / `rotate` / `scale`), PLY and OBJ meshes, `subdiv` as a
-  Subdivision Surface modifier (a fixed level; `"auto"` becomes AUTO_LEVEL, at most max_level);
+  Subdivision Surface modifier (a fixed level; `"auto"` the level Spangle picks at that size,
+  from subdivision_levels, else AUTO_LEVEL, at most max_level);
 - the smooth plugin's models as a Principled BSDF (GGX alpha -> Blender's perceptual roughness
   sqrt(alpha)); the conductor presets as a metal of their colour at normal incidence;
 - the flake plugin as Blender's usual glitter: a Voronoi texture in object space, one cell per
   flake (scale sqrt(density)), whose random colour tilts a metallic layer's normal by up to
   flake_roughness and tints it (a colour table: hues about base_color's by hue_spread), mixed
-  over the base by flake_weight, under the clear coat when there is one. Cycles has no counted
-  flakes: this is the look an artist gets there, not the same BRDF;
+  over the base by flake_weight, under the clear coat when there is one; always in object
+  space, whatever density_space says (uv-space flakes scale with the mesh's uvs). Cycles has
+  no counted flakes: this is the look an artist gets there, not the same BRDF;
 - lights: sphere -> point light of that radius (power 4 pi^2 r^2 L, Cycles' radiance for a
   sphere), quad -> area light (power pi A L, emitting along edge1 x edge2), point -> point light
   (4 pi I), distant -> sun (irradiance, angle twice the angular radius);
@@ -33,7 +35,10 @@ through (x, y, z) -> (x, -z, y).
 import colorsys
 import math
 import os
+import re
+import subprocess
 import sys
+import tempfile
 import tomllib
 
 import bpy
@@ -119,6 +124,8 @@ def smooth_material(name, model, p, colour):
         set_inputs(b, base=colour(p.get("albedo"), (0.8, 0.8, 0.8)),
                    rough=perceptual(number(p.get("roughness"), 0.1)), ior=number(p.get("ior"), 1.5))
     elif model == "conductor":
+        if p.get("preset", "gold") == "custom":
+            note(f"material '{name}': a custom conductor (eta, k) drawn as a 0.9 grey metal")
         set_inputs(b, base=PRESETS[p.get("preset", "gold")], metal=1.0,
                    rough=perceptual(number(p.get("roughness"), 0.2)))
         if number(p.get("coat"), 0.0) > 0.0:
@@ -127,12 +134,15 @@ def smooth_material(name, model, p, colour):
     elif model == "dielectric":
         set_inputs(b, base=colour(p.get("transmission_color")), trans=1.0,
                    ior=number(p.get("ior"), 1.5), rough=perceptual(number(p.get("roughness"), 0.0)))
+        if not p.get("multiscatter", False):  # Spangle's glass is single-scattering by default
+            b.distribution = "GGX"
     elif model == "metal_rough":
         set_inputs(b, base=colour(p.get("base_color")), metal=number(p.get("metallic"), 1.0),
                    rough=number(p.get("roughness"), 1.0), ior=number(p.get("ior"), 1.5),
                    spec=0.5 * number(p.get("specular"), 1.0),
                    coat=number(p.get("clearcoat"), 0.0),
                    coat_rough=number(p.get("clearcoat_roughness"), 0.0))
+        b.inputs["Specular Tint"].default_value = (*colour(p.get("specular_color")), 1.0)
     else:
         note(f"material '{name}': model '{model}' drawn as a grey diffuse")
         set_inputs(b, base=(0.5, 0.5, 0.5), rough=1.0, spec=0.0)
@@ -261,6 +271,7 @@ def light(scene, l, colour):
         r = float(l["radius"])
         data = bpy.data.lights.new("sphere", "POINT")
         data.shadow_soft_size = r
+        data.use_soft_falloff = False  # on by default: it dims a sphere light by about 1.3%
         data.energy = 4.0 * math.pi ** 2 * r * r * k
         obj = bpy.data.objects.new("sphere", data)
         obj.location = vec(l["center"])
@@ -326,8 +337,25 @@ def environment(scene, env, colour, folder):
         bg.inputs["Color"].default_value = (*colour(env.get("color"), (0.0, 0.0, 0.0)), 1.0)
 
 
-def build(path, width, height):
-    """A fresh Blender scene of the Spangle scene at `path`, at width x height."""
+def subdivision_levels(spangle, path, width, height):
+    """The level Spangle's "auto" subdivision picks for each cage at this size (from a 1-spp
+    render's --stats), by the cage's real path."""
+    with tempfile.TemporaryDirectory() as tmp:
+        out = subprocess.run([spangle, "render", os.path.abspath(path), "--size", f"{width}x{height}",
+                              "--spp", "1", "--stats", "--no-preview", "-o", os.path.join(tmp, "levels.exr")],
+                             capture_output=True, text=True, cwd=os.path.dirname(os.path.abspath(path)))
+    levels = {}
+    for line in (out.stdout + out.stderr).splitlines():
+        m = re.match(r"subdivision: (.+) level (\d+)", line)
+        if m:
+            cage = os.path.join(os.path.dirname(os.path.abspath(path)), m.group(1))
+            levels[os.path.realpath(cage)] = int(m.group(2))
+    return levels
+
+
+def build(path, width, height, levels=None):
+    """A fresh Blender scene of the Spangle scene at `path`, at width x height; `levels`: the
+    subdivision level of each "auto" cage by real path (subdivision_levels), else AUTO_LEVEL."""
     path = os.path.abspath(path)
     folder = os.path.dirname(path)
     with open(path, "rb") as f:
@@ -351,14 +379,21 @@ def build(path, width, height):
         if sub is not None:
             level = sub.get("level", "auto")
             if level == "auto":
-                level = min(AUTO_LEVEL, int(sub.get("max_level", 5)))
+                level = (levels or {}).get(os.path.realpath(os.path.join(folder, o["mesh"])),
+                                           min(AUTO_LEVEL, int(sub.get("max_level", 5))))
             mod = obj.modifiers.new("subdivision", "SUBSURF")
             mod.levels = mod.render_levels = int(level)
-            mod.boundary_smooth = "ALL" if sub.get("boundary") == "none" else "PRESERVE_CORNERS"
+            # Blender keeps boundaries (edge_only) or also their corners (edge_and_corner); it has
+            # no "none" (boundaries that shrink).
+            boundary = sub.get("boundary", "edge_and_corner")
+            mod.boundary_smooth = "ALL" if boundary != "edge_and_corner" else "PRESERVE_CORNERS"
+            if boundary == "none":
+                note(f"object {o.get('name', o['mesh'])}: boundary 'none' drawn as edge_only")
             for poly in obj.data.polygons:
                 poly.use_smooth = True
         if "emission" in o:
-            note(f"object {o.get('name', o['mesh'])}: emission left out")
+            raise ValueError(f"object {o.get('name', o['mesh'])}: emissive objects are not "
+                             "imported (the comparison would light the two scenes differently)")
     for l in doc.get("light", []):
         light(scene, l, colour)
     environment(scene, doc.get("environment", {}), colour, folder)

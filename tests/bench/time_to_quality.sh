@@ -5,13 +5,16 @@
 #   tests/bench/time_to_quality.sh BUILD_DIR [OUT_DIR] [SCENE...]
 #
 # SCENE: a scene file, or `interior` (spangle bench's procedural room); default: the beetle and
-# the interior. For each scene: a reference of REF_SPP samples that shares none with the runs
-# (cached in OUT_DIR for the same scene, size, sample counts and build), then fixed sample
-# counts (with and without --denoise), adaptive sampling at falling thresholds, and adaptive
-# sampling with --denoise; each whole process timed (wall seconds,
-# `date`), its relMSE against the reference measured by `spangle inspect --against`. Prints every
-# run, then per way the first time it reached relMSE 0.01 and 0.002. Environment: SIZE (320x180), REF_SPP (2048), MAX_SPP
-# (1024), THREADS (all cores). Time it on a quiet machine: anything running beside it counts.
+# the interior. For each scene: a reference of REF_SPP samples from two other seeds than the
+# runs', whose own noise is measured and taken off each run's relMSE (cached in OUT_DIR for the
+# same scene, size, sample count and build), then fixed sample counts (with and without
+# --denoise), adaptive sampling at falling thresholds, and adaptive sampling with --denoise;
+# each whole process timed (wall seconds, `date`), its relMSE against the reference measured by
+# `spangle inspect --against`. Prints every run, then per way the first time it reached relMSE
+# 0.01 and 0.002 (less the reference's noise). Environment: SIZE (320x180), REF_SPP (2048),
+# MAX_SPP (1024), THREADS (all cores). Time it on a quiet machine: anything running beside it
+# counts. A scene whose [render] asks for adaptive sampling is measured as it asks in its fixed
+# runs too.
 set -euo pipefail
 build=$(cd "${1:?usage: time_to_quality.sh BUILD_DIR [OUT_DIR] [SCENE...]}" && pwd)
 out=${2:-ttq}
@@ -42,7 +45,22 @@ render() {
     local e
     e=$("$spangle" inspect "$out/$name.exr" --against "$out/ref_$label.exr" |
         sed -n 's/^relMSE against .*: //p')
-    echo "$(awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.3f", b - a }') $e"
+    awk -v a="$t0" -v b="$t1" -v e="$e" -v n="$noise" \
+        'BEGIN { printf "%.3f %s %.6f\n", b - a, e, e - n }'
+}
+
+# Seeded copies of a scene, written beside it (its relative paths hold) and removed on exit.
+copies=()
+trap 'rm -f "${copies[@]}"' EXIT
+trap 'exit 130' INT TERM
+# write_seeded SCENE SEED COPY: SCENE with [render] seed = SEED (replacing one it has).
+write_seeded() {
+    awk -v seed="$2" '
+        /^[[:space:]]*\[/ { in_render = ($0 ~ /^[[:space:]]*\[render\][[:space:]]*(#.*)?$/)
+                             print; if (in_render) { print "seed = " seed; done = 1 }; next }
+        in_render && /^[[:space:]]*seed[[:space:]]*=/ { next }
+        { print }
+        END { if (!done) printf "\n[render]\nseed = %s\n", seed }' "$1" > "$3"
 }
 
 for scene in "${scenes[@]}"; do
@@ -51,21 +69,37 @@ for scene in "${scenes[@]}"; do
         scene="$out/interior/interior.toml"
     fi
     label=$(basename "$scene" .toml)
-    # The reference holds for one scene text, size, sample counts and build: another renders it
-    # again. It takes samples max_spp.. of a longer frame, so no run (samples 0 to at most
-    # max_spp - 1) shares a sample with it: a run of N samples that did would be closer to it
-    # than its error, by about N / REF_SPP of it.
-    key=$( { cat "$scene"; echo "$size $ref_spp $max_spp"
-             stat -c '%n %s %Y' "$spangle" "$build"/plugins/*.so; } | sha256sum | cut -d' ' -f1)
+    # The reference: two halves of REF_SPP / 2 samples with their own seeds (977, 978), so
+    # that neither shares samples, nor a sample pattern, with a run (a run of N samples that
+    # began the reference would read closer to it than its error by about 2 N / REF_SPP of
+    # it), averaged. It is not exact: relMSE against it is a run's error plus the reference's
+    # own noise, the halves' relMSE against each other / 4, which is printed and taken off
+    # ("corrected") before the targets are judged. Cached for one scene text, size, sample
+    # count and build.
+    key=$( { cat "$scene"; echo "$size $ref_spp"
+             stat -c '%n %s %Y' "$spangle" "$build"/plugins/*.so 2>/dev/null || true; } |
+           sha256sum | cut -d' ' -f1)
     if [ ! -f "$out/ref_$label.exr" ] || [ "$(cat "$out/ref_$label.key" 2>/dev/null)" != "$key" ]; then
-        echo "# $label: rendering the reference ($ref_spp spp)..." >&2
-        rm -f "$out/ref_$label.exr" "$out/ref_$label.key"
-        "$spangle" render "$scene" --size "$size" -q --float --no-preview "${threads[@]}" \
-            --spp $((max_spp + ref_spp)) --spp-range "$max_spp..$((max_spp + ref_spp))" \
+        echo "# $label: rendering the reference ($ref_spp spp, two seeds)..." >&2
+        rm -f "$out/ref_$label".*
+        for half in 977 978; do
+            copy="$(dirname "$scene")/.$label.ttq-seed$half.$$.toml"
+            copies+=("$copy")
+            write_seeded "$scene" "$half" "$copy"
+            "$spangle" render "$copy" --size "$size" -q --float --no-preview "${threads[@]}" \
+                --spp $((ref_spp / 2)) -o "$out/ref_${label}_$half.exr"
+            rm -f "$copy"
+        done
+        oiiotool "$out/ref_${label}_977.exr" "$out/ref_${label}_978.exr" --add --mulc 0.5 \
             -o "$out/ref_$label.exr"
+        "$spangle" inspect "$out/ref_${label}_977.exr" --against "$out/ref_${label}_978.exr" |
+            sed -n 's/^relMSE against .*: //p' | awk '{ printf "%.6f\n", $1 / 4 }' \
+            > "$out/ref_$label.noise"
         echo "$key" > "$out/ref_$label.key"
     fi
-    echo "# $label at $size: way, setting, seconds, relMSE"
+    noise=$(cat "$out/ref_$label.noise")
+    echo "# $label at $size: reference noise (relMSE) $noise"
+    echo "# $label at $size: way, setting, seconds, relMSE, relMSE - reference noise"
     results=()
     for spp in 4 8 16 32 64 128 256 512; do
         r=$(render "${label}_fixed_$spp" "$scene" --spp "$spp")
@@ -87,7 +121,7 @@ for scene in "${scenes[@]}"; do
     for target in 0.01 0.002; do
         for way in fixed fixed+denoise adaptive adaptive+denoise; do
             printf '%s\n' "${results[@]}" | awk -v w="$way" -v t="$target" -v l="$label" '
-                $1 == w && $4 <= t && (best == "" || $3 < best) { best = $3; at = $2 }
+                $1 == w && $5 <= t && (best == "" || $3 < best) { best = $3; at = $2 }
                 END { if (best == "") printf "%s: %s never reached relMSE %s\n", l, w, t;
                       else printf "%s: %s reached relMSE %s in %.2f s (%s)\n", l, w, t, best, at }'
         done
