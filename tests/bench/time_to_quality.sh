@@ -13,8 +13,8 @@
 # `spangle inspect --against`. Prints every run, then per way the first time it reached relMSE
 # 0.01 and 0.002 (less the reference's noise). Environment: SIZE (320x180), REF_SPP (2048),
 # MAX_SPP (1024), THREADS (all cores). Time it on a quiet machine: anything running beside it
-# counts. A scene whose [render] asks for adaptive sampling is measured as it asks in its fixed
-# runs too.
+# counts. The reference and the fixed runs sample every pixel alike (--noise-threshold 0), even
+# where the scene's [render] asks for adaptive sampling.
 set -euo pipefail
 build=$(cd "${1:?usage: time_to_quality.sh BUILD_DIR [OUT_DIR] [SCENE...]}" && pwd)
 out=${2:-ttq}
@@ -87,7 +87,7 @@ for scene in "${scenes[@]}"; do
             copies+=("$copy")
             write_seeded "$scene" "$half" "$copy"
             "$spangle" render "$copy" --size "$size" -q --float --no-preview "${threads[@]}" \
-                --spp $((ref_spp / 2)) -o "$out/ref_${label}_$half.exr"
+                --spp $((ref_spp / 2)) --noise-threshold 0 -o "$out/ref_${label}_$half.exr"
             rm -f "$copy"
         done
         oiiotool "$out/ref_${label}_977.exr" "$out/ref_${label}_978.exr" --add --mulc 0.5 \
@@ -102,10 +102,11 @@ for scene in "${scenes[@]}"; do
     echo "# $label at $size: way, setting, seconds, relMSE, relMSE - reference noise"
     results=()
     for spp in 4 8 16 32 64 128 256 512; do
-        r=$(render "${label}_fixed_$spp" "$scene" --spp "$spp")
+        r=$(render "${label}_fixed_$spp" "$scene" --spp "$spp" --noise-threshold 0)
         echo "fixed $spp $r"
         results+=("fixed $spp $r")
-        r=$(render "${label}_fixed_denoised_$spp" "$scene" --spp "$spp" --denoise)
+        r=$(render "${label}_fixed_denoised_$spp" "$scene" --spp "$spp" --noise-threshold 0 \
+            --denoise)
         echo "fixed+denoise $spp $r"
         results+=("fixed+denoise $spp $r")
     done
