@@ -236,14 +236,7 @@ def main():
     threads = int(os.environ.get("THREADS", "2"))
     name = os.environ.get("SCENE", "car")
     if name != "car":
-        if name == "interior":
-            folder = os.path.join(out, "interior")
-            subprocess.run([os.path.join(build, "spangle"), "bench", "--write-scene", folder],
-                           check=True, stdout=subprocess.DEVNULL)
-            path = os.path.join(folder, "interior.toml")
-        else:
-            path = spangle_scene(out)
-        main_scene(build, out, w, h, ref_spp, threads, path)
+        main_scene(build, out, w, h, ref_spp, threads, spangle_scene(name, build, out))
         sys.stdout.flush()
         os._exit(0)
     scene = build_car(w, h)
@@ -370,14 +363,18 @@ def cycles_sweep(scene, out, label, r, noise, w, h):
     report(f"{label} (cycles)", results)
 
 
-def spangle_scene(out):
-    """Another scene than the car: SCENE is `beetle`, `interior` (spangle bench's procedural
-    room, written into OUT) or a Spangle scene file; Cycles renders it as
+def spangle_scene(name, build, out):
+    """The file of another scene than the car: SCENE is `beetle`, `interior` (spangle bench's
+    procedural room, written into OUT) or a Spangle scene file; Cycles renders it as
     tests/bench/spangle_to_blender.py builds it, Spangle renders the file itself (its flakes
     included, which the Blender scene draws as a Voronoi glitter)."""
-    name = os.environ.get("SCENE", "car")
     if name == "beetle":
         return os.path.join(ROOT, "assets", "scenes", "beetle.toml")
+    if name == "interior":
+        folder = os.path.join(out, "interior")
+        subprocess.run([os.path.join(build, "spangle"), "bench", "--write-scene", folder],
+                       check=True, stdout=subprocess.DEVNULL)
+        return os.path.join(folder, "interior.toml")
     return os.path.abspath(name)
 
 
