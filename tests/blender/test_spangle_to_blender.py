@@ -16,6 +16,7 @@ ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 sys.path.insert(0, os.path.join(ROOT, "tests", "bench"))
 bpy = pytest.importorskip("bpy")
 import spangle_to_blender  # noqa: E402
+from test_blender_addon import read_exr  # noqa: E402  (the add-on tests' EXR reader)
 
 BUILD = os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build"))
 SPANGLE = os.path.join(BUILD, "spangle")
@@ -72,13 +73,6 @@ LIGHTS = {
     "map": f'[environment]\nmap = "{ROOT}/assets/env/studio_hdri.exr"\ncolor_space = "lin_rec709"\n'
            'rotation = 70\n',
 }
-
-
-def read_exr(path):
-    img = bpy.data.images.load(path, check_existing=False)
-    px = np.array(img.pixels[:], dtype=np.float64).reshape(img.size[1], img.size[0], -1)
-    bpy.data.images.remove(img)
-    return px[::-1, :, :3]
 
 
 def blocks(a, n=4):
