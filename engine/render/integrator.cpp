@@ -177,6 +177,11 @@ uint32_t set_up_job(RenderJob& job, const RenderScene& scene, const RenderOption
     job.motion = job.camera_steps != nullptr ||
                  std::any_of(scene.instances->begin(), scene.instances->end(),
                              [](const Instance& i) { return !i.motion.empty(); });
+    job.footprints = options.footprints_always || !scene.materials ||
+                     std::any_of(scene.materials->begin(), scene.materials->end(),
+                                 [](const std::shared_ptr<MaterialInstance>& m) {
+                                     return m && m->reads_footprints();
+                                 });
     job.width = film.width;
     job.height = film.height;
     job.spp = options.spp_override ? options.spp_override : film.spp;
@@ -515,6 +520,7 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     if (job.layers)
         finish_layers(out.layers, job.layer_film.layout, job.layer_plan, samples, counts);
     record_stats(job, options, film, samples, first_sample, passes, out);
+    out.stats.footprints = job.footprints;
     if (scene.materials)
         for (const auto& mat : *scene.materials) {
             if (!mat) continue;

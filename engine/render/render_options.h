@@ -100,6 +100,9 @@ struct RenderOptions {
      *  kept or filtered with the rest. Pass images are not denoised. */
     bool denoise = false;
     GlintDenoise denoise_glints = GlintDenoise::Keep;
+    /** Computes every hit's footprint even where no material reads one (RenderJob::footprints):
+     *  for tests that compare the two. */
+    bool footprints_always = false;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:
@@ -142,6 +145,8 @@ struct RenderStats {
     /** --denoise was asked for but a stop signal ended the denoise: the image is as rendered. */
     bool denoise_stopped = false;
     GlintDenoise denoise_glints = GlintDenoise::Keep;
+    /** Hits got footprints (false: no material of the scene reads them, none was computed). */
+    bool footprints = true;
 };
 
 /** Records in `st` that its image was denoised, treating the glints so. */

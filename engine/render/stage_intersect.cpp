@@ -187,10 +187,14 @@ void resolve_surfaces(const RenderJob& job, Workspace& ws, Sink& sink, uint32_t 
         if (bounce == 0)
             sink.first_surface(k, p.surf[k].p_obj, inst.object, inst.material,
                                inst.shadow_catcher != 0);
-        bool has_diff = p.has_diff[k] != 0;
-        footprint_at(p.surf[k], p.ray[k], has_diff, p.fp_width[k] + p.fp_spread[k] * hit.t);
-        object_footprint(p.surf[k], inst, mesh, hit.prim);
-        p.has_diff[k] = has_diff ? 1 : 0;
+        if (job.footprints) {
+            bool has_diff = p.has_diff[k] != 0;
+            footprint_at(p.surf[k], p.ray[k], has_diff, p.fp_width[k] + p.fp_spread[k] * hit.t);
+            object_footprint(p.surf[k], inst, mesh, hit.prim);
+            p.has_diff[k] = has_diff ? 1 : 0;
+        } else {
+            p.has_diff[k] = 0;  // nothing reads footprints: none is computed or carried
+        }
         p.material[k] = inst.material;
         ++ws.group_start[inst.material + 1];
     }

@@ -55,9 +55,10 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     const uint32_t i0 = mesh.indices[3 * h.prim], i1 = mesh.indices[3 * h.prim + 1],
                    i2 = mesh.indices[3 * h.prim + 2];
     const float b0 = 1.0f - h.b1 - h.b2;
-    const Vec3 p0 = inst.to_world.apply_point(mesh.position(i0));
-    const Vec3 p1 = inst.to_world.apply_point(mesh.position(i1));
-    const Vec3 p2 = inst.to_world.apply_point(mesh.position(i2));
+    const Vec3 o0 = mesh.position(i0), o1 = mesh.position(i1), o2 = mesh.position(i2);
+    const Vec3 p0 = inst.to_world.apply_point(o0);
+    const Vec3 p1 = inst.to_world.apply_point(o1);
+    const Vec3 p2 = inst.to_world.apply_point(o2);
     SurfacePoint sp;
     sp.p = p0 * b0 + p1 * h.b1 + p2 * h.b2;
     if (!mesh.colors.empty())
@@ -75,11 +76,17 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     }
     // The same point in object space, for patterns fixed to the object: on a deforming mesh,
     // the point of its rest pose with the same barycentrics.
-    {
-        const bool rest = !mesh.rest_positions.empty();
-        const Vec3 q0 = rest ? mesh.rest_position(i0) : mesh.position(i0);
-        const Vec3 q1 = rest ? mesh.rest_position(i1) : mesh.position(i1);
-        const Vec3 q2 = rest ? mesh.rest_position(i2) : mesh.position(i2);
+    // The object-space triangle's normal serves the plane's rounding bound below as well, and
+    // is the object-space normal unless a rest pose stands in for the corners here.
+    const Vec3 n_obj = cross(o1 - o0, o2 - o0);
+    const float n_obj_len = length(n_obj);
+    if (mesh.rest_positions.empty()) {
+        sp.p_obj = o0 * b0 + o1 * h.b1 + o2 * h.b2;
+        sp.ng_obj =
+            n_obj_len > 0.0f && std::isfinite(n_obj_len) ? n_obj / n_obj_len : Vec3(0, 0, 1);
+    } else {
+        const Vec3 q0 = mesh.rest_position(i0), q1 = mesh.rest_position(i1),
+                   q2 = mesh.rest_position(i2);
         sp.p_obj = q0 * b0 + q1 * h.b1 + q2 * h.b2;
         const Vec3 nq = cross(q1 - q0, q2 - q0);
         const float len = length(nq);
@@ -96,24 +103,19 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     // placement; a plane tilted 30 degrees with corners at 1e7 in its file found itself again
     // from 256 ulps of a small hit's coordinates, in streaks over the whole floor. Carried to
     // world space along the normal (the plane's covector goes through normal_to_world).
-    {
-        const Vec3 q0 = mesh.position(i0), q1 = mesh.position(i1), q2 = mesh.position(i2);
-        const Vec3 nq = cross(q1 - q0, q2 - q0);
-        const float nq_len = length(nq);
-        if (nq_len > 0.0f && std::isfinite(nq_len)) {
-            const Vec3 u = nq / nq_len;
-            const auto axis = [&](float Vec3::*c) {
-                return std::max({std::fabs(q0.*c), std::fabs(q1.*c), std::fabs(q2.*c)}) *
-                       std::fabs(u.*c);
-            };
-            const float stretch = length(inst.normal_to_world.apply_vector(u));
-            const float error = kPlaneRounding * std::numeric_limits<float>::epsilon() *
-                                (axis(&Vec3::x) + axis(&Vec3::y) + axis(&Vec3::z)) / stretch;
-            // Only where offset_origin's ulps of the hit's own coordinates fall short (about
-            // 1.5e-5 of them; 1/65536 near the origin): elsewhere nothing changes.
-            if (std::isfinite(error) && error > 1.5e-5f * std::max(max_abs(sp.p), 1.0f / 32.0f))
-                sp.p_error = error;
-        }
+    if (n_obj_len > 0.0f && std::isfinite(n_obj_len)) {
+        const Vec3 u = n_obj / n_obj_len;
+        const auto axis = [&](float Vec3::*c) {
+            return std::max({std::fabs(o0.*c), std::fabs(o1.*c), std::fabs(o2.*c)}) *
+                   std::fabs(u.*c);
+        };
+        const float stretch = length(inst.normal_to_world.apply_vector(u));
+        const float error = kPlaneRounding * std::numeric_limits<float>::epsilon() *
+                            (axis(&Vec3::x) + axis(&Vec3::y) + axis(&Vec3::z)) / stretch;
+        // Only where offset_origin's ulps of the hit's own coordinates fall short (about
+        // 1.5e-5 of them; 1/65536 near the origin): elsewhere nothing changes.
+        if (std::isfinite(error) && error > 1.5e-5f * std::max(max_abs(sp.p), 1.0f / 32.0f))
+            sp.p_error = error;
     }
     Vec3 n = ng;
     Vec3 n0, n1, n2;

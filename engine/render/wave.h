@@ -67,6 +67,9 @@ struct RenderJob {
     const std::vector<Camera>* camera_steps = nullptr;
     /** Something moves while the shutter is open: every path draws a time. */
     bool motion = false;
+    /** Some material reads footprints (MaterialInstance::reads_footprints): hits get them.
+     *  Otherwise no footprint is computed and the shading points' footprint fields are 0. */
+    bool footprints = true;
     const FilterSampler* filter;
     uint32_t width, height, spp, max_depth, rr_depth;
     /** The crop window: film pixel (x, y) of the full frame is image pixel

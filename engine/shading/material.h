@@ -2,6 +2,7 @@
 // Material instances: a plugin model plus a created instance, and the validation of a scene's
 // parameters against the model's schema. The host services plugins receive live here too.
 
+#include <algorithm>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -191,6 +192,17 @@ public:
     }
     /** Its alpha (alpha().active false: opaque). */
     const AlphaMap& alpha() const { return alpha_; }
+    /** Whether shading it reads the hit's footprint: its textures and normal or bump map are
+     *  filtered over it, and its model reads it unless requirements() says
+     *  SPANGLE_IGNORES_FOOTPRINT. */
+    bool reads_footprints() const {
+        const bool textured =
+            map_kind_ != MapKind::None ||
+            std::any_of(textures_.begin(), textures_.end(),
+                        [](const TextureBinding& t) { return t.texture != nullptr; });
+        return textured || !model_->requirements ||
+               !(model_->requirements(instance_) & SPANGLE_IGNORES_FOOTPRINT);
+    }
 
 private:
     AlphaMap alpha_;

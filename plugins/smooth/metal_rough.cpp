@@ -449,7 +449,7 @@ const SpangleMaterialModel_v3& metal_rough_model() {
         eval,
         sample,
         nullptr,
-        nullptr,
+        smooth_requirements,
     };
     return model;
 }

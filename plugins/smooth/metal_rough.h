@@ -7,6 +7,12 @@
 
 namespace spangle::smooth {
 
+/** requirements() of every model of the plugin: none reads a footprint (each is the same
+ *  smooth lobe over any area), so a scene of them alone gets none computed. */
+inline uint32_t smooth_requirements(const void*) {
+    return SPANGLE_IGNORES_FOOTPRINT;
+}
+
 /** The model's table entry (schema, closure size, entry points). */
 const SpangleMaterialModel_v3& metal_rough_model();
 

@@ -1092,16 +1092,18 @@ constexpr uint32_t count_of(const SpangleParamDesc_v3* begin, const SpangleParam
 const SpangleMaterialModel_v3 kModels[] = {
     {"diffuse", "Lambertian diffuse reflection", SPANGLE_PARAMS(kDiffuseParams), sizeof(Closure),
      diffuse_create, destroy<Diffuse>, diffuse_prepare, diffuse_eval, diffuse_sample, nullptr,
-     nullptr},
+     spangle::smooth::smooth_requirements},
     {"conductor", "GGX metal with complex Fresnel (presets or custom eta, k)",
      SPANGLE_PARAMS(kConductorParams), sizeof(Closure), conductor_create, destroy<Conductor>,
-     conductor_prepare, conductor_eval, conductor_sample, nullptr, nullptr},
+     conductor_prepare, conductor_eval, conductor_sample, nullptr,
+     spangle::smooth::smooth_requirements},
     {"dielectric", "rough glass: GGX reflection and transmission",
      SPANGLE_PARAMS(kDielectricParams), sizeof(Closure), dielectric_create, destroy<Dielectric>,
-     dielectric_prepare, dielectric_eval, dielectric_sample, nullptr, nullptr},
+     dielectric_prepare, dielectric_eval, dielectric_sample, nullptr,
+     spangle::smooth::smooth_requirements},
     {"plastic", "diffuse base under a GGX dielectric coat", SPANGLE_PARAMS(kPlasticParams),
      sizeof(Closure), plastic_create, destroy<Plastic>, plastic_prepare, plastic_eval,
-     plastic_sample, nullptr, nullptr},
+     plastic_sample, nullptr, spangle::smooth::smooth_requirements},
     spangle::smooth::metal_rough_model(),
 };
 

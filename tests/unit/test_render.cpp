@@ -283,6 +283,52 @@ TEST(Render, UnusedMaterialNeverOpensItsPlugin) {
         << "the unused material names a plugin that does not exist; it must not be looked for";
 }
 
+/** render_path() with RenderOptions::footprints_always. */
+FrameResult render_with_footprints(const std::string& path) {
+    FrameRequest req;
+    req.scene = path;
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.threads = 2;
+    req.options.footprints_always = true;
+    return render_frame(req);
+}
+
+// The smooth plugin's models read no footprint (SPANGLE_IGNORES_FOOTPRINT): a scene of them
+// alone gets none computed, and renders to the same bits as with them. delta_hard_cases has a
+// mirror, glass and a coat, whose specular bounces carry ray differentials when footprints are
+// on.
+TEST(Render, FootprintsAreLeftOutWhereNothingReadsThemToTheSameBits) {
+    for (const char* scene : {"small_lit.toml", "delta_hard_cases.toml", "caustic_mirror.toml"}) {
+        const std::string path = test::test_dir() + "/scenes/" + scene;
+        const FrameResult without = render_path(path, 2);
+        const FrameResult with = render_with_footprints(path);
+        EXPECT_FALSE(without.stats.footprints) << scene;
+        EXPECT_TRUE(with.stats.footprints) << scene;
+        ASSERT_EQ(without.image.size(), with.image.size()) << scene;
+        ASSERT_FALSE(without.image.empty()) << scene;
+        EXPECT_EQ(std::memcmp(without.image.data(), with.image.data(),
+                              without.image.size() * sizeof(float)),
+                  0)
+            << scene;
+    }
+}
+
+// Flakes read footprints, and so do textures and normal maps whatever their plugin.
+TEST(Render, FootprintsAreComputedWhereAMaterialOrTextureReadsThem) {
+    EXPECT_TRUE(render("flake_plane.toml", 2, 1).stats.footprints);
+    test::TempDir dir("footprints_textured");
+    const auto write = [&](const std::string& name, const std::string& albedo) {
+        std::ofstream(dir.file(name)) << test::scene_text(
+            "small_lit.toml",
+            {{"params = { albedo = 0.5 }", "params = { albedo = " + albedo + " }"}});
+        return dir.file(name);
+    };
+    EXPECT_TRUE(render_path(write("tex.toml", "{ texture = \"textures/red_opaque.png\" }"), 2, 1)
+                    .stats.footprints);
+    EXPECT_FALSE(render_path(write("plain.toml", "0.4"), 2, 1).stats.footprints);
+}
+
 TEST(Render, EmptySceneRendersTheEnvironment) {
     const FrameResult r = render("empty.toml", 1, 1);
     EXPECT_FALSE(report(r, "mesh_load").ran);

@@ -310,6 +310,12 @@ typedef struct SpangleMaterialModel_v3 {
  * pattern is laid out in uv where there are some). */
 #define SPANGLE_REQUIRES_OBJECT_SPACE 2u
 #define SPANGLE_REQUIRES_OBJECT_SPACE_WITHOUT_UV 4u
+/* The instance reads no footprint: not dudx, dudy, dvdx, dvdy, the object-space footprint
+ * axes (odx*, ody*) nor the flag SPANGLE_SHADING_HAS_DIFFERENTIALS. When every material of a
+ * scene says so and none has a texture or a normal or bump map, the host computes no footprints
+ * (those fields are then 0 and the flag unset): less work per hit. A model without
+ * requirements(), or without this bit, gets footprints, as before the bit existed. */
+#define SPANGLE_IGNORES_FOOTPRINT 8u
 
 /** The table a plugin returns. */
 typedef struct SpangleMaterialPlugin_v3 {
