@@ -169,9 +169,8 @@ void print_stats(const FrameResult& r, const std::string& exr) {
         fmt::print("rays: {} camera, {} bounce, {} shadow\n", st.camera_rays, st.bounce_rays,
                    st.shadow_rays);
         fmt::print("non-finite samples replaced by black: {}\n", st.nonfinite);
-        fmt::print("footprints: {}\n", st.footprints
-                                           ? "computed"
-                                           : "not computed (no material or texture reads them)");
+        fmt::print("footprints: {}\n",
+                   st.footprints ? "computed" : "not computed (no material or texture reads them)");
         if (st.noise_threshold > 0.0f)
             fmt::print(
                 "adaptive sampling: noise threshold {}, {:.1f} samples per pixel on average "

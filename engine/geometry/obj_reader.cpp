@@ -237,9 +237,24 @@ private:
             // Triangulated at the end, when every vertex a face may name forward is known.
             polygons_.insert(polygons_.end(), face_.begin(), face_.end());
             polygon_ends_.push_back(polygons_.size());
+        } else if (keyword == "mtllib" || keyword == "usemtl") {
+            // Materials, lines and points: said once each (a file's materials silently became
+            // one, its scene material). Everything else (comments, o, g, s, curves) is not
+            // geometry Spangle renders.
+            if (!materials_seen_)
+                notes_.push_back(fmt::format(
+                    "its materials ('{}' at line {}) are not read: the object takes its scene "
+                    "material (split the file by material, or import it through glTF or pbrt, "
+                    "to give parts their own)",
+                    keyword, line_));
+            materials_seen_ = true;
+        } else if (keyword == "l" || keyword == "p") {
+            if (!lines_seen_)
+                notes_.push_back(
+                    fmt::format("its lines and points ('{}' at line {}) are not surfaces: dropped",
+                                keyword, line_));
+            lines_seen_ = true;
         }
-        // Everything else (comments, o, g, s, usemtl, mtllib, l, p, curves) is not geometry
-        // Spangle renders.
     }
 
     /** Checks the largest index of a kind against the number read. */
@@ -309,6 +324,7 @@ private:
     std::size_t colored_ = 0;  ///< `v` statements with a colour
     bool zbrush_ = false;      ///< a `#MRGB` comment was seen
     std::vector<std::string> notes_;
+    bool materials_seen_ = false, lines_seen_ = false;  ///< said once each
     std::vector<uint32_t> face_;
     std::size_t short_faces_ = 0;            ///< faces of fewer than 3 corners, skipped
     std::vector<uint32_t> polygons_;         ///< every face's vertices, one after another

@@ -560,6 +560,53 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 if (!corners.empty()) add_face(corners.data(), corners.size());
             }
             mesh.note_short_faces(short_faces);
+        } else if (e.name == "tristrips" && !have_faces) {
+            // Triangle strips (the Stanford and Cyberware scans' layout: one list of indices per
+            // entry, strips parted by -1): their triangles, every other one turned so that all
+            // wind as the first. (They were "no face element".)
+            have_faces = true;
+            int list = -1;
+            for (std::size_t k = 0; k < e.props.size(); ++k)
+                if (e.props[k].list &&
+                    (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index"))
+                    list = static_cast<int>(k);
+            if (list < 0)
+                throw_error(ref, "mesh '{}': its tristrips have no vertex_indices list", path);
+            uint32_t strip[3] = {0, 0, 0};
+            uint64_t in_strip = 0;
+            for (uint64_t i = 0; i < e.count; ++i)
+                for (std::size_t k = 0; k < e.props.size(); ++k) {
+                    const Property& p = e.props[k];
+                    const double n = p.list ? reader.read(p.count_type, "the strips") : 1.0;
+                    if (n < 0 || n > static_cast<double>(reader.remaining()))
+                        throw_error(ref, "mesh '{}': a strip of {} indices does not fit the file",
+                                    path, n);
+                    for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j) {
+                        const double v = reader.read(p.type, "the strips");
+                        if (static_cast<int>(k) != list) continue;
+                        if (v < 0.0) {  // the end of a strip
+                            in_strip = 0;
+                            continue;
+                        }
+                        if (!(v < 4294967295.0) || v != std::floor(v))
+                            throw_error(ref, "mesh '{}': strip {} has corner index {}", path, i, v);
+                        const auto c = static_cast<uint32_t>(v);
+                        if (c >= largest_index) {
+                            largest_index = c;
+                            largest_face = i;
+                        }
+                        strip[0] = strip[1];
+                        strip[1] = strip[2];
+                        strip[2] = c;
+                        if (++in_strip < 3) continue;
+                        const uint32_t a = strip[0], b = strip[1];
+                        if (a == b || b == c || a == c) continue;  // a strip's turn: no area
+                        if (in_strip % 2 == 1)
+                            mesh.indices.insert(mesh.indices.end(), {a, b, c});
+                        else
+                            mesh.indices.insert(mesh.indices.end(), {b, a, c});
+                    }
+                }
         } else if (!e.props.empty()) {
             // Skipped, but read through: its data lies before later elements'. (An element
             // without properties has no data, however many entries it claims.)

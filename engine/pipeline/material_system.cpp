@@ -42,9 +42,14 @@ void warn_about_missing_colors(const ecs::Registry& r, const World& w, const Mat
         if (const MaterialInstance* mat = set.instances[m].get())
             for (const TextureBinding& t : mat->textures())
                 if (t.ref.vertex_color) state[m] = 1;
+    // Said at the first object that wears the material (it had no place).
+    std::vector<std::string> where(set.instances.size());
     for (std::size_t i = 0; i < refs.size(); ++i) {
         const uint32_t m = refs.columns().material[i];
         const ecs::Entity e = refs.entities()[i];
+        if (m < state.size() && state[m] == 1 && where[m].empty() && r.has<ObjectInfo>(e))
+            if (const std::string at = r.get<ObjectInfo>(e).loc.str(); !at.empty())
+                where[m] = at + ": ";
         if (m < state.size() && state[m] == 1 && r.has<TriangleMeshRef>(e) &&
             !mesh_of(w, r.get<TriangleMeshRef>(e)).colors.empty())
             state[m] = 2;
@@ -52,9 +57,9 @@ void warn_about_missing_colors(const ecs::Registry& r, const World& w, const Mat
     for (std::size_t m = 0; m < state.size(); ++m)
         if (state[m] == 1 && w.log)
             w.log->warn(
-                "material '{}' reads vertex colours (vertex_color), but none of its "
+                "{}material '{}' reads vertex colours (vertex_color), but none of its "
                 "meshes has any: it reads 1 (white) everywhere",
-                set.instances[m]->name());
+                where[m], set.instances[m]->name());
 }
 
 /** Warns about objects whose material needs uvs their mesh lacks. */

@@ -1171,7 +1171,7 @@ TEST(GltfMaterials, AMeshTakesTheUvSetItsMaterialReads) {
     CacheEnv cache(dir.file("cache"));
     const std::string png = bytes_of(test::test_dir() + "/scenes/textures/roughness_ramp.png");
     std::ofstream(dir.file("t.png"), std::ios::binary) << png;
-    const auto write = [&](const char* set, int tex_coord) {
+    const auto write = [&](const char* set, int tex_coord, const std::string& info_extra = "") {
         GltfWriter w;
         std::string mesh = quad_mesh(w, 0);
         mesh.replace(mesh.find("TEXCOORD_0"), 10, set);
@@ -1179,12 +1179,16 @@ TEST(GltfMaterials, AMeshTakesTheUvSetItsMaterialReads) {
             dir.file("uv.gltf"),
             fmt::format(R"("meshes":[{}],"nodes":[{{"mesh":0}}],"images":[{{"uri":"t.png"}}],)"
                         R"("textures":[{{"source":0}}],"materials":[{{"pbrMetallicRoughness":)"
-                        R"({{"baseColorTexture":{{"index":0,"texCoord":{}}}}}}}])",
-                        mesh, tex_coord));
+                        R"({{"baseColorTexture":{{"index":0,"texCoord":{}{}}}}}}}])",
+                        mesh, tex_coord, info_extra));
         return read_gltf_scene(dir.file("uv.gltf"), {});
     };
     const SceneDescription zero = write("TEXCOORD_0", 0);
     const SceneDescription one = write("TEXCOORD_1", 1);
+    // KHR_texture_transform's texCoord overrides the texture reference's (Khronos'
+    // TextureTransformMultiTest): set 1 is read, and no note says otherwise.
+    const SceneDescription overridden =
+        write("TEXCOORD_1", 0, R"(,"extensions":{"KHR_texture_transform":{"texCoord":1}})");
     ASSERT_EQ(one.objects.size(), 1u);
     const auto uvs = [](const SceneDescription& d) {
         return std::get<InlineMeshShape>(d.objects[0].shape).mesh->uvs;
@@ -1193,6 +1197,9 @@ TEST(GltfMaterials, AMeshTakesTheUvSetItsMaterialReads) {
     EXPECT_EQ(uvs(one), uvs(zero));
     EXPECT_FALSE(has_note(one, "TEXCOORD_1 is dropped"));
     EXPECT_FALSE(has_note(one, "another uv set"));
+    EXPECT_EQ(uvs(overridden), uvs(zero));
+    EXPECT_FALSE(has_note(overridden, "TEXCOORD_1 is dropped"));
+    EXPECT_FALSE(has_note(overridden, "another uv set"));
 }
 
 TEST(GltfMaterials, MaskAndBlendCutTheSurfaceByTheBaseColoursAlpha) {

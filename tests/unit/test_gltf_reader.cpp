@@ -124,6 +124,94 @@ TEST(GltfReader, NodesSharingAMeshShareOneTriangleMeshAndMatrixNodesRead) {
     EXPECT_NEAR(d.objects[2].placement.matrix->t.z, 7.0f, kTol);
 }
 
+// glTF: a node whose world matrix has a negative determinant draws its triangles' clockwise side
+// as the front, so that a mirrored model keeps its outside out. Spangle fronts the side a
+// triangle's corners run counter-clockwise around in world space: the reader reverses a mirrored
+// mesh's winding, so the quad (facing +z) still faces +z when mirrored in x, y or all three, and
+// mirrored GPU instances of it too. Unmirrored nodes keep the mesh as written (one pointer).
+TEST(GltfReader, MirroredNodesKeepTheirFrontFaces) {
+    test::TempDir dir("gltf_mirror");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const int flip = w.floats({-1, 1, 1, 1, -1, 1}, "VEC3", 3);  // two instances' SCALE
+    const std::string body = fmt::format(
+        R"("extensionsUsed":["EXT_mesh_gpu_instancing"],)"
+        R"("nodes":[{{"mesh":0}},{{"mesh":0,"scale":[-1,1,1]}},{{"mesh":0,"scale":[1,-2,1]}},)"
+        R"({{"mesh":0,"scale":[-1,-1,-1]}},{{"mesh":0,"scale":[1,1,-1],"rotation":[0,1,0,0]}},)"
+        R"({{"mesh":0,"extensions":{{"EXT_mesh_gpu_instancing":{{"attributes":{{"SCALE":{}}}}}}}}}],)"
+        R"("meshes":[{{"primitives":[{}]}}])",
+        flip, quad_primitive(q, -1));
+    w.write_gltf(dir.file("mirror.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("mirror.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 7u);
+    // The front of each triangle in world space, against where the quad's normal (+z) went.
+    for (std::size_t i = 0; i < d.objects.size(); ++i) {
+        const Affine& m = *d.objects[i].placement.matrix;
+        const TriangleMesh& mesh = *std::get<InlineMeshShape>(d.objects[i].shape).mesh;
+        // The quad's normal +z carried as normals are (M^-T n, up to a positive factor): the
+        // cross product of its carried tangents, turned where M mirrors.
+        const Vec3 normal = cross(m.apply_vector({1, 0, 0}), m.apply_vector({0, 1, 0})) *
+                            (m.determinant() < 0.0f ? -1.0f : 1.0f);
+        ASSERT_EQ(mesh.triangle_count(), 2u);
+        for (uint32_t t = 0; t < 2; ++t) {
+            const Vec3 a = m.apply_point(mesh.position(mesh.indices[3 * t]));
+            const Vec3 b = m.apply_point(mesh.position(mesh.indices[3 * t + 1]));
+            const Vec3 c = m.apply_point(mesh.position(mesh.indices[3 * t + 2]));
+            EXPECT_GT(dot(cross(b - a, c - a), normal), 0.0f) << "object " << i << " tri " << t;
+        }
+    }
+    const auto mesh = [&](std::size_t i) {
+        return std::get<InlineMeshShape>(d.objects[i].shape).mesh;
+    };
+    EXPECT_NE(mesh(0), mesh(1));
+    EXPECT_EQ(mesh(5), mesh(6));  // one reversed copy for a node's instances
+    EXPECT_EQ(mesh(0)->indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
+    EXPECT_EQ(mesh(1)->indices, (std::vector<uint32_t>{0, 2, 1, 0, 3, 2}));
+}
+
+// Members glTF makes optional and tinygltf 2.7 requires: a skin's inverseBindMatrices
+// (identity), an animation target's node (KHR_animation_pointer channels have none: noted and
+// dropped), and a file without buffer views whose accessor has no view (zeros). A skin without
+// joints is an error at the skin.
+TEST(GltfReader, MembersTinygltfRequiresAreOptionalAsGltfSays) {
+    test::TempDir dir("gltf_optional");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const int times = w.floats({0, 1}, "SCALAR", 1);
+    const int colors = w.floats({0, 0, 0, 1, 1, 1}, "VEC3", 3);
+    const std::string body = fmt::format(
+        R"("nodes":[{{"mesh":0}},{{"name":"joint"}}],"skins":[{{"joints":[1]}}],)"
+        R"("materials":[{{}}],"meshes":[{{"primitives":[{}]}}],)"
+        R"("animations":[{{"samplers":[{{"input":{},"output":{}}}],"channels":[{{"sampler":0,)"
+        R"("target":{{"path":"pointer","extensions":{{"KHR_animation_pointer":)"
+        R"({{"pointer":"/materials/0/emissiveFactor"}}}}}}}}]}}])",
+        quad_primitive(q, 0), times, colors);
+    w.write_gltf(dir.file("optional.gltf"), body);
+    SceneDescription d;
+    ASSERT_NO_THROW(d = read_gltf_scene(dir.file("optional.gltf"), {}));
+    EXPECT_EQ(d.objects.size(), 1u);
+    EXPECT_EQ(count_notes(d, "animations of 'pointer' are dropped"), 1)
+        << fmt::format("{}", fmt::join(d.notes, "\n"));
+
+    // No views and no buffers: three zero positions and indices, sparse-free.
+    std::ofstream(dir.file("viewless.gltf"))
+        << R"({"asset":{"version":"2.0"},"scenes":[{"nodes":[0]}],"nodes":[{"mesh":0}],)"
+           R"("meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],)"
+           R"("accessors":[{"componentType":5126,"count":3,"type":"VEC3",)"
+           R"("min":[0,0,0],"max":[0,0,0]}]})";
+    EXPECT_NO_THROW(read_gltf_scene(dir.file("viewless.gltf"), {}));
+
+    std::ofstream(dir.file("jointless.gltf")) << R"({"asset":{"version":"2.0"},"skins":[{}]})";
+    try {
+        read_gltf_scene(dir.file("jointless.gltf"), {});
+        ADD_FAILURE() << "a skin without joints was read";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("skin 0 has no 'joints'"), std::string::npos)
+            << e.what();
+        EXPECT_NE(std::string(e.what()).find("jointless.gltf:1:"), std::string::npos) << e.what();
+    }
+}
+
 TEST(GltfReader, PrimitivesKeepPositionsNormalsAndUvsWithVFlipped) {
     test::TempDir dir("gltf_prims");
     GltfWriter w;
@@ -212,9 +300,10 @@ TEST(GltfReader, GpuInstancesAreObjectsSharingTheMeshPlacedAfterTheirNode) {
                               s3, quad_primitive(q3, -1)));
     const SceneDescription flat = read_gltf_scene(dir.file("flat.gltf"), {});
     ASSERT_EQ(flat.objects.size(), 3u);
-    EXPECT_EQ(flat.objects[0].name, "@0");
-    EXPECT_EQ(flat.objects[1].name, "@3");
-    EXPECT_EQ(flat.objects[2].name, "@4");
+    // Neither the node nor its mesh has a name: the node's number stands in (it was "").
+    EXPECT_EQ(flat.objects[0].name, "node 0@0");
+    EXPECT_EQ(flat.objects[1].name, "node 0@3");
+    EXPECT_EQ(flat.objects[2].name, "node 0@4");
     EXPECT_NEAR(flat.objects[2].placement.matrix.value().apply_point({1, 0, 0}).x, 6.1e-7f, 1e-12f);
     EXPECT_GT(std::fabs(flat.objects[1].placement.matrix.value().determinant()), 0.0f);
     EXPECT_EQ(count_notes(flat, "instance 1 of node 0 is scaled to nothing"), 1);

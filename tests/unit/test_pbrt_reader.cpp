@@ -220,12 +220,91 @@ AreaLightSource "area" "color L" [1 1 1] "color scale" [3 3 3]
 Shape "sphere" "float radius" 0.3
 AttributeEnd
 )"));
-    ASSERT_EQ(d.lights.size(), 1u);
+    // The emitting sphere is a sphere light (PbrtReader.AnEmittingSphereIsASphereLight).
+    ASSERT_EQ(d.lights.size(), 2u);
     EXPECT_EQ(d.lights[0].color->rgb, Vec3(20, 10, 5));
-    ASSERT_EQ(d.objects.size(), 1u);
-    ASSERT_TRUE(d.objects[0].emission.has_value());
-    EXPECT_EQ(d.objects[0].emission->color.rgb, Vec3(3, 3, 3));
+    EXPECT_EQ(d.lights[1].color->rgb, Vec3(3, 3, 3));
+    EXPECT_TRUE(d.objects.empty());
     EXPECT_FALSE(has_note(d, "not supported"));
+}
+
+// pbrt samples a sphere emitter by the cone it subtends; Spangle's sphere light does the same,
+// where its tessellation was sampled by triangle area (a floor under a small sphere had 3 times
+// the noise of the point light of its power). A whole, outward-emitting, uniformly scaled sphere
+// becomes one, placed where the transform puts it, its radiance and power kept; a cut, turned,
+// two-sided, non-uniformly scaled or cut-out sphere stays an emitting object.
+// Values Spangle cannot take as written are said, not changed silently: a depth of 0 (pbrt shows
+// only the light seen directly; Spangle bounces once), 0 samples, several values where one
+// belongs; a number beyond a double's range is an error that says so.
+TEST(PbrtReader, ValuesTakenOtherwiseAreSaid) {
+    const Files f;
+    const SceneDescription d = read(f, std::string(R"(Sampler "halton" "integer pixelsamples" 0
+Integrator "path" "integer maxdepth" 0
+WorldBegin
+Shape "sphere" "float radius" [1 2 3]
+)"));
+    EXPECT_EQ(d.render.max_depth, 1u);
+    EXPECT_EQ(d.render.spp, 1u);
+    EXPECT_TRUE(has_note(d, ":2: 'maxdepth' 0 is taken as 1"));
+    EXPECT_TRUE(has_note(d, ":1: 'pixelsamples' 0 is taken as 1"));
+    EXPECT_TRUE(has_note(d, ":4: 'float radius' of Shape \"sphere\" takes one value, got 3"));
+    const std::string big = error_of(f, "WorldBegin\nShape \"sphere\" \"float radius\" 1e400\n");
+    EXPECT_NE(big.find(":2:31: error: 'float radius': 1e400 is out of range"), std::string::npos)
+        << big;
+}
+
+TEST(PbrtReader, AnEmittingSphereIsASphereLight) {
+    const Files f;
+    const SceneDescription d = read(f, std::string(R"(WorldBegin
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [2 3 4] "float scale" 1.5
+  Translate 1 2 3
+  Rotate 30 0 1 0
+  Scale 2 2 2
+  Shape "sphere" "float radius" 0.25
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1] "float power" 100
+  Translate -1 0 0
+  Shape "sphere" "float radius" 0.5
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "sphere" "float radius" 1 "float zmax" 0.5
+  ReverseOrientation
+  Shape "sphere" "float radius" 1
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1] "bool twosided" true
+  Shape "sphere"
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Scale 1 2 1
+  Shape "sphere"
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "sphere" "float alpha" 0.5
+AttributeEnd
+)"));
+    ASSERT_EQ(d.lights.size(), 2u);
+    const auto* a = std::get_if<SphereLightDesc>(&d.lights[0].shape);
+    ASSERT_NE(a, nullptr);
+    EXPECT_NEAR(a->center.x, 1.0f, 1e-5f);
+    EXPECT_NEAR(a->center.y, 2.0f, 1e-5f);
+    EXPECT_NEAR(a->center.z, 3.0f, 1e-5f);
+    EXPECT_NEAR(a->radius, 0.5, 1e-6);
+    EXPECT_EQ(d.lights[0].color->rgb, Vec3(2, 3, 4));
+    EXPECT_NEAR(d.lights[0].intensity, 1.5, 1e-12);
+    const auto* b = std::get_if<SphereLightDesc>(&d.lights[1].shape);
+    ASSERT_NE(b, nullptr);
+    EXPECT_NEAR(b->radius, 0.5, 1e-6);
+    // power / (pi x 4 pi r^2): the radiance pbrt gives it.
+    EXPECT_NEAR(d.lights[1].intensity, 100.0 / (M_PI * 4.0 * M_PI * 0.25), 1e-9);
+    EXPECT_EQ(d.objects.size(), 5u);
+    for (const ObjectDesc& o : d.objects) EXPECT_TRUE(o.emission.has_value()) << o.what;
+    EXPECT_TRUE(has_note(d, "an emitting sphere is a sphere light"));
 }
 
 TEST(PbrtReader, ObjectInstancesShareOneMesh) {
@@ -783,13 +862,13 @@ AttributeEnd
 MakeNamedMaterial "unused" "string type" "diffuse"
 MakeNamedMaterial "ub" "string type" "uber" "float index" 1.25
 )");
-    ASSERT_EQ(d.lights.size(), 1u);
+    ASSERT_EQ(d.lights.size(), 2u);  // the point and the emitting sphere
     EXPECT_DOUBLE_EQ(d.lights[0].intensity, 2.0);
     ASSERT_TRUE(d.environment);
     EXPECT_DOUBLE_EQ(d.environment->intensity, 2.0);
-    ASSERT_EQ(d.objects.size(), 1u);
-    ASSERT_TRUE(d.objects[0].emission);
-    EXPECT_DOUBLE_EQ(d.objects[0].emission->intensity, 2.0);
+    EXPECT_TRUE(d.objects.empty());
+    ASSERT_TRUE(std::holds_alternative<SphereLightDesc>(d.lights[1].shape));
+    EXPECT_DOUBLE_EQ(d.lights[1].intensity, 2.0);
     EXPECT_TRUE(noted(d, "pbrt-v4's exposure (shutter 0.5 s x iso 400 / 100 = 2)"));
     EXPECT_FALSE(noted(d, "'float iso'")) << "iso is used, not dropped";
     // A material no shape uses is a library entry: no warning later (mix operands alike).
@@ -863,7 +942,7 @@ AttributeBegin
   Shape "sphere" "float radius" 0.5
 AttributeEnd
 )");
-    ASSERT_EQ(d.lights.size(), 5u);
+    ASSERT_EQ(d.lights.size(), 6u);  // the last the emitting sphere
     EXPECT_EQ(d.lights[0].color->rgb, Vec3(1, 2, 3));
     EXPECT_EQ(d.lights[0].intensity, 2.0);
     EXPECT_EQ(std::get<PointLightDesc>(d.lights[0].shape).position, Vec3(0, 1, 0));
@@ -890,14 +969,15 @@ WorldEnd
     EXPECT_NEAR(map.to_world.apply_vector({0, 0, 1}).y, 1.0f, 1e-6f) << "the map's +z is up";
     EXPECT_EQ(d.environment->intensity, 1.5);
     EXPECT_TRUE(noted(d, "LightSource \"goniometric\" is not supported: a point light"));
-    ASSERT_EQ(d.objects.size(), 3u);
+    ASSERT_EQ(d.objects.size(), 2u);
     const EmissionDesc& e = *d.objects[0].emission;
     EXPECT_TRUE(e.two_sided);
     EXPECT_EQ(e.intensity, 0.5);
     // v4 area 'power': W over pi A (the scaled quad's area is 4).
     EXPECT_NEAR(d.objects[1].emission->intensity, 10.0 / (M_PI * 4.0), 1e-6);
     // A quadric's area is its own (pbrt's Sphere::Area(): 4 pi r^2 = pi, the scale aside).
-    EXPECT_NEAR(d.objects[2].emission->intensity, 10.0 / (M_PI * M_PI), 1e-9);
+    EXPECT_NEAR(d.lights[5].intensity, 10.0 / (M_PI * M_PI), 1e-9);
+    EXPECT_NEAR(std::get<SphereLightDesc>(d.lights[5].shape).radius, 1.5, 1e-6);
 }
 
 TEST(PbrtReader, AV3InfiniteMapIsLatLongWithItsZUp) {
@@ -1167,7 +1247,7 @@ Shape "sphere"
     EXPECT_NEAR(flat.z, 0.5f, 1e-4f);
     EXPECT_EQ(param(material(d, "file"), "albedo")->color.rgb, flat);
     // A 6504 K blackbody is close to D65: near-equal channels.
-    const Vec3 bb = d.objects.at(0).emission->color.rgb;
+    const Vec3 bb = d.lights.at(0).color->rgb;  // the sphere is a sphere light
     EXPECT_NEAR(bb.x / bb.y, 1.0f, 0.1f);
     EXPECT_NEAR(bb.z / bb.y, 1.0f, 0.1f);
     // Light is absolute: a flat emission spectrum is illuminant E's colour, XYZ (1, 1, 1), which
@@ -1176,7 +1256,7 @@ Shape "sphere"
 AreaLightSource "diffuse" "spectrum L" [400 2 700 2]
 Shape "sphere"
 )");
-    const Vec3 le = e.objects.at(0).emission->color.rgb;
+    const Vec3 le = e.lights.at(0).color->rgb;
     EXPECT_NEAR(le.x / le.y, 1.2048f / 0.9483f, 0.03f);
     EXPECT_NEAR(le.z / le.y, 0.9088f / 0.9483f, 0.03f);
     // The fluorescent illuminants stand in by their colour temperatures, as the warning says

@@ -211,12 +211,14 @@ std::set<int> placeholder_buffers(const Context& ctx, bool binary) {
     return out;
 }
 
-/** The JSON tinygltf is given: the file's, with two kinds of value it refuses made acceptable
- *  (decompress() and load_document() undo both): each meshopt fallback buffer becomes a one-byte
+/** The JSON tinygltf is given: the file's, with the values it refuses made acceptable
+ *  (decompress() and load_document() undo them): each meshopt fallback buffer becomes a one-byte
  *  data URI (tinygltf refuses a .gltf buffer without a uri, and gave a .glb's the BIN chunk's
- *  bytes), and each accessor without a view names view 0 (tinygltf refuses indices without one,
- *  which Draco-compressed primitives have). Empty when neither occurs (the JSON as it is).
- *  `viewless` gets the accessors changed. */
+ *  bytes); each accessor without a view names view 0 (tinygltf refuses indices without one,
+ *  which Draco-compressed primitives have), a file without views and buffers getting a one-byte
+ *  buffer and a view of it; skins without inverseBindMatrices and animation targets without a
+ *  node get -1 (absent). Empty when nothing needs it (the JSON as it is). `viewless` gets the
+ *  accessors changed. */
 std::string tinygltf_json(const Context& ctx, std::string_view json, std::vector<int>& viewless) {
     struct Edit {
         std::size_t start, end;
@@ -231,7 +233,22 @@ std::string tinygltf_json(const Context& ctx, std::string_view json, std::vector
                 {start, end,
                  R"({"byteLength":1,"uri":"data:application/octet-stream;base64,AA=="})"});
     }
-    if (ctx.json.has("bufferViews/0"))
+    // A file without buffer views whose accessors are all zeros or sparse (valid glTF): a view
+    // for them to name, in a one-byte buffer of its own when the file has none either.
+    const bool no_views = !ctx.json.has("bufferViews");
+    if (no_views && !ctx.json.has("buffers")) {
+        const std::size_t root = json.find('{');
+        bool viewless_accessor = false;
+        for (std::size_t i = 0; ctx.json.has(fmt::format("accessors/{}", i)); ++i)
+            viewless_accessor =
+                viewless_accessor || !ctx.json.has(fmt::format("accessors/{}/bufferView", i));
+        if (root != std::string_view::npos && viewless_accessor)
+            edits.push_back(
+                {root, root + 1,
+                 R"({"buffers":[{"byteLength":1,"uri":"data:application/octet-stream;base64,AA=="}],)"
+                 R"("bufferViews":[{"buffer":0,"byteLength":1}],)"});
+    }
+    if (ctx.json.has("bufferViews/0") || (no_views && !ctx.json.has("buffers")))
         for (std::size_t i = 0; ctx.json.has(fmt::format("accessors/{}", i)); ++i) {
             const std::string a = fmt::format("accessors/{}", i);
             if (ctx.json.scalar(a + "/bufferView") || ctx.json.has(a + "/bufferView")) continue;
@@ -243,6 +260,30 @@ std::string tinygltf_json(const Context& ctx, std::string_view json, std::vector
             if (next != std::string_view::npos && json[next] == '}')
                 edits.back().text = R"({"bufferView":0)";
             viewless.push_back(static_cast<int>(i));
+        }
+    // A member tinygltf 2.7 requires where glTF does not: a skin's inverseBindMatrices
+    // (identity matrices when absent) and a channel target's node (KHR_animation_pointer's
+    // channels have none; they are noted and dropped): -1, read as absent.
+    const auto insert_member = [&](const std::string& path, const char* member) {
+        const auto [start, end] = ctx.json.span(path);
+        if (end <= start || end > json.size() || json[start] != '{') return;
+        const std::size_t next = json.find_first_not_of(" \t\r\n", start + 1);
+        const bool empty = next != std::string_view::npos && json[next] == '}';
+        edits.push_back(
+            {start, start + 1, fmt::format(R"({{"{}":-1{})", member, empty ? "" : ",")});
+    };
+    for (std::size_t i = 0; ctx.json.has(fmt::format("skins/{}", i)); ++i) {
+        const std::string sk = fmt::format("skins/{}", i);
+        if (!ctx.json.has(sk + "/joints"))
+            throw_error(ctx.at(sk), "skin {} has no 'joints' (glTF requires them)", i);
+        if (!ctx.json.has(sk + "/inverseBindMatrices") &&
+            !ctx.json.scalar(sk + "/inverseBindMatrices"))
+            insert_member(sk, "inverseBindMatrices");
+    }
+    for (std::size_t a = 0; ctx.json.has(fmt::format("animations/{}", a)); ++a)
+        for (std::size_t c = 0; ctx.json.has(fmt::format("animations/{}/channels/{}", a, c)); ++c) {
+            const std::string t = fmt::format("animations/{}/channels/{}/target", a, c);
+            if (ctx.json.has(t) && !ctx.json.has(t + "/node")) insert_member(t, "node");
         }
     if (edits.empty()) return {};
     std::sort(edits.begin(), edits.end(),
@@ -265,7 +306,9 @@ std::string tinygltf_json(const Context& ctx, std::string_view json, std::vector
 void check_required(const Context& ctx) {
     const std::vector<std::string>& required = ctx.json.required_extensions();
     for (std::size_t i = 0; i < required.size(); ++i)
-        if (!kRead.count(required[i]))
+        // Material variants leave each primitive's default material in place, which is read
+        // (Blender 3.3 wrote the extension as required): noted as unread, not refused.
+        if (!kRead.count(required[i]) && required[i] != "KHR_materials_variants")
             throw_error(ctx.at(fmt::format("extensionsRequired/{}", i)),
                         "the file requires extension {}, which Spangle does not read: re-export "
                         "it without the extension, or take it out of extensionsRequired if the "
@@ -549,9 +592,12 @@ void check_extensions(Context& ctx) {
     for (const std::string& e : ctx.model.extensionsUsed)
         if (!kRead.count(e) && !noted_in_place(e))
             ctx.note("extension " + e, ctx.at("extensionsUsed"),
-                     fmt::format("extension {} is not read: what it adds is dropped (the core glTF "
-                                 "data it extends stands in)",
-                                 e));
+                     e == "KHR_materials_variants"
+                         ? std::string("extension KHR_materials_variants is not read: each "
+                                       "primitive is drawn in its default material")
+                         : fmt::format("extension {} is not read: what it adds is dropped (the "
+                                       "core glTF data it extends stands in)",
+                                       e));
 }
 
 }  // namespace

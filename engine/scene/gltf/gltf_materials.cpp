@@ -687,17 +687,28 @@ std::string unique_name(Context& ctx, const std::string& wanted, int index) {
 
 }  // namespace
 
+/** The uv set a texture reference reads: KHR_texture_transform's texCoord where it gives one
+ *  (it overrides the reference's own), else the reference's texCoord. */
+template <class Info>
+int tex_coord_of(const Info& t) {
+    if (const auto x = t.extensions.find("KHR_texture_transform"); x != t.extensions.end())
+        if (x->second.IsObject() && x->second.Has("texCoord") &&
+            x->second.Get("texCoord").IsNumber())
+            return static_cast<int>(x->second.Get("texCoord").GetNumberAsDouble());
+    return t.texCoord;
+}
+
 int uv_set_of(const Context& ctx, int material) {
     if (material < 0 || static_cast<std::size_t>(material) >= ctx.model.materials.size()) return 0;
     const tinygltf::Material& g = ctx.model.materials[static_cast<std::size_t>(material)];
     const std::pair<int, int> textures[] = {
         {g.pbrMetallicRoughness.baseColorTexture.index,
-         g.pbrMetallicRoughness.baseColorTexture.texCoord},
+         tex_coord_of(g.pbrMetallicRoughness.baseColorTexture)},
         {g.pbrMetallicRoughness.metallicRoughnessTexture.index,
-         g.pbrMetallicRoughness.metallicRoughnessTexture.texCoord},
-        {g.normalTexture.index, g.normalTexture.texCoord},
-        {g.emissiveTexture.index, g.emissiveTexture.texCoord},
-        {g.occlusionTexture.index, g.occlusionTexture.texCoord}};
+         tex_coord_of(g.pbrMetallicRoughness.metallicRoughnessTexture)},
+        {g.normalTexture.index, tex_coord_of(g.normalTexture)},
+        {g.emissiveTexture.index, tex_coord_of(g.emissiveTexture)},
+        {g.occlusionTexture.index, tex_coord_of(g.occlusionTexture)}};
     for (const auto& [index, set] : textures)
         if (index >= 0) return std::max(0, set);
     if (const tinygltf::Value* x = extension(g, "KHR_materials_pbrSpecularGlossiness"))

@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <cmath>
 #include <numbers>
+#include <optional>
+#include <variant>
 
 #include "scene/gltf/gltf_accessors.h"
 #include "scene/gltf/gltf_parts.h"
@@ -231,6 +233,48 @@ std::vector<Affine> instance_matrices(Context& ctx, int n) {
     return out;
 }
 
+/** `m` with every triangle's winding reversed (its second and third corners swapped). */
+std::shared_ptr<const TriangleMesh> reversed_winding(const TriangleMesh& m) {
+    auto r = std::make_shared<TriangleMesh>(m);
+    for (std::size_t t = 0; t + 2 < r->indices.size(); t += 3)
+        std::swap(r->indices[t + 1], r->indices[t + 2]);
+    return r;
+}
+
+/** A deformation's meshes with their winding reversed (a mirrored skinned or morphed mesh). */
+class ReversedDeformation final : public MeshDeformation {
+public:
+    explicit ReversedDeformation(std::shared_ptr<const MeshDeformation> inner)
+        : inner_(std::move(inner)) {
+        first = inner_->first;
+        last = inner_->last;
+    }
+    std::shared_ptr<const TriangleMesh> at(double seconds) const override {
+        return reversed_winding(*inner_->at(seconds));
+    }
+
+private:
+    std::shared_ptr<const MeshDeformation> inner_;
+};
+
+/** o's shape turned for a mirroring placement of determinant `det`: glTF makes a node whose
+ *  world matrix has a negative determinant draw its triangles' clockwise side as the front (so a
+ *  mirrored model keeps its outside out), where Spangle takes the side a triangle's corners run
+ *  counter-clockwise around in world space: a mirrored mesh's winding is reversed. (Without it
+ *  a mirrored emissive quad lit its back and a mirrored glass ball without normals refracted as
+ *  a bubble of air.) */
+void face_for(ObjectDesc& o, double det, std::optional<InlineMeshShape>& mirrored) {
+    if (!(det < 0.0)) return;
+    auto& shape = std::get<InlineMeshShape>(o.shape);
+    if (!mirrored) {  // made once per primitive, shared by its mirrored instances
+        mirrored = shape;
+        mirrored->mesh = reversed_winding(*shape.mesh);
+        if (shape.deformation)
+            mirrored->deformation = std::make_shared<ReversedDeformation>(shape.deformation);
+    }
+    shape = *mirrored;
+}
+
 /** The objects of node n's mesh, one per primitive (and per instance of EXT_mesh_gpu_instancing).
  */
 void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
@@ -267,7 +311,12 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
         if (mat >= 0)
             check_index(ctx, pp + "/material", mat, ctx.model.materials.size(), "material");
         ObjectDesc o;
-        o.name = node.name.empty() ? mesh.name : node.name;
+        std::optional<InlineMeshShape> mirrored;
+        // Named after the node, else its mesh, else the node's number ("node 3"): messages and
+        // the cryptomatte layers name it.
+        o.name = !node.name.empty()   ? node.name
+                 : !mesh.name.empty() ? mesh.name
+                                      : fmt::format("node {}", n);
         if (mesh.primitives.size() > 1) o.name += fmt::format("#{}", p);
         o.material = use_material(ctx, mat, o.emission);
         o.shape = InlineMeshShape{drawn.mesh, ctx.at(pp), std::move(drawn.deformation)};
@@ -281,6 +330,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
                 o.placement.matrix = rest;
             else
                 o.matrix_keys = matrix_keys(motion, ctx.at(np), o.what);
+            face_for(o, rest.determinant_in_double(), mirrored);
             ctx.scene->objects.push_back(std::move(o));
             continue;
         }
@@ -310,6 +360,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
                     continue;
                 }
                 inst.placement.matrix = placed;
+                face_for(inst, placed.determinant_in_double(), mirrored);
             } else {
                 if (flattens(own) && !thicken(own)) {
                     hidden(i);
@@ -319,6 +370,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
                 m.rest = m.rest.compose(own);
                 for (Affine& k : m.matrices) k = k.compose(own);
                 inst.matrix_keys = matrix_keys(m, ctx.at(np), inst.what);
+                face_for(inst, m.rest.determinant_in_double(), mirrored);
             }
             ctx.scene->objects.push_back(std::move(inst));
         }

@@ -27,7 +27,7 @@ double number_or(const tinygltf::Value& v, const char* key, double fallback) {
 /** Notes that the texture at `ref` reads another uv set than its material's (ctx.uv_set), which
  *  stands in. */
 void note_uv_set(Context& ctx, const std::string& ref) {
-    ctx.note("TEXCOORD_n", ctx.at(ref + "/texCoord"),
+    ctx.note("texture uv set", ctx.at(ref + "/texCoord"),
              fmt::format("a texture reads another uv set than its material's others: TEXCOORD_{} "
                          "stands in (Spangle meshes hold one)",
                          ctx.uv_set));
@@ -115,10 +115,15 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
         // magFilter NEAREST: texels stay squares when magnified (pixel art, voxel models).
         if (s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST) tex.filter = 2;
     }
-    if (use.tex_coord != ctx.uv_set) note_uv_set(ctx, ref);
+    // KHR_texture_transform's texCoord overrides the reference's (texture_transform notes it).
+    const tinygltf::Value* transform = nullptr;
     if (use.extensions)
         if (auto x = use.extensions->find("KHR_texture_transform"); x != use.extensions->end())
-            texture_transform(ctx, x->second, ref + "/extensions/KHR_texture_transform", tex);
+            transform = &x->second;
+    const bool overridden = transform && transform->IsObject() && transform->Has("texCoord");
+    if (!overridden && use.tex_coord != ctx.uv_set) note_uv_set(ctx, ref);
+    if (transform)
+        texture_transform(ctx, *transform, ref + "/extensions/KHR_texture_transform", tex);
     return tex;
 }
 

@@ -118,7 +118,13 @@ private:
             if (!path_.empty()) path_ += '/';
             path_ += key;
             record();
+            // An animation channel's target (one without a node is rewritten for tinygltf).
+            const bool target = key == "target" && peek() == '{' && depth == 4 &&
+                                path_.rfind("animations/", 0) == 0 &&
+                                path_.find("/channels/") != std::string::npos;
+            const std::size_t start = pos_;
             value(depth + 1);
+            if (target) spans_[path_] = {start, pos_};
             path_.resize(size);
             skip_space();
             if (peek() == ',') {
@@ -140,7 +146,8 @@ private:
             // The buffers' and accessors' objects: where each is written, byte for byte (a buffer
             // that only stands in for compressed data, and an accessor without a view, are
             // rewritten in the text tinygltf reads).
-            const bool buffer = (path_ == "buffers" || path_ == "accessors") && peek() == '{';
+            const bool buffer =
+                (path_ == "buffers" || path_ == "accessors" || path_ == "skins") && peek() == '{';
             const std::size_t start = pos_;
             if (peek() == '{' || peek() == '[') {
                 if (!path_.empty()) path_ += '/';

@@ -49,9 +49,9 @@ public:
         return it == scalars_.end() ? nullptr : &it->second;
     }
 
-    /** Where buffer or accessor object `path` ("buffers/N", "accessors/N") is written in the
-     *  text: its first byte and the byte after it; {0, 0} when it is not an object the file
-     *  writes. */
+    /** Where buffer, accessor or skin object `path` ("buffers/N", "accessors/N", "skins/N") or
+     *  an animation channel's target ("animations/A/channels/C/target") is written in the text:
+     *  its first byte and the byte after it; {0, 0} when it is not an object the file writes. */
     std::pair<std::size_t, std::size_t> span(std::string_view path) const {
         const auto it = spans_.find(std::string(path));
         return it == spans_.end() ? std::pair<std::size_t, std::size_t>{0, 0} : it->second;
@@ -63,7 +63,7 @@ private:
     std::vector<std::string> required_;                            ///< extensionsRequired
     std::unordered_map<std::string, std::string> scalars_;         ///< buffers' members
     std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>
-        spans_;  ///< buffers, accessors
+        spans_;  ///< buffers, accessors, skins, channel targets
 };
 
 }  // namespace spangle::gltf

@@ -46,10 +46,16 @@ void sampling(Reader& r) {
     if (r.sampler_type == "stratified") {
         d.spp = static_cast<uint32_t>(std::max(1.0, r.sampler.number("xsamples", 2)) *
                                       std::max(1.0, r.sampler.number("ysamples", 2)));
-        r.sampler.boolean("jitter", true);
+        if (!r.sampler.boolean("jitter", true))
+            r.notes.add(r.sampler.find("jitter")->loc,
+                        "Sampler \"stratified\": 'jitter' false is dropped (Spangle's samples "
+                        "are always scrambled)");
     } else {
-        d.spp =
-            static_cast<uint32_t>(std::clamp(r.sampler.number("pixelsamples", 16), 1.0, 1048576.0));
+        const double asked = r.sampler.number("pixelsamples", 16);
+        d.spp = static_cast<uint32_t>(std::clamp(asked, 1.0, 1048576.0));
+        if (asked != static_cast<double>(d.spp))
+            r.notes.add(r.sampler.find("pixelsamples")->loc,
+                        fmt::format("'pixelsamples' {} is taken as {}", asked, d.spp));
     }
     if (const Param* s = r.sampler.find("seed", {"integer"}); s && !s->numbers.empty())
         d.seed = static_cast<uint64_t>(std::fabs(s->numbers[0]));
@@ -59,8 +65,15 @@ void sampling(Reader& r) {
         r.notes.add(r.integrator_loc, fmt::format("Integrator \"{}\": Spangle's path tracer "
                                                   "stands in",
                                                   it));
-    d.max_depth =
-        static_cast<uint32_t>(std::clamp(r.integrator.number("maxdepth", 5), 1.0, 1024.0));
+    const double depth = r.integrator.number("maxdepth", 5);
+    d.max_depth = static_cast<uint32_t>(std::clamp(depth, 1.0, 1024.0));
+    if (depth != static_cast<double>(d.max_depth))
+        r.notes.add(r.integrator.find("maxdepth")->loc,
+                    depth < 1.0 ? fmt::format("'maxdepth' {} is taken as 1: Spangle's paths "
+                                              "bounce at least once (pbrt shows only the "
+                                              "light seen directly)",
+                                              depth)
+                                : fmt::format("'maxdepth' {} is taken as {}", depth, d.max_depth));
     r.integrator.number("rrthreshold", 1);  // Spangle's roulette has its own threshold
     r.integrator.string("lightsamplestrategy", "");
     r.integrator.string("lightsampler", "");

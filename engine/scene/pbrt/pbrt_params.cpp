@@ -71,6 +71,15 @@ void take_value(Tokenizer& tokens, const Token& t, ValueKind kind, Param& p) {
         return;
     }
     double x = 0.0;
+    if (!quoted && !parse_number(v, x)) {
+        // A number beyond a double's range (1e400): said so, not "not a number".
+        const std::string_view w = !v.empty() && v.front() == '+' ? v.substr(1) : v;
+        double y = 0.0;
+        const auto [end, ec] = std::from_chars(w.data(), w.data() + w.size(), y);
+        if (ec == std::errc::result_out_of_range && end == w.data() + w.size())
+            throw_error(tokens.loc(t), "'{} {}': {} is out of range (beyond about 1e308)", p.type,
+                        p.name, v);
+    }
     if (quoted || !parse_number(v, x))
         throw_error(tokens.loc(t), "'{} {}' takes numbers, got '{}'", p.type, p.name, v);
     if (!std::isfinite(x))
@@ -150,6 +159,7 @@ const Param* ParamList::find(std::string_view name,
 
 double ParamList::number(std::string_view name, double fallback) const {
     const Param* p = find(name, {"float", "integer"});
+    if (p && p->numbers.size() > 1) p->first_of_many = true;
     return p && !p->numbers.empty() ? p->numbers.front() : fallback;
 }
 
@@ -196,6 +206,9 @@ void Notes::add(const FileLoc& at, const std::string& message) {
 
 void Notes::unused(const ParamList& params, const std::string& what) {
     for (const Param& p : params.all()) {
+        if (p.first_of_many)
+            add(p.loc, fmt::format("'{} {}' of {} takes one value, got {}: the first stands",
+                                   p.type, p.name, what, p.numbers.size()));
         if (p.used) continue;
         // Given twice: the later one was taken (it was said to be "not supported").
         bool again = false;

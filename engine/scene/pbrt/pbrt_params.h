@@ -23,6 +23,8 @@ struct Param {
     std::vector<uint8_t> bools;        ///< bool values, 0 or 1
     FileLoc loc;                       ///< where "type name" is written
     mutable bool used = false;         ///< a reader looked it up
+    /** A reader took its first value of several where one belongs (warned about). */
+    mutable bool first_of_many = false;
 };
 
 /** The parameters of one directive, in the order written. */
@@ -36,7 +38,8 @@ public:
      *  parameter of that name but another type is left unused (and warned about). */
     const Param* find(std::string_view name,
                       std::initializer_list<std::string_view> types = {}) const;
-    /** A number ("float" or "integer"), or `fallback`; a list takes its first value. */
+    /** A number ("float" or "integer"), or `fallback`; a list takes its first value (and is
+     *  warned about by Notes::unused). */
     double number(std::string_view name, double fallback) const;
     /** A string ("string"), or `fallback`. */
     std::string string(std::string_view name, const std::string& fallback) const;
@@ -63,7 +66,7 @@ public:
     /** Notes `message` at `at` ("file:line: message"). */
     void add(const FileLoc& at, const std::string& message);
     /** Warns about each parameter of `params` that no one read: "'type name' of `what` is not
-     *  supported: dropped". */
+     *  supported: dropped", and each of several values where one was read. */
     void unused(const ParamList& params, const std::string& what);
     /** The notes, in the order they first arose. */
     std::vector<std::string> take() const;
