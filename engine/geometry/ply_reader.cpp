@@ -188,6 +188,17 @@ struct Wedge {
     }
 };
 
+/** The index of e's list of corner indices (`vertex_indices`, or `vertex_index` as some
+ *  writers name it); -1 when it has none. */
+int corner_list(const Element& e) {
+    int list = -1;
+    for (std::size_t k = 0; k < e.props.size(); ++k)
+        if (e.props[k].list &&
+            (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index"))
+            list = static_cast<int>(k);
+    return list;
+}
+
 }  // namespace
 
 TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
@@ -428,11 +439,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             }
         } else if (e.name == "face" && !have_faces) {
             have_faces = true;
-            int list = -1;
-            for (std::size_t k = 0; k < e.props.size(); ++k)
-                if (e.props[k].list &&
-                    (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index"))
-                    list = static_cast<int>(k);
+            const int list = corner_list(e);
             if (list < 0)
                 throw_error(ref, "mesh '{}': its faces have no vertex_indices list", path);
             mesh.indices.reserve(3 * e.count);
@@ -565,11 +572,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             // entry, strips parted by -1): their triangles, every other one turned so that all
             // wind as the first. (They were "no face element".)
             have_faces = true;
-            int list = -1;
-            for (std::size_t k = 0; k < e.props.size(); ++k)
-                if (e.props[k].list &&
-                    (e.props[k].name == "vertex_indices" || e.props[k].name == "vertex_index"))
-                    list = static_cast<int>(k);
+            const int list = corner_list(e);
             if (list < 0)
                 throw_error(ref, "mesh '{}': its tristrips have no vertex_indices list", path);
             uint32_t strip[3] = {0, 0, 0};

@@ -18,7 +18,7 @@ namespace {
 
 /** The render of the scene file at `path`. */
 FrameResult render_path(const std::string& path, int threads, uint32_t spp = 0,
-                        Strategy strategy = Strategy::Mis) {
+                        Strategy strategy = Strategy::Mis, bool footprints_always = false) {
     FrameRequest req;
     req.scene = path;
     req.ocio_config = test::shipped_ocio();
@@ -26,6 +26,7 @@ FrameResult render_path(const std::string& path, int threads, uint32_t spp = 0,
     req.options.threads = threads;
     req.options.spp_override = spp;
     req.options.strategy = strategy;
+    req.options.footprints_always = footprints_always;
     return render_frame(req);
 }
 
@@ -283,17 +284,6 @@ TEST(Render, UnusedMaterialNeverOpensItsPlugin) {
         << "the unused material names a plugin that does not exist; it must not be looked for";
 }
 
-/** render_path() with RenderOptions::footprints_always. */
-FrameResult render_with_footprints(const std::string& path) {
-    FrameRequest req;
-    req.scene = path;
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.threads = 2;
-    req.options.footprints_always = true;
-    return render_frame(req);
-}
-
 // The smooth plugin's models read no footprint (SPANGLE_IGNORES_FOOTPRINT): a scene of them
 // alone gets none computed, and renders to the same bits as with them. delta_hard_cases has a
 // mirror, glass and a coat, whose specular bounces carry ray differentials when footprints are
@@ -302,7 +292,7 @@ TEST(Render, FootprintsAreLeftOutWhereNothingReadsThemToTheSameBits) {
     for (const char* scene : {"small_lit.toml", "delta_hard_cases.toml", "caustic_mirror.toml"}) {
         const std::string path = test::test_dir() + "/scenes/" + scene;
         const FrameResult without = render_path(path, 2);
-        const FrameResult with = render_with_footprints(path);
+        const FrameResult with = render_path(path, 2, 0, Strategy::Mis, true);
         EXPECT_FALSE(without.stats.footprints) << scene;
         EXPECT_TRUE(with.stats.footprints) << scene;
         ASSERT_EQ(without.image.size(), with.image.size()) << scene;
