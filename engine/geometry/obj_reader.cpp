@@ -5,6 +5,8 @@
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <set>
+#include <string>
 #include <string_view>
 #include <unordered_map>
 
@@ -237,17 +239,13 @@ private:
             // Triangulated at the end, when every vertex a face may name forward is known.
             polygons_.insert(polygons_.end(), face_.begin(), face_.end());
             polygon_ends_.push_back(polygons_.size());
-        } else if (keyword == "mtllib" || keyword == "usemtl") {
-            // Materials, lines and points: said once each (a file's materials silently became
-            // one, its scene material). Everything else (comments, o, g, s, curves) is not
-            // geometry Spangle renders.
-            if (!materials_seen_)
-                notes_.push_back(fmt::format(
-                    "its materials ('{}' at line {}) are not read: the object takes its scene "
-                    "material (split the file by material, or import it through glTF or pbrt, "
-                    "to give parts their own)",
-                    keyword, line_));
-            materials_seen_ = true;
+        } else if (keyword == "usemtl") {
+            // Materials, lines and points are not read; a file of several materials is said
+            // (its parts silently became one, the scene's material), once (finish()).
+            // Everything else (comments, o, g, s, mtllib, curves) is not geometry Spangle
+            // renders.
+            const std::string name(next_token(s));
+            if (materials_.insert(name).second && materials_.size() == 2) second_material_ = line_;
         } else if (keyword == "l" || keyword == "p") {
             if (!lines_seen_)
                 notes_.push_back(
@@ -304,6 +302,12 @@ private:
         // corner, a concave one (an L, a U, a star, a ring cut open) by ear clipping in its
         // plane. The mesh's vertices are the distinct corners, in the order polygons_ names.
         triangulate_faces(mesh, polygons_, polygon_ends_);
+        if (materials_.size() > 1)
+            mesh.notes.push_back(fmt::format(
+                "its {} materials (usemtl; the second at line {}) are not read: the object takes "
+                "its scene material (split the file by material, or import it through glTF or "
+                "pbrt, to give parts their own)",
+                materials_.size(), second_material_));
         if (colored_ > 0 && colored_ < positions_.size() / 3)
             mesh.notes.push_back(fmt::format(
                 "{} of its {} vertices have no colour among coloured ones: they are white",
@@ -324,7 +328,9 @@ private:
     std::size_t colored_ = 0;  ///< `v` statements with a colour
     bool zbrush_ = false;      ///< a `#MRGB` comment was seen
     std::vector<std::string> notes_;
-    bool materials_seen_ = false, lines_seen_ = false;  ///< said once each
+    std::set<std::string> materials_;  ///< the usemtl names
+    int second_material_ = 0;          ///< the line of the second usemtl name
+    bool lines_seen_ = false;          ///< said once
     std::vector<uint32_t> face_;
     std::size_t short_faces_ = 0;            ///< faces of fewer than 3 corners, skipped
     std::vector<uint32_t> polygons_;         ///< every face's vertices, one after another

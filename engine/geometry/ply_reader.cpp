@@ -577,7 +577,8 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                 throw_error(ref, "mesh '{}': its tristrips have no vertex_indices list", path);
             uint32_t strip[3] = {0, 0, 0};
             uint64_t in_strip = 0;
-            for (uint64_t i = 0; i < e.count; ++i)
+            for (uint64_t i = 0; i < e.count; ++i) {
+                in_strip = 0;  // each entry's list is strips of its own
                 for (std::size_t k = 0; k < e.props.size(); ++k) {
                     const Property& p = e.props[k];
                     const double n = p.list ? reader.read(p.count_type, "the strips") : 1.0;
@@ -587,7 +588,8 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                     for (uint64_t j = 0; j < static_cast<uint64_t>(n); ++j) {
                         const double v = reader.read(p.type, "the strips");
                         if (static_cast<int>(k) != list) continue;
-                        if (v < 0.0) {  // the end of a strip
+                        // The end of a strip: -1, or its unsigned 32-bit form.
+                        if (v < 0.0 || v == 4294967295.0) {
                             in_strip = 0;
                             continue;
                         }
@@ -610,6 +612,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
                             mesh.indices.insert(mesh.indices.end(), {b, a, c});
                     }
                 }
+            }
         } else if (!e.props.empty()) {
             // Skipped, but read through: its data lies before later elements'. (An element
             // without properties has no data, however many entries it claims.)

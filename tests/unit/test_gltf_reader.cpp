@@ -164,7 +164,9 @@ TEST(GltfReader, MirroredNodesKeepTheirFrontFaces) {
         return std::get<InlineMeshShape>(d.objects[i].shape).mesh;
     };
     EXPECT_NE(mesh(0), mesh(1));
-    EXPECT_EQ(mesh(5), mesh(6));  // one reversed copy for a node's instances
+    EXPECT_EQ(mesh(1), mesh(2));  // one reversed copy for every mirrored node
+    EXPECT_EQ(mesh(1), mesh(3));
+    EXPECT_EQ(mesh(5), mesh(6));
     EXPECT_EQ(mesh(0)->indices, (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}));
     EXPECT_EQ(mesh(1)->indices, (std::vector<uint32_t>{0, 2, 1, 0, 3, 2}));
 }
@@ -173,6 +175,27 @@ TEST(GltfReader, MirroredNodesKeepTheirFrontFaces) {
 // (identity), an animation target's node (KHR_animation_pointer channels have none: noted and
 // dropped), and a file without buffer views whose accessor has no view (zeros). A skin without
 // joints is an error at the skin.
+// A node flattened onto a plane (scale 0 along one axis) is made thin for Embree, with a sign of
+// no meaning: its mesh is not reversed, however it is turned.
+TEST(GltfReader, AFlattenedNodeIsNotTakenForAMirroredOne) {
+    test::TempDir dir("gltf_flat_turned");
+    GltfWriter w;
+    const QuadAccessors q = quad(w);
+    const float s = std::sqrt(0.5f);
+    const std::string body =
+        fmt::format(R"("nodes":[{{"mesh":0,"scale":[1,1,0],"rotation":[{},0,0,{}]}},)"
+                    R"({{"mesh":0,"scale":[1,0,1],"rotation":[1,0,0,0]}}],)"
+                    R"("meshes":[{{"primitives":[{}]}}])",
+                    s, s, quad_primitive(q, -1));
+    w.write_gltf(dir.file("flat.gltf"), body);
+    const SceneDescription d = read_gltf_scene(dir.file("flat.gltf"), {});
+    ASSERT_EQ(d.objects.size(), 2u);
+    for (const ObjectDesc& o : d.objects)
+        EXPECT_EQ(std::get<InlineMeshShape>(o.shape).mesh->indices,
+                  (std::vector<uint32_t>{0, 1, 2, 0, 2, 3}))
+            << o.what;
+}
+
 TEST(GltfReader, MembersTinygltfRequiresAreOptionalAsGltfSays) {
     test::TempDir dir("gltf_optional");
     GltfWriter w;

@@ -251,6 +251,9 @@ Shape "sphere" "float radius" [1 2 3]
     const std::string big = error_of(f, "WorldBegin\nShape \"sphere\" \"float radius\" 1e400\n");
     EXPECT_NE(big.find(":2:31: error: 'float radius': 1e400 is out of range"), std::string::npos)
         << big;
+    // Too small for a double: 0, as pbrt reads it.
+    const SceneDescription tiny = read(f, "WorldBegin\nShape \"sphere\" \"float zmin\" 1e-400\n");
+    EXPECT_EQ(tiny.objects.size(), 1u);
 }
 
 TEST(PbrtReader, AnEmittingSphereIsASphereLight) {
@@ -287,6 +290,26 @@ AttributeBegin
   AreaLightSource "diffuse" "rgb L" [1 1 1]
   Shape "sphere" "float alpha" 0.5
 AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Scale -1 1 1
+  Shape "sphere"
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [0.2 0.2 0.2]
+  Shape "sphere"
+AttributeEnd
+AttributeBegin
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  ActiveTransform EndTime
+  Translate 0 1 0
+  ActiveTransform All
+  Shape "sphere"
+AttributeEnd
+ObjectBegin "lamp"
+  AreaLightSource "diffuse" "rgb L" [1 1 1]
+  Shape "sphere"
+ObjectEnd
 )"));
     ASSERT_EQ(d.lights.size(), 2u);
     const auto* a = std::get_if<SphereLightDesc>(&d.lights[0].shape);
@@ -302,7 +325,8 @@ AttributeEnd
     EXPECT_NEAR(b->radius, 0.5, 1e-6);
     // power / (pi x 4 pi r^2): the radiance pbrt gives it.
     EXPECT_NEAR(d.lights[1].intensity, 100.0 / (M_PI * 4.0 * M_PI * 0.25), 1e-9);
-    EXPECT_EQ(d.objects.size(), 5u);
+    // The cut, turned, two-sided, stretched, cut-out, mirrored, dim and moving ones.
+    EXPECT_EQ(d.objects.size(), 8u);
     for (const ObjectDesc& o : d.objects) EXPECT_TRUE(o.emission.has_value()) << o.what;
     EXPECT_TRUE(has_note(d, "an emitting sphere is a sphere light"));
 }

@@ -105,12 +105,17 @@ std::vector<Channel> read_channels(Context& ctx) {
             const tinygltf::AnimationChannel& ch = anim.channels[c];
             const std::string cp = fmt::format("animations/{}/channels/{}", a, c);
             const int path = path_index(ch.target_path);
-            if (ch.target_path == "weights") continue;  // weight_tracks()
-            if (path < 0) {
+            if (ch.target_path == "weights" && ch.target_node >= 0) continue;  // weight_tracks()
+            if (path < 0 && ch.target_path != "weights") {
                 ctx.note("animation path " + ch.target_path, ctx.at(cp + "/target"),
                          fmt::format("animations of '{}' are dropped (Spangle animates node "
                                      "transforms)",
                                      ch.target_path));
+                continue;
+            }
+            if (ch.target_node < 0) {  // glTF allows a target without a node: it animates none
+                ctx.note("animation without node", ctx.at(cp + "/target"),
+                         "an animation channel without a target node animates nothing: dropped");
                 continue;
             }
             check_index(ctx, cp + "/target/node", ch.target_node, ctx.model.nodes.size(), "node");
@@ -269,7 +274,7 @@ std::map<int, WeightTrack> weight_tracks(Context& ctx) {
         const tinygltf::Animation& anim = ctx.model.animations[a];
         for (std::size_t c = 0; c < anim.channels.size(); ++c) {
             const tinygltf::AnimationChannel& ch = anim.channels[c];
-            if (ch.target_path != "weights") continue;
+            if (ch.target_path != "weights" || ch.target_node < 0) continue;  // (noted above)
             const std::string cp = fmt::format("animations/{}/channels/{}", a, c);
             check_index(ctx, cp + "/target/node", ch.target_node, ctx.model.nodes.size(), "node");
             check_index(ctx, cp + "/sampler", ch.sampler, anim.samplers.size(), "sampler");

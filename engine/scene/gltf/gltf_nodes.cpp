@@ -257,20 +257,49 @@ private:
     std::shared_ptr<const MeshDeformation> inner_;
 };
 
-/** o's shape turned for a mirroring placement of determinant `det`: glTF makes a node whose
- *  world matrix has a negative determinant draw its triangles' clockwise side as the front (so a
- *  mirrored model keeps its outside out), where Spangle takes the side a triangle's corners run
+/** Whether a placement mirrors: its determinant is negative, and it does not flatten its mesh
+ *  (a flattened placement's determinant is 0 as written; made thin for Embree it takes a sign of
+ *  no meaning). `keys` (an animated placement's matrices, empty: none) decide instead of `a`:
+ *  where they disagree, the first stands and that is noted at `at`. */
+bool mirrors(Context& ctx, const Affine& a, const std::vector<Affine>& keys, const FileLoc& at,
+             const std::string& what) {
+    const auto one = [](const Affine& m) {
+        return !flattens(m) && m.determinant_in_double() < 0.0;
+    };
+    if (keys.empty()) return one(a);
+    const bool first = one(keys.front());
+    for (const Affine& k : keys)
+        if (one(k) != first) {
+            ctx.note("mirrored in part", at,
+                     fmt::format("{} mirrors in part of its animation only: its faces follow its "
+                                 "first key",
+                                 what));
+            break;
+        }
+    return first;
+}
+
+/** o's shape turned for a mirroring placement: glTF makes a node whose world matrix has a
+ *  negative determinant draw its triangles' clockwise side as the front (so a mirrored model
+ *  keeps its outside out), where Spangle takes the side a triangle's corners run
  *  counter-clockwise around in world space: a mirrored mesh's winding is reversed. (Without it
  *  a mirrored emissive quad lit its back and a mirrored glass ball without normals refracted as
- *  a bubble of air.) */
-void face_for(ObjectDesc& o, double det, std::optional<InlineMeshShape>& mirrored) {
-    if (!(det < 0.0)) return;
+ *  a bubble of air.) A still mesh's reversed copy is shared by every mirrored node drawing it
+ *  (ctx.reversed); a deforming one's is made once per primitive and node (`mirrored`). */
+void face_for(Context& ctx, ObjectDesc& o, bool mirrored_placement,
+              std::optional<InlineMeshShape>& mirrored) {
+    if (!mirrored_placement) return;
     auto& shape = std::get<InlineMeshShape>(o.shape);
-    if (!mirrored) {  // made once per primitive, shared by its mirrored instances
+    if (!mirrored) {
         mirrored = shape;
-        mirrored->mesh = reversed_winding(*shape.mesh);
-        if (shape.deformation)
+        if (shape.deformation) {
+            mirrored->mesh = reversed_winding(*shape.mesh);
             mirrored->deformation = std::make_shared<ReversedDeformation>(shape.deformation);
+        } else {
+            auto& copy = ctx.reversed[shape.mesh.get()];
+            if (!copy) copy = reversed_winding(*shape.mesh);
+            mirrored->mesh = copy;
+        }
     }
     shape = *mirrored;
 }
@@ -330,7 +359,8 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
                 o.placement.matrix = rest;
             else
                 o.matrix_keys = matrix_keys(motion, ctx.at(np), o.what);
-            face_for(o, rest.determinant_in_double(), mirrored);
+            face_for(ctx, o, mirrors(ctx, motion.rest, motion.matrices, ctx.at(np), o.what),
+                     mirrored);
             ctx.scene->objects.push_back(std::move(o));
             continue;
         }
@@ -352,6 +382,7 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
             // The instance's own transform first (an animated node keeps it in every key),
             // then, at rest, the placement as a whole.
             Affine own = instances[i];
+            const Affine written = own;  // before a flattened one is made thin
             if (motion.times.empty()) {
                 // The placement as a whole (a tiny instance in a large node is not tiny).
                 Affine placed = rest.compose(own);
@@ -360,7 +391,8 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
                     continue;
                 }
                 inst.placement.matrix = placed;
-                face_for(inst, placed.determinant_in_double(), mirrored);
+                face_for(ctx, inst, mirrors(ctx, motion.rest.compose(written), {}, {}, inst.what),
+                         mirrored);
             } else {
                 if (flattens(own) && !thicken(own)) {
                     hidden(i);
@@ -370,7 +402,9 @@ void mesh_objects(Context& ctx, int n, const NodeMotion& motion,
                 m.rest = m.rest.compose(own);
                 for (Affine& k : m.matrices) k = k.compose(own);
                 inst.matrix_keys = matrix_keys(m, ctx.at(np), inst.what);
-                face_for(inst, m.rest.determinant_in_double(), mirrored);
+                std::vector<Affine> keys = motion.matrices;
+                for (Affine& k : keys) k = k.compose(written);
+                face_for(ctx, inst, mirrors(ctx, m.rest, keys, ctx.at(np), inst.what), mirrored);
             }
             ctx.scene->objects.push_back(std::move(inst));
         }

@@ -458,7 +458,8 @@ std::optional<ParamDesc> alpha_of(Reader& r, ParamList& p) {
 /** An emitting sphere as a sphere light, where one stands for it exactly: a whole sphere
  *  (no zmin, zmax or phimax cut) placed by a transform without motion that keeps it a sphere
  *  (a rotation, a uniform scale and a move), emitting outward (not two-sided, not turned by
- *  ReverseOrientation or a mirror), uniformly (no image) and opaque. Spangle samples a sphere
+ *  ReverseOrientation or a mirror), uniformly (no image), opaque and brightly (radiance of
+ *  luminance at least 0.5). Spangle samples a sphere
  *  light by the cone of directions it subtends, as pbrt samples its spheres; the tessellated
  *  sphere's triangles were picked by area, and a small sphere lit a floor with 3 times the
  *  noise of the point light of its power. False (nothing made) otherwise. */
@@ -482,6 +483,12 @@ bool sphere_light(Reader& r, const ParamList& p, const Made& made, bool alpha, c
             if (std::fabs(static_cast<double>(dot(c[i], c[j]))) > 1e-5 * s * s) return false;
     }
     const EmissionDesc e = emission_of(r, *a, made, loc);
+    // A dim emitter (a glowing ball of radiance below 0.5) may look mostly by what its material
+    // reflects, which a sphere light does not: it stays an emitting object.
+    const Vec3 rgb = e.color.rgb;
+    const double lum = 0.2126 * static_cast<double>(rgb.x) + 0.7152 * static_cast<double>(rgb.y) +
+                       0.0722 * static_cast<double>(rgb.z);
+    if (!(e.intensity * lum >= 0.5)) return false;
     LightDesc l;
     l.shape = SphereLightDesc{m.point({0, 0, 0}), radius * s};
     l.color = e.color;
