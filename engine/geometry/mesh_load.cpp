@@ -108,6 +108,11 @@ void TriangleMesh::note_short_faces(std::size_t n) {
                         n, n == 1 ? "" : "s"));
 }
 
+void TriangleMesh::reverse_winding() {
+    for (std::size_t t = 0; t + 2 < indices.size(); t += 3)
+        std::swap(indices[t + 1], indices[t + 2]);
+}
+
 double TriangleMesh::uv_mapped_fraction() const {
     if (uvs.empty()) return 0.0;
     double mapped = 0.0, total = 0.0;

@@ -28,6 +28,8 @@ struct TriangleMesh {
     std::vector<std::string> notes;
     /** Notes `n` faces of fewer than three corners a reader skipped (none when n is 0). */
     void note_short_faces(std::size_t n);
+    /** Turns every triangle's other side to the front: its second and third corners swapped. */
+    void reverse_winding();
 
     std::size_t vertex_count() const { return positions.size() / 3; }
     std::size_t triangle_count() const { return indices.size() / 3; }

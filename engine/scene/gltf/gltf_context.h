@@ -47,7 +47,7 @@ struct Context {
     /** Still shapes made by skins and morph targets (gltf_deform.cpp), by primitive, skin and
      *  weights: nodes that draw one primitive alike share one mesh. */
     std::map<std::string, std::shared_ptr<const TriangleMesh>> posed;
-    /** Meshes with their winding reversed, for mirrored nodes (gltf_nodes.cpp), by the mesh they
+    /** Meshes with their winding reversed, for mirrored nodes (gltf_mirror.cpp), by the mesh they
      *  turn: every mirrored node drawing one mesh shares one copy. */
     std::map<const TriangleMesh*, std::shared_ptr<const TriangleMesh>> reversed;
     std::map<int, std::string> image_files;  ///< glTF image -> file ("" = none)

@@ -687,15 +687,10 @@ std::string unique_name(Context& ctx, const std::string& wanted, int index) {
 
 }  // namespace
 
-/** The uv set a texture reference reads: KHR_texture_transform's texCoord where it gives one
- *  (it overrides the reference's own), else the reference's texCoord. */
+/** The uv set a texture reference reads. */
 template <class Info>
 int tex_coord_of(const Info& t) {
-    if (const auto x = t.extensions.find("KHR_texture_transform"); x != t.extensions.end())
-        if (x->second.IsObject() && x->second.Has("texCoord") &&
-            x->second.Get("texCoord").IsNumber())
-            return static_cast<int>(x->second.Get("texCoord").GetNumberAsDouble());
-    return t.texCoord;
+    return uv_set_override(&t.extensions).value_or(t.texCoord);
 }
 
 int uv_set_of(const Context& ctx, int material) {

@@ -10,7 +10,6 @@
 #include <cmath>
 #include <numbers>
 #include <optional>
-#include <variant>
 
 #include "scene/gltf/gltf_accessors.h"
 #include "scene/gltf/gltf_parts.h"
@@ -96,6 +95,8 @@ Keys<MatrixKey> matrix_keys(const NodeMotion& m, const FileLoc& at, const std::s
     return keys;
 }
 
+}  // namespace
+
 /** Whether placement `a` squashes space onto a plane, a line or a point (or is not finite): its
  *  determinant a vanishing share of the product of its columns' lengths. Relative, so that a
  *  small model's scale is not taken for none (gltfpack puts a quantised 1 cm model's 6e-7 per
@@ -114,6 +115,8 @@ bool flattens(const Affine& a) {
     }
     return !std::isfinite(det) || !std::isfinite(columns) || !(std::fabs(det) > 1e-9 * columns);
 }
+
+namespace {
 
 /** A placement that flattens its mesh onto a plane (one scale 0: a decal, a squashed shape)
  *  made invertible by the least thickness along the flattened direction (1e-6 of its size), so
@@ -231,77 +234,6 @@ std::vector<Affine> instance_matrices(Context& ctx, int n) {
         ctx.note("no instances", ctx.at(xp),
                  "EXT_mesh_gpu_instancing gives no instance attribute: the mesh is drawn once");
     return out;
-}
-
-/** `m` with every triangle's winding reversed (its second and third corners swapped). */
-std::shared_ptr<const TriangleMesh> reversed_winding(const TriangleMesh& m) {
-    auto r = std::make_shared<TriangleMesh>(m);
-    for (std::size_t t = 0; t + 2 < r->indices.size(); t += 3)
-        std::swap(r->indices[t + 1], r->indices[t + 2]);
-    return r;
-}
-
-/** A deformation's meshes with their winding reversed (a mirrored skinned or morphed mesh). */
-class ReversedDeformation final : public MeshDeformation {
-public:
-    explicit ReversedDeformation(std::shared_ptr<const MeshDeformation> inner)
-        : inner_(std::move(inner)) {
-        first = inner_->first;
-        last = inner_->last;
-    }
-    std::shared_ptr<const TriangleMesh> at(double seconds) const override {
-        return reversed_winding(*inner_->at(seconds));
-    }
-
-private:
-    std::shared_ptr<const MeshDeformation> inner_;
-};
-
-/** Whether a placement mirrors: its determinant is negative, and it does not flatten its mesh
- *  (a flattened placement's determinant is 0 as written; made thin for Embree it takes a sign of
- *  no meaning). `keys` (an animated placement's matrices, empty: none) decide instead of `a`:
- *  where they disagree, the first stands and that is noted at `at`. */
-bool mirrors(Context& ctx, const Affine& a, const std::vector<Affine>& keys, const FileLoc& at,
-             const std::string& what) {
-    const auto one = [](const Affine& m) {
-        return !flattens(m) && m.determinant_in_double() < 0.0;
-    };
-    if (keys.empty()) return one(a);
-    const bool first = one(keys.front());
-    for (const Affine& k : keys)
-        if (one(k) != first) {
-            ctx.note("mirrored in part", at,
-                     fmt::format("{} mirrors in part of its animation only: its faces follow its "
-                                 "first key",
-                                 what));
-            break;
-        }
-    return first;
-}
-
-/** o's shape turned for a mirroring placement: glTF makes a node whose world matrix has a
- *  negative determinant draw its triangles' clockwise side as the front (so a mirrored model
- *  keeps its outside out), where Spangle takes the side a triangle's corners run
- *  counter-clockwise around in world space: a mirrored mesh's winding is reversed. (Without it
- *  a mirrored emissive quad lit its back and a mirrored glass ball without normals refracted as
- *  a bubble of air.) A still mesh's reversed copy is shared by every mirrored node drawing it
- *  (ctx.reversed); a deforming one's is made once per primitive and node (`mirrored`). */
-void face_for(Context& ctx, ObjectDesc& o, bool mirrored_placement,
-              std::optional<InlineMeshShape>& mirrored) {
-    if (!mirrored_placement) return;
-    auto& shape = std::get<InlineMeshShape>(o.shape);
-    if (!mirrored) {
-        mirrored = shape;
-        if (shape.deformation) {
-            mirrored->mesh = reversed_winding(*shape.mesh);
-            mirrored->deformation = std::make_shared<ReversedDeformation>(shape.deformation);
-        } else {
-            auto& copy = ctx.reversed[shape.mesh.get()];
-            if (!copy) copy = reversed_winding(*shape.mesh);
-            mirrored->mesh = copy;
-        }
-    }
-    shape = *mirrored;
 }
 
 /** The objects of node n's mesh, one per primitive (and per instance of EXT_mesh_gpu_instancing).

@@ -134,6 +134,26 @@ DrawnPrimitive drawn_primitive(Context& ctx, int n, int prim,
                                const std::vector<NodeMotion>& motions, const NodeMotion& placement,
                                const std::map<int, WeightTrack>& weights);
 
+/** gltf_nodes.cpp: whether placement `a` squashes space onto a plane, a line or a point (or is
+ *  not finite). */
+bool flattens(const Affine& a);
+
+/** gltf_mirror.cpp: whether a placement mirrors: its determinant is negative, and it does not
+ *  flatten its mesh (a flattened placement's determinant is 0 as written; made thin for Embree
+ *  it takes a sign of no meaning). `keys` (an animated placement's matrices, empty: none) decide
+ * instead of `a`: where they disagree, the first stands and that is noted at `at`. */
+bool mirrors(Context& ctx, const Affine& a, const std::vector<Affine>& keys, const FileLoc& at,
+             const std::string& what);
+
+/** gltf_mirror.cpp: o's shape (an InlineMeshShape) with its winding reversed when
+ *  `mirrored_placement` (glTF fronts a mirrored node's clockwise side, Spangle the
+ *  counter-clockwise one in world space; without it a mirrored emissive quad lit its back and a
+ *  mirrored glass ball without normals refracted as a bubble of air). A still mesh's reversed copy
+ * is shared by every mirrored node drawing it (ctx.reversed); a deforming one's is made once per
+ * primitive and node (`mirrored`). */
+void face_for(Context& ctx, ObjectDesc& o, bool mirrored_placement,
+              std::optional<InlineMeshShape>& mirrored);
+
 /** gltf_nodes.cpp: the objects, cameras and lights of the scene's node tree, and the default
  *  camera and light when the file has none. */
 void read_nodes(Context& ctx, const SceneReadOptions& options);

@@ -58,7 +58,6 @@ void texture_transform(Context& ctx, const tinygltf::Value& x, const std::string
         if (!std::isfinite(tex.uv[k]))
             throw_error(ctx.at(ref), "KHR_texture_transform makes a uv transform beyond a float");
     }
-    if (x.Has("texCoord") && number_or(x, "texCoord", 0) != ctx.uv_set) note_uv_set(ctx, ref);
 }
 
 /** Width x height from a PNG's IHDR or a JPEG's start-of-frame segment; 0 when not found. */
@@ -77,6 +76,15 @@ std::size_t pixel_count(const std::vector<unsigned char>& b) {
 }
 
 }  // namespace
+
+std::optional<int> uv_set_override(const tinygltf::ExtensionMap* extensions) {
+    if (!extensions) return std::nullopt;
+    const auto x = extensions->find("KHR_texture_transform");
+    if (x == extensions->end() || !x->second.IsObject() || !x->second.Has("texCoord") ||
+        !x->second.Get("texCoord").IsNumber())
+        return std::nullopt;
+    return static_cast<int>(x->second.Get("texCoord").GetNumberAsDouble());
+}
 
 std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, const std::string& ref,
                                         bool color) {
@@ -115,15 +123,16 @@ std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, con
         // magFilter NEAREST: texels stay squares when magnified (pixel art, voxel models).
         if (s.magFilter == TINYGLTF_TEXTURE_FILTER_NEAREST) tex.filter = 2;
     }
-    // KHR_texture_transform's texCoord overrides the reference's (texture_transform notes it).
-    const tinygltf::Value* transform = nullptr;
+    // The uv set it reads: KHR_texture_transform's texCoord overrides the reference's.
+    const std::string transform_ref = ref + "/extensions/KHR_texture_transform";
+    if (const std::optional<int> set = uv_set_override(use.extensions)) {
+        if (*set != ctx.uv_set) note_uv_set(ctx, transform_ref);
+    } else if (use.tex_coord != ctx.uv_set) {
+        note_uv_set(ctx, ref);
+    }
     if (use.extensions)
         if (auto x = use.extensions->find("KHR_texture_transform"); x != use.extensions->end())
-            transform = &x->second;
-    const bool overridden = transform && transform->IsObject() && transform->Has("texCoord");
-    if (!overridden && use.tex_coord != ctx.uv_set) note_uv_set(ctx, ref);
-    if (transform)
-        texture_transform(ctx, *transform, ref + "/extensions/KHR_texture_transform", tex);
+            texture_transform(ctx, x->second, transform_ref, tex);
     return tex;
 }
 

@@ -25,6 +25,10 @@ struct TextureUse {
 std::optional<TextureDesc> texture_desc(Context& ctx, const TextureUse& use, const std::string& ref,
                                         bool color);
 
+/** The uv set KHR_texture_transform (in a texture reference's `extensions`, null: none) makes it
+ *  read, overriding the reference's own texCoord; none when it gives no texCoord. */
+std::optional<int> uv_set_override(const tinygltf::ExtensionMap* extensions);
+
 /** The mean linear Rec.709 colour of texture `index`'s image (sRGB decoded), or none when it
  *  cannot be decoded. */
 std::optional<Vec3> texture_mean(Context& ctx, int index);

@@ -71,13 +71,13 @@ void take_value(Tokenizer& tokens, const Token& t, ValueKind kind, Param& p) {
         return;
     }
     double x = 0.0;
-    if (!quoted && !parse_number(v, x)) {
+    if (quoted || !parse_number(v, x)) {
         // A number beyond a double's range: too small (1e-400) is 0, as pbrt reads it; too
         // large (1e400) is said so, not "not a number".
         const std::string_view w = !v.empty() && v.front() == '+' ? v.substr(1) : v;
         double y = 0.0;
         const auto [end, ec] = std::from_chars(w.data(), w.data() + w.size(), y);
-        if (ec == std::errc::result_out_of_range && end == w.data() + w.size()) {
+        if (!quoted && ec == std::errc::result_out_of_range && end == w.data() + w.size()) {
             const std::size_t e = w.find_first_of("eE");
             if (e != std::string_view::npos && e + 1 < w.size() && w[e + 1] == '-') {
                 p.numbers.push_back(0.0);
@@ -86,9 +86,8 @@ void take_value(Tokenizer& tokens, const Token& t, ValueKind kind, Param& p) {
             throw_error(tokens.loc(t), "'{} {}': {} is out of range (beyond about 1e308)", p.type,
                         p.name, v);
         }
-    }
-    if (quoted || !parse_number(v, x))
         throw_error(tokens.loc(t), "'{} {}' takes numbers, got '{}'", p.type, p.name, v);
+    }
     if (!std::isfinite(x))
         throw_error(tokens.loc(t), "'{} {}': {} is not a finite number", p.type, p.name, v);
     p.numbers.push_back(x);

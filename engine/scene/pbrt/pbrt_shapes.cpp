@@ -104,9 +104,7 @@ void read_vertices(const Reader& r, const ParamList& p, const char* what, const 
 
 /** Turns every face of `m` (winding and normals) when `flip_winding` / `flip_normals`. */
 void orient(TriangleMesh& m, bool flip_winding, bool flip_normals) {
-    if (flip_winding)
-        for (std::size_t t = 0; t + 2 < m.indices.size(); t += 3)
-            std::swap(m.indices[t + 1], m.indices[t + 2]);
+    if (flip_winding) m.reverse_winding();
     if (flip_normals)
         for (float& c : m.normals) c = -c;
 }
