@@ -408,6 +408,9 @@ void shade(const RenderJob& job, Workspace& ws, Sink& sink, const MaterialInstan
     const RenderScene& w = *job.scene;
     ws.batch.resize(n);
     if (mat.map_kind() != MapKind::None) apply_map(w, ws, mat, paths, n);
+    // Interpolated or mapped normals that would reflect wo into the surface are bent back.
+    for (uint32_t k = 0; k < n; ++k)
+        keep_reflection_above(ws.paths.surf[paths[k]], -ws.paths.ray[paths[k]].d);
     fill_points(job, ws, paths, n);
     SpangleShadingBatch_v3 batch = abi_batch(ws.batch, n);
     if (!mat.textures().empty()) batch.param_values = lookup_textures(w, ws, mat, paths, n);

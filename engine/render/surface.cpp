@@ -17,6 +17,57 @@ void shading_frame(Vec3 n, Vec3 along, Vec3& s, Vec3& t) {
     }
 }
 
+bool keep_reflection_above(SurfacePoint& sp, Vec3 wo) {
+    const float cos_g = dot(wo, sp.ng);
+    if (!(cos_g > 0.0f)) return false;  // wo on the geometric back (rounding): nothing to keep
+    const float limit = std::min(0.9f * cos_g, 0.01f);
+    const Vec3 r = sp.n * (2.0f * dot(wo, sp.n)) - wo;
+    const float rz = dot(r, sp.ng);
+    if (rz >= limit || !std::isfinite(rz)) return false;
+    // The valid reflection nearest to r: its part along the plane, lifted to height `limit`.
+    // Where r points straight into the surface, the mirror image of wo about ng stands in. In
+    // double: wo and that reflection can nearly cancel in their sum.
+    const auto d3 = [](Vec3 v, double out[3]) {
+        out[0] = v.x;
+        out[1] = v.y;
+        out[2] = v.z;
+    };
+    double w[3], g[3], a[3], sn[3];
+    d3(wo, w);
+    d3(sp.ng, g);
+    d3(sp.n, sn);
+    // Unit to the last bit: where wo and the reflection nearly oppose, their half vector turns
+    // with any difference of their lengths, and a short horizontal part of r keeps what ng's
+    // length error leaves of its height.
+    for (double* v : {w, g, sn}) {
+        const double v_len = std::sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]);
+        for (int k = 0; k < 3; ++k) v[k] /= v_len;
+    }
+    const double cw = w[0] * g[0] + w[1] * g[1] + w[2] * g[2];
+    const double wn = w[0] * sn[0] + w[1] * sn[1] + w[2] * sn[2];
+    for (int k = 0; k < 3; ++k) a[k] = 2.0 * wn * sn[k] - w[k];  // r
+    const double az = a[0] * g[0] + a[1] * g[1] + a[2] * g[2];
+    for (int k = 0; k < 3; ++k) a[k] -= g[k] * az;
+    double len = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    if (!(len > 1e-9)) {
+        for (int k = 0; k < 3; ++k) a[k] = g[k] * cw - w[k];
+        len = std::sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]);
+    }
+    if (!(len > 1e-9)) {
+        d3(sp.s, a);
+        len = 1.0;
+    }
+    const double lim = limit, along = std::sqrt(1.0 - lim * lim) / len;
+    double h[3];
+    for (int k = 0; k < 3; ++k) h[k] = w[k] + a[k] * along + g[k] * lim;
+    const double h_len = std::sqrt(h[0] * h[0] + h[1] * h[1] + h[2] * h[2]);
+    if (!(h_len > 0.0) || !std::isfinite(h_len)) return false;
+    sp.n = Vec3(static_cast<float>(h[0] / h_len), static_cast<float>(h[1] / h_len),
+                static_cast<float>(h[2] / h_len));
+    shading_frame(sp.n, sp.s, sp.s, sp.t);
+    return true;
+}
+
 namespace {
 
 /** Embree's float rounding of a hit's distance to its triangle's plane, in float epsilons of

@@ -55,4 +55,14 @@ void footprint_at(SurfacePoint& sp, const RayDifferential& ray, bool& has_diff, 
 void object_footprint(SurfacePoint& sp, const Instance& inst, const TriangleMesh& mesh,
                       uint32_t prim);
 
+/** Bends sp's shading normal, where needed, so that the mirror reflection of wo (unit, towards
+ *  the viewer, on ng's side) about it leaves the surface: at least min(0.9 cos, 0.01) above the
+ *  geometric plane, cos = wo.ng (the limit Cycles uses). Interpolated normals near a coarse
+ *  mesh's silhouette and strong normal or bump maps tilt the shading normal until wo is under
+ *  it or barely above it; every material then reflects nothing there (a black rim) or only
+ *  into the surface. The new normal is the half vector of wo and the valid direction nearest
+ *  to the old reflection (the old one lifted along its great circle through ng), so it bends
+ *  no further than it must; the frame is rebuilt around it. Returns whether it bent. */
+bool keep_reflection_above(SurfacePoint& sp, Vec3 wo);
+
 }  // namespace spangle

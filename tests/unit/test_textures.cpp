@@ -395,6 +395,59 @@ params = { preset = "gold", roughness = 0.2 })";
         ASSERT_NEAR(inverted.image[i], t.image[i], 1e-3f * std::max(1.0f, t.image[i])) << i;
 }
 
+TEST(Texture, ANormalMapTiltedAwayFromTheViewerStillReflects) {
+    // A white diffuse floor in a white furnace, seen at 68 degrees from its normal, under maps
+    // tilting the normal 42 degrees towards -u, +u, -v and +v: from one side or another the
+    // viewer is below the mapped normal, and the diffuse model reflected nothing there (the
+    // floor rendered black where real bumps show their lit side). The normal is bent back so
+    // that the viewer's mirror direction leaves the surface: every pixel stays bright.
+    test::TempDir dir("texture_normal_away");
+    int dark_maps = 0;
+    for (int axis = 0; axis < 2; ++axis)
+        for (const float tilt : {0.05f, 0.95f}) {
+            std::vector<float> map(3 * 4 * 4);
+            for (std::size_t i = 0; i < map.size(); i += 3) {
+                map[i] = map[i + 1] = 0.5f;
+                map[i + static_cast<std::size_t>(axis)] = tilt;
+                map[i + 2] = 1.0f;
+            }
+            const std::string name = fmt::format("tilt{}_{}", axis, tilt > 0.5f ? "up" : "down");
+            write_float_exr(dir.file(name + ".exr"), map, 4, 4);
+            const FrameResult r = render_text(dir, name + ".toml",
+                                              fmt::format(R"(
+[render]
+width = 48
+height = 32
+spp = 32
+max_depth = 8
+filter = "box"
+[camera]
+position = [-3, 1.2, 0.4]
+look_at = [0, 0, 0]
+fov = 20
+[environment]
+color = [1, 1, 1]
+[[material]]
+name = "m"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = 1.0 }}
+normal_map = {{ texture = "{}.exr" }}
+[[object]]
+mesh = "{}/meshes/plane.ply"
+material = "m"
+scale = 20
+)",
+                                                          name, test::asset_dir()));
+            ASSERT_EQ(r.width, 48u);
+            float lowest = 1e9f;
+            for (const float v : r.image) lowest = std::min(lowest, v);
+            EXPECT_GT(lowest, 0.3f) << name << ": a pixel went dark";
+            dark_maps += lowest < 0.05f ? 1 : 0;
+        }
+    EXPECT_EQ(dark_maps, 0);
+}
+
 TEST(Texture, ABumpMapsStrengthBlendsTheNormalsAsBlendersBumpDoes) {
     // strength 0: the surface's normal (the image of no map); 1: the bumped one; between: the
     // normalised blend of the two, which is not a lower height (Blender's Bump Strength).
