@@ -354,6 +354,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     bool have_vertices = false, have_faces = false;
     uint32_t largest_index = 0;
     uint64_t largest_face = 0;
+    bool from_strips = false;  ///< the faces are a tristrips element's (its entries are strips)
     for (const Element& e : elements) {
         const auto find = [&](std::initializer_list<const char*> names) -> int {
             for (const char* n : names)
@@ -575,6 +576,7 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
             const int list = corner_list(e);
             if (list < 0)
                 throw_error(ref, "mesh '{}': its tristrips have no vertex_indices list", path);
+            from_strips = true;
             uint32_t strip[3] = {0, 0, 0};
             uint64_t in_strip = 0;
             for (uint64_t i = 0; i < e.count; ++i) {
@@ -630,8 +632,9 @@ TriangleMesh read_ply(const std::string& path, const FileLoc& ref) {
     if (!have_vertices) throw_error(ref, "mesh '{}' has no vertex element", path);
     if (!have_faces) throw_error(ref, "mesh '{}' has no face element", path);
     if (largest_index >= mesh.vertex_count() && (!mesh.indices.empty() || !polygons.empty()))
-        throw_error(ref, "mesh '{}': face {} refers to vertex {}, but there are {} vertices", path,
-                    largest_face, largest_index, mesh.vertex_count());
+        throw_error(ref, "mesh '{}': {} {} refers to vertex {}, but there are {} vertices", path,
+                    from_strips ? "strip" : "face", largest_face, largest_index,
+                    mesh.vertex_count());
     // Data left over in a binary file: its header's counts and its data disagree (a damaged or
     // mis-written file), said beside what was read.
     if (*format != Format::Ascii && reader.remaining() > 0 && !reader.only_line_end_remains())

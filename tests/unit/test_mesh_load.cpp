@@ -96,6 +96,19 @@ TEST(MeshLoad, PlyTriangleStripsAsStanfordScansWriteThem) {
                    c = m.position(m.indices[3 * t + 2]);
         EXPECT_GT(cross(b - a, c - a).z, 0.0f) << t;
     }
+    // An index past the vertices is said of the strip that holds it (not of a "face").
+    std::ofstream(dir.file("past.ply"))
+        << "ply\nformat ascii 1.0\nelement vertex 4\nproperty float x\nproperty float y\n"
+           "property float z\nelement tristrips 2\nproperty list int int vertex_indices\n"
+           "end_header\n0 0 0\n0 1 0\n1 0 0\n1 1 0\n3 0 1 2\n3 1 2 7\n";
+    try {
+        load_mesh(dir.file("past.ply"), {});
+        ADD_FAILURE() << "an index past the vertices loaded";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("strip 1 refers to vertex 7, but there are 4"),
+                  std::string::npos)
+            << e.what();
+    }
 }
 
 TEST(MeshLoad, PlyCornerUvsAsMeshLabWritesThem) {

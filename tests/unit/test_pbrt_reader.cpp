@@ -254,6 +254,19 @@ Shape "sphere" "float radius" [1 2 3]
     // Too small for a double: 0, as pbrt reads it.
     const SceneDescription tiny = read(f, "WorldBegin\nShape \"sphere\" \"float zmin\" 1e-400\n");
     EXPECT_EQ(tiny.objects.size(), 1u);
+    // A texture defined twice (pbrt-v4 refuses the file): the second stands, and it is said
+    // where the first was; a float and a colour texture of one name are two textures.
+    const SceneDescription twice = read(f, std::string(R"(WorldBegin
+Texture "t" "spectrum" "constant" "rgb value" [0 0 1]
+Texture "t" "float" "constant" "float value" 0.5
+Texture "t" "spectrum" "constant" "rgb value" [0 1 0]
+Material "diffuse" "texture reflectance" "t"
+Shape "sphere"
+)"));
+    EXPECT_TRUE(has_note(twice, ":4: spectrum texture 't' is defined again (first at "));
+    EXPECT_TRUE(has_note(twice, ":2:1): this definition stands from here on"));
+    EXPECT_FALSE(has_note(twice, ":3: float texture 't' is defined again"));
+    ASSERT_EQ(twice.materials.size(), 1u);
 }
 
 TEST(PbrtReader, AnEmittingSphereIsASphereLight) {

@@ -284,7 +284,12 @@ void read_texture(Reader& r, const std::string& name, const std::string& kind,
     }
     t.loc = loc;
     r.notes.unused(p, fmt::format("Texture \"{}\"", cls));
-    (k == "float" ? r.float_textures : r.color_textures)[name] = std::move(t);
+    auto& table = k == "float" ? r.float_textures : r.color_textures;
+    if (const auto old = table.find(name); old != table.end())
+        r.notes.add(loc, fmt::format("{} texture '{}' is defined again (first at {}): this "
+                                     "definition stands from here on (pbrt-v4 refuses the file)",
+                                     k, name, old->second.loc.str()));
+    table[name] = std::move(t);
 }
 
 }  // namespace spangle::pbrt
