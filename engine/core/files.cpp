@@ -4,6 +4,9 @@
 #include <sys/stat.h>
 #include <zlib.h>
 
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
 #include <filesystem>
 
 #include "core/memory.h"
@@ -50,9 +53,17 @@ std::string executable_dir() {
     return ec ? std::string() : exe.parent_path().string();
 }
 
+std::string unreadable(const std::string& path) {
+    errno = 0;
+    std::FILE* f = std::fopen(path.c_str(), "rb");
+    if (!f) return std::strerror(errno != 0 ? errno : EACCES);
+    std::fclose(f);
+    return "";
+}
+
 std::string inflate_gzip_file(const std::string& path, const FileLoc& ref) {
     gzFile f = gzopen(path.c_str(), "rb");
-    if (!f) throw_error(ref, "cannot open '{}'", path);
+    if (!f) throw_error(ref, "cannot open '{}': {}", path, unreadable(path));
     std::string out;
     char buf[1 << 16];
     for (;;) {

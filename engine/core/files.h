@@ -18,6 +18,10 @@ std::string file_identity(const std::string& path);
  *  not the reader's. `path` itself when it cannot be made absolute. */
 std::string absolute_path(const std::string& path);
 
+/** Why `path` cannot be opened for reading ("Permission denied", "No such file or directory");
+ *  empty when it can. */
+std::string unreadable(const std::string& path);
+
 /** The bytes of the gzip'd file `path`, inflated (pbrt's .pbrt.gz and .ply.gz). Throws
  *  SpangleError at `ref` for a file that cannot be opened, is not valid gzip, or inflates to more
  *  than the memory available. */

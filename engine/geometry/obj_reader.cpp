@@ -10,6 +10,7 @@
 #include <string_view>
 #include <unordered_map>
 
+#include "core/files.h"
 #include "geometry/polygon.h"
 
 namespace spangle {
@@ -56,7 +57,7 @@ public:
 private:
     void parse() {
         std::ifstream in(path_, std::ios::binary);
-        if (!in) throw_error(ref_, "cannot open {} '{}'", kind_, path_);
+        if (!in) throw_error(ref_, "cannot open {} '{}': {}", kind_, path_, unreadable(path_));
         std::string line, joined;
         int first_line = 0;
         for (int number = 1; std::getline(in, line); ++number) {

@@ -54,8 +54,9 @@ void leave(PathBatch& p, uint32_t i, Vec3 wi, float pdf, uint32_t sflags, float 
     } else {
         p.fp_width[i] = sp.footprint;
     }
-    const Vec3 side = dot(wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
-    p.ray[i].o = offset_origin(sp.p, side, scale) + side * sp.p_error;
+    Vec3 side;
+    const Vec3 from = leaving_point(sp, wi, side);
+    p.ray[i].o = offset_origin(from, side, scale) + side * sp.p_error;
     p.ray[i].d = wi;
     p.prev_pdf[i] = pdf;
     p.prev_delta[i] = delta ? 1 : 0;

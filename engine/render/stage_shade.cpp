@@ -348,13 +348,13 @@ void trace_shadows(const RenderJob& job, Workspace& ws, Sink& sink, const uint32
         if (job.strategy == Strategy::NeeOnly) mis = 1.0f;
         if (job.strategy == Strategy::BsdfOnly && !ls.delta) mis = 0.0f;
         if (mis <= 0.0f) continue;
-        // Leave on the side of the geometric normal that wi points to.
-        const Vec3 side = dot(ls.wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
         ws.stream_path.push_back(i);
         const float weight = std::fabs(b.wiz[j]) * mis / ls.pdf;
         ws.shadow_contrib.push_back(p.throughput[i] * f * ls.radiance * weight);
         sink.shadow_query(bounce, j, i, p.throughput[i], f, ls.radiance, weight, ls.group);
-        const Vec3 o = offset_origin(sp.p, side, scale) + side * sp.p_error;
+        Vec3 side;
+        const Vec3 from = leaving_point(sp, ls.wi, side);
+        const Vec3 o = offset_origin(from, side, scale) + side * sp.p_error;
         // A light at a finite distance: the shadow ray runs from the offset origin to the light's
         // point itself and stops just short of it. Along wi from the offset origin it would pass
         // beside that point, and near a sphere light's (or any emitter's) silhouette meet the

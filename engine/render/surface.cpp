@@ -183,6 +183,19 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
         const float len = length(ni);
         if (len > 0.0f && std::isfinite(len)) n = ni / len;
         if (dot(n, ng) < 0.0f) ng = -ng;  // the geometric normal follows the authored normals
+        // The lift onto the smooth surface: p raised to each corner's tangent plane where it
+        // lies below it, the three raised points blended by the barycentrics.
+        const Vec3 corner[3] = {p0, p1, p2}, cn[3] = {n0, n1, n2};
+        const float bary[3] = {b0, h.b1, h.b2};
+        Vec3 lift(0.0f);
+        for (int k = 0; k < 3; ++k) {
+            const float cl = length(cn[k]);
+            if (!(cl > 0.0f) || !std::isfinite(cl)) continue;
+            const Vec3 nk = cn[k] / cl;
+            const float below = dot(sp.p - corner[k], nk);
+            if (below < 0.0f) lift = lift - nk * (below * bary[k]);
+        }
+        if (is_finite(lift)) sp.lift = lift;
     }
     float uv0[2] = {0, 0}, uv1[2] = {1, 0}, uv2[2] = {0, 1};
     if (!mesh.uvs.empty()) {
@@ -220,6 +233,7 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     shading_frame(n, sp.dpdu, sp.s, sp.t);
     sp.ng = ng;
     sp.n = n;
+    sp.n_smooth = n;
     sp.backface = back;
     return sp;
 }

@@ -33,7 +33,34 @@ struct SurfacePoint {
      *  as precise as the triangle's vertices' coordinates, not the hit's. 0 except on
      *  triangles much larger than the hit's coordinates (a floor scaled to 1e7). */
     float p_error = 0;
+    /** Where rays leaving towards the side the mesh's normals face start from, relative to p:
+     *  the hit lifted onto the smooth surface its vertex normals describe (each corner's tangent
+     *  plane, where p lies below it, blended by the barycentrics; Hanika, "Hacking the Shadow
+     *  Terminator", Ray Tracing Gems II, 2021). Zero on flat-shaded meshes and where the
+     *  surface is concave. Without it a coarse smooth-shaded mesh shadows itself along its
+     *  triangles' edges where the shading says light arrives (a jagged terminator). */
+    Vec3 lift{0.0f, 0.0f, 0.0f};
+    /** The interpolated normal (n before any map or bend), on n's side: which side of the
+     *  smooth surface a leaving ray is on. */
+    Vec3 n_smooth;
 };
+
+/** Where a ray leaving sp along wi starts, before offset_origin, and the side of the surface it
+ *  leaves towards (`side`: ng or -ng, for offset_origin). A ray that leaves towards the outside
+ *  of the smooth surface (the side the interpolated normal faces, on the mesh's front) starts
+ *  from p lifted by sp.lift, even where it runs below the flat triangle's plane (the light that
+ *  smooth shading says arrives near the terminator: from p it was blocked by the triangle's
+ *  neighbours); any other from p itself, on the side of ng it points to. */
+inline Vec3 leaving_point(const SurfacePoint& sp, Vec3 wi, Vec3& side) {
+    const float flip = sp.backface ? -1.0f : 1.0f;
+    if (dot(wi, sp.n_smooth) * flip > 0.0f &&
+        (sp.lift.x != 0.0f || sp.lift.y != 0.0f || sp.lift.z != 0.0f)) {
+        side = sp.ng * flip;
+        return sp.p + sp.lift;
+    }
+    side = dot(wi, sp.ng) >= 0.0f ? sp.ng : -sp.ng;
+    return sp.p;
+}
 
 /** A shading frame around unit normal n: s is `along` made orthogonal to n and normalised
  *  (any tangent when that is degenerate), t = n x s. */

@@ -13,12 +13,13 @@ namespace spangle {
 
 /** `given`, the value of `key` written at `at`, resolved against `dir` when relative and
  *  normalised. Throws SpangleError at `at` when it is empty ("'key' must not be empty") or not a
- *  regular file ("key file 'given' not found (looked for PATH)"). */
+ *  regular file ("key file 'given' not found (looked for PATH)"), or cannot be read ("... cannot
+ *  be read: Permission denied"). */
 std::string find_scene_file(const std::string& given, const std::filesystem::path& dir,
                             std::string_view key, const FileLoc& at);
 
-/** Throws SpangleError (no location) unless `path` is a regular file: "scene file 'path' not
- *  found", or that it is a folder, a device or a pipe. */
+/** Throws SpangleError (no location) unless `path` is a regular file that can be read: "scene
+ *  file 'path' not found", that it is a folder, a device or a pipe, or that it cannot be read. */
 void check_scene_file(const std::string& path);
 
 }  // namespace spangle

@@ -1,5 +1,7 @@
 #include "scene/toml_reader.h"
 
+#include "core/files.h"
+
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -68,8 +70,16 @@ FileLoc key_loc(const toml::key& key, const toml::node& value, const std::string
 
 std::string read_text(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
+    // Unread, a scene or an import was an empty file: a missing camera, or objects silently
+    // left out.
+    if (!in) {
+        const std::string why = unreadable(path);
+        throw_error(FileLoc{path, 0, 0}, "cannot read the file: {}",
+                    why.empty() ? std::string("it cannot be opened") : why);
+    }
     std::ostringstream ss;
     ss << in.rdbuf();
+    if (in.bad()) throw_error(FileLoc{path, 0, 0}, "cannot read the file: a read error");
     return ss.str();
 }
 

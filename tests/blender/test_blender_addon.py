@@ -1037,3 +1037,99 @@ def test_pixel_filter_is_cycles_filter(tmp_path):
     assert out.returncode == 0, out.stderr
     back = (tmp_path / "back.toml").read_text()
     assert 'filter = "blackman-harris"' in back and "filter_radius = 1.5" in back, back[:400]
+
+
+def test_values_blender_allows_are_carried_over_not_refused(tmp_path, monkeypatch):
+    # Found by a user: a Base Color above 1, a light of negative power, an area light of no
+    # area, an emission strength of 1e30 and an image loaded by a path relative to the working
+    # folder each failed the whole render (Cycles renders all of them); camera clipping was
+    # dropped silently, and a focus object behind the camera blurred the whole frame.
+    from spangle_blender import export, flake_parameters
+
+    scene = build_scene()
+    ground = bpy.data.materials["ground"].node_tree.nodes["Principled BSDF"]
+    ground.inputs["Base Color"].default_value = (1.2, 0.5, 0.5, 1.0)
+    bright = principled("bright", Emission_Color=(1.0, 1.0, 1.0, 1.0), Emission_Strength=1e30)
+    bpy.ops.mesh.primitive_cube_add(size=0.2, location=(0.0, 0.0, 2.5))
+    bpy.context.active_object.data.materials.append(bright)
+    bpy.ops.object.light_add(type="SUN", location=(0, 0, 5))
+    bpy.context.active_object.data.energy = -500.0
+    bpy.context.active_object.name = "negative"
+    bpy.ops.object.light_add(type="AREA", location=(0, 0, 5))
+    area = bpy.context.active_object
+    area.name = "flat"
+    area.data.shape = "RECTANGLE"
+    area.data.size_y = 0.0
+    # An image saved under tmp_path and loaded by a path relative to the working folder.
+    img = bpy.data.images.new("rel", 4, 4)
+    img.pixels.foreach_set(np.tile([0.2, 0.4, 0.6, 1.0], 16).astype(np.float32))
+    img.filepath_raw = str(tmp_path / "rel.png")
+    img.file_format = "PNG"
+    img.save()
+    monkeypatch.chdir(tmp_path)
+    rel = bpy.data.images.load("rel.png")
+    assert not os.path.isabs(rel.filepath)
+    nodes, links = bpy.data.materials["ground"].node_tree.nodes, \
+        bpy.data.materials["ground"].node_tree.links
+    tex = nodes.new("ShaderNodeTexImage")
+    tex.image = rel
+    links.new(tex.outputs["Color"], ground.inputs["Roughness"])
+    cam = scene.camera.data
+    cam.clip_start = 7.0
+    cam.dof.use_dof = True
+    behind = bpy.data.objects.new("behind", None)
+    bpy.context.scene.collection.objects.link(behind)
+    behind.location = scene.camera.location + (scene.camera.location - mathutils.Vector((0, 0, 0.6)))
+    cam.dof.focus_object = behind
+    warnings = export.export_scene(bpy.context.evaluated_depsgraph_get(), str(tmp_path / "x"),
+                                   (W, H), 4, flake_parameters())
+    assert any("material 'ground': Base Color (1.2, 0.5, 0.5) is outside [0, 1]" in w
+               for w in warnings), warnings
+    assert any(w.startswith("light 'negative': negative power") for w in warnings), warnings
+    assert any(w.startswith("light 'flat': an area light of no area") for w in warnings), warnings
+    assert any(w.startswith("material 'bright': colour x strength") for w in warnings), warnings
+    assert any("clip start 7 m is not exported" in w for w in warnings), warnings
+    toml = (tmp_path / "x" / "scene.toml").read_text()
+    assert str(tmp_path / "rel.png") in toml
+    # The focus object is as far behind the camera as the body is in front of it.
+    dist = (scene.camera.location - mathutils.Vector((0, 0, 0.6))).length
+    focus = [line for line in toml.splitlines() if line.startswith("focus_distance")]
+    assert focus and abs(float(focus[0].split("=")[1]) - dist) < 1e-3 * dist, focus
+    monkeypatch.chdir(ROOT)
+    px = render_exr(scene, tmp_path / "carried.exr")
+    assert np.isfinite(px).all() and px.max() > 0.0
+
+
+def test_the_module_folder_set_later_brings_the_flake_settings(tmp_path):
+    # Found by a user: with the spangle module found only through the add-on's Module folder
+    # preference (docs/blender.md's route), the flake parameters were read once, before the
+    # preference was known: the Spangle Flakes settings had no fields and every flake paint
+    # rendered as the plugin's default grey. Run in a Blender without spangle on its path.
+    module_dir = os.path.dirname(os.path.dirname(__import__("spangle").__file__))
+    script = f"""
+import sys
+sys.path.insert(0, {os.path.join(ROOT, "integrations", "blender")!r})
+import bpy, addon_utils
+bpy.ops.wm.read_factory_settings(use_empty=True)
+try:
+    import spangle
+    print("IMPORTABLE")
+except ImportError:
+    pass
+addon_utils.enable("spangle_blender", default_set=True)
+m = bpy.data.materials.new("paint")
+print("BEFORE", hasattr(m.spangle_flakes, "density"))
+bpy.context.preferences.addons["spangle_blender"].preferences.module_path = {module_dir!r}
+m.spangle_flakes.enabled = True
+print("AFTER", hasattr(m.spangle_flakes, "density"), m.spangle_flakes.enabled)
+m.spangle_flakes.density = 1234.0
+from spangle_blender import export, flake_parameters
+print("PARAMS", export.material_entry(m, flake_parameters(), [])[2].get("density"))
+"""
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH", "SPANGLE_PYTHONPATH")}
+    out = subprocess.run([sys.executable, "-c", script], env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert "IMPORTABLE" not in out.stdout, "spangle must not be on the path for this test"
+    assert "BEFORE False" in out.stdout, out.stdout + out.stderr
+    assert "AFTER True True" in out.stdout, out.stdout + out.stderr
+    assert "PARAMS 1234.0" in out.stdout, out.stdout + out.stderr

@@ -354,7 +354,7 @@ color = [1, 1, 1]
 
 [[light]]
 type = "distant"
-direction = [0.3, -0.2, -1]
+direction = [0.3, -0.2, 1]
 intensity = 2
 
 [[material]]

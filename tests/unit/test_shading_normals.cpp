@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstddef>
 #include <fstream>
 #include <random>
 #include <string>
@@ -105,10 +106,9 @@ TEST(ShadingNormals, TheGeometricNormalIsNeverBent) {
     }
 }
 
-/** A UV sphere of 8 x 5 quads with its vertices' normals (smooth shaded, coarse). */
-std::string coarse_sphere_obj() {
+/** A UV sphere of kU x kV quads with its vertices' normals (smooth shaded; 8 x 5 is coarse). */
+std::string sphere_obj(int kU = 8, int kV = 5) {
     std::string obj;
-    constexpr int kU = 8, kV = 5;
     for (int j = 0; j <= kV; ++j)
         for (int i = 0; i < kU; ++i) {
             const double th = M_PI * j / kV, ph = 2.0 * M_PI * i / kU;
@@ -131,7 +131,7 @@ TEST(ShadingNormals, ACoarseSmoothSphereInAFurnaceHasNoBlackRim) {
     // normals gain or lose a little). Where the interpolated normal turned away from the viewer
     // at the silhouette, the diffuse model reflected nothing: a black rim of pixels near 0.
     test::TempDir dir("coarse_sphere");
-    { std::ofstream(dir.file("coarse.obj")) << coarse_sphere_obj(); }
+    { std::ofstream(dir.file("coarse.obj")) << sphere_obj(); }
     FrameRequest req = test::text_request(dir, "furnace.toml", R"(
 [render]
 width = 96
@@ -165,6 +165,68 @@ material = "white"
     EXPECT_EQ(r.stats.nonfinite, 0u);
     EXPECT_GT(lowest, 0.6f) << "a pixel of the sphere went dark";
     EXPECT_NEAR(sum / static_cast<double>(r.image.size()), 1.0, 0.03);
+}
+
+TEST(ShadingNormals, ACoarseSmoothSphereIsLitWhereItsNormalsFaceTheSun) {
+    // A coarse smooth-shaded white sphere lit by a sun from behind on the left, in the dark:
+    // each pixel should be what its shading normal says, albedo / pi E max(0, N.L), as the
+    // sphere is convex and nothing else can shadow it. Where the interpolated normal faces the
+    // sun but the flat triangle does not, the shadow ray from the triangle ran into its
+    // neighbours and cut the light off along the triangles' edges (a jagged terminator).
+    // Started from the point lifted onto the smooth surface, it escapes.
+    test::TempDir dir("sunlit_sphere");
+    { std::ofstream(dir.file("coarse.obj")) << sphere_obj(); }
+    FrameRequest req = test::text_request(dir, "sun.toml", R"(
+[render]
+width = 96
+height = 96
+spp = 16
+max_depth = 1
+filter = "box"
+[camera]
+position = [0, 0, 4]
+look_at = [0, 0, 0]
+fov = 35
+[[light]]
+type = "distant"
+direction = [-1, -0.3, -0.4]
+intensity = 3
+[[material]]
+name = "white"
+plugin = "smooth"
+model = "diffuse"
+params = { albedo = 0.8 }
+[[object]]
+mesh = "coarse.obj"
+material = "white"
+)");
+    req.options.layers = true;
+    const FrameResult r = render_frame(req);
+    const auto ch = [&](const std::string& name) {
+        const auto it = std::find(r.layer_names.begin(), r.layer_names.end(), name);
+        EXPECT_NE(it, r.layer_names.end()) << name;
+        return static_cast<std::size_t>(it - r.layer_names.begin());
+    };
+    const std::size_t lc = r.layer_names.size(), nx = ch("N.X"), alpha = ch("A");
+    ASSERT_EQ(r.layers.size(), lc * 96 * 96);
+    const float len = std::sqrt(1.0f + 0.09f + 0.16f);
+    const Vec3 to_sun(-1.0f / len, -0.3f / len, -0.4f / len);
+    const float k = 0.8f * 3.0f / static_cast<float>(M_PI);
+    double diff = 0.0, lit = 0.0;
+    int dark = 0, n = 0;
+    for (std::size_t p = 0; p < 96 * 96; ++p) {
+        const float* l = &r.layers[p * lc];
+        if (l[alpha] < 1.0f) continue;  // the outline's pixels
+        const float expected = k * std::max(0.0f, dot(Vec3(l[nx], l[nx + 1], l[nx + 2]), to_sun));
+        if (!(expected > 0.05f)) continue;
+        ++n;
+        diff += std::fabs(r.image[3 * p] - expected);
+        lit += expected;
+        dark += r.image[3 * p] < 0.25f * expected ? 1 : 0;
+    }
+    ASSERT_GT(n, 300) << "the lit side is in view";
+    EXPECT_LT(diff / lit, 0.015) << n << " pixels whose normal faces the sun";
+    EXPECT_LT(dark, n / 100) << n << " pixels whose normal faces the sun";
 }
 
 }  // namespace

@@ -146,7 +146,7 @@ bool write_nothing(std::string* err, const std::string&, const std::vector<unsig
 /** The whole file; throws SpangleError when it cannot be opened. */
 std::string read_bytes(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw_error(FileLoc{path, 0, 0}, "cannot open the file");
+    if (!in) throw_error(FileLoc{path, 0, 0}, "cannot open the file: {}", unreadable(path));
     return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 

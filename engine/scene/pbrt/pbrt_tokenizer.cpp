@@ -18,7 +18,7 @@ std::string read_whole(const std::string& path, const FileLoc& ref) {
         throw_error(ref, "pbrt file '{}' not found (or not a regular file; looked for {})", path,
                     absolute_path(path));
     std::ifstream in(path, std::ios::binary);
-    if (!in) throw_error(ref, "cannot open '{}'", path);
+    if (!in) throw_error(ref, "cannot open '{}': {}", path, unreadable(path));
     unsigned char magic[2] = {0, 0};
     in.read(reinterpret_cast<char*>(magic), 2);
     if (in.gcount() == 2 && magic[0] == 0x1f && magic[1] == 0x8b)

@@ -22,6 +22,7 @@ bl_info = {
 }
 
 import os
+import shutil
 import sys
 import tempfile
 import threading
@@ -55,7 +56,7 @@ _FLAKE_PARAMS = None
 
 
 def flake_parameters():
-    """The flake plugin's parameters, from its schema (once per Blender session)."""
+    """The flake plugin's parameters, from its schema (once per Blender session: once found)."""
     global _FLAKE_PARAMS
     if _FLAKE_PARAMS is None:
         try:
@@ -66,10 +67,23 @@ def flake_parameters():
     return _FLAKE_PARAMS
 
 
+def _module_path_changed(prefs, context):
+    """The module folder was set: when the flake parameters were not found before (the module
+    was not importable when the add-on started), they are read now and the materials' Spangle
+    Flakes settings get their fields (without them every flake paint rendered as the plugin's
+    default grey, its settings silently dropped)."""
+    global _FLAKE_PARAMS
+    if _FLAKE_PARAMS:
+        return
+    _FLAKE_PARAMS = None
+    if flake_parameters():
+        _register_flake_settings()
+
+
 class SpanglePreferences(bpy.types.AddonPreferences):
     bl_idname = __name__
     module_path: bpy.props.StringProperty(
-        name="Module folder", subtype="DIR_PATH",
+        name="Module folder", subtype="DIR_PATH", update=_module_path_changed,
         description="Folder holding the spangle package (e.g. build/python of a Spangle build)")
 
     def draw(self, context):
@@ -202,7 +216,12 @@ class SpangleRenderEngine(bpy.types.RenderEngine):
             try:
                 session.load(os.path.join(folder, "scene.toml"))
             except spangle.SceneError as e:
-                self.report({"ERROR"}, f"Spangle: {e}")
+                # The error names a line of the exported scene: kept (the temporary folder goes
+                # when the render ends), so that the line can be read.
+                kept = tempfile.mkdtemp(prefix="spangle-blender-failed-")
+                shutil.copytree(folder, kept, dirs_exist_ok=True)
+                self.report({"ERROR"}, f"Spangle: {str(e).replace(folder, kept)} (the exported "
+                            f"scene is kept in {kept})")
                 return
             try:
                 self._render(session, w, h, settings.spp, scene.render.film_transparent,
@@ -309,25 +328,43 @@ def _compatible_panels():
 
 
 _classes = []
+_flake_class = None
+
+
+def _register_flake_settings():
+    """(Re)makes the materials' Spangle Flakes settings from the flake parameters known now.
+    The values a .blend holds are kept by name, so settings saved before reappear."""
+    global _flake_class
+    if _flake_class is not None:
+        del bpy.types.Material.spangle_flakes
+        bpy.utils.unregister_class(_flake_class)
+    _flake_class = _flake_settings_class()
+    bpy.utils.register_class(_flake_class)
+    bpy.types.Material.spangle_flakes = bpy.props.PointerProperty(type=_flake_class)
 
 
 def register():
     global _classes
-    flake_class = _flake_settings_class()
-    _classes = [SpanglePreferences, SpangleRenderSettings, flake_class, SPANGLE_PT_flakes,
-                SPANGLE_PT_render, SpangleRenderEngine]
+    # The preferences first: the module folder they name is where the flake parameters (read
+    # by _register_flake_settings) may come from.
+    _classes = [SpanglePreferences, SpangleRenderSettings, SPANGLE_PT_flakes, SPANGLE_PT_render,
+                SpangleRenderEngine]
     for c in _classes:
         bpy.utils.register_class(c)
     bpy.types.Scene.spangle = bpy.props.PointerProperty(type=SpangleRenderSettings)
-    bpy.types.Material.spangle_flakes = bpy.props.PointerProperty(type=flake_class)
+    _register_flake_settings()
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.add(ENGINE)
 
 
 def unregister():
+    global _flake_class
     for panel in _compatible_panels():
         panel.COMPAT_ENGINES.discard(ENGINE)
-    del bpy.types.Material.spangle_flakes
+    if _flake_class is not None:
+        del bpy.types.Material.spangle_flakes
+        bpy.utils.unregister_class(_flake_class)
+        _flake_class = None
     del bpy.types.Scene.spangle
     for c in reversed(_classes):
         bpy.utils.unregister_class(c)

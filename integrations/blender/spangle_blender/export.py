@@ -226,6 +226,41 @@ def _texture_placement(node, warnings, what):
     return out
 
 
+def _abspath(path):
+    """A Blender path as an absolute one: `//` paths from the .blend's folder, and a path
+    relative to the working directory (an image loaded as "tex/a.png", or `//` in an unsaved
+    file) from there: the scene file is read from a temporary folder, where a relative path
+    named nothing and the render failed."""
+    return os.path.abspath(bpy.path.abspath(path))
+
+
+# The most an emitter's colour x strength may be (Spangle refuses brighter: a sample carries
+# at most about 1e18).
+_MOST_LIGHT = 1e18
+
+
+def _bounded_light(color, strength, warnings, what):
+    """strength, lowered (with a warning) where colour x strength exceeds what Spangle takes."""
+    most = max(max(color), 0.0) * strength
+    if most > _MOST_LIGHT:
+        warnings.append(f"{what}: colour x strength {most:.4g} is beyond {_MOST_LIGHT:g}, the "
+                        "brightest light Spangle takes; lowered to it")
+        return strength * _MOST_LIGHT / most
+    return strength
+
+
+def _unit_color(c, warnings, what, label):
+    """A colour input as a reflectance in [0, 1]: components above 1 (Blender allows them; a
+    surface then reflects more light than it receives) are clamped, with a warning."""
+    if not isinstance(c, tuple):
+        return c
+    if any(v > 1.0 for v in c[:3]) or any(v < 0.0 for v in c[:3]):
+        warnings.append(f"{what}: {label} {tuple(round(v, 4) for v in c[:3])} is outside [0, 1] "
+                        "(a surface reflecting more light than it receives); clamped into it")
+        return tuple(min(max(float(v), 0.0), 1.0) for v in c[:3])
+    return c
+
+
 _EXTENSIONS = {"PNG": ".png", "JPEG": ".jpg", "OPEN_EXR": ".exr", "OPEN_EXR_MULTILAYER": ".exr",
                "HDR": ".hdr", "TIFF": ".tif", "TARGA": ".tga", "TARGA_RAW": ".tga", "BMP": ".bmp",
                "WEBP": ".webp"}
@@ -235,7 +270,7 @@ def _image_file(image, warnings=None, what=""):
     """The file an image node reads: its own file when it is there; a packed image's bytes,
     written once to a cache folder under a name from their hash (Cycles renders packed images:
     the render failed on their missing file); None (with a warning) when it has neither."""
-    path = bpy.path.abspath(image.filepath) if image.filepath else ""
+    path = _abspath(image.filepath) if image.filepath else ""
     if path and os.path.isfile(path):
         return path
     packed = getattr(image, "packed_file", None)
@@ -418,6 +453,11 @@ def material_entry(mat, flake_params, warnings):
     flakes = getattr(mat, "spangle_flakes", None)
     if flakes is not None and flakes.enabled:
         params = {}
+        if not flake_params:
+            warnings.append(f"material '{mat.name}': its Spangle Flakes settings are not known "
+                            "(the spangle module was not found when the add-on started; set its "
+                            "Module folder in the add-on's preferences): the flake plugin's "
+                            "defaults stand in")
         for p in flake_params:
             v = getattr(flakes, p["name"])
             # Blender keeps floats in single precision: a value within its rounding of the
@@ -446,7 +486,7 @@ def material_entry(mat, flake_params, warnings):
         # into its PLY files (each mesh's render colour attribute, whichever one the node names).
         base = {"vertex_color": True}
     else:
-        base = _socket_value(base_sock, warnings, what)
+        base = _unit_color(_socket_value(base_sock, warnings, what), warnings, what, "Base Color")
     metallic = _socket_value(_input(node, "Metallic"), warnings, what)
     roughness = _socket_value(_input(node, "Roughness"), warnings, what)
     ior = _socket_value(_input(node, "IOR"), warnings, what) or 1.5
@@ -454,10 +494,14 @@ def material_entry(mat, flake_params, warnings):
     emission = None
     e_color = _socket_value(_input(node, "Emission Color", "Emission"), warnings, what)
     e_strength = _socket_value(_input(node, "Emission Strength"), warnings, what)
+    if isinstance(e_strength, float) and e_strength < 0.0:
+        warnings.append(f"{what}: a negative Emission Strength ({e_strength:g}) is not exported; "
+                        "it emits nothing")
+        e_strength = 0.0
     if isinstance(e_color, tuple) and e_strength and max(e_color) > 0.0:
-        emission = (e_color, float(e_strength))
+        emission = (e_color, _bounded_light(e_color, float(e_strength), warnings, what))
     elif isinstance(e_color, dict) and e_strength:
-        emission = (e_color, float(e_strength))  # an image: the emission's texture
+        emission = (e_color, _bounded_light((1.0, 1.0, 1.0), float(e_strength), warnings, what))
     _dropped_inputs(node, transmission, warnings, what)
     surface = _surface_map(node, warnings, what)
     alpha = _alpha(node, warnings, what)
@@ -640,10 +684,11 @@ def _world_lines(world, warnings):
         strength = float(node.inputs["Strength"].default_value)
         if strength <= 0.0:
             return []
+        strength = _bounded_light((1.0, 1.0, 1.0), strength, warnings, "world")
         if color.is_linked:
             src = color.links[0].from_node
             if src.type == "TEX_ENVIRONMENT" and src.image is not None:
-                path = bpy.path.abspath(src.image.filepath)
+                path = _abspath(src.image.filepath)
                 if src.inputs["Vector"].is_linked:
                     warnings.append("world: the environment texture's mapping is not exported")
                 if src.projection == "EQUIRECTANGULAR" and path and os.path.isfile(path):
@@ -694,6 +739,13 @@ def _light_lines(obj, matrix, warnings):
     color = tuple(c * t * strength for c, t in zip(light.color, tint))
     lines = []
     what = f"light '{obj.name}'"
+    if light.energy < 0.0 or min(color) < 0.0:
+        # Cycles subtracts light where it is negative; Spangle's lights only add.
+        warnings.append(f"{what}: negative power ({light.energy:g}) is not supported; it is left "
+                        "out")
+        return lines
+    if light.energy == 0.0 or max(color) <= 0.0:
+        return lines  # gives no light
     if getattr(light, "use_shadow", True) is False:
         warnings.append(f"{what}: Cast Shadow off is not exported; it casts shadows")
     linking = getattr(obj, "light_linking", None)
@@ -718,13 +770,15 @@ def _light_lines(obj, matrix, warnings):
             lines += ["[[light]]", 'type = "spot"', f"position = {_vec(pos)}",
                       f"look_at = {_vec(pos + axis)}", f"cone_angle = {_fmt(half)}",
                       f"cone_falloff = {_fmt(spot_falloff(half, light.spot_blend))}"]
+        intensity = _bounded_light(color, intensity, warnings, what)
         lines += [f"color = {_vec(color)}", f"intensity = {_fmt(intensity)}"]
     elif light.type == "SUN":
         # A sun's strength (its `energy`) is irradiance in W/m^2.
         direction = matrix.to_3x3() @ mathutils.Vector((0.0, 0.0, 1.0))
         lines += ["[[light]]", 'type = "distant"', f"direction = {_vec(direction)}",
                   f"angular_radius = {_fmt(math.degrees(light.angle) / 2.0)}",
-                  f"color = {_vec(color)}", f"intensity = {_fmt(light.energy)}"]
+                  f"color = {_vec(color)}",
+                  f"intensity = {_fmt(_bounded_light(color, light.energy, warnings, what))}"]
     elif light.type == "AREA":
         sx = light.size
         sy = light.size_y if light.shape in ("RECTANGLE", "ELLIPSE") else light.size
@@ -736,10 +790,15 @@ def _light_lines(obj, matrix, warnings):
         ex = m3 @ mathutils.Vector((sx, 0.0, 0.0))
         ey = m3 @ mathutils.Vector((0.0, sy, 0.0))
         corner = pos - 0.5 * ex - 0.5 * ey
-        area = ex.length * ey.length
+        area = ex.cross(ey).length
+        if not area > 0.0:
+            # Cycles' light of no area gives no light.
+            warnings.append(f"{what}: an area light of no area (size {sx:g} x {sy:g}, after its "
+                            "scale) gives no light; it is left out")
+            return lines
         # Power P of a one-sided Lambertian emitter: radiance P / (pi A). It emits along the
         # light's -Z: edge2 x edge1 order.
-        radiance = light.energy / (math.pi * max(area, 1e-12))
+        radiance = _bounded_light(color, light.energy / (math.pi * area), warnings, what)
         if getattr(light, "spread", math.pi) < math.pi - 1e-4:
             warnings.append(f"{what}: its spread ({math.degrees(light.spread):g} degrees) is not "
                             "exported; it emits into the whole hemisphere")
@@ -793,6 +852,39 @@ def _pixel_filter(scene, warnings):
     return [f'filter = "{name}"', f"filter_radius = {min(8.0, max(0.05, radius)):.6g}"]
 
 
+def _clipping_warning(depsgraph, cam_obj, warnings):
+    """A warning when the camera's clip start or end would cut geometry in Cycles: Spangle's
+    camera does not clip (everything in front of it is seen)."""
+    cam = cam_obj.data
+    m = cam_obj.matrix_world
+    eye = m.translation
+    forward = (m.to_3x3() @ mathutils.Vector((0.0, 0.0, -1.0))).normalized()
+    # Depth along the view for a perspective or orthographic camera; a panorama clips by distance.
+    radial = cam.type == "PANO"
+    near, far = math.inf, -math.inf
+    for inst in depsgraph.object_instances:
+        obj = inst.object
+        if obj.type not in ("MESH", "CURVE", "SURFACE", "META", "FONT"):
+            continue
+        mw = inst.matrix_world
+        for corner in obj.bound_box:
+            v = mw @ mathutils.Vector(corner) - eye
+            d = v.length if radial else v.dot(forward)
+            near, far = min(near, d), max(far, d)
+    if far < 0.0:
+        return
+    cut = []
+    # Blender's default clip start (0.1 m) cuts nothing anyone frames; a larger one is a choice.
+    if cam.clip_start > 0.1 + 1e-6 and near < cam.clip_start:
+        cut.append(f"clip start {cam.clip_start:g} m")
+    if far > cam.clip_end:
+        cut.append(f"clip end {cam.clip_end:g} m")
+    if cut:
+        verb = "are" if len(cut) > 1 else "is"
+        warnings.append(f"camera '{cam_obj.name}': its {' and '.join(cut)} {verb} not exported "
+                        "(Spangle's camera does not clip): geometry Cycles cuts away is seen")
+
+
 def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
     """Writes folder/scene.toml and its meshes; returns the warnings."""
     scene = depsgraph.scene
@@ -828,10 +920,13 @@ def export_scene(depsgraph, folder, size, spp, flake_params, max_depth=5):
         window = (-framed[0] / framed[1], framed[0] / framed[1], -1.0, 1.0)
     if window is not None:
         out.append(f"screen_window = [{', '.join(_fmt(v) for v in window)}]")
+    _clipping_warning(depsgraph, cam_obj, warnings)
     if cam.dof.use_dof and not equirect:
         focus = cam.dof.focus_distance
         if cam.dof.focus_object is not None:
-            focus = (cam.dof.focus_object.matrix_world.translation - eye).dot(forward)
+            # Blender's distance along the view axis, whichever side the object is on (behind
+            # the camera, a negative distance was clamped to 0.1 mm: all of the frame blurred).
+            focus = abs((cam.dof.focus_object.matrix_world.translation - eye).dot(forward))
         out += [f"aperture = {_fmt(cam.lens / 1000.0 / (2.0 * cam.dof.aperture_fstop))}",
                 f"focus_distance = {_fmt(max(focus, 1e-4))}"]
     out.append("")
