@@ -148,11 +148,30 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
  *  (15 of 20 such races left the EXR of one and the PNG of the other). The lock is a hidden file
  *  beside the EXR, removed by its holder; one that cannot be made (a folder we may not write
  *  in is refused elsewhere) leaves the write unlocked. */
+/** The lock files held now, for remove_locks_in_progress() to unlink from a signal handler: a
+ *  few fixed slots (images may be written concurrently), each claimed by one lock. */
+struct HeldLock {
+    std::atomic<bool> claimed{false};
+    std::atomic<bool> set{false};
+    char path[4096];
+};
+HeldLock held_locks[4];
+
 class OutputLock {
 public:
     explicit OutputLock(const std::string& exr) {
         const fs::path p(exr);
         path_ = (p.parent_path() / fmt::format(".{}.lock", p.filename().string())).string();
+        // Known to the signal handler (when a slot is free and the path fits: otherwise the
+        // next render removes a lock left behind).
+        for (HeldLock& h : held_locks)
+            if (path_.size() < sizeof h.path && !h.claimed.exchange(true)) {
+                std::copy(path_.begin(), path_.end(), h.path);
+                h.path[path_.size()] = '\0';
+                h.set.store(true);
+                held_ = &h;
+                break;
+            }
         for (int tries = 0; tries < 1000; ++tries) {
             fd_ = ::open(path_.c_str(), O_RDWR | O_CREAT | O_CLOEXEC, 0644);
             if (fd_ < 0) return;
@@ -173,6 +192,10 @@ public:
         }
     }
     ~OutputLock() {
+        if (held_) {
+            held_->set.store(false);
+            held_->claimed.store(false);
+        }
         if (fd_ < 0) return;
         ::unlink(path_.c_str());
         ::close(fd_);
@@ -183,9 +206,15 @@ public:
 private:
     std::string path_;
     int fd_ = -1;
+    HeldLock* held_ = nullptr;
 };
 
 }  // namespace
+
+void remove_locks_in_progress() noexcept {
+    for (const HeldLock& h : held_locks)
+        if (h.set.load()) ::unlink(h.path);
+}
 
 ImageDescription pass_image(const PassImage& p, const ColorConfig& color, const SceneInfo* info) {
     ImageDescription d;
@@ -199,6 +228,8 @@ ImageDescription pass_image(const PassImage& p, const ColorConfig& color, const 
     d.info = info;
     d.seconds = p.seconds;
     d.window = p.window;
+    d.layers = p.layers;
+    d.layer_names = p.layer_names;
     return d;
 }
 

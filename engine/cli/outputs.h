@@ -43,6 +43,9 @@ struct ImageDescription {
 
 struct RenderResult;
 
+/** Unlinks the output lock files held now (".NAME.lock"); safe in a signal handler. */
+void remove_locks_in_progress() noexcept;
+
 /** The header's note of how a render took its samples (adaptive settings; empty: fixed spp). */
 std::string sampling_note(const RenderStats& st);
 

@@ -6,6 +6,7 @@
 
 #include <csignal>
 
+#include "cli/outputs.h"
 #include "color/image_output.h"
 #include "shading/plugin_call.h"
 
@@ -14,14 +15,6 @@ namespace {
 
 /** The first stop signal that arrived (SIGINT or SIGTERM), 0 before any. */
 volatile std::sig_atomic_t stop_signal = 0;
-
-extern "C" void on_stop_signal(int sig) {
-    if (sig == SIGINT && stop_signal == SIGINT) {
-        remove_image_in_progress();
-        ::_exit(130);
-    }
-    if (stop_signal == 0) stop_signal = sig;
-}
 
 /** write(2) of a C string, ignoring the result (nothing else can be done in a handler). */
 void say(const char* text) {
@@ -33,6 +26,20 @@ void say(const char* text) {
         text += w;
         n -= static_cast<std::size_t>(w);
     }
+}
+
+extern "C" void on_stop_signal(int sig) {
+    if (sig == SIGINT && stop_signal == SIGINT) {
+        // Said (it exited without a word, and the old file at the output's path could be
+        // taken for this render's), and nothing of the write left behind.
+        const bool writing = remove_image_in_progress();
+        remove_locks_in_progress();
+        say(writing ? "\nspangle: stopped at once by a second SIGINT while writing: that image "
+                      "was not written (a file already at its path is an older one)\n"
+                    : "\nspangle: stopped at once by a second SIGINT: nothing more written\n");
+        ::_exit(130);
+    }
+    if (stop_signal == 0) stop_signal = sig;
 }
 
 extern "C" void on_crash(int sig) {
@@ -64,6 +71,7 @@ extern "C" void on_stop_exit(int sig) {
     say(sig == SIGINT ? "spangle: stopped by SIGINT: nothing written\n"
                       : "spangle: stopped by SIGTERM: nothing written\n");
     remove_image_in_progress();
+    remove_locks_in_progress();
     ::_exit(sig == SIGINT ? 130 : 143);
 }
 

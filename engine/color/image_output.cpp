@@ -169,9 +169,11 @@ void write_file_atomically(const std::string& path,
     write_atomically(path, write_file);
 }
 
-void remove_image_in_progress() noexcept {
+bool remove_image_in_progress() noexcept {
+    bool any = false;
     for (const InProgress& s : in_progress)
-        if (s.set.load()) ::unlink(s.path);
+        if (s.set.load()) any = ::unlink(s.path) == 0 || any;
+    return any;
 }
 
 const std::vector<std::string>& sample_sum_channels() {

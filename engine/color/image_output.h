@@ -49,10 +49,10 @@ const std::vector<std::string>& sample_sum_channels();
  *  them, even to one that does not exist yet), else the path itself. */
 std::string output_target(const std::string& path);
 
-/** Removes the temporary file of an image being written, if any. Async-signal-safe: for a
- *  signal handler that exits at once (outputs are written to a temporary file and renamed, so
+/** Removes the temporary file of an image being written, if any (true: one was). Async-signal-safe:
+ * for a signal handler that exits at once (outputs are written to a temporary file and renamed, so
  *  the output itself is never half-written). */
-void remove_image_in_progress() noexcept;
+bool remove_image_in_progress() noexcept;
 
 /** Lets write_file write a temporary file beside `path`, then renames it onto `path`: the
  *  output is whole or absent (an empty result counts as a failure). Throws SpangleError. */

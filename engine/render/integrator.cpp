@@ -326,8 +326,20 @@ uint32_t full_passes(TileRun& run, uint32_t first_sample, RenderResult& out, uin
                 shown[i] =
                     sample_mean(out.sums[i], job.adaptive_film ? job.adaptive_film->count[i / 3]
                                                                : end - first_sample);
+            // The layers so far, finished as at the end (a pass's EXR had the beauty alone:
+            // with --layers premultiplied, its sky black and no alpha or background to restore).
+            // (Only those asked for: adaptive sampling keeps a glints layer of its own.)
+            const bool with_layers = job.layers && options.layers;
+            std::vector<float> layers;
+            if (with_layers) {
+                layers = out.layers;
+                finish_layers(layers, job.layer_film.layout, job.layer_plan, end - first_sample,
+                              job.adaptive_film ? job.adaptive_film->count.data() : nullptr);
+            }
             options.on_pass(PassImage{shown, out.width, out.height, end - first_sample,
-                                      job.spp - first_sample, 1, seconds_since(t0), out.window});
+                                      job.spp - first_sample, 1, seconds_since(t0), out.window,
+                                      with_layers ? &layers : nullptr,
+                                      with_layers ? &out.layer_names : nullptr});
         }
     }
     return reached;

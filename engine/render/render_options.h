@@ -39,6 +39,9 @@ struct PassImage {
     uint32_t block;      ///< 1, or the block side of a preview pass (each block one value)
     double seconds;      ///< render time so far
     ImageWindow window;  ///< where the image lies in the full frame (a crop)
+    /** With the render layers: their channels so far (null: none, or a preview pass). */
+    const std::vector<float>* layers = nullptr;
+    const std::vector<std::string>* layer_names = nullptr;  ///< their names
 };
 
 /** How to render, from the command line; not part of the scene. */

@@ -185,15 +185,14 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
         if (dot(n, ng) < 0.0f) ng = -ng;  // the geometric normal follows the authored normals
         // The lift onto the smooth surface: p raised to each corner's tangent plane where it
         // lies below it, the three raised points blended by the barycentrics.
+        // With n not of unit length: (p - c).n n / |n|^2, one division and no root.
         const Vec3 corner[3] = {p0, p1, p2}, cn[3] = {n0, n1, n2};
         const float bary[3] = {b0, h.b1, h.b2};
         Vec3 lift(0.0f);
         for (int k = 0; k < 3; ++k) {
-            const float cl = length(cn[k]);
-            if (!(cl > 0.0f) || !std::isfinite(cl)) continue;
-            const Vec3 nk = cn[k] / cl;
-            const float below = dot(sp.p - corner[k], nk);
-            if (below < 0.0f) lift = lift - nk * (below * bary[k]);
+            const float below = dot(sp.p - corner[k], cn[k]);
+            const float len2 = dot(cn[k], cn[k]);
+            if (below < 0.0f && len2 > 0.0f) lift = lift - cn[k] * (below * bary[k] / len2);
         }
         if (is_finite(lift)) sp.lift = lift;
     }

@@ -46,8 +46,10 @@ RC=$?
 [ "$(cat early.exr)" = "older" ] || fail "SIGINT before the first pass: the older file changed"
 grep -q "before the first pass ended: no image written" err.txt ||
     fail "SIGINT before the first pass: $(cat err.txt)"
-# A second SIGINT exits at once, without leaving a temporary file.
-"$S" render flake_uvless.toml -o twice.exr --spp 100000 --threads 2 -q --plugin-path "$PLUGINS" &
+# A second SIGINT exits at once, without leaving a temporary file or a lock, and says so (it
+# exited without a word, and the older file at the path could be taken for this render's).
+"$S" render flake_uvless.toml -o twice.exr --spp 100000 --threads 2 -q --plugin-path "$PLUGINS" \
+    2> twice_err.txt &
 PID=$!
 sleep 1
 kill -INT $PID; kill -INT $PID
@@ -55,6 +57,11 @@ wait $PID
 RC=$?
 [ $RC -eq 0 ] || [ $RC -eq 130 ] || fail "second SIGINT: exit status $RC"
 ls -a | grep -q '\.tmp' && fail "second SIGINT: temporary file left behind"
+ls -a | grep -q '\.lock' && fail "second SIGINT: lock file left behind"
+if [ $RC -eq 130 ]; then
+    grep -q "stopped at once by a second SIGINT" twice_err.txt ||
+        fail "second SIGINT: not said: $(cat twice_err.txt)"
+fi
 # A sequence stopped before its last frame is not done: exit status 130 (SIGINT), and the line
 # names the frames left (it exited 0 with frames 3..8 never rendered).
 "$S" render flake_uvless.toml -o seq.####.exr --spp 100000 --threads 2 -q --pass-output \

@@ -91,6 +91,47 @@ std::size_t channel(const std::vector<std::string>& names, const std::string& na
     return static_cast<std::size_t>(it - names.begin());
 }
 
+TEST(Layers, EachPassCarriesTheLayersSoFar) {
+    // Found by a user: with --layers --pass-output, the EXR written after each pass held the
+    // beauty alone (premultiplied: its sky black) with no alpha, background or layers; after a
+    // kill it was what was left. Each pass now carries the layers finished as at the end.
+    test::TempDir dir("layers_passes");
+    { std::ofstream(dir.file("square.toml")) << square_scene(0.0, 0.5); }
+    FrameRequest req;
+    req.scene = dir.file("square.toml");
+    req.ocio_config = test::shipped_ocio();
+    req.log = &test::quiet_log();
+    req.options.layers = true;
+    req.options.background_apart = true;
+    req.options.spp_override = 8;
+    std::vector<std::vector<float>> seen;
+    std::vector<std::string> names;
+    std::vector<uint32_t> spp;
+    req.options.on_pass = [&](const PassImage& p) {
+        if (p.spp == 0) return;  // the preview pass: the beauty only
+        ASSERT_NE(p.layers, nullptr) << "pass at " << p.spp;
+        ASSERT_NE(p.layer_names, nullptr);
+        seen.push_back(*p.layers);
+        names = *p.layer_names;
+        spp.push_back(p.spp);
+    };
+    const FrameResult r = render_frame(req);
+    ASSERT_EQ(spp, (std::vector<uint32_t>{1, 2, 4})) << "passes before the last";
+    EXPECT_EQ(names, r.layer_names);
+    const std::size_t lc = names.size(), a = channel(names, "A"),
+                      bg = channel(names, "background.R");
+    for (const auto& l : seen) {
+        ASSERT_EQ(l.size(), r.layers.size());
+        double alpha = 0.0, back = 0.0;
+        for (std::size_t p = 0; p < l.size() / lc; ++p) {
+            alpha += l[p * lc + a];
+            back += l[p * lc + bg];
+        }
+        EXPECT_GT(alpha, 0.0) << "coverage";
+        EXPECT_GT(back, 0.0) << "the environment kept apart";
+    }
+}
+
 TEST(Layers, LightGroupsAddUpToTheBeautyAndAlphaIsCoverage) {
     test::TempDir dir("layers");
     const FrameResult r = render_square(dir, true);
