@@ -24,6 +24,7 @@
 #include "cli/arguments.h"
 #include "cli/commands.h"
 #include "cli/interior_scene.h"
+#include "cli/usage.h"
 #include "core/error.h"
 #include "core/files.h"
 #include "core/log.h"
@@ -405,6 +406,7 @@ Command add_bench_command(CLI::App& app) {
                     return 0;
                 }
                 if (!a->size.empty()) parse_size(a->size, a->width, a->height);
+                check_plugin_dirs(a->plugin_dirs);
                 return run_bench(*a);
             }};
 }

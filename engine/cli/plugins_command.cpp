@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "cli/commands.h"
+#include "cli/usage.h"
 #include "core/error.h"
 #include "shading/material.h"
 #include "shading/plugin_loader.h"
@@ -21,6 +22,7 @@ namespace {
 
 /** Lists the plugins of the search path (`dirs` first); 1 when one is not usable. */
 int run_plugins(const std::vector<std::string>& dirs) {
+    check_plugin_dirs(dirs);
     PluginLoader loader(plugin_search_path(dirs));
     fmt::print("plugin search path:\n");
     for (const auto& d : loader.search_path()) fmt::print("  {}\n", d);

@@ -316,15 +316,7 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
         usage_error("--pass-output and --no-pass-output: choose one");
     if (!a.denoise_glints.empty() && !a.denoise)
         usage_error("--denoise-glints says how --denoise treats the glints: add --denoise");
-    for (const std::string& dir : a.plugin_dirs) {
-        std::error_code ec;
-        if (!fs::is_directory(dir, ec))
-            usage_error("--plugin-path '{}' is not a folder{}", dir,
-                        dir.find(':') != std::string::npos
-                            ? " (one folder per --plugin-path: repeat the option, or list "
-                              "folders separated by ':' in $SPANGLE_PLUGIN_PATH)"
-                            : "");
-    }
+    check_plugin_dirs(a.plugin_dirs);
     if (!a.spp_range.empty()) {
         if (a.layers)
             usage_error(

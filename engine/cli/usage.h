@@ -6,6 +6,7 @@
 
 #include <string>
 #include <utility>
+#include <vector>
 
 #include "core/error.h"
 
@@ -22,6 +23,10 @@ template <class... Args>
 [[noreturn]] void usage_error(fmt::format_string<Args...> f, Args&&... args) {
     throw UsageError(fmt::format(f, std::forward<Args>(args)...));
 }
+
+/** Throws UsageError unless every `--plugin-path` folder given is a folder (a typo was searched
+ *  silently, the plugins then found elsewhere on the path or not at all). */
+void check_plugin_dirs(const std::vector<std::string>& dirs);
 
 /** Prints an error to stderr: a located message ("file:line:col: error: ...") as it is, any
  *  other one after "spangle: error: ". */

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <unordered_map>
 #include <utility>
 
 #include "color/image_io.h"
@@ -741,6 +742,26 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
                     "it is black and lights nothing (for light all around, use [environment])",
                     scene.lights[i].loc.str()));
         }
+    // Objects of one name: the Cryptomatte (and every tool that picks objects by name) cannot
+    // tell them apart. Said once, with the first pair.
+    {
+        std::unordered_map<std::string, const ObjectDesc*> named;
+        std::size_t shared = 0;
+        std::string first;
+        for (const ObjectDesc& o : scene.objects) {
+            if (o.name.empty()) continue;
+            const auto [it, fresh] = named.emplace(o.name, &o);
+            if (fresh) continue;
+            if (shared++ == 0)
+                first =
+                    fmt::format("'{}' at {} and {}", o.name, it->second->loc.str(), o.loc.str());
+        }
+        if (shared > 0)
+            info.notes.push_back(fmt::format(
+                "{}: {} object{} share{} a name with an earlier one ({}): their Cryptomatte "
+                "mattes are one; give each its own `name` to pick them apart",
+                scene.path, shared, shared == 1 ? "" : "s", shared == 1 ? "s" : "", first));
+    }
     // Nothing to see at all: no objects and no environment (an environment alone is a
     // panorama of it, rendered on purpose).
     if (scene.objects.empty() && !scene.environment)

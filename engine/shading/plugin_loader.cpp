@@ -55,7 +55,19 @@ std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_
         dirs.push_back(
             (fs::path(exe) / ".." / "lib" / "spangle" / "plugins").lexically_normal().string());
     }
-    return dirs;
+    // Each folder once (the first place it takes): `--plugin-path build/plugins` beside the
+    // executable's own was listed twice.
+    std::vector<std::string> once;
+    std::vector<std::string> seen;
+    for (const std::string& d : dirs) {
+        std::error_code ec;
+        fs::path key = fs::weakly_canonical(fs::absolute(d, ec), ec);
+        if (ec) key = fs::path(d).lexically_normal();
+        if (std::find(seen.begin(), seen.end(), key.string()) != seen.end()) continue;
+        seen.push_back(key.string());
+        once.push_back(d);
+    }
+    return once;
 }
 
 namespace {

@@ -259,6 +259,23 @@ TEST(SceneBuilder, ACameraInsideASphereLightIsSaid) {
         << notes_of(d);
 }
 
+TEST(SceneBuilder, ObjectsOfOneNameAreSaid) {
+    // Found by a user: two objects named alike merged into one Cryptomatte matte without a word.
+    SceneDescription d = hand_made_scene();
+    ASSERT_FALSE(d.objects.empty());
+    EXPECT_EQ(notes_of(d).find("share"), std::string::npos) << notes_of(d);
+    d.objects[0].name = "twin";
+    d.objects[0].loc = FileLoc{"hand-made", 3, 1};
+    d.objects.push_back(d.objects[0]);
+    d.objects.back().loc = FileLoc{"hand-made", 9, 1};
+    d.objects.push_back(d.objects[0]);
+    d.objects.back().name = "";  // unnamed ones are named by the reader, not alike
+    EXPECT_NE(notes_of(d).find("hand-made: 1 object shares a name with an earlier one ('twin' at "
+                               "hand-made:3:1 and hand-made:9:1)"),
+              std::string::npos)
+        << notes_of(d);
+}
+
 TEST(SceneBuilder, ErrorsPointWhereTheDescriptionSaysAndAMatrixPlacesAnObject) {
     SceneDescription d = hand_made_scene();
     d.objects[0].material = "gold";
