@@ -8,6 +8,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
+#include <filesystem>
 
 #include <cxxabi.h>
 #include <chrono>
@@ -295,12 +296,30 @@ PYBIND11_MODULE(_spangle, m) {
         .def_property_readonly("height", [](const RenderedImage& i) { return i.result.height; });
 
     py::class_<PySession>(m, "Session", "A live scene to edit and render.")
-        .def(py::init([](std::vector<std::string> plugin_path, const std::string& ocio, int threads,
+        .def(py::init([](const py::object& plugin_path, const std::string& ocio, int threads,
                          bool verbose) {
-                 return std::make_unique<PySession>(std::move(plugin_path), ocio, threads, verbose);
+                 // One folder (a str or os.PathLike) or a list of them; each must be a folder (a
+                 // typo was searched silently, the plugins then found elsewhere or not at all).
+                 std::vector<std::string> dirs;
+                 const py::object fspath = py::module_::import("os").attr("fspath");
+                 if (!plugin_path.is_none()) {
+                     if (py::isinstance<py::str>(plugin_path) ||
+                         py::isinstance<py::bytes>(plugin_path) ||
+                         py::hasattr(plugin_path, "__fspath__"))
+                         dirs.push_back(fspath(plugin_path).cast<std::string>());
+                     else
+                         for (const py::handle item : plugin_path)
+                             dirs.push_back(fspath(item).cast<std::string>());
+                 }
+                 for (const std::string& d : dirs) {
+                     std::error_code ec;
+                     if (!std::filesystem::is_directory(d, ec))
+                         throw SpangleError(fmt::format("plugin_path '{}' is not a folder", d));
+                 }
+                 return std::make_unique<PySession>(std::move(dirs), ocio, threads, verbose);
              }),
-             py::arg("plugin_path") = std::vector<std::string>{}, py::arg("ocio") = "",
-             py::arg("threads") = 0, py::arg("verbose") = false)
+             py::arg("plugin_path") = py::none(), py::arg("ocio") = "", py::arg("threads") = 0,
+             py::arg("verbose") = false)
         .def(
             "load",
             [](PySession& s, const py::object& path_like, double time,

@@ -638,3 +638,15 @@ def test_a_matrix_in_every_shape_the_scene_file_takes(session):
         session.set_transform(name, matrix=[1, 2, 3])
     with pytest.raises(spangle.SceneError, match="last row"):
         session.set_transform(name, matrix=np.ones((4, 4)))
+
+
+def test_plugin_path_takes_one_folder_or_a_list_and_refuses_what_is_not_one(tmp_path):
+    # Found by a user: Session(plugin_path="/dir") was pybind's "incompatible constructor
+    # arguments", and a folder that does not exist was searched silently.
+    assert spangle.Session(plugin_path=str(tmp_path), threads=1) is not None
+    assert spangle.Session(plugin_path=tmp_path, threads=1) is not None
+    assert spangle.Session(plugin_path=[tmp_path, str(tmp_path)], threads=1) is not None
+    with pytest.raises(spangle.SceneError, match="is not a folder"):
+        spangle.Session(plugin_path=[str(tmp_path / "missing")], threads=1)
+    with pytest.raises(spangle.SceneError, match="is not a folder"):
+        spangle.Session(plugin_path=str(tmp_path / "missing"), threads=1)
