@@ -11,5 +11,8 @@ constexpr int kAlphaOrOpaque = 4;
 /** pbrt-v4's float image: its A when the image has one that is not 1 everywhere, else the mean
  *  of its colour channels (a grey image's grey). `channel = "pbrt"` in a scene file. */
 constexpr int kAlphaPbrt = 5;
+/** A number parameter's texture: the luminance of its colour (Blender's colour-to-number
+ *  conversion). `channel = "luminance"` in a scene file. */
+constexpr int kLuminance = 6;
 
 }  // namespace spangle

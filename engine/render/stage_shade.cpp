@@ -213,7 +213,19 @@ const float* const* lookup_textures(const RenderScene& w, Workspace& ws,
         if (t.texture) {
             texture_coordinates(t.ref, b.u.data(), b.v.data(), b.dudx.data(), b.dudy.data(),
                                 b.dvdx.data(), b.dvdy.data(), n, ws.tex_query);
-            w.host->textures().lookup(*t.texture, t.ref, ws.tex_query, n, t.channels, out.data());
+            if (t.picks) {
+                // A number from a colour: its channel or luminance (pick . rgb).
+                ws.map_value.resize(3 * static_cast<std::size_t>(n));
+                w.host->textures().lookup(*t.texture, t.ref, ws.tex_query, n, 3,
+                                          ws.map_value.data());
+                for (uint32_t k = 0; k < n; ++k) {
+                    const float* rgb = &ws.map_value[3 * k];
+                    out[k] = t.pick[0] * rgb[0] + t.pick[1] * rgb[1] + t.pick[2] * rgb[2];
+                }
+            } else {
+                w.host->textures().lookup(*t.texture, t.ref, ws.tex_query, n, t.channels,
+                                          out.data());
+            }
         } else {
             std::fill(out.begin(), out.end(), 1.0f);
         }

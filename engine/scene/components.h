@@ -42,7 +42,8 @@ struct TextureRef {
     float amount = 1;  ///< normal_map: strength; bump_map: height in metres
     float blend = 1;   ///< bump_map: how far the bumped normal replaces the surface's (0..1)
     /** alpha: the channel read, 0 to 3 (R, G, B, A); kAlphaAuto: A when the image has it, else
-     *  its first; kAlphaOrOpaque: A when the image has it, else 1 (glTF's base colour). */
+     *  its first; kAlphaOrOpaque: A when the image has it, else 1 (glTF's base colour). A number
+     *  parameter: 0 to 2, or kLuminance; -1 its first channel. */
     int channel = -1;
     /** Times the mesh's vertex colours (TriangleMesh::colors; 1 where it has none). path is
      *  empty for the colours alone (times scale). */

@@ -51,7 +51,8 @@ struct TextureDesc {
     int filter = 0;                    ///< 0 trilinear, 1 anisotropic, 2 closest
     float amount = 1;                  ///< normal map: strength; bump map: height in metres
     float blend = 1;  ///< bump map: how far the bumped normal replaces the surface's (0..1)
-    /** alpha: the image channel read (TextureRef::channel). */
+    /** alpha: the image channel read; a number parameter: the channel (0 to 2) or kLuminance,
+     *  -1 its first (TextureRef::channel). */
     int channel = -1;
     /** A colour parameter: times the mesh's vertex colours (1 where a mesh has none); path may
      *  then be empty (the colours alone, times scale). */

@@ -172,6 +172,20 @@ TextureDesc read_texture(const ReadContext& ctx, const toml::table& t, std::stri
     }
     if ((use == TextureUse::Param || use == TextureUse::Emission) && r.has("scale"))
         read_texture_scale(ctx, r, tex);
+    if (use == TextureUse::Param && r.has("channel")) {
+        // Which of a colour image's channels a number parameter reads (by default its first).
+        const std::string c = r.string("channel");
+        tex.channel = c == "r"           ? 0
+                      : c == "g"         ? 1
+                      : c == "b"         ? 2
+                      : c == "luminance" ? kLuminance
+                                         : -2;
+        if (tex.channel == -2)
+            throw_error(r.loc("channel"),
+                        "parameter '{}': 'channel' must be one of \"r\", \"g\", \"b\", "
+                        "\"luminance\", got \"{}\"",
+                        name, c);
+    }
     if (use == TextureUse::Alpha) {
         const auto k = static_cast<float>(r.number("scale", 1.0, {0.0, 1e6}));
         tex.scale[0] = tex.scale[1] = tex.scale[2] = k;

@@ -203,9 +203,14 @@ struct Writer {
         std::string s = "{ texture = " + path(t.path);
         if (t.vertex_color) s += ", vertex_color = true";
         if (t.space) s += ", space = " + str(*t.space);
-        if (std::string(use) == "param")
+        if (std::string(use) == "param") {
             s += fmt::format(", scale = [{}, {}, {}]", num(t.scale[0]), num(t.scale[1]),
                              num(t.scale[2]));
+            if (t.channel == kLuminance)
+                s += ", channel = " + str("luminance");
+            else if (t.channel >= 0 && t.channel <= 2)
+                s += ", channel = " + str(std::string(1, "rgb"[t.channel]));
+        }
         if (std::string(use) == "alpha") {
             if (t.scale[0] != 1.0f) s += ", scale = " + num(t.scale[0]);
             // kAlphaOrOpaque (glTF's base colour) is "a": an image without alpha reads 1.

@@ -397,6 +397,31 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
         b.lo = static_cast<float>(d.min_value);
         b.hi = static_cast<float>(d.max_value);
         b.ref = p->texture;
+        // A number read from a colour image's channel or luminance (`channel`).
+        if (b.ref.channel != -1) {
+            if (b.channels != 1)
+                throw_error(p->loc,
+                            "material '{}': parameter '{}' is a colour: 'channel' picks what a "
+                            "number parameter reads of a colour image",
+                            m.name, d.name);
+            b.picks = true;
+            b.pick[0] = b.pick[1] = b.pick[2] = 0.0f;
+            if (b.ref.channel >= 0 && b.ref.channel <= 2) {
+                b.pick[b.ref.channel] = 1.0f;
+            } else {
+                // Luminance: Rec.709's weights for data (numbers, as Blender's scene-linear
+                // space takes them), the working space's for an image converted into it.
+                constexpr float kY[3] = {0.2126f, 0.7152f, 0.0722f};
+                if (b.ref.space == "raw") {
+                    std::copy(std::begin(kY), std::end(kY), b.pick);
+                } else {
+                    Rec709Factor r;
+                    r.init(host.color());
+                    for (int j = 0; j < 3; ++j)
+                        for (int i = 0; i < 3; ++i) b.pick[j] += kY[i] * r.from_working[3 * i + j];
+                }
+            }
+        }
         // Vertex colours alone: create() sees the factor (the colours' average is the meshes').
         float mean[3] = {1, 1, 1};
         if (!b.ref.path.empty()) {
@@ -406,7 +431,9 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
             whole.s[0] = whole.t[0] = 0.5f;
             whole.dsdx[0] = whole.dtdy[0] = 1.0f;
             whole.dtdx[0] = whole.dsdy[0] = 0.0f;
-            host.textures().lookup(*b.texture, TextureRef{}, whole, 1, b.channels, mean);
+            host.textures().lookup(*b.texture, TextureRef{}, whole, 1, b.picks ? 3 : b.channels,
+                                   mean);
+            if (b.picks) mean[0] = b.pick[0] * mean[0] + b.pick[1] * mean[1] + b.pick[2] * mean[2];
         }
         // The factor the plugin sees: `scale`, in the working space; for vertex colours it is
         // linear Rec.709, as they are (stage_shade).

@@ -96,6 +96,10 @@ struct TextureBinding {
      *  taken in linear Rec.709 (`rec709`); else channel by channel. */
     bool rec709_product = false;
     Rec709Factor rec709;
+    /** A number parameter read from a colour image's channel or luminance (ref.channel): the
+     *  value is pick . (r, g, b) of the looked-up colour. */
+    bool picks = false;
+    float pick[3] = {1, 0, 0};
     /** ref.vertex_color: a vertex colour times ref.scale (both linear Rec.709), in the working
      *  space: what multiplies the image's value (1 without an image). */
     Vec3 vertex_factor(Vec3 color) const {

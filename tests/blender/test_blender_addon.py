@@ -906,9 +906,40 @@ def test_metallic_and_roughness_images_are_textures_in_their_own_space(tmp_path)
     depsgraph = bpy.context.evaluated_depsgraph_get()
     export.export_scene(depsgraph, str(tmp_path / "out"), (W, H), 4, flake_parameters())
     toml = (tmp_path / "out" / "scene.toml").read_text()
-    assert "metallic = { texture = " in toml and 'metal.png", space = "raw" }' in toml
-    assert 'rough.png", space = "raw" }' in toml
+    # A colour output into a number input: its luminance, as Blender converts it.
+    assert ("metallic = { texture = " in toml and
+            'metal.png", space = "raw", channel = "luminance" }' in toml)
+    assert 'rough.png", space = "raw", channel = "luminance" }' in toml
     assert 'base.exr", space = "lin_rec709" }' in toml
+
+
+def test_a_colour_image_in_roughness_is_read_by_its_luminance_as_in_cycles(tmp_path):
+    # Found by a user: a red/blue image linked into a metal's Roughness was read by its red
+    # channel (half the squares rough, 7x Cycles' mean); Blender converts a colour to a number
+    # by its luminance. One colour, mostly green so that red and luminance differ: 0.9 red
+    # would be rough, the luminance 0.30 a fairly sharp metal.
+    scene = empty_scene(size=(64, 64), world=(0.5, 0.5, 0.5))
+    img = bpy.data.images.new("rgb", 4, 4, float_buffer=True)
+    img.pixels.foreach_set(np.tile([0.9, 0.1, 0.3, 1.0], 16).astype(np.float32))
+    img.filepath_raw = str(tmp_path / "rgb.exr")
+    img.file_format = "OPEN_EXR"
+    img.save()
+    img.colorspace_settings.name = "Non-Color"
+    bpy.ops.mesh.primitive_plane_add(size=2.0)
+    mat = principled("metal", (0.9, 0.9, 0.9), 0.5, Metallic=1.0)
+    tex = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    mat.node_tree.links.new(tex.outputs["Color"], mat.node_tree.nodes["Principled BSDF"].inputs["Roughness"])
+    bpy.context.active_object.data.materials.append(mat)
+    bpy.ops.object.light_add(type="POINT", location=(0.6, 0.0, 2.0))
+    bpy.context.active_object.data.energy = 200.0
+    bpy.context.active_object.data.shadow_soft_size = 0.0
+    look_down(scene, 4.0, 40.0)
+    ours, theirs = both(scene, tmp_path, "lum", spp=64)
+    # The highlight's peak is where roughness shows: the brightest 8 x 8 block.
+    blocks = lambda a: a[..., :3].mean(axis=2).reshape(8, 8, 8, 8).mean(axis=(1, 3))
+    assert blocks(ours).max() == pytest.approx(blocks(theirs).max(), rel=0.1)
+    assert ours[..., :3].mean() == pytest.approx(theirs[..., :3].mean(), rel=0.05)
 
 
 def test_lens_shift_moves_the_image_and_depth_is_far_on_the_sky(tmp_path):

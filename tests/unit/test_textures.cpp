@@ -395,6 +395,66 @@ params = { preset = "gold", roughness = 0.2 })";
         ASSERT_NEAR(inverted.image[i], t.image[i], 1e-3f * std::max(1.0f, t.image[i])) << i;
 }
 
+TEST(Texture, ANumberParameterReadsAColourImagesChannelOrLuminance) {
+    // Found by a user: a colour image linked into Blender's Roughness is read by its luminance;
+    // Spangle read its first channel (a red/blue checker rendered 7x too rough in half its
+    // squares). `channel` says which: "r", "g", "b" or "luminance" (of a raw image: Rec.709's
+    // weights, as Blender's scene-linear space).
+    test::TempDir dir("texture_channel");
+    const float rgb[3] = {0.9f, 0.1f, 0.3f};
+    const float y = 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2];
+    const auto image = [](float r, float g, float b) {
+        std::vector<float> px(3 * 4 * 4);
+        for (std::size_t i = 0; i < px.size(); i += 3) {
+            px[i] = r;
+            px[i + 1] = g;
+            px[i + 2] = b;
+        }
+        return px;
+    };
+    write_float_exr(dir.file("colour.exr"), image(rgb[0], rgb[1], rgb[2]), 4, 4);
+    write_float_exr(dir.file("lum.exr"), image(y, y, y), 4, 4);
+    write_float_exr(dir.file("green.exr"), image(rgb[1], rgb[1], rgb[1]), 4, 4);
+    write_float_exr(dir.file("red.exr"), image(rgb[0], rgb[0], rgb[0]), 4, 4);
+    const auto metal = [&](const std::string& file, const std::string& channel) {
+        const std::string ch = channel.empty() ? "" : ", channel = \"" + channel + "\"";
+        return render_text(
+            dir, file + channel + ".toml",
+            plane_scene("plugin = \"smooth\"\nmodel = \"conductor\"\n"
+                        "params = { preset = \"silver\", roughness = { texture = \"" +
+                        file + "\", space = \"raw\"" + ch + " } }"));
+    };
+    const auto near = [](const FrameResult& a, const FrameResult& b) {
+        double diff = 0.0, sum = 0.0;
+        for (std::size_t i = 0; i < a.image.size(); ++i) {
+            diff += std::fabs(a.image[i] - b.image[i]);
+            sum += std::fabs(b.image[i]);
+        }
+        return diff / std::max(sum, 1e-9);
+    };
+    const FrameResult lum = metal("colour.exr", "luminance"), grey = metal("lum.exr", "");
+    const FrameResult first = metal("colour.exr", ""), red = metal("red.exr", "");
+    const FrameResult green = metal("colour.exr", "g"), green_grey = metal("green.exr", "");
+    // Textures are kept as half floats: the grey image holds y rounded to half, the colour one
+    // each channel rounded (half's step is 2^-11 of a value: 5e-4).
+    EXPECT_LT(near(lum, grey), 1e-3) << "luminance: the grey image of that value";
+    EXPECT_LT(near(green, green_grey), 1e-4) << "channel g: the green channel";
+    EXPECT_LT(near(first, red), 1e-4) << "no channel: the first, as before";
+    EXPECT_GT(near(lum, first), 0.05) << "the comparisons above can fail";
+    // A colour parameter has no channel to pick.
+    try {
+        render_text(
+            dir, "bad.toml",
+            plane_scene("plugin = \"smooth\"\nmodel = \"diffuse\"\n"
+                        "params = { albedo = { texture = \"colour.exr\", channel = \"g\" } }"));
+        ADD_FAILURE() << "a channel on a colour parameter was accepted";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("parameter 'albedo' is a colour: 'channel' picks"),
+                  std::string::npos)
+            << e.what();
+    }
+}
+
 TEST(Texture, ANormalMapTiltedAwayFromTheViewerStillReflects) {
     // A white diffuse floor in a white furnace, seen at 68 degrees from its normal, under maps
     // tilting the normal 42 degrees towards -u, +u, -v and +v: from one side or another the

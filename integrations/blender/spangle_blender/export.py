@@ -304,6 +304,11 @@ def _socket_value(sock, warnings, what):
                 # The image's own colour space (a Non-Color roughness map is data, a linear
                 # EXR is linear: every texture was tagged sRGB).
                 tex = {"texture": file, "space": _image_space(src.image)}
+                # A colour into a number input (Roughness, Metallic): Blender takes its
+                # luminance (its first channel was read: a red/blue map 7x too rough in half
+                # its squares). A grey image's luminance is its grey.
+                if sock.type == "VALUE" and sock.links[0].from_socket.name == "Color":
+                    tex["channel"] = "luminance"
                 tex.update(_texture_placement(src, warnings, what))
                 return tex
         else:
@@ -603,8 +608,9 @@ def _param_toml(k, v):
         return f"{k} = {{ vertex_color = true }}"
     if isinstance(v, dict):
         space = v.get("space", "srgb_texture")
+        channel = f", channel = {_toml_string(v['channel'])}" if "channel" in v else ""
         return (f'{k} = {{ texture = {_toml_string(v["texture"])}, '
-                f'space = {_toml_string(space)}{_placement_toml(v)} }}')
+                f'space = {_toml_string(space)}{channel}{_placement_toml(v)} }}')
     return f"{k} = {_toml_value(v)}"
 
 
