@@ -41,7 +41,10 @@ struct TileRun {
           options(o),
           win(w),
           total(samples),
-          arena(o.threads > 0 ? o.threads : tbb::this_task_arena::max_concurrency()) {
+          // At most the threads TBB runs at once: more were refused by TBB anyway, with its own
+          // warning printed in the middle of the progress line (--threads 1000).
+          arena(o.threads > 0 ? std::min(o.threads, tbb::this_task_arena::max_concurrency())
+                              : tbb::this_task_arena::max_concurrency()) {
         // The full frame's tile grid: the tiles that meet the window, clipped to it.
         tile_x0 = win.x0 / kTileSize;
         tile_y0 = win.y0 / kTileSize;
