@@ -749,6 +749,9 @@ PYBIND11_MODULE(_spangle, m) {
                     return t;
                 };
                 const std::string path = text(path_in, "image");
+                // Said first: "out.png" gave "the EXR and the PNG preview are the same file".
+                if (path.size() < 4 || path.compare(path.size() - 4, 4, ".exr") != 0)
+                    throw SpangleError(fmt::format("output '{}' must end in .exr", path));
                 std::string png = preview_in.is_none()
                                       ? (path.size() > 4 ? path.substr(0, path.size() - 4) + ".png"
                                                          : std::string())

@@ -208,7 +208,8 @@ def test_write_exr_and_png_whole(session, tmp_path):
     info = subprocess.run(["oiiotool", "--info", "-v", str(out)], capture_output=True, text=True,
                           check=True).stdout
     assert "glints.R" in info and "32 x   32" in info
-    with pytest.raises(spangle.SceneError):
+    # Said as such (it was "the EXR and the PNG preview are the same file").
+    with pytest.raises(spangle.SceneError, match="must end in .exr"):
         session.write(img, str(tmp_path / "flakes.png"))
     with pytest.raises(spangle.SceneError):
         session.write(img, str(tmp_path / "x.exr"), compression="nope")
@@ -650,3 +651,4 @@ def test_plugin_path_takes_one_folder_or_a_list_and_refuses_what_is_not_one(tmp_
         spangle.Session(plugin_path=[str(tmp_path / "missing")], threads=1)
     with pytest.raises(spangle.SceneError, match="is not a folder"):
         spangle.Session(plugin_path=str(tmp_path / "missing"), threads=1)
+
