@@ -17,6 +17,7 @@
 #include "color/exr_header.h"
 #include "color/image_io.h"
 #include "core/error.h"
+#include "core/math.h"
 
 namespace spangle {
 
@@ -99,7 +100,7 @@ Frame read_frame(const std::string& path) {
         in.readPixels(dw.min.y, dw.max.y);
         f.glint.resize(n);
         for (std::size_t i = 0; i < n; ++i)
-            f.glint[i] = 0.2126f * gr[i] + 0.7152f * gg[i] + 0.0722f * gb[i];
+            f.glint[i] = kRec709Y[0] * gr[i] + kRec709Y[1] * gg[i] + kRec709Y[2] * gb[i];
         return f;
     } catch (const SpangleError&) {
         throw;

@@ -69,9 +69,13 @@ inline bool is_finite(Vec3 v) {
 constexpr float max_component(Vec3 v) {
     return std::max(v.x, std::max(v.y, v.z));
 }
-/** Rec.709 luminance weights; used only for heuristics (roulette, light power). */
+/** Luminance weights of linear Rec.709 RGB (the Y row of its RGB to XYZ matrix), in float and
+ *  in double (each the nearest to the decimal weights). */
+inline constexpr float kRec709Y[3] = {0.2126f, 0.7152f, 0.0722f};
+inline constexpr double kRec709YDouble[3] = {0.2126, 0.7152, 0.0722};
+/** Rec.709 luminance; used only for heuristics (roulette, light power). */
 constexpr float luminance(Vec3 c) {
-    return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z;
+    return kRec709Y[0] * c.x + kRec709Y[1] * c.y + kRec709Y[2] * c.z;
 }
 
 /** sRGB's transfer function decoded (IEC 61966-2-1): an encoded value in [0, 1] (8-bit images,

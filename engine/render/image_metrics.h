@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <vector>
 
+#include "core/math.h"
+
 namespace spangle {
 
 /** Summary of an RGB image. */
@@ -19,7 +21,8 @@ struct ImageMetrics {
 };
 
 /** Luminance of linear Rec.709 RGB (the Y row of its RGB to XYZ matrix). */
-inline constexpr std::array<double, 3> kRec709Luma = {0.2126, 0.7152, 0.0722};
+inline constexpr std::array<double, 3> kRec709Luma = {kRec709YDouble[0], kRec709YDouble[1],
+                                                      kRec709YDouble[2]};
 
 /** Measures width x height RGB (luminance by `luma`, the weights of the image's primaries). An
  * outlier is a pixel whose luminance exceeds `ratio` times the median luminance of its 3x3

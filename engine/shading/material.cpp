@@ -411,9 +411,9 @@ std::unique_ptr<MaterialInstance> create_material(PluginLoader& loader, const Ma
             } else {
                 // Luminance: Rec.709's weights for data (numbers, as Blender's scene-linear
                 // space takes them), the working space's for an image converted into it.
-                constexpr float kY[3] = {0.2126f, 0.7152f, 0.0722f};
+                const float* const kY = kRec709Y;
                 if (b.ref.space == "raw") {
-                    std::copy(std::begin(kY), std::end(kY), b.pick);
+                    std::copy(kY, kY + 3, b.pick);
                 } else {
                     Rec709Factor r;
                     r.init(host.color());

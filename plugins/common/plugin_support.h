@@ -11,6 +11,12 @@
 
 namespace spangle::plugin_support {
 
+/** Luminance of linear Rec.709 RGB (the Y row of its RGB to XYZ matrix); the plugins use it to
+ *  steer sampling between lobes and flakes, where any fixed positive weights are correct. */
+inline float rec709_luminance(const float c[3]) {
+    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+}
+
 /** Copies msg into the caller's error buffer (truncated, NUL-terminated). */
 inline void set_error(char* error, uint32_t capacity, const std::string& msg) {
     if (!error || capacity == 0) return;

@@ -144,6 +144,18 @@ bool kept(const Flake& f, float keep) {
     return unit(mix(mix(bu, bv), 0x7417)) < static_cast<double>(keep);
 }
 
+/** Whether the tree enumerates the footprint's flakes outright: it spans more uv tiles than the
+ *  tree's 2 x 2 (a facet's reach widens it: flakes half a tile wide and more) but at most the
+ *  enumeration's 64, and those tiles hold at most 4 x `limit` flakes in all (four cells' worth,
+ *  the tree's own bound). Those are the very flakes the tree would enumerate cell by cell; past
+ *  2 x 2 tiles it gave up and rendered the smooth lobe, in bands along every tile edge. */
+bool sparse_tiles(const FieldParams& field, const Footprint& p, uint32_t limit) {
+    const uint64_t tiles = tiles_of(p).count();
+    return tiles > 4 && tiles <= 64 &&
+           static_cast<double>(root_count(field)) * static_cast<double>(tiles) <=
+               4.0 * static_cast<double>(limit);
+}
+
 bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v3* arena,
                       PointStats& st) {
     thread_local std::vector<CacheEntry> scratch;
@@ -167,8 +179,9 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         batch.add(c.wo, field.alpha, f.s, f.t, m.colors.pick(f.color_u, f.id),
                   &m.film.pick(f.id, m.fresnel), std::min(f.cover, 1.0f), scratch);
     };
-    if (m.tree) {
-        gather_cells(field, p, exact_limit(m.exact_flakes, m.grid, c.wo.z), c.counted, add);
+    const uint32_t limit = m.tree ? exact_limit(m.exact_flakes, m.grid, c.wo.z) : 0;
+    if (m.tree && !sparse_tiles(field, p, limit)) {
+        gather_cells(field, p, limit, c.counted, add);
         if (c.counted.truncated) return false;
         if (view.keep < 1.0f) {
             // The aggregates' counts thinned alike (binomially, monotone in keep).
@@ -186,8 +199,9 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
             cf.n_agg = kept_agg;
         }
     } else {
+        // The enumeration (or the tree's, for a footprint over many tiles of few flakes).
         bool truncated = false;
-        for_each_flake(field, p, m.enumerate_cap, truncated, add);
+        for_each_flake(field, p, m.tree ? 4 * limit : m.enumerate_cap, truncated, add);
         if (truncated) return false;
     }
     flush_entries(c.wo, field.alpha, batch, scratch);

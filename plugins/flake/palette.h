@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "../common/plugin_support.h"
 #include "field.h"
 
 namespace spangle::flake {
@@ -81,8 +82,9 @@ bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3
 
 /** Rec.709 luminance weights (the tables are in the working space; the weights only steer
  *  sampling, so any fixed positive weights are correct). */
+using plugin_support::rec709_luminance;
 inline float luminance(const float c[3]) {
-    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+    return rec709_luminance(c);
 }
 
 }  // namespace spangle::flake

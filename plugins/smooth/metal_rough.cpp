@@ -199,7 +199,7 @@ struct Closure {
 
 /** Rec.709 luminance weights (for sampling probabilities only). */
 float lum(const float c[3]) {
-    return 0.2126f * c[0] + 0.7152f * c[1] + 0.0722f * c[2];
+    return rec709_luminance(c);
 }
 
 /** Component c of a numeric parameter as a float. */

@@ -542,7 +542,7 @@ void conductor_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* 
             float f[3];
             conductor_fresnel(m, c.wo.z, f);
             const float coat = ec * sharp_lobe_weight(m.coat_e.alpha());
-            const float metal = c.coat_t * (0.2126f * f[0] + 0.7152f * f[1] + 0.0722f * f[2]) *
+            const float metal = c.coat_t * rec709_luminance(f) *
                                 sharp_lobe_weight(c.delta != 0.0f ? 0.0f : ms_alpha(c));
             c.p_coat = coat + metal > 0.0f ? std::clamp(coat / (coat + metal), 0.05f, 0.95f) : 0.5f;
         }
@@ -997,7 +997,7 @@ void plastic_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* cl
         c = Closure{};
         c.wo = wo_of(b, i);
         color_at(albedo, i, m.albedo, c.rgb);
-        const float lum = 0.2126f * c.rgb[0] + 0.7152f * c.rgb[1] + 0.0722f * c.rgb[2];
+        const float lum = rec709_luminance(c.rgb);
         c.e_o = plastic_e(m, std::max(c.wo.z, 0.0f));
         const float diffuse = lum * (1.0f - c.e_o);
         // Sample the coat in proportion to the energy it reflects, a sharp coat weighed up

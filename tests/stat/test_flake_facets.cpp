@@ -288,5 +288,52 @@ TEST(FlakeFacets, NoFootprintGainsEnergy) {
         }
 }
 
+TEST(FlakeFacets, FacetsWiderThanHalfATileAreEnumeratedByTheTreeToo) {
+    // Facets 0.5 to 1 uv wide (a few flakes per uv tile, as `density = flake_weight / facet
+    // area` gives for large glitter): a tiny footprint near a tile's edge reaches into more than
+    // the tree's 2 x 2 tiles. The tree enumerates those few flakes as `enumerate` does (it gave
+    // up there and showed the smooth lobe, in bands along every tile edge): the same lobe, bit
+    // for bit, from every footprint.
+    for (double width : {0.5, 0.9, 1.0}) {
+        const double density = 0.9 / (width * width * std::sqrt(3.0) / 2.0);
+        const FlakeParams params = {{"gamma", {4.0}},        {"flake_roughness", {0.3}},
+                                    {"flake_size", {width}}, {"flake_weight", {0.9}},
+                                    {"density", {density}},  {"base_color", {0.1, 0.1, 0.1}},
+                                    {"min_flakes", {5e8}},   {"max_flakes", {1e9}}};
+        auto tree = flake_material(false, params, {{"algorithm", "tree"}});
+        auto all = flake_material(false, params, {{"algorithm", "enumerate"}});
+        int lit = 0;
+        for (uint64_t k = 0; k < 60; ++k) {
+            BsdfHarness::Point pt;
+            // Near a tile's corner for half of them, anywhere for the rest.
+            const double jitter = k % 2 == 0 ? 0.05 : 1.0;
+            pt.u = static_cast<float>(3.0 + jitter * (to_unit_double(hash2(21, 2 * k)) - 0.5));
+            pt.v = static_cast<float>(7.0 + jitter * (to_unit_double(hash2(21, 2 * k + 1)) - 0.5));
+            pt.dudx = pt.dvdy = 1e-3f;
+            const Vec3 wo = dir(0.3f + 0.6f * static_cast<float>(to_unit_double(hash2(22, k))),
+                                static_cast<float>(k));
+            all->prepare(wo, pt);
+            tree->prepare(wo, pt);
+            std::vector<Vec3> wis;
+            for (const auto& s : all->sample(32, k))
+                if (s.flags != 0) wis.push_back(s.wi);
+            wis.push_back(mirror(wo));
+            std::vector<Vec3> f_all, f_tree;
+            std::vector<float> pdf_all, pdf_tree;
+            all->eval(wis, f_all, pdf_all);
+            tree->eval(wis, f_tree, pdf_tree);
+            bool any = false;
+            for (std::size_t i = 0; i < wis.size(); ++i) {
+                EXPECT_EQ(f_tree[i].y, f_all[i].y) << "width " << width << " footprint " << k;
+                EXPECT_EQ(pdf_tree[i], pdf_all[i]) << "width " << width << " footprint " << k;
+                any = any || f_all[i].y > 0.2f;  // brighter than the base: a facet's cone
+            }
+            lit += any ? 1 : 0;
+        }
+        // Not a vacuous comparison: some footprints see a facet's cone.
+        EXPECT_GT(lit, 5) << "width " << width;
+    }
+}
+
 }  // namespace
 }  // namespace spangle::test::flake_facets

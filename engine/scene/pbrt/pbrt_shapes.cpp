@@ -484,8 +484,9 @@ bool sphere_light(Reader& r, const ParamList& p, const Made& made, bool alpha, c
     // A dim emitter (a glowing ball of radiance below 0.5) may look mostly by what its material
     // reflects, which a sphere light does not: it stays an emitting object.
     const Vec3 rgb = e.color.rgb;
-    const double lum = 0.2126 * static_cast<double>(rgb.x) + 0.7152 * static_cast<double>(rgb.y) +
-                       0.0722 * static_cast<double>(rgb.z);
+    const double lum = kRec709YDouble[0] * static_cast<double>(rgb.x) +
+                       kRec709YDouble[1] * static_cast<double>(rgb.y) +
+                       kRec709YDouble[2] * static_cast<double>(rgb.z);
     if (!(e.intensity * lum >= 0.5)) return false;
     LightDesc l;
     l.shape = SphereLightDesc{m.point({0, 0, 0}), radius * s};
