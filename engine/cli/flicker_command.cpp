@@ -39,6 +39,20 @@ int run_flicker(const FlickerArgs& a) {
             "{:.4g}): "
             "nothing to measure; render a flake material with --layers",
             r.threshold);
+    if (r.nonfinite_glints > 0)
+        fmt::print(stderr,
+                   "spangle: warning: {} glint pixels of the frames are not finite (infinity: "
+                   "brighter than a half float's 65504) and are left out of every figure below, "
+                   "which then understate the glints: render the frames with --float\n",
+                   r.nonfinite_glints);
+    // Steps between frames' times within 1% of each other (the times are printed with
+    // enough digits to keep equal steps equal).
+    if (r.step_max > 1.01 * r.step_min && r.step_max > r.step_min + 1e-9)
+        fmt::print(stderr,
+                   "spangle: warning: the frames are not evenly spaced in time (steps from {:.4g} "
+                   "s to {:.4g} s): is a frame missing? A pair across the gap compares frames "
+                   "further apart, and flickers more\n",
+                   r.step_min, r.step_max);
     if (r.blurred > 0)
         fmt::print(
             "{} of the {} frames were rendered with motion blur: their glints are streaks, so "

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <memory>
 #include <string>
@@ -28,6 +29,8 @@
 #include "core/error.h"
 #include "core/math.h"
 #include "render/image_metrics.h"
+
+namespace fs = std::filesystem;
 
 namespace spangle {
 namespace {
@@ -209,8 +212,22 @@ std::vector<float> read_rgb(const std::string& path, Planes& planes) {
     return grey;
 }
 
+/** Adds the image's 'background' layer (the sky seen directly, which --layers and --denoise
+ *  keep apart from the premultiplied RGB) into its RGB: the whole picture, as the preview shows
+ *  it. False when it has no such layer. */
+bool add_background(std::vector<float>& rgb, const Planes& planes) {
+    const std::vector<float> sky = planes.three("background.R", "background.G", "background.B");
+    if (sky.empty()) return false;
+    for (std::size_t i = 0; i < rgb.size() && i < sky.size(); ++i) rgb[i] += sky[i];
+    return true;
+}
+
 /** Measures and prints the image at `path` (against `reference` when not empty). */
 int run_inspect(const std::string& path, const std::string& reference) {
+    for (const std::string& p : {path, reference}) {
+        std::error_code ec;
+        if (!p.empty() && fs::is_directory(p, ec)) throw_error("'{}' is a folder, not an image", p);
+    }
     Planes planes;
     std::vector<float> rgb = read_rgb(path, planes);
     if (rgb.empty()) {
@@ -223,6 +240,9 @@ int run_inspect(const std::string& path, const std::string& reference) {
         print_channels(planes);
         return 0;
     }
+    // Measured whole: RGB alone of a layered render left the sky out of the mean, and its black
+    // sky next to the horizon's faint pixels made fireflies of them.
+    const bool own_sky = add_background(rgb, planes);
     const std::vector<float> glints = planes.three("glints.R", "glints.G", "glints.B");
     const ImageMetrics m = measure_image(rgb, planes.width, planes.height, 10.0, 1e-3,
                                          glints.empty() ? nullptr : &glints, planes.luma);
@@ -240,6 +260,10 @@ int run_inspect(const std::string& path, const std::string& reference) {
                    : std::string());
     for (const std::string& st : planes.state) fmt::print("render: {}\n", st);
     if (planes.decoded) fmt::print("values: sRGB-encoded, decoded to linear for the measures\n");
+    if (own_sky)
+        fmt::print(
+            "measured: RGB plus its 'background' layer (the sky seen directly, kept apart by "
+            "--layers): the whole picture, as its preview shows it\n");
     fmt::print("mean luminance: {:.6g}{}\nnon-finite pixels: {}\nnegative pixels: {}\n",
                m.mean_luminance,
                planes.luma_from_header ? " (weighed by the primaries of its chromaticities)"
@@ -266,31 +290,27 @@ int run_inspect(const std::string& path, const std::string& reference) {
                         planes.height, reference, ref_planes.width, ref_planes.height);
         // One render with --layers (or --denoise) keeps the sky seen directly in its 'background'
         // layer, not in RGB; one without has it in RGB. RGB plus background is the whole picture
-        // (the preview shows it): the one with the layer is measured so, as the other holds it,
-        // and the comparison says so (RGB alone measured the sky, not the noise: a denoised
-        // render read 0.15 against its reference).
-        const std::vector<float> background =
-            planes.three("background.R", "background.G", "background.B");
-        const std::vector<float> ref_background =
-            ref_planes.three("background.R", "background.G", "background.B");
-        if (background.empty() != ref_background.empty()) {
-            // (The measures above are the image as read; from here its RGB holds the sky.)
-            std::vector<float>& into = background.empty() ? ref : rgb;
-            const std::vector<float>& sky = background.empty() ? ref_background : background;
-            for (std::size_t i = 0; i < into.size() && i < sky.size(); ++i) into[i] += sky[i];
+        // (the preview shows it): both are measured so, and where only one had the layer the
+        // comparison says so (RGB alone measured the sky, not the noise: a denoised render read
+        // 0.15 against its reference).
+        const bool ref_sky = add_background(ref, ref_planes);
+        if (own_sky != ref_sky)
             fmt::print(
                 "compared: '{}' as its RGB plus its 'background' layer (the sky seen "
                 "directly), as '{}' holds the sky in its RGB\n",
-                background.empty() ? reference : path, background.empty() ? path : reference);
-        }
+                own_sky ? path : reference, own_sky ? reference : path);
         // Over the pixels finite in both (a NaN made the figure nan); how many were left out.
+        // Which image a left-out pixel was not finite in: a glint stored as infinity (a half
+        // float's overflow) against a finite reference is a difference, not a match.
         std::vector<float> a, b;
-        std::size_t skipped = 0;
+        std::size_t skipped = 0, only_image = 0, only_ref = 0;
         for (std::size_t i = 0; i + 2 < rgb.size(); i += 3) {
-            const bool ok = std::isfinite(rgb[i] + rgb[i + 1] + rgb[i + 2]) &&
-                            std::isfinite(ref[i] + ref[i + 1] + ref[i + 2]);
-            if (!ok) {
+            const bool fine = std::isfinite(rgb[i] + rgb[i + 1] + rgb[i + 2]);
+            const bool ref_fine = std::isfinite(ref[i] + ref[i + 1] + ref[i + 2]);
+            if (!fine || !ref_fine) {
                 ++skipped;
+                only_image += fine ? 0u : (ref_fine ? 1u : 0u);
+                only_ref += ref_fine ? 0u : (fine ? 1u : 0u);
                 continue;
             }
             a.insert(a.end(), rgb.begin() + static_cast<std::ptrdiff_t>(i),
@@ -298,9 +318,19 @@ int run_inspect(const std::string& path, const std::string& reference) {
             b.insert(b.end(), ref.begin() + static_cast<std::ptrdiff_t>(i),
                      ref.begin() + static_cast<std::ptrdiff_t>(i + 3));
         }
-        fmt::print("relMSE against {}: {:.6g}{}\n", reference, relative_mse(a, b),
-                   skipped ? fmt::format(" (over the pixels finite in both; {} left out)", skipped)
-                           : std::string());
+        std::string left_out;
+        if (skipped)
+            left_out = fmt::format(
+                " (over the pixels finite in both; {} left out: {} not finite in the image alone, "
+                "{} in the reference alone, {} in both)",
+                skipped, only_image, only_ref, skipped - only_image - only_ref);
+        fmt::print("relMSE against {}: {:.6g}{}\n", reference, relative_mse(a, b), left_out);
+        if (only_image + only_ref > 0)
+            fmt::print(stderr,
+                       "spangle: warning: {} pixels are finite in one image and not in the other "
+                       "(infinity: a value beyond a half float's 65504, render with --float): "
+                       "the relMSE leaves them out\n",
+                       only_image + only_ref);
     }
     if (!planes.names.empty()) print_channels(planes);
     return 0;

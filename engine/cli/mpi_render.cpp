@@ -18,15 +18,19 @@
 #include <atomic>
 #include <chrono>
 #include <cstdlib>
+#include <cstring>
 #include <mutex>
 #include <thread>
 #include <tuple>
 
 #include "core/error.h"
+#include "core/hash.h"
 #include "pipeline/session.h"
 #include "render/adaptive.h"
 #include "render/integrator.h"
 #include "render/layers/layer_sink.h"
+#include "scene/components.h"
+#include "scene/scene_builder.h"
 
 namespace spangle {
 namespace {
@@ -104,6 +108,78 @@ BandPlan plan_bands(Session& session, const CropWindow& crop, uint32_t band_rows
         throw_error("bands of {} rows of {} pixels are too large to send: lower --band-rows",
                     p.band_px, p.cw);
     return p;
+}
+
+/** What decides a rank's pixels, as hashes that rank 0 compares with every other rank's before a
+ *  band is handed out: the bands of a rank that read other files (a stale copy of the scene on
+ *  one node), other settings (another --spp in an MPMD launch) or another build of a plugin
+ *  were placed into the image without a word. */
+struct RankIdentity {
+    static constexpr int kParts = 5;
+    uint64_t v[kParts] = {};  ///< scene files, time, film settings, render options, plugins
+
+    /** What differs in `other` (rank `r`'s) from this (rank 0's), in words; empty when nothing. */
+    std::string differences(const RankIdentity& other) const {
+        static constexpr const char* kWhat[kParts] = {
+            "the scene's files (the scene, its imports, meshes, textures or maps)",
+            "the scene's time (another frame)",
+            "the image settings (size, spp, seed, depth, filter, clamp or adaptive sampling)",
+            "the render options (--strategy, --layers, --crop, --camera, --env, --spp-range, "
+            "--noise-threshold, --min-spp, --max-spp)",
+            "the material plugins' files (another build of a plugin)"};
+        std::string out;
+        for (int i = 0; i < kParts; ++i)
+            if (v[i] != other.v[i]) out += (out.empty() ? "" : "; ") + std::string(kWhat[i]);
+        return out;
+    }
+};
+
+/** Mixes the bytes of a value of at most 8 bytes into h. */
+template <class T>
+uint64_t mix_value(uint64_t h, const T& x) {
+    static_assert(sizeof(T) <= sizeof(uint64_t));
+    uint64_t bits = 0;
+    std::memcpy(&bits, &x, sizeof(T));
+    return hash2(h, bits);
+}
+
+uint64_t mix_text(uint64_t h, const std::string& s) {
+    h = hash2(h, s.size());
+    for (const char c : s) h = hash2(h, static_cast<unsigned char>(c));
+    return h;
+}
+
+RankIdentity identity_of(Session& session, const BandPlan& plan) {
+    RankIdentity id;
+    const SceneInfo& info = session.info();
+    id.v[0] = info.content_hash;
+    id.v[1] = mix_value(0, info.time);
+    uint64_t film = 0;
+#define SPANGLE_MIX_FIELD(type, name, doc) film = mix_value(film, plan.film.name);
+    SPANGLE_FILM_FIELDS(SPANGLE_MIX_FIELD)
+#undef SPANGLE_MIX_FIELD
+    id.v[2] = film;
+    const RenderOptions& o = session.options();
+    uint64_t opt = 0;
+    for (const uint64_t x :
+         {static_cast<uint64_t>(o.strategy), static_cast<uint64_t>(o.layers),
+          static_cast<uint64_t>(o.background_apart), static_cast<uint64_t>(plan.win.x0),
+          static_cast<uint64_t>(plan.win.y0), static_cast<uint64_t>(plan.win.x1),
+          static_cast<uint64_t>(plan.win.y1), static_cast<uint64_t>(plan.band_px),
+          static_cast<uint64_t>(o.spp_first), static_cast<uint64_t>(o.spp_end),
+          static_cast<uint64_t>(o.min_spp_override), static_cast<uint64_t>(o.max_spp_override),
+          static_cast<uint64_t>(o.footprints_always), static_cast<uint64_t>(plan.lc)})
+        opt = hash2(opt, x);
+    opt = mix_value(opt, o.noise_threshold_override);
+    opt = mix_text(opt, o.camera);
+    opt = mix_text(opt, o.environment);
+    for (const std::string& n : plan.layer_names) opt = mix_text(opt, n);
+    id.v[3] = opt;
+    uint64_t plugins = 0;
+    for (const std::string& f : session.plugins().opened_files())
+        plugins = hash2(plugins, file_content_hash(f));
+    id.v[4] = plugins;
+    return id;
 }
 
 /** Renders band `unit` on this rank: its pixels (RGB rows, then layer rows) and its report. */
@@ -399,6 +475,27 @@ bool MpiJob::render(Session& session, const CropWindow& crop, uint32_t band_rows
         }
     } catch (const std::exception& e) {
         setup_error = e.what();
+    }
+    // Every rank's identity against rank 0's (collective: every rank takes part, a failed
+    // plan's identity is never compared).
+    RankIdentity mine;
+    if (setup_error.empty()) {
+        try {
+            mine = identity_of(session, plan);
+        } catch (const std::exception& e) {
+            setup_error = e.what();
+        }
+    }
+    RankIdentity first = mine;
+    MPI_Bcast(first.v, RankIdentity::kParts, MPI_UINT64_T, 0, MPI_COMM_WORLD);
+    if (setup_error.empty() && rank_ != 0) {
+        const std::string differs = first.differences(mine);
+        if (!differs.empty())
+            setup_error = fmt::format(
+                "it differs from rank 0 in {}: every rank must render the same scene with the "
+                "same files, options and plugins (a node with a stale copy, or other options in "
+                "an MPMD launch, would put its own bands into the image)",
+                differs);
     }
     const std::vector<int> failed = failed_ranks(setup_error.empty());
     if (!failed.empty()) {

@@ -134,7 +134,13 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
         o.metadata.emplace_back("spangle:spp_range",
                                 fmt::format("{}..{}", out.spp_first, out.spp_first + d.spp));
         o.metadata.emplace_back("spangle:spp_frame", std::to_string(d.spp_frame));
+    } else if (out.spp_end > 0) {
+        // A pass image of a --spp-range render (--pass-output): samples of the range, without
+        // the sums; it was labelled a render of the frame's first samples, which merge took.
+        o.metadata.emplace_back("spangle:spp_range",
+                                fmt::format("{}..{}", out.spp_first, out.spp_first + d.spp));
     }
+    if (!out.strategy.empty()) o.metadata.emplace_back("spangle:strategy", out.strategy);
     if (d.seconds >= 0.0) o.floats.emplace_back("renderTimeSeconds", static_cast<float>(d.seconds));
     if (d.info) add_scene_attributes(o, d, frame_w, frame_h);
     if (o.layers) add_layer_attributes(o, d);
@@ -430,6 +436,7 @@ Outputs outputs_for(const RenderArgs& a) {
     out.display = a.display;
     out.view = a.view;
     if (!a.spp_range.empty()) parse_spp_range(a.spp_range, out.spp_first, out.spp_end);
+    if (a.strategy != "mis") out.strategy = a.strategy;
     return out;
 }
 

@@ -94,6 +94,9 @@ struct Outputs {
     uint32_t spp_first = 0, spp_end = 0;  ///< --spp-range (spp_end 0: none)
     ExrOptions exr_options;               ///< half or float, compression
     std::string scene;                    ///< the scene file, named in the header
+    /** The light transport estimator when it is not MIS (--strategy nee or bsdf), named in the
+     *  header: spangle merge refuses parts of different estimators. Empty: MIS. */
+    std::string strategy;
 
     /** Writes the image and its preview, each atomically (the PNG on another thread). A partial
      *  image says so in the header, with how far it got. Returns how many values the half-float

@@ -12,6 +12,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <limits>
 #include <utility>
 
 #include "color/exr_header.h"
@@ -297,6 +298,19 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
             frames = std::move(sorted);
         }
     }
+    if (frames.size() > 2 &&
+        std::all_of(frames.begin(), frames.end(), [](const Frame& f) { return !f.time.empty(); })) {
+        rep.step_min = std::numeric_limits<double>::infinity();
+        for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
+            const double step = std::strtod(frames[k + 1].time.c_str(), nullptr) -
+                                std::strtod(frames[k].time.c_str(), nullptr);
+            rep.step_min = std::min(rep.step_min, step);
+            rep.step_max = std::max(rep.step_max, step);
+        }
+    }
+    for (const Frame& f : frames)
+        for (std::size_t i = 0; i < f.glint.size() && i < f.a.size(); ++i)
+            rep.nonfinite_glints += f.a[i] > 0.999f && !std::isfinite(f.glint[i]) ? 1u : 0u;
     rep.blurred = std::count_if(frames.begin(), frames.end(),
                                 [](const Frame& f) { return !f.shutter.empty(); });
     rep.threshold = threshold > 0.0 ? threshold : default_threshold(frames);

@@ -26,6 +26,12 @@ struct FlickerReport {
     bool by_rest = false;     ///< and a deforming object's by its rest position (spangle:restPose)
     bool reordered = false;   ///< the frames were not given in time order: sorted
     std::size_t blurred = 0;  ///< frames rendered with motion blur (spangle:shutter)
+    /** Pixels wholly on a surface whose glint luminance is not finite (a half float's infinity:
+     *  a glint brighter than 65504), over all frames: left out of every figure. */
+    uint64_t nonfinite_glints = 0;
+    /** The shortest and longest step between consecutive frames' times (seconds; both 0 where
+     *  a frame has no spangle:time): unequal steps mean a frame is missing. */
+    double step_min = 0, step_max = 0;
 };
 
 /** Reads the frames (EXRs with P.X/Y/Z, Z, A and glints.R/G/B layers and worldToNDC, and

@@ -90,6 +90,15 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
             "parts do not merge into the denoised whole; merge parts rendered without --denoise, "
             "or render the whole frame with --denoise (MPI denoises the assembled image)",
             path);
+    const auto strategy = [](const Imf::Header& h) {
+        const std::string s = string_attribute(h, "spangle:strategy");
+        return s.empty() ? std::string("mis") : s;
+    };
+    if (strategy(hd) != strategy(first))
+        throw_error(
+            "'{}' was rendered with --strategy {}, '{}' with {}: parts of one render merge "
+            "(another estimator has other noise in every pixel)",
+            path, strategy(hd), first_path, strategy(first));
     if (differ("spangle:sceneHash"))
         throw_error(
             "'{}' and '{}' were rendered from different scenes (or the scene's files changed "
@@ -162,12 +171,16 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
             if (std::sscanf(range.c_str(), "%" SCNu64 "..%" SCNu64, &a, &b) != 2 || !(a < b))
                 throw_error("'{}': its sample range '{}' is not A..B", path, range);
             const Imath::Box2i dw = hd.dataWindow();
+            for (const std::string& n : sum_names)
+                if (!hd.channels().findChannel(n))
+                    throw_error(
+                        "'{}' lacks the exact sums (channel {}): a pass image (--pass-output) of "
+                        "a --spp-range render, or a part saved by another program; merge the "
+                        "parts the renders wrote at their end",
+                        path, n);
             if (!first) {
                 first = std::make_unique<Imf::Header>(hd);
                 chans = channels_of(hd);
-                for (const std::string& n : sum_names)
-                    if (!hd.channels().findChannel(n))
-                        throw_error("'{}' lacks the exact sums (channel {})", path, n);
                 spp_frame =
                     std::strtoull(string_attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10);
                 pw = static_cast<std::size_t>(dw.max.x - dw.min.x + 1);

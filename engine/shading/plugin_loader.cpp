@@ -379,6 +379,12 @@ std::vector<std::string> PluginLoader::discover() const {
     return found;
 }
 
+std::vector<std::string> PluginLoader::opened_files() const {
+    std::vector<std::string> files;
+    for (const auto& [name, plugin] : cache_) files.push_back(plugin->path());
+    return files;
+}
+
 std::vector<std::string> PluginLoader::opened() const {
     std::vector<std::string> names;
     for (const auto& [name, plugin] : cache_) names.push_back(name);

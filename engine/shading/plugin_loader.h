@@ -71,6 +71,8 @@ public:
     const std::vector<std::string>& search_path() const { return dirs_; }
     /** Names of plugins opened so far, for --stats. */
     std::vector<std::string> opened() const;
+    /** The files of the plugins opened so far, in the order of their names. */
+    std::vector<std::string> opened_files() const;
 
 private:
     /** open_file() of a private copy of `path` (named as `path` in messages and by the plugin). */

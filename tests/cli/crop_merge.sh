@@ -44,4 +44,20 @@ grep -q "samples 0..2 of the frame's 6 are in no part (render them with --spp-ra
 "$S" render "$SCENE" -o "$T/bad.exr" --spp 6 --spp-range 4..9 2> "$T/err.txt" && fail "a range beyond the frame's samples rendered"
 grep -q "sample range 4..9 is not inside the frame's 6 samples per pixel" "$T/err.txt" || fail "no reason for the bad range"
 "$S" render "$SCENE" -o "$T/bad.exr" --spp-range 4..4 2> "$T/err.txt"; [ $? -eq 2 ] || fail "an empty range is not a usage error"
+# Parts of another estimator (--strategy) have other noise in every pixel: refused.
+"$S" render "$SCENE" -o "$T/nee.exr" --size 90x50 --spp 6 -q --no-preview --crop 10,5,70,45 --spp-range 2..6 --strategy nee 2> "$T/err.txt" || fail "samples 2..6, nee"
+"$S" merge "$T/s0.exr" "$T/nee.exr" -o "$T/mixed.exr" 2> "$T/err.txt" && fail "parts of MIS and NEE merged"
+grep -q "was rendered with --strategy nee, .* with mis" "$T/err.txt" || fail "the differing strategy is not named"
+[ ! -e "$T/mixed.exr" ] || fail "parts of different estimators were merged"
+# A pass image (--pass-output) of a range render holds samples of its range, without the sums:
+# it says so and merge refuses it (it read as a render of the frame's first samples).
+"$S" render "$SCENE" -o "$T/pass.exr" --size 90x50 --spp 65536 --no-preview --pass-output --spp-range 32..65536 > /dev/null 2> "$T/err.txt" &
+job=$!
+for _ in $(seq 1 400); do [ -e "$T/pass.exr" ] && break; sleep 0.05; done
+kill -9 "$job" 2> /dev/null; wait "$job" 2> /dev/null
+[ -e "$T/pass.exr" ] || fail "no pass image in 20 s"
+iinfo -v "$T/pass.exr" | grep -Eq 'spangle:spp_range: "32\.\.[0-9]+"' ||
+    fail "a range render's pass image does not name its samples: $(iinfo -v "$T/pass.exr" | grep spangle)"
+"$S" merge "$T/pass.exr" -o "$T/passm.exr" 2> "$T/err.txt" && fail "a pass image of a range render was merged"
+grep -q "lacks the exact sums .*a pass image (--pass-output) of a --spp-range render" "$T/err.txt" || fail "no reason for refusing the pass image"
 echo "crop_merge: OK"

@@ -38,4 +38,19 @@ PY
 oiiotool --pattern constant:color=nan,nan,nan 4x4 3 whole.exr --ch R,G,B --paste +0+0 -o nan.exr
 "$S" inspect nan.exr --against whole.exr > out.txt 2>&1 || fail "NaN: $(cat out.txt)"
 grep -q "relMSE against whole.exr: [0-9].*16 left out" out.txt || fail "NaN relMSE: $(cat out.txt)"
+# A layered render keeps the sky seen directly in its 'background' layer: inspect measures RGB
+# plus that layer, the whole picture, as the same render without layers holds it (RGB alone left
+# the sky out of the mean and made fireflies of the faint pixels at the horizon).
+"$S" render "$SCENES/small_lit.toml" -o plain.exr --size 48x32 --spp 4 -q --threads 2 --float \
+    --plugin-path "$PLUGINS" || fail "render"
+"$S" render "$SCENES/small_lit.toml" -o layered.exr --size 48x32 --spp 4 -q --threads 2 --float \
+    --layers --plugin-path "$PLUGINS" || fail "render --layers"
+"$S" inspect plain.exr > plain.txt || fail "inspect plain.exr"
+"$S" inspect layered.exr > layered.txt || fail "inspect layered.exr"
+grep -q "^measured: RGB plus its 'background' layer" layered.txt || fail "no word of the sky: $(cat layered.txt)"
+[ "$(grep '^mean luminance' plain.txt | cut -c1-22)" = "$(grep '^mean luminance' layered.txt | cut -c1-22)" ] ||
+    fail "the layered render's mean is not the plain one's: $(grep '^mean' plain.txt layered.txt)"
+# A folder is not an image.
+"$S" inspect . > out.txt 2>&1 && fail "inspect of a folder succeeded"
+grep -q "is a folder, not an image" out.txt || fail "no reason for the folder: $(cat out.txt)"
 echo ok

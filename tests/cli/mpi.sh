@@ -62,6 +62,28 @@ for f in 0 1 2; do same "$T/f1.$f.exr" "$T/f2.$f.exr" "frame $f"; done
 "${MPI[@]}" "$S" render "$SCENES/textured.toml" --watch > "$T/err.txt" 2>&1 && fail "--watch ran under MPI"
 grep -q "are for one process" "$T/err.txt" || fail "--watch under MPI is not refused with a reason"
 
+# Ranks that would render other pixels (another copy of the scene on one node, other options in
+# an MPMD launch, another build of a plugin) are refused before any band, naming what differs.
+MPMD=("${MPI[@]:0:1}" "${MPI[@]:3}")  # the launcher's options without -np 2
+mkdir -p "$T/nodeA" "$T/nodeB"
+sed "s#mesh = \"#mesh = \"$SCENES/#" "$SCENES/small_lit.toml" > "$T/nodeA/s.toml"
+sed 's/intensity = \([0-9.]*\)/intensity = 2\1/' "$T/nodeA/s.toml" > "$T/nodeB/s.toml"
+cmp -s "$T/nodeA/s.toml" "$T/nodeB/s.toml" && fail "the test's second scene is not another scene"
+"${MPMD[@]}" -np 1 -wdir "$T/nodeA" "$S" render s.toml -o "$T/mixed.exr" -q : \
+    -np 1 -wdir "$T/nodeB" "$S" render s.toml -o "$T/mixed.exr" -q > "$T/err.txt" 2>&1 &&
+    fail "ranks reading different scene files rendered one image"
+grep -q "rank 1 .*differs from rank 0 in the scene's files" "$T/err.txt" || fail "the differing scene is not named"
+[ ! -e "$T/mixed.exr" ] || fail "an image was written from ranks of different scenes"
+"${MPMD[@]}" -np 1 "$S" render "$T/nodeA/s.toml" --spp 4 -o "$T/mixed.exr" -q : \
+    -np 1 "$S" render "$T/nodeA/s.toml" --spp 8 -o "$T/mixed.exr" -q > "$T/err.txt" 2>&1 &&
+    fail "ranks of different --spp rendered one image"
+grep -q "differs from rank 0 in the image settings" "$T/err.txt" || fail "the differing spp is not named"
+"${MPMD[@]}" -np 1 "$S" render "$T/nodeA/s.toml" --spp 4 -o "$T/mixed.exr" -q : \
+    -np 1 "$S" render "$T/nodeA/s.toml" --spp 4 --strategy nee -o "$T/mixed.exr" -q > "$T/err.txt" 2>&1 &&
+    fail "ranks of different --strategy rendered one image"
+grep -q "differs from rank 0 in the render options" "$T/err.txt" || fail "the differing strategy is not named"
+[ ! -e "$T/mixed.exr" ] || fail "an image was written from ranks of different settings"
+
 # A rank killed mid-render (a render that would take minutes): the launcher ends the job and
 # names the rank; no image is written.
 "${MPI[@]}" "$S" render "$SCENES/textured.toml" --spp 100000 -o "$T/killed.exr" -q > "$T/err.txt" 2>&1 &

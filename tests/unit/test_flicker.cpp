@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 
 #include "color/flicker.h"
 #include "color/image_output.h"
@@ -19,7 +20,8 @@ namespace {
  *  object moved `shift` pixels to the right of its own space (shift / 32 in x): a sparkle stays
  *  on its object-space point. `objects`: write the Pobj and object layers and the placements. */
 void write_frame(const std::string& path, uint64_t seed, int shift = 0, bool objects = false,
-                 const std::string& scene = "", const std::string& time = "") {
+                 const std::string& scene = "", const std::string& time = "",
+                 float sparkle_value = 5.0f) {
     constexpr int kN = 32;
     std::vector<std::string> names = {"A",   "Z",        "P.X",      "P.Y",
                                       "P.Z", "glints.R", "glints.G", "glints.B"};
@@ -35,7 +37,7 @@ void write_frame(const std::string& path, uint64_t seed, int shift = 0, bool obj
             const int ox = x - shift;  // the object-space column
             const bool sparkle =
                 to_unit_float(hash2(seed, static_cast<uint64_t>(y * kN + ox + kN))) < 0.05f;
-            v[5] = v[6] = v[7] = sparkle ? 5.0f : 0.1f;
+            v[5] = v[6] = v[7] = sparkle ? sparkle_value : 0.1f;
             if (objects) {
                 v[8] = (static_cast<float>(ox) + 0.5f) / kN;
                 v[9] = v[3];
@@ -104,6 +106,31 @@ TEST(Flicker, FixedSparklesPersistAndMovedOnesFlicker) {
     EXPECT_EQ(shuffled.mask_persistence, in_order.mask_persistence);
     EXPECT_EQ(shuffled.mask_flicker, in_order.mask_flicker);
     EXPECT_EQ(in_order.blurred, 0u);
+}
+
+TEST(Flicker, GlintsStoredAsInfinityAndAMissingFrameAreSaid) {
+    // Glints brighter than a half float holds were stored as infinity: every figure left them
+    // out without a word (persistence read 0). The report counts them (the command warns).
+    test::TempDir dir("flicker_said");
+    const float inf = std::numeric_limits<float>::infinity();
+    write_frame(dir.file("h1.exr"), 1, 0, false, "turn.toml", "0", inf);
+    write_frame(dir.file("h2.exr"), 1, 0, false, "turn.toml", "0.0416667", inf);
+    write_frame(dir.file("f1.exr"), 1, 0, false, "turn.toml", "0");
+    write_frame(dir.file("f2.exr"), 1, 0, false, "turn.toml", "0.0416667");
+    write_frame(dir.file("f3.exr"), 1, 0, false, "turn.toml", "0.0833333");
+    write_frame(dir.file("f5.exr"), 1, 0, false, "turn.toml", "0.166667");
+    const FlickerReport hot = measure_flicker({dir.file("h1.exr"), dir.file("h2.exr")}, 1.0);
+    EXPECT_GT(hot.nonfinite_glints, 2u * 20u);  // 5% of 1024 pixels per frame are sparkles
+    EXPECT_EQ(measure_flicker({dir.file("f1.exr"), dir.file("f2.exr")}, 1.0).nonfinite_glints, 0u);
+    // Frames 1, 2, 3 step evenly; 1, 2, 3, 5 miss frame 4: the steps say so.
+    const FlickerReport even =
+        measure_flicker({dir.file("f1.exr"), dir.file("f2.exr"), dir.file("f3.exr")}, 1.0);
+    EXPECT_LE(even.step_max, 1.01 * even.step_min);
+    EXPECT_GT(even.step_min, 0.04);
+    const FlickerReport gap = measure_flicker(
+        {dir.file("f1.exr"), dir.file("f2.exr"), dir.file("f3.exr"), dir.file("f5.exr")}, 1.0);
+    EXPECT_NEAR(gap.step_min, 0.0416667, 1e-5);
+    EXPECT_NEAR(gap.step_max, 0.0833333, 1e-5);
 }
 
 TEST(Flicker, FramesRenderedWithMotionBlurAreCounted) {
