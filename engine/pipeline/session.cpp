@@ -18,6 +18,8 @@
 #include "scene/scene_loader.h"
 #include "shading/plugin_loader.h"
 
+namespace fs = std::filesystem;
+
 namespace spangle {
 namespace {
 
@@ -117,6 +119,18 @@ std::vector<std::string> Session::watched_files() const {
             for (const auto& [path, read] : files) all.insert(path);
     if (color_) all.insert(color_->path());
     return {all.begin(), all.end()};
+}
+
+bool Session::holds_what_was_read(const std::string& path) const {
+    for (const auto& [p, read] : file_hashes_) {
+        std::error_code ec;
+        if (p != path && !fs::equivalent(p, path, ec)) continue;
+        // An identity cleared at the load: the file changed while it was read. A file beyond
+        // what the hash reads whole (its size alone) may have changed within its size.
+        if (read.first.empty() || fs::file_size(p, ec) > kContentHashedBytes || ec) return false;
+        return file_content_hash(p) == read.second;
+    }
+    return false;
 }
 
 ReloadReport Session::load(const std::string& scene, double time) {

@@ -83,6 +83,10 @@ public:
     /** Every file the live scene was built from: the scene, meshes, cages, environment maps,
      *  textures, the OCIO config and the plugin libraries it opened. */
     std::vector<std::string> watched_files() const;
+    /** Whether `path` is a file the live scene's systems read (a mesh, a texture, a plugin) and
+     *  holds the bytes it held then: a touch, or a save of the same bytes. False for a file not
+     *  read, changed since, or larger than file_content_hash() reads whole. */
+    bool holds_what_was_read(const std::string& path) const;
 
 private:
     /** The live scene as the path tracer reads it. */

@@ -121,4 +121,19 @@ finished 1
 [ "$(grep -c '^reload' log.txt)" -eq 1 ] || fail "the render was reloaded"
 stop
 fresh s4.toml "a render that a touch left alone"
+
+# 5. The same for the files the scene reads: a mesh touched, and saved again with its own bytes
+# (a bad save put back), during a long render (each restarted it from its first sample).
+start s4.toml --no-pass-output
+sleep 0.8
+touch quad.obj
+for _ in $(seq 1 50); do grep -q "its render goes on" log.txt && break; sleep 0.1; done
+grep -q "reload (quad.obj): the same bytes as the render read them: its render goes on" log.txt ||
+    fail "a touched mesh was not let be"
+cp quad.obj quad.keep && cp quad.keep quad.obj
+finished 1
+[ "$(grep -c '^loaded' log.txt)" -eq 1 ] && ! grep -q "changed:" log.txt ||
+    fail "a mesh of the same bytes reloaded the render"
+stop
+fresh s4.toml "a render that a touched mesh left alone"
 echo PASS

@@ -359,26 +359,35 @@ bool WatchLoop::render_goes_on(const std::vector<std::string>& touched) {
     std::vector<std::string> described = info.files;
     described.push_back(info.path);
     described.push_back(a_.scene);
+    bool scene_files = false;
     for (const std::string& t : touched) {
         bool scene_file = false;
         for (const std::string& d : described) scene_file = scene_file || same_file(t, d);
-        if (!scene_file) return false;  // a mesh, a texture, a map: reload
+        scene_files = scene_files || scene_file;
+        // A mesh, a texture, a map or a plugin saved with other bytes: reload. With the same
+        // bytes (a touch, a bad save put back) it restarted the render all the same.
+        if (!scene_file && !session_.holds_what_was_read(t)) return false;
     }
     const std::string what = touched_names(touched);
     std::map<std::string, std::string> before;
     for (const std::string& f : files_to_watch()) before[f] = file_identity(f);
-    try {
-        const SceneDescription d = read_scene(
-            a_.scene,
-            SceneReadOptions{a_.camera, a_.environment, false, !a_.size.empty(), a_.texture_cache});
-        if (scene_content_hash(d.path, d.files) != info.scene_files_hash) return false;
-        say(fmt::format("reload ({}): the same as the scene being rendered: its render goes on",
+    if (!scene_files) {
+        say(fmt::format("reload ({}): the same bytes as the render read them: its render goes on",
                         what));
-    } catch (const SpangleError& e) {
-        report_error(e.what());
-        say("reload failed; the last good scene's render goes on");
-        last_load_failed_ = true;  // retried when a file it lacks appears
-        last_error_ = e.what();
+    } else {
+        try {
+            const SceneDescription d =
+                read_scene(a_.scene, SceneReadOptions{a_.camera, a_.environment, false,
+                                                      !a_.size.empty(), a_.texture_cache});
+            if (scene_content_hash(d.path, d.files) != info.scene_files_hash) return false;
+            say(fmt::format("reload ({}): the same as the scene being rendered: its render goes on",
+                            what));
+        } catch (const SpangleError& e) {
+            report_error(e.what());
+            say("reload failed; the last good scene's render goes on");
+            last_load_failed_ = true;  // retried when a file it lacks appears
+            last_error_ = e.what();
+        }
     }
     for (const auto& [f, id] : before) {
         baseline_[f] = id;
