@@ -136,4 +136,21 @@ finished 1
     fail "a mesh of the same bytes reloaded the render"
 stop
 fresh s4.toml "a render that a touched mesh left alone"
+
+# 6. The output's folder removed while it renders: the finished image is not claimed written,
+# nor at the stop; a save once the folder is back renders and writes it.
+mkdir -p od
+"$S" render s4.toml -o od/out.exr --watch --threads 1 --texture-cache "$T/cache" > log.txt 2>&1 &
+PID=$!
+sleep 0.5
+rm -rf od
+finished 1
+grep -q "could not write od/out.exr" log.txt || fail "the unwritten image was not said"
+grep -q "^wrote od/out.exr" log.txt && fail "an image not written was claimed written"
+mkdir od
+touch s4.toml
+finished 2
+grep -q "^wrote od/out.exr (128 spp)" log.txt || fail "a save did not render the unwritten image again"
+[ -e od/out.exr ] || fail "no image once the folder was back"
+stop
 echo PASS

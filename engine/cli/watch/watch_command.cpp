@@ -59,7 +59,9 @@ private:
     void report_error(const std::string& message);
     /** A pass was written: the pending reload line goes out at the first full pass (with the
      *  preview pass's time when there was one). */
-    void announce(uint32_t spp, uint32_t block);
+    /** Says the reload line with the pass just done; `written`: whether its image reached the
+     *  disk (a failed write was reported, and the line says "rendered" instead). */
+    void announce(uint32_t spp, uint32_t block, bool written = true);
     /** A change (or a stop signal) interrupted the render before its first pass: the line goes
      *  out as it stands, ending with `why`. */
     void flush_unannounced(const char* why = "interrupted by the next change");
@@ -151,17 +153,18 @@ void WatchLoop::report_error(const std::string& message) {
     if (server_) server_->log("error", message);
 }
 
-void WatchLoop::announce(uint32_t spp, uint32_t block) {
+void WatchLoop::announce(uint32_t spp, uint32_t block, bool written) {
     std::lock_guard<std::mutex> lock(mutex_);
     if (pending_line_.empty()) return;
     const double s =
         std::chrono::duration<double>(std::chrono::steady_clock::now() - changed_at_).count();
+    const char* done = written ? "written" : "rendered (not written: see the error)";
     if (spp == 0) {
-        preview_note_ = fmt::format("preview (1/{} resolution) written {:.3f} s, ", block, s);
+        preview_note_ = fmt::format("preview (1/{} resolution) {} {:.3f} s, ", block, done, s);
         return;
     }
-    say(fmt::format("{}; {}first pass ({} spp) written {:.3f} s after the change", pending_line_,
-                    preview_note_, spp, s));
+    say(fmt::format("{}; {}first pass ({} spp) {} {:.3f} s after the change", pending_line_,
+                    preview_note_, spp, done, s));
     pending_line_.clear();
     preview_note_.clear();
 }
@@ -179,16 +182,18 @@ void WatchLoop::on_pass(const PassImage& p) {
         server_->publish_pass(p.image, p.width, p.height, p.spp, p.target, p.block,
                               session_.color());
     if (!pass_output_) return;
+    bool written = false;
     try {
         out_.write_pass(p, session_.color(), &session_.info());
         std::lock_guard<std::mutex> lock(mutex_);
         written_spp_ = p.spp;
         written_target_ = p.target;
         written_block_ = p.spp == 0 ? p.block : 0;  // a preview replaced what was on disk
+        written = true;
     } catch (const SpangleError& e) {
         report_error(e.what());
     }
-    announce(p.spp, p.block);
+    announce(p.spp, p.block, written);
 }
 
 void WatchLoop::start_render() {
@@ -227,6 +232,7 @@ void WatchLoop::finish_render() {
     const RenderResult& w = written ? for_output(done, session_.options(), log_, scratch) : done;
     const RenderStats& st = w.stats;
     const ImageDescription image = final_image(w, session_.color(), session_.info());
+    bool wrote = false;
     if (!image.partial || (stop_requested() && st.spp_reached > 0)) {
         if (server_)
             server_->publish_pass(w.image, w.width, w.height, st.spp_reached, st.spp_target, 1,
@@ -237,19 +243,32 @@ void WatchLoop::finish_render() {
             written_spp_ = st.spp_reached;
             written_target_ = st.spp_target;
             written_block_ = 0;
+            wrote = true;
         } catch (const SpangleError& e) {
             report_error(e.what());
+            // What an earlier pass wrote may be gone with its folder: not claimed at the stop.
+            std::lock_guard<std::mutex> lock(mutex_);
+            std::error_code ec;
+            if (!fs::exists(out_.exr, ec)) written_spp_ = written_block_ = 0;
         }
-        announce(st.spp_reached, 1);
+        announce(st.spp_reached, 1, wrote);
     }
     if (image.partial) return;
     warn_nonfinite(log_, st);
-    log_.info("wrote {} ({} spp); watching for changes", out_.exr, st.spp_reached);
-    if (server_)
-        server_->log("info", fmt::format("wrote {} ({} spp); watching for changes", out_.exr,
-                                         st.spp_reached));
+    const std::string line =
+        wrote ? fmt::format("wrote {} ({} spp); watching for changes", out_.exr, st.spp_reached)
+              : fmt::format(
+                    "rendered {} spp but could not write {} (see the error above); watching for "
+                    "changes (a save renders it again)",
+                    st.spp_reached, out_.exr);
+    if (wrote)
+        log_.info("{}", line);
+    else
+        log_.warn("{}", line);
+    if (server_) server_->log(wrote ? "info" : "error", line);
+    // Unwritten, it is not finished: a save (even of the same bytes) renders it again.
     std::lock_guard<std::mutex> lock(mutex_);
-    finished_ = true;
+    finished_ = wrote;
 }
 
 std::vector<std::string> WatchLoop::files_to_watch() const {
