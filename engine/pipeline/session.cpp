@@ -121,6 +121,25 @@ std::vector<std::string> Session::watched_files() const {
     return {all.begin(), all.end()};
 }
 
+void Session::check_memory(const ecs::Registry& cand, const SceneInfo& info) const {
+    // The film of a whole frame, at least (no layers counted; a crop renders less): an edit
+    // asking for more than the machine has is refused as a load, so that the last good scene
+    // stays (refused when its render began, it stopped the render in progress and was taken as
+    // the live scene).
+    if (cand.count<Film>() == 0 || !options_.crop.whole() || info.crop) return;
+    Film f = cand.find_pool<Film>()->columns().get(0);
+    const bool sized = options_.width_override || options_.height_override;
+    if (options_.width_override) f.width = options_.width_override;
+    if (options_.height_override) f.height = options_.height_override;
+    if (options_.spp_override) f.spp = options_.spp_override;
+    try {
+        check_film_memory(f.width, f.height, f.spp, options_, 0);
+    } catch (const SpangleError& e) {
+        if (sized || info.size_loc.file.empty()) throw;
+        throw_error(info.size_loc, "{}", e.what());
+    }
+}
+
 bool Session::holds_what_was_read(const std::string& path) const {
     for (const auto& [p, read] : file_hashes_) {
         std::error_code ec;
@@ -172,6 +191,7 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     auto cand = std::make_unique<ecs::Registry>();
     auto info = std::make_unique<SceneInfo>(build_scene(scene, *color, *cand, time));
     for (const std::string& note : info->notes) log_.warn("{}", note);
+    check_memory(*cand, *info);
     if (world_ && color->working_space() != color_->working_space()) {
         rep.changed.push_back("working space");
         full = true;

@@ -89,6 +89,9 @@ public:
     bool holds_what_was_read(const std::string& path) const;
 
 private:
+    /** Throws SpangleError (at the scene's size, where it writes one) when the whole frame of the
+     *  candidate scene `cand` needs more memory than is available (render/render_options.h). */
+    void check_memory(const ecs::Registry& cand, const SceneInfo& info) const;
     /** The live scene as the path tracer reads it. */
     RenderScene render_scene() const;
 

@@ -156,6 +156,7 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     info.shutter_close = d.shutter_close;
     info.working_space = color.working_space();
     info.color_space = ctx.bare_space;
+    info.size_loc = d.size_loc;
     if (d.crop) {
         const std::array<double, 4>& c = *d.crop;
         if (!(c[0] >= 0.0 && c[0] < c[1] && c[1] <= 1.0 && c[2] >= 0.0 && c[2] < c[3] &&

@@ -411,6 +411,7 @@ struct RenderDesc {
      *  as fractions of the width and height, y down; --crop wins over it. */
     std::optional<std::array<double, 4>> crop;
     FileLoc crop_loc;  ///< where the crop window is written
+    FileLoc size_loc;  ///< where the width (or the height) is written
     /** The keys the file wrote (TOML: of [render]); an import fills in the others. Empty for a
      *  reader whose format gives every setting. */
     std::vector<std::string> written;

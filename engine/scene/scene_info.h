@@ -32,6 +32,7 @@ struct SceneInfo {
      *  pixels are [ceil(x0 W), ceil(x1 W)) x [ceil(y0 H), ceil(y1 H)), as pbrt takes them. */
     std::optional<std::array<double, 4>> crop;
     FileLoc crop_loc;                         ///< where the scene writes it
+    FileLoc size_loc;                         ///< where the scene writes its image size
     std::string working_space;                ///< canonical OCIO name
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order

@@ -42,6 +42,7 @@ RenderDesc read_render(TableReader& r) {
         d.color_space = r.string("color_space");
         d.color_space_loc = r.loc("color_space");
     }
+    if (r.has("width") || r.has("height")) d.size_loc = r.loc(r.has("width") ? "width" : "height");
     d.width = static_cast<uint32_t>(r.integer("width", d.width, {1, 16384}));
     d.height = static_cast<uint32_t>(r.integer("height", d.height, {1, 16384}));
     d.spp = static_cast<uint32_t>(r.integer("spp", d.spp, {1, 1 << 20}));

@@ -12,6 +12,7 @@
 #include <sstream>
 
 #include "color/image_output.h"
+#include "core/memory.h"
 #include "geometry/mesh_load.h"
 #include "pipeline/frame.h"
 #include "pipeline/session.h"
@@ -327,6 +328,44 @@ TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {
     EXPECT_EQ(rep.ran, names{"materials"});
     EXPECT_EQ(rep.built, names{"material 'coat'"});
     EXPECT_EQ(rep.reused.at("materials"), 2);
+}
+
+TEST(Session, AnEditToAnImageLargerThanMemoryIsRefusedAtItsSizeAndKeepsTheLiveScene) {
+    // Refused only when the render began, such an edit stopped the render in progress and became
+    // the live scene; refused at the load, it is an error at the size's key like any other.
+    // A watch session's options: passes that can be stopped and are shown (120 bytes a pixel).
+    RenderOptions options;
+    options.spp_override = 64;
+    options.progressive = true;
+    options.stop = [] { return false; };
+    options.on_pass = [](const PassImage&) {};
+    const double need = 120.0 * 16384.0 * 16384.0;
+    if (memory_short_for(need) == 0) GTEST_SKIP() << "this machine holds a 16384x16384 film";
+    test::TempDir dir("session_memory");
+    const std::string file = dir.file("scene.toml");
+    std::string text = test::scene_text("delta_hard_cases.toml");
+    std::ofstream(file) << text;
+    Session session({}, test::shipped_ocio(), options, test::quiet_log());
+    session.load(file);
+    Film before;
+    ASSERT_TRUE(session.film(before));
+    std::string big = text;
+    big = std::regex_replace(big, std::regex("width = [0-9]+"), "width = 16384");
+    big = std::regex_replace(big, std::regex("height = [0-9]+"), "height = 16384");
+    ASSERT_NE(big, text) << "the scene writes its size";
+    std::ofstream(file) << big;
+    try {
+        session.load(file);
+        FAIL() << "a 16384x16384 image larger than memory was loaded";
+    } catch (const SpangleError& e) {
+        EXPECT_NE(std::string(e.what()).find("scene.toml:"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("16384x16384 image needs about"), std::string::npos)
+            << e.what();
+    }
+    Film after;
+    ASSERT_TRUE(session.film(after));
+    EXPECT_EQ(after.width, before.width);
+    EXPECT_EQ(after.height, before.height);
 }
 
 TEST(Session, AnInlineMeshRendersAsItsFileDoesAndReloadsAsUnchanged) {
