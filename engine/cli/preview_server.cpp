@@ -3,6 +3,7 @@
 #include "cli/preview_server.h"
 
 #include <fmt/format.h>
+#include <unistd.h>
 
 #include <chrono>
 #include <cstdio>
@@ -11,6 +12,7 @@
 #include "color/color_config.h"
 #include "color/image_output.h"
 #include "core/error.h"
+#include "core/hash.h"
 #include "core/log.h"
 #include "render/render_options.h"
 
@@ -122,6 +124,11 @@ PreviewServer::PreviewServer(const std::string& spec, std::function<void(const s
     std::tie(host_, port) = parse_serve_address(spec);
     loopback_ = host_ == "127.0.0.1" || host_ == "localhost" || host_ == "::1";
     http_ = std::make_unique<HttpLoop>(host_, port, limits);
+    event_tag_ = fmt::format(
+        "{:x}",
+        hash2(static_cast<uint64_t>(std::chrono::system_clock::now().time_since_epoch().count()),
+              static_cast<uint64_t>(::getpid())) &
+            0xffffffffffull);
     const bool v6 = host_.find(':') != std::string::npos;
     url_ = fmt::format("http://{}{}{}:{}/", v6 ? "[" : "", host_, v6 ? "]" : "", http_->port());
     encoder_ = std::thread([this] { encode_loop(); });
@@ -164,14 +171,25 @@ HttpReply PreviewServer::route(const HttpRequest& req) {
         // Every kept event after the client's last one, then the current progress and status;
         // new ones follow as they come (pump).
         r.event_stream = true;
-        r.cursor[0] = std::strtoull(req.last_event_id.c_str(), nullptr, 10);
         std::lock_guard<std::mutex> lock(mutex_);
+        r.cursor[0] = event_after(req.last_event_id);
         r.body = std::make_shared<const std::string>("retry: 2000\n\n" + news_for(r.cursor));
     } else {
         r.status = 404;
         r.body = std::make_shared<const std::string>("not found\n");
     }
     return r;
+}
+
+uint64_t PreviewServer::event_after(const std::string& last_event_id) const {
+    // This server's own id, of an event it sent: resume after it. Anything else (none, another
+    // server's, one from the future): from the first kept event.
+    const std::string prefix = event_tag_ + ".";
+    if (last_event_id.rfind(prefix, 0) != 0) return 0;
+    const std::string n = last_event_id.substr(prefix.size());
+    if (n.empty() || n.find_first_not_of("0123456789") != std::string::npos) return 0;
+    const uint64_t id = std::strtoull(n.c_str(), nullptr, 10);
+    return id < next_event_ ? id : 0;
 }
 
 std::string PreviewServer::news_for(StreamCursor& cursor) const {
@@ -214,7 +232,8 @@ void PreviewServer::pump(std::span<HttpLoop::StreamNews> news) {
 
 void PreviewServer::push_event(const std::string& type, const std::string& data) {
     const uint64_t id = next_event_++;
-    events_.push_back({id, fmt::format("id: {}\nevent: {}\ndata: {}\n\n", id, type, data)});
+    events_.push_back(
+        {id, fmt::format("id: {}.{}\nevent: {}\ndata: {}\n\n", event_tag_, id, type, data)});
     if (events_.size() > kKeptEvents) events_.pop_front();
 }
 

@@ -74,8 +74,11 @@ private:
     };
     /** Answers /, /image.png and /events, and refuses foreign Host headers. */
     HttpReply route(const HttpRequest& req);
+    /** The number of the event after which a client that last heard `last_event_id` resumes
+     *  (0: every kept event). Under mutex_. */
+    uint64_t event_after(const std::string& last_event_id) const;
     /** What a stream at `cursor` has not heard yet, moving the cursor on; the caller holds
-     *  mutex_. Cursor: last event id, progress version, status version. */
+     *  mutex_. Cursor: last event number, progress version, status version. */
     std::string news_for(StreamCursor& cursor) const;
     /** Every open stream's news (HttpLoop::Pump). */
     void pump(std::span<HttpLoop::StreamNews> news);
@@ -102,9 +105,15 @@ private:
     std::condition_variable changed_;  ///< a pass to encode, or stopping
     bool stopping_ = false;            ///< the destructor has begun
     std::deque<Event> events_;         ///< the latest events, for clients that connect late
-    uint64_t next_event_ = 1;          ///< id of the next event
-    uint64_t done_ = 0, total_ = 0;    ///< samples of the current render
-    uint64_t progress_version_ = 0;    ///< bumped on each progress update sent
+    uint64_t next_event_ = 1;          ///< number of the next event
+    /** Event ids are "TAG.N", TAG this server's own (its start time and process): a browser
+     *  that reconnects to a new server on the same port sends the id it last heard from the old
+     *  one, which the new one does not know: it hears every kept event (a bare number from the
+     *  old server was taken as a place in the new one's events, and the page missed every pass
+     *  and log line until the new server's count passed it). */
+    std::string event_tag_;
+    uint64_t done_ = 0, total_ = 0;                      ///< samples of the current render
+    uint64_t progress_version_ = 0;                      ///< bumped on each progress update sent
     std::chrono::steady_clock::time_point progress_at_;  ///< when progress was last sent
     std::string status_ = "starting";                    ///< the page's status line
     double status_fraction_ = -1.0;                      ///< of the stage in status_; < 0: none
