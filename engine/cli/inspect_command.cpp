@@ -285,15 +285,50 @@ int run_inspect(const std::string& path, const std::string& reference) {
         if (ref.empty())
             throw_error("the reference '{}' has no R, G and B channels (nor Y) to compare with",
                         reference);
-        if (ref_planes.width != planes.width || ref_planes.height != planes.height)
-            throw_error("'{}' is {}x{}, the reference '{}' {}x{}", path, planes.width,
-                        planes.height, reference, ref_planes.width, ref_planes.height);
+        // Where each image lies in its frame (a crop part is a window of it): the pixels
+        // compared are those of one place (crops of two places were compared pixel by pixel,
+        // and a crop against the whole frame holding it was refused).
+        struct Window {
+            int x0, y0, w, h, fw, fh;
+        };
+        const auto window = [](const Planes& q) {
+            return q.full_width > 0
+                       ? Window{q.x0, q.y0, q.width, q.height, q.full_width, q.full_height}
+                       : Window{0, 0, q.width, q.height, q.width, q.height};
+        };
+        const Window iw = window(planes), rw = window(ref_planes);
+        const auto where = [](const Window& w) {
+            return fmt::format("pixels ({}, {}) to ({}, {}) of a {}x{} frame", w.x0, w.y0,
+                               w.x0 + w.w, w.y0 + w.h, w.fw, w.fh);
+        };
+        const bool same_place = iw.x0 == rw.x0 && iw.y0 == rw.y0 && iw.w == rw.w && iw.h == rw.h;
+        const bool inside = iw.fw == rw.fw && iw.fh == rw.fh && iw.x0 >= rw.x0 && iw.y0 >= rw.y0 &&
+                            iw.x0 + iw.w <= rw.x0 + rw.w && iw.y0 + iw.h <= rw.y0 + rw.h;
+        if (!same_place && !inside)
+            throw_error(
+                "'{}' holds {}, the reference '{}' {}: the reference must hold the image's "
+                "pixels (the same window, or the whole frame of a crop)",
+                path, where(iw), reference, where(rw));
         // One render with --layers (or --denoise) keeps the sky seen directly in its 'background'
         // layer, not in RGB; one without has it in RGB. RGB plus background is the whole picture
         // (the preview shows it): both are measured so, and where only one had the layer the
         // comparison says so (RGB alone measured the sky, not the noise: a denoised render read
         // 0.15 against its reference).
         const bool ref_sky = add_background(ref, ref_planes);
+        if (!same_place) {
+            // The image's window of the reference.
+            std::vector<float> cut(static_cast<std::size_t>(iw.w) * iw.h * 3);
+            for (int y = 0; y < iw.h; ++y)
+                for (int x = 0; x < iw.w; ++x)
+                    for (int c = 0; c < 3; ++c)
+                        cut[(static_cast<std::size_t>(y) * iw.w + x) * 3 + c] =
+                            ref[(static_cast<std::size_t>(y + iw.y0 - rw.y0) * rw.w + x + iw.x0 -
+                                 rw.x0) *
+                                    3 +
+                                c];
+            ref = std::move(cut);
+            fmt::print("compared: {} of the reference, the image's window\n", where(iw));
+        }
         if (own_sky != ref_sky)
             fmt::print(
                 "compared: '{}' as its RGB plus its 'background' layer (the sky seen "

@@ -50,6 +50,18 @@ grep -q "relMSE against whole.exr: [0-9].*16 left out" out.txt || fail "NaN relM
 grep -q "^measured: RGB plus its 'background' layer" layered.txt || fail "no word of the sky: $(cat layered.txt)"
 [ "$(grep '^mean luminance' plain.txt | cut -c1-22)" = "$(grep '^mean luminance' layered.txt | cut -c1-22)" ] ||
     fail "the layered render's mean is not the plain one's: $(grep '^mean' plain.txt layered.txt)"
+# A crop against the whole frame is compared over the crop's window (it was refused for its
+# size); against a crop of another place it is refused (compared pixel by pixel before).
+"$S" render "$SCENES/small_lit.toml" -o crop.exr --size 48x32 --spp 4 -q --threads 2 --float \
+    --crop 20,8,44,30 --plugin-path "$PLUGINS" || fail "crop render"
+"$S" render "$SCENES/small_lit.toml" -o crop0.exr --size 48x32 --spp 4 -q --threads 2 --float \
+    --crop 0,0,24,22 --plugin-path "$PLUGINS" || fail "crop render"
+"$S" inspect crop.exr --against plain.exr > out.txt 2>&1 || fail "crop against the whole: $(cat out.txt)"
+grep -q "^compared: pixels (20, 8) to (44, 30) of a 48x32 frame of the reference" out.txt ||
+    fail "the crop's window was not said: $(cat out.txt)"
+grep -q "^relMSE against plain.exr: 0$" out.txt || fail "a crop differs from its window of the whole: $(grep relMSE out.txt)"
+"$S" inspect crop.exr --against crop0.exr > out.txt 2>&1 && fail "crops of two places were compared"
+grep -q "the reference must hold the image's pixels" out.txt || fail "no reason for crops of two places: $(cat out.txt)"
 # A folder is not an image.
 "$S" inspect . > out.txt 2>&1 && fail "inspect of a folder succeeded"
 grep -q "is a folder, not an image" out.txt || fail "no reason for the folder: $(cat out.txt)"
