@@ -36,9 +36,16 @@ int run_merge(const MergeArgs& a) {
     // A stopped part makes a partial whole (its header says so too): said, not left to be found.
     for (const std::string& p : rep.partial_parts)
         fmt::print(stderr,
-                   "warning: '{}' is partial (a stop signal cut its render short): {} is partial "
-                   "too (spangle:partial = 1)\n",
+                   "warning: '{}' is partial (its render stopped before its last sample: a stop "
+                   "signal, or a pass image left by a render that was killed): {} is partial too "
+                   "(spangle:partial = 1)\n",
                    p, a.output);
+    if (rep.nonfinite > 0)
+        fmt::print(stderr,
+                   "warning: {} values of R, G and B in {} are not finite (NaN or infinity), as "
+                   "the parts hold them: a render writes none, so a part was written or changed "
+                   "by another program\n",
+                   rep.nonfinite, a.output);
     if (rep.sample_ranges > 0) {
         fmt::print("added {} sample ranges into {} ({}x{} frame)\n", rep.sample_ranges, a.output,
                    rep.width, rep.height);

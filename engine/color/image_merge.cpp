@@ -11,6 +11,7 @@
 
 #include <algorithm>
 #include <cinttypes>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <tuple>
@@ -104,6 +105,36 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
             "'{}' and '{}' were rendered from different scenes (or the scene's files changed "
             "between them): parts of one render merge",
             path, first_path);
+}
+
+/** A hint for overlapping parts that differ: a lossy compression (B44, DWA; PXR24 for 32-bit
+ *  floats) changes each part's overlap its own way. Empty for a lossless one. */
+std::string lossy_note(const Imf::Header& h) {
+    const char* name = nullptr;
+    switch (h.compression()) {
+        case Imf::B44_COMPRESSION:
+            name = "b44";
+            break;
+        case Imf::B44A_COMPRESSION:
+            name = "b44a";
+            break;
+        case Imf::DWAA_COMPRESSION:
+            name = "dwaa";
+            break;
+        case Imf::DWAB_COMPRESSION:
+            name = "dwab";
+            break;
+        case Imf::PXR24_COMPRESSION:
+            name = "pxr24";
+            break;
+        default:
+            break;
+    }
+    if (!name) return {};
+    return fmt::format(
+        ", or its lossy compression ({}) changed each part's copy of the overlap its own way: "
+        "render crops that overlap with a lossless --compression such as zip or piz",
+        name);
 }
 
 /** What the merged header says of its parts as a whole: partial when any part was (a stopped
@@ -378,8 +409,8 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
                         if (std::memcmp(src, dst, nc * sizeof(float)) != 0)
                             throw_error(
                                 "'{}' and an earlier part both hold pixel ({}, {}) with "
-                                "different values: they are not crops of one render",
-                                path, fx, fy);
+                                "different values: they are not crops of one render{}",
+                                path, fx, fy, lossy_note(hd));
                         ++rep.overlap_pixels;
                         continue;
                     }
@@ -399,6 +430,14 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
             "the parts leave {} of the {}x{} frame's pixels uncovered (the first at ({}, "
             "{})): render the missing windows with --crop",
             missing, w, h, first_missing % w, first_missing / w);
+
+    // Non-finite pixels in R, G, B: a render writes none (its non-finite samples are dropped and
+    // counted), so a part holding them was written or changed by something else.
+    for (std::size_t c = 0; c < nc; ++c) {
+        if (chans[c].name != "R" && chans[c].name != "G" && chans[c].name != "B") continue;
+        for (std::size_t p = 0; p < w * h; ++p)
+            rep.nonfinite += std::isfinite(full[p * nc + c]) ? 0u : 1u;
+    }
 
     Imf::Header header = scanline_header(*first);
     header.dataWindow() = display;
