@@ -191,7 +191,6 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     auto cand = std::make_unique<ecs::Registry>();
     auto info = std::make_unique<SceneInfo>(build_scene(scene, *color, *cand, time));
     for (const std::string& note : info->notes) log_.warn("{}", note);
-    check_memory(*cand, *info);
     if (world_ && color->working_space() != color_->working_space()) {
         rep.changed.push_back("working space");
         full = true;
@@ -288,6 +287,9 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
         // of the config in place (the same space names) merged into a seam.
         info->content_hash = hash2(h, live_color->content_hash());
     }
+
+    // The film, once the systems' own needs (subdivision, maps, BVHs) are met and said.
+    check_memory(*cand, *info);
 
     // Commit: from here on nothing throws.
     if (full && !rep.first) {

@@ -305,6 +305,21 @@ std::shared_ptr<LoadedPlugin> PluginLoader::open_copy(const std::string& path,
 }
 
 std::shared_ptr<LoadedPlugin> PluginLoader::open(const std::string& name, const FileLoc& where) {
+    if (auto it = cache_.find(name); it != cache_.end() && reopen_changed) {
+        // Watch sessions: a library put since in a folder searched before this one's is the one
+        // a fresh render opens: opened afresh (the session kept the old one for good).
+        const std::string file = file_name_for(name);
+        for (const auto& dir : dirs_) {
+            const fs::path candidate = fs::path(dir) / file;
+            std::error_code ec;
+            if (!fs::exists(candidate, ec)) continue;
+            if (!fs::equivalent(candidate, it->second->path(), ec)) {
+                cache_.erase(it);
+                identity_.erase(name);
+            }
+            break;
+        }
+    }
     if (auto it = cache_.find(name); it != cache_.end()) {
         if (!reopen_changed) return it->second;
         const std::string& path = it->second->path();
