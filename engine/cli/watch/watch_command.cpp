@@ -163,8 +163,9 @@ void WatchLoop::announce(uint32_t spp, uint32_t block, bool written) {
         preview_note_ = fmt::format("preview (1/{} resolution) {} {:.3f} s, ", block, done, s);
         return;
     }
-    say(fmt::format("{}; {}first pass ({} spp) {} {:.3f} s after the change", pending_line_,
-                    preview_note_, spp, done, s));
+    // Without pass images the first image written is the finished one.
+    say(fmt::format("{}; {}{} ({} spp) {} {:.3f} s after the change", pending_line_, preview_note_,
+                    pass_output_ ? "first pass" : "image", spp, done, s));
     pending_line_.clear();
     preview_note_.clear();
 }
