@@ -41,9 +41,9 @@ int run_flicker(const FlickerArgs& a) {
             r.threshold);
     if (r.nonfinite_glints > 0)
         fmt::print(stderr,
-                   "spangle: warning: {} glint pixels of the frames are not finite (infinity: "
-                   "brighter than a half float's 65504) and are left out of every figure below, "
-                   "which then understate the glints: render the frames with --float\n",
+                   "spangle: warning: {} glint pixels of the frames are not finite (NaN, or "
+                   "infinity: brighter than a half float's 65504, rendered without --float) and "
+                   "are left out of every figure below, which then understate the glints\n",
                    r.nonfinite_glints);
     // Steps between frames' times within 1% of each other (the times are printed with
     // enough digits to keep equal steps equal).

@@ -105,9 +105,13 @@ Planes read_exr_planes(const std::string& path) {
                 fmt::format("partial: stopped at {} samples per pixel", spp.empty() ? "?" : spp));
         else if (!spp.empty())
             p.state.push_back(fmt::format("{} samples per pixel", spp));
-        if (!range.empty())
+        if (!range.empty()) {
+            const std::string frame = text("spangle:spp_frame");
             p.state.push_back(
-                fmt::format("samples {} of a frame of {}", range, text("spangle:spp_frame")));
+                frame.empty()
+                    ? fmt::format("samples {} of the frame's (a pass image: no sums)", range)
+                    : fmt::format("samples {} of a frame of {}", range, frame));
+        }
         if (const std::string v = text("spangle:sampling"); !v.empty()) p.state.push_back(v);
         if (const std::string v = text("spangle:denoised"); !v.empty())
             p.state.push_back("denoised: " + v);
@@ -301,8 +305,13 @@ int run_inspect(const std::string& path, const std::string& reference) {
             return fmt::format("pixels ({}, {}) to ({}, {}) of a {}x{} frame", w.x0, w.y0,
                                w.x0 + w.w, w.y0 + w.h, w.fw, w.fh);
         };
-        const bool same_place = iw.x0 == rw.x0 && iw.y0 == rw.y0 && iw.w == rw.w && iw.h == rw.h;
-        const bool inside = iw.fw == rw.fw && iw.fh == rw.fh && iw.x0 >= rw.x0 && iw.y0 >= rw.y0 &&
+        // An image without a window of its own (a PNG, another program's file) is taken at
+        // the other's place when it is the same size.
+        const bool windows = planes.full_width > 0 && ref_planes.full_width > 0;
+        const bool same_frame = !windows || (iw.fw == rw.fw && iw.fh == rw.fh);
+        const bool same_place = iw.w == rw.w && iw.h == rw.h &&
+                                (!windows || (same_frame && iw.x0 == rw.x0 && iw.y0 == rw.y0));
+        const bool inside = windows && same_frame && iw.x0 >= rw.x0 && iw.y0 >= rw.y0 &&
                             iw.x0 + iw.w <= rw.x0 + rw.w && iw.y0 + iw.h <= rw.y0 + rw.h;
         if (!same_place && !inside)
             throw_error(
@@ -363,8 +372,8 @@ int run_inspect(const std::string& path, const std::string& reference) {
         if (only_image + only_ref > 0)
             fmt::print(stderr,
                        "spangle: warning: {} pixels are finite in one image and not in the other "
-                       "(infinity: a value beyond a half float's 65504, render with --float): "
-                       "the relMSE leaves them out\n",
+                       "(NaN, or infinity: a half float's 65504 overflowed, render with --float "
+                       "where so): the relMSE leaves them out\n",
                        only_image + only_ref);
     }
     if (!planes.names.empty()) print_channels(planes);

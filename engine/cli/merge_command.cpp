@@ -40,12 +40,16 @@ int run_merge(const MergeArgs& a) {
                    "signal, or a pass image left by a render that was killed): {} is partial too "
                    "(spangle:partial = 1)\n",
                    p, a.output);
-    if (rep.nonfinite > 0)
+    if (rep.infinite > 0)
         fmt::print(stderr,
-                   "warning: {} values of R, G and B in {} are not finite (NaN or infinity), as "
-                   "the parts hold them: a render writes none, so a part was written or changed "
-                   "by another program\n",
-                   rep.nonfinite, a.output);
+                   "warning: {} values of R, G and B in {} are infinite, as the parts hold them: "
+                   "values beyond a half float's 65504 (render the parts with --float)\n",
+                   rep.infinite, a.output);
+    if (rep.nan > 0)
+        fmt::print(stderr,
+                   "warning: {} values of R, G and B in {} are NaN, as the parts hold them: a "
+                   "render writes none, so a part was written or changed by another program\n",
+                   rep.nan, a.output);
     if (rep.sample_ranges > 0) {
         fmt::print("added {} sample ranges into {} ({}x{} frame)\n", rep.sample_ranges, a.output,
                    rep.width, rep.height);

@@ -23,6 +23,7 @@
 #include <thread>
 #include <tuple>
 
+#include "color/color_config.h"
 #include "core/error.h"
 #include "core/hash.h"
 #include "pipeline/session.h"
@@ -152,7 +153,12 @@ uint64_t mix_text(uint64_t h, const std::string& s) {
 RankIdentity identity_of(Session& session, const BandPlan& plan) {
     RankIdentity id;
     const SceneInfo& info = session.info();
-    id.v[0] = info.content_hash;
+    // The files' bytes, not their paths (nodes may mount them elsewhere: the scene hash of the
+    // header combines them in path order) and not the plugins' (their own part below).
+    const std::vector<std::string> plugin_files = session.plugins().opened_files();
+    uint64_t files = hash2(info.scene_files_hash, session.color().content_hash());
+    for (const uint64_t h : session.read_content_hashes(plugin_files)) files = hash2(files, h);
+    id.v[0] = files;
     id.v[1] = mix_value(0, info.time);
     uint64_t film = 0;
 #define SPANGLE_MIX_FIELD(type, name, doc) film = mix_value(film, plan.film.name);
@@ -176,8 +182,7 @@ RankIdentity identity_of(Session& session, const BandPlan& plan) {
     for (const std::string& n : plan.layer_names) opt = mix_text(opt, n);
     id.v[3] = opt;
     uint64_t plugins = 0;
-    for (const std::string& f : session.plugins().opened_files())
-        plugins = hash2(plugins, file_content_hash(f));
+    for (const std::string& f : plugin_files) plugins = hash2(plugins, file_content_hash(f));
     id.v[4] = plugins;
     return id;
 }

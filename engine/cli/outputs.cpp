@@ -134,7 +134,7 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
         o.metadata.emplace_back("spangle:spp_range",
                                 fmt::format("{}..{}", out.spp_first, out.spp_first + d.spp));
         o.metadata.emplace_back("spangle:spp_frame", std::to_string(d.spp_frame));
-    } else if (out.spp_end > 0) {
+    } else if (out.spp_end > 0 && d.spp > 0 && d.block <= 1) {
         // A pass image of a --spp-range render (--pass-output): samples of the range, without
         // the sums; it was labelled a render of the frame's first samples, which merge took.
         o.metadata.emplace_back("spangle:spp_range",

@@ -107,29 +107,32 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
             path, first_path);
 }
 
-/** A hint for overlapping parts that differ: a lossy compression (B44, DWA; PXR24 for 32-bit
- *  floats) changes each part's overlap its own way. Empty for a lossless one. */
-std::string lossy_note(const Imf::Header& h) {
-    const char* name = nullptr;
+/** The lossy compression a part was written with (B44, DWA; PXR24, lossy for its 32-bit float
+ *  channels only), or null. */
+const char* lossy_compression(const Imf::Header& h) {
     switch (h.compression()) {
         case Imf::B44_COMPRESSION:
-            name = "b44";
-            break;
+            return "b44";
         case Imf::B44A_COMPRESSION:
-            name = "b44a";
-            break;
+            return "b44a";
         case Imf::DWAA_COMPRESSION:
-            name = "dwaa";
-            break;
+            return "dwaa";
         case Imf::DWAB_COMPRESSION:
-            name = "dwab";
-            break;
+            return "dwab";
         case Imf::PXR24_COMPRESSION:
-            name = "pxr24";
-            break;
+            for (auto c = h.channels().begin(); c != h.channels().end(); ++c)
+                if (c.channel().type == Imf::FLOAT) return "pxr24";
+            return nullptr;
         default:
-            break;
+            return nullptr;
     }
+}
+
+/** A hint for overlapping parts that differ (this one or the first written lossily: each part's
+ *  copy of the overlap changed its own way). Empty when both are lossless. */
+std::string lossy_note(const Imf::Header& h, const Imf::Header& first) {
+    const char* name = lossy_compression(h);
+    if (!name) name = lossy_compression(first);
     if (!name) return {};
     return fmt::format(
         ", or its lossy compression ({}) changed each part's copy of the overlap its own way: "
@@ -198,10 +201,6 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                     "'{}' is not a --spp-range part, but other parts are: merge the sample "
                     "ranges of each window first, then the windows",
                     path);
-            uint64_t a = 0, b = 0;
-            if (std::sscanf(range.c_str(), "%" SCNu64 "..%" SCNu64, &a, &b) != 2 || !(a < b))
-                throw_error("'{}': its sample range '{}' is not A..B", path, range);
-            const Imath::Box2i dw = hd.dataWindow();
             for (const std::string& n : sum_names)
                 if (!hd.channels().findChannel(n))
                     throw_error(
@@ -209,6 +208,10 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                         "a --spp-range render, or a part saved by another program; merge the "
                         "parts the renders wrote at their end",
                         path, n);
+            uint64_t a = 0, b = 0;
+            if (std::sscanf(range.c_str(), "%" SCNu64 "..%" SCNu64, &a, &b) != 2 || !(a < b))
+                throw_error("'{}': its sample range '{}' is not A..B", path, range);
+            const Imath::Box2i dw = hd.dataWindow();
             if (!first) {
                 first = std::make_unique<Imf::Header>(hd);
                 chans = channels_of(hd);
@@ -410,7 +413,7 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
                             throw_error(
                                 "'{}' and an earlier part both hold pixel ({}, {}) with "
                                 "different values: they are not crops of one render{}",
-                                path, fx, fy, lossy_note(hd));
+                                path, fx, fy, lossy_note(hd, *first));
                         ++rep.overlap_pixels;
                         continue;
                     }
@@ -431,12 +434,15 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
             "{})): render the missing windows with --crop",
             missing, w, h, first_missing % w, first_missing / w);
 
-    // Non-finite pixels in R, G, B: a render writes none (its non-finite samples are dropped and
-    // counted), so a part holding them was written or changed by something else.
+    // Non-finite values in R, G, B: infinity where a half float overflowed (said when the part
+    // was written), NaN never from a render (its non-finite samples are dropped and counted).
     for (std::size_t c = 0; c < nc; ++c) {
         if (chans[c].name != "R" && chans[c].name != "G" && chans[c].name != "B") continue;
-        for (std::size_t p = 0; p < w * h; ++p)
-            rep.nonfinite += std::isfinite(full[p * nc + c]) ? 0u : 1u;
+        for (std::size_t p = 0; p < w * h; ++p) {
+            const float v = full[p * nc + c];
+            rep.infinite += std::isinf(v) ? 1u : 0u;
+            rep.nan += std::isnan(v) ? 1u : 0u;
+        }
     }
 
     Imf::Header header = scanline_header(*first);

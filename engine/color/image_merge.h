@@ -17,9 +17,9 @@ struct MergeReport {
     std::size_t sample_ranges = 0;   ///< --spp-range parts added up (0: crop windows placed)
     /** Parts a stop signal cut short (spangle:partial): the merged image is partial too. */
     std::vector<std::string> partial_parts;
-    /** Pixels of the merged crop windows whose R, G or B is not finite (a part another program
-     *  wrote, or changed: a render writes none). */
-    std::size_t nonfinite = 0;
+    /** Values of R, G and B in the merged crop windows that are infinite (a half float's
+     *  overflow, beyond 65504) or NaN (a render writes none: a part another program changed). */
+    std::size_t infinite = 0, nan = 0;
 };
 
 /** Reads every part, checks they describe the same frame (display window, channels and their

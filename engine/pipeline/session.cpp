@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -126,7 +127,9 @@ void Session::check_memory(const ecs::Registry& cand, const SceneInfo& info) con
     // asking for more than the machine has is refused as a load, so that the last good scene
     // stays (refused when its render began, it stopped the render in progress and was taken as
     // the live scene).
-    if (cand.count<Film>() == 0 || !options_.crop.whole() || info.crop) return;
+    if (!options_.film_memory_at_load || cand.count<Film>() == 0 || !options_.crop.whole() ||
+        info.crop)
+        return;
     Film f = cand.find_pool<Film>()->columns().get(0);
     const bool sized = options_.width_override || options_.height_override;
     if (options_.width_override) f.width = options_.width_override;
@@ -138,6 +141,20 @@ void Session::check_memory(const ecs::Registry& cand, const SceneInfo& info) con
         if (sized || info.size_loc.file.empty()) throw;
         throw_error(info.size_loc, "{}", e.what());
     }
+}
+
+std::vector<uint64_t> Session::read_content_hashes(const std::vector<std::string>& except) const {
+    std::vector<uint64_t> out;
+    for (const auto& [path, read] : file_hashes_) {
+        bool skip = false;
+        for (const std::string& e : except) {
+            std::error_code ec;
+            skip = skip || path == e || fs::equivalent(path, e, ec);
+        }
+        if (!skip) out.push_back(read.second);
+    }
+    std::sort(out.begin(), out.end());
+    return out;
 }
 
 bool Session::holds_what_was_read(const std::string& path) const {

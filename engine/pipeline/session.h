@@ -87,6 +87,9 @@ public:
      *  holds the bytes it held then: a touch, or a save of the same bytes. False for a file not
      *  read, changed since, or larger than file_content_hash() reads whole. */
     bool holds_what_was_read(const std::string& path) const;
+    /** The content hashes of the files the live scene's systems read, but those in `except`,
+     *  sorted: the same wherever a machine mounts the same bytes (an MPI rank's check). */
+    std::vector<uint64_t> read_content_hashes(const std::vector<std::string>& except) const;
 
 private:
     /** Throws SpangleError (at the scene's size, where it writes one) when the whole frame of the

@@ -106,6 +106,11 @@ struct RenderOptions {
     /** Computes every hit's footprint even where no material reads one (RenderJob::footprints):
      *  for tests that compare the two. */
     bool footprints_always = false;
+    /** A load refuses a scene whose whole frame's film would not fit in memory (watch mode: the
+     *  edit is refused as a load, and the last good scene's render goes on). Off elsewhere: an
+     *  MPI rank renders bands, a crop part its window, and the render itself checks what it
+     *  allocates. */
+    bool film_memory_at_load = false;
 };
 
 /** The samples per pixel reached after each pass of a progressive render of `spp` samples:

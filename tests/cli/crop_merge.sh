@@ -60,16 +60,16 @@ iinfo -v "$T/pass.exr" | grep -Eq 'spangle:spp_range: "32\.\.[0-9]+"' ||
     fail "a range render's pass image does not name its samples: $(iinfo -v "$T/pass.exr" | grep spangle)"
 "$S" merge "$T/pass.exr" -o "$T/passm.exr" 2> "$T/err.txt" && fail "a pass image of a range render was merged"
 grep -q "lacks the exact sums .*a pass image (--pass-output) of a --spp-range render" "$T/err.txt" || fail "no reason for refusing the pass image"
-# Overlapping crops written with a lossy compression differ where they overlap: the refusal
-# names the compression. A part holding NaN (changed by another program) is merged and said.
+# Overlapping crops written with a lossy compression differ where they overlap (each part's
+# DCT blocks start at its own corner: 0 and 37 are not on one 8-pixel grid): the refusal names
+# the compression. A part holding NaN (changed by another program) is merged and said.
 "$S" render "$SCENE" -o "$T/l0.exr" --size 90x50 --spp 2 -q --no-preview --crop 0,0,50,50 --compression dwaa 2> "$T/err.txt" || fail "dwaa crop"
-"$S" render "$SCENE" -o "$T/l1.exr" --size 90x50 --spp 2 -q --no-preview --crop 40,0,90,50 --compression dwaa 2> "$T/err.txt" || fail "dwaa crop"
-if ! "$S" merge "$T/l0.exr" "$T/l1.exr" -o "$T/lm.exr" 2> "$T/err.txt"; then
-    grep -q "lossy compression (dwaa)" "$T/err.txt" || fail "the lossy compression was not named"
-fi
+"$S" render "$SCENE" -o "$T/l1.exr" --size 90x50 --spp 2 -q --no-preview --crop 37,3,90,50 --compression dwaa 2> "$T/err.txt" || fail "dwaa crop"
+"$S" merge "$T/l0.exr" "$T/l1.exr" -o "$T/lm.exr" 2> "$T/err.txt" && fail "lossy crops that differ where they overlap were merged"
+grep -q "lossy compression (dwaa)" "$T/err.txt" || fail "the lossy compression was not named"
 "$S" render "$SCENE" -o "$T/h0.exr" --size 90x50 --spp 2 -q --no-preview --crop 0,0,45,50 2> "$T/err.txt" || fail "crop"
 "$S" render "$SCENE" -o "$T/h1.exr" --size 90x50 --spp 2 -q --no-preview --crop 45,0,90,50 2> "$T/err.txt" || fail "crop"
 oiiotool "$T/h1.exr" --subc 5 --powc 0.5 -o "$T/h1nan.exr"
 "$S" merge "$T/h0.exr" "$T/h1nan.exr" -o "$T/hm.exr" > /dev/null 2> "$T/err.txt" || fail "merge of a part with NaN"
-grep -q "values of R, G and B in .*hm.exr are not finite" "$T/err.txt" || fail "NaN in a part was not said"
+grep -q "values of R, G and B in .*hm.exr are NaN" "$T/err.txt" || fail "NaN in a part was not said"
 echo "crop_merge: OK"

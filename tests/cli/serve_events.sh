@@ -18,18 +18,24 @@ wait_for() {  # wait_for CMD... : retries for up to 30 s
     for _ in $(seq 1 300); do "$@" > /dev/null 2>&1 && return 0; sleep 0.1; done
     return 1
 }
-serve() {  # serve PORT: a watch session with the live page on PORT (0: any), its log in log.txt
+serve() {  # serve PORT: a watch session with the live page on PORT (0: any), its log in log.txt;
+    # fails (1) when it ends before showing its address (the port still held)
     "$S" render scene.toml -o out.exr --watch --size 64x40 --spp 4 --serve "$1" \
         --plugin-path "$PLUGINS" > log.txt 2>&1 &
     PID=$!
-    wait_for grep -q "^live preview at http" log.txt || fail "no address printed"
+    for _ in $(seq 1 300); do
+        grep -q "^live preview at http" log.txt && break
+        kill -0 "$PID" 2> /dev/null || { wait "$PID"; PID=; return 1; }
+        sleep 0.1
+    done
+    grep -q "^live preview at http" log.txt || fail "no address printed"
     URL=$(grep -o "http://127.0.0.1:[0-9]*/" log.txt | head -1)
     wait_for grep -q "watching for changes" log.txt || fail "the render did not finish"
 }
 events() {  # events [LAST-EVENT-ID]: what /events sends in its first second
     curl -s -m 1 ${1:+-H "Last-Event-ID: $1"} "${URL}events" || true
 }
-serve 0
+serve 0 || fail "the first server did not start"
 PORT=${URL##*:}
 PORT=${PORT%/}
 events > first.txt
@@ -44,6 +50,7 @@ wait $PID
 PID=
 # A new server on the same port, the old server's last id: every kept event.
 for _ in $(seq 1 50); do serve "$PORT" && break; sleep 0.2; done
+[ -n "$PID" ] || fail "no server could take port $PORT again"
 events "$OLD" > restarted.txt
 grep -q "^event: pass" restarted.txt || fail "a client of the old server missed the new passes: $(cat restarted.txt)"
 grep -q "^event: log" restarted.txt || fail "a client of the old server missed the new log lines"

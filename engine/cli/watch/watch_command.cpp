@@ -39,6 +39,7 @@ namespace {
 RenderOptions watch_options(const RenderArgs& a) {
     RenderOptions options = render_options(a);
     options.preview_pass = !a.no_pass_output || !a.serve.empty();
+    options.film_memory_at_load = true;
     return options;
 }
 
