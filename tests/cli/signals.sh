@@ -48,20 +48,32 @@ grep -q "before the first pass ended: no image written" err.txt ||
     fail "SIGINT before the first pass: $(cat err.txt)"
 # A second SIGINT exits at once, without leaving a temporary file or a lock, and says so (it
 # exited without a word, and the older file at the path could be taken for this render's).
-"$S" render flake_uvless.toml -o twice.exr --spp 100000 --threads 2 -q --plugin-path "$PLUGINS" \
-    2> twice_err.txt &
-PID=$!
-sleep 1
-kill -INT $PID; kill -INT $PID
-wait $PID
-RC=$?
-[ $RC -eq 0 ] || [ $RC -eq 130 ] || fail "second SIGINT: exit status $RC"
-ls -a | grep -q '\.tmp' && fail "second SIGINT: temporary file left behind"
-ls -a | grep -q '\.lock' && fail "second SIGINT: lock file left behind"
-if [ $RC -eq 130 ]; then
-    grep -q "stopped at once by a second SIGINT" twice_err.txt ||
-        fail "second SIGINT: not said: $(cat twice_err.txt)"
-fi
+# Two SIGINTs sent together may reach the process as one (a pending signal is not counted
+# twice), and a second sent late finds the render already gone: both end as one SIGINT does. The
+# second-SIGINT path is taken once in a few tries.
+second=0
+for _ in 1 2 3 4 5 6; do
+    rm -f twice.exr
+    "$S" render flake_uvless.toml -o twice.exr --spp 100000 --threads 2 -q --plugin-path "$PLUGINS" \
+        2> twice_err.txt &
+    PID=$!
+    sleep 1
+    kill -INT $PID; sleep 0.01; kill -INT $PID 2> /dev/null
+    wait $PID
+    RC=$?
+    [ $RC -eq 0 ] || [ $RC -eq 130 ] || fail "second SIGINT: exit status $RC"
+    ls -a | grep -q '\.tmp' && fail "second SIGINT: temporary file left behind"
+    ls -a | grep -q '\.lock' && fail "second SIGINT: lock file left behind"
+    if grep -q "stopped at once by a second SIGINT" twice_err.txt; then
+        [ $RC -eq 130 ] || fail "second SIGINT: exit status $RC, expected 130"
+        second=1
+        break
+    fi
+    # One SIGINT, as far as the process knew: the normal stop, said.
+    grep -q "stopped by a signal (SIGINT)" twice_err.txt ||
+        fail "SIGINT: neither stop was said: $(cat twice_err.txt)"
+done
+[ $second -eq 1 ] || fail "a second SIGINT was never seen in six tries: $(cat twice_err.txt)"
 # A sequence stopped before its last frame is not done: exit status 130 (SIGINT), and the line
 # names the frames left (it exited 0 with frames 3..8 never rendered).
 "$S" render flake_uvless.toml -o seq.####.exr --spp 100000 --threads 2 -q --pass-output \
