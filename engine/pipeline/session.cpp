@@ -280,14 +280,15 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     next->previous = nullptr;
     // The scene's hash covers the files the systems read too (a mesh or texture edited between
     // crop parts made parts that merged into a seam): each file's bytes hashed once per
-    // identity (path, size, modification time), in path order. (Bytes only, not paths: farm
-    // nodes may mount the same files elsewhere.)
+    // identity (path, size, modification time), combined in the order of the hashes. (Bytes only,
+    // not paths: farm nodes may mount the same files elsewhere.)
     std::map<std::string, std::pair<std::string, uint64_t>> hashes;
     {
         std::map<std::string, std::string> read;  // path -> identity
         for (const auto& [system, reads] : next->files)
             for (const auto& [path, fr] : reads) read[path] = fr.identity;
         uint64_t h = info->content_hash;
+        std::vector<uint64_t> bytes;  // the files' hashes, in an order of their own
         for (const auto& [path, identity] : read) {
             auto it = file_hashes_.find(path);
             const bool known = it != file_hashes_.end() && it->second.first == identity;
@@ -298,8 +299,13 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
             // file changed since it was read keeps no hash: the next reload reads it again.
             const bool same = known || file_identity(path) == identity;
             hashes[path] = {same ? identity : std::string(), fh};
-            h = hash2(h, fh);
+            bytes.push_back(fh);
         }
+        // Combined in the order of the hashes, not of the paths: nodes that mount the same
+        // files elsewhere (or name them in another order) give one hash, and their crop parts
+        // merge.
+        std::sort(bytes.begin(), bytes.end());
+        for (const uint64_t fh : bytes) h = hash2(h, fh);
         // And the colour config's text: parts of a crop render made before and after an edit
         // of the config in place (the same space names) merged into a seam.
         info->content_hash = hash2(h, live_color->content_hash());

@@ -3,6 +3,7 @@
 // sees what changed; a reload runs only what the change needs and a bad scene changes nothing.
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <atomic>
 #include <cstdlib>
@@ -16,6 +17,7 @@
 #include "geometry/mesh_load.h"
 #include "pipeline/frame.h"
 #include "pipeline/session.h"
+#include "shading/plugin_loader.h"
 #include "test_support.h"
 
 namespace fs = std::filesystem;
@@ -286,6 +288,42 @@ TEST(Session, TheSceneHashCoversTheFilesItsSystemsRead) {
     Session fresh({}, test::shipped_ocio(), options, test::quiet_log());
     fresh.load(scene.file.string());
     EXPECT_EQ(fresh.info().content_hash, after);
+}
+
+TEST(Session, TheSceneHashIsTheSameWhereverTheFilesAreMounted) {
+    // Farm nodes mount the same files in other places: the plugin here before the assets in
+    // path order, there after them. The files' hashes were combined in path order, so crop
+    // parts of one render from two such nodes were refused as different scenes.
+    TempScene scene;
+    std::string flake;
+    for (const std::string& d : plugin_search_path({}))
+        if (fs::exists(fs::path(d) / "libspangle_flake.so")) {
+            flake = (fs::path(d) / "libspangle_flake.so").string();
+            break;
+        }
+    ASSERT_FALSE(flake.empty());
+    const fs::path base = fs::temp_directory_path();
+    const std::string tag = std::to_string(::getpid());
+    const fs::path early = base / ("a_spangle_plugins_" + tag);  // sorts before the scene
+    const fs::path late = base / ("zz_spangle_plugins_" + tag);  // and after it
+    ASSERT_LT(early.string(), scene.dir.string());
+    ASSERT_GT(late.string(), scene.dir.string());
+    for (const fs::path& d : {early, late}) {
+        fs::create_directories(d);
+        fs::copy_file(flake, d / "libspangle_flake.so", fs::copy_options::overwrite_existing);
+    }
+    RenderOptions options;
+    options.threads = 1;
+    Session here({early.string()}, test::shipped_ocio(), options, test::quiet_log());
+    here.load(scene.file.string());
+    Session there({late.string()}, test::shipped_ocio(), options, test::quiet_log());
+    there.load(scene.file.string());
+    EXPECT_EQ(here.plugins().opened_files().front(), (early / "libspangle_flake.so").string());
+    EXPECT_EQ(there.plugins().opened_files().front(), (late / "libspangle_flake.so").string());
+    EXPECT_EQ(here.info().content_hash, there.info().content_hash);
+    std::error_code ec;
+    fs::remove_all(early, ec);
+    fs::remove_all(late, ec);
 }
 
 TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {
