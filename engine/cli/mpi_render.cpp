@@ -144,17 +144,11 @@ uint64_t mix_value(uint64_t h, const T& x) {
     return hash2(h, bits);
 }
 
-uint64_t mix_text(uint64_t h, const std::string& s) {
-    h = hash2(h, s.size());
-    for (const char c : s) h = hash2(h, static_cast<unsigned char>(c));
-    return h;
-}
-
 RankIdentity identity_of(Session& session, const BandPlan& plan) {
     RankIdentity id;
     const SceneInfo& info = session.info();
-    // The files' bytes, not their paths (nodes may mount them elsewhere: the scene hash of the
-    // header combines them in path order) and not the plugins' (their own part below).
+    // The files' bytes, not their paths (nodes may mount them elsewhere), without the plugins'
+    // (their own part below, named apart in the message).
     const std::vector<std::string> plugin_files = session.plugins().opened_files();
     uint64_t files = hash2(info.scene_files_hash, session.color().content_hash());
     for (const uint64_t h : session.read_content_hashes(plugin_files)) files = hash2(files, h);
@@ -177,9 +171,9 @@ RankIdentity identity_of(Session& session, const BandPlan& plan) {
           static_cast<uint64_t>(o.footprints_always), static_cast<uint64_t>(plan.lc)})
         opt = hash2(opt, x);
     opt = mix_value(opt, o.noise_threshold_override);
-    opt = mix_text(opt, o.camera);
-    opt = mix_text(opt, o.environment);
-    for (const std::string& n : plan.layer_names) opt = mix_text(opt, n);
+    opt = hash2(opt, hash_text(o.camera));
+    opt = hash2(opt, hash_text(o.environment));
+    for (const std::string& n : plan.layer_names) opt = hash2(opt, hash_text(n));
     id.v[3] = opt;
     uint64_t plugins = 0;
     for (const std::string& f : plugin_files) plugins = hash2(plugins, file_content_hash(f));

@@ -284,11 +284,10 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
     if (std::all_of(frames.begin(), frames.end(), [](const Frame& f) { return !f.time.empty(); })) {
         std::vector<std::size_t> order(frames.size());
         for (std::size_t k = 0; k < order.size(); ++k) order[k] = k;
-        const auto seconds = [&](std::size_t k) {
-            return std::strtod(frames[k].time.c_str(), nullptr);
-        };
-        std::stable_sort(order.begin(), order.end(),
-                         [&](std::size_t x, std::size_t y) { return seconds(x) < seconds(y); });
+        const auto seconds = [](const Frame& f) { return std::strtod(f.time.c_str(), nullptr); };
+        std::stable_sort(order.begin(), order.end(), [&](std::size_t x, std::size_t y) {
+            return seconds(frames[x]) < seconds(frames[y]);
+        });
         for (std::size_t k = 0; k < order.size(); ++k)
             rep.reordered = rep.reordered || order[k] != k;
         if (rep.reordered) {
@@ -297,15 +296,14 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
             for (const std::size_t k : order) sorted.push_back(std::move(frames[k]));
             frames = std::move(sorted);
         }
-    }
-    if (frames.size() > 2 &&
-        std::all_of(frames.begin(), frames.end(), [](const Frame& f) { return !f.time.empty(); })) {
-        rep.step_min = std::numeric_limits<double>::infinity();
-        for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
-            const double step = std::strtod(frames[k + 1].time.c_str(), nullptr) -
-                                std::strtod(frames[k].time.c_str(), nullptr);
-            rep.step_min = std::min(rep.step_min, step);
-            rep.step_max = std::max(rep.step_max, step);
+        // The steps between consecutive frames (unequal: a frame is missing).
+        if (frames.size() > 2) {
+            rep.step_min = std::numeric_limits<double>::infinity();
+            for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
+                const double step = seconds(frames[k + 1]) - seconds(frames[k]);
+                rep.step_min = std::min(rep.step_min, step);
+                rep.step_max = std::max(rep.step_max, step);
+            }
         }
     }
     for (const Frame& f : frames)

@@ -132,9 +132,7 @@ void Session::check_memory(const ecs::Registry& cand, const SceneInfo& info) con
         return;
     Film f = cand.find_pool<Film>()->columns().get(0);
     const bool sized = options_.width_override || options_.height_override;
-    if (options_.width_override) f.width = options_.width_override;
-    if (options_.height_override) f.height = options_.height_override;
-    if (options_.spp_override) f.spp = options_.spp_override;
+    apply_overrides(f);
     try {
         check_film_memory(f.width, f.height, f.spp, options_, 0);
     } catch (const SpangleError& e) {
@@ -438,10 +436,14 @@ bool Session::film(Film& out) const {
     const ecs::Registry* live = live_.get();
     if (!live || live->count<Camera>() == 0 || live->count<Film>() == 0) return false;
     out = live->find_pool<Film>()->columns().get(0);
-    if (options_.width_override) out.width = options_.width_override;
-    if (options_.height_override) out.height = options_.height_override;
-    if (options_.spp_override) out.spp = options_.spp_override;
+    apply_overrides(out);
     return true;
+}
+
+void Session::apply_overrides(Film& f) const {
+    if (options_.width_override) f.width = options_.width_override;
+    if (options_.height_override) f.height = options_.height_override;
+    if (options_.spp_override) f.spp = options_.spp_override;
 }
 
 }  // namespace spangle

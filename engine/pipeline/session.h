@@ -95,6 +95,8 @@ private:
     /** Throws SpangleError (at the scene's size, where it writes one) when the whole frame of the
      *  candidate scene `cand` needs more memory than is available (render/render_options.h). */
     void check_memory(const ecs::Registry& cand, const SceneInfo& info) const;
+    /** The options' size and spp, where given, in place of a scene's film's. */
+    void apply_overrides(Film& f) const;
     /** The live scene as the path tracer reads it. */
     RenderScene render_scene() const;
 

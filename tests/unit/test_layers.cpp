@@ -72,8 +72,9 @@ intensity = 2
                        test::asset_dir(), test::asset_dir());
 }
 
-FrameResult render_square(const test::TempDir& dir, bool layers, double clamp = 0.0,
-                          double flake_weight = 0.5, bool background_apart = false) {
+/** A quiet request for the square scene (written into `dir`). */
+FrameRequest square_request(const test::TempDir& dir, bool layers, double clamp = 0.0,
+                            double flake_weight = 0.5, bool background_apart = false) {
     { std::ofstream(dir.file("square.toml")) << square_scene(clamp, flake_weight); }
     FrameRequest req;
     req.scene = dir.file("square.toml");
@@ -81,7 +82,12 @@ FrameResult render_square(const test::TempDir& dir, bool layers, double clamp = 
     req.log = &test::quiet_log();
     req.options.layers = layers;
     req.options.background_apart = background_apart;
-    return render_frame(req);
+    return req;
+}
+
+FrameResult render_square(const test::TempDir& dir, bool layers, double clamp = 0.0,
+                          double flake_weight = 0.5, bool background_apart = false) {
+    return render_frame(square_request(dir, layers, clamp, flake_weight, background_apart));
 }
 
 /** The channel named `name` of layer list `names`. */
@@ -96,13 +102,7 @@ TEST(Layers, EachPassCarriesTheLayersSoFar) {
     // beauty alone (premultiplied: its sky black) with no alpha, background or layers; after a
     // kill it was what was left. Each pass now carries the layers finished as at the end.
     test::TempDir dir("layers_passes");
-    { std::ofstream(dir.file("square.toml")) << square_scene(0.0, 0.5); }
-    FrameRequest req;
-    req.scene = dir.file("square.toml");
-    req.ocio_config = test::shipped_ocio();
-    req.log = &test::quiet_log();
-    req.options.layers = true;
-    req.options.background_apart = true;
+    FrameRequest req = square_request(dir, true, 0.0, 0.5, true);
     req.options.spp_override = 8;
     std::vector<std::vector<float>> seen;
     std::vector<std::string> names;
