@@ -108,6 +108,45 @@ void raise_scene_error(const SpangleError& e) {
 Vec3 vec3(const std::array<double, 3>& a) {
     return Vec3(static_cast<float>(a[0]), static_cast<float>(a[1]), static_cast<float>(a[2]));
 }
+/** Real numbers given as a number, a (nested) list or a numpy array: their shape and values,
+ *  row by row. Anything else (strings, complex or boolean numbers, ragged lists) is a
+ *  SceneError at `at` naming `what`. */
+struct RealArray {
+    std::vector<std::size_t> shape;
+    std::vector<double> values;
+    std::string describe() const {
+        if (shape.empty()) return "one number";
+        return fmt::format("an array of shape ({})", fmt::join(shape, ", "));
+    }
+};
+RealArray real_array(const py::object& in, const FileLoc& at, const char* what) {
+    const auto np = py::module_::import("numpy");
+    py::array raw;
+    try {
+        raw = np.attr("asarray")(in);
+    } catch (const py::error_already_set&) {
+        throw SpangleError(at, fmt::format("{} takes real numbers", what));
+    }
+    const char kind = raw.dtype().kind();
+    // Python objects (Decimal, Fraction) are numbers when float() takes them.
+    if (kind == 'O') {
+        try {
+            raw = np.attr("asarray")(in, "float64");
+        } catch (const py::error_already_set&) {
+            throw SpangleError(at, fmt::format("{} takes real numbers", what));
+        }
+    } else if (kind != 'f' && kind != 'i' && kind != 'u')
+        throw SpangleError(at, fmt::format("{} takes real numbers, got numpy dtype {}", what,
+                                           py::str(raw.dtype()).cast<std::string>()));
+    RealArray out;
+    for (py::ssize_t d = 0; d < raw.ndim(); ++d)
+        out.shape.push_back(static_cast<std::size_t>(raw.shape(d)));
+    const py::array_t<double> flat =
+        np.attr("asarray")(raw, "float64").attr("reshape")(-1).cast<py::array_t<double>>();
+    out.values.assign(flat.data(), flat.data() + flat.size());
+    return out;
+}
+
 std::optional<Vec3> vec3(const std::optional<std::array<double, 3>>& a) {
     return a ? std::optional<Vec3>(vec3(*a)) : std::nullopt;
 }
@@ -249,6 +288,15 @@ PYBIND11_MODULE(_spangle, m) {
     m.attr("__version__") = SPANGLE_VERSION;
     m.def("_set_module_location", &spangle::python::set_module_location);
     py::module_::import("atexit").attr("register")(py::cpp_function(&stop_renders_at_exit));
+    // pybind11 imports numpy's C API on the first array made, inside a function-local static
+    // that releases the GIL while numpy imports: two threads making their first arrays at once
+    // (two images read, two on_pass callbacks) each waited for the other for ever. Made here,
+    // at import, on one thread. Without numpy the module still imports; arrays then raise.
+    try {
+        const py::array_t<float> first(0);
+        (void)first;
+    } catch (const py::error_already_set&) {
+    }
 
     py::class_<RenderedImage>(m, "Image", "A rendered image: the beauty, its layers, its samples.")
         .def_property_readonly(
@@ -350,6 +398,10 @@ PYBIND11_MODULE(_spangle, m) {
                         for (const ParamDesc& p : mat.params)
                             params[py::str(p.name)] = param_to_python(p);
                         d["params"] = params;
+                        // Beside the plugin's parameters, as set_material takes them (they
+                        // could be set but not read back).
+                        if (mat.alpha) d["alpha"] = param_to_python(*mat.alpha);
+                        if (mat.alpha_cutoff) d["alpha_cutoff"] = *mat.alpha_cutoff;
                         return d;
                     }
                     throw SpangleError(fmt::format("no material '{}'", name));
@@ -408,32 +460,35 @@ PYBIND11_MODULE(_spangle, m) {
                 // scale: three numbers or one (uniform), as the scene file takes it.
                 std::optional<std::array<double, 3>> scale;
                 if (!scale_in.is_none()) {
-                    if (py::isinstance<py::float_>(scale_in) ||
-                        py::isinstance<py::int_>(scale_in) || py::hasattr(scale_in, "__float__")) {
-                        const double k = scale_in.cast<double>();
-                        scale = std::array<double, 3>{k, k, k};
-                    } else {
-                        try {
-                            scale = scale_in.cast<std::array<double, 3>>();
-                        } catch (const py::cast_error&) {
-                            throw SpangleError(edit, "'scale' takes three numbers or one");
-                        }
-                    }
+                    // (A numpy array of three has __float__ too: it was cast as one number and
+                    // failed with pybind11's bare cast error.)
+                    const RealArray v = real_array(scale_in, edit, "'scale'");
+                    if (v.values.size() == 1)
+                        scale = std::array<double, 3>{v.values[0], v.values[0], v.values[0]};
+                    else if (v.values.size() == 3 && v.shape.size() <= 1)
+                        scale = std::array<double, 3>{v.values[0], v.values[1], v.values[2]};
+                    else
+                        throw SpangleError(edit, fmt::format("'scale' takes three numbers or one; "
+                                                             "got {}",
+                                                             v.describe()));
                 }
                 // matrix: 3 x 4 or 4 x 4 (its last row 0 0 0 1), nested or flat (12 or 16
                 // numbers, row by row), a list or a numpy array, as the scene file's `matrix`.
                 std::optional<Affine> a;
                 if (!matrix_in.is_none()) {
-                    const auto np = py::module_::import("numpy");
-                    const py::array_t<double> flat = np.attr("asarray")(matrix_in, "float64")
-                                                         .attr("reshape")(-1)
-                                                         .cast<py::array_t<double>>();
-                    const auto n = static_cast<std::size_t>(flat.size());
-                    const double* v = flat.data();
-                    if (n != 12 && n != 16)
+                    const RealArray mat = real_array(matrix_in, edit, "matrix");
+                    const auto n = mat.values.size();
+                    const double* v = mat.values.data();
+                    // Flat, or 3 x 4 / 4 x 4: a 4 x 3 (a transposed matrix) or 2 x 8 of twelve
+                    // numbers was read row by row without a word.
+                    const bool shaped =
+                        mat.shape.size() == 1 || (mat.shape.size() == 2 && mat.shape[1] == 4 &&
+                                                  (mat.shape[0] == 3 || mat.shape[0] == 4));
+                    if ((n != 12 && n != 16) || !shaped)
                         throw SpangleError(edit, fmt::format("matrix takes 12 numbers (3 x 4) or "
-                                                             "16 (4 x 4), row by row; got {}",
-                                                             n));
+                                                             "16 (4 x 4), row by row, flat or "
+                                                             "nested; got {}",
+                                                             mat.describe()));
                     if (n == 16 && !(v[12] == 0.0 && v[13] == 0.0 && v[14] == 0.0 && v[15] == 1.0))
                         throw SpangleError(edit,
                                            "a 4 x 4 matrix's last row must be 0 0 0 1 (an "

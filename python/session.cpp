@@ -1,7 +1,9 @@
 #include "session.h"
 
+#include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <thread>
 
 #include "core/error.h"
 #include "core/files.h"
@@ -43,18 +45,24 @@ void PySession::check_size(const std::pair<uint32_t, uint32_t>& size) {
 }
 
 std::unique_lock<std::mutex> PySession::edit_lock() {
-    std::unique_lock<std::mutex> lock;
-    if (!busy_.load()) lock = std::unique_lock<std::mutex>(rendering_, std::try_to_lock);
-    if (!lock.owns_lock())
-        throw SpangleError(
-            "this session is rendering: load or edit it after render() returns (stop() ends a "
-            "render early)");
-    return lock;
+    // A render refuses the edit; another thread's edit or load is waited for (each was refused
+    // as "rendering": 345 of 400 edits from two threads). Polled, not blocked on, so that a
+    // render that takes the lock meanwhile still refuses it rather than making it wait.
+    for (;;) {
+        if (busy_.load())
+            throw SpangleError(
+                "this session is rendering: load or edit it after render() returns (stop() ends "
+                "a render early)");
+        std::unique_lock<std::mutex> lock(rendering_, std::try_to_lock);
+        if (lock.owns_lock()) return lock;
+        std::this_thread::sleep_for(std::chrono::microseconds(200));
+    }
 }
 
 void PySession::load(const std::string& path, double time,
                      const std::optional<std::pair<uint32_t, uint32_t>>& size) {
     const auto lock = edit_lock();
+    if (path.empty()) throw SpangleError("load(): the scene's path is empty");
     if (size) check_size(*size);
     // By its absolute path: edits reload it, and the process may change folder in between (every
     // edit after os.chdir failed to find the scene's meshes).
@@ -80,11 +88,6 @@ SceneDescription PySession::description() const {
     return desc_;
 }
 
-void PySession::apply(SceneDescription edited) {
-    const auto lock = edit_lock();
-    apply_locked(std::move(edited));
-}
-
 void PySession::apply_locked(SceneDescription edited) {
     session_->load(edited, time_);
     const std::lock_guard<std::mutex> l(desc_mutex_);
@@ -108,6 +111,9 @@ FileLoc python_loc(const std::string& what) {
 
 void PySession::set_material(const std::string& name,
                              const std::vector<std::pair<std::string, ParamValue>>& params) {
+    // The edit lock from the read to the reload: two threads' edits each made on its own copy
+    // of the description, and the later reload dropped the other's edit.
+    const auto lock = edit_lock();
     SceneDescription d = description();
     MaterialDesc* m = nullptr;
     for (MaterialDesc& x : d.materials)
@@ -186,7 +192,7 @@ void PySession::set_material(const std::string& name,
         throw SpangleError(
             m->alpha_cutoff_loc,
             fmt::format("material '{}': alpha_cutoff needs an alpha to cut by", name));
-    apply(std::move(d));
+    apply_locked(std::move(d));
 }
 
 std::vector<std::string> PySession::objects() const {
@@ -205,8 +211,10 @@ namespace {
 void check_vec(const std::string& call, const char* key, const std::optional<Vec3>& v) {
     if (v && !(std::isfinite(v->x) && std::isfinite(v->y) && std::isfinite(v->z) &&
                std::fabs(v->x) <= 1e30f && std::fabs(v->y) <= 1e30f && std::fabs(v->z) <= 1e30f))
-        throw SpangleError(python_loc(call), fmt::format("'{}' must be finite, got ({}, {}, {})",
-                                                         key, v->x, v->y, v->z));
+        throw SpangleError(python_loc(call),
+                           fmt::format("'{}' must be finite and at most 1e30 in size, got ({}, "
+                                       "{}, {})",
+                                       key, v->x, v->y, v->z));
 }
 
 void check_number(const std::string& call, const char* key, const std::optional<double>& v,
@@ -232,6 +240,9 @@ ObjectDesc& PySession::object_named(SceneDescription& d, const std::string& name
 void PySession::set_transform(const std::string& name, const std::optional<Vec3>& translate,
                               const std::optional<Vec3>& rotate, const std::optional<Vec3>& scale,
                               const std::optional<Affine>& matrix) {
+    // The edit lock from the read to the reload: two threads' edits each made on its own copy
+    // of the description, and the later reload dropped the other's edit.
+    const auto lock = edit_lock();
     SceneDescription d = description();
     ObjectDesc& o = object_named(d, name);
     const std::string call = fmt::format("set_transform('{}')", name);
@@ -297,7 +308,7 @@ void PySession::set_transform(const std::string& name, const std::optional<Vec3>
         if (scale) o.placement.parts.scale = *scale;
     }
     o.loc = edit;
-    apply(std::move(d));
+    apply_locked(std::move(d));
 }
 
 void PySession::set_camera(const std::optional<Vec3>& position, const std::optional<Vec3>& look_at,
@@ -306,6 +317,9 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
                            const std::optional<double>& focus_distance,
                            const std::optional<double>& ortho_height,
                            const std::optional<std::string>& projection) {
+    // The edit lock from the read to the reload: two threads' edits each made on its own copy
+    // of the description, and the later reload dropped the other's edit.
+    const auto lock = edit_lock();
     SceneDescription d = description();
     CameraDesc& c = d.camera;
     check_vec("set_camera()", "position", position);
@@ -374,12 +388,15 @@ void PySession::set_camera(const std::optional<Vec3>& position, const std::optio
     if (aperture) c.aperture = *aperture;
     if (focus_distance) c.focus_distance = *focus_distance;
     c.loc = c.look_at_loc = c.up_loc = python_loc("set_camera()");
-    apply(std::move(d));
+    apply_locked(std::move(d));
 }
 
 void PySession::set_light(std::size_t index, const std::optional<double>& intensity,
                           const std::optional<Vec3>& color, const std::optional<Vec3>& position,
                           const std::optional<double>& radius) {
+    // The edit lock from the read to the reload: two threads' edits each made on its own copy
+    // of the description, and the later reload dropped the other's edit.
+    const auto lock = edit_lock();
     SceneDescription d = description();
     const std::string call = fmt::format("set_light({})", index);
     const FileLoc loc = python_loc(call);
@@ -425,7 +442,7 @@ void PySession::set_light(std::size_t index, const std::optional<double>& intens
                                                 radius ? "radius" : "position"));
     }
     l.loc = loc;
-    apply(std::move(d));
+    apply_locked(std::move(d));
 }
 
 std::vector<SpangleParamDesc_v3> PySession::parameters(const std::string& plugin,

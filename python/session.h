@@ -109,13 +109,13 @@ public:
     const SceneInfo& info() const { return session_->info(); }
 
 private:
-    /** Reloads `edited`; on success it becomes the description (else it throws, nothing
-     *  changed). Refused while the session renders (from another thread or a callback: the
-     *  render reads what a reload frees). */
-    void apply(SceneDescription edited);
-    /** apply() for a caller that holds rendering_. */
+    /** Reloads `edited` (the caller holds edit_lock() since it read the description); on
+     *  success it becomes the description (else it throws, nothing changed). Refused while the
+     *  session renders (from another thread or a callback: the render reads what a reload
+     *  frees). */
     void apply_locked(SceneDescription edited);
-    /** Locks rendering_ for an edit or a load, or throws when a render holds it. */
+    /** Locks rendering_ for an edit or a load, waiting for another thread's edit or load; throws
+     *  when a render holds it. */
     std::unique_lock<std::mutex> edit_lock();
     /** Throws unless `size` is 1 to 16384 pixels a side. */
     static void check_size(const std::pair<uint32_t, uint32_t>& size);

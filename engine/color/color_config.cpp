@@ -2,20 +2,43 @@
 
 #include <OpenColorIO/OpenColorIO.h>
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <fstream>
+#include <map>
+#include <mutex>
+#include <set>
 #include <sstream>
 
 #include "core/error.h"
+#include "core/files.h"
 #include "core/hash.h"
 
 namespace OCIO = OCIO_NAMESPACE;
 
 namespace spangle {
 
+/** The files (LUTs) the config's transforms read, as each was when a processor first read it:
+ *  shared by a config's clones (the same config reads the same files). */
+struct LutFiles {
+    std::mutex mutex;
+    std::map<std::string, std::string> identity;  ///< path -> file_identity() at first use
+    /** Those the scene's own conversions read (colours, textures, the working space's test),
+     *  not the preview's display nor the header's chromaticities: the scene hash's, so that
+     *  the processes of one render (MPI ranks, crop parts) agree. (A watch session keeps those
+     *  of earlier versions of its scene too.) */
+    std::set<std::string> scene;
+    /** path -> (its identity, its bytes' hash) when content_hash() last read it: read again
+     *  only once it changed (every watch reload and Python edit hashes the scene). */
+    std::map<std::string, std::pair<std::string, uint64_t>> bytes;
+};
+
 struct ColorConfig::Impl {
     OCIO::ConstConfigRcPtr config;
+    std::shared_ptr<LutFiles> luts = std::make_shared<LutFiles>();
     std::string path;
     std::string working;
     std::string default_working;  ///< the scene_linear role's space, or empty
@@ -26,6 +49,40 @@ ColorConfig::ColorConfig(std::unique_ptr<Impl> impl) : impl_(std::move(impl)) {}
 ColorConfig::ColorConfig(ColorConfig&&) noexcept = default;
 ColorConfig& ColorConfig::operator=(ColorConfig&&) noexcept = default;
 ColorConfig::~ColorConfig() = default;
+
+namespace {
+
+/** Records the files a processor read in `luts`, each with its identity at first use. */
+void note_files(LutFiles& luts, const OCIO::ConstProcessorRcPtr& processor, bool of_scene) {
+    const OCIO::ConstProcessorMetadataRcPtr meta = processor->getProcessorMetadata();
+    if (!meta || meta->getNumFiles() == 0) return;
+    std::lock_guard<std::mutex> lock(luts.mutex);
+    for (int i = 0; i < meta->getNumFiles(); ++i)
+        if (const char* f = meta->getFile(i); f && *f) {
+            luts.identity.try_emplace(f, file_identity(f));
+            if (of_scene) luts.scene.insert(f);
+        }
+}
+
+}  // namespace
+
+std::vector<std::string> ColorConfig::lut_files() const {
+    std::lock_guard<std::mutex> lock(impl_->luts->mutex);
+    std::vector<std::string> out;
+    for (const auto& [path, id] : impl_->luts->identity) out.push_back(path);
+    return out;
+}
+
+bool ColorConfig::lut_files_changed() const {
+    std::lock_guard<std::mutex> lock(impl_->luts->mutex);
+    for (const auto& [path, id] : impl_->luts->identity)
+        if (file_identity(path) != id) return true;
+    return false;
+}
+
+void ColorConfig::forget_read_files() {
+    OCIO::ClearAllCaches();
+}
 
 ColorConfig ColorConfig::clone() const {
     return ColorConfig(std::make_unique<Impl>(*impl_));
@@ -81,7 +138,13 @@ const std::string& ColorConfig::default_working_space() const {
 std::optional<std::string> ColorConfig::canonical_name(const std::string& space) const {
     const char* name = impl_->config->getCanonicalName(space.c_str());
     if (!name || !*name) return std::nullopt;
+    // OCIO names named transforms too; they convert between spaces but are none.
+    if (!impl_->config->getColorSpace(name)) return std::nullopt;
     return std::string(name);
+}
+
+bool ColorConfig::is_named_transform(const std::string& name) const {
+    return impl_->config->getNamedTransform(name.c_str()) != nullptr;
 }
 
 bool ColorConfig::is_data(const std::string& space) const {
@@ -144,8 +207,54 @@ std::optional<std::string> ColorConfig::not_scene_linear(const std::string& spac
     if (cs->getReferenceSpaceType() == OCIO::REFERENCE_SPACE_DISPLAY)
         return std::string("it is a display colour space");
     const std::string encoding = cs->getEncoding() ? cs->getEncoding() : "";
-    if (!encoding.empty() && encoding != "scene-linear")
-        return fmt::format("its encoding is {}", encoding);
+    if (encoding == "scene-linear") return std::nullopt;  // as the config says
+    if (!encoding.empty()) return fmt::format("its encoding is {}", encoding);
+    // Most configs say nothing of encodings (every v1 config, many v2 ones): the space's own
+    // transform to the reference is tried on colours within [0, 1] (a LUT's usual domain). A
+    // linear one maps 0 to 0, a doubled colour to its double and a sum to the sum (a log, gamma
+    // or sRGB curve fails at once).
+    // Rows: 0, x, 2x, y, x + y, and a colour and its tenth.
+    float px[7][3] = {{0.0f, 0.0f, 0.0f},   {0.18f, 0.05f, 0.5f},  {0.36f, 0.1f, 1.0f},
+                      {0.7f, 0.3f, 0.02f},  {0.88f, 0.35f, 0.52f}, {0.6f, 0.3f, 0.9f},
+                      {0.06f, 0.03f, 0.09f}};
+    const float in[7][3] = {{0.0f, 0.0f, 0.0f},   {0.18f, 0.05f, 0.5f},  {0.36f, 0.1f, 1.0f},
+                            {0.7f, 0.3f, 0.02f},  {0.88f, 0.35f, 0.52f}, {0.6f, 0.3f, 0.9f},
+                            {0.06f, 0.03f, 0.09f}};
+    try {
+        OCIO::ConstProcessorRcPtr proc;
+        if (auto t = cs->getTransform(OCIO::COLORSPACE_DIR_TO_REFERENCE))
+            proc = impl_->config->getProcessor(t, OCIO::TRANSFORM_DIR_FORWARD);
+        else if (auto f = cs->getTransform(OCIO::COLORSPACE_DIR_FROM_REFERENCE))
+            proc = impl_->config->getProcessor(f, OCIO::TRANSFORM_DIR_INVERSE);
+        else
+            return std::nullopt;  // the reference itself
+        note_files(*impl_->luts, proc, true);
+        auto cpu = proc->getDefaultCPUProcessor();
+        for (auto& row : px) cpu->applyRGB(row);
+    } catch (const OCIO::Exception& e) {
+        throw_error("colour space '{}': its transform to the reference cannot be made: {}", space,
+                    e.what());
+    }
+    const auto far = [](const float* a, const float* b, float scale) {
+        float size = 0.0f, diff = 0.0f;
+        for (int c = 0; c < 3; ++c) {
+            if (!std::isfinite(a[c]) || !std::isfinite(b[c])) return true;
+            size = std::max({size, std::fabs(a[c]), std::fabs(b[c])});
+            diff = std::max(diff, std::fabs(a[c] - scale * b[c]));
+        }
+        return diff > 1e-3f * size + 1e-5f;
+    };
+    const float zero[3] = {0.0f, 0.0f, 0.0f};
+    float sum[3];
+    for (int c = 0; c < 3; ++c) sum[c] = px[1][c] + px[3][c];
+    if (far(px[0], zero, 1.0f) || far(px[2], px[1], 2.0f) || far(px[4], sum, 1.0f) ||
+        far(px[5], px[6], 10.0f))
+        return fmt::format(
+            "its transform to the reference is not linear: ({}, {}, {}) becomes "
+            "({:.4g}, {:.4g}, {:.4g}) and twice it ({:.4g}, {:.4g}, {:.4g}), "
+            "0 becomes ({:.4g}, {:.4g}, {:.4g})",
+            in[1][0], in[1][1], in[1][2], px[1][0], px[1][1], px[1][2], px[2][0], px[2][1],
+            px[2][2], px[0][0], px[0][1], px[0][2]);
     return std::nullopt;
 }
 
@@ -159,7 +268,9 @@ void ColorConfig::set_working_space(const std::string& space) {
 
 std::string ColorConfig::conversion_id(const std::string& from, const std::string& to) const {
     try {
-        return impl_->config->getProcessor(from.c_str(), to.c_str())->getCacheID();
+        auto processor = impl_->config->getProcessor(from.c_str(), to.c_str());
+        note_files(*impl_->luts, processor, true);
+        return processor->getCacheID();
     } catch (const OCIO::Exception& e) {
         throw_error("colour conversion from '{}' to '{}' failed: {}", from, to, e.what());
     }
@@ -168,14 +279,41 @@ std::string ColorConfig::conversion_id(const std::string& from, const std::strin
 uint64_t ColorConfig::content_hash() const {
     std::ostringstream text;
     impl_->config->serialize(text);
-    return hash_text(text.str());
+    uint64_t h = hash_text(text.str());
+    // And the bytes of the LUT files the scene's conversions read (a texture's, a colour's),
+    // sorted by content: the same path may hold another LUT on another node, or under another
+    // $SHOT of the config's context.
+    std::vector<uint64_t> luts;
+    LutFiles& files = *impl_->luts;
+    std::lock_guard<std::mutex> lock(files.mutex);
+    for (const std::string& path : files.scene) {
+        const std::string id = file_identity(path);
+        auto& [seen, hash] = files.bytes[path];
+        if (seen != id) {
+            std::ifstream in(path, std::ios::binary);
+            std::ostringstream bytes;
+            bytes << in.rdbuf();
+            seen = id;
+            hash = in ? hash_text(bytes.str()) : 0;
+        }
+        luts.push_back(hash);
+    }
+    std::sort(luts.begin(), luts.end());
+    for (const uint64_t l : luts) h = hash2(h, l);
+    return h;
 }
 
 void ColorConfig::convert(const std::string& from, const std::string& to, float* rgb,
                           std::size_t count) const {
+    convert_noting(from, to, rgb, count, true);
+}
+
+void ColorConfig::convert_noting(const std::string& from, const std::string& to, float* rgb,
+                                 std::size_t count, bool of_scene) const {
     if (count == 0) return;
     try {
         auto processor = impl_->config->getProcessor(from.c_str(), to.c_str());
+        note_files(*impl_->luts, processor, of_scene);
         auto cpu = processor->getDefaultCPUProcessor();
         OCIO::PackedImageDesc desc(rgb, static_cast<long>(count), 1, 3);
         cpu->apply(desc);
@@ -190,6 +328,7 @@ void ColorConfig::to_display(const std::string& display, const std::string& view
     try {
         auto processor = impl_->config->getProcessor(impl_->working.c_str(), display.c_str(),
                                                      view.c_str(), OCIO::TRANSFORM_DIR_FORWARD);
+        note_files(*impl_->luts, processor, false);
         auto cpu = processor->getDefaultCPUProcessor();
         OCIO::PackedImageDesc desc(rgb, static_cast<long>(count), 1, 3);
         cpu->apply(desc);
@@ -214,6 +353,20 @@ void ColorConfig::resolve_view(std::string& display, std::string& view) const {
     if (std::find(views.begin(), views.end(), view) == views.end())
         throw_error("display '{}' of the OCIO config '{}' has no view '{}' (views: {})", display,
                     path(), view, fmt::join(views, ", "));
+}
+
+bool ColorConfig::view_is_srgb(const std::string& display, const std::string& view) const {
+    const auto& config = impl_->config;
+    const std::string d = display.empty() ? config->getDefaultDisplay() : display;
+    const std::string v = view.empty() ? config->getDefaultView(d.c_str()) : view;
+    const char* space = config->getDisplayViewColorSpaceName(d.c_str(), v.c_str());
+    const OCIO::ConstColorSpaceRcPtr cs = space ? config->getColorSpace(space) : nullptr;
+    if (cs && cs->isData()) return false;
+    const auto names_srgb = [](std::string text) {
+        for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+        return text.find("srgb") != std::string::npos;
+    };
+    return names_srgb(d) || (space && names_srgb(space));
 }
 
 std::string ColorConfig::default_display() const {
@@ -252,7 +405,7 @@ std::optional<Chromaticities> ColorConfig::working_chromaticities() const {
     }
     float rgb[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1};
     try {
-        convert(impl_->working, xyz, rgb, 4);
+        convert_noting(impl_->working, xyz, rgb, 4, false);
     } catch (const SpangleError&) {
         return std::nullopt;
     }

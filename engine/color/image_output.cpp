@@ -375,10 +375,30 @@ std::vector<unsigned char> display_bytes(const std::vector<float>& rgb, int widt
     return bytes;
 }
 
+/** Removes the chunks of `type` from the PNG `file` (the others, each with its own CRC, are
+ *  kept as they are). */
+void drop_chunk(std::string& file, const char* type) {
+    std::string out = file.substr(0, std::min<std::size_t>(8, file.size()));
+    std::size_t at = 8;
+    while (at + 12 <= file.size()) {
+        const auto byte = [&](std::size_t i) {
+            return static_cast<uint32_t>(static_cast<unsigned char>(file[i]));
+        };
+        const uint32_t length =
+            byte(at) << 24 | byte(at + 1) << 16 | byte(at + 2) << 8 | byte(at + 3);
+        const std::size_t whole = 12 + static_cast<std::size_t>(length);
+        if (at + whole > file.size()) break;
+        if (file.compare(at + 4, 4, type) != 0) out.append(file, at, whole);
+        at += whole;
+    }
+    out.append(file, at, std::string::npos);
+    file = std::move(out);
+}
+
 /** Encodes 8-bit RGB rows as a PNG in memory (libpng's simplified API: errors come back as
  *  a message, not a longjmp). */
 std::string encode_png(const std::vector<unsigned char>& bytes, int width, int height,
-                       const PngOptions& options) {
+                       const PngOptions& options, bool srgb) {
     png_image image{};
     image.version = PNG_IMAGE_VERSION;
     image.width = static_cast<png_uint_32>(width);
@@ -386,6 +406,9 @@ std::string encode_png(const std::vector<unsigned char>& bytes, int width, int h
     image.format = PNG_FORMAT_RGB;
     // libpng's simplified API knows two levels: its default, or fast (for pass outputs).
     if (options.compression_level <= 3) image.flags |= PNG_IMAGE_FLAG_FAST;
+    // libpng tags the file sRGB unless told otherwise: only a view of an sRGB display is. (Told
+    // otherwise, it writes a gamma of 1/2.2 instead, taken out below: no tag at all.)
+    if (!srgb) image.flags |= PNG_IMAGE_FLAG_COLORSPACE_NOT_sRGB;
     png_alloc_size_t size = 0;
     if (!png_image_write_to_memory(&image, nullptr, &size, 0, bytes.data(), 0, nullptr))
         throw_error("cannot encode a PNG: {}", image.message);
@@ -393,6 +416,7 @@ std::string encode_png(const std::vector<unsigned char>& bytes, int width, int h
     if (!png_image_write_to_memory(&image, file.data(), &size, 0, bytes.data(), 0, nullptr))
         throw_error("cannot encode a PNG: {}", image.message);
     file.resize(size);
+    if (!srgb) drop_chunk(file, "gAMA");
     return file;
 }
 
@@ -414,7 +438,8 @@ std::string encode_png_preview(const std::vector<float>& rgb, int width, int hei
                                const ColorConfig& color, const PngOptions& options) {
     const std::vector<unsigned char> bytes = display_bytes(
         rgb, width, height, 0, height, color, options.block, options.display, options.view);
-    return encode_png(bytes, width, height, options);
+    return encode_png(bytes, width, height, options,
+                      color.view_is_srgb(options.display, options.view));
 }
 
 }  // namespace spangle

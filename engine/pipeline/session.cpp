@@ -118,7 +118,10 @@ std::vector<std::string> Session::watched_files() const {
     if (world_)
         for (const auto& [system, files] : world_->files)
             for (const auto& [path, read] : files) all.insert(path);
-    if (color_) all.insert(color_->path());
+    if (color_) {
+        all.insert(color_->path());
+        for (const std::string& lut : color_->lut_files()) all.insert(lut);
+    }
     return {all.begin(), all.end()};
 }
 
@@ -195,16 +198,23 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     // Read into a candidate. The colour config is copied so that a failed read cannot change
     // the live one's working space; an edited OCIO config is loaded afresh.
     std::unique_ptr<ColorConfig> color;
-    if (world_ && file_identity(color_->path()) != ocio_identity_) {
+    const bool luts_edited = world_ && color_->lut_files_changed();
+    const bool config_edited = world_ && file_identity(color_->path()) != ocio_identity_;
+    if (config_edited || luts_edited) {
+        // OpenColorIO keeps the LUTs it read for the process: an edited one must be read again
+        // (the reloaded config rendered with the old LUT, unlike a fresh render).
+        ColorConfig::forget_read_files();
         color = std::make_unique<ColorConfig>(
             ColorConfig::load(ocio_request_, default_ocio_locations()));
-        rep.changed.push_back("file " + color_->path());
+        if (config_edited) rep.changed.push_back("file " + color_->path());
+        if (luts_edited) rep.changed.push_back("the OCIO config's LUT files");
         full = true;
     } else {
         color = std::make_unique<ColorConfig>(color_->clone());
     }
     auto cand = std::make_unique<ecs::Registry>();
     auto info = std::make_unique<SceneInfo>(build_scene(scene, *color, *cand, time));
+    if (full && !rep.first && check_reloaded_config) check_reloaded_config(*color);
     for (const std::string& note : info->notes) log_.warn("{}", note);
     if (world_ && color->working_space() != color_->working_space()) {
         rep.changed.push_back("working space");

@@ -9,6 +9,7 @@
 // identities, parameters), so an unchanged mesh, material or environment map is reused, not
 // rebuilt. A load that fails leaves the live scene as it was.
 
+#include <functional>
 #include <map>
 #include <memory>
 #include <string>
@@ -79,6 +80,10 @@ public:
     const ColorConfig& color() const { return *color_; }
     RenderOptions& options() { return options_; }
     PluginLoader& plugins() { return *plugins_; }
+    /** Called by load() with an OCIO config reloaded after an edit (its working space set),
+     *  before it becomes live: a throw refuses the load and keeps the live scene and config (the
+     *  watch loop checks its display and view: an edit that removed them deleted the preview). */
+    std::function<void(const ColorConfig&)> check_reloaded_config;
 
     /** Every file the live scene was built from: the scene, meshes, cages, environment maps,
      *  textures, the OCIO config and the plugin libraries it opened. */

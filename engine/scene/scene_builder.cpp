@@ -45,6 +45,11 @@ void note_once(BuildContext& ctx, std::string note) {
 std::string resolve_space(BuildContext& ctx, const std::string& name, const FileLoc& at,
                           const char* implicit = nullptr) {
     auto resolved = ctx.color->resolve(name);
+    if (!resolved && ctx.color->is_named_transform(name))
+        throw_error(at,
+                    "'{}' is a named transform of the OCIO config, not a colour space (known "
+                    "spaces: {})",
+                    name, fmt::join(ctx.color->space_names(), ", "));
     if (!resolved)
         throw_error(at, "unknown {}colour space '{}' (known: {}); {}", implicit ? implicit : "",
                     name, fmt::join(ctx.color->space_names(), ", "), ctx.color->how_to_fix());
@@ -67,7 +72,12 @@ std::string space_of(BuildContext& ctx, const ColorDesc& c) {
 Vec3 working_color(BuildContext& ctx, const std::optional<ColorDesc>& c, Vec3 fallback) {
     if (!c) return fallback;
     float rgb[3] = {c->rgb.x, c->rgb.y, c->rgb.z};
-    ctx.color->to_working(space_of(ctx, *c), rgb, 1);
+    const std::string space = space_of(ctx, *c);
+    try {
+        ctx.color->to_working(space, rgb, 1);
+    } catch (const SpangleError& e) {  // the conversion's own (a LUT file missing): said here
+        throw_error(c->space ? c->space_loc : c->loc, "{}", e.what());
+    }
     // A colour that is finite as written can overflow in the conversion (an sRGB-encoded 1e20
     // decodes to infinity): the light vanished, or an environment turned the image black.
     if (!std::isfinite(rgb[0]) || !std::isfinite(rgb[1]) || !std::isfinite(rgb[2]))
@@ -117,7 +127,13 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
         const std::string space = resolve_space(ctx, *d.working_space, d.working_space_loc);
         // Light is added and multiplied in the working space: an encoded (sRGB), display or data
         // space rendered with no word, its header naming it (a furnace's 0.5 showed as 0.21).
-        if (const auto why = color.not_scene_linear(space))
+        std::optional<std::string> why;
+        try {
+            why = color.not_scene_linear(space);
+        } catch (const SpangleError& e) {
+            throw_error(d.working_space_loc, "{}", e.what());
+        }
+        if (why)
             throw_error(d.working_space_loc,
                         "working_space '{}' is not scene-linear ({}): light adds up only in a "
                         "linear space; use a scene-linear one such as ACEScg or lin_rec709 (the "
@@ -331,12 +347,18 @@ void build_environment(BuildContext& ctx, const EnvironmentDesc& d) {
                 d.map->path,
                 [&](const std::string& s) { return ctx.color->canonical_name(s).has_value(); },
                 unknown);
+            // Said at the map's key (was the [environment] line); --env has no colour space
+            // of its own to give.
+            const bool from_cli = d.map->loc.file == "--env";
             if (!unknown.empty())
                 ctx.info->notes.push_back(fmt::format(
                     "{}: environment map '{}' names colour space '{}' in its header, which the "
-                    "OCIO config does not have: read as {} (give 'color_space' to say otherwise)",
-                    d.loc.str(), d.map->path, unknown, usual));
-            m.color_space = resolve_space(ctx, usual, d.loc, "default (no key written) ");
+                    "OCIO config does not have: read as {} ({})",
+                    d.map->loc.str(), d.map->path, unknown, usual,
+                    from_cli ? "name the map in a scene's [environment] with 'color_space' to "
+                               "say otherwise"
+                             : "give 'color_space' to say otherwise"));
+            m.color_space = resolve_space(ctx, usual, d.map->loc, "default (no key written) ");
         }
         m.rotation_deg = static_cast<float>(d.map->rotation_deg);
         m.intensity = k;

@@ -156,9 +156,40 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
             uint64_t* const cidx = sc.index.data();
             int64_t* const cbx = sc.bx.data();
             int64_t* const cby = sc.by.data();
+            // A block whose corners all lie beyond one edge of P, by more than the rounding of
+            // the candidates' own test (margin), holds no candidate inside: it is skipped (on a
+            // car's sheared footprints, a third of the candidates were in such blocks). The
+            // candidates' test is unchanged, so the stand-ins are the same bit for bit.
+            const double xs0 = local.i00 * block, xs1 = local.i01 * block;
+            const double ts0 = local.i10 * block, ts1 = local.i11 * block;
+            const double s_lo = std::min(xs0, 0.0) + std::min(xs1, 0.0),
+                         s_hi = std::max(xs0, 0.0) + std::max(xs1, 0.0);
+            const double t_lo = std::min(ts0, 0.0) + std::min(ts1, 0.0),
+                         t_hi = std::max(ts0, 0.0) + std::max(ts1, 0.0);
+            const double extent = std::fabs(local.cu) + std::fabs(local.cv) + std::fabs(ag.x0) +
+                                  std::fabs(ag.y0) + ag.size + 1.0;
+            const double margin = 0.5 + 1e-9 +
+                                  1e-14 * extent *
+                                      (std::fabs(local.i00) + std::fabs(local.i01) +
+                                       std::fabs(local.i10) + std::fabs(local.i11));
+            // Worth it only where P leaves much of its bounding box empty (sheared, turned): a
+            // square aligned with the uv axes leaves no block out, and the test cost 7% there.
+            const double box = (std::fabs(local.ax) + std::fabs(local.bx)) *
+                               (std::fabs(local.ay) + std::fabs(local.by));
+            const bool cull = area < 0.75 * box;
+            // (s, t) of the first block's corner, then one block's steps: the rounding of the
+            // sums is far inside the margin's constant.
+            const double du0 = ag.x0 + bx0 * block - local.cu, dv0 = ag.y0 + by0 * block - local.cv;
+            const double s00 = local.i00 * du0 + local.i01 * dv0,
+                         t00 = local.i10 * du0 + local.i11 * dv0;
             uint32_t m = 0;
             for (int by = by0; by <= by1; ++by)
                 for (int bx = bx0; bx <= bx1; ++bx) {
+                    const double s0 = s00 + (bx - bx0) * xs0 + (by - by0) * xs1,
+                                 t0 = t00 + (bx - bx0) * ts0 + (by - by0) * ts1;
+                    if (cull && ((s0 + s_lo > margin) | (s0 + s_hi < -margin) |
+                                 (t0 + t_lo > margin) | (t0 + t_hi < -margin)))
+                        continue;
                     const uint64_t bkey =
                         mix(ag.key, 0xb10c0000u + static_cast<uint64_t>(by * kStandInBlocks + bx));
                     const uint32_t v = whole_n + (unit(mix(bkey, 0xd17)) < frac ? 1u : 0u);

@@ -8,6 +8,7 @@ the build tree's python/ folder, or by hand:
 import os
 import signal
 import subprocess
+import sys
 import threading
 import time
 
@@ -652,3 +653,88 @@ def test_plugin_path_takes_one_folder_or_a_list_and_refuses_what_is_not_one(tmp_
     with pytest.raises(spangle.SceneError, match="is not a folder"):
         spangle.Session(plugin_path=str(tmp_path / "missing"), threads=1)
 
+
+
+def test_two_threads_reading_their_first_images_at_once_do_not_hang(tmp_path):
+    # Found by a user: before numpy was imported, two threads making their first arrays at once
+    # (two images read, or two sessions' on_pass) waited for each other for ever inside
+    # pybind11's numpy set-up. A fresh interpreter, numpy not imported before.
+    script = tmp_path / "first_arrays.py"
+    script.write_text(
+        "import sys, threading\n"
+        "import spangle\n"
+        "s = spangle.Session(threads=1)\n"
+        f"s.load({SMALL!r}, size=(16, 9))\n"
+        "img = s.render(spp=1)\n"
+        "b = threading.Barrier(2)\n"
+        "def read():\n"
+        "    b.wait()\n"
+        "    img.beauty\n"
+        "ts = [threading.Thread(target=read) for _ in range(2)]\n"
+        "[t.start() for t in ts]\n"
+        "[t.join() for t in ts]\n"
+        "print('ok')\n")
+    out = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, timeout=120,
+                         env=os.environ.copy())
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "ok"
+
+
+def test_edits_from_two_threads_wait_for_each_other(session):
+    # Found by a user: 345 of 400 edits from two threads were refused as "this session is
+    # rendering" while nothing rendered.
+    session.load(SMALL, size=(16, 12))
+    errors = []
+
+    def edit(k):
+        for i in range(40):
+            try:
+                if k:
+                    session.set_camera(fov=20 + i % 10)
+                else:
+                    session.set_light(0, intensity=1 + i)
+            except spangle.SceneError as e:
+                errors.append(str(e))
+
+    ts = [threading.Thread(target=edit, args=(k,)) for k in (0, 1)]
+    for t in ts:
+        t.start()
+    for t in ts:
+        t.join()
+    assert errors == []
+    # Each thread's last edit stands (an edit made on a copy read before the other's reload
+    # dropped it).
+    assert session.camera["fov"] == pytest.approx(20 + 39 % 10)
+    assert session.lights[0]["intensity"] == pytest.approx(40)
+
+
+def test_scale_and_matrix_arrays_are_read_by_their_shape(session):
+    # Found by a user: scale=np.array([...]) of three was a bare pybind11 cast error; a 4 x 3
+    # matrix (transposed) or complex numbers were read as twelve numbers without a word.
+    session.load(SMALL, size=(16, 12))
+    name = session.objects[1]
+    session.set_transform(name, translate=(0, 1, 0), rotate=(0, 0, 0),
+                          scale=np.array([0.5, 2.0, 3.0], dtype=np.float32))
+    assert session.transform(name)["scale"] == pytest.approx((0.5, 2.0, 3.0))
+    session.set_transform(name, translate=(0, 1, 0), rotate=(0, 0, 0), scale=np.array(0.25))
+    assert session.transform(name)["scale"] == pytest.approx((0.25, 0.25, 0.25))
+    with pytest.raises(spangle.SceneError, match="shape \\(4, 3\\)"):
+        session.set_transform(name, matrix=np.zeros((4, 3)))
+    with pytest.raises(spangle.SceneError, match="real numbers"):
+        session.set_transform(name, matrix=np.eye(4, dtype=complex)[:3])
+    with pytest.raises(spangle.SceneError, match="three numbers or one"):
+        session.set_transform(name, scale=np.ones(2))
+    from fractions import Fraction
+    session.set_transform(name, translate=(0, 1, 0), rotate=(0, 0, 0), scale=Fraction(1, 2))
+    assert session.transform(name)["scale"] == pytest.approx((0.5, 0.5, 0.5))
+
+
+def test_material_shows_alpha_and_an_empty_path_is_a_scene_error(session):
+    session.load(SMALL, size=(16, 12))
+    name = session.materials[0]
+    session.set_material(name, alpha=0.3, alpha_cutoff=0.2)
+    m = session.material(name)
+    assert m["alpha"] == pytest.approx(0.3)
+    assert m["alpha_cutoff"] == pytest.approx(0.2)
+    with pytest.raises(spangle.SceneError, match="path is empty"):
+        session.load("")

@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <fstream>
 
+#include "color/image_output.h"
 #include "core/error.h"
 #include "pipeline/session.h"
 #include "test_support.h"
@@ -231,6 +232,121 @@ TEST(ColorConfig, AliasesAndUnknownNames) {
             << e.what();
     }
     EXPECT_EQ(c.working_space(), "ACEScg") << "scene_linear role is the default working space";
+}
+
+/** A config that says nothing of encodings (as every v1 config and many v2 ones): a log, an
+ *  sRGB-like and a linear (matrix) space, a named transform and a space whose LUT is missing. */
+constexpr const char* kSilentConfig = R"(ocio_profile_version: 2.1
+search_path: "luts"
+roles:
+  default: Linear Ref
+  scene_linear: Linear Ref
+  compositing_log: Log Enc
+displays:
+  Monitor:
+    - !<View> {name: Raw, colorspace: Linear Ref}
+colorspaces:
+  - !<ColorSpace>
+    name: Linear Ref
+  - !<ColorSpace>
+    name: Wide Gamut
+    to_scene_reference: !<MatrixTransform> {matrix: [2, 0, 0, 0, 0, 4, 0, 0, 0, 0, 8, 0, 0, 0, 0, 1]}
+  - !<ColorSpace>
+    name: Log Enc
+    to_scene_reference: !<LogAffineTransform> {base: 2, log_side_slope: 0.1, log_side_offset: 0.5, direction: inverse}
+  - !<ColorSpace>
+    name: Curve Enc
+    from_scene_reference: !<ExponentWithLinearTransform> {gamma: 2.4, offset: 0.055, direction: inverse}
+  - !<ColorSpace>
+    name: Lut Space
+    to_scene_reference: !<FileTransform> {src: missing.spi1d}
+named_transforms:
+  - !<NamedTransform>
+    name: Doubler
+    transform: !<MatrixTransform> {matrix: [2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1]}
+)";
+
+TEST(ColorConfig, AWorkingSpaceIsTestedForLinearityWhereTheConfigIsSilent) {
+    // A log or gamma-encoded working space was taken whenever the config did not say its
+    // encoding: a black frame with false warnings, or light added in encoded values. Its
+    // transform is now tried on colours; a named transform is no colour space; a space whose LUT
+    // is missing is said at the key, as is a colour converted through it.
+    test::TempDir dir("ocio_silent");
+    std::ofstream(dir.file("config.ocio")) << kSilentConfig;
+    const auto load = [&](const std::string& working, const std::string& sky_space) {
+        std::ofstream(dir.file("s.toml"))
+            << "[render]\nwidth = 8\nheight = 8\nworking_space = \"" << working
+            << "\"\n[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[environment]\n"
+               "color = { rgb = [0.5, 0.25, 0.125], space = \""
+            << sky_space << "\" }\n";
+        RenderOptions options;
+        Session session({}, dir.file("config.ocio"), options, test::quiet_log());
+        try {
+            session.load(dir.file("s.toml"), 0.0);
+        } catch (const SpangleError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    EXPECT_EQ(load("Linear Ref", "Linear Ref"), "");
+    EXPECT_EQ(load("Wide Gamut", "Linear Ref"), "") << "a matrix is linear";
+    for (const char* encoded : {"Log Enc", "compositing_log", "Curve Enc"}) {
+        const std::string e = load(encoded, "Linear Ref");
+        EXPECT_NE(e.find("s.toml:4:17: error: working_space '" + std::string(encoded) +
+                         "' is not scene-linear (its transform to the reference is not linear"),
+                  std::string::npos)
+            << e;
+    }
+    const std::string named = load("Doubler", "Linear Ref");
+    EXPECT_NE(named.find("s.toml:4:17: error: 'Doubler' is a named transform of the OCIO config, "
+                         "not a colour space"),
+              std::string::npos)
+        << named;
+    const std::string lut = load("Lut Space", "Linear Ref");
+    EXPECT_NE(lut.find("s.toml:4:17: error: colour space 'Lut Space': its transform to the "
+                       "reference cannot be made"),
+              std::string::npos)
+        << lut;
+    const std::string sky = load("Linear Ref", "Lut Space");
+    EXPECT_NE(sky.find("s.toml:9:"), std::string::npos) << sky;
+    EXPECT_NE(sky.find("colour conversion from 'Lut Space'"), std::string::npos) << sky;
+}
+
+TEST(ColorConfig, APngIsTaggedSrgbOnlyForAnSrgbDisplaysView) {
+    // Every preview carried an sRGB chunk, the Raw view's data and a gamma-2 display's too:
+    // colour-managed viewers re-encoded their pixels.
+    ColorConfig shipped = shipped_config();
+    const std::vector<float> grey(3 * 4, 0.18f);
+    const auto tagged = [&](const ColorConfig& c, const std::string& display,
+                            const std::string& view) {
+        PngOptions o;
+        o.display = display;
+        o.view = view;
+        const std::string png = encode_png_preview(grey, 2, 2, c, o);
+        // Untagged means no colour chunk at all (libpng writes a gamma of 1/2.2 otherwise).
+        if (png.find("gAMA") != std::string::npos) ADD_FAILURE() << "a gAMA chunk";
+        return png.find("sRGB") != std::string::npos;
+    };
+    EXPECT_TRUE(tagged(shipped, "", ""));
+    EXPECT_TRUE(tagged(shipped, "sRGB", "Standard"));
+    EXPECT_FALSE(tagged(shipped, "sRGB", "Raw"));
+    test::TempDir dir("png_tag");
+    std::ofstream(dir.file("config.ocio")) << R"(ocio_profile_version: 2
+roles:
+  default: Linear Ref
+  scene_linear: Linear Ref
+displays:
+  Studio Monitor:
+    - !<View> {name: Plain, colorspace: Gamma Disp}
+colorspaces:
+  - !<ColorSpace>
+    name: Linear Ref
+  - !<ColorSpace>
+    name: Gamma Disp
+    from_scene_reference: !<ExponentTransform> {value: [2, 2, 2, 1], direction: inverse}
+)";
+    ColorConfig gamma = ColorConfig::load(dir.file("config.ocio"), {});
+    EXPECT_FALSE(tagged(gamma, "", ""));
 }
 
 TEST(ColorConfig, WorkingChromaticities) {

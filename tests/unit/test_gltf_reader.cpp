@@ -587,6 +587,30 @@ TEST(GltfReader, CameraIsTheFirstOrTheOneNamed) {
     }
 }
 
+TEST(GltfReader, TinygltfsErrorsAreSaidAtTheElementTheyName) {
+    // tinygltf refuses an index to a missing buffer view itself; its error was placed at 1:1.
+    test::TempDir dir("gltf_tiny_error");
+    std::ofstream(dir.file("bad.gltf")) << R"({
+  "asset": {"version": "2.0"},
+  "meshes": [{"primitives": [{"attributes": {}, "indices": 0}]}],
+  "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 6}],
+  "accessors": [
+    {
+      "bufferView": 1,
+      "componentType": 5123, "count": 3, "type": "SCALAR"
+    }
+  ]
+})";
+    try {
+        read_gltf_scene(dir.file("bad.gltf"), {});
+        ADD_FAILURE() << "no error";
+    } catch (const SpangleError& e) {
+        const std::string what = e.what();
+        EXPECT_NE(what.find("bad.gltf:7:"), std::string::npos) << what;
+        EXPECT_NE(what.find("bufferView"), std::string::npos) << what;
+    }
+}
+
 TEST(GltfReader, CameraByNameIsAnErrorWhereNoFileChoosesByName) {
     // `--camera top` on a TOML scene with its own [camera] rendered that camera without a word
     // (a typo too); it is an error now. Through an import into a scene without [camera] it

@@ -539,6 +539,30 @@ Shape "disk"
     EXPECT_TRUE(noted(d, ":7: Material \"mix\": its material 'x' is not defined"));
 }
 
+TEST(PbrtReader, AMixMayNameMaterialsDefinedFurtherOn) {
+    // pbrt-v4 resolves names once the scene is read: a mix before its operands' definitions
+    // took the default material (grey, not the operand's green).
+    const Files f;
+    const SceneDescription d = read(f, R"(WorldBegin
+Material "mix" "string materials" ["a" "b"] "float amount" 0.3
+Shape "sphere"
+MakeNamedMaterial "a" "string type" "diffuse" "rgb reflectance" [0.1 0.8 0.1]
+MakeNamedMaterial "b" "string type" "diffuse" "rgb reflectance" [0.8 0.1 0.1]
+)");
+    ASSERT_EQ(d.objects.size(), 1u);
+    EXPECT_EQ(d.objects[0].material, "a");
+    EXPECT_FALSE(noted(d, "is not defined"));
+    // A named mix used before it is defined, whose operand comes later still: both followed.
+    const SceneDescription chain = read(f, R"(WorldBegin
+NamedMaterial "m"
+Shape "sphere"
+MakeNamedMaterial "m" "string type" "mix" "string materials" ["a" "b"] "float amount" 0.7
+MakeNamedMaterial "b" "string type" "diffuse" "rgb reflectance" [0.8 0.1 0.1]
+)");
+    ASSERT_EQ(chain.objects.size(), 1u);
+    EXPECT_EQ(chain.objects[0].material, "b");
+}
+
 TEST(PbrtReader, QuadricsAreTessellatedOnTheirSurfaces) {
     const Files f;
     const SceneDescription d = read(f, R"(WorldBegin

@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <cstdlib>
 #include <cstring>
@@ -324,6 +325,88 @@ TEST(Session, TheSceneHashIsTheSameWhereverTheFilesAreMounted) {
     std::error_code ec;
     fs::remove_all(early, ec);
     fs::remove_all(late, ec);
+}
+
+TEST(Session, AnEditedLutIsReadAgainAndHashed) {
+    // A LUT a colour's conversion reads: an edit of it alone reloaded nothing, and a reload of
+    // the config kept OpenColorIO's cached copy (the old colours, unlike a fresh render); two
+    // renders with different LUT bytes (another node's, another $SHOT) had one scene hash.
+    test::TempDir dir("session_lut");
+    const auto lut = [&](float top) {
+        std::ofstream(dir.file("luts/curve.spi1d"))
+            << "Version 1\nFrom 0.0 1.0\nLength 2\nComponents 1\n{\n0.0\n"
+            << top << "\n}\n";
+    };
+    fs::create_directories(dir.file("luts"));
+    lut(1.0f);
+    std::ofstream(dir.file("config.ocio")) << R"(ocio_profile_version: 2
+search_path: "luts"
+roles:
+  default: Linear Ref
+  scene_linear: Linear Ref
+displays:
+  Monitor:
+    - !<View> {name: Raw, colorspace: Linear Ref}
+colorspaces:
+  - !<ColorSpace>
+    name: Linear Ref
+  - !<ColorSpace>
+    name: Lut Space
+    to_scene_reference: !<FileTransform> {src: curve.spi1d, interpolation: linear}
+)";
+    std::ofstream(dir.file("s.toml"))
+        << "[render]\nwidth = 4\nheight = 4\nspp = 1\nworking_space = \"Linear Ref\"\n"
+           "[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[environment]\n"
+           "color = { rgb = [0.5, 0.5, 0.5], space = \"Lut Space\" }\n";
+    RenderOptions options;
+    options.threads = 1;
+    const auto sky = [&](Session& s) {
+        s.render();
+        return s.result().image.at(0);
+    };
+    Session session({}, dir.file("config.ocio"), options, test::quiet_log());
+    session.load(dir.file("s.toml"));
+    EXPECT_FLOAT_EQ(sky(session), 0.5f);
+    const uint64_t before = session.info().content_hash;
+    const std::vector<std::string> watched = session.watched_files();
+    EXPECT_NE(std::find(watched.begin(), watched.end(), dir.file("luts/curve.spi1d")),
+              watched.end());
+    ::usleep(20000);  // a new modification time on every file system
+    lut(0.5f);
+    const ReloadReport rep = session.load(dir.file("s.toml"));
+    EXPECT_NE(std::find(rep.changed.begin(), rep.changed.end(), "the OCIO config's LUT files"),
+              rep.changed.end());
+    EXPECT_FLOAT_EQ(sky(session), 0.25f) << "the reload must read the edited LUT";
+    EXPECT_NE(session.info().content_hash, before);
+    Session fresh({}, dir.file("config.ocio"), options, test::quiet_log());
+    fresh.load(dir.file("s.toml"));
+    EXPECT_FLOAT_EQ(sky(fresh), 0.25f);
+    EXPECT_EQ(fresh.info().content_hash, session.info().content_hash);
+
+    // A reloaded config is offered to check_reloaded_config before it is taken: a throw keeps
+    // the live scene and config (the watch loop refuses a config without its view so).
+    // The edited config makes 'Lut Space' four times brighter: taken, the sky would be 2.
+    session.check_reloaded_config = [](const ColorConfig&) {
+        throw SpangleError("the view 'Raw' is gone");
+    };
+    ::usleep(20000);
+    {
+        std::ifstream in(dir.file("config.ocio"));
+        std::stringstream text;
+        text << in.rdbuf();
+        std::string edited = text.str();
+        const std::string from_lut = "!<FileTransform> {src: curve.spi1d, interpolation: linear}";
+        ASSERT_NE(edited.find(from_lut), std::string::npos);
+        edited.replace(edited.find(from_lut), from_lut.size(),
+                       "!<MatrixTransform> {matrix: [4, 0, 0, 0, 0, 4, 0, 0, 0, 0, 4, 0, 0, 0, 0, "
+                       "1]}");
+        std::ofstream(dir.file("config.ocio")) << edited;
+    }
+    EXPECT_THROW(session.load(dir.file("s.toml")), SpangleError);
+    EXPECT_FLOAT_EQ(sky(session), 0.25f) << "the refused config must not be taken";
+    session.check_reloaded_config = nullptr;
+    session.load(dir.file("s.toml"));
+    EXPECT_FLOAT_EQ(sky(session), 2.0f) << "taken once nothing refuses it";
 }
 
 TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {

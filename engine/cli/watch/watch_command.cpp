@@ -129,6 +129,8 @@ WatchLoop::WatchLoop(const RenderArgs& a, const RenderSetup& s)
       session_(a.plugin_dirs, a.ocio, watch_options(a), log_) {
     log_.once = &warnings_said_;
     out_.check_view(session_.color());  // a display or view the config lacks: an error now
+    // And in every config an edit reloads: one that lacks them is a failed reload.
+    session_.check_reloaded_config = [this](const ColorConfig& c) { out_.check_view(c); };
     session_.options().stop = [this] { return stop_requested() || reload_.load(); };
     session_.plugins().copy_on_first_open = true;  // a plugin rebuilt in place while watched
     server_ = start_preview_server(a.serve, log_);

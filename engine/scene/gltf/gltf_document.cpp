@@ -12,6 +12,7 @@
 #include <fstream>
 #include <iterator>
 #include <optional>
+#include <regex>
 #include <sstream>
 #include <string_view>
 #include <unordered_map>
@@ -600,6 +601,26 @@ void check_extensions(Context& ctx) {
                                        e));
 }
 
+/** Where an error of tinygltf's is written: its messages name an element ("accessor[0] invalid
+ *  bufferView", "image[0] buffer \"1\" not found"), placed at that element's member when the
+ *  message names one, else at the element; the document's start when it names none. */
+FileLoc tinygltf_error_place(const Context& ctx, const std::string& err) {
+    static const std::regex element(
+        R"((accessor|bufferView|buffer|image|mesh|node|material|texture|sampler|skin|camera|animation|scene)\[(\d+)\])");
+    std::smatch m;
+    if (!std::regex_search(err, m, element)) return FileLoc{ctx.path, 1, 1};
+    const std::string kind = m[1].str();
+    std::string path = (kind == "mesh" ? std::string("meshes") : kind + "s") + "/" + m[2].str();
+    const std::string rest = m.suffix().str();
+    for (const char* member : {"bufferView", "byteLength", "byteOffset", "buffer", "indices",
+                               "count", "sampler", "source", "mesh", "skin", "camera"})
+        if (rest.find(member) != std::string::npos) {
+            path += std::string("/") + member;
+            break;
+        }
+    return ctx.at(path);
+}
+
 }  // namespace
 
 void load_document(Context& ctx) {
@@ -687,7 +708,8 @@ void load_document(Context& ctx) {
             throw_error(ctx.at("extensions/KHR_lights_punctual/lights"),
                         "a KHR_lights_punctual light of type \"spot\" needs its \"spot\" object "
                         "(the extension requires it; its cone angles default to 0 and pi/4)");
-        throw_error(FileLoc{ctx.path, 1, 1}, "glTF: {}", err.empty() ? "could not be read" : err);
+        throw_error(tinygltf_error_place(ctx, err), "glTF: {}",
+                    err.empty() ? "could not be read" : err);
     }
     // tinygltf's own attempt at an external image (Spangle reads images itself, and notes a
     // missing one at its place): not said twice.

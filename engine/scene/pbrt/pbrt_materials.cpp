@@ -536,11 +536,13 @@ std::string mix_material(Reader& r, const ParamList& p, const std::string& name,
                                  "material '{}' stands in",
                                  pick));
     const auto it = r.materials.find(pick);
-    if (it == r.materials.end())
-        r.notes.add(loc, fmt::format("Material \"mix\": its material '{}' is not defined: the "
-                                     "default material stands in",
-                                     pick));
-    if (it == r.materials.end() || it->second.empty()) return default_material(r, loc);
+    if (it == r.materials.end()) {
+        // Maybe defined further on (pbrt-v4 resolves names once the scene is read): pending, as
+        // a NamedMaterial of it is; said at the end when it never is.
+        if (r.pending_materials.emplace(pick, loc).second) r.pending_from_mix.insert(pick);
+        return std::string(kPendingMaterial) + pick;
+    }
+    if (it->second.empty()) return default_material(r, loc);
     if (name.empty()) return it->second;
     // A named mix is a material of its own name (an [[import]] override can replace it).
     for (const MaterialDesc& m : r.d.materials)

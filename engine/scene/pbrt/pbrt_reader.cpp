@@ -551,16 +551,31 @@ void resolve_pending_materials(Reader& r) {
             const std::size_t cut = o.material.find(kAlphaMark);
             const std::string alpha =
                 cut == std::string::npos ? std::string() : o.material.substr(cut);
-            const std::string name = o.material.substr(
+            std::string name = o.material.substr(
                 marker.size(), cut == std::string::npos ? std::string::npos : cut - marker.size());
-            const auto it = r.materials.find(name);
+            auto it = r.materials.find(name);
+            // A named mix whose operand was pending is itself pending: followed to the end (a
+            // cycle of mixes ends at the default material).
+            for (int hops = 0; it != r.materials.end() && it->second.rfind(marker, 0) == 0;
+                 ++hops) {
+                name = it->second.substr(marker.size());
+                it = hops < 64 ? r.materials.find(name) : r.materials.end();
+            }
             if (it == r.materials.end()) {
                 const FileLoc& at = r.pending_materials.at(name);
                 if (undefined.insert(name).second)
-                    r.notes.add(at, fmt::format("NamedMaterial '{}' is not defined: the default "
-                                                "material stands in",
-                                                name));
+                    r.notes.add(at, r.pending_from_mix.count(name) != 0
+                                        ? fmt::format("Material \"mix\": its material '{}' is not "
+                                                      "defined: the default material stands in",
+                                                      name)
+                                        : fmt::format("NamedMaterial '{}' is not defined: the "
+                                                      "default material stands in",
+                                                      name));
                 o.material = default_material(r, at) + alpha;
+            } else if (it->second.empty() && r.pending_from_mix.count(name) != 0) {
+                // A mix's operand that is an interface: the default material stands in, as for
+                // one defined before the mix.
+                o.material = default_material(r, r.pending_materials.at(name)) + alpha;
             } else if (it->second.empty()) {
                 continue;  // a medium boundary: nothing to render (pbrt ignores its area light)
             } else {

@@ -124,6 +124,8 @@ struct Reader {
      *  scene is read), each at its first NamedMaterial; objects name them with
      *  kPendingMaterial before the name until the end. */
     std::map<std::string, FileLoc> pending_materials;
+    /** Those of them first named by a Material "mix" (its heavier operand). */
+    std::set<std::string> pending_from_mix;
     /** Shapes' `alpha` (a Number or an image Texture), each once; a shape's object names its
      *  material with kAlphaMark and the index after it until the end (alpha_materials). */
     std::vector<ParamDesc> alphas;
