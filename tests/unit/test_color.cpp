@@ -234,8 +234,9 @@ TEST(ColorConfig, AliasesAndUnknownNames) {
     EXPECT_EQ(c.working_space(), "ACEScg") << "scene_linear role is the default working space";
 }
 
-/** A config that says nothing of encodings (as every v1 config and many v2 ones): a log, an
- *  sRGB-like and a linear (matrix) space, a named transform and a space whose LUT is missing. */
+/** A config that says nothing of encodings but for one space (as every v1 config and many v2
+ *  ones): a log, an sRGB-like and a linear (matrix) space, a clamp declared scene-linear and the
+ *  same clamp silent, a named transform and a space whose LUT is missing. */
 constexpr const char* kSilentConfig = R"(ocio_profile_version: 2.1
 search_path: "luts"
 roles:
@@ -260,6 +261,13 @@ colorspaces:
   - !<ColorSpace>
     name: Lut Space
     to_scene_reference: !<FileTransform> {src: missing.spi1d}
+  - !<ColorSpace>
+    name: Clamped Declared
+    encoding: scene-linear
+    to_scene_reference: !<RangeTransform> {min_in_value: 0, max_in_value: 0.5, min_out_value: 0, max_out_value: 0.5}
+  - !<ColorSpace>
+    name: Clamped Silent
+    to_scene_reference: !<RangeTransform> {min_in_value: 0, max_in_value: 0.5, min_out_value: 0, max_out_value: 0.5}
 named_transforms:
   - !<NamedTransform>
     name: Doubler
@@ -290,6 +298,10 @@ TEST(ColorConfig, AWorkingSpaceIsTestedForLinearityWhereTheConfigIsSilent) {
     };
     EXPECT_EQ(load("Linear Ref", "Linear Ref"), "");
     EXPECT_EQ(load("Wide Gamut", "Linear Ref"), "") << "a matrix is linear";
+    // A space the config declares scene-linear is taken at its word (a clamp above 0.5 would
+    // fail the test on colours); the same transform with nothing said is tested, and fails.
+    EXPECT_EQ(load("Clamped Declared", "Linear Ref"), "");
+    EXPECT_NE(load("Clamped Silent", "Linear Ref").find("is not scene-linear"), std::string::npos);
     for (const char* encoded : {"Log Enc", "compositing_log", "Curve Enc"}) {
         const std::string e = load(encoded, "Linear Ref");
         EXPECT_NE(e.find("s.toml:4:17: error: working_space '" + std::string(encoded) +
