@@ -3,9 +3,9 @@
 #include <OpenColorIO/OpenColorIO.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cmath>
 #include <cstdlib>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -16,6 +16,7 @@
 #include "core/error.h"
 #include "core/files.h"
 #include "core/hash.h"
+#include "core/text.h"
 
 namespace OCIO = OCIO_NAMESPACE;
 
@@ -213,13 +214,12 @@ std::optional<std::string> ColorConfig::not_scene_linear(const std::string& spac
     // transform to the reference is tried on colours within [0, 1] (a LUT's usual domain). A
     // linear one maps 0 to 0, a doubled colour to its double and a sum to the sum (a log, gamma
     // or sRGB curve fails at once).
-    // Rows: 0, x, 2x, y, x + y, and a colour and its tenth.
-    float px[7][3] = {{0.0f, 0.0f, 0.0f},   {0.18f, 0.05f, 0.5f},  {0.36f, 0.1f, 1.0f},
-                      {0.7f, 0.3f, 0.02f},  {0.88f, 0.35f, 0.52f}, {0.6f, 0.3f, 0.9f},
-                      {0.06f, 0.03f, 0.09f}};
-    const float in[7][3] = {{0.0f, 0.0f, 0.0f},   {0.18f, 0.05f, 0.5f},  {0.36f, 0.1f, 1.0f},
-                            {0.7f, 0.3f, 0.02f},  {0.88f, 0.35f, 0.52f}, {0.6f, 0.3f, 0.9f},
-                            {0.06f, 0.03f, 0.09f}};
+    // Rows: 0, x, 2x, y, x + y, and a colour and its tenth; px is transformed in place.
+    static constexpr float kIn[7][3] = {
+        {0.0f, 0.0f, 0.0f},    {0.18f, 0.05f, 0.5f}, {0.36f, 0.1f, 1.0f},  {0.7f, 0.3f, 0.02f},
+        {0.88f, 0.35f, 0.52f}, {0.6f, 0.3f, 0.9f},   {0.06f, 0.03f, 0.09f}};
+    float px[7][3];
+    std::memcpy(px, kIn, sizeof px);
     try {
         OCIO::ConstProcessorRcPtr proc;
         if (auto t = cs->getTransform(OCIO::COLORSPACE_DIR_TO_REFERENCE))
@@ -253,7 +253,7 @@ std::optional<std::string> ColorConfig::not_scene_linear(const std::string& spac
             "its transform to the reference is not linear: ({}, {}, {}) becomes "
             "({:.4g}, {:.4g}, {:.4g}) and twice it ({:.4g}, {:.4g}, {:.4g}), "
             "0 becomes ({:.4g}, {:.4g}, {:.4g})",
-            in[1][0], in[1][1], in[1][2], px[1][0], px[1][1], px[1][2], px[2][0], px[2][1],
+            kIn[1][0], kIn[1][1], kIn[1][2], px[1][0], px[1][1], px[1][2], px[2][0], px[2][1],
             px[2][2], px[0][0], px[0][1], px[0][2]);
     return std::nullopt;
 }
@@ -362,9 +362,8 @@ bool ColorConfig::view_is_srgb(const std::string& display, const std::string& vi
     const char* space = config->getDisplayViewColorSpaceName(d.c_str(), v.c_str());
     const OCIO::ConstColorSpaceRcPtr cs = space ? config->getColorSpace(space) : nullptr;
     if (cs && cs->isData()) return false;
-    const auto names_srgb = [](std::string text) {
-        for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-        return text.find("srgb") != std::string::npos;
+    const auto names_srgb = [](std::string_view text) {
+        return ascii_lower(text).find("srgb") != std::string::npos;
     };
     return names_srgb(d) || (space && names_srgb(space));
 }
