@@ -6,6 +6,7 @@
 
 #include "cli/arguments.h"
 #include "cli/progress.h"
+#include "cli/usage.h"
 
 namespace spangle {
 
@@ -30,6 +31,16 @@ RenderOptions render_options(const RenderArgs& a) {
     if (!a.spp_range.empty()) parse_spp_range(a.spp_range, o.spp_first, o.spp_end);
     o.texture_memory_mb = a.texture_memory_mb;
     if (!a.size.empty()) parse_size(a.size, o.width_override, o.height_override);
+    // Where the command line itself gives the size (or the samples), a window (or range) outside
+    // it is a bad command line, exit 2; against the scene's own size it is said once the scene
+    // is loaded.
+    if (!a.size.empty() && !o.crop.whole() &&
+        !(o.crop.x1 <= o.width_override && o.crop.y1 <= o.height_override))
+        usage_error("--crop {} is not inside --size {} (it needs x1 <= width and y1 <= height)",
+                    a.crop, a.size);
+    if (a.spp > 0 && o.spp_end > a.spp)
+        usage_error("--spp-range {} is not inside --spp {} (it needs B <= spp)", a.spp_range,
+                    a.spp);
     o.strategy = a.strategy == "nee"    ? Strategy::NeeOnly
                  : a.strategy == "bsdf" ? Strategy::BsdfOnly
                                         : Strategy::Mis;

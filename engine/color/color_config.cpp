@@ -290,11 +290,8 @@ uint64_t ColorConfig::content_hash() const {
         const std::string id = file_identity(path);
         auto& [seen, hash] = files.bytes[path];
         if (seen != id) {
-            std::ifstream in(path, std::ios::binary);
-            std::ostringstream bytes;
-            bytes << in.rdbuf();
             seen = id;
-            hash = in ? hash_text(bytes.str()) : 0;
+            hash = file_content_hash(path);
         }
         luts.push_back(hash);
     }

@@ -8,10 +8,34 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <fstream>
+#include <vector>
 
+#include "core/hash.h"
 #include "core/memory.h"
 
 namespace spangle {
+
+uint64_t file_content_hash(const std::string& path) {
+    std::error_code ec;
+    const uintmax_t size = std::filesystem::file_size(path, ec);
+    if (ec) return 0;
+    uint64_t h = hash2(0x5ce9e5ull, size);
+    if (size > kContentHashedBytes) return h;
+    std::ifstream in(path, std::ios::binary);
+    std::vector<char> bytes(static_cast<std::size_t>(size), 0);
+    if (!in.read(bytes.data(), static_cast<std::streamsize>(size))) return h;
+    std::size_t i = 0;
+    for (; i + 8 <= bytes.size(); i += 8) {
+        uint64_t w;
+        std::memcpy(&w, bytes.data() + i, 8);
+        h = hash2(h, w);
+    }
+    uint64_t tail = 0;
+    // (An empty file has no data pointer: memcpy from null is undefined even for 0 bytes.)
+    if (i < bytes.size()) std::memcpy(&tail, bytes.data() + i, bytes.size() - i);
+    return hash2(h, tail);
+}
 
 std::string file_identity(const std::string& path) {
     struct stat st {};

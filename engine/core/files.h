@@ -2,6 +2,7 @@
 // What identifies a file's content cheaply, for the caches of a watch session; where the running
 // program lies; gzip'd files inflated.
 
+#include <cstdint>
 #include <string>
 
 #include "core/error.h"
@@ -12,6 +13,13 @@ namespace spangle {
  * unchanged file (an editor's save changes the modification time even when it rewrites the same
  * bytes). */
 std::string file_identity(const std::string& path);
+
+/** file_content_hash() covers every byte of files up to this size, and only the size beyond. */
+constexpr uintmax_t kContentHashedBytes = uintmax_t{64} << 20;
+
+/** A hash of a file's bytes (of its size alone beyond kContentHashedBytes); 0 when it cannot be
+ *  read. What a watch session and a scene hash compare a file by (meshes, textures, LUTs). */
+uint64_t file_content_hash(const std::string& path);
 
 /** `path` made absolute (against the working directory) and normalised, for messages that
  *  say where a file was looked for: a relative path says nothing once the working directory is

@@ -10,7 +10,37 @@
 
 namespace spangle {
 
-EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorConfig& color) {
+namespace {
+
+/** Negative values of a map as read: how many, their sum against the positive ones', the lowest
+ *  and where. */
+struct NegativeValues {
+    std::size_t count = 0;
+    double negative = 0.0, positive = 0.0;
+    float lowest = 0.0f;
+    std::size_t at = 0;  ///< pixel index of the lowest
+    void add(float v, std::size_t pixel) {
+        if (v >= 0.0f) {
+            positive += static_cast<double>(v);
+            return;
+        }
+        ++count;
+        negative -= static_cast<double>(v);
+        if (v < lowest) {
+            lowest = v;
+            at = pixel;
+        }
+    }
+};
+
+/** Negatives worth a warning: more than this share of the map's positive light (a resampled or
+ *  compressed map rings a little below 0; that is not worth a line). */
+constexpr double kNegativeShare = 1e-4;
+
+}  // namespace
+
+EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorConfig& color,
+                                     const Logger* log) {
     ImageHeader spec;
     try {
         spec = read_image_header(file.path, "environment map", true);
@@ -60,6 +90,7 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
     const int channels = std::min(read.channels, 3);
     const std::size_t n = static_cast<std::size_t>(spec.width) * spec.height;
     std::vector<float> rgb(3 * n);
+    NegativeValues neg;
     for (std::size_t i = 0; i < n; ++i)
         for (int c = 0; c < 3; ++c) {
             // A grey map (and a grey + alpha one: its grey, not grey, alpha, alpha) in every
@@ -73,7 +104,17 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
                             file.path, i % static_cast<std::size_t>(spec.width),
                             i / static_cast<std::size_t>(spec.width));
             rgb[3 * i + static_cast<std::size_t>(c)] = v;
+            neg.add(v, i);
         }
+    if (log && neg.count > 0 && neg.negative > kNegativeShare * neg.positive)
+        log->warn(
+            "{}: environment map '{}' has {} negative values (the lowest {:.4g}, at pixel ({}, "
+            "{})): light cannot be negative, so they are taken as 0, adding {:.2g}% to the map's "
+            "light",
+            file.loc.str(), file.path, neg.count, neg.lowest,
+            neg.at % static_cast<std::size_t>(spec.width),
+            neg.at / static_cast<std::size_t>(spec.width),
+            100.0 * neg.negative / std::max(neg.positive - neg.negative, 1e-30));
     color.to_working(file.color_space, rgb.data(), n);
     // Gamut clipping of negatives; the brightest value times the intensity within the 1e18 a
     // sample can carry, as a colour's is (a map at intensity 1e30 came out one flat 1.15e18,

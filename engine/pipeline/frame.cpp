@@ -9,6 +9,7 @@
 
 #include "core/files.h"
 #include "pipeline/session.h"
+#include "render/adaptive.h"
 #include "render/denoise.h"
 #include "shading/plugin_loader.h"
 
@@ -106,12 +107,43 @@ void apply_scene_crop(Session& session) {
     o.crop = win;
 }
 
+/** A --crop window or --spp-range part that does not fit the image or the samples the scene
+ *  sets (the command line gave no --size or --spp; against those it is a usage error, said with
+ *  the options) is said at the scene's key before anything renders. */
+void check_request_fits_scene(Session& session) {
+    const RenderOptions& o = session.options();
+    const SceneInfo& info = session.info();
+    Film film;
+    if (!session.film(film)) return;
+    const CropWindow& c = o.crop;
+    if (!c.whole() && !(c.x0 < c.x1 && c.x1 <= film.width && c.y0 < c.y1 && c.y1 <= film.height))
+        throw_error(info.size_loc,
+                    "--crop {},{},{},{} is not inside the {}x{} image the scene {} (it needs x1 "
+                    "<= width and y1 <= height; --size sets another)",
+                    c.x0, c.y0, c.x1, c.y1, film.width, film.height,
+                    info.size_loc.file.empty() ? "gets by default" : "sets");
+    if (o.spp_end == 0) return;
+    if (o.noise_threshold_override < 0.0f && adaptive_on(film, o))
+        throw_error(info.noise_threshold_loc,
+                    "--spp-range cannot split this scene's adaptive render (noise_threshold): a "
+                    "part cannot know which pixels stopped before its first sample without "
+                    "rendering those samples; split it by pixels (--crop, MPI bands), which give "
+                    "the whole render bit for bit, or give --noise-threshold 0");
+    if (!o.spp_override && o.spp_end > film.spp)
+        throw_error(info.spp_loc,
+                    "--spp-range {}..{} is not inside the {} samples per pixel the scene {} (it "
+                    "needs B <= spp; --spp sets another)",
+                    o.spp_first, o.spp_end, film.spp,
+                    info.spp_loc.file.empty() ? "gets by default" : "sets");
+}
+
 }  // namespace
 
 FrameResult render_frame(const FrameRequest& req) {
     Session session(req.plugin_dirs, req.ocio_config, req.options, *req.log);
     const ReloadReport loaded = session.load(req.scene, req.time);
     apply_scene_crop(session);
+    check_request_fits_scene(session);
     if (req.on_loaded) req.on_loaded(session.color(), session.info(), session.watched_files());
     if (!req.export_obj.empty()) export_world_obj(session, req.export_obj);
     FrameResult r{session.color().clone(),

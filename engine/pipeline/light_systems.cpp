@@ -293,7 +293,7 @@ void system_environment(ecs::Registry& r, World& w) {
                 },
                 [&] {
                     return std::make_shared<const EnvironmentMap>(
-                        load_environment_map(f, *w.color));
+                        load_environment_map(f, *w.color, w.log));
                 },
                 "environment map " + f.path);
             env.map_group = light_group(r, maps->entities()[i]);

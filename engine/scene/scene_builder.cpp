@@ -173,6 +173,8 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     info.working_space = color.working_space();
     info.color_space = ctx.bare_space;
     info.size_loc = d.size_loc;
+    info.spp_loc = d.spp_loc;
+    info.noise_threshold_loc = d.noise_threshold_loc;
     if (d.crop) {
         const std::array<double, 4>& c = *d.crop;
         if (!(c[0] >= 0.0 && c[0] < c[1] && c[1] <= 1.0 && c[2] >= 0.0 && c[2] < c[3] &&
@@ -694,27 +696,6 @@ void build_light(BuildContext& ctx, const LightDesc& d) {
 }
 
 }  // namespace
-
-uint64_t file_content_hash(const std::string& path) {
-    std::error_code ec;
-    const uintmax_t size = std::filesystem::file_size(path, ec);
-    if (ec) return 0;
-    uint64_t h = hash2(0x5ce9e5ull, size);
-    if (size > kContentHashedBytes) return h;
-    std::ifstream in(path, std::ios::binary);
-    std::vector<char> bytes(static_cast<std::size_t>(size), 0);
-    if (!in.read(bytes.data(), static_cast<std::streamsize>(size))) return h;
-    std::size_t i = 0;
-    for (; i + 8 <= bytes.size(); i += 8) {
-        uint64_t w;
-        std::memcpy(&w, bytes.data() + i, 8);
-        h = hash2(h, w);
-    }
-    uint64_t tail = 0;
-    // (An empty file has no data pointer: memcpy from null is undefined even for 0 bytes.)
-    if (i < bytes.size()) std::memcpy(&tail, bytes.data() + i, bytes.size() - i);
-    return hash2(h, tail);
-}
 
 uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files) {
     uint64_t h = 0x5ce9e5ull;

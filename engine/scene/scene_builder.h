@@ -10,6 +10,7 @@
 #include <cstdint>
 
 #include "color/color_config.h"
+#include "core/files.h"
 #include "ecs/registry.h"
 #include "scene/scene_description.h"
 #include "scene/scene_info.h"
@@ -19,13 +20,6 @@ namespace spangle {
 /** The name an object goes by in the Cryptomatte layers: its `name`, else its mesh or cage
  *  file's name without the folder and ending, else "object<index + 1>". */
 std::string object_name(const ObjectDesc& d, uint32_t index);
-
-/** file_content_hash() covers every byte of files up to this size, and only the size beyond. */
-constexpr uintmax_t kContentHashedBytes = uintmax_t{64} << 20;
-
-/** A hash of a file's bytes (of its size alone beyond kContentHashedBytes); 0 when it cannot be
- *  read. */
-uint64_t file_content_hash(const std::string& path);
 
 /** The hash of a scene file and the files it includes or imports (`files`); the session adds
  *  the files its systems read (meshes, textures, maps) to make SceneInfo::content_hash. */

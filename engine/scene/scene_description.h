@@ -410,8 +410,10 @@ struct RenderDesc {
     /** The part of the image the scene asks to render (pbrt's Film "cropwindow"): x0, x1, y0, y1
      *  as fractions of the width and height, y down; --crop wins over it. */
     std::optional<std::array<double, 4>> crop;
-    FileLoc crop_loc;  ///< where the crop window is written
-    FileLoc size_loc;  ///< where the width (or the height) is written
+    FileLoc crop_loc;             ///< where the crop window is written
+    FileLoc size_loc;             ///< where the width (or the height) is written
+    FileLoc spp_loc;              ///< where the samples per pixel are written
+    FileLoc noise_threshold_loc;  ///< where adaptive sampling's threshold is written
     /** The keys the file wrote (TOML: of [render]); an import fills in the others. Empty for a
      *  reader whose format gives every setting. */
     std::vector<std::string> written;

@@ -93,6 +93,9 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     keep("width", &RenderDesc::width);
     keep("height", &RenderDesc::height);
     keep("spp", &RenderDesc::spp);
+    // Where each setting is written follows the file it is taken from.
+    keep("spp", &RenderDesc::spp_loc);
+    if (mine.wrote("width") || mine.wrote("height")) into.size_loc = mine.size_loc;
     keep("max_depth", &RenderDesc::max_depth);
     keep("rr_depth", &RenderDesc::rr_depth);
     keep("seed", &RenderDesc::seed);
@@ -104,6 +107,7 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     keep("clamp_indirect", &RenderDesc::clamp_indirect);
     keep("filter_glossy", &RenderDesc::filter_glossy);
     keep("noise_threshold", &RenderDesc::noise_threshold);
+    keep("noise_threshold", &RenderDesc::noise_threshold_loc);
     keep("min_spp", &RenderDesc::min_spp);
     keep("max_spp", &RenderDesc::max_spp);
     keep("transparent_background", &RenderDesc::transparent_background);

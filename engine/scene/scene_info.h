@@ -33,6 +33,8 @@ struct SceneInfo {
     std::optional<std::array<double, 4>> crop;
     FileLoc crop_loc;                         ///< where the scene writes it
     FileLoc size_loc;                         ///< where the scene writes its image size
+    FileLoc spp_loc;                          ///< where it writes its samples per pixel
+    FileLoc noise_threshold_loc;              ///< where it writes an adaptive threshold
     std::string working_space;                ///< canonical OCIO name
     std::string color_space;                  ///< space of bare colour arrays in the file
     std::vector<std::string> material_names;  ///< in [[material]] order

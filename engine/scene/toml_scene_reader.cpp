@@ -45,6 +45,7 @@ RenderDesc read_render(TableReader& r) {
     if (r.has("width") || r.has("height")) d.size_loc = r.loc(r.has("width") ? "width" : "height");
     d.width = static_cast<uint32_t>(r.integer("width", d.width, {1, 16384}));
     d.height = static_cast<uint32_t>(r.integer("height", d.height, {1, 16384}));
+    if (r.has("spp")) d.spp_loc = r.loc("spp");
     d.spp = static_cast<uint32_t>(r.integer("spp", d.spp, {1, 1 << 20}));
     d.max_depth = static_cast<uint32_t>(r.integer("max_depth", d.max_depth, {1, 1024}));
     d.rr_depth = static_cast<uint32_t>(r.integer("rr_depth", d.rr_depth, {1, 1024}));
@@ -56,6 +57,7 @@ RenderDesc read_render(TableReader& r) {
     if (const std::string why = noise_threshold_problem(threshold); !why.empty())
         throw_error(r.loc("noise_threshold"), "noise_threshold {}", why);
     d.noise_threshold = static_cast<float>(threshold);
+    if (r.has("noise_threshold")) d.noise_threshold_loc = r.loc("noise_threshold");
     // 0 is not a count a pixel can take (left out, they default: 16, and spp).
     d.min_spp = static_cast<uint32_t>(r.integer("min_spp", 0, {1, 1 << 20}));
     d.max_spp = static_cast<uint32_t>(r.integer("max_spp", 0, {1, 1 << 20}));

@@ -21,9 +21,17 @@ grep -q "merged 2 parts into .*merged.exr (90x50)" "$T/out.txt" || fail "merge d
 oiiotool "$T/whole.exr" --ch R,G,B,A,Z,glints.R "$T/merged.exr" --ch R,G,B,A,Z,glints.R --diff --fail 0 --warn 0 > "$T/diff.txt" 2>&1 ||
     { cat "$T/diff.txt"; fail "the merged frame differs from the whole render"; }
 
-"$S" render "$SCENE" -o "$T/bad.exr" "${ARGS[@]}" --crop 80,0,100,10 2> "$T/err.txt" && fail "a crop outside the image rendered"
-grep -q "crop window 80,0,100,10 is not inside the 90x50 image" "$T/err.txt" || fail "no reason for the bad crop"
+# A window outside --size is a bad command line (exit 2); outside the size the scene sets, a
+# problem with the input said at the scene's width (exit 1).
+"$S" render "$SCENE" -o "$T/bad.exr" "${ARGS[@]}" --crop 80,0,100,10 2> "$T/err.txt"; rc=$?
+[ $rc -eq 2 ] || fail "a crop outside --size exited $rc, not 2"
+grep -q "crop 80,0,100,10 is not inside --size 90x50" "$T/err.txt" || fail "no reason for the bad crop"
 [ ! -e "$T/bad.exr" ] || fail "an output was written for a bad crop"
+"$S" render "$SCENE" -o "$T/bad.exr" --spp 1 -q --crop 600,0,700,10 2> "$T/err.txt"; rc=$?
+[ $rc -eq 1 ] || fail "a crop outside the scene's image exited $rc, not 1"
+grep -q "demo.toml:7:[0-9]*: error: --crop 600,0,700,10 is not inside the 640x360 image the scene sets" "$T/err.txt" ||
+    fail "the crop outside the scene's image is not said at its width"
+[ ! -e "$T/bad.exr" ] || fail "an output was written for a crop outside the scene's image"
 "$S" render "$SCENE" -o "$T/bad.exr" --crop 5,5,5,9 2> "$T/err.txt"; [ $? -eq 2 ] || fail "an empty crop is not a usage error"
 "$S" merge "$T/left.exr" -o "$T/holes.exr" 2> "$T/err.txt" && fail "a frame with a hole was merged"
 grep -q "uncovered" "$T/err.txt" || fail "no reason for the hole"
@@ -41,8 +49,14 @@ oiiotool "$T/win.exr" "$T/smerged.exr" --diff --fail 0 --warn 0 > "$T/diff.txt" 
 "$S" merge "$T/s1.exr" -o "$T/short.exr" 2> "$T/err.txt" && fail "a merge missing samples 0..2 was written"
 grep -q "samples 0..2 of the frame's 6 are in no part (render them with --spp-range 0..2)" "$T/err.txt" || fail "no reason for the missing samples"
 [ ! -e "$T/short.exr" ] || fail "a merge missing samples was written"
-"$S" render "$SCENE" -o "$T/bad.exr" --spp 6 --spp-range 4..9 2> "$T/err.txt" && fail "a range beyond the frame's samples rendered"
-grep -q "sample range 4..9 is not inside the frame's 6 samples per pixel" "$T/err.txt" || fail "no reason for the bad range"
+"$S" render "$SCENE" -o "$T/bad.exr" --spp 6 --spp-range 4..9 2> "$T/err.txt"; rc=$?
+[ $rc -eq 2 ] || fail "a range beyond --spp exited $rc, not 2"
+grep -q "spp-range 4..9 is not inside --spp 6" "$T/err.txt" || fail "no reason for the bad range"
+"$S" render "$SCENE" -o "$T/bad.exr" --size 90x50 --spp-range 4..40 2> "$T/err.txt"; rc=$?
+[ $rc -eq 1 ] || fail "a range beyond the scene's spp exited $rc, not 1"
+grep -q "demo.toml:9:[0-9]*: error: --spp-range 4..40 is not inside the 32 samples per pixel the scene sets" "$T/err.txt" ||
+    fail "the range beyond the scene's spp is not said at its spp"
+[ ! -e "$T/bad.exr" ] || fail "an output was written for a bad range"
 "$S" render "$SCENE" -o "$T/bad.exr" --spp-range 4..4 2> "$T/err.txt"; [ $? -eq 2 ] || fail "an empty range is not a usage error"
 # Parts of another estimator (--strategy) have other noise in every pixel: refused.
 "$S" render "$SCENE" -o "$T/nee.exr" --size 90x50 --spp 6 -q --no-preview --crop 10,5,70,45 --spp-range 2..6 --strategy nee 2> "$T/err.txt" || fail "samples 2..6, nee"

@@ -115,6 +115,18 @@ expect "an 8-bit PNG sky (sRGB)" "0.2158 0.2158 0.2158" 0.002
 scene 1.0 'map = "greyalpha.exr"' > s.toml
 render
 expect "a grey + alpha sky" "0.5 0.5 0.5" 0.002
+# A sky with negative values (light cannot be negative): taken as 0 and said, with how much light
+# that adds (they were clipped silently); a trace of ringing below 0 is not worth a line.
+oiiotool --pattern constant:color=-0.5,-0.5,-0.5 8x32 3 -d float --pattern constant:color=0.5,0.5,0.5 64x32 3 -d float --paste +0+0 -o negsky.exr
+scene 1.0 'map = "negsky.exr"' > s.toml
+"$S" render s.toml -o o.exr -q --no-preview --float 2> err.txt || fail "the negative sky failed: $(cat err.txt)"
+grep -q "warning: s.toml:13:[0-9]*: environment map 'negsky.exr' has 768 negative values (the lowest -0.5, at pixel (0, 0)): light cannot be negative, so they are taken as 0, adding 17% to the map's light" err.txt ||
+    fail "negative sky values not said: $(cat err.txt)"
+oiiotool o.exr --printstats | grep 'Stats Min' | grep -q -- '-' && fail "negative sky values lit negatively: $(oiiotool o.exr --printstats | grep 'Stats Min')"
+oiiotool --pattern constant:color=-1e-6,-1e-6,-1e-6 1x1 3 -d float --pattern constant:color=0.5,0.5,0.5 64x32 3 -d float --paste +0+0 -o ringsky.exr
+scene 1.0 'map = "ringsky.exr"' > s.toml
+"$S" render s.toml -o o.exr -q --no-preview --float 2> err.txt || fail "the ringing sky failed: $(cat err.txt)"
+grep -q "negative" err.txt && fail "a trace below 0 was said: $(cat err.txt)"
 # A two-channel normal map (X, Y) tilts as the three-channel one does (it was read as grey).
 oiiotool --pattern constant:color=0.75,0.5,0.9330127 8x8 3 -d float -o nxyz.exr
 oiiotool nxyz.exr --ch R,G -o nxy.exr

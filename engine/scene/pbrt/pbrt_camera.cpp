@@ -52,6 +52,7 @@ void sampling(Reader& r) {
                         "are always scrambled)");
     } else {
         const double asked = r.sampler.number("pixelsamples", 16);
+        if (const Param* n = r.sampler.find("pixelsamples")) d.spp_loc = n->loc;
         d.spp = static_cast<uint32_t>(std::clamp(asked, 1.0, 1048576.0));
         if (asked != static_cast<double>(d.spp))
             r.notes.add(r.sampler.find("pixelsamples")->loc,
