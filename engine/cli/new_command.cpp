@@ -125,7 +125,7 @@ int run_new(const NewArgs& a) {
         rep.model_bounds.hi.x - rep.model_bounds.lo.x,
         rep.model_bounds.hi.y - rep.model_bounds.lo.y,
         rep.model_bounds.hi.z - rep.model_bounds.lo.z, rep.paint, rep.density, rep.flakes_per_pixel,
-        output);
+        shell_word(output));
     return 0;
 }
 

@@ -4,8 +4,10 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <variant>
 
@@ -17,6 +19,7 @@
 #include "scene/object_placement.h"
 #include "scene/scene_loader.h"
 #include "scene/scene_paths.h"
+#include "scene/toml_scene_writer.h"
 
 namespace fs = std::filesystem;
 
@@ -58,14 +61,12 @@ std::string scene_relative(const fs::path& path, const fs::path& dir) {
     return path.generic_string();
 }
 
-/** A TOML basic string holding `s`. */
-std::string toml_quoted(const std::string& s) {
-    std::string out = "\"";
-    for (char c : s) {
-        if (c == '"' || c == '\\') out += '\\';
-        out += c;
-    }
-    return out + "\"";
+/** `s` inside a TOML comment: a control character (a newline in a file or material name)
+ *  would end the comment and leave the rest to be read as TOML. */
+std::string comment_safe(std::string s) {
+    for (char& c : s)
+        if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) c = '?';
+    return s;
 }
 
 std::string vec4g(Vec3 v) {
@@ -99,6 +100,16 @@ double framing_distance(const Box& box, Vec3 look_at, Vec3 dir, double aspect) {
 }
 
 }  // namespace
+
+std::string shell_word(const std::string& s) {
+    const bool plain = !s.empty() && std::all_of(s.begin(), s.end(), [](char c) {
+        return std::isalnum(static_cast<unsigned char>(c)) || std::strchr("_./+-,:=@%", c);
+    });
+    if (plain) return s;
+    std::string out = "'";
+    for (const char c : s) out += c == '\'' ? std::string("'\\''") : std::string(1, c);
+    return out + "'";
+}
 
 Box model_bounds(const std::string& model, std::vector<std::string>* notes) {
     std::error_code ec;
@@ -218,16 +229,18 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         }
     }
     rep.paint = paint;
+    std::vector<std::string> quoted_others;
+    for (const std::string& m : other_materials) quoted_others.push_back(toml_basic_string(m));
 
     std::string t;
     t += fmt::format(
         "# A scene around {} written by `spangle new`: the model on a ground plane, lit by an\n"
         "# environment map and a key light, the camera framed on the model's bounds, and a flake\n"
         "# paint to start from. Render it with\n"
-        "#     spangle render {} -o {}.exr\n"
+        "#     spangle render {} -o {}\n"
         "# Paths are relative to this file. The model's bounds: {} to {} (its own units).\n\n",
-        model.filename().string(), out.filename().string(), out.stem().string(), vec4g(b.lo),
-        vec4g(b.hi));
+        comment_safe(model.filename().string()), comment_safe(shell_word(out.filename().string())),
+        comment_safe(shell_word(out.stem().string() + ".exr")), vec4g(b.lo), vec4g(b.hi));
     t += fmt::format(
         "[render]\nwidth = {}\nheight = {}\nspp = 64\nmax_depth = 6\nfilter = \"blackman-harris\"\n"
         "clamp_indirect = 20            # a firefly guard for caustics; biased, 0 = off\n"
@@ -243,7 +256,7 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         "[environment]\nmap = {}\n# color_space: left to the map (its EXR header's space, else "
         "lin_rec709 for EXR and HDR,\n# srgb_texture for 8- and 16-bit files)\nrotation = "
         "0\nintensity = 1.0\n\n",
-        toml_quoted(scene_relative(env, folder)));
+        toml_basic_string(scene_relative(env, folder)));
     t += fmt::format(
         "[[light]]                      # the key light: small, so that flakes flash\n"
         "type = \"sphere\"\ncenter = {}\nradius = {:.4g}\ncolor = [1.0, 0.97, 0.92]\n"
@@ -259,25 +272,25 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         "params = {{ base_color = [0.55, 0.03, 0.04], flake_weight = 0.5, density = {:.6g}, "
         "density_space = \"object\", flake_roughness = 0.2, gamma = 2, color_table = true, "
         "hue_spread = 30, table_l = 0.6, coat = true, coat_ior = 1.5 }}\n\n",
-        toml_quoted(paint), rep.flakes_per_pixel, rep.density);
+        toml_basic_string(paint), rep.flakes_per_pixel, rep.density);
     t += "[[material]]\nname = \"spangle_new_ground\"\nplugin = \"smooth\"\nmodel = \"plastic\"\n"
          "params = { albedo = 0.3, roughness = 0.35 }\n\n";
     t += fmt::format(
         "[[object]]\nname = \"ground\"\nmesh = {}\nmaterial = \"spangle_new_ground\"\n\n",
-        toml_quoted(scene_relative(rep.ground, folder)));
+        toml_basic_string(scene_relative(rep.ground, folder)));
     if (is_gltf(r.model)) {
         t += fmt::format(
             "[[import]]                     # the model, with its own materials; the flake paint\n"
             "                               # above replaces its material {}{}\n"
             "file = {}\ntranslate = {}\ncamera = false\nenvironment = false\nlights = false\n",
-            toml_quoted(paint),
+            toml_basic_string(paint),
             other_materials.empty()
                 ? std::string()
-                : fmt::format(" (its others: {})", fmt::join(other_materials, ", ")),
-            toml_quoted(scene_relative(model, folder)), vec4g(rep.offset));
+                : fmt::format(" (its others: {})", fmt::join(quoted_others, ", ")),
+            toml_basic_string(scene_relative(model, folder)), vec4g(rep.offset));
     } else {
         t += fmt::format("[[object]]\nname = \"model\"\nmesh = {}\nmaterial = {}\ntranslate = {}\n",
-                         toml_quoted(scene_relative(model, folder)), toml_quoted(paint),
+                         toml_basic_string(scene_relative(model, folder)), toml_basic_string(paint),
                          vec4g(rep.offset));
     }
 

@@ -53,4 +53,9 @@ Box model_bounds(const std::string& model, std::vector<std::string>* notes = nul
  *  missing (naming the absolute path tried) or a file cannot be written. */
 NewSceneReport write_new_scene(const NewSceneRequest& r);
 
+/** `s` as one word of a POSIX shell command line: itself when it holds only characters no shell
+ *  reads specially, else single-quoted (a quote in it as '\''), so that the command `new`
+ *  suggests can be pasted whatever the file is called. */
+std::string shell_word(const std::string& s);
+
 }  // namespace spangle

@@ -18,6 +18,19 @@
 namespace fs = std::filesystem;
 
 namespace spangle {
+std::string toml_basic_string(const std::string& s) {
+    std::string out = "\"";
+    for (const char c : s) {
+        if (c == '"' || c == '\\')
+            out += fmt::format("\\{}", c);
+        else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
+            out += fmt::format("\\u{:04x}", static_cast<unsigned>(static_cast<unsigned char>(c)));
+        else
+            out += c;
+    }
+    return out + "\"";
+}
+
 namespace {
 
 /** A number as TOML: the shortest decimal that reads back as the same double, always with a
@@ -37,18 +50,8 @@ std::string num(float x) {
     return shortest(x);
 }
 
-/** A TOML basic string. */
 std::string str(const std::string& s) {
-    std::string out = "\"";
-    for (const char c : s) {
-        if (c == '"' || c == '\\')
-            out += fmt::format("\\{}", c);
-        else if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f)
-            out += fmt::format("\\u{:04x}", static_cast<unsigned>(static_cast<unsigned char>(c)));
-        else
-            out += c;
-    }
-    return out + "\"";
+    return toml_basic_string(s);
 }
 
 std::string vec(Vec3 v) {

@@ -13,6 +13,10 @@
 
 namespace spangle {
 
+/** `s` as a TOML basic string: quoted, with quotes, backslashes and control characters
+ *  escaped. */
+std::string toml_basic_string(const std::string& s);
+
 /** What writing a scene made. */
 struct SceneWriteReport {
     std::vector<std::string> meshes;  ///< PLY files written for inline meshes

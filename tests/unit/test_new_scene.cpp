@@ -7,6 +7,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <variant>
 
 #include "core/error.h"
@@ -105,6 +106,39 @@ TEST(NewScene, StandsTheModelOnTheGroundAndFramesItsBounds) {
     EXPECT_GT(px(32, 18, 0), 2.0f * px(32, 18, 2)) << "the centre shows the red paint";
     EXPECT_LT(px(0, 0, 0), 2.0f * px(0, 0, 2)) << "the corner does not";
     EXPECT_EQ(img.stats.nonfinite, 0u);
+}
+
+TEST(NewScene, NamesWithQuotesAndNewlinesAreWrittenAsTomlReadsThem) {
+    // A glTF material named with a quote, a backslash and a newline (a user's file): `new` wrote
+    // the newline raw, inside a string and a comment, and its scene did not load ("unescaped
+    // control characters"). The command it suggests is one a shell reads.
+    test::TempDir dir("new_names");
+    std::ifstream in(test::test_dir() + "/scenes/gltf/cube.gltf");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string from = "\"name\": \"Painted\"";
+    ASSERT_NE(text.find(from), std::string::npos);
+    text.replace(text.find(from), from.size(), R"("name": "Paint \"Red\"\\ v2\nline\ttab")");
+    std::ofstream(dir.file("names.gltf")) << text;
+    NewSceneRequest req;
+    req.model = dir.file("names.gltf");
+    req.output = dir.file("my car's scene.toml");
+    req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+    const NewSceneReport rep = write_new_scene(req);
+    const std::string name = "Paint \"Red\"\\ v2\nline\ttab";
+    EXPECT_EQ(rep.paint, name);
+    const SceneDescription scene = read_scene(req.output);
+    ASSERT_FALSE(scene.materials.empty());
+    EXPECT_EQ(scene.materials.front().name, name) << "read back as written in the glTF";
+    std::ifstream written(req.output);
+    const std::string toml((std::istreambuf_iterator<char>(written)),
+                           std::istreambuf_iterator<char>());
+    EXPECT_NE(
+        toml.find("#     spangle render 'my car'\\''s scene.toml' -o 'my car'\\''s scene.exr'"),
+        std::string::npos)
+        << toml.substr(0, 400);
+    EXPECT_EQ(shell_word("plain-name_1.toml"), "plain-name_1.toml");
+    EXPECT_EQ(shell_word("a b"), "'a b'");
+    EXPECT_EQ(shell_word(""), "''");
 }
 
 TEST(NewScene, ModelsOfNoSizeFlatOrHugeGiveScenesThatLoadOrAClearError) {

@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <numeric>
 
 #include "core/hash.h"
 #include "pipeline/frame.h"
@@ -348,6 +349,34 @@ Shape "trianglemesh" "integer indices" [0 1 2 0 2 3]
     EXPECT_NEAR(two.x, 2.0f, 1e-4f);
     EXPECT_NEAR(two.y, 3.0f, 1e-4f);
     EXPECT_NEAR(two.z, 4.0f, 1e-4f);
+}
+
+TEST(PbrtRender, AFlakeMaterialsIntegerSeedIsTakenAndChangesTheFlakes) {
+    // pbrt-v3's flake material with "integer seed": the seed went to the plugin as a float,
+    // which refused it ("parameter 'seed' must be an integer"), and convert wrote 3.0.
+    const auto image = [](int seed) {
+        const std::string text = fmt::format(R"(LookAt 0 0 3  0 0 0  0 1 0
+Camera "perspective" "float fov" 30
+Film "image" "integer xresolution" 16 "integer yresolution" 16
+Sampler "halton" "integer pixelsamples" 2
+WorldBegin
+LightSource "distant" "point from" [0 0 1] "point to" [0 0 0] "rgb L" [3 3 3]
+Material "flake" "rgb Kd" [0.5 0.02 0.02] "float density" 200000 "integer seed" {}
+Shape "trianglemesh" "integer indices" [0 1 2 0 2 3]
+  "point3 P" [-1 -1 0  1 -1 0  1 1 0  -1 1 0] "point2 uv" [0 0 1 0 1 1 0 1]
+)",
+                                             seed);
+        PbrtReadInfo info;
+        const SceneDescription d = read_pbrt_text("flake.pbrt", text, info);
+        const auto& params = d.materials.at(0).params;
+        const auto it = std::find_if(params.begin(), params.end(),
+                                     [](const ParamDesc& q) { return q.name == "seed"; });
+        EXPECT_TRUE(it != params.end() && it->is_integer && it->number == seed);
+        return render(d);
+    };
+    const std::vector<float> a = image(3), b = image(4);
+    EXPECT_GT(std::accumulate(a.begin(), a.end(), 0.0), 0.0);
+    EXPECT_NE(a, b) << "the seed changes the flakes";
 }
 
 TEST(PbrtRender, TheFilmsCropWindowIsRenderedUnlessTheRequestGivesOne) {

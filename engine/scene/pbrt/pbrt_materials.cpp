@@ -48,6 +48,12 @@ public:
         m_.params.push_back(std::move(d));
     }
 
+    /** An integer parameter (a plugin refuses a seed written as a float). */
+    void integer(const char* name, double v) {
+        number(name, v);
+        m_.params.back().is_integer = true;
+    }
+
     /** A true/false parameter. */
     void boolean(const char* name, bool v) {
         number(name, v ? 1.0 : 0.0);
@@ -430,7 +436,7 @@ bool v3_material(MaterialBuilder& b, const std::string& t, const ParamList& p) {
         if (p.find("density", {"float", "integer"}))
             b.number("density", std::max(1.0, p.number("density", 2e5)));
         if (p.find("seed", {"integer"}))
-            b.number("seed", std::clamp(p.number("seed", 0), 0.0, 2147483647.0));
+            b.integer("seed", std::clamp(p.number("seed", 0), 0.0, 2147483647.0));
     } else {
         return false;
     }
