@@ -14,6 +14,7 @@
 #include "geometry/ply_writer.h"
 #include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
+#include "scene/scene_builder.h"
 
 namespace fs = std::filesystem;
 
@@ -383,9 +384,11 @@ struct Writer {
         line("subdiv", t + " }");
     }
 
-    void object(const ObjectDesc& o) {
+    void object(const ObjectDesc& o, uint32_t index) {
         out += "\n[[object]]\n";
-        if (!o.name.empty()) line("name", str(o.name));
+        // Named as it was: the name a render gave an unnamed object ("object3", its mesh file's)
+        // is its Cryptomatte id, and an inline mesh written to mesh_002.ply would go by that.
+        line("name", str(object_name(o, index)));
         if (o.shadow_catcher) line("shadow_catcher", "true");
         if (const auto* m = std::get_if<MeshFileShape>(&o.shape)) {
             line("mesh", path(m->path));  // a sequence's pattern as it is
@@ -491,7 +494,8 @@ SceneWriteReport write_toml_scene(const SceneDescription& scene, const std::stri
     w.camera(scene.camera);
     if (scene.environment) w.environment(*scene.environment);
     for (const MaterialDesc& m : scene.materials) w.material(m);
-    for (const ObjectDesc& o : scene.objects) w.object(o);
+    for (std::size_t i = 0; i < scene.objects.size(); ++i)
+        w.object(scene.objects[i], static_cast<uint32_t>(i));
     for (const LightDesc& l : scene.lights) w.light(l);
     const std::string tmp = fmt::format("{}.tmp{}", path, ::getpid());
     {

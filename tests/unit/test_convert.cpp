@@ -10,6 +10,7 @@
 
 #include "geometry/mesh_load.h"
 #include "pipeline/session.h"
+#include "scene/scene_builder.h"
 #include "scene/scene_loader.h"
 #include "scene/toml_scene_writer.h"
 #include "test_support.h"
@@ -99,6 +100,12 @@ TEST(Convert, InlineMeshesBecomePlyFilesOnePerMeshAndRenderTheSame) {
     const std::string text = read_text(dir.file("scene.toml"));
     EXPECT_NE(text.find("mesh = \"scene_meshes/mesh_000.ply\""), std::string::npos) << text;
     EXPECT_EQ(render_path(dir.file("scene.toml")), render_description(d));
+    // Each object keeps the name it renders under (its Cryptomatte id): an unnamed inline mesh
+    // went by "object2" and came back as "mesh_000", its PLY file's name.
+    const SceneDescription back = read_scene(dir.file("scene.toml"));
+    ASSERT_EQ(back.objects.size(), d.objects.size());
+    for (uint32_t i = 0; i < d.objects.size(); ++i)
+        EXPECT_EQ(object_name(back.objects[i], i), object_name(d.objects[i], i)) << i;
 }
 
 TEST(Convert, ATexturesWrapPerAxisIsReadAndWrittenBack) {
