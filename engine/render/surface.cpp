@@ -210,9 +210,13 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     const float du1 = uv1[0] - uv0[0], dv1 = uv1[1] - uv0[1];
     const float du2 = uv2[0] - uv0[0], dv2 = uv2[1] - uv0[1];
     const float det = du1 * dv2 - dv1 * du2;
+    // Where the determinant overflows a float (uvs beyond about 1e19) its inverse comes from
+    // double: 1 / inf gave no dp/du, and no uv footprint for the flakes there.
+    const double det_d = static_cast<double>(du1) * static_cast<double>(dv2) -
+                         static_cast<double>(dv1) * static_cast<double>(du2);
     if (std::fabs(det) > 1e-20f) {
         sp.has_uv = !mesh.uvs.empty();
-        const float inv = 1.0f / det;
+        const float inv = std::isfinite(det) ? 1.0f / det : static_cast<float>(1.0 / det_d);
         sp.dpdu = (e1 * dv2 - e2 * dv1) * inv;
         sp.dpdv = (e2 * du1 - e1 * du2) * inv;
         sp.uv_area = length(cross(sp.dpdu, sp.dpdv));
@@ -244,11 +248,32 @@ namespace {
  *  share the system's matrix. */
 bool solve_uv(const SurfacePoint& sp, Vec3 dpx, Vec3 dpy, float& dux, float& dvx, float& duy,
               float& dvy) {
-    const double a = dot(sp.dpdu, sp.dpdu), b = dot(sp.dpdu, sp.dpdv), c = dot(sp.dpdv, sp.dpdv);
-    const double det = a * c - b * b;
-    if (!(std::fabs(det) > 1e-30)) return false;
-    const double rux = dot(sp.dpdu, dpx), rvx = dot(sp.dpdv, dpx);
-    const double ruy = dot(sp.dpdu, dpy), rvy = dot(sp.dpdv, dpy);
+    double a = dot(sp.dpdu, sp.dpdu), b = dot(sp.dpdu, sp.dpdv), c = dot(sp.dpdv, sp.dpdv);
+    double det = a * c - b * b;
+    double rux = dot(sp.dpdu, dpx), rvx = dot(sp.dpdv, dpx);
+    double ruy = dot(sp.dpdu, dpy), rvy = dot(sp.dpdv, dpy);
+    if (!(a * c >= 1e-30)) {
+        // Tiny dp/du (uvs spanning 1e8 over a metre make |dp/du|^2 1e-16): in double
+        // throughout, and degenerate only against the edges' own size. The fixed floor of 1e-30
+        // on the determinant (and products underflowing in float further out) gave those
+        // triangles no uv footprint: uv-space flakes found none there, their glitter gone.
+        const auto ddot = [](Vec3 x, Vec3 y) {
+            return static_cast<double>(x.x) * static_cast<double>(y.x) +
+                   static_cast<double>(x.y) * static_cast<double>(y.y) +
+                   static_cast<double>(x.z) * static_cast<double>(y.z);
+        };
+        a = ddot(sp.dpdu, sp.dpdu);
+        b = ddot(sp.dpdu, sp.dpdv);
+        c = ddot(sp.dpdv, sp.dpdv);
+        det = a * c - b * b;
+        if (!(a * c > 0.0) || !(det > 1e-12 * a * c)) return false;
+        rux = ddot(sp.dpdu, dpx);
+        rvx = ddot(sp.dpdv, dpx);
+        ruy = ddot(sp.dpdu, dpy);
+        rvy = ddot(sp.dpdv, dpy);
+    } else if (!(std::fabs(det) > 1e-30)) {
+        return false;
+    }
     dux = static_cast<float>((c * rux - b * rvx) / det);
     dvx = static_cast<float>((a * rvx - b * rux) / det);
     duy = static_cast<float>((c * ruy - b * rvy) / det);

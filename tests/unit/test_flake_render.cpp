@@ -290,6 +290,42 @@ TEST(FlakeRender, MeshWithoutUvsGlittersInObjectSpace) {
     RecordProperty("correlation", fmt::format("moved {:.3f}, other seed {:.3f}", corr, control));
 }
 
+TEST(FlakeRender, UvsOfAnyMagnitudeKeepTheFlakeLobe) {
+    // A quad whose uvs span 1e8 (or 1e20) over 1.2 m: every footprint holds far more flakes than
+    // max_flakes, so the render is the smooth limit, as at uvs 0..1 with the same density per
+    // uv square made dense. The uv solve's fixed floor on its determinant (1e-30; products of
+    // |dp/du| ~ 1e-8 fell below it) and a float overflow of the uv determinant beyond 1e19 gave
+    // those triangles no uv footprint: no flakes at all, the image 12% darker, no word.
+    test::TempDir dir("flake_big_uvs");
+    const auto quad = [&](double span) {
+        const std::string path = dir.file(fmt::format("quad_{}.obj", span));
+        std::ofstream(path) << fmt::format(
+            "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt {0} 0\nvt {0} {0}\nvt 0 {0}\n"
+            "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
+            span);
+        return path;
+    };
+    const auto render = [&](double span, const std::string& blend) {
+        return luminance_of(render_plane(
+            edited_scene(
+                dir.path().string(), "flake_plane.toml", fmt::format("q{}", span),
+                {{"mesh = \"../../assets/meshes/plane.ply\"", "mesh = \"" + quad(span) + "\""},
+                 {"rotate = [90, 0, 0]\n", ""},
+                 {"min_flakes = 5000, max_flakes = 10000", blend}}),
+            32));
+    };
+    const auto smooth = render(1.0, "min_flakes = 0, max_flakes = 1");
+    double m_smooth = 0.0;
+    for (const double v : smooth) m_smooth += v;
+    ASSERT_GT(m_smooth, 0.0);
+    for (const double span : {1e8, 1e20}) {
+        const auto img = render(span, "min_flakes = 5000, max_flakes = 10000");
+        double m = 0.0;
+        for (const double v : img) m += v;
+        EXPECT_NEAR(m / m_smooth, 1.0, 1e-3) << "uvs spanning " << span;
+    }
+}
+
 TEST(FlakeRender, BlendBandIsInvisibleInRowMeans) {
     // A plane receding to the horizon with wide cones (gamma 10): the discrete lobe near the
     // camera, the smooth lobe far away, the blend between them in the middle rows. Each band of
