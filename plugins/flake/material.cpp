@@ -237,6 +237,22 @@ float blend_weight(const Material& m, double lambda) {
     return static_cast<float>(x * x * (3.0 - 2.0 * x));
 }
 
+/** A tile holds at least this many flakes: a sparser layout is tiled 2^j units at a time (see
+ *  tile_side). */
+constexpr double kMinFlakesPerTile = 4096.0;
+
+/** The side, in the layout's units, of the tiles of a layout of `per_unit` flakes per unit
+ *  square: 1, or the power of two that puts at least kMinFlakesPerTile flakes in a tile. The
+ *  tree handles footprints of up to 2 x 2 tiles (the enumeration up to 64), so on a model in
+ *  millimetres painted with a few flakes per square millimetre every pixel's footprint spanned
+ *  dozens of 1 mm tiles: the smooth lobe everywhere, no glint. Layouts of 4096 flakes per unit
+ *  square and more (every metre-scale paint) keep their unit tiles, and their flakes. */
+double tile_side(double per_unit) {
+    double s = 1.0;
+    while (per_unit * s * s < kMinFlakesPerTile && s < 0x1p20) s *= 2.0;
+    return s;
+}
+
 }  // namespace
 
 FieldView field_view(const Material& m, const PointInput& in) {
@@ -245,15 +261,21 @@ FieldView field_view(const Material& m, const PointInput& in) {
     const bool object = m.space == Material::Space::Object ||
                         (m.space == Material::Space::Auto && (in.flags & SPANGLE_SHADING_NO_UV));
     if (!object) {
-        view.footprint =
-            make_footprint(in.u, in.v, in.du_dx, in.dv_dx, in.du_dy, in.dv_dy, m.footprint_scale);
-        view.per_tile = m.space == Material::Space::World
-                            ? static_cast<double>(m.density) * static_cast<double>(in.uv_area)
-                            : static_cast<double>(m.density);
+        const bool world = m.space == Material::Space::World;
+        view.per_tile = world ? static_cast<double>(m.density) * static_cast<double>(in.uv_area)
+                              : static_cast<double>(m.density);
+        // (Not in world space: its flakes per uv square follow the surface's uv scale point by
+        // point, and tiles of changing sizes would change the flakes where they change.)
+        const double side = world ? 1.0 : tile_side(view.per_tile);
+        const double f = 1.0 / side;  // a power of two: exact
+        const auto d = [f](float x) { return static_cast<double>(x) * f; };
+        view.footprint = make_footprint(d(in.u), d(in.v), d(in.du_dx), d(in.dv_dx), d(in.du_dy),
+                                        d(in.dv_dy), m.footprint_scale);
+        view.per_tile *= side * side;
         // flake_size is in metres: in uv units by the local uv-to-area scale (none where the uv
-        // scale is unknown: point flakes there).
+        // scale is unknown: point flakes there), then in tiles.
         if (m.facet && in.uv_area > 0.0f && std::isfinite(in.uv_area))
-            view.facet_size = m.flake_size / std::sqrt(static_cast<double>(in.uv_area));
+            view.facet_size = m.flake_size / std::sqrt(static_cast<double>(in.uv_area)) * f;
         view.footprint.reach = m.facet ? view.facet_size * m.facet->radius : 0.0;
         return view;
     }
@@ -264,16 +286,21 @@ FieldView field_view(const Material& m, const PointInput& in) {
     const float p[3] = {in.p_obj.x, in.p_obj.y, in.p_obj.z};
     const float dx[3] = {in.dpdx_obj.x, in.dpdx_obj.y, in.dpdx_obj.z};
     const float dy[3] = {in.dpdy_obj.x, in.dpdy_obj.y, in.dpdy_obj.z};
-    view.footprint = make_footprint(p[a], p[b], dx[a], dx[b], dy[a], dy[b], m.footprint_scale);
     constexpr double kSqrt3 = 1.7320508075688772;
     view.per_tile = static_cast<double>(m.density) * kSqrt3;
+    const double side = tile_side(view.per_tile);
+    const double f = 1.0 / side;  // a power of two: exact
+    const auto d = [f](float x) { return static_cast<double>(x) * f; };
+    view.footprint =
+        make_footprint(d(p[a]), d(p[b]), d(dx[a]), d(dx[b]), d(dy[a]), d(dy[b]), m.footprint_scale);
+    view.per_tile *= side * side;
     view.seed = mix(m.field.seed, 0x0b1ec7 + static_cast<uint64_t>(k));
     view.keep = len > 0.0f && std::isfinite(len)
                     ? std::min(1.0f, len / (static_cast<float>(kSqrt3) * n[k]))
                     : 0.0f;
     if (m.facet) {
-        view.facet_size = m.flake_size;
-        view.footprint.reach = m.flake_size * m.facet->radius;
+        view.facet_size = m.flake_size * f;
+        view.footprint.reach = view.facet_size * m.facet->radius;
     }
     return view;
 }

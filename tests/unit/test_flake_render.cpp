@@ -326,6 +326,41 @@ TEST(FlakeRender, UvsOfAnyMagnitudeKeepTheFlakeLobe) {
     }
 }
 
+TEST(FlakeRender, AModelInMillimetresGlittersAsInMetres) {
+    // The flake plane as a CAD model would hold it, in millimetres, painted with 1 flake per
+    // square millimetre, against the same plane in metres at 1e6 per square metre: the same
+    // flakes per pixel. Object-space tiles were one unit: on the millimetre model every pixel's
+    // footprint spanned dozens of 1 mm tiles, past what the tree handles, and the whole plane
+    // rendered the smooth lobe: no glint. Tiles now hold at least 4096 flakes.
+    test::TempDir dir("flake_mm");
+    const auto render = [&](const std::string& unit, double k) {
+        const std::string mesh = dir.file("quad_" + unit + ".obj");
+        std::ofstream(mesh) << fmt::format(
+            "v -{0} -{0} 0\nv {0} -{0} 0\nv {0} {0} 0\nv -{0} {0} 0\nf 1 2 3\nf 1 3 4\n", 0.6 * k);
+        return luminance_of(render_plane(
+            edited_scene(dir.path().string(), "flake_plane.toml", unit,
+                         {{"mesh = \"../../assets/meshes/plane.ply\"", "mesh = \"" + mesh + "\""},
+                          {"rotate = [90, 0, 0]\nscale = 0.6\n", ""},
+                          {"position = [0, 0, 3]", fmt::format("position = [0, 0, {}]", 3 * k)},
+                          {"center = [0.4, 0.3, 3.2]",
+                           fmt::format("center = [{}, {}, {}]", 0.4 * k, 0.3 * k, 3.2 * k)},
+                          {"radius = 0.03", fmt::format("radius = {}", 0.03 * k)},
+                          {"density = 200000", fmt::format("density = {}", 1e6 / (k * k))},
+                          {"min_flakes = 5000", "density_space = \"object\", min_flakes = 5000"}}),
+            64));
+    };
+    // The spread of pixel values over their mean: glitter is grainy, the smooth lobe is not.
+    const auto grain = [](const std::vector<double>& img) {
+        const auto [m, se] = mean_and_se(img);
+        return se * std::sqrt(static_cast<double>(img.size())) / m;
+    };
+    const auto metres = render("m", 1.0), mm = render("mm", 1000.0);
+    const double g_m = grain(metres), g_mm = grain(mm);
+    ASSERT_GT(g_m, 0.5) << "the plane in metres glitters";
+    EXPECT_GT(g_mm, 0.7 * g_m) << "metres " << g_m << ", millimetres " << g_mm;
+    EXPECT_NEAR(mean_and_se(mm).first / mean_and_se(metres).first, 1.0, 0.05);
+}
+
 TEST(FlakeRender, BlendBandIsInvisibleInRowMeans) {
     // A plane receding to the horizon with wide cones (gamma 10): the discrete lobe near the
     // camera, the smooth lobe far away, the blend between them in the middle rows. Each band of
