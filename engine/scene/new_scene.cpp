@@ -53,6 +53,19 @@ void add_mesh(Box& box, const TriangleMesh& mesh, const Affine& to_world) {
         box.add(to_world.apply_point(mesh.position(static_cast<uint32_t>(v))));
 }
 
+/** Adds the mesh's surface area in its own coordinates to `own` and as placed to `placed`. */
+void add_areas(const TriangleMesh& mesh, const Affine& to_world, double& own, double& placed) {
+    for (std::size_t t = 0; 3 * t + 2 < mesh.indices.size(); ++t) {
+        const Vec3 p0 = mesh.position(mesh.indices[3 * t]),
+                   p1 = mesh.position(mesh.indices[3 * t + 1]),
+                   p2 = mesh.position(mesh.indices[3 * t + 2]);
+        own += 0.5 * static_cast<double>(length(cross(p1 - p0, p2 - p0)));
+        const Vec3 q0 = to_world.apply_point(p0);
+        placed += 0.5 * static_cast<double>(length(
+                            cross(to_world.apply_point(p1) - q0, to_world.apply_point(p2) - q0)));
+    }
+}
+
 /** `path` as a scene file at `dir` should name it: relative when it lies in `dir` or below,
  *  else absolute (as `spangle convert` names files). */
 std::string scene_relative(const fs::path& path, const fs::path& dir) {
@@ -111,7 +124,8 @@ std::string shell_word(const std::string& s) {
     return out + "'";
 }
 
-Box model_bounds(const std::string& model, std::vector<std::string>* notes) {
+Box model_bounds(const std::string& model, std::vector<std::string>* notes, double* area_ratio) {
+    if (area_ratio) *area_ratio = 1.0;
     std::error_code ec;
     const fs::path abs = fs::absolute(model, ec).lexically_normal();
     if (!fs::is_regular_file(abs, ec))
@@ -127,14 +141,24 @@ Box model_bounds(const std::string& model, std::vector<std::string>* notes) {
     } else if (is_gltf(model)) {
         const SceneDescription scene = read_scene(abs.string());
         if (notes) notes->insert(notes->end(), scene.notes.begin(), scene.notes.end());
+        double own = 0.0, placed = 0.0;
         for (const ObjectDesc& o : scene.objects) {
-            Affine m = matrix_of(o.placement);
+            // Where it stands at the first frame (an animated node's keys place it; its
+            // placement alone stood it at the origin, and the model floated).
+            Affine m =
+                placement_motion(o, scene.render.frame_start, scene.render.fps, Shutter{}).middle;
             if (o.parent) m = o.parent->compose(m);
-            if (const auto* s = std::get_if<InlineMeshShape>(&o.shape))
+            if (const auto* s = std::get_if<InlineMeshShape>(&o.shape)) {
                 add_mesh(box, *s->mesh, m);
-            else if (const auto* f = std::get_if<MeshFileShape>(&o.shape); f && !f->sequence)
-                add_mesh(box, load_mesh(f->path, f->loc), m);
+                add_areas(*s->mesh, m, own, placed);
+            } else if (const auto* f = std::get_if<MeshFileShape>(&o.shape); f && !f->sequence) {
+                const TriangleMesh mesh = load_mesh(f->path, f->loc);
+                add_mesh(box, mesh, m);
+                add_areas(mesh, m, own, placed);
+            }
         }
+        if (area_ratio && own > 0.0 && placed > 0.0 && std::isfinite(placed / own))
+            *area_ratio = placed / own;
     } else {
         throw_error("model file '{}': unknown kind '{}' (expected .obj, .ply, .gltf or .glb)",
                     model, e);
@@ -163,7 +187,8 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
             read_image_header(env.string(), "environment map");
     }
     NewSceneReport rep;
-    rep.model_bounds = model_bounds(r.model, &rep.notes);
+    double area_ratio = 1.0;
+    rep.model_bounds = model_bounds(r.model, &rep.notes, &area_ratio);
     const Box& b = rep.model_bounds;
     // Stand the model on the ground (y = 0), centred over the origin.
     rep.offset = {-b.centre().x, -b.lo.y, -b.centre().z};
@@ -197,9 +222,12 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     rep.camera = rep.look_at + view * static_cast<float>(dist);
     // Flakes per square unit such that a pixel at the look_at distance sees kFlakesPerPixel.
     const double pixel = 2.0 * dist * std::tan(kFovDeg * kPiD / 360.0) / r.height;
-    const double per_area = kFlakesPerPixel / (pixel * pixel);
+    // The paint's density counts flakes per square unit of the meshes' own coordinates (object
+    // space): a glTF whose nodes scale its meshes (centimetres under a scale of 0.01, as
+    // converters write) has area_ratio square units of the scene per square unit of its meshes.
+    const double per_area = kFlakesPerPixel / (pixel * pixel) * area_ratio;
     rep.density = std::isfinite(per_area) ? std::clamp(two_digits(per_area), 1.0, 2.0e9) : 2.0e9;
-    rep.flakes_per_pixel = rep.density * pixel * pixel;
+    rep.flakes_per_pixel = rep.density / area_ratio * pixel * pixel;
 
     // The ground: a square 40 model sizes wide, written beside the scene.
     rep.ground = r.ground.empty() ? (folder / (out.stem().string() + "_ground.ply")).string()

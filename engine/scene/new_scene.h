@@ -35,7 +35,7 @@ struct NewSceneReport {
     Vec3 offset;           ///< translation that stands it on the ground, centred on y
     Vec3 camera, look_at;  ///< the camera written
     double fov_deg = 0.0;  ///< its vertical field of view
-    double density = 0.0;  ///< flakes per square unit of the paint
+    double density = 0.0;  ///< flakes per square unit of the paint (of the meshes' own units)
     double flakes_per_pixel = 0.0;   ///< expected flakes a pixel sees at the look_at distance
     std::string ground;              ///< the ground plane's path
     std::string paint;               ///< the name of the flake material written
@@ -45,8 +45,12 @@ struct NewSceneReport {
 /** The model's bounds in its own units: every vertex of an OBJ or PLY, or of every object of a
  *  glTF scene placed by its node transforms. Throws SpangleError naming the absolute path when
  *  the model is missing or unreadable. What the readers left out (faces skipped, a glTF's
- *  dropped extensions) is added to `notes`, ready to print. */
-Box model_bounds(const std::string& model, std::vector<std::string>* notes = nullptr);
+ *  dropped extensions) is added to `notes`, ready to print. `area_ratio`, when given, is set
+ *  to the model's surface area as placed over its area in its meshes' own coordinates (1 for
+ *  an OBJ or PLY; 1e-4 for a glTF of centimetre meshes under a node scale of 0.01): an
+ *  object-space flake density is per square unit of the latter. */
+Box model_bounds(const std::string& model, std::vector<std::string>* notes = nullptr,
+                 double* area_ratio = nullptr);
 
 /** Writes the scene (and its ground plane PLY) for `r`. Paths in the scene are relative to its
  *  folder where they can be, else absolute. Throws SpangleError when the model or the map is

@@ -141,6 +141,59 @@ TEST(NewScene, NamesWithQuotesAndNewlinesAreWrittenAsTomlReadsThem) {
     EXPECT_EQ(shell_word(""), "''");
 }
 
+TEST(NewScene, AGltfsNodeScaleIsInThePaintsDensityAndItsKeysInItsBounds) {
+    // The cube scene with its meshes under node scales a hundred times smaller (centimetre data
+    // under a scale of 0.01, as converters write it): the scene is the same model, smaller, so
+    // the paint's density per square unit of its meshes is the same. It was 10,000 times
+    // denser (per square unit of the scaled scene): no glint, a smooth sheen.
+    test::TempDir dir("new_node_scale");
+    std::ifstream in(test::test_dir() + "/scenes/gltf/cube.gltf");
+    std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    const std::string gltf = dir.file("cube.gltf");
+    std::ofstream(gltf) << text;
+    const std::vector<std::pair<std::string, std::string>> edits = {
+        {R"("mesh": 0,
+   "translation": [
+    0,
+    0.5,
+    0
+   ])",
+         R"("mesh": 0, "scale": [0.01, 0.01, 0.01], "translation": [0, 0.005, 0])"},
+        {R"("scale": [
+    6,
+    0.05,
+    6
+   ],
+   "translation": [
+    0,
+    -0.025,
+    0
+   ])",
+         R"("scale": [0.06, 0.0005, 0.06], "translation": [0, -0.00025, 0])"}};
+    for (const auto& [from, to] : edits) {
+        ASSERT_NE(text.find(from), std::string::npos) << from;
+        text.replace(text.find(from), from.size(), to);
+    }
+    const std::string small = dir.file("cube_small.gltf");
+    std::ofstream(small) << text;
+    const auto density = [&](const std::string& model, const std::string& out) {
+        NewSceneRequest req;
+        req.model = model;
+        req.output = dir.file(out);
+        req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+        return write_new_scene(req);
+    };
+    const NewSceneReport full = density(gltf, "full.toml"), scaled = density(small, "small.toml");
+    // The cube is animated: its bounds are where its keys place it at the first frame, standing
+    // on the floor (they were its mesh's at the origin, and the model floated half a cube up).
+    EXPECT_NEAR(full.model_bounds.hi.y, 1.0f, 1e-3f);
+    EXPECT_NEAR(scaled.model_bounds.hi.x - scaled.model_bounds.lo.x,
+                0.01f * (full.model_bounds.hi.x - full.model_bounds.lo.x), 1e-4f);
+    EXPECT_NEAR(scaled.density / full.density, 1.0, 0.05)
+        << "full " << full.density << ", scaled " << scaled.density;
+    EXPECT_NEAR(scaled.flakes_per_pixel, 30.0, 2.0);
+}
+
 TEST(NewScene, ModelsOfNoSizeFlatOrHugeGiveScenesThatLoadOrAClearError) {
     test::TempDir dir("new_scene_odd");
     NewSceneRequest req;
