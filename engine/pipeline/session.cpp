@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <set>
 #include <typeindex>
 
@@ -22,7 +23,13 @@
 namespace fs = std::filesystem;
 
 namespace spangle {
+
 namespace {
+
+/** The finest angle between neighbouring pixels' rays that 32-bit directions resolve, with room
+ *  for the sub-pixel positions of the samples (a direction's components are known to about
+ *  6e-8). */
+constexpr double kFinestPixelAngle = 2e-7;
 
 /** The render, declared like the systems (the session runs the path tracer itself). */
 const ecs::System<World>& render_system() {
@@ -435,6 +442,23 @@ ecs::SystemReport Session::render() {
             film.width, film.height, 360.0 / film.width, 180.0 / film.height, 2 * film.height,
             film.height);
         panorama_warned_ = true;
+    }
+    // A perspective camera whose pixels are closer together than a float direction can tell
+    // (a telephoto of something 1e6 units away): neighbouring pixels' rays coincide, in streaks
+    // and blocks. Said (once per session: the logger drops repeats where it keeps them).
+    if (!cam.equirect && !(cam.ortho_height > 0.0f)) {
+        const double pixel =
+            2.0 * std::tan(static_cast<double>(cam.fov_deg) * std::numbers::pi / 360.0) /
+            static_cast<double>(cam.fov_shorter ? std::min(film.width, film.height) : film.height);
+        if (pixel < kFinestPixelAngle)
+            log_.warn(
+                "the camera's pixels are {:.2g} radians apart (fov {:.3g} degrees over {} "
+                "pixels), finer than 32-bit ray directions resolve ({:.0g}): neighbouring "
+                "pixels see the same rays, in streaks and blocks; widen the fov and move the "
+                "camera closer",
+                pixel, cam.fov_deg,
+                cam.fov_shorter ? std::min(film.width, film.height) : film.height,
+                kFinestPixelAngle);
     }
     render_image(render_scene(), options_, cam, film, steps, result_);
     rep.ran = true;

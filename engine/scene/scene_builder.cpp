@@ -206,6 +206,7 @@ Camera still_camera(const CameraDesc& d) {
                     "floats, keep the camera within 1e15 of what it looks at",
                     distance);
     if (!(length(dir) > 0.0f)) throw_error(d.look_at_loc, "'look_at' must differ from 'position'");
+    if (!(length(c.up) > 0.0f)) throw_error(d.up_loc, "'up' must not be zero");
     if (!(length(cross(dir, c.up)) > 1e-6f * length(dir) * length(c.up)))
         throw_error(d.up_loc, "'up' must not be parallel to the viewing direction");
     c.aperture = static_cast<float>(d.aperture);

@@ -61,4 +61,13 @@ sed -e 's/^mesh = "plane.ply"/mesh = "p.#.ply"/' scene.toml > seq.toml
 "$S" render seq.toml --frames 3..5 -o s.#.exr --no-preview > out.txt 2> err.txt ||
     fail "the mesh sequence did not render: $(cat err.txt)"
 grep -q "beyond the scene's frame range" err.txt && fail "a mesh sequence's frames warned: $(cat err.txt)"
+# A telephoto whose pixels are finer than 32-bit ray directions resolve (it rendered streaks and
+# blocks without a word): said once for the sequence; an ordinary fov says nothing.
+sed -e 's/^look_at = \[0, 0.5, 0\]/look_at = [0, 0.5, 0]\nfov = 0.00001/' scene.toml > tele.toml
+"$S" render tele.toml --frames 0..2 -o t.#.exr --no-preview > out.txt 2> err.txt ||
+    fail "the telephoto did not render: $(cat err.txt)"
+n=$(grep -c "finer than 32-bit ray directions resolve" err.txt)
+[ "$n" = 1 ] || fail "the telephoto's pixels said $n times, not once: $(cat err.txt)"
+"$S" render scene.toml -o o.exr --no-preview 2> err.txt || fail "the still did not render"
+grep -q "finer than 32-bit" err.txt && fail "an ordinary fov warned: $(cat err.txt)"
 echo PASS
