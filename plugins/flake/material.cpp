@@ -68,6 +68,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     }
     for (int c = 0; c < 3; ++c) m.base[c] = static_cast<float>(param_number(p, "base_color", c));
     m.flake_weight = static_cast<float>(param_number(p, "flake_weight"));
+    m.transmits = param_string(p, "fresnel") == "dielectric";
     m.density = static_cast<float>(param_number(p, "density"));
     m.space = parse_space(param_string(p, "density_space"));
     m.tree = param_string(p, "algorithm") != "enumerate";
@@ -401,6 +402,42 @@ void prepare_second(const Material& m, const PointInput& in, float w, Closure& c
 
 }  // namespace
 
+namespace {
+
+/** 1 - F of a population's flakes at cos_theta where they are dielectric, else 0. */
+void flake_transmission(const Material& m, float cos_theta, float out[3]) {
+    out[0] = out[1] = out[2] = 0.0f;
+    if (!m.transmits) return;
+    m.fresnel.eval(cos_theta, out);
+    for (int ch = 0; ch < 3; ++ch) out[ch] = 1.0f - out[ch];
+}
+
+/** The share of the base that reaches wo from wi: between the flakes (1 - flake share), and
+ *  through dielectric flakes, in and out of one (share times (1 - F_in) (1 - F_out), at the
+ *  macro-surface's angles: the flakes' mean normal). Within a flake's area what it reflects (at
+ *  most F) and what passes to the base and back (at most (1 - F) times the base's albedo) sum to
+ *  at most what arrives. Conductor flakes pass nothing: 1 - share, as before. */
+void base_seen(const Material& m, const Closure& c, float cos_i, float out[3]) {
+    for (int ch = 0; ch < 3; ++ch) out[ch] = 1.0f - c.weight;
+    if (!m.transmits || !(c.weight > 0.0f)) return;
+    float ti[3], to[3];
+    flake_transmission(m, cos_i, ti);
+    flake_transmission(m, c.wo.z, to);
+    if (c.second) {
+        // The populations' shares of the flakes (they share one Fresnel; each may be absent).
+        float t2i[3], t2o[3];
+        flake_transmission(*m.second, cos_i, t2i);
+        flake_transmission(*m.second, c.wo.z, t2o);
+        for (int ch = 0; ch < 3; ++ch) {
+            ti[ch] = (1.0f - c.w_second) * ti[ch] * to[ch] + c.w_second * t2i[ch] * t2o[ch];
+            to[ch] = 1.0f;
+        }
+    }
+    for (int ch = 0; ch < 3; ++ch) out[ch] += c.weight * ti[ch] * to[ch];
+}
+
+}  // namespace
+
 void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
                    PointStats& st) {
     c = Closure{};
@@ -423,7 +460,11 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     const float under = 1.0f - c.e_coat_o;
     const float w_coat =
         c.coat->on ? c.e_coat_o * mf::sharp_lobe_weight(c.coat->roughness()) : 0.0f;
-    const float w_base = under * (1.0f - c.weight) * luminance(c.base) * c.coat->base_gain();
+    // The base's share as seen at wo (at wi = wo for the way in: a guess for sampling alone).
+    float seen[3];
+    base_seen(m, c, c.wo.z, seen);
+    const float w_base = under * (m.transmits ? luminance(seen) : 1.0f - c.weight) *
+                         luminance(c.base) * c.coat->base_gain();
     const float w_flake = under * c.weight *
                           (c.second ? (1.0f - c.w_second) * flake_luminance(m) +
                                           c.w_second * flake_luminance(*m.second)
@@ -500,9 +541,19 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
         }
         pdf_fl = (1.0f - c.q_second) * pdf_fl + c.q_second * pdf2;
     }
-    // The diffuse base with the bounces between it and the coat (coat.h), the flakes without.
-    const float base = (1.0f - c.weight) * mf::kInvPi * coat.base_gain();
-    for (int ch = 0; ch < 3; ++ch) f[ch] = f_coat + under * (base * c.base[ch] + c.weight * fl[ch]);
+    // The diffuse base with the bounces between it and the coat (coat.h), the flakes without:
+    // seen between the flakes, and through dielectric ones.
+    if (!m.transmits) {
+        const float base = (1.0f - c.weight) * mf::kInvPi * coat.base_gain();
+        for (int ch = 0; ch < 3; ++ch)
+            f[ch] = f_coat + under * (base * c.base[ch] + c.weight * fl[ch]);
+    } else {
+        float seen[3];
+        base_seen(m, c, wi.z, seen);
+        const float base = mf::kInvPi * coat.base_gain();
+        for (int ch = 0; ch < 3; ++ch)
+            f[ch] = f_coat + under * (base * seen[ch] * c.base[ch] + c.weight * fl[ch]);
+    }
     pdf = c.p_coat * pdf_coat + c.p_base * wi.z * mf::kInvPi + c.p_flake * pdf_fl;
     if (!std::isfinite(f[0] + f[1] + f[2]) || !std::isfinite(pdf)) {
         f[0] = f[1] = f[2] = pdf = 0.0f;

@@ -48,7 +48,10 @@ struct Material {
     float flake_weight = 0.6f;
     bool shadowing = true;
     FresnelTable fresnel;  ///< the flakes' Fresnel (with a film: its mean over the thicknesses)
-    FilmTables film;       ///< per-thickness Fresnel tables of interference flakes (empty: none)
+    /** Dielectric flakes (mica, glass): what a flake does not reflect passes through it to the
+     *  base and back, 1 - F each way (a conductor's is absorbed). */
+    bool transmits = false;
+    FilmTables film;  ///< per-thickness Fresnel tables of interference flakes (empty: none)
     ColorTable colors;
     SmoothLobe smooth;
     DirectionGrid grid;

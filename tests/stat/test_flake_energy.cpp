@@ -104,6 +104,47 @@ TEST(FlakeEnergy, AWhiteBaseUnderACoatReflectsEverything) {
         }
 }
 
+TEST(FlakeEnergy, DielectricFlakesPassWhatTheyDoNotReflectToTheBase) {
+    // Glass or mica flakes over a white base: what a flake does not reflect passes through it to
+    // the base and back (1 - F each way), so the furnace stays near white; it was absorbed, and
+    // flakes of index 1 (invisible) turned a white base black. Never above 1, discrete and
+    // smooth footprints, with and without a coat, down to grazing.
+    for (const double ior : {1.0, 1.5, 2.4})
+        for (const double weight : {0.6, 1.0})
+            for (const double coat : {0.0, 1.0})
+                for (float cos_o : {1.0f, 0.5f, 0.1f, 1e-3f}) {
+                    BsdfHarness m("flake", "flake",
+                                  {{"flake_weight", {weight}},
+                                   {"base_color", {1.0}},
+                                   {"flake_ior", {ior}},
+                                   {"coat", {coat}},
+                                   {"density", {kTestDensity}},
+                                   {"min_flakes", {1000.0}},
+                                   {"max_flakes", {4000.0}}},
+                                  {{"fresnel", "dielectric"}});
+                    for (double lambda : {30.0, 600.0, 0.0}) {
+                        BsdfHarness::Point pt = random_footprint(std::max(lambda, 1.0), 950, 1);
+                        pt.has_differentials = lambda > 0.0;
+                        m.prepare(dir(cos_o, 0.4f), pt);
+                        const BsdfHarness::Albedo a = m.albedo(8000, 7);
+                        const std::string what =
+                            fmt::format("ior {} weight {} coat {} cos_o {} lambda {}: {} +- {}",
+                                        ior, weight, coat, cos_o, lambda, a.mean, a.se);
+                        EXPECT_LE(a.mean, 1.0 + 4.0 * a.se + 1e-4) << what;
+                        // Index 1: the flakes vanish, the white base (under its coat) reflects
+                        // all. Denser flakes keep what their Fresnel does not send back down on
+                        // the way out (the base's light they reflect down again is lost).
+                        if (ior == 1.0 && cos_o >= 0.1f) {
+                            EXPECT_NEAR(a.mean, 1.0, 4.0 * a.se + 5e-3) << what;
+                        } else if (cos_o >= 0.1f) {
+                            // (At cos 0.1 a flake sends about 40% back down on the way out,
+                            // which this layering does not bring back: 0.63 with weight 1.)
+                            EXPECT_GT(a.mean, cos_o >= 0.5f ? 0.75 : 0.55) << what;
+                        }
+                    }
+                }
+}
+
 TEST(FlakeEnergy, AWhiteFurnaceOfSparseFlakesStaysWhite) {
     // White base and perfect white flakes covering 90% of the surface, footprints of 0.3 flakes
     // on average: a footprint without a flake is all base (albedo 1), one with a flake all flake
