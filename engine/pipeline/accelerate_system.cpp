@@ -23,6 +23,9 @@ bool invertible(const Affine& a) {
            std::fabs(det) > 1e-15f * norms;
 }
 
+/** Meshes smaller than this across (world units) are not found by rays. */
+constexpr float kSmallestSeen = 1e-14f;
+
 /** Makes an instance safe to trace. Embree blends a moving instance's steps linearly, so a step
  *  that is singular, or two steps whose determinants differ in sign (a mirror flip within the
  *  shutter: the blend passes through a flat object), would send rays into a singular space
@@ -143,6 +146,13 @@ void check_reach(const ecs::Registry& r, const std::vector<Instance>& instances,
         if (!(extent > 0.0f) && log)
             log->warn("{}: {} has no extent (its points all lie at one place): it is not seen",
                       at.str(), name);
+        // Triangles this small are not found by Embree's float tests (a sphere 2e-14 across
+        // is seen, one 2e-15 across is not): said, not left invisible without a word.
+        else if (extent < kSmallestSeen && log)
+            log->warn(
+                "{}: {} is {:.3g} across, smaller than the ray tracer (Embree) finds triangles "
+                "({:.0g}): it is not seen; model it in smaller units (larger numbers)",
+                at.str(), name, extent, kSmallestSeen);
         // Rays leave a surface by 256 float steps at its coordinates: past twice its size, its
         // shading and shadows break up (a unit sphere at 1e6 shaded in stripes; at 1e5 it is
         // fine).

@@ -203,6 +203,25 @@ TEST(FarGeometry, AnObjectWhosePointsAllCoincideIsSaid) {
         << said;
 }
 
+TEST(FarGeometry, AnObjectTooSmallForTheRayTracerIsSaid) {
+    // A triangle 2e-15 across (a model in units far too large for it) is not found by Embree's
+    // float tests: it rendered nothing, without a word. One 2e-13 across is found and not said.
+    test::TempDir dir("tiny_object");
+    for (const double size : {2e-15, 2e-13}) {
+        std::ofstream(dir.file("tiny.obj"))
+            << fmt::format("v 0 0 0\nv {0} 0 0\nv 0 {0} 0\nf 1 2 3\n", size);
+        std::ofstream(dir.file("scene.toml")) << fmt::format(
+            "[render]\nwidth = 8\nheight = 8\nspp = 1\n[camera]\nposition = [0, 0, {}]\n"
+            "look_at = [0, 0, 0]\n[[material]]\nname = \"m\"\nplugin = \"smooth\"\n"
+            "model = \"diffuse\"\n[[object]]\nmesh = \"{}\"\nmaterial = \"m\"\n",
+            5 * size, dir.file("tiny.obj"));
+        const std::string said = warnings_of(dir.file("scene.toml"));
+        const bool warned =
+            said.find("smaller than the ray tracer (Embree) finds triangles") != std::string::npos;
+        EXPECT_EQ(warned, size < 1e-14) << size << ": " << said;
+    }
+}
+
 /** The rotation by `degrees` about unit `axis`, in double (Rodrigues). */
 std::array<std::array<double, 3>, 3> rotation(Vec3 axis, double degrees) {
     const double t = degrees * M_PI / 180.0, c = std::cos(t), s = std::sin(t);
