@@ -40,7 +40,7 @@ constexpr double kNegativeShare = 1e-4;
 }  // namespace
 
 EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorConfig& color,
-                                     const Logger* log) {
+                                    const Logger* log) {
     ImageHeader spec;
     try {
         spec = read_image_header(file.path, "environment map", true);

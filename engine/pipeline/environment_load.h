@@ -12,6 +12,6 @@ namespace spangle {
  *  values (light cannot be negative) are taken as 0, said through `log` where they held more
  *  than a trace of the map's light. */
 EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorConfig& color,
-                                     const Logger* log = nullptr);
+                                    const Logger* log = nullptr);
 
 }  // namespace spangle
