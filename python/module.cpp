@@ -24,6 +24,7 @@
 #include "cli/outputs.h"
 #include "core/error.h"
 #include "session.h"
+#include "shading/plugin_call.h"
 
 namespace py = pybind11;
 
@@ -275,6 +276,10 @@ PYBIND11_MODULE(_spangle, m) {
     using namespace spangle;
     using namespace spangle::py_bind;
     m.doc() = "Spangle, an offline renderer for glitter, from Python (see docs/python.md).";
+    // A plugin that crashes takes the interpreter with it (nothing can be caught): its last
+    // words name the plugin, the material and the kernel, as the command line's do (Python died
+    // without a word), before the signal goes on to Python's own handler or the default.
+    name_plugin_crashes();
     static py::exception<SpangleError> scene_error(m, "SceneError", PyExc_RuntimeError);
     g_scene_error = scene_error.ptr();
     // A SpangleError leaving a binding (after any released GIL is taken again) becomes SceneError.

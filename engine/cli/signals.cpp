@@ -43,24 +43,7 @@ extern "C" void on_stop_signal(int sig) {
 }
 
 extern "C" void on_crash(int sig) {
-    const char* what = sig == SIGSEGV   ? "SIGSEGV (invalid memory access)"
-                       : sig == SIGBUS  ? "SIGBUS (a mapped file changed or vanished)"
-                       : sig == SIGILL  ? "SIGILL (illegal instruction)"
-                       : sig == SIGFPE  ? "SIGFPE (arithmetic fault)"
-                       : sig == SIGABRT ? "SIGABRT (aborted)"
-                                        : "a fatal signal";
-    const PluginCallSite call = current_plugin_call();
-    say("spangle: fatal: ");
-    say(what);
-    if (call.label && call.kernel) {
-        say(" in ");
-        say(call.kernel);
-        say("() of ");
-        say(call.label);
-        say(": the plugin crashed (rebuild it, or report it to its author with the scene)\n");
-    } else {
-        say(" in spangle itself: please report it, with the scene and the command line\n");
-    }
+    say_fatal_signal(sig, true);
     remove_image_in_progress();
     // The default action: the status and the core dump the signal would have given.
     std::signal(sig, SIG_DFL);

@@ -2,8 +2,13 @@
 
 #include <fmt/format.h>
 
+#include <unistd.h>
+
 #include <algorithm>
+#include <atomic>
 #include <cmath>
+#include <csignal>
+#include <iterator>
 #include <vector>
 
 namespace spangle {
@@ -47,6 +52,72 @@ struct Glints {
 
 PluginCallSite current_plugin_call() noexcept {
     return t_call;
+}
+
+namespace {
+
+/** write(2) of a C string, ignoring the result (nothing else can be done in a handler). */
+void say_raw(const char* text) noexcept {
+    std::size_t n = 0;
+    while (text[n]) ++n;
+    while (n > 0) {
+        const ssize_t w = ::write(STDERR_FILENO, text, n);
+        if (w <= 0) return;
+        text += w;
+        n -= static_cast<std::size_t>(w);
+    }
+}
+
+constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT};
+struct sigaction g_before[std::size(kFatalSignals)];
+std::atomic<bool> g_naming{false};
+
+extern "C" void on_fatal_in_host(int sig) {
+    if (current_plugin_call().label) say_fatal_signal(sig, false);
+    for (std::size_t i = 0; i < std::size(kFatalSignals); ++i)
+        if (kFatalSignals[i] == sig) {
+            sigaction(sig, &g_before[i], nullptr);
+            break;
+        }
+    ::raise(sig);
+}
+
+}  // namespace
+
+void say_fatal_signal(int sig, bool outside) noexcept {
+    const char* what = sig == SIGSEGV   ? "SIGSEGV (invalid memory access)"
+                       : sig == SIGBUS  ? "SIGBUS (a mapped file changed or vanished)"
+                       : sig == SIGILL  ? "SIGILL (illegal instruction)"
+                       : sig == SIGFPE  ? "SIGFPE (arithmetic fault)"
+                       : sig == SIGABRT ? "SIGABRT (aborted)"
+                                        : "a fatal signal";
+    const PluginCallSite call = current_plugin_call();
+    if (call.label && call.kernel) {
+        say_raw("spangle: fatal: ");
+        say_raw(what);
+        say_raw(" in ");
+        say_raw(call.kernel);
+        say_raw("() of ");
+        say_raw(call.label);
+        say_raw(": the plugin crashed (rebuild it, or report it to its author with the scene)\n");
+    } else if (outside) {
+        say_raw("spangle: fatal: ");
+        say_raw(what);
+        say_raw(" in spangle itself: please report it, with the scene and the command line\n");
+    }
+}
+
+void name_plugin_crashes() noexcept {
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    return;  // the sanitizer's own report says more
+#endif
+    if (g_naming.exchange(true)) return;
+    struct sigaction sa {};
+    sa.sa_handler = on_fatal_in_host;
+    sigemptyset(&sa.sa_mask);
+    sa.sa_flags = SA_ONSTACK;
+    for (std::size_t i = 0; i < std::size(kFatalSignals); ++i)
+        sigaction(kFatalSignals[i], &sa, &g_before[i]);
 }
 
 PluginCallMark::PluginCallMark(const char* label, const char* kernel) noexcept : saved_(t_call) {

@@ -24,6 +24,18 @@ struct PluginCallSite {
 /** The plugin call this thread is in (both null outside any). Async-signal-safe to read. */
 PluginCallSite current_plugin_call() noexcept;
 
+/** The last words of a fatal signal `sig` (SIGSEGV, SIGBUS, ...) on stderr: "spangle: fatal:
+ *  SIGSEGV (...) in eval() of plugin 'x' (path), material 'm': the plugin crashed (...)" when
+ *  this thread is in a plugin call, else (with `outside`) that it happened in spangle itself.
+ *  Async-signal-safe: for a signal handler. */
+void say_fatal_signal(int sig, bool outside) noexcept;
+
+/** For a library loaded into another program (the Python module): fatal signals in a plugin
+ *  call are named (say_fatal_signal), then handed to the handler they had before (Python's
+ *  faulthandler, or the default action: the process dies as it would have). Signals outside a
+ *  plugin call go straight to that handler. Idempotent. */
+void name_plugin_crashes() noexcept;
+
 /** Marks this thread as inside a plugin call for its lifetime (nesting restores the outer one). */
 class PluginCallMark {
 public:

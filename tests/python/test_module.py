@@ -738,3 +738,31 @@ def test_material_shows_alpha_and_an_empty_path_is_a_scene_error(session):
     assert m["alpha_cutoff"] == pytest.approx(0.2)
     with pytest.raises(spangle.SceneError, match="path is empty"):
         session.load("")
+
+
+def test_a_plugin_that_crashes_is_named_before_python_dies(tmp_path):
+    """A material plugin that crashes (SIGSEGV in eval()) took the interpreter with it without a
+    word; the command line names it. Now the last line names the kernel, the plugin and the
+    material, and the process still dies of the signal (nothing can be caught)."""
+    plugins = os.environ.get(
+        "SPANGLE_TEST_PLUGIN_DIR",
+        os.path.join(os.environ.get("SPANGLE_BUILD", os.path.join(ROOT, "build")), "test_plugins"))
+    assert os.path.exists(os.path.join(plugins, "libspangle_kernels.so")), plugins
+    scene = tmp_path / "crash.toml"
+    scene.write_text(
+        "[render]\nwidth = 8\nheight = 8\nspp = 1\n"
+        "[camera]\nposition = [0, 0, 3]\nlook_at = [0, 0, 0]\n"
+        "[[light]]\ntype = \"distant\"\ndirection = [0, 0, -1]\nintensity = 1\n"
+        "[[material]]\nname = \"crasher\"\nplugin = \"kernels\"\nparams = { x = 0.9 }\n"
+        "[[object]]\nmesh = \"%s\"\nmaterial = \"crasher\"\n"
+        % os.path.join(ROOT, "assets", "meshes", "sphere.obj"))
+    code = ("import spangle\n"
+            "s = spangle.Session(plugin_path=%r, threads=1)\n"
+            "s.load(%r)\n"
+            "s.render(spp=1)\n" % (plugins, str(scene)))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == -signal.SIGSEGV, (out.returncode, out.stderr)
+    assert ("spangle: fatal: SIGSEGV (invalid memory access) in eval() of plugin 'kernels'"
+            in out.stderr), out.stderr
+    assert "material 'crasher'" in out.stderr, out.stderr
