@@ -34,14 +34,6 @@ struct ConvertArgs {
     bool force = false;  ///< write over an existing TOML scene
 };
 
-/** Whether `name` is one the writer gives a mesh or cage (mesh_NNN.ply, cage_NNN.obj). */
-bool written_mesh_name(const std::string& name) {
-    const bool mesh = name.size() == 12 && name.starts_with("mesh_") && name.ends_with(".ply");
-    const bool cage = name.size() == 12 && name.starts_with("cage_") && name.ends_with(".obj");
-    return (mesh || cage) && std::all_of(name.begin() + 5, name.begin() + 8,
-                                         [](char c) { return c >= '0' && c <= '9'; });
-}
-
 int run_convert(const ConvertArgs& a) {
     if (fs::path(a.output).extension() != ".toml")
         usage_error("output '{}' must end in .toml", a.output);
@@ -50,7 +42,7 @@ int run_convert(const ConvertArgs& a) {
     // A converted scene is where editing starts: converting again over it would lose the edits.
     std::error_code exists_ec;
     if (!a.force && fs::exists(a.output, exists_ec))
-        usage_error("'{}' exists; --force writes over it (and its meshes folder's old meshes)",
+        usage_error("'{}' exists; --force writes over it",
                     fs::absolute(a.output, exists_ec).string());
     SceneDescription scene = read_scene(a.scene, SceneReadOptions{a.camera, a.env});
     Logger log;
@@ -91,23 +83,6 @@ int run_convert(const ConvertArgs& a) {
     for (ObjectDesc& o : scene.objects)
         if (o.emission && o.emission->texture) carry(*o.emission->texture);
     const SceneWriteReport rep = write_toml_scene(scene, a.output, meshes.string());
-    // Meshes an earlier conversion to the same name wrote and this one did not (it holds fewer):
-    // removed, so that the folder holds this scene's files alone.
-    std::size_t stale = 0;
-    if (fs::is_directory(meshes, ec)) {
-        std::vector<fs::path> written;
-        for (const std::string& m : rep.meshes)
-            written.push_back(fs::absolute(m, ec).lexically_normal());
-        for (const auto& entry : fs::directory_iterator(meshes, ec)) {
-            const fs::path p = fs::absolute(entry.path(), ec).lexically_normal();
-            if (written_mesh_name(p.filename().string()) &&
-                std::find(written.begin(), written.end(), p) == written.end() && fs::remove(p, ec))
-                ++stale;
-        }
-    }
-    if (stale > 0)
-        log.info("removed {} mesh file{} of an earlier conversion from {}", stale,
-                 stale == 1 ? "" : "s", meshes.string());
     std::string beside;
     if (!rep.meshes.empty())
         beside = fmt::format("{} mesh{}", rep.meshes.size(), rep.meshes.size() == 1 ? "" : "es");

@@ -13,6 +13,7 @@
 #include "cli/outputs.h"
 #include "cli/render_setup.h"
 #include "cli/signals.h"
+#include "pipeline/frame.h"
 #include "pipeline/session.h"
 #include "render/render_scene.h"
 #include "scene/frame_sequence.h"
@@ -64,6 +65,7 @@ int run_frames(const RenderArgs& a) {
         const ReloadReport rep = session.load_frame(a.scene, f);
         s.out.for_frame(f).check_not_inputs(session.watched_files());
         if (f == first) {
+            check_request_fits_scene(session);
             s.out.check_view(session.color());
             const SceneInfo& info = session.info();
             if (!info.animated)

@@ -16,25 +16,14 @@ namespace {
 /** The first stop signal that arrived (SIGINT or SIGTERM), 0 before any. */
 volatile std::sig_atomic_t stop_signal = 0;
 
-/** write(2) of a C string, ignoring the result (nothing else can be done in a handler). */
-void say(const char* text) {
-    std::size_t n = 0;
-    while (text[n]) ++n;
-    while (n > 0) {
-        const ssize_t w = ::write(STDERR_FILENO, text, n);
-        if (w <= 0) return;
-        text += w;
-        n -= static_cast<std::size_t>(w);
-    }
-}
-
 extern "C" void on_stop_signal(int sig) {
     if (sig == SIGINT && stop_signal == SIGINT) {
         // Said (it exited without a word, and the old file at the output's path could be
         // taken for this render's), and nothing of the write left behind.
         const bool writing = remove_image_in_progress();
         remove_locks_in_progress();
-        say(writing ? "\nspangle: stopped at once by a second SIGINT while writing: that image "
+        say_to_stderr(
+            writing ? "\nspangle: stopped at once by a second SIGINT while writing: that image "
                       "was not written (a file already at its path is an older one)\n"
                     : "\nspangle: stopped at once by a second SIGINT: nothing more written\n");
         ::_exit(130);
@@ -51,8 +40,8 @@ extern "C" void on_crash(int sig) {
 }
 
 extern "C" void on_stop_exit(int sig) {
-    say(sig == SIGINT ? "spangle: stopped by SIGINT: nothing written\n"
-                      : "spangle: stopped by SIGTERM: nothing written\n");
+    say_to_stderr(sig == SIGINT ? "spangle: stopped by SIGINT: nothing written\n"
+                                : "spangle: stopped by SIGTERM: nothing written\n");
     remove_image_in_progress();
     remove_locks_in_progress();
     ::_exit(sig == SIGINT ? 130 : 143);

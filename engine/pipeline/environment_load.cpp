@@ -106,15 +106,23 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
             rgb[3 * i + static_cast<std::size_t>(c)] = v;
             neg.add(v, i);
         }
-    if (log && neg.count > 0 && neg.negative > kNegativeShare * neg.positive)
+    if (log && neg.count > 0 && neg.negative > kNegativeShare * neg.positive) {
+        // Against what the map sums to: a map of (nearly) nothing but negatives is said as such
+        // (a percentage of its near-zero net light was 6e28%).
+        const double net = neg.positive - neg.negative;
+        const std::string effect =
+            net > 0.01 * neg.positive
+                ? fmt::format("adding {:.2g}% to the map's light", 100.0 * neg.negative / net)
+                : std::string(
+                      "and the map's light is in its positive values alone (the "
+                      "negatives outweigh them)");
         log->warn(
             "{}: environment map '{}' has {} negative values (the lowest {:.4g}, at pixel ({}, "
-            "{})): light cannot be negative, so they are taken as 0, adding {:.2g}% to the map's "
-            "light",
+            "{})): light cannot be negative, so they are taken as 0, {}",
             file.loc.str(), file.path, neg.count, neg.lowest,
             neg.at % static_cast<std::size_t>(spec.width),
-            neg.at / static_cast<std::size_t>(spec.width),
-            100.0 * neg.negative / std::max(neg.positive - neg.negative, 1e-30));
+            neg.at / static_cast<std::size_t>(spec.width), effect);
+    }
     color.to_working(file.color_space, rgb.data(), n);
     // Gamut clipping of negatives; the brightest value times the intensity within the 1e18 a
     // sample can carry, as a colour's is (a map at intensity 1e30 came out one flat 1.15e18,

@@ -107,21 +107,26 @@ void apply_scene_crop(Session& session) {
     o.crop = win;
 }
 
-/** A --crop window or --spp-range part that does not fit the image or the samples the scene
- *  sets (the command line gave no --size or --spp; against those it is a usage error, said with
- *  the options) is said at the scene's key before anything renders. */
+}  // namespace
+
 void check_request_fits_scene(Session& session) {
     const RenderOptions& o = session.options();
     const SceneInfo& info = session.info();
     Film film;
     if (!session.film(film)) return;
     const CropWindow& c = o.crop;
-    if (!c.whole() && !(c.x0 < c.x1 && c.x1 <= film.width && c.y0 < c.y1 && c.y1 <= film.height))
+    if (!c.whole() && !(c.x0 < c.x1 && c.x1 <= film.width && c.y0 < c.y1 && c.y1 <= film.height)) {
+        // A size the request gave (--size, Python's size=) is not the scene's to blame.
+        if (o.width_override || o.height_override)
+            throw_error(
+                "--crop {},{},{},{} is not inside the {}x{} image (it needs x1 <= width "
+                "and y1 <= height)",
+                c.x0, c.y0, c.x1, c.y1, film.width, film.height);
         throw_error(info.size_loc,
-                    "--crop {},{},{},{} is not inside the {}x{} image the scene {} (it needs x1 "
-                    "<= width and y1 <= height; --size sets another)",
-                    c.x0, c.y0, c.x1, c.y1, film.width, film.height,
-                    info.size_loc.file.empty() ? "gets by default" : "sets");
+                    "--crop {},{},{},{} is not inside the scene's {}x{} image (it needs x1 <= "
+                    "width and y1 <= height; --size sets another)",
+                    c.x0, c.y0, c.x1, c.y1, film.width, film.height);
+    }
     if (o.spp_end == 0) return;
     if (o.noise_threshold_override < 0.0f && adaptive_on(film, o))
         throw_error(info.noise_threshold_loc,
@@ -131,13 +136,10 @@ void check_request_fits_scene(Session& session) {
                     "the whole render bit for bit, or give --noise-threshold 0");
     if (!o.spp_override && o.spp_end > film.spp)
         throw_error(info.spp_loc,
-                    "--spp-range {}..{} is not inside the {} samples per pixel the scene {} (it "
-                    "needs B <= spp; --spp sets another)",
-                    o.spp_first, o.spp_end, film.spp,
-                    info.spp_loc.file.empty() ? "gets by default" : "sets");
+                    "--spp-range {}..{} is not inside the scene's {} samples per pixel (it needs B "
+                    "<= spp; --spp sets another)",
+                    o.spp_first, o.spp_end, film.spp);
 }
-
-}  // namespace
 
 FrameResult render_frame(const FrameRequest& req) {
     Session session(req.plugin_dirs, req.ocio_config, req.options, *req.log);

@@ -68,4 +68,10 @@ std::vector<std::string> default_ocio_locations();
  *  the inputs. */
 FrameResult render_frame(const FrameRequest& req);
 
+/** Throws at the scene's key (file:line) when a --crop window or --spp-range part does not fit
+ *  the image or the samples the loaded scene sets, or splits its adaptive render by samples (the
+ *  command line gave no --size or --spp; against those it is a usage error, said with the
+ *  options), before anything renders. */
+void check_request_fits_scene(Session& session);
+
 }  // namespace spangle

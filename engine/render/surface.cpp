@@ -1,6 +1,7 @@
 #include "render/surface.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 
@@ -210,16 +211,33 @@ SurfacePoint surface_at(const TriangleMesh& mesh, const Instance& inst, const Hi
     const float du1 = uv1[0] - uv0[0], dv1 = uv1[1] - uv0[1];
     const float du2 = uv2[0] - uv0[0], dv2 = uv2[1] - uv0[1];
     const float det = du1 * dv2 - dv1 * du2;
-    // Where the determinant overflows a float (uvs beyond about 1e19) its inverse comes from
-    // double: 1 / inf gave no dp/du, and no uv footprint for the flakes there.
+    // Where the determinant overflows a float (uvs beyond about 1e19: inf, or inf - inf) it and
+    // dp/du come from double: no dp/du left the point without a uv footprint for the flakes.
+    const bool overflow = !std::isfinite(det);
     const double det_d = static_cast<double>(du1) * static_cast<double>(dv2) -
                          static_cast<double>(dv1) * static_cast<double>(du2);
-    if (std::fabs(det) > 1e-20f) {
+    if (overflow ? std::fabs(det_d) > 1e-20 : std::fabs(det) > 1e-20f) {
         sp.has_uv = !mesh.uvs.empty();
-        const float inv = std::isfinite(det) ? 1.0f / det : static_cast<float>(1.0 / det_d);
-        sp.dpdu = (e1 * dv2 - e2 * dv1) * inv;
-        sp.dpdv = (e2 * du1 - e1 * du2) * inv;
-        sp.uv_area = length(cross(sp.dpdu, sp.dpdv));
+        const float inv = overflow ? 0.0f : 1.0f / det;
+        if (!overflow) {
+            sp.dpdu = (e1 * dv2 - e2 * dv1) * inv;
+            sp.dpdv = (e2 * du1 - e1 * du2) * inv;
+            sp.uv_area = length(cross(sp.dpdu, sp.dpdv));
+        } else {
+            const double i = 1.0 / det_d;
+            const auto comb = [](Vec3 a, double ka, Vec3 b, double kb) {
+                return std::array<double, 3>{double(a.x) * ka - double(b.x) * kb,
+                                             double(a.y) * ka - double(b.y) * kb,
+                                             double(a.z) * ka - double(b.z) * kb};
+            };
+            const auto u = comb(e1, double(dv2) * i, e2, double(dv1) * i);
+            const auto v = comb(e2, double(du1) * i, e1, double(du2) * i);
+            sp.dpdu = Vec3(float(u[0]), float(u[1]), float(u[2]));
+            sp.dpdv = Vec3(float(v[0]), float(v[1]), float(v[2]));
+            const double cx = u[1] * v[2] - u[2] * v[1], cy = u[2] * v[0] - u[0] * v[2],
+                         cz = u[0] * v[1] - u[1] * v[0];
+            sp.uv_area = static_cast<float>(std::sqrt(cx * cx + cy * cy + cz * cz));
+        }
         if (smooth) {
             const Vec3 dn1 = n1 - n0, dn2 = n2 - n0;
             sp.dndu = (dn1 * dv2 - dn2 * dv1) * inv;

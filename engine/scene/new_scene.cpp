@@ -53,16 +53,25 @@ void add_mesh(Box& box, const TriangleMesh& mesh, const Affine& to_world) {
         box.add(to_world.apply_point(mesh.position(static_cast<uint32_t>(v))));
 }
 
+/** The area of triangle (a, b, c), in double (a large model's products overflow a float). */
+double triangle_area(Vec3 a, Vec3 b, Vec3 c) {
+    const double ux = double(b.x) - double(a.x), uy = double(b.y) - double(a.y),
+                 uz = double(b.z) - double(a.z);
+    const double vx = double(c.x) - double(a.x), vy = double(c.y) - double(a.y),
+                 vz = double(c.z) - double(a.z);
+    const double x = uy * vz - uz * vy, y = uz * vx - ux * vz, z = ux * vy - uy * vx;
+    return 0.5 * std::sqrt(x * x + y * y + z * z);
+}
+
 /** Adds the mesh's surface area in its own coordinates to `own` and as placed to `placed`. */
 void add_areas(const TriangleMesh& mesh, const Affine& to_world, double& own, double& placed) {
     for (std::size_t t = 0; 3 * t + 2 < mesh.indices.size(); ++t) {
         const Vec3 p0 = mesh.position(mesh.indices[3 * t]),
                    p1 = mesh.position(mesh.indices[3 * t + 1]),
                    p2 = mesh.position(mesh.indices[3 * t + 2]);
-        own += 0.5 * static_cast<double>(length(cross(p1 - p0, p2 - p0)));
-        const Vec3 q0 = to_world.apply_point(p0);
-        placed += 0.5 * static_cast<double>(length(
-                            cross(to_world.apply_point(p1) - q0, to_world.apply_point(p2) - q0)));
+        own += triangle_area(p0, p1, p2);
+        placed += triangle_area(to_world.apply_point(p0), to_world.apply_point(p1),
+                                to_world.apply_point(p2));
     }
 }
 
@@ -141,6 +150,12 @@ Box model_bounds(const std::string& model, std::vector<std::string>* notes, doub
     } else if (is_gltf(model)) {
         const SceneDescription scene = read_scene(abs.string());
         if (notes) notes->insert(notes->end(), scene.notes.begin(), scene.notes.end());
+        // The area ratio of the objects the paint goes on (the first material's: `new` paints
+        // that one), or of all where none names it.
+        const std::string paint = scene.materials.empty() ? "" : scene.materials.front().name;
+        const bool any_painted =
+            std::any_of(scene.objects.begin(), scene.objects.end(),
+                        [&](const ObjectDesc& o) { return o.material == paint; });
         double own = 0.0, placed = 0.0;
         for (const ObjectDesc& o : scene.objects) {
             // Where it stands at the first frame (an animated node's keys place it; its
@@ -150,11 +165,11 @@ Box model_bounds(const std::string& model, std::vector<std::string>* notes, doub
             if (o.parent) m = o.parent->compose(m);
             if (const auto* s = std::get_if<InlineMeshShape>(&o.shape)) {
                 add_mesh(box, *s->mesh, m);
-                add_areas(*s->mesh, m, own, placed);
+                if (!any_painted || o.material == paint) add_areas(*s->mesh, m, own, placed);
             } else if (const auto* f = std::get_if<MeshFileShape>(&o.shape); f && !f->sequence) {
                 const TriangleMesh mesh = load_mesh(f->path, f->loc);
                 add_mesh(box, mesh, m);
-                add_areas(mesh, m, own, placed);
+                if (!any_painted || o.material == paint) add_areas(mesh, m, own, placed);
             }
         }
         if (area_ratio && own > 0.0 && placed > 0.0 && std::isfinite(placed / own))
@@ -226,7 +241,7 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     // space): a glTF whose nodes scale its meshes (centimetres under a scale of 0.01, as
     // converters write) has area_ratio square units of the scene per square unit of its meshes.
     const double per_area = kFlakesPerPixel / (pixel * pixel) * area_ratio;
-    rep.density = std::isfinite(per_area) ? std::clamp(two_digits(per_area), 1.0, 2.0e9) : 2.0e9;
+    rep.density = std::isfinite(per_area) ? std::clamp(two_digits(per_area), 1e-6, 2.0e9) : 2.0e9;
     rep.flakes_per_pixel = rep.density / area_ratio * pixel * pixel;
 
     // The ground: a square 40 model sizes wide, written beside the scene.

@@ -56,18 +56,6 @@ PluginCallSite current_plugin_call() noexcept {
 
 namespace {
 
-/** write(2) of a C string, ignoring the result (nothing else can be done in a handler). */
-void say_raw(const char* text) noexcept {
-    std::size_t n = 0;
-    while (text[n]) ++n;
-    while (n > 0) {
-        const ssize_t w = ::write(STDERR_FILENO, text, n);
-        if (w <= 0) return;
-        text += w;
-        n -= static_cast<std::size_t>(w);
-    }
-}
-
 constexpr int kFatalSignals[] = {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT};
 struct sigaction g_before[std::size(kFatalSignals)];
 std::atomic<bool> g_naming{false};
@@ -84,6 +72,17 @@ extern "C" void on_fatal_in_host(int sig) {
 
 }  // namespace
 
+void say_to_stderr(const char* text) noexcept {
+    std::size_t n = 0;
+    while (text[n]) ++n;
+    while (n > 0) {
+        const ssize_t w = ::write(STDERR_FILENO, text, n);
+        if (w <= 0) return;
+        text += w;
+        n -= static_cast<std::size_t>(w);
+    }
+}
+
 void say_fatal_signal(int sig, bool outside) noexcept {
     const char* what = sig == SIGSEGV   ? "SIGSEGV (invalid memory access)"
                        : sig == SIGBUS  ? "SIGBUS (a mapped file changed or vanished)"
@@ -93,17 +92,19 @@ void say_fatal_signal(int sig, bool outside) noexcept {
                                         : "a fatal signal";
     const PluginCallSite call = current_plugin_call();
     if (call.label && call.kernel) {
-        say_raw("spangle: fatal: ");
-        say_raw(what);
-        say_raw(" in ");
-        say_raw(call.kernel);
-        say_raw("() of ");
-        say_raw(call.label);
-        say_raw(": the plugin crashed (rebuild it, or report it to its author with the scene)\n");
+        say_to_stderr("spangle: fatal: ");
+        say_to_stderr(what);
+        say_to_stderr(" in ");
+        say_to_stderr(call.kernel);
+        say_to_stderr("() of ");
+        say_to_stderr(call.label);
+        say_to_stderr(
+            ": the plugin crashed (rebuild it, or report it to its author with the scene)\n");
     } else if (outside) {
-        say_raw("spangle: fatal: ");
-        say_raw(what);
-        say_raw(" in spangle itself: please report it, with the scene and the command line\n");
+        say_to_stderr("spangle: fatal: ");
+        say_to_stderr(what);
+        say_to_stderr(
+            " in spangle itself: please report it, with the scene and the command line\n");
     }
 }
 

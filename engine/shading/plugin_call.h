@@ -24,6 +24,10 @@ struct PluginCallSite {
 /** The plugin call this thread is in (both null outside any). Async-signal-safe to read. */
 PluginCallSite current_plugin_call() noexcept;
 
+/** write(2) of a C string to stderr, ignoring the result (nothing else can be done in a signal
+ *  handler). Async-signal-safe. */
+void say_to_stderr(const char* text) noexcept;
+
 /** The last words of a fatal signal `sig` (SIGSEGV, SIGBUS, ...) on stderr: "spangle: fatal:
  *  SIGSEGV (...) in eval() of plugin 'x' (path), material 'm': the plugin crashed (...)" when
  *  this thread is in a plugin call, else (with `outside`) that it happened in spangle itself.

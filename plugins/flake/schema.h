@@ -11,7 +11,7 @@ namespace spangle::flake {
 inline const SpangleParamDesc_v3 kParams[] = {
     {"base_color", SPANGLE_PARAM_COLOR, {0.05, 0.05, 0.05}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the paint between the flakes", SPANGLE_PARAM_TEXTURABLE},
     {"flake_weight", SPANGLE_PARAM_FLOAT, {0.6, 0, 0}, nullptr, 0.0, 1.0, nullptr, "fraction of the surface covered by flakes", SPANGLE_PARAM_TEXTURABLE},
-    {"density", SPANGLE_PARAM_FLOAT, {200000, 0, 0}, nullptr, 1.0, 2147483647.0, nullptr, "flakes per unit square of uv (per square metre with density_space = world or object)", 0},
+    {"density", SPANGLE_PARAM_FLOAT, {200000, 0, 0}, nullptr, 1e-6, 2147483647.0, nullptr, "flakes per unit square of uv (per square metre with density_space = world or object)", 0},
     {"density_space", SPANGLE_PARAM_STRING, {0, 0, 0}, "auto", 0, 0, "auto|uv|world|object", "where flakes are laid out: uv, uv scaled to square metres, object-space position (triplanar), or auto: uv where the mesh has usable uvs, object elsewhere", 0},
     {"algorithm", SPANGLE_PARAM_STRING, {0, 0, 0}, "tree", 0, 0, "tree|enumerate", "tree: counts flakes without enumerating them (cost independent of flake count); enumerate: the reference reflection cache of every flake", 0},
     {"exact_flakes", SPANGLE_PARAM_INT, {256, 0, 0}, nullptr, 1.0, 4096.0, nullptr, "tree: footprint cells holding at most this many flakes are enumerated exactly, larger ones counted", 0},
@@ -43,7 +43,7 @@ inline const SpangleParamDesc_v3 kParams[] = {
     {"film_thickness_max", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 5000.0, nullptr, "nm: thickest film on a flake; 0 = no film (interference flakes off)", 0},
     {"film_ior", SPANGLE_PARAM_FLOAT, {1.5, 0, 0}, nullptr, 1.0, 4.0, nullptr, "index of the flakes' thin film (TiO2 about 2.4, SiO2 1.46)", 0},
     {"flakes2_weight", SPANGLE_PARAM_FLOAT, {0, 0, 0}, nullptr, 0.0, 1.0, nullptr, "share of the flake lobe taken by a second population of flakes (its own field); 0 = one population", 0},
-    {"flakes2_density", SPANGLE_PARAM_FLOAT, {2000, 0, 0}, nullptr, 1.0, 2147483647.0, nullptr, "second population: flakes per unit square (in density_space, like density)", 0},
+    {"flakes2_density", SPANGLE_PARAM_FLOAT, {2000, 0, 0}, nullptr, 1e-6, 2147483647.0, nullptr, "second population: flakes per unit square (in density_space, like density)", 0},
     {"flakes2_color", SPANGLE_PARAM_COLOR, {1.0, 0.35, 0.1}, nullptr, 0.0, 1.0, nullptr, "second population: tint of its flakes (varied like the first's)", 0},
     {"flakes2_roughness", SPANGLE_PARAM_FLOAT, {0.3, 0, 0}, nullptr, 0.001, 1.0, nullptr, "second population: GGX alpha of its flake normals", 0},
     {"flakes2_gamma", SPANGLE_PARAM_FLOAT, {3.0, 0, 0}, nullptr, 0.01, 45.0, nullptr, "second population: half-angle in degrees of its flakes' cones", 0},

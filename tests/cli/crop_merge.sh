@@ -29,7 +29,7 @@ grep -q "crop 80,0,100,10 is not inside --size 90x50" "$T/err.txt" || fail "no r
 [ ! -e "$T/bad.exr" ] || fail "an output was written for a bad crop"
 "$S" render "$SCENE" -o "$T/bad.exr" --spp 1 -q --crop 600,0,700,10 2> "$T/err.txt"; rc=$?
 [ $rc -eq 1 ] || fail "a crop outside the scene's image exited $rc, not 1"
-grep -q "demo.toml:7:[0-9]*: error: --crop 600,0,700,10 is not inside the 640x360 image the scene sets" "$T/err.txt" ||
+grep -q "demo.toml:7:[0-9]*: error: --crop 600,0,700,10 is not inside the scene's 640x360 image" "$T/err.txt" ||
     fail "the crop outside the scene's image is not said at its width"
 [ ! -e "$T/bad.exr" ] || fail "an output was written for a crop outside the scene's image"
 "$S" render "$SCENE" -o "$T/bad.exr" --crop 5,5,5,9 2> "$T/err.txt"; [ $? -eq 2 ] || fail "an empty crop is not a usage error"
@@ -54,7 +54,7 @@ grep -q "samples 0..2 of the frame's 6 are in no part (render them with --spp-ra
 grep -q "spp-range 4..9 is not inside --spp 6" "$T/err.txt" || fail "no reason for the bad range"
 "$S" render "$SCENE" -o "$T/bad.exr" --size 90x50 --spp-range 4..40 2> "$T/err.txt"; rc=$?
 [ $rc -eq 1 ] || fail "a range beyond the scene's spp exited $rc, not 1"
-grep -q "demo.toml:9:[0-9]*: error: --spp-range 4..40 is not inside the 32 samples per pixel the scene sets" "$T/err.txt" ||
+grep -q "demo.toml:9:[0-9]*: error: --spp-range 4..40 is not inside the scene's 32 samples per pixel" "$T/err.txt" ||
     fail "the range beyond the scene's spp is not said at its spp"
 [ ! -e "$T/bad.exr" ] || fail "an output was written for a bad range"
 "$S" render "$SCENE" -o "$T/bad.exr" --spp-range 4..4 2> "$T/err.txt"; [ $? -eq 2 ] || fail "an empty range is not a usage error"

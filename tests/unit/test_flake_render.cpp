@@ -297,12 +297,21 @@ TEST(FlakeRender, UvsOfAnyMagnitudeKeepTheFlakeLobe) {
     // |dp/du| ~ 1e-8 fell below it) and a float overflow of the uv determinant beyond 1e19 gave
     // those triangles no uv footprint: no flakes at all, the image 12% darker, no word.
     test::TempDir dir("flake_big_uvs");
+    // The uvs a sheared parallelogram (both products of the uv determinant overflow a float
+    // at 1e20, to inf - inf: NaN), or an axis-aligned square (span < 0).
     const auto quad = [&](double span) {
         const std::string path = dir.file(fmt::format("quad_{}.obj", span));
-        std::ofstream(path) << fmt::format(
-            "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt {0} 0\nvt {0} {0}\nvt 0 {0}\n"
-            "f 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
-            span);
+        const double s = std::fabs(span);
+        if (span < 0)
+            std::ofstream(path) << fmt::format(
+                "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt {0} 0\nvt {0} {0}\n"
+                "vt 0 {0}\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
+                s);
+        else
+            std::ofstream(path) << fmt::format(
+                "v -1 -1 0\nv 1 -1 0\nv 1 1 0\nv -1 1 0\nvt 0 0\nvt {} {}\nvt {} {}\n"
+                "vt {} {}\nf 1/1 2/2 3/3\nf 1/1 3/3 4/4\n",
+                2 * s, s, 3 * s, 3 * s, s, 2 * s);
         return path;
     };
     const auto render = [&](double span, const std::string& blend) {
@@ -318,7 +327,7 @@ TEST(FlakeRender, UvsOfAnyMagnitudeKeepTheFlakeLobe) {
     double m_smooth = 0.0;
     for (const double v : smooth) m_smooth += v;
     ASSERT_GT(m_smooth, 0.0);
-    for (const double span : {1e8, 1e20}) {
+    for (const double span : {1e8, -1e8, 1e20, -1e20}) {
         const auto img = render(span, "min_flakes = 5000, max_flakes = 10000");
         double m = 0.0;
         for (const double v : img) m += v;

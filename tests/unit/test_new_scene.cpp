@@ -192,6 +192,12 @@ TEST(NewScene, AGltfsNodeScaleIsInThePaintsDensityAndItsKeysInItsBounds) {
     EXPECT_NEAR(scaled.density / full.density, 1.0, 0.05)
         << "full " << full.density << ", scaled " << scaled.density;
     EXPECT_NEAR(scaled.flakes_per_pixel, 30.0, 2.0);
+    // The painted cube is at scale 1: its density gives 30 flakes a pixel at the camera by the
+    // paint's own objects alone (the floor, under a scale of 6 x 0.05 x 6 and another material,
+    // made it 6.6 times denser when every object's area counted).
+    const double dist = length(full.camera - full.look_at);
+    const double pixel = 2.0 * dist * std::tan(full.fov_deg * M_PI / 360.0) / 720.0;
+    EXPECT_NEAR(full.density * pixel * pixel / 30.0, 1.0, 0.1) << full.density;
 }
 
 TEST(NewScene, ModelsOfNoSizeFlatOrHugeGiveScenesThatLoadOrAClearError) {

@@ -300,6 +300,64 @@ TEST(Render, ASceneFarFromTheOriginIsLitAsAtTheOrigin) {
     }
 }
 
+TEST(Render, AnOccluderACentimetreFromALightFarFromTheOriginKeepsItsShadow) {
+    // A black slab 0.6 m wide, 1 cm under a small quad light (or a spot light) over a floor, at
+    // x = 1e4 (floats 1 mm apart): the floor the camera sees is all in its shadow, as at the
+    // origin. Shadow rays that stopped 32 ulps of their coordinates short of a light (2 cm there)
+    // ended before the slab: the floor was lit through it; a point or spot light has no surface
+    // to stop short of and keeps every occluder.
+    const test::TempDir dir("occluder_near_light");
+    std::ofstream(dir.file("cube.obj"))
+        << "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\n"
+           "v -1 1 1\nf 1 2 3 4\nf 5 8 7 6\nf 1 5 6 2\nf 2 6 7 3\nf 3 7 8 4\nf 4 8 5 1\n";
+    const auto total = [&](const std::string& light) {
+        std::ofstream(dir.file("s.toml")) << fmt::format(
+            R"([render]
+width = 32
+height = 18
+spp = 16
+max_depth = 1
+[camera]
+position = [10000.0, 4, 5000.01]
+look_at = [10000.0, 0, 5000.0]
+fov = 60
+[[material]]
+name = "floor"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = 0.5 }}
+[[material]]
+name = "black"
+plugin = "smooth"
+model = "diffuse"
+params = {{ albedo = 0.0 }}
+[[object]]
+mesh = "{0}/meshes/plane.ply"
+material = "floor"
+scale = 4
+translate = [10000.0, 0, 5000.0]
+[[object]]
+mesh = "{1}"
+material = "black"
+scale = [0.3, 0.002, 0.3]
+translate = [10000.0, 0.988, 5000.0]
+{2}
+)",
+            test::asset_dir(), dir.file("cube.obj"), light);
+        FrameRequest req = test::quiet_request(dir.file("s.toml"));
+        req.options.threads = 2;
+        req.options.strategy = Strategy::NeeOnly;
+        const FrameResult f = render_frame(req);
+        return std::accumulate(f.image.begin(), f.image.end(), 0.0);
+    };
+    EXPECT_EQ(total("[[light]]\ntype = \"quad\"\ncorner = [9999.95, 1.0, 4999.95]\n"
+                    "edge1 = [0.1, 0, 0]\nedge2 = [0, 0, 0.1]\nintensity = 30"),
+              0.0);
+    EXPECT_EQ(total("[[light]]\ntype = \"spot\"\nposition = [10000.0, 1.0, 5000.0]\n"
+                    "look_at = [10000.0, 0, 5000.0]\ncone_angle = 70\nintensity = 1"),
+              0.0);
+}
+
 TEST(Render, SceneWithoutLightsSkipsTheLightSystem) {
     const FrameResult r = render("furnace_sphere.toml", 1, 1);
     const auto& lights = report(r, "area_lights");

@@ -25,6 +25,10 @@ void film(Reader& r) {
     };
     d.width = pixels("xresolution", 640);
     d.height = pixels("yresolution", 480);
+    if (const Param* x = p.find("xresolution"))
+        d.size_loc = x->loc;
+    else if (const Param* y = p.find("yresolution"))
+        d.size_loc = y->loc;
     const std::string out = p.string("filename", "");
     if (!out.empty()) d.output = out;
     if (const Param* c = p.find("cropwindow", {"float"})) {
@@ -46,6 +50,10 @@ void sampling(Reader& r) {
     if (r.sampler_type == "stratified") {
         d.spp = static_cast<uint32_t>(std::max(1.0, r.sampler.number("xsamples", 2)) *
                                       std::max(1.0, r.sampler.number("ysamples", 2)));
+        if (const Param* x = r.sampler.find("xsamples"))
+            d.spp_loc = x->loc;
+        else if (const Param* y = r.sampler.find("ysamples"))
+            d.spp_loc = y->loc;
         if (!r.sampler.boolean("jitter", true))
             r.notes.add(r.sampler.find("jitter")->loc,
                         "Sampler \"stratified\": 'jitter' false is dropped (Spangle's samples "
