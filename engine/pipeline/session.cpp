@@ -447,17 +447,25 @@ ecs::SystemReport Session::render() {
     // (a telephoto of something 1e6 units away): neighbouring pixels' rays coincide, in streaks
     // and blocks. Said (once per session: the logger drops repeats where it keeps them).
     if (!cam.equirect && !(cam.ortho_height > 0.0f)) {
-        const double pixel =
-            2.0 * std::tan(static_cast<double>(cam.fov_deg) * std::numbers::pi / 360.0) /
-            static_cast<double>(cam.fov_shorter ? std::min(film.width, film.height) : film.height);
+        // The image's height on the plane at distance 1: 2 tan(fov / 2), or a screen window's
+        // (pbrt's, in units of tan(fov / 2): a narrow one zooms in as a small fov does).
+        const double unit = std::tan(static_cast<double>(cam.fov_deg) * std::numbers::pi / 360.0);
+        const bool window = cam.screen[0] != 0.0f || cam.screen[1] != 0.0f ||
+                            cam.screen[2] != 0.0f || cam.screen[3] != 0.0f;
+        const uint32_t across =
+            cam.fov_shorter && !window ? std::min(film.width, film.height) : film.height;
+        const double span = window ? std::fabs(static_cast<double>(cam.screen[3]) -
+                                               static_cast<double>(cam.screen[2])) *
+                                         unit
+                                   : 2.0 * unit;
+        const double pixel = span / static_cast<double>(across);
         if (pixel < kFinestPixelAngle)
             log_.warn(
-                "the camera's pixels are {:.2g} radians apart (fov {:.3g} degrees over {} "
+                "the camera's pixels are {:.2g} radians apart ({}{:.3g} degrees over {} "
                 "pixels), finer than 32-bit ray directions resolve ({:.0g}): neighbouring "
-                "pixels see the same rays, in streaks and blocks; widen the fov and move the "
+                "pixels see the same rays, in streaks and blocks; widen the view and move the "
                 "camera closer",
-                pixel, cam.fov_deg,
-                cam.fov_shorter ? std::min(film.width, film.height) : film.height,
+                pixel, window ? "a screen window in an fov of " : "fov ", cam.fov_deg, across,
                 kFinestPixelAngle);
     }
     render_image(render_scene(), options_, cam, film, steps, result_);

@@ -117,7 +117,7 @@ double overlap_area(const Footprint& p, double x0, double y0, double x1, double 
 /** Settings of the flake field (everything that decides which flakes exist). */
 struct FieldParams {
     uint64_t seed = 0;           ///< material seed
-    double flakes_per_tile = 0;  ///< N: count in one uv unit square, rounded, at most 2^31 - 1
+    double flakes_per_tile = 0;  ///< N: count in one tile (footprint units), at most 2^31 - 1
     float alpha = 0.1f;          ///< GGX roughness of the flake normal distribution
     int leaf_size = 16;          ///< nodes with at most this many flakes are leaves
     int max_depth = 12;          ///< deepest level of the quad-tree

@@ -121,7 +121,7 @@ struct PointInput {
  *  density there and seed, and the share of the field's flakes that belong to the surface. */
 struct FieldView {
     Footprint footprint;
-    double per_tile = 0;    ///< flakes per unit square of the plane
+    double per_tile = 0;    ///< flakes per tile (a unit square, or 2^j units: tile_side)
     uint64_t seed = 0;      ///< the field's seed (the material's, salted per object-space plane)
     float keep = 1.0f;      ///< each flake is kept with this probability (hashed per flake)
     double facet_size = 0;  ///< facets: a flake's width in the plane's units (0: point flakes)

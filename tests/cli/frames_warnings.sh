@@ -68,6 +68,10 @@ sed -e 's/^look_at = \[0, 0.5, 0\]/look_at = [0, 0.5, 0]\nfov = 0.00001/' scene.
     fail "the telephoto did not render: $(cat err.txt)"
 n=$(grep -c "finer than 32-bit ray directions resolve" err.txt)
 [ "$n" = 1 ] || fail "the telephoto's pixels said $n times, not once: $(cat err.txt)"
+# The same through a narrow screen window (pbrt's, which convert writes) in an ordinary fov.
+sed -e 's/^look_at = \[0, 0.5, 0\]/look_at = [0, 0.5, 0]\nscreen_window = [-1e-6, 1e-6, -1e-6, 1e-6]/' scene.toml > window.toml
+"$S" render window.toml -o w.exr --no-preview 2> err.txt || fail "the screen window did not render: $(cat err.txt)"
+grep -q "finer than 32-bit ray directions resolve" err.txt || fail "a narrow screen window was not said: $(cat err.txt)"
 "$S" render scene.toml -o o.exr --no-preview 2> err.txt || fail "the still did not render"
 grep -q "finer than 32-bit" err.txt && fail "an ordinary fov warned: $(cat err.txt)"
 echo PASS
