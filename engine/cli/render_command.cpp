@@ -28,6 +28,7 @@
 #include "cli/watch/watch_command.h"
 #include "core/error.h"
 #include "pipeline/frame.h"
+#include "render/adaptive.h"
 #include "render/denoise.h"
 
 namespace spangle {
@@ -301,10 +302,7 @@ int run_render_command(const RenderArgs& a, int& argc, char**& argv) {
     // (An adaptive threshold from the scene file meets --spp-range when the scene is loaded:
     // refused there, exit 1; two options that clash are a usage error before any work.)
     if (a.noise_threshold > 0.0 && !a.spp_range.empty())
-        usage_error(
-            "--spp-range cannot split an adaptive render (--noise-threshold): a part cannot know "
-            "which pixels stopped before its first sample without rendering those samples; "
-            "split it by pixels (--crop, MPI bands), which give the whole render bit for bit");
+        usage_error("{}", spp_range_refusal("an adaptive render (--noise-threshold)"));
     if (a.min_spp > 0 && a.max_spp > 0 && a.min_spp > a.max_spp)
         usage_error("--min-spp {} is more than --max-spp {}", a.min_spp, a.max_spp);
     if (a.min_spp > 0 && a.max_spp == 0 && a.spp > 0 && a.min_spp > a.spp)

@@ -129,11 +129,8 @@ void check_request_fits_scene(Session& session) {
     }
     if (o.spp_end == 0) return;
     if (o.noise_threshold_override < 0.0f && adaptive_on(film, o))
-        throw_error(info.noise_threshold_loc,
-                    "--spp-range cannot split this scene's adaptive render (noise_threshold): a "
-                    "part cannot know which pixels stopped before its first sample without "
-                    "rendering those samples; split it by pixels (--crop, MPI bands), which give "
-                    "the whole render bit for bit, or give --noise-threshold 0");
+        throw_error(info.noise_threshold_loc, "{}, or give --noise-threshold 0",
+                    spp_range_refusal("this scene's adaptive render (noise_threshold)"));
     if (!o.spp_override && o.spp_end > film.spp)
         throw_error(info.spp_loc,
                     "--spp-range {}..{} is not inside the scene's {} samples per pixel (it needs B "

@@ -39,6 +39,13 @@ AdaptivePlan adaptive_plan(const Film& film, const RenderOptions& options) {
     return p;
 }
 
+std::string spp_range_refusal(const std::string& render) {
+    return "--spp-range cannot split " + render +
+           ": a part cannot know which pixels stopped before its first sample without rendering "
+           "those samples; split it by pixels (--crop, MPI bands), which give the whole render "
+           "bit for bit";
+}
+
 bool adaptive_on(const Film& film, const RenderOptions& options) {
     return adaptive_plan(film, options).on();
 }

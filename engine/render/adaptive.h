@@ -28,6 +28,7 @@
 // quarter of the samples only (the quarters then differ by all of it).
 
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "core/sample_sum.h"
@@ -50,6 +51,10 @@ AdaptivePlan adaptive_plan(const Film& film, const RenderOptions& options);
 
 /** Whether a render of `film` under `options` samples adaptively. */
 bool adaptive_on(const Film& film, const RenderOptions& options);
+
+/** Why --spp-range cannot split `render` (an adaptive render, named as the caller knows it:
+ *  "an adaptive render (--noise-threshold)"), for every place that refuses it. */
+std::string spp_range_refusal(const std::string& render);
 
 /** The first checkpoint after `samples`: half of min_spp (rounded down to a multiple of 4,
  *  when at least 4), min_spp, then every max(8, c / 8) samples (a multiple of 4), capped at

@@ -16,6 +16,7 @@
 
 #include "core/cryptomatte.h"
 #include "core/memory.h"
+#include "render/adaptive.h"
 #include "render/wave.h"
 
 namespace spangle {
@@ -194,11 +195,7 @@ uint32_t set_up_job(RenderJob& job, const RenderScene& scene, const RenderOption
     job.camera_sees_environment = film.transparent_background == 0;
     if (job.adaptive) job.spp = job.adaptive->max_spp;
     if (options.spp_end == 0) return 0;
-    if (job.adaptive)
-        throw_error(
-            "--spp-range cannot split an adaptive render (noise_threshold): a part cannot know "
-            "which pixels stopped before its first sample without rendering those samples; "
-            "split it by pixels (--crop, MPI bands), which give the whole render bit for bit");
+    if (job.adaptive) throw_error("{}", spp_range_refusal("an adaptive render (noise_threshold)"));
     if (!(options.spp_first < options.spp_end && options.spp_end <= job.spp))
         throw_error(
             "sample range {}..{} is not inside the frame's {} samples per pixel (it needs A < B "
