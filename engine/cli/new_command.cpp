@@ -24,11 +24,12 @@ namespace {
 
 /** Options of `spangle new`. */
 struct NewArgs {
-    std::string mesh;    ///< the model: OBJ, PLY, glTF or GLB
-    std::string output;  ///< the TOML scene to write (default: MODEL's stem + .toml, here)
-    std::string env;     ///< the map to light it with (default: the shipped studio map)
-    bool force = false;  ///< overwrite an existing scene
-    bool quiet = false;  ///< no line saying what was written
+    std::string mesh;      ///< the model: OBJ, PLY, glTF or GLB
+    std::string output;    ///< the TOML scene to write (default: MODEL's stem + .toml, here)
+    std::string env;       ///< the map to light it with (default: the shipped studio map)
+    bool force = false;    ///< overwrite an existing scene
+    bool quiet = false;    ///< no line saying what was written
+    std::string up = "y";  ///< the model's up axis
 };
 
 constexpr const char* kStudioMap = "studio_hdri.exr";
@@ -99,6 +100,7 @@ int run_new(const NewArgs& a) {
     req.model = a.mesh;
     req.output = output;
     req.env_map = a.env;
+    req.up = a.up;
     if (a.env.empty()) {
         const std::string shipped = find_studio_map();
         fs::copy_file(shipped, studio, fs::copy_options::overwrite_existing, ec);
@@ -140,6 +142,10 @@ Command add_new_command(CLI::App& app) {
                     "the TOML scene to write (default: the model's name with .toml, here)");
     sub->add_option("--env", a->env,
                     "a lat-long map (EXR, HDR) to light it (default: the shipped studio map)");
+    sub->add_option("--up", a->up,
+                    "the model's up axis: y (glTF's, the default), z (CAD, 3ds Max, many scans), "
+                    "x, -x, -y or -z; the scene turns it to stand up")
+        ->check(CLI::IsMember({"y", "z", "x", "-x", "-y", "-z", "+x", "+y", "+z"}));
     sub->add_flag("--force", a->force, "overwrite an existing scene file");
     sub->add_flag("-q,--quiet", a->quiet, "no info output");
     return {sub, [a] { return run_new(*a); }};

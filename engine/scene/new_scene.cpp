@@ -133,7 +133,19 @@ std::string shell_word(const std::string& s) {
     return out + "'";
 }
 
-Box model_bounds(const std::string& model, std::vector<std::string>* notes, double* area_ratio) {
+Vec3 up_rotation(const std::string& up) {
+    // R_x(-90) takes +z to +y, R_x(90) -z; R_z(90) takes +x to +y, R_z(-90) -x; R_x(180) -y.
+    if (up == "y" || up == "+y") return {0, 0, 0};
+    if (up == "z" || up == "+z") return {-90, 0, 0};
+    if (up == "-z") return {90, 0, 0};
+    if (up == "x" || up == "+x") return {0, 0, 90};
+    if (up == "-x") return {0, 0, -90};
+    if (up == "-y") return {180, 0, 0};
+    throw_error("up axis '{}': expected x, y, z, -x, -y or -z", up);
+}
+
+Box model_bounds(const std::string& model, std::vector<std::string>* notes, double* area_ratio,
+                 const Affine& orient) {
     if (area_ratio) *area_ratio = 1.0;
     std::error_code ec;
     const fs::path abs = fs::absolute(model, ec).lexically_normal();
@@ -143,7 +155,7 @@ Box model_bounds(const std::string& model, std::vector<std::string>* notes, doub
     Box box;
     if (e == ".obj" || e == ".ply") {
         const TriangleMesh mesh = load_mesh(abs.string(), FileLoc{});
-        add_mesh(box, mesh, Affine{});
+        add_mesh(box, mesh, orient);
         if (notes)
             for (const std::string& n : mesh.notes)
                 notes->push_back(fmt::format("mesh '{}': {}", model, n));
@@ -163,6 +175,7 @@ Box model_bounds(const std::string& model, std::vector<std::string>* notes, doub
             Affine m =
                 placement_motion(o, scene.render.frame_start, scene.render.fps, Shutter{}).middle;
             if (o.parent) m = o.parent->compose(m);
+            m = orient.compose(m);  // the import's rotate turns the whole scene
             if (const auto* s = std::get_if<InlineMeshShape>(&o.shape)) {
                 add_mesh(box, *s->mesh, m);
                 if (!any_painted || o.material == paint) add_areas(*s->mesh, m, own, placed);
@@ -203,7 +216,10 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     }
     NewSceneReport rep;
     double area_ratio = 1.0;
-    rep.model_bounds = model_bounds(r.model, &rep.notes, &area_ratio);
+    rep.rotate = up_rotation(r.up);
+    TransformParts turn;
+    turn.rotate = rep.rotate;
+    rep.model_bounds = model_bounds(r.model, &rep.notes, &area_ratio, compose_parts(turn));
     const Box& b = rep.model_bounds;
     // Stand the model on the ground (y = 0), centred over the origin.
     rep.offset = {-b.centre().x, -b.lo.y, -b.centre().z};
@@ -275,15 +291,24 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     std::vector<std::string> quoted_others;
     for (const std::string& m : other_materials) quoted_others.push_back(toml_basic_string(m));
 
+    // The turn that stands the model up (--up), applied before its offset (rotate, then
+    // translate), as its bounds above were taken.
+    const std::string rotate_line =
+        rep.rotate.x == 0.0f && rep.rotate.y == 0.0f && rep.rotate.z == 0.0f
+            ? std::string()
+            : fmt::format("rotate = [{:g}, {:g}, {:g}]      # the model's {} axis up\n",
+                          rep.rotate.x, rep.rotate.y, rep.rotate.z, comment_safe(r.up));
     std::string t;
     t += fmt::format(
         "# A scene around {} written by `spangle new`: the model on a ground plane, lit by an\n"
         "# environment map and a key light, the camera framed on the model's bounds, and a flake\n"
         "# paint to start from. Render it with\n"
         "#     spangle render {} -o {}\n"
-        "# Paths are relative to this file. The model's bounds: {} to {} (its own units).\n\n",
+        "# Paths are relative to this file. The model's bounds: {} to {} (its own units{}).\n\n",
         comment_safe(model.filename().string()), comment_safe(shell_word(out.filename().string())),
-        comment_safe(shell_word(out.stem().string() + ".exr")), vec4g(b.lo), vec4g(b.hi));
+        comment_safe(shell_word(out.stem().string() + ".exr")), vec4g(b.lo), vec4g(b.hi),
+        r.up == "y" || r.up == "+y" ? std::string()
+                                    : fmt::format(", turned so that its {} axis points up", r.up));
     t += fmt::format(
         "[render]\nwidth = {}\nheight = {}\nspp = 64\nmax_depth = 6\nfilter = \"blackman-harris\"\n"
         "clamp_indirect = 20            # a firefly guard for caustics; biased, 0 = off\n"
@@ -325,16 +350,17 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         t += fmt::format(
             "[[import]]                     # the model, with its own materials; the flake paint\n"
             "                               # above replaces its material {}{}\n"
-            "file = {}\ntranslate = {}\ncamera = false\nenvironment = false\nlights = false\n",
+            "file = {}\n{}translate = {}\ncamera = false\nenvironment = false\nlights = false\n",
             toml_basic_string(paint),
             other_materials.empty()
                 ? std::string()
                 : fmt::format(" (its others: {})", fmt::join(quoted_others, ", ")),
-            toml_basic_string(scene_relative(model, folder)), vec4g(rep.offset));
+            toml_basic_string(scene_relative(model, folder)), rotate_line, vec4g(rep.offset));
     } else {
-        t += fmt::format("[[object]]\nname = \"model\"\nmesh = {}\nmaterial = {}\ntranslate = {}\n",
-                         toml_basic_string(scene_relative(model, folder)), toml_basic_string(paint),
-                         vec4g(rep.offset));
+        t += fmt::format(
+            "[[object]]\nname = \"model\"\nmesh = {}\nmaterial = {}\n{}translate = {}\n",
+            toml_basic_string(scene_relative(model, folder)), toml_basic_string(paint), rotate_line,
+            vec4g(rep.offset));
     }
 
     const fs::path tmp = out.string() + ".tmp";

@@ -27,12 +27,17 @@ struct NewSceneRequest {
     /** The ground plane's PLY, written beside the scene; empty: OUTPUT's stem + "_ground.ply". */
     std::string ground;
     uint32_t width = 1280, height = 720;  ///< the scene's image size, pixels
+    /** The model's up axis: "y" (glTF's and most tools'), "z" (CAD, 3ds Max, many scans and
+     *  PLYs), "x", or one of them negated ("-z"). The scene turns the model so that it points
+     *  up (+y), by `rotate` on its object or import. */
+    std::string up = "y";
 };
 
 /** What was written, for the command's message and the tests. */
 struct NewSceneReport {
-    Box model_bounds;      ///< the model's bounds as read (its own units, before placement)
-    Vec3 offset;           ///< translation that stands it on the ground, centred on y
+    Box model_bounds;  ///< the model's bounds, its own units, turned by `up` (before its offset)
+    Vec3 rotate;       ///< Euler degrees written as its `rotate` (0s for up = "y")
+    Vec3 offset;       ///< translation that stands it on the ground, centred on y
     Vec3 camera, look_at;  ///< the camera written
     double fov_deg = 0.0;  ///< its vertical field of view
     double density = 0.0;  ///< flakes per square unit of the paint (of the meshes' own units)
@@ -48,9 +53,15 @@ struct NewSceneReport {
  *  dropped extensions) is added to `notes`, ready to print. `area_ratio`, when given, is set
  *  to the model's surface area as placed over its area in its meshes' own coordinates (1 for
  *  an OBJ or PLY; 1e-4 for a glTF of centimetre meshes under a node scale of 0.01): an
- *  object-space flake density is per square unit of the latter. */
+ *  object-space flake density is per square unit of the latter. Every point is turned by
+ *  `orient` (the rotation `up` asks for) before it enters the box. */
 Box model_bounds(const std::string& model, std::vector<std::string>* notes = nullptr,
-                 double* area_ratio = nullptr);
+                 double* area_ratio = nullptr, const Affine& orient = Affine{});
+
+/** The Euler angles (degrees, about X, then Y, then Z, as an object's `rotate`) that turn a
+ *  model whose up axis is `up` ("x", "y", "z", "-x", "-y" or "-z") to stand along +y. Throws
+ *  SpangleError for anything else. */
+Vec3 up_rotation(const std::string& up);
 
 /** Writes the scene (and its ground plane PLY) for `r`. Paths in the scene are relative to its
  *  folder where they can be, else absolute. Throws SpangleError when the model or the map is

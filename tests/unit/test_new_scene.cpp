@@ -13,6 +13,7 @@
 #include "core/error.h"
 #include "pipeline/frame.h"
 #include "scene/new_scene.h"
+#include "scene/object_placement.h"
 #include "scene/scene_loader.h"
 #include "scene_request.h"
 #include "test_support.h"
@@ -106,6 +107,44 @@ TEST(NewScene, StandsTheModelOnTheGroundAndFramesItsBounds) {
     EXPECT_GT(px(32, 18, 0), 2.0f * px(32, 18, 2)) << "the centre shows the red paint";
     EXPECT_LT(px(0, 0, 0), 2.0f * px(0, 0, 2)) << "the corner does not";
     EXPECT_EQ(img.stats.nonfinite, 0u);
+}
+
+TEST(NewScene, AModelWhoseUpAxisIsNotYIsTurnedToStandUp) {
+    // A tall box (5 units along its own z, 2 along y, 1 along x), as a CAD tool or a scan
+    // writes a Z-up model: without --up it lay on its side. Each up axis stands its own extent
+    // along y, on the ground, centred over the origin, in the scene as read back.
+    test::TempDir dir("new_scene_up");
+    struct Case {
+        const char* up;
+        Vec3 lo, hi;  ///< the box in its own coordinates, 5 units along the up axis
+    };
+    for (const Case& c : {Case{"z", {3, 1, -2}, {4, 3, 3}}, Case{"-z", {3, 1, -2}, {4, 3, 3}},
+                          Case{"x", {-2, 1, 0}, {3, 3, 1}}, Case{"-x", {-2, 1, 0}, {3, 3, 1}},
+                          Case{"-y", {0, -4, 0}, {1, 1, 2}}, Case{"y", {0, -4, 0}, {1, 1, 2}}}) {
+        const std::string model = dir.file(std::string("tall") + c.up + ".obj");
+        write_box_obj(model, c.lo, c.hi);
+        NewSceneRequest req;
+        req.model = model;
+        req.output = dir.file(std::string("tall") + c.up + ".toml");
+        req.env_map = test::asset_dir() + "/env/studio_hdri.exr";
+        req.up = c.up;
+        const NewSceneReport rep = write_new_scene(req);
+        const SceneDescription scene = read_scene(req.output);
+        ASSERT_EQ(scene.objects.size(), 2u) << c.up;
+        const Affine m = matrix_of(scene.objects[1].placement);
+        Box placed;
+        for (int i = 0; i < 8; ++i)
+            placed.add(m.apply_point(
+                {(i & 1) ? c.hi.x : c.lo.x, (i & 2) ? c.hi.y : c.lo.y, (i & 4) ? c.hi.z : c.lo.z}));
+        EXPECT_NEAR(placed.lo.y, 0.0f, 1e-4f) << c.up << ": on the ground";
+        EXPECT_NEAR(placed.hi.y, 5.0f, 1e-4f) << c.up << ": its up axis along y";
+        EXPECT_NEAR(placed.lo.x + placed.hi.x, 0.0f, 1e-4f) << c.up;
+        EXPECT_NEAR(placed.lo.z + placed.hi.z, 0.0f, 1e-4f) << c.up;
+        // The report's bounds are the turned model's (5 tall) and the camera looks at its middle.
+        EXPECT_NEAR(rep.model_bounds.hi.y - rep.model_bounds.lo.y, 5.0f, 1e-4f) << c.up;
+        EXPECT_NEAR(scene.camera.look_at.y, 2.5f, 1e-3f) << c.up;
+    }
+    EXPECT_THROW(up_rotation("w"), SpangleError);
 }
 
 TEST(NewScene, NamesWithQuotesAndNewlinesAreWrittenAsTomlReadsThem) {
