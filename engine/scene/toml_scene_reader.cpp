@@ -94,6 +94,13 @@ RenderDesc read_render(TableReader& r) {
     }
     d.crop = read_window(r, "crop_window");
     d.crop_loc = r.loc("crop_window");
+    // The image the scene asks for when -o gives none (pbrt's Film "filename", which `spangle
+    // convert` writes here): relative to the working folder, as pbrt's.
+    if (r.has("output")) {
+        d.output = r.string("output");
+        if (d.output->empty() || d.output->back() == '/')
+            throw_error(r.loc("output"), "'output' must name an image file, got \"{}\"", *d.output);
+    }
     r.finish();
     return d;
 }

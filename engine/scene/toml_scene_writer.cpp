@@ -143,6 +143,7 @@ struct Writer {
         line("fps", num(r.fps));
         line("shutter", fmt::format("[{}, {}]", num(r.shutter_open), num(r.shutter_close)));
         if (r.crop) line("crop_window", window(*r.crop));
+        if (r.output) line("output", str(*r.output));
     }
 
     static std::string window(const std::array<double, 4>& w) {

@@ -19,4 +19,14 @@ cd "$T/work" || fail "no temp folder"
 grep -q "asks for 'asked_for.png'" out.txt || fail "no line saying where the image went"
 "$S" render "$scene" --size 24x18 --spp 1 -q -o given.exr || fail "render -o failed"
 [ -f given.exr ] || fail "-o did not win over the Film's filename"
+# The same scene converted to TOML keeps the name ([render] output), and renders to it.
+rm -f asked_for.exr asked_for.png
+"$S" convert "$scene" -o "$T/scene/twin.toml" -q > conv.txt 2>&1 || fail "convert failed: $(cat conv.txt)"
+grep -q '^output = "asked_for.png"' "$T/scene/twin.toml" || fail "convert dropped the Film's filename"
+"$S" render "$T/scene/twin.toml" --size 24x18 --spp 1 > out2.txt 2>&1 || fail "TOML render failed: $(cat out2.txt)"
+[ -f asked_for.exr ] || fail "the TOML scene's output was not written: $(ls)"
+# An empty name is refused at its line.
+printf '[render]\noutput = ""\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n' > bad.toml
+"$S" render bad.toml --spp 1 > bad.txt 2>&1 && fail "an empty output was accepted"
+grep -q "bad.toml:2" bad.txt || fail "no file:line for an empty output: $(cat bad.txt)"
 echo "ok"
