@@ -74,20 +74,33 @@ uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos
 
 namespace {
 
-/** Scratch arrays of add_stand_ins, one set per thread, grown as needed: the candidates (virtual
- *  flakes under the footprint's bounding box) as a structure of arrays, so that their hashes,
- *  places and inside tests are one loop of the same arithmetic per candidate, and those kept. */
+/** Virtual flakes per block (blocks of class c are 2^-(c + 3) of a tile wide: 3 x 64 x 4^c
+ *  virtual flakes per tile). Few per block, so that a footprint's bounding box wastes little on
+ *  the blocks along its edges (12 per block tested twice as many candidates as it kept). */
+constexpr uint32_t kPerBlock = 3;
+/** Classes more than this many below the densest one a footprint takes are left out: together
+ *  they hold under 2% of its virtual flakes (4^-3 / (1 - 1/4)), and each would test a block's
+ *  worth along the footprint's edges for fewer than one inside. */
+constexpr int kClassSpan = 2;
+/** The densest class (blocks 2^-(kMaxClass + 3) of a tile wide). */
+constexpr int kMaxClass = 25;
+
+/** Scratch of add_stand_ins, one per thread, grown as needed: the candidates (a structure of
+ *  arrays, so that their hashes, places and inside tests are one loop of the same arithmetic) and
+ *  those kept. */
 struct StandInScratch {
-    std::vector<uint64_t> key, index, hash;  ///< the candidate's block key, index, own hash
-    std::vector<int64_t> bx, by;             ///< its block (x, y) times 2^24
-    std::vector<uint8_t> in;                 ///< whether it lies inside the footprint
-    std::vector<uint64_t> found;             ///< the hashes kept, per aggregate
+    std::vector<uint64_t> hash;       ///< a candidate's own hash
+    std::vector<double> x, y;         ///< its place in the tile
+    std::vector<uint8_t> in;          ///< whether it lies inside P
+    std::vector<uint64_t> kept_hash;  ///< those inside an aggregate's cell: own hash,
+    std::vector<uint8_t> kept_agg;    ///< and the aggregate
+    std::vector<uint64_t> found;      ///< the hashes kept, per aggregate
     void reserve(std::size_t m) {
-        if (key.size() >= m) return;
-        const std::size_t n = std::max<std::size_t>(2 * m, 256);
-        for (auto* v : {&key, &index, &hash}) v->resize(n);
-        bx.resize(n);
-        by.resize(n);
+        if (hash.size() >= m) return;
+        const std::size_t n = std::max<std::size_t>(2 * m, 512);
+        hash.resize(n);
+        x.resize(n);
+        y.resize(n);
         in.resize(n);
     }
 };
@@ -105,145 +118,155 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
     // __tls_get_addr (it was 3% of the instructions of a shaded point).
     thread_local StandInScratch scratch_tls;
     StandInScratch& sc = scratch_tls;
+    uint32_t n_kept = 0;  // sc.kept_hash[0 .. n_kept - 1]
     if (sc.found.size() < cap) sc.found.resize(cap);
-    uint64_t* const found = sc.found.data();
-    uint32_t found_all = 0;
-    // A stand-in's own hash picks its colour and film; with neither table (one colour, no film)
-    // it is not needed.
-    const bool own = colors.varies() || film.varies();
-    EntryBatch batch;
-    for (uint32_t a = 0; a < cf.n_agg; ++a) {
+    // The virtual flakes: classes c = 0, 1, ... of density rho_c = 192 x 4^c per tile, in blocks
+    // 2^-(c + 3) of a tile wide, kPerBlock each, placed by hashes of (tile, class, block, index):
+    // they lie where they lie whatever the footprint. A footprint of area A takes the density
+    // S / A (S = stand_ins): the classes below `top` whole, and of class `top` a share `frac`: in
+    // each block floor(3 frac) flakes, and one more when the block's own number falls under the
+    // rest. As a footprint shrinks (a camera dollies in) frac grows, then `top` does: the smaller
+    // footprint's virtual flakes are those of the larger one inside it, and more, and its glints
+    // stay where they were. (They were the cells of the footprint's level of the quad-tree: a
+    // footprint half as wide took new cells and new stand-ins, and its lobe was uncorrelated with
+    // the larger one's.)
+    const bool any_area = area > 0.0 && std::isfinite(area) && !singular(p);
+    const double density = any_area ? static_cast<double>(stand_ins) / area : 0.0;
+    int top = 0;
+    double below = 0.0;  // density of the classes below top
+    double rho = 192.0;  // class top's
+    while (top < kMaxClass && below + rho < density) {
+        below += rho;
+        rho *= 4.0;
+        ++top;
+    }
+    const double share = kPerBlock * std::clamp((density - below) / rho, 0.0, 1.0);
+    const double whole_top = std::floor(share);
+    const double rest_top = share - whole_top;
+    const int lowest = std::max(0, top - kClassSpan);
+    for (uint32_t a = 0; any_area && a < cf.n_agg; ++a) {
+        // Each tile's virtual flakes once (at its first aggregate).
         const Aggregate& ag = cf.agg[a];
-        const uint32_t k = ag.count;
-        // The cell's virtual flakes: per_block per block on average, stand_ins per footprint
-        // area. A block holds floor(per_block) of them, and one more when its own hash falls
-        // under the fraction: exactly stand_ins per footprint area in expectation, and a block's
-        // flakes only gain members as footprints shrink (rounded, the count per footprint ran in
-        // a sawtooth from 54 to 76 as the footprint's size changed).
-        const double block = ag.size / kStandInBlocks;
-        const double per_block =
-            area > 0.0 ? std::min(stand_ins * block * block / area, static_cast<double>(stand_ins))
-                       : 0.0;
-        const double whole = std::floor(per_block);
+        bool seen = false;
+        for (uint32_t b = 0; b < a; ++b)
+            seen = seen || (cf.agg[b].tx == ag.tx && cf.agg[b].ty == ag.ty);
+        if (seen) continue;
         Footprint local = p;
         local.cu -= static_cast<double>(ag.tx);
         local.cv -= static_cast<double>(ag.ty);
-        // Blocks under the footprint's own bounding box (not widened by a facet's reach: the
-        // virtual flakes are points); a centre that is not finite gives one block, none of whose
-        // flakes lies inside.
-        const auto range = [&](double c, double h, double origin, int& lo, int& hi) {
+        const double hx = 0.5 * (std::fabs(local.ax) + std::fabs(local.bx)),
+                     hy = 0.5 * (std::fabs(local.ay) + std::fabs(local.by));
+        // The candidates of every class, block by block: their hashes and places (a block's
+        // kPerBlock slots always, of which the first `count` are kept: a loop of one length),
+        // then the inside tests in a loop of floating-point arithmetic alone (vector code; a
+        // branch on whether one lies inside was mispredicted for half of them).
+        uint32_t m = 0;
+        for (int c = lowest; c <= top; ++c) {
+            const double block = pow2_neg(c + 3);
+            const double blocks = 1.0 / block;
+            // Blocks under P's bounding box within the tile (a centre that is not finite gives
+            // block 0, none of whose flakes lies inside).
             const auto index = [&](double x) {
-                const double f = std::floor((x - origin) / block);
-                return f >= 0.0
-                           ? (f < kStandInBlocks - 1 ? static_cast<int>(f) : kStandInBlocks - 1)
-                           : 0;  // NaN too
+                const double f = std::floor(x / block);
+                return f >= 0.0 ? static_cast<int64_t>(std::min(f, blocks - 1.0)) : int64_t{0};
             };
-            lo = index(c - h);
-            hi = index(c + h);
-        };
-        int bx0, bx1, by0, by1;
-        range(local.cu, 0.5 * (std::fabs(local.ax) + std::fabs(local.bx)), ag.x0, bx0, bx1);
-        range(local.cv, 0.5 * (std::fabs(local.ay) + std::fabs(local.by)), ag.y0, by0, by1);
-        uint32_t n = 0;
-        const uint32_t room = singular(local) ? 0u : std::min(k, cap - found_all);
-        if (room > 0) {
-            // The candidates, block by block: each block's count, then one loop over all of them
-            // (hash, place, inside test: tested without branches, inside_nonsingular).
-            const auto whole_n = static_cast<uint32_t>(whole);
-            const double frac = per_block - whole;
-            sc.reserve(static_cast<std::size_t>((bx1 - bx0 + 1) * (by1 - by0 + 1)) * (whole_n + 1));
-            uint64_t* const ckey = sc.key.data();
-            uint64_t* const cidx = sc.index.data();
-            int64_t* const cbx = sc.bx.data();
-            int64_t* const cby = sc.by.data();
-            // A block whose corners all lie beyond one edge of P, by more than the rounding of
-            // the candidates' own test (margin), holds no candidate inside: it is skipped (on a
-            // car's sheared footprints, a third of the candidates were in such blocks). The
-            // candidates' test is unchanged, so the stand-ins are the same bit for bit.
-            const double xs0 = local.i00 * block, xs1 = local.i01 * block;
-            const double ts0 = local.i10 * block, ts1 = local.i11 * block;
-            const double s_lo = std::min(xs0, 0.0) + std::min(xs1, 0.0),
-                         s_hi = std::max(xs0, 0.0) + std::max(xs1, 0.0);
-            const double t_lo = std::min(ts0, 0.0) + std::min(ts1, 0.0),
-                         t_hi = std::max(ts0, 0.0) + std::max(ts1, 0.0);
-            const double extent = std::fabs(local.cu) + std::fabs(local.cv) + std::fabs(ag.x0) +
-                                  std::fabs(ag.y0) + ag.size + 1.0;
-            const double margin = 0.5 + 1e-9 +
-                                  1e-14 * extent *
-                                      (std::fabs(local.i00) + std::fabs(local.i01) +
-                                       std::fabs(local.i10) + std::fabs(local.i11));
-            // Worth it only where P leaves much of its bounding box empty (sheared, turned): a
-            // square aligned with the uv axes leaves no block out, and the test cost 7% there.
-            const double box = (std::fabs(local.ax) + std::fabs(local.bx)) *
-                               (std::fabs(local.ay) + std::fabs(local.by));
-            const bool cull = area < 0.75 * box;
-            // (s, t) of the first block's corner, then one block's steps: the rounding of the
-            // sums is far inside the margin's constant.
-            const double du0 = ag.x0 + bx0 * block - local.cu, dv0 = ag.y0 + by0 * block - local.cv;
-            const double s00 = local.i00 * du0 + local.i01 * dv0,
-                         t00 = local.i10 * du0 + local.i11 * dv0;
-            uint32_t m = 0;
-            for (int by = by0; by <= by1; ++by)
-                for (int bx = bx0; bx <= bx1; ++bx) {
-                    const double s0 = s00 + (bx - bx0) * xs0 + (by - by0) * xs1,
-                                 t0 = t00 + (bx - bx0) * ts0 + (by - by0) * ts1;
-                    if (cull && ((s0 + s_lo > margin) | (s0 + s_hi < -margin) |
-                                 (t0 + t_lo > margin) | (t0 + t_hi < -margin)))
-                        continue;
+            const int64_t bx0 = index(local.cu - hx), bx1 = index(local.cu + hx),
+                          by0 = index(local.cv - hy), by1 = index(local.cv + hy);
+            // A bound on the work (a needle's bounding box): 64 x 64 blocks.
+            const int64_t n_blocks = (bx1 - bx0 + 1) * (by1 - by0 + 1);
+            if (n_blocks > 4096) continue;
+            const uint64_t ckey = mix(ag.tile, 0x57a2d000u + static_cast<uint64_t>(c));
+            sc.reserve(m + static_cast<std::size_t>(n_blocks) * kPerBlock);
+            uint64_t* const chash = sc.hash.data();
+            double* const cx = sc.x.data();
+            double* const cy = sc.y.data();
+            const double step = 0x1p-24 * block;
+            for (int64_t by = by0; by <= by1; ++by)
+                for (int64_t bx = bx0; bx <= bx1; ++bx) {
                     const uint64_t bkey =
-                        mix(ag.key, 0xb10c0000u + static_cast<uint64_t>(by * kStandInBlocks + bx));
-                    const uint32_t v = whole_n + (unit(mix(bkey, 0xd17)) < frac ? 1u : 0u);
-                    // whole_n + 1 slots always (a loop of one length: the block's count was a
-                    // coin toss, and a loop of its length was mispredicted on every other block),
-                    // of which the first v count.
-                    for (uint32_t i = 0; i <= whole_n; ++i) {
-                        ckey[m + i] = bkey;
-                        cidx[m + i] = i;
-                        cbx[m + i] = static_cast<int64_t>(bx) << 24;
-                        cby[m + i] = static_cast<int64_t>(by) << 24;
+                        mix(ckey, static_cast<uint64_t>(by) << 32 | static_cast<uint64_t>(bx));
+                    // Its count: all of a class below top; of class top, floor(share) and one
+                    // more when the block's number falls under the rest (monotone in share).
+                    const uint32_t count =
+                        c < top
+                            ? kPerBlock
+                            : static_cast<uint32_t>(whole_top) +
+                                  (static_cast<double>(static_cast<int64_t>(bkey >> 11)) * 0x1p-53 <
+                                           rest_top
+                                       ? 1u
+                                       : 0u);
+                    // The place in the block, 24 bits each way: (block x 2^24 + bits) 2^-24
+                    // block, exact in double (through signed integers: one instruction each).
+                    const int64_t ox = bx << 24, oy = by << 24;
+                    for (uint32_t i = 0; i < kPerBlock; ++i) {
+                        const uint64_t h = mix(bkey, i);
+                        chash[m + i] = h;
+                        cx[m + i] = static_cast<double>(ox + static_cast<int64_t>(h >> 40)) * step;
+                        cy[m + i] =
+                            static_cast<double>(oy + static_cast<int64_t>((h >> 16) & 0xffffffu)) *
+                            step;
                     }
-                    m += v;
+                    m += count;
                 }
-            uint64_t* const ch = sc.hash.data();
-            uint8_t* const cin = sc.in.data();
-            const double x0 = ag.x0, y0 = ag.y0;
-            uint32_t n_in = 0;
-            for (uint32_t c = 0; c < m; ++c) {
-                const uint64_t h = mix(ckey[c], cidx[c]);
-                ch[c] = h;
-                // The place in blocks, block + (24 bits of the hash) / 2^24 (unit2's numbers),
-                // exact in double: computed from the integer at once.
-                const double x =
-                    static_cast<double>(cbx[c] + static_cast<int64_t>(h >> 40)) * 0x1p-24;
-                const double y =
-                    static_cast<double>(cby[c] + static_cast<int64_t>((h >> 16) & 0xffffffu)) *
-                    0x1p-24;
-                const bool in = inside_nonsingular(local, x0 + x * block, y0 + y * block);
-                cin[c] = in ? 1 : 0;
-                n_in += in ? 1u : 0u;
+        }
+        const double* const cx = sc.x.data();
+        const double* const cy = sc.y.data();
+        uint8_t* const cin = sc.in.data();
+        const double cu = local.cu, cv = local.cv;
+        const double i00 = local.i00, i01 = local.i01, i10 = local.i10, i11 = local.i11;
+        uint32_t n_in = 0;
+        for (uint32_t j = 0; j < m; ++j) {
+            const double du = cx[j] - cu, dv = cy[j] - cv;
+            const double s_ = i00 * du + i01 * dv, t_ = i10 * du + i11 * dv;
+            const uint8_t in =
+                static_cast<uint8_t>((std::fabs(s_) <= 0.5) & (std::fabs(t_) <= 0.5));
+            cin[j] = in;
+            n_in += in;
+        }
+        if (n_in == 0) continue;
+        if (sc.kept_hash.size() < n_kept + n_in) {
+            sc.kept_hash.resize(2 * (n_kept + n_in));
+            sc.kept_agg.resize(2 * (n_kept + n_in));
+        }
+        const uint64_t* const chash = sc.hash.data();
+        for (uint32_t j = 0; j < m; ++j) {
+            if (!cin[j]) continue;
+            // The aggregate whose cell holds it (cells of other tiles, or cells the tree
+            // enumerates, have their own flakes).
+            const double x = cx[j], y = cy[j];
+            for (uint32_t b = a; b < cf.n_agg; ++b) {
+                const Aggregate& g = cf.agg[b];
+                if (g.tx == ag.tx && g.ty == ag.ty && x >= g.x0 && x < g.x0 + g.size && y >= g.y0 &&
+                    y < g.y0 + g.size) {
+                    sc.kept_hash[n_kept] = chash[j];
+                    sc.kept_agg[n_kept++] = static_cast<uint8_t>(b);
+                    break;
+                }
             }
-            if (n_in < room) {
-                // All of them, in order.
-                for (uint32_t c = 0; c < m; ++c) {
-                    found[n] = ch[c];
-                    n += cin[c];
-                }
-            } else {
-                // They outnumber its k flakes (or the room left): those of the smallest hashes
-                // (a priority of their own: two overlapping footprints keep the same ones among
-                // those they share), in a max-heap once full.
-                for (uint32_t c = 0; c < m; ++c) {
-                    if (!cin[c]) continue;
-                    const uint64_t h = ch[c];
-                    if (n < room) {
-                        found[n++] = h;
-                        if (n == room) std::make_heap(found, found + n);
-                    } else if (h < found[0]) {
-                        std::pop_heap(found, found + n);
-                        found[n - 1] = h;
-                        std::push_heap(found, found + n);
-                    }
-                }
+        }
+    }
+    // A stand-in's own hash picks its colour and film; with neither table (one colour, no film)
+    // it is not needed.
+    const bool own = colors.varies() || film.varies();
+    uint64_t* const found = sc.found.data();
+    uint32_t found_all = 0;
+    EntryBatch batch;
+    for (uint32_t a = 0; a < cf.n_agg; ++a) {
+        const uint32_t k = cf.agg[a].count;
+        const uint32_t room = std::min(k, cap - found_all);
+        uint32_t n = 0;
+        for (uint32_t j = 0; j < n_kept; ++j) {
+            if (sc.kept_agg[j] != a) continue;
+            const uint64_t h = sc.kept_hash[j];
+            if (n < room) {
+                found[n++] = h;
+                if (n == room) std::make_heap(found, found + n);
+            } else if (room > 0 && h < found[0]) {
+                // More than its k flakes (or the room left): those of the smallest hashes (a
+                // priority of their own: footprints keep the same ones among those they share).
+                std::pop_heap(found, found + n);
+                found[n - 1] = h;
+                std::push_heap(found, found + n);
             }
         }
         found_all += n;

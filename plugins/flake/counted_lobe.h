@@ -11,14 +11,16 @@
 // - its count inside the footprint is k = B(n, rho), rho the share of the cell's area the
 //   footprint covers, drawn by inverting a uniform fixed per cell (so k only grows as the
 //   footprint covers more of the cell);
-// - its stand-ins are virtual flakes of the cell: a sparse population with positions (per block
-//   of an 8 x 8 grid over the cell, floor(x) of them or one more, by the block's hash, x chosen
-//   so that `stand_ins` of them fall inside a footprint of this size on average), each with a
-//   normal drawn from the flake distribution, its own colour and film, all a pure function of
-//   (seed, cell, block, index). The K of them inside the footprint (at most k: those of smallest
-//   hash) enter the reflection cache as real flakes do, each with its weight times sqrt(k / K);
-//   the other k (1 - beta) flakes' worth, beta = sqrt(K / k), is the smooth lobe (the exact
-//   expectation of one flake's lobe) times k (1 - beta) flakes of the expected weight. When a
+// - its stand-ins are virtual flakes laid out once per tile, whatever the footprint: classes
+//   c = 0, 1, ... of 192 x 4^c per tile, 3 per block of 2^-(c + 3) of the tile, each with a
+//   position, a normal drawn from the flake distribution, its own colour and film, all a pure
+//   function of (seed, tile, class, block, index). A footprint of area A takes the density
+//   `stand_ins` / A of them (whole classes, and a share of the densest: nested as A shrinks, so
+//   a dollying camera keeps its glints). The K of them inside the footprint and the cell (at
+//   most k: those of smallest hash) enter the reflection cache as real flakes do, each with its
+//   weight times sqrt(k / K); the other k (1 - beta) flakes' worth, beta = sqrt(K / k), is the
+//   smooth lobe (the exact expectation of one flake's lobe) times k (1 - beta) flakes of the
+//   expected weight. When a
 //   footprint's aggregate holds at most as many flakes as it finds stand-ins, k of them are its
 //   flakes (beta = 1).
 //   Because stand-ins have places, footprints share them as they share real flakes: two that
@@ -53,6 +55,7 @@ namespace spangle::flake {
 /** Flakes of one aggregated cell inside the footprint. */
 struct Aggregate {
     uint64_t key = 0;                 ///< the cell's node key
+    uint64_t tile = 0;                ///< its tile's key (the stand-ins' classes are keyed by it)
     uint32_t count = 0;               ///< k: flakes of the cell inside the footprint
     int64_t tx = 0, ty = 0;           ///< the tile holding the cell
     double x0 = 0, y0 = 0, size = 0;  ///< the cell in its tile's coordinates
@@ -98,9 +101,6 @@ uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos
  *  one pixel fell on up to four places and averaged independent stand-ins: a smoother pixel than
  *  one of real flakes.) A footprint keeps at most four times as many in all. */
 constexpr uint32_t kStandIns = 64;
-/** Virtual flakes are kept in an kStandInBlocks x kStandInBlocks grid of blocks per cell, so
- *  that a footprint tests only those of the blocks it overlaps. */
-constexpr int kStandInBlocks = 8;
 
 /** Appends the stand-ins of cf's aggregates inside footprint p, `stand_ins` per footprint area
  *  on average, seen from wo, to the reflection cache `out` and sets cf.smooth (see the top of
@@ -208,7 +208,8 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     const uint32_t k = binomial(node.n, std::clamp(rho, 0.0, 1.0),
                                                 unit(mix(key, 0x51)), fp.exact_below);
                     if (k == 0 || out.n_agg >= kMaxAggregates) continue;
-                    out.agg[out.n_agg++] = {key, k, tx, ty, nx0, ny0, nsize};
+                    out.agg[out.n_agg++] = {key,  tile_key(fp.seed, tx, ty), k, tx, ty, nx0, ny0,
+                                            nsize};
                     out.aggregated += k;
                 }
         }
