@@ -77,6 +77,10 @@ struct CountedFootprint {
     Aggregate agg[kMaxAggregates];
     uint32_t n_agg = 0;
     uint32_t aggregated = 0;  ///< sum of the aggregates' counts
+    /** Their expectation, sum of n rho over the counted cells: what facets count towards the
+     *  footprint's cover (a count drawn by a quantile fixed per cell made every footprint of a
+     *  cell a facet's width wide darker or lighter alike: square blocks). */
+    double expected = 0.0;
     /** Flakes of the aggregates carried by the smooth lobe, sum of k (1 - beta) (set by
      *  add_stand_ins). */
     float smooth = 0.0f;
@@ -207,6 +211,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                         node_key(tile_key(fp.seed, tx, ty), node.depth, node.ix, node.iy);
                     const uint32_t k = binomial(node.n, std::clamp(rho, 0.0, 1.0),
                                                 unit(mix(key, 0x51)), fp.exact_below);
+                    out.expected += static_cast<double>(node.n) * std::clamp(rho, 0.0, 1.0);
                     if (k == 0 || out.n_agg >= kMaxAggregates) continue;
                     out.agg[out.n_agg++] = {key,  tile_key(fp.seed, tx, ty), k, tx, ty, nx0, ny0,
                                             nsize};

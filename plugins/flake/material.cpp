@@ -157,6 +157,18 @@ bool sparse_tiles(const FieldParams& field, const Footprint& p, uint32_t limit) 
                4.0 * static_cast<double>(limit);
 }
 
+/** Whether the tree enumerates the footprint's facets outright: the flakes whose facets may reach
+ *  into it (those under its bounding box widened by the facets' reach) are at most 4 x `limit`
+ *  on average, the tree's own bound. Facets wider than the footprint make the cells (whose size
+ *  follows the reach) far larger than it: counted, a cell's few flakes inside the footprint are
+ *  stand-ins, points, where the facets are mirrors larger than the pixel; and cells counted
+ *  beside cells enumerated miss or count twice the facets reaching across their border (darker
+ *  and lighter squares a facet's width wide). */
+bool few_facets(const FieldParams& field, const Footprint& p, uint32_t limit) {
+    return field.facet && field.flakes_per_tile * (4.0 * p.half_width() * p.half_height()) <=
+                              4.0 * static_cast<double>(limit);
+}
+
 bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v3* arena,
                       PointStats& st) {
     thread_local std::vector<CacheEntry> scratch;
@@ -181,7 +193,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
                   &m.film.pick(f.id, m.fresnel), std::min(f.cover, 1.0f), scratch);
     };
     const uint32_t limit = m.tree ? exact_limit(m.exact_flakes, m.grid, c.wo.z) : 0;
-    if (m.tree && !sparse_tiles(field, p, limit)) {
+    if (m.tree && !sparse_tiles(field, p, limit) && !few_facets(field, p, limit)) {
         gather_cells(field, p, limit, c.counted, add);
         if (c.counted.truncated) return false;
         if (view.keep < 1.0f) {
@@ -200,7 +212,8 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
             cf.n_agg = kept_agg;
         }
     } else {
-        // The enumeration (or the tree's, for a footprint over many tiles of few flakes).
+        // The enumeration (or the tree's, for a footprint over many tiles of few flakes, or
+        // under few facets).
         bool truncated = false;
         for_each_flake(field, p, m.tree ? 4 * limit : m.enumerate_cap, truncated, add);
         if (truncated) return false;
@@ -212,7 +225,13 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         add_stand_ins(c.counted, p, m.stand_ins, m.grid, m.colors, m.fresnel, m.film, c.wo,
                       scratch);
     if (!store_cache(scratch, arena, c)) return false;
-    c.cover = cover + static_cast<float>(c.counted.aggregated);
+    // Facets count towards the cover by their shares, the counted cells' by their expectation:
+    // where the facets are wider than the footprint the cells are (their size follows the
+    // facets' reach), few of their flakes lie inside it, and a count drawn per cell put square
+    // blocks of darker or lighter cover on the surface. Point flakes: whether any is held.
+    c.cover = cover + (field.facet
+                           ? static_cast<float>(c.counted.expected * static_cast<double>(view.keep))
+                           : static_cast<float>(c.counted.aggregated));
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;
     // W: the cache's weights (stand-ins included) and the expected weight of the aggregated

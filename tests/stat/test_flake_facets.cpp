@@ -335,5 +335,67 @@ TEST(FlakeFacets, FacetsWiderThanHalfATileAreEnumeratedByTheTreeToo) {
     }
 }
 
+TEST(FlakeFacets, OverlappingFacetsWiderThanTheFootprintShowNoSquares) {
+    // Glitter made larger without lowering its density: facets a hundred footprints wide,
+    // hundreds to thousands of them over every point (`density` x facet area). The tree's cells
+    // follow the facets' reach, so each held hundreds of flakes and was counted, the footprint
+    // holding a few of its flakes (a count drawn per cell) or none: the cover went up and down a
+    // cell at a time, and a sphere showed squares of base and of mirror. With few facets to find
+    // (under 4 x the tree's limit) the tree now enumerates them as `enumerate` does, bit for bit
+    // (the old tree showed the bare base, 0.159, where the enumeration's facets covered it:
+    // 0.002); with many, each counted cell adds its expected share to the cover, and the base
+    // shows (1 - flake_weight) of itself everywhere, as thousands of overlapping facets do.
+    struct Case {
+        double density;  ///< flakes per uv square (facets 0.05 wide, footprints 5e-4)
+        double weight;   ///< flake_weight
+        bool same;       ///< few facets: the tree is the enumeration, bit for bit
+    };
+    for (const Case& c : {Case{2e5, 1.0, true}, Case{1e5, 1.0, true}, Case{2e6, 0.5, false}}) {
+        const FlakeParams params = {
+            {"gamma", {2.0}},         {"flake_roughness", {0.05}},  {"flake_size", {0.05}},
+            {"density", {c.density}}, {"flake_weight", {c.weight}}, {"base_color", {0.5, 0.5, 0.5}},
+            {"min_flakes", {5e8}},    {"max_flakes", {1e9}}};
+        auto tree = flake_material(false, params, {{"algorithm", "tree"}});
+        auto all = flake_material(false, params, {{"algorithm", "enumerate"}});
+        const Vec3 wo = dir(0.8f, 0.4f);
+        // A direction far from every flake's cone (flake normals within a few times 0.05 of
+        // the normal): the base's light, base (1 - share) / pi.
+        const std::vector<Vec3> away = {dir(0.15f, 3.5f)};
+        double sum = 0.0, sum2 = 0.0;
+        int n = 0, covered = 0;
+        for (uint64_t k = 0; k < 120; ++k) {
+            BsdfHarness::Point pt;
+            // Along a row across many cells.
+            pt.u = static_cast<float>(2.0 + 0.004 * static_cast<double>(k));
+            pt.v = static_cast<float>(5.3 + 0.1 * to_unit_double(hash2(31, k)));
+            pt.dudx = pt.dvdy = 5e-4f;
+            std::vector<Vec3> ft, fa;
+            std::vector<float> pdf_t, pdf_a;
+            tree->prepare(wo, pt);
+            tree->eval(away, ft, pdf_t);
+            if (c.same) {
+                all->prepare(wo, pt);
+                all->eval(away, fa, pdf_a);
+                EXPECT_EQ(ft[0].y, fa[0].y) << "density " << c.density << " footprint " << k;
+                EXPECT_EQ(pdf_t[0], pdf_a[0]) << "density " << c.density << " footprint " << k;
+                covered += fa[0].y < 0.1f ? 1 : 0;
+            }
+            sum += ft[0].y;
+            sum2 += static_cast<double>(ft[0].y) * ft[0].y;
+            ++n;
+        }
+        if (c.same) {
+            EXPECT_GT(covered, 100) << "density " << c.density << ": facets over the base";
+            continue;
+        }
+        // Thousands of facets over every point (4330 on average): the share is flake_weight
+        // within their count's spread (1.5%), the base's light 0.5 (1 - 0.5) / pi.
+        const double mean = sum / n, sd = std::sqrt(std::max(0.0, sum2 / n - mean * mean));
+        const double expected = 0.5 * (1.0 - c.weight) / kPi;
+        EXPECT_NEAR(mean, expected, 0.05 * expected) << "the base's mean light";
+        EXPECT_LT(sd, 0.05 * expected) << "the base's spread over footprints";
+    }
+}
+
 }  // namespace
 }  // namespace spangle::test::flake_facets
