@@ -55,6 +55,18 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
         const std::string a = string_attribute(hd, name), b = string_attribute(first, name);
         return !a.empty() && !b.empty() && a != b;
     };
+    // A part that lacks what another part's header says (a tool that copied the pixels and
+    // dropped Spangle's attributes) cannot be checked against it: refused, rather than merged
+    // unchecked. Parts that all lack it (written before it was) pass.
+    for (const char* name : {"spangle:sceneHash", "spangle:time", "spangle:spp", "worldToCamera"}) {
+        const bool has = hd.find(name) != hd.end(), first_has = first.find(name) != first.end();
+        if (has != first_has)
+            throw_error(
+                "'{}' has no '{}' in its header, '{}' has: a part whose header lost Spangle's "
+                "attributes (copied by another tool?) cannot be checked against the others; "
+                "merge the parts spangle render wrote",
+                has ? first_path : path, name, has ? path : first_path);
+    }
     // The specific differences first, the scene's hash last (another frame of a deforming
     // sequence, another OCIO config also hash differently): the message then says which.
     // The colour space the pixels are in (another OCIO config or working space) and where the
@@ -69,6 +81,16 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
         throw_error(
             "'{}' and '{}' were seen through different cameras (their worldToCamera differ: "
             "another --camera, or the camera moved): parts of one render merge",
+            path, first_path);
+    // Where the camera stood and what it saw: another lens at the same place (another --camera)
+    // projects otherwise.
+    const auto* ndc = hd.findTypedAttribute<Imf::M44fAttribute>("worldToNDC");
+    const auto* ndc_first = first.findTypedAttribute<Imf::M44fAttribute>("worldToNDC");
+    if ((ndc == nullptr) != (ndc_first == nullptr) ||
+        (ndc && ndc_first && ndc->value() != ndc_first->value()))
+        throw_error(
+            "'{}' and '{}' were seen through different cameras (their worldToNDC differ: another "
+            "--camera, lens or projection): parts of one render merge",
             path, first_path);
     if (differ("spangle:time"))
         throw_error("'{}' is of the scene at {} s, '{}' at {} s: parts of one frame merge", path,
@@ -103,8 +125,15 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
     if (differ("spangle:sceneHash"))
         throw_error(
             "'{}' and '{}' were rendered from different scenes (or the scene's files changed "
-            "between them): parts of one render merge",
+            "between them, or another --camera or --env was given): parts of one render merge",
             path, first_path);
+}
+
+/** A display window in words: "WxH", or "WxH at (x, y)" where it does not start at 0. */
+std::string window_words(const Imath::Box2i& b) {
+    const int w = b.max.x - b.min.x + 1, h = b.max.y - b.min.y + 1;
+    if (b.min.x == 0 && b.min.y == 0) return fmt::format("{}x{}", w, h);
+    return fmt::format("{}x{} at ({}, {})", w, h, b.min.x, b.min.y);
 }
 
 /** The lossy compression a part was written with (B44, DWA; PXR24, lossy for its 32-bit float
@@ -371,9 +400,9 @@ MergeReport merge_exr_parts(const std::vector<std::string>& parts, const std::st
                 rep.height = static_cast<int>(h);
             } else {
                 if (hd.displayWindow() != display)
-                    throw_error("'{}' is part of a {}x{} frame, '{}' of a {}x{} one", path,
-                                hd.displayWindow().max.x + 1, hd.displayWindow().max.y + 1,
-                                parts.front(), w, h);
+                    throw_error("'{}' is part of a {} frame, '{}' of a {} one", path,
+                                window_words(hd.displayWindow()), parts.front(),
+                                window_words(display));
                 if (!same_channels(hd, chans))
                     throw_error(
                         "'{}' has other channels than '{}' (render every part with the "

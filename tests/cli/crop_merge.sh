@@ -86,4 +86,41 @@ grep -q "lossy compression (dwaa)" "$T/err.txt" || fail "the lossy compression w
 oiiotool "$T/h1.exr" --subc 5 --powc 0.5 -o "$T/h1nan.exr"
 "$S" merge "$T/h0.exr" "$T/h1nan.exr" -o "$T/hm.exr" > /dev/null 2> "$T/err.txt" || fail "merge of a part with NaN"
 grep -q "values of R, G and B in .*hm.exr are NaN" "$T/err.txt" || fail "NaN in a part was not said"
+# Parts of other renders that the scene's files do not tell apart: another --camera at the same
+# place with another lens (a glTF of two cameras), --env naming the map the scene already reads
+# (its intensity and rotation dropped), and a part whose header another tool dropped.
+python3 - "$T/two.gltf" <<'PY'
+import base64, json, struct, sys
+b = b"".join(struct.pack("<3f", *p) for p in [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)])
+b += struct.pack("<6H", 0, 1, 2, 0, 2, 3)
+json.dump({"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0, 1, 2]}],
+           "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0, 0, 3]},
+                     {"camera": 1, "translation": [0, 0, 3]}],
+           "cameras": [{"name": "wide", "type": "perspective", "perspective": {"yfov": 0.9, "znear": 0.01}},
+                       {"name": "tele", "type": "perspective", "perspective": {"yfov": 0.5, "znear": 0.01}}],
+           "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+           "buffers": [{"uri": "data:application/octet-stream;base64," + base64.b64encode(b).decode(),
+                        "byteLength": len(b)}],
+           "bufferViews": [{"buffer": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 12}],
+           "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                          "min": [-1, -1, 0], "max": [1, 1, 0]},
+                         {"bufferView": 1, "componentType": 5123, "count": 6, "type": "SCALAR"}]},
+          open(sys.argv[1], "w"))
+PY
+G=(--size 40x24 --spp 2 -q --no-preview)
+"$S" render "$T/two.gltf" -o "$T/wa.exr" "${G[@]}" --camera wide --crop 0,0,20,24 2> "$T/err.txt" || fail "wide crop"
+"$S" render "$T/two.gltf" -o "$T/tb.exr" "${G[@]}" --camera tele --crop 20,0,40,24 2> "$T/err.txt" || fail "tele crop"
+"$S" merge "$T/wa.exr" "$T/tb.exr" -o "$T/wt.exr" 2> "$T/err.txt" && fail "parts of two cameras at one place were merged"
+grep -q "different cameras" "$T/err.txt" || fail "no reason for refusing parts of two cameras"
+MAP="$REPO/assets/env/studio_hdri.exr"  # the map beetle.toml (which demo.toml imports) reads
+grep -q '^map = "../env/studio_hdri.exr"' "$REPO/assets/scenes/beetle.toml" || fail "the beetle no longer reads $MAP"
+"$S" render "$SCENE" -o "$T/e0.exr" --size 90x50 --spp 2 -q --no-preview --crop 0,0,45,50 2> "$T/err.txt" || fail "crop"
+"$S" render "$SCENE" -o "$T/e1.exr" --size 90x50 --spp 2 -q --no-preview --crop 45,0,90,50 --env "$MAP" 2> "$T/err.txt" || fail "crop with --env"
+"$S" merge "$T/e0.exr" "$T/e1.exr" -o "$T/em.exr" 2> "$T/err.txt" && fail "a part with --env (the scene's own map) was merged"
+grep -q "another --camera or --env" "$T/err.txt" || fail "no reason for refusing the --env part"
+oiiotool "$T/e0.exr" --eraseattrib "spangle:sceneHash" -o "$T/e0bare.exr"
+"$S" render "$SCENE" -o "$T/e2.exr" --size 90x50 --spp 2 -q --no-preview --crop 45,0,90,50 2> "$T/err.txt" || fail "crop"
+"$S" merge "$T/e0bare.exr" "$T/e2.exr" -o "$T/em.exr" 2> "$T/err.txt" && fail "a part without spangle:sceneHash was merged unchecked"
+grep -q "has no 'spangle:sceneHash' in its header" "$T/err.txt" || fail "no reason for refusing the stripped part"
+"$S" merge "$T/e0.exr" "$T/e2.exr" -o "$T/em.exr" 2> "$T/err.txt" || fail "parts of one render were refused"
 echo "crop_merge: OK"
