@@ -4,13 +4,17 @@
 
 #include <fmt/format.h>
 
+#include <atomic>
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
 #include <string>
 
+#include <unistd.h>
+
 #include "cli/arguments.h"
 #include "cli/outputs.h"
+#include "cli/progress.h"
 #include "cli/render_setup.h"
 #include "cli/signals.h"
 #include "pipeline/frame.h"
@@ -80,7 +84,20 @@ int run_frames(const RenderArgs& a) {
                     "nearest key",
                     a.scene, first, last, info.frame_start, info.frame_end);
         }
+        // Progress within the frame, as a still render shows it (a farm's log of a long frame
+        // showed nothing until its line at the end).
+        Progress progress(::isatty(STDERR_FILENO) != 0);
+        std::atomic<uint64_t> traced{0};
+        if (!a.quiet) {
+            session.options().traced = &traced;
+            session.options().progress = [&](uint64_t done, uint64_t total) {
+                progress.update(done, total, traced.load(std::memory_order_relaxed));
+            };
+        }
         session.render();
+        session.options().progress = nullptr;
+        session.options().traced = nullptr;
+        if (!a.quiet) progress.finish();
         RenderResult scratch;
         const RenderResult& w = for_output(session.result(), session.options(), s.log, scratch);
         // Frames a signal left unrendered: the sequence is not whole, whatever the signal (a
