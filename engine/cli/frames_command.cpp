@@ -69,6 +69,11 @@ int run_frames(const RenderArgs& a) {
         const ReloadReport rep = session.load_frame(a.scene, f);
         s.out.for_frame(f).check_not_inputs(session.watched_files());
         if (f == first) {
+            // No frame's output over a file the scene reads, before anything renders (frame 1
+            // was written before frame 2's output was found to be the scene's map). Each frame
+            // checks again against its own inputs (a sequence's meshes) as it loads.
+            for (int64_t g = first + 1; g <= last; ++g)
+                s.out.for_frame(g).check_not_inputs(session.watched_files());
             check_request_fits_scene(session);
             s.out.check_view(session.color());
             const SceneInfo& info = session.info();

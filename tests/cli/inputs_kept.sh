@@ -75,6 +75,12 @@ expect 2 "must end in .png" render scene.toml -o out.exr --preview sphere.obj -q
 mkdir o.0002.exr
 expect 1 "frame 2's EXR 'o.0002.exr': it is a folder" render scene.toml -o o.exr --frames 1..3 -q
 [ ! -e o.0001.exr ] || fail "frame 1 rendered before frame 2's folder was found"
+# Frame 2's output is the scene's map: refused before frame 1 renders (frame 1 was written).
+cp studio.exr env.0002.exr
+sed 's/map = "studio.exr"/map = "env.0002.exr"/' scene.toml > envseq.toml
+expect 1 "the EXR 'env.0002.exr' is a file the scene reads" render envseq.toml -o env.exr --frames 1..3 -q
+[ ! -e env.0001.exr ] || fail "frame 1 rendered before frame 2's output was found to be an input"
+cmp -s studio.exr env.0002.exr || fail "the map was overwritten"
 for c in pxr24 dwaa dwab; do
     expect 2 "lossy for 32-bit floats" render scene.toml --layers --compression "$c" -o l.exr -q
 done
