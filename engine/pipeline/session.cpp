@@ -301,7 +301,8 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     {
         std::map<std::string, std::string> read;  // path -> identity
         for (const auto& [system, reads] : next->files)
-            for (const auto& [path, fr] : reads) read[path] = fr.identity;
+            for (const auto& [path, fr] : reads)
+                if (fr.kind != kAbsentPluginKind) read[path] = fr.identity;
         uint64_t h = info->content_hash;
         std::vector<uint64_t> bytes;  // the files' hashes, in an order of their own
         for (const auto& [path, identity] : read) {

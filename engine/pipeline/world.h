@@ -22,6 +22,11 @@ struct FileRead {
     std::string identity;  ///< file_identity() when read
 };
 
+/** The kind of a plugin file that was not there when the scene loaded, in a folder searched
+ *  before the one its plugin was opened from: watched (its appearance reloads, "new plugin file
+ *  PATH"), but not part of the scene's content hash (nodes with other plugin folders merge). */
+inline constexpr const char* kAbsentPluginKind = "new plugin";
+
 /** Shared state of one scene's build. */
 struct World {
     ColorConfig* color = nullptr;        ///< borrowed

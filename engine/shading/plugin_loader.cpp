@@ -394,6 +394,23 @@ std::vector<std::string> PluginLoader::discover() const {
     return found;
 }
 
+std::vector<std::string> PluginLoader::searched_before(const std::string& name,
+                                                       const std::string& path) const {
+    std::vector<std::string> out;
+    const std::string file = file_name_for(name);
+    for (const auto& dir : dirs_) {
+        const fs::path candidate = fs::path(dir) / file;
+        std::error_code ec;
+        if (fs::exists(candidate, ec)) {
+            if (fs::equivalent(candidate, path, ec) || candidate == fs::path(path)) break;
+            continue;  // another file before it (opened as it was, or changed since): not absent
+        }
+        if (candidate == fs::path(path)) break;
+        out.push_back(candidate.string());
+    }
+    return out;
+}
+
 std::vector<std::string> PluginLoader::opened_files() const {
     std::vector<std::string> files;
     for (const auto& [name, plugin] : cache_) files.push_back(plugin->path());

@@ -69,6 +69,12 @@ public:
     std::vector<std::string> discover() const;
 
     const std::vector<std::string>& search_path() const { return dirs_; }
+    /** Where plugin `name` would be found before `path`, the file it was opened from: its file
+     *  in each folder searched before path's folder, none of which exists now (a watch session
+     *  watches them: a library put back there, after one was removed and a later folder's copy
+     *  taken, is opened again). */
+    std::vector<std::string> searched_before(const std::string& name,
+                                             const std::string& path) const;
     /** Names of plugins opened so far, for --stats. */
     std::vector<std::string> opened() const;
     /** The files of the plugins opened so far, in the order of their names. */
