@@ -213,9 +213,17 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
         ColorConfig::forget_read_files();
         color = std::make_unique<ColorConfig>(
             ColorConfig::load(ocio_request_, default_ocio_locations()));
-        if (config_edited) rep.changed.push_back("file " + color_->path());
-        if (luts_edited) rep.changed.push_back("the OCIO config's LUT files");
-        full = true;
+        if (!luts_edited && color->content_hash() == color_->content_hash()) {
+            // The config saved again with the same bytes (a touch, a bad edit put back): not
+            // an edit. It rebuilt the whole scene (every mesh subdivided again) and threw the
+            // finished image away.
+            ocio_identity_ = file_identity(color_->path());
+            color = std::make_unique<ColorConfig>(color_->clone());
+        } else {
+            if (config_edited) rep.changed.push_back("file " + color_->path());
+            if (luts_edited) rep.changed.push_back("the OCIO config's LUT files");
+            full = true;
+        }
     } else {
         color = std::make_unique<ColorConfig>(color_->clone());
     }

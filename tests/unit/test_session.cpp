@@ -409,6 +409,50 @@ colorspaces:
     EXPECT_FLOAT_EQ(sky(session), 2.0f) << "taken once nothing refuses it";
 }
 
+TEST(Session, AConfigSavedAgainWithTheSameContentIsNotAnEdit) {
+    // A touch of the OCIO config, a save without an edit, or a bad edit put back reloaded the
+    // whole scene (every mesh read and subdivided again) and threw the finished image away; an
+    // edit that changes the config is one.
+    test::TempDir dir("session_config_touch");
+    const std::string config = R"(ocio_profile_version: 2
+roles:
+  default: Linear Ref
+  scene_linear: Linear Ref
+displays:
+  Monitor:
+    - !<View> {name: Raw, colorspace: Linear Ref}
+colorspaces:
+  - !<ColorSpace>
+    name: Linear Ref
+  - !<ColorSpace>
+    name: Twice
+    to_scene_reference: !<MatrixTransform> {matrix: [2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 2, 0, 0, 0, 0, 1]}
+)";
+    std::ofstream(dir.file("config.ocio")) << config;
+    std::ofstream(dir.file("s.toml"))
+        << "[render]\nwidth = 4\nheight = 4\nspp = 1\nworking_space = \"Linear Ref\"\n"
+           "[camera]\nposition = [0, 0, 4]\nlook_at = [0, 0, 0]\n[environment]\n"
+           "color = { rgb = [0.25, 0.25, 0.25], space = \"Twice\" }\n";
+    RenderOptions options;
+    options.threads = 1;
+    Session session({}, dir.file("config.ocio"), options, test::quiet_log());
+    session.load(dir.file("s.toml"));
+    ::usleep(20000);  // a new modification time on every file system
+    std::ofstream(dir.file("config.ocio")) << config;
+    const ReloadReport same = session.load(dir.file("s.toml"));
+    EXPECT_TRUE(same.changed.empty()) << same.summary();
+    EXPECT_TRUE(same.ran.empty()) << same.summary();
+    ::usleep(20000);
+    std::string edited = config;
+    edited.replace(edited.find("[2, 0, 0, 0, 0, 2"), 17, "[4, 0, 0, 0, 0, 4");
+    edited.replace(edited.find("0, 0, 2, 0, 0"), 13, "0, 0, 4, 0, 0");
+    std::ofstream(dir.file("config.ocio")) << edited;
+    const ReloadReport changed = session.load(dir.file("s.toml"));
+    EXPECT_FALSE(changed.ran.empty()) << changed.summary();
+    session.render();
+    EXPECT_FLOAT_EQ(session.result().image.at(0), 1.0f) << "the edited config taken";
+}
+
 TEST(Session, EachEditRerunsTheSystemsThatReadWhatItChanged) {
     // Every light kind, three materials, meshes: each edit reruns exactly the systems whose
     // declared reads it changed (and those reading what they wrote), and the reloaded scene
