@@ -217,8 +217,13 @@ ValidatedParams validate_params(const SpangleMaterialModel_v3& model, const Mate
                 if (!(x >= d.min_value && x <= d.max_value))
                     // Seven digits: a colour passes through single precision (1.2 printed
                     // as 1.2000000476837158).
-                    throw_error(p->loc, "material '{}': '{}' must be in {}, got {:.7g}", m.name,
-                                d.name, range_text(d), x);
+                    // A whole number as written (2147483648 read as 2.147484e+09 beside a
+                    // limit of 2147483647).
+                    throw_error(p->loc, "material '{}': '{}' must be in {}, got {}", m.name, d.name,
+                                range_text(d),
+                                std::fabs(x) < 1e15 && x == std::floor(x)
+                                    ? fmt::format("{:.0f}", x)
+                                    : fmt::format("{:.7g}", x));
             };
             switch (d.type) {
                 case SPANGLE_PARAM_FLOAT:

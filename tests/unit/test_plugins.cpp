@@ -201,6 +201,10 @@ TEST(ValidateParams, TypesRangesAndChoices) {
     using K = ParamEntry::Kind;
     EXPECT_HAS(fails(entry("count", K::Number, 2.5)), "'count' must be an integer");
     EXPECT_HAS(fails(entry("count", K::Number, 65, true)), "'count' must be in [1, 64], got 65");
+    // A large whole number as written, not rounded to seven digits (2.147484e+09).
+    EXPECT_HAS(fails(entry("count", K::Number, 2147483648.0, true)),
+               "'count' must be in [1, 64], got 2147483648");
+    EXPECT_HAS(fails(entry("roughness", K::Number, 1.25)), "'roughness' must be in");
     EXPECT_HAS(fails(entry("coat", K::Number, 1)), "'coat' must be true or false");
     EXPECT_HAS(fails(entry("roughness", K::String, 0, false, "high")),
                "'roughness' must be a number");
