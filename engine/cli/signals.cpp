@@ -13,7 +13,7 @@
 namespace spangle {
 namespace {
 
-/** The first stop signal that arrived (SIGINT or SIGTERM), 0 before any. */
+/** The first stop signal that arrived (SIGINT, SIGTERM or SIGHUP), 0 before any. */
 volatile std::sig_atomic_t stop_signal = 0;
 
 extern "C" void on_stop_signal(int sig) {
@@ -40,11 +40,23 @@ extern "C" void on_crash(int sig) {
 }
 
 extern "C" void on_stop_exit(int sig) {
-    say_to_stderr(sig == SIGINT ? "spangle: stopped by SIGINT: nothing written\n"
-                                : "spangle: stopped by SIGTERM: nothing written\n");
+    say_to_stderr(sig == SIGINT   ? "spangle: stopped by SIGINT: nothing written\n"
+                  : sig == SIGHUP ? "spangle: stopped by SIGHUP: nothing written\n"
+                                  : "spangle: stopped by SIGTERM: nothing written\n");
     remove_image_in_progress();
     remove_locks_in_progress();
-    ::_exit(sig == SIGINT ? 130 : 143);
+    ::_exit(128 + sig);
+}
+
+/** Installs `sa` for SIGINT, SIGTERM and SIGHUP (the terminal closed: it killed the render,
+ *  leaving its temporary file and lock behind), but not over a SIGHUP that is ignored (nohup
+ *  renders go on when the terminal closes). */
+void install_stop(const struct sigaction& sa) {
+    sigaction(SIGINT, &sa, nullptr);
+    sigaction(SIGTERM, &sa, nullptr);
+    struct sigaction hup {};
+    if (sigaction(SIGHUP, nullptr, &hup) == 0 && hup.sa_handler != SIG_IGN)
+        sigaction(SIGHUP, &sa, nullptr);
 }
 
 }  // namespace
@@ -54,8 +66,7 @@ void install_exit_on_stop_signal() {
     sa.sa_handler = on_stop_exit;
     sigemptyset(&sa.sa_mask);
     sa.sa_flags = 0;
-    sigaction(SIGINT, &sa, nullptr);
-    sigaction(SIGTERM, &sa, nullptr);
+    install_stop(sa);
 }
 
 void install_crash_handlers() {
@@ -77,8 +88,7 @@ void install_signal_handlers() {
     sa.sa_handler = on_stop_signal;
     sigemptyset(&sa.sa_mask);
     sa.sa_flags = 0;  // no SA_RESTART: a blocking wait returns early
-    sigaction(SIGINT, &sa, nullptr);
-    sigaction(SIGTERM, &sa, nullptr);
+    install_stop(sa);
     // A file-size limit (ulimit -f) makes the write fail with EFBIG, an error Spangle reports
     // and cleans up after, instead of killing the process with its temporary file left.
     std::signal(SIGXFSZ, SIG_IGN);
@@ -89,15 +99,19 @@ bool stop_requested() {
 }
 
 int interrupted_status() {
-    return stop_signal == SIGINT ? 130 : stop_signal == SIGTERM ? 143 : 0;
+    return stop_signal != 0 ? 128 + static_cast<int>(stop_signal) : 0;
 }
 
 const char* stop_signal_name() {
-    return stop_signal == SIGINT ? "SIGINT" : stop_signal == SIGTERM ? "SIGTERM" : "";
+    return stop_signal == SIGINT    ? "SIGINT"
+           : stop_signal == SIGTERM ? "SIGTERM"
+           : stop_signal == SIGHUP  ? "SIGHUP"
+                                    : "";
 }
 
 int exit_status_for_signal() {
-    return stop_signal == SIGTERM ? 143 : 0;
+    return stop_signal == SIGTERM || stop_signal == SIGHUP ? 128 + static_cast<int>(stop_signal)
+                                                           : 0;
 }
 
 }  // namespace spangle

@@ -16,20 +16,21 @@ void install_signal_handlers();
  *  the signal's default action (exit status 128 + the signal, a core dump where enabled). */
 void install_crash_handlers();
 
-/** For commands that write one file and do not poll (merge, denoise): SIGINT or SIGTERM ends
- *  the process at once, with one line, the temporary file of the image being written removed
- *  (exit status 130 or 143). */
+/** For commands that write one file and do not poll (merge, denoise): SIGINT, SIGTERM or SIGHUP
+ *  (unless ignored, as under nohup) ends the process at once, with one line, the temporary file
+ *  of the image being written removed (exit status 130, 143 or 129). */
 void install_exit_on_stop_signal();
 
 /** Whether a stop signal has arrived (async-signal-safe to poll from any thread). */
 bool stop_requested();
 
-/** Exit status after a stop signal: 0 for SIGINT (the user asked), 128 + 15 for SIGTERM; 0
- *  when none arrived. */
+/** Exit status after a stop signal: 0 for SIGINT (the user asked), 128 + 15 for SIGTERM and
+ *  128 + 1 for SIGHUP (the terminal closed); 0 when none arrived. */
 int exit_status_for_signal();
 
 /** Exit status of a render a stop signal cut short (a partial image, or none): 130 after SIGINT
- *  (as a shell reports an interrupted command), 143 after SIGTERM; 0 when none arrived. A farm
+ *  (as a shell reports an interrupted command), 143 after SIGTERM, 129 after SIGHUP; 0 when
+ *  none arrived. A farm
  *  must not take a partial image for a finished one. */
 int interrupted_status();
 

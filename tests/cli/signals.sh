@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# SIGINT and SIGTERM in the middle of a render: the passes completed so far are written, the EXR
+# SIGINT, SIGTERM and SIGHUP (the terminal closed: it killed the render, its temporary file and
+# lock left behind; ignored under nohup, it is not caught) in the middle of a render: the passes completed so far are written, the EXR
 # header says partial and how many samples per pixel, the exit status is 130 (SIGINT; it was 0,
-# and a farm took the partial image for a finished one) or 143 (SIGTERM), and no temporary file
+# and a farm took the partial image for a finished one) or 143 (SIGTERM) or 129 (SIGHUP), and no temporary file
 # is left; a render stopped before its first pass writes nothing and exits 130 (it exited 0,
 # leaving an older image at the output path to be taken for this one); a sequence stopped before its last frame exits 130;
 # a stopped --spp-range part holds the samples it completed, as a part of that range.
@@ -13,7 +14,7 @@ trap 'rm -rf "$T"' EXIT
 cp "$SCENES/flake_uvless.toml" "$SCENES/uvless_ball.obj" "$T/"
 cd "$T"
 fail() { echo "FAIL: $*"; exit 1; }
-for sig in INT TERM; do
+for sig in INT TERM HUP; do
     "$S" render flake_uvless.toml -o $sig.exr --spp 100000 --threads 2 -q --pass-output \
         --plugin-path "$PLUGINS" 2> err.txt &
     PID=$!
@@ -24,7 +25,7 @@ for sig in INT TERM; do
     kill -$sig $PID
     wait $PID
     RC=$?
-    want=130; [ $sig = TERM ] && want=143
+    want=130; [ $sig = TERM ] && want=143; [ $sig = HUP ] && want=129
     [ $RC -eq $want ] || fail "SIG$sig: exit status $RC, expected $want"
     oiiotool --info -v $sig.exr > info.txt || fail "SIG$sig: unreadable output"
     grep -q 'spangle:partial: "1"' info.txt || fail "SIG$sig: not marked partial"
@@ -33,6 +34,16 @@ for sig in INT TERM; do
     grep -q "stopped by a signal" err.txt || fail "SIG$sig: no message"
     ls -a | grep -q '\.tmp' && fail "SIG$sig: temporary file left behind"
 done
+# SIGHUP ignored (nohup: the terminal closing must not stop the render) stays ignored.
+( trap '' HUP; exec "$S" render flake_uvless.toml -o nohup.exr --spp 3000 --size 32x24 --threads 2 -q \
+    --plugin-path "$PLUGINS" ) 2> err.txt &
+PID=$!
+sleep 0.5
+kill -HUP $PID 2> /dev/null || fail "the nohup render ended before its SIGHUP (make it longer)"
+wait $PID
+RC=$?
+[ $RC -eq 0 ] || fail "an ignored SIGHUP stopped the render: exit status $RC"
+oiiotool --info -v nohup.exr | grep -q 'spangle:partial: "1"' && fail "an ignored SIGHUP made a partial image"
 # Stopped before the first pass: nothing written, the older image left alone, exit 130.
 echo "older" > early.exr
 "$S" render flake_uvless.toml -o early.exr --spp 100000 --size 3840x2160 --threads 2 -q \
