@@ -12,6 +12,7 @@
 #include <atomic>
 #include <filesystem>
 #include <future>
+#include <optional>
 
 #include "cli/arguments.h"
 #include "cli/output_paths.h"
@@ -266,6 +267,9 @@ std::size_t Outputs::write(const ImageDescription& d) const {
     // new preview beside an old image.
     const std::string png_target = preview.empty() ? std::string() : output_target(preview);
     const std::string png_tmp = preview.empty() ? std::string() : temporary_path_for(png_target);
+    // A second Ctrl-C while the EXR is written removes it too.
+    std::optional<TemporaryInProgress> png_in_progress;
+    if (!png_tmp.empty()) png_in_progress.emplace(png_tmp);
     const auto drop_png = [&] {
         std::error_code ec;
         if (!png_tmp.empty()) fs::remove(png_tmp, ec);

@@ -55,7 +55,7 @@ struct InProgress {
     std::atomic<bool> set{false};
     char path[4096];
 };
-InProgress in_progress[4];
+InProgress in_progress[8];
 std::mutex slot_mutex;
 std::condition_variable slot_freed;
 
@@ -167,6 +167,12 @@ Imf::Compression exr_compression(const std::string& name) {
 void write_file_atomically(const std::string& path,
                            const std::function<void(const std::string&)>& write_file) {
     write_atomically(path, write_file);
+}
+
+TemporaryInProgress::TemporaryInProgress(const std::string& tmp) : slot_(new InProgressSlot(tmp)) {}
+
+TemporaryInProgress::~TemporaryInProgress() {
+    delete static_cast<InProgressSlot*>(slot_);
 }
 
 bool remove_image_in_progress() noexcept {

@@ -54,6 +54,20 @@ std::string output_target(const std::string& path);
  *  the output itself is never half-written). */
 bool remove_image_in_progress() noexcept;
 
+/** While it lives, `tmp` (a temporary file written outside write_file_atomically, as a preview
+ *  waiting for its EXR) is one remove_image_in_progress() removes: a second Ctrl-C while the
+ *  EXR was written left the finished preview's temporary file behind. */
+class TemporaryInProgress {
+public:
+    explicit TemporaryInProgress(const std::string& tmp);
+    ~TemporaryInProgress();
+    TemporaryInProgress(const TemporaryInProgress&) = delete;
+    TemporaryInProgress& operator=(const TemporaryInProgress&) = delete;
+
+private:
+    void* slot_;  ///< its slot in the table the signal handler reads
+};
+
 /** Lets write_file write a temporary file beside `path`, then renames it onto `path`: the
  *  output is whole or absent (an empty result counts as a failure). Throws SpangleError. */
 void write_file_atomically(const std::string& path,

@@ -34,6 +34,15 @@ for sig in INT TERM HUP; do
     grep -q "stopped by a signal" err.txt || fail "SIG$sig: no message"
     ls -a | grep -q '\.tmp' && fail "SIG$sig: temporary file left behind"
 done
+# A second SIGINT while the EXR is written, once the preview's temporary file exists: neither
+# temporary file is left (the preview's was, 2.4 MB at 1600x900).
+"$S" render flake_uvless.toml -o pair.exr --spp 1 --size 1600x900 --layers --float --threads 2 -q \
+    --plugin-path "$PLUGINS" 2> err.txt &
+PID=$!
+for _ in $(seq 1 1000); do ls -a | grep -q '^\.pair\.png\.tmp' && break; sleep 0.01; done
+kill -INT $PID 2> /dev/null; sleep 0.02; kill -INT $PID 2> /dev/null
+wait $PID
+ls -a | grep -q '^\.pair\..*tmp' && fail "a second SIGINT while writing left a temporary file: $(ls -a)"
 # SIGHUP ignored (nohup: the terminal closing must not stop the render) stays ignored.
 ( trap '' HUP; exec "$S" render flake_uvless.toml -o nohup.exr --spp 3000 --size 32x24 --threads 2 -q \
     --plugin-path "$PLUGINS" ) 2> err.txt &
