@@ -189,7 +189,10 @@ struct PartTotals {
     }
     void apply(Imf::Header& h) const {
         h.insert("spangle:partial", Imf::StringAttribute(partial ? "1" : "0"));
-        if (timed) h.insert("renderTimeSeconds", Imf::FloatAttribute(static_cast<float>(seconds)));
+        if (timed)
+            h.insert("renderTimeSeconds", Imf::FloatAttribute(static_cast<float>(seconds)));
+        else if (h.find("renderTimeSeconds") != h.end())
+            h.erase("renderTimeSeconds");  // not the first part's alone: unknown
     }
 };
 

@@ -123,4 +123,8 @@ oiiotool "$T/e0.exr" --eraseattrib "spangle:sceneHash" -o "$T/e0bare.exr"
 "$S" merge "$T/e0bare.exr" "$T/e2.exr" -o "$T/em.exr" 2> "$T/err.txt" && fail "a part without spangle:sceneHash was merged unchecked"
 grep -q "has no 'spangle:sceneHash' in its header" "$T/err.txt" || fail "no reason for refusing the stripped part"
 "$S" merge "$T/e0.exr" "$T/e2.exr" -o "$T/em.exr" 2> "$T/err.txt" || fail "parts of one render were refused"
+# A part without a render time: the merged frame's time is unknown, not the first part's.
+oiiotool "$T/e2.exr" --eraseattrib renderTimeSeconds -o "$T/e2untimed.exr"
+"$S" merge "$T/e0.exr" "$T/e2untimed.exr" -o "$T/eu.exr" 2> "$T/err.txt" || fail "merge of an untimed part"
+iinfo -v "$T/eu.exr" | grep -q renderTimeSeconds && fail "the merged frame claims the first part's render time"
 echo "crop_merge: OK"
