@@ -2,7 +2,9 @@
 
 #include "cli/usage.h"
 
+#include <algorithm>
 #include <cstdio>
+#include <cstdlib>
 #include <filesystem>
 
 namespace spangle {
@@ -16,6 +18,23 @@ void check_plugin_dirs(const std::vector<std::string>& dirs) {
                             ? " (one folder per --plugin-path: repeat the option, or list "
                               "folders separated by ':' in $SPANGLE_PLUGIN_PATH)"
                             : "");
+    }
+    // $SPANGLE_PLUGIN_PATH's folders that are not there: said (a typo in it left the render
+    // on the plugins beside the binary, silently), not refused (a shared environment may list
+    // folders some machines lack).
+    if (const char* env = std::getenv("SPANGLE_PLUGIN_PATH"); env && *env) {
+        const std::string s(env);
+        std::size_t start = 0;
+        while (start <= s.size()) {
+            const std::size_t end = std::min(s.find(':', start), s.size());
+            const std::string dir = s.substr(start, end - start);
+            std::error_code ec;
+            if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
+                fmt::print(stderr,
+                           "warning: $SPANGLE_PLUGIN_PATH names '{}', which is not a folder\n",
+                           dir);
+            start = end + 1;
+        }
     }
 }
 

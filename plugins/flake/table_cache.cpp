@@ -127,9 +127,16 @@ TableCache TableCache::from_environment(std::function<void(const std::string&)> 
     }
     uint64_t mb = kDefaultMegabytes;
     if (const char* m = std::getenv("SPANGLE_FLAKE_CACHE_MB"); m && *m) {
+        // Digits alone (strtoull took "-5" for 2^64 - 5); anything else is said, not ignored.
         char* end = nullptr;
-        const unsigned long long v = std::strtoull(m, &end, 10);
-        if (end && *end == '\0') mb = v;
+        const bool digits = std::strspn(m, "0123456789") == std::strlen(m);
+        const unsigned long long v = digits ? std::strtoull(m, &end, 10) : 0;
+        if (digits && end && *end == '\0' && v <= (1ull << 40))
+            mb = v;
+        else if (warn)
+            warn(std::string("SPANGLE_FLAKE_CACHE_MB='") + m +
+                 "' is not a size in megabytes (0 to 2^40): the default, " +
+                 std::to_string(kDefaultMegabytes) + " MB, is used");
     }
     return TableCache(dir, mb << 20, std::move(warn));
 }
