@@ -2,12 +2,22 @@
 
 #include <fmt/format.h>
 
+#include <cstdio>
 #include <memory>
 #include <string>
+#include <utility>
 
 namespace spangle {
 
 namespace {
+
+/** fmt::print without its throw when the write fails: a closed terminal (EIO after a hangup)
+ *  threw out of a worker thread and the render ended in std::terminate, its image lost. */
+template <class... Args>
+void say_progress(std::FILE* out, fmt::format_string<Args...> format, Args&&... args) {
+    const std::string line = fmt::format(format, std::forward<Args>(args)...);
+    std::fwrite(line.data(), 1, line.size(), out);
+}
 
 std::string format_duration(double s) {
     if (!(s >= 0.0) || s > 1e7) return "?";
@@ -38,10 +48,10 @@ void Progress::update(uint64_t done, uint64_t total, uint64_t traced) {
         last_draw_ = now;
         constexpr int kWidth = 30;
         const int filled = static_cast<int>(frac * kWidth);
-        fmt::print(out_, "\r[{}{}] {:5.1f}%  {:.2f} Msamples/s  {} left   ",
-                   std::string(static_cast<std::size_t>(filled), '#'),
-                   std::string(static_cast<std::size_t>(kWidth - filled), '.'), 100.0 * frac,
-                   rate * 1e-6, format_duration(left));
+        say_progress(out_, "\r[{}{}] {:5.1f}%  {:.2f} Msamples/s  {} left   ",
+                     std::string(static_cast<std::size_t>(filled), '#'),
+                     std::string(static_cast<std::size_t>(kWidth - filled), '.'), 100.0 * frac,
+                     rate * 1e-6, format_duration(left));
         std::fflush(out_);
         drawn_ = true;
         return;
@@ -50,13 +60,13 @@ void Progress::update(uint64_t done, uint64_t total, uint64_t traced) {
     // No line at 0%: the rate (and so the time left) means nothing before a tenth is done.
     if (decile == last_decile_ || decile == 0) return;
     last_decile_ = decile;
-    fmt::print(out_, "render: {:3d}%  {:.2f} Msamples/s  {} left\n", decile * 10, rate * 1e-6,
-               format_duration(left));
+    say_progress(out_, "render: {:3d}%  {:.2f} Msamples/s  {} left\n", decile * 10, rate * 1e-6,
+                 format_duration(left));
     std::fflush(out_);
 }
 
 void Progress::finish() {
-    if (interactive_ && drawn_) fmt::print(out_, "\n");
+    if (interactive_ && drawn_) say_progress(out_, "\n");
 }
 
 namespace {
@@ -87,21 +97,21 @@ struct WorkMeter {
         const bool done = fraction >= 1.0;
         if (!shown && (elapsed < kQuiet)) return;  // quick work stays quiet, its end too
         if (done) {
-            fmt::print(out, "{}{}: done in {}{}\n", interactive ? "\r" : "", what,
-                       format_duration(elapsed), interactive ? "          " : "");
+            say_progress(out, "{}{}: done in {}{}\n", interactive ? "\r" : "", what,
+                         format_duration(elapsed), interactive ? "          " : "");
             std::fflush(out);
             what.clear();
             return;
         }
         if (interactive) {
             if (shown && std::chrono::duration<double>(now - last_draw).count() < 0.2) return;
-            fmt::print(out, "\r{}  {:5.1f}%  {}   ", what, 100.0 * fraction,
-                       format_duration(elapsed));
+            say_progress(out, "\r{}  {:5.1f}%  {}   ", what, 100.0 * fraction,
+                         format_duration(elapsed));
         } else {
             const int decile = static_cast<int>(fraction * 10.0);
             if (decile == last_decile) return;
             last_decile = decile;
-            fmt::print(out, "{}: {:3d}%  {}\n", what, decile * 10, format_duration(elapsed));
+            say_progress(out, "{}: {:3d}%  {}\n", what, decile * 10, format_duration(elapsed));
         }
         std::fflush(out);
         last_draw = now;

@@ -2,6 +2,7 @@
 
 #include "cli/signals.h"
 
+#include <fcntl.h>
 #include <unistd.h>
 
 #include <csignal>
@@ -16,7 +17,28 @@ namespace {
 /** The first stop signal that arrived (SIGINT, SIGTERM or SIGHUP), 0 before any. */
 volatile std::sig_atomic_t stop_signal = 0;
 
+/** /dev/null, opened when the handlers are installed, and whether stdout and stderr were
+ *  terminals then: after SIGHUP (the terminal closed) every write to it fails (EIO), and a
+ *  progress line or the "stopped by a signal" warning threw out of the render: it ended in
+ *  std::terminate, without its partial image. */
+int dev_null = -1;
+bool out_tty = false, err_tty = false;
+
+/** Points stdout and stderr that were the terminal at /dev/null (async-signal-safe). */
+void detach_from_terminal() {
+    if (dev_null < 0) return;
+    if (out_tty) ::dup2(dev_null, STDOUT_FILENO);
+    if (err_tty) ::dup2(dev_null, STDERR_FILENO);
+}
+
+void remember_terminal() {
+    if (dev_null < 0) dev_null = ::open("/dev/null", O_WRONLY | O_CLOEXEC);
+    out_tty = ::isatty(STDOUT_FILENO) != 0;
+    err_tty = ::isatty(STDERR_FILENO) != 0;
+}
+
 extern "C" void on_stop_signal(int sig) {
+    if (sig == SIGHUP) detach_from_terminal();
     if (sig == SIGINT && stop_signal == SIGINT) {
         // Said (it exited without a word, and the old file at the output's path could be
         // taken for this render's), and nothing of the write left behind.
@@ -40,6 +62,7 @@ extern "C" void on_crash(int sig) {
 }
 
 extern "C" void on_stop_exit(int sig) {
+    if (sig == SIGHUP) detach_from_terminal();
     say_to_stderr(sig == SIGINT   ? "spangle: stopped by SIGINT: nothing written\n"
                   : sig == SIGHUP ? "spangle: stopped by SIGHUP: nothing written\n"
                                   : "spangle: stopped by SIGTERM: nothing written\n");
@@ -52,6 +75,7 @@ extern "C" void on_stop_exit(int sig) {
  *  leaving its temporary file and lock behind), but not over a SIGHUP that is ignored (nohup
  *  renders go on when the terminal closes). */
 void install_stop(const struct sigaction& sa) {
+    remember_terminal();
     sigaction(SIGINT, &sa, nullptr);
     sigaction(SIGTERM, &sa, nullptr);
     struct sigaction hup {};

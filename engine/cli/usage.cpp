@@ -40,10 +40,12 @@ void check_plugin_dirs(const std::vector<std::string>& dirs) {
 
 void print_error(const std::string& msg) {
     // Located messages already read "file:line:col: error: ..."; others get the prefix here.
-    if (msg.find(": error: ") != std::string::npos)
-        fmt::print(stderr, "{}\n", msg);
-    else
-        fmt::print(stderr, "spangle: error: {}\n", msg);
+    // Written without fmt::print, which throws when the write fails (a closed terminal): a
+    // throw here, in the handler of an error, ended the process in std::terminate.
+    const std::string line = msg.find(": error: ") != std::string::npos
+                                 ? msg + "\n"
+                                 : fmt::format("spangle: error: {}\n", msg);
+    std::fwrite(line.data(), 1, line.size(), stderr);
 }
 
 }  // namespace spangle

@@ -1,6 +1,7 @@
 #include "core/log.h"
 
 #include <cstdio>
+#include <string>
 
 namespace spangle {
 
@@ -22,7 +23,10 @@ void Logger::write(LogLevel level, std::string_view message) const {
             prefix = "error: ";
             break;
     }
-    fmt::print(stderr, "{}{}\n", prefix, message);
+    // Written without fmt::print, which throws when the write fails: a closed terminal (EIO
+    // after a hangup) is no reason to stop a render or lose its image.
+    const std::string line = fmt::format("{}{}\n", prefix, message);
+    std::fwrite(line.data(), 1, line.size(), stderr);
 }
 
 }  // namespace spangle

@@ -106,6 +106,7 @@ Session::Session(std::vector<std::string> plugin_dirs, const std::string& ocio,
     : log_(log), options_(std::move(options)), ocio_request_(ocio) {
     color_ = std::make_unique<ColorConfig>(ColorConfig::load(ocio, default_ocio_locations()));
     ocio_identity_ = file_identity(color_->path());
+    ocio_bytes_ = file_content_hash(color_->path());
     host_ = std::make_unique<HostServices>(
         *color_, log_, TextureSettings{options_.texture_cache, options_.texture_memory_mb});
     plugins_ = std::make_unique<PluginLoader>(plugin_search_path(plugin_dirs));
@@ -206,7 +207,18 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     // the live one's working space; an edited OCIO config is loaded afresh.
     std::unique_ptr<ColorConfig> color;
     const bool luts_edited = world_ && color_->lut_files_changed();
-    const bool config_edited = world_ && file_identity(color_->path()) != ocio_identity_;
+    // The config's identity and bytes before it is read (a save landing while it loads is
+    // seen by the next reload).
+    const std::string loaded_identity = world_ ? file_identity(color_->path()) : std::string();
+    const uint64_t loaded_bytes = world_ ? file_content_hash(color_->path()) : 0;
+    bool config_edited = world_ && loaded_identity != ocio_identity_;
+    if (config_edited && loaded_bytes == ocio_bytes_) {
+        // Saved again with the same bytes (a touch, a save without an edit, a bad edit put
+        // back): not an edit. It rebuilt the whole scene (every mesh subdivided again) and
+        // threw the finished image away.
+        ocio_identity_ = loaded_identity;
+        config_edited = false;
+    }
     if (config_edited || luts_edited) {
         // OpenColorIO keeps the LUTs it read for the process: an edited one must be read again
         // (the reloaded config rendered with the old LUT, unlike a fresh render).
@@ -214,10 +226,10 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
         color = std::make_unique<ColorConfig>(
             ColorConfig::load(ocio_request_, default_ocio_locations()));
         if (!luts_edited && color->content_hash() == color_->content_hash()) {
-            // The config saved again with the same bytes (a touch, a bad edit put back): not
-            // an edit. It rebuilt the whole scene (every mesh subdivided again) and threw the
-            // finished image away.
-            ocio_identity_ = file_identity(color_->path());
+            // Other bytes, the same config (a comment edited; where no conversion has read a
+            // LUT, whose bytes the live config's hash holds too): not an edit either.
+            ocio_identity_ = loaded_identity;
+            ocio_bytes_ = loaded_bytes;
             color = std::make_unique<ColorConfig>(color_->clone());
         } else {
             if (config_edited) rep.changed.push_back("file " + color_->path());
@@ -352,7 +364,8 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
     if (full) {
         color_ = std::move(color);
         host_ = std::move(host);
-        ocio_identity_ = file_identity(color_->path());
+        ocio_identity_ = loaded_identity.empty() ? file_identity(color_->path()) : loaded_identity;
+        ocio_bytes_ = loaded_identity.empty() ? file_content_hash(color_->path()) : loaded_bytes;
     }
     live_ = std::move(cand);
     info_ = std::move(info);

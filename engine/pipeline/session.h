@@ -126,6 +126,7 @@ private:
     std::unique_ptr<SceneInfo> info_;
     std::unique_ptr<World> world_;
     std::string ocio_identity_;  ///< file_identity of the OCIO config when loaded
+    uint64_t ocio_bytes_ = 0;    ///< file_content_hash of it then
     /** The files the live scene's systems read: path -> (identity, file_content_hash), so that
      *  a reload hashes only files that changed. */
     std::map<std::string, std::pair<std::string, uint64_t>> file_hashes_;

@@ -78,10 +78,12 @@ namespace {
  *  virtual flakes per tile). Few per block, so that a footprint's bounding box wastes little on
  *  the blocks along its edges (12 per block tested twice as many candidates as it kept). */
 constexpr uint32_t kPerBlock = 3;
-/** Classes more than this many below the densest one a footprint takes are left out: together
- *  they hold under 2% of its virtual flakes (4^-3 / (1 - 1/4)), and each would test a block's
- *  worth along the footprint's edges for fewer than one inside. */
-constexpr int kClassSpan = 2;
+/** Classes more than this many below the densest one a footprint takes are left out: they hold
+ *  4^-(kClassSpan + 1) / (1 - 1/4) of the density below class top, between 0.3% and 1.3% of a
+ *  footprint's stand-ins, which a footprint half as wide (one class up) no longer keeps; each
+ *  would test about a block's worth along the footprint's edges for fewer than one inside. (Two
+ *  dropped a fifth of them at every halving.) */
+constexpr int kClassSpan = 4;
 /** The densest class (blocks 2^-(kMaxClass + 3) of a tile wide). */
 constexpr int kMaxClass = 25;
 
@@ -119,7 +121,6 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
     thread_local StandInScratch scratch_tls;
     StandInScratch& sc = scratch_tls;
     uint32_t n_kept = 0;  // sc.kept_hash[0 .. n_kept - 1]
-    if (sc.found.size() < cap) sc.found.resize(cap);
     // The virtual flakes: classes c = 0, 1, ... of density rho_c = 192 x 4^c per tile, in blocks
     // 2^-(c + 3) of a tile wide, kPerBlock each, placed by hashes of (tile, class, block, index):
     // they lie where they lie whatever the footprint. A footprint of area A takes the density
@@ -248,27 +249,29 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
     // A stand-in's own hash picks its colour and film; with neither table (one colour, no film)
     // it is not needed.
     const bool own = colors.varies() || film.varies();
-    uint64_t* const found = sc.found.data();
+    // The kept candidates grouped by aggregate (a counting sort: a scan of all of them per
+    // aggregate was a seventh of a counted footprint's time).
+    uint32_t start[kMaxAggregates + 1] = {};
+    for (uint32_t j = 0; j < n_kept; ++j) ++start[sc.kept_agg[j] + 1];
+    for (uint32_t a = 0; a < kMaxAggregates; ++a) start[a + 1] += start[a];
+    if (sc.found.size() < n_kept) sc.found.resize(n_kept);
+    uint64_t* const grouped = sc.found.data();
+    {
+        uint32_t pos[kMaxAggregates];
+        std::copy(start, start + kMaxAggregates, pos);
+        for (uint32_t j = 0; j < n_kept; ++j) grouped[pos[sc.kept_agg[j]]++] = sc.kept_hash[j];
+    }
     uint32_t found_all = 0;
     EntryBatch batch;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const uint32_t k = cf.agg[a].count;
         const uint32_t room = std::min(k, cap - found_all);
-        uint32_t n = 0;
-        for (uint32_t j = 0; j < n_kept; ++j) {
-            if (sc.kept_agg[j] != a) continue;
-            const uint64_t h = sc.kept_hash[j];
-            if (n < room) {
-                found[n++] = h;
-                if (n == room) std::make_heap(found, found + n);
-            } else if (room > 0 && h < found[0]) {
-                // More than its k flakes (or the room left): those of the smallest hashes (a
-                // priority of their own: footprints keep the same ones among those they share).
-                std::pop_heap(found, found + n);
-                found[n - 1] = h;
-                std::push_heap(found, found + n);
-            }
-        }
+        uint64_t* const found = grouped + start[a];
+        const uint32_t in_cell = start[a + 1] - start[a];
+        // More than its k flakes (or the room left): those of the smallest hashes (a priority
+        // of their own: footprints keep the same ones among those they share).
+        if (in_cell > room) std::nth_element(found, found + room, found + in_cell);
+        const uint32_t n = std::min(in_cell, room);
         found_all += n;
         if (n == 0) {
             cf.smooth += static_cast<float>(k);

@@ -158,15 +158,17 @@ bool sparse_tiles(const FieldParams& field, const Footprint& p, uint32_t limit) 
 }
 
 /** Whether the tree enumerates the footprint's facets outright: the flakes whose facets may reach
- *  into it (those under its bounding box widened by the facets' reach) are at most 4 x `limit`
- *  on average, the tree's own bound. Facets wider than the footprint make the cells (whose size
- *  follows the reach) far larger than it: counted, a cell's few flakes inside the footprint are
+ *  into it (those under its bounding box widened by the facets' reach) are at most 2 x `limit`
+ *  on average, half the tree's own bound. Facets wider than the footprint make the cells (whose
+ * size follows the reach) far larger than it: counted, a cell's few flakes inside the footprint are
  *  stand-ins, points, where the facets are mirrors larger than the pixel; and cells counted
  *  beside cells enumerated miss or count twice the facets reaching across their border (darker
  *  and lighter squares a facet's width wide). */
 bool few_facets(const FieldParams& field, const Footprint& p, uint32_t limit) {
+    // Expected at most 2 x limit, against the enumeration's budget of 4 x limit: a footprint
+    // that finds more than its budget shows the smooth lobe instead.
     return field.facet && field.flakes_per_tile * (4.0 * p.half_width() * p.half_height()) <=
-                              4.0 * static_cast<double>(limit);
+                              2.0 * static_cast<double>(limit);
 }
 
 bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v3* arena,

@@ -39,10 +39,36 @@ done
 "$S" render flake_uvless.toml -o pair.exr --spp 1 --size 1600x900 --layers --float --threads 2 -q \
     --plugin-path "$PLUGINS" 2> err.txt &
 PID=$!
-for _ in $(seq 1 1000); do ls -a | grep -q '^\.pair\.png\.tmp' && break; sleep 0.01; done
-kill -INT $PID 2> /dev/null; sleep 0.02; kill -INT $PID 2> /dev/null
+seen=0
+for _ in $(seq 1 2000); do ls -a | grep -q '^\.pair\.png\.tmp' && { seen=1; break; }; sleep 0.005; done
+# (Timing: where the write ends before both signals land, only the last check applies.)
+both=0
+if [ $seen = 1 ] && kill -INT $PID 2> /dev/null; then
+    sleep 0.02
+    kill -INT $PID 2> /dev/null && both=1
+fi
 wait $PID
+RC=$?
+[ $both = 0 ] || [ $RC -eq 130 ] || fail "a second SIGINT while writing: exit status $RC, expected 130"
 ls -a | grep -q '^\.pair\..*tmp' && fail "a second SIGINT while writing left a temporary file: $(ls -a)"
+# The terminal closing (a pty whose other end goes away): SIGHUP, and every write to the
+# terminal fails from then on; a progress line or the warning threw, and the render ended in
+# std::terminate without its image. It writes what it has, with no temporary file left.
+if command -v script > /dev/null; then
+    # (The shell in the pty passes SIGHUP on to its job, as an interactive shell does, and lives
+    # to write the render's status.)
+    script -qfc "trap 'kill -HUP \$p' HUP; '$S' render flake_uvless.toml -o closed_tty.exr --spp 100000 --threads 2 --pass-output --plugin-path '$PLUGINS' & p=\$!; wait \$p; wait \$p; echo \$? > closed_tty.rc" /dev/null > /dev/null 2>&1 &
+    SPID=$!
+    for _ in $(seq 1 200); do [ -f closed_tty.exr ] && break; sleep 0.05; done
+    [ -f closed_tty.exr ] || fail "no pass output under a pty"
+    kill -9 $SPID
+    for _ in $(seq 1 200); do pgrep -f "closed_tty.exr" > /dev/null || break; sleep 0.1; done
+    pgrep -f "closed_tty.exr" > /dev/null && { pkill -9 -f "closed_tty.exr"; fail "the render went on after its terminal closed"; }
+    for _ in $(seq 1 50); do [ -s closed_tty.rc ] && break; sleep 0.1; done
+    [ "$(cat closed_tty.rc 2> /dev/null)" = 129 ] || fail "a closed terminal: exit status '$(cat closed_tty.rc 2> /dev/null)', expected 129"
+    oiiotool --info -v closed_tty.exr | grep -q 'spangle:partial: "1"' || fail "a closed terminal: the image is not the partial one it had"
+    ls -a | grep -q '^\.closed_tty\..*tmp' && fail "a closed terminal left a temporary file"
+fi
 # SIGHUP ignored (nohup: the terminal closing must not stop the render) stays ignored.
 ( trap '' HUP; exec "$S" render flake_uvless.toml -o nohup.exr --spp 3000 --size 32x24 --threads 2 -q \
     --plugin-path "$PLUGINS" ) 2> err.txt &

@@ -72,7 +72,7 @@ TEST(FlakeZoom, AFootprintHalfAsWideKeepsTheLargerOnesGlints) {
     // 0.009 at lambda 1000 to 1e5): every glint changed. Stand-ins now lie where they lie at
     // every footprint size (classes of virtual flakes, nested as the footprint shrinks), and
     // the correlation is the share of the large footprint's stand-ins the small one keeps, the
-    // area ratio 1/4 (0.22 to 0.25 measured): a fixed number of stand-ins per footprint cannot
+    // area ratio 1/4 (0.24 to 0.25 measured): a fixed number of stand-ins per footprint cannot
     // reach sqrt(1/4), which needs all of the flakes. Lambda 3000 and more: every cell counted
     // at both sizes.
     const double e = zoom_correlation("enumerate", 3000.0, 0.5f, 0.8f);

@@ -136,6 +136,17 @@ TEST(NewScene, AModelWhoseUpAxisIsNotYIsTurnedToStandUp) {
         for (int i = 0; i < 8; ++i)
             placed.add(m.apply_point(
                 {(i & 1) ? c.hi.x : c.lo.x, (i & 2) ? c.hi.y : c.lo.y, (i & 4) ? c.hi.z : c.lo.z}));
+        // The end its up axis points to is on top (an extent alone cannot tell z from -z).
+        const Vec3 mid = (c.lo + c.hi) * 0.5f;
+        const std::string axis = c.up;
+        const bool negative = axis[0] == '-';
+        const char which = axis.back();
+        Vec3 top = mid;
+        const auto end = [&](float lo, float hi) { return negative ? lo : hi; };
+        if (which == 'x') top.x = end(c.lo.x, c.hi.x);
+        if (which == 'y') top.y = end(c.lo.y, c.hi.y);
+        if (which == 'z') top.z = end(c.lo.z, c.hi.z);
+        EXPECT_NEAR(m.apply_point(top).y, 5.0f, 1e-4f) << c.up << ": its up end on top";
         EXPECT_NEAR(placed.lo.y, 0.0f, 1e-4f) << c.up << ": on the ground";
         EXPECT_NEAR(placed.hi.y, 5.0f, 1e-4f) << c.up << ": its up axis along y";
         EXPECT_NEAR(placed.lo.x + placed.hi.x, 0.0f, 1e-4f) << c.up;

@@ -367,6 +367,19 @@ colorspaces:
     Session session({}, dir.file("config.ocio"), options, test::quiet_log());
     session.load(dir.file("s.toml"));
     EXPECT_FLOAT_EQ(sky(session), 0.5f);
+    {
+        // The config saved again as it was, once a conversion has read its LUT: not an edit
+        // (the live config's hash holds the LUT's bytes, a fresh one's did not: every touch
+        // rebuilt the scene).
+        std::ifstream in(dir.file("config.ocio"));
+        std::stringstream text;
+        text << in.rdbuf();
+        ::usleep(20000);
+        std::ofstream(dir.file("config.ocio")) << text.str();
+        const ReloadReport same = session.load(dir.file("s.toml"));
+        EXPECT_TRUE(same.changed.empty()) << same.summary();
+        EXPECT_TRUE(same.ran.empty()) << same.summary();
+    }
     const uint64_t before = session.info().content_hash;
     const std::vector<std::string> watched = session.watched_files();
     EXPECT_NE(std::find(watched.begin(), watched.end(), dir.file("luts/curve.spi1d")),
