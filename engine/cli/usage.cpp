@@ -2,10 +2,10 @@
 
 #include "cli/usage.h"
 
-#include <algorithm>
 #include <cstdio>
-#include <cstdlib>
 #include <filesystem>
+
+#include "shading/plugin_loader.h"
 
 namespace spangle {
 
@@ -22,19 +22,11 @@ void check_plugin_dirs(const std::vector<std::string>& dirs) {
     // $SPANGLE_PLUGIN_PATH's folders that are not there: said (a typo in it left the render
     // on the plugins beside the binary, silently), not refused (a shared environment may list
     // folders some machines lack).
-    if (const char* env = std::getenv("SPANGLE_PLUGIN_PATH"); env && *env) {
-        const std::string s(env);
-        std::size_t start = 0;
-        while (start <= s.size()) {
-            const std::size_t end = std::min(s.find(':', start), s.size());
-            const std::string dir = s.substr(start, end - start);
-            std::error_code ec;
-            if (!dir.empty() && !std::filesystem::is_directory(dir, ec))
-                fmt::print(stderr,
-                           "warning: $SPANGLE_PLUGIN_PATH names '{}', which is not a folder\n",
-                           dir);
-            start = end + 1;
-        }
+    for (const std::string& dir : env_plugin_dirs()) {
+        std::error_code ec;
+        if (!std::filesystem::is_directory(dir, ec))
+            fmt::print(stderr, "warning: $SPANGLE_PLUGIN_PATH names '{}', which is not a folder\n",
+                       dir);
     }
 }
 

@@ -87,8 +87,8 @@ void check_same_render(const Imf::Header& hd, const Imf::Header& first, const st
     // projects otherwise.
     const auto* ndc = hd.findTypedAttribute<Imf::M44fAttribute>("worldToNDC");
     const auto* ndc_first = first.findTypedAttribute<Imf::M44fAttribute>("worldToNDC");
-    if ((ndc == nullptr) != (ndc_first == nullptr) ||
-        (ndc && ndc_first && ndc->value() != ndc_first->value()))
+    // (One part without it is refused above, as a header that lost it.)
+    if (ndc && ndc_first && ndc->value() != ndc_first->value())
         throw_error(
             "'{}' and '{}' were seen through different cameras (their worldToNDC differ: another "
             "--camera, lens or projection): parts of one render merge",

@@ -164,7 +164,7 @@ void system_materials(ecs::Registry& r, World& w) {
     const auto& pool = r.pool<Material>();
     const auto count = static_cast<std::size_t>(std::count(used.begin(), used.end(), true));
     std::size_t made_so_far = 0;
-    std::set<std::string> said_gone;  // plugins whose file was said to be gone
+    std::set<std::string> plugins_seen;  // each plugin's file is looked at once
     for (std::size_t i = 0; i < pool.size(); ++i) {
         const Material m = pool.columns().get(i);
         std::size_t index = 0;
@@ -192,24 +192,29 @@ void system_materials(ecs::Registry& r, World& w) {
         // An edited plugin library or texture makes the material anew.
         const MaterialInstance& made = *set.instances[index];
         w.read_file("plugin", made.plugin().path());
-        // A reload that opened a plugin from another file than the live scene's, that file gone
-        // (a build folder's library removed, a later folder's copy taken): said, not silent.
-        if (w.previous && w.log)
-            if (const auto sys = w.previous->files.find(w.system); sys != w.previous->files.end())
-                for (const auto& [old_path, read] : sys->second) {
-                    const std::filesystem::path was(old_path), now(made.plugin().path());
-                    std::error_code ec;
-                    if (read.kind == "plugin" && was.filename() == now.filename() && was != now &&
-                        !std::filesystem::exists(was, ec) && said_gone.insert(m.plugin).second)
-                        w.log->warn("plugin '{}': {} is gone; opened {} instead", m.plugin,
-                                    old_path, made.plugin().path());
-                }
-        // And where a library would be found before it, absent now (a developer's build folder
-        // given by --plugin-path whose library was removed, a copy beside the binary taken
-        // instead): putting it back there reloads (it was ignored, and every rebuild of it).
-        // Watched, not hashed into the scene (kAbsentPluginKind).
-        for (const std::string& before : w.plugins->searched_before(m.plugin, made.plugin().path()))
-            w.read_file(kAbsentPluginKind, before);
+        if (plugins_seen.insert(m.plugin).second) {
+            // A reload that opened a plugin from another file than the live scene's, that file
+            // gone (a build folder's library removed, a later folder's copy taken): said, not
+            // silent.
+            const std::filesystem::path now(made.plugin().path());
+            if (w.previous && w.log)
+                if (const auto sys = w.previous->files.find(w.system);
+                    sys != w.previous->files.end())
+                    for (const auto& [old_path, read] : sys->second) {
+                        const std::filesystem::path was(old_path);
+                        std::error_code ec;
+                        if (read.kind == "plugin" && was.filename() == now.filename() &&
+                            was != now && !std::filesystem::exists(was, ec))
+                            w.log->warn("plugin '{}': {} is gone; opened {} instead", m.plugin,
+                                        old_path, now.string());
+                    }
+            // And where a library would be found before it, absent now (a developer's build
+            // folder given by --plugin-path whose library was removed, a copy beside the binary
+            // taken instead): putting it back there reloads (it was ignored, and every rebuild
+            // of it). Watched, not hashed into the scene (kAbsentPluginKind).
+            for (const std::string& before : w.plugins->searched_before(m.plugin, now.string()))
+                w.read_file(kAbsentPluginKind, before);
+        }
         for (const TextureBinding& t : made.textures())
             if (!t.ref.path.empty()) w.read_file("texture", t.ref.path);
         if (made.map_kind() != MapKind::None) w.read_file("texture", made.map().ref.path);

@@ -38,8 +38,8 @@ std::vector<std::string> LoadedPlugin::model_names() const {
     return names;
 }
 
-std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_dirs) {
-    std::vector<std::string> dirs(cli_dirs);
+std::vector<std::string> env_plugin_dirs() {
+    std::vector<std::string> dirs;
     if (const char* env = std::getenv("SPANGLE_PLUGIN_PATH"); env && *env) {
         std::string s(env);
         std::size_t start = 0;
@@ -49,6 +49,12 @@ std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_
             start = end + 1;
         }
     }
+    return dirs;
+}
+
+std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_dirs) {
+    std::vector<std::string> dirs(cli_dirs);
+    for (std::string& d : env_plugin_dirs()) dirs.push_back(std::move(d));
     const std::string exe = executable_dir();
     if (!exe.empty()) {
         dirs.push_back((fs::path(exe) / "plugins").string());

@@ -41,6 +41,9 @@ private:
  *  running binary. */
 std::vector<std::string> plugin_search_path(const std::vector<std::string>& cli_dirs);
 
+/** The folders $SPANGLE_PLUGIN_PATH lists (colon-separated, empty entries skipped), in order. */
+std::vector<std::string> env_plugin_dirs();
+
 /** Opens plugins by name from a search path and caches them. */
 class PluginLoader {
 public:
