@@ -23,7 +23,7 @@ NodeRef CellResolver::resolve(int64_t tx, int64_t ty, int depth, uint32_t ix, ui
         tx_ = tx;
         ty_ = ty;
         tile_ = tile_key(fp_.seed, tx, ty);
-        path_[0] = {0, 0, 0, root_count(fp_)};
+        path_[0] = {0, 0, 0, residual_count(fp_)};
         levels_ = 1;
     }
     // The deepest kept node that is an ancestor of the cell (or the cell itself).
@@ -51,7 +51,7 @@ NodeRef CellResolver::resolve(int64_t tx, int64_t ty, int depth, uint32_t ix, ui
 NodeRef resolve_cell(const FieldParams& fp, int64_t tx, int64_t ty, int depth, uint32_t ix,
                      uint32_t iy) {
     const uint64_t tk = tile_key(fp.seed, tx, ty);
-    NodeRef node{0, 0, 0, root_count(fp)};
+    NodeRef node{0, 0, 0, residual_count(fp)};
     while (node.depth < depth && node.n > 0) {
         // A leaf of the tree holds its flakes itself: a cell inside it is not split further.
         if (static_cast<int>(node.n) <= fp.leaf_size || node.depth >= fp.max_depth) return node;
@@ -74,17 +74,13 @@ uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos
 
 namespace {
 
-/** Virtual flakes per block (blocks of class c are 2^-(c + 3) of a tile wide: 3 x 64 x 4^c
- *  virtual flakes per tile). Few per block, so that a footprint's bounding box wastes little on
- *  the blocks along its edges (12 per block tested twice as many candidates as it kept). */
-constexpr uint32_t kPerBlock = 3;
 /** Classes more than this many below the densest one a footprint takes are left out: they hold
  *  4^-(kClassSpan + 1) / (1 - 1/4) of the density below class top, between 0.3% and 1.3% of a
  *  footprint's stand-ins, which a footprint half as wide (one class up) no longer keeps; each
  *  would test about a block's worth along the footprint's edges for fewer than one inside. (Two
  *  dropped a fifth of them at every halving.) */
 constexpr int kClassSpan = 4;
-/** The densest class (blocks 2^-(kMaxClass + 3) of a tile wide). */
+/** The densest class stand-ins take (blocks 2^-(kMaxClass + 3) of a tile wide). */
 constexpr int kMaxClass = 25;
 
 /** Scratch of add_stand_ins, one per thread, grown as needed: the candidates (a structure of
@@ -109,9 +105,10 @@ struct StandInScratch {
 
 }  // namespace
 
-void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
-                   const DirectionGrid& grid, const ColorTable& colors, const FresnelTable& fresnel,
-                   const FilmTables& film, V3 wo, std::vector<CacheEntry>& out) {
+void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint& p, float keep,
+                   uint32_t stand_ins, const DirectionGrid& grid, const ColorTable& colors,
+                   const FresnelTable& fresnel, const FilmTables& film, V3 wo,
+                   std::vector<CacheEntry>& out) {
     cf.smooth = 0.0f;
     const double area = p.area();
     // At most four times the average in all (the footprint's aggregates together).
@@ -121,32 +118,42 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
     thread_local StandInScratch scratch_tls;
     StandInScratch& sc = scratch_tls;
     uint32_t n_kept = 0;  // sc.kept_hash[0 .. n_kept - 1]
-    // The virtual flakes: classes c = 0, 1, ... of density rho_c = 192 x 4^c per tile, in blocks
-    // 2^-(c + 3) of a tile wide, kPerBlock each, placed by hashes of (tile, class, block, index):
-    // they lie where they lie whatever the footprint. A footprint of area A takes the density
-    // S / A (S = stand_ins): the classes below `top` whole, and of class `top` a share `frac`: in
-    // each block floor(3 frac) flakes, and one more when the block's own number falls under the
-    // rest. As a footprint shrinks (a camera dollies in) frac grows, then `top` does: the smaller
-    // footprint's virtual flakes are those of the larger one inside it, and more, and its glints
-    // stay where they were. (They were the cells of the footprint's level of the quad-tree: a
-    // footprint half as wide took new cells and new stand-ins, and its lobe was uncorrelated with
-    // the larger one's.)
+    // The stand-ins are the field's ranked classes (field.h): class c holds 192 x 4^c flakes per
+    // tile (a Poisson count of mean 3 in each block 2^-(c + 3) of a tile wide), the last one
+    // perhaps a share of that. A footprint of area A takes the density S / A (S = stand_ins):
+    // the classes below `top` whole, and of class `top` the mean `top_mean` per block (the
+    // same block's count, by inversion of its own uniform, never falls as the mean grows). As a
+    // footprint shrinks (a camera dollies in) the density grows: the smaller footprint's
+    // stand-ins are those of the larger one inside it, and more, and its glints stay where they
+    // were; and they are real flakes, which the enumeration finds too where a cell becomes few
+    // enough to enumerate. A footprint smaller than S / (N / 2) of a tile wants more than the
+    // classes hold: it takes them all and virtual classes beyond them, of the same layout
+    // (lost where its cell becomes enumerated, but such a footprint holds fewer than 2 S
+    // flakes); without them its few flakes were the smooth lobe's haze, not glints.
+    const ClassLayout cl = class_layout(fp);
+    const auto class_mean = [&](int c) { return c > cl.last ? kClassMean : cl.mean(c); };
     const bool any_area = area > 0.0 && std::isfinite(area) && !singular(p);
-    const double density = any_area ? static_cast<double>(stand_ins) / area : 0.0;
+    // (Denser by 1 / keep where the view thins the flakes: as many stand-ins survive it.)
+    const double density = any_area ? static_cast<double>(stand_ins) /
+                                          (area * std::clamp(static_cast<double>(keep), 1e-3, 1.0))
+                                    : 0.0;
     int top = 0;
-    double below = 0.0;  // density of the classes below top
-    double rho = 192.0;  // class top's
-    while (top < kMaxClass && below + rho < density) {
-        below += rho;
+    double below = 0.0;              // density of the classes below top
+    double rho = 64.0 * kClassMean;  // class top's, when whole
+    while (top < kMaxClass && below + rho * class_mean(top) / kClassMean < density) {
+        below += rho * class_mean(top) / kClassMean;
         rho *= 4.0;
         ++top;
     }
-    const double share = kPerBlock * std::clamp((density - below) / rho, 0.0, 1.0);
-    const double whole_top = std::floor(share);
-    const double rest_top = share - whole_top;
+    const double top_mean =
+        std::min(class_mean(top), kClassMean * std::clamp((density - below) / rho, 0.0, 1.0));
+    // Class top's law: the field's own where the footprint takes all of it (the same counts,
+    // bit for bit), else that of its share.
+    const PoissonCdf top_law =
+        top < cl.last && top_mean == kClassMean ? kWholeClass : PoissonCdf(top_mean);
     const int lowest = std::max(0, top - kClassSpan);
     for (uint32_t a = 0; any_area && a < cf.n_agg; ++a) {
-        // Each tile's virtual flakes once (at its first aggregate).
+        // Each tile's classes once (at its first aggregate).
         const Aggregate& ag = cf.agg[a];
         bool seen = false;
         for (uint32_t b = 0; b < a; ++b)
@@ -157,10 +164,9 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         local.cv -= static_cast<double>(ag.ty);
         const double hx = 0.5 * (std::fabs(local.ax) + std::fabs(local.bx)),
                      hy = 0.5 * (std::fabs(local.ay) + std::fabs(local.by));
-        // The candidates of every class, block by block: their hashes and places (a block's
-        // kPerBlock slots always, of which the first `count` are kept: a loop of one length),
-        // then the inside tests in a loop of floating-point arithmetic alone (vector code; a
-        // branch on whether one lies inside was mispredicted for half of them).
+        // The candidates of every class, block by block: their hashes and places, then the
+        // inside tests in a loop of floating-point arithmetic alone (vector code; a branch on
+        // whether one lies inside was mispredicted for half of them).
         uint32_t m = 0;
         for (int c = lowest; c <= top; ++c) {
             const double block = pow2_neg(c + 3);
@@ -176,37 +182,36 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
             // A bound on the work (a needle's bounding box): 64 x 64 blocks.
             const int64_t n_blocks = (bx1 - bx0 + 1) * (by1 - by0 + 1);
             if (n_blocks > 4096) continue;
-            const uint64_t ckey = mix(ag.tile, 0x57a2d000u + static_cast<uint64_t>(c));
-            sc.reserve(m + static_cast<std::size_t>(n_blocks) * kPerBlock);
-            uint64_t* const chash = sc.hash.data();
-            double* const cx = sc.x.data();
-            double* const cy = sc.y.data();
-            const double step = 0x1p-24 * block;
+            const double mean = c < top ? class_mean(c) : top_mean;
+            if (!(mean > 0.0)) continue;
+            // Below top: the field's whole classes, its last (perhaps partial) one, the virtual
+            // ones beyond; top: its own share's law.
+            PoissonCdf last_law;
+            if (c < top && c == cl.last) last_law = PoissonCdf(cl.mean(c));
+            const PoissonCdf& law = c < top ? (c == cl.last ? last_law : kWholeClass) : top_law;
+            const uint64_t ckey = class_key(ag.tile, c);
+            // Room for 8 a block (a count above 7 is rare: grown then), through plain pointers
+            // (the scratch is a thread_local: each use of it through the vectors called
+            // __tls_get_addr).
+            sc.reserve(m + static_cast<std::size_t>(n_blocks) * 8);
+            std::size_t room = sc.hash.size();
+            uint64_t* chash = sc.hash.data();
+            double* cx = sc.x.data();
+            double* cy = sc.y.data();
             for (int64_t by = by0; by <= by1; ++by)
                 for (int64_t bx = bx0; bx <= bx1; ++bx) {
-                    const uint64_t bkey =
-                        mix(ckey, static_cast<uint64_t>(by) << 32 | static_cast<uint64_t>(bx));
-                    // Its count: all of a class below top; of class top, floor(share) and one
-                    // more when the block's number falls under the rest (monotone in share).
-                    const uint32_t count =
-                        c < top
-                            ? kPerBlock
-                            : static_cast<uint32_t>(whole_top) +
-                                  (static_cast<double>(static_cast<int64_t>(bkey >> 11)) * 0x1p-53 <
-                                           rest_top
-                                       ? 1u
-                                       : 0u);
-                    // The place in the block, 24 bits each way: (block x 2^24 + bits) 2^-24
-                    // block, exact in double (through signed integers: one instruction each).
-                    const int64_t ox = bx << 24, oy = by << 24;
-                    for (uint32_t i = 0; i < kPerBlock; ++i) {
-                        const uint64_t h = mix(bkey, i);
-                        chash[m + i] = h;
-                        cx[m + i] = static_cast<double>(ox + static_cast<int64_t>(h >> 40)) * step;
-                        cy[m + i] =
-                            static_cast<double>(oy + static_cast<int64_t>((h >> 16) & 0xffffffu)) *
-                            step;
+                    const uint64_t bkey = block_key(ckey, bx, by);
+                    const uint32_t count = law.count(bkey);
+                    if (m + count > room) {
+                        sc.reserve(m + count);
+                        room = sc.hash.size();
+                        chash = sc.hash.data();
+                        cx = sc.x.data();
+                        cy = sc.y.data();
                     }
+                    for (uint32_t i = 0; i < count; ++i)
+                        chash[m + i] =
+                            class_flake_position(bkey, i, bx, by, block, cx[m + i], cy[m + i]);
                     m += count;
                 }
         }
@@ -232,6 +237,9 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         const uint64_t* const chash = sc.hash.data();
         for (uint32_t j = 0; j < m; ++j) {
             if (!cin[j]) continue;
+            if (keep < 1.0f &&
+                !kept(cx[j] + static_cast<double>(ag.tx), cy[j] + static_cast<double>(ag.ty), keep))
+                continue;
             // The aggregate whose cell holds it (cells of other tiles, or cells the tree
             // enumerates, have their own flakes).
             const double x = cx[j], y = cy[j];
@@ -263,6 +271,8 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
     }
     uint32_t found_all = 0;
     EntryBatch batch;
+    FieldParams lazy = fp;
+    lazy.lazy_normals = true;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const uint32_t k = cf.agg[a].count;
         const uint32_t room = std::min(k, cap - found_all);
@@ -281,17 +291,16 @@ void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
         const float scale = std::sqrt(static_cast<float>(k) / static_cast<float>(n));
         cf.smooth += static_cast<float>(k) - scale * static_cast<float>(n);
         for (uint32_t q = 0; q < n; ++q) {
-            const uint64_t h = mix(found[q], 0x5eed);
-            float s, t;
-            unit2(h, s, t);
+            // The very flake the enumeration makes of it.
+            Flake f;
+            class_flake_finish(lazy, found[q], f);
             const float* col = colors.single;
             const FresnelTable* fr = &fresnel;
             if (own) {
-                const uint64_t id = mix(h, 0xc0);
-                col = colors.pick(static_cast<float>(id >> 40) * 0x1p-24f, id);
-                fr = &film.pick(id, fresnel);
+                col = colors.pick(f.color_u, f.id);
+                fr = &film.pick(f.id, fresnel);
             }
-            batch.add(wo, grid.alpha, s, t, col, fr, scale, out);
+            batch.add(wo, grid.alpha, f.s, f.t, col, fr, scale, out);
         }
     }
     flush_entries(wo, grid.alpha, batch, out);

@@ -11,15 +11,16 @@
 // - its count inside the footprint is k = B(n, rho), rho the share of the cell's area the
 //   footprint covers, drawn by inverting a uniform fixed per cell (so k only grows as the
 //   footprint covers more of the cell);
-// - its stand-ins are virtual flakes laid out once per tile, whatever the footprint: classes
-//   c = 0, 1, ... of 192 x 4^c per tile, 3 per block of 2^-(c + 3) of the tile, each with a
-//   position, a normal drawn from the flake distribution, its own colour and film, all a pure
-//   function of (seed, tile, class, block, index). A footprint of area A takes the density
+// - its stand-ins are the field's ranked classes (field.h): real flakes, laid out once per tile
+//   in classes c = 0, 1, ... of 192 x 4^c per tile (a Poisson count of mean 3 per block of
+//   2^-(c + 3) of the tile), whatever the footprint. A footprint of area A takes the density
 //   `stand_ins` / A of them (whole classes, and a share of the densest: nested as A shrinks, so
-//   a dollying camera keeps its glints). The K of them inside the footprint and the cell (at
-//   most k: those of smallest hash) enter the reflection cache as real flakes do, each with its
-//   weight times sqrt(k / K); the other k (1 - beta) flakes' worth, beta = sqrt(K / k), is the
-//   smooth lobe (the exact expectation of one flake's lobe) times k (1 - beta) flakes of the
+//   a dollying camera keeps its glints, and found again by the enumeration where the cell
+//   becomes few enough to enumerate; virtual classes of the same layout beyond the field's
+//   where a footprint wants more than they hold). The K of them inside the footprint and the
+//   cell (at most k: those of smallest hash) enter the reflection cache as real flakes do, each
+//   with its weight times sqrt(k / K); the other k (1 - beta) flakes' worth, beta = sqrt(K / k),
+//   is the smooth lobe (the exact expectation of one flake's lobe) times k (1 - beta) flakes of the
 //   expected weight. When a
 //   footprint's aggregate holds at most as many flakes as it finds stand-ins, k of them are its
 //   flakes (beta = 1).
@@ -38,9 +39,9 @@
 // it), the stand-ins give the lobe a relative variance beta^2 / (K p) = 1 / (k p), that of k real
 // flakes; with few flakes per cone (K = k) the glints are single flakes, as real ones are.
 //
-// Stand-ins are statistical: a pure function of (seed, cell, block, index), the same from every
-// view and frame, but not the same flakes as the enumeration would find (a cell switches between
-// the two when the footprint's size crosses the cell's).
+// Stand-ins are a pure function of (seed, tile, class, block, index), the same from every view
+// and frame, and the same flakes as the enumeration finds (but for the virtual classes beyond the
+// field's): a cell switching from counted to enumerated as a footprint shrinks keeps them.
 
 #include <cstdint>
 #include <vector>
@@ -98,8 +99,8 @@ constexpr double kSparseExactCap = 4096.0;
  *  glints are stand-ins. Dense cells stay counted. */
 uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos_o);
 
-/** Stand-ins a footprint finds on average by default (the `stand_ins` parameter): the cells'
- *  virtual flakes are this dense. (Drawn per footprint and fewer at grazing views, 16 there, a
+/** Stand-ins a footprint finds on average by default (the `stand_ins` parameter): the classes it
+ *  takes are this dense. (Drawn per footprint and fewer at grazing views, 16 there, a
  *  receding flake plane's glints were a grey floor with a few bright dashes where the enumeration
  *  shows dense sparkle; and stand-ins keyed by where the footprint lay in its cell, the samples of
  *  one pixel fell on up to four places and averaged independent stand-ins: a smoother pixel than
@@ -107,15 +108,17 @@ uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos
 constexpr uint32_t kStandIns = 64;
 
 /** Appends the stand-ins of cf's aggregates inside footprint p, `stand_ins` per footprint area
- *  on average, seen from wo, to the reflection cache `out` and sets cf.smooth (see the top of
- *  this file). */
-void add_stand_ins(CountedFootprint& cf, const Footprint& p, uint32_t stand_ins,
-                   const DirectionGrid& grid, const ColorTable& colors, const FresnelTable& fresnel,
-                   const FilmTables& film, V3 wo, std::vector<CacheEntry>& out);
+ *  on average (those that survive the view's thinning to `keep`, as kept() thins the
+ *  enumeration's flakes), seen from wo, to the reflection cache `out` and sets cf.smooth (see the
+ * top of this file). */
+void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint& p, float keep,
+                   uint32_t stand_ins, const DirectionGrid& grid, const ColorTable& colors,
+                   const FresnelTable& fresnel, const FilmTables& film, V3 wo,
+                   std::vector<CacheEntry>& out);
 
 /** Walks the cells of P: calls exact(const Flake&) for every flake of the enumerated cells that
  *  lies inside P and fills `out` with the aggregates. `exact_flakes` is the largest cell count
- *  that is enumerated. Work is bounded: at most 16 tiles, 4 cells each. */
+ *  that is enumerated. Work is bounded: at most 4 tiles, 4 cells each. */
 template <class Exact>
 void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flakes,
                   CountedFootprint& out, Exact&& exact);
@@ -164,6 +167,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
     }
     const int depth = footprint_level(fp, p);
     const double size = pow2_neg(depth);
+    const ClassLayout cl = class_layout(fp);
     CellResolver resolver(fp);
     for (int64_t ty = tr.ty0; ty <= tr.ty1; ++ty)
         for (int64_t tx = tr.tx0; tx <= tr.tx1; ++tx) {
@@ -181,6 +185,10 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
             local.cv = cv;
             NodeRef seen[4];
             int n_seen = 0;
+            // The cells enumerated: their class flakes are visited together after the loop (the
+            // coarse classes' blocks, larger than the cells, once for them all).
+            double box[4][3];
+            int n_box = 0;
             for (int64_t iy = iy0; iy <= iy1; ++iy)
                 for (int64_t ix = ix0; ix <= ix1; ++ix) {
                     const double x0 = static_cast<double>(ix) * size,
@@ -188,7 +196,6 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     if (!overlaps(local, x0, y0, x0 + size, y0 + size)) continue;
                     const NodeRef node = resolver.resolve(tx, ty, depth, static_cast<uint32_t>(ix),
                                                           static_cast<uint32_t>(iy));
-                    if (node.n == 0) continue;
                     // Cells inside one leaf share it: visit each node once.
                     bool dup = false;
                     for (int k = 0; k < n_seen; ++k)
@@ -196,27 +203,65 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                                       seen[k].iy == node.iy);
                     if (dup) continue;
                     seen[n_seen++] = node;
-                    if (node.n <= exact_flakes) {
+                    const double nsize = pow2_neg(node.depth);
+                    const uint64_t key =
+                        node_key(tile_key(fp.seed, tx, ty), node.depth, node.ix, node.iy);
+                    // The cell's flakes: its tree node's and its share of the classes'. Whether
+                    // it is enumerated follows their expectation (a draw deciding it would
+                    // enumerate the cells whose draw fell low: more than their share of flakes,
+                    // and none of a cell whose node and draw were both empty); its count, if
+                    // counted, is drawn.
+                    const double expected =
+                        static_cast<double>(node.n) + cl.per_tile * nsize * nsize;
+                    if (expected <= 0.0) continue;
+                    if (expected <= static_cast<double>(exact_flakes)) {
+                        // (The budget bounds nothing here: the cell holds few flakes.)
                         bool trunc = false;
-                        flakes_in_node(fp, p, tx, ty, node.depth, node.ix, node.iy, node.n, node.n,
-                                       trunc, exact);
+                        flakes_in_node(fp, nullptr, p, tx, ty, node.depth, node.ix, node.iy, node.n,
+                                       1u << 30, trunc, exact);
+                        box[n_box][0] = node.ix * nsize;
+                        box[n_box][1] = node.iy * nsize;
+                        box[n_box++][2] = nsize;
                         continue;
                     }
                     // The share of the cell inside P, and as many of its flakes (monotone in it).
-                    const double nsize = pow2_neg(node.depth);
                     const double nx0 = node.ix * nsize, ny0 = node.iy * nsize;
                     const double rho =
                         overlap_area(local, nx0, ny0, nx0 + nsize, ny0 + nsize) / (nsize * nsize);
-                    const uint64_t key =
-                        node_key(tile_key(fp.seed, tx, ty), node.depth, node.ix, node.iy);
-                    const uint32_t k = binomial(node.n, std::clamp(rho, 0.0, 1.0),
-                                                unit(mix(key, 0x51)), fp.exact_below);
-                    out.expected += static_cast<double>(node.n) * std::clamp(rho, 0.0, 1.0);
+                    const uint32_t n = node.n + class_count_in_cell(cl, key, nsize);
+                    const uint32_t k = binomial(n, std::clamp(rho, 0.0, 1.0), unit(mix(key, 0x51)),
+                                                fp.exact_below);
+                    out.expected += expected * std::clamp(rho, 0.0, 1.0);
                     if (k == 0 || out.n_agg >= kMaxAggregates) continue;
                     out.agg[out.n_agg++] = {key,  tile_key(fp.seed, tx, ty), k, tx, ty, nx0, ny0,
                                             nsize};
                     out.aggregated += k;
                 }
+            if (n_box > 0) {
+                double x0 = box[0][0], y0 = box[0][1], x1 = x0 + box[0][2], y1 = y0 + box[0][2];
+                for (int b = 1; b < n_box; ++b) {
+                    x0 = std::min(x0, box[b][0]);
+                    y0 = std::min(y0, box[b][1]);
+                    x1 = std::max(x1, box[b][0] + box[b][2]);
+                    y1 = std::max(y1, box[b][1] + box[b][2]);
+                }
+                const auto in_boxes = [&](double x, double y) {
+                    bool in = false;
+                    for (int b = 0; b < n_box; ++b)
+                        in = in || (x >= box[b][0] && x < box[b][0] + box[b][2] && y >= box[b][1] &&
+                                    y < box[b][1] + box[b][2]);
+                    return in;
+                };
+                const auto emit = [&](Flake& f, uint64_t) {
+                    f.u += static_cast<double>(tx);
+                    f.v += static_cast<double>(ty);
+                    exact(static_cast<const Flake&>(f));
+                    return true;
+                };
+                bool trunc = false;
+                class_flakes_in(fp, cl, local, tile_key(fp.seed, tx, ty), x0, y0, x1, y1, in_boxes,
+                                1u << 30, trunc, emit);
+            }
         }
 }
 

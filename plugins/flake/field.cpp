@@ -219,6 +219,24 @@ uint32_t binomial(uint32_t n, double p, double u, int exact_below) {
     return k;
 }
 
+uint32_t poisson(double mean, double u) {
+    if (!(mean > 0.0)) return 0;
+    if (mean >= kPoissonNormalFrom) {
+        const double k = mean + std::sqrt(mean) * normal_quantile(u) + 0.5;
+        return static_cast<uint32_t>(std::clamp(k, 0.0, 4.0e9));
+    }
+    // (Drawn per cell the counting algorithm visits: reciprocals from the table, no division.)
+    const BinomialTables& t = tables();
+    double pmf = std::exp(-mean), cdf = pmf;
+    uint32_t k = 0;
+    while (u >= cdf && k < 200) {
+        ++k;
+        pmf *= mean * t.inv[k];
+        cdf += pmf;
+    }
+    return k;
+}
+
 void split_counts(uint64_t key, uint32_t n, int exact_below, uint32_t out[4]) {
     if (static_cast<int64_t>(n) < std::min(exact_below, kMaxExact)) {
         // Flake i draws its child from bits 2i, 2i + 1 of word i / 32: an exact multinomial.
@@ -265,6 +283,37 @@ void split_counts_cached(uint64_t key, uint32_t n, int exact_below, uint32_t out
     }
     split_counts(key, n, exact_below, out);
     e = Entry{key, n, exact_below, {out[0], out[1], out[2], out[3]}};
+}
+
+PoissonCdf::PoissonCdf(double mean) {
+    double pmf = std::exp(-mean), sum = pmf;
+    for (uint32_t j = 0; j < kClassMaxPerBlock; ++j) {
+        cdf[j] = sum;
+        pmf *= mean / static_cast<double>(j + 1);
+        sum += pmf;
+    }
+}
+
+const PoissonCdf kWholeClass(kClassMean);
+
+ClassLayout class_layout(const FieldParams& fp) {
+    ClassLayout cl;
+    const uint32_t n = root_count(fp);
+    const uint32_t t = n / 2;
+    cl.residual = n - t;
+    cl.per_tile = t;
+    if (t == 0) return cl;
+    // Whole classes while they fit (class c holds 192 x 4^c per tile), then a share of the next.
+    double below = 0.0, rho = 64.0 * kClassMean;
+    int c = 0;
+    while (below + rho < static_cast<double>(t)) {
+        below += rho;
+        rho *= 4.0;
+        ++c;
+    }
+    cl.last = c;
+    cl.last_share = (static_cast<double>(t) - below) / rho;
+    return cl;
 }
 
 uint64_t tile_key(uint64_t seed, int64_t tx, int64_t ty) {

@@ -1,10 +1,12 @@
 #pragma once
 // The flake field: which flakes exist, where, and which way they face. Every flake is a pure
-// function of (material seed, uv tile, quad-tree node, index in the leaf), so the same flakes are
-// seen from every view, in every frame, on every thread count. Both evaluation algorithms (the
-// enumerating reflection cache and the counting tree) read this one field.
+// function of (material seed, uv tile, quad-tree node, index in the leaf) or (material seed, uv
+// tile, class, block, index), so the same flakes are seen from every view, in every frame, on
+// every thread count. Both evaluation algorithms (the enumerating reflection cache and the
+// counting tree) read this one field.
 //
-// A tile (integer uv square) holds N flakes. Its quad-tree splits a node's count among the four
+// A tile (integer uv square) holds N flakes: floor(N / 2) on average in ranked classes (below,
+// at ClassLayout) and the rest in its quad-tree. The quad-tree splits a node's count among the four
 // children with an exact multinomial of p = 1/4 (two random bits per flake, counted with
 // popcounts) below `exact_below` flakes and a normal approximation above. A node with at most
 // `leaf_size` flakes, or at `max_depth`, is a leaf: its flakes get positions uniform in the cell
@@ -226,9 +228,136 @@ inline void leaf_flake_finish(const FieldParams& fp, uint64_t h, Flake& f) {
     f.color_u = static_cast<float>(g & 0xffffu) * 0x1p-16f;
 }
 
-/** The flake count of one tile, as the root of its quad-tree. */
+/** Whether the flake at (u, v) survives a view's thinning to the share `keep` (a hash of its
+ *  place: a pure function of the flake, so the same flakes survive from every view, and the
+ *  counting algorithm's stand-ins as the enumeration's flakes). */
+inline bool kept(double u, double v, float keep) {
+    if (keep >= 1.0f) return true;
+    const uint64_t bu = std::bit_cast<uint64_t>(u), bv = std::bit_cast<uint64_t>(v);
+    return unit(mix(mix(bu, bv), 0x7417)) < static_cast<double>(keep);
+}
+
+/** The flake count of one tile (its expectation: the ranked classes below are a Poisson count). */
 inline uint32_t root_count(const FieldParams& fp) {
     return static_cast<uint32_t>(std::min(fp.flakes_per_tile + 0.5, 2147483647.0));
+}
+
+// Ranked classes. Half of a tile's flakes (on average) are laid out in classes c = 0, 1, ...:
+// class c cuts the tile into blocks 2^-(c + 3) wide and puts a Poisson count of mean 3 flakes in
+// each (192 x 4^c per tile), at places, normals and colours that are hashes of (tile, class,
+// block, index); the last class present may be partial (a smaller mean per block). The other
+// half are the quad-tree's (a fixed count spread uniformly: binomial in any region). Both place
+// each flake uniformly and independently of the others, so their union is one flake field with
+// the tree's old statistics (mean N per tile, counts in a region binomial-like, variance about
+// the mean), and the enumeration visits both. The classes are what the counting algorithm's
+// stand-ins are: a footprint that the tree counts takes the flakes of the classes up to a density
+// of its own (counted_lobe.h), real flakes the enumeration also finds, so that a cell switching
+// from counted to enumerated as a camera dollies in keeps the glints it had.
+
+/** Mean flakes per block of a whole class. */
+constexpr double kClassMean = 3.0;
+/** The most flakes one block holds (the Poisson count stops there: the chance of more is below
+ *  1e-11 at mean 3). */
+constexpr uint32_t kClassMaxPerBlock = 24;
+
+/** The Poisson law of one mean, tabulated for drawing counts by inversion: cdf[j] = P(X <= j). */
+struct PoissonCdf {
+    double cdf[kClassMaxPerBlock] = {};
+    PoissonCdf() = default;
+    explicit PoissonCdf(double mean);
+    /** The count whose cdf first exceeds the block's own uniform (at most kClassMaxPerBlock):
+     *  for a block, it never decreases as the mean grows (a footprint's share of a class nests in
+     *  the class, and a smaller share in a larger one). Without branches: a count drawn per
+     *  block was mispredicted as often as not. */
+    uint32_t count(uint64_t bkey) const {
+        const double u = unit(bkey);
+        // How many of cdf[0 .. 6] are at most u, by a search of three steps without branches;
+        // seven and more (3.4% at mean 3) counted on.
+        uint32_t k = u >= cdf[3] ? 4u : 0u;
+        k += u >= cdf[k + 1] ? 2u : 0u;
+        k += u >= cdf[k] ? 1u : 0u;
+        if (k == 7)
+            for (uint32_t j = 7; j < kClassMaxPerBlock; ++j) k += u >= cdf[j] ? 1u : 0u;
+        return k;
+    }
+};
+
+/** The law of a whole class's blocks (mean kClassMean). */
+extern const PoissonCdf kWholeClass;
+
+/** How a tile's flakes are shared between the classes and the quad-tree. */
+struct ClassLayout {
+    int last = -1;            ///< classes 0 .. last exist (none when -1)
+    double last_share = 0.0;  ///< class `last` has the mean kClassMean x last_share per block
+    uint32_t residual = 0;    ///< flakes of the tile's quad-tree
+    double per_tile = 0.0;    ///< class flakes per tile, on average (all classes)
+    /** The mean per block of class c (0 beyond `last`). */
+    double mean(int c) const {
+        return c < last ? kClassMean : c == last ? kClassMean * last_share : 0.0;
+    }
+};
+
+/** The layout of fp's tiles: floor(N / 2) flakes per tile in classes, the rest in the tree. */
+ClassLayout class_layout(const FieldParams& fp);
+
+/** Key of class c of a tile. */
+inline uint64_t class_key(uint64_t tile_key, int c) {
+    return mix(tile_key, 0x57a2d000u + static_cast<uint64_t>(c));
+}
+
+/** Key of block (bx, by) of a class. */
+inline uint64_t block_key(uint64_t class_key, int64_t bx, int64_t by) {
+    return mix(class_key, static_cast<uint64_t>(by) << 32 | static_cast<uint64_t>(bx));
+}
+
+/** Flake i of a block of width `block`: its hash, and its place (24 bits each way:
+ *  (block index x 2^24 + bits) x 2^-24 block, exact in double). */
+inline uint64_t class_flake_position(uint64_t bkey, uint32_t i, int64_t bx, int64_t by,
+                                     double block, double& x, double& y) {
+    const uint64_t h = mix(bkey, i);
+    const double step = 0x1p-24 * block;
+    x = static_cast<double>((bx << 24) + static_cast<int64_t>(h >> 40)) * step;
+    y = static_cast<double>((by << 24) + static_cast<int64_t>((h >> 16) & 0xffffffu)) * step;
+    return h;
+}
+
+/** A class flake's normal, colour number and id from its hash h (the counting algorithm's
+ *  stand-ins read the same: counted_lobe.cpp). */
+inline void class_flake_finish(const FieldParams& fp, uint64_t h, Flake& f) {
+    const uint64_t g = mix(h, 0x5eed);
+    unit2(g, f.s, f.t);
+    if (!fp.lazy_normals) f.m = flake_normal(fp.alpha, f.s, f.t);
+    f.id = mix(g, 0xc0);
+    f.color_u = static_cast<float>(f.id >> 40) * 0x1p-24f;
+}
+
+/** Means from which poisson() takes the normal approximation. */
+constexpr double kPoissonNormalFrom = 64.0;
+
+/** Deterministic Poisson count of mean `mean` from a uniform u: exact inversion below a mean of
+ *  kPoissonNormalFrom, the normal approximation (rounded, at least 0) from there. */
+uint32_t poisson(double mean, double u);
+
+/** The class flakes of a cell (of `size` tile units, node key `key`), as the counting algorithm
+ *  counts them: a Poisson draw of their expectation, fixed per cell (counting them would visit
+ *  up to all of the classes' blocks in it; they are a Poisson process, so the draw has their
+ *  count's law, though not the enumeration's very count). */
+inline uint32_t class_count_in_cell(const ClassLayout& cl, uint64_t key, double size) {
+    return poisson(cl.per_tile * size * size, unit(mix(key, 0xc1a55)));
+}
+
+/** Visits the class flakes whose centres lie in the box [x0, x1) x [y0, y1) of tile (tx, ty),
+ *  in `region` (region(x, y): a part of the box) and inside P (`local`: P relative to the tile),
+ *  or whose facets reach into it: emit(Flake&, hash) returns false to stop. Sets `truncated`
+ *  (and stops) where the blocks under P would hold far more than `budget` flakes. */
+template <class Region, class Emit>
+void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footprint& local,
+                     uint64_t tile, double x0, double y0, double x1, double y1, Region&& region,
+                     uint32_t budget, bool& truncated, Emit&& emit);
+
+/** The flakes of the tile's quad-tree (the root's count). */
+inline uint32_t residual_count(const FieldParams& fp) {
+    return class_layout(fp).residual;
 }
 
 /** Tiles a footprint spans: [tx0, tx1] x [ty0, ty1]. */
@@ -244,13 +373,14 @@ struct TileRange {
 };
 TileRange tiles_of(const Footprint& p);
 
-/** Enumerates the flakes of node (depth, ix, iy, n) of tile (tx, ty) that lie inside P, calling
- *  visit(const Flake&) for each, stopping after `budget` of them. Returns the number visited and
- *  sets `truncated` when more existed. */
+/** Enumerates the flakes of node (depth, ix, iy) of tile (tx, ty) that lie inside P: the class
+ *  flakes (layout *cl = class_layout(fp); none when cl is null) whose centres lie in its cell,
+ *  then the n of its quad-tree. Calls visit(const Flake&) for each, stopping after `budget` of
+ * them. Returns the number visited and sets `truncated` when more existed. */
 template <class Visit>
-uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, int64_t ty,
-                        int depth, uint32_t ix, uint32_t iy, uint32_t n, uint32_t budget,
-                        bool& truncated, Visit&& visit);
+uint32_t flakes_in_node(const FieldParams& fp, const ClassLayout* cl, const Footprint& p,
+                        int64_t tx, int64_t ty, int depth, uint32_t ix, uint32_t iy, uint32_t n,
+                        uint32_t budget, bool& truncated, Visit&& visit);
 
 /** Enumerates every flake inside P (all tiles it touches, at most 64), as flakes_in_node. */
 template <class Visit>
@@ -259,10 +389,85 @@ uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_
 
 // ------------------------------------------------------------------------------------ templates
 
+template <class Region, class Emit>
+void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footprint& local,
+                     uint64_t tile, double x0, double y0, double x1, double y1, Region&& region,
+                     uint32_t budget, bool& truncated, Emit&& emit) {
+    if (cl.last < 0 || (singular(local) && !fp.facet)) return;
+    // The part of P's bounding box (widened by the facets' reach) inside the box. (A centre that
+    // is not a number does not come here: tiles_of() gives it every tile, too many.)
+    const double hx = local.half_width(), hy = local.half_height();
+    const double lx = std::max(x0, local.cu - hx), ux = std::min(x1, local.cu + hx);
+    const double ly = std::max(y0, local.cv - hy), uy = std::min(y1, local.cv + hy);
+    if (!(lx <= ux && ly <= uy)) return;
+    // The flakes P holds in the box on average, and the candidates under its bounding box: far
+    // more of the one than the budget, or of the other than the budget allows work for, and the
+    // footprint is truncated before any is hashed. (The candidates alone misjudged a sliver of
+    // P over a tile: few flakes inside, many under the box.)
+    const double inside = cl.per_tile * overlap_area(local, x0, y0, x1, y1);
+    if (!fp.facet && inside > 4.0 * static_cast<double>(budget) + 64.0) {
+        truncated = true;
+        return;
+    }
+    double candidates = 0.0;
+    for (int c = 0; c <= cl.last; ++c) {
+        const double block = pow2_neg(c + 3);
+        const double last_block = 1.0 / block - 1.0;
+        const auto index = [&](double x) {
+            return static_cast<int64_t>(std::clamp(std::floor(x / block), 0.0, last_block));
+        };
+        const int64_t bx0 = index(lx), bx1 = index(ux), by0 = index(ly), by1 = index(uy);
+        const double mean = cl.mean(c);
+        // (The last class's law tabulated here: a layout is made per footprint, and most
+        // footprints the counting algorithm does not enumerate.)
+        PoissonCdf last_law;
+        if (c == cl.last) last_law = PoissonCdf(mean);
+        const PoissonCdf& law = c < cl.last ? kWholeClass : last_law;
+        // (Too many candidates: a needle's bounding box.)
+        candidates +=
+            mean * static_cast<double>(bx1 - bx0 + 1) * static_cast<double>(by1 - by0 + 1);
+        if (candidates > 64.0 * static_cast<double>(budget) + 65536.0) {
+            truncated = true;
+            return;
+        }
+        const uint64_t ck = class_key(tile, c);
+        for (int64_t by = by0; by <= by1; ++by)
+            for (int64_t bx = bx0; bx <= bx1; ++bx) {
+                const uint64_t bk = block_key(ck, bx, by);
+                const uint32_t count = law.count(bk);
+                // Which of the block's flakes lie in the box, the region and P, tested without
+                // branches (whether one does is a coin toss along the edges), then those emitted.
+                uint64_t hs[kClassMaxPerBlock];
+                double xs[kClassMaxPerBlock], ys[kClassMaxPerBlock];
+                uint32_t found = 0;
+                for (uint32_t i = 0; i < count; ++i) {
+                    double x, y;
+                    hs[found] = class_flake_position(bk, i, bx, by, block, x, y);
+                    xs[found] = x;
+                    ys[found] = y;
+                    const bool in = (x >= x0) & (x < x1) & (y >= y0) & (y < y1) & region(x, y) &
+                                    (fp.facet != nullptr || inside_nonsingular(local, x, y));
+                    found += in ? 1u : 0u;
+                }
+                for (uint32_t j = 0; j < found; ++j) {
+                    Flake f;
+                    f.u = xs[j];
+                    f.v = ys[j];
+                    if (fp.facet) {
+                        f.cover = facet_coverage(local, *fp.facet, fp.facet_size, f.u, f.v, hs[j]);
+                        if (!(f.cover > 0.0f)) continue;
+                    }
+                    class_flake_finish(fp, hs[j], f);
+                    if (!emit(f, hs[j])) return;
+                }
+            }
+    }
+}
+
 template <class Visit>
-uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, int64_t ty,
-                        int depth, uint32_t ix, uint32_t iy, uint32_t n, uint32_t budget,
-                        bool& truncated, Visit&& visit) {
+uint32_t flakes_in_node(const FieldParams& fp, const ClassLayout* cl, const Footprint& p,
+                        int64_t tx, int64_t ty, int depth, uint32_t ix, uint32_t iy, uint32_t n,
+                        uint32_t budget, bool& truncated, Visit&& visit) {
     const uint64_t tk = tile_key(fp.seed, tx, ty);
     // The footprint relative to this tile's origin.
     Footprint local = p;
@@ -278,6 +483,25 @@ uint32_t flakes_in_node(const FieldParams& fp, const Footprint& p, int64_t tx, i
     int top = 0;
     stack[top++] = {depth, ix, iy, n};
     uint32_t visited = 0;
+    // The class flakes of the node's cell first (finished already: placed and visited).
+    if (cl) {
+        const double size = pow2_neg(depth);
+        const auto emit_class = [&](Flake& f, uint64_t) {
+            if (visited >= budget) {
+                truncated = true;
+                return false;
+            }
+            f.u += static_cast<double>(tx);
+            f.v += static_cast<double>(ty);
+            visit(static_cast<const Flake&>(f));
+            ++visited;
+            return true;
+        };
+        class_flakes_in(
+            fp, *cl, local, tk, ix * size, iy * size, (ix + 1) * size, (iy + 1) * size,
+            [](double, double) { return true; }, budget, truncated, emit_class);
+        if (truncated) return visited;
+    }
     // A flake inside P, positioned by hash h: finished, placed in its tile and visited; false
     // (truncated) when the budget is spent.
     const auto emit = [&](Flake& f, uint64_t h) {
@@ -351,10 +575,11 @@ uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_
         return 0;
     }
     uint32_t visited = 0;
+    const ClassLayout cl = class_layout(fp);
     for (int64_t ty = tr.ty0; ty <= tr.ty1; ++ty)
         for (int64_t tx = tr.tx0; tx <= tr.tx1; ++tx) {
-            visited += flakes_in_node(fp, p, tx, ty, 0, 0, 0, root_count(fp), max_flakes - visited,
-                                      truncated, visit);
+            visited += flakes_in_node(fp, &cl, p, tx, ty, 0, 0, 0, cl.residual,
+                                      max_flakes - visited, truncated, visit);
             if (truncated) return visited;
         }
     return visited;

@@ -132,19 +132,6 @@ bool store_cache(const std::vector<CacheEntry>& scratch, SpangleArena_v3* arena,
     return true;
 }
 
-/** The discrete part of a closure: the flakes of footprint p, by the material's algorithm.
- *  Returns false when the footprint is beyond the algorithm's bound (the smooth lobe takes over).
- */
-/** Whether flake f survives the view's thinning (a hash of its position: a pure function of the
- *  flake, so the same flakes survive from every view). */
-bool kept(const Flake& f, float keep) {
-    if (keep >= 1.0f) return true;
-    uint64_t bu, bv;
-    std::memcpy(&bu, &f.u, sizeof(bu));
-    std::memcpy(&bv, &f.v, sizeof(bv));
-    return unit(mix(mix(bu, bv), 0x7417)) < static_cast<double>(keep);
-}
-
 /** Whether the tree enumerates the footprint's flakes outright: it spans more uv tiles than the
  *  tree's 2 x 2 (a facet's reach widens it: flakes half a tile wide and more) but at most the
  *  enumeration's 64, and those tiles hold at most 4 x `limit` flakes in all (four cells' worth,
@@ -171,6 +158,9 @@ bool few_facets(const FieldParams& field, const Footprint& p, uint32_t limit) {
                               2.0 * static_cast<double>(limit);
 }
 
+/** The discrete part of a closure: the flakes of footprint p, by the material's algorithm.
+ *  Returns false when the footprint is beyond the algorithm's bound (the smooth lobe takes over).
+ */
 bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, SpangleArena_v3* arena,
                       PointStats& st) {
     thread_local std::vector<CacheEntry> scratch;
@@ -188,7 +178,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     field.lazy_normals = true;
     EntryBatch batch;
     const auto add = [&](const Flake& f) {
-        if (!kept(f, view.keep)) return;
+        if (!kept(f.u, f.v, view.keep)) return;
         cover += f.cover;
         // A facet partly inside the footprint reflects as much of it as lies inside.
         batch.add(c.wo, field.alpha, f.s, f.t, m.colors.pick(f.color_u, f.id),
@@ -224,8 +214,8 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     st.cached += scratch.size();
     // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
     if (c.counted.n_agg > 0)
-        add_stand_ins(c.counted, p, m.stand_ins, m.grid, m.colors, m.fresnel, m.film, c.wo,
-                      scratch);
+        add_stand_ins(c.counted, field, p, view.keep, m.stand_ins, m.grid, m.colors, m.fresnel,
+                      m.film, c.wo, scratch);
     if (!store_cache(scratch, arena, c)) return false;
     // Facets count towards the cover by their shares, the counted cells' by their expectation:
     // where the facets are wider than the footprint the cells are (their size follows the

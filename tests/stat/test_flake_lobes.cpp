@@ -64,8 +64,8 @@ std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point&
         fl::FresnelTable fresnel;
         const fl::FilmTables film;
         std::vector<fl::CacheEntry> stand_ins;
-        fl::add_stand_ins(cf, p, fl::kStandIns, grid, colors, fresnel, film, {wo.x, wo.y, wo.z},
-                          stand_ins);
+        fl::add_stand_ins(cf, fp, p, 1.0f, fl::kStandIns, grid, colors, fresnel, film,
+                          {wo.x, wo.y, wo.z}, stand_ins);
         for (const fl::CacheEntry& e : stand_ins) cones.emplace_back(e.r.x, e.r.y, e.r.z);
     } else {
         bool truncated = false;

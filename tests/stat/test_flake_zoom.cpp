@@ -84,5 +84,20 @@ TEST(FlakeZoom, AFootprintHalfAsWideKeepsTheLargerOnesGlints) {
     }
 }
 
+TEST(FlakeZoom, ACellThatBecomesFewEnoughToEnumerateKeepsItsGlints) {
+    // Lambda 600 to 1500 at this view (the tree enumerates cells of up to 420 flakes): the large
+    // footprint's cells are counted, the half-size copy's enumerated. The stand-ins were virtual
+    // flakes, which the enumeration does not have: the correlation was 0.005 to 0.014, every glint
+    // changed where a cell switched. They are now the field's ranked classes, real flakes: the
+    // small footprint's enumeration holds the large one's stand-ins inside it. Its lobe then
+    // shares with the large one's what a quarter of the K stand-ins carry, each sqrt(k / K) of
+    // a flake's weight: correlation sqrt(K / k) / 2 for K of the large one's k flakes (0.11 to
+    // 0.16 measured; 0.5 would need all of its flakes, as the enumeration at both sizes has).
+    for (double lambda : {600.0, 1000.0, 1500.0}) {
+        const double t = zoom_correlation("tree", lambda, 0.5f, 0.8f);
+        EXPECT_GT(t, 0.08) << "lambda " << lambda;
+        EXPECT_LT(t, 0.5) << "lambda " << lambda;
+    }
+}
 }  // namespace
 }  // namespace spangle::test::flake_zoom
