@@ -58,7 +58,18 @@ for t in "${targets[@]}"; do
     echo "fuzz $t: ${execs:-?} executions, exit $status"
     total=$(( total + ${execs:-0} ))
     if [ "$status" -ne 0 ]; then
-        tail -40 "$log" >&2
+        # The report without its shadow-byte map (a CI log shows only its end): the error, its
+        # stack frames, the summary, and the input itself (gzip, base64) when it is small, so
+        # that a failure seen only in a log can be replayed:
+        #   echo TEXT | base64 -d | gunzip > crash; BUILD_DIR/spangle_fuzz_TARGET crash
+        grep -E "ERROR:|runtime error|^ *#[0-9]+ |SUMMARY|^MS:|Test unit written|deadly signal" \
+            "$log" | head -60 | cut -c1-240 >&2 || true
+        unit="$(ls -t "$build/fuzz-crashes/$t"/crash-* "$build/fuzz-crashes/$t"/timeout-* \
+            "$build/fuzz-crashes/$t"/oom-* "$build/fuzz-crashes/$t"/leak-* 2>/dev/null | head -1 || true)"
+        if [ -n "$unit" ] && [ "$(gzip -9nc "$unit" | wc -c)" -le 6000 ]; then
+            echo "fuzz $t: the input, gzip and base64: $(gzip -9nc "$unit" | base64 -w 0)" >&2
+        fi
+        tail -4 "$log" >&2
         exit 1
     fi
 done

@@ -1352,6 +1352,37 @@ TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
         EXPECT_NE(std::string(e.what()).find("not a binary glTF file"), std::string::npos)
             << e.what();
     }
+    // A BIN chunk whose length runs past the file by no more than its 8-byte header, the buffer
+    // as long (tinygltf let it through and copied bytes from past the file's memory: a fuzzer
+    // found it under AddressSanitizer).
+    uint32_t bin_length = 0;
+    std::memcpy(&bin_length, glb.data() + 20 + length, 4);
+    const std::string bin_data = glb.substr(20 + length + 8);
+    ASSERT_EQ(bin_data.size(), bin_length);
+    for (const uint32_t more : {4u, 8u}) {
+        std::string json = glb.substr(20, length);
+        const std::string key = R"("buffers":[{"byteLength":)";
+        const std::size_t at = json.find(key);
+        ASSERT_NE(at, std::string::npos);
+        const std::size_t digits = json.find_first_not_of("0123456789", at + key.size());
+        json.replace(at + key.size(), digits - at - key.size(), std::to_string(bin_length + more));
+        while (json.size() % 4 != 0) json += ' ';
+        std::string longer = glb.substr(0, 20) + json;
+        longer.append(8, '\0');
+        put(longer, 20 + json.size(), bin_length + more);
+        put(longer, 20 + json.size() + 4, 0x004E4942u);
+        longer += bin_data;
+        put(longer, 8, static_cast<uint32_t>(longer.size()));
+        put(longer, 12, static_cast<uint32_t>(json.size()));
+        std::ofstream(dir.file("f.glb"), std::ios::binary) << longer;
+        try {
+            read_scene(dir.file("f.glb"));
+            ADD_FAILURE() << "a BIN chunk " << more << " bytes longer than the file was read";
+        } catch (const SpangleError& e) {
+            EXPECT_NE(std::string(e.what()).find("the chunk after the JSON"), std::string::npos)
+                << e.what();
+        }
+    }
 }
 
 }  // namespace

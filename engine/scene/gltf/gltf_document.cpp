@@ -175,6 +175,15 @@ std::string_view glb_json(const std::string& bytes, const std::string& path) {
         throw_error(file, "the first chunk of a .glb file must be its JSON");
     if (length > bytes.size() - 20)
         throw_error(file, "the JSON chunk ({} bytes) runs past the end of the file", length);
+    // The chunk after it (the BIN chunk) must end inside the header's length: tinygltf checks
+    // its length without its 8-byte header and copied up to 8 bytes from past the end of the
+    // file's memory into the buffer.
+    const std::size_t total = u32(bytes, 8), next = 20 + std::size_t{length};
+    if (next + 8 <= total && u32(bytes, next) > total - next - 8)
+        throw_error(file,
+                    "the chunk after the JSON ({} bytes from byte {}) runs past the end of the "
+                    "file ({} bytes, as its header says)",
+                    u32(bytes, next), next + 8, total);
     return std::string_view(bytes).substr(20, length);
 }
 
