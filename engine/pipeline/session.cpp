@@ -345,11 +345,10 @@ ReloadReport Session::load(const SceneDescription& scene, double time) {
         // And the colour config's text: parts of a crop render made before and after an edit
         // of the config in place (the same space names) merged into a seam.
         h = hash2(h, live_color->content_hash());
-        // And what the options replace: the camera looked through (--camera, by name: the same
-        // position with another lens merged into a wrong image) and whether --env replaced the
-        // environment (its map's bytes are hashed above, but the scene's own intensity,
-        // rotation and colour space it drops are not, when it names the scene's own map).
-        h = hash2(h, hash_text(options_.camera));
+        // And whether --env replaced the environment (its map's bytes are hashed above, but the
+        // scene's own intensity, rotation and colour space it drops are not, when it names the
+        // scene's own map). (The camera looked through is in the builder's hash, by what it is:
+        // --camera naming the camera the file looks through anyway is the same render.)
         info->content_hash = hash2(h, options_.environment.empty() ? 0x0u : 0xe1u);
     }
 

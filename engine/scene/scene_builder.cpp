@@ -1,6 +1,7 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
+#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -705,12 +706,52 @@ uint64_t scene_content_hash(const std::string& path, const std::vector<std::stri
     return h;
 }
 
+namespace {
+
+/** Hash of the camera looked through, by what it is (place, view, lens, projection, keys), not
+ *  by the name it was picked by: `--camera NAME` naming the camera a file looks through anyway
+ *  is the same render (crop parts of the two were refused as different scenes). */
+uint64_t camera_hash(const CameraDesc& c) {
+    uint64_t h = 0xca3e7a;
+    const auto num = [&h](double x) { h = hash2(h, std::bit_cast<uint64_t>(x)); };
+    const auto vec = [&](const Vec3& v) {
+        num(static_cast<double>(v.x));
+        num(static_cast<double>(v.y));
+        num(static_cast<double>(v.z));
+    };
+    vec(c.position);
+    vec(c.look_at);
+    vec(c.up);
+    num(c.fov_deg);
+    num(c.aperture);
+    num(c.focus_distance.value_or(-1.0));
+    num(c.ortho_height);
+    h = hash4(h, c.mirror, c.fov_shorter, c.equirect);
+    if (c.screen)
+        for (const double x : *c.screen) num(x);
+    h = hash2(h, c.keys.smooth ? c.keys.keys.size() : ~c.keys.keys.size());
+    for (const CameraKey& k : c.keys.keys) {
+        num(k.time.seconds);
+        h = hash2(h, k.time.frame ? static_cast<uint64_t>(*k.time.frame) : ~0ull);
+        for (const std::optional<Vec3>& v : {k.position, k.look_at, k.up}) {
+            h = hash2(h, v.has_value());
+            if (v) vec(*v);
+        }
+        num(k.fov_deg.value_or(-1.0));
+    }
+    return h;
+}
+
+}  // namespace
+
 SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Registry& registry,
                       double time) {
     SceneInfo info;
     info.path = scene.path;
     info.files = scene.files;
-    info.content_hash = info.scene_files_hash = scene_content_hash(scene.path, scene.files);
+    info.scene_files_hash = scene_content_hash(scene.path, scene.files);
+    // And the camera looked through (a file may hold several: crop parts through others differ).
+    info.content_hash = hash2(info.scene_files_hash, camera_hash(scene.camera));
     info.notes = scene.notes;
     info.output = scene.render.output.value_or("");
     info.time = time;

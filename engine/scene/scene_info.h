@@ -20,8 +20,9 @@ struct SceneInfo {
     std::vector<std::string> files;  ///< scene files it includes or imports
     /** A hash of the bytes of the scene file, the files it includes or imports and, once a
      *  session has built it, every file its systems read (meshes, cages, textures, maps; a file
-     *  over 64 MiB by its size alone): written into the EXR header so that `spangle merge` can
-     *  tell parts of different scenes, or of a scene or asset edited between its parts. */
+     *  over 64 MiB by its size alone), and of the camera looked through (what it is, not its
+     *  name): written into the EXR header so that `spangle merge` can tell parts of different
+     *  scenes or cameras, or of a scene or asset edited between its parts. */
     uint64_t content_hash = 0;
     /** The part of content_hash from the scene files alone (scene_content_hash): a save that
      *  leaves it the same changed nothing the scene says. */

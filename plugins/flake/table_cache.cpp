@@ -90,11 +90,20 @@ const char* plugin_version() {
     return SPANGLE_FLAKE_VERSION;
 }
 
+namespace {
+
+/** $SPANGLE_FLAKE_THREADS as a number of threads (digits alone, 1 or more: atoi took "4x" for 4
+ *  and "-2" silently for the default), or 0 when it is unset, empty or not one. */
+int env_table_threads() {
+    const char* t = std::getenv("SPANGLE_FLAKE_THREADS");
+    if (!t || !*t || std::strspn(t, "0123456789") != std::strlen(t) || std::strlen(t) > 9) return 0;
+    return std::atoi(t);
+}
+
+}  // namespace
+
 int table_threads() {
-    if (const char* t = std::getenv("SPANGLE_FLAKE_THREADS"); t && *t) {
-        const int n = std::atoi(t);
-        if (n >= 1) return std::min(n, 16);
-    }
+    if (const int n = env_table_threads(); n >= 1) return std::min(n, 16);
     return std::clamp(static_cast<int>(std::thread::hardware_concurrency()), 1, 16);
 }
 
@@ -138,6 +147,11 @@ TableCache TableCache::from_environment(std::function<void(const std::string&)> 
                  "' is not a size in megabytes (0 to 2^40): the default, " +
                  std::to_string(kDefaultMegabytes) + " MB, is used");
     }
+    if (const char* t = std::getenv("SPANGLE_FLAKE_THREADS");
+        t && *t && env_table_threads() < 1 && warn)
+        warn(std::string("SPANGLE_FLAKE_THREADS='") + t +
+             "' is not a number of threads (1 or more): tables are built on every core (at most "
+             "16)");
     return TableCache(dir, mb << 20, std::move(warn));
 }
 

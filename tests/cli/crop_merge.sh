@@ -112,6 +112,11 @@ G=(--size 40x24 --spp 2 -q --no-preview)
 "$S" render "$T/two.gltf" -o "$T/tb.exr" "${G[@]}" --camera tele --crop 20,0,40,24 2> "$T/err.txt" || fail "tele crop"
 "$S" merge "$T/wa.exr" "$T/tb.exr" -o "$T/wt.exr" 2> "$T/err.txt" && fail "parts of two cameras at one place were merged"
 grep -q "different cameras" "$T/err.txt" || fail "no reason for refusing parts of two cameras"
+# --camera naming the camera the file looks through anyway (its first) is the same render as none.
+"$S" render "$T/two.gltf" -o "$T/wb.exr" "${G[@]}" --crop 20,0,40,24 2> "$T/err.txt" || fail "crop without --camera"
+"$S" merge "$T/wa.exr" "$T/wb.exr" -o "$T/ww.exr" 2> "$T/err.txt" || fail "--camera wide and no --camera (wide) were refused: $(cat "$T/err.txt")"
+"$S" render "$T/two.gltf" -o "$T/wwhole.exr" "${G[@]}" 2> "$T/err.txt" || fail "whole render of two.gltf"
+oiiotool "$T/ww.exr" "$T/wwhole.exr" --diff --fail 0 --failpercent 0 > /dev/null || fail "the merged --camera wide and default parts differ from the whole"
 MAP="$REPO/assets/env/studio_hdri.exr"  # the map beetle.toml (which demo.toml imports) reads
 grep -q '^map = "../env/studio_hdri.exr"' "$REPO/assets/scenes/beetle.toml" || fail "the beetle no longer reads $MAP"
 "$S" render "$SCENE" -o "$T/e0.exr" --size 90x50 --spp 2 -q --no-preview --crop 0,0,45,50 2> "$T/err.txt" || fail "crop"

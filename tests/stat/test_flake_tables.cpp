@@ -322,6 +322,34 @@ TEST(FlakeTables, EnvironmentChoosesTheCacheDirectory) {
     setenv("SPANGLE_FLAKE_CACHE_MB", "17", 1);
     EXPECT_EQ(fl::TableCache::from_environment().max_bytes(), 17u << 20);
     unsetenv("SPANGLE_FLAKE_CACHE_MB");
+    // Values that are not what they name are said, not taken for something else.
+    const char* threads_before = std::getenv("SPANGLE_FLAKE_THREADS");
+    const std::string threads_saved = threads_before ? threads_before : "";
+    for (const char* bad : {"4x", "-2", "0", "two"}) {
+        setenv("SPANGLE_FLAKE_THREADS", bad, 1);
+        std::vector<std::string> said;
+        fl::TableCache::from_environment([&](const std::string& m) { said.push_back(m); });
+        ASSERT_EQ(said.size(), 1u) << bad;
+        EXPECT_NE(said[0].find("SPANGLE_FLAKE_THREADS='" + std::string(bad) + "'"),
+                  std::string::npos)
+            << said[0];
+        EXPECT_GE(fl::table_threads(), 1) << bad;
+        EXPECT_LE(fl::table_threads(), 16) << bad;
+    }
+    setenv("SPANGLE_FLAKE_THREADS", "3", 1);
+    std::vector<std::string> said;
+    fl::TableCache::from_environment([&](const std::string& m) { said.push_back(m); });
+    EXPECT_TRUE(said.empty());
+    EXPECT_EQ(fl::table_threads(), 3);
+    setenv("SPANGLE_FLAKE_CACHE_MB", "12MB", 1);
+    fl::TableCache::from_environment([&](const std::string& m) { said.push_back(m); });
+    ASSERT_EQ(said.size(), 1u);
+    EXPECT_NE(said[0].find("SPANGLE_FLAKE_CACHE_MB='12MB'"), std::string::npos) << said[0];
+    unsetenv("SPANGLE_FLAKE_CACHE_MB");
+    if (threads_before)
+        setenv("SPANGLE_FLAKE_THREADS", threads_saved.c_str(), 1);
+    else
+        unsetenv("SPANGLE_FLAKE_THREADS");
     if (before)
         setenv("SPANGLE_FLAKE_CACHE", saved.c_str(), 1);
     else

@@ -148,7 +148,23 @@ bool write_nothing(std::string* err, const std::string&, const std::vector<unsig
 std::string read_bytes(const std::string& path) {
     std::ifstream in(path, std::ios::binary);
     if (!in) throw_error(FileLoc{path, 0, 0}, "cannot open the file: {}", unreadable(path));
-    return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
+    // Read into a string of the file's size exactly (one allocation, and no spare capacity past
+    // its end: a read past the end of the file's bytes is caught by AddressSanitizer, where the
+    // capacity a growing string leaves hid one), then whatever more a growing file holds.
+    std::string bytes;
+    if (in.seekg(0, std::ios::end)) {
+        const std::streamoff size = in.tellg();
+        in.seekg(0, std::ios::beg);
+        if (size > 0 && in) {
+            bytes.resize(static_cast<std::size_t>(size));
+            in.read(bytes.data(), size);
+            bytes.resize(static_cast<std::size_t>(in.gcount()));
+            in.clear();
+        }
+    }
+    in.clear();
+    bytes.append(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+    return bytes;
 }
 
 /** The little-endian 32-bit word at byte `at`. */
