@@ -52,7 +52,7 @@ void print_frame_line(const Session& session, int64_t f, double seconds, const R
 
 int run_frames(const RenderArgs& a) {
     const auto [first, last] = parse_frames(a.frames);
-    const RenderSetup s = set_up_render(a);
+    RenderSetup s = set_up_render(a);
     // A warning that holds for every frame (an emitter that moves while the shutter is open, a
     // material no object uses) is said for the first frame only, as --watch says it once.
     WarningsSaid said;
@@ -67,6 +67,12 @@ int run_frames(const RenderArgs& a) {
     for (int64_t f = first; f <= last; ++f) {
         const auto t0 = std::chrono::steady_clock::now();
         const ReloadReport rep = session.load_frame(a.scene, f);
+        // The images the scene asks for ([render] output, pbrt's Film "filename") when -o gives
+        // none, numbered as -o's are ('#' runs, else .#### before the extension), as a still
+        // render writes the one it asks for (frames went to the scene's name instead).
+        if (f == first)
+            if (auto asked = scene_outputs(a, session.info().output, s.log, true, first, last))
+                s.out = std::move(*asked);
         s.out.for_frame(f).check_not_inputs(session.watched_files());
         if (f == first) {
             // No frame's output over a file the scene reads, before anything renders (frame 1
@@ -143,6 +149,17 @@ int run_frames(const RenderArgs& a) {
                 s.log.warn("stopped by a signal ({}) after frame {}{}", stop_signal_name(), f,
                            left(f + 1));
             return f < last || image.partial ? interrupted_status() : exit_status_for_signal();
+        }
+        // A signal after the last frame's last pass: every frame is whole (said, and the status
+        // a one-shot render gives then: SIGTERM and SIGHUP end as such, SIGINT with 0).
+        if (f == last && stop_requested()) {
+            s.log.warn("{} arrived after the last pass of the last frame: wrote {} whole{}",
+                       stop_signal_name(), out.exr,
+                       exit_status_for_signal() != 0
+                           ? fmt::format(" (exit status {}, as after any {})",
+                                         exit_status_for_signal(), stop_signal_name())
+                           : std::string());
+            return exit_status_for_signal();
         }
     }
     return 0;

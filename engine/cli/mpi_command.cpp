@@ -142,6 +142,12 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
                 session->load_frame(a.scene, f);
             else
                 session->load(a.scene, 0.0);
+            // The image the scene asks for where -o gives none, as a render in one process
+            // writes it (an MPI render wrote the scene file's name).
+            if (job.rank() == 0 && f == frames.front().first)
+                if (auto asked = scene_outputs(a, session->info().output, log, numbered, f,
+                                               frames.back().first))
+                    out = std::move(*asked);
             if (job.rank() == 0)
                 (numbered ? out.for_frame(f) : out).check_not_inputs(session->watched_files());
             if (job.rank() == 0 && f == frames.front().first) {

@@ -444,6 +444,24 @@ Outputs outputs_for(const RenderArgs& a) {
     return out;
 }
 
+std::optional<Outputs> scene_outputs(const RenderArgs& a, const std::string& asked,
+                                     const Logger& log, bool numbered, int64_t first,
+                                     int64_t last) {
+    if (!a.output.empty() || asked.empty()) return std::nullopt;
+    RenderArgs named = a;
+    named.output = fs::path(asked).replace_extension(".exr").string();
+    Outputs out = outputs_for(named);
+    out.remove_stale_temporaries(log);
+    if (!a.quiet) {
+        if (!numbered)
+            log.info("the scene asks for '{}': writing {}", asked, out.exr);
+        else
+            log.info("the scene asks for '{}': writing {}{}", asked, out.for_frame(first).exr,
+                     last > first ? fmt::format(" to {}", out.for_frame(last).exr) : std::string());
+    }
+    return out;
+}
+
 void warn_if_no_chromaticities(const Logger& log, const ColorConfig& color) {
     static std::atomic<bool> said{false};
     if (color.working_chromaticities() || said.exchange(true)) return;

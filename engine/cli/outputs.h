@@ -6,6 +6,7 @@
 
 #include <cstddef>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -125,6 +126,14 @@ struct Outputs {
  *  --frames, every frame's, none a folder). Throws
  *  UsageError (a clash on the command line) or SpangleError (a path that cannot be written). */
 Outputs outputs_for(const RenderArgs& a);
+
+/** The outputs of the image the scene asks for (`asked`: [render] output, pbrt's Film
+ *  "filename") where -o gives none, as an EXR (another extension becomes .exr), relative to the
+ *  working folder as pbrt writes it, checked as outputs_for() checks -o's; nullopt where -o
+ *  gives one or the scene asks for none. Temporaries a killed render left beside it are removed
+ *  and one line (unless --quiet) says where the image goes. */
+std::optional<Outputs> scene_outputs(const RenderArgs& a, const std::string& asked,
+                                     const Logger& log, bool numbered, int64_t first, int64_t last);
 
 /** Says, once per process, that the EXRs carry no chromaticities (a foreign OCIO config whose
  *  working space Spangle can neither recognise nor measure), and what would fix it. */

@@ -217,6 +217,15 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
                    stop_signal_name(), s.out.exr);
         return interrupted_status();
     }
+    // The signal came after the last pass: the image is whole, and the line says so (a farm
+    // reading 143 alone took the finished image for a cut one).
+    if (stop_requested())
+        s.log.warn("{} arrived after the last pass: wrote {} whole, {} samples per pixel{}",
+                   stop_signal_name(), s.out.exr, frame.stats.spp_reached,
+                   exit_status_for_signal() != 0
+                       ? fmt::format(" (exit status {}, as after any {})", exit_status_for_signal(),
+                                     stop_signal_name())
+                       : std::string());
     return stop_requested() ? exit_status_for_signal() : 0;
 }
 
@@ -264,13 +273,7 @@ int run_one_shot(const RenderArgs& a) {
                         const std::vector<std::string>& inputs) {
         // The image the scene asks for (pbrt's Film "filename") when -o gives none, as an EXR
         // (its PNG preview beside it), relative to the working folder as pbrt writes it.
-        if (a.output.empty() && !i.output.empty()) {
-            RenderArgs named = a;
-            named.output = fs::path(i.output).replace_extension(".exr").string();
-            s.out = outputs_for(named);
-            s.out.remove_stale_temporaries(s.log);
-            if (!a.quiet) s.log.info("the scene asks for '{}': writing {}", i.output, s.out.exr);
-        }
+        if (auto asked = scene_outputs(a, i.output, s.log, false, 0, 0)) s.out = std::move(*asked);
         s.out.check_not_inputs(inputs);
         s.out.check_view(c);  // a display or view the config lacks: an error before rendering
         warn_if_no_chromaticities(s.log, c);

@@ -29,6 +29,14 @@ channels() { oiiotool --info "$1" | sed -n 's/.*160 x   64, \([0-9]*\) channel.*
     fail "the MPI image lacks its layers: $(oiiotool --info "$T/two.exr")"
 same "$T/one.exr" "$T/two.exr" "the whole image"
 
+# Without -o, the image the scene asks for ([render] output), as one process writes it.
+mkdir -p "$T/asked"
+printf '[render]\noutput = "asked.exr"\n\n[[import]]\nfile = "%s"\n' "$SCENES/textured.toml" > "$T/imports.toml"
+(cd "$T/asked" && "${MPI[@]}" "$S" render "$T/imports.toml" "${ARGS[@]}" > "$T/out.txt" 2> "$T/err.txt") ||
+    fail "mpirun without -o: $(cat "$T/err.txt")"
+[ -f "$T/asked/asked.exr" ] || fail "the MPI render did not write the scene's [render] output: $(ls "$T/asked")"
+same "$T/one.exr" "$T/asked/asked.exr" "the scene's output"
+
 # The progress line reports the bands each rank took and the balance.
 "${MPI[@]}" "$S" render "$SCENES/textured.toml" -o "$T/bands.exr" --float --no-preview --band-rows 2 > "$T/out.txt" 2> "$T/err.txt" || fail "--band-rows 2"
 grep -Eq "over 2 ranks \(2 bands of 2 tile rows; 0: [0-9]+ bands .*; 1: [0-9]+ bands .*balance \(busiest / mean\) [0-9.]+; wrote" "$T/out.txt" ||

@@ -25,6 +25,15 @@ rm -f asked_for.exr asked_for.png
 grep -q '^output = "asked_for.png"' "$T/scene/twin.toml" || fail "convert dropped the Film's filename"
 "$S" render "$T/scene/twin.toml" --size 24x18 --spp 1 > out2.txt 2>&1 || fail "TOML render failed: $(cat out2.txt)"
 [ -f asked_for.exr ] || fail "the TOML scene's output was not written: $(ls)"
+# A sequence writes the images the scene asks for too, numbered (.#### before the extension).
+"$S" render "$T/scene/twin.toml" --size 24x18 --spp 1 --frames 1..2 > out3.txt 2>&1 || fail "--frames render failed: $(cat out3.txt)"
+[ -f asked_for.0001.exr ] && [ -f asked_for.0002.exr ] || fail "--frames did not write the scene's output, numbered: $(ls)"
+grep -q "asks for 'asked_for.png'" out3.txt || fail "no line saying where the frames went"
+sed 's/^output = "asked_for.png"/output = "seq_##.exr"/' "$T/scene/twin.toml" > "$T/scene/hashes.toml"
+"$S" render "$T/scene/hashes.toml" --size 24x18 --spp 1 --frames 3..4 -q > out4.txt 2>&1 || fail "--frames with # failed: $(cat out4.txt)"
+[ -f seq_03.exr ] && [ -f seq_04.exr ] || fail "the # run of [render] output was not the frame number: $(ls)"
+"$S" render "$T/scene/hashes.toml" --size 24x18 --spp 1 --frames 3..3 -q -o given_#.exr || fail "--frames -o failed"
+[ -f given_3.exr ] || fail "-o did not win over [render] output with --frames: $(ls)"
 # An empty name is refused at its line.
 printf '[render]\noutput = ""\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n' > bad.toml
 "$S" render bad.toml --spp 1 > bad.txt 2>&1 && fail "an empty output was accepted"
