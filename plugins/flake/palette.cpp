@@ -204,7 +204,8 @@ bool build_colors(ColorTable& t, const float base_rgb[3], const SpangleParams_v3
     char err[256] = {0};
     if (host->convert_to_working(host->context, space.c_str(), t.rgb.data(),
                                  static_cast<uint32_t>(n), err, sizeof(err)) != 0) {
-        why = "colour table: " + std::string(err);
+        // (Naming the parameter: the host places the error at its line.)
+        why = "colour table: table_space: " + std::string(err);
         return false;
     }
     // Within [0, 1] in the working space, as colour parameters are: a table in a wider space
