@@ -148,7 +148,7 @@ int run_frames(const RenderArgs& a) {
             else
                 s.log.warn("stopped by a signal ({}) after frame {}{}", stop_signal_name(), f,
                            left(f + 1));
-            return f < last || image.partial ? interrupted_status() : exit_status_for_signal();
+            return interrupted_status();
         }
         // A signal after the last frame's last pass: every frame is whole (said, and the status
         // a one-shot render gives then: SIGTERM and SIGHUP end as such, SIGINT with 0).

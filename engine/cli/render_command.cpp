@@ -218,15 +218,16 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
         return interrupted_status();
     }
     // The signal came after the last pass: the image is whole, and the line says so (a farm
-    // reading 143 alone took the finished image for a cut one).
-    if (stop_requested())
-        s.log.warn("{} arrived after the last pass: wrote {} whole, {} samples per pixel{}",
-                   stop_signal_name(), s.out.exr, frame.stats.spp_reached,
-                   exit_status_for_signal() != 0
-                       ? fmt::format(" (exit status {}, as after any {})", exit_status_for_signal(),
-                                     stop_signal_name())
-                       : std::string());
-    return stop_requested() ? exit_status_for_signal() : 0;
+    // reading 143 alone took the finished image for a cut one). (The flag read once: a signal
+    // between two reads exited 143 without the line.)
+    if (!stop_requested()) return 0;
+    const int status = exit_status_for_signal();
+    s.log.warn("{} arrived after the last pass: wrote {} whole, {} samples per pixel{}",
+               stop_signal_name(), s.out.exr, frame.stats.spp_reached,
+               status != 0
+                   ? fmt::format(" (exit status {}, as after any {})", status, stop_signal_name())
+                   : std::string());
+    return status;
 }
 
 /** The one-shot render: load, render (passes written with --pass-output, shown with --serve),

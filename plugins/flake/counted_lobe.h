@@ -183,6 +183,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
             Footprint local = p;
             local.cu = cu;
             local.cv = cv;
+            const uint64_t tk = tile_key(fp.seed, tx, ty);  // (once per tile, not per cell)
             NodeRef seen[4];
             int n_seen = 0;
             // The cells enumerated: their class flakes are visited together after the loop (the
@@ -204,8 +205,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     if (dup) continue;
                     seen[n_seen++] = node;
                     const double nsize = pow2_neg(node.depth);
-                    const uint64_t key =
-                        node_key(tile_key(fp.seed, tx, ty), node.depth, node.ix, node.iy);
+                    const uint64_t key = node_key(tk, node.depth, node.ix, node.iy);
                     // The cell's flakes: its tree node's and its share of the classes'. Whether
                     // it is enumerated follows their expectation (a draw deciding it would
                     // enumerate the cells whose draw fell low: more than their share of flakes,
@@ -233,8 +233,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                                                 fp.exact_below);
                     out.expected += expected * std::clamp(rho, 0.0, 1.0);
                     if (k == 0 || out.n_agg >= kMaxAggregates) continue;
-                    out.agg[out.n_agg++] = {key,  tile_key(fp.seed, tx, ty), k, tx, ty, nx0, ny0,
-                                            nsize};
+                    out.agg[out.n_agg++] = {key, tk, k, tx, ty, nx0, ny0, nsize};
                     out.aggregated += k;
                 }
             if (n_box > 0) {
@@ -259,8 +258,7 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     return true;
                 };
                 bool trunc = false;
-                class_flakes_in(fp, cl, local, tile_key(fp.seed, tx, ty), x0, y0, x1, y1, in_boxes,
-                                1u << 30, trunc, emit);
+                class_flakes_in(fp, cl, local, tk, x0, y0, x1, y1, in_boxes, 1u << 30, trunc, emit);
             }
         }
 }

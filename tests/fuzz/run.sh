@@ -62,11 +62,11 @@ for t in "${targets[@]}"; do
         # stack frames, the summary, and the input itself (gzip, base64) when it is small, so
         # that a failure seen only in a log can be replayed:
         #   echo TEXT | base64 -d | gunzip > crash; BUILD_DIR/spangle_fuzz_TARGET crash
-        grep -E "ERROR:|runtime error|^ *#[0-9]+ |SUMMARY|^MS:|Test unit written|deadly signal" \
-            "$log" | head -60 | cut -c1-240 >&2 || true
-        unit="$(ls -t "$build/fuzz-crashes/$t"/crash-* "$build/fuzz-crashes/$t"/timeout-* \
-            "$build/fuzz-crashes/$t"/oom-* "$build/fuzz-crashes/$t"/leak-* 2>/dev/null | head -1 || true)"
-        if [ -n "$unit" ] && [ "$(gzip -9nc "$unit" | wc -c)" -le 6000 ]; then
+        grep -E "ERROR:|runtime error|READ of size|WRITE of size|is located|allocated by|freed by|previously allocated|Direct leak|Indirect leak|^ *#[0-9]+ |SUMMARY|^MS:|Test unit written|deadly signal" \
+            "$log" | head -80 | cut -c1-240 >&2 || true
+        # The input this run wrote (the folder keeps earlier runs' too: none is taken for it).
+        unit="$(sed -n 's/.*Test unit written to \(.*\)$/\1/p' "$log" | tail -1 || true)"
+        if [ -n "$unit" ] && [ -f "$unit" ] && [ "$(gzip -9nc "$unit" | wc -c)" -le 6000 ]; then
             echo "fuzz $t: the input, gzip and base64: $(gzip -9nc "$unit" | base64 -w 0)" >&2
         fi
         tail -4 "$log" >&2
