@@ -52,7 +52,7 @@ void print_frame_line(const Session& session, int64_t f, double seconds, const R
 
 int run_frames(const RenderArgs& a) {
     const auto [first, last] = parse_frames(a.frames);
-    RenderSetup s = set_up_render(a);
+    RenderSetup s = set_up_render(a, true);
     // A warning that holds for every frame (an emitter that moves while the shutter is open, a
     // material no object uses) is said for the first frame only, as --watch says it once.
     WarningsSaid said;
@@ -71,7 +71,7 @@ int run_frames(const RenderArgs& a) {
         // none, numbered as -o's are ('#' runs, else .#### before the extension), as a still
         // render writes the one it asks for (frames went to the scene's name instead).
         if (f == first)
-            if (auto asked = scene_outputs(a, session.info().output, s.log, true, first, last))
+            if (auto asked = scene_outputs(a, session.info(), s.log, true, first, last))
                 s.out = std::move(*asked);
         s.out.for_frame(f).check_not_inputs(session.watched_files());
         if (f == first) {

@@ -125,8 +125,9 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
     std::unique_ptr<Session> session;
     together(job, [&] {
         if (job.rank() == 0) {
-            out = outputs_for(a);
-            out.remove_stale_temporaries(log);
+            // (Without -o, the default is checked once the scene says it is the one.)
+            out = outputs_for(a, !a.output.empty());
+            if (!a.output.empty()) out.remove_stale_temporaries(log);
         }
         session = std::make_unique<Session>(a.plugin_dirs, a.ocio, options, log);
     });
@@ -145,8 +146,8 @@ int render_as_rank(const RenderArgs& a, const MpiJob& job) {
             // The image the scene asks for where -o gives none, as a render in one process
             // writes it (an MPI render wrote the scene file's name).
             if (job.rank() == 0 && f == frames.front().first)
-                if (auto asked = scene_outputs(a, session->info().output, log, numbered, f,
-                                               frames.back().first))
+                if (auto asked =
+                        scene_outputs(a, session->info(), log, numbered, f, frames.back().first))
                     out = std::move(*asked);
             if (job.rank() == 0)
                 (numbered ? out.for_frame(f) : out).check_not_inputs(session->watched_files());

@@ -388,7 +388,7 @@ void check_frame_paths(const Outputs& out, int64_t first, int64_t last) {
 
 }  // namespace
 
-Outputs outputs_for(const RenderArgs& a) {
+Outputs outputs_for(const RenderArgs& a, bool check_paths) {
     Outputs out;
     out.exr = a.output.empty() ? fs::path(a.scene).stem().string() + ".exr" : a.output;
     if (!has_extension(out.exr, ".exr")) usage_error("output '{}' must end in .exr", out.exr);
@@ -414,8 +414,10 @@ Outputs outputs_for(const RenderArgs& a) {
             "b44a or none, or render without {}",
             a.compression, a.layers ? "--layers" : "--denoise (which writes the layers)",
             a.layers ? "--layers" : "--denoise");
-    check_writable(out.exr, "EXR");
-    if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
+    if (check_paths) {
+        check_writable(out.exr, "EXR");
+        if (!out.preview.empty()) check_writable(out.preview, "PNG preview");
+    }
     // A frame number goes into one run of '#': a second would stay in every frame's name.
     for (const std::string& path : {out.exr, out.preview}) {
         if (find_frame_run(path).several)
@@ -430,7 +432,7 @@ Outputs outputs_for(const RenderArgs& a) {
     // The preview is a PNG whatever its name: another ending would mislabel it (p.jpg held PNG).
     if (!out.preview.empty() && !has_extension(out.preview, ".png"))
         usage_error("--preview '{}' must end in .png (the preview is a PNG)", out.preview);
-    if (!a.frames.empty()) {
+    if (!a.frames.empty() && check_paths) {
         const auto [first, last] = parse_frames(a.frames);
         check_frame_paths(out, first, last);
     }
@@ -444,10 +446,20 @@ Outputs outputs_for(const RenderArgs& a) {
     return out;
 }
 
-std::optional<Outputs> scene_outputs(const RenderArgs& a, const std::string& asked,
-                                     const Logger& log, bool numbered, int64_t first,
-                                     int64_t last) {
-    if (!a.output.empty() || asked.empty()) return std::nullopt;
+std::optional<Outputs> scene_outputs(const RenderArgs& a, const SceneInfo& info, const Logger& log,
+                                     bool numbered, int64_t first, int64_t last) {
+    if (!a.output.empty()) return std::nullopt;
+    const std::string& asked = info.output;
+    if (asked.empty()) {
+        Outputs out = outputs_for(a);
+        out.remove_stale_temporaries(log);
+        return out;
+    }
+    if (!numbered && find_frame_run(asked).count > 0)
+        throw_error(info.output_loc,
+                    "the scene asks for '{}', a name with a frame number ('#'), but only --frames "
+                    "numbers images: render the sequence with --frames FIRST..LAST, or give -o",
+                    asked);
     RenderArgs named = a;
     named.output = fs::path(asked).replace_extension(".exr").string();
     Outputs out = outputs_for(named);

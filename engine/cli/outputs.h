@@ -14,6 +14,7 @@
 #include "color/image_output.h"
 #include "core/log.h"
 #include "render/render_options.h"
+#include "scene/scene_info.h"
 
 namespace spangle {
 
@@ -125,15 +126,18 @@ struct Outputs {
  *  compression, a preview that is another file, neither the scene file, both writable (with
  *  --frames, every frame's, none a folder). Throws
  *  UsageError (a clash on the command line) or SpangleError (a path that cannot be written). */
-Outputs outputs_for(const RenderArgs& a);
+Outputs outputs_for(const RenderArgs& a, bool check_paths = true);
 
-/** The outputs of the image the scene asks for (`asked`: [render] output, pbrt's Film
- *  "filename") where -o gives none, as an EXR (another extension becomes .exr), relative to the
- *  working folder as pbrt writes it, checked as outputs_for() checks -o's; nullopt where -o
- *  gives one or the scene asks for none. Temporaries a killed render left beside it are removed
- *  and one line (unless --quiet) says where the image goes. */
-std::optional<Outputs> scene_outputs(const RenderArgs& a, const std::string& asked,
-                                     const Logger& log, bool numbered, int64_t first, int64_t last);
+/** Where -o gives no output, the outputs once the scene is read: the image it asks for
+ *  ([render] output, pbrt's Film "filename"), as an EXR (another extension becomes .exr),
+ *  relative to the working folder as pbrt writes it, else the scene file's name; checked as
+ *  outputs_for() checks -o's (a render set up with its default unchecked: a working folder it
+ *  cannot write is no error where the scene names another), temporaries a killed render left
+ *  beside it removed, one line (unless --quiet) saying where the image the scene asks for goes.
+ *  A name with a frame number ('#') where nothing numbers the image (`numbered` false) is an
+ *  error at the scene's line. nullopt where -o gives one. */
+std::optional<Outputs> scene_outputs(const RenderArgs& a, const SceneInfo& info, const Logger& log,
+                                     bool numbered, int64_t first, int64_t last);
 
 /** Says, once per process, that the EXRs carry no chromaticities (a foreign OCIO config whose
  *  working space Spangle can neither recognise nor measure), and what would fix it. */

@@ -233,7 +233,7 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
 /** The one-shot render: load, render (passes written with --pass-output, shown with --serve),
  *  write the image. */
 int run_one_shot(const RenderArgs& a) {
-    RenderSetup s = set_up_render(a);
+    RenderSetup s = set_up_render(a, true);
     FrameRequest req;
     req.scene = a.scene;
     req.plugin_dirs = a.plugin_dirs;
@@ -274,7 +274,7 @@ int run_one_shot(const RenderArgs& a) {
                         const std::vector<std::string>& inputs) {
         // The image the scene asks for (pbrt's Film "filename") when -o gives none, as an EXR
         // (its PNG preview beside it), relative to the working folder as pbrt writes it.
-        if (auto asked = scene_outputs(a, i.output, s.log, false, 0, 0)) s.out = std::move(*asked);
+        if (auto asked = scene_outputs(a, i, s.log, false, 0, 0)) s.out = std::move(*asked);
         s.out.check_not_inputs(inputs);
         s.out.check_view(c);  // a display or view the config lacks: an error before rendering
         warn_if_no_chromaticities(s.log, c);

@@ -6,9 +6,12 @@
 
 namespace spangle {
 
-RenderSetup set_up_render(const RenderArgs& a) {
-    RenderSetup s{render_logger(a), outputs_for(a)};
-    s.out.remove_stale_temporaries(s.log);
+RenderSetup set_up_render(const RenderArgs& a, bool scene_names_output) {
+    // (Without -o, a mode that reads the scene's own output checks its default once it knows it
+    // is the one: scene_outputs().)
+    const bool deferred = scene_names_output && a.output.empty();
+    RenderSetup s{render_logger(a), outputs_for(a, !deferred)};
+    if (!deferred) s.out.remove_stale_temporaries(s.log);
     install_signal_handlers();
     return s;
 }

@@ -17,8 +17,9 @@ struct RenderSetup {
 
 /** Sets a one-process render up, in this order: the logger, the outputs (checked before any
  *  work: UsageError or SpangleError; temporary images a killed render left in their folders
- *  removed), then the stop signals' handlers. */
-RenderSetup set_up_render(const RenderArgs& a);
+ *  removed), then the stop signals' handlers. `scene_names_output`: the mode replaces the
+ *  outputs by scene_outputs() once the scene is read, so a default (no -o) is not checked yet. */
+RenderSetup set_up_render(const RenderArgs& a, bool scene_names_output = false);
 
 /** Says how many sample values were non-finite and replaced by black, and the first of them
  *  (pixel and sample); nothing when there were none. */

@@ -754,6 +754,7 @@ SceneInfo build_scene(const SceneDescription& scene, ColorConfig& color, ecs::Re
     info.content_hash = hash2(info.scene_files_hash, camera_hash(scene.camera));
     info.notes = scene.notes;
     info.output = scene.render.output.value_or("");
+    info.output_loc = scene.render.output_loc;
     info.time = time;
     BuildContext ctx{&color, &registry, &info, {}, {}, {}};
     const ecs::Entity settings = registry.create();

@@ -407,6 +407,7 @@ struct RenderDesc {
     double shutter_close = 0.0;                ///< not before shutter_open; equal = no blur
     /** The image the scene asks to be written (pbrt's Film "filename"); -o wins over it. */
     std::optional<std::string> output;
+    FileLoc output_loc;  ///< where it is written
     /** The part of the image the scene asks to render (pbrt's Film "cropwindow"): x0, x1, y0, y1
      *  as fractions of the width and height, y down; --crop wins over it. */
     std::optional<std::array<double, 4>> crop;

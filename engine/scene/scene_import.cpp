@@ -117,6 +117,7 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     keep("shutter", &RenderDesc::shutter_open);
     keep("shutter", &RenderDesc::shutter_close);
     keep("output", &RenderDesc::output);
+    keep("output", &RenderDesc::output_loc);
     // The colour spaces: the importing file's, written or not (its bare colours are bare in its
     // space; the import's were made explicit).
     into.working_space = mine.working_space;

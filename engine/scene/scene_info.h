@@ -28,6 +28,7 @@ struct SceneInfo {
      *  leaves it the same changed nothing the scene says. */
     uint64_t scene_files_hash = 0;
     std::string output;  ///< the image it asks for; empty: none
+    FileLoc output_loc;  ///< where the scene names it
     /** The part of the image it asks to render (pbrt's cropwindow): x0, x1, y0, y1 as fractions
      *  of the width and height, y down, 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1; none: all. The
      *  pixels are [ceil(x0 W), ceil(x1 W)) x [ceil(y0 H), ceil(y1 H)), as pbrt takes them. */

@@ -98,6 +98,7 @@ RenderDesc read_render(TableReader& r) {
     // convert` writes here): relative to the working folder, as pbrt's.
     if (r.has("output")) {
         d.output = r.string("output");
+        d.output_loc = r.loc("output");
         if (d.output->empty() || d.output->back() == '/')
             throw_error(r.loc("output"), "'output' must name an image file, got \"{}\"", *d.output);
     }

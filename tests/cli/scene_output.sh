@@ -34,6 +34,12 @@ sed 's/^output = "asked_for.png"/output = "seq_##.exr"/' "$T/scene/twin.toml" > 
 [ -f seq_03.exr ] && [ -f seq_04.exr ] || fail "the # run of [render] output was not the frame number: $(ls)"
 "$S" render "$T/scene/hashes.toml" --size 24x18 --spp 1 --frames 3..3 -q -o given_#.exr || fail "--frames -o failed"
 [ -f given_3.exr ] || fail "-o did not win over [render] output with --frames: $(ls)"
+# A still render of a scene whose output holds a frame number: an error at that line (it was a
+# usage error, exit 2, without the scene's line).
+"$S" render "$T/scene/hashes.toml" --size 24x18 --spp 1 > out5.txt 2>&1
+status=$?
+[ "$status" = 1 ] || fail "a still render of a '#' output exited $status: $(cat out5.txt)"
+grep -q "hashes.toml:[0-9]*:[0-9]*: error: the scene asks for 'seq_##.exr'" out5.txt || fail "no file:line for a '#' output in a still render: $(cat out5.txt)"
 # An empty name is refused at its line.
 printf '[render]\noutput = ""\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n' > bad.toml
 "$S" render bad.toml --spp 1 > bad.txt 2>&1 && fail "an empty output was accepted"

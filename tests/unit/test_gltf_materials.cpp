@@ -870,11 +870,15 @@ TEST(GltfErrors, AnImageViewPastItsBufferIsSaidAtTheImage) {
     ASSERT_NE(key, std::string::npos);
     std::string escaped = text;
     escaped.replace(key, plain.size(), R"("images":[{"buffer\u0056iew")");
-    // The JSON chunk's length (bytes 12-15) and the file's (8-11) grow by the five bytes.
+    // The JSON chunk's length (bytes 12-15) and the file's (8-11) grow by the five bytes and
+    // three spaces of padding (a chunk's length is a multiple of 4).
+    uint32_t json_length;
+    std::memcpy(&json_length, escaped.data() + 12, 4);
+    escaped.insert(20 + json_length + 5, 3, ' ');
     for (const std::size_t field : {std::size_t{8}, std::size_t{12}}) {
         uint32_t n;
         std::memcpy(&n, escaped.data() + field, 4);
-        n += 5;
+        n += 8;
         std::memcpy(escaped.data() + field, &n, 4);
     }
     const std::string e2 = error_of(dir, escaped, "escaped.glb");
@@ -1383,6 +1387,37 @@ TEST(GltfContainers, GlbAndExternalBufferReadAsTheEmbeddedGltf) {
                 << e.what();
         }
     }
+    // Damaged lengths and types, each said in words of the .glb (tinygltf's were "Invalid
+    // `byteLength'" at 1:1, or a chunk header read from inside the JSON text).
+    const auto refused = [&](const std::string& name, const std::string& bytes,
+                             const std::string& said) {
+        std::ofstream(dir.file(name), std::ios::binary) << bytes;
+        try {
+            read_scene(dir.file(name));
+            ADD_FAILURE() << name << " was read";
+        } catch (const SpangleError& e) {
+            EXPECT_NE(std::string(e.what()).find(said), std::string::npos)
+                << name << ": " << e.what();
+        }
+    };
+    refused("empty.glb", "", "a .glb file needs at least 20 bytes, this has 0");
+    std::string bad = glb;
+    put(bad, 12, 0);
+    refused("json0.glb", bad, "the JSON chunk is empty");
+    bad = glb;
+    put(bad, 12, length + 1);
+    refused("json_odd.glb", bad, "is not a multiple of 4");
+    bad = glb;
+    put(bad, 12, length - 4);
+    refused("json_short.glb", bad, "is not a BIN chunk");
+    bad = glb;
+    put(bad, 20 + length + 4, 0x58585858u);
+    refused("bin_type.glb", bad, "is not a BIN chunk (its type is 0x58585858");
+    bad = glb;
+    put(bad, 20 + length, bin_length - 4);
+    bad.resize(bad.size() - 4);
+    put(bad, 8, static_cast<uint32_t>(bad.size()));
+    refused("bin_short.glb", bad, "more than the .glb's BIN chunk holds");
 }
 
 }  // namespace

@@ -31,6 +31,8 @@ struct Context {
      *  buffers, and buffers without a uri that compressed views decode into): they hold no
      *  bytes; decompress() points every view into them at decoded bytes of its own. */
     std::set<int> placeholder_buffers;
+    /** A .glb's BIN chunk: its length in bytes (nullopt: none, or not a .glb). */
+    std::optional<std::size_t> bin_chunk;
     /** The file's own counts of buffers and views, before decompress() added the decoded
      *  ones (indices in the extensions are checked against these). */
     std::size_t file_buffers = 0, file_views = 0;

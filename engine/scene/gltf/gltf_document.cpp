@@ -191,15 +191,35 @@ std::string_view glb_json(const std::string& bytes, const std::string& path) {
         throw_error(file, "the first chunk of a .glb file must be its JSON");
     if (length > bytes.size() - 20)
         throw_error(file, "the JSON chunk ({} bytes) runs past the end of the file", length);
+    // Its length as the spec has it (tinygltf refuses others, in words that do not say where;
+    // one off, the next chunk's header was read from inside the JSON text).
+    if (length == 0) throw_error(file, "the JSON chunk is empty (its length in the header is 0)");
+    if (length % 4 != 0)
+        throw_error(file,
+                    "the JSON chunk's length {} is not a multiple of 4 (a .glb pads its chunks to "
+                    "4 bytes): the file is damaged or was written with wrong lengths",
+                    length);
     // The chunk after it (the BIN chunk) must end inside the header's length: tinygltf checks
     // its length without its 8-byte header and copied up to 8 bytes from past the end of the
     // file's memory into the buffer.
     const std::size_t total = u32(bytes, 8), next = 20 + std::size_t{length};
+    // (Its type first: a JSON length that is wrong puts the next header inside the text.)
+    if (next + 8 <= total && u32(bytes, next + 4) != 0x004E4942u)
+        throw_error(file,
+                    "the chunk after the JSON (from byte {}) is not a BIN chunk (its type is "
+                    "0x{:08x}, BIN is 0x004e4942): the file is damaged, or the JSON chunk's "
+                    "length ({}) is wrong",
+                    next, u32(bytes, next + 4), length);
     if (next + 8 <= total && u32(bytes, next) > total - next - 8)
         throw_error(file,
                     "the chunk after the JSON ({} bytes from byte {}) runs past the end of the "
                     "file ({} bytes, as its header says)",
                     u32(bytes, next), next + 8, total);
+    if (next < total && next + 8 > total)
+        throw_error(file,
+                    "{} bytes after the JSON chunk are too few for a chunk's header (8 bytes): the "
+                    "file is damaged",
+                    total - next);
     return std::string_view(bytes).substr(20, length);
 }
 
@@ -464,7 +484,19 @@ BufferLengths check_buffers(const Context& ctx, bool binary) {
         if (!uri && ctx.json.has(at))
             throw_error(ctx.at(at), "buffer {}: its uri must be a string", i);
         if (ctx.placeholder_buffers.count(static_cast<int>(i))) continue;  // holds nothing
-        if (!uri && binary && i == 0) continue;                            // the BIN chunk
+        if (!uri && binary && i == 0) {                                    // the BIN chunk
+            // tinygltf said "Invalid `byteLength'" at 1:1, or "empty BIN chunk".
+            if (!ctx.bin_chunk)
+                throw_error(ctx.at(fmt::format("buffers/{}", i)),
+                            "buffer 0 has no uri, so its data is the .glb's BIN chunk, but the "
+                            "file has none");
+            if (length > static_cast<double>(*ctx.bin_chunk))
+                throw_error(ctx.at(length_at),
+                            "buffer 0: byteLength {} is more than the .glb's BIN chunk holds ({} "
+                            "bytes)",
+                            *length_text, *ctx.bin_chunk);
+            continue;
+        }
         if (!uri)
             throw_error(ctx.at(fmt::format("buffers/{}", i)), "buffer {} has no uri: {}", i,
                         binary ? "only a .glb's first buffer is its BIN chunk, the others name "
@@ -656,10 +688,11 @@ void load_document(Context& ctx) {
     // A .glb is binary whatever its first bytes (one without the 'glTF' magic was read as JSON:
     // "unexpected character 'g'"); a file of another name is by its magic.
     const std::size_t first = bytes.find_first_not_of(" \t\r\n");
+    // (An empty .glb, or one of white space, is a .glb too short, not JSON that ends early.)
     const bool binary =
         (bytes.size() >= 4 && bytes.compare(0, 4, "glTF") == 0) ||
         (ascii_lower(std::filesystem::path(ctx.path).extension().string()) == ".glb" &&
-         first != std::string::npos && bytes[first] != '{');
+         (first == std::string::npos || bytes[first] != '{'));
     if (binary && bytes.size() >= 20 && bytes.compare(0, 4, "glTF") == 0) {
         // Its JSON chunk as writers get it wrong, mended in place (same length, so sizes and
         // places stand): a byte-order mark before it and NUL padding after it (the spec pads
@@ -678,6 +711,11 @@ void load_document(Context& ctx) {
         }
     }
     const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
+    if (binary) {
+        // (glb_json checked that a chunk after the JSON fits in the file and is BIN.)
+        const std::size_t total = u32(bytes, 8), next = 20 + json.size();
+        if (next + 8 <= total) ctx.bin_chunk = u32(bytes, next);
+    }
     ctx.json = JsonLocations(json, ctx.path);
     check_required(ctx);
     ctx.placeholder_buffers = placeholder_buffers(ctx, binary);

@@ -30,7 +30,11 @@ void film(Reader& r) {
     else if (const Param* y = p.find("yresolution"))
         d.size_loc = y->loc;
     const std::string out = p.string("filename", "");
-    if (!out.empty()) d.output = out;
+    if (!out.empty()) {
+        d.output = out;
+        const Param* f = p.find("filename");
+        d.output_loc = f ? f->loc : r.film_loc;
+    }
     if (const Param* c = p.find("cropwindow", {"float"})) {
         if (c->numbers.size() != 4)
             throw_error(c->loc, "'cropwindow' needs 4 numbers x0 x1 y0 y1, got {}",
