@@ -33,11 +33,20 @@ void check_writable(const std::string& path, const char* what) {
         throw_error("cannot write the {} '{}': the file name is longer than {} bytes", what, path,
                     NAME_MAX - 24);
     std::error_code ec;
+    // A relative folder is said with where it is (it is the working folder's, which a user
+    // reading a scene's relative paths may not expect).
+    const std::string folder = [&] {
+        if (dir.is_absolute()) return fmt::format("'{}'", dir.string());
+        std::error_code aec;
+        const fs::path abs = fs::absolute(dir, aec);
+        return aec ? fmt::format("'{}'", dir.string())
+                   : fmt::format("'{}' ('{}' in the working folder)",
+                                 abs.lexically_normal().string(), dir.string());
+    }();
     if (!fs::exists(dir, ec))
-        throw_error("cannot write the {} '{}': folder '{}' does not exist", what, path,
-                    dir.string());
+        throw_error("cannot write the {} '{}': folder {} does not exist", what, path, folder);
     if (!fs::is_directory(dir, ec))
-        throw_error("cannot write the {} '{}': '{}' is not a folder", what, path, dir.string());
+        throw_error("cannot write the {} '{}': {} is not a folder", what, path, folder);
     if (fs::is_directory(p, ec))
         throw_error("cannot write the {} '{}': it is a folder", what, path);
     // Creating a file there is the only test that holds for every case (permissions, root,
@@ -45,8 +54,8 @@ void check_writable(const std::string& path, const char* what) {
     const fs::path probe = dir / fmt::format(".spangle-probe-{}", ::getpid());
     const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
     if (fd < 0)
-        throw_error("cannot write the {} '{}': cannot create files in folder '{}' ({})", what, path,
-                    dir.string(), std::strerror(errno));
+        throw_error("cannot write the {} '{}': cannot create files in folder {} ({})", what, path,
+                    folder, std::strerror(errno));
     ::close(fd);
     ::unlink(probe.c_str());
 }

@@ -462,7 +462,14 @@ std::optional<Outputs> scene_outputs(const RenderArgs& a, const SceneInfo& info,
                     asked);
     RenderArgs named = a;
     named.output = fs::path(asked).replace_extension(".exr").string();
-    Outputs out = outputs_for(named);
+    // What is wrong with it, at the scene's line (the path is the working folder's, as pbrt's).
+    Outputs out;
+    try {
+        out = outputs_for(named);
+    } catch (const SpangleError& e) {
+        throw_error(info.output_loc, "the scene asks for '{}' (a path from the working folder): {}",
+                    asked, e.what());
+    }
     out.remove_stale_temporaries(log);
     if (!a.quiet) {
         if (!numbered)

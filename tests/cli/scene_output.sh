@@ -40,6 +40,12 @@ sed 's/^output = "asked_for.png"/output = "seq_##.exr"/' "$T/scene/twin.toml" > 
 status=$?
 [ "$status" = 1 ] || fail "a still render of a '#' output exited $status: $(cat out5.txt)"
 grep -q "hashes.toml:[0-9]*:[0-9]*: error: the scene asks for 'seq_##.exr'" out5.txt || fail "no file:line for a '#' output in a still render: $(cat out5.txt)"
+# A folder the scene's output names that does not exist: at the scene's line, the folder said
+# where it is (the working folder's, as pbrt's).
+sed 's/^output = "asked_for.png"/output = "nofolder\/x.exr"/' "$T/scene/twin.toml" > "$T/scene/nofolder.toml"
+"$S" render "$T/scene/nofolder.toml" --size 24x18 --spp 1 > out6.txt 2>&1 && fail "a missing output folder was accepted"
+grep -q "nofolder.toml:[0-9]*:[0-9]*: error: the scene asks for 'nofolder/x.exr'" out6.txt || fail "no file:line for a missing output folder: $(cat out6.txt)"
+grep -q "('nofolder' in the working folder) does not exist" out6.txt || fail "the missing folder is not said as the working folder's: $(cat out6.txt)"
 # An empty name is refused at its line.
 printf '[render]\noutput = ""\n[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, 0]\n' > bad.toml
 "$S" render bad.toml --spp 1 > bad.txt 2>&1 && fail "an empty output was accepted"
