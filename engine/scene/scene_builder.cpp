@@ -1,7 +1,6 @@
 #include "scene/scene_builder.h"
 
 #include <algorithm>
-#include <bit>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -18,6 +17,7 @@
 #include "scene/frame_sequence.h"
 #include "scene/keyed_motion.h"
 #include "scene/object_placement.h"
+#include "scene/scene_hash.h"
 
 namespace spangle {
 
@@ -695,51 +695,6 @@ void build_light(BuildContext& ctx, const LightDesc& d) {
     const ecs::Entity e = ctx.registry->create();
     ctx.registry->put(e, light_group_component(ctx, d.group));
     std::visit(LightPut{*ctx.registry, e, value, d.loc}, d.shape);
-}
-
-}  // namespace
-
-uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files) {
-    uint64_t h = 0x5ce9e5ull;
-    h = hash2(h, file_content_hash(path));
-    for (const std::string& f : files) h = hash2(h, file_content_hash(f));
-    return h;
-}
-
-namespace {
-
-/** Hash of the camera looked through, by what it is (place, view, lens, projection, keys), not
- *  by the name it was picked by: `--camera NAME` naming the camera a file looks through anyway
- *  is the same render (crop parts of the two were refused as different scenes). */
-uint64_t camera_hash(const CameraDesc& c) {
-    uint64_t h = 0xca3e7a;
-    const auto num = [&h](double x) { h = hash2(h, std::bit_cast<uint64_t>(x)); };
-    const auto vec = [&](const Vec3& v) {
-        num(static_cast<double>(v.x));
-        num(static_cast<double>(v.y));
-        num(static_cast<double>(v.z));
-    };
-    vec(c.position);
-    vec(c.look_at);
-    vec(c.up);
-    num(c.fov_deg);
-    num(c.aperture);
-    num(c.focus_distance.value_or(-1.0));
-    num(c.ortho_height);
-    h = hash4(h, c.mirror, c.fov_shorter, c.equirect);
-    if (c.screen)
-        for (const double x : *c.screen) num(x);
-    h = hash2(h, c.keys.smooth ? c.keys.keys.size() : ~c.keys.keys.size());
-    for (const CameraKey& k : c.keys.keys) {
-        num(k.time.seconds);
-        h = hash2(h, k.time.frame ? static_cast<uint64_t>(*k.time.frame) : ~0ull);
-        for (const std::optional<Vec3>& v : {k.position, k.look_at, k.up}) {
-            h = hash2(h, v.has_value());
-            if (v) vec(*v);
-        }
-        num(k.fov_deg.value_or(-1.0));
-    }
-    return h;
 }
 
 }  // namespace

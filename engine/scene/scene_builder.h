@@ -21,10 +21,6 @@ namespace spangle {
  *  file's name without the folder and ending, else "object<index + 1>". */
 std::string object_name(const ObjectDesc& d, uint32_t index);
 
-/** The hash of a scene file and the files it includes or imports (`files`); the session adds
- *  the files its systems read (meshes, textures, maps) to make SceneInfo::content_hash. */
-uint64_t scene_content_hash(const std::string& path, const std::vector<std::string>& files);
-
 /** Builds `scene` as it stands at `time` (seconds) into `registry` (which should be empty):
  *  one entity of settings (Film, Camera, CameraMotion), then the environment, the materials,
  *  the objects and the lights, in the description's order. Sets `color`'s working space (one

@@ -28,6 +28,7 @@
 #include "core/files.h"
 #include "pipeline/session.h"
 #include "scene/scene_builder.h"
+#include "scene/scene_hash.h"
 #include "scene/scene_loader.h"
 
 namespace fs = std::filesystem;

@@ -19,6 +19,7 @@
 
 #include "core/files.h"
 #include "core/text.h"
+#include "scene/gltf/gltf_glb.h"
 #include "scene/gltf/gltf_parts.h"
 
 namespace spangle::gltf {
@@ -142,85 +143,6 @@ std::string readable(const std::string& text) {
 bool write_nothing(std::string* err, const std::string&, const std::vector<unsigned char>&, void*) {
     if (err) *err += "the glTF reader writes no files\n";
     return false;
-}
-
-/** The whole file; throws SpangleError when it cannot be opened. */
-std::string read_bytes(const std::string& path) {
-    std::ifstream in(path, std::ios::binary);
-    if (!in) throw_error(FileLoc{path, 0, 0}, "cannot open the file: {}", unreadable(path));
-    // Read into a string of the file's size exactly (one allocation, and no spare capacity past
-    // its end: a read past the end of the file's bytes is caught by AddressSanitizer, where the
-    // capacity a growing string leaves hid one), then whatever more a growing file holds.
-    std::string bytes;
-    if (in.seekg(0, std::ios::end)) {
-        const std::streamoff size = in.tellg();
-        in.seekg(0, std::ios::beg);
-        if (size > 0 && in) {
-            bytes.resize(static_cast<std::size_t>(size));
-            in.read(bytes.data(), size);
-            bytes.resize(static_cast<std::size_t>(in.gcount()));
-            in.clear();
-        }
-    }
-    in.clear();
-    bytes.append(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-    return bytes;
-}
-
-/** The little-endian 32-bit word at byte `at`. */
-uint32_t u32(const std::string& b, std::size_t at) {
-    uint32_t v;
-    std::memcpy(&v, b.data() + at, 4);
-    return v;
-}
-
-/** The JSON chunk of a GLB file (glTF 2.0, 4.4), its header checked. */
-std::string_view glb_json(const std::string& bytes, const std::string& path) {
-    const FileLoc file{path, 0, 0};
-    if (bytes.size() < 20)
-        throw_error(file, "a .glb file needs at least 20 bytes, this has {}", bytes.size());
-    if (bytes.compare(0, 4, "glTF") != 0)
-        throw_error(file, "not a binary glTF file (it does not start with 'glTF')");
-    if (u32(bytes, 4) != 2)
-        throw_error(file, "binary glTF version {}: only 2 is read", u32(bytes, 4));
-    if (u32(bytes, 8) > bytes.size())
-        throw_error(file, "the header gives {} bytes, the file has {}", u32(bytes, 8),
-                    bytes.size());
-    const uint32_t length = u32(bytes, 12);
-    if (u32(bytes, 16) != 0x4E4F534Au)
-        throw_error(file, "the first chunk of a .glb file must be its JSON");
-    if (length > bytes.size() - 20)
-        throw_error(file, "the JSON chunk ({} bytes) runs past the end of the file", length);
-    // Its length as the spec has it (tinygltf refuses others, in words that do not say where;
-    // one off, the next chunk's header was read from inside the JSON text).
-    if (length == 0) throw_error(file, "the JSON chunk is empty (its length in the header is 0)");
-    if (length % 4 != 0)
-        throw_error(file,
-                    "the JSON chunk's length {} is not a multiple of 4 (a .glb pads its chunks to "
-                    "4 bytes): the file is damaged or was written with wrong lengths",
-                    length);
-    // The chunk after it (the BIN chunk) must end inside the header's length: tinygltf checks
-    // its length without its 8-byte header and copied up to 8 bytes from past the end of the
-    // file's memory into the buffer.
-    const std::size_t total = u32(bytes, 8), next = 20 + std::size_t{length};
-    // (Its type first: a JSON length that is wrong puts the next header inside the text.)
-    if (next + 8 <= total && u32(bytes, next + 4) != 0x004E4942u)
-        throw_error(file,
-                    "the chunk after the JSON (from byte {}) is not a BIN chunk (its type is "
-                    "0x{:08x}, BIN is 0x004e4942): the file is damaged, or the JSON chunk's "
-                    "length ({}) is wrong",
-                    next, u32(bytes, next + 4), length);
-    if (next + 8 <= total && u32(bytes, next) > total - next - 8)
-        throw_error(file,
-                    "the chunk after the JSON ({} bytes from byte {}) runs past the end of the "
-                    "file ({} bytes, as its header says)",
-                    u32(bytes, next), next + 8, total);
-    if (next < total && next + 8 > total)
-        throw_error(file,
-                    "{} bytes after the JSON chunk are too few for a chunk's header (8 bytes): the "
-                    "file is damaged",
-                    total - next);
-    return std::string_view(bytes).substr(20, length);
 }
 
 /** Extensions noted where they are used (a material, a primitive, a texture), not here. */
@@ -681,7 +603,7 @@ FileLoc tinygltf_error_place(const Context& ctx, const std::string& err) {
 }  // namespace
 
 void load_document(Context& ctx) {
-    std::string bytes = read_bytes(ctx.path);
+    std::string bytes = read_file_bytes(ctx.path);
     // A UTF-8 byte-order mark before the JSON (Windows editors write one; RFC 8259 lets a
     // reader ignore it): skipped ("unexpected character" at 1:1 before).
     if (bytes.compare(0, 3, "\xEF\xBB\xBF") == 0) bytes.erase(0, 3);
@@ -698,24 +620,22 @@ void load_document(Context& ctx) {
         // places stand): a byte-order mark before it and NUL padding after it (the spec pads
         // with spaces) become spaces; both were "unexpected character" errors.
         const std::size_t end =
-            std::min<std::size_t>(bytes.size(), 20 + std::size_t{u32(bytes, 12)});
+            std::min<std::size_t>(bytes.size(), 20 + std::size_t{glb_u32(bytes, 12)});
         if (bytes.compare(20, 3, "\xEF\xBB\xBF") == 0) bytes.replace(20, 3, "   ");
         for (std::size_t i = end; i > 20 && bytes[i - 1] == '\0'; --i) bytes[i - 1] = ' ';
         // An empty BIN chunk after it (draco_transcoder writes one for a file without buffer
         // data; the spec says to leave the chunk out): left out, as tinygltf refused it.
-        if (bytes.size() == end + 8 && u32(bytes, 8) == bytes.size() && u32(bytes, end) == 0 &&
-            u32(bytes, end + 4) == 0x004E4942u) {
+        if (bytes.size() == end + 8 && glb_u32(bytes, 8) == bytes.size() &&
+            glb_u32(bytes, end) == 0 && glb_u32(bytes, end + 4) == 0x004E4942u) {
             bytes.resize(end);
             const auto length = static_cast<uint32_t>(end);
             std::memcpy(bytes.data() + 8, &length, 4);
         }
     }
-    const std::string_view json = binary ? glb_json(bytes, ctx.path) : std::string_view(bytes);
-    if (binary) {
-        // (glb_json checked that a chunk after the JSON fits in the file and is BIN.)
-        const std::size_t total = u32(bytes, 8), next = 20 + json.size();
-        if (next + 8 <= total) ctx.bin_chunk = u32(bytes, next);
-    }
+    GlbChunks chunks{std::string_view(bytes), std::nullopt};
+    if (binary) chunks = glb_chunks(bytes, ctx.path);
+    const std::string_view json = chunks.json;
+    ctx.bin_chunk = chunks.bin;
     ctx.json = JsonLocations(json, ctx.path);
     check_required(ctx);
     ctx.placeholder_buffers = placeholder_buffers(ctx, binary);
@@ -730,7 +650,7 @@ void load_document(Context& ctx) {
     if (std::string changed = tinygltf_json(ctx, json, viewless); !changed.empty()) {
         if (binary) {
             while (changed.size() % 4 != 0) changed += ' ';
-            const std::size_t rest = 20 + std::size_t{u32(bytes, 12)};
+            const std::size_t rest = 20 + std::size_t{glb_u32(bytes, 12)};
             std::string glb = bytes.substr(0, 12);
             const auto chunk = static_cast<uint32_t>(changed.size());
             glb.append(reinterpret_cast<const char*>(&chunk), 4);
@@ -738,7 +658,7 @@ void load_document(Context& ctx) {
             glb += changed;
             // The chunks after the JSON as far as the header's length (bytes past it are not
             // the file's: appended, they were read as a BIN chunk).
-            const std::size_t length = std::min<std::size_t>(u32(bytes, 8), bytes.size());
+            const std::size_t length = std::min<std::size_t>(glb_u32(bytes, 8), bytes.size());
             if (rest < length) glb.append(bytes, rest, length - rest);
             const auto total =
                 static_cast<uint32_t>(std::min<std::size_t>(glb.size(), 0xFFFFFFFFu));
