@@ -152,14 +152,12 @@ int run_frames(const RenderArgs& a) {
         }
         // A signal after the last frame's last pass: every frame is whole (said, and the status
         // a one-shot render gives then: SIGTERM and SIGHUP end as such, SIGINT with 0).
+        // (The flag read once: a signal between two reads exited without the line.)
         if (f == last && stop_requested()) {
+            const int status = exit_status_for_signal();
             s.log.warn("{} arrived after the last pass of the last frame: wrote {} whole{}",
-                       stop_signal_name(), out.exr,
-                       exit_status_for_signal() != 0
-                           ? fmt::format(" (exit status {}, as after any {})",
-                                         exit_status_for_signal(), stop_signal_name())
-                           : std::string());
-            return exit_status_for_signal();
+                       stop_signal_name(), out.exr, late_signal_status(status));
+            return status;
         }
     }
     return 0;

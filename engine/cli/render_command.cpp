@@ -223,10 +223,7 @@ int finish_one_shot(const RenderArgs& a, const RenderSetup& s, const FrameResult
     if (!stop_requested()) return 0;
     const int status = exit_status_for_signal();
     s.log.warn("{} arrived after the last pass: wrote {} whole, {} samples per pixel{}",
-               stop_signal_name(), s.out.exr, frame.stats.spp_reached,
-               status != 0
-                   ? fmt::format(" (exit status {}, as after any {})", status, stop_signal_name())
-                   : std::string());
+               stop_signal_name(), s.out.exr, frame.stats.spp_reached, late_signal_status(status));
     return status;
 }
 

@@ -133,6 +133,11 @@ const char* stop_signal_name() {
                                     : "";
 }
 
+std::string late_signal_status(int status) {
+    if (status == 0) return {};
+    return " (exit status " + std::to_string(status) + ", as after any " + stop_signal_name() + ")";
+}
+
 int exit_status_for_signal() {
     return stop_signal == SIGTERM || stop_signal == SIGHUP ? 128 + static_cast<int>(stop_signal)
                                                            : 0;

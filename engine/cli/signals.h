@@ -4,6 +4,8 @@
 // the temporary file of an image being written (outputs are renamed into place whole, so none is
 // ever half-written).
 
+#include <string>
+
 namespace spangle {
 
 /** Installs the handlers of SIGINT and SIGTERM (without SA_RESTART: a blocking wait returns
@@ -36,5 +38,9 @@ int interrupted_status();
 
 /** "SIGINT" or "SIGTERM": the stop signal that arrived ("" before any). */
 const char* stop_signal_name();
+
+/** The end of the line said when a stop signal arrived after the last pass (the image whole):
+ *  " (exit status 143, as after any SIGTERM)" for a status that is not 0, else "". */
+std::string late_signal_status(int status);
 
 }  // namespace spangle

@@ -6,6 +6,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <string_view>
 #include <utility>
 
 namespace spangle {
@@ -28,6 +29,10 @@ public:
     SpangleError(const FileLoc& loc, const std::string& message)
         : std::runtime_error(loc.file.empty() ? message : loc.str() + ": error: " + message) {}
 };
+
+/** The same error with `context` ("material 'paint'") said before its message, after the
+ *  location: "file:3:5: error: material 'paint': ...". */
+SpangleError with_context(const SpangleError& e, std::string_view context);
 
 /** Throws SpangleError at loc with a fmt-formatted message. */
 template <class... Args>

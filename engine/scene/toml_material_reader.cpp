@@ -310,7 +310,14 @@ MaterialDesc read_material(const ReadContext& ctx, TableReader& r) {
     m.model = r.string("model", "");
     m.model_loc = r.loc("model");
     if (const toml::table* params = r.table("params"))
-        for (auto&& [key, value] : *params) m.params.push_back(read_param(ctx, key, value));
+        for (auto&& [key, value] : *params) {
+            // Its errors say whose parameter it is, as the plugin's own checks do.
+            try {
+                m.params.push_back(read_param(ctx, key, value));
+            } catch (const SpangleError& e) {
+                throw with_context(e, fmt::format("material '{}'", m.name));
+            }
+        }
     for (const auto& [key, use] : {std::pair{"normal_map", TextureUse::NormalMap},
                                    std::pair{"bump_map", TextureUse::BumpMap}}) {
         const toml::table* t = r.table(key);
