@@ -20,6 +20,7 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -44,6 +45,10 @@ struct Planes {
     /** Luminance weights of its primaries (its chromaticities attribute; Rec.709 without). */
     std::array<double, 3> luma = kRec709Luma;
     bool luma_from_header = false;
+    /** Its chromaticities (red, green, blue, white as x, y), when its header has them, and the
+     *  colour space it names ("colorSpace"). */
+    std::optional<std::array<float, 8>> chromaticities;
+    std::string space;
     std::vector<std::string> names;        ///< in the file's order (OpenEXR's: by name)
     std::vector<std::vector<float>> data;  ///< one plane per name (empty: not read)
     std::vector<bool> sums;  ///< a --spp-range part's exact sums (32-bit integers, not read)
@@ -91,6 +96,9 @@ Planes read_exr_planes(const std::string& path) {
         // 0.246 where its luminance is 0.257): the Y row of its RGB to XYZ matrix.
         if (const auto* c =
                 in.header().findTypedAttribute<Imf::ChromaticitiesAttribute>("chromaticities")) {
+            const Imf::Chromaticities& ch = c->value();
+            p.chromaticities = std::array<float, 8>{ch.red.x,  ch.red.y,  ch.green.x, ch.green.y,
+                                                    ch.blue.x, ch.blue.y, ch.white.x, ch.white.y};
             const Imath::M44f m = Imf::RGBtoXYZ(c->value(), 1.0f);
             const std::array<double, 3> w = {m[0][1], m[1][1], m[2][1]};
             if (std::isfinite(w[0] + w[1] + w[2]) && w[0] + w[1] + w[2] > 0.5) {
@@ -99,6 +107,7 @@ Planes read_exr_planes(const std::string& path) {
             }
         }
         const auto text = [&](const char* name) { return string_attribute(in.header(), name); };
+        p.space = text("colorSpace");
         const std::string spp = text("spangle:spp"), range = text("spangle:spp_range");
         if (text("spangle:partial") == "1")
             p.state.push_back(
@@ -323,6 +332,28 @@ int run_inspect(const std::string& path, const std::string& reference) {
         // (the preview shows it): both are measured so, and where only one had the layer the
         // comparison says so (RGB alone measured the sky, not the noise: a denoised render read
         // 0.15 against its reference).
+        // Values of two colour spaces are not comparable (one scene rendered in ACEScg and in
+        // lin_rec709 read relMSE 0.019 where converted they match).
+        if (planes.chromaticities && ref_planes.chromaticities) {
+            float apart = 0.0f;
+            for (std::size_t k = 0; k < 8; ++k)
+                apart = std::max(apart, std::fabs((*planes.chromaticities)[k] -
+                                                  (*ref_planes.chromaticities)[k]));
+            const auto said = [](const Planes& q) {
+                const auto& c = *q.chromaticities;
+                return fmt::format(
+                    "{}primaries ({:.4g}, {:.4g}) ({:.4g}, {:.4g}) ({:.4g}, {:.4g}), "
+                    "white ({:.4g}, {:.4g})",
+                    q.space.empty() ? "" : "'" + q.space + "': ", c[0], c[1], c[2], c[3], c[4],
+                    c[5], c[6], c[7]);
+            };
+            if (apart > 1e-4f)
+                throw_error(
+                    "'{}' and the reference '{}' are in different colour spaces ({}; {}): their "
+                    "values cannot be compared; render both in one working_space, or convert one "
+                    "(oiiotool --colorconvert)",
+                    path, reference, said(planes), said(ref_planes));
+        }
         const bool ref_sky = add_background(ref, ref_planes);
         if (!same_place) {
             // The image's window of the reference.

@@ -115,10 +115,12 @@ bool is_exr(const std::string& path) {
 using AbiFn = int (*)();
 using HeaderFn = int (*)(const char*, int*, int*, int*, char*, std::size_t);
 using ReadFn = int (*)(const char*, int, float*, char*, std::size_t);
+using DescribeFn = int (*)(const char*, int*, char*, std::size_t, char*, std::size_t);
 
 struct OiioModule {
     HeaderFn header = nullptr;
     ReadFn read = nullptr;
+    DescribeFn describe = nullptr;
     OiioTextureApi texture;
     std::string error;  ///< why it could not be opened
 };
@@ -145,6 +147,7 @@ const OiioModule& oiio_module() {
                 bind_symbol(handle, "spangle_oiio_abi", abi) && abi() == kOiioModuleAbi &&
                 bind_symbol(handle, "spangle_oiio_header", module.header) &&
                 bind_symbol(handle, "spangle_oiio_read", module.read) &&
+                bind_symbol(handle, "spangle_oiio_describe", module.describe) &&
                 bind_symbol(handle, "spangle_oiio_make_texture", t.make_texture) &&
                 bind_symbol(handle, "spangle_oiio_texture_system", t.create) &&
                 bind_symbol(handle, "spangle_oiio_texture_handle", t.handle) &&
@@ -374,6 +377,24 @@ std::string usual_image_space(const std::string& path) {
                          head[1] == 0x2f && head[2] == 0x31 && head[3] == 0x01;
         const bool radiance = got >= 2 && head[0] == '#' && head[1] == '?';
         if (exr || radiance) return "lin_rec709";
+        // Other formats by their pixels: floating-point values are linear (a float TIFF or PFM
+        // map was sRGB-decoded: 22x too bright at 10), integers sRGB unless the file says
+        // linear (OpenImageIO's name for it: a PNG of gamma 1, a .tx maketx was told is
+        // linear).
+        const OiioModule& m = oiio_module();
+        if (got >= 4 && m.describe) {
+            int floating = 0;
+            char space[128] = {};
+            char error[256] = {};
+            if (m.describe(path.c_str(), &floating, space, sizeof(space), error, sizeof(error)) ==
+                0) {
+                if (floating != 0) return "lin_rec709";
+                const std::string said = ascii_lower(space);
+                return said == "linear" || said == "lin_rec709" || said == "scene_linear"
+                           ? "lin_rec709"
+                           : "srgb_texture";
+            }
+        }
         if (got >= 4) {
             const std::string ext = fs::path(path).extension().string();
             return ext == ".tx" || ext == ".TX" ? "lin_rec709" : "srgb_texture";

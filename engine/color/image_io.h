@@ -40,8 +40,12 @@ ImageHeader read_image_header(const std::string& path, const char* what = "image
 std::vector<float> read_image(const std::string& path, int max_channels, ImageHeader& header,
                               const char* what = "image", bool display_window = false);
 
-/** The colour space a file's values are usually in when a scene names none: lin_rec709 for
- *  EXR, HDR and .tx files, srgb_texture for the rest (8- and 16-bit formats). */
+/** The colour space a file's values are usually in when a scene names none, from what it
+ *  holds, not its name: lin_rec709 for OpenEXR and Radiance HDR files and for every file whose
+ *  pixels are floating point (a float TIFF, a PFM, a half .tx); for files of 8- or 16-bit
+ *  pixels, the space the file says through OpenImageIO's "oiio:ColorSpace" when it is sRGB
+ *  (srgb_texture) or linear (lin_rec709), else srgb_texture. Without the OpenImageIO module, by
+ *  extension (.tx linear). */
 std::string usual_image_space(const std::string& path);
 
 /** The colour space an OpenEXR file names in its header ("colorSpace", else
@@ -61,7 +65,7 @@ std::string default_image_space(const std::string& path,
 void require_exr_file(const std::string& path);
 
 /** Version of the OpenImageIO module's C interface this build expects. */
-inline constexpr int kOiioModuleAbi = 3;
+inline constexpr int kOiioModuleAbi = 4;
 
 /** The OpenImageIO module's texture functions (see engine/oiio/oiio_module.cpp for each). */
 struct OiioTextureApi {

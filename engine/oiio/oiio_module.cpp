@@ -29,7 +29,7 @@ extern "C" {
 
 /** Version of this interface; the host refuses a module with another one. */
 __attribute__((visibility("default"))) int spangle_oiio_abi() {
-    return 3;  // 3: the lookup's wrap holds s's mode + 4 x t's
+    return 4;  // 3: the lookup's wrap holds s's mode + 4 x t's; 4: spangle_oiio_describe
 }
 
 /** Size and channel count of the image at path; 0 on success, else an error message. */
@@ -45,6 +45,29 @@ __attribute__((visibility("default"))) int spangle_oiio_header(const char* path,
     *width = spec.width;
     *height = spec.height;
     *channels = spec.nchannels;
+    return 0;
+}
+
+/** What the image's values are: *floating = 1 when its pixels are stored as floating point
+ *  (half, float, double: a float TIFF, a PFM, a half .tx), 0 for integers; `space` receives the
+ *  colour space the file (or OpenImageIO reading it) names ("oiio:ColorSpace": "sRGB" for an
+ *  sRGB-tagged PNG or a .tx maketx made from one, "Linear", ...; empty when none). 0 on success,
+ *  else an error message. */
+__attribute__((visibility("default"))) int spangle_oiio_describe(const char* path, int* floating,
+                                                                 char* space,
+                                                                 std::size_t space_size,
+                                                                 char* error, std::size_t size) {
+    auto in = OIIO::ImageInput::open(path);
+    if (!in) {
+        set_error(error, size, OIIO::geterror());
+        return 1;
+    }
+    const OIIO::ImageSpec& spec = in->spec();
+    // Per-channel formats: floating when the colour channels are (the first one stands for
+    // them).
+    const OIIO::TypeDesc t = spec.channelformats.empty() ? spec.format : spec.channelformats[0];
+    *floating = t.is_floating_point() ? 1 : 0;
+    set_error(space, space_size, spec.get_string_attribute("oiio:ColorSpace"));
     return 0;
 }
 

@@ -141,9 +141,26 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
                         "encoding belongs to textures' 'space' and to the display view)",
                         *d.working_space, *why);
         color.set_working_space(space);
-    } else if (!color.default_working_space().empty())
-        color.set_working_space(color.default_working_space());
-    else
+    } else if (!color.default_working_space().empty()) {
+        // The config's scene_linear role, checked as a written space is (a role naming a log or
+        // sRGB space rendered without a word, the header naming it over linear values).
+        const std::string space = color.default_working_space();
+        std::optional<std::string> why;
+        try {
+            why = color.not_scene_linear(space);
+        } catch (const SpangleError& e) {
+            throw_error(d.loc, "{}", e.what());
+        }
+        if (why)
+            throw_error(d.loc,
+                        "the OCIO config's scene_linear role names '{}', the working space when "
+                        "[render] names none, and it is not scene-linear ({}): light adds up "
+                        "only in a linear space; write working_space = \"ACEScg\" (or another "
+                        "linear space of the config) in [render], or point the role at a "
+                        "linear space",
+                        space, *why);
+        color.set_working_space(space);
+    } else
         color.set_working_space(
             resolve_space(ctx, "ACEScg", d.loc, "default (no key written) working "));
     ctx.bare_space = d.color_space

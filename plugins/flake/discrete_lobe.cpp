@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <numbers>
 
 namespace spangle::flake {
 
@@ -95,6 +96,39 @@ bool sample_discrete(const DiscreteLobe& lobe, const Cone& cone, float u0, float
     const auto j = static_cast<uint32_t>(std::min<std::ptrdiff_t>(it - lobe.cdf, lobe.count - 1));
     wi = sample_cone(lobe.entries[j].r, cone.sin2_half, u1, u2);
     return wi.z > 0.0f;
+}
+
+double cache_share_exact(float alpha, float cos_o) {
+    const double c = std::clamp(static_cast<double>(cos_o), 0.0, 1.0);
+    if (!(c > 0.0)) return 0.5;
+    const double s = std::sqrt(std::max(0.0, 1.0 - c * c));
+    const double a2 = static_cast<double>(alpha) * static_cast<double>(alpha);
+    // Even in phi: the half turn [0, pi], its ends weighted 1/2.
+    constexpr int kSteps = 512;
+    double sum = 0.0;
+    for (int i = 0; i <= kSteps; ++i) {
+        const double phi = std::numbers::pi * i / kSteps;
+        const double x = s * std::cos(phi);
+        const double a = std::sqrt(x * x + c * c);
+        // T = tan(pi/4 + delta/2) = (a + x) / c, written without cancellation where x < 0.
+        const double t = x >= 0.0 ? (a + x) / c : c / (a - x);
+        const double term = t * t / (a2 + t * t);
+        sum += (i == 0 || i == kSteps) ? 0.5 * term : term;
+    }
+    return sum / kSteps;
+}
+
+void CacheShare::init(float alpha) {
+    for (int i = 0; i < kNodes; ++i)
+        at_node[i] = static_cast<float>(
+            cache_share_exact(alpha, static_cast<float>(i) / static_cast<float>(kNodes - 1)));
+}
+
+float CacheShare::at(float cos_o) const {
+    const float x = std::clamp(cos_o, 0.0f, 1.0f) * static_cast<float>(kNodes - 1);
+    const int i = std::min(static_cast<int>(x), kNodes - 2);
+    const float f = x - static_cast<float>(i);
+    return at_node[i] + f * (at_node[i + 1] - at_node[i]);
 }
 
 }  // namespace spangle::flake

@@ -59,6 +59,24 @@ inline void EntryBatch::add(V3 wo, float alpha, float s_, float t_, const float*
     ++n;
 }
 
+/** The chance that a flake whose normal is drawn from D(m)(m.n) (GGX of roughness alpha) enters
+ *  the reflection cache of a view of cos(theta_o) = cos_o: that it reflects wo above the
+ *  horizon (which implies that it faces wo). A flake tilted by theta at azimuth phi from wo's
+ *  plane does while theta < pi/4 + delta/2, tan(delta) = sin_o cos(phi) / cos_o, and GGX's
+ *  tan(theta) = alpha rho / sqrt(1 - rho^2) for rho uniform in the unit disk, so
+ *  P = 1/(2 pi) integral over phi of T^2 / (alpha^2 + T^2), T = tan(pi/4 + delta/2):
+ *  1 / (1 + alpha^2) head-on, 1/2 at grazing. Trapezoid rule in phi (periodic: it converges
+ *  fast). */
+double cache_share_exact(float alpha, float cos_o);
+
+/** cache_share_exact() of one material, tabulated over cos_o and interpolated. */
+struct CacheShare {
+    static constexpr int kNodes = 129;
+    float at_node[kNodes] = {};  ///< at cos_o = i / (kNodes - 1)
+    void init(float alpha);
+    float at(float cos_o) const;
+};
+
 /** The discrete lobe of one shading point: the cache, its weights and a cumulative luminance
  *  table for sampling. The arrays live in the host's per-batch arena. */
 struct DiscreteLobe {

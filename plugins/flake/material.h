@@ -55,6 +55,9 @@ struct Material {
     ColorTable colors;
     SmoothLobe smooth;
     DirectionGrid grid;
+    /** The share of flakes that enter a view's reflection cache (the rest reflect wo under the
+     *  horizon): a footprint holds one that counts with probability 1 - e^-(lambda x it). */
+    CacheShare cache_share;
     Coat coat;
     /** The coat made rougher for path regularisation (SPANGLE_SHADING_ROUGHNESS_FLOOR). */
     std::unique_ptr<CoatFloors> coat_floors;

@@ -379,6 +379,42 @@ TEST(FlakeNormals, FollowTheGgxDistribution) {
     }
 }
 
+TEST(FlakeNormals, CacheShareIsTheShareOfFlakesThatEnterTheCache) {
+    // Flakes of normals drawn as the field draws them, through flush_entries itself: the share
+    // that becomes cache entries (the rest reflect wo under the horizon) against the closed form
+    // the sparse flake share divides by, within 4 binomial standard errors; head-on it is
+    // 1 / (1 + alpha^2) exactly.
+    for (float alpha : {0.1f, 0.3f, 0.6f}) {
+        const auto a = static_cast<double>(alpha);
+        EXPECT_NEAR(flake::cache_share_exact(alpha, 1.0f), 1.0 / (1.0 + a * a), 1e-12);
+        flake::CacheShare table;
+        table.init(alpha);
+        for (float cos_o : {1.0f, 0.7f, 0.3f, 0.1f, 0.02f}) {
+            const flake::V3 wo{std::sqrt(1.0f - cos_o * cos_o), 0.0f, cos_o};
+            constexpr int kN = 100000;
+            const float white[3] = {1.0f, 1.0f, 1.0f};
+            flake::FresnelTable one;
+            for (auto& node : one.rgb) node[0] = node[1] = node[2] = 1.0f;
+            std::vector<flake::CacheEntry> out;
+            flake::EntryBatch batch;
+            for (int i = 0; i < kN; ++i) {
+                const auto s =
+                    static_cast<float>(to_unit_double(hash2(71, static_cast<uint64_t>(i))));
+                const auto t =
+                    static_cast<float>(to_unit_double(hash2(72, static_cast<uint64_t>(i))));
+                batch.add(wo, alpha, s, t, white, &one, 1.0f, out);
+            }
+            flush_entries(wo, alpha, batch, out);
+            const double share = static_cast<double>(out.size()) / kN;
+            const double p = flake::cache_share_exact(alpha, cos_o);
+            EXPECT_NEAR(share, p, 4.0 * std::sqrt(p * (1.0 - p) / kN) + 1e-6)
+                << "alpha " << alpha << " cos_o " << cos_o;
+            EXPECT_NEAR(table.at(cos_o), p, 2e-3) << "alpha " << alpha << " cos_o " << cos_o;
+        }
+        EXPECT_NEAR(flake::cache_share_exact(alpha, 1e-6f), 0.5, 1e-3) << "grazing";
+    }
+}
+
 TEST(FlakeCounting, SmallFootprintsSeeTheEnumeratedFlakes) {
     // Cells under exact_flakes are enumerated: the counting algorithm finds exactly the flakes
     // the enumeration finds, the quad-tree's and the ranked classes', whatever the leaf size

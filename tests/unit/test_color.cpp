@@ -324,6 +324,44 @@ TEST(ColorConfig, AWorkingSpaceIsTestedForLinearityWhereTheConfigIsSilent) {
     EXPECT_NE(sky.find("colour conversion from 'Lut Space'"), std::string::npos) << sky;
 }
 
+TEST(ColorConfig, ADefaultWorkingSpaceIsTestedForLinearityToo) {
+    // A scene that names no working space takes the config's scene_linear role: a role naming
+    // a log space rendered with exit status 0, the header naming the log space over linear
+    // values. Now an error at [render], as the key's own is at the key.
+    test::TempDir dir("ocio_role");
+    std::string config = kSilentConfig;
+    const std::string role = "  scene_linear: Linear Ref\n";
+    ASSERT_NE(config.find(role), std::string::npos);
+    const auto with_role = [&](const std::string& space) {
+        std::string c = config;
+        c.replace(c.find(role), role.size(), "  scene_linear: " + space + "\n");
+        std::ofstream(dir.file("config.ocio")) << c;
+    };
+    std::ofstream(dir.file("s.toml")) << "[render]\nwidth = 8\nheight = 8\n[camera]\nposition = "
+                                         "[0, 0, 4]\nlook_at = [0, 0, 0]\n";
+    const auto load = [&]() {
+        RenderOptions options;
+        Session session({}, dir.file("config.ocio"), options, test::quiet_log());
+        try {
+            session.load(dir.file("s.toml"), 0.0);
+        } catch (const SpangleError& e) {
+            return std::string(e.what());
+        }
+        return std::string();
+    };
+    with_role("Wide Gamut");
+    EXPECT_EQ(load(), "") << "a matrix is linear";
+    for (const char* encoded : {"Log Enc", "Curve Enc"}) {
+        with_role(encoded);
+        const std::string e = load();
+        EXPECT_NE(e.find("s.toml:1:1: error: the OCIO config's scene_linear role names '" +
+                         std::string(encoded) + "'"),
+                  std::string::npos)
+            << e;
+        EXPECT_NE(e.find("not scene-linear"), std::string::npos) << e;
+    }
+}
+
 TEST(ColorConfig, APngIsTaggedSrgbOnlyForAnSrgbDisplaysView) {
     // Every preview carried an sRGB chunk, the Raw view's data and a gamma-2 display's too:
     // colour-managed viewers re-encoded their pixels.

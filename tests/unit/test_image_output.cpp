@@ -220,6 +220,43 @@ TEST(ImageInput, ExrIsReadDirectlyAndOtherFormatsThroughTheOiioModule) {
         EXPECT_NEAR(from_hdr[i], rgb[i], 0.01f * rgb[i]) << "RGBE keeps 8 bits of mantissa";
 }
 
+/** Writes a w x h grey image at path in `format` (OpenImageIO's type), naming `space` as its
+ *  oiio:ColorSpace when not empty. */
+void write_typed(const std::string& path, OIIO::TypeDesc format, const std::string& space) {
+    auto out = OIIO::ImageOutput::create(path);
+    ASSERT_TRUE(out) << OIIO::geterror();
+    OIIO::ImageSpec spec(4, 2, 3, format);
+    if (!space.empty()) spec.attribute("oiio:ColorSpace", space);
+    const std::vector<float> grey(4 * 2 * 3, 0.5f);
+    ASSERT_TRUE(out->open(path, spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::FLOAT, grey.data()));
+    ASSERT_TRUE(out->close());
+}
+
+TEST(ImageInput, UsualSpaceFollowsThePixelsNotTheName) {
+    // A map or texture whose scene names no space: floating-point pixels are linear whatever
+    // the format (a float TIFF map of 10 was sRGB-decoded to 224), integer ones sRGB unless the
+    // file says linear; an 8-bit .tx maketx made from an sRGB PNG says sRGB (it was read as
+    // linear, 2.3x too bright).
+    test::TempDir dir("usual_space");
+    write_typed(dir.file("f.tif"), OIIO::TypeDesc::FLOAT, "");
+    write_typed(dir.file("h.tif"), OIIO::TypeDesc::HALF, "");
+    write_typed(dir.file("b.tif"), OIIO::TypeDesc::UINT8, "");
+    write_typed(dir.file("w.tif"), OIIO::TypeDesc::UINT16, "");
+    write_typed(dir.file("lin.png"), OIIO::TypeDesc::UINT16, "Linear");
+    write_typed(dir.file("s.tx"), OIIO::TypeDesc::UINT8, "sRGB");
+    write_typed(dir.file("f.tx"), OIIO::TypeDesc::HALF, "");
+    write_typed(dir.file("g.png"), OIIO::TypeDesc::UINT8, "");
+    write_typed(dir.file("e.exr"), OIIO::TypeDesc::HALF, "");
+    // A float TIFF named .png: its bytes say what it is.
+    write_typed(dir.file("f_as.tif"), OIIO::TypeDesc::FLOAT, "");
+    fs::rename(dir.file("f_as.tif"), dir.file("f_as.png"));
+    for (const char* f : {"f.tif", "h.tif", "lin.png", "f.tx", "e.exr", "f_as.png"})
+        EXPECT_EQ(usual_image_space(dir.file(f)), "lin_rec709") << f;
+    for (const char* f : {"b.tif", "w.tif", "s.tx", "g.png"})
+        EXPECT_EQ(usual_image_space(dir.file(f)), "srgb_texture") << f;
+}
+
 TEST(ImageInput, APngCutShortIsSaidBeforeLibpngReadsIt) {
     // libpng printed "libpng error: IDAT: Read error: hit end of file" on stderr beside the
     // error, and the error itself held three of its lines.
