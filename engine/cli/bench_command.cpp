@@ -38,7 +38,7 @@ namespace {
 /** Options of `spangle bench`. */
 struct BenchArgs {
     std::vector<std::string> scenes;  ///< scene files or shipped names; empty = the default set
-    std::string size = "640x360";     ///< image size of every scene, as given ('' = the scene's)
+    std::string size = "640x360";     ///< image size of every scene, as given ('scene': theirs)
     uint32_t width = 0, height = 0;   ///< size, parsed (0 = the scene's)
     uint32_t spp = 16;                ///< samples per pixel of every scene
     int threads = 0;                  ///< worker threads (0 = all cores)
@@ -373,7 +373,7 @@ void add_bench_options(CLI::App* sub, BenchArgs& a) {
                     "scene files, shipped scene names, or 'interior' (default: demo materials "
                     "beetle interior)");
     sub->add_option("--size", a.size,
-                    "image size of every scene (default 640x360; '' = the scene's)");
+                    "image size of every scene (default 640x360; 'scene' = each scene's own)");
     sub->add_option("--spp", a.spp, "samples per pixel (default 16)")
         ->check(CLI::Range(1u, 1u << 20));
     sub->add_option("--threads", a.threads, "worker threads (default: all cores)")
@@ -405,6 +405,9 @@ Command add_bench_command(CLI::App& app) {
                     fmt::print("wrote {}\n", write_interior_scene(a->write_scene));
                     return 0;
                 }
+                // 'scene': each scene's own size (an empty value, the help's word before, is
+                // refused as every option's is).
+                if (a->size == "scene") a->size.clear();
                 if (!a->size.empty()) parse_size(a->size, a->width, a->height);
                 check_plugin_dirs(a->plugin_dirs);
                 return run_bench(*a);

@@ -277,10 +277,15 @@ int run_inspect(const std::string& path, const std::string& reference) {
         fmt::print(
             "measured: RGB plus its 'background' layer (the sky seen directly, kept apart by "
             "--layers): the whole picture, as its preview shows it\n");
-    fmt::print("mean luminance: {:.6g}{}\nnon-finite pixels: {}\nnegative pixels: {}\n",
-               m.mean_luminance,
-               planes.luma_from_header ? " (weighed by the primaries of its chromaticities)"
-                                       : " (Rec.709 weights)",
+    // Over no pixel at all, a mean is no figure (it read 0).
+    const bool none_finite = m.nonfinite >= static_cast<std::size_t>(planes.width) *
+                                                static_cast<std::size_t>(planes.height);
+    fmt::print("mean luminance: {}{}\nnon-finite pixels: {}\nnegative pixels: {}\n",
+               none_finite ? std::string("none (no pixel is finite)")
+                           : fmt::format("{:.6g}", m.mean_luminance),
+               none_finite               ? ""
+               : planes.luma_from_header ? " (weighed by the primaries of its chromaticities)"
+                                         : " (Rec.709 weights)",
                m.nonfinite, m.negative);
     if (m.told_apart) {
         fmt::print("glints (> 10x the 3x3 median, mostly light through a glint): {}\n", m.glints);

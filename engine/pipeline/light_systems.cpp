@@ -238,7 +238,7 @@ DistantEmitter distant_emitter(const DistantLight& d, uint32_t group) {
     DistantEmitter e;
     e.direction = d.direction;
     e.group = group;
-    // Below 1e-3 radians (0.057 degrees; the sun is 0.27) a cone's cosine is 1 to float
+    // Below 1e-3 radians (0.0573 degrees; the sun is 0.27) a cone's cosine is 1 to float
     // precision and its sampling breaks down (a radius of 1e-20 rendered black): such a light
     // is its limit, a delta direction with the same irradiance.
     const float rad = d.angular_radius_deg * kPi / 180.0f;

@@ -259,6 +259,15 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
     const double per_area = kFlakesPerPixel / (pixel * pixel) * area_ratio;
     rep.density = std::isfinite(per_area) ? std::clamp(two_digits(per_area), 1e-6, 2.0e9) : 2.0e9;
     rep.flakes_per_pixel = rep.density / area_ratio * pixel * pixel;
+    // A model small in its own units wants more flakes per square unit than the paint takes:
+    // said, and the scene's comment says so (it read "raise density" at the largest one).
+    const bool capped = rep.flakes_per_pixel < 0.5 * kFlakesPerPixel;
+    if (capped)
+        rep.notes.push_back(fmt::format(
+            "the model is {:.3g} units across: at the paint's largest density (2e9 flakes per "
+            "square unit) a pixel sees about {:.2g} flakes, not {:.0f}, so its glitter is sparse; "
+            "for the usual look, model it in smaller units (millimetres instead of metres)",
+            extent, rep.flakes_per_pixel, kFlakesPerPixel));
 
     // The ground: a square 40 model sizes wide, written beside the scene.
     rep.ground = r.ground.empty() ? (folder / (out.stem().string() + "_ground.ply")).string()
@@ -334,13 +343,20 @@ NewSceneReport write_new_scene(const NewSceneRequest& r) {
         "[[material]]\nname = {}\nplugin = \"flake\"\n"
         "# Red glitter paint under a clear coat. density counts flakes per square unit of the\n"
         "# model (density_space = \"object\": no uvs needed); at this camera a pixel sees about\n"
-        "# {:.0f} flakes, so each pixel holds a few separate glints. Raise density for a finer\n"
-        "# metallic look, lower it for sparser, bigger-looking sparkle; flake_roughness spreads\n"
+        "# {} flakes, {}\n"
+        "# lower it for sparser, bigger-looking sparkle; flake_roughness spreads\n"
         "# the glints over the surface, gamma makes each flake's cone (and glint) wider.\n"
         "params = {{ base_color = [0.55, 0.03, 0.04], flake_weight = 0.5, density = {:.6g}, "
         "density_space = \"object\", flake_roughness = 0.2, gamma = 2, color_table = true, "
         "hue_spread = 30, table_l = 0.6, coat = true, coat_ior = 1.5 }}\n\n",
-        toml_basic_string(paint), rep.flakes_per_pixel, rep.density);
+        toml_basic_string(paint),
+        rep.flakes_per_pixel >= 10.0 ? fmt::format("{:.0f}", rep.flakes_per_pixel)
+                                     : fmt::format("{:.2g}", rep.flakes_per_pixel),
+        capped ? "as many as the largest density gives (the model is small in its own\n# units: "
+                 "model it in smaller ones for more);"
+               : "so each pixel holds a few separate glints. Raise density for a finer\n# "
+                 "metallic look,",
+        rep.density);
     t += "[[material]]\nname = \"spangle_new_ground\"\nplugin = \"smooth\"\nmodel = \"plastic\"\n"
          "params = { albedo = 0.3, roughness = 0.35 }\n\n";
     t += fmt::format(

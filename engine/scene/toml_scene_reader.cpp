@@ -335,16 +335,45 @@ std::optional<Affine> read_matrix(TableReader& r, std::string_view key) {
                     key);
     };
     std::vector<double> v;
-    if (!toml_scene::finite_numbers(*n, 12, v, 16)) fail();
+    if (!toml_scene::finite_numbers(*n, 12, v, 16)) {
+        // Of the right length: the entry that is no finite number, where it is (twelve entries
+        // with a nan among them were told to be twelve numbers).
+        if (const toml::array* arr = n->as_array(); arr && (arr->size() == 12 || arr->size() == 16))
+            for (std::size_t i = 0; i < arr->size(); ++i) {
+                const toml::node& x = (*arr)[i];
+                const auto d = x.value<double>();
+                if (!x.is_number())
+                    throw_error(loc_of(x, r.file()), "'{}' entry {} must be a number, got {}", key,
+                                i + 1, toml_type_name(x));
+                if (!d || !std::isfinite(*d))
+                    throw_error(loc_of(x, r.file()), "'{}' entry {} must be finite, got {}", key,
+                                i + 1, d ? *d : 0.0);
+            }
+        fail();
+    }
     if (v.size() == 16 && !(v[12] == 0 && v[13] == 0 && v[14] == 0 && v[15] == 1)) fail();
     Affine m;
     for (int row = 0; row < 3; ++row) {
         for (int c = 0; c < 3; ++c) m.m[row][c] = static_cast<float>(v[4 * row + c]);
     }
     m.t = {static_cast<float>(v[3]), static_cast<float>(v[7]), static_cast<float>(v[11])};
+    // The scale of each axis (a column's length) within the bounds `scale` has, in double: a
+    // uniform 1e-20 was "not invertible (determinant 0)" and 1e30 "determinant inf", a float's
+    // under- and overflow.
+    for (int c = 0; c < 3; ++c) {
+        const double len = std::sqrt(v[c] * v[c] + v[4 + c] * v[4 + c] + v[8 + c] * v[8 + c]);
+        if (len > 1e8 || (len > 0.0 && len < 1e-8))
+            throw_error(loc_of(*n, r.file()),
+                        "'{}' scales its {} axis by {:.3g}, outside 1e-8 to 1e8 (model in other "
+                        "units instead)",
+                        key, "xyz"[c], len);
+    }
     const float det = m.determinant();
     if (!(std::fabs(det) > 1e-30f) || !std::isfinite(det))
-        throw_error(loc_of(*n, r.file()), "'{}' is not invertible (determinant {})", key, det);
+        throw_error(loc_of(*n, r.file()),
+                    "'{}' is not invertible (determinant {}): it flattens the object onto a plane, "
+                    "a line or a point",
+                    key, det);
     return m;
 }
 

@@ -11,7 +11,7 @@ namespace spangle::flake {
 inline const SpangleParamDesc_v3 kParams[] = {
     {"base_color", SPANGLE_PARAM_COLOR, {0.05, 0.05, 0.05}, nullptr, 0.0, 1.0, nullptr, "diffuse colour of the paint between the flakes", SPANGLE_PARAM_TEXTURABLE},
     {"flake_weight", SPANGLE_PARAM_FLOAT, {0.6, 0, 0}, nullptr, 0.0, 1.0, nullptr, "fraction of the surface covered by flakes", SPANGLE_PARAM_TEXTURABLE},
-    {"density", SPANGLE_PARAM_FLOAT, {200000, 0, 0}, nullptr, 1e-6, 2147483647.0, nullptr, "flakes per unit square of uv (per square metre with density_space = world or object)", 0},
+    {"density", SPANGLE_PARAM_FLOAT, {200000, 0, 0}, nullptr, 1e-6, 2147483647.0, nullptr, "flakes per unit square of uv (per square metre with density_space = world; per square unit of the object's own coordinates with object)", 0},
     {"density_space", SPANGLE_PARAM_STRING, {0, 0, 0}, "auto", 0, 0, "auto|uv|world|object", "where flakes are laid out: uv, uv scaled to square metres, object-space position (triplanar), or auto: uv where the mesh has usable uvs, object elsewhere", 0},
     {"algorithm", SPANGLE_PARAM_STRING, {0, 0, 0}, "tree", 0, 0, "tree|enumerate", "tree: counts flakes without enumerating them (cost independent of flake count); enumerate: the reference reflection cache of every flake", 0},
     {"exact_flakes", SPANGLE_PARAM_INT, {256, 0, 0}, nullptr, 1.0, 4096.0, nullptr, "tree: footprint cells holding at most this many flakes are enumerated exactly, larger ones counted", 0},

@@ -38,6 +38,10 @@ PY
 oiiotool --pattern constant:color=nan,nan,nan 4x4 3 whole.exr --ch R,G,B --paste +0+0 -o nan.exr
 "$S" inspect nan.exr --against whole.exr > out.txt 2>&1 || fail "NaN: $(cat out.txt)"
 grep -q "relMSE against whole.exr: [0-9].*16 left out" out.txt || fail "NaN relMSE: $(cat out.txt)"
+# An image of no finite pixel has no mean (it read 0).
+oiiotool --pattern constant:color=nan,nan,nan 4x4 3 -o allnan.exr
+"$S" inspect allnan.exr > out.txt 2>&1 || fail "all NaN: $(cat out.txt)"
+grep -q "^mean luminance: none (no pixel is finite)$" out.txt || fail "all-NaN mean: $(cat out.txt)"
 # A layered render keeps the sky seen directly in its 'background' layer: inspect measures RGB
 # plus that layer, the whole picture, as the same render without layers holds it (RGB alone left
 # the sky out of the mean and made fireflies of the faint pixels at the horizon).

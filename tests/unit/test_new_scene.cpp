@@ -269,6 +269,19 @@ TEST(NewScene, ModelsOfNoSizeFlatOrHugeGiveScenesThatLoadOrAClearError) {
     const NewSceneReport card = make("card", Vec3(0, 0, 0), Vec3(1, 0, 1));
     EXPECT_NEAR(card.offset.y, 1e-3f, 1e-6f);
     EXPECT_NO_THROW(read_scene(req.output));
+    // 2 cm across, in metres: it wants more flakes per square unit than the paint takes. Said,
+    // and the scene's comment no longer asks for a higher density at the largest one.
+    const NewSceneReport cm = make("cm", Vec3(0.0f), Vec3(0.02f));
+    EXPECT_LT(cm.flakes_per_pixel, 15.0);
+    ASSERT_EQ(cm.notes.size(), 1u);
+    EXPECT_NE(cm.notes[0].find("a pixel sees about"), std::string::npos) << cm.notes[0];
+    {
+        std::ifstream in(req.output);
+        const std::string text((std::istreambuf_iterator<char>(in)), {});
+        EXPECT_NE(text.find("as many as the largest density gives"), std::string::npos) << text;
+        EXPECT_EQ(text.find("Raise density"), std::string::npos) << text;
+    }
+    EXPECT_NO_THROW(read_scene(req.output));
     // 1e20 across: the extent's square overflowed a float (an infinite position was written).
     const NewSceneReport big = make("big", Vec3(-1e20f), Vec3(1e20f));
     EXPECT_TRUE(std::isfinite(big.camera.x) && std::isfinite(big.density));
