@@ -35,16 +35,27 @@ void check_writable(const std::string& path, const char* what) {
     std::error_code ec;
     // A relative folder is said with where it is (it is the working folder's, which a user
     // reading a scene's relative paths may not expect).
-    const std::string folder = [&] {
-        if (dir.is_absolute()) return fmt::format("'{}'", dir.string());
+    const auto said = [](const fs::path& d) {
+        if (d.is_absolute()) return fmt::format("'{}'", d.string());
         std::error_code aec;
-        const fs::path abs = fs::absolute(dir, aec);
-        return aec ? fmt::format("'{}'", dir.string())
+        const fs::path abs = fs::absolute(d, aec);
+        return aec ? fmt::format("'{}'", d.string())
                    : fmt::format("'{}' ('{}' in the working folder)",
-                                 abs.lexically_normal().string(), dir.string());
-    }();
-    if (!fs::exists(dir, ec))
-        throw_error("cannot write the {} '{}': folder {} does not exist", what, path, folder);
+                                 abs.lexically_normal().string(), d.string());
+    };
+    const std::string folder = said(dir);
+    if (!fs::exists(dir, ec)) {
+        // The first folder of the path that is missing: through one ('nosuch/..') the folder
+        // at its end may exist, and the message named it.
+        fs::path walked;
+        for (const fs::path& part : dir) {
+            walked /= part;
+            std::error_code wec;
+            if (!fs::exists(walked, wec)) break;
+        }
+        throw_error("cannot write the {} '{}': folder {} does not exist", what, path,
+                    said(walked.empty() ? dir : walked));
+    }
     if (!fs::is_directory(dir, ec))
         throw_error("cannot write the {} '{}': {} is not a folder", what, path, folder);
     if (fs::is_directory(p, ec))

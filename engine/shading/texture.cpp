@@ -6,6 +6,7 @@
 #include <chrono>
 #include <cstdlib>
 #include <filesystem>
+#include <mutex>
 
 #include "core/files.h"
 #include "core/hash.h"
@@ -19,6 +20,36 @@ namespace {
 
 /** Version of the converted files' recipe: a change makes new cache entries. */
 constexpr const char* kRecipe = "spangle-texture-1|half|tile64|box";
+
+/** Removes from cache folder d the partial conversions a killed render left: hidden files
+ *  ".NAME.PID.tmp...exr" (this module's temporary name and the ones OpenImageIO's make_texture
+ *  derives from it) not written for an hour, so that no conversion still under way, on this
+ *  machine or another sharing the folder, is touched. (They stayed for good: 3 to 28 MB each.)
+ *  Once per folder per process. Returns how many it removed. */
+int remove_stale_conversions(const fs::path& d) {
+    static std::mutex mutex;
+    static std::vector<fs::path> done;
+    {
+        std::lock_guard<std::mutex> lock(mutex);
+        if (std::find(done.begin(), done.end(), d) != done.end()) return 0;
+        done.push_back(d);
+    }
+    std::error_code ec;
+    int removed = 0;
+    const auto now = fs::file_time_type::clock::now();
+    for (fs::directory_iterator it(d, ec), end; !ec && it != end; it.increment(ec)) {
+        const std::string f = it->path().filename().string();
+        if (f.size() < 9 || f[0] != '.' || f.find(".tmp") == std::string::npos ||
+            f.compare(f.size() - 4, 4, ".exr") != 0)
+            continue;
+        std::error_code e2;
+        if (!it->is_regular_file(e2)) continue;
+        const auto written = fs::last_write_time(it->path(), e2);
+        if (e2 || now - written < std::chrono::hours(1)) continue;
+        if (fs::remove(it->path(), e2)) ++removed;
+    }
+    return removed;
+}
 
 }  // namespace
 
@@ -197,6 +228,11 @@ std::shared_ptr<const Texture> TextureService::open(const TextureRef& ref, bool 
                                   ec.message());
                 continue;
             }
+            if (const int n = remove_stale_conversions(d); n > 0)
+                log_.info(
+                    "removed {} partial texture conversion{} left in '{}' by a render that "
+                    "was stopped",
+                    n, n == 1 ? "" : "s", d.string());
             const fs::path tmp =
                 d / fmt::format(".{}.{}.tmp.exr", name, static_cast<long>(::getpid()));
             char error[1024] = "";

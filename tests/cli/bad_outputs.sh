@@ -53,6 +53,9 @@ expect 2 "--output needs a value" render "$SCENE" -o ''
 expect 2 "--preview needs a value" render "$SCENE" --preview ''
 expect 2 "--output needs a value" merge -o '' a.exr
 expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/out.exr"
+# Through a missing folder: the missing one is named (it named the folder at the end, which exists).
+expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/../out.exr"
+expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/deeper/out.exr"
 mkdir folder.exr
 expect 1 "it is a folder" render "$SCENE" -o folder.exr
 expect 1 "it is a folder" render "$SCENE" -o out.exr --preview folder.exr

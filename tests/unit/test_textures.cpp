@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -241,6 +243,30 @@ TEST(Texture, ColourTexturesAreConvertedToTheWorkingSpaceOnce) {
     const auto files = std::distance(std::filesystem::directory_iterator(dir.file("cache")),
                                      std::filesystem::directory_iterator{});
     EXPECT_EQ(files, 1);
+}
+
+TEST(Texture, PartialConversionsAKilledRenderLeftAreRemovedOnceStale) {
+    // A render killed while it converted a texture left a hidden temporary in the cache for good
+    // (3 to 28 MB each). One unwritten for an hour goes when the cache is next written; one of
+    // a conversion that may still run (recent) stays, as do the cache's entries.
+    namespace fs = std::filesystem;
+    test::TempDir dir("texture_stale");
+    fs::create_directories(dir.file("cache"));
+    const std::string old_tmp = dir.file("cache/.big-0123456789abcdef.exr.4242.tmp.temp.exr");
+    const std::string new_tmp = dir.file("cache/.big-fedcba9876543210.exr.4243.tmp.exr");
+    const std::string entry = dir.file("cache/other-0123456789abcdef.exr");
+    for (const std::string& f : {old_tmp, new_tmp, entry}) std::ofstream(f) << "partial";
+    fs::last_write_time(old_tmp, fs::file_time_type::clock::now() - std::chrono::hours(2));
+    fs::last_write_time(entry, fs::file_time_type::clock::now() - std::chrono::hours(2));
+    write_float_exr(dir.file("flat.exr"), std::vector<float>(12, 0.5f), 2, 2);
+    Textures t(dir);
+    TextureRef ref;
+    ref.path = dir.file("flat.exr");
+    ref.space = "lin_rec709";
+    ASSERT_TRUE(t.service.open(ref, true, {}));
+    EXPECT_FALSE(fs::exists(old_tmp));
+    EXPECT_TRUE(fs::exists(new_tmp));
+    EXPECT_TRUE(fs::exists(entry));
 }
 
 TEST(Texture, AnExrIsReadInTheSpaceItsHeaderNames) {
