@@ -19,6 +19,7 @@
 #include <map>
 #include <sstream>
 
+#include <oneapi/tbb/task_arena.h>
 #include <CLI/CLI.hpp>
 
 #include "cli/arguments.h"
@@ -165,7 +166,7 @@ Measurement measure_in_child(const std::string& scene, const BenchArgs& a, uint3
                                      fmt::format("{}x{}", width, height),
                                      "--spp",
                                      fmt::to_string(a.spp)};
-    if (width == 0) args[4] = "";
+    if (width == 0) args[4] = "scene";  // the scene's own size
     if (a.threads > 0) args.insert(args.end(), {"--threads", fmt::to_string(a.threads)});
     for (const auto& d : a.plugin_dirs) args.insert(args.end(), {"--plugin-path", d});
     if (!a.export_obj.empty()) args.insert(args.end(), {"--export-obj", a.export_obj});
@@ -225,6 +226,13 @@ std::string shipped_scene(const std::string& name) {
         if (fs::is_regular_file(f, ec)) return f.lexically_normal().string();
     }
     return {};
+}
+
+/** The worker threads a render with --threads n runs (0: all TBB may run), as the integrator
+ *  takes them: the CSV said 0 for the default. */
+int threads_used(int n) {
+    const int most = tbb::this_task_arena::max_concurrency();
+    return n > 0 ? std::min(n, most) : most;
 }
 
 /** "CPU model, N hardware threads" from /proc/cpuinfo, for the header of the table. */
@@ -324,10 +332,10 @@ void report_row(const std::string& label, const Measurement& best, const BenchAr
     csv += fmt::format(
         "{},{},{},{},{},{:.0f},{:.3f},{:.3f},{:.3f},{:.3f},{:.4f},{:.4f},{:.0f},"
         "{:.0f},{:.0f},{:.2f},{:.2f},{:.2f},{:.2f}\n",
-        label, best.width, best.height, best.spp, a.threads, best.triangles, best.geometry,
-        best.accelerate, best.other, best.render, msps, mrps, best.camera_rays, best.bounce_rays,
-        best.shadow_rays, mib(best.peak_rss), mib(best.mesh_bytes), mib(best.accel_bytes),
-        mib(rest));
+        label, best.width, best.height, best.spp, threads_used(a.threads), best.triangles,
+        best.geometry, best.accelerate, best.other, best.render, msps, mrps, best.camera_rays,
+        best.bounce_rays, best.shadow_rays, mib(best.peak_rss), mib(best.mesh_bytes),
+        mib(best.accel_bytes), mib(rest));
 }
 
 /** Runs the benchmark (or, with --measure-one, one child's measurement); returns the exit
