@@ -3,6 +3,7 @@
 #include <OpenColorIO/OpenColorIO.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdlib>
 #include <cstring>
@@ -372,11 +373,97 @@ std::string ColorConfig::default_view(const std::string& display) const {
     return impl_->config->getDefaultView(display.c_str());
 }
 
+namespace {
+
+/** A 3x3 matrix in double, row-major. */
+using M3 = std::array<std::array<double, 3>, 3>;
+
+M3 m3_mul(const M3& a, const M3& b) {
+    M3 r{};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j)
+            for (int k = 0; k < 3; ++k) r[i][j] += a[i][k] * b[k][j];
+    return r;
+}
+
+std::optional<M3> m3_inverse(const M3& m) {
+    const double det = m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1]) -
+                       m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0]) +
+                       m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0]);
+    if (!(std::fabs(det) > 1e-15)) return std::nullopt;
+    M3 r{};
+    for (int i = 0; i < 3; ++i)
+        for (int j = 0; j < 3; ++j) {
+            const int a = (j + 1) % 3, b = (j + 2) % 3, c = (i + 1) % 3, d = (i + 2) % 3;
+            r[i][j] = (m[a][c] * m[b][d] - m[a][d] * m[b][c]) / det;
+        }
+    return r;
+}
+
+/** XYZ (Y = 1) of chromaticity (x, y). */
+std::array<double, 3> chroma_xyz(double x, double y) {
+    return {x / y, 1.0, (1.0 - x - y) / y};
+}
+
+/** The chromaticities c seen through a Bradford adaptation of its white to D65, as a config's
+ *  CIE XYZ (D65) interchange shows a space of another white (ACEScg's red at (0.7132, 0.2927),
+ *  its white at D65's). Unchanged when c's white is D65's already, or when c is degenerate. */
+Chromaticities adapted_to_d65(const Chromaticities& c) {
+    constexpr double kD65[2] = {0.3127, 0.3290};
+    M3 primaries{};
+    for (int i = 0; i < 3; ++i) {
+        const auto p = chroma_xyz(c.xy[2 * i], c.xy[2 * i + 1]);
+        for (int r = 0; r < 3; ++r) primaries[r][i] = p[r];
+    }
+    const auto w = chroma_xyz(c.xy[6], c.xy[7]);
+    const auto inv = m3_inverse(primaries);
+    if (!inv) return c;
+    // RGB to XYZ: the primaries scaled so that RGB (1, 1, 1) is the white.
+    M3 rgb_to_xyz = primaries;
+    for (int i = 0; i < 3; ++i) {
+        const double s = (*inv)[i][0] * w[0] + (*inv)[i][1] * w[1] + (*inv)[i][2] * w[2];
+        for (int r = 0; r < 3; ++r) rgb_to_xyz[r][i] *= s;
+    }
+    const M3 bradford = {
+        {{0.8951, 0.2664, -0.1614}, {-0.7502, 1.7135, 0.0367}, {0.0389, -0.0685, 1.0296}}};
+    const auto bradford_inv = m3_inverse(bradford);
+    const auto d65 = chroma_xyz(kD65[0], kD65[1]);
+    M3 gain{};
+    for (int r = 0; r < 3; ++r) {
+        const double src = bradford[r][0] * w[0] + bradford[r][1] * w[1] + bradford[r][2] * w[2];
+        const double dst =
+            bradford[r][0] * d65[0] + bradford[r][1] * d65[1] + bradford[r][2] * d65[2];
+        gain[r][r] = dst / src;
+    }
+    const M3 adapted = m3_mul(m3_mul(m3_mul(*bradford_inv, gain), bradford), rgb_to_xyz);
+    Chromaticities out = c;
+    for (int i = 0; i < 3; ++i) {
+        const double sum = adapted[0][i] + adapted[1][i] + adapted[2][i];
+        out.xy[static_cast<std::size_t>(2 * i)] = static_cast<float>(adapted[0][i] / sum);
+        out.xy[static_cast<std::size_t>(2 * i + 1)] = static_cast<float>(adapted[1][i] / sum);
+    }
+    out.xy[6] = static_cast<float>(kD65[0]);
+    out.xy[7] = static_cast<float>(kD65[1]);
+    return out;
+}
+
+float chroma_distance(const Chromaticities& a, const Chromaticities& b) {
+    float d = 0.0f;
+    for (std::size_t i = 0; i < 8; ++i) d = std::max(d, std::fabs(a.xy[i] - b.xy[i]));
+    return d;
+}
+
+}  // namespace
+
 std::optional<Chromaticities> ColorConfig::working_chromaticities() const {
     // OCIO 2.1 does not expose primaries. The spaces Spangle ships have exact, published
-    // chromaticities, so those come from this table; any other space is measured through the
-    // config's CIE XYZ (D65) interchange role, which gives D65-adapted primaries; without that
-    // role, a space found under a common name of one in the table has its chromaticities.
+    // chromaticities (this table). Where the config has a CIE XYZ (D65) interchange role, the
+    // working space is measured through it: a measurement that is one of the table's spaces
+    // (as measured, or as seen from D65: the interchange adapts other whites, and ACEScg
+    // measured under "ACES - ACEScg" was written with D65-adapted primaries) is that space's
+    // published chromaticities, whatever its name (a space named ACEScg defined as Rec.709 was
+    // written as AP1); any other is the measurement. Without the role, a space found under a
+    // common name of one in the table has its chromaticities.
     static const struct {
         const char* name;
         Chromaticities c;
@@ -385,33 +472,39 @@ std::optional<Chromaticities> ColorConfig::working_chromaticities() const {
         {"ACES2065-1", {{0.7347f, 0.2653f, 0.0f, 1.0f, 0.0001f, -0.077f, 0.32168f, 0.33767f}}},
         {"lin_rec709", {{0.64f, 0.33f, 0.30f, 0.60f, 0.15f, 0.06f, 0.3127f, 0.3290f}}},
     };
-    for (const auto& k : known)
-        if (impl_->working == k.name) return k.c;
-    const char* xyz = impl_->config->getCanonicalName("cie_xyz_d65_interchange");
-    if (!xyz || !*xyz) {
-        // No way to measure: a foreign config's working space that is one of these spaces
-        // under another common name ("Linear Rec.709", "ACES - ACEScg": what resolve() finds
-        // by name, not a role standing in for it) has its chromaticities.
+    const auto by_name = [&]() -> std::optional<Chromaticities> {
+        for (const auto& k : known)
+            if (impl_->working == k.name) return k.c;
+        // A foreign config's working space that is one of these spaces under another common
+        // name ("Linear Rec.709", "ACES - ACEScg": what resolve() finds by name, not a role
+        // standing in for it).
         for (const auto& k : known) {
             const auto r = resolve(k.name);
             if (r && r->name == impl_->working && r->via.find(" role") == std::string::npos)
                 return k.c;
         }
         return std::nullopt;
-    }
+    };
+    const char* xyz = impl_->config->getCanonicalName("cie_xyz_d65_interchange");
+    if (!xyz || !*xyz) return by_name();
     float rgb[12] = {1, 0, 0, 0, 1, 0, 0, 0, 1, 1, 1, 1};
     try {
         convert_noting(impl_->working, xyz, rgb, 4, false);
     } catch (const SpangleError&) {
-        return std::nullopt;
+        return by_name();
     }
     Chromaticities c{};
     for (int i = 0; i < 4; ++i) {
         const float sum = rgb[3 * i] + rgb[3 * i + 1] + rgb[3 * i + 2];
-        if (!(std::fabs(sum) > 1e-12f)) return std::nullopt;
+        if (!(std::fabs(sum) > 1e-12f) || !std::isfinite(sum)) return by_name();
         c.xy[static_cast<std::size_t>(2 * i)] = rgb[3 * i] / sum;
         c.xy[static_cast<std::size_t>(2 * i + 1)] = rgb[3 * i + 1] / sum;
     }
+    // Within 0.005 in x and y: the adaptations configs use (Bradford, CAT02) differ by less;
+    // the table's spaces by more than 0.03.
+    for (const auto& k : known)
+        if (chroma_distance(c, k.c) < 5e-3f || chroma_distance(c, adapted_to_d65(k.c)) < 5e-3f)
+            return k.c;
     return c;
 }
 

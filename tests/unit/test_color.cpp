@@ -412,6 +412,54 @@ TEST(ColorConfig, WorkingChromaticities) {
     EXPECT_FLOAT_EQ(rec->xy[7], 0.3290f);
 }
 
+TEST(ColorConfig, WorkingChromaticitiesNameWhatTheInterchangeMeasures) {
+    // A config with a CIE XYZ (D65) interchange role (as studio configs have): ACEScg under
+    // another name measures as AP1 seen from D65 (red at 0.7132, white at D65's) and was written
+    // so; a space named ACEScg that is Rec.709 was written as AP1. Both are now the published
+    // chromaticities of what they measure; a space of other primaries keeps its measurement.
+    test::TempDir dir("ocio_chroma");
+    std::ofstream(dir.file("config.ocio")) << R"(ocio_profile_version: 2.1
+roles:
+  default: AP0
+  scene_linear: ACES - ACEScg
+  cie_xyz_d65_interchange: XYZ D65
+displays:
+  Monitor:
+    - !<View> {name: Raw, colorspace: AP0}
+colorspaces:
+  - !<ColorSpace>
+    name: AP0
+  - !<ColorSpace>
+    name: ACES - ACEScg
+    to_scene_reference: !<MatrixTransform> {matrix: [0.6954522414, 0.1406786965, 0.1638690622, 0, 0.0447945634, 0.8596711185, 0.0955343182, 0, -0.0055258826, 0.0040252103, 1.0015006723, 0, 0, 0, 0, 1]}
+  - !<ColorSpace>
+    name: ACEScg
+    to_scene_reference: !<MatrixTransform> {matrix: [0.4396329819, 0.3829886982, 0.1773783199, 0, 0.0897764430, 0.8134394287, 0.0967841283, 0, 0.0175411704, 0.1115465533, 0.8709122763, 0, 0, 0, 0, 1]}
+  - !<ColorSpace>
+    name: Odd
+    to_scene_reference: !<MatrixTransform> {matrix: [0.8, 0.2, 0, 0, 0, 0.9, 0.1, 0, 0.1, 0, 0.9, 0, 0, 0, 0, 1]}
+  - !<ColorSpace>
+    name: XYZ D65
+    to_scene_reference: !<MatrixTransform> {matrix: [0.9382798493, -0.0044514458, 0.0166275236, 0, 0.3373688908, 0.7295215667, -0.0668904575, 0, 0.0011739508, -0.0037107064, 1.0915945063, 0, 0, 0, 0, 1], direction: inverse}
+)";
+    ColorConfig c = ColorConfig::load(dir.file("config.ocio"), {});
+    const auto ap1 = c.working_chromaticities();
+    ASSERT_TRUE(ap1.has_value());
+    EXPECT_FLOAT_EQ(ap1->xy[0], 0.713f);
+    EXPECT_FLOAT_EQ(ap1->xy[3], 0.830f);
+    EXPECT_FLOAT_EQ(ap1->xy[6], 0.32168f);
+    c.set_working_space("ACEScg");
+    const auto rec = c.working_chromaticities();
+    ASSERT_TRUE(rec.has_value());
+    EXPECT_FLOAT_EQ(rec->xy[0], 0.64f) << "a space named ACEScg that measures as Rec.709";
+    EXPECT_FLOAT_EQ(rec->xy[6], 0.3127f);
+    c.set_working_space("Odd");
+    const auto odd = c.working_chromaticities();
+    ASSERT_TRUE(odd.has_value());
+    for (float known : {0.713f, 0.7347f, 0.64f}) EXPECT_GT(std::fabs(odd->xy[0] - known), 0.01f);
+    EXPECT_NEAR(odd->xy[6], 0.3127f, 2e-3f) << "measured through the interchange: D65's white";
+}
+
 TEST(ColorConfig, EnvironmentVariableOverridesFallbacks) {
     test::TempDir dir("ocio_env");
     const std::string copy = dir.file("copy.ocio");
