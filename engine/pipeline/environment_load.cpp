@@ -123,7 +123,23 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
             neg.at % static_cast<std::size_t>(spec.width),
             neg.at / static_cast<std::size_t>(spec.width), effect);
     }
+    // As said: the map's own negatives are 0 (they went through the conversion before and
+    // coloured their neighbours' channels).
+    for (float& v : rgb) v = std::max(0.0f, v);
     color.to_working(file.color_space, rgb.data(), n);
+    // Colours outside the working space's gamut come out with negative parts, clipped below:
+    // said, as a colour's are (a map's were clipped without a word).
+    NegativeValues gamut;
+    for (std::size_t i = 0; i < 3 * n; ++i) gamut.add(rgb[i], i / 3);
+    if (log && gamut.count > 0 && gamut.negative > kNegativeShare * gamut.positive)
+        log->warn(
+            "{}: environment map '{}' holds colours outside the working space '{}' ({} values "
+            "negative once converted from '{}', the lowest {:.4g} at pixel ({}, {})): their "
+            "negative parts are clipped to 0, which shifts their hue; a wider working space "
+            "(ACEScg) keeps them",
+            file.loc.str(), file.path, color.working_space(), gamut.count, file.color_space,
+            gamut.lowest, gamut.at % static_cast<std::size_t>(spec.width),
+            gamut.at / static_cast<std::size_t>(spec.width));
     // Gamut clipping of negatives; the brightest value times the intensity within the 1e18 a
     // sample can carry, as a colour's is (a map at intensity 1e30 came out one flat 1.15e18,
     // a map with a 1e9 texel all black).

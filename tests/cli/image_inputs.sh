@@ -127,6 +127,14 @@ oiiotool --pattern constant:color=-1e-6,-1e-6,-1e-6 1x1 3 -d float --pattern con
 scene 1.0 'map = "ringsky.exr"' > s.toml
 "$S" render s.toml -o o.exr -q --no-preview --float 2> err.txt || fail "the ringing sky failed: $(cat err.txt)"
 grep -q "negative" err.txt && fail "a trace below 0 was said: $(cat err.txt)"
+# A map of colours outside the working space (AP0 blue in lin_rec709): clipped, and said as a
+# constant colour's is (it was clipped without a word).
+oiiotool --pattern constant:color=0,0,1 64x32 3 -d float -o bluesky.exr
+scene 1.0 'map = "bluesky.exr"
+color_space = "ACES2065-1"' > s.toml
+"$S" render s.toml -o o.exr -q --no-preview --float 2> err.txt || fail "the AP0 sky failed: $(cat err.txt)"
+grep -q "environment map 'bluesky.exr' holds colours outside the working space 'lin_rec709' (4096 values negative once converted from 'ACES2065-1'" err.txt ||
+    fail "an out-of-gamut map not said: $(cat err.txt)"
 # A two-channel normal map (X, Y) tilts as the three-channel one does (it was read as grey).
 oiiotool --pattern constant:color=0.75,0.5,0.9330127 8x8 3 -d float -o nxyz.exr
 oiiotool nxyz.exr --ch R,G -o nxy.exr
