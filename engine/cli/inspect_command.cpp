@@ -338,26 +338,28 @@ int run_inspect(const std::string& path, const std::string& reference) {
         // comparison says so (RGB alone measured the sky, not the noise: a denoised render read
         // 0.15 against its reference).
         // Values of two colour spaces are not comparable (one scene rendered in ACEScg and in
-        // lin_rec709 read relMSE 0.019 where converted they match).
-        if (planes.chromaticities && ref_planes.chromaticities) {
+        // lin_rec709 read relMSE 0.019 where converted they match). An image without
+        // chromaticities is Rec.709 (OpenEXR's default; a PNG's sRGB).
+        if (planes.chromaticities || ref_planes.chromaticities) {
+            constexpr std::array<float, 8> kRec709 = {0.64f, 0.33f, 0.30f,   0.60f,
+                                                      0.15f, 0.06f, 0.3127f, 0.3290f};
+            const std::array<float, 8> ca = planes.chromaticities.value_or(kRec709),
+                                       cb = ref_planes.chromaticities.value_or(kRec709);
             float apart = 0.0f;
-            for (std::size_t k = 0; k < 8; ++k)
-                apart = std::max(apart, std::fabs((*planes.chromaticities)[k] -
-                                                  (*ref_planes.chromaticities)[k]));
-            const auto said = [](const Planes& q) {
-                const auto& c = *q.chromaticities;
+            for (std::size_t k = 0; k < 8; ++k) apart = std::max(apart, std::fabs(ca[k] - cb[k]));
+            const auto said = [](const Planes& q, const std::array<float, 8>& c) {
                 return fmt::format(
                     "{}primaries ({:.4g}, {:.4g}) ({:.4g}, {:.4g}) ({:.4g}, {:.4g}), "
-                    "white ({:.4g}, {:.4g})",
+                    "white ({:.4g}, {:.4g}){}",
                     q.space.empty() ? "" : "'" + q.space + "': ", c[0], c[1], c[2], c[3], c[4],
-                    c[5], c[6], c[7]);
+                    c[5], c[6], c[7], q.chromaticities ? "" : " (none written: Rec.709's)");
             };
             if (apart > 1e-4f)
                 throw_error(
                     "'{}' and the reference '{}' are in different colour spaces ({}; {}): their "
                     "values cannot be compared; render both in one working_space, or convert one "
                     "(oiiotool --colorconvert)",
-                    path, reference, said(planes), said(ref_planes));
+                    path, reference, said(planes, ca), said(ref_planes, cb));
         }
         const bool ref_sky = add_background(ref, ref_planes);
         if (!same_place) {

@@ -500,10 +500,10 @@ std::optional<Chromaticities> ColorConfig::working_chromaticities() const {
         c.xy[static_cast<std::size_t>(2 * i)] = rgb[3 * i] / sum;
         c.xy[static_cast<std::size_t>(2 * i + 1)] = rgb[3 * i + 1] / sum;
     }
-    // Within 0.005 in x and y: the adaptations configs use (Bradford, CAT02) differ by less;
-    // the table's spaces by more than 0.03.
+    // Within 0.01 in x and y: the adaptations configs use (Bradford, CAT02, von Kries) differ
+    // by less; the table's spaces by more than 0.03.
     for (const auto& k : known)
-        if (chroma_distance(c, k.c) < 5e-3f || chroma_distance(c, adapted_to_d65(k.c)) < 5e-3f)
+        if (chroma_distance(c, k.c) < 1e-2f || chroma_distance(c, adapted_to_d65(k.c)) < 1e-2f)
             return k.c;
     return c;
 }

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 
 #include "color/image_io.h"
@@ -123,20 +124,23 @@ EnvironmentMap load_environment_map(const EnvironmentMapFile& file, const ColorC
             neg.at % static_cast<std::size_t>(spec.width),
             neg.at / static_cast<std::size_t>(spec.width), effect);
     }
-    // As said: the map's own negatives are 0 (they went through the conversion before and
-    // coloured their neighbours' channels).
-    for (float& v : rgb) v = std::max(0.0f, v);
+    // Pixels whose own values are negative (said above): not counted again below.
+    std::vector<uint8_t> own_negative(n, 0);
+    for (std::size_t i = 0; i < n; ++i)
+        own_negative[i] =
+            static_cast<uint8_t>(std::min({rgb[3 * i], rgb[3 * i + 1], rgb[3 * i + 2]}) < 0.0f);
     color.to_working(file.color_space, rgb.data(), n);
     // Colours outside the working space's gamut come out with negative parts, clipped below:
     // said, as a colour's are (a map's were clipped without a word).
     NegativeValues gamut;
-    for (std::size_t i = 0; i < 3 * n; ++i) gamut.add(rgb[i], i / 3);
+    for (std::size_t i = 0; i < 3 * n; ++i)
+        if (!own_negative[i / 3]) gamut.add(rgb[i], i / 3);
     if (log && gamut.count > 0 && gamut.negative > kNegativeShare * gamut.positive)
         log->warn(
             "{}: environment map '{}' holds colours outside the working space '{}' ({} values "
             "negative once converted from '{}', the lowest {:.4g} at pixel ({}, {})): their "
-            "negative parts are clipped to 0, which shifts their hue; a wider working space "
-            "(ACEScg) keeps them",
+            "negative parts are clipped to 0, which shifts their hue; a working space whose gamut "
+            "holds them keeps them",
             file.loc.str(), file.path, color.working_space(), gamut.count, file.color_space,
             gamut.lowest, gamut.at % static_cast<std::size_t>(spec.width),
             gamut.at / static_cast<std::size_t>(spec.width));

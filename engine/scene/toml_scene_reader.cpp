@@ -357,23 +357,32 @@ std::optional<Affine> read_matrix(TableReader& r, std::string_view key) {
         for (int c = 0; c < 3; ++c) m.m[row][c] = static_cast<float>(v[4 * row + c]);
     }
     m.t = {static_cast<float>(v[3]), static_cast<float>(v[7]), static_cast<float>(v[11])};
-    // The scale of each axis (a column's length) within the bounds `scale` has, in double: a
-    // uniform 1e-20 was "not invertible (determinant 0)" and 1e30 "determinant inf", a float's
-    // under- and overflow.
-    for (int c = 0; c < 3; ++c) {
-        const double len = std::sqrt(v[c] * v[c] + v[4 + c] * v[4 + c] + v[8 + c] * v[8 + c]);
-        if (len > 1e8 || (len > 0.0 && len < 1e-8))
-            throw_error(loc_of(*n, r.file()),
-                        "'{}' scales its {} axis by {:.3g}, outside 1e-8 to 1e8 (model in other "
-                        "units instead)",
-                        key, "xyz"[c], len);
-    }
     const float det = m.determinant();
-    if (!(std::fabs(det) > 1e-30f) || !std::isfinite(det))
+    if (!(std::fabs(det) > 1e-30f) || !std::isfinite(det)) {
+        // In double: an invertible matrix whose determinant a float under- or overflows (a
+        // uniform 1e-20 was "not invertible (determinant 0)", 1e30 "determinant inf") is said by
+        // its scale; a flat one (dependent columns) as not invertible.
+        double len[3];
+        for (int c = 0; c < 3; ++c)
+            len[c] = std::sqrt(v[c] * v[c] + v[4 + c] * v[4 + c] + v[8 + c] * v[8 + c]);
+        const double det_d = v[0] * (v[5] * v[10] - v[6] * v[9]) -
+                             v[1] * (v[4] * v[10] - v[6] * v[8]) +
+                             v[2] * (v[4] * v[9] - v[5] * v[8]);
+        const double volume = len[0] * len[1] * len[2];
+        if (std::isfinite(det_d) && volume > 0.0 && std::isfinite(volume) &&
+            std::fabs(det_d) > 1e-6 * volume)
+            throw_error(
+                loc_of(*n, r.file()),
+                "'{}' scales its axes by {:.3g}, {:.3g} and {:.3g}: beyond what single "
+                "precision holds (its determinant {:.3g} is {}); model in other units "
+                "instead",
+                key, len[0], len[1], len[2], det_d,
+                std::fabs(det_d) < 1.0 ? "below the 1e-30 it takes" : "beyond a float's range");
         throw_error(loc_of(*n, r.file()),
-                    "'{}' is not invertible (determinant {}): it flattens the object onto a plane, "
-                    "a line or a point",
+                    "'{}' is not invertible (determinant {}): it flattens the object onto a "
+                    "plane, a line or a point",
                     key, det);
+    }
     return m;
 }
 

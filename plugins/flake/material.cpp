@@ -347,17 +347,17 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
         // The footprint's own flake share (c.weight holds the population's nominal share w).
         // Facets cover the base: the share follows the facets it holds (their shares inside it
         // against the expected lambda), so a footprint inside a facet is all mirror and one
-        // between facets all base. Point flakes: a footprint that holds none shows the base
-        // alone (as one whose flakes all face away from wo), and one that holds any the share
-        // w / P(it holds any) = w / (1 - e^-lambda), at
-        // most 1, so the share averages to w wherever w <= 1 - e^-lambda (a footprint of fewer
-        // than ~3 flakes reflected (1 - e^-lambda) of the smooth limit when it kept w always).
-        // Both average to w as the footprint grows, and the smooth lobe keeps w.
-        // "Holds any" counts the flakes that enter the cache: of lambda, the enumerated ones
-        // only where they reflect wo above the horizon (cache_share, 1 / (1 + alpha^2) head-on,
-        // about 1/2 at grazing), the counted cells' whatever their stand-ins (their smooth part
-        // reflects); with lambda alone a rough paint's sparse flakes averaged 8% under w head-on
-        // and up to half at grazing.
+        // between facets all base. Point flakes: a footprint that holds no flake reflecting wo
+        // above the horizon shows the base alone, and one that holds any the share
+        // w / P(it holds any) = w / (1 - e^-(found)), at most 1, so the share averages to w
+        // wherever w <= 1 - e^-found (a footprint of fewer than ~3 flakes reflected
+        // (1 - e^-lambda) of the smooth limit when it kept w always). `found` is the expected
+        // count of flakes that enter the cache: of the enumerated ones, those reflecting wo above
+        // the horizon (cache_share: 1 / (1 + alpha^2) head-on, about 1/2 at grazing); of the
+        // counted cells', the share their smooth part carries whole (it always reflects) and
+        // the rest, real flakes as stand-ins, at cache_share too. With lambda alone a rough
+        // paint's sparse flakes averaged 8% under w head-on and up to half at grazing. Both
+        // average to w as the footprint grows, and the smooth lobe keeps w.
         if (c.t < 1.0f && lambda > 0.0) {
             float local = 0.0f;
             if (m.facet && view.facet_size > 0.0) {
@@ -366,8 +366,17 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
             } else if (c.cover > 0.0f && c.w_norm > 0.0f) {  // holds a flake that wo sees
                 const double counted =
                     std::clamp(c.counted.expected * static_cast<double>(view.keep), 0.0, lambda);
+                const double share = static_cast<double>(m.cache_share.at(c.wo.z));
+                // Of the aggregates drawn, the share the smooth lobe carries (none where a cell
+                // holds no more flakes than its stand-ins: they are its flakes).
+                const double smooth =
+                    c.counted.aggregated > 0
+                        ? std::clamp(static_cast<double>(c.counted.smooth) /
+                                         static_cast<double>(c.counted.aggregated),
+                                     0.0, 1.0)
+                        : 0.0;
                 const double found =
-                    counted + (lambda - counted) * static_cast<double>(m.cache_share.at(c.wo.z));
+                    counted * (smooth + (1.0 - smooth) * share) + (lambda - counted) * share;
                 local = std::min(
                     1.0f, static_cast<float>(static_cast<double>(c.weight) / -std::expm1(-found)));
             }

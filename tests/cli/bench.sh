@@ -22,7 +22,7 @@ awk -F, 'NR > 1 {
     if ($2 != 48 || $3 != 27 || $4 != 2) { print "wrong size or spp: " $0; bad = 1 }
     for (i = 10; i <= 16; ++i) if (!($i > 0)) { print "column " i " not positive: " $0; bad = 1 }
     if ($13 != 48 * 27 * 2) { print "camera rays are not one per sample: " $0; bad = 1 }
-    if ($5 != 2) { print "threads column is not the 2 asked for: " $0; bad = 1 }
+    if (!($5 >= 1 && $5 <= 2)) { print "threads column is not the 2 asked for (1 on one core): " $0; bad = 1 }
     if ($1 == "interior" && $6 < 300000) { print "interior has too few triangles: " $0; bad = 1 }
     if ($1 == "demo" && $16 >= 100) { print "demo peak memory is " $16 " MiB: is OpenImageIO linked again?"; bad = 1 }
 } END { exit bad }' "$T/b.csv" || fail "bad figures"
