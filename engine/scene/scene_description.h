@@ -383,6 +383,11 @@ inline std::string noise_threshold_problem(double t) {
 }
 
 /** Image size, sampling, colour spaces, frame range and shutter. */
+/** The note of a file whose camera is a default framing: dropped when a scene importing the
+ *  file has a camera of its own. */
+inline constexpr const char* kDefaultCameraNote =
+    "the file has no camera: a default framing of its bounds stands in";
+
 struct RenderDesc {
     uint32_t width = 640;                      ///< pixels
     uint32_t height = 360;                     ///< pixels
@@ -478,6 +483,9 @@ struct SceneDescription {
     bool has_camera = true;
     /** The camera is the one SceneReadOptions::camera named (a glTF file's, by name). */
     bool camera_by_name = false;
+    /** The camera is a default framing of the file's bounds (a glTF file without cameras); the
+     *  note saying so is kDefaultCameraNote. */
+    bool camera_is_default = false;
     std::vector<ImportDesc> imports;             ///< other scene files it brings in
     std::optional<EnvironmentDesc> environment;  ///< none = black, no environment light
     /** A glTF file lit by its emission alone: the studio light it would have had without it,

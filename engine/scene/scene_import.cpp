@@ -194,7 +194,9 @@ void merge(SceneDescription& scene, SceneDescription in, const ImportDesc& how, 
             if (placed) std::visit(PlaceLight{place}, l.shape);
             scene.lights.push_back(std::move(l));
         }
+    bool took_camera = false;
     if (!scene.has_camera && !m.camera && how.camera && in.has_camera) {
+        took_camera = true;
         scene.camera = in.camera;
         scene.camera_by_name = in.camera_by_name;
         if (placed) place_camera(scene.camera, place);
@@ -210,7 +212,14 @@ void merge(SceneDescription& scene, SceneDescription in, const ImportDesc& how, 
     }
     scene.files.push_back(in.path);
     scene.files.insert(scene.files.end(), in.files.begin(), in.files.end());
-    scene.notes.insert(scene.notes.end(), in.notes.begin(), in.notes.end());
+    for (const std::string& note : in.notes) {
+        // The import's default framing, when its camera is not the one taken, stands in for
+        // nothing (the note said it did, under the importing file's own camera).
+        if (in.camera_is_default && !took_camera &&
+            note.find(kDefaultCameraNote) != std::string::npos)
+            continue;
+        scene.notes.push_back(note);
+    }
 }
 
 }  // namespace

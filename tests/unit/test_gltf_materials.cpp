@@ -998,6 +998,13 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
               f + ":3:15: error: invalid JSON: expected a member name in double quotes");
     EXPECT_EQ(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\n\"nodes\":[{\"mesh\":4}]}"),
               f + ":2:18: error: mesh 4 does not exist (the file has 0)");
+    // A texture index of -1 (tinygltf's "none written") is no texture of the file, as 5 of 1
+    // is not (it rendered untextured without a word).
+    EXPECT_EQ(error_of(dir,
+                       "{\"asset\":{\"version\":\"2.0\"},\n\"materials\":[{"
+                       "\"pbrMetallicRoughness\":\n{\"baseColorTexture\": {\"index\": -1}}}]}"),
+              f + ":3:22: error: texture -1 does not exist (the file has 0): 'index' names one "
+                  "of the file's textures, from 0");
     EXPECT_EQ(error_of(dir,
                        "{\"asset\":{\"version\":\"2.0\"},\"extensionsRequired\":[\"KHR_texture_"
                        "basisu\"],\"extensionsUsed\":[\"KHR_texture_basisu\"]}"),

@@ -655,6 +655,13 @@ TEST(GltfReader, WithoutCameraOrLightTheDefaultsFrameTheBoundsAndLightTheStudio)
     EXPECT_NEAR(std::atan2(v.y, v.z) * 180.0f / kPi, 15.0f, 1e-3f);
     EXPECT_EQ(d.camera.fov_deg, 40.0);
     EXPECT_TRUE(has_note(d, "no camera: a default framing"));
+    // Imported by a TOML scene: said where the framing is the scene's camera, not where the
+    // scene has its own (the note said the framing stood in under the scene's camera).
+    std::ofstream(dir.file("own.toml")) << "[camera]\nposition = [0, 0, 5]\nlook_at = [0, 0, "
+                                           "0]\n[[import]]\nfile = \"bare.gltf\"\n";
+    std::ofstream(dir.file("none.toml")) << "[[import]]\nfile = \"bare.gltf\"\n";
+    EXPECT_FALSE(has_note(read_scene(dir.file("own.toml")), "no camera: a default framing"));
+    EXPECT_TRUE(has_note(read_scene(dir.file("none.toml")), "no camera: a default framing"));
     ASSERT_TRUE(d.environment && d.environment->color);
     EXPECT_EQ(d.environment->color->rgb.x, 0.25f);
     ASSERT_EQ(d.lights.size(), 1u);

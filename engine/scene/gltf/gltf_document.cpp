@@ -568,6 +568,25 @@ void check_image_views(const Context& ctx) {
 }
 
 /** Notes used extensions not read (once each). */
+/** A material's texture index written negative: tinygltf reads -1 as no texture at all (a
+ *  baseColorTexture of index -1 rendered untextured without a word; index 5 of 3 textures is an
+ *  error). Sorted by place, so the first written is said. */
+void check_texture_indices(const Context& ctx) {
+    std::vector<std::pair<std::string, std::string>> negative;
+    for (const auto& [path, text] : ctx.json.scalars())
+        if (path.starts_with("materials/") && path.ends_with("/index") && text.starts_with('-'))
+            negative.emplace_back(path, text);
+    if (negative.empty()) return;
+    std::sort(negative.begin(), negative.end());
+    std::size_t textures = 0;
+    while (ctx.json.has(fmt::format("textures/{}", textures))) ++textures;
+    const std::string where = negative[0].first.substr(0, negative[0].first.size() - 6);
+    throw_error(ctx.at(where),
+                "texture {} does not exist (the file has {}): 'index' names one of "
+                "the file's textures, from 0",
+                negative[0].second, textures);
+}
+
 void check_extensions(Context& ctx) {
     for (const std::string& e : ctx.model.extensionsUsed)
         if (!kRead.count(e) && !noted_in_place(e))
@@ -642,6 +661,7 @@ void load_document(Context& ctx) {
     BufferLengths buffer_lengths = check_buffers(ctx, binary);
     check_accessors(ctx);
     check_image_views(ctx);
+    check_texture_indices(ctx);
     if (bytes.size() > 0xFFFFFFFFu)
         throw_error(FileLoc{ctx.path, 0, 0}, "the file is larger than 4 GiB");
     // Fallback buffers of compressed views made empty for tinygltf (the rest as written; a

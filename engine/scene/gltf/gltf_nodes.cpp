@@ -593,9 +593,9 @@ void choose_camera(Context& ctx, const std::vector<std::pair<int, int>>& cameras
             ctx.at("cameras"), "no camera named '{}' (cameras: {})", name,
             names.empty() ? std::string("none") : fmt::format("{}", fmt::join(names, ", ")));
     }
-    ctx.note("default camera", FileLoc{ctx.path, 1, 1},
-             "the file has no camera: a default framing of its bounds stands in");
+    ctx.note("default camera", FileLoc{ctx.path, 1, 1}, kDefaultCameraNote);
     default_camera(ctx);
+    ctx.scene->camera_is_default = true;
 }
 
 /** The world-space area of an object the reader placed (an inline mesh under a matrix); 0 for

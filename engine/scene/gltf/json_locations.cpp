@@ -273,10 +273,13 @@ private:
     std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>& spans_;
 
     /** Whether the scalar at path_ is kept (scalars_): a buffer's members, an accessor's count,
-     *  componentType, type and bufferView, a buffer view's buffer, byteOffset and byteLength, and
-     *  an image's bufferView, checked before tinygltf reads them. */
+     *  componentType, type and bufferView, a buffer view's buffer, byteOffset and byteLength, an
+     *  image's bufferView, and a material's texture indices, checked before tinygltf reads
+     *  them. */
     bool kept_scalar() const {
         if (path_.starts_with("buffers/")) return true;
+        // A material's texture references (tinygltf reads -1 as none written).
+        if (path_.starts_with("materials/") && path_.ends_with("/index")) return true;
         // The member of element N of a top-level array ("accessors/N/key").
         const auto key_of = [&](std::string_view array) -> std::string_view {
             if (!path_.starts_with(array) || path_.size() <= array.size() ||

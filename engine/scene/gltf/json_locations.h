@@ -42,12 +42,16 @@ public:
     /** The text of a string, number, true or false the file writes at `path` under
      *  "buffers/", as an accessor's count, componentType, type or bufferView, a buffer view's
      *  buffer, byteOffset or byteLength, or an image's bufferView (a string in its quotes, its
-     *  escapes kept), for checking them before tinygltf reads them; null when none (or an
+     *  escapes kept), or a material's texture index ("materials/N/.../index"), for checking
+     *  them before tinygltf reads them; null when none (or an
      *  object, array or null). */
     const std::string* scalar(std::string_view path) const {
         const auto it = scalars_.find(std::string(path));
         return it == scalars_.end() ? nullptr : &it->second;
     }
+
+    /** Every scalar kept (scalar()), by path. */
+    const std::unordered_map<std::string, std::string>& scalars() const { return scalars_; }
 
     /** Where buffer, accessor or skin object `path` ("buffers/N", "accessors/N", "skins/N") or
      *  an animation channel's target ("animations/A/channels/C/target") is written in the text:
