@@ -998,6 +998,21 @@ TEST(GltfErrors, MistakesAreReportedAtTheirLineAndColumn) {
               f + ":3:15: error: invalid JSON: expected a member name in double quotes");
     EXPECT_EQ(error_of(dir, "{\"asset\":{\"version\":\"2.0\"},\n\"nodes\":[{\"mesh\":4}]}"),
               f + ":2:18: error: mesh 4 does not exist (the file has 0)");
+    // A property of another kind than the schema's is said at its place (tinygltf skipped it:
+    // primitives written as an object drew nothing, "no node draws a mesh" at 1:1).
+    EXPECT_EQ(error_of(dir,
+                       "{\"asset\":{\"version\":\"2.0\"},\n\"meshes\":[{\"primitives\": "
+                       "{\"attributes\":{}}}]}"),
+              f + ":2:26: error: 'primitives' must be an array (glTF 2.0), got an object");
+    EXPECT_EQ(
+        error_of(dir,
+                 "{\"asset\":{\"version\":\"2.0\"},\n\"materials\":[{"
+                 "\"pbrMetallicRoughness\": [1]}]}"),
+        f + ":2:39: error: 'pbrMetallicRoughness' must be an object (glTF 2.0), got an array");
+    EXPECT_EQ(error_of(dir,
+                       "{\"asset\":{\"version\":\"2.0\"},\n\"materials\":[{"
+                       "\"normalTexture\": {\"index\": 0, \"scale\": \"2\"}}]}"),
+              f + ":2:54: error: 'scale' must be a number (glTF 2.0), got a string");
     // A texture index of -1 (tinygltf's "none written") is no texture of the file, as 5 of 1
     // is not (it rendered untextured without a word).
     EXPECT_EQ(error_of(dir,

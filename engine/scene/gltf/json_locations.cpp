@@ -11,7 +11,7 @@ constexpr int kMaxDepth = 256;  ///< deeper nesting is refused (no glTF needs mo
 class Scanner {
 public:
     Scanner(std::string_view text, const std::string& file,
-            std::unordered_map<std::string, std::pair<int, int>>& places,
+            std::unordered_map<std::string, JsonLocations::Place>& places,
             std::vector<std::string>& required,
             std::unordered_map<std::string, std::string>& scalars,
             std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>& spans)
@@ -58,7 +58,16 @@ private:
         advance();
     }
 
-    void record() { places_.emplace(path_, std::pair{line_, column_}); }
+    void record() {
+        const char c = peek();
+        const char kind = c == '{'               ? 'o'
+                          : c == '['             ? 'a'
+                          : c == '"'             ? 's'
+                          : c == 't' || c == 'f' ? 'b'
+                          : c == 'n'             ? 'z'
+                                                 : 'n';
+        places_.emplace(path_, JsonLocations::Place{line_, column_, kind});
+    }
 
     /** A value at path_, `depth` levels down. */
     void value(int depth) {
@@ -267,7 +276,7 @@ private:
 
     std::string_view text_;
     const std::string& file_;
-    std::unordered_map<std::string, std::pair<int, int>>& places_;
+    std::unordered_map<std::string, JsonLocations::Place>& places_;
     std::vector<std::string>& required_;
     std::unordered_map<std::string, std::string>& scalars_;
     std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>& spans_;
@@ -311,7 +320,7 @@ FileLoc JsonLocations::at(std::string_view path) const {
     std::string p(path);
     for (;;) {
         if (auto it = places_.find(p); it != places_.end())
-            return FileLoc{file_, it->second.first, it->second.second};
+            return FileLoc{file_, it->second.line, it->second.column};
         const std::size_t slash = p.rfind('/');
         if (p.empty()) return FileLoc{file_, 1, 1};
         p.resize(slash == std::string::npos ? 0 : slash);

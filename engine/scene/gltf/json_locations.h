@@ -39,6 +39,26 @@ public:
     /** Whether the value at `path` is an object or array the file writes (exactly there). */
     bool has(std::string_view path) const { return places_.count(std::string(path)) > 0; }
 
+    /** What the file writes at `path` (an object member, or an array element that is an object
+     *  or array): 'o' object, 'a' array, 's' string, 'n' number, 'b' true or false, 'z' null;
+     *  0 when nothing is recorded there. */
+    char kind(std::string_view path) const {
+        const auto it = places_.find(std::string(path));
+        return it == places_.end() ? '\0' : it->second.kind;
+    }
+
+    /** Calls f(path, kind) for every recorded value (see kind()). */
+    template <class F>
+    void for_each_kind(F&& f) const {
+        for (const auto& [path, place] : places_) f(path, place.kind);
+    }
+
+    /** Where a value is written, and what it is (kind()). */
+    struct Place {
+        int line = 0, column = 0;
+        char kind = 0;
+    };
+
     /** The text of a string, number, true or false the file writes at `path` under
      *  "buffers/", as an accessor's count, componentType, type or bufferView, a buffer view's
      *  buffer, byteOffset or byteLength, or an image's bufferView (a string in its quotes, its
@@ -63,9 +83,9 @@ public:
 
 private:
     std::string file_;
-    std::unordered_map<std::string, std::pair<int, int>> places_;  ///< path -> (line, column)
-    std::vector<std::string> required_;                            ///< extensionsRequired
-    std::unordered_map<std::string, std::string> scalars_;         ///< buffers' members
+    std::unordered_map<std::string, Place> places_;         ///< path -> where, and what
+    std::vector<std::string> required_;                     ///< extensionsRequired
+    std::unordered_map<std::string, std::string> scalars_;  ///< buffers' members
     std::unordered_map<std::string, std::pair<std::size_t, std::size_t>>
         spans_;  ///< buffers, accessors, skins, channel targets
 };
