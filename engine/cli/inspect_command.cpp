@@ -406,6 +406,12 @@ int run_inspect(const std::string& path, const std::string& reference) {
                 " (over the pixels finite in both; {} left out: {} not finite in the image alone, "
                 "{} in the reference alone, {} in both)",
                 skipped, only_image, only_ref, skipped - only_image - only_ref);
+        // No pixel finite in both: nothing was compared (it read relMSE 0, a perfect match).
+        if (a.empty())
+            throw_error(
+                "'{}' and the reference '{}' have no pixel finite in both ({} of {} "
+                "not finite in the image, {} in the reference): nothing to compare",
+                path, reference, skipped - only_ref, skipped, skipped - only_image);
         fmt::print("relMSE against {}: {:.6g}{}\n", reference, relative_mse(a, b), left_out);
         if (only_image + only_ref > 0)
             fmt::print(stderr,

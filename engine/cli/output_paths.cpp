@@ -52,6 +52,10 @@ void check_writable(const std::string& path, const char* what) {
             walked /= part;
             std::error_code wec;
             if (!fs::exists(walked, wec)) break;
+            // A file on the way ('model.obj/../out.exr'): that is what is wrong.
+            if (!fs::is_directory(walked, wec) && walked != dir)
+                throw_error("cannot write the {} '{}': {} is not a folder", what, path,
+                            said(walked));
         }
         throw_error("cannot write the {} '{}': folder {} does not exist", what, path,
                     said(walked.empty() ? dir : walked));

@@ -56,6 +56,9 @@ expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/out
 # Through a missing folder: the missing one is named (it named the folder at the end, which exists).
 expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/../out.exr"
 expect 1 "folder '$T/missing' does not exist" render "$SCENE" -o "$T/missing/deeper/out.exr"
+touch "$T/afile"
+expect 1 "'$T/afile' is not a folder" render "$SCENE" -o "$T/afile/../out.exr"
+rm "$T/afile"
 mkdir folder.exr
 expect 1 "it is a folder" render "$SCENE" -o folder.exr
 expect 1 "it is a folder" render "$SCENE" -o out.exr --preview folder.exr

@@ -42,6 +42,8 @@ grep -q "relMSE against whole.exr: [0-9].*16 left out" out.txt || fail "NaN relM
 oiiotool --pattern constant:color=nan,nan,nan 4x4 3 -o allnan.exr
 "$S" inspect allnan.exr > out.txt 2>&1 || fail "all NaN: $(cat out.txt)"
 grep -q "^mean luminance: none (no pixel is finite)$" out.txt || fail "all-NaN mean: $(cat out.txt)"
+"$S" inspect allnan.exr --against allnan.exr > out.txt 2>&1 && fail "a comparison of no pixel passed: $(cat out.txt)"
+grep -q "no pixel finite in both" out.txt || fail "an empty comparison not said: $(cat out.txt)"
 # A layered render keeps the sky seen directly in its 'background' layer: inspect measures RGB
 # plus that layer, the whole picture, as the same render without layers holds it (RGB alone left
 # the sky out of the mean and made fireflies of the faint pixels at the horizon).
