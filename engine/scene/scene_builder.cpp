@@ -124,17 +124,20 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     // Every build sets it: a reload that drops `working_space` goes back to the default, the
     // config's scene_linear, else ACEScg (it kept the space of the scene loaded before, which
     // the live config still held).
+    // Light is added and multiplied in the working space: an encoded (sRGB), display or data
+    // space rendered with no word, its header naming it (a furnace's 0.5 showed as 0.21). Why
+    // `space` is not scene-linear, if it is not; a transform that cannot be made is an error at
+    // `loc`.
+    const auto not_linear = [&](const std::string& space, const FileLoc& loc) {
+        try {
+            return color.not_scene_linear(space);
+        } catch (const SpangleError& e) {
+            throw_error(loc, "{}", e.what());
+        }
+    };
     if (d.working_space) {
         const std::string space = resolve_space(ctx, *d.working_space, d.working_space_loc);
-        // Light is added and multiplied in the working space: an encoded (sRGB), display or data
-        // space rendered with no word, its header naming it (a furnace's 0.5 showed as 0.21).
-        std::optional<std::string> why;
-        try {
-            why = color.not_scene_linear(space);
-        } catch (const SpangleError& e) {
-            throw_error(d.working_space_loc, "{}", e.what());
-        }
-        if (why)
+        if (const std::optional<std::string> why = not_linear(space, d.working_space_loc))
             throw_error(d.working_space_loc,
                         "working_space '{}' is not scene-linear ({}): light adds up only in a "
                         "linear space; use a scene-linear one such as ACEScg or lin_rec709 (the "
@@ -145,13 +148,7 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
         // The config's scene_linear role, checked as a written space is (a role naming a log or
         // sRGB space rendered without a word, the header naming it over linear values).
         const std::string space = color.default_working_space();
-        std::optional<std::string> why;
-        try {
-            why = color.not_scene_linear(space);
-        } catch (const SpangleError& e) {
-            throw_error(d.loc, "{}", e.what());
-        }
-        if (why)
+        if (const std::optional<std::string> why = not_linear(space, d.loc))
             throw_error(d.loc,
                         "the OCIO config's scene_linear role names '{}', the working space when "
                         "[render] names none, and it is not scene-linear ({}): light adds up "
