@@ -132,3 +132,187 @@ float CacheShare::at(float cos_o) const {
 }
 
 }  // namespace spangle::flake
+
+namespace spangle::flake {
+
+namespace {
+
+/** The flakes that enter a view's cache, by quadrature over the disk of flake_normal() (uniform
+ *  in rho^2 and phi, the half turn: the view is in the xz plane), gathered into bins of w
+ *  (log-spaced): each bin's probability, E[w] and E[w a] over it. */
+struct WeightBins {
+    static constexpr int kBins = 64;
+    double q[kBins] = {}, qw[kBins] = {}, qwa[kBins][3] = {};
+    double plain[3] = {}, mass = 0;  ///< E[a] and the probability of entering, over the bins
+};
+
+void gather_bins(float alpha, const FresnelTable& fresnel, bool shadowing, V3 wo, WeightBins& b) {
+    // Per ring of tilt theta the flakes that enter are those of azimuth |phi| < phi_c, where
+    // cos(phi_c) = -cot(2 theta) cos_o / sin_o (cache_share_exact's condition solved for phi):
+    // the midpoint rule over [0, phi_c] has no cut through the integrand (a cut through a fixed
+    // grid left 1-2% errors at cos_o 0.1).
+    constexpr int kRho = 48, kPhi = 48;
+    struct Point {
+        double q, w, a[3];
+    };
+    std::vector<Point> pts;
+    pts.reserve(kRho * kPhi);
+    double w_lo = INFINITY, w_hi = 0.0;
+    const double cot_o = static_cast<double>(wo.z) / std::max(1e-9, static_cast<double>(wo.x));
+    // Rings by v = sqrt(1 - rho^2) (the unstretched normal's height), midpoints in v with
+    // weight 2 v dv: w grows as 1 / v at the rim, which the midpoint rule in rho^2 integrated
+    // with errors of O(sqrt(h)).
+    for (int i = 0; i < kRho; ++i) {
+        const double u = (i + 0.5) / kRho, v = u * u;
+        const double rho2 = 1.0 - v * v;
+        const double tan_t = static_cast<double>(alpha) * std::sqrt(rho2) / v;
+        // cot(2 theta) = (1 - tan^2) / (2 tan).
+        const double bound = -(1.0 - tan_t * tan_t) / (2.0 * tan_t) * cot_o;
+        const double phi_c = bound <= -1.0  ? std::numbers::pi
+                             : bound >= 1.0 ? 0.0
+                                            : std::acos(bound);
+        if (!(phi_c > 0.0)) continue;
+        const double q = 4.0 * v * u * phi_c / std::numbers::pi / (kRho * kPhi);
+        const auto rho = static_cast<float>(std::sqrt(rho2));
+        const auto z = static_cast<float>(v);
+        for (int j = 0; j < kPhi; ++j) {
+            const auto phi = static_cast<float>(phi_c * (j + 0.5) / kPhi);
+            const float x = rho * std::cos(phi), y = rho * std::sin(phi);
+            const V3 m = mf::normalize(V3{alpha * x, alpha * y, z});
+            const float cos_om = mf::dot(wo, m);
+            const V3 r = m * (2.0f * cos_om) - wo;
+            if (cos_om <= 0.0f) continue;
+            float f[3];
+            fresnel.eval(cos_om, f);
+            const double g =
+                shadowing && r.z > 0.0f ? static_cast<double>(mf::ggx_g1(r, alpha, alpha)) : 1.0;
+            Point p{q, static_cast<double>(cos_om / m.z), {}};
+            for (int c = 0; c < 3; ++c) p.a[c] = static_cast<double>(f[c]) * g;
+            pts.push_back(p);
+            w_lo = std::min(w_lo, p.w);
+            w_hi = std::max(w_hi, p.w);
+        }
+    }
+    const double lo = std::log(std::max(w_lo, 1e-9));
+    const double span = std::max(1e-9, std::log(std::max(w_hi, 1e-9)) - lo);
+    for (const Point& p : pts) {
+        const int k = std::clamp(
+            static_cast<int>((std::log(std::max(p.w, 1e-9)) - lo) / span * WeightBins::kBins), 0,
+            WeightBins::kBins - 1);
+        b.q[k] += p.q;
+        b.qw[k] += p.q * p.w;
+        for (int c = 0; c < 3; ++c) {
+            b.qwa[k][c] += p.q * p.w * p.a[c];
+            b.plain[c] += p.q * p.a[c];
+        }
+        b.mass += p.q;
+    }
+    if (b.mass > 0.0)
+        for (double& v : b.plain) v /= b.mass;
+}
+
+}  // namespace
+
+void SparseAlbedo::init(float alpha, const FresnelTable& fresnel, bool shadowing) {
+    flat = true;
+    for (int i = 0; i < kNodes; ++i) {
+        const float cos_o = std::max(1e-3f, static_cast<float>(i) / (kNodes - 1));
+        const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_o * cos_o)), 0.0f, cos_o};
+        WeightBins b;
+        gather_bins(alpha, fresnel, shadowing, wo, b);
+        // Normalised to the entering flakes; each bin at its mean w.
+        double sum_w = 0.0, sum_wa[3] = {};
+        int first = -1, last = -1;
+        for (int k = 0; k < WeightBins::kBins; ++k) {
+            if (!(b.q[k] > 0.0)) continue;
+            if (first < 0) first = k;
+            last = k;
+            sum_w += b.qw[k];
+            for (int c = 0; c < 3; ++c) sum_wa[c] += b.qwa[k][c];
+        }
+        double far[3] = {1.0, 1.0, 1.0};
+        if (first >= 0 && sum_w > 0.0)
+            for (int c = 0; c < 3; ++c) far[c] = sum_wa[c] / sum_w;
+        // E[R | K] for K >= 2: the trapezoid rule in s = log t over the range where the
+        // integrands live (t w from 1e-3 at the largest w to 40 at the smallest).
+        double num[kMaxK][3] = {}, den[kMaxK] = {};
+        if (first >= 0) {
+            const double w_min = b.qw[first] / b.q[first], w_max = b.qw[last] / b.q[last];
+            const double s0 = std::log(1e-3 / w_max), s1 = std::log(40.0 / w_min);
+            constexpr double kStep = 0.25;
+            const int steps = static_cast<int>(std::ceil((s1 - s0) / kStep));
+            for (int n = 0; n <= steps; ++n) {
+                const double t = std::exp(s0 + kStep * n);
+                double l = 0.0, nw = 0.0, m[3] = {};
+                for (int k = first; k <= last; ++k) {
+                    if (!(b.q[k] > 0.0)) continue;
+                    const double e = std::exp(-t * b.qw[k] / b.q[k]);
+                    l += b.q[k] * e;
+                    nw += b.qw[k] * e;
+                    for (int c = 0; c < 3; ++c) m[c] += b.qwa[k][c] * e;
+                }
+                l /= b.mass;
+                const double end = (n == 0 || n == steps) ? 0.5 : 1.0;
+                double lk = l;  // L^(K-1), from K = 2
+                for (int K = 2; K <= kMaxK; ++K) {
+                    const double g = end * t * K * lk / b.mass;
+                    den[K - 1] += g * nw;
+                    for (int c = 0; c < 3; ++c) num[K - 1][c] += g * m[c];
+                    lk *= l;
+                }
+            }
+        }
+        for (int K = 1; K <= kMaxK; ++K)
+            for (int c = 0; c < 3; ++c) {
+                const double mean =
+                    K == 1 ? b.plain[c] : (den[K - 1] > 0.0 ? num[K - 1][c] / den[K - 1] : 0.0);
+                const double s = mean > 0.0 && far[c] > 0.0 ? far[c] / mean : 1.0;
+                scale[i][K - 1][c] = static_cast<float>(s);
+                if (std::fabs(s - 1.0) > 1e-4) flat = false;
+                if (K == kMaxK)
+                    tail[i][c] = static_cast<float>(
+                        mean > 0.0 && far[c] > 0.0 ? (mean / far[c] - 1.0) * kMaxK : 0.0);
+            }
+    }
+}
+
+void SparseAlbedo::at(float cos_o, uint32_t k, float s[3]) const {
+    const float x = std::clamp(cos_o, 0.0f, 1.0f) * static_cast<float>(kNodes - 1);
+    const int i = std::min(static_cast<int>(x), kNodes - 2);
+    const float f = x - static_cast<float>(i);
+    for (int c = 0; c < 3; ++c) {
+        float v0, v1;
+        if (k <= static_cast<uint32_t>(kMaxK)) {
+            v0 = scale[i][k - 1][c];
+            v1 = scale[i + 1][k - 1][c];
+        } else {
+            const float kf = static_cast<float>(k);
+            v0 = 1.0f / (1.0f + tail[i][c] / kf);
+            v1 = 1.0f / (1.0f + tail[i + 1][c] / kf);
+        }
+        s[c] = v0 + f * (v1 - v0);
+    }
+}
+
+void SparseAlbedo::apply(float cos_o, uint32_t k, CacheEntry* first, CacheEntry* end) const {
+    if (flat || k == 0 || first == end) return;
+    float s[3];
+    at(cos_o, k, s);
+    // Within 0.1% of 1 (a conductor's flakes, or many of any): left as they are.
+    if (std::max({std::fabs(s[0] - 1.0f), std::fabs(s[1] - 1.0f), std::fabs(s[2] - 1.0f)}) < 1e-3f)
+        return;
+    float sum[3] = {}, w = 0.0f;
+    for (const CacheEntry* e = first; e != end; ++e) {
+        for (int c = 0; c < 3; ++c) sum[c] += e->rgb[c];
+        w += e->w;
+    }
+    // Raised only as far as the entries stay within their weight (an albedo of at most 1).
+    for (int c = 0; c < 3; ++c)
+        if (s[c] > 1.0f && sum[c] * s[c] > w) s[c] = std::max(1.0f, w / sum[c]);
+    for (CacheEntry* e = first; e != end; ++e) {
+        for (int c = 0; c < 3; ++c) e->rgb[c] *= s[c];
+        e->lum = std::max(0.0f, luminance(e->rgb));
+    }
+}
+
+}  // namespace spangle::flake

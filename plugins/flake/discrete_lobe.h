@@ -77,6 +77,35 @@ struct CacheShare {
     float at(float cos_o) const;
 };
 
+/** How a footprint of few flakes is scaled so that footprints average to the far look. A
+ *  footprint's lobe is normalised by its own W, so it reflects sum w_j a_j / sum w_j of its
+ *  flakes' albedos a_j (F(wo.m_j), times G1 at the mirror direction with shadowing): one flake
+ *  reflects its own albedo, and the plain mean over flakes is E[a], where the far look (and a
+ *  footprint of many flakes) reflects E[w a] / E[w]. Where a depends on the tilt the two differ:
+ *  dielectric flakes (Fresnel rising at grazing incidence, where w is small) read 1.3x the far
+ *  look at lambda 0.5. With K flakes in the cache (drawn independently from the flakes that enter
+ *  it), E[sum w a / sum w] = K integral over t > 0 of M(t) L(t)^(K-1) dt, L(t) = E[e^-tw],
+ *  M(t) = E[w a e^-tw] (from 1/x = integral of e^-tx): tabulated per material over cos_o for K up
+ *  to kMaxK by quadrature over the flake normals (log-spaced bins in w, the trapezoid rule in
+ *  log t), beyond it E[w a] / E[w] + b / K. The scale is far / E[...] per channel (colours are
+ *  drawn independently of the normal and cancel); at most 1 / (the footprint's albedo bound)
+ *  where it exceeds 1 (apply()), so no footprint reflects more than it receives. */
+struct SparseAlbedo {
+    static constexpr int kNodes = 65;  ///< cos_o = i / (kNodes - 1), the first at 1e-3
+    static constexpr int kMaxK = 32;
+    /** scale[i][k - 1][c]: K = k flakes at node i; tail[i][c]: b / far for K > kMaxK. */
+    float scale[kNodes][kMaxK][3] = {};
+    float tail[kNodes][3] = {};
+    bool flat = true;  ///< every scale is 1: flakes reflect alike whatever their tilt
+    void init(float alpha, const FresnelTable& fresnel, bool shadowing);
+    /** The scale of a footprint of k flakes in the cache seen at cos_o. */
+    void at(float cos_o, uint32_t k, float s[3]) const;
+    /** Scales the entries [first, end) of a cache of k flakes (k >= its entries: stand-ins and
+     *  the counted cells' flakes count too), and keeps their sum at most their weight; a scale
+     *  within 0.1% of 1 is not applied. */
+    void apply(float cos_o, uint32_t k, CacheEntry* first, CacheEntry* end) const;
+};
+
 /** The discrete lobe of one shading point: the cache, its weights and a cumulative luminance
  *  table for sampling. The arrays live in the host's per-batch arena. */
 struct DiscreteLobe {

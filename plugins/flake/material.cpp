@@ -101,6 +101,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
     m.grid.init(m.alpha, gamma);
     m.cache_share.init(m.alpha);
+    m.sparse.init(m.alpha, m.fresnel, m.shadowing);
     m.flake_size = param_number(p, "flake_size");
     if (m.flake_size > 0.0) {
         const std::string shape = param_string(p, "flake_shape");
@@ -217,6 +218,14 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     if (c.counted.n_agg > 0)
         add_stand_ins(c.counted, field, p, view.keep, m.stand_ins, m.grid, m.colors, m.fresnel,
                       m.film, c.wo, scratch);
+    // A footprint of few flakes scaled to average to the far look (facets too: tiny ones are
+    // the point flakes, and a close-up of large ones keeps the brightness of the far look).
+    if (!scratch.empty()) {
+        const double k =
+            static_cast<double>(scratch.size()) + static_cast<double>(c.counted.smooth);
+        m.sparse.apply(c.wo.z, static_cast<uint32_t>(std::min(k, 1e9)), scratch.data(),
+                       scratch.data() + scratch.size());
+    }
     if (!store_cache(scratch, arena, c)) return false;
     // Facets count towards the cover by their shares, the counted cells' by their expectation:
     // where the facets are wider than the footprint the cells are (their size follows the

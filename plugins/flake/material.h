@@ -58,6 +58,9 @@ struct Material {
     /** The share of flakes that enter a view's reflection cache (the rest reflect wo under the
      *  horizon): a footprint holds one that counts with probability 1 - e^-(lambda x it). */
     CacheShare cache_share;
+    /** The scale of a footprint of few flakes, so that it averages to the far look (its lobe is
+     *  normalised by its own W: it reflects the plain mean of its flakes' albedos). */
+    SparseAlbedo sparse;
     Coat coat;
     /** The coat made rougher for path regularisation (SPANGLE_SHADING_ROUGHNESS_FLOOR). */
     std::unique_ptr<CoatFloors> coat_floors;

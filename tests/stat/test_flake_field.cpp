@@ -415,6 +415,106 @@ TEST(FlakeNormals, CacheShareIsTheShareOfFlakesThatEnterTheCache) {
     }
 }
 
+TEST(FlakeNormals, SparseAlbedoScalesFewFlakesToTheFarLook) {
+    // A footprint of K flakes reflects sum w a / sum w of their albedos a (its own W normalises
+    // it), the far look E[w a] / E[w]. Flakes drawn as the field draws them, through
+    // flush_entries, grouped K at a time: the mean of the groups' albedos times the table's
+    // scale is the far look, within 4 standard errors (of both: the far look's own is wide at
+    // grazing views, where w is heavy-tailed) plus the quadrature's 0.5%. Glass flakes
+    // (their Fresnel rises where w is small: one flake alone reads 1.3x the far look at cos 0.3)
+    // without and with shadowing (G1 at the mirror direction lowers the tilted flakes'); white
+    // flakes without shadowing reflect alike at every tilt and are left alone.
+    flake::FresnelTable glass, white;
+    for (int i = 0; i < flake::FresnelTable::kNodes; ++i) {
+        const float c = static_cast<float>(i) / (flake::FresnelTable::kNodes - 1);
+        for (int ch = 0; ch < 3; ++ch) {
+            glass.rgb[i][ch] = spangle::mf::fresnel_dielectric(c, 1.5f);
+            white.rgb[i][ch] = 1.0f;
+        }
+    }
+    constexpr float kAlpha = 0.3f;
+    flake::SparseAlbedo flat;
+    flat.init(kAlpha, white, false);
+    EXPECT_TRUE(flat.flat);
+    for (bool shadowing : {false, true}) {
+        flake::SparseAlbedo table;
+        table.init(kAlpha, glass, shadowing);
+        EXPECT_FALSE(table.flat);
+        for (float cos_o : {0.8f, 0.3f, 0.1f, 0.03f}) {
+            const flake::V3 wo{std::sqrt(1.0f - cos_o * cos_o), 0.0f, cos_o};
+            const float one[3] = {1.0f, 1.0f, 1.0f};
+            std::vector<flake::CacheEntry> out;
+            flake::EntryBatch batch;
+            constexpr int kN = 240000;
+            for (int i = 0; i < kN; ++i) {
+                const auto s =
+                    static_cast<float>(to_unit_double(hash2(81, static_cast<uint64_t>(i))));
+                const auto t =
+                    static_cast<float>(to_unit_double(hash2(82, static_cast<uint64_t>(i))));
+                batch.add(wo, kAlpha, s, t, one, &glass, 1.0f, out);
+            }
+            flush_entries(wo, kAlpha, batch, out);
+            // Each entry's albedo: its rgb over its w (F), times G1 at its mirror direction.
+            std::vector<double> w(out.size()), wa(out.size());
+            double sum_w = 0.0, sum_wa = 0.0;
+            for (std::size_t j = 0; j < out.size(); ++j) {
+                const double g = shadowing ? spangle::mf::ggx_g1(out[j].r, kAlpha, kAlpha) : 1.0;
+                w[j] = out[j].w;
+                wa[j] = out[j].rgb[0] * g;
+                sum_w += w[j];
+                sum_wa += wa[j];
+            }
+            const double far = sum_wa / sum_w;
+            // The far look's own standard error (a ratio estimator; w is heavy-tailed at
+            // grazing views).
+            double var_far = 0.0;
+            for (std::size_t j = 0; j < out.size(); ++j)
+                var_far += (wa[j] - far * w[j]) * (wa[j] - far * w[j]);
+            const double se_far = std::sqrt(var_far) / sum_w;
+            for (uint32_t k : {1u, 2u, 4u, 8u, 40u}) {
+                const std::size_t groups = out.size() / k;
+                double sum = 0.0, sum2 = 0.0;
+                for (std::size_t g = 0; g < groups; ++g) {
+                    double gw = 0.0, gwa = 0.0;
+                    for (std::size_t j = g * k; j < (g + 1) * k; ++j) {
+                        gw += w[j];
+                        gwa += wa[j];
+                    }
+                    sum += gwa / gw;
+                    sum2 += (gwa / gw) * (gwa / gw);
+                }
+                const double mean = sum / static_cast<double>(groups);
+                const double se =
+                    std::sqrt(std::max(0.0, sum2 / static_cast<double>(groups) - mean * mean) /
+                              static_cast<double>(groups));
+                float scale[3];
+                table.at(cos_o, k, scale);
+                const double scaled = mean * static_cast<double>(scale[0]);
+                EXPECT_NEAR(
+                    scaled, far,
+                    4.0 * std::hypot(se * static_cast<double>(scale[0]), se_far) + 0.005 * far)
+                    << "shadowing " << shadowing << " cos_o " << cos_o << " K " << k
+                    << ": unscaled " << mean / far << " of the far look, scale " << scale[0];
+            }
+        }
+    }
+    // Raised only while the footprint reflects at most what it receives: white flakes with
+    // shadowing (G1 lowers the tilted ones, so few flakes read under the far look) keep their
+    // sum at most their weight.
+    flake::SparseAlbedo shadowed;
+    shadowed.init(kAlpha, white, true);
+    float up[3];
+    shadowed.at(0.2f, 1, up);
+    EXPECT_GT(up[0], 1.0f) << "one shadowed white flake reads under the far look";
+    flake::CacheEntry e{};
+    e.r = {0.0f, 0.0f, 1.0f};
+    e.w = 0.7f;
+    e.rgb[0] = e.rgb[1] = e.rgb[2] = 0.7f;
+    shadowed.apply(0.2f, 1, &e, &e + 1);
+    EXPECT_LE(e.rgb[0], e.w);
+    EXPECT_FLOAT_EQ(e.lum, e.rgb[1]);
+}
+
 TEST(FlakeCounting, SmallFootprintsSeeTheEnumeratedFlakes) {
     // Cells under exact_flakes are enumerated: the counting algorithm finds exactly the flakes
     // the enumeration finds, the quad-tree's and the ranked classes', whatever the leaf size
