@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 
 namespace spangle::flake {
@@ -148,31 +149,54 @@ struct WeightBins {
 
 void gather_bins(float alpha, const FresnelTable& fresnel, bool shadowing, V3 wo, WeightBins& b) {
     // Per ring of tilt theta the flakes that enter are those of azimuth |phi| < phi_c, where
-    // cos(phi_c) = -cot(2 theta) cos_o / sin_o (cache_share_exact's condition solved for phi):
-    // the midpoint rule over [0, phi_c] has no cut through the integrand (a cut through a fixed
-    // grid left 1-2% errors at cos_o 0.1).
-    constexpr int kRho = 48, kPhi = 48;
+    // cos(phi_c) = -cot(2 theta) cos_o / sin_o (cache_share_exact's condition solved for phi),
+    // so the midpoint rule in phi runs over [0, phi_c] and cuts nothing. In tan(theta) = T every
+    // flake of a ring enters below T1 = (sqrt(1 + c^2) - 1) / c and none above
+    // T2 = (sqrt(1 + c^2) + 1) / c (c = cot theta_o); with T = alpha rho / v, v = sqrt(1 - rho^2)
+    // the unstretched normal's height, those are v1 = alpha / sqrt(T1^2 + alpha^2) and v2 < v1.
+    // Rings: [v1, 1] by the midpoint rule, [v2, v1] (where phi_c falls from pi to 0 with square-
+    // root ends) by v = v2 + (v1 - v2) (1 - cos(pi x)) / 2; each ring's mass is 2 v dv (rho^2 is
+    // uniform). A fixed grid in rho^2 and phi integrated w (which grows as 1 / v at the rim) and
+    // the cut with 1-2% errors at grazing views.
+    constexpr int kFull = 16, kBand = 24, kPhi = 32;
+    struct Ring {
+        double v, mass;
+    };
+    Ring rings[kFull + kBand];
+    const double a = static_cast<double>(alpha);
+    const double cot_o = static_cast<double>(wo.z) / std::max(1e-12, static_cast<double>(wo.x));
+    const double root = std::sqrt(1.0 + cot_o * cot_o);
+    const double t1 = cot_o / (root + 1.0), t2 = (root + 1.0) / cot_o;
+    const double v1 = a / std::sqrt(t1 * t1 + a * a), v2 = a / std::sqrt(t2 * t2 + a * a);
+    for (int i = 0; i < kFull; ++i) {
+        const double v = v1 + (1.0 - v1) * (i + 0.5) / kFull;
+        rings[i] = {v, 2.0 * v * (1.0 - v1) / kFull};
+    }
+    for (int i = 0; i < kBand; ++i) {
+        const double x = (i + 0.5) / kBand;
+        const double v = v2 + (v1 - v2) * 0.5 * (1.0 - std::cos(std::numbers::pi * x));
+        const double dv = (v1 - v2) * 0.5 * std::numbers::pi * std::sin(std::numbers::pi * x);
+        rings[kFull + i] = {v, 2.0 * v * dv / kBand};
+    }
     struct Point {
         double q, w, a[3];
     };
     std::vector<Point> pts;
-    pts.reserve(kRho * kPhi);
+    pts.reserve((kFull + kBand) * kPhi);
     double w_lo = INFINITY, w_hi = 0.0;
-    const double cot_o = static_cast<double>(wo.z) / std::max(1e-9, static_cast<double>(wo.x));
-    // Rings by v = sqrt(1 - rho^2) (the unstretched normal's height), midpoints in v with
-    // weight 2 v dv: w grows as 1 / v at the rim, which the midpoint rule in rho^2 integrated
-    // with errors of O(sqrt(h)).
-    for (int i = 0; i < kRho; ++i) {
-        const double u = (i + 0.5) / kRho, v = u * u;
-        const double rho2 = 1.0 - v * v;
-        const double tan_t = static_cast<double>(alpha) * std::sqrt(rho2) / v;
+    for (const Ring& ring : rings) {
+        const double v = ring.v;
+        if (!(v > 0.0) || !(ring.mass > 0.0)) continue;
+        const double rho2 = std::max(0.0, 1.0 - v * v);
+        const double tan_t = a * std::sqrt(rho2) / v;
         // cot(2 theta) = (1 - tan^2) / (2 tan).
-        const double bound = -(1.0 - tan_t * tan_t) / (2.0 * tan_t) * cot_o;
+        const double bound = tan_t > 0.0 ? -(1.0 - tan_t * tan_t) / (2.0 * tan_t) * cot_o
+                                         : -std::numeric_limits<double>::infinity();
         const double phi_c = bound <= -1.0  ? std::numbers::pi
                              : bound >= 1.0 ? 0.0
                                             : std::acos(bound);
         if (!(phi_c > 0.0)) continue;
-        const double q = 4.0 * v * u * phi_c / std::numbers::pi / (kRho * kPhi);
+        const double q = ring.mass * phi_c / std::numbers::pi / kPhi;
         const auto rho = static_cast<float>(std::sqrt(rho2));
         const auto z = static_cast<float>(v);
         for (int j = 0; j < kPhi; ++j) {
@@ -187,7 +211,7 @@ void gather_bins(float alpha, const FresnelTable& fresnel, bool shadowing, V3 wo
             const double g =
                 shadowing && r.z > 0.0f ? static_cast<double>(mf::ggx_g1(r, alpha, alpha)) : 1.0;
             Point p{q, static_cast<double>(cos_om / m.z), {}};
-            for (int c = 0; c < 3; ++c) p.a[c] = static_cast<double>(f[c]) * g;
+            for (int ch = 0; ch < 3; ++ch) p.a[ch] = static_cast<double>(f[ch]) * g;
             pts.push_back(p);
             w_lo = std::min(w_lo, p.w);
             w_hi = std::max(w_hi, p.w);
@@ -213,13 +237,18 @@ void gather_bins(float alpha, const FresnelTable& fresnel, bool shadowing, V3 wo
 
 }  // namespace
 
-void SparseAlbedo::init(float alpha, const FresnelTable& fresnel, bool shadowing) {
+void SparseAlbedo::init(float roughness, float gamma_rad, const FresnelTable& fresnel,
+                        bool with_shadowing) {
     flat = true;
+    alpha = roughness;
+    shadowing = with_shadowing;
+    cos_gamma = std::cos(gamma_rad);
+    sin_gamma = std::sin(gamma_rad);
     for (int i = 0; i < kNodes; ++i) {
         const float cos_o = std::max(1e-3f, static_cast<float>(i) / (kNodes - 1));
         const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_o * cos_o)), 0.0f, cos_o};
         WeightBins b;
-        gather_bins(alpha, fresnel, shadowing, wo, b);
+        gather_bins(roughness, fresnel, with_shadowing, wo, b);
         // Normalised to the entering flakes; each bin at its mean w.
         double sum_w = 0.0, sum_wa[3] = {};
         int first = -1, last = -1;
@@ -277,7 +306,8 @@ void SparseAlbedo::init(float alpha, const FresnelTable& fresnel, bool shadowing
 }
 
 void SparseAlbedo::at(float cos_o, uint32_t k, float s[3]) const {
-    const float x = std::clamp(cos_o, 0.0f, 1.0f) * static_cast<float>(kNodes - 1);
+    k = std::max(k, 1u);
+    const float x = (cos_o > 0.0f ? std::min(cos_o, 1.0f) : 0.0f) * static_cast<float>(kNodes - 1);
     const int i = std::min(static_cast<int>(x), kNodes - 2);
     const float f = x - static_cast<float>(i);
     for (int c = 0; c < 3; ++c) {
@@ -298,17 +328,32 @@ void SparseAlbedo::apply(float cos_o, uint32_t k, CacheEntry* first, CacheEntry*
     if (flat || k == 0 || first == end) return;
     float s[3];
     at(cos_o, k, s);
-    // Within 0.1% of 1 (a conductor's flakes, or many of any): left as they are.
+    // Within 0.1% of 1 (unshadowed metal flakes, or many flakes of any kind): left as they are.
     if (std::max({std::fabs(s[0] - 1.0f), std::fabs(s[1] - 1.0f), std::fabs(s[2] - 1.0f)}) < 1e-3f)
         return;
-    float sum[3] = {}, w = 0.0f;
-    for (const CacheEntry* e = first; e != end; ++e) {
-        for (int c = 0; c < 3; ++c) sum[c] += e->rgb[c];
-        w += e->w;
+    if (s[0] > 1.0f || s[1] > 1.0f || s[2] > 1.0f) {
+        // Raised only as far as the footprint reflects at most what it receives: an entry
+        // reflects rgb / W times G1 averaged over its cone (with shadowing), at most G1 at the
+        // cone's direction nearest the normal (G1 grows towards the normal).
+        float sum[3] = {}, w = 0.0f;
+        for (const CacheEntry* e = first; e != end; ++e) {
+            float g = 1.0f;
+            if (shadowing) {
+                const float cos_r = std::clamp(e->r.z, -1.0f, 1.0f);
+                const float sin_r = std::sqrt(std::max(0.0f, 1.0f - cos_r * cos_r));
+                // The cone's nearest direction to the normal: theta_r - gamma, or the normal.
+                const bool holds_normal = cos_r >= cos_gamma;
+                const float cos_n = holds_normal ? 1.0f : cos_r * cos_gamma + sin_r * sin_gamma;
+                const float sin_n =
+                    holds_normal ? 0.0f : std::sqrt(std::max(0.0f, 1.0f - cos_n * cos_n));
+                g = mf::ggx_g1(V3{sin_n, 0.0f, cos_n}, alpha, alpha);
+            }
+            for (int c = 0; c < 3; ++c) sum[c] += e->rgb[c] * g;
+            w += e->w;
+        }
+        for (int c = 0; c < 3; ++c)
+            if (s[c] > 1.0f && sum[c] * s[c] > w) s[c] = std::max(1.0f, w / sum[c]);
     }
-    // Raised only as far as the entries stay within their weight (an albedo of at most 1).
-    for (int c = 0; c < 3; ++c)
-        if (s[c] > 1.0f && sum[c] * s[c] > w) s[c] = std::max(1.0f, w / sum[c]);
     for (CacheEntry* e = first; e != end; ++e) {
         for (int c = 0; c < 3; ++c) e->rgb[c] *= s[c];
         e->lum = std::max(0.0f, luminance(e->rgb));

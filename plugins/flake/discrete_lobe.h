@@ -88,8 +88,9 @@ struct CacheShare {
  *  M(t) = E[w a e^-tw] (from 1/x = integral of e^-tx): tabulated per material over cos_o for K up
  *  to kMaxK by quadrature over the flake normals (log-spaced bins in w, the trapezoid rule in
  *  log t), beyond it E[w a] / E[w] + b / K. The scale is far / E[...] per channel (colours are
- *  drawn independently of the normal and cancel); at most 1 / (the footprint's albedo bound)
- *  where it exceeds 1 (apply()), so no footprint reflects more than it receives. */
+ *  drawn independently of the normal and cancel; so are a film's thicknesses, whose mean Fresnel
+ *  the material passes); a scale above 1 is cut to what keeps the footprint's albedo at most 1
+ *  (apply()), so no footprint reflects more than it receives. */
 struct SparseAlbedo {
     static constexpr int kNodes = 65;  ///< cos_o = i / (kNodes - 1), the first at 1e-3
     static constexpr int kMaxK = 32;
@@ -97,13 +98,20 @@ struct SparseAlbedo {
     float scale[kNodes][kMaxK][3] = {};
     float tail[kNodes][3] = {};
     bool flat = true;  ///< every scale is 1: flakes reflect alike whatever their tilt
-    void init(float alpha, const FresnelTable& fresnel, bool shadowing);
+    /** For flakes of GGX roughness `roughness`, cone half-angle gamma_rad, Fresnel `fresnel`,
+     *  with Smith shadowing G1(wi) or without. */
+    void init(float roughness, float gamma_rad, const FresnelTable& fresnel, bool with_shadowing);
     /** The scale of a footprint of k flakes in the cache seen at cos_o. */
     void at(float cos_o, uint32_t k, float s[3]) const;
-    /** Scales the entries [first, end) of a cache of k flakes (k >= its entries: stand-ins and
-     *  the counted cells' flakes count too), and keeps their sum at most their weight; a scale
-     *  within 0.1% of 1 is not applied. */
+    /** Scales the entries [first, end) of a cache of k flakes (k >= its entries: the counted
+     *  cells' flakes that enter the cache count too). A scale above 1 is kept to what leaves the
+     *  footprint's albedo at most 1: the entries' rgb times G1 at each cone's direction nearest
+     *  the normal (G1's largest over the cone), over their weight. A scale within 0.1% of 1 is
+     *  not applied. */
     void apply(float cos_o, uint32_t k, CacheEntry* first, CacheEntry* end) const;
+    /** What apply() bounds a raise with: the roughness and cone of G1 (with shadowing). */
+    float alpha = 0, cos_gamma = 1, sin_gamma = 0;
+    bool shadowing = false;
 };
 
 /** The discrete lobe of one shading point: the cache, its weights and a cumulative luminance

@@ -101,7 +101,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
     m.grid.init(m.alpha, gamma);
     m.cache_share.init(m.alpha);
-    m.sparse.init(m.alpha, m.fresnel, m.shadowing);
+    m.sparse.init(m.alpha, gamma, m.fresnel, m.shadowing);
     m.flake_size = param_number(p, "flake_size");
     if (m.flake_size > 0.0) {
         const std::string shape = param_string(p, "flake_shape");
@@ -221,8 +221,11 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     // A footprint of few flakes scaled to average to the far look (facets too: tiny ones are
     // the point flakes, and a close-up of large ones keeps the brightness of the far look).
     if (!scratch.empty()) {
+        // The counted cells' flakes that the smooth part carries count as many as enter the
+        // cache (cache_share of them).
         const double k =
-            static_cast<double>(scratch.size()) + static_cast<double>(c.counted.smooth);
+            static_cast<double>(scratch.size()) +
+            static_cast<double>(c.counted.smooth) * static_cast<double>(m.cache_share.at(c.wo.z));
         m.sparse.apply(c.wo.z, static_cast<uint32_t>(std::min(k, 1e9)), scratch.data(),
                        scratch.data() + scratch.size());
     }

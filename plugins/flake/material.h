@@ -59,7 +59,7 @@ struct Material {
      *  horizon): a footprint holds one that counts with probability 1 - e^-(lambda x it). */
     CacheShare cache_share;
     /** The scale of a footprint of few flakes, so that it averages to the far look (its lobe is
-     *  normalised by its own W: it reflects the plain mean of its flakes' albedos). */
+     *  normalised by its own W: it reflects its flakes' albedos weighted among themselves). */
     SparseAlbedo sparse;
     Coat coat;
     /** The coat made rougher for path regularisation (SPANGLE_SHADING_ROUGHNESS_FLOOR). */

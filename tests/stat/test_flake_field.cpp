@@ -421,9 +421,10 @@ TEST(FlakeNormals, SparseAlbedoScalesFewFlakesToTheFarLook) {
     // flush_entries, grouped K at a time: the mean of the groups' albedos times the table's
     // scale is the far look, within 4 standard errors (of both: the far look's own is wide at
     // grazing views, where w is heavy-tailed) plus the quadrature's 0.5%. Glass flakes
-    // (their Fresnel rises where w is small: one flake alone reads 1.3x the far look at cos 0.3)
-    // without and with shadowing (G1 at the mirror direction lowers the tilted flakes'); white
-    // flakes without shadowing reflect alike at every tilt and are left alone.
+    // of roughness 0.3 and 0.8 (their Fresnel rises where w is small: one flake alone reads 1.3x
+    // the far look at cos 0.3) without and with shadowing (G1 at the mirror direction lowers the
+    // tilted flakes'); white flakes without shadowing reflect alike at every tilt and are left
+    // alone.
     flake::FresnelTable glass, white;
     for (int i = 0; i < flake::FresnelTable::kNodes; ++i) {
         const float c = static_cast<float>(i) / (flake::FresnelTable::kNodes - 1);
@@ -434,11 +435,12 @@ TEST(FlakeNormals, SparseAlbedoScalesFewFlakesToTheFarLook) {
     }
     constexpr float kAlpha = 0.3f;
     flake::SparseAlbedo flat;
-    flat.init(kAlpha, white, false);
+    flat.init(kAlpha, 0.05f, white, false);
     EXPECT_TRUE(flat.flat);
-    for (bool shadowing : {false, true}) {
+    for (const auto& [alpha, shadowing] :
+         {std::pair<float, bool>{0.3f, false}, {0.3f, true}, {0.8f, false}, {0.8f, true}}) {
         flake::SparseAlbedo table;
-        table.init(kAlpha, glass, shadowing);
+        table.init(alpha, 0.05f, glass, shadowing);
         EXPECT_FALSE(table.flat);
         for (float cos_o : {0.8f, 0.3f, 0.1f, 0.03f}) {
             const flake::V3 wo{std::sqrt(1.0f - cos_o * cos_o), 0.0f, cos_o};
@@ -451,14 +453,14 @@ TEST(FlakeNormals, SparseAlbedoScalesFewFlakesToTheFarLook) {
                     static_cast<float>(to_unit_double(hash2(81, static_cast<uint64_t>(i))));
                 const auto t =
                     static_cast<float>(to_unit_double(hash2(82, static_cast<uint64_t>(i))));
-                batch.add(wo, kAlpha, s, t, one, &glass, 1.0f, out);
+                batch.add(wo, alpha, s, t, one, &glass, 1.0f, out);
             }
-            flush_entries(wo, kAlpha, batch, out);
+            flush_entries(wo, alpha, batch, out);
             // Each entry's albedo: its rgb over its w (F), times G1 at its mirror direction.
             std::vector<double> w(out.size()), wa(out.size());
             double sum_w = 0.0, sum_wa = 0.0;
             for (std::size_t j = 0; j < out.size(); ++j) {
-                const double g = shadowing ? spangle::mf::ggx_g1(out[j].r, kAlpha, kAlpha) : 1.0;
+                const double g = shadowing ? spangle::mf::ggx_g1(out[j].r, alpha, alpha) : 1.0;
                 w[j] = out[j].w;
                 wa[j] = out[j].rgb[0] * g;
                 sum_w += w[j];
@@ -493,26 +495,37 @@ TEST(FlakeNormals, SparseAlbedoScalesFewFlakesToTheFarLook) {
                 EXPECT_NEAR(
                     scaled, far,
                     4.0 * std::hypot(se * static_cast<double>(scale[0]), se_far) + 0.005 * far)
-                    << "shadowing " << shadowing << " cos_o " << cos_o << " K " << k
-                    << ": unscaled " << mean / far << " of the far look, scale " << scale[0];
+                    << "alpha " << alpha << " shadowing " << shadowing << " cos_o " << cos_o
+                    << " K " << k << ": unscaled " << mean / far << " of the far look, scale "
+                    << scale[0];
             }
         }
     }
     // Raised only while the footprint reflects at most what it receives: white flakes with
-    // shadowing (G1 lowers the tilted ones, so few flakes read under the far look) keep their
-    // sum at most their weight.
+    // shadowing (G1 lowers the tilted ones, so few flakes read under the far look). A flake
+    // reflecting along the normal (G1 1) keeps rgb at most its weight; one reflecting 84 degrees
+    // from it is raised, to at most its weight over G1 at its cone's edge nearest the normal.
+    constexpr float kGamma = 0.05f;
     flake::SparseAlbedo shadowed;
-    shadowed.init(kAlpha, white, true);
+    shadowed.init(kAlpha, kGamma, white, true);
     float up[3];
     shadowed.at(0.2f, 1, up);
     EXPECT_GT(up[0], 1.0f) << "one shadowed white flake reads under the far look";
-    flake::CacheEntry e{};
-    e.r = {0.0f, 0.0f, 1.0f};
-    e.w = 0.7f;
-    e.rgb[0] = e.rgb[1] = e.rgb[2] = 0.7f;
-    shadowed.apply(0.2f, 1, &e, &e + 1);
-    EXPECT_LE(e.rgb[0], e.w);
-    EXPECT_FLOAT_EQ(e.lum, e.rgb[1]);
+    for (float cos_r : {1.0f, 0.1f}) {
+        flake::CacheEntry e{};
+        e.r = {std::sqrt(1.0f - cos_r * cos_r), 0.0f, cos_r};
+        e.w = 0.7f;
+        e.rgb[0] = e.rgb[1] = e.rgb[2] = 0.7f;
+        shadowed.apply(0.2f, 1, &e, &e + 1);
+        const float theta = std::max(0.0f, std::acos(cos_r) - kGamma);
+        const float g =
+            spangle::mf::ggx_g1(flake::V3{std::sin(theta), 0.0f, std::cos(theta)}, kAlpha, kAlpha);
+        EXPECT_LE(e.rgb[0] * g, e.w * (1.0f + 1e-6f)) << "cos_r " << cos_r;
+        EXPECT_FLOAT_EQ(e.lum, e.rgb[1]);
+        if (cos_r < 1.0f) {
+            EXPECT_GT(e.rgb[0], 0.7f) << "a shadowed flake is raised";
+        }
+    }
 }
 
 TEST(FlakeCounting, SmallFootprintsSeeTheEnumeratedFlakes) {
