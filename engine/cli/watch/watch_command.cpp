@@ -93,13 +93,16 @@ private:
     /** The touched files' names for the reload line (those that exist or are watched). */
     std::string touched_names(const std::vector<std::string>& touched) const;
 
-    const RenderArgs& a_;                    ///< the command line
-    WarningsSaid warnings_said_;             ///< each warning once per watch session
-    Logger log_;                             ///< the render's logger, saying each warning once
-    const Outputs& out_;                     ///< where images go
-    const bool pass_output_;                 ///< write every pass (not --no-pass-output)
-    std::atomic<bool> reload_{false};        ///< stops the render for a reload
-    Session session_;                        ///< the live scene
+    const RenderArgs& a_;         ///< the command line
+    WarningsSaid warnings_said_;  ///< each warning once per watch session
+    Logger log_;                  ///< the render's logger, saying each warning once
+    /** Where images go: -o, else the image the scene asks for ([render] output, pbrt's Film
+     *  "filename"; taken at the first good load), else <scene name>.exr. */
+    Outputs out_;
+    bool output_chosen_ = false;       ///< out_ follows the scene (set by the first good load)
+    const bool pass_output_;           ///< write every pass (not --no-pass-output)
+    std::atomic<bool> reload_{false};  ///< stops the render for a reload
+    Session session_;                  ///< the live scene
     std::unique_ptr<PreviewServer> server_;  ///< after the session: shows its colour config
     std::mutex mutex_;                       ///< the four below: the render thread's reports
     std::string pending_line_;               ///< the reload line not yet printed
@@ -308,6 +311,13 @@ bool WatchLoop::load(const std::string& what) {
     };
     try {
         const ReloadReport rep = session_.load(a_.scene);
+        if (!output_chosen_) {
+            // No render runs yet (none starts before a good load).
+            if (auto asked = scene_outputs(a_, session_.info(), log_, false, 0, 0))
+                out_ = std::move(*asked);
+            out_.check_view(session_.color());
+            output_chosen_ = true;
+        }
         keep_baseline(false);
         last_error_.clear();
         std::lock_guard<std::mutex> lock(mutex_);
@@ -526,7 +536,8 @@ int run_watch(const RenderArgs& a) {
     // A name no save can make a scene (a mesh, another program's scene) ends the command, as it
     // does without --watch (it waited for a good save that could never come).
     check_scene_format(a.scene);
-    const RenderSetup s = set_up_render(a);
+    // (Without -o the scene may name the image: its default is checked once it is read.)
+    const RenderSetup s = set_up_render(a, true);
     WatchLoop loop(a, s);
     return loop.run();
 }
