@@ -2,8 +2,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <limits>
 #include <numbers>
+#include <thread>
+
+#include "table_cache.h"
 
 namespace spangle::flake {
 
@@ -237,72 +241,101 @@ void gather_bins(float alpha, const FresnelTable& fresnel, bool shadowing, V3 wo
 
 }  // namespace
 
+void SparseAlbedo::build_node(int i, const FresnelTable& fresnel) {
+    const float cos_o = std::max(1e-3f, static_cast<float>(i) / (kNodes - 1));
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_o * cos_o)), 0.0f, cos_o};
+    WeightBins b;
+    gather_bins(alpha, fresnel, shadowing, wo, b);
+    // Normalised to the entering flakes; each bin at its mean w.
+    double sum_w = 0.0, sum_wa[3] = {};
+    int first = -1, last = -1;
+    for (int k = 0; k < WeightBins::kBins; ++k) {
+        if (!(b.q[k] > 0.0)) continue;
+        if (first < 0) first = k;
+        last = k;
+        sum_w += b.qw[k];
+        for (int c = 0; c < 3; ++c) sum_wa[c] += b.qwa[k][c];
+    }
+    double far[3] = {1.0, 1.0, 1.0};
+    if (first >= 0 && sum_w > 0.0)
+        for (int c = 0; c < 3; ++c) far[c] = sum_wa[c] / sum_w;
+    // E[R | K] for K >= 2: the trapezoid rule in s = log t over the range where the
+    // integrands live (t w from 1e-3 at the largest w to 40 at the smallest).
+    double num[kMaxK][3] = {}, den[kMaxK] = {};
+    if (first >= 0) {
+        const double w_min = b.qw[first] / b.q[first], w_max = b.qw[last] / b.q[last];
+        const double s0 = std::log(1e-3 / w_max), s1 = std::log(40.0 / w_min);
+        constexpr double kStep = 0.25;
+        const int steps = static_cast<int>(std::ceil((s1 - s0) / kStep));
+        for (int n = 0; n <= steps; ++n) {
+            const double t = std::exp(s0 + kStep * n);
+            double l = 0.0, nw = 0.0, m[3] = {};
+            for (int k = first; k <= last; ++k) {
+                if (!(b.q[k] > 0.0)) continue;
+                const double e = std::exp(-t * b.qw[k] / b.q[k]);
+                l += b.q[k] * e;
+                nw += b.qw[k] * e;
+                for (int c = 0; c < 3; ++c) m[c] += b.qwa[k][c] * e;
+            }
+            l /= b.mass;
+            const double end = (n == 0 || n == steps) ? 0.5 : 1.0;
+            double lk = l;  // L^(K-1), from K = 2
+            for (int K = 2; K <= kMaxK; ++K) {
+                const double g = end * t * K * lk / b.mass;
+                den[K - 1] += g * nw;
+                for (int c = 0; c < 3; ++c) num[K - 1][c] += g * m[c];
+                lk *= l;
+            }
+        }
+    }
+    for (int K = 1; K <= kMaxK; ++K)
+        for (int c = 0; c < 3; ++c) {
+            const double mean =
+                K == 1 ? b.plain[c] : (den[K - 1] > 0.0 ? num[K - 1][c] / den[K - 1] : 0.0);
+            const double s = mean > 0.0 && far[c] > 0.0 ? far[c] / mean : 1.0;
+            scale[i][K - 1][c] = static_cast<float>(s);
+            if (K == kMaxK)
+                tail[i][c] = static_cast<float>(
+                    mean > 0.0 && far[c] > 0.0 ? (mean / far[c] - 1.0) * kMaxK : 0.0);
+        }
+}
+
 void SparseAlbedo::init(float roughness, float gamma_rad, const FresnelTable& fresnel,
-                        bool with_shadowing) {
-    flat = true;
+                        bool with_shadowing, const TableCache* cache) {
     alpha = roughness;
     shadowing = with_shadowing;
     cos_gamma = std::cos(gamma_rad);
     sin_gamma = std::sin(gamma_rad);
-    for (int i = 0; i < kNodes; ++i) {
-        const float cos_o = std::max(1e-3f, static_cast<float>(i) / (kNodes - 1));
-        const V3 wo{std::sqrt(std::max(0.0f, 1.0f - cos_o * cos_o)), 0.0f, cos_o};
-        WeightBins b;
-        gather_bins(roughness, fresnel, with_shadowing, wo, b);
-        // Normalised to the entering flakes; each bin at its mean w.
-        double sum_w = 0.0, sum_wa[3] = {};
-        int first = -1, last = -1;
-        for (int k = 0; k < WeightBins::kBins; ++k) {
-            if (!(b.q[k] > 0.0)) continue;
-            if (first < 0) first = k;
-            last = k;
-            sum_w += b.qw[k];
-            for (int c = 0; c < 3; ++c) sum_wa[c] += b.qwa[k][c];
+    TableKey key("sparse albedo");
+    key.add(roughness);
+    key.add(with_shadowing);
+    key.add(fresnel.rgb);
+    std::vector<uint8_t> bytes;
+    if (!(cache && cache->load(key, bytes) && bytes.size() == sizeof(scale) + sizeof(tail))) {
+        // The nodes are independent: one thread each (the result does not depend on their
+        // number).
+        const int threads = table_threads();
+        std::vector<std::thread> pool;
+        for (int w = 0; w < threads; ++w)
+            pool.emplace_back([&, w] {
+                for (int i = w; i < kNodes; i += threads) build_node(i, fresnel);
+            });
+        for (auto& t : pool) t.join();
+        if (cache) {
+            bytes.resize(sizeof(scale) + sizeof(tail));
+            std::memcpy(bytes.data(), scale, sizeof(scale));
+            std::memcpy(bytes.data() + sizeof(scale), tail, sizeof(tail));
+            cache->store(key, bytes);
         }
-        double far[3] = {1.0, 1.0, 1.0};
-        if (first >= 0 && sum_w > 0.0)
-            for (int c = 0; c < 3; ++c) far[c] = sum_wa[c] / sum_w;
-        // E[R | K] for K >= 2: the trapezoid rule in s = log t over the range where the
-        // integrands live (t w from 1e-3 at the largest w to 40 at the smallest).
-        double num[kMaxK][3] = {}, den[kMaxK] = {};
-        if (first >= 0) {
-            const double w_min = b.qw[first] / b.q[first], w_max = b.qw[last] / b.q[last];
-            const double s0 = std::log(1e-3 / w_max), s1 = std::log(40.0 / w_min);
-            constexpr double kStep = 0.25;
-            const int steps = static_cast<int>(std::ceil((s1 - s0) / kStep));
-            for (int n = 0; n <= steps; ++n) {
-                const double t = std::exp(s0 + kStep * n);
-                double l = 0.0, nw = 0.0, m[3] = {};
-                for (int k = first; k <= last; ++k) {
-                    if (!(b.q[k] > 0.0)) continue;
-                    const double e = std::exp(-t * b.qw[k] / b.q[k]);
-                    l += b.q[k] * e;
-                    nw += b.qw[k] * e;
-                    for (int c = 0; c < 3; ++c) m[c] += b.qwa[k][c] * e;
-                }
-                l /= b.mass;
-                const double end = (n == 0 || n == steps) ? 0.5 : 1.0;
-                double lk = l;  // L^(K-1), from K = 2
-                for (int K = 2; K <= kMaxK; ++K) {
-                    const double g = end * t * K * lk / b.mass;
-                    den[K - 1] += g * nw;
-                    for (int c = 0; c < 3; ++c) num[K - 1][c] += g * m[c];
-                    lk *= l;
-                }
-            }
-        }
-        for (int K = 1; K <= kMaxK; ++K)
-            for (int c = 0; c < 3; ++c) {
-                const double mean =
-                    K == 1 ? b.plain[c] : (den[K - 1] > 0.0 ? num[K - 1][c] / den[K - 1] : 0.0);
-                const double s = mean > 0.0 && far[c] > 0.0 ? far[c] / mean : 1.0;
-                scale[i][K - 1][c] = static_cast<float>(s);
-                if (std::fabs(s - 1.0) > 1e-4) flat = false;
-                if (K == kMaxK)
-                    tail[i][c] = static_cast<float>(
-                        mean > 0.0 && far[c] > 0.0 ? (mean / far[c] - 1.0) * kMaxK : 0.0);
-            }
+    } else {
+        std::memcpy(scale, bytes.data(), sizeof(scale));
+        std::memcpy(tail, bytes.data() + sizeof(scale), sizeof(tail));
     }
+    flat = true;
+    for (const auto& node : scale)
+        for (const auto& k : node)
+            for (float v : k)
+                if (std::fabs(v - 1.0f) > 1e-4f) flat = false;
 }
 
 void SparseAlbedo::at(float cos_o, uint32_t k, float s[3]) const {

@@ -18,6 +18,8 @@
 
 namespace spangle::flake {
 
+class TableCache;
+
 /** One entry of a reflection cache. */
 struct CacheEntry {
     V3 r;          ///< mirror direction reflect(wo, m), local frame
@@ -100,7 +102,8 @@ struct SparseAlbedo {
     bool flat = true;  ///< every scale is 1: flakes reflect alike whatever their tilt
     /** For flakes of GGX roughness `roughness`, cone half-angle gamma_rad, Fresnel `fresnel`,
      *  with Smith shadowing G1(wi) or without. */
-    void init(float roughness, float gamma_rad, const FresnelTable& fresnel, bool with_shadowing);
+    void init(float roughness, float gamma_rad, const FresnelTable& fresnel, bool with_shadowing,
+              const TableCache* cache = nullptr);
     /** The scale of a footprint of k flakes in the cache seen at cos_o. */
     void at(float cos_o, uint32_t k, float s[3]) const;
     /** Scales the entries [first, end) of a cache of k flakes (k >= its entries: the counted
@@ -109,6 +112,8 @@ struct SparseAlbedo {
      *  the normal (G1's largest over the cone), over their weight. A scale within 0.1% of 1 is
      *  not applied. */
     void apply(float cos_o, uint32_t k, CacheEntry* first, CacheEntry* end) const;
+    /** Fills node i of the table (alpha and shadowing set). */
+    void build_node(int i, const FresnelTable& fresnel);
     /** What apply() bounds a raise with: the roughness and cone of G1 (with shadowing). */
     float alpha = 0, cos_gamma = 1, sin_gamma = 0;
     bool shadowing = false;

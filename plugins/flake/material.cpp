@@ -101,7 +101,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
     m.grid.init(m.alpha, gamma);
     m.cache_share.init(m.alpha);
-    m.sparse.init(m.alpha, gamma, m.fresnel, m.shadowing);
+    m.sparse.init(m.alpha, gamma, m.fresnel, m.shadowing, &cache);
     m.flake_size = param_number(p, "flake_size");
     if (m.flake_size > 0.0) {
         const std::string shape = param_string(p, "flake_shape");

@@ -1,7 +1,8 @@
 #pragma once
 // A persistent cache of the flake plugin's tables (the smooth lobe's blur table, the rough coat's
-// albedo), shared by every process of a user: one-shot renders, MPI ranks, crop parts, tests and
-// turntable frames build a material's tables once and read them afterwards.
+// albedo, the sparse flakes' scale), shared by every process of a user: one-shot renders, MPI
+// ranks, crop parts, tests and turntable frames build a material's tables once and read them
+// afterwards.
 //
 // Where: $SPANGLE_FLAKE_CACHE (a directory; "off" disables the cache), else
 // $XDG_CACHE_HOME/spangle/flake, else $HOME/.cache/spangle/flake. Size: at most

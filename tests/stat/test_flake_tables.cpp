@@ -11,10 +11,12 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 
 #include "cap_integral.h"
 #include "coat.h"
 #include "core/hash.h"
+#include "discrete_lobe.h"
 #include "flake_support.h"
 #include "slope_integral.h"
 #include "smooth_lobe.h"
@@ -199,6 +201,22 @@ TEST(FlakeTables, CachedTableIsTheBuiltOneBitForBit) {
     c0.init(true, 1.6f, 0.27f, &cache);
     c1.init(true, 1.6f, 0.27f, &cache);
     EXPECT_EQ(std::memcmp(c0.albedo, c1.albedo, sizeof(c0.albedo)), 0);
+    // And the sparse flakes' scale: stored by the first, read by the second, equal to one built
+    // without the cache.
+    const auto files = [&] {
+        return std::distance(fs::directory_iterator(dir.path()), fs::directory_iterator());
+    };
+    const auto before = files();
+    fl::SparseAlbedo s0, s1, s2;
+    s0.init(0.123f, 0.05f, fresnel, true, &cache);
+    EXPECT_EQ(files(), before + 1) << "the table was stored";
+    s1.init(0.123f, 0.05f, fresnel, true, &cache);
+    s2.init(0.123f, 0.05f, fresnel, true, nullptr);
+    EXPECT_FALSE(s0.flat);
+    EXPECT_EQ(s1.flat, s0.flat);
+    EXPECT_EQ(std::memcmp(s0.scale, s1.scale, sizeof(s0.scale)), 0);
+    EXPECT_EQ(std::memcmp(s0.tail, s1.tail, sizeof(s0.tail)), 0);
+    EXPECT_EQ(std::memcmp(s0.scale, s2.scale, sizeof(s0.scale)), 0);
 }
 
 TEST(FlakeTables, DamagedForeignAndStaleFilesAreRebuilt) {
