@@ -423,7 +423,10 @@ void prepare_second(const Material& m, const PointInput& in, float w, Closure& c
                     SpangleArena_v3* arena) {
     c2.wo = c.wo;
     c2.valid = c.valid;
-    const float p1 = c.weight;
+    // The populations' nominal shares (c.weight is the first one's own share by now: it was
+    // compared with itself, so a nominal second population reset a sparse first one to nominal,
+    // losing its empty footprints' base and its raise: 0.76 of the far look at lambda 0.6).
+    const float p1 = w * (1.0f - m.second_weight);
     const float p2 = w * m.second_weight;
     c2.weight = p2;
     PointStats ignored;

@@ -551,6 +551,42 @@ TEST(FlakeExpectation, FootprintsOfFewFlakesAverageToTheSmoothLimit) {
     }
 }
 
+TEST(FlakeExpectation, ADenseSecondPopulationKeepsTheSparseFirstOnesShare) {
+    // Sparse flakes beside a second population a thousand times denser (its footprints nominal):
+    // averaged over footprints the material reflects its smooth limit. The second population's
+    // nominal share reset the first one's to nominal too, losing its empty footprints (they
+    // showed flakes that were not there, the base not at all): 0.76 of the far look at lambda
+    // 0.6 (a user's render). Bound: 4 standard errors plus the smooth table's 1%.
+    const FlakeParams params = {{"flake_weight", {0.3}},
+                                {"flake_roughness", {0.3}},
+                                {"gamma", {3.0}},
+                                {"shadowing", {0.0}},
+                                {"base_color", {0.5}},
+                                {"flakes2_weight", {0.05}},
+                                {"flakes2_density", {kTestDensity * 1000.0}}};
+    const Vec3 wo = dir(0.8f, 0.3f);
+    auto smooth = flake_material(false, params);
+    BsdfHarness::Point far;
+    far.has_differentials = false;
+    smooth->prepare(wo, far);
+    const double limit = smooth->albedo(200000, 5).mean;
+    auto disc = flake_material(true, params);
+    for (double lambda : {0.5, 2.0}) {
+        constexpr int kFootprints = 4000;
+        double sum = 0.0, sum2 = 0.0;
+        for (int k = 0; k < kFootprints; ++k) {
+            disc->prepare(wo, random_footprint(lambda, 410, static_cast<uint64_t>(k)));
+            const double a = disc->albedo(64, static_cast<uint64_t>(k)).mean;
+            sum += a;
+            sum2 += a * a;
+        }
+        const double mean = sum / kFootprints;
+        const double se = std::sqrt(std::max(0.0, sum2 / kFootprints - mean * mean) / kFootprints);
+        EXPECT_NEAR(mean, limit, 4.0 * se + 0.01 * limit)
+            << "lambda " << lambda << ": ratio " << mean / limit << " +- " << se / limit;
+    }
+}
+
 TEST(FlakeExpectation, ColourTableAveragesToItsMean) {
     // Flakes coloured from the table: the average over footprints is the table's mean colour.
     const FlakeParams params = {{"color_table", {1.0}},
