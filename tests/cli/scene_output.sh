@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # The image a scene asks for: a pbrt Film's "filename" is the output when -o gives none (as an
-# EXR, its PNG preview beside it, in the working folder as pbrt writes it); -o wins over it.
+# EXR, its PNG preview beside it, in the working folder as pbrt writes it), in every mode (one
+# shot, --watch, --frames); -o wins over it.
 #   scene_output.sh SPANGLE TESTS_DIR
 set -u
 S=$1 TESTS=$2
@@ -25,6 +26,34 @@ rm -f asked_for.exr asked_for.png
 grep -q '^output = "asked_for.png"' "$T/scene/twin.toml" || fail "convert dropped the Film's filename"
 "$S" render "$T/scene/twin.toml" --size 24x18 --spp 1 > out2.txt 2>&1 || fail "TOML render failed: $(cat out2.txt)"
 [ -f asked_for.exr ] || fail "the TOML scene's output was not written: $(ls)"
+# --watch writes it too, and says so (it wrote <scene name>.exr and said nothing); -o wins over
+# it; without either the image is <scene name>.exr.
+watch() {  # watch SCENE LOG ARGS...: --watch until its first render is done, then SIGINT
+    local scene=$1 log=$2
+    shift 2
+    "$S" render "$scene" --size 24x18 --spp 1 --watch --no-preview "$@" > "$log" 2>&1 &
+    local pid=$!
+    for _ in $(seq 1 300); do
+        grep -q "watching for changes" "$log" && break
+        sleep 0.1
+    done
+    kill -INT $pid
+    wait $pid
+    grep -q "watching for changes" "$log" || fail "--watch did not finish its first render: $(cat "$log")"
+}
+rm -f asked_for.exr
+watch "$T/scene/twin.toml" watch1.txt
+[ -f asked_for.exr ] || fail "--watch did not write the scene's output: $(ls)"
+[ -e twin.exr ] && fail "--watch wrote <scene name>.exr instead of the scene's output"
+grep -q "asks for 'asked_for.png'" watch1.txt || fail "--watch said no line saying where the image went"
+grep -q "asked_for.exr holds" watch1.txt || fail "the --watch stop line names another file: $(cat watch1.txt)"
+rm -f asked_for.exr
+watch "$T/scene/twin.toml" watch2.txt -o watched.exr
+[ -f watched.exr ] || fail "-o was not written with --watch"
+[ -e asked_for.exr ] && fail "--watch wrote the scene's output although -o was given"
+sed '/^output = /d' "$T/scene/twin.toml" > "$T/scene/plain.toml"
+watch "$T/scene/plain.toml" watch3.txt
+[ -f plain.exr ] || fail "--watch without -o or a scene output did not write <scene name>.exr: $(ls)"
 # A sequence writes the images the scene asks for too, numbered (.#### before the extension).
 "$S" render "$T/scene/twin.toml" --size 24x18 --spp 1 --frames 1..2 > out3.txt 2>&1 || fail "--frames render failed: $(cat out3.txt)"
 [ -f asked_for.0001.exr ] && [ -f asked_for.0002.exr ] || fail "--frames did not write the scene's output, numbered: $(ls)"

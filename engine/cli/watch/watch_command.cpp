@@ -313,9 +313,9 @@ bool WatchLoop::load(const std::string& what) {
         const ReloadReport rep = session_.load(a_.scene);
         if (!output_chosen_) {
             // No render runs yet (none starts before a good load).
+            // (Its display and view are the command line's: the constructor checked them.)
             if (auto asked = scene_outputs(a_, session_.info(), log_, false, 0, 0))
                 out_ = std::move(*asked);
-            out_.check_view(session_.color());
             output_chosen_ = true;
         }
         keep_baseline(false);
