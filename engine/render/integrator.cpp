@@ -146,10 +146,12 @@ struct TileRun {
                 active = active_pixels(t);
             }
             if (!count_progress) continue;
-            const uint64_t done = job.samples_done += samples;
+            job.samples_done += samples;
             if (options.progress) {
+                // The count as it is under the lock, so that reports never go backwards (the
+                // count taken before it let a thread report 256 after another's 512).
                 std::lock_guard<std::mutex> lock(job.progress_mutex);
-                options.progress(done, total);
+                options.progress(job.samples_done.load(), total);
             }
         }
     }
