@@ -38,26 +38,33 @@ struct EntryBatch {
     float s[kSize], t[kSize], scale[kSize];
     const float* col[kSize];
     const FresnelTable* fresnel[kSize];
+    bool marked[kSize];
+    double entered = 0;           ///< the scales of the flakes flushed that have an entry, summed
+    uint32_t entered_marked = 0;  ///< how many of those were marked (add's `mark`)
     /** Queues a flake; flushes (into out) first when the batch is full. */
     inline void add(V3 wo, float alpha, float s_, float t_, const float* col_,
-                    const FresnelTable* fr, float scale_, std::vector<CacheEntry>& out);
+                    const FresnelTable* fr, float scale_, std::vector<CacheEntry>& out,
+                    bool mark = false);
 };
 
 /** Appends to `out`, in order, the cache entries of the batch's flakes seen from wo, and empties
  *  the batch. A flake of normal m = flake_normal(alpha, s, t) and colour c has the entry
  *  r = reflect(wo, m), w = (wo.m) / m.z, rgb = w c F(wo.m), lum its luminance, each times its
  *  scale (a stand-in's share, a facet's cover); a flake facing away from wo or reflecting it under
- *  the horizon has none (it is skipped). */
+ *  the horizon has none (it is skipped). b.entered grows by the scales of those with an entry,
+ *  b.entered_marked by the marked ones among them. */
 void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& out);
 
 inline void EntryBatch::add(V3 wo, float alpha, float s_, float t_, const float* col_,
-                            const FresnelTable* fr, float scale_, std::vector<CacheEntry>& out) {
+                            const FresnelTable* fr, float scale_, std::vector<CacheEntry>& out,
+                            bool mark) {
     if (n == kSize) flush_entries(wo, alpha, *this, out);
     s[n] = s_;
     t[n] = t_;
     col[n] = col_;
     fresnel[n] = fr;
     scale[n] = scale_;
+    marked[n] = mark;
     ++n;
 }
 

@@ -183,8 +183,10 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         if (!kept(f.u, f.v, view.keep)) return;
         cover += f.cover;
         // A facet partly inside the footprint reflects as much of it as lies inside.
+        // Facets: marked where their centre lies in the footprint (facet_shares()).
         batch.add(c.wo, field.alpha, f.s, f.t, m.colors.pick(f.color_u, f.id),
-                  &m.film.pick(f.id, m.fresnel), std::min(f.cover, 1.0f), scratch);
+                  &m.film.pick(f.id, m.fresnel), std::min(f.cover, 1.0f), scratch,
+                  field.facet != nullptr && inside(p, f.u, f.v));
     };
     const uint32_t limit = m.tree ? exact_limit(m.exact_flakes, m.grid, c.wo.z) : 0;
     if (m.tree && !sparse_tiles(field, p, limit) && !few_facets(field, p, limit)) {
@@ -213,6 +215,9 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         if (truncated) return false;
     }
     flush_entries(c.wo, field.alpha, batch, scratch);
+    // Facets: the shares of those that reflect wo above the horizon (with a cache entry).
+    c.cover_in = static_cast<float>(batch.entered);
+    c.centres_in = batch.entered_marked;
     st.cached += scratch.size();
     // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
     if (c.counted.n_agg > 0)
@@ -332,10 +337,54 @@ FieldView field_view(const Material& m, const PointInput& in) {
 
 namespace {
 
+/** A footprint's facet shares (facet_size set): `hide`, of the base hidden by facets, and
+ *  `lobe`, of the flake lobe. The facets' shares inside the footprint are c.cover, all of them,
+ *  and `in`, those that reflect wo above the horizon (the counted cells' by expectation); `found`
+ *  is the expected count of those (lambda times cache_share), and `any` whether the footprint
+ *  holds the centre of one (or counted cells' flakes that reflect). r is a facet's area over
+ *  the footprint's.
+ *  - Facets as wide as the footprint or wider (r >= 1): each is a flat mirror where it lies. The
+ *    base is hidden by every facet, c.cover / lambda of w, and the lobe is scaled by the facets
+ *    that reflect, in / lambda of w: a footprint inside a facet that reflects wo under the
+ *    horizon is that dark mirror; one half on it and half on a facet that reflects is half as
+ *    bright as one wholly on the second (it was as bright when the lobe took every facet's
+ *    share).
+ *  - Facets much smaller than the footprint (r <= 1/64, an eighth of its width): the point
+ *    flakes' rule (prepare_flakes) on the facets' centres, those that reflect standing for
+ *    those that do not: w / P(any) = w / (1 - e^-found) where it holds one, hiding the base as
+ *    much. Averaged over footprints both are w, as in the far look, which renormalises the
+ *    flakes over the normals that reflect. With the first rule tiny facets averaged 0.62 / 0.74
+ *    / 0.91 of the far look at lambda 0.5 / 1 / 3 (rough flakes at a low sun): a footprint whose
+ *    facets all reflect under the horizon was a dark hole. Two rules that looked simpler fail:
+ *    w in / found is capped at 1 where few are expected (0.87 at lambda 0.5, cos 0.1), and
+ *    w min(in, 1) / (1 - e^-found) is low where many facets straddle the footprint's edge
+ *    (partial shares: 25-30% dark in the middle distance of tests/scenes/looks/flake_facets.toml).
+ *  - Between, a smoothstep in log r. lobe <= hide always (in <= c.cover, the first term the
+ *    same in both): no footprint reflects more than it receives. Large facets average to
+ *    w cache_share in the lobe: a close-up is darker than the far look where many facets face
+ *    away. */
+void facet_shares(const Closure& c, double lambda, double found, double in, bool any, double r,
+                  float& hide, float& lobe) {
+    constexpr double kStatistical = 1.0 / 64.0, kGeometric = 1.0;
+    double beta = 1.0;
+    if (!(r >= kGeometric)) {
+        const double x =
+            std::clamp(std::log(r / kStatistical) / std::log(kGeometric / kStatistical), 0.0,
+                       1.0);  // NaN (r 0 or NaN): 0
+        beta = std::isnan(x) ? 0.0 : x * x * (3.0 - 2.0 * x);
+    }
+    const double w = static_cast<double>(c.weight);
+    const double stat = any && found > 0.0 ? 1.0 / -std::expm1(-found) : 0.0;
+    hide = static_cast<float>(
+        std::min(1.0, w * ((1.0 - beta) * stat + beta * static_cast<double>(c.cover) / lambda)));
+    lobe = static_cast<float>(std::min(1.0, w * ((1.0 - beta) * stat + beta * in / lambda)));
+}
+
 /** The flake part of a closure (c.wo and c.weight set): its expected weight, the blend and the
  *  discrete lobe of the point's footprint in m's field. */
 void prepare_flakes(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
                     PointStats& st) {
+    c.lobe_weight = c.weight;
     c.v_o = m.smooth.valid_fraction(c.wo.z);
     // E[w] over D(m)(m.n): (cos_o / G1(wo)) times the share of visible normals that count.
     c.w_expected = c.wo.z * c.v_o / mf::ggx_g1(c.wo, m.alpha, m.alpha);
@@ -357,42 +406,44 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
             c.t = 1.0f;
         }
         // The footprint's own flake share (c.weight holds the population's nominal share w).
-        // Facets cover the base: the share follows the facets it holds (their shares inside it
-        // against the expected lambda), so a footprint inside a facet is all mirror and one
-        // between facets all base. Point flakes: a footprint that holds no flake reflecting wo
-        // above the horizon shows the base alone, and one that holds any the share
-        // w / P(it holds any) = w / (1 - e^-(found)), at most 1, so the share averages to w
-        // wherever w <= 1 - e^-found (a footprint of fewer than ~3 flakes reflected
-        // (1 - e^-lambda) of the smooth limit when it kept w always). `found` is the expected
-        // count of flakes that enter the cache: of the enumerated ones, those reflecting wo above
-        // the horizon (cache_share: 1 / (1 + alpha^2) head-on, about 1/2 at grazing); of the
-        // counted cells', the share their smooth part carries whole (it always reflects) and
-        // the rest, real flakes as stand-ins, at cache_share too. With lambda alone a rough
-        // paint's sparse flakes averaged 8% under w head-on and up to half at grazing. Both
-        // average to w as the footprint grows, and the smooth lobe keeps w.
+        // Point flakes: a footprint that holds no flake reflecting wo above the horizon shows
+        // the base alone, and one that holds any the share w / P(it holds any) =
+        // w / (1 - e^-(found)), at most 1, so the share averages to w wherever
+        // w <= 1 - e^-found (a footprint of fewer than ~3 flakes reflected (1 - e^-lambda) of
+        // the smooth limit when it kept w always). `found` is the expected count of flakes that
+        // enter the cache: of the enumerated ones, those reflecting wo above the horizon
+        // (cache_share: 1 / (1 + alpha^2) head-on, about 1/2 at grazing); of the counted
+        // cells', the share their smooth part carries whole (it always reflects) and the rest,
+        // real flakes as stand-ins, at cache_share too. With lambda alone a rough paint's sparse
+        // flakes averaged 8% under w head-on and up to half at grazing. Both average to w as the
+        // footprint grows, and the smooth lobe keeps w. Facets: facet_shares().
         if (c.t < 1.0f && lambda > 0.0) {
-            float local = 0.0f;
+            const double counted =
+                std::clamp(c.counted.expected * static_cast<double>(view.keep), 0.0, lambda);
+            const double share = static_cast<double>(m.cache_share.at(c.wo.z));
+            // Of the aggregates drawn, the share the smooth lobe carries (none where a cell
+            // holds no more flakes than its stand-ins: they are its flakes).
+            const double smooth = c.counted.aggregated > 0
+                                      ? std::clamp(static_cast<double>(c.counted.smooth) /
+                                                       static_cast<double>(c.counted.aggregated),
+                                                   0.0, 1.0)
+                                      : 0.0;
+            const double counted_in = counted * (smooth + (1.0 - smooth) * share);
+            const double found = counted_in + (lambda - counted) * share;
+            float hide = 0.0f, lobe = 0.0f;
             if (m.facet && view.facet_size > 0.0) {
-                local = std::min(
-                    1.0f, c.weight * static_cast<float>(static_cast<double>(c.cover) / lambda));
+                const double r =
+                    view.facet_size * view.facet_size * m.facet->area / view.footprint.area();
+                const bool any = c.centres_in > 0 || (c.counted.aggregated > 0 && c.w_norm > 0.0f);
+                facet_shares(c, lambda, found, static_cast<double>(c.cover_in) + counted_in, any, r,
+                             hide, lobe);
             } else if (c.cover > 0.0f && c.w_norm > 0.0f) {  // holds a flake that wo sees
-                const double counted =
-                    std::clamp(c.counted.expected * static_cast<double>(view.keep), 0.0, lambda);
-                const double share = static_cast<double>(m.cache_share.at(c.wo.z));
-                // Of the aggregates drawn, the share the smooth lobe carries (none where a cell
-                // holds no more flakes than its stand-ins: they are its flakes).
-                const double smooth =
-                    c.counted.aggregated > 0
-                        ? std::clamp(static_cast<double>(c.counted.smooth) /
-                                         static_cast<double>(c.counted.aggregated),
-                                     0.0, 1.0)
-                        : 0.0;
-                const double found =
-                    counted * (smooth + (1.0 - smooth) * share) + (lambda - counted) * share;
-                local = std::min(
+                hide = lobe = std::min(
                     1.0f, static_cast<float>(static_cast<double>(c.weight) / -std::expm1(-found)));
             }
-            if (local != c.weight) c.weight = (1.0f - c.t) * local + c.t * c.weight;
+            const float w = c.weight;
+            if (hide != w) c.weight = (1.0f - c.t) * hide + c.t * w;
+            if (lobe != w) c.lobe_weight = (1.0f - c.t) * lobe + c.t * w;
         }
     }
     if (std::isfinite(lambda)) {
@@ -432,14 +483,16 @@ void prepare_second(const Material& m, const PointInput& in, float w, Closure& c
     PointStats ignored;
     prepare_flakes(*m.second, in, c2, arena, ignored);
     c.second = &c2;
-    if (c.weight == p1 && c2.weight == p2) {
+    if (c.weight == p1 && c2.weight == p2 && c.lobe_weight == p1 && c2.lobe_weight == p2) {
         // Both as nominal (the smooth lobe, or footprints of many flakes).
-        c.weight = w;
+        c.weight = c.lobe_weight = w;
         c.w_second = m.second_weight;
     } else {
-        const float sum = c.weight + c2.weight;
+        // The lobes' shares mix the lobes; what hides the base adds up apart (at least as much).
+        const float sum = c.weight + c2.weight, lobes = c.lobe_weight + c2.lobe_weight;
         c.weight = std::min(1.0f, sum);
-        c.w_second = sum > 0.0f ? c2.weight / sum : m.second_weight;
+        c.lobe_weight = std::min(1.0f, lobes);
+        c.w_second = lobes > 0.0f ? c2.lobe_weight / lobes : m.second_weight;
     }
     const float l1 = (1.0f - c.w_second) * flake_luminance(m);
     const float l2 = c.w_second * flake_luminance(*m.second);
@@ -511,7 +564,7 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     base_seen(m, c, c.wo.z, seen);
     const float w_base = under * (m.transmits ? luminance(seen) : 1.0f - c.weight) *
                          luminance(c.base) * c.coat->base_gain();
-    const float w_flake = under * c.weight *
+    const float w_flake = under * c.lobe_weight *
                           (c.second ? (1.0f - c.w_second) * flake_luminance(m) +
                                           c.w_second * flake_luminance(*m.second)
                                     : flake_luminance(m));
@@ -592,13 +645,13 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
     if (!m.transmits) {
         const float base = (1.0f - c.weight) * mf::kInvPi * coat.base_gain();
         for (int ch = 0; ch < 3; ++ch)
-            f[ch] = f_coat + under * (base * c.base[ch] + c.weight * fl[ch]);
+            f[ch] = f_coat + under * (base * c.base[ch] + c.lobe_weight * fl[ch]);
     } else {
         float seen[3];
         base_seen(m, c, wi.z, seen);
         const float base = mf::kInvPi * coat.base_gain();
         for (int ch = 0; ch < 3; ++ch)
-            f[ch] = f_coat + under * (base * seen[ch] * c.base[ch] + c.weight * fl[ch]);
+            f[ch] = f_coat + under * (base * seen[ch] * c.base[ch] + c.lobe_weight * fl[ch]);
     }
     pdf = c.p_coat * pdf_coat + c.p_base * wi.z * mf::kInvPi + c.p_flake * pdf_fl;
     if (!std::isfinite(f[0] + f[1] + f[2]) || !std::isfinite(pdf)) {
@@ -606,7 +659,8 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
         return;
     }
     if (glint)
-        for (int ch = 0; ch < 3; ++ch) glint[ch] = std::min(f[ch], under * c.weight * disc[ch]);
+        for (int ch = 0; ch < 3; ++ch)
+            glint[ch] = std::min(f[ch], under * c.lobe_weight * disc[ch]);
 }
 
 namespace {

@@ -488,6 +488,7 @@ TEST(FlakeExpectation, FootprintsOfFewFlakesAverageToTheSmoothLimit) {
         double roughness, gamma, shadowing, exact_flakes;
         Vec3 wo;
         const char* fresnel;
+        double facet = 0.0;  // flake_size (0: point flakes)
     };
     for (const Case& cs : {Case{0.3, 0.15, 3.0, 1.0, 256.0, dir(0.8f, 0.3f), "conductor"},
                            Case{0.2, 0.6, 3.0, 0.0, 256.0, dir(0.2f, 0.3f), "conductor"},
@@ -495,12 +496,15 @@ TEST(FlakeExpectation, FootprintsOfFewFlakesAverageToTheSmoothLimit) {
                            Case{0.2, 0.3, 3.0, 1.0, 256.0, dir(0.2f, 0.3f), "schlick"},
                            Case{0.2, 0.3, 3.0, 1.0, 256.0, dir(0.1f, 0.3f), "perfect"},
                            Case{0.2, 0.8, 3.0, 1.0, 256.0, dir(0.1f, 0.3f), "perfect"},
-                           Case{0.2, 0.3, 45.0, 0.0, 1.0, dir(0.2f, 0.3f), "conductor"}}) {
-        const FlakeParams params = {{"flake_weight", {cs.weight}},
-                                    {"flake_roughness", {cs.roughness}},
-                                    {"gamma", {cs.gamma}},
-                                    {"shadowing", {cs.shadowing}},
-                                    {"exact_flakes", {cs.exact_flakes}}};
+                           Case{0.2, 0.3, 45.0, 0.0, 1.0, dir(0.2f, 0.3f), "conductor"},
+                           Case{0.2, 0.6, 3.0, 0.0, 256.0, dir(0.2f, 0.3f), "perfect", 1e-9},
+                           Case{0.2, 0.3, 3.0, 1.0, 256.0, dir(0.1f, 0.3f), "perfect", 1e-9}}) {
+        FlakeParams params = {{"flake_weight", {cs.weight}},
+                              {"flake_roughness", {cs.roughness}},
+                              {"gamma", {cs.gamma}},
+                              {"shadowing", {cs.shadowing}},
+                              {"exact_flakes", {cs.exact_flakes}}};
+        if (cs.facet > 0.0) params.push_back({"flake_size", {cs.facet}});
         // "perfect": conductor flakes of the preset that reflects everything.
         const bool perfect = std::string(cs.fresnel) == "perfect";
         FlakeStrings strings = {{"fresnel", perfect ? "conductor" : cs.fresnel}};
@@ -533,8 +537,8 @@ TEST(FlakeExpectation, FootprintsOfFewFlakesAverageToTheSmoothLimit) {
                                     kFootprints);
             }
             const std::string what = fmt::format(
-                "{} roughness {} shadowing {} cos_o {} exact_flakes {} lambda {}", cs.fresnel,
-                cs.roughness, cs.shadowing, cs.wo.z, cs.exact_flakes, lambda);
+                "{} roughness {} shadowing {} cos_o {} exact_flakes {} flake_size {} lambda {}",
+                cs.fresnel, cs.roughness, cs.shadowing, cs.wo.z, cs.exact_flakes, cs.facet, lambda);
             if (cs.exact_flakes > 1.0) {
                 for (int alg = 0; alg < 2; ++alg)
                     EXPECT_NEAR(mean[alg], limit, 4.0 * se[alg] + 0.01 * limit)
