@@ -71,10 +71,15 @@ struct Footprint {
     double half_height() const { return 0.5 * (std::fabs(ay) + std::fabs(by)) + reach; }
 };
 
+/** The largest ratio of a footprint's principal axes: a receding surface's footprints keep their
+ *  true shape down to cos 1/32 (clamped to 4, a footprint at grazing views was widened over 4 to
+ *  6 of its neighbours, and each flake lit a horizontal dash of pixels). */
+constexpr double kMaxFootprintRatio = 32.0;
+
 /** Footprint from uv derivatives, scaled, with the ratio of its principal axes clamped to
  *  max_ratio (the minor axis widened, the centre kept): this bounds skew and needles alike. */
 Footprint make_footprint(double u, double v, double dudx, double dvdx, double dudy, double dvdy,
-                         double scale, double max_ratio = 4.0);
+                         double scale, double max_ratio = kMaxFootprintRatio);
 
 /** Whether P has no area (its inverse is all 0): it holds no point flake. */
 inline bool singular(const Footprint& p) {

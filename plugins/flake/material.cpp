@@ -224,7 +224,8 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         add_stand_ins(c.counted, field, p, view.keep, m.stand_ins, m.grid, m.colors, m.fresnel,
                       m.film, c.wo, scratch);
     // A footprint of few flakes scaled to average to the far look (facets too: tiny ones are
-    // the point flakes, and a close-up of large ones keeps the brightness of the far look).
+    // the point flakes, and a large one's albedo is its own flake's, weighted as the far look
+    // weights them).
     if (!scratch.empty()) {
         // The counted cells' flakes that the smooth part carries count as many as enter the
         // cache (cache_share of them).
@@ -377,7 +378,9 @@ void facet_shares(const Closure& c, double lambda, double found, double in, bool
     const double stat = any && found > 0.0 ? 1.0 / -std::expm1(-found) : 0.0;
     hide = static_cast<float>(
         std::min(1.0, w * ((1.0 - beta) * stat + beta * static_cast<double>(c.cover) / lambda)));
-    lobe = static_cast<float>(std::min(1.0, w * ((1.0 - beta) * stat + beta * in / lambda)));
+    // (The covers summed in float and in double may differ in the last bit.)
+    lobe = std::min(
+        hide, static_cast<float>(std::min(1.0, w * ((1.0 - beta) * stat + beta * in / lambda))));
 }
 
 /** The flake part of a closure (c.wo and c.weight set): its expected weight, the blend and the
@@ -524,6 +527,8 @@ void base_seen(const Material& m, const Closure& c, float cos_i, float out[3]) {
     flake_transmission(m, c.wo.z, to);
     if (c.second) {
         // The populations' shares of the flakes (they share one Fresnel; each may be absent).
+        // w_second is the lobes' ratio, which may differ from that of what hides the base
+        // (facets): the same Fresnel makes it matter not.
         float t2i[3], t2o[3];
         flake_transmission(*m.second, cos_i, t2i);
         flake_transmission(*m.second, c.wo.z, t2o);

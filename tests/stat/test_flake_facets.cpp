@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "core/hash.h"
+#include "discrete_lobe.h"
 #include "facet.h"
 #include "field.h"
 #include "flake_support.h"
@@ -269,7 +270,7 @@ TEST(FlakeFacets, AFootprintInsideAFacetSeesThatMirrorAndOneBetweenThemTheBase) 
 }
 
 TEST(FlakeFacets, AFootprintAcrossFacetsReflectsTheSharesOfThoseThatReflect) {
-    // Facets wider than the footprint (its area 0.56 of a facet's), covering about 0.3 of the
+    // Facets wider than the footprint (its area 0.65 of a facet's), covering about 0.3 of the
     // surface as flake_weight says, perfect white mirrors seen at cos 0.7 in a cone of 1 degree:
     // each footprint reflects flake_weight times the shares of its facets that reflect the view
     // above the horizon against lambda (at most 1), whatever the facets beside them that do
@@ -325,6 +326,71 @@ TEST(FlakeFacets, AFootprintAcrossFacetsReflectsTheSharesOfThoseThatReflect) {
     }
     EXPECT_GE(mixed, 12);  // footprints across a facet that reflects and one that does not
     EXPECT_GT(lit, mixed);
+}
+
+TEST(FlakeFacets, SharesAverageToTheirRuleAtEveryFacetSize) {
+    // Over many footprints, facets covering a tenth of the surface (density = flake_weight /
+    // facet area), rough flakes (0.6) at cos 0.2, where cache_share is about 0.55: what hides
+    // the base averages flake_weight at every facet size (base alone: white, flakes black), and
+    // the flakes' lobe (perfect white flakes, black base) the far look where facets are much
+    // smaller than the footprint (r, a facet's area over the footprint's: 1/256), cache_share
+    // of it where they are larger (r 4: facets that face away are dark mirrors), and between
+    // (r 1/8, the middle of the blend: beta 1/2) the mean of the two. Where facets are larger
+    // than the footprint, their overlaps (random places) cover (1 - e^-w) / w of w: 0.95 at w
+    // 0.1. Bound: 4 standard errors plus 2%.
+    constexpr double kWeight = 0.1;
+    const float alpha = 0.6f;
+    const Vec3 wo = dir(0.2f, 0.3f);
+    const double facet = std::sqrt(kWeight / (kTestDensity * std::sqrt(3.0) / 2.0));
+    const double share = fl::cache_share_exact(alpha, wo.z);
+    ASSERT_LT(share, 0.7);  // the geometric rule differs from the far look
+    const FlakeParams common = {{"flake_weight", {kWeight}},
+                                {"flake_roughness", {alpha}},
+                                {"gamma", {3.0}},
+                                {"shadowing", {0.0}},
+                                {"flake_size", {facet}}};
+    FlakeParams hide_params = common;
+    hide_params.push_back({"flake_color", {0.0, 0.0, 0.0}});
+    hide_params.push_back({"base_color", {1.0, 1.0, 1.0}});
+    auto hides = flake_material(true, hide_params, {{"algorithm", "enumerate"}});
+    auto lobes = flake_material(true, common, {{"preset", "perfect"}, {"algorithm", "enumerate"}});
+    auto smooth = flake_material(false, common, {{"preset", "perfect"}});
+    BsdfHarness::Point far;
+    far.has_differentials = false;
+    smooth->prepare(wo, far);
+    const double limit = smooth->albedo(200000, 5).mean;
+    struct Case {
+        double r, beta;
+    };
+    for (const Case& c : {Case{1.0 / 256.0, 0.0}, Case{1.0 / 8.0, 0.5}, Case{4.0, 1.0}}) {
+        const double lambda = kWeight / c.r;
+        const int footprints = c.r > 1.0 ? 64000 : 3000;
+        double sum[2] = {0, 0}, sum2[2] = {0, 0};
+        for (int k = 0; k < footprints; ++k) {
+            const BsdfHarness::Point pt = random_footprint(lambda, 430, static_cast<uint64_t>(k));
+            hides->prepare(wo, pt);
+            lobes->prepare(wo, pt);
+            const double a[2] = {1.0 - hides->albedo(16, static_cast<uint64_t>(k)).mean,
+                                 lobes->albedo(16, static_cast<uint64_t>(k)).mean};
+            for (int i = 0; i < 2; ++i) {
+                sum[i] += a[i];
+                sum2[i] += a[i] * a[i];
+            }
+        }
+        double mean[2], se[2];
+        for (int i = 0; i < 2; ++i) {
+            mean[i] = sum[i] / footprints;
+            se[i] = std::sqrt(std::max(0.0, sum2[i] / footprints - mean[i] * mean[i]) / footprints);
+        }
+        const double overlap = c.r >= 1.0 ? -std::expm1(-kWeight) / kWeight : 1.0;
+        const double hidden = kWeight * ((1.0 - c.beta) + c.beta * overlap);
+        const double want = limit * ((1.0 - c.beta) + c.beta * share * overlap);
+        EXPECT_NEAR(mean[0], hidden, 4.0 * se[0] + 0.02 * hidden)
+            << "base hidden, r " << c.r << ": " << mean[0] / kWeight << " of flake_weight";
+        EXPECT_NEAR(mean[1], want, 4.0 * se[1] + 0.02 * want)
+            << "flakes, r " << c.r << ": " << mean[1] / limit << " of the far look, cache_share "
+            << share;
+    }
 }
 
 TEST(FlakeFacets, NoFootprintGainsEnergy) {

@@ -214,9 +214,14 @@ TEST(FlakeField, ClassBlockCountsArePoissonAndGrowWithTheMean) {
 }
 
 TEST(FlakeField, FootprintClampKeepsCentreAndBoundsTheRatio) {
+    // A needle of ratio 100 is widened to the largest ratio; one of 20 (a view at cos 0.05)
+    // keeps its shape.
     const Footprint p = flake::make_footprint(0.5, 0.5, 0.1, 0.0, 0.0, 0.001, 1.0);
     const double la = std::hypot(p.ax, p.ay), lb = std::hypot(p.bx, p.by);
-    EXPECT_NEAR(std::max(la, lb) / std::min(la, lb), 4.0, 1e-9);
+    EXPECT_NEAR(std::max(la, lb) / std::min(la, lb), flake::kMaxFootprintRatio, 1e-9);
+    EXPECT_GE(flake::kMaxFootprintRatio, 20.0);
+    const Footprint q = flake::make_footprint(0.5, 0.5, 0.02, 0.0, 0.0, 0.001, 1.0);
+    EXPECT_NEAR(q.area(), 0.02 * 0.001, 1e-15);
     EXPECT_EQ(p.cu, 0.5);
     const Footprint z = flake::make_footprint(0.5, 0.5, 0, 0, 0, 0, 1.0);
     EXPECT_EQ(z.area(), 0.0);

@@ -146,6 +146,28 @@ TEST(FlakeGlints, NeighbouringFootprintsShowTheirOwnGlints) {
     }
 }
 
+TEST(FlakeGlints, GrazingFootprintsSideBySideShowTheirOwnGlints) {
+    // A receding surface at grazing views: pixels' footprints 16 and 24 times as long in depth as
+    // they are wide across (cos 0.06 and 0.04), side by side across. They hold different flakes,
+    // so their glints are as independent as those of square footprints: a correlation of 0 up to
+    // noise, glints one footprint long. The footprint's axis ratio was clamped to 4 (its narrow
+    // side widened): each footprint covered 4 to 6 of its neighbours, so a flake lit a run of
+    // pixels across the surface (horizontal dashes at grazing; correlation 0.75 here) and
+    // lambda was as many times too large. Now clamped at 32.
+    for (double aspect : {16.0, 24.0})
+        for (const char* algorithm : {"enumerate", "tree"})
+            for (double lambda : {600.0, 3000.0}) {
+                const GlintRuns g = glint_runs(algorithm, lambda, 0.8f, 0.25f, 2.5f, 1.0, aspect);
+                EXPECT_LT(std::fabs(g.correlation), 0.05)
+                    << algorithm << " lambda " << lambda << " aspect " << aspect;
+                if (lambda < 1000.0) {
+                    ASSERT_GT(g.lit, 0.001) << algorithm << " lambda " << lambda;
+                    EXPECT_LT(g.run, 1.2)
+                        << algorithm << " lambda " << lambda << " aspect " << aspect;
+                }
+            }
+}
+
 TEST(FlakeGlints, OverlappingFootprintsShareGlintsAsFlakesDo) {
     // Footprints that overlap hold many of the same flakes: the samples of one pixel, a pixel and
     // its neighbour across a receding surface (footprints long in depth, narrow across and wider
