@@ -434,6 +434,7 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
             const double counted_in = counted * (smooth + (1.0 - smooth) * share);
             const double found = counted_in + (lambda - counted) * share;
             float hide = 0.0f, lobe = 0.0f;
+            bool smooth_only = false;  // a footprint that holds none shows the far look's share
             if (m.facet && view.facet_size > 0.0) {
                 const double r =
                     view.facet_size * view.facet_size * m.facet->area / view.footprint.area();
@@ -443,10 +444,25 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
             } else if (c.cover > 0.0f && c.w_norm > 0.0f) {  // holds a flake that wo sees
                 hide = lobe = std::min(
                     1.0f, static_cast<float>(static_cast<double>(c.weight) / -std::expm1(-found)));
+            } else if (const double any = -std::expm1(-found);
+                       static_cast<double>(c.weight) > any && any < 1.0) {
+                // Holds none, where flakes cover more than their chance of lying in a footprint
+                // (w > 1 - e^-found: sparse point flakes meant to be larger than a pixel): those
+                // that hold one are all flake, and the rest of w (w - P) / (1 - P) is spread over
+                // the footprints that hold none, as the far look (their lobe the smooth one), so
+                // the share averages to w still. It averaged P: a closer camera or a higher
+                // resolution showed more base (the snowman's snowfield, whose white base outshines
+                // its crystals, read 10% brighter in a band where lambda fell five times when
+                // footprints at grazing views stopped being widened).
+                const float spread =
+                    static_cast<float>((static_cast<double>(c.weight) - any) / (1.0 - any));
+                hide = lobe = spread;
+                smooth_only = true;
             }
             const float w = c.weight;
             if (hide != w) c.weight = (1.0f - c.t) * hide + c.t * w;
             if (lobe != w) c.lobe_weight = (1.0f - c.t) * lobe + c.t * w;
+            if (smooth_only) c.t = 1.0f;
         }
     }
     if (std::isfinite(lambda)) {

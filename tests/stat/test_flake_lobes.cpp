@@ -484,7 +484,9 @@ TEST(FlakeExpectation, FootprintsOfFewFlakesAverageToTheSmoothLimit) {
     // The flakes' albedo per footprint is estimated from samples of its lobe (unbiased); the
     // bound is 4 standard errors over footprints plus the smooth table's documented 1%.
     struct Case {
-        double weight;  // <= 1 - e^-(0.5 p): the share is never capped
+        double weight;  // above 1 - e^-found (0.6 at lambda 0.5) the footprints that hold
+                        // a flake are all flake and the rest show the far look at the share
+                        // left over (it read 0.64 of the far look at lambda 0.5)
         double roughness, gamma, shadowing, exact_flakes;
         Vec3 wo;
         const char* fresnel;
@@ -497,6 +499,7 @@ TEST(FlakeExpectation, FootprintsOfFewFlakesAverageToTheSmoothLimit) {
                            Case{0.2, 0.3, 3.0, 1.0, 256.0, dir(0.1f, 0.3f), "perfect"},
                            Case{0.2, 0.8, 3.0, 1.0, 256.0, dir(0.1f, 0.3f), "perfect"},
                            Case{0.2, 0.3, 45.0, 0.0, 1.0, dir(0.2f, 0.3f), "conductor"},
+                           Case{0.6, 0.15, 3.0, 1.0, 256.0, dir(0.8f, 0.3f), "conductor"},
                            Case{0.2, 0.6, 3.0, 0.0, 256.0, dir(0.2f, 0.3f), "perfect", 1e-9},
                            Case{0.2, 0.3, 3.0, 1.0, 256.0, dir(0.1f, 0.3f), "perfect", 1e-9}}) {
         FlakeParams params = {{"flake_weight", {cs.weight}},
