@@ -42,7 +42,6 @@ void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& o
         for (int c = 0; c < 3; ++c) e.rgb[c] = rgb[c] * scale;
         e.lum = std::max(0.0f, luminance(rgb)) * scale;
         e.w = w[i] * scale;
-        b.entered += static_cast<double>(scale);
         b.entered_marked += b.marked[i] ? 1u : 0u;
     }
     out.resize(base + kept);

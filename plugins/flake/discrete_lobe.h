@@ -39,8 +39,7 @@ struct EntryBatch {
     const float* col[kSize];
     const FresnelTable* fresnel[kSize];
     bool marked[kSize];
-    double entered = 0;           ///< the scales of the flakes flushed that have an entry, summed
-    uint32_t entered_marked = 0;  ///< how many of those were marked (add's `mark`)
+    uint32_t entered_marked = 0;  ///< flakes flushed with an entry that were marked (add's `mark`)
     /** Queues a flake; flushes (into out) first when the batch is full. */
     inline void add(V3 wo, float alpha, float s_, float t_, const float* col_,
                     const FresnelTable* fr, float scale_, std::vector<CacheEntry>& out,
@@ -51,8 +50,8 @@ struct EntryBatch {
  *  the batch. A flake of normal m = flake_normal(alpha, s, t) and colour c has the entry
  *  r = reflect(wo, m), w = (wo.m) / m.z, rgb = w c F(wo.m), lum its luminance, each times its
  *  scale (a stand-in's share, a facet's cover); a flake facing away from wo or reflecting it under
- *  the horizon has none (it is skipped). b.entered grows by the scales of those with an entry,
- *  b.entered_marked by the marked ones among them. */
+ *  the horizon has none (it is skipped). b.entered_marked counts the marked ones among those
+ *  with an entry. */
 void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& out);
 
 inline void EntryBatch::add(V3 wo, float alpha, float s_, float t_, const float* col_,

@@ -160,6 +160,20 @@ bool few_facets(const FieldParams& field, const Footprint& p, uint32_t limit) {
                               2.0 * static_cast<double>(limit);
 }
 
+/** W of c's discrete lobe: the cache's weights (stand-ins included) and the expected weight of
+ *  the aggregated flakes the smooth lobe carries (each part reflects at most its weight); and the
+ *  probability of sampling the cache: the cache by its luminance, the smooth part by its
+ *  expected one, through the smooth lobe's proposal. */
+void lobe_norm(const Material& m, Closure& c) {
+    c.w_norm = c.lobe.w_sum + c.counted.smooth * c.w_expected;
+    float fr[3];
+    m.fresnel.eval(1.0f, fr);
+    float mean[3] = {m.colors.mean[0] * fr[0], m.colors.mean[1] * fr[1], m.colors.mean[2] * fr[2]};
+    const float agg_lum = c.counted.smooth * c.w_expected * std::max(1e-3f, luminance(mean));
+    const float total = c.lobe.lum_sum + agg_lum;
+    c.p_cache = total > 0.0f ? c.lobe.lum_sum / total : 1.0f;
+}
+
 /** The discrete part of a closure: the flakes of footprint p, by the material's algorithm.
  *  Returns false when the footprint is beyond the algorithm's bound (the smooth lobe takes over).
  */
@@ -215,8 +229,6 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         if (truncated) return false;
     }
     flush_entries(c.wo, field.alpha, batch, scratch);
-    // Facets: the shares of those that reflect wo above the horizon (with a cache entry).
-    c.cover_in = static_cast<float>(batch.entered);
     c.centres_in = batch.entered_marked;
     st.cached += scratch.size();
     // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
@@ -245,17 +257,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
                            : static_cast<float>(c.counted.aggregated));
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;
-    // W: the cache's weights (stand-ins included) and the expected weight of the aggregated
-    // flakes the smooth lobe carries: each part reflects at most its weight.
-    c.w_norm = c.lobe.w_sum + c.counted.smooth * c.w_expected;
-    // Sampling within the discrete part: the cache by its luminance, the smooth part by its
-    // expected one, through the smooth lobe's proposal.
-    float fr[3];
-    m.fresnel.eval(1.0f, fr);
-    float mean[3] = {m.colors.mean[0] * fr[0], m.colors.mean[1] * fr[1], m.colors.mean[2] * fr[2]};
-    const float agg_lum = c.counted.smooth * c.w_expected * std::max(1e-3f, luminance(mean));
-    const float total = c.lobe.lum_sum + agg_lum;
-    c.p_cache = total > 0.0f ? c.lobe.lum_sum / total : 1.0f;
+    lobe_norm(m, c);
     return true;
 }
 
@@ -338,56 +340,50 @@ FieldView field_view(const Material& m, const PointInput& in) {
 
 namespace {
 
-/** A footprint's facet shares (facet_size set): `hide`, of the base hidden by facets, and
- *  `lobe`, of the flake lobe. The facets' shares inside the footprint are c.cover, all of them,
- *  and `in`, those that reflect wo above the horizon (the counted cells' by expectation); `found`
- *  is the expected count of those (lambda times cache_share), and `any` whether the footprint
+/** A footprint's facet share (facet_size set): the share of the footprint that is facets, which
+ *  hides the base and scales the flake lobe. The facets' shares inside the footprint are
+ *  c.cover (the counted cells' by expectation); `found` is the expected count of those that
+ *  reflect wo above the horizon (lambda times cache_share), and `any` whether the footprint
  *  holds the centre of one (or counted cells' flakes that reflect). r is a facet's area over
  *  the footprint's.
- *  - Facets as wide as the footprint or wider (r >= 1): each is a flat mirror where it lies. The
- *    base is hidden by every facet, c.cover / lambda of w, and the lobe is scaled by the facets
- *    that reflect, in / lambda of w: a footprint inside a facet that reflects wo under the
- *    horizon is that dark mirror; one half on it and half on a facet that reflects is half as
- *    bright as one wholly on the second (it was as bright when the lobe took every facet's
- *    share).
+ *  - Facets as wide as the footprint or wider (r >= 1): each is a mirror where it lies, the
+ *    share w c.cover / lambda, its lobe normalised over the facets that reflect (a footprint
+ *    inside a facet that reflects wo into the surface is that dark mirror; one across facets
+ *    that do and do not shows those that do at the whole share, as the far look spreads the
+ *    share of the flakes that do not over those that do).
  *  - Facets much smaller than the footprint (r <= 1/64, an eighth of its width): the point
- *    flakes' rule (prepare_flakes) on the facets' centres, those that reflect standing for
- *    those that do not: w / P(any) = w / (1 - e^-found) where it holds one, hiding the base as
- *    much. Averaged over footprints both are w, as in the far look, which renormalises the
- *    flakes over the normals that reflect. With the first rule tiny facets averaged 0.62 / 0.74
- *    / 0.91 of the far look at lambda 0.5 / 1 / 3 (rough flakes at a low sun): a footprint whose
- *    facets all reflect under the horizon was a dark hole. Two rules that looked simpler fail:
- *    w in / found is capped at 1 where few are expected (0.87 at lambda 0.5, cos 0.1), and
- *    w min(in, 1) / (1 - e^-found) is low where many facets straddle the footprint's edge
- *    (partial shares: 25-30% dark in the middle distance of tests/scenes/looks/flake_facets.toml).
- *  - Between, a smoothstep in log r. lobe <= hide always (in <= c.cover, the first term the
- *    same in both): no footprint reflects more than it receives. Large facets average to
- *    w cache_share in the lobe: a close-up is darker than the far look where many facets face
- *    away. */
-void facet_shares(const Closure& c, double lambda, double found, double in, bool any, double r,
-                  float& hide, float& lobe) {
+ *    flakes' rule (prepare_flakes) on the facets' centres: w / P(any) = w / (1 - e^-found)
+ *    where it holds one that reflects, the base alone where it holds none. Averaged over
+ *    footprints it is w, and the flakes reflect the far look. With the first rule tiny facets
+ *    averaged 0.62 / 0.74 / 0.91 of the far look at lambda 0.5 / 1 / 3 (rough flakes at a low
+ *    sun): a footprint whose few facets all faced away hid the base and reflected nothing. Two
+ *    rules that looked simpler fail: w in / found (in: the covers of those that reflect) is
+ *    capped at 1 where few are expected (0.87 at lambda 0.5, cos 0.1), and
+ *    w min(in, 1) / (1 - e^-found) is low where many facets straddle the footprint's edge.
+ *  - Between, a smoothstep in log r of the two.
+ *  (Showing the far look on facets that face away, so that close-ups average to it too, was
+ *  tried: they became grey hexagons of the colour table's mean, noisy with the smooth lobe's
+ *  samples, where real glitter shows them dark.) */
+float facet_share(const Closure& c, double lambda, double found, bool any, double r) {
     constexpr double kStatistical = 1.0 / 64.0, kGeometric = 1.0;
     double beta = 1.0;
     if (!(r >= kGeometric)) {
+        // r 0: log -inf, clamped to 0; r NaN: NaN, taken as 0.
         const double x =
-            std::clamp(std::log(r / kStatistical) / std::log(kGeometric / kStatistical), 0.0,
-                       1.0);  // NaN (r 0 or NaN): 0
+            std::clamp(std::log(r / kStatistical) / std::log(kGeometric / kStatistical), 0.0, 1.0);
         beta = std::isnan(x) ? 0.0 : x * x * (3.0 - 2.0 * x);
     }
     const double w = static_cast<double>(c.weight);
     const double stat = any && found > 0.0 ? 1.0 / -std::expm1(-found) : 0.0;
-    hide = static_cast<float>(
-        std::min(1.0, w * ((1.0 - beta) * stat + beta * static_cast<double>(c.cover) / lambda)));
-    // (The covers summed in float and in double may differ in the last bit.)
-    lobe = std::min(
-        hide, static_cast<float>(std::min(1.0, w * ((1.0 - beta) * stat + beta * in / lambda))));
+    // A footprint whose facets all face away has no lobe (c.w_norm 0) and reflects nothing.
+    const double geometric = static_cast<double>(c.cover) / lambda;
+    return static_cast<float>(std::min(1.0, w * ((1.0 - beta) * stat + beta * geometric)));
 }
 
 /** The flake part of a closure (c.wo and c.weight set): its expected weight, the blend and the
  *  discrete lobe of the point's footprint in m's field. */
 void prepare_flakes(const Material& m, const PointInput& in, Closure& c, SpangleArena_v3* arena,
                     PointStats& st) {
-    c.lobe_weight = c.weight;
     c.v_o = m.smooth.valid_fraction(c.wo.z);
     // E[w] over D(m)(m.n): (cos_o / G1(wo)) times the share of visible normals that count.
     c.w_expected = c.wo.z * c.v_o / mf::ggx_g1(c.wo, m.alpha, m.alpha);
@@ -433,16 +429,15 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
                                       : 0.0;
             const double counted_in = counted * (smooth + (1.0 - smooth) * share);
             const double found = counted_in + (lambda - counted) * share;
-            float hide = 0.0f, lobe = 0.0f;
+            float hide = 0.0f;
             bool smooth_only = false;  // a footprint that holds none shows the far look's share
             if (m.facet && view.facet_size > 0.0) {
                 const double r =
                     view.facet_size * view.facet_size * m.facet->area / view.footprint.area();
                 const bool any = c.centres_in > 0 || (c.counted.aggregated > 0 && c.w_norm > 0.0f);
-                facet_shares(c, lambda, found, static_cast<double>(c.cover_in) + counted_in, any, r,
-                             hide, lobe);
+                hide = facet_share(c, lambda, found, any, r);
             } else if (c.cover > 0.0f && c.w_norm > 0.0f) {  // holds a flake that wo sees
-                hide = lobe = std::min(
+                hide = std::min(
                     1.0f, static_cast<float>(static_cast<double>(c.weight) / -std::expm1(-found)));
             } else if (const double any = -std::expm1(-found);
                        static_cast<double>(c.weight) > any && any < 1.0) {
@@ -456,12 +451,11 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
                 // footprints at grazing views stopped being widened).
                 const float spread =
                     static_cast<float>((static_cast<double>(c.weight) - any) / (1.0 - any));
-                hide = lobe = spread;
+                hide = spread;
                 smooth_only = true;
             }
             const float w = c.weight;
             if (hide != w) c.weight = (1.0f - c.t) * hide + c.t * w;
-            if (lobe != w) c.lobe_weight = (1.0f - c.t) * lobe + c.t * w;
             if (smooth_only) c.t = 1.0f;
         }
     }
@@ -502,16 +496,14 @@ void prepare_second(const Material& m, const PointInput& in, float w, Closure& c
     PointStats ignored;
     prepare_flakes(*m.second, in, c2, arena, ignored);
     c.second = &c2;
-    if (c.weight == p1 && c2.weight == p2 && c.lobe_weight == p1 && c2.lobe_weight == p2) {
+    if (c.weight == p1 && c2.weight == p2) {
         // Both as nominal (the smooth lobe, or footprints of many flakes).
-        c.weight = c.lobe_weight = w;
+        c.weight = w;
         c.w_second = m.second_weight;
     } else {
-        // The lobes' shares mix the lobes; what hides the base adds up apart (at least as much).
-        const float sum = c.weight + c2.weight, lobes = c.lobe_weight + c2.lobe_weight;
+        const float sum = c.weight + c2.weight;
         c.weight = std::min(1.0f, sum);
-        c.lobe_weight = std::min(1.0f, lobes);
-        c.w_second = lobes > 0.0f ? c2.lobe_weight / lobes : m.second_weight;
+        c.w_second = sum > 0.0f ? c2.weight / sum : m.second_weight;
     }
     const float l1 = (1.0f - c.w_second) * flake_luminance(m);
     const float l2 = c.w_second * flake_luminance(*m.second);
@@ -543,8 +535,6 @@ void base_seen(const Material& m, const Closure& c, float cos_i, float out[3]) {
     flake_transmission(m, c.wo.z, to);
     if (c.second) {
         // The populations' shares of the flakes (they share one Fresnel; each may be absent).
-        // w_second is the lobes' ratio, which may differ from that of what hides the base
-        // (facets): the same Fresnel makes it matter not.
         float t2i[3], t2o[3];
         flake_transmission(*m.second, cos_i, t2i);
         flake_transmission(*m.second, c.wo.z, t2o);
@@ -585,7 +575,7 @@ void prepare_point(const Material& m, const PointInput& in, Closure& c, SpangleA
     base_seen(m, c, c.wo.z, seen);
     const float w_base = under * (m.transmits ? luminance(seen) : 1.0f - c.weight) *
                          luminance(c.base) * c.coat->base_gain();
-    const float w_flake = under * c.lobe_weight *
+    const float w_flake = under * c.weight *
                           (c.second ? (1.0f - c.w_second) * flake_luminance(m) +
                                           c.w_second * flake_luminance(*m.second)
                                     : flake_luminance(m));
@@ -666,13 +656,13 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
     if (!m.transmits) {
         const float base = (1.0f - c.weight) * mf::kInvPi * coat.base_gain();
         for (int ch = 0; ch < 3; ++ch)
-            f[ch] = f_coat + under * (base * c.base[ch] + c.lobe_weight * fl[ch]);
+            f[ch] = f_coat + under * (base * c.base[ch] + c.weight * fl[ch]);
     } else {
         float seen[3];
         base_seen(m, c, wi.z, seen);
         const float base = mf::kInvPi * coat.base_gain();
         for (int ch = 0; ch < 3; ++ch)
-            f[ch] = f_coat + under * (base * seen[ch] * c.base[ch] + c.lobe_weight * fl[ch]);
+            f[ch] = f_coat + under * (base * seen[ch] * c.base[ch] + c.weight * fl[ch]);
     }
     pdf = c.p_coat * pdf_coat + c.p_base * wi.z * mf::kInvPi + c.p_flake * pdf_fl;
     if (!std::isfinite(f[0] + f[1] + f[2]) || !std::isfinite(pdf)) {
@@ -680,8 +670,7 @@ void eval_material(const Material& m, const Closure& c, V3 wi, float f[3], float
         return;
     }
     if (glint)
-        for (int ch = 0; ch < 3; ++ch)
-            glint[ch] = std::min(f[ch], under * c.lobe_weight * disc[ch]);
+        for (int ch = 0; ch < 3; ++ch) glint[ch] = std::min(f[ch], under * c.weight * disc[ch]);
 }
 
 namespace {

@@ -99,12 +99,10 @@ struct Closure {
     float v_o = 1;               ///< share of visible flake normals reflecting above the horizon
     uint32_t valid = 0;          ///< wo above the surface
     float base[3] = {0, 0, 0};   ///< base_color here (textured or the material's)
-    float weight = 0;            ///< the flakes' share of the footprint: what hides the base
-    float lobe_weight = 0;       ///< what scales their lobe (<= weight; = weight but for facets)
+    float weight = 0;            ///< the flakes' share of the footprint (flake_weight far away)
     const Closure* second = nullptr;  ///< the second population's flakes (arena; null: none)
     float w_second = 0;               ///< its share of the flake lobe (0 without it)
     float cover = 0;                  ///< facets: the shares of the flakes inside the footprint
-    float cover_in = 0;               ///< facets: of those, the ones with a cache entry
     uint32_t centres_in = 0;          ///< facets with a cache entry whose centre is inside
     float q_second = 0;               ///< probability that flake sampling picks it
 };

@@ -4,10 +4,12 @@
 // in test_flake_lobes.cpp, the footprint average against the smooth lobe in
 // test_flake_looks.cpp).
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
 #include <map>
+#include <string>
 #include <vector>
 
 #include "core/hash.h"
@@ -202,19 +204,16 @@ TEST(FlakeFacets, AFootprintInsideAFacetSeesThatMirrorAndOneBetweenThemTheBase) 
         ASSERT_TRUE(facet_centre(shape, facet, u0, v0, cu, cv));
         // Two tiny footprints near the centre of the facet: the same flat mirror, all of the
         // light in one cone (albedo 1 but for the cone's share under the horizon; at cos 0.8 and
-        // a roughness of 0.3 a cone may dip under it, hence >= 0.9 rather than 1).
+        // a roughness of 0.3 a cone may dip under it, hence >= 0.9 rather than 1). A facet that
+        // reflects wo into the surface shows the far look instead (its smooth lobe), as one.
         BsdfHarness::Point pt;
         pt.u = static_cast<float>(cu);
         pt.v = static_cast<float>(cv);
         pt.dudx = pt.dvdy = static_cast<float>(facet * 0.01);
-        const auto lit_cones = [&](const BsdfHarness& h) {
-            double sum = 0.0;
-            for (const auto& s : h.sample(2000, k))
-                if (s.flags != 0 && s.pdf > 0.0f) sum += s.f.y * s.wi.z / s.pdf;
-            return sum / 2000.0;
-        };
+
         m->prepare(wo, pt);
-        const double albedo = lit_cones(*m);
+        const auto a = m->albedo(4000, k);
+        const double albedo = a.mean;
         std::vector<Vec3> wis, f0, f;
         std::vector<float> pdf;
         for (const auto& s : m->sample(64, 3 * k))
@@ -233,7 +232,8 @@ TEST(FlakeFacets, AFootprintInsideAFacetSeesThatMirrorAndOneBetweenThemTheBase) 
             for (std::size_t i = 0; i < wis.size(); ++i)
                 EXPECT_NEAR(f[i].y, f0[i].y, 1e-3f * f0[i].y + 1e-6f);
         }
-        EXPECT_LE(albedo, 1.0 + 1e-3);
+        // (Exact for a cone; the far look's estimate has a spread of its own.)
+        EXPECT_LE(albedo, 1.0 + 4.0 * a.se + 1e-3);
         // The facet may overlap another; alone it reflects all it receives but its cone's share
         // under the horizon.
         if (albedo > 0.0) {
@@ -269,28 +269,29 @@ TEST(FlakeFacets, AFootprintInsideAFacetSeesThatMirrorAndOneBetweenThemTheBase) 
     EXPECT_EQ(between, 10);
 }
 
-TEST(FlakeFacets, AFootprintAcrossFacetsReflectsTheSharesOfThoseThatReflect) {
+TEST(FlakeFacets, AFootprintAcrossFacetsReflectsItsShareThroughThoseThatReflect) {
     // Facets wider than the footprint (its area 0.65 of a facet's), covering about 0.3 of the
-    // surface as flake_weight says, perfect white mirrors seen at cos 0.7 in a cone of 1 degree:
-    // each footprint reflects flake_weight times the shares of its facets that reflect the view
-    // above the horizon against lambda (at most 1), whatever the facets beside them that do
-    // not. It reflected the share of all its facets (those facing away too) through the few
-    // that reflect: a footprint half on a facet facing away shone as one wholly on a mirror.
+    // surface as flake_weight says, perfect white mirrors seen at cos 0.7 in a cone of 1 degree.
+    // A footprint's share is flake_weight times its facets' shares against lambda (at most 1),
+    // reflected through the facets that reflect the view above the horizon (as the far look
+    // spreads the share of the flakes that do not over those that do); a footprint whose facets
+    // all reflect the view into the surface is those dark mirrors. (Scaling the lobe by the
+    // facets that reflect alone made a receding plane of facets about a pixel wide 0.61 of its
+    // far look at grazing views; showing the far look on the others made grey hexagons.)
     const double density = kTestDensity, weight = 0.3;
     const double facet = std::sqrt(weight / (density * std::sqrt(3.0) / 2.0));
     const double side = 0.75 * facet;
     const fl::FacetShape shape(fl::FacetKind::Hexagon);
-    auto m = flake_material(true,
-                            {{"gamma", {1.0}},
-                             {"flake_roughness", {0.3}},
-                             {"flake_size", {facet}},
-                             {"flake_weight", {weight}},
-                             {"shadowing", {0.0}}},
-                            {{"preset", "perfect"}, {"algorithm", "enumerate"}});
+    const FlakeParams params = {{"gamma", {1.0}},
+                                {"flake_roughness", {0.3}},
+                                {"flake_size", {facet}},
+                                {"flake_weight", {weight}},
+                                {"shadowing", {0.0}}};
+    auto m = flake_material(true, params, {{"preset", "perfect"}, {"algorithm", "enumerate"}});
     const Vec3 wo = dir(0.7f, 0.4f);
     const double lambda = density * side * side;
-    int mixed = 0, lit = 0;
-    for (uint64_t k = 0; k < 400 && mixed < 12; ++k) {
+    int mixed = 0, away = 0, lit = 0;
+    for (uint64_t k = 0; k < 1000 && (mixed < 12 || away < 8); ++k) {
         BsdfHarness::Point pt;
         pt.u = static_cast<float>(to_unit_double(hash2(12, 2 * k)) * 40.0);
         pt.v = static_cast<float>(to_unit_double(hash2(12, 2 * k + 1)) * 40.0);
@@ -315,35 +316,38 @@ TEST(FlakeFacets, AFootprintAcrossFacetsReflectsTheSharesOfThoseThatReflect) {
         });
         ASSERT_FALSE(truncated);
         // (A cone that reaches under the horizon reflects less: such footprints are left out.)
-        if (!(in > 0.0) || near_horizon) continue;
+        if (!(all > 0.0) || near_horizon) continue;
         ++lit;
-        if (all > in + 0.05) ++mixed;
+        if (in > 0.0 && all > in + 0.05) ++mixed;
+        if (!(in > 0.0)) ++away;
         m->prepare(wo, pt);
         const auto a = m->albedo(4000, k);
-        const double expected = std::min(1.0, weight * in / lambda);
+        const double expected = in > 0.0 ? std::min(1.0, weight * all / lambda) : 0.0;
         EXPECT_NEAR(a.mean, expected, 4.0 * a.se + 0.01)
             << "footprint " << k << ": shares " << in << " of " << all << " reflect";
     }
-    EXPECT_GE(mixed, 12);  // footprints across a facet that reflects and one that does not
-    EXPECT_GT(lit, mixed);
+    EXPECT_GE(mixed, 12);  // across a facet that reflects and one that does not
+    EXPECT_GE(away, 8);    // on facets that face away alone
+    EXPECT_GT(lit, mixed + away);
 }
 
-TEST(FlakeFacets, SharesAverageToTheirRuleAtEveryFacetSize) {
+TEST(FlakeFacets, FootprintsAverageToTheirRuleAtEveryFacetSize) {
     // Over many footprints, facets covering a tenth of the surface (density = flake_weight /
-    // facet area), rough flakes (0.6) at cos 0.2, where cache_share is about 0.55: what hides
-    // the base averages flake_weight at every facet size (base alone: white, flakes black), and
-    // the flakes' lobe (perfect white flakes, black base) the far look where facets are much
-    // smaller than the footprint (r, a facet's area over the footprint's: 1/256), cache_share
-    // of it where they are larger (r 4: facets that face away are dark mirrors), and between
-    // (r 1/8, the middle of the blend: beta 1/2) the mean of the two. Where facets are larger
-    // than the footprint, their overlaps (random places) cover (1 - e^-w) / w of w: 0.95 at w
-    // 0.1. Bound: 4 standard errors plus 2%.
+    // facet area), rough flakes (0.6) at cos 0.2, where only about 0.55 of the flakes reflect
+    // the view above the horizon: what hides the base averages flake_weight at every facet size
+    // (base alone: white, flakes black). The flakes (perfect white flakes, black base) reflect
+    // the far look where facets are much smaller than the footprint (r, a facet's area over
+    // the footprint's: 1/256); where they are larger, footprints inside a facet that faces away
+    // are dark mirrors, so the flakes reflect between cache_share and all of the far look (r 4,
+    // and r 1/8, the middle of the blend between the rules). Where facets are larger than the
+    // footprint, their overlaps (random places) cover (1 - e^-w) / w of w: 0.95 at w 0.1.
+    // Bound: 4 standard errors plus 2%.
     constexpr double kWeight = 0.1;
     const float alpha = 0.6f;
     const Vec3 wo = dir(0.2f, 0.3f);
     const double facet = std::sqrt(kWeight / (kTestDensity * std::sqrt(3.0) / 2.0));
     const double share = fl::cache_share_exact(alpha, wo.z);
-    ASSERT_LT(share, 0.7);  // the geometric rule differs from the far look
+    ASSERT_LT(share, 0.6);  // many flakes face away
     const FlakeParams common = {{"flake_weight", {kWeight}},
                                 {"flake_roughness", {alpha}},
                                 {"gamma", {3.0}},
@@ -384,20 +388,28 @@ TEST(FlakeFacets, SharesAverageToTheirRuleAtEveryFacetSize) {
         }
         const double overlap = c.r >= 1.0 ? -std::expm1(-kWeight) / kWeight : 1.0;
         const double hidden = kWeight * ((1.0 - c.beta) + c.beta * overlap);
-        const double want = limit * ((1.0 - c.beta) + c.beta * share * overlap);
         EXPECT_NEAR(mean[0], hidden, 4.0 * se[0] + 0.02 * hidden)
             << "base hidden, r " << c.r << ": " << mean[0] / kWeight << " of flake_weight";
-        EXPECT_NEAR(mean[1], want, 4.0 * se[1] + 0.02 * want)
-            << "flakes, r " << c.r << ": " << mean[1] / limit << " of the far look, cache_share "
-            << share;
+        const std::string what =
+            fmt::format("flakes, r {}: {} of the far look", c.r, mean[1] / limit);
+        if (c.beta == 0.0) {
+            EXPECT_NEAR(mean[1], limit, 4.0 * se[1] + 0.02 * limit) << what;
+        } else {
+            const double low = limit * ((1.0 - c.beta) + c.beta * share * overlap);
+            const double high = limit * ((1.0 - c.beta) + c.beta * overlap);
+            EXPECT_GE(mean[1], low - 4.0 * se[1] - 0.02 * low) << what;
+            EXPECT_LE(mean[1], high + 4.0 * se[1] + 0.02 * high) << what;
+        }
     }
 }
 
 TEST(FlakeFacets, NoFootprintGainsEnergy) {
     // Perfect white mirror facets, shadowing off, from footprints a tenth of a facet to many
     // facets wide, down to grazing views: each footprint's lobe is normalised by its facets'
-    // shares, so it reflects at most what it receives (the cache is sampled in proportion to
-    // its lobe: the estimate has float rounding's variance only).
+    // shares and the far look (which facets facing away show) reflects at most what it
+    // receives, so the footprint does too. The cache is sampled in proportion to its lobe (an
+    // estimate with float rounding's variance only); the far look's estimate has a spread of
+    // its own (4 standard errors of 4000 samples).
     const double facet = std::sqrt(0.5 / (kTestDensity * std::sqrt(3.0) / 2.0));
     for (double lambda : {0.05, 2.0, 60.0})
         for (float cos_o : {1.0f, 0.3f, 1e-3f}) {
@@ -409,10 +421,9 @@ TEST(FlakeFacets, NoFootprintGainsEnergy) {
                                     {{"preset", "perfect"}, {"algorithm", "enumerate"}});
             for (uint64_t k = 0; k < 40; ++k) {
                 m->prepare(dir(cos_o, 0.7f), random_footprint(lambda, 33, k));
-                double sum = 0.0;
-                for (const auto& s : m->sample(1000, k))
-                    if (s.flags != 0 && s.pdf > 0.0f) sum += s.f.y * s.wi.z / s.pdf;
-                EXPECT_LE(sum / 1000.0, 1.0 + 1e-4) << "lambda " << lambda << " cos_o " << cos_o;
+                const auto a = m->albedo(4000, k);
+                EXPECT_LE(a.mean, 1.0 + 4.0 * a.se + 1e-4)
+                    << "lambda " << lambda << " cos_o " << cos_o << " se " << a.se;
             }
         }
 }
