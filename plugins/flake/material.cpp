@@ -160,20 +160,6 @@ bool few_facets(const FieldParams& field, const Footprint& p, uint32_t limit) {
                               2.0 * static_cast<double>(limit);
 }
 
-/** W of c's discrete lobe: the cache's weights (stand-ins included) and the expected weight of
- *  the aggregated flakes the smooth lobe carries (each part reflects at most its weight); and the
- *  probability of sampling the cache: the cache by its luminance, the smooth part by its
- *  expected one, through the smooth lobe's proposal. */
-void lobe_norm(const Material& m, Closure& c) {
-    c.w_norm = c.lobe.w_sum + c.counted.smooth * c.w_expected;
-    float fr[3];
-    m.fresnel.eval(1.0f, fr);
-    float mean[3] = {m.colors.mean[0] * fr[0], m.colors.mean[1] * fr[1], m.colors.mean[2] * fr[2]};
-    const float agg_lum = c.counted.smooth * c.w_expected * std::max(1e-3f, luminance(mean));
-    const float total = c.lobe.lum_sum + agg_lum;
-    c.p_cache = total > 0.0f ? c.lobe.lum_sum / total : 1.0f;
-}
-
 /** The discrete part of a closure: the flakes of footprint p, by the material's algorithm.
  *  Returns false when the footprint is beyond the algorithm's bound (the smooth lobe takes over).
  */
@@ -197,7 +183,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         if (!kept(f.u, f.v, view.keep)) return;
         cover += f.cover;
         // A facet partly inside the footprint reflects as much of it as lies inside.
-        // Facets: marked where their centre lies in the footprint (facet_shares()).
+        // Facets: marked where their centre lies in the footprint (facet_share()).
         batch.add(c.wo, field.alpha, f.s, f.t, m.colors.pick(f.color_u, f.id),
                   &m.film.pick(f.id, m.fresnel), std::min(f.cover, 1.0f), scratch,
                   field.facet != nullptr && inside(p, f.u, f.v));
@@ -257,7 +243,17 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
                            : static_cast<float>(c.counted.aggregated));
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;
-    lobe_norm(m, c);
+    // W: the cache's weights (stand-ins included) and the expected weight of the aggregated
+    // flakes the smooth lobe carries: each part reflects at most its weight.
+    c.w_norm = c.lobe.w_sum + c.counted.smooth * c.w_expected;
+    // Sampling within the discrete part: the cache by its luminance, the smooth part by its
+    // expected one, through the smooth lobe's proposal.
+    float fr[3];
+    m.fresnel.eval(1.0f, fr);
+    float mean[3] = {m.colors.mean[0] * fr[0], m.colors.mean[1] * fr[1], m.colors.mean[2] * fr[2]};
+    const float agg_lum = c.counted.smooth * c.w_expected * std::max(1e-3f, luminance(mean));
+    const float total = c.lobe.lum_sum + agg_lum;
+    c.p_cache = total > 0.0f ? c.lobe.lum_sum / total : 1.0f;
     return true;
 }
 
@@ -415,7 +411,7 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
         // cells', the share their smooth part carries whole (it always reflects) and the rest,
         // real flakes as stand-ins, at cache_share too. With lambda alone a rough paint's sparse
         // flakes averaged 8% under w head-on and up to half at grazing. Both average to w as the
-        // footprint grows, and the smooth lobe keeps w. Facets: facet_shares().
+        // footprint grows, and the smooth lobe keeps w. Facets: facet_share().
         if (c.t < 1.0f && lambda > 0.0) {
             const double counted =
                 std::clamp(c.counted.expected * static_cast<double>(view.keep), 0.0, lambda);
@@ -429,15 +425,15 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
                                       : 0.0;
             const double counted_in = counted * (smooth + (1.0 - smooth) * share);
             const double found = counted_in + (lambda - counted) * share;
-            float hide = 0.0f;
+            float local = 0.0f;
             bool smooth_only = false;  // a footprint that holds none shows the far look's share
             if (m.facet && view.facet_size > 0.0) {
                 const double r =
                     view.facet_size * view.facet_size * m.facet->area / view.footprint.area();
                 const bool any = c.centres_in > 0 || (c.counted.aggregated > 0 && c.w_norm > 0.0f);
-                hide = facet_share(c, lambda, found, any, r);
+                local = facet_share(c, lambda, found, any, r);
             } else if (c.cover > 0.0f && c.w_norm > 0.0f) {  // holds a flake that wo sees
-                hide = std::min(
+                local = std::min(
                     1.0f, static_cast<float>(static_cast<double>(c.weight) / -std::expm1(-found)));
             } else if (const double any = -std::expm1(-found);
                        static_cast<double>(c.weight) > any && any < 1.0) {
@@ -449,13 +445,10 @@ void prepare_flakes(const Material& m, const PointInput& in, Closure& c, Spangle
                 // resolution showed more base (the snowman's snowfield, whose white base outshines
                 // its crystals, read 10% brighter in a band where lambda fell five times when
                 // footprints at grazing views stopped being widened).
-                const float spread =
-                    static_cast<float>((static_cast<double>(c.weight) - any) / (1.0 - any));
-                hide = spread;
+                local = static_cast<float>((static_cast<double>(c.weight) - any) / (1.0 - any));
                 smooth_only = true;
             }
-            const float w = c.weight;
-            if (hide != w) c.weight = (1.0f - c.t) * hide + c.t * w;
+            if (local != c.weight) c.weight = (1.0f - c.t) * local + c.t * c.weight;
             if (smooth_only) c.t = 1.0f;
         }
     }

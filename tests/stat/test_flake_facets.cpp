@@ -85,6 +85,24 @@ std::map<uint64_t, float> facets_in(const fl::FacetShape& shape, double facet, d
     return out;
 }
 
+/** Visits the facets reaching into the footprint of harness point pt (axis-aligned, dudx by
+ *  dvdy) in the field a facet material of density kTestDensity and roughness 0.3 lays out;
+ *  returns whether the visit was cut short. */
+template <class Visit>
+bool for_each_facet(const fl::FacetShape& shape, double facet, const BsdfHarness::Point& pt,
+                    Visit&& visit) {
+    fl::FieldParams fp;
+    fp.flakes_per_tile = kTestDensity;
+    fp.alpha = 0.3f;
+    fp.facet = &shape;
+    fp.facet_size = facet;
+    fl::Footprint p = fl::make_footprint(pt.u, pt.v, pt.dudx, 0.0, 0.0, pt.dvdy, 1.0);
+    p.reach = facet * shape.radius;
+    bool truncated = false;
+    fl::for_each_flake(fp, p, 1000, truncated, visit);
+    return truncated;
+}
+
 TEST(FlakeFacets, SharesAreNestedAndAverageToTheExpectedCount) {
     // A footprint inside another sees each facet at most as much; over random footprints the
     // shares add up to lambda on average (a facet's area is counted once wherever it falls), for
@@ -249,15 +267,8 @@ TEST(FlakeFacets, AFootprintInsideAFacetSeesThatMirrorAndOneBetweenThemTheBase) 
         pt.u = static_cast<float>(to_unit_double(hash2(9, 2 * k)) * 40.0);
         pt.v = static_cast<float>(to_unit_double(hash2(9, 2 * k + 1)) * 40.0);
         pt.dudx = pt.dvdy = static_cast<float>(facet * 0.01);
-        fl::FieldParams fp;
-        fp.flakes_per_tile = density;
-        fp.alpha = 0.3f;
-        fp.facet = &shape;
-        fp.facet_size = facet;
-        fl::Footprint p = fl::make_footprint(pt.u, pt.v, pt.dudx, 0.0, 0.0, pt.dvdy, 1.0);
-        p.reach = facet * shape.radius;
-        bool truncated = false, any = false;
-        fl::for_each_flake(fp, p, 1000, truncated, [&](const fl::Flake&) { any = true; });
+        bool any = false;
+        for_each_facet(shape, facet, pt, [&](const fl::Flake&) { any = true; });
         if (any) continue;
         ++between;
         m->prepare(wo, pt);
@@ -297,17 +308,9 @@ TEST(FlakeFacets, AFootprintAcrossFacetsReflectsItsShareThroughThoseThatReflect)
         pt.v = static_cast<float>(to_unit_double(hash2(12, 2 * k + 1)) * 40.0);
         pt.dudx = pt.dvdy = static_cast<float>(side);
         // The footprint's facets, their shares and whether each reflects wo above the horizon.
-        fl::FieldParams fp;
-        fp.flakes_per_tile = density;
-        fp.alpha = 0.3f;
-        fp.facet = &shape;
-        fp.facet_size = facet;
-        fl::Footprint p = fl::make_footprint(pt.u, pt.v, pt.dudx, 0.0, 0.0, pt.dvdy, 1.0);
-        p.reach = facet * shape.radius;
-        bool truncated = false;
         double all = 0.0, in = 0.0;
         bool near_horizon = false;
-        fl::for_each_flake(fp, p, 1000, truncated, [&](const fl::Flake& f) {
+        const bool truncated = for_each_facet(shape, facet, pt, [&](const fl::Flake& f) {
             const float c = f.m.x * wo.x + f.m.y * wo.y + f.m.z * wo.z;
             all += f.cover;
             const float rz = 2.0f * c * f.m.z - wo.z;
