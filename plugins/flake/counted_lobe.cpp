@@ -83,13 +83,11 @@ constexpr int kClassSpan = 4;
 /** The densest class stand-ins take (blocks 2^-(kMaxClass + 3) of a tile wide). */
 constexpr int kMaxClass = 25;
 
-/** Scratch of add_stand_ins, one per thread, grown as needed: the candidates (a structure of
- *  arrays, so that their hashes, places and inside tests are one loop of the same arithmetic) and
- *  those kept. */
+/** Scratch of add_stand_ins, one per thread, grown as needed: the candidates inside P (a
+ *  structure of arrays) and those kept. */
 struct StandInScratch {
     std::vector<uint64_t> hash;       ///< a candidate's own hash
     std::vector<double> x, y;         ///< its place in the tile
-    std::vector<uint8_t> in;          ///< whether it lies inside P
     std::vector<uint64_t> kept_hash;  ///< those inside an aggregate's cell: own hash,
     std::vector<uint8_t> kept_agg;    ///< and the aggregate
     std::vector<uint64_t> found;      ///< the hashes kept, per aggregate
@@ -99,7 +97,6 @@ struct StandInScratch {
         hash.resize(n);
         x.resize(n);
         y.resize(n);
-        in.resize(n);
     }
 };
 
@@ -164,17 +161,24 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
         local.cv -= static_cast<double>(ag.ty);
         const double hx = 0.5 * (std::fabs(local.ax) + std::fabs(local.bx)),
                      hy = 0.5 * (std::fabs(local.ay) + std::fabs(local.by));
-        // The candidates of every class, block by block: their hashes and places, then the
-        // inside tests in a loop of floating-point arithmetic alone (vector code; a branch on
-        // whether one lies inside was mispredicted for half of them).
+        // The candidates of every class, block by block, along each row of blocks only those
+        // under P's span in that row (a turned or needle-shaped footprint's bounding box holds
+        // up to several times the blocks that meet it): their hashes and places, kept where they
+        // lie inside P, tested without a branch (a branch on it was mispredicted for half of
+        // them) and compacted as they are made.
         uint32_t m = 0;
+        const StripSpan span(local);
+        const double i00 = local.i00, i01 = local.i01, i10 = local.i10, i11 = local.i11;
+        const double cu = local.cu, cv = local.cv;
         for (int c = lowest; c <= top; ++c) {
             const double block = pow2_neg(c + 3);
             const double blocks = 1.0 / block;
             // Blocks under P's bounding box within the tile (a centre that is not finite gives
             // block 0, none of whose flakes lies inside).
+            // (x / block is x * blocks exactly: both are powers of two; and the floor of a
+            // number from 0 up is its truncation, a conversion, where floor was a libm call.)
             const auto index = [&](double x) {
-                const double f = std::floor(x / block);
+                const double f = x * blocks;
                 return f >= 0.0 ? static_cast<int64_t>(std::min(f, blocks - 1.0)) : int64_t{0};
             };
             const int64_t bx0 = index(local.cu - hx), bx1 = index(local.cu + hx),
@@ -198,8 +202,13 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
             uint64_t* chash = sc.hash.data();
             double* cx = sc.x.data();
             double* cy = sc.y.data();
-            for (int64_t by = by0; by <= by1; ++by)
-                for (int64_t bx = bx0; bx <= bx1; ++bx) {
+            for (int64_t by = by0; by <= by1; ++by) {
+                double sx0 = 0.0, sx1 = 0.0;
+                if (!span.at(static_cast<double>(by) * block, static_cast<double>(by + 1) * block,
+                             sx0, sx1))
+                    continue;
+                const int64_t rx0 = std::max(bx0, index(sx0)), rx1 = std::min(bx1, index(sx1));
+                for (int64_t bx = rx0; bx <= rx1; ++bx) {
                     const uint64_t bkey = block_key(ckey, bx, by);
                     const uint32_t count = law.count(bkey);
                     if (m + count > room) {
@@ -209,49 +218,55 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
                         cx = sc.x.data();
                         cy = sc.y.data();
                     }
-                    for (uint32_t i = 0; i < count; ++i)
-                        chash[m + i] =
-                            class_flake_position(bkey, i, bx, by, block, cx[m + i], cy[m + i]);
-                    m += count;
+                    for (uint32_t i = 0; i < count; ++i) {
+                        double x, y;
+                        chash[m] = class_flake_position(bkey, i, bx, by, block, x, y);
+                        cx[m] = x;
+                        cy[m] = y;
+                        const double du = x - cu, dv = y - cv;
+                        const double s_ = i00 * du + i01 * dv, t_ = i10 * du + i11 * dv;
+                        m += static_cast<uint32_t>((std::fabs(s_) <= 0.5) & (std::fabs(t_) <= 0.5));
+                    }
                 }
+            }
+        }
+        if (m == 0) continue;
+        if (sc.kept_hash.size() < n_kept + m) {
+            sc.kept_hash.resize(2 * (n_kept + m));
+            sc.kept_agg.resize(2 * (n_kept + m));
         }
         const double* const cx = sc.x.data();
         const double* const cy = sc.y.data();
-        uint8_t* const cin = sc.in.data();
-        const double cu = local.cu, cv = local.cv;
-        const double i00 = local.i00, i01 = local.i01, i10 = local.i10, i11 = local.i11;
-        uint32_t n_in = 0;
-        for (uint32_t j = 0; j < m; ++j) {
-            const double du = cx[j] - cu, dv = cy[j] - cv;
-            const double s_ = i00 * du + i01 * dv, t_ = i10 * du + i11 * dv;
-            const uint8_t in =
-                static_cast<uint8_t>((std::fabs(s_) <= 0.5) & (std::fabs(t_) <= 0.5));
-            cin[j] = in;
-            n_in += in;
-        }
-        if (n_in == 0) continue;
-        if (sc.kept_hash.size() < n_kept + n_in) {
-            sc.kept_hash.resize(2 * (n_kept + n_in));
-            sc.kept_agg.resize(2 * (n_kept + n_in));
-        }
         const uint64_t* const chash = sc.hash.data();
+        // Each inside candidate is kept for the first of this tile's aggregates whose cell holds
+        // it (cells of other tiles, or cells the tree enumerates, have their own flakes), found
+        // without a branch: whether a candidate lies in a cell is a coin toss along its edges.
+        uint32_t local_agg[4];
+        double gx0[4], gy0[4], gx1[4], gy1[4];
+        uint32_t n_local = 0;
+        for (uint32_t b = a; b < cf.n_agg && n_local < 4; ++b) {
+            const Aggregate& g = cf.agg[b];
+            if (g.tx != ag.tx || g.ty != ag.ty) continue;
+            local_agg[n_local] = b;
+            gx0[n_local] = g.x0;
+            gy0[n_local] = g.y0;
+            gx1[n_local] = g.x0 + g.size;
+            gy1[n_local++] = g.y0 + g.size;
+        }
+        uint64_t* const kh = sc.kept_hash.data();
+        uint8_t* const ka = sc.kept_agg.data();
         for (uint32_t j = 0; j < m; ++j) {
-            if (!cin[j]) continue;
-            if (keep < 1.0f &&
-                !kept(cx[j] + static_cast<double>(ag.tx), cy[j] + static_cast<double>(ag.ty), keep))
-                continue;
-            // The aggregate whose cell holds it (cells of other tiles, or cells the tree
-            // enumerates, have their own flakes).
             const double x = cx[j], y = cy[j];
-            for (uint32_t b = a; b < cf.n_agg; ++b) {
-                const Aggregate& g = cf.agg[b];
-                if (g.tx == ag.tx && g.ty == ag.ty && x >= g.x0 && x < g.x0 + g.size && y >= g.y0 &&
-                    y < g.y0 + g.size) {
-                    sc.kept_hash[n_kept] = chash[j];
-                    sc.kept_agg[n_kept++] = static_cast<uint8_t>(b);
-                    break;
-                }
+            uint32_t which = n_local;
+            for (uint32_t q = n_local; q-- > 0;) {
+                const bool in_cell = (x >= gx0[q]) & (x < gx1[q]) & (y >= gy0[q]) & (y < gy1[q]);
+                which = in_cell ? q : which;
             }
+            const bool survives = keep >= 1.0f || kept(x + static_cast<double>(ag.tx),
+                                                       y + static_cast<double>(ag.ty), keep);
+            kh[n_kept] = chash[j];
+            ka[n_kept] = static_cast<uint8_t>(local_agg[which < n_local ? which : 0]);
+            n_kept += static_cast<uint32_t>((which < n_local) & survives);
         }
     }
     // A stand-in's own hash picks its colour and film; with neither table (one colour, no film)
@@ -259,12 +274,16 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
     const bool own = colors.varies() || film.varies();
     // The kept candidates grouped by aggregate (a counting sort: a scan of all of them per
     // aggregate was a seventh of a counted footprint's time).
+    // (One aggregate, most footprints: they are grouped already.)
     uint32_t start[kMaxAggregates + 1] = {};
-    for (uint32_t j = 0; j < n_kept; ++j) ++start[sc.kept_agg[j] + 1];
-    for (uint32_t a = 0; a < kMaxAggregates; ++a) start[a + 1] += start[a];
-    if (sc.found.size() < n_kept) sc.found.resize(n_kept);
-    uint64_t* const grouped = sc.found.data();
-    {
+    uint64_t* grouped = sc.kept_hash.data();
+    if (cf.n_agg == 1) {
+        start[1] = n_kept;
+    } else {
+        for (uint32_t j = 0; j < n_kept; ++j) ++start[sc.kept_agg[j] + 1];
+        for (uint32_t a = 0; a < kMaxAggregates; ++a) start[a + 1] += start[a];
+        if (sc.found.size() < n_kept) sc.found.resize(n_kept);
+        grouped = sc.found.data();
         uint32_t pos[kMaxAggregates];
         std::copy(start, start + kMaxAggregates, pos);
         for (uint32_t j = 0; j < n_kept; ++j) grouped[pos[sc.kept_agg[j]]++] = sc.kept_hash[j];
@@ -273,6 +292,7 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
     EntryBatch batch;
     FieldParams lazy = fp;
     lazy.lazy_normals = true;
+    lazy.flake_ids = own;
     for (uint32_t a = 0; a < cf.n_agg; ++a) {
         const uint32_t k = cf.agg[a].count;
         const uint32_t room = std::min(k, cap - found_all);

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <vector>
 
 namespace spangle::flake {
@@ -58,6 +59,47 @@ bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1) {
         // (The reach's term only where there is one: hypot is a libm call.)
         if (d > rp + rc + (p.reach > 0.0 ? p.reach * std::hypot(nx, ny) : 0.0)) return false;
     }
+    return true;
+}
+
+StripSpan::StripSpan(const Footprint& p) {
+    // P is the intersection of the slabs |s| <= 1/2 and |t| <= 1/2, s = i00 du + i01 dv and
+    // t = i10 du + i11 dv: in a row of y, each is an interval of x about a centre linear in y.
+    const double di[2] = {p.i00, p.i10}, dj[2] = {p.i01, p.i11};
+    for (int k = 0; k < 2; ++k) {
+        Slab& s = slab[k];
+        if (di[k] != 0.0) {
+            s.slope = -dj[k] / di[k];
+            s.half = 0.5 / std::fabs(di[k]);
+        } else {
+            // Parallel to x: it bounds y alone (every y when P is singular, where both are 0).
+            s.bounds_x = false;
+            s.half =
+                dj[k] != 0.0 ? 0.5 / std::fabs(dj[k]) : std::numeric_limits<double>::infinity();
+        }
+    }
+    cu = p.cu;
+    cv = p.cv;
+    half_width = 0.5 * (std::fabs(p.ax) + std::fabs(p.bx));
+    margin = 1e-6 * (std::fabs(p.ax) + std::fabs(p.bx));
+}
+
+bool StripSpan::at(double y0, double y1, double& x0, double& x1) const {
+    // (Within P's bounding box: the slabs' ranges over a tall row can reach beyond it.)
+    double lo = cu - half_width, hi = cu + half_width;
+    for (const Slab& s : slab) {
+        if (s.bounds_x) {
+            const double c0 = cu + s.slope * (y0 - cv), c1 = cu + s.slope * (y1 - cv);
+            lo = std::max(lo, std::min(c0, c1) - s.half);
+            hi = std::min(hi, std::max(c0, c1) + s.half);
+        } else if (y1 < cv - s.half || y0 > cv + s.half) {
+            return false;
+        }
+    }
+    // (Not a number anywhere: no point of P.)
+    if (!(lo - margin <= hi + margin)) return false;
+    x0 = lo - margin;
+    x1 = hi + margin;
     return true;
 }
 

@@ -107,6 +107,26 @@ inline bool inside(const Footprint& p, double u, double v) {
  *  exact for a parallelogram and a box when the reach is 0, conservative otherwise). */
 bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1);
 
+/** The x-range of P's points in a row of y: P is the intersection of two slabs (|s| <= 1/2 and
+ *  |t| <= 1/2), and the row's range is taken as the intersection of theirs and of P's bounding
+ *  box: a range holding all of P's points in the row (P's reach left out), widened by a
+ *  millionth of P's width against rounding. Cheap per row: loops over rows of blocks skip those
+ * beyond it. */
+struct StripSpan {
+    explicit StripSpan(const Footprint& p);
+    /** The range [x0, x1] for the rows y in [y0, y1]; false where P has no point there. */
+    bool at(double y0, double y1, double& x0, double& x1) const;
+
+private:
+    struct Slab {
+        bool bounds_x = true;
+        double slope = 0;  ///< its centre's x moves by this per unit of y (from (cu, cv))
+        double half = 0;   ///< its half width in x (in y, where it does not bound x)
+    };
+    Slab slab[2];
+    double cu = 0, cv = 0, half_width = 0, margin = 0;
+};
+
 /** Whether the cell lies entirely inside P. */
 bool contains(const Footprint& p, double x0, double y0, double x1, double y1);
 
@@ -136,6 +156,9 @@ struct FieldParams {
     /** Leave Flake::m unset (its caller computes the normals of many flakes at once from
      *  Flake::s, t). */
     bool lazy_normals = false;
+    /** Set Flake::id and color_u of the class flakes (a hash more each): false where neither
+     *  is read (one colour and no film). */
+    bool flake_ids = true;
 };
 
 /** Deterministic binomial B(n, p) from a uniform u: exact inversion of the CDF when n is below
@@ -276,11 +299,11 @@ struct PoissonCdf {
      *  block was mispredicted as often as not. */
     uint32_t count(uint64_t bkey) const {
         const double u = unit(bkey);
-        // How many of cdf[0 .. 6] are at most u, by a search of three steps without branches;
-        // seven and more (3.4% at mean 3) counted on.
-        uint32_t k = u >= cdf[3] ? 4u : 0u;
-        k += u >= cdf[k + 1] ? 2u : 0u;
-        k += u >= cdf[k] ? 1u : 0u;
+        // How many of cdf[0 .. 6] are at most u (the cdf rises: the count is the search's
+        // answer), as seven independent comparisons added up; seven and more (3.4% at mean 3)
+        // counted on. (A search of three dependent steps compiled to branches on each.)
+        uint32_t k = 0;
+        for (uint32_t j = 0; j < 7; ++j) k += u >= cdf[j] ? 1u : 0u;
         if (k == 7)
             for (uint32_t j = 7; j < kClassMaxPerBlock; ++j) k += u >= cdf[j] ? 1u : 0u;
         return k;
@@ -332,6 +355,7 @@ inline void class_flake_finish(const FieldParams& fp, uint64_t h, Flake& f) {
     const uint64_t g = mix(h, 0x5eed);
     unit2(g, f.s, f.t);
     if (!fp.lazy_normals) f.m = flake_normal(fp.alpha, f.s, f.t);
+    if (!fp.flake_ids) return;
     f.id = mix(g, 0xc0);
     f.color_u = static_cast<float>(f.id >> 40) * 0x1p-24f;
 }
@@ -415,11 +439,15 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
         return;
     }
     double candidates = 0.0;
+    const StripSpan span(local);
     for (int c = 0; c <= cl.last; ++c) {
         const double block = pow2_neg(c + 3);
-        const double last_block = 1.0 / block - 1.0;
+        const double blocks = 1.0 / block, last_block = blocks - 1.0;
+        // (x / block is x * blocks exactly, both powers of two; the floor of a number from 0 up
+        // is its truncation.)
         const auto index = [&](double x) {
-            return static_cast<int64_t>(std::clamp(std::floor(x / block), 0.0, last_block));
+            const double f = x * blocks;
+            return f >= 0.0 ? static_cast<int64_t>(std::min(f, last_block)) : int64_t{0};
         };
         const int64_t bx0 = index(lx), bx1 = index(ux), by0 = index(ly), by1 = index(uy);
         const double mean = cl.mean(c);
@@ -436,8 +464,19 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
             return;
         }
         const uint64_t ck = class_key(tile, c);
-        for (int64_t by = by0; by <= by1; ++by)
-            for (int64_t bx = bx0; bx <= bx1; ++bx) {
+        for (int64_t by = by0; by <= by1; ++by) {
+            // Point flakes: only the blocks of the row under P's span in it (a turned or
+            // needle-shaped P's bounding box holds several times the blocks that meet it).
+            int64_t rx0 = bx0, rx1 = bx1;
+            if (!fp.facet) {
+                double sx0 = 0.0, sx1 = 0.0;
+                if (!span.at(static_cast<double>(by) * block, static_cast<double>(by + 1) * block,
+                             sx0, sx1))
+                    continue;
+                rx0 = std::max(rx0, index(sx0));
+                rx1 = std::min(rx1, index(sx1));
+            }
+            for (int64_t bx = rx0; bx <= rx1; ++bx) {
                 const uint64_t bk = block_key(ck, bx, by);
                 const uint32_t count = law.count(bk);
                 // Which of the block's flakes lie in the box, the region and P, tested without
@@ -466,6 +505,7 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
                     if (!emit(f, hs[j])) return;
                 }
             }
+        }
     }
 }
 

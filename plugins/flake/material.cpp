@@ -176,8 +176,10 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     }
     const Footprint& p = view.footprint;
     float cover = 0.0f;
-    // The flakes' entries are made a batch at a time (their normals in vector code).
+    // The flakes' entries are made a batch at a time (their normals in vector code); their ids
+    // pick colours and films, where those vary.
     field.lazy_normals = true;
+    field.flake_ids = m.colors.varies() || m.film.varies();
     EntryBatch batch;
     const auto add = [&](const Flake& f) {
         if (!kept(f.u, f.v, view.keep)) return;

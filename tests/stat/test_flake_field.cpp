@@ -249,6 +249,55 @@ TEST(FlakeField, OverlapAreaMatchesMonteCarlo) {
     }
 }
 
+TEST(FlakeField, StripSpanHoldsEveryPointOfTheFootprintInItsRow) {
+    // Loops over rows of class blocks visit only the blocks under StripSpan's range: it must hold
+    // every point of P in the row (points missed would be flakes lost), and for a turned needle
+    // it must be far narrower than P's bounding box (the reason for it).
+    for (int t = 0; t < 300; ++t) {
+        const auto r = [&](int k) {
+            return to_unit_double(hash2(61 + k, static_cast<uint64_t>(t)));
+        };
+        // Footprints of every shape up to the needles of the largest axis ratio.
+        const double len = 0.3 * r(2), ang = 6.2831853 * r(3), thin = len * std::pow(0.02, r(4));
+        const Footprint p =
+            flake::make_footprint(r(0), r(1), len * std::cos(ang), len * std::sin(ang),
+                                  -thin * std::sin(ang) * r(5), thin * std::cos(ang), 1.0);
+        const flake::StripSpan span(p);
+        const double hy = p.half_height();
+        for (int row = 0; row < 20; ++row) {
+            const double y0 = p.cv - 1.2 * hy + 2.4 * hy * to_unit_double(hash2(71, 20 * t + row));
+            const double y1 = y0 + 0.3 * hy * to_unit_double(hash2(72, 20 * t + row));
+            double x0 = 0.0, x1 = 0.0;
+            const bool any = span.at(y0, y1, x0, x1);
+            // Points of P: a grid over (s, t), its edges and corners included.
+            for (int i = 0; i <= 40; ++i)
+                for (int j = 0; j <= 40; ++j) {
+                    const double s = i / 40.0 - 0.5, q = j / 40.0 - 0.5;
+                    const double u = p.cu + s * p.ax + q * p.bx, v = p.cv + s * p.ay + q * p.by;
+                    if (v < y0 || v > y1) continue;
+                    ASSERT_TRUE(any) << "trial " << t << " row " << row;
+                    ASSERT_GE(u, x0) << "trial " << t << " row " << row;
+                    ASSERT_LE(u, x1) << "trial " << t << " row " << row;
+                }
+            // Never a range beyond P's bounding box (but for the margin against rounding, a
+            // millionth of its width).
+            if (any) {
+                const double margin = 2e-6 * p.half_width();
+                EXPECT_GE(x0, p.cu - p.half_width() - margin) << "trial " << t;
+                EXPECT_LE(x1, p.cu + p.half_width() + margin) << "trial " << t;
+            }
+        }
+    }
+    // A needle at 45 degrees, 32 times as long as it is wide: a thin row through its middle is a
+    // small part of its bounding box's width; a row beyond it has no range.
+    const Footprint needle = flake::make_footprint(0.5, 0.5, 0.2, 0.2, -0.00625, 0.00625, 1.0);
+    const flake::StripSpan span(needle);
+    double x0 = 0.0, x1 = 0.0;
+    ASSERT_TRUE(span.at(0.495, 0.505, x0, x1));
+    EXPECT_LT(x1 - x0, 0.25 * 2.0 * needle.half_width());
+    EXPECT_FALSE(span.at(0.75, 0.8, x0, x1));
+}
+
 TEST(FlakeNormals, SquareMapRoundTrips) {
     for (float alpha : {0.001f, 0.15f, 1.0f})
         for (int i = 0; i < 20000; ++i) {
