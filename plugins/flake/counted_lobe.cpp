@@ -191,7 +191,7 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
             // Below top: the field's whole classes, its last (perhaps partial) one, the virtual
             // ones beyond; top: its own share's law.
             PoissonCdf last_law;
-            if (c < top && c == cl.last) last_law = PoissonCdf(cl.mean(c));
+            if (c < top && c == cl.last) last_law = poisson_law(cl.mean(c));
             const PoissonCdf& law = c < top ? (c == cl.last ? last_law : kWholeClass) : top_law;
             const uint64_t ckey = class_key(ag.tile, c);
             // Room for 8 a block (a count above 7 is rare: grown then), through plain pointers
@@ -241,6 +241,7 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
         // Each inside candidate is kept for the first of this tile's aggregates whose cell holds
         // it (cells of other tiles, or cells the tree enumerates, have their own flakes), found
         // without a branch: whether a candidate lies in a cell is a coin toss along its edges.
+        // (At most 4: gather_cells gives a tile at most 2 x 2 cells of the footprint's level.)
         uint32_t local_agg[4];
         double gx0[4], gy0[4], gx1[4], gy1[4];
         uint32_t n_local = 0;

@@ -84,25 +84,6 @@ StripSpan::StripSpan(const Footprint& p) {
     margin = 1e-6 * (std::fabs(p.ax) + std::fabs(p.bx));
 }
 
-bool StripSpan::at(double y0, double y1, double& x0, double& x1) const {
-    // (Within P's bounding box: the slabs' ranges over a tall row can reach beyond it.)
-    double lo = cu - half_width, hi = cu + half_width;
-    for (const Slab& s : slab) {
-        if (s.bounds_x) {
-            const double c0 = cu + s.slope * (y0 - cv), c1 = cu + s.slope * (y1 - cv);
-            lo = std::max(lo, std::min(c0, c1) - s.half);
-            hi = std::min(hi, std::max(c0, c1) + s.half);
-        } else if (y1 < cv - s.half || y0 > cv + s.half) {
-            return false;
-        }
-    }
-    // (Not a number anywhere: no point of P.)
-    if (!(lo - margin <= hi + margin)) return false;
-    x0 = lo - margin;
-    x1 = hi + margin;
-    return true;
-}
-
 bool contains(const Footprint& p, double x0, double y0, double x1, double y1) {
     return inside(p, x0, y0) && inside(p, x1, y0) && inside(p, x0, y1) && inside(p, x1, y1);
 }
@@ -337,6 +318,21 @@ PoissonCdf::PoissonCdf(double mean) {
 }
 
 const PoissonCdf kWholeClass(kClassMean);
+
+PoissonCdf poisson_law(double mean) {
+    struct Kept {
+        double mean = -1.0;
+        PoissonCdf law;
+    };
+    thread_local Kept kept_law;
+    Kept& k = kept_law;  // (one __tls_get_addr)
+    // (A mean that is not a number is never equal to itself: made each time, as before.)
+    if (!(k.mean == mean)) {
+        k.law = PoissonCdf(mean);
+        k.mean = mean;
+    }
+    return k.law;
+}
 
 ClassLayout class_layout(const FieldParams& fp) {
     ClassLayout cl;

@@ -110,8 +110,9 @@ bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1);
 /** The x-range of P's points in a row of y: P is the intersection of two slabs (|s| <= 1/2 and
  *  |t| <= 1/2), and the row's range is taken as the intersection of theirs and of P's bounding
  *  box: a range holding all of P's points in the row (P's reach left out), widened by a
- *  millionth of P's width against rounding. Cheap per row: loops over rows of blocks skip those
- * beyond it. */
+ *  millionth of P's width, and each slab by far more than its rounding and the inside test's,
+ *  so that no point inside_nonsingular() accepts falls outside it. Cheap per row: loops over rows
+ * of blocks skip those beyond it. */
 struct StripSpan {
     explicit StripSpan(const Footprint& p);
     /** The range [x0, x1] for the rows y in [y0, y1]; false where P has no point there. */
@@ -126,6 +127,33 @@ private:
     Slab slab[2];
     double cu = 0, cv = 0, half_width = 0, margin = 0;
 };
+
+inline bool StripSpan::at(double y0, double y1, double& x0, double& x1) const {
+    // (Within P's bounding box: the slabs' ranges over a tall row can reach beyond it.)
+    double lo = cu - half_width, hi = cu + half_width;
+    for (const Slab& s : slab) {
+        if (s.bounds_x) {
+            const double d0 = y0 - cv, d1 = y1 - cv;
+            const double c0 = cu + s.slope * d0, c1 = cu + s.slope * d1;
+            // Against the rounding of these sums and of the inside test's own (which adds
+            // i01 dv to i00 du): far more than either's error, far less than a block.
+            const double err =
+                1e-12 *
+                (std::fabs(cu) + std::fabs(s.slope) * (std::fabs(d0) + std::fabs(d1)) + s.half);
+            lo = std::max(lo, std::min(c0, c1) - s.half - err);
+            hi = std::min(hi, std::max(c0, c1) + s.half + err);
+        } else {
+            // A slab that bounds y alone, widened alike (t = i11 dv rounds too).
+            const double err = 1e-6 * s.half + 1e-12 * std::fabs(cv);
+            if (y1 < cv - s.half - err || y0 > cv + s.half + err) return false;
+        }
+    }
+    // (Not a number anywhere: no point of P.)
+    if (!(lo - margin <= hi + margin)) return false;
+    x0 = lo - margin;
+    x1 = hi + margin;
+    return true;
+}
 
 /** Whether the cell lies entirely inside P. */
 bool contains(const Footprint& p, double x0, double y0, double x1, double y1);
@@ -313,6 +341,11 @@ struct PoissonCdf {
 /** The law of a whole class's blocks (mean kClassMean). */
 extern const PoissonCdf kWholeClass;
 
+/** PoissonCdf(mean), kept per thread for the last mean asked: a layout's last, partial class has
+ *  the same mean at every footprint of a material, and its table (24 divisions and an exp) was
+ *  made again for each. */
+PoissonCdf poisson_law(double mean);
+
 /** How a tile's flakes are shared between the classes and the quad-tree. */
 struct ClassLayout {
     int last = -1;            ///< classes 0 .. last exist (none when -1)
@@ -454,7 +487,7 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
         // (The last class's law tabulated here: a layout is made per footprint, and most
         // footprints the counting algorithm does not enumerate.)
         PoissonCdf last_law;
-        if (c == cl.last) last_law = PoissonCdf(mean);
+        if (c == cl.last) last_law = poisson_law(mean);
         const PoissonCdf& law = c < cl.last ? kWholeClass : last_law;
         // (Too many candidates: a needle's bounding box.)
         candidates +=

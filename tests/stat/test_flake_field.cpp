@@ -288,6 +288,44 @@ TEST(FlakeField, StripSpanHoldsEveryPointOfTheFootprintInItsRow) {
             }
         }
     }
+    // Footprints whose edges meet a row's edge to the last bit, where the slabs' arithmetic and
+    // the inside test's round differently (found in review): every point the inside test
+    // accepts on the row's edges lies in the range. One axis-aligned (its t slab bounds y
+    // alone) and one with an edge nearly parallel to x (a slope of 2^58).
+    const auto with_inverse = [](double cu, double cv, double ax, double ay, double bx, double by) {
+        Footprint p;
+        p.cu = cu;
+        p.cv = cv;
+        p.ax = ax;
+        p.ay = ay;
+        p.bx = bx;
+        p.by = by;
+        const double det = ax * by - ay * bx;
+        p.i00 = by / det;
+        p.i01 = -bx / det;
+        p.i10 = -ay / det;
+        p.i11 = ax / det;
+        return p;
+    };
+    const Footprint edges[] = {with_inverse(0.5, 0x1p-54, 1.0, 0.0, 0.0, 1.0 - 0x1p-53),
+                               with_inverse(0.5, 0.5, 0.0, 0.25, -0.25, 0x1p-60)};
+    for (const Footprint& p : edges) {
+        const flake::StripSpan span(p);
+        for (double block : {0.125, 0.0625, 0.03125})
+            for (int by = 0; by < static_cast<int>(1.0 / block); ++by) {
+                const double y0 = by * block, y1 = (by + 1) * block;
+                double x0 = 0.0, x1 = 0.0;
+                const bool any = span.at(y0, y1, x0, x1);
+                for (const double y : {y0, std::nextafter(y0, 1.0), std::nextafter(y1, 0.0)})
+                    for (int i = 0; i <= 512; ++i) {
+                        const double x = p.cu - p.half_width() + 2.0 * p.half_width() * i / 512.0;
+                        if (!flake::inside_nonsingular(p, x, y)) continue;
+                        ASSERT_TRUE(any) << "row " << y0 << " point " << x << ", " << y;
+                        ASSERT_GE(x, x0);
+                        ASSERT_LE(x, x1);
+                    }
+            }
+    }
     // A needle at 45 degrees, 32 times as long as it is wide: a thin row through its middle is a
     // small part of its bounding box's width; a row beyond it has no range.
     const Footprint needle = flake::make_footprint(0.5, 0.5, 0.2, 0.2, -0.00625, 0.00625, 1.0);
