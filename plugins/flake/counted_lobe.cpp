@@ -168,21 +168,15 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
         // them) and compacted as they are made.
         uint32_t m = 0;
         const StripSpan span(local);
-        const double i00 = local.i00, i01 = local.i01, i10 = local.i10, i11 = local.i11;
-        const double cu = local.cu, cv = local.cv;
         for (int c = lowest; c <= top; ++c) {
             const double block = pow2_neg(c + 3);
             const double blocks = 1.0 / block;
             // Blocks under P's bounding box within the tile (a centre that is not finite gives
             // block 0, none of whose flakes lies inside).
-            // (x / block is x * blocks exactly: both are powers of two; and the floor of a
-            // number from 0 up is its truncation, a conversion, where floor was a libm call.)
-            const auto index = [&](double x) {
-                const double f = x * blocks;
-                return f >= 0.0 ? static_cast<int64_t>(std::min(f, blocks - 1.0)) : int64_t{0};
-            };
-            const int64_t bx0 = index(local.cu - hx), bx1 = index(local.cu + hx),
-                          by0 = index(local.cv - hy), by1 = index(local.cv + hy);
+            const int64_t bx0 = block_index(local.cu - hx, blocks),
+                          bx1 = block_index(local.cu + hx, blocks),
+                          by0 = block_index(local.cv - hy, blocks),
+                          by1 = block_index(local.cv + hy, blocks);
             // A bound on the work (a needle's bounding box): 64 x 64 blocks.
             const int64_t n_blocks = (bx1 - bx0 + 1) * (by1 - by0 + 1);
             if (n_blocks > 4096) continue;
@@ -203,11 +197,8 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
             double* cx = sc.x.data();
             double* cy = sc.y.data();
             for (int64_t by = by0; by <= by1; ++by) {
-                double sx0 = 0.0, sx1 = 0.0;
-                if (!span.at(static_cast<double>(by) * block, static_cast<double>(by + 1) * block,
-                             sx0, sx1))
-                    continue;
-                const int64_t rx0 = std::max(bx0, index(sx0)), rx1 = std::min(bx1, index(sx1));
+                int64_t rx0 = bx0, rx1 = bx1;
+                if (!span.row_blocks(by, block, rx0, rx1)) continue;
                 for (int64_t bx = rx0; bx <= rx1; ++bx) {
                     const uint64_t bkey = block_key(ckey, bx, by);
                     const uint32_t count = law.count(bkey);
@@ -223,9 +214,7 @@ void add_stand_ins(CountedFootprint& cf, const FieldParams& fp, const Footprint&
                         chash[m] = class_flake_position(bkey, i, bx, by, block, x, y);
                         cx[m] = x;
                         cy[m] = y;
-                        const double du = x - cu, dv = y - cv;
-                        const double s_ = i00 * du + i01 * dv, t_ = i10 * du + i11 * dv;
-                        m += static_cast<uint32_t>((std::fabs(s_) <= 0.5) & (std::fabs(t_) <= 0.5));
+                        m += inside_nonsingular(local, x, y) ? 1u : 0u;
                     }
                 }
             }

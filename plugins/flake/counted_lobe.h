@@ -244,7 +244,14 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     x1 = std::max(x1, box[b][0] + box[b][2]);
                     y1 = std::max(y1, box[b][1] + box[b][2]);
                 }
+                // The boxes are distinct nodes of the tree, so they tile the rectangle around
+                // them when their areas add up to its (dyadic numbers: exact sums); then the
+                // rectangle's own test is theirs, and the loop over them per flake is skipped.
+                double area = 0.0;
+                for (int b = 0; b < n_box; ++b) area += box[b][2] * box[b][2];
+                const bool tiled = area == (x1 - x0) * (y1 - y0);
                 const auto in_boxes = [&](double x, double y) {
+                    if (tiled) return true;
                     bool in = false;
                     for (int b = 0; b < n_box; ++b)
                         in = in || (x >= box[b][0] && x < box[b][0] + box[b][2] && y >= box[b][1] &&
@@ -257,19 +264,8 @@ void gather_cells(const FieldParams& fp, const Footprint& p, uint32_t exact_flak
                     exact(static_cast<const Flake&>(f));
                     return true;
                 };
-                // The boxes are distinct nodes of the tree, so they tile the rectangle around
-                // them when their areas add up to its (dyadic numbers: exact sums); then the
-                // rectangle's own test is theirs, and the loop over them per flake is skipped.
-                double area = 0.0;
-                for (int b = 0; b < n_box; ++b) area += box[b][2] * box[b][2];
                 bool trunc = false;
-                if (area == (x1 - x0) * (y1 - y0))
-                    class_flakes_in(
-                        fp, cl, local, tk, x0, y0, x1, y1, [](double, double) { return true; },
-                        1u << 30, trunc, emit);
-                else
-                    class_flakes_in(fp, cl, local, tk, x0, y0, x1, y1, in_boxes, 1u << 30, trunc,
-                                    emit);
+                class_flakes_in(fp, cl, local, tk, x0, y0, x1, y1, in_boxes, 1u << 30, trunc, emit);
             }
         }
 }

@@ -107,6 +107,14 @@ inline bool inside(const Footprint& p, double u, double v) {
  *  exact for a parallelogram and a box when the reach is 0, conservative otherwise). */
 bool overlaps(const Footprint& p, double x0, double y0, double x1, double y1);
 
+/** The block of width 1 / blocks (a power of two, blocks across the tile) holding x, clamped
+ *  to the tile's; 0 for x below 0 or not a number. (x / block is x * blocks exactly, and the
+ *  floor of a number from 0 up is its truncation: floor was a libm call.) */
+inline int64_t block_index(double x, double blocks) {
+    const double f = x * blocks;
+    return f >= 0.0 ? static_cast<int64_t>(std::min(f, blocks - 1.0)) : int64_t{0};
+}
+
 /** The x-range of P's points in a row of y: P is the intersection of two slabs (|s| <= 1/2 and
  *  |t| <= 1/2), and the row's range is taken as the intersection of theirs and of P's bounding
  *  box: a range holding all of P's points in the row (P's reach left out), widened by a
@@ -117,6 +125,9 @@ struct StripSpan {
     explicit StripSpan(const Footprint& p);
     /** The range [x0, x1] for the rows y in [y0, y1]; false where P has no point there. */
     bool at(double y0, double y1, double& x0, double& x1) const;
+    /** Narrows the blocks [bx0, bx1] of row `by` (blocks of width `block`, 1 / block of them
+     *  across the tile) to those under the range of that row; false where P has none there. */
+    bool row_blocks(int64_t by, double block, int64_t& bx0, int64_t& bx1) const;
 
 private:
     struct Slab {
@@ -152,6 +163,16 @@ inline bool StripSpan::at(double y0, double y1, double& x0, double& x1) const {
     if (!(lo - margin <= hi + margin)) return false;
     x0 = lo - margin;
     x1 = hi + margin;
+    return true;
+}
+
+inline bool StripSpan::row_blocks(int64_t by, double block, int64_t& bx0, int64_t& bx1) const {
+    double x0 = 0.0, x1 = 0.0;
+    if (!at(static_cast<double>(by) * block, static_cast<double>(by + 1) * block, x0, x1))
+        return false;
+    const double blocks = 1.0 / block;
+    bx0 = std::max(bx0, block_index(x0, blocks));
+    bx1 = std::min(bx1, block_index(x1, blocks));
     return true;
 }
 
@@ -475,17 +496,12 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
     const StripSpan span(local);
     for (int c = 0; c <= cl.last; ++c) {
         const double block = pow2_neg(c + 3);
-        const double blocks = 1.0 / block, last_block = blocks - 1.0;
-        // (x / block is x * blocks exactly, both powers of two; the floor of a number from 0 up
-        // is its truncation.)
-        const auto index = [&](double x) {
-            const double f = x * blocks;
-            return f >= 0.0 ? static_cast<int64_t>(std::min(f, last_block)) : int64_t{0};
-        };
-        const int64_t bx0 = index(lx), bx1 = index(ux), by0 = index(ly), by1 = index(uy);
+        const double blocks = 1.0 / block;
+        const int64_t bx0 = block_index(lx, blocks), bx1 = block_index(ux, blocks),
+                      by0 = block_index(ly, blocks), by1 = block_index(uy, blocks);
         const double mean = cl.mean(c);
-        // (The last class's law tabulated here: a layout is made per footprint, and most
-        // footprints the counting algorithm does not enumerate.)
+        // (The last class's law fetched here, not in the layout: a layout is made per
+        // footprint, and most footprints the counting algorithm does not enumerate.)
         PoissonCdf last_law;
         if (c == cl.last) last_law = poisson_law(mean);
         const PoissonCdf& law = c < cl.last ? kWholeClass : last_law;
@@ -501,14 +517,7 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
             // Point flakes: only the blocks of the row under P's span in it (a turned or
             // needle-shaped P's bounding box holds several times the blocks that meet it).
             int64_t rx0 = bx0, rx1 = bx1;
-            if (!fp.facet) {
-                double sx0 = 0.0, sx1 = 0.0;
-                if (!span.at(static_cast<double>(by) * block, static_cast<double>(by + 1) * block,
-                             sx0, sx1))
-                    continue;
-                rx0 = std::max(rx0, index(sx0));
-                rx1 = std::min(rx1, index(sx1));
-            }
+            if (!fp.facet && !span.row_blocks(by, block, rx0, rx1)) continue;
             for (int64_t bx = rx0; bx <= rx1; ++bx) {
                 const uint64_t bk = block_key(ck, bx, by);
                 const uint32_t count = law.count(bk);
