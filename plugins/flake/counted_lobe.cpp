@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
+#include <vector>
 
 namespace spangle::flake {
 
@@ -9,6 +11,17 @@ void DirectionGrid::init(float alpha_, float gamma_rad) {
     alpha = alpha_;
     const float s = std::sin(0.5f * gamma_rad);
     sin2_half = s * s;
+    for (int i = 0; i < kLitNodes; ++i) {
+        const float x = static_cast<float>(i) / static_cast<float>(kLitNodes - 1);
+        lit[i] = static_cast<float>(lit_share_exact(alpha, sin2_half, x * x));
+    }
+}
+
+float DirectionGrid::lit_share(float cos_o) const {
+    const float x = std::sqrt(std::clamp(cos_o, 0.0f, 1.0f)) * static_cast<float>(kLitNodes - 1);
+    const int i = std::min(static_cast<int>(x), kLitNodes - 2);
+    const float f = x - static_cast<float>(i);
+    return lit[i] + f * (lit[i + 1] - lit[i]);
 }
 
 int footprint_level(const FieldParams& fp, const Footprint& p) {
@@ -70,6 +83,100 @@ uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos
                           std::max(static_cast<double>(cos_o), 0.0) /
                           std::max(static_cast<double>(grid.sin2_half), 1e-12);
     return std::max(exact_flakes, static_cast<uint32_t>(std::min(sparse, kSparseExactCap)));
+}
+
+double lit_share_exact(float alpha, float sin2_half, float cos_o) {
+    // The flakes as N normals of the unit square's midpoint grid (density D(m) (m.n)), seen from
+    // wo: their mirror directions and weights, those that reflect above the horizon.
+    // As many as give the median direction some 16 other flakes' cones at the head-on estimate
+    // sin^2(gamma / 2) / (3 alpha^2) of p, or at p = 1/128, below which a footprint of
+    // kSparseEnumerate flakes is sparse whatever p is (narrow cones: 48 x 48; wide ones need
+    // fewer).
+    const double guess = static_cast<double>(sin2_half) /
+                         (3.0 * static_cast<double>(alpha) * static_cast<double>(alpha));
+    const int side = std::clamp(
+        static_cast<int>(std::ceil(std::sqrt(16.0 / std::max(guess, 1.0 / 128.0)))), 24, 48);
+    constexpr int kQueries = 256;
+    const float c = std::clamp(cos_o, 1e-4f, 1.0f);
+    const V3 wo{std::sqrt(std::max(0.0f, 1.0f - c * c)), 0.0f, c};
+    struct Lit {
+        float x, y, z, w;
+        float g;      ///< G1 of r: the lobe's masking of the direction
+        int64_t row;  ///< the strip of y (a chord high) it lies in
+    };
+    std::vector<Lit> lit;
+    lit.reserve(static_cast<std::size_t>(side * side));
+    double w_all = 0.0;
+    const auto fs = static_cast<float>(side);
+    for (int i = 0; i < side; ++i)
+        for (int j = 0; j < side; ++j) {
+            const V3 m = flake_normal(alpha, (static_cast<float>(i) + 0.5f) / fs,
+                                      (static_cast<float>(j) + 0.5f) / fs);
+            const float wom = mf::dot(wo, m);
+            if (!(wom > 0.0f) || !(m.z > 0.0f)) continue;
+            const V3 r = mf::reflect(wo, m);
+            if (!(r.z > 0.0f)) continue;
+            // (Directions drawn as the lobe reflects: by w and by the masking of r.)
+            const float g = mf::ggx_g1(r, alpha, alpha);
+            lit.push_back({r.x, r.y, r.z, wom / m.z, g, 0});
+            w_all += static_cast<double>(wom / m.z * g);
+        }
+    if (lit.size() < 2 || !(w_all > 0.0)) return 0.0;
+    // Sorted by strips of y a chord high, then x: the flakes whose cone may hold a direction lie
+    // in a window of x in its strip and the two beside it.
+    const float chord2 = 4.0f * sin2_half, chord = std::sqrt(chord2);
+    for (Lit& l : lit) l.row = static_cast<int64_t>(std::floor(l.y / chord));
+    const auto before = [](const Lit& a, const Lit& b) {
+        return a.row < b.row || (a.row == b.row && a.x < b.x);
+    };
+    std::sort(lit.begin(), lit.end(), before);
+    // Directions drawn by the lobe itself: the mirror directions of flakes at evenly spaced
+    // points of the cumulative weight (a heavy flake may stand for several).
+    std::vector<double> cvs;  // per direction, of the N flakes (infinite: no other flake's cone)
+    cvs.reserve(kQueries);
+    double acc = 0.0;
+    int q = 0;
+    for (std::size_t i = 0; i < lit.size() && q < kQueries; ++i) {
+        acc += static_cast<double>(lit[i].w * lit[i].g);
+        int strata = 0;
+        while (q < kQueries && acc >= (static_cast<double>(q) + 0.5) / kQueries * w_all) {
+            ++q;
+            ++strata;
+        }
+        if (strata == 0) continue;
+        const Lit& d = lit[i];
+        double a = 0.0, b = 0.0;
+        for (int64_t row = d.row - 1; row <= d.row + 1; ++row) {
+            const Lit first{d.x - chord, 0.0f, 0.0f, 0.0f, 0.0f, row};
+            for (auto it = std::lower_bound(lit.begin(), lit.end(), first, before);
+                 it != lit.end() && it->row == row && it->x <= d.x + chord; ++it) {
+                if (&*it == &d) continue;
+                const float dx = it->x - d.x, dy = it->y - d.y, dz = it->z - d.z;
+                if (dx * dx + dy * dy + dz * dz > chord2) continue;
+                a += static_cast<double>(it->w);
+                b += static_cast<double>(it->w) * static_cast<double>(it->w);
+            }
+        }
+        const double cv = a > 0.0 ? std::sqrt(b) / a : std::numeric_limits<double>::infinity();
+        cvs.insert(cvs.end(), static_cast<std::size_t>(strata), cv);
+    }
+    if (cvs.empty()) return 0.0;
+    // The median direction's (the mean is the tails': GGX's heavy tails hold directions that
+    // next to no flake reaches, and its estimate fell without end as N grew).
+    const auto mid = cvs.begin() + static_cast<std::ptrdiff_t>(cvs.size() / 2);
+    std::nth_element(cvs.begin(), mid, cvs.end());
+    if (!std::isfinite(*mid)) return 0.0;  // p below what N resolves
+    // cv of one flake's worth: sqrt(N b) / (N a) per direction, over N = the grid's flakes.
+    const double cv1 = *mid * static_cast<double>(side);
+    return 1.0 / (cv1 * cv1);
+}
+
+bool sparse_lobe(float sparse_flakes, const DirectionGrid& grid, float cos_o, double lambda,
+                 float t) {
+    if (!(sparse_flakes > 0.0f) || !(t < 0.5f) || !(lambda <= kSparseEnumerate)) return false;
+    // Flakes per direction (0 where p is below what lit_share_exact resolves: sparse).
+    return lambda * static_cast<double>(grid.lit_share(cos_o)) <=
+           static_cast<double>(sparse_flakes);
 }
 
 namespace {

@@ -70,7 +70,12 @@ constexpr uint32_t kMaxAggregates = 16;
 struct DirectionGrid {
     float alpha = 0.15f;     ///< flake roughness
     float sin2_half = 0.0f;  ///< sin^2(gamma / 2) of the cone
+    static constexpr int kLitNodes = 17;
+    /** lit_share_exact() at cos_o = (i / (kLitNodes - 1))^2 (i = 0: cos_o 1e-4). */
+    float lit[kLitNodes] = {};
     void init(float alpha_, float gamma_rad);
+    /** lit_share_exact() interpolated in sqrt(cos_o). */
+    float lit_share(float cos_o) const;
 };
 
 /** What the footprint holds, as the counting algorithm sees it. */
@@ -98,6 +103,42 @@ constexpr double kSparseExactCap = 4096.0;
  *  to kSparseExactCap. Enumerated, each glint is a flake with its own position; counted, a cell's
  *  glints are stand-ins. Dense cells stay counted. */
 uint32_t exact_limit(uint32_t exact_flakes, const DirectionGrid& grid, float cos_o);
+
+/** How sparsely the flakes light the directions of their lobe, seen from cos_o: the share p
+ *  such that a footprint of k flakes lights a typical direction of the lobe as k p flakes of
+ *  equal weight would. Per direction d, k flakes give f(d) a spread sd / mean =
+ *  sqrt(E[w^2 1_d]) / (sqrt(k) E[w 1_d]) (1_d: the flake's cone holds d; w its projected area
+ *  towards wo); p is 1 / (k cv^2) for cv, that spread at one flake, in the median direction of
+ *  those drawn from the lobe itself. (Not the mean: GGX's heavy tails hold directions that next
+ *  to no flake reaches, and a mean over them fell without end as the flakes computed grew.)
+ *  Computed over the unit square's midpoint grid of flake normals (24 x 24 to 48 x 48: enough
+ *  for some 16 other flakes' cones at that direction) and 256 directions; 0 where the median
+ *  direction meets no other flake's cone (p below what the grid resolves). */
+double lit_share_exact(float alpha, float sin2_half, float cos_o);
+
+/** Default of `sparse_flakes`. */
+constexpr float kSparseFlakes = 128.0f;
+/** The most flakes (expected) in a footprint that sparse_lobe() has enumerated. */
+constexpr double kSparseEnumerate = 4096.0;
+
+/** Whether the counting algorithm enumerates a footprint of `lambda` flakes (expected) seen from
+ *  cos_o, blended with the smooth lobe by t, instead of counting its cells: where it lights a
+ *  typical direction of its lobe by at most `sparse_flakes` flakes (lambda lit_share), holds at
+ *  most kSparseEnumerate and is more discrete than smooth (t below 1/2). Counted, a cell's
+ *  stand-ins match real flakes in spread (each direction's sd / mean) at any count, but in shape
+ *  only where a direction meets several of them: with K stand-ins for k flakes (K < k), the k (1 -
+ *  sqrt(K / k)) flakes of the smooth part are a floor under every direction, and where real
+ *  flakes light a direction by a few each, so that some directions are dark, the floor fills the
+ *  gaps between glints and a few stand-ins are too bright. (Raising the stand-ins to as many
+ *  flakes cost more than enumerating them.) Real flakes lighting a direction by m leave it
+ *  darker than half its mean with the chance of a Poisson count under m / 2 (0.2% at m = 32); but
+ *  the typical direction is the median one, and the lobe's tails, a quarter as densely lit and
+ *  more, show gaps where it shows none: `sparse_flakes` 128 by default (at 32 a receding plane of
+ *  wide cones kept its grey floor in the distance). Beyond t = 1/2 the smooth share is itself
+ *  such a floor. A footprint that shrinks holds fewer flakes and a smaller t: once enumerated it
+ *  stays so, and its stand-ins were real flakes, which it keeps. `sparse_flakes` 0: never. */
+bool sparse_lobe(float sparse_flakes, const DirectionGrid& grid, float cos_o, double lambda,
+                 float t);
 
 /** Stand-ins a footprint finds on average by default (the `stand_ins` parameter): the classes it
  *  takes are this dense. (Drawn per footprint and fewer at grazing views, 16 there, a

@@ -87,7 +87,8 @@ void warn_inert(const SpangleParams_v3* p, const SpangleHost_v3* host) {
           "flake_f0 is the reflectance of Schlick flakes (fresnel = \"schlick\")");
     check(param_number(p, "flake_size") == 0.0, {"flake_shape"},
           "flakes are points (flake_size > 0 gives them an outline)");
-    check(param_string(p, "algorithm") == "enumerate", {"exact_flakes", "stand_ins"},
+    check(param_string(p, "algorithm") == "enumerate",
+          {"exact_flakes", "stand_ins", "sparse_flakes"},
           "they steer the tree algorithm and this material enumerates");
 }
 

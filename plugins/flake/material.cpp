@@ -86,6 +86,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
     m.exact_flakes = static_cast<uint32_t>(
         std::max(param_number(p, "exact_flakes"), static_cast<double>(m.field.leaf_size)));
     m.stand_ins = static_cast<uint32_t>(std::clamp(param_number(p, "stand_ins"), 1.0, 1024.0));
+    m.sparse_flakes = static_cast<float>(std::clamp(param_number(p, "sparse_flakes"), 0.0, 1e6));
     m.enumerate_cap =
         static_cast<uint32_t>(std::min(4.0 * m.max_flakes + 64.0, double{kEnumerateBound}));
     // Tables come from the persistent cache when an earlier process (or this one) built them.
@@ -191,7 +192,11 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
                   field.facet != nullptr && inside(p, f.u, f.v));
     };
     const uint32_t limit = m.tree ? exact_limit(m.exact_flakes, m.grid, c.wo.z) : 0;
-    if (m.tree && !sparse_tiles(field, p, limit) && !few_facets(field, p, limit)) {
+    // A footprint whose flakes light its lobe's directions sparsely is enumerated (sparse_lobe).
+    // (Point flakes: facets have their own rule, few_facets.)
+    const bool sparse = m.tree && field.facet == nullptr &&
+                        sparse_lobe(m.sparse_flakes, m.grid, c.wo.z, view.lambda(), c.t);
+    if (m.tree && !sparse && !sparse_tiles(field, p, limit) && !few_facets(field, p, limit)) {
         gather_cells(field, p, limit, c.counted, add);
         if (c.counted.truncated) return false;
         if (view.keep < 1.0f) {
@@ -210,10 +215,16 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
             cf.n_agg = kept_agg;
         }
     } else {
-        // The enumeration (or the tree's, for a footprint over many tiles of few flakes, or
-        // under few facets).
+        // The enumeration (or the tree's, for a footprint over many tiles of few flakes, under
+        // few facets, or whose flakes light its directions sparsely: at most kSparseEnumerate on
+        // average before the view's thinning to keep >= 1 / sqrt(3), so four times that is
+        // never reached).
         bool truncated = false;
-        for_each_flake(field, p, m.tree ? 4 * limit : m.enumerate_cap, truncated, add);
+        const uint32_t budget =
+            !m.tree  ? m.enumerate_cap
+            : sparse ? std::max(4 * limit, static_cast<uint32_t>(4.0 * kSparseEnumerate))
+                     : 4 * limit;
+        for_each_flake(field, p, budget, truncated, add);
         if (truncated) return false;
     }
     flush_entries(c.wo, field.alpha, batch, scratch);

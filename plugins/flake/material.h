@@ -40,10 +40,11 @@ struct Material {
     Cone cone;
     float footprint_scale = 1;
     double min_flakes = 500, max_flakes = 2000;
-    bool tree = true;                ///< algorithm = "tree"
-    uint32_t exact_flakes = 256;     ///< tree: cells up to this count are enumerated
-    uint32_t stand_ins = kStandIns;  ///< tree: stand-ins per footprint area (counted_lobe.h)
-    uint32_t enumerate_cap = 0;      ///< enumerate: hard bound on flakes per shading point
+    bool tree = true;                     ///< algorithm = "tree"
+    uint32_t exact_flakes = 256;          ///< tree: cells up to this count are enumerated
+    uint32_t stand_ins = kStandIns;       ///< tree: stand-ins per footprint area (counted_lobe.h)
+    float sparse_flakes = kSparseFlakes;  ///< tree: footprints this sparse are enumerated
+    uint32_t enumerate_cap = 0;           ///< enumerate: hard bound on flakes per shading point
     float base[3] = {0, 0, 0};
     float flake_weight = 0.6f;
     bool shadowing = true;

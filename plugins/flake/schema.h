@@ -16,6 +16,7 @@ inline const SpangleParamDesc_v3 kParams[] = {
     {"algorithm", SPANGLE_PARAM_STRING, {0, 0, 0}, "tree", 0, 0, "tree|enumerate", "tree: counts flakes without enumerating them (cost independent of flake count); enumerate: the reference reflection cache of every flake", 0},
     {"exact_flakes", SPANGLE_PARAM_INT, {256, 0, 0}, nullptr, 1.0, 4096.0, nullptr, "tree: footprint cells holding at most this many flakes are enumerated exactly, larger ones counted", 0},
     {"stand_ins", SPANGLE_PARAM_INT, {64, 0, 0}, nullptr, 1.0, 1024.0, nullptr, "tree: flakes a footprint shows, on average, for the flakes it counts (more: closer to real flakes where they are dense, as at grazing views, at proportional cost)", 0},
+    {"sparse_flakes", SPANGLE_PARAM_FLOAT, {128, 0, 0}, nullptr, 0.0, 1e6, nullptr, "tree: a footprint whose flakes light a typical direction by at most this many (and that holds at most 4096) is enumerated, so that its glints have the dark gaps between them that real flakes have (0: never; cheaper, a grey floor under sparse glints)", 0},
     {"flake_roughness", SPANGLE_PARAM_FLOAT, {0.15, 0, 0}, nullptr, 0.001, 1.0, nullptr, "GGX alpha of the distribution of flake normals around the shading normal", 0},
     {"gamma", SPANGLE_PARAM_FLOAT, {3.0, 0, 0}, nullptr, 0.01, 45.0, nullptr, "half-angle in degrees of the cone each flake reflects into (larger: more, dimmer glints)", 0},
     {"footprint_scale", SPANGLE_PARAM_FLOAT, {1.0, 0, 0}, nullptr, 0.01, 100.0, nullptr, "size of the flake footprint in pixels", 0},

@@ -2,6 +2,7 @@
 // Helpers shared by the flake model's tests: the material through the real ABI (BsdfHarness) with
 // flake-friendly defaults, footprints of a given expected count, and directions.
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 #include <string>
@@ -22,7 +23,10 @@ constexpr double kTestDensity = 1e5;
 
 /** A flake material, flakes only (no base), density kTestDensity. With `discrete` the discrete
  *  lobe is kept for every footprint (the smooth lobe is reached by preparing without
- *  differentials). */
+ *  differentials). Named `algorithm = "tree"`, the counting algorithm itself: its enumeration of
+ *  footprints that light their directions sparsely (`sparse_flakes`) is off unless `extra` sets
+ *  it, so that tests of the counting keep counting (test_flake_sparse.cpp tests that rule; the
+ *  default algorithm, not named, has it on). */
 inline std::unique_ptr<BsdfHarness> flake_material(bool discrete, FlakeParams extra = {},
                                                    FlakeStrings strings = {}) {
     FlakeParams p = {{"flake_weight", {1.0}}, {"base_color", {0.0}}, {"density", {kTestDensity}}};
@@ -30,6 +34,12 @@ inline std::unique_ptr<BsdfHarness> flake_material(bool discrete, FlakeParams ex
         p.push_back({"min_flakes", {5e8}});
         p.push_back({"max_flakes", {1e9}});
     }
+    const bool named_tree = std::any_of(strings.begin(), strings.end(), [](const auto& s) {
+        return s.first == "algorithm" && s.second == "tree";
+    });
+    const bool sets_sparse = std::any_of(extra.begin(), extra.end(),
+                                         [](const auto& e) { return e.first == "sparse_flakes"; });
+    if (named_tree && !sets_sparse) p.push_back({"sparse_flakes", {0.0}});
     for (auto& e : extra) p.push_back(e);
     return std::make_unique<BsdfHarness>("flake", "flake", p, strings);
 }

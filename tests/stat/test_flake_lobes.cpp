@@ -33,7 +33,7 @@ float radians(float deg) {
  *  the horizon. */
 std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point& pt, Vec3 wo,
                                uint64_t seed = 0, double density = kTestDensity, double facet = 0.0,
-                               float gamma = 0.0f) {
+                               float gamma = 0.0f, float sparse_flakes = fl::kSparseFlakes) {
     fl::FieldParams fp;
     fp.seed = seed;
     fp.flakes_per_tile = density;
@@ -53,12 +53,16 @@ std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point&
         const Vec3 r = m * (2.0f * dot(wo, m)) - wo;
         if (r.z > 0.0f) cones.push_back(r);
     };
-    if (tree) {
+    fl::DirectionGrid grid;
+    grid.init(alpha, gamma);
+    // Point flakes lighting their directions sparsely: the tree enumerates the footprint (the
+    // discrete lobe is forced: t = 0).
+    const bool sparse =
+        facet == 0.0 && fl::sparse_lobe(sparse_flakes, grid, wo.z, density * p.area(), 0.0f);
+    if (tree && !sparse) {
         // The cells the plugin enumerates at this view (the default exact_flakes, raised for
         // sparse cells), and the aggregates' stand-ins: their cones depend on their normals only
         // (the colour and film tables, left plain here, scale what they reflect).
-        fl::DirectionGrid grid;
-        grid.init(alpha, gamma);
         fl::CountedFootprint cf;
         fl::gather_cells(fp, p, fl::exact_limit(256, grid, wo.z), cf, add);
         const fl::ColorTable colors;
@@ -138,13 +142,17 @@ void lobe_chi2(const LobeCase& c, uint64_t seed) {
             if (key == name) return v[0];
         return 0.0;
     };
+    const bool set_sparse = std::any_of(c.extra.begin(), c.extra.end(),
+                                        [](const auto& e) { return e.first == "sparse_flakes"; });
+    // (flake_material() turns the named tree's sparse enumeration off unless a case sets it.)
+    const auto sparse = set_sparse ? static_cast<float>(value("sparse_flakes")) : 0.0f;
     std::vector<Vec3> list =
-        cached_cones(tree, c.alpha, pt, wo, 0, kTestDensity, value("flake_size"), gamma);
+        cached_cones(tree, c.alpha, pt, wo, 0, kTestDensity, value("flake_size"), gamma, sparse);
     // A second population (of the same cone): its own field's flakes, by the plugin's seed salt.
     if (value("flakes2_weight") > 0.0)
         for (const Vec3& r :
              cached_cones(tree, static_cast<float>(value("flakes2_roughness")), pt, wo,
-                          fl::mix(0, 0x5ec0d), value("flakes2_density"), 0.0, gamma))
+                          fl::mix(0, 0x5ec0d), value("flakes2_density"), 0.0, gamma, sparse))
             list.push_back(r);
     const ConeSet cones(list, gamma);
 
@@ -250,9 +258,11 @@ TEST(FlakeLobe, SamplingMatchesPdfManyFlakes) {
 }
 TEST(FlakeLobe, SamplingMatchesPdfWithAggregates) {
     // Counted aggregates (tree, footprints of a few thousand flakes): the pdf mixes the cached
-    // cones with the smooth proposal.
+    // cones with the smooth proposal; and 700 flakes of these, which light their directions
+    // sparsely, as the tree takes them by default (`sparse_flakes`: enumerated).
     lobe_chi2({"tree", 5000, 3.0f, 0.15f, 0.7f}, 5);
     lobe_chi2({"tree", 700, 3.0f, 0.15f, 0.7f}, 6);
+    lobe_chi2({"tree", 700, 3.0f, 0.15f, 0.7f, {{"sparse_flakes", {fl::kSparseFlakes}}}}, 8);
     lobe_chi2({"tree", 5000, 10.0f, 0.3f, 0.1f}, 7);
 }
 
@@ -270,6 +280,9 @@ TEST(FlakeLobe, SamplingMatchesPdfWithColourVariationAndFilm) {
     both.insert(both.end(), film.begin(), film.end());
     lobe_chi2({"enumerate", 50, 3.0f, 0.15f, 0.5f, both}, 22);
     lobe_chi2({"tree", 700, 3.0f, 0.15f, 0.7f, both}, 23);
+    FlakeParams sparse = both;
+    sparse.push_back({"sparse_flakes", {fl::kSparseFlakes}});
+    lobe_chi2({"tree", 700, 3.0f, 0.15f, 0.7f, sparse}, 24);
 }
 
 TEST(FlakeLobe, SamplingMatchesPdfWithTwoPopulations) {
