@@ -97,6 +97,8 @@ double lit_share_exact(float alpha, float sin2_half, float cos_o) {
     const int side = std::clamp(
         static_cast<int>(std::ceil(std::sqrt(16.0 / std::max(guess, 1.0 / 128.0)))), 24, 48);
     constexpr int kQueries = 256;
+    // No cone (gamma 0, which the host refuses): no direction is lit by a flake's cone.
+    if (!(sin2_half > 0.0f) || !std::isfinite(sin2_half)) return 0.0;
     const float c = std::clamp(cos_o, 1e-4f, 1.0f);
     const V3 wo{std::sqrt(std::max(0.0f, 1.0f - c * c)), 0.0f, c};
     struct Lit {
@@ -125,7 +127,10 @@ double lit_share_exact(float alpha, float sin2_half, float cos_o) {
     // Sorted by strips of y a chord high, then x: the flakes whose cone may hold a direction lie
     // in a window of x in its strip and the two beside it.
     const float chord2 = 4.0f * sin2_half, chord = std::sqrt(chord2);
-    for (Lit& l : lit) l.row = static_cast<int64_t>(std::floor(l.y / chord));
+    // (|y| <= 1 and chord > 0, but a subnormal chord gives an infinite ratio: clamped.)
+    for (Lit& l : lit)
+        l.row = static_cast<int64_t>(std::floor(
+            std::clamp(static_cast<double>(l.y) / static_cast<double>(chord), -1e15, 1e15)));
     const auto before = [](const Lit& a, const Lit& b) {
         return a.row < b.row || (a.row == b.row && a.x < b.x);
     };

@@ -66,7 +66,7 @@ struct Aggregate {
 constexpr uint32_t kMaxAggregates = 16;
 
 /** The direction side of the counting algorithm, per material: the flake distribution and the
- *  cone. */
+ *  cone. (Default-constructed, before init(), its lit_share is 0: every footprint is sparse.) */
 struct DirectionGrid {
     float alpha = 0.15f;     ///< flake roughness
     float sin2_half = 0.0f;  ///< sin^2(gamma / 2) of the cone
@@ -118,7 +118,8 @@ double lit_share_exact(float alpha, float sin2_half, float cos_o);
 
 /** Default of `sparse_flakes`. */
 constexpr float kSparseFlakes = 128.0f;
-/** The most flakes (expected) in a footprint that sparse_lobe() has enumerated. */
+/** The most flakes (expected, after the view's thinning: FieldView::lambda()) in a footprint
+ *  that sparse_lobe() has enumerated. */
 constexpr double kSparseEnumerate = 4096.0;
 
 /** Whether the counting algorithm enumerates a footprint of `lambda` flakes (expected) seen from
@@ -131,7 +132,7 @@ constexpr double kSparseEnumerate = 4096.0;
  *  flakes light a direction by a few each, so that some directions are dark, the floor fills the
  *  gaps between glints and a few stand-ins are too bright. (Raising the stand-ins to as many
  *  flakes cost more than enumerating them.) Real flakes lighting a direction by m leave it
- *  darker than half its mean with the chance of a Poisson count under m / 2 (0.2% at m = 32); but
+ *  darker than half its mean with the chance of a Poisson count under m / 2 (0.07% at m = 32); but
  *  the typical direction is the median one, and the lobe's tails, a quarter as densely lit and
  *  more, show gaps where it shows none: `sparse_flakes` 128 by default (at 32 a receding plane of
  *  wide cones kept its grey floor in the distance). Beyond t = 1/2 the smooth share is itself

@@ -216,9 +216,10 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         }
     } else {
         // The enumeration (or the tree's, for a footprint over many tiles of few flakes, under
-        // few facets, or whose flakes light its directions sparsely: at most kSparseEnumerate on
-        // average before the view's thinning to keep >= 1 / sqrt(3), so four times that is
-        // never reached).
+        // few facets, or whose flakes light its directions sparsely: at most kSparseEnumerate
+        // of them on average after the view's thinning to keep >= 1 / sqrt(3), so at most
+        // sqrt(3) kSparseEnumerate, about 7 100, on average before it, which for_each_flake
+        // counts: the budget of four times kSparseEnumerate is never reached).
         bool truncated = false;
         const uint32_t budget =
             !m.tree  ? m.enumerate_cap

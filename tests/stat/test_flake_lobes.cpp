@@ -54,11 +54,11 @@ std::vector<Vec3> cached_cones(bool tree, float alpha, const BsdfHarness::Point&
         if (r.z > 0.0f) cones.push_back(r);
     };
     fl::DirectionGrid grid;
-    grid.init(alpha, gamma);
+    if (tree) grid.init(alpha, gamma);
     // Point flakes lighting their directions sparsely: the tree enumerates the footprint (the
     // discrete lobe is forced: t = 0).
-    const bool sparse =
-        facet == 0.0 && fl::sparse_lobe(sparse_flakes, grid, wo.z, density * p.area(), 0.0f);
+    const bool sparse = tree && facet == 0.0 &&
+                        fl::sparse_lobe(sparse_flakes, grid, wo.z, density * p.area(), 0.0f);
     if (tree && !sparse) {
         // The cells the plugin enumerates at this view (the default exact_flakes, raised for
         // sparse cells), and the aggregates' stand-ins: their cones depend on their normals only
