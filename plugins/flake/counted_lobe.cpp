@@ -7,11 +7,11 @@
 
 namespace spangle::flake {
 
-void DirectionGrid::init(float alpha_, float gamma_rad) {
+void DirectionGrid::init(float alpha_, float gamma_rad, bool with_lit) {
     alpha = alpha_;
     const float s = std::sin(0.5f * gamma_rad);
     sin2_half = s * s;
-    for (int i = 0; i < kLitNodes; ++i) {
+    for (int i = 0; with_lit && i < kLitNodes; ++i) {
         const float x = static_cast<float>(i) / static_cast<float>(kLitNodes - 1);
         lit[i] = static_cast<float>(lit_share_exact(alpha, sin2_half, x * x));
     }

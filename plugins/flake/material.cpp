@@ -100,7 +100,8 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
         !build_colors(m.colors, m.base, p, host, why))
         return false;
     m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
-    m.grid.init(m.alpha, gamma);
+    // (The lit table only where sparse_lobe() reads it.)
+    m.grid.init(m.alpha, gamma, m.tree && m.sparse_flakes > 0.0f);
     m.cache_share.init(m.alpha);
     m.sparse.init(m.alpha, gamma, m.fresnel, m.shadowing, &cache);
     m.flake_size = param_number(p, "flake_size");
@@ -221,10 +222,12 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         // sqrt(3) kSparseEnumerate, about 7 100, on average before it, which for_each_flake
         // counts: the budget of four times kSparseEnumerate is never reached).
         bool truncated = false;
-        const uint32_t budget =
-            !m.tree  ? m.enumerate_cap
-            : sparse ? std::max(4 * limit, static_cast<uint32_t>(4.0 * kSparseEnumerate))
-                     : 4 * limit;
+        // (limit is at most kSparseExactCap, exact_flakes being at most 4096 too: the sparse
+        // budget is the larger.)
+        static_assert(kSparseExactCap <= kSparseEnumerate);
+        const uint32_t budget = !m.tree  ? m.enumerate_cap
+                                : sparse ? static_cast<uint32_t>(4.0 * kSparseEnumerate)
+                                         : 4 * limit;
         for_each_flake(field, p, budget, truncated, add);
         if (truncated) return false;
     }

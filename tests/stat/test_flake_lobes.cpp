@@ -142,10 +142,9 @@ void lobe_chi2(const LobeCase& c, uint64_t seed) {
             if (key == name) return v[0];
         return 0.0;
     };
-    const bool set_sparse = std::any_of(c.extra.begin(), c.extra.end(),
-                                        [](const auto& e) { return e.first == "sparse_flakes"; });
-    // (flake_material() turns the named tree's sparse enumeration off unless a case sets it.)
-    const auto sparse = set_sparse ? static_cast<float>(value("sparse_flakes")) : 0.0f;
+    // (flake_material() turns the named tree's sparse enumeration off unless a case sets it:
+    // value() is 0 for a parameter the case does not set.)
+    const auto sparse = static_cast<float>(value("sparse_flakes"));
     std::vector<Vec3> list =
         cached_cones(tree, c.alpha, pt, wo, 0, kTestDensity, value("flake_size"), gamma, sparse);
     // A second population (of the same cone): its own field's flakes, by the plugin's seed salt.
