@@ -176,12 +176,30 @@ double lit_share_exact(float alpha, float sin2_half, float cos_o) {
     return 1.0 / (cv1 * cv1);
 }
 
-bool sparse_lobe(float sparse_flakes, const DirectionGrid& grid, float cos_o, double lambda,
-                 float t) {
-    if (!(sparse_flakes > 0.0f) || !(t < 0.5f) || !(lambda <= kSparseEnumerate)) return false;
-    // Flakes per direction (0 where p is below what lit_share_exact resolves: sparse).
-    return lambda * static_cast<double>(grid.lit_share(cos_o)) <=
-           static_cast<double>(sparse_flakes);
+namespace {
+
+/** 1 where x <= 0, 0 where x >= 1, a smoothstep between (1 for NaN). */
+double fall(double x) {
+    if (!(x > 0.0)) return 1.0;
+    if (x >= 1.0) return 0.0;
+    return 1.0 - x * x * (3.0 - 2.0 * x);
+}
+
+}  // namespace
+
+float sparse_share(float sparse_flakes, const DirectionGrid& grid, float cos_o, double lambda,
+                   float t) {
+    if (!(sparse_flakes > 0.0f) || !(lambda >= 0.0) || !(t < 0.5f)) return 0.0f;
+    // Flakes per direction (0 where p is below what lit_share_exact resolves: sparse), and the
+    // count, each against its bound: 1 at it, fading from 1/2 (log2 ratio + 1 from 0 to 1).
+    const double lit =
+        lambda * static_cast<double>(grid.lit_share(cos_o)) / static_cast<double>(sparse_flakes);
+    const auto below = [](double ratio) {
+        return ratio > 0.0 ? fall(std::log2(ratio) + 1.0) : 1.0;
+    };
+    const double share =
+        below(lit) * below(lambda / kSparseEnumerate) * fall((static_cast<double>(t) - 0.1) / 0.4);
+    return static_cast<float>(share);
 }
 
 namespace {

@@ -121,27 +121,37 @@ double lit_share_exact(float alpha, float sin2_half, float cos_o);
 /** Default of `sparse_flakes`. */
 constexpr float kSparseFlakes = 128.0f;
 /** The most flakes (expected, after the view's thinning: FieldView::lambda()) in a footprint
- *  that sparse_lobe() has enumerated. */
+ *  that sparse_share() enumerates. */
 constexpr double kSparseEnumerate = 4096.0;
 
-/** Whether the counting algorithm enumerates a footprint of `lambda` flakes (expected) seen from
- *  cos_o, blended with the smooth lobe by t, instead of counting its cells: where it lights a
- *  typical direction of its lobe by at most `sparse_flakes` flakes (lambda lit_share), holds at
- *  most kSparseEnumerate and is more discrete than smooth (t below 1/2). Counted, a cell's
- *  stand-ins match real flakes in spread (each direction's sd / mean) at any count, but in shape
- *  only where a direction meets several of them: with K stand-ins for k flakes (K < k), the k (1 -
- *  sqrt(K / k)) flakes of the smooth part are a floor under every direction, and where real
- *  flakes light a direction by a few each, so that some directions are dark, the floor fills the
- *  gaps between glints and a few stand-ins are too bright. (Raising the stand-ins to as many
- *  flakes cost more than enumerating them.) Real flakes lighting a direction by m leave it
- *  darker than half its mean with the chance of a Poisson count under m / 2 (0.07% at m = 32); but
- *  the typical direction is the median one, and the lobe's tails, a quarter as densely lit and
- *  more, show gaps where it shows none: `sparse_flakes` 128 by default (at 32 a receding plane of
- *  wide cones kept its grey floor in the distance). Beyond t = 1/2 the smooth share is itself
- *  such a floor. A footprint that shrinks holds fewer flakes and a smaller t: once enumerated it
- *  stays so, and its stand-ins were real flakes, which it keeps. `sparse_flakes` 0: never. */
-bool sparse_lobe(float sparse_flakes, const DirectionGrid& grid, float cos_o, double lambda,
-                 float t);
+/** How much of a footprint's discrete lobe the counting algorithm makes by enumerating its flakes
+ *  (1: all of it, 0: none: its cells are counted; between, the two lobes are mixed in that
+ *  proportion) for a footprint of `lambda` flakes (expected) seen from cos_o, blended with the
+ *  smooth lobe by t. Enumerated where it lights a typical direction of its lobe by at most
+ *  `sparse_flakes` flakes (lambda lit_share), holds at most kSparseEnumerate and is more
+ *  discrete than smooth (t below 1/2). Counted, a cell's stand-ins match real flakes in spread
+ *  (each direction's sd / mean) at any count, but in shape only where a direction meets several
+ *  of them: with K stand-ins for k flakes (K < k), the k (1 - sqrt(K / k)) flakes of the smooth
+ *  part are a floor under every direction, and where real flakes light a direction by a few
+ *  each, so that some directions are dark, the floor fills the gaps between glints and a few
+ *  stand-ins are too bright. (Raising the stand-ins to as many flakes cost more than enumerating
+ *  them.) Real flakes lighting a direction by m leave it darker than half its mean with the
+ *  chance of a Poisson count under m / 2 (0.07% at m = 32); but the typical direction is the
+ *  median one, and the lobe's tails, a quarter as densely lit and more, show gaps where it shows
+ *  none: `sparse_flakes` 128 by default (at 32 a receding plane of wide cones kept its grey floor
+ *  in the distance). Beyond t = 1/2 the smooth share is itself such a floor.
+ *
+ *  The change is a fade, not a switch: the stand-ins are K of the k flakes, so the counted lobe
+ *  and the enumerated one of the same footprint correlate only as sqrt(K / k) (0.22 at the
+ *  default paint's t = 1/2, lambda 1 000): switched at once, every glint of a dollying camera's
+ *  surface changed in one frame where the footprint crossed the edge. Each of the three bounds
+ *  fades over a factor of two below it (lambda lit_share from sparse_flakes / 2, lambda from
+ *  kSparseEnumerate / 2: smoothsteps in log2) and t from 0.1 to 1/2, the share being their
+ *  product, so no footprint is enumerated beyond where it was. A footprint that shrinks holds
+ *  fewer flakes and a smaller t: its share only grows, and its stand-ins were real flakes, which
+ *  the enumeration keeps. `sparse_flakes` 0: never (0). */
+float sparse_share(float sparse_flakes, const DirectionGrid& grid, float cos_o, double lambda,
+                   float t);
 
 /** Stand-ins a footprint finds on average by default (the `stand_ins` parameter): the classes it
  *  takes are this dense. (Drawn per footprint and fewer at grazing views, 16 there, a

@@ -100,7 +100,7 @@ bool init_material(Material& m, const SpangleParams_v3* p, const SpangleHost_v3*
         !build_colors(m.colors, m.base, p, host, why))
         return false;
     m.smooth.init(m.alpha, gamma, &m.fresnel, &cache);
-    // (The lit table only where sparse_lobe() reads it.)
+    // (The lit table only where sparse_share() reads it.)
     m.grid.init(m.alpha, gamma, m.tree && m.sparse_flakes > 0.0f);
     m.cache_share.init(m.alpha);
     m.sparse.init(m.alpha, gamma, m.fresnel, m.shadowing, &cache);
@@ -162,6 +162,49 @@ bool few_facets(const FieldParams& field, const Footprint& p, uint32_t limit) {
                               2.0 * static_cast<double>(limit);
 }
 
+/** Mixes a footprint's enumerated lobe (the entries [0, end_enumerated)) and its counted one (the
+ *  rest, and c.counted's smooth part) as `enumerated` : 1 - `enumerated`, each normalised by its
+ *  own W as it would be alone (eval divides every part by the closure's one W: the entries and
+ *  the smooth part are rescaled so that each lobe's weight in it is its share). A lobe whose W is
+ *  0 (no flake facing wo) is left out. The cover is mixed alike. (The counted flakes' smooth
+ *  share, which prepare_flakes reads for the chance that a footprint holds a flake, is scaled
+ *  too; that chance is 1 to within e^-40 at the counts of the fade.) */
+void mix_lobes(std::vector<CacheEntry>& scratch, std::size_t end_enumerated, float enumerated,
+               float cover_enumerated, float cover_counted, Closure& c) {
+    double w_enumerated = 0.0, w_counted = 0.0;
+    for (std::size_t j = 0; j < end_enumerated; ++j)
+        w_enumerated += static_cast<double>(scratch[j].w);
+    for (std::size_t j = end_enumerated; j < scratch.size(); ++j)
+        w_counted += static_cast<double>(scratch[j].w);
+    w_counted += static_cast<double>(c.counted.smooth) * static_cast<double>(c.w_expected);
+    if (!(w_counted > 0.0)) {
+        scratch.resize(end_enumerated);
+        c.counted = CountedFootprint{};
+        c.cover = cover_enumerated;
+        return;
+    }
+    if (!(w_enumerated > 0.0)) {
+        scratch.erase(scratch.begin(),
+                      scratch.begin() + static_cast<std::ptrdiff_t>(end_enumerated));
+        c.cover = cover_counted;
+        return;
+    }
+    const double e = static_cast<double>(enumerated);
+    const double w = e * w_enumerated + (1.0 - e) * w_counted;
+    const auto a = static_cast<float>(e * w / w_enumerated);
+    const auto b = static_cast<float>((1.0 - e) * w / w_counted);
+    for (std::size_t j = 0; j < scratch.size(); ++j) {
+        CacheEntry& x = scratch[j];
+        const float s = j < end_enumerated ? a : b;
+        for (int ch = 0; ch < 3; ++ch) x.rgb[ch] *= s;
+        x.lum *= s;
+        x.w *= s;
+    }
+    c.counted.smooth *= b;
+    c.cover = static_cast<float>(e * static_cast<double>(cover_enumerated) +
+                                 (1.0 - e) * static_cast<double>(cover_counted));
+}
+
 /** The discrete part of a closure: the flakes of footprint p, by the material's algorithm.
  *  Returns false when the footprint is beyond the algorithm's bound (the smooth lobe takes over).
  */
@@ -193,13 +236,57 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
                   field.facet != nullptr && inside(p, f.u, f.v));
     };
     const uint32_t limit = m.tree ? exact_limit(m.exact_flakes, m.grid, c.wo.z) : 0;
-    // A footprint whose flakes light its lobe's directions sparsely is enumerated (sparse_lobe).
-    // (Point flakes: facets have their own rule, few_facets.)
-    const bool sparse = m.tree && field.facet == nullptr &&
-                        sparse_lobe(m.sparse_flakes, m.grid, c.wo.z, view.lambda(), c.t);
-    if (m.tree && !sparse && !sparse_tiles(field, p, limit) && !few_facets(field, p, limit)) {
+    // The share of the discrete lobe the enumeration makes: all of it for `enumerate`, and for
+    // the tree's footprints over many tiles of few flakes or under few facets; for point flakes
+    // lighting their directions sparsely, sparse_share(), the rest counted; none otherwise.
+    float enumerated = 1.0f;
+    const bool whole = sparse_tiles(field, p, limit) || few_facets(field, p, limit);
+    if (m.tree && !whole)
+        enumerated =
+            field.facet ? 0.0f : sparse_share(m.sparse_flakes, m.grid, c.wo.z, view.lambda(), c.t);
+    // The enumerated lobe: the entries [0, end_enumerated).
+    std::size_t end_enumerated = 0;
+    std::size_t found = 0;  // flakes found (the stand-ins not included), for the statistics
+    float cover_enumerated = 0.0f;
+    if (enumerated > 0.0f) {
+        // The enumeration (where flakes light their directions sparsely: at most 4096 of them
+        // on average after the view's thinning to keep >= 1 / sqrt(3), so at most sqrt(3) 4096,
+        // about 7 100, on average before it, which for_each_flake counts: the budget of four
+        // times kSparseEnumerate is never reached).
+        bool truncated = false;
+        // (limit is at most kSparseExactCap, exact_flakes being at most 4096 too: the sparse
+        // budget is the larger.)
+        static_assert(kSparseExactCap <= kSparseEnumerate);
+        const uint32_t budget = !m.tree  ? m.enumerate_cap
+                                : !whole ? static_cast<uint32_t>(4.0 * kSparseEnumerate)
+                                         : 4 * limit;
+        for_each_flake(field, p, budget, truncated, add);
+        if (truncated) return false;
+        flush_entries(c.wo, field.alpha, batch, scratch);
+        c.centres_in = batch.entered_marked;
+        end_enumerated = scratch.size();
+        found = end_enumerated;
+        cover_enumerated = cover;
+        cover = 0.0f;
+        // A footprint of few flakes scaled to average to the far look (facets too: tiny ones
+        // are the point flakes, and a large one's albedo is its own flake's, weighted as the
+        // far look weights them).
+        m.sparse.apply(c.wo.z, static_cast<uint32_t>(end_enumerated), scratch.data(),
+                       scratch.data() + end_enumerated);
+    }
+    if (enumerated < 1.0f) {
         gather_cells(field, p, limit, c.counted, add);
-        if (c.counted.truncated) return false;
+        if (c.counted.truncated) {
+            // More tiles than the tree handles: the enumeration alone where it has the footprint.
+            if (enumerated <= 0.0f) return false;
+            c.counted = CountedFootprint{};
+            batch.n = 0;
+            scratch.resize(end_enumerated);
+            enumerated = 1.0f;
+            found = end_enumerated;
+        }
+    }
+    if (enumerated < 1.0f) {
         if (view.keep < 1.0f) {
             // The aggregates' counts thinned alike (binomially, monotone in keep).
             CountedFootprint& cf = c.counted;
@@ -215,49 +302,34 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
             }
             cf.n_agg = kept_agg;
         }
-    } else {
-        // The enumeration (or the tree's, for a footprint over many tiles of few flakes, under
-        // few facets, or whose flakes light its directions sparsely: at most kSparseEnumerate
-        // of them on average after the view's thinning to keep >= 1 / sqrt(3), so at most
-        // sqrt(3) kSparseEnumerate, about 7 100, on average before it, which for_each_flake
-        // counts: the budget of four times kSparseEnumerate is never reached).
-        bool truncated = false;
-        // (limit is at most kSparseExactCap, exact_flakes being at most 4096 too: the sparse
-        // budget is the larger.)
-        static_assert(kSparseExactCap <= kSparseEnumerate);
-        const uint32_t budget = !m.tree  ? m.enumerate_cap
-                                : sparse ? static_cast<uint32_t>(4.0 * kSparseEnumerate)
-                                         : 4 * limit;
-        for_each_flake(field, p, budget, truncated, add);
-        if (truncated) return false;
-    }
-    flush_entries(c.wo, field.alpha, batch, scratch);
-    c.centres_in = batch.entered_marked;
-    st.cached += scratch.size();
-    // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
-    if (c.counted.n_agg > 0)
-        add_stand_ins(c.counted, field, p, view.keep, m.stand_ins, m.grid, m.colors, m.fresnel,
-                      m.film, c.wo, scratch);
-    // A footprint of few flakes scaled to average to the far look (facets too: tiny ones are
-    // the point flakes, and a large one's albedo is its own flake's, weighted as the far look
-    // weights them).
-    if (!scratch.empty()) {
-        // The counted cells' flakes that the smooth part carries count as many as enter the
-        // cache (cache_share of them).
+        flush_entries(c.wo, field.alpha, batch, scratch);
+        c.centres_in = batch.entered_marked;
+        found = scratch.size();
+        // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
+        if (c.counted.n_agg > 0)
+            add_stand_ins(c.counted, field, p, view.keep, m.stand_ins, m.grid, m.colors, m.fresnel,
+                          m.film, c.wo, scratch);
+        // Scaled to the far look as the enumeration's; the counted cells' flakes that the smooth
+        // part carries count as many as enter the cache (cache_share of them).
         const double k =
-            static_cast<double>(scratch.size()) +
+            static_cast<double>(scratch.size() - end_enumerated) +
             static_cast<double>(c.counted.smooth) * static_cast<double>(m.cache_share.at(c.wo.z));
-        m.sparse.apply(c.wo.z, static_cast<uint32_t>(std::min(k, 1e9)), scratch.data(),
-                       scratch.data() + scratch.size());
+        m.sparse.apply(c.wo.z, static_cast<uint32_t>(std::min(k, 1e9)),
+                       scratch.data() + end_enumerated, scratch.data() + scratch.size());
     }
-    if (!store_cache(scratch, arena, c)) return false;
     // Facets count towards the cover by their shares, the counted cells' by their expectation:
     // where the facets are wider than the footprint the cells are (their size follows the
     // facets' reach), few of their flakes lie inside it, and a count drawn per cell put square
     // blocks of darker or lighter cover on the surface. Point flakes: whether any is held.
-    c.cover = cover + (field.facet
-                           ? static_cast<float>(c.counted.expected * static_cast<double>(view.keep))
-                           : static_cast<float>(c.counted.aggregated));
+    const float cover_counted =
+        cover + (field.facet
+                     ? static_cast<float>(c.counted.expected * static_cast<double>(view.keep))
+                     : static_cast<float>(c.counted.aggregated));
+    c.cover = enumerated >= 1.0f ? cover_enumerated : cover_counted;
+    if (enumerated > 0.0f && enumerated < 1.0f)
+        mix_lobes(scratch, end_enumerated, enumerated, cover_enumerated, cover_counted, c);
+    st.cached += found;
+    if (!store_cache(scratch, arena, c)) return false;
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;
     // W: the cache's weights (stand-ins included) and the expected weight of the aggregated

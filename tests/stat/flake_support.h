@@ -12,6 +12,7 @@
 #include "../common/microfacet.h"
 #include "bsdf_harness.h"
 #include "core/hash.h"
+#include "counted_lobe.h"
 
 namespace spangle::test {
 
@@ -93,6 +94,22 @@ inline std::vector<Vec3> smooth_f(BsdfHarness& m, Vec3 wo, const std::vector<Vec
 /** Directional albedo of the prepared closure: mean of f cos / pdf over n samples. */
 inline double albedo(const BsdfHarness& m, uint32_t n, uint64_t seed, int channel = 1) {
     return m.albedo(n, seed, channel).mean;
+}
+
+/** The footprint size (expected flakes) at which the default tree's discrete lobe, seen from
+ *  cos_o (t = 0), is half enumerated and half counted (flake::sparse_share() at 1/2), for flakes
+ *  of roughness alpha and a cone of gamma_deg degrees: found by bisection on the plugin's own
+ *  table. */
+inline double half_faded_lambda(float alpha, float gamma_deg, float cos_o) {
+    namespace fl = spangle::flake;
+    fl::DirectionGrid grid;
+    grid.init(alpha, gamma_deg * 3.14159265358979f / 180.0f);
+    double lo = 1.0, hi = fl::kSparseEnumerate;  // share 1 at lo, 0 at hi
+    for (int i = 0; i < 40; ++i) {
+        const double mid = std::sqrt(lo * hi);
+        (fl::sparse_share(fl::kSparseFlakes, grid, cos_o, mid, 0.0f) > 0.5f ? lo : hi) = mid;
+    }
+    return lo;
 }
 
 }  // namespace spangle::test
