@@ -194,8 +194,9 @@ float sparse_share(float sparse_flakes, const DirectionGrid& grid, float cos_o, 
     // count, each against its bound: 1 at it, fading from 1/2 (log2 ratio + 1 from 0 to 1).
     const double lit =
         lambda * static_cast<double>(grid.lit_share(cos_o)) / static_cast<double>(sparse_flakes);
+    // (A ratio that is not a number: counted.)
     const auto below = [](double ratio) {
-        return ratio > 0.0 ? fall(std::log2(ratio) + 1.0) : 1.0;
+        return !(ratio >= 0.0) ? 0.0 : ratio > 0.0 ? fall(std::log2(ratio) + 1.0) : 1.0;
     };
     const double share =
         below(lit) * below(lambda / kSparseEnumerate) * fall((static_cast<double>(t) - 0.1) / 0.4);

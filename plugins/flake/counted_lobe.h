@@ -142,7 +142,7 @@ constexpr double kSparseEnumerate = 4096.0;
  *  in the distance). Beyond t = 1/2 the smooth share is itself such a floor.
  *
  *  The change is a fade, not a switch: the stand-ins are K of the k flakes, so the counted lobe
- *  and the enumerated one of the same footprint correlate only as sqrt(K / k) (0.22 at the
+ *  and the enumerated one of the same footprint correlate only as sqrt(K / k) (0.23 at the
  *  default paint's t = 1/2, lambda 1 000): switched at once, every glint of a dollying camera's
  *  surface changed in one frame where the footprint crossed the edge. Each of the three bounds
  *  fades over a factor of two below it (lambda lit_share from sparse_flakes / 2, lambda from

@@ -239,11 +239,11 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     // The share of the discrete lobe the enumeration makes: all of it for `enumerate`, and for
     // the tree's footprints over many tiles of few flakes or under few facets; for point flakes
     // lighting their directions sparsely, sparse_share(), the rest counted; none otherwise.
-    float enumerated = 1.0f;
-    const bool whole = sparse_tiles(field, p, limit) || few_facets(field, p, limit);
-    if (m.tree && !whole)
-        enumerated =
-            field.facet ? 0.0f : sparse_share(m.sparse_flakes, m.grid, c.wo.z, view.lambda(), c.t);
+    const float sparse = m.tree && field.facet == nullptr
+                             ? sparse_share(m.sparse_flakes, m.grid, c.wo.z, view.lambda(), c.t)
+                             : 0.0f;
+    const bool whole = !m.tree || sparse_tiles(field, p, limit) || few_facets(field, p, limit);
+    float enumerated = whole ? 1.0f : sparse;
     // The enumerated lobe: the entries [0, end_enumerated).
     std::size_t end_enumerated = 0;
     std::size_t found = 0;  // flakes found (the stand-ins not included), for the statistics
@@ -257,9 +257,9 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         // (limit is at most kSparseExactCap, exact_flakes being at most 4096 too: the sparse
         // budget is the larger.)
         static_assert(kSparseExactCap <= kSparseEnumerate);
-        const uint32_t budget = !m.tree  ? m.enumerate_cap
-                                : !whole ? static_cast<uint32_t>(4.0 * kSparseEnumerate)
-                                         : 4 * limit;
+        const uint32_t budget = !m.tree         ? m.enumerate_cap
+                                : sparse > 0.0f ? static_cast<uint32_t>(4.0 * kSparseEnumerate)
+                                                : 4 * limit;
         for_each_flake(field, p, budget, truncated, add);
         if (truncated) return false;
         flush_entries(c.wo, field.alpha, batch, scratch);
@@ -304,7 +304,8 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
         }
         flush_entries(c.wo, field.alpha, batch, scratch);
         c.centres_in = batch.entered_marked;
-        found = scratch.size();
+        // (In the fade the enumeration has found every flake: the cells' are among them.)
+        if (end_enumerated == 0) found = scratch.size();
         // The aggregates' stand-ins join the cache; the rest of their flakes is the smooth lobe.
         if (c.counted.n_agg > 0)
             add_stand_ins(c.counted, field, p, view.keep, m.stand_ins, m.grid, m.colors, m.fresnel,

@@ -272,8 +272,9 @@ TEST(FlakeEnergy, FadedFootprintsKeepAtMostTheirEnergyByQuadrature) {
             ASSERT_NEAR(fl::sparse_share(fl::kSparseFlakes, grid, cos_o, lambda, 0.0f), 0.5f,
                         0.01f);
             for (double shadowing : {0.0, 1.0}) {
-                // (Wide cones in every case; the costlier others, of thousands of flakes, at two
-                // views, one with shadowing and one without: 15 s in all.)
+                // (Wide cones in every case; the costlier others, of thousands of flakes, at one
+                // view (gamma 3) or two, with shadowing head-on and without at grazing: 15 s in
+                // all.)
                 const bool wide = gamma == 10.0 && alpha == 0.15;
                 if (!wide && (cos_o == 0.3f || (shadowing == 1.0) != (cos_o == 1.0f) ||
                               (gamma == 3.0 && cos_o == 1.0f)))

@@ -345,5 +345,67 @@ TEST(FlakeSparse, ADollyFadesFromCountedToEnumerated) {
     }
 }
 
+TEST(FlakeSparse, ObjectSpaceFootprintsFadeAlike) {
+    // Object space (density_space "object") lays the flakes in the coordinate plane most facing
+    // the surface and thins them by keep = 1 / (sqrt(3) |n_k|) < 1 on a tilted one, the counted
+    // cells' aggregates binomially alike: the fade takes the thinned count (FieldView::lambda),
+    // so a sparse footprint is the enumeration's bit for bit, one past the blend's midpoint the
+    // count's, and one between a mix of the two, different from both.
+    const Vec3 n = normalize(Vec3(0.5f, 0.3f, 0.81f));
+    const Vec3 wo = dir(0.9f, 0.3f);
+    const Vec3 r = mirror(wo);
+    std::vector<Vec3> wis;
+    for (int a = -6; a <= 6; ++a)
+        for (int b = -6; b <= 6; ++b)
+            wis.push_back(normalize(Vec3(r.x + 0.05f * static_cast<float>(a),
+                                         r.y + 0.05f * static_cast<float>(b), r.z)));
+    auto tree = flake_material(false, {}, {{"density_space", "object"}});
+    auto all = flake_material(false, {}, {{"density_space", "object"}, {"algorithm", "enumerate"}});
+    auto counting =
+        flake_material(false, {{"sparse_flakes", {0.0}}}, {{"density_space", "object"}});
+    const auto f_of = [&](BsdfHarness& m, const BsdfHarness::Point& pt) {
+        m.prepare(wo, pt);
+        std::vector<Vec3> f;
+        std::vector<float> pdf;
+        m.eval(wis, f, pdf);
+        return f;
+    };
+    // lambda = density sqrt(3) side^2 keep = density side^2 / n_z (the footprint's axes in the
+    // plane z, keep = 1 / (sqrt(3) n_z)): side^2 = lambda n_z / density.
+    for (const double lambda : {300.0, 850.0, 1600.0}) {
+        SCOPED_TRACE(testing::Message() << "lambda " << lambda);
+        int like_all = 0, like_counting = 0, finite = 0;
+        constexpr int kFootprints = 60;
+        for (int k = 0; k < kFootprints; ++k) {
+            BsdfHarness::Point pt;
+            const auto side =
+                static_cast<float>(std::sqrt(lambda * static_cast<double>(n.z) / kTestDensity));
+            pt.p_obj = Vec3(
+                static_cast<float>(to_unit_double(hash2(17, 2 * static_cast<uint64_t>(k))) * 50.0),
+                static_cast<float>(to_unit_double(hash2(17, 2 * static_cast<uint64_t>(k) + 1)) *
+                                   50.0),
+                0.0f);
+            pt.n_obj = n;
+            pt.dpdx_obj = Vec3(side, 0.0f, 0.0f);
+            pt.dpdy_obj = Vec3(0.0f, side, 0.0f);
+            const std::vector<Vec3> ft = f_of(*tree, pt);
+            like_all += ft == f_of(*all, pt) ? 1 : 0;
+            like_counting += ft == f_of(*counting, pt) ? 1 : 0;
+            bool ok = true;
+            for (const Vec3& x : ft) ok = ok && std::isfinite(x.y) && x.y >= 0.0f;
+            finite += ok ? 1 : 0;
+        }
+        EXPECT_EQ(finite, kFootprints);
+        if (lambda < 500.0) {
+            EXPECT_EQ(like_all, kFootprints);
+        } else if (lambda > 1500.0) {
+            EXPECT_EQ(like_counting, kFootprints);
+        } else {
+            EXPECT_EQ(like_all, 0);
+            EXPECT_EQ(like_counting, 0);
+        }
+    }
+}
+
 }  // namespace
 }  // namespace spangle::test::flake_sparse
