@@ -308,6 +308,13 @@ TEST(FlakeLobe, SamplingMatchesPdfWithTwoPopulations) {
                              {"flakes2_gamma", {3.0}}};
     lobe_chi2({"enumerate", 40, 3.0f, 0.15f, 0.7f, two}, 31);
     lobe_chi2({"tree", 40, 3.0f, 0.15f, 0.5f, two}, 32);
+    // Both populations under the default rule, wide cones: the first half faded from its count
+    // to its enumeration (sparse_share), the second (half as dense, rougher) its own share.
+    FlakeParams faded = {
+        {"flakes2_weight", {0.4}},          {"flakes2_density", {0.5 * kTestDensity}},
+        {"flakes2_color", {1.0, 0.3, 0.1}}, {"flakes2_roughness", {0.3}},
+        {"flakes2_gamma", {10.0}},          {"sparse_flakes", {fl::kSparseFlakes}}};
+    lobe_chi2({"tree", half_faded_lambda(0.15f, 10.0f, 0.5f), 10.0f, 0.15f, 0.5f, faded}, 33);
 }
 
 TEST(FlakeLobe, SamplingMatchesPdfWithFacets) {
