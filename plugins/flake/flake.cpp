@@ -152,6 +152,8 @@ void flake_prepare(const void* inst, const SpangleShadingBatch_v3* b, void* clos
     m.flakes_cached += st.cached;
     m.flakes_aggregated += st.aggregated;
     m.aggregates += st.aggregates;
+    m.sparse_enumerated += st.sparse_enumerated;
+    m.sparse_faded += st.sparse_faded;
     m.lambda_milli_sum += st.lambda_milli;
     m.lambda_count += st.lambda_count;
     m.ns_prepare += ns_since(t0);
@@ -227,6 +229,9 @@ uint32_t flake_stats(const void* inst, SpangleStat_v3* out, uint32_t capacity) {
         {"fraction blended", per_point(m.blended)},
         {"fraction smooth", per_point(m.smooth_only)},
         {"fraction beyond the algorithm's bound (smooth)", per_point(m.truncated)},
+        {"fraction enumerated for sparse lobes (tree, sparse_flakes)",
+         per_point(m.sparse_enumerated)},
+        {"fraction fading from counted to enumerated (tree)", per_point(m.sparse_faded)},
         {"ns per point in prepare", per_point(m.ns_prepare)},
         {"ns per point in eval", per_point(m.ns_eval)},
         {"ns per point in sample", per_point(m.ns_sample)},

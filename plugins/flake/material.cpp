@@ -330,6 +330,7 @@ bool prepare_discrete(const Material& m, const FieldView& view, Closure& c, Span
     if (enumerated > 0.0f && enumerated < 1.0f)
         mix_lobes(scratch, end_enumerated, enumerated, cover_enumerated, cover_counted, c);
     st.cached += found;
+    if (!whole && enumerated > 0.0f) ++(enumerated < 1.0f ? st.sparse_faded : st.sparse_enumerated);
     if (!store_cache(scratch, arena, c)) return false;
     st.aggregated += c.counted.aggregated;
     st.aggregates += c.counted.n_agg;

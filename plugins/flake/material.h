@@ -78,6 +78,7 @@ struct Material {
     mutable std::atomic<uint64_t> points{0}, discrete{0}, blended{0}, smooth_only{0};
     mutable std::atomic<uint64_t> truncated{0}, flakes_cached{0}, flakes_aggregated{0};
     mutable std::atomic<uint64_t> aggregates{0}, lambda_milli_sum{0}, lambda_count{0};
+    mutable std::atomic<uint64_t> sparse_enumerated{0}, sparse_faded{0};
     mutable std::atomic<uint64_t> ns_prepare{0}, ns_eval{0}, ns_sample{0};
 };
 
@@ -112,6 +113,9 @@ struct Closure {
 struct PointStats {
     uint64_t discrete = 0, blended = 0, smooth = 0, truncated = 0;
     uint64_t cached = 0, aggregated = 0, aggregates = 0, lambda_milli = 0, lambda_count = 0;
+    /** Tree: footprints of point flakes enumerated for their sparse lobes (sparse_share 1), and
+     *  those mixing the enumeration with the count (between 0 and 1). */
+    uint64_t sparse_enumerated = 0, sparse_faded = 0;
 };
 
 /** The shading data of one point, as the batch gives it. */
