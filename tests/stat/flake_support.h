@@ -62,6 +62,19 @@ inline Vec3 mirror(Vec3 wo) {
     return {-wo.x, -wo.y, wo.z};
 }
 
+/** A fan of directions around r: r offset by (step a, step b) for a, b in [-half, half],
+ *  normalised, those above min_z. */
+inline std::vector<Vec3> fan(Vec3 r, float step, int half, float min_z) {
+    std::vector<Vec3> out;
+    for (int a = -half; a <= half; ++a)
+        for (int b = -half; b <= half; ++b) {
+            const Vec3 d = normalize(
+                Vec3(r.x + step * static_cast<float>(a), r.y + step * static_cast<float>(b), r.z));
+            if (d.z > min_z) out.push_back(d);
+        }
+    return out;
+}
+
 /** A square footprint of expected count lambda (density kTestDensity) centred at (u, v). */
 inline BsdfHarness::Point footprint(double lambda, float u, float v) {
     BsdfHarness::Point pt;

@@ -215,14 +215,7 @@ TEST(FlakeGlints, NestedFootprintsLightNestedDirections) {
         for (double lambda : {200.0, 600.0}) {
             auto m = flake_material(true, {}, {{"algorithm", algorithm}});
             const Vec3 wo = dir(0.8f, 0.3f);
-            const Vec3 r = mirror(wo);
-            std::vector<Vec3> wis;
-            for (int a = -6; a <= 6; ++a)
-                for (int b = -6; b <= 6; ++b) {
-                    const Vec3 d = normalize(Vec3(r.x + 0.05f * static_cast<float>(a),
-                                                  r.y + 0.05f * static_cast<float>(b), r.z));
-                    if (d.z > 0.05f) wis.push_back(d);
-                }
+            const std::vector<Vec3> wis = fan(mirror(wo), 0.05f, 6, 0.05f);
             double lit_small = 0.0, not_big = 0.0;
             std::vector<Vec3> fs, fb;
             std::vector<float> pdf;

@@ -18,14 +18,7 @@ double zoom_correlation(const char* algorithm, double lambda, float shrink, floa
     auto m = flake_material(true, {{"flake_roughness", {0.15f}}, {"gamma", {3.0f}}},
                             {{"algorithm", algorithm}});
     const Vec3 wo = dir(cos_o, 0.3f);
-    const Vec3 r = mirror(wo);
-    std::vector<Vec3> wis;
-    for (int a = -3; a <= 3; ++a)
-        for (int b = -3; b <= 3; ++b) {
-            const Vec3 d = normalize(Vec3(r.x + 0.045f * static_cast<float>(a),
-                                          r.y + 0.045f * static_cast<float>(b), r.z));
-            if (d.z > 0.05f) wis.push_back(d);
-        }
+    const std::vector<Vec3> wis = fan(mirror(wo), 0.045f, 3, 0.05f);
     const std::size_t nd = wis.size();
     constexpr int kFootprints = 600;
     std::vector<std::vector<float>> big(kFootprints), small(kFootprints);
