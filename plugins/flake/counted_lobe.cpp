@@ -18,10 +18,7 @@ void DirectionGrid::init(float alpha_, float gamma_rad, bool with_lit) {
 }
 
 float DirectionGrid::lit_share(float cos_o) const {
-    const float x = std::sqrt(std::clamp(cos_o, 0.0f, 1.0f)) * static_cast<float>(kLitNodes - 1);
-    const int i = std::min(static_cast<int>(x), kLitNodes - 2);
-    const float f = x - static_cast<float>(i);
-    return lit[i] + f * (lit[i + 1] - lit[i]);
+    return interpolate_nodes(lit, kLitNodes, std::sqrt(std::clamp(cos_o, 0.0f, 1.0f)));
 }
 
 int footprint_level(const FieldParams& fp, const Footprint& p) {

@@ -131,10 +131,7 @@ void CacheShare::init(float alpha) {
 }
 
 float CacheShare::at(float cos_o) const {
-    const float x = std::clamp(cos_o, 0.0f, 1.0f) * static_cast<float>(kNodes - 1);
-    const int i = std::min(static_cast<int>(x), kNodes - 2);
-    const float f = x - static_cast<float>(i);
-    return at_node[i] + f * (at_node[i + 1] - at_node[i]);
+    return interpolate_nodes(at_node, kNodes, cos_o);
 }
 
 }  // namespace spangle::flake

@@ -10,6 +10,7 @@
 // away from wo or reflecting under the horizon are skipped. Sampling picks a flake by luminance
 // (binary search in a cumulative table), then a direction uniform in its cone.
 
+#include <algorithm>
 #include <cstdint>
 #include <vector>
 
@@ -76,6 +77,14 @@ inline void EntryBatch::add(V3 wo, float alpha, float s_, float t_, const float*
  *  1 / (1 + alpha^2) head-on, 1/2 at grazing. Trapezoid rule in phi (periodic: it converges
  *  fast). */
 double cache_share_exact(float alpha, float cos_o);
+
+/** Linear interpolation at x (clamped to [0, 1]) of n nodes tabulated at x = i / (n - 1). */
+inline float interpolate_nodes(const float* node, int n, float x) {
+    const float s = std::clamp(x, 0.0f, 1.0f) * static_cast<float>(n - 1);
+    const int i = std::min(static_cast<int>(s), n - 2);
+    const float f = s - static_cast<float>(i);
+    return node[i] + f * (node[i + 1] - node[i]);
+}
 
 /** cache_share_exact() of one material, tabulated over cos_o and interpolated. */
 struct CacheShare {

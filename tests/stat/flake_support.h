@@ -75,6 +75,32 @@ inline std::vector<Vec3> fan(Vec3 r, float step, int half, float min_z) {
     return out;
 }
 
+/** The correlation over footprints of f in the same direction between two sets of the same
+ *  footprints' f (x[k][j], y[k][j]: footprint k, direction j), the mean over the directions (a
+ *  direction that varies in neither counts 0). */
+inline double mean_correlation(const std::vector<std::vector<float>>& x,
+                               const std::vector<std::vector<float>>& y) {
+    const std::size_t nd = x.empty() ? 0 : x[0].size();
+    const double n = static_cast<double>(x.size());
+    double corr = 0.0;
+    for (std::size_t j = 0; j < nd; ++j) {
+        double mx = 0, my = 0, cxy = 0, cxx = 0, cyy = 0;
+        for (std::size_t k = 0; k < x.size(); ++k) {
+            const double a = x[k][j], b = y[k][j];
+            mx += a;
+            my += b;
+            cxy += a * b;
+            cxx += a * a;
+            cyy += b * b;
+        }
+        mx /= n;
+        my /= n;
+        const double vx = cxx / n - mx * mx, vy = cyy / n - my * my;
+        corr += vx > 0 && vy > 0 ? (cxy / n - mx * my) / std::sqrt(vx * vy) : 0.0;
+    }
+    return nd > 0 ? corr / static_cast<double>(nd) : 0.0;
+}
+
 /** A square footprint of expected count lambda (density kTestDensity) centred at (u, v). */
 inline BsdfHarness::Point footprint(double lambda, float u, float v) {
     BsdfHarness::Point pt;

@@ -299,27 +299,7 @@ std::vector<double> dolly(const char* algorithm, float cos_o, double lambda0, do
             for (const Vec3& x : f) row.push_back(x.y);
             now.push_back(row);
         }
-        if (!last.empty()) {
-            double corr = 0.0;
-            for (std::size_t j = 0; j < wis.size(); ++j) {
-                double mx = 0.0, my = 0.0, xx = 0.0, yy = 0.0, xy = 0.0;
-                for (int k = 0; k < kFootprints; ++k) {
-                    const double x = last[static_cast<std::size_t>(k)][j];
-                    const double y = now[static_cast<std::size_t>(k)][j];
-                    mx += x;
-                    my += y;
-                    xx += x * x;
-                    yy += y * y;
-                    xy += x * y;
-                }
-                mx /= kFootprints;
-                my /= kFootprints;
-                const double vx = xx / kFootprints - mx * mx, vy = yy / kFootprints - my * my;
-                corr +=
-                    vx > 0.0 && vy > 0.0 ? (xy / kFootprints - mx * my) / std::sqrt(vx * vy) : 0.0;
-            }
-            out.push_back(corr / static_cast<double>(wis.size()));
-        }
+        if (!last.empty()) out.push_back(mean_correlation(last, now));
         std::swap(last, now);
     }
     return out;

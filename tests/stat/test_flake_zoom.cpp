@@ -19,7 +19,6 @@ double zoom_correlation(const char* algorithm, double lambda, float shrink, floa
                             {{"algorithm", algorithm}});
     const Vec3 wo = dir(cos_o, 0.3f);
     const std::vector<Vec3> wis = fan(mirror(wo), 0.045f, 3, 0.05f);
-    const std::size_t nd = wis.size();
     constexpr int kFootprints = 600;
     std::vector<std::vector<float>> big(kFootprints), small(kFootprints);
     std::vector<Vec3> f;
@@ -36,24 +35,7 @@ double zoom_correlation(const char* algorithm, double lambda, float shrink, floa
         m->eval(wis, f, pdf);
         for (const Vec3& x : f) small[k].push_back(x.y);
     }
-    double corr = 0.0;
-    for (std::size_t j = 0; j < nd; ++j) {
-        double mx = 0, my = 0, cxy = 0, cxx = 0, cyy = 0;
-        for (int k = 0; k < kFootprints; ++k) {
-            const double x = big[k][j], y = small[k][j];
-            mx += x;
-            my += y;
-            cxy += x * y;
-            cxx += x * x;
-            cyy += y * y;
-        }
-        const double n = kFootprints;
-        mx /= n;
-        my /= n;
-        const double vx = cxx / n - mx * mx, vy = cyy / n - my * my;
-        corr += vx > 0 && vy > 0 ? (cxy / n - mx * my) / std::sqrt(vx * vy) : 0.0;
-    }
-    return corr / static_cast<double>(nd);
+    return mean_correlation(big, small);
 }
 
 TEST(FlakeZoom, AFootprintHalfAsWideKeepsTheLargerOnesGlints) {
