@@ -23,28 +23,31 @@ void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& o
         rz[i] = mz[i] * (2.0f * cos_om[i]) - wo.z;
         w[i] = cos_om[i] / mz[i];
     }
-    // The rest per flake (its Fresnel table and colour are its own), written in place: the
-    // vector grown once and cut back to the entries kept.
-    const std::size_t base = out.size();
-    out.resize(base + n);
-    CacheEntry* const dst = out.data() + base;
-    uint32_t kept = 0;
+    // The rest per flake (its Fresnel table and colour are its own), into a block of its own,
+    // every flake written and the cursor moved past those kept: whether a flake faces away or
+    // reflects under the horizon is a coin toss near grazing, and a branch on it was
+    // mispredicted as often. The block is appended in one copy (growing the vector by the batch
+    // first zeroed every entry before it was written).
+    CacheEntry kept_entries[kSize];
+    uint32_t kept = 0, marked = 0;
     for (uint32_t i = 0; i < n; ++i) {
-        if (cos_om[i] <= 0.0f || rz[i] <= 0.0f) continue;
+        const bool keep = (cos_om[i] > 0.0f) & (rz[i] > 0.0f);
         const float c2 = 2.0f * cos_om[i];
         float f[3];
         b.fresnel[i]->eval(cos_om[i], f);
         float rgb[3];
         for (int c = 0; c < 3; ++c) rgb[c] = w[i] * b.col[i][c] * f[c];
-        CacheEntry& e = dst[kept++];
+        CacheEntry& e = kept_entries[kept];
         e.r = {mx[i] * c2 - wo.x, my[i] * c2 - wo.y, rz[i]};
         const float scale = b.scale[i];
         for (int c = 0; c < 3; ++c) e.rgb[c] = rgb[c] * scale;
         e.lum = std::max(0.0f, luminance(rgb)) * scale;
         e.w = w[i] * scale;
-        b.entered_marked += b.marked[i] ? 1u : 0u;
+        marked += keep & b.marked[i] ? 1u : 0u;
+        kept += keep ? 1u : 0u;
     }
-    out.resize(base + kept);
+    b.entered_marked += marked;
+    out.insert(out.end(), kept_entries, kept_entries + kept);
 }
 
 Cone::Cone(float gamma_rad) {

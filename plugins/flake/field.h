@@ -472,6 +472,126 @@ uint32_t for_each_flake(const FieldParams& fp, const Footprint& p, uint32_t max_
 
 // ------------------------------------------------------------------------------------ templates
 
+/** Candidate flakes gathered over many blocks (of any class and row) or leaves, then placed
+ *  and tested without branches (whether one lies inside is a coin toss along P's edges), and
+ *  those inside emitted in the order gathered. A block or a leaf writes a fixed number of slots
+ *  whatever its count and moves the cursor by its count: a loop of each one's own count, and
+ *  one over the few it found, were a mispredicted exit per block or leaf. */
+struct CandidateRun {
+    static constexpr uint32_t kRunSlots = 256;          ///< slots tested at once (about)
+    static constexpr uint32_t kSlots = kRunSlots + 64;  ///< room for a block or a leaf chunk more
+    static constexpr uint32_t kSources = 256;           ///< blocks or leaf chunks of a run, at most
+    static constexpr uint32_t kBlockSlots = 8;          ///< slots a block writes whatever its count
+    static constexpr uint32_t kLeafSlots = 16;          ///< slots a leaf chunk writes, at least
+    static constexpr uint32_t kLeafChunk = 64;          ///< flakes of a leaf per chunk, at most
+    // Per source (a block or a chunk of a leaf): its key and place. Class blocks: column, row
+    // (exact in double) and width; leaves: the cell's corner and size.
+    uint64_t key[kSources];
+    double ox[kSources], oy[kSources], size[kSources];
+    // Per slot: its source and the flake's index there.
+    uint16_t owner[kSlots];
+    uint32_t index[kSlots];
+    // The flakes found inside: hash and place.
+    uint64_t hs[kSlots];
+    double xs[kSlots], ys[kSlots];
+    uint32_t n = 0, sources = 0;
+
+    /** Whether the run is full: flush it before adding more. */
+    bool full() const { return n >= kRunSlots || sources == kSources; }
+
+    /** Block (bx, by) of width `block` and key bk, holding `count` flakes (at most
+     *  kClassMaxPerBlock). */
+    void add_block(uint64_t bk, int64_t bx, int64_t by, double block, uint32_t count) {
+        const uint32_t src =
+            add_source(bk, static_cast<double>(bx), static_cast<double>(by), block);
+        for (uint32_t k = 0; k < kBlockSlots; ++k) set(n + k, src, k);
+        if (count > kBlockSlots) [[unlikely]]
+            for (uint32_t k = kBlockSlots; k < count; ++k) set(n + k, src, k);
+        n += count;
+    }
+    /** The class flakes gathered: placed, tested with in(x, y), those inside finished and
+     *  emitted (emit(Flake&, hash)). False when emit stopped. */
+    template <class In, class E>
+    bool flush_class(In&& in, const FieldParams& fp, const Footprint& local, E&& emit) {
+        uint32_t found = 0;
+        for (uint32_t j = 0; j < n; ++j) {
+            const uint32_t s = owner[j];
+            double x, y;
+            hs[found] = class_flake_position(key[s], index[j], static_cast<int64_t>(ox[s]),
+                                             static_cast<int64_t>(oy[s]), size[s], x, y);
+            xs[found] = x;
+            ys[found] = y;
+            found += in(x, y) ? 1u : 0u;
+        }
+        n = sources = 0;
+        for (uint32_t j = 0; j < found; ++j) {
+            Flake f;
+            f.u = xs[j];
+            f.v = ys[j];
+            if (fp.facet) {
+                f.cover = facet_coverage(local, *fp.facet, fp.facet_size, f.u, f.v, hs[j]);
+                if (!(f.cover > 0.0f)) continue;
+            }
+            class_flake_finish(fp, hs[j], f);
+            if (!emit(f, hs[j])) return false;
+        }
+        return true;
+    }
+
+    /** The `count` flakes of the leaf with key `leaf_key` and cell [x0, x0 + cell] x [y0, y0 +
+     *  cell]; calls flush() (false: stop) whenever the run is full. False when flush stopped. */
+    template <class F>
+    bool add_leaf(uint64_t leaf_key, double x0, double y0, double cell, uint32_t count, F&& flush) {
+        for (uint32_t first = 0; first < count;) {
+            if (full() && !flush()) return false;
+            const uint32_t take = std::min(count - first, kLeafChunk);
+            const uint32_t src = add_source(leaf_key, x0, y0, cell);
+            for (uint32_t k = 0; k < kLeafSlots; ++k) set(n + k, src, first + k);
+            if (take > kLeafSlots) [[unlikely]]
+                for (uint32_t k = kLeafSlots; k < take; ++k) set(n + k, src, first + k);
+            n += take;
+            first += take;
+        }
+        return true;
+    }
+    /** The leaf flakes gathered: placed, tested against P (`local`, not singular), those inside
+     *  emitted (emit(Flake&, hash), the flake placed, its id set). False when emit stopped. */
+    template <class E>
+    bool flush_leaves(const Footprint& local, E&& emit) {
+        uint32_t found = 0;
+        for (uint32_t j = 0; j < n; ++j) {
+            const uint32_t s = owner[j];
+            Flake f;
+            hs[found] = leaf_flake_position(key[s], index[j], ox[s], oy[s], size[s], f);
+            xs[found] = f.u;
+            ys[found] = f.v;
+            found += inside_nonsingular(local, f.u, f.v) ? 1u : 0u;
+        }
+        n = sources = 0;
+        for (uint32_t j = 0; j < found; ++j) {
+            Flake f;
+            f.u = xs[j];
+            f.v = ys[j];
+            f.id = hs[j];
+            if (!emit(f, hs[j])) return false;
+        }
+        return true;
+    }
+
+private:
+    uint32_t add_source(uint64_t k, double x, double y, double sz) {
+        key[sources] = k;
+        ox[sources] = x;
+        oy[sources] = y;
+        size[sources] = sz;
+        return sources++;
+    }
+    void set(uint32_t slot, uint32_t src, uint32_t idx) {
+        owner[slot] = static_cast<uint16_t>(src);
+        index[slot] = idx;
+    }
+};
+
 template <class Region, class Emit>
 void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footprint& local,
                      uint64_t tile, double x0, double y0, double x1, double y1, Region&& region,
@@ -494,6 +614,11 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
     }
     double candidates = 0.0;
     const StripSpan span(local);
+    const auto in = [&](double x, double y) {
+        return (x >= x0) & (x < x1) & (y >= y0) & (y < y1) & region(x, y) &
+               (fp.facet != nullptr || inside_nonsingular(local, x, y));
+    };
+    CandidateRun run;  // (about 17 KB of stack, unset: every slot is written before it is read)
     for (int c = 0; c <= cl.last; ++c) {
         const double block = pow2_neg(c + 3);
         const double blocks = 1.0 / block;
@@ -505,11 +630,12 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
         PoissonCdf last_law;
         if (c == cl.last) last_law = poisson_law(mean);
         const PoissonCdf& law = c < cl.last ? kWholeClass : last_law;
-        // (Too many candidates: a needle's bounding box.)
+        // (Too many candidates: a needle's bounding box.) The flakes of the classes before
+        // this one are emitted first, as they were found.
         candidates +=
             mean * static_cast<double>(bx1 - bx0 + 1) * static_cast<double>(by1 - by0 + 1);
         if (candidates > 64.0 * static_cast<double>(budget) + 65536.0) {
-            truncated = true;
+            if (run.flush_class(in, fp, local, emit)) truncated = true;
             return;
         }
         const uint64_t ck = class_key(tile, c);
@@ -520,35 +646,12 @@ void class_flakes_in(const FieldParams& fp, const ClassLayout& cl, const Footpri
             if (!fp.facet && !span.row_blocks(by, block, rx0, rx1)) continue;
             for (int64_t bx = rx0; bx <= rx1; ++bx) {
                 const uint64_t bk = block_key(ck, bx, by);
-                const uint32_t count = law.count(bk);
-                // Which of the block's flakes lie in the box, the region and P, tested without
-                // branches (whether one does is a coin toss along the edges), then those emitted.
-                uint64_t hs[kClassMaxPerBlock];
-                double xs[kClassMaxPerBlock], ys[kClassMaxPerBlock];
-                uint32_t found = 0;
-                for (uint32_t i = 0; i < count; ++i) {
-                    double x, y;
-                    hs[found] = class_flake_position(bk, i, bx, by, block, x, y);
-                    xs[found] = x;
-                    ys[found] = y;
-                    const bool in = (x >= x0) & (x < x1) & (y >= y0) & (y < y1) & region(x, y) &
-                                    (fp.facet != nullptr || inside_nonsingular(local, x, y));
-                    found += in ? 1u : 0u;
-                }
-                for (uint32_t j = 0; j < found; ++j) {
-                    Flake f;
-                    f.u = xs[j];
-                    f.v = ys[j];
-                    if (fp.facet) {
-                        f.cover = facet_coverage(local, *fp.facet, fp.facet_size, f.u, f.v, hs[j]);
-                        if (!(f.cover > 0.0f)) continue;
-                    }
-                    class_flake_finish(fp, hs[j], f);
-                    if (!emit(f, hs[j])) return;
-                }
+                if (run.full() && !run.flush_class(in, fp, local, emit)) return;
+                run.add_block(bk, bx, by, block, law.count(bk));
             }
         }
     }
+    run.flush_class(in, fp, local, emit);
 }
 
 template <class Visit>
@@ -603,6 +706,12 @@ uint32_t flakes_in_node(const FieldParams& fp, const ClassLayout* cl, const Foot
         ++visited;
         return true;
     };
+    // Leaves' flakes gathered over several leaves (CandidateRun), then placed, tested against
+    // P and visited in order (their hashes and places kept from the test).
+    CandidateRun run;  // (about 17 KB of stack, unset: every slot is written before it is read)
+    const auto flush_leaves = [&] {
+        return run.flush_leaves(local, [&](Flake& f, uint64_t h) { return emit(f, h); });
+    };
     while (top > 0) {
         const Node node = stack[--top];
         if (node.n == 0) continue;
@@ -612,26 +721,10 @@ uint32_t flakes_in_node(const FieldParams& fp, const ClassLayout* cl, const Foot
         const uint64_t key = node_key(tk, node.depth, node.ix, node.iy);
         if (static_cast<int>(node.n) <= fp.leaf_size || node.depth >= fp.max_depth) {
             if (!fp.facet) {
-                // Point flakes: which of the leaf's flakes lie inside P, tested without branches
-                // a chunk at a time (inside_nonsingular), then those visited in order.
+                // Point flakes: the leaf's flakes join the run, tested and visited in order
+                // when it is full and once the walk ends.
                 if (no_area) continue;
-                constexpr uint32_t kChunk = 64;
-                uint32_t in_leaf[kChunk];
-                for (uint32_t first = 0; first < node.n; first += kChunk) {
-                    const uint32_t end = std::min(node.n, first + kChunk);
-                    uint32_t found = 0;
-                    for (uint32_t i = first; i < end; ++i) {
-                        Flake f;
-                        leaf_flake_position(key, i, x0, y0, size, f);
-                        in_leaf[found] = i;
-                        found += inside_nonsingular(local, f.u, f.v) ? 1u : 0u;
-                    }
-                    for (uint32_t j = 0; j < found; ++j) {
-                        Flake f;
-                        const uint64_t h = leaf_flake_position(key, in_leaf[j], x0, y0, size, f);
-                        if (!emit(f, h)) return visited;
-                    }
-                }
+                if (!run.add_leaf(key, x0, y0, size, node.n, flush_leaves)) return visited;
                 continue;
             }
             for (uint32_t i = 0; i < node.n; ++i) {
@@ -649,6 +742,7 @@ uint32_t flakes_in_node(const FieldParams& fp, const ClassLayout* cl, const Foot
             stack[top++] = {node.depth + 1, 2 * node.ix + (c & 1u), 2 * node.iy + (c >> 1),
                             child[c]};
     }
+    flush_leaves();
     return visited;
 }
 

@@ -3,11 +3,13 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
 #include "core/error.h"
 #include "shading/material.h"
+#include "shading/plugin_loader.h"
 #include "test_support.h"
 
 namespace spangle::accuracy {
@@ -126,6 +128,27 @@ double seconds_since(Clock::time_point t0) {
 Renderer::Renderer(std::string work_file, int threads)
     : file_(std::move(work_file)),
       session_({}, test::shipped_ocio(), options(threads), test::quiet_log()) {}
+
+uint64_t Renderer::plugins_fingerprint() {
+    // FNV-1a over each library's file name and bytes, in the search path's order.
+    uint64_t h = 0xcbf29ce484222325ull;
+    const auto add = [&h](const char* data, std::size_t n) {
+        for (std::size_t i = 0; i < n; ++i)
+            h = (h ^ static_cast<unsigned char>(data[i])) * 0x100000001b3ull;
+    };
+    for (const std::string& path : session_.plugins().discover()) {
+        const std::string name = std::filesystem::path(path).filename().string();
+        add(name.data(), name.size() + 1);
+        std::ifstream f(path, std::ios::binary);
+        if (!f) throw_error("cannot read the plugin '{}'", path);
+        std::vector<char> buf(std::size_t{1} << 16);
+        while (f) {
+            f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
+            add(buf.data(), static_cast<std::size_t>(f.gcount()));
+        }
+    }
+    return h;
+}
 
 void Renderer::load(const std::string& text) {
     if (text == text_) return;

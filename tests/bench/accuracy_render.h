@@ -81,6 +81,10 @@ public:
     /** The statistics of the first material that reports any, accumulated since it was built. */
     std::map<std::string, double> material_stats();
 
+    /** A hash of every plugin library on the session's search path (name and bytes): what a
+     *  cached reference was rendered with, beside its scene text. */
+    uint64_t plugins_fingerprint();
+
 private:
     std::string file_, text_;
     Session session_;

@@ -5,12 +5,13 @@
 // scene. Writes accuracy.md (tables, definitions, the best setting per time budget) and
 // accuracy.svg (error against time, log-log) into the output folder:
 //
-//     ./build/spangle_accuracy --out docs           # the full report (about 20 minutes, 2 cores)
+//     ./build/spangle_accuracy --out docs           # the full report (over 75 min, 2 cores)
 //     ./build/spangle_accuracy --quick --out DIR    # a smoke run of a few seconds (ctest)
 //
 // References are rendered once and cached (build/accuracy-cache unless --cache is given), keyed
-// by a hash of their scene text and settings. Every render uses fixed seeds, so the report
-// changes between runs only in its timings. The generated accuracy.md defines every number.
+// by a hash of their scene text, settings and the plugin libraries' bytes. Every render uses fixed
+// seeds, so the report changes between runs only in its timings. The generated accuracy.md defines
+// every number.
 
 #include <fmt/format.h>
 
@@ -150,7 +151,10 @@ public:
      *  stored. Adds the render time to `seconds` when it renders. */
     Image get(Renderer& r, const std::string& name, const std::string& text, uint32_t spp,
               double& seconds) {
-        const uint64_t key = fnv1a(fmt::format("{}\n{}\n{}", kCacheVersion, spp, text));
+        // The plugins' bytes are part of the key: a reference rendered by an earlier build of the
+        // flake material is another material's reference.
+        const uint64_t key = fnv1a(
+            fmt::format("{}\n{}\n{:016x}\n{}", kCacheVersion, spp, r.plugins_fingerprint(), text));
         const std::string path = fmt::format("{}/{}-{:016x}.ref", dir_, name, key);
         if (!fresh_) {
             if (auto img = read(path, key)) return *img;
@@ -490,8 +494,9 @@ void scene_section(std::string& md, const SceneResult& s) {
                        fmt_error(ref->noise.structure));
     fmt::format_to(out,
                    "Not in the times below: loading the scene took {:.2f} s (parse, subdivision, "
-                   "BVH), and the first sample per pixel on a fresh load took {:.2f} s against "
-                   "{:.2f} s once the flake material's lazily built tables exist.\n\n",
+                   "BVH), and the first sample per pixel on a fresh load took {:.2f} s (the flake "
+                   "material's tables read from the table cache, or built where it has none) "
+                   "against {:.2f} s once they are in memory.\n\n",
                    s.load_seconds, s.cold_first_spp, s.warm_first_spp);
     const Point* resolved = nullptr;
     for (const Point& p : s.results.front().points)
@@ -642,7 +647,8 @@ void method_section(std::string& md, const Args& args, const Plan& plan,
         "This run{} took {:.1f} minutes on the 2-core development machine ({}, {} hardware "
         "threads; {} render threads), {}. References are cached in `build/accuracy-cache` "
         "(`--cache DIR` elsewhere, `--fresh` to render them again) and reused while their scene "
-        "text and settings hash the same. Every render has a fixed seed: a second run changes "
+        "text, settings and the plugin libraries hash the same. Every render has a fixed seed: a "
+        "second run changes "
         "only the timings, which vary by a few percent. `--quick` is a smoke run of tiny images "
         "for ctest (`bench.accuracy_quick`); its numbers mean nothing.\n",
         args.quick ? " (`--quick`)" : "", total / 60.0, cpu_model(),
