@@ -1,16 +1,24 @@
 #!/usr/bin/env bash
 # Renders the flake looks' scenes (tests/scenes/looks/) and writes their pictures in docs/: each
-# render at the top, nearest-neighbour crops of its glints below. Run from the repository root
-# after a Release build:
+# render at the top, nearest-neighbour crops of its glints below. After a Release build:
 #
 #     bash scripts/looks-pictures.sh [SPANGLE] [PLUGIN_DIR]
 #
-# (defaults: ./build/spangle and ./build/plugins; about 20 seconds on 2 cores). Needs oiiotool
-# (openimageio-tools). flake-facets.png, a larger render with its own crops, is not made here.
+# (defaults: the repository's build/spangle and build/plugins; about 20 seconds on 2 cores).
+# Needs oiiotool (openimageio-tools). flake-facets.png, a larger render with its own crops, is
+# not made here.
 set -euo pipefail
 
-spangle=${1:-./build/spangle}
-plugins=${2:-./build/plugins}
+root=$(cd "$(dirname "$0")/.." && pwd)
+spangle=$(realpath "${1:-$root/build/spangle}")
+plugins=$(realpath "${2:-$root/build/plugins}")
+if ! command -v oiiotool > /dev/null; then
+    echo "looks-pictures.sh: needs oiiotool (openimageio-tools)" >&2
+    exit 1
+fi
+cd "$root"
+# The shipped colour configuration, whatever $OCIO says: the pictures are the docs'.
+unset OCIO
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 

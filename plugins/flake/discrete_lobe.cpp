@@ -26,12 +26,12 @@ void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& o
     // The rest per flake (its Fresnel table and colour are its own), into a block of its own,
     // every flake written and the cursor moved past those kept: whether a flake faces away or
     // reflects under the horizon is a coin toss near grazing, and a branch on it was
-    // mispredicted as often. The block is appended in one copy (growing the vector by the batch
-    // first zeroed every entry before it was written).
+    // mispredicted as often. The block is appended in one copy. (A flake is skipped where
+    // cos_om <= 0 or rz <= 0, written so: one whose wo is not a number is kept, as it was.)
     CacheEntry kept_entries[kSize];
     uint32_t kept = 0, marked = 0;
     for (uint32_t i = 0; i < n; ++i) {
-        const bool keep = (cos_om[i] > 0.0f) & (rz[i] > 0.0f);
+        const bool keep = !((cos_om[i] <= 0.0f) | (rz[i] <= 0.0f));
         const float c2 = 2.0f * cos_om[i];
         float f[3];
         b.fresnel[i]->eval(cos_om[i], f);
@@ -43,7 +43,7 @@ void flush_entries(V3 wo, float alpha, EntryBatch& b, std::vector<CacheEntry>& o
         for (int c = 0; c < 3; ++c) e.rgb[c] = rgb[c] * scale;
         e.lum = std::max(0.0f, luminance(rgb)) * scale;
         e.w = w[i] * scale;
-        marked += keep & b.marked[i] ? 1u : 0u;
+        marked += (keep & b.marked[i]) ? 1u : 0u;
         kept += keep ? 1u : 0u;
     }
     b.entered_marked += marked;

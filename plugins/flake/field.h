@@ -484,6 +484,11 @@ struct CandidateRun {
     static constexpr uint32_t kBlockSlots = 8;          ///< slots a block writes whatever its count
     static constexpr uint32_t kLeafSlots = 16;          ///< slots a leaf chunk writes, at least
     static constexpr uint32_t kLeafChunk = 64;          ///< flakes of a leaf per chunk, at most
+    // A block or a leaf chunk is added while fewer than kRunSlots slots are taken, and writes at
+    // most this many; a source's index is 16 bits.
+    static_assert(kSlots >= kRunSlots - 1 +
+                                std::max({kLeafChunk, kLeafSlots, kBlockSlots, kClassMaxPerBlock}));
+    static_assert(kSources <= 65536);
     // Per source (a block or a chunk of a leaf): its key and place. Class blocks: column, row
     // (exact in double) and width; leaves: the cell's corner and size.
     uint64_t key[kSources];

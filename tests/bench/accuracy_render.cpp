@@ -125,18 +125,15 @@ double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-Renderer::Renderer(std::string work_file, int threads)
-    : file_(std::move(work_file)),
-      session_({}, test::shipped_ocio(), options(threads), test::quiet_log()) {}
-
-uint64_t Renderer::plugins_fingerprint() {
-    // FNV-1a over each library's file name and bytes, in the search path's order.
+uint64_t plugins_fingerprint() {
+    // FNV-1a over each library's file name and bytes, in the search path's order (the loader's
+    // own: the first file of each name is the one opened).
     uint64_t h = 0xcbf29ce484222325ull;
     const auto add = [&h](const char* data, std::size_t n) {
         for (std::size_t i = 0; i < n; ++i)
             h = (h ^ static_cast<unsigned char>(data[i])) * 0x100000001b3ull;
     };
-    for (const std::string& path : session_.plugins().discover()) {
+    for (const std::string& path : PluginLoader(plugin_search_path({})).discover()) {
         const std::string name = std::filesystem::path(path).filename().string();
         add(name.data(), name.size() + 1);
         std::ifstream f(path, std::ios::binary);
@@ -146,9 +143,14 @@ uint64_t Renderer::plugins_fingerprint() {
             f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
             add(buf.data(), static_cast<std::size_t>(f.gcount()));
         }
+        if (f.bad()) throw_error("cannot read the plugin '{}'", path);
     }
     return h;
 }
+
+Renderer::Renderer(std::string work_file, int threads)
+    : file_(std::move(work_file)),
+      session_({}, test::shipped_ocio(), options(threads), test::quiet_log()) {}
 
 void Renderer::load(const std::string& text) {
     if (text == text_) return;

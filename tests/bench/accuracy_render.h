@@ -59,6 +59,12 @@ struct Pass {
     Image image;
 };
 
+/** A hash of every plugin library on the default search path (names and bytes): what a cached
+ *  reference is rendered with, beside its scene text. Taken once, before any session opens a
+ *  plugin (a library rebuilt during a run must not key references the loaded one rendered).
+ *  Throws SpangleError when a library cannot be read. */
+uint64_t plugins_fingerprint();
+
 /** Renders one scene's variants through a Session, so that meshes, the acceleration structure
  *  and the flake material's tables are built once and only the path tracing is timed. */
 class Renderer {
@@ -80,10 +86,6 @@ public:
 
     /** The statistics of the first material that reports any, accumulated since it was built. */
     std::map<std::string, double> material_stats();
-
-    /** A hash of every plugin library on the session's search path (name and bytes): what a
-     *  cached reference was rendered with, beside its scene text. */
-    uint64_t plugins_fingerprint();
 
 private:
     std::string file_, text_;

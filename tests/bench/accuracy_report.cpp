@@ -143,7 +143,8 @@ Errors measure(const Image& img, const Reference& ref) {
 /** Where references are kept between runs. */
 class ReferenceCache {
 public:
-    ReferenceCache(std::string dir, bool fresh) : dir_(std::move(dir)), fresh_(fresh) {
+    ReferenceCache(std::string dir, bool fresh)
+        : dir_(std::move(dir)), fresh_(fresh), plugins_(plugins_fingerprint()) {
         fs::create_directories(dir_);
     }
 
@@ -153,8 +154,8 @@ public:
               double& seconds) {
         // The plugins' bytes are part of the key: a reference rendered by an earlier build of the
         // flake material is another material's reference.
-        const uint64_t key = fnv1a(
-            fmt::format("{}\n{}\n{:016x}\n{}", kCacheVersion, spp, r.plugins_fingerprint(), text));
+        const uint64_t key =
+            fnv1a(fmt::format("{}\n{}\n{:016x}\n{}", kCacheVersion, spp, plugins_, text));
         const std::string path = fmt::format("{}/{}-{:016x}.ref", dir_, name, key);
         if (!fresh_) {
             if (auto img = read(path, key)) return *img;
@@ -201,6 +202,7 @@ private:
     }
     std::string dir_;
     bool fresh_;
+    uint64_t plugins_;  ///< plugins_fingerprint() when the run began
 };
 
 /** Sample counts of one run of the report. */
