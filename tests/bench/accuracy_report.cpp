@@ -5,7 +5,7 @@
 // scene. Writes accuracy.md (tables, definitions, the best setting per time budget) and
 // accuracy.svg (error against time, log-log) into the output folder:
 //
-//     ./build/spangle_accuracy --out docs           # the full report (over 75 min, 2 cores)
+//     ./build/spangle_accuracy --out docs           # the full report (about 2 hours, 2 cores)
 //     ./build/spangle_accuracy --quick --out DIR    # a smoke run of a few seconds (ctest)
 //
 // References are rendered once and cached (build/accuracy-cache unless --cache is given), keyed
@@ -166,10 +166,27 @@ public:
         Image img = r.render(spp, Strategy::Mis);
         seconds += seconds_since(t0);
         write(path, key, img);
+        remove_stale(name, path);
         return img;
     }
 
 private:
+    /** Removes the cached renders of `name` under other keys than the one at `kept` (renders of
+     *  an earlier scene text or plugin build: each rebuild of a plugin would otherwise leave a
+     *  whole set behind). */
+    void remove_stale(const std::string& name, const std::string& kept) const {
+        std::error_code ec;
+        for (const auto& entry : fs::directory_iterator(dir_, ec)) {
+            const std::string file = entry.path().filename().string();
+            // name-<16 hex digits>.ref
+            const bool ours =
+                file.size() == name.size() + 21 && file.starts_with(name + "-") &&
+                file.ends_with(".ref") &&
+                file.find_first_not_of("0123456789abcdef", name.size() + 1) == name.size() + 17;
+            if (ours && file != fs::path(kept).filename().string()) fs::remove(entry.path(), ec);
+        }
+    }
+
     /** Larger headers are not the report's: such a file is ignored and rewritten. */
     static constexpr std::size_t kMaxCachedPixels = std::size_t{1} << 26;
 
