@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "core/error.h"
+#include "core/files.h"
 #include "shading/material.h"
 #include "shading/plugin_loader.h"
 #include "test_support.h"
@@ -125,27 +126,16 @@ double seconds_since(Clock::time_point t0) {
     return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
-uint64_t plugins_fingerprint() {
-    // FNV-1a over each library's file name and bytes, in the search path's order (the loader's
-    // own: the first file of each name is the one opened).
-    uint64_t h = 0xcbf29ce484222325ull;
-    const auto add = [&h](const char* data, std::size_t n) {
-        for (std::size_t i = 0; i < n; ++i)
-            h = (h ^ static_cast<unsigned char>(data[i])) * 0x100000001b3ull;
-    };
+std::string plugins_fingerprint() {
+    // Each library's file name and content hash, in the search path's order (the loader's own:
+    // the first file of each name is the one opened).
+    std::string out;
     for (const std::string& path : PluginLoader(plugin_search_path({})).discover()) {
-        const std::string name = std::filesystem::path(path).filename().string();
-        add(name.data(), name.size() + 1);
-        std::ifstream f(path, std::ios::binary);
-        if (!f) throw_error("cannot read the plugin '{}'", path);
-        std::vector<char> buf(std::size_t{1} << 16);
-        while (f) {
-            f.read(buf.data(), static_cast<std::streamsize>(buf.size()));
-            add(buf.data(), static_cast<std::size_t>(f.gcount()));
-        }
-        if (f.bad()) throw_error("cannot read the plugin '{}'", path);
+        const uint64_t h = file_content_hash(path);
+        if (h == 0) throw_error("cannot read the plugin '{}'", path);
+        out += fmt::format("{}:{:016x}\n", std::filesystem::path(path).filename().string(), h);
     }
-    return h;
+    return out;
 }
 
 Renderer::Renderer(std::string work_file, int threads)

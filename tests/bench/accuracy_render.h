@@ -59,11 +59,12 @@ struct Pass {
     Image image;
 };
 
-/** A hash of every plugin library on the default search path (names and bytes): what a cached
- *  reference is rendered with, beside its scene text. Taken once, before any session opens a
- *  plugin (a library rebuilt during a run must not key references the loaded one rendered).
- *  Throws SpangleError when a library cannot be read. */
-uint64_t plugins_fingerprint();
+/** Every plugin library on the default search path, a line each: its file name and
+ *  file_content_hash() (every byte of a library up to 64 MB). What a cached reference is rendered
+ *  with, beside its scene text. Taken once, before any session opens a plugin (a library rebuilt
+ *  during a run must not key references the loaded one rendered). Throws SpangleError when a
+ *  library cannot be read. */
+std::string plugins_fingerprint();
 
 /** Renders one scene's variants through a Session, so that meshes, the acceleration structure
  *  and the flake material's tables are built once and only the path tracing is timed. */

@@ -154,8 +154,7 @@ public:
               double& seconds) {
         // The plugins' bytes are part of the key: a reference rendered by an earlier build of the
         // flake material is another material's reference.
-        const uint64_t key =
-            fnv1a(fmt::format("{}\n{}\n{:016x}\n{}", kCacheVersion, spp, plugins_, text));
+        const uint64_t key = fnv1a(fmt::format("{}\n{}\n{}{}", kCacheVersion, spp, plugins_, text));
         const std::string path = fmt::format("{}/{}-{:016x}.ref", dir_, name, key);
         if (!fresh_) {
             if (auto img = read(path, key)) return *img;
@@ -219,7 +218,7 @@ private:
     }
     std::string dir_;
     bool fresh_;
-    uint64_t plugins_;  ///< plugins_fingerprint() when the run began
+    std::string plugins_;  ///< plugins_fingerprint() when the run began
 };
 
 /** Sample counts of one run of the report. */
@@ -667,9 +666,8 @@ void method_section(std::string& md, const Args& args, const Plan& plan,
         "threads; {} render threads), {}. References are cached in `build/accuracy-cache` "
         "(`--cache DIR` elsewhere, `--fresh` to render them again) and reused while their scene "
         "text, settings and the plugin libraries hash the same. Every render has a fixed seed: a "
-        "second run changes "
-        "only the timings, which vary by a few percent. `--quick` is a smoke run of tiny images "
-        "for ctest (`bench.accuracy_quick`); its numbers mean nothing.\n",
+        "second run changes only the timings, which vary by a few percent. `--quick` is a smoke "
+        "run of tiny images for ctest (`bench.accuracy_quick`); its numbers mean nothing.\n",
         args.quick ? " (`--quick`)" : "", total / 60.0, cpu_model(),
         std::thread::hardware_concurrency(),
         args.threads > 0 ? fmt::format("{}", args.threads) : std::string("all"),
