@@ -4,34 +4,63 @@
     python3 tests/bench/glint_keep.py [--bright] REF.exr TEST.exr...
 
 REF is a render written with --layers (it needs the glints and A layers); each TEST is a render
-of the same scene, size and camera (denoised or not). The reference's glints are found as
-`spangle flicker` finds them: pixels whose glints layer (Rec.709 luminance of its channels) is
-brighter than 4 times its mean over the covered pixels and than 3 times the mean of its 5x5
-neighbourhood (with --bright, the first test alone: every pixel of bright flake light, most of
-them in glitter where neighbours glint too). A glint's contrast is the pixel's beauty luminance minus the mean of its 8
-neighbours; a render keeps a glint when its contrast there is at least half the reference's.
-Prints, per TEST, the share of glints kept and the median ratio of contrasts. Needs only
-oiiotool (its --dumpdata), no Python packages.
+of the same scene, size and camera, denoised or not. Where an image has a `background` layer
+(the environment seen directly, kept apart by --layers) it is added back to R, G, B, so images
+written with and without --layers compare alike.
+
+The reference's glints are found as `spangle flicker` finds them: covered pixels whose glints
+layer (Rec.709 luminance of its channels) is brighter than 4 times its mean over the covered
+pixels and than 3 times the mean of its 5x5 neighbourhood. With --bright the first test alone
+counts: every pixel of bright flake light, most of them inside glitter whose neighbours glint
+too. A glint's contrast is the pixel's luminance minus the mean of its 8 neighbours; glints on
+the image's border (fewer neighbours) and glints that stand out of their neighbours by less than
+a tenth of their own luminance in the reference (a contrast too small to measure a ratio of)
+are left out, and counted. A render keeps a glint when its contrast there is at least half the
+reference's. Prints, per TEST, the share of glints kept and the median ratio of contrasts.
+Needs only oiiotool (openimageio-tools), no Python packages.
 """
+import argparse
+import math
 import os
 import statistics
 import subprocess
 import sys
 import tempfile
 
-Y = (0.2126, 0.7152, 0.0722)
+REC709_Y = (0.2126, 0.7152, 0.0722)
+MIN_CONTRAST = 0.1  # of the reference pixel's luminance
 
 
-def read(path, channels):
-    """The named channels of an EXR as a list of rows of tuples."""
+def fail(message):
+    sys.exit(f"glint_keep.py: {message}")
+
+
+def oiiotool(*args):
+    try:
+        return subprocess.run(["oiiotool", *args], capture_output=True, text=True, check=True).stdout
+    except FileNotFoundError:
+        fail("needs oiiotool (apt-get install openimageio-tools)")
+    except subprocess.CalledProcessError as e:
+        fail(f"oiiotool {' '.join(args)}: {e.stderr.strip() or e.stdout.strip()}")
+
+
+def channels(path):
+    """The channel names of an image."""
+    for line in oiiotool("--info", "-v", path).splitlines():
+        line = line.strip()
+        if line.startswith("channel list:"):
+            return [c.split("(")[0].strip() for c in line[len("channel list:"):].split(",")]
+    fail(f"cannot read the channels of {path}")
+
+
+def read(path, names):
+    """The named channels of an image as rows of tuples; its data window must start at 0, 0
+    (a whole frame, not a crop window)."""
     with tempfile.TemporaryDirectory() as tmp:
         part = os.path.join(tmp, "part.tif")
-        subprocess.run(["oiiotool", path, "--ch", ",".join(channels), "-d", "float", "-o", part],
-                       check=True)
-        out = subprocess.run(["oiiotool", "--dumpdata", part], capture_output=True, text=True,
-                             check=True).stdout
+        oiiotool(path, "--ch", ",".join(names), "-d", "float", "-o", part)
+        out = oiiotool("--dumpdata", part)
     pixels = {}
-    width = height = 0
     for line in out.splitlines():
         line = line.strip()
         if not line.startswith("Pixel ("):
@@ -39,26 +68,47 @@ def read(path, channels):
         head, values = line.split(":", 1)
         x, y = (int(v) for v in head[len("Pixel ("):-1].split(","))
         pixels[(x, y)] = tuple(float(v) for v in values.split())
-        width, height = max(width, x + 1), max(height, y + 1)
     if not pixels:
-        sys.exit(f"glint_keep.py: no pixels read from {path} (channels {channels})")
+        fail(f"no pixels read from {path}")
+    xs, ys = [p[0] for p in pixels], [p[1] for p in pixels]
+    width, height = max(xs) + 1, max(ys) + 1
+    if min(xs) != 0 or min(ys) != 0 or len(pixels) != width * height:
+        fail(f"{path} is not a whole frame (a crop window?); merge its parts first")
     return [[pixels[(x, y)] for x in range(width)] for y in range(height)]
 
 
 def luminance(img):
-    return [[Y[0] * p[0] + Y[1] * p[1] + Y[2] * p[2] for p in row] for row in img]
+    """Rec.709 luminance of the first three channels of each pixel."""
+    return [[sum(w * c for w, c in zip(REC709_Y, p)) for p in row] for row in img]
+
+
+def beauty(path):
+    """Luminance of R, G, B, plus the background layer where the image has one."""
+    have = set(channels(path))
+    if not {"R", "G", "B"} <= have:
+        fail(f"{path} has no R, G, B")
+    lum = luminance(read(path, ["R", "G", "B"]))
+    if {"background.R", "background.G", "background.B"} <= have:
+        back = luminance(read(path, ["background.R", "background.G", "background.B"]))
+        lum = [[a + b for a, b in zip(ra, rb)] for ra, rb in zip(lum, back)]
+    return lum
 
 
 def glints(ref, local):
-    layer = read(ref, ["glints.R", "glints.G", "glints.B", "A"])
-    g = luminance(layer)
+    """The reference's glint pixels, as `spangle flicker` finds them (local) or every covered
+    pixel above the threshold (not local). Non-finite values count as nothing."""
+    need = ["glints.R", "glints.G", "glints.B", "A"]
+    if not set(need) <= set(channels(ref)):
+        fail(f"{ref} has no glints and A layers: render the reference with --layers")
+    layer = read(ref, need)
+    g = [[v if math.isfinite(v) else 0.0 for v in row] for row in luminance(layer)]
     h, w = len(g), len(g[0])
     covered = [g[y][x] for y in range(h) for x in range(w) if layer[y][x][3] > 0.999]
     threshold = 4.0 * sum(covered) / len(covered) if covered else 1.0
     found = []
     for y in range(h):
         for x in range(w):
-            if not g[y][x] > threshold:
+            if not (layer[y][x][3] > 0.999 and g[y][x] > threshold):
                 continue
             box = [g[yy][xx] for yy in range(max(0, y - 2), min(h, y + 3))
                    for xx in range(max(0, x - 2), min(w, x + 3))]
@@ -68,33 +118,39 @@ def glints(ref, local):
 
 
 def contrast(lum, x, y):
-    h, w = len(lum), len(lum[0])
-    ring = [lum[yy][xx] for yy in range(max(0, y - 1), min(h, y + 2))
-            for xx in range(max(0, x - 1), min(w, x + 2)) if (xx, yy) != (x, y)]
-    return lum[y][x] - sum(ring) / len(ring)
+    """The pixel's luminance minus the mean of its 8 neighbours (an inner pixel)."""
+    ring = [lum[yy][xx] for yy in (y - 1, y, y + 1) for xx in (x - 1, x, x + 1) if (xx, yy) != (x, y)]
+    return lum[y][x] - sum(ring) / 8.0
 
 
 def main():
-    args = sys.argv[1:]
-    local = "--bright" not in args
-    args = [a for a in args if a != "--bright"]
-    if len(args) < 2:
-        sys.exit(__doc__)
-    ref = args[0]
-    found = glints(ref, local)
-    ref_lum = luminance(read(ref, ["R", "G", "B"]))
-    ref_c = {p: contrast(ref_lum, *p) for p in found}
-    found = [p for p in found if ref_c[p] > 0.0]
-    print(f"{ref}: {len(found)} glints")
-    if not found:
+    ap = argparse.ArgumentParser(description="How many of a reference's glints renders keep.")
+    ap.add_argument("--bright", action="store_true",
+                    help="every pixel of bright flake light, not only flicker's glints")
+    ap.add_argument("reference", help="the converged render, written with --layers")
+    ap.add_argument("tests", nargs="+", help="renders of the same scene, size and camera")
+    a = ap.parse_args()
+
+    ref_lum = beauty(a.reference)
+    h, w = len(ref_lum), len(ref_lum[0])
+    found = glints(a.reference, not a.bright)
+    inner = [(x, y) for x, y in found if 0 < x < w - 1 and 0 < y < h - 1]
+    ref_c = {p: contrast(ref_lum, *p) for p in inner}
+    measured = [p for p in inner
+                if math.isfinite(ref_c[p]) and ref_c[p] > MIN_CONTRAST * ref_lum[p[1]][p[0]]]
+    print(f"{a.reference}: {len(found)} glints, {len(measured)} measured "
+          f"({len(found) - len(inner)} on the border, {len(inner) - len(measured)} standing out "
+          f"of their neighbours by less than {MIN_CONTRAST:g} of their luminance)")
+    if not measured:
         return
-    for test in args[1:]:
-        lum = luminance(read(test, ["R", "G", "B"]))
-        if len(lum) != len(ref_lum) or len(lum[0]) != len(ref_lum[0]):
-            sys.exit(f"glint_keep.py: {test} is not the size of {ref}")
-        ratios = [contrast(lum, *p) / ref_c[p] for p in found]
+    for test in a.tests:
+        lum = beauty(test)
+        if len(lum) != h or len(lum[0]) != w:
+            fail(f"{test} is not the size of {a.reference}")
+        ratios = [contrast(lum, *p) / ref_c[p] for p in measured]
+        ratios = [r if math.isfinite(r) else 0.0 for r in ratios]
         kept = sum(1 for r in ratios if r >= 0.5)
-        print(f"{test}: {100.0 * kept / len(found):.1f}% kept (contrast at least half the "
+        print(f"{test}: {100.0 * kept / len(measured):.1f}% kept (contrast at least half the "
               f"reference's), median contrast {statistics.median(ratios):.2f} of the reference's")
 
 
