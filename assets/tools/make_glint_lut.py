@@ -11,8 +11,9 @@ assets/ocio/sparkle_view.spi3d, the "Sparkle" view (the default). Per pixel, in 
     out = (1 - w) c + w (d, d, d)       very bright pixels go to white, as an eye or film sees them
 
 so diffuse white (1.0) shows at 0.82 (sRGB 235 of 255), a coloured glint up to twice diffuse
-white keeps its colour exactly, and a glint of 8 is about a third of the way to white, one of 44 is 97% there: a
-sparkle has a white core with a coloured rim, where its filtered neighbours are less bright.
+white keeps its colour exactly, and a glint of 8 is about a third of the way to white, one of 44
+is 97% there: a sparkle has a white core with a coloured rim, where its filtered neighbours are
+less bright.
 
 assets/ocio/glint_view.spi3d, the "Glint" view: the same scaling without the white,
 

@@ -37,7 +37,8 @@ def fail(message):
 
 def oiiotool(*args):
     try:
-        return subprocess.run(["oiiotool", *args], capture_output=True, text=True, check=True).stdout
+        return subprocess.run(["oiiotool", *args], capture_output=True, text=True,
+                              check=True).stdout
     except FileNotFoundError:
         fail("needs oiiotool (apt-get install openimageio-tools)")
     except subprocess.CalledProcessError as e:
@@ -77,38 +78,47 @@ def read(path, names):
     return [[pixels[(x, y)] for x in range(width)] for y in range(height)]
 
 
-def luminance(img):
-    """Rec.709 luminance of the first three channels of each pixel."""
-    return [[sum(w * c for w, c in zip(REC709_Y, p)) for p in row] for row in img]
+BEAUTY = ["R", "G", "B"]
+BACKGROUND = ["background.R", "background.G", "background.B"]
+GLINTS = ["glints.R", "glints.G", "glints.B", "A"]
 
 
-def beauty(path):
-    """Luminance of R, G, B, plus the background layer where the image has one."""
+def load(path, extra=()):
+    """An image's R, G, B, its background layer where it has one, and the `extra` channels, read
+    in one pass: (rows of pixel tuples, the index of each channel name in a tuple)."""
     have = set(channels(path))
-    if not {"R", "G", "B"} <= have:
+    if not set(BEAUTY) <= have:
         fail(f"{path} has no R, G, B")
-    lum = luminance(read(path, ["R", "G", "B"]))
-    if {"background.R", "background.G", "background.B"} <= have:
-        back = luminance(read(path, ["background.R", "background.G", "background.B"]))
-        lum = [[a + b for a, b in zip(ra, rb)] for ra, rb in zip(lum, back)]
-    return lum
+    if not set(extra) <= have:
+        fail(f"{path} has no {', '.join(extra)}: render the reference with --layers")
+    names = BEAUTY + (BACKGROUND if set(BACKGROUND) <= have else []) + list(extra)
+    return read(path, names), {n: i for i, n in enumerate(names)}
 
 
-def glints(ref, local):
+def luminance(p, i):
+    """Rec.709 luminance of the three channels of pixel tuple `p` from index `i`."""
+    return sum(w * c for w, c in zip(REC709_Y, p[i:i + 3]))
+
+
+def beauty(img, col):
+    """Luminance of R, G, B, plus the background layer where the image has one."""
+    back = col.get(BACKGROUND[0])
+    return [[luminance(p, 0) + (luminance(p, back) if back is not None else 0.0) for p in row]
+            for row in img]
+
+
+def glints(img, col, local):
     """The reference's glint pixels, as `spangle flicker` finds them (local) or every covered
     pixel above the threshold (not local). Non-finite values count as nothing."""
-    need = ["glints.R", "glints.G", "glints.B", "A"]
-    if not set(need) <= set(channels(ref)):
-        fail(f"{ref} has no glints and A layers: render the reference with --layers")
-    layer = read(ref, need)
-    g = [[v if math.isfinite(v) else 0.0 for v in row] for row in luminance(layer)]
+    gi, ai = col[GLINTS[0]], col["A"]
+    g = [[v if math.isfinite(v) else 0.0 for v in (luminance(p, gi) for p in row)] for row in img]
     h, w = len(g), len(g[0])
-    covered = [g[y][x] for y in range(h) for x in range(w) if layer[y][x][3] > 0.999]
+    covered = [g[y][x] for y in range(h) for x in range(w) if img[y][x][ai] > 0.999]
     threshold = 4.0 * sum(covered) / len(covered) if covered else 1.0
     found = []
     for y in range(h):
         for x in range(w):
-            if not (layer[y][x][3] > 0.999 and g[y][x] > threshold):
+            if not (img[y][x][ai] > 0.999 and g[y][x] > threshold):
                 continue
             box = [g[yy][xx] for yy in range(max(0, y - 2), min(h, y + 3))
                    for xx in range(max(0, x - 2), min(w, x + 3))]
@@ -119,7 +129,8 @@ def glints(ref, local):
 
 def contrast(lum, x, y):
     """The pixel's luminance minus the mean of its 8 neighbours (an inner pixel)."""
-    ring = [lum[yy][xx] for yy in (y - 1, y, y + 1) for xx in (x - 1, x, x + 1) if (xx, yy) != (x, y)]
+    ring = [lum[yy][xx] for yy in (y - 1, y, y + 1) for xx in (x - 1, x, x + 1)
+            if (xx, yy) != (x, y)]
     return lum[y][x] - sum(ring) / 8.0
 
 
@@ -131,9 +142,10 @@ def main():
     ap.add_argument("tests", nargs="+", help="renders of the same scene, size and camera")
     a = ap.parse_args()
 
-    ref_lum = beauty(a.reference)
+    ref, col = load(a.reference, GLINTS)
+    ref_lum = beauty(ref, col)
     h, w = len(ref_lum), len(ref_lum[0])
-    found = glints(a.reference, not a.bright)
+    found = glints(ref, col, not a.bright)
     inner = [(x, y) for x, y in found if 0 < x < w - 1 and 0 < y < h - 1]
     ref_c = {p: contrast(ref_lum, *p) for p in inner}
     measured = [p for p in inner
@@ -144,7 +156,7 @@ def main():
     if not measured:
         return
     for test in a.tests:
-        lum = beauty(test)
+        lum = beauty(*load(test))
         if len(lum) != h or len(lum[0]) != w:
             fail(f"{test} is not the size of {a.reference}")
         ratios = [contrast(lum, *p) / ref_c[p] for p in measured]
