@@ -2,6 +2,8 @@
 // outliers (pixels above 10x the median of their 3x3 neighbourhood) told apart into glints and
 // fireflies by the glints layer when the EXR has one, and every channel's min, max and mean (an
 // EXR's render layers included: the tool to check a denoised or adaptive glitter render with).
+// With --against REF: the relMSE against it and, when REF has a glints layer, how many of its
+// glints (as `spangle flicker` finds them) the image keeps.
 
 #include <fmt/format.h>
 
@@ -26,6 +28,7 @@
 
 #include "cli/commands.h"
 #include "color/exr_header.h"
+#include "color/flicker.h"
 #include "color/image_io.h"
 #include "core/error.h"
 #include "core/math.h"
@@ -362,6 +365,20 @@ int run_inspect(const std::string& path, const std::string& reference) {
                     path, reference, said(planes, ca), said(ref_planes, cb));
         }
         const bool ref_sky = add_background(ref, ref_planes);
+        // The reference's glints, found on the whole of it (the detector looks 2 pixels around).
+        std::vector<uint8_t> ref_glints;
+        const std::vector<float> ref_glint_rgb =
+            ref_planes.three("glints.R", "glints.G", "glints.B");
+        const std::vector<float>* ref_alpha = ref_planes.find("A");
+        if (!ref_glint_rgb.empty() && ref_alpha) {
+            std::vector<float> g(ref_glint_rgb.size() / 3);
+            for (std::size_t i = 0; i < g.size(); ++i)
+                g[i] = kRec709Y[0] * ref_glint_rgb[3 * i] + kRec709Y[1] * ref_glint_rgb[3 * i + 1] +
+                       kRec709Y[2] * ref_glint_rgb[3 * i + 2];
+            GlintMean mean;
+            mean.add(g, *ref_alpha);
+            ref_glints = glint_pixels(g, ref_planes.width, ref_planes.height, mean.threshold());
+        }
         if (!same_place) {
             // The image's window of the reference.
             std::vector<float> cut(static_cast<std::size_t>(iw.w) * iw.h * 3);
@@ -374,6 +391,15 @@ int run_inspect(const std::string& path, const std::string& reference) {
                                     3 +
                                 c];
             ref = std::move(cut);
+            if (!ref_glints.empty()) {
+                std::vector<uint8_t> mask(static_cast<std::size_t>(iw.w) * iw.h);
+                for (int y = 0; y < iw.h; ++y)
+                    for (int x = 0; x < iw.w; ++x)
+                        mask[static_cast<std::size_t>(y) * iw.w + x] =
+                            ref_glints[static_cast<std::size_t>(y + iw.y0 - rw.y0) * rw.w + x +
+                                       iw.x0 - rw.x0];
+                ref_glints = std::move(mask);
+            }
             fmt::print("compared: {} of the reference, the image's window\n", where(iw));
         }
         if (own_sky != ref_sky)
@@ -413,6 +439,36 @@ int run_inspect(const std::string& path, const std::string& reference) {
                 "not finite in the image, {} in the reference): nothing to compare",
                 path, reference, skipped - only_ref, skipped, skipped - only_image);
         fmt::print("relMSE against {}: {:.6g}{}\n", reference, relative_mse(a, b), left_out);
+        if (!ref_glints.empty()) {
+            // Luminance of the whole picture (RGB plus sky), both weighed as the reference.
+            const auto luminance = [&](const std::vector<float>& c) {
+                std::vector<float> y(c.size() / 3);
+                for (std::size_t i = 0; i < y.size(); ++i)
+                    y[i] =
+                        static_cast<float>(ref_planes.luma[0] * static_cast<double>(c[3 * i]) +
+                                           ref_planes.luma[1] * static_cast<double>(c[3 * i + 1]) +
+                                           ref_planes.luma[2] * static_cast<double>(c[3 * i + 2]));
+                return y;
+            };
+            const GlintsKept k =
+                glints_kept(luminance(rgb), luminance(ref), ref_glints, iw.w, iw.h);
+            fmt::print(
+                "glints of the reference (as `spangle flicker` finds them): {}; {} measured ({} on "
+                "the border, {} standing out of their 8 neighbours by less than a tenth of "
+                "themselves)\n",
+                k.found, k.measured, k.border, k.faint);
+            if (k.measured > 0)
+                fmt::print(
+                    "glints kept (contrast over their 8 neighbours at least half the "
+                    "reference's): {} of {} ({:.1f}%), median contrast {:.2f} of the reference's\n",
+                    k.kept, k.measured,
+                    100.0 * static_cast<double>(k.kept) / static_cast<double>(k.measured),
+                    k.median_ratio);
+        } else if (planes.find("glints.R")) {
+            fmt::print(
+                "glints kept: not measured (the reference has no glints layer and alpha: render it "
+                "with --layers)\n");
+        }
         if (only_image + only_ref > 0)
             fmt::print(stderr,
                        "spangle: warning: {} pixels are finite in one image and not in the other "
@@ -436,7 +492,8 @@ Command add_inspect_command(CLI::App& app) {
         ->required();
     sub->add_option("--against", *reference,
                     "a reference image of the same size: print the relMSE, the mean over "
-                    "pixels and channels of (x - r)^2 / (r^2 + 0.01)");
+                    "pixels and channels of (x - r)^2 / (r^2 + 0.01), and, when it has a glints "
+                    "layer, how many of its glints the image keeps");
     return {sub, [path, reference] { return run_inspect(*path, *reference); }};
 }
 

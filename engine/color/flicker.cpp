@@ -162,40 +162,9 @@ bool find_rest_point(const Frame& a, std::size_t i, const Frame& b, int bx, int 
 /** The glint-mask threshold when none is given: 4 x the mean glint luminance over the covered
  *  pixels of all frames (1 when none is covered). */
 double default_threshold(const std::vector<Frame>& frames) {
-    double sum = 0.0, count = 0.0;
-    for (const Frame& f : frames)
-        for (std::size_t i = 0; i < f.glint.size(); ++i)
-            if (f.a[i] > 0.999f && std::isfinite(f.glint[i])) {
-                sum += static_cast<double>(f.glint[i]);
-                count += 1.0;
-            }
-    return count > 0.0 ? 4.0 * sum / count : 1.0;
-}
-
-/** The glints of `f`: pixels brighter than `threshold` and than 3 times the mean of their 5x5
- *  neighbourhood (a sparkle; a broad highlight, bright whatever the flakes, is not a glint). */
-std::vector<uint8_t> glint_mask(const Frame& f, double threshold) {
-    std::vector<uint8_t> m(f.glint.size(), 0);
-    for (int y = 0; y < f.height; ++y)
-        for (int x = 0; x < f.width; ++x) {
-            const std::size_t i = pixel(f, x, y);
-            const double g = f.glint[i];
-            if (!(g > threshold)) continue;
-            double sum = 0.0;
-            int n = 0;
-            for (int dy = -2; dy <= 2; ++dy)
-                for (int dx = -2; dx <= 2; ++dx) {
-                    const int xx = x + dx, yy = y + dy;
-                    if (xx < 0 || yy < 0 || xx >= f.width || yy >= f.height) continue;
-                    const float v = f.glint[pixel(f, xx, yy)];
-                    if (std::isfinite(v)) {
-                        sum += static_cast<double>(v);
-                        ++n;
-                    }
-                }
-            m[i] = g > 3.0 * sum / n ? 1 : 0;
-        }
-    return m;
+    GlintMean mean;
+    for (const Frame& f : frames) mean.add(f.glint, f.a);
+    return mean.threshold();
 }
 
 /** Pixel j of `b` that shows the surface point pixel i of `a` shows, when there is one: the
@@ -314,7 +283,8 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
     rep.threshold = threshold > 0.0 ? threshold : default_threshold(frames);
     threshold = rep.threshold;
     std::vector<std::vector<uint8_t>> masks;
-    for (const Frame& f : frames) masks.push_back(glint_mask(f, threshold));
+    for (const Frame& f : frames)
+        masks.push_back(glint_pixels(f.glint, f.width, f.height, threshold));
     double diff = 0.0, coverage = 0.0, rel_num = 0.0, rel_den = 0.0, kept = 0.0, glints = 0.0;
     for (std::size_t k = 0; k + 1 < frames.size(); ++k) {
         const Frame& a = frames[k];
@@ -353,6 +323,88 @@ FlickerReport measure_flicker(const std::vector<std::string>& paths, double thre
     rep.relative_difference = rel_den > 0.0 ? rel_num / rel_den : 0.0;
     rep.mask_persistence = glints > 0.0 ? kept / glints : 0.0;
     return rep;
+}
+
+void GlintMean::add(const std::vector<float>& glint, const std::vector<float>& alpha) {
+    for (std::size_t i = 0; i < glint.size() && i < alpha.size(); ++i)
+        if (alpha[i] > 0.999f && std::isfinite(glint[i])) {
+            sum += static_cast<double>(glint[i]);
+            count += 1.0;
+        }
+}
+
+std::vector<uint8_t> glint_pixels(const std::vector<float>& glint, int width, int height,
+                                  double threshold) {
+    std::vector<uint8_t> m(glint.size(), 0);
+    const auto at = [&](int x, int y) {
+        return glint[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+                     static_cast<std::size_t>(x)];
+    };
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const double g = at(x, y);
+            if (!(g > threshold)) continue;
+            double sum = 0.0;
+            int n = 0;
+            for (int yy = std::max(y - 2, 0); yy <= std::min(y + 2, height - 1); ++yy)
+                for (int xx = std::max(x - 2, 0); xx <= std::min(x + 2, width - 1); ++xx)
+                    if (const float v = at(xx, yy); std::isfinite(v)) {
+                        sum += static_cast<double>(v);
+                        ++n;
+                    }
+            m[static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+              static_cast<std::size_t>(x)] = n > 0 && g > 3.0 * sum / n ? 1 : 0;
+        }
+    return m;
+}
+
+GlintsKept glints_kept(const std::vector<float>& image, const std::vector<float>& reference,
+                       const std::vector<uint8_t>& glints, int width, int height) {
+    GlintsKept k;
+    const auto index = [&](int x, int y) {
+        return static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +
+               static_cast<std::size_t>(x);
+    };
+    const auto contrast = [&](const std::vector<float>& lum, int x, int y) {
+        double ring = 0.0;
+        for (int yy = y - 1; yy <= y + 1; ++yy)
+            for (int xx = x - 1; xx <= x + 1; ++xx)
+                if (xx != x || yy != y) ring += static_cast<double>(lum[index(xx, yy)]);
+        return static_cast<double>(lum[index(x, y)]) - ring / 8.0;
+    };
+    std::vector<double> ratios;
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            if (!glints[index(x, y)]) continue;
+            ++k.found;
+            if (x == 0 || y == 0 || x == width - 1 || y == height - 1) {
+                ++k.border;
+                continue;
+            }
+            const double ref = contrast(reference, x, y);
+            // A tenth of the pixel: a glint hardly standing out has no ratio worth measuring.
+            if (!std::isfinite(ref) || !(ref > 0.1 * static_cast<double>(reference[index(x, y)]))) {
+                ++k.faint;
+                continue;
+            }
+            ++k.measured;
+            double r = contrast(image, x, y) / ref;
+            if (!std::isfinite(r)) r = 0.0;
+            k.kept += r >= 0.5 ? 1u : 0u;
+            ratios.push_back(r);
+        }
+    if (!ratios.empty()) {
+        const std::size_t mid = ratios.size() / 2;
+        std::nth_element(ratios.begin(), ratios.begin() + static_cast<std::ptrdiff_t>(mid),
+                         ratios.end());
+        k.median_ratio = ratios[mid];
+        if (ratios.size() % 2 == 0) {
+            const double below = *std::max_element(
+                ratios.begin(), ratios.begin() + static_cast<std::ptrdiff_t>(mid));
+            k.median_ratio = 0.5 * (k.median_ratio + below);
+        }
+    }
+    return k;
 }
 
 }  // namespace spangle

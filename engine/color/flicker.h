@@ -8,6 +8,8 @@
 // the rest pose's position) are found where the next frame shows the same rest position.
 // Glints that are fixed to the surface land on glints; a per-frame random realisation does not.
 
+#include <cstddef>
+#include <cstdint>
 #include <string>
 #include <vector>
 
@@ -46,5 +48,39 @@ struct FlickerReport {
  *  where it projects shows its rest position (within 3/4 of that pixel's size). Throws
  *  SpangleError. */
 FlickerReport measure_flicker(const std::vector<std::string>& frames, double threshold = 0.0);
+
+/** Sums over the covered pixels (alpha above 0.999) of glint luminances whose mean sets the
+ *  glint detector's threshold when none is given. */
+struct GlintMean {
+    double sum = 0, count = 0;
+    /** Adds an image's covered pixels with a finite glint luminance. */
+    void add(const std::vector<float>& glint, const std::vector<float>& alpha);
+    /** 4 x the mean (1 when no pixel was covered). */
+    double threshold() const { return count > 0.0 ? 4.0 * sum / count : 1.0; }
+};
+
+/** The glint detector of `spangle flicker`: 1 for the pixels whose glint luminance (row by row,
+ *  width x height) exceeds `threshold` and 3 x the mean of the finite values of its 5x5
+ *  neighbourhood (a sparkle; a broad highlight, bright whatever the flakes, is not a glint). */
+std::vector<uint8_t> glint_pixels(const std::vector<float>& glint, int width, int height,
+                                  double threshold);
+
+/** How many of a reference's glints an image of the same scene keeps (`spangle inspect
+ *  --against`). A glint's contrast is its pixel's luminance less the mean of its 8 neighbours; an
+ *  image keeps it when its contrast there is at least half the reference's. */
+struct GlintsKept {
+    std::size_t found = 0;     ///< glint pixels of the reference
+    std::size_t border = 0;    ///< of them on the image's border (fewer than 8 neighbours)
+    std::size_t faint = 0;     ///< standing out of their neighbours by less than a tenth of
+                               ///< their luminance (or not at all) in the reference
+    std::size_t measured = 0;  ///< the others: the glints counted
+    std::size_t kept = 0;      ///< of the measured, those the image keeps
+    double median_ratio = 0;   ///< median of the image's contrast over the reference's
+};
+
+/** The reference's glints (`glints`, 1 per glint pixel) that `image` keeps, both luminances of
+ *  width x height pixels row by row. A contrast that is not finite in the image keeps nothing. */
+GlintsKept glints_kept(const std::vector<float>& image, const std::vector<float>& reference,
+                       const std::vector<uint8_t>& glints, int width, int height);
 
 }  // namespace spangle

@@ -2,7 +2,8 @@
 # `spangle inspect` as a farm's quality check: it says how an image was rendered (partial, the
 # samples per pixel, a sample range), measures an AOV-only EXR by its channels (it refused it),
 # reads another file's 32-bit integer channels, decodes a PNG's sRGB before measuring (it took
-# encoded values for linear), and leaves NaN pixels out of a relMSE (it printed nan).
+# encoded values for linear), leaves NaN pixels out of a relMSE (it printed nan), and counts the
+# glints of a reference that an image keeps.
 #   inspect_files.sh SPANGLE PLUGIN_DIR SCENE_DIR
 set -u
 S=$1 PLUGINS=$2 SCENES=$3
@@ -81,6 +82,27 @@ sed -i 's/^working_space = "lin_rec709"/working_space = "ACEScg"/' lit.toml
 grep -q "are in different colour spaces ('lin_rec709': primaries" out.txt ||
     fail "no reason for two working spaces: $(cat out.txt)"
 "$S" inspect acescg.exr --against acescg.exr > out.txt 2>&1 || fail "one space refused: $(cat out.txt)"
+# Glints kept: a reference with three sparkles in its glints layer (1 on 0.1 around them), an
+# image that lost one, and a crop window holding one of them.
+G="--fill:color=1,1,1,1,0.9,0.9,0.9"
+oiiotool --pattern constant:color=0.1,0.1,0.1,1,0.02,0.02,0.02 24x16 7 \
+    --chnames R,G,B,A,glints.R,glints.G,glints.B -d float $G 1x1+5+5 $G 1x1+12+8 $G 1x1+19+11 \
+    -o gref.exr || fail "the glint reference was not made"
+oiiotool gref.exr --fill:color=0.1,0.1,0.1,1,0.02,0.02,0.02 1x1+12+8 -o glost.exr
+oiiotool gref.exr --crop 12x10+6+3 -o gcrop.exr
+"$S" inspect gref.exr --against gref.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
+grep -q "^glints of the reference (as \`spangle flicker\` finds them): 3; 3 measured" out.txt ||
+    fail "the reference's glints were not found: $(cat out.txt)"
+grep -q "^glints kept (.*): 3 of 3 (100.0%), median contrast 1.00" out.txt ||
+    fail "an image did not keep its own glints: $(cat out.txt)"
+"$S" inspect glost.exr --against gref.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
+grep -q "^glints kept (.*): 2 of 3 (66.7%)" out.txt || fail "a lost glint was kept: $(cat out.txt)"
+"$S" inspect gcrop.exr --against gref.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
+grep -q "^glints kept (.*): 1 of 1 (100.0%)" out.txt || fail "a crop's glints: $(cat out.txt)"
+oiiotool gref.exr --ch R,G,B -o grgb.exr
+"$S" inspect gref.exr --against grgb.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
+grep -q "^glints kept: not measured (the reference has no glints layer" out.txt ||
+    fail "a reference without glints was not said: $(cat out.txt)"
 # A folder is not an image.
 "$S" inspect . > out.txt 2>&1 && fail "inspect of a folder succeeded"
 grep -q "is a folder, not an image" out.txt || fail "no reason for the folder: $(cat out.txt)"

@@ -3,8 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <initializer_list>
 #include <limits>
+#include <utility>
+#include <vector>
 
 #include "color/flicker.h"
 #include "color/image_output.h"
@@ -252,6 +256,73 @@ TEST(Flicker, SparklesOnADeformingObjectAreFoundByTheirRestPosition) {
     EXPECT_EQ(rigid.pixels, 32.0 * 32.0);
     EXPECT_FALSE(rigid.by_rest);
     EXPECT_LT(rigid.mask_persistence, 0.5);
+}
+
+/** A width x height luminance image of `base` with `value` at the given pixels. */
+std::vector<float> image_with(int width, int height, float base,
+                              std::initializer_list<std::pair<int, int>> at, float value) {
+    std::vector<float> img(static_cast<std::size_t>(width * height), base);
+    for (const auto& [x, y] : at) img[static_cast<std::size_t>(y * width + x)] = value;
+    return img;
+}
+
+TEST(GlintDetector, FindsSparklesNotBroadHighlights) {
+    constexpr int kW = 24, kH = 16;
+    std::vector<float> glint = image_with(kW, kH, 0.1f, {{3, 3}, {20, 12}}, 4.0f);
+    // A broad highlight: a 5x5 block, bright but no brighter than its own neighbourhood x 3.
+    for (int y = 6; y < 11; ++y)
+        for (int x = 10; x < 15; ++x) glint[static_cast<std::size_t>(y * kW + x)] = 4.0f;
+    GlintMean mean;
+    mean.add(glint, std::vector<float>(glint.size(), 1.0f));
+    const double threshold = mean.threshold();
+    EXPECT_NEAR(threshold, 4.0 * (0.1 * (kW * kH - 27) + 4.0 * 27) / (kW * kH), 1e-6);
+    const std::vector<uint8_t> m = glint_pixels(glint, kW, kH, threshold);
+    std::vector<std::size_t> found;
+    for (std::size_t i = 0; i < m.size(); ++i)
+        if (m[i]) found.push_back(i);
+    EXPECT_EQ(found, (std::vector<std::size_t>{3 * kW + 3, 12 * kW + 20}));
+    // Uncovered pixels do not set the threshold; a higher threshold than the sparkles, none.
+    std::vector<float> alpha(glint.size(), 1.0f);
+    alpha[3 * kW + 3] = 0.5f;
+    GlintMean covered;
+    covered.add(glint, alpha);
+    EXPECT_EQ(covered.count, static_cast<double>(kW * kH - 1));
+    const std::vector<uint8_t> none = glint_pixels(glint, kW, kH, 5.0);
+    EXPECT_EQ(std::count(none.begin(), none.end(), uint8_t{1}), 0);
+}
+
+TEST(GlintDetector, CountsTheGlintsAnImageKeeps) {
+    constexpr int kW = 16, kH = 12;
+    // Reference: glints at (4, 4), (10, 6), (12, 9) and on the border at (0, 5); a faint one at
+    // (7, 2) that stands out of its neighbours by less than a tenth of itself.
+    std::vector<float> ref = image_with(kW, kH, 0.2f, {{4, 4}, {10, 6}, {12, 9}, {0, 5}}, 2.0f);
+    for (int y = 1; y <= 3; ++y)
+        for (int x = 6; x <= 8; ++x) ref[static_cast<std::size_t>(y * kW + x)] = 1.0f;
+    ref[2 * kW + 7] = 1.05f;
+    std::vector<uint8_t> glints(ref.size(), 0);
+    for (const auto& [x, y] : {std::pair{4, 4}, {10, 6}, {12, 9}, {0, 5}, {7, 2}})
+        glints[static_cast<std::size_t>(y * kW + x)] = 1;
+    const GlintsKept same = glints_kept(ref, ref, glints, kW, kH);
+    EXPECT_EQ(same.found, 5u);
+    EXPECT_EQ(same.border, 1u);
+    EXPECT_EQ(same.faint, 1u);
+    EXPECT_EQ(same.measured, 3u);
+    EXPECT_EQ(same.kept, 3u);
+    EXPECT_DOUBLE_EQ(same.median_ratio, 1.0);
+    // The image: (4, 4) at 60% of its contrast (kept), (10, 6) flattened into its neighbours at
+    // 40% (lost), (12, 9) not a number (lost).
+    std::vector<float> img = ref;
+    img[4 * kW + 4] = 0.2f + 0.6f * 1.8f;
+    img[6 * kW + 10] = 0.2f + 0.4f * 1.8f;
+    img[9 * kW + 12] = std::numeric_limits<float>::quiet_NaN();
+    const GlintsKept k = glints_kept(img, ref, glints, kW, kH);
+    EXPECT_EQ(k.measured, 3u);
+    EXPECT_EQ(k.kept, 1u);
+    EXPECT_NEAR(k.median_ratio, 0.4, 1e-5);
+    // A brighter glint over brighter neighbours keeps its contrast: kept.
+    std::vector<float> lifted = ref;
+    for (float& v : lifted) v += 0.5f;
+    EXPECT_EQ(glints_kept(lifted, ref, glints, kW, kH).kept, 3u);
 }
 
 }  // namespace
