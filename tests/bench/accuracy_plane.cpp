@@ -137,13 +137,18 @@ void plane_section(std::string& md, bool quick, const std::string& work_dir, int
         "\n## Distance blending alone: a receding plane\n\n"
         "A plane of flakes (density 10^6 per uv square, flake roughness 0.3, gamma 2) seen at a "
         "grazing angle, {0}x{0} pixels, {1} spp, one bounce, under the studio environment and a "
-        "small light: the expected count per footprint grows from tens near the camera to many "
-        "thousands at the horizon. Each setting renders {2} flake realisation(s) (material seeds), "
+        "small light: the expected count of flakes per footprint grows with the distance (its "
+        "mean over the shading points is given per algorithm). Each setting renders {2} flake "
+        "realisation(s) (material seeds), "
         "so that the mean is not decided by which glints one realisation happens to catch; the "
         "time is the mean per image, measured as above. The reference of each algorithm is its "
         "own render with the discrete lobe everywhere. Mean error: relative difference of mean "
         "luminance. Structure error: relative RMS difference of 4x4-pixel block means (the "
-        "glitter that blending smooths away).\n",
+        "glitter that blending smooths away). Discrete, blended, smooth: the shares of the "
+        "shading points on each lobe (`--stats`). A footprint that holds no flake reflecting the "
+        "view, where flake_weight is above its chance of holding one, shows the smooth lobe at "
+        "the share the flakes lack (plugins/flake/README.md, flake_weight above 1 - e^-f) and "
+        "counts as smooth: the all-discrete row's smooth share is those footprints.\n",
         pp.size, pp.spp, pp.seeds);
     Renderer r(work_dir + "/plane-work.toml", threads);
     for (const char* algorithm : {"tree", "enumerate"}) {
