@@ -464,9 +464,9 @@ int run_inspect(const std::string& path, const std::string& reference) {
                     k.kept, k.measured,
                     100.0 * static_cast<double>(k.kept) / static_cast<double>(k.measured),
                     k.median_ratio);
-        } else if (planes.find("glints.R")) {
+        } else if (planes.find("glints.R") || ref_planes.find("glints.R")) {
             fmt::print(
-                "glints kept: not measured (the reference has no glints layer and alpha: render it "
+                "glints kept: not measured (the reference lacks glints.R, G, B or A: render it "
                 "with --layers)\n");
         }
         if (only_image + only_ref > 0)

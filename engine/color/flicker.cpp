@@ -360,6 +360,11 @@ std::vector<uint8_t> glint_pixels(const std::vector<float>& glint, int width, in
 
 GlintsKept glints_kept(const std::vector<float>& image, const std::vector<float>& reference,
                        const std::vector<uint8_t>& glints, int width, int height) {
+    const auto n = static_cast<std::size_t>(std::max(width, 0)) *
+                   static_cast<std::size_t>(std::max(height, 0));
+    if (image.size() != n || reference.size() != n || glints.size() != n)
+        throw_error("glints_kept: {} image, {} reference and {} mask values for {}x{} pixels",
+                    image.size(), reference.size(), glints.size(), width, height);
     GlintsKept k;
     const auto index = [&](int x, int y) {
         return static_cast<std::size_t>(y) * static_cast<std::size_t>(width) +

@@ -79,7 +79,8 @@ struct GlintsKept {
 };
 
 /** The reference's glints (`glints`, 1 per glint pixel) that `image` keeps, both luminances of
- *  width x height pixels row by row. A contrast that is not finite in the image keeps nothing. */
+ *  width x height pixels row by row. A contrast that is not finite in the image keeps nothing.
+ *  Throws SpangleError when a vector is not of width x height values. */
 GlintsKept glints_kept(const std::vector<float>& image, const std::vector<float>& reference,
                        const std::vector<uint8_t>& glints, int width, int height);
 

@@ -666,7 +666,7 @@ void method_section(std::string& md, const Args& args, const Plan& plan,
     fmt::format_to(
         out,
         "This run{} took {:.1f} minutes on a machine of {} hardware threads ({}; {} render "
-        "threads), {}. References are cached in `build/accuracy-cache` "
+        "threads), {}. References are cached in `build/accuracy-cache`{} "
         "(`--cache DIR` elsewhere, `--fresh` to render them again) and reused while their scene "
         "text, settings and the plugin libraries hash the same. Every render has a fixed seed: a "
         "second run changes only the timings, which vary from run to run (bit-identical renders "
@@ -676,7 +676,8 @@ void method_section(std::string& md, const Args& args, const Plan& plan,
         args.quick ? " (`--quick`)" : "", total / 60.0, std::thread::hardware_concurrency(),
         cpu_model(), args.threads > 0 ? fmt::format("{}", args.threads) : std::string("all"),
         ref_seconds > 0 ? fmt::format("{:.1f} of them rendering references", ref_seconds / 60.0)
-                        : std::string("every reference read from the cache"));
+                        : std::string("every reference read from the cache"),
+        args.quick ? " (`build/accuracy-cache-quick` for `--quick`)" : "");
     md += "\n## Scenes\n\n";
     for (const SceneResult& s : scenes)
         fmt::format_to(out, "- `assets/scenes/{}.toml` at {}x{}.\n", s.spec->name, s.width,

@@ -323,6 +323,28 @@ TEST(GlintDetector, CountsTheGlintsAnImageKeeps) {
     std::vector<float> lifted = ref;
     for (float& v : lifted) v += 0.5f;
     EXPECT_EQ(glints_kept(lifted, ref, glints, kW, kH).kept, 3u);
+    // An even count: the median is the mean of the middle two (0.4 and 0.6 of 0, 0.4, 0.6, 1).
+    std::vector<uint8_t> four = glints;
+    four[1 * kW + 2] = 1;
+    std::vector<float> ref4 = ref, img4 = img;
+    ref4[1 * kW + 2] = img4[1 * kW + 2] = 2.0f;
+    const GlintsKept k4 = glints_kept(img4, ref4, four, kW, kH);
+    EXPECT_EQ(k4.measured, 4u);
+    EXPECT_EQ(k4.kept, 2u);
+    EXPECT_NEAR(k4.median_ratio, 0.5, 1e-5);
+    // Vectors of another size than the image's are refused.
+    EXPECT_THROW(glints_kept(img, ref, glints, kW, kH - 1), SpangleError);
+}
+
+TEST(GlintDetector, TheThresholdLeavesOutNonFiniteAndUncoveredPixels) {
+    const std::vector<float> glint = {1.0f, std::numeric_limits<float>::infinity(),
+                                      std::numeric_limits<float>::quiet_NaN(), 3.0f, 5.0f};
+    const std::vector<float> alpha = {1.0f, 1.0f, 1.0f, 1.0f, 0.0f};
+    GlintMean mean;
+    mean.add(glint, alpha);
+    EXPECT_EQ(mean.count, 2.0);
+    EXPECT_DOUBLE_EQ(mean.threshold(), 8.0);
+    EXPECT_DOUBLE_EQ(GlintMean{}.threshold(), 1.0);
 }
 
 }  // namespace
