@@ -24,6 +24,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <type_traits>
 #include <vector>
 
 #include "cli/commands.h"
@@ -380,26 +381,23 @@ int run_inspect(const std::string& path, const std::string& reference) {
             ref_glints = glint_pixels(g, ref_planes.width, ref_planes.height, mean.threshold());
         }
         if (!same_place) {
-            // The image's window of the reference.
-            std::vector<float> cut(static_cast<std::size_t>(iw.w) * iw.h * 3);
-            for (int y = 0; y < iw.h; ++y)
-                for (int x = 0; x < iw.w; ++x)
-                    for (int c = 0; c < 3; ++c)
-                        cut[(static_cast<std::size_t>(y) * iw.w + x) * 3 + c] =
-                            ref[(static_cast<std::size_t>(y + iw.y0 - rw.y0) * rw.w + x + iw.x0 -
-                                 rw.x0) *
-                                    3 +
-                                c];
-            ref = std::move(cut);
-            if (!ref_glints.empty()) {
-                std::vector<uint8_t> mask(static_cast<std::size_t>(iw.w) * iw.h);
+            // The image's window of the reference: its RGB and its glints.
+            const auto window_of = [&](const auto& whole, std::size_t channels) {
+                std::remove_cvref_t<decltype(whole)> cut(static_cast<std::size_t>(iw.w) * iw.h *
+                                                         channels);
                 for (int y = 0; y < iw.h; ++y)
-                    for (int x = 0; x < iw.w; ++x)
-                        mask[static_cast<std::size_t>(y) * iw.w + x] =
-                            ref_glints[static_cast<std::size_t>(y + iw.y0 - rw.y0) * rw.w + x +
-                                       iw.x0 - rw.x0];
-                ref_glints = std::move(mask);
-            }
+                    std::copy_n(
+                        whole.begin() + static_cast<std::ptrdiff_t>(
+                                            (static_cast<std::size_t>(y + iw.y0 - rw.y0) * rw.w +
+                                             iw.x0 - rw.x0) *
+                                            channels),
+                        static_cast<std::size_t>(iw.w) * channels,
+                        cut.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(y) *
+                                                                  iw.w * channels));
+                return cut;
+            };
+            ref = window_of(ref, 3);
+            if (!ref_glints.empty()) ref_glints = window_of(ref_glints, 1);
             fmt::print("compared: {} of the reference, the image's window\n", where(iw));
         }
         if (own_sky != ref_sky)
