@@ -42,11 +42,15 @@ render() {
     "$spangle" render "$scene" --size "$size" -q --float --no-preview "${threads[@]}" \
         -o "$out/$name.exr" "$@"
     t1=$(now)
-    local e
-    e=$("$spangle" inspect "$out/$name.exr" --against "$out/ref_$label.exr" |
-        sed -n 's/^relMSE against .*: //p')
-    awk -v a="$t0" -v b="$t1" -v e="$e" -v n="$noise" \
-        'BEGIN { printf "%.3f %s %.6f\n", b - a, e, e - n }'
+    # Against the two halves of the reference: the relMSE against their mean, and how many of
+    # the glints both halves find the run keeps ("-" where it has none to measure).
+    local report e g
+    report=$("$spangle" inspect "$out/$name.exr" --against "$out/ref_${label}_977.exr" \
+        --against "$out/ref_${label}_978.exr")
+    e=$(sed -n 's/^relMSE against .*: //p' <<< "$report")
+    g=$(sed -n 's/^glints kept ([^)]*): \([0-9]*\) of \([0-9]*\).*/\1\/\2/p' <<< "$report")
+    awk -v a="$t0" -v b="$t1" -v e="$e" -v n="$noise" -v g="${g:--}" \
+        'BEGIN { printf "%.3f %s %.6f %s\n", b - a, e, e - n, g }'
 }
 
 # Seeded copies of a scene, written beside it (its relative paths hold) and removed on exit.
@@ -76,10 +80,10 @@ for scene in "${scenes[@]}"; do
     # own noise, the halves' relMSE against each other / 4, which is printed and taken off
     # ("corrected") before the targets are judged. Cached for one scene text, size, sample
     # count and build.
-    key=$( { cat "$scene"; echo "$size $ref_spp"
+    key=$( { cat "$scene"; echo "$size $ref_spp layers"
              stat -c '%n %s %Y' "$spangle" "$build"/plugins/*.so 2>/dev/null || true; } |
            sha256sum | cut -d' ' -f1)
-    if [ ! -f "$out/ref_$label.exr" ] || [ "$(cat "$out/ref_$label.key" 2>/dev/null)" != "$key" ]; then
+    if [ ! -f "$out/ref_${label}_978.exr" ] || [ "$(cat "$out/ref_$label.key" 2>/dev/null)" != "$key" ]; then
         echo "# $label: rendering the reference ($ref_spp spp, two seeds)..." >&2
         rm -f "$out/ref_$label".*
         for half in 977 978; do
@@ -87,11 +91,10 @@ for scene in "${scenes[@]}"; do
             copies+=("$copy")
             write_seeded "$scene" "$half" "$copy"
             "$spangle" render "$copy" --size "$size" -q --float --no-preview "${threads[@]}" \
-                --spp $((ref_spp / 2)) --noise-threshold 0 -o "$out/ref_${label}_$half.exr"
+                --spp $((ref_spp / 2)) --noise-threshold 0 --layers \
+                -o "$out/ref_${label}_$half.exr"
             rm -f "$copy"
         done
-        oiiotool "$out/ref_${label}_977.exr" "$out/ref_${label}_978.exr" --add --mulc 0.5 \
-            -o "$out/ref_$label.exr"
         "$spangle" inspect "$out/ref_${label}_977.exr" --against "$out/ref_${label}_978.exr" |
             sed -n 's/^relMSE against .*: //p' | awk '{ printf "%.6f\n", $1 / 4 }' \
             > "$out/ref_$label.noise"
@@ -99,7 +102,7 @@ for scene in "${scenes[@]}"; do
     fi
     noise=$(cat "$out/ref_$label.noise")
     echo "# $label at $size: reference noise (relMSE) $noise"
-    echo "# $label at $size: way, setting, seconds, relMSE, relMSE - reference noise"
+    echo "# $label at $size: way, setting, seconds, relMSE, relMSE - reference noise, glints kept"
     results=()
     for spp in 4 8 16 32 64 128 256 512; do
         r=$(render "${label}_fixed_$spp" "$scene" --spp "$spp" --noise-threshold 0)
@@ -122,9 +125,10 @@ for scene in "${scenes[@]}"; do
     for target in 0.01 0.002; do
         for way in fixed fixed+denoise adaptive adaptive+denoise; do
             printf '%s\n' "${results[@]}" | awk -v w="$way" -v t="$target" -v l="$label" '
-                $1 == w && $5 <= t && (best == "" || $3 < best) { best = $3; at = $2 }
+                $1 == w && $5 <= t && (best == "" || $3 < best) { best = $3; at = $2; g = $6 }
                 END { if (best == "") printf "%s: %s never reached relMSE %s\n", l, w, t;
-                      else printf "%s: %s reached relMSE %s in %.2f s (%s)\n", l, w, t, best, at }'
+                      else printf "%s: %s reached relMSE %s in %.2f s (%s; glints kept %s)\n",
+                                  l, w, t, best, at, g }'
         done
     done
 done

@@ -3,7 +3,7 @@
 # samples per pixel, a sample range), measures an AOV-only EXR by its channels (it refused it),
 # reads another file's 32-bit integer channels, decodes a PNG's sRGB before measuring (it took
 # encoded values for linear), leaves NaN pixels out of a relMSE (it printed nan), and counts the
-# glints of a reference that an image keeps.
+# glints of a reference (or of two: two seeds) that an image keeps.
 #   inspect_files.sh SPANGLE PLUGIN_DIR SCENE_DIR
 set -u
 S=$1 PLUGINS=$2 SCENES=$3
@@ -100,6 +100,27 @@ grep -q "^glints kept (.*): 3 of 3 (100.0%), median contrast 1.00" out.txt ||
 grep -q "^glints kept (.*): 2 of 3 (66.7%)" out.txt || fail "a lost glint was kept: $(cat out.txt)"
 "$S" inspect gcrop.exr --against gref.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
 grep -q "^glints kept (.*): 1 of 1 (100.0%)" out.txt || fail "a crop's glints: $(cat out.txt)"
+# Two references (two seeds of one frame): the image against their mean, on the glints both find
+# (the second lacks the sparkle at 19,11: two are measured, and the image lost one of them), with
+# what each reference keeps of the other's.
+oiiotool gref.exr --fill:color=0.1,0.1,0.1,1,0.02,0.02,0.02 1x1+19+11 -o gref2.exr ||
+    fail "the second reference was not made"
+"$S" inspect glost.exr --against gref.exr --against gref2.exr > out.txt 2>&1 || fail "two references: $(cat out.txt)"
+grep -q "^relMSE against the mean of gref.exr and gref2.exr: " out.txt ||
+    fail "the mean of two references was not compared: $(cat out.txt)"
+grep -q "^the references against each other: relMSE [0-9]" out.txt ||
+    fail "the references' own difference was not said: $(cat out.txt)"
+grep -q "^glints of the reference (as \`spangle flicker\` finds them, in both references): 2; 2 measured" out.txt ||
+    fail "the glints of both references were not those found in both: $(cat out.txt)"
+grep -q "^glints kept (.*): 1 of 2 (50.0%)" out.txt || fail "two references, a lost glint: $(cat out.txt)"
+grep -q "^the references keep each other's (.*): 2 of 2 (100.0%) against gref2.exr, 2 of 2 (100.0%) against gref.exr" out.txt ||
+    fail "the references' ceiling: $(cat out.txt)"
+"$S" inspect glost.exr --against gref.exr --against gcrop.exr > out.txt 2>&1 &&
+    fail "references of two windows were taken: $(cat out.txt)"
+grep -q "hold different pixels" out.txt || fail "no reason for references of two windows: $(cat out.txt)"
+"$S" inspect glost.exr --against gref.exr --against gref2.exr --against gref.exr > out.txt 2>&1 &&
+    fail "three references were taken: $(cat out.txt)"
+grep -q "takes one reference, or two renders of it" out.txt || fail "no reason for three references: $(cat out.txt)"
 oiiotool gref.exr --ch R,G,B -o grgb.exr || fail "the reference without layers was not made"
 "$S" inspect gref.exr --against grgb.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
 grep -q "^glints kept: not measured (the reference lacks glints.R, G, B or A" out.txt ||
