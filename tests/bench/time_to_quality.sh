@@ -9,9 +9,10 @@
 # runs', whose own noise is measured and taken off each run's relMSE (cached in OUT_DIR for the
 # same scene, size, sample count and build), then fixed sample counts (with and without
 # --denoise), adaptive sampling at falling thresholds, and adaptive sampling with --denoise;
-# each whole process timed (wall seconds, `date`), its relMSE against the reference measured by
-# `spangle inspect --against`. Prints every run, then per way the first time it reached relMSE
-# 0.01 and 0.002 (less the reference's noise). Environment: SIZE (320x180), REF_SPP (2048),
+# each whole process timed (wall seconds, `date`), its relMSE against the reference and the glints
+# it keeps of those both halves of the reference find measured by `spangle inspect --against`
+# (given both halves). Prints every run, then per way the first time it reached relMSE 0.01 and
+# 0.002 (less the reference's noise). Environment: SIZE (320x180), REF_SPP (2048),
 # MAX_SPP (1024), THREADS (all cores). Time it on a quiet machine: anything running beside it
 # counts. The reference and the fixed runs sample every pixel alike (--noise-threshold 0), even
 # where the scene's [render] asks for adaptive sampling.
@@ -33,7 +34,8 @@ spangle="$build/spangle"
 # Seconds since the epoch, to the millisecond.
 now() { date +%s.%N; }
 
-# render NAME SCENE ARGS...: renders to OUT/NAME.exr; prints "seconds relMSE".
+# render NAME SCENE ARGS...: renders to OUT/NAME.exr; prints "seconds relMSE corrected-relMSE
+# glints-kept" (glints kept as K/N, "-" where none were measured).
 render() {
     local name=$1 scene=$2
     shift 2
@@ -47,7 +49,9 @@ render() {
     local report e g
     report=$("$spangle" inspect "$out/$name.exr" --against "$out/ref_${label}_977.exr" \
         --against "$out/ref_${label}_978.exr")
-    e=$(sed -n 's/^relMSE against .*: //p' <<< "$report")
+    # (The figure is the first word after the line's first ": ": a note of pixels left out
+    # follows it.)
+    e=$(awk '/^relMSE against / { sub(/^[^:]*: /, ""); print $1 }' <<< "$report")
     g=$(sed -n 's/^glints kept ([^)]*): \([0-9]*\) of \([0-9]*\).*/\1\/\2/p' <<< "$report")
     awk -v a="$t0" -v b="$t1" -v e="$e" -v n="$noise" -v g="${g:--}" \
         'BEGIN { printf "%.3f %s %.6f %s\n", b - a, e, e - n, g }'
@@ -83,7 +87,8 @@ for scene in "${scenes[@]}"; do
     key=$( { cat "$scene"; echo "$size $ref_spp layers"
              stat -c '%n %s %Y' "$spangle" "$build"/plugins/*.so 2>/dev/null || true; } |
            sha256sum | cut -d' ' -f1)
-    if [ ! -f "$out/ref_${label}_978.exr" ] || [ "$(cat "$out/ref_$label.key" 2>/dev/null)" != "$key" ]; then
+    if [ ! -f "$out/ref_${label}_977.exr" ] || [ ! -f "$out/ref_${label}_978.exr" ] ||
+        [ "$(cat "$out/ref_$label.key" 2>/dev/null)" != "$key" ]; then
         echo "# $label: rendering the reference ($ref_spp spp, two seeds)..." >&2
         rm -f "$out/ref_$label".*
         for half in 977 978; do
@@ -96,7 +101,7 @@ for scene in "${scenes[@]}"; do
             rm -f "$copy"
         done
         "$spangle" inspect "$out/ref_${label}_977.exr" --against "$out/ref_${label}_978.exr" |
-            sed -n 's/^relMSE against .*: //p' | awk '{ printf "%.6f\n", $1 / 4 }' \
+            awk '/^relMSE against / { sub(/^[^:]*: /, ""); printf "%.6f\n", $1 / 4 }' \
             > "$out/ref_$label.noise"
         echo "$key" > "$out/ref_$label.key"
     fi

@@ -100,12 +100,15 @@ grep -q "^glints kept (.*): 3 of 3 (100.0%), median contrast 1.00" out.txt ||
 grep -q "^glints kept (.*): 2 of 3 (66.7%)" out.txt || fail "a lost glint was kept: $(cat out.txt)"
 "$S" inspect gcrop.exr --against gref.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
 grep -q "^glints kept (.*): 1 of 1 (100.0%)" out.txt || fail "a crop's glints: $(cat out.txt)"
-# Two references (two seeds of one frame): the image against their mean, on the glints both find
-# (the second lacks the sparkle at 19,11: two are measured, and the image lost one of them), with
-# what each reference keeps of the other's.
-oiiotool gref.exr --fill:color=0.1,0.1,0.1,1,0.02,0.02,0.02 1x1+19+11 -o gref2.exr ||
-    fail "the second reference was not made"
-"$S" inspect glost.exr --against gref.exr --against gref2.exr > out.txt 2>&1 || fail "two references: $(cat out.txt)"
+# Two references (two seeds of one frame): the image against their mean, on the glints both find.
+# The second lacks the sparkle at 19,11, has one at 3,12 that the first lacks, and its sparkle at
+# 5,5 is dimmer in RGB: two are measured, the image lost one of them, and the first reference
+# keeps both of the second's where the second keeps one of the first's.
+B="--fill:color=0.1,0.1,0.1,1,0.02,0.02,0.02"
+oiiotool gref.exr $B 1x1+19+11 $G 1x1+3+12 --fill:color=0.3,0.3,0.3,1,0.9,0.9,0.9 1x1+5+5 \
+    -o gref2.exr || fail "the second reference was not made"
+"$S" inspect glost.exr --against gref.exr --against gref2.exr > out.txt 2>&1 ||
+    fail "two references: $(cat out.txt)"
 grep -q "^relMSE against the mean of gref.exr and gref2.exr: " out.txt ||
     fail "the mean of two references was not compared: $(cat out.txt)"
 grep -q "^the references against each other: relMSE [0-9]" out.txt ||
@@ -113,8 +116,20 @@ grep -q "^the references against each other: relMSE [0-9]" out.txt ||
 grep -q "^glints of the reference (as \`spangle flicker\` finds them, in both references): 2; 2 measured" out.txt ||
     fail "the glints of both references were not those found in both: $(cat out.txt)"
 grep -q "^glints kept (.*): 1 of 2 (50.0%)" out.txt || fail "two references, a lost glint: $(cat out.txt)"
-grep -q "^the references keep each other's (.*): 2 of 2 (100.0%) against gref2.exr, 2 of 2 (100.0%) against gref.exr" out.txt ||
-    fail "the references' ceiling: $(cat out.txt)"
+grep -q "^the references on these glints (.*): 'gref.exr' against 'gref2.exr' keeps 2 of 2 (100.0%), 'gref2.exr' against 'gref.exr' keeps 1 of 2 (50.0%)$" out.txt ||
+    fail "how the references agree: $(cat out.txt)"
+# The mean is theirs: an image that is it matches it exactly.
+oiiotool gref.exr gref2.exr --add --mulc 0.5 -o gmean.exr || fail "the mean was not made"
+"$S" inspect gmean.exr --against gref.exr --against gref2.exr > out.txt 2>&1 || fail "the mean: $(cat out.txt)"
+grep -q "^relMSE against the mean of gref.exr and gref2.exr: 0$" out.txt ||
+    fail "the mean of the references is not what was compared: $(cat out.txt)"
+# A crop against both (their window of it), and a second reference without glint layers.
+"$S" inspect gcrop.exr --against gref.exr --against gref2.exr > out.txt 2>&1 || fail "a crop, two references: $(cat out.txt)"
+grep -q "^glints kept (.*): 1 of 1 (100.0%)" out.txt || fail "a crop's glints, two references: $(cat out.txt)"
+oiiotool gref2.exr --ch R,G,B,A -o grgba.exr || fail "the reference without glints was not made"
+"$S" inspect glost.exr --against gref.exr --against grgba.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
+grep -q "^glints kept: not measured ('grgba.exr' lacks glints.R, G, B or A" out.txt ||
+    fail "a second reference without glints was not said: $(cat out.txt)"
 "$S" inspect glost.exr --against gref.exr --against gcrop.exr > out.txt 2>&1 &&
     fail "references of two windows were taken: $(cat out.txt)"
 grep -q "hold different pixels" out.txt || fail "no reason for references of two windows: $(cat out.txt)"
@@ -123,7 +138,7 @@ grep -q "hold different pixels" out.txt || fail "no reason for references of two
 grep -q "takes one reference, or two renders of it" out.txt || fail "no reason for three references: $(cat out.txt)"
 oiiotool gref.exr --ch R,G,B -o grgb.exr || fail "the reference without layers was not made"
 "$S" inspect gref.exr --against grgb.exr > out.txt 2>&1 || fail "glints: $(cat out.txt)"
-grep -q "^glints kept: not measured (the reference lacks glints.R, G, B or A" out.txt ||
+grep -q "^glints kept: not measured ('grgb.exr' lacks glints.R, G, B or A" out.txt ||
     fail "a reference without glints was not said: $(cat out.txt)"
 # A folder is not an image.
 "$S" inspect . > out.txt 2>&1 && fail "inspect of a folder succeeded"
