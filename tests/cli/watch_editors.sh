@@ -54,6 +54,10 @@ EOT
 start() {  # start SCENE [ARGS]: a watch session writing out.exr, its log in log.txt
     local sc=$1
     shift
+    # Emptied here, before the session starts: its own redirection empties it only once it runs,
+    # and `finished` read the last part's log meanwhile (part 3 then saved its scene before the
+    # first load, and waited for a second render that had nothing to render).
+    : > log.txt
     "$S" render "$sc" -o out.exr --watch --threads 1 --texture-cache "$T/cache" "$@" > log.txt 2>&1 &
     PID=$!
 }
@@ -142,6 +146,7 @@ fresh s5.toml "a render that a touched mesh left alone"
 # 6. The output's folder removed while it renders: the finished image is not claimed written,
 # nor at the stop; a save once the folder is back renders and writes it.
 mkdir -p od
+: > log.txt
 "$S" render s4.toml -o od/out.exr --watch --threads 1 --texture-cache "$T/cache" > log.txt 2>&1 &
 PID=$!
 sleep 0.5
