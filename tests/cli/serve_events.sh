@@ -20,6 +20,9 @@ wait_for() {  # wait_for CMD... : retries for up to 30 s
 }
 serve() {  # serve PORT: a watch session with the live page on PORT (0: any), its log in log.txt;
     # fails (1) when it ends before showing its address (the port still held)
+    # (The log emptied first: the session's own redirection empties it only once it runs, and
+    # the last server's address line could be read meanwhile.)
+    : > log.txt
     "$S" render scene.toml -o out.exr --watch --size 64x40 --spp 4 --serve "$1" \
         --plugin-path "$PLUGINS" > log.txt 2>&1 &
     PID=$!
