@@ -135,6 +135,7 @@ ExrOptions exr_options_for(const Outputs& out, const ImageDescription& d) {
         o.metadata.emplace_back("spangle:spp_range",
                                 fmt::format("{}..{}", out.spp_first, out.spp_first + d.spp));
         o.metadata.emplace_back("spangle:spp_frame", std::to_string(d.spp_frame));
+        if (!d.spread.empty()) o.metadata.emplace_back("spangle:filter_spread", d.spread);
     } else if (out.spp_end > 0 && d.spp > 0 && d.block <= 1) {
         // A pass image of a --spp-range render (--pass-output): samples of the range, without
         // the sums; it was labelled a render of the frame's first samples, which merge took.
@@ -504,6 +505,12 @@ std::string sampling_note(const RenderStats& st) {
     if (!(st.noise_threshold > 0.0f)) return {};
     return fmt::format("adaptive {} min_spp {} max_spp {}", st.noise_threshold, st.adaptive_min_spp,
                        st.spp_target);
+}
+
+std::string spread_note(const RenderStats& st) {
+    std::string out;
+    for (const double w : st.filter_spread) out += fmt::format("{}{:a}", out.empty() ? "" : " ", w);
+    return out;
 }
 
 std::string denoise_note(const RenderStats& st) {

@@ -41,6 +41,8 @@ struct ImageDescription {
     std::string sampling;
     /** The denoiser's glint treatment (keep, apart, filter), or empty (not denoised). */
     std::string denoised;
+    /** filter_samples = "shared": the spread weights as spread_note() writes them; empty: none. */
+    std::string spread;
 };
 
 struct RenderResult;
@@ -53,6 +55,10 @@ std::string sampling_note(const RenderStats& st);
 
 /** The header's note of how a render was denoised (empty: it was not). */
 std::string denoise_note(const RenderStats& st);
+
+/** The weights a shared filter spread the pixels' means by, exactly (hexadecimal floats), for a
+ *  --spp-range part: spangle merge spreads the merged means alike. Empty: none. */
+std::string spread_note(const RenderStats& st);
 
 /** The render as its outputs take it: `r` itself, or with --denoise (o.denoise) a denoised copy
  *  in `scratch` (every mode denoises its final image alike: one-shot, --frames, --watch). */
@@ -77,6 +83,7 @@ ImageDescription final_image(const Result& r, const ColorConfig& color, const Sc
     d.window = r.window;
     d.sampling = sampling_note(r.stats);
     d.denoised = denoise_note(r.stats);
+    d.spread = spread_note(r.stats);
     if constexpr (requires { r.sums; }) {
         d.sums = &r.sums;
         d.spp_frame = r.stats.spp_frame;

@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <sstream>
 #include <tuple>
 
 #include "color/exr_header.h"
@@ -21,6 +22,7 @@
 #include "color/image_output.h"
 #include "core/error.h"
 #include "core/memory.h"
+#include "core/pixel_filter.h"
 
 namespace spangle {
 
@@ -273,6 +275,12 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                         "options: --float)",
                         path, parts.front());
                 check_same_render(hd, *first, path, parts.front());
+                if (string_attribute(hd, "spangle:filter_spread") !=
+                    string_attribute(*first, "spangle:filter_spread"))
+                    throw_error(
+                        "'{}' and '{}' spread their pixels by different filters "
+                        "(filter_samples): parts of one render merge",
+                        path, parts.front());
                 if (std::strtoull(string_attribute(hd, "spangle:spp_frame").c_str(), nullptr, 10) !=
                     spp_frame)
                     throw_error("'{}' is part of a frame of {} samples per pixel, '{}' of {}", path,
@@ -318,6 +326,31 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     // The whole frame's image: the mean of all its samples, from the exact total.
     std::vector<float> rgb(total.size());
     for (std::size_t i = 0; i < rgb.size(); ++i) rgb[i] = sample_mean(total[i], spp_frame);
+    // filter_samples = "shared": the means spread by the weights the parts were rendered with,
+    // as the whole render spreads them (parts of the whole frame only: the render refuses crops).
+    if (const std::string text = string_attribute(*first, "spangle:filter_spread"); !text.empty()) {
+        std::vector<double> weights;
+        std::istringstream in(text);
+        for (std::string word; in >> word;) {
+            char* end = nullptr;
+            const double w = std::strtod(word.c_str(), &end);
+            if (end == word.c_str() || *end != '\0' || !(w >= 0.0 && w <= 1.0))
+                throw_error("'{}': its spangle:filter_spread '{}' is not a list of weights",
+                            parts.front(), text);
+            weights.push_back(w);
+        }
+        if (weights.size() % 2 == 0)
+            throw_error("'{}': its spangle:filter_spread holds {} weights, not an odd number",
+                        parts.front(), weights.size());
+        if (first->dataWindow() != first->displayWindow())
+            throw_error(
+                "'{}' is a crop window of a render with filter_samples = \"shared\": its pixels "
+                "need their neighbours' samples beyond the window",
+                parts.front());
+        const auto w = static_cast<uint32_t>(pw), h = static_cast<uint32_t>(ph);
+        spread_pixels(rgb.data(), 3, std::vector<bool>(3, true), PixelRect{0, 0, w, h},
+                      PixelRect{0, 0, w, h}, weights);
+    }
     // The first part's header without the range's attributes (copied one by one: OpenEXR 3.1's
     // Header::erase leaks the attribute it removes).
     Imf::Header header =

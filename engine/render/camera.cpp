@@ -7,45 +7,8 @@
 
 namespace spangle {
 
-namespace {
-
-/** The 1D filter g(x) on [-radius, radius]. */
-double filter_value(FilterKind kind, double x, double radius) {
-    switch (kind) {
-        case FilterKind::Box:
-            return 1.0;
-        case FilterKind::Gaussian: {
-            // sigma = radius / 3 (0.5 px at the default 1.5), shifted so that it reaches 0 at
-            // the radius.
-            const double sigma = radius / 3.0, s2 = 2.0 * sigma * sigma;
-            return std::max(0.0, std::exp(-x * x / s2) - std::exp(-radius * radius / s2));
-        }
-        case FilterKind::BlackmanHarris: {
-            // Four-term Blackman-Harris window over [-radius, radius].
-            const double t = 2.0 * M_PI * (x / (2.0 * radius) + 0.5);
-            return 0.35875 - 0.48829 * std::cos(t) + 0.14128 * std::cos(2 * t) -
-                   0.01168 * std::cos(3 * t);
-        }
-    }
-    return 0.0;
-}
-
-float filter_radius(FilterKind kind) {
-    switch (kind) {
-        case FilterKind::Box:
-            return 0.5f;
-        case FilterKind::Gaussian:
-            return 1.5f;
-        case FilterKind::BlackmanHarris:
-            return 2.0f;
-    }
-    return 0.5f;
-}
-
-}  // namespace
-
 FilterSampler::FilterSampler(FilterKind kind, float radius)
-    : radius_(radius > 0.0f ? radius : filter_radius(kind)) {
+    : radius_(radius > 0.0f ? radius : default_filter_radius(kind)) {
     // Piecewise-constant filter over kBins bins, then its inverse CDF tabulated finely enough that
     // linear interpolation in u reproduces it (sampling is the hot path; this runs once).
     std::array<double, kBins + 1> cdf{};

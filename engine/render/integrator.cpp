@@ -16,6 +16,7 @@
 
 #include "core/cryptomatte.h"
 #include "core/memory.h"
+#include "core/pixel_filter.h"
 #include "render/adaptive.h"
 #include "render/wave.h"
 
@@ -24,6 +25,42 @@ namespace {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/** The pixels of `to` (inside `from`) of a row-major image of `from`, `n` values per pixel. */
+template <class T>
+std::vector<T> cropped(const std::vector<T>& v, const CropWindow& from, const CropWindow& to,
+                       std::size_t n) {
+    const std::size_t fw = from.x1 - from.x0, tw = to.x1 - to.x0;
+    std::vector<T> out(tw * (to.y1 - to.y0) * n);
+    for (uint32_t y = to.y0; y < to.y1; ++y)
+        std::copy_n(
+            v.begin() + static_cast<std::ptrdiff_t>(((y - from.y0) * fw + (to.x0 - from.x0)) * n),
+            tw * n, out.begin() + static_cast<std::ptrdiff_t>((y - to.y0) * tw * n));
+    return out;
+}
+
+/** filter_samples = "shared": how the film's pixel means become the image. The render covers
+ *  `win`, the window asked for grown by the filter's reach (clipped to the frame), so that every
+ *  pixel of `asked` has all its neighbours in the frame. */
+struct Spread {
+    std::vector<double> weights;  ///< spread_weights(); empty: filter_samples = "own"
+    CropWindow win, asked;
+    bool on() const { return weights.size() > 1; }
+    /** Spreads `values` (n channels per pixel of win; those of `spread` true) over `asked`. */
+    void apply(std::vector<float>& values, std::size_t n, const std::vector<bool>& spread) const {
+        if (!on() || values.empty()) return;
+        spread_pixels(values.data(), n, spread, PixelRect{win.x0, win.y0, win.x1, win.y1},
+                      PixelRect{asked.x0, asked.y0, asked.x1, asked.y1}, weights);
+    }
+};
+
+/** Which of the layers are spread by a shared filter: the colours, not the data (depth,
+ *  normals, positions, object numbers, Cryptomatte). */
+std::vector<bool> spread_layers(const std::vector<std::string>& names) {
+    std::vector<bool> out(names.size());
+    for (std::size_t c = 0; c < names.size(); ++c) out[c] = !layer_channel_is_data(names[c]);
+    return out;
 }
 
 /** One render's tiles and the threads that trace them. */
@@ -288,8 +325,8 @@ void preview_pass(TileRun& run, const Film& film, uint32_t stride, uint32_t firs
  *  order whatever the passes, so the sums after the last pass are those of a one-pass render,
  *  bit for bit. A pass interrupted by a stop request is rolled back to the sums before it.
  *  Returns the samples reached; `passes` counts the passes completed. */
-uint32_t full_passes(TileRun& run, uint32_t first_sample, RenderResult& out, uint32_t& passes,
-                     std::chrono::steady_clock::time_point t0) {
+uint32_t full_passes(TileRun& run, uint32_t first_sample, const Spread& spread, RenderResult& out,
+                     uint32_t& passes, std::chrono::steady_clock::time_point t0) {
     RenderJob& job = run.job;
     const RenderOptions& options = run.options;
     std::vector<uint32_t> ends = options.progressive
@@ -338,9 +375,26 @@ uint32_t full_passes(TileRun& run, uint32_t first_sample, RenderResult& out, uin
                 finish_layers(layers, job.layer_film.layout, job.layer_plan, end - first_sample,
                               job.adaptive_film ? job.adaptive_film->count.data() : nullptr);
             }
-            options.on_pass(PassImage{shown, out.width, out.height, end - first_sample,
-                                      job.spp - first_sample, 1, seconds_since(t0), out.window,
-                                      with_layers ? &layers : nullptr,
+            // Spread as the final image is; cut to the window asked for as it is (an adaptive
+            // render's passes show its whole tiles).
+            spread.apply(shown, 3, std::vector<bool>(3, true));
+            if (with_layers)
+                spread.apply(layers, out.layer_names.size(), spread_layers(out.layer_names));
+            uint32_t w = out.width, h = out.height;
+            ImageWindow window = out.window;
+            if (spread.on() && !job.adaptive_film &&
+                (spread.win.x0 != spread.asked.x0 || spread.win.y0 != spread.asked.y0 ||
+                 spread.win.x1 != spread.asked.x1 || spread.win.y1 != spread.asked.y1)) {
+                shown = cropped(shown, spread.win, spread.asked, 3);
+                if (with_layers)
+                    layers = cropped(layers, spread.win, spread.asked, out.layer_names.size());
+                w = spread.asked.x1 - spread.asked.x0;
+                h = spread.asked.y1 - spread.asked.y0;
+                window.x0 = spread.asked.x0;
+                window.y0 = spread.asked.y0;
+            }
+            options.on_pass(PassImage{shown, w, h, end - first_sample, job.spp - first_sample, 1,
+                                      seconds_since(t0), window, with_layers ? &layers : nullptr,
                                       with_layers ? &out.layer_names : nullptr});
         }
     }
@@ -354,19 +408,6 @@ CropWindow whole_tiles(const CropWindow& win, uint32_t width, uint32_t height) {
                       std::min(height, (win.y1 + kTileSize - 1) / kTileSize * kTileSize)};
 }
 
-/** The pixels of `to` (inside `from`) of a row-major image of `from`, `n` values per pixel. */
-template <class T>
-std::vector<T> cropped(const std::vector<T>& v, const CropWindow& from, const CropWindow& to,
-                       std::size_t n) {
-    const std::size_t fw = from.x1 - from.x0, tw = to.x1 - to.x0;
-    std::vector<T> out(tw * (to.y1 - to.y0) * n);
-    for (uint32_t y = to.y0; y < to.y1; ++y)
-        std::copy_n(
-            v.begin() + static_cast<std::ptrdiff_t>(((y - from.y0) * fw + (to.x0 - from.x0)) * n),
-            tw * n, out.begin() + static_cast<std::ptrdiff_t>((y - to.y0) * tw * n));
-    return out;
-}
-
 /** Cuts a render of `from` down to the window asked for, `to` (the same when equal). */
 void crop_result(const CropWindow& from, const CropWindow& to, std::vector<uint32_t>& counts,
                  RenderResult& out) {
@@ -374,7 +415,7 @@ void crop_result(const CropWindow& from, const CropWindow& to, std::vector<uint3
     out.image = cropped(out.image, from, to, 3);
     out.sums = cropped(out.sums, from, to, 3);
     out.layers = cropped(out.layers, from, to, out.layer_names.size());
-    counts = cropped(counts, from, to, 1);
+    if (!counts.empty()) counts = cropped(counts, from, to, 1);
     out.width = to.x1 - to.x0;
     out.height = to.y1 - to.y0;
     out.window.x0 = to.x0;
@@ -480,7 +521,11 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
                   const Film& film, const std::vector<Camera>& camera_steps, RenderResult& out) {
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam = CameraModel::of(camera, film.width, film.height);
-    const FilterSampler filter(film.filter, film.filter_radius);
+    // filter_samples = "shared": every sample lands in its own pixel (a box), and the filter
+    // spreads the pixels' means afterwards.
+    const bool shared = film.filter_shared != 0;
+    const FilterSampler filter(shared ? FilterKind::Box : film.filter,
+                               shared ? 0.5f : film.filter_radius);
     RenderJob job;
     job.filter = &filter;
     const AdaptivePlan plan = adaptive_plan(film, options);
@@ -494,7 +539,22 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     // The crop window (the whole image without one); adaptive sampling renders the whole tiles
     // it meets, since a pixel's decision reads its neighbours in its tile.
     const CropWindow asked = crop_within(options.crop, film.width, film.height);
-    const CropWindow win = plan.on() ? whole_tiles(asked, film.width, film.height) : asked;
+    Spread spread;
+    if (shared) spread.weights = spread_weights(film.filter, film.filter_radius);
+    // A shared filter reads the pixels within its reach: they are rendered too.
+    const auto reach = static_cast<uint32_t>(spread.weights.size() / 2);
+    const CropWindow grown{
+        asked.x0 - std::min(asked.x0, reach), asked.y0 - std::min(asked.y0, reach),
+        std::min(film.width, asked.x1 + reach), std::min(film.height, asked.y1 + reach)};
+    if (reach > 0 && options.spp_end > 0 &&
+        (asked.x0 != 0 || asked.y0 != 0 || asked.x1 != film.width || asked.y1 != film.height))
+        throw_error(
+            "--spp-range parts of a crop window cannot be merged with filter_samples = "
+            "\"shared\" (a pixel takes its neighbours' samples, from beyond the window): render "
+            "parts of the whole frame, or filter_samples = \"own\"");
+    const CropWindow win = plan.on() ? whole_tiles(grown, film.width, film.height) : grown;
+    spread.win = win;
+    spread.asked = asked;
     job.crop_x0 = win.x0;
     job.crop_y0 = win.y0;
     job.crop_width = win.x1 - win.x0;
@@ -525,7 +585,7 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
                                 : 1;
     if (stride > 1) preview_pass(run, film, stride, first_sample, out, t0);
     uint32_t passes = 0;
-    const uint32_t samples = full_passes(run, first_sample, out, passes, t0) - first_sample;
+    const uint32_t samples = full_passes(run, first_sample, spread, out, passes, t0) - first_sample;
     // The image: the mean of the samples summed.
     out.image.resize(out.sums.size());
     const uint32_t* counts = plan.on() ? adaptive.count.data() : nullptr;
@@ -533,8 +593,12 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
         out.image[i] = sample_mean(out.sums[i], counts ? counts[i / 3] : samples);
     if (job.layers)
         finish_layers(out.layers, job.layer_film.layout, job.layer_plan, samples, counts);
+    spread.apply(out.image, 3, std::vector<bool>(3, true));
+    if (job.layers)
+        spread.apply(out.layers, out.layer_names.size(), spread_layers(out.layer_names));
     record_stats(job, options, film, samples, first_sample, passes, out);
     out.stats.footprints = job.footprints;
+    if (spread.on()) out.stats.filter_spread = spread.weights;
     if (scene.materials)
         for (const auto& mat : *scene.materials) {
             if (!mat) continue;
@@ -548,6 +612,9 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
             std::accumulate(adaptive.count.begin(), adaptive.count.end(), uint64_t{0});
         crop_result(win, asked, adaptive.count, out);
         add_spp_layer(adaptive.count, options.layers, out);
+    } else {
+        std::vector<uint32_t> none;
+        crop_result(win, asked, none, out);
     }
     out.stats.seconds = seconds_since(t0);
 }

@@ -155,6 +155,9 @@ struct RenderStats {
     GlintDenoise denoise_glints = GlintDenoise::Keep;
     /** Hits got footprints (false: no material of the scene reads them, none was computed). */
     bool footprints = true;
+    /** filter_samples = "shared": the weights that spread the pixels' means (spread_weights();
+     *  empty: each pixel's own samples, or a filter within its pixel). */
+    std::vector<double> filter_spread;
 };
 
 /** Records in `st` that its image was denoised, treating the glints so. */

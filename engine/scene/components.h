@@ -263,20 +263,21 @@ inline bool same_value(const std::vector<Camera>& a, const std::vector<Camera>& 
  *  camera at the shutter's middle. */
 SPANGLE_COMPONENT(CameraMotion, SPANGLE_CAMERA_MOTION_FIELDS);
 
-#define SPANGLE_FILM_FIELDS(X)                                                           \
-    X(uint32_t, width, "pixels")                                                         \
-    X(uint32_t, height, "pixels")                                                        \
-    X(uint32_t, spp, "samples per pixel")                                                \
-    X(uint32_t, max_depth, "maximum bounces")                                            \
-    X(uint32_t, rr_depth, "bounces before Russian roulette")                             \
-    X(uint64_t, seed, "random seed")                                                     \
-    X(FilterKind, filter, "pixel filter")                                                \
-    X(float, filter_radius, "pixel filter radius, pixels; 0 = the filter's own")         \
-    X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")      \
-    X(float, filter_glossy, "path regularisation after rough bounces; 0 = off")          \
-    X(float, noise_threshold, "adaptive sampling's noise threshold; 0 = off")            \
-    X(uint32_t, min_spp, "adaptive sampling: samples before a pixel may stop; 0 = auto") \
-    X(uint32_t, max_spp, "adaptive sampling: most samples of a pixel; 0 = spp")          \
+#define SPANGLE_FILM_FIELDS(X)                                                            \
+    X(uint32_t, width, "pixels")                                                          \
+    X(uint32_t, height, "pixels")                                                         \
+    X(uint32_t, spp, "samples per pixel")                                                 \
+    X(uint32_t, max_depth, "maximum bounces")                                             \
+    X(uint32_t, rr_depth, "bounces before Russian roulette")                              \
+    X(uint64_t, seed, "random seed")                                                      \
+    X(FilterKind, filter, "pixel filter")                                                 \
+    X(float, filter_radius, "pixel filter radius, pixels; 0 = the filter's own")          \
+    X(uint8_t, filter_shared, "1: samples stay in their pixel, the filter spreads means") \
+    X(float, clamp_indirect, "max luminance of one indirect contribution; 0 = off")       \
+    X(float, filter_glossy, "path regularisation after rough bounces; 0 = off")           \
+    X(float, noise_threshold, "adaptive sampling's noise threshold; 0 = off")             \
+    X(uint32_t, min_spp, "adaptive sampling: samples before a pixel may stop; 0 = auto")  \
+    X(uint32_t, max_spp, "adaptive sampling: most samples of a pixel; 0 = spp")           \
     X(uint8_t, transparent_background, "1: camera rays do not see the environment")
 /** Image size and render settings. */
 SPANGLE_COMPONENT(Film, SPANGLE_FILM_FIELDS);

@@ -172,6 +172,7 @@ void build_render(BuildContext& ctx, const RenderDesc& d, ecs::Entity settings) 
     f.seed = d.seed;
     f.filter = d.filter;
     f.filter_radius = d.filter_radius;
+    f.filter_shared = d.filter_shared ? 1 : 0;
     f.clamp_indirect = d.clamp_indirect;
     f.filter_glossy = d.filter_glossy;
     f.noise_threshold = d.noise_threshold;

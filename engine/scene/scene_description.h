@@ -397,6 +397,7 @@ struct RenderDesc {
     uint64_t seed = 0;                         ///< random seed
     FilterKind filter = FilterKind::Gaussian;  ///< pixel filter
     float filter_radius = 0.0f;    ///< its radius in pixels; 0 = the filter's own (0.5, 1.5, 2)
+    bool filter_shared = false;    ///< filter_samples = "shared" (false: "own")
     float clamp_indirect = 0.0f;   ///< max luminance of one indirect contribution
     float filter_glossy = 0.0f;    ///< path regularisation; 0 = off (unbiased)
     float noise_threshold = 0.0f;  ///< adaptive sampling; 0 = off, else >= 1e-6

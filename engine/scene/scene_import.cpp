@@ -104,6 +104,7 @@ void fill_render(RenderDesc& into, const RenderDesc& from) {
     // takes that filter's own radius, not the imported file's.
     if (mine.wrote("filter") && !mine.wrote("filter_radius")) into.filter_radius = 0.0f;
     keep("filter_radius", &RenderDesc::filter_radius);
+    keep("filter_samples", &RenderDesc::filter_shared);
     keep("clamp_indirect", &RenderDesc::clamp_indirect);
     keep("filter_glossy", &RenderDesc::filter_glossy);
     keep("noise_threshold", &RenderDesc::noise_threshold);

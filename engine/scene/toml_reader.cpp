@@ -294,7 +294,7 @@ std::string belongs_elsewhere(const std::string& key, const std::string& table) 
     static const std::pair<const char*, std::vector<const char*>> kPlaces[] = {
         {"[render]",
          {"width", "height", "spp", "max_depth", "rr_depth", "seed", "working_space", "color_space",
-          "filter", "filter_radius", "frame_start", "frame_end", "fps", "shutter",
+          "filter", "filter_radius", "filter_samples", "frame_start", "frame_end", "fps", "shutter",
           "noise_threshold", "min_spp", "max_spp", "transparent_background"}},
         {"[camera]", {"position", "look_at", "up", "fov", "projection", "ortho_height"}},
         {"the material's params = { ... }",

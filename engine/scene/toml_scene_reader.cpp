@@ -73,6 +73,13 @@ RenderDesc read_render(TableReader& r) {
                     filter);
     // A filter's reach in pixels (Cycles' Blackman-Harris of width 1.5 is radius 1.5 here).
     d.filter_radius = static_cast<float>(r.number("filter_radius", 0.0, {0.05, 8.0}));
+    // Whose samples a pixel's filter weighs: its own, drawn where the filter weighs most, or
+    // every pixel's within its reach (docs/adaptive.md, "Shared samples").
+    const std::string samples = r.string("filter_samples", "own");
+    if (samples != "own" && samples != "shared")
+        throw_error(r.loc("filter_samples"), "unknown filter_samples '{}' (valid: own, shared)",
+                    samples);
+    d.filter_shared = samples == "shared";
     d.frame_start = r.integer("frame_start", d.frame_start, {-1e9, 1e9});
     d.frame_end = r.integer("frame_end", d.frame_start, {static_cast<double>(d.frame_start), 1e9});
     d.fps = r.number("fps", d.fps, {0.0, 1e6, true});

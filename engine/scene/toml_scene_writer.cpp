@@ -130,6 +130,7 @@ struct Writer {
         line("seed", fmt::to_string(r.seed));
         line("filter", str(filter_name(r.filter)));
         if (r.filter_radius > 0.0f) line("filter_radius", num(r.filter_radius));
+        if (r.filter_shared) line("filter_samples", str("shared"));
         line("clamp_indirect", num(r.clamp_indirect));
         if (r.filter_glossy > 0.0f) line("filter_glossy", num(r.filter_glossy));
         if (r.noise_threshold > 0.0f) line("noise_threshold", num(r.noise_threshold));

@@ -169,6 +169,117 @@ TEST(FilterSampler, TheRadiusStretchesTheFilter) {
     EXPECT_NEAR(box.sample(0.25f), -0.5f, 1e-3f);
 }
 
+TEST(SharedFilter, WeightsSpreadAsWideAsTheFilter) {
+    // A box within its pixel spreads nothing.
+    EXPECT_EQ(spread_weights(FilterKind::Box, 0.0f), std::vector<double>{1.0});
+    EXPECT_EQ(spread_weights(FilterKind::Box, 0.3f), std::vector<double>{1.0});
+    // A box of radius 1 has variance 1/3; the pixel's own box 1/12, so the weights make up 1/4:
+    // a quarter of the weight on the two neighbours, 1/8 each.
+    const std::vector<double> b1 = spread_weights(FilterKind::Box, 1.0f);
+    ASSERT_EQ(b1.size(), 3u);
+    // (To the quadrature of the filter's variance: 4096 midpoints, relative error 2e-8.)
+    EXPECT_NEAR(b1[0], 0.125, 1e-7);
+    EXPECT_NEAR(b1[1], 0.75, 1e-7);
+    EXPECT_EQ(b1[0], b1[2]);
+    // Every filter: weights summing to 1, even, and as wide as the filter (the variance of the
+    // weights plus the pixel's own 1/12 is the filter's, by quadrature); a filter narrower than
+    // the pixel itself (variance below 1/12) cannot be matched and spreads nothing.
+    const auto variance = [](FilterKind k, double r) {
+        double m0 = 0.0, m2 = 0.0;
+        for (int i = 0; i < 200000; ++i) {
+            const double x = -r + (i + 0.5) * 2.0 * r / 200000, f = filter_value(k, x, r);
+            m0 += f;
+            m2 += x * x * f;
+        }
+        return m2 / m0;
+    };
+    for (const FilterKind k : {FilterKind::Box, FilterKind::Gaussian, FilterKind::BlackmanHarris})
+        for (const float r : {0.8f, 1.0f, 1.5f, 2.0f, 3.3f, 6.0f}) {
+            const std::vector<double> w = spread_weights(k, r);
+            if (variance(k, r) < 1.0 / 12.0) {
+                EXPECT_EQ(w, std::vector<double>{1.0}) << static_cast<int>(k) << " radius " << r;
+                continue;
+            }
+            const int reach = static_cast<int>(w.size() / 2);
+            ASSERT_EQ(w.size() % 2, 1u);
+            double sum = 0.0, var = 0.0;
+            for (int o = -reach; o <= reach; ++o) {
+                const double x = w[static_cast<std::size_t>(o + reach)];
+                EXPECT_EQ(x, w[static_cast<std::size_t>(reach - o)]);
+                EXPECT_GE(x, 0.0);
+                sum += x;
+                var += o * o * x;
+            }
+            EXPECT_NEAR(sum, 1.0, 1e-12);
+            EXPECT_NEAR(var + 1.0 / 12.0, variance(k, r), 2e-4 * variance(k, r))
+                << "filter " << static_cast<int>(k) << " radius " << r;
+        }
+    EXPECT_NEAR(variance(FilterKind::Box, 1.0), 1.0 / 3.0, 1e-6);
+    // Blackman-Harris of its own radius 2 (variance 0.307): three pixels, 0.1118 on each side.
+    const std::vector<double> bh = spread_weights(FilterKind::BlackmanHarris, 0.0f);
+    ASSERT_EQ(bh.size(), 3u);
+    EXPECT_NEAR(bh[0], 0.1118, 2e-4);
+}
+
+TEST(SharedFilter, SpreadsAnImpulseAsTheKernelAndKeepsAConstantAtTheEdges) {
+    const std::vector<double> w = spread_weights(FilterKind::BlackmanHarris, 2.5f);
+    const int reach = static_cast<int>(w.size() / 2);
+    ASSERT_EQ(reach, 2);
+    const uint32_t n = 9;
+    // Channel 0: an impulse at (4, 4); channel 1: a constant; channel 2: left alone.
+    std::vector<float> v(n * n * 3, 0.0f);
+    for (uint32_t i = 0; i < n * n; ++i) {
+        v[3 * i + 1] = 2.0f;
+        v[3 * i + 2] = static_cast<float>(i);
+    }
+    v[3 * (4 * n + 4)] = 1.0f;
+    const PixelRect all{0, 0, n, n};
+    spread_pixels(v.data(), 3, {true, true, false}, all, all, w);
+    for (uint32_t y = 0; y < n; ++y)
+        for (uint32_t x = 0; x < n; ++x) {
+            const std::size_t i = y * n + x;
+            const int dx = static_cast<int>(x) - 4, dy = static_cast<int>(y) - 4;
+            const double expect = std::abs(dx) <= reach && std::abs(dy) <= reach
+                                      ? w[static_cast<std::size_t>(dx + reach)] *
+                                            w[static_cast<std::size_t>(dy + reach)]
+                                      : 0.0;
+            EXPECT_NEAR(v[3 * i], expect, 1e-7) << x << ", " << y;
+            // Renormalised where neighbours are missing: the corners stay 2.
+            EXPECT_NEAR(v[3 * i + 1], 2.0f, 1e-6f) << x << ", " << y;
+            EXPECT_EQ(v[3 * i + 2], static_cast<float>(i));
+        }
+}
+
+TEST(SharedFilter, AWindowWithItsNeighboursGivesTheWholeFramesBits) {
+    // Noise over a 23 x 17 frame, spread whole; then the window [5, 12) x [3, 9) spread from a
+    // copy of the window grown by the reach (2) alone: the same bits. At the frame's edge too.
+    const std::vector<double> w = spread_weights(FilterKind::Gaussian, 2.2f);
+    const uint32_t fw = 23, fh = 17;
+    std::vector<float> frame(fw * fh);
+    uint32_t state = 12345;
+    for (float& x : frame) {
+        state = state * 1664525u + 1013904223u;
+        x = static_cast<float>(state >> 8) * 0x1p-24f;
+    }
+    std::vector<float> whole = frame;
+    spread_pixels(whole.data(), 1, {true}, PixelRect{0, 0, fw, fh}, PixelRect{0, 0, fw, fh}, w);
+    const uint32_t reach = static_cast<uint32_t>(w.size() / 2);
+    for (const PixelRect to :
+         {PixelRect{5, 3, 12, 9}, PixelRect{0, 0, 6, 4}, PixelRect{20, 12, 23, 17}}) {
+        const PixelRect have{to.x0 > reach ? to.x0 - reach : 0, to.y0 > reach ? to.y0 - reach : 0,
+                             std::min(fw, to.x1 + reach), std::min(fh, to.y1 + reach)};
+        std::vector<float> part;
+        for (uint32_t y = have.y0; y < have.y1; ++y)
+            for (uint32_t x = have.x0; x < have.x1; ++x) part.push_back(frame[y * fw + x]);
+        spread_pixels(part.data(), 1, {true}, have, to, w);
+        for (uint32_t y = to.y0; y < to.y1; ++y)
+            for (uint32_t x = to.x0; x < to.x1; ++x)
+                EXPECT_EQ(part[(y - have.y0) * (have.x1 - have.x0) + (x - have.x0)],
+                          whole[y * fw + x])
+                    << x << ", " << y;
+    }
+}
+
 TEST(RayDifferentials, HeadOnPlaneFootprintIsThePixel) {
     // A camera 3 m in front of a plane z = 0 whose uv is (x / 2, y / 2), looking straight at it.
     const uint32_t w = 320, h = 200;
