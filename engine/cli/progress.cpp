@@ -2,6 +2,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <memory>
 #include <string>
@@ -38,7 +39,10 @@ Progress::Progress(bool interactive, std::FILE* out)
 void Progress::update(uint64_t done, uint64_t total, uint64_t traced) {
     const auto now = std::chrono::steady_clock::now();
     const double elapsed = std::chrono::duration<double>(now - start_).count();
-    const double frac = total ? static_cast<double>(done) / static_cast<double>(total) : 1.0;
+    // (At most 1: work counted twice, as MPI bands that render rows around them for a shared
+    // filter, must not overfill the bar.)
+    const double frac =
+        total ? std::min(1.0, static_cast<double>(done) / static_cast<double>(total)) : 1.0;
     const double work = static_cast<double>(traced > 0 ? traced : done);
     const double rate = elapsed > 0.0 ? work / elapsed : 0.0;
     const double left =

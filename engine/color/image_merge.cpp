@@ -339,9 +339,13 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
                             parts.front(), text);
             weights.push_back(w);
         }
-        if (weights.size() % 2 == 0)
-            throw_error("'{}': its spangle:filter_spread holds {} weights, not an odd number",
-                        parts.front(), weights.size());
+        double sum = 0.0;
+        for (const double w : weights) sum += w;
+        if (weights.size() % 2 == 0 || !(std::fabs(sum - 1.0) < 1e-9))
+            throw_error(
+                "'{}': its spangle:filter_spread holds {} weights of sum {}, not an odd number "
+                "summing to 1",
+                parts.front(), weights.size(), sum);
         if (first->dataWindow() != first->displayWindow())
             throw_error(
                 "'{}' is a crop window of a render with filter_samples = \"shared\": its pixels "
@@ -353,8 +357,8 @@ MergeReport merge_sample_ranges(const std::vector<std::string>& parts, const std
     }
     // The first part's header without the range's attributes (copied one by one: OpenEXR 3.1's
     // Header::erase leaks the attribute it removes).
-    Imf::Header header =
-        scanline_header(*first, {"spangle:spp_range", "spangle:spp_frame", "channels"});
+    Imf::Header header = scanline_header(
+        *first, {"spangle:spp_range", "spangle:spp_frame", "spangle:filter_spread", "channels"});
     Imf::ChannelList channels;
     for (const Channel& c : chans)
         if (std::find(sum_names.begin(), sum_names.end(), c.name) == sum_names.end())

@@ -126,46 +126,70 @@ void spread_pixels(float* values, std::size_t channels, const std::vector<bool>&
         if (spread[c]) cs.push_back(c);
     if (cs.empty()) return;
     // Along x first, for the rows of `to` and `reach` rows on either side (those in `have`),
-    // the columns of `to`; then along y into `to`. Both in double, in offset order.
-    const uint32_t ry0 = static_cast<uint32_t>(
-                       std::max<int64_t>(have.y0, static_cast<int64_t>(to.y0) - reach)),
-                   ry1 = std::min<uint32_t>(have.y1, to.y1 + static_cast<uint32_t>(reach));
+    // the columns of `to`; then along y into `to`. Both in double, in offset order. In blocks of
+    // rows, so that the passes hold a few rows, not the image (each pixel's sums are the same
+    // whatever the blocks). A block's results are written once the next block's pass along x has
+    // read the rows it shares with it (at most `reach` of them, fewer than a block's).
     const std::size_t tw = to.x1 - to.x0, nc = cs.size();
-    std::vector<double> rows(static_cast<std::size_t>(ry1 - ry0) * tw * nc);
     const auto at = [&](uint32_t x, uint32_t y) {
         return values + ((y - have.y0) * hw + (x - have.x0)) * channels;
     };
-    for (uint32_t y = ry0; y < ry1; ++y)
-        for (uint32_t x = to.x0; x < to.x1; ++x) {
-            double* out = &rows[((y - ry0) * tw + (x - to.x0)) * nc];
-            double wsum = 0.0;
-            for (int o = -reach; o <= reach; ++o) {
-                const int64_t xx = static_cast<int64_t>(x) + o;
-                if (xx < have.x0 || xx >= have.x1) continue;
-                const double w = weights[static_cast<std::size_t>(o + reach)];
-                const float* v = at(static_cast<uint32_t>(xx), y);
-                for (std::size_t k = 0; k < nc; ++k) out[k] += w * static_cast<double>(v[cs[k]]);
-                wsum += w;
+    constexpr uint32_t kBlockRows = 32;
+    std::vector<double> rows, acc(nc);
+    std::vector<float> pending;
+    uint32_t pending_y0 = 0, pending_y1 = 0;
+    const auto flush = [&] {
+        for (uint32_t y = pending_y0; y < pending_y1; ++y)
+            for (uint32_t x = to.x0; x < to.x1; ++x) {
+                float* v = at(x, y);
+                const float* r = &pending[((y - pending_y0) * tw + (x - to.x0)) * nc];
+                for (std::size_t k = 0; k < nc; ++k) v[cs[k]] = r[k];
             }
-            for (std::size_t k = 0; k < nc; ++k) out[k] /= wsum;
-        }
-    std::vector<double> acc(nc);
-    for (uint32_t y = to.y0; y < to.y1; ++y)
-        for (uint32_t x = to.x0; x < to.x1; ++x) {
-            float* v = at(x, y);
-            double wsum = 0.0;
-            std::fill(acc.begin(), acc.end(), 0.0);
-            for (int o = -reach; o <= reach; ++o) {
-                const int64_t yy = static_cast<int64_t>(y) + o;
-                if (yy < ry0 || yy >= ry1) continue;
-                const double w = weights[static_cast<std::size_t>(o + reach)];
-                const double* r =
-                    &rows[((static_cast<uint32_t>(yy) - ry0) * tw + (x - to.x0)) * nc];
-                for (std::size_t k = 0; k < nc; ++k) acc[k] += w * r[k];
-                wsum += w;
+        pending_y0 = pending_y1 = 0;
+    };
+    for (uint32_t by0 = to.y0; by0 < to.y1; by0 += kBlockRows) {
+        const uint32_t by1 = std::min(to.y1, by0 + kBlockRows);
+        const auto ry0 = static_cast<uint32_t>(
+                       std::max<int64_t>(have.y0, static_cast<int64_t>(by0) - reach)),
+                   ry1 = std::min<uint32_t>(have.y1, by1 + static_cast<uint32_t>(reach));
+        rows.assign(static_cast<std::size_t>(ry1 - ry0) * tw * nc, 0.0);
+        for (uint32_t y = ry0; y < ry1; ++y)
+            for (uint32_t x = to.x0; x < to.x1; ++x) {
+                double* out = &rows[((y - ry0) * tw + (x - to.x0)) * nc];
+                double wsum = 0.0;
+                for (int o = -reach; o <= reach; ++o) {
+                    const int64_t xx = static_cast<int64_t>(x) + o;
+                    if (xx < have.x0 || xx >= have.x1) continue;
+                    const double w = weights[static_cast<std::size_t>(o + reach)];
+                    const float* v = at(static_cast<uint32_t>(xx), y);
+                    for (std::size_t k = 0; k < nc; ++k)
+                        out[k] += w * static_cast<double>(v[cs[k]]);
+                    wsum += w;
+                }
+                for (std::size_t k = 0; k < nc; ++k) out[k] /= wsum;
             }
-            for (std::size_t k = 0; k < nc; ++k) v[cs[k]] = static_cast<float>(acc[k] / wsum);
-        }
+        flush();
+        pending.assign(static_cast<std::size_t>(by1 - by0) * tw * nc, 0.0f);
+        pending_y0 = by0;
+        pending_y1 = by1;
+        for (uint32_t y = by0; y < by1; ++y)
+            for (uint32_t x = to.x0; x < to.x1; ++x) {
+                float* v = &pending[((y - by0) * tw + (x - to.x0)) * nc];
+                double wsum = 0.0;
+                std::fill(acc.begin(), acc.end(), 0.0);
+                for (int o = -reach; o <= reach; ++o) {
+                    const int64_t yy = static_cast<int64_t>(y) + o;
+                    if (yy < have.y0 || yy >= have.y1) continue;
+                    const double w = weights[static_cast<std::size_t>(o + reach)];
+                    const double* r =
+                        &rows[((static_cast<uint32_t>(yy) - ry0) * tw + (x - to.x0)) * nc];
+                    for (std::size_t k = 0; k < nc; ++k) acc[k] += w * r[k];
+                    wsum += w;
+                }
+                for (std::size_t k = 0; k < nc; ++k) v[k] = static_cast<float>(acc[k] / wsum);
+            }
+    }
+    flush();
 }
 
 }  // namespace spangle

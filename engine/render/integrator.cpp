@@ -522,10 +522,12 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     const auto t0 = std::chrono::steady_clock::now();
     const CameraModel cam = CameraModel::of(camera, film.width, film.height);
     // filter_samples = "shared": every sample lands in its own pixel (a box), and the filter
-    // spreads the pixels' means afterwards.
-    const bool shared = film.filter_shared != 0;
-    const FilterSampler filter(shared ? FilterKind::Box : film.filter,
-                               shared ? 0.5f : film.filter_radius);
+    // spreads the pixels' means afterwards. (A filter no wider than a pixel spreads nothing: its
+    // own samples, as asked.)
+    Spread spread;
+    if (film.filter_shared != 0) spread.weights = spread_weights(film.filter, film.filter_radius);
+    const FilterSampler filter(spread.on() ? FilterKind::Box : film.filter,
+                               spread.on() ? 0.5f : film.filter_radius);
     RenderJob job;
     job.filter = &filter;
     const AdaptivePlan plan = adaptive_plan(film, options);
@@ -539,8 +541,6 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     // The crop window (the whole image without one); adaptive sampling renders the whole tiles
     // it meets, since a pixel's decision reads its neighbours in its tile.
     const CropWindow asked = crop_within(options.crop, film.width, film.height);
-    Spread spread;
-    if (shared) spread.weights = spread_weights(film.filter, film.filter_radius);
     // A shared filter reads the pixels within its reach: they are rendered too.
     const auto reach = static_cast<uint32_t>(spread.weights.size() / 2);
     const CropWindow grown{
@@ -594,7 +594,8 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     if (job.layers)
         finish_layers(out.layers, job.layer_film.layout, job.layer_plan, samples, counts);
     spread.apply(out.image, 3, std::vector<bool>(3, true));
-    if (job.layers)
+    // (Adaptive sampling's own glint layer, when not asked for, is dropped below: not spread.)
+    if (job.layers && options.layers)
         spread.apply(out.layers, out.layer_names.size(), spread_layers(out.layer_names));
     record_stats(job, options, film, samples, first_sample, passes, out);
     out.stats.footprints = job.footprints;
@@ -615,6 +616,9 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     } else {
         std::vector<uint32_t> none;
         crop_result(win, asked, none, out);
+        // The window's samples: MPI bands that rendered the rows around them must add up to the
+        // frame's (their progress and counters), not count those rows twice.
+        out.stats.samples = static_cast<uint64_t>(out.width) * out.height * samples;
     }
     out.stats.seconds = seconds_since(t0);
 }

@@ -49,7 +49,8 @@ same "$T/awhole_cut.exr" "$T/acrop.exr" "an adaptive crop differs from the whole
 oiiotool --info -v "$T/p1.exr" | grep -q "spangle:filter_spread" || fail "the part does not say its spread"
 "$S" merge "$T/p1.exr" "$T/p2.exr" -o "$T/merged.exr" > "$T/out.txt" 2> "$T/err.txt" || fail "merge"
 same "$T/beauty.exr" "$T/merged.exr" "the merged sample ranges differ from the whole render"
-# A part of another filter is not a part of this render.
+# A part of another filter is not a part of this render (refused: its scene differs, which the
+# header's scene hash says first; the weights' own check stands behind it).
 scene bh15 blackman-harris 1.5 shared
 "$S" render "$T/bh15.toml" -o "$T/q2.exr" --float --no-preview -q --spp-range 3..8 2> "$T/err.txt" || fail "part of another filter"
 "$S" merge "$T/p1.exr" "$T/q2.exr" -o "$T/bad.exr" > "$T/out.txt" 2> "$T/err.txt" && fail "parts of two filters merged"

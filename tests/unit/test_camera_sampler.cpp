@@ -251,10 +251,11 @@ TEST(SharedFilter, SpreadsAnImpulseAsTheKernelAndKeepsAConstantAtTheEdges) {
 }
 
 TEST(SharedFilter, AWindowWithItsNeighboursGivesTheWholeFramesBits) {
-    // Noise over a 23 x 17 frame, spread whole; then the window [5, 12) x [3, 9) spread from a
-    // copy of the window grown by the reach (2) alone: the same bits. At the frame's edge too.
+    // Noise over a 23 x 81 frame (rows spread in blocks of 32), spread whole; then windows spread
+    // from a copy of each grown by the reach (2) alone: the same bits, at the frame's edges and
+    // across blocks too. And the whole frame against the two passes written out plainly.
     const std::vector<double> w = spread_weights(FilterKind::Gaussian, 2.2f);
-    const uint32_t fw = 23, fh = 17;
+    const uint32_t fw = 23, fh = 81;
     std::vector<float> frame(fw * fh);
     uint32_t state = 12345;
     for (float& x : frame) {
@@ -264,8 +265,28 @@ TEST(SharedFilter, AWindowWithItsNeighboursGivesTheWholeFramesBits) {
     std::vector<float> whole = frame;
     spread_pixels(whole.data(), 1, {true}, PixelRect{0, 0, fw, fh}, PixelRect{0, 0, fw, fh}, w);
     const uint32_t reach = static_cast<uint32_t>(w.size() / 2);
-    for (const PixelRect to :
-         {PixelRect{5, 3, 12, 9}, PixelRect{0, 0, 6, 4}, PixelRect{20, 12, 23, 17}}) {
+    const int r = static_cast<int>(w.size() / 2);
+    for (uint32_t y = 0; y < fh; ++y)
+        for (uint32_t x = 0; x < fw; ++x) {
+            double acc = 0.0, wy = 0.0;
+            for (int oy = -r; oy <= r; ++oy) {
+                const int yy = static_cast<int>(y) + oy;
+                if (yy < 0 || yy >= static_cast<int>(fh)) continue;
+                double h = 0.0, wx = 0.0;
+                for (int ox = -r; ox <= r; ++ox) {
+                    const int xx = static_cast<int>(x) + ox;
+                    if (xx < 0 || xx >= static_cast<int>(fw)) continue;
+                    h += w[static_cast<std::size_t>(ox + r)] *
+                         static_cast<double>(frame[static_cast<std::size_t>(yy) * fw + xx]);
+                    wx += w[static_cast<std::size_t>(ox + r)];
+                }
+                acc += w[static_cast<std::size_t>(oy + r)] * (h / wx);
+                wy += w[static_cast<std::size_t>(oy + r)];
+            }
+            EXPECT_EQ(whole[y * fw + x], static_cast<float>(acc / wy)) << x << ", " << y;
+        }
+    for (const PixelRect to : {PixelRect{5, 3, 12, 9}, PixelRect{0, 0, 6, 4},
+                               PixelRect{20, 62, 23, 81}, PixelRect{3, 20, 19, 70}}) {
         const PixelRect have{to.x0 > reach ? to.x0 - reach : 0, to.y0 > reach ? to.y0 - reach : 0,
                              std::min(fw, to.x1 + reach), std::min(fh, to.y1 + reach)};
         std::vector<float> part;
