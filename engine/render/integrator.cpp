@@ -382,9 +382,7 @@ uint32_t full_passes(TileRun& run, uint32_t first_sample, const Spread& spread, 
                 spread.apply(layers, out.layer_names.size(), spread_layers(out.layer_names));
             uint32_t w = out.width, h = out.height;
             ImageWindow window = out.window;
-            if (spread.on() && !job.adaptive_film &&
-                (spread.win.x0 != spread.asked.x0 || spread.win.y0 != spread.asked.y0 ||
-                 spread.win.x1 != spread.asked.x1 || spread.win.y1 != spread.asked.y1)) {
+            if (spread.on() && !job.adaptive_film && spread.win != spread.asked) {
                 shown = cropped(shown, spread.win, spread.asked, 3);
                 if (with_layers)
                     layers = cropped(layers, spread.win, spread.asked, out.layer_names.size());
@@ -411,7 +409,7 @@ CropWindow whole_tiles(const CropWindow& win, uint32_t width, uint32_t height) {
 /** Cuts a render of `from` down to the window asked for, `to` (the same when equal). */
 void crop_result(const CropWindow& from, const CropWindow& to, std::vector<uint32_t>& counts,
                  RenderResult& out) {
-    if (from.x0 == to.x0 && from.y0 == to.y0 && from.x1 == to.x1 && from.y1 == to.y1) return;
+    if (from == to) return;
     out.image = cropped(out.image, from, to, 3);
     out.sums = cropped(out.sums, from, to, 3);
     out.layers = cropped(out.layers, from, to, out.layer_names.size());
@@ -546,8 +544,7 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     const CropWindow grown{
         asked.x0 - std::min(asked.x0, reach), asked.y0 - std::min(asked.y0, reach),
         std::min(film.width, asked.x1 + reach), std::min(film.height, asked.y1 + reach)};
-    if (reach > 0 && options.spp_end > 0 &&
-        (asked.x0 != 0 || asked.y0 != 0 || asked.x1 != film.width || asked.y1 != film.height))
+    if (reach > 0 && options.spp_end > 0 && asked != CropWindow{0, 0, film.width, film.height})
         throw_error(
             "--spp-range parts of a crop window cannot be merged with filter_samples = "
             "\"shared\" (a pixel takes its neighbours' samples, from beyond the window): render "
@@ -597,6 +594,13 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
     // (Adaptive sampling's own glint layer, when not asked for, is dropped below: not spread.)
     if (job.layers && options.layers)
         spread.apply(out.layers, out.layer_names.size(), spread_layers(out.layer_names));
+    // Cut to the window before the counters are taken: they count its own samples (MPI bands
+    // that rendered the rows around them add up to the frame's, not those rows twice). Adaptive
+    // sampling cuts below, once it has counted every sample taken.
+    if (!plan.on()) {
+        std::vector<uint32_t> none;
+        crop_result(win, asked, none, out);
+    }
     record_stats(job, options, film, samples, first_sample, passes, out);
     out.stats.footprints = job.footprints;
     if (spread.on()) out.stats.filter_spread = spread.weights;
@@ -613,12 +617,6 @@ void render_image(const RenderScene& scene, const RenderOptions& options, const 
             std::accumulate(adaptive.count.begin(), adaptive.count.end(), uint64_t{0});
         crop_result(win, asked, adaptive.count, out);
         add_spp_layer(adaptive.count, options.layers, out);
-    } else {
-        std::vector<uint32_t> none;
-        crop_result(win, asked, none, out);
-        // The window's samples: MPI bands that rendered the rows around them must add up to the
-        // frame's (their progress and counters), not count those rows twice.
-        out.stats.samples = static_cast<uint64_t>(out.width) * out.height * samples;
     }
     out.stats.seconds = seconds_since(t0);
 }

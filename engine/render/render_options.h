@@ -18,6 +18,7 @@ namespace spangle {
 struct CropWindow {
     uint32_t x0 = 0, y0 = 0, x1 = 0, y1 = 0;
     bool whole() const { return x1 == 0; }
+    bool operator==(const CropWindow&) const = default;
 };
 
 /** The pixels `crop` renders of a width x height image (the whole image for whole()); throws
